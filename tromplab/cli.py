@@ -1,0 +1,151 @@
+"""Command-line interface: ``tromplab formulas | fit | rank | points | balance``."""
+
+from __future__ import annotations
+
+import argparse
+import re
+import textwrap
+import sys
+from pathlib import Path
+
+import pandas as pd
+
+from . import __version__
+from .errors import InputError
+from .formulas import registry_table, select_formulas
+from .points import read_points
+from .ranking import RANK_BY, rank_formulas, read_f_table
+from .screening import DEFAULT_ALPHA
+from .workbench import fit_experiments, print_progress, write_atomically
+
+TERMINAL_COLUMNS = ["rank", "equation", "formula", "d_cut", "shape_name", "shape", "F", "F_crit", "adequate", "eta", "ep"]
+
+
+def main(argv=None) -> int:
+    parser = _parser()
+    args = parser.parse_args(argv)
+    if not hasattr(args, "run"):
+        parser.print_help()
+        return 2
+    try:
+        return args.run(args)
+    except (InputError, KeyError, ValueError) as error:
+        message = error.args[0] if isinstance(error, KeyError) else str(error)
+        print(f"tromplab {args.command}: error: {message}", file=sys.stderr)
+        return 1
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="tromplab", description="Fit, screen and rank separation (Tromp) curves.")
+    parser.add_argument("--version", action="version", version=f"tromplab {__version__}")
+    commands = parser.add_subparsers(dest="command", metavar="COMMAND")
+
+    formulas = commands.add_parser("formulas", help="list the nine separation-curve formulas")
+    formulas.set_defaults(run=_run_formulas)
+
+    fit = commands.add_parser("fit", help="fit, screen and rank the formulas on Tromp points or lab data")
+    fit.add_argument("input", type=Path, help="Tromp points (CSV or .xlsx) or, with --lab, a lab table")
+    fit.add_argument("-o", "--outdir", type=Path, default=Path("results"), help="output folder (default: results)")
+    fit.add_argument("--alpha", type=float, default=DEFAULT_ALPHA, help="significance level of the Fisher screen")
+    fit.add_argument("--delta-max", type=float, default=None,
+                     help="largest feed particle size for the misplacement eps (default: largest size of the data)")  # fmt: skip
+    fit.add_argument("--formulas", default=None, help="comma-separated ids or equation numbers (default: all nine)")
+    fit.add_argument("--rank-by", choices=sorted(RANK_BY), default="F", help="criterion within an experiment")
+    fit.add_argument("--sheet", default=None, help="Excel sheet name (default: the first sheet)")
+    fit.add_argument("--size-unit", default="", help="unit of the sizes, for the figure labels")
+    fit.add_argument("--no-figures", action="store_true", help="do not draw figures")
+    fit.set_defaults(run=_run_fit)
+
+    rank = commands.add_parser("rank", help="rank formulas from a table of F values (Table 2 -> Table 3)")
+    rank.add_argument("table", type=Path, help="CSV with experiment, equation, F and n or F_crit [, adequate]")
+    rank.add_argument("-o", "--outdir", type=Path, default=Path("results"))
+    rank.add_argument("--alpha", type=float, default=DEFAULT_ALPHA)
+    rank.add_argument("--computed-adequacy", action="store_true",
+                      help="ignore an 'adequate' column and use F > F_crit")  # fmt: skip
+    rank.set_defaults(run=_run_rank)
+    return parser
+
+
+def _run_formulas(args) -> int:
+    table = registry_table()[["id", "equation", "formula", "shape_name", "slope_at_cut"]]
+    with pd.option_context("display.max_colwidth", 60, "display.width", 160):
+        print(table.to_string(index=False))
+    return 0
+
+
+def _run_fit(args) -> int:
+    select_formulas(args.formulas)  # fail early on an unknown id, before any work
+    experiments = read_points(args.input, sheet=args.sheet)
+    bench = fit_experiments(experiments, formulas=args.formulas, alpha=args.alpha, delta_max=args.delta_max,
+                            rank_by=args.rank_by, progress=print_progress)  # fmt: skip
+    fits, ranking = bench.fits_table(), bench.ranking_table()
+    outputs = {"fits.csv": lambda p: fits.to_csv(p, index=False), "ranking.csv": lambda p: ranking.to_csv(p, index=False)}
+    if not args.no_figures:
+        for experiment in bench.experiments:
+            outputs[f"curves_{_file_safe(experiment)}.png"] = _figure_writer(bench.fits_of(experiment), args.size_unit)
+    written = write_atomically(outputs, args.outdir)
+    print(format_fits(fits))
+    if bench.failures:
+        print("\nExperiments that could not be fitted:")
+        for experiment, reason in bench.failures.items():
+            print(f"  {experiment}: {reason}")
+    if ranking.shape[0] and len(bench.experiments) > 1:
+        print("\nRanking across experiments (points: rank sum, inadequate ranks counted twice):")
+        print(ranking.to_string(index=False))
+    print("\nWrote:")
+    for path in written.values():
+        print(f"  {path}")
+    return 0
+
+
+def _run_rank(args) -> int:
+    table = read_f_table(args.table, alpha=args.alpha, use_given_marks=not args.computed_adequacy)
+    ranking = rank_formulas(table)
+    written = write_atomically({"ranking.csv": lambda p: ranking.to_csv(p, index=False)}, args.outdir)
+    print(ranking.to_string(index=False))
+    print(f"\nWrote: {written['ranking.csv']}")
+    return 0
+
+
+def format_fits(fits: pd.DataFrame) -> str:
+    """The ranked fits, one block per experiment, readable in a 100-column terminal."""
+    blocks = []
+    for experiment, group in fits.groupby("experiment", sort=False):
+        if group["rank"].isna().all():
+            continue  # experiments that could not be fitted are listed separately
+        view = group.sort_values("rank")[TERMINAL_COLUMNS].copy()
+        view["adequate"] = view["adequate"].map({True: "yes", False: "NO"})
+        view.loc[~group["success"], "adequate"] = "failed"
+        view = view.rename(columns={"equation": "eq", "shape_name": "par", "adequate": "adequ."})
+        text = view.to_string(index=False, float_format=lambda v: f"{v:.4g}", na_rep="-")
+        n = int(group["n"].dropna().iloc[0]) if group["n"].notna().any() else 0
+        blocks.append(f"Experiment {experiment} (n = {n}):\n{text}")
+        notes = group.loc[~group["success"] | group["message"].str.contains("bound|break point", na=False), ["formula", "message"]]
+        for formula, message in notes.itertuples(index=False):
+            blocks.append(textwrap.fill(f"note {formula}: {message}", width=98, initial_indent="  ", subsequent_indent="    "))
+    return "\n".join(blocks)
+
+
+def _file_safe(name: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", str(name)).strip("_") or "experiment"
+
+
+def _figure_writer(fits, size_unit):
+    def write(path):
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        from .plotting import plot_tromp_fits
+
+        ax = plot_tromp_fits(fits, size_unit=size_unit)
+        ax.figure.tight_layout()
+        ax.figure.savefig(path, dpi=120, format="png")
+        plt.close(ax.figure)
+
+    return write
+
+
+if __name__ == "__main__":
+    sys.exit(main())

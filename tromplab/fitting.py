@@ -1,0 +1,176 @@
+"""The one fitting layer of tromplab: bounded least squares through lmfit.
+
+Every fit in the package - separation curves, sieve identification, process models -
+goes through :func:`least_squares`.  It runs lmfit's trust-region-reflective solver from
+each of several starting points, keeps the lowest sum of squares, and always returns a
+:class:`ParameterFit`, also when every start failed (``success=False`` with the reason).
+This is the only module that imports lmfit.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+
+import lmfit
+import numpy as np
+
+
+@dataclass(frozen=True)
+class ParameterSpec:
+    """A fitted parameter: its name and closed bounds."""
+
+    name: str
+    lower: float = -np.inf
+    upper: float = np.inf
+
+    def clip(self, value: float) -> float:
+        return float(np.clip(value, self.lower, self.upper))
+
+
+@dataclass(frozen=True)
+class ParameterFit:
+    """Result of one least-squares fit.
+
+    Attributes
+    ----------
+    values, stderr : dict
+        Best-fit values and their standard errors (nan where lmfit could not estimate
+        the covariance, for example at a bound).
+    ssr : float
+        Sum of squared (weighted) residuals at the optimum.
+    n_points : int
+        Number of residuals.
+    success : bool
+        False when no start converged to a finite optimum.
+    message : str
+        Solver message, or the reason of the failure.
+    at_bound : tuple of str
+        Parameters that ended on a bound (their standard errors are unreliable).
+    n_starts : int
+        How many starting points were tried.
+    raw : lmfit.minimizer.MinimizerResult or None
+        The best lmfit result, for power users (confidence intervals, reports).
+    """
+
+    names: tuple[str, ...]
+    values: dict[str, float]
+    stderr: dict[str, float]
+    ssr: float
+    n_points: int
+    success: bool
+    message: str
+    at_bound: tuple[str, ...] = ()
+    n_starts: int = 0
+    nfev: int = 0
+    covariance: np.ndarray | None = field(default=None, repr=False, compare=False)
+    residual: np.ndarray | None = field(default=None, repr=False, compare=False)
+    raw: object | None = field(default=None, repr=False, compare=False)
+
+    @property
+    def n_params(self) -> int:
+        return len(self.names)
+
+    def information_criteria(self) -> dict[str, float]:
+        """AIC, AICc and BIC from the Gaussian likelihood with the variance profiled out.
+
+        ``AIC = n ln(SSR/n) + 2k``; ``AICc = AIC + 2k(k+1)/(n-k-1)``; ``BIC = n ln(SSR/n) + k ln n``.
+        ``k`` counts the fitted parameters only, as lmfit does.
+        """
+        n, k = self.n_points, self.n_params
+        if not self.success or n <= 0 or self.ssr <= 0:
+            return {"aic": np.nan, "aicc": np.nan, "bic": np.nan}
+        core = n * np.log(self.ssr / n)
+        aic = core + 2 * k
+        aicc = aic + (2 * k * (k + 1) / (n - k - 1) if n - k - 1 > 0 else np.inf)
+        return {"aic": float(aic), "aicc": float(aicc), "bic": float(core + k * np.log(n))}
+
+    @classmethod
+    def failed(cls, specs: Sequence[ParameterSpec], n_points: int, message: str, n_starts: int = 0) -> ParameterFit:
+        names = tuple(s.name for s in specs)
+        nan = {name: np.nan for name in names}
+        return cls(names, dict(nan), dict(nan), np.nan, n_points, False, message, n_starts=n_starts)
+
+
+def least_squares(
+    residual: Callable[[Mapping[str, float]], np.ndarray],
+    specs: Sequence[ParameterSpec],
+    starts: Sequence[Mapping[str, float]],
+    *,
+    max_nfev: int = 2000,
+) -> ParameterFit:
+    """Minimise ``sum(residual(values)**2)`` within the bounds of ``specs``.
+
+    Parameters
+    ----------
+    residual : callable
+        Maps a ``{name: value}`` mapping to the residual vector.
+    specs : sequence of ParameterSpec
+        Names and bounds of the fitted parameters.
+    starts : sequence of mapping
+        Starting points; each is clipped into the bounds.  The best optimum is kept.
+    max_nfev : int
+        Function-evaluation budget per start.
+
+    Returns
+    -------
+    ParameterFit
+        Never raises for a failing fit: ``success`` is False and ``message`` says why.
+
+    Examples
+    --------
+    >>> x = np.linspace(0, 1, 5)
+    >>> fit = least_squares(lambda p: p["a"] * x + p["b"] - (2 * x + 1),
+    ...                     [ParameterSpec("a"), ParameterSpec("b")], [{"a": 0.0, "b": 0.0}])
+    >>> round(fit.values["a"], 6), round(fit.values["b"], 6), fit.success
+    (2.0, 1.0, True)
+    """
+    names = [s.name for s in specs]
+
+    def objective(params: lmfit.Parameters) -> np.ndarray:
+        return np.asarray(residual({name: params[name].value for name in names}), dtype=float)
+
+    best = None
+    failures = []
+    for start in starts:
+        params = lmfit.Parameters()
+        for spec in specs:
+            params.add(spec.name, value=spec.clip(start[spec.name]), min=spec.lower, max=spec.upper)
+        try:
+            result = lmfit.minimize(objective, params, method="least_squares", max_nfev=max_nfev)
+        except (ValueError, FloatingPointError, ArithmeticError) as error:
+            failures.append(str(error))
+            continue
+        ssr = float(np.sum(result.residual**2))
+        if not np.isfinite(ssr):
+            failures.append("non-finite sum of squares")
+            continue
+        if best is None or ssr < best[0]:
+            best = (ssr, result)
+    n_points = 0 if best is None else best[1].residual.size
+    if best is None:
+        detail = "; ".join(dict.fromkeys(failures)) or "no starting point given"
+        return ParameterFit.failed(specs, n_points, f"fit failed from every start: {detail}", len(starts))
+    ssr, result = best
+    values = {name: float(result.params[name].value) for name in names}
+    stderr = {name: _stderr(result.params[name]) for name in names}
+    at_bound = tuple(s.name for s in specs if np.isclose(values[s.name], s.lower) or np.isclose(values[s.name], s.upper))
+    return ParameterFit(
+        names=tuple(names),
+        values=values,
+        stderr=stderr,
+        ssr=ssr,
+        n_points=n_points,
+        success=bool(result.success),
+        message=str(result.message),
+        at_bound=at_bound,
+        n_starts=len(starts),
+        nfev=int(result.nfev),
+        covariance=result.covar,
+        residual=np.asarray(result.residual),
+        raw=result,
+    )
+
+
+def _stderr(param: lmfit.Parameter) -> float:
+    return float(param.stderr) if param.stderr is not None else float("nan")

@@ -1,0 +1,175 @@
+"""Efficiency indices of a separation curve.
+
+All indices are computed from a formula of :mod:`tromplab.formulas` with given ``d_cut``
+and shape, in the conventions of Shuvalov et al. (2018), section 3 of the package spec:
+
+* classifier efficiency (Ushakov), the recovery of fines:
+  :math:`\\eta = \\int_0^1 \\varphi(x)\\,dx`;
+* misplacement of coarse particles into the fines:
+  :math:`\\varepsilon = \\int_1^{x_{max}} \\varphi(x)\\,dx`, :math:`x_{max} = \\delta_{max}/d_{cut}`;
+* the mineral-processing indices on the partition *to the coarse product*: ``d25``
+  (:math:`\\varphi = 0.75`), ``d75`` (:math:`\\varphi = 0.25`), the Ecart probable
+  ``Ep = (d75 - d25)/2``, the imperfection ``Ep/d_cut`` and the sharpness ``d25/d75``.
+
+Closed forms are used where the formula declares one and checked against quadrature in
+the tests; otherwise :func:`scipy.integrate.quad` integrates the curve.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+from scipy import integrate, optimize
+
+from .formulas import Formula, get_formula
+
+
+@dataclass(frozen=True)
+class CurveIndices:
+    """Indices of one separation curve (sizes in the unit of ``d_cut``)."""
+
+    d_cut: float
+    slope: float
+    eta: float
+    epsilon: float
+    d25: float
+    d75: float
+    ep: float
+    imperfection: float
+    sharpness: float
+
+    def as_dict(self) -> dict[str, float]:
+        return asdict(self)
+
+
+def efficiency_by_quadrature(formula: Formula, shape: float, x_max: float, **context) -> tuple[float, float]:
+    """``(eta, eps)`` by adaptive quadrature (reference for the closed forms)."""
+
+    def curve(x):
+        return float(formula.phi(x, shape, **context))
+
+    # Breakpoints of the piecewise formulas keep quad accurate at their kinks.
+    eta, _ = integrate.quad(curve, 0.0, 1.0, points=[0.5], limit=200, epsabs=1e-13, epsrel=1e-12)
+    upper = max(x_max, 1.0)
+    eps = 0.0
+    if upper > 1.0:
+        eps, _ = integrate.quad(curve, 1.0, upper, limit=400, epsabs=1e-13, epsrel=1e-12)
+    return float(eta), float(eps)
+
+
+def efficiency(formula: Formula, shape: float, x_max: float, **context) -> tuple[float, float]:
+    """Classifier efficiency eta and misplacement eps of a curve.
+
+    Parameters
+    ----------
+    formula : Formula or str
+        Registry entry or its id.
+    shape : float
+        Shape parameter.
+    x_max : float
+        Largest relative size ``delta_max / d_cut``; eps is 0 when ``x_max <= 1``.
+    **context
+        Extra inputs of the formula (``measured_efficiency`` for (11)).
+
+    Examples
+    --------
+    >>> eta, eps = efficiency("plitt", 2.0, 6.0)
+    >>> round(eta, 6)  # pi / 4
+    0.785398
+    """
+    formula = get_formula(formula)
+    if formula.efficiency is not None:
+        eta, eps = formula.efficiency(shape, x_max, **context)
+        return float(eta), float(eps)
+    return efficiency_by_quadrature(formula, shape, x_max, **context)
+
+
+def _relative_size_at(formula: Formula, shape: float, level: float, context: dict) -> float:
+    """Relative size where the curve crosses ``level`` (nan when it never does).
+
+    Levels above 1/2 are searched below the cut, levels below 1/2 above it, which picks
+    the crossing next to the cut for curves that rise again at large sizes.
+    """
+
+    def gap(x):
+        return float(formula.phi(x, shape, **context)) - level
+
+    if level > 0.5:
+        inner, outer = 1.0, 0.5
+        while gap(outer) < 0.0:
+            outer *= 0.5
+            if outer < 1e-12:
+                return float("nan")
+    else:
+        inner, outer = 1.0, 2.0
+        while gap(outer) > 0.0:
+            outer *= 2.0
+            if outer > 1e12:
+                return float("nan")
+    return optimize.brentq(gap, min(inner, outer), max(inner, outer), xtol=1e-13, rtol=1e-13)
+
+
+def curve_indices(formula, d_cut: float, shape: float, *, delta_max: float, **context) -> CurveIndices:
+    """All indices of one fitted curve.
+
+    Parameters
+    ----------
+    formula : Formula or str
+        Registry entry or its id.
+    d_cut, shape : float
+        Curve parameters (``d_cut`` in the size unit of the data).
+    delta_max : float
+        Largest particle size in the feed, same unit as ``d_cut``.
+    **context
+        Extra inputs of the formula (``measured_efficiency`` for (11)).
+
+    Examples
+    --------
+    >>> ind = curve_indices("plitt", 100.0, 2.0, delta_max=600.0)
+    >>> round(ind.d25, 3), round(ind.d75, 3), round(ind.ep, 3)
+    (57.735, 173.205, 57.735)
+    """
+    formula = get_formula(formula)
+    eta, eps = efficiency(formula, shape, delta_max / d_cut, **context)
+    d25 = d_cut * _relative_size_at(formula, shape, 0.75, context)
+    d75 = d_cut * _relative_size_at(formula, shape, 0.25, context)
+    ep = (d75 - d25) / 2.0
+    return CurveIndices(
+        d_cut=float(d_cut),
+        slope=float(formula.slope_at_cut(shape)),
+        eta=eta,
+        epsilon=eps,
+        d25=float(d25),
+        d75=float(d75),
+        ep=float(ep),
+        imperfection=float(ep / d_cut),
+        sharpness=float(d25 / d75),
+    )
+
+
+# --- historical approximations (20)-(23) of Shuvalov et al. (2018) ----------------------
+def eta_plitt_printed(ks):
+    """Printed approximation (20): ``eta = 0.6 ks^0.1``.
+
+    Not reproducible: it lies 13-18 % below the exact Plitt efficiency on ks = 1..3 (the
+    best power law there is about ``0.696 ks^0.170``).  Kept for comparison only; see
+    ``docs/errata.md``.
+    """
+    return 0.6 * np.power(ks, 0.1)
+
+
+def eta_lognormal_printed(kf):
+    """Printed approximation (21): ``eta = 0.807 / kf^0.175`` (within 0.006 on kf 0.75..2.25)."""
+    return 0.807 / np.power(kf, 0.175)
+
+
+def eps_plitt_printed(ks):
+    """Printed approximation (22): ``eps = 1.185 / ks^1.47``; not reproducible (``docs/errata.md``)."""
+    return 1.185 / np.power(ks, 1.47)
+
+
+def eps_lognormal_printed(kf):
+    """Printed approximation (23): ``eps = -0.0835 kf^2 + 0.876 kf - 0.305`` (X = 6; within 0.025)."""
+    kf = np.asarray(kf, dtype=float)
+    return -0.0835 * kf**2 + 0.876 * kf - 0.305

@@ -1,0 +1,172 @@
+"""Tromp points: measured partition to fines per size, one set per experiment.
+
+File schema (CSV or Excel), one row per size class:
+
+``experiment``
+    optional; rows without the column form one experiment named after the file.
+``size``
+    representative particle size, > 0, any unit shared by the file.
+exactly one partition column
+    ``partition_fine`` (0..1), ``partition_fine_pct`` (0..100), ``partition_coarse``
+    (0..1) or ``partition_coarse_pct`` (0..100).
+``weight``
+    optional; relative weight of the point in the least-squares fit (> 0).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from .errors import InputError
+from .tables import Table, read_table
+
+PARTITION_COLUMNS = {
+    # column: (scale to a fraction, True if it is the partition to fines)
+    "partition_fine": (1.0, True),
+    "partition_fine_pct": (100.0, True),
+    "partition_coarse": (1.0, False),
+    "partition_coarse_pct": (100.0, False),
+}
+
+
+@dataclass(frozen=True)
+class TrompPoints:
+    """Measured separation curve of one experiment.
+
+    Attributes
+    ----------
+    experiment : str
+        Name of the experiment.
+    size : ndarray
+        Representative sizes, strictly increasing, > 0.
+    partition_fine : ndarray
+        Partition numbers to the fine product, 0..1.
+    weight : ndarray or None
+        Optional least-squares weights.
+    delta_max : float or None
+        Largest particle size in the feed when known (for the misplacement index);
+        otherwise the largest size is used.
+    source : str
+        Where the points came from.
+    """
+
+    experiment: str
+    size: np.ndarray
+    partition_fine: np.ndarray
+    weight: np.ndarray | None = None
+    delta_max: float | None = None
+    source: str = ""
+    meta: dict = field(default_factory=dict, compare=False)
+
+    def __post_init__(self):
+        size = np.asarray(self.size, dtype=float)
+        phi = np.asarray(self.partition_fine, dtype=float)
+        if size.shape != phi.shape or size.ndim != 1:
+            raise ValueError("size and partition_fine must be 1-d arrays of the same length")
+        order = np.argsort(size, kind="stable")
+        object.__setattr__(self, "size", size[order])
+        object.__setattr__(self, "partition_fine", phi[order])
+        if self.weight is not None:
+            object.__setattr__(self, "weight", np.asarray(self.weight, dtype=float)[order])
+
+    @property
+    def n(self) -> int:
+        return int(self.size.size)
+
+    @property
+    def largest_size(self) -> float:
+        return float(self.delta_max) if self.delta_max is not None else float(self.size.max())
+
+    def to_frame(self) -> pd.DataFrame:
+        frame = pd.DataFrame({"experiment": self.experiment, "size": self.size, "partition_fine": self.partition_fine})
+        if self.weight is not None:
+            frame["weight"] = self.weight
+        return frame
+
+
+def read_points(path, *, sheet=None) -> list[TrompPoints]:
+    """Read and validate a Tromp-points file (schema in the module docstring).
+
+    Raises
+    ------
+    InputError
+        Naming file, row and column: missing or duplicated partition columns, text or
+        blanks in numeric columns, partitions out of range, non-positive or duplicate
+        sizes within an experiment.
+    """
+    table = read_table(path, sheet=sheet)
+    return points_from_table(table)
+
+
+def points_from_table(table: Table) -> list[TrompPoints]:
+    table.require("size")
+    given = [c for c in PARTITION_COLUMNS if c in table.frame.columns]
+    if not given:
+        raise InputError(f"no partition column: give exactly one of {', '.join(PARTITION_COLUMNS)}", source=table.source)
+    if len(given) > 1:
+        raise InputError(
+            f"several partition columns ({', '.join(given)}): give exactly one", source=table.source, column=given[1]
+        )
+    column = given[0]
+    scale, to_fines = PARTITION_COLUMNS[column]
+    size = table.numeric("size")
+    partition = table.numeric(column)
+    upper = scale
+    bad = np.flatnonzero((partition < 0) | (partition > upper))
+    if bad.size:
+        i = int(bad[0])
+        raise table.error(f"partition {partition[i]:g} outside 0..{upper:g}", index=i, column=column)
+    bad = np.flatnonzero(size <= 0)
+    if bad.size:
+        raise table.error(f"size must be positive, got {size[bad[0]]:g}", index=int(bad[0]), column="size")
+    weight = None
+    if "weight" in table.frame.columns:
+        weight = table.numeric("weight")
+        bad = np.flatnonzero(weight <= 0)
+        if bad.size:
+            raise table.error("weight must be positive", index=int(bad[0]), column="weight")
+    phi = partition / scale
+    if not to_fines:
+        phi = 1.0 - phi
+    experiments = _experiment_labels(table)
+    result = []
+    for name in dict.fromkeys(experiments):
+        rows = np.flatnonzero(experiments == name)
+        _check_unique_sizes(table, rows, size)
+        result.append(
+            TrompPoints(
+                experiment=name,
+                size=size[rows],
+                partition_fine=phi[rows],
+                weight=None if weight is None else weight[rows],
+                source=table.source,
+            )
+        )
+    return result
+
+
+def _experiment_labels(table: Table) -> np.ndarray:
+    if "experiment" not in table.frame.columns:
+        from pathlib import Path
+
+        return np.full(len(table.frame), Path(table.source).stem, dtype=object)
+    labels = table.frame["experiment"]
+    blank = labels.isna().to_numpy()
+    if blank.any():
+        raise table.error("experiment name is blank", index=int(np.flatnonzero(blank)[0]), column="experiment")
+    return labels.astype(str).str.strip().to_numpy(dtype=object)
+
+
+def _check_unique_sizes(table: Table, rows: np.ndarray, size: np.ndarray) -> None:
+    seen = {}
+    for i in rows:
+        if size[i] in seen:
+            raise table.error(
+                f"duplicate size {size[i]:g} in the same experiment (also at row {table.rows[seen[size[i]]]})",
+                index=int(i),
+                column="size",
+            )
+        seen[size[i]] = i

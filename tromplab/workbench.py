@@ -1,0 +1,149 @@
+"""Batch fitting: every formula to every experiment, screened and ranked.
+
+A failing formula gives a failed :class:`~tromplab.curves.CurveFit`; a failing
+experiment (too few points, say) is recorded in ``failures`` and skipped by the
+ranking.  Neither stops the batch.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import tempfile
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from .curves import CurveFit, fit_formula
+from .fitting import ParameterFit, ParameterSpec
+from .formulas import Formula, select_formulas
+from .points import TrompPoints
+from .ranking import add_ranks, rank_formulas
+from .screening import DEFAULT_ALPHA
+
+#: Columns of ``fits.csv``, in order.
+FIT_COLUMNS = (
+    "experiment", "equation", "formula", "n", "d_cut", "d_cut_stderr", "shape_name", "shape", "shape_stderr",
+    "ssr", "F", "F_crit", "adequate", "rank", "eta", "epsilon", "slope", "d25", "d75", "ep", "imperfection",
+    "aicc", "x_break", "success", "message",
+)  # fmt: skip
+
+
+@dataclass(frozen=True)
+class Workbench:
+    """All fits of a batch with their tables."""
+
+    fits: tuple[CurveFit, ...]
+    failures: dict[str, str] = field(default_factory=dict)
+    formulas: tuple[Formula, ...] = ()
+    rank_by: str = "F"
+    alpha: float = DEFAULT_ALPHA
+
+    def fits_table(self) -> pd.DataFrame:
+        """One row per experiment and formula (columns :data:`FIT_COLUMNS`)."""
+        rows = [fit.row() for fit in self.fits]
+        for experiment, reason in self.failures.items():
+            for formula in self.formulas:
+                rows.append({"experiment": experiment, "equation": formula.equation, "formula": formula.id,
+                             "shape_name": formula.shape_name, "adequate": False, "success": False,
+                             "message": reason})  # fmt: skip
+        table = pd.DataFrame(rows).reindex(columns=[c for c in FIT_COLUMNS if c != "rank"])
+        table["adequate"] = table["adequate"].astype(bool)
+        table["success"] = table["success"].astype(bool)
+        ranked = add_ranks(table, by=self.rank_by)
+        ranked.loc[ranked["experiment"].isin(list(self.failures)), "rank"] = np.nan
+        return ranked.reindex(columns=list(FIT_COLUMNS))
+
+    def ranking_table(self) -> pd.DataFrame:
+        """Ranks per experiment, points and place per formula (failed experiments left out)."""
+        table = self.fits_table()
+        table = table[~table["experiment"].isin(list(self.failures))]
+        if table.empty:
+            return pd.DataFrame(columns=["equation", "formula", "points", "place"])
+        ranking = rank_formulas(table, by=self.rank_by, key="formula")
+        equation = {f.id: f.equation for f in self.formulas}
+        ranking.insert(0, "equation", ranking["formula"].map(equation))
+        return ranking.sort_values(["place", "equation"]).reset_index(drop=True)
+
+    def fits_of(self, experiment: str) -> list[CurveFit]:
+        return [fit for fit in self.fits if fit.experiment == experiment]
+
+    @property
+    def experiments(self) -> list[str]:
+        return list(dict.fromkeys(fit.experiment for fit in self.fits))
+
+
+def fit_experiments(
+    experiments: Sequence[TrompPoints],
+    *,
+    formulas=None,
+    alpha: float = DEFAULT_ALPHA,
+    delta_max: float | None = None,
+    rank_by: str = "F",
+    progress: Callable[[int, int, str], None] | None = None,
+) -> Workbench:
+    """Fit, screen and rank ``formulas`` (default: all nine) on each experiment.
+
+    Parameters
+    ----------
+    experiments : sequence of TrompPoints
+    formulas : iterable of ids or equation numbers, optional
+    alpha : float
+        Significance level of the Fisher screen.
+    delta_max : float, optional
+        Largest feed size for the misplacement index; default per experiment, its
+        ``delta_max`` if known, else its largest size.
+    rank_by : {"F", "aicc"}
+    progress : callable, optional
+        Called as ``progress(i, total, experiment)`` before each experiment.
+    """
+    chosen = select_formulas(formulas)
+    fits, failures = [], {}
+    for i, points in enumerate(experiments):
+        if progress is not None:
+            progress(i + 1, len(experiments), points.experiment)
+        if points.n <= 2:
+            failures[points.experiment] = (
+                f"experiment '{points.experiment}' has {points.n} points; the Fisher screen needs at least 3"
+            )
+            continue
+        for formula in chosen:
+            fits.append(_fit_guarded(points, formula, alpha, delta_max))
+    return Workbench(tuple(fits), failures, chosen, rank_by, alpha)
+
+
+def _fit_guarded(points, formula, alpha, delta_max) -> CurveFit:
+    try:
+        return fit_formula(points, formula, alpha=alpha, delta_max=delta_max)
+    except Exception as error:  # a batch reports a broken fit instead of stopping
+        specs = [ParameterSpec("d_cut"), ParameterSpec(formula.shape_name)]
+        failed = ParameterFit.failed(specs, points.n, f"{type(error).__name__}: {error}")
+        return CurveFit(formula=formula, points=points, fit=failed)
+
+
+def print_progress(i: int, total: int, experiment: str) -> None:
+    """Progress line on standard error (for batches of more than one experiment)."""
+    if total > 1:
+        print(f"[{i}/{total}] fitting experiment {experiment}", file=sys.stderr, flush=True)
+
+
+def write_atomically(outputs: dict[str, Callable[[Path], None]], outdir) -> dict[str, Path]:
+    """Write every output to a temporary file first, then move them all into ``outdir``.
+
+    ``outputs`` maps file names to writers taking a path.  If any writer fails, nothing
+    is left in ``outdir``.
+    """
+    outdir = Path(outdir)
+    outdir.mkdir(parents=True, exist_ok=True)
+    written = {}
+    with tempfile.TemporaryDirectory(dir=outdir, prefix=".tromplab-") as staging:
+        for name, writer in outputs.items():
+            writer(Path(staging) / name)
+        for name in outputs:
+            target = outdir / name
+            os.replace(Path(staging) / name, target)
+            written[name] = target
+    return written
