@@ -106,7 +106,7 @@ def _read_excel(path: Path, sheet):
         sheet = workbook.sheet_names[0]
     elif isinstance(sheet, str) and sheet not in workbook.sheet_names:
         raise InputError(f"no sheet named '{sheet}' (sheets: {', '.join(workbook.sheet_names)})", source=str(path))
-    frame = workbook.parse(sheet)
+    frame = pd.read_excel(workbook, sheet_name=sheet)
     keep = ~frame.isna().all(axis=1).to_numpy()
     rows = (np.arange(len(frame)) + 2)[keep]
     return frame.loc[keep], rows

@@ -1,0 +1,36 @@
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from tromplab.formulas import FORMULAS
+
+ROOT = Path(__file__).resolve().parent.parent
+REFERENCE = Path(__file__).resolve().parent / "reference"
+DATASETS = ROOT / "datasets"
+
+
+def reference(name: str) -> pd.DataFrame:
+    """A reference table of tests/reference (comment lines give its provenance)."""
+    return pd.read_csv(REFERENCE / name, comment="#")
+
+
+def dataset(name: str) -> pd.DataFrame:
+    return pd.read_csv(DATASETS / name, comment="#")
+
+
+def shapes_across_bounds(formula, count=7):
+    """Shapes spread over the admissible range (bounds included) of a formula."""
+    low, high = formula.shape_bounds
+    slopes = -np.geomspace(0.3, 8.0, count - 2)
+    inner = [formula.clip_shape(formula.shape_for_slope(s)) for s in slopes]
+    return sorted({low, high, *inner})
+
+
+formula_ids = pytest.mark.parametrize("formula", FORMULAS, ids=[f.id for f in FORMULAS])
+
+
+def reference_rows(name: str) -> list:
+    """Rows of a reference table as named tuples, for ``pytest.mark.parametrize``."""
+    return list(reference(name).itertuples(index=False))

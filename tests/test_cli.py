@@ -1,0 +1,98 @@
+"""The command line: outputs of fit and rank, and bad input that stops with a clear message."""
+
+import pandas as pd
+import pytest
+
+from tromplab.cli import main
+from tromplab.workbench import FIT_COLUMNS
+
+from .conftest import DATASETS
+
+GOOD = "experiment,size,partition_fine\n" + "\n".join(
+    f"{e},{s},{p}" for e in ("A", "B") for s, p in zip((10, 20, 40, 80, 160, 320), (0.97, 0.9, 0.7, 0.35, 0.1, 0.02))
+)
+
+
+def write(tmp_path, text, name="points.csv"):
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def test_fit_writes_tables_and_figures(tmp_path, capsys):
+    out = tmp_path / "out"
+    assert main(["fit", str(write(tmp_path, GOOD)), "-o", str(out)]) == 0
+    fits = pd.read_csv(out / "fits.csv")
+    assert tuple(fits.columns) == FIT_COLUMNS
+    assert len(fits) == 18 and fits["success"].all()
+    ranking = pd.read_csv(out / "ranking.csv")
+    assert list(ranking.columns) == ["equation", "formula", "A", "B", "points", "place"]
+    assert (out / "curves_A.png").stat().st_size > 10_000
+    printed = capsys.readouterr().out
+    assert "Experiment A (n = 6)" in printed and str(out / "fits.csv") in printed
+    assert max(len(line) for line in printed.splitlines() if not line.startswith("  /")) <= 100
+
+
+def test_fit_accepts_percent_coarse_partitions_and_a_formula_subset(tmp_path):
+    text = "size,partition_coarse_pct\n10,3\n20,10\n40,30\n80,65\n160,90\n"
+    out = tmp_path / "out"
+    assert main(["fit", str(write(tmp_path, text)), "-o", str(out), "--formulas", "plitt,9", "--no-figures"]) == 0
+    fits = pd.read_csv(out / "fits.csv")
+    assert list(fits["formula"]) == ["plitt", "lognormal"]
+    assert set(fits["experiment"]) == {"points"}
+
+
+def test_fit_reads_excel(tmp_path):
+    frame = pd.read_csv(write(tmp_path, GOOD))
+    path = tmp_path / "points.xlsx"
+    frame.to_excel(path, sheet_name="lab", index=False)
+    assert main(["fit", str(path), "--sheet", "lab", "-o", str(tmp_path / "o"), "--no-figures"]) == 0
+    assert main(["fit", str(path), "--sheet", "nope", "-o", str(tmp_path / "o2")]) == 1
+
+
+BAD_INPUTS = [
+    ("size,other\n1,2\n2,3\n3,4\n", "no partition column"),
+    ("partition_fine\n0.5\n0.4\n0.3\n", "missing column(s) size"),
+    ("size,partition_fine,partition_coarse\n1,0.9,0.1\n2,0.5,0.5\n3,0.1,0.9\n", "several partition columns"),
+    ("size,partition_fine\n1,0.9\n2,1.5\n3,0.1\n", "row 3, column 'partition_fine': partition 1.5 outside 0..1"),
+    ("size,partition_fine_pct\n1,90\n2,-5\n3,10\n", "row 3, column 'partition_fine_pct': partition -5 outside 0..100"),
+    ("size,partition_fine\n1,0.9\n0,0.5\n3,0.1\n", "row 3, column 'size': size must be positive"),
+    ("size,partition_fine\n1,0.9\n3,0.5\n3,0.1\n", "row 4, column 'size': duplicate size 3"),
+    ("size,partition_fine\n1,0.9\n2,\n3,0.1\n", "row 3, column 'partition_fine': value is missing"),
+    ("size,partition_fine\n1,0.9\n2,NaN\n3,0.1\n", "row 3, column 'partition_fine': value is missing"),
+    ("size,partition_fine\n1,0.9\n2,abc\n3,0.1\n", "row 3, column 'partition_fine': 'abc' is not a number"),
+    ("# comment line\nsize,partition_fine\n1,0.9\n2,0.5\n-3,0.1\n", "row 5, column 'size'"),
+    ("", "the file is empty"),
+    ("size,partition_fine\n", "no data rows"),
+]
+
+
+@pytest.mark.parametrize("text, expected", BAD_INPUTS, ids=[e for _, e in BAD_INPUTS])
+def test_bad_input_stops_with_file_row_column_and_writes_nothing(tmp_path, capsys, text, expected):
+    path = write(tmp_path, text)
+    out = tmp_path / "out"
+    assert main(["fit", str(path), "-o", str(out)]) == 1
+    error = capsys.readouterr().err
+    assert expected in error and str(path) in error
+    assert not out.exists() or not any(out.iterdir())
+
+
+def test_unknown_formula_is_named(tmp_path, capsys):
+    assert main(["fit", str(write(tmp_path, GOOD)), "--formulas", "plitt,banana", "-o", str(tmp_path / "o")]) == 1
+    assert "unknown formula 'banana'" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
+
+
+def test_rank_reproduces_table_3_places(tmp_path, capsys):
+    out = tmp_path / "r"
+    assert main(["rank", str(DATASETS / "shuvalov2018_table2_F.csv"), "-o", str(out)]) == 0
+    ranking = pd.read_csv(out / "ranking.csv")
+    assert list(ranking["place"]) == [9, 8, 3, 5, 1, 4, 2, 7, 6]
+    assert main(["rank", str(DATASETS / "shuvalov2018_table2_F.csv"), "-o", str(out), "--computed-adequacy"]) == 0
+    assert list(pd.read_csv(out / "ranking.csv")["points"])[:4] == [114, 80, 48, 55]
+
+
+def test_formulas_lists_the_registry(capsys):
+    assert main(["formulas"]) == 0
+    printed = capsys.readouterr().out
+    assert all(name in printed for name in ("molerus_hoffmann", "-ks/4", "1/2 erfc(ln x / kf)"))
