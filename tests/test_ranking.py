@@ -86,5 +86,5 @@ def test_f_table_with_n_computes_the_critical_value(tmp_path):
 def test_f_table_rejects_a_bad_mark(tmp_path):
     path = tmp_path / "f.csv"
     path.write_text("experiment,equation,F,n,adequate\n1,3,9.0,5,maybe\n")
-    with pytest.raises(InputError, match=r"row 2, column 'adequate'.*maybe"):
+    with pytest.raises(InputError, match=r"row 2, column 'adequate': 'maybe' is not a yes/no mark"):
         read_f_table(path)

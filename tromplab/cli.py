@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import re
 import textwrap
+import warnings
 import sys
 from pathlib import Path
 
@@ -13,7 +14,7 @@ import pandas as pd
 from . import __version__
 from .errors import InputError
 from .formulas import registry_table, select_formulas
-from .points import read_points
+from .lab import KINDS, LabOptions, YieldWarning, read_experiments, read_lab
 from .ranking import RANK_BY, rank_formulas, read_f_table
 from .screening import DEFAULT_ALPHA
 from .workbench import fit_experiments, print_progress, write_atomically
@@ -28,7 +29,9 @@ def main(argv=None) -> int:
         parser.print_help()
         return 2
     try:
-        return args.run(args)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", YieldWarning)  # printed from the balance notes instead
+            return args.run(args)
     except (InputError, KeyError, ValueError) as error:
         message = error.args[0] if isinstance(error, KeyError) else str(error)
         print(f"tromplab {args.command}: error: {message}", file=sys.stderr)
@@ -43,18 +46,27 @@ def _parser() -> argparse.ArgumentParser:
     formulas = commands.add_parser("formulas", help="list the nine separation-curve formulas")
     formulas.set_defaults(run=_run_formulas)
 
-    fit = commands.add_parser("fit", help="fit, screen and rank the formulas on Tromp points or lab data")
-    fit.add_argument("input", type=Path, help="Tromp points (CSV or .xlsx) or, with --lab, a lab table")
+    lab = _lab_options_parser()
+    fit = commands.add_parser("fit", parents=[lab], help="fit, screen and rank the formulas on Tromp points or lab data")
+    fit.add_argument("input", type=Path, help="Tromp points or a lab table (CSV or .xlsx), told apart by their columns")
     fit.add_argument("-o", "--outdir", type=Path, default=Path("results"), help="output folder (default: results)")
     fit.add_argument("--alpha", type=float, default=DEFAULT_ALPHA, help="significance level of the Fisher screen")
     fit.add_argument("--delta-max", type=float, default=None,
                      help="largest feed particle size for the misplacement eps (default: largest size of the data)")  # fmt: skip
     fit.add_argument("--formulas", default=None, help="comma-separated ids or equation numbers (default: all nine)")
     fit.add_argument("--rank-by", choices=sorted(RANK_BY), default="F", help="criterion within an experiment")
-    fit.add_argument("--sheet", default=None, help="Excel sheet name (default: the first sheet)")
     fit.add_argument("--size-unit", default="", help="unit of the sizes, for the figure labels")
     fit.add_argument("--no-figures", action="store_true", help="do not draw figures")
     fit.set_defaults(run=_run_fit)
+
+    points = commands.add_parser("points", parents=[lab], help="turn a lab table into Tromp points with diagnostics")
+    points.add_argument("input", type=Path, help="lab table (CSV or .xlsx)")
+    points.add_argument("-o", "--output", type=Path, required=True, help="Tromp points CSV to write")
+    points.set_defaults(run=_run_points)
+
+    balance = commands.add_parser("balance", parents=[lab], help="yield estimate and mass-balance table of a lab table")
+    balance.add_argument("input", type=Path, help="lab table (CSV or .xlsx)")
+    balance.set_defaults(run=_run_balance)
 
     rank = commands.add_parser("rank", help="rank formulas from a table of F values (Table 2 -> Table 3)")
     rank.add_argument("table", type=Path, help="CSV with experiment, equation, F and n or F_crit [, adequate]")
@@ -66,6 +78,75 @@ def _parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _lab_options_parser() -> argparse.ArgumentParser:
+    lab = argparse.ArgumentParser(add_help=False)
+    group = lab.add_argument_group("lab data (see the README for the schema)")
+    group.add_argument("--kind", choices=KINDS, default=None,
+                       help="what plain feed/fine/coarse columns hold (not needed with suffixed column names)")
+    group.add_argument("--fine-yield", type=float, default=None, help="fine-product yield, fraction of the feed")
+    group.add_argument("--coarse-yield", type=float, default=None, help="coarse-product yield, fraction of the feed")
+    group.add_argument("--estimate-yield", action="store_true", help="estimate the yield from three streams even if one is given")
+    group.add_argument("--reconcile", action="store_true", help="adjust the three streams minimally so every class balances")
+    group.add_argument("--min-feed-share", type=float, default=LabOptions.min_feed_share,
+                       help="leave out classes with a smaller feed share (fraction; default %(default)s)")
+    group.add_argument("--sum-tolerance", type=float, default=LabOptions.sum_tolerance_pct,
+                       help="allowed deviation of per-class percentages from 100 (percentage points; default %(default)s)")
+    group.add_argument("--top-size", type=float, default=None, help="upper bound of the open top class")
+    group.add_argument("--pan-lower-size", type=float, default=None, help="lower bound of the pan")
+    group.add_argument("--rename", default="", help="column renames OLD=NEW,OLD=NEW applied before reading")
+    group.add_argument("--sheet", default=None, help="Excel sheet name (default: the first sheet)")
+    return lab  # fmt: skip
+
+
+def _lab_options(args) -> LabOptions:
+    rename = {}
+    for pair in filter(None, (p.strip() for p in args.rename.split(","))):
+        old, sep, new = pair.partition("=")
+        if not sep or not old.strip() or not new.strip():
+            raise ValueError(f"--rename takes OLD=NEW pairs separated by commas, got {pair!r}")
+        rename[old.strip()] = new.strip()
+    return LabOptions(kind=args.kind, fine_yield=args.fine_yield, coarse_yield=args.coarse_yield,
+                      estimate_yield=args.estimate_yield, reconcile=args.reconcile, min_feed_share=args.min_feed_share,
+                      sum_tolerance_pct=args.sum_tolerance, top_size=args.top_size, pan_lower_size=args.pan_lower_size,
+                      rename=rename, sheet=args.sheet)  # fmt: skip
+
+
+def _print_balance_notes(balances) -> None:
+    for balance in balances:
+        for note in balance.notes:
+            print(textwrap.fill(f"warning ({balance.experiment}): {note}", width=98), file=sys.stderr)
+        for flag in balance.classes.loc[~balance.classes["used"], "flag"]:
+            print(textwrap.fill(f"note ({balance.experiment}): class left out: {flag}", width=98), file=sys.stderr)
+
+
+def _run_points(args) -> int:
+    balances = read_lab(args.input, _lab_options(args))
+    table = pd.concat([b.points_table() for b in balances], ignore_index=True)
+    args.output.parent.mkdir(parents=True, exist_ok=True)
+    written = write_atomically({args.output.name: lambda p: table.to_csv(p, index=False)}, args.output.parent)
+    _print_balance_notes(balances)
+    print(table.to_string(index=False, float_format=lambda v: f"{v:.4g}", na_rep="-"))
+    print(f"\nWrote: {written[args.output.name]}")
+    return 0
+
+
+def _run_balance(args) -> int:
+    balances = read_lab(args.input, _lab_options(args))
+    _print_balance_notes(balances)
+    for balance in balances:
+        estimate = balance.yield_estimate
+        print(f"Experiment {balance.experiment}: fine yield {balance.fine_yield:.4f} ({balance.yield_source})")
+        if estimate is not None:
+            print(f"  least-squares estimate from the three streams: {estimate.value:.4f} +/- {estimate.stderr:.4f} "
+                  f"(standard error, {estimate.n_classes} classes); coarse yield {1 - estimate.value:.4f}")  # fmt: skip
+        columns = [c for c in ("size_lower", "size_upper", "size", "feed", "fine", "coarse", "balance_residual",
+                               "feed_adjusted", "fine_adjusted", "coarse_adjusted", "partition_fine", "used")
+                   if c in balance.classes.columns]  # fmt: skip
+        print(balance.classes[columns].to_string(index=False, float_format=lambda v: f"{v:.4g}", na_rep="-"))
+        print()
+    return 0
+
+
 def _run_formulas(args) -> int:
     table = registry_table()[["id", "equation", "formula", "shape_name", "slope_at_cut"]]
     with pd.option_context("display.max_colwidth", 60, "display.width", 160):
@@ -75,7 +156,8 @@ def _run_formulas(args) -> int:
 
 def _run_fit(args) -> int:
     select_formulas(args.formulas)  # fail early on an unknown id, before any work
-    experiments = read_points(args.input, sheet=args.sheet)
+    experiments, balances = read_experiments(args.input, _lab_options(args))
+    _print_balance_notes(balances)
     bench = fit_experiments(experiments, formulas=args.formulas, alpha=args.alpha, delta_max=args.delta_max,
                             rank_by=args.rank_by, progress=print_progress)  # fmt: skip
     fits, ranking = bench.fits_table(), bench.ranking_table()

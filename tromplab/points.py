@@ -11,6 +11,8 @@ exactly one partition column
     (0..1) or ``partition_coarse_pct`` (0..100).
 ``weight``
     optional; relative weight of the point in the least-squares fit (> 0).
+``used``
+    optional yes/no; rows marked no are left out (``tromplab points`` writes it).
 """
 
 from __future__ import annotations
@@ -102,6 +104,11 @@ def read_points(path, *, sheet=None) -> list[TrompPoints]:
 
 
 def points_from_table(table: Table) -> list[TrompPoints]:
+    """Tromp points from a table; rows with ``used`` false (written by ``tromplab points``) are skipped."""
+    if "used" in table.frame.columns:
+        table = table.subset(table.boolean("used"))
+        if table.frame.empty:
+            raise InputError("no row is marked as used", source=table.source, column="used")
     table.require("size")
     given = [c for c in PARTITION_COLUMNS if c in table.frame.columns]
     if not given:

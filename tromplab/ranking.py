@@ -105,22 +105,10 @@ def read_f_table(path, *, alpha: float = DEFAULT_ALPHA, use_given_marks: bool = 
     else:
         raise InputError("give either an 'n' or an 'F_crit' column", source=table.source)
     if use_given_marks and "adequate" in table.frame.columns:
-        frame["adequate"] = [_as_bool(table, i, v) for i, v in enumerate(table.frame["adequate"])]
+        frame["adequate"] = table.boolean("adequate")
     else:
         frame["adequate"] = frame["F"] > frame["F_crit"]
     duplicated = frame.duplicated(["experiment", "equation"]).to_numpy()
     if duplicated.any():
         raise table.error("the same experiment and equation appear twice", index=int(np.flatnonzero(duplicated)[0]), column="equation")
     return frame
-
-
-_TRUTH = {"true": True, "1": True, "yes": True, "y": True, "false": False, "0": False, "no": False, "n": False}
-
-
-def _as_bool(table, index, value) -> bool:
-    text = str(value).strip().lower()
-    if text.endswith(".0"):
-        text = text[:-2]
-    if text not in _TRUTH:
-        raise table.error(f"'{value}' is not a yes/no adequacy mark", index=index, column="adequate")
-    return _TRUTH[text]

@@ -16,6 +16,7 @@ import pandas as pd
 from .errors import InputError
 
 EXCEL_SUFFIXES = {".xlsx", ".xlsm", ".xls"}
+_TRUTH = {"true": True, "1": True, "yes": True, "y": True, "false": False, "0": False, "no": False, "n": False}
 
 
 @dataclass(frozen=True)
@@ -49,6 +50,17 @@ class Table:
             i = int(np.flatnonzero(np.isnan(values))[0])
             raise self.error("value is missing (blank or NaN)", index=i, column=column)
         return values
+
+    def boolean(self, column: str) -> np.ndarray:
+        """Column of yes/no marks (true/false, 1/0, yes/no, y/n; any case)."""
+        marks = []
+        for i, value in enumerate(self.frame[column]):
+            text = str(value).strip().lower()
+            text = text[:-2] if text.endswith(".0") else text
+            if text not in _TRUTH:
+                raise self.error(f"'{value}' is not a yes/no mark", index=i, column=column)
+            marks.append(_TRUTH[text])
+        return np.asarray(marks, dtype=bool)
 
     def subset(self, mask) -> Table:
         mask = np.asarray(mask, dtype=bool)
