@@ -7,8 +7,9 @@ experiment - see the README for an example:
     optional; all rows form one experiment named after the file when absent.
 size columns
     either class bounds ``size_lower`` and ``size_upper`` (blank ``size_upper`` = open
-    top class, blank ``size_lower`` = the pan), for per-class data; or ``size`` (the
-    sieve aperture) for cumulative data.  A unit suffix (``size_um``, ``size_lower_mm``)
+    top class, blank ``size_lower`` = the pan); or ``size`` (the sieve aperture), for
+    cumulative data or for per-class shares retained on each sieve (a class then runs
+    from its sieve to the next coarser one, the coarsest open at the top).  A unit suffix (``size_um``, ``size_lower_mm``)
     is allowed and must be the same on every size column; sizes are used as given.
 stream columns
     two or three of ``feed``, ``fine``, ``coarse``.  What they hold is declared, never
@@ -50,7 +51,7 @@ from .tables import Table, read_table
 STREAMS = ("feed", "fine", "coarse")
 KINDS = ("mass", "pct", "frac", "retained_pct", "retained_frac", "passing_pct", "passing_frac")
 CUMULATIVE_KINDS = {"retained_pct", "retained_frac", "passing_pct", "passing_frac"}
-UNITS = ("nm", "um", "mm", "cm", "m", "mesh")
+UNITS = ("nm", "um", "mm", "cm", "m")  # mesh numbers are not sizes (larger = finer)
 DEFAULT_SUM_TOLERANCE_PCT = 1.5
 DEFAULT_MIN_FEED_SHARE = 0.002
 PARTITION_SLACK = 0.02
@@ -275,12 +276,14 @@ def _experiment_labels(table: Table) -> np.ndarray:
 
 # --- one experiment ---------------------------------------------------------------------
 def _balance_one(table: Table, name: str, streams, layout: _SizeLayout, options: LabOptions) -> MassBalance:
-    cumulative = layout.cumulative
+    cumulative = any(kind in CUMULATIVE_KINDS for _, kind in streams.values())
     if cumulative:
+        if not layout.cumulative:
+            raise InputError("cumulative stream columns need sieve sizes in a 'size' column, not class bounds", source=table.source)
         lower, upper, shares = _classes_from_cumulative(table, layout.columns[0], streams, options)
         class_rows = None
     else:
-        lower, upper = _class_bounds(table, *layout.columns)
+        lower, upper = _class_bounds(table, *layout.columns) if not layout.cumulative else _retained_on_sieves(table, layout.columns[0])
         shares = {stream: _per_class_shares(table, column, kind, options) for stream, (column, kind) in streams.items()}
         class_rows = table.rows
     top_size, size = _representative_sizes(table, lower, upper, options)
@@ -345,6 +348,29 @@ def _class_bounds(table: Table, lower_column: str, upper_column: str):
     return lower, upper
 
 
+def _retained_on_sieves(table: Table, size_column: str):
+    """Class bounds when per-class shares are given as retained on each sieve: a class runs
+    from its sieve up to the next coarser one; the coarsest class is open at the top."""
+    size = _sorted_sieves(table, size_column)
+    upper = np.full(size.size, np.nan)
+    order = np.argsort(size)
+    upper[order[:-1]] = size[order[1:]]
+    return size, upper
+
+
+def _sorted_sieves(table: Table, size_column: str) -> np.ndarray:
+    size = table.numeric(size_column)
+    bad = np.flatnonzero(size <= 0)
+    if bad.size:
+        raise table.error("sieve size must be positive", index=int(bad[0]), column=size_column)
+    step = np.diff(size)
+    if not (np.all(step < 0) or np.all(step > 0)):
+        direction = np.sign(step[0]) if step[0] != 0 else 1.0
+        i = int(np.flatnonzero(step * direction <= 0)[0]) + 1
+        raise table.error("sieve sizes are not strictly sorted", index=i, column=size_column)
+    return size
+
+
 def _per_class_shares(table: Table, column: str, kind: str, options: LabOptions) -> np.ndarray:
     values = table.numeric(column, allow_blank=True)
     values = np.where(np.isnan(values), 0.0, values)  # an empty cell in a class table means no material
@@ -369,14 +395,7 @@ def _per_class_shares(table: Table, column: str, kind: str, options: LabOptions)
 
 
 def _classes_from_cumulative(table: Table, size_column: str, streams, options: LabOptions):
-    size = table.numeric(size_column)
-    bad = np.flatnonzero(size <= 0)
-    if bad.size:
-        raise table.error("sieve size must be positive", index=int(bad[0]), column=size_column)
-    step = np.diff(size)
-    if not (np.all(step < 0) or np.all(step > 0)):
-        i = int(np.flatnonzero(step == 0)[0] + 1) if np.any(step == 0) else int(np.argmax(step * np.sign(step[0]) < 0) + 1)
-        raise table.error("sieve sizes are not strictly sorted", index=i, column=size_column)
+    size = _sorted_sieves(table, size_column)
     order = np.argsort(size)[::-1]  # coarse to fine
     sieves = size[order]
     shares = {}
@@ -405,7 +424,7 @@ def _cumulative_retained(table: Table, column: str, kind: str, order: np.ndarray
         raise table.error("blank between given cumulative values", index=int(rows[inner_blank[0]]), column=column)
     for i in range(values.size):
         value = values[i]
-        if np.isfinite(value) and not 0.0 <= value <= full * (1 + 1e-9):
+        if np.isfinite(value) and not -1e-9 * full <= value <= full * (1 + 1e-9):
             raise table.error(f"cumulative value {value:g} outside 0..{full:g}", index=int(rows[i]), column=column)
     values[: given[0]] = 0.0 if not kind.startswith("passing") else full
     if given[-1] < values.size - 1:
