@@ -9,6 +9,7 @@ import warnings
 import sys
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from . import __version__
@@ -67,6 +68,27 @@ def _parser() -> argparse.ArgumentParser:
     balance = commands.add_parser("balance", parents=[lab], help="yield estimate and mass-balance table of a lab table")
     balance.add_argument("input", type=Path, help="lab table (CSV or .xlsx)")
     balance.set_defaults(run=_run_balance)
+
+    sieve = commands.add_parser("sieve", help="sieve classifiers: identification, geometric probability, bin design")
+    sieve_commands = sieve.add_subparsers(dest="sieve_command", metavar="SIEVE_COMMAND", required=True)
+    identify = sieve_commands.add_parser("identify", help="identify Vk and sigma from residues at several speed regimes")
+    identify.add_argument("data", type=Path, help="CSV: sieve, fraction, relative_speed, residue, sieve_length, cell_pitch, P_g")
+    identify.add_argument("-o", "--output", type=Path, default=Path("results/velocity_laws.csv"))
+    identify.add_argument("--two-sided", action="store_true", help="two-sided velocity probability (random-walk paper)")
+    identify.add_argument("--level", type=float, default=0.95, help="confidence level of the intervals")
+    identify.set_defaults(run=_run_sieve_identify)
+    pg = sieve_commands.add_parser("pg", help="geometric probability of a particle passing a round hole")
+    pg.add_argument("--hole", type=float, required=True, help="hole diameter D")
+    pg.add_argument("--length", type=float, required=True, help="particle length l")
+    pg.add_argument("--width", type=float, required=True, help="particle width d (shape factor d/l)")
+    pg.add_argument("--cell-width", type=float, required=True, help="cell width 2b across the transport direction")
+    pg.add_argument("--method", choices=("auto", "closed", "quadrature"), default="auto")
+    pg.set_defaults(run=_run_sieve_pg)
+    bin_ = sieve_commands.add_parser("bin", help="collecting-bin position on the bottom deck for a required recovery")
+    bin_.add_argument("--decks", type=int, required=True, help="number of decks m")
+    bin_.add_argument("--length", type=float, required=True, help="sieve length L (= x2)")
+    bin_.add_argument("--recovery", type=float, required=True, help="required recovery g* of the target fraction")
+    bin_.set_defaults(run=_run_sieve_bin)
 
     rank = commands.add_parser("rank", help="rank formulas from a table of F values (Table 2 -> Table 3)")
     rank.add_argument("table", type=Path, help="CSV with experiment, equation, F and n or F_crit [, adequate]")
@@ -144,6 +166,42 @@ def _run_balance(args) -> int:
                    if c in balance.classes.columns]  # fmt: skip
         print(balance.classes[columns].to_string(index=False, float_format=lambda v: f"{v:.4g}", na_rep="-"))
         print()
+    return 0
+
+
+def _run_sieve_identify(args) -> int:
+    from .sieve import identify_from_table
+    from .tables import read_table
+
+    laws = identify_from_table(read_table(args.data), two_sided=args.two_sided, level=args.level)
+    args.output.parent.mkdir(parents=True, exist_ok=True)
+    written = write_atomically({args.output.name: lambda p: laws.to_csv(p, index=False)}, args.output.parent)
+    view = laws[["sieve", "fraction", "n_regimes", "v_k", "v_k_stderr", "sigma", "sigma_stderr", "success"]]
+    print(view.to_string(index=False, float_format=lambda v: f"{v:.4g}", na_rep="-"))
+    for sieve, fraction, message in laws.loc[~laws["success"].astype(bool), ["sieve", "fraction", "message"]].itertuples(index=False):
+        print(f"  not identified: sieve {sieve}, fraction {fraction}: {message}")
+    print(f"\nWrote: {written[args.output.name]}")
+    return 0
+
+
+def _run_sieve_pg(args) -> int:
+    from .sieve import closed_form_valid, geometric_probability
+
+    value = geometric_probability(args.hole, args.length, args.width, args.cell_width / 2, method=args.method)
+    closed = closed_form_valid(args.hole, args.length, args.width, args.cell_width / 2)
+    print(f"P_g = {value:.6f}  (D = {args.hole:g}, l = {args.length:g}, d = {args.width:g}, d/l = {args.width / args.length:.3g}, "
+          f"2b = {args.cell_width:g}; closed form {'valid' if closed else 'not valid: quadrature'})")  # fmt: skip
+    return 0
+
+
+def _run_sieve_bin(args) -> int:
+    from .sieve import design_bin, distance_moments
+
+    for method in ("exact", "normal"):
+        design = design_bin(args.decks, args.length, args.recovery, method=method)
+        print(f"{method:>6}: C = {design.c:.4f}, x1 = {design.x1:.4f}, x2 = {design.x2:.4g}, recovery in the bin = {design.recovery:.4f}")
+    mean, variance = distance_moments(args.decks, design_bin(args.decks, args.length, args.recovery).c)
+    print(f"exact mean distance on deck {args.decks}: {mean:.4f}, standard deviation {np.sqrt(variance):.4f}")
     return 0
 
 

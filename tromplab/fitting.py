@@ -85,6 +85,20 @@ class ParameterFit:
         aicc = aic + (2 * k * (k + 1) / (n - k - 1) if n - k - 1 > 0 else np.inf)
         return {"aic": float(aic), "aicc": float(aicc), "bic": float(core + k * np.log(n))}
 
+    def confidence_intervals(self, level: float = 0.95) -> dict[str, tuple[float, float]]:
+        """Wald intervals ``value +- t(1 - (1-level)/2; n - k) * stderr`` per parameter.
+
+        nan where the standard error is unknown.  Profile-likelihood intervals are
+        available from lmfit on :attr:`raw` for power users.
+        """
+        from scipy import stats
+
+        dof = self.n_points - self.n_params
+        if dof <= 0:
+            return {name: (np.nan, np.nan) for name in self.names}
+        half = stats.t.ppf(0.5 + level / 2.0, dof)
+        return {name: (self.values[name] - half * self.stderr[name], self.values[name] + half * self.stderr[name]) for name in self.names}
+
     @classmethod
     def failed(cls, specs: Sequence[ParameterSpec], n_points: int, message: str, n_starts: int = 0) -> ParameterFit:
         names = tuple(s.name for s in specs)
@@ -174,3 +188,35 @@ def least_squares(
 
 def _stderr(param: lmfit.Parameter) -> float:
     return float(param.stderr) if param.stderr is not None else float("nan")
+
+
+def expression_function(expression: str, variables: Sequence[str]) -> tuple[Callable[..., np.ndarray], tuple[str, ...]]:
+    """Turn a formula such as ``"c0 + c1 * l / D"`` into a function and its parameter names.
+
+    ``variables`` are the independent variables; every other name in the expression that
+    is not a numpy function becomes a fitted parameter.  Evaluated with asteval (lmfit's
+    safe expression interpreter), not Python's ``eval``.
+
+    Examples
+    --------
+    >>> f, names = expression_function("c0 + c1 * l / D", ["l", "D"])
+    >>> names, float(f(l=2.0, D=1.0, c0=1.0, c1=0.5))
+    (('c0', 'c1'), 2.0)
+    """
+    from asteval import Interpreter, get_ast_names
+
+    interpreter = Interpreter()
+    try:
+        tree = interpreter.parse(expression)
+    except Exception as error:  # asteval reports syntax errors through several types
+        raise ValueError(f"cannot parse the expression {expression!r}: {error}") from None
+    names = [n for n in dict.fromkeys(get_ast_names(tree)) if n not in variables and n not in interpreter.symtable]
+    if not names:
+        raise ValueError(f"the expression {expression!r} has no parameter to fit")
+
+    def evaluate(**values):
+        interpreter.symtable.update({k: np.asarray(v, dtype=float) for k, v in values.items()})
+        result = interpreter.eval(expression, show_errors=False, raise_errors=True)
+        return np.asarray(result, dtype=float)
+
+    return evaluate, tuple(names)
