@@ -257,3 +257,20 @@ def test_pg_and_bin_commands(capsys):
     assert main(["sieve", "bin", "--decks", "12", "--length", "1.6", "--recovery", "0.9"]) == 0
     printed = capsys.readouterr().out
     assert "C = 14.2246, x1 = 0.9867" in printed and "x1 = 0.9808" in printed
+
+
+def test_identification_from_bin_shares_round_trip():
+    """Known (Vk, sigma): bin shares at five regimes are generated and identified back."""
+    decks, pitch, pg, v_k, sigma = 12, 0.0035, 0.3, 0.3, 0.08
+    design = sieve.design_bin(decks, 1.6, 0.9)
+    c = np.array([4.0, 6.0, 8.0, 10.0, 12.0])  # all below the C of the largest bin share: material lost beyond x2
+    ratio = np.array([sieve.passage_probability_from_c(value, decks, pitch) for value in c]) / pg
+    z = stats.norm.ppf(2.0 - stats.norm.cdf(v_k / sigma) - ratio)  # invert the two-sided law for the speeds
+    speeds = v_k + sigma * z
+    shares = [sieve.bin_recovery(design.x1, design.x2, decks, value) for value in c]
+    law = sieve.identify_from_bin_shares(speeds, shares, x1=design.x1, x2=design.x2, decks=decks, cell_pitch=pitch,
+                                         geometric_prob=pg, lost_side="beyond")  # fmt: skip
+    assert_allclose([law.v_k, law.sigma], [v_k, sigma], rtol=1e-6)
+    with pytest.raises(ValueError, match="cannot be reached"):
+        sieve.identify_from_bin_shares(speeds, [0.99] * 5, x1=design.x1, x2=design.x2, decks=decks, cell_pitch=pitch,
+                                       geometric_prob=pg, lost_side="beyond")  # fmt: skip

@@ -255,13 +255,24 @@ def identify_velocity_law(relative_speeds, residues, *, geometric_prob, sieve_le
     """
     speeds = np.asarray(relative_speeds, dtype=float)
     residues = np.asarray(residues, dtype=float)
-    if speeds.shape != residues.shape:
-        raise ValueError(f"{speeds.size} speeds but {residues.size} residues: give one residue per speed regime")
-    if speeds.size < 2:
-        raise ValueError("at least two speed regimes are needed to identify two parameters")
+    _check_regimes(speeds, residues, "residues")
     if not 0 < geometric_prob <= 1:
         raise ValueError(f"P_g = {geometric_prob:g} must lie in (0, 1]")
-    u_obs = observed_quantiles(residues, geometric_prob, sieve_length, cell_pitch)
+    return fit_velocity_quantiles(speeds, observed_quantiles(residues, geometric_prob, sieve_length, cell_pitch), two_sided=two_sided)
+
+
+def _check_regimes(speeds, values, what):
+    if speeds.shape != values.shape:
+        raise ValueError(f"{speeds.size} speeds but {values.size} {what}: give one per speed regime")
+    if speeds.size < 2:
+        raise ValueError("at least two speed regimes are needed to identify two parameters")
+
+
+def fit_velocity_quantiles(relative_speeds, u_obs, *, two_sided=False) -> VelocityLaw:
+    """Least-squares ``(Vk, sigma)`` from observed quantiles ``U_s`` at the speeds ``Va_s``
+    (the common core of :func:`identify_velocity_law` and :func:`identify_from_bin_shares`)."""
+    speeds = np.asarray(relative_speeds, dtype=float)
+    u_obs = np.asarray(u_obs, dtype=float)
     inverse_sigma, offset = np.polyfit(speeds, u_obs, 1) if np.ptp(speeds) > 0 else (np.nan, np.nan)
     linear_sigma = 1.0 / inverse_sigma
     linear_v_k = -offset * linear_sigma
@@ -525,3 +536,22 @@ def identify_from_table(table, *, two_sided: bool = False, level: float = 0.95):
     columns = ["sieve", "fraction", "n_regimes", "P_g", "v_k", "v_k_stderr", "v_k_low", "v_k_high", "sigma", "sigma_stderr",
                "sigma_low", "sigma_high", "linear_v_k", "linear_sigma", "success", "message"]  # fmt: skip
     return pd.DataFrame(rows).reindex(columns=columns)
+
+
+def identify_from_bin_shares(relative_speeds, shares, *, x1, x2, decks, cell_pitch, geometric_prob, lost_side, two_sided=True) -> VelocityLaw:
+    """Velocity law of a fraction from its shares in the bin at several speed regimes.
+
+    Per regime: ``C`` from the share (:func:`identify_c`), then the sieving probability
+    per cell ``p = m 2a / M`` (:func:`passage_probability_from_c`), then the observed
+    quantile ``U = Phi^-1(1 - p/P_g)``; finally ``(Vk, sigma)`` by least squares
+    (two-sided velocity law by default, as in the random-walk paper).
+    """
+    speeds = np.asarray(relative_speeds, dtype=float)
+    shares = np.asarray(shares, dtype=float)
+    _check_regimes(speeds, shares, "shares")
+    c = identify_c(x1, x2, decks, shares, lost_side=lost_side)
+    ratio = np.array([passage_probability_from_c(value, decks, cell_pitch) for value in c]) / geometric_prob
+    bad = np.flatnonzero(~((ratio > 0) & (ratio < 1)))
+    if bad.size:
+        raise ValueError(f"regime {bad[0] + 1}: p / P_g = {ratio[bad[0]]:.4g} must lie in (0, 1)")
+    return fit_velocity_quantiles(speeds, stats.norm.isf(ratio), two_sided=two_sided)
