@@ -1,0 +1,201 @@
+"""Markov-chain model of fines segregation and passage in a layer on a vibrating sieve.
+
+The layer is ``m`` cells deep (cell 1 on top, cell ``m`` on the sieve); ``C_i`` is the
+fines concentration of cell ``i``.  Each step the fines move by a tridiagonal,
+column-stochastic transition matrix: up with probability ``d`` (not from the top active
+cell), down with probability ``d + v0 (1 - C_{i+1})`` (nonlinear: segregation slowed by
+the fines already in the cell below) or ``d + v0`` (linear), never down from the bottom
+cell, and stay otherwise.  Then a share ``vf`` of the bottom cell's fines passes the
+sieve.  Extraction is the passed amount over the initial amount.
+
+Layer thinning: when the top active cell's concentration falls below a threshold, its
+content moves down, the cell is locked, and the passage becomes
+``vf = vf0 sqrt((m - i)/m)`` with ``i`` locked cells.
+
+The paper does not state ``m``, the initial concentrations or the threshold; here they
+are explicit inputs (spec section 7; ``docs/errata.md``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from .fitting import ParameterFit, ParameterSpec, least_squares
+
+
+@dataclass(frozen=True)
+class LayerModel:
+    """Parameters of the layer model.
+
+    Attributes
+    ----------
+    diffusion : float
+        ``d``, probability of moving one cell up (and part of moving down) per step.
+    segregation : float
+        ``v0``, extra probability of moving down per step.
+    passage : float
+        ``vf0``, share of the bottom cell's fines passing the sieve per step.
+    nonlinear : bool
+        Segregation slowed by the fines in the cell below.
+    lock_threshold : float or None
+        Concentration below which the top active cell empties and locks (None: never).
+    """
+
+    diffusion: float
+    segregation: float
+    passage: float
+    nonlinear: bool = True
+    lock_threshold: float | None = None
+
+    def __post_init__(self):
+        for name in ("diffusion", "segregation", "passage"):
+            value = getattr(self, name)
+            if not 0.0 <= value <= 1.0:
+                raise ValueError(f"{name} must lie in [0, 1], got {value:g}")
+        if 2 * self.diffusion + self.segregation > 1.0:
+            raise ValueError(
+                f"2 d + v0 = {2 * self.diffusion + self.segregation:g} exceeds 1: the probability of staying would be negative"
+            )
+
+    def simulate(self, initial, steps: int) -> LayerSimulation:
+        """Run ``steps`` steps from the initial concentrations (scalar or one per cell).
+
+        Examples
+        --------
+        >>> run = LayerModel(0.005, 0.026, 0.21).simulate([0.5] * 4, 300)
+        >>> [round(float(run.extraction[k - 1]), 3) for k in (50, 100, 200, 300)]
+        [0.506, 0.708, 0.921, 0.983]
+        """
+        concentration = np.array(initial, dtype=float, ndmin=1)
+        if concentration.size < 2:
+            raise ValueError("give one initial concentration per cell (at least 2 cells)")
+        if np.any((concentration < 0) | (concentration > 1)):
+            raise ValueError("initial concentrations must lie in [0, 1]")
+        if steps < 1:
+            raise ValueError("steps must be at least 1")
+        cells = concentration.size
+        total = concentration.sum()
+        if total <= 0:
+            raise ValueError("the layer holds no fines")
+        history = np.empty((steps, cells))
+        extraction = np.empty(steps)
+        locked_history = np.empty(steps, dtype=int)
+        passed, locked = 0.0, 0
+        for k in range(steps):
+            concentration = self._transition(concentration, locked)
+            vf = self.passage * np.sqrt((cells - locked) / cells)
+            flow = concentration[-1] * vf
+            concentration[-1] -= flow
+            passed += flow
+            if self.lock_threshold is not None and locked < cells - 1 and concentration[locked] < self.lock_threshold:
+                concentration[locked + 1] += concentration[locked]
+                concentration[locked] = 0.0
+                locked += 1
+            history[k] = concentration
+            extraction[k] = passed / total
+            locked_history[k] = locked
+        return LayerSimulation(history, extraction, locked_history)
+
+    def _transition(self, concentration: np.ndarray, locked: int) -> np.ndarray:
+        cells = concentration.size
+        up = np.full(cells, self.diffusion)
+        up[: locked + 1] = 0.0
+        below = np.append(concentration[1:], 0.0)
+        down = self.diffusion + self.segregation * ((1.0 - below) if self.nonlinear else np.ones(cells))
+        down[-1] = 0.0
+        down[:locked] = 0.0
+        moved_down, moved_up = down * concentration, up * concentration
+        new = concentration - moved_down - moved_up
+        new[1:] += moved_down[:-1]
+        new[:-1] += moved_up[1:]
+        return new
+
+
+@dataclass(frozen=True)
+class LayerSimulation:
+    """Concentrations per cell and extraction after each step."""
+
+    concentrations: np.ndarray
+    extraction: np.ndarray
+    locked: np.ndarray
+
+    def table(self, step_seconds: float | None = None) -> pd.DataFrame:
+        """One row per step: ``step`` (and ``time``), ``C_1..C_m``, ``extraction``, ``locked``."""
+        frame = pd.DataFrame(self.concentrations, columns=[f"C_{i + 1}" for i in range(self.concentrations.shape[1])])
+        frame.insert(0, "step", np.arange(1, len(frame) + 1))
+        if step_seconds is not None:
+            frame.insert(1, "time", frame["step"] * step_seconds)
+        frame["extraction"] = self.extraction
+        frame["locked"] = self.locked
+        return frame
+
+    def steps_to_reach(self, level: float) -> int | None:
+        """First step at which the extraction reaches ``level`` (None if never)."""
+        reached = np.flatnonzero(self.extraction >= level)
+        return int(reached[0] + 1) if reached.size else None
+
+    @property
+    def first_lock(self) -> int | None:
+        """Step at which the first cell locked (None if none did)."""
+        locked = np.flatnonzero(self.locked > 0)
+        return int(locked[0] + 1) if locked.size else None
+
+
+@dataclass(frozen=True)
+class LayerFit:
+    """Layer-model parameters identified from measured extraction."""
+
+    model: LayerModel
+    fit: ParameterFit
+
+
+def fit_layer_model(steps, extraction, *, initial, nonlinear: bool = True, lock_threshold: float | None = None,
+                    fit_threshold: bool = False) -> LayerFit:  # fmt: skip
+    """Identify ``d``, ``v0`` and ``vf0`` (and optionally the lock threshold) from measured
+    extraction at the given step numbers, through the common fitting layer.
+
+    Parameters
+    ----------
+    steps : array of int
+        Step numbers of the measurements (time / step length).
+    extraction : array
+        Measured extraction (0..1) at those steps.
+    initial : array
+        Initial concentration per cell (fixes the number of cells).
+    nonlinear : bool
+        Model variant.
+    lock_threshold : float, optional
+        Fixed threshold, or the start value when ``fit_threshold``.
+    fit_threshold : bool
+        Fit the threshold as a fourth parameter.
+    """
+    steps = np.asarray(steps, dtype=int)
+    extraction = np.asarray(extraction, dtype=float)
+    if steps.shape != extraction.shape or steps.size < 4:
+        raise ValueError("give at least four (step, extraction) pairs of equal length")
+    if np.any(steps < 1):
+        raise ValueError("step numbers must be positive")
+    horizon = int(steps.max())
+    specs = [ParameterSpec("diffusion", 0.0, 0.3), ParameterSpec("segregation", 0.0, 0.4), ParameterSpec("passage", 1e-6, 1.0)]
+    if fit_threshold:
+        specs.append(ParameterSpec("lock_threshold", 0.0, 0.5))
+
+    def model_of(values):
+        threshold = values.get("lock_threshold", lock_threshold)
+        return LayerModel(values["diffusion"], values["segregation"], values["passage"], nonlinear, threshold)
+
+    def residual(values):
+        return model_of(values).simulate(initial, horizon).extraction[steps - 1] - extraction
+
+    starts = []
+    for d, v0, vf in [(0.01, 0.05, 0.2), (0.05, 0.1, 0.05), (0.002, 0.02, 0.5), (0.1, 0.2, 0.02)]:
+        start = {"diffusion": d, "segregation": v0, "passage": vf}
+        if fit_threshold:
+            start["lock_threshold"] = lock_threshold if lock_threshold is not None else 0.02
+        starts.append(start)
+    fit = least_squares(residual, specs, starts)
+    model = model_of(fit.values) if fit.success else None
+    return LayerFit(model, fit)
