@@ -13,6 +13,7 @@ from .conftest import ROOT
 SCRIPTS = {
     "sieve_published_checks.py": ["sieve_published_checks.csv"],
     "shuvalov2018_table3.py": ["table3_printed_marks.csv"],
+    "sieve_operating_point.py": ["sieve_pareto.csv", "sieve_pareto.png"],
 }
 
 

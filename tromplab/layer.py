@@ -146,14 +146,20 @@ class LayerSimulation:
 
 @dataclass(frozen=True)
 class LayerFit:
-    """Layer-model parameters identified from measured extraction."""
+    """Layer-model parameters identified from measured extraction.
 
-    model: LayerModel
+    ``profile`` holds, when the lock threshold was identified, the sum of squares of the
+    best three-parameter fit at each threshold tried (columns ``lock_threshold, ssr``).
+    The threshold acts through a discrete event, so it has no standard error.
+    """
+
+    model: LayerModel | None
     fit: ParameterFit
+    profile: pd.DataFrame | None = None
 
 
 def fit_layer_model(steps, extraction, *, initial, nonlinear: bool = True, lock_threshold: float | None = None,
-                    fit_threshold: bool = False) -> LayerFit:  # fmt: skip
+                    fit_threshold: bool = False, threshold_bounds=(1e-3, 0.2)) -> LayerFit:  # fmt: skip
     """Identify ``d``, ``v0`` and ``vf0`` (and optionally the lock threshold) from measured
     extraction at the given step numbers, through the common fitting layer.
 
@@ -168,9 +174,11 @@ def fit_layer_model(steps, extraction, *, initial, nonlinear: bool = True, lock_
     nonlinear : bool
         Model variant.
     lock_threshold : float, optional
-        Fixed threshold, or the start value when ``fit_threshold``.
+        Fixed lock threshold (ignored when ``fit_threshold``).
     fit_threshold : bool
-        Fit the threshold as a fourth parameter.
+        Also identify the threshold: the sum of squares is a step function of it (a cell
+        locks one step earlier or later), so it is profiled over a log grid within
+        ``threshold_bounds`` (and "never locks"), refined by a bounded scalar search.
     """
     steps = np.asarray(steps, dtype=int)
     extraction = np.asarray(extraction, dtype=float)
@@ -178,24 +186,43 @@ def fit_layer_model(steps, extraction, *, initial, nonlinear: bool = True, lock_
         raise ValueError("give at least four (step, extraction) pairs of equal length")
     if np.any(steps < 1):
         raise ValueError("step numbers must be positive")
+    if not fit_threshold:
+        return _fit_rates(steps, extraction, initial, nonlinear, lock_threshold)
+    from scipy import optimize
+
+    tried = {}
+
+    def profiled(threshold):
+        key = None if threshold is None else float(threshold)
+        if key not in tried:
+            tried[key] = _fit_rates(steps, extraction, initial, nonlinear, key)
+        fit = tried[key].fit
+        return fit.ssr if fit.success else np.inf
+
+    grid = np.geomspace(*threshold_bounds, 25)
+    scores = [profiled(value) for value in grid]
+    best = int(np.argmin(scores))
+    low, high = grid[max(best - 1, 0)], grid[min(best + 1, grid.size - 1)]
+    optimize.minimize_scalar(profiled, bounds=(low, high), method="bounded", options={"xatol": 1e-6 * high})
+    profiled(None)
+    key = min(tried, key=lambda k: tried[k].fit.ssr if tried[k].fit.success else np.inf)
+    profile = pd.DataFrame({"lock_threshold": [np.inf if k is None else k for k in tried],
+                            "ssr": [tried[k].fit.ssr for k in tried]}).sort_values("lock_threshold")  # fmt: skip
+    chosen = tried[key]
+    return LayerFit(chosen.model, chosen.fit, profile.reset_index(drop=True))
+
+
+def _fit_rates(steps, extraction, initial, nonlinear, lock_threshold) -> LayerFit:
     horizon = int(steps.max())
     specs = [ParameterSpec("diffusion", 0.0, 0.3), ParameterSpec("segregation", 0.0, 0.4), ParameterSpec("passage", 1e-6, 1.0)]
-    if fit_threshold:
-        specs.append(ParameterSpec("lock_threshold", 0.0, 0.5))
 
     def model_of(values):
-        threshold = values.get("lock_threshold", lock_threshold)
-        return LayerModel(values["diffusion"], values["segregation"], values["passage"], nonlinear, threshold)
+        return LayerModel(values["diffusion"], values["segregation"], values["passage"], nonlinear, lock_threshold)
 
     def residual(values):
         return model_of(values).simulate(initial, horizon).extraction[steps - 1] - extraction
 
-    starts = []
-    for d, v0, vf in [(0.01, 0.05, 0.2), (0.05, 0.1, 0.05), (0.002, 0.02, 0.5), (0.1, 0.2, 0.02)]:
-        start = {"diffusion": d, "segregation": v0, "passage": vf}
-        if fit_threshold:
-            start["lock_threshold"] = lock_threshold if lock_threshold is not None else 0.02
-        starts.append(start)
+    starts = [{"diffusion": d, "segregation": v0, "passage": vf}
+              for d, v0, vf in [(0.01, 0.05, 0.2), (0.05, 0.1, 0.05), (0.002, 0.02, 0.5), (0.1, 0.2, 0.02)]]  # fmt: skip
     fit = least_squares(residual, specs, starts)
-    model = model_of(fit.values) if fit.success else None
-    return LayerFit(model, fit)
+    return LayerFit(model_of(fit.values) if fit.success else None, fit)

@@ -79,3 +79,19 @@ def plot_tromp_fits(fits: Sequence[CurveFit], *, ax=None, log_size: bool = True,
     title = f"failed: {', '.join(failed)}" if failed else None
     ax.legend(fontsize=7, title=title, title_fontsize=7, loc="best")
     return ax
+
+
+def plot_pareto(result, *, ax=None):
+    """Pareto front of a :class:`tromplab.choice.ChoiceResult` in the criteria plane, with the
+    single-criterion optima and the compromise marked.  Returns the Axes."""
+    ax = _axes(ax)
+    first, second = list(result.ranges)
+    front = result.pareto.sort_values(first)
+    ax.plot(front[first], front[second], "o-", color="0.3", ms=4, label="Pareto front (linear convolution)")
+    for optimum, label, marker in [(result.best_first, f"max {first}", "s"), (result.best_second, f"max {second}", "D"),
+                                   (result.compromise, "compromise (max-min)", "*")]:  # fmt: skip
+        ax.plot(optimum.point[first], optimum.point[second], marker, ms=11 if marker == "*" else 8, label=label)
+    ax.set_xlabel(first)
+    ax.set_ylabel(second)
+    ax.legend(fontsize=8)
+    return ax

@@ -1,0 +1,57 @@
+"""Pulp-screen productivity (paper 004; spec section 8)."""
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from tromplab.pulp import PulpScreen, fit_pulp_screen
+
+PLAIN, ROTOR = PulpScreen(), PulpScreen(phi=0.0025)
+
+
+def test_productivity_follows_the_formula():
+    h, n = 0.7, 12.0
+    alpha, a = 2 * h**2, 3 * h**0.5
+    expected = 1 * 0.2 * n * 10 / alpha * np.exp(-alpha * a * 0.01) * (1 - np.exp(-alpha * a / n))
+    assert_allclose(PLAIN.productivity(h, n), expected, rtol=1e-14)
+    assert_allclose(ROTOR.productivity(h, n), PLAIN.productivity(h + 0.0025 * n**2, n), rtol=1e-14)
+
+
+@pytest.mark.parametrize("screen", [PLAIN, ROTOR], ids=["phi=0", "phi>0"])
+def test_a_maximum_over_the_pressure_drop_exists(screen):
+    best, top = screen.best_pressure_drop(10.0)
+    assert 0.01 < best < 10
+    assert top > screen.productivity(best * 0.8, 10.0) and top > screen.productivity(best * 1.2, 10.0)
+
+
+def test_no_frequency_maximum_without_rotor_pulsation():
+    frequencies = np.geomspace(0.1, 1e4, 200)
+    assert np.all(np.diff(PLAIN.productivity(0.5, frequencies)) > 0)
+    frequency, _, interior = PLAIN.best_frequency(0.5)
+    assert not interior
+
+
+def test_frequency_maximum_with_rotor_pulsation():
+    frequency, top, interior = ROTOR.best_frequency(0.5)
+    assert interior and 1 < frequency < 100
+    assert top > ROTOR.productivity(0.5, frequency * 0.7) and top > ROTOR.productivity(0.5, frequency * 1.4)
+
+
+def test_fit_round_trip():
+    applied, frequency = (grid.ravel() for grid in np.meshgrid(np.linspace(0.2, 1.5, 5), [5.0, 10.0, 20.0, 40.0]))
+    measured = ROTOR.productivity(applied, frequency)
+    exact = fit_pulp_screen(applied, frequency, measured, fitted=("beta", "lam", "phi"), fixed=PulpScreen(beta=1, lam=1, phi=0.001))
+    assert_allclose([exact.screen.beta, exact.screen.lam, exact.screen.phi], [2.0, 3.0, 0.0025], rtol=1e-6)
+    noisy = measured * np.exp(np.random.default_rng(1).normal(0, 0.02, measured.size))
+    fit = fit_pulp_screen(applied, frequency, noisy, fitted=("beta", "lam", "phi"), fixed=PulpScreen(phi=0.001)).fit
+    for name, value in [("beta", 2.0), ("lam", 3.0), ("phi", 0.0025)]:
+        assert abs(fit.values[name] - value) < 4 * fit.stderr[name]
+
+
+def test_bad_input():
+    with pytest.raises(ValueError, match="beta must be positive"):
+        PulpScreen(beta=0)
+    with pytest.raises(ValueError, match="cannot fit gamma"):
+        fit_pulp_screen([1, 2, 3], [1, 2, 3], [1, 2, 3], fitted=("gamma",))
+    with pytest.raises(ValueError, match="must be positive"):
+        fit_pulp_screen([1, 2, 3], [1, 2, 3], [1, -2, 3])
