@@ -260,7 +260,7 @@ def format_fits(fits: pd.DataFrame) -> str:
         text = view.to_string(index=False, float_format=lambda v: f"{v:.4g}", na_rep="-")
         n = int(group["n"].dropna().iloc[0]) if group["n"].notna().any() else 0
         blocks.append(f"Experiment {experiment} (n = {n}):\n{text}")
-        notes = group.loc[~group["success"] | group["message"].str.contains("bound|break point", na=False), ["formula", "message"]]
+        notes = group.loc[~group["success"] | group["message"].str.contains("bound|break point|systematic|exceeds 1", na=False), ["formula", "message"]]
         for formula, message in notes.itertuples(index=False):
             blocks.append(textwrap.fill(f"note {formula}: {message}", width=98, initial_indent="  ", subsequent_indent="    "))
     return "\n".join(blocks)

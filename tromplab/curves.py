@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import optimize
 
+from .diagnostics import ResidualDiagnostics, residual_diagnostics
 from .fitting import ParameterFit, ParameterSpec, least_squares
 from .formulas import Formula, NoBreakPointError, get_formula, shuvalov_break
 from .indices import CurveIndices, curve_indices
@@ -51,6 +52,7 @@ class CurveFit:
     grid_ssr: float = np.nan
     warnings: tuple[str, ...] = ()
     x_break: float = np.nan
+    diagnostics: ResidualDiagnostics | None = None
 
     @property
     def experiment(self) -> str:
@@ -72,9 +74,14 @@ class CurveFit:
     def shape(self) -> float:
         return self.fit.values[self.formula.shape_name]
 
+    @property
+    def extras(self) -> dict[str, float]:
+        """Fitted bypass / fish-hook parameters (empty for the nine paper formulas)."""
+        return {extra.name: self.fit.values[extra.name] for extra in self.formula.extras}
+
     def predict(self, size) -> np.ndarray:
         """Fitted partition to fines at ``size``."""
-        return self.formula(size, self.d_cut, self.shape, **self.context)
+        return self.formula(size, self.d_cut, self.shape, **self.context, **self.extras)
 
     def row(self) -> dict:
         """One row of ``fits.csv`` (see :data:`FIT_COLUMNS`)."""
@@ -101,8 +108,14 @@ class CurveFit:
             "d75": ind.d75 if ind else np.nan,
             "ep": ind.ep if ind else np.nan,
             "imperfection": ind.imperfection if ind else np.nan,
+            "aic": criteria["aic"],
             "aicc": criteria["aicc"],
+            "bic": criteria["bic"],
+            "runs_p": self.diagnostics.runs_p if self.diagnostics else np.nan,
+            "normality_p": self.diagnostics.normality_p if self.diagnostics else np.nan,
             "x_break": self.x_break,
+            "bypass": self.fit.values.get("bypass", np.nan),
+            "fishhook": self.fit.values.get("fishhook", np.nan),
             "success": self.success,
             "message": self.message,
         }
@@ -156,7 +169,16 @@ def _parameter_specs(formula: Formula, points: TrompPoints) -> list[ParameterSpe
     return [
         ParameterSpec("d_cut", points.size.min() / D_CUT_RANGE_FACTOR, points.size.max() * D_CUT_RANGE_FACTOR),
         ParameterSpec(formula.shape_name, *formula.shape_bounds),
+        *(ParameterSpec(extra.name, *extra.bounds) for extra in formula.extras),
     ]
+
+
+def normalised_weights(points: TrompPoints) -> np.ndarray:
+    """Least-squares weights scaled to mean 1 (all ones when the points carry none), so the
+    weighted sums of squares of the fit and of the Fisher screen share one scale."""
+    if points.weight is None:
+        return np.ones(points.n)
+    return points.weight / points.weight.mean()
 
 
 def fit_formula(
@@ -165,6 +187,8 @@ def fit_formula(
     *,
     alpha: float = DEFAULT_ALPHA,
     delta_max: float | None = None,
+    global_search: bool = True,
+    starts: list[dict] | None = None,
 ) -> CurveFit:
     """Fit ``formula`` to ``points``, screen it and compute its indices.
 
@@ -178,6 +202,11 @@ def fit_formula(
         Significance level of the Fisher screen.
     delta_max : float, optional
         Largest feed particle size for the misplacement; default ``points.largest_size``.
+    global_search : bool
+        Run the profiled shape grid (turn off only for refits from a known optimum, as
+        the bootstrap does).
+    starts : list of dict, optional
+        Extra starting points (parameter name -> value).
 
     Returns
     -------
@@ -190,25 +219,33 @@ def fit_formula(
         When the experiment has two points or fewer (the screen needs n > 2).
     """
     formula = get_formula(formula)
-    check_screenable(points.n)
+    check_screenable(points.n, n_params=formula.n_params)
     specs = _parameter_specs(formula, points)
     context, warnings = {}, []
     if formula.context_from_efficiency:
         context["measured_efficiency"] = measured_efficiency(points)
-    weight = np.ones(points.n) if points.weight is None else np.sqrt(points.weight)
+    weights = normalised_weights(points)
+    root_weights = np.sqrt(weights)
+    extra_starts = {extra.name: extra.start for extra in formula.extras}
 
-    def residual_at(d_cut, shape):
-        return weight * (formula(points.size, d_cut, shape, **context) - points.partition_fine)
+    def residual_at(d_cut, shape, extras):
+        return root_weights * (formula(points.size, d_cut, shape, **context, **extras) - points.partition_fine)
 
     def residual(values):
-        return residual_at(values["d_cut"], values[formula.shape_name])
+        extras = {name: values[name] for name in extra_starts}
+        return residual_at(values["d_cut"], values[formula.shape_name], extras)
 
     d_cut_start = measured_cut_size(points)
-    starts = [{"d_cut": d_cut_start, formula.shape_name: formula.shape_for_slope(measured_slope(points, d_cut_start))}]
-    grid = _profile_grid(formula, specs, residual_at, d_cut_start)
-    starts += [start for _, start in grid[:N_GRID_STARTS]]
-    fit = least_squares(residual, specs, starts)
-    result = CurveFit(formula=formula, points=points, fit=fit, context=context, grid_ssr=grid[0][0] if grid else np.nan)
+    shape_start = formula.shape_for_slope(measured_slope(points, d_cut_start))
+    all_starts = [{"d_cut": d_cut_start, formula.shape_name: shape_start, **extra_starts}]
+    grid = []
+    if global_search:
+        grid = _profile_grid(formula, specs, lambda d, k: residual_at(d, k, extra_starts), d_cut_start)
+        all_starts += [{**start, **extra_starts} for _, start in grid[:N_GRID_STARTS]]
+    all_starts += [{**all_starts[0], **start} for start in starts or []]
+    fit = least_squares(residual, specs, all_starts)
+    grid_ssr = grid[0][0] if grid else np.nan
+    result = CurveFit(formula=formula, points=points, fit=fit, context=context, grid_ssr=grid_ssr)
     if not fit.success:
         return result
     if fit.at_bound:
@@ -217,10 +254,21 @@ def fit_formula(
     if formula.context_from_efficiency:
         x_break, note = _break_point(fit.values[formula.shape_name], context["measured_efficiency"])
         warnings += note
-    screen = fisher_screen(points.partition_fine, fit.ssr, alpha=alpha)
+    extras = {name: fit.values[name] for name in extra_starts}
+    if extras:
+        peak = float(np.max(formula(np.geomspace(points.size.min() / 10, points.size.max(), 400), fit.values["d_cut"],
+                                    fit.values[formula.shape_name], **extras)))  # fmt: skip
+        if peak > 1.0 + 1e-9:
+            warnings.append(f"the fitted curve exceeds 1 (maximum {peak:.3f}): not a physical partition")
+    screen = fisher_screen(points.partition_fine, fit.ssr, alpha=alpha, n_params=formula.n_params, weights=weights)
     largest = points.largest_size if delta_max is None else float(delta_max)
-    indices = curve_indices(formula, fit.values["d_cut"], fit.values[formula.shape_name], delta_max=largest, **context)
-    return CurveFit(formula, points, fit, context, screen, indices, result.grid_ssr, tuple(warnings), x_break)
+    indices = curve_indices(formula, fit.values["d_cut"], fit.values[formula.shape_name], delta_max=largest, **context, **extras)
+    diagnostics = residual_diagnostics(fit.residual)
+    if screen.adequate and diagnostics.systematic:
+        warnings.append(
+            f"adequate by F but the residuals are systematic ({diagnostics.n_runs} runs of signs, runs test p = {diagnostics.runs_p:.3f})"
+        )
+    return CurveFit(formula, points, fit, context, screen, indices, grid_ssr, tuple(warnings), x_break, diagnostics)
 
 
 def _break_point(kr: float, efficiency: float) -> tuple[float, list[str]]:

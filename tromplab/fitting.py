@@ -66,6 +66,7 @@ class ParameterFit:
     covariance: np.ndarray | None = field(default=None, repr=False, compare=False)
     residual: np.ndarray | None = field(default=None, repr=False, compare=False)
     raw: object | None = field(default=None, repr=False, compare=False)
+    minimizer: object | None = field(default=None, repr=False, compare=False)
 
     @property
     def n_params(self) -> int:
@@ -98,6 +99,25 @@ class ParameterFit:
             return {name: (np.nan, np.nan) for name in self.names}
         half = stats.t.ppf(0.5 + level / 2.0, dof)
         return {name: (self.values[name] - half * self.stderr[name], self.values[name] + half * self.stderr[name]) for name in self.names}
+
+    def profile_intervals(self, level: float = 0.95, names: Sequence[str] | None = None) -> dict[str, tuple[float, float]]:
+        """Profile-likelihood intervals from lmfit's ``conf_interval`` (F test on the sum of squares).
+
+        A bound that cannot be reached within the parameter's limits is nan.
+        """
+        names = list(names or self.names)
+        if not self.success or self.minimizer is None:
+            return {name: (np.nan, np.nan) for name in names}
+        try:
+            table = lmfit.conf_interval(self.minimizer, self.raw, p_names=names, sigmas=[level], maxiter=400)
+        except (ValueError, ArithmeticError, lmfit.minimizer.MinimizerException) as error:  # no covariance, bounds hit
+            return {name: (np.nan, np.nan) for name in names} | {"_error": str(error)}
+        out = {}
+        for name in names:
+            rows = table[name]
+            low, high = rows[0][1], rows[-1][1]
+            out[name] = (float(low) if np.isfinite(low) else np.nan, float(high) if np.isfinite(high) else np.nan)
+        return out
 
     @classmethod
     def failed(cls, specs: Sequence[ParameterSpec], n_points: int, message: str, n_starts: int = 0) -> ParameterFit:
@@ -150,8 +170,9 @@ def least_squares(
         params = lmfit.Parameters()
         for spec in specs:
             params.add(spec.name, value=spec.clip(start[spec.name]), min=spec.lower, max=spec.upper)
+        minimizer = lmfit.Minimizer(objective, params)
         try:
-            result = lmfit.minimize(objective, params, method="least_squares", max_nfev=max_nfev)
+            result = minimizer.minimize(method="least_squares", max_nfev=max_nfev)
         except (ValueError, FloatingPointError, ArithmeticError) as error:
             failures.append(str(error))
             continue
@@ -160,12 +181,12 @@ def least_squares(
             failures.append("non-finite sum of squares")
             continue
         if best is None or ssr < best[0]:
-            best = (ssr, result)
+            best = (ssr, result, minimizer)
     n_points = 0 if best is None else best[1].residual.size
     if best is None:
         detail = "; ".join(dict.fromkeys(failures)) or "no starting point given"
         return ParameterFit.failed(specs, n_points, f"fit failed from every start: {detail}", len(starts))
-    ssr, result = best
+    ssr, result, minimizer = best
     values = {name: float(result.params[name].value) for name in names}
     stderr = {name: _stderr(result.params[name]) for name in names}
     at_bound = tuple(s.name for s in specs if np.isclose(values[s.name], s.lower) or np.isclose(values[s.name], s.upper))
@@ -183,6 +204,7 @@ def least_squares(
         covariance=result.covar,
         residual=np.asarray(result.residual),
         raw=result,
+        minimizer=minimizer,
     )
 
 

@@ -33,6 +33,16 @@ SHUVALOV_2018 = (
 
 
 @dataclass(frozen=True)
+class ExtraParameter:
+    """A parameter beyond ``d_cut`` and the shape (bypass, fish-hook), with bounds and start."""
+
+    name: str
+    bounds: tuple[float, float]
+    start: float
+    meaning: str
+
+
+@dataclass(frozen=True)
 class Formula:
     """Declaration of one separation-curve formula.
 
@@ -70,6 +80,14 @@ class Formula:
         (``context = {"measured_efficiency": eta_exp}``), as (11) does.
     monotone : bool
         False when the curve rises again at large sizes for part of the shape range.
+    extras : tuple of ExtraParameter
+        Further fitted parameters (extended curves only); ``phi`` takes them as keywords.
+    family : str
+        ``"paper"`` for the nine formulas of [Shuvalov2018]_, ``"extended"`` for the
+        curves with bypass or fish-hook (kept out of the paper's ranking by default).
+    nests : str or None
+        Id of the paper formula this one reduces to when its extras vanish (for the
+        extra-sum-of-squares test).
     """
 
     id: str
@@ -88,6 +106,14 @@ class Formula:
     context_from_efficiency: bool = False
     monotone: bool = True
     defaults: Mapping[str, float] = field(default_factory=dict)
+    extras: tuple[ExtraParameter, ...] = ()
+    family: str = "paper"
+    nests: str | None = None
+
+    @property
+    def n_params(self) -> int:
+        """Number of fitted parameters: d_cut, the shape and the extras."""
+        return 2 + len(self.extras)
 
     def __call__(self, size, d_cut: float, shape: float, **context) -> np.ndarray:
         """Partition to fines at ``size`` (same unit as ``d_cut``)."""
@@ -509,7 +535,120 @@ FORMULAS: tuple[Formula, ...] = (
     ),
 )
 
-_BY_ID = {formula.id: formula for formula in FORMULAS}
+# --- extended curves: bypass and fish-hook ------------------------------------------------
+NAPIER_MUNN_1996 = (
+    "Napier-Munn T.J., Morrell S., Morrison R.D., Kojovic T. (1996). Mineral Comminution Circuits: "
+    "Their Operation and Optimisation. JKMRC, Brisbane (Whiten's efficiency curve with the fish-hook term)"
+)
+PLITT_1976 = "Plitt L.R. (1976). A mathematical model of the hydrocyclone classifier. CIM Bulletin 69(776), 114-123"
+KELSALL_1953 = "Kelsall D.F. (1953). A further study of the hydraulic cyclone. Chem. Eng. Sci. 2, 254-272 (bypass correction)"
+BYPASS = ExtraParameter("bypass", (0.0, 0.95), 0.05, "share of every size sent to the coarse product unclassified")
+FISHHOOK = ExtraParameter("fishhook", (0.0, 3.0), 0.1, "Whiten's beta: rise of the fines partition at small sizes")
+
+
+def plitt_bypass(x, ks, *, bypass=0.0):
+    r"""Plitt's curve with bypass: :math:`\varphi = (1 - R_f) / (1 + x^{k_s})`, ``x = size / d_cut``
+    with ``d_cut`` the corrected cut (partition 1/2 of the classified part)."""
+    return (1.0 - bypass) * plitt(x, ks)
+
+
+def lognormal_bypass(x, kf, *, bypass=0.0):
+    r"""Log-normal curve with bypass: :math:`\varphi = (1 - R_f)\, \tfrac12 \operatorname{erfc}(\ln x / k_f)`."""
+    return (1.0 - bypass) * lognormal(x, kf)
+
+
+def whiten_beta_star(alpha: float, fishhook: float) -> float:
+    r"""Whiten's :math:`\beta^*`: keeps the reduced curve at 1/2 at ``x = 1`` for a given fish-hook.
+
+    Solves :math:`(1 + \beta\beta^*)(e^\alpha - 1)/(e^{\alpha\beta^*} + e^\alpha - 2) = 1/2`;
+    :math:`\beta^* = 1` when :math:`\beta = 0`.
+    """
+    if fishhook == 0.0:
+        return 1.0
+
+    def gap(star):
+        return float((1.0 + fishhook * star) * lynch(star, alpha)) - 0.5
+
+    high = 1.0
+    while gap(high) > 0.0:
+        high *= 2.0
+    return optimize.brentq(gap, 0.0, high, xtol=1e-14)
+
+
+def whiten(x, alpha, *, bypass=0.0, fishhook=0.0):
+    r"""Whiten's efficiency curve to the fine product with bypass and fish-hook.
+
+    .. math::
+        \varphi = C \frac{(1 + \beta\beta^* x)(e^\alpha - 1)}{e^{\alpha\beta^* x} + e^\alpha - 2},
+        \quad C = 1 - \text{bypass}
+
+    With :math:`\beta = 0` and no bypass it is Lynch's formula (6) with :math:`k_l = \alpha`.
+    For :math:`\beta > 0` the curve rises above ``C`` at small sizes (the fish-hook) and
+    can exceed 1 when the bypass is small; fits report such a curve.
+    """
+    x = _as_array(x)
+    star = whiten_beta_star(alpha, fishhook)
+    return (1.0 - bypass) * (1.0 + fishhook * star * x) * lynch(star * x, alpha)
+
+
+EXTENDED_FORMULAS: tuple[Formula, ...] = (
+    Formula(
+        id="plitt_bypass",
+        equation=107,
+        title="Plitt with bypass",
+        expression="(1 - bypass) / (1 + x^ks)",
+        shape_name="ks",
+        shape_bounds=(0.05, 60.0),
+        phi=plitt_bypass,
+        slope_at_cut=lambda ks: -ks / 4.0,
+        slope_expression="-(1-bypass) ks/4",
+        shape_for_slope=lambda s: -4.0 * s,
+        citation=PLITT_1976 + "; " + KELSALL_1953,
+        notes="d_cut is the corrected cut; the actual curve is 0.5 (1 - bypass) there.",
+        extras=(BYPASS,),
+        family="extended",
+        nests="plitt",
+    ),
+    Formula(
+        id="lognormal_bypass",
+        equation=109,
+        title="Log-normal with bypass",
+        expression="(1 - bypass) 1/2 erfc(ln x / kf)",
+        shape_name="kf",
+        shape_bounds=(0.01, 30.0),
+        phi=lognormal_bypass,
+        slope_at_cut=lambda kf: -1.0 / (np.sqrt(np.pi) * kf),
+        slope_expression="-(1-bypass)/(sqrt(pi) kf)",
+        shape_for_slope=lambda s: -1.0 / (np.sqrt(np.pi) * s),
+        citation=KELSALL_1953,
+        notes="d_cut is the corrected cut.",
+        extras=(BYPASS,),
+        family="extended",
+        nests="lognormal",
+    ),
+    Formula(
+        id="whiten",
+        equation=106,
+        title="Whiten with bypass and fish-hook",
+        expression="(1 - bypass)(1 + fishhook b* x)(e^alpha - 1)/(e^(alpha b* x) + e^alpha - 2)",
+        shape_name="alpha",
+        shape_bounds=(1e-3, 60.0),
+        phi=whiten,
+        slope_at_cut=_lynch_slope,
+        slope_expression="as (6) when fishhook = 0, times (1-bypass)",
+        shape_for_slope=_lynch_shape_for_slope,
+        citation=NAPIER_MUNN_1996,
+        notes="Reduces to Lynch (6) with kl = alpha without bypass and fish-hook; may exceed 1 for a large "
+        "fish-hook with little bypass.",
+        extras=(BYPASS, FISHHOOK),
+        family="extended",
+        nests="lynch",
+        monotone=False,
+    ),
+)
+ALL_FORMULAS = FORMULAS + EXTENDED_FORMULAS
+
+_BY_ID = {formula.id: formula for formula in ALL_FORMULAS}
 _BY_EQUATION = {formula.equation: formula for formula in FORMULAS}
 
 
@@ -528,12 +667,19 @@ def get_formula(key: str | int) -> Formula:
 
 
 def select_formulas(keys=None) -> tuple[Formula, ...]:
-    """The formulas named by ``keys`` (ids or equation numbers), or all nine."""
+    """The formulas named by ``keys`` (ids or equation numbers), or all nine.
+
+    ``"extended"`` in ``keys`` stands for every extended curve (bypass, fish-hook).
+    """
     if keys is None:
         return FORMULAS
     if isinstance(keys, str):
         keys = [k for k in keys.replace(" ", "").split(",") if k]
-    return tuple(get_formula(k) for k in keys)
+    chosen = []
+    for key in keys:
+        group = EXTENDED_FORMULAS if key == "extended" else FORMULAS if key == "paper" else (get_formula(key),)
+        chosen += [f for f in group if f not in chosen]
+    return tuple(chosen)
 
 
 def registry_table():
@@ -541,7 +687,7 @@ def registry_table():
     import pandas as pd
 
     rows = []
-    for formula in FORMULAS:
+    for formula in ALL_FORMULAS:
         shape_at_half = formula.shape_for_slope(-0.5)
         rows.append(
             {
@@ -553,6 +699,8 @@ def registry_table():
                 "shape_bounds": f"[{formula.shape_bounds[0]:g}, {formula.shape_bounds[1]:g}]",
                 "slope_at_cut": formula.slope_expression,
                 "shape_at_slope_-0.5": round(shape_at_half, 4),
+                "extras": ", ".join(extra.name for extra in formula.extras),
+                "family": formula.family,
             }
         )
     return pd.DataFrame(rows)

@@ -110,6 +110,12 @@ def _relative_size_at(formula: Formula, shape: float, level: float, context: dic
     return optimize.brentq(gap, min(inner, outer), max(inner, outer), xtol=1e-13, rtol=1e-13)
 
 
+def _numeric_slope(formula: Formula, shape: float, context: dict) -> float:
+    """Slope of the actual curve at x = 1 for curves with bypass or fish-hook (central difference)."""
+    h = 1e-6
+    return float((formula.phi(1.0 + h, shape, **context) - formula.phi(1.0 - h, shape, **context)) / (2 * h))
+
+
 def curve_indices(formula, d_cut: float, shape: float, *, delta_max: float, **context) -> CurveIndices:
     """All indices of one fitted curve.
 
@@ -122,7 +128,9 @@ def curve_indices(formula, d_cut: float, shape: float, *, delta_max: float, **co
     delta_max : float
         Largest particle size in the feed, same unit as ``d_cut``.
     **context
-        Extra inputs of the formula (``measured_efficiency`` for (11)).
+        Extra inputs of the formula (``measured_efficiency`` for (11); ``bypass`` and
+        ``fishhook`` for the extended curves, whose indices describe the actual curve,
+        with ``d_cut`` the corrected cut and the slope taken numerically).
 
     Examples
     --------
@@ -132,12 +140,13 @@ def curve_indices(formula, d_cut: float, shape: float, *, delta_max: float, **co
     """
     formula = get_formula(formula)
     eta, eps = efficiency(formula, shape, delta_max / d_cut, **context)
+    slope = formula.slope_at_cut(shape) if not formula.extras else _numeric_slope(formula, shape, context)
     d25 = d_cut * _relative_size_at(formula, shape, 0.75, context)
     d75 = d_cut * _relative_size_at(formula, shape, 0.25, context)
     ep = (d75 - d25) / 2.0
     return CurveIndices(
         d_cut=float(d_cut),
-        slope=float(formula.slope_at_cut(shape)),
+        slope=float(slope),
         eta=eta,
         epsilon=eps,
         d25=float(d25),

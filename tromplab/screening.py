@@ -56,8 +56,12 @@ def check_screenable(n: int, *, n_params: int = 2) -> None:
         )
 
 
-def fisher_screen(observed, ssr: float, *, alpha: float = DEFAULT_ALPHA, n_params: int = 2) -> FisherScreen:
+def fisher_screen(observed, ssr: float, *, alpha: float = DEFAULT_ALPHA, n_params: int = 2, weights=None) -> FisherScreen:
     """Screen a fit with sum of squared residuals ``ssr`` to the ``observed`` values.
+
+    With ``weights`` (scaled to mean 1, as the fit uses them) ``ssr`` is the weighted sum
+    of squares and ``S0^2`` the weighted variance about the weighted mean, so that both
+    variances of the ratio are on the same scale.
 
     Examples
     --------
@@ -68,7 +72,12 @@ def fisher_screen(observed, ssr: float, *, alpha: float = DEFAULT_ALPHA, n_param
     observed = np.asarray(observed, dtype=float)
     n = observed.size
     f_crit = critical_f(n, alpha=alpha, n_params=n_params)
-    s0_sq = float(np.var(observed, ddof=1))
+    if weights is None:
+        s0_sq = float(np.var(observed, ddof=1))
+    else:
+        weights = np.asarray(weights, dtype=float)
+        mean = np.average(observed, weights=weights)
+        s0_sq = float(np.sum(weights * (observed - mean) ** 2) / (n - 1))
     s_res_sq = float(ssr) / (n - n_params)
     with np.errstate(divide="ignore", invalid="ignore"):
         f_value = s0_sq / s_res_sq if s_res_sq > 0 else np.inf
