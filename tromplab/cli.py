@@ -18,7 +18,7 @@ from .formulas import registry_table, select_formulas
 from .lab import KINDS, LabOptions, YieldWarning, read_experiments, read_lab
 from .ranking import RANK_BY, rank_formulas, read_f_table
 from .screening import DEFAULT_ALPHA
-from .workbench import fit_experiments, print_progress, write_atomically
+from .workbench import fit_experiments, model_averages, print_progress, write_atomically
 
 TERMINAL_COLUMNS = ["rank", "equation", "formula", "d_cut", "shape_name", "shape", "F", "F_crit", "adequate", "eta", "ep"]
 
@@ -58,7 +58,23 @@ def _parser() -> argparse.ArgumentParser:
     fit.add_argument("--rank-by", choices=sorted(RANK_BY), default="F", help="criterion within an experiment")
     fit.add_argument("--size-unit", default="", help="unit of the sizes, for the figure labels")
     fit.add_argument("--no-figures", action="store_true", help="do not draw figures")
+    fit.add_argument("--extended", action="store_true",
+                     help="also fit the curves with bypass and fish-hook (reported, kept out of the ranking)")
+    fit.add_argument("--rank-extended", action="store_true", help="rank the extended curves with the nine")
+    uncertainty = fit.add_argument_group("uncertainty")
+    uncertainty.add_argument("--ci", type=float, default=None, metavar="LEVEL",
+                             help="add interval columns at this level (profile likelihood for parameters, delta method for indices)")
+    uncertainty.add_argument("--bootstrap", type=int, default=0, metavar="N", help="add bootstrap percentile intervals from N resamples")
+    uncertainty.add_argument("--bootstrap-method", choices=("residuals", "cases"), default="residuals")
+    uncertainty.add_argument("--seed", type=int, default=0, help="seed of the bootstrap")
     fit.set_defaults(run=_run_fit)
+
+    compare = commands.add_parser("compare", parents=[lab], help="did the sharpness (or the cut) change between experiments?")
+    compare.add_argument("input", type=Path, help="Tromp points or a lab table with two or more experiments")
+    compare.add_argument("--formula", default="plitt", help="formula id or equation number (default plitt)")
+    compare.add_argument("--shared", choices=("shape", "d_cut"), default="shape", help="parameter shared by the joint fit")
+    compare.add_argument("--experiments", default=None, help="comma-separated experiments to compare (default: all)")
+    compare.set_defaults(run=_run_compare)
 
     points = commands.add_parser("points", parents=[lab], help="turn a lab table into Tromp points with diagnostics")
     points.add_argument("input", type=Path, help="lab table (CSV or .xlsx)")
@@ -117,6 +133,8 @@ def _lab_options_parser() -> argparse.ArgumentParser:
     group.add_argument("--pan-lower-size", type=float, default=None, help="lower bound of the pan")
     group.add_argument("--rename", default="", help="column renames OLD=NEW,OLD=NEW applied before reading")
     group.add_argument("--sheet", default=None, help="Excel sheet name (default: the first sheet)")
+    group.add_argument("--weight-by-feed-share", action="store_true",
+                       help="weight each point by its class's feed share (variance inversely proportional to it)")
     return lab  # fmt: skip
 
 
@@ -130,7 +148,7 @@ def _lab_options(args) -> LabOptions:
     return LabOptions(kind=args.kind, fine_yield=args.fine_yield, coarse_yield=args.coarse_yield,
                       estimate_yield=args.estimate_yield, reconcile=args.reconcile, min_feed_share=args.min_feed_share,
                       sum_tolerance_pct=args.sum_tolerance, top_size=args.top_size, pan_lower_size=args.pan_lower_size,
-                      rename=rename, sheet=args.sheet)  # fmt: skip
+                      rename=rename, sheet=args.sheet, weight_by_feed_share=args.weight_by_feed_share)  # fmt: skip
 
 
 def _print_balance_notes(balances) -> None:
@@ -143,7 +161,7 @@ def _print_balance_notes(balances) -> None:
 
 def _run_points(args) -> int:
     balances = read_lab(args.input, _lab_options(args))
-    table = pd.concat([b.points_table() for b in balances], ignore_index=True)
+    table = pd.concat([b.points_table(weight_by_feed_share=args.weight_by_feed_share) for b in balances], ignore_index=True)
     args.output.parent.mkdir(parents=True, exist_ok=True)
     written = write_atomically({args.output.name: lambda p: table.to_csv(p, index=False)}, args.output.parent)
     _print_balance_notes(balances)
@@ -213,13 +231,26 @@ def _run_formulas(args) -> int:
 
 
 def _run_fit(args) -> int:
-    select_formulas(args.formulas)  # fail early on an unknown id, before any work
+    formulas = _formula_keys(args)
+    select_formulas(formulas)  # fail early on an unknown id, before any work
+    if args.ci is not None and not 0 < args.ci < 1:
+        raise ValueError(f"--ci takes a level between 0 and 1, got {args.ci}")
+    if args.bootstrap < 0:
+        raise ValueError("--bootstrap takes a non-negative number of resamples")
     experiments, balances = read_experiments(args.input, _lab_options(args))
     _print_balance_notes(balances)
-    bench = fit_experiments(experiments, formulas=args.formulas, alpha=args.alpha, delta_max=args.delta_max,
-                            rank_by=args.rank_by, progress=print_progress)  # fmt: skip
+    bench = fit_experiments(experiments, formulas=formulas, alpha=args.alpha, delta_max=args.delta_max,
+                            rank_by=args.rank_by, rank_extended=args.rank_extended, progress=print_progress)  # fmt: skip
     fits, ranking = bench.fits_table(), bench.ranking_table()
-    outputs = {"fits.csv": lambda p: fits.to_csv(p, index=False), "ranking.csv": lambda p: ranking.to_csv(p, index=False)}
+    if args.ci is not None or args.bootstrap:
+        from .uncertainty import interval_columns
+
+        intervals = interval_columns(bench.fits, level=args.ci, n_bootstrap=args.bootstrap, method=args.bootstrap_method,
+                                     seed=args.seed, progress=_interval_progress)  # fmt: skip
+        fits = fits.merge(intervals, on=["experiment", "formula"], how="left")
+    averages = model_averages(bench, level=args.ci or 0.95)
+    outputs = {"fits.csv": lambda p: fits.to_csv(p, index=False), "ranking.csv": lambda p: ranking.to_csv(p, index=False),
+               "averages.csv": lambda p: averages.to_csv(p, index=False)}  # fmt: skip
     if not args.no_figures:
         for experiment in bench.experiments:
             outputs[f"curves_{_file_safe(experiment)}.png"] = _figure_writer(bench.fits_of(experiment), args.size_unit)
@@ -235,6 +266,37 @@ def _run_fit(args) -> int:
     print("\nWrote:")
     for path in written.values():
         print(f"  {path}")
+    return 0
+
+
+def _formula_keys(args):
+    keys = args.formulas or ("paper" if args.extended else None)
+    if args.extended and "extended" not in (keys or ""):
+        keys = f"{keys},extended"
+    return keys
+
+
+def _interval_progress(i: int, total: int, label: str) -> None:
+    print(f"[{i}/{total}] intervals for {label}", file=sys.stderr, flush=True)
+
+
+def _run_compare(args) -> int:
+    from .compare import shared_fit
+
+    experiments, _ = read_experiments(args.input, _lab_options(args))
+    if args.experiments:
+        wanted = [e.strip() for e in args.experiments.split(",") if e.strip()]
+        known = {p.experiment: p for p in experiments}
+        missing = [e for e in wanted if e not in known]
+        if missing:
+            raise ValueError(f"unknown experiment(s) {', '.join(missing)}; the file has {', '.join(known)}")
+        experiments = [known[e] for e in wanted]
+    result = shared_fit(experiments, args.formula, shared=args.shared)
+    print(result.table().to_string(index=False, float_format=lambda v: f"{v:.4g}"))
+    test = result.test
+    verdict = "differ" if test.needed() else "are consistent with one"
+    print(f"\nExtra sum of squares: F = {test.F:.4g} on ({test.df_extra}, {test.df_full}) df, p = {test.p_value:.4g}: "
+          f"the experiments {verdict} {result.shared} (alpha 0.05)")  # fmt: skip
     return 0
 
 

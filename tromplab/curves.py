@@ -258,7 +258,7 @@ def fit_formula(
     if extras:
         peak = float(np.max(formula(np.geomspace(points.size.min() / 10, points.size.max(), 400), fit.values["d_cut"],
                                     fit.values[formula.shape_name], **extras)))  # fmt: skip
-        if peak > 1.0 + 1e-9:
+        if peak > 1.0 + 1e-4:
             warnings.append(f"the fitted curve exceeds 1 (maximum {peak:.3f}): not a physical partition")
     screen = fisher_screen(points.partition_fine, fit.ssr, alpha=alpha, n_params=formula.n_params, weights=weights)
     largest = points.largest_size if delta_max is None else float(delta_max)

@@ -9,6 +9,7 @@ This is the only module that imports lmfit.
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
@@ -103,20 +104,27 @@ class ParameterFit:
     def profile_intervals(self, level: float = 0.95, names: Sequence[str] | None = None) -> dict[str, tuple[float, float]]:
         """Profile-likelihood intervals from lmfit's ``conf_interval`` (F test on the sum of squares).
 
-        A bound that cannot be reached within the parameter's limits is nan.
+        nan for a parameter whose profile stops at a bound or does not converge (lmfit
+        warns and returns a point short of the level there).
         """
         names = list(names or self.names)
+        missing = {name: (np.nan, np.nan) for name in names}
         if not self.success or self.minimizer is None:
-            return {name: (np.nan, np.nan) for name in names}
-        try:
-            table = lmfit.conf_interval(self.minimizer, self.raw, p_names=names, sigmas=[level], maxiter=400)
-        except (ValueError, ArithmeticError, lmfit.minimizer.MinimizerException) as error:  # no covariance, bounds hit
-            return {name: (np.nan, np.nan) for name in names} | {"_error": str(error)}
+            return missing
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            try:
+                table = lmfit.conf_interval(self.minimizer, self.raw, p_names=names, sigmas=[level], maxiter=400)
+            except (ValueError, ArithmeticError, lmfit.minimizer.MinimizerException):  # no covariance, singular profile
+                return missing
+        # lmfit warns, and returns a point short of the level, when a profile stops at a bound
+        unreliable = {name for name in names for w in caught if f"prob({name}=" in str(w.message)}
         out = {}
         for name in names:
             rows = table[name]
             low, high = rows[0][1], rows[-1][1]
-            out[name] = (float(low) if np.isfinite(low) else np.nan, float(high) if np.isfinite(high) else np.nan)
+            usable = name not in unreliable
+            out[name] = (float(low) if usable and np.isfinite(low) else np.nan, float(high) if usable and np.isfinite(high) else np.nan)
         return out
 
     @classmethod

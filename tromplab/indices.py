@@ -86,28 +86,27 @@ def efficiency(formula: Formula, shape: float, x_max: float, **context) -> tuple
 
 
 def _relative_size_at(formula: Formula, shape: float, level: float, context: dict) -> float:
-    """Relative size where the curve crosses ``level`` (nan when it never does).
+    """Relative size where the curve crosses ``level`` next to the cut (nan when it never does).
 
-    Levels above 1/2 are searched below the cut, levels below 1/2 above it, which picks
-    the crossing next to the cut for curves that rise again at large sizes.
+    The search starts at ``x = 1`` and widens towards larger sizes when the curve is above
+    ``level`` there, towards smaller sizes otherwise; so it finds the crossing nearest the
+    cut also for curves that rise again, or whose value at the cut is not 1/2 (bypass).
     """
 
     def gap(x):
         return float(formula.phi(x, shape, **context)) - level
 
-    if level > 0.5:
-        inner, outer = 1.0, 0.5
-        while gap(outer) < 0.0:
-            outer *= 0.5
-            if outer < 1e-12:
-                return float("nan")
-    else:
-        inner, outer = 1.0, 2.0
-        while gap(outer) > 0.0:
-            outer *= 2.0
-            if outer > 1e12:
-                return float("nan")
-    return optimize.brentq(gap, min(inner, outer), max(inner, outer), xtol=1e-13, rtol=1e-13)
+    at_cut = gap(1.0)
+    if at_cut == 0.0:
+        return 1.0
+    factor = 2.0 if at_cut > 0 else 0.5
+    outer = 1.0
+    while True:
+        inner, outer = outer, outer * factor
+        if not 1e-12 < outer < 1e12:
+            return float("nan")
+        if np.sign(gap(outer)) != np.sign(at_cut):
+            return optimize.brentq(gap, min(inner, outer), max(inner, outer), xtol=1e-13, rtol=1e-13)
 
 
 def _numeric_slope(formula: Formula, shape: float, context: dict) -> float:

@@ -87,6 +87,10 @@ class LabOptions:
         Column renames applied before reading (``{"sieve_um": "size"}``).
     sheet : str or None
         Excel sheet.
+    weight_by_feed_share : bool
+        Weight each Tromp point by the feed share of its class.  Error model: the
+        partition of a class is measured on a sample mass proportional to its feed
+        share, so its variance is inversely proportional to that share.
     """
 
     kind: str | None = None
@@ -100,6 +104,7 @@ class LabOptions:
     pan_lower_size: float | None = None
     rename: dict = field(default_factory=dict)
     sheet: str | None = None
+    weight_by_feed_share: bool = False
 
     def __post_init__(self):
         if self.kind is not None and self.kind not in KINDS:
@@ -144,22 +149,25 @@ class MassBalance:
     notes: tuple[str, ...] = ()
     source: str = ""
 
-    def to_points(self) -> TrompPoints:
+    def to_points(self, *, weight_by_feed_share: bool = False) -> TrompPoints:
         used = self.classes[self.classes["used"]]
         return TrompPoints(
             experiment=self.experiment,
             size=used["size"].to_numpy(),
             partition_fine=used["partition_fine"].to_numpy(),
+            weight=used["feed"].to_numpy() if weight_by_feed_share else None,
             delta_max=self.top_size,
             source=self.source,
         )
 
-    def points_table(self) -> pd.DataFrame:
-        """Rows in the ``tromplab fit`` schema plus per-class diagnostics."""
+    def points_table(self, *, weight_by_feed_share: bool = False) -> pd.DataFrame:
+        """Rows in the ``tromplab fit`` schema plus per-class diagnostics (and a ``weight``
+        column equal to the feed share when asked)."""
         table = self.classes.rename(columns={"feed": "feed_share"})
         columns = ["experiment", "size", "partition_fine", "size_lower", "size_upper", "feed_share",
                    "balance_residual", "used", "flag"]  # fmt: skip
-        return table[columns]
+        table = table[columns]
+        return table.assign(weight=table["feed_share"]) if weight_by_feed_share else table
 
 
 # --- reading ----------------------------------------------------------------------------
@@ -713,5 +721,5 @@ def read_experiments(path, options: LabOptions | None = None) -> tuple[list[Trom
     table = _renamed(read_table(path, sheet=options.sheet), options.rename)
     if is_lab_table(table.frame.columns):
         balances = balances_from_table(table, options)
-        return [balance.to_points() for balance in balances], balances
+        return [balance.to_points(weight_by_feed_share=options.weight_by_feed_share) for balance in balances], balances
     return points_from_table(table), []

@@ -41,6 +41,7 @@ class Workbench:
     formulas: tuple[Formula, ...] = ()
     rank_by: str = "F"
     alpha: float = DEFAULT_ALPHA
+    rank_extended: bool = False
 
     def fits_table(self) -> pd.DataFrame:
         """One row per experiment and formula (columns :data:`FIT_COLUMNS`)."""
@@ -61,6 +62,9 @@ class Workbench:
         """Ranks per experiment, points and place per formula (failed experiments left out)."""
         table = self.fits_table()
         table = table[~table["experiment"].isin(list(self.failures))]
+        if not self.rank_extended:
+            paper = [f.id for f in self.formulas if f.family == "paper"]
+            table = table[table["formula"].isin(paper)]
         if table.empty:
             return pd.DataFrame(columns=["equation", "formula", "points", "place"])
         ranking = rank_formulas(table, by=self.rank_by, key="formula")
@@ -83,6 +87,7 @@ def fit_experiments(
     alpha: float = DEFAULT_ALPHA,
     delta_max: float | None = None,
     rank_by: str = "F",
+    rank_extended: bool = False,
     progress: Callable[[int, int, str], None] | None = None,
 ) -> Workbench:
     """Fit, screen and rank ``formulas`` (default: all nine) on each experiment.
@@ -97,6 +102,9 @@ def fit_experiments(
         Largest feed size for the misplacement index; default per experiment, its
         ``delta_max`` if known, else its largest size.
     rank_by : {"F", "aicc"}
+    rank_extended : bool
+        Rank the extended curves (bypass, fish-hook) with the nine; by default they are
+        fitted and reported but kept out of the paper's ranking.
     progress : callable, optional
         Called as ``progress(i, total, experiment)`` before each experiment.
     """
@@ -112,7 +120,22 @@ def fit_experiments(
             continue
         for formula in chosen:
             fits.append(_fit_guarded(points, formula, alpha, delta_max))
-    return Workbench(tuple(fits), failures, chosen, rank_by, alpha)
+    return Workbench(tuple(fits), failures, chosen, rank_by, alpha, rank_extended)
+
+
+def model_averages(bench: Workbench, *, level: float = 0.95) -> pd.DataFrame:
+    """Akaike-weighted d_cut, Ep and eta per experiment (the formulas ranked by the batch)."""
+    from .uncertainty import model_average
+
+    frames = []
+    for experiment in bench.experiments:
+        fits = [f for f in bench.fits_of(experiment) if f.success and (bench.rank_extended or f.formula.family == "paper")]
+        if fits:
+            frames.append(model_average(fits, level=level).assign(experiment=experiment))
+    if not frames:
+        return pd.DataFrame()
+    table = pd.concat(frames, ignore_index=True)
+    return table[["experiment", *[c for c in table.columns if c != "experiment"]]]
 
 
 def _fit_guarded(points, formula, alpha, delta_max) -> CurveFit:

@@ -1,0 +1,161 @@
+"""Comparing fits: nested models and experiments.
+
+* :func:`nested_f_test`: does a bypass or fish-hook term improve a fit beyond chance?
+  The extra-sum-of-squares F test of a reduced model nested in a full one.
+* :func:`shared_fit`: did the sharpness (or the cut size) change between experiments?
+  One formula fitted to several experiments at once with the shape (or ``d_cut``) shared,
+  against separate fits, by the same extra-sum-of-squares test.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+from scipy import stats
+
+from .curves import CurveFit, fit_formula, measured_efficiency, normalised_weights
+from .fitting import ParameterFit, ParameterSpec, least_squares
+from .formulas import get_formula
+from .points import TrompPoints
+
+
+@dataclass(frozen=True)
+class ExtraSumOfSquares:
+    """Extra-sum-of-squares F test of a reduced model against a fuller one."""
+
+    ssr_reduced: float
+    ssr_full: float
+    df_extra: int
+    df_full: int
+
+    @property
+    def F(self) -> float:
+        if self.ssr_full <= 0:
+            return np.inf
+        return max(self.ssr_reduced - self.ssr_full, 0.0) / self.df_extra / (self.ssr_full / self.df_full)
+
+    @property
+    def p_value(self) -> float:
+        return float(stats.f.sf(self.F, self.df_extra, self.df_full))
+
+    def needed(self, alpha: float = 0.05) -> bool:
+        """True when the fuller model is needed at significance ``alpha``."""
+        return self.p_value < alpha
+
+
+def nested_f_test(reduced: CurveFit, full: CurveFit) -> ExtraSumOfSquares:
+    """Whether the extra terms of ``full`` are needed beyond ``reduced`` (same points).
+
+    ``F = ((SSR_r - SSR_f) / (p_f - p_r)) / (SSR_f / (n - p_f))``.
+
+    Raises
+    ------
+    ValueError
+        When the fits are to different points, failed, or not nested.
+    """
+    if reduced.points is not full.points and not (
+        np.array_equal(reduced.points.size, full.points.size)
+        and np.array_equal(reduced.points.partition_fine, full.points.partition_fine)
+    ):
+        raise ValueError("the two fits must be to the same points")
+    if not (reduced.success and full.success):
+        raise ValueError("both fits must have succeeded")
+    if full.formula.nests != reduced.formula.id:
+        raise ValueError(f"{full.formula.id} does not nest {reduced.formula.id} (it nests {full.formula.nests})")
+    extra = full.formula.n_params - reduced.formula.n_params
+    return ExtraSumOfSquares(reduced.fit.ssr, full.fit.ssr, extra, full.points.n - full.formula.n_params)
+
+
+@dataclass(frozen=True)
+class SharedFit:
+    """A formula fitted to several experiments with one parameter shared."""
+
+    formula_id: str
+    shared: str
+    fit: ParameterFit
+    separate: tuple[CurveFit, ...]
+    test: ExtraSumOfSquares
+    experiments: tuple[str, ...]
+
+    def table(self) -> pd.DataFrame:
+        """Per experiment: the shared-fit parameters beside the separate fits'."""
+        shape = get_formula(self.formula_id).shape_name
+        rows = []
+        for i, (name, separate) in enumerate(zip(self.experiments, self.separate)):
+            free = "d_cut" if self.shared == shape else shape
+            rows.append({
+                "experiment": name,
+                f"shared_{self.shared}": self.fit.values[self.shared],
+                f"{free}_joint": self.fit.values[f"{free}_{i}"],
+                f"{free}_separate": separate.fit.values[free],
+                f"{self.shared}_separate": separate.fit.values[self.shared],
+            })  # fmt: skip
+        return pd.DataFrame(rows)
+
+
+def shared_fit(experiments: Sequence[TrompPoints], formula, *, shared: str = "shape") -> SharedFit:
+    """Fit ``formula`` to all experiments at once with the shape (or ``d_cut``) shared.
+
+    The separate fits have ``2k`` parameters for ``k`` experiments, the joint fit
+    ``k + 1``; the extra-sum-of-squares test with ``k - 1`` and ``N - 2k`` degrees of
+    freedom tells whether the experiments differ in the shared parameter ("did the
+    sharpness change between these runs").
+
+    Parameters
+    ----------
+    experiments : sequence of TrompPoints
+        Two or more experiments.
+    formula : Formula or str
+        One of the nine paper formulas (no extras).
+    shared : {"shape", "d_cut"}
+    """
+    formula = get_formula(formula)
+    if len(experiments) < 2:
+        raise ValueError("a shared fit needs at least two experiments")
+    if formula.extras:
+        raise ValueError("shared fits are offered for the two-parameter formulas")
+    if shared not in ("shape", "d_cut"):
+        raise ValueError("shared must be 'shape' or 'd_cut'")
+    shape = formula.shape_name
+    shared_name = shape if shared == "shape" else "d_cut"
+    free = "d_cut" if shared == "shape" else shape
+    separate = tuple(fit_formula(points, formula) for points in experiments)
+    failed = [fit.experiment for fit in separate if not fit.success]
+    if failed:
+        raise ValueError(f"the separate fit failed for {', '.join(failed)}")
+    contexts = [{"measured_efficiency": measured_efficiency(p)} if formula.context_from_efficiency else {} for p in experiments]
+    root_weights = [np.sqrt(normalised_weights(p)) for p in experiments]
+    sizes = np.concatenate([p.size for p in experiments])
+    specs = [ParameterSpec(shared_name, *(_bounds(formula, shared_name, sizes)))]
+    specs += [ParameterSpec(f"{free}_{i}", *_bounds(formula, free, p.size)) for i, p in enumerate(experiments)]
+
+    def residual(values):
+        parts = []
+        for i, (points, context, root) in enumerate(zip(experiments, contexts, root_weights)):
+            params = {shared_name: values[shared_name], free: values[f"{free}_{i}"]}
+            parts.append(root * (formula(points.size, params["d_cut"], params[shape], **context) - points.partition_fine))
+        return np.concatenate(parts)
+
+    starts = []
+    for pick in range(len(separate)):  # each experiment's own value of the shared parameter as a start
+        start = {shared_name: separate[pick].fit.values[shared_name]}
+        start.update({f"{free}_{i}": fit.fit.values[free] for i, fit in enumerate(separate)})
+        starts.append(start)
+    mean_start = {shared_name: float(np.mean([fit.fit.values[shared_name] for fit in separate]))}
+    starts.append({**starts[0], **mean_start})
+    fit = least_squares(residual, specs, starts)
+    n_total = sum(p.n for p in experiments)
+    k = len(experiments)
+    ssr_separate = float(sum(f.fit.ssr for f in separate))
+    test = ExtraSumOfSquares(fit.ssr, ssr_separate, k - 1, n_total - 2 * k)
+    return SharedFit(formula.id, shared_name, fit, separate, test, tuple(p.experiment for p in experiments))
+
+
+def _bounds(formula, name, sizes):
+    if name == "d_cut":
+        return (np.min(sizes) / 100.0, np.max(sizes) * 100.0)
+    return formula.shape_bounds
+
