@@ -14,6 +14,9 @@ SCRIPTS = {
     "sieve_published_checks.py": ["sieve_published_checks.csv"],
     "shuvalov2018_table3.py": ["table3_printed_marks.csv"],
     "sieve_operating_point.py": ["sieve_pareto.csv", "sieve_pareto.png"],
+    "shuvalov2018_figures.py": ["fig1_equal_slope_-0.5.png", "fig2_equal_slope_-0.4.png", "fig3_ks_kf.png",
+                                "table2_F_heatmap.png", "table3_ranking.png"],
+    "sieve_figures.py": ["sieve_pg_family.png", "sieve_residue_efficiency.png", "sieve_distance_densities.png"],
 }
 
 

@@ -3,6 +3,7 @@
 Importing the package has no side effects: no plotting style, no files, no network.
 """
 
+from ._version import __version__
 from .curves import CurveFit, fit_formula
 from .errors import InputError
 from .formulas import FORMULAS, Formula, get_formula
@@ -11,7 +12,6 @@ from .points import TrompPoints, read_points
 from .ranking import rank_formulas
 from .workbench import Workbench, fit_experiments
 
-__version__ = "0.1.0"
 
 __all__ = [
     "FORMULAS", "CurveFit", "Formula", "InputError", "TrompPoints", "Workbench", "curve_indices",

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from . import __version__
+from ._version import __version__
 from .errors import InputError
 from .formulas import registry_table, select_formulas
 from .lab import KINDS, LabOptions, YieldWarning, read_experiments, read_lab
@@ -68,6 +68,20 @@ def _parser() -> argparse.ArgumentParser:
     uncertainty.add_argument("--bootstrap-method", choices=("residuals", "cases"), default="residuals")
     uncertainty.add_argument("--seed", type=int, default=0, help="seed of the bootstrap")
     fit.set_defaults(run=_run_fit)
+
+    report = commands.add_parser("report", parents=[lab], help="HTML and Markdown report: balance, ranked fits, uncertainties, figures")
+    report.add_argument("input", type=Path, help="Tromp points or a lab table")
+    report.add_argument("-o", "--output", type=Path, default=Path("results/report.html"), help="HTML file (a .md twin is written beside it)")
+    report.add_argument("--alpha", type=float, default=DEFAULT_ALPHA)
+    report.add_argument("--formulas", default=None, help="comma-separated ids or equation numbers (default: all nine)")
+    report.add_argument("--extended", action="store_true", help="also fit the curves with bypass and fish-hook")
+    report.add_argument("--rank-extended", action="store_true")
+    report.add_argument("--delta-max", type=float, default=None)
+    report.add_argument("--rank-by", choices=sorted(RANK_BY), default="F")
+    report.add_argument("--ci", type=float, default=0.95, metavar="LEVEL", help="level of the intervals (default 0.95)")
+    report.add_argument("--size-unit", default="")
+    report.add_argument("--title", default="tromplab report")
+    report.set_defaults(run=_run_report)
 
     compare = commands.add_parser("compare", parents=[lab], help="did the sharpness (or the cut) change between experiments?")
     compare.add_argument("input", type=Path, help="Tromp points or a lab table with two or more experiments")
@@ -280,6 +294,25 @@ def _interval_progress(i: int, total: int, label: str) -> None:
     print(f"[{i}/{total}] intervals for {label}", file=sys.stderr, flush=True)
 
 
+def _run_report(args) -> int:
+    from .report import build_report, write_report
+
+    formulas = _formula_keys(args)
+    select_formulas(formulas)
+    if not 0 < args.ci < 1:
+        raise ValueError(f"--ci takes a level between 0 and 1, got {args.ci}")
+    experiments, balances = read_experiments(args.input, _lab_options(args))
+    bench = fit_experiments(experiments, formulas=formulas, alpha=args.alpha, delta_max=args.delta_max, rank_by=args.rank_by,
+                            rank_extended=args.rank_extended, progress=print_progress)  # fmt: skip
+    report = build_report(bench, balances, source=str(args.input), level=args.ci, size_unit=args.size_unit, title=args.title)
+    args.output.parent.mkdir(parents=True, exist_ok=True)
+    written = write_report(report, args.output)
+    print("Wrote:")
+    for path in written.values():
+        print(f"  {path}")
+    return 0
+
+
 def _run_compare(args) -> int:
     from .compare import shared_fit
 
@@ -313,18 +346,19 @@ def format_fits(fits: pd.DataFrame) -> str:
     """The ranked fits, one block per experiment, readable in a 100-column terminal."""
     blocks = []
     for experiment, group in fits.groupby("experiment", sort=False):
-        if group["rank"].isna().all():
+        if not group["success"].any():
             continue  # experiments that could not be fitted are listed separately
-        view = group.sort_values("rank")[TERMINAL_COLUMNS].copy()
+        view = group.sort_values("rank", na_position="last")[TERMINAL_COLUMNS].copy()
         view["adequate"] = view["adequate"].map({True: "yes", False: "NO"})
         view.loc[~group["success"], "adequate"] = "failed"
         view = view.rename(columns={"equation": "eq", "shape_name": "par", "adequate": "adequ."})
         text = view.to_string(index=False, float_format=lambda v: f"{v:.4g}", na_rep="-")
         n = int(group["n"].dropna().iloc[0]) if group["n"].notna().any() else 0
         blocks.append(f"Experiment {experiment} (n = {n}):\n{text}")
-        notes = group.loc[~group["success"] | group["message"].str.contains("bound|break point|systematic|exceeds 1", na=False), ["formula", "message"]]
-        for formula, message in notes.itertuples(index=False):
-            blocks.append(textwrap.fill(f"note {formula}: {message}", width=98, initial_indent="  ", subsequent_indent="    "))
+        for formula, success, message, warned in group[["formula", "success", "message", "warnings"]].itertuples(index=False):
+            note = warned if success else f"fit failed: {message}"
+            if isinstance(note, str) and note:
+                blocks.append(textwrap.fill(f"note {formula}: {note}", width=98, initial_indent="  ", subsequent_indent="    "))
     return "\n".join(blocks)
 
 

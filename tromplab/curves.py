@@ -40,7 +40,8 @@ class CurveFit:
 
     ``success`` is False when the fit failed; ``message`` then says why and the numbers
     are nan.  ``warnings`` lists conditions a user should know about a successful fit
-    (a parameter on its bound, formula (11) without a break point, ...).
+    (a parameter on its bound, formula (11) without a break point, systematic residuals,
+    a curve above 1).
     """
 
     formula: Formula
@@ -64,7 +65,8 @@ class CurveFit:
 
     @property
     def message(self) -> str:
-        return "; ".join((self.fit.message, *self.warnings)) if self.warnings else self.fit.message
+        """The solver's message, or why the fit failed."""
+        return self.fit.message
 
     @property
     def d_cut(self) -> float:
@@ -118,6 +120,7 @@ class CurveFit:
             "fishhook": self.fit.values.get("fishhook", np.nan),
             "success": self.success,
             "message": self.message,
+            "warnings": "; ".join(self.warnings),
         }
 
 

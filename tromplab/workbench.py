@@ -28,7 +28,7 @@ from .screening import DEFAULT_ALPHA
 FIT_COLUMNS = (
     "experiment", "equation", "formula", "n", "d_cut", "d_cut_stderr", "shape_name", "shape", "shape_stderr",
     "ssr", "F", "F_crit", "adequate", "rank", "eta", "epsilon", "slope", "d25", "d75", "ep", "imperfection",
-    "aic", "aicc", "bic", "bypass", "fishhook", "runs_p", "normality_p", "x_break", "success", "message",
+    "aic", "aicc", "bic", "bypass", "fishhook", "runs_p", "normality_p", "x_break", "success", "message", "warnings",
 )  # fmt: skip
 
 
@@ -54,17 +54,30 @@ class Workbench:
         table = pd.DataFrame(rows).reindex(columns=[c for c in FIT_COLUMNS if c != "rank"])
         table["adequate"] = table["adequate"].astype(bool)
         table["success"] = table["success"].astype(bool)
-        ranked = add_ranks(table, by=self.rank_by)
-        ranked.loc[ranked["experiment"].isin(list(self.failures)), "rank"] = np.nan
-        return ranked.reindex(columns=list(FIT_COLUMNS))
+        in_ranking = table["formula"].isin([f.id for f in self.ranked_formulas])
+        ranked = add_ranks(table[in_ranking], by=self.rank_by)
+        table["rank"] = ranked["rank"]  # curves kept out of the ranking get no rank
+        table.loc[table["experiment"].isin(list(self.failures)), "rank"] = np.nan
+        return table.reindex(columns=list(FIT_COLUMNS))
+
+    @property
+    def ranked_formulas(self) -> tuple[Formula, ...]:
+        """The formulas the ranking covers: the paper's nine unless extended curves are ranked too."""
+        return tuple(f for f in self.formulas if self.rank_extended or f.family == "paper")
+
+    def best_fit(self, experiment: str) -> CurveFit | None:
+        """The top-ranked successful fit of an experiment."""
+        table = self.fits_table()
+        rows = table[(table["experiment"] == experiment) & table["success"] & table["rank"].notna()]
+        if rows.empty:
+            return None
+        best = rows.sort_values("rank").iloc[0]["formula"]
+        return next(f for f in self.fits_of(experiment) if f.formula.id == best)
 
     def ranking_table(self) -> pd.DataFrame:
         """Ranks per experiment, points and place per formula (failed experiments left out)."""
         table = self.fits_table()
-        table = table[~table["experiment"].isin(list(self.failures))]
-        if not self.rank_extended:
-            paper = [f.id for f in self.formulas if f.family == "paper"]
-            table = table[table["formula"].isin(paper)]
+        table = table[~table["experiment"].isin(list(self.failures)) & table["rank"].notna()]
         if table.empty:
             return pd.DataFrame(columns=["equation", "formula", "points", "place"])
         ranking = rank_formulas(table, by=self.rank_by, key="formula")
@@ -129,7 +142,7 @@ def model_averages(bench: Workbench, *, level: float = 0.95) -> pd.DataFrame:
 
     frames = []
     for experiment in bench.experiments:
-        fits = [f for f in bench.fits_of(experiment) if f.success and (bench.rank_extended or f.formula.family == "paper")]
+        fits = [f for f in bench.fits_of(experiment) if f.success and f.formula in bench.ranked_formulas]
         if fits:
             frames.append(model_average(fits, level=level).assign(experiment=experiment))
     if not frames:

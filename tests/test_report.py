@@ -1,0 +1,63 @@
+"""The HTML report is well formed and holds every section; the Markdown twin too."""
+
+from html.parser import HTMLParser
+
+from tromplab.cli import main
+from tromplab.report import SECTIONS
+
+from .conftest import DATASETS
+
+VOID = {"meta", "img", "br", "hr", "link", "input"}
+
+
+class TagChecker(HTMLParser):
+    """Checks that every non-void tag is closed in order, and collects section ids and images."""
+
+    def __init__(self):
+        super().__init__()
+        self.stack, self.errors, self.sections, self.images = [], [], [], 0
+
+    def handle_starttag(self, tag, attrs):
+        attrs = dict(attrs)
+        if tag == "section":
+            self.sections.append(attrs.get("id"))
+        if tag == "img":
+            self.images += attrs.get("src", "").startswith("data:image/png;base64,")
+        if tag not in VOID:
+            self.stack.append(tag)
+
+    def handle_endtag(self, tag):
+        if tag in VOID:
+            return
+        if not self.stack or self.stack[-1] != tag:
+            self.errors.append(f"unexpected </{tag}> with open {self.stack[-3:]}")
+        else:
+            self.stack.pop()
+
+
+def test_report_from_lab_data(tmp_path, capsys):
+    output = tmp_path / "out" / "report.html"
+    assert main(["report", str(DATASETS / "double_deck_screen_decks_lab.csv"), "-o", str(output), "--size-unit", "mm"]) == 0
+    text = output.read_text()
+    checker = TagChecker()
+    checker.feed(text)
+    checker.close()
+    assert checker.errors == [] and checker.stack == []
+    assert checker.sections == list(SECTIONS)
+    assert checker.images == 6  # two curves, two residual plots, heatmap, ranking
+    for needle in ("Fine yield 0.2639 (column fine_yield)", "deck_65mesh", "F_crit", "profile", "place"):
+        assert needle in text
+    markdown = (tmp_path / "out" / "report.md").read_text()
+    assert markdown.count("\n## ") == len(SECTIONS)
+    assert "![Tromp curve, experiment deck_20mesh](report_figure1.png)" in markdown
+    assert (tmp_path / "out" / "report_figure1.png").stat().st_size > 10_000
+
+
+def test_report_of_points_says_when_a_section_does_not_apply(tmp_path):
+    path = tmp_path / "points.csv"
+    path.write_text("size,partition_fine\n10,0.97\n20,0.9\n40,0.7\n80,0.35\n160,0.1\n320,0.02\n")
+    output = tmp_path / "r.html"
+    assert main(["report", str(path), "-o", str(output)]) == 0
+    text = output.read_text()
+    balance = text.split('<section id="balance">')[1].split("</section>")[0]
+    assert "Not applicable to this input." in balance
