@@ -5,35 +5,18 @@ heatmap and ranking chart of Tables 2 and 3.
 Usage: ``python analysis/shuvalov2018_figures.py [--outdir analysis/output]``
 """
 
-import argparse
-from pathlib import Path
+from _common import ROOT, output_arguments, save
 
-import matplotlib
+import matplotlib.pyplot as plt
+import seaborn as sns
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import seaborn as sns  # noqa: E402
-
-from tromplab.formulas import get_formula  # noqa: E402
-from tromplab.plotting import plot_equal_slope_family, plot_f_heatmap, plot_plitt_lognormal_relation, plot_ranking  # noqa: E402
-from tromplab.ranking import rank_formulas, read_f_table  # noqa: E402
-
-ROOT = Path(__file__).resolve().parent.parent
-OUTPUT = Path(__file__).resolve().parent / "output"
-
-
-def save(ax, path):
-    ax.figure.tight_layout()
-    ax.figure.savefig(path, dpi=120)
-    plt.close(ax.figure)
-    print(f"Wrote {path}")
+from tromplab.formulas import get_formula
+from tromplab.plotting import plot_equal_slope_family, plot_f_heatmap, plot_plitt_lognormal_relation, plot_ranking
+from tromplab.ranking import rank_formulas, read_f_table
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--outdir", type=Path, default=OUTPUT)
-    args = parser.parse_args(argv)
-    args.outdir.mkdir(parents=True, exist_ok=True)
+    args = output_arguments(__doc__, argv)
     sns.set_theme(style="whitegrid")
     save(plot_equal_slope_family(-0.5), args.outdir / "fig1_equal_slope_-0.5.png")
     save(plot_equal_slope_family(-0.4), args.outdir / "fig2_equal_slope_-0.4.png")

@@ -4,22 +4,19 @@ published table, with the differing cells marked.
 Usage: ``python analysis/shuvalov2018_table3.py [--computed-adequacy] [--outdir analysis/output]``
 """
 
-import argparse
-from pathlib import Path
+from _common import ROOT, output_arguments
 
 import pandas as pd
 
 from tromplab.reproduce import shuvalov_table3, write_table
 
-ROOT = Path(__file__).resolve().parent.parent
-OUTPUT = Path(__file__).resolve().parent / "output"
+
+def add_options(parser):
+    parser.add_argument("--computed-adequacy", action="store_true", help="adequacy from F > F_crit instead of Table 3's marks")
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--computed-adequacy", action="store_true", help="adequacy from F > F_crit instead of Table 3's marks")
-    parser.add_argument("--outdir", type=Path, default=OUTPUT)
-    args = parser.parse_args(argv)
+    args = output_arguments(__doc__, argv, add_options)
     table = shuvalov_table3(ROOT / "datasets" / "shuvalov2018_table2_F.csv", ROOT / "datasets" / "shuvalov2018_table3_ranks.csv",
                             use_given_marks=not args.computed_adequacy)  # fmt: skip
     marks = "computed from Table 2" if args.computed_adequacy else "as printed in Table 3"

@@ -6,36 +6,20 @@ deck of a 12-deck classifier with the collecting bin.
 Usage: ``python analysis/sieve_figures.py [--outdir analysis/output]``
 """
 
-import argparse
-from pathlib import Path
+from _common import output_arguments, save
 
-import matplotlib
+import numpy as np
+import seaborn as sns
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import seaborn as sns  # noqa: E402
+from tromplab import sieve
+from tromplab.plotting import plot_distance_densities, plot_geometric_probability, plot_residue_and_efficiency
 
-from tromplab import sieve  # noqa: E402
-from tromplab.plotting import plot_distance_densities, plot_geometric_probability, plot_residue_and_efficiency  # noqa: E402
-
-OUTPUT = Path(__file__).resolve().parent / "output"
 HOLE, HALF_CELL, LENGTH, PITCH = 2.0, 1.6, 1.6, 0.0032  # mm, mm, m, m (kinetics paper's example)
 FRACTIONS = {"2.5 x 1.5 mm": ((2.5, 1.5), (0.148, 0.051)), "2.0 x 1.5 mm": ((2.0, 1.5), (0.185, 0.069))}
 
 
-def save(ax, path):
-    ax.figure.tight_layout()
-    ax.figure.savefig(path, dpi=120)
-    plt.close(ax.figure)
-    print(f"Wrote {path}")
-
-
 def main(argv=None):
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--outdir", type=Path, default=OUTPUT)
-    args = parser.parse_args(argv)
-    args.outdir.mkdir(parents=True, exist_ok=True)
+    args = output_arguments(__doc__, argv)
     sns.set_theme(style="whitegrid")
     curves = sieve.geometric_probability_curves(HOLE, HALF_CELL, [0.25, 0.5, 0.75, 1.0], np.linspace(0.75, 2.5, 36))
     save(plot_geometric_probability(curves), args.outdir / "sieve_pg_family.png")

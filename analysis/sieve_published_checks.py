@@ -4,20 +4,15 @@ the printed values (kinetics / identification paper and random-walk paper).
 Usage: ``python analysis/sieve_published_checks.py [--outdir analysis/output]``
 """
 
-import argparse
-from pathlib import Path
+from _common import output_arguments
 
 import pandas as pd
 
 from tromplab.reproduce import sieve_checks, write_table
 
-OUTPUT = Path(__file__).resolve().parent / "output"
-
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--outdir", type=Path, default=OUTPUT)
-    args = parser.parse_args(argv)
+    args = output_arguments(__doc__, argv)
     checks = sieve_checks()
     with pd.option_context("display.width", 200, "display.max_colwidth", 70):
         print(checks.to_string(index=False, float_format=lambda v: f"{v:.5g}"))

@@ -371,14 +371,9 @@ def _figure_writer(fits, size_unit):
         import matplotlib
 
         matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
+        from .plotting import plot_tromp_fits, save_figure
 
-        from .plotting import plot_tromp_fits
-
-        ax = plot_tromp_fits(fits, size_unit=size_unit)
-        ax.figure.tight_layout()
-        ax.figure.savefig(path, dpi=120, format="png")
-        plt.close(ax.figure)
+        save_figure(plot_tromp_fits(fits, size_unit=size_unit), path)
 
     return write
 

@@ -6,6 +6,7 @@ shown, and no style is set on import: scripts choose the seaborn theme.
 
 from __future__ import annotations
 
+import os
 from collections.abc import Sequence
 
 import numpy as np
@@ -19,6 +20,16 @@ def _axes(ax):
 
         _, ax = plt.subplots(figsize=(7.5, 5.0))
     return ax
+
+
+def save_figure(ax, path, *, dpi: int = 120) -> None:
+    """Lay out the Axes' figure, save it (format from the file name or a file object) and close it."""
+    import matplotlib.pyplot as plt
+
+    ax.figure.tight_layout()
+    to_file = isinstance(path, (str, os.PathLike))
+    ax.figure.savefig(path, dpi=dpi, format=None if to_file else "png")
+    plt.close(ax.figure)
 
 
 def curve_band(fit: CurveFit, size, *, level: float = 0.95):

@@ -104,12 +104,10 @@ def _number(value) -> str:
 
 
 def _png(ax) -> bytes:
-    import matplotlib.pyplot as plt
+    from .plotting import save_figure
 
     buffer = io.BytesIO()
-    ax.figure.tight_layout()
-    ax.figure.savefig(buffer, format="png", dpi=100)
-    plt.close(ax.figure)
+    save_figure(ax, buffer, dpi=100)
     return buffer.getvalue()
 
 
