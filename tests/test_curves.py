@@ -8,7 +8,7 @@ from numpy.testing import assert_allclose
 
 from tromplab.curves import fit_formula, measured_cut_size, measured_efficiency
 from tromplab.fitting import ParameterSpec, least_squares
-from tromplab.formulas import FORMULAS, get_formula
+from tromplab.formulas import get_formula
 from tromplab.points import TrompPoints
 from tromplab.workbench import fit_experiments
 

@@ -112,3 +112,12 @@ def test_fit_command_adds_interval_columns_and_averages(tmp_path, capsys):
     averages = pd.read_csv(out / "averages.csv")
     assert set(averages["quantity"]) == {"d_cut", "ep", "eta"} and set(averages["experiment"]) == {"run1", "run2"}
     assert main(["fit", str(path), "-o", str(out), "--ci", "1.5"]) == 1
+
+
+def test_bootstrap_alone_adds_only_bootstrap_columns(tmp_path):
+    path = tmp_path / "points.csv"
+    experiment(1).to_frame().to_csv(path, index=False)
+    out = tmp_path / "out"
+    assert main(["fit", str(path), "-o", str(out), "--formulas", "plitt", "--bootstrap", "5", "--no-figures"]) == 0
+    columns = set(pd.read_csv(out / "fits.csv").columns)
+    assert "d_cut_boot_low" in columns and "d_cut_low" not in columns

@@ -14,6 +14,7 @@ from .workbench import Workbench, fit_experiments
 
 
 __all__ = [
+    "__version__",
     "FORMULAS", "CurveFit", "Formula", "InputError", "TrompPoints", "Workbench", "curve_indices",
     "fit_experiments", "fit_formula", "get_formula", "rank_formulas", "read_points",
 ]  # fmt: skip

@@ -107,7 +107,7 @@ class ChoiceResult:
 
 
 def choose(problem: Problem, *, floor_second: float | None = None, share_of_first: float | None = None,
-           weights=np.linspace(0.0, 1.0, 11)) -> ChoiceResult:  # fmt: skip
+           weights=None) -> ChoiceResult:  # fmt: skip
     """Run the whole procedure.
 
     Parameters
@@ -118,9 +118,10 @@ def choose(problem: Problem, *, floor_second: float | None = None, share_of_firs
     share_of_first : float, optional
         While maximising the second criterion, the first must reach this share of its
         maximum (``0.8``).
-    weights : array
-        Values of ``l1`` for the Pareto sweep.
+    weights : array, optional
+        Values of ``l1`` for the Pareto sweep (default 0, 0.1, ..., 1).
     """
+    weights = np.linspace(0.0, 1.0, 11) if weights is None else np.asarray(weights, dtype=float)
     first, second = problem.criteria
     extra_first = [Constraint(f"{second.name} >= {floor_second}", lambda **v: second.function(**v) - floor_second)] if floor_second is not None else []
     best_first = _solve(problem, lambda v: first.function(**v), extra_first)

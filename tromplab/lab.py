@@ -39,7 +39,6 @@ from __future__ import annotations
 import re
 import warnings
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -194,7 +193,7 @@ def is_lab_table(columns) -> bool:
 def balances_from_table(table: Table, options: LabOptions) -> list[MassBalance]:
     streams = _stream_columns(table, options)
     size_layout = _size_layout(table)
-    labels = _experiment_labels(table)
+    labels = table.experiment_labels()
     balances = []
     for name in dict.fromkeys(labels):
         part = table.subset(labels == name)
@@ -273,22 +272,13 @@ def _size_layout(table: Table) -> _SizeLayout:
     raise InputError("give class bounds 'size_lower' and 'size_upper', or sieve sizes 'size' for cumulative data", source=table.source)
 
 
-def _experiment_labels(table: Table) -> np.ndarray:
-    if "experiment" not in table.frame.columns:
-        return np.full(len(table.frame), Path(table.source).stem, dtype=object)
-    labels = table.frame["experiment"]
-    if labels.isna().any():
-        raise table.error("experiment name is blank", index=int(np.flatnonzero(labels.isna())[0]), column="experiment")
-    return labels.astype(str).str.strip().to_numpy(dtype=object)
-
-
 # --- one experiment ---------------------------------------------------------------------
 def _balance_one(table: Table, name: str, streams, layout: _SizeLayout, options: LabOptions) -> MassBalance:
     cumulative = any(kind in CUMULATIVE_KINDS for _, kind in streams.values())
     if cumulative:
         if not layout.cumulative:
             raise InputError("cumulative stream columns need sieve sizes in a 'size' column, not class bounds", source=table.source)
-        lower, upper, shares = _classes_from_cumulative(table, layout.columns[0], streams, options)
+        lower, upper, shares = _classes_from_cumulative(table, layout.columns[0], streams)
         class_rows = None
     else:
         lower, upper = _class_bounds(table, *layout.columns) if not layout.cumulative else _retained_on_sieves(table, layout.columns[0])
@@ -402,7 +392,7 @@ def _per_class_shares(table: Table, column: str, kind: str, options: LabOptions)
     return values / total
 
 
-def _classes_from_cumulative(table: Table, size_column: str, streams, options: LabOptions):
+def _classes_from_cumulative(table: Table, size_column: str, streams):
     size = _sorted_sieves(table, size_column)
     order = np.argsort(size)[::-1]  # coarse to fine
     sieves = size[order]

@@ -216,10 +216,11 @@ def plot_equal_slope_family(slope: float, *, ax=None, formulas=None, x_max: floa
     return ax
 
 
-def plot_plitt_lognormal_relation(*, ax=None, ks=np.linspace(1.0, 3.0, 100)):
+def plot_plitt_lognormal_relation(*, ax=None, ks=None):
     """Fig. 3 of Shuvalov et al. (2018): kf against ks at equal slope, the corrected
-    relation (19) kf = 4/(sqrt(pi) ks) beside the printed 4/sqrt(pi ks)."""
+    relation (19) kf = 4/(sqrt(pi) ks) beside the printed 4/sqrt(pi ks), on ks 1..3 by default."""
     ax = _axes(ax)
+    ks = np.linspace(1.0, 3.0, 100) if ks is None else np.asarray(ks, dtype=float)
     ax.plot(ks, 4 / (np.sqrt(np.pi) * ks), label="kf = 4/(sqrt(pi) ks)  (corrected (19))")
     ax.plot(ks, 4 / np.sqrt(np.pi * ks), ls="--", label="kf = 4/sqrt(pi ks)  (as printed)")
     ax.set_xlabel("ks (Plitt, (7))")

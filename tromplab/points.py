@@ -138,7 +138,7 @@ def points_from_table(table: Table) -> list[TrompPoints]:
     phi = partition / scale
     if not to_fines:
         phi = 1.0 - phi
-    experiments = _experiment_labels(table)
+    experiments = table.experiment_labels()
     result = []
     for name in dict.fromkeys(experiments):
         rows = np.flatnonzero(experiments == name)
@@ -153,18 +153,6 @@ def points_from_table(table: Table) -> list[TrompPoints]:
             )
         )
     return result
-
-
-def _experiment_labels(table: Table) -> np.ndarray:
-    if "experiment" not in table.frame.columns:
-        from pathlib import Path
-
-        return np.full(len(table.frame), Path(table.source).stem, dtype=object)
-    labels = table.frame["experiment"]
-    blank = labels.isna().to_numpy()
-    if blank.any():
-        raise table.error("experiment name is blank", index=int(np.flatnonzero(blank)[0]), column="experiment")
-    return labels.astype(str).str.strip().to_numpy(dtype=object)
 
 
 def _check_unique_sizes(table: Table, rows: np.ndarray, size: np.ndarray) -> None:

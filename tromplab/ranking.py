@@ -59,12 +59,7 @@ def rank_formulas(table: pd.DataFrame, *, by: str = "F", key: str = "equation") 
         One row per formula: ``key``, one rank column per experiment (named by the
         experiment, in order of appearance), ``points`` and ``place``.
     """
-    if by not in RANK_BY:
-        raise ValueError(f"unknown ranking criterion {by!r}; choose one of {', '.join(RANK_BY)}")
-    ranked = table.copy()
-    ranked["rank"] = ranked.groupby("experiment", sort=False)[by].transform(
-        lambda s: ranks_within(s.to_numpy(), lower_is_better=RANK_BY[by])
-    )
+    ranked = add_ranks(table, by=by)
     ranked["counted"] = ranked["rank"] * np.where(ranked["adequate"].astype(bool), 1, 2)
     wide = ranked.pivot(index=key, columns="experiment", values="rank")
     wide = wide.reindex(index=list(dict.fromkeys(ranked[key])), columns=list(dict.fromkeys(ranked["experiment"])))
@@ -76,6 +71,8 @@ def rank_formulas(table: pd.DataFrame, *, by: str = "F", key: str = "equation") 
 
 def add_ranks(fits: pd.DataFrame, *, by: str = "F") -> pd.DataFrame:
     """Copy of a ``fits`` table with a ``rank`` column (within each experiment)."""
+    if by not in RANK_BY:
+        raise ValueError(f"unknown ranking criterion {by!r}; choose one of {', '.join(RANK_BY)}")
     out = fits.copy()
     out["rank"] = out.groupby("experiment", sort=False)[by].transform(
         lambda s: ranks_within(s.to_numpy(), lower_is_better=RANK_BY[by])

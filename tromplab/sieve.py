@@ -418,7 +418,7 @@ def identify_c(x1, x2, decks, shares, *, lost_side: str) -> np.ndarray:
     for g in shares:
         if not 0 < g < best:
             raise ValueError(f"a share of {g:g} in the bin cannot be reached (largest possible {best:.4f})")
-        result.append(np.exp(optimize.brentq(lambda lc: recovery_at(lc) - g, *bracket, xtol=1e-13)))
+        result.append(np.exp(optimize.brentq(lambda lc, share=g: recovery_at(lc) - share, *bracket, xtol=1e-13)))
     return np.asarray(result)
 
 

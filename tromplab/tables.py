@@ -62,6 +62,16 @@ class Table:
             marks.append(_TRUTH[text])
         return np.asarray(marks, dtype=bool)
 
+    def experiment_labels(self) -> np.ndarray:
+        """The ``experiment`` column as stripped text; the file's name when there is no such column."""
+        if "experiment" not in self.frame.columns:
+            return np.full(len(self.frame), Path(self.source).stem, dtype=object)
+        labels = self.frame["experiment"]
+        blank = labels.isna().to_numpy()
+        if blank.any():
+            raise self.error("experiment name is blank", index=int(np.flatnonzero(blank)[0]), column="experiment")
+        return labels.astype(str).str.strip().to_numpy(dtype=object)
+
     def subset(self, mask) -> Table:
         mask = np.asarray(mask, dtype=bool)
         return Table(self.frame.loc[mask].reset_index(drop=True), self.rows[mask], self.source)

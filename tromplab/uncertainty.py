@@ -212,7 +212,7 @@ def interval_columns(fits: Sequence[CurveFit], *, level: float | None = None, n_
     parameters, delta method for the indices) when ``level`` is given, and
     ``<quantity>_boot_low``/``_boot_high`` from ``n_bootstrap`` resamples.  Keyed by
     ``experiment`` and ``formula``; failed fits get nan."""
-    level = 0.95 if level is None and n_bootstrap else level
+    bootstrap_level = 0.95 if level is None else level
     rows = []
     for i, fit in enumerate(fits):
         row = {"experiment": fit.experiment, "formula": fit.formula.id}
@@ -220,13 +220,14 @@ def interval_columns(fits: Sequence[CurveFit], *, level: float | None = None, n_
             progress(i + 1, len(fits), f"{fit.experiment} / {fit.formula.id}")
         if fit.success:
             try:
-                table = interval_table(fit, level=level).set_index("quantity")
-                for quantity in table.index:
-                    row[f"{_column(fit, quantity)}_low"] = table.loc[quantity, "low"]
-                    row[f"{_column(fit, quantity)}_high"] = table.loc[quantity, "high"]
+                if level is not None:
+                    table = interval_table(fit, level=level).set_index("quantity")
+                    for quantity in table.index:
+                        row[f"{_column(fit, quantity)}_low"] = table.loc[quantity, "low"]
+                        row[f"{_column(fit, quantity)}_high"] = table.loc[quantity, "high"]
                 if n_bootstrap:
                     boot = bootstrap(fit, n=n_bootstrap, seed=seed, method=method)
-                    for quantity, low, high in boot.intervals(level)[["quantity", "low", "high"]].itertuples(index=False):
+                    for quantity, low, high in boot.intervals(bootstrap_level)[["quantity", "low", "high"]].itertuples(index=False):
                         row[f"{_column(fit, quantity)}_boot_low"] = low
                         row[f"{_column(fit, quantity)}_boot_high"] = high
                     row["bootstrap_failed"] = boot.n_failed
