@@ -215,6 +215,19 @@ def test_hydrocyclone_table_loads_after_a_rename(tmp_path):
     assert balance.yield_source == "column fine_yield"
 
 
+def test_both_yield_columns_must_add_up_to_one(tmp_path):
+    feed, fine, coarse = consistent_streams()
+    frame = pd.DataFrame({"size_lower": LOWER, "size_upper": UPPER, "overflow_pct": fine, "underflow_pct": coarse,
+                          "overflow_yield": Y, "underflow_yield": 1 - Y})  # fmt: skip
+    rename = {"overflow_pct": "fine_pct", "underflow_pct": "coarse_pct", "overflow_yield": "fine_yield", "underflow_yield": "coarse_yield"}
+    frame.to_csv(tmp_path / "both.csv", index=False)
+    (balance,) = read_lab(tmp_path / "both.csv", LabOptions(rename=rename))
+    assert_allclose(balance.fine_yield, Y)
+    frame.assign(underflow_yield=0.6).to_csv(tmp_path / "both.csv", index=False)
+    with pytest.raises(InputError, match="do not add up to 1"):
+        read_lab(tmp_path / "both.csv", LabOptions(rename=rename))
+
+
 def test_forward_calculation_round_trips_through_the_loader(tmp_path):
     curve = get_formula("plitt")
     size = np.sqrt(LOWER[1:5] * UPPER[1:5])

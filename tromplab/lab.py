@@ -531,20 +531,34 @@ def _given_yield(table: Table, options: LabOptions):
         return options.fine_yield, "option fine_yield"
     if options.coarse_yield is not None:
         return 1.0 - options.coarse_yield, "option coarse_yield"
-    for column, to_fine in (("fine_yield", lambda v: v), ("coarse_yield", lambda v: 1.0 - v)):
-        if column in table.frame.columns:
-            values = table.numeric(column, allow_blank=True)
-            given = values[np.isfinite(values)]
-            if given.size == 0:
-                continue
-            bad = np.flatnonzero(np.isfinite(values) & ((values <= 0) | (values >= 1)))
-            if bad.size:
-                raise table.error(f"yield {values[bad[0]]:g} outside (0, 1)", index=int(bad[0]), column=column)
-            if np.ptp(given) > 1e-12:
-                i = int(np.flatnonzero(np.isfinite(values) & (values != given[0]))[0])
-                raise table.error("the yield differs between rows of the same experiment", index=i, column=column)
-            return float(to_fine(given[0])), f"column {column}"
+    found = {column: _yield_column(table, column) for column in ("fine_yield", "coarse_yield") if column in table.frame.columns}
+    found = {column: value for column, value in found.items() if value is not None}
+    if len(found) == 2 and not np.isclose(found["fine_yield"] + found["coarse_yield"], 1.0, atol=1e-3):
+        raise InputError(
+            f"fine_yield {found['fine_yield']:g} and coarse_yield {found['coarse_yield']:g} do not add up to 1",
+            source=table.source,
+            column="coarse_yield",
+        )
+    if "fine_yield" in found:
+        return found["fine_yield"], "column fine_yield"
+    if "coarse_yield" in found:
+        return 1.0 - found["coarse_yield"], "column coarse_yield"
     return None, None
+
+
+def _yield_column(table: Table, column: str) -> float | None:
+    """The single yield value of a yield column (None when blank), checked to lie in (0, 1)."""
+    values = table.numeric(column, allow_blank=True)
+    given = values[np.isfinite(values)]
+    if given.size == 0:
+        return None
+    bad = np.flatnonzero(np.isfinite(values) & ((values <= 0) | (values >= 1)))
+    if bad.size:
+        raise table.error(f"yield {values[bad[0]]:g} outside (0, 1)", index=int(bad[0]), column=column)
+    if np.ptp(given) > 1e-12:
+        i = int(np.flatnonzero(np.isfinite(values) & (values != given[0]))[0])
+        raise table.error("the yield differs between rows of the same experiment", index=i, column=column)
+    return float(given[0])
 
 
 def _fine_yield(table: Table, shares: dict, options: LabOptions):
