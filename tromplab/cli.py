@@ -44,7 +44,7 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"tromplab {__version__}")
     commands = parser.add_subparsers(dest="command", metavar="COMMAND")
 
-    formulas = commands.add_parser("formulas", help="list the nine separation-curve formulas")
+    formulas = commands.add_parser("formulas", help="list the separation-curve formulas (the nine of the paper, then the extended curves)")
     formulas.set_defaults(run=_run_formulas)
 
     lab = _lab_options_parser()
@@ -54,7 +54,9 @@ def _parser() -> argparse.ArgumentParser:
     fit.add_argument("--alpha", type=float, default=DEFAULT_ALPHA, help="significance level of the Fisher screen")
     fit.add_argument("--delta-max", type=float, default=None,
                      help="largest feed particle size for the misplacement eps (default: largest size of the data)")  # fmt: skip
-    fit.add_argument("--formulas", default=None, help="comma-separated ids or equation numbers (default: all nine)")
+    fit.add_argument("--formulas", default=None,
+                     help="comma-separated ids or equation numbers; 'paper' = the nine, 'extended' = the bypass and "
+                     "fish-hook curves (default: the nine)")  # fmt: skip
     fit.add_argument("--rank-by", choices=sorted(RANK_BY), default="F", help="criterion within an experiment")
     fit.add_argument("--size-unit", default="", help="unit of the sizes, for the figure labels")
     fit.add_argument("--no-figures", action="store_true", help="do not draw figures")
@@ -238,7 +240,7 @@ def _run_sieve_bin(args) -> int:
 
 
 def _run_formulas(args) -> int:
-    table = registry_table()[["id", "equation", "formula", "shape_name", "slope_at_cut"]]
+    table = registry_table()[["id", "equation", "formula", "shape_name", "extras", "slope_at_cut", "family"]]
     with pd.option_context("display.max_colwidth", 60, "display.width", 160):
         print(table.to_string(index=False))
     return 0
