@@ -240,9 +240,15 @@ def _run_sieve_bin(args) -> int:
 
 
 def _run_formulas(args) -> int:
-    table = registry_table()[["id", "equation", "formula", "shape_name", "extras", "slope_at_cut", "family"]]
-    with pd.option_context("display.max_colwidth", 60, "display.width", 160):
-        print(table.to_string(index=False))
+    table = registry_table()
+    for family, heading in (("paper", "The nine formulas of Shuvalov et al. (2018)"), ("extended", "Extended curves (--extended)")):
+        print(f"{heading}:")
+        for row in table[table["family"] == family].itertuples(index=False):
+            extras = f", extras {row.extras}" if row.extras else ""
+            print(f"  ({row.equation}) {row.id}: phi = {row.formula}")
+            print(f"      shape {row.shape_name}{extras}; slope at the cut {row.slope_at_cut}")
+        print()
+    print("x = size / d_cut; phi = partition to the fine product. Corrections: docs/errata.md.")
     return 0
 
 
