@@ -33,6 +33,9 @@ def main(argv=None) -> int:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", YieldWarning)  # printed from the balance notes instead
             return args.run(args)
+    except BrokenPipeError:  # output piped into head or less and closed early
+        sys.stderr.close()
+        return 0
     except (InputError, KeyError, ValueError) as error:
         message = error.args[0] if isinstance(error, KeyError) else str(error)
         print(f"tromplab {args.command}: error: {message}", file=sys.stderr)
@@ -245,8 +248,10 @@ def _run_formulas(args) -> int:
         print(f"{heading}:")
         for row in table[table["family"] == family].itertuples(index=False):
             extras = f", extras {row.extras}" if row.extras else ""
-            print(f"  ({row.equation}) {row.id}: phi = {row.formula}")
-            print(f"      shape {row.shape_name}{extras}; slope at the cut {row.slope_at_cut}")
+            print(textwrap.fill(f"({row.equation}) {row.id}: phi = {row.formula}", width=98, initial_indent="  ",
+                                subsequent_indent="      "))  # fmt: skip
+            print(textwrap.fill(f"shape {row.shape_name}{extras}; slope at the cut {row.slope_at_cut}", width=98,
+                                initial_indent="      ", subsequent_indent="      "))  # fmt: skip
         print()
     print("x = size / d_cut; phi = partition to the fine product. Corrections: docs/errata.md.")
     return 0
