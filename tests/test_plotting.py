@@ -49,6 +49,10 @@ def test_tromp_fits_draws_every_formula_and_the_band(bench):
     assert ax.get_xscale() == "log"
     _, axes = plt.subplots()
     assert plotting.plot_tromp_fits(fits, ax=axes, log_size=False, band=False) is axes and axes.get_xscale() == "linear"
+    chosen = bench.best_fit("run0")
+    other = next(f for f in fits if f is not chosen)
+    widths = {line.get_label().split(",")[0]: line.get_linewidth() for line in plotting.plot_tromp_fits(fits, best=other).get_lines()}
+    assert widths[f"({other.formula.equation}) {other.formula.id}"] > widths[f"({chosen.formula.equation}) {chosen.formula.id}"]
 
 
 def test_inadequate_fits_are_dashed():

@@ -280,7 +280,8 @@ def _run_fit(args) -> int:
                "averages.csv": lambda p: averages.to_csv(p, index=False)}  # fmt: skip
     if not args.no_figures:
         for experiment in bench.experiments:
-            outputs[f"curves_{_file_safe(experiment)}.png"] = _figure_writer(bench.fits_of(experiment), args.size_unit)
+            outputs[f"curves_{_file_safe(experiment)}.png"] = _figure_writer(bench.fits_of(experiment), args.size_unit,
+                                                                             bench.best_fit(experiment))  # fmt: skip
     written = write_atomically(outputs, args.outdir)
     print(format_fits(fits))
     if bench.failures:
@@ -379,14 +380,14 @@ def _file_safe(name: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.-]+", "_", str(name)).strip("_") or "experiment"
 
 
-def _figure_writer(fits, size_unit):
+def _figure_writer(fits, size_unit, best):
     def write(path):
         import matplotlib
 
         matplotlib.use("Agg")
         from .plotting import plot_tromp_fits, save_figure
 
-        save_figure(plot_tromp_fits(fits, size_unit=size_unit), path)
+        save_figure(plot_tromp_fits(fits, size_unit=size_unit, best=best), path)
 
     return write
 

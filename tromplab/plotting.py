@@ -61,11 +61,13 @@ def curve_band(fit: CurveFit, size, *, level: float = 0.95):
     return np.clip(centre - half, 0, 1), np.clip(centre + half, 0, 1)
 
 
-def plot_tromp_fits(fits: Sequence[CurveFit], *, ax=None, log_size: bool = True, size_unit: str = "", band: bool = True):
+def plot_tromp_fits(fits: Sequence[CurveFit], *, ax=None, log_size: bool = True, size_unit: str = "", band: bool = True,
+                    best: CurveFit | None = None):  # fmt: skip
     """Measured Tromp points of one experiment with the fitted curves of every formula.
 
-    Adequate fits are drawn solid, inadequate ones dashed; the best fit (lowest sum of
-    squares) is drawn thick with its cut size marked.  Failed fits are left out and
+    Adequate fits are drawn solid, inadequate ones dashed; the best fit is drawn thick
+    with its cut size marked: ``best`` when given (the top-ranked fit), otherwise the
+    paper formula with the lowest sum of squares.  Failed fits are left out and
     named in the legend title.
 
     Parameters
@@ -98,7 +100,9 @@ def plot_tromp_fits(fits: Sequence[CurveFit], *, ax=None, log_size: bool = True,
     else:
         grid = np.linspace(0.0, high * 1.1, 400)[1:]
     colours = sns.color_palette("tab10", n_colors=max(len(fits), 1))
-    best = min(good, key=lambda f: f.fit.ssr) if good else None
+    if best is None and good:
+        candidates = [f for f in good if f.formula.family == "paper"] or good
+        best = min(candidates, key=lambda f: f.fit.ssr)
     for colour, fit in zip(colours, fits):
         if not fit.success:
             continue

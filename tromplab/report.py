@@ -26,8 +26,9 @@ SECTIONS = ("summary", "balance", "fits", "parameters", "ranking", "averages", "
 _CSS = """
 body { font-family: system-ui, sans-serif; max-width: 1100px; margin: 2em auto; padding: 0 1em; color: #222; }
 h1 { border-bottom: 2px solid #446; padding-bottom: .3em; } h2 { margin-top: 2em; color: #334; }
-table { border-collapse: collapse; margin: .8em 0; font-size: 13px; }
-th, td { border: 1px solid #ccc; padding: 3px 8px; text-align: right; } th { background: #eef; }
+.table-wrap { overflow-x: auto; max-width: 100%; }
+table { border-collapse: collapse; margin: .8em 0; font-size: 12px; }
+th, td { border: 1px solid #ccc; padding: 2px 6px; text-align: right; white-space: nowrap; } th { background: #eef; }
 td:first-child, th:first-child { text-align: left; }
 .warn { background: #fff4e0; border-left: 4px solid #e90; padding: .4em .8em; margin: .3em 0; }
 figure { margin: 1em 0; } figcaption { font-size: 13px; color: #555; } img { max-width: 100%; }
@@ -55,7 +56,8 @@ class Report:
                 if caption and kind != "figure":
                     parts.append(f"<h3>{html.escape(caption)}</h3>")
                 if kind == "table":
-                    parts.append(content.to_html(index=False, float_format=_number, na_rep="-", border=0))
+                    table = content.to_html(index=False, float_format=_number, na_rep="-", border=0)
+                    parts.append(f'<div class="table-wrap">{table}</div>')
                 elif kind == "warning":
                     parts.append(f'<div class="warn">{html.escape(content)}</div>')
                 elif kind == "figure":
@@ -163,7 +165,7 @@ def build_report(bench: Workbench, balances: list[MassBalance], *, source: str, 
     for experiment in bench.experiments:
         experiment_fits = bench.fits_of(experiment)
         if any(f.success for f in experiment_fits):
-            report.add("figures", "figure", _png(plot_tromp_fits(experiment_fits, size_unit=size_unit)),
+            report.add("figures", "figure", _png(plot_tromp_fits(experiment_fits, size_unit=size_unit, best=bench.best_fit(experiment))),
                        caption=f"Tromp curve, experiment {experiment}")  # fmt: skip
             report.add("figures", "figure", _png(plot_residuals(experiment_fits, size_unit=size_unit)),
                        caption=f"Residuals, experiment {experiment}")  # fmt: skip
