@@ -195,7 +195,10 @@ def fit_layer_model(steps, extraction, *, initial, nonlinear: bool = True, lock_
     def profiled(threshold):
         key = None if threshold is None else float(threshold)
         if key not in tried:
-            tried[key] = _fit_rates(steps, extraction, initial, nonlinear, key)
+            # neighbouring thresholds have nearly the same rates: warm-start from the best fit so far
+            good = [t.fit for t in tried.values() if t.fit.success]
+            warm = [dict(min(good, key=lambda f: f.ssr).values)] if good else None
+            tried[key] = _fit_rates(steps, extraction, initial, nonlinear, key, starts=warm)
         fit = tried[key].fit
         return fit.ssr if fit.success else np.inf
 
@@ -212,7 +215,7 @@ def fit_layer_model(steps, extraction, *, initial, nonlinear: bool = True, lock_
     return LayerFit(chosen.model, chosen.fit, profile.reset_index(drop=True))
 
 
-def _fit_rates(steps, extraction, initial, nonlinear, lock_threshold) -> LayerFit:
+def _fit_rates(steps, extraction, initial, nonlinear, lock_threshold, starts=None) -> LayerFit:
     horizon = int(steps.max())
     specs = [ParameterSpec("diffusion", 0.0, 0.3), ParameterSpec("segregation", 0.0, 0.4), ParameterSpec("passage", 1e-6, 1.0)]
 
@@ -222,7 +225,7 @@ def _fit_rates(steps, extraction, initial, nonlinear, lock_threshold) -> LayerFi
     def residual(values):
         return model_of(values).simulate(initial, horizon).extraction[steps - 1] - extraction
 
-    starts = [{"diffusion": d, "segregation": v0, "passage": vf}
-              for d, v0, vf in [(0.01, 0.05, 0.2), (0.05, 0.1, 0.05), (0.002, 0.02, 0.5), (0.1, 0.2, 0.02)]]  # fmt: skip
-    fit = least_squares(residual, specs, starts)
+    default = [{"diffusion": d, "segregation": v0, "passage": vf}
+               for d, v0, vf in [(0.01, 0.05, 0.2), (0.05, 0.1, 0.05), (0.002, 0.02, 0.5), (0.1, 0.2, 0.02)]]  # fmt: skip
+    fit = least_squares(residual, specs, starts + default[:1] if starts else default)
     return LayerFit(model_of(fit.values) if fit.success else None, fit)
