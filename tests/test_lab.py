@@ -336,3 +336,45 @@ def test_per_class_shares_retained_on_each_sieve(tmp_path):
     (balance,) = read_lab(tmp_path / "on_sieves.csv", LabOptions(sum_tolerance_pct=100))
     assert_allclose(balance.classes["size_lower"], LOWER[:5])
     assert_allclose(balance.classes["size_upper"], UPPER[:5])
+
+
+# --- invariants -------------------------------------------------------------------------
+from hypothesis import given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+
+@settings(max_examples=25, deadline=None)
+@given(order=st.permutations(list(range(6))), scale=st.sampled_from([1e-3, 1.0, 25.4, 1e3]))
+def test_partitions_do_not_depend_on_row_order_or_size_unit(tmp_path_factory, order, scale):
+    """Reversing the class order or scaling the sizes changes nothing; unsorted classes are refused."""
+    feed, fine, coarse = consistent_streams()
+    frame = pd.DataFrame({"size_lower": LOWER * scale, "size_upper": UPPER * scale, "feed_pct": feed, "fine_pct": fine,
+                          "coarse_pct": coarse})  # fmt: skip
+    directory = tmp_path_factory.mktemp("inv")
+    frame.iloc[::-1].to_csv(directory / "reversed.csv", index=False)
+    (balance,) = read_lab(directory / "reversed.csv")
+    by_size = balance.classes.sort_values("size", ascending=False)
+    assert_allclose(by_size["partition_fine"], PHI, atol=1e-12)
+    assert_allclose(by_size["size"].iloc[1:5], np.sqrt(LOWER[1:5] * UPPER[1:5]) * scale)
+    # shuffled class rows are not sorted: refused with the row named
+    shuffled = frame.iloc[list(order)]
+    if list(order) not in (list(range(6)), list(range(5, -1, -1))):
+        shuffled.to_csv(directory / "shuffled.csv", index=False)
+        with pytest.raises(InputError, match="class bounds are not sorted|overlaps|only one"):
+            read_lab(directory / "shuffled.csv")
+
+
+@settings(max_examples=25, deadline=None)
+@given(masses=st.lists(st.floats(0.1, 50.0), min_size=5, max_size=5), cut=st.floats(50.0, 800.0))
+def test_forward_then_load_recovers_yield_and_partition(tmp_path_factory, masses, cut):
+    """Any feed and any separation curve: predicted products loaded back give the same partition and yield."""
+    size = np.sqrt(LOWER[:5].astype(float) * np.where(np.isnan(UPPER[:5]), 1600.0, UPPER[:5]))
+    phi = get_formula("plitt")(size, cut, 2.0)
+    prediction = predict_products(size, masses, phi)
+    classes = prediction.classes
+    directory = tmp_path_factory.mktemp("fwd")
+    pd.DataFrame({"size_lower": LOWER[:5], "size_upper": UPPER[:5], "feed_mass": classes["feed"], "fine_mass": classes["fine"],
+                  "coarse_mass": classes["coarse"]}).to_csv(directory / "f.csv", index=False)  # fmt: skip
+    (balance,) = read_lab(directory / "f.csv", LabOptions(min_feed_share=0.0))
+    assert_allclose(balance.fine_yield, prediction.fine_yield, rtol=1e-9)
+    assert_allclose(balance.classes["partition_fine"], classes["partition_fine"], atol=1e-9)
