@@ -251,8 +251,12 @@ def fit_formula(
     result = CurveFit(formula=formula, points=points, fit=fit, context=context, grid_ssr=grid_ssr)
     if not fit.success:
         return result
-    if fit.at_bound:
-        warnings.append(f"{', '.join(fit.at_bound)} on its bound: the optimum may lie outside the admissible range")
+    for spec in specs:
+        if spec.name in fit.at_bound:
+            value = fit.values[spec.name]
+            bound = spec.lower if np.isclose(value, spec.lower) else spec.upper
+            warnings.append(f"{spec.name} = {value:.4g} at its bound {bound:g}: the unconstrained optimum lies beyond it "
+                            "and the standard error is unreliable")  # fmt: skip
     x_break = np.nan
     if formula.context_from_efficiency:
         x_break, note = _break_point(fit.values[formula.shape_name], context["measured_efficiency"])
