@@ -97,3 +97,12 @@ def test_formulas_lists_the_registry(capsys):
     printed = capsys.readouterr().out
     assert all(name in printed for name in ("(4) molerus_hoffmann", "-ks/4", "1/2 erfc(ln x / kf)", "(106) whiten"))
     assert max(len(line) for line in printed.splitlines()) <= 100
+
+
+def test_rising_partition_and_extrapolated_cut_are_warned(tmp_path, capsys):
+    rising = "size,partition_fine\n10,0.03\n20,0.1\n40,0.3\n80,0.65\n160,0.9\n320,0.98\n"
+    assert main(["fit", str(write(tmp_path, rising)), "-o", str(tmp_path / "o"), "--no-figures", "--formulas", "plitt"]) == 0
+    assert "rises with size" in capsys.readouterr().err
+    above = "size,partition_fine\n10,0.99\n20,0.95\n40,0.9\n80,0.8\n160,0.7\n"
+    assert main(["fit", str(write(tmp_path, above)), "-o", str(tmp_path / "p"), "--no-figures", "--formulas", "plitt"]) == 0
+    assert "every point lies above 1/2" in capsys.readouterr().err

@@ -283,6 +283,9 @@ def _run_fit(args) -> int:
             outputs[f"curves_{_file_safe(experiment)}.png"] = _figure_writer(bench.fits_of(experiment), args.size_unit,
                                                                              bench.best_fit(experiment))  # fmt: skip
     written = write_atomically(outputs, args.outdir)
+    for experiment, notes in bench.notes.items():
+        for note in notes:
+            print(textwrap.fill(f"warning ({experiment}): {note}", width=98), file=sys.stderr)
     print(format_fits(fits))
     if bench.failures:
         print("\nExperiments that could not be fitted:")

@@ -131,6 +131,9 @@ def build_report(bench: Workbench, balances: list[MassBalance], *, source: str, 
     report.add("summary", "text", f"Fisher screen at alpha = {bench.alpha:g}; ranking by {bench.rank_by}; sizes in {size_unit or 'the unit of the input'}.")
     for experiment, reason in bench.failures.items():
         report.add("summary", "warning", f"experiment {experiment} not fitted: {reason}")
+    for experiment, notes in bench.notes.items():
+        for note in notes:
+            report.add("summary", "warning", f"{experiment}: {note}")
     for balance in balances:
         for note in balance.notes:
             report.add("summary", "warning", f"{balance.experiment}: {note}")

@@ -42,6 +42,7 @@ class Workbench:
     rank_by: str = "F"
     alpha: float = DEFAULT_ALPHA
     rank_extended: bool = False
+    notes: dict[str, tuple[str, ...]] = field(default_factory=dict)
 
     def fits_table(self) -> pd.DataFrame:
         """One row per experiment and formula (columns :data:`FIT_COLUMNS`)."""
@@ -122,7 +123,7 @@ def fit_experiments(
         Called as ``progress(i, total, experiment)`` before each experiment.
     """
     chosen = select_formulas(formulas)
-    fits, failures = [], {}
+    fits, failures, notes = [], {}, {}
     for i, points in enumerate(experiments):
         if progress is not None:
             progress(i + 1, len(experiments), points.experiment)
@@ -131,9 +132,26 @@ def fit_experiments(
                 f"experiment '{points.experiment}' has {points.n} points; the Fisher screen needs at least 3"
             )
             continue
+        notes[points.experiment] = data_notes(points)
         for formula in chosen:
             fits.append(_fit_guarded(points, formula, alpha, delta_max))
-    return Workbench(tuple(fits), failures, chosen, rank_by, alpha, rank_extended)
+    return Workbench(tuple(fits), failures, chosen, rank_by, alpha, rank_extended, {k: v for k, v in notes.items() if v})
+
+
+def data_notes(points: TrompPoints) -> tuple[str, ...]:
+    """Warnings about the measured points themselves, before any fit."""
+    from scipy import stats
+
+    notes = []
+    if points.n >= 3 and np.ptp(points.partition_fine) > 0:
+        rho = stats.spearmanr(points.size, points.partition_fine).statistic
+        if rho > 0.5:
+            notes.append(f"the partition to fines rises with size (Spearman {rho:.2f}): is the column the partition to the "
+                         "coarse product? (use partition_coarse)")  # fmt: skip
+    if np.all(points.partition_fine > 0.5) or np.all(points.partition_fine < 0.5):
+        side = "above" if points.partition_fine[0] > 0.5 else "below"
+        notes.append(f"every point lies {side} 1/2: the cut size is extrapolated beyond the measured sizes")
+    return tuple(notes)
 
 
 def model_averages(bench: Workbench, *, level: float = 0.95) -> pd.DataFrame:
