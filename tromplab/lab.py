@@ -247,7 +247,9 @@ def _stream_columns(table: Table, options: LabOptions) -> dict[str, tuple[str, s
 
 @dataclass(frozen=True)
 class _SizeLayout:
-    cumulative: bool
+    """Where the sizes are: sieve apertures in one column, or class bounds in two."""
+
+    sieve_sizes: bool
     columns: tuple[str, ...]
 
 
@@ -276,12 +278,12 @@ def _size_layout(table: Table) -> _SizeLayout:
 def _balance_one(table: Table, name: str, streams, layout: _SizeLayout, options: LabOptions) -> MassBalance:
     cumulative = any(kind in CUMULATIVE_KINDS for _, kind in streams.values())
     if cumulative:
-        if not layout.cumulative:
+        if not layout.sieve_sizes:
             raise InputError("cumulative stream columns need sieve sizes in a 'size' column, not class bounds", source=table.source)
         lower, upper, shares = _classes_from_cumulative(table, layout.columns[0], streams)
         class_rows = None
     else:
-        lower, upper = _class_bounds(table, *layout.columns) if not layout.cumulative else _retained_on_sieves(table, layout.columns[0])
+        lower, upper = _retained_on_sieves(table, layout.columns[0]) if layout.sieve_sizes else _class_bounds(table, *layout.columns)
         shares = {stream: _per_class_shares(table, column, kind, options) for stream, (column, kind) in streams.items()}
         class_rows = table.rows
     top_size, size = _representative_sizes(table, lower, upper, options)
@@ -298,13 +300,11 @@ def _balance_one(table: Table, name: str, streams, layout: _SizeLayout, options:
         a, b, c = adjusted
     with np.errstate(divide="ignore", invalid="ignore"):
         phi = np.where(a > 0, fine_yield * b / a, np.nan)
-    classes["partition_fine"] = phi
-    classes["partition_coarse"] = 1.0 - phi
     used, flags = _flag_classes(a, phi, options.min_feed_share)
-    classes["used"] = used
-    classes["flag"] = flags
     classes["partition_fine"] = np.where(np.isfinite(phi), np.clip(phi, 0.0, 1.0), np.nan)
     classes["partition_coarse"] = 1.0 - classes["partition_fine"]
+    classes["used"] = used
+    classes["flag"] = flags
     if used.sum() < 3:
         raise InputError(
             f"experiment '{name}' has {int(used.sum())} usable size classes; at least 3 are needed "
