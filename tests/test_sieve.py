@@ -274,3 +274,22 @@ def test_identification_from_bin_shares_round_trip():
     with pytest.raises(ValueError, match="cannot be reached"):
         sieve.identify_from_bin_shares(speeds, [0.99] * 5, x1=design.x1, x2=design.x2, decks=decks, cell_pitch=pitch,
                                        geometric_prob=pg, lost_side="beyond")  # fmt: skip
+
+
+def test_identify_table_computes_p_g_from_the_geometry(tmp_path):
+    from tromplab.tables import read_table
+
+    pg = sieve.geometric_probability(2.0, 2.5, 1.5, 1.6)
+    gamma = sieve.residue_share(pg * sieve.velocity_probability(SPEEDS, 0.148, 0.051), SIEVE_LENGTH, CELL_PITCH)
+    frame = pd.DataFrame({"sieve": 1, "fraction": "2.5x1.5", "relative_speed": SPEEDS, "residue": gamma,
+                          "sieve_length": SIEVE_LENGTH, "cell_pitch": CELL_PITCH, "hole_diameter": 2.0, "length": 2.5,
+                          "width": 1.5, "half_cell_width": 1.6})  # fmt: skip
+    frame.to_csv(tmp_path / "geometry.csv", index=False)
+    laws = sieve.identify_from_table(read_table(tmp_path / "geometry.csv"))
+    assert_allclose(laws.loc[0, "P_g"], pg)
+    assert_allclose(laws.loc[0, ["v_k", "sigma"]].astype(float), [0.148, 0.051], rtol=1e-6)
+    frame.drop(columns=["width"]).to_csv(tmp_path / "missing.csv", index=False)
+    from tromplab.errors import InputError
+
+    with pytest.raises(InputError, match="give a 'P_g' column or the columns"):
+        sieve.identify_from_table(read_table(tmp_path / "missing.csv"))
