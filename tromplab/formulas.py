@@ -546,15 +546,35 @@ BYPASS = ExtraParameter("bypass", (0.0, 0.95), 0.05, "share of every size sent t
 FISHHOOK = ExtraParameter("fishhook", (0.0, 3.0), 0.1, "Whiten's beta: rise of the fines partition at small sizes")
 
 
-def plitt_bypass(x, ks, *, bypass=0.0):
-    r"""Plitt's curve with bypass: :math:`\varphi = (1 - R_f) / (1 + x^{k_s})`, ``x = size / d_cut``
-    with ``d_cut`` the corrected cut (partition 1/2 of the classified part)."""
-    return (1.0 - bypass) * plitt(x, ks)
+def with_bypass(base: Formula, *, equation: int, citation: str) -> Formula:
+    r"""``base`` with bypass: :math:`\varphi = (1 - \text{bypass})\,\varphi_{base}(x)`.
 
+    A share of every size reports to the coarse product unclassified; ``d_cut`` becomes
+    the corrected cut (partition 1/2 of the classified part) and the formula nests
+    ``base`` (bypass = 0).
+    """
 
-def lognormal_bypass(x, kf, *, bypass=0.0):
-    r"""Log-normal curve with bypass: :math:`\varphi = (1 - R_f)\, \tfrac12 \operatorname{erfc}(\ln x / k_f)`."""
-    return (1.0 - bypass) * lognormal(x, kf)
+    def phi(x, shape, *, bypass=0.0):
+        return (1.0 - bypass) * base.phi(x, shape)
+
+    phi.__name__ = f"{base.id}_bypass"
+    return Formula(
+        id=f"{base.id}_bypass",
+        equation=equation,
+        title=f"{base.title} with bypass",
+        expression=f"(1 - bypass) [{base.expression}]",
+        shape_name=base.shape_name,
+        shape_bounds=base.shape_bounds,
+        phi=phi,
+        slope_at_cut=base.slope_at_cut,
+        slope_expression=f"(1-bypass) [{base.slope_expression}]",
+        shape_for_slope=base.shape_for_slope,
+        citation=citation,
+        notes="d_cut is the corrected cut; the actual curve is 0.5 (1 - bypass) there.",
+        extras=(BYPASS,),
+        family="extended",
+        nests=base.id,
+    )
 
 
 def whiten_beta_star(alpha: float, fishhook: float) -> float:
@@ -591,41 +611,10 @@ def whiten(x, alpha, *, bypass=0.0, fishhook=0.0):
     return (1.0 - bypass) * (1.0 + fishhook * star * x) * lynch(star * x, alpha)
 
 
+_BASE = {formula.id: formula for formula in FORMULAS}
 EXTENDED_FORMULAS: tuple[Formula, ...] = (
-    Formula(
-        id="plitt_bypass",
-        equation=107,
-        title="Plitt with bypass",
-        expression="(1 - bypass) / (1 + x^ks)",
-        shape_name="ks",
-        shape_bounds=(0.05, 60.0),
-        phi=plitt_bypass,
-        slope_at_cut=lambda ks: -ks / 4.0,
-        slope_expression="-(1-bypass) ks/4",
-        shape_for_slope=lambda s: -4.0 * s,
-        citation=PLITT_1976 + "; " + KELSALL_1953,
-        notes="d_cut is the corrected cut; the actual curve is 0.5 (1 - bypass) there.",
-        extras=(BYPASS,),
-        family="extended",
-        nests="plitt",
-    ),
-    Formula(
-        id="lognormal_bypass",
-        equation=109,
-        title="Log-normal with bypass",
-        expression="(1 - bypass) 1/2 erfc(ln x / kf)",
-        shape_name="kf",
-        shape_bounds=(0.01, 30.0),
-        phi=lognormal_bypass,
-        slope_at_cut=lambda kf: -1.0 / (np.sqrt(np.pi) * kf),
-        slope_expression="-(1-bypass)/(sqrt(pi) kf)",
-        shape_for_slope=lambda s: -1.0 / (np.sqrt(np.pi) * s),
-        citation=KELSALL_1953,
-        notes="d_cut is the corrected cut.",
-        extras=(BYPASS,),
-        family="extended",
-        nests="lognormal",
-    ),
+    with_bypass(_BASE["plitt"], equation=107, citation=PLITT_1976 + "; " + KELSALL_1953),
+    with_bypass(_BASE["lognormal"], equation=109, citation=KELSALL_1953),
     Formula(
         id="whiten",
         equation=106,
