@@ -12,6 +12,7 @@ import sys
 import tempfile
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -46,6 +47,11 @@ class Workbench:
 
     def fits_table(self) -> pd.DataFrame:
         """One row per experiment and formula (columns :data:`FIT_COLUMNS`)."""
+        return self._fits_frame.copy()
+
+    @cached_property
+    def _fits_frame(self) -> pd.DataFrame:
+        # built once: the ranking, the best fits, the CLI and the report all read it
         rows = [fit.row() for fit in self.fits]
         for experiment, reason in self.failures.items():
             for formula in self.formulas:
@@ -68,7 +74,7 @@ class Workbench:
 
     def best_fit(self, experiment: str) -> CurveFit | None:
         """The top-ranked successful fit of an experiment."""
-        table = self.fits_table()
+        table = self._fits_frame
         rows = table[(table["experiment"] == experiment) & table["success"] & table["rank"].notna()]
         if rows.empty:
             return None
@@ -77,7 +83,7 @@ class Workbench:
 
     def ranking_table(self) -> pd.DataFrame:
         """Ranks per experiment, points and place per formula (failed experiments left out)."""
-        table = self.fits_table()
+        table = self._fits_frame
         table = table[~table["experiment"].isin(list(self.failures)) & table["rank"].notna()]
         if table.empty:
             return pd.DataFrame(columns=["equation", "formula", "points", "place"])
