@@ -79,11 +79,18 @@ class CurveFit:
     @property
     def extras(self) -> dict[str, float]:
         """Fitted bypass / fish-hook parameters (empty for the nine paper formulas)."""
-        return {extra.name: self.fit.values[extra.name] for extra in self.formula.extras}
+        return self.curve_arguments()[2]
 
-    def predict(self, size) -> np.ndarray:
-        """Fitted partition to fines at ``size``."""
-        return self.formula(size, self.d_cut, self.shape, **self.context, **self.extras)
+    def curve_arguments(self, values: dict[str, float] | None = None) -> tuple[float, float, dict[str, float]]:
+        """``(d_cut, shape, extras)`` from parameter ``values`` (default: the fitted ones)."""
+        values = self.fit.values if values is None else values
+        extras = {extra.name: values[extra.name] for extra in self.formula.extras}
+        return values["d_cut"], values[self.formula.shape_name], extras
+
+    def predict(self, size, values: dict[str, float] | None = None) -> np.ndarray:
+        """Partition to fines at ``size`` for the fitted parameters (or other ``values``)."""
+        d_cut, shape, extras = self.curve_arguments(values)
+        return self.formula(size, d_cut, shape, **self.context, **extras)
 
     def row(self) -> dict:
         """One row of ``fits.csv`` (see :data:`FIT_COLUMNS`)."""

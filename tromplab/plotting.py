@@ -35,28 +35,15 @@ def save_figure(ax, path, *, dpi: int = 120) -> None:
 def curve_band(fit: CurveFit, size, *, level: float = 0.95):
     """Pointwise delta-method band of a fitted curve: ``(low, high)`` at ``size``.
 
-    The gradient of the curve with respect to the fitted parameters is taken by central
-    differences; its variance is ``g C g^T`` with the fit's covariance ``C``.
+    Standard errors by :func:`tromplab.uncertainty.delta_standard_errors`.
     """
     from scipy import stats
 
+    from .uncertainty import delta_standard_errors
+
     size = np.asarray(size, dtype=float)
-    covariance = fit.fit.covariance
     centre = fit.predict(size)
-    if covariance is None:
-        return np.full_like(centre, np.nan), np.full_like(centre, np.nan)
-    values = dict(fit.fit.values)
-    gradient = []
-    for name in fit.fit.names:
-        step = 1e-6 * max(abs(values[name]), 1e-3)
-        curves = []
-        for sign in (1, -1):
-            moved = {**values, name: values[name] + sign * step}
-            extras = {extra.name: moved[extra.name] for extra in fit.formula.extras}
-            curves.append(fit.formula(size, moved["d_cut"], moved[fit.formula.shape_name], **fit.context, **extras))
-        gradient.append((curves[0] - curves[1]) / (2 * step))
-    gradient = np.array(gradient)
-    se = np.sqrt(np.maximum(np.einsum("ik,ij,jk->k", gradient, covariance, gradient), 0.0))
+    se = delta_standard_errors(fit, lambda values: fit.predict(size, values))
     half = stats.t.ppf(0.5 + level / 2, max(fit.points.n - len(fit.fit.names), 1)) * se
     return np.clip(centre - half, 0, 1), np.clip(centre + half, 0, 1)
 

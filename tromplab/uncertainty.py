@@ -32,11 +32,33 @@ from .points import TrompPoints
 INDEX_NAMES = ("slope", "eta", "epsilon", "d25", "d75", "ep", "imperfection")
 
 
-def _indices_at(fit: CurveFit, values: dict[str, float], delta_max: float) -> dict[str, float]:
-    extras = {extra.name: values[extra.name] for extra in fit.formula.extras}
-    found = curve_indices(fit.formula, values["d_cut"], values[fit.formula.shape_name], delta_max=delta_max,
-                          **fit.context, **extras)  # fmt: skip
-    return {name: getattr(found, name) for name in INDEX_NAMES}
+def _indices_at(fit: CurveFit, values: dict[str, float], delta_max: float) -> np.ndarray:
+    d_cut, shape, extras = fit.curve_arguments(values)
+    found = curve_indices(fit.formula, d_cut, shape, delta_max=delta_max, **fit.context, **extras)
+    return np.array([getattr(found, name) for name in INDEX_NAMES])
+
+
+def delta_standard_errors(fit: CurveFit, evaluate: Callable[[dict[str, float]], np.ndarray]) -> np.ndarray:
+    """Delta-method standard errors of ``evaluate(parameter values)`` (an array).
+
+    The gradient with respect to each fitted parameter is a central difference with a
+    relative step of 1e-5; the variance is ``g C g^T`` with the fit's covariance ``C``.
+    nan where the covariance is unknown or the gradient is not finite.
+    """
+    values = dict(fit.fit.values)
+    centre = np.asarray(evaluate(values), dtype=float)
+    covariance = fit.fit.covariance
+    if covariance is None:
+        return np.full(centre.shape, np.nan)
+    gradient = []
+    for name in fit.fit.names:
+        step = 1e-5 * max(abs(values[name]), 1e-3)
+        upper = np.asarray(evaluate({**values, name: values[name] + step}), dtype=float)
+        lower = np.asarray(evaluate({**values, name: values[name] - step}), dtype=float)
+        gradient.append((upper - lower) / (2 * step))
+    gradient = np.array(gradient)
+    variance = np.einsum("i...,ij,j...->...", gradient, covariance, gradient)
+    return np.where(np.all(np.isfinite(gradient), axis=0), np.sqrt(np.maximum(variance, 0.0)), np.nan)
 
 
 def interval_table(fit: CurveFit, *, level: float = 0.95, delta_max: float | None = None, profile: bool = True) -> pd.DataFrame:
@@ -65,27 +87,12 @@ def interval_table(fit: CurveFit, *, level: float = 0.95, delta_max: float | Non
 
 
 def _delta_rows(fit: CurveFit, level: float, delta_max: float) -> list[dict]:
-    names = list(fit.fit.names)
-    values = dict(fit.fit.values)
-    covariance = fit.fit.covariance
-    centre = _indices_at(fit, values, delta_max)
-    dof = fit.points.n - len(names)
+    centre = _indices_at(fit, fit.fit.values, delta_max)
+    errors = delta_standard_errors(fit, lambda values: _indices_at(fit, values, delta_max))
+    dof = fit.points.n - len(fit.fit.names)
     half = stats.t.ppf(0.5 + level / 2.0, dof) if dof > 0 else np.nan
-    gradient = np.full((len(INDEX_NAMES), len(names)), np.nan)
-    for j, name in enumerate(names):
-        step = 1e-5 * max(abs(values[name]), 1e-3)
-        upper = _indices_at(fit, {**values, name: values[name] + step}, delta_max)
-        lower = _indices_at(fit, {**values, name: values[name] - step}, delta_max)
-        gradient[:, j] = [(upper[k] - lower[k]) / (2 * step) for k in INDEX_NAMES]
-    rows = []
-    for i, name in enumerate(INDEX_NAMES):
-        if covariance is None or not np.all(np.isfinite(gradient[i])):
-            se = np.nan
-        else:
-            se = float(np.sqrt(max(gradient[i] @ covariance @ gradient[i], 0.0)))
-        rows.append({"quantity": name, "value": centre[name], "stderr": se, "low": centre[name] - half * se,
-                     "high": centre[name] + half * se, "method": "delta"})  # fmt: skip
-    return rows
+    return [{"quantity": name, "value": value, "stderr": se, "low": value - half * se, "high": value + half * se,
+             "method": "delta"} for name, value, se in zip(INDEX_NAMES, centre, errors)]  # fmt: skip
 
 
 @dataclass(frozen=True)
