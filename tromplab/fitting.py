@@ -73,6 +73,17 @@ class ParameterFit:
     def n_params(self) -> int:
         return len(self.names)
 
+    def __getstate__(self):
+        # The lmfit Minimizer holds the residual closure, which cannot be pickled; a result
+        # that travelled (process pool, saved batch) keeps its values, covariance and the
+        # raw lmfit result, and recomputes profile intervals only where it was made.
+        state = dict(self.__dict__)
+        state["minimizer"] = None
+        return state
+
+    def __setstate__(self, state):
+        self.__dict__.update(state)
+
     def information_criteria(self) -> dict[str, float]:
         """AIC, AICc and BIC from the Gaussian likelihood with the variance profiled out.
 

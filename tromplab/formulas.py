@@ -110,6 +110,10 @@ class Formula:
     family: str = "paper"
     nests: str | None = None
 
+    def __reduce__(self):
+        # Records hold lambdas and closures; they travel (pickle, process pools) by their id.
+        return (get_formula, (self.id,))
+
     @property
     def n_params(self) -> int:
         """Number of fitted parameters: d_cut, the shape and the extras."""
