@@ -17,7 +17,7 @@ worse than the grid; the grid minimum is kept in the result so that this can be 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy import optimize
@@ -231,7 +231,7 @@ def fit_formula(
     formula = get_formula(formula)
     check_screenable(points.n, n_params=formula.n_params)
     specs = _parameter_specs(formula, points)
-    context, warnings = {}, []
+    context = {}
     if formula.context_from_efficiency:
         context["measured_efficiency"] = measured_efficiency(points)
     weights = normalised_weights(points)
@@ -255,6 +255,16 @@ def fit_formula(
     all_starts += [{**all_starts[0], **start} for start in starts or []]
     fit = least_squares(residual, specs, all_starts)
     grid_ssr = grid[0][0] if grid else np.nan
+    return finish_fit(formula, points, fit, context, grid_ssr, alpha=alpha, delta_max=delta_max)
+
+
+def finish_fit(formula: Formula, points: TrompPoints, fit: ParameterFit, context: dict, grid_ssr: float, *,
+               alpha: float = DEFAULT_ALPHA, delta_max: float | None = None) -> CurveFit:  # fmt: skip
+    """Checks, screen, indices and diagnostics of a fitted curve (single or batched fit)."""
+    specs = _parameter_specs(formula, points)
+    weights = normalised_weights(points)
+    extra_starts = {extra.name: extra.start for extra in formula.extras}
+    warnings = []
     result = CurveFit(formula=formula, points=points, fit=fit, context=context, grid_ssr=grid_ssr)
     if not fit.success:
         return result
@@ -283,6 +293,19 @@ def fit_formula(
             f"adequate by F but the residuals are systematic ({diagnostics.n_runs} runs of signs, runs test p = {diagnostics.runs_p:.3f})"
         )
     return CurveFit(formula, points, fit, context, screen, indices, grid_ssr, tuple(warnings), x_break, diagnostics)
+
+
+def with_lmfit(fit: CurveFit) -> CurveFit:
+    """``fit`` as an lmfit result: a fit made by the batched engine (or one that travelled
+    through a process pool) is polished by lmfit from its optimum, so that ``fit.fit.raw``
+    and profile intervals are available.  A fit that already has them is returned as is."""
+    if not fit.success or fit.fit.minimizer is not None:
+        return fit
+    alpha = fit.screen.alpha if fit.screen is not None else DEFAULT_ALPHA
+    polished = fit_formula(fit.points, fit.formula, alpha=alpha, global_search=False, starts=[dict(fit.fit.values)])
+    if not polished.success or polished.fit.ssr > fit.fit.ssr * (1 + 1e-9):
+        return fit
+    return replace(fit, fit=polished.fit)  # the screen and indices of the optimum stay as they were
 
 
 def _break_point(kr: float, efficiency: float) -> tuple[float, list[str]]:
