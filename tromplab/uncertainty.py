@@ -25,7 +25,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from .curves import CurveFit, fit_formula
+from .curves import CurveFit, fit_formula, with_lmfit
 from .indices import curve_indices
 from .points import TrompPoints
 
@@ -73,7 +73,7 @@ def interval_table(fit: CurveFit, *, level: float = 0.95, delta_max: float | Non
     delta_max = fit.points.largest_size if delta_max is None else delta_max
     rows = []
     wald = fit.fit.confidence_intervals(level)
-    profiled = fit.fit.profile_intervals(level) if profile else {}
+    profiled = with_lmfit(fit).fit.profile_intervals(level) if profile else {}  # engine fits: lmfit from the optimum
     for name in fit.fit.names:
         low, high = profiled.get(name, (np.nan, np.nan))
         method = "profile"

@@ -100,6 +100,10 @@ class Workbench:
         return list(dict.fromkeys(fit.experiment for fit in self.fits))
 
 
+#: Experiments per unit of work: fixed, so that results do not depend on the number of workers.
+CHUNK_SIZE = 128
+
+
 def fit_experiments(
     experiments: Sequence[TrompPoints],
     *,
@@ -109,12 +113,17 @@ def fit_experiments(
     rank_by: str = "F",
     rank_extended: bool = False,
     progress: Callable[[int, int, str], None] | None = None,
+    jobs: int | None = 1,
+    client=None,
+    engine: bool = True,
 ) -> Workbench:
     """Fit, screen and rank ``formulas`` (default: all nine) on each experiment.
 
     Parameters
     ----------
-    experiments : sequence of TrompPoints
+    experiments : sequence of TrompPoints, or a Dask DataFrame of points
+        A Dask DataFrame (columns ``experiment, size, partition_fine[, weight]``) is
+        read partition by partition into points.
     formulas : iterable of ids or equation numbers, optional
     alpha : float
         Significance level of the Fisher screen.
@@ -126,22 +135,92 @@ def fit_experiments(
         Rank the extended curves (bypass, fish-hook) with the nine; by default they are
         fitted and reported but kept out of the paper's ranking.
     progress : callable, optional
-        Called as ``progress(i, total, experiment)`` before each experiment.
+        Called as ``progress(done, total, experiment)`` as experiments are fitted.
+    jobs : int or None
+        Worker processes (None or 0: all cores).  The experiments are cut into chunks of
+        :data:`CHUNK_SIZE` whatever ``jobs`` is, so the results are identical for any
+        number of workers.
+    client : dask.distributed.Client, optional
+        Run the chunks on this Dask cluster instead of local processes.
+    engine : bool
+        Fit with the batched engine (:mod:`tromplab.engine`); False fits one experiment
+        and formula at a time with :func:`tromplab.curves.fit_formula`.
     """
+    experiments = _as_points(experiments)
     chosen = select_formulas(formulas)
-    fits, failures, notes = [], {}, {}
-    for i, points in enumerate(experiments):
-        if progress is not None:
-            progress(i + 1, len(experiments), points.experiment)
+    failures, notes, fittable = {}, {}, []
+    for points in experiments:
         if points.n <= 2:
             failures[points.experiment] = (
                 f"experiment '{points.experiment}' has {points.n} points; the Fisher screen needs at least 3"
             )
             continue
-        notes[points.experiment] = data_notes(points)
-        for formula in chosen:
-            fits.append(_fit_guarded(points, formula, alpha, delta_max))
-    return Workbench(tuple(fits), failures, chosen, rank_by, alpha, rank_extended, {k: v for k, v in notes.items() if v})
+        fittable.append(points)
+        found = data_notes(points)
+        if found:
+            notes[points.experiment] = found
+    chunks = [fittable[i : i + CHUNK_SIZE] for i in range(0, len(fittable), CHUNK_SIZE)]
+    options = {"formulas": tuple(f.id for f in chosen), "alpha": alpha, "delta_max": delta_max, "engine": engine}
+    fits = []
+    for chunk, chunk_fits in zip(chunks, _map_chunks(chunks, options, jobs=jobs, client=client)):
+        fits += chunk_fits
+        if progress is not None:
+            progress(len(fits) // max(len(chosen), 1), len(fittable), chunk[-1].experiment)
+    return Workbench(tuple(fits), failures, chosen, rank_by, alpha, rank_extended, notes)
+
+
+def fit_chunk(experiments: Sequence[TrompPoints], *, formulas, alpha, delta_max, engine=True) -> list[CurveFit]:
+    """Fits of ``formulas`` to ``experiments``, experiment by experiment in formula order.
+
+    Batchable formulas go through the engine for all experiments at once; the others
+    (and a formula whose batch raised) are fitted one by one.
+    """
+    from .engine import fit_formula_batch, is_batchable
+
+    per_formula = []
+    for formula in select_formulas(formulas):
+        batch = None
+        if engine and is_batchable(formula):
+            try:
+                batch = fit_formula_batch(experiments, formula, alpha=alpha, delta_max=delta_max)
+            except Exception:  # a broken batch falls back to single fits, which report per fit
+                batch = None
+        per_formula.append(batch or [_fit_guarded(points, formula, alpha, delta_max) for points in experiments])
+    return [fits[i] for i in range(len(experiments)) for fits in per_formula]
+
+
+def _map_chunks(chunks, options, *, jobs, client):
+    """Yield the fits of each chunk, in order: in process, in a process pool, or on Dask."""
+    import functools
+    import os
+
+    work = functools.partial(_fit_chunk_star, options)
+    if client is not None:
+        futures = client.map(work, chunks, pure=False)
+        for future in futures:
+            yield future.result()
+        return
+    workers = min(jobs or os.cpu_count() or 1, len(chunks))
+    if workers <= 1:
+        yield from map(work, chunks)
+        return
+    from concurrent.futures import ProcessPoolExecutor
+
+    with ProcessPoolExecutor(max_workers=workers) as pool:
+        yield from pool.map(work, chunks)
+
+
+def _fit_chunk_star(options, chunk):
+    return fit_chunk(chunk, **options)
+
+
+def _as_points(experiments) -> list[TrompPoints]:
+    """Points from a sequence of TrompPoints or a Dask DataFrame of points."""
+    if hasattr(experiments, "dask") and hasattr(experiments, "compute"):
+        from .points import points_from_frame
+
+        return points_from_frame(experiments.compute(), source="dask dataframe")
+    return list(experiments)
 
 
 def data_notes(points: TrompPoints) -> tuple[str, ...]:
