@@ -26,8 +26,10 @@ Every formula whose curve broadcasts over array-valued shapes runs here, the pie
 fish-hook curve, whose ``beta*`` solves an equation) are reported by
 :func:`is_batchable` as not batchable and fitted one by one by the caller.
 
-This module does not import lmfit; :func:`tromplab.curves.with_lmfit` turns an engine
-fit into an lmfit result where one is needed (profile intervals, reports).
+The engine itself does not use lmfit; :func:`fit_formula_batch` wraps its optimum in the
+same :class:`~tromplab.curves.CurveFit` a single fit returns, and
+:func:`tromplab.curves.with_lmfit` turns it into an lmfit result where one is needed
+(profile intervals).
 """
 
 from __future__ import annotations
@@ -483,14 +485,16 @@ def fit_batch(
     problem = _Problem(formula, data, efficiency, cut_factor)
     count = len(data)
     starts = np.array(starts, dtype=float)
+    low, high = problem.lower[:, None, :], problem.upper[:, None, :]
     starts[..., 0] = np.log(starts[..., 0])
+    starts = np.clip(starts, low, high)
     grid_ssr = np.full(count, np.nan)
     if global_search:
         extra_start = [extra.start for extra in formula.extras]
         grid_cut, grid_shape, grid_ssr = _grid_starts(problem, starts[:, 0, 0], extra_start)
         extras = np.broadcast_to(np.array(extra_start), (count, grid_cut.shape[1], len(extra_start)))
         starts = np.concatenate([starts, np.concatenate([grid_cut[..., None], grid_shape[..., None], extras], axis=2)], axis=1)
-    if formula.id == "shuvalov":
+    if formula.id == "shuvalov" and global_search:
         kink = shuvalov_kink(efficiency, formula.shape_bounds)
         sides = np.stack([np.clip(kink * f, *formula.shape_bounds) for f in (0.97, 1.03, 1.2)], axis=1)
         near = np.stack([np.broadcast_to(starts[:, :1, 0], sides.shape), sides], axis=2)
@@ -504,7 +508,7 @@ def fit_batch(
         nfev[best] += more
         params[best], ssr[best], more = levenberg_marquardt(problem, params[best], rows[best])
         nfev[best] += more
-        if formula.id == "shuvalov":  # the optimum can sit on the kink itself: d_cut alone at kr*
+        if formula.id == "shuvalov" and global_search:  # the optimum can sit on the kink itself: d_cut alone at kr*
             on_kink = copy.copy(problem)
             on_kink.lower, on_kink.upper = problem.lower.copy(), problem.upper.copy()
             on_kink.lower[:, 1] = on_kink.upper[:, 1] = kink
@@ -547,14 +551,17 @@ def _covariance(jac: np.ndarray, ssr: np.ndarray, n: np.ndarray, n_params: int) 
 
 # --- from the batched optimum to CurveFit results ----------------------------------------------
 def fit_formula_batch(experiments: Sequence[TrompPoints], formula, *, alpha: float | None = None,
-                      delta_max: float | None = None) -> list:  # fmt: skip
+                      delta_max: float | None = None, global_search: bool = True,
+                      start: dict[str, float] | None = None) -> list:  # fmt: skip
     """:func:`tromplab.curves.fit_formula` for many experiments at once.
 
     Returns one :class:`~tromplab.curves.CurveFit` per experiment, in order, each with the
     same checks, screen, indices and diagnostics as a single fit.  The fit's
     ``ParameterFit`` is built from the batched optimum (``raw`` is None; use
     :func:`tromplab.curves.with_lmfit` for an lmfit result).  Experiments with too few
-    points for the formula get a failed fit with the reason.
+    points for the formula get a failed fit with the reason.  ``global_search`` and
+    ``start`` (one further start for every experiment) are as for a single fit; the
+    bootstrap refits its resamples from the optimum without the grid.
     """
     from .curves import finish_fit, measured_cut_size, measured_efficiency, measured_slope
     from .fitting import ParameterFit, ParameterSpec
@@ -573,13 +580,15 @@ def fit_formula_batch(experiments: Sequence[TrompPoints], formula, *, alpha: flo
         return results
     chosen = [experiments[i] for i in usable]
     data = PaddedPoints.from_points(chosen)
-    starts = np.empty((len(chosen), 1, len(names)))
+    starts = np.empty((len(chosen), 1 if start is None else 2, len(names)))
     for row, points in enumerate(chosen):
         cut = measured_cut_size(points)
         starts[row, 0, :2] = cut, formula.shape_for_slope(measured_slope(points, cut))
         starts[row, 0, 2:] = [extra.start for extra in formula.extras]
+    if start is not None:
+        starts[:, 1, :] = [start[name] for name in names]
     efficiency = np.array([measured_efficiency(p) for p in chosen]) if formula.context_from_efficiency else None
-    optimum = fit_batch(formula, data, starts=starts, efficiency=efficiency)
+    optimum = fit_batch(formula, data, starts=starts, efficiency=efficiency, global_search=global_search)
     stderr = optimum.stderr()
     for row, (i, points) in enumerate(zip(usable, chosen)):
         context = {"measured_efficiency": float(efficiency[row])} if efficiency is not None else {}
@@ -619,3 +628,60 @@ def _failed_fit(formula, points, parameter_fit):
     from .curves import CurveFit
 
     return CurveFit(formula=formula, points=points, fit=parameter_fit)
+
+
+# --- the bootstrap on the engine -------------------------------------------------------------
+#: Most resamples accepted per fit; beyond it the percentiles no longer change (Efron and
+#: Tibshirani 1993 suggest 1,000-2,000 for percentile intervals) and the cost only grows.
+MAX_BOOTSTRAP_RESAMPLES = 100_000
+#: Largest total number of bootstrap refits (resamples x fits) run without refusing.
+MAX_BOOTSTRAP_REFITS = 20_000_000
+#: Measured cost of one batched bootstrap refit with its indices (seconds, 2-core machine; docs/performance.md).
+SECONDS_PER_BOOTSTRAP_REFIT = 4e-4
+
+
+def check_bootstrap_request(n_resamples: int, *, n_fits: int) -> float:
+    """Refuse a bootstrap too large to be useful, before any work; return its estimated seconds.
+
+    Raises
+    ------
+    ValueError
+        When ``n_resamples`` exceeds :data:`MAX_BOOTSTRAP_RESAMPLES` or the total number of
+        refits exceeds :data:`MAX_BOOTSTRAP_REFITS`, naming the estimated time.
+    """
+    refits = n_resamples * max(n_fits, 1)
+    seconds = refits * SECONDS_PER_BOOTSTRAP_REFIT
+    estimate = f"{refits:,} refits, about {_duration(seconds)} on one core"
+    if n_resamples > MAX_BOOTSTRAP_RESAMPLES:
+        raise ValueError(f"--bootstrap {n_resamples:,} is more than the {MAX_BOOTSTRAP_RESAMPLES:,} resamples "
+                         f"percentile intervals need ({estimate}); 1,000-2,000 are usual")  # fmt: skip
+    if refits > MAX_BOOTSTRAP_REFITS:
+        raise ValueError(f"--bootstrap {n_resamples:,} on {n_fits:,} fits means {estimate}; use fewer resamples or "
+                         "fewer formulas")  # fmt: skip
+    return seconds
+
+
+def _duration(seconds: float) -> str:
+    if seconds < 120:
+        return f"{seconds:.0f} s"
+    if seconds < 7200:
+        return f"{seconds / 60:.0f} min"
+    return f"{seconds / 3600:.1f} h"
+
+
+def refit_resamples(fit, samples: Sequence[TrompPoints], *, delta_max: float | None = None) -> list:
+    """Refit ``fit.formula`` to every resample at once, from the optimum of ``fit`` (no grid).
+
+    The batched counterpart of ``fit_formula(sample, global_search=False,
+    starts=[fit values])`` per resample; formulas the engine cannot evaluate on arrays are
+    refitted one by one.
+    """
+    from .curves import fit_formula
+
+    alpha = fit.screen.alpha if fit.screen is not None else None
+    start = dict(fit.fit.values)
+    if is_batchable(fit.formula):
+        return fit_formula_batch(samples, fit.formula, alpha=alpha, delta_max=delta_max, global_search=False, start=start)
+    kwargs = {} if alpha is None else {"alpha": alpha}
+    return [fit_formula(sample, fit.formula, delta_max=delta_max, global_search=False, starts=[start], **kwargs)
+            for sample in samples]  # fmt: skip

@@ -25,7 +25,8 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from .curves import CurveFit, fit_formula, with_lmfit
+from .curves import CurveFit, with_lmfit
+from .engine import refit_resamples
 from .indices import curve_indices
 from .points import TrompPoints
 
@@ -141,24 +142,21 @@ def bootstrap(fit: CurveFit, *, n: int = 200, seed: int = 0, method: str = "resi
     fitted = fit.predict(points.size)
     residuals = (points.partition_fine - fitted) * np.sqrt(points.n / max(points.n - p, 1))
     delta_max = points.largest_size if delta_max is None else delta_max
-    rows = []
+    samples = []
     for i in range(n):
         if progress is not None:
             progress(i + 1, n)
         if method == "residuals":
-            sample = TrompPoints(points.experiment, points.size, fitted + rng.choice(residuals, points.n), points.weight)
+            samples.append(TrompPoints(points.experiment, points.size, fitted + rng.choice(residuals, points.n), points.weight))
         else:
             while True:
                 pick = rng.integers(0, points.n, points.n)
                 if np.unique(points.size[pick]).size > p:
                     break
             weight = None if points.weight is None else points.weight[pick]
-            sample = TrompPoints(points.experiment, points.size[pick], points.partition_fine[pick], weight)
-        refit = fit_formula(sample, fit.formula, alpha=fit.screen.alpha, delta_max=delta_max, global_search=False,
-                            starts=[dict(fit.fit.values)])  # fmt: skip
-        if not refit.success:
-            continue
-        rows.append({**refit.fit.values, **{k: getattr(refit.indices, k) for k in INDEX_NAMES}})
+            samples.append(TrompPoints(points.experiment, points.size[pick], points.partition_fine[pick], weight))
+    refits = refit_resamples(fit, samples, delta_max=delta_max)  # all resamples in one batched call
+    rows = [{**refit.fit.values, **{k: getattr(refit.indices, k) for k in INDEX_NAMES}} for refit in refits if refit.success]
     return Bootstrap(pd.DataFrame(rows), n, method, seed)
 
 

@@ -74,12 +74,17 @@ class Workbench:
 
     def best_fit(self, experiment: str) -> CurveFit | None:
         """The top-ranked successful fit of an experiment."""
-        table = self._fits_frame
-        rows = table[(table["experiment"] == experiment) & table["success"] & table["rank"].notna()]
-        if rows.empty:
+        best = self._best_formulas.get(experiment)
+        if best is None:
             return None
-        best = rows.sort_values("rank").iloc[0]["formula"]
         return next(f for f in self.fits_of(experiment) if f.formula.id == best)
+
+    @cached_property
+    def _best_formulas(self) -> dict[str, str]:
+        # one pass over the table instead of a scan per experiment
+        table = self._fits_frame
+        rows = table[table["success"] & table["rank"].notna()].sort_values("rank", kind="stable")
+        return dict(rows.drop_duplicates("experiment")[["experiment", "formula"]].itertuples(index=False))
 
     def ranking_table(self) -> pd.DataFrame:
         """Ranks per experiment, points and place per formula (failed experiments left out)."""
@@ -93,11 +98,22 @@ class Workbench:
         return ranking.sort_values(["place", "equation"]).reset_index(drop=True)
 
     def fits_of(self, experiment: str) -> list[CurveFit]:
-        return [fit for fit in self.fits if fit.experiment == experiment]
+        return list(self.fits_by_experiment().get(experiment, []))
+
+    def fits_by_experiment(self) -> dict[str, list[CurveFit]]:
+        """The fits grouped by experiment, in batch order."""
+        return self._by_experiment
+
+    @cached_property
+    def _by_experiment(self) -> dict[str, list[CurveFit]]:
+        grouped: dict[str, list[CurveFit]] = {}
+        for fit in self.fits:
+            grouped.setdefault(fit.experiment, []).append(fit)
+        return grouped
 
     @property
     def experiments(self) -> list[str]:
-        return list(dict.fromkeys(fit.experiment for fit in self.fits))
+        return list(self._by_experiment)
 
 
 #: Experiments per unit of work: fixed, so that results do not depend on the number of workers.
