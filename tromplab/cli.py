@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import argparse
 import re
+import sys
 import textwrap
 import warnings
-import sys
 from pathlib import Path
 
 import numpy as np
