@@ -13,11 +13,12 @@ import numpy as np
 
 from .curves import CurveFit
 
-#: Colours of up to 12 curves: tab10, then two dark tab20b shades unlike any of them.
+#: Colours of up to 12 curves: tab10, then a dark indigo and a dark green, as far from every tab10 colour
+#: as the tab10 colours are from each other (RGB distance >= 0.26).
 CURVE_COLOURS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22",
-                 "#17becf", "#393b79", "#8c6d31")  # fmt: skip
+                 "#17becf", "#393b79", "#00441b")  # fmt: skip
 #: Line styles cycled beside the colours, so curves stay apart in grey print too.
-CURVE_LINESTYLES = ("-", "--", "-.", ":", (0, (5, 1, 1, 1, 1, 1)), (0, (8, 2)))
+CURVE_LINESTYLES = ("-", "--", "-.", ":")
 
 
 def curve_styles(n: int) -> list[dict]:
@@ -38,21 +39,19 @@ def log_size_axis(ax, low: float, high: float) -> None:
     """Log-scaled size axis with plain-number tick labels that do not run into each other.
 
     Matplotlib labels minor ticks of a log axis spanning less than about a decade, and
-    those labels collide; here only major ticks are labelled, at 1-2-3-5-7, 1-2-5 or 1
-    per decade as the span of the data allows, and thinned to every k-th decade beyond
-    six decades.
+    those labels collide; here only major ticks are labelled: round linear steps within
+    half a decade, then 1-2-3-5-7, 1-2-5 or 1 per decade as the span allows (the locator
+    thins to every k-th decade beyond about ten decades).
     """
-    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
+    from matplotlib.ticker import FuncFormatter, LogLocator, MaxNLocator, NullFormatter
 
     ax.set_xscale("log")
     decades = np.log10(high / low)
-    if decades < 1.2:
-        subs = (1.0, 2.0, 3.0, 5.0, 7.0)
-    elif decades < 3.0:
-        subs = (1.0, 2.0, 5.0)
+    if decades < 0.5:  # within half a decade a log axis is nearly linear: round linear steps
+        ax.xaxis.set_major_locator(MaxNLocator(nbins=5, steps=[1, 2, 2.5, 5, 10]))
     else:
-        subs = (1.0,)
-    ax.xaxis.set_major_locator(LogLocator(base=10.0, subs=subs, numticks=12))
+        subs = (1.0, 2.0, 3.0, 5.0, 7.0) if decades < 1.2 else (1.0, 2.0, 5.0) if decades < 3.0 else (1.0,)
+        ax.xaxis.set_major_locator(LogLocator(base=10.0, subs=subs, numticks=12))
     ax.xaxis.set_major_formatter(FuncFormatter(lambda value, _: f"{value:g}"))
     ax.xaxis.set_minor_locator(LogLocator(base=10.0, subs=np.arange(2, 10) * 1.0, numticks=12))
     ax.xaxis.set_minor_formatter(NullFormatter())
