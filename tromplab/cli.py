@@ -14,12 +14,12 @@ import numpy as np
 import pandas as pd
 
 from ._version import __version__
+from .engine import check_bootstrap_request
 from .errors import InputError
 from .formulas import registry_table, select_formulas
 from .lab import KINDS, LabOptions, YieldWarning, read_experiments, read_lab
 from .ranking import RANK_BY, rank_formulas, read_f_table
 from .screening import DEFAULT_ALPHA
-from .engine import check_bootstrap_request
 from .views import PARTITION_TO, partition_view
 from .workbench import fit_experiments, model_averages, print_progress, write_atomically
 

@@ -34,8 +34,8 @@ same :class:`~tromplab.curves.CurveFit` a single fit returns, and
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 import copy
+from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import cache
 
@@ -320,9 +320,9 @@ def _grid_starts(problem: _Problem, start_cut: np.ndarray, extra_start: np.ndarr
         flat_shapes = np.tile(shapes, block.size)
         extra_columns = [np.full(shape_rows.size, value) for value in extra_start]
 
-        def ssr_at(log_cut):
-            params = np.column_stack([log_cut.ravel(), flat_shapes, *extra_columns])
-            return _ssr(problem.residual(params, shape_rows)).reshape(block.size, n_shapes)
+        def ssr_at(log_cut, shapes=flat_shapes, extras=extra_columns, rows=shape_rows, count=block.size):
+            params = np.column_stack([log_cut.ravel(), shapes, *extras])
+            return _ssr(problem.residual(params, rows)).reshape(count, n_shapes)
 
         ratio = (np.sqrt(5.0) - 1.0) / 2.0
         a, b = hi - ratio * (hi - lo), lo + ratio * (hi - lo)
