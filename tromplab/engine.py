@@ -186,7 +186,7 @@ def shuvalov_breaks(kr, efficiency) -> np.ndarray:
     low, high = np.zeros_like(k), np.ones_like(k)
     root = np.full_like(k, 0.5)
     open_ = np.arange(k.size)
-    for _ in range(100):
+    for iteration in range(200):
         kk, x = k[open_], root[open_]
         value = x * rosin_rammler(x, kk) + _rosin_rammler_area(x, 1.0, kk) - target[open_]
         lo = np.where(value > 0, x, low[open_])
@@ -194,11 +194,12 @@ def shuvalov_breaks(kr, efficiency) -> np.ndarray:
         slope = -LN2 * kk * x**kk * rosin_rammler(x, kk)
         with np.errstate(divide="ignore", invalid="ignore"):
             newton = x - value / slope
-        inside = np.isfinite(newton) & (newton >= lo) & (newton <= hi)
+        # every fourth step bisects, so that Newton steps bouncing in rounding noise still end
+        inside = np.isfinite(newton) & (newton >= lo) & (newton <= hi) & (iteration % 4 != 3)
         converged = np.abs(value) <= 1e-16
         step = np.where(converged, x, np.where(inside, newton, 0.5 * (lo + hi)))
         low[open_], high[open_], root[open_] = lo, hi, step
-        done = converged | (np.abs(step - x) <= 1e-15) | (hi - lo <= 1e-15)
+        done = converged | (np.abs(step - x) <= 1e-15) | (hi - lo <= 1e-14)
         open_ = open_[~done]
         if not open_.size:
             break
@@ -222,8 +223,11 @@ def shuvalov_kink(efficiency, bounds) -> np.ndarray:
     return np.exp(0.5 * (low + high))
 
 
-def curve_values(formula: Formula, x, shape, extras: dict, efficiency=None) -> np.ndarray:
-    """Partition to fines of ``formula`` with array-valued parameters broadcast against ``x``."""
+def curve_values(formula: Formula, x, shape, extras: dict, efficiency=None, x_break=None) -> np.ndarray:
+    """Partition to fines of ``formula`` with array-valued parameters broadcast against ``x``
+    (``x_break``: break points of (11) already solved for these shapes)."""
+    if formula.id == "shuvalov" and x_break is not None:
+        return rosin_rammler(np.maximum(x, x_break), shape)
     if formula.id == "shuvalov":
         # one root per distinct (kr, efficiency): grid rows and Jacobian columns in d_cut share them
         kr, eff = np.broadcast_arrays(np.asarray(shape, dtype=float), np.asarray(efficiency, dtype=float))
@@ -254,14 +258,21 @@ class _Problem:
         self.lower = np.column_stack([low_cut, np.full(count, shape_low), *[np.full(count, v) for v in extra_low]])
         self.upper = np.column_stack([high_cut, np.full(count, shape_high), *[np.full(count, v) for v in extra_high]])
 
-    def residual(self, params: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    def breaks(self, params: np.ndarray, rows: np.ndarray):
+        """Break points of (11) for these rows (None for other formulas); they depend on the
+        shape and the measured efficiency only, so steps in d_cut reuse them."""
+        if self.formula.id != "shuvalov":
+            return None
+        return shuvalov_breaks(params[:, 1], self.efficiency[rows])[:, None]
+
+    def residual(self, params: np.ndarray, rows: np.ndarray, x_break=None) -> np.ndarray:
         """Weighted residuals ``(len(rows), P)`` at internal parameters ``params``."""
         data = self.data
         x = data.size[rows] / np.exp(params[:, :1])
         extras = {name: params[:, 2 + i : 3 + i] for i, name in enumerate(self.extra_names)}
         efficiency = None if self.efficiency is None else self.efficiency[rows][:, None]
         with np.errstate(all="ignore"):
-            phi = curve_values(self.formula, x, params[:, 1:2], extras, efficiency)
+            phi = curve_values(self.formula, x, params[:, 1:2], extras, efficiency, x_break)
             return data.root_weight[rows] * (phi - data.observed[rows])
 
     def jacobian(self, params: np.ndarray, rows: np.ndarray, base: np.ndarray, relative_step: float = 1.5e-8) -> np.ndarray:
@@ -269,12 +280,13 @@ class _Problem:
         count, width = base.shape
         jac = np.empty((count, width, params.shape[1]))
         upper = self.upper[rows]
+        x_break = self.breaks(params, rows)
         for j in range(params.shape[1]):
             step = relative_step * np.maximum(np.abs(params[:, j]), 1.0)
             step = np.where(params[:, j] + step > upper[:, j], -step, step)
             moved = params.copy()
             moved[:, j] += step
-            jac[:, :, j] = (self.residual(moved, rows) - base) / step[:, None]
+            jac[:, :, j] = (self.residual(moved, rows, x_break if j != 1 else None) - base) / step[:, None]
         return jac
 
 
@@ -308,7 +320,10 @@ def _grid_starts(problem: _Problem, start_cut: np.ndarray, extra_start: np.ndarr
             np.broadcast_to(shapes[None, :, None], (block.size, n_shapes, cuts.shape[1])).ravel(),
             *[np.full(rows.size, value) for value in extra_start],
         ])  # fmt: skip
-        ssr = _ssr(problem.residual(params, rows)).reshape(block.size, n_shapes, cuts.shape[1])
+        per_shape = np.column_stack([np.zeros(block.size * n_shapes), np.tile(shapes, block.size)])
+        x_break = problem.breaks(per_shape, np.repeat(block, n_shapes))
+        x_break = None if x_break is None else np.repeat(x_break, cuts.shape[1], axis=0)
+        ssr = _ssr(problem.residual(params, rows, x_break)).reshape(block.size, n_shapes, cuts.shape[1])
         pick = np.argmin(ssr, axis=2)
         best_cut[block] = np.take_along_axis(cuts[:, None, :].repeat(n_shapes, axis=1), pick[..., None], axis=2)[..., 0]
         best_ssr[block] = np.take_along_axis(ssr, pick[..., None], axis=2)[..., 0]
@@ -320,9 +335,13 @@ def _grid_starts(problem: _Problem, start_cut: np.ndarray, extra_start: np.ndarr
         flat_shapes = np.tile(shapes, block.size)
         extra_columns = [np.full(shape_rows.size, value) for value in extra_start]
 
-        def ssr_at(log_cut, shapes=flat_shapes, extras=extra_columns, rows=shape_rows, count=block.size):
-            params = np.column_stack([log_cut.ravel(), shapes, *extras])
-            return _ssr(problem.residual(params, rows)).reshape(count, n_shapes)
+        fixed = np.column_stack([np.zeros(shape_rows.size), flat_shapes, *extra_columns])
+        block_breaks = problem.breaks(fixed, shape_rows)  # the shapes stay fixed while d_cut moves
+
+        def ssr_at(log_cut, fixed=fixed, rows=shape_rows, count=block.size, x_break=block_breaks):
+            params = fixed.copy()
+            params[:, 0] = log_cut.ravel()
+            return _ssr(problem.residual(params, rows, x_break)).reshape(count, n_shapes)
 
         ratio = (np.sqrt(5.0) - 1.0) / 2.0
         a, b = hi - ratio * (hi - lo), lo + ratio * (hi - lo)
