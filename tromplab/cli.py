@@ -304,19 +304,20 @@ def _run_fit(args) -> int:
         check_bootstrap_request(args.bootstrap, n_fits=len(experiments) * len(select_formulas(formulas)))
     _print_balance_notes(balances)
     quiet = getattr(args, "quiet", False)
-    with _cluster(args) as client, _progress_bar(len(experiments), "fitting", quiet=quiet) as progress:
-        bench = fit_experiments(experiments, formulas=formulas, alpha=args.alpha, delta_max=args.delta_max,
-                                rank_by=args.rank_by, rank_extended=args.rank_extended, progress=progress,
-                                jobs=args.jobs or None, client=client, engine=not args.single_fits)  # fmt: skip
-    fits, ranking = bench.fits_table(), bench.ranking_table()
-    if args.ci is not None or args.bootstrap:
-        from .uncertainty import interval_columns
+    with _cluster(args) as client:
+        with _progress_bar(len(experiments), "fitting", quiet=quiet) as progress:
+            bench = fit_experiments(experiments, formulas=formulas, alpha=args.alpha, delta_max=args.delta_max,
+                                    rank_by=args.rank_by, rank_extended=args.rank_extended, progress=progress,
+                                    jobs=args.jobs or None, client=client, engine=not args.single_fits)  # fmt: skip
+        fits, ranking = bench.fits_table(), bench.ranking_table()
+        if args.ci is not None or args.bootstrap:
+            from .uncertainty import interval_columns
 
-        with _progress_bar(len(bench.fits), "intervals", quiet=quiet) as progress:
-            intervals = interval_columns(bench.fits, level=args.ci, n_bootstrap=args.bootstrap, method=args.bootstrap_method,
-                                         seed=args.seed, progress=progress)  # fmt: skip
-        fits = fits.merge(intervals, on=["experiment", "formula"], how="left")
-    averages = model_averages(bench, level=args.ci or 0.95)
+            with _progress_bar(len(bench.fits), "intervals", quiet=quiet) as progress:
+                intervals = interval_columns(bench.fits, level=args.ci, n_bootstrap=args.bootstrap,
+                                             method=args.bootstrap_method, seed=args.seed, progress=progress)  # fmt: skip
+            fits = fits.merge(intervals, on=["experiment", "formula"], how="left")
+        averages = model_averages(bench, level=args.ci or 0.95, jobs=args.jobs or None, client=client)
     fits = partition_view(fits, args.partition_to)
     written = _write_fit_outputs(args, bench, experiments, balances, fits, ranking, averages)
     for experiment, notes in bench.notes.items():

@@ -117,7 +117,7 @@ class Workbench:
 
 
 #: Experiments per unit of work: fixed, so that results do not depend on the number of workers.
-CHUNK_SIZE = 128
+CHUNK_SIZE = 64
 
 
 def fit_experiments(
@@ -207,13 +207,18 @@ def fit_chunk(experiments: Sequence[TrompPoints], *, formulas, alpha, delta_max,
 
 def _map_chunks(chunks, options, *, jobs, client):
     """Yield the fits of each chunk, in order: in process, in a process pool, or on Dask."""
+    yield from _map_work(_fit_chunk_star, chunks, options, jobs=jobs, client=client)
+
+
+def _map_work(function, chunks, argument, *, jobs, client):
+    """Yield ``function(argument, chunk)`` for each chunk, in order: in process, in a
+    process pool of ``jobs`` workers (None: all cores), or on a Dask client."""
     import functools
     import os
 
-    work = functools.partial(_fit_chunk_star, options)
+    work = functools.partial(function, argument)
     if client is not None:
-        futures = client.map(work, chunks, pure=False)
-        for future in futures:
+        for future in client.map(work, chunks, pure=False):
             yield future.result()
         return
     workers = min(jobs or os.cpu_count() or 1, len(chunks))
@@ -255,19 +260,30 @@ def data_notes(points: TrompPoints) -> tuple[str, ...]:
     return tuple(notes)
 
 
-def model_averages(bench: Workbench, *, level: float = 0.95) -> pd.DataFrame:
-    """Akaike-weighted d_cut, Ep and eta per experiment (the formulas ranked by the batch)."""
-    from .uncertainty import model_average
+def model_averages(bench: Workbench, *, level: float = 0.95, jobs: int | None = 1, client=None) -> pd.DataFrame:
+    """Akaike-weighted d_cut, Ep and eta per experiment (the formulas ranked by the batch).
 
-    frames = []
-    for experiment in bench.experiments:
-        fits = [f for f in bench.fits_of(experiment) if f.success and f.formula in bench.ranked_formulas]
-        if fits:
-            frames.append(model_average(fits, level=level).assign(experiment=experiment))
+    ``jobs`` and ``client`` spread the experiments over worker processes or a Dask
+    cluster as :func:`fit_experiments` does; the table is the same whatever they are.
+    """
+    ranked = {f.id for f in bench.ranked_formulas}
+    groups = []
+    for experiment, fits in bench.fits_by_experiment().items():
+        chosen = [f for f in fits if f.success and f.formula.id in ranked]
+        if chosen:
+            groups.append(chosen)
+    chunks = [groups[i : i + CHUNK_SIZE] for i in range(0, len(groups), CHUNK_SIZE)]
+    frames = [frame for chunk in _map_work(_averages_of_chunk, chunks, level, jobs=jobs, client=client) for frame in chunk]
     if not frames:
         return pd.DataFrame()
     table = pd.concat(frames, ignore_index=True)
     return table[["experiment", *[c for c in table.columns if c != "experiment"]]]
+
+
+def _averages_of_chunk(level, groups) -> list[pd.DataFrame]:
+    from .uncertainty import model_average
+
+    return [model_average(fits, level=level).assign(experiment=fits[0].experiment) for fits in groups]
 
 
 def _fit_guarded(points, formula, alpha, delta_max) -> CurveFit:
