@@ -382,13 +382,14 @@ def format_fits(fits: pd.DataFrame, *, rank_by: str = "F") -> str:
 
     The criterion of the ranking is shown: ``F`` and ``F_crit`` when ranking by F,
     ``aicc`` (beside F) when ranking by AICc.  When the table has interval columns
-    (``--ci``), a second table per experiment gives the intervals of d_cut, the shape
-    parameter and Ep.
+    (``--ci``, else ``--bootstrap``), a second table per experiment gives the intervals
+    of d_cut, the shape parameter and Ep.
     """
     columns = list(TERMINAL_COLUMNS)
     if rank_by == "aicc":
         columns[columns.index("F_crit")] = "aicc"
-    intervals = [c for c in ("d_cut_low", "d_cut_high", "shape_low", "shape_high", "ep_low", "ep_high") if c in fits.columns]
+    kind = "" if "d_cut_low" in fits.columns else "_boot"  # --ci intervals, else the bootstrap's
+    intervals = [f"{q}{kind}_{end}" for q in ("d_cut", "shape", "ep") for end in ("low", "high") if f"{q}{kind}_{end}" in fits.columns]
     blocks = []
     for experiment, group in fits.groupby("experiment", sort=False):
         if not group["success"].any():
@@ -403,8 +404,9 @@ def format_fits(fits: pd.DataFrame, *, rank_by: str = "F") -> str:
         ranked_by = "AICc (lowest first)" if rank_by == "aicc" else "F (highest first)"
         blocks.append(f"Experiment {experiment} (n = {n}), ranked by {ranked_by}:\n{text}")
         if intervals:
-            bounds = ordered[["formula", "d_cut", *intervals]].rename(columns=lambda c: c.replace("_low", " low").replace("_high", " high"))
-            blocks.append("  intervals:\n" + bounds.to_string(index=False, float_format=lambda v: f"{v:.4g}", na_rep="-"))
+            bounds = ordered[["formula", "d_cut", *intervals]].rename(columns=lambda c: re.sub(r"(_boot)?_(low|high)$", r" \2", c))
+            title = "  intervals:" if kind == "" else "  bootstrap intervals:"
+            blocks.append(f"{title}\n" + bounds.to_string(index=False, float_format=lambda v: f"{v:.4g}", na_rep="-"))
         for formula, success, message, warned in group[["formula", "success", "message", "warnings"]].itertuples(index=False):
             note = warned if success else f"fit failed: {message}"
             if isinstance(note, str) and note:
