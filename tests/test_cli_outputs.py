@@ -156,3 +156,10 @@ def test_rerun_into_the_same_folder_leaves_exactly_the_current_figures(tmp_path)
     assert set(pd.read_csv(out / "fits.csv")["experiment"]) == {"C"}
     assert main(["fit", str(out.parent / "c.csv"), "-o", str(out), "--formulas", "plitt", "--no-figures"]) == 0
     assert list(out.glob("*.png")) == []
+
+
+def test_report_reads_the_partition_to_the_coarse_product(tmp_path):
+    output = tmp_path / "report.html"
+    assert main(["report", str(LAB), "-o", str(output), "--formulas", "plitt", "--partition-to", "coarse"]) == 0
+    markdown = (tmp_path / "report.md").read_text()
+    assert "partition_coarse" in markdown and "partition_fine" not in markdown

@@ -95,6 +95,7 @@ def _parser() -> argparse.ArgumentParser:
     report.add_argument("--ci", type=float, default=0.95, metavar="LEVEL", help="level of the intervals (default 0.95)")
     report.add_argument("--size-unit", default="", help="unit of the sizes, for the figure labels")
     report.add_argument("--title", default="tromplab report", help="title of the report (default: tromplab report)")
+    _add_partition_to(report)
     report.set_defaults(run=_run_report)
 
     compare = commands.add_parser("compare", parents=[lab], help="did the sharpness (or the cut) change between experiments?")
@@ -339,7 +340,8 @@ def _run_report(args) -> int:
     experiments, balances = read_experiments(args.input, _lab_options(args))
     bench = fit_experiments(experiments, formulas=formulas, alpha=args.alpha, delta_max=args.delta_max, rank_by=args.rank_by,
                             rank_extended=args.rank_extended, progress=print_progress)  # fmt: skip
-    report = build_report(bench, balances, source=str(args.input), level=args.ci, size_unit=args.size_unit, title=args.title)
+    report = build_report(bench, balances, source=str(args.input), level=args.ci, size_unit=args.size_unit, title=args.title,
+                          partition_to=args.partition_to)  # fmt: skip
     args.output.parent.mkdir(parents=True, exist_ok=True)
     written = write_report(report, args.output)
     print("Wrote:")
