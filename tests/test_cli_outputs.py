@@ -7,7 +7,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 from tromplab.cli import main
-from tromplab.export import SHEETS, strip_unit
+from tromplab.workbook import SHEETS, strip_unit
 
 from .conftest import DATASETS
 
@@ -78,12 +78,12 @@ def test_dash_o_xlsx_writes_only_the_workbook(tmp_path):
 
 
 def test_a_failing_workbook_leaves_nothing_behind(tmp_path, monkeypatch):
-    import tromplab.export
+    import tromplab.workbook
 
     def broken(*args, **kwargs):
         raise RuntimeError("disk full")
 
-    monkeypatch.setattr(tromplab.export, "write_workbook", broken)
+    monkeypatch.setattr(tromplab.workbook, "write_workbook", broken)
     out = tmp_path / "out"
     with pytest.raises(RuntimeError, match="disk full"):
         main(["fit", str(write(tmp_path, POINTS)), "-o", str(out), "--excel", "--no-figures"])

@@ -434,7 +434,7 @@ def _figure_png(fits, size_unit, best, partition_to) -> bytes:
 def _write_fit_outputs(args, bench, experiments, balances, fits, ranking, averages) -> dict[str, Path]:
     """Write the fit's tables and figures: CSVs and PNGs into the folder (and results.xlsx
     with ``--excel``), or only the workbook when ``-o`` names a .xlsx file."""
-    from .export import write_workbook
+    from .workbook import write_workbook
 
     figures = {}
     if not args.no_figures:
