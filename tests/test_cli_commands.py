@@ -60,7 +60,11 @@ def test_layer_simulate_prints_and_writes_the_published_run(tmp_path, capsys):
     assert main(["layer", "simulate", "--linear", "--initial", "0.6,0.5,0.4", "--steps", "20", "--lock-threshold", "0.3"]) == 0
     assert "3 cells" in capsys.readouterr().out
     assert main(["layer", "simulate", "--diffusion", "0.6"]) == 1
-    assert "2 d + v0" in capsys.readouterr().err
+    assert "(--diffusion, --segregation)" in capsys.readouterr().err
+    assert main(["layer", "simulate", "--passage", "1.5"]) == 1
+    assert "--passage must lie in [0, 1]" in capsys.readouterr().err
+    assert main(["layer", "simulate", "--concentration", "1.5"]) == 1
+    assert "--concentration takes concentrations in 0..1" in capsys.readouterr().err
 
 
 @pytest.mark.slow

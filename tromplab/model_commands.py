@@ -61,6 +61,16 @@ def _level(value: float) -> float:
     return value
 
 
+def _with_options(message: str, names) -> str:
+    """A model's message with its parameter names given as the CLI options that set them."""
+    first = message.split()[0] if message else ""
+    if first in names:
+        return "--" + first.replace("_", "-") + message[len(first):]
+    if message.startswith("2 d + v0"):
+        return f"{message} (--diffusion, --segregation)"
+    return message
+
+
 def _numbers(text: str, option: str) -> list[float]:
     try:
         return [float(item) for item in text.split(",") if item.strip()]
@@ -103,10 +113,16 @@ def _add_layer(commands) -> None:
 
 def _initial(args) -> list[float]:
     if args.initial:
-        return _numbers(args.initial, "--initial")
-    if args.cells < 2:
-        raise ValueError(f"--cells takes at least 2 cells, got {args.cells}")
-    return [args.concentration] * args.cells
+        values, option = _numbers(args.initial, "--initial"), "--initial"
+        if len(values) < 2:
+            raise ValueError(f"--initial takes one concentration per cell, at least 2 cells, got {args.initial!r}")
+    else:
+        if args.cells < 2:
+            raise ValueError(f"--cells takes at least 2 cells, got {args.cells}")
+        values, option = [args.concentration] * args.cells, "--concentration"
+    if any(not 0 <= value <= 1 for value in values) or sum(values) <= 0:
+        raise ValueError(f"{option} takes concentrations in 0..1, not all zero, got {', '.join(f'{v:g}' for v in values)}")
+    return values
 
 
 def run_layer_simulate(args) -> int:
@@ -114,7 +130,12 @@ def run_layer_simulate(args) -> int:
 
     if args.step_seconds <= 0:
         raise ValueError("--step-seconds must be positive")
-    model = LayerModel(args.diffusion, args.segregation, args.passage, nonlinear=not args.linear, lock_threshold=args.lock_threshold)
+    try:
+        model = LayerModel(args.diffusion, args.segregation, args.passage, nonlinear=not args.linear, lock_threshold=args.lock_threshold)
+    except ValueError as error:  # the model speaks of its fields; name the options
+        raise ValueError(_with_options(str(error), ("diffusion", "segregation", "passage"))) from None
+    if args.steps < 1:
+        raise ValueError(f"--steps must be at least 1, got {args.steps}")
     run = model.simulate(_initial(args), args.steps)
     marks = sorted({max(1, round(args.steps * share)) for share in (1 / 6, 1 / 3, 2 / 3, 1.0)})
     print(f"{'nonlinear' if model.nonlinear else 'linear'} layer model: d = {model.diffusion:g}, v0 = {model.segregation:g}, "
@@ -210,8 +231,7 @@ def _pulp_screen(args):
     try:
         return PulpScreen(**values)
     except ValueError as error:  # name the option, not the field
-        name = str(error).split()[0]
-        raise ValueError(str(error).replace(name, "--" + name.replace("_", "-"), 1)) from None
+        raise ValueError(_with_options(str(error), values)) from None
 
 
 def run_pulp_optimum(args) -> int:
