@@ -114,8 +114,12 @@ def _png(ax) -> bytes:
 
 
 def build_report(bench: Workbench, balances: list[MassBalance], *, source: str, level: float = 0.95, size_unit: str = "",
-                 title: str = "tromplab report") -> Report:  # fmt: skip
-    """Assemble the report of a fitted batch (and the balances of lab input)."""
+                 title: str = "tromplab report", partition_to: str = "fine") -> Report:  # fmt: skip
+    """Assemble the report of a fitted batch (and the balances of lab input); balance tables
+    and curve figures show the partition to ``partition_to`` (``"fine"`` or ``"coarse"``)."""
+    from .views import check_partition_to, partition_view
+
+    check_partition_to(partition_to)
     import matplotlib
 
     matplotlib.use("Agg")
@@ -149,9 +153,10 @@ def build_report(bench: Workbench, balances: list[MassBalance], *, source: str, 
         if estimate is not None:
             text += f" Least-squares estimate from the three streams: {estimate.value:.4f} +/- {estimate.stderr:.4f}."
         report.add("balance", "text", text, caption=f"Experiment {balance.experiment}")
-        columns = [c for c in ("size_lower", "size_upper", "size", "feed", "fine", "coarse", "balance_residual", "partition_fine", "used")
-                   if c in balance.classes.columns]  # fmt: skip
-        report.add("balance", "table", balance.classes[columns])
+        classes = partition_view(balance.classes, partition_to)
+        columns = [c for c in ("size_lower", "size_upper", "size", "feed", "fine", "coarse", "balance_residual",
+                               f"partition_{partition_to}", "used") if c in classes.columns]  # fmt: skip
+        report.add("balance", "table", classes[columns])
     view = ["rank", "equation", "formula", "n", "F", "F_crit", "adequate", "d_cut", "shape_name", "shape", "eta", "epsilon", "ep",
             "imperfection", "runs_p"]  # fmt: skip
     for experiment, group in fits.groupby("experiment", sort=False):
@@ -168,9 +173,10 @@ def build_report(bench: Workbench, balances: list[MassBalance], *, source: str, 
     for experiment in bench.experiments:
         experiment_fits = bench.fits_of(experiment)
         if any(f.success for f in experiment_fits):
-            report.add("figures", "figure", _png(plot_tromp_fits(experiment_fits, size_unit=size_unit, best=bench.best_fit(experiment))),
+            report.add("figures", "figure", _png(plot_tromp_fits(experiment_fits, size_unit=size_unit, best=bench.best_fit(experiment),
+                                                                  partition_to=partition_to)),
                        caption=f"Tromp curve, experiment {experiment}")  # fmt: skip
-            report.add("figures", "figure", _png(plot_residuals(experiment_fits, size_unit=size_unit)),
+            report.add("figures", "figure", _png(plot_residuals(experiment_fits, size_unit=size_unit, partition_to=partition_to)),
                        caption=f"Residuals, experiment {experiment}")  # fmt: skip
     if fits["success"].any():
         report.add("figures", "figure", _png(plot_f_heatmap(fits)), caption="Fisher's F across experiments and formulas")
