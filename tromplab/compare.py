@@ -19,6 +19,7 @@ from scipy import stats
 from .curves import CurveFit, fit_formula, measured_efficiency, normalised_weights
 from .fitting import ParameterFit, ParameterSpec, least_squares
 from .formulas import get_formula
+from .parameters import d_cut_parameter
 from .points import TrompPoints
 
 
@@ -156,6 +157,5 @@ def shared_fit(experiments: Sequence[TrompPoints], formula, *, shared: str = "sh
 
 def _bounds(formula, name, sizes):
     if name == "d_cut":
-        return (np.min(sizes) / 100.0, np.max(sizes) * 100.0)
-    return formula.shape_bounds
-
+        return d_cut_parameter(sizes).bounds
+    return formula.shape_parameter.bounds

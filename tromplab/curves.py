@@ -31,7 +31,6 @@ from .screening import DEFAULT_ALPHA, FisherScreen, check_screenable, fisher_scr
 
 GRID_SLOPES = -np.geomspace(0.02, 20.0, 41)
 N_GRID_STARTS = 2
-D_CUT_RANGE_FACTOR = 100.0
 
 
 @dataclass(frozen=True)
@@ -176,11 +175,7 @@ def measured_slope(points: TrompPoints, d_cut: float) -> float:
 
 
 def _parameter_specs(formula: Formula, points: TrompPoints) -> list[ParameterSpec]:
-    return [
-        ParameterSpec("d_cut", points.size.min() / D_CUT_RANGE_FACTOR, points.size.max() * D_CUT_RANGE_FACTOR),
-        ParameterSpec(formula.shape_name, *formula.shape_bounds),
-        *(ParameterSpec(extra.name, *extra.bounds) for extra in formula.extras),
-    ]
+    return list(formula.parameters(points.size))
 
 
 def normalised_weights(points: TrompPoints) -> np.ndarray:

@@ -18,11 +18,14 @@ References
 
 from __future__ import annotations
 
+import re
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import optimize, special
+
+from .parameters import Parameter, d_cut_parameter
 
 LN2 = np.log(2.0)
 SHUVALOV_2018 = (
@@ -32,14 +35,14 @@ SHUVALOV_2018 = (
 )
 
 
-@dataclass(frozen=True)
-class ExtraParameter:
-    """A parameter beyond ``d_cut`` and the shape (bypass, fish-hook), with bounds and start."""
+def ExtraParameter(name: str, bounds: tuple[float, float], start: float, meaning: str, unit: str = "1") -> Parameter:  # noqa: N802
+    """A parameter beyond ``d_cut`` and the shape (bypass, fish-hook) as a :class:`Parameter`.
 
-    name: str
-    bounds: tuple[float, float]
-    start: float
-    meaning: str
+    Kept under its earlier name so declarations written before the one parameter record
+    still read the same; the record itself is :class:`tromplab.parameters.Parameter`.
+    """
+    low, high = bounds
+    return Parameter(name, low, high, unit=unit, meaning=meaning, start=start, start_rule=f"fixed at {start:g}")
 
 
 @dataclass(frozen=True)
@@ -58,6 +61,8 @@ class Formula:
         The formula as plain text, in ``x = size/d_cut``.
     shape_name : str
         Name of the shape parameter as in the paper (``km1``, ``ks``, ...).
+    shape_meaning : str
+        What the shape parameter does to the curve (for :attr:`shape_parameter`).
     shape_bounds : tuple of float
         Closed interval of admissible shape values used by the fits.
     phi : callable
@@ -80,7 +85,7 @@ class Formula:
         (``context = {"measured_efficiency": eta_exp}``), as (11) does.
     monotone : bool
         False when the curve rises again at large sizes for part of the shape range.
-    extras : tuple of ExtraParameter
+    extras : tuple of Parameter
         Further fitted parameters (extended curves only); ``phi`` takes them as keywords.
     family : str
         ``"paper"`` for the nine formulas of [Shuvalov2018]_, ``"extended"`` for the
@@ -109,6 +114,7 @@ class Formula:
     extras: tuple[ExtraParameter, ...] = ()
     family: str = "paper"
     nests: str | None = None
+    shape_meaning: str = ""
 
     def __reduce__(self):
         # Records hold lambdas and closures; they travel (pickle, process pools) by their id.
@@ -127,6 +133,21 @@ class Formula:
     def clip_shape(self, shape: float) -> float:
         low, high = self.shape_bounds
         return float(np.clip(shape, low, high))
+
+    @property
+    def shape_parameter(self) -> Parameter:
+        """The shape parameter as a :class:`Parameter` record (dimensionless)."""
+        return Parameter(
+            self.shape_name,
+            *self.shape_bounds,
+            unit="1",
+            meaning=self.shape_meaning,
+            start_rule="the shape whose slope at the cut equals the measured slope (shape_for_slope)",
+        )
+
+    def parameters(self, sizes) -> tuple[Parameter, ...]:
+        """Every fitted parameter for a curve measured at ``sizes``: d_cut, the shape, the extras."""
+        return (d_cut_parameter(sizes), self.shape_parameter, *self.extras)
 
 
 def _as_array(x) -> np.ndarray:
@@ -400,137 +421,192 @@ def _rosin_rammler_shape_for_slope(s):
     return -2.0 * s / LN2
 
 
-FORMULAS: tuple[Formula, ...] = (
+MOLERUS_1967 = "Molerus O. (1967). Stochastisches Modell der Gleichgewichtssichtung. Chemie Ingenieur Technik 39(13), 792-796"
+MOLERUS_HOFFMANN_1969 = (
+    "Molerus O., Hoffmann H. (1969). Darstellung von Windsichtertrennkurven durch ein stochastisches Modell. "
+    "Chemie Ingenieur Technik 41(5-6), 340-344"
+)
+ROSIN_RAMMLER_1933 = "Rosin P., Rammler E. (1933). The laws governing the fineness of powdered coal. J. Inst. Fuel 7, 29-36"
+LYNCH_RAO_1975 = (
+    "Lynch A.J., Rao T.C. (1975). Modelling and scale-up of hydrocyclone classifiers. Proc. 11th International "
+    "Mineral Processing Congress, Cagliari, 245-269"
+)
+PLITT_1971 = "Plitt L.R. (1971). The analysis of solid-solid separations in classifiers. CIM Bulletin 64(708), 42-47"
+OGAWA = "Ogawa K., Allen's-law form of the partition curve (primary source not verified; as given by Shuvalov et al. 2018)"
+LUCKIE_AUSTIN_1972 = (
+    "Luckie P.T., Austin L.G. (1972). A review introduction to the solution of the grinding equations by digital "
+    "computation. Minerals Science and Engineering 4(2), 24-51"
+)
+SHUVALOV_1992 = "Shuvalov S.I. (1992), piecewise partition curve (primary source not verified; as given by Shuvalov et al. 2018)"
+
+
+def _in(source: str, equation: int) -> str:
+    return f"{source}; as formula ({equation}) in {SHUVALOV_2018}"
+
+
+def with_plateau(base: Formula, *, id: str, equation: int, title: str, phi, break_text: str, citation: str, notes: str,
+                 efficiency=None, context_from_efficiency: bool = False, defaults=None) -> Formula:  # fmt: skip
+    """``base`` above a break ``x_b``, held at its value there below (formulas (10) and (11)).
+
+    The shape, its bounds, the slope at the cut (``x_b < 1``) and the expression are the
+    base formula's; ``break_text`` names the break (``"1/2"``, ``"x_a"``) in the expression.
+    """
+    expression = re.sub(r"\bx\b", f"max(x, {break_text})", base.expression)
+    return Formula(
+        id=id,
+        equation=equation,
+        title=title,
+        expression=expression,
+        shape_name=base.shape_name,
+        shape_bounds=base.shape_bounds,
+        phi=phi,
+        slope_at_cut=base.slope_at_cut,
+        slope_expression=base.slope_expression,
+        shape_for_slope=base.shape_for_slope,
+        citation=citation,
+        notes=notes,
+        efficiency=efficiency,
+        context_from_efficiency=context_from_efficiency,
+        defaults=defaults or {},
+        shape_meaning=base.shape_meaning,
+    )
+
+
+_PAPER_BASES: tuple[Formula, ...] = (
     Formula(
         id="molerus",
         equation=3,
         title="Molerus (1967)",
-        expression="1 / (1 + exp(-km1 (1 - x^2)))",
+        expression="1/(1 + exp(-km1*(1 - x^2)))",
         shape_name="km1",
         shape_bounds=(1e-6, 60.0),
         phi=molerus,
         slope_at_cut=lambda km1: -km1 / 2.0,
         slope_expression="-km1/2",
         shape_for_slope=lambda s: -2.0 * s,
-        citation="Molerus O. (1967), as formula (3) in " + SHUVALOV_2018,
+        citation=_in(MOLERUS_1967, 3),
         notes="phi(0) < 1: some fines report to the coarse product.",
+        shape_meaning="sharpness of the cut; also sets the fines lost to the coarse product, 1 - phi(0)",
     ),
     Formula(
         id="molerus_hoffmann",
         equation=4,
         title="Molerus and Hoffmann (1969)",
-        expression="1 / (1 + x^2 exp(-km2 (1 - x^2)))",
+        expression="1/(1 + x^2*exp(-km2*(1 - x^2)))",
         shape_name="km2",
         shape_bounds=(-1.0, 60.0),
         phi=molerus_hoffmann,
         slope_at_cut=lambda km2: -(1.0 + km2) / 2.0,
-        slope_expression="-(1+km2)/2",
+        slope_expression="-(1 + km2)/2",
         shape_for_slope=lambda s: -2.0 * s - 1.0,
-        citation="Molerus O., Hoffmann H. (1969), as formula (4) in " + SHUVALOV_2018,
+        citation=_in(MOLERUS_HOFFMANN_1969, 4),
         notes="km2 = 0 is Plitt with ks = 2; km2 < 0 has a minimum at x = 1/sqrt(-km2) and rises again.",
         monotone=False,
+        shape_meaning="sharpness beyond Plitt's ks = 2 curve (km2 = 0); negative values let the curve rise again",
     ),
     Formula(
         id="rosin_rammler",
         equation=5,
         title="Rosin-Rammler form",
-        expression="exp(-ln2 x^kr)",
+        expression="exp(-ln2*x^kr)",
         shape_name="kr",
         shape_bounds=(0.05, 40.0),
         phi=rosin_rammler,
         slope_at_cut=lambda kr: -LN2 * kr / 2.0,
-        slope_expression="-ln2 kr/2",
+        slope_expression="-ln2*kr/2",
         shape_for_slope=_rosin_rammler_shape_for_slope,
-        citation="Rosin-Rammler distribution law, as formula (5) in " + SHUVALOV_2018,
+        citation=_in(ROSIN_RAMMLER_1933, 5),
         efficiency=_rosin_rammler_efficiency,
+        shape_meaning="uniformity exponent of the Rosin-Rammler law: larger kr, sharper cut",
     ),
     Formula(
         id="lynch",
         equation=6,
-        title="Lynch (1977)",
-        expression="1 - (exp(kl x) - 1) / (exp(kl x) + exp(kl) - 2)",
+        title="Lynch and Rao (1975)",
+        expression="1 - (exp(kl*x) - 1)/(exp(kl*x) + exp(kl) - 2)",
         shape_name="kl",
         shape_bounds=(1e-6, 120.0),
         phi=lynch,
         slope_at_cut=_lynch_slope,
-        slope_expression="-kl e^kl/(4(e^kl-1))",
+        slope_expression="-kl*exp(kl)/(4*(exp(kl) - 1))",
         shape_for_slope=_lynch_shape_for_slope,
-        citation="Lynch A.J. (1977), as formula (6) in " + SHUVALOV_2018,
+        citation=_in(LYNCH_RAO_1975, 6),
         notes="The slope at the cut is never shallower than -1/4 (kl -> 0 is Plitt with ks = 1).",
+        shape_meaning="sharpness of the cut (alpha of Whiten's curve); kl -> 0 gives Plitt's ks = 1",
     ),
     Formula(
         id="plitt",
         equation=7,
         title="Plitt (1971)",
-        expression="1 / (1 + x^ks)",
+        expression="1/(1 + x^ks)",
         shape_name="ks",
         shape_bounds=(0.05, 60.0),
         phi=plitt,
         slope_at_cut=lambda ks: -ks / 4.0,
         slope_expression="-ks/4",
         shape_for_slope=lambda s: -4.0 * s,
-        citation="Plitt L.R. (1971), as formula (7) in " + SHUVALOV_2018,
+        citation=_in(PLITT_1971, 7),
         efficiency=_plitt_efficiency,
+        shape_meaning="sharpness of the cut: the log-logistic slope, larger ks steeper",
     ),
     Formula(
         id="ogawa_allen",
         equation=8,
         title="Ogawa, Allen's law",
-        expression="1 / (1 + x exp(-kp (1 - x)))",
+        expression="1/(1 + x*exp(-kp*(1 - x)))",
         shape_name="kp",
         shape_bounds=(-1.0, 60.0),
         phi=ogawa_allen,
         slope_at_cut=lambda kp: -(1.0 + kp) / 4.0,
-        slope_expression="-(1+kp)/4",
+        slope_expression="-(1 + kp)/4",
         shape_for_slope=lambda s: -4.0 * s - 1.0,
-        citation="Ogawa K. (Allen's law), as formula (8) in " + SHUVALOV_2018,
+        citation=_in(OGAWA, 8),
         notes="Printed with exp(-kp x); corrected to exp(-kp (1 - x)) (phi(1) = 0.5, slope (17)). "
         "kp < 0 rises again at large sizes.",
         monotone=False,
+        shape_meaning="sharpness beyond Plitt's ks = 1 curve (kp = 0); negative values let the curve rise again",
     ),
     Formula(
         id="lognormal",
         equation=9,
         title="Log-normal (Gauss integral)",
-        expression="1/2 erfc(ln x / kf)",
+        expression="erfc(ln(x)/kf)/2",
         shape_name="kf",
         shape_bounds=(0.01, 30.0),
         phi=lognormal,
         slope_at_cut=lambda kf: -1.0 / (np.sqrt(np.pi) * kf),
-        slope_expression="-1/(sqrt(pi) kf)",
+        slope_expression="-1/(sqrt(pi)*kf)",
         shape_for_slope=lambda s: -1.0 / (np.sqrt(np.pi) * s),
-        citation="Integral of the log-normal law, as formula (9) in " + SHUVALOV_2018,
+        citation=_in("Log-normal (Gauss integral) law of the partition curve", 9),
         notes="kf = sqrt(2) sigma of ln(size).",
         efficiency=_lognormal_efficiency,
+        shape_meaning="spread: sqrt(2) times the standard deviation of ln(size); smaller kf, sharper cut",
     ),
-    Formula(
+)
+_ROSIN_RAMMLER = _PAPER_BASES[2]
+
+FORMULAS: tuple[Formula, ...] = (
+    *_PAPER_BASES,
+    with_plateau(
+        _ROSIN_RAMMLER,
         id="luckie_austin",
         equation=10,
-        title="Luckie and Austin, piecewise",
-        expression="exp(-ln2 x^kr) for x > 1/2; exp(-ln2 2^-kr) for x <= 1/2",
-        shape_name="kr",
-        shape_bounds=(0.05, 40.0),
+        title="Luckie and Austin (1972), piecewise",
         phi=luckie_austin,
-        slope_at_cut=lambda kr: -LN2 * kr / 2.0,
-        slope_expression="-ln2 kr/2",
-        shape_for_slope=_rosin_rammler_shape_for_slope,
-        citation="Luckie P.T., Austin L.G., as formula (10) in " + SHUVALOV_2018,
+        break_text="1/2",
+        citation=_in(LUCKIE_AUSTIN_1972, 10),
         notes="Printed as the coarse-product branch 1 - exp(...); corrected to the fines branch of (5), "
         "with the plateau equal to the value at x = 1/2 (continuity).",
         efficiency=lambda kr, x_max: _plateau_efficiency(kr, x_max, LUCKIE_AUSTIN_BREAK),
     ),
-    Formula(
+    with_plateau(
+        _ROSIN_RAMMLER,
         id="shuvalov",
         equation=11,
         title="Shuvalov (1992), piecewise",
-        expression="exp(-ln2 x^kr) for x > x_a; phi(x_a) for x <= x_a (x_a from the measured efficiency)",
-        shape_name="kr",
-        shape_bounds=(0.05, 40.0),
         phi=shuvalov,
-        slope_at_cut=lambda kr: -LN2 * kr / 2.0,
-        slope_expression="-ln2 kr/2",
-        shape_for_slope=_rosin_rammler_shape_for_slope,
-        citation="Shuvalov S.I. (1992), as formula (11) in " + SHUVALOV_2018,
+        break_text="x_a",
+        citation=_in(SHUVALOV_1992, 11),
         notes="x_a makes the area under the curve on 0 < x < 1 equal the measured efficiency; "
         "printed with the coarse-product branch like (10).",
         efficiency=_shuvalov_efficiency,
@@ -546,8 +622,10 @@ NAPIER_MUNN_1996 = (
 )
 PLITT_1976 = "Plitt L.R. (1976). A mathematical model of the hydrocyclone classifier. CIM Bulletin 69(776), 114-123"
 KELSALL_1953 = "Kelsall D.F. (1953). A further study of the hydraulic cyclone. Chem. Eng. Sci. 2, 254-272 (bypass correction)"
-BYPASS = ExtraParameter("bypass", (0.0, 0.95), 0.05, "share of every size sent to the coarse product unclassified")
-FISHHOOK = ExtraParameter("fishhook", (0.0, 3.0), 0.1, "Whiten's beta: rise of the fines partition at small sizes")
+BYPASS = Parameter("bypass", 0.0, 0.95, unit="1", meaning="share of every size sent to the coarse product unclassified",
+                   start=0.05, start_rule="fixed at 0.05")  # fmt: skip
+FISHHOOK = Parameter("fishhook", 0.0, 3.0, unit="1", meaning="Whiten's beta: rise of the fines partition at small sizes",
+                     start=0.1, start_rule="fixed at 0.1")  # fmt: skip
 
 
 def with_bypass(base: Formula, *, equation: int, citation: str) -> Formula:
@@ -562,22 +640,28 @@ def with_bypass(base: Formula, *, equation: int, citation: str) -> Formula:
         return (1.0 - bypass) * base.phi(x, shape)
 
     phi.__name__ = f"{base.id}_bypass"
+    phi.__doc__ = (
+        f"{base.title} with bypass: (1 - bypass) times (:func:`{base.phi.__name__}`).\n\n"
+        f"Parameters: ``x`` relative size (size/d_cut, > 0), ``shape`` = {base.shape_name}, "
+        "``bypass`` share sent to the coarse product unclassified (0..0.95).\n"
+    )
     return Formula(
         id=f"{base.id}_bypass",
         equation=equation,
         title=f"{base.title} with bypass",
-        expression=f"(1 - bypass) [{base.expression}]",
+        expression=f"(1 - bypass)*({base.expression})",
         shape_name=base.shape_name,
         shape_bounds=base.shape_bounds,
         phi=phi,
         slope_at_cut=base.slope_at_cut,
-        slope_expression=f"(1-bypass) [{base.slope_expression}]",
+        slope_expression=f"(1 - bypass)*({base.slope_expression})",
         shape_for_slope=base.shape_for_slope,
         citation=citation,
         notes="d_cut is the corrected cut; the actual curve is 0.5 (1 - bypass) there.",
         extras=(BYPASS,),
         family="extended",
         nests=base.id,
+        shape_meaning=base.shape_meaning,
     )
 
 
@@ -623,16 +707,18 @@ EXTENDED_FORMULAS: tuple[Formula, ...] = (
         id="whiten",
         equation=106,
         title="Whiten with bypass and fish-hook",
-        expression="(1 - bypass)(1 + fishhook b* x)(e^alpha - 1)/(e^(alpha b* x) + e^alpha - 2)",
+        expression="(1 - bypass)*(1 + fishhook*b_star*x)*(exp(alpha) - 1)/(exp(alpha*b_star*x) + exp(alpha) - 2)",
         shape_name="alpha",
         shape_bounds=(1e-3, 60.0),
         phi=whiten,
         slope_at_cut=_lynch_slope,
-        slope_expression="as (6) when fishhook = 0, times (1-bypass)",
+        slope_expression="(1 - bypass)*(-alpha*exp(alpha)/(4*(exp(alpha) - 1)))",
         shape_for_slope=_lynch_shape_for_slope,
         citation=NAPIER_MUNN_1996,
         notes="Reduces to Lynch (6) with kl = alpha without bypass and fish-hook; may exceed 1 for a large "
-        "fish-hook with little bypass.",
+        "fish-hook with little bypass. b_star keeps phi(1) = (1 - bypass)/2 (whiten_beta_star); the slope "
+        "expression holds for fishhook = 0.",
+        shape_meaning="sharpness of the cut (Lynch's kl)",
         extras=(BYPASS, FISHHOOK),
         family="extended",
         nests="lynch",
@@ -643,6 +729,34 @@ ALL_FORMULAS = FORMULAS + EXTENDED_FORMULAS
 
 _BY_ID = {formula.id: formula for formula in ALL_FORMULAS}
 _BY_EQUATION = {formula.equation: formula for formula in FORMULAS}
+
+
+#: Names the expression texts may use besides x, the parameters and derived variables.
+EXPRESSION_FUNCTIONS = ("exp", "ln", "erfc", "sqrt", "max", "pi", "ln2")
+
+
+def evaluate_expression(text: str, values: Mapping[str, object], functions: Mapping[str, object] | None = None):
+    """Evaluate a registry expression text (``expression`` or ``slope_expression``).
+
+    The texts are written for readers - ``^`` is a power, ``ln`` the natural log - and
+    are evaluated here with asteval (no Python ``eval``) so that tests can hold each text
+    against its function.  ``functions`` replaces the numpy implementations of
+    :data:`EXPRESSION_FUNCTIONS`, e.g. with mpmath's for high-precision references.
+
+    Examples
+    --------
+    >>> round(float(evaluate_expression(get_formula("plitt").expression, {"x": 2.0, "ks": 3.0})), 12)
+    0.111111111111
+    """
+    from asteval import Interpreter
+
+    if functions is None:
+        functions = {"exp": np.exp, "ln": np.log, "erfc": special.erfc, "sqrt": np.sqrt, "max": np.maximum,
+                     "pi": np.pi, "ln2": LN2}  # fmt: skip
+    interpreter = Interpreter(minimal=True, use_numpy=False)
+    interpreter.symtable.update(functions)
+    interpreter.symtable.update(values)
+    return interpreter.eval(text.replace("^", "**"), show_errors=False, raise_errors=True)
 
 
 def get_formula(key: str | int) -> Formula:
@@ -694,6 +808,22 @@ def registry_table():
                 "shape_at_slope_-0.5": round(shape_at_half, 4),
                 "extras": ", ".join(extra.name for extra in formula.extras),
                 "family": formula.family,
+                "shape_meaning": formula.shape_meaning,
             }
         )
     return pd.DataFrame(rows)
+
+
+def formula_table_markdown(family: str = "paper") -> str:
+    """The README's formula table (Markdown), generated from the registry.
+
+    A test keeps the README's copy equal to this text.
+    """
+    lines = ["| id | eq. | phi(x), x = size/d_cut | shape | bounds | slope at the cut |", "|---|---|---|---|---|---|"]
+    for formula in ALL_FORMULAS:
+        if formula.family != family:
+            continue
+        low, high = formula.shape_bounds
+        lines.append(f"| {formula.id} | ({formula.equation}) | `{formula.expression}` | {formula.shape_name} | "
+                     f"[{low:g}, {high:g}] | `{formula.slope_expression}` |")  # fmt: skip
+    return "\n".join(lines)
