@@ -21,7 +21,7 @@ from tromplab.formulas import (
     whiten_beta_star,
 )
 from tromplab.parameters import Parameter, d_cut_parameter
-from tromplab.plotting import FORMULA_COLOURS
+from tromplab.plotting import curve_styles
 from tromplab.points import TrompPoints
 
 from .conftest import ROOT, reference
@@ -60,7 +60,9 @@ def test_every_formula_declares_every_field_reference_rows_and_a_figure_style(fo
         assert parameter.unit and parameter.meaning and parameter.start_rule, parameter
         assert parameter.lower < parameter.upper
     assert len(_rows(formula)) >= 3 * 5, f"{formula.id} has no reference rows: run tests/reference/make_phi_reference.py"
-    assert formula.id in FORMULA_COLOURS, f"{formula.id} has no colour in plotting.FORMULA_COLOURS"
+    styles = curve_styles(len(ALL_FORMULAS))  # a batch draws the registry in order: one style per formula
+    style = styles[ALL_FORMULAS.index(formula)]
+    assert sum(s == style for s in styles) == 1, f"{formula.id} shares its figure style with another formula"
     assert formula.phi.__doc__, f"{formula.id}: its phi function has no docstring"
 
 

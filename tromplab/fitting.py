@@ -18,7 +18,6 @@ import numpy as np
 
 from .parameters import Parameter
 
-
 #: The fitting layer's name for :class:`tromplab.parameters.Parameter` (the one parameter record).
 ParameterSpec = Parameter
 

@@ -57,15 +57,6 @@ def log_size_axis(ax, low: float, high: float) -> None:
     ax.xaxis.set_minor_formatter(NullFormatter())
 
 
-#: Colour of each registry formula in every figure, so a formula looks the same across plots
-#: (a completeness test requires one per formula).
-FORMULA_COLOURS = {
-    "molerus": "#1f77b4", "molerus_hoffmann": "#ff7f0e", "rosin_rammler": "#2ca02c", "lynch": "#d62728",
-    "plitt": "#9467bd", "ogawa_allen": "#8c564b", "lognormal": "#e377c2", "luckie_austin": "#7f7f7f",
-    "shuvalov": "#bcbd22", "plitt_bypass": "#17becf", "lognormal_bypass": "#aec7e8", "whiten": "#98df8a",
-}  # fmt: skip
-
-
 def _axes(ax):
     if ax is None:
         import matplotlib.pyplot as plt
@@ -146,7 +137,6 @@ def plot_tromp_fits(fits: Sequence[CurveFit], *, ax=None, log_size: bool = True,
     for style, fit in zip(curve_styles(len(fits)), fits):
         if not fit.success:
             continue
-        colour = FORMULA_COLOURS.get(fit.formula.id, colour)
         adequate = fit.screen is not None and fit.screen.adequate
         is_best = fit is best
         label = f"({fit.formula.equation}) {fit.formula.id}, F={fit.screen.F:.3g}" + ("" if adequate else " (inadequate)")
