@@ -129,6 +129,31 @@ class CurveFit:
             "warnings": "; ".join(self.warnings),
         }
 
+    # --- readable views (tromplab.results): the same fields as row(), for notebooks and logs
+    def __repr__(self) -> str:
+        from .results import fit_repr
+
+        return fit_repr(self)
+
+    def _repr_html_(self) -> str:
+        from .results import fit_html
+
+        return fit_html(self)
+
+    def summary(self):
+        """One-row :class:`pandas.DataFrame` with the columns of ``fits.csv`` except ``rank``."""
+        from .results import fit_summary
+
+        return fit_summary(self)
+
+    def report(self, *, level: float = 0.95, profile: bool = True) -> str:
+        """Text report: parameters with standard errors and ``level`` intervals (profile
+        likelihood, else Wald), the F screen, indices with delta-method errors, residual
+        diagnostics and warnings (like lmfit's ``fit_report``)."""
+        from .results import fit_report
+
+        return fit_report(self, level=level, profile=profile)
+
 
 def measured_cut_size(points: TrompPoints) -> float:
     """Size where the measured curve first falls through 1/2, interpolated in log size.

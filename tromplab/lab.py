@@ -38,7 +38,7 @@ from __future__ import annotations
 
 import re
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 import pandas as pd
@@ -170,17 +170,37 @@ class MassBalance:
 
 
 # --- reading ----------------------------------------------------------------------------
-def read_lab(path, options: LabOptions | None = None) -> list[MassBalance]:
+def read_lab(path, options: LabOptions | None = None, **option_values) -> list[MassBalance]:
     """Read a lab table and compute the Tromp points of each experiment.
+
+    Parameters
+    ----------
+    path : str, path-like or pandas.DataFrame
+        CSV or Excel file, or a DataFrame with the same columns (rows named by index label).
+    options : LabOptions, optional
+        How to read the table; or give its fields as keywords (the CLI's options with
+        underscores: ``fine_yield=0.3``, ``kind="pct"``, ``sheet="lab"``).
 
     Raises
     ------
     InputError
         For every kind of bad input, naming file, row and column.
     """
-    options = options or LabOptions()
+    options = _options(options, option_values)
     table = read_table(path, sheet=options.sheet)
     return balances_from_table(_renamed(table, options.rename), options)
+
+
+def _options(options: LabOptions | None, values: dict) -> LabOptions:
+    if options is not None and values:
+        raise TypeError("give either a LabOptions or its fields as keywords, not both")
+    if options is not None:
+        return options
+    unknown = sorted(set(values) - {f.name for f in fields(LabOptions)})
+    if unknown:
+        known = ", ".join(f.name for f in fields(LabOptions))
+        raise TypeError(f"unknown lab option(s) {', '.join(unknown)}; known: {known}")
+    return LabOptions(**values)
 
 
 def is_lab_table(columns) -> bool:
@@ -713,15 +733,16 @@ def mix_streams(shares, yields):
     return mixed, total
 
 
-def read_experiments(path, options: LabOptions | None = None) -> tuple[list[TrompPoints], list[MassBalance]]:
+def read_experiments(path, options: LabOptions | None = None, **option_values) -> tuple[list[TrompPoints], list[MassBalance]]:
     """Tromp points from either a points file or a lab table (told apart by their columns).
 
+    ``path`` and the options are as for :func:`read_lab` (a DataFrame is accepted).
     Returns the points of each experiment and, for a lab table, the mass balances they
     came from (empty for a points file).
     """
     from .points import points_from_table
 
-    options = options or LabOptions()
+    options = _options(options, option_values)
     table = _renamed(read_table(path, sheet=options.sheet), options.rename)
     if is_lab_table(table.frame.columns):
         balances = balances_from_table(table, options)

@@ -146,14 +146,15 @@ def bootstrap(fit: CurveFit, *, n: int = 200, seed: int = 0, method: str = "resi
         if progress is not None:
             progress(i + 1, n)
         if method == "residuals":
-            sample = TrompPoints(points.experiment, points.size, fitted + rng.choice(residuals, points.n), points.weight)
+            sample = TrompPoints(points.experiment, points.size, fitted + rng.choice(residuals, points.n), points.weight,
+                                 resampled=True)
         else:
             while True:
                 pick = rng.integers(0, points.n, points.n)
                 if np.unique(points.size[pick]).size > p:
                     break
             weight = None if points.weight is None else points.weight[pick]
-            sample = TrompPoints(points.experiment, points.size[pick], points.partition_fine[pick], weight)
+            sample = TrompPoints(points.experiment, points.size[pick], points.partition_fine[pick], weight, resampled=True)
         refit = fit_formula(sample, fit.formula, alpha=fit.screen.alpha, delta_max=delta_max, global_search=False,
                             starts=[dict(fit.fit.values)])  # fmt: skip
         if not refit.success:
