@@ -114,3 +114,31 @@ def test_load_refuses_another_major_version_and_missing_files(bench, tmp_path):
         tromplab.load(tmp_path / "batch")
     with pytest.raises(InputError, match="not a saved tromplab batch"):
         tromplab.load(tmp_path)
+
+
+def test_readme_python_section_lists_the_public_api_and_help_does_too():
+    from .conftest import ROOT
+
+    readme = (ROOT / "README.md").read_text()
+    section = readme.split("## Python\n", 1)[1].split("\n## ", 1)[0]
+    listed = re.findall(r"^- `([\w]+)`: ", section, flags=re.MULTILINE)
+    assert listed == list(tromplab.__all__)
+    for name in tromplab.__all__:
+        assert hasattr(tromplab, name)
+        assert f"- ``{name}``: " in tromplab.__doc__
+        line = next(line for line in tromplab.__doc__.splitlines() if line.startswith(f"- ``{name}``: "))
+        assert len(line.split(": ", 1)[1]) > 10, f"{name} has no one-line summary"
+
+
+def test_readme_five_lines_run(tmp_path, monkeypatch):
+    from .conftest import ROOT
+
+    readme = (ROOT / "README.md").read_text()
+    code = readme.split("## Python\n", 1)[1].split("```python\n", 1)[1].split("```", 1)[0]
+    assert len(code.strip().splitlines()) == 5
+    monkeypatch.chdir(tmp_path)
+    code = code.replace('"datasets/', f'"{ROOT}/datasets/')
+    namespace = {}
+    exec(compile(code, "README", "exec"), namespace)  # noqa: S102 - the README's own example
+    assert (tmp_path / "report.html").exists()
+    assert list(namespace["bench"].ranking()["place"])[0] == 1
