@@ -91,6 +91,7 @@ def test_lab_table_from_a_dataframe_with_keyword_options():
         ([-10, 20, 40], [0.9, 0.5, 0.1], "size must be positive"),
         ([10, 20, 40], [0.9, 0.5], "size has 3 values and partition_fine 2"),
         ([10, 20, 40], [0.9, -0.5, 0.1], "partition -0.5 outside 0..1"),
+        ([10, 20, 40], [1.2, 0.5, 0.1], r"partition 1.2 outside 0..1$"),
     ],
 )
 def test_tromp_points_refuse_bad_values(size, partition, message):

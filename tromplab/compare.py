@@ -52,6 +52,11 @@ def nested_f_test(reduced: CurveFit, full: CurveFit) -> ExtraSumOfSquares:
 
     ``F = ((SSR_r - SSR_f) / (p_f - p_r)) / (SSR_f / (n - p_f))``.
 
+    Parameters
+    ----------
+    reduced, full : CurveFit
+        Fits to the same points; ``full.formula.nests`` names ``reduced``'s formula.
+
     Raises
     ------
     ValueError

@@ -161,15 +161,41 @@ def _log(x: np.ndarray) -> np.ndarray:
 
 # --- (3) Molerus -----------------------------------------------------------------------
 def molerus(x, km1):
-    r"""Molerus (1967): :math:`\varphi = 1 / (1 + e^{-k_{m1}(1 - x^2)})`.
+    r"""Molerus' separation curve, formula (3) of Shuvalov et al. (2018).
 
-    The only formula of the nine with :math:`\varphi(0) = 1/(1 + e^{-k_{m1}}) < 1`:
-    some fines report to the coarse product.  Slope at the cut :math:`-k_{m1}/2`.
+    .. math::
+        \varphi(x) = \frac{1}{1 + e^{-k_{m1}(1 - x^2)}}
+
+    Parameters
+    ----------
+    x : array_like
+        Relative size ``size / d_cut`` (> 0, dimensionless).
+    km1 : float
+        Shape, 1e-6..60 (dimensionless); larger is sharper.
+
+    Returns
+    -------
+    ndarray
+        Partition number to the fine product, 0..1 (dimensionless).
+
+    Notes
+    -----
+    Valid and decreasing for :math:`x > 0` and :math:`k_{m1} > 0`.  Slope at the cut
+    :math:`-k_{m1}/2`.  The only formula of the nine with
+    :math:`\varphi(0) = 1/(1 + e^{-k_{m1}}) < 1`: some fines report to the coarse product.
+
+    References
+    ----------
+    .. [1] Molerus O. (1967). Stochastisches Modell der Gleichgewichtssichtung. Chemie Ingenieur
+       Technik 39(13), 792-796.
+    .. [2] Shuvalov S.I., Novoseltseva S.S., Zhukov V.P. (2018). Justifying the choice of a
+       dependence for the Tromp separation curve approximation. Vestnik IGEU 6, 15-23.
+       doi:10.17588/2072-2672.2018.6.015-023
 
     Examples
     --------
-    >>> float(molerus(1.0, 3.0))
-    0.5
+    >>> round(float(molerus(1.5, 4.0)), 10)
+    0.0066928509
     """
     x = _as_array(x)
     return special.expit(km1 * (1.0 - x * x))
@@ -177,16 +203,41 @@ def molerus(x, km1):
 
 # --- (4) Molerus-Hoffmann --------------------------------------------------------------
 def molerus_hoffmann(x, km2):
-    r"""Molerus and Hoffmann (1969): :math:`\varphi = 1/(1 + x^2 e^{-k_{m2}(1 - x^2)})`.
+    r"""Molerus and Hoffmann's separation curve, formula (4) of Shuvalov et al. (2018).
 
-    Slope at the cut :math:`-(1 + k_{m2})/2`.  With :math:`k_{m2} = 0` it is Plitt's
-    formula with :math:`k_s = 2`.  For :math:`k_{m2} < 0` the curve has a minimum at
-    :math:`x = 1/\sqrt{-k_{m2}}` and rises towards 1 beyond it.
+    .. math::
+        \varphi(x) = \frac{1}{1 + x^2 e^{-k_{m2}(1 - x^2)}}
+
+    Parameters
+    ----------
+    x : array_like
+        Relative size ``size / d_cut`` (> 0, dimensionless).
+    km2 : float
+        Shape, -1..60 (dimensionless); ``km2 = 0`` is Plitt's curve with ``ks = 2``.
+
+    Returns
+    -------
+    ndarray
+        Partition number to the fine product, 0..1 (dimensionless).
+
+    Notes
+    -----
+    Decreasing for all :math:`x > 0` when :math:`k_{m2} \ge 0`; for :math:`k_{m2} < 0`
+    the curve has a minimum at :math:`x = 1/\sqrt{-k_{m2}}` and rises towards 1 beyond
+    it.  Slope at the cut :math:`-(1 + k_{m2})/2`.
+
+    References
+    ----------
+    .. [1] Molerus O., Hoffmann H. (1969). Darstellung von Windsichtertrennkurven durch ein
+       stochastisches Modell. Chemie Ingenieur Technik 41(5-6), 340-344.
+    .. [2] Shuvalov S.I., Novoseltseva S.S., Zhukov V.P. (2018). Justifying the choice of a
+       dependence for the Tromp separation curve approximation. Vestnik IGEU 6, 15-23.
+       doi:10.17588/2072-2672.2018.6.015-023
 
     Examples
     --------
-    >>> float(molerus_hoffmann(1.0, -0.2))
-    0.5
+    >>> round(float(molerus_hoffmann(1.5, 2.0)), 10)
+    0.0351981161
     """
     x = _as_array(x)
     return special.expit(km2 * (1.0 - x * x) - 2.0 * _log(x))
@@ -194,14 +245,40 @@ def molerus_hoffmann(x, km2):
 
 # --- (5) Rosin-Rammler form ------------------------------------------------------------
 def rosin_rammler(x, kr):
-    r"""Rosin-Rammler form: :math:`\varphi = \exp(-\ln 2\, x^{k_r})`.
+    r"""Rosin-Rammler form of the separation curve, formula (5) of Shuvalov et al. (2018).
 
-    Slope at the cut :math:`-k_r \ln 2 / 2`.
+    .. math::
+        \varphi(x) = \exp(-\ln 2\; x^{k_r})
+
+    Parameters
+    ----------
+    x : array_like
+        Relative size ``size / d_cut`` (> 0, dimensionless).
+    kr : float
+        Shape, 0.05..40 (dimensionless): the uniformity exponent, larger is sharper.
+
+    Returns
+    -------
+    ndarray
+        Partition number to the fine product, 0..1 (dimensionless).
+
+    Notes
+    -----
+    Valid and decreasing for :math:`x > 0`, :math:`k_r > 0`, with :math:`\varphi(0) = 1`.
+    Slope at the cut :math:`-k_r \ln 2 / 2`.  Base of formulas (10) and (11).
+
+    References
+    ----------
+    .. [1] Rosin P., Rammler E. (1933). The laws governing the fineness of powdered coal.
+       J. Inst. Fuel 7, 29-36.
+    .. [2] Shuvalov S.I., Novoseltseva S.S., Zhukov V.P. (2018). Justifying the choice of a
+       dependence for the Tromp separation curve approximation. Vestnik IGEU 6, 15-23.
+       doi:10.17588/2072-2672.2018.6.015-023
 
     Examples
     --------
-    >>> round(float(rosin_rammler(2.0, 1.0)), 6)
-    0.25
+    >>> round(float(rosin_rammler(1.5, 3.0)), 10)
+    0.0963881766
     """
     x = _as_array(x)
     return np.exp(-LN2 * np.power(x, kr))
@@ -220,17 +297,44 @@ def _rosin_rammler_efficiency(kr, x_max):
 
 # --- (6) Lynch -------------------------------------------------------------------------
 def lynch(x, kl):
-    r"""Lynch (1977): :math:`\varphi = 1 - (e^{k_l x} - 1)/(e^{k_l x} + e^{k_l} - 2)`.
+    r"""Lynch and Rao's separation curve, formula (6) of Shuvalov et al. (2018).
 
-    Evaluated as :math:`(e^{k_l} - 1)/(e^{k_l x} + e^{k_l} - 2)` scaled by
-    :math:`e^{-k_l}` so that large sizes underflow to 0 instead of giving inf/inf.
-    Slope at the cut :math:`-k_l e^{k_l} / (4 (e^{k_l} - 1))`, never shallower than
-    -1/4 (the limit :math:`k_l \to 0` is Plitt's formula with :math:`k_s = 1`).
+    .. math::
+        \varphi(x) = 1 - \frac{e^{k_l x} - 1}{e^{k_l x} + e^{k_l} - 2}
+
+    Parameters
+    ----------
+    x : array_like
+        Relative size ``size / d_cut`` (> 0, dimensionless).
+    kl : float
+        Shape, 1e-6..120 (dimensionless): Whiten's alpha, larger is sharper.
+
+    Returns
+    -------
+    ndarray
+        Partition number to the fine product, 0..1 (dimensionless).
+
+    Notes
+    -----
+    Valid and decreasing for :math:`x > 0`, :math:`k_l > 0`.  Evaluated as
+    :math:`(1 - e^{-k_l})/(e^{k_l(x-1)} + 1 - 2e^{-k_l})`, which equals the printed form
+    but lets large sizes underflow to 0 instead of giving inf/inf.  Slope at the cut
+    :math:`-k_l e^{k_l} / (4 (e^{k_l} - 1))`, never shallower than -1/4 (the limit
+    :math:`k_l \to 0` is Plitt's curve with :math:`k_s = 1`).  Shuvalov et al. attribute
+    it to Lynch (1977); the form was published by Lynch and Rao (1975).
+
+    References
+    ----------
+    .. [1] Lynch A.J., Rao T.C. (1975). Modelling and scale-up of hydrocyclone classifiers.
+       Proc. 11th International Mineral Processing Congress, Cagliari, 245-269.
+    .. [2] Shuvalov S.I., Novoseltseva S.S., Zhukov V.P. (2018). Justifying the choice of a
+       dependence for the Tromp separation curve approximation. Vestnik IGEU 6, 15-23.
+       doi:10.17588/2072-2672.2018.6.015-023
 
     Examples
     --------
-    >>> float(lynch(1.0, 1.5936))
-    0.5
+    >>> round(float(lynch(1.5, 3.0)), 10)
+    0.1765501004
     """
     x = _as_array(x)
     with np.errstate(over="ignore"):
@@ -245,14 +349,40 @@ def _lynch_slope(kl):
 
 # --- (7) Plitt -------------------------------------------------------------------------
 def plitt(x, ks):
-    r"""Plitt (1971): :math:`\varphi = 1/(1 + x^{k_s})`.
+    r"""Plitt's separation curve, formula (7) of Shuvalov et al. (2018).
 
-    Slope at the cut :math:`-k_s/4`.
+    .. math::
+        \varphi(x) = \frac{1}{1 + x^{k_s}}
+
+    Parameters
+    ----------
+    x : array_like
+        Relative size ``size / d_cut`` (> 0, dimensionless).
+    ks : float
+        Shape, 0.05..60 (dimensionless): larger is sharper.
+
+    Returns
+    -------
+    ndarray
+        Partition number to the fine product, 0..1 (dimensionless).
+
+    Notes
+    -----
+    Valid and decreasing for :math:`x > 0`, :math:`k_s > 0` (a log-logistic curve in
+    size).  Slope at the cut :math:`-k_s/4`.
+
+    References
+    ----------
+    .. [1] Plitt L.R. (1971). The analysis of solid-solid separations in classifiers. CIM Bulletin
+       64(708), 42-47.
+    .. [2] Shuvalov S.I., Novoseltseva S.S., Zhukov V.P. (2018). Justifying the choice of a
+       dependence for the Tromp separation curve approximation. Vestnik IGEU 6, 15-23.
+       doi:10.17588/2072-2672.2018.6.015-023
 
     Examples
     --------
-    >>> float(plitt(1.0, 2.0))
-    0.5
+    >>> round(float(plitt(1.5, 3.0)), 10)
+    0.2285714286
     """
     x = _as_array(x)
     return special.expit(-ks * _log(x))
@@ -269,17 +399,43 @@ def _plitt_efficiency(ks, x_max):
 
 # --- (8) Ogawa, Allen's law ------------------------------------------------------------
 def ogawa_allen(x, kp):
-    r"""Ogawa's form of Allen's law: :math:`\varphi = 1/(1 + x e^{-k_p (1 - x)})`.
+    r"""Ogawa's form of Allen's law, formula (8) of Shuvalov et al. (2018), corrected.
 
-    The paper prints :math:`e^{-k_p x}`, which gives :math:`\varphi(1) \ne 0.5` and
-    contradicts its own slope (17); the exponent :math:`-k_p (1 - x)` is implemented.
-    Slope at the cut :math:`-(1 + k_p)/4`.  For :math:`k_p < 0` the curve rises again
-    at large sizes.
+    .. math::
+        \varphi(x) = \frac{1}{1 + x\, e^{-k_p (1 - x)}}
+
+    Parameters
+    ----------
+    x : array_like
+        Relative size ``size / d_cut`` (> 0, dimensionless).
+    kp : float
+        Shape, -1..60 (dimensionless); ``kp = 0`` is Plitt's curve with ``ks = 1``.
+
+    Returns
+    -------
+    ndarray
+        Partition number to the fine product, 0..1 (dimensionless).
+
+    Notes
+    -----
+    The paper prints :math:`e^{-k_p x}`, which gives :math:`\varphi(1) \ne 1/2` and
+    contradicts its own slope (17); the exponent :math:`-k_p (1 - x)` is implemented
+    (docs/errata.md).  Decreasing for :math:`k_p \ge 0`; for :math:`k_p < 0` the curve
+    has a minimum at :math:`x = -1/k_p` and rises again.  Slope at the cut
+    :math:`-(1 + k_p)/4`.
+
+    References
+    ----------
+    .. [1] Ogawa K., Allen's-law form of the partition curve; the primary source could not be
+       verified and is taken as given by Shuvalov et al. (2018).
+    .. [2] Shuvalov S.I., Novoseltseva S.S., Zhukov V.P. (2018). Justifying the choice of a
+       dependence for the Tromp separation curve approximation. Vestnik IGEU 6, 15-23.
+       doi:10.17588/2072-2672.2018.6.015-023
 
     Examples
     --------
-    >>> float(ogawa_allen(1.0, 1.0))
-    0.5
+    >>> round(float(ogawa_allen(1.5, 2.0)), 10)
+    0.1969503133
     """
     x = _as_array(x)
     return special.expit(kp * (1.0 - x) - _log(x))
@@ -287,15 +443,41 @@ def ogawa_allen(x, kp):
 
 # --- (9) log-normal --------------------------------------------------------------------
 def lognormal(x, kf):
-    r"""Gauss integral of the log-normal law: :math:`\varphi = \tfrac12 \operatorname{erfc}(\ln x / k_f)`.
+    r"""Gauss integral of the log-normal law, formula (9) of Shuvalov et al. (2018).
 
-    :math:`k_f = \sqrt 2\, \sigma` of the natural log of size.  Slope at the cut
+    .. math::
+        \varphi(x) = \tfrac12 \operatorname{erfc}\left(\frac{\ln x}{k_f}\right)
+
+    Parameters
+    ----------
+    x : array_like
+        Relative size ``size / d_cut`` (> 0, dimensionless).
+    kf : float
+        Shape, 0.01..30 (dimensionless): :math:`\sqrt 2\,\sigma` of :math:`\ln` size;
+        smaller is sharper.
+
+    Returns
+    -------
+    ndarray
+        Partition number to the fine product, 0..1 (dimensionless).
+
+    Notes
+    -----
+    Valid and decreasing for :math:`x > 0`, :math:`k_f > 0`.  Slope at the cut
     :math:`-1/(\sqrt\pi\, k_f)`.
+
+    References
+    ----------
+    .. [1] Log-normal (Gauss integral) form of the partition curve as given by Shuvalov et al.
+       (2018); no single primary source is named there.
+    .. [2] Shuvalov S.I., Novoseltseva S.S., Zhukov V.P. (2018). Justifying the choice of a
+       dependence for the Tromp separation curve approximation. Vestnik IGEU 6, 15-23.
+       doi:10.17588/2072-2672.2018.6.015-023
 
     Examples
     --------
-    >>> float(lognormal(1.0, 1.1284))
-    0.5
+    >>> round(float(lognormal(1.5, 0.8)), 10)
+    0.2367586858
     """
     x = _as_array(x)
     return 0.5 * special.erfc(_log(x) / kf)
@@ -330,17 +512,43 @@ LUCKIE_AUSTIN_BREAK = 0.5
 
 
 def luckie_austin(x, kr):
-    r"""Luckie and Austin, piecewise: Rosin-Rammler above ``x = 1/2``, constant below.
+    r"""Luckie and Austin's piecewise curve, formula (10) of Shuvalov et al. (2018), corrected.
 
-    Printed as :math:`1 - \exp(-\ln 2\, x^{k_r})` (the coarse-product form copied from
-    Luckie and Austin); the paper states the branch coincides with (5) and has its slope,
-    so :math:`\exp(-\ln 2\, x^{k_r})` is implemented.  The constant below the break is
-    the value at the break, which keeps the formula continuous and two-parameter.
+    .. math::
+        \varphi(x) = \exp\left(-\ln 2\, \max(x, \tfrac12)^{k_r}\right)
+
+    Parameters
+    ----------
+    x : array_like
+        Relative size ``size / d_cut`` (> 0, dimensionless).
+    kr : float
+        Shape, 0.05..40 (dimensionless), as in :func:`rosin_rammler`.
+
+    Returns
+    -------
+    ndarray
+        Partition number to the fine product, 0..1 (dimensionless).
+
+    Notes
+    -----
+    Printed as :math:`1 - \exp(-\ln 2\, x^{k_r})` (the coarse-product form); the paper
+    states the branch coincides with (5) and has its slope, so the fines branch is
+    implemented, held at its value at the break :math:`x = 1/2` below it (continuous,
+    two parameters; docs/errata.md).  Non-increasing for :math:`k_r > 0`; slope at the
+    cut :math:`-k_r \ln 2 / 2`.
+
+    References
+    ----------
+    .. [1] Luckie P.T., Austin L.G. (1972). A review introduction to the solution of the grinding
+       equations by digital computation. Minerals Science and Engineering 4(2), 24-51.
+    .. [2] Shuvalov S.I., Novoseltseva S.S., Zhukov V.P. (2018). Justifying the choice of a
+       dependence for the Tromp separation curve approximation. Vestnik IGEU 6, 15-23.
+       doi:10.17588/2072-2672.2018.6.015-023
 
     Examples
     --------
-    >>> float(luckie_austin(0.1, 2.0)) == float(luckie_austin(0.5, 2.0))
-    True
+    >>> round(float(luckie_austin(0.3, 3.0)), 10), round(float(luckie_austin(1.5, 3.0)), 10)
+    (0.9170040432, 0.0963881766)
     """
     return rosin_rammler_plateau(x, kr, LUCKIE_AUSTIN_BREAK)
 
@@ -390,18 +598,47 @@ def _shuvalov_break_or_edge(kr, measured_efficiency):
 
 
 def shuvalov(x, kr, *, measured_efficiency):
-    r"""Shuvalov (1992), piecewise: Rosin-Rammler above :math:`x_a`, constant below.
+    r"""Shuvalov's piecewise curve, formula (11) of Shuvalov et al. (2018), corrected.
 
-    :math:`x_a` is chosen so that the area under the curve on :math:`0 < x < 1` equals
-    the classifier efficiency measured on the experimental curve (see
-    :func:`shuvalov_break`).  Where no such :math:`x_a` exists the curve falls back to
-    the nearer limit (plain (5) or a step at the cut); fits report this case.
+    .. math::
+        \varphi(x) = \exp\left(-\ln 2\, \max(x, x_a)^{k_r}\right),\quad
+        x_a \varphi_5(x_a) + \int_{x_a}^1 \varphi_5\,dx = \eta_{exp}
+
+    Parameters
+    ----------
+    x : array_like
+        Relative size ``size / d_cut`` (> 0, dimensionless).
+    kr : float
+        Shape, 0.05..40 (dimensionless), as in :func:`rosin_rammler`.
+    measured_efficiency : float
+        Classifier efficiency of the measured curve, 0.5..1 (dimensionless;
+        :func:`tromplab.curves.measured_efficiency`).
+
+    Returns
+    -------
+    ndarray
+        Partition number to the fine product, 0..1 (dimensionless).
+
+    Notes
+    -----
+    :math:`x_a` (:func:`shuvalov_break`) makes the area under the curve on
+    :math:`0 < x < 1` equal the measured efficiency.  Where no such :math:`x_a` exists
+    the curve falls back to the nearer limit (plain (5) or a step at the cut); fits report
+    this case.  Printed with the coarse-product branch like (10) (docs/errata.md).
+    Non-increasing for :math:`k_r > 0`; slope at the cut :math:`-k_r \ln 2 / 2`.
+
+    References
+    ----------
+    .. [1] Shuvalov S.I. (1992), piecewise partition curve; the primary source could not be verified
+       and is taken as given by Shuvalov et al. (2018).
+    .. [2] Shuvalov S.I., Novoseltseva S.S., Zhukov V.P. (2018). Justifying the choice of a
+       dependence for the Tromp separation curve approximation. Vestnik IGEU 6, 15-23.
+       doi:10.17588/2072-2672.2018.6.015-023
 
     Examples
     --------
-    >>> y = shuvalov([0.05, 0.1], 2.0, measured_efficiency=0.8)
-    >>> bool(y[0] == y[1])
-    True
+    >>> [round(float(v), 8) for v in shuvalov([0.2, 1.5], 3.0, measured_efficiency=0.8)]
+    [0.87066579, 0.09638818]
     """
     return rosin_rammler_plateau(x, kr, _shuvalov_break_or_edge(kr, measured_efficiency))
 
@@ -760,7 +997,27 @@ def evaluate_expression(text: str, values: Mapping[str, object], functions: Mapp
 
 
 def get_formula(key: str | int) -> Formula:
-    """Look a formula up by id (``"plitt"``) or equation number (``7``, ``"7"``, ``"(7)"``)."""
+    """Look a formula up by id (``"plitt"``) or equation number (``7``, ``"7"``, ``"(7)"``).
+
+    Parameters
+    ----------
+    key : str, int or Formula
+        Id, equation number of Shuvalov et al. (2018), or a record (returned as is).
+
+    Returns
+    -------
+    Formula
+
+    Raises
+    ------
+    KeyError
+        For an unknown key, listing the known formulas.
+
+    Examples
+    --------
+    >>> get_formula("(9)").id
+    'lognormal'
+    """
     if isinstance(key, Formula):
         return key
     text = str(key).strip()
@@ -776,7 +1033,20 @@ def get_formula(key: str | int) -> Formula:
 def select_formulas(keys=None) -> tuple[Formula, ...]:
     """The formulas named by ``keys`` (ids or equation numbers), or all nine.
 
-    ``"extended"`` in ``keys`` stands for every extended curve (bypass, fish-hook).
+    Parameters
+    ----------
+    keys : str, iterable of str/int, or None
+        Ids or equation numbers (a comma-separated string is split); ``"extended"``
+        stands for every extended curve (bypass, fish-hook), ``"paper"`` for the nine.
+
+    Returns
+    -------
+    tuple of Formula
+
+    Examples
+    --------
+    >>> [f.id for f in select_formulas("plitt,9,extended")][:3]
+    ['plitt', 'lognormal', 'plitt_bypass']
     """
     if keys is None:
         return FORMULAS

@@ -178,8 +178,15 @@ def read_lab(path, options: LabOptions | None = None, **option_values) -> list[M
     path : str, path-like or pandas.DataFrame
         CSV or Excel file, or a DataFrame with the same columns (rows named by index label).
     options : LabOptions, optional
-        How to read the table; or give its fields as keywords (the CLI's options with
-        underscores: ``fine_yield=0.3``, ``kind="pct"``, ``sheet="lab"``).
+        How to read the table.
+    option_values
+        The fields of :class:`LabOptions` as keywords instead of ``options`` (the CLI's
+        options with underscores: ``fine_yield=0.3``, ``kind="pct"``, ``sheet="lab"``).
+
+    Returns
+    -------
+    list of MassBalance
+        One per experiment; ``to_points()`` gives its Tromp points.
 
     Raises
     ------
@@ -736,9 +743,20 @@ def mix_streams(shares, yields):
 def read_experiments(path, options: LabOptions | None = None, **option_values) -> tuple[list[TrompPoints], list[MassBalance]]:
     """Tromp points from either a points file or a lab table (told apart by their columns).
 
-    ``path`` and the options are as for :func:`read_lab` (a DataFrame is accepted).
-    Returns the points of each experiment and, for a lab table, the mass balances they
-    came from (empty for a points file).
+    Parameters
+    ----------
+    path : str, path-like or pandas.DataFrame
+        A Tromp-points or lab table (file or DataFrame).
+    options : LabOptions, optional
+        How to read a lab table (ignored for points).
+    option_values
+        The fields of :class:`LabOptions` as keywords instead of ``options``.
+
+    Returns
+    -------
+    (list of TrompPoints, list of MassBalance)
+        The points of each experiment and, for a lab table, the mass balances they came
+        from (empty for a points file).
     """
     from .points import points_from_table
 

@@ -34,8 +34,9 @@ PARTITION_COLUMNS = {
 }
 
 
-#: Partitions may leave 0..1 by this much through sampling noise (as in the lab reader).
-PARTITION_SLACK = 0.02
+#: Measured partitions may leave 0..1 by this much through sampling noise (unclipped data
+#: with a noise of 0.02 reach 5 sd); beyond it a value is an error, or a percentage.
+PARTITION_SLACK = 0.1
 
 
 @dataclass(frozen=True)
@@ -49,7 +50,7 @@ class TrompPoints:
     size : ndarray
         Representative sizes, > 0, finite, no size twice; stored in increasing order.
     partition_fine : ndarray
-        Partition numbers to the fine product, fractions 0..1 (within 0.02 for noise).
+        Partition numbers to the fine product, fractions 0..1 (within 0.1 for noise).
     weight : ndarray or None
         Optional least-squares weights, > 0.
     delta_max : float or None
@@ -126,7 +127,7 @@ class TrompPoints:
             return
         value = phi[outside[0]]
         hint = ""
-        if phi.max() > 1.0 + PARTITION_SLACK and phi.max() <= 100.0 + PARTITION_SLACK and phi.min() >= 0:
+        if 1.5 < phi.max() <= 100.0 + PARTITION_SLACK and phi.min() >= 0:  # 0..100: percentages
             hint = ": these look like percentages; divide by 100 (or read a table with a partition_fine_pct column)"
         raise self._error(f"partition {value:g} outside 0..1{hint}", column="partition_fine")
 

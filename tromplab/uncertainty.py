@@ -67,6 +67,17 @@ def interval_table(fit: CurveFit, *, level: float = 0.95, delta_max: float | Non
     Returns a DataFrame with columns ``quantity, value, stderr, low, high, method``:
     parameters by the profile likelihood (or Wald when ``profile`` is False or the
     profile fails), indices by the delta method.
+
+    Parameters
+    ----------
+    fit : CurveFit
+        A successful fit.
+    level : float
+        Confidence level, 0..1 (default 0.95).
+    delta_max : float, optional
+        Largest feed size for the misplacement (size unit); default the fit's.
+    profile : bool
+        Profile-likelihood intervals for the parameters (slower than Wald).
     """
     if not fit.success:
         raise ValueError(f"{fit.formula.id} on {fit.experiment}: the fit failed ({fit.fit.message})")
@@ -128,6 +139,20 @@ def bootstrap(fit: CurveFit, *, n: int = 200, seed: int = 0, method: str = "resi
     ``"cases"``: points drawn with replacement (resamples with fewer than ``p + 1``
     distinct sizes are drawn again).  Each refit starts at the original optimum, without
     the global grid.
+
+    Parameters
+    ----------
+    fit : CurveFit
+        A successful fit.
+    n : int
+        Number of resamples (> 0).
+    seed : int
+        Seed of numpy's default generator.
+    method : {"residuals", "cases"}
+    delta_max : float, optional
+        Largest feed size for the misplacement (size unit); default the fit's.
+    progress : callable, optional
+        Called as ``progress(i, n)`` before each resample.
     """
     if not fit.success:
         raise ValueError(f"{fit.formula.id} on {fit.experiment}: cannot bootstrap a failed fit")
@@ -167,6 +192,11 @@ def bootstrap(fit: CurveFit, *, n: int = 200, seed: int = 0, method: str = "resi
 def akaike_weights(aicc: Sequence[float]) -> np.ndarray:
     """Akaike weights ``exp(-Delta/2) / sum exp(-Delta/2)``; missing criteria get weight 0.
 
+    Parameters
+    ----------
+    aicc : sequence of float
+        Information criteria of the competing fits (nan for a failed fit).
+
     Examples
     --------
     >>> akaike_weights([10.0, 12.0, np.nan]).round(4).tolist()
@@ -190,6 +220,17 @@ def model_average(fits: Sequence[CurveFit], *, quantities=("d_cut", "ep", "eta")
     ``sum_i w_i sqrt(se_i^2 + (theta_i - theta_bar)^2)`` with ``se_i`` from the fit
     (parameters) or the delta method (indices).  Returns ``quantity, value, stderr, low,
     high`` plus one weight column per formula (``weight_<id>``).
+
+    Parameters
+    ----------
+    fits : sequence of CurveFit
+        Fits of several formulas to one experiment.
+    quantities : sequence of str
+        Parameters or indices to average (names of :func:`interval_table`).
+    level : float
+        Confidence level of the normal intervals, 0..1.
+    delta_max : float, optional
+        Largest feed size for the misplacement (size unit).
     """
     good = [fit for fit in fits if fit.success]
     if not good:

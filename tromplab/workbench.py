@@ -203,6 +203,11 @@ def load(directory) -> Workbench:
     """A batch saved by :meth:`Workbench.save` (refused when saved by another major version).
 
     Only load directories you trust: the batch is unpickled.
+
+    Parameters
+    ----------
+    directory : str or path-like
+        A directory written by :meth:`Workbench.save`.
     """
     from .results import load_workbench
 
@@ -226,7 +231,19 @@ def data_notes(points: TrompPoints) -> tuple[str, ...]:
 
 
 def model_averages(bench: Workbench, *, level: float = 0.95) -> pd.DataFrame:
-    """Akaike-weighted d_cut, Ep and eta per experiment (the formulas ranked by the batch)."""
+    """Akaike-weighted d_cut, Ep and eta per experiment (the formulas ranked by the batch).
+
+    Parameters
+    ----------
+    bench : Workbench
+    level : float
+        Confidence level of the intervals, 0..1.
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``experiment, quantity, value, stderr, low, high`` and ``weight_<formula>`` columns.
+    """
     from .uncertainty import model_average
 
     frames = []
