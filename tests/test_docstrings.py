@@ -39,7 +39,7 @@ def signature_parameters(function) -> list[str]:
 
 
 PUBLIC_FUNCTIONS = [getattr(tromplab, name) for name in tromplab.__all__ if inspect.isfunction(getattr(tromplab, name))]
-FORMULA_FUNCTIONS = [formula.phi for formula in FORMULAS]
+FORMULA_FUNCTIONS = [formula.phi for formula in ALL_FORMULAS]
 
 
 @pytest.mark.parametrize("function", PUBLIC_FUNCTIONS + FORMULA_FUNCTIONS, ids=lambda f: f.__name__)
@@ -55,7 +55,9 @@ def test_documented_parameters_are_the_signature(function):
 @pytest.mark.parametrize("function", FORMULA_FUNCTIONS, ids=lambda f: f.__name__)
 def test_formula_docstrings_have_every_fluids_section(function):
     sections = numpydoc_sections(function.__doc__)
-    for title in ("Parameters", "Returns", "Notes", "References", "Examples"):
+    # the bypass curves are generated from their base (with_bypass), whose doctest covers them
+    generated = function.__name__.endswith("_bypass")
+    for title in ("Parameters", "Returns", "Notes", "References") + (() if generated else ("Examples",)):
         assert title in sections, f"{function.__name__} lacks {title}"
     assert any(".. math::" in line for line in sections[""]), "no math block"
     notes = " ".join(sections["Notes"])
@@ -63,6 +65,8 @@ def test_formula_docstrings_have_every_fluids_section(function):
     references = " ".join(sections["References"])
     assert re.search(r"\(\d{4}\)", references) or "could not be" in references or "no single primary" in references
     assert "Shuvalov S.I., Novoseltseva S.S., Zhukov V.P. (2018)" in references
+    if generated:
+        return
     example = "\n".join(sections["Examples"])
     assert ">>>" in example and "(1.0," not in example  # a point away from the trivial cut phi(1) = 1/2
 

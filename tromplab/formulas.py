@@ -877,11 +877,36 @@ def with_bypass(base: Formula, *, equation: int, citation: str) -> Formula:
         return (1.0 - bypass) * base.phi(x, shape)
 
     phi.__name__ = f"{base.id}_bypass"
-    phi.__doc__ = (
-        f"{base.title} with bypass: (1 - bypass) times (:func:`{base.phi.__name__}`).\n\n"
-        f"Parameters: ``x`` relative size (size/d_cut, > 0), ``shape`` = {base.shape_name}, "
-        "``bypass`` share sent to the coarse product unclassified (0..0.95).\n"
-    )
+    phi_slope = f"(1 - bypass)*({base.slope_expression})"
+    phi.__doc__ = f"""{base.title} with bypass: ``(1 - bypass)`` times :func:`{base.phi.__name__}`.
+
+    .. math::
+        \\varphi(x) = (1 - \\text{{bypass}})\\,\\varphi_{{{base.equation}}}(x)
+
+    Parameters
+    ----------
+    x : array_like
+        Relative size ``size / d_cut`` (> 0, dimensionless).
+    shape : float
+        ``{base.shape_name}`` of the base formula, {base.shape_bounds[0]:g}..{base.shape_bounds[1]:g}.
+    bypass : float
+        Share of every size sent to the coarse product unclassified, 0..0.95.
+
+    Returns
+    -------
+    ndarray
+        Partition number to the fine product, 0..1 - bypass.
+
+    Notes
+    -----
+    Monotone where the base formula is; slope at the cut ``{phi_slope}``; ``d_cut`` is the
+    corrected cut (partition 1/2 of the classified part).
+
+    References
+    ----------
+    .. [1] {citation}
+    .. [2] {SHUVALOV_2018} (the base formula, ({base.equation})).
+    """
     return Formula(
         id=f"{base.id}_bypass",
         equation=equation,
@@ -927,9 +952,43 @@ def whiten(x, alpha, *, bypass=0.0, fishhook=0.0):
         \varphi = C \frac{(1 + \beta\beta^* x)(e^\alpha - 1)}{e^{\alpha\beta^* x} + e^\alpha - 2},
         \quad C = 1 - \text{bypass}
 
-    With :math:`\beta = 0` and no bypass it is Lynch's formula (6) with :math:`k_l = \alpha`.
-    For :math:`\beta > 0` the curve rises above ``C`` at small sizes (the fish-hook) and
-    can exceed 1 when the bypass is small; fits report such a curve.
+    Parameters
+    ----------
+    x : array_like
+        Relative size ``size / d_cut`` (> 0, dimensionless).
+    alpha : float
+        Shape, 1e-3..60 (dimensionless): sharpness, as Lynch's ``kl``.
+    bypass : float
+        Share of every size sent to the coarse product unclassified, 0..0.95.
+    fishhook : float
+        Whiten's :math:`\beta`, 0..3: rise of the fines partition at small sizes.
+
+    Returns
+    -------
+    ndarray
+        Partition number to the fine product (dimensionless; may exceed 1, see Notes).
+
+    Notes
+    -----
+    :math:`\beta^*` (:func:`whiten_beta_star`) keeps the reduced curve at 1/2 at
+    :math:`x = 1`.  With :math:`\beta = 0` and no bypass it is Lynch's formula (6) with
+    :math:`k_l = \alpha`, decreasing, slope at the cut
+    :math:`-(1 - \text{bypass})\,\alpha e^\alpha / (4(e^\alpha - 1))`.  For
+    :math:`\beta > 0` the curve rises above ``C`` at small sizes (the fish-hook) and can
+    exceed 1 when the bypass is small; fits report such a curve.
+
+    References
+    ----------
+    .. [1] Napier-Munn T.J., Morrell S., Morrison R.D., Kojovic T. (1996). Mineral Comminution
+       Circuits: Their Operation and Optimisation. JKMRC, Brisbane.
+    .. [2] Shuvalov S.I., Novoseltseva S.S., Zhukov V.P. (2018). Justifying the choice of a
+       dependence for the Tromp separation curve approximation. Vestnik IGEU 6, 15-23
+       (formula (6), the reduced curve).
+
+    Examples
+    --------
+    >>> round(float(whiten(0.3, 3.0, bypass=0.1, fishhook=0.4)), 10)
+    0.9340089396
     """
     x = _as_array(x)
     star = whiten_beta_star(alpha, fishhook)
