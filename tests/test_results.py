@@ -78,6 +78,7 @@ def test_failed_fit_still_reads():
 def test_workbench_views(bench, tmp_path):
     text = repr(bench)
     assert len(text) < 400 and "2 experiments x 3 formulas, 6 fits" in text
+    assert bench._repr_html_().count("<tr") == len(bench.ranking_table()) + 1  # header + one row per formula
     pd.testing.assert_frame_equal(bench.summary(), bench.fits_table())
     pd.testing.assert_frame_equal(bench.ranking(), bench.ranking_table())
     averages = bench.averages()
