@@ -57,6 +57,18 @@ def nested_f_test(reduced: CurveFit, full: CurveFit) -> ExtraSumOfSquares:
     reduced, full : CurveFit
         Fits to the same points; ``full.formula.nests`` names ``reduced``'s formula.
 
+    Returns
+    -------
+    ExtraSumOfSquares
+        ``F``, ``p_value`` and ``needed(alpha)``.
+
+    Examples
+    --------
+    >>> points = TrompPoints("run", [10, 20, 40, 80, 160], [0.98, 0.91, 0.62, 0.21, 0.04])
+    >>> test = nested_f_test(fit_formula(points, "plitt"), fit_formula(points, "plitt_bypass"))
+    >>> test.df_extra, test.df_full, round(test.p_value, 3), test.needed(0.05)
+    (1, 2, 0.197, False)
+
     Raises
     ------
     ValueError
@@ -117,6 +129,20 @@ def shared_fit(experiments: Sequence[TrompPoints], formula, *, shared: str = "sh
     formula : Formula or str
         One of the nine paper formulas (no extras).
     shared : {"shape", "d_cut"}
+        The parameter held common to all experiments.
+
+    Returns
+    -------
+    SharedFit
+        The joint fit, the separate fits and their extra-sum-of-squares ``test``.
+
+    Examples
+    --------
+    >>> first = TrompPoints("run1", [10, 20, 40, 80, 160], [0.98, 0.91, 0.62, 0.21, 0.04])
+    >>> second = TrompPoints("run2", [10, 20, 40, 80, 160], [0.99, 0.95, 0.60, 0.10, 0.01])
+    >>> joint = shared_fit([first, second], "plitt", shared="shape")
+    >>> joint.test.needed(0.05), joint.table()["ks_separate"].round(2).tolist()
+    (True, [2.62, 3.72])
     """
     formula = get_formula(formula)
     if len(experiments) < 2:

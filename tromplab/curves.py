@@ -247,6 +247,13 @@ def fit_formula(
     ------
     ValueError
         When the experiment has two points or fewer (the screen needs n > 2).
+
+    Examples
+    --------
+    >>> points = TrompPoints("run", [10, 20, 40, 80, 160], [0.98, 0.91, 0.62, 0.21, 0.04])
+    >>> fit = fit_formula(points, "plitt")
+    >>> round(fit.d_cut, 2), round(fit.shape, 2), fit.screen.adequate
+    (48.21, 2.62, True)
     """
     formula = get_formula(formula)
     check_screenable(points.n, n_params=formula.n_params)

@@ -1119,7 +1119,17 @@ def select_formulas(keys=None) -> tuple[Formula, ...]:
 
 
 def registry_table():
-    """The registry as a :class:`pandas.DataFrame` (one row per formula)."""
+    """The registry as a :class:`pandas.DataFrame` (one row per formula).
+
+    Columns: ``id, equation, title, formula, shape_name, shape_bounds, slope_at_cut,
+    shape_at_slope_-0.5, extras, family, shape_meaning`` (what ``tromplab formulas`` prints).
+
+    Examples
+    --------
+    >>> table = registry_table().set_index("id")
+    >>> table.loc["ogawa_allen", ["formula", "slope_at_cut", "shape_at_slope_-0.5"]].tolist()
+    ['1/(1 + x*exp(-kp*(1 - x)))', '-(1 + kp)/4', 1.0]
+    """
     import pandas as pd
 
     rows = []

@@ -188,6 +188,20 @@ def read_lab(path, options: LabOptions | None = None, **option_values) -> list[M
     list of MassBalance
         One per experiment; ``to_points()`` gives its Tromp points.
 
+    Examples
+    --------
+    Three streams in mass % per class (blank lower bound: the pan), no yield given, so it
+    is estimated by least squares:
+
+    >>> lab = pd.DataFrame({"size_lower_um": [None, 20, 40, 80], "size_upper_um": [20, 40, 80, 160],
+    ...                     "feed_pct": [30, 30, 25, 15], "fine_pct": [60, 30, 9, 1],
+    ...                     "coarse_pct": [10, 30, 35.67, 24.33]})
+    >>> balance = read_lab(lab)[0]
+    >>> round(balance.fine_yield, 3), balance.yield_source
+    (0.4, 'least-squares estimate')
+    >>> balance.to_points().partition_fine.round(3).tolist()
+    [0.8, 0.4, 0.144, 0.027]
+
     Raises
     ------
     InputError

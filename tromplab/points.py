@@ -162,6 +162,17 @@ def read_points(path, *, sheet=None) -> list[TrompPoints]:
     list of TrompPoints
         One per experiment, in order of first appearance.
 
+    Examples
+    --------
+    >>> frame = pd.DataFrame({"size": [10, 20, 40, 80, 160], "partition_fine_pct": [98, 91, 62, 21, 4]})
+    >>> points = read_points(frame)
+    >>> points[0].experiment, points[0].partition_fine.tolist()
+    ('DataFrame', [0.98, 0.91, 0.62, 0.21, 0.04])
+    >>> read_points(frame.rename(columns={"partition_fine_pct": "partition_fine"}))
+    Traceback (most recent call last):
+    ...
+    tromplab.errors.InputError: DataFrame, row 0, column 'partition_fine': partition 98 outside 0..1
+
     Raises
     ------
     InputError

@@ -182,6 +182,18 @@ def fit_experiments(
         fitted and reported but kept out of the paper's ranking.
     progress : callable, optional
         Called as ``progress(i, total, experiment)`` before each experiment.
+
+    Returns
+    -------
+    Workbench
+        Every fit, with the fits and ranking tables; never raises for a failing fit.
+
+    Examples
+    --------
+    >>> points = TrompPoints("run", [10, 20, 40, 80, 160], [0.98, 0.91, 0.62, 0.21, 0.04])
+    >>> bench = fit_experiments([points], formulas=["plitt", "lognormal", "molerus"])
+    >>> bench.ranking()[["formula", "place"]].values.tolist()
+    [['plitt', 1], ['lognormal', 2], ['molerus', 3]]
     """
     chosen = select_formulas(formulas)
     fits, failures, notes = [], {}, {}
