@@ -1127,8 +1127,9 @@ def registry_table():
     Examples
     --------
     >>> table = registry_table().set_index("id")
-    >>> table.loc["ogawa_allen", ["formula", "slope_at_cut", "shape_at_slope_-0.5"]].tolist()
-    ['1/(1 + x*exp(-kp*(1 - x)))', '-(1 + kp)/4', 1.0]
+    >>> row = table.loc["ogawa_allen"]
+    >>> row["formula"], row["slope_at_cut"], float(row["shape_at_slope_-0.5"])
+    ('1/(1 + x*exp(-kp*(1 - x)))', '-(1 + kp)/4', 1.0)
     """
     import pandas as pd
 
