@@ -31,7 +31,6 @@ from .screening import DEFAULT_ALPHA, FisherScreen, check_screenable, fisher_scr
 
 GRID_SLOPES = -np.geomspace(0.02, 20.0, 41)
 N_GRID_STARTS = 2
-D_CUT_RANGE_FACTOR = 100.0
 
 
 @dataclass(frozen=True)
@@ -130,6 +129,31 @@ class CurveFit:
             "warnings": "; ".join(self.warnings),
         }
 
+    # --- readable views (tromplab.results): the same fields as row(), for notebooks and logs
+    def __repr__(self) -> str:
+        from .results import fit_repr
+
+        return fit_repr(self)
+
+    def _repr_html_(self) -> str:
+        from .results import fit_html
+
+        return fit_html(self)
+
+    def summary(self):
+        """One-row :class:`pandas.DataFrame` with the columns of ``fits.csv`` except ``rank``."""
+        from .results import fit_summary
+
+        return fit_summary(self)
+
+    def report(self, *, level: float = 0.95, profile: bool = True) -> str:
+        """Text report: parameters with standard errors and ``level`` intervals (profile
+        likelihood, else Wald), the F screen, indices with delta-method errors, residual
+        diagnostics and warnings (like lmfit's ``fit_report``)."""
+        from .results import fit_report
+
+        return fit_report(self, level=level, profile=profile)
+
 
 def measured_cut_size(points: TrompPoints) -> float:
     """Size where the measured curve first falls through 1/2, interpolated in log size.
@@ -176,11 +200,7 @@ def measured_slope(points: TrompPoints, d_cut: float) -> float:
 
 
 def _parameter_specs(formula: Formula, points: TrompPoints) -> list[ParameterSpec]:
-    return [
-        ParameterSpec("d_cut", points.size.min() / D_CUT_RANGE_FACTOR, points.size.max() * D_CUT_RANGE_FACTOR),
-        ParameterSpec(formula.shape_name, *formula.shape_bounds),
-        *(ParameterSpec(extra.name, *extra.bounds) for extra in formula.extras),
-    ]
+    return list(formula.parameters(points.size))
 
 
 def normalised_weights(points: TrompPoints) -> np.ndarray:
@@ -227,6 +247,13 @@ def fit_formula(
     ------
     ValueError
         When the experiment has two points or fewer (the screen needs n > 2).
+
+    Examples
+    --------
+    >>> points = TrompPoints("run", [10, 20, 40, 80, 160], [0.98, 0.91, 0.62, 0.21, 0.04])
+    >>> fit = fit_formula(points, "plitt")
+    >>> round(fit.d_cut, 2), round(fit.shape, 2), fit.screen.adequate
+    (48.21, 2.62, True)
     """
     formula = get_formula(formula)
     check_screenable(points.n, n_params=formula.n_params)

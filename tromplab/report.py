@@ -115,8 +115,23 @@ def _png(ax) -> bytes:
 
 def build_report(bench: Workbench, balances: list[MassBalance], *, source: str, level: float = 0.95, size_unit: str = "",
                  title: str = "tromplab report", partition_to: str = "fine") -> Report:  # fmt: skip
-    """Assemble the report of a fitted batch (and the balances of lab input); balance tables
-    and curve figures show the partition to ``partition_to`` (``"fine"`` or ``"coarse"``)."""
+    """Assemble the report of a fitted batch (and the balances of lab input).
+
+    Parameters
+    ----------
+    bench : Workbench
+    balances : list of MassBalance
+        Mass balances of lab input (empty for Tromp points).
+    source : str
+        Where the input came from, shown in the report.
+    level : float
+        Confidence level of the intervals, 0..1.
+    size_unit : str
+        Unit of the sizes, for labels.
+    title : str
+    partition_to : {"fine", "coarse"}
+        Product whose partition the balance tables and curve figures show.
+    """
     from .views import check_partition_to, partition_view
 
     check_partition_to(partition_to)
@@ -186,7 +201,15 @@ def build_report(bench: Workbench, balances: list[MassBalance], *, source: str, 
 
 
 def write_report(report: Report, html_path) -> dict[str, Path]:
-    """Write ``REPORT.html`` and ``REPORT.md`` (figures for the Markdown in ``REPORT_figures/``)."""
+    """Write ``REPORT.html`` and ``REPORT.md`` (figures for the Markdown in ``REPORT_figures/``).
+
+    Parameters
+    ----------
+    report : Report
+        From :func:`build_report`.
+    html_path : str or path-like
+        The HTML file; the Markdown and figures go beside it (written atomically).
+    """
     from .workbench import write_atomically
 
     html_path = Path(html_path)

@@ -67,6 +67,17 @@ def interval_table(fit: CurveFit, *, level: float = 0.95, delta_max: float | Non
     Returns a DataFrame with columns ``quantity, value, stderr, low, high, method``:
     parameters by the profile likelihood (or Wald when ``profile`` is False or the
     profile fails), indices by the delta method.
+
+    Parameters
+    ----------
+    fit : CurveFit
+        A successful fit.
+    level : float
+        Confidence level, 0..1 (default 0.95).
+    delta_max : float, optional
+        Largest feed size for the misplacement (size unit); default the fit's.
+    profile : bool
+        Profile-likelihood intervals for the parameters (slower than Wald).
     """
     if not fit.success:
         raise ValueError(f"{fit.formula.id} on {fit.experiment}: the fit failed ({fit.fit.message})")
@@ -128,6 +139,20 @@ def bootstrap(fit: CurveFit, *, n: int = 200, seed: int = 0, method: str = "resi
     ``"cases"``: points drawn with replacement (resamples with fewer than ``p + 1``
     distinct sizes are drawn again).  Each refit starts at the original optimum, without
     the global grid.
+
+    Parameters
+    ----------
+    fit : CurveFit
+        A successful fit.
+    n : int
+        Number of resamples (> 0).
+    seed : int
+        Seed of numpy's default generator.
+    method : {"residuals", "cases"}
+    delta_max : float, optional
+        Largest feed size for the misplacement (size unit); default the fit's.
+    progress : callable, optional
+        Called as ``progress(i, n)`` before each resample.
     """
     if not fit.success:
         raise ValueError(f"{fit.formula.id} on {fit.experiment}: cannot bootstrap a failed fit")
@@ -146,14 +171,15 @@ def bootstrap(fit: CurveFit, *, n: int = 200, seed: int = 0, method: str = "resi
         if progress is not None:
             progress(i + 1, n)
         if method == "residuals":
-            sample = TrompPoints(points.experiment, points.size, fitted + rng.choice(residuals, points.n), points.weight)
+            sample = TrompPoints(points.experiment, points.size, fitted + rng.choice(residuals, points.n), points.weight,
+                                 resampled=True)
         else:
             while True:
                 pick = rng.integers(0, points.n, points.n)
                 if np.unique(points.size[pick]).size > p:
                     break
             weight = None if points.weight is None else points.weight[pick]
-            sample = TrompPoints(points.experiment, points.size[pick], points.partition_fine[pick], weight)
+            sample = TrompPoints(points.experiment, points.size[pick], points.partition_fine[pick], weight, resampled=True)
         refit = fit_formula(sample, fit.formula, alpha=fit.screen.alpha, delta_max=delta_max, global_search=False,
                             starts=[dict(fit.fit.values)])  # fmt: skip
         if not refit.success:
@@ -165,6 +191,11 @@ def bootstrap(fit: CurveFit, *, n: int = 200, seed: int = 0, method: str = "resi
 # --- information criteria and model averaging --------------------------------------------
 def akaike_weights(aicc: Sequence[float]) -> np.ndarray:
     """Akaike weights ``exp(-Delta/2) / sum exp(-Delta/2)``; missing criteria get weight 0.
+
+    Parameters
+    ----------
+    aicc : sequence of float
+        Information criteria of the competing fits (nan for a failed fit).
 
     Examples
     --------
@@ -189,6 +220,17 @@ def model_average(fits: Sequence[CurveFit], *, quantities=("d_cut", "ep", "eta")
     ``sum_i w_i sqrt(se_i^2 + (theta_i - theta_bar)^2)`` with ``se_i`` from the fit
     (parameters) or the delta method (indices).  Returns ``quantity, value, stderr, low,
     high`` plus one weight column per formula (``weight_<id>``).
+
+    Parameters
+    ----------
+    fits : sequence of CurveFit
+        Fits of several formulas to one experiment.
+    quantities : sequence of str
+        Parameters or indices to average (names of :func:`interval_table`).
+    level : float
+        Confidence level of the normal intervals, 0..1.
+    delta_max : float, optional
+        Largest feed size for the misplacement (size unit).
     """
     good = [fit for fit in fits if fit.success]
     if not good:
