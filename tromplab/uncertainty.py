@@ -70,7 +70,7 @@ def interval_table(fit: CurveFit, *, level: float = 0.95, delta_max: float | Non
     """
     if not fit.success:
         raise ValueError(f"{fit.formula.id} on {fit.experiment}: the fit failed ({fit.fit.message})")
-    delta_max = fit.points.largest_size if delta_max is None else delta_max
+    delta_max = fit.options.delta_max if delta_max is None else delta_max
     rows = []
     wald = fit.fit.confidence_intervals(level)
     profiled = fit.fit.profile_intervals(level) if profile else {}
@@ -140,7 +140,7 @@ def bootstrap(fit: CurveFit, *, n: int = 200, seed: int = 0, method: str = "resi
     p = fit.formula.n_params
     fitted = fit.predict(points.size)
     residuals = (points.partition_fine - fitted) * np.sqrt(points.n / max(points.n - p, 1))
-    delta_max = points.largest_size if delta_max is None else delta_max
+    delta_max = fit.options.delta_max if delta_max is None else delta_max
     rows = []
     for i in range(n):
         if progress is not None:
@@ -154,7 +154,7 @@ def bootstrap(fit: CurveFit, *, n: int = 200, seed: int = 0, method: str = "resi
                     break
             weight = None if points.weight is None else points.weight[pick]
             sample = TrompPoints(points.experiment, points.size[pick], points.partition_fine[pick], weight)
-        refit = fit_formula(sample, fit.formula, alpha=fit.screen.alpha, delta_max=delta_max, global_search=False,
+        refit = fit_formula(sample, fit.formula, alpha=fit.options.alpha, delta_max=delta_max, global_search=False,
                             starts=[dict(fit.fit.values)])  # fmt: skip
         if not refit.success:
             continue

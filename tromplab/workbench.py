@@ -18,8 +18,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .curves import CurveFit, fit_formula
-from .fitting import ParameterFit, ParameterSpec
+from .curves import CurveFit, failed_fit, fit_formula
 from .formulas import Formula, select_formulas
 from .points import TrompPoints
 from .ranking import add_ranks, rank_formulas
@@ -109,6 +108,7 @@ def fit_experiments(
     rank_by: str = "F",
     rank_extended: bool = False,
     progress: Callable[[int, int, str], None] | None = None,
+    size_unit: str = "",
 ) -> Workbench:
     """Fit, screen and rank ``formulas`` (default: all nine) on each experiment.
 
@@ -127,6 +127,8 @@ def fit_experiments(
         fitted and reported but kept out of the paper's ranking.
     progress : callable, optional
         Called as ``progress(i, total, experiment)`` before each experiment.
+    size_unit : str
+        Unit of the sizes, recorded on every fit (``CurveFit.options``).
     """
     chosen = select_formulas(formulas)
     fits, failures, notes = [], {}, {}
@@ -140,7 +142,7 @@ def fit_experiments(
             continue
         notes[points.experiment] = data_notes(points)
         for formula in chosen:
-            fits.append(_fit_guarded(points, formula, alpha, delta_max))
+            fits.append(_fit_guarded(points, formula, alpha, delta_max, size_unit))
     return Workbench(tuple(fits), failures, chosen, rank_by, alpha, rank_extended, {k: v for k, v in notes.items() if v})
 
 
@@ -175,13 +177,12 @@ def model_averages(bench: Workbench, *, level: float = 0.95) -> pd.DataFrame:
     return table[["experiment", *[c for c in table.columns if c != "experiment"]]]
 
 
-def _fit_guarded(points, formula, alpha, delta_max) -> CurveFit:
+def _fit_guarded(points, formula, alpha, delta_max, size_unit="") -> CurveFit:
     try:
-        return fit_formula(points, formula, alpha=alpha, delta_max=delta_max)
+        return fit_formula(points, formula, alpha=alpha, delta_max=delta_max, size_unit=size_unit)
     except Exception as error:  # a batch reports a broken fit instead of stopping
-        specs = [ParameterSpec("d_cut"), ParameterSpec(formula.shape_name)]
-        failed = ParameterFit.failed(specs, points.n, f"{type(error).__name__}: {error}")
-        return CurveFit(formula=formula, points=points, fit=failed)
+        return failed_fit(points, formula, f"{type(error).__name__}: {error}", alpha=alpha, delta_max=delta_max,
+                          size_unit=size_unit)  # fmt: skip
 
 
 def print_progress(i: int, total: int, experiment: str) -> None:
