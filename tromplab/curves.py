@@ -135,12 +135,18 @@ class CurveFit:
         extras = {extra.name: values.get(extra.name, np.nan) for extra in self.formula.extras}
         return values.get("d_cut", np.nan), values.get(self.formula.shape_name, np.nan), extras
 
+    def context_at(self, values: dict[str, float] | None = None) -> dict:
+        """The formula's data-derived inputs (``measured_efficiency`` of (11)), overridden by
+        same-named entries of ``values``: the delta method perturbs them like parameters."""
+        values = values or {}
+        return {name: values.get(name, value) for name, value in self.context.items()}
+
     def predict(self, size, values: dict[str, float] | None = None) -> np.ndarray:
         """Partition to fines at ``size`` for the fitted parameters (or other ``values``); nan for a failed fit."""
         d_cut, shape, extras = self.curve_arguments(values)
         if not np.all(np.isfinite([d_cut, shape, *extras.values()])):
             return np.full(np.shape(np.asarray(size, dtype=float)), np.nan)
-        return self.formula(size, d_cut, shape, **self.context, **extras)
+        return self.formula(size, d_cut, shape, **self.context_at(values), **extras)
 
     @cached_property
     def screen(self) -> FisherScreen | None:
@@ -220,6 +226,10 @@ class CurveFit:
             "d75": ind.d75 if ind else np.nan,
             "ep": ind.ep if ind else np.nan,
             "imperfection": ind.imperfection if ind else np.nan,
+            "d50": ind.d50 if ind else np.nan,
+            "d50c": ind.d50c if ind else np.nan,
+            "ep_c": ind.ep_c if ind else np.nan,
+            "imperfection_c": ind.imperfection_c if ind else np.nan,
             "aic": criteria["aic"],
             "aicc": criteria["aicc"],
             "bic": criteria["bic"],
@@ -343,9 +353,7 @@ def fit_formula(
     check_screenable(points.n, n_params=formula.n_params)
     options = FitOptions.for_points(points, alpha=alpha, delta_max=delta_max, size_unit=size_unit, global_search=global_search)
     specs = _parameter_specs(formula, points)
-    context = {}
-    if formula.context_from_efficiency:
-        context["measured_efficiency"] = measured_efficiency(points)
+    context = formula_context(formula, points)
     root_weights = np.sqrt(options.weights)
     extra_starts = {extra.name: extra.start for extra in formula.extras}
 
@@ -367,6 +375,14 @@ def fit_formula(
     fit = least_squares(residual, specs, all_starts)
     grid_ssr = grid[0][0] if grid else np.nan
     return CurveFit(formula=formula, points=points, fit=fit, context=context, options=options, grid_ssr=grid_ssr)
+
+
+def formula_context(formula: Formula, points: TrompPoints) -> dict[str, float]:
+    """Inputs a formula takes from the measured points rather than from the fit
+    (``measured_efficiency`` for formula (11)); empty for the others."""
+    if formula.context_from_efficiency:
+        return {"measured_efficiency": measured_efficiency(points)}
+    return {}
 
 
 def failed_fit(points: TrompPoints, formula, message: str, *, alpha: float = DEFAULT_ALPHA, delta_max: float | None = None,
