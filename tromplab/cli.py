@@ -291,7 +291,8 @@ def _run_fit(args) -> int:
     experiments, balances = read_experiments(args.input, _lab_options(args))
     _print_balance_notes(balances)
     bench = fit_experiments(experiments, formulas=formulas, alpha=args.alpha, delta_max=args.delta_max,
-                            rank_by=args.rank_by, rank_extended=args.rank_extended, progress=print_progress)  # fmt: skip
+                            rank_by=args.rank_by, rank_extended=args.rank_extended, progress=print_progress,
+                            size_unit=args.size_unit)  # fmt: skip
     fits, ranking = bench.fits_table(), bench.ranking_table()
     if args.ci is not None or args.bootstrap:
         from .uncertainty import interval_columns
@@ -339,7 +340,7 @@ def _run_report(args) -> int:
         raise ValueError(f"--ci takes a level between 0 and 1, got {args.ci}")
     experiments, balances = read_experiments(args.input, _lab_options(args))
     bench = fit_experiments(experiments, formulas=formulas, alpha=args.alpha, delta_max=args.delta_max, rank_by=args.rank_by,
-                            rank_extended=args.rank_extended, progress=print_progress)  # fmt: skip
+                            rank_extended=args.rank_extended, progress=print_progress, size_unit=args.size_unit)  # fmt: skip
     report = build_report(bench, balances, source=str(args.input), level=args.ci, size_unit=args.size_unit, title=args.title,
                           partition_to=args.partition_to)  # fmt: skip
     args.output.parent.mkdir(parents=True, exist_ok=True)

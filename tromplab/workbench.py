@@ -18,8 +18,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .curves import CurveFit, fit_formula
-from .fitting import ParameterFit, ParameterSpec
+from .curves import CurveFit, failed_fit, fit_formula
 from .formulas import Formula, select_formulas
 from .points import TrompPoints
 from .ranking import add_ranks, rank_formulas
@@ -29,6 +28,7 @@ from .screening import DEFAULT_ALPHA
 FIT_COLUMNS = (
     "experiment", "equation", "formula", "n", "d_cut", "d_cut_stderr", "shape_name", "shape", "shape_stderr",
     "ssr", "F", "F_crit", "adequate", "rank", "eta", "epsilon", "slope", "d25", "d75", "ep", "imperfection",
+    "d50", "d50c", "ep_c", "imperfection_c",
     "aic", "aicc", "bic", "bypass", "fishhook", "runs_p", "normality_p", "x_break", "success", "message", "warnings",
 )  # fmt: skip
 
@@ -164,6 +164,7 @@ def fit_experiments(
     rank_by: str = "F",
     rank_extended: bool = False,
     progress: Callable[[int, int, str], None] | None = None,
+    size_unit: str = "",
 ) -> Workbench:
     """Fit, screen and rank ``formulas`` (default: all nine) on each experiment.
 
@@ -182,6 +183,8 @@ def fit_experiments(
         fitted and reported but kept out of the paper's ranking.
     progress : callable, optional
         Called as ``progress(i, total, experiment)`` before each experiment.
+    size_unit : str
+        Unit of the sizes, recorded on every fit (``CurveFit.options``).
 
     Returns
     -------
@@ -207,7 +210,7 @@ def fit_experiments(
             continue
         notes[points.experiment] = data_notes(points)
         for formula in chosen:
-            fits.append(_fit_guarded(points, formula, alpha, delta_max))
+            fits.append(_fit_guarded(points, formula, alpha, delta_max, size_unit))
     return Workbench(tuple(fits), failures, chosen, rank_by, alpha, rank_extended, {k: v for k, v in notes.items() if v})
 
 
@@ -269,13 +272,12 @@ def model_averages(bench: Workbench, *, level: float = 0.95) -> pd.DataFrame:
     return table[["experiment", *[c for c in table.columns if c != "experiment"]]]
 
 
-def _fit_guarded(points, formula, alpha, delta_max) -> CurveFit:
+def _fit_guarded(points, formula, alpha, delta_max, size_unit="") -> CurveFit:
     try:
-        return fit_formula(points, formula, alpha=alpha, delta_max=delta_max)
+        return fit_formula(points, formula, alpha=alpha, delta_max=delta_max, size_unit=size_unit)
     except Exception as error:  # a batch reports a broken fit instead of stopping
-        specs = [ParameterSpec("d_cut"), ParameterSpec(formula.shape_name)]
-        failed = ParameterFit.failed(specs, points.n, f"{type(error).__name__}: {error}")
-        return CurveFit(formula=formula, points=points, fit=failed)
+        return failed_fit(points, formula, f"{type(error).__name__}: {error}", alpha=alpha, delta_max=delta_max,
+                          size_unit=size_unit)  # fmt: skip
 
 
 def print_progress(i: int, total: int, experiment: str) -> None:
