@@ -14,7 +14,7 @@ import pandas as pd
 
 from ._version import __version__
 from .errors import InputError
-from .formulas import registry_table, select_formulas
+from .formulas import NAME_CLASHES, registry_table, select_formulas
 from .lab import KINDS, LabOptions, YieldWarning, read_experiments, read_lab
 from .ranking import RANK_BY, rank_formulas, read_f_table
 from .screening import DEFAULT_ALPHA
@@ -244,7 +244,8 @@ def _run_sieve_bin(args) -> int:
 
 def _run_formulas(args) -> int:
     table = registry_table()
-    for family, heading in (("paper", "The nine formulas of Shuvalov et al. (2018)"), ("extended", "Extended curves (--extended)")):
+    for family, heading in (("paper", "The nine formulas of Shuvalov et al. (2018)"), ("extended", "Extended curves (--extended)"),
+                            ("other", "Curves of other tools (--formulas other)")):  # fmt: skip
         print(f"{heading}:")
         for row in table[table["family"] == family].itertuples(index=False):
             extras = f", extras {row.extras}" if row.extras else ""
@@ -253,6 +254,10 @@ def _run_formulas(args) -> int:
             print(textwrap.fill(f"shape {row.shape_name}{extras}; slope at the cut {row.slope_at_cut}", width=98,
                                 initial_indent="      ", subsequent_indent="      "))  # fmt: skip
         print()
+    print("Same name, different curve (docs/curves.md):")
+    for clash in NAME_CLASHES:
+        print(textwrap.fill(clash, width=98, initial_indent="  - ", subsequent_indent="    "))
+    print()
     print("x = size / d_cut; phi = partition to the fine product. Corrections: docs/errata.md.")
     return 0
 

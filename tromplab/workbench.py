@@ -29,7 +29,7 @@ from .screening import DEFAULT_ALPHA
 FIT_COLUMNS = (
     "experiment", "equation", "formula", "n", "d_cut", "d_cut_stderr", "shape_name", "shape", "shape_stderr",
     "ssr", "F", "F_crit", "adequate", "rank", "eta", "epsilon", "slope", "d25", "d75", "ep", "imperfection",
-    "aic", "aicc", "bic", "bypass", "fishhook", "runs_p", "normality_p", "x_break", "success", "message", "warnings",
+    "aic", "aicc", "bic", "bypass", "fishhook", "extras", "runs_p", "normality_p", "x_break", "success", "message", "warnings",
 )  # fmt: skip
 
 
