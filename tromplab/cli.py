@@ -95,6 +95,24 @@ def _parser() -> argparse.ArgumentParser:
     compare.add_argument("--experiments", default=None, help="comma-separated experiments to compare (default: all)")
     compare.set_defaults(run=_run_compare)
 
+    export = commands.add_parser("export", help="write fitted parameters in a simulator's convention (whiten, plitt, dyssol, csv-long)")
+    export.add_argument("fits_dir", type=Path, help="output folder of 'tromplab fit' (or its fits.csv)")
+    export.add_argument("--to", required=True, choices=("whiten", "plitt", "dyssol", "csv-long"), help="target convention (docs/export.md)")
+    export.add_argument("-o", "--output", type=Path, default=None, help="CSV to write (default: FITS_DIR/export_<convention>.csv)")
+    export.add_argument("--size-unit", default=None, help="unit of the fitted sizes: um, mm, cm or m (required by --to dyssol)")
+    export.set_defaults(run=_run_export)
+
+    trend = commands.add_parser("trend", parents=[lab], help="monitor a classifier over surveys: control charts and change flags")
+    trend.add_argument("input", type=Path, help="Tromp points or a lab table with a 'date' (or 'survey') column")
+    trend.add_argument("-o", "--outdir", type=Path, default=Path("results/trend"), help="output folder (default: results/trend)")
+    trend.add_argument("--formula", default=None, help="formula id (default: the best-ranked of the nine over all surveys)")
+    trend.add_argument("--baseline", default=None,
+                       help="baseline period: the first N surveys, or a date range FROM:TO (default: the first half, at most 8)")
+    trend.add_argument("--alpha", type=float, default=0.01, help="significance level of the change flags (default 0.01)")
+    trend.add_argument("--size-unit", default="", help="unit of the sizes, for the figure labels")
+    trend.add_argument("--no-figures", action="store_true", help="do not draw figures")
+    trend.set_defaults(run=_run_trend)
+
     points = commands.add_parser("points", parents=[lab], help="turn a lab table into Tromp points with diagnostics")
     points.add_argument("input", type=Path, help="lab table (CSV or .xlsx)")
     points.add_argument("-o", "--output", type=Path, required=True, help="Tromp points CSV to write")
@@ -352,6 +370,35 @@ def _run_compare(args) -> int:
     verdict = "differ" if test.needed() else "are consistent with one"
     print(f"\nExtra sum of squares: F = {test.F:.4g} on ({test.df_extra}, {test.df_full}) df, p = {test.p_value:.4g}: "
           f"the experiments {verdict} {result.shared} (alpha 0.05)")  # fmt: skip
+    return 0
+
+
+def _run_export(args) -> int:
+    from .export import export_fits
+
+    result = export_fits(args.fits_dir, args.to, size_unit=args.size_unit)
+    folder = args.fits_dir if args.fits_dir.is_dir() else args.fits_dir.parent
+    output = args.output or folder / f"export_{args.to.replace('-', '_')}.csv"
+    written = write_atomically({output.name: lambda p: result.table.to_csv(p, index=False)}, output.parent or Path("."))
+    print(result.table.to_string(index=False, float_format=lambda v: f"{v:.6g}", na_rep="-"))
+    if result.skipped:
+        print(f"\nNot expressible in the {args.to} convention (left out):")
+        for experiment, formula, reason in result.skipped:
+            print(f"  {experiment} / {formula}: {reason}")
+    print(f"\nWrote: {written[output.name]}")
+    return 0
+
+
+def _run_trend(args) -> int:
+    from .trend import monitor_surveys, read_surveys, write_trend
+
+    surveys = read_surveys(args.input, _lab_options(args))
+    result = monitor_surveys(surveys, formula=args.formula, baseline=args.baseline, alpha=args.alpha)
+    written = write_trend(result, args.outdir, size_unit=args.size_unit, figures=not args.no_figures)
+    print(result.summary())
+    print("\nWrote:")
+    for path in written.values():
+        print(f"  {path}")
     return 0
 
 
