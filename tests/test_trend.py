@@ -9,15 +9,14 @@ from tromplab.cli import main
 from tromplab.errors import InputError
 from tromplab.trend import (
     SeriesDesign,
-    ewma_chart,
     equality_test,
+    ewma_chart,
     flag_changes,
     monitor_surveys,
     read_surveys,
     simulate_surveys,
     surveys_from_frame,
 )
-
 from tromplab.workbench import fit_experiments
 
 from .conftest import DATASETS
