@@ -145,4 +145,5 @@ def test_export_refuses_bad_input_with_clear_messages(fits_dir, tmp_path, capsys
     assert main(["export", str(fits_dir), "--to", "dyssol"]) == 1
     assert "--size-unit" in capsys.readouterr().err
     assert main(["export", str(fits_dir), "--to", "whiten"]) == 0
-    assert "no whiten equivalent of plitt" in capsys.readouterr().out
+    assert "Not expressible in the whiten convention" in capsys.readouterr().out
+    assert ("run_plitt", "plitt", "no whiten equivalent of plitt") in export_fits(fits_dir, "whiten").skipped

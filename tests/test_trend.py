@@ -43,6 +43,13 @@ def test_bundled_series_changes_are_found_and_nothing_before_them(bundled):
     assert all("d_cut" in alarms for alarms in cut)
 
 
+def test_bundled_series_is_what_its_generator_writes():
+    # analysis/make_trend_series.py: default SeriesDesign, seed 14 (datasets/CATALOGUE.md)
+    generated = simulate_surveys(SeriesDesign(), seed=14)
+    bundled = pd.read_csv(BUNDLED, comment="#")
+    pd.testing.assert_frame_equal(bundled, generated, check_dtype=False)
+
+
 def test_bundled_series_tidy_table_holds_values_intervals_and_truth(bundled):
     table = bundled.table
     assert list(table["quantity"].unique()) == ["d_cut", "ep", "eta", "bypass"]

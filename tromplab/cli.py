@@ -394,9 +394,12 @@ def _run_export(args) -> int:
     written = write_atomically({output.name: lambda p: result.table.to_csv(p, index=False)}, output.parent or Path("."))
     print(result.table.to_string(index=False, float_format=lambda v: f"{v:.6g}", na_rep="-"))
     if result.skipped:
-        print(f"\nNot expressible in the {args.to} convention (left out):")
-        for experiment, formula, reason in result.skipped:
-            print(f"  {experiment} / {formula}: {reason}")
+        left_out = {}
+        for experiment, formula, _ in result.skipped:
+            left_out.setdefault(formula, []).append(experiment)
+        print(f"\nNot expressible in the {args.to} convention (left out; docs/export.md lists what maps to what):")
+        for formula, experiments in left_out.items():
+            print(textwrap.fill(f"{formula}: {', '.join(experiments)}", width=98, initial_indent="  ", subsequent_indent="    "))
     print(f"\nWrote: {written[output.name]}")
     return 0
 
