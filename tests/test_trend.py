@@ -63,8 +63,8 @@ def test_bundled_series_tidy_table_holds_values_intervals_and_truth(bundled):
 
 
 def test_no_change_series_give_no_change_points_at_the_stated_rate():
-    # docs/trend.md: about 5 % of 24-survey no-change series have a false change point (L 3.5);
-    # these 4 short seeded series (6 monitored surveys each) must have none.
+    # docs/trend.md: about 1 % of monitored surveys carry a false flag (L 3.5, 200 seeded series);
+    # these 4 short seeded series (24 monitored surveys in all) must have none.
     design = SeriesDesign(n_surveys=14, bypass_step_at=None, drift_from=None)
     found = []
     for seed in range(4):
