@@ -209,7 +209,7 @@ def add_trend_section(report: Report, result, *, size_unit: str = "", figures: b
     base = [result.surveys[i].name for i in result.baseline]
     report.add("trend", "text", f"Formula {result.formula_id} fitted to each of {len(result.surveys)} surveys; baseline "
                f"{base[0]} to {base[-1]} ({len(base)} surveys). EWMA with lambda = {EWMA_LAMBDA:g} and limits at "
-               f"{EWMA_L:g} sigma (centre and moving-range sigma from the baseline). A survey after the baseline is "
+               f"{EWMA_L:g} sigma (centre and standard deviation from the baseline surveys). A survey after the baseline is "
                f"flagged 'changed' when an EWMA leaves its limits and the joint-fit equality test against the baseline "
                f"rejects at alpha = {result.alpha:g}; intervals at {result.level:.0%}. Sizes in {size_unit or 'the unit of the input'}.")  # fmt: skip
     for name, reason in result.failures.items():
