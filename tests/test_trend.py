@@ -137,6 +137,7 @@ def test_trend_command_writes_table_charts_and_report(tmp_path, capsys):
     table = pd.read_csv(out / "trend.csv")
     assert set(table["survey"]) == {d for d in frame["date"]}
     assert table.loc[table["baseline"], "survey"].nunique() == 9
+    assert set(table.loc[table["quantity"].isin(["d_cut", "ep"]), "unit"]) == {"um"}
     html = (out / "trend_report.html").read_text()
     assert "Monitoring over time" in html and "Control chart of bypass" in html and "data:image/png;base64" in html
     assert (out / "trend_bypass.png").stat().st_size > 0
@@ -151,3 +152,15 @@ def test_best_ranked_formula_is_used_when_none_is_given():
     result = monitor_surveys(surveys, baseline=3, consecutive=False)
     assert result.formula_id == fit_experiments([s.points for s in surveys]).ranking_table().iloc[0]["formula"]
     assert list(result.table["quantity"].unique()) == ["d_cut", "ep", "eta"]  # no bypass among the nine
+
+
+def test_trend_section_joins_an_ordinary_report_after_its_sections(bundled):
+    from tromplab.report import SECTIONS, Report, add_trend_section
+
+    report = Report("survey report", "surveys.csv")
+    add_trend_section(report, bundled, size_unit="um", figures=False)
+    assert report.order == (*SECTIONS, "trend")
+    html = report.html()
+    assert html.index("Input summary") < html.index("Monitoring over time")
+    assert "Change points: S14, S19, S22." in html
+    assert "Charted quantities" in report.markdown()

@@ -353,11 +353,15 @@ def _best_formula(surveys):
 
 def write_trend(result: TrendResult, outdir, *, size_unit: str = "", figures: bool = True) -> dict[str, Path]:
     """Write ``trend.csv`` (tidy), ``trend_surveys.csv`` (one row per survey), the charts
-    ``trend_<quantity>.png`` and ``trend_report.html`` (+ ``.md``), all or nothing."""
+    ``trend_<quantity>.png`` and ``trend_report.html`` (+ ``.md``), all or nothing.
+
+    ``size_unit`` labels the figures and replaces the unit ``size`` in ``trend.csv``.
+    """
     from .report import Report, add_trend_section
     from .workbench import write_atomically
 
-    outputs = {"trend.csv": lambda p: result.table.to_csv(p, index=False, date_format="%Y-%m-%d"),
+    table = result.table.replace({"unit": {"size": size_unit}}) if size_unit else result.table
+    outputs = {"trend.csv": lambda p: table.to_csv(p, index=False, date_format="%Y-%m-%d"),
                "trend_surveys.csv": lambda p: result.survey_flags().to_csv(p, index=False, date_format="%Y-%m-%d")}  # fmt: skip
     if figures:
         import matplotlib
