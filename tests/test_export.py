@@ -147,3 +147,28 @@ def test_export_refuses_bad_input_with_clear_messages(fits_dir, tmp_path, capsys
     assert main(["export", str(fits_dir), "--to", "whiten"]) == 0
     assert "Not expressible in the whiten convention" in capsys.readouterr().out
     assert ("run_plitt", "plitt", "no whiten equivalent of plitt") in export_fits(fits_dir, "whiten").skipped
+
+
+@pytest.mark.parametrize(
+    "model, params, formula",
+    [
+        ("Teipel & Hennig", {"Xcut": 0.002, "Alpha": 8.0, "Beta": 0.5, "Offset": 0.2}, "teipel_hennig"),
+        ("Plitt", {"Xcut": 0.002, "Alpha": 8.0}, "rosin_rammler"),
+        ("Molerus & Hoffmann", {"Xcut": 0.002, "Alpha": 8.0}, "molerus_hoffmann"),
+    ],
+)
+def test_dyssol_default_screen_parameters_survive_a_fit_and_an_export(model, params, formula):
+    """Dyssol's Screen defaults (Units/Screen/Screen.cpp: Xcut 0.002 m, Alpha 8, Beta 0.5, Offset 0.2):
+    a curve drawn by Dyssol's expression is fitted by tromplab and exported back to the same numbers."""
+    from tromplab.curves import fit_formula
+    from tromplab.export import FittedCurve
+    from tromplab.points import TrompPoints
+
+    sizes_um = np.geomspace(300, 8000, 16)
+    row = pd.Series({"Model": model, "Beta": np.nan, "Offset": 0.0, **params})
+    points = TrompPoints(model, sizes_um, 1 - dyssol_coarse(sizes_um * 1e-6, row))
+    fit = fit_formula(points, formula)
+    exported = export_fits([FittedCurve(model, formula, fit.d_cut, fit.shape, fit.extras)], "dyssol", size_unit="um").table.iloc[0]
+    assert exported["Model"] == model
+    for name, value in params.items():
+        assert_allclose(exported[name], value, rtol=1e-6, atol=1e-9)
