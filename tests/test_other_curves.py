@@ -110,3 +110,12 @@ def test_formulas_command_lists_the_other_family_and_the_name_clashes(capsys):
     out = capsys.readouterr().out
     assert "teipel_hennig" in out and "(201) normal" in out
     assert "'Plitt'" in out and "rosin_rammler" in out and "'Whiten'" in out
+
+
+def test_every_registered_curve_gets_its_own_figure_style():
+    from tromplab.formulas import ALL_FORMULAS
+    from tromplab.plotting import curve_styles
+
+    styles = [(s["color"], s["ls"]) for s in curve_styles(len(ALL_FORMULAS))]
+    assert len(set(styles)) == len(ALL_FORMULAS) > 12
+    assert all(a[1] != b[1] for a, b in zip(styles, styles[1:]))  # consecutive curves differ in line style

@@ -23,7 +23,8 @@ CURVE_LINESTYLES = ("-", "--", "-.", ":")
 
 def curve_styles(n: int) -> list[dict]:
     """Colour and line style of ``n`` curves: every curve a different colour up to 12
-    curves, and consecutive curves a different line style (colours repeat beyond 12).
+    curves, and consecutive curves a different line style; beyond 12 the colours repeat
+    with the line styles shifted, so up to 48 curves keep distinct styles.
 
     Examples
     --------
@@ -31,7 +32,8 @@ def curve_styles(n: int) -> list[dict]:
     >>> len({s["color"] for s in styles}), styles[0]["ls"], styles[1]["ls"]
     (12, '-', '--')
     """
-    return [{"color": CURVE_COLOURS[i % len(CURVE_COLOURS)], "ls": CURVE_LINESTYLES[i % len(CURVE_LINESTYLES)]}
+    rounds = len(CURVE_COLOURS)
+    return [{"color": CURVE_COLOURS[i % rounds], "ls": CURVE_LINESTYLES[(i + i // rounds) % len(CURVE_LINESTYLES)]}
             for i in range(n)]  # fmt: skip
 
 
