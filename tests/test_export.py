@@ -135,6 +135,10 @@ def test_csv_long_holds_every_parameter_with_its_unit(fits_dir):
 def test_export_refuses_bad_input_with_clear_messages(fits_dir, tmp_path, capsys):
     with pytest.raises(ValueError, match="size-unit"):
         export_fits(fits_dir, "dyssol")
+    with pytest.raises(ValueError, match="unknown size unit 'inch'"):
+        export_fits(fits_dir, "plitt", size_unit="inch")
+    with pytest.raises(ValueError, match="unknown convention 'jksimmet'"):
+        export_fits(fits_dir, "jksimmet")
     with pytest.raises(InputError, match="no fits.csv"):
         read_fits(tmp_path)
     broken = pd.read_csv(fits_dir / "fits.csv")

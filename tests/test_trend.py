@@ -164,3 +164,17 @@ def test_trend_section_joins_an_ordinary_report_after_its_sections(bundled):
     assert html.index("Input summary") < html.index("Monitoring over time")
     assert "Change points: S14, S19, S22." in html
     assert "Charted quantities" in report.markdown()
+
+
+def test_read_surveys_takes_a_lab_table_with_dates(tmp_path):
+    from tromplab.lab import read_experiments
+
+    lab = pd.read_csv(DATASETS / "double_deck_screen_decks_lab.csv", comment="#")
+    lab["date"] = lab["experiment"].map({"deck_20mesh": "2025-02-01", "deck_65mesh": "2025-01-15"})
+    lab.drop(columns=["experiment"]).to_csv(tmp_path / "lab.csv", index=False)
+    surveys = read_surveys(tmp_path / "lab.csv")
+    assert [s.name for s in surveys] == ["2025-01-15", "2025-02-01"]  # sorted by date
+    expected, _ = read_experiments(DATASETS / "double_deck_screen_decks_lab.csv")
+    by_name = {p.experiment: p for p in expected}
+    assert_allclose(surveys[0].points.partition_fine, by_name["deck_65mesh"].partition_fine)
+    assert_allclose(surveys[1].points.size, by_name["deck_20mesh"].size)
