@@ -15,7 +15,7 @@ import pandas as pd
 
 from ._version import __version__
 from .errors import InputError
-from .formulas import registry_table, select_formulas
+from .formulas import NAME_CLASHES, registry_table, select_formulas
 from .lab import KINDS, LabOptions, YieldWarning, read_experiments, read_lab
 from .model_commands import add_model_commands
 from .ranking import RANK_BY, rank_formulas, read_f_table
@@ -104,6 +104,24 @@ def _parser() -> argparse.ArgumentParser:
     compare.add_argument("--shared", choices=("shape", "d_cut"), default="shape", help="parameter shared by the joint fit")
     compare.add_argument("--experiments", default=None, help="comma-separated experiments to compare (default: all)")
     compare.set_defaults(run=_run_compare)
+
+    export = commands.add_parser("export", help="write fitted parameters in a simulator's convention (whiten, plitt, dyssol, csv-long)")
+    export.add_argument("fits_dir", type=Path, help="output folder of 'tromplab fit' (or its fits.csv)")
+    export.add_argument("--to", required=True, choices=("whiten", "plitt", "dyssol", "csv-long"), help="target convention (docs/export.md)")
+    export.add_argument("-o", "--output", type=Path, default=None, help="CSV to write (default: FITS_DIR/export_<convention>.csv)")
+    export.add_argument("--size-unit", default=None, help="unit of the fitted sizes: um, mm, cm or m (required by --to dyssol)")
+    export.set_defaults(run=_run_export)
+
+    trend = commands.add_parser("trend", parents=[lab], help="monitor a classifier over surveys: control charts and change flags")
+    trend.add_argument("input", type=Path, help="Tromp points or a lab table with a 'date' (or 'survey') column")
+    trend.add_argument("-o", "--outdir", type=Path, default=Path("results/trend"), help="output folder (default: results/trend)")
+    trend.add_argument("--formula", default=None, help="formula id (default: the best-ranked of the nine over all surveys)")
+    trend.add_argument("--baseline", default=None,
+                       help="baseline period: the first N surveys, or a date range FROM:TO (default: the first half, at most 8)")
+    trend.add_argument("--alpha", type=float, default=0.01, help="significance level of the change flags (default 0.01)")
+    trend.add_argument("--size-unit", default="", help="unit of the sizes, for the figure labels")
+    trend.add_argument("--no-figures", action="store_true", help="do not draw figures")
+    trend.set_defaults(run=_run_trend)
 
     points = commands.add_parser("points", parents=[lab], help="turn a lab table into Tromp points with diagnostics")
     points.add_argument("input", type=Path, help="lab table (CSV or .xlsx)")
@@ -268,7 +286,8 @@ def _run_sieve_bin(args) -> int:
 
 def _run_formulas(args) -> int:
     table = registry_table()
-    for family, heading in (("paper", "The nine formulas of Shuvalov et al. (2018)"), ("extended", "Extended curves (--extended)")):
+    for family, heading in (("paper", "The nine formulas of Shuvalov et al. (2018)"), ("extended", "Extended curves (--extended)"),
+                            ("other", "Curves of other tools (--formulas other)")):  # fmt: skip
         print(f"{heading}:")
         for row in table[table["family"] == family].itertuples(index=False):
             extras = f", extras {row.extras}" if row.extras else ""
@@ -277,6 +296,10 @@ def _run_formulas(args) -> int:
             print(textwrap.fill(f"shape {row.shape_name}{extras}; slope at the cut {row.slope_at_cut}", width=98,
                                 initial_indent="      ", subsequent_indent="      "))  # fmt: skip
         print()
+    print("Same name, different curve (docs/curves.md):")
+    for clash in NAME_CLASHES:
+        print(textwrap.fill(clash, width=98, initial_indent="  - ", subsequent_indent="    "))
+    print()
     print("x = size / d_cut; phi = partition to the fine product. Corrections: docs/errata.md.")
     return 0
 
@@ -368,6 +391,38 @@ def _run_compare(args) -> int:
     verdict = "differ" if test.needed() else "are consistent with one"
     print(f"\nExtra sum of squares: F = {test.F:.4g} on ({test.df_extra}, {test.df_full}) df, p = {test.p_value:.4g}: "
           f"the experiments {verdict} {result.shared} (alpha 0.05)")  # fmt: skip
+    return 0
+
+
+def _run_export(args) -> int:
+    from .export import export_fits
+
+    result = export_fits(args.fits_dir, args.to, size_unit=args.size_unit)
+    folder = args.fits_dir if args.fits_dir.is_dir() else args.fits_dir.parent
+    output = args.output or folder / f"export_{args.to.replace('-', '_')}.csv"
+    written = write_atomically({output.name: lambda p: result.table.to_csv(p, index=False)}, output.parent or Path("."))
+    print(result.table.to_string(index=False, float_format=lambda v: f"{v:.6g}", na_rep="-"))
+    if result.skipped:
+        left_out = {}
+        for experiment, formula, _ in result.skipped:
+            left_out.setdefault(formula, []).append(experiment)
+        print(f"\nNot expressible in the {args.to} convention (left out; docs/export.md lists what maps to what):")
+        for formula, experiments in left_out.items():
+            print(textwrap.fill(f"{formula}: {', '.join(experiments)}", width=98, initial_indent="  ", subsequent_indent="    "))
+    print(f"\nWrote: {written[output.name]}")
+    return 0
+
+
+def _run_trend(args) -> int:
+    from .trend import monitor_surveys, read_surveys, write_trend
+
+    surveys = read_surveys(args.input, _lab_options(args))
+    result = monitor_surveys(surveys, formula=args.formula, baseline=args.baseline, alpha=args.alpha)
+    written = write_trend(result, args.outdir, size_unit=args.size_unit, figures=not args.no_figures)
+    print(result.summary())
+    print("\nWrote:")
+    for path in written.values():
+        print(f"  {path}")
     return 0
 
 

@@ -237,6 +237,7 @@ class CurveFit:
             "x_break": self.x_break,
             "bypass": self.fit.values.get("bypass", np.nan),
             "fishhook": self.fit.values.get("fishhook", np.nan),
+            "extras": "; ".join(f"{name}={value!r}" for name, value in self.extras.items() if name not in ("bypass", "fishhook")),
             "success": self.success,
             "message": self.message,
             "warnings": "; ".join(self.warnings),

@@ -89,7 +89,8 @@ class Formula:
         Further fitted parameters (extended curves only); ``phi`` takes them as keywords.
     family : str
         ``"paper"`` for the nine formulas of [Shuvalov2018]_, ``"extended"`` for the
-        curves with bypass or fish-hook (kept out of the paper's ranking by default).
+        curves with bypass or fish-hook, ``"other"`` for the curves of other tools
+        (both kept out of the paper's ranking by default).
     nests : str or None
         Id of the paper formula this one reduces to when its extras vanish (for the
         extra-sum-of-squares test).
@@ -865,7 +866,7 @@ FISHHOOK = Parameter("fishhook", 0.0, 3.0, unit="1", meaning="Whiten's beta: ris
                      start=0.1, start_rule="fixed at 0.1")  # fmt: skip
 
 
-def with_bypass(base: Formula, *, equation: int, citation: str) -> Formula:
+def with_bypass(base: Formula, *, equation: int, citation: str, family: str = "extended") -> Formula:
     r"""``base`` with bypass: :math:`\varphi = (1 - \text{bypass})\,\varphi_{base}(x)`.
 
     A share of every size reports to the coarse product unclassified; ``d_cut`` becomes
@@ -921,7 +922,7 @@ def with_bypass(base: Formula, *, equation: int, citation: str) -> Formula:
         citation=citation,
         notes="d_cut is the corrected cut; the actual curve is 0.5 (1 - bypass) there.",
         extras=(BYPASS,),
-        family="extended",
+        family=family,
         nests=base.id,
         shape_meaning=base.shape_meaning,
     )
@@ -1021,7 +1022,147 @@ EXTENDED_FORMULAS: tuple[Formula, ...] = (
         monotone=False,
     ),
 )
-ALL_FORMULAS = FORMULAS + EXTENDED_FORMULAS
+
+# --- other curve families: the curves other tools use ------------------------------------
+LN3 = np.log(3.0)
+DYSSOL_2020 = (
+    "Skorych V., Dosta M., Heinrich S. (2020). Dyssol - an open-source flowsheet simulation framework for "
+    "particulate materials. SoftwareX 12, 100572. doi:10.1016/j.softx.2020.100572 (Screen unit models)"
+)
+KING_2001 = "King R.P. (2001). Modeling and Simulation of Mineral Processing Systems. Butterworth-Heinemann, Oxford (ch. 5, classification functions)"
+TEIPEL_HENNIG_ALPHA = ExtraParameter(
+    "th_alpha", (0.0, 50.0), 1.0, "Teipel/Hennig alpha: the exponent is (x + alpha) beta, written here as k (x + alpha)/(1 + alpha)"
+)
+
+
+def normal_linear(x, sigma_rel):
+    r"""Normal distribution in linear size: :math:`\varphi = \tfrac12 \operatorname{erfc}\big((x - 1)/(\sqrt2\,\sigma_r)\big)`.
+
+    :math:`\sigma_r = \sigma / d_{cut}`: the standard deviation of the size at which a
+    particle is separated, relative to the cut (the "probability" model of screens).
+    Unlike the log-normal law (9) it gives :math:`\varphi(0) = \tfrac12 \operatorname{erfc}(-1/(\sqrt2\sigma_r)) < 1`.
+    Slope at the cut :math:`-1/(\sqrt{2\pi}\,\sigma_r)`.
+
+    Examples
+    --------
+    >>> round(float(normal_linear(1.2, 0.2)), 6)  # one sigma above the cut: 1 - Phi(1)
+    0.158655
+    """
+    x = _as_array(x)
+    return 0.5 * special.erfc((x - 1.0) / (np.sqrt(2.0) * sigma_rel))
+
+
+def logistic_linear(x, imperfection):
+    r"""Logistic curve in linear size: :math:`\varphi = 1/(1 + e^{\ln 3\,(x - 1)/I})`.
+
+    Written with the imperfection :math:`I = E_p/d_{cut}`: the factor :math:`\ln 3` puts
+    ``d25`` and ``d75`` exactly at :math:`x = 1 \mp I`, so :math:`E_p = I\,d_{cut}`
+    (the "Napier-Munn" partition of density and size separators, written in d50 and Ep).
+    Slope at the cut :math:`-\ln 3/(4 I)`.
+
+    Examples
+    --------
+    >>> round(float(logistic_linear(1.1, 0.1)), 6)  # d75: a quarter to the fines
+    0.25
+    """
+    x = _as_array(x)
+    return special.expit(-LN3 * (x - 1.0) / imperfection)
+
+
+def teipel_hennig(x, k, *, th_alpha=1.0, bypass=0.0):
+    r"""Teipel/Hennig grade-efficiency curve with offset, to the fine product.
+
+    .. math::
+        \varphi = (1 - \text{offset}) \left(1 + 3 x^{(x + \alpha)\beta}\right)^{-1/2},
+        \quad \beta = k / (1 + \alpha)
+
+    The offset (``bypass``) is the share of every size sent to the coarse product
+    unclassified.  Written with :math:`k = (1 + \alpha)\beta`, the exponent at the cut,
+    so that the slope at the cut :math:`-\tfrac{3}{16} k (1 - \text{offset})` depends on
+    the shape alone; for large :math:`\alpha` the curve tends to
+    :math:`(1 + 3x^k)^{-1/2}`.
+
+    Examples
+    --------
+    >>> float(teipel_hennig(1.0, 4.0, th_alpha=2.0))
+    0.5
+    """
+    x = _as_array(x)
+    exponent = k * (x + th_alpha) / (1.0 + th_alpha)
+    with np.errstate(over="ignore", divide="ignore"):
+        return (1.0 - bypass) / np.sqrt(1.0 + 3.0 * np.power(x, exponent))
+
+
+OTHER_FORMULAS: tuple[Formula, ...] = (
+    Formula(
+        id="normal",
+        equation=201,
+        title="Normal distribution in linear size",
+        expression="erfc((x - 1)/(sqrt(2)*sigma_rel))/2",
+        shape_name="sigma_rel",
+        shape_bounds=(1e-3, 10.0),
+        phi=normal_linear,
+        slope_at_cut=lambda s: -1.0 / (np.sqrt(2.0 * np.pi) * s),
+        slope_expression="-1/(sqrt(2*pi)*sigma_rel)",
+        shape_for_slope=lambda slope: -1.0 / (np.sqrt(2.0 * np.pi) * slope),
+        citation=KING_2001 + "; as the 'Probability' screen model (Mean, Deviation) in " + DYSSOL_2020,
+        notes="sigma_rel = sigma/d_cut; phi(0) < 1. Dyssol's Probability model sums the normal density over its own "
+        "size classes, so it equals this curve only on a fine grid.",
+        family="other",
+    ),
+    Formula(
+        id="logistic",
+        equation=202,
+        title="Logistic curve in linear size (d50, Ep)",
+        expression="1/(1 + exp(ln(3)*(x - 1)/imperfection))",
+        shape_name="imperfection",
+        shape_bounds=(1e-3, 10.0),
+        phi=logistic_linear,
+        slope_at_cut=lambda i: -LN3 / (4.0 * i),
+        slope_expression="-ln(3)/(4*imperfection)",
+        shape_for_slope=lambda slope: -LN3 / (4.0 * slope),
+        citation=NAPIER_MUNN_1996 + " (partition curve in d50 and Ep); " + KING_2001,
+        notes="I = Ep/d_cut; d25 and d75 lie at x = 1 -+ I. Other tools print ln 3 rounded (1.099) and call this "
+        "the Napier-Munn partition.",
+        family="other",
+    ),
+    Formula(
+        id="teipel_hennig",
+        equation=203,
+        title="Teipel/Hennig with offset",
+        expression="(1 - bypass)*(1 + 3*x^((x + th_alpha)*k/(1 + th_alpha)))^(-1/2)",
+        shape_name="k",
+        shape_bounds=(0.05, 60.0),
+        phi=teipel_hennig,
+        slope_at_cut=lambda k: -3.0 * k / 16.0,
+        slope_expression="(1 - bypass)*(-3*k/16)",
+        shape_for_slope=lambda slope: -16.0 * slope / 3.0,
+        citation="Teipel U., Hennig M., grade-efficiency function of screens, as the 'Teipel & Hennig' screen model "
+        "(Xcut, Alpha, Beta, Offset) of " + DYSSOL_2020 + " (primary publication not seen)",
+        notes="k = (1 + alpha) beta is the exponent at the cut; Dyssol's Beta = k/(1 + alpha). The offset is "
+        "tromplab's bypass (share to the coarse product).",
+        extras=(TEIPEL_HENNIG_ALPHA, BYPASS),
+        family="other",
+    ),
+    # Plitt's (1976) hydrocyclone curve: the Rosin-Rammler form with bypass, as simulators write "Plitt".
+    with_bypass(_BASE["rosin_rammler"], equation=105, citation=PLITT_1976 + " (corrected efficiency with bypass Rf)",
+                family="other"),  # fmt: skip
+)
+
+#: Names that mean different curves in different tools (printed by ``tromplab formulas``).
+NAME_CLASHES = (
+    "'Plitt' in hydrocyclone models (Plitt 1976) and in Dyssol's Screen unit is tromplab's rosin_rammler "
+    "(5) (with bypass: rosin_rammler_bypass), written to the coarse product as 1 - exp(-0.693 (d/d50)^m); "
+    "tromplab's plitt (7) is Plitt's 1971 log-logistic 1/(1 + x^ks).",
+    "'Whiten' in JKSimMet and Napier-Munn et al. (1996) is tromplab's whiten (alpha, beta, beta*, d50c, C = 1 - bypass, "
+    "to the fine product); a plain 'Whiten' curve without beta (to the coarse product, (e^(alpha x) - 1)/(e^(alpha x) + "
+    "e^alpha - 2)) is tromplab's lynch (6).",
+    "'Napier-Munn' partition in some geometallurgy tools is tromplab's logistic: 1/(1 + exp(1.099 (d50 - d)/Ep)) to the "
+    "coarse product.",
+    "'Molerus & Hoffmann' in Dyssol is tromplab's molerus_hoffmann (4) with alpha = km2; 'Probability' is normal "
+    "(Mean = d_cut, Deviation = sigma_rel d_cut, summed over the class grid).",
+)
+ALL_FORMULAS = FORMULAS + EXTENDED_FORMULAS + OTHER_FORMULAS
 
 _BY_ID = {formula.id: formula for formula in ALL_FORMULAS}
 _BY_EQUATION = {formula.equation: formula for formula in FORMULAS}
@@ -1096,7 +1237,9 @@ def select_formulas(keys=None) -> tuple[Formula, ...]:
     ----------
     keys : str, iterable of str/int, or None
         Ids or equation numbers (a comma-separated string is split); ``"extended"``
-        stands for every extended curve (bypass, fish-hook), ``"paper"`` for the nine.
+        stands for every extended curve (bypass, fish-hook), ``"paper"`` for the nine,
+        ``"other"`` for the curves of other tools (normal, logistic, Teipel/Hennig,
+        Plitt 1976).
 
     Returns
     -------
@@ -1113,7 +1256,8 @@ def select_formulas(keys=None) -> tuple[Formula, ...]:
         keys = [k for k in keys.replace(" ", "").split(",") if k]
     chosen = []
     for key in keys:
-        group = EXTENDED_FORMULAS if key == "extended" else FORMULAS if key == "paper" else (get_formula(key),)
+        groups = {"extended": EXTENDED_FORMULAS, "paper": FORMULAS, "other": OTHER_FORMULAS}
+        group = groups[key] if key in groups else (get_formula(key),)
         chosen += [f for f in group if f not in chosen]
     return tuple(chosen)
 

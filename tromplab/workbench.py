@@ -29,7 +29,7 @@ FIT_COLUMNS = (
     "experiment", "equation", "formula", "n", "d_cut", "d_cut_stderr", "shape_name", "shape", "shape_stderr",
     "ssr", "F", "F_crit", "adequate", "rank", "eta", "epsilon", "slope", "d25", "d75", "ep", "imperfection",
     "d50", "d50c", "ep_c", "imperfection_c",
-    "aic", "aicc", "bic", "bypass", "fishhook", "runs_p", "normality_p", "x_break", "success", "message", "warnings",
+    "aic", "aicc", "bic", "bypass", "fishhook", "extras", "runs_p", "normality_p", "x_break", "success", "message", "warnings",
 )  # fmt: skip
 
 
