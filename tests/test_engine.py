@@ -39,8 +39,9 @@ def synthetic(seed: int) -> TrompPoints:
 EXPERIMENTS = [synthetic(seed) for seed in range(27)]
 
 
-def test_every_formula_is_batched_except_the_fishhook_curve():
-    assert {f.id for f in ALL_FORMULAS if not is_batchable(f)} == {"whiten"}
+def test_every_formula_is_batched_except_curves_with_two_extras():
+    assert {f.id for f in ALL_FORMULAS if not is_batchable(f)} == {f.id for f in ALL_FORMULAS if len(f.extras) >= 2}
+    assert all(is_batchable(f) for f in FORMULAS)
 
 
 @pytest.mark.slow
@@ -57,7 +58,8 @@ def test_batched_optimum_is_at_least_the_single_fit_optimum(formula):
             assert_allclose(batched.indices.eta, single.indices.eta, rtol=1e-3)
             if np.isfinite(single.fit.stderr["d_cut"]) and not single.fit.at_bound:
                 assert_allclose(batched.fit.stderr["d_cut"], single.fit.stderr["d_cut"], rtol=0.05)
-        assert batched.warnings == single.warnings or batched.fit.ssr < single.fit.ssr
+        kinds = [[w.split(" ")[0] for w in fit.warnings] for fit in (batched, single)]  # the same checks fire
+        assert kinds[0] == kinds[1] or batched.fit.ssr < single.fit.ssr * (1 - 1e-6)
 
 
 @pytest.mark.parametrize("formula_id", ["luckie_austin", "shuvalov"])

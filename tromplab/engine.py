@@ -23,8 +23,10 @@ that hold every experiment and every starting point at once:
 Every formula whose curve broadcasts over array-valued shapes runs here, the piecewise
 (10) included; formula (11) gets a vectorised break-point solver
 (:func:`shuvalov_breaks`).  Curves that need a scalar root per parameter set (Whiten's
-fish-hook curve, whose ``beta*`` solves an equation) are reported by
-:func:`is_batchable` as not batchable and fitted one by one by the caller.
+fish-hook curve, whose ``beta*`` solves an equation) and curves with two or more extra
+parameters (their extras interact, and the engine starts them at one declared value
+only) are reported by :func:`is_batchable` as not batchable and fitted one by one by the
+caller.
 
 The engine itself does not use lmfit; :func:`fit_formula_batch` wraps its optimum in the
 same :class:`~tromplab.curves.CurveFit` a single fit returns, and
@@ -152,6 +154,8 @@ def _batchable(formula_id: str) -> bool:
     formula = get_formula(formula_id)
     if formula.id == "shuvalov":
         return True
+    if len(formula.extras) >= 2:  # interacting extras (Teipel-Hennig's alpha and bypass): one start is not enough
+        return False
     x = np.array([[0.5, 1.0, 2.0], [0.5, 1.0, 2.0]])
     shape = np.array([[formula.clip_shape(1.0)], [formula.clip_shape(2.0)]])
     extras = {extra.name: np.full((2, 1), extra.start) for extra in formula.extras}
@@ -571,19 +575,18 @@ def _covariance(jac: np.ndarray, ssr: np.ndarray, n: np.ndarray, n_params: int) 
 # --- from the batched optimum to CurveFit results ----------------------------------------------
 def fit_formula_batch(experiments: Sequence[TrompPoints], formula, *, alpha: float | None = None,
                       delta_max: float | None = None, global_search: bool = True,
-                      start: dict[str, float] | None = None) -> list:  # fmt: skip
+                      start: dict[str, float] | None = None, size_unit: str = "") -> list:  # fmt: skip
     """:func:`tromplab.curves.fit_formula` for many experiments at once.
 
-    Returns one :class:`~tromplab.curves.CurveFit` per experiment, in order, each with the
-    same checks, screen, indices and diagnostics as a single fit.  The fit's
-    ``ParameterFit`` is built from the batched optimum (``raw`` is None; use
-    :func:`tromplab.curves.with_lmfit` for an lmfit result).  Experiments with too few
-    points for the formula get a failed fit with the reason.  ``global_search`` and
-    ``start`` (one further start for every experiment) are as for a single fit; the
-    bootstrap refits its resamples from the optimum without the grid.
+    Returns one :class:`~tromplab.curves.CurveFit` per experiment, in order, with the same
+    recorded options as a single fit, so its screen, indices, diagnostics and warnings
+    are derived in the same way.  The fit's ``ParameterFit`` is built from the batched
+    optimum (``raw`` is None; :func:`tromplab.curves.with_lmfit` gives an lmfit result).
+    Experiments with too few points for the formula get a failed fit with the reason.
+    ``global_search`` and ``start`` (one further start for every experiment) are as for a
+    single fit; the bootstrap refits its resamples from the optimum without the grid.
     """
-    from .curves import finish_fit, measured_cut_size, measured_efficiency, measured_slope
-    from .fitting import ParameterFit, ParameterSpec
+    from .curves import CurveFit, FitOptions, failed_fit, formula_context, measured_cut_size, measured_slope
     from .screening import DEFAULT_ALPHA
 
     alpha = DEFAULT_ALPHA if alpha is None else alpha
@@ -594,7 +597,7 @@ def fit_formula_batch(experiments: Sequence[TrompPoints], formula, *, alpha: flo
     for i, points in enumerate(experiments):
         if points.n <= formula.n_params:
             message = f"{points.n} points cannot be fitted with {formula.n_params} parameters"
-            results[i] = _failed_fit(formula, points, ParameterFit.failed([ParameterSpec(n) for n in names], points.n, message))
+            results[i] = failed_fit(points, formula, message, alpha=alpha, delta_max=delta_max, size_unit=size_unit)
     if not usable:
         return results
     chosen = [experiments[i] for i in usable]
@@ -606,13 +609,15 @@ def fit_formula_batch(experiments: Sequence[TrompPoints], formula, *, alpha: flo
         starts[row, 0, 2:] = [extra.start for extra in formula.extras]
     if start is not None:
         starts[:, 1, :] = [start[name] for name in names]
-    efficiency = np.array([measured_efficiency(p) for p in chosen]) if formula.context_from_efficiency else None
+    contexts = [formula_context(formula, points) for points in chosen]
+    efficiency = np.array([c["measured_efficiency"] for c in contexts]) if formula.context_from_efficiency else None
     optimum = fit_batch(formula, data, starts=starts, efficiency=efficiency, global_search=global_search)
     stderr = optimum.stderr()
     for row, (i, points) in enumerate(zip(usable, chosen)):
-        context = {"measured_efficiency": float(efficiency[row])} if efficiency is not None else {}
-        results[i] = finish_fit(formula, points, _parameter_fit(optimum, row, stderr[row], points), context,
-                                float(optimum.grid_ssr[row]), alpha=alpha, delta_max=delta_max)  # fmt: skip
+        options = FitOptions.for_points(points, alpha=alpha, delta_max=delta_max, size_unit=size_unit,
+                                        global_search=global_search)  # fmt: skip
+        results[i] = CurveFit(formula=formula, points=points, fit=_parameter_fit(optimum, row, stderr[row], points),
+                              context=contexts[row], options=options, grid_ssr=float(optimum.grid_ssr[row]))  # fmt: skip
     return results
 
 
@@ -641,12 +646,6 @@ def _parameter_fit(optimum: BatchOptimum, row: int, stderr: np.ndarray, points: 
         covariance=covariance.copy() if known else None,
         residual=optimum.residual[row, : points.n].copy(),
     )
-
-
-def _failed_fit(formula, points, parameter_fit):
-    from .curves import CurveFit
-
-    return CurveFit(formula=formula, points=points, fit=parameter_fit)
 
 
 # --- the bootstrap on the engine -------------------------------------------------------------
@@ -697,10 +696,11 @@ def refit_resamples(fit, samples: Sequence[TrompPoints], *, delta_max: float | N
     """
     from .curves import fit_formula
 
-    alpha = fit.screen.alpha if fit.screen is not None else None
+    options = fit.options
+    delta_max = options.delta_max if delta_max is None else delta_max
     start = dict(fit.fit.values)
     if is_batchable(fit.formula):
-        return fit_formula_batch(samples, fit.formula, alpha=alpha, delta_max=delta_max, global_search=False, start=start)
-    kwargs = {} if alpha is None else {"alpha": alpha}
-    return [fit_formula(sample, fit.formula, delta_max=delta_max, global_search=False, starts=[start], **kwargs)
-            for sample in samples]  # fmt: skip
+        return fit_formula_batch(samples, fit.formula, alpha=options.alpha, delta_max=delta_max, global_search=False,
+                                 start=start, size_unit=options.size_unit)  # fmt: skip
+    return [fit_formula(sample, fit.formula, alpha=options.alpha, delta_max=delta_max, global_search=False, starts=[start],
+                        size_unit=options.size_unit) for sample in samples]  # fmt: skip

@@ -2,7 +2,9 @@
 
 Rows are numbered as in the file: for CSV the line number (comment lines starting with
 ``#`` count, so the number is where an editor shows the row); for Excel the sheet row
-(header = row 1).
+(header = row 1); for a pandas DataFrame its index label (messages say "DataFrame, row
+<label>").  A DataFrame goes through the same :class:`Table` checks as a file, so the
+Python API and the CLI refuse the same input with the same words.
 """
 
 from __future__ import annotations
@@ -29,7 +31,8 @@ class Table:
 
     def error(self, message: str, *, index: int | None = None, column: str | None = None) -> InputError:
         """An :class:`InputError` pointing at record ``index`` (0-based) and ``column``."""
-        row = None if index is None else int(self.rows[index])
+        row = None if index is None else self.rows[index]
+        row = int(row) if isinstance(row, (int, np.integer)) else row  # a DataFrame's index label may be text
         return InputError(message, source=self.source, row=row, column=column)
 
     def require(self, *columns: str) -> None:
@@ -78,13 +81,24 @@ class Table:
 
 
 def read_table(path, *, sheet: str | int | None = None) -> Table:
-    """Read a CSV (``#`` comments allowed) or Excel file into a :class:`Table`.
+    """Read a CSV (``#`` comments allowed) or Excel file, or take a DataFrame, into a :class:`Table`.
+
+    Parameters
+    ----------
+    path : str, path-like or pandas.DataFrame
+        The file, or a DataFrame already in memory (see :func:`table_from_frame`).
+    sheet : str or int, optional
+        Excel sheet (name or 0-based position); the first sheet by default.
 
     Raises
     ------
     InputError
         When the file is missing, empty, has no data rows, or the sheet does not exist.
     """
+    if isinstance(path, pd.DataFrame):
+        if sheet is not None:
+            raise InputError(f"a sheet ({sheet!r}) was given with a DataFrame", source=DATAFRAME_SOURCE)
+        return table_from_frame(path)
     path = Path(path)
     source = str(path)
     if not path.exists():
@@ -101,6 +115,38 @@ def read_table(path, *, sheet: str | int | None = None) -> Table:
     if frame.empty:
         raise InputError("the table has a header but no data rows", source=source)
     return Table(frame.reset_index(drop=True), rows, source)
+
+
+DATAFRAME_SOURCE = "DataFrame"
+
+
+def table_from_frame(frame: pd.DataFrame, *, source: str = DATAFRAME_SOURCE) -> Table:
+    """A :class:`Table` from a DataFrame; rows are named by the frame's index labels.
+
+    Column names are stripped of spaces and rows that are blank throughout are dropped, as
+    for a file; the frame itself is not changed.
+
+    Examples
+    --------
+    >>> frame = pd.DataFrame({"size": [10, "ten"]}, index=["a", "b"])
+    >>> table_from_frame(frame).numeric("size")
+    Traceback (most recent call last):
+    ...
+    tromplab.errors.InputError: DataFrame, row b, column 'size': 'ten' is not a number
+    """
+    if not isinstance(frame, pd.DataFrame):
+        raise InputError(f"expected a pandas DataFrame, got {type(frame).__name__}", source=source)
+    frame = frame.copy()
+    frame.columns = [str(c).strip() for c in frame.columns]
+    if len(set(frame.columns)) != len(frame.columns):
+        twice = sorted({c for c in frame.columns if list(frame.columns).count(c) > 1})
+        raise InputError(f"column(s) {', '.join(twice)} appear more than once", source=source)
+    keep = ~frame.isna().all(axis=1).to_numpy()
+    rows = np.asarray(frame.index[keep], dtype=object)
+    frame = frame.loc[keep].reset_index(drop=True)
+    if frame.empty:
+        raise InputError("the table has no data rows", source=source)
+    return Table(frame, rows, source)
 
 
 def _read_csv(path: Path):
