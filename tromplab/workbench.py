@@ -367,7 +367,7 @@ def model_averages(bench: Workbench, *, level: float = 0.95, jobs: int | None = 
     """
     ranked = {f.id for f in bench.ranked_formulas}
     groups = []
-    for experiment, fits in bench.fits_by_experiment().items():
+    for fits in bench.fits_by_experiment().values():
         chosen = [f for f in fits if f.success and f.formula.id in ranked]
         if chosen:
             groups.append(chosen)
