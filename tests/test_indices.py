@@ -105,3 +105,28 @@ def test_d25_is_missing_when_the_curve_never_reaches_three_quarters():
 def test_indices_use_the_feed_top_size_relative_to_the_cut():
     ind = curve_indices("lognormal", 50.0, 1.2, delta_max=300.0)
     assert_allclose(ind.epsilon, efficiency("lognormal", 1.2, 6.0)[1])
+
+
+def _dense_efficiency(formula, shape, x_max, **context):
+    """Independent reference: trapezoid rule on a million points, uniform on [0, 1], log-spaced above."""
+    below = np.linspace(0.0, 1.0, 200_001)
+    above = 1.0 + np.geomspace(1e-9, x_max - 1.0, 800_001)
+    eta = np.trapezoid(formula.phi(below, shape, **context), below)
+    eps = np.trapezoid(formula.phi(np.concatenate(([1.0], above)), shape, **context), np.concatenate(([1.0], above)))
+    return eta, eps
+
+
+def test_sharp_molerus_misplacement_over_a_long_tail():
+    """Issue 10: km1 = 30 at x_max = 500 gave eps = 1.7e-18 (quad missed the step at the cut)."""
+    formula = get_formula("molerus")
+    eta, eps = efficiency_by_quadrature(formula, 30.0, 500.0)
+    assert_allclose((eta, eps), _dense_efficiency(formula, 30.0, 500.0), rtol=1e-6)
+    assert_allclose(eps, 0.0113355, rtol=1e-5)
+
+
+@pytest.mark.parametrize("formula", FORMULAS, ids=[f.id for f in FORMULAS])
+@pytest.mark.parametrize("x_max", [500.0, 1e5])
+def test_quadrature_of_sharp_curves_against_a_dense_rule(formula, x_max):
+    for shape in (formula.clip_shape(formula.shape_for_slope(-12.0)), formula.shape_bounds[1]):
+        numeric = efficiency_by_quadrature(formula, shape, x_max, **formula.defaults)
+        assert_allclose(numeric, _dense_efficiency(formula, shape, x_max, **formula.defaults), rtol=1e-5, atol=1e-9)

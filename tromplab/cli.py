@@ -13,6 +13,7 @@ import numpy as np
 import pandas as pd
 
 from ._version import __version__
+from .diagnostics import RESIDUAL_WARNING
 from .errors import InputError
 from .formulas import registry_table, select_formulas
 from .lab import KINDS, LabOptions, YieldWarning, read_experiments, read_lab
@@ -286,7 +287,7 @@ def _run_fit(args) -> int:
     for experiment, notes in bench.notes.items():
         for note in notes:
             print(textwrap.fill(f"warning ({experiment}): {note}", width=98), file=sys.stderr)
-    print(format_fits(fits))
+    print(format_fits(fits, {experiment: bench.verdicts(experiment) for experiment in bench.experiments}))
     if bench.failures:
         print("\nExperiments that could not be fitted:")
         for experiment, reason in bench.failures.items():
@@ -359,21 +360,39 @@ def _run_rank(args) -> int:
     return 0
 
 
-def format_fits(fits: pd.DataFrame) -> str:
-    """The ranked fits, one block per experiment, readable in a 100-column terminal."""
+#: Console words for the residual verdict (fits.csv column ``residuals``).
+RESIDUAL_WORDS = {"random": "random", "exact": "exact", "systematic": "SYSTEMATIC", "not normal": "NOT NORMAL",
+                  "systematic, not normal": "SYST.+NOT NORM."}  # fmt: skip
+
+
+def format_fits(fits: pd.DataFrame, verdicts: dict[str, list[str]] | None = None) -> str:
+    """The ranked fits, one block per experiment, readable in a 100-column terminal.
+
+    ``verdicts`` (experiment -> statements, :meth:`Workbench.verdicts`) are printed under
+    each table: indistinguishable formulas, shared ranks, adequate fits with systematic
+    residuals, extrapolated indices.  An adequate fit whose residuals fail a test is
+    marked ``yes*`` in the adequacy column.
+    """
     blocks = []
     for experiment, group in fits.groupby("experiment", sort=False):
         if not group["success"].any():
             continue  # experiments that could not be fitted are listed separately
-        view = group.sort_values("rank", na_position="last")[TERMINAL_COLUMNS].copy()
-        view["adequate"] = view["adequate"].map({True: "yes", False: "NO"})
+        group = group.sort_values("rank", na_position="last")
+        view = group[TERMINAL_COLUMNS].copy()
+        flagged = group["residuals"].fillna("").str.contains("systematic|not normal")
+        view["adequate"] = np.where(group["adequate"], np.where(flagged, "yes*", "yes"), "NO")
         view.loc[~group["success"], "adequate"] = "failed"
+        view["residuals"] = group["residuals"].map(RESIDUAL_WORDS).fillna("-")
         view = view.rename(columns={"equation": "eq", "shape_name": "par", "adequate": "adequ."})
         text = view.to_string(index=False, float_format=lambda v: f"{v:.4g}", na_rep="-")
         n = int(group["n"].dropna().iloc[0]) if group["n"].notna().any() else 0
         blocks.append(f"Experiment {experiment} (n = {n}):\n{text}")
+        for statement in (verdicts or {}).get(experiment, []):
+            blocks.append(textwrap.fill(statement, width=98, initial_indent="  ! ", subsequent_indent="    "))
         for formula, success, message, warned in group[["formula", "success", "message", "warnings"]].itertuples(index=False):
             note = warned if success else f"fit failed: {message}"
+            if success and isinstance(note, str):  # residual warnings are stated above for all formulas at once
+                note = "; ".join(w for w in note.split("; ") if not w.startswith(RESIDUAL_WARNING))
             if isinstance(note, str) and note:
                 blocks.append(textwrap.fill(f"note {formula}: {note}", width=98, initial_indent="  ", subsequent_indent="    "))
     return "\n".join(blocks)

@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import optimize
 
-from .diagnostics import ResidualDiagnostics, residual_diagnostics
+from .diagnostics import RESIDUAL_WARNING, ResidualDiagnostics, residual_diagnostics
 from .fitting import ParameterFit, ParameterSpec, least_squares
 from .formulas import Formula, NoBreakPointError, get_formula, shuvalov_break
 from .indices import CurveIndices, curve_indices
@@ -122,6 +122,8 @@ class CurveFit:
             "bic": criteria["bic"],
             "runs_p": self.diagnostics.runs_p if self.diagnostics else np.nan,
             "normality_p": self.diagnostics.normality_p if self.diagnostics else np.nan,
+            "residuals": self.diagnostics.verdict if self.diagnostics else "",
+            "extrapolated": ";".join(ind.extrapolated) if ind else "",
             "x_break": self.x_break,
             "bypass": self.fit.values.get("bypass", np.nan),
             "fishhook": self.fit.values.get("fishhook", np.nan),
@@ -262,7 +264,9 @@ def fit_formula(
         if spec.name in fit.at_bound:
             value = fit.values[spec.name]
             bound = spec.lower if np.isclose(value, spec.lower) else spec.upper
-            warnings.append(f"{spec.name} = {value:.4g} at its bound {bound:g}: the unconstrained optimum lies beyond it "
+            on_shape_floor = spec.name == formula.shape_name and bound == spec.lower and formula.lower_bound_reason
+            reason = f" ({formula.lower_bound_reason})" if on_shape_floor else ""
+            warnings.append(f"{spec.name} = {value:.4g} at its bound {bound:g}: the unconstrained optimum lies beyond it{reason} "
                             "and the standard error is unreliable")  # fmt: skip
     x_break = np.nan
     if formula.context_from_efficiency:
@@ -276,12 +280,15 @@ def fit_formula(
             warnings.append(f"the fitted curve exceeds 1 (maximum {peak:.3f}): not a physical partition")
     screen = fisher_screen(points.partition_fine, fit.ssr, alpha=alpha, n_params=formula.n_params, weights=weights)
     largest = points.largest_size if delta_max is None else float(delta_max)
-    indices = curve_indices(formula, fit.values["d_cut"], fit.values[formula.shape_name], delta_max=largest, **context, **extras)
-    diagnostics = residual_diagnostics(fit.residual)
+    indices = curve_indices(formula, fit.values["d_cut"], fit.values[formula.shape_name], delta_max=largest,
+                            measured_sizes=(points.size.min(), points.size.max()), **context, **extras)  # fmt: skip
+    diagnostics = residual_diagnostics(fit.residual, alpha=alpha)
     if screen.adequate and diagnostics.systematic:
         warnings.append(
-            f"adequate by F but the residuals are systematic ({diagnostics.n_runs} runs of signs, runs test p = {diagnostics.runs_p:.3f})"
+            f"{RESIDUAL_WARNING} are systematic ({diagnostics.n_runs} runs of signs, runs test p = {diagnostics.runs_p:.3f})"
         )
+    if screen.adequate and diagnostics.non_normal:
+        warnings.append(f"{RESIDUAL_WARNING} are not normal (Shapiro-Wilk p = {diagnostics.normality_p:.2g}), as the F test assumes")
     return CurveFit(formula, points, fit, context, screen, indices, grid_ssr, tuple(warnings), x_break, diagnostics)
 
 

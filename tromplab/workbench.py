@@ -22,14 +22,14 @@ from .curves import CurveFit, fit_formula
 from .fitting import ParameterFit, ParameterSpec
 from .formulas import Formula, select_formulas
 from .points import TrompPoints
-from .ranking import add_ranks, rank_formulas
+from .ranking import add_delta_aicc, add_ranks, fit_verdicts, rank_formulas
 from .screening import DEFAULT_ALPHA
 
 #: Columns of ``fits.csv``, in order.
 FIT_COLUMNS = (
     "experiment", "equation", "formula", "n", "d_cut", "d_cut_stderr", "shape_name", "shape", "shape_stderr",
     "ssr", "F", "F_crit", "adequate", "rank", "eta", "epsilon", "slope", "d25", "d75", "ep", "imperfection",
-    "aic", "aicc", "bic", "bypass", "fishhook", "runs_p", "normality_p", "x_break", "success", "message", "warnings",
+    "aic", "aicc", "delta_aicc", "bic", "bypass", "fishhook", "runs_p", "normality_p", "residuals", "extrapolated", "x_break", "success", "message", "warnings",
 )  # fmt: skip
 
 
@@ -65,6 +65,7 @@ class Workbench:
         ranked = add_ranks(table[in_ranking], by=self.rank_by)
         table["rank"] = ranked["rank"]  # curves kept out of the ranking get no rank
         table.loc[table["experiment"].isin(list(self.failures)), "rank"] = np.nan
+        table["delta_aicc"] = add_delta_aicc(table)
         return table.reindex(columns=list(FIT_COLUMNS))
 
     @property
@@ -91,6 +92,13 @@ class Workbench:
         equation = {f.id: f.equation for f in self.formulas}
         ranking.insert(0, "equation", ranking["formula"].map(equation))
         return ranking.sort_values(["place", "equation"]).reset_index(drop=True)
+
+    def verdicts(self, experiment: str) -> list[str]:
+        """Plain-language statements on the fits of an experiment (:func:`tromplab.ranking.fit_verdicts`)."""
+        table = self._fits_frame
+        fits = self.fits_of(experiment)
+        sizes = (float(fits[0].points.size.min()), float(fits[0].points.size.max())) if fits else None
+        return fit_verdicts(table[table["experiment"] == experiment], by=self.rank_by, measured_sizes=sizes)
 
     def fits_of(self, experiment: str) -> list[CurveFit]:
         return [fit for fit in self.fits if fit.experiment == experiment]
