@@ -130,3 +130,27 @@ def test_quadrature_of_sharp_curves_against_a_dense_rule(formula, x_max):
     for shape in (formula.clip_shape(formula.shape_for_slope(-12.0)), formula.shape_bounds[1]):
         numeric = efficiency_by_quadrature(formula, shape, x_max, **formula.defaults)
         assert_allclose(numeric, _dense_efficiency(formula, shape, x_max, **formula.defaults), rtol=1e-5, atol=1e-9)
+
+
+def test_extrapolated_indices_are_named():
+    # plitt ks = 2, d_cut = 100: d25 = 57.7, d75 = 173.2
+    inside = curve_indices("plitt", 100.0, 2.0, delta_max=300.0, measured_sizes=(5.0, 300.0))
+    assert inside.extrapolated == ()
+    narrow = curve_indices("plitt", 100.0, 2.0, delta_max=300.0, measured_sizes=(60.0, 150.0))
+    assert narrow.extrapolated == ("d25", "d75", "eta", "epsilon")
+    beyond = curve_indices("plitt", 100.0, 2.0, delta_max=3000.0, measured_sizes=(5.0, 300.0))
+    assert beyond.extrapolated == ("epsilon",)
+    unmeasured = curve_indices("plitt", 100.0, 2.0, delta_max=300.0)
+    assert unmeasured.extrapolated == ()
+
+
+@pytest.mark.parametrize("formula", FORMULAS, ids=[f.id for f in FORMULAS])
+def test_eta_flag_follows_the_share_below_the_smallest_size(formula):
+    from tromplab.indices import EXTRAPOLATED_SHARE
+
+    shape = formula.clip_shape(formula.shape_for_slope(-0.8))
+    for smallest in (0.02, 0.05, 0.2, 0.5):
+        found = curve_indices(formula, 1.0, shape, delta_max=3.0, measured_sizes=(smallest, 3.0), **formula.defaults)
+        below = _dense_efficiency(formula, shape, 1.0 + 1e-12, **formula.defaults)[0]  # eta itself
+        share = np.trapezoid(formula.phi(np.linspace(0, smallest, 20001), shape, **formula.defaults), np.linspace(0, smallest, 20001)) / below
+        assert ("eta" in found.extrapolated) == (share > EXTRAPOLATED_SHARE), (smallest, share)

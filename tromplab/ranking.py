@@ -215,8 +215,9 @@ def fit_verdicts(fits: pd.DataFrame, *, by: str = "F", measured_sizes: tuple[flo
             meaning.append("the curve misses the data in a pattern the F test does not see (runs test)")
         if "not normal" in verdict:
             meaning.append("the errors are not normal as the F test assumes (Shapiro-Wilk)")
+        reason = "; ".join(meaning)
         statements.append(f"Adequate by F, but the residuals are {verdict}: {_names(group, of=len(good))}. "
-                          f"{'; '.join(meaning).capitalize()}, so 'adequate' overstates these fits.")  # fmt: skip
+                          f"{reason[0].upper()}{reason[1:]}, so 'adequate' overstates these fits.")  # fmt: skip
     flags = good["extrapolated"].fillna("").astype(str)
     where = f" ({measured_sizes[0]:.4g} to {measured_sizes[1]:.4g})" if measured_sizes else ""
     parts = []
