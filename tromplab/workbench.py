@@ -21,7 +21,7 @@ import pandas as pd
 from .curves import CurveFit, failed_fit, fit_formula
 from .formulas import Formula, select_formulas
 from .points import TrompPoints
-from .ranking import add_ranks, rank_formulas
+from .ranking import add_delta_aicc, add_ranks, fit_verdicts, rank_formulas
 from .screening import DEFAULT_ALPHA
 
 #: Columns of ``fits.csv``, in order.
@@ -29,7 +29,8 @@ FIT_COLUMNS = (
     "experiment", "equation", "formula", "n", "d_cut", "d_cut_stderr", "shape_name", "shape", "shape_stderr",
     "ssr", "F", "F_crit", "adequate", "rank", "eta", "epsilon", "slope", "d25", "d75", "ep", "imperfection",
     "d50", "d50c", "ep_c", "imperfection_c",
-    "aic", "aicc", "bic", "bypass", "fishhook", "extras", "runs_p", "normality_p", "x_break", "success", "message", "warnings",
+    "aic", "aicc", "delta_aicc", "bic", "bypass", "fishhook", "extras", "runs_p", "normality_p", "residuals", "extrapolated",
+    "x_break", "success", "message", "warnings",
 )  # fmt: skip
 
 
@@ -65,6 +66,7 @@ class Workbench:
         ranked = add_ranks(table[in_ranking], by=self.rank_by)
         table["rank"] = ranked["rank"]  # curves kept out of the ranking get no rank
         table.loc[table["experiment"].isin(list(self.failures)), "rank"] = np.nan
+        table["delta_aicc"] = add_delta_aicc(table)
         return table.reindex(columns=list(FIT_COLUMNS))
 
     @property
@@ -73,13 +75,19 @@ class Workbench:
         return tuple(f for f in self.formulas if self.rank_extended or f.family == "paper")
 
     def best_fit(self, experiment: str) -> CurveFit | None:
-        """The top-ranked successful fit of an experiment."""
-        table = self._fits_frame
-        rows = table[(table["experiment"] == experiment) & table["success"] & table["rank"].notna()]
+        """The top-ranked successful fit of an experiment; among fits sharing the top rank
+        (indistinguishable by the tie rule) the one with the lowest sum of squares."""
+        rows = self.top_ranked(experiment)
         if rows.empty:
             return None
-        best = rows.sort_values("rank").iloc[0]["formula"]
+        best = rows.sort_values(["ssr", "equation"]).iloc[0]["formula"]
         return next(f for f in self.fits_of(experiment) if f.formula.id == best)
+
+    def top_ranked(self, experiment: str) -> pd.DataFrame:
+        """Rows of the fits table that share the top rank of ``experiment`` (several when tied)."""
+        table = self._fits_frame
+        rows = table[(table["experiment"] == experiment) & table["success"] & table["rank"].notna()]
+        return rows[rows["rank"] == rows["rank"].min()]
 
     def ranking_table(self) -> pd.DataFrame:
         """Ranks per experiment, points and place per formula (failed experiments left out)."""
@@ -91,6 +99,13 @@ class Workbench:
         equation = {f.id: f.equation for f in self.formulas}
         ranking.insert(0, "equation", ranking["formula"].map(equation))
         return ranking.sort_values(["place", "equation"]).reset_index(drop=True)
+
+    def verdicts(self, experiment: str) -> list[str]:
+        """Plain-language statements on the fits of an experiment (:func:`tromplab.ranking.fit_verdicts`)."""
+        table = self._fits_frame
+        fits = self.fits_of(experiment)
+        sizes = (float(fits[0].points.size.min()), float(fits[0].points.size.max())) if fits else None
+        return fit_verdicts(table[table["experiment"] == experiment], by=self.rank_by, measured_sizes=sizes)
 
     def fits_of(self, experiment: str) -> list[CurveFit]:
         return [fit for fit in self.fits if fit.experiment == experiment]
