@@ -14,6 +14,7 @@ import numpy as np
 import pandas as pd
 
 from ._version import __version__
+from .diagnostics import RESIDUAL_WARNING
 from .engine import check_bootstrap_request
 from .errors import InputError
 from .formulas import NAME_CLASHES, registry_table, select_formulas
@@ -355,7 +356,8 @@ def _run_fit(args) -> int:
         for note in notes:
             print(textwrap.fill(f"warning ({experiment}): {note}", width=98), file=sys.stderr)
     shown_experiments = list(dict.fromkeys(fits["experiment"]))[:AUTO_FIGURE_LIMIT]
-    print(format_fits(fits[fits["experiment"].isin(shown_experiments)], rank_by=args.rank_by))
+    verdicts = {experiment: bench.verdicts(experiment) for experiment in shown_experiments}
+    print(format_fits(fits[fits["experiment"].isin(shown_experiments)], verdicts, rank_by=args.rank_by))
     if len(bench.experiments) > AUTO_FIGURE_LIMIT:
         print(f"\n... and {len(bench.experiments) - len(shown_experiments)} more experiments: every fit is in fits.{args.format}")
     if bench.failures:
@@ -532,13 +534,22 @@ def _run_rank(args) -> int:
     return 0
 
 
-def format_fits(fits: pd.DataFrame, *, rank_by: str = "F") -> str:
+#: Console words for the residual verdict (fits.csv column ``residuals``).
+RESIDUAL_WORDS = {"random": "random", "exact": "exact", "systematic": "SYSTEMATIC", "not normal": "NOT NORMAL",
+                  "systematic, not normal": "SYST.+NOT NORM."}  # fmt: skip
+
+
+def format_fits(fits: pd.DataFrame, verdicts: dict[str, list[str]] | None = None, *, rank_by: str = "F") -> str:
     """The ranked fits, one block per experiment, readable in a 100-column terminal.
 
     The criterion of the ranking is shown: ``F`` and ``F_crit`` when ranking by F,
     ``aicc`` (beside F) when ranking by AICc.  When the table has interval columns
     (``--ci``, else ``--bootstrap``), a second table per experiment gives the intervals
-    of d_cut, the shape parameter and Ep.
+    of d_cut, the shape parameter and Ep.  ``verdicts`` (experiment -> statements,
+    :meth:`Workbench.verdicts`) are printed under each table: indistinguishable formulas,
+    shared ranks, adequate fits with systematic or non-normal residuals, extrapolated
+    indices.  An adequate fit whose residuals fail a test is marked ``yes*`` in the
+    adequacy column.
     """
     columns = list(TERMINAL_COLUMNS)
     if rank_by == "aicc":
@@ -551,19 +562,25 @@ def format_fits(fits: pd.DataFrame, *, rank_by: str = "F") -> str:
             continue  # experiments that could not be fitted are listed separately
         ordered = group.sort_values("rank", na_position="last")
         view = ordered[columns].copy()
-        view["adequate"] = view["adequate"].map({True: "yes", False: "NO"})
+        flagged = ordered["residuals"].fillna("").str.contains("systematic|not normal")
+        view["adequate"] = np.where(ordered["adequate"], np.where(flagged, "yes*", "yes"), "NO")
         view.loc[~ordered["success"], "adequate"] = "failed"
+        view["residuals"] = ordered["residuals"].map(RESIDUAL_WORDS).fillna("-")
         view = view.rename(columns={"equation": "eq", "shape_name": "par", "adequate": "adequ."})
         text = view.to_string(index=False, float_format=lambda v: f"{v:.4g}", na_rep="-")
         n = int(group["n"].dropna().iloc[0]) if group["n"].notna().any() else 0
         ranked_by = "AICc (lowest first)" if rank_by == "aicc" else "F (highest first)"
         blocks.append(f"Experiment {experiment} (n = {n}), ranked by {ranked_by}:\n{text}")
+        for statement in (verdicts or {}).get(experiment, []):
+            blocks.append(textwrap.fill(statement, width=98, initial_indent="  ! ", subsequent_indent="    "))
         if intervals:
             bounds = ordered[["formula", "d_cut", *intervals]].rename(columns=lambda c: re.sub(r"(_boot)?_(low|high)$", r" \2", c))
             title = "  intervals:" if kind == "" else "  bootstrap intervals:"
             blocks.append(f"{title}\n" + bounds.to_string(index=False, float_format=lambda v: f"{v:.4g}", na_rep="-"))
         for formula, success, message, warned in group[["formula", "success", "message", "warnings"]].itertuples(index=False):
             note = warned if success else f"fit failed: {message}"
+            if success and isinstance(note, str):  # residual warnings are stated above for all formulas at once
+                note = "; ".join(w for w in note.split("; ") if not w.startswith(RESIDUAL_WARNING))
             if isinstance(note, str) and note:
                 blocks.append(textwrap.fill(f"note {formula}: {note}", width=98, initial_indent="  ", subsequent_indent="    "))
     return "\n".join(blocks)

@@ -21,7 +21,7 @@ import pandas as pd
 from .curves import CurveFit, failed_fit, fit_formula
 from .formulas import Formula, select_formulas
 from .points import TrompPoints
-from .ranking import add_ranks, rank_formulas
+from .ranking import add_delta_aicc, add_ranks, fit_verdicts, rank_formulas
 from .screening import DEFAULT_ALPHA
 
 #: Columns of ``fits.csv``, in order.
@@ -29,7 +29,8 @@ FIT_COLUMNS = (
     "experiment", "equation", "formula", "n", "d_cut", "d_cut_stderr", "shape_name", "shape", "shape_stderr",
     "ssr", "F", "F_crit", "adequate", "rank", "eta", "epsilon", "slope", "d25", "d75", "ep", "imperfection",
     "d50", "d50c", "ep_c", "imperfection_c",
-    "aic", "aicc", "bic", "bypass", "fishhook", "extras", "runs_p", "normality_p", "x_break", "success", "message", "warnings",
+    "aic", "aicc", "delta_aicc", "bic", "bypass", "fishhook", "extras", "runs_p", "normality_p", "residuals", "extrapolated",
+    "x_break", "success", "message", "warnings",
 )  # fmt: skip
 
 
@@ -65,6 +66,7 @@ class Workbench:
         ranked = add_ranks(table[in_ranking], by=self.rank_by)
         table["rank"] = ranked["rank"]  # curves kept out of the ranking get no rank
         table.loc[table["experiment"].isin(list(self.failures)), "rank"] = np.nan
+        table["delta_aicc"] = add_delta_aicc(table)
         return table.reindex(columns=list(FIT_COLUMNS))
 
     @property
@@ -73,18 +75,26 @@ class Workbench:
         return tuple(f for f in self.formulas if self.rank_extended or f.family == "paper")
 
     def best_fit(self, experiment: str) -> CurveFit | None:
-        """The top-ranked successful fit of an experiment."""
-        best = self._best_formulas.get(experiment)
-        if best is None:
+        """The top-ranked successful fit of an experiment; among fits sharing the top rank
+        (indistinguishable by the tie rule) the one with the lowest sum of squares."""
+        rows = self.top_ranked(experiment)
+        if rows.empty:
             return None
+        best = rows.sort_values(["ssr", "equation"]).iloc[0]["formula"]
         return next(f for f in self.fits_of(experiment) if f.formula.id == best)
 
+    def top_ranked(self, experiment: str) -> pd.DataFrame:
+        """Rows of the fits table that share the top rank of ``experiment`` (several when tied)."""
+        top = self._top_rows.get(experiment)
+        return self._fits_frame.iloc[0:0] if top is None else top
+
     @cached_property
-    def _best_formulas(self) -> dict[str, str]:
-        # one pass over the table instead of a scan per experiment
+    def _top_rows(self) -> dict[str, pd.DataFrame]:
+        # grouped once: a scan of the whole table per experiment is quadratic in the batch
         table = self._fits_frame
-        rows = table[table["success"] & table["rank"].notna()].sort_values("rank", kind="stable")
-        return dict(rows.drop_duplicates("experiment")[["experiment", "formula"]].itertuples(index=False))
+        rows = table[table["success"] & table["rank"].notna()]
+        rows = rows[rows["rank"] == rows.groupby("experiment", sort=False)["rank"].transform("min")]
+        return {experiment: group for experiment, group in rows.groupby("experiment", sort=False)}
 
     def ranking_table(self) -> pd.DataFrame:
         """Ranks per experiment, points and place per formula (failed experiments left out)."""
@@ -96,6 +106,13 @@ class Workbench:
         equation = {f.id: f.equation for f in self.formulas}
         ranking.insert(0, "equation", ranking["formula"].map(equation))
         return ranking.sort_values(["place", "equation"]).reset_index(drop=True)
+
+    def verdicts(self, experiment: str) -> list[str]:
+        """Plain-language statements on the fits of an experiment (:func:`tromplab.ranking.fit_verdicts`)."""
+        table = self._fits_frame
+        fits = self.fits_of(experiment)
+        sizes = (float(fits[0].points.size.min()), float(fits[0].points.size.max())) if fits else None
+        return fit_verdicts(table[table["experiment"] == experiment], by=self.rank_by, measured_sizes=sizes)
 
     def fits_of(self, experiment: str) -> list[CurveFit]:
         return list(self.fits_by_experiment().get(experiment, []))
