@@ -17,7 +17,7 @@ worse than the grid; the grid minimum is kept in the result so that this can be 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 
 import numpy as np
@@ -431,6 +431,21 @@ def failed_fit(points: TrompPoints, formula, message: str, *, alpha: float = DEF
         options = FitOptions(float(alpha), np.nan, normalised_weights(points), size_unit or "")
     specs = _parameter_specs(formula, points)
     return CurveFit(formula=formula, points=points, fit=ParameterFit.failed(specs, points.n, message), options=options)
+
+
+def with_lmfit(fit: CurveFit) -> CurveFit:
+    """``fit`` with an lmfit result: a fit made by the batched engine (or one that travelled
+    through a process pool) is refitted by lmfit from its optimum, without the grid, so
+    that ``fit.fit.raw`` and profile intervals are available.  A fit that already has them,
+    or a failed one, is returned as is; so is ``fit`` when lmfit ends above its optimum."""
+    if not fit.success or fit.fit.minimizer is not None:
+        return fit
+    options = fit.options
+    polished = fit_formula(fit.points, fit.formula, alpha=options.alpha, delta_max=options.delta_max,
+                           size_unit=options.size_unit, global_search=False, starts=[dict(fit.fit.values)])  # fmt: skip
+    if not polished.success or polished.fit.ssr > fit.fit.ssr * (1 + 1e-9):
+        return fit
+    return replace(fit, fit=polished.fit)
 
 
 def _break_point(kr: float, efficiency: float) -> tuple[float, list[str]]:

@@ -24,6 +24,7 @@ area lies above the largest measured size (``delta_max`` beyond the data).
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
+from functools import lru_cache
 
 import numpy as np
 from scipy import integrate, optimize
@@ -152,6 +153,20 @@ def _relative_size_at(formula: Formula, shape: float, level: float, context: dic
             return optimize.brentq(gap, min(inner, outer), max(inner, outer), xtol=1e-13, rtol=1e-13)
 
 
+def _relative_size_cached(formula: Formula, shape: float, level: float, context: dict) -> float:
+    """:func:`_relative_size_at`, remembered per formula, shape and context: the relative
+    sizes do not depend on d_cut, so the delta method's steps in d_cut and the model
+    averages of a batch ask for the same ones again."""
+    if get_formula(formula.id) is not formula:  # not a registry entry: nothing to key it by
+        return _relative_size_at(formula, shape, level, context)
+    return _relative_size_by_key(formula.id, float(shape), level, tuple(sorted(context.items())))
+
+
+@lru_cache(maxsize=50_000)
+def _relative_size_by_key(formula_id: str, shape: float, level: float, context: tuple) -> float:
+    return _relative_size_at(get_formula(formula_id), shape, level, dict(context))
+
+
 def _numeric_slope(formula: Formula, shape: float, context: dict) -> float:
     """Slope of the actual curve at x = 1 for curves with bypass or fish-hook (central difference)."""
     h = 1e-6
@@ -188,8 +203,8 @@ def curve_indices(formula, d_cut: float, shape: float, *, delta_max: float, meas
     formula = get_formula(formula)
     eta, eps = efficiency(formula, shape, delta_max / d_cut, **context)
     slope = formula.slope_at_cut(shape) if not formula.extras else _numeric_slope(formula, shape, context)
-    d25 = d_cut * _relative_size_at(formula, shape, 0.75, context)
-    d75 = d_cut * _relative_size_at(formula, shape, 0.25, context)
+    d25 = d_cut * _relative_size_cached(formula, shape, 0.75, context)
+    d75 = d_cut * _relative_size_cached(formula, shape, 0.25, context)
     ep = (d75 - d25) / 2.0
     if "bypass" in context:  # the corrected curve: the same curve without bypass
         corrected = {**context, "bypass": 0.0}
