@@ -15,9 +15,10 @@ import pandas as pd
 from ._version import __version__
 from .errors import InputError
 from .formulas import registry_table, select_formulas
-from .lab import KINDS, LabOptions, YieldWarning, read_experiments, read_lab
+from .lab import KINDS, PARTITION_METHODS, LabOptions, YieldWarning, read_experiments, read_lab
 from .ranking import RANK_BY, rank_formulas, read_f_table
 from .screening import DEFAULT_ALPHA
+from .tables import InputNote
 from .workbench import fit_experiments, model_averages, print_progress, write_atomically
 
 TERMINAL_COLUMNS = ["rank", "equation", "formula", "d_cut", "shape_name", "shape", "F", "F_crit", "adequate", "eta", "ep"]
@@ -32,6 +33,7 @@ def main(argv=None) -> int:
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", YieldWarning)  # printed from the balance notes instead
+            warnings.showwarning = _show_input_notes(warnings.showwarning)
             return args.run(args)
     except BrokenPipeError:  # output piped into head or less and closed early
         sys.stderr.close()
@@ -40,6 +42,18 @@ def main(argv=None) -> int:
         message = error.args[0] if isinstance(error, KeyError) else str(error)
         print(f"tromplab {args.command}: error: {message}", file=sys.stderr)
         return 1
+
+
+def _show_input_notes(show):
+    """A ``warnings.showwarning`` that prints input notes (e.g. a detected CSV dialect) as one line."""
+
+    def showwarning(message, category, filename, lineno, file=None, line=None):
+        if issubclass(category, InputNote):
+            print(textwrap.fill(f"note: {message}", width=98), file=sys.stderr)
+        else:
+            show(message, category, filename, lineno, file, line)
+
+    return showwarning
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -61,7 +75,9 @@ def _parser() -> argparse.ArgumentParser:
                      help="comma-separated ids or equation numbers; 'paper' = the nine, 'extended' = the bypass and "
                      "fish-hook curves (default: the nine)")  # fmt: skip
     fit.add_argument("--rank-by", choices=sorted(RANK_BY), default="F", help="criterion within an experiment")
-    fit.add_argument("--size-unit", default="", help="unit of the sizes, for the figure labels")
+    fit.add_argument("--size-unit", default="",
+                     help="unit of the sizes when the size columns carry none (size_um, size_lower_mm name it); "
+                     "a contradiction with the column name is an error")  # fmt: skip
     fit.add_argument("--no-figures", action="store_true", help="do not draw figures")
     fit.add_argument("--extended", action="store_true",
                      help="also fit the curves with bypass and fish-hook (reported, kept out of the ranking)")
@@ -84,7 +100,7 @@ def _parser() -> argparse.ArgumentParser:
     report.add_argument("--delta-max", type=float, default=None)
     report.add_argument("--rank-by", choices=sorted(RANK_BY), default="F")
     report.add_argument("--ci", type=float, default=0.95, metavar="LEVEL", help="level of the intervals (default 0.95)")
-    report.add_argument("--size-unit", default="")
+    report.add_argument("--size-unit", default="", help="unit of the sizes when the size columns carry none")
     report.add_argument("--title", default="tromplab report")
     report.set_defaults(run=_run_report)
 
@@ -154,6 +170,11 @@ def _lab_options_parser() -> argparse.ArgumentParser:
     group.add_argument("--sheet", default=None, help="Excel sheet name (default: the first sheet)")
     group.add_argument("--weight-by-feed-share", action="store_true",
                        help="weight each point by its class's feed share (variance inversely proportional to it)")
+    group.add_argument("--partition-from", choices=PARTITION_METHODS, default="products",
+                       help="with three streams: partition from both products y b/(y b + (1-y) c) (default; swapping fine "
+                       "and coarse gives 1 - partition) or from the fine stream over the measured feed y b/a")
+    group.add_argument("--sep", default=None, help="CSV field separator, e.g. ';' (default: detected from the header)")
+    group.add_argument("--decimal", default=None, help="CSV decimal mark, e.g. ',' (default: '.', or ',' when detected)")
     return lab  # fmt: skip
 
 
@@ -167,15 +188,17 @@ def _lab_options(args) -> LabOptions:
     return LabOptions(kind=args.kind, fine_yield=args.fine_yield, coarse_yield=args.coarse_yield,
                       estimate_yield=args.estimate_yield, reconcile=args.reconcile, min_feed_share=args.min_feed_share,
                       sum_tolerance_pct=args.sum_tolerance, top_size=args.top_size, pan_lower_size=args.pan_lower_size,
-                      rename=rename, sheet=args.sheet, weight_by_feed_share=args.weight_by_feed_share)  # fmt: skip
+                      rename=rename, sheet=args.sheet, weight_by_feed_share=args.weight_by_feed_share,
+                      partition_from=args.partition_from, size_unit=getattr(args, "size_unit", None) or None,
+                      sep=args.sep, decimal=args.decimal)  # fmt: skip
 
 
 def _print_balance_notes(balances) -> None:
     for balance in balances:
         for note in balance.notes:
             print(textwrap.fill(f"warning ({balance.experiment}): {note}", width=98), file=sys.stderr)
-        for flag in balance.classes.loc[~balance.classes["used"], "flag"]:
-            print(textwrap.fill(f"note ({balance.experiment}): class left out: {flag}", width=98), file=sys.stderr)
+        for message in balance.left_out:
+            print(textwrap.fill(f"note ({balance.experiment}): {message}", width=98), file=sys.stderr)
 
 
 def _run_points(args) -> int:
@@ -194,7 +217,8 @@ def _run_balance(args) -> int:
     _print_balance_notes(balances)
     for balance in balances:
         estimate = balance.yield_estimate
-        print(f"Experiment {balance.experiment}: fine yield {balance.fine_yield:.4f} ({balance.yield_source})")
+        print(f"Experiment {balance.experiment}: fine yield {balance.fine_yield:.4f} ({balance.yield_source}); "
+              f"partition from {balance.partition_method}")  # fmt: skip
         if estimate is not None:
             print(f"  least-squares estimate from the three streams: {estimate.value:.4f} +/- {estimate.stderr:.4f} "
                   f"(standard error, {estimate.n_classes} classes); coarse yield {1 - estimate.value:.4f}")  # fmt: skip
@@ -266,6 +290,7 @@ def _run_fit(args) -> int:
         raise ValueError("--bootstrap takes a non-negative number of resamples")
     experiments, balances = read_experiments(args.input, _lab_options(args))
     _print_balance_notes(balances)
+    size_unit = _data_size_unit(experiments, args.size_unit)
     bench = fit_experiments(experiments, formulas=formulas, alpha=args.alpha, delta_max=args.delta_max,
                             rank_by=args.rank_by, rank_extended=args.rank_extended, progress=print_progress)  # fmt: skip
     fits, ranking = bench.fits_table(), bench.ranking_table()
@@ -280,7 +305,7 @@ def _run_fit(args) -> int:
                "averages.csv": lambda p: averages.to_csv(p, index=False)}  # fmt: skip
     if not args.no_figures:
         for experiment in bench.experiments:
-            outputs[f"curves_{_file_safe(experiment)}.png"] = _figure_writer(bench.fits_of(experiment), args.size_unit,
+            outputs[f"curves_{_file_safe(experiment)}.png"] = _figure_writer(bench.fits_of(experiment), size_unit,
                                                                              bench.best_fit(experiment))  # fmt: skip
     written = write_atomically(outputs, args.outdir)
     for experiment, notes in bench.notes.items():
@@ -298,6 +323,12 @@ def _run_fit(args) -> int:
     for path in written.values():
         print(f"  {path}")
     return 0
+
+
+def _data_size_unit(experiments, fallback: str) -> str:
+    """The unit the loader found (column suffix, else --size-unit), for labels."""
+    units = {p.size_unit for p in experiments if p.size_unit}
+    return units.pop() if len(units) == 1 else fallback
 
 
 def _formula_keys(args):
@@ -321,7 +352,8 @@ def _run_report(args) -> int:
     experiments, balances = read_experiments(args.input, _lab_options(args))
     bench = fit_experiments(experiments, formulas=formulas, alpha=args.alpha, delta_max=args.delta_max, rank_by=args.rank_by,
                             rank_extended=args.rank_extended, progress=print_progress)  # fmt: skip
-    report = build_report(bench, balances, source=str(args.input), level=args.ci, size_unit=args.size_unit, title=args.title)
+    report = build_report(bench, balances, source=str(args.input), level=args.ci, size_unit=_data_size_unit(experiments, args.size_unit),
+                          title=args.title)  # fmt: skip
     args.output.parent.mkdir(parents=True, exist_ok=True)
     written = write_report(report, args.output)
     print("Wrote:")
