@@ -49,7 +49,7 @@ def _show_input_notes(show):
 
     def showwarning(message, category, filename, lineno, file=None, line=None):
         if issubclass(category, InputNote):
-            print(textwrap.fill(f"note: {message}", width=98), file=sys.stderr)
+            print(textwrap.fill(f"note: {message}", width=98, break_on_hyphens=False), file=sys.stderr)
         else:
             show(message, category, filename, lineno, file, line)
 

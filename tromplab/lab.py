@@ -654,7 +654,7 @@ def _representative_sizes(table: Table, lower, upper, options: LabOptions, repre
             lower[pan] = upper[pan] / _ratio(table, lower[neighbour], upper[neighbour])
     if not upper[top] > lower[top] or not upper[pan] > lower[pan]:
         raise InputError("top_size must exceed the top class's lower bound and pan_lower_size must be below the pan's upper bound", source=table.source)
-    size = np.sqrt(lower * upper)
+    size = np.sqrt(lower) * np.sqrt(upper)  # not sqrt(lower * upper): the product under- or overflows at extreme sizes
     if representative_column:  # measured or stated sizes replace the geometric-mean rule where given
         given = table.numeric(representative_column, allow_blank=True)
         bad = np.flatnonzero(np.isfinite(given) & ((given <= lower * (1 - 1e-9)) | (given >= upper * (1 + 1e-9))))

@@ -1,7 +1,8 @@
 """Reading tidy input tables (CSV or Excel) with row numbers kept for error messages.
 
 Rows are numbered as in the file: for CSV the line number (comment lines starting with
-``#`` count, so the number is where an editor shows the row); for Excel the sheet row
+``#`` count, so the number is where an editor shows the row; a ``#`` inside a line is
+text, not a comment); for Excel the sheet row
 (header = row 1).
 
 Before anything is parsed the path is checked (it exists, is a file, is readable, is not
@@ -271,8 +272,9 @@ def _read_csv(path: Path, *, sep, decimal):
     if len(records) == len(content):
         _check_field_counts(records, content, len(header), sep, source)
     try:
-        frame = pd.read_csv(io.StringIO(text), sep=sep, decimal=decimal, comment="#", skip_blank_lines=True,
-                            skipinitialspace=True, index_col=False, header=0)  # fmt: skip
+        # only whole lines starting with '#' are comments: a '#' inside a field ("run #2") is text
+        frame = pd.read_csv(io.StringIO(body), sep=sep, decimal=decimal, skip_blank_lines=False, skipinitialspace=True,
+                            index_col=False, header=0)  # fmt: skip
     except (pd.errors.ParserError, ValueError) as error:
         raise InputError(f"cannot parse as CSV: {error}", source=source) from None
     rows = np.asarray(content[1:], dtype=int)
