@@ -13,7 +13,7 @@ from numpy.testing import assert_allclose  # noqa: E402
 
 from tromplab import plotting, sieve  # noqa: E402
 from tromplab.curves import fit_formula  # noqa: E402
-from tromplab.formulas import FORMULAS, get_formula  # noqa: E402
+from tromplab.formulas import FORMULAS, get_formula, select_formulas  # noqa: E402
 from tromplab.points import TrompPoints  # noqa: E402
 from tromplab.workbench import fit_experiments  # noqa: E402
 
@@ -55,12 +55,68 @@ def test_tromp_fits_draws_every_formula_and_the_band(bench):
     assert widths[f"({other.formula.equation}) {other.formula.id}"] > widths[f"({chosen.formula.equation}) {chosen.formula.id}"]
 
 
-def test_inadequate_fits_are_dashed():
+def test_inadequate_fits_are_faded_and_labelled():
     points = TrompPoints("x", SIZES[:5], [0.9, 0.2, 0.8, 0.1, 0.0])
     fits = [fit_formula(points, f) for f in FORMULAS[:3]]
     ax = plotting.plot_tromp_fits(fits, band=False)
-    styles = {line.get_label(): line.get_linestyle() for line in ax.get_lines()}
-    assert any("inadequate" in label and style == "--" for label, style in styles.items())
+    alphas = {line.get_label(): line.get_alpha() for line in ax.get_lines() if line.get_label().startswith("(")}
+    assert any("inadequate" in label for label in alphas)
+    assert all((alpha < 1) == ("inadequate" in label) for label, alpha in alphas.items())
+
+
+def test_twelve_curves_get_distinct_colours_and_neighbouring_curves_distinct_line_styles():
+    from matplotlib.colors import to_rgb
+
+    rng = np.random.default_rng(3)
+    points = TrompPoints("many", SIZES, np.clip(get_formula("plitt")(SIZES, 80, 2.5) + rng.normal(0, 0.02, 10), 0, 1))
+    fits = [fit_formula(points, formula) for formula in select_formulas("paper,extended")]  # the nine and three extended
+    assert len(fits) == 12
+    ax = plotting.plot_tromp_fits(fits, band=False)
+    curves = [line for line in ax.get_lines() if line.get_label().startswith("(")]
+    assert len(curves) == 12
+    colours = np.array([to_rgb(line.get_color()) for line in curves])
+    distances = np.linalg.norm(colours[:, None] - colours[None], axis=-1)[np.triu_indices(12, 1)]
+    assert distances.min() > 0.25  # every pair of curves told apart by colour (tab10 itself: 0.265)
+    styles = [line.get_linestyle() for line in curves]
+    assert all(a != b for a, b in zip(styles, styles[1:]))
+
+
+def _tick_label_boxes(ax):
+    figure = ax.figure
+    figure.canvas.draw()  # the Agg renderer lays the labels out
+    renderer = figure.canvas.get_renderer()
+    low, high = ax.get_xlim()
+    labels = [label for label in ax.get_xticklabels(which="both")
+              if label.get_visible() and label.get_text() and low <= label.get_position()[0] <= high]  # fmt: skip
+    return [label.get_window_extent(renderer) for label in labels]
+
+
+@pytest.mark.parametrize("low, high", [(0.05, 5.0), (10.0, 320.0), (0.074, 4.7), (30.0, 45.0), (1.0, 1e5), (0.9, 1.3), (2e-3, 40.0)])
+def test_log_size_tick_labels_do_not_collide(low, high):
+    sizes = np.geomspace(low, high, 8)
+    points = TrompPoints("ticks", sizes, np.linspace(0.95, 0.05, 8))
+    fits = [fit_formula(points, f) for f in ("plitt", "lognormal")]
+    for ax in (plotting.plot_tromp_fits(fits, band=False), plotting.plot_residuals(fits)):
+        boxes = _tick_label_boxes(ax)
+        assert len(boxes) >= 2, "at least two labelled sizes"
+        boxes.sort(key=lambda box: box.x0)
+        for left, right in zip(boxes, boxes[1:]):
+            assert left.x1 < right.x0, f"tick labels overlap on {low}..{high}"
+
+
+def test_partition_to_coarse_draws_one_minus_phi(bench):
+    fits = bench.fits_of("run0")
+    fine = plotting.plot_tromp_fits(fits, band=False)
+    coarse = plotting.plot_tromp_fits(fits, band=False, partition_to="coarse")
+    measured = {ax: next(line for line in ax.get_lines() if line.get_label() == "measured") for ax in (fine, coarse)}
+    assert_allclose(measured[coarse].get_ydata(), 1 - measured[fine].get_ydata())
+    assert_allclose(coarse.get_lines()[0].get_ydata(), 1 - fine.get_lines()[0].get_ydata())
+    assert coarse.get_ylabel() == "partition to coarse product"
+    residual_fine = plotting.plot_residuals(fits)
+    residual_coarse = plotting.plot_residuals(fits, partition_to="coarse")
+    assert_allclose(residual_coarse.get_lines()[0].get_ydata(), -residual_fine.get_lines()[0].get_ydata(), atol=1e-12)
+    with pytest.raises(ValueError, match="partition_to"):
+        plotting.plot_tromp_fits(fits, partition_to="underflow")
 
 
 def test_curve_band_contains_the_fit_and_narrows_with_less_noise():

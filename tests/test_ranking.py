@@ -5,8 +5,8 @@ import pandas as pd
 import pytest
 from numpy.testing import assert_array_equal
 
-from tromplab.ranking import rank_formulas, ranks_within, read_f_table
 from tromplab.errors import InputError
+from tromplab.ranking import rank_formulas, ranks_within, read_f_table
 
 from .conftest import DATASETS, dataset
 

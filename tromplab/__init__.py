@@ -12,7 +12,6 @@ from .points import TrompPoints, read_points
 from .ranking import rank_formulas
 from .workbench import Workbench, fit_experiments
 
-
 __all__ = [
     "__version__",
     "FORMULAS", "CurveFit", "Formula", "InputError", "TrompPoints", "Workbench", "curve_indices",

@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import argparse
+import io
 import re
+import sys
 import textwrap
 import warnings
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -19,6 +20,7 @@ from .lab import KINDS, PARTITION_METHODS, LabOptions, YieldWarning, read_experi
 from .ranking import RANK_BY, rank_formulas, read_f_table
 from .screening import DEFAULT_ALPHA
 from .tables import InputNote
+from .views import PARTITION_TO, partition_view
 from .workbench import fit_experiments, model_averages, print_progress, write_atomically
 
 TERMINAL_COLUMNS = ["rank", "equation", "formula", "d_cut", "shape_name", "shape", "F", "F_crit", "adequate", "eta", "ep"]
@@ -67,14 +69,18 @@ def _parser() -> argparse.ArgumentParser:
     lab = _lab_options_parser()
     fit = commands.add_parser("fit", parents=[lab], help="fit, screen and rank the formulas on Tromp points or lab data")
     fit.add_argument("input", type=Path, help="Tromp points or a lab table (CSV or .xlsx), told apart by their columns")
-    fit.add_argument("-o", "--outdir", type=Path, default=Path("results"), help="output folder (default: results)")
+    fit.add_argument("-o", "--outdir", type=Path, default=Path("results"),
+                     help="output folder (default: results), or a .xlsx file: then one Excel workbook holds every table and figure")
+    fit.add_argument("--excel", action="store_true", help="also write the tables and figures as one workbook, results.xlsx, in the folder")
+    _add_partition_to(fit)
     fit.add_argument("--alpha", type=float, default=DEFAULT_ALPHA, help="significance level of the Fisher screen")
     fit.add_argument("--delta-max", type=float, default=None,
                      help="largest feed particle size for the misplacement eps (default: largest size of the data)")  # fmt: skip
     fit.add_argument("--formulas", default=None,
                      help="comma-separated ids or equation numbers; 'paper' = the nine, 'extended' = the bypass and "
                      "fish-hook curves (default: the nine)")  # fmt: skip
-    fit.add_argument("--rank-by", choices=sorted(RANK_BY), default="F", help="criterion within an experiment")
+    fit.add_argument("--rank-by", choices=sorted(RANK_BY), default="F",
+                     help="criterion within an experiment: Fisher's F or the corrected Akaike criterion (shown in the table)")
     fit.add_argument("--size-unit", default="",
                      help="unit of the sizes when the size columns carry none (size_um, size_lower_mm name it); "
                      "a contradiction with the column name is an error")  # fmt: skip
@@ -86,7 +92,8 @@ def _parser() -> argparse.ArgumentParser:
     uncertainty.add_argument("--ci", type=float, default=None, metavar="LEVEL",
                              help="add interval columns at this level (profile likelihood for parameters, delta method for indices)")
     uncertainty.add_argument("--bootstrap", type=int, default=0, metavar="N", help="add bootstrap percentile intervals from N resamples")
-    uncertainty.add_argument("--bootstrap-method", choices=("residuals", "cases"), default="residuals")
+    uncertainty.add_argument("--bootstrap-method", choices=("residuals", "cases"), default="residuals",
+                             help="resample the residuals of the fit or whole points (default: residuals)")
     uncertainty.add_argument("--seed", type=int, default=0, help="seed of the bootstrap")
     fit.set_defaults(run=_run_fit)
 
@@ -114,10 +121,12 @@ def _parser() -> argparse.ArgumentParser:
     points = commands.add_parser("points", parents=[lab], help="turn a lab table into Tromp points with diagnostics")
     points.add_argument("input", type=Path, help="lab table (CSV or .xlsx)")
     points.add_argument("-o", "--output", type=Path, required=True, help="Tromp points CSV to write")
+    _add_partition_to(points)
     points.set_defaults(run=_run_points)
 
     balance = commands.add_parser("balance", parents=[lab], help="yield estimate and mass-balance table of a lab table")
     balance.add_argument("input", type=Path, help="lab table (CSV or .xlsx)")
+    _add_partition_to(balance)
     balance.set_defaults(run=_run_balance)
 
     sieve = commands.add_parser("sieve", help="sieve classifiers: identification, geometric probability, bin design")
@@ -149,6 +158,11 @@ def _parser() -> argparse.ArgumentParser:
                       help="ignore an 'adequate' column and use F > F_crit")  # fmt: skip
     rank.set_defaults(run=_run_rank)
     return parser
+
+
+def _add_partition_to(parser) -> None:
+    parser.add_argument("--partition-to", choices=PARTITION_TO, default="fine",
+                        help="report the partition to the fine product (default) or to the coarse product (underflow, oversize)")
 
 
 def _lab_options_parser() -> argparse.ArgumentParser:
@@ -203,7 +217,9 @@ def _print_balance_notes(balances) -> None:
 
 def _run_points(args) -> int:
     balances = read_lab(args.input, _lab_options(args))
-    table = pd.concat([b.points_table(weight_by_feed_share=args.weight_by_feed_share) for b in balances], ignore_index=True)
+    table = pd.concat([b.points_table(weight_by_feed_share=args.weight_by_feed_share, unit_in_names=True) for b in balances],
+                      ignore_index=True)  # fmt: skip
+    table = partition_view(table, args.partition_to)
     args.output.parent.mkdir(parents=True, exist_ok=True)
     written = write_atomically({args.output.name: lambda p: table.to_csv(p, index=False)}, args.output.parent)
     _print_balance_notes(balances)
@@ -222,10 +238,12 @@ def _run_balance(args) -> int:
         if estimate is not None:
             print(f"  least-squares estimate from the three streams: {estimate.value:.4f} +/- {estimate.stderr:.4f} "
                   f"(standard error, {estimate.n_classes} classes); coarse yield {1 - estimate.value:.4f}")  # fmt: skip
+        partition = f"partition_{args.partition_to}"
+        classes = partition_view(balance.classes, args.partition_to)
         columns = [c for c in ("size_lower", "size_upper", "size", "feed", "fine", "coarse", "balance_residual",
-                               "feed_adjusted", "fine_adjusted", "coarse_adjusted", "partition_fine", "used")
-                   if c in balance.classes.columns]  # fmt: skip
-        print(balance.classes[columns].to_string(index=False, float_format=lambda v: f"{v:.4g}", na_rep="-"))
+                               "feed_adjusted", "fine_adjusted", "coarse_adjusted", partition, "used")
+                   if c in classes.columns]  # fmt: skip
+        print(classes[columns].to_string(index=False, float_format=lambda v: f"{v:.4g}", na_rep="-"))
         print()
     return 0
 
@@ -290,7 +308,6 @@ def _run_fit(args) -> int:
         raise ValueError("--bootstrap takes a non-negative number of resamples")
     experiments, balances = read_experiments(args.input, _lab_options(args))
     _print_balance_notes(balances)
-    size_unit = _data_size_unit(experiments, args.size_unit)
     bench = fit_experiments(experiments, formulas=formulas, alpha=args.alpha, delta_max=args.delta_max,
                             rank_by=args.rank_by, rank_extended=args.rank_extended, progress=print_progress)  # fmt: skip
     fits, ranking = bench.fits_table(), bench.ranking_table()
@@ -301,17 +318,12 @@ def _run_fit(args) -> int:
                                      seed=args.seed, progress=_interval_progress)  # fmt: skip
         fits = fits.merge(intervals, on=["experiment", "formula"], how="left")
     averages = model_averages(bench, level=args.ci or 0.95)
-    outputs = {"fits.csv": lambda p: fits.to_csv(p, index=False), "ranking.csv": lambda p: ranking.to_csv(p, index=False),
-               "averages.csv": lambda p: averages.to_csv(p, index=False)}  # fmt: skip
-    if not args.no_figures:
-        for experiment in bench.experiments:
-            outputs[f"curves_{_file_safe(experiment)}.png"] = _figure_writer(bench.fits_of(experiment), size_unit,
-                                                                             bench.best_fit(experiment))  # fmt: skip
-    written = write_atomically(outputs, args.outdir)
+    fits = partition_view(fits, args.partition_to)
+    written = _write_fit_outputs(args, bench, experiments, balances, fits, ranking, averages)
     for experiment, notes in bench.notes.items():
         for note in notes:
             print(textwrap.fill(f"warning ({experiment}): {note}", width=98), file=sys.stderr)
-    print(format_fits(fits))
+    print(format_fits(fits, rank_by=args.rank_by))
     if bench.failures:
         print("\nExperiments that could not be fitted:")
         for experiment, reason in bench.failures.items():
@@ -391,19 +403,34 @@ def _run_rank(args) -> int:
     return 0
 
 
-def format_fits(fits: pd.DataFrame) -> str:
-    """The ranked fits, one block per experiment, readable in a 100-column terminal."""
+def format_fits(fits: pd.DataFrame, *, rank_by: str = "F") -> str:
+    """The ranked fits, one block per experiment, readable in a 100-column terminal.
+
+    The criterion of the ranking is shown: ``F`` and ``F_crit`` when ranking by F,
+    ``aicc`` (beside F) when ranking by AICc.  When the table has interval columns
+    (``--ci``), a second table per experiment gives the intervals of d_cut, the shape
+    parameter and Ep.
+    """
+    columns = list(TERMINAL_COLUMNS)
+    if rank_by == "aicc":
+        columns[columns.index("F_crit")] = "aicc"
+    intervals = [c for c in ("d_cut_low", "d_cut_high", "shape_low", "shape_high", "ep_low", "ep_high") if c in fits.columns]
     blocks = []
     for experiment, group in fits.groupby("experiment", sort=False):
         if not group["success"].any():
             continue  # experiments that could not be fitted are listed separately
-        view = group.sort_values("rank", na_position="last")[TERMINAL_COLUMNS].copy()
+        ordered = group.sort_values("rank", na_position="last")
+        view = ordered[columns].copy()
         view["adequate"] = view["adequate"].map({True: "yes", False: "NO"})
-        view.loc[~group["success"], "adequate"] = "failed"
+        view.loc[~ordered["success"], "adequate"] = "failed"
         view = view.rename(columns={"equation": "eq", "shape_name": "par", "adequate": "adequ."})
         text = view.to_string(index=False, float_format=lambda v: f"{v:.4g}", na_rep="-")
         n = int(group["n"].dropna().iloc[0]) if group["n"].notna().any() else 0
-        blocks.append(f"Experiment {experiment} (n = {n}):\n{text}")
+        ranked_by = "AICc (lowest first)" if rank_by == "aicc" else "F (highest first)"
+        blocks.append(f"Experiment {experiment} (n = {n}), ranked by {ranked_by}:\n{text}")
+        if intervals:
+            bounds = ordered[["formula", "d_cut", *intervals]].rename(columns=lambda c: c.replace("_low", " low").replace("_high", " high"))
+            blocks.append("  intervals:\n" + bounds.to_string(index=False, float_format=lambda v: f"{v:.4g}", na_rep="-"))
         for formula, success, message, warned in group[["formula", "success", "message", "warnings"]].itertuples(index=False):
             note = warned if success else f"fit failed: {message}"
             if isinstance(note, str) and note:
@@ -415,16 +442,60 @@ def _file_safe(name: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.-]+", "_", str(name)).strip("_") or "experiment"
 
 
-def _figure_writer(fits, size_unit, best):
-    def write(path):
-        import matplotlib
+def _figure_png(fits, size_unit, best, partition_to) -> bytes:
+    import matplotlib
 
-        matplotlib.use("Agg")
-        from .plotting import plot_tromp_fits, save_figure
+    matplotlib.use("Agg")
+    from .plotting import plot_tromp_fits, save_figure
 
-        save_figure(plot_tromp_fits(fits, size_unit=size_unit, best=best), path)
+    buffer = io.BytesIO()
+    save_figure(plot_tromp_fits(fits, size_unit=size_unit, best=best, partition_to=partition_to), buffer)
+    return buffer.getvalue()
 
-    return write
+
+def _write_fit_outputs(args, bench, experiments, balances, fits, ranking, averages) -> dict[str, Path]:
+    """Write the fit's tables and figures: CSVs and PNGs into the folder (and results.xlsx
+    with ``--excel``), or only the workbook when ``-o`` names a .xlsx file."""
+    from .workbook import write_workbook
+
+    size_unit = _data_size_unit(experiments, args.size_unit)
+    figures = {}
+    if not args.no_figures:
+        for experiment in bench.experiments:
+            png = _figure_png(bench.fits_of(experiment), size_unit, bench.best_fit(experiment), args.partition_to)
+            figures[f"curves_{_file_safe(experiment)}.png"] = png
+    tables = {"fits": fits, "ranking": ranking, "averages": averages}
+    only_workbook = args.outdir.suffix.lower() == ".xlsx"
+    if only_workbook or args.excel:
+        if balances:
+            balance = pd.concat([b.classes for b in balances], ignore_index=True)
+            points = pd.concat([b.points_table(weight_by_feed_share=args.weight_by_feed_share) for b in balances], ignore_index=True)
+        else:
+            balance, points = pd.DataFrame(), pd.concat([p.to_frame() for p in experiments], ignore_index=True)
+        sheets = {**tables, "balance": partition_view(balance, args.partition_to), "points": partition_view(points, args.partition_to)}
+        notes = {"balance": "no mass balance: the input holds Tromp points, not a lab table",
+                 "averages": "no model average: no experiment has a successful fit"}  # fmt: skip
+
+        def workbook(path):
+            write_workbook(path, sheets, figures=figures, size_unit=size_unit, notes=notes)
+
+    if only_workbook:
+        return write_atomically({args.outdir.name: workbook}, args.outdir.parent)
+    outputs = {f"{name}.csv": (lambda p, table=table: table.to_csv(p, index=False)) for name, table in tables.items()}
+    outputs.update({name: (lambda p, png=png: p.write_bytes(png)) for name, png in figures.items()})
+    if args.excel:
+        outputs["results.xlsx"] = workbook
+    written = write_atomically(outputs, args.outdir)
+    _remove_stale_figures(args.outdir, set(figures))
+    return written
+
+
+def _remove_stale_figures(outdir: Path, current: set[str]) -> None:
+    """Delete curve figures of experiments that are not in this run (a re-run into the same
+    folder leaves exactly the current figures)."""
+    for path in outdir.glob("curves_*.png"):
+        if path.name not in current:
+            path.unlink()
 
 
 if __name__ == "__main__":

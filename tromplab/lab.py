@@ -198,14 +198,15 @@ class MassBalance:
             size_unit=self.size_unit,
         )
 
-    def points_table(self, *, weight_by_feed_share: bool = False) -> pd.DataFrame:
+    def points_table(self, *, weight_by_feed_share: bool = False, unit_in_names: bool = False) -> pd.DataFrame:
         """Rows in the ``tromplab fit`` schema plus per-class diagnostics (and a ``weight``
-        column equal to the feed share when asked)."""
+        column equal to the feed share when asked); with ``unit_in_names`` the size columns
+        carry the unit (``size_um``), so the file read back keeps it."""
         table = self.classes.rename(columns={"feed": "feed_share"})
         columns = ["experiment", "size", "partition_fine", "size_lower", "size_upper", "feed_share",
                    "balance_residual", "used", "flag"]  # fmt: skip
         table = table[columns]
-        if self.size_unit:  # the unit travels in the column names, as the loaders read it
+        if unit_in_names and self.size_unit:
             table = table.rename(columns={c: f"{c}_{self.size_unit}" for c in ("size", "size_lower", "size_upper")})
         return table.assign(weight=table["feed_share"]) if weight_by_feed_share else table
 

@@ -13,6 +13,49 @@ import numpy as np
 
 from .curves import CurveFit
 
+#: Colours of up to 12 curves: tab10, then a dark indigo and a dark green, as far from every tab10 colour
+#: as the tab10 colours are from each other (RGB distance >= 0.26).
+CURVE_COLOURS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22",
+                 "#17becf", "#393b79", "#00441b")  # fmt: skip
+#: Line styles cycled beside the colours, so curves stay apart in grey print too.
+CURVE_LINESTYLES = ("-", "--", "-.", ":")
+
+
+def curve_styles(n: int) -> list[dict]:
+    """Colour and line style of ``n`` curves: every curve a different colour up to 12
+    curves, and consecutive curves a different line style (colours repeat beyond 12).
+
+    Examples
+    --------
+    >>> styles = curve_styles(12)
+    >>> len({s["color"] for s in styles}), styles[0]["ls"], styles[1]["ls"]
+    (12, '-', '--')
+    """
+    return [{"color": CURVE_COLOURS[i % len(CURVE_COLOURS)], "ls": CURVE_LINESTYLES[i % len(CURVE_LINESTYLES)]}
+            for i in range(n)]  # fmt: skip
+
+
+def log_size_axis(ax, low: float, high: float) -> None:
+    """Log-scaled size axis with plain-number tick labels that do not run into each other.
+
+    Matplotlib labels minor ticks of a log axis spanning less than about a decade, and
+    those labels collide; here only major ticks are labelled: round linear steps within
+    half a decade, then 1-2-3-5-7, 1-2-5 or 1 per decade as the span allows (the locator
+    thins to every k-th decade beyond about ten decades).
+    """
+    from matplotlib.ticker import FuncFormatter, LogLocator, MaxNLocator, NullFormatter
+
+    ax.set_xscale("log")
+    decades = np.log10(high / low)
+    if decades < 0.5:  # within half a decade a log axis is nearly linear: round linear steps
+        ax.xaxis.set_major_locator(MaxNLocator(nbins=5, steps=[1, 2, 2.5, 5, 10]))
+    else:
+        subs = (1.0, 2.0, 3.0, 5.0, 7.0) if decades < 1.2 else (1.0, 2.0, 5.0) if decades < 3.0 else (1.0,)
+        ax.xaxis.set_major_locator(LogLocator(base=10.0, subs=subs, numticks=12))
+    ax.xaxis.set_major_formatter(FuncFormatter(lambda value, _: f"{value:g}"))
+    ax.xaxis.set_minor_locator(LogLocator(base=10.0, subs=np.arange(2, 10) * 1.0, numticks=12))
+    ax.xaxis.set_minor_formatter(NullFormatter())
+
 
 def _axes(ax):
     if ax is None:
@@ -49,13 +92,13 @@ def curve_band(fit: CurveFit, size, *, level: float = 0.95):
 
 
 def plot_tromp_fits(fits: Sequence[CurveFit], *, ax=None, log_size: bool = True, size_unit: str = "", band: bool = True,
-                    best: CurveFit | None = None):  # fmt: skip
+                    best: CurveFit | None = None, partition_to: str = "fine"):  # fmt: skip
     """Measured Tromp points of one experiment with the fitted curves of every formula.
 
-    Adequate fits are drawn solid, inadequate ones dashed; the best fit is drawn thick
-    with its cut size marked: ``best`` when given (the top-ranked fit), otherwise the
-    paper formula with the lowest sum of squares.  Failed fits are left out and
-    named in the legend title.
+    Each formula has its own colour and line style (:func:`curve_styles`); inadequate
+    fits are drawn faded and labelled so; the best fit is drawn thick with its cut size
+    marked: ``best`` when given (the top-ranked fit), otherwise the paper formula with
+    the lowest sum of squares.  Failed fits are left out and named in the legend title.
 
     Parameters
     ----------
@@ -68,13 +111,14 @@ def plot_tromp_fits(fits: Sequence[CurveFit], *, ax=None, log_size: bool = True,
         Unit shown in the axis label.
     band : bool
         Shade the 95 % delta-method band of the best fit.
+    partition_to : {"fine", "coarse"}
+        Draw the partition to the fine product (default) or to the coarse product
+        (underflow, oversize), ``1 - phi``.
 
     Returns
     -------
     matplotlib Axes
     """
-    import seaborn as sns
-
     ax = _axes(ax)
     if not fits:
         raise ValueError("no fits to plot")
@@ -86,35 +130,44 @@ def plot_tromp_fits(fits: Sequence[CurveFit], *, ax=None, log_size: bool = True,
         grid = np.geomspace(low / 1.5, high * 1.5, 400)
     else:
         grid = np.linspace(0.0, high * 1.1, 400)[1:]
-    colours = sns.color_palette("tab10", n_colors=max(len(fits), 1))
     if best is None and good:
         candidates = [f for f in good if f.formula.family == "paper"] or good
         best = min(candidates, key=lambda f: f.fit.ssr)
-    for colour, fit in zip(colours, fits):
+    read = _partition_reader(partition_to)
+    for style, fit in zip(curve_styles(len(fits)), fits):
         if not fit.success:
             continue
         adequate = fit.screen is not None and fit.screen.adequate
         is_best = fit is best
         label = f"({fit.formula.equation}) {fit.formula.id}, F={fit.screen.F:.3g}" + ("" if adequate else " (inadequate)")
-        ax.plot(grid, fit.predict(grid), color=colour, lw=2.8 if is_best else 1.2,
-                ls="-" if adequate else "--", label=label, zorder=3 if is_best else 2)  # fmt: skip
-    ax.plot(points.size, points.partition_fine, "ko", ms=6, label="measured", zorder=4)
+        ax.plot(grid, read(fit.predict(grid)), **style, lw=2.8 if is_best else 1.3, alpha=1.0 if adequate else 0.45,
+                label=label, zorder=3 if is_best else 2)  # fmt: skip
+    ax.plot(points.size, read(points.partition_fine), "ko", ms=6, label="measured", zorder=4)
     if best is not None:
         if band:
-            low, high = curve_band(best, grid)
+            low, high = sorted((read(bound) for bound in curve_band(best, grid)), key=np.sum)
             ax.fill_between(grid, low, high, color="0.5", alpha=0.2, lw=0, label=f"95 % band, {best.formula.id}")
         ax.axvline(best.d_cut, color="0.4", lw=0.8, ls=":")
         ax.annotate(f"d_cut = {best.d_cut:.4g}", (best.d_cut, 0.5), xytext=(6, 6), textcoords="offset points", fontsize=8)
     if log_size:
-        ax.set_xscale("log")
+        log_size_axis(ax, grid[0], grid[-1])
     unit = f" [{size_unit}]" if size_unit else ""
     ax.set_xlabel(f"particle size{unit}")
-    ax.set_ylabel("partition to fines")
+    ax.set_ylabel(f"partition to {'fines' if partition_to == 'fine' else 'coarse product'}")
     ax.set_ylim(-0.03, 1.03)
     ax.set_title(f"Experiment {points.experiment}")
     title = f"failed: {', '.join(failed)}" if failed else None
     ax.legend(fontsize=7, title=title, title_fontsize=7, loc="best")
     return ax
+
+
+def _partition_reader(partition_to: str):
+    """Turn partitions to fines into the reading asked for."""
+    from .views import check_partition_to
+
+    if check_partition_to(partition_to) == "fine":
+        return lambda phi: np.asarray(phi, dtype=float)
+    return lambda phi: 1.0 - np.asarray(phi, dtype=float)
 
 
 def plot_pareto(result, *, ax=None):
@@ -133,20 +186,24 @@ def plot_pareto(result, *, ax=None):
     return ax
 
 
-def plot_residuals(fits: Sequence[CurveFit], *, ax=None, size_unit: str = ""):
-    """Residuals (measured - fitted) against size, one line per successful formula."""
-    import seaborn as sns
-
+def plot_residuals(fits: Sequence[CurveFit], *, ax=None, size_unit: str = "", partition_to: str = "fine"):
+    """Residuals (measured - fitted) against size, one line per successful formula
+    (of the partition to fines, or to the coarse product with ``partition_to="coarse"``,
+    where every residual changes sign)."""
     ax = _axes(ax)
     good = [f for f in fits if f.success]
-    colours = sns.color_palette("tab10", n_colors=max(len(good), 1))
-    for colour, fit in zip(colours, good):
-        residual = fit.points.partition_fine - fit.predict(fit.points.size)
-        ax.plot(fit.points.size, residual, "o-", color=colour, ms=3, lw=0.8, label=f"({fit.formula.equation}) {fit.formula.id}")
+    read = _partition_reader(partition_to)
+    for style, fit in zip(curve_styles(len(good)), good):
+        residual = read(fit.points.partition_fine) - read(fit.predict(fit.points.size))
+        ax.plot(fit.points.size, residual, marker="o", **style, ms=3, lw=0.8, label=f"({fit.formula.equation}) {fit.formula.id}")
     ax.axhline(0.0, color="k", lw=0.8)
-    ax.set_xscale("log")
+    if good:
+        sizes = np.concatenate([f.points.size for f in good])
+        log_size_axis(ax, sizes.min(), sizes.max())
+    else:
+        ax.set_xscale("log")
     ax.set_xlabel(f"particle size{f' [{size_unit}]' if size_unit else ''}")
-    ax.set_ylabel("residual (measured - fitted)")
+    ax.set_ylabel(f"residual of the partition to {'fines' if partition_to == 'fine' else 'coarse product'} (measured - fitted)")
     ax.legend(fontsize=7, ncol=2)
     return ax
 

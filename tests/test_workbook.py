@@ -1,0 +1,45 @@
+"""The workbook writer and the partition views of tables."""
+
+import openpyxl
+import pandas as pd
+import pytest
+from numpy.testing import assert_allclose
+
+from tromplab.views import partition_view
+from tromplab.workbook import column_unit, header_with_unit, strip_unit, write_workbook
+
+
+def test_partition_view_turns_partitions_and_the_slope_with_its_bounds():
+    table = pd.DataFrame({"d_cut": [50.0], "slope": [-0.6], "slope_low": [-0.8], "slope_high": [-0.5], "slope_stderr": [0.07],
+                          "partition_fine": [0.3], "partition_coarse": [0.7], "d25": [40.0]})  # fmt: skip
+    view = partition_view(table, "coarse")
+    assert list(view.columns) == ["d_cut", "slope_coarse", "slope_coarse_low", "slope_coarse_high", "slope_coarse_stderr",
+                                  "partition_coarse", "d25"]  # fmt: skip
+    assert_allclose(view.iloc[0][["slope_coarse", "slope_coarse_low", "slope_coarse_high", "slope_coarse_stderr"]].astype(float),
+                    [0.6, 0.5, 0.8, 0.07])  # fmt: skip
+    assert_allclose(view["partition_coarse"], [0.7])
+    assert_allclose(view[["d_cut", "d25"]].to_numpy(), [[50.0, 40.0]])
+    assert partition_view(table, "fine").equals(table)
+    with pytest.raises(ValueError, match="'fine' or 'coarse'"):
+        partition_view(table, "underflow")
+
+
+def test_headers_carry_units_and_strip_back():
+    assert header_with_unit("d_cut_boot_high", "um") == "d_cut_boot_high [um]"
+    assert header_with_unit("ep", "") == "ep [size unit]"
+    assert header_with_unit("weight_plitt") == "weight_plitt [0..1]" and header_with_unit("weight") == "weight"
+    assert column_unit("F") == "-" and column_unit("experiment") == ""
+    assert strip_unit("d_cut [mm]") == "d_cut" and strip_unit("formula") == "formula"
+
+
+def test_workbook_keeps_full_precision_and_leaves_missing_values_empty(tmp_path):
+    table = pd.DataFrame({"experiment": ["A", "B"], "n": [6, 7], "d_cut": [1 / 3, float("nan")], "adequate": [True, False]})
+    path = write_workbook(tmp_path / "book.xlsx", {"fits": table, "balance": pd.DataFrame()}, size_unit="mm",
+                          notes={"balance": "nothing here"})  # fmt: skip
+    book = openpyxl.load_workbook(path)
+    sheet = book["fits"]
+    assert [c.value for c in sheet[1]] == ["experiment", "n", "d_cut [mm]", "adequate"]
+    assert sheet["C2"].value == pytest.approx(1 / 3, rel=1e-15) and sheet["C3"].value is None
+    assert sheet["B2"].number_format == "0" and sheet["C2"].number_format == "0.0000"
+    assert sheet["D2"].value is True and sheet.freeze_panes == "A2"
+    assert book["balance"]["A1"].value == "nothing here"

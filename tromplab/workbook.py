@@ -1,0 +1,163 @@
+"""One Excel workbook with every table of a fit and its figures (``tromplab fit -o results.xlsx``).
+
+Sheets ``fits``, ``ranking``, ``averages``, ``balance``, ``points`` and, when figures
+are given, ``figures``.  Each table sheet holds the same values as the CSV of the same
+name; the header row carries the unit of each column in brackets (``d_cut [mm]``),
+is frozen, and the numbers have a display format (the stored values keep full
+precision).  Written with openpyxl, readable in Excel and LibreOffice.
+"""
+
+from __future__ import annotations
+
+import io
+import re
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+#: Sheets of the workbook, in order (``figures`` last, when there are figures).
+SHEETS = ("fits", "ranking", "averages", "balance", "points")
+
+# Columns measured in the unit of the particle sizes (with their interval and error columns).
+_SIZE_STEMS = ("d_cut", "d25", "d75", "ep", "size", "size_lower", "size_upper", "x_break", "delta_max")
+# Shares of a stream or of the feed, 0..1.
+_FRACTION_STEMS = ("partition_fine", "partition_coarse", "eta", "epsilon", "imperfection", "bypass", "fishhook",
+                   "feed_share", "fine_yield", "coarse_yield", "feed", "fine", "coarse", "feed_adjusted", "fine_adjusted",
+                   "coarse_adjusted", "balance_residual")  # fmt: skip
+_COUNT_COLUMNS = ("n", "rank", "place", "points", "equation", "n_regimes", "bootstrap_failed")
+_SUFFIXES = ("_stderr", "_se", "_low", "_high", "_boot_low", "_boot_high")
+
+#: Display formats by kind of column.
+NUMBER_FORMATS = {"size": "0.0000", "fraction": "0.0000", "count": "0", "other": "0.0000"}
+
+
+def column_unit(column: str, size_unit: str = "") -> str:
+    """Unit of a column for its header: the size unit, ``"0..1"`` for shares, ``"-"`` for
+    other dimensionless numbers, or ``""`` for text, counts and flags.
+
+    Examples
+    --------
+    >>> column_unit("d_cut_low", "mm"), column_unit("eta", "mm"), column_unit("formula")
+    ('mm', '0..1', '')
+    """
+    stem = _stem(column)
+    if stem in _SIZE_STEMS:
+        return size_unit or "size unit"
+    if stem in _FRACTION_STEMS or stem.startswith("weight_"):  # Akaike weights; a bare "weight" is a least-squares weight
+        return "0..1"
+    if stem in ("shape", "F", "F_crit", "ssr", "aic", "aicc", "bic", "slope", "slope_coarse", "sharpness", "runs_p", "normality_p"):
+        return "-"
+    return ""
+
+
+def header_with_unit(column: str, size_unit: str = "") -> str:
+    """``"d_cut [mm]"``; a column without a unit keeps its bare name."""
+    unit = column_unit(column, size_unit)
+    return f"{column} [{unit}]" if unit else column
+
+
+def strip_unit(header: str) -> str:
+    """Inverse of :func:`header_with_unit`: ``"d_cut [mm]"`` -> ``"d_cut"``."""
+    return re.sub(r" \[[^\]]*\]$", "", str(header))
+
+
+def _stem(column: str) -> str:
+    for suffix in sorted(_SUFFIXES, key=len, reverse=True):
+        if column.endswith(suffix):
+            return column[: -len(suffix)]
+    return column
+
+
+def _number_format(column: str) -> str:
+    stem = _stem(column)
+    if column in _COUNT_COLUMNS:
+        return NUMBER_FORMATS["count"]
+    if stem in _SIZE_STEMS:
+        return NUMBER_FORMATS["size"]
+    if stem in _FRACTION_STEMS:
+        return NUMBER_FORMATS["fraction"]
+    return NUMBER_FORMATS["other"]
+
+
+def write_workbook(path, tables: Mapping[str, pd.DataFrame], *, figures: Mapping[str, bytes] | None = None,
+                   size_unit: str = "", notes: Mapping[str, str] | None = None) -> Path:  # fmt: skip
+    """Write ``tables`` (sheet name -> DataFrame) and PNG ``figures`` into one workbook.
+
+    Parameters
+    ----------
+    path : path
+        The ``.xlsx`` file.  Write it through :func:`tromplab.workbench.write_atomically`
+        to make it all-or-nothing.
+    tables : mapping
+        Sheet name -> table, written in the given order; an empty table gets its
+        ``notes`` entry (or "no rows") in cell A1 instead of a header.  A table with a
+        ``quantity`` column (one row per quantity) gets a ``unit`` column beside it.
+    figures : mapping, optional
+        Figure name -> PNG bytes, embedded one below the other on a ``figures`` sheet,
+        each under its name.
+    size_unit : str
+        Unit of the sizes, shown in the headers of size columns.
+    notes : mapping, optional
+        Sheet name -> sentence shown on a sheet with no rows (why it is empty).
+    """
+    from openpyxl import Workbook
+    from openpyxl.drawing.image import Image
+    from openpyxl.styles import Font
+    from openpyxl.utils import get_column_letter
+
+    book = Workbook()
+    book.remove(book.active)
+    for name, table in tables.items():
+        sheet = book.create_sheet(name)
+        if table is None or table.empty:
+            sheet["A1"] = (notes or {}).get(name, "no rows")
+            continue
+        if "quantity" in table.columns and "unit" not in table.columns:
+            # a long table (one row per quantity, as the model averages): the unit goes in a column
+            table = table.copy()
+            table.insert(table.columns.get_loc("quantity") + 1, "unit", table["quantity"].map(lambda q: column_unit(str(q), size_unit)))
+        headers = [header_with_unit(str(c), size_unit) for c in table.columns]
+        sheet.append(headers)
+        for row in table.itertuples(index=False):
+            sheet.append([_cell_value(value) for value in row])
+        for index, column in enumerate(table.columns, start=1):
+            letter = get_column_letter(index)
+            sheet.cell(row=1, column=index).font = Font(bold=True)
+            sheet.column_dimensions[letter].width = max(10, min(40, len(headers[index - 1]) + 2))
+            if pd.api.types.is_numeric_dtype(table[column]) and not pd.api.types.is_bool_dtype(table[column]):
+                number_format = _number_format(str(column))
+                for cell in sheet[letter][1:]:
+                    cell.number_format = number_format
+        sheet.freeze_panes = "A2"
+    if figures:
+        sheet = book.create_sheet("figures")
+        row = 1
+        for name, png in figures.items():
+            sheet.cell(row=row, column=1, value=name).font = Font(bold=True)
+            image = Image(io.BytesIO(png))
+            sheet.add_image(image, f"A{row + 1}")
+            row += int(np.ceil(image.height / 20)) + 3  # default row height is 20 pixels
+    path = Path(path)
+    book.save(path)
+    return path
+
+
+def _cell_value(value):
+    """A value openpyxl stores: numpy scalars as Python numbers, missing as an empty cell."""
+    if value is None or (isinstance(value, float) and np.isnan(value)):
+        return None
+    if isinstance(value, np.generic):
+        value = value.item()
+        if isinstance(value, float) and np.isnan(value):
+            return None
+    if value is pd.NA or value is pd.NaT:
+        return None
+    return value
+
+
+def read_workbook_sheet(path, sheet: str) -> pd.DataFrame:
+    """A table sheet read back with the units stripped from its headers (for checks and tests)."""
+    frame = pd.read_excel(path, sheet_name=sheet)
+    return frame.rename(columns=strip_unit)
