@@ -25,9 +25,8 @@ diagnostics written by ``tromplab points``
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-
 import re
+from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
