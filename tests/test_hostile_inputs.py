@@ -21,6 +21,7 @@ from tromplab.ranking import read_f_table
 from tromplab.sieve import identify_from_table
 from tromplab.tables import InputNote, read_table
 
+from .conftest import ROOT
 from .strategies import lab_tables, mutated, points_tables, write_frame
 
 POINTS = "size,partition_fine\n10,0.95\n20,0.8\n40,0.5\n80,0.2\n160,0.05\n"
@@ -81,7 +82,7 @@ TEXT_CASES = [
     ("size_um,partition_fine\n10,0.9\n20,0.5\n40,0.1\n", ["--size-unit", "mm"],
      "column 'size_um': the size unit 'mm' given as an option (--size-unit) contradicts the column name"),
     (lab(header=LAB_HEADER.replace("size_lower,size_upper", "size_lower_um,size_upper_um"), extra={"size_unit": ["mm"] * 6}), [],
-     "the size unit 'mm' given as an option"),
+     "the size unit 'mm' given in column 'size_unit' contradicts the column name 'size_lower_um'"),
     (lab(extra={"size_representative": ["", "900", "", "", "", ""]}), [], "row 3, column 'size_representative': representative size 900"),
     ("size_lower,size_upper,feed_pct,fine_pct,coarse_pct\n400,,100,100,100\n", [], "has 1 size class(es); at least 3 are needed"),
     ("size_lower,size_upper,feed_pct,fine_pct,coarse_pct\n400,,30,30,30\n200,400,30,30,30\n,200,40,40,40\n", [],
@@ -286,3 +287,11 @@ def test_points_files_load_or_fail_cleanly_and_keep_their_invariants(tmp_path_fa
     for a, b in zip(loaded, scaled):
         assert_allclose(b.size, a.size * scale, rtol=1e-9)
         assert_allclose(b.partition_fine, a.partition_fine)
+
+
+def test_the_reliability_table_lists_every_loading_case():
+    """docs/reliability.md ("Loading inputs") stays in step with the cases above."""
+    text = (ROOT / "docs" / "reliability.md").read_text(encoding="utf-8")
+    section = text[text.index("## Loading inputs") :]
+    missing = [expected for _, _, expected in TEXT_CASES + FILE_CASES if f"`{expected}`" not in section]
+    assert not missing, missing

@@ -44,7 +44,7 @@ import numpy as np
 import pandas as pd
 
 from .errors import InputError
-from .points import SIZE_UNITS, TrompPoints, resolve_size_unit, size_column_unit
+from .points import SIZE_UNITS, TrompPoints, normal_unit, resolve_size_unit, size_column_unit
 from .tables import Table, read_table
 
 STREAMS = ("feed", "fine", "coarse")
@@ -339,7 +339,11 @@ def _size_layout(table: Table, options: LabOptions | None = None) -> _SizeLayout
         if len(given) > 1:
             raise InputError(f"mixed units in column 'size_unit': {', '.join(given)}", source=table.source, column="size_unit")
         if len(given) == 1:
-            unit = resolve_size_unit(table, suffix, given[0], next(iter(found.values()))[0] if found else "size_unit")
+            unit = resolve_size_unit(table, suffix, given[0], next(iter(found.values()))[0] if found else "size_unit",
+                                     given_as="in column 'size_unit'")  # fmt: skip
+    if unit and not suffix and options and options.size_unit and unit != normal_unit(options.size_unit):
+        raise InputError(f"the size unit '{options.size_unit}' given as an option (--size-unit) contradicts column "
+                         f"'size_unit' ({unit})", source=table.source, column="size_unit")  # fmt: skip
     unit = resolve_size_unit(table, unit, options.size_unit if options else None, next(iter(found.values()))[0] if found else "size")
     layouts = [name for name, present in (("size_class", "size_class" in found), ("size_lower/size_upper", "size_lower" in found or "size_upper" in found),
                                           ("size", "size" in found)) if present]  # fmt: skip

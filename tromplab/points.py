@@ -150,13 +150,14 @@ def size_column_unit(column: str, stem: str = "size") -> tuple[bool, str]:
     return (True, match.group(1) or "") if match else (False, "")
 
 
-def resolve_size_unit(table: Table, suffix_unit: str, option_unit: str | None, column: str) -> str:
+def resolve_size_unit(table: Table, suffix_unit: str, option_unit: str | None, column: str,
+                      given_as: str = "as an option (--size-unit)") -> str:  # fmt: skip
     """The unit of the sizes: the column suffix, else the option; a contradiction is an error."""
     option = normal_unit(option_unit)
     if suffix_unit and option and option != suffix_unit:
         raise InputError(
-            f"the size unit '{option_unit}' given as an option (--size-unit) contradicts the column name '{column}' "
-            f"(unit '{suffix_unit}'); sizes are never converted: drop the option or fix the column name",
+            f"the size unit '{option_unit}' given {given_as} contradicts the column name '{column}' "
+            f"(unit '{suffix_unit}'); sizes are never converted: drop one or fix the column name",
             source=table.source,
             column=column,
         )
