@@ -6,20 +6,28 @@ experiment - see the README for an example:
 ``experiment``
     optional; all rows form one experiment named after the file when absent.
 size columns
-    either class bounds ``size_lower`` and ``size_upper`` (blank ``size_upper`` = open
-    top class, blank ``size_lower`` = the pan); or ``size`` (the sieve aperture), for
-    cumulative data or for per-class shares retained on each sieve (a class then runs
-    from its sieve to the next coarser one, the coarsest open at the top).  A unit suffix (``size_um``, ``size_lower_mm``)
-    is allowed and must be the same on every size column; sizes are used as given.
+    one layout of three: class bounds ``size_lower`` and ``size_upper`` (blank
+    ``size_upper`` = open top class, blank or 0 ``size_lower`` = the pan); class-range
+    strings in ``size_class`` ("+1168" = retained on 1168, "-1168+589", "-74" = the
+    pan); or ``size`` (the sieve aperture), for cumulative data or for per-class shares
+    retained on each sieve (a class then runs from its sieve to the next coarser one,
+    the coarsest open at the top).  Optionally ``size_representative`` (a size per
+    class, replacing the geometric mean where given).  A unit suffix (``size_um``,
+    ``size_lower_mm``) names the unit and must be the same on every size column; a
+    ``size_unit`` column or the ``size_unit`` option is the fallback and must agree.
+    Sizes are used as given.
 stream columns
-    two or three of ``feed``, ``fine``, ``coarse``.  What they hold is declared, never
+    two or three of ``feed``, ``fine`` (or ``overflow``), ``coarse`` (or
+    ``underflow``).  What they hold is declared, never
     guessed: either by the ``kind`` option for plain names, or by a suffix on each
     column: ``_mass`` (mass per class, any unit), ``_pct`` / ``_frac`` (share of the
     stream per class), ``_retained_pct`` / ``_retained_frac`` (cumulative share coarser
     than the sieve) or ``_passing_pct`` / ``_passing_frac`` (cumulative share finer).
-``fine_yield`` or ``coarse_yield``
+``fine_yield`` or ``coarse_yield`` (``overflow_yield``, ``underflow_yield``)
     optional column (constant within an experiment) or option: the mass fraction of
     the feed reporting to that product.
+``note``, ``comment``
+    free text, ignored.  Any other column is refused with its name.
 
 Per-class shares come from cumulative data by differences.  The representative size of
 a class is the geometric mean of its bounds; the open top class and the pan continue
@@ -29,9 +37,13 @@ lower = upper / r for the pan, r = upper/lower of the adjacent class), unless
 
 Partition to fines ``phi_i = y b_i / a_i`` with ``a``, ``b``, ``c`` the feed, fine and
 coarse shares and ``y`` the fine yield (Shuvalov et al. 2018, introduction; spec
-section 5).  With three streams and no yield, ``y`` is estimated by least squares over
-the classes (:func:`estimate_fine_yield`); with a yield given too, the two are compared
-and a contradiction is reported.
+section 5).  With three measured streams the feed is taken as the products recombine,
+``a_i = y b_i + (1-y) c_i``, so ``phi_i = y b_i / (y b_i + (1-y) c_i)`` uses both
+products and exchanging them gives ``1 - phi`` (:func:`partition_to_fines`; the
+measured feed alone with ``partition_from="feed"``).  With three streams and no yield,
+``y`` is estimated by least squares over the classes (:func:`estimate_fine_yield`);
+with a yield given too, the two are compared and a contradiction is reported.  Two
+products given as masses imply the yield ``fine / (fine + coarse)``, compared likewise.
 """
 
 from __future__ import annotations
