@@ -67,6 +67,7 @@ UNITS = SIZE_UNITS
 SIZE_STEMS = ("size", "size_lower", "size_upper", "size_class", "size_representative")
 PARTITION_METHODS = ("products", "feed")
 YIELD_COLUMNS = {"fine_yield": "fine", "overflow_yield": "fine", "coarse_yield": "coarse", "underflow_yield": "coarse"}
+YIELD_MARGIN = 1e-9  # an estimated yield this close to 0 or 1 means one product is empty
 MASS_YIELD_TOLERANCE = 0.005  # |stated - implied| fine yield above which two product masses contradict a stated yield
 DEFAULT_SUM_TOLERANCE_PCT = 1.5
 DEFAULT_MIN_FEED_SHARE = 0.002
@@ -823,7 +824,7 @@ def _fine_yield(table: Table, shares: dict, options: LabOptions, mass_yield: flo
             "(option fine_yield / coarse_yield or a fine_yield column)",
             source=table.source,
         )
-    if not 0.0 < estimate.value < 1.0:
+    if not YIELD_MARGIN < estimate.value < 1.0 - YIELD_MARGIN:  # symmetric, so that swapping the products cannot tip it
         raise InputError(f"the size data imply a fine yield of {estimate.value:.3f}, outside (0, 1): check the streams", source=table.source)
     return estimate.value, "least-squares estimate", estimate, notes
 
