@@ -122,6 +122,11 @@ def _xlsx_with_dates(path):
     frame.to_excel(path, index=False)
 
 
+def _xlsx_with_duplicate_header(path):
+    frame = pd.DataFrame([[10.0, 0.9, 11.0], [20.0, 0.5, 21.0], [40.0, 0.1, 41.0]], columns=["size", "partition_fine", "size "])
+    frame.to_excel(path, index=False)
+
+
 # (file name, how to write it, expected fragment) for files that are not CSV text
 FILE_CASES = [
     ("latin1.csv", lambda p: p.write_bytes("experiment,size,partition_fine\nProbe é,10,0.9\n".encode("latin-1")),
@@ -136,6 +141,7 @@ FILE_CASES = [
     ("points.json", lambda p: p.write_text('{"size": [1, 2]}'), "unknown format '.json'"),
     ("text.xlsx", lambda p: p.write_text(POINTS), "is not an .xlsx workbook"),
     ("dates.xlsx", _xlsx_with_dates, "row 3, column 'size': '2024-03-05 00:00:00' is a date, not a number"),
+    ("duplicate.xlsx", _xlsx_with_duplicate_header, "column 'size': duplicate column 'size'"),
     ("empty.csv", lambda p: p.write_text(""), "the file is empty"),
     ("comments.csv", lambda p: p.write_text("# only a comment\n\n"), "only comments or blank lines"),
     ("folder.csv", lambda p: p.mkdir(), "is a directory, not a file"),
