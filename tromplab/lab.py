@@ -56,7 +56,7 @@ import numpy as np
 import pandas as pd
 
 from .errors import InputError
-from .points import SIZE_UNITS, TrompPoints, normal_unit, resolve_size_unit, size_column_unit
+from .points import SIZE_UNITS, TrompPoints, experiment_rows, normal_unit, resolve_size_unit, size_column_unit
 from .tables import Table, read_table
 
 STREAMS = ("feed", "fine", "coarse")
@@ -251,8 +251,8 @@ def balances_from_table(table: Table, options: LabOptions) -> list[MassBalance]:
     table.refuse_unknown(_known_lab_columns(table, streams, size_layout), what="lab table")
     labels = table.experiment_labels()
     balances = []
-    for name in dict.fromkeys(labels):
-        part = table.subset(labels == name)
+    for name, rows in experiment_rows(labels).items():
+        part = table.subset(rows)
         balances.append(_balance_one(part, name, streams, size_layout, options))
     return balances
 

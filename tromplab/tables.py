@@ -153,9 +153,12 @@ class Table:
             raise self.error("experiment name is blank", index=int(np.flatnonzero(blank)[0]), column="experiment")
         return labels.astype(str).str.strip().to_numpy(dtype=object)
 
-    def subset(self, mask) -> Table:
-        mask = np.asarray(mask, dtype=bool)
-        return Table(self.frame.loc[mask].reset_index(drop=True), self.rows[mask], self.source, self.notes)
+    def subset(self, selection) -> Table:
+        """The records selected by a boolean mask or by integer positions (in that order)."""
+        selection = np.asarray(selection)
+        if selection.dtype != bool:
+            selection = selection.astype(int)
+        return Table(self.frame.iloc[selection].reset_index(drop=True), self.rows[selection], self.source, self.notes)
 
 
 def read_table(path, *, sheet: str | int | None = None, sep: str | None = None, decimal: str | None = None) -> Table:
