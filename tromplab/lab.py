@@ -195,7 +195,7 @@ class MassBalance:
         for row in self.classes.loc[~self.classes["used"]].itertuples(index=False):
             lower = "pan" if not np.isfinite(row.size_lower) else f"{row.size_lower:g}"
             upper = "top" if not np.isfinite(row.size_upper) else f"{row.size_upper:g}"
-            where = f" (row {int(row.row)})" if np.isfinite(row.row) else ""
+            where = f" (row {row.row})" if row.row is not None else ""
             messages.append(f"class {lower}-{upper}{unit}{where} left out: {row.flag}")
         return messages
 
@@ -396,7 +396,7 @@ def _balance_one(table: Table, name: str, streams, layout: _SizeLayout, options:
             raise InputError("cumulative stream columns need sieve sizes in a 'size' column, not class bounds", source=table.source)
         lower, upper, shares, blank_notes = _classes_from_cumulative(table, layout.columns[0], streams)
         notes += blank_notes
-        class_rows = np.full(lower.size, np.nan)
+        class_rows = [None] * lower.size  # a class spans two sieve rows
     else:
         if layout.sieve_sizes:
             lower, upper = _retained_on_sieves(table, layout.columns[0])
@@ -408,7 +408,7 @@ def _balance_one(table: Table, name: str, streams, layout: _SizeLayout, options:
         for stream, (column, kind) in streams.items():
             shares[stream], totals[stream], note = _per_class_shares(table, column, kind, options)
             notes += [note] if note else []
-        class_rows = table.rows.astype(float)
+        class_rows = list(table.rows)
     if lower.size < 3:
         raise InputError(f"experiment '{name}' has {lower.size} size class(es); at least 3 are needed", source=table.source)
     top_size, size = _representative_sizes(table, lower, upper, options, layout.representative)
@@ -595,8 +595,8 @@ def _per_class_shares(table: Table, column: str, kind: str, options: LabOptions)
 
 
 def _rows_text(rows) -> str:
-    rows = [int(r) for r in rows]
-    return ("row " if len(rows) == 1 else "rows ") + ", ".join(map(str, rows[:8])) + (", ..." if len(rows) > 8 else "")
+    rows = [str(r) for r in rows]  # file lines, or a DataFrame's index labels
+    return ("row " if len(rows) == 1 else "rows ") + ", ".join(rows[:8]) + (", ..." if len(rows) > 8 else "")
 
 
 def _classes_from_cumulative(table: Table, size_column: str, streams):
