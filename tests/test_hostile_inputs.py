@@ -172,6 +172,9 @@ def test_the_sieve_and_rank_tables_refuse_non_finite_values(tmp_path):
                      "s1,f1,1.0,0.5,1,0.1,0.4\ns1,f1,2.0,inf,1,0.1,0.4\n")  # fmt: skip
     with pytest.raises(InputError, match=r"row 3, column 'residue': 'inf' is not a finite number"):
         identify_from_table(read_table(sieve))
+    sieve.write_text("sieve,fraction,relative_speed,residue,sieve_length,cell_pitch,P_g,cell_pich\n1,a,1,0.5,1,0.1,0.4,0.1\n")
+    with pytest.raises(InputError, match=r"unknown column\(s\) 'cell_pich' \(did you mean 'cell_pitch'\?\) in a residue table"):
+        identify_from_table(read_table(sieve))
     ranks = tmp_path / "f.csv"
     ranks.write_text("experiment,equation,F,n\n1,3,5.3,5\n1,4,-inf,5\n")
     with pytest.raises(InputError, match=r"row 3, column 'F': '-inf' is not a finite number"):
