@@ -113,6 +113,8 @@ class Table:
     def numeric(self, column: str, *, allow_blank: bool = False) -> np.ndarray:
         """Column as finite floats; text, dates, inf and (unless allowed) blanks raise naming the first bad row."""
         raw = self.frame[column]
+        if pd.api.types.is_float_dtype(raw.dtype) or (pd.api.types.is_integer_dtype(raw.dtype) and not pd.api.types.is_bool_dtype(raw.dtype)):
+            return self._checked_numbers(raw, raw.to_numpy(dtype=float, na_value=np.nan), column, allow_blank)  # parsed: no text, no dates
         dates = _date_cells(raw)
         if dates.any():
             i = int(np.flatnonzero(dates)[0])
@@ -123,6 +125,9 @@ class Table:
             i = int(np.flatnonzero(text)[0])
             hint = " (a decimal comma? declare it: --decimal ',', Python decimal=',')" if _DECIMAL_COMMA.match(str(raw.iloc[i])) else ""
             raise self.error(f"'{raw.iloc[i]}' is not a number{hint}", index=i, column=column)
+        return self._checked_numbers(raw, values, column, allow_blank)
+
+    def _checked_numbers(self, raw: pd.Series, values: np.ndarray, column: str, allow_blank: bool) -> np.ndarray:
         infinite = np.isinf(values)
         if infinite.any():
             i = int(np.flatnonzero(infinite)[0])
