@@ -154,3 +154,10 @@ def test_swapping_fine_and_coarse_gives_one_minus_the_partition():
         assert direct.partition_method == method
     assert differences["products"] < 1e-12
     assert differences["feed"] > 0.05  # why "products" is the default
+
+
+def test_a_pan_lower_size_of_zero_means_the_pan_rule():
+    (default,) = read_lab(DATA / "hydrocyclone_size_class_um.csv")
+    (zero,) = read_lab(DATA / "hydrocyclone_size_class_um.csv", LabOptions(pan_lower_size=0.0))
+    assert_allclose(zero.classes["size"], default.classes["size"])
+    assert zero.classes["size"].iloc[-1] == pytest.approx(74 / np.sqrt(147 / 74))  # the pan one class-ratio below 74 um

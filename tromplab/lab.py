@@ -99,7 +99,9 @@ class LabOptions:
     sum_tolerance_pct : float
         Allowed deviation of per-class percentages from 100 % (percentage points).
     top_size, pan_lower_size : float or None
-        Upper bound of the open top class, lower bound of the pan.
+        Upper bound of the open top class, lower bound of the pan (0 or None: the pan
+        continues the geometric progression of its neighbour, as a blank or 0 lower
+        bound in the table does; a geometric mean with 0 would put the pan at size 0).
     rename : dict
         Column renames applied before reading (``{"sieve_um": "size"}``).
     sheet : str or None
@@ -665,7 +667,7 @@ def _representative_sizes(table: Table, lower, upper, options: LabOptions, repre
             neighbour = order[1]
             upper[top] = lower[top] * _ratio(table, lower[neighbour], upper[neighbour])
     if np.isnan(lower[pan]):
-        if options.pan_lower_size is not None:
+        if options.pan_lower_size:  # 0, like a lower bound of 0 in the table, means "the pan": extend the progression
             lower[pan] = options.pan_lower_size
         else:
             neighbour = order[-2]
