@@ -166,6 +166,19 @@ def test_an_unreadable_file_is_refused(tmp_path):
         read_points(path)
 
 
+def test_empty_columns_without_a_header_are_dropped(tmp_path):
+    """Trailing separators in a CSV, or formatted but empty columns in a sheet, are not data."""
+    path = tmp_path / "trailing.csv"
+    path.write_text("size,partition_fine,,\n10,0.9,,\n20,0.5,,\n40,0.1,,\n")
+    (points,) = read_points(path)
+    assert_allclose(points.size, [10, 20, 40])
+    sheet = tmp_path / "gaps.xlsx"
+    pd.DataFrame([[10, 0.9, None, None, "x"], [20, 0.5, None, None, None], [40, 0.1, None, None, None]],
+                 columns=["size", "partition_fine", "", " ", "note"]).to_excel(sheet, index=False)  # fmt: skip
+    (points,) = read_points(sheet)
+    assert_allclose(points.partition_fine, [0.9, 0.5, 0.1])
+
+
 def test_the_sieve_and_rank_tables_refuse_non_finite_values(tmp_path):
     sieve = tmp_path / "residues.csv"
     sieve.write_text("sieve,fraction,relative_speed,residue,sieve_length,cell_pitch,P_g\n"

@@ -318,6 +318,8 @@ def _check_header(header, source: str) -> None:
     names = [str(c).strip() for c in header]
     seen = set()
     for name in names:
+        if name == "":
+            continue  # columns without a header: dropped when empty, refused otherwise (_drop_empty_unnamed)
         if name in seen:
             raise InputError(f"duplicate column '{name}': each column name may appear once", source=source, column=name)
         seen.add(name)
@@ -325,12 +327,14 @@ def _check_header(header, source: str) -> None:
 
 def _drop_empty_unnamed(frame: pd.DataFrame, source: str) -> pd.DataFrame:
     """Columns without a header: dropped when empty (trailing separators), refused otherwise."""
-    for position, name in enumerate(list(frame.columns)):
+    keep = []
+    for position, name in enumerate(frame.columns):
         if name == "" or name.startswith("Unnamed: ") or name == "nan":
-            if frame[name].notna().any():
+            if frame.iloc[:, position].notna().any():
                 raise InputError(f"column {position + 1} holds values but has no header", source=source)
-            frame = frame.drop(columns=[name])
-    return frame
+            continue
+        keep.append(position)
+    return frame.iloc[:, keep]
 
 
 def _date_cells(values: pd.Series) -> np.ndarray:
