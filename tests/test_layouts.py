@@ -161,3 +161,13 @@ def test_a_pan_lower_size_of_zero_means_the_pan_rule():
     (zero,) = read_lab(DATA / "hydrocyclone_size_class_um.csv", LabOptions(pan_lower_size=0.0))
     assert_allclose(zero.classes["size"], default.classes["size"])
     assert zero.classes["size"].iloc[-1] == pytest.approx(74 / np.sqrt(147 / 74))  # the pan one class-ratio below 74 um
+
+
+def test_the_balance_command_says_how_the_partition_was_computed(capsys):
+    path = str(DATASETS / "screen_460um_cumulative_oversize.csv")
+    rename = "sieve_um=size_um,feed_cum=feed,coarse_cum=coarse,fine_cum=fine"
+    for option, said in (([], "partition from both products, y b / (y b + (1 - y) c)"),
+                         (["--partition-from", "feed"], "partition from the fine stream over the measured feed, y b / a"),
+                         (["--reconcile"], "partition from the reconciled distributions")):  # fmt: skip
+        assert main(["balance", path, "--kind", "retained_frac", "--rename", rename, *option]) == 0
+        assert said in capsys.readouterr().out

@@ -16,7 +16,7 @@ import pandas as pd
 from ._version import __version__
 from .errors import InputError
 from .formulas import registry_table, select_formulas
-from .lab import KINDS, PARTITION_METHODS, LabOptions, YieldWarning, read_experiments, read_lab
+from .lab import KINDS, PARTITION_METHOD_TEXT, PARTITION_METHODS, LabOptions, YieldWarning, read_experiments, read_lab
 from .ranking import RANK_BY, rank_formulas, read_f_table
 from .screening import DEFAULT_ALPHA
 from .tables import InputNote
@@ -234,7 +234,7 @@ def _run_balance(args) -> int:
     for balance in balances:
         estimate = balance.yield_estimate
         print(f"Experiment {balance.experiment}: fine yield {balance.fine_yield:.4f} ({balance.yield_source}); "
-              f"partition from {balance.partition_method}")  # fmt: skip
+              f"partition from {PARTITION_METHOD_TEXT[balance.partition_method]}")  # fmt: skip
         if estimate is not None:
             print(f"  least-squares estimate from the three streams: {estimate.value:.4f} +/- {estimate.stderr:.4f} "
                   f"(standard error, {estimate.n_classes} classes); coarse yield {1 - estimate.value:.4f}")  # fmt: skip

@@ -66,6 +66,11 @@ CUMULATIVE_KINDS = {"retained_pct", "retained_frac", "passing_pct", "passing_fra
 UNITS = SIZE_UNITS
 SIZE_STEMS = ("size", "size_lower", "size_upper", "size_class", "size_representative")
 PARTITION_METHODS = ("products", "feed")
+PARTITION_METHOD_TEXT = {  # how each partition method reads in outputs
+    "products": "both products, y b / (y b + (1 - y) c)",
+    "feed": "the fine stream over the measured feed, y b / a",
+    "reconciled": "the reconciled distributions, y b' / a'",
+}
 YIELD_COLUMNS = {"fine_yield": "fine", "overflow_yield": "fine", "coarse_yield": "coarse", "underflow_yield": "coarse"}
 YIELD_MARGIN = 1e-9  # an estimated yield this close to 0 or 1 means one product is empty
 MASS_YIELD_TOLERANCE = 0.005  # |stated - implied| fine yield above which two product masses contradict a stated yield
