@@ -74,6 +74,7 @@ TEXT_CASES = [
     ("size;partition_fine\n10;0,95\n20;0,8\n40;0,5\n", ["--sep", ";", "--decimal", "."],
      "row 2, column 'partition_fine': '0,95' is not a number (a decimal comma?"),
     (POINTS, ["--sep", ",", "--decimal", ","], "the separator and the decimal mark are both ','"),
+    (POINTS, ["--sep", ";;"], "the separator (--sep) must be one character such as ';' or ',', got ';;'"),
     # size classes, units and yields
     ("size_class,feed_pct,fine_pct\n+400,50,10\n-400+200,30,30\nabc,20,60\n", ["--fine-yield", "0.4"],
      "row 4, column 'size_class': 'abc' is not a size class"),

@@ -688,6 +688,11 @@ def _representative_sizes(table: Table, lower, upper, options: LabOptions, repre
             raise table.error(f"representative size {given[i]:g} outside its class {lower[i]:g}-{upper[i]:g}", index=i,
                               column=representative_column)  # fmt: skip
         size = np.where(np.isfinite(given), given, size)
+    bad = np.flatnonzero(~(np.isfinite(size) & (size > 0)) | ~(upper[top] < np.inf))
+    if bad.size:  # e.g. a pan below 5e-324 or a top class above 1e308 once extended by the class ratio
+        i = int(bad[0])
+        raise InputError(f"class {lower[i]:g}-{upper[i]:g} has the representative size {size[i]:g}: its bounds are too extreme to "
+                         "compute with (give the sizes in another unit)", source=table.source)  # fmt: skip
     return float(upper[top]), size
 
 

@@ -188,6 +188,10 @@ def read_table(path, *, sheet: str | int | None = None, sep: str | None = None, 
     """
     path = Path(path)
     source = str(path)
+    sep = {"\\t": "\t", "tab": "\t"}.get(sep, sep)  # a tab is hard to type on a command line
+    for name, value in (("separator (--sep)", sep), ("decimal mark (--decimal)", decimal)):
+        if value is not None and (len(value) != 1 or value in "\"\n\r" or value.isalnum()):
+            raise InputError(f"the {name} must be one character such as ';' or ',', got {value!r}", source=source)
     _check_path(path)
     suffix = path.suffix.lower()
     if suffix in EXCEL_SUFFIXES:
