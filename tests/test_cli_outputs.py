@@ -119,7 +119,8 @@ def test_console_table_follows_rank_by_and_shows_intervals(tmp_path, capsys):
     assert main(["fit", str(points), "-o", str(tmp_path / "f"), "--no-figures", "--formulas", "paper"]) == 0
     by_f = capsys.readouterr().out
     assert "ranked by F" in by_f and "F_crit" in by_f.splitlines()[1] and "aicc" not in by_f
-    assert main(["fit", str(points), "-o", str(tmp_path / "a"), "--no-figures", "--rank-by", "aicc", "--ci", "0.9"]) == 0
+    assert main(["fit", str(points), "-o", str(tmp_path / "a"), "--no-figures", "--rank-by", "aicc", "--ci", "0.9",
+                 "--formulas", "plitt,lognormal,rosin_rammler,molerus"]) == 0  # fmt: skip
     by_aicc = capsys.readouterr().out
     lines = by_aicc.splitlines()
     header = lines[1].split()
@@ -127,13 +128,18 @@ def test_console_table_follows_rank_by_and_shows_intervals(tmp_path, capsys):
     fits = pd.read_csv(tmp_path / "a" / "fits.csv")
     first_of_a = fits[fits["experiment"] == "A"].sort_values("rank")
     assert (first_of_a["aicc"].diff().dropna() >= -1e-9).all()  # rank 1 has the lowest AICc
-    shown = [line.split()[2] for line in lines[2:11]]
+    shown = [line.split()[2] for line in lines[2:6]]
     assert shown == list(first_of_a["formula"])
     assert "intervals:" in by_aicc and "d_cut low" in by_aicc
     plitt = fits[(fits["experiment"] == "A") & (fits["formula"] == "plitt")].iloc[0]
     interval_line = next(line for line in lines[lines.index("  intervals:"):] if line.split()[0] == "plitt")
     assert f"{plitt['d_cut_low']:.4g}" in interval_line and f"{plitt['d_cut_high']:.4g}" in interval_line
     assert max(len(line) for line in lines if not line.startswith("  /")) <= 100
+    assert main(["fit", str(points), "-o", str(tmp_path / "b"), "--no-figures", "--formulas", "plitt", "--bootstrap", "20"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    boot = pd.read_csv(tmp_path / "b" / "fits.csv").iloc[0]
+    row = lines[lines.index("  bootstrap intervals:") + 2].split()
+    assert row[0] == "plitt" and row[2:4] == [f"{boot['d_cut_boot_low']:.4g}", f"{boot['d_cut_boot_high']:.4g}"]
 
 
 def test_rerun_into_the_same_folder_leaves_exactly_the_current_figures(tmp_path):
@@ -150,3 +156,10 @@ def test_rerun_into_the_same_folder_leaves_exactly_the_current_figures(tmp_path)
     assert set(pd.read_csv(out / "fits.csv")["experiment"]) == {"C"}
     assert main(["fit", str(out.parent / "c.csv"), "-o", str(out), "--formulas", "plitt", "--no-figures"]) == 0
     assert list(out.glob("*.png")) == []
+
+
+def test_report_reads_the_partition_to_the_coarse_product(tmp_path):
+    output = tmp_path / "report.html"
+    assert main(["report", str(LAB), "-o", str(output), "--formulas", "plitt", "--partition-to", "coarse"]) == 0
+    markdown = (tmp_path / "report.md").read_text()
+    assert "partition_coarse" in markdown and "partition_fine" not in markdown

@@ -40,9 +40,11 @@ def test_nominal_coverage_of_95_percent_intervals():
 def test_interval_table_reports_parameters_and_indices():
     fit = fit_formula(experiment(1), PLITT)
     table = interval_table(fit).set_index("quantity")
-    assert list(table.index) == ["d_cut", "ks", "slope", "eta", "epsilon", "d25", "d75", "ep", "imperfection"]
-    assert set(table.loc[["d_cut", "ks"], "method"]) <= {"profile", "wald"}
-    assert (table.loc["slope":, "method"] == "delta").all()
+    assert list(table.index) == ["d_cut", "ks", "slope", "eta", "epsilon", "d25", "d75", "ep", "imperfection", "d50", "ep_c",
+                                 "imperfection_c"]  # fmt: skip
+    assert set(table.loc[["d_cut", "ks"], "method"]) <= {"profile", "wald-log"}
+    assert table.loc["slope", "method"] == "delta-neglog" and table.loc["eta", "method"] == "delta-logit"
+    assert (table.loc["epsilon":, "method"] == "delta-log").all()
     assert (table["low"] < table["value"]).all() and (table["value"] < table["high"]).all()
     # the slope is -ks/4, so its delta-method error is exactly se(ks)/4
     assert_allclose(table.loc["slope", "stderr"], table.loc["ks", "stderr"] / 4, rtol=1e-5)
@@ -85,8 +87,9 @@ def test_model_average_weights_the_formulas():
     assert_allclose(weights.sum(), 1.0)
     assert weights.idxmax() in ("weight_plitt", "weight_lognormal", "weight_molerus_hoffmann")
     d_cuts = [fit.d_cut for fit in fits]
-    assert min(d_cuts) <= table.loc["d_cut", "value"] <= max(d_cuts)
-    assert table.loc["d_cut", "stderr"] >= min(fit.fit.stderr["d_cut"] for fit in fits)
+    assert min(d_cuts) <= table.loc["d50c", "value"] <= max(d_cuts)
+    assert table.loc["d50c", "stderr"] >= min(fit.fit.stderr["d_cut"] for fit in fits)
+    assert_allclose(table.loc["d50", "value"], table.loc["d50c", "value"])  # no bypass: the actual cut is the corrected one
     with pytest.raises(ValueError, match="one experiment"):
         model_average([fits[0], fit_formula(experiment(8, name="other"), PLITT)])
 
@@ -110,7 +113,7 @@ def test_fit_command_adds_interval_columns_and_averages(tmp_path, capsys):
         assert fits[column].notna().all(), column
     assert (fits["d_cut_low"] < fits["d_cut"]).all() and (fits["d_cut"] < fits["d_cut_high"]).all()
     averages = pd.read_csv(out / "averages.csv")
-    assert set(averages["quantity"]) == {"d_cut", "ep", "eta"} and set(averages["experiment"]) == {"run1", "run2"}
+    assert set(averages["quantity"]) == {"d50", "d50c", "ep", "ep_c", "eta"} and set(averages["experiment"]) == {"run1", "run2"}
     assert main(["fit", str(path), "-o", str(out), "--ci", "1.5"]) == 1
 
 

@@ -1,4 +1,4 @@
-"""Command-line interface: ``tromplab formulas | fit | rank | points | balance``."""
+"""Command-line interface: ``tromplab formulas | fit | report | compare | points | balance | sieve | rank | layer | pulp | optimize``."""
 
 from __future__ import annotations
 
@@ -15,8 +15,9 @@ import pandas as pd
 
 from ._version import __version__
 from .errors import InputError
-from .formulas import registry_table, select_formulas
+from .formulas import NAME_CLASHES, registry_table, select_formulas
 from .lab import KINDS, PARTITION_METHOD_TEXT, PARTITION_METHODS, LabOptions, YieldWarning, read_experiments, read_lab
+from .model_commands import add_model_commands
 from .ranking import RANK_BY, rank_formulas, read_f_table
 from .screening import DEFAULT_ALPHA
 from .tables import InputNote
@@ -100,15 +101,17 @@ def _parser() -> argparse.ArgumentParser:
     report = commands.add_parser("report", parents=[lab], help="HTML and Markdown report: balance, ranked fits, uncertainties, figures")
     report.add_argument("input", type=Path, help="Tromp points or a lab table")
     report.add_argument("-o", "--output", type=Path, default=Path("results/report.html"), help="HTML file (a .md twin is written beside it)")
-    report.add_argument("--alpha", type=float, default=DEFAULT_ALPHA)
+    report.add_argument("--alpha", type=float, default=DEFAULT_ALPHA, help="significance level of the Fisher screen")
     report.add_argument("--formulas", default=None, help="comma-separated ids or equation numbers (default: all nine)")
     report.add_argument("--extended", action="store_true", help="also fit the curves with bypass and fish-hook")
-    report.add_argument("--rank-extended", action="store_true")
-    report.add_argument("--delta-max", type=float, default=None)
-    report.add_argument("--rank-by", choices=sorted(RANK_BY), default="F")
+    report.add_argument("--rank-extended", action="store_true", help="rank the extended curves with the nine")
+    report.add_argument("--delta-max", type=float, default=None,
+                        help="largest feed particle size for the misplacement eps (default: largest size of the data)")
+    report.add_argument("--rank-by", choices=sorted(RANK_BY), default="F", help="criterion within an experiment")
     report.add_argument("--ci", type=float, default=0.95, metavar="LEVEL", help="level of the intervals (default 0.95)")
     report.add_argument("--size-unit", default="", help="unit of the sizes when the size columns carry none")
-    report.add_argument("--title", default="tromplab report")
+    report.add_argument("--title", default="tromplab report", help="title of the report (default: tromplab report)")
+    _add_partition_to(report)
     report.set_defaults(run=_run_report)
 
     compare = commands.add_parser("compare", parents=[lab], help="did the sharpness (or the cut) change between experiments?")
@@ -117,6 +120,24 @@ def _parser() -> argparse.ArgumentParser:
     compare.add_argument("--shared", choices=("shape", "d_cut"), default="shape", help="parameter shared by the joint fit")
     compare.add_argument("--experiments", default=None, help="comma-separated experiments to compare (default: all)")
     compare.set_defaults(run=_run_compare)
+
+    export = commands.add_parser("export", help="write fitted parameters in a simulator's convention (whiten, plitt, dyssol, csv-long)")
+    export.add_argument("fits_dir", type=Path, help="output folder of 'tromplab fit' (or its fits.csv)")
+    export.add_argument("--to", required=True, choices=("whiten", "plitt", "dyssol", "csv-long"), help="target convention (docs/export.md)")
+    export.add_argument("-o", "--output", type=Path, default=None, help="CSV to write (default: FITS_DIR/export_<convention>.csv)")
+    export.add_argument("--size-unit", default=None, help="unit of the fitted sizes: um, mm, cm or m (required by --to dyssol)")
+    export.set_defaults(run=_run_export)
+
+    trend = commands.add_parser("trend", parents=[lab], help="monitor a classifier over surveys: control charts and change flags")
+    trend.add_argument("input", type=Path, help="Tromp points or a lab table with a 'date' (or 'survey') column")
+    trend.add_argument("-o", "--outdir", type=Path, default=Path("results/trend"), help="output folder (default: results/trend)")
+    trend.add_argument("--formula", default=None, help="formula id (default: the best-ranked of the nine over all surveys)")
+    trend.add_argument("--baseline", default=None,
+                       help="baseline period: the first N surveys, or a date range FROM:TO (default: the first half, at most 8)")
+    trend.add_argument("--alpha", type=float, default=0.01, help="significance level of the change flags (default 0.01)")
+    trend.add_argument("--size-unit", default="", help="unit of the sizes, for the figure labels")
+    trend.add_argument("--no-figures", action="store_true", help="do not draw figures")
+    trend.set_defaults(run=_run_trend)
 
     points = commands.add_parser("points", parents=[lab], help="turn a lab table into Tromp points with diagnostics")
     points.add_argument("input", type=Path, help="lab table (CSV or .xlsx)")
@@ -133,7 +154,8 @@ def _parser() -> argparse.ArgumentParser:
     sieve_commands = sieve.add_subparsers(dest="sieve_command", metavar="SIEVE_COMMAND", required=True)
     identify = sieve_commands.add_parser("identify", help="identify Vk and sigma from residues at several speed regimes")
     identify.add_argument("data", type=Path, help="CSV: sieve, fraction, relative_speed, residue, sieve_length, cell_pitch, P_g")
-    identify.add_argument("-o", "--output", type=Path, default=Path("results/velocity_laws.csv"))
+    identify.add_argument("-o", "--output", type=Path, default=Path("results/velocity_laws.csv"),
+                          help="CSV of the identified laws (default: results/velocity_laws.csv)")
     identify.add_argument("--two-sided", action="store_true", help="two-sided velocity probability (random-walk paper)")
     identify.add_argument("--level", type=float, default=0.95, help="confidence level of the intervals")
     identify.set_defaults(run=_run_sieve_identify)
@@ -142,7 +164,8 @@ def _parser() -> argparse.ArgumentParser:
     pg.add_argument("--length", type=float, required=True, help="particle length l")
     pg.add_argument("--width", type=float, required=True, help="particle width d (shape factor d/l)")
     pg.add_argument("--cell-width", type=float, required=True, help="cell width 2b across the transport direction")
-    pg.add_argument("--method", choices=("auto", "closed", "quadrature"), default="auto")
+    pg.add_argument("--method", choices=("auto", "closed", "quadrature"), default="auto",
+                    help="closed form, quadrature, or auto: the closed form where it is valid (default)")
     pg.set_defaults(run=_run_sieve_pg)
     bin_ = sieve_commands.add_parser("bin", help="collecting-bin position on the bottom deck for a required recovery")
     bin_.add_argument("--decks", type=int, required=True, help="number of decks m")
@@ -152,11 +175,13 @@ def _parser() -> argparse.ArgumentParser:
 
     rank = commands.add_parser("rank", help="rank formulas from a table of F values (Table 2 -> Table 3)")
     rank.add_argument("table", type=Path, help="CSV with experiment, equation, F and n or F_crit [, adequate]")
-    rank.add_argument("-o", "--outdir", type=Path, default=Path("results"))
-    rank.add_argument("--alpha", type=float, default=DEFAULT_ALPHA)
+    rank.add_argument("-o", "--outdir", type=Path, default=Path("results"), help="output folder for ranking.csv (default: results)")
+    rank.add_argument("--alpha", type=float, default=DEFAULT_ALPHA, help="significance level for F_crit when the table has n")
     rank.add_argument("--computed-adequacy", action="store_true",
                       help="ignore an 'adequate' column and use F > F_crit")  # fmt: skip
     rank.set_defaults(run=_run_rank)
+
+    add_model_commands(commands)  # layer, pulp, optimize
     return parser
 
 
@@ -286,7 +311,8 @@ def _run_sieve_bin(args) -> int:
 
 def _run_formulas(args) -> int:
     table = registry_table()
-    for family, heading in (("paper", "The nine formulas of Shuvalov et al. (2018)"), ("extended", "Extended curves (--extended)")):
+    for family, heading in (("paper", "The nine formulas of Shuvalov et al. (2018)"), ("extended", "Extended curves (--extended)"),
+                            ("other", "Curves of other tools (--formulas other)")):  # fmt: skip
         print(f"{heading}:")
         for row in table[table["family"] == family].itertuples(index=False):
             extras = f", extras {row.extras}" if row.extras else ""
@@ -295,6 +321,10 @@ def _run_formulas(args) -> int:
             print(textwrap.fill(f"shape {row.shape_name}{extras}; slope at the cut {row.slope_at_cut}", width=98,
                                 initial_indent="      ", subsequent_indent="      "))  # fmt: skip
         print()
+    print("Same name, different curve (docs/curves.md):")
+    for clash in NAME_CLASHES:
+        print(textwrap.fill(clash, width=98, initial_indent="  - ", subsequent_indent="    "))
+    print()
     print("x = size / d_cut; phi = partition to the fine product. Corrections: docs/errata.md.")
     return 0
 
@@ -309,7 +339,8 @@ def _run_fit(args) -> int:
     experiments, balances = read_experiments(args.input, _lab_options(args))
     _print_balance_notes(balances)
     bench = fit_experiments(experiments, formulas=formulas, alpha=args.alpha, delta_max=args.delta_max,
-                            rank_by=args.rank_by, rank_extended=args.rank_extended, progress=print_progress)  # fmt: skip
+                            rank_by=args.rank_by, rank_extended=args.rank_extended, progress=print_progress,
+                            size_unit=_data_size_unit(experiments, args.size_unit))  # fmt: skip
     fits, ranking = bench.fits_table(), bench.ranking_table()
     if args.ci is not None or args.bootstrap:
         from .uncertainty import interval_columns
@@ -363,9 +394,10 @@ def _run_report(args) -> int:
         raise ValueError(f"--ci takes a level between 0 and 1, got {args.ci}")
     experiments, balances = read_experiments(args.input, _lab_options(args))
     bench = fit_experiments(experiments, formulas=formulas, alpha=args.alpha, delta_max=args.delta_max, rank_by=args.rank_by,
-                            rank_extended=args.rank_extended, progress=print_progress)  # fmt: skip
+                            rank_extended=args.rank_extended, progress=print_progress,
+                            size_unit=_data_size_unit(experiments, args.size_unit))  # fmt: skip
     report = build_report(bench, balances, source=str(args.input), level=args.ci, size_unit=_data_size_unit(experiments, args.size_unit),
-                          title=args.title)  # fmt: skip
+                          title=args.title, partition_to=args.partition_to)  # fmt: skip
     args.output.parent.mkdir(parents=True, exist_ok=True)
     written = write_report(report, args.output)
     print("Wrote:")
@@ -394,6 +426,38 @@ def _run_compare(args) -> int:
     return 0
 
 
+def _run_export(args) -> int:
+    from .export import export_fits
+
+    result = export_fits(args.fits_dir, args.to, size_unit=args.size_unit)
+    folder = args.fits_dir if args.fits_dir.is_dir() else args.fits_dir.parent
+    output = args.output or folder / f"export_{args.to.replace('-', '_')}.csv"
+    written = write_atomically({output.name: lambda p: result.table.to_csv(p, index=False)}, output.parent or Path("."))
+    print(result.table.to_string(index=False, float_format=lambda v: f"{v:.6g}", na_rep="-"))
+    if result.skipped:
+        left_out = {}
+        for experiment, formula, _ in result.skipped:
+            left_out.setdefault(formula, []).append(experiment)
+        print(f"\nNot expressible in the {args.to} convention (left out; docs/export.md lists what maps to what):")
+        for formula, experiments in left_out.items():
+            print(textwrap.fill(f"{formula}: {', '.join(experiments)}", width=98, initial_indent="  ", subsequent_indent="    "))
+    print(f"\nWrote: {written[output.name]}")
+    return 0
+
+
+def _run_trend(args) -> int:
+    from .trend import monitor_surveys, read_surveys, write_trend
+
+    surveys = read_surveys(args.input, _lab_options(args))
+    result = monitor_surveys(surveys, formula=args.formula, baseline=args.baseline, alpha=args.alpha)
+    written = write_trend(result, args.outdir, size_unit=args.size_unit, figures=not args.no_figures)
+    print(result.summary())
+    print("\nWrote:")
+    for path in written.values():
+        print(f"  {path}")
+    return 0
+
+
 def _run_rank(args) -> int:
     table = read_f_table(args.table, alpha=args.alpha, use_given_marks=not args.computed_adequacy)
     ranking = rank_formulas(table)
@@ -408,13 +472,14 @@ def format_fits(fits: pd.DataFrame, *, rank_by: str = "F") -> str:
 
     The criterion of the ranking is shown: ``F`` and ``F_crit`` when ranking by F,
     ``aicc`` (beside F) when ranking by AICc.  When the table has interval columns
-    (``--ci``), a second table per experiment gives the intervals of d_cut, the shape
-    parameter and Ep.
+    (``--ci``, else ``--bootstrap``), a second table per experiment gives the intervals
+    of d_cut, the shape parameter and Ep.
     """
     columns = list(TERMINAL_COLUMNS)
     if rank_by == "aicc":
         columns[columns.index("F_crit")] = "aicc"
-    intervals = [c for c in ("d_cut_low", "d_cut_high", "shape_low", "shape_high", "ep_low", "ep_high") if c in fits.columns]
+    kind = "" if "d_cut_low" in fits.columns else "_boot"  # --ci intervals, else the bootstrap's
+    intervals = [f"{q}{kind}_{end}" for q in ("d_cut", "shape", "ep") for end in ("low", "high") if f"{q}{kind}_{end}" in fits.columns]
     blocks = []
     for experiment, group in fits.groupby("experiment", sort=False):
         if not group["success"].any():
@@ -429,8 +494,9 @@ def format_fits(fits: pd.DataFrame, *, rank_by: str = "F") -> str:
         ranked_by = "AICc (lowest first)" if rank_by == "aicc" else "F (highest first)"
         blocks.append(f"Experiment {experiment} (n = {n}), ranked by {ranked_by}:\n{text}")
         if intervals:
-            bounds = ordered[["formula", "d_cut", *intervals]].rename(columns=lambda c: c.replace("_low", " low").replace("_high", " high"))
-            blocks.append("  intervals:\n" + bounds.to_string(index=False, float_format=lambda v: f"{v:.4g}", na_rep="-"))
+            bounds = ordered[["formula", "d_cut", *intervals]].rename(columns=lambda c: re.sub(r"(_boot)?_(low|high)$", r" \2", c))
+            title = "  intervals:" if kind == "" else "  bootstrap intervals:"
+            blocks.append(f"{title}\n" + bounds.to_string(index=False, float_format=lambda v: f"{v:.4g}", na_rep="-"))
         for formula, success, message, warned in group[["formula", "success", "message", "warnings"]].itertuples(index=False):
             note = warned if success else f"fit failed: {message}"
             if isinstance(note, str) and note:

@@ -19,6 +19,7 @@ from scipy import stats
 from .curves import CurveFit, fit_formula, measured_efficiency, normalised_weights
 from .fitting import ParameterFit, ParameterSpec, least_squares
 from .formulas import get_formula
+from .parameters import d_cut_parameter
 from .points import TrompPoints
 
 
@@ -50,6 +51,23 @@ def nested_f_test(reduced: CurveFit, full: CurveFit) -> ExtraSumOfSquares:
     """Whether the extra terms of ``full`` are needed beyond ``reduced`` (same points).
 
     ``F = ((SSR_r - SSR_f) / (p_f - p_r)) / (SSR_f / (n - p_f))``.
+
+    Parameters
+    ----------
+    reduced, full : CurveFit
+        Fits to the same points; ``full.formula.nests`` names ``reduced``'s formula.
+
+    Returns
+    -------
+    ExtraSumOfSquares
+        ``F``, ``p_value`` and ``needed(alpha)``.
+
+    Examples
+    --------
+    >>> points = TrompPoints("run", [10, 20, 40, 80, 160], [0.98, 0.91, 0.62, 0.21, 0.04])
+    >>> test = nested_f_test(fit_formula(points, "plitt"), fit_formula(points, "plitt_bypass"))
+    >>> test.df_extra, test.df_full, round(test.p_value, 3), test.needed(0.05)
+    (1, 2, 0.197, False)
 
     Raises
     ------
@@ -111,6 +129,20 @@ def shared_fit(experiments: Sequence[TrompPoints], formula, *, shared: str = "sh
     formula : Formula or str
         One of the nine paper formulas (no extras).
     shared : {"shape", "d_cut"}
+        The parameter held common to all experiments.
+
+    Returns
+    -------
+    SharedFit
+        The joint fit, the separate fits and their extra-sum-of-squares ``test``.
+
+    Examples
+    --------
+    >>> first = TrompPoints("run1", [10, 20, 40, 80, 160], [0.98, 0.91, 0.62, 0.21, 0.04])
+    >>> second = TrompPoints("run2", [10, 20, 40, 80, 160], [0.99, 0.95, 0.60, 0.10, 0.01])
+    >>> joint = shared_fit([first, second], "plitt", shared="shape")
+    >>> joint.test.needed(0.05), joint.table()["ks_separate"].round(2).tolist()
+    (True, [2.62, 3.72])
     """
     formula = get_formula(formula)
     if len(experiments) < 2:
@@ -156,6 +188,5 @@ def shared_fit(experiments: Sequence[TrompPoints], formula, *, shared: str = "sh
 
 def _bounds(formula, name, sizes):
     if name == "d_cut":
-        return (np.min(sizes) / 100.0, np.max(sizes) * 100.0)
-    return formula.shape_bounds
-
+        return d_cut_parameter(sizes).bounds
+    return formula.shape_parameter.bounds

@@ -18,6 +18,7 @@ worse than the grid; the grid minimum is kept in the result so that this can be 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 from scipy import optimize
@@ -31,29 +32,75 @@ from .screening import DEFAULT_ALPHA, FisherScreen, check_screenable, fisher_scr
 
 GRID_SLOPES = -np.geomspace(0.02, 20.0, 41)
 N_GRID_STARTS = 2
-D_CUT_RANGE_FACTOR = 100.0
+
+
+@dataclass(frozen=True)
+class FitOptions:
+    """The options a fit was made with, recorded on the result.
+
+    Everything derived from a fit (screen, indices, intervals, bootstrap refits, model
+    averages, the report) reads these instead of defaults, so that a fit made with
+    ``delta_max=2000`` is also bootstrapped and reported with it.
+
+    Attributes
+    ----------
+    alpha : float
+        Significance level of the Fisher screen.
+    delta_max : float
+        Largest feed particle size used for the misplacement epsilon (size unit of the
+        data): the requested value, else the experiment's own ``delta_max``, else its
+        largest measured size.
+    weights : ndarray
+        Least-squares weights of the points, scaled to mean 1 (all ones when unweighted).
+    size_unit : str
+        Unit of the sizes ("" when not given), for labels.
+    global_search : bool
+        Whether the profiled shape grid was searched.
+    """
+
+    alpha: float
+    delta_max: float
+    weights: np.ndarray = field(compare=False, repr=False)
+    size_unit: str = ""
+    global_search: bool = True
+
+    @classmethod
+    def for_points(cls, points: TrompPoints, *, alpha: float = DEFAULT_ALPHA, delta_max: float | None = None,
+                   size_unit: str = "", global_search: bool = True) -> FitOptions:  # fmt: skip
+        """Options resolved against ``points`` (``delta_max`` and weights filled in)."""
+        if not 0.0 < alpha < 1.0:
+            raise ValueError(f"alpha must lie in (0, 1), got {alpha}")
+        largest = points.largest_size if delta_max is None else float(delta_max)
+        if not (np.isfinite(largest) and largest > 0):
+            raise ValueError(f"delta_max must be a positive size, got {delta_max}")
+        return cls(float(alpha), largest, normalised_weights(points), size_unit or "", global_search)
 
 
 @dataclass(frozen=True)
 class CurveFit:
     """Result of fitting one formula to one experiment.
 
-    ``success`` is False when the fit failed; ``message`` then says why and the numbers
-    are nan.  ``warnings`` lists conditions a user should know about a successful fit
-    (a parameter on its bound, formula (11) without a break point, systematic residuals,
-    a curve above 1).
+    The result stores what the solver found (``fit``) and the options it was made with
+    (``options``); the Fisher ``screen``, the ``indices``, the residual ``diagnostics``,
+    ``x_break`` and ``warnings`` are derived from these two on first use and cached.
+
+    ``success`` is False when the fit failed; ``message`` then says why, every
+    parameter and extra is nan, ``screen``, ``indices`` and ``diagnostics`` are None and
+    :meth:`predict` returns nan.  ``warnings`` lists conditions a user should know about
+    a successful fit (a parameter on its bound, formula (11) without a break point,
+    systematic residuals, a curve above 1).
     """
 
     formula: Formula
     points: TrompPoints
     fit: ParameterFit
     context: dict = field(default_factory=dict)
-    screen: FisherScreen | None = None
-    indices: CurveIndices | None = None
+    options: FitOptions | None = None
     grid_ssr: float = np.nan
-    warnings: tuple[str, ...] = ()
-    x_break: float = np.nan
-    diagnostics: ResidualDiagnostics | None = None
+
+    def __post_init__(self):
+        if self.options is None:  # results built by hand get the defaults fit_formula would use
+            object.__setattr__(self, "options", FitOptions.for_points(self.points))
 
     @property
     def experiment(self) -> str:
@@ -70,27 +117,88 @@ class CurveFit:
 
     @property
     def d_cut(self) -> float:
-        return self.fit.values["d_cut"]
+        return self.fit.values.get("d_cut", np.nan)
 
     @property
     def shape(self) -> float:
-        return self.fit.values[self.formula.shape_name]
+        return self.fit.values.get(self.formula.shape_name, np.nan)
 
     @property
     def extras(self) -> dict[str, float]:
-        """Fitted bypass / fish-hook parameters (empty for the nine paper formulas)."""
+        """Fitted bypass / fish-hook parameters (empty for the nine paper formulas; nan when the fit failed)."""
         return self.curve_arguments()[2]
 
     def curve_arguments(self, values: dict[str, float] | None = None) -> tuple[float, float, dict[str, float]]:
-        """``(d_cut, shape, extras)`` from parameter ``values`` (default: the fitted ones)."""
+        """``(d_cut, shape, extras)`` from parameter ``values`` (default: the fitted ones; nan where missing)."""
         values = self.fit.values if values is None else values
-        extras = {extra.name: values[extra.name] for extra in self.formula.extras}
-        return values["d_cut"], values[self.formula.shape_name], extras
+        extras = {extra.name: values.get(extra.name, np.nan) for extra in self.formula.extras}
+        return values.get("d_cut", np.nan), values.get(self.formula.shape_name, np.nan), extras
+
+    def context_at(self, values: dict[str, float] | None = None) -> dict:
+        """The formula's data-derived inputs (``measured_efficiency`` of (11)), overridden by
+        same-named entries of ``values``: the delta method perturbs them like parameters."""
+        values = values or {}
+        return {name: values.get(name, value) for name, value in self.context.items()}
 
     def predict(self, size, values: dict[str, float] | None = None) -> np.ndarray:
-        """Partition to fines at ``size`` for the fitted parameters (or other ``values``)."""
+        """Partition to fines at ``size`` for the fitted parameters (or other ``values``); nan for a failed fit."""
         d_cut, shape, extras = self.curve_arguments(values)
-        return self.formula(size, d_cut, shape, **self.context, **extras)
+        if not np.all(np.isfinite([d_cut, shape, *extras.values()])):
+            return np.full(np.shape(np.asarray(size, dtype=float)), np.nan)
+        return self.formula(size, d_cut, shape, **self.context_at(values), **extras)
+
+    @cached_property
+    def screen(self) -> FisherScreen | None:
+        """Fisher screen at the recorded ``alpha`` and weights (None for a failed fit)."""
+        if not self.success:
+            return None
+        return fisher_screen(self.points.partition_fine, self.fit.ssr, alpha=self.options.alpha, n_params=self.formula.n_params,
+                             weights=self.options.weights)  # fmt: skip
+
+    @cached_property
+    def indices(self) -> CurveIndices | None:
+        """Indices of the fitted curve at the recorded ``delta_max`` (None for a failed fit)."""
+        if not self.success:
+            return None
+        d_cut, shape, extras = self.curve_arguments()
+        return curve_indices(self.formula, d_cut, shape, delta_max=self.options.delta_max, **self.context, **extras)
+
+    @cached_property
+    def diagnostics(self) -> ResidualDiagnostics | None:
+        """Runs and normality tests of the residuals (None for a failed fit)."""
+        return residual_diagnostics(self.fit.residual) if self.success and self.fit.residual is not None else None
+
+    @cached_property
+    def x_break(self) -> float:
+        """Break point x_a of formula (11) at the fitted shape (nan for other formulas or without one)."""
+        if not (self.success and self.formula.context_from_efficiency):
+            return np.nan
+        return _break_point(self.shape, self.context["measured_efficiency"])[0]
+
+    @cached_property
+    def warnings(self) -> tuple[str, ...]:
+        """What a user should know about a successful fit (empty for a failed one)."""
+        if not self.success:
+            return ()
+        warnings = []
+        for spec in _parameter_specs(self.formula, self.points):
+            if spec.name in self.fit.at_bound:
+                value = self.fit.values[spec.name]
+                bound = spec.lower if np.isclose(value, spec.lower) else spec.upper
+                warnings.append(f"{spec.name} = {value:.4g} at its bound {bound:g}: the unconstrained optimum lies beyond it "
+                                "and the standard error is unreliable")  # fmt: skip
+        if self.formula.context_from_efficiency:
+            warnings += _break_point(self.shape, self.context["measured_efficiency"])[1]
+        if self.formula.extras:
+            sizes = np.geomspace(self.points.size.min() / 10, self.points.size.max(), 400)
+            peak = float(np.max(self.predict(sizes)))
+            if peak > 1.0 + 1e-4:
+                warnings.append(f"the fitted curve exceeds 1 (maximum {peak:.3f}): not a physical partition")
+        diagnostics = self.diagnostics
+        if self.screen.adequate and diagnostics is not None and diagnostics.systematic:
+            warnings.append(f"adequate by F but the residuals are systematic ({diagnostics.n_runs} runs of signs, "
+                            f"runs test p = {diagnostics.runs_p:.3f})")  # fmt: skip
+        return tuple(warnings)
 
     def row(self) -> dict:
         """One row of ``fits.csv`` (see :data:`FIT_COLUMNS`)."""
@@ -117,6 +225,10 @@ class CurveFit:
             "d75": ind.d75 if ind else np.nan,
             "ep": ind.ep if ind else np.nan,
             "imperfection": ind.imperfection if ind else np.nan,
+            "d50": ind.d50 if ind else np.nan,
+            "d50c": ind.d50c if ind else np.nan,
+            "ep_c": ind.ep_c if ind else np.nan,
+            "imperfection_c": ind.imperfection_c if ind else np.nan,
             "aic": criteria["aic"],
             "aicc": criteria["aicc"],
             "bic": criteria["bic"],
@@ -125,10 +237,36 @@ class CurveFit:
             "x_break": self.x_break,
             "bypass": self.fit.values.get("bypass", np.nan),
             "fishhook": self.fit.values.get("fishhook", np.nan),
+            "extras": "; ".join(f"{name}={value!r}" for name, value in self.extras.items() if name not in ("bypass", "fishhook")),
             "success": self.success,
             "message": self.message,
             "warnings": "; ".join(self.warnings),
         }
+
+    # --- readable views (tromplab.results): the same fields as row(), for notebooks and logs
+    def __repr__(self) -> str:
+        from .results import fit_repr
+
+        return fit_repr(self)
+
+    def _repr_html_(self) -> str:
+        from .results import fit_html
+
+        return fit_html(self)
+
+    def summary(self):
+        """One-row :class:`pandas.DataFrame` with the columns of ``fits.csv`` except ``rank``."""
+        from .results import fit_summary
+
+        return fit_summary(self)
+
+    def report(self, *, level: float = 0.95, profile: bool = True) -> str:
+        """Text report: parameters with standard errors and ``level`` intervals (profile
+        likelihood, else Wald), the F screen, indices with delta-method errors, residual
+        diagnostics and warnings (like lmfit's ``fit_report``)."""
+        from .results import fit_report
+
+        return fit_report(self, level=level, profile=profile)
 
 
 def measured_cut_size(points: TrompPoints) -> float:
@@ -176,11 +314,7 @@ def measured_slope(points: TrompPoints, d_cut: float) -> float:
 
 
 def _parameter_specs(formula: Formula, points: TrompPoints) -> list[ParameterSpec]:
-    return [
-        ParameterSpec("d_cut", points.size.min() / D_CUT_RANGE_FACTOR, points.size.max() * D_CUT_RANGE_FACTOR),
-        ParameterSpec(formula.shape_name, *formula.shape_bounds),
-        *(ParameterSpec(extra.name, *extra.bounds) for extra in formula.extras),
-    ]
+    return list(formula.parameters(points.size))
 
 
 def normalised_weights(points: TrompPoints) -> np.ndarray:
@@ -199,13 +333,18 @@ def fit_formula(
     delta_max: float | None = None,
     global_search: bool = True,
     starts: list[dict] | None = None,
+    size_unit: str = "",
 ) -> CurveFit:
-    """Fit ``formula`` to ``points``, screen it and compute its indices.
+    """Fit ``formula`` to ``points`` and record the options with the result.
+
+    Only the fit is made here; the screen, indices and diagnostics of the returned
+    :class:`CurveFit` are derived from it (and the recorded :class:`FitOptions`) on
+    first use.
 
     Parameters
     ----------
     points : TrompPoints
-        Measured curve (more than two points).
+        Measured curve (more points than the formula has parameters).
     formula : Formula or str
         Registry entry, id or equation number.
     alpha : float
@@ -217,6 +356,8 @@ def fit_formula(
         the bootstrap does).
     starts : list of dict, optional
         Extra starting points (parameter name -> value).
+    size_unit : str
+        Unit of the sizes, recorded for labels.
 
     Returns
     -------
@@ -226,16 +367,22 @@ def fit_formula(
     Raises
     ------
     ValueError
-        When the experiment has two points or fewer (the screen needs n > 2).
+        When the experiment has no more points than the formula has parameters (the
+        screen needs ``n > p``), or ``alpha`` / ``delta_max`` are out of range.
+
+    Examples
+    --------
+    >>> points = TrompPoints("run", [10, 20, 40, 80, 160], [0.98, 0.91, 0.62, 0.21, 0.04])
+    >>> fit = fit_formula(points, "plitt")
+    >>> round(fit.d_cut, 2), round(fit.shape, 2), fit.screen.adequate
+    (48.21, 2.62, True)
     """
     formula = get_formula(formula)
     check_screenable(points.n, n_params=formula.n_params)
+    options = FitOptions.for_points(points, alpha=alpha, delta_max=delta_max, size_unit=size_unit, global_search=global_search)
     specs = _parameter_specs(formula, points)
-    context, warnings = {}, []
-    if formula.context_from_efficiency:
-        context["measured_efficiency"] = measured_efficiency(points)
-    weights = normalised_weights(points)
-    root_weights = np.sqrt(weights)
+    context = formula_context(formula, points)
+    root_weights = np.sqrt(options.weights)
     extra_starts = {extra.name: extra.start for extra in formula.extras}
 
     def residual_at(d_cut, shape, extras):
@@ -255,34 +402,27 @@ def fit_formula(
     all_starts += [{**all_starts[0], **start} for start in starts or []]
     fit = least_squares(residual, specs, all_starts)
     grid_ssr = grid[0][0] if grid else np.nan
-    result = CurveFit(formula=formula, points=points, fit=fit, context=context, grid_ssr=grid_ssr)
-    if not fit.success:
-        return result
-    for spec in specs:
-        if spec.name in fit.at_bound:
-            value = fit.values[spec.name]
-            bound = spec.lower if np.isclose(value, spec.lower) else spec.upper
-            warnings.append(f"{spec.name} = {value:.4g} at its bound {bound:g}: the unconstrained optimum lies beyond it "
-                            "and the standard error is unreliable")  # fmt: skip
-    x_break = np.nan
+    return CurveFit(formula=formula, points=points, fit=fit, context=context, options=options, grid_ssr=grid_ssr)
+
+
+def formula_context(formula: Formula, points: TrompPoints) -> dict[str, float]:
+    """Inputs a formula takes from the measured points rather than from the fit
+    (``measured_efficiency`` for formula (11)); empty for the others."""
     if formula.context_from_efficiency:
-        x_break, note = _break_point(fit.values[formula.shape_name], context["measured_efficiency"])
-        warnings += note
-    extras = {name: fit.values[name] for name in extra_starts}
-    if extras:
-        peak = float(np.max(formula(np.geomspace(points.size.min() / 10, points.size.max(), 400), fit.values["d_cut"],
-                                    fit.values[formula.shape_name], **extras)))  # fmt: skip
-        if peak > 1.0 + 1e-4:
-            warnings.append(f"the fitted curve exceeds 1 (maximum {peak:.3f}): not a physical partition")
-    screen = fisher_screen(points.partition_fine, fit.ssr, alpha=alpha, n_params=formula.n_params, weights=weights)
-    largest = points.largest_size if delta_max is None else float(delta_max)
-    indices = curve_indices(formula, fit.values["d_cut"], fit.values[formula.shape_name], delta_max=largest, **context, **extras)
-    diagnostics = residual_diagnostics(fit.residual)
-    if screen.adequate and diagnostics.systematic:
-        warnings.append(
-            f"adequate by F but the residuals are systematic ({diagnostics.n_runs} runs of signs, runs test p = {diagnostics.runs_p:.3f})"
-        )
-    return CurveFit(formula, points, fit, context, screen, indices, grid_ssr, tuple(warnings), x_break, diagnostics)
+        return {"measured_efficiency": measured_efficiency(points)}
+    return {}
+
+
+def failed_fit(points: TrompPoints, formula, message: str, *, alpha: float = DEFAULT_ALPHA, delta_max: float | None = None,
+               size_unit: str = "") -> CurveFit:  # fmt: skip
+    """A failed :class:`CurveFit` of ``formula``: every parameter and extra nan, ``message`` saying why."""
+    formula = get_formula(formula)
+    try:
+        options = FitOptions.for_points(points, alpha=alpha, delta_max=delta_max, size_unit=size_unit)
+    except ValueError:
+        options = FitOptions(float(alpha), np.nan, normalised_weights(points), size_unit or "")
+    specs = _parameter_specs(formula, points)
+    return CurveFit(formula=formula, points=points, fit=ParameterFit.failed(specs, points.n, message), options=options)
 
 
 def _break_point(kr: float, efficiency: float) -> tuple[float, list[str]]:

@@ -16,17 +16,10 @@ from dataclasses import dataclass, field
 import lmfit
 import numpy as np
 
+from .parameters import Parameter
 
-@dataclass(frozen=True)
-class ParameterSpec:
-    """A fitted parameter: its name and closed bounds."""
-
-    name: str
-    lower: float = -np.inf
-    upper: float = np.inf
-
-    def clip(self, value: float) -> float:
-        return float(np.clip(value, self.lower, self.upper))
+#: The fitting layer's name for :class:`tromplab.parameters.Parameter` (the one parameter record).
+ParameterSpec = Parameter
 
 
 @dataclass(frozen=True)

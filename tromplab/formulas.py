@@ -18,11 +18,14 @@ References
 
 from __future__ import annotations
 
+import re
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import optimize, special
+
+from .parameters import Parameter, d_cut_parameter
 
 LN2 = np.log(2.0)
 SHUVALOV_2018 = (
@@ -32,14 +35,14 @@ SHUVALOV_2018 = (
 )
 
 
-@dataclass(frozen=True)
-class ExtraParameter:
-    """A parameter beyond ``d_cut`` and the shape (bypass, fish-hook), with bounds and start."""
+def ExtraParameter(name: str, bounds: tuple[float, float], start: float, meaning: str, unit: str = "1") -> Parameter:  # noqa: N802
+    """A parameter beyond ``d_cut`` and the shape (bypass, fish-hook) as a :class:`Parameter`.
 
-    name: str
-    bounds: tuple[float, float]
-    start: float
-    meaning: str
+    Kept under its earlier name so declarations written before the one parameter record
+    still read the same; the record itself is :class:`tromplab.parameters.Parameter`.
+    """
+    low, high = bounds
+    return Parameter(name, low, high, unit=unit, meaning=meaning, start=start, start_rule=f"fixed at {start:g}")
 
 
 @dataclass(frozen=True)
@@ -58,6 +61,8 @@ class Formula:
         The formula as plain text, in ``x = size/d_cut``.
     shape_name : str
         Name of the shape parameter as in the paper (``km1``, ``ks``, ...).
+    shape_meaning : str
+        What the shape parameter does to the curve (for :attr:`shape_parameter`).
     shape_bounds : tuple of float
         Closed interval of admissible shape values used by the fits.
     phi : callable
@@ -80,11 +85,12 @@ class Formula:
         (``context = {"measured_efficiency": eta_exp}``), as (11) does.
     monotone : bool
         False when the curve rises again at large sizes for part of the shape range.
-    extras : tuple of ExtraParameter
+    extras : tuple of Parameter
         Further fitted parameters (extended curves only); ``phi`` takes them as keywords.
     family : str
         ``"paper"`` for the nine formulas of [Shuvalov2018]_, ``"extended"`` for the
-        curves with bypass or fish-hook (kept out of the paper's ranking by default).
+        curves with bypass or fish-hook, ``"other"`` for the curves of other tools
+        (both kept out of the paper's ranking by default).
     nests : str or None
         Id of the paper formula this one reduces to when its extras vanish (for the
         extra-sum-of-squares test).
@@ -109,6 +115,7 @@ class Formula:
     extras: tuple[ExtraParameter, ...] = ()
     family: str = "paper"
     nests: str | None = None
+    shape_meaning: str = ""
 
     def __reduce__(self):
         # Records hold lambdas and closures; they travel (pickle, process pools) by their id.
@@ -128,6 +135,21 @@ class Formula:
         low, high = self.shape_bounds
         return float(np.clip(shape, low, high))
 
+    @property
+    def shape_parameter(self) -> Parameter:
+        """The shape parameter as a :class:`Parameter` record (dimensionless)."""
+        return Parameter(
+            self.shape_name,
+            *self.shape_bounds,
+            unit="1",
+            meaning=self.shape_meaning,
+            start_rule="the shape whose slope at the cut equals the measured slope (shape_for_slope)",
+        )
+
+    def parameters(self, sizes) -> tuple[Parameter, ...]:
+        """Every fitted parameter for a curve measured at ``sizes``: d_cut, the shape, the extras."""
+        return (d_cut_parameter(sizes), self.shape_parameter, *self.extras)
+
 
 def _as_array(x) -> np.ndarray:
     return np.asarray(x, dtype=float)
@@ -140,15 +162,41 @@ def _log(x: np.ndarray) -> np.ndarray:
 
 # --- (3) Molerus -----------------------------------------------------------------------
 def molerus(x, km1):
-    r"""Molerus (1967): :math:`\varphi = 1 / (1 + e^{-k_{m1}(1 - x^2)})`.
+    r"""Molerus' separation curve, formula (3) of Shuvalov et al. (2018).
 
-    The only formula of the nine with :math:`\varphi(0) = 1/(1 + e^{-k_{m1}}) < 1`:
-    some fines report to the coarse product.  Slope at the cut :math:`-k_{m1}/2`.
+    .. math::
+        \varphi(x) = \frac{1}{1 + e^{-k_{m1}(1 - x^2)}}
+
+    Parameters
+    ----------
+    x : array_like
+        Relative size ``size / d_cut`` (> 0, dimensionless).
+    km1 : float
+        Shape, 1e-6..60 (dimensionless); larger is sharper.
+
+    Returns
+    -------
+    ndarray
+        Partition number to the fine product, 0..1 (dimensionless).
+
+    Notes
+    -----
+    Valid and decreasing for :math:`x > 0` and :math:`k_{m1} > 0`.  Slope at the cut
+    :math:`-k_{m1}/2`.  The only formula of the nine with
+    :math:`\varphi(0) = 1/(1 + e^{-k_{m1}}) < 1`: some fines report to the coarse product.
+
+    References
+    ----------
+    .. [1] Molerus O. (1967). Stochastisches Modell der Gleichgewichtssichtung. Chemie Ingenieur
+       Technik 39(13), 792-796.
+    .. [2] Shuvalov S.I., Novoseltseva S.S., Zhukov V.P. (2018). Justifying the choice of a
+       dependence for the Tromp separation curve approximation. Vestnik IGEU 6, 15-23.
+       doi:10.17588/2072-2672.2018.6.015-023
 
     Examples
     --------
-    >>> float(molerus(1.0, 3.0))
-    0.5
+    >>> round(float(molerus(1.5, 4.0)), 10)
+    0.0066928509
     """
     x = _as_array(x)
     return special.expit(km1 * (1.0 - x * x))
@@ -156,16 +204,41 @@ def molerus(x, km1):
 
 # --- (4) Molerus-Hoffmann --------------------------------------------------------------
 def molerus_hoffmann(x, km2):
-    r"""Molerus and Hoffmann (1969): :math:`\varphi = 1/(1 + x^2 e^{-k_{m2}(1 - x^2)})`.
+    r"""Molerus and Hoffmann's separation curve, formula (4) of Shuvalov et al. (2018).
 
-    Slope at the cut :math:`-(1 + k_{m2})/2`.  With :math:`k_{m2} = 0` it is Plitt's
-    formula with :math:`k_s = 2`.  For :math:`k_{m2} < 0` the curve has a minimum at
-    :math:`x = 1/\sqrt{-k_{m2}}` and rises towards 1 beyond it.
+    .. math::
+        \varphi(x) = \frac{1}{1 + x^2 e^{-k_{m2}(1 - x^2)}}
+
+    Parameters
+    ----------
+    x : array_like
+        Relative size ``size / d_cut`` (> 0, dimensionless).
+    km2 : float
+        Shape, -1..60 (dimensionless); ``km2 = 0`` is Plitt's curve with ``ks = 2``.
+
+    Returns
+    -------
+    ndarray
+        Partition number to the fine product, 0..1 (dimensionless).
+
+    Notes
+    -----
+    Decreasing for all :math:`x > 0` when :math:`k_{m2} \ge 0`; for :math:`k_{m2} < 0`
+    the curve has a minimum at :math:`x = 1/\sqrt{-k_{m2}}` and rises towards 1 beyond
+    it.  Slope at the cut :math:`-(1 + k_{m2})/2`.
+
+    References
+    ----------
+    .. [1] Molerus O., Hoffmann H. (1969). Darstellung von Windsichtertrennkurven durch ein
+       stochastisches Modell. Chemie Ingenieur Technik 41(5-6), 340-344.
+    .. [2] Shuvalov S.I., Novoseltseva S.S., Zhukov V.P. (2018). Justifying the choice of a
+       dependence for the Tromp separation curve approximation. Vestnik IGEU 6, 15-23.
+       doi:10.17588/2072-2672.2018.6.015-023
 
     Examples
     --------
-    >>> float(molerus_hoffmann(1.0, -0.2))
-    0.5
+    >>> round(float(molerus_hoffmann(1.5, 2.0)), 10)
+    0.0351981161
     """
     x = _as_array(x)
     return special.expit(km2 * (1.0 - x * x) - 2.0 * _log(x))
@@ -173,14 +246,40 @@ def molerus_hoffmann(x, km2):
 
 # --- (5) Rosin-Rammler form ------------------------------------------------------------
 def rosin_rammler(x, kr):
-    r"""Rosin-Rammler form: :math:`\varphi = \exp(-\ln 2\, x^{k_r})`.
+    r"""Rosin-Rammler form of the separation curve, formula (5) of Shuvalov et al. (2018).
 
-    Slope at the cut :math:`-k_r \ln 2 / 2`.
+    .. math::
+        \varphi(x) = \exp(-\ln 2\; x^{k_r})
+
+    Parameters
+    ----------
+    x : array_like
+        Relative size ``size / d_cut`` (> 0, dimensionless).
+    kr : float
+        Shape, 0.05..40 (dimensionless): the uniformity exponent, larger is sharper.
+
+    Returns
+    -------
+    ndarray
+        Partition number to the fine product, 0..1 (dimensionless).
+
+    Notes
+    -----
+    Valid and decreasing for :math:`x > 0`, :math:`k_r > 0`, with :math:`\varphi(0) = 1`.
+    Slope at the cut :math:`-k_r \ln 2 / 2`.  Base of formulas (10) and (11).
+
+    References
+    ----------
+    .. [1] Rosin P., Rammler E. (1933). The laws governing the fineness of powdered coal.
+       J. Inst. Fuel 7, 29-36.
+    .. [2] Shuvalov S.I., Novoseltseva S.S., Zhukov V.P. (2018). Justifying the choice of a
+       dependence for the Tromp separation curve approximation. Vestnik IGEU 6, 15-23.
+       doi:10.17588/2072-2672.2018.6.015-023
 
     Examples
     --------
-    >>> round(float(rosin_rammler(2.0, 1.0)), 6)
-    0.25
+    >>> round(float(rosin_rammler(1.5, 3.0)), 10)
+    0.0963881766
     """
     x = _as_array(x)
     return np.exp(-LN2 * np.power(x, kr))
@@ -199,17 +298,44 @@ def _rosin_rammler_efficiency(kr, x_max):
 
 # --- (6) Lynch -------------------------------------------------------------------------
 def lynch(x, kl):
-    r"""Lynch (1977): :math:`\varphi = 1 - (e^{k_l x} - 1)/(e^{k_l x} + e^{k_l} - 2)`.
+    r"""Lynch and Rao's separation curve, formula (6) of Shuvalov et al. (2018).
 
-    Evaluated as :math:`(e^{k_l} - 1)/(e^{k_l x} + e^{k_l} - 2)` scaled by
-    :math:`e^{-k_l}` so that large sizes underflow to 0 instead of giving inf/inf.
-    Slope at the cut :math:`-k_l e^{k_l} / (4 (e^{k_l} - 1))`, never shallower than
-    -1/4 (the limit :math:`k_l \to 0` is Plitt's formula with :math:`k_s = 1`).
+    .. math::
+        \varphi(x) = 1 - \frac{e^{k_l x} - 1}{e^{k_l x} + e^{k_l} - 2}
+
+    Parameters
+    ----------
+    x : array_like
+        Relative size ``size / d_cut`` (> 0, dimensionless).
+    kl : float
+        Shape, 1e-6..120 (dimensionless): Whiten's alpha, larger is sharper.
+
+    Returns
+    -------
+    ndarray
+        Partition number to the fine product, 0..1 (dimensionless).
+
+    Notes
+    -----
+    Valid and decreasing for :math:`x > 0`, :math:`k_l > 0`.  Evaluated as
+    :math:`(1 - e^{-k_l})/(e^{k_l(x-1)} + 1 - 2e^{-k_l})`, which equals the printed form
+    but lets large sizes underflow to 0 instead of giving inf/inf.  Slope at the cut
+    :math:`-k_l e^{k_l} / (4 (e^{k_l} - 1))`, never shallower than -1/4 (the limit
+    :math:`k_l \to 0` is Plitt's curve with :math:`k_s = 1`).  Shuvalov et al. attribute
+    it to Lynch (1977); the form was published by Lynch and Rao (1975).
+
+    References
+    ----------
+    .. [1] Lynch A.J., Rao T.C. (1975). Modelling and scale-up of hydrocyclone classifiers.
+       Proc. 11th International Mineral Processing Congress, Cagliari, 245-269.
+    .. [2] Shuvalov S.I., Novoseltseva S.S., Zhukov V.P. (2018). Justifying the choice of a
+       dependence for the Tromp separation curve approximation. Vestnik IGEU 6, 15-23.
+       doi:10.17588/2072-2672.2018.6.015-023
 
     Examples
     --------
-    >>> float(lynch(1.0, 1.5936))
-    0.5
+    >>> round(float(lynch(1.5, 3.0)), 10)
+    0.1765501004
     """
     x = _as_array(x)
     with np.errstate(over="ignore"):
@@ -224,14 +350,40 @@ def _lynch_slope(kl):
 
 # --- (7) Plitt -------------------------------------------------------------------------
 def plitt(x, ks):
-    r"""Plitt (1971): :math:`\varphi = 1/(1 + x^{k_s})`.
+    r"""Plitt's separation curve, formula (7) of Shuvalov et al. (2018).
 
-    Slope at the cut :math:`-k_s/4`.
+    .. math::
+        \varphi(x) = \frac{1}{1 + x^{k_s}}
+
+    Parameters
+    ----------
+    x : array_like
+        Relative size ``size / d_cut`` (> 0, dimensionless).
+    ks : float
+        Shape, 0.05..60 (dimensionless): larger is sharper.
+
+    Returns
+    -------
+    ndarray
+        Partition number to the fine product, 0..1 (dimensionless).
+
+    Notes
+    -----
+    Valid and decreasing for :math:`x > 0`, :math:`k_s > 0` (a log-logistic curve in
+    size).  Slope at the cut :math:`-k_s/4`.
+
+    References
+    ----------
+    .. [1] Plitt L.R. (1971). The analysis of solid-solid separations in classifiers. CIM Bulletin
+       64(708), 42-47.
+    .. [2] Shuvalov S.I., Novoseltseva S.S., Zhukov V.P. (2018). Justifying the choice of a
+       dependence for the Tromp separation curve approximation. Vestnik IGEU 6, 15-23.
+       doi:10.17588/2072-2672.2018.6.015-023
 
     Examples
     --------
-    >>> float(plitt(1.0, 2.0))
-    0.5
+    >>> round(float(plitt(1.5, 3.0)), 10)
+    0.2285714286
     """
     x = _as_array(x)
     return special.expit(-ks * _log(x))
@@ -248,17 +400,43 @@ def _plitt_efficiency(ks, x_max):
 
 # --- (8) Ogawa, Allen's law ------------------------------------------------------------
 def ogawa_allen(x, kp):
-    r"""Ogawa's form of Allen's law: :math:`\varphi = 1/(1 + x e^{-k_p (1 - x)})`.
+    r"""Ogawa's form of Allen's law, formula (8) of Shuvalov et al. (2018), corrected.
 
-    The paper prints :math:`e^{-k_p x}`, which gives :math:`\varphi(1) \ne 0.5` and
-    contradicts its own slope (17); the exponent :math:`-k_p (1 - x)` is implemented.
-    Slope at the cut :math:`-(1 + k_p)/4`.  For :math:`k_p < 0` the curve rises again
-    at large sizes.
+    .. math::
+        \varphi(x) = \frac{1}{1 + x\, e^{-k_p (1 - x)}}
+
+    Parameters
+    ----------
+    x : array_like
+        Relative size ``size / d_cut`` (> 0, dimensionless).
+    kp : float
+        Shape, -1..60 (dimensionless); ``kp = 0`` is Plitt's curve with ``ks = 1``.
+
+    Returns
+    -------
+    ndarray
+        Partition number to the fine product, 0..1 (dimensionless).
+
+    Notes
+    -----
+    The paper prints :math:`e^{-k_p x}`, which gives :math:`\varphi(1) \ne 1/2` and
+    contradicts its own slope (17); the exponent :math:`-k_p (1 - x)` is implemented
+    (docs/errata.md).  Decreasing for :math:`k_p \ge 0`; for :math:`k_p < 0` the curve
+    has a minimum at :math:`x = -1/k_p` and rises again.  Slope at the cut
+    :math:`-(1 + k_p)/4`.
+
+    References
+    ----------
+    .. [1] Ogawa K., Allen's-law form of the partition curve; the primary source could not be
+       verified and is taken as given by Shuvalov et al. (2018).
+    .. [2] Shuvalov S.I., Novoseltseva S.S., Zhukov V.P. (2018). Justifying the choice of a
+       dependence for the Tromp separation curve approximation. Vestnik IGEU 6, 15-23.
+       doi:10.17588/2072-2672.2018.6.015-023
 
     Examples
     --------
-    >>> float(ogawa_allen(1.0, 1.0))
-    0.5
+    >>> round(float(ogawa_allen(1.5, 2.0)), 10)
+    0.1969503133
     """
     x = _as_array(x)
     return special.expit(kp * (1.0 - x) - _log(x))
@@ -266,15 +444,41 @@ def ogawa_allen(x, kp):
 
 # --- (9) log-normal --------------------------------------------------------------------
 def lognormal(x, kf):
-    r"""Gauss integral of the log-normal law: :math:`\varphi = \tfrac12 \operatorname{erfc}(\ln x / k_f)`.
+    r"""Gauss integral of the log-normal law, formula (9) of Shuvalov et al. (2018).
 
-    :math:`k_f = \sqrt 2\, \sigma` of the natural log of size.  Slope at the cut
+    .. math::
+        \varphi(x) = \tfrac12 \operatorname{erfc}\left(\frac{\ln x}{k_f}\right)
+
+    Parameters
+    ----------
+    x : array_like
+        Relative size ``size / d_cut`` (> 0, dimensionless).
+    kf : float
+        Shape, 0.01..30 (dimensionless): :math:`\sqrt 2\,\sigma` of :math:`\ln` size;
+        smaller is sharper.
+
+    Returns
+    -------
+    ndarray
+        Partition number to the fine product, 0..1 (dimensionless).
+
+    Notes
+    -----
+    Valid and decreasing for :math:`x > 0`, :math:`k_f > 0`.  Slope at the cut
     :math:`-1/(\sqrt\pi\, k_f)`.
+
+    References
+    ----------
+    .. [1] Log-normal (Gauss integral) form of the partition curve as given by Shuvalov et al.
+       (2018); no single primary source is named there.
+    .. [2] Shuvalov S.I., Novoseltseva S.S., Zhukov V.P. (2018). Justifying the choice of a
+       dependence for the Tromp separation curve approximation. Vestnik IGEU 6, 15-23.
+       doi:10.17588/2072-2672.2018.6.015-023
 
     Examples
     --------
-    >>> float(lognormal(1.0, 1.1284))
-    0.5
+    >>> round(float(lognormal(1.5, 0.8)), 10)
+    0.2367586858
     """
     x = _as_array(x)
     return 0.5 * special.erfc(_log(x) / kf)
@@ -309,17 +513,43 @@ LUCKIE_AUSTIN_BREAK = 0.5
 
 
 def luckie_austin(x, kr):
-    r"""Luckie and Austin, piecewise: Rosin-Rammler above ``x = 1/2``, constant below.
+    r"""Luckie and Austin's piecewise curve, formula (10) of Shuvalov et al. (2018), corrected.
 
-    Printed as :math:`1 - \exp(-\ln 2\, x^{k_r})` (the coarse-product form copied from
-    Luckie and Austin); the paper states the branch coincides with (5) and has its slope,
-    so :math:`\exp(-\ln 2\, x^{k_r})` is implemented.  The constant below the break is
-    the value at the break, which keeps the formula continuous and two-parameter.
+    .. math::
+        \varphi(x) = \exp\left(-\ln 2\, \max(x, \tfrac12)^{k_r}\right)
+
+    Parameters
+    ----------
+    x : array_like
+        Relative size ``size / d_cut`` (> 0, dimensionless).
+    kr : float
+        Shape, 0.05..40 (dimensionless), as in :func:`rosin_rammler`.
+
+    Returns
+    -------
+    ndarray
+        Partition number to the fine product, 0..1 (dimensionless).
+
+    Notes
+    -----
+    Printed as :math:`1 - \exp(-\ln 2\, x^{k_r})` (the coarse-product form); the paper
+    states the branch coincides with (5) and has its slope, so the fines branch is
+    implemented, held at its value at the break :math:`x = 1/2` below it (continuous,
+    two parameters; docs/errata.md).  Non-increasing for :math:`k_r > 0`; slope at the
+    cut :math:`-k_r \ln 2 / 2`.
+
+    References
+    ----------
+    .. [1] Luckie P.T., Austin L.G. (1972). A review introduction to the solution of the grinding
+       equations by digital computation. Minerals Science and Engineering 4(2), 24-51.
+    .. [2] Shuvalov S.I., Novoseltseva S.S., Zhukov V.P. (2018). Justifying the choice of a
+       dependence for the Tromp separation curve approximation. Vestnik IGEU 6, 15-23.
+       doi:10.17588/2072-2672.2018.6.015-023
 
     Examples
     --------
-    >>> float(luckie_austin(0.1, 2.0)) == float(luckie_austin(0.5, 2.0))
-    True
+    >>> round(float(luckie_austin(0.3, 3.0)), 10), round(float(luckie_austin(1.5, 3.0)), 10)
+    (0.9170040432, 0.0963881766)
     """
     return rosin_rammler_plateau(x, kr, LUCKIE_AUSTIN_BREAK)
 
@@ -369,18 +599,47 @@ def _shuvalov_break_or_edge(kr, measured_efficiency):
 
 
 def shuvalov(x, kr, *, measured_efficiency):
-    r"""Shuvalov (1992), piecewise: Rosin-Rammler above :math:`x_a`, constant below.
+    r"""Shuvalov's piecewise curve, formula (11) of Shuvalov et al. (2018), corrected.
 
-    :math:`x_a` is chosen so that the area under the curve on :math:`0 < x < 1` equals
-    the classifier efficiency measured on the experimental curve (see
-    :func:`shuvalov_break`).  Where no such :math:`x_a` exists the curve falls back to
-    the nearer limit (plain (5) or a step at the cut); fits report this case.
+    .. math::
+        \varphi(x) = \exp\left(-\ln 2\, \max(x, x_a)^{k_r}\right),\quad
+        x_a \varphi_5(x_a) + \int_{x_a}^1 \varphi_5\,dx = \eta_{exp}
+
+    Parameters
+    ----------
+    x : array_like
+        Relative size ``size / d_cut`` (> 0, dimensionless).
+    kr : float
+        Shape, 0.05..40 (dimensionless), as in :func:`rosin_rammler`.
+    measured_efficiency : float
+        Classifier efficiency of the measured curve, 0.5..1 (dimensionless;
+        :func:`tromplab.curves.measured_efficiency`).
+
+    Returns
+    -------
+    ndarray
+        Partition number to the fine product, 0..1 (dimensionless).
+
+    Notes
+    -----
+    :math:`x_a` (:func:`shuvalov_break`) makes the area under the curve on
+    :math:`0 < x < 1` equal the measured efficiency.  Where no such :math:`x_a` exists
+    the curve falls back to the nearer limit (plain (5) or a step at the cut); fits report
+    this case.  Printed with the coarse-product branch like (10) (docs/errata.md).
+    Non-increasing for :math:`k_r > 0`; slope at the cut :math:`-k_r \ln 2 / 2`.
+
+    References
+    ----------
+    .. [1] Shuvalov S.I. (1992), piecewise partition curve; the primary source could not be verified
+       and is taken as given by Shuvalov et al. (2018).
+    .. [2] Shuvalov S.I., Novoseltseva S.S., Zhukov V.P. (2018). Justifying the choice of a
+       dependence for the Tromp separation curve approximation. Vestnik IGEU 6, 15-23.
+       doi:10.17588/2072-2672.2018.6.015-023
 
     Examples
     --------
-    >>> y = shuvalov([0.05, 0.1], 2.0, measured_efficiency=0.8)
-    >>> bool(y[0] == y[1])
-    True
+    >>> [round(float(v), 8) for v in shuvalov([0.2, 1.5], 3.0, measured_efficiency=0.8)]
+    [0.87066579, 0.09638818]
     """
     return rosin_rammler_plateau(x, kr, _shuvalov_break_or_edge(kr, measured_efficiency))
 
@@ -400,137 +659,192 @@ def _rosin_rammler_shape_for_slope(s):
     return -2.0 * s / LN2
 
 
-FORMULAS: tuple[Formula, ...] = (
+MOLERUS_1967 = "Molerus O. (1967). Stochastisches Modell der Gleichgewichtssichtung. Chemie Ingenieur Technik 39(13), 792-796"
+MOLERUS_HOFFMANN_1969 = (
+    "Molerus O., Hoffmann H. (1969). Darstellung von Windsichtertrennkurven durch ein stochastisches Modell. "
+    "Chemie Ingenieur Technik 41(5-6), 340-344"
+)
+ROSIN_RAMMLER_1933 = "Rosin P., Rammler E. (1933). The laws governing the fineness of powdered coal. J. Inst. Fuel 7, 29-36"
+LYNCH_RAO_1975 = (
+    "Lynch A.J., Rao T.C. (1975). Modelling and scale-up of hydrocyclone classifiers. Proc. 11th International "
+    "Mineral Processing Congress, Cagliari, 245-269"
+)
+PLITT_1971 = "Plitt L.R. (1971). The analysis of solid-solid separations in classifiers. CIM Bulletin 64(708), 42-47"
+OGAWA = "Ogawa K., Allen's-law form of the partition curve (primary source not verified; as given by Shuvalov et al. 2018)"
+LUCKIE_AUSTIN_1972 = (
+    "Luckie P.T., Austin L.G. (1972). A review introduction to the solution of the grinding equations by digital "
+    "computation. Minerals Science and Engineering 4(2), 24-51"
+)
+SHUVALOV_1992 = "Shuvalov S.I. (1992), piecewise partition curve (primary source not verified; as given by Shuvalov et al. 2018)"
+
+
+def _in(source: str, equation: int) -> str:
+    return f"{source}; as formula ({equation}) in {SHUVALOV_2018}"
+
+
+def with_plateau(base: Formula, *, id: str, equation: int, title: str, phi, break_text: str, citation: str, notes: str,
+                 efficiency=None, context_from_efficiency: bool = False, defaults=None) -> Formula:  # fmt: skip
+    """``base`` above a break ``x_b``, held at its value there below (formulas (10) and (11)).
+
+    The shape, its bounds, the slope at the cut (``x_b < 1``) and the expression are the
+    base formula's; ``break_text`` names the break (``"1/2"``, ``"x_a"``) in the expression.
+    """
+    expression = re.sub(r"\bx\b", f"max(x, {break_text})", base.expression)
+    return Formula(
+        id=id,
+        equation=equation,
+        title=title,
+        expression=expression,
+        shape_name=base.shape_name,
+        shape_bounds=base.shape_bounds,
+        phi=phi,
+        slope_at_cut=base.slope_at_cut,
+        slope_expression=base.slope_expression,
+        shape_for_slope=base.shape_for_slope,
+        citation=citation,
+        notes=notes,
+        efficiency=efficiency,
+        context_from_efficiency=context_from_efficiency,
+        defaults=defaults or {},
+        shape_meaning=base.shape_meaning,
+    )
+
+
+_PAPER_BASES: tuple[Formula, ...] = (
     Formula(
         id="molerus",
         equation=3,
         title="Molerus (1967)",
-        expression="1 / (1 + exp(-km1 (1 - x^2)))",
+        expression="1/(1 + exp(-km1*(1 - x^2)))",
         shape_name="km1",
         shape_bounds=(1e-6, 60.0),
         phi=molerus,
         slope_at_cut=lambda km1: -km1 / 2.0,
         slope_expression="-km1/2",
         shape_for_slope=lambda s: -2.0 * s,
-        citation="Molerus O. (1967), as formula (3) in " + SHUVALOV_2018,
+        citation=_in(MOLERUS_1967, 3),
         notes="phi(0) < 1: some fines report to the coarse product.",
+        shape_meaning="sharpness of the cut; also sets the fines lost to the coarse product, 1 - phi(0)",
     ),
     Formula(
         id="molerus_hoffmann",
         equation=4,
         title="Molerus and Hoffmann (1969)",
-        expression="1 / (1 + x^2 exp(-km2 (1 - x^2)))",
+        expression="1/(1 + x^2*exp(-km2*(1 - x^2)))",
         shape_name="km2",
         shape_bounds=(-1.0, 60.0),
         phi=molerus_hoffmann,
         slope_at_cut=lambda km2: -(1.0 + km2) / 2.0,
-        slope_expression="-(1+km2)/2",
+        slope_expression="-(1 + km2)/2",
         shape_for_slope=lambda s: -2.0 * s - 1.0,
-        citation="Molerus O., Hoffmann H. (1969), as formula (4) in " + SHUVALOV_2018,
+        citation=_in(MOLERUS_HOFFMANN_1969, 4),
         notes="km2 = 0 is Plitt with ks = 2; km2 < 0 has a minimum at x = 1/sqrt(-km2) and rises again.",
         monotone=False,
+        shape_meaning="sharpness beyond Plitt's ks = 2 curve (km2 = 0); negative values let the curve rise again",
     ),
     Formula(
         id="rosin_rammler",
         equation=5,
         title="Rosin-Rammler form",
-        expression="exp(-ln2 x^kr)",
+        expression="exp(-ln2*x^kr)",
         shape_name="kr",
         shape_bounds=(0.05, 40.0),
         phi=rosin_rammler,
         slope_at_cut=lambda kr: -LN2 * kr / 2.0,
-        slope_expression="-ln2 kr/2",
+        slope_expression="-ln2*kr/2",
         shape_for_slope=_rosin_rammler_shape_for_slope,
-        citation="Rosin-Rammler distribution law, as formula (5) in " + SHUVALOV_2018,
+        citation=_in(ROSIN_RAMMLER_1933, 5),
         efficiency=_rosin_rammler_efficiency,
+        shape_meaning="uniformity exponent of the Rosin-Rammler law: larger kr, sharper cut",
     ),
     Formula(
         id="lynch",
         equation=6,
-        title="Lynch (1977)",
-        expression="1 - (exp(kl x) - 1) / (exp(kl x) + exp(kl) - 2)",
+        title="Lynch and Rao (1975)",
+        expression="1 - (exp(kl*x) - 1)/(exp(kl*x) + exp(kl) - 2)",
         shape_name="kl",
         shape_bounds=(1e-6, 120.0),
         phi=lynch,
         slope_at_cut=_lynch_slope,
-        slope_expression="-kl e^kl/(4(e^kl-1))",
+        slope_expression="-kl*exp(kl)/(4*(exp(kl) - 1))",
         shape_for_slope=_lynch_shape_for_slope,
-        citation="Lynch A.J. (1977), as formula (6) in " + SHUVALOV_2018,
+        citation=_in(LYNCH_RAO_1975, 6),
         notes="The slope at the cut is never shallower than -1/4 (kl -> 0 is Plitt with ks = 1).",
+        shape_meaning="sharpness of the cut (alpha of Whiten's curve); kl -> 0 gives Plitt's ks = 1",
     ),
     Formula(
         id="plitt",
         equation=7,
         title="Plitt (1971)",
-        expression="1 / (1 + x^ks)",
+        expression="1/(1 + x^ks)",
         shape_name="ks",
         shape_bounds=(0.05, 60.0),
         phi=plitt,
         slope_at_cut=lambda ks: -ks / 4.0,
         slope_expression="-ks/4",
         shape_for_slope=lambda s: -4.0 * s,
-        citation="Plitt L.R. (1971), as formula (7) in " + SHUVALOV_2018,
+        citation=_in(PLITT_1971, 7),
         efficiency=_plitt_efficiency,
+        shape_meaning="sharpness of the cut: the log-logistic slope, larger ks steeper",
     ),
     Formula(
         id="ogawa_allen",
         equation=8,
         title="Ogawa, Allen's law",
-        expression="1 / (1 + x exp(-kp (1 - x)))",
+        expression="1/(1 + x*exp(-kp*(1 - x)))",
         shape_name="kp",
         shape_bounds=(-1.0, 60.0),
         phi=ogawa_allen,
         slope_at_cut=lambda kp: -(1.0 + kp) / 4.0,
-        slope_expression="-(1+kp)/4",
+        slope_expression="-(1 + kp)/4",
         shape_for_slope=lambda s: -4.0 * s - 1.0,
-        citation="Ogawa K. (Allen's law), as formula (8) in " + SHUVALOV_2018,
+        citation=_in(OGAWA, 8),
         notes="Printed with exp(-kp x); corrected to exp(-kp (1 - x)) (phi(1) = 0.5, slope (17)). "
         "kp < 0 rises again at large sizes.",
         monotone=False,
+        shape_meaning="sharpness beyond Plitt's ks = 1 curve (kp = 0); negative values let the curve rise again",
     ),
     Formula(
         id="lognormal",
         equation=9,
         title="Log-normal (Gauss integral)",
-        expression="1/2 erfc(ln x / kf)",
+        expression="erfc(ln(x)/kf)/2",
         shape_name="kf",
         shape_bounds=(0.01, 30.0),
         phi=lognormal,
         slope_at_cut=lambda kf: -1.0 / (np.sqrt(np.pi) * kf),
-        slope_expression="-1/(sqrt(pi) kf)",
+        slope_expression="-1/(sqrt(pi)*kf)",
         shape_for_slope=lambda s: -1.0 / (np.sqrt(np.pi) * s),
-        citation="Integral of the log-normal law, as formula (9) in " + SHUVALOV_2018,
+        citation=_in("Log-normal (Gauss integral) law of the partition curve", 9),
         notes="kf = sqrt(2) sigma of ln(size).",
         efficiency=_lognormal_efficiency,
+        shape_meaning="spread: sqrt(2) times the standard deviation of ln(size); smaller kf, sharper cut",
     ),
-    Formula(
+)
+_ROSIN_RAMMLER = _PAPER_BASES[2]
+
+FORMULAS: tuple[Formula, ...] = (
+    *_PAPER_BASES,
+    with_plateau(
+        _ROSIN_RAMMLER,
         id="luckie_austin",
         equation=10,
-        title="Luckie and Austin, piecewise",
-        expression="exp(-ln2 x^kr) for x > 1/2; exp(-ln2 2^-kr) for x <= 1/2",
-        shape_name="kr",
-        shape_bounds=(0.05, 40.0),
+        title="Luckie and Austin (1972), piecewise",
         phi=luckie_austin,
-        slope_at_cut=lambda kr: -LN2 * kr / 2.0,
-        slope_expression="-ln2 kr/2",
-        shape_for_slope=_rosin_rammler_shape_for_slope,
-        citation="Luckie P.T., Austin L.G., as formula (10) in " + SHUVALOV_2018,
+        break_text="1/2",
+        citation=_in(LUCKIE_AUSTIN_1972, 10),
         notes="Printed as the coarse-product branch 1 - exp(...); corrected to the fines branch of (5), "
         "with the plateau equal to the value at x = 1/2 (continuity).",
         efficiency=lambda kr, x_max: _plateau_efficiency(kr, x_max, LUCKIE_AUSTIN_BREAK),
     ),
-    Formula(
+    with_plateau(
+        _ROSIN_RAMMLER,
         id="shuvalov",
         equation=11,
         title="Shuvalov (1992), piecewise",
-        expression="exp(-ln2 x^kr) for x > x_a; phi(x_a) for x <= x_a (x_a from the measured efficiency)",
-        shape_name="kr",
-        shape_bounds=(0.05, 40.0),
         phi=shuvalov,
-        slope_at_cut=lambda kr: -LN2 * kr / 2.0,
-        slope_expression="-ln2 kr/2",
-        shape_for_slope=_rosin_rammler_shape_for_slope,
-        citation="Shuvalov S.I. (1992), as formula (11) in " + SHUVALOV_2018,
+        break_text="x_a",
+        citation=_in(SHUVALOV_1992, 11),
         notes="x_a makes the area under the curve on 0 < x < 1 equal the measured efficiency; "
         "printed with the coarse-product branch like (10).",
         efficiency=_shuvalov_efficiency,
@@ -546,11 +860,13 @@ NAPIER_MUNN_1996 = (
 )
 PLITT_1976 = "Plitt L.R. (1976). A mathematical model of the hydrocyclone classifier. CIM Bulletin 69(776), 114-123"
 KELSALL_1953 = "Kelsall D.F. (1953). A further study of the hydraulic cyclone. Chem. Eng. Sci. 2, 254-272 (bypass correction)"
-BYPASS = ExtraParameter("bypass", (0.0, 0.95), 0.05, "share of every size sent to the coarse product unclassified")
-FISHHOOK = ExtraParameter("fishhook", (0.0, 3.0), 0.1, "Whiten's beta: rise of the fines partition at small sizes")
+BYPASS = Parameter("bypass", 0.0, 0.95, unit="1", meaning="share of every size sent to the coarse product unclassified",
+                   start=0.05, start_rule="fixed at 0.05")  # fmt: skip
+FISHHOOK = Parameter("fishhook", 0.0, 3.0, unit="1", meaning="Whiten's beta: rise of the fines partition at small sizes",
+                     start=0.1, start_rule="fixed at 0.1")  # fmt: skip
 
 
-def with_bypass(base: Formula, *, equation: int, citation: str) -> Formula:
+def with_bypass(base: Formula, *, equation: int, citation: str, family: str = "extended") -> Formula:
     r"""``base`` with bypass: :math:`\varphi = (1 - \text{bypass})\,\varphi_{base}(x)`.
 
     A share of every size reports to the coarse product unclassified; ``d_cut`` becomes
@@ -562,22 +878,53 @@ def with_bypass(base: Formula, *, equation: int, citation: str) -> Formula:
         return (1.0 - bypass) * base.phi(x, shape)
 
     phi.__name__ = f"{base.id}_bypass"
+    phi_slope = f"(1 - bypass)*({base.slope_expression})"
+    phi.__doc__ = f"""{base.title} with bypass: ``(1 - bypass)`` times :func:`{base.phi.__name__}`.
+
+    .. math::
+        \\varphi(x) = (1 - \\text{{bypass}})\\,\\varphi_{{{base.equation}}}(x)
+
+    Parameters
+    ----------
+    x : array_like
+        Relative size ``size / d_cut`` (> 0, dimensionless).
+    shape : float
+        ``{base.shape_name}`` of the base formula, {base.shape_bounds[0]:g}..{base.shape_bounds[1]:g}.
+    bypass : float
+        Share of every size sent to the coarse product unclassified, 0..0.95.
+
+    Returns
+    -------
+    ndarray
+        Partition number to the fine product, 0..1 - bypass.
+
+    Notes
+    -----
+    Monotone where the base formula is; slope at the cut ``{phi_slope}``; ``d_cut`` is the
+    corrected cut (partition 1/2 of the classified part).
+
+    References
+    ----------
+    .. [1] {citation}
+    .. [2] {SHUVALOV_2018} (the base formula, ({base.equation})).
+    """
     return Formula(
         id=f"{base.id}_bypass",
         equation=equation,
         title=f"{base.title} with bypass",
-        expression=f"(1 - bypass) [{base.expression}]",
+        expression=f"(1 - bypass)*({base.expression})",
         shape_name=base.shape_name,
         shape_bounds=base.shape_bounds,
         phi=phi,
         slope_at_cut=base.slope_at_cut,
-        slope_expression=f"(1-bypass) [{base.slope_expression}]",
+        slope_expression=f"(1 - bypass)*({base.slope_expression})",
         shape_for_slope=base.shape_for_slope,
         citation=citation,
         notes="d_cut is the corrected cut; the actual curve is 0.5 (1 - bypass) there.",
         extras=(BYPASS,),
-        family="extended",
+        family=family,
         nests=base.id,
+        shape_meaning=base.shape_meaning,
     )
 
 
@@ -606,9 +953,43 @@ def whiten(x, alpha, *, bypass=0.0, fishhook=0.0):
         \varphi = C \frac{(1 + \beta\beta^* x)(e^\alpha - 1)}{e^{\alpha\beta^* x} + e^\alpha - 2},
         \quad C = 1 - \text{bypass}
 
-    With :math:`\beta = 0` and no bypass it is Lynch's formula (6) with :math:`k_l = \alpha`.
-    For :math:`\beta > 0` the curve rises above ``C`` at small sizes (the fish-hook) and
-    can exceed 1 when the bypass is small; fits report such a curve.
+    Parameters
+    ----------
+    x : array_like
+        Relative size ``size / d_cut`` (> 0, dimensionless).
+    alpha : float
+        Shape, 1e-3..60 (dimensionless): sharpness, as Lynch's ``kl``.
+    bypass : float
+        Share of every size sent to the coarse product unclassified, 0..0.95.
+    fishhook : float
+        Whiten's :math:`\beta`, 0..3: rise of the fines partition at small sizes.
+
+    Returns
+    -------
+    ndarray
+        Partition number to the fine product (dimensionless; may exceed 1, see Notes).
+
+    Notes
+    -----
+    :math:`\beta^*` (:func:`whiten_beta_star`) keeps the reduced curve at 1/2 at
+    :math:`x = 1`.  With :math:`\beta = 0` and no bypass it is Lynch's formula (6) with
+    :math:`k_l = \alpha`, decreasing, slope at the cut
+    :math:`-(1 - \text{bypass})\,\alpha e^\alpha / (4(e^\alpha - 1))`.  For
+    :math:`\beta > 0` the curve rises above ``C`` at small sizes (the fish-hook) and can
+    exceed 1 when the bypass is small; fits report such a curve.
+
+    References
+    ----------
+    .. [1] Napier-Munn T.J., Morrell S., Morrison R.D., Kojovic T. (1996). Mineral Comminution
+       Circuits: Their Operation and Optimisation. JKMRC, Brisbane.
+    .. [2] Shuvalov S.I., Novoseltseva S.S., Zhukov V.P. (2018). Justifying the choice of a
+       dependence for the Tromp separation curve approximation. Vestnik IGEU 6, 15-23
+       (formula (6), the reduced curve).
+
+    Examples
+    --------
+    >>> round(float(whiten(0.3, 3.0, bypass=0.1, fishhook=0.4)), 10)
+    0.9340089396
     """
     x = _as_array(x)
     star = whiten_beta_star(alpha, fishhook)
@@ -623,30 +1004,220 @@ EXTENDED_FORMULAS: tuple[Formula, ...] = (
         id="whiten",
         equation=106,
         title="Whiten with bypass and fish-hook",
-        expression="(1 - bypass)(1 + fishhook b* x)(e^alpha - 1)/(e^(alpha b* x) + e^alpha - 2)",
+        expression="(1 - bypass)*(1 + fishhook*b_star*x)*(exp(alpha) - 1)/(exp(alpha*b_star*x) + exp(alpha) - 2)",
         shape_name="alpha",
         shape_bounds=(1e-3, 60.0),
         phi=whiten,
         slope_at_cut=_lynch_slope,
-        slope_expression="as (6) when fishhook = 0, times (1-bypass)",
+        slope_expression="(1 - bypass)*(-alpha*exp(alpha)/(4*(exp(alpha) - 1)))",
         shape_for_slope=_lynch_shape_for_slope,
         citation=NAPIER_MUNN_1996,
         notes="Reduces to Lynch (6) with kl = alpha without bypass and fish-hook; may exceed 1 for a large "
-        "fish-hook with little bypass.",
+        "fish-hook with little bypass. b_star keeps phi(1) = (1 - bypass)/2 (whiten_beta_star); the slope "
+        "expression holds for fishhook = 0.",
+        shape_meaning="sharpness of the cut (Lynch's kl)",
         extras=(BYPASS, FISHHOOK),
         family="extended",
         nests="lynch",
         monotone=False,
     ),
 )
-ALL_FORMULAS = FORMULAS + EXTENDED_FORMULAS
+
+# --- other curve families: the curves other tools use ------------------------------------
+LN3 = np.log(3.0)
+DYSSOL_2020 = (
+    "Skorych V., Dosta M., Heinrich S. (2020). Dyssol - an open-source flowsheet simulation framework for "
+    "particulate materials. SoftwareX 12, 100572. doi:10.1016/j.softx.2020.100572 (Screen unit models)"
+)
+KING_2001 = "King R.P. (2001). Modeling and Simulation of Mineral Processing Systems. Butterworth-Heinemann, Oxford (ch. 5, classification functions)"
+TEIPEL_HENNIG_ALPHA = ExtraParameter(
+    "th_alpha", (0.0, 50.0), 1.0, "Teipel/Hennig alpha: the exponent is (x + alpha) beta, written here as k (x + alpha)/(1 + alpha)"
+)
+
+
+def normal_linear(x, sigma_rel):
+    r"""Normal distribution in linear size: :math:`\varphi = \tfrac12 \operatorname{erfc}\big((x - 1)/(\sqrt2\,\sigma_r)\big)`.
+
+    :math:`\sigma_r = \sigma / d_{cut}`: the standard deviation of the size at which a
+    particle is separated, relative to the cut (the "probability" model of screens).
+    Unlike the log-normal law (9) it gives :math:`\varphi(0) = \tfrac12 \operatorname{erfc}(-1/(\sqrt2\sigma_r)) < 1`.
+    Slope at the cut :math:`-1/(\sqrt{2\pi}\,\sigma_r)`.
+
+    Examples
+    --------
+    >>> round(float(normal_linear(1.2, 0.2)), 6)  # one sigma above the cut: 1 - Phi(1)
+    0.158655
+    """
+    x = _as_array(x)
+    return 0.5 * special.erfc((x - 1.0) / (np.sqrt(2.0) * sigma_rel))
+
+
+def logistic_linear(x, imperfection):
+    r"""Logistic curve in linear size: :math:`\varphi = 1/(1 + e^{\ln 3\,(x - 1)/I})`.
+
+    Written with the imperfection :math:`I = E_p/d_{cut}`: the factor :math:`\ln 3` puts
+    ``d25`` and ``d75`` exactly at :math:`x = 1 \mp I`, so :math:`E_p = I\,d_{cut}`
+    (the "Napier-Munn" partition of density and size separators, written in d50 and Ep).
+    Slope at the cut :math:`-\ln 3/(4 I)`.
+
+    Examples
+    --------
+    >>> round(float(logistic_linear(1.1, 0.1)), 6)  # d75: a quarter to the fines
+    0.25
+    """
+    x = _as_array(x)
+    return special.expit(-LN3 * (x - 1.0) / imperfection)
+
+
+def teipel_hennig(x, k, *, th_alpha=1.0, bypass=0.0):
+    r"""Teipel/Hennig grade-efficiency curve with offset, to the fine product.
+
+    .. math::
+        \varphi = (1 - \text{offset}) \left(1 + 3 x^{(x + \alpha)\beta}\right)^{-1/2},
+        \quad \beta = k / (1 + \alpha)
+
+    The offset (``bypass``) is the share of every size sent to the coarse product
+    unclassified.  Written with :math:`k = (1 + \alpha)\beta`, the exponent at the cut,
+    so that the slope at the cut :math:`-\tfrac{3}{16} k (1 - \text{offset})` depends on
+    the shape alone; for large :math:`\alpha` the curve tends to
+    :math:`(1 + 3x^k)^{-1/2}`.
+
+    Examples
+    --------
+    >>> float(teipel_hennig(1.0, 4.0, th_alpha=2.0))
+    0.5
+    """
+    x = _as_array(x)
+    exponent = k * (x + th_alpha) / (1.0 + th_alpha)
+    with np.errstate(over="ignore", divide="ignore"):
+        return (1.0 - bypass) / np.sqrt(1.0 + 3.0 * np.power(x, exponent))
+
+
+OTHER_FORMULAS: tuple[Formula, ...] = (
+    Formula(
+        id="normal",
+        equation=201,
+        title="Normal distribution in linear size",
+        expression="erfc((x - 1)/(sqrt(2)*sigma_rel))/2",
+        shape_name="sigma_rel",
+        shape_bounds=(1e-3, 10.0),
+        phi=normal_linear,
+        slope_at_cut=lambda s: -1.0 / (np.sqrt(2.0 * np.pi) * s),
+        slope_expression="-1/(sqrt(2*pi)*sigma_rel)",
+        shape_for_slope=lambda slope: -1.0 / (np.sqrt(2.0 * np.pi) * slope),
+        citation=KING_2001 + "; as the 'Probability' screen model (Mean, Deviation) in " + DYSSOL_2020,
+        notes="sigma_rel = sigma/d_cut; phi(0) < 1. Dyssol's Probability model sums the normal density over its own "
+        "size classes, so it equals this curve only on a fine grid.",
+        family="other",
+    ),
+    Formula(
+        id="logistic",
+        equation=202,
+        title="Logistic curve in linear size (d50, Ep)",
+        expression="1/(1 + exp(ln(3)*(x - 1)/imperfection))",
+        shape_name="imperfection",
+        shape_bounds=(1e-3, 10.0),
+        phi=logistic_linear,
+        slope_at_cut=lambda i: -LN3 / (4.0 * i),
+        slope_expression="-ln(3)/(4*imperfection)",
+        shape_for_slope=lambda slope: -LN3 / (4.0 * slope),
+        citation=NAPIER_MUNN_1996 + " (partition curve in d50 and Ep); " + KING_2001,
+        notes="I = Ep/d_cut; d25 and d75 lie at x = 1 -+ I. Other tools print ln 3 rounded (1.099) and call this "
+        "the Napier-Munn partition.",
+        family="other",
+    ),
+    Formula(
+        id="teipel_hennig",
+        equation=203,
+        title="Teipel/Hennig with offset",
+        expression="(1 - bypass)*(1 + 3*x^((x + th_alpha)*k/(1 + th_alpha)))^(-1/2)",
+        shape_name="k",
+        shape_bounds=(0.05, 60.0),
+        phi=teipel_hennig,
+        slope_at_cut=lambda k: -3.0 * k / 16.0,
+        slope_expression="(1 - bypass)*(-3*k/16)",
+        shape_for_slope=lambda slope: -16.0 * slope / 3.0,
+        citation="Teipel U., Hennig M., grade-efficiency function of screens, as the 'Teipel & Hennig' screen model "
+        "(Xcut, Alpha, Beta, Offset) of " + DYSSOL_2020 + " (primary publication not seen)",
+        notes="k = (1 + alpha) beta is the exponent at the cut; Dyssol's Beta = k/(1 + alpha). The offset is "
+        "tromplab's bypass (share to the coarse product).",
+        extras=(TEIPEL_HENNIG_ALPHA, BYPASS),
+        family="other",
+    ),
+    # Plitt's (1976) hydrocyclone curve: the Rosin-Rammler form with bypass, as simulators write "Plitt".
+    with_bypass(_BASE["rosin_rammler"], equation=105, citation=PLITT_1976 + " (corrected efficiency with bypass Rf)",
+                family="other"),  # fmt: skip
+)
+
+#: Names that mean different curves in different tools (printed by ``tromplab formulas``).
+NAME_CLASHES = (
+    "'Plitt' in hydrocyclone models (Plitt 1976) and in Dyssol's Screen unit is tromplab's rosin_rammler "
+    "(5) (with bypass: rosin_rammler_bypass), written to the coarse product as 1 - exp(-0.693 (d/d50)^m); "
+    "tromplab's plitt (7) is Plitt's 1971 log-logistic 1/(1 + x^ks).",
+    "'Whiten' in JKSimMet and Napier-Munn et al. (1996) is tromplab's whiten (alpha, beta, beta*, d50c, C = 1 - bypass, "
+    "to the fine product); a plain 'Whiten' curve without beta (to the coarse product, (e^(alpha x) - 1)/(e^(alpha x) + "
+    "e^alpha - 2)) is tromplab's lynch (6).",
+    "'Napier-Munn' partition in some geometallurgy tools is tromplab's logistic: 1/(1 + exp(1.099 (d50 - d)/Ep)) to the "
+    "coarse product.",
+    "'Molerus & Hoffmann' in Dyssol is tromplab's molerus_hoffmann (4) with alpha = km2; 'Probability' is normal "
+    "(Mean = d_cut, Deviation = sigma_rel d_cut, summed over the class grid).",
+)
+ALL_FORMULAS = FORMULAS + EXTENDED_FORMULAS + OTHER_FORMULAS
 
 _BY_ID = {formula.id: formula for formula in ALL_FORMULAS}
 _BY_EQUATION = {formula.equation: formula for formula in FORMULAS}
 
 
+#: Names the expression texts may use besides x, the parameters and derived variables.
+EXPRESSION_FUNCTIONS = ("exp", "ln", "erfc", "sqrt", "max", "pi", "ln2")
+
+
+def evaluate_expression(text: str, values: Mapping[str, object], functions: Mapping[str, object] | None = None):
+    """Evaluate a registry expression text (``expression`` or ``slope_expression``).
+
+    The texts are written for readers - ``^`` is a power, ``ln`` the natural log - and
+    are evaluated here with asteval (no Python ``eval``) so that tests can hold each text
+    against its function.  ``functions`` replaces the numpy implementations of
+    :data:`EXPRESSION_FUNCTIONS`, e.g. with mpmath's for high-precision references.
+
+    Examples
+    --------
+    >>> round(float(evaluate_expression(get_formula("plitt").expression, {"x": 2.0, "ks": 3.0})), 12)
+    0.111111111111
+    """
+    from asteval import Interpreter
+
+    if functions is None:
+        functions = {"exp": np.exp, "ln": np.log, "erfc": special.erfc, "sqrt": np.sqrt, "max": np.maximum,
+                     "pi": np.pi, "ln2": LN2}  # fmt: skip
+    interpreter = Interpreter(minimal=True, use_numpy=False)
+    interpreter.symtable.update(functions)
+    interpreter.symtable.update(values)
+    return interpreter.eval(text.replace("^", "**"), show_errors=False, raise_errors=True)
+
+
 def get_formula(key: str | int) -> Formula:
-    """Look a formula up by id (``"plitt"``) or equation number (``7``, ``"7"``, ``"(7)"``)."""
+    """Look a formula up by id (``"plitt"``) or equation number (``7``, ``"7"``, ``"(7)"``).
+
+    Parameters
+    ----------
+    key : str, int or Formula
+        Id, equation number of Shuvalov et al. (2018), or a record (returned as is).
+
+    Returns
+    -------
+    Formula
+
+    Raises
+    ------
+    KeyError
+        For an unknown key, listing the known formulas.
+
+    Examples
+    --------
+    >>> get_formula("(9)").id
+    'lognormal'
+    """
     if isinstance(key, Formula):
         return key
     text = str(key).strip()
@@ -662,7 +1233,22 @@ def get_formula(key: str | int) -> Formula:
 def select_formulas(keys=None) -> tuple[Formula, ...]:
     """The formulas named by ``keys`` (ids or equation numbers), or all nine.
 
-    ``"extended"`` in ``keys`` stands for every extended curve (bypass, fish-hook).
+    Parameters
+    ----------
+    keys : str, iterable of str/int, or None
+        Ids or equation numbers (a comma-separated string is split); ``"extended"``
+        stands for every extended curve (bypass, fish-hook), ``"paper"`` for the nine,
+        ``"other"`` for the curves of other tools (normal, logistic, Teipel/Hennig,
+        Plitt 1976).
+
+    Returns
+    -------
+    tuple of Formula
+
+    Examples
+    --------
+    >>> [f.id for f in select_formulas("plitt,9,extended")][:3]
+    ['plitt', 'lognormal', 'plitt_bypass']
     """
     if keys is None:
         return FORMULAS
@@ -670,13 +1256,25 @@ def select_formulas(keys=None) -> tuple[Formula, ...]:
         keys = [k for k in keys.replace(" ", "").split(",") if k]
     chosen = []
     for key in keys:
-        group = EXTENDED_FORMULAS if key == "extended" else FORMULAS if key == "paper" else (get_formula(key),)
+        groups = {"extended": EXTENDED_FORMULAS, "paper": FORMULAS, "other": OTHER_FORMULAS}
+        group = groups[key] if key in groups else (get_formula(key),)
         chosen += [f for f in group if f not in chosen]
     return tuple(chosen)
 
 
 def registry_table():
-    """The registry as a :class:`pandas.DataFrame` (one row per formula)."""
+    """The registry as a :class:`pandas.DataFrame` (one row per formula).
+
+    Columns: ``id, equation, title, formula, shape_name, shape_bounds, slope_at_cut,
+    shape_at_slope_-0.5, extras, family, shape_meaning`` (what ``tromplab formulas`` prints).
+
+    Examples
+    --------
+    >>> table = registry_table().set_index("id")
+    >>> row = table.loc["ogawa_allen"]
+    >>> row["formula"], row["slope_at_cut"], float(row["shape_at_slope_-0.5"])
+    ('1/(1 + x*exp(-kp*(1 - x)))', '-(1 + kp)/4', 1.0)
+    """
     import pandas as pd
 
     rows = []
@@ -694,6 +1292,22 @@ def registry_table():
                 "shape_at_slope_-0.5": round(shape_at_half, 4),
                 "extras": ", ".join(extra.name for extra in formula.extras),
                 "family": formula.family,
+                "shape_meaning": formula.shape_meaning,
             }
         )
     return pd.DataFrame(rows)
+
+
+def formula_table_markdown(family: str = "paper") -> str:
+    """The README's formula table (Markdown), generated from the registry.
+
+    A test keeps the README's copy equal to this text.
+    """
+    lines = ["| id | eq. | phi(x), x = size/d_cut | shape | bounds | slope at the cut |", "|---|---|---|---|---|---|"]
+    for formula in ALL_FORMULAS:
+        if formula.family != family:
+            continue
+        low, high = formula.shape_bounds
+        lines.append(f"| {formula.id} | ({formula.equation}) | `{formula.expression}` | {formula.shape_name} | "
+                     f"[{low:g}, {high:g}] | `{formula.slope_expression}` |")  # fmt: skip
+    return "\n".join(lines)

@@ -27,7 +27,15 @@ from .formulas import Formula, get_formula
 
 @dataclass(frozen=True)
 class CurveIndices:
-    """Indices of one separation curve (sizes in the unit of ``d_cut``)."""
+    """Indices of one separation curve (sizes in the unit of ``d_cut``).
+
+    For curves with bypass or fish-hook the *actual* curve (what the classifier does)
+    and the *corrected* curve (bypass removed) differ: ``d_cut`` is the corrected cut
+    d50c, ``d50`` the actual cut (where the actual curve crosses 1/2), ``d25``, ``d75``,
+    ``ep`` and ``imperfection = ep / d50`` belong to the actual curve (nan where it never
+    reaches the level), ``ep_c`` and ``imperfection_c = ep_c / d50c`` to the corrected
+    curve.  For the nine paper formulas both curves are the same curve.
+    """
 
     d_cut: float
     slope: float
@@ -38,6 +46,14 @@ class CurveIndices:
     ep: float
     imperfection: float
     sharpness: float
+    d50: float = np.nan
+    ep_c: float = np.nan
+    imperfection_c: float = np.nan
+
+    @property
+    def d50c(self) -> float:
+        """Corrected cut size (the fitted ``d_cut``)."""
+        return self.d_cut
 
     def as_dict(self) -> dict[str, float]:
         return asdict(self)
@@ -128,8 +144,9 @@ def curve_indices(formula, d_cut: float, shape: float, *, delta_max: float, **co
         Largest particle size in the feed, same unit as ``d_cut``.
     **context
         Extra inputs of the formula (``measured_efficiency`` for (11); ``bypass`` and
-        ``fishhook`` for the extended curves, whose indices describe the actual curve,
-        with ``d_cut`` the corrected cut and the slope taken numerically).
+        ``fishhook`` for the extended curves: ``d_cut`` is then the corrected cut, the
+        slope is taken numerically on the actual curve, and the indices of the actual
+        and the corrected curve are told apart as described in :class:`CurveIndices`).
 
     Examples
     --------
@@ -143,6 +160,12 @@ def curve_indices(formula, d_cut: float, shape: float, *, delta_max: float, **co
     d25 = d_cut * _relative_size_at(formula, shape, 0.75, context)
     d75 = d_cut * _relative_size_at(formula, shape, 0.25, context)
     ep = (d75 - d25) / 2.0
+    if "bypass" in context:  # the corrected curve: the same curve without bypass
+        corrected = {**context, "bypass": 0.0}
+        d50 = d_cut * _relative_size_at(formula, shape, 0.5, context)
+        ep_c = d_cut * (_relative_size_at(formula, shape, 0.25, corrected) - _relative_size_at(formula, shape, 0.75, corrected)) / 2.0
+    else:
+        d50, ep_c = d_cut, ep
     return CurveIndices(
         d_cut=float(d_cut),
         slope=float(slope),
@@ -151,8 +174,11 @@ def curve_indices(formula, d_cut: float, shape: float, *, delta_max: float, **co
         d25=float(d25),
         d75=float(d75),
         ep=float(ep),
-        imperfection=float(ep / d_cut),
+        imperfection=float(ep / d50),
         sharpness=float(d25 / d75),
+        d50=float(d50),
+        ep_c=float(ep_c),
+        imperfection_c=float(ep_c / d_cut),
     )
 
 

@@ -50,7 +50,7 @@ from __future__ import annotations
 
 import re
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 import pandas as pd
@@ -232,17 +232,58 @@ class MassBalance:
 
 
 # --- reading ----------------------------------------------------------------------------
-def read_lab(path, options: LabOptions | None = None) -> list[MassBalance]:
+def read_lab(path, options: LabOptions | None = None, **option_values) -> list[MassBalance]:
     """Read a lab table and compute the Tromp points of each experiment.
+
+    Parameters
+    ----------
+    path : str, path-like or pandas.DataFrame
+        CSV or Excel file, or a DataFrame with the same columns (rows named by index label).
+    options : LabOptions, optional
+        How to read the table.
+    option_values
+        The fields of :class:`LabOptions` as keywords instead of ``options`` (the CLI's
+        options with underscores: ``fine_yield=0.3``, ``kind="pct"``, ``sheet="lab"``).
+
+    Returns
+    -------
+    list of MassBalance
+        One per experiment; ``to_points()`` gives its Tromp points.
+
+    Examples
+    --------
+    Three streams in mass % per class (blank lower bound: the pan), no yield given, so it
+    is estimated by least squares:
+
+    >>> lab = pd.DataFrame({"size_lower_um": [None, 20, 40, 80], "size_upper_um": [20, 40, 80, 160],
+    ...                     "feed_pct": [30, 30, 25, 15], "fine_pct": [60, 30, 9, 1],
+    ...                     "coarse_pct": [10, 30, 35.67, 24.33]})
+    >>> balance = read_lab(lab)[0]
+    >>> round(balance.fine_yield, 3), balance.yield_source
+    (0.4, 'least-squares estimate')
+    >>> balance.to_points().partition_fine.round(3).tolist()
+    [0.8, 0.4, 0.144, 0.027]
 
     Raises
     ------
     InputError
         For every kind of bad input, naming file, row and column.
     """
-    options = options or LabOptions()
+    options = _options(options, option_values)
     table = read_table(path, sheet=options.sheet, sep=options.sep, decimal=options.decimal)
     return balances_from_table(_renamed(table, options.rename), options)
+
+
+def _options(options: LabOptions | None, values: dict) -> LabOptions:
+    if options is not None and values:
+        raise TypeError("give either a LabOptions or its fields as keywords, not both")
+    if options is not None:
+        return options
+    unknown = sorted(set(values) - {f.name for f in fields(LabOptions)})
+    if unknown:
+        known = ", ".join(f.name for f in fields(LabOptions))
+        raise TypeError(f"unknown lab option(s) {', '.join(unknown)}; known: {known}")
+    return LabOptions(**values)
 
 
 def is_lab_table(columns) -> bool:
@@ -972,15 +1013,27 @@ def mix_streams(shares, yields):
     return mixed, total
 
 
-def read_experiments(path, options: LabOptions | None = None) -> tuple[list[TrompPoints], list[MassBalance]]:
+def read_experiments(path, options: LabOptions | None = None, **option_values) -> tuple[list[TrompPoints], list[MassBalance]]:
     """Tromp points from either a points file or a lab table (told apart by their columns).
 
-    Returns the points of each experiment and, for a lab table, the mass balances they
-    came from (empty for a points file).
+    Parameters
+    ----------
+    path : str, path-like or pandas.DataFrame
+        A Tromp-points or lab table (file or DataFrame).
+    options : LabOptions, optional
+        How to read a lab table (ignored for points).
+    option_values
+        The fields of :class:`LabOptions` as keywords instead of ``options``.
+
+    Returns
+    -------
+    (list of TrompPoints, list of MassBalance)
+        The points of each experiment and, for a lab table, the mass balances they came
+        from (empty for a points file).
     """
     from .points import points_from_table
 
-    options = options or LabOptions()
+    options = _options(options, option_values)
     table = _renamed(read_table(path, sheet=options.sheet, sep=options.sep, decimal=options.decimal), options.rename)
     if is_lab_table(table.frame.columns):
         balances = balances_from_table(table, options)

@@ -23,7 +23,8 @@ CURVE_LINESTYLES = ("-", "--", "-.", ":")
 
 def curve_styles(n: int) -> list[dict]:
     """Colour and line style of ``n`` curves: every curve a different colour up to 12
-    curves, and consecutive curves a different line style (colours repeat beyond 12).
+    curves, and consecutive curves a different line style; beyond 12 the colours repeat
+    with the line styles shifted, so up to 48 curves keep distinct styles.
 
     Examples
     --------
@@ -31,7 +32,8 @@ def curve_styles(n: int) -> list[dict]:
     >>> len({s["color"] for s in styles}), styles[0]["ls"], styles[1]["ls"]
     (12, '-', '--')
     """
-    return [{"color": CURVE_COLOURS[i % len(CURVE_COLOURS)], "ls": CURVE_LINESTYLES[i % len(CURVE_LINESTYLES)]}
+    rounds = len(CURVE_COLOURS)
+    return [{"color": CURVE_COLOURS[i % rounds], "ls": CURVE_LINESTYLES[(i + i // rounds) % len(CURVE_LINESTYLES)]}
             for i in range(n)]  # fmt: skip
 
 
@@ -322,4 +324,37 @@ def plot_distance_densities(decks: int, c_values, *, bin_edges=None, labels=None
     ax.set_xlabel("distance along the bottom deck x")
     ax.set_ylabel(f"density f_{decks}(x)")
     ax.legend(fontsize=8)
+    return ax
+
+
+def plot_control_chart(result, quantity: str, *, ax=None, size_unit: str = ""):
+    """Control chart of one quantity of a :class:`~tromplab.trend.TrendResult` against the date.
+
+    The survey values with their intervals, the baseline period shaded with its mean, the
+    EWMA line with its limits, and the flagged surveys (changed) marked.
+    """
+    ax = _axes(ax)
+    rows = result.table[result.table["quantity"] == quantity]
+    dates = rows["date"]
+    base = rows[rows["baseline"]]
+    ax.axvspan(base["date"].min(), base["date"].max(), color="0.92", label="baseline")
+    error = np.vstack([rows["value"] - rows["low"], rows["high"] - rows["value"]])
+    ax.errorbar(dates, rows["value"], yerr=np.where(np.isfinite(error), np.abs(error), 0.0), fmt="o", color="0.3", ms=4,
+                capsize=2, lw=0.8, label=f"survey value ({result.level:.0%} interval)")  # fmt: skip
+    centre = float(base["value"].mean())
+    ax.axhline(centre, color="0.5", lw=0.8, ls=":", label="baseline mean")
+    ax.plot(dates, rows["ewma"], color="C0", lw=1.6, label="EWMA")
+    ax.step(dates, rows["ewma_low"], where="mid", color="C3", lw=1.0, ls="--", label="EWMA limits")
+    ax.step(dates, rows["ewma_high"], where="mid", color="C3", lw=1.0, ls="--")
+    flagged = rows[rows["changed"]]
+    if len(flagged):
+        ax.scatter(flagged["date"], flagged["value"], s=80, facecolors="none", edgecolors="C3", lw=1.5, label="changed", zorder=5)
+    unit = {"size": size_unit, "fraction": "fraction"}.get(rows["unit"].iloc[0], "")
+    label = {"d_cut": "cut size d_cut" + (" (corrected d50c)" if quantity == "d_cut" and "bypass" in set(result.table["quantity"]) else ""),
+             "ep": "Ecart probable Ep", "eta": "classifier efficiency eta", "bypass": "bypass"}.get(quantity, quantity)  # fmt: skip
+    ax.set_ylabel(f"{label} [{unit}]" if unit else label)
+    ax.set_xlabel("survey date")
+    ax.set_title(f"{quantity}: {result.formula_id}")
+    ax.legend(fontsize=7, loc="best")
+    ax.figure.autofmt_xdate()
     return ax

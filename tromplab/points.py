@@ -48,20 +48,25 @@ PARTITION_COLUMNS = {
 }
 
 
+#: Measured partitions may leave 0..1 by this much through sampling noise (unclipped data
+#: with a noise of 0.02 reach 5 sd); beyond it a value is an error, or a percentage.
+PARTITION_SLACK = 0.1
+
+
 @dataclass(frozen=True)
 class TrompPoints:
-    """Measured separation curve of one experiment.
+    """Measured separation curve of one experiment, validated on construction.
 
     Attributes
     ----------
     experiment : str
         Name of the experiment.
     size : ndarray
-        Representative sizes, strictly increasing, > 0.
+        Representative sizes, > 0, finite, no size twice; stored in increasing order.
     partition_fine : ndarray
-        Partition numbers to the fine product, 0..1.
+        Partition numbers to the fine product, fractions 0..1 (within 0.1 for noise).
     weight : ndarray or None
-        Optional least-squares weights.
+        Optional least-squares weights, > 0.
     delta_max : float or None
         Largest particle size in the feed when known (for the misplacement index);
         otherwise the largest size is used.
@@ -69,6 +74,25 @@ class TrompPoints:
         Where the points came from.
     size_unit : str
         Unit of the sizes (from the column suffix or the ``size_unit`` option), or "".
+    resampled : bool
+        True for bootstrap samples, whose sizes repeat and whose partitions may leave
+        0..1 by noise; only finiteness and positive sizes are checked then.
+
+    Raises
+    ------
+    InputError
+        Naming the experiment, point and column: lengths that differ, NaN or inf,
+        sizes <= 0 or repeated, partitions outside 0..1 (with a hint when they look
+        like percentages), weights <= 0.
+
+    Examples
+    --------
+    >>> TrompPoints("run1", [40, 10, 20], [0.7, 0.97, 0.9]).size
+    array([10., 20., 40.])
+    >>> TrompPoints("run1", [10, 20, 40], [97, 90, 70])
+    Traceback (most recent call last):
+    ...
+    tromplab.errors.InputError: experiment 'run1', column 'partition_fine': partition 97 outside 0..1: these look like percentages; divide by 100 (or read a table with a partition_fine_pct column)
     """
 
     experiment: str
@@ -79,17 +103,50 @@ class TrompPoints:
     source: str = ""
     size_unit: str = ""
     meta: dict = field(default_factory=dict, compare=False)
+    resampled: bool = field(default=False, repr=False, compare=False)
 
     def __post_init__(self):
         size = np.asarray(self.size, dtype=float)
         phi = np.asarray(self.partition_fine, dtype=float)
-        if size.shape != phi.shape or size.ndim != 1:
-            raise ValueError("size and partition_fine must be 1-d arrays of the same length")
+        if size.ndim != 1 or phi.ndim != 1 or size.shape != phi.shape:
+            raise self._error(f"size has {size.size} values and partition_fine {phi.size}: give one partition per size")
+        arrays = {"size": size, "partition_fine": phi}
+        if self.weight is not None:
+            arrays["weight"] = np.asarray(self.weight, dtype=float)
+            if arrays["weight"].shape != size.shape:
+                raise self._error(f"weight has {arrays['weight'].size} values for {size.size} sizes", column="weight")
+        for column, values in arrays.items():
+            bad = np.flatnonzero(~np.isfinite(values))
+            if bad.size:
+                raise self._error(f"value {values[bad[0]]} at point {bad[0] + 1} is not a finite number", column=column)
+        bad = np.flatnonzero(size <= 0)
+        if bad.size:
+            raise self._error(f"size must be positive, got {size[bad[0]]:g} at point {bad[0] + 1}", column="size")
+        if "weight" in arrays and np.any(arrays["weight"] <= 0):
+            raise self._error("weights must be positive", column="weight")
+        if not self.resampled:
+            self._check_partitions(phi)
+            repeated = size[np.flatnonzero(np.diff(np.sort(size)) == 0)]
+            if repeated.size:
+                raise self._error(f"duplicate size {repeated[0]:g}: each size once per experiment", column="size")
         order = np.argsort(size, kind="stable")
         object.__setattr__(self, "size", size[order])
         object.__setattr__(self, "partition_fine", phi[order])
         if self.weight is not None:
-            object.__setattr__(self, "weight", np.asarray(self.weight, dtype=float)[order])
+            object.__setattr__(self, "weight", arrays["weight"][order])
+
+    def _error(self, message: str, *, column: str | None = None) -> InputError:
+        return InputError(message, source=self.source or f"experiment '{self.experiment}'", column=column)
+
+    def _check_partitions(self, phi: np.ndarray) -> None:
+        outside = np.flatnonzero((phi < -PARTITION_SLACK) | (phi > 1.0 + PARTITION_SLACK))
+        if not outside.size:
+            return
+        value = phi[outside[0]]
+        hint = ""
+        if 1.5 < phi.max() <= 100.0 + PARTITION_SLACK and phi.min() >= 0:  # 0..100: percentages
+            hint = ": these look like percentages; divide by 100 (or read a table with a partition_fine_pct column)"
+        raise self._error(f"partition {value:g} outside 0..1{hint}", column="partition_fine")
 
     @property
     def n(self) -> int:
@@ -107,13 +164,14 @@ class TrompPoints:
 
 
 def read_points(path, *, sheet=None, size_unit: str | None = None, sep: str | None = None, decimal: str | None = None) -> list[TrompPoints]:
-    """Read and validate a Tromp-points file (schema in the module docstring).
+    """Read and validate Tromp points (schema in the module docstring).
 
     Parameters
     ----------
-    path : str or Path
-        CSV or Excel file.
-    sheet : str, optional
+    path : str, path-like or pandas.DataFrame
+        CSV or Excel file, or a DataFrame with the same columns; the same checks and
+        messages as ``tromplab fit`` (for a DataFrame the row is its index label).
+    sheet : str or int, optional
         Excel sheet.
     size_unit : str, optional
         Unit of the sizes when the size column has no unit suffix (a contradiction with
@@ -121,12 +179,28 @@ def read_points(path, *, sheet=None, size_unit: str | None = None, sep: str | No
     sep, decimal : str, optional
         CSV separator and decimal mark (detected when not given).
 
+    Returns
+    -------
+    list of TrompPoints
+        One per experiment, in order of first appearance.
+
     Raises
     ------
     InputError
         Naming file, row and column: missing or duplicated partition columns, unknown
         columns, text, blanks, dates or inf in numeric columns, partitions out of range,
         non-positive or duplicate sizes within an experiment.
+
+    Examples
+    --------
+    >>> frame = pd.DataFrame({"size": [10, 20, 40, 80, 160], "partition_fine_pct": [98, 91, 62, 21, 4]})
+    >>> points = read_points(frame)
+    >>> points[0].experiment, points[0].partition_fine.tolist()
+    ('DataFrame', [0.98, 0.91, 0.62, 0.21, 0.04])
+    >>> read_points(frame.rename(columns={"partition_fine_pct": "partition_fine"}))
+    Traceback (most recent call last):
+    ...
+    tromplab.errors.InputError: DataFrame, row 0, column 'partition_fine': partition 98 outside 0..1
     """
     table = read_table(path, sheet=sheet, sep=sep, decimal=decimal)
     return points_from_table(table, size_unit=size_unit)

@@ -2,8 +2,10 @@
 
 Rows are numbered as in the file: for CSV the line number (comment lines starting with
 ``#`` count, so the number is where an editor shows the row; a ``#`` inside a line is
-text, not a comment); for Excel the sheet row
-(header = row 1).
+text, not a comment); for Excel the sheet row (header = row 1); for a pandas DataFrame
+its index label (messages say "DataFrame, row <label>").  A DataFrame goes through the
+same :class:`Table` checks as a file, so the Python API and the CLI refuse the same
+input with the same words.
 
 Before anything is parsed the path is checked (it exists, is a file, is readable, is not
 empty) and the format is recognised from the suffix and the first bytes: CSV text
@@ -73,7 +75,8 @@ class Table:
 
     def error(self, message: str, *, index: int | None = None, column: str | None = None) -> InputError:
         """An :class:`InputError` pointing at record ``index`` (0-based) and ``column``."""
-        row = None if index is None else int(self.rows[index])
+        row = None if index is None else self.rows[index]
+        row = int(row) if isinstance(row, (int, np.integer)) else row  # a DataFrame's index label may be text
         return InputError(message, source=self.source, row=row, column=column)
 
     def require(self, *columns: str) -> None:
@@ -167,14 +170,15 @@ class Table:
 
 
 def read_table(path, *, sheet: str | int | None = None, sep: str | None = None, decimal: str | None = None) -> Table:
-    """Read a CSV (``#`` comments allowed) or Excel file into a :class:`Table`.
+    """Read a CSV (``#`` comments allowed) or Excel file, or take a DataFrame, into a :class:`Table`.
 
     Parameters
     ----------
-    path : str or Path
-        The file (format from the suffix, checked against the content).
+    path : str, path-like or pandas.DataFrame
+        The file (format from the suffix, checked against the content), or a DataFrame
+        already in memory (see :func:`table_from_frame`).
     sheet : str or int, optional
-        Excel sheet (default: the first).
+        Excel sheet (name or 0-based position); the first sheet by default.
     sep, decimal : str, optional
         CSV field separator and decimal mark; detected when not given (comma and point
         unless the header is split by semicolons and the cells use decimal commas).
@@ -186,6 +190,12 @@ def read_table(path, *, sheet: str | int | None = None, sep: str | None = None, 
         unsupported format, not UTF-8, has duplicate or unnamed columns, rows with more
         fields than the header, no data rows, or the sheet does not exist.
     """
+    if isinstance(path, pd.DataFrame):
+        if sheet is not None:
+            raise InputError(f"a sheet ({sheet!r}) was given with a DataFrame", source=DATAFRAME_SOURCE)
+        if sep is not None or decimal is not None:
+            raise InputError("sep and decimal apply to CSV files, not to a DataFrame", source=DATAFRAME_SOURCE)
+        return table_from_frame(path)
     path = Path(path)
     source = str(path)
     sep = {"\\t": "\t", "tab": "\t"}.get(sep, sep)  # a tab is hard to type on a command line
@@ -211,6 +221,38 @@ def read_table(path, *, sheet: str | int | None = None, sep: str | None = None, 
     for note in notes:
         warnings.warn(f"{source}: {note}", InputNote, stacklevel=2)
     return Table(frame.reset_index(drop=True), rows, source, tuple(notes))
+
+
+DATAFRAME_SOURCE = "DataFrame"
+
+
+def table_from_frame(frame: pd.DataFrame, *, source: str = DATAFRAME_SOURCE) -> Table:
+    """A :class:`Table` from a DataFrame; rows are named by the frame's index labels.
+
+    Column names are stripped of spaces and rows that are blank throughout are dropped, as
+    for a file; the frame itself is not changed.
+
+    Examples
+    --------
+    >>> frame = pd.DataFrame({"size": [10, "ten"]}, index=["a", "b"])
+    >>> table_from_frame(frame).numeric("size")
+    Traceback (most recent call last):
+    ...
+    tromplab.errors.InputError: DataFrame, row b, column 'size': 'ten' is not a number
+    """
+    if not isinstance(frame, pd.DataFrame):
+        raise InputError(f"expected a pandas DataFrame, got {type(frame).__name__}", source=source)
+    frame = frame.copy()
+    frame.columns = [str(c).strip() for c in frame.columns]
+    if len(set(frame.columns)) != len(frame.columns):
+        twice = sorted({c for c in frame.columns if list(frame.columns).count(c) > 1})
+        raise InputError(f"column(s) {', '.join(twice)} appear more than once", source=source)
+    keep = ~frame.isna().all(axis=1).to_numpy()
+    rows = np.asarray(frame.index[keep], dtype=object)
+    frame = frame.loc[keep].reset_index(drop=True)
+    if frame.empty:
+        raise InputError("the table has no data rows", source=source)
+    return Table(frame, rows, source)
 
 
 def _check_path(path: Path) -> None:

@@ -19,23 +19,134 @@ Springer.  Efron B., Tibshirani R.J. (1993). An Introduction to the Bootstrap. C
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
 from scipy import stats
 
-from .curves import CurveFit, fit_formula
+from .curves import CurveFit, fit_formula, formula_context
 from .indices import curve_indices
 from .points import TrompPoints
 
-INDEX_NAMES = ("slope", "eta", "epsilon", "d25", "d75", "ep", "imperfection")
+INDEX_NAMES = ("slope", "eta", "epsilon", "d25", "d75", "ep", "imperfection", "d50", "ep_c", "imperfection_c")
+
+
+# --- the range of every reported quantity -------------------------------------------------
+@dataclass(frozen=True)
+class Domain:
+    """The range a quantity can take, and the scale on which its intervals are made.
+
+    ``positive`` quantities get intervals on the log scale, ``unit`` ones (in [0, 1]) on
+    the logit scale, ``negative`` ones on the log of minus the value, ``real`` ones on the
+    natural scale; the limits are transformed back, so an interval never leaves the range.
+    A quantity bounded below by another value (a shape parameter admissible above -1)
+    uses the log of its distance from that bound.
+    """
+
+    name: str
+    lower: float
+    upper: float
+    scale: str
+
+    def contains(self, value) -> np.ndarray:
+        value = np.asarray(value, dtype=float)
+        return (value >= self.lower) & (value <= self.upper)
+
+    def inside(self, value: float) -> bool:
+        """Strictly inside the range (the transformed scale exists there)."""
+        return bool(np.isfinite(value) and self.lower < value < self.upper)
+
+    def forward(self, value):
+        value = np.asarray(value, dtype=float)
+        if self.scale == "log":
+            return np.log(value - self.lower)
+        if self.scale == "neglog":
+            return np.log(self.upper - value)
+        if self.scale == "logit":
+            return np.log(value) - np.log1p(-value)
+        return value
+
+    def backward(self, value):
+        value = np.asarray(value, dtype=float)
+        if self.scale == "log":
+            return self.lower + np.exp(value)
+        if self.scale == "neglog":
+            return self.upper - np.exp(value)
+        if self.scale == "logit":
+            return 1.0 / (1.0 + np.exp(-value))
+        return value
+
+    def slope(self, value):
+        """Derivative of :meth:`forward` (turns a standard error onto the transformed scale)."""
+        value = np.asarray(value, dtype=float)
+        if self.scale == "log":
+            return 1.0 / (value - self.lower)
+        if self.scale == "neglog":
+            return 1.0 / (self.upper - value)
+        if self.scale == "logit":
+            return 1.0 / (value * (1.0 - value))
+        return np.ones_like(value)
+
+
+POSITIVE = Domain("positive", 0.0, np.inf, "log")
+UNIT = Domain("unit interval", 0.0, 1.0, "logit")
+NEGATIVE = Domain("negative", -np.inf, 0.0, "neglog")
+REAL = Domain("real", -np.inf, np.inf, "identity")
+
+#: Range of every reported quantity (sizes in the unit of the data).  The shape parameter's
+#: range follows from its formula (:func:`quantity_domain`).
+QUANTITY_DOMAINS = {
+    "d_cut": POSITIVE, "d50c": POSITIVE, "d50": POSITIVE, "d25": POSITIVE, "d75": POSITIVE,
+    "ep": POSITIVE, "ep_c": POSITIVE, "imperfection": POSITIVE, "imperfection_c": POSITIVE,
+    "epsilon": POSITIVE, "eta": UNIT, "bypass": UNIT, "sharpness": UNIT, "fishhook": POSITIVE,
+    "slope": NEGATIVE,
+}  # fmt: skip
+
+
+def quantity_domain(quantity: str, formula=None) -> Domain:
+    """Range of a reported quantity.
+
+    A shape parameter is positive when its formula admits only positive values, and
+    bounded below by the formula's lower shape bound otherwise (km2 and kp above -1).
+    """
+    if quantity in QUANTITY_DOMAINS:
+        return QUANTITY_DOMAINS[quantity]
+    if formula is not None and quantity == formula.shape_name:
+        lower = formula.shape_bounds[0]
+        return POSITIVE if lower >= 0 else Domain(f"above {lower:g}", float(lower), np.inf, "log")
+    return REAL
+
+
+def transformed_interval(value: float, stderr: float, half: float, domain: Domain) -> tuple[float, float]:
+    """``value +- half * stderr`` made on the domain's scale and transformed back.
+
+    ``half`` is the quantile (t or normal) times one; ``stderr`` is on the natural scale
+    and carried to the transformed one by the derivative of the transform (delta method).
+    nan where the estimate is not strictly inside its range or the error is unknown.
+    """
+    if not (domain.inside(value) and np.isfinite(stderr) and np.isfinite(half)):
+        return np.nan, np.nan
+    centre, spread = domain.forward(value), half * stderr * domain.slope(value)
+    low, high = sorted((float(domain.backward(centre - spread)), float(domain.backward(centre + spread))))
+    return low, high
+
+
+def _method(kind: str, domain: Domain) -> str:
+    return kind if domain.scale == "identity" else f"{kind}-{domain.scale}"
 
 
 def _indices_at(fit: CurveFit, values: dict[str, float], delta_max: float) -> np.ndarray:
     d_cut, shape, extras = fit.curve_arguments(values)
-    found = curve_indices(fit.formula, d_cut, shape, delta_max=delta_max, **fit.context, **extras)
+    found = curve_indices(fit.formula, d_cut, shape, delta_max=delta_max, **fit.context_at(values), **extras)
     return np.array([getattr(found, name) for name in INDEX_NAMES])
+
+
+def _difference(evaluate, values: dict[str, float], name: str) -> np.ndarray:
+    step = 1e-5 * max(abs(values[name]), 1e-3)
+    upper = np.asarray(evaluate({**values, name: values[name] + step}), dtype=float)
+    lower = np.asarray(evaluate({**values, name: values[name] - step}), dtype=float)
+    return (upper - lower) / (2 * step)
 
 
 def delta_standard_errors(fit: CurveFit, evaluate: Callable[[dict[str, float]], np.ndarray]) -> np.ndarray:
@@ -43,79 +154,183 @@ def delta_standard_errors(fit: CurveFit, evaluate: Callable[[dict[str, float]], 
 
     The gradient with respect to each fitted parameter is a central difference with a
     relative step of 1e-5; the variance is ``g C g^T`` with the fit's covariance ``C``.
-    nan where the covariance is unknown or the gradient is not finite.
+
+    A formula that also takes inputs from the measured points (formula (11): the measured
+    efficiency, which fixes the break point x_a) depends on the data twice: through the
+    fitted parameters and through that input.  Its errors are propagated from the data
+    themselves: with ``J`` the Jacobian of the curve at the points, ``W`` the weights and
+    ``s^2`` the residual variance, a change ``d phi`` of the points moves the parameters by
+    ``(J'WJ)^-1 J'W (d phi - f_e de)`` and the input by ``de = e_phi' d phi``, so the
+    variance is ``s^2 sum_i (dq/dphi_i)^2 / w_i`` (this equals ``g C g^T`` when there is
+    no such input).  nan where the covariance is unknown or the gradient is not finite.
     """
-    values = dict(fit.fit.values)
+    values = {**fit.context_at(), **fit.fit.values}
     centre = np.asarray(evaluate(values), dtype=float)
     covariance = fit.fit.covariance
     if covariance is None:
         return np.full(centre.shape, np.nan)
-    gradient = []
-    for name in fit.fit.names:
-        step = 1e-5 * max(abs(values[name]), 1e-3)
-        upper = np.asarray(evaluate({**values, name: values[name] + step}), dtype=float)
-        lower = np.asarray(evaluate({**values, name: values[name] - step}), dtype=float)
-        gradient.append((upper - lower) / (2 * step))
-    gradient = np.array(gradient)
-    variance = np.einsum("i...,ij,j...->...", gradient, covariance, gradient)
-    return np.where(np.all(np.isfinite(gradient), axis=0), np.sqrt(np.maximum(variance, 0.0)), np.nan)
+    gradient = np.array([_difference(evaluate, values, name) for name in fit.fit.names])
+    if not fit.context:
+        variance = np.einsum("i...,ij,j...->...", gradient, covariance, gradient)
+        return np.where(np.all(np.isfinite(gradient), axis=0), np.sqrt(np.maximum(variance, 0.0)), np.nan)
+    points, weights = fit.points, fit.options.weights
+    dof = points.n - len(fit.fit.names)
+    s_sq = fit.fit.ssr / dof if dof > 0 else np.nan
+    curve = lambda v: fit.predict(points.size, v)  # noqa: E731
+    jacobian = np.array([_difference(curve, values, name) for name in fit.fit.names]).T  # n x p
+    sensitivity = covariance / s_sq @ jacobian.T * weights  # (J'WJ)^-1 J'W, p x n
+    flat = gradient.reshape(len(fit.fit.names), -1)  # p x q
+    per_point = flat.T @ sensitivity  # q x n
+    for name in fit.context:
+        input_by_point = _input_by_point(fit, name)
+        curve_by_input = _difference(curve, values, name)
+        index_by_input = _difference(evaluate, values, name).reshape(-1)
+        per_point += -(flat.T @ (sensitivity @ curve_by_input))[:, None] * input_by_point[None, :]
+        per_point += index_by_input[:, None] * input_by_point[None, :]
+    variance = s_sq * np.sum(per_point**2 / weights, axis=1)
+    finite = np.all(np.isfinite(per_point), axis=1)
+    return np.where(finite, np.sqrt(np.maximum(variance, 0.0)), np.nan).reshape(centre.shape)
+
+
+def _input_by_point(fit: CurveFit, name: str) -> np.ndarray:
+    """Derivative of a data-derived formula input with respect to each measured partition."""
+    points, step = fit.points, 1e-6
+    out = np.empty(points.n)
+    for i in range(points.n):
+        shifted = []
+        for sign in (1.0, -1.0):
+            phi = points.partition_fine.copy()
+            phi[i] += sign * step
+            shifted.append(formula_context(fit.formula, TrompPoints(points.experiment, points.size, phi, points.weight))[name])
+        out[i] = (shifted[0] - shifted[1]) / (2 * step)
+    return out
 
 
 def interval_table(fit: CurveFit, *, level: float = 0.95, delta_max: float | None = None, profile: bool = True) -> pd.DataFrame:
     """Estimates, standard errors and intervals of the parameters and indices of one fit.
 
-    Returns a DataFrame with columns ``quantity, value, stderr, low, high, method``:
-    parameters by the profile likelihood (or Wald when ``profile`` is False or the
-    profile fails), indices by the delta method.
+    Returns a DataFrame with columns ``quantity, value, stderr, low, high, method, flag``.
+    Every interval lies inside its quantity's range (:data:`QUANTITY_DOMAINS`):
+
+    * parameters: the profile likelihood (``profile``; lmfit keeps it inside the
+      parameter bounds), else Wald on the log / logit scale (``wald-log``,
+      ``wald-logit``); a parameter on a bound of its fit gets a one-sided interval from
+      that bound (``one-sided``, flagged);
+    * indices: the delta method on the log / logit scale (``delta-log``, ``delta-logit``,
+      ``delta-neglog`` for the negative slope).
+
+    ``flag`` says when an interval is one-sided or could not be made.
+
+    Parameters
+    ----------
+    fit : CurveFit
+        A successful fit.
+    level : float
+        Confidence level, 0..1 (default 0.95).
+    delta_max : float, optional
+        Largest feed size for the misplacement (size unit); default the one the fit was
+        made with.
+    profile : bool
+        Profile-likelihood intervals for the parameters (slower than Wald).
     """
     if not fit.success:
         raise ValueError(f"{fit.formula.id} on {fit.experiment}: the fit failed ({fit.fit.message})")
-    delta_max = fit.points.largest_size if delta_max is None else delta_max
-    rows = []
-    wald = fit.fit.confidence_intervals(level)
+    delta_max = fit.options.delta_max if delta_max is None else delta_max
+    dof = fit.points.n - len(fit.fit.names)
+    two_sided = stats.t.ppf(0.5 + level / 2.0, dof) if dof > 0 else np.nan
+    one_sided = stats.t.ppf(level, dof) if dof > 0 else np.nan
     profiled = fit.fit.profile_intervals(level) if profile else {}
+    bounds = {spec.name: (spec.lower, spec.upper) for spec in _specs(fit)}
+    rows = []
     for name in fit.fit.names:
-        low, high = profiled.get(name, (np.nan, np.nan))
-        method = "profile"
-        if not (np.isfinite(low) and np.isfinite(high)):
-            low, high = wald[name]
-            method = "wald"
-        rows.append({"quantity": name, "value": fit.fit.values[name], "stderr": fit.fit.stderr[name], "low": low, "high": high,
-                     "method": method})  # fmt: skip
-    rows += _delta_rows(fit, level, delta_max)
+        value, se = fit.fit.values[name], fit.fit.stderr[name]
+        domain = quantity_domain(name, fit.formula)
+        flag = ""
+        if name in fit.fit.at_bound:
+            lower, upper = bounds[name]
+            at_lower = np.isclose(value, lower)
+            low, high = _one_sided(value, se, one_sided, domain, at_lower)
+            method = "one-sided"
+            flag = f"{name} on its {'lower' if at_lower else 'upper'} bound {value:.4g}: one-sided interval"
+        else:
+            low, high = profiled.get(name, (np.nan, np.nan))
+            method = "profile"
+            if not (np.isfinite(low) and np.isfinite(high) and low <= value <= high):
+                low, high = transformed_interval(value, se, two_sided, domain)
+                method = _method("wald", domain)
+        if not np.isfinite(low) or not np.isfinite(high):
+            flag = flag or "interval not available (no standard error)"
+        rows.append({"quantity": name, "value": value, "stderr": se, "low": low, "high": high, "method": method, "flag": flag})
+    rows += _delta_rows(fit, two_sided, delta_max)
     return pd.DataFrame(rows)
 
 
-def _delta_rows(fit: CurveFit, level: float, delta_max: float) -> list[dict]:
-    centre = _indices_at(fit, fit.fit.values, delta_max)
+def _specs(fit: CurveFit):
+    from .curves import _parameter_specs
+
+    return _parameter_specs(fit.formula, fit.points)
+
+
+def _one_sided(value: float, se: float, quantile: float, domain: Domain, at_lower: bool) -> tuple[float, float]:
+    """Interval from the bound the estimate sits on to the one-sided limit on the other side."""
+    if not (np.isfinite(se) and np.isfinite(quantile)):
+        return (value, np.nan) if at_lower else (np.nan, value)
+    if domain.inside(value):
+        low, high = transformed_interval(value, se, quantile, domain)
+    else:  # on the edge of the range itself (bypass = 0): the natural scale, clipped into it
+        low, high = value - quantile * se, value + quantile * se
+    low, high = float(np.clip(low, domain.lower, domain.upper)), float(np.clip(high, domain.lower, domain.upper))
+    return (value, high) if at_lower else (low, value)
+
+
+def _delta_rows(fit: CurveFit, half: float, delta_max: float) -> list[dict]:
+    centre = _indices_at(fit, {**fit.context_at(), **fit.fit.values}, delta_max)
     errors = delta_standard_errors(fit, lambda values: _indices_at(fit, values, delta_max))
-    dof = fit.points.n - len(fit.fit.names)
-    half = stats.t.ppf(0.5 + level / 2.0, dof) if dof > 0 else np.nan
-    return [{"quantity": name, "value": value, "stderr": se, "low": value - half * se, "high": value + half * se,
-             "method": "delta"} for name, value, se in zip(INDEX_NAMES, centre, errors)]  # fmt: skip
+    rows = []
+    for name, value, se in zip(INDEX_NAMES, centre, errors):
+        domain = quantity_domain(name)
+        low, high = transformed_interval(value, se, half, domain)
+        flag = ""
+        if not np.isfinite(value):
+            flag = "not defined for this curve"
+        elif not (np.isfinite(low) and np.isfinite(high)):
+            flag = "interval not available" + ("" if domain.inside(value) else " (estimate on the edge of its range)")
+        rows.append({"quantity": name, "value": value, "stderr": se, "low": low, "high": high, "method": _method("delta", domain),
+                     "flag": flag})  # fmt: skip
+    return rows
 
 
 @dataclass(frozen=True)
 class Bootstrap:
-    """Bootstrap replicates of one fit: one row per successful resample."""
+    """Bootstrap replicates of one fit: one row per successful resample.
+
+    ``bounds`` maps each quantity to the edges it cannot pass (its range, and for the
+    parameters the bounds of the fit); percentile limits on an edge are flagged.
+    """
 
     samples: pd.DataFrame
     n_requested: int
     method: str
     seed: int
+    bounds: dict = field(default_factory=dict)
 
     @property
     def n_failed(self) -> int:
         return self.n_requested - len(self.samples)
 
     def intervals(self, level: float = 0.95) -> pd.DataFrame:
-        """Percentile intervals: ``quantity, low, high, stderr`` (standard deviation of the replicates)."""
+        """Percentile intervals: ``quantity, low, high, stderr`` (standard deviation of the
+        replicates), ``method`` ("percentile") and ``flag`` (a limit on a bound)."""
         tail = (1.0 - level) / 2.0
         rows = []
         for column in self.samples.columns:
             values = self.samples[column].dropna().to_numpy()
             low, high = (np.quantile(values, [tail, 1 - tail]) if values.size else (np.nan, np.nan))
-            rows.append({"quantity": column, "low": low, "high": high, "stderr": values.std(ddof=1) if values.size > 1 else np.nan})
+            edges = [e for e in self.bounds.get(column, ()) if np.isfinite(e)]
+            on_edge = [f"{side} limit on the bound {edge:g}" for side, limit in (("lower", low), ("upper", high))
+                       for edge in edges if np.isclose(limit, edge, rtol=1e-9, atol=1e-12)]  # fmt: skip
+            rows.append({"quantity": column, "low": low, "high": high, "stderr": values.std(ddof=1) if values.size > 1 else np.nan,
+                         "method": "percentile", "flag": "; ".join(on_edge)})  # fmt: skip
         return pd.DataFrame(rows)
 
 
@@ -123,11 +338,29 @@ def bootstrap(fit: CurveFit, *, n: int = 200, seed: int = 0, method: str = "resi
               progress: Callable[[int, int], None] | None = None) -> Bootstrap:  # fmt: skip
     """Refit ``n`` resampled data sets from the optimum of ``fit``.
 
-    ``method="residuals"``: fitted values plus residuals drawn with replacement (the
-    residuals scaled by ``sqrt(n / (n - p))`` for the degrees of freedom the fit used);
-    ``"cases"``: points drawn with replacement (resamples with fewer than ``p + 1``
-    distinct sizes are drawn again).  Each refit starts at the original optimum, without
-    the global grid.
+    ``method="residuals"``: fitted values plus weighted residuals drawn with replacement.
+    The residuals are taken on the scale the fit used (``sqrt(w_i)`` times the raw
+    residual, equal in variance under the model), centred (a least-squares fit of a
+    nonlinear curve does not make them sum to zero), scaled by ``sqrt(n / (n - p))`` for
+    the degrees of freedom the fit used, and divided by ``sqrt(w_j)`` of the point they
+    are added to.  ``"cases"``: points drawn with replacement (resamples with fewer than
+    ``p + 1`` distinct sizes are drawn again).  Each refit starts at the original
+    optimum, without the global grid, with the options of the original fit (alpha,
+    ``delta_max`` unless given here).
+
+    Parameters
+    ----------
+    fit : CurveFit
+        A successful fit.
+    n : int
+        Number of resamples (> 0).
+    seed : int
+        Seed of numpy's default generator.
+    method : {"residuals", "cases"}
+    delta_max : float, optional
+        Largest feed size for the misplacement (size unit); default the fit's.
+    progress : callable, optional
+        Called as ``progress(i, n)`` before each resample.
     """
     if not fit.success:
         raise ValueError(f"{fit.formula.id} on {fit.experiment}: cannot bootstrap a failed fit")
@@ -139,32 +372,44 @@ def bootstrap(fit: CurveFit, *, n: int = 200, seed: int = 0, method: str = "resi
     points = fit.points
     p = fit.formula.n_params
     fitted = fit.predict(points.size)
-    residuals = (points.partition_fine - fitted) * np.sqrt(points.n / max(points.n - p, 1))
-    delta_max = points.largest_size if delta_max is None else delta_max
+    root_weights = np.sqrt(fit.options.weights)
+    scaled = root_weights * (points.partition_fine - fitted)
+    residuals = (scaled - scaled.mean()) * np.sqrt(points.n / max(points.n - p, 1))
+    delta_max = fit.options.delta_max if delta_max is None else delta_max
     rows = []
     for i in range(n):
         if progress is not None:
             progress(i + 1, n)
         if method == "residuals":
-            sample = TrompPoints(points.experiment, points.size, fitted + rng.choice(residuals, points.n), points.weight)
+            sample = TrompPoints(points.experiment, points.size, fitted + rng.choice(residuals, points.n) / root_weights,
+                                 points.weight, resampled=True)  # fmt: skip
         else:
             while True:
                 pick = rng.integers(0, points.n, points.n)
                 if np.unique(points.size[pick]).size > p:
                     break
             weight = None if points.weight is None else points.weight[pick]
-            sample = TrompPoints(points.experiment, points.size[pick], points.partition_fine[pick], weight)
-        refit = fit_formula(sample, fit.formula, alpha=fit.screen.alpha, delta_max=delta_max, global_search=False,
-                            starts=[dict(fit.fit.values)])  # fmt: skip
+            sample = TrompPoints(points.experiment, points.size[pick], points.partition_fine[pick], weight, resampled=True)
+        refit = fit_formula(sample, fit.formula, alpha=fit.options.alpha, delta_max=delta_max, global_search=False,
+                            starts=[dict(fit.fit.values)], size_unit=fit.options.size_unit)  # fmt: skip
         if not refit.success:
             continue
         rows.append({**refit.fit.values, **{k: getattr(refit.indices, k) for k in INDEX_NAMES}})
-    return Bootstrap(pd.DataFrame(rows), n, method, seed)
+    bounds = {name: (quantity_domain(name, fit.formula).lower, quantity_domain(name, fit.formula).upper)
+              for name in (*fit.fit.names, *INDEX_NAMES)}  # fmt: skip
+    for spec in _specs(fit):
+        bounds[spec.name] = (*bounds[spec.name], spec.lower, spec.upper)
+    return Bootstrap(pd.DataFrame(rows), n, method, seed, bounds)
 
 
 # --- information criteria and model averaging --------------------------------------------
 def akaike_weights(aicc: Sequence[float]) -> np.ndarray:
     """Akaike weights ``exp(-Delta/2) / sum exp(-Delta/2)``; missing criteria get weight 0.
+
+    Parameters
+    ----------
+    aicc : sequence of float
+        Information criteria of the competing fits (nan for a failed fit).
 
     Examples
     --------
@@ -181,14 +426,49 @@ def akaike_weights(aicc: Sequence[float]) -> np.ndarray:
     return weights
 
 
-def model_average(fits: Sequence[CurveFit], *, quantities=("d_cut", "ep", "eta"), level: float = 0.95,
-                  delta_max: float | None = None) -> pd.DataFrame:  # fmt: skip
+#: Quantities averaged over the formulas by default: the actual and the corrected cut, the
+#: actual and the corrected Ep, and eta.
+AVERAGED_QUANTITIES = ("d50", "d50c", "ep", "ep_c", "eta")
+
+#: A model average is reported only when the formulas where the quantity is defined hold
+#: at least this share of the Akaike weight.
+MIN_WEIGHT_SHARE = 0.5
+
+
+def model_average(fits: Sequence[CurveFit], *, quantities=AVERAGED_QUANTITIES, level: float = 0.95,
+                  delta_max: float | None = None, min_share: float = MIN_WEIGHT_SHARE) -> pd.DataFrame:  # fmt: skip
     """Akaike-weighted averages of ``quantities`` over the fits of one experiment.
+
+    Only the formulas where a quantity is defined (finite) enter its average, with their
+    Akaike weights renormalised; ``akaike_share`` is the share of the total weight they
+    hold.  Below ``min_share`` the average is left empty (nan) and ``note`` says why: the
+    formulas the data favour do not have the quantity (an actual Ep when the bypass keeps
+    the actual curve from reaching 0.75, say).
 
     The unconditional standard error (Burnham & Anderson 2002, eq. 4.9) is
     ``sum_i w_i sqrt(se_i^2 + (theta_i - theta_bar)^2)`` with ``se_i`` from the fit
-    (parameters) or the delta method (indices).  Returns ``quantity, value, stderr, low,
-    high`` plus one weight column per formula (``weight_<id>``).
+    (parameters) or the delta method (indices).  The interval is made the same way on the
+    log (logit for eta) scale around ``g(theta_bar)`` and transformed back, so it stays in
+    the quantity's range (``method`` says so).  ``d50c`` is the corrected cut of each
+    formula (for the nine paper formulas, which have no bypass, the corrected curve is
+    the actual one and ``d50c = d50 = d_cut``); a corrected cut is never averaged with an
+    actual one.
+
+    Returns ``quantity, value, stderr, low, high, method, akaike_share, n_formulas, note``
+    plus one weight column per formula (``weight_<id>``).
+
+    Parameters
+    ----------
+    fits : sequence of CurveFit
+        Fits of several formulas to one experiment.
+    quantities : sequence of str
+        Parameters or indices to average (names of :func:`interval_table`).
+    level : float
+        Confidence level of the normal intervals, 0..1.
+    delta_max : float, optional
+        Largest feed size for the misplacement (size unit); default each fit's own.
+    min_share : float
+        Smallest share of the Akaike weight the formulas with the quantity must hold.
     """
     good = [fit for fit in fits if fit.success]
     if not good:
@@ -200,25 +480,55 @@ def model_average(fits: Sequence[CurveFit], *, quantities=("d_cut", "ep", "eta")
     rows = []
     z = stats.norm.ppf(0.5 + level / 2.0)
     for quantity in quantities:
-        values = np.array([table.loc[quantity, "value"] for table in tables])
-        errors = np.array([table.loc[quantity, "stderr"] for table in tables])
+        values = np.array([_table_value(table, quantity, "value") for table in tables])
+        errors = np.array([_table_value(table, quantity, "stderr") for table in tables])
         usable = np.isfinite(values) & (weights > 0)
-        w = weights[usable] / weights[usable].sum()
-        mean = float(np.sum(w * values[usable]))
-        se = float(np.sum(w * np.sqrt(np.nan_to_num(errors[usable]) ** 2 + (values[usable] - mean) ** 2)))
-        rows.append({"quantity": quantity, "value": mean, "stderr": se, "low": mean - z * se, "high": mean + z * se})
+        share = float(weights[usable].sum())
+        row = {"quantity": quantity, "value": np.nan, "stderr": np.nan, "low": np.nan, "high": np.nan, "method": "",
+               "akaike_share": share, "n_formulas": int(usable.sum()), "note": ""}  # fmt: skip
+        if share < min_share or not usable.any():
+            row["note"] = (f"not averaged: defined only for formulas holding {share:.2%} of the Akaike weight "
+                           f"(less than {min_share:.0%})")  # fmt: skip
+            rows.append(row)
+            continue
+        w = weights[usable] / share
+        theta, se = values[usable], np.nan_to_num(errors[usable])
+        mean = float(np.sum(w * theta))
+        domain = quantity_domain(quantity)
+        row.update(value=mean, stderr=float(np.sum(w * np.sqrt(se**2 + (theta - mean) ** 2))))
+        if domain.inside(mean) and np.all(domain.inside(t) for t in theta):
+            g_mean = domain.forward(mean)
+            se_g = float(np.sum(w * np.sqrt((se * domain.slope(theta)) ** 2 + (domain.forward(theta) - g_mean) ** 2)))
+            low, high = sorted((float(domain.backward(g_mean - z * se_g)), float(domain.backward(g_mean + z * se_g))))
+            row.update(low=low, high=high, method=_method("akaike", domain))
+        else:
+            row["note"] = "no interval: an estimate lies on the edge of the quantity's range"
+        if share < 1.0 - 1e-9:
+            row["note"] = row["note"] or f"averaged over the {int(usable.sum())} formulas where it is defined ({share:.2%} of the weight)"
+        rows.append(row)
     table = pd.DataFrame(rows)
     for fit, weight in zip(good, weights):
         table[f"weight_{fit.formula.id}"] = weight
     return table
 
 
+def _table_value(table: pd.DataFrame, quantity: str, column: str) -> float:
+    if quantity == "d50c":  # the corrected cut is the fitted d_cut of every formula
+        quantity = "d_cut"
+    return float(table.loc[quantity, column]) if quantity in table.index else np.nan
+
+
 def interval_columns(fits: Sequence[CurveFit], *, level: float | None = None, n_bootstrap: int = 0, method: str = "residuals",
                      seed: int = 0, progress: Callable[[int, int, str], None] | None = None) -> pd.DataFrame:  # fmt: skip
-    """Wide interval columns for ``fits.csv``: ``<quantity>_low``/``_high`` (profile for the
-    parameters, delta method for the indices) when ``level`` is given, and
-    ``<quantity>_boot_low``/``_boot_high`` from ``n_bootstrap`` resamples.  Keyed by
-    ``experiment`` and ``formula``; failed fits get nan."""
+    """Wide interval columns for ``fits.csv``.
+
+    With ``level``: ``<quantity>_low``/``_high`` and ``<quantity>_method`` (how the interval
+    was made, see :func:`interval_table`); with ``n_bootstrap``: ``<quantity>_boot_low`` /
+    ``_boot_high`` (percentile, ``bootstrap_method`` says residuals or cases) and
+    ``bootstrap_failed``.  ``interval_flags`` lists one-sided intervals, missing ones and
+    bootstrap limits on a bound.  Keyed by ``experiment`` and ``formula``; failed fits
+    get nan.  Every fit's own ``delta_max`` and alpha are used.
+    """
     bootstrap_level = 0.95 if level is None else level
     rows = []
     for i, fit in enumerate(fits):
@@ -226,20 +536,30 @@ def interval_columns(fits: Sequence[CurveFit], *, level: float | None = None, n_
         if progress is not None:
             progress(i + 1, len(fits), f"{fit.experiment} / {fit.formula.id}")
         if fit.success:
+            flags = []
             try:
                 if level is not None:
                     table = interval_table(fit, level=level).set_index("quantity")
                     for quantity in table.index:
-                        row[f"{_column(fit, quantity)}_low"] = table.loc[quantity, "low"]
-                        row[f"{_column(fit, quantity)}_high"] = table.loc[quantity, "high"]
+                        stem = _column(fit, quantity)
+                        row[f"{stem}_low"] = table.loc[quantity, "low"]
+                        row[f"{stem}_high"] = table.loc[quantity, "high"]
+                        row[f"{stem}_method"] = table.loc[quantity, "method"]
+                        if table.loc[quantity, "flag"] and np.isfinite(table.loc[quantity, "value"]):
+                            flags.append(f"{stem}: {table.loc[quantity, 'flag']}")
                 if n_bootstrap:
                     boot = bootstrap(fit, n=n_bootstrap, seed=seed, method=method)
-                    for quantity, low, high in boot.intervals(bootstrap_level)[["quantity", "low", "high"]].itertuples(index=False):
-                        row[f"{_column(fit, quantity)}_boot_low"] = low
-                        row[f"{_column(fit, quantity)}_boot_high"] = high
+                    for quantity, low, high, flag in boot.intervals(bootstrap_level)[["quantity", "low", "high", "flag"]].itertuples(index=False):
+                        stem = _column(fit, quantity)
+                        row[f"{stem}_boot_low"] = low
+                        row[f"{stem}_boot_high"] = high
+                        if flag:
+                            flags.append(f"{stem} bootstrap: {flag}")
+                    row["bootstrap_method"] = f"percentile ({method})"
                     row["bootstrap_failed"] = boot.n_failed
             except (ValueError, ArithmeticError, RuntimeError) as error:  # a batch reports and goes on
                 row["interval_message"] = f"intervals not computed: {error}"
+            row["interval_flags"] = "; ".join(flags)
         rows.append(row)
     return pd.DataFrame(rows)
 

@@ -18,8 +18,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .curves import CurveFit, fit_formula
-from .fitting import ParameterFit, ParameterSpec
+from .curves import CurveFit, failed_fit, fit_formula
 from .formulas import Formula, select_formulas
 from .points import TrompPoints
 from .ranking import add_ranks, rank_formulas
@@ -29,7 +28,8 @@ from .screening import DEFAULT_ALPHA
 FIT_COLUMNS = (
     "experiment", "equation", "formula", "n", "d_cut", "d_cut_stderr", "shape_name", "shape", "shape_stderr",
     "ssr", "F", "F_crit", "adequate", "rank", "eta", "epsilon", "slope", "d25", "d75", "ep", "imperfection",
-    "aic", "aicc", "bic", "bypass", "fishhook", "runs_p", "normality_p", "x_break", "success", "message", "warnings",
+    "d50", "d50c", "ep_c", "imperfection_c",
+    "aic", "aicc", "bic", "bypass", "fishhook", "extras", "runs_p", "normality_p", "x_break", "success", "message", "warnings",
 )  # fmt: skip
 
 
@@ -99,6 +99,61 @@ class Workbench:
     def experiments(self) -> list[str]:
         return list(dict.fromkeys(fit.experiment for fit in self.fits))
 
+    # --- readable views and saving (tromplab.results) ---------------------------------------
+    def __repr__(self) -> str:
+        from .results import workbench_repr
+
+        return workbench_repr(self)
+
+    def _repr_html_(self) -> str:
+        from .results import workbench_html
+
+        return workbench_html(self)
+
+    def summary(self) -> pd.DataFrame:
+        """The fits table: one row per experiment and formula (columns :data:`FIT_COLUMNS`)."""
+        return self.fits_table()
+
+    def ranking(self) -> pd.DataFrame:
+        """Ranks per experiment, points and place per formula (:meth:`ranking_table`)."""
+        return self.ranking_table()
+
+    def averages(self, *, level: float = 0.95) -> pd.DataFrame:
+        """Akaike-weighted d_cut, Ep and eta per experiment (:func:`model_averages`)."""
+        return model_averages(self, level=level)
+
+    def plot(self, experiment: str | None = None, *, ax=None, **options):
+        """Measured points and fitted curves of one experiment (the first by default),
+        best fit thick with its band; ``options`` go to :func:`tromplab.plotting.plot_tromp_fits`.
+
+        Returns the matplotlib Axes.
+        """
+        from .plotting import plot_tromp_fits
+
+        experiment = self.experiments[0] if experiment is None else experiment
+        if experiment not in self.experiments:
+            raise KeyError(f"no experiment {experiment!r}; experiments: {', '.join(self.experiments)}")
+        return plot_tromp_fits(self.fits_of(experiment), ax=ax, best=self.best_fit(experiment), **options)
+
+    def report(self, path, *, balances=(), level: float = 0.95, size_unit: str = "", title: str = "tromplab report"):
+        """Write the HTML report (and its Markdown twin) to ``path``, as ``tromplab report`` does.
+
+        ``balances``: the mass balances of lab input (from :func:`tromplab.read_lab`), for
+        the balance section.  Returns ``{file name: path}`` of the written files.
+        """
+        from .report import build_report, write_report
+
+        sources = dict.fromkeys(fit.points.source for fit in self.fits if fit.points.source)
+        source = ", ".join(sources) or "data given in Python"
+        built = build_report(self, list(balances), source=source, level=level, size_unit=size_unit, title=title)
+        return write_report(built, path)
+
+    def save(self, directory) -> dict[str, Path]:
+        """Save the batch with its inputs, options and version (see :func:`tromplab.load`)."""
+        from .results import save_workbench
+
+        return save_workbench(self, directory)
+
 
 def fit_experiments(
     experiments: Sequence[TrompPoints],
@@ -109,6 +164,7 @@ def fit_experiments(
     rank_by: str = "F",
     rank_extended: bool = False,
     progress: Callable[[int, int, str], None] | None = None,
+    size_unit: str = "",
 ) -> Workbench:
     """Fit, screen and rank ``formulas`` (default: all nine) on each experiment.
 
@@ -127,6 +183,20 @@ def fit_experiments(
         fitted and reported but kept out of the paper's ranking.
     progress : callable, optional
         Called as ``progress(i, total, experiment)`` before each experiment.
+    size_unit : str
+        Unit of the sizes, recorded on every fit (``CurveFit.options``).
+
+    Returns
+    -------
+    Workbench
+        Every fit, with the fits and ranking tables; never raises for a failing fit.
+
+    Examples
+    --------
+    >>> points = TrompPoints("run", [10, 20, 40, 80, 160], [0.98, 0.91, 0.62, 0.21, 0.04])
+    >>> bench = fit_experiments([points], formulas=["plitt", "lognormal", "molerus"])
+    >>> bench.ranking()[["formula", "place"]].values.tolist()
+    [['plitt', 1], ['lognormal', 2], ['molerus', 3]]
     """
     chosen = select_formulas(formulas)
     fits, failures, notes = [], {}, {}
@@ -140,8 +210,23 @@ def fit_experiments(
             continue
         notes[points.experiment] = data_notes(points)
         for formula in chosen:
-            fits.append(_fit_guarded(points, formula, alpha, delta_max))
+            fits.append(_fit_guarded(points, formula, alpha, delta_max, size_unit))
     return Workbench(tuple(fits), failures, chosen, rank_by, alpha, rank_extended, {k: v for k, v in notes.items() if v})
+
+
+def load(directory) -> Workbench:
+    """A batch saved by :meth:`Workbench.save` (refused when saved by another major version).
+
+    Only load directories you trust: the batch is unpickled.
+
+    Parameters
+    ----------
+    directory : str or path-like
+        A directory written by :meth:`Workbench.save`.
+    """
+    from .results import load_workbench
+
+    return load_workbench(directory)
 
 
 def data_notes(points: TrompPoints) -> tuple[str, ...]:
@@ -161,7 +246,19 @@ def data_notes(points: TrompPoints) -> tuple[str, ...]:
 
 
 def model_averages(bench: Workbench, *, level: float = 0.95) -> pd.DataFrame:
-    """Akaike-weighted d_cut, Ep and eta per experiment (the formulas ranked by the batch)."""
+    """Akaike-weighted d_cut, Ep and eta per experiment (the formulas ranked by the batch).
+
+    Parameters
+    ----------
+    bench : Workbench
+    level : float
+        Confidence level of the intervals, 0..1.
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``experiment, quantity, value, stderr, low, high`` and ``weight_<formula>`` columns.
+    """
     from .uncertainty import model_average
 
     frames = []
@@ -175,13 +272,13 @@ def model_averages(bench: Workbench, *, level: float = 0.95) -> pd.DataFrame:
     return table[["experiment", *[c for c in table.columns if c != "experiment"]]]
 
 
-def _fit_guarded(points, formula, alpha, delta_max) -> CurveFit:
+def _fit_guarded(points, formula, alpha, delta_max, size_unit="") -> CurveFit:
+    size_unit = size_unit or getattr(points, "size_unit", "")  # the unit the loader read from the column name
     try:
-        return fit_formula(points, formula, alpha=alpha, delta_max=delta_max)
+        return fit_formula(points, formula, alpha=alpha, delta_max=delta_max, size_unit=size_unit)
     except Exception as error:  # a batch reports a broken fit instead of stopping
-        specs = [ParameterSpec("d_cut"), ParameterSpec(formula.shape_name)]
-        failed = ParameterFit.failed(specs, points.n, f"{type(error).__name__}: {error}")
-        return CurveFit(formula=formula, points=points, fit=failed)
+        return failed_fit(points, formula, f"{type(error).__name__}: {error}", alpha=alpha, delta_max=delta_max,
+                          size_unit=size_unit)  # fmt: skip
 
 
 def print_progress(i: int, total: int, experiment: str) -> None:

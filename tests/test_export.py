@@ -1,0 +1,178 @@
+"""Export to simulator conventions: each convention re-implemented here, independently of tromplab,
+from its published form, must reproduce tromplab's fitted curve at the measured sizes within 1e-6."""
+
+import numpy as np
+import pandas as pd
+import pytest
+from numpy.testing import assert_allclose
+from scipy import special
+
+from tromplab.cli import main
+from tromplab.errors import InputError
+from tromplab.export import export_fits, read_fits
+from tromplab.formulas import get_formula
+
+SIZES_UM = np.geomspace(15, 600, 13)
+TRUTHS = {
+    "lynch": (110.0, 2.5, {}),
+    "whiten": (120.0, 3.0, {"bypass": 0.25, "fishhook": 0.4}),
+    "rosin_rammler": (95.0, 1.8, {}),
+    "rosin_rammler_bypass": (105.0, 2.2, {"bypass": 0.18}),
+    "molerus_hoffmann": (100.0, 1.5, {}),
+    "teipel_hennig": (130.0, 3.5, {"th_alpha": 2.0, "bypass": 0.1}),
+    "normal": (140.0, 0.35, {}),
+    "plitt": (90.0, 2.0, {}),
+}
+
+
+@pytest.fixture(scope="module")
+def fits_dir(tmp_path_factory):
+    """`tromplab fit` output for points drawn from each curve (one experiment per curve)."""
+    folder = tmp_path_factory.mktemp("fits")
+    rng = np.random.default_rng(21)
+    frames = []
+    for name, (d_cut, shape, extras) in TRUTHS.items():
+        phi = get_formula(name)(SIZES_UM, d_cut, shape, **extras) + rng.normal(0, 0.004, SIZES_UM.size)
+        frames.append(pd.DataFrame({"experiment": f"run_{name}", "size": SIZES_UM, "partition_fine": np.clip(phi, 0, 1)}))
+    pd.concat(frames).to_csv(folder / "points.csv", index=False)
+    formulas = ",".join(TRUTHS)
+    assert main(["fit", str(folder / "points.csv"), "-o", str(folder), "--formulas", formulas, "--no-figures"]) == 0
+    return folder
+
+
+def tromplab_curves(fits_dir):
+    """Partition to fines of every successful fit in fits.csv, by tromplab, at the measured sizes."""
+    return {(f.experiment, f.formula): get_formula(f.formula)(SIZES_UM, f.d_cut, f.shape, **f.extras) for f in read_fits(fits_dir)}
+
+
+def whiten_overflow(d, row):
+    """Napier-Munn et al. (1996): E_oa = C (1 + b b* x)(e^a - 1)/(e^(a b* x) + e^a - 2), x = d/d50c, to the overflow."""
+    x = d / row.d50c
+    a, b, bs = row.alpha, row.beta, row.beta_star
+    return row.C * (1 + b * bs * x) * (np.exp(a) - 1) / (np.exp(a * bs * x) + np.exp(a) - 2)
+
+
+def plitt_underflow(d, row):
+    """Plitt (1976): Y = Rf + (1 - Rf)(1 - exp(-0.693 (d/d50c)^m)), Rf in percent, to the underflow."""
+    rf = row.Rf_pct / 100
+    return rf + (1 - rf) * (1 - np.exp(-0.693 * (d / row.d50c) ** row.m))
+
+
+def dyssol_coarse(d_m, row):
+    """Dyssol Screen unit, partition to the coarse product, sizes in metres (continuous Probability)."""
+    if row.Model == "Plitt":
+        return 1 - np.exp(-0.693 * (d_m / row.Xcut) ** row.Alpha)
+    if row.Model == "Molerus & Hoffmann":
+        return 1 / (1 + (row.Xcut / d_m) ** 2 * np.exp(row.Alpha * (1 - (d_m / row.Xcut) ** 2)))
+    if row.Model == "Teipel & Hennig":
+        x = d_m / row.Xcut
+        return (1 - (1 + 3 * x ** ((x + row.Alpha) * row.Beta)) ** -0.5) * (1 - row.Offset) + row.Offset
+    if row.Model == "Probability":
+        return 0.5 * special.erfc(-(d_m - row.Mean) / (np.sqrt(2) * row.Deviation))
+    raise AssertionError(row.Model)
+
+
+CASES = {
+    "whiten": (lambda row: whiten_overflow(SIZES_UM, row), {"lynch", "whiten"}),
+    "plitt": (lambda row: 1 - plitt_underflow(SIZES_UM, row), {"rosin_rammler", "rosin_rammler_bypass"}),
+    "dyssol": (lambda row: 1 - dyssol_coarse(SIZES_UM * 1e-6, row), {"rosin_rammler", "molerus_hoffmann", "teipel_hennig", "normal"}),
+}
+
+
+@pytest.mark.parametrize("convention", list(CASES))
+def test_exported_curve_re_evaluated_in_the_target_convention_reproduces_the_fit(fits_dir, convention):
+    evaluate, expected = CASES[convention]
+    args = ["export", str(fits_dir), "--to", convention] + (["--size-unit", "um"] if convention == "dyssol" else [])
+    assert main(args) == 0
+    table = pd.read_csv(fits_dir / f"export_{convention}.csv")
+    assert set(table["formula"]) == expected
+    curves = tromplab_curves(fits_dir)
+    for row in table.itertuples(index=False):
+        assert_allclose(evaluate(row), curves[(row.experiment, row.formula)], atol=1e-6, rtol=0)
+
+
+def test_units_cuts_and_bypass_of_each_convention(fits_dir):
+    fits = {(f.experiment, f.formula): f for f in read_fits(fits_dir)}
+    dyssol = export_fits(fits_dir, "dyssol", size_unit="um").table.set_index("formula")
+    teipel = fits[("run_teipel_hennig", "teipel_hennig")]
+    row = dyssol.loc["teipel_hennig"].loc[lambda t: t["experiment"] == "run_teipel_hennig"].iloc[0]
+    assert_allclose(row["Xcut"], teipel.d_cut * 1e-6, rtol=1e-12)  # metres
+    assert_allclose(row["Offset"], teipel.bypass, rtol=1e-12)  # a fraction
+    plitt = export_fits(fits_dir, "plitt", size_unit="um").table.set_index("experiment").loc["run_rosin_rammler_bypass"]
+    plitt = plitt[plitt["formula"] == "rosin_rammler_bypass"].iloc[0]
+    fit = fits[("run_rosin_rammler_bypass", "rosin_rammler_bypass")]
+    assert_allclose(plitt["Rf_pct"], 100 * fit.bypass, rtol=1e-12)  # percent
+    assert_allclose(plitt["d50c_ln2"], fit.d_cut, rtol=1e-12)
+    assert plitt["d50c"] < fit.d_cut  # 0.693 < ln 2 moves the printed cut down
+    # the actual cut: (1 - Rf) exp(-ln2 x^m) = 1/2, finer than the corrected cut
+    assert_allclose(plitt["d50"], fit.d_cut * (np.log(2 * (1 - fit.bypass)) / np.log(2)) ** (1 / fit.shape), rtol=1e-10)
+    whiten = export_fits(fits_dir, "whiten").table
+    row = whiten[(whiten["formula"] == "whiten") & (whiten["experiment"] == "run_whiten")].iloc[0]
+    assert_allclose(row["C"] + row["Rf_pct"] / 100, 1.0, rtol=1e-12)
+    assert_allclose(whiten_overflow(np.array([row["d50c"]]), row) / row["C"], 0.5, atol=1e-12)  # d50c is the corrected cut
+
+
+def test_dyssol_probability_model_approaches_the_normal_curve_on_a_fine_grid(fits_dir):
+    table = export_fits(fits_dir, "dyssol", size_unit="um").table
+    row = table[(table["Model"] == "Probability") & (table["experiment"] == "run_normal")].iloc[0]
+    grid = np.linspace(1e-9, row.Mean + 8 * row.Deviation, 20001)  # Dyssol: cumulative sum of the density over classes
+    density = np.exp(-((grid - row.Mean) ** 2) / (2 * row.Deviation**2))
+    discrete = np.cumsum(density) / density.sum()
+    # Dyssol normalises over its grid, which starts at size 0: the normal's mass below 0 is the gap left
+    mass_below_zero = 0.5 * special.erfc(row.Mean / (np.sqrt(2) * row.Deviation))
+    assert np.max(np.abs(discrete - dyssol_coarse(grid, row))) < mass_below_zero + 1e-3
+
+
+def test_csv_long_holds_every_parameter_with_its_unit(fits_dir):
+    table = export_fits(fits_dir, "csv-long", size_unit="um").table
+    whiten = table[(table["experiment"] == "run_whiten") & (table["formula"] == "whiten")].set_index("parameter")
+    assert set(whiten.index) == {"d_cut", "alpha", "bypass", "fishhook", "beta_star"}
+    assert whiten.loc["d_cut", "unit"] == "um" and whiten.loc["alpha", "unit"] == "-"
+    n_params = {f.formula: 2 + len(f.extras) for f in read_fits(fits_dir)}
+    assert len(table[table["formula"] == "plitt"]) == len(TRUTHS) * n_params["plitt"]
+
+
+def test_export_refuses_bad_input_with_clear_messages(fits_dir, tmp_path, capsys):
+    with pytest.raises(ValueError, match="size-unit"):
+        export_fits(fits_dir, "dyssol")
+    with pytest.raises(ValueError, match="unknown size unit 'inch'"):
+        export_fits(fits_dir, "plitt", size_unit="inch")
+    with pytest.raises(ValueError, match="unknown convention 'jksimmet'"):
+        export_fits(fits_dir, "jksimmet")
+    with pytest.raises(InputError, match="no fits.csv"):
+        read_fits(tmp_path)
+    broken = pd.read_csv(fits_dir / "fits.csv")
+    broken.loc[broken["formula"] == "teipel_hennig", "extras"] = ""
+    broken.to_csv(tmp_path / "fits.csv", index=False)
+    with pytest.raises(InputError, match=r"row \d+, column 'extras': the fitted value of th_alpha is missing"):
+        read_fits(tmp_path)
+    assert main(["export", str(fits_dir), "--to", "dyssol"]) == 1
+    assert "--size-unit" in capsys.readouterr().err
+    assert main(["export", str(fits_dir), "--to", "whiten"]) == 0
+    assert "Not expressible in the whiten convention" in capsys.readouterr().out
+    assert ("run_plitt", "plitt", "no whiten equivalent of plitt") in export_fits(fits_dir, "whiten").skipped
+
+
+@pytest.mark.parametrize(
+    "model, params, formula",
+    [
+        ("Teipel & Hennig", {"Xcut": 0.002, "Alpha": 8.0, "Beta": 0.5, "Offset": 0.2}, "teipel_hennig"),
+        ("Plitt", {"Xcut": 0.002, "Alpha": 8.0}, "rosin_rammler"),
+        ("Molerus & Hoffmann", {"Xcut": 0.002, "Alpha": 8.0}, "molerus_hoffmann"),
+    ],
+)
+def test_dyssol_default_screen_parameters_survive_a_fit_and_an_export(model, params, formula):
+    """Dyssol's Screen defaults (Units/Screen/Screen.cpp: Xcut 0.002 m, Alpha 8, Beta 0.5, Offset 0.2):
+    a curve drawn by Dyssol's expression is fitted by tromplab and exported back to the same numbers."""
+    from tromplab.curves import fit_formula
+    from tromplab.export import FittedCurve
+    from tromplab.points import TrompPoints
+
+    sizes_um = np.geomspace(300, 8000, 16)
+    row = pd.Series({"Model": model, "Beta": np.nan, "Offset": 0.0, **params})
+    points = TrompPoints(model, sizes_um, 1 - dyssol_coarse(sizes_um * 1e-6, row))
+    fit = fit_formula(points, formula)
+    exported = export_fits([FittedCurve(model, formula, fit.d_cut, fit.shape, fit.extras)], "dyssol", size_unit="um").table.iloc[0]
+    assert exported["Model"] == model
+    for name, value in params.items():
+        assert_allclose(exported[name], value, rtol=1e-6, atol=1e-9)

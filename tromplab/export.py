@@ -1,0 +1,265 @@
+"""Fitted curves written in the parameter conventions of simulators and other tools.
+
+``tromplab export FITS_DIR --to CONVENTION`` reads the ``fits.csv`` that ``tromplab fit``
+wrote and writes, for every successful fit whose curve the target convention can express
+exactly, the parameters that convention expects: its names, its units, its direction
+(partition to the coarse or to the fine product), its cut (corrected or actual) and its
+bypass (fraction or percent).  Fits the convention cannot express are listed, not
+approximated.  The conventions, and what each parameter means, are tabulated in
+``docs/export.md``:
+
+``whiten``
+    Whiten's curve as in Napier-Munn et al. (1996) and JKSimMet: recovery to the fine
+    product (overflow) ``E_oa = C (1 + beta beta* x)(e^alpha - 1)/(e^(alpha beta* x) +
+    e^alpha - 2)``, ``x = d/d50c``; ``C`` is the classified fraction (``1 - bypass``).
+    From ``whiten`` and ``lynch`` (``beta = 0``, ``C = 1``).
+``plitt``
+    Plitt's (1976) hydrocyclone curve: recovery to the coarse product (underflow)
+    ``Y = Rf + (1 - Rf)(1 - exp(-0.693 (d/d50c)^m))``, ``Rf`` in percent.  Plitt prints
+    ln 2 rounded to 0.693; the exported ``d50c`` is adjusted so that the curve with 0.693
+    is tromplab's curve (``d50c_ln2`` is the cut with the exact ln 2).  From
+    ``rosin_rammler`` and ``rosin_rammler_bypass``.
+``dyssol``
+    The Screen unit of the open flowsheet simulator Dyssol (partition to the coarse
+    product; sizes in metres): model ``Plitt`` (the Rosin-Rammler form with 0.693),
+    ``Molerus & Hoffmann``, ``Teipel & Hennig`` and ``Probability``.
+``csv-long``
+    Every fitted parameter of every successful fit, one row each, with its unit and meaning.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from scipy import optimize
+
+from .errors import InputError
+from .formulas import LN2, get_formula, whiten_beta_star
+from .tables import read_table
+
+#: ln 2 as Plitt (1976) and Dyssol's Screen unit print it.
+PLITT_LN2 = 0.693
+SIZE_UNITS_IN_METRES = {"m": 1.0, "mm": 1e-3, "um": 1e-6, "µm": 1e-6, "micron": 1e-6, "cm": 1e-2}
+FITS_COLUMNS = ("experiment", "formula", "d_cut", "shape_name", "shape", "bypass", "fishhook", "success")
+
+
+@dataclass(frozen=True)
+class FittedCurve:
+    """One successful fit read back from ``fits.csv``: formula id, cut, shape and extras."""
+
+    experiment: str
+    formula: str
+    d_cut: float
+    shape: float
+    extras: dict
+
+    @property
+    def bypass(self) -> float:
+        return float(self.extras.get("bypass", 0.0))
+
+
+@dataclass(frozen=True)
+class Export:
+    """Exported parameters (``table``) and the fits the convention cannot express (``skipped``)."""
+
+    convention: str
+    table: pd.DataFrame
+    skipped: tuple[tuple[str, str, str], ...]  # (experiment, formula, reason)
+
+
+def read_fits(path) -> list[FittedCurve]:
+    """The successful fits of a ``fits.csv`` (or of the ``fits.csv`` in folder ``path``).
+
+    Raises
+    ------
+    InputError
+        When the file is missing, lacks a column, or holds a non-numeric parameter
+        (naming the file, row and column).
+    """
+    path = Path(path)
+    if path.is_dir():
+        path = path / "fits.csv"
+    if not path.exists():
+        raise InputError("no fits.csv here: give the output folder of 'tromplab fit' or its fits.csv", source=str(path))
+    table = read_table(path)
+    table.require(*FITS_COLUMNS)
+    ok = table.boolean("success")
+    d_cut, shape = table.numeric("d_cut", allow_blank=True), table.numeric("shape", allow_blank=True)
+    bypass, fishhook = table.numeric("bypass", allow_blank=True), table.numeric("fishhook", allow_blank=True)
+    fits = []
+    for i in np.flatnonzero(ok):
+        frame = table.frame.iloc[i]
+        try:
+            formula = get_formula(str(frame["formula"]))
+        except KeyError as error:
+            raise table.error(str(error.args[0]), index=int(i), column="formula") from None
+        extras = {}
+        for extra in formula.extras:
+            if extra.name == "bypass":
+                extras["bypass"] = bypass[i]
+            elif extra.name == "fishhook":
+                extras["fishhook"] = fishhook[i]
+            else:
+                extras[extra.name] = _extra_from_text(table, int(i), extra.name)
+        values = [d_cut[i], shape[i], *extras.values()]
+        if not np.all(np.isfinite(values)):
+            raise table.error("a successful fit with a missing parameter value", index=int(i), column="d_cut")
+        fits.append(FittedCurve(str(frame["experiment"]), formula.id, float(d_cut[i]), float(shape[i]), extras))
+    return fits
+
+
+def _extra_from_text(table, index: int, name: str) -> float:
+    text = str(table.frame.iloc[index].get("extras", "")) if "extras" in table.frame.columns else ""
+    for pair in text.split(";"):
+        key, _, value = pair.partition("=")
+        if key.strip() == name:
+            try:
+                return float(value)
+            except ValueError:
+                break
+    raise table.error(f"the fitted value of {name} is missing (expected '{name}=VALUE')", index=index, column="extras")
+
+
+def _whiten(fit: FittedCurve, scale: float) -> dict | None:
+    if fit.formula == "lynch":
+        alpha, beta, bypass = fit.shape, 0.0, 0.0
+    elif fit.formula == "whiten":
+        alpha, beta, bypass = fit.shape, fit.extras["fishhook"], fit.bypass
+    else:
+        return None
+    curve = get_formula("whiten")
+    return {
+        "alpha": alpha, "beta": beta, "beta_star": whiten_beta_star(alpha, beta), "d50c": fit.d_cut * scale,
+        "C": 1.0 - bypass, "Rf_pct": 100.0 * bypass,
+        "d50": _actual_cut(lambda x: curve.phi(x, alpha, bypass=bypass, fishhook=beta)) * fit.d_cut * scale,
+    }  # fmt: skip
+
+
+def _plitt(fit: FittedCurve, scale: float) -> dict | None:
+    if fit.formula not in ("rosin_rammler", "rosin_rammler_bypass"):
+        return None
+    m, bypass = fit.shape, fit.bypass
+    d50c = fit.d_cut * (PLITT_LN2 / LN2) ** (1.0 / m)
+    curve = get_formula("rosin_rammler")
+    return {
+        "d50c": d50c * scale, "m": m, "Rf_pct": 100.0 * bypass, "d50c_ln2": fit.d_cut * scale,
+        "d50": _actual_cut(lambda x: (1.0 - bypass) * curve.phi(x, m)) * fit.d_cut * scale,
+    }  # fmt: skip
+
+
+def _dyssol(fit: FittedCurve, scale: float) -> dict | None:
+    cut = fit.d_cut * scale
+    if fit.formula == "rosin_rammler":
+        row = {"Model": "Plitt", "Xcut": cut * (PLITT_LN2 / LN2) ** (1.0 / fit.shape), "Alpha": fit.shape}
+    elif fit.formula == "molerus_hoffmann":
+        row = {"Model": "Molerus & Hoffmann", "Xcut": cut, "Alpha": fit.shape}
+    elif fit.formula == "teipel_hennig":
+        alpha = fit.extras["th_alpha"]
+        row = {"Model": "Teipel & Hennig", "Xcut": cut, "Alpha": alpha, "Beta": fit.shape / (1.0 + alpha), "Offset": fit.bypass}
+    elif fit.formula == "normal":
+        row = {"Model": "Probability", "Mean": cut, "Deviation": fit.shape * cut}
+    else:
+        return None
+    notes = []
+    if row.get("Alpha", 0.0) < 0.0:
+        notes.append("Alpha < 0 is outside Dyssol's range [0, 100]")
+    if row["Model"] == "Probability":
+        notes.append("Dyssol sums the normal density over its class grid: equal to this curve on a fine grid only")
+    return {**row, "note": "; ".join(notes)}
+
+
+def _actual_cut(curve: Callable[[float], float]) -> float:
+    """Relative size where the actual curve (with bypass) crosses 1/2; nan when it never does."""
+    low, high = 1e-6, 1.0
+    if curve(low) < 0.5:
+        return np.nan
+    while curve(high) > 0.5:
+        high *= 2.0
+        if high > 1e6:
+            return np.nan
+    return float(optimize.brentq(lambda x: curve(x) - 0.5, low, high, xtol=1e-14))
+
+
+#: Convention -> (converter, its columns in order)
+CONVENTIONS: dict[str, tuple[Callable[[FittedCurve, float], dict | None], tuple[str, ...]]] = {
+    "whiten": (_whiten, ("alpha", "beta", "beta_star", "d50c", "C", "Rf_pct", "d50")),
+    "plitt": (_plitt, ("d50c", "m", "Rf_pct", "d50c_ln2", "d50")),
+    "dyssol": (_dyssol, ("Model", "Xcut", "Alpha", "Beta", "Offset", "Mean", "Deviation")),
+}
+
+
+def export_fits(fits, convention: str, *, size_unit: str | None = None) -> Export:
+    """The fitted curves in the parameters of ``convention`` (see the module docstring).
+
+    Parameters
+    ----------
+    fits : sequence of FittedCurve, or a path (folder or fits.csv)
+    convention : {"whiten", "plitt", "dyssol", "csv-long"}
+    size_unit : str, optional
+        Unit of the fitted sizes (``um``, ``mm``, ``m``, ``cm``); required by ``dyssol``,
+        which takes metres; elsewhere only written to the ``size_unit`` column.
+
+    Returns
+    -------
+    Export
+        ``table``: one row per exported fit (``csv-long``: per fit and parameter);
+        ``skipped``: fits the convention cannot express, with the reason.
+    """
+    if not isinstance(fits, (list, tuple)):
+        fits = read_fits(fits)
+    if convention not in (*CONVENTIONS, "csv-long"):
+        raise ValueError(f"unknown convention {convention!r}; choose one of {', '.join((*CONVENTIONS, 'csv-long'))}")
+    if size_unit is not None and size_unit not in SIZE_UNITS_IN_METRES:
+        raise ValueError(f"unknown size unit {size_unit!r}; choose one of {', '.join(SIZE_UNITS_IN_METRES)}")
+    if convention == "csv-long":
+        return Export(convention, _long_table(fits, size_unit), ())
+    if convention == "dyssol" and size_unit is None:
+        raise ValueError("the dyssol convention takes sizes in metres: give the unit of the fitted sizes (--size-unit um|mm|m)")
+    converter, columns = CONVENTIONS[convention]
+    scale = SIZE_UNITS_IN_METRES[size_unit] if convention == "dyssol" else 1.0
+    unit = "m" if convention == "dyssol" else (size_unit or "")
+    rows, skipped = [], []
+    for fit in fits:
+        row = converter(fit, scale)
+        if row is None:
+            skipped.append((fit.experiment, fit.formula, f"no {convention} equivalent of {fit.formula}"))
+            continue
+        rows.append({"experiment": fit.experiment, "formula": fit.formula, **row, "size_unit": unit})
+    extra = ["note"] if convention == "dyssol" else []
+    table = pd.DataFrame(rows, columns=["experiment", "formula", *columns, "size_unit", *extra])
+    return Export(convention, table, tuple(skipped))
+
+
+PARAMETER_MEANINGS = {
+    "d_cut": "cut size: partition 1/2 of the classified part (the corrected cut where the curve has a bypass)",
+    "bypass": "share of every size sent to the coarse product unclassified (fraction)",
+    "fishhook": "Whiten's beta (fish-hook)",
+    "beta_star": "Whiten's beta*, derived: keeps the corrected curve at 1/2 at d_cut",
+    "sigma": "standard deviation of the separation size (sigma_rel d_cut)",
+    "ep": "Ecart probable (imperfection d_cut)",
+}
+
+
+def _long_table(fits, size_unit) -> pd.DataFrame:
+    rows = []
+    for fit in fits:
+        formula = get_formula(fit.formula)
+        values = {"d_cut": fit.d_cut, formula.shape_name: fit.shape, **fit.extras}
+        if fit.formula == "whiten":
+            values["beta_star"] = whiten_beta_star(fit.shape, fit.extras["fishhook"])
+        if fit.formula == "normal":
+            values["sigma"] = fit.shape * fit.d_cut
+        if fit.formula == "logistic":
+            values["ep"] = fit.shape * fit.d_cut
+        meanings = {**{extra.name: extra.meaning for extra in formula.extras}, **PARAMETER_MEANINGS}
+        meanings.setdefault(formula.shape_name, f"shape parameter of {formula.title}")
+        for name, value in values.items():
+            sized = name in ("d_cut", "sigma", "ep")
+            rows.append({"experiment": fit.experiment, "formula": fit.formula, "parameter": name, "value": value,
+                         "unit": (size_unit or "size unit of the fit") if sized else "-",
+                         "meaning": meanings.get(name, "")})  # fmt: skip
+    return pd.DataFrame(rows, columns=["experiment", "formula", "parameter", "value", "unit", "meaning"])

@@ -1,0 +1,447 @@
+"""Monitoring a classifier over time: one fit per survey, control charts and change flags.
+
+A *survey* is one measured separation curve with a date (a plant survey or a lab test of
+the same classifier).  :func:`monitor_surveys` fits every survey with one formula and
+follows four quantities against the date:
+
+``d_cut``
+    the cut size (the corrected cut ``d50c`` when the formula has a bypass), size unit;
+``ep``
+    Ecart probable ``(d75 - d25)/2`` of the fitted curve, size unit;
+``eta``
+    classifier efficiency (recovery of fines, area under the curve on ``0 < x < 1``), 0..1;
+``bypass``
+    share of every size sent to the coarse product unclassified, 0..1 (formulas with a
+    bypass only).
+
+Each has its interval at ``level`` (Wald for parameters, delta method for indices), an
+EWMA line ``z_i = lambda x_i + (1 - lambda) z_(i-1)`` over the surveys after the
+baseline, started at the baseline mean ``mu0``, and its limits
+``mu0 +- L sigma sqrt(lambda/(2 - lambda) (1 - (1 - lambda)^(2i)) + (1 - (1 - lambda)^i)^2/m)``
+(Montgomery, *Introduction to Statistical Quality Control*, 6th ed., sec. 9.2; the last
+term accounts for ``mu0`` being estimated from ``m`` baseline surveys), with ``sigma``
+the standard deviation of the quantity over the baseline surveys: it holds the
+survey-to-survey variation of the classifier as well as the scatter of each fit.
+
+Two joint-fit equality tests (the extra-sum-of-squares test of :mod:`tromplab.compare`,
+on the whole curve: one curve through both data sets against one curve each) are run
+for every survey: against the previous survey (``p_previous``) and against the pooled
+baseline surveys (``p_baseline``).
+
+**Monitoring rule.**  A survey after the baseline is flagged ``changed`` when the EWMA of
+at least one quantity lies outside its limits *and* the equality test against the
+baseline rejects at ``alpha``.  A ``change_point`` is a flagged survey that starts a run of
+flagged surveys or brings a quantity into alarm that was not in alarm at the survey before
+(a second change on top of a first, such as a drifting cut after a bypass step).  The false-alarm rate and detection delay of this rule are measured by
+``benchmarks/trend_false_alarms.py`` on series from :func:`simulate_surveys` and stated
+in ``docs/trend.md``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from .compare import ExtraSumOfSquares
+from .curves import CurveFit, fit_formula, normalised_weights
+from .errors import InputError
+from .formulas import get_formula
+from .points import TrompPoints
+
+EWMA_LAMBDA = 0.2
+EWMA_L = 3.5
+DEFAULT_ALPHA = 0.01
+QUANTITY_UNITS = {"d_cut": "size", "ep": "size", "eta": "fraction", "bypass": "fraction"}
+TREND_COLUMNS = (
+    "survey", "date", "formula", "quantity", "value", "low", "high", "unit", "baseline", "ewma", "ewma_low", "ewma_high",
+    "ewma_alarm", "p_previous", "p_baseline", "changed", "change_point",
+)  # fmt: skip
+
+
+@dataclass(frozen=True)
+class Survey:
+    """One dated separation curve."""
+
+    name: str
+    date: pd.Timestamp
+    points: TrompPoints
+
+
+@dataclass(frozen=True)
+class TrendResult:
+    """Fits, control charts and flags of a series of surveys.
+
+    ``table`` has one row per survey and quantity (columns :data:`TREND_COLUMNS`).
+    """
+
+    formula_id: str
+    surveys: tuple[Survey, ...]
+    fits: tuple[CurveFit, ...]
+    baseline: tuple[int, ...]
+    table: pd.DataFrame
+    alpha: float
+    level: float
+    failures: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def quantities(self) -> list[str]:
+        return list(dict.fromkeys(self.table["quantity"]))
+
+    def survey_flags(self) -> pd.DataFrame:
+        """One row per survey: date, p-values, the EWMA alarms by quantity, changed, change_point."""
+        first = self.table.drop_duplicates("survey").set_index("survey")
+        in_alarm = self.table[self.table["ewma_alarm"]].groupby("survey", sort=False)["quantity"].agg(", ".join)
+        out = pd.DataFrame({
+            "survey": first.index, "date": first["date"].to_numpy(), "baseline": first["baseline"].to_numpy(),
+            "p_previous": first["p_previous"].to_numpy(), "p_baseline": first["p_baseline"].to_numpy(),
+            "alarms": in_alarm.reindex(first.index).fillna("").to_numpy(),
+            "changed": first["changed"].to_numpy(), "change_point": first["change_point"].to_numpy(),
+        })  # fmt: skip
+        return out.reset_index(drop=True)
+
+    def change_points(self) -> list[str]:
+        """Surveys where a run of flagged surveys starts."""
+        flags = self.survey_flags()
+        return list(flags.loc[flags["change_point"], "survey"])
+
+    def summary(self) -> str:
+        flags = self.survey_flags()
+        base = [self.surveys[i].name for i in self.baseline]
+        lines = [f"Formula {self.formula_id}; {len(self.surveys)} surveys; baseline {base[0]} .. {base[-1]} ({len(base)} surveys); "
+                 f"EWMA lambda {EWMA_LAMBDA:g}, L {EWMA_L:g}; equality tests at alpha {self.alpha:g}"]  # fmt: skip
+        view = flags.assign(date=flags["date"].dt.strftime("%Y-%m-%d"))
+        lines.append(view.to_string(index=False, float_format=lambda v: f"{v:.3g}", na_rep="-"))
+        points = self.change_points()
+        lines.append("Change points: " + (", ".join(points) if points else "none"))
+        for name, reason in self.failures.items():
+            lines.append(f"not fitted: {name}: {reason}")
+        return "\n".join(lines)
+
+
+def read_surveys(path, options=None) -> list[Survey]:
+    """Surveys from Tromp points or a lab table with a ``date`` (or ``survey``) column.
+
+    Rows sharing a ``survey`` name (or, without that column, a ``date``) form one survey;
+    with both columns each survey must have one date.  Without a ``date`` column the
+    surveys are numbered in file order.
+
+    Raises
+    ------
+    InputError
+        Naming file, row and column: no date/survey column, a date that cannot be read,
+        a survey with two dates, and every error of the points or lab schema.
+    """
+    from .lab import LabOptions, _renamed, balances_from_table, is_lab_table
+    from .points import points_from_table
+    from .tables import Table, read_table
+
+    options = options or LabOptions()
+    table = _renamed(read_table(path, sheet=options.sheet), options.rename)
+    frame = table.frame.copy()
+    if "date" not in frame.columns and "survey" not in frame.columns:
+        raise InputError("a trend needs a 'date' or 'survey' column (one survey per date)", source=table.source)
+    if "date" in frame.columns:
+        dates = pd.to_datetime(frame["date"].astype(str).str.strip(), errors="coerce", format="mixed")
+        bad = np.flatnonzero(dates.isna().to_numpy())
+        if bad.size:
+            raise table.error(f"'{frame['date'].iloc[bad[0]]}' is not a date (use YYYY-MM-DD)", index=int(bad[0]), column="date")
+    labels = frame["survey"].astype(str).str.strip() if "survey" in frame.columns else dates.dt.strftime("%Y-%m-%d")
+    if "date" not in frame.columns:
+        order = {name: i for i, name in enumerate(dict.fromkeys(labels))}
+        dates = pd.Series(pd.Timestamp("2000-01-01") + pd.to_timedelta([order[n] for n in labels], unit="D"))
+    survey_dates = {}
+    for i, (label, date) in enumerate(zip(labels, dates)):
+        if survey_dates.setdefault(label, date) != date:
+            raise table.error(f"survey {label} has two dates ({survey_dates[label]:%Y-%m-%d} and {date:%Y-%m-%d})", index=i, column="date")
+    frame["experiment"] = labels.to_numpy()
+    table = Table(frame.drop(columns=[c for c in ("date", "survey") if c in frame.columns]), table.rows, table.source)
+    if is_lab_table(table.frame.columns):
+        experiments = [b.to_points(weight_by_feed_share=options.weight_by_feed_share) for b in balances_from_table(table, options)]
+    else:
+        experiments = points_from_table(table)
+    surveys = [Survey(p.experiment, pd.Timestamp(survey_dates[p.experiment]), p) for p in experiments]
+    return sorted(surveys, key=lambda s: s.date)
+
+
+def _pooled(points: Sequence[TrompPoints], name: str) -> TrompPoints:
+    """Several curves as one data set, each keeping its own normalised weights (one SSR scale)."""
+    return TrompPoints(name, np.concatenate([p.size for p in points]), np.concatenate([p.partition_fine for p in points]),
+                       weight=np.concatenate([normalised_weights(p) for p in points]))  # fmt: skip
+
+
+def equality_test(first: Sequence[TrompPoints], second: Sequence[TrompPoints], formula, fits=None) -> ExtraSumOfSquares:
+    """Extra-sum-of-squares test: one curve through both groups against one curve per group.
+
+    ``first`` and ``second`` are groups of surveys (each pooled into one data set).  The
+    reduced model has ``p`` parameters, the full one ``2p``; the test has ``(p, N - 2p)``
+    degrees of freedom.  ``fits`` may give the two groups' own fits when already made.
+    """
+    formula = get_formula(formula)
+    groups = [first[0] if len(first) == 1 else _pooled(first, "first"), second[0] if len(second) == 1 else _pooled(second, "second")]
+    own = list(fits) if fits is not None else [fit_formula(g, formula) for g in groups]
+    starts = [dict(f.fit.values) for f in own if f.success]
+    # the pooled optimum lies near the groups' own: start there and skip the global grid
+    together = fit_formula(_pooled(groups, "both"), formula, starts=starts, global_search=not starts)
+    p = formula.n_params
+    n = sum(g.n for g in groups)
+    if not (together.success and all(f.success for f in own)):
+        return ExtraSumOfSquares(np.nan, np.nan, p, n - 2 * p)
+    return ExtraSumOfSquares(together.fit.ssr, sum(f.fit.ssr for f in own), p, n - 2 * p)
+
+
+def baseline_indices(surveys: Sequence[Survey], baseline=None) -> tuple[int, ...]:
+    """Positions of the baseline surveys: the first ``N`` (int or digits), a date range
+    ``"FROM:TO"`` (inclusive), or by default the first half of the series (3 to 8 surveys)."""
+    n = len(surveys)
+    if baseline is None:
+        count = int(np.clip(n // 2, 3, 8))
+    elif isinstance(baseline, (int, np.integer)) or str(baseline).strip().isdigit():
+        count = int(baseline)
+    else:
+        start, sep, stop = str(baseline).partition(":")
+        if not sep:
+            raise ValueError(f"--baseline takes a number of surveys or a date range FROM:TO, got {baseline!r}")
+        try:
+            low, high = pd.Timestamp(start.strip()), pd.Timestamp(stop.strip())
+        except ValueError:
+            raise ValueError(f"--baseline: cannot read the dates of {baseline!r} (use YYYY-MM-DD:YYYY-MM-DD)") from None
+        chosen = tuple(i for i, s in enumerate(surveys) if low <= s.date <= high)
+        if len(chosen) < 3:
+            raise ValueError(f"--baseline {baseline}: {len(chosen)} survey(s) in that range; at least 3 are needed")
+        return chosen
+    if not 3 <= count < n:
+        raise ValueError(f"the baseline needs at least 3 surveys and at least one survey after it; got {count} of {n}")
+    return tuple(range(count))
+
+
+def ewma_chart(values, baseline: Sequence[int], *, lam: float = EWMA_LAMBDA, width: float = EWMA_L):
+    """EWMA line and limits of ``values`` after the baseline, with centre and sigma from the baseline.
+
+    The EWMA starts at the baseline mean ``mu0`` at the first survey after the baseline
+    (a phase-II chart; nan before).  Its limits at the ``i``-th survey after the baseline
+    are ``mu0 +- width * sigma * sqrt(lam/(2 - lam) (1 - (1 - lam)^(2i)) + (1 - (1 - lam)^i)^2 / m)``,
+    where the last term is the variance of ``mu0`` estimated from ``m`` baseline values and
+    ``sigma`` is their sample standard deviation.  A missing value (failed fit) carries
+    the EWMA over.
+
+    Returns ``(ewma, low, high, centre, sigma)``.
+
+    Examples
+    --------
+    >>> z, low, high, centre, sigma = ewma_chart([1.0, 1.2, 0.9, 1.1, 2.5], [0, 1, 2, 3])
+    >>> round(centre, 3), round(sigma, 4), bool(z[-1] > high[-1]), bool(np.isnan(z[0]))
+    (1.05, 0.1291, True, True)
+    """
+    values = np.asarray(values, dtype=float)
+    base = values[list(baseline)]
+    base = base[np.isfinite(base)]
+    m = base.size
+    centre = float(np.mean(base)) if m else np.nan
+    sigma = float(np.std(base, ddof=1)) if m > 1 else np.nan
+    ewma, low, high = (np.full(values.size, np.nan) for _ in range(3))
+    level = centre
+    for step, i in enumerate(range(max(baseline) + 1, values.size), start=1):
+        if np.isfinite(values[i]):
+            level = lam * values[i] + (1.0 - lam) * level
+        ewma[i] = level
+        decay = (1.0 - lam) ** step
+        half = width * sigma * np.sqrt(lam / (2.0 - lam) * (1.0 - decay**2) + (1.0 - decay) ** 2 / m)
+        low[i], high[i] = centre - half, centre + half
+    return ewma, low, high, centre, sigma
+
+
+def flag_changes(values: dict, p_baseline, baseline: Sequence[int], *, alpha: float = DEFAULT_ALPHA,
+                 lam: float = EWMA_LAMBDA, width: float = EWMA_L):  # fmt: skip
+    """The monitoring rule (module docstring) on charted ``values`` (quantity -> per-survey array).
+
+    Returns ``(charts, alarms, changed, change_point)``: the :func:`ewma_chart` of each
+    quantity, its alarms (EWMA outside the limits) and the per-survey flags.
+    """
+    charts = {q: ewma_chart(v, baseline, lam=lam, width=width) for q, v in values.items()}
+    with np.errstate(invalid="ignore"):
+        alarms = {q: (c[0] < c[1]) | (c[0] > c[2]) for q, c in charts.items()}
+    any_alarm = np.any(list(alarms.values()), axis=0)
+    changed = any_alarm & (np.asarray(p_baseline) < alpha)
+    # a change point starts a run of flagged surveys, or brings a quantity into alarm that was not before
+    newly = np.any([a & ~np.concatenate(([False], a[:-1])) for a in alarms.values()], axis=0)
+    change_point = changed & (~np.concatenate(([False], changed[:-1])) | newly)
+    return charts, alarms, changed, change_point
+
+
+def monitor_surveys(surveys: Sequence[Survey], *, formula=None, baseline=None, alpha: float = DEFAULT_ALPHA,
+                    level: float = 0.95, lam: float = EWMA_LAMBDA, width: float = EWMA_L,
+                    consecutive: bool = True) -> TrendResult:  # fmt: skip
+    """Fit each survey, chart d_cut, Ep, eta (and bypass), flag the surveys where the classifier changed.
+
+    Parameters
+    ----------
+    surveys : sequence of Survey
+        In date order (:func:`read_surveys` sorts them); four or more.
+    formula : str, optional
+        Formula id; default the best-ranked of the nine over all surveys.
+    baseline : int or str, optional
+        See :func:`baseline_indices`.
+    alpha : float
+        Significance level of the equality tests.
+    level : float
+        Level of the intervals of the charted quantities.
+    lam, width : float
+        EWMA weight and limit width in sigmas.
+    consecutive : bool
+        Also test each survey against the previous one (``p_previous``; not used by the
+        flag, so the benchmark turns it off).
+    """
+    from .uncertainty import interval_table
+
+    surveys = sorted(surveys, key=lambda s: s.date)
+    if len(surveys) < 4:
+        raise ValueError(f"a trend needs at least four surveys, got {len(surveys)}")
+    if not 0 < alpha < 1:
+        raise ValueError(f"alpha must lie between 0 and 1, got {alpha}")
+    base = baseline_indices(surveys, baseline)
+    formula = get_formula(formula) if formula is not None else _best_formula(surveys)
+    fits = tuple(fit_formula(s.points, formula) for s in surveys)
+    failures = {s.name: f.message for s, f in zip(surveys, fits) if not f.success}
+    quantities = ["d_cut", "ep", "eta"] + (["bypass"] if any(e.name == "bypass" for e in formula.extras) else [])
+    values = {q: np.full(len(surveys), np.nan) for q in quantities}
+    lows, highs = {q: values[q].copy() for q in quantities}, {q: values[q].copy() for q in quantities}
+    for i, fit in enumerate(fits):
+        if not fit.success:
+            continue
+        intervals = interval_table(fit, level=level, profile=False).set_index("quantity")
+        for q in quantities:
+            values[q][i], lows[q][i], highs[q][i] = intervals.loc[q, ["value", "low", "high"]]
+    baseline_points = [surveys[i].points for i in base]
+    baseline_fit = fit_formula(_pooled(baseline_points, "baseline"), formula)
+    p_previous, p_baseline = np.full(len(surveys), np.nan), np.full(len(surveys), np.nan)
+    for i in range(len(surveys)):
+        if not fits[i].success:
+            continue
+        if consecutive and i > 0 and fits[i - 1].success:
+            p_previous[i] = equality_test([surveys[i - 1].points], [surveys[i].points], formula, fits=(fits[i - 1], fits[i])).p_value
+        if i not in base:
+            test = equality_test(baseline_points, [surveys[i].points], formula, fits=(baseline_fit, fits[i]))
+            p_baseline[i] = test.p_value
+    charts, alarms, changed, change_point = flag_changes(values, p_baseline, base, alpha=alpha, lam=lam, width=width)
+    rows = []
+    for i, survey in enumerate(surveys):
+        for q in quantities:
+            ewma, low, high, _, _ = charts[q]
+            rows.append({
+                "survey": survey.name, "date": survey.date, "formula": formula.id, "quantity": q, "value": values[q][i],
+                "low": lows[q][i], "high": highs[q][i], "unit": QUANTITY_UNITS[q], "baseline": i in base,
+                "ewma": ewma[i], "ewma_low": low[i], "ewma_high": high[i], "ewma_alarm": bool(alarms[q][i]),
+                "p_previous": p_previous[i], "p_baseline": p_baseline[i], "changed": bool(changed[i]),
+                "change_point": bool(change_point[i]),
+            })  # fmt: skip
+    table = pd.DataFrame(rows, columns=list(TREND_COLUMNS))
+    return TrendResult(formula.id, tuple(surveys), fits, base, table, alpha, level, failures)
+
+
+def _best_formula(surveys):
+    from .workbench import fit_experiments
+
+    ranking = fit_experiments([s.points for s in surveys]).ranking_table()
+    if ranking.empty:
+        raise ValueError("no formula could be fitted to the surveys; give one with --formula")
+    return get_formula(ranking.iloc[0]["formula"])
+
+
+def write_trend(result: TrendResult, outdir, *, size_unit: str = "", figures: bool = True) -> dict[str, Path]:
+    """Write ``trend.csv`` (tidy), ``trend_surveys.csv`` (one row per survey), the charts
+    ``trend_<quantity>.png`` and ``trend_report.html`` (+ ``.md``), all or nothing.
+
+    ``size_unit`` labels the figures and replaces the unit ``size`` in ``trend.csv``.
+    """
+    from .report import Report, add_trend_section
+    from .workbench import write_atomically
+
+    table = result.table.replace({"unit": {"size": size_unit}}) if size_unit else result.table
+    outputs = {"trend.csv": lambda p: table.to_csv(p, index=False, date_format="%Y-%m-%d"),
+               "trend_surveys.csv": lambda p: result.survey_flags().to_csv(p, index=False, date_format="%Y-%m-%d")}  # fmt: skip
+    if figures:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        from .plotting import plot_control_chart, save_figure
+
+        for quantity in result.quantities:
+            outputs[f"trend_{quantity}.png"] = lambda p, q=quantity: save_figure(plot_control_chart(result, q, size_unit=size_unit), p)
+    report = Report("tromplab trend report", ", ".join(dict.fromkeys(s.points.source for s in result.surveys)), order=("trend",))
+    add_trend_section(report, result, size_unit=size_unit, figures=figures)
+    names = {f"Control chart of {q}": f"trend_{q}.png" for q in result.quantities}  # the Markdown links the PNGs written beside it
+    outputs["trend_report.html"] = lambda p: p.write_text(report.html(), encoding="utf-8")
+    outputs["trend_report.md"] = lambda p: p.write_text(report.markdown(names), encoding="utf-8")
+    return write_atomically(outputs, outdir)
+
+
+# --- a documented generator of survey series --------------------------------------------------
+@dataclass(frozen=True)
+class SeriesDesign:
+    """What :func:`simulate_surveys` draws: a Plitt-with-bypass classifier surveyed regularly.
+
+    Sizes in micrometres.  Until ``bypass_step_at`` the classifier is steady (cut
+    ``d_cut``, sharpness ``ks``, bypass ``bypass``); from survey ``bypass_step_at`` the
+    bypass rises by ``bypass_step`` (a worn apex, a torn panel); from ``drift_from`` the
+    cut grows by ``drift_per_survey`` (relative) per survey.  Each survey has its own small
+    jitter of cut and bypass (``jitter_cut``, ``jitter_bypass``: standard deviations) and
+    measurement noise on every partition number (``noise``).  ``None`` switches a change off.
+    """
+
+    n_surveys: int = 24
+    start: str = "2025-01-06"
+    days_between: int = 7
+    sizes: tuple[float, ...] = tuple(np.round(np.geomspace(38, 850, 12), 1))
+    d_cut: float = 150.0
+    ks: float = 2.5
+    bypass: float = 0.10
+    bypass_step_at: int | None = 12
+    bypass_step: float = 0.08
+    drift_from: int | None = 18
+    drift_per_survey: float = 0.04
+    jitter_cut: float = 0.015
+    jitter_bypass: float = 0.005
+    noise: float = 0.012
+
+    @property
+    def change_points(self) -> tuple[int, ...]:
+        return tuple(i for i in (self.bypass_step_at, self.drift_from) if i is not None)
+
+
+def simulate_surveys(design: SeriesDesign = SeriesDesign(), *, seed: int = 0) -> pd.DataFrame:
+    """A series of dated surveys (Tromp-points schema with ``date``, ``survey``) from ``design``.
+
+    Returns columns ``survey, date, size, partition_fine, d_cut_true, bypass_true``.
+    """
+    rng = np.random.default_rng(seed)
+    formula = get_formula("plitt_bypass")
+    sizes = np.asarray(design.sizes, dtype=float)
+    rows = []
+    for i in range(design.n_surveys):
+        d_cut, bypass = design.d_cut, design.bypass
+        if design.bypass_step_at is not None and i >= design.bypass_step_at:
+            bypass += design.bypass_step
+        if design.drift_from is not None and i >= design.drift_from:
+            d_cut *= 1.0 + design.drift_per_survey * (i - design.drift_from + 1)
+        d_true = d_cut * (1.0 + design.jitter_cut * rng.standard_normal())
+        b_true = float(np.clip(bypass + design.jitter_bypass * rng.standard_normal(), 0.0, 0.9))
+        phi = formula(sizes, d_true, design.ks, bypass=b_true) + design.noise * rng.standard_normal(sizes.size)
+        date = pd.Timestamp(design.start) + pd.Timedelta(days=design.days_between * i)
+        for size, value in zip(sizes, np.clip(phi, 0.0, 1.0)):
+            rows.append({"survey": f"S{i + 1:02d}", "date": date.strftime("%Y-%m-%d"), "size": size,
+                         "partition_fine": round(float(value), 5), "d_cut_true": round(d_true, 3),
+                         "bypass_true": round(b_true, 5)})  # fmt: skip
+    return pd.DataFrame(rows)
+
+
+def surveys_from_frame(frame: pd.DataFrame) -> list[Survey]:
+    """Surveys from a frame with ``survey, date, size, partition_fine`` (as :func:`simulate_surveys` makes)."""
+    surveys = []
+    for name, group in frame.groupby("survey", sort=False):
+        points = TrompPoints(str(name), group["size"].to_numpy(float), group["partition_fine"].to_numpy(float), source="simulated")
+        surveys.append(Survey(str(name), pd.Timestamp(group["date"].iloc[0]), points))
+    return sorted(surveys, key=lambda s: s.date)
