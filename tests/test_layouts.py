@@ -11,6 +11,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 from tromplab.cli import main
+from tromplab.errors import InputError
 from tromplab.lab import LabOptions, YieldWarning, read_experiments, read_lab
 from tromplab.points import read_points
 
@@ -171,3 +172,15 @@ def test_the_balance_command_says_how_the_partition_was_computed(capsys):
                          (["--reconcile"], "partition from the reconciled distributions")):  # fmt: skip
         assert main(["balance", path, "--kind", "retained_frac", "--rename", rename, *option]) == 0
         assert said in capsys.readouterr().out
+
+
+def test_dataframes_get_the_same_layouts_and_column_checks():
+    frame = pd.read_csv(DATA / "hydrocyclone_size_class_um.csv", comment="#")
+    (balance,) = read_lab(frame)
+    assert_allclose(balance.classes["partition_fine"], PARTITIONS, atol=1e-6)
+    assert balance.size_unit == "um" and balance.classes["row"].tolist() == list(range(6))
+    points = pd.DataFrame({"size_mm": [0.1, 0.2, 0.4], "partiton_fine": [0.9, 0.5, 0.1]})
+    with pytest.raises(InputError, match=r"DataFrame: no partition column.*'partiton_fine' \(did you mean 'partition_fine'\?\)"):
+        read_points(points)
+    (loaded,) = read_points(points.rename(columns={"partiton_fine": "partition_fine"}))
+    assert loaded.size_unit == "mm"
