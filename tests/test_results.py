@@ -12,6 +12,7 @@ import pytest
 import tromplab
 from tromplab.errors import InputError
 from tromplab.points import TrompPoints
+from tromplab.uncertainty import AVERAGED_QUANTITIES
 from tromplab.workbench import FIT_COLUMNS
 
 matplotlib.use("Agg")
@@ -82,7 +83,7 @@ def test_workbench_views(bench, tmp_path):
     pd.testing.assert_frame_equal(bench.summary(), bench.fits_table())
     pd.testing.assert_frame_equal(bench.ranking(), bench.ranking_table())
     averages = bench.averages()
-    assert set(averages["experiment"]) == {"run1", "run2"} and set(averages["quantity"]) == {"d_cut", "ep", "eta"}
+    assert set(averages["experiment"]) == {"run1", "run2"} and set(averages["quantity"]) == set(AVERAGED_QUANTITIES)
     ax = bench.plot("run2")
     assert ax.get_title().endswith("run2") and len(ax.lines) >= 4  # three curves, the points, the cut marker
     with pytest.raises(KeyError, match="no experiment 'run3'"):

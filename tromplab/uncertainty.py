@@ -69,6 +69,10 @@ class Domain:
 
     def backward(self, value):
         value = np.asarray(value, dtype=float)
+        with np.errstate(over="ignore"):  # a limit beyond the largest float is an unbounded side: inf
+            return self._backward(value)
+
+    def _backward(self, value):
         if self.scale == "log":
             return self.lower + np.exp(value)
         if self.scale == "neglog":

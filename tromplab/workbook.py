@@ -21,9 +21,9 @@ import pandas as pd
 SHEETS = ("fits", "ranking", "averages", "balance", "points")
 
 # Columns measured in the unit of the particle sizes (with their interval and error columns).
-_SIZE_STEMS = ("d_cut", "d25", "d75", "ep", "size", "size_lower", "size_upper", "x_break", "delta_max")
+_SIZE_STEMS = ("d_cut", "d50", "d50c", "d25", "d75", "ep", "ep_c", "size", "size_lower", "size_upper", "x_break", "delta_max")
 # Shares of a stream or of the feed, 0..1.
-_FRACTION_STEMS = ("partition_fine", "partition_coarse", "eta", "epsilon", "imperfection", "bypass", "fishhook",
+_FRACTION_STEMS = ("partition_fine", "partition_coarse", "eta", "epsilon", "bypass", "akaike_share", "fishhook",
                    "feed_share", "fine_yield", "coarse_yield", "feed", "fine", "coarse", "feed_adjusted", "fine_adjusted",
                    "coarse_adjusted", "balance_residual")  # fmt: skip
 _COUNT_COLUMNS = ("n", "rank", "place", "points", "equation", "n_regimes", "bootstrap_failed")
@@ -47,7 +47,7 @@ def column_unit(column: str, size_unit: str = "") -> str:
         return size_unit or "size unit"
     if stem in _FRACTION_STEMS or stem.startswith("weight_"):  # Akaike weights; a bare "weight" is a least-squares weight
         return "0..1"
-    if stem in ("shape", "F", "F_crit", "ssr", "aic", "aicc", "bic", "slope", "slope_coarse", "sharpness", "runs_p", "normality_p"):
+    if stem in ("imperfection", "imperfection_c", "shape", "F", "F_crit", "ssr", "aic", "aicc", "bic", "slope", "slope_coarse", "sharpness", "runs_p", "normality_p"):
         return "-"
     return ""
 
