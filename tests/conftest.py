@@ -6,10 +6,6 @@ import pytest
 
 from tromplab.formulas import FORMULAS
 
-# generator scripts of reference tables (run by hand; they need tools such as mpmath that
-# the test extra does not install) are not test modules
-collect_ignore_glob = ["reference/make_*.py"]
-
 ROOT = Path(__file__).resolve().parent.parent
 REFERENCE = Path(__file__).resolve().parent / "reference"
 DATASETS = ROOT / "datasets"
