@@ -1036,12 +1036,39 @@ TEIPEL_HENNIG_ALPHA = ExtraParameter(
 
 
 def normal_linear(x, sigma_rel):
-    r"""Normal distribution in linear size: :math:`\varphi = \tfrac12 \operatorname{erfc}\big((x - 1)/(\sqrt2\,\sigma_r)\big)`.
+    r"""Normal distribution in linear size (the "probability" model of screens).
 
-    :math:`\sigma_r = \sigma / d_{cut}`: the standard deviation of the size at which a
-    particle is separated, relative to the cut (the "probability" model of screens).
-    Unlike the log-normal law (9) it gives :math:`\varphi(0) = \tfrac12 \operatorname{erfc}(-1/(\sqrt2\sigma_r)) < 1`.
+    .. math::
+        \varphi(x) = \tfrac12 \operatorname{erfc}\left(\frac{x - 1}{\sqrt2\,\sigma_r}\right)
+
+    Parameters
+    ----------
+    x : array_like
+        Relative size ``size / d_cut`` (> 0, dimensionless).
+    sigma_rel : float
+        Shape, 0.001..10 (dimensionless): the standard deviation of the separation size
+        relative to the cut, ``sigma / d_cut``; smaller is sharper.
+
+    Returns
+    -------
+    ndarray
+        Partition number to the fine product, 0..1 (dimensionless).
+
+    Notes
+    -----
+    Decreasing for :math:`\sigma_r > 0`.  Unlike the log-normal law (9) it gives
+    :math:`\varphi(0) = \tfrac12 \operatorname{erfc}(-1/(\sqrt2\sigma_r)) < 1`.
     Slope at the cut :math:`-1/(\sqrt{2\pi}\,\sigma_r)`.
+
+    References
+    ----------
+    .. [1] King R.P. (2001). Modeling and Simulation of Mineral Processing Systems.
+       Butterworth-Heinemann, Oxford (ch. 5).
+    .. [2] Skorych V., Dosta M., Heinrich S. (2020). Dyssol - an open-source flowsheet simulation
+       framework for particulate materials. SoftwareX 12, 100572 (Screen unit, Probability model).
+    .. [3] Shuvalov S.I., Novoseltseva S.S., Zhukov V.P. (2018). Justifying the choice of a
+       dependence for the Tromp separation curve approximation. Vestnik IGEU 6, 15-23
+       (the conventions: x = size/d_cut, partition to the fine product).
 
     Examples
     --------
@@ -1053,12 +1080,39 @@ def normal_linear(x, sigma_rel):
 
 
 def logistic_linear(x, imperfection):
-    r"""Logistic curve in linear size: :math:`\varphi = 1/(1 + e^{\ln 3\,(x - 1)/I})`.
+    r"""Logistic curve in linear size, written with d50 and Ep.
 
-    Written with the imperfection :math:`I = E_p/d_{cut}`: the factor :math:`\ln 3` puts
-    ``d25`` and ``d75`` exactly at :math:`x = 1 \mp I`, so :math:`E_p = I\,d_{cut}`
-    (the "Napier-Munn" partition of density and size separators, written in d50 and Ep).
-    Slope at the cut :math:`-\ln 3/(4 I)`.
+    .. math::
+        \varphi(x) = \frac{1}{1 + e^{\ln 3\,(x - 1)/I}}
+
+    Parameters
+    ----------
+    x : array_like
+        Relative size ``size / d_cut`` (> 0, dimensionless).
+    imperfection : float
+        Shape, 0.001..10 (dimensionless): the imperfection ``I = Ep / d_cut``; smaller is
+        sharper.
+
+    Returns
+    -------
+    ndarray
+        Partition number to the fine product, 0..1 (dimensionless).
+
+    Notes
+    -----
+    The factor :math:`\ln 3` puts ``d25`` and ``d75`` exactly at :math:`x = 1 \mp I`, so
+    :math:`E_p = I\,d_{cut}`; some tools print it as 1.099 and call the curve the
+    "Napier-Munn" partition.  Slope at the cut :math:`-\ln 3/(4 I)`.
+
+    References
+    ----------
+    .. [1] Napier-Munn T.J., Morrell S., Morrison R.D., Kojovic T. (1996). Mineral Comminution
+       Circuits: Their Operation and Optimisation. JKMRC, Brisbane.
+    .. [2] King R.P. (2001). Modeling and Simulation of Mineral Processing Systems.
+       Butterworth-Heinemann, Oxford (ch. 5).
+    .. [3] Shuvalov S.I., Novoseltseva S.S., Zhukov V.P. (2018). Justifying the choice of a
+       dependence for the Tromp separation curve approximation. Vestnik IGEU 6, 15-23
+       (the conventions: x = size/d_cut, partition to the fine product).
 
     Examples
     --------
@@ -1073,19 +1127,45 @@ def teipel_hennig(x, k, *, th_alpha=1.0, bypass=0.0):
     r"""Teipel/Hennig grade-efficiency curve with offset, to the fine product.
 
     .. math::
-        \varphi = (1 - \text{offset}) \left(1 + 3 x^{(x + \alpha)\beta}\right)^{-1/2},
+        \varphi(x) = (1 - \text{offset}) \left(1 + 3 x^{(x + \alpha)\beta}\right)^{-1/2},
         \quad \beta = k / (1 + \alpha)
 
-    The offset (``bypass``) is the share of every size sent to the coarse product
-    unclassified.  Written with :math:`k = (1 + \alpha)\beta`, the exponent at the cut,
-    so that the slope at the cut :math:`-\tfrac{3}{16} k (1 - \text{offset})` depends on
-    the shape alone; for large :math:`\alpha` the curve tends to
-    :math:`(1 + 3x^k)^{-1/2}`.
+    Parameters
+    ----------
+    x : array_like
+        Relative size ``size / d_cut`` (> 0, dimensionless).
+    k : float
+        Shape, 0.05..60 (dimensionless): the exponent at the cut, ``(1 + alpha) beta``.
+    th_alpha : float
+        Teipel/Hennig's alpha, 0..50 (dimensionless): how fast the exponent grows with size.
+    bypass : float
+        The offset, 0..0.95: share of every size sent to the coarse product unclassified.
+
+    Returns
+    -------
+    ndarray
+        Partition number to the fine product, 0..1 (dimensionless).
+
+    Notes
+    -----
+    Written with :math:`k = (1 + \alpha)\beta` so that the slope at the cut,
+    :math:`-\tfrac{3}{16} k (1 - \text{offset})`, depends on the shape alone; for large
+    :math:`\alpha` the curve tends to :math:`(1 + 3x^k)^{-1/2}`.  The form is the one of
+    Dyssol's Screen unit, which names Teipel and Hennig; their primary publication could
+    not be consulted.
+
+    References
+    ----------
+    .. [1] Skorych V., Dosta M., Heinrich S. (2020). Dyssol - an open-source flowsheet simulation
+       framework for particulate materials. SoftwareX 12, 100572 (Screen unit, Teipel & Hennig model).
+    .. [2] Shuvalov S.I., Novoseltseva S.S., Zhukov V.P. (2018). Justifying the choice of a
+       dependence for the Tromp separation curve approximation. Vestnik IGEU 6, 15-23
+       (the conventions: x = size/d_cut, partition to the fine product).
 
     Examples
     --------
-    >>> float(teipel_hennig(1.0, 4.0, th_alpha=2.0))
-    0.5
+    >>> round(float(teipel_hennig(2.0, 4.0, th_alpha=2.0)), 6)
+    0.090553
     """
     x = _as_array(x)
     exponent = k * (x + th_alpha) / (1.0 + th_alpha)
@@ -1109,6 +1189,7 @@ OTHER_FORMULAS: tuple[Formula, ...] = (
         notes="sigma_rel = sigma/d_cut; phi(0) < 1. Dyssol's Probability model sums the normal density over its own "
         "size classes, so it equals this curve only on a fine grid.",
         family="other",
+        shape_meaning="spread of the separation size relative to the cut, sigma/d_cut; smaller, sharper cut",
     ),
     Formula(
         id="logistic",
@@ -1125,6 +1206,7 @@ OTHER_FORMULAS: tuple[Formula, ...] = (
         notes="I = Ep/d_cut; d25 and d75 lie at x = 1 -+ I. Other tools print ln 3 rounded (1.099) and call this "
         "the Napier-Munn partition.",
         family="other",
+        shape_meaning="imperfection Ep/d_cut: d25 and d75 lie at x = 1 -+ I; smaller, sharper cut",
     ),
     Formula(
         id="teipel_hennig",
@@ -1143,6 +1225,7 @@ OTHER_FORMULAS: tuple[Formula, ...] = (
         "tromplab's bypass (share to the coarse product).",
         extras=(TEIPEL_HENNIG_ALPHA, BYPASS),
         family="other",
+        shape_meaning="exponent of x at the cut, (1 + alpha) beta: larger, sharper cut",
     ),
     # Plitt's (1976) hydrocyclone curve: the Rosin-Rammler form with bypass, as simulators write "Plitt".
     with_bypass(_BASE["rosin_rammler"], equation=105, citation=PLITT_1976 + " (corrected efficiency with bypass Rf)",

@@ -49,6 +49,7 @@ import pandas as pd
 from .compare import ExtraSumOfSquares
 from .curves import CurveFit, fit_formula, normalised_weights
 from .errors import InputError
+from .fitting import ParameterFit
 from .formulas import get_formula
 from .points import TrompPoints
 
@@ -170,30 +171,60 @@ def read_surveys(path, options=None) -> list[Survey]:
     return sorted(surveys, key=lambda s: s.date)
 
 
-def _pooled(points: Sequence[TrompPoints], name: str) -> TrompPoints:
-    """Several curves as one data set, each keeping its own normalised weights (one SSR scale)."""
-    return TrompPoints(name, np.concatenate([p.size for p in points]), np.concatenate([p.partition_fine for p in points]),
-                       weight=np.concatenate([normalised_weights(p) for p in points]))  # fmt: skip
+def joint_fit(groups: Sequence[TrompPoints], formula, starts: Sequence[dict]) -> ParameterFit:
+    """One curve of ``formula`` through several data sets at once.
+
+    Each data set keeps its own normalised weights (so the sums of squares share one scale
+    with the separate fits) and, for formula (11), its own measured efficiency.  ``starts``
+    are parameter mappings (the groups' own optima are good ones); when empty, the
+    data-driven start of the first group is used.
+    """
+    from .curves import measured_cut_size, measured_efficiency, measured_slope
+    from .fitting import least_squares
+
+    formula = get_formula(formula)
+    specs = list(formula.parameters(np.concatenate([g.size for g in groups])))
+    contexts = [{"measured_efficiency": measured_efficiency(g)} if formula.context_from_efficiency else {} for g in groups]
+    roots = [np.sqrt(normalised_weights(g)) for g in groups]
+
+    def residual(values):
+        extras = {extra.name: values[extra.name] for extra in formula.extras}
+        return np.concatenate([root * (formula(g.size, values["d_cut"], values[formula.shape_name], **context, **extras)
+                                       - g.partition_fine) for g, context, root in zip(groups, contexts, roots)])  # fmt: skip
+
+    if not starts:
+        cut = measured_cut_size(groups[0])
+        starts = [{"d_cut": cut, formula.shape_name: formula.shape_for_slope(measured_slope(groups[0], cut)),
+                   **{extra.name: extra.start for extra in formula.extras}}]  # fmt: skip
+    return least_squares(residual, specs, starts)
 
 
 def equality_test(first: Sequence[TrompPoints], second: Sequence[TrompPoints], formula, fits=None) -> ExtraSumOfSquares:
     """Extra-sum-of-squares test: one curve through both groups against one curve per group.
 
-    ``first`` and ``second`` are groups of surveys (each pooled into one data set).  The
-    reduced model has ``p`` parameters, the full one ``2p``; the test has ``(p, N - 2p)``
-    degrees of freedom.  ``fits`` may give the two groups' own fits when already made.
+    ``first`` and ``second`` are groups of surveys (each group fitted with one curve).
+    The reduced model has ``p`` parameters, the full one ``2p``; the test has
+    ``(p, N - 2p)`` degrees of freedom.  ``fits`` may give the two groups' own fits
+    (:class:`~tromplab.curves.CurveFit` or :class:`~tromplab.fitting.ParameterFit`).
     """
     formula = get_formula(formula)
-    groups = [first[0] if len(first) == 1 else _pooled(first, "first"), second[0] if len(second) == 1 else _pooled(second, "second")]
-    own = list(fits) if fits is not None else [fit_formula(g, formula) for g in groups]
-    starts = [dict(f.fit.values) for f in own if f.success]
-    # the pooled optimum lies near the groups' own: start there and skip the global grid
-    together = fit_formula(_pooled(groups, "both"), formula, starts=starts, global_search=not starts)
+    groups = [list(first), list(second)]
+    if fits is None:
+        fits = [fit_formula(g[0], formula) if len(g) == 1 else _group_fit(g, formula) for g in groups]
+    own = [f.fit if isinstance(f, CurveFit) else f for f in fits]
+    # the common optimum lies near the groups' own: start there
+    together = joint_fit(groups[0] + groups[1], formula, [dict(f.values) for f in own if f.success])
     p = formula.n_params
-    n = sum(g.n for g in groups)
+    n = sum(g.n for g in groups[0] + groups[1])
     if not (together.success and all(f.success for f in own)):
         return ExtraSumOfSquares(np.nan, np.nan, p, n - 2 * p)
-    return ExtraSumOfSquares(together.fit.ssr, sum(f.fit.ssr for f in own), p, n - 2 * p)
+    return ExtraSumOfSquares(together.ssr, sum(f.ssr for f in own), p, n - 2 * p)
+
+
+def _group_fit(points: Sequence[TrompPoints], formula) -> ParameterFit:
+    """One curve through several surveys, started from each survey's own fit."""
+    own = [fit_formula(p, formula) for p in points]
+    return joint_fit(points, formula, [dict(f.fit.values) for f in own if f.success])
 
 
 def baseline_indices(surveys: Sequence[Survey], baseline=None) -> tuple[int, ...]:
@@ -319,7 +350,7 @@ def monitor_surveys(surveys: Sequence[Survey], *, formula=None, baseline=None, a
         for q in quantities:
             values[q][i], lows[q][i], highs[q][i] = intervals.loc[q, ["value", "low", "high"]]
     baseline_points = [surveys[i].points for i in base]
-    baseline_fit = fit_formula(_pooled(baseline_points, "baseline"), formula)
+    baseline_fit = joint_fit(baseline_points, formula, [dict(fits[i].fit.values) for i in base if fits[i].success])
     p_previous, p_baseline = np.full(len(surveys), np.nan), np.full(len(surveys), np.nan)
     for i in range(len(surveys)):
         if not fits[i].success:

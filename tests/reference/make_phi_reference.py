@@ -28,7 +28,7 @@ mp.mp.dps = 40
 OUT = Path(__file__).resolve().parent / "phi_reference.csv"
 X_POINTS = ("0.05", "0.3", "0.7", "1", "1.3", "2", "4")
 SLOPES = ("-0.3", "-1", "-3")
-EXTRAS = {"bypass": "0.1", "fishhook": "0.4"}
+EXTRAS = {"bypass": "0.1", "fishhook": "0.4", "th_alpha": "2"}
 MP_FUNCTIONS = {"exp": mp.exp, "ln": mp.log, "erfc": mp.erfc, "sqrt": mp.sqrt, "max": max, "pi": mp.pi,
                 "ln2": mp.log(2)}  # fmt: skip
 RTOL = "1e-10"
@@ -91,6 +91,7 @@ def rows():
                     "shape": mp.nstr(shape, 20),
                     "bypass": mp.nstr(extras.get("bypass", 0), 20),
                     "fishhook": mp.nstr(extras.get("fishhook", 0), 20),
+                    "th_alpha": mp.nstr(extras.get("th_alpha", 0), 20),
                     "measured_efficiency": mp.nstr(context.get("measured_efficiency", mp.nan), 20),
                     "phi": mp.nstr(phi, 20),
                     "rtol": RTOL,
