@@ -70,16 +70,13 @@ class Domain:
 
     def backward(self, value):
         value = np.asarray(value, dtype=float)
-        with np.errstate(over="ignore"):  # a limit beyond the largest float is an unbounded side: inf
-            return self._backward(value)
-
-    def _backward(self, value):
-        if self.scale == "log":
-            return self.lower + np.exp(value)
-        if self.scale == "neglog":
-            return self.upper - np.exp(value)
-        if self.scale == "logit":
-            return 1.0 / (1.0 + np.exp(-value))
+        with np.errstate(over="ignore"):  # an interval end far out on the log scale is infinite, not an error
+            if self.scale == "log":
+                return self.lower + np.exp(value)
+            if self.scale == "neglog":
+                return self.upper - np.exp(value)
+            if self.scale == "logit":
+                return 1.0 / (1.0 + np.exp(-value))
         return value
 
     def slope(self, value):

@@ -77,11 +77,17 @@ class Workbench:
     def best_fit(self, experiment: str) -> CurveFit | None:
         """The top-ranked successful fit of an experiment; among fits sharing the top rank
         (indistinguishable by the tie rule) the one with the lowest sum of squares."""
-        rows = self.top_ranked(experiment)
-        if rows.empty:
+        best = self._best_formulas.get(experiment)
+        if best is None:
             return None
-        best = rows.sort_values(["ssr", "equation"]).iloc[0]["formula"]
         return next(f for f in self.fits_of(experiment) if f.formula.id == best)
+
+    @cached_property
+    def _best_formulas(self) -> dict[str, str]:
+        # one pass over the table instead of a scan per experiment
+        table = self._fits_frame
+        rows = table[table["success"] & table["rank"].notna()].sort_values(["rank", "ssr", "equation"], kind="stable")
+        return dict(rows.drop_duplicates("experiment")[["experiment", "formula"]].itertuples(index=False))
 
     def top_ranked(self, experiment: str) -> pd.DataFrame:
         """Rows of the fits table that share the top rank of ``experiment`` (several when tied)."""
@@ -403,6 +409,7 @@ def _averages_of_chunk(level, groups) -> list[pd.DataFrame]:
 
 
 def _fit_guarded(points, formula, alpha, delta_max, size_unit="") -> CurveFit:
+    size_unit = size_unit or getattr(points, "size_unit", "")  # the unit the loader read from the column name
     try:
         return fit_formula(points, formula, alpha=alpha, delta_max=delta_max, size_unit=size_unit)
     except Exception as error:  # a batch reports a broken fit instead of stopping
