@@ -36,7 +36,7 @@ def synthetic(seed: int) -> TrompPoints:
     return TrompPoints(f"s{seed}", sizes, np.clip(phi, 0, 1), weight)
 
 
-EXPERIMENTS = [synthetic(seed) for seed in range(27)]
+EXPERIMENTS = [synthetic(seed) for seed in range(18)]  # two curves of each of the nine formulas
 
 
 def test_every_formula_is_batched_except_curves_with_two_extras():
@@ -70,11 +70,10 @@ def test_piecewise_optimum_is_not_above_a_dense_search(formula_id):
     for fit in fit_formula_batch(points, formula):
         shapes = np.geomspace(*formula.shape_bounds, 300)
         cuts = np.exp(np.linspace(np.log(fit.points.size[0] / 2), np.log(fit.points.size[-1] * 2), 300))
-        best = min(
-            float(np.sum((formula(fit.points.size, cut, shape, **fit.context) - fit.points.partition_fine) ** 2))
-            for shape in shapes[::3]
-            for cut in cuts[::3]
-        )
+        best = np.inf
+        for shape in shapes[::3]:  # every cut at once per shape (x broadcast over cuts x sizes)
+            curves = formula.phi(fit.points.size[None, :] / cuts[::3, None], shape, **fit.context)
+            best = min(best, float(np.min(np.sum((curves - fit.points.partition_fine) ** 2, axis=1))))
         assert fit.fit.ssr <= best * (1 + 1e-9)
 
 
@@ -134,15 +133,16 @@ def _write(tmp_path, experiments):
     return path
 
 
+@pytest.mark.slow
 def test_output_is_byte_identical_whatever_the_number_of_workers(tmp_path, monkeypatch):
     monkeypatch.setattr(workbench, "CHUNK_SIZE", 4)  # several chunks from a small batch
     path = _write(tmp_path, EXPERIMENTS[:10])
     outputs = {}
-    for jobs in (1, 2, 3):
+    for jobs in (1, 2):
         out = tmp_path / f"jobs{jobs}"
         assert main(["fit", str(path), "-o", str(out), "--jobs", str(jobs), "--no-figures", "--formulas", "plitt,11"]) == 0
         outputs[jobs] = {name: (out / name).read_bytes() for name in ("fits.csv", "ranking.csv", "averages.csv")}
-    assert outputs[1] == outputs[2] == outputs[3]
+    assert outputs[1] == outputs[2]
 
 
 def test_engine_and_single_fits_give_the_same_table():

@@ -91,9 +91,16 @@ class Workbench:
 
     def top_ranked(self, experiment: str) -> pd.DataFrame:
         """Rows of the fits table that share the top rank of ``experiment`` (several when tied)."""
+        top = self._top_rows.get(experiment)
+        return self._fits_frame.iloc[0:0] if top is None else top
+
+    @cached_property
+    def _top_rows(self) -> dict[str, pd.DataFrame]:
+        # grouped once: a scan of the whole table per experiment is quadratic in the batch
         table = self._fits_frame
-        rows = table[(table["experiment"] == experiment) & table["success"] & table["rank"].notna()]
-        return rows[rows["rank"] == rows["rank"].min()]
+        rows = table[table["success"] & table["rank"].notna()]
+        rows = rows[rows["rank"] == rows.groupby("experiment", sort=False)["rank"].transform("min")]
+        return {experiment: group for experiment, group in rows.groupby("experiment", sort=False)}
 
     def ranking_table(self) -> pd.DataFrame:
         """Ranks per experiment, points and place per formula (failed experiments left out)."""
