@@ -106,3 +106,27 @@ def test_rising_partition_and_extrapolated_cut_are_warned(tmp_path, capsys):
     above = "size,partition_fine\n10,0.99\n20,0.95\n40,0.9\n80,0.8\n160,0.7\n"
     assert main(["fit", str(write(tmp_path, above)), "-o", str(tmp_path / "p"), "--no-figures", "--formulas", "plitt"]) == 0
     assert "every point lies above 1/2" in capsys.readouterr().err
+
+
+def test_indistinguishable_fits_and_non_normal_residuals_are_said_in_the_console(tmp_path, capsys):
+    """Issue 10: on deck_65mesh the nine formulas reach one sum of squares, yet got ranks 1..9, all
+    "adequate" while every normality p-value is about 0.0003, and nothing warned."""
+    out = tmp_path / "out"
+    lab = DATASETS / "double_deck_screen_decks_lab.csv"
+    assert main(["fit", str(lab), "--size-unit", "mm", "-o", str(out), "--no-figures"]) == 0
+    fits = pd.read_csv(out / "fits.csv")
+    deck = fits[fits["experiment"] == "deck_65mesh"].set_index("formula")
+    tied = deck.drop(index="shuvalov")
+    assert (tied["rank"] == 4.5).all() and deck.loc["shuvalov", "rank"] == 9
+    assert (deck["delta_aicc"] < 2).all()
+    assert (deck["residuals"] == "not normal").all() and (deck["normality_p"] < 0.001).all()
+    assert deck["extrapolated"].str.contains("eta").all()
+    printed = capsys.readouterr().out
+    block = printed[printed.index("Experiment deck_65mesh"):printed.index("Ranking across")]
+    assert "The data cannot tell the 9 formulas apart" in block
+    assert "Shared rank 4.5: molerus, molerus_hoffmann" in block
+    assert "Adequate by F, but the residuals are not normal: all 9 formulas" in block
+    assert "Extrapolated beyond the measured sizes (0.06242 to 3.954): eta of all 9 formulas" in block
+    rows = [line for line in block.splitlines() if line.strip().startswith("4.5")]
+    assert len(rows) == 8 and all("yes*" in row and "NOT NORMAL" in row for row in rows)
+    assert max(len(line) for line in printed.splitlines() if not line.startswith("  /")) <= 100

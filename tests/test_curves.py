@@ -148,3 +148,38 @@ def test_weights_change_the_fit():
     points, _ = synthetic(get_formula("lognormal"), noise=0.03, seed=5)
     weighted = TrompPoints("w", points.size, points.partition_fine, weight=np.linspace(1, 10, points.n))
     assert not np.isclose(fit_formula(weighted, "plitt").d_cut, fit_formula(points, "plitt").d_cut, rtol=1e-6)
+
+
+@pytest.mark.parametrize("formula_id, shape", [("molerus_hoffmann", -0.5), ("ogawa_allen", -0.6)])
+def test_curves_are_fitted_monotone_and_the_bound_is_explained(formula_id, shape):
+    """Issue 10: (4) was fitted with a negative km2, a curve rising again at large sizes, without a word."""
+    formula = get_formula(formula_id)
+    rng = np.random.default_rng(11)
+    sizes = D_CUT * np.geomspace(0.2, 8.0, 12)
+    phi = np.clip(formula(sizes, D_CUT, shape) + rng.normal(0, 0.01, sizes.size), 0, 1)
+    assert np.any(np.diff(phi) > 0.02)  # the data rise again
+    result = fit_formula(TrompPoints("rising", sizes, phi), formula)
+    assert result.success and formula.shape_bounds[0] == 0.0
+    assert_allclose(result.shape, 0.0, atol=1e-9)
+    curve = result.predict(np.geomspace(sizes.min() / 100, sizes.max() * 100, 2000))
+    assert np.all(np.diff(curve) <= 1e-15)
+    assert any("not a monotone partition curve" in w for w in result.warnings)
+
+
+@formula_ids
+def test_every_fitted_paper_curve_is_non_increasing(formula):
+    points, _ = synthetic(formula, slope=-0.2, noise=0.03, seed=9)  # shallow: pushes (4) and (8) to their floor
+    result = fit_formula(points, formula)
+    curve = result.predict(np.geomspace(SIZES.min() / 100, SIZES.max() * 100, 2000))
+    assert np.all(np.diff(curve) <= 1e-12)
+
+
+def test_a_fit_exact_to_rounding_raises_no_residual_alarm():
+    """Issue 10: the runs test flagged fits whose residuals are floating-point noise."""
+    points, _ = synthetic(get_formula("plitt"), slope=-0.9)
+    result = fit_formula(points, "plitt")
+    assert result.fit.ssr < 1e-20
+    assert result.diagnostics.exact and result.diagnostics.verdict == "exact"
+    assert np.isnan(result.diagnostics.runs_p) and np.isnan(result.diagnostics.normality_p)
+    assert not any("residuals" in w for w in result.warnings)
+    assert result.row()["residuals"] == "exact"

@@ -105,3 +105,52 @@ def test_d25_is_missing_when_the_curve_never_reaches_three_quarters():
 def test_indices_use_the_feed_top_size_relative_to_the_cut():
     ind = curve_indices("lognormal", 50.0, 1.2, delta_max=300.0)
     assert_allclose(ind.epsilon, efficiency("lognormal", 1.2, 6.0)[1])
+
+
+def _dense_efficiency(formula, shape, x_max, **context):
+    """Independent reference: trapezoid rule on a million points, uniform on [0, 1], log-spaced above."""
+    below = np.linspace(0.0, 1.0, 200_001)
+    above = 1.0 + np.geomspace(1e-9, x_max - 1.0, 800_001)
+    eta = np.trapezoid(formula.phi(below, shape, **context), below)
+    eps = np.trapezoid(formula.phi(np.concatenate(([1.0], above)), shape, **context), np.concatenate(([1.0], above)))
+    return eta, eps
+
+
+def test_sharp_molerus_misplacement_over_a_long_tail():
+    """Issue 10: km1 = 30 at x_max = 500 gave eps = 1.7e-18 (quad missed the step at the cut)."""
+    formula = get_formula("molerus")
+    eta, eps = efficiency_by_quadrature(formula, 30.0, 500.0)
+    assert_allclose((eta, eps), _dense_efficiency(formula, 30.0, 500.0), rtol=1e-6)
+    assert_allclose(eps, 0.0113355, rtol=1e-5)
+
+
+@pytest.mark.parametrize("formula", FORMULAS, ids=[f.id for f in FORMULAS])
+@pytest.mark.parametrize("x_max", [500.0, 1e5])
+def test_quadrature_of_sharp_curves_against_a_dense_rule(formula, x_max):
+    for shape in (formula.clip_shape(formula.shape_for_slope(-12.0)), formula.shape_bounds[1]):
+        numeric = efficiency_by_quadrature(formula, shape, x_max, **formula.defaults)
+        assert_allclose(numeric, _dense_efficiency(formula, shape, x_max, **formula.defaults), rtol=1e-5, atol=1e-9)
+
+
+def test_extrapolated_indices_are_named():
+    # plitt ks = 2, d_cut = 100: d25 = 57.7, d75 = 173.2
+    inside = curve_indices("plitt", 100.0, 2.0, delta_max=300.0, measured_sizes=(5.0, 300.0))
+    assert inside.extrapolated == ()
+    narrow = curve_indices("plitt", 100.0, 2.0, delta_max=300.0, measured_sizes=(60.0, 150.0))
+    assert narrow.extrapolated == ("d25", "d75", "eta", "epsilon")
+    beyond = curve_indices("plitt", 100.0, 2.0, delta_max=3000.0, measured_sizes=(5.0, 300.0))
+    assert beyond.extrapolated == ("epsilon",)
+    unmeasured = curve_indices("plitt", 100.0, 2.0, delta_max=300.0)
+    assert unmeasured.extrapolated == ()
+
+
+@pytest.mark.parametrize("formula", FORMULAS, ids=[f.id for f in FORMULAS])
+def test_eta_flag_follows_the_share_below_the_smallest_size(formula):
+    from tromplab.indices import EXTRAPOLATED_SHARE
+
+    shape = formula.clip_shape(formula.shape_for_slope(-0.8))
+    for smallest in (0.02, 0.05, 0.2, 0.5):
+        found = curve_indices(formula, 1.0, shape, delta_max=3.0, measured_sizes=(smallest, 3.0), **formula.defaults)
+        below = _dense_efficiency(formula, shape, 1.0 + 1e-12, **formula.defaults)[0]  # eta itself
+        share = np.trapezoid(formula.phi(np.linspace(0, smallest, 20001), shape, **formula.defaults), np.linspace(0, smallest, 20001)) / below
+        assert ("eta" in found.extrapolated) == (share > EXTRAPOLATED_SHARE), (smallest, share)

@@ -3,10 +3,12 @@
 import numpy as np
 import pandas as pd
 import pytest
-from numpy.testing import assert_array_equal
+from numpy.testing import assert_allclose, assert_array_equal
 
 from tromplab.errors import InputError
-from tromplab.ranking import rank_formulas, ranks_within, read_f_table
+from tromplab.points import TrompPoints
+from tromplab.ranking import F_TIE_RTOL, INDISTINGUISHABLE_DELTA_AICC, fit_verdicts, rank_formulas, ranks_within, read_f_table
+from tromplab.workbench import fit_experiments
 
 from .conftest import DATASETS, dataset
 
@@ -88,3 +90,66 @@ def test_f_table_rejects_a_bad_mark(tmp_path):
     path.write_text("experiment,equation,F,n,adequate\n1,3,9.0,5,maybe\n")
     with pytest.raises(InputError, match=r"row 2, column 'adequate': 'maybe' is not a yes/no mark"):
         read_f_table(path)
+
+
+# --- tie rule (issue 10, item 5) -------------------------------------------------------------
+def test_close_f_values_share_their_rank_and_ties_do_not_chain():
+    # 99.995 and 99.991 lie within 1e-4 of the leader 100; 99.985 does not (although it lies
+    # within 1e-4 of 99.991: groups are anchored at their best value)
+    ranks = ranks_within([99.991, 100.0, 99.985, 99.995], rtol=F_TIE_RTOL)
+    assert_array_equal(ranks, [2, 2, 4, 2])
+    assert_array_equal(ranks_within([99.991, 100.0, 99.985, 99.995]), [3, 1, 4, 2])
+
+
+def test_close_aicc_values_share_their_rank():
+    frame = pd.DataFrame({"experiment": ["a"] * 3, "equation": ["x", "y", "z"], "aicc": [-50.0, -50.0004, -49.0],
+                          "adequate": [True] * 3})  # fmt: skip
+    assert rank_formulas(frame, by="aicc").set_index("equation")["a"].tolist() == [1.5, 1.5, 3.0]
+
+
+def test_the_tie_rule_ties_only_the_values_printed_equal_in_table_2():
+    table = read_f_table(TABLE2)
+    for _, group in table.groupby("experiment"):
+        with_rule = ranks_within(group["F"].to_numpy(), rtol=F_TIE_RTOL)
+        exact_ties_only = ranks_within(group["F"].to_numpy())
+        assert_array_equal(with_rule, exact_ties_only)
+
+
+def test_unit_scaling_of_sizes_does_not_reorder_formulas_that_fit_alike():
+    """Issue 15: (5) and (10) coincide when no point lies below d_cut/2; rounding decided their order."""
+    rng = np.random.default_rng(3)
+    sizes = 40.0 * np.geomspace(0.6, 4.0, 9)
+    phi = np.clip(np.exp(-np.log(2) * (sizes / 40.0) ** 2.5) + rng.normal(0, 0.02, sizes.size), 0, 1)
+    tables = []
+    for scale in (1e-3, 1.0, 25.4, 1e3):
+        bench = fit_experiments([TrompPoints("e", sizes * scale, phi)], formulas=["rosin_rammler", "luckie_austin", "plitt"])
+        tables.append(bench.fits_table().set_index("formula")["rank"])
+    for ranks in tables:
+        assert ranks["rosin_rammler"] == ranks["luckie_austin"]
+        pd.testing.assert_series_equal(ranks, tables[0])
+
+
+def test_verdicts_say_when_the_data_cannot_tell_formulas_apart():
+    rng = np.random.default_rng(8)
+    sizes = np.geomspace(20.0, 400.0, 6)
+    phi = np.clip(1 / (1 + (sizes / 90.0) ** 2.2) + rng.normal(0, 0.03, sizes.size), 0, 1)
+    bench = fit_experiments([TrompPoints("few", sizes, phi)])
+    table = bench.fits_table()
+    close = table[table["delta_aicc"] < INDISTINGUISHABLE_DELTA_AICC]
+    assert len(close) >= 2
+    assert_allclose(table["delta_aicc"].min(), 0.0)
+    statements = bench.verdicts("few")
+    assert any("cannot tell" in s for s in statements)
+    assert all(name in " ".join(statements) for name in close["formula"]) or any("all 9" in s or "the 9" in s for s in statements)
+
+
+def test_adequate_fits_with_systematic_residuals_are_stated_in_words():
+    fits = pd.DataFrame({"formula": ["a", "b", "c"], "success": [True] * 3, "rank": [1.0, 2.0, 3.0], "adequate": [True, True, False],
+                         "delta_aicc": [0.0, 5.0, 9.0], "residuals": ["systematic", "random", "systematic"],
+                         "extrapolated": ["", "d75;eta", ""]})  # fmt: skip
+    statements = fit_verdicts(fits, measured_sizes=(1.0, 8.0))
+    assert statements == [
+        "Adequate by F, but the residuals are systematic: a. The curve misses the data in a pattern the F test does not see "
+        "(runs test), so 'adequate' overstates these fits.",
+        "Extrapolated beyond the measured sizes (1 to 8): d75 of b; eta of b.",
+    ]

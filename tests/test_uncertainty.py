@@ -73,7 +73,7 @@ def test_akaike_weights_and_information_criteria():
     assert_allclose(akaike_weights([3.0, 3.0, 5.0]).sum(), 1.0)
     fit = fit_formula(experiment(2), PLITT)
     criteria = fit.fit.information_criteria()
-    n, k = SIZES.size, 2
+    n, k = SIZES.size, 3  # d_cut, ks and the error variance (Burnham & Anderson 2002, section 2.2)
     assert_allclose(criteria["aic"], n * np.log(fit.fit.ssr / n) + 2 * k)
     assert_allclose(criteria["aicc"] - criteria["aic"], 2 * k * (k + 1) / (n - k - 1))
     assert_allclose(criteria["bic"], n * np.log(fit.fit.ssr / n) + k * np.log(n))

@@ -14,6 +14,8 @@ import numpy as np
 import pandas as pd
 
 from ._version import __version__
+from .diagnostics import RESIDUAL_WARNING
+from .engine import check_bootstrap_request
 from .errors import InputError
 from .formulas import NAME_CLASHES, registry_table, select_formulas
 from .lab import KINDS, LabOptions, YieldWarning, read_experiments, read_lab
@@ -23,6 +25,9 @@ from .screening import DEFAULT_ALPHA
 from .views import PARTITION_TO, partition_view
 from .workbench import fit_experiments, model_averages, print_progress, write_atomically
 
+#: Above this many experiments, --figures auto draws one overview figure and the console
+#: shows the first experiments only (every row is in fits.csv).
+AUTO_FIGURE_LIMIT = 20
 TERMINAL_COLUMNS = ["rank", "equation", "formula", "d_cut", "shape_name", "shape", "F", "F_crit", "adequate", "eta", "ep"]
 
 
@@ -69,7 +74,17 @@ def _parser() -> argparse.ArgumentParser:
     fit.add_argument("--rank-by", choices=sorted(RANK_BY), default="F",
                      help="criterion within an experiment: Fisher's F or the corrected Akaike criterion (shown in the table)")
     fit.add_argument("--size-unit", default="", help="unit of the sizes, for the figure labels")
-    fit.add_argument("--no-figures", action="store_true", help="do not draw figures")
+    fit.add_argument("--figures", choices=("auto", "all", "best", "none"), default="auto",
+                     help=f"per-experiment figures with every fit (all) or the top-ranked one (best); auto: all up to "
+                     f"{AUTO_FIGURE_LIMIT} experiments, then one overview figure (default auto)")
+    fit.add_argument("--no-figures", dest="figures", action="store_const", const="none", help="same as --figures none")
+    fit.add_argument("--format", choices=("csv", "parquet"), default="csv", help="format of the tables (parquet needs pyarrow)")
+    scale = fit.add_argument_group("scale")
+    scale.add_argument("--jobs", type=int, default=0, metavar="N", help="worker processes (default 0: all cores)")
+    scale.add_argument("--scheduler", default=None, metavar="ADDRESS", help="run on this Dask scheduler (tcp://host:8786)")
+    scale.add_argument("--dask", choices=("local",), default=None, help="run on a local Dask cluster")
+    scale.add_argument("--single-fits", action="store_true",
+                       help="fit one experiment and formula at a time with lmfit instead of the batched engine")
     fit.add_argument("--extended", action="store_true",
                      help="also fit the curves with bypass and fish-hook (reported, kept out of the ranking)")
     fit.add_argument("--rank-extended", action="store_true", help="rank the extended curves with the nine")
@@ -311,25 +326,40 @@ def _run_fit(args) -> int:
         raise ValueError(f"--ci takes a level between 0 and 1, got {args.ci}")
     if args.bootstrap < 0:
         raise ValueError("--bootstrap takes a non-negative number of resamples")
+    if args.jobs < 0:
+        raise ValueError(f"--jobs takes a number of worker processes (0: all cores), got {args.jobs}")
+    if args.format == "parquet":
+        _require("pyarrow", "--format parquet", "pip install 'tromplab[dask]'")
     experiments, balances = read_experiments(args.input, _lab_options(args))
+    if args.bootstrap:
+        check_bootstrap_request(args.bootstrap, n_fits=len(experiments) * len(select_formulas(formulas)))
     _print_balance_notes(balances)
-    bench = fit_experiments(experiments, formulas=formulas, alpha=args.alpha, delta_max=args.delta_max,
-                            rank_by=args.rank_by, rank_extended=args.rank_extended, progress=print_progress,
-                            size_unit=args.size_unit)  # fmt: skip
-    fits, ranking = bench.fits_table(), bench.ranking_table()
-    if args.ci is not None or args.bootstrap:
-        from .uncertainty import interval_columns
+    quiet = getattr(args, "quiet", False)
+    with _cluster(args) as client:
+        with _progress_bar(len(experiments), "fitting", quiet=quiet) as progress:
+            bench = fit_experiments(experiments, formulas=formulas, alpha=args.alpha, delta_max=args.delta_max,
+                                    rank_by=args.rank_by, rank_extended=args.rank_extended, progress=progress,
+                                    jobs=args.jobs or None, client=client, engine=not args.single_fits,
+                                    size_unit=args.size_unit)  # fmt: skip
+        fits, ranking = bench.fits_table(), bench.ranking_table()
+        if args.ci is not None or args.bootstrap:
+            from .uncertainty import interval_columns
 
-        intervals = interval_columns(bench.fits, level=args.ci, n_bootstrap=args.bootstrap, method=args.bootstrap_method,
-                                     seed=args.seed, progress=_interval_progress)  # fmt: skip
-        fits = fits.merge(intervals, on=["experiment", "formula"], how="left")
-    averages = model_averages(bench, level=args.ci or 0.95)
+            with _progress_bar(len(bench.fits), "intervals", quiet=quiet) as progress:
+                intervals = interval_columns(bench.fits, level=args.ci, n_bootstrap=args.bootstrap,
+                                             method=args.bootstrap_method, seed=args.seed, progress=progress)  # fmt: skip
+            fits = fits.merge(intervals, on=["experiment", "formula"], how="left")
+        averages = model_averages(bench, level=args.ci or 0.95, jobs=args.jobs or None, client=client)
     fits = partition_view(fits, args.partition_to)
     written = _write_fit_outputs(args, bench, experiments, balances, fits, ranking, averages)
     for experiment, notes in bench.notes.items():
         for note in notes:
             print(textwrap.fill(f"warning ({experiment}): {note}", width=98), file=sys.stderr)
-    print(format_fits(fits, rank_by=args.rank_by))
+    shown_experiments = list(dict.fromkeys(fits["experiment"]))[:AUTO_FIGURE_LIMIT]
+    verdicts = {experiment: bench.verdicts(experiment) for experiment in shown_experiments}
+    print(format_fits(fits[fits["experiment"].isin(shown_experiments)], verdicts, rank_by=args.rank_by))
+    if len(bench.experiments) > AUTO_FIGURE_LIMIT:
+        print(f"\n... and {len(bench.experiments) - len(shown_experiments)} more experiments: every fit is in fits.{args.format}")
     if bench.failures:
         print("\nExperiments that could not be fitted:")
         for experiment, reason in bench.failures.items():
@@ -338,9 +368,82 @@ def _run_fit(args) -> int:
         print("\nRanking across experiments (points: rank sum, inadequate ranks counted twice):")
         print(ranking.to_string(index=False))
     print("\nWrote:")
-    for path in written.values():
+    paths = list(written.values())
+    for path in paths[:AUTO_FIGURE_LIMIT + 3]:
         print(f"  {path}")
+    if len(paths) > AUTO_FIGURE_LIMIT + 3:
+        print(f"  ... and {len(paths) - AUTO_FIGURE_LIMIT - 3} more files in {args.outdir}")
     return 0
+
+
+def _require(module: str, option: str, install: str) -> None:
+    import importlib.util
+
+    if importlib.util.find_spec(module) is None:
+        raise ValueError(f"{option} needs the package {module}: {install}")
+
+
+def _table_writer(table: pd.DataFrame, fmt: str):
+    if fmt == "parquet":
+        return lambda p: table.to_parquet(p, index=False)
+    return lambda p: table.to_csv(p, index=False)
+
+
+class _cluster:
+    """The Dask client asked for by --scheduler / --dask local (None otherwise), closed afterwards."""
+
+    def __init__(self, args):
+        self.scheduler, self.local = getattr(args, "scheduler", None), getattr(args, "dask", None)
+        self.client = self.cluster = None
+
+    def __enter__(self):
+        if self.scheduler is None and self.local is None:
+            return None
+        _require("distributed", "--scheduler / --dask", "pip install 'tromplab[dask]'")
+        from dask.distributed import Client, LocalCluster
+
+        if self.scheduler is not None:
+            self.client = Client(self.scheduler)
+        else:
+            self.cluster = LocalCluster(n_workers=2, threads_per_worker=1, dashboard_address=None)
+            self.client = Client(self.cluster)
+        return self.client
+
+    def __exit__(self, *exc):
+        if self.client is not None:
+            self.client.close()
+        if self.cluster is not None:
+            self.cluster.close()
+        return False
+
+
+class _progress_bar:
+    """tqdm bar on standard error with rate and ETA, as a ``progress(done, total, label)``
+    callback; silent when standard error is not a terminal, with --quiet, or without tqdm."""
+
+    def __init__(self, total: int, what: str, *, quiet: bool = False):
+        self.total, self.what, self.bar = total, what, None
+        self.enabled = not quiet and total > 1 and sys.stderr.isatty()
+
+    def __enter__(self):
+        if not self.enabled:
+            return None
+        try:
+            from tqdm import tqdm
+        except ImportError:
+            return print_progress
+        self.bar = tqdm(total=self.total, desc=self.what, unit="exp" if self.what == "fitting" else "fit", file=sys.stderr,
+                        dynamic_ncols=True)  # fmt: skip
+
+        def update(done, total, label):
+            self.bar.update(done - self.bar.n)
+
+        return update
+
+    def __exit__(self, *exc):
+        if self.bar is not None:
+            self.bar.close()
+        return False
 
 
 def _formula_keys(args):
@@ -348,10 +451,6 @@ def _formula_keys(args):
     if args.extended and "extended" not in (keys or ""):
         keys = f"{keys},extended"
     return keys
-
-
-def _interval_progress(i: int, total: int, label: str) -> None:
-    print(f"[{i}/{total}] intervals for {label}", file=sys.stderr, flush=True)
 
 
 def _run_report(args) -> int:
@@ -435,13 +534,22 @@ def _run_rank(args) -> int:
     return 0
 
 
-def format_fits(fits: pd.DataFrame, *, rank_by: str = "F") -> str:
+#: Console words for the residual verdict (fits.csv column ``residuals``).
+RESIDUAL_WORDS = {"random": "random", "exact": "exact", "systematic": "SYSTEMATIC", "not normal": "NOT NORMAL",
+                  "systematic, not normal": "SYST.+NOT NORM."}  # fmt: skip
+
+
+def format_fits(fits: pd.DataFrame, verdicts: dict[str, list[str]] | None = None, *, rank_by: str = "F") -> str:
     """The ranked fits, one block per experiment, readable in a 100-column terminal.
 
     The criterion of the ranking is shown: ``F`` and ``F_crit`` when ranking by F,
     ``aicc`` (beside F) when ranking by AICc.  When the table has interval columns
     (``--ci``, else ``--bootstrap``), a second table per experiment gives the intervals
-    of d_cut, the shape parameter and Ep.
+    of d_cut, the shape parameter and Ep.  ``verdicts`` (experiment -> statements,
+    :meth:`Workbench.verdicts`) are printed under each table: indistinguishable formulas,
+    shared ranks, adequate fits with systematic or non-normal residuals, extrapolated
+    indices.  An adequate fit whose residuals fail a test is marked ``yes*`` in the
+    adequacy column.
     """
     columns = list(TERMINAL_COLUMNS)
     if rank_by == "aicc":
@@ -454,22 +562,39 @@ def format_fits(fits: pd.DataFrame, *, rank_by: str = "F") -> str:
             continue  # experiments that could not be fitted are listed separately
         ordered = group.sort_values("rank", na_position="last")
         view = ordered[columns].copy()
-        view["adequate"] = view["adequate"].map({True: "yes", False: "NO"})
+        flagged = ordered["residuals"].fillna("").str.contains("systematic|not normal")
+        view["adequate"] = np.where(ordered["adequate"], np.where(flagged, "yes*", "yes"), "NO")
         view.loc[~ordered["success"], "adequate"] = "failed"
+        view["residuals"] = ordered["residuals"].map(RESIDUAL_WORDS).fillna("-")
         view = view.rename(columns={"equation": "eq", "shape_name": "par", "adequate": "adequ."})
         text = view.to_string(index=False, float_format=lambda v: f"{v:.4g}", na_rep="-")
         n = int(group["n"].dropna().iloc[0]) if group["n"].notna().any() else 0
         ranked_by = "AICc (lowest first)" if rank_by == "aicc" else "F (highest first)"
         blocks.append(f"Experiment {experiment} (n = {n}), ranked by {ranked_by}:\n{text}")
+        for statement in (verdicts or {}).get(experiment, []):
+            blocks.append(textwrap.fill(statement, width=98, initial_indent="  ! ", subsequent_indent="    "))
         if intervals:
             bounds = ordered[["formula", "d_cut", *intervals]].rename(columns=lambda c: re.sub(r"(_boot)?_(low|high)$", r" \2", c))
             title = "  intervals:" if kind == "" else "  bootstrap intervals:"
             blocks.append(f"{title}\n" + bounds.to_string(index=False, float_format=lambda v: f"{v:.4g}", na_rep="-"))
         for formula, success, message, warned in group[["formula", "success", "message", "warnings"]].itertuples(index=False):
             note = warned if success else f"fit failed: {message}"
+            if success and isinstance(note, str):  # residual warnings are stated above for all formulas at once
+                note = "; ".join(w for w in note.split("; ") if not w.startswith(RESIDUAL_WARNING))
             if isinstance(note, str) and note:
                 blocks.append(textwrap.fill(f"note {formula}: {note}", width=98, initial_indent="  ", subsequent_indent="    "))
     return "\n".join(blocks)
+
+
+def _overview_png(fits) -> bytes:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from .plotting import plot_batch_overview, save_figure
+
+    buffer = io.BytesIO()
+    save_figure(plot_batch_overview(fits)[0], buffer)
+    return buffer.getvalue()
 
 
 def _file_safe(name: str) -> str:
@@ -493,10 +618,17 @@ def _write_fit_outputs(args, bench, experiments, balances, fits, ranking, averag
     from .workbook import write_workbook
 
     figures = {}
-    if not args.no_figures:
+    mode = args.figures
+    if mode == "auto":
+        mode = "all" if len(bench.experiments) <= AUTO_FIGURE_LIMIT else "overview"
+    if mode in ("all", "best"):
+        fits_by_experiment = bench.fits_by_experiment()
         for experiment in bench.experiments:
-            png = _figure_png(bench.fits_of(experiment), args.size_unit, bench.best_fit(experiment), args.partition_to)
-            figures[f"curves_{_file_safe(experiment)}.png"] = png
+            best = bench.best_fit(experiment)
+            shown = fits_by_experiment[experiment] if mode == "all" or best is None else [best]
+            figures[f"curves_{_file_safe(experiment)}.png"] = _figure_png(shown, args.size_unit, best, args.partition_to)
+    elif mode == "overview" and fits["rank"].notna().any():
+        figures["overview.png"] = _overview_png(fits)
     tables = {"fits": fits, "ranking": ranking, "averages": averages}
     only_workbook = args.outdir.suffix.lower() == ".xlsx"
     if only_workbook or args.excel:
@@ -514,7 +646,7 @@ def _write_fit_outputs(args, bench, experiments, balances, fits, ranking, averag
 
     if only_workbook:
         return write_atomically({args.outdir.name: workbook}, args.outdir.parent)
-    outputs = {f"{name}.csv": (lambda p, table=table: table.to_csv(p, index=False)) for name, table in tables.items()}
+    outputs = {f"{name}.{args.format}": _table_writer(table, args.format) for name, table in tables.items()}
     outputs.update({name: (lambda p, png=png: p.write_bytes(png)) for name, png in figures.items()})
     if args.excel:
         outputs["results.xlsx"] = workbook

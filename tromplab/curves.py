@@ -17,13 +17,13 @@ worse than the grid; the grid minimum is kept in the result so that this can be 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 
 import numpy as np
 from scipy import optimize
 
-from .diagnostics import ResidualDiagnostics, residual_diagnostics
+from .diagnostics import RESIDUAL_WARNING, ResidualDiagnostics, residual_diagnostics
 from .fitting import ParameterFit, ParameterSpec, least_squares
 from .formulas import Formula, NoBreakPointError, get_formula, shuvalov_break
 from .indices import CurveIndices, curve_indices
@@ -161,12 +161,13 @@ class CurveFit:
         if not self.success:
             return None
         d_cut, shape, extras = self.curve_arguments()
-        return curve_indices(self.formula, d_cut, shape, delta_max=self.options.delta_max, **self.context, **extras)
+        return curve_indices(self.formula, d_cut, shape, delta_max=self.options.delta_max,
+                             measured_sizes=(self.points.size.min(), self.points.size.max()), **self.context, **extras)  # fmt: skip
 
     @cached_property
     def diagnostics(self) -> ResidualDiagnostics | None:
         """Runs and normality tests of the residuals (None for a failed fit)."""
-        return residual_diagnostics(self.fit.residual) if self.success and self.fit.residual is not None else None
+        return residual_diagnostics(self.fit.residual, alpha=self.options.alpha) if self.success and self.fit.residual is not None else None
 
     @cached_property
     def x_break(self) -> float:
@@ -185,8 +186,10 @@ class CurveFit:
             if spec.name in self.fit.at_bound:
                 value = self.fit.values[spec.name]
                 bound = spec.lower if np.isclose(value, spec.lower) else spec.upper
-                warnings.append(f"{spec.name} = {value:.4g} at its bound {bound:g}: the unconstrained optimum lies beyond it "
-                                "and the standard error is unreliable")  # fmt: skip
+                on_shape_floor = spec.name == self.formula.shape_name and bound == spec.lower and self.formula.lower_bound_reason
+                reason = f" ({self.formula.lower_bound_reason})" if on_shape_floor else ""
+                warnings.append(f"{spec.name} = {value:.4g} at its bound {bound:g}: the unconstrained optimum lies beyond "
+                                f"it{reason} and the standard error is unreliable")  # fmt: skip
         if self.formula.context_from_efficiency:
             warnings += _break_point(self.shape, self.context["measured_efficiency"])[1]
         if self.formula.extras:
@@ -196,8 +199,11 @@ class CurveFit:
                 warnings.append(f"the fitted curve exceeds 1 (maximum {peak:.3f}): not a physical partition")
         diagnostics = self.diagnostics
         if self.screen.adequate and diagnostics is not None and diagnostics.systematic:
-            warnings.append(f"adequate by F but the residuals are systematic ({diagnostics.n_runs} runs of signs, "
+            warnings.append(f"{RESIDUAL_WARNING} are systematic ({diagnostics.n_runs} runs of signs, "
                             f"runs test p = {diagnostics.runs_p:.3f})")  # fmt: skip
+        if self.screen.adequate and diagnostics is not None and diagnostics.non_normal:
+            warnings.append(f"{RESIDUAL_WARNING} are not normal (Shapiro-Wilk p = {diagnostics.normality_p:.2g}), "
+                            "as the F test assumes")  # fmt: skip
         return tuple(warnings)
 
     def row(self) -> dict:
@@ -234,6 +240,8 @@ class CurveFit:
             "bic": criteria["bic"],
             "runs_p": self.diagnostics.runs_p if self.diagnostics else np.nan,
             "normality_p": self.diagnostics.normality_p if self.diagnostics else np.nan,
+            "residuals": self.diagnostics.verdict if self.diagnostics else "",
+            "extrapolated": ";".join(ind.extrapolated) if ind else "",
             "x_break": self.x_break,
             "bypass": self.fit.values.get("bypass", np.nan),
             "fishhook": self.fit.values.get("fishhook", np.nan),
@@ -423,6 +431,21 @@ def failed_fit(points: TrompPoints, formula, message: str, *, alpha: float = DEF
         options = FitOptions(float(alpha), np.nan, normalised_weights(points), size_unit or "")
     specs = _parameter_specs(formula, points)
     return CurveFit(formula=formula, points=points, fit=ParameterFit.failed(specs, points.n, message), options=options)
+
+
+def with_lmfit(fit: CurveFit) -> CurveFit:
+    """``fit`` with an lmfit result: a fit made by the batched engine (or one that travelled
+    through a process pool) is refitted by lmfit from its optimum, without the grid, so
+    that ``fit.fit.raw`` and profile intervals are available.  A fit that already has them,
+    or a failed one, is returned as is; so is ``fit`` when lmfit ends above its optimum."""
+    if not fit.success or fit.fit.minimizer is not None:
+        return fit
+    options = fit.options
+    polished = fit_formula(fit.points, fit.formula, alpha=options.alpha, delta_max=options.delta_max,
+                           size_unit=options.size_unit, global_search=False, starts=[dict(fit.fit.values)])  # fmt: skip
+    if not polished.success or polished.fit.ssr > fit.fit.ssr * (1 + 1e-9):
+        return fit
+    return replace(fit, fit=polished.fit)
 
 
 def _break_point(kr: float, efficiency: float) -> tuple[float, list[str]]:

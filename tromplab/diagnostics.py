@@ -8,6 +8,11 @@ every fit:
   (statsmodels ``runstest_1samp``, cut-off 0, small-sample correction): few runs mean
   systematic deviations;
 * the Shapiro-Wilk test of normality of the residuals (scipy), which the F test assumes.
+
+A fit exact to rounding (root-mean-square residual below :data:`EXACT_FIT_RMS`, in
+partition units) gives neither test anything to work on: the signs and the shape of
+residuals at the level of floating-point and solver noise carry no information about the
+curve, so both p-values are nan and the verdict is ``"exact"`` instead of an alarm.
 """
 
 from __future__ import annotations
@@ -18,39 +23,76 @@ import numpy as np
 from scipy import stats
 
 SYSTEMATIC_P = 0.05
+#: Residuals with a root mean square below this (partition units: 1e-5 %) are solver and
+#: rounding noise - three orders below the best measured partition (about 1e-4) and at the
+#: level the least-squares solver stops (relative tolerance 1e-8 on the sum of squares).
+EXACT_FIT_RMS = 1e-7
+#: Start of the warning of a fit adequate by F whose residuals fail a test.
+RESIDUAL_WARNING = "adequate by F but the residuals"
 
 
 @dataclass(frozen=True)
 class ResidualDiagnostics:
-    """p-values of the runs and normality tests (nan where a test cannot be run)."""
+    """p-values of the runs and normality tests (nan where a test cannot be run).
+
+    ``alpha`` is the level below which a p-value counts as evidence; ``exact`` is True for
+    a fit exact to rounding, whose residuals are not tested.
+    """
 
     runs_p: float
     normality_p: float
     n_runs: int
+    alpha: float = SYSTEMATIC_P
+    exact: bool = False
 
     @property
     def systematic(self) -> bool:
-        return bool(np.isfinite(self.runs_p) and self.runs_p < SYSTEMATIC_P)
+        """Too few runs of signs: the curve misses the data over ranges of sizes."""
+        return bool(np.isfinite(self.runs_p) and self.runs_p < self.alpha)
+
+    @property
+    def non_normal(self) -> bool:
+        """The residuals are not normal (Shapiro-Wilk), as the F test assumes they are."""
+        return bool(np.isfinite(self.normality_p) and self.normality_p < self.alpha)
+
+    @property
+    def verdict(self) -> str:
+        """One phrase for tables: ``exact``, ``systematic``, ``not normal``, both, or ``random``."""
+        if self.exact:
+            return "exact"
+        found = [word for word, flagged in (("systematic", self.systematic), ("not normal", self.non_normal)) if flagged]
+        return ", ".join(found) or "random"
 
 
-def residual_diagnostics(residuals) -> ResidualDiagnostics:
+def residual_diagnostics(residuals, *, alpha: float = SYSTEMATIC_P) -> ResidualDiagnostics:
     """Runs test and normality test of residuals given in order of increasing size.
+
+    Parameters
+    ----------
+    residuals : array_like
+        Residuals (partition units) ordered by size.
+    alpha : float
+        Level of both tests.
 
     Examples
     --------
     >>> d = residual_diagnostics([0.1, 0.2, 0.1, 0.2, 0.3, 0.1, -0.1, -0.2, -0.1, -0.2, -0.3, -0.1])
     >>> d.n_runs, d.systematic
     (2, True)
+    >>> residual_diagnostics([1e-15, -2e-16, 3e-16, 5e-16, -1e-16]).verdict
+    'exact'
     """
     from statsmodels.sandbox.stats.runs import runstest_1samp
 
     residuals = np.asarray(residuals, dtype=float)
     signs = np.sign(residuals[residuals != 0])
     n_runs = int(1 + np.count_nonzero(np.diff(signs))) if signs.size else 0
+    if residuals.size and np.sqrt(np.mean(residuals**2)) < EXACT_FIT_RMS:
+        return ResidualDiagnostics(np.nan, np.nan, n_runs, alpha, exact=True)
     runs_p = np.nan
     if signs.size >= 3 and len(set(signs)) == 2:
         _, runs_p = runstest_1samp(signs, cutoff=0, correction=True)
     normality_p = np.nan
     if residuals.size >= 3 and np.ptp(residuals) > 0:
         normality_p = float(stats.shapiro(residuals).pvalue)
-    return ResidualDiagnostics(float(runs_p), normality_p, n_runs)
+    return ResidualDiagnostics(float(runs_p), normality_p, n_runs, alpha)

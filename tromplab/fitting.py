@@ -80,10 +80,24 @@ class ParameterFit:
     def information_criteria(self) -> dict[str, float]:
         """AIC, AICc and BIC from the Gaussian likelihood with the variance profiled out.
 
-        ``AIC = n ln(SSR/n) + 2k``; ``AICc = AIC + 2k(k+1)/(n-k-1)``; ``BIC = n ln(SSR/n) + k ln n``.
-        ``k`` counts the fitted parameters only, as lmfit does.
+        .. math::
+
+            AIC = n \\ln(SSR/n) + 2k, \\quad AICc = AIC + \\frac{2k(k+1)}{n-k-1}, \\quad
+            BIC = n \\ln(SSR/n) + k \\ln n
+
+        ``k = n_params + 1`` counts the error variance as an estimated parameter, as
+        Burnham & Anderson (2002, section 2.2) require for least squares
+        (lmfit counts the fitted parameters only).  The extra 1 is a constant shift of AIC
+        and BIC for a given ``n`` but changes the AICc correction, and so the comparison of
+        curves with different numbers of parameters.  AICc is infinite when
+        ``n <= k + 1``.
+
+        References
+        ----------
+        Burnham, K. P. and Anderson, D. R. (2002). *Model Selection and Multimodel
+        Inference*, 2nd ed. Springer, New York.
         """
-        n, k = self.n_points, self.n_params
+        n, k = self.n_points, self.n_params + 1
         if not self.success or n <= 0 or self.ssr <= 0:
             return {"aic": np.nan, "aicc": np.nan, "bic": np.nan}
         core = n * np.log(self.ssr / n)

@@ -84,7 +84,11 @@ class Formula:
         True when ``phi`` needs the measured classifier efficiency
         (``context = {"measured_efficiency": eta_exp}``), as (11) does.
     monotone : bool
-        False when the curve rises again at large sizes for part of the shape range.
+        False when the curve rises again at large sizes for part of the shapes ``phi``
+        accepts (the figures of the paper draw such curves); ``shape_bounds`` then keep
+        the fits to the monotone shapes, and ``lower_bound_reason`` says why.
+    lower_bound_reason : str
+        Why the lower shape bound is where it is, for the warning of a fit that ends on it.
     extras : tuple of Parameter
         Further fitted parameters (extended curves only); ``phi`` takes them as keywords.
     family : str
@@ -111,6 +115,7 @@ class Formula:
     efficiency: Callable[..., tuple[float, float]] | None = None
     context_from_efficiency: bool = False
     monotone: bool = True
+    lower_bound_reason: str = ""
     defaults: Mapping[str, float] = field(default_factory=dict)
     extras: tuple[ExtraParameter, ...] = ()
     family: str = "paper"
@@ -732,15 +737,19 @@ _PAPER_BASES: tuple[Formula, ...] = (
         title="Molerus and Hoffmann (1969)",
         expression="1/(1 + x^2*exp(-km2*(1 - x^2)))",
         shape_name="km2",
-        shape_bounds=(-1.0, 60.0),
+        shape_bounds=(0.0, 60.0),
         phi=molerus_hoffmann,
         slope_at_cut=lambda km2: -(1.0 + km2) / 2.0,
         slope_expression="-(1 + km2)/2",
         shape_for_slope=lambda s: -2.0 * s - 1.0,
         citation=_in(MOLERUS_HOFFMANN_1969, 4),
-        notes="km2 = 0 is Plitt with ks = 2; km2 < 0 has a minimum at x = 1/sqrt(-km2) and rises again.",
+        notes="km2 = 0 is Plitt with ks = 2; km2 < 0 has a minimum at x = 1/sqrt(-km2) and rises again, so "
+        "fits keep km2 >= 0 (slope at the cut -1/2 or steeper).",
         monotone=False,
-        shape_meaning="sharpness beyond Plitt's ks = 2 curve (km2 = 0); negative values let the curve rise again",
+        shape_meaning="sharpness beyond Plitt's ks = 2 curve (km2 = 0); fits keep km2 >= 0, as negative values let the "
+        "curve rise again",
+        lower_bound_reason="km2 < 0 would make the curve rise again beyond x = 1/sqrt(-km2) (not a monotone "
+        "partition curve); the best monotone curve is shown",
     ),
     Formula(
         id="rosin_rammler",
@@ -793,16 +802,19 @@ _PAPER_BASES: tuple[Formula, ...] = (
         title="Ogawa, Allen's law",
         expression="1/(1 + x*exp(-kp*(1 - x)))",
         shape_name="kp",
-        shape_bounds=(-1.0, 60.0),
+        shape_bounds=(0.0, 60.0),
         phi=ogawa_allen,
         slope_at_cut=lambda kp: -(1.0 + kp) / 4.0,
         slope_expression="-(1 + kp)/4",
         shape_for_slope=lambda s: -4.0 * s - 1.0,
         citation=_in(OGAWA, 8),
         notes="Printed with exp(-kp x); corrected to exp(-kp (1 - x)) (phi(1) = 0.5, slope (17)). "
-        "kp < 0 rises again at large sizes.",
+        "kp < 0 rises again beyond x = -1/kp, so fits keep kp >= 0 (slope at the cut -1/4 or steeper).",
         monotone=False,
-        shape_meaning="sharpness beyond Plitt's ks = 1 curve (kp = 0); negative values let the curve rise again",
+        shape_meaning="sharpness beyond Plitt's ks = 1 curve (kp = 0); fits keep kp >= 0, as negative values let the "
+        "curve rise again",
+        lower_bound_reason="kp < 0 would make the curve rise again beyond x = -1/kp (not a monotone partition "
+        "curve); the best monotone curve is shown",
     ),
     Formula(
         id="lognormal",

@@ -13,16 +13,28 @@ and shape, in the conventions of Shuvalov et al. (2018), section 3 of the packag
 
 Closed forms are used where the formula declares one and checked against quadrature in
 the tests; otherwise :func:`scipy.integrate.quad` integrates the curve.
+
+Given the measured size range, :func:`curve_indices` also names the indices that rest on
+the curve outside it (``CurveIndices.extrapolated``): ``d25`` or ``d75`` outside the
+smallest..largest measured size, ``eta`` when more than :data:`EXTRAPOLATED_SHARE` of its
+area lies below the smallest measured size, ``epsilon`` when more than that share of its
+area lies above the largest measured size (``delta_max`` beyond the data).
 """
 
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
+from functools import lru_cache
 
 import numpy as np
 from scipy import integrate, optimize
 
 from .formulas import Formula, get_formula
+
+#: Share of eta or epsilon that may come from sizes outside the measured range before the
+#: index is flagged as extrapolated: a tenth of the index would then rest on the formula's
+#: tail alone, where no point constrained it.
+EXTRAPOLATED_SHARE = 0.1
 
 
 @dataclass(frozen=True)
@@ -49,6 +61,7 @@ class CurveIndices:
     d50: float = np.nan
     ep_c: float = np.nan
     imperfection_c: float = np.nan
+    extrapolated: tuple[str, ...] = ()
 
     @property
     def d50c(self) -> float:
@@ -60,18 +73,33 @@ class CurveIndices:
 
 
 def efficiency_by_quadrature(formula: Formula, shape: float, x_max: float, **context) -> tuple[float, float]:
-    """``(eta, eps)`` by adaptive quadrature (reference for the closed forms)."""
+    """``(eta, eps)`` by adaptive quadrature (reference for the closed forms).
+
+    A sharp curve falls from 1/2 to nothing within a few per cent of the cut; over a long
+    interval ``[1, x_max]`` the first Gauss-Kronrod rule can miss that step entirely and
+    report eps of about 0 (Molerus with km1 = 30 on ``[1, 500]`` gave 1.7e-18 instead of
+    0.0113).  Break points close to the cut (``x = 1 +- 1e-3, 1e-2, 0.1``) and then
+    doubling towards ``x_max`` make every subinterval start where the curve still has
+    weight, so the adaptive rule resolves it.
+    """
 
     def curve(x):
         return float(formula.phi(x, shape, **context))
 
-    # Breakpoints of the piecewise formulas keep quad accurate at their kinks.
-    eta, _ = integrate.quad(curve, 0.0, 1.0, points=[0.5], limit=200, epsabs=1e-13, epsrel=1e-12)
+    # 0.5 is the kink of the piecewise formulas; the rest resolve sharp curves near the cut.
+    eta, _ = integrate.quad(curve, 0.0, 1.0, points=[0.5, 0.9, 0.99, 0.999], limit=200, epsabs=1e-13, epsrel=1e-12)
     upper = max(x_max, 1.0)
     eps = 0.0
     if upper > 1.0:
-        eps, _ = integrate.quad(curve, 1.0, upper, limit=400, epsabs=1e-13, epsrel=1e-12)
+        eps, _ = integrate.quad(curve, 1.0, upper, points=_break_points_above_cut(upper), limit=400, epsabs=1e-13, epsrel=1e-12)
     return float(eta), float(eps)
+
+
+def _break_points_above_cut(upper: float) -> list[float]:
+    """Break points on ``(1, upper)``: dense next to the cut, then doubling."""
+    near = [1.001, 1.01, 1.1, 1.5]
+    doubling = 2.0 ** np.arange(1, max(int(np.ceil(np.log2(upper))), 1))
+    return [float(x) for x in (*near, *doubling) if 1.0 < x < upper]
 
 
 def efficiency(formula: Formula, shape: float, x_max: float, **context) -> tuple[float, float]:
@@ -125,13 +153,28 @@ def _relative_size_at(formula: Formula, shape: float, level: float, context: dic
             return optimize.brentq(gap, min(inner, outer), max(inner, outer), xtol=1e-13, rtol=1e-13)
 
 
+def _relative_size_cached(formula: Formula, shape: float, level: float, context: dict) -> float:
+    """:func:`_relative_size_at`, remembered per formula, shape and context: the relative
+    sizes do not depend on d_cut, so the delta method's steps in d_cut and the model
+    averages of a batch ask for the same ones again."""
+    if get_formula(formula.id) is not formula:  # not a registry entry: nothing to key it by
+        return _relative_size_at(formula, shape, level, context)
+    return _relative_size_by_key(formula.id, float(shape), level, tuple(sorted(context.items())))
+
+
+@lru_cache(maxsize=50_000)
+def _relative_size_by_key(formula_id: str, shape: float, level: float, context: tuple) -> float:
+    return _relative_size_at(get_formula(formula_id), shape, level, dict(context))
+
+
 def _numeric_slope(formula: Formula, shape: float, context: dict) -> float:
     """Slope of the actual curve at x = 1 for curves with bypass or fish-hook (central difference)."""
     h = 1e-6
     return float((formula.phi(1.0 + h, shape, **context) - formula.phi(1.0 - h, shape, **context)) / (2 * h))
 
 
-def curve_indices(formula, d_cut: float, shape: float, *, delta_max: float, **context) -> CurveIndices:
+def curve_indices(formula, d_cut: float, shape: float, *, delta_max: float, measured_sizes: tuple[float, float] | None = None,
+                  **context) -> CurveIndices:  # fmt: skip
     """All indices of one fitted curve.
 
     Parameters
@@ -142,6 +185,9 @@ def curve_indices(formula, d_cut: float, shape: float, *, delta_max: float, **co
         Curve parameters (``d_cut`` in the size unit of the data).
     delta_max : float
         Largest particle size in the feed, same unit as ``d_cut``.
+    measured_sizes : (float, float), optional
+        Smallest and largest measured size; when given, ``extrapolated`` names the indices
+        that rest on the curve outside them (see the module notes).
     **context
         Extra inputs of the formula (``measured_efficiency`` for (11); ``bypass`` and
         ``fishhook`` for the extended curves: ``d_cut`` is then the corrected cut, the
@@ -150,15 +196,15 @@ def curve_indices(formula, d_cut: float, shape: float, *, delta_max: float, **co
 
     Examples
     --------
-    >>> ind = curve_indices("plitt", 100.0, 2.0, delta_max=600.0)
-    >>> round(ind.d25, 3), round(ind.d75, 3), round(ind.ep, 3)
-    (57.735, 173.205, 57.735)
+    >>> ind = curve_indices("plitt", 100.0, 2.0, delta_max=600.0, measured_sizes=(60.0, 600.0))
+    >>> round(ind.d25, 3), round(ind.d75, 3), round(ind.ep, 3), ind.extrapolated
+    (57.735, 173.205, 57.735, ('d25', 'eta'))
     """
     formula = get_formula(formula)
     eta, eps = efficiency(formula, shape, delta_max / d_cut, **context)
     slope = formula.slope_at_cut(shape) if not formula.extras else _numeric_slope(formula, shape, context)
-    d25 = d_cut * _relative_size_at(formula, shape, 0.75, context)
-    d75 = d_cut * _relative_size_at(formula, shape, 0.25, context)
+    d25 = d_cut * _relative_size_cached(formula, shape, 0.75, context)
+    d75 = d_cut * _relative_size_cached(formula, shape, 0.25, context)
     ep = (d75 - d25) / 2.0
     if "bypass" in context:  # the corrected curve: the same curve without bypass
         corrected = {**context, "bypass": 0.0}
@@ -166,6 +212,10 @@ def curve_indices(formula, d_cut: float, shape: float, *, delta_max: float, **co
         ep_c = d_cut * (_relative_size_at(formula, shape, 0.25, corrected) - _relative_size_at(formula, shape, 0.75, corrected)) / 2.0
     else:
         d50, ep_c = d_cut, ep
+    extrapolated = ()
+    if measured_sizes is not None:
+        extrapolated = extrapolated_indices(formula, d_cut, shape, d25=d25, d75=d75, eta=eta, epsilon=eps, delta_max=delta_max,
+                                            measured_sizes=measured_sizes, **context)  # fmt: skip
     return CurveIndices(
         d_cut=float(d_cut),
         slope=float(slope),
@@ -179,7 +229,44 @@ def curve_indices(formula, d_cut: float, shape: float, *, delta_max: float, **co
         d50=float(d50),
         ep_c=float(ep_c),
         imperfection_c=float(ep_c / d_cut),
+        extrapolated=extrapolated,
     )
+
+
+def extrapolated_indices(formula, d_cut: float, shape: float, *, d25: float, d75: float, eta: float, epsilon: float,
+                         delta_max: float, measured_sizes: tuple[float, float], **context) -> tuple[str, ...]:  # fmt: skip
+    """Names of the indices that rest on the curve outside the measured sizes.
+
+    ``d25`` / ``d75``: outside ``[smallest, largest]``.  ``eta``: the area of the curve
+    on ``0 <= size <= min(smallest, d_cut)`` is more than :data:`EXTRAPOLATED_SHARE` of
+    eta.  ``epsilon``: the area on ``max(largest, d_cut) <= size <= delta_max`` is more
+    than that share of epsilon.
+
+    Examples
+    --------
+    >>> extrapolated_indices("plitt", 1.0, 3.0, d25=0.69, d75=1.44, eta=0.83, epsilon=0.3, delta_max=8.0,
+    ...                      measured_sizes=(0.05, 2.0))
+    ('epsilon',)
+    """
+    formula = get_formula(formula)
+    smallest, largest = measured_sizes
+    flags = [name for name, size in (("d25", d25), ("d75", d75)) if np.isfinite(size) and not smallest <= size <= largest]
+    below = min(smallest / d_cut, 1.0)
+    if eta > 0 and _area(formula, shape, 0.0, below, context) > EXTRAPOLATED_SHARE * eta:
+        flags.append("eta")
+    above, x_max = max(largest / d_cut, 1.0), delta_max / d_cut
+    if epsilon > 0 and x_max > above and _area(formula, shape, above, x_max, context) > EXTRAPOLATED_SHARE * epsilon:
+        flags.append("epsilon")
+    return tuple(flags)
+
+
+def _area(formula: Formula, shape: float, lower: float, upper: float, context: dict) -> float:
+    """Area under the curve between two relative sizes (adaptive quadrature)."""
+    if upper <= lower:
+        return 0.0
+    cuts = [x for x in (0.5, 1.0, *_break_points_above_cut(upper)) if lower < x < upper]
+    area, _ = integrate.quad(lambda x: float(formula.phi(x, shape, **context)), lower, upper, points=cuts or None, limit=400)
+    return float(area)
 
 
 # --- historical approximations (20)-(23) of Shuvalov et al. (2018) ----------------------

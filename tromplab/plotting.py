@@ -327,6 +327,40 @@ def plot_distance_densities(decks: int, c_values, *, bin_edges=None, labels=None
     return ax
 
 
+def plot_batch_overview(fits_table, *, axes=None):
+    """Overview of a large batch: distributions of d_cut, Ep and eta of each experiment's
+    top-ranked fit, and how often each formula ranked first.
+
+    Parameters
+    ----------
+    fits_table : pandas.DataFrame
+        ``Workbench.fits_table()`` (columns ``experiment, formula, rank, d_cut, ep, eta``).
+    axes : array of 4 matplotlib Axes, optional
+
+    Returns
+    -------
+    ndarray of matplotlib Axes
+    """
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    if axes is None:
+        _, axes = plt.subplots(2, 2, figsize=(9, 6.5))
+    axes = np.asarray(axes).ravel()
+    best = fits_table[fits_table["rank"] == 1].drop_duplicates("experiment")
+    for ax, column, label in zip(axes[:3], ("d_cut", "ep", "eta"), ("cut size d_cut", "Ecart probable Ep", "efficiency eta")):
+        values = best[column].to_numpy(dtype=float)
+        values = values[np.isfinite(values)]
+        ax.hist(values, bins=min(40, max(5, int(np.sqrt(values.size)))) if values.size else 5, color="0.45")
+        ax.set_xlabel(f"{label} (top-ranked fit)")
+        ax.set_ylabel("experiments")
+    wins = best["formula"].value_counts()
+    axes[3].barh(wins.index[::-1], wins.to_numpy()[::-1], color="0.45")
+    axes[3].set_xlabel("experiments where the formula ranks first")
+    axes[0].figure.suptitle(f"{best['experiment'].nunique()} experiments")
+    return axes
+
+
 def plot_control_chart(result, quantity: str, *, ax=None, size_unit: str = ""):
     """Control chart of one quantity of a :class:`~tromplab.trend.TrendResult` against the date.
 

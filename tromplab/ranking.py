@@ -11,6 +11,30 @@ squares and AICc order the formulas identically, so the two rankings coincide; t
 differ once models with another number of parameters (bypass, fish-hook) are ranked
 together.  Adequacy (and so the double counting) always comes from the F screen.
 A failed fit ranks last in its experiment and counts as inadequate.
+
+Tie rule
+--------
+Scores that differ by less than the data could ever resolve share their rank (the
+average of the places they occupy):
+
+* by F: relative difference ``|F_a - F_b| <= 1e-4 * F_best_of_group`` (:data:`F_TIE_RTOL`).
+  For curves with the same number of parameters the ratio of F values is the inverse
+  ratio of the sums of squares, and ``n ln(SSR_b / SSR_a)`` is their AICc difference: a
+  relative 1e-4 is an AICc difference below ``1e-4 n`` (0.0013 at n = 13), an evidence
+  ratio within 0.1 % of one for any realistic n.  Differences this small are set by the
+  solver's stopping rule and by floating-point rounding (scaling the sizes by a unit
+  factor moves F by up to about 1e-5 relative), not by the data;
+* by AICc: absolute difference below 1e-3 (:data:`AICC_TIE_ATOL`), the same scale.
+
+A group is anchored at its best member, so ties do not chain: a value joins a group when it
+lies within the tolerance of the group's first (best) value.  The published F values of
+Table 2 (2-4 digits) differ by at least a relative 1.7e-3 where they differ at all, so
+the rule ties only values printed equal, and Table 3 is reproduced as before.
+
+Separately, :data:`INDISTINGUISHABLE_DELTA_AICC` marks formulas the data cannot tell
+apart: those whose AICc lies within 2 of the lowest of the experiment (Burnham & Anderson
+2002, section 2.6: such models have substantial support).  Their ranks stay as computed,
+but the console and the report say in words that the order among them is not evidence.
 """
 
 from __future__ import annotations
@@ -24,20 +48,55 @@ from .screening import DEFAULT_ALPHA, critical_f
 from .tables import read_table
 
 RANK_BY = {"F": False, "aicc": True}  # criterion -> lower is better
+#: Relative difference of F below which two formulas share their rank.
+F_TIE_RTOL = 1e-4
+#: Absolute AICc difference below which two formulas share their rank.
+AICC_TIE_ATOL = 1e-3
+#: AICc difference from the best below which the data cannot tell a formula from the best.
+INDISTINGUISHABLE_DELTA_AICC = 2.0
+TIE_TOLERANCE = {"F": {"rtol": F_TIE_RTOL, "atol": 0.0}, "aicc": {"rtol": 0.0, "atol": AICC_TIE_ATOL}}
 
 
-def ranks_within(scores, *, lower_is_better: bool = False) -> np.ndarray:
-    """Ranks 1..n with ties averaged; missing scores rank after all others.
+def ranks_within(scores, *, lower_is_better: bool = False, rtol: float = 0.0, atol: float = 0.0) -> np.ndarray:
+    """Ranks 1..n, tied scores sharing their average rank; missing scores rank after all others.
+
+    Parameters
+    ----------
+    scores : array_like
+        One score per formula (nan for a failed fit).
+    lower_is_better : bool
+        True for AICc, False for F.
+    rtol, atol : float
+        Tie tolerance: a score ties with the best score of its group when they differ by
+        at most ``atol + rtol * |best|`` (0, 0: only equal scores tie).
 
     Examples
     --------
     >>> ranks_within([5.0, 9.0, 9.0, 1.0]).tolist()
     [3.0, 1.5, 1.5, 4.0]
+    >>> ranks_within([28.3858, 28.3856, 28.31, 16.0], rtol=1e-4).tolist()
+    [1.5, 1.5, 3.0, 4.0]
     """
     scores = np.asarray(scores, dtype=float)
     key = scores if lower_is_better else -scores
     key = np.where(np.isnan(key), np.inf, key)
-    return stats.rankdata(key, method="average")
+    order = np.argsort(key, kind="stable")
+    ranks = np.empty(key.size)
+    start = 0
+    while start < key.size:
+        leader = key[order[start]]
+        stop = start + 1
+        while stop < key.size and _ties(key[order[stop]], leader, rtol, atol):
+            stop += 1
+        ranks[order[start:stop]] = (start + 1 + stop) / 2.0  # average of places start+1 .. stop
+        start = stop
+    return ranks
+
+
+def _ties(value: float, leader: float, rtol: float, atol: float) -> bool:
+    if value == leader:  # also inf == inf: failed fits share the last places
+        return True
+    return bool(np.isfinite(value) and np.isfinite(leader) and value - leader <= atol + rtol * abs(leader))
 
 
 def rank_formulas(table: pd.DataFrame, *, by: str = "F", key: str = "equation") -> pd.DataFrame:
@@ -70,12 +129,12 @@ def rank_formulas(table: pd.DataFrame, *, by: str = "F", key: str = "equation") 
 
 
 def add_ranks(fits: pd.DataFrame, *, by: str = "F") -> pd.DataFrame:
-    """Copy of a ``fits`` table with a ``rank`` column (within each experiment)."""
+    """Copy of a ``fits`` table with a ``rank`` column (within each experiment, tie rule of the module)."""
     if by not in RANK_BY:
         raise ValueError(f"unknown ranking criterion {by!r}; choose one of {', '.join(RANK_BY)}")
     out = fits.copy()
     out["rank"] = out.groupby("experiment", sort=False)[by].transform(
-        lambda s: ranks_within(s.to_numpy(), lower_is_better=RANK_BY[by])
+        lambda s: ranks_within(s.to_numpy(), lower_is_better=RANK_BY[by], **TIE_TOLERANCE[by])
     )
     return out
 
@@ -109,3 +168,70 @@ def read_f_table(path, *, alpha: float = DEFAULT_ALPHA, use_given_marks: bool = 
     if duplicated.any():
         raise table.error("the same experiment and equation appear twice", index=int(np.flatnonzero(duplicated)[0]), column="equation")
     return frame
+
+
+def add_delta_aicc(fits: pd.DataFrame) -> pd.Series:
+    """AICc minus the lowest AICc of the same experiment (0 for the best; nan for failed fits)."""
+    return fits["aicc"] - fits.groupby("experiment", sort=False)["aicc"].transform("min")
+
+
+def fit_verdicts(fits: pd.DataFrame, *, by: str = "F", measured_sizes: tuple[float, float] | None = None) -> list[str]:
+    """Plain-language statements about the fits of one experiment, for the console and the report.
+
+    Says when the data cannot tell formulas apart (AICc within
+    :data:`INDISTINGUISHABLE_DELTA_AICC` of the lowest), which formulas share a rank by
+    the tie rule, which formulas are adequate by F while their residuals are systematic or
+    not normal, and which indices are extrapolated beyond the measured sizes.
+
+    Parameters
+    ----------
+    fits : DataFrame
+        Rows of ``fits.csv`` for one experiment (columns ``formula``, ``success``, ``rank``,
+        ``adequate``, ``delta_aicc``, ``residuals``, ``extrapolated``).
+    by : {"F", "aicc"}
+        The ranking criterion (names the tie rule).
+    measured_sizes : (float, float), optional
+        Smallest and largest measured size, quoted in the extrapolation statement.
+    """
+    good = fits[fits["success"].astype(bool)]
+    statements = []
+    close = good[good["delta_aicc"] < INDISTINGUISHABLE_DELTA_AICC]
+    if len(close) >= 2:
+        if len(close) == len(good):
+            statements.append(f"The data cannot tell the {len(good)} formulas apart: every AICc lies within "
+                              f"{INDISTINGUISHABLE_DELTA_AICC:g} of the lowest, so their order is no evidence for one formula.")  # fmt: skip
+        else:
+            statements.append(f"The data cannot tell apart {_names(close)}: their AICc lie within {INDISTINGUISHABLE_DELTA_AICC:g} "
+                              "of the lowest, so their order is no evidence.")  # fmt: skip
+    rule = f"F equal to within a relative {F_TIE_RTOL:.0e}" if by == "F" else f"AICc equal to within {AICC_TIE_ATOL:.0e}"
+    ranked = good[good["rank"].notna()]
+    for rank, group in ranked.groupby("rank", sort=True):
+        if len(group) > 1:
+            statements.append(f"Shared rank {rank:g}: {_names(group)} ({rule}).")
+    adequate = good[good["adequate"].astype(bool) & good["residuals"].fillna("").str.contains("systematic|not normal")]
+    for verdict, group in adequate.groupby("residuals", sort=False):
+        meaning = []
+        if "systematic" in verdict:
+            meaning.append("the curve misses the data in a pattern the F test does not see (runs test)")
+        if "not normal" in verdict:
+            meaning.append("the errors are not normal as the F test assumes (Shapiro-Wilk)")
+        reason = "; ".join(meaning)
+        statements.append(f"Adequate by F, but the residuals are {verdict}: {_names(group, of=len(good))}. "
+                          f"{reason[0].upper()}{reason[1:]}, so 'adequate' overstates these fits.")  # fmt: skip
+    flags = good["extrapolated"].fillna("").astype(str)
+    where = f" ({measured_sizes[0]:.4g} to {measured_sizes[1]:.4g})" if measured_sizes else ""
+    parts = []
+    for index in ("d25", "d75", "eta", "epsilon"):
+        holders = good[flags.str.split(";").apply(lambda names, index=index: index in names)]
+        if len(holders):
+            parts.append(f"{index} of {_names(holders, of=len(good))}")
+    if parts:
+        statements.append(f"Extrapolated beyond the measured sizes{where}: {'; '.join(parts)}.")
+    return statements
+
+
+def _names(rows: pd.DataFrame, *, of: int | None = None) -> str:
+    names = list(rows["formula"])
+    if of is not None and len(names) == of and of > 2:
+        return f"all {of} formulas"
+    return ", ".join(names)

@@ -175,9 +175,11 @@ def build_report(bench: Workbench, balances: list[MassBalance], *, source: str, 
                                f"partition_{partition_to}", "used") if c in classes.columns]  # fmt: skip
         report.add("balance", "table", classes[columns])
     view = ["rank", "equation", "formula", "n", "F", "F_crit", "adequate", "d_cut", "shape_name", "shape", "eta", "epsilon", "ep",
-            "imperfection", "runs_p"]  # fmt: skip
+            "imperfection", "delta_aicc", "runs_p", "normality_p", "residuals", "extrapolated"]  # fmt: skip
     for experiment, group in fits.groupby("experiment", sort=False):
         report.add("fits", "table", group.sort_values("rank")[view], caption=f"Experiment {experiment}")
+        for statement in bench.verdicts(experiment) if experiment in bench.experiments else []:
+            report.add("fits", "warning", statement)
     for experiment in bench.experiments:
         best = bench.best_fit(experiment)
         if best is not None:

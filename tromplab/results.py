@@ -122,7 +122,8 @@ def workbench_repr(bench) -> str:
     best = []
     for experiment in bench.experiments[:4]:
         fit = bench.best_fit(experiment)
-        best.append(f"{experiment}: {fit.formula.id if fit else 'none'}")
+        tied = len(bench.top_ranked(experiment)) - 1
+        best.append(f"{experiment}: {fit.formula.id if fit else 'none'}" + (f" (tied with {tied} more)" if tied > 0 else ""))
     more = ", ..." if len(bench.experiments) > 4 else ""
     failed = f", {len(bench.failures)} experiment(s) not fitted" if bench.failures else ""
     return (f"<Workbench: {len(bench.experiments)} experiments x {len(bench.formulas)} formulas, {len(bench.fits)} fits "

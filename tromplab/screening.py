@@ -10,6 +10,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 from scipy import stats
@@ -34,6 +35,7 @@ class FisherScreen:
         return bool(self.F > self.F_crit)
 
 
+@lru_cache(maxsize=4096)  # a batch asks for the same few (n, alpha, p) thousands of times
 def critical_f(n: int, *, alpha: float = DEFAULT_ALPHA, n_params: int = 2) -> float:
     """Critical value ``F(1 - alpha; n - 1, n - n_params)``.
 

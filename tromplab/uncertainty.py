@@ -25,7 +25,8 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from .curves import CurveFit, fit_formula, formula_context
+from .curves import CurveFit, formula_context, with_lmfit
+from .engine import refit_resamples
 from .indices import curve_indices
 from .points import TrompPoints
 
@@ -69,16 +70,13 @@ class Domain:
 
     def backward(self, value):
         value = np.asarray(value, dtype=float)
-        with np.errstate(over="ignore"):  # a limit beyond the largest float is an unbounded side: inf
-            return self._backward(value)
-
-    def _backward(self, value):
-        if self.scale == "log":
-            return self.lower + np.exp(value)
-        if self.scale == "neglog":
-            return self.upper - np.exp(value)
-        if self.scale == "logit":
-            return 1.0 / (1.0 + np.exp(-value))
+        with np.errstate(over="ignore"):  # an interval end far out on the log scale is infinite, not an error
+            if self.scale == "log":
+                return self.lower + np.exp(value)
+            if self.scale == "neglog":
+                return self.upper - np.exp(value)
+            if self.scale == "logit":
+                return 1.0 / (1.0 + np.exp(-value))
         return value
 
     def slope(self, value):
@@ -243,7 +241,7 @@ def interval_table(fit: CurveFit, *, level: float = 0.95, delta_max: float | Non
     dof = fit.points.n - len(fit.fit.names)
     two_sided = stats.t.ppf(0.5 + level / 2.0, dof) if dof > 0 else np.nan
     one_sided = stats.t.ppf(level, dof) if dof > 0 else np.nan
-    profiled = fit.fit.profile_intervals(level) if profile else {}
+    profiled = with_lmfit(fit).fit.profile_intervals(level) if profile else {}  # engine fits: lmfit from the optimum
     bounds = {spec.name: (spec.lower, spec.upper) for spec in _specs(fit)}
     rows = []
     for name in fit.fit.names:
@@ -380,25 +378,23 @@ def bootstrap(fit: CurveFit, *, n: int = 200, seed: int = 0, method: str = "resi
     scaled = root_weights * (points.partition_fine - fitted)
     residuals = (scaled - scaled.mean()) * np.sqrt(points.n / max(points.n - p, 1))
     delta_max = fit.options.delta_max if delta_max is None else delta_max
-    rows = []
+    samples = []
     for i in range(n):
         if progress is not None:
             progress(i + 1, n)
         if method == "residuals":
             sample = TrompPoints(points.experiment, points.size, fitted + rng.choice(residuals, points.n) / root_weights,
                                  points.weight, resampled=True)  # fmt: skip
+            samples.append(sample)
         else:
             while True:
                 pick = rng.integers(0, points.n, points.n)
                 if np.unique(points.size[pick]).size > p:
                     break
             weight = None if points.weight is None else points.weight[pick]
-            sample = TrompPoints(points.experiment, points.size[pick], points.partition_fine[pick], weight, resampled=True)
-        refit = fit_formula(sample, fit.formula, alpha=fit.options.alpha, delta_max=delta_max, global_search=False,
-                            starts=[dict(fit.fit.values)], size_unit=fit.options.size_unit)  # fmt: skip
-        if not refit.success:
-            continue
-        rows.append({**refit.fit.values, **{k: getattr(refit.indices, k) for k in INDEX_NAMES}})
+            samples.append(TrompPoints(points.experiment, points.size[pick], points.partition_fine[pick], weight, resampled=True))
+    refits = refit_resamples(fit, samples, delta_max=delta_max)  # all resamples in one batched call
+    rows = [{**refit.fit.values, **{k: getattr(refit.indices, k) for k in INDEX_NAMES}} for refit in refits if refit.success]
     bounds = {name: (quantity_domain(name, fit.formula).lower, quantity_domain(name, fit.formula).upper)
               for name in (*fit.fit.names, *INDEX_NAMES)}  # fmt: skip
     for spec in _specs(fit):

@@ -21,7 +21,7 @@ import pandas as pd
 from .curves import CurveFit, failed_fit, fit_formula
 from .formulas import Formula, select_formulas
 from .points import TrompPoints
-from .ranking import add_ranks, rank_formulas
+from .ranking import add_delta_aicc, add_ranks, fit_verdicts, rank_formulas
 from .screening import DEFAULT_ALPHA
 
 #: Columns of ``fits.csv``, in order.
@@ -29,7 +29,8 @@ FIT_COLUMNS = (
     "experiment", "equation", "formula", "n", "d_cut", "d_cut_stderr", "shape_name", "shape", "shape_stderr",
     "ssr", "F", "F_crit", "adequate", "rank", "eta", "epsilon", "slope", "d25", "d75", "ep", "imperfection",
     "d50", "d50c", "ep_c", "imperfection_c",
-    "aic", "aicc", "bic", "bypass", "fishhook", "extras", "runs_p", "normality_p", "x_break", "success", "message", "warnings",
+    "aic", "aicc", "delta_aicc", "bic", "bypass", "fishhook", "extras", "runs_p", "normality_p", "residuals", "extrapolated",
+    "x_break", "success", "message", "warnings",
 )  # fmt: skip
 
 
@@ -65,6 +66,7 @@ class Workbench:
         ranked = add_ranks(table[in_ranking], by=self.rank_by)
         table["rank"] = ranked["rank"]  # curves kept out of the ranking get no rank
         table.loc[table["experiment"].isin(list(self.failures)), "rank"] = np.nan
+        table["delta_aicc"] = add_delta_aicc(table)
         return table.reindex(columns=list(FIT_COLUMNS))
 
     @property
@@ -73,13 +75,25 @@ class Workbench:
         return tuple(f for f in self.formulas if self.rank_extended or f.family == "paper")
 
     def best_fit(self, experiment: str) -> CurveFit | None:
-        """The top-ranked successful fit of an experiment."""
+        """The top-ranked successful fit of an experiment; among fits sharing the top rank
+        (indistinguishable by the tie rule) the one with the lowest sum of squares."""
+        best = self._best_formulas.get(experiment)
+        if best is None:
+            return None
+        return next(f for f in self.fits_of(experiment) if f.formula.id == best)
+
+    @cached_property
+    def _best_formulas(self) -> dict[str, str]:
+        # one pass over the table instead of a scan per experiment
+        table = self._fits_frame
+        rows = table[table["success"] & table["rank"].notna()].sort_values(["rank", "ssr", "equation"], kind="stable")
+        return dict(rows.drop_duplicates("experiment")[["experiment", "formula"]].itertuples(index=False))
+
+    def top_ranked(self, experiment: str) -> pd.DataFrame:
+        """Rows of the fits table that share the top rank of ``experiment`` (several when tied)."""
         table = self._fits_frame
         rows = table[(table["experiment"] == experiment) & table["success"] & table["rank"].notna()]
-        if rows.empty:
-            return None
-        best = rows.sort_values("rank").iloc[0]["formula"]
-        return next(f for f in self.fits_of(experiment) if f.formula.id == best)
+        return rows[rows["rank"] == rows["rank"].min()]
 
     def ranking_table(self) -> pd.DataFrame:
         """Ranks per experiment, points and place per formula (failed experiments left out)."""
@@ -92,12 +106,31 @@ class Workbench:
         ranking.insert(0, "equation", ranking["formula"].map(equation))
         return ranking.sort_values(["place", "equation"]).reset_index(drop=True)
 
+    def verdicts(self, experiment: str) -> list[str]:
+        """Plain-language statements on the fits of an experiment (:func:`tromplab.ranking.fit_verdicts`)."""
+        table = self._fits_frame
+        fits = self.fits_of(experiment)
+        sizes = (float(fits[0].points.size.min()), float(fits[0].points.size.max())) if fits else None
+        return fit_verdicts(table[table["experiment"] == experiment], by=self.rank_by, measured_sizes=sizes)
+
     def fits_of(self, experiment: str) -> list[CurveFit]:
-        return [fit for fit in self.fits if fit.experiment == experiment]
+        return list(self.fits_by_experiment().get(experiment, []))
+
+    def fits_by_experiment(self) -> dict[str, list[CurveFit]]:
+        """The fits grouped by experiment, in batch order."""
+        return self._by_experiment
+
+    @cached_property
+    def _by_experiment(self) -> dict[str, list[CurveFit]]:
+        grouped: dict[str, list[CurveFit]] = {}
+        for fit in self.fits:
+            grouped.setdefault(fit.experiment, []).append(fit)
+        return grouped
 
     @property
     def experiments(self) -> list[str]:
-        return list(dict.fromkeys(fit.experiment for fit in self.fits))
+        return list(self._by_experiment)
+
 
     # --- readable views and saving (tromplab.results) ---------------------------------------
     def __repr__(self) -> str:
@@ -155,6 +188,10 @@ class Workbench:
         return save_workbench(self, directory)
 
 
+#: Experiments per unit of work: fixed, so that results do not depend on the number of workers.
+CHUNK_SIZE = 64
+
+
 def fit_experiments(
     experiments: Sequence[TrompPoints],
     *,
@@ -164,13 +201,18 @@ def fit_experiments(
     rank_by: str = "F",
     rank_extended: bool = False,
     progress: Callable[[int, int, str], None] | None = None,
+    jobs: int | None = 1,
+    client=None,
+    engine: bool = True,
     size_unit: str = "",
 ) -> Workbench:
     """Fit, screen and rank ``formulas`` (default: all nine) on each experiment.
 
     Parameters
     ----------
-    experiments : sequence of TrompPoints
+    experiments : sequence of TrompPoints, or a Dask DataFrame of points
+        A Dask DataFrame (columns ``experiment, size, partition_fine[, weight]``) is
+        read partition by partition into points.
     formulas : iterable of ids or equation numbers, optional
     alpha : float
         Significance level of the Fisher screen.
@@ -182,7 +224,16 @@ def fit_experiments(
         Rank the extended curves (bypass, fish-hook) with the nine; by default they are
         fitted and reported but kept out of the paper's ranking.
     progress : callable, optional
-        Called as ``progress(i, total, experiment)`` before each experiment.
+        Called as ``progress(done, total, experiment)`` as experiments are fitted.
+    jobs : int or None
+        Worker processes (None or 0: all cores).  The experiments are cut into chunks of
+        :data:`CHUNK_SIZE` whatever ``jobs`` is, so the results are identical for any
+        number of workers.
+    client : dask.distributed.Client, optional
+        Run the chunks on this Dask cluster instead of local processes.
+    engine : bool
+        Fit with the batched engine (:mod:`tromplab.engine`); False fits one experiment
+        and formula at a time with :func:`tromplab.curves.fit_formula`.
     size_unit : str
         Unit of the sizes, recorded on every fit (``CurveFit.options``).
 
@@ -198,20 +249,87 @@ def fit_experiments(
     >>> bench.ranking()[["formula", "place"]].values.tolist()
     [['plitt', 1], ['lognormal', 2], ['molerus', 3]]
     """
+    experiments = _as_points(experiments)
     chosen = select_formulas(formulas)
-    fits, failures, notes = [], {}, {}
-    for i, points in enumerate(experiments):
-        if progress is not None:
-            progress(i + 1, len(experiments), points.experiment)
+    failures, notes, fittable = {}, {}, []
+    for points in experiments:
         if points.n <= 2:
             failures[points.experiment] = (
                 f"experiment '{points.experiment}' has {points.n} points; the Fisher screen needs at least 3"
             )
             continue
-        notes[points.experiment] = data_notes(points)
-        for formula in chosen:
-            fits.append(_fit_guarded(points, formula, alpha, delta_max, size_unit))
-    return Workbench(tuple(fits), failures, chosen, rank_by, alpha, rank_extended, {k: v for k, v in notes.items() if v})
+        fittable.append(points)
+        found = data_notes(points)
+        if found:
+            notes[points.experiment] = found
+    chunks = [fittable[i : i + CHUNK_SIZE] for i in range(0, len(fittable), CHUNK_SIZE)]
+    options = {"formulas": tuple(f.id for f in chosen), "alpha": alpha, "delta_max": delta_max, "engine": engine,
+               "size_unit": size_unit}
+    fits = []
+    for chunk, chunk_fits in zip(chunks, _map_chunks(chunks, options, jobs=jobs, client=client)):
+        fits += chunk_fits
+        if progress is not None:
+            progress(len(fits) // max(len(chosen), 1), len(fittable), chunk[-1].experiment)
+    return Workbench(tuple(fits), failures, chosen, rank_by, alpha, rank_extended, notes)
+
+
+def fit_chunk(experiments: Sequence[TrompPoints], *, formulas, alpha, delta_max, engine=True, size_unit="") -> list[CurveFit]:
+    """Fits of ``formulas`` to ``experiments``, experiment by experiment in formula order.
+
+    Batchable formulas go through the engine for all experiments at once; the others
+    (and a formula whose batch raised) are fitted one by one.
+    """
+    from .engine import fit_formula_batch, is_batchable
+
+    per_formula = []
+    for formula in select_formulas(formulas):
+        batch = None
+        if engine and is_batchable(formula):
+            try:
+                batch = fit_formula_batch(experiments, formula, alpha=alpha, delta_max=delta_max, size_unit=size_unit)
+            except Exception:  # a broken batch falls back to single fits, which report per fit
+                batch = None
+        per_formula.append(batch or [_fit_guarded(points, formula, alpha, delta_max, size_unit) for points in experiments])
+    return [fits[i] for i in range(len(experiments)) for fits in per_formula]
+
+
+def _map_chunks(chunks, options, *, jobs, client):
+    """Yield the fits of each chunk, in order: in process, in a process pool, or on Dask."""
+    yield from _map_work(_fit_chunk_star, chunks, options, jobs=jobs, client=client)
+
+
+def _map_work(function, chunks, argument, *, jobs, client):
+    """Yield ``function(argument, chunk)`` for each chunk, in order: in process, in a
+    process pool of ``jobs`` workers (None: all cores), or on a Dask client."""
+    import functools
+    import os
+
+    work = functools.partial(function, argument)
+    if client is not None:
+        for future in client.map(work, chunks, pure=False):
+            yield future.result()
+        return
+    workers = min(jobs or os.cpu_count() or 1, len(chunks))
+    if workers <= 1:
+        yield from map(work, chunks)
+        return
+    from concurrent.futures import ProcessPoolExecutor
+
+    with ProcessPoolExecutor(max_workers=workers) as pool:
+        yield from pool.map(work, chunks)
+
+
+def _fit_chunk_star(options, chunk):
+    return fit_chunk(chunk, **options)
+
+
+def _as_points(experiments) -> list[TrompPoints]:
+    """Points from a sequence of TrompPoints or a Dask DataFrame of points."""
+    if hasattr(experiments, "dask") and hasattr(experiments, "compute"):
+        from .points import points_from_frame
+
+        return points_from_frame(experiments.compute(), source="dask dataframe")
+    return list(experiments)
 
 
 def load(directory) -> Workbench:
@@ -245,7 +363,7 @@ def data_notes(points: TrompPoints) -> tuple[str, ...]:
     return tuple(notes)
 
 
-def model_averages(bench: Workbench, *, level: float = 0.95) -> pd.DataFrame:
+def model_averages(bench: Workbench, *, level: float = 0.95, jobs: int | None = 1, client=None) -> pd.DataFrame:
     """Akaike-weighted d_cut, Ep and eta per experiment (the formulas ranked by the batch).
 
     Parameters
@@ -253,23 +371,34 @@ def model_averages(bench: Workbench, *, level: float = 0.95) -> pd.DataFrame:
     bench : Workbench
     level : float
         Confidence level of the intervals, 0..1.
+    jobs, client
+        Spread the experiments over worker processes or a Dask cluster as
+        :func:`fit_experiments` does; the table is the same whatever they are.
 
     Returns
     -------
     pandas.DataFrame
         ``experiment, quantity, value, stderr, low, high`` and ``weight_<formula>`` columns.
-    """
-    from .uncertainty import model_average
 
-    frames = []
-    for experiment in bench.experiments:
-        fits = [f for f in bench.fits_of(experiment) if f.success and f.formula in bench.ranked_formulas]
-        if fits:
-            frames.append(model_average(fits, level=level).assign(experiment=experiment))
+    """
+    ranked = {f.id for f in bench.ranked_formulas}
+    groups = []
+    for fits in bench.fits_by_experiment().values():
+        chosen = [f for f in fits if f.success and f.formula.id in ranked]
+        if chosen:
+            groups.append(chosen)
+    chunks = [groups[i : i + CHUNK_SIZE] for i in range(0, len(groups), CHUNK_SIZE)]
+    frames = [frame for chunk in _map_work(_averages_of_chunk, chunks, level, jobs=jobs, client=client) for frame in chunk]
     if not frames:
         return pd.DataFrame()
     table = pd.concat(frames, ignore_index=True)
     return table[["experiment", *[c for c in table.columns if c != "experiment"]]]
+
+
+def _averages_of_chunk(level, groups) -> list[pd.DataFrame]:
+    from .uncertainty import model_average
+
+    return [model_average(fits, level=level).assign(experiment=fits[0].experiment) for fits in groups]
 
 
 def _fit_guarded(points, formula, alpha, delta_max, size_unit="") -> CurveFit:

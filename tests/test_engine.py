@@ -1,0 +1,194 @@
+"""The batched engine reaches the single fit's optimum; workers, Dask and the CLI's scale options."""
+
+import numpy as np
+import pandas as pd
+import pytest
+from numpy.testing import assert_allclose
+
+from tromplab import workbench
+from tromplab.cli import main
+from tromplab.curves import fit_formula, with_lmfit
+from tromplab.engine import (
+    check_bootstrap_request,
+    fit_formula_batch,
+    is_batchable,
+    refit_resamples,
+    shuvalov_breaks,
+)
+from tromplab.formulas import ALL_FORMULAS, FORMULAS, get_formula, shuvalov_break
+from tromplab.points import TrompPoints
+from tromplab.workbench import fit_experiments
+
+BATCHABLE = [f for f in ALL_FORMULAS if is_batchable(f)]
+
+
+def synthetic(seed: int) -> TrompPoints:
+    """A noisy curve of one of the nine formulas (8-12 sizes, slope -0.3 to -2, noise 0.01-0.03)."""
+    rng = np.random.default_rng(seed)
+    truth = FORMULAS[seed % len(FORMULAS)]
+    n = int(rng.integers(8, 13))
+    d_cut = float(rng.uniform(20, 200))
+    sizes = d_cut * np.geomspace(rng.uniform(0.1, 0.4), rng.uniform(2.5, 6), n)
+    shape = truth.clip_shape(truth.shape_for_slope(-rng.uniform(0.3, 2.0)))
+    context = {"measured_efficiency": 0.75} if truth.context_from_efficiency else {}
+    phi = truth(sizes, d_cut, shape, **context) + rng.normal(0, rng.uniform(0.01, 0.03), n)
+    weight = rng.uniform(0.5, 2.0, n) if seed % 5 == 0 else None
+    return TrompPoints(f"s{seed}", sizes, np.clip(phi, 0, 1), weight)
+
+
+EXPERIMENTS = [synthetic(seed) for seed in range(27)]
+
+
+def test_every_formula_is_batched_except_curves_with_two_extras():
+    assert {f.id for f in ALL_FORMULAS if not is_batchable(f)} == {f.id for f in ALL_FORMULAS if len(f.extras) >= 2}
+    assert all(is_batchable(f) for f in FORMULAS)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("formula", BATCHABLE, ids=[f.id for f in BATCHABLE])
+def test_batched_optimum_is_at_least_the_single_fit_optimum(formula):
+    batch = fit_formula_batch(EXPERIMENTS, formula)
+    for batched, points in zip(batch, EXPERIMENTS):
+        single = fit_formula(points, formula)
+        assert batched.success and single.success
+        assert batched.fit.ssr <= single.fit.ssr * (1 + 1e-8) + 1e-14, points.experiment
+        if batched.fit.ssr >= single.fit.ssr * (1 - 1e-6):  # same optimum: same parameters and errors
+            for name in batched.fit.names:
+                assert_allclose(batched.fit.values[name], single.fit.values[name], rtol=2e-3, atol=1e-6, err_msg=name)
+            assert_allclose(batched.indices.eta, single.indices.eta, rtol=1e-3)
+            if np.isfinite(single.fit.stderr["d_cut"]) and not single.fit.at_bound:
+                assert_allclose(batched.fit.stderr["d_cut"], single.fit.stderr["d_cut"], rtol=0.05)
+        kinds = [[w.split(" ")[0] for w in fit.warnings] for fit in (batched, single)]  # the same checks fire
+        assert kinds[0] == kinds[1] or batched.fit.ssr < single.fit.ssr * (1 - 1e-6)
+
+
+@pytest.mark.parametrize("formula_id", ["luckie_austin", "shuvalov"])
+def test_piecewise_optimum_is_not_above_a_dense_search(formula_id):
+    # (10) and (11) have kinks; the reference is a dense grid in (ln d_cut, shape), not the single fit
+    formula = get_formula(formula_id)
+    points = [synthetic(seed) for seed in (7, 8, 16, 17)]
+    for fit in fit_formula_batch(points, formula):
+        shapes = np.geomspace(*formula.shape_bounds, 300)
+        cuts = np.exp(np.linspace(np.log(fit.points.size[0] / 2), np.log(fit.points.size[-1] * 2), 300))
+        best = min(
+            float(np.sum((formula(fit.points.size, cut, shape, **fit.context) - fit.points.partition_fine) ** 2))
+            for shape in shapes[::3]
+            for cut in cuts[::3]
+        )
+        assert fit.fit.ssr <= best * (1 + 1e-9)
+
+
+@pytest.mark.parametrize("kr", [0.1, 0.7, 2.0, 5.0, 30.0])
+def test_vectorised_break_points_match_the_scalar_solver(kr):
+    for efficiency in (0.45, 0.5, 0.6, 0.75, 0.9, 0.99):
+        try:
+            expected = shuvalov_break(kr, efficiency)
+        except ValueError:  # no break point: the nearer end
+            expected = 1.0 if efficiency < 0.5 else 0.0
+        assert_allclose(shuvalov_breaks(kr, efficiency), expected, atol=1e-12)
+
+
+def test_engine_fit_becomes_an_lmfit_result_with_the_same_optimum():
+    fit = fit_formula_batch(EXPERIMENTS[:1], "plitt")[0]
+    assert fit.fit.raw is None
+    polished = with_lmfit(fit)
+    assert polished.fit.raw is not None and polished.fit.minimizer is not None
+    assert_allclose(polished.fit.ssr, fit.fit.ssr, rtol=1e-8)
+    assert_allclose(polished.fit.values["d_cut"], fit.d_cut, rtol=1e-4)
+
+
+def test_too_few_points_give_a_failed_fit_and_the_batch_goes_on():
+    short = TrompPoints("short", [10.0, 20.0], [0.8, 0.2])
+    fits = fit_formula_batch([short, EXPERIMENTS[1]], "plitt_bypass")
+    assert not fits[0].success and "3 parameters" in fits[0].message
+    assert fits[1].success
+
+
+def test_batched_bootstrap_refits_match_single_refits():
+    fit = fit_formula(EXPERIMENTS[4], "lognormal")
+    rng = np.random.default_rng(1)
+    samples = [
+        TrompPoints("b", fit.points.size, np.clip(fit.predict(fit.points.size) + rng.normal(0, 0.02, fit.points.n), 0, 1))
+        for _ in range(12)
+    ]
+    batched = refit_resamples(fit, samples)
+    for refit, sample in zip(batched, samples):
+        single = fit_formula(sample, fit.formula, global_search=False, starts=[dict(fit.fit.values)])
+        assert refit.fit.ssr <= single.fit.ssr * (1 + 1e-8) + 1e-14
+        assert_allclose(refit.d_cut, single.d_cut, rtol=1e-4)
+        assert_allclose(refit.indices.ep, single.indices.ep, rtol=1e-3)
+
+
+def test_absurd_bootstrap_is_refused_before_work():
+    assert check_bootstrap_request(1000, n_fits=9) < 60
+    with pytest.raises(ValueError, match="more than the 100,000 resamples"):
+        check_bootstrap_request(10_000_000, n_fits=1)
+    with pytest.raises(ValueError, match="refits"):
+        check_bootstrap_request(50_000, n_fits=9 * 1000)
+
+
+def _write(tmp_path, experiments):
+    path = tmp_path / "points.csv"
+    frames = [p.to_frame() for p in experiments]
+    pd.concat([f if "weight" in f else f.assign(weight=1.0) for f in frames]).to_csv(path, index=False)
+    return path
+
+
+def test_output_is_byte_identical_whatever_the_number_of_workers(tmp_path, monkeypatch):
+    monkeypatch.setattr(workbench, "CHUNK_SIZE", 4)  # several chunks from a small batch
+    path = _write(tmp_path, EXPERIMENTS[:10])
+    outputs = {}
+    for jobs in (1, 2, 3):
+        out = tmp_path / f"jobs{jobs}"
+        assert main(["fit", str(path), "-o", str(out), "--jobs", str(jobs), "--no-figures", "--formulas", "plitt,11"]) == 0
+        outputs[jobs] = {name: (out / name).read_bytes() for name in ("fits.csv", "ranking.csv", "averages.csv")}
+    assert outputs[1] == outputs[2] == outputs[3]
+
+
+def test_engine_and_single_fits_give_the_same_table():
+    batched = fit_experiments(EXPERIMENTS[:6], formulas=["plitt", "luckie_austin"]).fits_table()
+    single = fit_experiments(EXPERIMENTS[:6], formulas=["plitt", "luckie_austin"], engine=False).fits_table()
+    assert list(batched["experiment"]) == list(single["experiment"])
+    assert (batched["rank"].to_numpy() == single["rank"].to_numpy()).all()
+    assert_allclose(batched["ssr"], single["ssr"], rtol=1e-6)
+    assert_allclose(batched["d_cut"], single["d_cut"], rtol=1e-3)
+
+
+@pytest.mark.slow
+def test_dask_cluster_gives_the_serial_results(monkeypatch):
+    distributed = pytest.importorskip("dask.distributed")
+    dd = pytest.importorskip("dask.dataframe")
+    monkeypatch.setattr(workbench, "CHUNK_SIZE", 3)
+    experiments = EXPERIMENTS[:7]
+    serial = fit_experiments(experiments, formulas=["plitt", "rosin_rammler"]).fits_table()
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False, dashboard_address=None) as cluster:
+        with distributed.Client(cluster) as client:
+            on_dask = fit_experiments(experiments, formulas=["plitt", "rosin_rammler"], client=client).fits_table()
+    pd.testing.assert_frame_equal(on_dask, serial)
+    frames = [p.to_frame() for p in experiments]
+    frames = [f if "weight" in f else f.assign(weight=1.0) for f in frames]
+    frame = dd.from_pandas(pd.concat(frames, ignore_index=True), npartitions=3)
+    from_dask_frame = fit_experiments(frame, formulas=["plitt", "rosin_rammler"]).fits_table()
+    pd.testing.assert_frame_equal(from_dask_frame.drop(columns="message"), serial.drop(columns="message"))
+
+
+def test_large_batches_get_one_overview_figure_and_parquet_tables(tmp_path):
+    pytest.importorskip("pyarrow")
+    experiments = [synthetic(seed) for seed in range(23)]  # more than the per-experiment figure limit
+    path = _write(tmp_path, experiments)
+    out = tmp_path / "out"
+    assert main(["fit", str(path), "-o", str(out), "--formulas", "plitt", "--format", "parquet", "--jobs", "1"]) == 0
+    assert (out / "overview.png").exists() and not list(out.glob("curves_*.png"))
+    table = pd.read_parquet(out / "fits.parquet")
+    assert len(table) == 23 and set(table["experiment"]) == {p.experiment for p in experiments}
+    out_best = tmp_path / "best"
+    few = _write(tmp_path, experiments[:3])
+    assert main(["fit", str(few), "-o", str(out_best), "--formulas", "plitt,9", "--figures", "best", "--jobs", "1"]) == 0
+    assert len(list(out_best.glob("curves_*.png"))) == 3
+
+
+def test_cli_refuses_an_absurd_bootstrap_before_fitting(tmp_path, capsys):
+    path = _write(tmp_path, EXPERIMENTS[:1])
+    assert main(["fit", str(path), "-o", str(tmp_path / "o"), "--bootstrap", "10000000"]) == 1
+    assert "100,000 resamples" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()

@@ -1,0 +1,706 @@
+"""Batched fitting engine: one formula fitted to many experiments (or resamples) at once.
+
+The single fit of :func:`tromplab.curves.fit_formula` runs a Python-level grid and three
+lmfit solves per experiment; most of its time is interpreter and solver overhead, not
+model evaluation.  This engine reaches the same least-squares optimum with numpy arrays
+that hold every experiment and every starting point at once:
+
+1. **Padded points.** The experiments are stacked into ``(experiments, points)`` arrays;
+   missing points carry weight 0, so they add nothing to any sum of squares.
+2. **Profiled shape grid.** For every experiment the sum of squares is evaluated on a
+   grid of shapes (slopes from -0.02 to -20, as the single fit) times a log-spaced grid
+   of ``d_cut``; at each grid shape the best ``d_cut`` is refined by a vectorised
+   golden-section search in log size.  The best grid points are starting points.
+3. **Bounded Levenberg-Marquardt.** From the data-driven start and the best grid points,
+   a projected Levenberg-Marquardt iteration in ``(ln d_cut, shape, extras)`` runs on all
+   rows at once: forward-difference Jacobians (one extra model evaluation per
+   parameter), a damped Gauss-Newton step solved per row, parameters on a bound whose
+   gradient points outward held fixed, and rows that have converged dropped from the
+   work arrays.  The lowest sum of squares per experiment wins.
+4. **Covariance.** At the optimum the Jacobian in the native parameters gives lmfit's
+   covariance estimate, ``(J^T J)^{-1} SSR / (n - p)``.
+
+Every formula whose curve broadcasts over array-valued shapes runs here, the piecewise
+(10) included; formula (11) gets a vectorised break-point solver
+(:func:`shuvalov_breaks`).  Curves that need a scalar root per parameter set (Whiten's
+fish-hook curve, whose ``beta*`` solves an equation) and curves with two or more extra
+parameters (their extras interact, and the engine starts them at one declared value
+only) are reported by :func:`is_batchable` as not batchable and fitted one by one by the
+caller.
+
+The engine itself does not use lmfit; :func:`fit_formula_batch` wraps its optimum in the
+same :class:`~tromplab.curves.CurveFit` a single fit returns, and
+:func:`tromplab.curves.with_lmfit` turns it into an lmfit result where one is needed
+(profile intervals).
+"""
+
+from __future__ import annotations
+
+import copy
+from collections.abc import Sequence
+from dataclasses import dataclass
+from functools import cache
+
+import numpy as np
+
+from .formulas import LN2, Formula, _rosin_rammler_area, get_formula, rosin_rammler
+from .points import TrompPoints
+
+#: Slopes at the cut of the shape grid (as :data:`tromplab.curves.GRID_SLOPES`, every other one).
+ENGINE_GRID_SLOPES = -np.geomspace(0.02, 20.0, 21)
+#: The piecewise formulas (10) and (11) have kinks in the sum of squares, where a descent
+#: method can stop short: they get the single fit's full grid and more starts from it.
+PIECEWISE = frozenset({"luckie_austin", "shuvalov"})
+PIECEWISE_GRID_SLOPES = -np.geomspace(0.02, 20.0, 41)
+PIECEWISE_GRID_STARTS = 6
+#: Log-spaced ``d_cut`` values per grid shape, before the golden-section refinement.
+GRID_CUTS = 24
+GOLDEN_STEPS = 14
+#: Best grid points used as starts (besides the data-driven start).
+GRID_STARTS = 3
+MAX_ITERATIONS = 400
+#: Relative decrease of the sum of squares below which an accepted step ends a row.
+SSR_TOLERANCE = 1e-13
+#: Elements per work array in the grid stage (bounds the memory of large batches).
+GRID_CHUNK_ELEMENTS = 2_000_000
+ENGINE_MESSAGE = "batched Levenberg-Marquardt: converged"
+
+
+@dataclass(frozen=True)
+class PaddedPoints:
+    """Experiments stacked into ``(experiments, points)`` arrays, padded with weight 0.
+
+    Attributes
+    ----------
+    size, observed : ndarray, shape (E, P)
+        Sizes and measured partition to fines; padding repeats the last point.
+    root_weight : ndarray, shape (E, P)
+        Square roots of the normalised weights (mean 1 over the real points); 0 on padding.
+    n : ndarray of int, shape (E,)
+        Number of real points per experiment.
+    """
+
+    size: np.ndarray
+    observed: np.ndarray
+    root_weight: np.ndarray
+    n: np.ndarray
+
+    @classmethod
+    def from_points(cls, experiments: Sequence[TrompPoints]) -> PaddedPoints:
+        count = len(experiments)
+        width = max(points.n for points in experiments)
+        size = np.ones((count, width))
+        observed = np.zeros((count, width))
+        root_weight = np.zeros((count, width))
+        n = np.array([points.n for points in experiments])
+        for row, points in enumerate(experiments):
+            k = points.n
+            size[row, :k], size[row, k:] = points.size, points.size[-1]
+            observed[row, :k], observed[row, k:] = points.partition_fine, points.partition_fine[-1]
+            weight = np.ones(k) if points.weight is None else points.weight / points.weight.mean()
+            root_weight[row, :k] = np.sqrt(weight)
+        return cls(size, observed, root_weight, n)
+
+    def __len__(self) -> int:
+        return self.size.shape[0]
+
+    def take(self, rows) -> PaddedPoints:
+        return PaddedPoints(self.size[rows], self.observed[rows], self.root_weight[rows], self.n[rows])
+
+    def cut_bounds(self, factor: float) -> tuple[np.ndarray, np.ndarray]:
+        """``(ln lower, ln upper)`` of ``d_cut``: smallest size / factor, largest size x factor."""
+        real = self.root_weight > 0
+        smallest = np.where(real, self.size, np.inf).min(axis=1)
+        largest = np.where(real, self.size, -np.inf).max(axis=1)
+        return np.log(smallest / factor), np.log(largest * factor)
+
+
+@dataclass(frozen=True)
+class BatchOptimum:
+    """Best fit per experiment of one formula (arrays over experiments).
+
+    ``values`` has one column per parameter (``d_cut``, the shape, the extras, in
+    ``names`` order); ``covariance`` is nan where ``J^T J`` is singular; ``ssr`` is inf
+    and ``success`` False where no start gave a finite sum of squares.
+    """
+
+    formula: Formula
+    names: tuple[str, ...]
+    values: np.ndarray
+    ssr: np.ndarray
+    residual: np.ndarray
+    covariance: np.ndarray
+    grid_ssr: np.ndarray
+    nfev: np.ndarray
+    n_starts: int
+
+    @property
+    def success(self) -> np.ndarray:
+        return np.isfinite(self.ssr)
+
+    def stderr(self) -> np.ndarray:
+        with np.errstate(invalid="ignore"):
+            return np.sqrt(np.diagonal(self.covariance, axis1=1, axis2=2))
+
+
+# --- the curves on arrays ----------------------------------------------------------------
+def is_batchable(formula) -> bool:
+    """True when the engine can evaluate ``formula`` on arrays of parameters."""
+    return _batchable(get_formula(formula).id)
+
+
+@cache
+def _batchable(formula_id: str) -> bool:
+    formula = get_formula(formula_id)
+    if formula.id == "shuvalov":
+        return True
+    if len(formula.extras) >= 2:  # interacting extras (Teipel-Hennig's alpha and bypass): one start is not enough
+        return False
+    x = np.array([[0.5, 1.0, 2.0], [0.5, 1.0, 2.0]])
+    shape = np.array([[formula.clip_shape(1.0)], [formula.clip_shape(2.0)]])
+    extras = {extra.name: np.full((2, 1), extra.start) for extra in formula.extras}
+    try:
+        with np.errstate(all="ignore"):
+            value = np.asarray(formula.phi(x, shape, **extras), dtype=float)
+    except (TypeError, ValueError):  # needs a scalar parameter (a root per parameter set)
+        return False
+    return value.shape == x.shape
+
+
+def shuvalov_breaks(kr, efficiency) -> np.ndarray:
+    r"""Break points :math:`x_a` of formula (11), vectorised over ``kr`` and ``efficiency``.
+
+    Solves :math:`x_a \varphi_5(x_a) + \int_{x_a}^1 \varphi_5\,dx = \eta_{exp}` by Newton
+    steps kept inside a bisection bracket (the left side falls monotonically from
+    :math:`\eta_5(k_r)` at 0 to 1/2 at 1, with derivative
+    :math:`-\ln 2\, k_r x_a^{k_r} \varphi_5(x_a)`).  Outside :math:`[1/2, \eta_5]` the
+    nearer end is returned, as :func:`tromplab.formulas.shuvalov` does.
+
+    Examples
+    --------
+    >>> from tromplab.formulas import shuvalov_break
+    >>> bool(abs(shuvalov_breaks(2.0, 0.8) - shuvalov_break(2.0, 0.8)) < 1e-13)
+    True
+    """
+    kr, efficiency = np.broadcast_arrays(np.asarray(kr, dtype=float), np.asarray(efficiency, dtype=float))
+    eta_plain = _rosin_rammler_area(0.0, 1.0, kr)
+    result = np.where(efficiency < 0.5, 1.0, 0.0)
+    solve = (efficiency >= 0.5) & (efficiency < eta_plain)
+    k, target = kr[solve], efficiency[solve]
+    low, high = np.zeros_like(k), np.ones_like(k)
+    root = np.full_like(k, 0.5)
+    open_ = np.arange(k.size)
+    for iteration in range(200):
+        kk, x = k[open_], root[open_]
+        value = x * rosin_rammler(x, kk) + _rosin_rammler_area(x, 1.0, kk) - target[open_]
+        lo = np.where(value > 0, x, low[open_])
+        hi = np.where(value > 0, high[open_], x)
+        slope = -LN2 * kk * x**kk * rosin_rammler(x, kk)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            newton = x - value / slope
+        # every fourth step bisects, so that Newton steps bouncing in rounding noise still end
+        inside = np.isfinite(newton) & (newton >= lo) & (newton <= hi) & (iteration % 4 != 3)
+        converged = np.abs(value) <= 1e-16
+        step = np.where(converged, x, np.where(inside, newton, 0.5 * (lo + hi)))
+        low[open_], high[open_], root[open_] = lo, hi, step
+        done = converged | (np.abs(step - x) <= 1e-15) | (hi - lo <= 1e-14)
+        open_ = open_[~done]
+        if not open_.size:
+            break
+    result[solve] = root
+    return result
+
+
+def shuvalov_kink(efficiency, bounds) -> np.ndarray:
+    r"""Shape :math:`k_r^*` of formula (11) where the break point appears: :math:`\eta_5(k_r^*) = \eta_{exp}`.
+
+    Below it (in a sharper-than-measured sense) no break exists and (11) is the plain
+    Rosin-Rammler form (5); the sum of squares has a kink there that separates two basins,
+    so the engine starts on both sides of it.  Clipped to ``bounds``.
+    """
+    efficiency = np.asarray(efficiency, dtype=float)
+    low, high = np.full(efficiency.shape, np.log(bounds[0])), np.full(efficiency.shape, np.log(bounds[1]))
+    for _ in range(60):  # eta_5 rises with kr from 1/2 towards 1
+        middle = 0.5 * (low + high)
+        above = _rosin_rammler_area(0.0, 1.0, np.exp(middle)) > efficiency
+        low, high = np.where(above, low, middle), np.where(above, middle, high)
+    return np.exp(0.5 * (low + high))
+
+
+def curve_values(formula: Formula, x, shape, extras: dict, efficiency=None, x_break=None) -> np.ndarray:
+    """Partition to fines of ``formula`` with array-valued parameters broadcast against ``x``
+    (``x_break``: break points of (11) already solved for these shapes)."""
+    if formula.id == "shuvalov" and x_break is not None:
+        return rosin_rammler(np.maximum(x, x_break), shape)
+    if formula.id == "shuvalov":
+        # one root per distinct (kr, efficiency): grid rows and Jacobian columns in d_cut share them
+        kr, eff = np.broadcast_arrays(np.asarray(shape, dtype=float), np.asarray(efficiency, dtype=float))
+        pairs, inverse = np.unique(np.stack([kr.ravel(), eff.ravel()]), axis=1, return_inverse=True)
+        x_break = shuvalov_breaks(pairs[0], pairs[1])[inverse.ravel()].reshape(kr.shape)
+        return rosin_rammler(np.maximum(x, x_break), shape)
+    return formula.phi(x, shape, **extras)
+
+
+# --- the fit -------------------------------------------------------------------------------
+class _Problem:
+    """Residuals of one formula on padded experiments, as a function of internal parameters.
+
+    Internal parameters per row: ``ln d_cut``, the shape, then the extras.  ``rows`` maps
+    each work row to its experiment (several starts share an experiment).
+    """
+
+    def __init__(self, formula: Formula, data: PaddedPoints, efficiency, cut_factor: float):
+        self.formula = formula
+        self.data = data
+        self.efficiency = None if efficiency is None else np.asarray(efficiency, dtype=float)
+        self.extra_names = tuple(extra.name for extra in formula.extras)
+        low_cut, high_cut = data.cut_bounds(cut_factor)
+        shape_low, shape_high = formula.shape_bounds
+        extra_low = [extra.bounds[0] for extra in formula.extras]
+        extra_high = [extra.bounds[1] for extra in formula.extras]
+        count = len(data)
+        self.lower = np.column_stack([low_cut, np.full(count, shape_low), *[np.full(count, v) for v in extra_low]])
+        self.upper = np.column_stack([high_cut, np.full(count, shape_high), *[np.full(count, v) for v in extra_high]])
+
+    def breaks(self, params: np.ndarray, rows: np.ndarray):
+        """Break points of (11) for these rows (None for other formulas); they depend on the
+        shape and the measured efficiency only, so steps in d_cut reuse them."""
+        if self.formula.id != "shuvalov":
+            return None
+        return shuvalov_breaks(params[:, 1], self.efficiency[rows])[:, None]
+
+    def residual(self, params: np.ndarray, rows: np.ndarray, x_break=None) -> np.ndarray:
+        """Weighted residuals ``(len(rows), P)`` at internal parameters ``params``."""
+        data = self.data
+        x = data.size[rows] / np.exp(params[:, :1])
+        extras = {name: params[:, 2 + i : 3 + i] for i, name in enumerate(self.extra_names)}
+        efficiency = None if self.efficiency is None else self.efficiency[rows][:, None]
+        with np.errstate(all="ignore"):
+            phi = curve_values(self.formula, x, params[:, 1:2], extras, efficiency, x_break)
+            return data.root_weight[rows] * (phi - data.observed[rows])
+
+    def jacobian(self, params: np.ndarray, rows: np.ndarray, base: np.ndarray, relative_step: float = 1.5e-8) -> np.ndarray:
+        """Forward-difference Jacobian ``(len(rows), P, p)``, stepping inwards at an upper bound."""
+        count, width = base.shape
+        jac = np.empty((count, width, params.shape[1]))
+        upper = self.upper[rows]
+        x_break = self.breaks(params, rows)
+        for j in range(params.shape[1]):
+            step = relative_step * np.maximum(np.abs(params[:, j]), 1.0)
+            step = np.where(params[:, j] + step > upper[:, j], -step, step)
+            moved = params.copy()
+            moved[:, j] += step
+            jac[:, :, j] = (self.residual(moved, rows, x_break if j != 1 else None) - base) / step[:, None]
+        return jac
+
+
+def _ssr(residual: np.ndarray) -> np.ndarray:
+    value = np.einsum("ij,ij->i", residual, residual)
+    return np.where(np.isfinite(value), value, np.inf)
+
+
+def _grid_starts(problem: _Problem, start_cut: np.ndarray, extra_start: np.ndarray):
+    """Best ``GRID_STARTS`` profiled grid points per experiment and the grid minimum."""
+    formula, data = problem.formula, problem.data
+    slopes, n_starts = (PIECEWISE_GRID_SLOPES, PIECEWISE_GRID_STARTS) if formula.id in PIECEWISE else (ENGINE_GRID_SLOPES, GRID_STARTS)
+    shapes = np.array(sorted({formula.clip_shape(formula.shape_for_slope(s)) for s in slopes}))
+    count, n_shapes = len(data), shapes.size
+    low, high = problem.lower[:, 0], problem.upper[:, 0]
+    # the grid spans the measured sizes with a margin; the data-driven cut adds the rest
+    real = data.root_weight > 0
+    span_low = np.maximum(np.log(np.where(real, data.size, np.inf).min(axis=1) / 3.0), low)
+    span_high = np.minimum(np.log(np.where(real, data.size, -np.inf).max(axis=1) * 3.0), high)
+    fractions = np.linspace(0.0, 1.0, GRID_CUTS)
+    best_cut = np.empty((count, n_shapes))
+    best_ssr = np.empty((count, n_shapes))
+    chunk = max(1, GRID_CHUNK_ELEMENTS // (n_shapes * (GRID_CUTS + 1) * data.size.shape[1]))
+    for first in range(0, count, chunk):
+        block = np.arange(first, min(first + chunk, count))
+        cuts = span_low[block, None] + fractions * (span_high - span_low)[block, None]
+        cuts = np.concatenate([cuts, start_cut[block, None]], axis=1)  # (b, C)
+        rows = np.repeat(block, n_shapes * cuts.shape[1])
+        params = np.column_stack([
+            cuts[:, None, :].repeat(n_shapes, axis=1).ravel(),
+            np.broadcast_to(shapes[None, :, None], (block.size, n_shapes, cuts.shape[1])).ravel(),
+            *[np.full(rows.size, value) for value in extra_start],
+        ])  # fmt: skip
+        per_shape = np.column_stack([np.zeros(block.size * n_shapes), np.tile(shapes, block.size)])
+        x_break = problem.breaks(per_shape, np.repeat(block, n_shapes))
+        x_break = None if x_break is None else np.repeat(x_break, cuts.shape[1], axis=0)
+        ssr = _ssr(problem.residual(params, rows, x_break)).reshape(block.size, n_shapes, cuts.shape[1])
+        pick = np.argmin(ssr, axis=2)
+        best_cut[block] = np.take_along_axis(cuts[:, None, :].repeat(n_shapes, axis=1), pick[..., None], axis=2)[..., 0]
+        best_ssr[block] = np.take_along_axis(ssr, pick[..., None], axis=2)[..., 0]
+        # golden-section refinement of ln d_cut within one grid step of the best grid cut
+        width = ((span_high - span_low) / (GRID_CUTS - 1))[block, None]
+        lo = np.clip(best_cut[block] - width, low[block, None], high[block, None])
+        hi = np.clip(best_cut[block] + width, low[block, None], high[block, None])
+        shape_rows = np.repeat(block, n_shapes)
+        flat_shapes = np.tile(shapes, block.size)
+        extra_columns = [np.full(shape_rows.size, value) for value in extra_start]
+
+        fixed = np.column_stack([np.zeros(shape_rows.size), flat_shapes, *extra_columns])
+        block_breaks = problem.breaks(fixed, shape_rows)  # the shapes stay fixed while d_cut moves
+
+        def ssr_at(log_cut, fixed=fixed, rows=shape_rows, count=block.size, x_break=block_breaks):
+            params = fixed.copy()
+            params[:, 0] = log_cut.ravel()
+            return _ssr(problem.residual(params, rows, x_break)).reshape(count, n_shapes)
+
+        ratio = (np.sqrt(5.0) - 1.0) / 2.0
+        a, b = hi - ratio * (hi - lo), lo + ratio * (hi - lo)
+        fa, fb = ssr_at(a), ssr_at(b)
+        for _ in range(GOLDEN_STEPS):
+            left = fa <= fb
+            lo, hi = np.where(left, lo, a), np.where(left, b, hi)
+            a_new = np.where(left, hi - ratio * (hi - lo), b)
+            b_new = np.where(left, a, lo + ratio * (hi - lo))
+            moved = np.where(left, a_new, b_new)
+            f_moved = ssr_at(moved)
+            fa, fb = np.where(left, f_moved, fb), np.where(left, fa, f_moved)
+            a, b = a_new, b_new
+        refined = np.where(fa <= fb, a, b)
+        refined_ssr = np.minimum(fa, fb)
+        better = refined_ssr < best_ssr[block]
+        best_cut[block] = np.where(better, refined, best_cut[block])
+        best_ssr[block] = np.where(better, refined_ssr, best_ssr[block])
+    # local minima of the profile along the shape first (one start per basin), then the rest
+    padded = np.pad(best_ssr, ((0, 0), (1, 1)), constant_values=np.inf)
+    basin = (best_ssr <= padded[:, :-2]) & (best_ssr <= padded[:, 2:])
+    order = np.lexsort((best_ssr, ~basin), axis=1)[:, :n_starts]
+    cut = np.take_along_axis(best_cut, order, axis=1)
+    shape = shapes[order]
+    return cut, shape, best_ssr.min(axis=1)
+
+
+def levenberg_marquardt(problem: _Problem, params: np.ndarray, rows: np.ndarray, *, max_iterations: int = MAX_ITERATIONS,
+                        relative_step: float = 1.5e-8):  # fmt: skip
+    """Projected Levenberg-Marquardt on every row at once.
+
+    Returns ``(params, ssr, nfev)`` per row.  A row stops when an accepted step lowers its
+    sum of squares by less than :data:`SSR_TOLERANCE` (relative), when the damping grows
+    past 1e12 without an accepted step (no descent left within the bounds), or after
+    ``max_iterations``.  ``relative_step`` is the forward-difference step; a coarse step
+    (1e-3) sees past the kinks of the piecewise formulas, where a fine one stalls.
+    """
+    lower, upper = problem.lower[rows], problem.upper[rows]
+    params = np.clip(params, lower, upper)
+    residual = problem.residual(params, rows)
+    ssr = _ssr(residual)
+    n_params = params.shape[1]
+    nfev = np.ones(rows.size, dtype=int)
+    damping = np.full(rows.size, 1e-3)
+    alive = np.isfinite(ssr)
+    need_jacobian = alive.copy()
+    gradient = np.zeros((rows.size, n_params))
+    hessian = np.zeros((rows.size, n_params, n_params))
+    eye = np.eye(n_params)
+    for _ in range(max_iterations):
+        work = np.flatnonzero(alive)
+        if not work.size:
+            break
+        fresh = work[need_jacobian[work]]
+        if fresh.size:
+            jac = problem.jacobian(params[fresh], rows[fresh], residual[fresh], relative_step)
+            nfev[fresh] += n_params
+            gradient[fresh] = np.einsum("bkp,bk->bp", jac, residual[fresh])
+            hessian[fresh] = np.einsum("bkp,bkq->bpq", jac, jac)
+            need_jacobian[fresh] = False
+        g, h, p = gradient[work], hessian[work], params[work]
+        span = upper[work] - lower[work]
+        pinned = ((p <= lower[work] + 1e-12 * span) & (g > 0)) | ((p >= upper[work] - 1e-12 * span) & (g < 0)) | (span == 0)
+        free = ~pinned
+        h_free = h * free[:, :, None] * free[:, None, :] + eye * pinned[:, :, None]
+        diagonal = np.maximum(np.diagonal(h_free, axis1=1, axis2=2), 1e-300)
+        system = h_free + damping[work, None, None] * eye * diagonal[:, None, :]
+        with np.errstate(all="ignore"):
+            try:
+                step = -np.linalg.solve(system, (g * free)[..., None])[..., 0]
+            except np.linalg.LinAlgError:
+                step = -(g * free) / diagonal
+        step = np.where(np.isfinite(step), step, 0.0)
+        trial = np.clip(p + step, lower[work], upper[work])
+        trial_residual = problem.residual(trial, rows[work])
+        trial_ssr = _ssr(trial_residual)
+        nfev[work] += 1
+        accepted = trial_ssr < ssr[work]
+        gain = np.where(accepted, (ssr[work] - trial_ssr) / np.maximum(ssr[work], 1e-300), 0.0)
+        took = work[accepted]
+        params[took], residual[took], ssr[took] = trial[accepted], trial_residual[accepted], trial_ssr[accepted]
+        need_jacobian[took] = True
+        damping[took] = np.maximum(damping[took] / 3.0, 1e-12)
+        refused = work[~accepted]
+        damping[refused] *= 4.0
+        stalled = np.all(trial == p, axis=1)
+        finished = (accepted & (gain < SSR_TOLERANCE)) | (~accepted & ((damping[work] > 1e12) | stalled))
+        alive[work[finished]] = False
+    return params, ssr, nfev
+
+
+def compass_search(problem: _Problem, params: np.ndarray, rows: np.ndarray, *, first_step: float = 1e-2,
+                   last_step: float = 1e-11):  # fmt: skip
+    """Derivative-free descent for the kinks of the piecewise formulas, on every row at once.
+
+    Tries steps along each parameter and along the two diagonals of ``(ln d_cut, shape)``
+    (a point crossing the break moves along such a diagonal), takes the best improving
+    one, and halves the step when none improves, down to ``last_step`` (relative).
+    Returns ``(params, ssr, nfev)``.
+    """
+    lower, upper = problem.lower[rows], problem.upper[rows]
+    n_params = params.shape[1]
+    directions = [row for row in np.eye(n_params)] + [np.r_[1.0, 1.0, np.zeros(n_params - 2)], np.r_[1.0, -1.0, np.zeros(n_params - 2)]]
+    directions = np.array(directions + [-d for d in directions])
+    params = params.copy()
+    ssr = _ssr(problem.residual(params, rows))
+    nfev = np.ones(rows.size, dtype=int)
+    step = np.full(rows.size, first_step)
+    open_ = np.flatnonzero(np.isfinite(ssr))
+    while open_.size:
+        scale = np.maximum(np.abs(params[open_]), 1.0) * step[open_, None]
+        trials = np.clip(params[open_, None, :] + directions[None] * scale[:, None, :], lower[open_, None], upper[open_, None])
+        flat = trials.reshape(-1, n_params)
+        trial_ssr = _ssr(problem.residual(flat, np.repeat(rows[open_], len(directions)))).reshape(open_.size, -1)
+        nfev[open_] += len(directions)
+        pick = np.argmin(trial_ssr, axis=1)
+        best = trial_ssr[np.arange(open_.size), pick]
+        improved = best < ssr[open_]
+        moved = open_[improved]
+        params[moved] = trials[improved, pick[improved]]
+        ssr[moved] = best[improved]
+        step[open_[~improved]] *= 0.5
+        open_ = open_[step[open_] >= last_step]
+    return params, ssr, nfev
+
+
+def fit_batch(
+    formula,
+    data: PaddedPoints,
+    *,
+    starts: np.ndarray,
+    efficiency=None,
+    global_search: bool = True,
+    cut_factor: float = 100.0,
+) -> BatchOptimum:
+    """Fit ``formula`` to every experiment of ``data`` at once.
+
+    Parameters
+    ----------
+    formula : Formula or str
+        A batchable registry entry (:func:`is_batchable`).
+    data : PaddedPoints
+        The experiments.
+    starts : ndarray, shape (E, S, p)
+        Starting points per experiment in native parameters (``d_cut``, shape, extras).
+    efficiency : ndarray, shape (E,), optional
+        Measured classifier efficiency per experiment (formula (11) only).
+    global_search : bool
+        Add the best points of the profiled shape grid as further starts.
+    cut_factor : float
+        ``d_cut`` is bounded to [smallest size / factor, largest size x factor].
+
+    Returns
+    -------
+    BatchOptimum
+    """
+    formula = get_formula(formula)
+    if not is_batchable(formula):
+        raise ValueError(f"formula {formula.id} cannot be evaluated on arrays of parameters; fit it one by one")
+    problem = _Problem(formula, data, efficiency, cut_factor)
+    count = len(data)
+    starts = np.array(starts, dtype=float)
+    low, high = problem.lower[:, None, :], problem.upper[:, None, :]
+    starts[..., 0] = np.log(starts[..., 0])
+    starts = np.clip(starts, low, high)
+    grid_ssr = np.full(count, np.nan)
+    if global_search:
+        extra_start = [extra.start for extra in formula.extras]
+        grid_cut, grid_shape, grid_ssr = _grid_starts(problem, starts[:, 0, 0], extra_start)
+        extras = np.broadcast_to(np.array(extra_start), (count, grid_cut.shape[1], len(extra_start)))
+        starts = np.concatenate([starts, np.concatenate([grid_cut[..., None], grid_shape[..., None], extras], axis=2)], axis=1)
+    if formula.id == "shuvalov" and global_search:
+        kink = shuvalov_kink(efficiency, formula.shape_bounds)
+        sides = np.stack([np.clip(kink * f, *formula.shape_bounds) for f in (0.97, 1.03, 1.2)], axis=1)
+        near = np.stack([np.broadcast_to(starts[:, :1, 0], sides.shape), sides], axis=2)
+        starts = np.concatenate([starts, near], axis=1)
+    n_starts = starts.shape[1]
+    rows = np.repeat(np.arange(count), n_starts)
+    params, ssr, nfev = levenberg_marquardt(problem, starts.reshape(count * n_starts, -1), rows)
+    if formula.id in PIECEWISE:  # past the kinks without derivatives, then polish again
+        best = np.argmin(ssr.reshape(count, n_starts), axis=1) + np.arange(count) * n_starts
+        params[best], ssr[best], more = compass_search(problem, params[best], rows[best])
+        nfev[best] += more
+        params[best], ssr[best], more = levenberg_marquardt(problem, params[best], rows[best])
+        nfev[best] += more
+        if formula.id == "shuvalov" and global_search:  # the optimum can sit on the kink itself: d_cut alone at kr*
+            on_kink = copy.copy(problem)
+            on_kink.lower, on_kink.upper = problem.lower.copy(), problem.upper.copy()
+            on_kink.lower[:, 1] = on_kink.upper[:, 1] = kink
+            kinked = params[best].copy()
+            kinked[:, 1] = kink
+            kinked, kinked_ssr, more = levenberg_marquardt(on_kink, kinked, rows[best])
+            nfev[best] += more
+            lower_ssr = kinked_ssr < ssr[best]
+            params[best[lower_ssr]], ssr[best[lower_ssr]] = kinked[lower_ssr], kinked_ssr[lower_ssr]
+    ssr = ssr.reshape(count, n_starts)
+    best = np.argmin(ssr, axis=1)
+    pick = np.arange(count) * n_starts + best
+    best_params, best_ssr = params[pick], ssr[np.arange(count), best]
+    all_rows = np.arange(count)
+    residual = problem.residual(best_params, all_rows)
+    native = best_params.copy()
+    native[:, 0] = np.exp(best_params[:, 0])
+    jac = problem.jacobian(best_params, all_rows, residual)
+    jac[:, :, 0] /= native[:, :1]  # d r / d d_cut = (d r / d ln d_cut) / d_cut
+    covariance = _covariance(jac, best_ssr, data.n, native.shape[1])
+    names = ("d_cut", formula.shape_name, *problem.extra_names)
+    total_nfev = nfev.reshape(count, n_starts).sum(axis=1)
+    return BatchOptimum(formula, names, native, best_ssr, residual, covariance, grid_ssr, total_nfev, n_starts)
+
+
+def _covariance(jac: np.ndarray, ssr: np.ndarray, n: np.ndarray, n_params: int) -> np.ndarray:
+    """lmfit's estimate ``(J^T J)^{-1} SSR/(n - p)``; nan where singular or not finite."""
+    hessian = np.einsum("bkp,bkq->bpq", jac, jac)
+    covariance = np.full_like(hessian, np.nan)
+    usable = np.all(np.isfinite(hessian), axis=(1, 2)) & np.isfinite(ssr) & (n > n_params)
+    for row in np.flatnonzero(usable):  # small p x p inverses; singular ones stay nan
+        try:
+            inverse = np.linalg.inv(hessian[row])
+        except np.linalg.LinAlgError:
+            continue
+        if np.all(np.isfinite(inverse)):
+            covariance[row] = inverse * ssr[row] / (n[row] - n_params)
+    return covariance
+
+
+# --- from the batched optimum to CurveFit results ----------------------------------------------
+def fit_formula_batch(experiments: Sequence[TrompPoints], formula, *, alpha: float | None = None,
+                      delta_max: float | None = None, global_search: bool = True,
+                      start: dict[str, float] | None = None, size_unit: str = "") -> list:  # fmt: skip
+    """:func:`tromplab.curves.fit_formula` for many experiments at once.
+
+    Returns one :class:`~tromplab.curves.CurveFit` per experiment, in order, with the same
+    recorded options as a single fit, so its screen, indices, diagnostics and warnings
+    are derived in the same way.  The fit's ``ParameterFit`` is built from the batched
+    optimum (``raw`` is None; :func:`tromplab.curves.with_lmfit` gives an lmfit result).
+    Experiments with too few points for the formula get a failed fit with the reason.
+    ``global_search`` and ``start`` (one further start for every experiment) are as for a
+    single fit; the bootstrap refits its resamples from the optimum without the grid.
+    """
+    from .curves import CurveFit, FitOptions, failed_fit, formula_context, measured_cut_size, measured_slope
+    from .screening import DEFAULT_ALPHA
+
+    alpha = DEFAULT_ALPHA if alpha is None else alpha
+    formula = get_formula(formula)
+    names = ("d_cut", formula.shape_name, *(extra.name for extra in formula.extras))
+    usable = [i for i, points in enumerate(experiments) if points.n > formula.n_params]
+    results: list = [None] * len(experiments)
+    for i, points in enumerate(experiments):
+        if points.n <= formula.n_params:
+            message = f"{points.n} points cannot be fitted with {formula.n_params} parameters"
+            results[i] = failed_fit(points, formula, message, alpha=alpha, delta_max=delta_max, size_unit=size_unit)
+    if not usable:
+        return results
+    chosen = [experiments[i] for i in usable]
+    data = PaddedPoints.from_points(chosen)
+    starts = np.empty((len(chosen), 1 if start is None else 2, len(names)))
+    for row, points in enumerate(chosen):
+        cut = measured_cut_size(points)
+        starts[row, 0, :2] = cut, formula.shape_for_slope(measured_slope(points, cut))
+        starts[row, 0, 2:] = [extra.start for extra in formula.extras]
+    if start is not None:
+        starts[:, 1, :] = [start[name] for name in names]
+    contexts = [formula_context(formula, points) for points in chosen]
+    efficiency = np.array([c["measured_efficiency"] for c in contexts]) if formula.context_from_efficiency else None
+    optimum = fit_batch(formula, data, starts=starts, efficiency=efficiency, global_search=global_search)
+    stderr = optimum.stderr()
+    for row, (i, points) in enumerate(zip(usable, chosen)):
+        options = FitOptions.for_points(points, alpha=alpha, delta_max=delta_max, size_unit=size_unit,
+                                        global_search=global_search)  # fmt: skip
+        results[i] = CurveFit(formula=formula, points=points, fit=_parameter_fit(optimum, row, stderr[row], points),
+                              context=contexts[row], options=options, grid_ssr=float(optimum.grid_ssr[row]))  # fmt: skip
+    return results
+
+
+def _parameter_fit(optimum: BatchOptimum, row: int, stderr: np.ndarray, points: TrompPoints):
+    from .curves import _parameter_specs
+    from .fitting import ParameterFit
+
+    specs = _parameter_specs(optimum.formula, points)
+    if not np.isfinite(optimum.ssr[row]):
+        return ParameterFit.failed(specs, points.n, "fit failed from every start: non-finite sum of squares", optimum.n_starts)
+    values = {name: float(v) for name, v in zip(optimum.names, optimum.values[row])}
+    covariance = optimum.covariance[row]
+    known = bool(np.all(np.isfinite(covariance)))
+    at_bound = tuple(s.name for s in specs if np.isclose(values[s.name], s.lower) or np.isclose(values[s.name], s.upper))
+    return ParameterFit(
+        names=optimum.names,
+        values=values,
+        stderr={name: float(se) if known else np.nan for name, se in zip(optimum.names, stderr)},
+        ssr=float(optimum.ssr[row]),
+        n_points=points.n,
+        success=True,
+        message=ENGINE_MESSAGE,
+        at_bound=at_bound,
+        n_starts=optimum.n_starts,
+        nfev=int(optimum.nfev[row]),
+        covariance=covariance.copy() if known else None,
+        residual=optimum.residual[row, : points.n].copy(),
+    )
+
+
+# --- the bootstrap on the engine -------------------------------------------------------------
+#: Most resamples accepted per fit; beyond it the percentiles no longer change (Efron and
+#: Tibshirani 1993 suggest 1,000-2,000 for percentile intervals) and the cost only grows.
+MAX_BOOTSTRAP_RESAMPLES = 100_000
+#: Largest total number of bootstrap refits (resamples x fits) run without refusing.
+MAX_BOOTSTRAP_REFITS = 20_000_000
+#: Measured cost of one batched bootstrap refit with its indices (seconds, 2-core machine; docs/performance.md).
+SECONDS_PER_BOOTSTRAP_REFIT = 4e-4
+
+
+def check_bootstrap_request(n_resamples: int, *, n_fits: int) -> float:
+    """Refuse a bootstrap too large to be useful, before any work; return its estimated seconds.
+
+    Raises
+    ------
+    ValueError
+        When ``n_resamples`` exceeds :data:`MAX_BOOTSTRAP_RESAMPLES` or the total number of
+        refits exceeds :data:`MAX_BOOTSTRAP_REFITS`, naming the estimated time.
+    """
+    refits = n_resamples * max(n_fits, 1)
+    seconds = refits * SECONDS_PER_BOOTSTRAP_REFIT
+    estimate = f"{refits:,} refits, about {_duration(seconds)} on one core"
+    if n_resamples > MAX_BOOTSTRAP_RESAMPLES:
+        raise ValueError(f"--bootstrap {n_resamples:,} is more than the {MAX_BOOTSTRAP_RESAMPLES:,} resamples "
+                         f"percentile intervals need ({estimate}); 1,000-2,000 are usual")  # fmt: skip
+    if refits > MAX_BOOTSTRAP_REFITS:
+        raise ValueError(f"--bootstrap {n_resamples:,} on {n_fits:,} fits means {estimate}; use fewer resamples or "
+                         "fewer formulas")  # fmt: skip
+    return seconds
+
+
+def _duration(seconds: float) -> str:
+    if seconds < 120:
+        return f"{seconds:.0f} s"
+    if seconds < 7200:
+        return f"{seconds / 60:.0f} min"
+    return f"{seconds / 3600:.1f} h"
+
+
+def refit_resamples(fit, samples: Sequence[TrompPoints], *, delta_max: float | None = None) -> list:
+    """Refit ``fit.formula`` to every resample at once, from the optimum of ``fit`` (no grid).
+
+    The batched counterpart of ``fit_formula(sample, global_search=False,
+    starts=[fit values])`` per resample; formulas the engine cannot evaluate on arrays are
+    refitted one by one.
+    """
+    from .curves import fit_formula
+
+    options = fit.options
+    delta_max = options.delta_max if delta_max is None else delta_max
+    start = dict(fit.fit.values)
+    if is_batchable(fit.formula):
+        return fit_formula_batch(samples, fit.formula, alpha=options.alpha, delta_max=delta_max, global_search=False,
+                                 start=start, size_unit=options.size_unit)  # fmt: skip
+    return [fit_formula(sample, fit.formula, alpha=options.alpha, delta_max=delta_max, global_search=False, starts=[start],
+                        size_unit=options.size_unit) for sample in samples]  # fmt: skip
