@@ -18,10 +18,11 @@ from .diagnostics import RESIDUAL_WARNING
 from .engine import check_bootstrap_request
 from .errors import InputError
 from .formulas import NAME_CLASHES, registry_table, select_formulas
-from .lab import KINDS, LabOptions, YieldWarning, read_experiments, read_lab
+from .lab import KINDS, PARTITION_METHOD_TEXT, PARTITION_METHODS, LabOptions, YieldWarning, read_experiments, read_lab
 from .model_commands import add_model_commands
 from .ranking import RANK_BY, rank_formulas, read_f_table
 from .screening import DEFAULT_ALPHA
+from .tables import InputNote
 from .views import PARTITION_TO, partition_view
 from .workbench import fit_experiments, model_averages, print_progress, write_atomically
 
@@ -40,6 +41,7 @@ def main(argv=None) -> int:
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", YieldWarning)  # printed from the balance notes instead
+            warnings.showwarning = _show_input_notes(warnings.showwarning)
             return args.run(args)
     except BrokenPipeError:  # output piped into head or less and closed early
         sys.stderr.close()
@@ -48,6 +50,18 @@ def main(argv=None) -> int:
         message = error.args[0] if isinstance(error, KeyError) else str(error)
         print(f"tromplab {args.command}: error: {message}", file=sys.stderr)
         return 1
+
+
+def _show_input_notes(show):
+    """A ``warnings.showwarning`` that prints input notes (e.g. a detected CSV dialect) as one line."""
+
+    def showwarning(message, category, filename, lineno, file=None, line=None):
+        if issubclass(category, InputNote):
+            print(textwrap.fill(f"note: {message}", width=98, break_on_hyphens=False), file=sys.stderr)
+        else:
+            show(message, category, filename, lineno, file, line)
+
+    return showwarning
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -73,7 +87,9 @@ def _parser() -> argparse.ArgumentParser:
                      "fish-hook curves (default: the nine)")  # fmt: skip
     fit.add_argument("--rank-by", choices=sorted(RANK_BY), default="F",
                      help="criterion within an experiment: Fisher's F or the corrected Akaike criterion (shown in the table)")
-    fit.add_argument("--size-unit", default="", help="unit of the sizes, for the figure labels")
+    fit.add_argument("--size-unit", default="",
+                     help="unit of the sizes when the size columns carry none (size_um, size_lower_mm name it); "
+                     "a contradiction with the column name is an error")  # fmt: skip
     fit.add_argument("--figures", choices=("auto", "all", "best", "none"), default="auto",
                      help=f"per-experiment figures with every fit (all) or the top-ranked one (best); auto: all up to "
                      f"{AUTO_FIGURE_LIMIT} experiments, then one overview figure (default auto)")
@@ -108,7 +124,7 @@ def _parser() -> argparse.ArgumentParser:
                         help="largest feed particle size for the misplacement eps (default: largest size of the data)")
     report.add_argument("--rank-by", choices=sorted(RANK_BY), default="F", help="criterion within an experiment")
     report.add_argument("--ci", type=float, default=0.95, metavar="LEVEL", help="level of the intervals (default 0.95)")
-    report.add_argument("--size-unit", default="", help="unit of the sizes, for the figure labels")
+    report.add_argument("--size-unit", default="", help="unit of the sizes when the size columns carry none")
     report.add_argument("--title", default="tromplab report", help="title of the report (default: tromplab report)")
     _add_partition_to(report)
     report.set_defaults(run=_run_report)
@@ -208,6 +224,11 @@ def _lab_options_parser() -> argparse.ArgumentParser:
     group.add_argument("--sheet", default=None, help="Excel sheet name (default: the first sheet)")
     group.add_argument("--weight-by-feed-share", action="store_true",
                        help="weight each point by its class's feed share (variance inversely proportional to it)")
+    group.add_argument("--partition-from", choices=PARTITION_METHODS, default="products",
+                       help="with three streams: partition from both products y b/(y b + (1-y) c) (default; swapping fine "
+                       "and coarse gives 1 - partition) or from the fine stream over the measured feed y b/a")
+    group.add_argument("--sep", default=None, help="CSV field separator, e.g. ';' (default: detected from the header)")
+    group.add_argument("--decimal", default=None, help="CSV decimal mark, e.g. ',' (default: '.', or ',' when detected)")
     return lab  # fmt: skip
 
 
@@ -221,20 +242,23 @@ def _lab_options(args) -> LabOptions:
     return LabOptions(kind=args.kind, fine_yield=args.fine_yield, coarse_yield=args.coarse_yield,
                       estimate_yield=args.estimate_yield, reconcile=args.reconcile, min_feed_share=args.min_feed_share,
                       sum_tolerance_pct=args.sum_tolerance, top_size=args.top_size, pan_lower_size=args.pan_lower_size,
-                      rename=rename, sheet=args.sheet, weight_by_feed_share=args.weight_by_feed_share)  # fmt: skip
+                      rename=rename, sheet=args.sheet, weight_by_feed_share=args.weight_by_feed_share,
+                      partition_from=args.partition_from, size_unit=getattr(args, "size_unit", None) or None,
+                      sep=args.sep, decimal=args.decimal)  # fmt: skip
 
 
 def _print_balance_notes(balances) -> None:
     for balance in balances:
         for note in balance.notes:
             print(textwrap.fill(f"warning ({balance.experiment}): {note}", width=98), file=sys.stderr)
-        for flag in balance.classes.loc[~balance.classes["used"], "flag"]:
-            print(textwrap.fill(f"note ({balance.experiment}): class left out: {flag}", width=98), file=sys.stderr)
+        for message in balance.left_out:
+            print(textwrap.fill(f"note ({balance.experiment}): {message}", width=98), file=sys.stderr)
 
 
 def _run_points(args) -> int:
     balances = read_lab(args.input, _lab_options(args))
-    table = pd.concat([b.points_table(weight_by_feed_share=args.weight_by_feed_share) for b in balances], ignore_index=True)
+    table = pd.concat([b.points_table(weight_by_feed_share=args.weight_by_feed_share, unit_in_names=True) for b in balances],
+                      ignore_index=True)  # fmt: skip
     table = partition_view(table, args.partition_to)
     args.output.parent.mkdir(parents=True, exist_ok=True)
     written = write_atomically({args.output.name: lambda p: table.to_csv(p, index=False)}, args.output.parent)
@@ -249,7 +273,8 @@ def _run_balance(args) -> int:
     _print_balance_notes(balances)
     for balance in balances:
         estimate = balance.yield_estimate
-        print(f"Experiment {balance.experiment}: fine yield {balance.fine_yield:.4f} ({balance.yield_source})")
+        print(f"Experiment {balance.experiment}: fine yield {balance.fine_yield:.4f} ({balance.yield_source}); "
+              f"partition from {PARTITION_METHOD_TEXT[balance.partition_method]}")  # fmt: skip
         if estimate is not None:
             print(f"  least-squares estimate from the three streams: {estimate.value:.4f} +/- {estimate.stderr:.4f} "
                   f"(standard error, {estimate.n_classes} classes); coarse yield {1 - estimate.value:.4f}")  # fmt: skip
@@ -340,7 +365,7 @@ def _run_fit(args) -> int:
             bench = fit_experiments(experiments, formulas=formulas, alpha=args.alpha, delta_max=args.delta_max,
                                     rank_by=args.rank_by, rank_extended=args.rank_extended, progress=progress,
                                     jobs=args.jobs or None, client=client, engine=not args.single_fits,
-                                    size_unit=args.size_unit)  # fmt: skip
+                                    size_unit=_data_size_unit(experiments, args.size_unit))  # fmt: skip
         fits, ranking = bench.fits_table(), bench.ranking_table()
         if args.ci is not None or args.bootstrap:
             from .uncertainty import interval_columns
@@ -444,6 +469,10 @@ class _progress_bar:
         if self.bar is not None:
             self.bar.close()
         return False
+def _data_size_unit(experiments, fallback: str) -> str:
+    """The unit the loader found (column suffix, else --size-unit), for labels."""
+    units = {p.size_unit for p in experiments if p.size_unit}
+    return units.pop() if len(units) == 1 else fallback
 
 
 def _formula_keys(args):
@@ -462,9 +491,10 @@ def _run_report(args) -> int:
         raise ValueError(f"--ci takes a level between 0 and 1, got {args.ci}")
     experiments, balances = read_experiments(args.input, _lab_options(args))
     bench = fit_experiments(experiments, formulas=formulas, alpha=args.alpha, delta_max=args.delta_max, rank_by=args.rank_by,
-                            rank_extended=args.rank_extended, progress=print_progress, size_unit=args.size_unit)  # fmt: skip
-    report = build_report(bench, balances, source=str(args.input), level=args.ci, size_unit=args.size_unit, title=args.title,
-                          partition_to=args.partition_to)  # fmt: skip
+                            rank_extended=args.rank_extended, progress=print_progress,
+                            size_unit=_data_size_unit(experiments, args.size_unit))  # fmt: skip
+    report = build_report(bench, balances, source=str(args.input), level=args.ci, size_unit=_data_size_unit(experiments, args.size_unit),
+                          title=args.title, partition_to=args.partition_to)  # fmt: skip
     args.output.parent.mkdir(parents=True, exist_ok=True)
     written = write_report(report, args.output)
     print("Wrote:")
@@ -617,6 +647,7 @@ def _write_fit_outputs(args, bench, experiments, balances, fits, ranking, averag
     with ``--excel``), or only the workbook when ``-o`` names a .xlsx file."""
     from .workbook import write_workbook
 
+    size_unit = _data_size_unit(experiments, args.size_unit)
     figures = {}
     mode = args.figures
     if mode == "auto":
@@ -626,7 +657,7 @@ def _write_fit_outputs(args, bench, experiments, balances, fits, ranking, averag
         for experiment in bench.experiments:
             best = bench.best_fit(experiment)
             shown = fits_by_experiment[experiment] if mode == "all" or best is None else [best]
-            figures[f"curves_{_file_safe(experiment)}.png"] = _figure_png(shown, args.size_unit, best, args.partition_to)
+            figures[f"curves_{_file_safe(experiment)}.png"] = _figure_png(shown, size_unit, best, args.partition_to)
     elif mode == "overview" and fits["rank"].notna().any():
         figures["overview.png"] = _overview_png(fits)
     tables = {"fits": fits, "ranking": ranking, "averages": averages}
@@ -642,7 +673,7 @@ def _write_fit_outputs(args, bench, experiments, balances, fits, ranking, averag
                  "averages": "no model average: no experiment has a successful fit"}  # fmt: skip
 
         def workbook(path):
-            write_workbook(path, sheets, figures=figures, size_unit=args.size_unit, notes=notes)
+            write_workbook(path, sheets, figures=figures, size_unit=size_unit, notes=notes)
 
     if only_workbook:
         return write_atomically({args.outdir.name: workbook}, args.outdir.parent)

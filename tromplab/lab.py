@@ -6,20 +6,28 @@ experiment - see the README for an example:
 ``experiment``
     optional; all rows form one experiment named after the file when absent.
 size columns
-    either class bounds ``size_lower`` and ``size_upper`` (blank ``size_upper`` = open
-    top class, blank ``size_lower`` = the pan); or ``size`` (the sieve aperture), for
-    cumulative data or for per-class shares retained on each sieve (a class then runs
-    from its sieve to the next coarser one, the coarsest open at the top).  A unit suffix (``size_um``, ``size_lower_mm``)
-    is allowed and must be the same on every size column; sizes are used as given.
+    one layout of three: class bounds ``size_lower`` and ``size_upper`` (blank
+    ``size_upper`` = open top class, blank or 0 ``size_lower`` = the pan); class-range
+    strings in ``size_class`` ("+1168" = retained on 1168, "-1168+589", "-74" = the
+    pan); or ``size`` (the sieve aperture), for cumulative data or for per-class shares
+    retained on each sieve (a class then runs from its sieve to the next coarser one,
+    the coarsest open at the top).  Optionally ``size_representative`` (a size per
+    class, replacing the geometric mean where given).  A unit suffix (``size_um``,
+    ``size_lower_mm``) names the unit and must be the same on every size column; a
+    ``size_unit`` column or the ``size_unit`` option is the fallback and must agree.
+    Sizes are used as given.
 stream columns
-    two or three of ``feed``, ``fine``, ``coarse``.  What they hold is declared, never
+    two or three of ``feed``, ``fine`` (or ``overflow``), ``coarse`` (or
+    ``underflow``).  What they hold is declared, never
     guessed: either by the ``kind`` option for plain names, or by a suffix on each
     column: ``_mass`` (mass per class, any unit), ``_pct`` / ``_frac`` (share of the
     stream per class), ``_retained_pct`` / ``_retained_frac`` (cumulative share coarser
     than the sieve) or ``_passing_pct`` / ``_passing_frac`` (cumulative share finer).
-``fine_yield`` or ``coarse_yield``
+``fine_yield`` or ``coarse_yield`` (``overflow_yield``, ``underflow_yield``)
     optional column (constant within an experiment) or option: the mass fraction of
     the feed reporting to that product.
+``note``, ``comment``
+    free text, ignored.  Any other column is refused with its name.
 
 Per-class shares come from cumulative data by differences.  The representative size of
 a class is the geometric mean of its bounds; the open top class and the pan continue
@@ -29,9 +37,13 @@ lower = upper / r for the pan, r = upper/lower of the adjacent class), unless
 
 Partition to fines ``phi_i = y b_i / a_i`` with ``a``, ``b``, ``c`` the feed, fine and
 coarse shares and ``y`` the fine yield (Shuvalov et al. 2018, introduction; spec
-section 5).  With three streams and no yield, ``y`` is estimated by least squares over
-the classes (:func:`estimate_fine_yield`); with a yield given too, the two are compared
-and a contradiction is reported.
+section 5).  With three measured streams the feed is taken as the products recombine,
+``a_i = y b_i + (1-y) c_i``, so ``phi_i = y b_i / (y b_i + (1-y) c_i)`` uses both
+products and exchanging them gives ``1 - phi`` (:func:`partition_to_fines`; the
+measured feed alone with ``partition_from="feed"``).  With three streams and no yield,
+``y`` is estimated by least squares over the classes (:func:`estimate_fine_yield`);
+with a yield given too, the two are compared and a contradiction is reported.  Two
+products given as masses imply the yield ``fine / (fine + coarse)``, compared likewise.
 """
 
 from __future__ import annotations
@@ -44,13 +56,24 @@ import numpy as np
 import pandas as pd
 
 from .errors import InputError
-from .points import TrompPoints
+from .points import SIZE_UNITS, TrompPoints, experiment_rows, normal_unit, resolve_size_unit, size_column_unit
 from .tables import Table, read_table
 
 STREAMS = ("feed", "fine", "coarse")
+STREAM_ALIASES = {"overflow": "fine", "underflow": "coarse"}  # hydrocyclone wording
 KINDS = ("mass", "pct", "frac", "retained_pct", "retained_frac", "passing_pct", "passing_frac")
 CUMULATIVE_KINDS = {"retained_pct", "retained_frac", "passing_pct", "passing_frac"}
-UNITS = ("nm", "um", "mm", "cm", "m")  # mesh numbers are not sizes (larger = finer)
+UNITS = SIZE_UNITS
+SIZE_STEMS = ("size", "size_lower", "size_upper", "size_class", "size_representative")
+PARTITION_METHODS = ("products", "feed")
+PARTITION_METHOD_TEXT = {  # how each partition method reads in outputs
+    "products": "both products, y b / (y b + (1 - y) c)",
+    "feed": "the fine stream over the measured feed, y b / a",
+    "reconciled": "the reconciled distributions, y b' / a'",
+}
+YIELD_COLUMNS = {"fine_yield": "fine", "overflow_yield": "fine", "coarse_yield": "coarse", "underflow_yield": "coarse"}
+YIELD_MARGIN = 1e-9  # an estimated yield this close to 0 or 1 means one product is empty
+MASS_YIELD_TOLERANCE = 0.005  # |stated - implied| fine yield above which two product masses contradict a stated yield
 DEFAULT_SUM_TOLERANCE_PCT = 1.5
 DEFAULT_MIN_FEED_SHARE = 0.002
 PARTITION_SLACK = 0.02
@@ -81,7 +104,9 @@ class LabOptions:
     sum_tolerance_pct : float
         Allowed deviation of per-class percentages from 100 % (percentage points).
     top_size, pan_lower_size : float or None
-        Upper bound of the open top class, lower bound of the pan.
+        Upper bound of the open top class, lower bound of the pan (0 or None: the pan
+        continues the geometric progression of its neighbour, as a blank or 0 lower
+        bound in the table does; a geometric mean with 0 would put the pan at size 0).
     rename : dict
         Column renames applied before reading (``{"sieve_um": "size"}``).
     sheet : str or None
@@ -90,6 +115,17 @@ class LabOptions:
         Weight each Tromp point by the feed share of its class.  Error model: the
         partition of a class is measured on a sample mass proportional to its feed
         share, so its variance is inversely proportional to that share.
+    partition_from : {"products", "feed"}
+        With three measured streams: ``"products"`` (default) computes the partition
+        from both products, :math:`y b / (y b + (1-y) c)`, so swapping the fine and
+        coarse columns gives exactly 1 - partition; ``"feed"`` divides the fine
+        stream by the measured feed, :math:`y b / a` (the fine stream alone; not
+        symmetric when the balance does not close).  ``reconcile`` overrides both.
+    size_unit : str or None
+        Unit of the sizes when the size columns carry no unit suffix (``--size-unit``);
+        a contradiction with a suffix is an error.
+    sep, decimal : str or None
+        CSV separator and decimal mark (detected when not given).
     """
 
     kind: str | None = None
@@ -104,10 +140,16 @@ class LabOptions:
     rename: dict = field(default_factory=dict)
     sheet: str | None = None
     weight_by_feed_share: bool = False
+    partition_from: str = "products"
+    size_unit: str | None = None
+    sep: str | None = None
+    decimal: str | None = None
 
     def __post_init__(self):
         if self.kind is not None and self.kind not in KINDS:
             raise ValueError(f"unknown kind {self.kind!r}; choose one of {', '.join(KINDS)}")
+        if self.partition_from not in PARTITION_METHODS:
+            raise ValueError(f"unknown partition_from {self.partition_from!r}; choose one of {', '.join(PARTITION_METHODS)}")
         for name in ("fine_yield", "coarse_yield"):
             value = getattr(self, name)
             if value is not None and not 0.0 < value < 1.0:
@@ -134,9 +176,11 @@ class MassBalance:
     ``classes`` has one row per size class with columns ``experiment, size_lower,
     size_upper, size, feed, fine, coarse`` (shares of each stream, 0..1, as measured or
     derived), ``balance_residual`` (``feed - y fine - (1-y) coarse``), ``partition_fine``,
-    ``partition_coarse``, ``used`` and ``flag`` (the reason a class is left out, or a note).
+    ``partition_coarse``, ``used`` and ``flag`` (the reason a class is left out, or a note)
+    and ``row`` (the file row of the class, when a class is one row).
     When reconciled, ``feed_adjusted``, ``fine_adjusted`` and ``coarse_adjusted`` hold
-    the adjusted shares.
+    the adjusted shares.  ``partition_method`` says how the partition was computed
+    (see :class:`LabOptions`), ``size_unit`` the unit of the sizes ("" when unknown).
     """
 
     experiment: str
@@ -147,6 +191,20 @@ class MassBalance:
     top_size: float
     notes: tuple[str, ...] = ()
     source: str = ""
+    partition_method: str = "products"
+    size_unit: str = ""
+
+    @property
+    def left_out(self) -> list[str]:
+        """One message per class left out of the fit: its bounds, file row and the reason."""
+        unit = f" {self.size_unit}" if self.size_unit else ""
+        messages = []
+        for row in self.classes.loc[~self.classes["used"]].itertuples(index=False):
+            lower = "pan" if not np.isfinite(row.size_lower) else f"{row.size_lower:g}"
+            upper = "top" if not np.isfinite(row.size_upper) else f"{row.size_upper:g}"
+            where = f" (row {row.row})" if row.row is not None else ""
+            messages.append(f"class {lower}-{upper}{unit}{where} left out: {row.flag}")
+        return messages
 
     def to_points(self, *, weight_by_feed_share: bool = False) -> TrompPoints:
         used = self.classes[self.classes["used"]]
@@ -157,15 +215,19 @@ class MassBalance:
             weight=used["feed"].to_numpy() if weight_by_feed_share else None,
             delta_max=self.top_size,
             source=self.source,
+            size_unit=self.size_unit,
         )
 
-    def points_table(self, *, weight_by_feed_share: bool = False) -> pd.DataFrame:
+    def points_table(self, *, weight_by_feed_share: bool = False, unit_in_names: bool = False) -> pd.DataFrame:
         """Rows in the ``tromplab fit`` schema plus per-class diagnostics (and a ``weight``
-        column equal to the feed share when asked)."""
+        column equal to the feed share when asked); with ``unit_in_names`` the size columns
+        carry the unit (``size_um``), so the file read back keeps it."""
         table = self.classes.rename(columns={"feed": "feed_share"})
         columns = ["experiment", "size", "partition_fine", "size_lower", "size_upper", "feed_share",
                    "balance_residual", "used", "flag"]  # fmt: skip
         table = table[columns]
+        if unit_in_names and self.size_unit:
+            table = table.rename(columns={c: f"{c}_{self.size_unit}" for c in ("size", "size_lower", "size_upper")})
         return table.assign(weight=table["feed_share"]) if weight_by_feed_share else table
 
 
@@ -208,7 +270,7 @@ def read_lab(path, options: LabOptions | None = None, **option_values) -> list[M
         For every kind of bad input, naming file, row and column.
     """
     options = _options(options, option_values)
-    table = read_table(path, sheet=options.sheet)
+    table = read_table(path, sheet=options.sheet, sep=options.sep, decimal=options.decimal)
     return balances_from_table(_renamed(table, options.rename), options)
 
 
@@ -233,11 +295,12 @@ def is_lab_table(columns) -> bool:
 
 def balances_from_table(table: Table, options: LabOptions) -> list[MassBalance]:
     streams = _stream_columns(table, options)
-    size_layout = _size_layout(table)
+    size_layout = _size_layout(table, options)
+    table.refuse_unknown(_known_lab_columns(table, streams, size_layout), what="lab table")
     labels = table.experiment_labels()
     balances = []
-    for name in dict.fromkeys(labels):
-        part = table.subset(labels == name)
+    for name, rows in experiment_rows(labels).items():
+        part = table.subset(rows)
         balances.append(_balance_one(part, name, streams, size_layout, options))
     return balances
 
@@ -248,12 +311,29 @@ def _renamed(table: Table, rename: dict) -> Table:
     missing = [old for old in rename if old not in table.frame.columns]
     if missing:
         raise InputError(f"cannot rename missing column(s) {', '.join(missing)}", source=table.source)
-    return Table(table.frame.rename(columns=rename), table.rows, table.source)
+    renamed = [rename.get(c, c) for c in table.frame.columns]
+    clashes = sorted({c for c in renamed if renamed.count(c) > 1})
+    if clashes:
+        raise InputError(f"after renaming, column(s) {', '.join(clashes)} appear twice", source=table.source, column=clashes[0])
+    return Table(table.frame.rename(columns=rename), table.rows, table.source, table.notes)
 
 
 def _stream_of(column: str):
-    match = re.fullmatch(r"(feed|fine|coarse)(?:_(" + "|".join(KINDS) + r"))?", column)
-    return match.groups() if match else None
+    """``(stream, kind)`` of a stream column (overflow = fine, underflow = coarse), else None."""
+    names = "|".join((*STREAMS, *STREAM_ALIASES))
+    match = re.fullmatch(r"(" + names + r")(?:_(" + "|".join(KINDS) + r"))?", column)
+    if not match:
+        return None
+    return STREAM_ALIASES.get(match.group(1), match.group(1)), match.group(2)
+
+
+def _known_lab_columns(table: Table, streams, layout) -> list[str]:
+    """Every column a lab table may hold given its streams and sizes (for the unknown-column check)."""
+    known = ["experiment", "size_unit", *YIELD_COLUMNS, *layout.columns, *(column for column, _ in streams.values())]
+    suffix = f"_{layout.unit_suffix}" if layout.unit_suffix else ""
+    known += [f"{stem}{suffix}" for stem in SIZE_STEMS]  # for suggestions: the sizes spelt as the file spells them
+    known += [f"{stream}_{kind}" for stream in (*STREAMS, *STREAM_ALIASES) for kind in KINDS]
+    return known
 
 
 def _stream_columns(table: Table, options: LabOptions) -> dict[str, tuple[str, str]]:
@@ -288,84 +368,210 @@ def _stream_columns(table: Table, options: LabOptions) -> dict[str, tuple[str, s
 
 @dataclass(frozen=True)
 class _SizeLayout:
-    """Where the sizes are: sieve apertures in one column, or class bounds in two."""
+    """Where the sizes are: sieve apertures in one column, class bounds in two, or
+    class-range strings ("+1168", "-1168+589", "-74") in one; optionally a column of
+    representative sizes; and their unit ("" when not known)."""
 
     sieve_sizes: bool
     columns: tuple[str, ...]
+    class_strings: bool = False
+    representative: str | None = None
+    unit: str = ""
+    unit_suffix: str = ""
 
 
-def _size_layout(table: Table) -> _SizeLayout:
-    unit_of = {}
+def _size_layout(table: Table, options: LabOptions | None = None) -> _SizeLayout:
+    found = {}  # stem -> (column, unit suffix)
     for column in table.frame.columns:
-        match = re.fullmatch(r"(size|size_lower|size_upper)(?:_(" + "|".join(UNITS) + r"))?", column)
-        if match:
-            unit_of[match.group(1)] = (column, match.group(2))
-    units = {unit for _, unit in unit_of.values()}
+        for stem in SIZE_STEMS:
+            matched, unit = size_column_unit(column, stem)
+            if matched:
+                if stem in found:
+                    raise InputError(f"two {stem} columns ({found[stem][0]}, {column}): give one", source=table.source, column=column)
+                found[stem] = (column, unit)
+    units = {unit for _, unit in found.values()}
     if len(units) > 1:
-        described = ", ".join(f"{column} ({unit or 'no unit'})" for column, unit in unit_of.values())
+        described = ", ".join(f"{column} ({unit or 'no unit'})" for column, unit in found.values())
         raise InputError(f"mixed units in the size columns: {described}; use one unit", source=table.source)
+    suffix = units.pop() if units else ""
+    unit = suffix
     if "size_unit" in table.frame.columns:
         given = table.frame["size_unit"].dropna().astype(str).str.strip().unique()
         if len(given) > 1:
             raise InputError(f"mixed units in column 'size_unit': {', '.join(given)}", source=table.source, column="size_unit")
-    if "size_lower" in unit_of and "size_upper" in unit_of:
-        return _SizeLayout(False, (unit_of["size_lower"][0], unit_of["size_upper"][0]))
-    if "size" in unit_of:
-        return _SizeLayout(True, (unit_of["size"][0],))
-    raise InputError("give class bounds 'size_lower' and 'size_upper', or sieve sizes 'size' for cumulative data", source=table.source)
+        if len(given) == 1:
+            unit = resolve_size_unit(table, suffix, given[0], next(iter(found.values()))[0] if found else "size_unit",
+                                     given_as="in column 'size_unit'")  # fmt: skip
+    if unit and not suffix and options and options.size_unit and unit != normal_unit(options.size_unit):
+        raise InputError(f"the size unit '{options.size_unit}' given as an option (--size-unit) contradicts column "
+                         f"'size_unit' ({unit})", source=table.source, column="size_unit")  # fmt: skip
+    unit = resolve_size_unit(table, unit, options.size_unit if options else None, next(iter(found.values()))[0] if found else "size")
+    layouts = [name for name, present in (("size_class", "size_class" in found), ("size_lower/size_upper", "size_lower" in found or "size_upper" in found),
+                                          ("size", "size" in found)) if present]  # fmt: skip
+    if len(layouts) > 1:
+        raise InputError(
+            f"the sizes are given twice ({' and '.join(layouts)}): keep one layout (a representative size per class goes "
+            "in 'size_representative')",
+            source=table.source,
+        )
+    representative = found.get("size_representative", (None,))[0]
+    if "size_lower" in found or "size_upper" in found:
+        if not ("size_lower" in found and "size_upper" in found):
+            missing = "size_upper" if "size_lower" in found else "size_lower"
+            raise InputError(f"class bounds need both size_lower and size_upper; {missing} is missing", source=table.source)
+        return _SizeLayout(False, (found["size_lower"][0], found["size_upper"][0]), representative=representative, unit=unit, unit_suffix=suffix)
+    if "size_class" in found:
+        return _SizeLayout(False, (found["size_class"][0],), class_strings=True, representative=representative, unit=unit, unit_suffix=suffix)
+    if "size" in found:
+        if representative:
+            raise InputError("a representative size column needs class bounds or size classes, not sieve sizes", source=table.source,
+                             column=representative)  # fmt: skip
+        return _SizeLayout(True, (found["size"][0],), unit=unit, unit_suffix=suffix)
+    raise InputError(
+        "give class bounds 'size_lower' and 'size_upper', size classes 'size_class' (\"+1168\", \"-1168+589\", \"-74\"), "
+        "or sieve sizes 'size'",
+        source=table.source,
+    )
 
 
 # --- one experiment ---------------------------------------------------------------------
 def _balance_one(table: Table, name: str, streams, layout: _SizeLayout, options: LabOptions) -> MassBalance:
     cumulative = any(kind in CUMULATIVE_KINDS for _, kind in streams.values())
+    notes = []
+    totals = {}
     if cumulative:
         if not layout.sieve_sizes:
             raise InputError("cumulative stream columns need sieve sizes in a 'size' column, not class bounds", source=table.source)
-        lower, upper, shares = _classes_from_cumulative(table, layout.columns[0], streams)
-        class_rows = None
+        lower, upper, shares, blank_notes = _classes_from_cumulative(table, layout.columns[0], streams)
+        notes += blank_notes
+        class_rows = [None] * lower.size  # a class spans two sieve rows
     else:
-        lower, upper = _retained_on_sieves(table, layout.columns[0]) if layout.sieve_sizes else _class_bounds(table, *layout.columns)
-        shares = {stream: _per_class_shares(table, column, kind, options) for stream, (column, kind) in streams.items()}
-        class_rows = table.rows
-    top_size, size = _representative_sizes(table, lower, upper, options)
-    fine_yield, source_of_yield, estimate, notes = _fine_yield(table, shares, options)
+        if layout.sieve_sizes:
+            lower, upper = _retained_on_sieves(table, layout.columns[0])
+        elif layout.class_strings:
+            lower, upper = _checked_bounds(table, *_class_strings(table, layout.columns[0]), layout.columns[0], layout.columns[0])
+        else:
+            lower, upper = _class_bounds(table, *layout.columns)
+        shares = {}
+        for stream, (column, kind) in streams.items():
+            shares[stream], totals[stream], note = _per_class_shares(table, column, kind, options)
+            notes += [note] if note else []
+        class_rows = list(table.rows)
+    if lower.size < 3:
+        raise InputError(f"experiment '{name}' has {lower.size} size class(es); at least 3 are needed", source=table.source)
+    top_size, size = _representative_sizes(table, lower, upper, options, layout.representative)
+    mass_yield = _mass_implied_yield(streams, totals)
+    fine_yield, source_of_yield, estimate, yield_notes = _fine_yield(table, shares, options, mass_yield)
+    notes += yield_notes
     a, b, c = _complete_streams(table, shares, fine_yield)
-    _check_empty_feed(table, a, b, c, class_rows)
+    _check_empty_feed(table, a, b, c, None if cumulative else table.rows)
     classes = pd.DataFrame({"experiment": name, "size_lower": lower, "size_upper": upper, "size": size,
                             "feed": a, "fine": b, "coarse": c})  # fmt: skip
     classes["balance_residual"] = a - fine_yield * b - (1 - fine_yield) * c
+    method = options.partition_from
     if options.reconcile and len(shares) == 3:
         adjusted = reconcile(a, b, c, fine_yield)
         for stream, values in zip(STREAMS, adjusted):
             classes[f"{stream}_adjusted"] = values
         a, b, c = adjusted
-    with np.errstate(divide="ignore", invalid="ignore"):
-        phi = np.where(a > 0, fine_yield * b / a, np.nan)
-    used, flags = _flag_classes(a, phi, options.min_feed_share)
+        method = "reconciled"
+    phi = partition_to_fines(a, b, c, fine_yield, method=method)
+    empty_products = (a > 0) & (b <= 0) & (c <= 0) & ("fine" in shares) & ("coarse" in shares)
+    used, flags = _flag_classes(a, phi, options.min_feed_share, empty_products)
     classes["partition_fine"] = np.where(np.isfinite(phi), np.clip(phi, 0.0, 1.0), np.nan)
     classes["partition_coarse"] = 1.0 - classes["partition_fine"]
     classes["used"] = used
     classes["flag"] = flags
+    classes["row"] = class_rows
     if used.sum() < 3:
         raise InputError(
             f"experiment '{name}' has {int(used.sum())} usable size classes; at least 3 are needed "
             f"(flags: {'; '.join(f for f in flags if f) or 'none'})",
             source=table.source,
         )
-    return MassBalance(name, classes, fine_yield, source_of_yield, estimate, top_size, tuple(notes), table.source)
+    return MassBalance(name, classes, fine_yield, source_of_yield, estimate, top_size, tuple(notes), table.source,
+                       partition_method=method, size_unit=layout.unit)  # fmt: skip
+
+
+def partition_to_fines(feed, fine, coarse, fine_yield, *, method: str = "products") -> np.ndarray:
+    r"""Partition to the fine product of each class from the three shares and the fine yield.
+
+    .. math::
+
+        \varphi_i = \frac{y\,b_i}{y\,b_i + (1-y)\,c_i} \quad\text{(products)}, \qquad
+        \varphi_i = \frac{y\,b_i}{a_i} \quad\text{(feed)}
+
+    ``"products"`` uses both products, so exchanging the fine and coarse streams (and
+    ``y`` with ``1 - y``) gives exactly ``1 - phi``; ``"feed"`` divides the fine stream by
+    the measured feed and is not symmetric when the balance does not close.  After
+    reconciliation (``"reconciled"``) both coincide.  A class with nothing in the
+    denominator gets NaN.
+
+    Examples
+    --------
+    >>> partition_to_fines([0.5], [0.4], [0.5], 0.5).round(4).tolist()
+    [0.4444]
+    >>> partition_to_fines([0.5], [0.4], [0.5], 0.5, method="feed").round(4).tolist()
+    [0.4]
+    """
+    a, b, c = (np.asarray(v, dtype=float) for v in (feed, fine, coarse))
+    y = float(fine_yield)
+    denominator = a if method == "feed" else y * b + (1 - y) * c
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(denominator > 0, y * b / denominator, np.nan)
+
+
+def _class_strings(table: Table, column: str):
+    """Bounds from class-range strings: "+1168" (retained on 1168: the open top class),
+    "-1168+589" (through 1168, on 589), "-74" (through 74: the pan); "+0" = the pan."""
+    lower = np.full(len(table.frame), np.nan)
+    upper = np.full(len(table.frame), np.nan)
+    for i, value in enumerate(table.frame[column]):
+        text = "" if pd.isna(value) else str(value).strip().replace("\u2212", "-").replace(" ", "")
+        parts = re.fullmatch(r"([+-])(\d+(?:\.\d*)?(?:[eE][-+]?\d+)?)(?:([+-])(\d+(?:\.\d*)?(?:[eE][-+]?\d+)?))?", text)
+        if not parts or parts.group(1) == parts.group(3):
+            raise table.error(
+                f"'{value}' is not a size class: write '+1168' (retained on 1168), '-1168+589' (through 1168, on 589) "
+                "or '-74' (through 74)",
+                index=i,
+                column=column,
+            )
+        for sign, number in ((parts.group(1), parts.group(2)), (parts.group(3), parts.group(4))):
+            if sign == "+":
+                lower[i] = float(number)
+            elif sign == "-":
+                upper[i] = float(number)
+    return lower, upper
+
+
+def _mass_implied_yield(streams, totals) -> float | None:
+    """Fine yield implied by the masses of both products (fine / (fine + coarse)), when the two
+    products (and no feed) are given as masses: the products are then taken as weighed whole."""
+    if "feed" in streams or not all(stream in totals and streams[stream][1] == "mass" for stream in ("fine", "coarse")):
+        return None
+    return totals["fine"] / (totals["fine"] + totals["coarse"])
 
 
 def _class_bounds(table: Table, lower_column: str, upper_column: str):
     lower = table.numeric(lower_column, allow_blank=True)
     upper = table.numeric(upper_column, allow_blank=True)
+    return _checked_bounds(table, lower, upper, lower_column, upper_column)
+
+
+def _checked_bounds(table: Table, lower, upper, lower_column: str, upper_column: str):
+    """Class bounds checked: positive (a lower bound of 0 = the pan), ordered, one open top, one pan, no overlap."""
+    lower = np.where(lower == 0, np.nan, lower)  # the pan written with a lower bound of 0
     for values, column in ((lower, lower_column), (upper, upper_column)):
         bad = np.flatnonzero(values <= 0)
         if bad.size:
-            raise table.error("class bounds must be positive", index=int(bad[0]), column=column)
+            raise table.error("class bounds must be positive (a pan's lower bound may be 0 or blank)", index=int(bad[0]), column=column)
     both = np.isfinite(lower) & np.isfinite(upper)
     bad = np.flatnonzero(both & (lower >= upper))
     if bad.size:
         raise table.error(f"lower bound {lower[bad[0]]:g} is not below the upper bound {upper[bad[0]]:g}", index=int(bad[0]), column=lower_column)
+    bad = np.flatnonzero(np.isnan(lower) & np.isnan(upper))
+    if bad.size:
+        raise table.error("the class has neither a lower nor an upper bound", index=int(bad[0]), column=lower_column)
     open_top = np.flatnonzero(np.isnan(upper))
     pan = np.flatnonzero(np.isnan(lower))
     for rows, column, what in ((open_top, upper_column, "open top class"), (pan, lower_column, "pan")):
@@ -410,9 +616,12 @@ def _sorted_sieves(table: Table, size_column: str) -> np.ndarray:
     return size
 
 
-def _per_class_shares(table: Table, column: str, kind: str, options: LabOptions) -> np.ndarray:
+def _per_class_shares(table: Table, column: str, kind: str, options: LabOptions):
+    """Shares of one stream per class (summing to 1), the column's total, and a note on blank cells."""
     values = table.numeric(column, allow_blank=True)
-    values = np.where(np.isnan(values), 0.0, values)  # an empty cell in a class table means no material
+    blank = np.flatnonzero(np.isnan(values))
+    note = f"column '{column}': blank cell(s) at {_rows_text(table.rows[blank])} read as no material" if blank.size else ""
+    values = np.where(np.isnan(values), 0.0, values)
     bad = np.flatnonzero(values < 0)
     if bad.size:
         raise table.error(f"negative amount {values[bad[0]]:g}", index=int(bad[0]), column=column)
@@ -430,7 +639,12 @@ def _per_class_shares(table: Table, column: str, kind: str, options: LabOptions)
                 source=table.source,
                 column=column,
             )
-    return values / total
+    return values / total, float(total), note
+
+
+def _rows_text(rows) -> str:
+    rows = [str(r) for r in rows]  # file lines, or a DataFrame's index labels
+    return ("row " if len(rows) == 1 else "rows ") + ", ".join(rows[:8]) + (", ..." if len(rows) > 8 else "")
 
 
 def _classes_from_cumulative(table: Table, size_column: str, streams):
@@ -438,19 +652,22 @@ def _classes_from_cumulative(table: Table, size_column: str, streams):
     order = np.argsort(size)[::-1]  # coarse to fine
     sieves = size[order]
     shares = {}
+    notes = []
     for stream, (column, kind) in streams.items():
-        retained = _cumulative_retained(table, column, kind, order)
+        retained, note = _cumulative_retained(table, column, kind, order)
         shares[stream] = np.diff(np.concatenate(([0.0], retained, [1.0])))
+        notes += [note] if note else []
     lower = np.concatenate((sieves, [np.nan]))
     upper = np.concatenate(([np.nan], sieves))
-    return lower, upper, shares
+    return lower, upper, shares, notes
 
 
 def _cumulative_retained(table: Table, column: str, kind: str, order: np.ndarray) -> np.ndarray:
     """Cumulative fraction retained, coarse to fine, checked: 0..1 and non-decreasing.
 
     A blank at the coarse end counts as nothing retained; a blank at the fine end counts
-    as everything retained only when the last given value is already 100 %.
+    as everything retained only when the last given value is already 100 %.  Both are
+    reported in the returned note; a blank between given values is refused.
     """
     full = 100.0 if kind.endswith("pct") else 1.0
     values = table.numeric(column, allow_blank=True)[order]
@@ -465,22 +682,27 @@ def _cumulative_retained(table: Table, column: str, kind: str, order: np.ndarray
         value = values[i]
         if np.isfinite(value) and not -1e-9 * full <= value <= full * (1 + 1e-9):
             raise table.error(f"cumulative value {value:g} outside 0..{full:g}", index=int(rows[i]), column=column)
-    values[: given[0]] = 0.0 if not kind.startswith("passing") else full
+    filled = []
+    if given[0] > 0:
+        values[: given[0]] = 0.0 if not kind.startswith("passing") else full
+        filled.append(f"{_rows_text(table.rows[rows[: given[0]]])} (coarse end) read as {values[0]:g}")
     if given[-1] < values.size - 1:
         last = values[given[-1]]
         complete = full if kind.startswith("retained") else 0.0
         if not np.isclose(last, complete):
             raise table.error("blank at the fine end after an incomplete cumulative value", index=int(rows[given[-1] + 1]), column=column)
         values[given[-1] + 1 :] = complete
+        filled.append(f"{_rows_text(table.rows[rows[given[-1] + 1 :]])} (fine end) read as {complete:g}")
+    note = f"column '{column}': blank cell(s) at {' and '.join(filled)}" if filled else ""
     retained = values / full if kind.startswith("retained") else 1.0 - values / full
     drops = np.flatnonzero(np.diff(retained) < -1e-12)
     if drops.size:
         what = "retained share falls" if kind.startswith("retained") else "passing share rises"
         raise table.error(f"cumulative data are not monotone: the {what} towards finer sieves", index=int(rows[drops[0] + 1]), column=column)
-    return np.clip(retained, 0.0, 1.0)
+    return np.clip(retained, 0.0, 1.0), note
 
 
-def _representative_sizes(table: Table, lower, upper, options: LabOptions):
+def _representative_sizes(table: Table, lower, upper, options: LabOptions, representative_column: str | None = None):
     lower, upper = lower.astype(float).copy(), upper.astype(float).copy()
     order = np.argsort(np.where(np.isfinite(lower), lower, 0.0))[::-1]
     top, pan = order[0], order[-1]
@@ -491,14 +713,28 @@ def _representative_sizes(table: Table, lower, upper, options: LabOptions):
             neighbour = order[1]
             upper[top] = lower[top] * _ratio(table, lower[neighbour], upper[neighbour])
     if np.isnan(lower[pan]):
-        if options.pan_lower_size is not None:
+        if options.pan_lower_size:  # 0, like a lower bound of 0 in the table, means "the pan": extend the progression
             lower[pan] = options.pan_lower_size
         else:
             neighbour = order[-2]
             lower[pan] = upper[pan] / _ratio(table, lower[neighbour], upper[neighbour])
     if not upper[top] > lower[top] or not upper[pan] > lower[pan]:
         raise InputError("top_size must exceed the top class's lower bound and pan_lower_size must be below the pan's upper bound", source=table.source)
-    return float(upper[top]), np.sqrt(lower * upper)
+    size = np.sqrt(lower) * np.sqrt(upper)  # not sqrt(lower * upper): the product under- or overflows at extreme sizes
+    if representative_column:  # measured or stated sizes replace the geometric-mean rule where given
+        given = table.numeric(representative_column, allow_blank=True)
+        bad = np.flatnonzero(np.isfinite(given) & ((given <= lower * (1 - 1e-9)) | (given >= upper * (1 + 1e-9))))
+        if bad.size:
+            i = int(bad[0])
+            raise table.error(f"representative size {given[i]:g} outside its class {lower[i]:g}-{upper[i]:g}", index=i,
+                              column=representative_column)  # fmt: skip
+        size = np.where(np.isfinite(given), given, size)
+    bad = np.flatnonzero(~(np.isfinite(size) & (size > 0)) | ~(upper[top] < np.inf))
+    if bad.size:  # e.g. a pan below 5e-324 or a top class above 1e308 once extended by the class ratio
+        i = int(bad[0])
+        raise InputError(f"class {lower[i]:g}-{upper[i]:g} has the representative size {size[i]:g}: its bounds are too extreme to "
+                         "compute with (give the sizes in another unit)", source=table.source)  # fmt: skip
+    return float(upper[top]), size
 
 
 def _ratio(table, lower, upper) -> float:
@@ -572,18 +808,25 @@ def _given_yield(table: Table, options: LabOptions):
         return options.fine_yield, "option fine_yield"
     if options.coarse_yield is not None:
         return 1.0 - options.coarse_yield, "option coarse_yield"
-    found = {column: _yield_column(table, column) for column in ("fine_yield", "coarse_yield") if column in table.frame.columns}
-    found = {column: value for column, value in found.items() if value is not None}
-    if len(found) == 2 and not np.isclose(found["fine_yield"] + found["coarse_yield"], 1.0, atol=1e-3):
+    columns = {}  # product -> its yield column (fine_yield or overflow_yield, coarse_yield or underflow_yield)
+    for column, product in YIELD_COLUMNS.items():
+        if column in table.frame.columns:
+            if product in columns:
+                raise InputError(f"two yield columns for the {product} product ({columns[product]}, {column})", source=table.source,
+                                 column=column)  # fmt: skip
+            columns[product] = column
+    found = {product: (column, _yield_column(table, column)) for product, column in columns.items()}
+    found = {product: pair for product, pair in found.items() if pair[1] is not None}
+    if len(found) == 2 and not np.isclose(found["fine"][1] + found["coarse"][1], 1.0, atol=1e-3):
         raise InputError(
-            f"fine_yield {found['fine_yield']:g} and coarse_yield {found['coarse_yield']:g} do not add up to 1",
+            f"{found['fine'][0]} {found['fine'][1]:g} and {found['coarse'][0]} {found['coarse'][1]:g} do not add up to 1",
             source=table.source,
-            column="coarse_yield",
+            column=found["coarse"][0],
         )
-    if "fine_yield" in found:
-        return found["fine_yield"], "column fine_yield"
-    if "coarse_yield" in found:
-        return 1.0 - found["coarse_yield"], "column coarse_yield"
+    if "fine" in found:
+        return found["fine"][1], f"column {found['fine'][0]}"
+    if "coarse" in found:
+        return 1.0 - found["coarse"][1], f"column {found['coarse'][0]}"
     return None, None
 
 
@@ -602,12 +845,24 @@ def _yield_column(table: Table, column: str) -> float | None:
     return float(given[0])
 
 
-def _fine_yield(table: Table, shares: dict, options: LabOptions):
+def _fine_yield(table: Table, shares: dict, options: LabOptions, mass_yield: float | None = None):
     given, source = _given_yield(table, options)
     notes = []
     estimate = None
     if len(shares) == 3:
-        estimate = estimate_fine_yield(shares["feed"], shares["fine"], shares["coarse"])
+        try:
+            estimate = estimate_fine_yield(shares["feed"], shares["fine"], shares["coarse"])
+        except ValueError as error:
+            raise InputError(str(error), source=table.source) from None
+    if mass_yield is not None:
+        if given is None:
+            notes.append(f"fine yield {mass_yield:.4f} taken from the product masses (fine / (fine + coarse))")
+            return mass_yield, "product masses", estimate, notes
+        elif abs(given - mass_yield) > MASS_YIELD_TOLERANCE:
+            note = (f"the stated fine yield {given:.4f} ({source}) contradicts the product masses, which imply "
+                    f"{mass_yield:.4f} (fine / (fine + coarse)); the stated yield is used")  # fmt: skip
+            notes.append(note)
+            warnings.warn(f"{table.source}: {note}", YieldWarning, stacklevel=4)
     if given is not None and not options.estimate_yield:
         if estimate is not None:
             note = yield_contradiction(given, estimate)
@@ -622,7 +877,7 @@ def _fine_yield(table: Table, shares: dict, options: LabOptions):
             "(option fine_yield / coarse_yield or a fine_yield column)",
             source=table.source,
         )
-    if not 0.0 < estimate.value < 1.0:
+    if not YIELD_MARGIN < estimate.value < 1.0 - YIELD_MARGIN:  # symmetric, so that swapping the products cannot tip it
         raise InputError(f"the size data imply a fine yield of {estimate.value:.3f}, outside (0, 1): check the streams", source=table.source)
     return estimate.value, "least-squares estimate", estimate, notes
 
@@ -669,11 +924,15 @@ def _check_empty_feed(table: Table, a, b, c, class_rows) -> None:
         )
 
 
-def _flag_classes(feed_share, phi, min_feed_share):
+def _flag_classes(feed_share, phi, min_feed_share, empty_products=None):
     used = np.ones(feed_share.size, dtype=bool)
     flags = [""] * feed_share.size
+    empty_products = np.zeros(feed_share.size, dtype=bool) if empty_products is None else empty_products
     for i, (share, value) in enumerate(zip(feed_share, phi)):
-        if share < min_feed_share:
+        if empty_products[i]:
+            used[i] = False
+            flags[i] = "the feed has material in this class but neither product has any: partition undefined (check the data)"
+        elif share < min_feed_share:
             used[i] = False
             flags[i] = f"feed share {100 * share:.3g} % below {100 * min_feed_share:g} %: partition not meaningful"
         elif not -PARTITION_SLACK <= value <= 1 + PARTITION_SLACK:
@@ -775,8 +1034,8 @@ def read_experiments(path, options: LabOptions | None = None, **option_values) -
     from .points import points_from_table
 
     options = _options(options, option_values)
-    table = _renamed(read_table(path, sheet=options.sheet), options.rename)
+    table = _renamed(read_table(path, sheet=options.sheet, sep=options.sep, decimal=options.decimal), options.rename)
     if is_lab_table(table.frame.columns):
         balances = balances_from_table(table, options)
         return [balance.to_points(weight_by_feed_share=options.weight_by_feed_share) for balance in balances], balances
-    return points_from_table(table), []
+    return points_from_table(table, size_unit=options.size_unit), []

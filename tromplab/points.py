@@ -5,7 +5,10 @@ File schema (CSV or Excel), one row per size class:
 ``experiment``
     optional; rows without the column form one experiment named after the file.
 ``size``
-    representative particle size, > 0, any unit shared by the file.
+    representative particle size, > 0.  The unit may be given as a suffix
+    (``size_um``, ``size_mm``; one of :data:`SIZE_UNITS`); otherwise it is the
+    ``size_unit`` option (``--size-unit``), and a contradiction between the two is an
+    error.  Sizes are used as given, never converted.
 exactly one partition column
     ``partition_fine`` (0..1), ``partition_fine_pct`` (0..100), ``partition_coarse``
     (0..1) or ``partition_coarse_pct`` (0..100).
@@ -13,10 +16,16 @@ exactly one partition column
     optional; relative weight of the point in the least-squares fit (> 0).
 ``used``
     optional yes/no; rows marked no are left out (``tromplab points`` writes it).
+diagnostics written by ``tromplab points``
+    ``size_lower``, ``size_upper`` (same unit suffix as ``size``), ``feed_share``,
+    ``balance_residual``, ``flag``: accepted and ignored, as are free-text ``note`` and
+    ``comment`` columns.  Any other column is refused with its name (a typo such as
+    ``partiton_fine`` or ``experimnet`` would otherwise be ignored silently).
 """
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -24,6 +33,11 @@ import pandas as pd
 
 from .errors import InputError
 from .tables import Table, read_table
+
+SIZE_UNITS = ("nm", "um", "mm", "cm", "m")  # mesh numbers are not sizes (larger = finer)
+_UNIT_SPELLINGS = {"µm": "um", "μm": "um", "micron": "um", "microns": "um", "micrometre": "um", "micrometer": "um",
+                   "millimetre": "mm", "millimeter": "mm"}  # fmt: skip
+POINTS_DIAGNOSTIC_COLUMNS = ("feed_share", "balance_residual", "flag")
 
 PARTITION_COLUMNS = {
     # column: (scale to a fraction, True if it is the partition to fines)
@@ -58,6 +72,8 @@ class TrompPoints:
         otherwise the largest size is used.
     source : str
         Where the points came from.
+    size_unit : str
+        Unit of the sizes (from the column suffix or the ``size_unit`` option), or "".
     resampled : bool
         True for bootstrap samples, whose sizes repeat and whose partitions may leave
         0..1 by noise; only finiteness and positive sizes are checked then.
@@ -85,6 +101,7 @@ class TrompPoints:
     weight: np.ndarray | None = None
     delta_max: float | None = None
     source: str = ""
+    size_unit: str = ""
     meta: dict = field(default_factory=dict, compare=False)
     resampled: bool = field(default=False, repr=False, compare=False)
 
@@ -146,7 +163,7 @@ class TrompPoints:
         return frame
 
 
-def read_points(path, *, sheet=None) -> list[TrompPoints]:
+def read_points(path, *, sheet=None, size_unit: str | None = None, sep: str | None = None, decimal: str | None = None) -> list[TrompPoints]:
     """Read and validate Tromp points (schema in the module docstring).
 
     Parameters
@@ -156,11 +173,23 @@ def read_points(path, *, sheet=None) -> list[TrompPoints]:
         messages as ``tromplab fit`` (for a DataFrame the row is its index label).
     sheet : str or int, optional
         Excel sheet.
+    size_unit : str, optional
+        Unit of the sizes when the size column has no unit suffix (a contradiction with
+        the suffix is an error).
+    sep, decimal : str, optional
+        CSV separator and decimal mark (detected when not given).
 
     Returns
     -------
     list of TrompPoints
         One per experiment, in order of first appearance.
+
+    Raises
+    ------
+    InputError
+        Naming file, row and column: missing or duplicated partition columns, unknown
+        columns, text, blanks, dates or inf in numeric columns, partitions out of range,
+        non-positive or duplicate sizes within an experiment.
 
     Examples
     --------
@@ -172,35 +201,70 @@ def read_points(path, *, sheet=None) -> list[TrompPoints]:
     Traceback (most recent call last):
     ...
     tromplab.errors.InputError: DataFrame, row 0, column 'partition_fine': partition 98 outside 0..1
-
-    Raises
-    ------
-    InputError
-        Naming file, row and column: missing or duplicated partition columns, text or
-        blanks in numeric columns, partitions out of range, non-positive or duplicate
-        sizes within an experiment.
     """
-    table = read_table(path, sheet=sheet)
-    return points_from_table(table)
+    table = read_table(path, sheet=sheet, sep=sep, decimal=decimal)
+    return points_from_table(table, size_unit=size_unit)
 
 
-def points_from_table(table: Table) -> list[TrompPoints]:
+def normal_unit(unit: str | None) -> str:
+    """A unit as the loaders spell it (``µm`` and ``micron`` become ``um``); "" for none."""
+    text = (unit or "").strip()
+    return _UNIT_SPELLINGS.get(text.lower(), text)
+
+
+def size_column_unit(column: str, stem: str = "size") -> tuple[bool, str]:
+    """Whether ``column`` is ``stem`` with an optional unit suffix, and that unit.
+
+    Examples
+    --------
+    >>> size_column_unit("size_lower_um", "size_lower"), size_column_unit("size_mesh")
+    ((True, 'um'), (False, ''))
+    """
+    match = re.fullmatch(re.escape(stem) + r"(?:_(" + "|".join(SIZE_UNITS) + r"))?", column)
+    return (True, match.group(1) or "") if match else (False, "")
+
+
+def resolve_size_unit(table: Table, suffix_unit: str, option_unit: str | None, column: str,
+                      given_as: str = "as an option (--size-unit)") -> str:  # fmt: skip
+    """The unit of the sizes: the column suffix, else the option; a contradiction is an error."""
+    option = normal_unit(option_unit)
+    if suffix_unit and option and option != suffix_unit:
+        raise InputError(
+            f"the size unit '{option_unit}' given {given_as} contradicts the column name '{column}' "
+            f"(unit '{suffix_unit}'); sizes are never converted: drop one or fix the column name",
+            source=table.source,
+            column=column,
+        )
+    return suffix_unit or option
+
+
+def points_from_table(table: Table, *, size_unit: str | None = None) -> list[TrompPoints]:
     """Tromp points from a table; rows with ``used`` false (written by ``tromplab points``) are skipped."""
+    size_columns = [c for c in table.frame.columns if size_column_unit(c)[0]]
+    if len(size_columns) > 1:
+        raise InputError(f"several size columns ({', '.join(size_columns)}): give exactly one", source=table.source,
+                         column=size_columns[1])  # fmt: skip
+    size_column = size_columns[0] if size_columns else "size"
+    unit = resolve_size_unit(table, size_column_unit(size_column)[1], size_unit, size_column)
+    known = _known_points_columns(size_column)
     if "used" in table.frame.columns:
         table = table.subset(table.boolean("used"))
         if table.frame.empty:
             raise InputError("no row is marked as used", source=table.source, column="used")
-    table.require("size")
+    table.require(size_column)
     given = [c for c in PARTITION_COLUMNS if c in table.frame.columns]
     if not given:
-        raise InputError(f"no partition column: give exactly one of {', '.join(PARTITION_COLUMNS)}", source=table.source)
+        unknown = table.unknown_columns(known)
+        raise InputError(f"no partition column: give exactly one of {', '.join(PARTITION_COLUMNS)}"
+                         + (f"; unknown column(s) {unknown}" if unknown else ""), source=table.source)  # fmt: skip
     if len(given) > 1:
         raise InputError(
             f"several partition columns ({', '.join(given)}): give exactly one", source=table.source, column=given[1]
         )
+    table.refuse_unknown(known, what="Tromp-points file")
     column = given[0]
     scale, to_fines = PARTITION_COLUMNS[column]
-    size = table.numeric("size")
+    size = table.numeric(size_column)
     partition = table.numeric(column)
     upper = scale
     bad = np.flatnonzero((partition < 0) | (partition > upper))
@@ -209,7 +273,7 @@ def points_from_table(table: Table) -> list[TrompPoints]:
         raise table.error(f"partition {partition[i]:g} outside 0..{upper:g}", index=i, column=column)
     bad = np.flatnonzero(size <= 0)
     if bad.size:
-        raise table.error(f"size must be positive, got {size[bad[0]]:g}", index=int(bad[0]), column="size")
+        raise table.error(f"size must be positive, got {size[bad[0]]:g}", index=int(bad[0]), column=size_column)
     weight = None
     if "weight" in table.frame.columns:
         weight = table.numeric("weight")
@@ -221,10 +285,8 @@ def points_from_table(table: Table) -> list[TrompPoints]:
         phi = 1.0 - phi
     experiments = table.experiment_labels()
     result = []
-    # rows of each experiment in one pass (a scan per experiment is quadratic in large files)
-    groups = pd.Series(np.arange(len(experiments))).groupby(experiments, sort=False).indices
-    for name, rows in groups.items():
-        _check_unique_sizes(table, rows, size)
+    for name, rows in experiment_rows(experiments).items():
+        _check_unique_sizes(table, rows, size, size_column)
         result.append(
             TrompPoints(
                 experiment=name,
@@ -232,19 +294,33 @@ def points_from_table(table: Table) -> list[TrompPoints]:
                 partition_fine=phi[rows],
                 weight=None if weight is None else weight[rows],
                 source=table.source,
+                size_unit=unit,
             )
         )
     return result
 
 
-def _check_unique_sizes(table: Table, rows: np.ndarray, size: np.ndarray) -> None:
+def experiment_rows(labels) -> dict:
+    """Positions of each experiment's rows, experiments in order of first appearance (one
+    pass over the labels: a file of 10,000 experiments is not scanned 10,000 times)."""
+    groups = pd.Series(np.arange(len(labels))).groupby(pd.Series(labels, dtype=object), sort=False).indices
+    return {name: np.asarray(groups[name]) for name in dict.fromkeys(labels)}
+
+
+def _known_points_columns(size_column: str) -> list[str]:
+    suffix = size_column[len("size"):]
+    return ["experiment", size_column, *PARTITION_COLUMNS, "weight", "used", f"size_lower{suffix}", f"size_upper{suffix}",
+            *POINTS_DIAGNOSTIC_COLUMNS]  # fmt: skip
+
+
+def _check_unique_sizes(table: Table, rows: np.ndarray, size: np.ndarray, column: str = "size") -> None:
     seen = {}
     for i in rows:
         if size[i] in seen:
             raise table.error(
                 f"duplicate size {size[i]:g} in the same experiment (also at row {table.rows[seen[size[i]]]})",
                 index=int(i),
-                column="size",
+                column=column,
             )
         seen[size[i]] = i
 

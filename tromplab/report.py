@@ -18,7 +18,7 @@ import numpy as np
 import pandas as pd
 
 from ._version import __version__
-from .lab import MassBalance
+from .lab import PARTITION_METHOD_TEXT, MassBalance
 from .uncertainty import interval_table
 from .workbench import Workbench, model_averages
 
@@ -158,8 +158,8 @@ def build_report(bench: Workbench, balances: list[MassBalance], *, source: str, 
     for balance in balances:
         for note in balance.notes:
             report.add("summary", "warning", f"{balance.experiment}: {note}")
-        for flag in balance.classes.loc[~balance.classes["used"], "flag"]:
-            report.add("summary", "warning", f"{balance.experiment}: class left out: {flag}")
+        for message in balance.left_out:
+            report.add("summary", "warning", f"{balance.experiment}: {message}")
     for fit in bench.fits:
         if fit.warnings or not fit.success:
             detail = "; ".join(fit.warnings) if fit.success else f"fit failed: {fit.message}"  # solver chatter left out
@@ -169,6 +169,7 @@ def build_report(bench: Workbench, balances: list[MassBalance], *, source: str, 
         text = f"Fine yield {balance.fine_yield:.4f} ({balance.yield_source})."
         if estimate is not None:
             text += f" Least-squares estimate from the three streams: {estimate.value:.4f} +/- {estimate.stderr:.4f}."
+        text += f" Partition to fines from {PARTITION_METHOD_TEXT[balance.partition_method]}."
         report.add("balance", "text", text, caption=f"Experiment {balance.experiment}")
         classes = partition_view(balance.classes, partition_to)
         columns = [c for c in ("size_lower", "size_upper", "size", "feed", "fine", "coarse", "balance_residual",

@@ -504,6 +504,7 @@ def identify_from_table(table, *, two_sided: bool = False, level: float = 0.95):
     from .errors import InputError
 
     table.require(*IDENTIFY_COLUMNS)
+    table.refuse_unknown((*IDENTIFY_COLUMNS, "P_g", *PG_COLUMNS), what="residue table")
     numbers = {c: table.numeric(c) for c in IDENTIFY_COLUMNS[2:]}
     if "P_g" in table.frame.columns:
         pg = table.numeric("P_g")

@@ -1,14 +1,35 @@
 """Reading tidy input tables (CSV or Excel) with row numbers kept for error messages.
 
 Rows are numbered as in the file: for CSV the line number (comment lines starting with
-``#`` count, so the number is where an editor shows the row); for Excel the sheet row
-(header = row 1); for a pandas DataFrame its index label (messages say "DataFrame, row
-<label>").  A DataFrame goes through the same :class:`Table` checks as a file, so the
-Python API and the CLI refuse the same input with the same words.
+``#`` count, so the number is where an editor shows the row; a ``#`` inside a line is
+text, not a comment); for Excel the sheet row (header = row 1); for a pandas DataFrame
+its index label (messages say "DataFrame, row <label>").  A DataFrame goes through the
+same :class:`Table` checks as a file, so the Python API and the CLI refuse the same
+input with the same words.
+
+Before anything is parsed the path is checked (it exists, is a file, is readable, is not
+empty) and the format is recognised from the suffix and the first bytes: CSV text
+(``.csv``, ``.txt``, ``.tsv``) in UTF-8, or an Excel workbook (``.xlsx``, ``.xlsm``).
+Legacy ``.xls``, OpenDocument ``.ods``, compressed and binary files are refused with
+a message saying what to do.  Text that is not UTF-8 is refused with the line of the
+first undecodable byte (no encoding is guessed: a wrong guess would silently change
+names).
+
+European CSV (semicolon separator, decimal comma) is read when declared (``sep=";"``,
+``decimal=","``) or detected from the header and the cells; a detected layout is
+reported as an :class:`InputNote`.  A comma-separated file with decimal commas shifts
+its columns; rows with more fields than the header are refused with a hint.
 """
 
 from __future__ import annotations
 
+import csv
+import datetime
+import difflib
+import io
+import os
+import re
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -17,8 +38,30 @@ import pandas as pd
 
 from .errors import InputError
 
-EXCEL_SUFFIXES = {".xlsx", ".xlsm", ".xls"}
+EXCEL_SUFFIXES = {".xlsx", ".xlsm"}
+TEXT_SUFFIXES = {".csv", ".txt", ".tsv"}
+_REFUSED_SUFFIXES = {
+    ".xls": "legacy Excel .xls workbooks are not read: save the sheet as .xlsx (Excel workbook) or CSV UTF-8",
+    ".ods": "OpenDocument .ods spreadsheets are not read: save the sheet as .xlsx or CSV UTF-8",
+    ".gz": "compressed files are not read: decompress it first (gunzip) and give the CSV",
+    ".zip": "zip archives are not read: extract the CSV or .xlsx first",
+}
+_MAGIC = (  # first bytes of formats that are not CSV text, and what to do about them
+    (b"\x1f\x8b", "the file is gzip-compressed: decompress it first (gunzip) and give the CSV"),
+    (b"PK\x03\x04", "the file is a zip archive (an .xlsx or .ods workbook under another name?): "
+                    "give a workbook the suffix .xlsx, or save the sheet as CSV UTF-8"),
+    (b"\xd0\xcf\x11\xe0", "the file is a legacy Excel (.xls) or other OLE document: save the sheet as .xlsx or CSV UTF-8"),
+    (b"%PDF", "the file is a PDF document, not a table"),
+    (b"\xff\xfe", "the file is UTF-16 text: save it as UTF-8 (in Excel: CSV UTF-8)"),
+    (b"\xfe\xff", "the file is UTF-16 text: save it as UTF-8 (in Excel: CSV UTF-8)"),
+)  # fmt: skip
 _TRUTH = {"true": True, "1": True, "yes": True, "y": True, "false": False, "0": False, "no": False, "n": False}
+_DECIMAL_COMMA = re.compile(r"^\s*[-+]?\d+,\d+(?:[eE][-+]?\d+)?\s*$")
+NOTE_COLUMNS = ("note", "comment")  # free-text columns every loader accepts and ignores
+
+
+class InputNote(UserWarning):
+    """Something about an input was inferred rather than declared (e.g. a detected CSV dialect)."""
 
 
 @dataclass(frozen=True)
@@ -28,6 +71,7 @@ class Table:
     frame: pd.DataFrame
     rows: np.ndarray
     source: str
+    notes: tuple[str, ...] = ()
 
     def error(self, message: str, *, index: int | None = None, column: str | None = None) -> InputError:
         """An :class:`InputError` pointing at record ``index`` (0-based) and ``column``."""
@@ -41,14 +85,56 @@ class Table:
             have = ", ".join(map(str, self.frame.columns))
             raise InputError(f"missing column(s) {', '.join(missing)} (columns present: {have})", source=self.source)
 
+    def unknown_columns(self, known) -> str:
+        """The columns not in ``known`` (nor a free-text note column), each with a close
+        known name when there is one; "" when every column is known."""
+        known = list(dict.fromkeys(known))
+        described = []
+        for column in self.frame.columns:
+            if column in known or column.lower() in NOTE_COLUMNS:
+                continue
+            close = difflib.get_close_matches(column, known, n=1, cutoff=0.75)
+            described.append(f"'{column}'" + (f" (did you mean '{close[0]}'?)" if close else ""))
+        return ", ".join(described)
+
+    def refuse_unknown(self, known, *, what: str = "table") -> None:
+        """Refuse columns that are not in ``known`` (nor a free-text note column), listing them.
+
+        A close known name is suggested for each, so typos (``partiton_fine``,
+        ``experimnet``) are caught rather than ignored.
+        """
+        described = self.unknown_columns(known)
+        if described:
+            first = described.split("'")[1]
+            raise InputError(
+                f"unknown column(s) {described} in a {what}; rename them (--rename OLD=NEW) or name free text "
+                "'note' or 'comment'",
+                source=self.source,
+                column=first,
+            )
+
     def numeric(self, column: str, *, allow_blank: bool = False) -> np.ndarray:
-        """Column as floats; text or (unless allowed) blanks raise naming the first bad row."""
+        """Column as finite floats; text, dates, inf and (unless allowed) blanks raise naming the first bad row."""
         raw = self.frame[column]
+        if pd.api.types.is_float_dtype(raw.dtype) or (pd.api.types.is_integer_dtype(raw.dtype) and not pd.api.types.is_bool_dtype(raw.dtype)):
+            return self._checked_numbers(raw, raw.to_numpy(dtype=float, na_value=np.nan), column, allow_blank)  # parsed: no text, no dates
+        dates = _date_cells(raw)
+        if dates.any():
+            i = int(np.flatnonzero(dates)[0])
+            raise self.error(f"'{raw.iloc[i]}' is a date, not a number (a cell formatted as a date?)", index=i, column=column)
         values = pd.to_numeric(raw, errors="coerce").to_numpy(dtype=float)
         text = raw.notna().to_numpy() & np.isnan(values)
         if text.any():
             i = int(np.flatnonzero(text)[0])
-            raise self.error(f"'{raw.iloc[i]}' is not a number", index=i, column=column)
+            hint = " (a decimal comma? declare it: --decimal ',', Python decimal=',')" if _DECIMAL_COMMA.match(str(raw.iloc[i])) else ""
+            raise self.error(f"'{raw.iloc[i]}' is not a number{hint}", index=i, column=column)
+        return self._checked_numbers(raw, values, column, allow_blank)
+
+    def _checked_numbers(self, raw: pd.Series, values: np.ndarray, column: str, allow_blank: bool) -> np.ndarray:
+        infinite = np.isinf(values)
+        if infinite.any():
+            i = int(np.flatnonzero(infinite)[0])
+            raise self.error(f"'{raw.iloc[i]}' is not a finite number", index=i, column=column)
         if not allow_blank and np.isnan(values).any():
             i = int(np.flatnonzero(np.isnan(values))[0])
             raise self.error("value is missing (blank or NaN)", index=i, column=column)
@@ -70,51 +156,71 @@ class Table:
         if "experiment" not in self.frame.columns:
             return np.full(len(self.frame), Path(self.source).stem, dtype=object)
         labels = self.frame["experiment"]
-        blank = labels.isna().to_numpy()
+        blank = labels.isna().to_numpy() | (labels.astype(str).str.strip() == "").to_numpy()
         if blank.any():
             raise self.error("experiment name is blank", index=int(np.flatnonzero(blank)[0]), column="experiment")
         return labels.astype(str).str.strip().to_numpy(dtype=object)
 
-    def subset(self, mask) -> Table:
-        mask = np.asarray(mask, dtype=bool)
-        return Table(self.frame.loc[mask].reset_index(drop=True), self.rows[mask], self.source)
+    def subset(self, selection) -> Table:
+        """The records selected by a boolean mask or by integer positions (in that order)."""
+        selection = np.asarray(selection)
+        if selection.dtype != bool:
+            selection = selection.astype(int)
+        return Table(self.frame.iloc[selection].reset_index(drop=True), self.rows[selection], self.source, self.notes)
 
 
-def read_table(path, *, sheet: str | int | None = None) -> Table:
+def read_table(path, *, sheet: str | int | None = None, sep: str | None = None, decimal: str | None = None) -> Table:
     """Read a CSV (``#`` comments allowed) or Excel file, or take a DataFrame, into a :class:`Table`.
 
     Parameters
     ----------
     path : str, path-like or pandas.DataFrame
-        The file, or a DataFrame already in memory (see :func:`table_from_frame`).
+        The file (format from the suffix, checked against the content), or a DataFrame
+        already in memory (see :func:`table_from_frame`).
     sheet : str or int, optional
         Excel sheet (name or 0-based position); the first sheet by default.
+    sep, decimal : str, optional
+        CSV field separator and decimal mark; detected when not given (comma and point
+        unless the header is split by semicolons and the cells use decimal commas).
 
     Raises
     ------
     InputError
-        When the file is missing, empty, has no data rows, or the sheet does not exist.
+        When the file is missing, not a file, unreadable, empty, of an unknown or
+        unsupported format, not UTF-8, has duplicate or unnamed columns, rows with more
+        fields than the header, no data rows, or the sheet does not exist.
     """
     if isinstance(path, pd.DataFrame):
         if sheet is not None:
             raise InputError(f"a sheet ({sheet!r}) was given with a DataFrame", source=DATAFRAME_SOURCE)
+        if sep is not None or decimal is not None:
+            raise InputError("sep and decimal apply to CSV files, not to a DataFrame", source=DATAFRAME_SOURCE)
         return table_from_frame(path)
     path = Path(path)
     source = str(path)
-    if not path.exists():
-        raise InputError("file not found", source=source)
-    if path.stat().st_size == 0:
-        raise InputError("the file is empty", source=source)
-    if path.suffix.lower() in EXCEL_SUFFIXES:
-        frame, rows = _read_excel(path, sheet)
+    sep = {"\\t": "\t", "tab": "\t"}.get(sep, sep)  # a tab is hard to type on a command line
+    for name, value in (("separator (--sep)", sep), ("decimal mark (--decimal)", decimal)):
+        if value is not None and (len(value) != 1 or value in "\"\n\r" or value.isalnum()):
+            raise InputError(f"the {name} must be one character such as ';' or ',', got {value!r}", source=source)
+    _check_path(path)
+    suffix = path.suffix.lower()
+    if suffix in EXCEL_SUFFIXES:
+        if sep is not None or decimal is not None:
+            raise InputError("sep and decimal apply to CSV files, not to an Excel workbook", source=source)
+        frame, rows, header = _read_excel(path, sheet)
+        notes = ()
     else:
         if sheet is not None:
             raise InputError(f"a sheet ({sheet!r}) was given but the file is not an Excel workbook", source=source)
-        frame, rows = _read_csv(path)
-    frame.columns = [str(c).strip() for c in frame.columns]
+        frame, rows, header, notes = _read_csv(path, sep=sep, decimal=decimal)
+    _check_header(header, source)
+    frame.columns = [str(c).strip() for c in header]
+    frame = _drop_empty_unnamed(frame, source)
     if frame.empty:
         raise InputError("the table has a header but no data rows", source=source)
-    return Table(frame.reset_index(drop=True), rows, source)
+    for note in notes:
+        warnings.warn(f"{source}: {note}", InputNote, stacklevel=2)
+    return Table(frame.reset_index(drop=True), rows, source, tuple(notes))
 
 
 DATAFRAME_SOURCE = "DataFrame"
@@ -149,20 +255,141 @@ def table_from_frame(frame: pd.DataFrame, *, source: str = DATAFRAME_SOURCE) -> 
     return Table(frame, rows, source)
 
 
-def _read_csv(path: Path):
-    lines = path.read_text(encoding="utf-8-sig").splitlines()
+def _check_path(path: Path) -> None:
+    source = str(path)
+    if not path.exists():
+        raise InputError("file not found", source=source)
+    if path.is_dir():
+        raise InputError("is a directory, not a file", source=source)
+    if not path.is_file():
+        raise InputError("is not a regular file", source=source)
+    if not os.access(path, os.R_OK):
+        raise InputError("the file is not readable (permission denied)", source=source)
+    if path.stat().st_size == 0:
+        raise InputError("the file is empty", source=source)
+    suffix = path.suffix.lower()
+    if suffix in _REFUSED_SUFFIXES:
+        raise InputError(_REFUSED_SUFFIXES[suffix], source=source)
+    if suffix not in EXCEL_SUFFIXES | TEXT_SUFFIXES:
+        raise InputError(
+            f"unknown format '{path.suffix}': give a CSV file (.csv, .txt, .tsv) or an Excel workbook (.xlsx, .xlsm)", source=source
+        )
+    try:
+        with path.open("rb") as handle:
+            head = handle.read(8192)
+    except OSError as error:
+        raise InputError(f"cannot read the file: {error.strerror}", source=source) from None
+    if suffix in EXCEL_SUFFIXES:
+        if not head.startswith(b"PK\x03\x04"):
+            raise InputError("the file has an Excel suffix but is not an .xlsx workbook (a CSV or .xls renamed?)", source=source)
+        return
+    for magic, message in _MAGIC:
+        if head.startswith(magic):
+            raise InputError(message, source=source)
+    if b"\x00" in head:
+        raise InputError("the file is binary (it contains NUL bytes), not a CSV text table", source=source)
+
+
+def _read_csv(path: Path, *, sep, decimal):
+    source = str(path)
+    raw = path.read_bytes()
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as error:
+        line = raw[: error.start].count(b"\n") + 1
+        raise InputError(
+            f"the text is not UTF-8 (byte 0x{raw[error.start]:02x} cannot be decoded): save the file as UTF-8 "
+            "(in Excel: CSV UTF-8)",
+            source=source,
+            row=line,
+        ) from None
+    lines = text.splitlines()
     content = [i + 1 for i, line in enumerate(lines) if line.strip() and not line.lstrip().startswith("#")]
     if not content:
-        raise InputError("the file has no header and no data (only comments or blank lines)", source=str(path))
+        raise InputError("the file has no header and no data (only comments or blank lines)", source=source)
+    notes = []
+    header_line = lines[content[0] - 1]
+    if sep is None:
+        sep = _detect_separator(header_line, path.suffix.lower())
+        if sep != ",":
+            notes.append(f"read as {'semicolon' if sep == ';' else 'tab'}-separated (detected from the header; declare it with --sep)")
+    if decimal is None:
+        decimal = "."
+        if sep != "," and any(_DECIMAL_COMMA.match(cell) for i in content[1:50] for cell in lines[i - 1].split(sep)):
+            decimal = ","
+            notes.append("decimal commas detected and read as decimal marks (declare them with --decimal ',')")
+    if sep == decimal:
+        raise InputError(f"the separator and the decimal mark are both '{sep}'", source=source)
+    body = "\n".join(lines[i - 1] for i in content)
+    records = list(csv.reader(io.StringIO(body), delimiter=sep, skipinitialspace=True))
+    header = [cell.strip() for cell in records[0]]
+    if len(records) == len(content):
+        _check_field_counts(records, content, len(header), sep, source)
     try:
-        frame = pd.read_csv(path, comment="#", skip_blank_lines=True, skipinitialspace=True, encoding="utf-8-sig")
-    except pd.errors.ParserError as error:
-        raise InputError(f"cannot parse as CSV: {error}", source=str(path)) from None
+        # only whole lines starting with '#' are comments: a '#' inside a field ("run #2") is text
+        frame = pd.read_csv(io.StringIO(body), sep=sep, decimal=decimal, skip_blank_lines=False, skipinitialspace=True,
+                            index_col=False, header=0)  # fmt: skip
+    except (pd.errors.ParserError, ValueError) as error:
+        raise InputError(f"cannot parse as CSV: {error}", source=source) from None
     rows = np.asarray(content[1:], dtype=int)
     if rows.size != len(frame):  # quoted fields spanning lines: fall back to record numbers
         rows = np.arange(len(frame)) + 2
     keep = ~frame.isna().all(axis=1).to_numpy()
-    return frame.loc[keep], rows[keep]
+    return frame.loc[keep], rows[keep], header[: frame.shape[1]], notes
+
+
+def _detect_separator(header: str, suffix: str) -> str:
+    if suffix == ".tsv" or ("\t" in header and "," not in header and ";" not in header):
+        return "\t"
+    if header.count(";") > header.count(","):
+        return ";"
+    return ","
+
+
+def _check_field_counts(records, line_numbers, expected: int, sep: str, source: str) -> None:
+    for record, line in zip(records[1:], line_numbers[1:]):
+        while len(record) > expected and record[-1].strip() == "":
+            record = record[:-1]  # trailing separators add nothing
+        if len(record) > expected:
+            hint = ""
+            if sep == "," and re.search(r"\d,\d", ",".join(record)):
+                hint = (
+                    "; decimal commas in a comma-separated file shift the columns: use decimal points, or "
+                    "semicolons between fields with --sep ';' --decimal ','"
+                )
+            raise InputError(f"the row has {len(record)} fields but the header has {expected}{hint}", source=source, row=line)
+
+
+def _check_header(header, source: str) -> None:
+    names = [str(c).strip() for c in header]
+    seen = set()
+    for name in names:
+        if name == "":
+            continue  # columns without a header: dropped when empty, refused otherwise (_drop_empty_unnamed)
+        if name in seen:
+            raise InputError(f"duplicate column '{name}': each column name may appear once", source=source, column=name)
+        seen.add(name)
+
+
+def _drop_empty_unnamed(frame: pd.DataFrame, source: str) -> pd.DataFrame:
+    """Columns without a header: dropped when empty (trailing separators), refused otherwise."""
+    keep = []
+    for position, name in enumerate(frame.columns):
+        if name == "" or name.startswith("Unnamed: ") or name == "nan":
+            if frame.iloc[:, position].notna().any():
+                raise InputError(f"column {position + 1} holds values but has no header", source=source)
+            continue
+        keep.append(position)
+    return frame.iloc[:, keep]
+
+
+def _date_cells(values: pd.Series) -> np.ndarray:
+    if pd.api.types.is_datetime64_any_dtype(values) or pd.api.types.is_timedelta64_dtype(values):
+        return values.notna().to_numpy()
+    if values.dtype != object:
+        return np.zeros(len(values), dtype=bool)
+    kinds = (datetime.date, datetime.time, datetime.timedelta, np.datetime64)
+    return np.fromiter((isinstance(v, kinds) for v in values), dtype=bool, count=len(values))
 
 
 def _read_excel(path: Path, sheet):
@@ -174,7 +401,12 @@ def _read_excel(path: Path, sheet):
         sheet = workbook.sheet_names[0]
     elif isinstance(sheet, str) and sheet not in workbook.sheet_names:
         raise InputError(f"no sheet named '{sheet}' (sheets: {', '.join(workbook.sheet_names)})", source=str(path))
-    frame = pd.read_excel(workbook, sheet_name=sheet)
+    frame = pd.read_excel(workbook, sheet_name=sheet, header=None)
+    if frame.empty:
+        raise InputError(f"sheet '{sheet}' is empty", source=str(path))
+    header = ["" if pd.isna(v) else str(v) for v in frame.iloc[0]]
+    frame = frame.iloc[1:].infer_objects()
+    frame.columns = range(frame.shape[1])
     keep = ~frame.isna().all(axis=1).to_numpy()
     rows = (np.arange(len(frame)) + 2)[keep]
-    return frame.loc[keep], rows
+    return frame.loc[keep], rows, header

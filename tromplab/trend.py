@@ -128,7 +128,8 @@ def read_surveys(path, options=None) -> list[Survey]:
 
     Rows sharing a ``survey`` name (or, without that column, a ``date``) form one survey;
     with both columns each survey must have one date.  Without a ``date`` column the
-    surveys are numbered in file order.
+    surveys are numbered in file order.  Columns named ``<parameter>_true`` (the values a
+    synthetic series was drawn with) are ignored; any other unknown column is refused.
 
     Raises
     ------
@@ -159,7 +160,9 @@ def read_surveys(path, options=None) -> list[Survey]:
         if survey_dates.setdefault(label, date) != date:
             raise table.error(f"survey {label} has two dates ({survey_dates[label]:%Y-%m-%d} and {date:%Y-%m-%d})", index=i, column="date")
     frame["experiment"] = labels.to_numpy()
-    table = Table(frame.drop(columns=[c for c in ("date", "survey") if c in frame.columns]), table.rows, table.source)
+    # "<parameter>_true" columns hold the values a synthetic series was drawn with: kept for checking, not read as data
+    dropped = [c for c in frame.columns if c in ("date", "survey") or str(c).endswith("_true")]
+    table = Table(frame.drop(columns=dropped), table.rows, table.source)
     if is_lab_table(table.frame.columns):
         experiments = [b.to_points(weight_by_feed_share=options.weight_by_feed_share) for b in balances_from_table(table, options)]
     else:

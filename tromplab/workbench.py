@@ -402,6 +402,7 @@ def _averages_of_chunk(level, groups) -> list[pd.DataFrame]:
 
 
 def _fit_guarded(points, formula, alpha, delta_max, size_unit="") -> CurveFit:
+    size_unit = size_unit or getattr(points, "size_unit", "")  # the unit the loader read from the column name
     try:
         return fit_formula(points, formula, alpha=alpha, delta_max=delta_max, size_unit=size_unit)
     except Exception as error:  # a batch reports a broken fit instead of stopping
