@@ -7,9 +7,7 @@ ranking.  Neither stops the batch.
 
 from __future__ import annotations
 
-import os
 import sys
-import tempfile
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -194,16 +192,9 @@ def write_atomically(outputs: dict[str, Callable[[Path], None]], outdir) -> dict
     """Write every output to a temporary file first, then move them all into ``outdir``.
 
     ``outputs`` maps file names to writers taking a path.  If any writer fails, nothing
-    is left in ``outdir``.
+    is left in ``outdir``.  For a whole output folder that replaces the previous run in
+    one step, see :func:`tromplab.outputs.replace_folder`.
     """
-    outdir = Path(outdir)
-    outdir.mkdir(parents=True, exist_ok=True)
-    written = {}
-    with tempfile.TemporaryDirectory(dir=outdir, prefix=".tromplab-") as staging:
-        for name, writer in outputs.items():
-            writer(Path(staging) / name)
-        for name in outputs:
-            target = outdir / name
-            os.replace(Path(staging) / name, target)
-            written[name] = target
-    return written
+    from .outputs import write_files
+
+    return write_files(outputs, outdir)
