@@ -104,7 +104,7 @@ def _progress(i: int, total: int, experiment: str) -> None:
 
 def _cli_words(message: str, parser: argparse.ArgumentParser) -> str:
     """Replace Python argument names (``fine_yield``) by the CLI's options (``--fine-yield``)."""
-    options = {}
+    options = {"sum_tolerance_pct": "--sum-tolerance", "n_bootstrap": "--bootstrap"}  # Python names unlike the option
     for action in _all_actions(parser):
         for flag in action.option_strings:
             if flag.startswith("--") and "_" in action.dest:
@@ -439,15 +439,15 @@ def _refuse_if_nothing_fitted(bench, source) -> None:
     raise InputError(f"no formula could be fitted to any experiment ({listed})", source=str(source))
 
 
-def _report_failures(failures: pd.DataFrame) -> int:
+def _report_failures(failures: pd.DataFrame, *, listed_in: str = "failures.csv") -> int:
     """Exit code 3 with the failures on standard error when some fits failed, else 0."""
     if failures.empty:
         return EXIT_OK
-    print(f"tromplab: partial result: {len(failures)} experiment(s) or fit(s) failed (listed in failures.csv):",
+    print(f"tromplab: partial result: {len(failures)} experiment(s) or fit(s) failed (listed in {listed_in}):",
           file=sys.stderr)  # fmt: skip
     for row in failures.itertuples(index=False):
         what = f"{row.experiment} / {row.formula}" if row.formula else row.experiment
-        print(textwrap.shorten(f"  {what}: {row.reason}", width=160), file=sys.stderr)
+        print("  " + textwrap.shorten(f"{what}: {row.reason}", width=160), file=sys.stderr)
     return EXIT_PARTIAL
 
 
@@ -488,7 +488,7 @@ def _run_report(args) -> int:
     print("Wrote:")
     for path in written.values():
         print(f"  {path}")
-    return _report_failures(failures)
+    return _report_failures(failures, listed_in="the report")
 
 
 def _run_compare(args) -> int:

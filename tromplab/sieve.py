@@ -358,6 +358,9 @@ def design_bin(decks, sieve_length, recovery, *, method="exact") -> BinDesign:
     >>> round(b.c, 2), round(b.x1, 4)
     (14.22, 0.9867)
     """
+    from .validation import MAX_DECKS, check_count
+
+    check_count(decks, "decks", maximum=MAX_DECKS)
     if not 0 < recovery < 1:
         raise InputError(f"the required recovery must lie in (0, 1), got {recovery}")
     if method == "exact":

@@ -219,6 +219,10 @@ def interval_columns(fits: Sequence[CurveFit], *, level: float | None = None, n_
     parameters, delta method for the indices) when ``level`` is given, and
     ``<quantity>_boot_low``/``_boot_high`` from ``n_bootstrap`` resamples.  Keyed by
     ``experiment`` and ``formula``; failed fits get nan."""
+    from .validation import check_bootstrap, check_optional, check_probability, check_seed
+
+    check_optional(check_probability, level, "level")
+    n_bootstrap, seed = check_bootstrap(n_bootstrap, "n_bootstrap"), check_seed(seed, "seed")
     bootstrap_level = 0.95 if level is None else level
     rows = []
     for i, fit in enumerate(fits):

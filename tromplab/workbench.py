@@ -22,6 +22,7 @@ from .formulas import Formula, select_formulas
 from .points import TrompPoints
 from .ranking import add_ranks, rank_formulas
 from .screening import DEFAULT_ALPHA
+from .validation import check_optional, check_positive, check_probability
 
 #: Columns of ``fits.csv``, in order.
 FIT_COLUMNS = (
@@ -126,6 +127,8 @@ def fit_experiments(
     progress : callable, optional
         Called as ``progress(i, total, experiment)`` before each experiment.
     """
+    check_probability(alpha, "alpha")
+    check_optional(check_positive, delta_max, "delta_max")
     chosen = select_formulas(formulas)
     fits, failures, notes = [], {}, {}
     for i, points in enumerate(experiments):
@@ -134,6 +137,12 @@ def fit_experiments(
         if points.n <= 2:
             failures[points.experiment] = (
                 f"experiment '{points.experiment}' has {points.n} points; the Fisher screen needs at least 3"
+            )
+            continue
+        if np.ptp(points.partition_fine) == 0:  # F = 0/0: no curve can be told from another
+            failures[points.experiment] = (
+                f"experiment '{points.experiment}' is flat: every partition equals {points.partition_fine[0]:g}, "
+                "so there is no cut to fit and the Fisher screen is undefined (0/0)"
             )
             continue
         notes[points.experiment] = data_notes(points)
