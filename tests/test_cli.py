@@ -78,8 +78,10 @@ def test_bad_input_stops_with_file_row_column_and_writes_nothing(tmp_path, capsy
 
 
 def test_unknown_formula_is_named(tmp_path, capsys):
-    assert main(["fit", str(write(tmp_path, GOOD)), "--formulas", "plitt,banana", "-o", str(tmp_path / "o")]) == 1
-    assert "unknown formula 'banana'" in capsys.readouterr().err
+    # a bad option value is a usage error (exit 2), named by its option
+    assert main(["fit", str(write(tmp_path, GOOD)), "--formulas", "plitt,banana", "-o", str(tmp_path / "o")]) == 2
+    error = capsys.readouterr().err
+    assert "--formulas" in error and "unknown formula 'banana'" in error
     assert not (tmp_path / "o").exists()
 
 

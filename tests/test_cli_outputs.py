@@ -3,7 +3,6 @@ following --rank-by and --ci, and a re-run that leaves exactly the current figur
 
 import openpyxl
 import pandas as pd
-import pytest
 from numpy.testing import assert_allclose
 
 from tromplab.cli import main
@@ -70,7 +69,7 @@ def test_excel_workbook_holds_the_csv_tables_with_units_frozen_headers_and_figur
 def test_dash_o_xlsx_writes_only_the_workbook(tmp_path):
     target = tmp_path / "res" / "results.xlsx"
     assert main(["fit", str(write(tmp_path, POINTS)), "-o", str(target), "--formulas", "plitt,9"]) == 0
-    assert sorted(p.name for p in target.parent.iterdir()) == ["results.xlsx"]
+    assert sorted(p.name for p in target.parent.iterdir() if not p.name.startswith(".")) == ["results.xlsx"]  # .lock: see outputs
     book = openpyxl.load_workbook(target)
     assert book["balance"]["A1"].value.startswith("no mass balance")
     assert len(sheet_frame(book, "points")) == 12 and len(sheet_frame(book, "fits")) == 4
@@ -85,8 +84,8 @@ def test_a_failing_workbook_leaves_nothing_behind(tmp_path, monkeypatch):
 
     monkeypatch.setattr(tromplab.workbook, "write_workbook", broken)
     out = tmp_path / "out"
-    with pytest.raises(RuntimeError, match="disk full"):
-        main(["fit", str(write(tmp_path, POINTS)), "-o", str(out), "--excel", "--no-figures"])
+    # a writer that breaks is a bug, not bad input: exit 70, and nothing is written
+    assert main(["fit", str(write(tmp_path, POINTS)), "-o", str(out), "--excel", "--no-figures"]) == 70
     assert not (out / "fits.csv").exists() and not (out / "results.xlsx").exists()
 
 
@@ -109,9 +108,7 @@ def test_partition_to_coarse_turns_tables_and_figures(tmp_path, capsys):
     assert_allclose(written["partition_coarse"], 1 - points_fine["partition_fine"])
     assert main(["balance", str(LAB), "--partition-to", "coarse"]) == 0
     assert "partition_coarse" in capsys.readouterr().out
-    with pytest.raises(SystemExit) as stop:
-        main(["fit", str(LAB), "--partition-to", "oversize"])
-    assert stop.value.code == 2
+    assert main(["fit", str(LAB), "--partition-to", "oversize"]) == 2  # usage error
 
 
 def test_console_table_follows_rank_by_and_shows_intervals(tmp_path, capsys):

@@ -28,15 +28,15 @@ TRUTHS = {
 @pytest.fixture(scope="module")
 def fits_dir(tmp_path_factory):
     """`tromplab fit` output for points drawn from each curve (one experiment per curve)."""
-    folder = tmp_path_factory.mktemp("fits")
+    folder, data = tmp_path_factory.mktemp("fits"), tmp_path_factory.mktemp("data")  # --outdir may not hold the input
     rng = np.random.default_rng(21)
     frames = []
     for name, (d_cut, shape, extras) in TRUTHS.items():
         phi = get_formula(name)(SIZES_UM, d_cut, shape, **extras) + rng.normal(0, 0.004, SIZES_UM.size)
         frames.append(pd.DataFrame({"experiment": f"run_{name}", "size": SIZES_UM, "partition_fine": np.clip(phi, 0, 1)}))
-    pd.concat(frames).to_csv(folder / "points.csv", index=False)
+    pd.concat(frames).to_csv(data / "points.csv", index=False)
     formulas = ",".join(TRUTHS)
-    assert main(["fit", str(folder / "points.csv"), "-o", str(folder), "--formulas", formulas, "--no-figures"]) == 0
+    assert main(["fit", str(data / "points.csv"), "-o", str(folder), "--formulas", formulas, "--no-figures"]) == 0
     return folder
 
 

@@ -145,7 +145,7 @@ FILE_CASES = [
     ("duplicate.xlsx", _xlsx_with_duplicate_header, "column 'size': duplicate column 'size'"),
     ("empty.csv", lambda p: p.write_text(""), "the file is empty"),
     ("comments.csv", lambda p: p.write_text("# only a comment\n\n"), "only comments or blank lines"),
-    ("folder.csv", lambda p: p.mkdir(), "is a directory, not a file"),
+    ("folder.csv", lambda p: p.mkdir(), "is a folder; the input must be a file"),
     ("missing.csv", lambda p: None, "file not found"),
 ]  # fmt: skip
 

@@ -114,7 +114,7 @@ def test_fit_command_adds_interval_columns_and_averages(tmp_path, capsys):
     assert (fits["d_cut_low"] < fits["d_cut"]).all() and (fits["d_cut"] < fits["d_cut_high"]).all()
     averages = pd.read_csv(out / "averages.csv")
     assert set(averages["quantity"]) == {"d50", "d50c", "ep", "ep_c", "eta"} and set(averages["experiment"]) == {"run1", "run2"}
-    assert main(["fit", str(path), "-o", str(out), "--ci", "1.5"]) == 1
+    assert main(["fit", str(path), "-o", str(out), "--ci", "1.5"]) == 2  # usage: the parser refuses the level
 
 
 def test_bootstrap_alone_adds_only_bootstrap_columns(tmp_path):

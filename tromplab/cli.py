@@ -3,10 +3,14 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import io
+import logging
+import os
 import re
 import sys
 import textwrap
+import traceback
 import warnings
 from pathlib import Path
 
@@ -16,13 +20,26 @@ import pandas as pd
 from ._version import __version__
 from .diagnostics import RESIDUAL_WARNING
 from .engine import check_bootstrap_request
-from .errors import InputError
-from .formulas import NAME_CLASHES, registry_table, select_formulas
+from .errors import InputError, OptionError
+from .formulas import NAME_CLASHES, get_formula, registry_table, select_formulas
 from .lab import KINDS, PARTITION_METHOD_TEXT, PARTITION_METHODS, LabOptions, YieldWarning, read_experiments, read_lab
 from .model_commands import add_model_commands
+from .outputs import check_input_file, check_output_file, check_output_folder, figure_file_names, replace_folder
 from .ranking import RANK_BY, rank_formulas, read_f_table
 from .screening import DEFAULT_ALPHA
 from .tables import InputNote
+from .validation import (
+    MAX_BOOTSTRAP,
+    MAX_DECKS,
+    check_bootstrap,
+    check_count,
+    check_non_negative,
+    check_positive,
+    check_probability,  # fmt: skip
+    check_seed,
+    check_share,
+    cli_type,
+)
 from .views import PARTITION_TO, partition_view
 from .workbench import fit_experiments, model_averages, print_progress, write_atomically
 
@@ -32,24 +49,129 @@ AUTO_FIGURE_LIMIT = 20
 TERMINAL_COLUMNS = ["rank", "equation", "formula", "d_cut", "shape_name", "shape", "F", "F_crit", "adequate", "eta", "ep"]
 
 
+#: Exit codes (documented in the README and docs/reliability.md).
+EXIT_OK, EXIT_INPUT, EXIT_USAGE, EXIT_PARTIAL, EXIT_INTERNAL, EXIT_INTERRUPTED = 0, 1, 2, 3, 70, 130
+
+
 def main(argv=None) -> int:
+    """Run the command line; returns the exit code (0 done, 1 bad input, 2 usage,
+    3 partial, 70 internal error, 130 interrupted)."""
     parser = _parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as stop:  # argparse stops on a usage error (2) or after --help/--version (0)
+        return stop.code if isinstance(stop.code, int) else EXIT_USAGE
+    except KeyboardInterrupt:
+        return _interrupted()
     if not hasattr(args, "run"):
         parser.print_help()
-        return 2
+        return EXIT_USAGE
+    command = " ".join(filter(None, ("tromplab", args.command, getattr(args, "sieve_command", None))))
     try:
-        with warnings.catch_warnings():
+        with warnings.catch_warnings(), _verbosity(args):
             warnings.simplefilter("ignore", YieldWarning)  # printed from the balance notes instead
             warnings.showwarning = _show_input_notes(warnings.showwarning)
             return args.run(args)
     except BrokenPipeError:  # output piped into head or less and closed early
         sys.stderr.close()
-        return 0
-    except (InputError, KeyError, ValueError) as error:
-        message = error.args[0] if isinstance(error, KeyError) else str(error)
-        print(f"tromplab {args.command}: error: {message}", file=sys.stderr)
-        return 1
+        return EXIT_OK
+    except KeyboardInterrupt:
+        return _interrupted()
+    except InputError as error:  # the project's own input, option and output errors
+        if args.debug:
+            traceback.print_exc()
+        print(f"{command}: error: {_cli_words(str(error), parser)}", file=sys.stderr)
+        return EXIT_USAGE if isinstance(error, OptionError) else EXIT_INPUT
+    except Exception as error:  # anything else is a bug in tromplab: say so, do not dress it up as bad input
+        if args.debug:
+            raise
+        print(f"{command}: internal error (a bug in tromplab, please report it): {type(error).__name__}: {error}\n"
+              f"  run again with --debug for the traceback", file=sys.stderr)  # fmt: skip
+        return EXIT_INTERNAL
+
+
+def _interrupted() -> int:
+    print("tromplab: interrupted; the output folder was left as it was", file=sys.stderr)
+    return EXIT_INTERRUPTED
+
+
+@contextlib.contextmanager
+def _verbosity(args):
+    """``--quiet`` silences the tables and progress on standard output and error (errors and
+    warnings stay); ``-v`` adds the library's informational log lines."""
+    global VERBOSITY
+    previous, VERBOSITY = VERBOSITY, -1 if args.quiet else args.verbose
+    if args.verbose:
+        logging.basicConfig(level=logging.INFO if args.verbose == 1 else logging.DEBUG, format="%(name)s: %(message)s")
+    try:
+        if args.quiet:
+            with open(os.devnull, "w") as sink, contextlib.redirect_stdout(sink):
+                yield
+        else:
+            yield
+    finally:
+        VERBOSITY = previous
+
+
+#: -1 quiet, 0 normal, 1+ verbose (set by :func:`main` for the duration of a command).
+VERBOSITY = 0
+
+
+def _progress(i: int, total: int, experiment: str) -> None:
+    if VERBOSITY >= 0:
+        print_progress(i, total, experiment)
+
+
+def _cli_words(message: str, parser: argparse.ArgumentParser) -> str:
+    """Replace Python argument names (``fine_yield``) by the CLI's options (``--fine-yield``)."""
+    options = {"sum_tolerance_pct": "--sum-tolerance", "n_bootstrap": "--bootstrap"}  # Python names unlike the option
+    for action in _all_actions(parser):
+        for flag in action.option_strings:
+            if flag.startswith("--") and "_" in action.dest:
+                options[action.dest] = flag
+    for name, flag in options.items():
+        message = re.sub(rf"(?<![-\w'\"]){name}(?![\w'\"])", flag, message)  # not inside quoted column names
+    return message
+
+
+def _all_actions(parser: argparse.ArgumentParser):
+    for action in parser._actions:
+        yield action
+        if isinstance(action, argparse._SubParsersAction):
+            for sub in action.choices.values():
+                yield from _all_actions(sub)
+
+
+def _global_options(*, in_subcommand: bool) -> argparse.ArgumentParser:
+    """--quiet, -v and --debug, accepted before or after the command."""
+    options = argparse.ArgumentParser(add_help=False)
+    default = argparse.SUPPRESS if in_subcommand else None
+    group = options.add_argument_group("general")
+    group.add_argument("-q", "--quiet", action="store_true", default=default or False,
+                       help="print only errors and warnings")  # fmt: skip
+    group.add_argument("-v", "--verbose", action="count", default=default or 0, help="more detail (repeat for more)")
+    group.add_argument("--debug", action="store_true", default=default or False,
+                       help="show the Python traceback of an error")  # fmt: skip
+    return options
+
+
+def _fit_options_parser() -> argparse.ArgumentParser:
+    """Options shared by ``fit`` and ``report``, declared once."""
+    shared = argparse.ArgumentParser(add_help=False)
+    shared.add_argument("input", type=Path, help="Tromp points or a lab table (CSV or .xlsx), told apart by their columns")
+    shared.add_argument("--alpha", type=cli_type(check_probability, "--alpha"), default=DEFAULT_ALPHA,
+                        help="significance level of the Fisher screen, in (0, 1) (default %(default)s)")  # fmt: skip
+    shared.add_argument("--delta-max", type=cli_type(check_positive, "--delta-max"), default=None,
+                        help="largest feed particle size for the misplacement eps (default: largest size of the data)")  # fmt: skip
+    shared.add_argument("--formulas", default=None,
+                        help="comma-separated ids or equation numbers; 'paper' = the nine, 'extended' = the bypass and "
+                        "fish-hook curves (default: the nine)")  # fmt: skip
+    shared.add_argument("--rank-by", choices=sorted(RANK_BY), default="F", help="criterion within an experiment")
+    shared.add_argument("--size-unit", default="", help="unit of the sizes, for the figure labels")
+    shared.add_argument("--extended", action="store_true",
+                        help="also fit the curves with bypass and fish-hook (reported, kept out of the ranking)")  # fmt: skip
+    shared.add_argument("--rank-extended", action="store_true", help="rank the extended curves with the nine")
+    return shared
 
 
 def _show_input_notes(show):
@@ -65,70 +187,55 @@ def _show_input_notes(show):
 
 
 def _parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="tromplab", description="Fit, screen and rank separation (Tromp) curves.")
+    parser = argparse.ArgumentParser(prog="tromplab", description="Fit, screen and rank separation (Tromp) curves.",
+                                     parents=[_global_options(in_subcommand=False)],
+                                     epilog="Exit codes: 0 done, 1 bad input (nothing written), 2 usage, 3 partial "
+                                     "(failures listed in failures.csv), 70 internal error, 130 interrupted.")  # fmt: skip
     parser.add_argument("--version", action="version", version=f"tromplab {__version__}")
-    commands = parser.add_subparsers(dest="command", metavar="COMMAND")
+    commands = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_SubcommandParser)
 
     formulas = commands.add_parser("formulas", help="list the separation-curve formulas (the nine of the paper, then the extended curves)")
     formulas.set_defaults(run=_run_formulas)
 
     lab = _lab_options_parser()
-    fit = commands.add_parser("fit", parents=[lab], help="fit, screen and rank the formulas on Tromp points or lab data")
-    fit.add_argument("input", type=Path, help="Tromp points or a lab table (CSV or .xlsx), told apart by their columns")
+    shared = _fit_options_parser()
+    fit = commands.add_parser("fit", parents=[shared, lab], help="fit, screen and rank the formulas on Tromp points or lab data")
     fit.add_argument("-o", "--outdir", type=Path, default=Path("results"),
-                     help="output folder (default: results), or a .xlsx file: then one Excel workbook holds every table and figure")
+                     help="output folder, replaced as a whole when the run succeeds (default: results), or a .xlsx "
+                     "file: then one Excel workbook holds every table and figure")  # fmt: skip
     fit.add_argument("--excel", action="store_true", help="also write the tables and figures as one workbook, results.xlsx, in the folder")
     _add_partition_to(fit)
-    fit.add_argument("--alpha", type=float, default=DEFAULT_ALPHA, help="significance level of the Fisher screen")
-    fit.add_argument("--delta-max", type=float, default=None,
-                     help="largest feed particle size for the misplacement eps (default: largest size of the data)")  # fmt: skip
-    fit.add_argument("--formulas", default=None,
-                     help="comma-separated ids or equation numbers; 'paper' = the nine, 'extended' = the bypass and "
-                     "fish-hook curves (default: the nine)")  # fmt: skip
-    fit.add_argument("--rank-by", choices=sorted(RANK_BY), default="F",
-                     help="criterion within an experiment: Fisher's F or the corrected Akaike criterion (shown in the table)")
-    fit.add_argument("--size-unit", default="",
-                     help="unit of the sizes when the size columns carry none (size_um, size_lower_mm name it); "
-                     "a contradiction with the column name is an error")  # fmt: skip
     fit.add_argument("--figures", choices=("auto", "all", "best", "none"), default="auto",
                      help=f"per-experiment figures with every fit (all) or the top-ranked one (best); auto: all up to "
                      f"{AUTO_FIGURE_LIMIT} experiments, then one overview figure (default auto)")
     fit.add_argument("--no-figures", dest="figures", action="store_const", const="none", help="same as --figures none")
     fit.add_argument("--format", choices=("csv", "parquet"), default="csv", help="format of the tables (parquet needs pyarrow)")
     scale = fit.add_argument_group("scale")
-    scale.add_argument("--jobs", type=int, default=0, metavar="N", help="worker processes (default 0: all cores)")
+    scale.add_argument("--jobs", type=cli_type(check_count, "--jobs", minimum=0, maximum=4096), default=0, metavar="N",
+                       help="worker processes (default 0: all cores)")  # fmt: skip
     scale.add_argument("--scheduler", default=None, metavar="ADDRESS", help="run on this Dask scheduler (tcp://host:8786)")
     scale.add_argument("--dask", choices=("local",), default=None, help="run on a local Dask cluster")
     scale.add_argument("--single-fits", action="store_true",
                        help="fit one experiment and formula at a time with lmfit instead of the batched engine")
-    fit.add_argument("--extended", action="store_true",
-                     help="also fit the curves with bypass and fish-hook (reported, kept out of the ranking)")
-    fit.add_argument("--rank-extended", action="store_true", help="rank the extended curves with the nine")
     uncertainty = fit.add_argument_group("uncertainty")
-    uncertainty.add_argument("--ci", type=float, default=None, metavar="LEVEL",
+    uncertainty.add_argument("--ci", type=cli_type(check_probability, "--ci"), default=None, metavar="LEVEL",
                              help="add interval columns at this level (profile likelihood for parameters, delta method for indices)")
-    uncertainty.add_argument("--bootstrap", type=int, default=0, metavar="N", help="add bootstrap percentile intervals from N resamples")
+    uncertainty.add_argument("--bootstrap", type=cli_type(check_bootstrap, "--bootstrap"), default=0, metavar="N",
+                             help=f"add bootstrap percentile intervals from N resamples (at most {MAX_BOOTSTRAP:,})")  # fmt: skip
     uncertainty.add_argument("--bootstrap-method", choices=("residuals", "cases"), default="residuals",
                              help="resample the residuals of the fit or whole points (default: residuals)")
-    uncertainty.add_argument("--seed", type=int, default=0, help="seed of the bootstrap")
+    uncertainty.add_argument("--seed", type=cli_type(check_seed, "--seed"), default=0,
+                             help="seed of the bootstrap, a whole number >= 0: the same seed gives the same intervals "
+                             "(default %(default)s)")  # fmt: skip
     fit.set_defaults(run=_run_fit)
 
-    report = commands.add_parser("report", parents=[lab], help="HTML and Markdown report: balance, ranked fits, uncertainties, figures")
-    report.add_argument("input", type=Path, help="Tromp points or a lab table")
+    report = commands.add_parser("report", parents=[shared, lab], help="HTML and Markdown report: balance, ranked fits, uncertainties, figures")
     report.add_argument("-o", "--output", type=Path, default=Path("results/report.html"), help="HTML file (a .md twin is written beside it)")
-    report.add_argument("--alpha", type=float, default=DEFAULT_ALPHA, help="significance level of the Fisher screen")
-    report.add_argument("--formulas", default=None, help="comma-separated ids or equation numbers (default: all nine)")
-    report.add_argument("--extended", action="store_true", help="also fit the curves with bypass and fish-hook")
-    report.add_argument("--rank-extended", action="store_true", help="rank the extended curves with the nine")
-    report.add_argument("--delta-max", type=float, default=None,
-                        help="largest feed particle size for the misplacement eps (default: largest size of the data)")
-    report.add_argument("--rank-by", choices=sorted(RANK_BY), default="F", help="criterion within an experiment")
-    report.add_argument("--ci", type=float, default=0.95, metavar="LEVEL", help="level of the intervals (default 0.95)")
-    report.add_argument("--size-unit", default="", help="unit of the sizes when the size columns carry none")
+    report.add_argument("--ci", type=cli_type(check_probability, "--ci"), default=0.95, metavar="LEVEL",
+                        help="level of the intervals (default 0.95)")  # fmt: skip
     report.add_argument("--title", default="tromplab report", help="title of the report (default: tromplab report)")
     _add_partition_to(report)
     report.set_defaults(run=_run_report)
-
     compare = commands.add_parser("compare", parents=[lab], help="did the sharpness (or the cut) change between experiments?")
     compare.add_argument("input", type=Path, help="Tromp points or a lab table with two or more experiments")
     compare.add_argument("--formula", default="plitt", help="formula id or equation number (default plitt)")
@@ -172,26 +279,31 @@ def _parser() -> argparse.ArgumentParser:
     identify.add_argument("-o", "--output", type=Path, default=Path("results/velocity_laws.csv"),
                           help="CSV of the identified laws (default: results/velocity_laws.csv)")
     identify.add_argument("--two-sided", action="store_true", help="two-sided velocity probability (random-walk paper)")
-    identify.add_argument("--level", type=float, default=0.95, help="confidence level of the intervals")
+    identify.add_argument("--level", type=cli_type(check_probability, "--level"), default=0.95,
+                          help="confidence level of the intervals, in (0, 1)")  # fmt: skip
     identify.set_defaults(run=_run_sieve_identify)
     pg = sieve_commands.add_parser("pg", help="geometric probability of a particle passing a round hole")
-    pg.add_argument("--hole", type=float, required=True, help="hole diameter D")
-    pg.add_argument("--length", type=float, required=True, help="particle length l")
-    pg.add_argument("--width", type=float, required=True, help="particle width d (shape factor d/l)")
-    pg.add_argument("--cell-width", type=float, required=True, help="cell width 2b across the transport direction")
+    pg.add_argument("--hole", type=cli_type(check_positive, "--hole"), required=True, help="hole diameter D")
+    pg.add_argument("--length", type=cli_type(check_positive, "--length"), required=True, help="particle length l")
+    pg.add_argument("--width", type=cli_type(check_positive, "--width"), required=True, help="particle width d (shape factor d/l)")
+    pg.add_argument("--cell-width", type=cli_type(check_positive, "--cell-width"), required=True,
+                    help="cell width 2b across the transport direction")  # fmt: skip
     pg.add_argument("--method", choices=("auto", "closed", "quadrature"), default="auto",
                     help="closed form, quadrature, or auto: the closed form where it is valid (default)")
     pg.set_defaults(run=_run_sieve_pg)
     bin_ = sieve_commands.add_parser("bin", help="collecting-bin position on the bottom deck for a required recovery")
-    bin_.add_argument("--decks", type=int, required=True, help="number of decks m")
-    bin_.add_argument("--length", type=float, required=True, help="sieve length L (= x2)")
-    bin_.add_argument("--recovery", type=float, required=True, help="required recovery g* of the target fraction")
+    bin_.add_argument("--decks", type=cli_type(check_count, "--decks", maximum=MAX_DECKS), required=True,
+                      help=f"number of decks m, 1 to {MAX_DECKS}")  # fmt: skip
+    bin_.add_argument("--length", type=cli_type(check_positive, "--length"), required=True, help="sieve length L (= x2)")
+    bin_.add_argument("--recovery", type=cli_type(check_probability, "--recovery"), required=True,
+                      help="required recovery g* of the target fraction, in (0, 1)")  # fmt: skip
     bin_.set_defaults(run=_run_sieve_bin)
 
     rank = commands.add_parser("rank", help="rank formulas from a table of F values (Table 2 -> Table 3)")
     rank.add_argument("table", type=Path, help="CSV with experiment, equation, F and n or F_crit [, adequate]")
     rank.add_argument("-o", "--outdir", type=Path, default=Path("results"), help="output folder for ranking.csv (default: results)")
-    rank.add_argument("--alpha", type=float, default=DEFAULT_ALPHA, help="significance level for F_crit when the table has n")
+    rank.add_argument("--alpha", type=cli_type(check_probability, "--alpha"), default=DEFAULT_ALPHA,
+                      help="significance level for F_crit from n, in (0, 1)")  # fmt: skip
     rank.add_argument("--computed-adequacy", action="store_true",
                       help="ignore an 'adequate' column and use F > F_crit")  # fmt: skip
     rank.set_defaults(run=_run_rank)
@@ -203,6 +315,12 @@ def _parser() -> argparse.ArgumentParser:
 def _add_partition_to(parser) -> None:
     parser.add_argument("--partition-to", choices=PARTITION_TO, default="fine",
                         help="report the partition to the fine product (default) or to the coarse product (underflow, oversize)")
+class _SubcommandParser(argparse.ArgumentParser):
+    """Every command accepts the global options after its name too (``tromplab fit -q ...``)."""
+
+    def __init__(self, *args, **kwargs):
+        kwargs["parents"] = [*kwargs.get("parents", []), _global_options(in_subcommand=True)]
+        super().__init__(*args, **kwargs)
 
 
 def _lab_options_parser() -> argparse.ArgumentParser:
@@ -210,16 +328,16 @@ def _lab_options_parser() -> argparse.ArgumentParser:
     group = lab.add_argument_group("lab data (see the README for the schema)")
     group.add_argument("--kind", choices=KINDS, default=None,
                        help="what plain feed/fine/coarse columns hold (not needed with suffixed column names)")
-    group.add_argument("--fine-yield", type=float, default=None, help="fine-product yield, fraction of the feed")
-    group.add_argument("--coarse-yield", type=float, default=None, help="coarse-product yield, fraction of the feed")
+    group.add_argument("--fine-yield", type=cli_type(check_probability, "--fine-yield"), default=None, help="fine-product yield, fraction of the feed")
+    group.add_argument("--coarse-yield", type=cli_type(check_probability, "--coarse-yield"), default=None, help="coarse-product yield, fraction of the feed")
     group.add_argument("--estimate-yield", action="store_true", help="estimate the yield from three streams even if one is given")
     group.add_argument("--reconcile", action="store_true", help="adjust the three streams minimally so every class balances")
-    group.add_argument("--min-feed-share", type=float, default=LabOptions.min_feed_share,
+    group.add_argument("--min-feed-share", type=cli_type(check_share, "--min-feed-share"), default=LabOptions.min_feed_share,
                        help="leave out classes with a smaller feed share (fraction; default %(default)s)")
-    group.add_argument("--sum-tolerance", type=float, default=LabOptions.sum_tolerance_pct,
+    group.add_argument("--sum-tolerance", type=cli_type(check_non_negative, "--sum-tolerance"), default=LabOptions.sum_tolerance_pct,
                        help="allowed deviation of per-class percentages from 100 (percentage points; default %(default)s)")
-    group.add_argument("--top-size", type=float, default=None, help="upper bound of the open top class")
-    group.add_argument("--pan-lower-size", type=float, default=None, help="lower bound of the pan")
+    group.add_argument("--top-size", type=cli_type(check_positive, "--top-size"), default=None, help="upper bound of the open top class")
+    group.add_argument("--pan-lower-size", type=cli_type(check_non_negative, "--pan-lower-size"), default=None, help="lower bound of the pan")
     group.add_argument("--rename", default="", help="column renames OLD=NEW,OLD=NEW applied before reading")
     group.add_argument("--sheet", default=None, help="Excel sheet name (default: the first sheet)")
     group.add_argument("--weight-by-feed-share", action="store_true",
@@ -237,7 +355,7 @@ def _lab_options(args) -> LabOptions:
     for pair in filter(None, (p.strip() for p in args.rename.split(","))):
         old, sep, new = pair.partition("=")
         if not sep or not old.strip() or not new.strip():
-            raise ValueError(f"--rename takes OLD=NEW pairs separated by commas, got {pair!r}")
+            raise OptionError("--rename", f"takes OLD=NEW pairs separated by commas, got {pair!r}")
         rename[old.strip()] = new.strip()
     return LabOptions(kind=args.kind, fine_yield=args.fine_yield, coarse_yield=args.coarse_yield,
                       estimate_yield=args.estimate_yield, reconcile=args.reconcile, min_feed_share=args.min_feed_share,
@@ -256,6 +374,8 @@ def _print_balance_notes(balances) -> None:
 
 
 def _run_points(args) -> int:
+    check_input_file(args.input)
+    check_output_file(args.output, inputs=[args.input])
     balances = read_lab(args.input, _lab_options(args))
     table = pd.concat([b.points_table(weight_by_feed_share=args.weight_by_feed_share, unit_in_names=True) for b in balances],
                       ignore_index=True)  # fmt: skip
@@ -269,6 +389,7 @@ def _run_points(args) -> int:
 
 
 def _run_balance(args) -> int:
+    check_input_file(args.input)
     balances = read_lab(args.input, _lab_options(args))
     _print_balance_notes(balances)
     for balance in balances:
@@ -292,8 +413,9 @@ def _run_sieve_identify(args) -> int:
     from .sieve import identify_from_table
     from .tables import read_table
 
+    check_input_file(args.data)
+    check_output_file(args.output, inputs=[args.data])
     laws = identify_from_table(read_table(args.data), two_sided=args.two_sided, level=args.level)
-    args.output.parent.mkdir(parents=True, exist_ok=True)
     written = write_atomically({args.output.name: lambda p: laws.to_csv(p, index=False)}, args.output.parent)
     view = laws[["sieve", "fraction", "n_regimes", "v_k", "v_k_stderr", "sigma", "sigma_stderr", "success"]]
     print(view.to_string(index=False, float_format=lambda v: f"{v:.4g}", na_rep="-"))
@@ -345,14 +467,12 @@ def _run_formulas(args) -> int:
 
 
 def _run_fit(args) -> int:
-    formulas = _formula_keys(args)
-    select_formulas(formulas)  # fail early on an unknown id, before any work
-    if args.ci is not None and not 0 < args.ci < 1:
-        raise ValueError(f"--ci takes a level between 0 and 1, got {args.ci}")
-    if args.bootstrap < 0:
-        raise ValueError("--bootstrap takes a non-negative number of resamples")
-    if args.jobs < 0:
-        raise ValueError(f"--jobs takes a number of worker processes (0: all cores), got {args.jobs}")
+    formulas = _checked_formulas(args)
+    check_input_file(args.input)
+    if args.outdir.suffix.lower() == ".xlsx":
+        check_output_file(args.outdir, inputs=[args.input], option="--outdir")
+    else:
+        check_output_folder(args.outdir, inputs=[args.input])
     if args.format == "parquet":
         _require("pyarrow", "--format parquet", "pip install 'tromplab[dask]'")
     experiments, balances = read_experiments(args.input, _lab_options(args))
@@ -366,6 +486,8 @@ def _run_fit(args) -> int:
                                     rank_by=args.rank_by, rank_extended=args.rank_extended, progress=progress,
                                     jobs=args.jobs or None, client=client, engine=not args.single_fits,
                                     size_unit=_data_size_unit(experiments, args.size_unit))  # fmt: skip
+        failures = failure_table(bench)
+        _refuse_if_nothing_fitted(bench, args.input)
         fits, ranking = bench.fits_table(), bench.ranking_table()
         if args.ci is not None or args.bootstrap:
             from .uncertainty import interval_columns
@@ -376,7 +498,7 @@ def _run_fit(args) -> int:
             fits = fits.merge(intervals, on=["experiment", "formula"], how="left")
         averages = model_averages(bench, level=args.ci or 0.95, jobs=args.jobs or None, client=client)
     fits = partition_view(fits, args.partition_to)
-    written = _write_fit_outputs(args, bench, experiments, balances, fits, ranking, averages)
+    written = _write_fit_outputs(args, bench, experiments, balances, fits, ranking, averages, failures)
     for experiment, notes in bench.notes.items():
         for note in notes:
             print(textwrap.fill(f"warning ({experiment}): {note}", width=98), file=sys.stderr)
@@ -398,14 +520,55 @@ def _run_fit(args) -> int:
         print(f"  {path}")
     if len(paths) > AUTO_FIGURE_LIMIT + 3:
         print(f"  ... and {len(paths) - AUTO_FIGURE_LIMIT - 3} more files in {args.outdir}")
-    return 0
+    return _report_failures(failures)
+
+
+def failure_table(bench) -> pd.DataFrame:
+    """``experiment, formula, reason`` of every experiment or formula that could not be fitted."""
+    rows = [{"experiment": e, "formula": "", "reason": reason} for e, reason in bench.failures.items()]
+    rows += [{"experiment": fit.experiment, "formula": fit.formula.id, "reason": fit.fit.message or "the fit failed"}
+             for fit in bench.fits if not fit.success]  # fmt: skip
+    return pd.DataFrame(rows, columns=["experiment", "formula", "reason"])
+
+
+def _refuse_if_nothing_fitted(bench, source) -> None:
+    """No formula fitted to any experiment: bad input, nothing is written (exit 1)."""
+    if any(fit.success for fit in bench.fits):
+        return
+    reasons = dict(bench.failures)
+    for fit in bench.fits:
+        reasons.setdefault(fit.experiment, f"{fit.formula.id}: {fit.fit.message}")
+    listed = "; ".join(f"{experiment}: {reason}" for experiment, reason in reasons.items())
+    raise InputError(f"no formula could be fitted to any experiment ({listed})", source=str(source))
+
+
+def _report_failures(failures: pd.DataFrame, *, listed_in: str = "failures.csv") -> int:
+    """Exit code 3 with the failures on standard error when some fits failed, else 0."""
+    if failures.empty:
+        return EXIT_OK
+    print(f"tromplab: partial result: {len(failures)} experiment(s) or fit(s) failed (listed in {listed_in}):",
+          file=sys.stderr)  # fmt: skip
+    for row in failures.itertuples(index=False):
+        what = f"{row.experiment} / {row.formula}" if row.formula else row.experiment
+        print("  " + textwrap.shorten(f"{what}: {row.reason}", width=160), file=sys.stderr)
+    return EXIT_PARTIAL
+
+
+def _checked_formulas(args):
+    """The --formulas selection, checked before any work."""
+    formulas = _formula_keys(args)
+    try:
+        select_formulas(formulas)
+    except KeyError as error:
+        raise OptionError("--formulas", f"names an {error.args[0]}") from None
+    return formulas
 
 
 def _require(module: str, option: str, install: str) -> None:
     import importlib.util
 
     if importlib.util.find_spec(module) is None:
-        raise ValueError(f"{option} needs the package {module}: {install}")
+        raise InputError(f"{option} needs the package {module}: {install}")
 
 
 def _table_writer(table: pd.DataFrame, fmt: str):
@@ -485,14 +648,15 @@ def _formula_keys(args):
 def _run_report(args) -> int:
     from .report import build_report, write_report
 
-    formulas = _formula_keys(args)
-    select_formulas(formulas)
-    if not 0 < args.ci < 1:
-        raise ValueError(f"--ci takes a level between 0 and 1, got {args.ci}")
+    formulas = _checked_formulas(args)
+    check_input_file(args.input)
+    check_output_file(args.output, inputs=[args.input])
     experiments, balances = read_experiments(args.input, _lab_options(args))
     bench = fit_experiments(experiments, formulas=formulas, alpha=args.alpha, delta_max=args.delta_max, rank_by=args.rank_by,
-                            rank_extended=args.rank_extended, progress=print_progress,
+                            rank_extended=args.rank_extended, progress=_progress,
                             size_unit=_data_size_unit(experiments, args.size_unit))  # fmt: skip
+    failures = failure_table(bench)
+    _refuse_if_nothing_fitted(bench, args.input)
     report = build_report(bench, balances, source=str(args.input), level=args.ci, size_unit=_data_size_unit(experiments, args.size_unit),
                           title=args.title, partition_to=args.partition_to)  # fmt: skip
     args.output.parent.mkdir(parents=True, exist_ok=True)
@@ -500,21 +664,27 @@ def _run_report(args) -> int:
     print("Wrote:")
     for path in written.values():
         print(f"  {path}")
-    return 0
+    return _report_failures(failures, listed_in="the report")
 
 
 def _run_compare(args) -> int:
     from .compare import shared_fit
 
+    check_input_file(args.input)
     experiments, _ = read_experiments(args.input, _lab_options(args))
     if args.experiments:
         wanted = [e.strip() for e in args.experiments.split(",") if e.strip()]
         known = {p.experiment: p for p in experiments}
         missing = [e for e in wanted if e not in known]
         if missing:
-            raise ValueError(f"unknown experiment(s) {', '.join(missing)}; the file has {', '.join(known)}")
+            raise InputError(f"--experiments names unknown experiment(s) {', '.join(missing)}; the file has {', '.join(known)}",
+                             source=str(args.input))  # fmt: skip
         experiments = [known[e] for e in wanted]
-    result = shared_fit(experiments, args.formula, shared=args.shared)
+    try:
+        formula = get_formula(args.formula)
+    except KeyError as error:
+        raise OptionError("--formula", f"names an {error.args[0]}") from None
+    result = shared_fit(experiments, formula, shared=args.shared)
     print(result.table().to_string(index=False, float_format=lambda v: f"{v:.4g}"))
     test = result.test
     verdict = "differ" if test.needed() else "are consistent with one"
@@ -556,6 +726,8 @@ def _run_trend(args) -> int:
 
 
 def _run_rank(args) -> int:
+    check_input_file(args.table)
+    check_output_folder(args.outdir, inputs=[args.table])
     table = read_f_table(args.table, alpha=args.alpha, use_given_marks=not args.computed_adequacy)
     ranking = rank_formulas(table)
     written = write_atomically({"ranking.csv": lambda p: ranking.to_csv(p, index=False)}, args.outdir)
@@ -627,10 +799,6 @@ def _overview_png(fits) -> bytes:
     return buffer.getvalue()
 
 
-def _file_safe(name: str) -> str:
-    return re.sub(r"[^A-Za-z0-9_.-]+", "_", str(name)).strip("_") or "experiment"
-
-
 def _figure_png(fits, size_unit, best, partition_to) -> bytes:
     import matplotlib
 
@@ -642,9 +810,11 @@ def _figure_png(fits, size_unit, best, partition_to) -> bytes:
     return buffer.getvalue()
 
 
-def _write_fit_outputs(args, bench, experiments, balances, fits, ranking, averages) -> dict[str, Path]:
+def _write_fit_outputs(args, bench, experiments, balances, fits, ranking, averages, failures) -> dict[str, Path]:
     """Write the fit's tables and figures: CSVs and PNGs into the folder (and results.xlsx
-    with ``--excel``), or only the workbook when ``-o`` names a .xlsx file."""
+    with ``--excel``), or only the workbook when ``-o`` names a .xlsx file.  The folder is
+    replaced as a whole only when everything is written (:func:`tromplab.outputs.replace_folder`):
+    no stale figure of an earlier run stays beside the new tables."""
     from .workbook import write_workbook
 
     size_unit = _data_size_unit(experiments, args.size_unit)
@@ -652,12 +822,14 @@ def _write_fit_outputs(args, bench, experiments, balances, fits, ranking, averag
     mode = args.figures
     if mode == "auto":
         mode = "all" if len(bench.experiments) <= AUTO_FIGURE_LIMIT else "overview"
+    figure_names = {}
     if mode in ("all", "best"):
         fits_by_experiment = bench.fits_by_experiment()
-        for experiment in bench.experiments:
+        figure_names = figure_file_names(bench.experiments)
+        for experiment, name in figure_names.items():
             best = bench.best_fit(experiment)
             shown = fits_by_experiment[experiment] if mode == "all" or best is None else [best]
-            figures[f"curves_{_file_safe(experiment)}.png"] = _figure_png(shown, size_unit, best, args.partition_to)
+            figures[name] = _figure_png(shown, size_unit, best, args.partition_to)
     elif mode == "overview" and fits["rank"].notna().any():
         figures["overview.png"] = _overview_png(fits)
     tables = {"fits": fits, "ranking": ranking, "averages": averages}
@@ -679,19 +851,14 @@ def _write_fit_outputs(args, bench, experiments, balances, fits, ranking, averag
         return write_atomically({args.outdir.name: workbook}, args.outdir.parent)
     outputs = {f"{name}.{args.format}": _table_writer(table, args.format) for name, table in tables.items()}
     outputs.update({name: (lambda p, png=png: p.write_bytes(png)) for name, png in figures.items()})
+    if figure_names:
+        mapping = pd.DataFrame({"experiment": list(figure_names), "file": list(figure_names.values())})
+        outputs["figures.csv"] = lambda p: mapping.to_csv(p, index=False)
+    if not failures.empty:
+        outputs["failures.csv"] = lambda p: failures.to_csv(p, index=False)
     if args.excel:
         outputs["results.xlsx"] = workbook
-    written = write_atomically(outputs, args.outdir)
-    _remove_stale_figures(args.outdir, set(figures))
-    return written
-
-
-def _remove_stale_figures(outdir: Path, current: set[str]) -> None:
-    """Delete curve figures of experiments that are not in this run (a re-run into the same
-    folder leaves exactly the current figures)."""
-    for path in outdir.glob("curves_*.png"):
-        if path.name not in current:
-            path.unlink()
+    return replace_folder(outputs, args.outdir)
 
 
 if __name__ == "__main__":

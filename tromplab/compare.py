@@ -17,6 +17,7 @@ import pandas as pd
 from scipy import stats
 
 from .curves import CurveFit, fit_formula, measured_efficiency, normalised_weights
+from .errors import InputError
 from .fitting import ParameterFit, ParameterSpec, least_squares
 from .formulas import get_formula
 from .parameters import d_cut_parameter
@@ -146,9 +147,9 @@ def shared_fit(experiments: Sequence[TrompPoints], formula, *, shared: str = "sh
     """
     formula = get_formula(formula)
     if len(experiments) < 2:
-        raise ValueError("a shared fit needs at least two experiments")
+        raise InputError("a shared fit needs at least two experiments")
     if formula.extras:
-        raise ValueError("shared fits are offered for the two-parameter formulas")
+        raise InputError("shared fits are offered for the two-parameter formulas")
     if shared not in ("shape", "d_cut"):
         raise ValueError("shared must be 'shape' or 'd_cut'")
     shape = formula.shape_name
@@ -157,7 +158,7 @@ def shared_fit(experiments: Sequence[TrompPoints], formula, *, shared: str = "sh
     separate = tuple(fit_formula(points, formula) for points in experiments)
     failed = [fit.experiment for fit in separate if not fit.success]
     if failed:
-        raise ValueError(f"the separate fit failed for {', '.join(failed)}")
+        raise InputError(f"the separate fit failed for experiment(s) {', '.join(failed)}")
     contexts = [{"measured_efficiency": measured_efficiency(p)} if formula.context_from_efficiency else {} for p in experiments]
     root_weights = [np.sqrt(normalised_weights(p)) for p in experiments]
     sizes = np.concatenate([p.size for p in experiments])

@@ -24,3 +24,21 @@ class InputError(ValueError):
         if column:
             where.append(f"column '{column}'")
         super().__init__(f"{', '.join(where)}: {message}" if where else message)
+
+
+class OptionError(InputError):
+    """An option (command-line flag or keyword argument) has a value outside its range.
+
+    ``option`` is the name the caller used (``--fine-yield`` on the command line,
+    ``fine_yield`` in Python) and ``reason`` says what is wrong without the name, so the
+    command line can report it in argparse's own words.
+    """
+
+    def __init__(self, option: str, reason: str):
+        self.option = option
+        super().__init__(f"{option} {reason}")
+        self.reason = reason
+
+
+class OutputError(InputError):
+    """An output path cannot be used (a file where a folder is needed, not writable, ...)."""

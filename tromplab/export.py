@@ -212,13 +212,13 @@ def export_fits(fits, convention: str, *, size_unit: str | None = None) -> Expor
     if not isinstance(fits, (list, tuple)):
         fits = read_fits(fits)
     if convention not in (*CONVENTIONS, "csv-long"):
-        raise ValueError(f"unknown convention {convention!r}; choose one of {', '.join((*CONVENTIONS, 'csv-long'))}")
+        raise InputError(f"unknown convention {convention!r}; choose one of {', '.join((*CONVENTIONS, 'csv-long'))}")
     if size_unit is not None and size_unit not in SIZE_UNITS_IN_METRES:
-        raise ValueError(f"unknown size unit {size_unit!r}; choose one of {', '.join(SIZE_UNITS_IN_METRES)}")
+        raise InputError(f"unknown size unit {size_unit!r}; choose one of {', '.join(SIZE_UNITS_IN_METRES)}")
     if convention == "csv-long":
         return Export(convention, _long_table(fits, size_unit), ())
     if convention == "dyssol" and size_unit is None:
-        raise ValueError("the dyssol convention takes sizes in metres: give the unit of the fitted sizes (--size-unit um|mm|m)")
+        raise InputError("the dyssol convention takes sizes in metres: give the unit of the fitted sizes (--size-unit um|mm|m)")
     converter, columns = CONVENTIONS[convention]
     scale = SIZE_UNITS_IN_METRES[size_unit] if convention == "dyssol" else 1.0
     unit = "m" if convention == "dyssol" else (size_unit or "")

@@ -9,6 +9,7 @@ This is the only module that imports lmfit.
 
 from __future__ import annotations
 
+import ast
 import warnings
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -16,6 +17,7 @@ from dataclasses import dataclass, field
 import lmfit
 import numpy as np
 
+from .errors import InputError
 from .parameters import Parameter
 
 #: The fitting layer's name for :class:`tromplab.parameters.Parameter` (the one parameter record).
@@ -251,16 +253,13 @@ def expression_function(expression: str, variables: Sequence[str]) -> tuple[Call
     >>> names, float(f(l=2.0, D=1.0, c0=1.0, c1=0.5))
     (('c0', 'c1'), 2.0)
     """
-    from asteval import Interpreter, get_ast_names
+    from asteval import Interpreter
 
-    interpreter = Interpreter()
-    try:
-        tree = interpreter.parse(expression)
-    except Exception as error:  # asteval reports syntax errors through several types
-        raise ValueError(f"cannot parse the expression {expression!r}: {error}") from None
-    names = [n for n in dict.fromkeys(get_ast_names(tree)) if n not in variables and n not in interpreter.symtable]
+    names = _checked_expression_names(expression, variables)
+    interpreter = Interpreter(minimal=True, use_numpy=True)
+    interpreter.symtable.update({name: getattr(np, name) for name in EXPRESSION_FUNCTIONS})
     if not names:
-        raise ValueError(f"the expression {expression!r} has no parameter to fit")
+        raise InputError(f"the expression {expression!r} has no parameter to fit")
 
     def evaluate(**values):
         interpreter.symtable.update({k: np.asarray(v, dtype=float) for k, v in values.items()})
@@ -268,3 +267,38 @@ def expression_function(expression: str, variables: Sequence[str]) -> tuple[Call
         return np.asarray(result, dtype=float)
 
     return evaluate, tuple(names)
+
+
+#: numpy functions and constants an expression may use (:func:`expression_function`).
+EXPRESSION_FUNCTIONS = ("exp", "expm1", "log", "log10", "log1p", "sqrt", "abs", "sin", "cos", "tan", "arctan", "sinh", "cosh",
+                        "tanh", "power", "minimum", "maximum", "pi")  # fmt: skip
+_EXPRESSION_NODES = (ast.Expression, ast.BinOp, ast.UnaryOp, ast.Add, ast.Sub, ast.Mult, ast.Div, ast.Pow, ast.USub,
+                     ast.UAdd, ast.Constant, ast.Name, ast.Load, ast.Call)  # fmt: skip
+
+
+def _checked_expression_names(expression: str, variables: Sequence[str]) -> tuple[str, ...]:
+    """The parameter names of a safe arithmetic expression; :class:`InputError` otherwise."""
+    if not isinstance(expression, str) or len(expression) > 1000:
+        raise InputError("the expression must be text of at most 1000 characters")
+    try:
+        tree = ast.parse(expression.strip(), mode="eval")
+    except SyntaxError as error:
+        raise InputError(f"cannot parse the expression {expression!r}: {error.msg}") from None
+    names = []
+    for node in ast.walk(tree):
+        if not isinstance(node, _EXPRESSION_NODES):
+            raise InputError(f"the expression {expression!r} may use only arithmetic, numbers, the variables "
+                             f"{', '.join(variables)} and the functions {', '.join(EXPRESSION_FUNCTIONS)}; "
+                             f"'{ast.unparse(node) if isinstance(node, ast.expr) else type(node).__name__}' is not allowed")  # fmt: skip
+        if isinstance(node, ast.Constant) and (isinstance(node.value, bool) or not isinstance(node.value, (int, float))):
+            raise InputError(f"the expression {expression!r} may hold only numbers as constants, not {node.value!r}")
+        if isinstance(node, ast.Call):
+            if not (isinstance(node.func, ast.Name) and node.func.id in EXPRESSION_FUNCTIONS) or node.keywords:
+                raise InputError(f"the expression {expression!r} calls '{ast.unparse(node.func)}'; allowed functions: "
+                                 f"{', '.join(EXPRESSION_FUNCTIONS)} (positional arguments only)")  # fmt: skip
+        if isinstance(node, ast.Name):
+            if node.id.startswith("_"):
+                raise InputError(f"the expression {expression!r} uses the name '{node.id}'; names may not start with '_'")
+            if node.id not in variables and node.id not in EXPRESSION_FUNCTIONS:
+                names.append(node.id)
+    return tuple(dict.fromkeys(names))

@@ -150,10 +150,14 @@ class LabOptions:
             raise ValueError(f"unknown kind {self.kind!r}; choose one of {', '.join(KINDS)}")
         if self.partition_from not in PARTITION_METHODS:
             raise ValueError(f"unknown partition_from {self.partition_from!r}; choose one of {', '.join(PARTITION_METHODS)}")
+        from .validation import check_non_negative, check_optional, check_positive, check_probability, check_share
+
         for name in ("fine_yield", "coarse_yield"):
-            value = getattr(self, name)
-            if value is not None and not 0.0 < value < 1.0:
-                raise InputError(f"{name} must lie strictly between 0 and 1, got {value:g}")
+            check_optional(check_probability, getattr(self, name), name)
+        check_share(self.min_feed_share, "min_feed_share")
+        check_non_negative(self.sum_tolerance_pct, "sum_tolerance_pct")
+        check_optional(check_positive, self.top_size, "top_size")
+        check_optional(check_non_negative, self.pan_lower_size, "pan_lower_size")
         if self.fine_yield is not None and self.coarse_yield is not None:
             if not np.isclose(self.fine_yield + self.coarse_yield, 1.0, atol=1e-6):
                 raise InputError("fine_yield and coarse_yield are both given and do not add up to 1")

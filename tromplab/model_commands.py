@@ -57,7 +57,7 @@ def _print_fit(fit, table: pd.DataFrame, level: float) -> None:
 
 def _level(value: float) -> float:
     if not 0 < value < 1:
-        raise ValueError(f"--level takes a confidence level between 0 and 1, got {value}")
+        raise InputError(f"--level takes a confidence level between 0 and 1, got {value}")
     return value
 
 
@@ -75,7 +75,7 @@ def _numbers(text: str, option: str) -> list[float]:
     try:
         return [float(item) for item in text.split(",") if item.strip()]
     except ValueError:
-        raise ValueError(f"{option} takes numbers separated by commas, got {text!r}") from None
+        raise InputError(f"{option} takes numbers separated by commas, got {text!r}") from None
 
 
 # --- layer --------------------------------------------------------------------------------
@@ -115,13 +115,13 @@ def _initial(args) -> list[float]:
     if args.initial:
         values, option = _numbers(args.initial, "--initial"), "--initial"
         if len(values) < 2:
-            raise ValueError(f"--initial takes one concentration per cell, at least 2 cells, got {args.initial!r}")
+            raise InputError(f"--initial takes one concentration per cell, at least 2 cells, got {args.initial!r}")
     else:
         if args.cells < 2:
-            raise ValueError(f"--cells takes at least 2 cells, got {args.cells}")
+            raise InputError(f"--cells takes at least 2 cells, got {args.cells}")
         values, option = [args.concentration] * args.cells, "--concentration"
     if any(not 0 <= value <= 1 for value in values) or sum(values) <= 0:
-        raise ValueError(f"{option} takes concentrations in 0..1, not all zero, got {', '.join(f'{v:g}' for v in values)}")
+        raise InputError(f"{option} takes concentrations in 0..1, not all zero, got {', '.join(f'{v:g}' for v in values)}")
     return values
 
 
@@ -129,13 +129,13 @@ def run_layer_simulate(args) -> int:
     from .layer import LayerModel
 
     if args.step_seconds <= 0:
-        raise ValueError("--step-seconds must be positive")
+        raise InputError("--step-seconds must be positive")
     try:
         model = LayerModel(args.diffusion, args.segregation, args.passage, nonlinear=not args.linear, lock_threshold=args.lock_threshold)
     except ValueError as error:  # the model speaks of its fields; name the options
-        raise ValueError(_with_options(str(error), ("diffusion", "segregation", "passage"))) from None
+        raise InputError(_with_options(str(error), ("diffusion", "segregation", "passage"))) from None
     if args.steps < 1:
-        raise ValueError(f"--steps must be at least 1, got {args.steps}")
+        raise InputError(f"--steps must be at least 1, got {args.steps}")
     run = model.simulate(_initial(args), args.steps)
     marks = sorted({max(1, round(args.steps * share)) for share in (1 / 6, 1 / 3, 2 / 3, 1.0)})
     print(f"{'nonlinear' if model.nonlinear else 'linear'} layer model: d = {model.diffusion:g}, v0 = {model.segregation:g}, "
@@ -231,21 +231,21 @@ def _pulp_screen(args):
     try:
         return PulpScreen(**values)
     except ValueError as error:  # name the option, not the field
-        raise ValueError(_with_options(str(error), values)) from None
+        raise InputError(_with_options(str(error), values)) from None
 
 
 def run_pulp_optimum(args) -> int:
     screen = _pulp_screen(args)
     if args.frequency is None and args.applied is None:
-        raise ValueError("give --frequency (to find the best pressure drop), --applied (to find the best frequency) or both")
+        raise InputError("give --frequency (to find the best pressure drop), --applied (to find the best frequency) or both")
     if args.frequency is not None:
         if args.frequency <= 0:
-            raise ValueError("--frequency must be positive")
+            raise InputError("--frequency must be positive")
         applied, rate = screen.best_pressure_drop(args.frequency)
         print(f"at N = {args.frequency:g} 1/s: best applied pressure drop H' = {applied:.5g}, productivity Q = {rate:.5g}")
     if args.applied is not None:
         if args.applied < 0:
-            raise ValueError("--applied must not be negative")
+            raise InputError("--applied must not be negative")
         frequency, rate, interior = screen.best_frequency(args.applied)
         if interior:
             print(f"at H' = {args.applied:g}: best pulsation frequency N = {frequency:.5g} 1/s, productivity Q = {rate:.5g}")
@@ -269,12 +269,12 @@ def run_pulp_fit(args) -> int:
                               index=int(bad[0]), column=column)  # fmt: skip
     fitted = tuple(name.strip().replace("-", "_") for name in args.fit.split(",") if name.strip())
     if not fitted:
-        raise ValueError("--fit names no coefficient")
+        raise InputError("--fit names no coefficient")
     level = _level(args.level)
     try:
         result = fit_pulp_screen(applied, frequency, productivity, fitted=fitted, fixed=_pulp_screen(args))
     except ValueError as error:
-        raise ValueError(f"--fit: {error}") from None
+        raise InputError(f"--fit: {error}") from None
     print(f"pulp-screen model fitted to {table.source} ({productivity.size} points; relative residuals):")
     parameters = _parameter_table(result.fit, level)
     _print_fit(result.fit, parameters, level)
@@ -311,13 +311,13 @@ def run_optimize(args) -> int:
 
     for option in ("lambda_target", "lambda_next", "sieve_length", "bulk_density", "gap_height", "width", "purity_limit"):
         if getattr(args, option) <= 0:
-            raise ValueError(f"--{option.replace('_', '-')} must be positive")
+            raise InputError(f"--{option.replace('_', '-')} must be positive")
     if not 0 < args.speed_min < args.speed_max:
-        raise ValueError(f"need 0 < --speed-min < --speed-max, got {args.speed_min:g} and {args.speed_max:g}")
+        raise InputError(f"need 0 < --speed-min < --speed-max, got {args.speed_min:g} and {args.speed_max:g}")
     if not 0 < args.capacity_share <= 1:
-        raise ValueError("--capacity-share takes a share between 0 and 1")
+        raise InputError("--capacity-share takes a share between 0 and 1")
     if args.weights < 2:
-        raise ValueError("--weights needs at least 2 weights")
+        raise InputError("--weights needs at least 2 weights")
     problem = sieve_speed_problem(lambda_target=args.lambda_target, lambda_next=args.lambda_next, sieve_length=args.sieve_length,
                                   bulk_density=args.bulk_density, gap_height=args.gap_height, width=args.width,
                                   purity_limit=args.purity_limit, speed_bounds=(args.speed_min, args.speed_max))  # fmt: skip

@@ -67,6 +67,21 @@ def _axes(ax):
     return ax
 
 
+def plain_text(text, *, max_length: int = 80) -> str:
+    """``text`` shown literally by matplotlib: ``$`` escaped (no mathtext), control
+    characters dropped, cut to ``max_length`` characters with an ellipsis.
+
+    Examples
+    --------
+    >>> print(plain_text("a $x_1^2$ run"))
+    a \\$x_1^2\\$ run
+    """
+    text = "".join(ch for ch in str(text) if ch.isprintable())
+    if len(text) > max_length:
+        text = text[: max_length - 1] + "\u2026"
+    return text.replace("$", r"\$")
+
+
 def save_figure(ax, path, *, dpi: int = 120) -> None:
     """Lay out the Axes' figure, save it (format from the file name or a file object) and close it."""
     import matplotlib.pyplot as plt
@@ -153,11 +168,11 @@ def plot_tromp_fits(fits: Sequence[CurveFit], *, ax=None, log_size: bool = True,
         ax.annotate(f"d_cut = {best.d_cut:.4g}", (best.d_cut, 0.5), xytext=(6, 6), textcoords="offset points", fontsize=8)
     if log_size:
         log_size_axis(ax, grid[0], grid[-1])
-    unit = f" [{size_unit}]" if size_unit else ""
+    unit = f" [{plain_text(size_unit)}]" if size_unit else ""
     ax.set_xlabel(f"particle size{unit}")
     ax.set_ylabel(f"partition to {'fines' if partition_to == 'fine' else 'coarse product'}")
     ax.set_ylim(-0.03, 1.03)
-    ax.set_title(f"Experiment {points.experiment}")
+    ax.set_title(f"Experiment {plain_text(points.experiment)}")
     title = f"failed: {', '.join(failed)}" if failed else None
     ax.legend(fontsize=7, title=title, title_fontsize=7, loc="best")
     return ax

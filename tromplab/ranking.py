@@ -148,14 +148,14 @@ def read_f_table(path, *, alpha: float = DEFAULT_ALPHA, use_given_marks: bool = 
     """
     table = read_table(path)
     table.require("experiment", "equation", "F")
-    frame = pd.DataFrame({"experiment": table.frame["experiment"].astype(str), "equation": table.frame["equation"].astype(str)})
-    frame["F"] = table.numeric("F")
+    frame = pd.DataFrame({"experiment": table.experiment_labels(), "equation": _labels(table, "equation")})
+    frame["F"] = _non_negative(table, "F")
     if "F_crit" in table.frame.columns:
-        frame["F_crit"] = table.numeric("F_crit")
+        frame["F_crit"] = _non_negative(table, "F_crit")
     elif "n" in table.frame.columns:
         n = table.numeric("n")
         for i, value in enumerate(n):
-            if value != int(value) or value <= 2:
+            if not np.isfinite(value) or value != int(value) or value <= 2:
                 raise table.error(f"n must be a whole number above 2, got {value:g}", index=i, column="n")
         frame["F_crit"] = [critical_f(int(v), alpha=alpha) for v in n]
     else:
@@ -167,6 +167,12 @@ def read_f_table(path, *, alpha: float = DEFAULT_ALPHA, use_given_marks: bool = 
     duplicated = frame.duplicated(["experiment", "equation"]).to_numpy()
     if duplicated.any():
         raise table.error("the same experiment and equation appear twice", index=int(np.flatnonzero(duplicated)[0]), column="equation")
+    present = set(zip(frame["experiment"], frame["equation"]))
+    for experiment in dict.fromkeys(frame["experiment"]):
+        missing = [e for e in dict.fromkeys(frame["equation"]) if (experiment, e) not in present]
+        if missing:  # a formula without a rank in one experiment would collect fewer points and win
+            raise InputError(f"experiment '{experiment}' has no row for equation(s) {', '.join(missing)}: every formula "
+                             "needs an F value in every experiment", source=table.source, column="equation")  # fmt: skip
     return frame
 
 
@@ -235,3 +241,20 @@ def _names(rows: pd.DataFrame, *, of: int | None = None) -> str:
     if of is not None and len(names) == of and of > 2:
         return f"all {of} formulas"
     return ", ".join(names)
+def _labels(table, column: str) -> np.ndarray:
+    """A label column as stripped text; a blank cell is an error (not the text 'nan')."""
+    labels = table.frame[column]
+    text = labels.astype(str).str.strip()
+    blank = (labels.isna() | (text == "")).to_numpy()
+    if blank.any():
+        raise table.error(f"{column} is blank", index=int(np.flatnonzero(blank)[0]), column=column)
+    return text.to_numpy(dtype=object)
+
+
+def _non_negative(table, column: str) -> np.ndarray:
+    """A column of F values: numbers >= 0 (F = inf, a perfect fit, is allowed)."""
+    values = table.numeric(column)
+    bad = np.flatnonzero(~(values >= 0))
+    if bad.size:
+        raise table.error(f"{column} must be a number >= 0, got {values[bad[0]]:g}", index=int(bad[0]), column=column)
+    return values

@@ -32,6 +32,7 @@ class FisherScreen:
 
     @property
     def adequate(self) -> bool:
+        """``F > F_crit``; False when F is undefined (flat data, ``S0^2 = 0``)."""
         return bool(self.F > self.F_crit)
 
 
@@ -81,6 +82,8 @@ def fisher_screen(observed, ssr: float, *, alpha: float = DEFAULT_ALPHA, n_param
         mean = np.average(observed, weights=weights)
         s0_sq = float(np.sum(weights * (observed - mean) ** 2) / (n - 1))
     s_res_sq = float(ssr) / (n - n_params)
-    with np.errstate(divide="ignore", invalid="ignore"):
+    if s0_sq == 0:
+        f_value = np.nan  # flat data: 0/0, neither adequate nor rankable
+    else:
         f_value = s0_sq / s_res_sq if s_res_sq > 0 else np.inf
     return FisherScreen(n=n, n_params=n_params, alpha=alpha, s0_sq=s0_sq, s_res_sq=s_res_sq, F=float(f_value), F_crit=f_crit)

@@ -35,6 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import integrate, optimize, special, stats
 
+from .errors import InputError
 from .fitting import ParameterFit, ParameterSpec, least_squares
 
 SECONDS_PER_HOUR = 3600.0
@@ -104,13 +105,13 @@ def geometric_probability(hole_diameter, length, width, half_cell_width, *, meth
     0.1511
     """
     if min(hole_diameter, length, width, half_cell_width) <= 0:
-        raise ValueError("hole diameter, particle sizes and cell width must be positive")
+        raise InputError("hole diameter, particle sizes and cell width must be positive")
     if width > length:
-        raise ValueError(f"the width d = {width:g} must not exceed the length l = {length:g} (shape factor d/l <= 1)")
+        raise InputError(f"the width d = {width:g} must not exceed the length l = {length:g} (shape factor d/l <= 1)")
     valid = closed_form_valid(hole_diameter, length, width, half_cell_width)
     if method == "closed" or (method == "auto" and valid):
         if not valid:
-            raise ValueError("the closed form needs the particle to fit the hole at every angle and the cell not to cap it")
+            raise InputError("the closed form needs the particle to fit the hole at every angle and the cell not to cap it")
         g = _HoleGeometry.of(hole_diameter, length, width)
         arc = special.ellipeinc(g.phi0 + np.pi, g.k) - special.ellipeinc(g.phi0 + np.pi / 2, g.k)
         return float((hole_diameter * arc - (length / 2.0 + width)) / (np.pi * half_cell_width))
@@ -357,8 +358,11 @@ def design_bin(decks, sieve_length, recovery, *, method="exact") -> BinDesign:
     >>> round(b.c, 2), round(b.x1, 4)
     (14.22, 0.9867)
     """
+    from .validation import MAX_DECKS, check_count
+
+    check_count(decks, "decks", maximum=MAX_DECKS)
     if not 0 < recovery < 1:
-        raise ValueError(f"the required recovery must lie in (0, 1), got {recovery}")
+        raise InputError(f"the required recovery must lie in (0, 1), got {recovery}")
     if method == "exact":
         c = 2.0 * special.gammaincinv(decks, (1 + recovery) / 2) / sieve_length**2
         x1 = np.sqrt(2.0 * special.gammaincinv(decks, (1 - recovery) / 2) / c)
@@ -417,7 +421,7 @@ def identify_c(x1, x2, decks, shares, *, lost_side: str) -> np.ndarray:
     result = []
     for g in shares:
         if not 0 < g < best:
-            raise ValueError(f"a share of {g:g} in the bin cannot be reached (largest possible {best:.4f})")
+            raise InputError(f"a share of {g:g} in the bin cannot be reached (largest possible {best:.4f})")
         result.append(np.exp(optimize.brentq(lambda lc, share=g: recovery_at(lc) - share, *bracket, xtol=1e-13)))
     return np.asarray(result)
 

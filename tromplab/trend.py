@@ -238,17 +238,17 @@ def baseline_indices(surveys: Sequence[Survey], baseline=None) -> tuple[int, ...
     else:
         start, sep, stop = str(baseline).partition(":")
         if not sep:
-            raise ValueError(f"--baseline takes a number of surveys or a date range FROM:TO, got {baseline!r}")
+            raise InputError(f"--baseline takes a number of surveys or a date range FROM:TO, got {baseline!r}")
         try:
             low, high = pd.Timestamp(start.strip()), pd.Timestamp(stop.strip())
         except ValueError:
-            raise ValueError(f"--baseline: cannot read the dates of {baseline!r} (use YYYY-MM-DD:YYYY-MM-DD)") from None
+            raise InputError(f"--baseline: cannot read the dates of {baseline!r} (use YYYY-MM-DD:YYYY-MM-DD)") from None
         chosen = tuple(i for i, s in enumerate(surveys) if low <= s.date <= high)
         if len(chosen) < 3:
-            raise ValueError(f"--baseline {baseline}: {len(chosen)} survey(s) in that range; at least 3 are needed")
+            raise InputError(f"--baseline {baseline}: {len(chosen)} survey(s) in that range; at least 3 are needed")
         return chosen
     if not 3 <= count < n:
-        raise ValueError(f"the baseline needs at least 3 surveys and at least one survey after it; got {count} of {n}")
+        raise InputError(f"the baseline needs at least 3 surveys and at least one survey after it; got {count} of {n}")
     return tuple(range(count))
 
 
@@ -333,9 +333,9 @@ def monitor_surveys(surveys: Sequence[Survey], *, formula=None, baseline=None, a
 
     surveys = sorted(surveys, key=lambda s: s.date)
     if len(surveys) < 4:
-        raise ValueError(f"a trend needs at least four surveys, got {len(surveys)}")
+        raise InputError(f"a trend needs at least four surveys, got {len(surveys)}")
     if not 0 < alpha < 1:
-        raise ValueError(f"alpha must lie between 0 and 1, got {alpha}")
+        raise InputError(f"alpha must lie between 0 and 1, got {alpha}")
     base = baseline_indices(surveys, baseline)
     formula = get_formula(formula) if formula is not None else _best_formula(surveys)
     fits = tuple(fit_formula(s.points, formula) for s in surveys)
@@ -381,7 +381,7 @@ def _best_formula(surveys):
 
     ranking = fit_experiments([s.points for s in surveys]).ranking_table()
     if ranking.empty:
-        raise ValueError("no formula could be fitted to the surveys; give one with --formula")
+        raise InputError("no formula could be fitted to the surveys; give one with --formula")
     return get_formula(ranking.iloc[0]["formula"])
 
 

@@ -529,6 +529,10 @@ def interval_columns(fits: Sequence[CurveFit], *, level: float | None = None, n_
     bootstrap limits on a bound.  Keyed by ``experiment`` and ``formula``; failed fits
     get nan.  Every fit's own ``delta_max`` and alpha are used.
     """
+    from .validation import check_bootstrap, check_optional, check_probability, check_seed
+
+    check_optional(check_probability, level, "level")
+    n_bootstrap, seed = check_bootstrap(n_bootstrap, "n_bootstrap"), check_seed(seed, "seed")
     bootstrap_level = 0.95 if level is None else level
     rows = []
     for i, fit in enumerate(fits):

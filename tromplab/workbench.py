@@ -7,9 +7,7 @@ ranking.  Neither stops the batch.
 
 from __future__ import annotations
 
-import os
 import sys
-import tempfile
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -23,6 +21,7 @@ from .formulas import Formula, select_formulas
 from .points import TrompPoints
 from .ranking import add_delta_aicc, add_ranks, fit_verdicts, rank_formulas
 from .screening import DEFAULT_ALPHA
+from .validation import check_optional, check_positive, check_probability
 
 #: Columns of ``fits.csv``, in order.
 FIT_COLUMNS = (
@@ -256,6 +255,8 @@ def fit_experiments(
     >>> bench.ranking()[["formula", "place"]].values.tolist()
     [['plitt', 1], ['lognormal', 2], ['molerus', 3]]
     """
+    check_probability(alpha, "alpha")
+    check_optional(check_positive, delta_max, "delta_max")
     experiments = _as_points(experiments)
     chosen = select_formulas(formulas)
     failures, notes, fittable = {}, {}, []
@@ -263,6 +264,12 @@ def fit_experiments(
         if points.n <= 2:
             failures[points.experiment] = (
                 f"experiment '{points.experiment}' has {points.n} points; the Fisher screen needs at least 3"
+            )
+            continue
+        if np.ptp(points.partition_fine) == 0:  # F = 0/0: no curve can be told from another
+            failures[points.experiment] = (
+                f"experiment '{points.experiment}' is flat: every partition equals {points.partition_fine[0]:g}, "
+                "so there is no cut to fit and the Fisher screen is undefined (0/0)"
             )
             continue
         fittable.append(points)
@@ -427,16 +434,9 @@ def write_atomically(outputs: dict[str, Callable[[Path], None]], outdir) -> dict
     """Write every output to a temporary file first, then move them all into ``outdir``.
 
     ``outputs`` maps file names to writers taking a path.  If any writer fails, nothing
-    is left in ``outdir``.
+    is left in ``outdir``.  For a whole output folder that replaces the previous run in
+    one step, see :func:`tromplab.outputs.replace_folder`.
     """
-    outdir = Path(outdir)
-    outdir.mkdir(parents=True, exist_ok=True)
-    written = {}
-    with tempfile.TemporaryDirectory(dir=outdir, prefix=".tromplab-") as staging:
-        for name, writer in outputs.items():
-            writer(Path(staging) / name)
-        for name in outputs:
-            target = outdir / name
-            os.replace(Path(staging) / name, target)
-            written[name] = target
-    return written
+    from .outputs import write_files
+
+    return write_files(outputs, outdir)
