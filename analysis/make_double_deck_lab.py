@@ -43,10 +43,26 @@ def build(source: Path = SOURCE) -> pd.DataFrame:
     y_m, y_q = MASS_M / total, MASS_Q / total
     through_20, yield_20 = mix_streams([data["M_pct"], data["Q_pct"]], [y_m, y_q])
     bounds = {"size_lower_mm": data["lower_mm"], "size_upper_mm": data["upper_mm"]}
-    deck_20 = pd.DataFrame({"experiment": "deck_20mesh", **bounds, "feed_pct": data["feed_pct"],
-                            "fine_pct": 100 * through_20, "coarse_pct": data["P_pct"], "fine_yield": yield_20})  # fmt: skip
-    deck_65 = pd.DataFrame({"experiment": "deck_65mesh", **bounds, "feed_pct": 100 * through_20,
-                            "fine_pct": data["Q_pct"], "coarse_pct": data["M_pct"], "fine_yield": y_q / yield_20})  # fmt: skip
+    deck_20 = pd.DataFrame(
+        {
+            "experiment": "deck_20mesh",
+            **bounds,
+            "feed_pct": data["feed_pct"],
+            "fine_pct": 100 * through_20,
+            "coarse_pct": data["P_pct"],
+            "fine_yield": yield_20,
+        }
+    )
+    deck_65 = pd.DataFrame(
+        {
+            "experiment": "deck_65mesh",
+            **bounds,
+            "feed_pct": 100 * through_20,
+            "fine_pct": data["Q_pct"],
+            "coarse_pct": data["M_pct"],
+            "fine_yield": y_q / yield_20,
+        }
+    )
     return pd.concat([deck_20, deck_65], ignore_index=True)
 
 

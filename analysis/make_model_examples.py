@@ -49,9 +49,20 @@ def sieve_residues() -> pd.DataFrame:
         speeds = np.array(SIEVE_SPEEDS)
         residues = sieve.residue_share(pg * sieve.velocity_probability(speeds, v_k, sigma), SIEVE_LENGTH, CELL_PITCH)
         for speed, residue in zip(speeds, residues):
-            rows.append({"sieve": 1, "fraction": fraction, "relative_speed": speed, "residue": float(f"{residue:.10g}"),
-                         "sieve_length": SIEVE_LENGTH, "cell_pitch": CELL_PITCH, "hole_diameter": HOLE, "length": length,
-                         "width": width, "half_cell_width": HALF_CELL})  # fmt: skip
+            rows.append(
+                {
+                    "sieve": 1,
+                    "fraction": fraction,
+                    "relative_speed": speed,
+                    "residue": float(f"{residue:.10g}"),
+                    "sieve_length": SIEVE_LENGTH,
+                    "cell_pitch": CELL_PITCH,
+                    "hole_diameter": HOLE,
+                    "length": length,
+                    "width": width,
+                    "half_cell_width": HALF_CELL,
+                }
+            )
     return pd.DataFrame(rows)
 
 
@@ -100,8 +111,11 @@ HEADERS = {
 """,
 }
 
-BUILDERS = {"sieve_identify_residues_example.csv": sieve_residues, "layer_extraction_example.csv": layer_extraction,
-            "pulp_screen_productivity_example.csv": pulp_productivity}  # fmt: skip
+BUILDERS = {
+    "sieve_identify_residues_example.csv": sieve_residues,
+    "layer_extraction_example.csv": layer_extraction,
+    "pulp_screen_productivity_example.csv": pulp_productivity,
+}
 
 
 def main(argv=None):

@@ -51,7 +51,12 @@ CASES = [
     ("logistic", logistic, {"imperfection": "0.15"}, "partition in d50 and Ep (ln 3 exact)"),
     ("logistic", logistic, {"imperfection": "0.6"}, "partition in d50 and Ep (ln 3 exact)"),
     ("teipel_hennig", teipel_hennig, {"k": "4", "th_alpha": "1", "offset": "0"}, "Dyssol Screen unit (Teipel & Hennig)"),
-    ("teipel_hennig", teipel_hennig, {"k": "4.5", "th_alpha": "8", "offset": "0.2"}, "Dyssol Screen unit defaults (Alpha 8; Beta 0.5; Offset 0.2)"),
+    (
+        "teipel_hennig",
+        teipel_hennig,
+        {"k": "4.5", "th_alpha": "8", "offset": "0.2"},
+        "Dyssol Screen unit defaults (Alpha 8; Beta 0.5; Offset 0.2)",
+    ),
     ("rosin_rammler_bypass", plitt_1976, {"m": "2.5", "rf": "0.15"}, "Plitt (1976) with exact ln 2"),
 ]
 X = ["0.1", "0.5", "0.8", "1", "1.3", "2", "3.5"]

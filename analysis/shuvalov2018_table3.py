@@ -17,8 +17,11 @@ def add_options(parser):
 
 def main(argv=None):
     args = output_arguments(__doc__, argv, add_options)
-    table = shuvalov_table3(ROOT / "datasets" / "shuvalov2018_table2_F.csv", ROOT / "datasets" / "shuvalov2018_table3_ranks.csv",
-                            use_given_marks=not args.computed_adequacy)  # fmt: skip
+    table = shuvalov_table3(
+        ROOT / "datasets" / "shuvalov2018_table2_F.csv",
+        ROOT / "datasets" / "shuvalov2018_table3_ranks.csv",
+        use_given_marks=not args.computed_adequacy,
+    )
     marks = "computed from Table 2" if args.computed_adequacy else "as printed in Table 3"
     print(f"Table 3 recomputed (adequacy {marks}); 'published_*' columns are the printed values.")
     with pd.option_context("display.width", 250):

@@ -29,9 +29,16 @@ def main(argv=None):
         p = sieve.geometric_probability(HOLE, length, width, HALF_CELL) * sieve.velocity_probability(speeds, v_k, sigma)
         residues.append(sieve.residue_share(p, LENGTH, PITCH))
     efficiency = sieve.sieve_efficiency(residues[0], residues[1])
-    save(plot_residue_and_efficiency(speeds, residues, efficiency, labels=list(FRACTIONS)), args.outdir / "sieve_residue_efficiency.png")
+    save(
+        plot_residue_and_efficiency(speeds, residues, efficiency, labels=list(FRACTIONS)),
+        args.outdir / "sieve_residue_efficiency.png",
+    )
     design = sieve.design_bin(12, 1.6, 0.9)
-    labels = ["finer fraction (C = 30, illustrative)", f"target fraction (C = {design.c:.2f})", "coarser fraction (C = 7, illustrative)"]
+    labels = [
+        "finer fraction (C = 30, illustrative)",
+        f"target fraction (C = {design.c:.2f})",
+        "coarser fraction (C = 7, illustrative)",
+    ]
     ax = plot_distance_densities(12, [30.0, design.c, 7.0], bin_edges=(design.x1, design.x2), labels=labels, x_max=2.6)
     save(ax, args.outdir / "sieve_distance_densities.png")
 

@@ -16,8 +16,11 @@ from tromplab.reproduce import write_table
 def main(argv=None):
     args = output_arguments(__doc__, argv)
     result = choose(sieve_speed_problem(), floor_second=80.0, share_of_first=0.8)
-    for label, optimum in [("max Q with E >= 80 %", result.best_first), ("max E with Q >= 80 % of max", result.best_second),
-                           ("compromise (max-min)", result.compromise)]:  # fmt: skip
+    for label, optimum in [
+        ("max Q with E >= 80 %", result.best_first),
+        ("max E with Q >= 80 % of max", result.best_second),
+        ("compromise (max-min)", result.compromise),
+    ]:
         p = optimum.point
         print(f"{label:>28}: V = {p['V']:.4f} m/s, Q = {p['Q']:.0f} kg/h, E = {p['E']:.2f} %")
     print("Printed compromise: E = 89.64 %, Q = 1340 kg/h (reproduced by max Q at the purity limit; see docs/errata.md)")

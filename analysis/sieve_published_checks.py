@@ -16,7 +16,9 @@ def main(argv=None):
     checks = sieve_checks()
     with pd.option_context("display.width", 200, "display.max_colwidth", 70):
         print(checks.to_string(index=False, float_format=lambda v: f"{v:.5g}"))
-    print(f"\n{int(checks['agrees'].sum())} of {len(checks)} printed values reproduced; the others are explained in docs/errata.md")
+    print(
+        f"\n{int(checks['agrees'].sum())} of {len(checks)} printed values reproduced; the others are explained in docs/errata.md"
+    )
     print(f"Wrote {write_table(checks, args.outdir, 'sieve_published_checks.csv')}")
 
 

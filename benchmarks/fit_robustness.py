@@ -69,17 +69,27 @@ def main(argv=None):
             bare_time = time.perf_counter() - start
             worse = not np.isfinite(bare) or bare > ours.fit.ssr * (1 + TOLERANCE) + 1e-15
             better = np.isfinite(bare) and bare < ours.fit.ssr * (1 - TOLERANCE) - 1e-15
-            rows.append({"formula": formula.id, "bare_worse": worse, "bare_better": better, "tromplab_s": ours_time, "bare_s": bare_time})
-    table = pd.DataFrame(rows).groupby("formula", sort=False).agg(
-        bare_missed_optimum=("bare_worse", "mean"), bare_beat_tromplab=("bare_better", "mean"),
-        tromplab_ms=("tromplab_s", lambda t: 1000 * np.median(t)), bare_ms=("bare_s", lambda t: 1000 * np.median(t)),
-    )  # fmt: skip
+            rows.append(
+                {"formula": formula.id, "bare_worse": worse, "bare_better": better, "tromplab_s": ours_time, "bare_s": bare_time}
+            )
+    table = (
+        pd.DataFrame(rows)
+        .groupby("formula", sort=False)
+        .agg(
+            bare_missed_optimum=("bare_worse", "mean"),
+            bare_beat_tromplab=("bare_better", "mean"),
+            tromplab_ms=("tromplab_s", lambda t: 1000 * np.median(t)),
+            bare_ms=("bare_s", lambda t: 1000 * np.median(t)),
+        )
+    )
     print(f"{args.experiments} synthetic experiments x {len(FORMULAS)} formulas")
     print(table.to_string(float_format=lambda v: f"{v:.3g}"))
     total = pd.DataFrame(rows)
-    print(f"\nbare lmfit missed the optimum in {100 * total['bare_worse'].mean():.1f} % of fits, beat tromplab in "
-          f"{100 * total['bare_better'].mean():.1f} %; median time {1000 * total['tromplab_s'].median():.1f} ms (tromplab) vs "
-          f"{1000 * total['bare_s'].median():.1f} ms (bare)")  # fmt: skip
+    print(
+        f"\nbare lmfit missed the optimum in {100 * total['bare_worse'].mean():.1f} % of fits, beat tromplab in "
+        f"{100 * total['bare_better'].mean():.1f} %; median time {1000 * total['tromplab_s'].median():.1f} ms (tromplab) vs "
+        f"{1000 * total['bare_s'].median():.1f} ms (bare)"
+    )
 
 
 if __name__ == "__main__":

@@ -59,18 +59,35 @@ def child_fits(n, workers, out):
     bench.ranking_table()
     seconds = time.perf_counter() - start
     table[["experiment", "formula", "ssr"]].to_csv(out, index=False)
-    print(json.dumps({"seconds": seconds, "peak_main_mib": _peak_mib(resource.RUSAGE_SELF),
-                      "peak_worker_mib": _peak_mib(resource.RUSAGE_CHILDREN)}))  # fmt: skip
+    print(
+        json.dumps(
+            {
+                "seconds": seconds,
+                "peak_main_mib": _peak_mib(resource.RUSAGE_SELF),
+                "peak_worker_mib": _peak_mib(resource.RUSAGE_CHILDREN),
+            }
+        )
+    )
 
 
 def run_full(n, workers, folder):
     points = folder / f"points_{n}.csv"
     if not points.exists():
         pd.concat([p.to_frame() for p in experiments(n)]).to_csv(points, index=False)
-    command = [sys.executable, "-c", "import sys, resource, json; from tromplab.cli import main; code = main(sys.argv[1:]); "
-               "print(json.dumps({'peak_main_mib': resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, "
-               "'peak_worker_mib': resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024}), file=sys.stderr); "
-               "sys.exit(code)", "fit", str(points), "-o", str(folder / f"out_{n}_{workers}"), "--jobs", str(workers)]  # fmt: skip
+    command = [
+        sys.executable,
+        "-c",
+        "import sys, resource, json; from tromplab.cli import main; code = main(sys.argv[1:]); "
+        "print(json.dumps({'peak_main_mib': resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, "
+        "'peak_worker_mib': resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024}), file=sys.stderr); "
+        "sys.exit(code)",
+        "fit",
+        str(points),
+        "-o",
+        str(folder / f"out_{n}_{workers}"),
+        "--jobs",
+        str(workers),
+    ]
     start = time.perf_counter()
     done = subprocess.run(command, capture_output=True, text=True, check=True)
     seconds = time.perf_counter() - start
@@ -96,7 +113,9 @@ def run_bare(n, limit):
         efficiency = measured_efficiency(points)
         for formula in FORMULAS:
             context = {"measured_efficiency": efficiency} if formula.context_from_efficiency else {}
-            rows.append({"experiment": points.experiment, "formula": formula.id, "bare_ssr": bare_lmfit(points, formula, context)})
+            rows.append(
+                {"experiment": points.experiment, "formula": formula.id, "bare_ssr": bare_lmfit(points, formula, context)}
+            )
     seconds = (time.perf_counter() - start) * n / len(data)
     return seconds, pd.DataFrame(rows)
 

@@ -48,12 +48,18 @@ def evaluate(seed: int) -> list[dict]:
         step_hits = found[(found >= step) & (found < drift)]
         cut_alarm = np.flatnonzero(alarms["d_cut"] & changed_c)
         cut_hits = cut_alarm[cut_alarm >= drift]
-        rows.append({
-            "seed": seed, "L": width, "null_any_change_point": bool(points.any()), "null_flagged_surveys": int(changed.sum()),
-            "null_monitored_surveys": after, "change_false_before_step": len(before_step) > 0,
-            "step_delay": step_hits[0] - step if step_hits.size else np.nan,
-            "drift_delay": cut_hits[0] - drift if cut_hits.size else np.nan,
-        })  # fmt: skip
+        rows.append(
+            {
+                "seed": seed,
+                "L": width,
+                "null_any_change_point": bool(points.any()),
+                "null_flagged_surveys": int(changed.sum()),
+                "null_monitored_surveys": after,
+                "change_false_before_step": len(before_step) > 0,
+                "step_delay": step_hits[0] - step if step_hits.size else np.nan,
+                "drift_delay": cut_hits[0] - drift if cut_hits.size else np.nan,
+            }
+        )
     return rows
 
 

@@ -127,7 +127,18 @@ class Mutation:
         return frame
 
 
-KINDS = ("none", "cell", "blank", "swap_columns", "drop_column", "typo", "shuffle", "duplicate_row", "unicode_name", "scale_sizes")
+KINDS = (
+    "none",
+    "cell",
+    "blank",
+    "swap_columns",
+    "drop_column",
+    "typo",
+    "shuffle",
+    "duplicate_row",
+    "unicode_name",
+    "scale_sizes",
+)
 
 
 def mutated():

@@ -14,24 +14,33 @@ SCRIPTS = {
     "sieve_published_checks.py": ["sieve_published_checks.csv"],
     "shuvalov2018_table3.py": ["table3_printed_marks.csv"],
     "sieve_operating_point.py": ["sieve_pareto.csv", "sieve_pareto.png"],
-    "shuvalov2018_figures.py": ["fig1_equal_slope_-0.5.png", "fig2_equal_slope_-0.4.png", "fig3_ks_kf.png",
-                                "table2_F_heatmap.png", "table3_ranking.png"],
+    "shuvalov2018_figures.py": [
+        "fig1_equal_slope_-0.5.png",
+        "fig2_equal_slope_-0.4.png",
+        "fig3_ks_kf.png",
+        "table2_F_heatmap.png",
+        "table3_ranking.png",
+    ],
     "sieve_figures.py": ["sieve_pg_family.png", "sieve_residue_efficiency.png", "sieve_distance_densities.png"],
 }
 
 
 @pytest.mark.parametrize("script", sorted(SCRIPTS))
 def test_script_runs_and_writes_its_tables(tmp_path, script):
-    done = subprocess.run([sys.executable, str(ROOT / "analysis" / script), "--outdir", str(tmp_path)],
-                          capture_output=True, text=True, check=True)  # fmt: skip
+    done = subprocess.run(
+        [sys.executable, str(ROOT / "analysis" / script), "--outdir", str(tmp_path)], capture_output=True, text=True, check=True
+    )
     for name in SCRIPTS[script]:
         assert (tmp_path / name).exists()
         assert str(tmp_path / name) in done.stdout
 
 
 def test_table3_script_marks_exactly_the_known_differences(tmp_path):
-    subprocess.run([sys.executable, str(ROOT / "analysis" / "shuvalov2018_table3.py"), "--outdir", str(tmp_path)], check=True,
-                   capture_output=True)  # fmt: skip
+    subprocess.run(
+        [sys.executable, str(ROOT / "analysis" / "shuvalov2018_table3.py"), "--outdir", str(tmp_path)],
+        check=True,
+        capture_output=True,
+    )
     table = pd.read_csv(tmp_path / "table3_printed_marks.csv", keep_default_na=False).set_index("equation")
     marked = {eq: text for eq, text in table["differences"].items() if text}
     assert marked == {8: "rank in exp. 6; points", 10: "points", 11: "points"}
@@ -40,7 +49,12 @@ def test_table3_script_marks_exactly_the_known_differences(tmp_path):
 def test_sieve_checks_reproduce_what_the_spec_says():
     checks = sieve_checks().set_index("quantity")
     agreed = set(checks.index[checks["agrees"]])
-    assert agreed == {"P_v fraction 1 at Va = 0.287 m/s", "P_v fraction 2 at Va = 0.287 m/s", "gamma_1^1 at the corrected speed",
-                      "C, 1/m^2", "x1, normal approximation, m"}  # fmt: skip
+    assert agreed == {
+        "P_v fraction 1 at Va = 0.287 m/s",
+        "P_v fraction 2 at Va = 0.287 m/s",
+        "gamma_1^1 at the corrected speed",
+        "C, 1/m^2",
+        "x1, normal approximation, m",
+    }
     assert checks.loc["E at the corrected speed, %", "computed"] == pytest.approx(89.64, abs=0.01)
     assert checks.loc["E = g (1 - S), %", "computed"] == pytest.approx(80.64)

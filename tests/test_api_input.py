@@ -11,11 +11,13 @@ from tromplab.points import TrompPoints
 
 from .conftest import DATASETS
 
-POINTS = pd.DataFrame({
-    "experiment": ["a", "a", "a", "a", "b", "b", "b", "b"],
-    "size": [10, 20, 40, 80, 10, 20, 40, 80],
-    "partition_fine_pct": [97, 90, 55, 10, 95, 80, 40, 8],
-})  # fmt: skip
+POINTS = pd.DataFrame(
+    {
+        "experiment": ["a", "a", "a", "a", "b", "b", "b", "b"],
+        "size": [10, 20, 40, 80, 10, 20, 40, 80],
+        "partition_fine_pct": [97, 90, 55, 10, 95, 80, 40, 8],
+    }
+)
 LAB = DATASETS / "double_deck_screen_decks_lab.csv"
 
 

@@ -124,7 +124,7 @@ def test_indistinguishable_fits_and_non_normal_residuals_are_said_in_the_console
     assert (deck["residuals"] == "not normal").all() and (deck["normality_p"] < 0.001).all()
     assert deck["extrapolated"].str.contains("eta").all()
     printed = capsys.readouterr().out
-    block = printed[printed.index("Experiment deck_65mesh"):printed.index("Ranking across")]
+    block = printed[printed.index("Experiment deck_65mesh") : printed.index("Ranking across")]
     assert "The data cannot tell the 9 formulas apart" in block
     assert "Shared rank 4.5: molerus, molerus_hoffmann" in block
     assert "Adequate by F, but the residuals are not normal: all 9 formulas" in block

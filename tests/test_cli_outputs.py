@@ -31,17 +31,27 @@ def assert_same_table(from_workbook: pd.DataFrame, from_csv: pd.DataFrame):
     assert list(from_workbook.columns) == list(from_csv.columns)
     for column in from_csv.columns:
         if pd.api.types.is_numeric_dtype(from_csv[column]) and not pd.api.types.is_bool_dtype(from_csv[column]):
-            assert_allclose(pd.to_numeric(from_workbook[column]).to_numpy(dtype=float), from_csv[column].to_numpy(dtype=float),
-                            rtol=1e-12, equal_nan=True, err_msg=column)  # fmt: skip
+            assert_allclose(
+                pd.to_numeric(from_workbook[column]).to_numpy(dtype=float),
+                from_csv[column].to_numpy(dtype=float),
+                rtol=1e-12,
+                equal_nan=True,
+                err_msg=column,
+            )
         else:
-            expected = from_csv[column].where(from_csv[column].notna(), None).astype(object).map(lambda v: v if v is None else str(v))
+            expected = (
+                from_csv[column].where(from_csv[column].notna(), None).astype(object).map(lambda v: v if v is None else str(v))
+            )
             got = from_workbook[column].map(lambda v: None if v is None else str(v))
             assert list(got) == list(expected), column
 
 
 def test_excel_workbook_holds_the_csv_tables_with_units_frozen_headers_and_figures(tmp_path):
     out = tmp_path / "out"
-    assert main(["fit", str(LAB), "-o", str(out), "--size-unit", "mm", "--excel", "--formulas", "plitt,lognormal,rosin_rammler"]) == 0
+    assert (
+        main(["fit", str(LAB), "-o", str(out), "--size-unit", "mm", "--excel", "--formulas", "plitt,lognormal,rosin_rammler"])
+        == 0
+    )
     book = openpyxl.load_workbook(out / "results.xlsx")
     assert book.sheetnames == [*SHEETS, "figures"]
     for name in SHEETS:
@@ -62,8 +72,9 @@ def test_excel_workbook_holds_the_csv_tables_with_units_frozen_headers_and_figur
     assert {"size", "partition_fine", "feed_share", "used"} <= set(points.columns)
     figures = book["figures"]
     assert len(figures._images) == 2
-    assert [figures.cell(row=r, column=1).value for r in range(1, figures.max_row + 1) if figures.cell(row=r, column=1).value] == [
-        "curves_deck_20mesh.png", "curves_deck_65mesh.png"]  # fmt: skip
+    assert [
+        figures.cell(row=r, column=1).value for r in range(1, figures.max_row + 1) if figures.cell(row=r, column=1).value
+    ] == ["curves_deck_20mesh.png", "curves_deck_65mesh.png"]
 
 
 def test_dash_o_xlsx_writes_only_the_workbook(tmp_path):
@@ -92,7 +103,10 @@ def test_a_failing_workbook_leaves_nothing_behind(tmp_path, monkeypatch):
 def test_partition_to_coarse_turns_tables_and_figures(tmp_path, capsys):
     fine, coarse = tmp_path / "fine", tmp_path / "coarse"
     assert main(["fit", str(LAB), "-o", str(fine), "--formulas", "plitt", "--no-figures", "--excel"]) == 0
-    assert main(["fit", str(LAB), "-o", str(coarse), "--formulas", "plitt", "--no-figures", "--excel", "--partition-to", "coarse"]) == 0
+    assert (
+        main(["fit", str(LAB), "-o", str(coarse), "--formulas", "plitt", "--no-figures", "--excel", "--partition-to", "coarse"])
+        == 0
+    )
     as_fine, as_coarse = pd.read_csv(fine / "fits.csv"), pd.read_csv(coarse / "fits.csv")
     assert "slope" not in as_coarse.columns
     assert_allclose(as_coarse["slope_coarse"], -as_fine["slope"])
@@ -116,8 +130,24 @@ def test_console_table_follows_rank_by_and_shows_intervals(tmp_path, capsys):
     assert main(["fit", str(points), "-o", str(tmp_path / "f"), "--no-figures", "--formulas", "paper"]) == 0
     by_f = capsys.readouterr().out
     assert "ranked by F" in by_f and "F_crit" in by_f.splitlines()[1] and "aicc" not in by_f
-    assert main(["fit", str(points), "-o", str(tmp_path / "a"), "--no-figures", "--rank-by", "aicc", "--ci", "0.9",
-                 "--formulas", "plitt,lognormal,rosin_rammler,molerus"]) == 0  # fmt: skip
+    assert (
+        main(
+            [
+                "fit",
+                str(points),
+                "-o",
+                str(tmp_path / "a"),
+                "--no-figures",
+                "--rank-by",
+                "aicc",
+                "--ci",
+                "0.9",
+                "--formulas",
+                "plitt,lognormal,rosin_rammler,molerus",
+            ]
+        )
+        == 0
+    )
     by_aicc = capsys.readouterr().out
     lines = by_aicc.splitlines()
     header = lines[1].split()
@@ -129,7 +159,7 @@ def test_console_table_follows_rank_by_and_shows_intervals(tmp_path, capsys):
     assert shown == list(first_of_a["formula"])
     assert "intervals:" in by_aicc and "d_cut low" in by_aicc
     plitt = fits[(fits["experiment"] == "A") & (fits["formula"] == "plitt")].iloc[0]
-    interval_line = next(line for line in lines[lines.index("  intervals:"):] if line.split()[0] == "plitt")
+    interval_line = next(line for line in lines[lines.index("  intervals:") :] if line.split()[0] == "plitt")
     assert f"{plitt['d_cut_low']:.4g}" in interval_line and f"{plitt['d_cut_high']:.4g}" in interval_line
     assert max(len(line) for line in lines if not line.startswith("  /")) <= 100
     assert main(["fit", str(points), "-o", str(tmp_path / "b"), "--no-figures", "--formulas", "plitt", "--bootstrap", "20"]) == 0

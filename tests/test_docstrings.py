@@ -78,7 +78,7 @@ def test_formula_notes_mention_the_corrected_print():
 
 
 def test_parser_reads_a_numpydoc_section():
-    doc = '''Summary.
+    doc = """Summary.
 
     Parameters
     ----------
@@ -90,5 +90,5 @@ def test_parser_reads_a_numpydoc_section():
     Returns
     -------
     float
-    '''
+    """
     assert documented_parameters(doc) == ["a", "b", "args"]

@@ -189,6 +189,8 @@ def test_large_batches_get_one_overview_figure_and_parquet_tables(tmp_path):
 
 def test_cli_refuses_an_absurd_bootstrap_before_fitting(tmp_path, capsys):
     path = _write(tmp_path, EXPERIMENTS[:1])
-    assert main(["fit", str(path), "-o", str(tmp_path / "o"), "--bootstrap", "10000000"]) == 2  # usage: the parser refuses the count
+    assert (
+        main(["fit", str(path), "-o", str(tmp_path / "o"), "--bootstrap", "10000000"]) == 2
+    )  # usage: the parser refuses the count
     assert "100,000 resamples" in capsys.readouterr().err
     assert not (tmp_path / "o").exists()

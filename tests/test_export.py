@@ -42,7 +42,9 @@ def fits_dir(tmp_path_factory):
 
 def tromplab_curves(fits_dir):
     """Partition to fines of every successful fit in fits.csv, by tromplab, at the measured sizes."""
-    return {(f.experiment, f.formula): get_formula(f.formula)(SIZES_UM, f.d_cut, f.shape, **f.extras) for f in read_fits(fits_dir)}
+    return {
+        (f.experiment, f.formula): get_formula(f.formula)(SIZES_UM, f.d_cut, f.shape, **f.extras) for f in read_fits(fits_dir)
+    }
 
 
 def whiten_overflow(d, row):
@@ -75,7 +77,10 @@ def dyssol_coarse(d_m, row):
 CASES = {
     "whiten": (lambda row: whiten_overflow(SIZES_UM, row), {"lynch", "whiten"}),
     "plitt": (lambda row: 1 - plitt_underflow(SIZES_UM, row), {"rosin_rammler", "rosin_rammler_bypass"}),
-    "dyssol": (lambda row: 1 - dyssol_coarse(SIZES_UM * 1e-6, row), {"rosin_rammler", "molerus_hoffmann", "teipel_hennig", "normal"}),
+    "dyssol": (
+        lambda row: 1 - dyssol_coarse(SIZES_UM * 1e-6, row),
+        {"rosin_rammler", "molerus_hoffmann", "teipel_hennig", "normal"},
+    ),
 }
 
 
@@ -172,7 +177,9 @@ def test_dyssol_default_screen_parameters_survive_a_fit_and_an_export(model, par
     row = pd.Series({"Model": model, "Beta": np.nan, "Offset": 0.0, **params})
     points = TrompPoints(model, sizes_um, 1 - dyssol_coarse(sizes_um * 1e-6, row))
     fit = fit_formula(points, formula)
-    exported = export_fits([FittedCurve(model, formula, fit.d_cut, fit.shape, fit.extras)], "dyssol", size_unit="um").table.iloc[0]
+    exported = export_fits([FittedCurve(model, formula, fit.d_cut, fit.shape, fit.extras)], "dyssol", size_unit="um").table.iloc[
+        0
+    ]
     assert exported["Model"] == model
     for name, value in params.items():
         assert_allclose(exported[name], value, rtol=1e-6, atol=1e-9)

@@ -51,8 +51,26 @@ def test_intervals_bootstrap_and_averages_use_the_fits_delta_max():
 def test_cli_delta_max_reaches_the_intervals(tmp_path):
     # issue 10: --delta-max 2000 --ci 0.95 wrote epsilon 0.677 with the interval [0.518, 0.604]
     source = DATASETS / "double_deck_screen_decks_lab.csv"
-    assert main(["fit", str(source), "--size-unit", "mm", "--delta-max", "2000", "--ci", "0.95", "--formulas", "plitt,lognormal",
-                 "-o", str(tmp_path), "--no-figures"]) == 0  # fmt: skip
+    assert (
+        main(
+            [
+                "fit",
+                str(source),
+                "--size-unit",
+                "mm",
+                "--delta-max",
+                "2000",
+                "--ci",
+                "0.95",
+                "--formulas",
+                "plitt,lognormal",
+                "-o",
+                str(tmp_path),
+                "--no-figures",
+            ]
+        )
+        == 0
+    )
     fits = pd.read_csv(tmp_path / "fits.csv")
     inside = (fits["epsilon_low"] <= fits["epsilon"]) & (fits["epsilon"] <= fits["epsilon_high"])
     assert inside.all(), fits[["experiment", "formula", "epsilon", "epsilon_low", "epsilon_high"]]

@@ -19,10 +19,16 @@ from .conftest import formula_ids, reference_rows, shapes_across_bounds
 
 X = np.geomspace(1e-4, 1e4, 801)
 EXPECTED = {
-    "molerus": (3, "km1"), "molerus_hoffmann": (4, "km2"), "rosin_rammler": (5, "kr"), "lynch": (6, "kl"),
-    "plitt": (7, "ks"), "ogawa_allen": (8, "kp"), "lognormal": (9, "kf"), "luckie_austin": (10, "kr"),
+    "molerus": (3, "km1"),
+    "molerus_hoffmann": (4, "km2"),
+    "rosin_rammler": (5, "kr"),
+    "lynch": (6, "kl"),
+    "plitt": (7, "ks"),
+    "ogawa_allen": (8, "kp"),
+    "lognormal": (9, "kf"),
+    "luckie_austin": (10, "kr"),
     "shuvalov": (11, "kr"),
-}  # fmt: skip
+}
 
 
 def test_registry_holds_the_nine_formulas_with_every_declaration():
@@ -66,7 +72,9 @@ def test_decreasing_in_size(formula):
         assert np.all(np.diff(phi) <= 1e-15), shape
 
 
-@pytest.mark.parametrize("formula_id, shape, minimum", [("molerus_hoffmann", -0.2, 1 / np.sqrt(0.2)), ("ogawa_allen", -0.5, None)])
+@pytest.mark.parametrize(
+    "formula_id, shape, minimum", [("molerus_hoffmann", -0.2, 1 / np.sqrt(0.2)), ("ogawa_allen", -0.5, None)]
+)
 def test_curves_that_rise_again(formula_id, shape, minimum):
     """(4) with km2 < 0 and (8) with kp < 0 rise towards 1 at large sizes (Fig. 2 of the paper)."""
     formula = get_formula(formula_id)

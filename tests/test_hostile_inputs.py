@@ -26,8 +26,14 @@ from .strategies import lab_tables, mutated, points_tables, write_frame
 
 POINTS = "size,partition_fine\n10,0.95\n20,0.8\n40,0.5\n80,0.2\n160,0.05\n"
 LAB_HEADER = "size_lower,size_upper,feed_pct,fine_pct,coarse_pct\n"
-LAB_ROWS = ["800,,5,0,9.2", "400,800,15,1,25.3", "200,400,30,16.3,35.4", "100,200,25,31.8,16.7", "50,100,15,25.9,7.7",
-            "10,50,10,25,5.7"]  # fmt: skip
+LAB_ROWS = [
+    "800,,5,0,9.2",
+    "400,800,15,1,25.3",
+    "200,400,30,16.3,35.4",
+    "100,200,25,31.8,16.7",
+    "50,100,15,25.9,7.7",
+    "10,50,10,25,5.7",
+]
 
 
 def lab(*replace, header=LAB_HEADER, extra=None):
@@ -50,10 +56,17 @@ TEXT_CASES = [
     ("size,partition_fine,weight\n10,0.95,1\n20,0.8,Infinity\n40,0.5,1\n", [], "row 3, column 'weight': 'inf' is not a finite"),
     ("size,partition_fine\n10,0.95\nnan,0.8\n40,0.5\n", [], "row 3, column 'size': value is missing"),
     (lab((2, "200,400,inf,16.3,35.4")), [], "row 4, column 'feed_pct': 'inf' is not a finite number"),
-    ("size_lower,size_upper,feed_mass,fine_mass\n400,,5,1\n200,400,inf,2\n,200,4,3\n", ["--fine-yield", "0.3"],
-     "row 3, column 'feed_mass': 'inf' is not a finite number"),
+    (
+        "size_lower,size_upper,feed_mass,fine_mass\n400,,5,1\n200,400,inf,2\n,200,4,3\n",
+        ["--fine-yield", "0.3"],
+        "row 3, column 'feed_mass': 'inf' is not a finite number",
+    ),
     (lab((1, "400,inf,15,1,25.3")), [], "row 3, column 'size_upper': 'inf' is not a finite number"),
-    (lab(extra={"fine_yield": ["0.5", "-inf", "0.5", "0.5", "0.5", "0.5"]}), [], "row 3, column 'fine_yield': '-inf' is not a finite"),
+    (
+        lab(extra={"fine_yield": ["0.5", "-inf", "0.5", "0.5", "0.5", "0.5"]}),
+        [],
+        "row 3, column 'fine_yield': '-inf' is not a finite",
+    ),
     # unknown, duplicate and ambiguous columns
     ("size,partiton_fine\n10,0.9\n20,0.5\n40,0.1\n", [], "no partition column: give exactly one of partition_fine"),
     ("size,partiton_fine\n10,0.9\n20,0.5\n40,0.1\n", [], "'partiton_fine' (did you mean 'partition_fine'?)"),
@@ -63,35 +76,68 @@ TEXT_CASES = [
     ("size,size_um,partition_fine\n10,11,0.9\n20,21,0.5\n40,41,0.1\n", [], "several size columns (size, size_um)"),
     ("size,partition_fine,\n10,0.9,1\n20,0.5,2\n40,0.1,3\n", [], "column 3 holds values but has no header"),
     (lab(header=LAB_HEADER.replace("coarse_pct", "coarse_pctt")), [], "'coarse_pctt' (did you mean 'coarse_pct'?)"),
-    (lab(header=LAB_HEADER.replace("coarse_pct", "overflow_pct")), [], "two columns for the fine stream (fine_pct, overflow_pct)"),
+    (
+        lab(header=LAB_HEADER.replace("coarse_pct", "overflow_pct")),
+        [],
+        "two columns for the fine stream (fine_pct, overflow_pct)",
+    ),
     (lab(extra={"fine_yield": ["0.5"] * 6, "overflow_yield": ["0.5"] * 6}), [], "two yield columns for the fine product"),
-    ("size_class,size_lower,size_upper,feed_pct,fine_pct\n+400,400,,50,10\n-400+200,200,400,30,30\n-200,,200,20,60\n",
-     ["--fine-yield", "0.4"], "the sizes are given twice (size_class and size_lower/size_upper)"),
+    (
+        "size_class,size_lower,size_upper,feed_pct,fine_pct\n+400,400,,50,10\n-400+200,200,400,30,30\n-200,,200,20,60\n",
+        ["--fine-yield", "0.4"],
+        "the sizes are given twice (size_class and size_lower/size_upper)",
+    ),
     ("size_lower,feed_pct,fine_pct\n400,50,10\n200,30,30\n100,20,60\n", ["--fine-yield", "0.4"], "size_upper is missing"),
     (lab(), ["--rename", "coarse_pct=fine_pct"], "after renaming, column(s) fine_pct appear twice"),
     # shifted columns, European CSV declared wrongly, dates
     ("size,partition_fine\n10,0,95\n20,0,8\n40,0,5\n", [], "row 2: the row has 3 fields but the header has 2; decimal commas"),
-    ("size;partition_fine\n10;0,95\n20;0,8\n40;0,5\n", ["--sep", ";", "--decimal", "."],
-     "row 2, column 'partition_fine': '0,95' is not a number (a decimal comma?"),
+    (
+        "size;partition_fine\n10;0,95\n20;0,8\n40;0,5\n",
+        ["--sep", ";", "--decimal", "."],
+        "row 2, column 'partition_fine': '0,95' is not a number (a decimal comma?",
+    ),
     (POINTS, ["--sep", ",", "--decimal", ","], "the separator and the decimal mark are both ','"),
     (POINTS, ["--sep", ";;"], "the separator (--sep) must be one character such as ';' or ',', got ';;'"),
     # size classes, units and yields
-    ("size_class,feed_pct,fine_pct\n+400,50,10\n-400+200,30,30\nabc,20,60\n", ["--fine-yield", "0.4"],
-     "row 4, column 'size_class': 'abc' is not a size class"),
-    ("size_class,feed_pct,fine_pct\n+400,50,10\n+400+200,30,30\n-200,20,60\n", ["--fine-yield", "0.4"],
-     "row 3, column 'size_class': '+400+200' is not a size class"),
-    ("size_um,partition_fine\n10,0.9\n20,0.5\n40,0.1\n", ["--size-unit", "mm"],
-     "column 'size_um': the size unit 'mm' given as an option (--size-unit) contradicts the column name"),
-    (lab(header=LAB_HEADER.replace("size_lower,size_upper", "size_lower_um,size_upper_um"), extra={"size_unit": ["mm"] * 6}), [],
-     "the size unit 'mm' given in column 'size_unit' contradicts the column name 'size_lower_um'"),
-    (lab(extra={"size_representative": ["", "900", "", "", "", ""]}), [], "row 3, column 'size_representative': representative size 900"),
+    (
+        "size_class,feed_pct,fine_pct\n+400,50,10\n-400+200,30,30\nabc,20,60\n",
+        ["--fine-yield", "0.4"],
+        "row 4, column 'size_class': 'abc' is not a size class",
+    ),
+    (
+        "size_class,feed_pct,fine_pct\n+400,50,10\n+400+200,30,30\n-200,20,60\n",
+        ["--fine-yield", "0.4"],
+        "row 3, column 'size_class': '+400+200' is not a size class",
+    ),
+    (
+        "size_um,partition_fine\n10,0.9\n20,0.5\n40,0.1\n",
+        ["--size-unit", "mm"],
+        "column 'size_um': the size unit 'mm' given as an option (--size-unit) contradicts the column name",
+    ),
+    (
+        lab(header=LAB_HEADER.replace("size_lower,size_upper", "size_lower_um,size_upper_um"), extra={"size_unit": ["mm"] * 6}),
+        [],
+        "the size unit 'mm' given in column 'size_unit' contradicts the column name 'size_lower_um'",
+    ),
+    (
+        lab(extra={"size_representative": ["", "900", "", "", "", ""]}),
+        [],
+        "row 3, column 'size_representative': representative size 900",
+    ),
     ("size_lower,size_upper,feed_pct,fine_pct,coarse_pct\n400,,100,100,100\n", [], "has 1 size class(es); at least 3 are needed"),
-    ("size_lower,size_upper,feed_pct,fine_pct,coarse_pct\n400,,30,30,30\n200,400,30,30,30\n,200,40,40,40\n", [],
-     "the fine and coarse distributions are identical"),
+    (
+        "size_lower,size_upper,feed_pct,fine_pct,coarse_pct\n400,,30,30,30\n200,400,30,30,30\n,200,40,40,40\n",
+        [],
+        "the fine and coarse distributions are identical",
+    ),
     (lab((2, ",,30,16.3,35.4")), [], "row 4, column 'size_lower': the class has neither a lower nor an upper bound"),
     (lab((1, "400,800,15,-1,25.3")), [], "row 3, column 'fine_pct': negative amount -1"),
-    ("experiment,size,partition_fine\nA,10,0.9\n  ,20,0.5\nA,40,0.1\n", [], "row 3, column 'experiment': experiment name is blank"),
-]  # fmt: skip
+    (
+        "experiment,size,partition_fine\nA,10,0.9\n  ,20,0.5\nA,40,0.1\n",
+        [],
+        "row 3, column 'experiment': experiment name is blank",
+    ),
+]
 
 
 def run_cli(tmp_path, capsys, path, options=()):
@@ -130,8 +176,11 @@ def _xlsx_with_duplicate_header(path):
 
 # (file name, how to write it, expected fragment) for files that are not CSV text
 FILE_CASES = [
-    ("latin1.csv", lambda p: p.write_bytes("experiment,size,partition_fine\nProbe é,10,0.9\n".encode("latin-1")),
-     "row 2: the text is not UTF-8 (byte 0xe9 cannot be decoded)"),
+    (
+        "latin1.csv",
+        lambda p: p.write_bytes("experiment,size,partition_fine\nProbe é,10,0.9\n".encode("latin-1")),
+        "row 2: the text is not UTF-8 (byte 0xe9 cannot be decoded)",
+    ),
     ("utf16.csv", lambda p: p.write_text(POINTS, encoding="utf-16"), "the file is UTF-16 text"),
     ("packed.csv", lambda p: p.write_bytes(gzip.compress(POINTS.encode())), "the file is gzip-compressed"),
     ("points.csv.gz", lambda p: p.write_bytes(gzip.compress(POINTS.encode())), "compressed files are not read"),
@@ -147,7 +196,7 @@ FILE_CASES = [
     ("comments.csv", lambda p: p.write_text("# only a comment\n\n"), "only comments or blank lines"),
     ("folder.csv", lambda p: p.mkdir(), "is a folder; the input must be a file"),
     ("missing.csv", lambda p: None, "file not found"),
-]  # fmt: skip
+]
 
 
 @pytest.mark.parametrize("name, make, expected", FILE_CASES, ids=[c[0] for c in FILE_CASES])
@@ -174,16 +223,19 @@ def test_empty_columns_without_a_header_are_dropped(tmp_path):
     (points,) = read_points(path)
     assert_allclose(points.size, [10, 20, 40])
     sheet = tmp_path / "gaps.xlsx"
-    pd.DataFrame([[10, 0.9, None, None, "x"], [20, 0.5, None, None, None], [40, 0.1, None, None, None]],
-                 columns=["size", "partition_fine", "", " ", "note"]).to_excel(sheet, index=False)  # fmt: skip
+    pd.DataFrame(
+        [[10, 0.9, None, None, "x"], [20, 0.5, None, None, None], [40, 0.1, None, None, None]],
+        columns=["size", "partition_fine", "", " ", "note"],
+    ).to_excel(sheet, index=False)
     (points,) = read_points(sheet)
     assert_allclose(points.partition_fine, [0.9, 0.5, 0.1])
 
 
 def test_the_sieve_and_rank_tables_refuse_non_finite_values(tmp_path):
     sieve = tmp_path / "residues.csv"
-    sieve.write_text("sieve,fraction,relative_speed,residue,sieve_length,cell_pitch,P_g\n"
-                     "s1,f1,1.0,0.5,1,0.1,0.4\ns1,f1,2.0,inf,1,0.1,0.4\n")  # fmt: skip
+    sieve.write_text(
+        "sieve,fraction,relative_speed,residue,sieve_length,cell_pitch,P_g\ns1,f1,1.0,0.5,1,0.1,0.4\ns1,f1,2.0,inf,1,0.1,0.4\n"
+    )
     with pytest.raises(InputError, match=r"row 3, column 'residue': 'inf' is not a finite number"):
         identify_from_table(read_table(sieve))
     sieve.write_text("sieve,fraction,relative_speed,residue,sieve_length,cell_pitch,P_g,cell_pich\n1,a,1,0.5,1,0.1,0.4,0.1\n")

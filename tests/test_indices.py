@@ -152,5 +152,8 @@ def test_eta_flag_follows_the_share_below_the_smallest_size(formula):
     for smallest in (0.02, 0.05, 0.2, 0.5):
         found = curve_indices(formula, 1.0, shape, delta_max=3.0, measured_sizes=(smallest, 3.0), **formula.defaults)
         below = _dense_efficiency(formula, shape, 1.0 + 1e-12, **formula.defaults)[0]  # eta itself
-        share = np.trapezoid(formula.phi(np.linspace(0, smallest, 20001), shape, **formula.defaults), np.linspace(0, smallest, 20001)) / below
+        share = (
+            np.trapezoid(formula.phi(np.linspace(0, smallest, 20001), shape, **formula.defaults), np.linspace(0, smallest, 20001))
+            / below
+        )
         assert ("eta" in found.extrapolated) == (share > EXTRAPOLATED_SHARE), (smallest, share)

@@ -95,7 +95,9 @@ def test_two_streams_and_the_yield_give_the_third(tmp_path, streams):
     (balance,) = read_lab(class_table(tmp_path, streams), LabOptions(fine_yield=Y))
     assert_allclose(balance.classes["partition_fine"], PHI, atol=1e-12)
     feed, fine, coarse = consistent_streams()
-    assert_allclose(balance.classes[["feed", "fine", "coarse"]].to_numpy() * 100, np.column_stack([feed, fine, coarse]), atol=1e-10)
+    assert_allclose(
+        balance.classes[["feed", "fine", "coarse"]].to_numpy() * 100, np.column_stack([feed, fine, coarse]), atol=1e-10
+    )
 
 
 def test_two_streams_without_a_yield_are_refused(tmp_path):
@@ -107,7 +109,9 @@ def test_cumulative_retained_and_passing_give_the_per_class_result(tmp_path):
     feed, fine, coarse = consistent_streams()
     sieves = LOWER[:-1]
     retained = {s: np.cumsum(v)[:-1] for s, v in zip(("feed", "fine", "coarse"), (feed, fine, coarse))}
-    pd.DataFrame({"size": sieves, **{f"{s}_retained_pct": v for s, v in retained.items()}}).to_csv(tmp_path / "r.csv", index=False)
+    pd.DataFrame({"size": sieves, **{f"{s}_retained_pct": v for s, v in retained.items()}}).to_csv(
+        tmp_path / "r.csv", index=False
+    )
     passing = {f"{s}_passing_frac": 1 - v / 100 for s, v in retained.items()}
     pd.DataFrame({"size": sieves[::-1], **{k: v[::-1] for k, v in passing.items()}}).to_csv(tmp_path / "p.csv", index=False)
     (by_retained,) = read_lab(tmp_path / "r.csv", LabOptions(fine_yield=Y))
@@ -119,8 +123,9 @@ def test_cumulative_retained_and_passing_give_the_per_class_result(tmp_path):
 
 def test_masses_are_normalised(tmp_path):
     feed, fine, coarse = consistent_streams()
-    frame = pd.DataFrame({"size_lower": LOWER, "size_upper": UPPER, "feed_mass": feed * 7.3, "fine_mass": fine * 2.0,
-                          "coarse_mass": coarse * 0.4})  # fmt: skip
+    frame = pd.DataFrame(
+        {"size_lower": LOWER, "size_upper": UPPER, "feed_mass": feed * 7.3, "fine_mass": fine * 2.0, "coarse_mass": coarse * 0.4}
+    )
     frame.to_csv(tmp_path / "m.csv", index=False)
     (balance,) = read_lab(tmp_path / "m.csv")
     assert_allclose(balance.classes["partition_fine"], PHI, atol=1e-12)
@@ -128,7 +133,9 @@ def test_masses_are_normalised(tmp_path):
 
 def test_plain_columns_need_a_declared_kind(tmp_path):
     feed, fine, coarse = consistent_streams()
-    pd.DataFrame({"size_lower": LOWER, "size_upper": UPPER, "feed": feed, "fine": fine, "coarse": coarse}).to_csv(tmp_path / "k.csv", index=False)
+    pd.DataFrame({"size_lower": LOWER, "size_upper": UPPER, "feed": feed, "fine": fine, "coarse": coarse}).to_csv(
+        tmp_path / "k.csv", index=False
+    )
     with pytest.raises(InputError, match="what column 'feed' holds is not declared"):
         read_lab(tmp_path / "k.csv")
     (balance,) = read_lab(tmp_path / "k.csv", LabOptions(kind="pct"))
@@ -137,8 +144,11 @@ def test_plain_columns_need_a_declared_kind(tmp_path):
 
 def test_stated_yield_contradicted_by_the_460_um_screen_data():
     """The question states coarse yield 0.65; the size data imply about 0.39-0.47."""
-    options = LabOptions(kind="retained_frac", coarse_yield=0.65,
-                         rename={"sieve_um": "size_um", "feed_cum": "feed", "coarse_cum": "coarse", "fine_cum": "fine"})  # fmt: skip
+    options = LabOptions(
+        kind="retained_frac",
+        coarse_yield=0.65,
+        rename={"sieve_um": "size_um", "feed_cum": "feed", "coarse_cum": "coarse", "fine_cum": "fine"},
+    )
     with pytest.warns(YieldWarning, match="stated fine yield 0.350 .* contradicts the size data"):
         (balance,) = read_lab(DATASETS / "screen_460um_cumulative_oversize.csv", options)
     coarse_estimate = 1 - balance.yield_estimate.value
@@ -168,9 +178,14 @@ def test_reconciliation_closes_every_class_and_keeps_shares_non_negative():
 
 
 def test_reconciled_partitions_are_reported(tmp_path):
-    (balance,) = read_lab(DATASETS / "screen_460um_cumulative_oversize.csv", LabOptions(
-        kind="retained_frac", reconcile=True,
-        rename={"sieve_um": "size_um", "feed_cum": "feed", "coarse_cum": "coarse", "fine_cum": "fine"}))  # fmt: skip
+    (balance,) = read_lab(
+        DATASETS / "screen_460um_cumulative_oversize.csv",
+        LabOptions(
+            kind="retained_frac",
+            reconcile=True,
+            rename={"sieve_um": "size_um", "feed_cum": "feed", "coarse_cum": "coarse", "fine_cum": "fine"},
+        ),
+    )
     classes = balance.classes
     y = balance.fine_yield
     assert_allclose(classes.feed_adjusted - y * classes.fine_adjusted - (1 - y) * classes.coarse_adjusted, 0, atol=1e-12)
@@ -188,10 +203,21 @@ def test_small_feed_shares_are_flagged_and_left_out(tmp_path):
 
 def test_points_file_round_trips_through_fit(tmp_path, capsys):
     output = tmp_path / "points.csv"
-    assert main(["points", str(class_table(tmp_path)), "--fine-yield", str(Y), "--min-feed-share", "0.06", "-o", str(output)]) == 0
+    assert (
+        main(["points", str(class_table(tmp_path)), "--fine-yield", str(Y), "--min-feed-share", "0.06", "-o", str(output)]) == 0
+    )
     table = pd.read_csv(output)
-    assert list(table.columns) == ["experiment", "size_um", "partition_fine", "size_lower_um", "size_upper_um", "feed_share",
-                                   "balance_residual", "used", "flag"]  # fmt: skip  (the unit of the lab table travels)
+    assert list(table.columns) == [
+        "experiment",
+        "size_um",
+        "partition_fine",
+        "size_lower_um",
+        "size_upper_um",
+        "feed_share",
+        "balance_residual",
+        "used",
+        "flag",
+    ]  # (the unit of the lab table travels)
     experiments, _ = read_experiments(output)
     assert experiments[0].n == 5 and experiments[0].size_unit == "um"
     assert main(["fit", str(output), "-o", str(tmp_path / "fit"), "--no-figures"]) == 0
@@ -207,8 +233,9 @@ def test_balance_command_prints_the_estimate(tmp_path, capsys):
 
 def test_hydrocyclone_table_loads_after_a_rename(tmp_path):
     feed, fine, coarse = consistent_streams()
-    pd.DataFrame({"size_lower": LOWER, "size_upper": UPPER, "overflow_pct": fine, "underflow_pct": coarse,
-                  "overflow_yield": Y}).to_csv(tmp_path / "cyclone.csv", index=False)  # fmt: skip
+    pd.DataFrame(
+        {"size_lower": LOWER, "size_upper": UPPER, "overflow_pct": fine, "underflow_pct": coarse, "overflow_yield": Y}
+    ).to_csv(tmp_path / "cyclone.csv", index=False)
     rename = {"overflow_pct": "fine_pct", "underflow_pct": "coarse_pct", "overflow_yield": "fine_yield"}
     (balance,) = read_lab(tmp_path / "cyclone.csv", LabOptions(rename=rename))
     assert_allclose(balance.classes["partition_fine"], PHI, atol=1e-12)
@@ -217,9 +244,22 @@ def test_hydrocyclone_table_loads_after_a_rename(tmp_path):
 
 def test_both_yield_columns_must_add_up_to_one(tmp_path):
     feed, fine, coarse = consistent_streams()
-    frame = pd.DataFrame({"size_lower": LOWER, "size_upper": UPPER, "overflow_pct": fine, "underflow_pct": coarse,
-                          "overflow_yield": Y, "underflow_yield": 1 - Y})  # fmt: skip
-    rename = {"overflow_pct": "fine_pct", "underflow_pct": "coarse_pct", "overflow_yield": "fine_yield", "underflow_yield": "coarse_yield"}
+    frame = pd.DataFrame(
+        {
+            "size_lower": LOWER,
+            "size_upper": UPPER,
+            "overflow_pct": fine,
+            "underflow_pct": coarse,
+            "overflow_yield": Y,
+            "underflow_yield": 1 - Y,
+        }
+    )
+    rename = {
+        "overflow_pct": "fine_pct",
+        "underflow_pct": "coarse_pct",
+        "overflow_yield": "fine_yield",
+        "underflow_yield": "coarse_yield",
+    }
     frame.to_csv(tmp_path / "both.csv", index=False)
     (balance,) = read_lab(tmp_path / "both.csv", LabOptions(rename=rename))
     assert_allclose(balance.fine_yield, Y)
@@ -237,8 +277,15 @@ def test_forward_calculation_round_trips_through_the_loader(tmp_path):
     assert_allclose(prediction.fine_yield, np.sum(feed * curve(size, 150.0, 2.5)))
     assert_allclose(classes[["fine", "coarse"]].sum(), 1.0)
     assert_allclose(classes["feed"], prediction.fine_yield * classes["fine"] + (1 - prediction.fine_yield) * classes["coarse"])
-    pd.DataFrame({"size_lower": LOWER[1:5], "size_upper": UPPER[1:5], "feed_frac": classes["feed"],
-                  "fine_frac": classes["fine"], "coarse_frac": classes["coarse"]}).to_csv(tmp_path / "f.csv", index=False)  # fmt: skip
+    pd.DataFrame(
+        {
+            "size_lower": LOWER[1:5],
+            "size_upper": UPPER[1:5],
+            "feed_frac": classes["feed"],
+            "fine_frac": classes["fine"],
+            "coarse_frac": classes["coarse"],
+        }
+    ).to_csv(tmp_path / "f.csv", index=False)
     (balance,) = read_lab(tmp_path / "f.csv")
     assert_allclose(balance.fine_yield, prediction.fine_yield, rtol=1e-12)
     assert_allclose(balance.classes["partition_fine"], classes["partition_fine"], atol=1e-12)
@@ -253,8 +300,11 @@ def test_mixing_streams_expresses_a_deck():
 
 def test_the_decks_lab_table_regenerates_identically(tmp_path):
     target = tmp_path / "decks.csv"
-    subprocess.run([sys.executable, str(ROOT / "analysis" / "make_double_deck_lab.py"), "--output", str(target)], check=True,
-                   capture_output=True)  # fmt: skip
+    subprocess.run(
+        [sys.executable, str(ROOT / "analysis" / "make_double_deck_lab.py"), "--output", str(target)],
+        check=True,
+        capture_output=True,
+    )
     assert target.read_text() == (DATASETS / "double_deck_screen_decks_lab.csv").read_text()
 
 
@@ -266,8 +316,14 @@ def write(tmp_path, text):
 
 
 CLASS_HEADER = "size_lower,size_upper,feed_pct,fine_pct,coarse_pct\n"
-GOOD_ROWS = ["800,,5,0,9.2", "400,800,15,1,25.3", "200,400,30,16.3,35.4", "100,200,25,31.8,16.7", "50,100,15,25.9,7.7",
-             "10,50,10,25,5.7"]  # fmt: skip
+GOOD_ROWS = [
+    "800,,5,0,9.2",
+    "400,800,15,1,25.3",
+    "200,400,30,16.3,35.4",
+    "100,200,25,31.8,16.7",
+    "50,100,15,25.9,7.7",
+    "10,50,10,25,5.7",
+]
 
 
 def rows(*replace):
@@ -278,25 +334,45 @@ def rows(*replace):
 
 
 BAD = [
-    ("size,feed_retained_pct,fine_retained_pct\n800,5,0\n400,20,2\n200,15,20\n100,80,50\n", "--fine-yield=0.5",
-     "row 4, column 'feed_retained_pct': cumulative data are not monotone"),
-    ("size,feed_retained_pct,fine_retained_pct\n800,5,0\n400,20,2\n200,50,20\n100,101,50\n", "--fine-yield=0.5",
-     "row 5, column 'feed_retained_pct': cumulative value 101 outside 0..100"),
-    ("size,feed_retained_pct,fine_retained_pct\n800,-1,0\n400,20,2\n200,50,20\n100,90,50\n", "--fine-yield=0.5",
-     "row 2, column 'feed_retained_pct': cumulative value -1 outside 0..100"),
+    (
+        "size,feed_retained_pct,fine_retained_pct\n800,5,0\n400,20,2\n200,15,20\n100,80,50\n",
+        "--fine-yield=0.5",
+        "row 4, column 'feed_retained_pct': cumulative data are not monotone",
+    ),
+    (
+        "size,feed_retained_pct,fine_retained_pct\n800,5,0\n400,20,2\n200,50,20\n100,101,50\n",
+        "--fine-yield=0.5",
+        "row 5, column 'feed_retained_pct': cumulative value 101 outside 0..100",
+    ),
+    (
+        "size,feed_retained_pct,fine_retained_pct\n800,-1,0\n400,20,2\n200,50,20\n100,90,50\n",
+        "--fine-yield=0.5",
+        "row 2, column 'feed_retained_pct': cumulative value -1 outside 0..100",
+    ),
     (rows((0, "800,,9,0,9.2")), "", "column 'feed_pct': the per-class shares sum to 104.00 % instead of 100 % (over by 4.00"),
     (rows((5, "10,50,0,25,5.7"), (0, "800,,15,0,9.2")), "", "row 7, column 'feed': the feed has no material in size class 6"),
     (rows((2, "200,450,30,16.3,35.4")), "", "row 4, column 'size_upper': class 200-450 overlaps the class starting at 400"),
-    (rows((2, "100,200,30,16.3,35.4"), (3, "200,400,25,31.8,16.7")), "", "row 5, column 'size_lower': class bounds are not sorted"),
+    (
+        rows((2, "100,200,30,16.3,35.4"), (3, "200,400,25,31.8,16.7")),
+        "",
+        "row 5, column 'size_lower': class bounds are not sorted",
+    ),
     (rows(), "--fine-yield=1.2", "argument --fine-yield: must lie strictly between 0 and 1"),
-    (CLASS_HEADER.replace("\n", ",fine_yield\n") + "\n".join(r + ",0" for r in GOOD_ROWS) + "\n", "", "row 2, column 'fine_yield': yield 0 outside (0, 1)"),
-    ("size_lower,size_upper,feed_pct,fine_pct\n200,,60,10\n100,200,39.9,30\n,100,0.1,60\n", "--fine-yield=0.3",
-     "has 2 usable size classes; at least 3 are needed"),
+    (
+        CLASS_HEADER.replace("\n", ",fine_yield\n") + "\n".join(r + ",0" for r in GOOD_ROWS) + "\n",
+        "",
+        "row 2, column 'fine_yield': yield 0 outside (0, 1)",
+    ),
+    (
+        "size_lower,size_upper,feed_pct,fine_pct\n200,,60,10\n100,200,39.9,30\n,100,0.1,60\n",
+        "--fine-yield=0.3",
+        "has 2 usable size classes; at least 3 are needed",
+    ),
     (rows().replace("size_lower,size_upper", "size_lower_mm,size_upper_um"), "", "mixed units in the size columns"),
     ("", "", "the file is empty"),
     (rows((3, "100,200,abc,31.8,16.7")), "", "row 5, column 'feed_pct': 'abc' is not a number"),
     ("size_lower,size_upper,feed,fine,coarse\n" + "\n".join(GOOD_ROWS) + "\n", "", "what column 'feed' holds is not declared"),
-]  # fmt: skip
+]
 
 
 @pytest.mark.parametrize("text, option, expected", BAD, ids=[e[:60] for _, _, e in BAD])
@@ -316,8 +392,10 @@ def test_shares_not_summing_to_100_say_by_how_much():
     """The 48/65-mesh exercise's oversize column sums to 0.8116."""
     # mesh numbers stand in for sizes here: the sum check comes before any use of the sizes
     # the third product is not part of this two-stream view: it is set aside as a free-text column
-    options = LabOptions(rename={"mesh": "size", "oversize_frac": "coarse_frac", "intermediate_frac": "fine_frac",
-                                 "undersize_frac": "comment"}, fine_yield=0.5)  # fmt: skip
+    options = LabOptions(
+        rename={"mesh": "size", "oversize_frac": "coarse_frac", "intermediate_frac": "fine_frac", "undersize_frac": "comment"},
+        fine_yield=0.5,
+    )
     with pytest.raises(InputError, match=r"column 'coarse_frac': the per-class shares sum to 81.16 % .*short by 18.84"):
         read_lab(DATASETS / "double_deck_screen_48_65mesh_three_products.csv", options)
 
@@ -350,8 +428,9 @@ from hypothesis import strategies as st  # noqa: E402
 def test_partitions_do_not_depend_on_row_order_or_size_unit(tmp_path_factory, order, scale):
     """Reversing the class order or scaling the sizes changes nothing; unsorted classes are refused."""
     feed, fine, coarse = consistent_streams()
-    frame = pd.DataFrame({"size_lower": LOWER * scale, "size_upper": UPPER * scale, "feed_pct": feed, "fine_pct": fine,
-                          "coarse_pct": coarse})  # fmt: skip
+    frame = pd.DataFrame(
+        {"size_lower": LOWER * scale, "size_upper": UPPER * scale, "feed_pct": feed, "fine_pct": fine, "coarse_pct": coarse}
+    )
     directory = tmp_path_factory.mktemp("inv")
     frame.iloc[::-1].to_csv(directory / "reversed.csv", index=False)
     (balance,) = read_lab(directory / "reversed.csv")
@@ -375,8 +454,15 @@ def test_forward_then_load_recovers_yield_and_partition(tmp_path_factory, masses
     prediction = predict_products(size, masses, phi)
     classes = prediction.classes
     directory = tmp_path_factory.mktemp("fwd")
-    pd.DataFrame({"size_lower": LOWER[:5], "size_upper": UPPER[:5], "feed_mass": classes["feed"], "fine_mass": classes["fine"],
-                  "coarse_mass": classes["coarse"]}).to_csv(directory / "f.csv", index=False)  # fmt: skip
+    pd.DataFrame(
+        {
+            "size_lower": LOWER[:5],
+            "size_upper": UPPER[:5],
+            "feed_mass": classes["feed"],
+            "fine_mass": classes["fine"],
+            "coarse_mass": classes["coarse"],
+        }
+    ).to_csv(directory / "f.csv", index=False)
     (balance,) = read_lab(directory / "f.csv", LabOptions(min_feed_share=0.0))
     assert_allclose(balance.fine_yield, prediction.fine_yield, rtol=1e-9)
     assert_allclose(balance.classes["partition_fine"], classes["partition_fine"], atol=1e-9)

@@ -34,7 +34,9 @@ def test_transition_matrix_is_column_stochastic():
 
 def test_first_lock_near_step_200_needs_a_threshold_near_0022():
     assert PUBLISHED.simulate(START, 300).first_lock is None
-    first = {eps: LayerModel(0.005, 0.026, 0.21, lock_threshold=eps).simulate(START, 300).first_lock for eps in (0.01, 0.022, 0.03)}
+    first = {
+        eps: LayerModel(0.005, 0.026, 0.21, lock_threshold=eps).simulate(START, 300).first_lock for eps in (0.01, 0.022, 0.03)
+    }
     assert first[0.022] == pytest.approx(200, abs=5)
     assert first[0.01] > 240 and first[0.03] < 190
 
@@ -64,10 +66,13 @@ def test_table_has_one_row_per_step():
     assert_allclose(table["time"].iloc[-1], 2.0)
 
 
-@pytest.mark.parametrize("kwargs, message", [
-    (dict(diffusion=0.4, segregation=0.3, passage=0.1), "exceeds 1"),
-    (dict(diffusion=-0.1, segregation=0.3, passage=0.1), "diffusion must lie in"),
-])  # fmt: skip
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        (dict(diffusion=0.4, segregation=0.3, passage=0.1), "exceeds 1"),
+        (dict(diffusion=-0.1, segregation=0.3, passage=0.1), "diffusion must lie in"),
+    ],
+)
 def test_bad_parameters(kwargs, message):
     with pytest.raises(ValueError, match=message):
         LayerModel(**kwargs)

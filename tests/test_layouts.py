@@ -21,7 +21,9 @@ DATA = ROOT / "tests" / "data"
 PARTITIONS = [0.02, 0.10, 0.35, 0.70, 0.92, 0.99]  # the curve the layout files were built from (coarse class first)
 BOUNDS_UM = [(1168, np.nan), (589, 1168), (295, 589), (147, 295), (74, 147), (np.nan, 74)]
 YIELD = 0.6156  # overflow yield of those files
-SCREEN_460 = dict(kind="retained_frac", rename={"sieve_um": "size_um", "feed_cum": "feed", "coarse_cum": "coarse", "fine_cum": "fine"})
+SCREEN_460 = dict(
+    kind="retained_frac", rename={"sieve_um": "size_um", "feed_cum": "feed", "coarse_cum": "coarse", "fine_cum": "fine"}
+)
 
 
 def test_size_class_strings_and_hydrocyclone_names_load_as_written():
@@ -49,7 +51,9 @@ def test_pan_written_as_zero_and_product_masses_in_mm():
 
 def test_a_stated_yield_contradicting_the_product_masses_is_reported(capsys):
     path = DATA / "pan_at_zero_masses_mm.csv"
-    with pytest.warns(YieldWarning, match=r"stated fine yield 0.5000 \(option fine_yield\) contradicts the product masses, which imply 0.6156"):
+    with pytest.warns(
+        YieldWarning, match=r"stated fine yield 0.5000 \(option fine_yield\) contradicts the product masses, which imply 0.6156"
+    ):
         (balance,) = read_lab(path, LabOptions(fine_yield=0.5))
     assert balance.fine_yield == 0.5 and any("product masses" in note for note in balance.notes)
     assert main(["balance", str(path), "--fine-yield", "0.5"]) == 0
@@ -116,8 +120,16 @@ def test_blank_cumulative_cells_are_reported_with_their_rows(capsys):
     notes = " ".join(balance.notes)
     assert "column 'fine': blank cell(s) at row 27 (coarse end) read as 0" in notes
     assert "column 'coarse': blank cell(s) at row 34 (fine end) read as 1" in notes
-    argv = ["balance", str(DATASETS / "screen_460um_cumulative_oversize.csv"), "--coarse-yield", "0.5", "--kind", "retained_frac",
-            "--rename", "sieve_um=size_um,feed_cum=feed,coarse_cum=coarse,fine_cum=fine"]  # fmt: skip
+    argv = [
+        "balance",
+        str(DATASETS / "screen_460um_cumulative_oversize.csv"),
+        "--coarse-yield",
+        "0.5",
+        "--kind",
+        "retained_frac",
+        "--rename",
+        "sieve_um=size_um,feed_cum=feed,coarse_cum=coarse,fine_cum=fine",
+    ]
     assert main(argv) == 0
     assert "blank cell(s) at row 27" in capsys.readouterr().err.replace("\n", " ")
 
@@ -131,8 +143,10 @@ def test_blank_per_class_cells_are_reported(tmp_path):
 
 def test_a_class_with_feed_but_no_product_is_flagged_with_its_bounds(tmp_path, capsys):
     path = tmp_path / "empty.csv"
-    path.write_text("size_lower_um,size_upper_um,feed_pct,fine_pct,coarse_pct\n800,,5,0,0\n400,800,15,1,26\n"
-                    "200,400,30,16,38\n100,200,25,33,17\n50,100,15,25,13\n,50,10,25,6\n")  # fmt: skip
+    path.write_text(
+        "size_lower_um,size_upper_um,feed_pct,fine_pct,coarse_pct\n800,,5,0,0\n400,800,15,1,26\n"
+        "200,400,30,16,38\n100,200,25,33,17\n50,100,15,25,13\n,50,10,25,6\n"
+    )
     (balance,) = read_lab(path)
     first = balance.classes.iloc[0]
     assert not first["used"] and "neither product has any" in first["flag"]
@@ -148,7 +162,9 @@ def test_swapping_fine_and_coarse_gives_one_minus_the_partition():
     for method in ("products", "feed"):
         options = LabOptions(partition_from=method, **SCREEN_460)
         (direct,) = read_lab(DATASETS / "screen_460um_cumulative_oversize.csv", options)
-        (swapped,) = read_lab(DATASETS / "screen_460um_cumulative_oversize.csv", dataclasses.replace(options, rename=swapped_rename))
+        (swapped,) = read_lab(
+            DATASETS / "screen_460um_cumulative_oversize.csv", dataclasses.replace(options, rename=swapped_rename)
+        )
         assert swapped.fine_yield == pytest.approx(1 - direct.fine_yield, abs=1e-12)
         both = direct.classes["used"] & swapped.classes["used"]
         differences[method] = np.max(np.abs(direct.classes["partition_fine"][both] + swapped.classes["partition_fine"][both] - 1))
@@ -167,9 +183,11 @@ def test_a_pan_lower_size_of_zero_means_the_pan_rule():
 def test_the_balance_command_says_how_the_partition_was_computed(capsys):
     path = str(DATASETS / "screen_460um_cumulative_oversize.csv")
     rename = "sieve_um=size_um,feed_cum=feed,coarse_cum=coarse,fine_cum=fine"
-    for option, said in (([], "partition from both products, y b / (y b + (1 - y) c)"),
-                         (["--partition-from", "feed"], "partition from the fine stream over the measured feed, y b / a"),
-                         (["--reconcile"], "partition from the reconciled distributions")):  # fmt: skip
+    for option, said in (
+        ([], "partition from both products, y b / (y b + (1 - y) c)"),
+        (["--partition-from", "feed"], "partition from the fine stream over the measured feed, y b / a"),
+        (["--reconcile"], "partition from the reconciled distributions"),
+    ):
         assert main(["balance", path, "--kind", "retained_frac", "--rename", rename, *option]) == 0
         assert said in capsys.readouterr().out
 

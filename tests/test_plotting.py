@@ -29,8 +29,10 @@ def close_figures():
 @pytest.fixture(scope="module")
 def bench():
     rng = np.random.default_rng(0)
-    runs = [TrompPoints(f"run{i}", SIZES, np.clip(get_formula("plitt")(SIZES, 80 + 20 * i, 2.5) + rng.normal(0, 0.02, 10), 0, 1))
-            for i in range(2)]  # fmt: skip
+    runs = [
+        TrompPoints(f"run{i}", SIZES, np.clip(get_formula("plitt")(SIZES, 80 + 20 * i, 2.5) + rng.normal(0, 0.02, 10), 0, 1))
+        for i in range(2)
+    ]
     return fit_experiments(runs)
 
 
@@ -51,7 +53,9 @@ def test_tromp_fits_draws_every_formula_and_the_band(bench):
     assert plotting.plot_tromp_fits(fits, ax=axes, log_size=False, band=False) is axes and axes.get_xscale() == "linear"
     chosen = bench.best_fit("run0")
     other = next(f for f in fits if f is not chosen)
-    widths = {line.get_label().split(",")[0]: line.get_linewidth() for line in plotting.plot_tromp_fits(fits, best=other).get_lines()}
+    widths = {
+        line.get_label().split(",")[0]: line.get_linewidth() for line in plotting.plot_tromp_fits(fits, best=other).get_lines()
+    }
     assert widths[f"({other.formula.equation}) {other.formula.id}"] > widths[f"({chosen.formula.equation}) {chosen.formula.id}"]
 
 
@@ -86,12 +90,17 @@ def _tick_label_boxes(ax):
     figure.canvas.draw()  # the Agg renderer lays the labels out
     renderer = figure.canvas.get_renderer()
     low, high = ax.get_xlim()
-    labels = [label for label in ax.get_xticklabels(which="both")
-              if label.get_visible() and label.get_text() and low <= label.get_position()[0] <= high]  # fmt: skip
+    labels = [
+        label
+        for label in ax.get_xticklabels(which="both")
+        if label.get_visible() and label.get_text() and low <= label.get_position()[0] <= high
+    ]
     return [label.get_window_extent(renderer) for label in labels]
 
 
-@pytest.mark.parametrize("low, high", [(0.05, 5.0), (10.0, 320.0), (0.074, 4.7), (30.0, 45.0), (1.0, 1e5), (0.9, 1.3), (2e-3, 40.0)])
+@pytest.mark.parametrize(
+    "low, high", [(0.05, 5.0), (10.0, 320.0), (0.074, 4.7), (30.0, 45.0), (1.0, 1e5), (0.9, 1.3), (2e-3, 40.0)]
+)
 def test_log_size_tick_labels_do_not_collide(low, high):
     sizes = np.geomspace(low, high, 8)
     points = TrompPoints("ticks", sizes, np.linspace(0.95, 0.05, 8))

@@ -40,7 +40,9 @@ def test_frequency_maximum_with_rotor_pulsation():
 def test_fit_round_trip():
     applied, frequency = (grid.ravel() for grid in np.meshgrid(np.linspace(0.2, 1.5, 5), [5.0, 10.0, 20.0, 40.0]))
     measured = ROTOR.productivity(applied, frequency)
-    exact = fit_pulp_screen(applied, frequency, measured, fitted=("beta", "lam", "phi"), fixed=PulpScreen(beta=1, lam=1, phi=0.001))
+    exact = fit_pulp_screen(
+        applied, frequency, measured, fitted=("beta", "lam", "phi"), fixed=PulpScreen(beta=1, lam=1, phi=0.001)
+    )
     assert_allclose([exact.screen.beta, exact.screen.lam, exact.screen.phi], [2.0, 3.0, 0.0025], rtol=1e-6)
     noisy = measured * np.exp(np.random.default_rng(1).normal(0, 0.02, measured.size))
     fit = fit_pulp_screen(applied, frequency, noisy, fitted=("beta", "lam", "phi"), fixed=PulpScreen(phi=0.001)).fit

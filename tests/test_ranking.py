@@ -59,8 +59,14 @@ def test_points_and_places_with_the_marks_printed_in_table_3(published):
 
 
 def test_given_marks_double_the_rank_of_inadequate_cells():
-    frame = pd.DataFrame({"experiment": ["a", "a", "b", "b"], "equation": ["x", "y", "x", "y"],
-                          "F": [10.0, 5.0, 10.0, 5.0], "adequate": [True, True, False, True]})  # fmt: skip
+    frame = pd.DataFrame(
+        {
+            "experiment": ["a", "a", "b", "b"],
+            "equation": ["x", "y", "x", "y"],
+            "F": [10.0, 5.0, 10.0, 5.0],
+            "adequate": [True, True, False, True],
+        }
+    )
     table = rank_formulas(frame).set_index("equation")
     assert table.loc["x", "points"] == 1 + 2 * 1
     assert table.loc["y", "points"] == 2 + 2
@@ -102,8 +108,9 @@ def test_close_f_values_share_their_rank_and_ties_do_not_chain():
 
 
 def test_close_aicc_values_share_their_rank():
-    frame = pd.DataFrame({"experiment": ["a"] * 3, "equation": ["x", "y", "z"], "aicc": [-50.0, -50.0004, -49.0],
-                          "adequate": [True] * 3})  # fmt: skip
+    frame = pd.DataFrame(
+        {"experiment": ["a"] * 3, "equation": ["x", "y", "z"], "aicc": [-50.0, -50.0004, -49.0], "adequate": [True] * 3}
+    )
     assert rank_formulas(frame, by="aicc").set_index("equation")["a"].tolist() == [1.5, 1.5, 3.0]
 
 
@@ -144,9 +151,17 @@ def test_verdicts_say_when_the_data_cannot_tell_formulas_apart():
 
 
 def test_adequate_fits_with_systematic_residuals_are_stated_in_words():
-    fits = pd.DataFrame({"formula": ["a", "b", "c"], "success": [True] * 3, "rank": [1.0, 2.0, 3.0], "adequate": [True, True, False],
-                         "delta_aicc": [0.0, 5.0, 9.0], "residuals": ["systematic", "random", "systematic"],
-                         "extrapolated": ["", "d75;eta", ""]})  # fmt: skip
+    fits = pd.DataFrame(
+        {
+            "formula": ["a", "b", "c"],
+            "success": [True] * 3,
+            "rank": [1.0, 2.0, 3.0],
+            "adequate": [True, True, False],
+            "delta_aicc": [0.0, 5.0, 9.0],
+            "residuals": ["systematic", "random", "systematic"],
+            "extrapolated": ["", "d75;eta", ""],
+        }
+    )
     statements = fit_verdicts(fits, measured_sizes=(1.0, 8.0))
     assert statements == [
         "Adequate by F, but the residuals are systematic: a. The curve misses the data in a pattern the F test does not see "

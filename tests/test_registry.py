@@ -93,7 +93,9 @@ def test_slope_text_matches_the_slope_function_and_the_curve(formula):
         assert_allclose(from_text, formula.slope_at_cut(shape), rtol=1e-12)
         h = 1e-6
         context = dict(formula.defaults)
-        numeric = (formula.phi(1 + h, shape, **context, **zero_extras) - formula.phi(1 - h, shape, **context, **zero_extras)) / (2 * h)
+        numeric = (formula.phi(1 + h, shape, **context, **zero_extras) - formula.phi(1 - h, shape, **context, **zero_extras)) / (
+            2 * h
+        )
         assert_allclose(numeric, from_text, rtol=1e-5, atol=1e-9)
 
 
@@ -102,14 +104,20 @@ def test_slope_text_holds_with_bypass(formula_id):
     formula = get_formula(formula_id)
     shape, bypass, h = 2.0, 0.2, 1e-6
     numeric = (formula.phi(1 + h, shape, bypass=bypass) - formula.phi(1 - h, shape, bypass=bypass)) / (2 * h)
-    assert_allclose(evaluate_expression(formula.slope_expression, {formula.shape_name: shape, "bypass": bypass}), numeric, rtol=1e-6)
+    assert_allclose(
+        evaluate_expression(formula.slope_expression, {formula.shape_name: shape, "bypass": bypass}), numeric, rtol=1e-6
+    )
 
 
 def test_derived_formulas_share_their_base_declaration():
     base = get_formula("rosin_rammler")
     for derived in ("luckie_austin", "shuvalov"):
         formula = get_formula(derived)
-        assert (formula.shape_name, formula.shape_bounds, formula.slope_expression) == (base.shape_name, base.shape_bounds, base.slope_expression)
+        assert (formula.shape_name, formula.shape_bounds, formula.slope_expression) == (
+            base.shape_name,
+            base.shape_bounds,
+            base.slope_expression,
+        )
         assert formula.expression == base.expression.replace("x^", f"max(x, {'1/2' if derived == 'luckie_austin' else 'x_a'})^")
     bypass = get_formula("plitt_bypass")
     assert bypass.shape_parameter == get_formula("plitt").shape_parameter

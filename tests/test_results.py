@@ -98,10 +98,16 @@ def test_save_and_load_round_trip(bench, tmp_path):
     loaded = tromplab.load(tmp_path / "batch")
     pd.testing.assert_frame_equal(loaded.fits_table(), bench.fits_table())
     pd.testing.assert_frame_equal(loaded.ranking_table(), bench.ranking_table())
-    assert (loaded.alpha, loaded.rank_by, [f.id for f in loaded.formulas]) == (bench.alpha, bench.rank_by, [f.id for f in bench.formulas])
+    assert (loaded.alpha, loaded.rank_by, [f.id for f in loaded.formulas]) == (
+        bench.alpha,
+        bench.rank_by,
+        [f.id for f in bench.formulas],
+    )
     saved_points = pd.read_csv(tmp_path / "batch" / "points.csv")
     assert list(saved_points["experiment"].unique()) == ["run1", "run2"]
-    np.testing.assert_array_equal(saved_points.loc[saved_points.experiment == "run1", "partition_fine"], bench.fits[0].points.partition_fine)
+    np.testing.assert_array_equal(
+        saved_points.loc[saved_points.experiment == "run1", "partition_fine"], bench.fits[0].points.partition_fine
+    )
     pd.testing.assert_frame_equal(pd.read_csv(tmp_path / "batch" / "ranking.csv"), bench.ranking_table(), check_dtype=False)
     again = pickle.loads(pickle.dumps(loaded))
     pd.testing.assert_frame_equal(again.fits_table(), bench.fits_table())

@@ -51,8 +51,13 @@ def test_figure_3_family_falls_as_particles_grow_and_fatten():
     assert np.all(np.diff(at_one) < 0)  # fatter particles pass less often
 
 
-@pytest.mark.parametrize("name, vk, sigma", [("P_v fraction 1 (Va 0.287; Vk 0.148; sigma 0.051)", 0.148, 0.051),
-                                              ("P_v fraction 2 (Va 0.287; Vk 0.185; sigma 0.069)", 0.185, 0.069)])  # fmt: skip
+@pytest.mark.parametrize(
+    "name, vk, sigma",
+    [
+        ("P_v fraction 1 (Va 0.287; Vk 0.148; sigma 0.051)", 0.148, 0.051),
+        ("P_v fraction 2 (Va 0.287; Vk 0.185; sigma 0.069)", 0.185, 0.069),
+    ],
+)
 def test_velocity_probabilities_at_the_compromise(name, vk, sigma):
     computed, atol = published(name)
     assert_allclose(sieve.velocity_probability(0.287, vk, sigma), computed, atol=atol)
@@ -106,8 +111,9 @@ def residues_for(v_k, sigma, two_sided=False, noise=0.0, seed=0):
 
 
 def identify(residues, two_sided=False, speeds=SPEEDS):
-    return sieve.identify_velocity_law(speeds, residues, geometric_prob=PG, sieve_length=SIEVE_LENGTH,
-                                       cell_pitch=CELL_PITCH, two_sided=two_sided)  # fmt: skip
+    return sieve.identify_velocity_law(
+        speeds, residues, geometric_prob=PG, sieve_length=SIEVE_LENGTH, cell_pitch=CELL_PITCH, two_sided=two_sided
+    )
 
 
 def test_one_sided_identification_recovers_the_law_and_matches_the_linear_solution():
@@ -132,13 +138,16 @@ def test_two_sided_identification_recovers_the_law():
     assert_allclose([noisy.v_k, noisy.sigma], [0.25, 0.06], rtol=0.15)
 
 
-@pytest.mark.parametrize("residues, speeds, message", [
-    ([0.5, 1.0, 0.4, 0.3], SPEEDS[:4], "residue 1 of regime 2 must lie strictly between 0 and 1"),
-    ([0.5, 0.0, 0.4, 0.3], SPEEDS[:4], "residue 0 of regime 2"),
-    ([0.5, 1e-40, 0.4, 0.3], SPEEDS[:4], "regime 2: sieving probability / P_g"),
-    ([0.5], SPEEDS[:1], "at least two speed regimes"),
-    ([0.5, 0.4, 0.3], SPEEDS[:4], "4 speeds but 3 residues"),
-])  # fmt: skip
+@pytest.mark.parametrize(
+    "residues, speeds, message",
+    [
+        ([0.5, 1.0, 0.4, 0.3], SPEEDS[:4], "residue 1 of regime 2 must lie strictly between 0 and 1"),
+        ([0.5, 0.0, 0.4, 0.3], SPEEDS[:4], "residue 0 of regime 2"),
+        ([0.5, 1e-40, 0.4, 0.3], SPEEDS[:4], "regime 2: sieving probability / P_g"),
+        ([0.5], SPEEDS[:1], "at least two speed regimes"),
+        ([0.5, 0.4, 0.3], SPEEDS[:4], "4 speeds but 3 residues"),
+    ],
+)
 def test_identification_bad_input(residues, speeds, message):
     with pytest.raises(ValueError, match=message):
         identify(np.array(residues), speeds=speeds)
@@ -205,8 +214,11 @@ def test_exact_moments_and_the_printed_approximations():
 def test_bin_design_published_example():
     exact = sieve.design_bin(12, 1.6, 0.9)
     normal = sieve.design_bin(12, 1.6, 0.9, method="normal")
-    for name, value in [("C (m 12; L 1.6 m; g* 0.9)", exact.c), ("x1 exact (m 12; L 1.6 m; g* 0.9)", exact.x1),
-                        ("x1 normal approximation", normal.x1)]:  # fmt: skip
+    for name, value in [
+        ("C (m 12; L 1.6 m; g* 0.9)", exact.c),
+        ("x1 exact (m 12; L 1.6 m; g* 0.9)", exact.x1),
+        ("x1 normal approximation", normal.x1),
+    ]:
         computed, atol = published(name)
         assert_allclose(value, computed, atol=atol)
     assert abs(exact.x1 - 0.98) < 0.01 and abs(normal.x1 - 0.98) < 0.005
@@ -236,8 +248,17 @@ def test_identify_cli_continues_past_a_failing_group(tmp_path, capsys):
     rows = []
     for fraction, (v_k, sigma) in {"coarse": (0.25, 0.06), "fine": (0.2, 0.05)}.items():
         for speed, residue in zip(SPEEDS, residues_for(v_k, sigma)):
-            rows.append({"sieve": 1, "fraction": fraction, "relative_speed": speed, "residue": residue,
-                         "sieve_length": SIEVE_LENGTH, "cell_pitch": CELL_PITCH, "P_g": PG})  # fmt: skip
+            rows.append(
+                {
+                    "sieve": 1,
+                    "fraction": fraction,
+                    "relative_speed": speed,
+                    "residue": residue,
+                    "sieve_length": SIEVE_LENGTH,
+                    "cell_pitch": CELL_PITCH,
+                    "P_g": PG,
+                }
+            )
     rows.append({**rows[-1], "fraction": "broken", "residue": 1.0})
     rows.append({**rows[-1], "relative_speed": 0.5, "residue": 0.9})
     path = tmp_path / "residues.csv"
@@ -268,12 +289,14 @@ def test_identification_from_bin_shares_round_trip():
     z = stats.norm.ppf(2.0 - stats.norm.cdf(v_k / sigma) - ratio)  # invert the two-sided law for the speeds
     speeds = v_k + sigma * z
     shares = [sieve.bin_recovery(design.x1, design.x2, decks, value) for value in c]
-    law = sieve.identify_from_bin_shares(speeds, shares, x1=design.x1, x2=design.x2, decks=decks, cell_pitch=pitch,
-                                         geometric_prob=pg, lost_side="beyond")  # fmt: skip
+    law = sieve.identify_from_bin_shares(
+        speeds, shares, x1=design.x1, x2=design.x2, decks=decks, cell_pitch=pitch, geometric_prob=pg, lost_side="beyond"
+    )
     assert_allclose([law.v_k, law.sigma], [v_k, sigma], rtol=1e-6)
     with pytest.raises(ValueError, match="cannot be reached"):
-        sieve.identify_from_bin_shares(speeds, [0.99] * 5, x1=design.x1, x2=design.x2, decks=decks, cell_pitch=pitch,
-                                       geometric_prob=pg, lost_side="beyond")  # fmt: skip
+        sieve.identify_from_bin_shares(
+            speeds, [0.99] * 5, x1=design.x1, x2=design.x2, decks=decks, cell_pitch=pitch, geometric_prob=pg, lost_side="beyond"
+        )
 
 
 def test_identify_table_computes_p_g_from_the_geometry(tmp_path):
@@ -281,9 +304,20 @@ def test_identify_table_computes_p_g_from_the_geometry(tmp_path):
 
     pg = sieve.geometric_probability(2.0, 2.5, 1.5, 1.6)
     gamma = sieve.residue_share(pg * sieve.velocity_probability(SPEEDS, 0.148, 0.051), SIEVE_LENGTH, CELL_PITCH)
-    frame = pd.DataFrame({"sieve": 1, "fraction": "2.5x1.5", "relative_speed": SPEEDS, "residue": gamma,
-                          "sieve_length": SIEVE_LENGTH, "cell_pitch": CELL_PITCH, "hole_diameter": 2.0, "length": 2.5,
-                          "width": 1.5, "half_cell_width": 1.6})  # fmt: skip
+    frame = pd.DataFrame(
+        {
+            "sieve": 1,
+            "fraction": "2.5x1.5",
+            "relative_speed": SPEEDS,
+            "residue": gamma,
+            "sieve_length": SIEVE_LENGTH,
+            "cell_pitch": CELL_PITCH,
+            "hole_diameter": 2.0,
+            "length": 2.5,
+            "width": 1.5,
+            "half_cell_width": 1.6,
+        }
+    )
     frame.to_csv(tmp_path / "geometry.csv", index=False)
     laws = sieve.identify_from_table(read_table(tmp_path / "geometry.csv"))
     assert_allclose(laws.loc[0, "P_g"], pg)

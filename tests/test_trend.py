@@ -68,8 +68,9 @@ def test_no_change_series_give_no_change_points_at_the_stated_rate():
     design = SeriesDesign(n_surveys=14, bypass_step_at=None, drift_from=None)
     found = []
     for seed in range(4):
-        result = monitor_surveys(surveys_from_frame(simulate_surveys(design, seed=300 + seed)), formula="plitt_bypass",
-                                 baseline=8, consecutive=False)  # fmt: skip
+        result = monitor_surveys(
+            surveys_from_frame(simulate_surveys(design, seed=300 + seed)), formula="plitt_bypass", baseline=8, consecutive=False
+        )
         found += result.change_points()
     assert found == []
 
@@ -131,8 +132,20 @@ def test_trend_command_writes_table_charts_and_report(tmp_path, capsys):
     frame = frame[frame["survey"] <= "S14"].drop(columns=["survey"])  # surveys keyed by date alone
     frame.to_csv(tmp_path / "surveys.csv", index=False)
     out = tmp_path / "out"
-    code = main(["trend", str(tmp_path / "surveys.csv"), "-o", str(out), "--formula", "plitt_bypass",
-                 "--baseline", "2025-01-06:2025-03-03", "--size-unit", "um"])  # fmt: skip
+    code = main(
+        [
+            "trend",
+            str(tmp_path / "surveys.csv"),
+            "-o",
+            str(out),
+            "--formula",
+            "plitt_bypass",
+            "--baseline",
+            "2025-01-06:2025-03-03",
+            "--size-unit",
+            "um",
+        ]
+    )
     assert code == 0
     table = pd.read_csv(out / "trend.csv")
     assert set(table["survey"]) == {d for d in frame["date"]}

@@ -40,8 +40,20 @@ def test_nominal_coverage_of_95_percent_intervals():
 def test_interval_table_reports_parameters_and_indices():
     fit = fit_formula(experiment(1), PLITT)
     table = interval_table(fit).set_index("quantity")
-    assert list(table.index) == ["d_cut", "ks", "slope", "eta", "epsilon", "d25", "d75", "ep", "imperfection", "d50", "ep_c",
-                                 "imperfection_c"]  # fmt: skip
+    assert list(table.index) == [
+        "d_cut",
+        "ks",
+        "slope",
+        "eta",
+        "epsilon",
+        "d25",
+        "d75",
+        "ep",
+        "imperfection",
+        "d50",
+        "ep_c",
+        "imperfection_c",
+    ]
     assert set(table.loc[["d_cut", "ks"], "method"]) <= {"profile", "wald-log"}
     assert table.loc["slope", "method"] == "delta-neglog" and table.loc["eta", "method"] == "delta-logit"
     assert (table.loc["epsilon":, "method"] == "delta-log").all()
@@ -106,8 +118,24 @@ def test_fit_command_adds_interval_columns_and_averages(tmp_path, capsys):
     path = tmp_path / "points.csv"
     frame.to_csv(path, index=False)
     out = tmp_path / "out"
-    assert main(["fit", str(path), "-o", str(out), "--formulas", "plitt,lognormal", "--ci", "0.9", "--bootstrap", "20",
-                 "--no-figures"]) == 0  # fmt: skip
+    assert (
+        main(
+            [
+                "fit",
+                str(path),
+                "-o",
+                str(out),
+                "--formulas",
+                "plitt,lognormal",
+                "--ci",
+                "0.9",
+                "--bootstrap",
+                "20",
+                "--no-figures",
+            ]
+        )
+        == 0
+    )
     fits = pd.read_csv(out / "fits.csv")
     for column in ("d_cut_low", "d_cut_high", "shape_low", "ep_high", "d_cut_boot_low", "eta_boot_high"):
         assert fits[column].notna().all(), column

@@ -10,13 +10,32 @@ from tromplab.workbook import column_unit, header_with_unit, strip_unit, write_w
 
 
 def test_partition_view_turns_partitions_and_the_slope_with_its_bounds():
-    table = pd.DataFrame({"d_cut": [50.0], "slope": [-0.6], "slope_low": [-0.8], "slope_high": [-0.5], "slope_stderr": [0.07],
-                          "partition_fine": [0.3], "partition_coarse": [0.7], "d25": [40.0]})  # fmt: skip
+    table = pd.DataFrame(
+        {
+            "d_cut": [50.0],
+            "slope": [-0.6],
+            "slope_low": [-0.8],
+            "slope_high": [-0.5],
+            "slope_stderr": [0.07],
+            "partition_fine": [0.3],
+            "partition_coarse": [0.7],
+            "d25": [40.0],
+        }
+    )
     view = partition_view(table, "coarse")
-    assert list(view.columns) == ["d_cut", "slope_coarse", "slope_coarse_low", "slope_coarse_high", "slope_coarse_stderr",
-                                  "partition_coarse", "d25"]  # fmt: skip
-    assert_allclose(view.iloc[0][["slope_coarse", "slope_coarse_low", "slope_coarse_high", "slope_coarse_stderr"]].astype(float),
-                    [0.6, 0.5, 0.8, 0.07])  # fmt: skip
+    assert list(view.columns) == [
+        "d_cut",
+        "slope_coarse",
+        "slope_coarse_low",
+        "slope_coarse_high",
+        "slope_coarse_stderr",
+        "partition_coarse",
+        "d25",
+    ]
+    assert_allclose(
+        view.iloc[0][["slope_coarse", "slope_coarse_low", "slope_coarse_high", "slope_coarse_stderr"]].astype(float),
+        [0.6, 0.5, 0.8, 0.07],
+    )
     assert_allclose(view["partition_coarse"], [0.7])
     assert_allclose(view[["d_cut", "d25"]].to_numpy(), [[50.0, 40.0]])
     assert partition_view(table, "fine").equals(table)
@@ -34,8 +53,9 @@ def test_headers_carry_units_and_strip_back():
 
 def test_workbook_keeps_full_precision_and_leaves_missing_values_empty(tmp_path):
     table = pd.DataFrame({"experiment": ["A", "B"], "n": [6, 7], "d_cut": [1 / 3, float("nan")], "adequate": [True, False]})
-    path = write_workbook(tmp_path / "book.xlsx", {"fits": table, "balance": pd.DataFrame()}, size_unit="mm",
-                          notes={"balance": "nothing here"})  # fmt: skip
+    path = write_workbook(
+        tmp_path / "book.xlsx", {"fits": table, "balance": pd.DataFrame()}, size_unit="mm", notes={"balance": "nothing here"}
+    )
     book = openpyxl.load_workbook(path)
     sheet = book["fits"]
     assert [c.value for c in sheet[1]] == ["experiment", "n", "d_cut [mm]", "adequate"]

@@ -21,16 +21,41 @@ from .workbench import Workbench, fit_experiments, load, model_averages
 __all__ = [
     "__version__",
     # loading
-    "read_points", "read_lab", "read_experiments", "LabOptions", "MassBalance", "TrompPoints", "InputError",
+    "read_points",
+    "read_lab",
+    "read_experiments",
+    "LabOptions",
+    "MassBalance",
+    "TrompPoints",
+    "InputError",
     # the formula registry
-    "FORMULAS", "ALL_FORMULAS", "Formula", "Parameter", "get_formula", "select_formulas", "registry_table",
+    "FORMULAS",
+    "ALL_FORMULAS",
+    "Formula",
+    "Parameter",
+    "get_formula",
+    "select_formulas",
+    "registry_table",
     # fitting, screening, ranking
-    "fit_formula", "fit_experiments", "CurveFit", "Workbench", "curve_indices", "rank_formulas",
+    "fit_formula",
+    "fit_experiments",
+    "CurveFit",
+    "Workbench",
+    "curve_indices",
+    "rank_formulas",
     # uncertainty and comparison
-    "interval_table", "bootstrap", "akaike_weights", "model_average", "model_averages", "shared_fit", "nested_f_test",
+    "interval_table",
+    "bootstrap",
+    "akaike_weights",
+    "model_average",
+    "model_averages",
+    "shared_fit",
+    "nested_f_test",
     # output
-    "build_report", "write_report", "load",
-]  # fmt: skip
+    "build_report",
+    "write_report",
+    "load",
+]
 
 
 def _one_line(name: str) -> str:

@@ -88,9 +88,14 @@ def _solve(problem: Problem, objective, extra: Sequence[Constraint] = ()) -> Opt
         # trust-constr's quasi-Newton update warns on flat stretches of a max-min objective
         warnings.filterwarnings("ignore", message="delta_grad == 0.0", category=UserWarning)
         result = optimize.differential_evolution(
-            lambda x: -objective(problem.values(x)), bounds, constraints=constraints, seed=problem.seed, tol=1e-10,
-            polish=True, maxiter=2000,
-        )  # fmt: skip
+            lambda x: -objective(problem.values(x)),
+            bounds,
+            constraints=constraints,
+            seed=problem.seed,
+            tol=1e-10,
+            polish=True,
+            maxiter=2000,
+        )
     return Optimum(problem.evaluate(result.x), bool(result.success), str(result.message))
 
 
@@ -106,8 +111,9 @@ class ChoiceResult:
     notes: tuple[str, ...] = field(default_factory=tuple)
 
 
-def choose(problem: Problem, *, floor_second: float | None = None, share_of_first: float | None = None,
-           weights=None) -> ChoiceResult:  # fmt: skip
+def choose(
+    problem: Problem, *, floor_second: float | None = None, share_of_first: float | None = None, weights=None
+) -> ChoiceResult:
     """Run the whole procedure.
 
     Parameters
@@ -123,10 +129,18 @@ def choose(problem: Problem, *, floor_second: float | None = None, share_of_firs
     """
     weights = np.linspace(0.0, 1.0, 11) if weights is None else np.asarray(weights, dtype=float)
     first, second = problem.criteria
-    extra_first = [Constraint(f"{second.name} >= {floor_second}", lambda **v: second.function(**v) - floor_second)] if floor_second is not None else []
+    extra_first = (
+        [Constraint(f"{second.name} >= {floor_second}", lambda **v: second.function(**v) - floor_second)]
+        if floor_second is not None
+        else []
+    )
     best_first = _solve(problem, lambda v: first.function(**v), extra_first)
     top = best_first.point[first.name]
-    extra_second = [Constraint(f"{first.name} >= {share_of_first} max", lambda **v: first.function(**v) - share_of_first * top)] if share_of_first is not None else []
+    extra_second = (
+        [Constraint(f"{first.name} >= {share_of_first} max", lambda **v: first.function(**v) - share_of_first * top)]
+        if share_of_first is not None
+        else []
+    )
     best_second = _solve(problem, lambda v: second.function(**v), extra_second)
     ranges = {
         first.name: (best_second.point[first.name], best_first.point[first.name]),
@@ -158,8 +172,17 @@ def _convolution(normalised, first, second, weight):
 
 
 # --- worked example: one sieve of the kinetics paper -------------------------------------
-def sieve_speed_problem(*, lambda_target=1.31e-3, lambda_next=0.127, sieve_length=1.6, bulk_density=1150.0,
-                        gap_height=0.004, width=1.0, purity_limit=0.08, speed_bounds=(0.02, 0.2)) -> Problem:  # fmt: skip
+def sieve_speed_problem(
+    *,
+    lambda_target=1.31e-3,
+    lambda_next=0.127,
+    sieve_length=1.6,
+    bulk_density=1150.0,
+    gap_height=0.004,
+    width=1.0,
+    purity_limit=0.08,
+    speed_bounds=(0.02, 0.2),
+) -> Problem:
     """Capacity and efficiency of a sieve against its mean transport speed ``V``.
 
     ``gamma = exp(-lambda L / V)`` with the kinetic coefficients printed at the paper's

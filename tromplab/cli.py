@@ -35,7 +35,7 @@ from .validation import (
     check_count,
     check_non_negative,
     check_positive,
-    check_probability,  # fmt: skip
+    check_probability,
     check_seed,
     check_share,
     cli_type,
@@ -85,8 +85,11 @@ def main(argv=None) -> int:
     except Exception as error:  # anything else is a bug in tromplab: say so, do not dress it up as bad input
         if args.debug:
             raise
-        print(f"{command}: internal error (a bug in tromplab, please report it): {type(error).__name__}: {error}\n"
-              f"  run again with --debug for the traceback", file=sys.stderr)  # fmt: skip
+        print(
+            f"{command}: internal error (a bug in tromplab, please report it): {type(error).__name__}: {error}\n"
+            f"  run again with --debug for the traceback",
+            file=sys.stderr,
+        )
         return EXIT_INTERNAL
 
 
@@ -147,11 +150,9 @@ def _global_options(*, in_subcommand: bool) -> argparse.ArgumentParser:
     options = argparse.ArgumentParser(add_help=False)
     default = argparse.SUPPRESS if in_subcommand else None
     group = options.add_argument_group("general")
-    group.add_argument("-q", "--quiet", action="store_true", default=default or False,
-                       help="print only errors and warnings")  # fmt: skip
+    group.add_argument("-q", "--quiet", action="store_true", default=default or False, help="print only errors and warnings")
     group.add_argument("-v", "--verbose", action="count", default=default or 0, help="more detail (repeat for more)")
-    group.add_argument("--debug", action="store_true", default=default or False,
-                       help="show the Python traceback of an error")  # fmt: skip
+    group.add_argument("--debug", action="store_true", default=default or False, help="show the Python traceback of an error")
     return options
 
 
@@ -159,17 +160,31 @@ def _fit_options_parser() -> argparse.ArgumentParser:
     """Options shared by ``fit`` and ``report``, declared once."""
     shared = argparse.ArgumentParser(add_help=False)
     shared.add_argument("input", type=Path, help="Tromp points or a lab table (CSV or .xlsx), told apart by their columns")
-    shared.add_argument("--alpha", type=cli_type(check_probability, "--alpha"), default=DEFAULT_ALPHA,
-                        help="significance level of the Fisher screen, in (0, 1) (default %(default)s)")  # fmt: skip
-    shared.add_argument("--delta-max", type=cli_type(check_positive, "--delta-max"), default=None,
-                        help="largest feed particle size for the misplacement eps (default: largest size of the data)")  # fmt: skip
-    shared.add_argument("--formulas", default=None,
-                        help="comma-separated ids or equation numbers; 'paper' = the nine, 'extended' = the bypass and "
-                        "fish-hook curves (default: the nine)")  # fmt: skip
+    shared.add_argument(
+        "--alpha",
+        type=cli_type(check_probability, "--alpha"),
+        default=DEFAULT_ALPHA,
+        help="significance level of the Fisher screen, in (0, 1) (default %(default)s)",
+    )
+    shared.add_argument(
+        "--delta-max",
+        type=cli_type(check_positive, "--delta-max"),
+        default=None,
+        help="largest feed particle size for the misplacement eps (default: largest size of the data)",
+    )
+    shared.add_argument(
+        "--formulas",
+        default=None,
+        help="comma-separated ids or equation numbers; 'paper' = the nine, 'extended' = the bypass and "
+        "fish-hook curves (default: the nine)",
+    )
     shared.add_argument("--rank-by", choices=sorted(RANK_BY), default="F", help="criterion within an experiment")
     shared.add_argument("--size-unit", default="", help="unit of the sizes, for the figure labels")
-    shared.add_argument("--extended", action="store_true",
-                        help="also fit the curves with bypass and fish-hook (reported, kept out of the ranking)")  # fmt: skip
+    shared.add_argument(
+        "--extended",
+        action="store_true",
+        help="also fit the curves with bypass and fish-hook (reported, kept out of the ranking)",
+    )
     shared.add_argument("--rank-extended", action="store_true", help="rank the extended curves with the nine")
     return shared
 
@@ -187,52 +202,102 @@ def _show_input_notes(show):
 
 
 def _parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="tromplab", description="Fit, screen and rank separation (Tromp) curves.",
-                                     parents=[_global_options(in_subcommand=False)],
-                                     epilog="Exit codes: 0 done, 1 bad input (nothing written), 2 usage, 3 partial "
-                                     "(failures listed in failures.csv), 70 internal error, 130 interrupted.")  # fmt: skip
+    parser = argparse.ArgumentParser(
+        prog="tromplab",
+        description="Fit, screen and rank separation (Tromp) curves.",
+        parents=[_global_options(in_subcommand=False)],
+        epilog="Exit codes: 0 done, 1 bad input (nothing written), 2 usage, 3 partial "
+        "(failures listed in failures.csv), 70 internal error, 130 interrupted.",
+    )
     parser.add_argument("--version", action="version", version=f"tromplab {__version__}")
     commands = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_SubcommandParser)
 
-    formulas = commands.add_parser("formulas", help="list the separation-curve formulas (the nine of the paper, then the extended curves)")
+    formulas = commands.add_parser(
+        "formulas", help="list the separation-curve formulas (the nine of the paper, then the extended curves)"
+    )
     formulas.set_defaults(run=_run_formulas)
 
     lab = _lab_options_parser()
     shared = _fit_options_parser()
     fit = commands.add_parser("fit", parents=[shared, lab], help="fit, screen and rank the formulas on Tromp points or lab data")
-    fit.add_argument("-o", "--outdir", type=Path, default=Path("results"),
-                     help="output folder, replaced as a whole when the run succeeds (default: results), or a .xlsx "
-                     "file: then one Excel workbook holds every table and figure")  # fmt: skip
-    fit.add_argument("--excel", action="store_true", help="also write the tables and figures as one workbook, results.xlsx, in the folder")
+    fit.add_argument(
+        "-o",
+        "--outdir",
+        type=Path,
+        default=Path("results"),
+        help="output folder, replaced as a whole when the run succeeds (default: results), or a .xlsx "
+        "file: then one Excel workbook holds every table and figure",
+    )
+    fit.add_argument(
+        "--excel", action="store_true", help="also write the tables and figures as one workbook, results.xlsx, in the folder"
+    )
     _add_partition_to(fit)
-    fit.add_argument("--figures", choices=("auto", "all", "best", "none"), default="auto",
-                     help=f"per-experiment figures with every fit (all) or the top-ranked one (best); auto: all up to "
-                     f"{AUTO_FIGURE_LIMIT} experiments, then one overview figure (default auto)")
+    fit.add_argument(
+        "--figures",
+        choices=("auto", "all", "best", "none"),
+        default="auto",
+        help=f"per-experiment figures with every fit (all) or the top-ranked one (best); auto: all up to "
+        f"{AUTO_FIGURE_LIMIT} experiments, then one overview figure (default auto)",
+    )
     fit.add_argument("--no-figures", dest="figures", action="store_const", const="none", help="same as --figures none")
     fit.add_argument("--format", choices=("csv", "parquet"), default="csv", help="format of the tables (parquet needs pyarrow)")
     scale = fit.add_argument_group("scale")
-    scale.add_argument("--jobs", type=cli_type(check_count, "--jobs", minimum=0, maximum=4096), default=0, metavar="N",
-                       help="worker processes (default 0: all cores)")  # fmt: skip
+    scale.add_argument(
+        "--jobs",
+        type=cli_type(check_count, "--jobs", minimum=0, maximum=4096),
+        default=0,
+        metavar="N",
+        help="worker processes (default 0: all cores)",
+    )
     scale.add_argument("--scheduler", default=None, metavar="ADDRESS", help="run on this Dask scheduler (tcp://host:8786)")
     scale.add_argument("--dask", choices=("local",), default=None, help="run on a local Dask cluster")
-    scale.add_argument("--single-fits", action="store_true",
-                       help="fit one experiment and formula at a time with lmfit instead of the batched engine")
+    scale.add_argument(
+        "--single-fits",
+        action="store_true",
+        help="fit one experiment and formula at a time with lmfit instead of the batched engine",
+    )
     uncertainty = fit.add_argument_group("uncertainty")
-    uncertainty.add_argument("--ci", type=cli_type(check_probability, "--ci"), default=None, metavar="LEVEL",
-                             help="add interval columns at this level (profile likelihood for parameters, delta method for indices)")
-    uncertainty.add_argument("--bootstrap", type=cli_type(check_bootstrap, "--bootstrap"), default=0, metavar="N",
-                             help=f"add bootstrap percentile intervals from N resamples (at most {MAX_BOOTSTRAP:,})")  # fmt: skip
-    uncertainty.add_argument("--bootstrap-method", choices=("residuals", "cases"), default="residuals",
-                             help="resample the residuals of the fit or whole points (default: residuals)")
-    uncertainty.add_argument("--seed", type=cli_type(check_seed, "--seed"), default=0,
-                             help="seed of the bootstrap, a whole number >= 0: the same seed gives the same intervals "
-                             "(default %(default)s)")  # fmt: skip
+    uncertainty.add_argument(
+        "--ci",
+        type=cli_type(check_probability, "--ci"),
+        default=None,
+        metavar="LEVEL",
+        help="add interval columns at this level (profile likelihood for parameters, delta method for indices)",
+    )
+    uncertainty.add_argument(
+        "--bootstrap",
+        type=cli_type(check_bootstrap, "--bootstrap"),
+        default=0,
+        metavar="N",
+        help=f"add bootstrap percentile intervals from N resamples (at most {MAX_BOOTSTRAP:,})",
+    )
+    uncertainty.add_argument(
+        "--bootstrap-method",
+        choices=("residuals", "cases"),
+        default="residuals",
+        help="resample the residuals of the fit or whole points (default: residuals)",
+    )
+    uncertainty.add_argument(
+        "--seed",
+        type=cli_type(check_seed, "--seed"),
+        default=0,
+        help="seed of the bootstrap, a whole number >= 0: the same seed gives the same intervals (default %(default)s)",
+    )
     fit.set_defaults(run=_run_fit)
 
-    report = commands.add_parser("report", parents=[shared, lab], help="HTML and Markdown report: balance, ranked fits, uncertainties, figures")
-    report.add_argument("-o", "--output", type=Path, default=Path("results/report.html"), help="HTML file (a .md twin is written beside it)")
-    report.add_argument("--ci", type=cli_type(check_probability, "--ci"), default=0.95, metavar="LEVEL",
-                        help="level of the intervals (default 0.95)")  # fmt: skip
+    report = commands.add_parser(
+        "report", parents=[shared, lab], help="HTML and Markdown report: balance, ranked fits, uncertainties, figures"
+    )
+    report.add_argument(
+        "-o", "--output", type=Path, default=Path("results/report.html"), help="HTML file (a .md twin is written beside it)"
+    )
+    report.add_argument(
+        "--ci",
+        type=cli_type(check_probability, "--ci"),
+        default=0.95,
+        metavar="LEVEL",
+        help="level of the intervals (default 0.95)",
+    )
     report.add_argument("--title", default="tromplab report", help="title of the report (default: tromplab report)")
     _add_partition_to(report)
     report.set_defaults(run=_run_report)
@@ -243,10 +308,16 @@ def _parser() -> argparse.ArgumentParser:
     compare.add_argument("--experiments", default=None, help="comma-separated experiments to compare (default: all)")
     compare.set_defaults(run=_run_compare)
 
-    export = commands.add_parser("export", help="write fitted parameters in a simulator's convention (whiten, plitt, dyssol, csv-long)")
+    export = commands.add_parser(
+        "export", help="write fitted parameters in a simulator's convention (whiten, plitt, dyssol, csv-long)"
+    )
     export.add_argument("fits_dir", type=Path, help="output folder of 'tromplab fit' (or its fits.csv)")
-    export.add_argument("--to", required=True, choices=("whiten", "plitt", "dyssol", "csv-long"), help="target convention (docs/export.md)")
-    export.add_argument("-o", "--output", type=Path, default=None, help="CSV to write (default: FITS_DIR/export_<convention>.csv)")
+    export.add_argument(
+        "--to", required=True, choices=("whiten", "plitt", "dyssol", "csv-long"), help="target convention (docs/export.md)"
+    )
+    export.add_argument(
+        "-o", "--output", type=Path, default=None, help="CSV to write (default: FITS_DIR/export_<convention>.csv)"
+    )
     export.add_argument("--size-unit", default=None, help="unit of the fitted sizes: um, mm, cm or m (required by --to dyssol)")
     export.set_defaults(run=_run_export)
 
@@ -254,8 +325,11 @@ def _parser() -> argparse.ArgumentParser:
     trend.add_argument("input", type=Path, help="Tromp points or a lab table with a 'date' (or 'survey') column")
     trend.add_argument("-o", "--outdir", type=Path, default=Path("results/trend"), help="output folder (default: results/trend)")
     trend.add_argument("--formula", default=None, help="formula id (default: the best-ranked of the nine over all surveys)")
-    trend.add_argument("--baseline", default=None,
-                       help="baseline period: the first N surveys, or a date range FROM:TO (default: the first half, at most 8)")
+    trend.add_argument(
+        "--baseline",
+        default=None,
+        help="baseline period: the first N surveys, or a date range FROM:TO (default: the first half, at most 8)",
+    )
     trend.add_argument("--alpha", type=float, default=0.01, help="significance level of the change flags (default 0.01)")
     trend.add_argument("--size-unit", default="", help="unit of the sizes, for the figure labels")
     trend.add_argument("--no-figures", action="store_true", help="do not draw figures")
@@ -276,36 +350,65 @@ def _parser() -> argparse.ArgumentParser:
     sieve_commands = sieve.add_subparsers(dest="sieve_command", metavar="SIEVE_COMMAND", required=True)
     identify = sieve_commands.add_parser("identify", help="identify Vk and sigma from residues at several speed regimes")
     identify.add_argument("data", type=Path, help="CSV: sieve, fraction, relative_speed, residue, sieve_length, cell_pitch, P_g")
-    identify.add_argument("-o", "--output", type=Path, default=Path("results/velocity_laws.csv"),
-                          help="CSV of the identified laws (default: results/velocity_laws.csv)")
+    identify.add_argument(
+        "-o",
+        "--output",
+        type=Path,
+        default=Path("results/velocity_laws.csv"),
+        help="CSV of the identified laws (default: results/velocity_laws.csv)",
+    )
     identify.add_argument("--two-sided", action="store_true", help="two-sided velocity probability (random-walk paper)")
-    identify.add_argument("--level", type=cli_type(check_probability, "--level"), default=0.95,
-                          help="confidence level of the intervals, in (0, 1)")  # fmt: skip
+    identify.add_argument(
+        "--level", type=cli_type(check_probability, "--level"), default=0.95, help="confidence level of the intervals, in (0, 1)"
+    )
     identify.set_defaults(run=_run_sieve_identify)
     pg = sieve_commands.add_parser("pg", help="geometric probability of a particle passing a round hole")
     pg.add_argument("--hole", type=cli_type(check_positive, "--hole"), required=True, help="hole diameter D")
     pg.add_argument("--length", type=cli_type(check_positive, "--length"), required=True, help="particle length l")
-    pg.add_argument("--width", type=cli_type(check_positive, "--width"), required=True, help="particle width d (shape factor d/l)")
-    pg.add_argument("--cell-width", type=cli_type(check_positive, "--cell-width"), required=True,
-                    help="cell width 2b across the transport direction")  # fmt: skip
-    pg.add_argument("--method", choices=("auto", "closed", "quadrature"), default="auto",
-                    help="closed form, quadrature, or auto: the closed form where it is valid (default)")
+    pg.add_argument(
+        "--width", type=cli_type(check_positive, "--width"), required=True, help="particle width d (shape factor d/l)"
+    )
+    pg.add_argument(
+        "--cell-width",
+        type=cli_type(check_positive, "--cell-width"),
+        required=True,
+        help="cell width 2b across the transport direction",
+    )
+    pg.add_argument(
+        "--method",
+        choices=("auto", "closed", "quadrature"),
+        default="auto",
+        help="closed form, quadrature, or auto: the closed form where it is valid (default)",
+    )
     pg.set_defaults(run=_run_sieve_pg)
     bin_ = sieve_commands.add_parser("bin", help="collecting-bin position on the bottom deck for a required recovery")
-    bin_.add_argument("--decks", type=cli_type(check_count, "--decks", maximum=MAX_DECKS), required=True,
-                      help=f"number of decks m, 1 to {MAX_DECKS}")  # fmt: skip
+    bin_.add_argument(
+        "--decks",
+        type=cli_type(check_count, "--decks", maximum=MAX_DECKS),
+        required=True,
+        help=f"number of decks m, 1 to {MAX_DECKS}",
+    )
     bin_.add_argument("--length", type=cli_type(check_positive, "--length"), required=True, help="sieve length L (= x2)")
-    bin_.add_argument("--recovery", type=cli_type(check_probability, "--recovery"), required=True,
-                      help="required recovery g* of the target fraction, in (0, 1)")  # fmt: skip
+    bin_.add_argument(
+        "--recovery",
+        type=cli_type(check_probability, "--recovery"),
+        required=True,
+        help="required recovery g* of the target fraction, in (0, 1)",
+    )
     bin_.set_defaults(run=_run_sieve_bin)
 
     rank = commands.add_parser("rank", help="rank formulas from a table of F values (Table 2 -> Table 3)")
     rank.add_argument("table", type=Path, help="CSV with experiment, equation, F and n or F_crit [, adequate]")
-    rank.add_argument("-o", "--outdir", type=Path, default=Path("results"), help="output folder for ranking.csv (default: results)")
-    rank.add_argument("--alpha", type=cli_type(check_probability, "--alpha"), default=DEFAULT_ALPHA,
-                      help="significance level for F_crit from n, in (0, 1)")  # fmt: skip
-    rank.add_argument("--computed-adequacy", action="store_true",
-                      help="ignore an 'adequate' column and use F > F_crit")  # fmt: skip
+    rank.add_argument(
+        "-o", "--outdir", type=Path, default=Path("results"), help="output folder for ranking.csv (default: results)"
+    )
+    rank.add_argument(
+        "--alpha",
+        type=cli_type(check_probability, "--alpha"),
+        default=DEFAULT_ALPHA,
+        help="significance level for F_crit from n, in (0, 1)",
+    )
+    rank.add_argument("--computed-adequacy", action="store_true", help="ignore an 'adequate' column and use F > F_crit")
     rank.set_defaults(run=_run_rank)
 
     add_model_commands(commands)  # layer, pulp, optimize
@@ -313,8 +416,14 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def _add_partition_to(parser) -> None:
-    parser.add_argument("--partition-to", choices=PARTITION_TO, default="fine",
-                        help="report the partition to the fine product (default) or to the coarse product (underflow, oversize)")
+    parser.add_argument(
+        "--partition-to",
+        choices=PARTITION_TO,
+        default="fine",
+        help="report the partition to the fine product (default) or to the coarse product (underflow, oversize)",
+    )
+
+
 class _SubcommandParser(argparse.ArgumentParser):
     """Every command accepts the global options after its name too (``tromplab fit -q ...``)."""
 
@@ -326,28 +435,61 @@ class _SubcommandParser(argparse.ArgumentParser):
 def _lab_options_parser() -> argparse.ArgumentParser:
     lab = argparse.ArgumentParser(add_help=False)
     group = lab.add_argument_group("lab data (see the README for the schema)")
-    group.add_argument("--kind", choices=KINDS, default=None,
-                       help="what plain feed/fine/coarse columns hold (not needed with suffixed column names)")
-    group.add_argument("--fine-yield", type=cli_type(check_probability, "--fine-yield"), default=None, help="fine-product yield, fraction of the feed")
-    group.add_argument("--coarse-yield", type=cli_type(check_probability, "--coarse-yield"), default=None, help="coarse-product yield, fraction of the feed")
+    group.add_argument(
+        "--kind",
+        choices=KINDS,
+        default=None,
+        help="what plain feed/fine/coarse columns hold (not needed with suffixed column names)",
+    )
+    group.add_argument(
+        "--fine-yield",
+        type=cli_type(check_probability, "--fine-yield"),
+        default=None,
+        help="fine-product yield, fraction of the feed",
+    )
+    group.add_argument(
+        "--coarse-yield",
+        type=cli_type(check_probability, "--coarse-yield"),
+        default=None,
+        help="coarse-product yield, fraction of the feed",
+    )
     group.add_argument("--estimate-yield", action="store_true", help="estimate the yield from three streams even if one is given")
     group.add_argument("--reconcile", action="store_true", help="adjust the three streams minimally so every class balances")
-    group.add_argument("--min-feed-share", type=cli_type(check_share, "--min-feed-share"), default=LabOptions.min_feed_share,
-                       help="leave out classes with a smaller feed share (fraction; default %(default)s)")
-    group.add_argument("--sum-tolerance", type=cli_type(check_non_negative, "--sum-tolerance"), default=LabOptions.sum_tolerance_pct,
-                       help="allowed deviation of per-class percentages from 100 (percentage points; default %(default)s)")
-    group.add_argument("--top-size", type=cli_type(check_positive, "--top-size"), default=None, help="upper bound of the open top class")
-    group.add_argument("--pan-lower-size", type=cli_type(check_non_negative, "--pan-lower-size"), default=None, help="lower bound of the pan")
+    group.add_argument(
+        "--min-feed-share",
+        type=cli_type(check_share, "--min-feed-share"),
+        default=LabOptions.min_feed_share,
+        help="leave out classes with a smaller feed share (fraction; default %(default)s)",
+    )
+    group.add_argument(
+        "--sum-tolerance",
+        type=cli_type(check_non_negative, "--sum-tolerance"),
+        default=LabOptions.sum_tolerance_pct,
+        help="allowed deviation of per-class percentages from 100 (percentage points; default %(default)s)",
+    )
+    group.add_argument(
+        "--top-size", type=cli_type(check_positive, "--top-size"), default=None, help="upper bound of the open top class"
+    )
+    group.add_argument(
+        "--pan-lower-size", type=cli_type(check_non_negative, "--pan-lower-size"), default=None, help="lower bound of the pan"
+    )
     group.add_argument("--rename", default="", help="column renames OLD=NEW,OLD=NEW applied before reading")
     group.add_argument("--sheet", default=None, help="Excel sheet name (default: the first sheet)")
-    group.add_argument("--weight-by-feed-share", action="store_true",
-                       help="weight each point by its class's feed share (variance inversely proportional to it)")
-    group.add_argument("--partition-from", choices=PARTITION_METHODS, default="products",
-                       help="with three streams: partition from both products y b/(y b + (1-y) c) (default; swapping fine "
-                       "and coarse gives 1 - partition) or from the fine stream over the measured feed y b/a")
+    group.add_argument(
+        "--weight-by-feed-share",
+        action="store_true",
+        help="weight each point by its class's feed share (variance inversely proportional to it)",
+    )
+    group.add_argument(
+        "--partition-from",
+        choices=PARTITION_METHODS,
+        default="products",
+        help="with three streams: partition from both products y b/(y b + (1-y) c) (default; swapping fine "
+        "and coarse gives 1 - partition) or from the fine stream over the measured feed y b/a",
+    )
     group.add_argument("--sep", default=None, help="CSV field separator, e.g. ';' (default: detected from the header)")
     group.add_argument("--decimal", default=None, help="CSV decimal mark, e.g. ',' (default: '.', or ',' when detected)")
-    return lab  # fmt: skip
+    return lab
 
 
 def _lab_options(args) -> LabOptions:
@@ -357,12 +499,24 @@ def _lab_options(args) -> LabOptions:
         if not sep or not old.strip() or not new.strip():
             raise OptionError("--rename", f"takes OLD=NEW pairs separated by commas, got {pair!r}")
         rename[old.strip()] = new.strip()
-    return LabOptions(kind=args.kind, fine_yield=args.fine_yield, coarse_yield=args.coarse_yield,
-                      estimate_yield=args.estimate_yield, reconcile=args.reconcile, min_feed_share=args.min_feed_share,
-                      sum_tolerance_pct=args.sum_tolerance, top_size=args.top_size, pan_lower_size=args.pan_lower_size,
-                      rename=rename, sheet=args.sheet, weight_by_feed_share=args.weight_by_feed_share,
-                      partition_from=args.partition_from, size_unit=getattr(args, "size_unit", None) or None,
-                      sep=args.sep, decimal=args.decimal)  # fmt: skip
+    return LabOptions(
+        kind=args.kind,
+        fine_yield=args.fine_yield,
+        coarse_yield=args.coarse_yield,
+        estimate_yield=args.estimate_yield,
+        reconcile=args.reconcile,
+        min_feed_share=args.min_feed_share,
+        sum_tolerance_pct=args.sum_tolerance,
+        top_size=args.top_size,
+        pan_lower_size=args.pan_lower_size,
+        rename=rename,
+        sheet=args.sheet,
+        weight_by_feed_share=args.weight_by_feed_share,
+        partition_from=args.partition_from,
+        size_unit=getattr(args, "size_unit", None) or None,
+        sep=args.sep,
+        decimal=args.decimal,
+    )
 
 
 def _print_balance_notes(balances) -> None:
@@ -377,8 +531,9 @@ def _run_points(args) -> int:
     check_input_file(args.input)
     check_output_file(args.output, inputs=[args.input])
     balances = read_lab(args.input, _lab_options(args))
-    table = pd.concat([b.points_table(weight_by_feed_share=args.weight_by_feed_share, unit_in_names=True) for b in balances],
-                      ignore_index=True)  # fmt: skip
+    table = pd.concat(
+        [b.points_table(weight_by_feed_share=args.weight_by_feed_share, unit_in_names=True) for b in balances], ignore_index=True
+    )
     table = partition_view(table, args.partition_to)
     args.output.parent.mkdir(parents=True, exist_ok=True)
     written = write_atomically({args.output.name: lambda p: table.to_csv(p, index=False)}, args.output.parent)
@@ -394,16 +549,35 @@ def _run_balance(args) -> int:
     _print_balance_notes(balances)
     for balance in balances:
         estimate = balance.yield_estimate
-        print(f"Experiment {balance.experiment}: fine yield {balance.fine_yield:.4f} ({balance.yield_source}); "
-              f"partition from {PARTITION_METHOD_TEXT[balance.partition_method]}")  # fmt: skip
+        print(
+            f"Experiment {balance.experiment}: fine yield {balance.fine_yield:.4f} ({balance.yield_source}); "
+            f"partition from {PARTITION_METHOD_TEXT[balance.partition_method]}"
+        )
         if estimate is not None:
-            print(f"  least-squares estimate from the three streams: {estimate.value:.4f} +/- {estimate.stderr:.4f} "
-                  f"(standard error, {estimate.n_classes} classes); coarse yield {1 - estimate.value:.4f}")  # fmt: skip
+            print(
+                f"  least-squares estimate from the three streams: {estimate.value:.4f} +/- {estimate.stderr:.4f} "
+                f"(standard error, {estimate.n_classes} classes); coarse yield {1 - estimate.value:.4f}"
+            )
         partition = f"partition_{args.partition_to}"
         classes = partition_view(balance.classes, args.partition_to)
-        columns = [c for c in ("size_lower", "size_upper", "size", "feed", "fine", "coarse", "balance_residual",
-                               "feed_adjusted", "fine_adjusted", "coarse_adjusted", partition, "used")
-                   if c in classes.columns]  # fmt: skip
+        columns = [
+            c
+            for c in (
+                "size_lower",
+                "size_upper",
+                "size",
+                "feed",
+                "fine",
+                "coarse",
+                "balance_residual",
+                "feed_adjusted",
+                "fine_adjusted",
+                "coarse_adjusted",
+                partition,
+                "used",
+            )
+            if c in classes.columns
+        ]
         print(classes[columns].to_string(index=False, float_format=lambda v: f"{v:.4g}", na_rep="-"))
         print()
     return 0
@@ -419,7 +593,9 @@ def _run_sieve_identify(args) -> int:
     written = write_atomically({args.output.name: lambda p: laws.to_csv(p, index=False)}, args.output.parent)
     view = laws[["sieve", "fraction", "n_regimes", "v_k", "v_k_stderr", "sigma", "sigma_stderr", "success"]]
     print(view.to_string(index=False, float_format=lambda v: f"{v:.4g}", na_rep="-"))
-    for sieve, fraction, message in laws.loc[~laws["success"].astype(bool), ["sieve", "fraction", "message"]].itertuples(index=False):
+    for sieve, fraction, message in laws.loc[~laws["success"].astype(bool), ["sieve", "fraction", "message"]].itertuples(
+        index=False
+    ):
         print(f"  not identified: sieve {sieve}, fraction {fraction}: {message}")
     print(f"\nWrote: {written[args.output.name]}")
     return 0
@@ -430,8 +606,10 @@ def _run_sieve_pg(args) -> int:
 
     value = geometric_probability(args.hole, args.length, args.width, args.cell_width / 2, method=args.method)
     closed = closed_form_valid(args.hole, args.length, args.width, args.cell_width / 2)
-    print(f"P_g = {value:.6f}  (D = {args.hole:g}, l = {args.length:g}, d = {args.width:g}, d/l = {args.width / args.length:.3g}, "
-          f"2b = {args.cell_width:g}; closed form {'valid' if closed else 'not valid: quadrature'})")  # fmt: skip
+    print(
+        f"P_g = {value:.6f}  (D = {args.hole:g}, l = {args.length:g}, d = {args.width:g}, d/l = {args.width / args.length:.3g}, "
+        f"2b = {args.cell_width:g}; closed form {'valid' if closed else 'not valid: quadrature'})"
+    )
     return 0
 
 
@@ -440,7 +618,9 @@ def _run_sieve_bin(args) -> int:
 
     for method in ("exact", "normal"):
         design = design_bin(args.decks, args.length, args.recovery, method=method)
-        print(f"{method:>6}: C = {design.c:.4f}, x1 = {design.x1:.4f}, x2 = {design.x2:.4g}, recovery in the bin = {design.recovery:.4f}")
+        print(
+            f"{method:>6}: C = {design.c:.4f}, x1 = {design.x1:.4f}, x2 = {design.x2:.4g}, recovery in the bin = {design.recovery:.4f}"
+        )
     mean, variance = distance_moments(args.decks, design_bin(args.decks, args.length, args.recovery).c)
     print(f"exact mean distance on deck {args.decks}: {mean:.4f}, standard deviation {np.sqrt(variance):.4f}")
     return 0
@@ -448,15 +628,27 @@ def _run_sieve_bin(args) -> int:
 
 def _run_formulas(args) -> int:
     table = registry_table()
-    for family, heading in (("paper", "The nine formulas of Shuvalov et al. (2018)"), ("extended", "Extended curves (--extended)"),
-                            ("other", "Curves of other tools (--formulas other)")):  # fmt: skip
+    for family, heading in (
+        ("paper", "The nine formulas of Shuvalov et al. (2018)"),
+        ("extended", "Extended curves (--extended)"),
+        ("other", "Curves of other tools (--formulas other)"),
+    ):
         print(f"{heading}:")
         for row in table[table["family"] == family].itertuples(index=False):
             extras = f", extras {row.extras}" if row.extras else ""
-            print(textwrap.fill(f"({row.equation}) {row.id}: phi = {row.formula}", width=98, initial_indent="  ",
-                                subsequent_indent="      "))  # fmt: skip
-            print(textwrap.fill(f"shape {row.shape_name}{extras}; slope at the cut {row.slope_at_cut}", width=98,
-                                initial_indent="      ", subsequent_indent="      "))  # fmt: skip
+            print(
+                textwrap.fill(
+                    f"({row.equation}) {row.id}: phi = {row.formula}", width=98, initial_indent="  ", subsequent_indent="      "
+                )
+            )
+            print(
+                textwrap.fill(
+                    f"shape {row.shape_name}{extras}; slope at the cut {row.slope_at_cut}",
+                    width=98,
+                    initial_indent="      ",
+                    subsequent_indent="      ",
+                )
+            )
         print()
     print("Same name, different curve (docs/curves.md):")
     for clash in NAME_CLASHES:
@@ -482,10 +674,19 @@ def _run_fit(args) -> int:
     quiet = getattr(args, "quiet", False)
     with _cluster(args) as client:
         with _progress_bar(len(experiments), "fitting", quiet=quiet) as progress:
-            bench = fit_experiments(experiments, formulas=formulas, alpha=args.alpha, delta_max=args.delta_max,
-                                    rank_by=args.rank_by, rank_extended=args.rank_extended, progress=progress,
-                                    jobs=args.jobs or None, client=client, engine=not args.single_fits,
-                                    size_unit=_data_size_unit(experiments, args.size_unit))  # fmt: skip
+            bench = fit_experiments(
+                experiments,
+                formulas=formulas,
+                alpha=args.alpha,
+                delta_max=args.delta_max,
+                rank_by=args.rank_by,
+                rank_extended=args.rank_extended,
+                progress=progress,
+                jobs=args.jobs or None,
+                client=client,
+                engine=not args.single_fits,
+                size_unit=_data_size_unit(experiments, args.size_unit),
+            )
         failures = failure_table(bench)
         _refuse_if_nothing_fitted(bench, args.input)
         fits, ranking = bench.fits_table(), bench.ranking_table()
@@ -493,8 +694,14 @@ def _run_fit(args) -> int:
             from .uncertainty import interval_columns
 
             with _progress_bar(len(bench.fits), "intervals", quiet=quiet) as progress:
-                intervals = interval_columns(bench.fits, level=args.ci, n_bootstrap=args.bootstrap,
-                                             method=args.bootstrap_method, seed=args.seed, progress=progress)  # fmt: skip
+                intervals = interval_columns(
+                    bench.fits,
+                    level=args.ci,
+                    n_bootstrap=args.bootstrap,
+                    method=args.bootstrap_method,
+                    seed=args.seed,
+                    progress=progress,
+                )
             fits = fits.merge(intervals, on=["experiment", "formula"], how="left")
         averages = model_averages(bench, level=args.ci or 0.95, jobs=args.jobs or None, client=client)
     fits = partition_view(fits, args.partition_to)
@@ -516,7 +723,7 @@ def _run_fit(args) -> int:
         print(ranking.to_string(index=False))
     print("\nWrote:")
     paths = list(written.values())
-    for path in paths[:AUTO_FIGURE_LIMIT + 3]:
+    for path in paths[: AUTO_FIGURE_LIMIT + 3]:
         print(f"  {path}")
     if len(paths) > AUTO_FIGURE_LIMIT + 3:
         print(f"  ... and {len(paths) - AUTO_FIGURE_LIMIT - 3} more files in {args.outdir}")
@@ -526,8 +733,11 @@ def _run_fit(args) -> int:
 def failure_table(bench) -> pd.DataFrame:
     """``experiment, formula, reason`` of every experiment or formula that could not be fitted."""
     rows = [{"experiment": e, "formula": "", "reason": reason} for e, reason in bench.failures.items()]
-    rows += [{"experiment": fit.experiment, "formula": fit.formula.id, "reason": fit.fit.message or "the fit failed"}
-             for fit in bench.fits if not fit.success]  # fmt: skip
+    rows += [
+        {"experiment": fit.experiment, "formula": fit.formula.id, "reason": fit.fit.message or "the fit failed"}
+        for fit in bench.fits
+        if not fit.success
+    ]
     return pd.DataFrame(rows, columns=["experiment", "formula", "reason"])
 
 
@@ -546,8 +756,7 @@ def _report_failures(failures: pd.DataFrame, *, listed_in: str = "failures.csv")
     """Exit code 3 with the failures on standard error when some fits failed, else 0."""
     if failures.empty:
         return EXIT_OK
-    print(f"tromplab: partial result: {len(failures)} experiment(s) or fit(s) failed (listed in {listed_in}):",
-          file=sys.stderr)  # fmt: skip
+    print(f"tromplab: partial result: {len(failures)} experiment(s) or fit(s) failed (listed in {listed_in}):", file=sys.stderr)
     for row in failures.itertuples(index=False):
         what = f"{row.experiment} / {row.formula}" if row.formula else row.experiment
         print("  " + textwrap.shorten(f"{what}: {row.reason}", width=160), file=sys.stderr)
@@ -620,8 +829,9 @@ class _progress_bar:
             from tqdm import tqdm
         except ImportError:
             return print_progress
-        self.bar = tqdm(total=self.total, desc=self.what, unit="exp" if self.what == "fitting" else "fit", file=sys.stderr,
-                        dynamic_ncols=True)  # fmt: skip
+        self.bar = tqdm(
+            total=self.total, desc=self.what, unit="exp" if self.what == "fitting" else "fit", file=sys.stderr, dynamic_ncols=True
+        )
 
         def update(done, total, label):
             self.bar.update(done - self.bar.n)
@@ -632,6 +842,8 @@ class _progress_bar:
         if self.bar is not None:
             self.bar.close()
         return False
+
+
 def _data_size_unit(experiments, fallback: str) -> str:
     """The unit the loader found (column suffix, else --size-unit), for labels."""
     units = {p.size_unit for p in experiments if p.size_unit}
@@ -652,13 +864,27 @@ def _run_report(args) -> int:
     check_input_file(args.input)
     check_output_file(args.output, inputs=[args.input])
     experiments, balances = read_experiments(args.input, _lab_options(args))
-    bench = fit_experiments(experiments, formulas=formulas, alpha=args.alpha, delta_max=args.delta_max, rank_by=args.rank_by,
-                            rank_extended=args.rank_extended, progress=_progress,
-                            size_unit=_data_size_unit(experiments, args.size_unit))  # fmt: skip
+    bench = fit_experiments(
+        experiments,
+        formulas=formulas,
+        alpha=args.alpha,
+        delta_max=args.delta_max,
+        rank_by=args.rank_by,
+        rank_extended=args.rank_extended,
+        progress=_progress,
+        size_unit=_data_size_unit(experiments, args.size_unit),
+    )
     failures = failure_table(bench)
     _refuse_if_nothing_fitted(bench, args.input)
-    report = build_report(bench, balances, source=str(args.input), level=args.ci, size_unit=_data_size_unit(experiments, args.size_unit),
-                          title=args.title, partition_to=args.partition_to)  # fmt: skip
+    report = build_report(
+        bench,
+        balances,
+        source=str(args.input),
+        level=args.ci,
+        size_unit=_data_size_unit(experiments, args.size_unit),
+        title=args.title,
+        partition_to=args.partition_to,
+    )
     args.output.parent.mkdir(parents=True, exist_ok=True)
     written = write_report(report, args.output)
     print("Wrote:")
@@ -677,8 +903,10 @@ def _run_compare(args) -> int:
         known = {p.experiment: p for p in experiments}
         missing = [e for e in wanted if e not in known]
         if missing:
-            raise InputError(f"--experiments names unknown experiment(s) {', '.join(missing)}; the file has {', '.join(known)}",
-                             source=str(args.input))  # fmt: skip
+            raise InputError(
+                f"--experiments names unknown experiment(s) {', '.join(missing)}; the file has {', '.join(known)}",
+                source=str(args.input),
+            )
         experiments = [known[e] for e in wanted]
     try:
         formula = get_formula(args.formula)
@@ -688,8 +916,10 @@ def _run_compare(args) -> int:
     print(result.table().to_string(index=False, float_format=lambda v: f"{v:.4g}"))
     test = result.test
     verdict = "differ" if test.needed() else "are consistent with one"
-    print(f"\nExtra sum of squares: F = {test.F:.4g} on ({test.df_extra}, {test.df_full}) df, p = {test.p_value:.4g}: "
-          f"the experiments {verdict} {result.shared} (alpha 0.05)")  # fmt: skip
+    print(
+        f"\nExtra sum of squares: F = {test.F:.4g} on ({test.df_extra}, {test.df_full}) df, p = {test.p_value:.4g}: "
+        f"the experiments {verdict} {result.shared} (alpha 0.05)"
+    )
     return 0
 
 
@@ -737,8 +967,13 @@ def _run_rank(args) -> int:
 
 
 #: Console words for the residual verdict (fits.csv column ``residuals``).
-RESIDUAL_WORDS = {"random": "random", "exact": "exact", "systematic": "SYSTEMATIC", "not normal": "NOT NORMAL",
-                  "systematic, not normal": "SYST.+NOT NORM."}  # fmt: skip
+RESIDUAL_WORDS = {
+    "random": "random",
+    "exact": "exact",
+    "systematic": "SYSTEMATIC",
+    "not normal": "NOT NORMAL",
+    "systematic, not normal": "SYST.+NOT NORM.",
+}
 
 
 def format_fits(fits: pd.DataFrame, verdicts: dict[str, list[str]] | None = None, *, rank_by: str = "F") -> str:
@@ -757,7 +992,9 @@ def format_fits(fits: pd.DataFrame, verdicts: dict[str, list[str]] | None = None
     if rank_by == "aicc":
         columns[columns.index("F_crit")] = "aicc"
     kind = "" if "d_cut_low" in fits.columns else "_boot"  # --ci intervals, else the bootstrap's
-    intervals = [f"{q}{kind}_{end}" for q in ("d_cut", "shape", "ep") for end in ("low", "high") if f"{q}{kind}_{end}" in fits.columns]
+    intervals = [
+        f"{q}{kind}_{end}" for q in ("d_cut", "shape", "ep") for end in ("low", "high") if f"{q}{kind}_{end}" in fits.columns
+    ]
     blocks = []
     for experiment, group in fits.groupby("experiment", sort=False):
         if not group["success"].any():
@@ -776,7 +1013,9 @@ def format_fits(fits: pd.DataFrame, verdicts: dict[str, list[str]] | None = None
         for statement in (verdicts or {}).get(experiment, []):
             blocks.append(textwrap.fill(statement, width=98, initial_indent="  ! ", subsequent_indent="    "))
         if intervals:
-            bounds = ordered[["formula", "d_cut", *intervals]].rename(columns=lambda c: re.sub(r"(_boot)?_(low|high)$", r" \2", c))
+            bounds = ordered[["formula", "d_cut", *intervals]].rename(
+                columns=lambda c: re.sub(r"(_boot)?_(low|high)$", r" \2", c)
+            )
             title = "  intervals:" if kind == "" else "  bootstrap intervals:"
             blocks.append(f"{title}\n" + bounds.to_string(index=False, float_format=lambda v: f"{v:.4g}", na_rep="-"))
         for formula, success, message, warned in group[["formula", "success", "message", "warnings"]].itertuples(index=False):
@@ -837,12 +1076,20 @@ def _write_fit_outputs(args, bench, experiments, balances, fits, ranking, averag
     if only_workbook or args.excel:
         if balances:
             balance = pd.concat([b.classes for b in balances], ignore_index=True)
-            points = pd.concat([b.points_table(weight_by_feed_share=args.weight_by_feed_share) for b in balances], ignore_index=True)
+            points = pd.concat(
+                [b.points_table(weight_by_feed_share=args.weight_by_feed_share) for b in balances], ignore_index=True
+            )
         else:
             balance, points = pd.DataFrame(), pd.concat([p.to_frame() for p in experiments], ignore_index=True)
-        sheets = {**tables, "balance": partition_view(balance, args.partition_to), "points": partition_view(points, args.partition_to)}
-        notes = {"balance": "no mass balance: the input holds Tromp points, not a lab table",
-                 "averages": "no model average: no experiment has a successful fit"}  # fmt: skip
+        sheets = {
+            **tables,
+            "balance": partition_view(balance, args.partition_to),
+            "points": partition_view(points, args.partition_to),
+        }
+        notes = {
+            "balance": "no mass balance: the input holds Tromp points, not a lab table",
+            "averages": "no model average: no experiment has a successful fit",
+        }
 
         def workbook(path):
             write_workbook(path, sheets, figures=figures, size_unit=size_unit, notes=notes)

@@ -105,13 +105,15 @@ class SharedFit:
         rows = []
         for i, (name, separate) in enumerate(zip(self.experiments, self.separate)):
             free = "d_cut" if self.shared == shape else shape
-            rows.append({
-                "experiment": name,
-                f"shared_{self.shared}": self.fit.values[self.shared],
-                f"{free}_joint": self.fit.values[f"{free}_{i}"],
-                f"{free}_separate": separate.fit.values[free],
-                f"{self.shared}_separate": separate.fit.values[self.shared],
-            })  # fmt: skip
+            rows.append(
+                {
+                    "experiment": name,
+                    f"shared_{self.shared}": self.fit.values[self.shared],
+                    f"{free}_joint": self.fit.values[f"{free}_{i}"],
+                    f"{free}_separate": separate.fit.values[free],
+                    f"{self.shared}_separate": separate.fit.values[self.shared],
+                }
+            )
         return pd.DataFrame(rows)
 
 

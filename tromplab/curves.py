@@ -65,8 +65,15 @@ class FitOptions:
     global_search: bool = True
 
     @classmethod
-    def for_points(cls, points: TrompPoints, *, alpha: float = DEFAULT_ALPHA, delta_max: float | None = None,
-                   size_unit: str = "", global_search: bool = True) -> FitOptions:  # fmt: skip
+    def for_points(
+        cls,
+        points: TrompPoints,
+        *,
+        alpha: float = DEFAULT_ALPHA,
+        delta_max: float | None = None,
+        size_unit: str = "",
+        global_search: bool = True,
+    ) -> FitOptions:
         """Options resolved against ``points`` (``delta_max`` and weights filled in)."""
         if not 0.0 < alpha < 1.0:
             raise ValueError(f"alpha must lie in (0, 1), got {alpha}")
@@ -152,8 +159,13 @@ class CurveFit:
         """Fisher screen at the recorded ``alpha`` and weights (None for a failed fit)."""
         if not self.success:
             return None
-        return fisher_screen(self.points.partition_fine, self.fit.ssr, alpha=self.options.alpha, n_params=self.formula.n_params,
-                             weights=self.options.weights)  # fmt: skip
+        return fisher_screen(
+            self.points.partition_fine,
+            self.fit.ssr,
+            alpha=self.options.alpha,
+            n_params=self.formula.n_params,
+            weights=self.options.weights,
+        )
 
     @cached_property
     def indices(self) -> CurveIndices | None:
@@ -161,13 +173,24 @@ class CurveFit:
         if not self.success:
             return None
         d_cut, shape, extras = self.curve_arguments()
-        return curve_indices(self.formula, d_cut, shape, delta_max=self.options.delta_max,
-                             measured_sizes=(self.points.size.min(), self.points.size.max()), **self.context, **extras)  # fmt: skip
+        return curve_indices(
+            self.formula,
+            d_cut,
+            shape,
+            delta_max=self.options.delta_max,
+            measured_sizes=(self.points.size.min(), self.points.size.max()),
+            **self.context,
+            **extras,
+        )
 
     @cached_property
     def diagnostics(self) -> ResidualDiagnostics | None:
         """Runs and normality tests of the residuals (None for a failed fit)."""
-        return residual_diagnostics(self.fit.residual, alpha=self.options.alpha) if self.success and self.fit.residual is not None else None
+        return (
+            residual_diagnostics(self.fit.residual, alpha=self.options.alpha)
+            if self.success and self.fit.residual is not None
+            else None
+        )
 
     @cached_property
     def x_break(self) -> float:
@@ -188,8 +211,10 @@ class CurveFit:
                 bound = spec.lower if np.isclose(value, spec.lower) else spec.upper
                 on_shape_floor = spec.name == self.formula.shape_name and bound == spec.lower and self.formula.lower_bound_reason
                 reason = f" ({self.formula.lower_bound_reason})" if on_shape_floor else ""
-                warnings.append(f"{spec.name} = {value:.4g} at its bound {bound:g}: the unconstrained optimum lies beyond "
-                                f"it{reason} and the standard error is unreliable")  # fmt: skip
+                warnings.append(
+                    f"{spec.name} = {value:.4g} at its bound {bound:g}: the unconstrained optimum lies beyond "
+                    f"it{reason} and the standard error is unreliable"
+                )
         if self.formula.context_from_efficiency:
             warnings += _break_point(self.shape, self.context["measured_efficiency"])[1]
         if self.formula.extras:
@@ -199,11 +224,13 @@ class CurveFit:
                 warnings.append(f"the fitted curve exceeds 1 (maximum {peak:.3f}): not a physical partition")
         diagnostics = self.diagnostics
         if self.screen.adequate and diagnostics is not None and diagnostics.systematic:
-            warnings.append(f"{RESIDUAL_WARNING} are systematic ({diagnostics.n_runs} runs of signs, "
-                            f"runs test p = {diagnostics.runs_p:.3f})")  # fmt: skip
+            warnings.append(
+                f"{RESIDUAL_WARNING} are systematic ({diagnostics.n_runs} runs of signs, runs test p = {diagnostics.runs_p:.3f})"
+            )
         if self.screen.adequate and diagnostics is not None and diagnostics.non_normal:
-            warnings.append(f"{RESIDUAL_WARNING} are not normal (Shapiro-Wilk p = {diagnostics.normality_p:.2g}), "
-                            "as the F test assumes")  # fmt: skip
+            warnings.append(
+                f"{RESIDUAL_WARNING} are not normal (Shapiro-Wilk p = {diagnostics.normality_p:.2g}), as the F test assumes"
+            )
         return tuple(warnings)
 
     def row(self) -> dict:
@@ -421,8 +448,15 @@ def formula_context(formula: Formula, points: TrompPoints) -> dict[str, float]:
     return {}
 
 
-def failed_fit(points: TrompPoints, formula, message: str, *, alpha: float = DEFAULT_ALPHA, delta_max: float | None = None,
-               size_unit: str = "") -> CurveFit:  # fmt: skip
+def failed_fit(
+    points: TrompPoints,
+    formula,
+    message: str,
+    *,
+    alpha: float = DEFAULT_ALPHA,
+    delta_max: float | None = None,
+    size_unit: str = "",
+) -> CurveFit:
     """A failed :class:`CurveFit` of ``formula``: every parameter and extra nan, ``message`` saying why."""
     formula = get_formula(formula)
     try:
@@ -441,8 +475,15 @@ def with_lmfit(fit: CurveFit) -> CurveFit:
     if not fit.success or fit.fit.minimizer is not None:
         return fit
     options = fit.options
-    polished = fit_formula(fit.points, fit.formula, alpha=options.alpha, delta_max=options.delta_max,
-                           size_unit=options.size_unit, global_search=False, starts=[dict(fit.fit.values)])  # fmt: skip
+    polished = fit_formula(
+        fit.points,
+        fit.formula,
+        alpha=options.alpha,
+        delta_max=options.delta_max,
+        size_unit=options.size_unit,
+        global_search=False,
+        starts=[dict(fit.fit.values)],
+    )
     if not polished.success or polished.fit.ssr > fit.fit.ssr * (1 + 1e-9):
         return fit
     return replace(fit, fit=polished.fit)

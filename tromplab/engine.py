@@ -302,7 +302,9 @@ def _ssr(residual: np.ndarray) -> np.ndarray:
 def _grid_starts(problem: _Problem, start_cut: np.ndarray, extra_start: np.ndarray):
     """Best ``GRID_STARTS`` profiled grid points per experiment and the grid minimum."""
     formula, data = problem.formula, problem.data
-    slopes, n_starts = (PIECEWISE_GRID_SLOPES, PIECEWISE_GRID_STARTS) if formula.id in PIECEWISE else (ENGINE_GRID_SLOPES, GRID_STARTS)
+    slopes, n_starts = (
+        (PIECEWISE_GRID_SLOPES, PIECEWISE_GRID_STARTS) if formula.id in PIECEWISE else (ENGINE_GRID_SLOPES, GRID_STARTS)
+    )
     shapes = np.array(sorted({formula.clip_shape(formula.shape_for_slope(s)) for s in slopes}))
     count, n_shapes = len(data), shapes.size
     low, high = problem.lower[:, 0], problem.upper[:, 0]
@@ -319,11 +321,13 @@ def _grid_starts(problem: _Problem, start_cut: np.ndarray, extra_start: np.ndarr
         cuts = span_low[block, None] + fractions * (span_high - span_low)[block, None]
         cuts = np.concatenate([cuts, start_cut[block, None]], axis=1)  # (b, C)
         rows = np.repeat(block, n_shapes * cuts.shape[1])
-        params = np.column_stack([
-            cuts[:, None, :].repeat(n_shapes, axis=1).ravel(),
-            np.broadcast_to(shapes[None, :, None], (block.size, n_shapes, cuts.shape[1])).ravel(),
-            *[np.full(rows.size, value) for value in extra_start],
-        ])  # fmt: skip
+        params = np.column_stack(
+            [
+                cuts[:, None, :].repeat(n_shapes, axis=1).ravel(),
+                np.broadcast_to(shapes[None, :, None], (block.size, n_shapes, cuts.shape[1])).ravel(),
+                *[np.full(rows.size, value) for value in extra_start],
+            ]
+        )
         per_shape = np.column_stack([np.zeros(block.size * n_shapes), np.tile(shapes, block.size)])
         x_break = problem.breaks(per_shape, np.repeat(block, n_shapes))
         x_break = None if x_break is None else np.repeat(x_break, cuts.shape[1], axis=0)
@@ -373,8 +377,14 @@ def _grid_starts(problem: _Problem, start_cut: np.ndarray, extra_start: np.ndarr
     return cut, shape, best_ssr.min(axis=1)
 
 
-def levenberg_marquardt(problem: _Problem, params: np.ndarray, rows: np.ndarray, *, max_iterations: int = MAX_ITERATIONS,
-                        relative_step: float = 1.5e-8):  # fmt: skip
+def levenberg_marquardt(
+    problem: _Problem,
+    params: np.ndarray,
+    rows: np.ndarray,
+    *,
+    max_iterations: int = MAX_ITERATIONS,
+    relative_step: float = 1.5e-8,
+):
     """Projected Levenberg-Marquardt on every row at once.
 
     Returns ``(params, ssr, nfev)`` per row.  A row stops when an accepted step lowers its
@@ -437,8 +447,9 @@ def levenberg_marquardt(problem: _Problem, params: np.ndarray, rows: np.ndarray,
     return params, ssr, nfev
 
 
-def compass_search(problem: _Problem, params: np.ndarray, rows: np.ndarray, *, first_step: float = 1e-2,
-                   last_step: float = 1e-11):  # fmt: skip
+def compass_search(
+    problem: _Problem, params: np.ndarray, rows: np.ndarray, *, first_step: float = 1e-2, last_step: float = 1e-11
+):
     """Derivative-free descent for the kinks of the piecewise formulas, on every row at once.
 
     Tries steps along each parameter and along the two diagonals of ``(ln d_cut, shape)``
@@ -448,7 +459,10 @@ def compass_search(problem: _Problem, params: np.ndarray, rows: np.ndarray, *, f
     """
     lower, upper = problem.lower[rows], problem.upper[rows]
     n_params = params.shape[1]
-    directions = [row for row in np.eye(n_params)] + [np.r_[1.0, 1.0, np.zeros(n_params - 2)], np.r_[1.0, -1.0, np.zeros(n_params - 2)]]
+    directions = [row for row in np.eye(n_params)] + [
+        np.r_[1.0, 1.0, np.zeros(n_params - 2)],
+        np.r_[1.0, -1.0, np.zeros(n_params - 2)],
+    ]
     directions = np.array(directions + [-d for d in directions])
     params = params.copy()
     ssr = _ssr(problem.residual(params, rows))
@@ -573,9 +587,16 @@ def _covariance(jac: np.ndarray, ssr: np.ndarray, n: np.ndarray, n_params: int) 
 
 
 # --- from the batched optimum to CurveFit results ----------------------------------------------
-def fit_formula_batch(experiments: Sequence[TrompPoints], formula, *, alpha: float | None = None,
-                      delta_max: float | None = None, global_search: bool = True,
-                      start: dict[str, float] | None = None, size_unit: str = "") -> list:  # fmt: skip
+def fit_formula_batch(
+    experiments: Sequence[TrompPoints],
+    formula,
+    *,
+    alpha: float | None = None,
+    delta_max: float | None = None,
+    global_search: bool = True,
+    start: dict[str, float] | None = None,
+    size_unit: str = "",
+) -> list:
     """:func:`tromplab.curves.fit_formula` for many experiments at once.
 
     Returns one :class:`~tromplab.curves.CurveFit` per experiment, in order, with the same
@@ -614,10 +635,17 @@ def fit_formula_batch(experiments: Sequence[TrompPoints], formula, *, alpha: flo
     optimum = fit_batch(formula, data, starts=starts, efficiency=efficiency, global_search=global_search)
     stderr = optimum.stderr()
     for row, (i, points) in enumerate(zip(usable, chosen)):
-        options = FitOptions.for_points(points, alpha=alpha, delta_max=delta_max, size_unit=size_unit,
-                                        global_search=global_search)  # fmt: skip
-        results[i] = CurveFit(formula=formula, points=points, fit=_parameter_fit(optimum, row, stderr[row], points),
-                              context=contexts[row], options=options, grid_ssr=float(optimum.grid_ssr[row]))  # fmt: skip
+        options = FitOptions.for_points(
+            points, alpha=alpha, delta_max=delta_max, size_unit=size_unit, global_search=global_search
+        )
+        results[i] = CurveFit(
+            formula=formula,
+            points=points,
+            fit=_parameter_fit(optimum, row, stderr[row], points),
+            context=contexts[row],
+            options=options,
+            grid_ssr=float(optimum.grid_ssr[row]),
+        )
     return results
 
 
@@ -671,11 +699,14 @@ def check_bootstrap_request(n_resamples: int, *, n_fits: int) -> float:
     seconds = refits * SECONDS_PER_BOOTSTRAP_REFIT
     estimate = f"{refits:,} refits, about {_duration(seconds)} on one core"
     if n_resamples > MAX_BOOTSTRAP_RESAMPLES:
-        raise ValueError(f"--bootstrap {n_resamples:,} is more than the {MAX_BOOTSTRAP_RESAMPLES:,} resamples "
-                         f"percentile intervals need ({estimate}); 1,000-2,000 are usual")  # fmt: skip
+        raise ValueError(
+            f"--bootstrap {n_resamples:,} is more than the {MAX_BOOTSTRAP_RESAMPLES:,} resamples "
+            f"percentile intervals need ({estimate}); 1,000-2,000 are usual"
+        )
     if refits > MAX_BOOTSTRAP_REFITS:
-        raise ValueError(f"--bootstrap {n_resamples:,} on {n_fits:,} fits means {estimate}; use fewer resamples or "
-                         "fewer formulas")  # fmt: skip
+        raise ValueError(
+            f"--bootstrap {n_resamples:,} on {n_fits:,} fits means {estimate}; use fewer resamples or fewer formulas"
+        )
     return seconds
 
 
@@ -700,7 +731,24 @@ def refit_resamples(fit, samples: Sequence[TrompPoints], *, delta_max: float | N
     delta_max = options.delta_max if delta_max is None else delta_max
     start = dict(fit.fit.values)
     if is_batchable(fit.formula):
-        return fit_formula_batch(samples, fit.formula, alpha=options.alpha, delta_max=delta_max, global_search=False,
-                                 start=start, size_unit=options.size_unit)  # fmt: skip
-    return [fit_formula(sample, fit.formula, alpha=options.alpha, delta_max=delta_max, global_search=False, starts=[start],
-                        size_unit=options.size_unit) for sample in samples]  # fmt: skip
+        return fit_formula_batch(
+            samples,
+            fit.formula,
+            alpha=options.alpha,
+            delta_max=delta_max,
+            global_search=False,
+            start=start,
+            size_unit=options.size_unit,
+        )
+    return [
+        fit_formula(
+            sample,
+            fit.formula,
+            alpha=options.alpha,
+            delta_max=delta_max,
+            global_search=False,
+            starts=[start],
+            size_unit=options.size_unit,
+        )
+        for sample in samples
+    ]

@@ -133,10 +133,14 @@ def _whiten(fit: FittedCurve, scale: float) -> dict | None:
         return None
     curve = get_formula("whiten")
     return {
-        "alpha": alpha, "beta": beta, "beta_star": whiten_beta_star(alpha, beta), "d50c": fit.d_cut * scale,
-        "C": 1.0 - bypass, "Rf_pct": 100.0 * bypass,
+        "alpha": alpha,
+        "beta": beta,
+        "beta_star": whiten_beta_star(alpha, beta),
+        "d50c": fit.d_cut * scale,
+        "C": 1.0 - bypass,
+        "Rf_pct": 100.0 * bypass,
         "d50": _actual_cut(lambda x: curve.phi(x, alpha, bypass=bypass, fishhook=beta)) * fit.d_cut * scale,
-    }  # fmt: skip
+    }
 
 
 def _plitt(fit: FittedCurve, scale: float) -> dict | None:
@@ -146,9 +150,12 @@ def _plitt(fit: FittedCurve, scale: float) -> dict | None:
     d50c = fit.d_cut * (PLITT_LN2 / LN2) ** (1.0 / m)
     curve = get_formula("rosin_rammler")
     return {
-        "d50c": d50c * scale, "m": m, "Rf_pct": 100.0 * bypass, "d50c_ln2": fit.d_cut * scale,
+        "d50c": d50c * scale,
+        "m": m,
+        "Rf_pct": 100.0 * bypass,
+        "d50c_ln2": fit.d_cut * scale,
         "d50": _actual_cut(lambda x: (1.0 - bypass) * curve.phi(x, m)) * fit.d_cut * scale,
-    }  # fmt: skip
+    }
 
 
 def _dyssol(fit: FittedCurve, scale: float) -> dict | None:
@@ -259,7 +266,14 @@ def _long_table(fits, size_unit) -> pd.DataFrame:
         meanings.setdefault(formula.shape_name, f"shape parameter of {formula.title}")
         for name, value in values.items():
             sized = name in ("d_cut", "sigma", "ep")
-            rows.append({"experiment": fit.experiment, "formula": fit.formula, "parameter": name, "value": value,
-                         "unit": (size_unit or "size unit of the fit") if sized else "-",
-                         "meaning": meanings.get(name, "")})  # fmt: skip
+            rows.append(
+                {
+                    "experiment": fit.experiment,
+                    "formula": fit.formula,
+                    "parameter": name,
+                    "value": value,
+                    "unit": (size_unit or "size unit of the fit") if sized else "-",
+                    "meaning": meanings.get(name, ""),
+                }
+            )
     return pd.DataFrame(rows, columns=["experiment", "formula", "parameter", "value", "unit", "meaning"])

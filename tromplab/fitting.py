@@ -119,7 +119,10 @@ class ParameterFit:
         if dof <= 0:
             return {name: (np.nan, np.nan) for name in self.names}
         half = stats.t.ppf(0.5 + level / 2.0, dof)
-        return {name: (self.values[name] - half * self.stderr[name], self.values[name] + half * self.stderr[name]) for name in self.names}
+        return {
+            name: (self.values[name] - half * self.stderr[name], self.values[name] + half * self.stderr[name])
+            for name in self.names
+        }
 
     def profile_intervals(self, level: float = 0.95, names: Sequence[str] | None = None) -> dict[str, tuple[float, float]]:
         """Profile-likelihood intervals from lmfit's ``conf_interval`` (F test on the sum of squares).
@@ -144,7 +147,10 @@ class ParameterFit:
             rows = table[name]
             low, high = rows[0][1], rows[-1][1]
             usable = name not in unreliable
-            out[name] = (float(low) if usable and np.isfinite(low) else np.nan, float(high) if usable and np.isfinite(high) else np.nan)
+            out[name] = (
+                float(low) if usable and np.isfinite(low) else np.nan,
+                float(high) if usable and np.isfinite(high) else np.nan,
+            )
         return out
 
     @classmethod
@@ -270,10 +276,42 @@ def expression_function(expression: str, variables: Sequence[str]) -> tuple[Call
 
 
 #: numpy functions and constants an expression may use (:func:`expression_function`).
-EXPRESSION_FUNCTIONS = ("exp", "expm1", "log", "log10", "log1p", "sqrt", "abs", "sin", "cos", "tan", "arctan", "sinh", "cosh",
-                        "tanh", "power", "minimum", "maximum", "pi")  # fmt: skip
-_EXPRESSION_NODES = (ast.Expression, ast.BinOp, ast.UnaryOp, ast.Add, ast.Sub, ast.Mult, ast.Div, ast.Pow, ast.USub,
-                     ast.UAdd, ast.Constant, ast.Name, ast.Load, ast.Call)  # fmt: skip
+EXPRESSION_FUNCTIONS = (
+    "exp",
+    "expm1",
+    "log",
+    "log10",
+    "log1p",
+    "sqrt",
+    "abs",
+    "sin",
+    "cos",
+    "tan",
+    "arctan",
+    "sinh",
+    "cosh",
+    "tanh",
+    "power",
+    "minimum",
+    "maximum",
+    "pi",
+)
+_EXPRESSION_NODES = (
+    ast.Expression,
+    ast.BinOp,
+    ast.UnaryOp,
+    ast.Add,
+    ast.Sub,
+    ast.Mult,
+    ast.Div,
+    ast.Pow,
+    ast.USub,
+    ast.UAdd,
+    ast.Constant,
+    ast.Name,
+    ast.Load,
+    ast.Call,
+)
 
 
 def _checked_expression_names(expression: str, variables: Sequence[str]) -> tuple[str, ...]:
@@ -287,15 +325,19 @@ def _checked_expression_names(expression: str, variables: Sequence[str]) -> tupl
     names = []
     for node in ast.walk(tree):
         if not isinstance(node, _EXPRESSION_NODES):
-            raise InputError(f"the expression {expression!r} may use only arithmetic, numbers, the variables "
-                             f"{', '.join(variables)} and the functions {', '.join(EXPRESSION_FUNCTIONS)}; "
-                             f"'{ast.unparse(node) if isinstance(node, ast.expr) else type(node).__name__}' is not allowed")  # fmt: skip
+            raise InputError(
+                f"the expression {expression!r} may use only arithmetic, numbers, the variables "
+                f"{', '.join(variables)} and the functions {', '.join(EXPRESSION_FUNCTIONS)}; "
+                f"'{ast.unparse(node) if isinstance(node, ast.expr) else type(node).__name__}' is not allowed"
+            )
         if isinstance(node, ast.Constant) and (isinstance(node.value, bool) or not isinstance(node.value, (int, float))):
             raise InputError(f"the expression {expression!r} may hold only numbers as constants, not {node.value!r}")
         if isinstance(node, ast.Call):
             if not (isinstance(node.func, ast.Name) and node.func.id in EXPRESSION_FUNCTIONS) or node.keywords:
-                raise InputError(f"the expression {expression!r} calls '{ast.unparse(node.func)}'; allowed functions: "
-                                 f"{', '.join(EXPRESSION_FUNCTIONS)} (positional arguments only)")  # fmt: skip
+                raise InputError(
+                    f"the expression {expression!r} calls '{ast.unparse(node.func)}'; allowed functions: "
+                    f"{', '.join(EXPRESSION_FUNCTIONS)} (positional arguments only)"
+                )
         if isinstance(node, ast.Name):
             if node.id.startswith("_"):
                 raise InputError(f"the expression {expression!r} uses the name '{node.id}'; names may not start with '_'")

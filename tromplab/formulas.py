@@ -576,9 +576,7 @@ def shuvalov_break(kr: float, measured_efficiency: float) -> float:
         raise NoBreakPointError(kr, measured_efficiency, eta_plain)
     if measured_efficiency == eta_plain:
         return 0.0
-    return optimize.brentq(
-        lambda xa: _plateau_efficiency(kr, 1.0, xa)[0] - measured_efficiency, 0.0, 1.0, xtol=1e-14
-    )
+    return optimize.brentq(lambda xa: _plateau_efficiency(kr, 1.0, xa)[0] - measured_efficiency, 0.0, 1.0, xtol=1e-14)
 
 
 class NoBreakPointError(ValueError):
@@ -687,8 +685,20 @@ def _in(source: str, equation: int) -> str:
     return f"{source}; as formula ({equation}) in {SHUVALOV_2018}"
 
 
-def with_plateau(base: Formula, *, id: str, equation: int, title: str, phi, break_text: str, citation: str, notes: str,
-                 efficiency=None, context_from_efficiency: bool = False, defaults=None) -> Formula:  # fmt: skip
+def with_plateau(
+    base: Formula,
+    *,
+    id: str,
+    equation: int,
+    title: str,
+    phi,
+    break_text: str,
+    citation: str,
+    notes: str,
+    efficiency=None,
+    context_from_efficiency: bool = False,
+    defaults=None,
+) -> Formula:
     """``base`` above a break ``x_b``, held at its value there below (formulas (10) and (11)).
 
     The shape, its bounds, the slope at the cut (``x_b < 1``) and the expression are the
@@ -872,10 +882,24 @@ NAPIER_MUNN_1996 = (
 )
 PLITT_1976 = "Plitt L.R. (1976). A mathematical model of the hydrocyclone classifier. CIM Bulletin 69(776), 114-123"
 KELSALL_1953 = "Kelsall D.F. (1953). A further study of the hydraulic cyclone. Chem. Eng. Sci. 2, 254-272 (bypass correction)"
-BYPASS = Parameter("bypass", 0.0, 0.95, unit="1", meaning="share of every size sent to the coarse product unclassified",
-                   start=0.05, start_rule="fixed at 0.05")  # fmt: skip
-FISHHOOK = Parameter("fishhook", 0.0, 3.0, unit="1", meaning="Whiten's beta: rise of the fines partition at small sizes",
-                     start=0.1, start_rule="fixed at 0.1")  # fmt: skip
+BYPASS = Parameter(
+    "bypass",
+    0.0,
+    0.95,
+    unit="1",
+    meaning="share of every size sent to the coarse product unclassified",
+    start=0.05,
+    start_rule="fixed at 0.05",
+)
+FISHHOOK = Parameter(
+    "fishhook",
+    0.0,
+    3.0,
+    unit="1",
+    meaning="Whiten's beta: rise of the fines partition at small sizes",
+    start=0.1,
+    start_rule="fixed at 0.1",
+)
 
 
 def with_bypass(base: Formula, *, equation: int, citation: str, family: str = "extended") -> Formula:
@@ -1043,7 +1067,10 @@ DYSSOL_2020 = (
 )
 KING_2001 = "King R.P. (2001). Modeling and Simulation of Mineral Processing Systems. Butterworth-Heinemann, Oxford (ch. 5, classification functions)"
 TEIPEL_HENNIG_ALPHA = ExtraParameter(
-    "th_alpha", (0.0, 50.0), 1.0, "Teipel/Hennig alpha: the exponent is (x + alpha) beta, written here as k (x + alpha)/(1 + alpha)"
+    "th_alpha",
+    (0.0, 50.0),
+    1.0,
+    "Teipel/Hennig alpha: the exponent is (x + alpha) beta, written here as k (x + alpha)/(1 + alpha)",
 )
 
 
@@ -1240,8 +1267,9 @@ OTHER_FORMULAS: tuple[Formula, ...] = (
         shape_meaning="exponent of x at the cut, (1 + alpha) beta: larger, sharper cut",
     ),
     # Plitt's (1976) hydrocyclone curve: the Rosin-Rammler form with bypass, as simulators write "Plitt".
-    with_bypass(_BASE["rosin_rammler"], equation=105, citation=PLITT_1976 + " (corrected efficiency with bypass Rf)",
-                family="other"),  # fmt: skip
+    with_bypass(
+        _BASE["rosin_rammler"], equation=105, citation=PLITT_1976 + " (corrected efficiency with bypass Rf)", family="other"
+    ),
 )
 
 #: Names that mean different curves in different tools (printed by ``tromplab formulas``).
@@ -1283,8 +1311,15 @@ def evaluate_expression(text: str, values: Mapping[str, object], functions: Mapp
     from asteval import Interpreter
 
     if functions is None:
-        functions = {"exp": np.exp, "ln": np.log, "erfc": special.erfc, "sqrt": np.sqrt, "max": np.maximum,
-                     "pi": np.pi, "ln2": LN2}  # fmt: skip
+        functions = {
+            "exp": np.exp,
+            "ln": np.log,
+            "erfc": special.erfc,
+            "sqrt": np.sqrt,
+            "max": np.maximum,
+            "pi": np.pi,
+            "ln2": LN2,
+        }
     interpreter = Interpreter(minimal=True, use_numpy=False)
     interpreter.symtable.update(functions)
     interpreter.symtable.update(values)
@@ -1403,6 +1438,8 @@ def formula_table_markdown(family: str = "paper") -> str:
         if formula.family != family:
             continue
         low, high = formula.shape_bounds
-        lines.append(f"| {formula.id} | ({formula.equation}) | `{formula.expression}` | {formula.shape_name} | "
-                     f"[{low:g}, {high:g}] | `{formula.slope_expression}` |")  # fmt: skip
+        lines.append(
+            f"| {formula.id} | ({formula.equation}) | `{formula.expression}` | {formula.shape_name} | "
+            f"[{low:g}, {high:g}] | `{formula.slope_expression}` |"
+        )
     return "\n".join(lines)

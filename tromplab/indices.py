@@ -173,8 +173,9 @@ def _numeric_slope(formula: Formula, shape: float, context: dict) -> float:
     return float((formula.phi(1.0 + h, shape, **context) - formula.phi(1.0 - h, shape, **context)) / (2 * h))
 
 
-def curve_indices(formula, d_cut: float, shape: float, *, delta_max: float, measured_sizes: tuple[float, float] | None = None,
-                  **context) -> CurveIndices:  # fmt: skip
+def curve_indices(
+    formula, d_cut: float, shape: float, *, delta_max: float, measured_sizes: tuple[float, float] | None = None, **context
+) -> CurveIndices:
     """All indices of one fitted curve.
 
     Parameters
@@ -209,13 +210,27 @@ def curve_indices(formula, d_cut: float, shape: float, *, delta_max: float, meas
     if "bypass" in context:  # the corrected curve: the same curve without bypass
         corrected = {**context, "bypass": 0.0}
         d50 = d_cut * _relative_size_at(formula, shape, 0.5, context)
-        ep_c = d_cut * (_relative_size_at(formula, shape, 0.25, corrected) - _relative_size_at(formula, shape, 0.75, corrected)) / 2.0
+        ep_c = (
+            d_cut
+            * (_relative_size_at(formula, shape, 0.25, corrected) - _relative_size_at(formula, shape, 0.75, corrected))
+            / 2.0
+        )
     else:
         d50, ep_c = d_cut, ep
     extrapolated = ()
     if measured_sizes is not None:
-        extrapolated = extrapolated_indices(formula, d_cut, shape, d25=d25, d75=d75, eta=eta, epsilon=eps, delta_max=delta_max,
-                                            measured_sizes=measured_sizes, **context)  # fmt: skip
+        extrapolated = extrapolated_indices(
+            formula,
+            d_cut,
+            shape,
+            d25=d25,
+            d75=d75,
+            eta=eta,
+            epsilon=eps,
+            delta_max=delta_max,
+            measured_sizes=measured_sizes,
+            **context,
+        )
     return CurveIndices(
         d_cut=float(d_cut),
         slope=float(slope),
@@ -233,8 +248,19 @@ def curve_indices(formula, d_cut: float, shape: float, *, delta_max: float, meas
     )
 
 
-def extrapolated_indices(formula, d_cut: float, shape: float, *, d25: float, d75: float, eta: float, epsilon: float,
-                         delta_max: float, measured_sizes: tuple[float, float], **context) -> tuple[str, ...]:  # fmt: skip
+def extrapolated_indices(
+    formula,
+    d_cut: float,
+    shape: float,
+    *,
+    d25: float,
+    d75: float,
+    eta: float,
+    epsilon: float,
+    delta_max: float,
+    measured_sizes: tuple[float, float],
+    **context,
+) -> tuple[str, ...]:
     """Names of the indices that rest on the curve outside the measured sizes.
 
     ``d25`` / ``d75``: outside ``[smallest, largest]``.  ``eta``: the area of the curve

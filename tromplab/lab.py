@@ -227,8 +227,17 @@ class MassBalance:
         column equal to the feed share when asked); with ``unit_in_names`` the size columns
         carry the unit (``size_um``), so the file read back keeps it."""
         table = self.classes.rename(columns={"feed": "feed_share"})
-        columns = ["experiment", "size", "partition_fine", "size_lower", "size_upper", "feed_share",
-                   "balance_residual", "used", "flag"]  # fmt: skip
+        columns = [
+            "experiment",
+            "size",
+            "partition_fine",
+            "size_lower",
+            "size_upper",
+            "feed_share",
+            "balance_residual",
+            "used",
+            "flag",
+        ]
         table = table[columns]
         if unit_in_names and self.size_unit:
             table = table.rename(columns={c: f"{c}_{self.size_unit}" for c in ("size", "size_lower", "size_upper")})
@@ -349,7 +358,9 @@ def _stream_columns(table: Table, options: LabOptions) -> dict[str, tuple[str, s
             continue
         stream, kind = parsed
         if stream in found:
-            raise InputError(f"two columns for the {stream} stream ({found[stream][0]}, {column})", source=table.source, column=column)
+            raise InputError(
+                f"two columns for the {stream} stream ({found[stream][0]}, {column})", source=table.source, column=column
+            )
         if kind is None:
             if options.kind is None:
                 raise InputError(
@@ -391,7 +402,9 @@ def _size_layout(table: Table, options: LabOptions | None = None) -> _SizeLayout
             matched, unit = size_column_unit(column, stem)
             if matched:
                 if stem in found:
-                    raise InputError(f"two {stem} columns ({found[stem][0]}, {column}): give one", source=table.source, column=column)
+                    raise InputError(
+                        f"two {stem} columns ({found[stem][0]}, {column}): give one", source=table.source, column=column
+                    )
                 found[stem] = (column, unit)
     units = {unit for _, unit in found.values()}
     if len(units) > 1:
@@ -404,14 +417,27 @@ def _size_layout(table: Table, options: LabOptions | None = None) -> _SizeLayout
         if len(given) > 1:
             raise InputError(f"mixed units in column 'size_unit': {', '.join(given)}", source=table.source, column="size_unit")
         if len(given) == 1:
-            unit = resolve_size_unit(table, suffix, given[0], next(iter(found.values()))[0] if found else "size_unit",
-                                     given_as="in column 'size_unit'")  # fmt: skip
+            unit = resolve_size_unit(
+                table, suffix, given[0], next(iter(found.values()))[0] if found else "size_unit", given_as="in column 'size_unit'"
+            )
     if unit and not suffix and options and options.size_unit and unit != normal_unit(options.size_unit):
-        raise InputError(f"the size unit '{options.size_unit}' given as an option (--size-unit) contradicts column "
-                         f"'size_unit' ({unit})", source=table.source, column="size_unit")  # fmt: skip
-    unit = resolve_size_unit(table, unit, options.size_unit if options else None, next(iter(found.values()))[0] if found else "size")
-    layouts = [name for name, present in (("size_class", "size_class" in found), ("size_lower/size_upper", "size_lower" in found or "size_upper" in found),
-                                          ("size", "size" in found)) if present]  # fmt: skip
+        raise InputError(
+            f"the size unit '{options.size_unit}' given as an option (--size-unit) contradicts column 'size_unit' ({unit})",
+            source=table.source,
+            column="size_unit",
+        )
+    unit = resolve_size_unit(
+        table, unit, options.size_unit if options else None, next(iter(found.values()))[0] if found else "size"
+    )
+    layouts = [
+        name
+        for name, present in (
+            ("size_class", "size_class" in found),
+            ("size_lower/size_upper", "size_lower" in found or "size_upper" in found),
+            ("size", "size" in found),
+        )
+        if present
+    ]
     if len(layouts) > 1:
         raise InputError(
             f"the sizes are given twice ({' and '.join(layouts)}): keep one layout (a representative size per class goes "
@@ -423,13 +449,20 @@ def _size_layout(table: Table, options: LabOptions | None = None) -> _SizeLayout
         if not ("size_lower" in found and "size_upper" in found):
             missing = "size_upper" if "size_lower" in found else "size_lower"
             raise InputError(f"class bounds need both size_lower and size_upper; {missing} is missing", source=table.source)
-        return _SizeLayout(False, (found["size_lower"][0], found["size_upper"][0]), representative=representative, unit=unit, unit_suffix=suffix)
+        return _SizeLayout(
+            False, (found["size_lower"][0], found["size_upper"][0]), representative=representative, unit=unit, unit_suffix=suffix
+        )
     if "size_class" in found:
-        return _SizeLayout(False, (found["size_class"][0],), class_strings=True, representative=representative, unit=unit, unit_suffix=suffix)
+        return _SizeLayout(
+            False, (found["size_class"][0],), class_strings=True, representative=representative, unit=unit, unit_suffix=suffix
+        )
     if "size" in found:
         if representative:
-            raise InputError("a representative size column needs class bounds or size classes, not sieve sizes", source=table.source,
-                             column=representative)  # fmt: skip
+            raise InputError(
+                "a representative size column needs class bounds or size classes, not sieve sizes",
+                source=table.source,
+                column=representative,
+            )
         return _SizeLayout(True, (found["size"][0],), unit=unit, unit_suffix=suffix)
     raise InputError(
         "give class bounds 'size_lower' and 'size_upper', size classes 'size_class' (\"+1168\", \"-1168+589\", \"-74\"), "
@@ -445,7 +478,9 @@ def _balance_one(table: Table, name: str, streams, layout: _SizeLayout, options:
     totals = {}
     if cumulative:
         if not layout.sieve_sizes:
-            raise InputError("cumulative stream columns need sieve sizes in a 'size' column, not class bounds", source=table.source)
+            raise InputError(
+                "cumulative stream columns need sieve sizes in a 'size' column, not class bounds", source=table.source
+            )
         lower, upper, shares, blank_notes = _classes_from_cumulative(table, layout.columns[0], streams)
         notes += blank_notes
         class_rows = [None] * lower.size  # a class spans two sieve rows
@@ -469,8 +504,9 @@ def _balance_one(table: Table, name: str, streams, layout: _SizeLayout, options:
     notes += yield_notes
     a, b, c = _complete_streams(table, shares, fine_yield)
     _check_empty_feed(table, a, b, c, None if cumulative else table.rows)
-    classes = pd.DataFrame({"experiment": name, "size_lower": lower, "size_upper": upper, "size": size,
-                            "feed": a, "fine": b, "coarse": c})  # fmt: skip
+    classes = pd.DataFrame(
+        {"experiment": name, "size_lower": lower, "size_upper": upper, "size": size, "feed": a, "fine": b, "coarse": c}
+    )
     classes["balance_residual"] = a - fine_yield * b - (1 - fine_yield) * c
     method = options.partition_from
     if options.reconcile and len(shares) == 3:
@@ -493,8 +529,18 @@ def _balance_one(table: Table, name: str, streams, layout: _SizeLayout, options:
             f"(flags: {'; '.join(f for f in flags if f) or 'none'})",
             source=table.source,
         )
-    return MassBalance(name, classes, fine_yield, source_of_yield, estimate, top_size, tuple(notes), table.source,
-                       partition_method=method, size_unit=layout.unit)  # fmt: skip
+    return MassBalance(
+        name,
+        classes,
+        fine_yield,
+        source_of_yield,
+        estimate,
+        top_size,
+        tuple(notes),
+        table.source,
+        partition_method=method,
+        size_unit=layout.unit,
+    )
 
 
 def partition_to_fines(feed, fine, coarse, fine_yield, *, method: str = "products") -> np.ndarray:
@@ -568,11 +614,17 @@ def _checked_bounds(table: Table, lower, upper, lower_column: str, upper_column:
     for values, column in ((lower, lower_column), (upper, upper_column)):
         bad = np.flatnonzero(values <= 0)
         if bad.size:
-            raise table.error("class bounds must be positive (a pan's lower bound may be 0 or blank)", index=int(bad[0]), column=column)
+            raise table.error(
+                "class bounds must be positive (a pan's lower bound may be 0 or blank)", index=int(bad[0]), column=column
+            )
     both = np.isfinite(lower) & np.isfinite(upper)
     bad = np.flatnonzero(both & (lower >= upper))
     if bad.size:
-        raise table.error(f"lower bound {lower[bad[0]]:g} is not below the upper bound {upper[bad[0]]:g}", index=int(bad[0]), column=lower_column)
+        raise table.error(
+            f"lower bound {lower[bad[0]]:g} is not below the upper bound {upper[bad[0]]:g}",
+            index=int(bad[0]),
+            column=lower_column,
+        )
     bad = np.flatnonzero(np.isnan(lower) & np.isnan(upper))
     if bad.size:
         raise table.error("the class has neither a lower nor an upper bound", index=int(bad[0]), column=lower_column)
@@ -585,7 +637,9 @@ def _checked_bounds(table: Table, lower, upper, lower_column: str, upper_column:
     step = np.diff(key)
     if not (np.all(step < 0) or np.all(step > 0)):
         i = int(np.flatnonzero(step <= 0)[0] if step[0] > 0 else np.flatnonzero(step >= 0)[0]) + 1
-        raise table.error("class bounds are not sorted (give classes from coarse to fine or from fine to coarse)", index=i, column=lower_column)
+        raise table.error(
+            "class bounds are not sorted (give classes from coarse to fine or from fine to coarse)", index=i, column=lower_column
+        )
     order = np.argsort(key)[::-1]  # coarse to fine
     for coarser, finer in zip(order[:-1], order[1:]):
         if np.isfinite(upper[finer]) and np.isfinite(lower[coarser]) and upper[finer] > lower[coarser] * (1 + 1e-9):
@@ -694,7 +748,9 @@ def _cumulative_retained(table: Table, column: str, kind: str, order: np.ndarray
         last = values[given[-1]]
         complete = full if kind.startswith("retained") else 0.0
         if not np.isclose(last, complete):
-            raise table.error("blank at the fine end after an incomplete cumulative value", index=int(rows[given[-1] + 1]), column=column)
+            raise table.error(
+                "blank at the fine end after an incomplete cumulative value", index=int(rows[given[-1] + 1]), column=column
+            )
         values[given[-1] + 1 :] = complete
         filled.append(f"{_rows_text(table.rows[rows[given[-1] + 1 :]])} (fine end) read as {complete:g}")
     note = f"column '{column}': blank cell(s) at {' and '.join(filled)}" if filled else ""
@@ -702,7 +758,9 @@ def _cumulative_retained(table: Table, column: str, kind: str, order: np.ndarray
     drops = np.flatnonzero(np.diff(retained) < -1e-12)
     if drops.size:
         what = "retained share falls" if kind.startswith("retained") else "passing share rises"
-        raise table.error(f"cumulative data are not monotone: the {what} towards finer sieves", index=int(rows[drops[0] + 1]), column=column)
+        raise table.error(
+            f"cumulative data are not monotone: the {what} towards finer sieves", index=int(rows[drops[0] + 1]), column=column
+        )
     return np.clip(retained, 0.0, 1.0), note
 
 
@@ -723,27 +781,39 @@ def _representative_sizes(table: Table, lower, upper, options: LabOptions, repre
             neighbour = order[-2]
             lower[pan] = upper[pan] / _ratio(table, lower[neighbour], upper[neighbour])
     if not upper[top] > lower[top] or not upper[pan] > lower[pan]:
-        raise InputError("top_size must exceed the top class's lower bound and pan_lower_size must be below the pan's upper bound", source=table.source)
+        raise InputError(
+            "top_size must exceed the top class's lower bound and pan_lower_size must be below the pan's upper bound",
+            source=table.source,
+        )
     size = np.sqrt(lower) * np.sqrt(upper)  # not sqrt(lower * upper): the product under- or overflows at extreme sizes
     if representative_column:  # measured or stated sizes replace the geometric-mean rule where given
         given = table.numeric(representative_column, allow_blank=True)
         bad = np.flatnonzero(np.isfinite(given) & ((given <= lower * (1 - 1e-9)) | (given >= upper * (1 + 1e-9))))
         if bad.size:
             i = int(bad[0])
-            raise table.error(f"representative size {given[i]:g} outside its class {lower[i]:g}-{upper[i]:g}", index=i,
-                              column=representative_column)  # fmt: skip
+            raise table.error(
+                f"representative size {given[i]:g} outside its class {lower[i]:g}-{upper[i]:g}",
+                index=i,
+                column=representative_column,
+            )
         size = np.where(np.isfinite(given), given, size)
     bad = np.flatnonzero(~(np.isfinite(size) & (size > 0)) | ~(upper[top] < np.inf))
     if bad.size:  # e.g. a pan below 5e-324 or a top class above 1e308 once extended by the class ratio
         i = int(bad[0])
-        raise InputError(f"class {lower[i]:g}-{upper[i]:g} has the representative size {size[i]:g}: its bounds are too extreme to "
-                         "compute with (give the sizes in another unit)", source=table.source)  # fmt: skip
+        raise InputError(
+            f"class {lower[i]:g}-{upper[i]:g} has the representative size {size[i]:g}: its bounds are too extreme to "
+            "compute with (give the sizes in another unit)",
+            source=table.source,
+        )
     return float(upper[top]), size
 
 
 def _ratio(table, lower, upper) -> float:
     if not (np.isfinite(lower) and np.isfinite(upper)):
-        raise InputError("the open top class and the pan need a closed neighbour class to extend; give top_size / pan_lower_size", source=table.source)
+        raise InputError(
+            "the open top class and the pan need a closed neighbour class to extend; give top_size / pan_lower_size",
+            source=table.source,
+        )
     return upper / lower
 
 
@@ -816,8 +886,11 @@ def _given_yield(table: Table, options: LabOptions):
     for column, product in YIELD_COLUMNS.items():
         if column in table.frame.columns:
             if product in columns:
-                raise InputError(f"two yield columns for the {product} product ({columns[product]}, {column})", source=table.source,
-                                 column=column)  # fmt: skip
+                raise InputError(
+                    f"two yield columns for the {product} product ({columns[product]}, {column})",
+                    source=table.source,
+                    column=column,
+                )
             columns[product] = column
     found = {product: (column, _yield_column(table, column)) for product, column in columns.items()}
     found = {product: pair for product, pair in found.items() if pair[1] is not None}
@@ -863,8 +936,10 @@ def _fine_yield(table: Table, shares: dict, options: LabOptions, mass_yield: flo
             notes.append(f"fine yield {mass_yield:.4f} taken from the product masses (fine / (fine + coarse))")
             return mass_yield, "product masses", estimate, notes
         elif abs(given - mass_yield) > MASS_YIELD_TOLERANCE:
-            note = (f"the stated fine yield {given:.4f} ({source}) contradicts the product masses, which imply "
-                    f"{mass_yield:.4f} (fine / (fine + coarse)); the stated yield is used")  # fmt: skip
+            note = (
+                f"the stated fine yield {given:.4f} ({source}) contradicts the product masses, which imply "
+                f"{mass_yield:.4f} (fine / (fine + coarse)); the stated yield is used"
+            )
             notes.append(note)
             warnings.warn(f"{table.source}: {note}", YieldWarning, stacklevel=4)
     if given is not None and not options.estimate_yield:
@@ -882,7 +957,9 @@ def _fine_yield(table: Table, shares: dict, options: LabOptions, mass_yield: flo
             source=table.source,
         )
     if not YIELD_MARGIN < estimate.value < 1.0 - YIELD_MARGIN:  # symmetric, so that swapping the products cannot tip it
-        raise InputError(f"the size data imply a fine yield of {estimate.value:.3f}, outside (0, 1): check the streams", source=table.source)
+        raise InputError(
+            f"the size data imply a fine yield of {estimate.value:.3f}, outside (0, 1): check the streams", source=table.source
+        )
     return estimate.value, "least-squares estimate", estimate, notes
 
 

@@ -158,8 +158,16 @@ class LayerFit:
     profile: pd.DataFrame | None = None
 
 
-def fit_layer_model(steps, extraction, *, initial, nonlinear: bool = True, lock_threshold: float | None = None,
-                    fit_threshold: bool = False, threshold_bounds=(1e-3, 0.2)) -> LayerFit:  # fmt: skip
+def fit_layer_model(
+    steps,
+    extraction,
+    *,
+    initial,
+    nonlinear: bool = True,
+    lock_threshold: float | None = None,
+    fit_threshold: bool = False,
+    threshold_bounds=(1e-3, 0.2),
+) -> LayerFit:
     """Identify ``d``, ``v0`` and ``vf0`` (and optionally the lock threshold) from measured
     extraction at the given step numbers, through the common fitting layer.
 
@@ -209,8 +217,9 @@ def fit_layer_model(steps, extraction, *, initial, nonlinear: bool = True, lock_
     optimize.minimize_scalar(profiled, bounds=(low, high), method="bounded", options={"xatol": 1e-6 * high})
     profiled(None)
     key = min(tried, key=lambda k: tried[k].fit.ssr if tried[k].fit.success else np.inf)
-    profile = pd.DataFrame({"lock_threshold": [np.inf if k is None else k for k in tried],
-                            "ssr": [tried[k].fit.ssr for k in tried]}).sort_values("lock_threshold")  # fmt: skip
+    profile = pd.DataFrame(
+        {"lock_threshold": [np.inf if k is None else k for k in tried], "ssr": [tried[k].fit.ssr for k in tried]}
+    ).sort_values("lock_threshold")
     chosen = tried[key]
     return LayerFit(chosen.model, chosen.fit, profile.reset_index(drop=True))
 
@@ -225,7 +234,9 @@ def _fit_rates(steps, extraction, initial, nonlinear, lock_threshold, starts=Non
     def residual(values):
         return model_of(values).simulate(initial, horizon).extraction[steps - 1] - extraction
 
-    default = [{"diffusion": d, "segregation": v0, "passage": vf}
-               for d, v0, vf in [(0.01, 0.05, 0.2), (0.05, 0.1, 0.05), (0.002, 0.02, 0.5), (0.1, 0.2, 0.02)]]  # fmt: skip
+    default = [
+        {"diffusion": d, "segregation": v0, "passage": vf}
+        for d, v0, vf in [(0.01, 0.05, 0.2), (0.05, 0.1, 0.05), (0.002, 0.02, 0.5), (0.1, 0.2, 0.02)]
+    ]
     fit = least_squares(residual, specs, starts + default[:1] if starts else default)
     return LayerFit(model_of(fit.values) if fit.success else None, fit)

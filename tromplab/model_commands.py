@@ -40,16 +40,29 @@ def _write_csv(table: pd.DataFrame, output: Path | None) -> None:
 def _parameter_table(fit, level: float = 0.95) -> pd.DataFrame:
     """One row per fitted parameter: value, standard error, confidence interval."""
     intervals = fit.confidence_intervals(level) if fit.success else {}
-    return pd.DataFrame([{"parameter": name, "value": fit.values.get(name, np.nan), "stderr": fit.stderr.get(name, np.nan),
-                          "low": intervals.get(name, (np.nan, np.nan))[0], "high": intervals.get(name, (np.nan, np.nan))[1],
-                          "at_bound": name in fit.at_bound} for name in fit.names])  # fmt: skip
+    return pd.DataFrame(
+        [
+            {
+                "parameter": name,
+                "value": fit.values.get(name, np.nan),
+                "stderr": fit.stderr.get(name, np.nan),
+                "low": intervals.get(name, (np.nan, np.nan))[0],
+                "high": intervals.get(name, (np.nan, np.nan))[1],
+                "at_bound": name in fit.at_bound,
+            }
+            for name in fit.names
+        ]
+    )
 
 
 def _print_fit(fit, table: pd.DataFrame, level: float) -> None:
     if not fit.success:
         raise InputError(f"the fit failed: {fit.message}")
-    print(table.rename(columns={"low": f"low {level:g}", "high": f"high {level:g}"})
-          .to_string(index=False, float_format=lambda v: f"{v:.5g}"))  # fmt: skip
+    print(
+        table.rename(columns={"low": f"low {level:g}", "high": f"high {level:g}"}).to_string(
+            index=False, float_format=lambda v: f"{v:.5g}"
+        )
+    )
     print(f"sum of squares {fit.ssr:.4g} over {fit.n_points} points")
     if fit.at_bound:
         print(f"note: {', '.join(fit.at_bound)} ended on a bound; its standard error is unreliable")
@@ -65,7 +78,7 @@ def _with_options(message: str, names) -> str:
     """A model's message with its parameter names given as the CLI options that set them."""
     first = message.split()[0] if message else ""
     if first in names:
-        return "--" + first.replace("_", "-") + message[len(first):]
+        return "--" + first.replace("_", "-") + message[len(first) :]
     if message.startswith("2 d + v0"):
         return f"{message} (--diffusion, --segregation)"
     return message
@@ -80,31 +93,55 @@ def _numbers(text: str, option: str) -> list[float]:
 
 # --- layer --------------------------------------------------------------------------------
 def _add_layer(commands) -> None:
-    layer = commands.add_parser("layer", help="Markov-chain model of fines segregation and passage in a layer on a vibrating sieve")
+    layer = commands.add_parser(
+        "layer", help="Markov-chain model of fines segregation and passage in a layer on a vibrating sieve"
+    )
     layer_commands = layer.add_subparsers(dest="layer_command", metavar="LAYER_COMMAND", required=True)
 
     shared = argparse.ArgumentParser(add_help=False)
     group = shared.add_argument_group("layer")
     group.add_argument("--cells", type=int, default=4, help="number of cells m of the layer (default 4, as in the paper)")
-    group.add_argument("--concentration", type=float, default=0.5,
-                       help="initial fines concentration of every cell, 0..1 (default 0.5, as in the paper)")
-    group.add_argument("--initial", default=None, metavar="C1,C2,...",
-                       help="initial concentration per cell, top first (overrides --cells and --concentration)")
+    group.add_argument(
+        "--concentration",
+        type=float,
+        default=0.5,
+        help="initial fines concentration of every cell, 0..1 (default 0.5, as in the paper)",
+    )
+    group.add_argument(
+        "--initial",
+        default=None,
+        metavar="C1,C2,...",
+        help="initial concentration per cell, top first (overrides --cells and --concentration)",
+    )
     group.add_argument("--linear", action="store_true", help="linear segregation (default: nonlinear, slowed by the fines below)")
-    group.add_argument("--lock-threshold", type=float, default=None,
-                       help="concentration below which the top active cell empties and locks (default: never)")
+    group.add_argument(
+        "--lock-threshold",
+        type=float,
+        default=None,
+        help="concentration below which the top active cell empties and locks (default: never)",
+    )
     group.add_argument("--step-seconds", type=float, default=0.2, help="length of one step in seconds (default 0.2)")
 
     simulate = layer_commands.add_parser("simulate", parents=[shared], help="extraction and concentrations step by step")
-    simulate.add_argument("--diffusion", type=float, default=0.005, help="d, probability of moving one cell up per step (default 0.005)")
-    simulate.add_argument("--segregation", type=float, default=0.026, help="v0, extra probability of moving down per step (default 0.026)")
-    simulate.add_argument("--passage", type=float, default=0.21, help="vf0, share of the bottom cell passing per step (default 0.21)")
+    simulate.add_argument(
+        "--diffusion", type=float, default=0.005, help="d, probability of moving one cell up per step (default 0.005)"
+    )
+    simulate.add_argument(
+        "--segregation", type=float, default=0.026, help="v0, extra probability of moving down per step (default 0.026)"
+    )
+    simulate.add_argument(
+        "--passage", type=float, default=0.21, help="vf0, share of the bottom cell passing per step (default 0.21)"
+    )
     simulate.add_argument("--steps", type=int, default=300, help="number of steps (default 300)")
-    simulate.add_argument("-o", "--output", type=Path, default=None, help="CSV of every step (step, time, C_1..C_m, extraction, locked)")
+    simulate.add_argument(
+        "-o", "--output", type=Path, default=None, help="CSV of every step (step, time, C_1..C_m, extraction, locked)"
+    )
     simulate.set_defaults(run=run_layer_simulate)
 
     fit = layer_commands.add_parser("fit", parents=[shared], help="identify d, v0 and vf0 from measured extraction")
-    fit.add_argument("data", type=Path, help="CSV or .xlsx with 'extraction' (0..1) and 'step' or 'time' (seconds, see --step-seconds)")
+    fit.add_argument(
+        "data", type=Path, help="CSV or .xlsx with 'extraction' (0..1) and 'step' or 'time' (seconds, see --step-seconds)"
+    )
     fit.add_argument("--fit-threshold", action="store_true", help="also identify the lock threshold (profiled)")
     fit.add_argument("--level", type=float, default=0.95, help="confidence level of the intervals (default 0.95)")
     fit.add_argument("-o", "--output", type=Path, default=None, help="CSV of the identified parameters")
@@ -131,20 +168,27 @@ def run_layer_simulate(args) -> int:
     if args.step_seconds <= 0:
         raise InputError("--step-seconds must be positive")
     try:
-        model = LayerModel(args.diffusion, args.segregation, args.passage, nonlinear=not args.linear, lock_threshold=args.lock_threshold)
+        model = LayerModel(
+            args.diffusion, args.segregation, args.passage, nonlinear=not args.linear, lock_threshold=args.lock_threshold
+        )
     except ValueError as error:  # the model speaks of its fields; name the options
         raise InputError(_with_options(str(error), ("diffusion", "segregation", "passage"))) from None
     if args.steps < 1:
         raise InputError(f"--steps must be at least 1, got {args.steps}")
     run = model.simulate(_initial(args), args.steps)
     marks = sorted({max(1, round(args.steps * share)) for share in (1 / 6, 1 / 3, 2 / 3, 1.0)})
-    print(f"{'nonlinear' if model.nonlinear else 'linear'} layer model: d = {model.diffusion:g}, v0 = {model.segregation:g}, "
-          f"vf0 = {model.passage:g}, {len(_initial(args))} cells")  # fmt: skip
+    print(
+        f"{'nonlinear' if model.nonlinear else 'linear'} layer model: d = {model.diffusion:g}, v0 = {model.segregation:g}, "
+        f"vf0 = {model.passage:g}, {len(_initial(args))} cells"
+    )
     for step in marks:
         print(f"  step {step:>5} ({step * args.step_seconds:g} s): extraction {run.extraction[step - 1]:.4f}")
     for level in (0.5, 0.8, 0.95):
         reached = run.steps_to_reach(level)
-        print(f"  extraction {level:.0%} " + (f"at step {reached} ({reached * args.step_seconds:g} s)" if reached else "not reached"))
+        print(
+            f"  extraction {level:.0%} "
+            + (f"at step {reached} ({reached * args.step_seconds:g} s)" if reached else "not reached")
+        )
     if run.first_lock is not None:
         print(f"  first cell locked at step {run.first_lock}")
     _write_csv(run.table(step_seconds=args.step_seconds), args.output)
@@ -176,13 +220,25 @@ def run_layer_fit(args) -> int:
     if bad.size:
         raise table.error(f"extraction {extraction[bad[0]]:g} outside 0..1", index=int(bad[0]), column="extraction")
     level = _level(args.level)
-    result = fit_layer_model(steps.astype(int), extraction, initial=_initial(args), nonlinear=not args.linear,
-                             lock_threshold=args.lock_threshold, fit_threshold=args.fit_threshold)  # fmt: skip
+    result = fit_layer_model(
+        steps.astype(int),
+        extraction,
+        initial=_initial(args),
+        nonlinear=not args.linear,
+        lock_threshold=args.lock_threshold,
+        fit_threshold=args.fit_threshold,
+    )
     parameters = _parameter_table(result.fit, level)
     if args.fit_threshold and result.model is not None:
         threshold = result.model.lock_threshold
-        parameters.loc[len(parameters)] = {"parameter": "lock_threshold", "value": np.inf if threshold is None else threshold,
-                                           "stderr": np.nan, "low": np.nan, "high": np.nan, "at_bound": False}  # fmt: skip
+        parameters.loc[len(parameters)] = {
+            "parameter": "lock_threshold",
+            "value": np.inf if threshold is None else threshold,
+            "stderr": np.nan,
+            "low": np.nan,
+            "high": np.nan,
+            "at_bound": False,
+        }
     print(f"{'nonlinear' if not args.linear else 'linear'} layer model fitted to {table.source} ({extraction.size} points):")
     _print_fit(result.fit, parameters, level)
     _write_csv(parameters, args.output)
@@ -191,11 +247,17 @@ def run_layer_fit(args) -> int:
 
 # --- pulp ---------------------------------------------------------------------------------
 _PULP_HELP = {
-    "area": "screen area F, m^2", "open_area": "initial open-area fraction k0", "consistency": "pulp consistency c, kg/m^3",
-    "delay": "t1, s, before the flow through a cleaned plate counts", "beta": "clogging rate alpha = beta H^r: beta",
-    "r": "clogging rate exponent r", "lam": "specific flow a = lam H^s: lam", "s": "specific flow exponent s",
-    "phi": "rotor pulsation's share of the pressure drop, phi N^tau: phi (0 = none)", "tau": "rotor pulsation exponent tau",
-}  # fmt: skip
+    "area": "screen area F, m^2",
+    "open_area": "initial open-area fraction k0",
+    "consistency": "pulp consistency c, kg/m^3",
+    "delay": "t1, s, before the flow through a cleaned plate counts",
+    "beta": "clogging rate alpha = beta H^r: beta",
+    "r": "clogging rate exponent r",
+    "lam": "specific flow a = lam H^s: lam",
+    "s": "specific flow exponent s",
+    "phi": "rotor pulsation's share of the pressure drop, phi N^tau: phi (0 = none)",
+    "tau": "rotor pulsation exponent tau",
+}
 
 
 def _add_pulp(commands) -> None:
@@ -209,16 +271,26 @@ def _add_pulp(commands) -> None:
         option = "--" + item.name.replace("_", "-")
         group.add_argument(option, type=float, default=item.default, help=f"{_PULP_HELP[item.name]} (default %(default)s)")
 
-    optimum = pulp_commands.add_parser("optimum", parents=[model], help="best pressure drop at a frequency, best frequency at a pressure drop")
-    optimum.add_argument("--frequency", type=float, default=None, help="pulsation frequency N (1/s): find the best applied pressure drop")
-    optimum.add_argument("--applied", type=float, default=None, help="applied pressure drop H': find the best pulsation frequency")
+    optimum = pulp_commands.add_parser(
+        "optimum", parents=[model], help="best pressure drop at a frequency, best frequency at a pressure drop"
+    )
+    optimum.add_argument(
+        "--frequency", type=float, default=None, help="pulsation frequency N (1/s): find the best applied pressure drop"
+    )
+    optimum.add_argument(
+        "--applied", type=float, default=None, help="applied pressure drop H': find the best pulsation frequency"
+    )
     optimum.set_defaults(run=run_pulp_optimum)
 
     fit = pulp_commands.add_parser("fit", parents=[model], help="fit model coefficients to measured productivity")
     fit.add_argument("data", type=Path, help="CSV or .xlsx with applied_pressure, frequency, productivity")
-    fit.add_argument("--fit", default="beta,lam", metavar="NAMES",
-                     help="coefficients to fit, comma-separated, of beta, r, lam, s, phi, tau, delay (default beta,lam); "
-                     "the others keep their option values")  # fmt: skip
+    fit.add_argument(
+        "--fit",
+        default="beta,lam",
+        metavar="NAMES",
+        help="coefficients to fit, comma-separated, of beta, r, lam, s, phi, tau, delay (default beta,lam); "
+        "the others keep their option values",
+    )
     fit.add_argument("--level", type=float, default=0.95, help="confidence level of the intervals (default 0.95)")
     fit.add_argument("-o", "--output", type=Path, default=None, help="CSV of the fitted coefficients")
     fit.set_defaults(run=run_pulp_fit)
@@ -250,8 +322,10 @@ def run_pulp_optimum(args) -> int:
         if interior:
             print(f"at H' = {args.applied:g}: best pulsation frequency N = {frequency:.5g} 1/s, productivity Q = {rate:.5g}")
         else:
-            print(f"at H' = {args.applied:g}: no best frequency; the productivity still rises at N = {frequency:.5g} 1/s "
-                  "(with --phi 0 it rises with N everywhere)")  # fmt: skip
+            print(
+                f"at H' = {args.applied:g}: no best frequency; the productivity still rises at N = {frequency:.5g} 1/s "
+                "(with --phi 0 it rises with N everywhere)"
+            )
     return 0
 
 
@@ -265,8 +339,11 @@ def run_pulp_fit(args) -> int:
     for column, values in (("applied_pressure", applied), ("frequency", frequency), ("productivity", productivity)):
         bad = np.flatnonzero(values <= 0) if column != "applied_pressure" else np.flatnonzero(values < 0)
         if bad.size:
-            raise table.error(f"{column} {values[bad[0]]:g} must be {'positive' if column != 'applied_pressure' else '>= 0'}",
-                              index=int(bad[0]), column=column)  # fmt: skip
+            raise table.error(
+                f"{column} {values[bad[0]]:g} must be {'positive' if column != 'applied_pressure' else '>= 0'}",
+                index=int(bad[0]),
+                column=column,
+            )
     fitted = tuple(name.strip().replace("-", "_") for name in args.fit.split(",") if name.strip())
     if not fitted:
         raise InputError("--fit names no coefficient")
@@ -284,23 +361,38 @@ def run_pulp_fit(args) -> int:
 
 # --- optimize -----------------------------------------------------------------------------
 def _add_optimize(commands) -> None:
-    optimize = commands.add_parser("optimize", help="operating point of a sieve: capacity against efficiency (Pareto front, compromise)")
+    optimize = commands.add_parser(
+        "optimize", help="operating point of a sieve: capacity against efficiency (Pareto front, compromise)"
+    )
     group = optimize.add_argument_group("sieve (defaults: the kinetics paper's example)")
-    group.add_argument("--lambda-target", type=float, default=1.31e-3, help="kinetic coefficient of the target fraction, 1/s (default 1.31e-3)")
-    group.add_argument("--lambda-next", type=float, default=0.127, help="kinetic coefficient of the next finer fraction, 1/s (default 0.127)")
+    group.add_argument(
+        "--lambda-target", type=float, default=1.31e-3, help="kinetic coefficient of the target fraction, 1/s (default 1.31e-3)"
+    )
+    group.add_argument(
+        "--lambda-next", type=float, default=0.127, help="kinetic coefficient of the next finer fraction, 1/s (default 0.127)"
+    )
     group.add_argument("--sieve-length", type=float, default=1.6, help="sieve length L, m (default 1.6)")
     group.add_argument("--bulk-density", type=float, default=1150.0, help="bulk density, kg/m^3 (default 1150)")
     group.add_argument("--gap-height", type=float, default=0.004, help="height h of the layer, m (default 0.004)")
     group.add_argument("--width", type=float, default=1.0, help="sieve width B, m (default 1)")
-    group.add_argument("--purity-limit", type=float, default=0.08,
-                       help="largest share of the next finer fraction left on the sieve (default 0.08)")
+    group.add_argument(
+        "--purity-limit",
+        type=float,
+        default=0.08,
+        help="largest share of the next finer fraction left on the sieve (default 0.08)",
+    )
     group.add_argument("--speed-min", type=float, default=0.02, help="lowest mean transport speed V, m/s (default 0.02)")
     group.add_argument("--speed-max", type=float, default=0.2, help="highest mean transport speed V, m/s (default 0.2)")
     choice = optimize.add_argument_group("choice")
-    choice.add_argument("--min-efficiency", type=float, default=80.0,
-                        help="efficiency E (%%) required while maximising the capacity (default 80)")
-    choice.add_argument("--capacity-share", type=float, default=0.8,
-                        help="share of the largest capacity required while maximising the efficiency (default 0.8)")
+    choice.add_argument(
+        "--min-efficiency", type=float, default=80.0, help="efficiency E (%%) required while maximising the capacity (default 80)"
+    )
+    choice.add_argument(
+        "--capacity-share",
+        type=float,
+        default=0.8,
+        help="share of the largest capacity required while maximising the efficiency (default 0.8)",
+    )
     choice.add_argument("--weights", type=int, default=11, help="number of weights l1 in 0..1 of the Pareto sweep (default 11)")
     optimize.add_argument("-o", "--output", type=Path, default=None, help="CSV of the Pareto front (l1, V, Q, E, success)")
     optimize.set_defaults(run=run_optimize)
@@ -318,14 +410,24 @@ def run_optimize(args) -> int:
         raise InputError("--capacity-share takes a share between 0 and 1")
     if args.weights < 2:
         raise InputError("--weights needs at least 2 weights")
-    problem = sieve_speed_problem(lambda_target=args.lambda_target, lambda_next=args.lambda_next, sieve_length=args.sieve_length,
-                                  bulk_density=args.bulk_density, gap_height=args.gap_height, width=args.width,
-                                  purity_limit=args.purity_limit, speed_bounds=(args.speed_min, args.speed_max))  # fmt: skip
-    result = choose(problem, floor_second=args.min_efficiency, share_of_first=args.capacity_share,
-                    weights=np.linspace(0.0, 1.0, args.weights))  # fmt: skip
-    for label, optimum in [(f"max Q with E >= {args.min_efficiency:g} %", result.best_first),
-                           (f"max E with Q >= {args.capacity_share:g} of max", result.best_second),
-                           ("compromise (max-min)", result.compromise)]:  # fmt: skip
+    problem = sieve_speed_problem(
+        lambda_target=args.lambda_target,
+        lambda_next=args.lambda_next,
+        sieve_length=args.sieve_length,
+        bulk_density=args.bulk_density,
+        gap_height=args.gap_height,
+        width=args.width,
+        purity_limit=args.purity_limit,
+        speed_bounds=(args.speed_min, args.speed_max),
+    )
+    result = choose(
+        problem, floor_second=args.min_efficiency, share_of_first=args.capacity_share, weights=np.linspace(0.0, 1.0, args.weights)
+    )
+    for label, optimum in [
+        (f"max Q with E >= {args.min_efficiency:g} %", result.best_first),
+        (f"max E with Q >= {args.capacity_share:g} of max", result.best_second),
+        ("compromise (max-min)", result.compromise),
+    ]:
         point = optimum.point
         flag = "" if optimum.success else f"  (not converged: {optimum.message})"
         print(f"{label:>30}: V = {point['V']:.4f} m/s, Q = {point['Q']:.0f} kg/h, E = {point['E']:.2f} %{flag}")

@@ -61,8 +61,9 @@ def check_output_folder(outdir, *, inputs: Iterable = (), option: str = "--outdi
         raise OutputError(f"{option} names a file, not a folder", source=str(outdir))
     resolved = outdir.resolve()
     if resolved == Path.cwd().resolve() or resolved == Path(resolved.anchor) or resolved == Path.home().resolve():
-        raise OutputError(f"{option} must name a folder for the outputs, not the working, home or root folder",
-                          source=str(outdir))  # fmt: skip
+        raise OutputError(
+            f"{option} must name a folder for the outputs, not the working, home or root folder", source=str(outdir)
+        )
     for path in inputs:
         if Path(path).resolve().is_relative_to(resolved):
             raise OutputError(f"{option} holds the input {path}; write the outputs to another folder", source=str(outdir))

@@ -15,8 +15,20 @@ from .curves import CurveFit
 
 #: Colours of up to 12 curves: tab10, then a dark indigo and a dark green, as far from every tab10 colour
 #: as the tab10 colours are from each other (RGB distance >= 0.26).
-CURVE_COLOURS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22",
-                 "#17becf", "#393b79", "#00441b")  # fmt: skip
+CURVE_COLOURS = (
+    "#1f77b4",
+    "#ff7f0e",
+    "#2ca02c",
+    "#d62728",
+    "#9467bd",
+    "#8c564b",
+    "#e377c2",
+    "#7f7f7f",
+    "#bcbd22",
+    "#17becf",
+    "#393b79",
+    "#00441b",
+)
 #: Line styles cycled beside the colours, so curves stay apart in grey print too.
 CURVE_LINESTYLES = ("-", "--", "-.", ":")
 
@@ -33,8 +45,9 @@ def curve_styles(n: int) -> list[dict]:
     (12, '-', '--')
     """
     rounds = len(CURVE_COLOURS)
-    return [{"color": CURVE_COLOURS[i % rounds], "ls": CURVE_LINESTYLES[(i + i // rounds) % len(CURVE_LINESTYLES)]}
-            for i in range(n)]  # fmt: skip
+    return [
+        {"color": CURVE_COLOURS[i % rounds], "ls": CURVE_LINESTYLES[(i + i // rounds) % len(CURVE_LINESTYLES)]} for i in range(n)
+    ]
 
 
 def log_size_axis(ax, low: float, high: float) -> None:
@@ -108,8 +121,16 @@ def curve_band(fit: CurveFit, size, *, level: float = 0.95):
     return np.clip(centre - half, 0, 1), np.clip(centre + half, 0, 1)
 
 
-def plot_tromp_fits(fits: Sequence[CurveFit], *, ax=None, log_size: bool = True, size_unit: str = "", band: bool = True,
-                    best: CurveFit | None = None, partition_to: str = "fine"):  # fmt: skip
+def plot_tromp_fits(
+    fits: Sequence[CurveFit],
+    *,
+    ax=None,
+    log_size: bool = True,
+    size_unit: str = "",
+    band: bool = True,
+    best: CurveFit | None = None,
+    partition_to: str = "fine",
+):
     """Measured Tromp points of one experiment with the fitted curves of every formula.
 
     Each formula has its own colour and line style (:func:`curve_styles`); inadequate
@@ -157,8 +178,15 @@ def plot_tromp_fits(fits: Sequence[CurveFit], *, ax=None, log_size: bool = True,
         adequate = fit.screen is not None and fit.screen.adequate
         is_best = fit is best
         label = f"({fit.formula.equation}) {fit.formula.id}, F={fit.screen.F:.3g}" + ("" if adequate else " (inadequate)")
-        ax.plot(grid, read(fit.predict(grid)), **style, lw=2.8 if is_best else 1.3, alpha=1.0 if adequate else 0.45,
-                label=label, zorder=3 if is_best else 2)  # fmt: skip
+        ax.plot(
+            grid,
+            read(fit.predict(grid)),
+            **style,
+            lw=2.8 if is_best else 1.3,
+            alpha=1.0 if adequate else 0.45,
+            label=label,
+            zorder=3 if is_best else 2,
+        )
     ax.plot(points.size, read(points.partition_fine), "ko", ms=6, label="measured", zorder=4)
     if best is not None:
         if band:
@@ -194,8 +222,11 @@ def plot_pareto(result, *, ax=None):
     first, second = list(result.ranges)
     front = result.pareto.sort_values(first)
     ax.plot(front[first], front[second], "o-", color="0.3", ms=4, label="Pareto front (linear convolution)")
-    for optimum, label, marker in [(result.best_first, f"max {first}", "s"), (result.best_second, f"max {second}", "D"),
-                                   (result.compromise, "compromise (max-min)", "*")]:  # fmt: skip
+    for optimum, label, marker in [
+        (result.best_first, f"max {first}", "s"),
+        (result.best_second, f"max {second}", "D"),
+        (result.compromise, "compromise (max-min)", "*"),
+    ]:
         ax.plot(optimum.point[first], optimum.point[second], marker, ms=11 if marker == "*" else 8, label=label)
     ax.set_xlabel(first)
     ax.set_ylabel(second)
@@ -239,8 +270,16 @@ def plot_f_heatmap(fits_table, *, ax=None):
     adequate = table.pivot(index="label", columns="experiment", values="adequate").reindex_like(f_values)
     text = f_values.map(lambda v: f"{v:.3g}") + adequate.map(lambda a: "" if a else "*")
     positive = f_values.where(f_values > 0)
-    sns.heatmap(positive, ax=ax, annot=text, fmt="", cmap="viridis", norm=LogNorm(), cbar_kws={"label": "F (log scale)"},
-                annot_kws={"fontsize": 7})  # fmt: skip
+    sns.heatmap(
+        positive,
+        ax=ax,
+        annot=text,
+        fmt="",
+        cmap="viridis",
+        norm=LogNorm(),
+        cbar_kws={"label": "F (log scale)"},
+        annot_kws={"fontsize": 7},
+    )
     critical = table.groupby("experiment", sort=False)["F_crit"].first().reindex(f_values.columns)
     ax.set_xticklabels([f"{e}\nF_crit {c:.3g}" for e, c in critical.items()], rotation=0, fontsize=7)
     ax.set_xlabel("experiment (* = inadequate, F <= F_crit)")
@@ -272,7 +311,11 @@ def plot_equal_slope_family(slope: float, *, ax=None, formulas=None, x_max: floa
     x = np.linspace(1e-3, x_max, 600)
     for formula in formulas or FORMULAS[:7]:
         shape = formula.shape_for_slope(slope)
-        ax.plot(x, formula.phi(x, shape, **formula.defaults), label=f"({formula.equation}) {formula.id}, {formula.shape_name}={shape:.4g}")
+        ax.plot(
+            x,
+            formula.phi(x, shape, **formula.defaults),
+            label=f"({formula.equation}) {formula.id}, {formula.shape_name}={shape:.4g}",
+        )
     ax.axvline(1.0, color="0.5", lw=0.8, ls=":")
     ax.set_xlabel("relative size x = size / d_cut")
     ax.set_ylabel("partition to fines")
@@ -388,8 +431,17 @@ def plot_control_chart(result, quantity: str, *, ax=None, size_unit: str = ""):
     base = rows[rows["baseline"]]
     ax.axvspan(base["date"].min(), base["date"].max(), color="0.92", label="baseline")
     error = np.vstack([rows["value"] - rows["low"], rows["high"] - rows["value"]])
-    ax.errorbar(dates, rows["value"], yerr=np.where(np.isfinite(error), np.abs(error), 0.0), fmt="o", color="0.3", ms=4,
-                capsize=2, lw=0.8, label=f"survey value ({result.level:.0%} interval)")  # fmt: skip
+    ax.errorbar(
+        dates,
+        rows["value"],
+        yerr=np.where(np.isfinite(error), np.abs(error), 0.0),
+        fmt="o",
+        color="0.3",
+        ms=4,
+        capsize=2,
+        lw=0.8,
+        label=f"survey value ({result.level:.0%} interval)",
+    )
     centre = float(base["value"].mean())
     ax.axhline(centre, color="0.5", lw=0.8, ls=":", label="baseline mean")
     ax.plot(dates, rows["ewma"], color="C0", lw=1.6, label="EWMA")
@@ -399,8 +451,13 @@ def plot_control_chart(result, quantity: str, *, ax=None, size_unit: str = ""):
     if len(flagged):
         ax.scatter(flagged["date"], flagged["value"], s=80, facecolors="none", edgecolors="C3", lw=1.5, label="changed", zorder=5)
     unit = {"size": size_unit, "fraction": "fraction"}.get(rows["unit"].iloc[0], "")
-    label = {"d_cut": "cut size d_cut" + (" (corrected d50c)" if quantity == "d_cut" and "bypass" in set(result.table["quantity"]) else ""),
-             "ep": "Ecart probable Ep", "eta": "classifier efficiency eta", "bypass": "bypass"}.get(quantity, quantity)  # fmt: skip
+    label = {
+        "d_cut": "cut size d_cut"
+        + (" (corrected d50c)" if quantity == "d_cut" and "bypass" in set(result.table["quantity"]) else ""),
+        "ep": "Ecart probable Ep",
+        "eta": "classifier efficiency eta",
+        "bypass": "bypass",
+    }.get(quantity, quantity)
     ax.set_ylabel(f"{label} [{unit}]" if unit else label)
     ax.set_xlabel("survey date")
     ax.set_title(f"{quantity}: {result.formula_id}")

@@ -35,8 +35,16 @@ from .errors import InputError
 from .tables import Table, read_table
 
 SIZE_UNITS = ("nm", "um", "mm", "cm", "m")  # mesh numbers are not sizes (larger = finer)
-_UNIT_SPELLINGS = {"µm": "um", "μm": "um", "micron": "um", "microns": "um", "micrometre": "um", "micrometer": "um",
-                   "millimetre": "mm", "millimeter": "mm"}  # fmt: skip
+_UNIT_SPELLINGS = {
+    "µm": "um",
+    "μm": "um",
+    "micron": "um",
+    "microns": "um",
+    "micrometre": "um",
+    "micrometer": "um",
+    "millimetre": "mm",
+    "millimeter": "mm",
+}
 POINTS_DIAGNOSTIC_COLUMNS = ("feed_share", "balance_residual", "flag")
 
 PARTITION_COLUMNS = {
@@ -163,7 +171,9 @@ class TrompPoints:
         return frame
 
 
-def read_points(path, *, sheet=None, size_unit: str | None = None, sep: str | None = None, decimal: str | None = None) -> list[TrompPoints]:
+def read_points(
+    path, *, sheet=None, size_unit: str | None = None, sep: str | None = None, decimal: str | None = None
+) -> list[TrompPoints]:
     """Read and validate Tromp points (schema in the module docstring).
 
     Parameters
@@ -224,8 +234,9 @@ def size_column_unit(column: str, stem: str = "size") -> tuple[bool, str]:
     return (True, match.group(1) or "") if match else (False, "")
 
 
-def resolve_size_unit(table: Table, suffix_unit: str, option_unit: str | None, column: str,
-                      given_as: str = "as an option (--size-unit)") -> str:  # fmt: skip
+def resolve_size_unit(
+    table: Table, suffix_unit: str, option_unit: str | None, column: str, given_as: str = "as an option (--size-unit)"
+) -> str:
     """The unit of the sizes: the column suffix, else the option; a contradiction is an error."""
     option = normal_unit(option_unit)
     if suffix_unit and option and option != suffix_unit:
@@ -242,8 +253,9 @@ def points_from_table(table: Table, *, size_unit: str | None = None) -> list[Tro
     """Tromp points from a table; rows with ``used`` false (written by ``tromplab points``) are skipped."""
     size_columns = [c for c in table.frame.columns if size_column_unit(c)[0]]
     if len(size_columns) > 1:
-        raise InputError(f"several size columns ({', '.join(size_columns)}): give exactly one", source=table.source,
-                         column=size_columns[1])  # fmt: skip
+        raise InputError(
+            f"several size columns ({', '.join(size_columns)}): give exactly one", source=table.source, column=size_columns[1]
+        )
     size_column = size_columns[0] if size_columns else "size"
     unit = resolve_size_unit(table, size_column_unit(size_column)[1], size_unit, size_column)
     known = _known_points_columns(size_column)
@@ -255,8 +267,11 @@ def points_from_table(table: Table, *, size_unit: str | None = None) -> list[Tro
     given = [c for c in PARTITION_COLUMNS if c in table.frame.columns]
     if not given:
         unknown = table.unknown_columns(known)
-        raise InputError(f"no partition column: give exactly one of {', '.join(PARTITION_COLUMNS)}"
-                         + (f"; unknown column(s) {unknown}" if unknown else ""), source=table.source)  # fmt: skip
+        raise InputError(
+            f"no partition column: give exactly one of {', '.join(PARTITION_COLUMNS)}"
+            + (f"; unknown column(s) {unknown}" if unknown else ""),
+            source=table.source,
+        )
     if len(given) > 1:
         raise InputError(
             f"several partition columns ({', '.join(given)}): give exactly one", source=table.source, column=given[1]
@@ -308,9 +323,17 @@ def experiment_rows(labels) -> dict:
 
 
 def _known_points_columns(size_column: str) -> list[str]:
-    suffix = size_column[len("size"):]
-    return ["experiment", size_column, *PARTITION_COLUMNS, "weight", "used", f"size_lower{suffix}", f"size_upper{suffix}",
-            *POINTS_DIAGNOSTIC_COLUMNS]  # fmt: skip
+    suffix = size_column[len("size") :]
+    return [
+        "experiment",
+        size_column,
+        *PARTITION_COLUMNS,
+        "weight",
+        "used",
+        f"size_lower{suffix}",
+        f"size_upper{suffix}",
+        *POINTS_DIAGNOSTIC_COLUMNS,
+    ]
 
 
 def _check_unique_sizes(table: Table, rows: np.ndarray, size: np.ndarray, column: str = "size") -> None:

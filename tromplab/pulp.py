@@ -82,14 +82,20 @@ class PulpScreen:
         flow = self.lam * head**self.s
         rate = alpha * flow
         return (
-            self.area * self.open_area * frequency * self.consistency / alpha
-            * np.exp(-rate * self.delay) * -np.expm1(-rate / frequency)
-        )  # fmt: skip
+            self.area
+            * self.open_area
+            * frequency
+            * self.consistency
+            / alpha
+            * np.exp(-rate * self.delay)
+            * -np.expm1(-rate / frequency)
+        )
 
     def best_pressure_drop(self, frequency, *, bounds=(1e-6, 100.0)) -> tuple[float, float]:
         """``(H', Q)`` maximising the productivity at a fixed frequency (bounded search)."""
-        result = optimize.minimize_scalar(lambda h: -self.productivity(h, frequency), bounds=bounds, method="bounded",
-                                          options={"xatol": 1e-10})  # fmt: skip
+        result = optimize.minimize_scalar(
+            lambda h: -self.productivity(h, frequency), bounds=bounds, method="bounded", options={"xatol": 1e-10}
+        )
         return float(result.x), float(-result.fun)
 
     def best_frequency(self, applied, *, bounds=(1e-3, 1e4)) -> tuple[float, float, bool]:
@@ -99,8 +105,12 @@ class PulpScreen:
         still rises there, as it does for every frequency when ``phi = 0``.
         """
         log_low, log_high = np.log(bounds[0]), np.log(bounds[1])
-        result = optimize.minimize_scalar(lambda u: -self.productivity(applied, np.exp(u)), bounds=(log_low, log_high),
-                                          method="bounded", options={"xatol": 1e-10})  # fmt: skip
+        result = optimize.minimize_scalar(
+            lambda u: -self.productivity(applied, np.exp(u)),
+            bounds=(log_low, log_high),
+            method="bounded",
+            options={"xatol": 1e-10},
+        )
         frequency = float(np.exp(result.x))
         interior = frequency < bounds[1] * (1 - 1e-6)
         return frequency, float(-result.fun), bool(interior)

@@ -166,13 +166,19 @@ def read_f_table(path, *, alpha: float = DEFAULT_ALPHA, use_given_marks: bool = 
         frame["adequate"] = frame["F"] > frame["F_crit"]
     duplicated = frame.duplicated(["experiment", "equation"]).to_numpy()
     if duplicated.any():
-        raise table.error("the same experiment and equation appear twice", index=int(np.flatnonzero(duplicated)[0]), column="equation")
+        raise table.error(
+            "the same experiment and equation appear twice", index=int(np.flatnonzero(duplicated)[0]), column="equation"
+        )
     present = set(zip(frame["experiment"], frame["equation"]))
     for experiment in dict.fromkeys(frame["experiment"]):
         missing = [e for e in dict.fromkeys(frame["equation"]) if (experiment, e) not in present]
         if missing:  # a formula without a rank in one experiment would collect fewer points and win
-            raise InputError(f"experiment '{experiment}' has no row for equation(s) {', '.join(missing)}: every formula "
-                             "needs an F value in every experiment", source=table.source, column="equation")  # fmt: skip
+            raise InputError(
+                f"experiment '{experiment}' has no row for equation(s) {', '.join(missing)}: every formula "
+                "needs an F value in every experiment",
+                source=table.source,
+                column="equation",
+            )
     return frame
 
 
@@ -204,11 +210,15 @@ def fit_verdicts(fits: pd.DataFrame, *, by: str = "F", measured_sizes: tuple[flo
     close = good[good["delta_aicc"] < INDISTINGUISHABLE_DELTA_AICC]
     if len(close) >= 2:
         if len(close) == len(good):
-            statements.append(f"The data cannot tell the {len(good)} formulas apart: every AICc lies within "
-                              f"{INDISTINGUISHABLE_DELTA_AICC:g} of the lowest, so their order is no evidence for one formula.")  # fmt: skip
+            statements.append(
+                f"The data cannot tell the {len(good)} formulas apart: every AICc lies within "
+                f"{INDISTINGUISHABLE_DELTA_AICC:g} of the lowest, so their order is no evidence for one formula."
+            )
         else:
-            statements.append(f"The data cannot tell apart {_names(close)}: their AICc lie within {INDISTINGUISHABLE_DELTA_AICC:g} "
-                              "of the lowest, so their order is no evidence.")  # fmt: skip
+            statements.append(
+                f"The data cannot tell apart {_names(close)}: their AICc lie within {INDISTINGUISHABLE_DELTA_AICC:g} "
+                "of the lowest, so their order is no evidence."
+            )
     rule = f"F equal to within a relative {F_TIE_RTOL:.0e}" if by == "F" else f"AICc equal to within {AICC_TIE_ATOL:.0e}"
     ranked = good[good["rank"].notna()]
     for rank, group in ranked.groupby("rank", sort=True):
@@ -222,8 +232,10 @@ def fit_verdicts(fits: pd.DataFrame, *, by: str = "F", measured_sizes: tuple[flo
         if "not normal" in verdict:
             meaning.append("the errors are not normal as the F test assumes (Shapiro-Wilk)")
         reason = "; ".join(meaning)
-        statements.append(f"Adequate by F, but the residuals are {verdict}: {_names(group, of=len(good))}. "
-                          f"{reason[0].upper()}{reason[1:]}, so 'adequate' overstates these fits.")  # fmt: skip
+        statements.append(
+            f"Adequate by F, but the residuals are {verdict}: {_names(group, of=len(good))}. "
+            f"{reason[0].upper()}{reason[1:]}, so 'adequate' overstates these fits."
+        )
     flags = good["extrapolated"].fillna("").astype(str)
     where = f" ({measured_sizes[0]:.4g} to {measured_sizes[1]:.4g})" if measured_sizes else ""
     parts = []
@@ -241,6 +253,8 @@ def _names(rows: pd.DataFrame, *, of: int | None = None) -> str:
     if of is not None and len(names) == of and of > 2:
         return f"all {of} formulas"
     return ", ".join(names)
+
+
 def _labels(table, column: str) -> np.ndarray:
     """A label column as stripped text; a blank cell is an error (not the text 'nan')."""
     labels = table.frame[column]

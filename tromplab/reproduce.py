@@ -17,8 +17,19 @@ from .ranking import rank_formulas, read_f_table
 
 # Example of the kinetics paper: sieve 1.6 x 1.0 m, cells 3.2 x 3.2 mm, hole 2 mm,
 # bulk density 1150 kg/m3, feed gap 4 mm, printed kinetic coefficients of two fractions.
-KINETICS = {"L": 1.6, "B": 1.0, "pitch": 0.0032, "hole_mm": 2.0, "half_cell_mm": 1.6, "rho": 1150.0, "h": 0.004,
-            "lambda_1": 1.31e-3, "lambda_2": 0.127, "purity_limit": 0.08, "Va": 0.287}  # fmt: skip
+KINETICS = {
+    "L": 1.6,
+    "B": 1.0,
+    "pitch": 0.0032,
+    "hole_mm": 2.0,
+    "half_cell_mm": 1.6,
+    "rho": 1150.0,
+    "h": 0.004,
+    "lambda_1": 1.31e-3,
+    "lambda_2": 0.127,
+    "purity_limit": 0.08,
+    "Va": 0.287,
+}
 # Example of the random-walk paper: 12 decks, sieve 1.6 x 1.0 m, recovery 0.9, purity 10.4 %.
 RANDOM_WALK = {"m": 12, "L": 1.6, "g": 0.9, "impurity": 0.104, "rho": 1150.0, "h": 0.003, "B": 1.0, "V": 0.1185}
 
@@ -31,26 +42,58 @@ def _row(paper, quantity, printed, computed, decimals, note=""):
 def sieve_checks() -> pd.DataFrame:
     """The published checks of both sieve papers, recomputed (see ``docs/errata.md``)."""
     k = KINETICS
-    rows = [_row("kinetics", "P_g (D 2, cell 3.2 x 3.2 mm, d/l 0.5, l 2.2 mm)", 0.150,
-                 sieve.geometric_probability(2.0, 2.2, 1.1, 1.6), 3, "computed 0.1511")]  # fmt: skip
+    rows = [
+        _row(
+            "kinetics",
+            "P_g (D 2, cell 3.2 x 3.2 mm, d/l 0.5, l 2.2 mm)",
+            0.150,
+            sieve.geometric_probability(2.0, 2.2, 1.1, 1.6),
+            3,
+            "computed 0.1511",
+        )
+    ]
     for label, vk, sigma, printed in [("P_v fraction 1", 0.148, 0.051, 0.00321), ("P_v fraction 2", 0.185, 0.069, 0.06967)]:
-        rows.append(_row("kinetics", f"{label} at Va = 0.287 m/s", printed, float(sieve.velocity_probability(k["Va"], vk, sigma)), 5))
+        rows.append(
+            _row("kinetics", f"{label} at Va = 0.287 m/s", printed, float(sieve.velocity_probability(k["Va"], vk, sigma)), 5)
+        )
     printed_speed = 2.8e-2
     g1, g2 = (np.exp(-lam * k["L"] / printed_speed) for lam in (k["lambda_1"], k["lambda_2"]))
-    rows.append(_row("kinetics", "E at the printed V = 0.028 m/s, %", 89.64, float(sieve.sieve_efficiency(g1, g2)), 2,
-                     "the printed mean speed is inconsistent"))  # fmt: skip
-    rows.append(_row("kinetics", "Q at the printed V = 0.028 m/s, kg/h", 1340, sieve.capacity(k["rho"], k["h"], k["B"], printed_speed), 0))
+    rows.append(
+        _row(
+            "kinetics",
+            "E at the printed V = 0.028 m/s, %",
+            89.64,
+            float(sieve.sieve_efficiency(g1, g2)),
+            2,
+            "the printed mean speed is inconsistent",
+        )
+    )
+    rows.append(
+        _row("kinetics", "Q at the printed V = 0.028 m/s, kg/h", 1340, sieve.capacity(k["rho"], k["h"], k["B"], printed_speed), 0)
+    )
     speed = k["L"] * k["lambda_2"] / -np.log(k["purity_limit"])
     g1 = np.exp(-k["lambda_1"] * k["L"] / speed)
-    rows.append(_row("kinetics", "mean speed putting gamma_1^2 at the 8 % limit, m/s", 0.028, speed, 3, "corrected reading: ~0.080"))
+    rows.append(
+        _row("kinetics", "mean speed putting gamma_1^2 at the 8 % limit, m/s", 0.028, speed, 3, "corrected reading: ~0.080")
+    )
     rows.append(_row("kinetics", "gamma_1^1 at the corrected speed", 0.97, float(g1), 2))
     rows.append(_row("kinetics", "E at the corrected speed, %", 89.64, float(sieve.sieve_efficiency(g1, k["purity_limit"])), 2))
     rows.append(_row("kinetics", "Q at the corrected speed, kg/h", 1340, sieve.capacity(k["rho"], k["h"], k["B"], speed), -1))
-    probabilities = [sieve.geometric_probability(2.0, l, d, 1.6) * sieve.velocity_probability(k["Va"], vk, s)
-                     for (l, d), (vk, s) in zip([(2.5, 1.5), (2.0, 1.5)], [(0.148, 0.051), (0.185, 0.069)])]  # fmt: skip
+    probabilities = [
+        sieve.geometric_probability(2.0, l, d, 1.6) * sieve.velocity_probability(k["Va"], vk, s)
+        for (l, d), (vk, s) in zip([(2.5, 1.5), (2.0, 1.5)], [(0.148, 0.051), (0.185, 0.069)])
+    ]
     b1, b2 = sieve.residue_share(np.array(probabilities), k["L"], k["pitch"])
-    rows.append(_row("kinetics", "E built up from P_g and P_v (l x d 2.5 x 1.5, 2.0 x 1.5 mm), %", 89.64,
-                     float(sieve.sieve_efficiency(b1, b2)), 2, f"gamma_1^1 = {b1:.3f}, gamma_1^2 = {b2:.3f}"))  # fmt: skip
+    rows.append(
+        _row(
+            "kinetics",
+            "E built up from P_g and P_v (l x d 2.5 x 1.5, 2.0 x 1.5 mm), %",
+            89.64,
+            float(sieve.sieve_efficiency(b1, b2)),
+            2,
+            f"gamma_1^1 = {b1:.3f}, gamma_1^2 = {b2:.3f}",
+        )
+    )
     w = RANDOM_WALK
     exact, normal = sieve.design_bin(w["m"], w["L"], w["g"]), sieve.design_bin(w["m"], w["L"], w["g"], method="normal")
     rows.append(_row("random walk", "C, 1/m^2", 14.22, exact.c, 2))

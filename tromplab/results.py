@@ -44,8 +44,12 @@ def fit_repr(fit) -> str:
         return f"{head}: failed: {fit.message}>"
     values = ", ".join(f"{name}={_g(value, 4)}" for name, value in fit.fit.values.items())
     screen = fit.screen
-    verdict = f"F={_g(screen.F, 4)} {'>' if screen.adequate else '<='} F_crit={_g(screen.F_crit, 3)} " \
-              f"({'adequate' if screen.adequate else 'inadequate'})" if screen else "not screened"  # fmt: skip
+    verdict = (
+        f"F={_g(screen.F, 4)} {'>' if screen.adequate else '<='} F_crit={_g(screen.F_crit, 3)} "
+        f"({'adequate' if screen.adequate else 'inadequate'})"
+        if screen
+        else "not screened"
+    )
     warned = f", {len(fit.warnings)} warning(s)" if fit.warnings else ""
     return f"{head}: {values}, {verdict}, n={fit.points.n}{warned}>"
 
@@ -63,8 +67,10 @@ def fit_html(fit) -> str:
         f"<tr><td>{html.escape(name)}</td><td>{_g(value)}</td><td>{_g(fit.fit.stderr[name])}</td></tr>"
         for name, value in fit.fit.values.items()
     )
-    parts = [f"<p><b>{html.escape(fit_repr(fit))}</b></p>",
-             f"<table><tr><th>parameter</th><th>value</th><th>stderr</th></tr>{rows}</table>"]  # fmt: skip
+    parts = [
+        f"<p><b>{html.escape(fit_repr(fit))}</b></p>",
+        f"<table><tr><th>parameter</th><th>value</th><th>stderr</th></tr>{rows}</table>",
+    ]
     if fit.indices is not None:
         cells = "".join(f"<td>{_g(getattr(fit.indices, name), 4)}</td>" for name, _ in _INDEX_LINES)
         heads = "".join(f"<th>{name}</th>" for name, _ in _INDEX_LINES)
@@ -79,25 +85,31 @@ def fit_report(fit, *, level: float = 0.95, profile: bool = True) -> str:
     from .uncertainty import interval_table
 
     formula = fit.formula
-    lines = [f"[[Fit]] {formula.id} ({formula.equation}), {formula.title}, experiment {fit.experiment!r}",
-             f"    phi(x) = {formula.expression}, x = size/d_cut",
-             f"    points = {fit.points.n}, parameters = {formula.n_params}, starts = {fit.fit.n_starts}, "
-             f"function evaluations = {fit.fit.nfev}",
-             f"    success = {fit.success}: {fit.message}"]  # fmt: skip
+    lines = [
+        f"[[Fit]] {formula.id} ({formula.equation}), {formula.title}, experiment {fit.experiment!r}",
+        f"    phi(x) = {formula.expression}, x = size/d_cut",
+        f"    points = {fit.points.n}, parameters = {formula.n_params}, starts = {fit.fit.n_starts}, "
+        f"function evaluations = {fit.fit.nfev}",
+        f"    success = {fit.success}: {fit.message}",
+    ]
     if not fit.success:
         return "\n".join(lines)
     table = interval_table(fit, level=level, profile=profile).set_index("quantity")
     lines.append(f"[[Parameters]] value +/- standard error, {level:.0%} interval (method)")
     for parameter in formula.parameters(fit.points.size):
         row = table.loc[parameter.name]
-        lines.append(f"    {parameter.name:<9} = {_g(row.value):>11} +/- {_g(row.stderr):<10} "
-                     f"[{_g(row.low)}, {_g(row.high)}] ({row.method}); {parameter.unit}, bounds "
-                     f"[{parameter.lower:g}, {parameter.upper:g}]")  # fmt: skip
+        lines.append(
+            f"    {parameter.name:<9} = {_g(row.value):>11} +/- {_g(row.stderr):<10} "
+            f"[{_g(row.low)}, {_g(row.high)}] ({row.method}); {parameter.unit}, bounds "
+            f"[{parameter.lower:g}, {parameter.upper:g}]"
+        )
     screen = fit.screen
-    lines += [f"[[Fisher screen]] alpha = {screen.alpha:g}",
-              f"    F = s0^2/s_res^2 = {_g(screen.s0_sq)}/{_g(screen.s_res_sq)} = {_g(screen.F)}; "
-              f"F_crit = {_g(screen.F_crit)}; {'adequate' if screen.adequate else 'inadequate'} (F > F_crit)",
-              f"[[Indices]] value +/- delta-method standard error, {level:.0%} interval"]  # fmt: skip
+    lines += [
+        f"[[Fisher screen]] alpha = {screen.alpha:g}",
+        f"    F = s0^2/s_res^2 = {_g(screen.s0_sq)}/{_g(screen.s_res_sq)} = {_g(screen.F)}; "
+        f"F_crit = {_g(screen.F_crit)}; {'adequate' if screen.adequate else 'inadequate'} (F > F_crit)",
+        f"[[Indices]] value +/- delta-method standard error, {level:.0%} interval",
+    ]
     for name, meaning in _INDEX_LINES:
         row = table.loc[name] if name in table.index else None
         value = getattr(fit.indices, name)
@@ -105,11 +117,11 @@ def fit_report(fit, *, level: float = 0.95, profile: bool = True) -> str:
         lines.append(f"    {name:<12} = {_g(value):>11}{spread}  {meaning}")
     criteria = fit.fit.information_criteria()
     diag = fit.diagnostics
-    lines += ["[[Diagnostics]]",
-              f"    SSR = {_g(fit.fit.ssr)}; AIC = {_g(criteria['aic'])}, AICc = {_g(criteria['aicc'])}, "
-              f"BIC = {_g(criteria['bic'])}",
-              f"    runs test p = {_g(diag.runs_p, 3)} ({diag.n_runs} runs of signs), normality p = "
-              f"{_g(diag.normality_p, 3)}"]  # fmt: skip
+    lines += [
+        "[[Diagnostics]]",
+        f"    SSR = {_g(fit.fit.ssr)}; AIC = {_g(criteria['aic'])}, AICc = {_g(criteria['aicc'])}, BIC = {_g(criteria['bic'])}",
+        f"    runs test p = {_g(diag.runs_p, 3)} ({diag.n_runs} runs of signs), normality p = {_g(diag.normality_p, 3)}",
+    ]
     lines.append("[[Warnings]]")
     lines += [f"    {warning}" for warning in fit.warnings] or ["    none"]
     return "\n".join(lines)
@@ -126,9 +138,11 @@ def workbench_repr(bench) -> str:
         best.append(f"{experiment}: {fit.formula.id if fit else 'none'}" + (f" (tied with {tied} more)" if tied > 0 else ""))
     more = ", ..." if len(bench.experiments) > 4 else ""
     failed = f", {len(bench.failures)} experiment(s) not fitted" if bench.failures else ""
-    return (f"<Workbench: {len(bench.experiments)} experiments x {len(bench.formulas)} formulas, {len(bench.fits)} fits "
-            f"({n_ok} successful){failed}, ranked by {bench.rank_by} at alpha={bench.alpha:g}; best: "
-            f"{', '.join(best)}{more}>")  # fmt: skip
+    return (
+        f"<Workbench: {len(bench.experiments)} experiments x {len(bench.formulas)} formulas, {len(bench.fits)} fits "
+        f"({n_ok} successful){failed}, ranked by {bench.rank_by} at alpha={bench.alpha:g}; best: "
+        f"{', '.join(best)}{more}>"
+    )
 
 
 def workbench_html(bench) -> str:
@@ -189,7 +203,10 @@ def load_workbench(directory):
     manifest = json.loads(manifest_path.read_text(encoding="utf-8"))
     saved = str(manifest.get("tromplab_version", "unknown"))
     if _major(saved) != _major(__version__):
-        raise InputError(f"saved by tromplab {saved}, this is tromplab {__version__}: major versions differ, so the "
-                         f"saved results cannot be loaded; refit the inputs in points.csv, or install tromplab "
-                         f"{_major(saved)}.x to read them", source=str(directory))  # fmt: skip
+        raise InputError(
+            f"saved by tromplab {saved}, this is tromplab {__version__}: major versions differ, so the "
+            f"saved results cannot be loaded; refit the inputs in points.csv, or install tromplab "
+            f"{_major(saved)}.x to read them",
+            source=str(directory),
+        )
     return pickle.loads((directory / "workbench.pkl").read_bytes())

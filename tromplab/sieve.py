@@ -136,8 +136,13 @@ def geometric_probability_curves(hole_diameter, half_cell_width, shape_factors, 
     for factor in shape_factors:
         for ratio in relative_sizes:
             length = hole_diameter / ratio
-            rows.append({"shape_factor": factor, "D_over_l": ratio,
-                         "P_g": geometric_probability(hole_diameter, length, factor * length, half_cell_width)})  # fmt: skip
+            rows.append(
+                {
+                    "shape_factor": factor,
+                    "D_over_l": ratio,
+                    "P_g": geometric_probability(hole_diameter, length, factor * length, half_cell_width),
+                }
+            )
     return pd.DataFrame(rows)
 
 
@@ -259,7 +264,9 @@ def identify_velocity_law(relative_speeds, residues, *, geometric_prob, sieve_le
     _check_regimes(speeds, residues, "residues")
     if not 0 < geometric_prob <= 1:
         raise ValueError(f"P_g = {geometric_prob:g} must lie in (0, 1]")
-    return fit_velocity_quantiles(speeds, observed_quantiles(residues, geometric_prob, sieve_length, cell_pitch), two_sided=two_sided)
+    return fit_velocity_quantiles(
+        speeds, observed_quantiles(residues, geometric_prob, sieve_length, cell_pitch), two_sided=two_sided
+    )
 
 
 def _check_regimes(speeds, values, what):
@@ -288,11 +295,21 @@ def fit_velocity_quantiles(relative_speeds, u_obs, *, two_sided=False) -> Veloci
     scale = max(float(np.abs(speeds).max()), 1e-12)
     start_sigma = linear_sigma if np.isfinite(linear_sigma) and linear_sigma > 0 else 0.3 * scale
     start_v_k = linear_v_k if np.isfinite(linear_v_k) else float(np.mean(speeds))
-    specs = [ParameterSpec("v_k", 1e-9 * scale if two_sided else -10 * scale, 10 * scale), ParameterSpec("sigma", 1e-6 * scale, 10 * scale)]
+    specs = [
+        ParameterSpec("v_k", 1e-9 * scale if two_sided else -10 * scale, 10 * scale),
+        ParameterSpec("sigma", 1e-6 * scale, 10 * scale),
+    ]
     starts = [{"v_k": start_v_k, "sigma": start_sigma}, {"v_k": float(np.mean(speeds)), "sigma": 0.3 * scale}]
     fit = least_squares(lambda values: computed(values) - u_obs, specs, starts)
-    return VelocityLaw(fit.values["v_k"], fit.values["sigma"], fit, two_sided, u_obs,
-                       linear_v_k if not two_sided else np.nan, linear_sigma if not two_sided else np.nan)  # fmt: skip
+    return VelocityLaw(
+        fit.values["v_k"],
+        fit.values["sigma"],
+        fit,
+        two_sided,
+        u_obs,
+        linear_v_k if not two_sided else np.nan,
+        linear_sigma if not two_sided else np.nan,
+    )
 
 
 # --- multi-deck random walk (Pascal) ---------------------------------------------------
@@ -480,7 +497,9 @@ def fit_dependence(hole_diameter, length, values, *, form=DEFAULT_DEPENDENCE) ->
     if y.size <= len(names):
         raise ValueError(f"{y.size} fractions cannot determine the {len(names)} parameters of {label!r}")
     specs = [ParameterSpec(name) for name in names]
-    fit = least_squares(lambda p: function(D=D, l=l, **p) - y, specs, [{name: 0.1 for name in names}, {name: 1.0 for name in names}])
+    fit = least_squares(
+        lambda p: function(D=D, l=l, **p) - y, specs, [{name: 0.1 for name in names}, {name: 1.0 for name in names}]
+    )
     return Dependence(label, fit, function)
 
 
@@ -526,24 +545,60 @@ def identify_from_table(table, *, two_sided: bool = False, level: float = 0.95):
             for column in ("sieve_length", "cell_pitch"):
                 if np.ptp(numbers[column][index]) > 0:
                     raise ValueError(f"{column} differs between the regimes of one sieve")
-            law = identify_velocity_law(numbers["relative_speed"][index], numbers["residue"][index],
-                                        geometric_prob=row["P_g"], sieve_length=numbers["sieve_length"][index][0],
-                                        cell_pitch=numbers["cell_pitch"][index][0], two_sided=two_sided)  # fmt: skip
+            law = identify_velocity_law(
+                numbers["relative_speed"][index],
+                numbers["residue"][index],
+                geometric_prob=row["P_g"],
+                sieve_length=numbers["sieve_length"][index][0],
+                cell_pitch=numbers["cell_pitch"][index][0],
+                two_sided=two_sided,
+            )
         except ValueError as error:
             rows.append({**row, "success": False, "message": str(error)})
             continue
         intervals = law.fit.confidence_intervals(level)
         for name in ("v_k", "sigma"):
-            row.update({name: law.fit.values[name], f"{name}_stderr": law.fit.stderr[name],
-                        f"{name}_low": intervals[name][0], f"{name}_high": intervals[name][1]})  # fmt: skip
-        row.update({"linear_v_k": law.linear_v_k, "linear_sigma": law.linear_sigma, "success": law.fit.success, "message": law.fit.message})
+            row.update(
+                {
+                    name: law.fit.values[name],
+                    f"{name}_stderr": law.fit.stderr[name],
+                    f"{name}_low": intervals[name][0],
+                    f"{name}_high": intervals[name][1],
+                }
+            )
+        row.update(
+            {
+                "linear_v_k": law.linear_v_k,
+                "linear_sigma": law.linear_sigma,
+                "success": law.fit.success,
+                "message": law.fit.message,
+            }
+        )
         rows.append(row)
-    columns = ["sieve", "fraction", "n_regimes", "P_g", "v_k", "v_k_stderr", "v_k_low", "v_k_high", "sigma", "sigma_stderr",
-               "sigma_low", "sigma_high", "linear_v_k", "linear_sigma", "success", "message"]  # fmt: skip
+    columns = [
+        "sieve",
+        "fraction",
+        "n_regimes",
+        "P_g",
+        "v_k",
+        "v_k_stderr",
+        "v_k_low",
+        "v_k_high",
+        "sigma",
+        "sigma_stderr",
+        "sigma_low",
+        "sigma_high",
+        "linear_v_k",
+        "linear_sigma",
+        "success",
+        "message",
+    ]
     return pd.DataFrame(rows).reindex(columns=columns)
 
 
-def identify_from_bin_shares(relative_speeds, shares, *, x1, x2, decks, cell_pitch, geometric_prob, lost_side, two_sided=True) -> VelocityLaw:
+def identify_from_bin_shares(
+    relative_speeds, shares, *, x1, x2, decks, cell_pitch, geometric_prob, lost_side, two_sided=True
+) -> VelocityLaw:
     """Velocity law of a fraction from its shares in the bin at several speed regimes.
 
     Per regime: ``C`` from the share (:func:`identify_c`), then the sieving probability

@@ -48,13 +48,16 @@ _REFUSED_SUFFIXES = {
 }
 _MAGIC = (  # first bytes of formats that are not CSV text, and what to do about them
     (b"\x1f\x8b", "the file is gzip-compressed: decompress it first (gunzip) and give the CSV"),
-    (b"PK\x03\x04", "the file is a zip archive (an .xlsx or .ods workbook under another name?): "
-                    "give a workbook the suffix .xlsx, or save the sheet as CSV UTF-8"),
+    (
+        b"PK\x03\x04",
+        "the file is a zip archive (an .xlsx or .ods workbook under another name?): "
+        "give a workbook the suffix .xlsx, or save the sheet as CSV UTF-8",
+    ),
     (b"\xd0\xcf\x11\xe0", "the file is a legacy Excel (.xls) or other OLE document: save the sheet as .xlsx or CSV UTF-8"),
     (b"%PDF", "the file is a PDF document, not a table"),
     (b"\xff\xfe", "the file is UTF-16 text: save it as UTF-8 (in Excel: CSV UTF-8)"),
     (b"\xfe\xff", "the file is UTF-16 text: save it as UTF-8 (in Excel: CSV UTF-8)"),
-)  # fmt: skip
+)
 _TRUTH = {"true": True, "1": True, "yes": True, "y": True, "false": False, "0": False, "no": False, "n": False}
 _DECIMAL_COMMA = re.compile(r"^\s*[-+]?\d+,\d+(?:[eE][-+]?\d+)?\s*$")
 NOTE_COLUMNS = ("note", "comment")  # free-text columns every loader accepts and ignores
@@ -116,8 +119,12 @@ class Table:
     def numeric(self, column: str, *, allow_blank: bool = False) -> np.ndarray:
         """Column as finite floats; text, dates, inf and (unless allowed) blanks raise naming the first bad row."""
         raw = self.frame[column]
-        if pd.api.types.is_float_dtype(raw.dtype) or (pd.api.types.is_integer_dtype(raw.dtype) and not pd.api.types.is_bool_dtype(raw.dtype)):
-            return self._checked_numbers(raw, raw.to_numpy(dtype=float, na_value=np.nan), column, allow_blank)  # parsed: no text, no dates
+        if pd.api.types.is_float_dtype(raw.dtype) or (
+            pd.api.types.is_integer_dtype(raw.dtype) and not pd.api.types.is_bool_dtype(raw.dtype)
+        ):
+            return self._checked_numbers(
+                raw, raw.to_numpy(dtype=float, na_value=np.nan), column, allow_blank
+            )  # parsed: no text, no dates
         dates = _date_cells(raw)
         if dates.any():
             i = int(np.flatnonzero(dates)[0])
@@ -126,7 +133,11 @@ class Table:
         text = raw.notna().to_numpy() & np.isnan(values)
         if text.any():
             i = int(np.flatnonzero(text)[0])
-            hint = " (a decimal comma? declare it: --decimal ',', Python decimal=',')" if _DECIMAL_COMMA.match(str(raw.iloc[i])) else ""
+            hint = (
+                " (a decimal comma? declare it: --decimal ',', Python decimal=',')"
+                if _DECIMAL_COMMA.match(str(raw.iloc[i]))
+                else ""
+            )
             raise self.error(f"'{raw.iloc[i]}' is not a number{hint}", index=i, column=column)
         return self._checked_numbers(raw, values, column, allow_blank)
 
@@ -200,7 +211,7 @@ def read_table(path, *, sheet: str | int | None = None, sep: str | None = None, 
     source = str(path)
     sep = {"\\t": "\t", "tab": "\t"}.get(sep, sep)  # a tab is hard to type on a command line
     for name, value in (("separator (--sep)", sep), ("decimal mark (--decimal)", decimal)):
-        if value is not None and (len(value) != 1 or value in "\"\n\r" or value.isalnum()):
+        if value is not None and (len(value) != 1 or value in '"\n\r' or value.isalnum()):
             raise InputError(f"the {name} must be one character such as ';' or ',', got {value!r}", source=source)
     _check_path(path)
     suffix = path.suffix.lower()
@@ -272,7 +283,8 @@ def _check_path(path: Path) -> None:
         raise InputError(_REFUSED_SUFFIXES[suffix], source=source)
     if suffix not in EXCEL_SUFFIXES | TEXT_SUFFIXES:
         raise InputError(
-            f"unknown format '{path.suffix}': give a CSV file (.csv, .txt, .tsv) or an Excel workbook (.xlsx, .xlsm)", source=source
+            f"unknown format '{path.suffix}': give a CSV file (.csv, .txt, .tsv) or an Excel workbook (.xlsx, .xlsm)",
+            source=source,
         )
     try:
         with path.open("rb") as handle:
@@ -312,7 +324,9 @@ def _read_csv(path: Path, *, sep, decimal):
     if sep is None:
         sep = _detect_separator(header_line, path.suffix.lower())
         if sep != ",":
-            notes.append(f"read as {'semicolon' if sep == ';' else 'tab'}-separated (detected from the header; declare it with --sep)")
+            notes.append(
+                f"read as {'semicolon' if sep == ';' else 'tab'}-separated (detected from the header; declare it with --sep)"
+            )
     if decimal is None:
         decimal = "."
         if sep != "," and any(_DECIMAL_COMMA.match(cell) for i in content[1:50] for cell in lines[i - 1].split(sep)):
@@ -327,8 +341,9 @@ def _read_csv(path: Path, *, sep, decimal):
         _check_field_counts(records, content, len(header), sep, source)
     try:
         # only whole lines starting with '#' are comments: a '#' inside a field ("run #2") is text
-        frame = pd.read_csv(io.StringIO(body), sep=sep, decimal=decimal, skip_blank_lines=False, skipinitialspace=True,
-                            index_col=False, header=0)  # fmt: skip
+        frame = pd.read_csv(
+            io.StringIO(body), sep=sep, decimal=decimal, skip_blank_lines=False, skipinitialspace=True, index_col=False, header=0
+        )
     except (pd.errors.ParserError, ValueError) as error:
         raise InputError(f"cannot parse as CSV: {error}", source=source) from None
     rows = np.asarray(content[1:], dtype=int)

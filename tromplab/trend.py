@@ -58,9 +58,24 @@ EWMA_L = 3.5
 DEFAULT_ALPHA = 0.01
 QUANTITY_UNITS = {"d_cut": "size", "ep": "size", "eta": "fraction", "bypass": "fraction"}
 TREND_COLUMNS = (
-    "survey", "date", "formula", "quantity", "value", "low", "high", "unit", "baseline", "ewma", "ewma_low", "ewma_high",
-    "ewma_alarm", "p_previous", "p_baseline", "changed", "change_point",
-)  # fmt: skip
+    "survey",
+    "date",
+    "formula",
+    "quantity",
+    "value",
+    "low",
+    "high",
+    "unit",
+    "baseline",
+    "ewma",
+    "ewma_low",
+    "ewma_high",
+    "ewma_alarm",
+    "p_previous",
+    "p_baseline",
+    "changed",
+    "change_point",
+)
 
 
 @dataclass(frozen=True)
@@ -96,12 +111,18 @@ class TrendResult:
         """One row per survey: date, p-values, the EWMA alarms by quantity, changed, change_point."""
         first = self.table.drop_duplicates("survey").set_index("survey")
         in_alarm = self.table[self.table["ewma_alarm"]].groupby("survey", sort=False)["quantity"].agg(", ".join)
-        out = pd.DataFrame({
-            "survey": first.index, "date": first["date"].to_numpy(), "baseline": first["baseline"].to_numpy(),
-            "p_previous": first["p_previous"].to_numpy(), "p_baseline": first["p_baseline"].to_numpy(),
-            "alarms": in_alarm.reindex(first.index).fillna("").to_numpy(),
-            "changed": first["changed"].to_numpy(), "change_point": first["change_point"].to_numpy(),
-        })  # fmt: skip
+        out = pd.DataFrame(
+            {
+                "survey": first.index,
+                "date": first["date"].to_numpy(),
+                "baseline": first["baseline"].to_numpy(),
+                "p_previous": first["p_previous"].to_numpy(),
+                "p_baseline": first["p_baseline"].to_numpy(),
+                "alarms": in_alarm.reindex(first.index).fillna("").to_numpy(),
+                "changed": first["changed"].to_numpy(),
+                "change_point": first["change_point"].to_numpy(),
+            }
+        )
         return out.reset_index(drop=True)
 
     def change_points(self) -> list[str]:
@@ -112,8 +133,10 @@ class TrendResult:
     def summary(self) -> str:
         flags = self.survey_flags()
         base = [self.surveys[i].name for i in self.baseline]
-        lines = [f"Formula {self.formula_id}; {len(self.surveys)} surveys; baseline {base[0]} .. {base[-1]} ({len(base)} surveys); "
-                 f"EWMA lambda {EWMA_LAMBDA:g}, L {EWMA_L:g}; equality tests at alpha {self.alpha:g}"]  # fmt: skip
+        lines = [
+            f"Formula {self.formula_id}; {len(self.surveys)} surveys; baseline {base[0]} .. {base[-1]} ({len(base)} surveys); "
+            f"EWMA lambda {EWMA_LAMBDA:g}, L {EWMA_L:g}; equality tests at alpha {self.alpha:g}"
+        ]
         view = flags.assign(date=flags["date"].dt.strftime("%Y-%m-%d"))
         lines.append(view.to_string(index=False, float_format=lambda v: f"{v:.3g}", na_rep="-"))
         points = self.change_points()
@@ -158,13 +181,17 @@ def read_surveys(path, options=None) -> list[Survey]:
     survey_dates = {}
     for i, (label, date) in enumerate(zip(labels, dates)):
         if survey_dates.setdefault(label, date) != date:
-            raise table.error(f"survey {label} has two dates ({survey_dates[label]:%Y-%m-%d} and {date:%Y-%m-%d})", index=i, column="date")
+            raise table.error(
+                f"survey {label} has two dates ({survey_dates[label]:%Y-%m-%d} and {date:%Y-%m-%d})", index=i, column="date"
+            )
     frame["experiment"] = labels.to_numpy()
     # "<parameter>_true" columns hold the values a synthetic series was drawn with: kept for checking, not read as data
     dropped = [c for c in frame.columns if c in ("date", "survey") or str(c).endswith("_true")]
     table = Table(frame.drop(columns=dropped), table.rows, table.source)
     if is_lab_table(table.frame.columns):
-        experiments = [b.to_points(weight_by_feed_share=options.weight_by_feed_share) for b in balances_from_table(table, options)]
+        experiments = [
+            b.to_points(weight_by_feed_share=options.weight_by_feed_share) for b in balances_from_table(table, options)
+        ]
     else:
         experiments = points_from_table(table)
     surveys = [Survey(p.experiment, pd.Timestamp(survey_dates[p.experiment]), p) for p in experiments]
@@ -189,13 +216,22 @@ def joint_fit(groups: Sequence[TrompPoints], formula, starts: Sequence[dict]) ->
 
     def residual(values):
         extras = {extra.name: values[extra.name] for extra in formula.extras}
-        return np.concatenate([root * (formula(g.size, values["d_cut"], values[formula.shape_name], **context, **extras)
-                                       - g.partition_fine) for g, context, root in zip(groups, contexts, roots)])  # fmt: skip
+        return np.concatenate(
+            [
+                root * (formula(g.size, values["d_cut"], values[formula.shape_name], **context, **extras) - g.partition_fine)
+                for g, context, root in zip(groups, contexts, roots)
+            ]
+        )
 
     if not starts:
         cut = measured_cut_size(groups[0])
-        starts = [{"d_cut": cut, formula.shape_name: formula.shape_for_slope(measured_slope(groups[0], cut)),
-                   **{extra.name: extra.start for extra in formula.extras}}]  # fmt: skip
+        starts = [
+            {
+                "d_cut": cut,
+                formula.shape_name: formula.shape_for_slope(measured_slope(groups[0], cut)),
+                **{extra.name: extra.start for extra in formula.extras},
+            }
+        ]
     return least_squares(residual, specs, starts)
 
 
@@ -288,8 +324,15 @@ def ewma_chart(values, baseline: Sequence[int], *, lam: float = EWMA_LAMBDA, wid
     return ewma, low, high, centre, sigma
 
 
-def flag_changes(values: dict, p_baseline, baseline: Sequence[int], *, alpha: float = DEFAULT_ALPHA,
-                 lam: float = EWMA_LAMBDA, width: float = EWMA_L):  # fmt: skip
+def flag_changes(
+    values: dict,
+    p_baseline,
+    baseline: Sequence[int],
+    *,
+    alpha: float = DEFAULT_ALPHA,
+    lam: float = EWMA_LAMBDA,
+    width: float = EWMA_L,
+):
     """The monitoring rule (module docstring) on charted ``values`` (quantity -> per-survey array).
 
     Returns ``(charts, alarms, changed, change_point)``: the :func:`ewma_chart` of each
@@ -306,9 +349,17 @@ def flag_changes(values: dict, p_baseline, baseline: Sequence[int], *, alpha: fl
     return charts, alarms, changed, change_point
 
 
-def monitor_surveys(surveys: Sequence[Survey], *, formula=None, baseline=None, alpha: float = DEFAULT_ALPHA,
-                    level: float = 0.95, lam: float = EWMA_LAMBDA, width: float = EWMA_L,
-                    consecutive: bool = True) -> TrendResult:  # fmt: skip
+def monitor_surveys(
+    surveys: Sequence[Survey],
+    *,
+    formula=None,
+    baseline=None,
+    alpha: float = DEFAULT_ALPHA,
+    level: float = 0.95,
+    lam: float = EWMA_LAMBDA,
+    width: float = EWMA_L,
+    consecutive: bool = True,
+) -> TrendResult:
     """Fit each survey, chart d_cut, Ep, eta (and bypass), flag the surveys where the classifier changed.
 
     Parameters
@@ -356,7 +407,9 @@ def monitor_surveys(surveys: Sequence[Survey], *, formula=None, baseline=None, a
         if not fits[i].success:
             continue
         if consecutive and i > 0 and fits[i - 1].success:
-            p_previous[i] = equality_test([surveys[i - 1].points], [surveys[i].points], formula, fits=(fits[i - 1], fits[i])).p_value
+            p_previous[i] = equality_test(
+                [surveys[i - 1].points], [surveys[i].points], formula, fits=(fits[i - 1], fits[i])
+            ).p_value
         if i not in base:
             test = equality_test(baseline_points, [surveys[i].points], formula, fits=(baseline_fit, fits[i]))
             p_baseline[i] = test.p_value
@@ -365,13 +418,27 @@ def monitor_surveys(surveys: Sequence[Survey], *, formula=None, baseline=None, a
     for i, survey in enumerate(surveys):
         for q in quantities:
             ewma, low, high, _, _ = charts[q]
-            rows.append({
-                "survey": survey.name, "date": survey.date, "formula": formula.id, "quantity": q, "value": values[q][i],
-                "low": lows[q][i], "high": highs[q][i], "unit": QUANTITY_UNITS[q], "baseline": i in base,
-                "ewma": ewma[i], "ewma_low": low[i], "ewma_high": high[i], "ewma_alarm": bool(alarms[q][i]),
-                "p_previous": p_previous[i], "p_baseline": p_baseline[i], "changed": bool(changed[i]),
-                "change_point": bool(change_point[i]),
-            })  # fmt: skip
+            rows.append(
+                {
+                    "survey": survey.name,
+                    "date": survey.date,
+                    "formula": formula.id,
+                    "quantity": q,
+                    "value": values[q][i],
+                    "low": lows[q][i],
+                    "high": highs[q][i],
+                    "unit": QUANTITY_UNITS[q],
+                    "baseline": i in base,
+                    "ewma": ewma[i],
+                    "ewma_low": low[i],
+                    "ewma_high": high[i],
+                    "ewma_alarm": bool(alarms[q][i]),
+                    "p_previous": p_previous[i],
+                    "p_baseline": p_baseline[i],
+                    "changed": bool(changed[i]),
+                    "change_point": bool(change_point[i]),
+                }
+            )
     table = pd.DataFrame(rows, columns=list(TREND_COLUMNS))
     return TrendResult(formula.id, tuple(surveys), fits, base, table, alpha, level, failures)
 
@@ -395,8 +462,10 @@ def write_trend(result: TrendResult, outdir, *, size_unit: str = "", figures: bo
     from .workbench import write_atomically
 
     table = result.table.replace({"unit": {"size": size_unit}}) if size_unit else result.table
-    outputs = {"trend.csv": lambda p: table.to_csv(p, index=False, date_format="%Y-%m-%d"),
-               "trend_surveys.csv": lambda p: result.survey_flags().to_csv(p, index=False, date_format="%Y-%m-%d")}  # fmt: skip
+    outputs = {
+        "trend.csv": lambda p: table.to_csv(p, index=False, date_format="%Y-%m-%d"),
+        "trend_surveys.csv": lambda p: result.survey_flags().to_csv(p, index=False, date_format="%Y-%m-%d"),
+    }
     if figures:
         import matplotlib
 
@@ -404,10 +473,14 @@ def write_trend(result: TrendResult, outdir, *, size_unit: str = "", figures: bo
         from .plotting import plot_control_chart, save_figure
 
         for quantity in result.quantities:
-            outputs[f"trend_{quantity}.png"] = lambda p, q=quantity: save_figure(plot_control_chart(result, q, size_unit=size_unit), p)
+            outputs[f"trend_{quantity}.png"] = lambda p, q=quantity: save_figure(
+                plot_control_chart(result, q, size_unit=size_unit), p
+            )
     report = Report("tromplab trend report", ", ".join(dict.fromkeys(s.points.source for s in result.surveys)), order=("trend",))
     add_trend_section(report, result, size_unit=size_unit, figures=figures)
-    names = {f"Control chart of {q}": f"trend_{q}.png" for q in result.quantities}  # the Markdown links the PNGs written beside it
+    names = {
+        f"Control chart of {q}": f"trend_{q}.png" for q in result.quantities
+    }  # the Markdown links the PNGs written beside it
     outputs["trend_report.html"] = lambda p: p.write_text(report.html(), encoding="utf-8")
     outputs["trend_report.md"] = lambda p: p.write_text(report.markdown(names), encoding="utf-8")
     return write_atomically(outputs, outdir)
@@ -466,9 +539,16 @@ def simulate_surveys(design: SeriesDesign = SeriesDesign(), *, seed: int = 0) ->
         phi = formula(sizes, d_true, design.ks, bypass=b_true) + design.noise * rng.standard_normal(sizes.size)
         date = pd.Timestamp(design.start) + pd.Timedelta(days=design.days_between * i)
         for size, value in zip(sizes, np.clip(phi, 0.0, 1.0)):
-            rows.append({"survey": f"S{i + 1:02d}", "date": date.strftime("%Y-%m-%d"), "size": size,
-                         "partition_fine": round(float(value), 5), "d_cut_true": round(d_true, 3),
-                         "bypass_true": round(b_true, 5)})  # fmt: skip
+            rows.append(
+                {
+                    "survey": f"S{i + 1:02d}",
+                    "date": date.strftime("%Y-%m-%d"),
+                    "size": size,
+                    "partition_fine": round(float(value), 5),
+                    "d_cut_true": round(d_true, 3),
+                    "bypass_true": round(b_true, 5),
+                }
+            )
     return pd.DataFrame(rows)
 
 
@@ -476,6 +556,8 @@ def surveys_from_frame(frame: pd.DataFrame) -> list[Survey]:
     """Surveys from a frame with ``survey, date, size, partition_fine`` (as :func:`simulate_surveys` makes)."""
     surveys = []
     for name, group in frame.groupby("survey", sort=False):
-        points = TrompPoints(str(name), group["size"].to_numpy(float), group["partition_fine"].to_numpy(float), source="simulated")
+        points = TrompPoints(
+            str(name), group["size"].to_numpy(float), group["partition_fine"].to_numpy(float), source="simulated"
+        )
         surveys.append(Survey(str(name), pd.Timestamp(group["date"].iloc[0]), points))
     return sorted(surveys, key=lambda s: s.date)

@@ -99,11 +99,22 @@ REAL = Domain("real", -np.inf, np.inf, "identity")
 #: Range of every reported quantity (sizes in the unit of the data).  The shape parameter's
 #: range follows from its formula (:func:`quantity_domain`).
 QUANTITY_DOMAINS = {
-    "d_cut": POSITIVE, "d50c": POSITIVE, "d50": POSITIVE, "d25": POSITIVE, "d75": POSITIVE,
-    "ep": POSITIVE, "ep_c": POSITIVE, "imperfection": POSITIVE, "imperfection_c": POSITIVE,
-    "epsilon": POSITIVE, "eta": UNIT, "bypass": UNIT, "sharpness": UNIT, "fishhook": POSITIVE,
+    "d_cut": POSITIVE,
+    "d50c": POSITIVE,
+    "d50": POSITIVE,
+    "d25": POSITIVE,
+    "d75": POSITIVE,
+    "ep": POSITIVE,
+    "ep_c": POSITIVE,
+    "imperfection": POSITIVE,
+    "imperfection_c": POSITIVE,
+    "epsilon": POSITIVE,
+    "eta": UNIT,
+    "bypass": UNIT,
+    "sharpness": UNIT,
+    "fishhook": POSITIVE,
     "slope": NEGATIVE,
-}  # fmt: skip
+}
 
 
 def quantity_domain(quantity: str, formula=None) -> Domain:
@@ -297,8 +308,17 @@ def _delta_rows(fit: CurveFit, half: float, delta_max: float) -> list[dict]:
             flag = "not defined for this curve"
         elif not (np.isfinite(low) and np.isfinite(high)):
             flag = "interval not available" + ("" if domain.inside(value) else " (estimate on the edge of its range)")
-        rows.append({"quantity": name, "value": value, "stderr": se, "low": low, "high": high, "method": _method("delta", domain),
-                     "flag": flag})  # fmt: skip
+        rows.append(
+            {
+                "quantity": name,
+                "value": value,
+                "stderr": se,
+                "low": low,
+                "high": high,
+                "method": _method("delta", domain),
+                "flag": flag,
+            }
+        )
     return rows
 
 
@@ -327,17 +347,36 @@ class Bootstrap:
         rows = []
         for column in self.samples.columns:
             values = self.samples[column].dropna().to_numpy()
-            low, high = (np.quantile(values, [tail, 1 - tail]) if values.size else (np.nan, np.nan))
+            low, high = np.quantile(values, [tail, 1 - tail]) if values.size else (np.nan, np.nan)
             edges = [e for e in self.bounds.get(column, ()) if np.isfinite(e)]
-            on_edge = [f"{side} limit on the bound {edge:g}" for side, limit in (("lower", low), ("upper", high))
-                       for edge in edges if np.isclose(limit, edge, rtol=1e-9, atol=1e-12)]  # fmt: skip
-            rows.append({"quantity": column, "low": low, "high": high, "stderr": values.std(ddof=1) if values.size > 1 else np.nan,
-                         "method": "percentile", "flag": "; ".join(on_edge)})  # fmt: skip
+            on_edge = [
+                f"{side} limit on the bound {edge:g}"
+                for side, limit in (("lower", low), ("upper", high))
+                for edge in edges
+                if np.isclose(limit, edge, rtol=1e-9, atol=1e-12)
+            ]
+            rows.append(
+                {
+                    "quantity": column,
+                    "low": low,
+                    "high": high,
+                    "stderr": values.std(ddof=1) if values.size > 1 else np.nan,
+                    "method": "percentile",
+                    "flag": "; ".join(on_edge),
+                }
+            )
         return pd.DataFrame(rows)
 
 
-def bootstrap(fit: CurveFit, *, n: int = 200, seed: int = 0, method: str = "residuals", delta_max: float | None = None,
-              progress: Callable[[int, int], None] | None = None) -> Bootstrap:  # fmt: skip
+def bootstrap(
+    fit: CurveFit,
+    *,
+    n: int = 200,
+    seed: int = 0,
+    method: str = "residuals",
+    delta_max: float | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> Bootstrap:
     """Refit ``n`` resampled data sets from the optimum of ``fit``.
 
     ``method="residuals"``: fitted values plus weighted residuals drawn with replacement.
@@ -383,8 +422,13 @@ def bootstrap(fit: CurveFit, *, n: int = 200, seed: int = 0, method: str = "resi
         if progress is not None:
             progress(i + 1, n)
         if method == "residuals":
-            sample = TrompPoints(points.experiment, points.size, fitted + rng.choice(residuals, points.n) / root_weights,
-                                 points.weight, resampled=True)  # fmt: skip
+            sample = TrompPoints(
+                points.experiment,
+                points.size,
+                fitted + rng.choice(residuals, points.n) / root_weights,
+                points.weight,
+                resampled=True,
+            )
             samples.append(sample)
         else:
             while True:
@@ -395,8 +439,10 @@ def bootstrap(fit: CurveFit, *, n: int = 200, seed: int = 0, method: str = "resi
             samples.append(TrompPoints(points.experiment, points.size[pick], points.partition_fine[pick], weight, resampled=True))
     refits = refit_resamples(fit, samples, delta_max=delta_max)  # all resamples in one batched call
     rows = [{**refit.fit.values, **{k: getattr(refit.indices, k) for k in INDEX_NAMES}} for refit in refits if refit.success]
-    bounds = {name: (quantity_domain(name, fit.formula).lower, quantity_domain(name, fit.formula).upper)
-              for name in (*fit.fit.names, *INDEX_NAMES)}  # fmt: skip
+    bounds = {
+        name: (quantity_domain(name, fit.formula).lower, quantity_domain(name, fit.formula).upper)
+        for name in (*fit.fit.names, *INDEX_NAMES)
+    }
     for spec in _specs(fit):
         bounds[spec.name] = (*bounds[spec.name], spec.lower, spec.upper)
     return Bootstrap(pd.DataFrame(rows), n, method, seed, bounds)
@@ -435,8 +481,14 @@ AVERAGED_QUANTITIES = ("d50", "d50c", "ep", "ep_c", "eta")
 MIN_WEIGHT_SHARE = 0.5
 
 
-def model_average(fits: Sequence[CurveFit], *, quantities=AVERAGED_QUANTITIES, level: float = 0.95,
-                  delta_max: float | None = None, min_share: float = MIN_WEIGHT_SHARE) -> pd.DataFrame:  # fmt: skip
+def model_average(
+    fits: Sequence[CurveFit],
+    *,
+    quantities=AVERAGED_QUANTITIES,
+    level: float = 0.95,
+    delta_max: float | None = None,
+    min_share: float = MIN_WEIGHT_SHARE,
+) -> pd.DataFrame:
     """Akaike-weighted averages of ``quantities`` over the fits of one experiment.
 
     Only the formulas where a quantity is defined (finite) enter its average, with their
@@ -484,11 +536,21 @@ def model_average(fits: Sequence[CurveFit], *, quantities=AVERAGED_QUANTITIES, l
         errors = np.array([_table_value(table, quantity, "stderr") for table in tables])
         usable = np.isfinite(values) & (weights > 0)
         share = float(weights[usable].sum())
-        row = {"quantity": quantity, "value": np.nan, "stderr": np.nan, "low": np.nan, "high": np.nan, "method": "",
-               "akaike_share": share, "n_formulas": int(usable.sum()), "note": ""}  # fmt: skip
+        row = {
+            "quantity": quantity,
+            "value": np.nan,
+            "stderr": np.nan,
+            "low": np.nan,
+            "high": np.nan,
+            "method": "",
+            "akaike_share": share,
+            "n_formulas": int(usable.sum()),
+            "note": "",
+        }
         if share < min_share or not usable.any():
-            row["note"] = (f"not averaged: defined only for formulas holding {share:.2%} of the Akaike weight "
-                           f"(less than {min_share:.0%})")  # fmt: skip
+            row["note"] = (
+                f"not averaged: defined only for formulas holding {share:.2%} of the Akaike weight (less than {min_share:.0%})"
+            )
             rows.append(row)
             continue
         w = weights[usable] / share
@@ -504,7 +566,9 @@ def model_average(fits: Sequence[CurveFit], *, quantities=AVERAGED_QUANTITIES, l
         else:
             row["note"] = "no interval: an estimate lies on the edge of the quantity's range"
         if share < 1.0 - 1e-9:
-            row["note"] = row["note"] or f"averaged over the {int(usable.sum())} formulas where it is defined ({share:.2%} of the weight)"
+            row["note"] = (
+                row["note"] or f"averaged over the {int(usable.sum())} formulas where it is defined ({share:.2%} of the weight)"
+            )
         rows.append(row)
     table = pd.DataFrame(rows)
     for fit, weight in zip(good, weights):
@@ -518,8 +582,15 @@ def _table_value(table: pd.DataFrame, quantity: str, column: str) -> float:
     return float(table.loc[quantity, column]) if quantity in table.index else np.nan
 
 
-def interval_columns(fits: Sequence[CurveFit], *, level: float | None = None, n_bootstrap: int = 0, method: str = "residuals",
-                     seed: int = 0, progress: Callable[[int, int, str], None] | None = None) -> pd.DataFrame:  # fmt: skip
+def interval_columns(
+    fits: Sequence[CurveFit],
+    *,
+    level: float | None = None,
+    n_bootstrap: int = 0,
+    method: str = "residuals",
+    seed: int = 0,
+    progress: Callable[[int, int, str], None] | None = None,
+) -> pd.DataFrame:
     """Wide interval columns for ``fits.csv``.
 
     With ``level``: ``<quantity>_low``/``_high`` and ``<quantity>_method`` (how the interval
@@ -553,7 +624,9 @@ def interval_columns(fits: Sequence[CurveFit], *, level: float | None = None, n_
                             flags.append(f"{stem}: {table.loc[quantity, 'flag']}")
                 if n_bootstrap:
                     boot = bootstrap(fit, n=n_bootstrap, seed=seed, method=method)
-                    for quantity, low, high, flag in boot.intervals(bootstrap_level)[["quantity", "low", "high", "flag"]].itertuples(index=False):
+                    for quantity, low, high, flag in boot.intervals(bootstrap_level)[
+                        ["quantity", "low", "high", "flag"]
+                    ].itertuples(index=False):
                         stem = _column(fit, quantity)
                         row[f"{stem}_boot_low"] = low
                         row[f"{stem}_boot_high"] = high

@@ -110,8 +110,11 @@ def check_bootstrap(value, option: str) -> int:
     """Number of bootstrap resamples: 0 (none) up to :data:`MAX_BOOTSTRAP`."""
     number = check_count(value, option, minimum=0, maximum=10**18)
     if number > MAX_BOOTSTRAP:
-        raise OptionError(option, f"is capped at {MAX_BOOTSTRAP:,} resamples (each one refits every formula; "
-                          f"{number:,} would run for days), got {number:,}")  # fmt: skip
+        raise OptionError(
+            option,
+            f"is capped at {MAX_BOOTSTRAP:,} resamples (each one refits every formula; "
+            f"{number:,} would run for days), got {number:,}",
+        )
     return number
 
 

@@ -58,5 +58,5 @@ def partition_view(table: pd.DataFrame, partition_to: str = "fine") -> pd.DataFr
             low, high = f"slope{suffix}_low", f"slope{suffix}_high"
             if low in view.columns and high in view.columns:
                 view[low], view[high] = -view[high], -view[low]
-        view = view.rename(columns=lambda c: "slope_coarse" + c[len("slope"):] if c.startswith("slope") else c)
+        view = view.rename(columns=lambda c: "slope_coarse" + c[len("slope") :] if c.startswith("slope") else c)
     return view

@@ -25,12 +25,47 @@ from .validation import check_optional, check_positive, check_probability
 
 #: Columns of ``fits.csv``, in order.
 FIT_COLUMNS = (
-    "experiment", "equation", "formula", "n", "d_cut", "d_cut_stderr", "shape_name", "shape", "shape_stderr",
-    "ssr", "F", "F_crit", "adequate", "rank", "eta", "epsilon", "slope", "d25", "d75", "ep", "imperfection",
-    "d50", "d50c", "ep_c", "imperfection_c",
-    "aic", "aicc", "delta_aicc", "bic", "bypass", "fishhook", "extras", "runs_p", "normality_p", "residuals", "extrapolated",
-    "x_break", "success", "message", "warnings",
-)  # fmt: skip
+    "experiment",
+    "equation",
+    "formula",
+    "n",
+    "d_cut",
+    "d_cut_stderr",
+    "shape_name",
+    "shape",
+    "shape_stderr",
+    "ssr",
+    "F",
+    "F_crit",
+    "adequate",
+    "rank",
+    "eta",
+    "epsilon",
+    "slope",
+    "d25",
+    "d75",
+    "ep",
+    "imperfection",
+    "d50",
+    "d50c",
+    "ep_c",
+    "imperfection_c",
+    "aic",
+    "aicc",
+    "delta_aicc",
+    "bic",
+    "bypass",
+    "fishhook",
+    "extras",
+    "runs_p",
+    "normality_p",
+    "residuals",
+    "extrapolated",
+    "x_break",
+    "success",
+    "message",
+    "warnings",
+)
 
 
 @dataclass(frozen=True)
@@ -55,9 +90,17 @@ class Workbench:
         rows = [fit.row() for fit in self.fits]
         for experiment, reason in self.failures.items():
             for formula in self.formulas:
-                rows.append({"experiment": experiment, "equation": formula.equation, "formula": formula.id,
-                             "shape_name": formula.shape_name, "adequate": False, "success": False,
-                             "message": reason})  # fmt: skip
+                rows.append(
+                    {
+                        "experiment": experiment,
+                        "equation": formula.equation,
+                        "formula": formula.id,
+                        "shape_name": formula.shape_name,
+                        "adequate": False,
+                        "success": False,
+                        "message": reason,
+                    }
+                )
         table = pd.DataFrame(rows).reindex(columns=[c for c in FIT_COLUMNS if c != "rank"])
         table["adequate"] = table["adequate"].astype(bool)
         table["success"] = table["success"].astype(bool)
@@ -136,7 +179,6 @@ class Workbench:
     @property
     def experiments(self) -> list[str]:
         return list(self._by_experiment)
-
 
     # --- readable views and saving (tromplab.results) ---------------------------------------
     def __repr__(self) -> str:
@@ -277,8 +319,13 @@ def fit_experiments(
         if found:
             notes[points.experiment] = found
     chunks = [fittable[i : i + CHUNK_SIZE] for i in range(0, len(fittable), CHUNK_SIZE)]
-    options = {"formulas": tuple(f.id for f in chosen), "alpha": alpha, "delta_max": delta_max, "engine": engine,
-               "size_unit": size_unit}
+    options = {
+        "formulas": tuple(f.id for f in chosen),
+        "alpha": alpha,
+        "delta_max": delta_max,
+        "engine": engine,
+        "size_unit": size_unit,
+    }
     fits = []
     for chunk, chunk_fits in zip(chunks, _map_chunks(chunks, options, jobs=jobs, client=client)):
         fits += chunk_fits
@@ -369,8 +416,10 @@ def data_notes(points: TrompPoints) -> tuple[str, ...]:
     if points.n >= 3 and np.ptp(points.partition_fine) > 0:
         rho = stats.spearmanr(points.size, points.partition_fine).statistic
         if rho > 0.5:
-            notes.append(f"the partition to fines rises with size (Spearman {rho:.2f}): is the column the partition to the "
-                         "coarse product? (use partition_coarse)")  # fmt: skip
+            notes.append(
+                f"the partition to fines rises with size (Spearman {rho:.2f}): is the column the partition to the "
+                "coarse product? (use partition_coarse)"
+            )
     if np.all(points.partition_fine > 0.5) or np.all(points.partition_fine < 0.5):
         side = "above" if points.partition_fine[0] > 0.5 else "below"
         notes.append(f"every point lies {side} 1/2: the cut size is extrapolated beyond the measured sizes")
@@ -420,8 +469,9 @@ def _fit_guarded(points, formula, alpha, delta_max, size_unit="") -> CurveFit:
     try:
         return fit_formula(points, formula, alpha=alpha, delta_max=delta_max, size_unit=size_unit)
     except Exception as error:  # a batch reports a broken fit instead of stopping
-        return failed_fit(points, formula, f"{type(error).__name__}: {error}", alpha=alpha, delta_max=delta_max,
-                          size_unit=size_unit)  # fmt: skip
+        return failed_fit(
+            points, formula, f"{type(error).__name__}: {error}", alpha=alpha, delta_max=delta_max, size_unit=size_unit
+        )
 
 
 def print_progress(i: int, total: int, experiment: str) -> None:

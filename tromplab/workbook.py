@@ -23,9 +23,25 @@ SHEETS = ("fits", "ranking", "averages", "balance", "points")
 # Columns measured in the unit of the particle sizes (with their interval and error columns).
 _SIZE_STEMS = ("d_cut", "d50", "d50c", "d25", "d75", "ep", "ep_c", "size", "size_lower", "size_upper", "x_break", "delta_max")
 # Shares of a stream or of the feed, 0..1.
-_FRACTION_STEMS = ("partition_fine", "partition_coarse", "eta", "epsilon", "bypass", "akaike_share", "fishhook",
-                   "feed_share", "fine_yield", "coarse_yield", "feed", "fine", "coarse", "feed_adjusted", "fine_adjusted",
-                   "coarse_adjusted", "balance_residual")  # fmt: skip
+_FRACTION_STEMS = (
+    "partition_fine",
+    "partition_coarse",
+    "eta",
+    "epsilon",
+    "bypass",
+    "akaike_share",
+    "fishhook",
+    "feed_share",
+    "fine_yield",
+    "coarse_yield",
+    "feed",
+    "fine",
+    "coarse",
+    "feed_adjusted",
+    "fine_adjusted",
+    "coarse_adjusted",
+    "balance_residual",
+)
 _COUNT_COLUMNS = ("n", "rank", "place", "points", "equation", "n_regimes", "bootstrap_failed")
 _SUFFIXES = ("_stderr", "_se", "_low", "_high", "_boot_low", "_boot_high")
 
@@ -47,7 +63,22 @@ def column_unit(column: str, size_unit: str = "") -> str:
         return size_unit or "size unit"
     if stem in _FRACTION_STEMS or stem.startswith("weight_"):  # Akaike weights; a bare "weight" is a least-squares weight
         return "0..1"
-    if stem in ("imperfection", "imperfection_c", "shape", "F", "F_crit", "ssr", "aic", "aicc", "bic", "slope", "slope_coarse", "sharpness", "runs_p", "normality_p"):
+    if stem in (
+        "imperfection",
+        "imperfection_c",
+        "shape",
+        "F",
+        "F_crit",
+        "ssr",
+        "aic",
+        "aicc",
+        "bic",
+        "slope",
+        "slope_coarse",
+        "sharpness",
+        "runs_p",
+        "normality_p",
+    ):
         return "-"
     return ""
 
@@ -81,8 +112,14 @@ def _number_format(column: str) -> str:
     return NUMBER_FORMATS["other"]
 
 
-def write_workbook(path, tables: Mapping[str, pd.DataFrame], *, figures: Mapping[str, bytes] | None = None,
-                   size_unit: str = "", notes: Mapping[str, str] | None = None) -> Path:  # fmt: skip
+def write_workbook(
+    path,
+    tables: Mapping[str, pd.DataFrame],
+    *,
+    figures: Mapping[str, bytes] | None = None,
+    size_unit: str = "",
+    notes: Mapping[str, str] | None = None,
+) -> Path:
     """Write ``tables`` (sheet name -> DataFrame) and PNG ``figures`` into one workbook.
 
     Parameters
@@ -117,7 +154,9 @@ def write_workbook(path, tables: Mapping[str, pd.DataFrame], *, figures: Mapping
         if "quantity" in table.columns and "unit" not in table.columns:
             # a long table (one row per quantity, as the model averages): the unit goes in a column
             table = table.copy()
-            table.insert(table.columns.get_loc("quantity") + 1, "unit", table["quantity"].map(lambda q: column_unit(str(q), size_unit)))
+            table.insert(
+                table.columns.get_loc("quantity") + 1, "unit", table["quantity"].map(lambda q: column_unit(str(q), size_unit))
+            )
         headers = [header_with_unit(str(c), size_unit) for c in table.columns]
         sheet.append(headers)
         for row in table.itertuples(index=False):

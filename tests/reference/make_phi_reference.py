@@ -29,8 +29,7 @@ OUT = Path(__file__).resolve().parent / "phi_reference.csv"
 X_POINTS = ("0.05", "0.3", "0.7", "1", "1.3", "2", "4")
 SLOPES = ("-0.3", "-1", "-3")
 EXTRAS = {"bypass": "0.1", "fishhook": "0.4", "th_alpha": "2"}
-MP_FUNCTIONS = {"exp": mp.exp, "ln": mp.log, "erfc": mp.erfc, "sqrt": mp.sqrt, "max": max, "pi": mp.pi,
-                "ln2": mp.log(2)}  # fmt: skip
+MP_FUNCTIONS = {"exp": mp.exp, "ln": mp.log, "erfc": mp.erfc, "sqrt": mp.sqrt, "max": max, "pi": mp.pi, "ln2": mp.log(2)}
 RTOL = "1e-10"
 
 
@@ -56,8 +55,11 @@ def rosin_rammler_area(a, b, kr):
 
 
 def break_point(kr, efficiency):
-    return mp.findroot(lambda xa: xa * mp.exp(-mp.log(2) * xa**kr) + rosin_rammler_area(xa, 1, kr) - efficiency,
-                       (mp.mpf("1e-30"), mp.mpf(1) - mp.mpf("1e-30")), solver="anderson")  # fmt: skip
+    return mp.findroot(
+        lambda xa: xa * mp.exp(-mp.log(2) * xa**kr) + rosin_rammler_area(xa, 1, kr) - efficiency,
+        (mp.mpf("1e-30"), mp.mpf(1) - mp.mpf("1e-30")),
+        solver="anderson",
+    )
 
 
 def beta_star(alpha, fishhook):
