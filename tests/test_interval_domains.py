@@ -1,0 +1,76 @@
+"""Every interval tromplab reports contains its estimate and stays inside the quantity's range
+(issue 10, item 1): on the bundled double-deck data where eta > 1, negative Ep and a negative
+lower limit of ks were seen, and on generated experiments with bypass, few points, sharp and
+flat curves."""
+
+import numpy as np
+import pandas as pd
+import pytest
+
+import tromplab
+from tromplab.cli import main
+from tromplab.points import TrompPoints
+from tromplab.uncertainty import interval_table, quantity_domain
+
+from .conftest import DATASETS
+
+
+def _inside(domain, values) -> np.ndarray:
+    values = np.asarray(values, dtype=float)
+    return (values >= domain.lower) & (values <= domain.upper)
+
+
+def test_bundled_deck_intervals_stay_in_range_and_name_their_method(tmp_path):
+    out = tmp_path / "out"
+    assert main(["fit", str(DATASETS / "double_deck_screen_decks_lab.csv"), "-o", str(out), "--size-unit", "mm",
+                 "--ci", "0.95", "--no-figures", "--quiet"]) == 0  # fmt: skip
+    fits = pd.read_csv(out / "fits.csv")
+    fits = fits[fits["success"]]
+    for quantity in ("d_cut", "eta", "epsilon", "ep", "imperfection", "d25", "d75", "slope"):
+        low, high, value = fits[f"{quantity}_low"], fits[f"{quantity}_high"], fits[quantity]
+        made = low.notna() & high.notna()
+        assert made.any(), quantity
+        domain = quantity_domain(quantity)
+        assert _inside(domain, low[made]).all() and _inside(domain, high[made]).all(), quantity
+        assert ((low[made] <= value[made]) & (value[made] <= high[made])).all(), quantity
+        assert fits.loc[made, f"{quantity}_method"].notna().all(), quantity
+    assert (fits["eta_high"] <= 1.0).all()  # was 1.027
+    assert (fits.loc[fits["formula"] == "plitt", "shape_low"] > 0).all()  # was -22.4
+    averages = pd.read_csv(out / "averages.csv")
+    made = averages["low"].notna()
+    assert (averages.loc[made, "low"] > 0).all() and (averages.loc[averages["quantity"] == "eta", "high"] < 1).all()
+    assert averages["method"].notna().all() and (averages["akaike_share"] <= 1).all()
+
+
+def _experiment(seed: int, formula: str, n: int, shape: float, bypass: float = 0.0):
+    rng = np.random.default_rng(seed)
+    size = np.geomspace(5, 500, n)
+    extras = {"bypass": bypass} if bypass else {}
+    phi = tromplab.get_formula(formula)(size, 60.0, shape, **extras) + rng.normal(0, 0.02, n)
+    return TrompPoints(f"{formula}-{seed}", size, np.clip(phi, 0.0, 1.0))
+
+
+CASES = [
+    ("plitt", 10, 3.0, 0.0, "plitt"),  # ordinary
+    ("plitt", 5, 3.0, 0.0, "plitt"),  # few points
+    ("plitt", 10, 25.0, 0.0, "plitt"),  # steep
+    ("plitt", 10, 0.6, 0.0, "plitt"),  # flat
+    ("plitt_bypass", 10, 3.0, 0.25, "plitt_bypass"),  # bypass
+    ("lognormal", 6, 0.4, 0.0, "molerus_hoffmann"),  # a formula whose shape was fitted negative before
+]
+
+
+@pytest.mark.parametrize("seed", range(4))
+@pytest.mark.parametrize("truth, n, shape, bypass, fitted", CASES, ids=[f"{c[0]}-n{c[1]}-k{c[2]}-b{c[3]}" for c in CASES])
+def test_every_interval_contains_its_estimate_and_stays_in_range(seed, truth, n, shape, bypass, fitted):
+    fit = tromplab.fit_formula(_experiment(seed, truth, n, shape, bypass), fitted)
+    if not fit.success:
+        pytest.skip("the fit failed; nothing to bound")
+    table = interval_table(fit, level=0.95, profile=False)
+    assert table["method"].notna().all()
+    for row in table.itertuples(index=False):
+        if not (np.isfinite(row.low) and np.isfinite(row.high)):
+            continue
+        domain = quantity_domain(row.quantity, fit.formula)
+        assert row.low <= row.value <= row.high, row
+        assert _inside(domain, [row.low, row.high]).all(), row
