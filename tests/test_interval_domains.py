@@ -74,3 +74,21 @@ def test_every_interval_contains_its_estimate_and_stays_in_range(seed, truth, n,
         domain = quantity_domain(row.quantity, fit.formula)
         assert row.low <= row.value <= row.high, row
         assert _inside(domain, [row.low, row.high]).all(), row
+
+
+def test_averages_leave_out_a_quantity_the_favoured_formulas_lack():
+    """Issue 10 item 4: with 80 % bypass the actual curve never reaches 1/4, so the favoured
+    bypass curve has no actual cut or Ep; averaging the formulas that do (0.0001 % of the
+    weight) would report a number the data do not support."""
+    size = np.geomspace(5, 500, 12)
+    rng = np.random.default_rng(3)
+    phi = tromplab.get_formula("plitt_bypass")(size, 60.0, 3.0, bypass=0.8) + rng.normal(0, 0.005, size.size)
+    points = TrompPoints("hydrocyclone", size, np.clip(phi, 0.0, 1.0))
+    fits = [tromplab.fit_formula(points, formula) for formula in ("plitt_bypass", "plitt", "lognormal")]
+    table = tromplab.uncertainty.model_average(fits).set_index("quantity")
+    for missing in ("d50", "ep"):
+        assert np.isnan(table.loc[missing, "value"]) and table.loc[missing, "akaike_share"] < 0.5
+        assert "not averaged" in table.loc[missing, "note"]
+    for present in ("d50c", "ep_c", "eta"):
+        assert np.isfinite(table.loc[present, "value"]) and table.loc[present, "akaike_share"] > 0.99
+    assert abs(table.loc["d50c", "value"] - 60.0) < 6.0
