@@ -1,0 +1,122 @@
+"""Hostile command lines and outputs (issue 15): exit codes, options named, nothing half
+written, previous results kept, distinct figure names, safe expressions."""
+
+import pandas as pd
+import pytest
+
+from tromplab.cli import main
+from tromplab.sieve import fit_dependence
+
+SIZES = (10, 20, 40, 80, 160, 320)
+CURVE = (0.97, 0.9, 0.7, 0.35, 0.1, 0.02)
+
+
+def points_file(tmp_path, experiments, name="points.csv"):
+    rows = [f"{e},{s},{p}" for e, curve in experiments.items() for s, p in zip(SIZES, curve)]
+    path = tmp_path / name
+    path.write_text("experiment,size,partition_fine\n" + "\n".join(rows) + "\n", encoding="utf-8")
+    return path
+
+
+@pytest.mark.parametrize(
+    "option, value",
+    [("--alpha", "2"), ("--alpha", "nan"), ("--ci", "1.5"), ("--bootstrap", "-1"), ("--bootstrap", "10000000"),
+     ("--seed", "-3"), ("--delta-max", "-5"), ("--delta-max", "inf"), ("--jobs", "-1"), ("--min-feed-share", "2")],
+)  # fmt: skip
+def test_option_out_of_range_is_a_usage_error_naming_the_option(tmp_path, capsys, option, value):
+    out = tmp_path / "out"
+    assert main(["fit", str(points_file(tmp_path, {"A": CURVE})), "-o", str(out), option, value]) == 2
+    err = capsys.readouterr().err
+    assert option in err and "Traceback" not in err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [["sieve", "pg", "--hole", "nan", "--length", "1", "--width", "1", "--cell-width", "3"], ["sieve", "bin", "--decks", "0",
+     "--length", "1", "--recovery", "0.9"]],
+)  # fmt: skip
+def test_sieve_options_are_checked_by_the_parser(capsys, argv):
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert ("--hole" in err or "--decks" in err) and "Traceback" not in err
+
+
+def test_flat_experiment_is_a_failure_and_the_rest_is_a_partial_result(tmp_path, capsys):
+    out = tmp_path / "out"
+    path = points_file(tmp_path, {"good": CURVE, "flat": (0.4,) * 6})
+    assert main(["fit", str(path), "-o", str(out), "--no-figures"]) == 3
+    failures = pd.read_csv(out / "failures.csv")
+    assert list(failures["experiment"]) == ["flat"] and "flat" in failures["reason"][0]
+    fits = pd.read_csv(out / "fits.csv")
+    assert not fits.loc[fits["experiment"] == "flat", "adequate"].any()
+    assert fits.loc[fits["experiment"] == "flat", "rank"].isna().all()
+    assert "partial result" in capsys.readouterr().err
+
+
+def test_nothing_fitted_is_bad_input_and_writes_nothing(tmp_path, capsys):
+    out = tmp_path / "out"
+    assert main(["fit", str(points_file(tmp_path, {"flat": (0.4,) * 6})), "-o", str(out)]) == 1
+    assert "no formula could be fitted" in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_a_failed_run_leaves_the_previous_outputs_whole(tmp_path, monkeypatch):
+    out = tmp_path / "out"
+    assert main(["fit", str(points_file(tmp_path, {"A": CURVE})), "-o", str(out), "--no-figures"]) == 0
+    before = {p.name: p.read_bytes() for p in out.iterdir() if not p.name.startswith(".")}
+    import tromplab.cli
+
+    def broken(*args, **kwargs):
+        raise RuntimeError("disk full")
+
+    monkeypatch.setattr(tromplab.cli, "_overview_png", broken)  # never reached with --no-figures
+    monkeypatch.setattr(pd.DataFrame, "to_csv", broken)
+    assert main(["fit", str(points_file(tmp_path, {"B": CURVE}, "other.csv")), "-o", str(out), "--no-figures"]) == 70
+    monkeypatch.undo()
+    after = {p.name: p.read_bytes() for p in out.iterdir() if not p.name.startswith(".")}
+    assert after == before
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".") and p.is_dir() and "out" in p.name]
+
+
+def test_a_rerun_replaces_the_figures_of_the_previous_run(tmp_path):
+    out = tmp_path / "out"
+    assert main(["fit", str(points_file(tmp_path, {"A": CURVE, "B": CURVE})), "-o", str(out), "--formulas", "plitt"]) == 0
+    assert (out / "curves_B.png").exists()
+    assert main(["fit", str(points_file(tmp_path, {"A": CURVE}, "a.csv")), "-o", str(out), "--formulas", "plitt"]) == 0
+    assert sorted(p.name for p in out.glob("curves_*.png")) == ["curves_A.png"]
+
+
+def test_distinct_experiments_never_share_a_figure(tmp_path):
+    out = tmp_path / "out"
+    names = {"Проба 1": CURVE, "Образец 1": CURVE, "../evil": CURVE, "$x_{50}^2$": CURVE}
+    assert main(["fit", str(points_file(tmp_path, names)), "-o", str(out), "--formulas", "plitt"]) == 0
+    mapping = pd.read_csv(out / "figures.csv")
+    assert sorted(mapping["experiment"]) == sorted(names)
+    assert mapping["file"].is_unique
+    assert all((out / name).exists() and "/" not in name for name in mapping["file"])
+    assert not (tmp_path / "evil.png").exists()
+
+
+def test_output_folder_that_is_a_file_or_holds_the_input_is_refused(tmp_path, capsys):
+    path = points_file(tmp_path, {"A": CURVE})
+    clash = tmp_path / "taken"
+    clash.write_text("mine")
+    assert main(["fit", str(path), "-o", str(clash)]) == 1
+    assert clash.read_text() == "mine"
+    assert main(["fit", str(path), "-o", str(tmp_path)]) == 1
+    assert "holds the input" in capsys.readouterr().err
+    assert main(["points", str(path), "-o", str(path)]) == 1
+
+
+@pytest.mark.parametrize("form", ["open('/etc/passwd')", "c0 + c1.__class__", "__import__('os')", "c0 + (lambda: 1)()"])
+def test_dependence_expressions_allow_only_arithmetic(form):
+    with pytest.raises(ValueError):
+        fit_dependence([2.0, 2.0, 2.0], [1.0, 1.5, 2.0], [0.1, 0.12, 0.15], form=form)
+
+
+def test_rank_table_with_a_missing_cell_is_refused(tmp_path, capsys):
+    table = tmp_path / "F.csv"
+    table.write_text("experiment,equation,F,n\n1,3,10,8\n1,7,12,8\n2,3,9,8\n")  # formula (7) missing in experiment 2
+    assert main(["rank", str(table), "-o", str(tmp_path / "r")]) == 1
+    assert "F.csv" in capsys.readouterr().err
