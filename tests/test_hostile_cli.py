@@ -120,3 +120,24 @@ def test_rank_table_with_a_missing_cell_is_refused(tmp_path, capsys):
     table.write_text("experiment,equation,F,n\n1,3,10,8\n1,7,12,8\n2,3,9,8\n")  # formula (7) missing in experiment 2
     assert main(["rank", str(table), "-o", str(tmp_path / "r")]) == 1
     assert "F.csv" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_outputs_are_byte_identical_whatever_the_hash_seed(tmp_path):
+    """Issue 15 item 6: same input and seed, same bytes, whatever PYTHONHASHSEED."""
+    import os
+    import subprocess
+    import sys
+
+    path = points_file(tmp_path, {"Проба 1": CURVE, "B": (0.99, 0.95, 0.8, 0.4, 0.15, 0.05)})
+    runs = []
+    for hash_seed in ("1", "4242"):
+        out = tmp_path / f"out{hash_seed}"
+        env = {**os.environ, "PYTHONHASHSEED": hash_seed}
+        command = [sys.executable, "-m", "tromplab", "fit", str(path), "-o", str(out), "--formulas", "plitt,lognormal,5",
+                   "--bootstrap", "20", "--seed", "7", "--quiet"]  # fmt: skip
+        done = subprocess.run(command, env=env, capture_output=True, text=True)
+        assert done.returncode == 0, done.stderr
+        runs.append({p.name: p.read_bytes() for p in sorted(out.iterdir()) if not p.name.startswith(".")})
+    assert runs[0].keys() == runs[1].keys() and len(runs[0]) >= 5
+    assert runs[0] == runs[1]
