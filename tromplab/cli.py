@@ -40,7 +40,7 @@ from .validation import (
     check_share,
     cli_type,
 )
-from .views import PARTITION_TO, partition_view
+from .views import PARTITION_TO, balance_view, partition_view
 from .workbench import fit_experiments, model_averages, print_progress, write_atomically
 
 #: Above this many experiments, --figures auto draws one overview figure and the console
@@ -558,27 +558,8 @@ def _run_balance(args) -> int:
                 f"  least-squares estimate from the three streams: {estimate.value:.4f} +/- {estimate.stderr:.4f} "
                 f"(standard error, {estimate.n_classes} classes); coarse yield {1 - estimate.value:.4f}"
             )
-        partition = f"partition_{args.partition_to}"
-        classes = partition_view(balance.classes, args.partition_to)
-        columns = [
-            c
-            for c in (
-                "size_lower",
-                "size_upper",
-                "size",
-                "feed",
-                "fine",
-                "coarse",
-                "balance_residual",
-                "feed_adjusted",
-                "fine_adjusted",
-                "coarse_adjusted",
-                partition,
-                "used",
-            )
-            if c in classes.columns
-        ]
-        print(classes[columns].to_string(index=False, float_format=lambda v: f"{v:.4g}", na_rep="-"))
+        table = balance_view(balance.classes, args.partition_to, adjusted=True)
+        print(table.to_string(index=False, float_format=lambda v: f"{v:.4g}", na_rep="-"))
         print()
     return 0
 

@@ -146,7 +146,7 @@ def build_report(
     partition_to : {"fine", "coarse"}
         Product whose partition the balance tables and curve figures show.
     """
-    from .views import check_partition_to, partition_view
+    from .views import balance_view, check_partition_to
 
     check_partition_to(partition_to)
     import matplotlib
@@ -197,23 +197,7 @@ def build_report(
             text += f" Least-squares estimate from the three streams: {estimate.value:.4f} +/- {estimate.stderr:.4f}."
         text += f" Partition to fines from {PARTITION_METHOD_TEXT[balance.partition_method]}."
         report.add("balance", "text", text, caption=f"Experiment {balance.experiment}")
-        classes = partition_view(balance.classes, partition_to)
-        columns = [
-            c
-            for c in (
-                "size_lower",
-                "size_upper",
-                "size",
-                "feed",
-                "fine",
-                "coarse",
-                "balance_residual",
-                f"partition_{partition_to}",
-                "used",
-            )
-            if c in classes.columns
-        ]
-        report.add("balance", "table", classes[columns])
+        report.add("balance", "table", balance_view(balance.classes, partition_to))
     view = [
         "rank",
         "equation",

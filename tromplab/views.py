@@ -60,3 +60,19 @@ def partition_view(table: pd.DataFrame, partition_to: str = "fine") -> pd.DataFr
                 view[low], view[high] = -view[high], -view[low]
         view = view.rename(columns=lambda c: "slope_coarse" + c[len("slope") :] if c.startswith("slope") else c)
     return view
+
+
+#: Columns of the mass-balance table as shown to a reader (console, report), in order.
+_BALANCE_STREAMS = ("size_lower", "size_upper", "size", "feed", "fine", "coarse", "balance_residual")
+_ADJUSTED_STREAMS = ("feed_adjusted", "fine_adjusted", "coarse_adjusted")
+
+
+def balance_view(classes: pd.DataFrame, partition_to: str = "fine", *, adjusted: bool = False) -> pd.DataFrame:
+    """The balance table of a lab experiment as shown to a reader: sizes, the three streams,
+    the balance residual, (with ``adjusted``, the reconciled streams), the partition to the
+    ``partition_to`` product and whether the class was used; columns the table lacks are
+    left out.
+    """
+    view = partition_view(classes, partition_to)
+    wanted = (*_BALANCE_STREAMS, *(_ADJUSTED_STREAMS if adjusted else ()), f"partition_{partition_to}", "used")
+    return view[[column for column in wanted if column in view.columns]]
