@@ -10,6 +10,17 @@ ROOT = Path(__file__).resolve().parent.parent
 REFERENCE = Path(__file__).resolve().parent / "reference"
 DATASETS = ROOT / "datasets"
 
+#: A small, valid lab table of per-class percentages (open top class), for tests that break it.
+LAB_CLASS_HEADER = "size_lower,size_upper,feed_pct,fine_pct,coarse_pct\n"
+LAB_CLASS_ROWS = (
+    "800,,5,0,9.2",
+    "400,800,15,1,25.3",
+    "200,400,30,16.3,35.4",
+    "100,200,25,31.8,16.7",
+    "50,100,15,25.9,7.7",
+    "10,50,10,25,5.7",
+)
+
 
 def reference(name: str) -> pd.DataFrame:
     """A reference table of tests/reference (comment lines give its provenance)."""

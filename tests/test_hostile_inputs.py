@@ -21,19 +21,12 @@ from tromplab.ranking import read_f_table
 from tromplab.sieve import identify_from_table
 from tromplab.tables import InputNote, read_table
 
-from .conftest import ROOT
+from .conftest import LAB_CLASS_HEADER, LAB_CLASS_ROWS, ROOT
 from .strategies import lab_tables, mutated, points_tables, write_frame
 
 POINTS = "size,partition_fine\n10,0.95\n20,0.8\n40,0.5\n80,0.2\n160,0.05\n"
-LAB_HEADER = "size_lower,size_upper,feed_pct,fine_pct,coarse_pct\n"
-LAB_ROWS = [
-    "800,,5,0,9.2",
-    "400,800,15,1,25.3",
-    "200,400,30,16.3,35.4",
-    "100,200,25,31.8,16.7",
-    "50,100,15,25.9,7.7",
-    "10,50,10,25,5.7",
-]
+LAB_HEADER = LAB_CLASS_HEADER
+LAB_ROWS = LAB_CLASS_ROWS
 
 
 def lab(*replace, header=LAB_HEADER, extra=None):

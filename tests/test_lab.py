@@ -23,7 +23,7 @@ from tromplab.lab import (
     reconcile,
 )
 
-from .conftest import DATASETS, ROOT
+from .conftest import DATASETS, LAB_CLASS_HEADER, LAB_CLASS_ROWS, ROOT
 
 UPPER = np.array([np.nan, 800.0, 400.0, 200.0, 100.0, 50.0])
 LOWER = np.array([800.0, 400.0, 200.0, 100.0, 50.0, np.nan])
@@ -315,15 +315,8 @@ def write(tmp_path, text):
     return path
 
 
-CLASS_HEADER = "size_lower,size_upper,feed_pct,fine_pct,coarse_pct\n"
-GOOD_ROWS = [
-    "800,,5,0,9.2",
-    "400,800,15,1,25.3",
-    "200,400,30,16.3,35.4",
-    "100,200,25,31.8,16.7",
-    "50,100,15,25.9,7.7",
-    "10,50,10,25,5.7",
-]
+CLASS_HEADER = LAB_CLASS_HEADER
+GOOD_ROWS = LAB_CLASS_ROWS
 
 
 def rows(*replace):
