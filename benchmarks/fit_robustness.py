@@ -18,23 +18,16 @@ import lmfit
 import numpy as np
 import pandas as pd
 
+from tromplab._synthetic import synthetic as shared_synthetic
 from tromplab.curves import fit_formula
 from tromplab.formulas import FORMULAS
-from tromplab.points import TrompPoints
 
 TOLERANCE = 1e-5
 
 
 def synthetic(seed):
-    rng = np.random.default_rng(seed)
-    truth = FORMULAS[seed % len(FORMULAS)]
-    n = int(rng.integers(8, 13))
-    d_cut = float(rng.uniform(20, 200))
-    sizes = d_cut * np.geomspace(rng.uniform(0.1, 0.4), rng.uniform(2.5, 6), n)
-    shape = truth.clip_shape(truth.shape_for_slope(-rng.uniform(0.3, 2.0)))
-    context = {"measured_efficiency": 0.75} if truth.context_from_efficiency else {}
-    phi = truth(sizes, d_cut, shape, **context) + rng.normal(0, rng.uniform(0.01, 0.03), n)
-    return TrompPoints(f"s{seed}", sizes, np.clip(phi, 0, 1))
+    """The shared unweighted synthetic curve of ``tromplab._synthetic`` for this seed."""
+    return shared_synthetic(seed, weighted=False)
 
 
 def bare_lmfit(points, formula, context):

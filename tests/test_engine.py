@@ -6,6 +6,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 from tromplab import workbench
+from tromplab._synthetic import synthetic
 from tromplab.cli import main
 from tromplab.curves import fit_formula, with_lmfit
 from tromplab.engine import (
@@ -20,20 +21,6 @@ from tromplab.points import TrompPoints
 from tromplab.workbench import fit_experiments
 
 BATCHABLE = [f for f in ALL_FORMULAS if is_batchable(f)]
-
-
-def synthetic(seed: int) -> TrompPoints:
-    """A noisy curve of one of the nine formulas (8-12 sizes, slope -0.3 to -2, noise 0.01-0.03)."""
-    rng = np.random.default_rng(seed)
-    truth = FORMULAS[seed % len(FORMULAS)]
-    n = int(rng.integers(8, 13))
-    d_cut = float(rng.uniform(20, 200))
-    sizes = d_cut * np.geomspace(rng.uniform(0.1, 0.4), rng.uniform(2.5, 6), n)
-    shape = truth.clip_shape(truth.shape_for_slope(-rng.uniform(0.3, 2.0)))
-    context = {"measured_efficiency": 0.75} if truth.context_from_efficiency else {}
-    phi = truth(sizes, d_cut, shape, **context) + rng.normal(0, rng.uniform(0.01, 0.03), n)
-    weight = rng.uniform(0.5, 2.0, n) if seed % 5 == 0 else None
-    return TrompPoints(f"s{seed}", sizes, np.clip(phi, 0, 1), weight)
 
 
 EXPERIMENTS = [synthetic(seed) for seed in range(18)]  # two curves of each of the nine formulas
