@@ -22,6 +22,19 @@ LAB_CLASS_ROWS = (
 )
 
 
+#: Tromp points of two experiments (A, B) of six sizes, as CSV text.
+TWO_EXPERIMENT_POINTS = "experiment,size,partition_fine\n" + "\n".join(
+    f"{e},{s},{p}" for e in ("A", "B") for s, p in zip((10, 20, 40, 80, 160, 320), (0.97, 0.9, 0.7, 0.35, 0.1, 0.02))
+)
+
+
+def write(tmp_path, text, name="points.csv"):
+    """Write ``text`` to ``tmp_path / name`` and return the path."""
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
 def reference(name: str) -> pd.DataFrame:
     """A reference table of tests/reference (comment lines give its provenance)."""
     return pd.read_csv(REFERENCE / name, comment="#")

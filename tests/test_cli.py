@@ -6,17 +6,9 @@ import pytest
 from tromplab.cli import main
 from tromplab.workbench import FIT_COLUMNS
 
-from .conftest import DATASETS
+from .conftest import DATASETS, TWO_EXPERIMENT_POINTS, write
 
-GOOD = "experiment,size,partition_fine\n" + "\n".join(
-    f"{e},{s},{p}" for e in ("A", "B") for s, p in zip((10, 20, 40, 80, 160, 320), (0.97, 0.9, 0.7, 0.35, 0.1, 0.02))
-)
-
-
-def write(tmp_path, text, name="points.csv"):
-    path = tmp_path / name
-    path.write_text(text)
-    return path
+GOOD = TWO_EXPERIMENT_POINTS
 
 
 def test_fit_writes_tables_and_figures(tmp_path, capsys):

@@ -8,18 +8,10 @@ from numpy.testing import assert_allclose
 from tromplab.cli import main
 from tromplab.workbook import SHEETS, strip_unit
 
-from .conftest import DATASETS
+from .conftest import DATASETS, TWO_EXPERIMENT_POINTS, write
 
 LAB = DATASETS / "double_deck_screen_decks_lab.csv"
-POINTS = "experiment,size,partition_fine\n" + "\n".join(
-    f"{e},{s},{p}" for e in ("A", "B") for s, p in zip((10, 20, 40, 80, 160, 320), (0.97, 0.9, 0.7, 0.35, 0.1, 0.02))
-)
-
-
-def write(tmp_path, text, name="points.csv"):
-    path = tmp_path / name
-    path.write_text(text)
-    return path
+POINTS = TWO_EXPERIMENT_POINTS
 
 
 def sheet_frame(book, name) -> pd.DataFrame:

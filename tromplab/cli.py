@@ -129,27 +129,13 @@ def _interrupted(interruption=None) -> int:
 def _verbosity(args):
     """``--quiet`` silences the tables and progress on standard output and error (errors and
     warnings stay); ``-v`` adds the library's informational log lines."""
-    global VERBOSITY
-    previous, VERBOSITY = VERBOSITY, -1 if args.quiet else args.verbose
     if args.verbose:
         logging.basicConfig(level=logging.INFO if args.verbose == 1 else logging.DEBUG, format="%(name)s: %(message)s")
-    try:
-        if args.quiet:
-            with open(os.devnull, "w") as sink, contextlib.redirect_stdout(sink):
-                yield
-        else:
+    if args.quiet:
+        with open(os.devnull, "w") as sink, contextlib.redirect_stdout(sink):
             yield
-    finally:
-        VERBOSITY = previous
-
-
-#: -1 quiet, 0 normal, 1+ verbose (set by :func:`main` for the duration of a command).
-VERBOSITY = 0
-
-
-def _progress(i: int, total: int, experiment: str) -> None:
-    if VERBOSITY >= 0:
-        print_progress(i, total, experiment)
+    else:
+        yield
 
 
 def _cli_words(message: str, parser: argparse.ArgumentParser) -> str:
@@ -872,16 +858,18 @@ def _run_report(args) -> int:
     check_input_file(args.input)
     check_output_file(args.output, inputs=[args.input])
     experiments, balances = read_experiments(args.input, _lab_options(args))
-    bench = fit_experiments(
-        experiments,
-        formulas=formulas,
-        alpha=args.alpha,
-        delta_max=args.delta_max,
-        rank_by=args.rank_by,
-        rank_extended=args.rank_extended,
-        progress=_progress,
-        size_unit=_data_size_unit(experiments, args.size_unit),
-    )
+    size_unit = _data_size_unit(experiments, args.size_unit)
+    with _progress_bar(len(experiments), "fitting", quiet=getattr(args, "quiet", False)) as progress:
+        bench = fit_experiments(
+            experiments,
+            formulas=formulas,
+            alpha=args.alpha,
+            delta_max=args.delta_max,
+            rank_by=args.rank_by,
+            rank_extended=args.rank_extended,
+            progress=progress,
+            size_unit=size_unit,
+        )
     failures = failure_table(bench)
     _refuse_if_nothing_fitted(bench, args.input)
     report = build_report(
@@ -889,7 +877,7 @@ def _run_report(args) -> int:
         balances,
         source=str(args.input),
         level=args.ci,
-        size_unit=_data_size_unit(experiments, args.size_unit),
+        size_unit=size_unit,
         title=args.title,
         partition_to=args.partition_to,
     )
