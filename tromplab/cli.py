@@ -8,6 +8,7 @@ import io
 import logging
 import os
 import re
+import signal
 import sys
 import textwrap
 import traceback
@@ -51,11 +52,34 @@ TERMINAL_COLUMNS = ["rank", "equation", "formula", "d_cut", "shape_name", "shape
 
 #: Exit codes (documented in the README and docs/reliability.md).
 EXIT_OK, EXIT_INPUT, EXIT_USAGE, EXIT_PARTIAL, EXIT_INTERNAL, EXIT_INTERRUPTED = 0, 1, 2, 3, 70, 130
+EXIT_TERMINATED = 143  # 128 + SIGTERM, as shells report a process ended by SIGTERM
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised in the main thread so the same clean-up runs as for Ctrl-C."""
+
+
+@contextlib.contextmanager
+def _sigterm_as_interrupt():
+    """Turn SIGTERM into :class:`Terminated` while the command runs (main thread only)."""
+
+    def terminate(signum, frame):
+        raise Terminated
+
+    try:
+        previous = signal.signal(signal.SIGTERM, terminate)
+    except ValueError:  # not the main thread (main() called from a worker thread): leave signals alone
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 def main(argv=None) -> int:
     """Run the command line; returns the exit code (0 done, 1 bad input, 2 usage,
-    3 partial, 70 internal error, 130 interrupted)."""
+    3 partial, 70 internal error, 130 interrupted by SIGINT, 143 terminated by SIGTERM)."""
     parser = _parser()
     try:
         args = parser.parse_args(argv)
@@ -68,15 +92,15 @@ def main(argv=None) -> int:
         return EXIT_USAGE
     command = " ".join(filter(None, ("tromplab", args.command, getattr(args, "sieve_command", None))))
     try:
-        with warnings.catch_warnings(), _verbosity(args):
+        with _sigterm_as_interrupt(), warnings.catch_warnings(), _verbosity(args):
             warnings.simplefilter("ignore", YieldWarning)  # printed from the balance notes instead
             warnings.showwarning = _show_input_notes(warnings.showwarning)
             return args.run(args)
     except BrokenPipeError:  # output piped into head or less and closed early
         sys.stderr.close()
         return EXIT_OK
-    except KeyboardInterrupt:
-        return _interrupted()
+    except KeyboardInterrupt as interruption:
+        return _interrupted(interruption)
     except InputError as error:  # the project's own input, option and output errors
         if args.debug:
             traceback.print_exc()
@@ -93,7 +117,10 @@ def main(argv=None) -> int:
         return EXIT_INTERNAL
 
 
-def _interrupted() -> int:
+def _interrupted(interruption=None) -> int:
+    if isinstance(interruption, Terminated):
+        print("tromplab: terminated (SIGTERM); the output folder was left as it was", file=sys.stderr)
+        return EXIT_TERMINATED
     print("tromplab: interrupted; the output folder was left as it was", file=sys.stderr)
     return EXIT_INTERRUPTED
 
