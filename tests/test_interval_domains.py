@@ -6,6 +6,7 @@ flat curves."""
 import numpy as np
 import pandas as pd
 import pytest
+from scipy import stats
 
 import tromplab
 from tromplab.cli import main
@@ -92,3 +93,26 @@ def test_averages_leave_out_a_quantity_the_favoured_formulas_lack():
     for present in ("d50c", "ep_c", "eta"):
         assert np.isfinite(table.loc[present, "value"]) and table.loc[present, "akaike_share"] > 0.99
     assert abs(table.loc["d50c", "value"] - 60.0) < 6.0
+
+
+def test_epsilon_intervals_stay_inside_zero_to_x_max_minus_one():
+    """Issue 10 (trust item 4): eps = integral_1^x_max phi dx is at most x_max - 1; with four
+    noisy points (t quantile 4.3) and delta_max close to the cut, a log-scale interval passes
+    that bound, the logit of eps / (x_max - 1) cannot."""
+    size = np.array([20.0, 45.0, 80.0, 150.0])
+    log_scale_outside = 0
+    for seed in range(6):
+        rng = np.random.default_rng(seed)
+        phi = np.clip(tromplab.get_formula("plitt")(size, 60.0, 1.2) + rng.normal(0, 0.05, size.size), 0.0, 1.0)
+        fit = tromplab.fit_formula(TrompPoints(f"few-{seed}", size, phi), "plitt", delta_max=90.0)
+        assert fit.success
+        row = interval_table(fit, level=0.95, profile=False).set_index("quantity").loc["epsilon"]
+        x_max = 90.0 / fit.d_cut
+        assert row["method"] == "delta-logit"
+        assert 0.0 <= row["low"] <= row["value"] <= row["high"] <= x_max - 1.0
+        domain = quantity_domain("epsilon", x_max=x_max)
+        assert (domain.lower, domain.upper) == (0.0, x_max - 1.0)
+        # the log-scale interval the earlier code made from the same estimate and error
+        log_high = row["value"] * np.exp(stats.t.ppf(0.975, 2) * row["stderr"] / row["value"])
+        log_scale_outside += log_high > x_max - 1.0
+    assert log_scale_outside >= 2  # the data do test the bound (seeds 3 and 4)

@@ -42,7 +42,9 @@ class Domain:
     the logit scale, ``negative`` ones on the log of minus the value, ``real`` ones on the
     natural scale; the limits are transformed back, so an interval never leaves the range.
     A quantity bounded below by another value (a shape parameter admissible above -1)
-    uses the log of its distance from that bound.
+    uses the log of its distance from that bound; one bounded on both sides by other
+    values than 0 and 1 (epsilon in [0, x_max - 1]) the logit of its position in the range,
+    ``log((v - lower) / (upper - v))``.
     """
 
     name: str
@@ -65,7 +67,7 @@ class Domain:
         if self.scale == "neglog":
             return np.log(self.upper - value)
         if self.scale == "logit":
-            return np.log(value) - np.log1p(-value)
+            return np.log(value - self.lower) - np.log(self.upper - value)
         return value
 
     def backward(self, value):
@@ -76,7 +78,7 @@ class Domain:
             if self.scale == "neglog":
                 return self.upper - np.exp(value)
             if self.scale == "logit":
-                return 1.0 / (1.0 + np.exp(-value))
+                return self.lower + (self.upper - self.lower) / (1.0 + np.exp(-value))
         return value
 
     def slope(self, value):
@@ -87,7 +89,7 @@ class Domain:
         if self.scale == "neglog":
             return 1.0 / (self.upper - value)
         if self.scale == "logit":
-            return 1.0 / (value * (1.0 - value))
+            return 1.0 / (value - self.lower) + 1.0 / (self.upper - value)
         return np.ones_like(value)
 
 
@@ -97,7 +99,8 @@ NEGATIVE = Domain("negative", -np.inf, 0.0, "neglog")
 REAL = Domain("real", -np.inf, np.inf, "identity")
 
 #: Range of every reported quantity (sizes in the unit of the data).  The shape parameter's
-#: range follows from its formula (:func:`quantity_domain`).
+#: range follows from its formula, and epsilon's upper end, ``x_max - 1``, from the fit
+#: (:func:`quantity_domain`); ``(0, inf)`` is its range when no fit is known.
 QUANTITY_DOMAINS = {
     "d_cut": POSITIVE,
     "d50c": POSITIVE,
@@ -117,18 +120,38 @@ QUANTITY_DOMAINS = {
 }
 
 
-def quantity_domain(quantity: str, formula=None) -> Domain:
+def epsilon_domain(x_max: float) -> Domain:
+    """Range of the misplacement ``eps = integral_1^x_max phi(x) dx``: ``[0, x_max - 1]``.
+
+    eps is an area in relative size times partition; a partition in [0, 1] over the
+    relative sizes 1..x_max bounds it by ``x_max - 1``.  Its intervals are made on the
+    logit of ``eps / (x_max - 1)``, the mean partition above the cut.
+    """
+    return Domain(f"0..{x_max - 1:g} (x_max - 1)", 0.0, max(float(x_max) - 1.0, 0.0), "logit")
+
+
+def quantity_domain(quantity: str, formula=None, *, x_max: float | None = None) -> Domain:
     """Range of a reported quantity.
 
     A shape parameter is positive when its formula admits only positive values, and
     bounded below by the formula's lower shape bound otherwise (km2 and kp above -1).
+    epsilon lies in ``[0, x_max - 1]`` when the fit's ``x_max = delta_max / d_cut`` is
+    given (:func:`epsilon_domain`), in ``(0, inf)`` otherwise.
     """
+    if quantity == "epsilon" and x_max is not None and np.isfinite(x_max):
+        return epsilon_domain(x_max)
     if quantity in QUANTITY_DOMAINS:
         return QUANTITY_DOMAINS[quantity]
     if formula is not None and quantity == formula.shape_name:
         lower = formula.shape_bounds[0]
         return POSITIVE if lower >= 0 else Domain(f"above {lower:g}", float(lower), np.inf, "log")
     return REAL
+
+
+def fit_domain(quantity: str, fit: CurveFit, delta_max: float | None = None) -> Domain:
+    """Range of ``quantity`` for one fit: its formula's shape bounds and its ``x_max``."""
+    delta_max = fit.options.delta_max if delta_max is None else delta_max
+    return quantity_domain(quantity, fit.formula, x_max=delta_max / fit.d_cut)
 
 
 def transformed_interval(value: float, stderr: float, half: float, domain: Domain) -> tuple[float, float]:
@@ -301,7 +324,7 @@ def _delta_rows(fit: CurveFit, half: float, delta_max: float) -> list[dict]:
     errors = delta_standard_errors(fit, lambda values: _indices_at(fit, values, delta_max))
     rows = []
     for name, value, se in zip(INDEX_NAMES, centre, errors):
-        domain = quantity_domain(name)
+        domain = fit_domain(name, fit, delta_max)
         low, high = transformed_interval(value, se, half, domain)
         flag = ""
         if not np.isfinite(value):
@@ -440,7 +463,7 @@ def bootstrap(
     refits = refit_resamples(fit, samples, delta_max=delta_max)  # all resamples in one batched call
     rows = [{**refit.fit.values, **{k: getattr(refit.indices, k) for k in INDEX_NAMES}} for refit in refits if refit.success]
     bounds = {
-        name: (quantity_domain(name, fit.formula).lower, quantity_domain(name, fit.formula).upper)
+        name: (fit_domain(name, fit, delta_max).lower, fit_domain(name, fit, delta_max).upper)
         for name in (*fit.fit.names, *INDEX_NAMES)
     }
     for spec in _specs(fit):
@@ -556,9 +579,11 @@ def model_average(
         w = weights[usable] / share
         theta, se = values[usable], np.nan_to_num(errors[usable])
         mean = float(np.sum(w * theta))
-        domain = quantity_domain(quantity)
+        # epsilon: every formula's own range [0, x_max - 1] lies inside the widest one
+        x_max = max((fit.options.delta_max if delta_max is None else delta_max) / fit.d_cut for fit in good)
+        domain = quantity_domain(quantity, x_max=x_max)
         row.update(value=mean, stderr=float(np.sum(w * np.sqrt(se**2 + (theta - mean) ** 2))))
-        if domain.inside(mean) and np.all(domain.inside(t) for t in theta):
+        if domain.inside(mean) and all(domain.inside(t) for t in theta):
             g_mean = domain.forward(mean)
             se_g = float(np.sum(w * np.sqrt((se * domain.slope(theta)) ** 2 + (domain.forward(theta) - g_mean) ** 2)))
             low, high = sorted((float(domain.backward(g_mean - z * se_g)), float(domain.backward(g_mean + z * se_g))))
