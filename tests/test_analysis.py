@@ -6,7 +6,7 @@ import sys
 import pandas as pd
 import pytest
 
-from tromplab.reproduce import sieve_checks
+from tromplab.reproduce import compare_printed, printed_unit, sieve_checks
 
 from .conftest import ROOT
 
@@ -48,13 +48,52 @@ def test_table3_script_marks_exactly_the_known_differences(tmp_path):
 
 def test_sieve_checks_reproduce_what_the_spec_says():
     checks = sieve_checks().set_index("quantity")
-    agreed = set(checks.index[checks["agrees"]])
-    assert agreed == {
+    verdicts = checks.groupby("agreement").groups
+    assert set(verdicts["agrees"]) == {
         "P_v fraction 1 at Va = 0.287 m/s",
         "P_v fraction 2 at Va = 0.287 m/s",
         "gamma_1^1 at the corrected speed",
         "C, 1/m^2",
         "x1, normal approximation, m",
     }
+    assert set(verdicts["last digit"]) == {
+        "P_g (D 2, cell 3.2 x 3.2 mm, d/l 0.5, l 2.2 mm)",
+        "E at the corrected speed, %",
+        "Q at the corrected speed, kg/h",
+        "x1, exact, m",
+    }
     assert checks.loc["E at the corrected speed, %", "computed"] == pytest.approx(89.64, abs=0.01)
     assert checks.loc["E = g (1 - S), %", "computed"] == pytest.approx(80.64)
+
+
+@pytest.mark.parametrize(
+    "printed, unit",
+    [
+        ("0.150", 1e-3),
+        ("0.15", 1e-2),
+        ("2.8e-2", 1e-3),
+        ("1340", 10.0),
+        ("1500", 100.0),
+        ("81.5", 0.1),
+        ("7", 1.0),
+        ("120.", 1.0),
+    ],
+)
+def test_printed_unit_is_read_from_the_printed_digits(printed, unit):
+    assert printed_unit(printed) == pytest.approx(unit)
+
+
+@pytest.mark.parametrize(
+    "printed, computed, verdict",
+    [
+        ("0.150", 0.15049, "agrees"),
+        ("0.150", 0.1511, "last digit"),
+        ("0.15", 0.1511, "agrees"),
+        ("0.150", 0.1516, "differs"),
+        ("1340", 1332.3, "last digit"),
+        ("1490", 1471.8, "differs"),
+        ("0.00321", 0.0032103, "agrees"),
+    ],
+)
+def test_compare_printed_rounds_to_the_printed_digits(printed, computed, verdict):
+    assert compare_printed(printed, computed)[0] == verdict

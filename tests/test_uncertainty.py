@@ -56,7 +56,7 @@ def test_interval_table_reports_parameters_and_indices():
     ]
     assert set(table.loc[["d_cut", "ks"], "method"]) <= {"profile", "wald-log"}
     assert table.loc["slope", "method"] == "delta-neglog" and table.loc["eta", "method"] == "delta-logit"
-    assert table.loc["epsilon", "method"] == "delta-logit"  # eps / (x_max - 1) in [0, 1]
+    assert table.loc["epsilon", "method"] == "delta-logit"  # epsilon lies in [0, x_max - 1]
     assert (table.loc["d25":, "method"] == "delta-log").all()
     assert (table["low"] < table["value"]).all() and (table["value"] < table["high"]).all()
     # the slope is -ks/4, so its delta-method error is exactly se(ks)/4

@@ -38,13 +38,11 @@ INDEX_NAMES = ("slope", "eta", "epsilon", "d25", "d75", "ep", "imperfection", "d
 class Domain:
     """The range a quantity can take, and the scale on which its intervals are made.
 
-    ``positive`` quantities get intervals on the log scale, ``unit`` ones (in [0, 1]) on
-    the logit scale, ``negative`` ones on the log of minus the value, ``real`` ones on the
+    ``positive`` quantities get intervals on the log scale, ones bounded on both sides
+    (in [0, 1], or epsilon in [0, x_max - 1]) on the logit scale of their position in the range, ``negative`` ones on the log of minus the value, ``real`` ones on the
     natural scale; the limits are transformed back, so an interval never leaves the range.
     A quantity bounded below by another value (a shape parameter admissible above -1)
-    uses the log of its distance from that bound; one bounded on both sides by other
-    values than 0 and 1 (epsilon in [0, x_max - 1]) the logit of its position in the range,
-    ``log((v - lower) / (upper - v))``.
+    uses the log of its distance from that bound.
     """
 
     name: str
@@ -89,7 +87,7 @@ class Domain:
         if self.scale == "neglog":
             return 1.0 / (self.upper - value)
         if self.scale == "logit":
-            return 1.0 / (value - self.lower) + 1.0 / (self.upper - value)
+            return (self.upper - self.lower) / ((value - self.lower) * (self.upper - value))
         return np.ones_like(value)
 
 
@@ -99,8 +97,7 @@ NEGATIVE = Domain("negative", -np.inf, 0.0, "neglog")
 REAL = Domain("real", -np.inf, np.inf, "identity")
 
 #: Range of every reported quantity (sizes in the unit of the data).  The shape parameter's
-#: range follows from its formula, and epsilon's upper end, ``x_max - 1``, from the fit
-#: (:func:`quantity_domain`); ``(0, inf)`` is its range when no fit is known.
+#: range follows from its formula (:func:`quantity_domain`).
 QUANTITY_DOMAINS = {
     "d_cut": POSITIVE,
     "d50c": POSITIVE,
@@ -120,25 +117,15 @@ QUANTITY_DOMAINS = {
 }
 
 
-def epsilon_domain(x_max: float) -> Domain:
-    """Range of the misplacement ``eps = integral_1^x_max phi(x) dx``: ``[0, x_max - 1]``.
-
-    eps is an area in relative size times partition; a partition in [0, 1] over the
-    relative sizes 1..x_max bounds it by ``x_max - 1``.  Its intervals are made on the
-    logit of ``eps / (x_max - 1)``, the mean partition above the cut.
-    """
-    return Domain(f"0..{x_max - 1:g} (x_max - 1)", 0.0, max(float(x_max) - 1.0, 0.0), "logit")
-
-
 def quantity_domain(quantity: str, formula=None, *, x_max: float | None = None) -> Domain:
     """Range of a reported quantity.
 
     A shape parameter is positive when its formula admits only positive values, and
     bounded below by the formula's lower shape bound otherwise (km2 and kp above -1).
-    epsilon lies in ``[0, x_max - 1]`` when the fit's ``x_max = delta_max / d_cut`` is
-    given (:func:`epsilon_domain`), in ``(0, inf)`` otherwise.
+    Epsilon, the area under the curve between x = 1 and ``x_max = delta_max / d_cut``,
+    lies in [0, x_max - 1] when ``x_max`` is given (positive otherwise).
     """
-    if quantity == "epsilon" and x_max is not None and np.isfinite(x_max):
+    if quantity == "epsilon" and x_max is not None and np.isfinite(x_max) and x_max > 1.0:
         return epsilon_domain(x_max)
     if quantity in QUANTITY_DOMAINS:
         return QUANTITY_DOMAINS[quantity]
@@ -148,10 +135,15 @@ def quantity_domain(quantity: str, formula=None, *, x_max: float | None = None) 
     return REAL
 
 
-def fit_domain(quantity: str, fit: CurveFit, delta_max: float | None = None) -> Domain:
-    """Range of ``quantity`` for one fit: its formula's shape bounds and its ``x_max``."""
-    delta_max = fit.options.delta_max if delta_max is None else delta_max
-    return quantity_domain(quantity, fit.formula, x_max=delta_max / fit.d_cut)
+def epsilon_domain(x_max: float) -> Domain:
+    """Epsilon's range [0, x_max - 1]: the curve, at most 1, integrated over [1, x_max]."""
+    return Domain("0 to x_max - 1", 0.0, float(x_max) - 1.0, "logit")
+
+
+def _relative_size_limit(fit: CurveFit, values: dict[str, float], delta_max: float) -> float:
+    """``x_max = delta_max / d_cut`` at the fitted cut (the upper end of epsilon's integral)."""
+    d_cut = fit.curve_arguments(values)[0]
+    return delta_max / d_cut if d_cut > 0 else np.nan
 
 
 def transformed_interval(value: float, stderr: float, half: float, domain: Domain) -> tuple[float, float]:
@@ -165,7 +157,8 @@ def transformed_interval(value: float, stderr: float, half: float, domain: Domai
         return np.nan, np.nan
     centre, spread = domain.forward(value), half * stderr * domain.slope(value)
     low, high = sorted((float(domain.backward(centre - spread)), float(domain.backward(centre + spread))))
-    return low, high
+    # the round trip through the transform may move a zero-width interval off the estimate by one ulp
+    return min(low, value), max(high, value)
 
 
 def _method(kind: str, domain: Domain) -> str:
@@ -322,9 +315,10 @@ def _one_sided(value: float, se: float, quantile: float, domain: Domain, at_lowe
 def _delta_rows(fit: CurveFit, half: float, delta_max: float) -> list[dict]:
     centre = _indices_at(fit, {**fit.context_at(), **fit.fit.values}, delta_max)
     errors = delta_standard_errors(fit, lambda values: _indices_at(fit, values, delta_max))
+    x_max = _relative_size_limit(fit, {**fit.context_at(), **fit.fit.values}, delta_max)
     rows = []
     for name, value, se in zip(INDEX_NAMES, centre, errors):
-        domain = fit_domain(name, fit, delta_max)
+        domain = quantity_domain(name, x_max=x_max)
         low, high = transformed_interval(value, se, half, domain)
         flag = ""
         if not np.isfinite(value):
@@ -462,10 +456,9 @@ def bootstrap(
             samples.append(TrompPoints(points.experiment, points.size[pick], points.partition_fine[pick], weight, resampled=True))
     refits = refit_resamples(fit, samples, delta_max=delta_max)  # all resamples in one batched call
     rows = [{**refit.fit.values, **{k: getattr(refit.indices, k) for k in INDEX_NAMES}} for refit in refits if refit.success]
-    bounds = {
-        name: (fit_domain(name, fit, delta_max).lower, fit_domain(name, fit, delta_max).upper)
-        for name in (*fit.fit.names, *INDEX_NAMES)
-    }
+    x_max = _relative_size_limit(fit, {**fit.context_at(), **fit.fit.values}, delta_max)
+    domains = {name: quantity_domain(name, fit.formula, x_max=x_max) for name in (*fit.fit.names, *INDEX_NAMES)}
+    bounds = {name: (domain.lower, domain.upper) for name, domain in domains.items()}
     for spec in _specs(fit):
         bounds[spec.name] = (*bounds[spec.name], spec.lower, spec.upper)
     return Bootstrap(pd.DataFrame(rows), n, method, seed, bounds)
@@ -579,9 +572,7 @@ def model_average(
         w = weights[usable] / share
         theta, se = values[usable], np.nan_to_num(errors[usable])
         mean = float(np.sum(w * theta))
-        # epsilon: every formula's own range [0, x_max - 1] lies inside the widest one
-        x_max = max((fit.options.delta_max if delta_max is None else delta_max) / fit.d_cut for fit in good)
-        domain = quantity_domain(quantity, x_max=x_max)
+        domain = quantity_domain(quantity)
         row.update(value=mean, stderr=float(np.sum(w * np.sqrt(se**2 + (theta - mean) ** 2))))
         if domain.inside(mean) and all(domain.inside(t) for t in theta):
             g_mean = domain.forward(mean)
