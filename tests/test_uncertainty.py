@@ -5,6 +5,7 @@ import pandas as pd
 import pytest
 from numpy.testing import assert_allclose
 
+from tromplab import uncertainty
 from tromplab._synthetic import interval_coverage, synthetic
 from tromplab.cli import main
 from tromplab.curves import fit_formula
@@ -77,6 +78,24 @@ def test_delta_method_of_formula_11_follows_its_break_point(seed):
     assert delta.loc["eta", "stderr"] > 1e-3
     for quantity in ("d_cut", "eta", "ep"):
         assert_allclose(boot.loc[quantity, "stderr"], delta.loc[quantity, "stderr"], rtol=0.3)
+
+
+def test_bootstrap_resamples_centred_weighted_residuals(monkeypatch):
+    """Issue 10 item 7: residual resampling draws from the weighted residuals, centred and
+    inflated by sqrt(n / (n - p)), and divides them by the root weight of the point they land on."""
+    base = experiment(4)
+    weights = np.linspace(0.5, 2.0, base.n)
+    points = TrompPoints("weighted", base.size, base.partition_fine + 0.01, weights)  # a biased curve: residual mean != 0
+    fit = fit_formula(points, PLITT)
+    captured = []
+    monkeypatch.setattr(uncertainty, "refit_resamples", lambda fit, samples, **kw: captured.extend(samples) or [])
+    bootstrap(fit, n=400, seed=3)
+    fitted = fit.predict(points.size)
+    scaled = np.sqrt(weights) * (points.partition_fine - fitted)
+    expected = (scaled - scaled.mean()) * np.sqrt(points.n / (points.n - 2))
+    drawn = np.array([np.sqrt(weights) * (sample.partition_fine - fitted) for sample in captured])
+    assert np.isin(np.round(drawn, 12), np.round(expected, 12)).all()  # every draw is one of the centred, scaled residuals
+    assert abs(drawn.mean()) < 3 * expected.std() / np.sqrt(drawn.size)
 
 
 def test_bootstrap_is_seeded_and_supports_cases():
