@@ -59,15 +59,16 @@ class Terminated(KeyboardInterrupt):
     """SIGTERM, raised in the main thread so the same clean-up runs as for Ctrl-C."""
 
 
+def raise_terminated(signum, frame):
+    """Signal handler: SIGTERM becomes :class:`Terminated`."""
+    raise Terminated
+
+
 @contextlib.contextmanager
 def _sigterm_as_interrupt():
     """Turn SIGTERM into :class:`Terminated` while the command runs (main thread only)."""
-
-    def terminate(signum, frame):
-        raise Terminated
-
     try:
-        previous = signal.signal(signal.SIGTERM, terminate)
+        previous = signal.signal(signal.SIGTERM, raise_terminated)
     except ValueError:  # not the main thread (main() called from a worker thread): leave signals alone
         yield
         return
@@ -86,7 +87,7 @@ def main(argv=None) -> int:
     except SystemExit as stop:  # argparse stops on a usage error (2) or after --help/--version (0)
         return stop.code if isinstance(stop.code, int) else EXIT_USAGE
     except KeyboardInterrupt:
-        return _interrupted()
+        return interrupted()
     if not hasattr(args, "run"):
         parser.print_help()
         return EXIT_USAGE
@@ -100,7 +101,7 @@ def main(argv=None) -> int:
         sys.stderr.close()
         return EXIT_OK
     except KeyboardInterrupt as interruption:
-        return _interrupted(interruption)
+        return interrupted(interruption)
     except InputError as error:  # the project's own input, option and output errors
         if args.debug:
             traceback.print_exc()
@@ -117,7 +118,8 @@ def main(argv=None) -> int:
         return EXIT_INTERNAL
 
 
-def _interrupted(interruption=None) -> int:
+def interrupted(interruption=None) -> int:
+    """Print the one-line message for an interrupted run; return 130 (SIGINT) or 143 (SIGTERM)."""
     if isinstance(interruption, Terminated):
         print("tromplab: terminated (SIGTERM); the output folder was left as it was", file=sys.stderr)
         return EXIT_TERMINATED
@@ -220,7 +222,7 @@ def _parser() -> argparse.ArgumentParser:
         description="Fit, screen and rank separation (Tromp) curves.",
         parents=[_global_options(in_subcommand=False)],
         epilog="Exit codes: 0 done, 1 bad input (nothing written), 2 usage, 3 partial "
-        "(failures listed in failures.csv), 70 internal error, 130 interrupted.",
+        "(failures listed in failures.csv), 70 internal error, 130 interrupted, 143 terminated.",
     )
     parser.add_argument("--version", action="version", version=f"tromplab {__version__}")
     commands = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_SubcommandParser)
