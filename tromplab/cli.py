@@ -665,7 +665,10 @@ def _run_fit(args) -> int:
         _require("pyarrow", "--format parquet", "pip install 'tromplab[dask]'")
     experiments, balances = read_experiments(args.input, _lab_options(args))
     if args.bootstrap:
-        check_bootstrap_request(args.bootstrap, n_fits=len(experiments) * len(select_formulas(formulas)))
+        try:
+            check_bootstrap_request(args.bootstrap, n_fits=len(experiments) * len(select_formulas(formulas)))
+        except ValueError as error:  # too much work for these data: a usage error, before any fitting
+            raise OptionError("--bootstrap", str(error).removeprefix("--bootstrap ")) from None
     _print_balance_notes(balances)
     quiet = getattr(args, "quiet", False)
     with _cluster(args) as client:
@@ -924,9 +927,10 @@ def _run_compare(args) -> int:
 def _run_export(args) -> int:
     from .export import export_fits
 
-    result = export_fits(args.fits_dir, args.to, size_unit=args.size_unit)
     folder = args.fits_dir if args.fits_dir.is_dir() else args.fits_dir.parent
     output = args.output or folder / f"export_{args.to.replace('-', '_')}.csv"
+    check_output_file(output, inputs=[] if args.fits_dir.is_dir() else [args.fits_dir])
+    result = export_fits(args.fits_dir, args.to, size_unit=args.size_unit)
     written = write_atomically({output.name: lambda p: result.table.to_csv(p, index=False)}, output.parent or Path("."))
     print(result.table.to_string(index=False, float_format=lambda v: f"{v:.6g}", na_rep="-"))
     if result.skipped:
@@ -943,6 +947,8 @@ def _run_export(args) -> int:
 def _run_trend(args) -> int:
     from .trend import monitor_surveys, read_surveys, write_trend
 
+    check_input_file(args.input)
+    check_output_folder(args.outdir, inputs=[args.input])
     surveys = read_surveys(args.input, _lab_options(args))
     result = monitor_surveys(surveys, formula=args.formula, baseline=args.baseline, alpha=args.alpha)
     written = write_trend(result, args.outdir, size_unit=args.size_unit, figures=not args.no_figures)
