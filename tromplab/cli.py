@@ -23,6 +23,7 @@ from .diagnostics import RESIDUAL_WARNING
 from .engine import check_bootstrap_request
 from .errors import InputError, OptionError
 from .formulas import NAME_CLASHES, get_formula, registry_table, select_formulas
+from .hydrocyclone import water_recovery_statements
 from .lab import KINDS, PARTITION_METHOD_TEXT, PARTITION_METHODS, LabOptions, YieldWarning, read_experiments, read_lab
 from .model_commands import add_model_commands
 from .outputs import check_input_file, check_output_file, check_output_folder, figure_file_names, replace_folder
@@ -39,6 +40,7 @@ from .validation import (
     check_probability,
     check_seed,
     check_share,
+    check_water_recovery,
     cli_type,
 )
 from .views import PARTITION_TO, balance_view, partition_view
@@ -204,6 +206,20 @@ def _fit_options_parser() -> argparse.ArgumentParser:
     return shared
 
 
+def _water_recovery_parser() -> argparse.ArgumentParser:
+    """``--water-recovery`` of ``fit``, ``report`` and ``points``, declared once."""
+    water = argparse.ArgumentParser(add_help=False)
+    water.add_argument(
+        "--water-recovery",
+        type=cli_type(check_water_recovery, "--water-recovery"),
+        default=None,
+        metavar="RF",
+        help="hydrocyclones: share of the feed water reporting to the underflow, in [0, 1); gives the "
+        "Kelsall-corrected partition (points) and compares the fitted bypass with it (fit, report)",
+    )
+    return water
+
+
 def _show_input_notes(show):
     """A ``warnings.showwarning`` that prints input notes (e.g. a detected CSV dialect) as one line."""
 
@@ -234,7 +250,10 @@ def _parser() -> argparse.ArgumentParser:
 
     lab = _lab_options_parser()
     shared = _fit_options_parser()
-    fit = commands.add_parser("fit", parents=[shared, lab], help="fit, screen and rank the formulas on Tromp points or lab data")
+    water = _water_recovery_parser()
+    fit = commands.add_parser(
+        "fit", parents=[shared, lab, water], help="fit, screen and rank the formulas on Tromp points or lab data"
+    )
     fit.add_argument(
         "-o",
         "--outdir",
@@ -301,7 +320,7 @@ def _parser() -> argparse.ArgumentParser:
     fit.set_defaults(run=_run_fit)
 
     report = commands.add_parser(
-        "report", parents=[shared, lab], help="HTML and Markdown report: balance, ranked fits, uncertainties, figures"
+        "report", parents=[shared, lab, water], help="HTML and Markdown report: balance, ranked fits, uncertainties, figures"
     )
     report.add_argument(
         "-o", "--output", type=Path, default=Path("results/report.html"), help="HTML file (a .md twin is written beside it)"
@@ -350,7 +369,7 @@ def _parser() -> argparse.ArgumentParser:
     trend.add_argument("--no-figures", action="store_true", help="do not draw figures")
     trend.set_defaults(run=_run_trend)
 
-    points = commands.add_parser("points", parents=[lab], help="turn a lab table into Tromp points with diagnostics")
+    points = commands.add_parser("points", parents=[lab, water], help="turn a lab table into Tromp points with diagnostics")
     points.add_argument("input", type=Path, help="lab table (CSV or .xlsx)")
     points.add_argument("-o", "--output", type=Path, required=True, help="Tromp points CSV to write")
     _add_partition_to(points)
@@ -531,6 +550,7 @@ def _lab_options(args) -> LabOptions:
         size_unit=getattr(args, "size_unit", None) or None,
         sep=args.sep,
         decimal=args.decimal,
+        water_recovery=getattr(args, "water_recovery", None),
     )
 
 
@@ -685,6 +705,7 @@ def _run_fit(args) -> int:
                 client=client,
                 engine=not args.single_fits,
                 size_unit=_data_size_unit(experiments, args.size_unit),
+                water_recovery=args.water_recovery,
             )
         failures = failure_table(bench)
         _refuse_if_nothing_fitted(bench, args.input)
@@ -711,6 +732,11 @@ def _run_fit(args) -> int:
     shown_experiments = list(dict.fromkeys(fits["experiment"]))[:AUTO_FIGURE_LIMIT]
     verdicts = {experiment: bench.verdicts(experiment) for experiment in shown_experiments}
     print(format_fits(fits[fits["experiment"].isin(shown_experiments)], verdicts, rank_by=args.rank_by))
+    checks = [(e, s) for e in shown_experiments for s in water_recovery_statements(fits, e)]
+    if checks:
+        print(f"\nFitted bypass against the water recovery {args.water_recovery:g} (share of the feed water to the underflow):")
+        for experiment, statement in checks:
+            print(textwrap.fill(f"{experiment}, {statement}", width=98, initial_indent="  ", subsequent_indent="    "))
     if len(bench.experiments) > AUTO_FIGURE_LIMIT:
         print(f"\n... and {len(bench.experiments) - len(shown_experiments)} more experiments: every fit is in fits.{args.format}")
     if bench.failures:
@@ -874,6 +900,7 @@ def _run_report(args) -> int:
             rank_extended=args.rank_extended,
             progress=progress,
             size_unit=size_unit,
+            water_recovery=args.water_recovery,
         )
     failures = failure_table(bench)
     _refuse_if_nothing_fitted(bench, args.input)

@@ -38,8 +38,8 @@ INDEX_NAMES = ("slope", "eta", "epsilon", "d25", "d75", "ep", "imperfection", "d
 class Domain:
     """The range a quantity can take, and the scale on which its intervals are made.
 
-    ``positive`` quantities get intervals on the log scale, ``unit`` ones (in [0, 1]) on
-    the logit scale, ``negative`` ones on the log of minus the value, ``real`` ones on the
+    ``positive`` quantities get intervals on the log scale, ones bounded on both sides
+    (in [0, 1], or epsilon in [0, x_max - 1]) on the logit scale of their position in the range, ``negative`` ones on the log of minus the value, ``real`` ones on the
     natural scale; the limits are transformed back, so an interval never leaves the range.
     A quantity bounded below by another value (a shape parameter admissible above -1)
     uses the log of its distance from that bound.
@@ -65,7 +65,7 @@ class Domain:
         if self.scale == "neglog":
             return np.log(self.upper - value)
         if self.scale == "logit":
-            return np.log(value) - np.log1p(-value)
+            return np.log(value - self.lower) - np.log(self.upper - value)
         return value
 
     def backward(self, value):
@@ -76,7 +76,7 @@ class Domain:
             if self.scale == "neglog":
                 return self.upper - np.exp(value)
             if self.scale == "logit":
-                return 1.0 / (1.0 + np.exp(-value))
+                return self.lower + (self.upper - self.lower) / (1.0 + np.exp(-value))
         return value
 
     def slope(self, value):
@@ -87,7 +87,7 @@ class Domain:
         if self.scale == "neglog":
             return 1.0 / (self.upper - value)
         if self.scale == "logit":
-            return 1.0 / (value * (1.0 - value))
+            return (self.upper - self.lower) / ((value - self.lower) * (self.upper - value))
         return np.ones_like(value)
 
 
@@ -117,18 +117,33 @@ QUANTITY_DOMAINS = {
 }
 
 
-def quantity_domain(quantity: str, formula=None) -> Domain:
+def quantity_domain(quantity: str, formula=None, *, x_max: float | None = None) -> Domain:
     """Range of a reported quantity.
 
     A shape parameter is positive when its formula admits only positive values, and
     bounded below by the formula's lower shape bound otherwise (km2 and kp above -1).
+    Epsilon, the area under the curve between x = 1 and ``x_max = delta_max / d_cut``,
+    lies in [0, x_max - 1] when ``x_max`` is given (positive otherwise).
     """
+    if quantity == "epsilon" and x_max is not None and np.isfinite(x_max) and x_max > 1.0:
+        return epsilon_domain(x_max)
     if quantity in QUANTITY_DOMAINS:
         return QUANTITY_DOMAINS[quantity]
     if formula is not None and quantity == formula.shape_name:
         lower = formula.shape_bounds[0]
         return POSITIVE if lower >= 0 else Domain(f"above {lower:g}", float(lower), np.inf, "log")
     return REAL
+
+
+def epsilon_domain(x_max: float) -> Domain:
+    """Epsilon's range [0, x_max - 1]: the curve, at most 1, integrated over [1, x_max]."""
+    return Domain("0 to x_max - 1", 0.0, float(x_max) - 1.0, "logit")
+
+
+def _relative_size_limit(fit: CurveFit, values: dict[str, float], delta_max: float) -> float:
+    """``x_max = delta_max / d_cut`` at the fitted cut (the upper end of epsilon's integral)."""
+    d_cut = fit.curve_arguments(values)[0]
+    return delta_max / d_cut if d_cut > 0 else np.nan
 
 
 def transformed_interval(value: float, stderr: float, half: float, domain: Domain) -> tuple[float, float]:
@@ -142,7 +157,8 @@ def transformed_interval(value: float, stderr: float, half: float, domain: Domai
         return np.nan, np.nan
     centre, spread = domain.forward(value), half * stderr * domain.slope(value)
     low, high = sorted((float(domain.backward(centre - spread)), float(domain.backward(centre + spread))))
-    return low, high
+    # the round trip through the transform may move a zero-width interval off the estimate by one ulp
+    return min(low, value), max(high, value)
 
 
 def _method(kind: str, domain: Domain) -> str:
@@ -299,9 +315,10 @@ def _one_sided(value: float, se: float, quantile: float, domain: Domain, at_lowe
 def _delta_rows(fit: CurveFit, half: float, delta_max: float) -> list[dict]:
     centre = _indices_at(fit, {**fit.context_at(), **fit.fit.values}, delta_max)
     errors = delta_standard_errors(fit, lambda values: _indices_at(fit, values, delta_max))
+    x_max = _relative_size_limit(fit, {**fit.context_at(), **fit.fit.values}, delta_max)
     rows = []
     for name, value, se in zip(INDEX_NAMES, centre, errors):
-        domain = quantity_domain(name)
+        domain = quantity_domain(name, x_max=x_max)
         low, high = transformed_interval(value, se, half, domain)
         flag = ""
         if not np.isfinite(value):
@@ -439,10 +456,9 @@ def bootstrap(
             samples.append(TrompPoints(points.experiment, points.size[pick], points.partition_fine[pick], weight, resampled=True))
     refits = refit_resamples(fit, samples, delta_max=delta_max)  # all resamples in one batched call
     rows = [{**refit.fit.values, **{k: getattr(refit.indices, k) for k in INDEX_NAMES}} for refit in refits if refit.success]
-    bounds = {
-        name: (quantity_domain(name, fit.formula).lower, quantity_domain(name, fit.formula).upper)
-        for name in (*fit.fit.names, *INDEX_NAMES)
-    }
+    x_max = _relative_size_limit(fit, {**fit.context_at(), **fit.fit.values}, delta_max)
+    domains = {name: quantity_domain(name, fit.formula, x_max=x_max) for name in (*fit.fit.names, *INDEX_NAMES)}
+    bounds = {name: (domain.lower, domain.upper) for name, domain in domains.items()}
     for spec in _specs(fit):
         bounds[spec.name] = (*bounds[spec.name], spec.lower, spec.upper)
     return Bootstrap(pd.DataFrame(rows), n, method, seed, bounds)
@@ -558,7 +574,7 @@ def model_average(
         mean = float(np.sum(w * theta))
         domain = quantity_domain(quantity)
         row.update(value=mean, stderr=float(np.sum(w * np.sqrt(se**2 + (theta - mean) ** 2))))
-        if domain.inside(mean) and np.all(domain.inside(t) for t in theta):
+        if domain.inside(mean) and all(domain.inside(t) for t in theta):
             g_mean = domain.forward(mean)
             se_g = float(np.sum(w * np.sqrt((se * domain.slope(theta)) ** 2 + (domain.forward(theta) - g_mean) ** 2)))
             low, high = sorted((float(domain.backward(g_mean - z * se_g)), float(domain.backward(g_mean + z * se_g))))

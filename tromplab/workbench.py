@@ -21,7 +21,7 @@ from .formulas import Formula, select_formulas
 from .points import TrompPoints
 from .ranking import add_delta_aicc, add_ranks, fit_verdicts, rank_formulas
 from .screening import DEFAULT_ALPHA
-from .validation import check_optional, check_positive, check_probability
+from .validation import check_optional, check_positive, check_probability, check_water_recovery
 
 #: Columns of ``fits.csv``, in order.
 FIT_COLUMNS = (
@@ -79,9 +79,12 @@ class Workbench:
     alpha: float = DEFAULT_ALPHA
     rank_extended: bool = False
     notes: dict[str, tuple[str, ...]] = field(default_factory=dict)
+    water_recovery: float | None = None
 
     def fits_table(self) -> pd.DataFrame:
-        """One row per experiment and formula (columns :data:`FIT_COLUMNS`)."""
+        """One row per experiment and formula (columns :data:`FIT_COLUMNS`; with a
+        ``water_recovery`` also ``water_recovery`` and ``water_recovery_check``, the
+        fitted bypass compared with it, see :mod:`tromplab.hydrocyclone`)."""
         return self._fits_frame.copy()
 
     @cached_property
@@ -109,7 +112,15 @@ class Workbench:
         table["rank"] = ranked["rank"]  # curves kept out of the ranking get no rank
         table.loc[table["experiment"].isin(list(self.failures)), "rank"] = np.nan
         table["delta_aicc"] = add_delta_aicc(table)
-        return table.reindex(columns=list(FIT_COLUMNS))
+        table = table.reindex(columns=list(FIT_COLUMNS))
+        if self.water_recovery is not None:
+            from .hydrocyclone import bypass_against_water_recovery
+
+            checks = bypass_against_water_recovery(self.fits, self.water_recovery)
+            table = table.merge(checks, on=["experiment", "formula"], how="left")
+            table["water_recovery"] = self.water_recovery  # failed experiments too
+            table["water_recovery_check"] = table["water_recovery_check"].fillna("")
+        return table
 
     @property
     def ranked_formulas(self) -> tuple[Formula, ...]:
@@ -253,6 +264,7 @@ def fit_experiments(
     client=None,
     engine: bool = True,
     size_unit: str = "",
+    water_recovery: float | None = None,
 ) -> Workbench:
     """Fit, screen and rank ``formulas`` (default: all nine) on each experiment.
 
@@ -284,6 +296,11 @@ def fit_experiments(
         and formula at a time with :func:`tromplab.curves.fit_formula`.
     size_unit : str
         Unit of the sizes, recorded on every fit (``CurveFit.options``).
+    water_recovery : float, optional
+        Share of the feed water reporting to the underflow (hydrocyclones), in [0, 1).
+        The formulas are still fitted to the actual partition; the fits table gains
+        ``water_recovery`` and ``water_recovery_check`` (the fitted bypass of the curves
+        with bypass against it, :func:`tromplab.hydrocyclone.bypass_against_water_recovery`).
 
     Returns
     -------
@@ -299,6 +316,7 @@ def fit_experiments(
     """
     check_probability(alpha, "alpha")
     check_optional(check_positive, delta_max, "delta_max")
+    water_recovery = check_optional(check_water_recovery, water_recovery, "water_recovery")
     experiments = _as_points(experiments)
     chosen = select_formulas(formulas)
     failures, notes, fittable = {}, {}, []
@@ -331,7 +349,7 @@ def fit_experiments(
         fits += chunk_fits
         if progress is not None:
             progress(len(fits) // max(len(chosen), 1), len(fittable), chunk[-1].experiment)
-    return Workbench(tuple(fits), failures, chosen, rank_by, alpha, rank_extended, notes)
+    return Workbench(tuple(fits), failures, chosen, rank_by, alpha, rank_extended, notes, water_recovery)
 
 
 def fit_chunk(experiments: Sequence[TrompPoints], *, formulas, alpha, delta_max, engine=True, size_unit="") -> list[CurveFit]:
