@@ -26,6 +26,7 @@ import os
 import re
 import shutil
 import tempfile
+import time
 from collections.abc import Callable, Iterable
 from pathlib import Path
 
@@ -33,6 +34,10 @@ from .errors import OutputError
 
 #: Hidden file in an output folder listing the files the run wrote, one a line.
 MANIFEST = ".tromplab-manifest"
+#: Test-only hook: seconds (at most 60) to sleep just before the swap, with everything staged
+#: and the lock held, so a test can kill a run in that moment (tests/test_signals.py).  Unset
+#: or not a number: no pause.  It changes nothing but the timing.
+SWAP_PAUSE_VARIABLE = "TROMPLAB_TEST_SWAP_PAUSE"
 _RENAME_EXCHANGE = 2
 _STAGING = re.compile(r"^\.(?P<name>.+)\.(?P<what>tmp|old)-(?P<pid>\d+)(?:-[A-Za-z0-9_]+)?$")
 
@@ -126,6 +131,7 @@ def replace_folder(outputs: dict[str, Callable[[Path], None]], outdir) -> dict[s
             clean_stale(outdir)
             if outdir.is_dir():
                 _carry_over(outdir, staging, set(outputs))
+            _pause_for_tests()
             _swap_into_place(staging, outdir)
     finally:
         shutil.rmtree(staging, ignore_errors=True)  # after the swap it holds the previous run
@@ -202,6 +208,15 @@ def _folder_lock(parent: Path, name: str):
     with open(parent / f".{name}.lock", "a+b") as handle:
         fcntl.flock(handle, fcntl.LOCK_EX)  # released when the handle closes, also when killed
         yield
+
+
+def _pause_for_tests() -> None:
+    try:
+        seconds = float(os.environ.get(SWAP_PAUSE_VARIABLE, ""))
+    except ValueError:
+        return
+    if 0 < seconds:  # also False for nan
+        time.sleep(min(seconds, 60.0))
 
 
 def _carry_over(outdir: Path, staging: Path, new_names: set[str]) -> None:
