@@ -232,3 +232,23 @@ def test_absurd_bootstrap_or_jobs_requests_are_refused_before_any_work(tmp_path,
     err = capsys.readouterr().err
     assert expected in err and "Traceback" not in err
     assert not out.exists()
+
+
+def test_verbose_adds_log_lines_of_each_step_and_quiet_removes_the_tables(tmp_path, capsys):
+    path = points_file(tmp_path, {"A": CURVE, "B": CURVE[::-1]})
+    printed = {}
+    for flags in ([], ["-v"], ["-vv"], ["-q"]):
+        assert main([*flags, "fit", str(path), "-o", str(tmp_path / "out"), "--no-figures", "--bootstrap", "3"]) == 0
+        printed[" ".join(flags)] = capsys.readouterr()
+    default, verbose, debug, quiet = printed[""], printed["-v"], printed["-vv"], printed["-q"]
+    assert "tromplab." not in default.err
+    for step in ("tromplab.tables: read", "tromplab.lab:", "tromplab.workbench: fitting 2 experiment(s) x 9 formula(s)",
+                 "tromplab.uncertainty: intervals for 18 fit(s)", "tromplab.outputs: swapped the new outputs into"):  # fmt: skip
+        assert step in verbose.err, step
+    assert "chunk 1/1 fitted" not in verbose.err and "chunk 1/1 fitted: 18 fits" in debug.err  # -vv: debug lines too
+    assert "bootstrap A plitt: 3 residuals resamples" in debug.err
+    assert verbose.out == default.out  # the log goes to stderr only
+    assert quiet.out == "" and default.out.strip() and len(quiet.err) <= len(default.err)
+    import logging
+
+    assert not logging.getLogger("tromplab").handlers  # removed after the command

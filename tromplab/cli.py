@@ -133,13 +133,24 @@ def interrupted(interruption=None) -> int:
 def _verbosity(args):
     """``--quiet`` silences the tables and progress on standard output and error (errors and
     warnings stay); ``-v`` adds the library's informational log lines."""
-    if args.verbose:
-        logging.basicConfig(level=logging.INFO if args.verbose == 1 else logging.DEBUG, format="%(name)s: %(message)s")
-    if args.quiet:
-        with open(os.devnull, "w") as sink, contextlib.redirect_stdout(sink):
+    handler = None
+    library = logging.getLogger("tromplab")
+    previous_level = library.level
+    if args.verbose:  # a handler for this command only: main() may run many times in one process
+        handler = logging.StreamHandler(sys.stderr)
+        handler.setFormatter(logging.Formatter("%(name)s: %(message)s"))
+        library.addHandler(handler)
+        library.setLevel(logging.INFO if args.verbose == 1 else logging.DEBUG)
+    try:
+        if args.quiet:
+            with open(os.devnull, "w") as sink, contextlib.redirect_stdout(sink):
+                yield
+        else:
             yield
-    else:
-        yield
+    finally:
+        if handler is not None:
+            library.removeHandler(handler)
+            library.setLevel(previous_level)
 
 
 def _cli_words(message: str, parser: argparse.ArgumentParser) -> str:

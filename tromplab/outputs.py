@@ -22,6 +22,7 @@ import contextlib
 import ctypes
 import ctypes.util
 import errno
+import logging
 import os
 import re
 import shutil
@@ -31,6 +32,8 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 
 from .errors import OutputError
+
+logger = logging.getLogger(__name__)
 
 #: Hidden file in an output folder listing the files the run wrote, one a line.
 MANIFEST = ".tromplab-manifest"
@@ -127,12 +130,14 @@ def replace_folder(outputs: dict[str, Callable[[Path], None]], outdir) -> dict[s
             _check_name(name)
             writer(staging / name)
         (staging / MANIFEST).write_text("".join(f"{name}\n" for name in sorted(outputs)), encoding="utf-8")
+        logger.info("wrote %d file(s) into the staging folder %s", len(outputs), staging)
         with _folder_lock(parent, outdir.name):
             clean_stale(outdir)
             if outdir.is_dir():
                 _carry_over(outdir, staging, set(outputs))
             _pause_for_tests()
             _swap_into_place(staging, outdir)
+            logger.info("swapped the new outputs into %s", outdir)
     finally:
         shutil.rmtree(staging, ignore_errors=True)  # after the swap it holds the previous run
     return {name: outdir / name for name in outputs}
@@ -157,6 +162,7 @@ def write_files(outputs: dict[str, Callable[[Path], None]], outdir) -> dict[str,
             for name in outputs:
                 os.replace(staging / name, outdir / name)
                 written[name] = outdir / name
+                logger.info("wrote %s", outdir / name)
     finally:
         shutil.rmtree(staging, ignore_errors=True)
     return written
@@ -180,6 +186,7 @@ def clean_stale(outdir) -> list[Path]:
             os.rename(entry, outdir)  # killed between the two renames: put the previous run back
         else:
             shutil.rmtree(entry, ignore_errors=True)
+        logger.info("removed %s, left by a run that ended before its swap", entry)
         handled.append(entry)
     return handled
 

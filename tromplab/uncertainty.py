@@ -18,6 +18,7 @@ Springer.  Efron B., Tibshirani R.J. (1993). An Introduction to the Bootstrap. C
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
@@ -29,6 +30,8 @@ from .curves import CurveFit, formula_context, with_lmfit
 from .engine import refit_resamples
 from .indices import curve_indices
 from .points import TrompPoints
+
+logger = logging.getLogger(__name__)
 
 INDEX_NAMES = ("slope", "eta", "epsilon", "d25", "d75", "ep", "imperfection", "d50", "ep_c", "imperfection_c")
 
@@ -455,6 +458,14 @@ def bootstrap(
             weight = None if points.weight is None else points.weight[pick]
             samples.append(TrompPoints(points.experiment, points.size[pick], points.partition_fine[pick], weight, resampled=True))
     refits = refit_resamples(fit, samples, delta_max=delta_max)  # all resamples in one batched call
+    logger.debug(
+        "bootstrap %s %s: %d %s resamples, %d refits failed",
+        fit.experiment,
+        fit.formula.id,
+        n,
+        method,
+        sum(not refit.success for refit in refits),
+    )
     rows = [{**refit.fit.values, **{k: getattr(refit.indices, k) for k in INDEX_NAMES}} for refit in refits if refit.success]
     x_max = _relative_size_limit(fit, {**fit.context_at(), **fit.fit.values}, delta_max)
     domains = {name: quantity_domain(name, fit.formula, x_max=x_max) for name in (*fit.fit.names, *INDEX_NAMES)}
@@ -621,6 +632,12 @@ def interval_columns(
     check_optional(check_probability, level, "level")
     n_bootstrap, seed = check_bootstrap(n_bootstrap, "n_bootstrap"), check_seed(seed, "seed")
     bootstrap_level = 0.95 if level is None else level
+    logger.info(
+        "intervals for %d fit(s): %s, %s",
+        len(fits),
+        "no delta/profile intervals" if level is None else f"delta/profile at level {level:g}",
+        f"bootstrap of {n_bootstrap} {method} resamples, seed {seed}" if n_bootstrap else "no bootstrap",
+    )
     rows = []
     for i, fit in enumerate(fits):
         row = {"experiment": fit.experiment, "formula": fit.formula.id}

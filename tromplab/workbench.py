@@ -7,6 +7,7 @@ ranking.  Neither stops the batch.
 
 from __future__ import annotations
 
+import logging
 import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -22,6 +23,8 @@ from .points import TrompPoints
 from .ranking import add_delta_aicc, add_ranks, fit_verdicts, rank_formulas
 from .screening import DEFAULT_ALPHA
 from .validation import check_optional, check_positive, check_probability, check_water_recovery
+
+logger = logging.getLogger(__name__)
 
 #: Columns of ``fits.csv``, in order.
 FIT_COLUMNS = (
@@ -344,9 +347,21 @@ def fit_experiments(
         "engine": engine,
         "size_unit": size_unit,
     }
+    logger.info(
+        "fitting %d experiment(s) x %d formula(s) in %d chunk(s) of up to %d (%s; %d experiment(s) not fittable)",
+        len(fittable),
+        len(chosen),
+        len(chunks),
+        CHUNK_SIZE,
+        "on a Dask cluster" if client is not None else f"jobs={jobs or 'all cores'}",
+        len(failures),
+    )
     fits = []
-    for chunk, chunk_fits in zip(chunks, _map_chunks(chunks, options, jobs=jobs, client=client)):
+    for number, (chunk, chunk_fits) in enumerate(zip(chunks, _map_chunks(chunks, options, jobs=jobs, client=client)), 1):
         fits += chunk_fits
+        logger.debug(
+            "chunk %d/%d fitted: %d fits, %d failed", number, len(chunks), len(chunk_fits), sum(not f.success for f in chunk_fits)
+        )
         if progress is not None:
             progress(len(fits) // max(len(chosen), 1), len(fittable), chunk[-1].experiment)
     return Workbench(tuple(fits), failures, chosen, rank_by, alpha, rank_extended, notes, water_recovery)
@@ -484,6 +499,7 @@ def model_averages(bench: Workbench, *, level: float = 0.95, jobs: int | None = 
         if chosen:
             groups.append(chosen)
     chunks = [groups[i : i + CHUNK_SIZE] for i in range(0, len(groups), CHUNK_SIZE)]
+    logger.info("model averages of %d experiment(s) at level %g", len(groups), level)
     frames = [frame for chunk in _map_work(_averages_of_chunk, chunks, level, jobs=jobs, client=client) for frame in chunk]
     if not frames:
         return pd.DataFrame()
