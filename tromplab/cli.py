@@ -61,15 +61,16 @@ class Terminated(KeyboardInterrupt):
     """SIGTERM, raised in the main thread so the same clean-up runs as for Ctrl-C."""
 
 
+def raise_terminated(signum, frame):
+    """Signal handler: SIGTERM becomes :class:`Terminated`."""
+    raise Terminated
+
+
 @contextlib.contextmanager
 def _sigterm_as_interrupt():
     """Turn SIGTERM into :class:`Terminated` while the command runs (main thread only)."""
-
-    def terminate(signum, frame):
-        raise Terminated
-
     try:
-        previous = signal.signal(signal.SIGTERM, terminate)
+        previous = signal.signal(signal.SIGTERM, raise_terminated)
     except ValueError:  # not the main thread (main() called from a worker thread): leave signals alone
         yield
         return
@@ -88,7 +89,7 @@ def main(argv=None) -> int:
     except SystemExit as stop:  # argparse stops on a usage error (2) or after --help/--version (0)
         return stop.code if isinstance(stop.code, int) else EXIT_USAGE
     except KeyboardInterrupt:
-        return _interrupted()
+        return interrupted()
     if not hasattr(args, "run"):
         parser.print_help()
         return EXIT_USAGE
@@ -102,7 +103,7 @@ def main(argv=None) -> int:
         sys.stderr.close()
         return EXIT_OK
     except KeyboardInterrupt as interruption:
-        return _interrupted(interruption)
+        return interrupted(interruption)
     except InputError as error:  # the project's own input, option and output errors
         if args.debug:
             traceback.print_exc()
@@ -119,7 +120,8 @@ def main(argv=None) -> int:
         return EXIT_INTERNAL
 
 
-def _interrupted(interruption=None) -> int:
+def interrupted(interruption=None) -> int:
+    """Print the one-line message for an interrupted run; return 130 (SIGINT) or 143 (SIGTERM)."""
     if isinstance(interruption, Terminated):
         print("tromplab: terminated (SIGTERM); the output folder was left as it was", file=sys.stderr)
         return EXIT_TERMINATED
@@ -131,13 +133,24 @@ def _interrupted(interruption=None) -> int:
 def _verbosity(args):
     """``--quiet`` silences the tables and progress on standard output and error (errors and
     warnings stay); ``-v`` adds the library's informational log lines."""
-    if args.verbose:
-        logging.basicConfig(level=logging.INFO if args.verbose == 1 else logging.DEBUG, format="%(name)s: %(message)s")
-    if args.quiet:
-        with open(os.devnull, "w") as sink, contextlib.redirect_stdout(sink):
+    handler = None
+    library = logging.getLogger("tromplab")
+    previous_level = library.level
+    if args.verbose:  # a handler for this command only: main() may run many times in one process
+        handler = logging.StreamHandler(sys.stderr)
+        handler.setFormatter(logging.Formatter("%(name)s: %(message)s"))
+        library.addHandler(handler)
+        library.setLevel(logging.INFO if args.verbose == 1 else logging.DEBUG)
+    try:
+        if args.quiet:
+            with open(os.devnull, "w") as sink, contextlib.redirect_stdout(sink):
+                yield
+        else:
             yield
-    else:
-        yield
+    finally:
+        if handler is not None:
+            library.removeHandler(handler)
+            library.setLevel(previous_level)
 
 
 def _cli_words(message: str, parser: argparse.ArgumentParser) -> str:
@@ -236,7 +249,7 @@ def _parser() -> argparse.ArgumentParser:
         description="Fit, screen and rank separation (Tromp) curves.",
         parents=[_global_options(in_subcommand=False)],
         epilog="Exit codes: 0 done, 1 bad input (nothing written), 2 usage, 3 partial "
-        "(failures listed in failures.csv), 70 internal error, 130 interrupted.",
+        "(failures listed in failures.csv), 70 internal error, 130 interrupted, 143 terminated.",
     )
     parser.add_argument("--version", action="version", version=f"tromplab {__version__}")
     commands = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_SubcommandParser)
@@ -683,7 +696,10 @@ def _run_fit(args) -> int:
         _require("pyarrow", "--format parquet", "pip install 'tromplab[dask]'")
     experiments, balances = read_experiments(args.input, _lab_options(args))
     if args.bootstrap:
-        check_bootstrap_request(args.bootstrap, n_fits=len(experiments) * len(select_formulas(formulas)))
+        try:
+            check_bootstrap_request(args.bootstrap, n_fits=len(experiments) * len(select_formulas(formulas)))
+        except ValueError as error:  # too much work for these data: a usage error, before any fitting
+            raise OptionError("--bootstrap", str(error).removeprefix("--bootstrap ")) from None
     _print_balance_notes(balances)
     quiet = getattr(args, "quiet", False)
     with _cluster(args) as client:
@@ -949,9 +965,10 @@ def _run_compare(args) -> int:
 def _run_export(args) -> int:
     from .export import export_fits
 
-    result = export_fits(args.fits_dir, args.to, size_unit=args.size_unit)
     folder = args.fits_dir if args.fits_dir.is_dir() else args.fits_dir.parent
     output = args.output or folder / f"export_{args.to.replace('-', '_')}.csv"
+    check_output_file(output, inputs=[] if args.fits_dir.is_dir() else [args.fits_dir])
+    result = export_fits(args.fits_dir, args.to, size_unit=args.size_unit)
     written = write_atomically({output.name: lambda p: result.table.to_csv(p, index=False)}, output.parent or Path("."))
     print(result.table.to_string(index=False, float_format=lambda v: f"{v:.6g}", na_rep="-"))
     if result.skipped:
@@ -968,6 +985,8 @@ def _run_export(args) -> int:
 def _run_trend(args) -> int:
     from .trend import monitor_surveys, read_surveys, write_trend
 
+    check_input_file(args.input)
+    check_output_folder(args.outdir, inputs=[args.input])
     surveys = read_surveys(args.input, _lab_options(args))
     result = monitor_surveys(surveys, formula=args.formula, baseline=args.baseline, alpha=args.alpha)
     written = write_trend(result, args.outdir, size_unit=args.size_unit, figures=not args.no_figures)

@@ -48,6 +48,7 @@ products given as masses imply the yield ``fine / (fine + coarse)``, compared li
 
 from __future__ import annotations
 
+import logging
 import re
 import warnings
 from dataclasses import dataclass, field, fields
@@ -58,6 +59,8 @@ import pandas as pd
 from .errors import InputError
 from .points import SIZE_UNITS, TrompPoints, experiment_rows, normal_unit, resolve_size_unit, size_column_unit
 from .tables import Table, read_table
+
+logger = logging.getLogger(__name__)
 
 STREAMS = ("feed", "fine", "coarse")
 STREAM_ALIASES = {"overflow": "fine", "underflow": "coarse"}  # hydrocyclone wording
@@ -1141,5 +1144,10 @@ def read_experiments(path, options: LabOptions | None = None, **option_values) -
     table = _renamed(read_table(path, sheet=options.sheet, sep=options.sep, decimal=options.decimal), options.rename)
     if is_lab_table(table.frame.columns):
         balances = balances_from_table(table, options)
+        logger.info(
+            "%s: lab table, %d experiment(s) balanced (partition from %s)", table.source, len(balances), options.partition_from
+        )
         return [balance.to_points(weight_by_feed_share=options.weight_by_feed_share) for balance in balances], balances
-    return points_from_table(table, size_unit=options.size_unit), []
+    experiments = points_from_table(table, size_unit=options.size_unit)
+    logger.info("%s: Tromp points, %d experiment(s)", table.source, len(experiments))
+    return experiments, []

@@ -7,6 +7,7 @@ ranking.  Neither stops the batch.
 
 from __future__ import annotations
 
+import logging
 import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -16,12 +17,14 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .curves import CurveFit, failed_fit, fit_formula
+from .curves import CurveFit, attach_indices, failed_fit, fit_formula
 from .formulas import Formula, select_formulas
 from .points import TrompPoints
 from .ranking import add_delta_aicc, add_ranks, fit_verdicts, rank_formulas
 from .screening import DEFAULT_ALPHA
 from .validation import check_optional, check_positive, check_probability, check_water_recovery
+
+logger = logging.getLogger(__name__)
 
 #: Columns of ``fits.csv``, in order.
 FIT_COLUMNS = (
@@ -344,9 +347,21 @@ def fit_experiments(
         "engine": engine,
         "size_unit": size_unit,
     }
+    logger.info(
+        "fitting %d experiment(s) x %d formula(s) in %d chunk(s) of up to %d (%s; %d experiment(s) not fittable)",
+        len(fittable),
+        len(chosen),
+        len(chunks),
+        CHUNK_SIZE,
+        "on a Dask cluster" if client is not None else f"jobs={jobs or 'all cores'}",
+        len(failures),
+    )
     fits = []
-    for chunk, chunk_fits in zip(chunks, _map_chunks(chunks, options, jobs=jobs, client=client)):
+    for number, (chunk, chunk_fits) in enumerate(zip(chunks, _map_chunks(chunks, options, jobs=jobs, client=client)), 1):
         fits += chunk_fits
+        logger.debug(
+            "chunk %d/%d fitted: %d fits, %d failed", number, len(chunks), len(chunk_fits), sum(not f.success for f in chunk_fits)
+        )
         if progress is not None:
             progress(len(fits) // max(len(chosen), 1), len(fittable), chunk[-1].experiment)
     return Workbench(tuple(fits), failures, chosen, rank_by, alpha, rank_extended, notes, water_recovery)
@@ -369,7 +384,23 @@ def fit_chunk(experiments: Sequence[TrompPoints], *, formulas, alpha, delta_max,
             except Exception:  # a broken batch falls back to single fits, which report per fit
                 batch = None
         per_formula.append(batch or [_fit_guarded(points, formula, alpha, delta_max, size_unit) for points in experiments])
-    return [fits[i] for i in range(len(experiments)) for fits in per_formula]
+    fits = [fits[i] for i in range(len(experiments)) for fits in per_formula]
+    attach_indices(fits)
+    for fit in fits:
+        derive(fit)
+    return fits
+
+
+def derive(fit: CurveFit) -> CurveFit:
+    """Compute the cached screen, indices, diagnostics, break point and warnings of ``fit`` now.
+
+    The chunk's worker does it, so that they travel back with the pickled fit instead of
+    being computed one by one in the parent when the tables are built (the serial part
+    that kept two workers from being twice as fast as one).
+    """
+    for name in ("screen", "indices", "diagnostics", "x_break", "warnings"):
+        getattr(fit, name)
+    return fit
 
 
 def _map_chunks(chunks, options, *, jobs, client):
@@ -469,6 +500,7 @@ def model_averages(bench: Workbench, *, level: float = 0.95, jobs: int | None = 
         if chosen:
             groups.append(chosen)
     chunks = [groups[i : i + CHUNK_SIZE] for i in range(0, len(groups), CHUNK_SIZE)]
+    logger.info("model averages of %d experiment(s) at level %g", len(groups), level)
     frames = [frame for chunk in _map_work(_averages_of_chunk, chunks, level, jobs=jobs, client=client) for frame in chunk]
     if not frames:
         return pd.DataFrame()
@@ -477,9 +509,10 @@ def model_averages(bench: Workbench, *, level: float = 0.95, jobs: int | None = 
 
 
 def _averages_of_chunk(level, groups) -> list[pd.DataFrame]:
-    from .uncertainty import model_average
+    from .uncertainty import batched_delta_indices, model_average
 
-    return [model_average(fits, level=level).assign(experiment=fits[0].experiment) for fits in groups]
+    known = batched_delta_indices([fit for fits in groups for fit in fits])  # the whole chunk in one call per formula
+    return [model_average(fits, level=level, known=known).assign(experiment=fits[0].experiment) for fits in groups]
 
 
 def _fit_guarded(points, formula, alpha, delta_max, size_unit="") -> CurveFit:
