@@ -621,6 +621,8 @@ def model_average(
     weights = akaike_weights([fit.fit.information_criteria()["aicc"] for fit in good])
     known = batched_delta_indices(good, delta_max) if known is None else known
     estimates = [_estimates_and_errors(fit, delta_max, known) for fit in good]
+    # epsilon: each formula's range [0, x_max - 1] lies inside that of the largest x_max
+    widest_x_max = max((fit.options.delta_max if delta_max is None else delta_max) / fit.d_cut for fit in good)
     rows = []
     z = stats.norm.ppf(0.5 + level / 2.0)
     for quantity in quantities:
@@ -648,9 +650,7 @@ def model_average(
         w = weights[usable] / share
         theta, se = values[usable], np.nan_to_num(errors[usable])
         mean = float(np.sum(w * theta))
-        # epsilon: each formula's range [0, x_max - 1] lies inside that of the largest x_max
-        x_max = max((fit.options.delta_max if delta_max is None else delta_max) / fit.d_cut for fit in good)
-        domain = quantity_domain(quantity, x_max=x_max)
+        domain = quantity_domain(quantity, x_max=widest_x_max)
         row.update(value=mean, stderr=float(np.sum(w * np.sqrt(se**2 + (theta - mean) ** 2))))
         if domain.inside(mean) and all(domain.inside(t) for t in theta):
             g_mean = domain.forward(mean)
