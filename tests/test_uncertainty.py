@@ -180,3 +180,13 @@ def test_bootstrap_alone_adds_only_bootstrap_columns(tmp_path):
     assert main(["fit", str(path), "-o", str(out), "--formulas", "plitt", "--bootstrap", "5", "--no-figures"]) == 0
     columns = set(pd.read_csv(out / "fits.csv").columns)
     assert "d_cut_boot_low" in columns and "d_cut_low" not in columns
+
+
+def test_batched_delta_method_gives_the_per_fit_averages():
+    """Model averages evaluate the delta method's indices for many fits in one batched call
+    per formula (issue 11); the numbers agree with one curve_indices call per evaluation."""
+    fits = [fit for fit in (fit_formula(synthetic(7, weighted=False), formula) for formula in FORMULAS) if fit.success]
+    batched = model_average(fits)
+    one_by_one = model_average(fits, known={})  # nothing evaluated beforehand: one call per evaluation
+    for column in ("value", "stderr", "low", "high"):
+        assert_allclose(batched[column].to_numpy(float), one_by_one[column].to_numpy(float), rtol=1e-6)
