@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .curves import CurveFit, attach_indices, failed_fit, fit_formula
+from .curves import CurveFit, attach_diagnostics, attach_indices, failed_fit, fit_formula
 from .formulas import Formula, select_formulas
 from .points import TrompPoints
 from .ranking import add_delta_aicc, add_ranks, fit_verdicts, rank_formulas
@@ -386,6 +386,7 @@ def fit_chunk(experiments: Sequence[TrompPoints], *, formulas, alpha, delta_max,
         per_formula.append(batch or [_fit_guarded(points, formula, alpha, delta_max, size_unit) for points in experiments])
     fits = [fits[i] for i in range(len(experiments)) for fits in per_formula]
     attach_indices(fits)
+    attach_diagnostics(fits)
     for fit in fits:
         derive(fit)
     return fits
