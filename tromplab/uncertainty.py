@@ -587,8 +587,9 @@ def model_average(
     The unconditional standard error (Burnham & Anderson 2002, eq. 4.9) is
     ``sum_i w_i sqrt(se_i^2 + (theta_i - theta_bar)^2)`` with ``se_i`` from the fit
     (parameters) or the delta method (indices).  The interval is made the same way on the
-    log (logit for eta) scale around ``g(theta_bar)`` and transformed back, so it stays in
-    the quantity's range (``method`` says so).  ``d50c`` is the corrected cut of each
+    log (logit for eta; for epsilon the logit of eps / (x_max - 1) with the largest x_max
+    of the fits) scale around ``g(theta_bar)`` and transformed back, so it stays in the
+    quantity's range (``method`` says so).  ``d50c`` is the corrected cut of each
     formula (for the nine paper formulas, which have no bypass, the corrected curve is
     the actual one and ``d50c = d50 = d_cut``); a corrected cut is never averaged with an
     actual one.
@@ -620,6 +621,8 @@ def model_average(
     weights = akaike_weights([fit.fit.information_criteria()["aicc"] for fit in good])
     known = batched_delta_indices(good, delta_max) if known is None else known
     estimates = [_estimates_and_errors(fit, delta_max, known) for fit in good]
+    # epsilon: each formula's range [0, x_max - 1] lies inside that of the largest x_max
+    widest_x_max = max((fit.options.delta_max if delta_max is None else delta_max) / fit.d_cut for fit in good)
     rows = []
     z = stats.norm.ppf(0.5 + level / 2.0)
     for quantity in quantities:
@@ -647,7 +650,7 @@ def model_average(
         w = weights[usable] / share
         theta, se = values[usable], np.nan_to_num(errors[usable])
         mean = float(np.sum(w * theta))
-        domain = quantity_domain(quantity)
+        domain = quantity_domain(quantity, x_max=widest_x_max)
         row.update(value=mean, stderr=float(np.sum(w * np.sqrt(se**2 + (theta - mean) ** 2))))
         if domain.inside(mean) and all(domain.inside(t) for t in theta):
             g_mean = domain.forward(mean)
