@@ -336,9 +336,6 @@ def fit_experiments(
             )
             continue
         fittable.append(points)
-        found = data_notes(points)
-        if found:
-            notes[points.experiment] = found
     chunks = [fittable[i : i + CHUNK_SIZE] for i in range(0, len(fittable), CHUNK_SIZE)]
     options = {
         "formulas": tuple(f.id for f in chosen),
@@ -357,8 +354,11 @@ def fit_experiments(
         len(failures),
     )
     fits = []
-    for number, (chunk, chunk_fits) in enumerate(zip(chunks, _map_chunks(chunks, options, jobs=jobs, client=client)), 1):
+    for number, (chunk, (chunk_fits, chunk_notes)) in enumerate(
+        zip(chunks, _map_chunks(chunks, options, jobs=jobs, client=client)), 1
+    ):
         fits += chunk_fits
+        notes.update(chunk_notes)
         logger.debug(
             "chunk %d/%d fitted: %d fits, %d failed", number, len(chunks), len(chunk_fits), sum(not f.success for f in chunk_fits)
         )
@@ -405,7 +405,7 @@ def derive(fit: CurveFit) -> CurveFit:
 
 
 def _map_chunks(chunks, options, *, jobs, client):
-    """Yield the fits of each chunk, in order: in process, in a process pool, or on Dask."""
+    """Yield the fits and the data notes of each chunk, in order: in process, in a process pool, or on Dask."""
     yield from _map_work(_fit_chunk_star, chunks, options, jobs=jobs, client=client)
 
 
@@ -431,7 +431,10 @@ def _map_work(function, chunks, argument, *, jobs, client):
 
 
 def _fit_chunk_star(options, chunk):
-    return fit_chunk(chunk, **options)
+    # the notes on the points are made in the worker too: in the parent they were a serial
+    # Spearman test per experiment (seconds at 10,000 experiments)
+    notes = {points.experiment: found for points in chunk if (found := data_notes(points))}
+    return fit_chunk(chunk, **options), notes
 
 
 def _as_points(experiments) -> list[TrompPoints]:
