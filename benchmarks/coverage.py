@@ -6,7 +6,9 @@ replicates whose interval (as written to ``fits.csv`` by ``--ci``) contains the 
 shape, slope, eta, epsilon, d25, d75 and Ep is printed per formula. A nominal 95 % interval
 should cover 90-99 % of the time.
 
-Usage: ``python benchmarks/coverage.py [--replicates 400] [--profile-replicates 150]``
+Usage: ``python benchmarks/coverage.py [--replicates 400] [--profile-replicates 150]
+[--formula lognormal --shape 0.3] [--clip]`` (``--clip``: partitions clipped to [0, 1] as
+measured ones are; with a sharp ``--shape`` several sizes then sit exactly at 0 or 1)
 (minutes; the suite runs a smaller version, ``test_reported_intervals_cover_the_truth``).
 """
 
@@ -23,9 +25,17 @@ def main(argv=None):
     parser.add_argument("--replicates", type=int, default=400)
     parser.add_argument("--profile-replicates", type=int, default=150, help="replicates with profile-likelihood parameters")
     parser.add_argument("--level", type=float, default=0.95)
+    parser.add_argument("--formula", choices=sorted(COVERAGE_TRUTH), default=None, help="one formula only (default: all three)")
+    parser.add_argument("--shape", type=float, default=None, help="true shape instead of the default one (needs --formula)")
+    parser.add_argument("--clip", action="store_true", help="clip the noisy partitions to [0, 1]")
     args = parser.parse_args(argv)
+    if args.shape is not None and args.formula is None:
+        parser.error("--shape needs --formula")
     start = time.perf_counter()
-    tables = [interval_coverage(formula, args.replicates, level=args.level) for formula in COVERAGE_TRUTH]
+    formulas = [args.formula] if args.formula else list(COVERAGE_TRUTH)
+    tables = [
+        interval_coverage(formula, args.replicates, level=args.level, shape=args.shape, clip=args.clip) for formula in formulas
+    ]
     if args.profile_replicates:
         tables.append(interval_coverage("plitt", args.profile_replicates, level=args.level, profile=True))
     table = pd.concat(tables, ignore_index=True)

@@ -47,7 +47,15 @@ COVERAGE_QUANTITIES = ("d_cut", "shape", "slope", "eta", "epsilon", "d25", "d75"
 
 
 def interval_coverage(
-    formula: str, replicates: int, *, level: float = 0.95, noise: float = 0.02, profile: bool = False, first_seed: int = 0
+    formula: str,
+    replicates: int,
+    *,
+    level: float = 0.95,
+    noise: float = 0.02,
+    profile: bool = False,
+    first_seed: int = 0,
+    shape: float | None = None,
+    clip: bool = False,
 ):
     """Share of seeded replicates whose interval covers the true value, per quantity.
 
@@ -56,7 +64,10 @@ def interval_coverage(
     of :func:`tromplab.uncertainty.interval_table` (parameters by profile likelihood when
     ``profile``, else Wald on the log scale; indices by the delta method on their
     transformed scale). The true indices come from the generating parameters at the same
-    ``delta_max`` (the largest size).
+    ``delta_max`` (the largest size).  ``shape`` replaces the true shape of
+    :data:`COVERAGE_TRUTH`; ``clip`` clips the noisy partition to [0, 1], as measured
+    partition numbers are (where the true curve is near 0 or 1 the clipped noise is no longer
+    normal, and the intervals cover less: see docs/uncertainty.md).
 
     Returns
     -------
@@ -72,7 +83,7 @@ def interval_coverage(
     from tromplab.uncertainty import interval_table
 
     curve = get_formula(formula)
-    shape = COVERAGE_TRUTH[formula]
+    shape = COVERAGE_TRUTH[formula] if shape is None else float(shape)
     delta_max = float(COVERAGE_SIZES[-1])
     true_indices = curve_indices(curve, 80.0, shape, delta_max=delta_max)
     truth = {"d_cut": 80.0, "shape": shape, **{q: getattr(true_indices, q) for q in COVERAGE_QUANTITIES[2:]}}
@@ -81,6 +92,8 @@ def interval_coverage(
     for seed in range(first_seed, first_seed + replicates):
         rng = np.random.default_rng(seed)
         partition = curve(COVERAGE_SIZES, 80.0, shape) + rng.normal(0.0, noise, COVERAGE_SIZES.size)
+        if clip:
+            partition = np.clip(partition, 0.0, 1.0)
         fit = fit_formula(TrompPoints(f"coverage-{seed}", COVERAGE_SIZES, partition), curve, delta_max=delta_max)
         if not fit.success:
             for q in COVERAGE_QUANTITIES:
