@@ -147,6 +147,21 @@ def test_output_is_byte_identical_whatever_the_number_of_workers(tmp_path, monke
     assert outputs[1] == outputs[2]
 
 
+def test_data_notes_come_back_from_the_workers_in_batch_order(monkeypatch):
+    from tromplab.workbench import data_notes
+
+    monkeypatch.setattr(workbench, "CHUNK_SIZE", 2)
+    sizes = [10.0, 20.0, 40.0, 80.0, 160.0]
+    rising = TrompPoints("rising", sizes, [0.05, 0.2, 0.6, 0.9, 0.97])
+    above = TrompPoints("above", sizes, [0.99, 0.95, 0.85, 0.7, 0.6])
+    batch = [EXPERIMENTS[0], rising, EXPERIMENTS[1], above, EXPERIMENTS[2]]
+    expected = {p.experiment: data_notes(p) for p in batch if data_notes(p)}
+    assert list(expected) == ["rising", "above"]
+    for jobs in (1, 2):
+        notes = fit_experiments(batch, formulas=["plitt"], jobs=jobs).notes
+        assert notes == expected and list(notes) == list(expected)
+
+
 def test_engine_and_single_fits_give_the_same_table():
     batched = fit_experiments(EXPERIMENTS[:6], formulas=["plitt", "luckie_austin"]).fits_table()
     single = fit_experiments(EXPERIMENTS[:6], formulas=["plitt", "luckie_austin"], engine=False).fits_table()
