@@ -152,3 +152,22 @@ def test_bootstrap_alone_adds_only_bootstrap_columns(tmp_path):
     assert main(["fit", str(path), "-o", str(out), "--formulas", "plitt", "--bootstrap", "5", "--no-figures"]) == 0
     columns = set(pd.read_csv(out / "fits.csv").columns)
     assert "d_cut_boot_low" in columns and "d_cut_low" not in columns
+
+
+def test_model_averages_read_the_batched_indices_and_agree_with_the_one_by_one_delta_method():
+    """Issue 11: the delta method of a chunk reads indices computed ahead on arrays; the averages
+    agree with indices computed one fit and one step at a time (difference-quotient noise only)."""
+    from numpy.testing import assert_allclose
+
+    from tromplab._synthetic import synthetic
+    from tromplab.uncertainty import batched_delta_indices, model_average
+    from tromplab.workbench import fit_experiments
+
+    bench = fit_experiments([synthetic(seed) for seed in (2, 7, 11)])
+    for fits in bench.fits_by_experiment().values():
+        one_by_one = model_average(fits)
+        with batched_delta_indices(fits):
+            batched = model_average(fits)
+        assert list(batched["note"]) == list(one_by_one["note"])
+        for column in ("value", "stderr", "low", "high"):
+            assert_allclose(batched[column], one_by_one[column], rtol=1e-6, equal_nan=True)

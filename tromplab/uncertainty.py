@@ -19,6 +19,7 @@ Springer.  Efron B., Tibshirani R.J. (1993). An Introduction to the Bootstrap. C
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -149,17 +150,83 @@ def _method(kind: str, domain: Domain) -> str:
     return kind if domain.scale == "identity" else f"{kind}-{domain.scale}"
 
 
+#: Indices computed ahead for the delta method of many fits (:func:`batched_delta_indices`),
+#: keyed by formula, parameters, feed top size and context; None outside that block.
+_PRECOMPUTED: dict | None = None
+
+
+def _indices_key(formula_id: str, d_cut: float, shape: float, delta_max: float, context: dict) -> tuple:
+    return formula_id, float(d_cut), float(shape), float(delta_max), tuple(sorted((k, float(v)) for k, v in context.items()))
+
+
 def _indices_at(fit: CurveFit, values: dict[str, float], delta_max: float) -> np.ndarray:
     d_cut, shape, extras = fit.curve_arguments(values)
+    if _PRECOMPUTED is not None and not extras:
+        found = _PRECOMPUTED.get(_indices_key(fit.formula.id, d_cut, shape, delta_max, fit.context_at(values)))
+        if found is not None:
+            return found.copy()
     found = curve_indices(fit.formula, d_cut, shape, delta_max=delta_max, **fit.context_at(values), **extras)
     return np.array([getattr(found, name) for name in INDEX_NAMES])
 
 
+def _difference_step(values: dict[str, float], name: str) -> float:
+    return 1e-5 * max(abs(values[name]), 1e-3)
+
+
 def _difference(evaluate, values: dict[str, float], name: str) -> np.ndarray:
-    step = 1e-5 * max(abs(values[name]), 1e-3)
+    step = _difference_step(values, name)
     upper = np.asarray(evaluate({**values, name: values[name] + step}), dtype=float)
     lower = np.asarray(evaluate({**values, name: values[name] - step}), dtype=float)
     return (upper - lower) / (2 * step)
+
+
+@contextmanager
+def batched_delta_indices(fits: Sequence[CurveFit], *, delta_max: float | None = None):
+    """Within this block the delta method of ``fits`` reads indices computed ahead, on arrays.
+
+    The delta method evaluates the indices of a fit at its estimate and at a step either
+    side in each parameter (and in each data-derived input, for (11)): one root search and
+    quadrature each.  Here all those evaluations of all ``fits`` are made first, one
+    :func:`tromplab.indices.batch_curve_indices` call per formula, and
+    :func:`delta_standard_errors` finds them by their exact parameter values; the
+    arithmetic of the errors and of the model averages is unchanged.  Curves the batched
+    indices do not cover are computed one by one as before.
+    """
+    from .indices import batch_curve_indices, batchable_indices
+
+    global _PRECOMPUTED
+    wanted: dict[str, list[tuple[tuple, float, float, float, dict]]] = {}
+    for fit in fits:
+        if not (fit.success and batchable_indices(fit.formula)):
+            continue
+        top = fit.options.delta_max if delta_max is None else delta_max
+        values = {**fit.context_at(), **fit.fit.values}
+        sets = [values]
+        if fit.fit.covariance is not None:
+            for name in (*fit.fit.names, *fit.context):
+                step = _difference_step(values, name)
+                sets += [{**values, name: values[name] + step}, {**values, name: values[name] - step}]
+        for point in sets:
+            d_cut, shape, _ = fit.curve_arguments(point)
+            context = fit.context_at(point)
+            key = _indices_key(fit.formula.id, d_cut, shape, top, context)
+            wanted.setdefault(fit.formula.id, []).append((key, d_cut, shape, top, context))
+    table = {}
+    for formula_id, entries in wanted.items():
+        computed = batch_curve_indices(
+            formula_id,
+            [entry[1] for entry in entries],
+            [entry[2] for entry in entries],
+            delta_max=[entry[3] for entry in entries],
+            measured_efficiency=[entry[4].get("measured_efficiency", np.nan) for entry in entries],
+        )
+        for entry, found in zip(entries, computed):
+            table[entry[0]] = np.array([getattr(found, name) for name in INDEX_NAMES])
+    previous, _PRECOMPUTED = _PRECOMPUTED, table
+    try:
+        yield
+    finally:
+        _PRECOMPUTED = previous
 
 
 def delta_standard_errors(fit: CurveFit, evaluate: Callable[[dict[str, float]], np.ndarray]) -> np.ndarray:

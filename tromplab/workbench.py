@@ -475,9 +475,10 @@ def model_averages(bench: Workbench, *, level: float = 0.95, jobs: int | None = 
 
 
 def _averages_of_chunk(level, groups) -> list[pd.DataFrame]:
-    from .uncertainty import model_average
+    from .uncertainty import batched_delta_indices, model_average
 
-    return [model_average(fits, level=level).assign(experiment=fits[0].experiment) for fits in groups]
+    with batched_delta_indices([fit for fits in groups for fit in fits]):
+        return [model_average(fits, level=level).assign(experiment=fits[0].experiment) for fits in groups]
 
 
 def _fit_guarded(points, formula, alpha, delta_max, size_unit="") -> CurveFit:
