@@ -58,12 +58,14 @@ def test_layer_simulate_prints_and_writes_the_published_run(tmp_path, capsys):
     assert_allclose(table["extraction"], LayerModel(0.005, 0.026, 0.21).simulate([0.5] * 4, 300).extraction)
     assert main(["layer", "simulate", "--linear", "--initial", "0.6,0.5,0.4", "--steps", "20", "--lock-threshold", "0.3"]) == 0
     assert "3 cells" in capsys.readouterr().out
-    assert main(["layer", "simulate", "--diffusion", "0.6"]) == 1
-    assert "(--diffusion, --segregation)" in capsys.readouterr().err
-    assert main(["layer", "simulate", "--passage", "1.5"]) == 1
-    assert "--passage must lie in [0, 1]" in capsys.readouterr().err
-    assert main(["layer", "simulate", "--concentration", "1.5"]) == 1
-    assert "--concentration takes concentrations in 0..1" in capsys.readouterr().err
+    assert main(["layer", "simulate", "--diffusion", "0.6"]) == 2  # options out of range: usage errors
+    assert "--diffusion, --segregation: 2 d + v0" in capsys.readouterr().err
+    assert main(["layer", "simulate", "--passage", "1.5"]) == 2
+    assert "argument --passage: must lie between 0 and 1, got '1.5'" in capsys.readouterr().err
+    assert main(["layer", "simulate", "--concentration", "1.5"]) == 2
+    assert "argument --concentration: must lie between 0 and 1" in capsys.readouterr().err
+    assert main(["layer", "simulate", "--concentration", "0"]) == 2
+    assert "--concentration takes concentrations in 0..1, not all zero" in capsys.readouterr().err
 
 
 @pytest.mark.slow
@@ -98,10 +100,10 @@ def test_pulp_optimum_matches_the_model(capsys):
     assert interior and f"H' = {applied:.5g}, productivity Q = {rate:.5g}" in printed and f"N = {frequency:.5g} 1/s" in printed
     assert main(["pulp", "optimum", "--applied", "1"]) == 0  # phi = 0: no interior maximum over N
     assert "no best frequency" in capsys.readouterr().out
-    assert main(["pulp", "optimum"]) == 1
-    assert "give --frequency" in capsys.readouterr().err
-    assert main(["pulp", "optimum", "--frequency", "10", "--open-area", "-0.2"]) == 1
-    assert "--open-area must be positive" in capsys.readouterr().err
+    assert main(["pulp", "optimum"]) == 2
+    assert "--frequency or --applied is needed" in capsys.readouterr().err
+    assert main(["pulp", "optimum", "--frequency", "10", "--open-area", "-0.2"]) == 2
+    assert "argument --open-area: must be a positive finite number, got '-0.2'" in capsys.readouterr().err
 
 
 def test_pulp_fit_recovers_the_generating_coefficients(tmp_path, capsys):
@@ -112,8 +114,8 @@ def test_pulp_fit_recovers_the_generating_coefficients(tmp_path, capsys):
     assert_allclose(table["value"], [2.0, 3.0], rtol=0.02)  # generated with beta = 2, lam = 3 and 2 % noise
     assert (table["low"] < [2.0, 3.0]).all() and (table["high"] > [2.0, 3.0]).all()
     capsys.readouterr()
-    assert main(["pulp", "fit", str(DATASETS / "pulp_screen_productivity_example.csv"), "--fit", "beta,gamma"]) == 1
-    assert "--fit: cannot fit gamma" in capsys.readouterr().err
+    assert main(["pulp", "fit", str(DATASETS / "pulp_screen_productivity_example.csv"), "--fit", "beta,gamma"]) == 2
+    assert "--fit cannot fit gamma" in capsys.readouterr().err
 
 
 @pytest.mark.slow
@@ -127,8 +129,8 @@ def test_optimize_reproduces_the_sieve_operating_point(tmp_path, capsys):
     pareto = pd.read_csv(out)
     assert list(pareto.columns) == ["l1", "V", "Q", "E", "success"] and len(pareto) == 5
     assert pareto.sort_values("l1")["Q"].is_monotonic_increasing  # more weight on capacity, more capacity
-    assert main(["optimize", "--speed-min", "0.3"]) == 1
-    assert "--speed-min" in capsys.readouterr().err
+    assert main(["optimize", "--speed-min", "0.3"]) == 2
+    assert "--speed-min must be below --speed-max" in capsys.readouterr().err
 
 
 def test_sieve_identify_recovers_the_published_velocity_laws_from_the_bundled_example(tmp_path, capsys):

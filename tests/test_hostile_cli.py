@@ -141,3 +141,114 @@ def test_outputs_are_byte_identical_whatever_the_hash_seed(tmp_path):
         runs.append({p.name: p.read_bytes() for p in sorted(out.iterdir()) if not p.name.startswith(".")})
     assert runs[0].keys() == runs[1].keys() and len(runs[0]) >= 5
     assert runs[0] == runs[1]
+
+
+def _model_command_argvs(tmp_path, output):
+    """Each command that writes one file or folder, with ``output`` as its -o."""
+    from pathlib import Path
+
+    datasets = Path(__file__).resolve().parents[1] / "datasets"
+    fits = tmp_path / "fits.csv"
+    fits.write_text("experiment,formula,d_cut\nA,(3),100\n", encoding="utf-8")
+    return {
+        "layer simulate": ["layer", "simulate", "--steps", "5", "-o", str(output)],
+        "layer fit": ["layer", "fit", str(datasets / "layer_extraction_example.csv"), "-o", str(output)],
+        "pulp fit": ["pulp", "fit", str(datasets / "pulp_screen_productivity_example.csv"), "-o", str(output)],
+        "optimize": ["optimize", "--weights", "2", "-o", str(output)],
+        "export": ["export", str(fits), "--to", "csv-long", "-o", str(output)],
+        "trend": ["trend", str(datasets / "classifier_trend_surveys.csv"), "-o", str(output), "--no-figures"],
+    }
+
+
+@pytest.mark.parametrize("clash", ["folder", "under a file"])
+@pytest.mark.parametrize(
+    "command", ["layer simulate", "layer fit", "pulp fit", "optimize", "export", "trend"]
+)  # fmt: skip
+def test_every_command_checks_its_output_path_before_any_work(tmp_path, capsys, command, clash):
+    """As ``fit``: exit 1, the option named, nothing written, before any fitting or simulation."""
+    blocker = tmp_path / "blocker"
+    if clash == "folder":  # a folder where a file goes; for trend (a folder output) a file where the folder goes
+        blocker.mkdir() if command != "trend" else blocker.write_text("mine")
+        output = blocker
+    else:
+        blocker.write_text("mine")
+        output = blocker / "result"
+    argv = _model_command_argvs(tmp_path, output)[command]
+    before = sorted(p.name for p in tmp_path.iterdir())
+    assert main(argv) == 1
+    captured = capsys.readouterr()
+    assert ("--output" in captured.err or "--outdir" in captured.err) and "Traceback" not in captured.err
+    assert "Wrote" not in captured.out and captured.out.strip() == ""  # refused before any work was printed
+    assert sorted(p.name for p in tmp_path.iterdir()) == before
+    assert blocker.is_dir() or blocker.read_text() == "mine"
+
+
+@pytest.mark.skipif(__import__("os").geteuid() == 0, reason="root may write anywhere")
+def test_an_unwritable_output_folder_is_refused_before_any_work(tmp_path, capsys):
+    locked = tmp_path / "locked"
+    locked.mkdir()
+    locked.chmod(0o500)
+    try:
+        assert main(["layer", "simulate", "--steps", "5", "-o", str(locked / "run.csv")]) == 1
+        assert "permission denied" in capsys.readouterr().err
+    finally:
+        locked.chmod(0o700)
+
+
+@pytest.mark.parametrize(
+    "argv, option",
+    [(["layer", "simulate", "--cells", "1"], "--cells"), (["layer", "simulate", "--cells", "10000000"], "--cells"),
+     (["layer", "simulate", "--steps", "0"], "--steps"), (["layer", "simulate", "--steps", "1e12"], "--steps"),
+     (["layer", "simulate", "--step-seconds", "-1"], "--step-seconds"), (["layer", "simulate", "--diffusion", "nan"], "--diffusion"),
+     (["layer", "simulate", "--lock-threshold", "2"], "--lock-threshold"), (["layer", "simulate", "--initial", "0.5"], "--initial"),
+     (["layer", "simulate", "--initial", "0.5,x"], "--initial"), (["layer", "fit", "data.csv", "--level", "1"], "--level"),
+     (["pulp", "optimum", "--frequency", "0"], "--frequency"), (["pulp", "optimum", "--applied", "-1"], "--applied"),
+     (["pulp", "optimum", "--applied", "1", "--tau", "inf"], "--tau"), (["pulp", "fit", "data.csv", "--level", "0"], "--level"),
+     (["optimize", "--weights", "1"], "--weights"), (["optimize", "--capacity-share", "0"], "--capacity-share"),
+     (["optimize", "--min-efficiency", "101"], "--min-efficiency"), (["optimize", "--purity-limit", "1"], "--purity-limit"),
+     (["optimize", "--width", "0"], "--width"), (["optimize", "--speed-max", "nan"], "--speed-max")],
+)  # fmt: skip
+def test_model_command_options_out_of_range_are_usage_errors(capsys, argv, option):
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert option in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize(
+    "options, expected",
+    [(["--bootstrap", "100000"], "--bootstrap 100,000 on 270 fits means 27,000,000 refits"),
+     (["--bootstrap", "10000000"], "argument --bootstrap: is capped at 100,000 resamples"),
+     (["--jobs", "100000"], "argument --jobs: is capped at 4,096"), (["--jobs", "1e9"], "argument --jobs: is capped")],
+)  # fmt: skip
+def test_absurd_bootstrap_or_jobs_requests_are_refused_before_any_work(tmp_path, capsys, options, expected):
+    """30 experiments x 9 formulas: 100,000 resamples each would be 27 million refits (about 3 hours)."""
+    import time
+
+    path = points_file(tmp_path, {f"E{k}": CURVE for k in range(30)})
+    out = tmp_path / "out"
+    start = time.monotonic()
+    assert main(["fit", str(path), "-o", str(out), *options]) == 2
+    assert time.monotonic() - start < 5  # refused from the request's size, not after fitting
+    err = capsys.readouterr().err
+    assert expected in err and "Traceback" not in err
+    assert not out.exists()
+
+
+def test_verbose_adds_log_lines_of_each_step_and_quiet_removes_the_tables(tmp_path, capsys):
+    path = points_file(tmp_path, {"A": CURVE, "B": CURVE[::-1]})
+    printed = {}
+    for flags in ([], ["-v"], ["-vv"], ["-q"]):
+        assert main([*flags, "fit", str(path), "-o", str(tmp_path / "out"), "--no-figures", "--bootstrap", "3"]) == 0
+        printed[" ".join(flags)] = capsys.readouterr()
+    default, verbose, debug, quiet = printed[""], printed["-v"], printed["-vv"], printed["-q"]
+    assert "tromplab." not in default.err
+    for step in ("tromplab.tables: read", "tromplab.lab:", "tromplab.workbench: fitting 2 experiment(s) x 9 formula(s)",
+                 "tromplab.uncertainty: intervals for 18 fit(s)", "tromplab.outputs: swapped the new outputs into"):  # fmt: skip
+        assert step in verbose.err, step
+    assert "chunk 1/1 fitted" not in verbose.err and "chunk 1/1 fitted: 18 fits" in debug.err  # -vv: debug lines too
+    assert "bootstrap A plitt: 3 residuals resamples" in debug.err
+    assert verbose.out == default.out  # the log goes to stderr only
+    assert quiet.out == "" and default.out.strip() and len(quiet.err) <= len(default.err)
+    import logging
+
+    assert not logging.getLogger("tromplab").handlers  # removed after the command

@@ -6,11 +6,13 @@ flat curves."""
 import numpy as np
 import pandas as pd
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 import tromplab
 from tromplab.cli import main
 from tromplab.points import TrompPoints
-from tromplab.uncertainty import interval_table, quantity_domain
+from tromplab.uncertainty import AVERAGED_QUANTITIES, interval_table, model_average, quantity_domain
 
 from .conftest import DATASETS
 
@@ -71,9 +73,71 @@ def test_every_interval_contains_its_estimate_and_stays_in_range(seed, truth, n,
     for row in table.itertuples(index=False):
         if not (np.isfinite(row.low) and np.isfinite(row.high)):
             continue
-        domain = quantity_domain(row.quantity, fit.formula)
+        domain = quantity_domain(row.quantity, fit.formula, x_max=_x_max(fit))
         assert row.low <= row.value <= row.high, row
         assert _inside(domain, [row.low, row.high]).all(), row
+
+
+def _x_max(fit) -> float:
+    return fit.options.delta_max / fit.fit.values["d_cut"]
+
+
+CURVES = {"plitt": (0.5, 30.0), "rosin_rammler": (0.5, 20.0), "lognormal": (0.03, 1.5), "plitt_bypass": (0.5, 30.0)}
+
+
+@settings(max_examples=40, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    formula=st.sampled_from(sorted(CURVES)),
+    shape_position=st.floats(0.0, 1.0),
+    n=st.integers(4, 14),
+    bypass=st.floats(0.02, 0.5),
+    noise=st.sampled_from([0.0, 0.005, 0.02, 0.06]),
+    seed=st.integers(0, 2**16),
+    delta_max_factor=st.sampled_from([1.0, 4.0, 1000.0]),
+)
+def test_property_every_interval_contains_its_estimate_and_stays_in_range(
+    formula, shape_position, n, bypass, noise, seed, delta_max_factor
+):
+    """Over generated experiments (few to many points, flat to sharp curves, bypass, exact to
+    noisy data, delta_max at and far beyond the largest size): every parameter and index
+    interval contains its estimate and lies inside the quantity's range, epsilon's within
+    [0, x_max - 1] of its own fit."""
+    low_shape, high_shape = CURVES[formula]
+    shape = float(np.exp(np.log(low_shape) + shape_position * np.log(high_shape / low_shape)))
+    rng = np.random.default_rng(seed)
+    size = np.geomspace(5.0, 500.0, n)
+    extras = {"bypass": bypass} if formula.endswith("bypass") else {}
+    phi = np.clip(tromplab.get_formula(formula)(size, 60.0, shape, **extras) + rng.normal(0.0, noise, n), 0.0, 1.0)
+    points = TrompPoints("generated", size, phi)
+    fit = tromplab.fit_formula(points, formula, delta_max=500.0 * delta_max_factor)
+    if not fit.success:
+        return
+    table = interval_table(fit, level=0.95, profile=False)
+    assert table["method"].notna().all() and (table["method"] != "").all()
+    for row in table.itertuples(index=False):
+        domain = quantity_domain(row.quantity, fit.formula, x_max=_x_max(fit))
+        if np.isfinite(row.value):
+            assert _inside(domain, [row.value]).all(), row
+        if np.isfinite(row.low) and np.isfinite(row.high):
+            assert row.low <= row.value <= row.high, row
+            assert _inside(domain, [row.low, row.high]).all(), row
+        else:
+            assert row.flag, row  # an interval that could not be made says so
+
+
+def test_epsilon_interval_stays_below_x_max_minus_one():
+    """A flat curve with delta_max just above the cut: epsilon is close to its upper end
+    x_max - 1 and a log-scale interval would pass it."""
+    size = np.geomspace(5.0, 500.0, 8)
+    rng = np.random.default_rng(7)
+    phi = np.clip(tromplab.get_formula("plitt")(size, 300.0, 0.6) + rng.normal(0.0, 0.03, size.size), 0.0, 1.0)
+    fit = tromplab.fit_formula(TrompPoints("flat", size, phi), "plitt", delta_max=500.0)
+    table = interval_table(fit, level=0.95, profile=False).set_index("quantity")
+    x_max = _x_max(fit)
+    low, value, high = table.loc["epsilon", ["low", "value", "high"]]
+    assert table.loc["epsilon", "method"] == "delta-logit"
+    assert 0.0 < low <= value <= high < x_max - 1.0
+    assert quantity_domain("epsilon", x_max=x_max).upper == pytest.approx(x_max - 1.0)
 
 
 def test_averages_leave_out_a_quantity_the_favoured_formulas_lack():
@@ -92,3 +156,53 @@ def test_averages_leave_out_a_quantity_the_favoured_formulas_lack():
     for present in ("d50c", "ep_c", "eta"):
         assert np.isfinite(table.loc[present, "value"]) and table.loc[present, "akaike_share"] > 0.99
     assert abs(table.loc["d50c", "value"] - 60.0) < 6.0
+
+
+AVERAGED_FORMULAS = ("plitt", "rosin_rammler", "lognormal", "plitt_bypass")
+
+
+@pytest.mark.slow
+@settings(max_examples=30, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    truth=st.sampled_from(sorted(CURVES)),
+    shape_position=st.floats(0.0, 1.0),
+    n=st.integers(4, 12),
+    bypass=st.floats(0.02, 0.6),
+    noise=st.sampled_from([0.0, 0.01, 0.03, 0.06]),
+    seed=st.integers(0, 2**16),
+    delta_max_factor=st.sampled_from([1.0, 1.5, 100.0]),
+)
+def test_property_every_model_average_interval_contains_its_average_and_stays_in_range(
+    truth, shape_position, n, bypass, noise, seed, delta_max_factor
+):
+    """Model averages over four formulas (one with bypass) of generated experiments: every
+    averaged quantity's interval contains the average and lies inside its range (epsilon
+    within [0, x_max - 1] of the widest of its fits), its Akaike share is a share, and an
+    average left without an interval says why."""
+    low_shape, high_shape = CURVES[truth]
+    shape = float(np.exp(np.log(low_shape) + shape_position * np.log(high_shape / low_shape)))
+    rng = np.random.default_rng(seed)
+    size = np.geomspace(5.0, 500.0, n)
+    extras = {"bypass": bypass} if truth.endswith("bypass") else {}
+    phi = np.clip(tromplab.get_formula(truth)(size, 60.0, shape, **extras) + rng.normal(0.0, noise, n), 0.0, 1.0)
+    points = TrompPoints("generated", size, phi)
+    fits = [tromplab.fit_formula(points, formula, delta_max=500.0 * delta_max_factor) for formula in AVERAGED_FORMULAS]
+    good = [fit for fit in fits if fit.success]
+    if not good:
+        return
+    quantities = (*AVERAGED_QUANTITIES, "imperfection", "epsilon", "bypass")
+    table = model_average(fits, quantities=quantities, level=0.95)
+    x_max = max(_x_max(fit) for fit in good)
+    assert ((table["akaike_share"] >= 0) & (table["akaike_share"] <= 1 + 1e-12)).all()
+    for row in table.itertuples(index=False):
+        domain = quantity_domain(row.quantity, x_max=x_max)
+        if not np.isfinite(row.value):
+            assert row.note, row  # an empty average says why
+            continue
+        assert _inside(domain, [row.value]).all(), row
+        if np.isfinite(row.low) and np.isfinite(row.high):
+            assert row.low <= row.value <= row.high, row
+            assert _inside(domain, [row.low, row.high]).all(), row
+            assert row.method.startswith("akaike-"), row
+        else:
+            assert row.note, row

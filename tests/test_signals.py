@@ -1,17 +1,26 @@
 """Killed and concurrent runs (issue 15): the output folder holds exactly the previous
-run or exactly the new one, never a mix; SIGINT/SIGTERM exit with one line, no traceback."""
+run or exactly the new one, never a mix; SIGINT/SIGTERM exit with one line, no traceback,
+at any moment from the start of the process on."""
 
 import os
 import random
+import shutil
 import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import pytest
 
+from tromplab.outputs import MANIFEST, SWAP_PAUSE_VARIABLE, clean_stale
+
 SIZES = (10, 20, 40, 80, 160, 320)
 CURVE = (0.97, 0.9, 0.7, 0.35, 0.1, 0.02)
+REPOSITORY = Path(__file__).resolve().parents[1]
+# what the installed ``tromplab`` console script runs (pyproject [project.scripts]); PYTHONPATH
+# finds tromplab_launch also in an editable install made before it existed
+LAUNCH = [sys.executable, "-c", "import sys, tromplab_launch; sys.exit(tromplab_launch.main())"]
 
 
 def _points(path, shift):
@@ -20,9 +29,14 @@ def _points(path, shift):
     return path
 
 
-def _fit(points, out):
-    argv = [sys.executable, "-m", "tromplab", "fit", str(points), "-o", str(out), "--bootstrap", "100", "--no-figures"]
-    return subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+def _start(arguments, **environment):
+    env = {**os.environ, "PYTHONPATH": str(REPOSITORY), **environment}
+    return subprocess.Popen(LAUNCH + arguments, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, env=env)
+
+
+def _fit(points, out, **environment):
+    # 20 bootstrap resamples: about a second of work to land a signal in
+    return _start(["fit", str(points), "-o", str(out), "--bootstrap", "20", "--no-figures"], **environment)
 
 
 def _content(out):
@@ -35,58 +49,123 @@ def _staging_left(folder):
 
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory):
-    """Contents of a complete run on the old and on the new points."""
+    """Folder of a complete run on the old points, and the contents of the old and new runs."""
     folder = tmp_path_factory.mktemp("reference")
-    contents = []
-    for shift in (0.0, 0.5):
-        out = folder / f"out{shift}"
-        process = _fit(_points(folder / f"p{shift}.csv", shift), out)
+    processes = [_fit(_points(folder / f"p{shift}.csv", shift), folder / f"out{shift}") for shift in (0.0, 0.5)]
+    for process in processes:  # both at once: two cores
         assert process.wait(timeout=120) == 0, process.stderr.read()
-        contents.append(_content(out))
-    assert contents[0] != contents[1]
-    return contents
+    old, new = _content(folder / "out0.0"), _content(folder / "out0.5")
+    assert old != new
+    return folder / "out0.0", old, new
+
+
+def _previous_run(tmp_path, runs):
+    """``tmp_path/out`` holding the old run (manifest included), and the new points."""
+    old_folder, old, _ = runs
+    shutil.copytree(old_folder, tmp_path / "out")
+    assert _content(tmp_path / "out") == old
+    return tmp_path / "out", _points(tmp_path / "new.csv", 0.5)
+
+
+def _check_killed(process, signum, out, old, new):
+    code = process.wait(timeout=120)
+    stderr = process.stderr.read()
+    assert "Traceback" not in stderr
+    assert _content(out) in (old, new), f"mixed outputs after {signum!r}"
+    if code == 0:
+        assert _content(out) == new  # finished before the signal
+        return code
+    assert _content(out) == old
+    if signum == signal.SIGKILL:
+        assert code == -signal.SIGKILL
+        clean_stale(out)  # what the next run into the folder does first
+    else:
+        assert code == (130 if signum == signal.SIGINT else 143), stderr
+        assert len(stderr.strip().splitlines()) == 1, stderr
+    assert _content(out) == old
+    assert not _staging_left(out.parent)
+    return code
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM, signal.SIGKILL])
-def test_a_killed_run_leaves_the_previous_or_the_new_outputs_never_a_mix(tmp_path, runs, signum):
-    old, new = runs
-    generator = random.Random(int(signum))
-    # from 2 s on: tromplab is imported (a SIGINT while Python imports numpy/pandas still prints
-    # Python's own traceback, before any tromplab code runs; see docs/reliability.md)
-    for delay in sorted(generator.uniform(2.0, 4.0) for _ in range(1)):
-        out = tmp_path / "out"
-        old_points, new_points = _points(tmp_path / "old.csv", 0.0), _points(tmp_path / "new.csv", 0.5)
-        assert _fit(old_points, out).wait(timeout=120) == 0  # also cleans what the previous kill left
-        assert _content(out) == old
-        process = _fit(new_points, out)
+def test_a_run_killed_while_working_leaves_the_previous_or_the_new_outputs(tmp_path, runs, signum):
+    _, old, new = runs
+    out, new_points = _previous_run(tmp_path, runs)
+    process = _fit(new_points, out)
+    time.sleep(random.Random(int(signum)).uniform(0.3, 2.0))  # importing, reading, fitting or bootstrapping
+    process.send_signal(signum)
+    _check_killed(process, signum, out, old, new)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM, signal.SIGKILL])
+def test_a_run_killed_just_before_the_swap_leaves_the_previous_outputs(tmp_path, runs, signum):
+    _, old, new = runs
+    out, new_points = _previous_run(tmp_path, runs)
+    process = _fit(new_points, out, **{SWAP_PAUSE_VARIABLE: "60"})
+    deadline = time.monotonic() + 60
+    while not any((staging / MANIFEST).exists() for staging in tmp_path.glob(".out.tmp-*")):  # all staged
+        assert process.poll() is None, process.stderr.read()
+        assert time.monotonic() < deadline
+        time.sleep(0.05)
+    time.sleep(0.3)  # the folder is locked and the previous run's other files linked in: now in the pause
+    process.send_signal(signum)
+    assert _check_killed(process, signum, out, old, new) != 0
+
+
+def test_the_swap_pause_hook_is_off_unless_set_to_a_positive_number(monkeypatch):
+    from tromplab import outputs
+
+    slept = []
+    monkeypatch.setattr(outputs.time, "sleep", slept.append)
+    for value in (None, "", "no", "nan", "-1", "0"):
+        if value is None:
+            monkeypatch.delenv(SWAP_PAUSE_VARIABLE, raising=False)
+        else:
+            monkeypatch.setenv(SWAP_PAUSE_VARIABLE, value)
+        outputs._pause_for_tests()
+    assert slept == []
+    monkeypatch.setenv(SWAP_PAUSE_VARIABLE, "1e9")
+    outputs._pause_for_tests()
+    assert slept == [60.0]
+
+
+def _catches_sigterm(pid) -> bool:
+    """Whether the process has a SIGTERM handler (Linux /proc), i.e. tromplab_launch runs."""
+    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        if line.startswith("SigCgt:"):
+            return bool(int(line.split()[1], 16) >> (signal.SIGTERM - 1) & 1)
+    return False
+
+
+@pytest.mark.skipif(not Path("/proc/self/status").exists(), reason="reads the signal mask from /proc (Linux)")
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+def test_a_signal_during_start_up_imports_prints_one_line_and_no_traceback(tmp_path, signum):
+    """Sent as soon as the entry point runs, while numpy/pandas are imported (about a second).
+
+    The first ~20 ms belong to Python's own start-up (``site``), before any tromplab code:
+    a SIGINT there is Python's (see docs/reliability.md); the test starts after it."""
+    points = _points(tmp_path / "p.csv", 0.0)
+    for delay in (0.0, 0.1, 0.3):
+        process = _start(["fit", str(points), "-o", str(tmp_path / "out"), "--no-figures"])
+        deadline = time.monotonic() + 30
+        while not _catches_sigterm(process.pid):
+            assert time.monotonic() < deadline and process.poll() is None
+            time.sleep(0.001)
         time.sleep(delay)
         process.send_signal(signum)
-        code = process.wait(timeout=120)
+        code = process.wait(timeout=60)
         stderr = process.stderr.read()
-        assert _content(out) in (old, new), f"mixed outputs after {signum!r} at {delay:.2f} s"
-        if code == 0:
-            assert _content(out) == new  # finished before the signal
-            continue
-        assert _content(out) == old
-        if signum == signal.SIGKILL:
-            assert code == -signal.SIGKILL
-        else:
-            assert "Traceback" not in stderr
-            assert code in (130, 143, -int(signum)), stderr  # -signum: killed before the handler was installed
-            if code in (130, 143):
-                assert code == (130 if signum == signal.SIGINT else 143)
-                assert len(stderr.strip().splitlines()) == 1, stderr
-                assert not _staging_left(tmp_path)
-    # a following run cleans anything a SIGKILL left and gives exactly the new outputs
-    assert _fit(_points(tmp_path / "new.csv", 0.5), tmp_path / "out").wait(timeout=120) == 0
-    assert _content(tmp_path / "out") == new
-    assert not _staging_left(tmp_path)
+        assert "Traceback" not in stderr, (delay, stderr)
+        assert code == (130 if signum == signal.SIGINT else 143), (delay, stderr)
+        assert len(stderr.strip().splitlines()) == 1, stderr
+        assert not (tmp_path / "out").exists()
 
 
 @pytest.mark.slow
 def test_two_concurrent_runs_into_one_folder_leave_one_complete_run(tmp_path, runs):
-    old, new = runs
+    _, old, new = runs
     out = tmp_path / "out"
     first = _fit(_points(tmp_path / "old.csv", 0.0), out)
     second = _fit(_points(tmp_path / "new.csv", 0.5), out)

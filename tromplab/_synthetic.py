@@ -37,3 +37,76 @@ def synthetic(seed: int, weighted: bool = True) -> TrompPoints:
     phi = truth(sizes, d_cut, shape, **context) + rng.normal(0, rng.uniform(0.01, 0.03), n)
     weight = rng.uniform(0.5, 2.0, n) if weighted and seed % 5 == 0 else None
     return TrompPoints(f"s{seed}", sizes, np.clip(phi, 0, 1), weight)
+
+
+#: Designs of the interval coverage study: a true curve (cut 80, slope about -0.8 at the cut)
+#: measured at 10 sizes from 20 to 320 with normal noise of 0.02 on the partition.
+COVERAGE_SIZES = np.geomspace(20.0, 320.0, 10)
+COVERAGE_TRUTH = {"plitt": 3.2, "rosin_rammler": 2.3, "lognormal": 0.52}
+COVERAGE_QUANTITIES = ("d_cut", "shape", "slope", "eta", "epsilon", "d25", "d75", "ep")
+
+
+def interval_coverage(
+    formula: str, replicates: int, *, level: float = 0.95, noise: float = 0.02, profile: bool = False, first_seed: int = 0
+):
+    """Share of seeded replicates whose interval covers the true value, per quantity.
+
+    Each replicate draws the partition of the true curve (:data:`COVERAGE_TRUTH`) at
+    :data:`COVERAGE_SIZES` plus normal noise, fits the same formula and makes the intervals
+    of :func:`tromplab.uncertainty.interval_table` (parameters by profile likelihood when
+    ``profile``, else Wald on the log scale; indices by the delta method on their
+    transformed scale). The true indices come from the generating parameters at the same
+    ``delta_max`` (the largest size).
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per quantity: ``formula, quantity, method, replicates, covered, coverage,
+        missing`` (``missing``: replicates without an interval, left out of the share).
+    """
+    import pandas as pd
+
+    from tromplab.curves import fit_formula
+    from tromplab.formulas import get_formula
+    from tromplab.indices import curve_indices
+    from tromplab.uncertainty import interval_table
+
+    curve = get_formula(formula)
+    shape = COVERAGE_TRUTH[formula]
+    delta_max = float(COVERAGE_SIZES[-1])
+    true_indices = curve_indices(curve, 80.0, shape, delta_max=delta_max)
+    truth = {"d_cut": 80.0, "shape": shape, **{q: getattr(true_indices, q) for q in COVERAGE_QUANTITIES[2:]}}
+    counts = {q: [0, 0, 0] for q in COVERAGE_QUANTITIES}  # covered, made, missing
+    methods = {q: set() for q in COVERAGE_QUANTITIES}
+    for seed in range(first_seed, first_seed + replicates):
+        rng = np.random.default_rng(seed)
+        partition = curve(COVERAGE_SIZES, 80.0, shape) + rng.normal(0.0, noise, COVERAGE_SIZES.size)
+        fit = fit_formula(TrompPoints(f"coverage-{seed}", COVERAGE_SIZES, partition), curve, delta_max=delta_max)
+        if not fit.success:
+            for q in COVERAGE_QUANTITIES:
+                counts[q][2] += 1
+            continue
+        table = interval_table(fit, level=level, profile=profile).set_index("quantity")
+        table = table.rename(index={curve.shape_name: "shape"})
+        for q in COVERAGE_QUANTITIES:
+            low, high = table.loc[q, "low"], table.loc[q, "high"]
+            if np.isfinite(low) and np.isfinite(high):
+                counts[q][0] += bool(low <= truth[q] <= high)
+                counts[q][1] += 1
+                methods[q].add(table.loc[q, "method"])
+            else:
+                counts[q][2] += 1
+    return pd.DataFrame(
+        [
+            {
+                "formula": formula,
+                "quantity": q,
+                "method": "/".join(sorted(methods[q])),
+                "replicates": made,
+                "covered": covered,
+                "coverage": covered / made if made else np.nan,
+                "missing": missing,
+            }
+            for q, (covered, made, missing) in counts.items()
+        ]
+    )

@@ -23,6 +23,7 @@ from .diagnostics import RESIDUAL_WARNING
 from .engine import check_bootstrap_request
 from .errors import InputError, OptionError
 from .formulas import NAME_CLASHES, get_formula, registry_table, select_formulas
+from .hydrocyclone import water_recovery_statements
 from .lab import KINDS, PARTITION_METHOD_TEXT, PARTITION_METHODS, LabOptions, YieldWarning, read_experiments, read_lab
 from .model_commands import add_model_commands
 from .outputs import check_input_file, check_output_file, check_output_folder, figure_file_names, replace_folder
@@ -39,6 +40,7 @@ from .validation import (
     check_probability,
     check_seed,
     check_share,
+    check_water_recovery,
     cli_type,
 )
 from .views import PARTITION_TO, balance_view, partition_view
@@ -59,15 +61,16 @@ class Terminated(KeyboardInterrupt):
     """SIGTERM, raised in the main thread so the same clean-up runs as for Ctrl-C."""
 
 
+def raise_terminated(signum, frame):
+    """Signal handler: SIGTERM becomes :class:`Terminated`."""
+    raise Terminated
+
+
 @contextlib.contextmanager
 def _sigterm_as_interrupt():
     """Turn SIGTERM into :class:`Terminated` while the command runs (main thread only)."""
-
-    def terminate(signum, frame):
-        raise Terminated
-
     try:
-        previous = signal.signal(signal.SIGTERM, terminate)
+        previous = signal.signal(signal.SIGTERM, raise_terminated)
     except ValueError:  # not the main thread (main() called from a worker thread): leave signals alone
         yield
         return
@@ -86,7 +89,7 @@ def main(argv=None) -> int:
     except SystemExit as stop:  # argparse stops on a usage error (2) or after --help/--version (0)
         return stop.code if isinstance(stop.code, int) else EXIT_USAGE
     except KeyboardInterrupt:
-        return _interrupted()
+        return interrupted()
     if not hasattr(args, "run"):
         parser.print_help()
         return EXIT_USAGE
@@ -100,7 +103,7 @@ def main(argv=None) -> int:
         sys.stderr.close()
         return EXIT_OK
     except KeyboardInterrupt as interruption:
-        return _interrupted(interruption)
+        return interrupted(interruption)
     except InputError as error:  # the project's own input, option and output errors
         if args.debug:
             traceback.print_exc()
@@ -117,7 +120,8 @@ def main(argv=None) -> int:
         return EXIT_INTERNAL
 
 
-def _interrupted(interruption=None) -> int:
+def interrupted(interruption=None) -> int:
+    """Print the one-line message for an interrupted run; return 130 (SIGINT) or 143 (SIGTERM)."""
     if isinstance(interruption, Terminated):
         print("tromplab: terminated (SIGTERM); the output folder was left as it was", file=sys.stderr)
         return EXIT_TERMINATED
@@ -129,13 +133,24 @@ def _interrupted(interruption=None) -> int:
 def _verbosity(args):
     """``--quiet`` silences the tables and progress on standard output and error (errors and
     warnings stay); ``-v`` adds the library's informational log lines."""
-    if args.verbose:
-        logging.basicConfig(level=logging.INFO if args.verbose == 1 else logging.DEBUG, format="%(name)s: %(message)s")
-    if args.quiet:
-        with open(os.devnull, "w") as sink, contextlib.redirect_stdout(sink):
+    handler = None
+    library = logging.getLogger("tromplab")
+    previous_level = library.level
+    if args.verbose:  # a handler for this command only: main() may run many times in one process
+        handler = logging.StreamHandler(sys.stderr)
+        handler.setFormatter(logging.Formatter("%(name)s: %(message)s"))
+        library.addHandler(handler)
+        library.setLevel(logging.INFO if args.verbose == 1 else logging.DEBUG)
+    try:
+        if args.quiet:
+            with open(os.devnull, "w") as sink, contextlib.redirect_stdout(sink):
+                yield
+        else:
             yield
-    else:
-        yield
+    finally:
+        if handler is not None:
+            library.removeHandler(handler)
+            library.setLevel(previous_level)
 
 
 def _cli_words(message: str, parser: argparse.ArgumentParser) -> str:
@@ -202,6 +217,20 @@ def _fit_options_parser() -> argparse.ArgumentParser:
     return shared
 
 
+def _water_recovery_parser() -> argparse.ArgumentParser:
+    """``--water-recovery`` of ``fit``, ``report`` and ``points``, declared once."""
+    water = argparse.ArgumentParser(add_help=False)
+    water.add_argument(
+        "--water-recovery",
+        type=cli_type(check_water_recovery, "--water-recovery"),
+        default=None,
+        metavar="RF",
+        help="hydrocyclones: share of the feed water reporting to the underflow, in [0, 1); gives the "
+        "Kelsall-corrected partition (points) and compares the fitted bypass with it (fit, report)",
+    )
+    return water
+
+
 def _show_input_notes(show):
     """A ``warnings.showwarning`` that prints input notes (e.g. a detected CSV dialect) as one line."""
 
@@ -220,7 +249,7 @@ def _parser() -> argparse.ArgumentParser:
         description="Fit, screen and rank separation (Tromp) curves.",
         parents=[_global_options(in_subcommand=False)],
         epilog="Exit codes: 0 done, 1 bad input (nothing written), 2 usage, 3 partial "
-        "(failures listed in failures.csv), 70 internal error, 130 interrupted.",
+        "(failures listed in failures.csv), 70 internal error, 130 interrupted, 143 terminated.",
     )
     parser.add_argument("--version", action="version", version=f"tromplab {__version__}")
     commands = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_SubcommandParser)
@@ -232,7 +261,10 @@ def _parser() -> argparse.ArgumentParser:
 
     lab = _lab_options_parser()
     shared = _fit_options_parser()
-    fit = commands.add_parser("fit", parents=[shared, lab], help="fit, screen and rank the formulas on Tromp points or lab data")
+    water = _water_recovery_parser()
+    fit = commands.add_parser(
+        "fit", parents=[shared, lab, water], help="fit, screen and rank the formulas on Tromp points or lab data"
+    )
     fit.add_argument(
         "-o",
         "--outdir",
@@ -299,7 +331,7 @@ def _parser() -> argparse.ArgumentParser:
     fit.set_defaults(run=_run_fit)
 
     report = commands.add_parser(
-        "report", parents=[shared, lab], help="HTML and Markdown report: balance, ranked fits, uncertainties, figures"
+        "report", parents=[shared, lab, water], help="HTML and Markdown report: balance, ranked fits, uncertainties, figures"
     )
     report.add_argument(
         "-o", "--output", type=Path, default=Path("results/report.html"), help="HTML file (a .md twin is written beside it)"
@@ -348,7 +380,7 @@ def _parser() -> argparse.ArgumentParser:
     trend.add_argument("--no-figures", action="store_true", help="do not draw figures")
     trend.set_defaults(run=_run_trend)
 
-    points = commands.add_parser("points", parents=[lab], help="turn a lab table into Tromp points with diagnostics")
+    points = commands.add_parser("points", parents=[lab, water], help="turn a lab table into Tromp points with diagnostics")
     points.add_argument("input", type=Path, help="lab table (CSV or .xlsx)")
     points.add_argument("-o", "--output", type=Path, required=True, help="Tromp points CSV to write")
     _add_partition_to(points)
@@ -529,6 +561,7 @@ def _lab_options(args) -> LabOptions:
         size_unit=getattr(args, "size_unit", None) or None,
         sep=args.sep,
         decimal=args.decimal,
+        water_recovery=getattr(args, "water_recovery", None),
     )
 
 
@@ -663,7 +696,10 @@ def _run_fit(args) -> int:
         _require("pyarrow", "--format parquet", "pip install 'tromplab[dask]'")
     experiments, balances = read_experiments(args.input, _lab_options(args))
     if args.bootstrap:
-        check_bootstrap_request(args.bootstrap, n_fits=len(experiments) * len(select_formulas(formulas)))
+        try:
+            check_bootstrap_request(args.bootstrap, n_fits=len(experiments) * len(select_formulas(formulas)))
+        except ValueError as error:  # too much work for these data: a usage error, before any fitting
+            raise OptionError("--bootstrap", str(error).removeprefix("--bootstrap ")) from None
     _print_balance_notes(balances)
     quiet = getattr(args, "quiet", False)
     with _cluster(args) as client:
@@ -680,6 +716,7 @@ def _run_fit(args) -> int:
                 client=client,
                 engine=not args.single_fits,
                 size_unit=_data_size_unit(experiments, args.size_unit),
+                water_recovery=args.water_recovery,
             )
         failures = failure_table(bench)
         _refuse_if_nothing_fitted(bench, args.input)
@@ -706,6 +743,14 @@ def _run_fit(args) -> int:
     shown_experiments = list(dict.fromkeys(fits["experiment"]))[:AUTO_FIGURE_LIMIT]
     verdicts = {experiment: bench.verdicts(experiment) for experiment in shown_experiments}
     print(format_fits(fits[fits["experiment"].isin(shown_experiments)], verdicts, rank_by=args.rank_by))
+    checks = [(e, s) for e in shown_experiments for s in water_recovery_statements(fits, e)]
+    if args.water_recovery is not None and not checks:
+        print(f"\nnote: no curve with bypass was fitted, so the water recovery {args.water_recovery:g} is compared with "
+              "nothing (add --extended or --formulas plitt_bypass,...)")  # fmt: skip
+    if checks:
+        print(f"\nFitted bypass against the water recovery {args.water_recovery:g} (share of the feed water to the underflow):")
+        for experiment, statement in checks:
+            print(textwrap.fill(f"{experiment}, {statement}", width=98, initial_indent="  ", subsequent_indent="    "))
     if len(bench.experiments) > AUTO_FIGURE_LIMIT:
         print(f"\n... and {len(bench.experiments) - len(shown_experiments)} more experiments: every fit is in fits.{args.format}")
     if bench.failures:
@@ -869,6 +914,7 @@ def _run_report(args) -> int:
             rank_extended=args.rank_extended,
             progress=progress,
             size_unit=size_unit,
+            water_recovery=args.water_recovery,
         )
     failures = failure_table(bench)
     _refuse_if_nothing_fitted(bench, args.input)
@@ -922,9 +968,10 @@ def _run_compare(args) -> int:
 def _run_export(args) -> int:
     from .export import export_fits
 
-    result = export_fits(args.fits_dir, args.to, size_unit=args.size_unit)
     folder = args.fits_dir if args.fits_dir.is_dir() else args.fits_dir.parent
     output = args.output or folder / f"export_{args.to.replace('-', '_')}.csv"
+    check_output_file(output, inputs=[] if args.fits_dir.is_dir() else [args.fits_dir])
+    result = export_fits(args.fits_dir, args.to, size_unit=args.size_unit)
     written = write_atomically({output.name: lambda p: result.table.to_csv(p, index=False)}, output.parent or Path("."))
     print(result.table.to_string(index=False, float_format=lambda v: f"{v:.6g}", na_rep="-"))
     if result.skipped:
@@ -941,6 +988,8 @@ def _run_export(args) -> int:
 def _run_trend(args) -> int:
     from .trend import monitor_surveys, read_surveys, write_trend
 
+    check_input_file(args.input)
+    check_output_folder(args.outdir, inputs=[args.input])
     surveys = read_surveys(args.input, _lab_options(args))
     result = monitor_surveys(surveys, formula=args.formula, baseline=args.baseline, alpha=args.alpha)
     written = write_trend(result, args.outdir, size_unit=args.size_unit, figures=not args.no_figures)

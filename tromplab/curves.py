@@ -333,6 +333,21 @@ def attach_indices(fits) -> None:
             fit.__dict__["indices"] = indices  # where functools.cached_property keeps its value
 
 
+def attach_diagnostics(fits) -> None:
+    """Compute the residual diagnostics of many fits at once and cache them on each fit.
+
+    :func:`tromplab.diagnostics.batch_residual_diagnostics` gives the values
+    ``CurveFit.diagnostics`` would compute fit by fit; fits without residuals (failed
+    ones) are left to the lazy property.
+    """
+    from .diagnostics import batch_residual_diagnostics
+
+    chosen = [fit for fit in fits if fit.success and fit.fit.residual is not None and "diagnostics" not in fit.__dict__]
+    found = batch_residual_diagnostics([fit.fit.residual for fit in chosen], alpha=[fit.options.alpha for fit in chosen])
+    for fit, diagnostics in zip(chosen, found):
+        fit.__dict__["diagnostics"] = diagnostics  # where functools.cached_property keeps its value
+
+
 def measured_cut_size(points: TrompPoints) -> float:
     """Size where the measured curve first falls through 1/2, interpolated in log size.
 

@@ -48,6 +48,7 @@ products given as masses imply the yield ``fine / (fine + coarse)``, compared li
 
 from __future__ import annotations
 
+import logging
 import re
 import warnings
 from dataclasses import dataclass, field, fields
@@ -58,6 +59,8 @@ import pandas as pd
 from .errors import InputError
 from .points import SIZE_UNITS, TrompPoints, experiment_rows, normal_unit, resolve_size_unit, size_column_unit
 from .tables import Table, read_table
+
+logger = logging.getLogger(__name__)
 
 STREAMS = ("feed", "fine", "coarse")
 STREAM_ALIASES = {"overflow": "fine", "underflow": "coarse"}  # hydrocyclone wording
@@ -126,6 +129,11 @@ class LabOptions:
         a contradiction with a suffix is an error.
     sep, decimal : str or None
         CSV separator and decimal mark (detected when not given).
+    water_recovery : float or None
+        Share of the feed water reporting to the underflow (coarse product) of a
+        hydrocyclone, in [0, 1) (``--water-recovery``); the points table then also gives
+        the Kelsall-corrected partition ``partition_fine_corrected`` (see
+        :func:`tromplab.hydrocyclone.kelsall_corrected`).
     """
 
     kind: str | None = None
@@ -144,13 +152,21 @@ class LabOptions:
     size_unit: str | None = None
     sep: str | None = None
     decimal: str | None = None
+    water_recovery: float | None = None
 
     def __post_init__(self):
         if self.kind is not None and self.kind not in KINDS:
             raise ValueError(f"unknown kind {self.kind!r}; choose one of {', '.join(KINDS)}")
         if self.partition_from not in PARTITION_METHODS:
             raise ValueError(f"unknown partition_from {self.partition_from!r}; choose one of {', '.join(PARTITION_METHODS)}")
-        from .validation import check_non_negative, check_optional, check_positive, check_probability, check_share
+        from .validation import (
+            check_non_negative,
+            check_optional,
+            check_positive,
+            check_probability,
+            check_share,
+            check_water_recovery,
+        )
 
         for name in ("fine_yield", "coarse_yield"):
             check_optional(check_probability, getattr(self, name), name)
@@ -158,6 +174,7 @@ class LabOptions:
         check_non_negative(self.sum_tolerance_pct, "sum_tolerance_pct")
         check_optional(check_positive, self.top_size, "top_size")
         check_optional(check_non_negative, self.pan_lower_size, "pan_lower_size")
+        check_optional(check_water_recovery, self.water_recovery, "water_recovery")
         if self.fine_yield is not None and self.coarse_yield is not None:
             if not np.isclose(self.fine_yield + self.coarse_yield, 1.0, atol=1e-6):
                 raise InputError("fine_yield and coarse_yield are both given and do not add up to 1")
@@ -184,7 +201,8 @@ class MassBalance:
     and ``row`` (the file row of the class, when a class is one row).
     When reconciled, ``feed_adjusted``, ``fine_adjusted`` and ``coarse_adjusted`` hold
     the adjusted shares.  ``partition_method`` says how the partition was computed
-    (see :class:`LabOptions`), ``size_unit`` the unit of the sizes ("" when unknown).
+    (see :class:`LabOptions`), ``size_unit`` the unit of the sizes ("" when unknown),
+    ``water_recovery`` the water split to the underflow when given (hydrocyclones).
     """
 
     experiment: str
@@ -197,6 +215,7 @@ class MassBalance:
     source: str = ""
     partition_method: str = "products"
     size_unit: str = ""
+    water_recovery: float | None = None
 
     @property
     def left_out(self) -> list[str]:
@@ -225,7 +244,9 @@ class MassBalance:
     def points_table(self, *, weight_by_feed_share: bool = False, unit_in_names: bool = False) -> pd.DataFrame:
         """Rows in the ``tromplab fit`` schema plus per-class diagnostics (and a ``weight``
         column equal to the feed share when asked); with ``unit_in_names`` the size columns
-        carry the unit (``size_um``), so the file read back keeps it."""
+        carry the unit (``size_um``), so the file read back keeps it.  With a
+        ``water_recovery`` the Kelsall-corrected partition ``partition_fine_corrected``
+        follows ``partition_fine``."""
         table = self.classes.rename(columns={"feed": "feed_share"})
         columns = [
             "experiment",
@@ -239,6 +260,10 @@ class MassBalance:
             "flag",
         ]
         table = table[columns]
+        if self.water_recovery is not None:
+            from .hydrocyclone import kelsall_corrected
+
+            table.insert(3, "partition_fine_corrected", kelsall_corrected(table["partition_fine"], self.water_recovery))
         if unit_in_names and self.size_unit:
             table = table.rename(columns={c: f"{c}_{self.size_unit}" for c in ("size", "size_lower", "size_upper")})
         return table.assign(weight=table["feed_share"]) if weight_by_feed_share else table
@@ -540,6 +565,7 @@ def _balance_one(table: Table, name: str, streams, layout: _SizeLayout, options:
         table.source,
         partition_method=method,
         size_unit=layout.unit,
+        water_recovery=options.water_recovery,
     )
 
 
@@ -1118,5 +1144,10 @@ def read_experiments(path, options: LabOptions | None = None, **option_values) -
     table = _renamed(read_table(path, sheet=options.sheet, sep=options.sep, decimal=options.decimal), options.rename)
     if is_lab_table(table.frame.columns):
         balances = balances_from_table(table, options)
+        logger.info(
+            "%s: lab table, %d experiment(s) balanced (partition from %s)", table.source, len(balances), options.partition_from
+        )
         return [balance.to_points(weight_by_feed_share=options.weight_by_feed_share) for balance in balances], balances
-    return points_from_table(table, size_unit=options.size_unit), []
+    experiments = points_from_table(table, size_unit=options.size_unit)
+    logger.info("%s: Tromp points, %d experiment(s)", table.source, len(experiments))
+    return experiments, []

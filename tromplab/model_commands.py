@@ -18,8 +18,16 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .errors import InputError
+from .errors import InputError, OptionError
+from .outputs import check_input_file, check_output_file
+from .validation import check_count, check_non_negative, check_positive, check_probability, check_share, cli_type
 from .workbench import write_atomically
+
+#: Most cells of a layer and steps of a simulation (a table of steps x cells is kept in memory).
+MAX_CELLS = 1_000
+MAX_STEPS = 1_000_000
+#: Most weights of the Pareto sweep of ``optimize`` (each is one constrained optimisation).
+MAX_WEIGHTS = 1_001
 
 
 def add_model_commands(commands) -> None:
@@ -68,10 +76,28 @@ def _print_fit(fit, table: pd.DataFrame, level: float) -> None:
         print(f"note: {', '.join(fit.at_bound)} ended on a bound; its standard error is unreliable")
 
 
-def _level(value: float) -> float:
-    if not 0 < value < 1:
-        raise InputError(f"--level takes a confidence level between 0 and 1, got {value}")
-    return value
+def _check_paths(args) -> None:
+    """Input and ``-o`` checked before any work, as ``tromplab fit`` does (exit 1, nothing written)."""
+    data = getattr(args, "data", None)
+    if data is not None:
+        check_input_file(data)
+    if args.output is not None:
+        check_output_file(args.output, inputs=[data] if data is not None else [])
+
+
+def _level_option(parser) -> None:
+    parser.add_argument(
+        "--level",
+        type=cli_type(check_probability, "--level"),
+        default=0.95,
+        help="confidence level of the intervals (default 0.95)",
+    )
+
+
+def _option_error(message: str) -> OptionError:
+    """A model's range message (already naming the option first) as a usage error (exit 2)."""
+    option, _, reason = message.partition(" ")
+    return OptionError(option, reason)
 
 
 def _with_options(message: str, names) -> str:
@@ -80,7 +106,7 @@ def _with_options(message: str, names) -> str:
     if first in names:
         return "--" + first.replace("_", "-") + message[len(first) :]
     if message.startswith("2 d + v0"):
-        return f"{message} (--diffusion, --segregation)"
+        return f"--diffusion, --segregation: {message}"
     return message
 
 
@@ -88,7 +114,7 @@ def _numbers(text: str, option: str) -> list[float]:
     try:
         return [float(item) for item in text.split(",") if item.strip()]
     except ValueError:
-        raise InputError(f"{option} takes numbers separated by commas, got {text!r}") from None
+        raise OptionError(option, f"takes numbers separated by commas, got {text!r}") from None
 
 
 # --- layer --------------------------------------------------------------------------------
@@ -100,10 +126,15 @@ def _add_layer(commands) -> None:
 
     shared = argparse.ArgumentParser(add_help=False)
     group = shared.add_argument_group("layer")
-    group.add_argument("--cells", type=int, default=4, help="number of cells m of the layer (default 4, as in the paper)")
+    group.add_argument(
+        "--cells",
+        type=cli_type(check_count, "--cells", minimum=2, maximum=MAX_CELLS),
+        default=4,
+        help="number of cells m of the layer (default 4, as in the paper)",
+    )
     group.add_argument(
         "--concentration",
-        type=float,
+        type=cli_type(check_share, "--concentration"),
         default=0.5,
         help="initial fines concentration of every cell, 0..1 (default 0.5, as in the paper)",
     )
@@ -116,23 +147,42 @@ def _add_layer(commands) -> None:
     group.add_argument("--linear", action="store_true", help="linear segregation (default: nonlinear, slowed by the fines below)")
     group.add_argument(
         "--lock-threshold",
-        type=float,
+        type=cli_type(check_share, "--lock-threshold"),
         default=None,
         help="concentration below which the top active cell empties and locks (default: never)",
     )
-    group.add_argument("--step-seconds", type=float, default=0.2, help="length of one step in seconds (default 0.2)")
+    group.add_argument(
+        "--step-seconds",
+        type=cli_type(check_positive, "--step-seconds"),
+        default=0.2,
+        help="length of one step in seconds (default 0.2)",
+    )
 
     simulate = layer_commands.add_parser("simulate", parents=[shared], help="extraction and concentrations step by step")
     simulate.add_argument(
-        "--diffusion", type=float, default=0.005, help="d, probability of moving one cell up per step (default 0.005)"
+        "--diffusion",
+        type=cli_type(check_share, "--diffusion"),
+        default=0.005,
+        help="d, probability of moving one cell up per step (default 0.005)",
     )
     simulate.add_argument(
-        "--segregation", type=float, default=0.026, help="v0, extra probability of moving down per step (default 0.026)"
+        "--segregation",
+        type=cli_type(check_share, "--segregation"),
+        default=0.026,
+        help="v0, extra probability of moving down per step (default 0.026)",
     )
     simulate.add_argument(
-        "--passage", type=float, default=0.21, help="vf0, share of the bottom cell passing per step (default 0.21)"
+        "--passage",
+        type=cli_type(check_share, "--passage"),
+        default=0.21,
+        help="vf0, share of the bottom cell passing per step (default 0.21)",
     )
-    simulate.add_argument("--steps", type=int, default=300, help="number of steps (default 300)")
+    simulate.add_argument(
+        "--steps",
+        type=cli_type(check_count, "--steps", maximum=MAX_STEPS),
+        default=300,
+        help="number of steps (default 300)",
+    )
     simulate.add_argument(
         "-o", "--output", type=Path, default=None, help="CSV of every step (step, time, C_1..C_m, extraction, locked)"
     )
@@ -143,7 +193,7 @@ def _add_layer(commands) -> None:
         "data", type=Path, help="CSV or .xlsx with 'extraction' (0..1) and 'step' or 'time' (seconds, see --step-seconds)"
     )
     fit.add_argument("--fit-threshold", action="store_true", help="also identify the lock threshold (profiled)")
-    fit.add_argument("--level", type=float, default=0.95, help="confidence level of the intervals (default 0.95)")
+    _level_option(fit)
     fit.add_argument("-o", "--output", type=Path, default=None, help="CSV of the identified parameters")
     fit.set_defaults(run=run_layer_fit)
 
@@ -152,29 +202,26 @@ def _initial(args) -> list[float]:
     if args.initial:
         values, option = _numbers(args.initial, "--initial"), "--initial"
         if len(values) < 2:
-            raise InputError(f"--initial takes one concentration per cell, at least 2 cells, got {args.initial!r}")
+            raise OptionError("--initial", f"takes one concentration per cell, at least 2 cells, got {args.initial!r}")
+        if len(values) > MAX_CELLS:
+            raise OptionError("--initial", f"takes at most {MAX_CELLS:,} cells, got {len(values):,}")
     else:
-        if args.cells < 2:
-            raise InputError(f"--cells takes at least 2 cells, got {args.cells}")
         values, option = [args.concentration] * args.cells, "--concentration"
-    if any(not 0 <= value <= 1 for value in values) or sum(values) <= 0:
-        raise InputError(f"{option} takes concentrations in 0..1, not all zero, got {', '.join(f'{v:g}' for v in values)}")
+    if any(not 0 <= value <= 1 for value in values) or sum(values) <= 0:  # also False for nan
+        raise OptionError(option, f"takes concentrations in 0..1, not all zero, got {', '.join(f'{v:g}' for v in values)}")
     return values
 
 
 def run_layer_simulate(args) -> int:
     from .layer import LayerModel
 
-    if args.step_seconds <= 0:
-        raise InputError("--step-seconds must be positive")
+    _check_paths(args)
     try:
         model = LayerModel(
             args.diffusion, args.segregation, args.passage, nonlinear=not args.linear, lock_threshold=args.lock_threshold
         )
     except ValueError as error:  # the model speaks of its fields; name the options
-        raise InputError(_with_options(str(error), ("diffusion", "segregation", "passage"))) from None
-    if args.steps < 1:
-        raise InputError(f"--steps must be at least 1, got {args.steps}")
+        raise _option_error(_with_options(str(error), ("diffusion", "segregation", "passage"))) from None
     run = model.simulate(_initial(args), args.steps)
     marks = sorted({max(1, round(args.steps * share)) for share in (1 / 6, 1 / 3, 2 / 3, 1.0)})
     print(
@@ -199,6 +246,7 @@ def run_layer_fit(args) -> int:
     from .layer import fit_layer_model
     from .tables import read_table
 
+    _check_paths(args)
     table = read_table(args.data)
     table.require("extraction")
     extraction = table.numeric("extraction")
@@ -219,7 +267,7 @@ def run_layer_fit(args) -> int:
     bad = np.flatnonzero((extraction < 0) | (extraction > 1))
     if bad.size:
         raise table.error(f"extraction {extraction[bad[0]]:g} outside 0..1", index=int(bad[0]), column="extraction")
-    level = _level(args.level)
+    level = args.level
     result = fit_layer_model(
         steps.astype(int),
         extraction,
@@ -269,16 +317,25 @@ def _add_pulp(commands) -> None:
     group = model.add_argument_group("model (defaults: the spec's illustrative values)")
     for item in fields(PulpScreen):
         option = "--" + item.name.replace("_", "-")
-        group.add_argument(option, type=float, default=item.default, help=f"{_PULP_HELP[item.name]} (default %(default)s)")
+        check = check_non_negative if item.name in ("phi", "delay") else check_positive  # as PulpScreen requires
+        group.add_argument(
+            option, type=cli_type(check, option), default=item.default, help=f"{_PULP_HELP[item.name]} (default %(default)s)"
+        )
 
     optimum = pulp_commands.add_parser(
         "optimum", parents=[model], help="best pressure drop at a frequency, best frequency at a pressure drop"
     )
     optimum.add_argument(
-        "--frequency", type=float, default=None, help="pulsation frequency N (1/s): find the best applied pressure drop"
+        "--frequency",
+        type=cli_type(check_positive, "--frequency"),
+        default=None,
+        help="pulsation frequency N (1/s): find the best applied pressure drop",
     )
     optimum.add_argument(
-        "--applied", type=float, default=None, help="applied pressure drop H': find the best pulsation frequency"
+        "--applied",
+        type=cli_type(check_non_negative, "--applied"),
+        default=None,
+        help="applied pressure drop H': find the best pulsation frequency",
     )
     optimum.set_defaults(run=run_pulp_optimum)
 
@@ -291,7 +348,7 @@ def _add_pulp(commands) -> None:
         help="coefficients to fit, comma-separated, of beta, r, lam, s, phi, tau, delay (default beta,lam); "
         "the others keep their option values",
     )
-    fit.add_argument("--level", type=float, default=0.95, help="confidence level of the intervals (default 0.95)")
+    _level_option(fit)
     fit.add_argument("-o", "--output", type=Path, default=None, help="CSV of the fitted coefficients")
     fit.set_defaults(run=run_pulp_fit)
 
@@ -303,21 +360,19 @@ def _pulp_screen(args):
     try:
         return PulpScreen(**values)
     except ValueError as error:  # name the option, not the field
-        raise InputError(_with_options(str(error), values)) from None
+        raise _option_error(_with_options(str(error), values)) from None
 
 
 def run_pulp_optimum(args) -> int:
     screen = _pulp_screen(args)
     if args.frequency is None and args.applied is None:
-        raise InputError("give --frequency (to find the best pressure drop), --applied (to find the best frequency) or both")
+        raise OptionError(
+            "--frequency", "or --applied is needed: --frequency finds the best pressure drop, --applied the best frequency"
+        )
     if args.frequency is not None:
-        if args.frequency <= 0:
-            raise InputError("--frequency must be positive")
         applied, rate = screen.best_pressure_drop(args.frequency)
         print(f"at N = {args.frequency:g} 1/s: best applied pressure drop H' = {applied:.5g}, productivity Q = {rate:.5g}")
     if args.applied is not None:
-        if args.applied < 0:
-            raise InputError("--applied must not be negative")
         frequency, rate, interior = screen.best_frequency(args.applied)
         if interior:
             print(f"at H' = {args.applied:g}: best pulsation frequency N = {frequency:.5g} 1/s, productivity Q = {rate:.5g}")
@@ -333,6 +388,7 @@ def run_pulp_fit(args) -> int:
     from .pulp import fit_pulp_screen
     from .tables import read_table
 
+    _check_paths(args)
     table = read_table(args.data)
     table.require("applied_pressure", "frequency", "productivity")
     applied, frequency, productivity = (table.numeric(c) for c in ("applied_pressure", "frequency", "productivity"))
@@ -346,12 +402,12 @@ def run_pulp_fit(args) -> int:
             )
     fitted = tuple(name.strip().replace("-", "_") for name in args.fit.split(",") if name.strip())
     if not fitted:
-        raise InputError("--fit names no coefficient")
-    level = _level(args.level)
+        raise OptionError("--fit", "names no coefficient")
+    level = args.level
     try:
         result = fit_pulp_screen(applied, frequency, productivity, fitted=fitted, fixed=_pulp_screen(args))
     except ValueError as error:
-        raise InputError(f"--fit: {error}") from None
+        raise OptionError("--fit", str(error)) from None
     print(f"pulp-screen model fitted to {table.source} ({productivity.size} points; relative residuals):")
     parameters = _parameter_table(result.fit, level)
     _print_fit(result.fit, parameters, level)
@@ -366,34 +422,70 @@ def _add_optimize(commands) -> None:
     )
     group = optimize.add_argument_group("sieve (defaults: the kinetics paper's example)")
     group.add_argument(
-        "--lambda-target", type=float, default=1.31e-3, help="kinetic coefficient of the target fraction, 1/s (default 1.31e-3)"
+        "--lambda-target",
+        type=cli_type(check_positive, "--lambda-target"),
+        default=1.31e-3,
+        help="kinetic coefficient of the target fraction, 1/s (default 1.31e-3)",
     )
     group.add_argument(
-        "--lambda-next", type=float, default=0.127, help="kinetic coefficient of the next finer fraction, 1/s (default 0.127)"
+        "--lambda-next",
+        type=cli_type(check_positive, "--lambda-next"),
+        default=0.127,
+        help="kinetic coefficient of the next finer fraction, 1/s (default 0.127)",
     )
-    group.add_argument("--sieve-length", type=float, default=1.6, help="sieve length L, m (default 1.6)")
-    group.add_argument("--bulk-density", type=float, default=1150.0, help="bulk density, kg/m^3 (default 1150)")
-    group.add_argument("--gap-height", type=float, default=0.004, help="height h of the layer, m (default 0.004)")
-    group.add_argument("--width", type=float, default=1.0, help="sieve width B, m (default 1)")
+    group.add_argument(
+        "--sieve-length", type=cli_type(check_positive, "--sieve-length"), default=1.6, help="sieve length L, m (default 1.6)"
+    )
+    group.add_argument(
+        "--bulk-density",
+        type=cli_type(check_positive, "--bulk-density"),
+        default=1150.0,
+        help="bulk density, kg/m^3 (default 1150)",
+    )
+    group.add_argument(
+        "--gap-height",
+        type=cli_type(check_positive, "--gap-height"),
+        default=0.004,
+        help="height h of the layer, m (default 0.004)",
+    )
+    group.add_argument("--width", type=cli_type(check_positive, "--width"), default=1.0, help="sieve width B, m (default 1)")
     group.add_argument(
         "--purity-limit",
-        type=float,
+        type=cli_type(check_probability, "--purity-limit"),
         default=0.08,
         help="largest share of the next finer fraction left on the sieve (default 0.08)",
     )
-    group.add_argument("--speed-min", type=float, default=0.02, help="lowest mean transport speed V, m/s (default 0.02)")
-    group.add_argument("--speed-max", type=float, default=0.2, help="highest mean transport speed V, m/s (default 0.2)")
+    group.add_argument(
+        "--speed-min",
+        type=cli_type(check_positive, "--speed-min"),
+        default=0.02,
+        help="lowest mean transport speed V, m/s (default 0.02)",
+    )
+    group.add_argument(
+        "--speed-max",
+        type=cli_type(check_positive, "--speed-max"),
+        default=0.2,
+        help="highest mean transport speed V, m/s (default 0.2)",
+    )
     choice = optimize.add_argument_group("choice")
     choice.add_argument(
-        "--min-efficiency", type=float, default=80.0, help="efficiency E (%%) required while maximising the capacity (default 80)"
+        "--min-efficiency",
+        type=cli_type(check_non_negative, "--min-efficiency"),
+        default=80.0,
+        help="efficiency E (%%) required while maximising the capacity (default 80)",
     )
     choice.add_argument(
         "--capacity-share",
-        type=float,
+        type=cli_type(check_share, "--capacity-share"),
         default=0.8,
         help="share of the largest capacity required while maximising the efficiency (default 0.8)",
     )
-    choice.add_argument("--weights", type=int, default=11, help="number of weights l1 in 0..1 of the Pareto sweep (default 11)")
+    choice.add_argument(
+        "--weights",
+        type=cli_type(check_count, "--weights", minimum=2, maximum=MAX_WEIGHTS),
+        default=11,
+        help="number of weights l1 in 0..1 of the Pareto sweep (default 11)",
+    )
     optimize.add_argument("-o", "--output", type=Path, default=None, help="CSV of the Pareto front (l1, V, Q, E, success)")
     optimize.set_defaults(run=run_optimize)
 
@@ -401,15 +493,13 @@ def _add_optimize(commands) -> None:
 def run_optimize(args) -> int:
     from .choice import choose, sieve_speed_problem
 
-    for option in ("lambda_target", "lambda_next", "sieve_length", "bulk_density", "gap_height", "width", "purity_limit"):
-        if getattr(args, option) <= 0:
-            raise InputError(f"--{option.replace('_', '-')} must be positive")
-    if not 0 < args.speed_min < args.speed_max:
-        raise InputError(f"need 0 < --speed-min < --speed-max, got {args.speed_min:g} and {args.speed_max:g}")
-    if not 0 < args.capacity_share <= 1:
-        raise InputError("--capacity-share takes a share between 0 and 1")
-    if args.weights < 2:
-        raise InputError("--weights needs at least 2 weights")
+    _check_paths(args)
+    if not args.speed_min < args.speed_max:
+        raise OptionError("--speed-min", f"must be below --speed-max, got {args.speed_min:g} and {args.speed_max:g}")
+    if args.capacity_share == 0:
+        raise OptionError("--capacity-share", "must be above 0 (a share of the largest capacity, up to 1)")
+    if args.min_efficiency > 100:
+        raise OptionError("--min-efficiency", f"is a percentage, at most 100, got {args.min_efficiency:g}")
     problem = sieve_speed_problem(
         lambda_target=args.lambda_target,
         lambda_next=args.lambda_next,

@@ -22,17 +22,25 @@ import contextlib
 import ctypes
 import ctypes.util
 import errno
+import logging
 import os
 import re
 import shutil
 import tempfile
+import time
 from collections.abc import Callable, Iterable
 from pathlib import Path
 
 from .errors import OutputError
 
+logger = logging.getLogger(__name__)
+
 #: Hidden file in an output folder listing the files the run wrote, one a line.
 MANIFEST = ".tromplab-manifest"
+#: Test-only hook: seconds (at most 60) to sleep just before the swap, with everything staged
+#: and the lock held, so a test can kill a run in that moment (tests/test_signals.py).  Unset
+#: or not a number: no pause.  It changes nothing but the timing.
+SWAP_PAUSE_VARIABLE = "TROMPLAB_TEST_SWAP_PAUSE"
 _RENAME_EXCHANGE = 2
 _STAGING = re.compile(r"^\.(?P<name>.+)\.(?P<what>tmp|old)-(?P<pid>\d+)(?:-[A-Za-z0-9_]+)?$")
 
@@ -122,11 +130,14 @@ def replace_folder(outputs: dict[str, Callable[[Path], None]], outdir) -> dict[s
             _check_name(name)
             writer(staging / name)
         (staging / MANIFEST).write_text("".join(f"{name}\n" for name in sorted(outputs)), encoding="utf-8")
+        logger.info("wrote %d file(s) into the staging folder %s", len(outputs), staging)
         with _folder_lock(parent, outdir.name):
             clean_stale(outdir)
             if outdir.is_dir():
                 _carry_over(outdir, staging, set(outputs))
+            _pause_for_tests()
             _swap_into_place(staging, outdir)
+            logger.info("swapped the new outputs into %s", outdir)
     finally:
         shutil.rmtree(staging, ignore_errors=True)  # after the swap it holds the previous run
     return {name: outdir / name for name in outputs}
@@ -151,6 +162,7 @@ def write_files(outputs: dict[str, Callable[[Path], None]], outdir) -> dict[str,
             for name in outputs:
                 os.replace(staging / name, outdir / name)
                 written[name] = outdir / name
+                logger.info("wrote %s", outdir / name)
     finally:
         shutil.rmtree(staging, ignore_errors=True)
     return written
@@ -174,6 +186,7 @@ def clean_stale(outdir) -> list[Path]:
             os.rename(entry, outdir)  # killed between the two renames: put the previous run back
         else:
             shutil.rmtree(entry, ignore_errors=True)
+        logger.info("removed %s, left by a run that ended before its swap", entry)
         handled.append(entry)
     return handled
 
@@ -202,6 +215,15 @@ def _folder_lock(parent: Path, name: str):
     with open(parent / f".{name}.lock", "a+b") as handle:
         fcntl.flock(handle, fcntl.LOCK_EX)  # released when the handle closes, also when killed
         yield
+
+
+def _pause_for_tests() -> None:
+    try:
+        seconds = float(os.environ.get(SWAP_PAUSE_VARIABLE, ""))
+    except ValueError:
+        return
+    if 0 < seconds:  # also False for nan
+        time.sleep(min(seconds, 60.0))
 
 
 def _carry_over(outdir: Path, staging: Path, new_names: set[str]) -> None:

@@ -27,6 +27,7 @@ import csv
 import datetime
 import difflib
 import io
+import logging
 import os
 import re
 import warnings
@@ -37,6 +38,8 @@ import numpy as np
 import pandas as pd
 
 from .errors import InputError
+
+logger = logging.getLogger(__name__)
 
 EXCEL_SUFFIXES = {".xlsx", ".xlsm"}
 TEXT_SUFFIXES = {".csv", ".txt", ".tsv"}
@@ -231,6 +234,7 @@ def read_table(path, *, sheet: str | int | None = None, sep: str | None = None, 
         raise InputError("the table has a header but no data rows", source=source)
     for note in notes:
         warnings.warn(f"{source}: {note}", InputNote, stacklevel=2)
+    logger.info("read %s: %d data rows, columns %s", source, len(frame), ", ".join(map(str, frame.columns)))
     return Table(frame.reset_index(drop=True), rows, source, tuple(notes))
 
 

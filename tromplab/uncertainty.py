@@ -18,8 +18,8 @@ Springer.  Efron B., Tibshirani R.J. (1993). An Introduction to the Bootstrap. C
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable, Sequence
-from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -31,6 +31,8 @@ from .engine import refit_resamples
 from .indices import curve_indices
 from .points import TrompPoints
 
+logger = logging.getLogger(__name__)
+
 INDEX_NAMES = ("slope", "eta", "epsilon", "d25", "d75", "ep", "imperfection", "d50", "ep_c", "imperfection_c")
 
 
@@ -39,8 +41,8 @@ INDEX_NAMES = ("slope", "eta", "epsilon", "d25", "d75", "ep", "imperfection", "d
 class Domain:
     """The range a quantity can take, and the scale on which its intervals are made.
 
-    ``positive`` quantities get intervals on the log scale, ``unit`` ones (in [0, 1]) on
-    the logit scale, ``negative`` ones on the log of minus the value, ``real`` ones on the
+    ``positive`` quantities get intervals on the log scale, ones bounded on both sides
+    (in [0, 1], or epsilon in [0, x_max - 1]) on the logit scale of their position in the range, ``negative`` ones on the log of minus the value, ``real`` ones on the
     natural scale; the limits are transformed back, so an interval never leaves the range.
     A quantity bounded below by another value (a shape parameter admissible above -1)
     uses the log of its distance from that bound.
@@ -66,7 +68,7 @@ class Domain:
         if self.scale == "neglog":
             return np.log(self.upper - value)
         if self.scale == "logit":
-            return np.log(value) - np.log1p(-value)
+            return np.log(value - self.lower) - np.log(self.upper - value)
         return value
 
     def backward(self, value):
@@ -77,7 +79,7 @@ class Domain:
             if self.scale == "neglog":
                 return self.upper - np.exp(value)
             if self.scale == "logit":
-                return 1.0 / (1.0 + np.exp(-value))
+                return self.lower + (self.upper - self.lower) / (1.0 + np.exp(-value))
         return value
 
     def slope(self, value):
@@ -88,7 +90,7 @@ class Domain:
         if self.scale == "neglog":
             return 1.0 / (self.upper - value)
         if self.scale == "logit":
-            return 1.0 / (value * (1.0 - value))
+            return (self.upper - self.lower) / ((value - self.lower) * (self.upper - value))
         return np.ones_like(value)
 
 
@@ -118,18 +120,33 @@ QUANTITY_DOMAINS = {
 }
 
 
-def quantity_domain(quantity: str, formula=None) -> Domain:
+def quantity_domain(quantity: str, formula=None, *, x_max: float | None = None) -> Domain:
     """Range of a reported quantity.
 
     A shape parameter is positive when its formula admits only positive values, and
     bounded below by the formula's lower shape bound otherwise (km2 and kp above -1).
+    Epsilon, the area under the curve between x = 1 and ``x_max = delta_max / d_cut``,
+    lies in [0, x_max - 1] when ``x_max`` is given (positive otherwise).
     """
+    if quantity == "epsilon" and x_max is not None and np.isfinite(x_max) and x_max > 1.0:
+        return epsilon_domain(x_max)
     if quantity in QUANTITY_DOMAINS:
         return QUANTITY_DOMAINS[quantity]
     if formula is not None and quantity == formula.shape_name:
         lower = formula.shape_bounds[0]
         return POSITIVE if lower >= 0 else Domain(f"above {lower:g}", float(lower), np.inf, "log")
     return REAL
+
+
+def epsilon_domain(x_max: float) -> Domain:
+    """Epsilon's range [0, x_max - 1]: the curve, at most 1, integrated over [1, x_max]."""
+    return Domain("0 to x_max - 1", 0.0, float(x_max) - 1.0, "logit")
+
+
+def _relative_size_limit(fit: CurveFit, values: dict[str, float], delta_max: float) -> float:
+    """``x_max = delta_max / d_cut`` at the fitted cut (the upper end of epsilon's integral)."""
+    d_cut = fit.curve_arguments(values)[0]
+    return delta_max / d_cut if d_cut > 0 else np.nan
 
 
 def transformed_interval(value: float, stderr: float, half: float, domain: Domain) -> tuple[float, float]:
@@ -143,90 +160,80 @@ def transformed_interval(value: float, stderr: float, half: float, domain: Domai
         return np.nan, np.nan
     centre, spread = domain.forward(value), half * stderr * domain.slope(value)
     low, high = sorted((float(domain.backward(centre - spread)), float(domain.backward(centre + spread))))
-    return low, high
+    # the round trip through the transform may move a zero-width interval off the estimate by one ulp
+    return min(low, value), max(high, value)
 
 
 def _method(kind: str, domain: Domain) -> str:
     return kind if domain.scale == "identity" else f"{kind}-{domain.scale}"
 
 
-#: Indices computed ahead for the delta method of many fits (:func:`batched_delta_indices`),
-#: keyed by formula, parameters, feed top size and context; None outside that block.
-_PRECOMPUTED: dict | None = None
-
-
-def _indices_key(formula_id: str, d_cut: float, shape: float, delta_max: float, context: dict) -> tuple:
-    return formula_id, float(d_cut), float(shape), float(delta_max), tuple(sorted((k, float(v)) for k, v in context.items()))
-
-
-def _indices_at(fit: CurveFit, values: dict[str, float], delta_max: float) -> np.ndarray:
-    d_cut, shape, extras = fit.curve_arguments(values)
-    if _PRECOMPUTED is not None and not extras:
-        found = _PRECOMPUTED.get(_indices_key(fit.formula.id, d_cut, shape, delta_max, fit.context_at(values)))
+def _indices_at(fit: CurveFit, values: dict[str, float], delta_max: float, known: dict | None = None) -> np.ndarray:
+    if known:
+        found = known.get(_index_key(fit, values, delta_max))
         if found is not None:
-            return found.copy()
+            return found
+    d_cut, shape, extras = fit.curve_arguments(values)
     found = curve_indices(fit.formula, d_cut, shape, delta_max=delta_max, **fit.context_at(values), **extras)
     return np.array([getattr(found, name) for name in INDEX_NAMES])
 
 
-def _difference_step(values: dict[str, float], name: str) -> float:
-    return 1e-5 * max(abs(values[name]), 1e-3)
+def _index_key(fit: CurveFit, values: dict[str, float], delta_max: float) -> tuple:
+    d_cut, shape, extras = fit.curve_arguments(values)
+    return (fit.formula.id, d_cut, shape, *extras.values(), *fit.context_at(values).values(), delta_max)
 
 
-def _difference(evaluate, values: dict[str, float], name: str) -> np.ndarray:
-    step = _difference_step(values, name)
-    upper = np.asarray(evaluate({**values, name: values[name] + step}), dtype=float)
-    lower = np.asarray(evaluate({**values, name: values[name] - step}), dtype=float)
-    return (upper - lower) / (2 * step)
+def _step(value: float) -> float:
+    """Central-difference step of the delta method: relative 1e-5, at least 1e-8."""
+    return 1e-5 * max(abs(value), 1e-3)
 
 
-@contextmanager
-def batched_delta_indices(fits: Sequence[CurveFit], *, delta_max: float | None = None):
-    """Within this block the delta method of ``fits`` reads indices computed ahead, on arrays.
+def batched_delta_indices(fits: Sequence[CurveFit], delta_max: float | None = None) -> dict:
+    """The indices the delta method of ``fits`` evaluates, computed in one batched call per formula.
 
-    The delta method evaluates the indices of a fit at its estimate and at a step either
-    side in each parameter (and in each data-derived input, for (11)): one root search and
-    quadrature each.  Here all those evaluations of all ``fits`` are made first, one
-    :func:`tromplab.indices.batch_curve_indices` call per formula, and
-    :func:`delta_standard_errors` finds them by their exact parameter values; the
-    arithmetic of the errors and of the model averages is unchanged.  Curves the batched
-    indices do not cover are computed one by one as before.
+    The delta method of a fit evaluates its indices at the fitted values and one step
+    either side of each parameter (and of a data-derived input such as formula (11)'s
+    measured efficiency).  For the formulas :func:`~tromplab.indices.batch_curve_indices`
+    covers, this evaluates all of them for many fits at once; the result, passed as
+    ``known`` to :func:`interval_table` or :func:`model_average`, replaces one
+    :func:`~tromplab.indices.curve_indices` call per evaluation (same definitions; the
+    quadrature agrees with the adaptive one to 1e-9).
     """
     from .indices import batch_curve_indices, batchable_indices
 
-    global _PRECOMPUTED
-    wanted: dict[str, list[tuple[tuple, float, float, float, dict]]] = {}
+    wanted: dict[str, list] = {}
     for fit in fits:
-        if not (fit.success and batchable_indices(fit.formula)):
+        if not (fit.success and fit.fit.covariance is not None and batchable_indices(fit.formula)):
             continue
-        top = fit.options.delta_max if delta_max is None else delta_max
+        limit = fit.options.delta_max if delta_max is None else delta_max
         values = {**fit.context_at(), **fit.fit.values}
         sets = [values]
-        if fit.fit.covariance is not None:
-            for name in (*fit.fit.names, *fit.context):
-                step = _difference_step(values, name)
-                sets += [{**values, name: values[name] + step}, {**values, name: values[name] - step}]
-        for point in sets:
-            d_cut, shape, _ = fit.curve_arguments(point)
-            context = fit.context_at(point)
-            key = _indices_key(fit.formula.id, d_cut, shape, top, context)
-            wanted.setdefault(fit.formula.id, []).append((key, d_cut, shape, top, context))
-    table = {}
-    for formula_id, entries in wanted.items():
-        computed = batch_curve_indices(
+        for name in (*fit.fit.names, *fit.context):
+            step = _step(values[name])
+            sets += [{**values, name: values[name] + step}, {**values, name: values[name] - step}]
+        wanted.setdefault(fit.formula.id, []).extend((fit, each, limit) for each in sets)
+    known = {}
+    for formula_id, evaluations in wanted.items():
+        arguments = [fit.curve_arguments(values) for fit, values, _ in evaluations]
+        context = [fit.context_at(values) for fit, values, _ in evaluations]
+        efficiency = [c.get("measured_efficiency", np.nan) for c in context] if context[0] else None
+        found = batch_curve_indices(
             formula_id,
-            [entry[1] for entry in entries],
-            [entry[2] for entry in entries],
-            delta_max=[entry[3] for entry in entries],
-            measured_efficiency=[entry[4].get("measured_efficiency", np.nan) for entry in entries],
+            [a[0] for a in arguments],
+            [a[1] for a in arguments],
+            delta_max=[limit for _, _, limit in evaluations],
+            measured_efficiency=efficiency,
         )
-        for entry, found in zip(entries, computed):
-            table[entry[0]] = np.array([getattr(found, name) for name in INDEX_NAMES])
-    previous, _PRECOMPUTED = _PRECOMPUTED, table
-    try:
-        yield
-    finally:
-        _PRECOMPUTED = previous
+        for (fit, values, limit), indices in zip(evaluations, found):
+            known[_index_key(fit, values, limit)] = np.array([getattr(indices, name) for name in INDEX_NAMES])
+    return known
+
+
+def _difference(evaluate, values: dict[str, float], name: str) -> np.ndarray:
+    step = _step(values[name])
+    upper = np.asarray(evaluate({**values, name: values[name] + step}), dtype=float)
+    lower = np.asarray(evaluate({**values, name: values[name] - step}), dtype=float)
+    return (upper - lower) / (2 * step)
 
 
 def delta_standard_errors(fit: CurveFit, evaluate: Callable[[dict[str, float]], np.ndarray]) -> np.ndarray:
@@ -286,7 +293,9 @@ def _input_by_point(fit: CurveFit, name: str) -> np.ndarray:
     return out
 
 
-def interval_table(fit: CurveFit, *, level: float = 0.95, delta_max: float | None = None, profile: bool = True) -> pd.DataFrame:
+def interval_table(
+    fit: CurveFit, *, level: float = 0.95, delta_max: float | None = None, profile: bool = True, known: dict | None = None
+) -> pd.DataFrame:
     """Estimates, standard errors and intervals of the parameters and indices of one fit.
 
     Returns a DataFrame with columns ``quantity, value, stderr, low, high, method, flag``.
@@ -312,6 +321,8 @@ def interval_table(fit: CurveFit, *, level: float = 0.95, delta_max: float | Non
         made with.
     profile : bool
         Profile-likelihood intervals for the parameters (slower than Wald).
+    known : dict, optional
+        Indices evaluated beforehand by :func:`batched_delta_indices` (for many fits at once).
     """
     if not fit.success:
         raise ValueError(f"{fit.formula.id} on {fit.experiment}: the fit failed ({fit.fit.message})")
@@ -341,7 +352,7 @@ def interval_table(fit: CurveFit, *, level: float = 0.95, delta_max: float | Non
         if not np.isfinite(low) or not np.isfinite(high):
             flag = flag or "interval not available (no standard error)"
         rows.append({"quantity": name, "value": value, "stderr": se, "low": low, "high": high, "method": method, "flag": flag})
-    rows += _delta_rows(fit, two_sided, delta_max)
+    rows += _delta_rows(fit, two_sided, delta_max, known)
     return pd.DataFrame(rows)
 
 
@@ -363,12 +374,13 @@ def _one_sided(value: float, se: float, quantile: float, domain: Domain, at_lowe
     return (value, high) if at_lower else (low, value)
 
 
-def _delta_rows(fit: CurveFit, half: float, delta_max: float) -> list[dict]:
-    centre = _indices_at(fit, {**fit.context_at(), **fit.fit.values}, delta_max)
-    errors = delta_standard_errors(fit, lambda values: _indices_at(fit, values, delta_max))
+def _delta_rows(fit: CurveFit, half: float, delta_max: float, known: dict | None = None) -> list[dict]:
+    centre = _indices_at(fit, {**fit.context_at(), **fit.fit.values}, delta_max, known)
+    errors = delta_standard_errors(fit, lambda values: _indices_at(fit, values, delta_max, known))
+    x_max = _relative_size_limit(fit, {**fit.context_at(), **fit.fit.values}, delta_max)
     rows = []
     for name, value, se in zip(INDEX_NAMES, centre, errors):
-        domain = quantity_domain(name)
+        domain = quantity_domain(name, x_max=x_max)
         low, high = transformed_interval(value, se, half, domain)
         flag = ""
         if not np.isfinite(value):
@@ -506,11 +518,18 @@ def bootstrap(
             samples.append(TrompPoints(points.experiment, points.size[pick], points.partition_fine[pick], weight, resampled=True))
     refits = refit_resamples(fit, samples, delta_max=delta_max)  # all resamples in one batched call
     attach_indices(refits)  # and their indices in one array computation
+    logger.debug(
+        "bootstrap %s %s: %d %s resamples, %d refits failed",
+        fit.experiment,
+        fit.formula.id,
+        n,
+        method,
+        sum(not refit.success for refit in refits),
+    )
     rows = [{**refit.fit.values, **{k: getattr(refit.indices, k) for k in INDEX_NAMES}} for refit in refits if refit.success]
-    bounds = {
-        name: (quantity_domain(name, fit.formula).lower, quantity_domain(name, fit.formula).upper)
-        for name in (*fit.fit.names, *INDEX_NAMES)
-    }
+    x_max = _relative_size_limit(fit, {**fit.context_at(), **fit.fit.values}, delta_max)
+    domains = {name: quantity_domain(name, fit.formula, x_max=x_max) for name in (*fit.fit.names, *INDEX_NAMES)}
+    bounds = {name: (domain.lower, domain.upper) for name, domain in domains.items()}
     for spec in _specs(fit):
         bounds[spec.name] = (*bounds[spec.name], spec.lower, spec.upper)
     return Bootstrap(pd.DataFrame(rows), n, method, seed, bounds)
@@ -556,6 +575,7 @@ def model_average(
     level: float = 0.95,
     delta_max: float | None = None,
     min_share: float = MIN_WEIGHT_SHARE,
+    known: dict | None = None,
 ) -> pd.DataFrame:
     """Akaike-weighted averages of ``quantities`` over the fits of one experiment.
 
@@ -568,8 +588,9 @@ def model_average(
     The unconditional standard error (Burnham & Anderson 2002, eq. 4.9) is
     ``sum_i w_i sqrt(se_i^2 + (theta_i - theta_bar)^2)`` with ``se_i`` from the fit
     (parameters) or the delta method (indices).  The interval is made the same way on the
-    log (logit for eta) scale around ``g(theta_bar)`` and transformed back, so it stays in
-    the quantity's range (``method`` says so).  ``d50c`` is the corrected cut of each
+    log (logit for eta; for epsilon the logit of eps / (x_max - 1) with the largest x_max
+    of the fits) scale around ``g(theta_bar)`` and transformed back, so it stays in the
+    quantity's range (``method`` says so).  ``d50c`` is the corrected cut of each
     formula (for the nine paper formulas, which have no bypass, the corrected curve is
     the actual one and ``d50c = d50 = d_cut``); a corrected cut is never averaged with an
     actual one.
@@ -589,6 +610,9 @@ def model_average(
         Largest feed size for the misplacement (size unit); default each fit's own.
     min_share : float
         Smallest share of the Akaike weight the formulas with the quantity must hold.
+    known : dict, optional
+        Indices of the delta method evaluated beforehand by :func:`batched_delta_indices`
+        (default: evaluated here, batched over these fits).
     """
     good = [fit for fit in fits if fit.success]
     if not good:
@@ -596,12 +620,15 @@ def model_average(
     if len({fit.experiment for fit in good}) > 1:
         raise ValueError("model averaging combines the formulas fitted to one experiment")
     weights = akaike_weights([fit.fit.information_criteria()["aicc"] for fit in good])
-    tables = [interval_table(fit, level=level, delta_max=delta_max, profile=False).set_index("quantity") for fit in good]
+    known = batched_delta_indices(good, delta_max) if known is None else known
+    estimates = [_estimates_and_errors(fit, delta_max, known) for fit in good]
+    # epsilon: each formula's range [0, x_max - 1] lies inside that of the largest x_max
+    widest_x_max = max((fit.options.delta_max if delta_max is None else delta_max) / fit.d_cut for fit in good)
     rows = []
     z = stats.norm.ppf(0.5 + level / 2.0)
     for quantity in quantities:
-        values = np.array([_table_value(table, quantity, "value") for table in tables])
-        errors = np.array([_table_value(table, quantity, "stderr") for table in tables])
+        values = np.array([found.get(quantity, (np.nan, np.nan))[0] for found in estimates])
+        errors = np.array([found.get(quantity, (np.nan, np.nan))[1] for found in estimates])
         usable = np.isfinite(values) & (weights > 0)
         share = float(weights[usable].sum())
         row = {
@@ -624,9 +651,9 @@ def model_average(
         w = weights[usable] / share
         theta, se = values[usable], np.nan_to_num(errors[usable])
         mean = float(np.sum(w * theta))
-        domain = quantity_domain(quantity)
+        domain = quantity_domain(quantity, x_max=widest_x_max)
         row.update(value=mean, stderr=float(np.sum(w * np.sqrt(se**2 + (theta - mean) ** 2))))
-        if domain.inside(mean) and np.all(domain.inside(t) for t in theta):
+        if domain.inside(mean) and all(domain.inside(t) for t in theta):
             g_mean = domain.forward(mean)
             se_g = float(np.sum(w * np.sqrt((se * domain.slope(theta)) ** 2 + (domain.forward(theta) - g_mean) ** 2)))
             low, high = sorted((float(domain.backward(g_mean - z * se_g)), float(domain.backward(g_mean + z * se_g))))
@@ -644,10 +671,18 @@ def model_average(
     return table
 
 
-def _table_value(table: pd.DataFrame, quantity: str, column: str) -> float:
-    if quantity == "d50c":  # the corrected cut is the fitted d_cut of every formula
-        quantity = "d_cut"
-    return float(table.loc[quantity, column]) if quantity in table.index else np.nan
+def _estimates_and_errors(fit: CurveFit, delta_max: float | None, known: dict | None) -> dict[str, tuple[float, float]]:
+    """``{quantity: (value, standard error)}`` of the parameters and indices of one fit, as
+    :func:`interval_table` reports them (without building its table); ``d50c`` is the fitted
+    ``d_cut`` of every formula (the corrected cut)."""
+    limit = fit.options.delta_max if delta_max is None else delta_max
+    values = {**fit.context_at(), **fit.fit.values}
+    centre = _indices_at(fit, values, limit, known)
+    errors = delta_standard_errors(fit, lambda at: _indices_at(fit, at, limit, known))
+    found = {name: (float(fit.fit.values[name]), float(fit.fit.stderr[name])) for name in fit.fit.names}
+    found.update({name: (float(v), float(e)) for name, v, e in zip(INDEX_NAMES, centre, errors)})
+    found["d50c"] = found["d_cut"]
+    return found
 
 
 def interval_columns(
@@ -673,6 +708,12 @@ def interval_columns(
     check_optional(check_probability, level, "level")
     n_bootstrap, seed = check_bootstrap(n_bootstrap, "n_bootstrap"), check_seed(seed, "seed")
     bootstrap_level = 0.95 if level is None else level
+    logger.info(
+        "intervals for %d fit(s): %s, %s",
+        len(fits),
+        "no delta/profile intervals" if level is None else f"delta/profile at level {level:g}",
+        f"bootstrap of {n_bootstrap} {method} resamples, seed {seed}" if n_bootstrap else "no bootstrap",
+    )
     rows = []
     for i, fit in enumerate(fits):
         row = {"experiment": fit.experiment, "formula": fit.formula.id}

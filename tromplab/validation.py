@@ -80,6 +80,17 @@ def check_share(value, option: str) -> float:
     return number
 
 
+def check_water_recovery(value, option: str) -> float:
+    """The share of the feed water reporting to the underflow (coarse product), in [0, 1).
+
+    1 is refused: with all the water in the underflow the Kelsall correction divides by zero.
+    """
+    number = _number(value, option)
+    if not 0.0 <= number < 1.0:
+        raise OptionError(option, f"must lie in [0, 1) (the share of the feed water reporting to the underflow), got {value!r}")
+    return number
+
+
 def check_positive(value, option: str) -> float:
     """A size or length: finite and above zero."""
     number = _number(value, option)

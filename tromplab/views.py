@@ -48,6 +48,8 @@ def partition_view(table: pd.DataFrame, partition_to: str = "fine") -> pd.DataFr
     if "partition_fine" in view.columns:
         view = view.drop(columns=[c for c in ("partition_coarse",) if c in view.columns])
         view["partition_fine"] = 1.0 - view["partition_fine"]
+        if "partition_fine_corrected" in view.columns:  # Kelsall's corrected partition: Y' = 1 - phi'
+            view["partition_fine_corrected"] = 1.0 - view["partition_fine_corrected"]
         if {"partition_fine_low", "partition_fine_high"} <= set(view.columns):
             low, high = 1.0 - view["partition_fine_high"], 1.0 - view["partition_fine_low"]
             view["partition_fine_low"], view["partition_fine_high"] = low, high

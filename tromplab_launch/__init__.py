@@ -1,0 +1,50 @@
+"""Console entry point of the ``tromplab`` command, installed before anything heavy is imported.
+
+``import tromplab`` takes about a second (numpy, pandas, scipy, statsmodels).  The console
+script of a package imports that package before running any of its code, so with
+``tromplab.cli:main`` as the entry point a Ctrl-C or SIGTERM in that second ended in Python's
+own ``KeyboardInterrupt`` traceback or a silent kill.  This module lives outside the
+``tromplab`` package and imports only :mod:`signal` and :mod:`sys`: it installs the handling
+first, then imports the command line.  An interrupt at any moment prints one line and exits
+with 130 (SIGINT) or 143 (SIGTERM); during start-up nothing has been written yet.
+"""
+
+import os
+import signal
+import sys
+
+EXIT_INTERRUPTED = 130  # 128 + SIGINT
+EXIT_TERMINATED = 143  # 128 + SIGTERM
+
+
+def _stop_during_start_up(signum, frame):
+    # nothing is staged or written before the command line runs, so leaving at once is safe;
+    # os._exit skips the half-finished imports' clean-up, which could itself be interrupted
+    what = "terminated (SIGTERM)" if signum == signal.SIGTERM else "interrupted"
+    os.write(2, f"tromplab: {what} while starting; nothing was written\n".encode())
+    os._exit(EXIT_TERMINATED if signum == signal.SIGTERM else EXIT_INTERRUPTED)
+
+
+def _handle(signum, handler) -> None:
+    if signal.getsignal(signum) is not signal.SIG_IGN:  # ignored on purpose (``nohup``, a shell's ``&``): keep it so
+        signal.signal(signum, handler)
+
+
+def main() -> int:
+    """Run ``tromplab`` with SIGINT and SIGTERM handled from the first line on."""
+    _handle(signal.SIGINT, _stop_during_start_up)
+    _handle(signal.SIGTERM, _stop_during_start_up)
+    from tromplab import cli
+
+    # from here on the command line's own handling applies: SIGINT raises KeyboardInterrupt and
+    # SIGTERM cli.Terminated, so the output folder is cleaned up as the command unwinds
+    _handle(signal.SIGTERM, cli.raise_terminated)
+    _handle(signal.SIGINT, signal.default_int_handler)
+    try:
+        return cli.main()
+    except KeyboardInterrupt as interruption:  # between the handlers above and cli.main's own
+        return cli.interrupted(interruption)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
