@@ -26,7 +26,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from .curves import CurveFit, formula_context, with_lmfit
+from .curves import CurveFit, attach_indices, formula_context, with_lmfit
 from .engine import refit_resamples
 from .indices import curve_indices
 from .points import TrompPoints
@@ -517,6 +517,7 @@ def bootstrap(
             weight = None if points.weight is None else points.weight[pick]
             samples.append(TrompPoints(points.experiment, points.size[pick], points.partition_fine[pick], weight, resampled=True))
     refits = refit_resamples(fit, samples, delta_max=delta_max)  # all resamples in one batched call
+    attach_indices(refits)  # and their indices in one array computation
     logger.debug(
         "bootstrap %s %s: %d %s resamples, %d refits failed",
         fit.experiment,
