@@ -184,4 +184,3 @@ def test_swapping_fine_and_coarse_gives_the_mirrored_partition_and_the_same_fits
     experiment = reference.index.get_level_values("experiment")
     unpinned = ~((reference["d_cut"] >= experiment.map(smallest)) & (reference["d_cut"] <= experiment.map(largest)))
     _assert_same_results(reference, mirrored_fits, rtol=1e-4, unpinned=unpinned.to_numpy())
-

@@ -281,3 +281,17 @@ def test_layer_fit_refuses_a_step_beyond_the_simulated_range(tmp_path, capsys, c
     err = capsys.readouterr().err
     assert f"row 4, column '{column}'" in err and "at most 1,000,000 are simulated" in err and "Traceback" not in err
     assert not (tmp_path / "fit.csv").exists()
+
+
+def test_trend_refuses_a_survey_cut_short(tmp_path, capsys):
+    """Found by benchmarks/fuzz_cli.py: a survey with one point ended in exit 70."""
+    from pathlib import Path
+
+    source = Path(__file__).resolve().parents[1] / "datasets" / "classifier_trend_surveys.csv"
+    text = source.read_text(encoding="utf-8").rstrip("\n").split("\n")
+    data = tmp_path / "surveys.csv"
+    data.write_text("\n".join([*text, "S99,2025-12-01,38.0,0.81"]) + "\n", encoding="utf-8")
+    assert main(["trend", str(data), "-o", str(tmp_path / "out"), "--no-figures"]) == 1
+    err = capsys.readouterr().err
+    assert "survey 'S99' has 1 point(s); each survey needs at least 3" in err and "Traceback" not in err
+    assert not (tmp_path / "out").exists()
