@@ -74,6 +74,21 @@ def test_vectorised_break_points_match_the_scalar_solver(kr):
         assert_allclose(shuvalov_breaks(kr, efficiency), expected, atol=1e-12)
 
 
+def test_vectorised_break_points_solve_their_equation_to_rounding():
+    """x_a phi_5(x_a) + int_{x_a}^1 phi_5 = eta_exp within a few units of rounding over the whole
+    shape range, also where the left side is flat (x_a near 0), where steps in x_a stalled."""
+    from tromplab.formulas import _rosin_rammler_area, rosin_rammler
+
+    kr, efficiency = (grid.ravel() for grid in np.meshgrid(np.geomspace(0.05, 40.0, 60), np.linspace(0.5, 0.999, 60)))
+    x_a = shuvalov_breaks(kr, efficiency)
+    solvable = efficiency < _rosin_rammler_area(0.0, 1.0, kr)
+    left = x_a * rosin_rammler(x_a, kr) + _rosin_rammler_area(x_a, 1.0, kr)
+    assert solvable.sum() > 1000
+    assert np.all((x_a >= 0.0) & (x_a <= 1.0))
+    assert np.abs(left - efficiency)[solvable].max() < 5e-15
+    assert np.all(x_a[~solvable] == 0.0)
+
+
 def test_engine_fit_becomes_an_lmfit_result_with_the_same_optimum():
     fit = fit_formula_batch(EXPERIMENTS[:1], "plitt")[0]
     assert fit.fit.raw is None

@@ -84,6 +84,9 @@ def test_cli_fit_and_points_report_the_water_recovery(tmp_path, capsys):
     assert (fits["water_recovery"] == 0.3).all()
     assert fits.loc[fits["formula"] == "plitt_bypass", "water_recovery_check"].str.startswith("agrees").all()
 
+    assert main(["fit", str(points), "-o", str(tmp_path / "nine"), "--formulas", "plitt", "--water-recovery", "0.3",
+                 "--no-figures"]) == 0  # fmt: skip
+    assert "no curve with bypass was fitted" in capsys.readouterr().out
     report = tmp_path / "report.html"
     assert main(["report", str(points), "-o", str(report), "--formulas", "plitt,plitt_bypass", "--water-recovery", "0.3"]) == 0
     assert "water recovery: plitt_bypass: agrees: fitted bypass" in report.read_text()

@@ -157,3 +157,65 @@ def test_eta_flag_follows_the_share_below_the_smallest_size(formula):
             / below
         )
         assert ("eta" in found.extrapolated) == (share > EXTRAPOLATED_SHARE), (smallest, share)
+
+
+# --- batched indices (issue 11: the indices of a whole chunk of fits at once) --------------------
+def _curves_across(formula, seed=11):
+    """Curves spread over the formula's shape range (bounds included), cut sizes, feed top
+    sizes from below the cut to 2000 cuts, and measured ranges on either side of the cut."""
+    rng = np.random.default_rng(seed)
+    shapes = np.array(shapes_across_bounds(formula, count=9) * 3)
+    count = shapes.size
+    d_cut = rng.uniform(20.0, 200.0, count)
+    delta_max = d_cut * np.exp(rng.uniform(np.log(0.5), np.log(2000.0), count))
+    smallest = d_cut * rng.uniform(0.05, 1.5, count)
+    largest = smallest * rng.uniform(2.0, 50.0, count)
+    efficiency_of = rng.uniform(0.45, 0.95, count)
+    return shapes, d_cut, delta_max, (smallest, largest), efficiency_of
+
+
+@pytest.mark.parametrize("formula", FORMULAS, ids=[f.id for f in FORMULAS])
+def test_batched_indices_equal_the_single_curve_indices(formula):
+    from tromplab.indices import batch_curve_indices
+
+    shapes, d_cut, delta_max, measured, efficiency_of = _curves_across(formula)
+    extra = {"measured_efficiency": efficiency_of} if formula.context_from_efficiency else {}
+    batched = batch_curve_indices(formula, d_cut, shapes, delta_max=delta_max, measured_sizes=measured, **extra)
+    for i, got in enumerate(batched):
+        context = {"measured_efficiency": efficiency_of[i]} if extra else {}
+        single = curve_indices(
+            formula, d_cut[i], shapes[i], delta_max=delta_max[i], measured_sizes=(measured[0][i], measured[1][i]), **context
+        )
+        # eta and eps by quadrature to 1e-9 of adaptive quadrature (identical where a closed form exists);
+        # d25 and d75 both solved to 1e-13 (brentq's absolute tolerance dominates at tiny d25)
+        assert_allclose([got.eta, got.epsilon], [single.eta, single.epsilon], rtol=1e-9, atol=1e-12)
+        assert_allclose([got.d25, got.d75], [single.d25, single.d75], rtol=1e-10, atol=1e-11 * d_cut[i])
+        assert_allclose([got.slope, got.d_cut, got.d50], [single.slope, single.d_cut, single.d50], rtol=0)
+        assert got.extrapolated == single.extrapolated, (shapes[i], got, single)
+
+
+@pytest.mark.parametrize("formula", [f for f in FORMULAS if f.efficiency is None], ids=lambda f: f.id)
+@pytest.mark.parametrize("x_max", [1.0, 6.0, 500.0, 1e5])
+def test_batched_quadrature_against_adaptive_quadrature(formula, x_max):
+    from tromplab.indices import batch_curve_indices
+
+    shapes = np.array(shapes_across_bounds(formula, count=11))
+    batched = batch_curve_indices(formula, np.ones_like(shapes), shapes, delta_max=np.full(shapes.size, x_max))
+    for shape, got in zip(shapes, batched):
+        assert_allclose([got.eta, got.epsilon], efficiency_by_quadrature(formula, shape, x_max), rtol=1e-9, atol=1e-12)
+
+
+def test_batched_d25_is_exact_for_flat_curves():
+    from tromplab.indices import batch_curve_indices
+
+    ks = np.array([0.05, 0.1, 2.0, 60.0])  # plitt: d25 = 3^(-1/ks), 3e-10 at ks = 0.05
+    found = batch_curve_indices("plitt", np.ones(4), ks, delta_max=np.full(4, 5.0))
+    assert_allclose([f.d25 for f in found], 3.0 ** (-1.0 / ks), rtol=1e-13)
+    assert_allclose([f.d75 for f in found], 3.0 ** (1.0 / ks), rtol=1e-13)
+
+
+def test_batched_indices_refuse_curves_with_extras():
+    from tromplab.indices import batch_curve_indices
+
+    with pytest.raises(ValueError, match="curve_indices"):
+        batch_curve_indices("plitt_bypass", [1.0], [2.0], delta_max=[3.0])

@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 import tromplab
 from tromplab.cli import main
 from tromplab.points import TrompPoints
-from tromplab.uncertainty import interval_table, quantity_domain
+from tromplab.uncertainty import AVERAGED_QUANTITIES, interval_table, model_average, quantity_domain
 
 from .conftest import DATASETS
 
@@ -156,3 +156,53 @@ def test_averages_leave_out_a_quantity_the_favoured_formulas_lack():
     for present in ("d50c", "ep_c", "eta"):
         assert np.isfinite(table.loc[present, "value"]) and table.loc[present, "akaike_share"] > 0.99
     assert abs(table.loc["d50c", "value"] - 60.0) < 6.0
+
+
+AVERAGED_FORMULAS = ("plitt", "rosin_rammler", "lognormal", "plitt_bypass")
+
+
+@pytest.mark.slow
+@settings(max_examples=30, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    truth=st.sampled_from(sorted(CURVES)),
+    shape_position=st.floats(0.0, 1.0),
+    n=st.integers(4, 12),
+    bypass=st.floats(0.02, 0.6),
+    noise=st.sampled_from([0.0, 0.01, 0.03, 0.06]),
+    seed=st.integers(0, 2**16),
+    delta_max_factor=st.sampled_from([1.0, 1.5, 100.0]),
+)
+def test_property_every_model_average_interval_contains_its_average_and_stays_in_range(
+    truth, shape_position, n, bypass, noise, seed, delta_max_factor
+):
+    """Model averages over four formulas (one with bypass) of generated experiments: every
+    averaged quantity's interval contains the average and lies inside its range (epsilon
+    within [0, x_max - 1] of the widest of its fits), its Akaike share is a share, and an
+    average left without an interval says why."""
+    low_shape, high_shape = CURVES[truth]
+    shape = float(np.exp(np.log(low_shape) + shape_position * np.log(high_shape / low_shape)))
+    rng = np.random.default_rng(seed)
+    size = np.geomspace(5.0, 500.0, n)
+    extras = {"bypass": bypass} if truth.endswith("bypass") else {}
+    phi = np.clip(tromplab.get_formula(truth)(size, 60.0, shape, **extras) + rng.normal(0.0, noise, n), 0.0, 1.0)
+    points = TrompPoints("generated", size, phi)
+    fits = [tromplab.fit_formula(points, formula, delta_max=500.0 * delta_max_factor) for formula in AVERAGED_FORMULAS]
+    good = [fit for fit in fits if fit.success]
+    if not good:
+        return
+    quantities = (*AVERAGED_QUANTITIES, "imperfection", "epsilon", "bypass")
+    table = model_average(fits, quantities=quantities, level=0.95)
+    x_max = max(_x_max(fit) for fit in good)
+    assert ((table["akaike_share"] >= 0) & (table["akaike_share"] <= 1 + 1e-12)).all()
+    for row in table.itertuples(index=False):
+        domain = quantity_domain(row.quantity, x_max=x_max)
+        if not np.isfinite(row.value):
+            assert row.note, row  # an empty average says why
+            continue
+        assert _inside(domain, [row.value]).all(), row
+        if np.isfinite(row.low) and np.isfinite(row.high):
+            assert row.low <= row.value <= row.high, row
+            assert _inside(domain, [row.low, row.high]).all(), row
+            assert row.method.startswith("akaike-"), row
+        else:
+            assert row.note, row

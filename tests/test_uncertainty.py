@@ -5,7 +5,8 @@ import pandas as pd
 import pytest
 from numpy.testing import assert_allclose
 
-from tromplab._synthetic import interval_coverage
+from tromplab import uncertainty
+from tromplab._synthetic import interval_coverage, synthetic
 from tromplab.cli import main
 from tromplab.curves import fit_formula
 from tromplab.formulas import FORMULAS, get_formula
@@ -65,6 +66,36 @@ def test_delta_method_and_bootstrap_agree():
     boot = bootstrap(fit, n=300, seed=11).intervals().set_index("quantity")
     for quantity in ("d_cut", "eta", "ep"):
         assert_allclose(boot.loc[quantity, "stderr"], delta.loc[quantity, "stderr"], rtol=0.35)
+
+
+@pytest.mark.parametrize("seed", [2, 11])
+def test_delta_method_of_formula_11_follows_its_break_point(seed):
+    """Issue 10 item 7: formula (11)'s eta depends on the data through its break point x_a;
+    dropping that dependence gave a delta-method error of 4e-13 against 0.015 by bootstrap."""
+    fit = fit_formula(synthetic(seed, weighted=False), "shuvalov")
+    delta = interval_table(fit, profile=False).set_index("quantity")
+    boot = bootstrap(fit, n=300, seed=1).intervals().set_index("quantity")
+    assert delta.loc["eta", "stderr"] > 1e-3
+    for quantity in ("d_cut", "eta", "ep"):
+        assert_allclose(boot.loc[quantity, "stderr"], delta.loc[quantity, "stderr"], rtol=0.3)
+
+
+def test_bootstrap_resamples_centred_weighted_residuals(monkeypatch):
+    """Issue 10 item 7: residual resampling draws from the weighted residuals, centred and
+    inflated by sqrt(n / (n - p)), and divides them by the root weight of the point they land on."""
+    base = experiment(4)
+    weights = np.linspace(0.5, 2.0, base.n)
+    points = TrompPoints("weighted", base.size, base.partition_fine + 0.01, weights)  # a biased curve: residual mean != 0
+    fit = fit_formula(points, PLITT)
+    captured = []
+    monkeypatch.setattr(uncertainty, "refit_resamples", lambda fit, samples, **kw: captured.extend(samples) or [])
+    bootstrap(fit, n=400, seed=3)
+    fitted = fit.predict(points.size)
+    scaled = np.sqrt(weights) * (points.partition_fine - fitted)
+    expected = (scaled - scaled.mean()) * np.sqrt(points.n / (points.n - 2))
+    drawn = np.array([np.sqrt(weights) * (sample.partition_fine - fitted) for sample in captured])
+    assert np.isin(np.round(drawn, 12), np.round(expected, 12)).all()  # every draw is one of the centred, scaled residuals
+    assert abs(drawn.mean()) < 3 * expected.std() / np.sqrt(drawn.size)
 
 
 def test_bootstrap_is_seeded_and_supports_cases():
@@ -149,3 +180,13 @@ def test_bootstrap_alone_adds_only_bootstrap_columns(tmp_path):
     assert main(["fit", str(path), "-o", str(out), "--formulas", "plitt", "--bootstrap", "5", "--no-figures"]) == 0
     columns = set(pd.read_csv(out / "fits.csv").columns)
     assert "d_cut_boot_low" in columns and "d_cut_low" not in columns
+
+
+def test_batched_delta_method_gives_the_per_fit_averages():
+    """Model averages evaluate the delta method's indices for many fits in one batched call
+    per formula (issue 11); the numbers agree with one curve_indices call per evaluation."""
+    fits = [fit for fit in (fit_formula(synthetic(7, weighted=False), formula) for formula in FORMULAS) if fit.success]
+    batched = model_average(fits)
+    one_by_one = model_average(fits, known={})  # nothing evaluated beforehand: one call per evaluation
+    for column in ("value", "stderr", "low", "high"):
+        assert_allclose(batched[column].to_numpy(float), one_by_one[column].to_numpy(float), rtol=1e-6)

@@ -744,6 +744,9 @@ def _run_fit(args) -> int:
     verdicts = {experiment: bench.verdicts(experiment) for experiment in shown_experiments}
     print(format_fits(fits[fits["experiment"].isin(shown_experiments)], verdicts, rank_by=args.rank_by))
     checks = [(e, s) for e in shown_experiments for s in water_recovery_statements(fits, e)]
+    if args.water_recovery is not None and not checks:
+        print(f"\nnote: no curve with bypass was fitted, so the water recovery {args.water_recovery:g} is compared with "
+              "nothing (add --extended or --formulas plitt_bypass,...)")  # fmt: skip
     if checks:
         print(f"\nFitted bypass against the water recovery {args.water_recovery:g} (share of the feed water to the underflow):")
         for experiment, statement in checks:

@@ -304,6 +304,50 @@ class CurveFit:
         return fit_report(self, level=level, profile=profile)
 
 
+def attach_indices(fits) -> None:
+    """Compute the indices of many fits at once and cache them on each fit.
+
+    Successful fits of the formulas :func:`tromplab.indices.batchable_indices` covers are
+    grouped by formula and go through :func:`tromplab.indices.batch_curve_indices` (one
+    array computation per formula instead of root finding and quadrature per fit); the
+    cached ``CurveFit.indices`` is then not computed again.  Other fits are left to the
+    lazy property.
+    """
+    from .indices import batch_curve_indices, batchable_indices
+
+    groups: dict[str, list[CurveFit]] = {}
+    for fit in fits:
+        if fit.success and "indices" not in fit.__dict__ and batchable_indices(fit.formula):
+            groups.setdefault(fit.formula.id, []).append(fit)
+    for formula_id, group in groups.items():
+        efficiency = [fit.context.get("measured_efficiency", np.nan) for fit in group]
+        computed = batch_curve_indices(
+            formula_id,
+            [fit.d_cut for fit in group],
+            [fit.shape for fit in group],
+            delta_max=[fit.options.delta_max for fit in group],
+            measured_sizes=([fit.points.size.min() for fit in group], [fit.points.size.max() for fit in group]),
+            measured_efficiency=efficiency if group[0].formula.context_from_efficiency else None,
+        )
+        for fit, indices in zip(group, computed):
+            fit.__dict__["indices"] = indices  # where functools.cached_property keeps its value
+
+
+def attach_diagnostics(fits) -> None:
+    """Compute the residual diagnostics of many fits at once and cache them on each fit.
+
+    :func:`tromplab.diagnostics.batch_residual_diagnostics` gives the values
+    ``CurveFit.diagnostics`` would compute fit by fit; fits without residuals (failed
+    ones) are left to the lazy property.
+    """
+    from .diagnostics import batch_residual_diagnostics
+
+    chosen = [fit for fit in fits if fit.success and fit.fit.residual is not None and "diagnostics" not in fit.__dict__]
+    found = batch_residual_diagnostics([fit.fit.residual for fit in chosen], alpha=[fit.options.alpha for fit in chosen])
+    for fit, diagnostics in zip(chosen, found):
+        fit.__dict__["diagnostics"] = diagnostics  # where functools.cached_property keeps its value
+
+
 def measured_cut_size(points: TrompPoints) -> float:
     """Size where the measured curve first falls through 1/2, interpolated in log size.
 

@@ -17,6 +17,7 @@ curve, so both p-values are nan and the verdict is ``"exact"`` instead of an ala
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -96,3 +97,68 @@ def residual_diagnostics(residuals, *, alpha: float = SYSTEMATIC_P) -> ResidualD
     if residuals.size >= 3 and np.ptp(residuals) > 0:
         normality_p = float(stats.shapiro(residuals).pvalue)
     return ResidualDiagnostics(float(runs_p), normality_p, n_runs, alpha)
+
+
+def batch_residual_diagnostics(residuals: Sequence, *, alpha=SYSTEMATIC_P) -> list[ResidualDiagnostics]:
+    """:func:`residual_diagnostics` of many residual vectors at once, with the same values.
+
+    The runs test's normal approximation (statsmodels ``runstest_1samp`` with cut-off 0
+    and its small-sample correction, the same arithmetic on arrays) is computed for all
+    vectors together, and the Shapiro-Wilk test once per group of vectors of one length
+    (``scipy.stats.shapiro`` along an axis); per vector this saved about 0.1 ms of call
+    overhead, which added up to seconds over a batch of thousands of fits.
+
+    Parameters
+    ----------
+    residuals : sequence of array_like
+        Residuals of each fit (partition units), ordered by size.
+    alpha : float or sequence of float
+        Level of both tests, one for all or one per vector.
+
+    Examples
+    --------
+    >>> found = batch_residual_diagnostics([[0.1, 0.2, 0.1, -0.2, -0.3, -0.1], [1e-15, -2e-16, 3e-16]])
+    >>> [d.verdict for d in found], found[0].n_runs
+    (['random', 'exact'], 2)
+    """
+    vectors = [np.asarray(r, dtype=float) for r in residuals]
+    alphas = np.broadcast_to(np.asarray(alpha, dtype=float), (len(vectors),))
+    count = len(vectors)
+    n_runs, n_positive, n_negative = np.zeros(count, dtype=int), np.zeros(count, dtype=int), np.zeros(count, dtype=int)
+    exact = np.zeros(count, dtype=bool)
+    normal_testable = np.zeros(count, dtype=bool)
+    for i, vector in enumerate(vectors):
+        signs = np.sign(vector[vector != 0])
+        n_runs[i] = 1 + np.count_nonzero(np.diff(signs)) if signs.size else 0
+        n_positive[i], n_negative[i] = np.count_nonzero(signs > 0), np.count_nonzero(signs < 0)
+        exact[i] = bool(vector.size and np.sqrt(np.mean(vector**2)) < EXACT_FIT_RMS)
+        normal_testable[i] = vector.size >= 3 and np.ptp(vector) > 0
+    runs_p = np.full(count, np.nan)
+    # both signs among at least 3 signs, so at least 2 runs (statsmodels' single-run branch never applies)
+    testable = ~exact & (n_positive + n_negative >= 3) & (n_positive > 0) & (n_negative > 0)
+    if testable.any():
+        npo, nne, runs = n_positive[testable], n_negative[testable], n_runs[testable]
+        n = npo + nne
+        npn = npo * nne
+        rmean = 2.0 * npn / n + 1
+        rvar = 2.0 * npn * (2.0 * npn - n) / n**2.0 / (n - 1.0)
+        rdemean = runs - rmean
+        corrected = np.where(rdemean > 0.5, rdemean - 0.5, np.where(rdemean < 0.5, rdemean + 0.5, 0.0))
+        z = np.where(n >= 50, rdemean, corrected) / np.sqrt(rvar)
+        runs_p[testable] = 2 * stats.norm.sf(np.abs(z))
+    normality_p = np.full(count, np.nan)
+    normal_testable &= ~exact
+    lengths = np.array([vector.size for vector in vectors])
+    for length in np.unique(lengths[normal_testable]):
+        rows = np.flatnonzero(normal_testable & (lengths == length))
+        normality_p[rows] = stats.shapiro(np.stack([vectors[i] for i in rows]), axis=1).pvalue
+    return [
+        ResidualDiagnostics(
+            np.nan if exact[i] else float(runs_p[i]),
+            np.nan if exact[i] else float(normality_p[i]),
+            int(n_runs[i]),
+            float(alphas[i]),
+            exact=bool(exact[i]),
+        )
+        for i in range(count)
+    ]

@@ -21,6 +21,7 @@ from __future__ import annotations
 import re
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import numpy as np
 from scipy import optimize, special
@@ -595,6 +596,19 @@ class NoBreakPointError(ValueError):
 
 def _shuvalov_break_or_edge(kr, measured_efficiency):
     """x_a, or the nearer end of [0, 1] when no break point exists (flagged by the fit)."""
+    if np.ndim(kr) == 0 and np.ndim(measured_efficiency) == 0:
+        return _break_or_edge_of(float(kr), float(measured_efficiency))
+    return _break_or_edge_uncached(kr, measured_efficiency)
+
+
+@lru_cache(maxsize=4096)
+def _break_or_edge_of(kr: float, measured_efficiency: float) -> float:
+    # Remembered: root finding and quadrature evaluate the curve of one fit hundreds of
+    # times at the same shape, and each evaluation would solve for x_a again.
+    return _break_or_edge_uncached(kr, measured_efficiency)
+
+
+def _break_or_edge_uncached(kr, measured_efficiency):
     try:
         return shuvalov_break(kr, measured_efficiency)
     except NoBreakPointError:

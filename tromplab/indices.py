@@ -322,3 +322,206 @@ def eps_lognormal_printed(kf):
     """Printed approximation (23): ``eps = -0.0835 kf^2 + 0.876 kf - 0.305`` (X = 6; within 0.025)."""
     kf = np.asarray(kf, dtype=float)
     return -0.0835 * kf**2 + 0.876 * kf - 0.305
+
+
+# --- many curves of one formula at once ------------------------------------------------------
+#: Break points of the fixed-order quadrature on ``[0, inf)``: dense around the cut, where sharp
+#: curves fall from 1 to 0, then doubling (more are added up to the largest upper limit).
+_QUADRATURE_BREAKS = (0.0, 0.5, 0.8, 0.9, 0.95, 0.97, 0.99, 0.997, 0.999, 1.0, 1.001, 1.003, 1.01, 1.03, 1.05, 1.1, 1.2, 1.5)
+#: Gauss-Legendre nodes per piece: with the pieces above, every paper formula over its whole
+#: shape range agrees with adaptive quadrature (:func:`efficiency_by_quadrature`) to 1e-9
+#: (``tests/test_indices.py``).
+GAUSS_LEGENDRE_NODES = 24
+#: Doublings of the relative size searched for a crossing of d25 / d75 (as :func:`_relative_size_at`:
+#: from x = 1 out to 2**39, about 5e11, or in to 2**-39).
+_DOUBLINGS = 39
+
+
+def batchable_indices(formula) -> bool:
+    """True when :func:`batch_curve_indices` covers ``formula``: curves without extra
+    parameters whose ``phi`` takes arrays of shapes (the nine paper formulas)."""
+    from .engine import is_batchable
+
+    formula = get_formula(formula)
+    return not formula.extras and is_batchable(formula)
+
+
+def batch_curve_indices(formula, d_cut, shape, *, delta_max, measured_sizes=None, measured_efficiency=None) -> list[CurveIndices]:
+    """:func:`curve_indices` of many curves of one formula at once (arrays over curves).
+
+    The same indices by the same definitions, computed on arrays: the closed forms of
+    eta and eps where the formula declares them (the same functions :func:`efficiency`
+    calls), else fixed-order Gauss-Legendre quadrature on pieces that resolve sharp curves
+    next to the cut (:data:`GAUSS_LEGENDRE_NODES` nodes per piece, within 1e-9 of adaptive
+    quadrature); d25 and d75 by bracketing the crossing with the same doubling search from
+    ``x = 1`` and Chandrupatla's method (:func:`scipy.optimize.elementwise.find_root`, to
+    1e-13 as :func:`scipy.optimize.brentq` before); the areas behind ``extrapolated`` by
+    the same quadrature.
+
+    Parameters
+    ----------
+    formula : Formula or str
+        A formula with :func:`batchable_indices` true.
+    d_cut, shape, delta_max : array_like, shape (N,)
+        Parameters of each curve and its largest feed size (size unit of ``d_cut``).
+    measured_sizes : (array_like, array_like), optional
+        Smallest and largest measured size of each curve, for ``extrapolated``.
+    measured_efficiency : array_like, optional
+        The measured efficiency of each curve (formula (11) only).
+
+    Returns
+    -------
+    list of CurveIndices
+        One per curve, in order.
+
+    Examples
+    --------
+    >>> [round(i.d25, 3) for i in batch_curve_indices("plitt", [100.0, 50.0], [2.0, 2.0], delta_max=[600.0, 600.0])]
+    [57.735, 28.868]
+    """
+    from .formulas import _shuvalov_break_or_edge
+
+    formula = get_formula(formula)
+    if not batchable_indices(formula):
+        raise ValueError(f"formula {formula.id} has no batched indices; use curve_indices")
+    d_cut, shape, delta_max = (np.atleast_1d(np.asarray(v, dtype=float)) for v in (d_cut, shape, delta_max))
+    d_cut, shape, delta_max = np.broadcast_arrays(d_cut, shape, delta_max)
+    x_max = delta_max / d_cut
+    x_break = None
+    if formula.context_from_efficiency:  # (11): x_a per curve (remembered per shape and efficiency)
+        efficiency_of = np.broadcast_to(np.asarray(measured_efficiency, dtype=float), shape.shape)
+        x_break = np.array([_shuvalov_break_or_edge(k, e) for k, e in zip(shape, efficiency_of)])
+    curve = _curve_on_arrays(formula, shape, x_break)
+    if formula.efficiency is not None:
+        context = [{}] * shape.size
+        if formula.context_from_efficiency:
+            context = [{"measured_efficiency": float(e)} for e in efficiency_of]
+        pairs = [formula.efficiency(float(k), float(x), **c) for k, x, c in zip(shape, x_max, context)]
+        eta = np.array([float(p[0]) for p in pairs])
+        eps = np.array([float(p[1]) for p in pairs])
+    else:
+        eta = _pieces_area(curve, np.zeros_like(x_max), np.ones_like(x_max))
+        eps = _pieces_area(curve, np.ones_like(x_max), np.maximum(x_max, 1.0))
+    x25 = _relative_sizes(curve, 0.75, shape.size)
+    x75 = _relative_sizes(curve, 0.25, shape.size)
+    flags = [()] * shape.size
+    if measured_sizes is not None:
+        smallest, largest = (np.broadcast_to(np.asarray(v, dtype=float), shape.shape) for v in measured_sizes)
+        below = np.minimum(smallest / d_cut, 1.0)
+        above = np.maximum(largest / d_cut, 1.0)
+        area_below = _pieces_area(curve, np.zeros_like(below), below, x_break)
+        area_above = _pieces_area(curve, above, np.where(x_max > above, x_max, above), x_break)
+        flags = [
+            _extrapolated_flags(
+                d_cut[i] * x25[i],
+                d_cut[i] * x75[i],
+                eta[i],
+                eps[i],
+                x_max[i],
+                above[i],
+                area_below[i],
+                area_above[i],
+                smallest[i],
+                largest[i],
+            )
+            for i in range(shape.size)
+        ]
+    results = []
+    for i in range(shape.size):
+        cut = float(d_cut[i])
+        d25, d75 = cut * x25[i], cut * x75[i]
+        ep = (d75 - d25) / 2.0
+        results.append(
+            CurveIndices(
+                d_cut=cut,
+                slope=float(formula.slope_at_cut(float(shape[i]))),
+                eta=float(eta[i]),
+                epsilon=float(eps[i]),
+                d25=float(d25),
+                d75=float(d75),
+                ep=float(ep),
+                imperfection=float(ep / cut),
+                sharpness=float(d25 / d75),
+                d50=cut,
+                ep_c=float(ep),
+                imperfection_c=float(ep / cut),
+                extrapolated=flags[i],
+            )
+        )
+    return results
+
+
+def _extrapolated_flags(d25, d75, eta, epsilon, x_max, above, area_below, area_above, smallest, largest) -> tuple[str, ...]:
+    """The rule of :func:`extrapolated_indices` on areas already integrated."""
+    flags = [name for name, size in (("d25", d25), ("d75", d75)) if np.isfinite(size) and not smallest <= size <= largest]
+    if eta > 0 and area_below > EXTRAPOLATED_SHARE * eta:
+        flags.append("eta")
+    if epsilon > 0 and x_max > above and area_above > EXTRAPOLATED_SHARE * epsilon:
+        flags.append("epsilon")
+    return tuple(flags)
+
+
+def _curve_on_arrays(formula: Formula, shape: np.ndarray, x_break):
+    """``phi(x)`` of each curve, ``x`` of shape ``(N, ...)`` against the ``N`` shapes."""
+    from .formulas import rosin_rammler_plateau
+
+    def curve(x, rows=slice(None)):
+        expand = (slice(None),) + (None,) * (np.ndim(x) - 1)
+        with np.errstate(all="ignore"):
+            if x_break is not None:
+                return rosin_rammler_plateau(x, shape[rows][expand], x_break[rows][expand])
+            return formula.phi(x, shape[rows][expand])
+
+    return curve
+
+
+def _pieces_area(curve, lower: np.ndarray, upper: np.ndarray, x_break=None) -> np.ndarray:
+    """Area under each curve from ``lower`` to ``upper`` (0 where ``upper <= lower``) by
+    Gauss-Legendre quadrature on the pieces cut by :data:`_QUADRATURE_BREAKS`, the
+    doublings beyond them and the curve's own kink ``x_break``."""
+    top = float(np.max(upper, initial=1.0))
+    doubling = 2.0 ** np.arange(1, max(int(np.ceil(np.log2(top))), 1) + 1)
+    breaks = np.concatenate([_QUADRATURE_BREAKS, doubling])
+    edges = np.broadcast_to(breaks, (lower.size, breaks.size))
+    if x_break is not None:
+        edges = np.sort(np.column_stack([edges, x_break]), axis=1)
+    edges = np.clip(edges, lower[:, None], np.maximum(upper, lower)[:, None])
+    edges = np.column_stack([lower, edges, np.maximum(upper, lower)])
+    nodes, weights = _gauss_legendre()
+    half = (edges[:, 1:] - edges[:, :-1]) / 2.0
+    middle = (edges[:, 1:] + edges[:, :-1]) / 2.0
+    x = middle[..., None] + half[..., None] * nodes
+    values = curve(x)
+    return np.einsum("npk,k,np->n", np.where(half[..., None] > 0, values, 0.0), weights, half)
+
+
+@lru_cache(maxsize=1)
+def _gauss_legendre() -> tuple[np.ndarray, np.ndarray]:
+    return np.polynomial.legendre.leggauss(GAUSS_LEGENDRE_NODES)
+
+
+def _relative_sizes(curve, level: float, count: int) -> np.ndarray:
+    """Relative size of each curve's crossing of ``level`` next to the cut (nan where none):
+    the bracket of :func:`_relative_size_at` (doubling away from x = 1), then Chandrupatla."""
+    from scipy.optimize import elementwise
+
+    at_cut = curve(np.ones((count, 1)))[:, 0] - level
+    powers = 2.0 ** np.arange(0, _DOUBLINGS + 1)
+    outward = np.where(at_cut[:, None] > 0, powers, 1.0 / powers)  # (N, D + 1): 1, 2, 4, ... or 1, 1/2, ...
+    gaps = curve(outward) - level
+    crossed = np.sign(gaps[:, 1:]) != np.sign(at_cut)[:, None]
+    found = crossed.any(axis=1) & (at_cut != 0)
+    step = np.argmax(crossed, axis=1)
+    rows = np.arange(count)
+    inner, outer = outward[rows, step], outward[rows, step + 1]
+    root = np.where(at_cut == 0, 1.0, np.nan)
+    if found.any():
+        which = np.flatnonzero(found)
+        low, high = np.minimum(inner, outer)[which], np.maximum(inner, outer)[which]
+
+        def gap(x, rows_of):
+            return curve(x[:, None], rows_of.astype(int))[:, 0] - level
+
+        result = elementwise.find_root(gap, (low, high), args=(which.astype(float),), tolerances={"xrtol": 1e-14})
+        root[which] = result.x
+    return root

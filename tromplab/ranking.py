@@ -133,9 +133,13 @@ def add_ranks(fits: pd.DataFrame, *, by: str = "F") -> pd.DataFrame:
     if by not in RANK_BY:
         raise ValueError(f"unknown ranking criterion {by!r}; choose one of {', '.join(RANK_BY)}")
     out = fits.copy()
-    out["rank"] = out.groupby("experiment", sort=False)[by].transform(
-        lambda s: ranks_within(s.to_numpy(), lower_is_better=RANK_BY[by], **TIE_TOLERANCE[by])
-    )
+    scores = out[by].to_numpy(dtype=float)
+    ranks = np.full(len(out), np.nan)
+    # positions per experiment, ranked on plain arrays: a pandas transform with a Python
+    # function cost about 0.5 ms per experiment, seconds for a batch of thousands
+    for rows in out.groupby("experiment", sort=False).indices.values():
+        ranks[rows] = ranks_within(scores[rows], lower_is_better=RANK_BY[by], **TIE_TOLERANCE[by])
+    out["rank"] = ranks
     return out
 
 

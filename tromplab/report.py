@@ -224,8 +224,11 @@ def build_report(
         report.add("fits", "table", group.sort_values("rank")[view], caption=f"Experiment {experiment}")
         for statement in bench.verdicts(experiment) if experiment in bench.experiments else []:
             report.add("fits", "warning", statement)
-        for statement in water_recovery_statements(fits, experiment):  # hydrocyclones: fitted bypass against Rf
+        statements = water_recovery_statements(fits, experiment)  # hydrocyclones: fitted bypass against Rf
+        for statement in statements:
             report.add("fits", "warning" if ": differs:" in statement else "text", f"water recovery: {statement}")
+        if bench.water_recovery is not None and not statements:
+            report.add("fits", "text", f"water recovery {bench.water_recovery:g}: no curve with bypass fitted to compare it with")
     for experiment in bench.experiments:
         best = bench.best_fit(experiment)
         if best is not None:

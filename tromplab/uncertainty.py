@@ -168,14 +168,69 @@ def _method(kind: str, domain: Domain) -> str:
     return kind if domain.scale == "identity" else f"{kind}-{domain.scale}"
 
 
-def _indices_at(fit: CurveFit, values: dict[str, float], delta_max: float) -> np.ndarray:
+def _indices_at(fit: CurveFit, values: dict[str, float], delta_max: float, known: dict | None = None) -> np.ndarray:
+    if known:
+        found = known.get(_index_key(fit, values, delta_max))
+        if found is not None:
+            return found
     d_cut, shape, extras = fit.curve_arguments(values)
     found = curve_indices(fit.formula, d_cut, shape, delta_max=delta_max, **fit.context_at(values), **extras)
     return np.array([getattr(found, name) for name in INDEX_NAMES])
 
 
+def _index_key(fit: CurveFit, values: dict[str, float], delta_max: float) -> tuple:
+    d_cut, shape, extras = fit.curve_arguments(values)
+    return (fit.formula.id, d_cut, shape, *extras.values(), *fit.context_at(values).values(), delta_max)
+
+
+def _step(value: float) -> float:
+    """Central-difference step of the delta method: relative 1e-5, at least 1e-8."""
+    return 1e-5 * max(abs(value), 1e-3)
+
+
+def batched_delta_indices(fits: Sequence[CurveFit], delta_max: float | None = None) -> dict:
+    """The indices the delta method of ``fits`` evaluates, computed in one batched call per formula.
+
+    The delta method of a fit evaluates its indices at the fitted values and one step
+    either side of each parameter (and of a data-derived input such as formula (11)'s
+    measured efficiency).  For the formulas :func:`~tromplab.indices.batch_curve_indices`
+    covers, this evaluates all of them for many fits at once; the result, passed as
+    ``known`` to :func:`interval_table` or :func:`model_average`, replaces one
+    :func:`~tromplab.indices.curve_indices` call per evaluation (same definitions; the
+    quadrature agrees with the adaptive one to 1e-9).
+    """
+    from .indices import batch_curve_indices, batchable_indices
+
+    wanted: dict[str, list] = {}
+    for fit in fits:
+        if not (fit.success and fit.fit.covariance is not None and batchable_indices(fit.formula)):
+            continue
+        limit = fit.options.delta_max if delta_max is None else delta_max
+        values = {**fit.context_at(), **fit.fit.values}
+        sets = [values]
+        for name in (*fit.fit.names, *fit.context):
+            step = _step(values[name])
+            sets += [{**values, name: values[name] + step}, {**values, name: values[name] - step}]
+        wanted.setdefault(fit.formula.id, []).extend((fit, each, limit) for each in sets)
+    known = {}
+    for formula_id, evaluations in wanted.items():
+        arguments = [fit.curve_arguments(values) for fit, values, _ in evaluations]
+        context = [fit.context_at(values) for fit, values, _ in evaluations]
+        efficiency = [c.get("measured_efficiency", np.nan) for c in context] if context[0] else None
+        found = batch_curve_indices(
+            formula_id,
+            [a[0] for a in arguments],
+            [a[1] for a in arguments],
+            delta_max=[limit for _, _, limit in evaluations],
+            measured_efficiency=efficiency,
+        )
+        for (fit, values, limit), indices in zip(evaluations, found):
+            known[_index_key(fit, values, limit)] = np.array([getattr(indices, name) for name in INDEX_NAMES])
+    return known
+
+
 def _difference(evaluate, values: dict[str, float], name: str) -> np.ndarray:
-    step = 1e-5 * max(abs(values[name]), 1e-3)
+    step = _step(values[name])
     upper = np.asarray(evaluate({**values, name: values[name] + step}), dtype=float)
     lower = np.asarray(evaluate({**values, name: values[name] - step}), dtype=float)
     return (upper - lower) / (2 * step)
@@ -238,7 +293,9 @@ def _input_by_point(fit: CurveFit, name: str) -> np.ndarray:
     return out
 
 
-def interval_table(fit: CurveFit, *, level: float = 0.95, delta_max: float | None = None, profile: bool = True) -> pd.DataFrame:
+def interval_table(
+    fit: CurveFit, *, level: float = 0.95, delta_max: float | None = None, profile: bool = True, known: dict | None = None
+) -> pd.DataFrame:
     """Estimates, standard errors and intervals of the parameters and indices of one fit.
 
     Returns a DataFrame with columns ``quantity, value, stderr, low, high, method, flag``.
@@ -264,6 +321,8 @@ def interval_table(fit: CurveFit, *, level: float = 0.95, delta_max: float | Non
         made with.
     profile : bool
         Profile-likelihood intervals for the parameters (slower than Wald).
+    known : dict, optional
+        Indices evaluated beforehand by :func:`batched_delta_indices` (for many fits at once).
     """
     if not fit.success:
         raise ValueError(f"{fit.formula.id} on {fit.experiment}: the fit failed ({fit.fit.message})")
@@ -293,7 +352,7 @@ def interval_table(fit: CurveFit, *, level: float = 0.95, delta_max: float | Non
         if not np.isfinite(low) or not np.isfinite(high):
             flag = flag or "interval not available (no standard error)"
         rows.append({"quantity": name, "value": value, "stderr": se, "low": low, "high": high, "method": method, "flag": flag})
-    rows += _delta_rows(fit, two_sided, delta_max)
+    rows += _delta_rows(fit, two_sided, delta_max, known)
     return pd.DataFrame(rows)
 
 
@@ -315,9 +374,9 @@ def _one_sided(value: float, se: float, quantile: float, domain: Domain, at_lowe
     return (value, high) if at_lower else (low, value)
 
 
-def _delta_rows(fit: CurveFit, half: float, delta_max: float) -> list[dict]:
-    centre = _indices_at(fit, {**fit.context_at(), **fit.fit.values}, delta_max)
-    errors = delta_standard_errors(fit, lambda values: _indices_at(fit, values, delta_max))
+def _delta_rows(fit: CurveFit, half: float, delta_max: float, known: dict | None = None) -> list[dict]:
+    centre = _indices_at(fit, {**fit.context_at(), **fit.fit.values}, delta_max, known)
+    errors = delta_standard_errors(fit, lambda values: _indices_at(fit, values, delta_max, known))
     x_max = _relative_size_limit(fit, {**fit.context_at(), **fit.fit.values}, delta_max)
     rows = []
     for name, value, se in zip(INDEX_NAMES, centre, errors):
@@ -515,6 +574,7 @@ def model_average(
     level: float = 0.95,
     delta_max: float | None = None,
     min_share: float = MIN_WEIGHT_SHARE,
+    known: dict | None = None,
 ) -> pd.DataFrame:
     """Akaike-weighted averages of ``quantities`` over the fits of one experiment.
 
@@ -527,8 +587,9 @@ def model_average(
     The unconditional standard error (Burnham & Anderson 2002, eq. 4.9) is
     ``sum_i w_i sqrt(se_i^2 + (theta_i - theta_bar)^2)`` with ``se_i`` from the fit
     (parameters) or the delta method (indices).  The interval is made the same way on the
-    log (logit for eta) scale around ``g(theta_bar)`` and transformed back, so it stays in
-    the quantity's range (``method`` says so).  ``d50c`` is the corrected cut of each
+    log (logit for eta; for epsilon the logit of eps / (x_max - 1) with the largest x_max
+    of the fits) scale around ``g(theta_bar)`` and transformed back, so it stays in the
+    quantity's range (``method`` says so).  ``d50c`` is the corrected cut of each
     formula (for the nine paper formulas, which have no bypass, the corrected curve is
     the actual one and ``d50c = d50 = d_cut``); a corrected cut is never averaged with an
     actual one.
@@ -548,6 +609,9 @@ def model_average(
         Largest feed size for the misplacement (size unit); default each fit's own.
     min_share : float
         Smallest share of the Akaike weight the formulas with the quantity must hold.
+    known : dict, optional
+        Indices of the delta method evaluated beforehand by :func:`batched_delta_indices`
+        (default: evaluated here, batched over these fits).
     """
     good = [fit for fit in fits if fit.success]
     if not good:
@@ -555,12 +619,15 @@ def model_average(
     if len({fit.experiment for fit in good}) > 1:
         raise ValueError("model averaging combines the formulas fitted to one experiment")
     weights = akaike_weights([fit.fit.information_criteria()["aicc"] for fit in good])
-    tables = [interval_table(fit, level=level, delta_max=delta_max, profile=False).set_index("quantity") for fit in good]
+    known = batched_delta_indices(good, delta_max) if known is None else known
+    estimates = [_estimates_and_errors(fit, delta_max, known) for fit in good]
+    # epsilon: each formula's range [0, x_max - 1] lies inside that of the largest x_max
+    widest_x_max = max((fit.options.delta_max if delta_max is None else delta_max) / fit.d_cut for fit in good)
     rows = []
     z = stats.norm.ppf(0.5 + level / 2.0)
     for quantity in quantities:
-        values = np.array([_table_value(table, quantity, "value") for table in tables])
-        errors = np.array([_table_value(table, quantity, "stderr") for table in tables])
+        values = np.array([found.get(quantity, (np.nan, np.nan))[0] for found in estimates])
+        errors = np.array([found.get(quantity, (np.nan, np.nan))[1] for found in estimates])
         usable = np.isfinite(values) & (weights > 0)
         share = float(weights[usable].sum())
         row = {
@@ -583,7 +650,7 @@ def model_average(
         w = weights[usable] / share
         theta, se = values[usable], np.nan_to_num(errors[usable])
         mean = float(np.sum(w * theta))
-        domain = quantity_domain(quantity)
+        domain = quantity_domain(quantity, x_max=widest_x_max)
         row.update(value=mean, stderr=float(np.sum(w * np.sqrt(se**2 + (theta - mean) ** 2))))
         if domain.inside(mean) and all(domain.inside(t) for t in theta):
             g_mean = domain.forward(mean)
@@ -603,10 +670,18 @@ def model_average(
     return table
 
 
-def _table_value(table: pd.DataFrame, quantity: str, column: str) -> float:
-    if quantity == "d50c":  # the corrected cut is the fitted d_cut of every formula
-        quantity = "d_cut"
-    return float(table.loc[quantity, column]) if quantity in table.index else np.nan
+def _estimates_and_errors(fit: CurveFit, delta_max: float | None, known: dict | None) -> dict[str, tuple[float, float]]:
+    """``{quantity: (value, standard error)}`` of the parameters and indices of one fit, as
+    :func:`interval_table` reports them (without building its table); ``d50c`` is the fitted
+    ``d_cut`` of every formula (the corrected cut)."""
+    limit = fit.options.delta_max if delta_max is None else delta_max
+    values = {**fit.context_at(), **fit.fit.values}
+    centre = _indices_at(fit, values, limit, known)
+    errors = delta_standard_errors(fit, lambda at: _indices_at(fit, at, limit, known))
+    found = {name: (float(fit.fit.values[name]), float(fit.fit.stderr[name])) for name in fit.fit.names}
+    found.update({name: (float(v), float(e)) for name, v, e in zip(INDEX_NAMES, centre, errors)})
+    found["d50c"] = found["d_cut"]
+    return found
 
 
 def interval_columns(

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .curves import CurveFit, failed_fit, fit_formula
+from .curves import CurveFit, attach_diagnostics, attach_indices, failed_fit, fit_formula
 from .formulas import Formula, select_formulas
 from .points import TrompPoints
 from .ranking import add_delta_aicc, add_ranks, fit_verdicts, rank_formulas
@@ -336,9 +336,6 @@ def fit_experiments(
             )
             continue
         fittable.append(points)
-        found = data_notes(points)
-        if found:
-            notes[points.experiment] = found
     chunks = [fittable[i : i + CHUNK_SIZE] for i in range(0, len(fittable), CHUNK_SIZE)]
     options = {
         "formulas": tuple(f.id for f in chosen),
@@ -357,8 +354,11 @@ def fit_experiments(
         len(failures),
     )
     fits = []
-    for number, (chunk, chunk_fits) in enumerate(zip(chunks, _map_chunks(chunks, options, jobs=jobs, client=client)), 1):
+    for number, (chunk, (chunk_fits, chunk_notes)) in enumerate(
+        zip(chunks, _map_chunks(chunks, options, jobs=jobs, client=client)), 1
+    ):
         fits += chunk_fits
+        notes.update(chunk_notes)
         logger.debug(
             "chunk %d/%d fitted: %d fits, %d failed", number, len(chunks), len(chunk_fits), sum(not f.success for f in chunk_fits)
         )
@@ -384,11 +384,28 @@ def fit_chunk(experiments: Sequence[TrompPoints], *, formulas, alpha, delta_max,
             except Exception:  # a broken batch falls back to single fits, which report per fit
                 batch = None
         per_formula.append(batch or [_fit_guarded(points, formula, alpha, delta_max, size_unit) for points in experiments])
-    return [fits[i] for i in range(len(experiments)) for fits in per_formula]
+    fits = [fits[i] for i in range(len(experiments)) for fits in per_formula]
+    attach_indices(fits)
+    attach_diagnostics(fits)
+    for fit in fits:
+        derive(fit)
+    return fits
+
+
+def derive(fit: CurveFit) -> CurveFit:
+    """Compute the cached screen, indices, diagnostics, break point and warnings of ``fit`` now.
+
+    The chunk's worker does it, so that they travel back with the pickled fit instead of
+    being computed one by one in the parent when the tables are built (the serial part
+    that kept two workers from being twice as fast as one).
+    """
+    for name in ("screen", "indices", "diagnostics", "x_break", "warnings"):
+        getattr(fit, name)
+    return fit
 
 
 def _map_chunks(chunks, options, *, jobs, client):
-    """Yield the fits of each chunk, in order: in process, in a process pool, or on Dask."""
+    """Yield the fits and the data notes of each chunk, in order: in process, in a process pool, or on Dask."""
     yield from _map_work(_fit_chunk_star, chunks, options, jobs=jobs, client=client)
 
 
@@ -414,7 +431,10 @@ def _map_work(function, chunks, argument, *, jobs, client):
 
 
 def _fit_chunk_star(options, chunk):
-    return fit_chunk(chunk, **options)
+    # the notes on the points are made in the worker too: in the parent they were a serial
+    # Spearman test per experiment (seconds at 10,000 experiments)
+    notes = {points.experiment: found for points in chunk if (found := data_notes(points))}
+    return fit_chunk(chunk, **options), notes
 
 
 def _as_points(experiments) -> list[TrompPoints]:
@@ -493,9 +513,10 @@ def model_averages(bench: Workbench, *, level: float = 0.95, jobs: int | None = 
 
 
 def _averages_of_chunk(level, groups) -> list[pd.DataFrame]:
-    from .uncertainty import model_average
+    from .uncertainty import batched_delta_indices, model_average
 
-    return [model_average(fits, level=level).assign(experiment=fits[0].experiment) for fits in groups]
+    known = batched_delta_indices([fit for fits in groups for fit in fits])  # the whole chunk in one call per formula
+    return [model_average(fits, level=level, known=known).assign(experiment=fits[0].experiment) for fits in groups]
 
 
 def _fit_guarded(points, formula, alpha, delta_max, size_unit="") -> CurveFit:

@@ -21,16 +21,15 @@ import pandas as pd
 SHEETS = ("fits", "ranking", "averages", "balance", "points")
 
 # Columns measured in the unit of the particle sizes (with their interval and error columns).
-_SIZE_STEMS = ("d_cut", "d50", "d50c", "d25", "d75", "ep", "ep_c", "size", "size_lower", "size_upper", "x_break", "delta_max")
+_SIZE_STEMS = ("d_cut", "d50", "d50c", "d25", "d75", "ep", "ep_c", "size", "size_lower", "size_upper", "delta_max")
 # Shares of a stream or of the feed, 0..1.
 _FRACTION_STEMS = (
     "partition_fine",
     "partition_coarse",
     "eta",
-    "epsilon",
     "bypass",
     "akaike_share",
-    "fishhook",
+    "water_recovery",
     "feed_share",
     "fine_yield",
     "coarse_yield",
@@ -40,7 +39,6 @@ _FRACTION_STEMS = (
     "feed_adjusted",
     "fine_adjusted",
     "coarse_adjusted",
-    "balance_residual",
 )
 _COUNT_COLUMNS = ("n", "rank", "place", "points", "equation", "n_regimes", "bootstrap_failed")
 _SUFFIXES = ("_stderr", "_se", "_low", "_high", "_boot_low", "_boot_high")
@@ -66,12 +64,19 @@ def column_unit(column: str, size_unit: str = "") -> str:
     if stem in (
         "imperfection",
         "imperfection_c",
+        "epsilon",  # an area in relative-size units, in [0, x_max - 1]
+        "fishhook",
+        "x_break",  # a relative size, size / d_cut
+        "balance_residual",  # a difference of shares, negative as often as positive
+        "partition_fine_corrected",  # Kelsall-corrected, above 1 where a class beat its water
+        "partition_coarse_corrected",
         "shape",
         "F",
         "F_crit",
         "ssr",
         "aic",
         "aicc",
+        "delta_aicc",
         "bic",
         "slope",
         "slope_coarse",
