@@ -144,3 +144,37 @@ KINDS = (
 def mutated():
     """Mutations of a drawn table (including "none": the table as drawn)."""
     return st.builds(Mutation, st.sampled_from(KINDS), st.integers(0, 2**32 - 1), st.sampled_from(EXTREMES + NAMES))
+
+
+#: Curve shapes for generated experiments: partition to fines at relative size x = d / d_cut.
+SHAPES = {
+    "plitt": lambda x, k: 1 / (1 + x**k),
+    "rosin_rammler": lambda x, k: np.exp(-np.log(2) * x**k),
+    "logistic_in_ln": lambda x, k: 1 / (1 + np.exp(k * np.log(x))),
+}
+
+
+@st.composite
+def tromp_experiments(draw, max_experiments: int = 2) -> pd.DataFrame:
+    """Tromp-point tables fit for fitting: one or more experiments, each a smooth falling
+    curve (Plitt, Rosin-Rammler or logistic shape, optional bypass) with seeded noise, 5-9
+    geometric sizes around the cut, the cut anywhere from 1e-2 to 1e4 size units."""
+    frames = []
+    names = draw(st.lists(st.sampled_from(NAMES), min_size=1, max_size=max_experiments, unique=True))
+    for name in names:
+        n = draw(st.integers(5, 9))
+        ratio = draw(st.floats(1.3, 2.2))
+        cut = 10 ** draw(st.floats(-2.0, 4.0))
+        below = draw(st.integers(2, n - 2))  # sizes below the cut: the cut lies inside the data
+        size = cut * ratio ** (np.arange(n) - below + draw(st.floats(0.1, 0.9)))
+        shape = draw(st.sampled_from(sorted(SHAPES)))
+        sharpness = draw(st.floats(1.5, 6.0))
+        bypass = draw(st.sampled_from([0.0, 0.0, 0.05, 0.15]))
+        noise = draw(st.sampled_from([0.0, 0.005, 0.02]))
+        rng = np.random.default_rng(draw(st.integers(0, 2**32 - 1)))
+        partition = (1 - bypass) * SHAPES[shape](size / cut, sharpness) + bypass
+        partition = np.clip(partition + rng.normal(0.0, noise, n), 0.0, 1.0)
+        if np.ptp(partition) < 0.2:
+            partition = np.linspace(0.95, 0.05, n)
+        frames.append(pd.DataFrame({"experiment": name, "size": size, "partition_fine": partition}))
+    return pd.concat(frames, ignore_index=True)

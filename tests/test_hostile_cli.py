@@ -252,3 +252,46 @@ def test_verbose_adds_log_lines_of_each_step_and_quiet_removes_the_tables(tmp_pa
     import logging
 
     assert not logging.getLogger("tromplab").handlers  # removed after the command
+
+
+def test_a_short_seeded_cli_fuzz_run_finds_nothing(monkeypatch):
+    """benchmarks/fuzz_cli.py for 30 runs: mutated bundled tables and options through main()."""
+    import importlib.util
+    import sys
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / "fuzz_cli.py"
+    spec = importlib.util.spec_from_file_location("fuzz_cli", path)
+    fuzz_cli = importlib.util.module_from_spec(spec)
+    monkeypatch.setitem(sys.modules, "fuzz_cli", fuzz_cli)  # dataclasses look their module up
+    spec.loader.exec_module(fuzz_cli)
+    outcomes = fuzz_cli.fuzz(seed=3, runs=30)
+    assert len(outcomes) == 30
+    findings = [f"{o.label}: {' '.join(o.argv)} {o.mutations}\n{o.stderr[-500:]}" for o in outcomes if o.finding]
+    assert not findings, "\n".join(findings)
+    assert {o.code for o in outcomes} >= {0, 1}  # both outcomes reached: the mutations are neither all harmless nor all fatal
+
+
+@pytest.mark.parametrize("column", ["step", "time"])
+def test_layer_fit_refuses_a_step_beyond_the_simulated_range(tmp_path, capsys, column):
+    """Found by benchmarks/fuzz_cli.py: a step of 1e308 overflowed the integer steps (exit 70)."""
+    data = tmp_path / "layer.csv"
+    data.write_text(f"{column},extraction\n1,0.1\n2,0.2\n1e308,0.5\n", encoding="utf-8")
+    assert main(["layer", "fit", str(data), "-o", str(tmp_path / "fit.csv")]) == 1
+    err = capsys.readouterr().err
+    assert f"row 4, column '{column}'" in err and "at most 1,000,000 are simulated" in err and "Traceback" not in err
+    assert not (tmp_path / "fit.csv").exists()
+
+
+def test_trend_refuses_a_survey_cut_short(tmp_path, capsys):
+    """Found by benchmarks/fuzz_cli.py: a survey with one point ended in exit 70."""
+    from pathlib import Path
+
+    source = Path(__file__).resolve().parents[1] / "datasets" / "classifier_trend_surveys.csv"
+    text = source.read_text(encoding="utf-8").rstrip("\n").split("\n")
+    data = tmp_path / "surveys.csv"
+    data.write_text("\n".join([*text, "S99,2025-12-01,38.0,0.81"]) + "\n", encoding="utf-8")
+    assert main(["trend", str(data), "-o", str(tmp_path / "out"), "--no-figures"]) == 1
+    err = capsys.readouterr().err
+    assert "survey 'S99' has 1 point(s); each survey needs at least 3" in err and "Traceback" not in err
+    assert not (tmp_path / "out").exists()

@@ -48,6 +48,17 @@ TEXT_CASES = [
     ("size,partition_fine\n10,0.95\n1e999,0.8\n40,0.5\n", [], "row 3, column 'size': 'inf' is not a finite number"),
     ("size,partition_fine,weight\n10,0.95,1\n20,0.8,Infinity\n40,0.5,1\n", [], "row 3, column 'weight': 'inf' is not a finite"),
     ("size,partition_fine\n10,0.95\nnan,0.8\n40,0.5\n", [], "row 3, column 'size': value is missing"),
+    # sizes out of range (found by benchmarks/fuzz_cli.py: 1e308 among sizes near 100 overflowed the indices)
+    (
+        "size,partition_fine\n10,0.95\n20,0.8\n1e308,0.5\n",
+        [],
+        "column 'size': experiment 'input': size 1e+308 at point 3 is outside",
+    ),
+    (
+        "size,partition_fine\n1e-6,0.95\n20,0.8\n40000,0.5\n",
+        [],
+        "the sizes span 1e-06 to 40000, more than 1e+09 times; a size or unit is probably mistyped",
+    ),
     (lab((2, "200,400,inf,16.3,35.4")), [], "row 4, column 'feed_pct': 'inf' is not a finite number"),
     (
         "size_lower,size_upper,feed_mass,fine_mass\n400,,5,1\n200,400,inf,2\n,200,4,3\n",

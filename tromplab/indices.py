@@ -91,7 +91,8 @@ def efficiency_by_quadrature(formula: Formula, shape: float, x_max: float, **con
     upper = max(x_max, 1.0)
     eps = 0.0
     if upper > 1.0:
-        eps, _ = integrate.quad(curve, 1.0, upper, points=_break_points_above_cut(upper), limit=400, epsabs=1e-13, epsrel=1e-12)
+        cuts = _break_points_above_cut(upper)  # one per doubling: 1,000 when x_max is near 1e300
+        eps, _ = integrate.quad(curve, 1.0, upper, points=cuts, limit=max(400, 2 * len(cuts)), epsabs=1e-13, epsrel=1e-12)
     return float(eta), float(eps)
 
 
@@ -291,7 +292,8 @@ def _area(formula: Formula, shape: float, lower: float, upper: float, context: d
     if upper <= lower:
         return 0.0
     cuts = [x for x in (0.5, 1.0, *_break_points_above_cut(upper)) if lower < x < upper]
-    area, _ = integrate.quad(lambda x: float(formula.phi(x, shape, **context)), lower, upper, points=cuts or None, limit=400)
+    limit = max(400, 2 * len(cuts))  # quad needs more subintervals than break points (x_max up to 1e308)
+    area, _ = integrate.quad(lambda x: float(formula.phi(x, shape, **context)), lower, upper, points=cuts or None, limit=limit)
     return float(area)
 
 

@@ -258,12 +258,16 @@ def run_layer_fit(args) -> int:
             raise table.error(f"step {raw[off[0]]:g} is not a whole number", index=int(off[0]), column=column)
     elif "time" in table.frame.columns:
         column = "time"
-        steps = np.rint(table.numeric("time") / args.step_seconds)
+        with np.errstate(over="ignore"):  # a huge time gives inf steps, refused below
+            steps = np.rint(table.numeric("time") / args.step_seconds)
     else:
         raise InputError("give a 'step' column or a 'time' column (seconds; one step = --step-seconds)", source=table.source)
     bad = np.flatnonzero(steps < 1)
     if bad.size:
         raise table.error("must be at least one step", index=int(bad[0]), column=column)
+    bad = np.flatnonzero(steps > MAX_STEPS)  # also keeps the steps within machine integers
+    if bad.size:
+        raise table.error(f"{steps[bad[0]]:g} steps: at most {MAX_STEPS:,} are simulated", index=int(bad[0]), column=column)
     bad = np.flatnonzero((extraction < 0) | (extraction > 1))
     if bad.size:
         raise table.error(f"extraction {extraction[bad[0]]:g} outside 0..1", index=int(bad[0]), column="extraction")

@@ -59,6 +59,13 @@ PARTITION_COLUMNS = {
 #: Measured partitions may leave 0..1 by this much through sampling noise (unclipped data
 #: with a noise of 0.02 reach 5 sd); beyond it a value is an error, or a percentage.
 PARTITION_SLACK = 0.1
+#: Largest ratio of the largest size (or ``delta_max``) to the smallest in one experiment:
+#: nine decades (1 nm to 1 m) hold any classifier test; more is a mistyped size or unit,
+#: and a ratio near 1e300 overflowed the efficiency integrals (found by benchmarks/fuzz_cli.py).
+MAX_SIZE_SPAN = 1e9
+#: Sizes are refused outside this range whatever the unit, so that the cut size searched
+#: from size / 100 to size x 100 and the indices stay finite and normal floating-point numbers.
+SIZE_LIMITS = (1e-250, 1e250)
 
 
 @dataclass(frozen=True)
@@ -132,6 +139,7 @@ class TrompPoints:
             raise self._error(f"size must be positive, got {size[bad[0]]:g} at point {bad[0] + 1}", column="size")
         if "weight" in arrays and np.any(arrays["weight"] <= 0):
             raise self._error("weights must be positive", column="weight")
+        self._check_size_range(size)
         if not self.resampled:
             self._check_partitions(phi)
             repeated = size[np.flatnonzero(np.diff(np.sort(size)) == 0)]
@@ -145,6 +153,24 @@ class TrompPoints:
 
     def _error(self, message: str, *, column: str | None = None) -> InputError:
         return InputError(message, source=self.source or f"experiment '{self.experiment}'", column=column)
+
+    def _check_size_range(self, size: np.ndarray) -> None:
+        lowest, highest = SIZE_LIMITS
+        outside = np.flatnonzero((size < lowest) | (size > highest))
+        if outside.size:
+            raise self._error(
+                f"experiment '{self.experiment}': size {size[outside[0]]:g} at point {outside[0] + 1} is outside {lowest:g}..{highest:g} (in any unit)",
+                column="size",
+            )
+        largest = float(size.max())
+        if self.delta_max is not None and np.isfinite(self.delta_max) and self.delta_max > largest:
+            largest = float(self.delta_max)
+        if largest / size.min() > MAX_SIZE_SPAN:
+            raise self._error(
+                f"experiment '{self.experiment}': the sizes span {size.min():g} to {largest:g}, more than {MAX_SIZE_SPAN:g} times; "
+                "a size or unit is probably mistyped",
+                column="size",
+            )
 
     def _check_partitions(self, phi: np.ndarray) -> None:
         outside = np.flatnonzero((phi < -PARTITION_SLACK) | (phi > 1.0 + PARTITION_SLACK))

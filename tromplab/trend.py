@@ -387,6 +387,9 @@ def monitor_surveys(
         raise InputError(f"a trend needs at least four surveys, got {len(surveys)}")
     if not 0 < alpha < 1:
         raise InputError(f"alpha must lie between 0 and 1, got {alpha}")
+    for survey in surveys:  # a cut-short survey cannot be fitted and screened (found by benchmarks/fuzz_cli.py)
+        if survey.points.n < 3:
+            raise InputError(f"survey '{survey.name}' has {survey.points.n} point(s); each survey needs at least 3")
     base = baseline_indices(surveys, baseline)
     formula = get_formula(formula) if formula is not None else _best_formula(surveys)
     fits = tuple(fit_formula(s.points, formula) for s in surveys)
