@@ -244,8 +244,10 @@ def curve_values(formula: Formula, x, shape, extras: dict, efficiency=None, x_br
     if formula.id == "shuvalov":
         # one root per distinct (kr, efficiency): grid rows and Jacobian columns in d_cut share them
         kr, eff = np.broadcast_arrays(np.asarray(shape, dtype=float), np.asarray(efficiency, dtype=float))
-        pairs, inverse = np.unique(np.stack([kr.ravel(), eff.ravel()]), axis=1, return_inverse=True)
-        x_break = shuvalov_breaks(pairs[0], pairs[1])[inverse.ravel()].reshape(kr.shape)
+        # a pair as one complex number: np.unique(axis=...) would compare structured rows, whose
+        # dtype promotion runs Python code in which numpy turns a Ctrl-C into a TypeError
+        pairs, inverse = np.unique(kr.ravel() + 1j * eff.ravel(), return_inverse=True)
+        x_break = shuvalov_breaks(pairs.real, pairs.imag)[inverse.ravel()].reshape(kr.shape)
         return rosin_rammler(np.maximum(x, x_break), shape)
     return formula.phi(x, shape, **extras)
 
