@@ -177,3 +177,22 @@ def test_two_concurrent_runs_into_one_folder_leave_one_complete_run(tmp_path, ru
     assert _content(out) in (old, new)
     assert not _staging_left(tmp_path)
     assert os.path.exists(tmp_path / ".out.lock")
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+def test_a_signal_while_the_interpreter_exits_gives_one_line_and_no_traceback(signum):
+    # after the command has returned, Python still runs the atexit handlers (process pools, Dask):
+    # a Ctrl-C there used to print "Exception ignored in atexit callback" with a traceback
+    script = (
+        "import atexit, os, signal, sys, time, tromplab_launch\n"
+        "from tromplab import cli\n"
+        "cli.main = lambda: 0\n"
+        f"atexit.register(lambda: (os.kill(os.getpid(), {int(signum)}), time.sleep(5)))\n"
+        "sys.exit(tromplab_launch.main())\n"
+    )
+    env = {**os.environ, "PYTHONPATH": str(REPOSITORY)}
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=60)
+    assert "Traceback" not in done.stderr
+    assert done.returncode == (130 if signum == signal.SIGINT else 143), done.stderr
+    assert len(done.stderr.strip().splitlines()) == 1, done.stderr
+    assert "finished" in done.stderr

@@ -6,7 +6,8 @@ script of a package imports that package before running any of its code, so with
 own ``KeyboardInterrupt`` traceback or a silent kill.  This module lives outside the
 ``tromplab`` package and imports only :mod:`signal` and :mod:`sys`: it installs the handling
 first, then imports the command line.  An interrupt at any moment prints one line and exits
-with 130 (SIGINT) or 143 (SIGTERM); during start-up nothing has been written yet.
+with 130 (SIGINT) or 143 (SIGTERM); during start-up nothing has been written yet, and once the
+command has returned (while the interpreter shuts down its pools) the outputs are final.
 """
 
 import os
@@ -22,6 +23,20 @@ def _stop_during_start_up(signum, frame):
     # os._exit skips the half-finished imports' clean-up, which could itself be interrupted
     what = "terminated (SIGTERM)" if signum == signal.SIGTERM else "interrupted"
     os.write(2, f"tromplab: {what} while starting; nothing was written\n".encode())
+    os._exit(EXIT_TERMINATED if signum == signal.SIGTERM else EXIT_INTERRUPTED)
+
+
+def _stop_while_exiting(signum, frame):
+    # the command has returned and its outputs are in place (or it failed and said so); the
+    # interpreter is closing process pools and clients, where an exception would only print a
+    # traceback of Python's own: leave at once instead
+    what = "terminated (SIGTERM)" if signum == signal.SIGTERM else "interrupted"
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):  # closed or a broken pipe: nothing more can be shown
+            pass
+    os.write(2, f"tromplab: {what} while exiting; the command had finished\n".encode())
     os._exit(EXIT_TERMINATED if signum == signal.SIGTERM else EXIT_INTERRUPTED)
 
 
@@ -44,6 +59,9 @@ def main() -> int:
         return cli.main()
     except KeyboardInterrupt as interruption:  # between the handlers above and cli.main's own
         return cli.interrupted(interruption)
+    finally:
+        _handle(signal.SIGINT, _stop_while_exiting)
+        _handle(signal.SIGTERM, _stop_while_exiting)
 
 
 if __name__ == "__main__":
