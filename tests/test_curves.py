@@ -183,3 +183,32 @@ def test_a_fit_exact_to_rounding_raises_no_residual_alarm():
     assert np.isnan(result.diagnostics.runs_p) and np.isnan(result.diagnostics.normality_p)
     assert not any("residuals" in w for w in result.warnings)
     assert result.row()["residuals"] == "exact"
+
+
+def test_an_ambiguous_measured_cut_is_said_in_words():
+    # found by the fine/coarse swap invariant on a lab table with partitions 1, 1/2, 1/2, 0: the
+    # measured cut jumps by a sieve interval with the partitions' last digits, and formula
+    # (11)'s measured efficiency with it
+    from dataclasses import replace
+
+    from tromplab._synthetic import synthetic
+    from tromplab.workbench import data_notes
+
+    plateau = TrompPoints("plateau", np.array([1.0, 2.0, 4.0, 8.0]), np.array([1.0, 0.5 + 1e-9, 0.5 - 1e-9, 0.0]))
+    flipped = replace(plateau, partition_fine=np.array([1.0, 0.5 - 1e-9, 0.5 + 1e-9, 0.0]))
+    assert measured_cut_size(plateau) > 1.4 * measured_cut_size(flipped)  # 2.83 against 2.0
+    assert abs(measured_efficiency(flipped) - measured_efficiency(plateau)) > 0.1
+    for points in (plateau, flipped):
+        (note,) = [note for note in data_notes(points) if "measured cut is ambiguous" in note]
+        assert "formula (11)" in note
+    curves = [synthetic(seed) for seed in range(60)]  # noisy curves of every formula, slopes -0.3 to -2
+    assert not [note for points in curves for note in data_notes(points) if "ambiguous" in note]
+
+
+def test_a_bound_is_reached_relative_to_its_size():
+    from tromplab.fitting import on_bound
+
+    assert not on_bound(7.3e-10, 7.07e-12)  # a cut in metres, 100 times above its lower bound
+    assert on_bound(7.07e-12 * (1 + 1e-7), 7.07e-12)
+    assert on_bound(1e-9, 0.0) and not on_bound(1e-6, 0.0)  # a bypass on its lower bound 0
+    assert on_bound(40.0 - 1e-5, 40.0) and not on_bound(39.9, 40.0)

@@ -15,6 +15,7 @@ from numpy.testing import assert_allclose
 from tromplab import fit_experiments, read_experiments
 from tromplab.errors import InputError
 from tromplab.uncertainty import interval_columns
+from tromplab.workbench import data_notes
 
 from .strategies import lab_tables, tromp_experiments
 
@@ -47,6 +48,8 @@ RTOL_DERIVED = 5e-3
 #: sizes of 1e-9).  Such fits are compared only in that both runs find a curve through
 #: every point; they are not ranked against each other.
 EXACT_SSR = 1e-12
+#: A number in a warning (replaced before warnings are compared across units).
+NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:e[-+]?\d+)?"
 
 
 def _fits_to_rounding(fits: pd.DataFrame) -> pd.Series:
@@ -56,12 +59,12 @@ def _fits_to_rounding(fits: pd.DataFrame) -> pd.Series:
 def _assert_same_results(reference, other, scale: float = 1.0, rtol: float = RTOL, unpinned=None) -> None:
     """Sizes scaled by ``scale``, everything else equal, to :data:`RTOL`; fits through every
     point (:data:`EXACT_SSR`) only checked to be such in both."""
-    exact = _fits_to_rounding(reference) | _fits_to_rounding(other)
-    if unpinned is not None:
-        exact = exact | unpinned
-    assert (other.loc[~exact, "success"] == reference.loc[~exact, "success"]).all()
+    through_every_point = _fits_to_rounding(reference) | _fits_to_rounding(other)
     for fits in (reference, other):  # a curve through every point, or a failed fit, on both sides
-        assert ((fits.loc[exact, "ssr"] < 1e3 * EXACT_SSR) | ~fits.loc[exact, "success"]).all()
+        chosen = fits.loc[through_every_point]
+        assert ((chosen["ssr"] < 1e3 * EXACT_SSR) | ~chosen["success"]).all()
+    exact = through_every_point if unpinned is None else through_every_point | unpinned
+    assert (other.loc[~exact, "success"] == reference.loc[~exact, "success"]).all()
     for column in SIZE_COLUMNS:
         assert_allclose(other.loc[~exact, column] / scale, reference.loc[~exact, column], rtol=rtol, err_msg=column)
     for column in UNCHANGED_COLUMNS:
@@ -69,6 +72,24 @@ def _assert_same_results(reference, other, scale: float = 1.0, rtol: float = RTO
             atol = 0.0 if column in ("F", "F_crit", "ssr", "aic", "aicc", "bic") else ATOL  # scores: relative only
             assert_allclose(other.loc[~exact, column], reference.loc[~exact, column], rtol=rtol, atol=atol, err_msg=column)
     _assert_same_ranks(reference[~exact], other[~exact])
+    # the same warnings, numbers aside (a cut size in another unit): found a d_cut of 7e-10 "at
+    # its bound 7e-12" when the bound test had numpy.isclose's absolute tolerance
+    for column in ("warnings", "extrapolated"):
+        words = [
+            fits.loc[~exact, column].fillna("").astype(str).str.replace(NUMBER, "#", regex=True) for fits in (reference, other)
+        ]
+        assert words[1].equals(words[0]), column
+
+
+def _cut_outside_the_sizes(fits: pd.DataFrame, experiments) -> np.ndarray:
+    """Fits whose cut lies outside the measured sizes of their experiment: extrapolated, not
+    pinned by the data (on four classes, a cut 100 times below the finest moved by 6e-5 with
+    the unit and by 2e-4 with partitions changed by 1e-9), so left out of the comparisons."""
+    smallest = {points.experiment: points.size.min() for points in experiments}
+    largest = {points.experiment: points.size.max() for points in experiments}
+    experiment = fits.index.get_level_values("experiment")
+    inside = (fits["d_cut"] >= experiment.map(smallest)) & (fits["d_cut"] <= experiment.map(largest))
+    return ~inside.to_numpy()
 
 
 def _fits(frame: pd.DataFrame) -> pd.DataFrame:
@@ -150,8 +171,7 @@ def test_row_order_changes_nothing(frame, seed):
 def test_swapping_fine_and_coarse_gives_the_mirrored_partition_and_the_same_fits(case):
     """Each product's partition is computed from both products (partition_from="products"),
     so swapping the columns gives 1 - partition; read back as the partition to the coarse
-    product, the swapped data give the original partition to fines.  (Comparing the fits as
-    well passed alone but not within the whole suite; left out, see docs/reliability.md.)"""
+    product, the swapped data give the original partition to fines, and the same fits."""
     swap = {column: column.replace("fine", "@").replace("coarse", "fine").replace("@", "coarse") for column in case.frame.columns}
     swapped_frame = case.frame.rename(columns=swap)
     if "coarse_yield" in swapped_frame:  # the stated yield is now the coarse product's
@@ -176,3 +196,41 @@ def test_swapping_fine_and_coarse_gives_the_mirrored_partition_and_the_same_fits
     from_coarse = [replace(points, delta_max=other.delta_max) for points, other in zip(from_coarse, swapped, strict=True)]
     for points, other in zip(from_coarse, original, strict=True):
         assert_allclose(points.partition_fine, other.partition_fine, atol=1e-9)
+    reference = fit_experiments(original).fits_table().set_index(["experiment", "formula"]).sort_index()
+    mirrored_fits = fit_experiments(from_coarse).fits_table().set_index(["experiment", "formula"]).sort_index()
+    # the mirrored partitions agree to 1e-9, not exactly: ill-conditioned fits of three or four
+    # classes move by up to 2e-5 (seen on d_cut), so the tolerance here is 1e-4; a cut outside
+    # the measured sizes (extrapolated, up to 100 times below them) is not pinned by the data
+    # and moved by 2e-4, so it is left out
+    # formula (11) rests on the measured cut; where the data note says it is ambiguous (a plateau
+    # at 1/2) the last digits of the partitions decide its fit (tests/test_curves.py)
+    ambiguous = {p.experiment for p in original if any("measured cut is ambiguous" in note for note in data_notes(p))}
+    hanging = reference.index.get_level_values("experiment").isin(ambiguous) & (
+        reference.index.get_level_values("formula") == "shuvalov"
+    )
+    _assert_same_results(reference, mirrored_fits, rtol=1e-4, unpinned=_cut_outside_the_sizes(reference, original) | hanging)
+
+
+@pytest.mark.slow
+@settings(FIT_SETTINGS, max_examples=6)
+@given(case=lab_tables(), scale=st.sampled_from([1e-3, 25.4, 1e3]))
+def test_scaling_the_sieve_sizes_of_a_lab_table_scales_the_cut_sizes_and_nothing_else(case, scale):
+    """The same lab table with its apertures in another unit: the same partitions at scaled
+    sizes, so the fits of the points-level invariant above."""
+    scaled_frame = case.frame.copy()
+    for column in case.size_columns:
+        scaled_frame[column] = scaled_frame[column] * scale
+    try:
+        original, _ = read_experiments(case.frame)
+    except InputError:
+        with pytest.raises(InputError):  # refused whatever the unit
+            read_experiments(scaled_frame)
+        return
+    scaled, _ = read_experiments(scaled_frame)
+    for points, other in zip(original, scaled, strict=True):
+        assert_allclose(other.size, points.size * scale, rtol=1e-12)
+        assert_allclose(other.partition_fine, points.partition_fine, rtol=1e-12, atol=0)
+        assert other.largest_size == pytest.approx(points.largest_size * scale, rel=1e-12)  # delta_max or the largest size
+    reference = fit_experiments(original).fits_table().set_index(["experiment", "formula"]).sort_index()
+    other = fit_experiments(scaled).fits_table().set_index(["experiment", "formula"]).sort_index()
+    _assert_same_results(reference, other, scale, unpinned=_cut_outside_the_sizes(reference, original))

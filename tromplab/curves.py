@@ -24,7 +24,7 @@ import numpy as np
 from scipy import optimize
 
 from .diagnostics import RESIDUAL_WARNING, ResidualDiagnostics, residual_diagnostics
-from .fitting import ParameterFit, ParameterSpec, least_squares
+from .fitting import ParameterFit, ParameterSpec, least_squares, on_bound
 from .formulas import Formula, NoBreakPointError, get_formula, shuvalov_break
 from .indices import CurveIndices, curve_indices
 from .points import TrompPoints
@@ -208,7 +208,7 @@ class CurveFit:
         for spec in _parameter_specs(self.formula, self.points):
             if spec.name in self.fit.at_bound:
                 value = self.fit.values[spec.name]
-                bound = spec.lower if np.isclose(value, spec.lower) else spec.upper
+                bound = spec.lower if on_bound(value, spec.lower) else spec.upper
                 on_shape_floor = spec.name == self.formula.shape_name and bound == spec.lower and self.formula.lower_bound_reason
                 reason = f" ({self.formula.lower_bound_reason})" if on_shape_floor else ""
                 warnings.append(
@@ -348,29 +348,47 @@ def attach_diagnostics(fits) -> None:
         fit.__dict__["diagnostics"] = diagnostics  # where functools.cached_property keeps its value
 
 
-def measured_cut_size(points: TrompPoints) -> float:
-    """Size where the measured curve first falls through 1/2, interpolated in log size.
+def measured_cut_size(points: TrompPoints, level: float = 0.5) -> float:
+    """Size where the measured curve first falls through ``level`` (1/2: the measured cut),
+    interpolated in log size.
 
-    Where the points never cross 1/2 the size of the point closest to 1/2 is returned.
+    Where the points never cross the level the size of the point closest to it is returned.
     """
     phi, log_size = points.partition_fine, np.log(points.size)
-    above = phi >= 0.5
+    above = phi >= level
     for i in range(points.n - 1):
         if above[i] and not above[i + 1]:
-            t = (phi[i] - 0.5) / (phi[i] - phi[i + 1])
+            t = (phi[i] - level) / (phi[i] - phi[i + 1])
             return float(np.exp(log_size[i] + t * (log_size[i + 1] - log_size[i])))
-    return float(points.size[np.argmin(np.abs(phi - 0.5))])
+    return float(points.size[np.argmin(np.abs(phi - level))])
 
 
-def measured_efficiency(points: TrompPoints) -> float:
+#: Half-width of the band around 1/2 in which a measured partition is taken as "at the cut"
+#: when the measured cut is checked for ambiguity (partitions are often given to 1-2 %).
+CUT_BAND = 0.02
+#: Ratio of the sizes where the measured curve falls through 1/2 + CUT_BAND and 1/2 -
+#: CUT_BAND above which the measured cut is called ambiguous: a curve of Plitt slope m = 1
+#: (a flat classifier) gives about 1.1, a plateau at 1/2 over one sieve interval (sqrt 2) 1.5+.
+AMBIGUOUS_CUT_RATIO = 1.5
+
+
+def measured_cut_band(points: TrompPoints) -> tuple[float, float]:
+    """Sizes where the measured curve falls through 1/2 + :data:`CUT_BAND` and 1/2 -
+    :data:`CUT_BAND`: the range of measured cuts that partitions within the band allow."""
+    return measured_cut_size(points, 0.5 + CUT_BAND), measured_cut_size(points, 0.5 - CUT_BAND)
+
+
+def measured_efficiency(points: TrompPoints, d_cut: float | None = None) -> float:
     """Classifier efficiency eta of the measured curve, used by formula (11).
 
     Rule: relative sizes ``x = size / d_cut_exp`` with ``d_cut_exp`` from
-    :func:`measured_cut_size`; the points are joined linearly in ``x``; below the
-    smallest measured size the curve is held at its first value (down to ``x = 0``), and
-    ``phi(1) = 1/2`` closes the interval; ``eta_exp`` is the area on ``0 <= x <= 1``.
+    :func:`measured_cut_size` (or the ``d_cut`` given); the points are joined linearly in
+    ``x``; below the smallest measured size the curve is held at its first value (down to
+    ``x = 0``), and ``phi(1) = 1/2`` closes the interval; ``eta_exp`` is the area on
+    ``0 <= x <= 1``.
     """
-    d_cut = measured_cut_size(points)
+    if d_cut is None:
+        d_cut = measured_cut_size(points)
     x = points.size / d_cut
     inside = x < 1.0
     knots_x = np.concatenate(([0.0], x[inside], [1.0]))

@@ -665,7 +665,7 @@ def fit_formula_batch(
 
 def _parameter_fit(optimum: BatchOptimum, row: int, stderr: np.ndarray, points: TrompPoints):
     from .curves import _parameter_specs
-    from .fitting import ParameterFit
+    from .fitting import ParameterFit, parameters_at_bounds
 
     specs = _parameter_specs(optimum.formula, points)
     if not np.isfinite(optimum.ssr[row]):
@@ -673,7 +673,7 @@ def _parameter_fit(optimum: BatchOptimum, row: int, stderr: np.ndarray, points: 
     values = {name: float(v) for name, v in zip(optimum.names, optimum.values[row])}
     covariance = optimum.covariance[row]
     known = bool(np.all(np.isfinite(covariance)))
-    at_bound = tuple(s.name for s in specs if _close(values[s.name], s.lower) or _close(values[s.name], s.upper))
+    at_bound = parameters_at_bounds(specs, values)
     return ParameterFit(
         names=optimum.names,
         values=values,
@@ -688,12 +688,6 @@ def _parameter_fit(optimum: BatchOptimum, row: int, stderr: np.ndarray, points: 
         covariance=covariance.copy() if known else None,
         residual=optimum.residual[row, : points.n].copy(),
     )
-
-
-def _close(value: float, bound: float) -> bool:
-    """``numpy.isclose(value, bound)`` (default tolerances) for finite floats, without its
-    array overhead (two calls per parameter of every fit of a batch)."""
-    return abs(value - bound) <= 1e-8 + 1e-5 * abs(bound)
 
 
 # --- the bootstrap on the engine -------------------------------------------------------------

@@ -160,6 +160,20 @@ class ParameterFit:
         return cls(names, dict(nan), dict(nan), np.nan, n_points, False, message, n_starts=n_starts)
 
 
+def on_bound(value: float, bound: float) -> bool:
+    """Whether a fitted value sits on a bound: within 1e-5 of it relative to the bound (an
+    absolute 1e-8 when the bound is 0, as for a bypass).  Relative, so a cut size is judged
+    the same in metres as in micrometres (numpy.isclose's absolute 1e-8 put every cut below
+    1e-8 on its bound)."""
+    tolerance = 1e-5 * abs(bound) if bound != 0 else 1e-8
+    return abs(value - bound) <= tolerance
+
+
+def parameters_at_bounds(specs, values: dict) -> tuple[str, ...]:
+    """Names of the parameters whose fitted values sit on a bound (:func:`on_bound`)."""
+    return tuple(s.name for s in specs if on_bound(values[s.name], s.lower) or on_bound(values[s.name], s.upper))
+
+
 def least_squares(
     residual: Callable[[Mapping[str, float]], np.ndarray],
     specs: Sequence[ParameterSpec],
@@ -223,7 +237,7 @@ def least_squares(
     ssr, result, minimizer = best
     values = {name: float(result.params[name].value) for name in names}
     stderr = {name: _stderr(result.params[name]) for name in names}
-    at_bound = tuple(s.name for s in specs if np.isclose(values[s.name], s.lower) or np.isclose(values[s.name], s.upper))
+    at_bound = parameters_at_bounds(specs, values)
     return ParameterFit(
         names=tuple(names),
         values=values,

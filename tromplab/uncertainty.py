@@ -28,6 +28,7 @@ from scipy import stats
 
 from .curves import CurveFit, attach_indices, formula_context, with_lmfit
 from .engine import refit_resamples
+from .fitting import on_bound
 from .indices import curve_indices
 from .points import TrompPoints
 
@@ -339,7 +340,7 @@ def interval_table(
         flag = ""
         if name in fit.fit.at_bound:
             lower, upper = bounds[name]
-            at_lower = np.isclose(value, lower)
+            at_lower = on_bound(value, lower)
             low, high = _one_sided(value, se, one_sided, domain, at_lower)
             method = "one-sided"
             flag = f"{name} on its {'lower' if at_lower else 'upper'} bound {value:.4g}: one-sided interval"
@@ -432,7 +433,7 @@ class Bootstrap:
                 f"{side} limit on the bound {edge:g}"
                 for side, limit in (("lower", low), ("upper", high))
                 for edge in edges
-                if np.isclose(limit, edge, rtol=1e-9, atol=1e-12)
+                if abs(limit - edge) <= 1e-9 * abs(edge) + (1e-12 if edge == 0 else 0.0)  # relative: any unit
             ]
             rows.append(
                 {

@@ -476,7 +476,27 @@ def data_notes(points: TrompPoints) -> tuple[str, ...]:
     if np.all(points.partition_fine > 0.5) or np.all(points.partition_fine < 0.5):
         side = "above" if points.partition_fine[0] > 0.5 else "below"
         notes.append(f"every point lies {side} 1/2: the cut size is extrapolated beyond the measured sizes")
+    elif (ambiguous := _ambiguous_measured_cut(points)) is not None:
+        notes.append(ambiguous)
     return tuple(notes)
+
+
+def _ambiguous_measured_cut(points: TrompPoints) -> str | None:
+    """A note when the measured cut, and with it formula (11)'s measured efficiency, moves
+    far with partitions changed within :data:`curves.CUT_BAND` (a plateau at 1/2, or a
+    curve crossing 1/2 more than once): the fit of (11) then hangs on the data's last digits."""
+    from .curves import AMBIGUOUS_CUT_RATIO, CUT_BAND, measured_cut_band, measured_efficiency
+
+    low, high = measured_cut_band(points)
+    if not high > AMBIGUOUS_CUT_RATIO * low:
+        return None
+    efficiencies = sorted(measured_efficiency(points, cut) for cut in (low, high))
+    return (
+        f"the measured cut is ambiguous: partitions within 1/2 +- {CUT_BAND:g} put it anywhere from "
+        f"{low:.4g} to {high:.4g}; formula (11), whose measured efficiency rests on it "
+        f"({efficiencies[0]:.3f} to {efficiencies[1]:.3f} over that range), may change with the data's "
+        "last digits"
+    )
 
 
 def model_averages(bench: Workbench, *, level: float = 0.95, jobs: int | None = 1, client=None) -> pd.DataFrame:
