@@ -7,7 +7,7 @@ import matplotlib
 
 matplotlib.use("Agg")
 
-from tromplab.plotting import save_figure  # noqa: E402
+from tromplab.output.plotting import save_figure  # noqa: E402
 
 OUTPUT = Path(__file__).resolve().parent / "output"
 ROOT = Path(__file__).resolve().parent.parent

@@ -5,7 +5,7 @@ Reads ``datasets/double_deck_screen_20_65mesh_exercise.csv`` (three products P, 
 ``datasets/double_deck_screen_decks_lab.csv`` with two experiments:
 
 * ``deck_20mesh``: feed = the feed; coarse = P; fine = everything through the 20-mesh
-  deck, i.e. M and Q together (:func:`tromplab.lab.mix_streams`), fine yield = yM + yQ;
+  deck, i.e. M and Q together (:func:`tromplab.loading.lab.mix_streams`), fine yield = yM + yQ;
 * ``deck_65mesh``: feed = M and Q together; coarse = M; fine = Q; fine yield = yQ/(yM + yQ).
 
 Usage: ``python analysis/make_double_deck_lab.py [--output PATH]``
@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from tromplab.lab import mix_streams
+from tromplab.loading.lab import mix_streams
 
 ROOT = Path(__file__).resolve().parent.parent
 SOURCE = ROOT / "datasets" / "double_deck_screen_20_65mesh_exercise.csv"

@@ -25,9 +25,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from tromplab import sieve
-from tromplab.layer import LayerModel
-from tromplab.pulp import PulpScreen
+from tromplab.classifiers import sieve
+from tromplab.classifiers.layer import LayerModel
+from tromplab.classifiers.pulp import PulpScreen
 
 ROOT = Path(__file__).resolve().parent.parent
 REGENERATE = "Regenerate with: python analysis/make_model_examples.py"

@@ -10,9 +10,9 @@ from _common import ROOT, output_arguments, save
 import matplotlib.pyplot as plt
 import seaborn as sns
 
-from tromplab.formulas import get_formula
-from tromplab.plotting import plot_equal_slope_family, plot_f_heatmap, plot_plitt_lognormal_relation, plot_ranking
-from tromplab.ranking import rank_formulas, read_f_table
+from tromplab.curves.formulas import get_formula
+from tromplab.output.plotting import plot_equal_slope_family, plot_f_heatmap, plot_plitt_lognormal_relation, plot_ranking
+from tromplab.curves.ranking import rank_formulas, read_f_table
 
 
 def main(argv=None):

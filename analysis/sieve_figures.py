@@ -11,8 +11,8 @@ from _common import output_arguments, save
 import numpy as np
 import seaborn as sns
 
-from tromplab import sieve
-from tromplab.plotting import plot_distance_densities, plot_geometric_probability, plot_residue_and_efficiency
+from tromplab.classifiers import sieve
+from tromplab.output.plotting import plot_distance_densities, plot_geometric_probability, plot_residue_and_efficiency
 
 HOLE, HALF_CELL, LENGTH, PITCH = 2.0, 1.6, 1.6, 0.0032  # mm, mm, m, m (kinetics paper's example)
 FRACTIONS = {"2.5 x 1.5 mm": ((2.5, 1.5), (0.148, 0.051)), "2.0 x 1.5 mm": ((2.0, 1.5), (0.185, 0.069))}

@@ -8,8 +8,8 @@ from _common import output_arguments, save
 
 import seaborn as sns
 
-from tromplab.choice import choose, sieve_speed_problem
-from tromplab.plotting import plot_pareto
+from tromplab.classifiers.choice import choose, sieve_speed_problem
+from tromplab.output.plotting import plot_pareto
 from tromplab.reproduce import write_table
 
 

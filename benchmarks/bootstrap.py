@@ -13,7 +13,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from fit_robustness import synthetic  # noqa: E402
 
-from tromplab.uncertainty import bootstrap  # noqa: E402
+from tromplab.statistics.uncertainty import bootstrap  # noqa: E402
 from tromplab.workbench import fit_experiments  # noqa: E402
 
 

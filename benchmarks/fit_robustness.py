@@ -19,8 +19,8 @@ import numpy as np
 import pandas as pd
 
 from tromplab._synthetic import synthetic as shared_synthetic
-from tromplab.curves import fit_formula
-from tromplab.formulas import FORMULAS
+from tromplab.curves.curve_fit import fit_formula
+from tromplab.curves.formulas import FORMULAS
 
 TOLERANCE = 1e-5
 

@@ -26,8 +26,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # tests/strateg
 
 from tests.strategies import lab_tables, mutated, points_tables, write_frame  # noqa: E402
 from tromplab.errors import InputError  # noqa: E402
-from tromplab.lab import read_experiments  # noqa: E402
-from tromplab.points import read_points  # noqa: E402
+from tromplab.loading.lab import read_experiments  # noqa: E402
+from tromplab.loading.points import read_points  # noqa: E402
 
 
 def check(experiments) -> None:

@@ -4,7 +4,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from tromplab.formulas import FORMULAS
+from tromplab.curves.formulas import FORMULAS
 
 ROOT = Path(__file__).resolve().parent.parent
 REFERENCE = Path(__file__).resolve().parent / "reference"

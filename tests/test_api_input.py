@@ -7,7 +7,7 @@ from numpy.testing import assert_array_equal
 
 import tromplab
 from tromplab.errors import InputError
-from tromplab.points import TrompPoints
+from tromplab.loading.points import TrompPoints
 
 from .conftest import DATASETS
 
@@ -64,7 +64,7 @@ def test_dataframe_errors_are_the_files_errors_with_the_row_label(tmp_path, colu
     assert str(from_frame.value).startswith(f"DataFrame, row r3, column '{column}': ")
 
 
-@pytest.mark.filterwarnings("ignore::tromplab.lab.YieldWarning")  # the exercise's stated yield, as in test_lab
+@pytest.mark.filterwarnings("ignore::tromplab.loading.lab.YieldWarning")  # the exercise's stated yield, as in test_lab
 def test_lab_table_from_a_dataframe_with_keyword_options():
     frame = pd.read_csv(LAB, comment="#")
     from_file = tromplab.read_lab(LAB)

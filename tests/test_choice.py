@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from tromplab.choice import Constraint, Criterion, Problem, Variable, choose, sieve_speed_problem
+from tromplab.classifiers.choice import Constraint, Criterion, Problem, Variable, choose, sieve_speed_problem
 
 
 def toy():

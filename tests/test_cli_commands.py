@@ -11,9 +11,9 @@ import pytest
 from numpy.testing import assert_allclose
 
 from tromplab import __version__
+from tromplab.classifiers.layer import LayerModel
+from tromplab.classifiers.pulp import PulpScreen
 from tromplab.cli import _parser, main
-from tromplab.layer import LayerModel
-from tromplab.pulp import PulpScreen
 
 from .conftest import DATASETS, ROOT
 

@@ -6,7 +6,7 @@ import pandas as pd
 from numpy.testing import assert_allclose
 
 from tromplab.cli import main
-from tromplab.workbook import SHEETS, strip_unit
+from tromplab.output.workbook import SHEETS, strip_unit
 
 from .conftest import DATASETS, TWO_EXPERIMENT_POINTS, write
 
@@ -80,12 +80,12 @@ def test_dash_o_xlsx_writes_only_the_workbook(tmp_path):
 
 
 def test_a_failing_workbook_leaves_nothing_behind(tmp_path, monkeypatch):
-    import tromplab.workbook
+    import tromplab.output.workbook
 
     def broken(*args, **kwargs):
         raise RuntimeError("disk full")
 
-    monkeypatch.setattr(tromplab.workbook, "write_workbook", broken)
+    monkeypatch.setattr(tromplab.output.workbook, "write_workbook", broken)
     out = tmp_path / "out"
     # a writer that breaks is a bug, not bad input: exit 70, and nothing is written
     assert main(["fit", str(write(tmp_path, POINTS)), "-o", str(out), "--excel", "--no-figures"]) == 70

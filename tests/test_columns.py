@@ -7,7 +7,7 @@ import pandas as pd
 import pytest
 
 from tromplab.cli import main
-from tromplab.workbook import column_unit
+from tromplab.output.workbook import column_unit
 
 from .conftest import DATASETS, ROOT
 

@@ -6,10 +6,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
-from tromplab.curves import fit_formula, measured_cut_size, measured_efficiency
-from tromplab.fitting import ParameterSpec, least_squares
-from tromplab.formulas import get_formula
-from tromplab.points import TrompPoints
+from tromplab.curves.curve_fit import fit_formula, measured_cut_size, measured_efficiency
+from tromplab.curves.fitting import ParameterSpec, least_squares
+from tromplab.curves.formulas import get_formula
+from tromplab.loading.points import TrompPoints
 from tromplab.workbench import fit_experiments
 
 from .conftest import formula_ids
@@ -206,7 +206,7 @@ def test_an_ambiguous_measured_cut_is_said_in_words():
 
 
 def test_a_bound_is_reached_relative_to_its_size():
-    from tromplab.fitting import on_bound
+    from tromplab.curves.fitting import on_bound
 
     assert not on_bound(7.3e-10, 7.07e-12)  # a cut in metres, 100 times above its lower bound
     assert on_bound(7.07e-12 * (1 + 1e-7), 7.07e-12)

@@ -5,7 +5,7 @@ import pytest
 from statsmodels.sandbox.stats.runs import runstest_1samp
 
 from tromplab._synthetic import synthetic
-from tromplab.diagnostics import batch_residual_diagnostics, residual_diagnostics
+from tromplab.curves.diagnostics import batch_residual_diagnostics, residual_diagnostics
 from tromplab.workbench import fit_chunk
 
 

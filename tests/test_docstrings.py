@@ -10,7 +10,7 @@ import re
 import pytest
 
 import tromplab
-from tromplab.formulas import ALL_FORMULAS
+from tromplab.curves.formulas import ALL_FORMULAS
 
 
 def numpydoc_sections(doc: str) -> dict[str, list[str]]:

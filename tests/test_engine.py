@@ -8,16 +8,16 @@ from numpy.testing import assert_allclose
 from tromplab import workbench
 from tromplab._synthetic import synthetic
 from tromplab.cli import main
-from tromplab.curves import fit_formula, with_lmfit
-from tromplab.engine import (
+from tromplab.curves.curve_fit import fit_formula, with_lmfit
+from tromplab.curves.engine import (
     check_bootstrap_request,
     fit_formula_batch,
     is_batchable,
     refit_resamples,
     shuvalov_breaks,
 )
-from tromplab.formulas import ALL_FORMULAS, FORMULAS, get_formula, shuvalov_break
-from tromplab.points import TrompPoints
+from tromplab.curves.formulas import ALL_FORMULAS, FORMULAS, get_formula, shuvalov_break
+from tromplab.loading.points import TrompPoints
 from tromplab.workbench import fit_experiments
 
 BATCHABLE = [f for f in ALL_FORMULAS if is_batchable(f)]
@@ -91,7 +91,7 @@ def test_vectorised_break_points_match_the_scalar_solver(kr):
 def test_vectorised_break_points_solve_their_equation_to_rounding():
     """x_a phi_5(x_a) + int_{x_a}^1 phi_5 = eta_exp within a few units of rounding over the whole
     shape range, also where the left side is flat (x_a near 0), where steps in x_a stalled."""
-    from tromplab.formulas import _rosin_rammler_area, rosin_rammler
+    from tromplab.curves.formulas import _rosin_rammler_area, rosin_rammler
 
     kr, efficiency = (grid.ravel() for grid in np.meshgrid(np.geomspace(0.05, 40.0, 60), np.linspace(0.5, 0.999, 60)))
     x_a = shuvalov_breaks(kr, efficiency)

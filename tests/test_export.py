@@ -8,9 +8,9 @@ from numpy.testing import assert_allclose
 from scipy import special
 
 from tromplab.cli import main
+from tromplab.curves.formulas import get_formula
 from tromplab.errors import InputError
-from tromplab.export import export_fits, read_fits
-from tromplab.formulas import get_formula
+from tromplab.output.export import export_fits, read_fits
 
 SIZES_UM = np.geomspace(15, 600, 13)
 TRUTHS = {
@@ -169,9 +169,9 @@ def test_export_refuses_bad_input_with_clear_messages(fits_dir, tmp_path, capsys
 def test_dyssol_default_screen_parameters_survive_a_fit_and_an_export(model, params, formula):
     """Dyssol's Screen defaults (Units/Screen/Screen.cpp: Xcut 0.002 m, Alpha 8, Beta 0.5, Offset 0.2):
     a curve drawn by Dyssol's expression is fitted by tromplab and exported back to the same numbers."""
-    from tromplab.curves import fit_formula
-    from tromplab.export import FittedCurve
-    from tromplab.points import TrompPoints
+    from tromplab.curves.curve_fit import fit_formula
+    from tromplab.loading.points import TrompPoints
+    from tromplab.output.export import FittedCurve
 
     sizes_um = np.geomspace(300, 8000, 16)
     row = pd.Series({"Model": model, "Beta": np.nan, "Offset": 0.0, **params})

@@ -5,10 +5,10 @@ import pytest
 from numpy.testing import assert_allclose
 
 from tromplab.cli import main
-from tromplab.compare import nested_f_test, shared_fit
-from tromplab.curves import fit_formula
-from tromplab.formulas import EXTENDED_FORMULAS, get_formula, whiten_beta_star
-from tromplab.points import TrompPoints
+from tromplab.curves.curve_fit import fit_formula
+from tromplab.curves.formulas import EXTENDED_FORMULAS, get_formula, whiten_beta_star
+from tromplab.loading.points import TrompPoints
+from tromplab.statistics.compare import nested_f_test, shared_fit
 from tromplab.workbench import fit_experiments
 
 SIZES = np.geomspace(10, 400, 12)
@@ -121,7 +121,7 @@ def test_equal_weights_change_nothing_and_feed_share_weights_are_used(tmp_path):
     weights /= weights.mean()
     mean = np.average(phi, weights=weights)
     assert_allclose(weighted.screen.s0_sq, np.sum(weights * (phi - mean) ** 2) / (SIZES.size - 1))
-    from tromplab.lab import LabOptions, read_experiments
+    from tromplab.loading.lab import LabOptions, read_experiments
 
     from .conftest import DATASETS
 

@@ -14,7 +14,7 @@ from numpy.testing import assert_allclose
 
 from tromplab import fit_experiments, read_experiments
 from tromplab.errors import InputError
-from tromplab.uncertainty import interval_columns
+from tromplab.statistics.uncertainty import interval_columns
 from tromplab.workbench import data_notes
 
 from .strategies import lab_tables, tromp_experiments

@@ -8,11 +8,11 @@ import pytest
 from numpy.testing import assert_allclose
 
 from tromplab.cli import main
-from tromplab.curves import CurveFit, FitOptions, failed_fit, fit_formula
-from tromplab.formulas import ALL_FORMULAS
-from tromplab.indices import curve_indices
-from tromplab.points import TrompPoints
-from tromplab.uncertainty import bootstrap, interval_table, model_average
+from tromplab.curves.curve_fit import CurveFit, FitOptions, failed_fit, fit_formula
+from tromplab.curves.formulas import ALL_FORMULAS
+from tromplab.curves.indices import curve_indices
+from tromplab.loading.points import TrompPoints
+from tromplab.statistics.uncertainty import bootstrap, interval_table, model_average
 from tromplab.workbench import fit_experiments
 
 from .conftest import DATASETS

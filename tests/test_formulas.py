@@ -5,7 +5,7 @@ import pandas as pd
 import pytest
 from numpy.testing import assert_allclose
 
-from tromplab.formulas import (
+from tromplab.curves.formulas import (
     FORMULAS,
     LUCKIE_AUSTIN_BREAK,
     NoBreakPointError,
@@ -13,7 +13,7 @@ from tromplab.formulas import (
     registry_table,
     shuvalov_break,
 )
-from tromplab.indices import efficiency
+from tromplab.curves.indices import efficiency
 
 from .conftest import formula_ids, reference_rows, shapes_across_bounds
 

@@ -4,8 +4,8 @@ written, previous results kept, distinct figure names, safe expressions."""
 import pandas as pd
 import pytest
 
+from tromplab.classifiers.sieve import fit_dependence
 from tromplab.cli import main
-from tromplab.sieve import fit_dependence
 
 SIZES = (10, 20, 40, 80, 160, 320)
 CURVE = (0.97, 0.9, 0.7, 0.35, 0.1, 0.02)
@@ -242,8 +242,8 @@ def test_verbose_adds_log_lines_of_each_step_and_quiet_removes_the_tables(tmp_pa
         printed[" ".join(flags)] = capsys.readouterr()
     default, verbose, debug, quiet = printed[""], printed["-v"], printed["-vv"], printed["-q"]
     assert "tromplab." not in default.err
-    for step in ("tromplab.tables: read", "tromplab.lab:", "tromplab.workbench: fitting 2 experiment(s) x 9 formula(s)",
-                 "tromplab.uncertainty: intervals for 18 fit(s)", "tromplab.outputs: swapped the new outputs into"):  # fmt: skip
+    for step in ("tromplab.loading.tables: read", "tromplab.loading.lab:", "tromplab.workbench: fitting 2 experiment(s) x 9 formula(s)",
+                 "tromplab.statistics.uncertainty: intervals for 18 fit(s)", "tromplab.output.outputs: swapped the new outputs into"):  # fmt: skip
         assert step in verbose.err, step
     assert "chunk 1/1 fitted" not in verbose.err and "chunk 1/1 fitted: 18 fits" in debug.err  # -vv: debug lines too
     assert "bootstrap A plitt: 3 residuals resamples" in debug.err

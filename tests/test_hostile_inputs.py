@@ -13,13 +13,13 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
+from tromplab.classifiers.sieve import identify_from_table
 from tromplab.cli import main
+from tromplab.curves.ranking import read_f_table
 from tromplab.errors import InputError
-from tromplab.lab import LabOptions, read_experiments, read_lab
-from tromplab.points import read_points
-from tromplab.ranking import read_f_table
-from tromplab.sieve import identify_from_table
-from tromplab.tables import InputNote, read_table
+from tromplab.loading.lab import LabOptions, read_experiments, read_lab
+from tromplab.loading.points import read_points
+from tromplab.loading.tables import InputNote, read_table
 
 from .conftest import LAB_CLASS_HEADER, LAB_CLASS_ROWS, ROOT
 from .strategies import lab_tables, mutated, points_tables, write_frame

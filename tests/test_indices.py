@@ -5,8 +5,8 @@ import pytest
 from numpy.testing import assert_allclose
 from scipy import special
 
-from tromplab.formulas import FORMULAS, get_formula
-from tromplab.indices import (
+from tromplab.curves.formulas import FORMULAS, get_formula
+from tromplab.curves.indices import (
     curve_indices,
     efficiency,
     efficiency_by_quadrature,
@@ -146,7 +146,7 @@ def test_extrapolated_indices_are_named():
 
 @pytest.mark.parametrize("formula", FORMULAS, ids=[f.id for f in FORMULAS])
 def test_eta_flag_follows_the_share_below_the_smallest_size(formula):
-    from tromplab.indices import EXTRAPOLATED_SHARE
+    from tromplab.curves.indices import EXTRAPOLATED_SHARE
 
     shape = formula.clip_shape(formula.shape_for_slope(-0.8))
     for smallest in (0.02, 0.05, 0.2, 0.5):
@@ -176,7 +176,7 @@ def _curves_across(formula, seed=11):
 
 @pytest.mark.parametrize("formula", FORMULAS, ids=[f.id for f in FORMULAS])
 def test_batched_indices_equal_the_single_curve_indices(formula):
-    from tromplab.indices import batch_curve_indices
+    from tromplab.curves.indices import batch_curve_indices
 
     shapes, d_cut, delta_max, measured, efficiency_of = _curves_across(formula)
     extra = {"measured_efficiency": efficiency_of} if formula.context_from_efficiency else {}
@@ -197,7 +197,7 @@ def test_batched_indices_equal_the_single_curve_indices(formula):
 @pytest.mark.parametrize("formula", [f for f in FORMULAS if f.efficiency is None], ids=lambda f: f.id)
 @pytest.mark.parametrize("x_max", [1.0, 6.0, 500.0, 1e5])
 def test_batched_quadrature_against_adaptive_quadrature(formula, x_max):
-    from tromplab.indices import batch_curve_indices
+    from tromplab.curves.indices import batch_curve_indices
 
     shapes = np.array(shapes_across_bounds(formula, count=11))
     batched = batch_curve_indices(formula, np.ones_like(shapes), shapes, delta_max=np.full(shapes.size, x_max))
@@ -206,7 +206,7 @@ def test_batched_quadrature_against_adaptive_quadrature(formula, x_max):
 
 
 def test_batched_d25_is_exact_for_flat_curves():
-    from tromplab.indices import batch_curve_indices
+    from tromplab.curves.indices import batch_curve_indices
 
     ks = np.array([0.05, 0.1, 2.0, 60.0])  # plitt: d25 = 3^(-1/ks), 3e-10 at ks = 0.05
     found = batch_curve_indices("plitt", np.ones(4), ks, delta_max=np.full(4, 5.0))
@@ -215,7 +215,7 @@ def test_batched_d25_is_exact_for_flat_curves():
 
 
 def test_batched_indices_refuse_curves_with_extras():
-    from tromplab.indices import batch_curve_indices
+    from tromplab.curves.indices import batch_curve_indices
 
     with pytest.raises(ValueError, match="curve_indices"):
         batch_curve_indices("plitt_bypass", [1.0], [2.0], delta_max=[3.0])

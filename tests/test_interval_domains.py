@@ -11,8 +11,8 @@ from hypothesis import strategies as st
 
 import tromplab
 from tromplab.cli import main
-from tromplab.points import TrompPoints
-from tromplab.uncertainty import AVERAGED_QUANTITIES, interval_table, model_average, quantity_domain
+from tromplab.loading.points import TrompPoints
+from tromplab.statistics.uncertainty import AVERAGED_QUANTITIES, interval_table, model_average, quantity_domain
 
 from .conftest import DATASETS
 
@@ -149,7 +149,7 @@ def test_averages_leave_out_a_quantity_the_favoured_formulas_lack():
     phi = tromplab.get_formula("plitt_bypass")(size, 60.0, 3.0, bypass=0.8) + rng.normal(0, 0.005, size.size)
     points = TrompPoints("hydrocyclone", size, np.clip(phi, 0.0, 1.0))
     fits = [tromplab.fit_formula(points, formula) for formula in ("plitt_bypass", "plitt", "lognormal")]
-    table = tromplab.uncertainty.model_average(fits).set_index("quantity")
+    table = tromplab.statistics.uncertainty.model_average(fits).set_index("quantity")
     for missing in ("d50", "ep"):
         assert np.isnan(table.loc[missing, "value"]) and table.loc[missing, "akaike_share"] < 0.5
         assert "not averaged" in table.loc[missing, "note"]

@@ -10,9 +10,9 @@ import pytest
 from numpy.testing import assert_allclose
 
 from tromplab.cli import main
+from tromplab.curves.formulas import get_formula
 from tromplab.errors import InputError
-from tromplab.formulas import get_formula
-from tromplab.lab import (
+from tromplab.loading.lab import (
     LabOptions,
     YieldWarning,
     estimate_fine_yield,

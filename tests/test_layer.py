@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from tromplab.layer import LayerModel, fit_layer_model
+from tromplab.classifiers.layer import LayerModel, fit_layer_model
 
 from .conftest import reference_rows
 

@@ -12,8 +12,8 @@ from numpy.testing import assert_allclose
 
 from tromplab.cli import main
 from tromplab.errors import InputError
-from tromplab.lab import LabOptions, YieldWarning, read_experiments, read_lab
-from tromplab.points import read_points
+from tromplab.loading.lab import LabOptions, YieldWarning, read_experiments, read_lab
+from tromplab.loading.points import read_points
 
 from .conftest import DATASETS, ROOT
 

@@ -5,10 +5,10 @@ import pytest
 from numpy.testing import assert_allclose
 
 from tromplab.cli import main
-from tromplab.curves import fit_formula
-from tromplab.formulas import OTHER_FORMULAS, get_formula, select_formulas
-from tromplab.indices import curve_indices
-from tromplab.points import TrompPoints
+from tromplab.curves.curve_fit import fit_formula
+from tromplab.curves.formulas import OTHER_FORMULAS, get_formula, select_formulas
+from tromplab.curves.indices import curve_indices
+from tromplab.loading.points import TrompPoints
 from tromplab.workbench import fit_experiments
 
 from .conftest import reference_rows, shapes_across_bounds
@@ -113,8 +113,8 @@ def test_formulas_command_lists_the_other_family_and_the_name_clashes(capsys):
 
 
 def test_every_registered_curve_gets_its_own_figure_style():
-    from tromplab.formulas import ALL_FORMULAS
-    from tromplab.plotting import curve_styles
+    from tromplab.curves.formulas import ALL_FORMULAS
+    from tromplab.output.plotting import curve_styles
 
     styles = [(s["color"], s["ls"]) for s in curve_styles(len(ALL_FORMULAS))]
     assert len(set(styles)) == len(ALL_FORMULAS) > 12

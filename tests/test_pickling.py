@@ -7,8 +7,8 @@ import pandas as pd
 import pytest
 
 import tromplab
-from tromplab.formulas import ALL_FORMULAS
-from tromplab.points import TrompPoints
+from tromplab.curves.formulas import ALL_FORMULAS
+from tromplab.loading.points import TrompPoints
 
 
 @pytest.mark.parametrize("formula", ALL_FORMULAS, ids=lambda f: f.id)

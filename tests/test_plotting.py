@@ -11,10 +11,11 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 from numpy.testing import assert_allclose  # noqa: E402
 
-from tromplab import plotting, sieve  # noqa: E402
-from tromplab.curves import fit_formula  # noqa: E402
-from tromplab.formulas import FORMULAS, get_formula, select_formulas  # noqa: E402
-from tromplab.points import TrompPoints  # noqa: E402
+from tromplab.classifiers import sieve  # noqa: E402
+from tromplab.curves.curve_fit import fit_formula  # noqa: E402
+from tromplab.curves.formulas import FORMULAS, get_formula, select_formulas  # noqa: E402
+from tromplab.loading.points import TrompPoints  # noqa: E402
+from tromplab.output import plotting
 from tromplab.workbench import fit_experiments  # noqa: E402
 
 SIZES = np.geomspace(10, 400, 10)
@@ -37,7 +38,7 @@ def bench():
 
 
 def test_importing_tromplab_styles_and_plots_nothing():
-    code = "import sys, tromplab, tromplab.plotting, tromplab.report, tromplab.cli; print('matplotlib.pyplot' in sys.modules)"
+    code = "import sys, tromplab, tromplab.output.plotting, tromplab.output.report, tromplab.cli; print('matplotlib.pyplot' in sys.modules)"
     assert subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip() == "False"
 
 

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from tromplab.pulp import PulpScreen, fit_pulp_screen
+from tromplab.classifiers.pulp import PulpScreen, fit_pulp_screen
 
 PLAIN, ROTOR = PulpScreen(), PulpScreen(phi=0.0025)
 

@@ -5,9 +5,16 @@ import pandas as pd
 import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
+from tromplab.curves.ranking import (
+    F_TIE_RTOL,
+    INDISTINGUISHABLE_DELTA_AICC,
+    fit_verdicts,
+    rank_formulas,
+    ranks_within,
+    read_f_table,
+)
 from tromplab.errors import InputError
-from tromplab.points import TrompPoints
-from tromplab.ranking import F_TIE_RTOL, INDISTINGUISHABLE_DELTA_AICC, fit_verdicts, rank_formulas, ranks_within, read_f_table
+from tromplab.loading.points import TrompPoints
 from tromplab.workbench import fit_experiments
 
 from .conftest import DATASETS, dataset

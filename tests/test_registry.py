@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from tromplab.curves import _parameter_specs
-from tromplab.formulas import (
+from tromplab.curves.curve_fit import _parameter_specs
+from tromplab.curves.formulas import (
     ALL_FORMULAS,
     EXPRESSION_FUNCTIONS,
     evaluate_expression,
@@ -20,9 +20,9 @@ from tromplab.formulas import (
     shuvalov_break,
     whiten_beta_star,
 )
-from tromplab.parameters import Parameter, d_cut_parameter
-from tromplab.plotting import curve_styles
-from tromplab.points import TrompPoints
+from tromplab.curves.parameters import Parameter, d_cut_parameter
+from tromplab.loading.points import TrompPoints
+from tromplab.output.plotting import curve_styles
 
 from .conftest import ROOT, reference
 
@@ -130,7 +130,7 @@ def test_one_parameter_record_serves_registry_fit_and_comparison():
     assert specs == list(formula.parameters(points.size))
     assert specs[0] == d_cut_parameter(points.size) and specs[0].bounds == (0.01, 800.0)
     assert [s.name for s in specs] == ["d_cut", "alpha", "bypass", "fishhook"]
-    from tromplab.compare import _bounds
+    from tromplab.statistics.compare import _bounds
 
     assert _bounds(get_formula("plitt"), "d_cut", points.size) == specs[0].bounds
     assert _bounds(get_formula("plitt"), "ks", points.size) == get_formula("plitt").shape_bounds

@@ -3,7 +3,7 @@
 from html.parser import HTMLParser
 
 from tromplab.cli import main
-from tromplab.report import SECTIONS
+from tromplab.output.report import SECTIONS
 
 from .conftest import DATASETS
 

@@ -11,8 +11,8 @@ import pytest
 
 import tromplab
 from tromplab.errors import InputError
-from tromplab.points import TrompPoints
-from tromplab.uncertainty import AVERAGED_QUANTITIES
+from tromplab.loading.points import TrompPoints
+from tromplab.statistics.uncertainty import AVERAGED_QUANTITIES
 from tromplab.workbench import FIT_COLUMNS
 
 matplotlib.use("Agg")
@@ -65,8 +65,8 @@ def test_fit_report_holds_parameters_screen_indices_diagnostics_and_warnings(ben
 
 
 def test_failed_fit_still_reads():
-    from tromplab.curves import CurveFit
-    from tromplab.fitting import ParameterFit
+    from tromplab.curves.curve_fit import CurveFit
+    from tromplab.curves.fitting import ParameterFit
 
     points = TrompPoints("flat", [1.0, 2.0, 3.0], [0.5, 0.5, 0.5])
     formula = tromplab.get_formula("plitt")

@@ -5,7 +5,7 @@ import pytest
 from numpy.testing import assert_allclose
 from scipy import stats
 
-from tromplab.screening import critical_f, fisher_screen
+from tromplab.curves.screening import critical_f, fisher_screen
 
 from .conftest import dataset, reference_rows
 

@@ -6,7 +6,7 @@ import pytest
 from numpy.testing import assert_allclose
 from scipy import integrate, stats
 
-from tromplab import sieve
+from tromplab.classifiers import sieve
 from tromplab.cli import main
 
 from .conftest import reference
@@ -300,7 +300,7 @@ def test_identification_from_bin_shares_round_trip():
 
 
 def test_identify_table_computes_p_g_from_the_geometry(tmp_path):
-    from tromplab.tables import read_table
+    from tromplab.loading.tables import read_table
 
     pg = sieve.geometric_probability(2.0, 2.5, 1.5, 1.6)
     gamma = sieve.residue_share(pg * sieve.velocity_probability(SPEEDS, 0.148, 0.051), SIEVE_LENGTH, CELL_PITCH)

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from tromplab.outputs import MANIFEST, SWAP_PAUSE_VARIABLE, clean_stale
+from tromplab.output.outputs import MANIFEST, SWAP_PAUSE_VARIABLE, clean_stale
 
 SIZES = (10, 20, 40, 80, 160, 320)
 CURVE = (0.97, 0.9, 0.7, 0.35, 0.1, 0.02)
@@ -118,7 +118,7 @@ def test_a_run_killed_just_before_the_swap_leaves_the_previous_outputs(tmp_path,
 
 
 def test_the_swap_pause_hook_is_off_unless_set_to_a_positive_number(monkeypatch):
-    from tromplab import outputs
+    from tromplab.output import outputs
 
     slept = []
     monkeypatch.setattr(outputs.time, "sleep", slept.append)

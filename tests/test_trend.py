@@ -7,7 +7,7 @@ from numpy.testing import assert_allclose
 
 from tromplab.cli import main
 from tromplab.errors import InputError
-from tromplab.trend import (
+from tromplab.statistics.trend import (
     SeriesDesign,
     equality_test,
     ewma_chart,
@@ -168,7 +168,7 @@ def test_best_ranked_formula_is_used_when_none_is_given():
 
 
 def test_trend_section_joins_an_ordinary_report_after_its_sections(bundled):
-    from tromplab.report import SECTIONS, Report, add_trend_section
+    from tromplab.output.report import SECTIONS, Report, add_trend_section
 
     report = Report("survey report", "surveys.csv")
     add_trend_section(report, bundled, size_unit="um", figures=False)
@@ -180,7 +180,7 @@ def test_trend_section_joins_an_ordinary_report_after_its_sections(bundled):
 
 
 def test_read_surveys_takes_a_lab_table_with_dates(tmp_path):
-    from tromplab.lab import read_experiments
+    from tromplab.loading.lab import read_experiments
 
     lab = pd.read_csv(DATASETS / "double_deck_screen_decks_lab.csv", comment="#")
     lab["date"] = lab["experiment"].map({"deck_20mesh": "2025-02-01", "deck_65mesh": "2025-01-15"})

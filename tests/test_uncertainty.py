@@ -5,13 +5,13 @@ import pandas as pd
 import pytest
 from numpy.testing import assert_allclose
 
-from tromplab import uncertainty
 from tromplab._synthetic import interval_coverage, synthetic
 from tromplab.cli import main
-from tromplab.curves import fit_formula
-from tromplab.formulas import FORMULAS, get_formula
-from tromplab.points import TrompPoints
-from tromplab.uncertainty import akaike_weights, bootstrap, interval_table, model_average
+from tromplab.curves.curve_fit import fit_formula
+from tromplab.curves.formulas import FORMULAS, get_formula
+from tromplab.loading.points import TrompPoints
+from tromplab.statistics import uncertainty
+from tromplab.statistics.uncertainty import akaike_weights, bootstrap, interval_table, model_average
 
 SIZES = np.geomspace(20, 400, 10)
 PLITT = get_formula("plitt")

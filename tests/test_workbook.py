@@ -5,8 +5,8 @@ import pandas as pd
 import pytest
 from numpy.testing import assert_allclose
 
-from tromplab.views import partition_view
-from tromplab.workbook import column_unit, header_with_unit, strip_unit, write_workbook
+from tromplab.output.views import partition_view
+from tromplab.output.workbook import column_unit, header_with_unit, strip_unit, write_workbook
 
 
 def test_partition_view_turns_partitions_and_the_slope_with_its_bounds():

@@ -5,17 +5,17 @@ The public API (``__all__``, one line each, from each object's own docstring):
 """
 
 from ._version import __version__
-from .compare import nested_f_test, shared_fit
-from .curves import CurveFit, fit_formula
+from .curves.curve_fit import CurveFit, fit_formula
+from .curves.formulas import ALL_FORMULAS, FORMULAS, Formula, get_formula, registry_table, select_formulas
+from .curves.indices import curve_indices
+from .curves.parameters import Parameter
+from .curves.ranking import rank_formulas
 from .errors import InputError
-from .formulas import ALL_FORMULAS, FORMULAS, Formula, get_formula, registry_table, select_formulas
-from .indices import curve_indices
-from .lab import LabOptions, MassBalance, read_experiments, read_lab
-from .parameters import Parameter
-from .points import TrompPoints, read_points
-from .ranking import rank_formulas
-from .report import build_report, write_report
-from .uncertainty import akaike_weights, bootstrap, interval_table, model_average
+from .loading.lab import LabOptions, MassBalance, read_experiments, read_lab
+from .loading.points import TrompPoints, read_points
+from .output.report import build_report, write_report
+from .statistics.compare import nested_f_test, shared_fit
+from .statistics.uncertainty import akaike_weights, bootstrap, interval_table, model_average
 from .workbench import Workbench, fit_experiments, load, model_averages
 
 __all__ = [

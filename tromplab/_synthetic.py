@@ -7,8 +7,8 @@ instead of keeping two copies of the generator in step.
 
 import numpy as np
 
-from tromplab.formulas import FORMULAS
-from tromplab.points import TrompPoints
+from tromplab.curves.formulas import FORMULAS
+from tromplab.loading.points import TrompPoints
 
 
 def synthetic(seed: int, weighted: bool = True) -> TrompPoints:
@@ -61,7 +61,7 @@ def interval_coverage(
 
     Each replicate draws the partition of the true curve (:data:`COVERAGE_TRUTH`) at
     :data:`COVERAGE_SIZES` plus normal noise, fits the same formula and makes the intervals
-    of :func:`tromplab.uncertainty.interval_table` (parameters by profile likelihood when
+    of :func:`tromplab.statistics.uncertainty.interval_table` (parameters by profile likelihood when
     ``profile``, else Wald on the log scale; indices by the delta method on their
     transformed scale). The true indices come from the generating parameters at the same
     ``delta_max`` (the largest size).  ``shape`` replaces the true shape of
@@ -77,10 +77,10 @@ def interval_coverage(
     """
     import pandas as pd
 
-    from tromplab.curves import fit_formula
-    from tromplab.formulas import get_formula
-    from tromplab.indices import curve_indices
-    from tromplab.uncertainty import interval_table
+    from tromplab.curves.curve_fit import fit_formula
+    from tromplab.curves.formulas import get_formula
+    from tromplab.curves.indices import curve_indices
+    from tromplab.statistics.uncertainty import interval_table
 
     curve = get_formula(formula)
     shape = COVERAGE_TRUTH[formula] if shape is None else float(shape)

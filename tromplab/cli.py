@@ -19,17 +19,18 @@ import numpy as np
 import pandas as pd
 
 from ._version import __version__
-from .diagnostics import RESIDUAL_WARNING
-from .engine import check_bootstrap_request
+from .curves.diagnostics import RESIDUAL_WARNING
+from .curves.engine import check_bootstrap_request
+from .curves.formulas import NAME_CLASHES, get_formula, registry_table, select_formulas
+from .curves.ranking import RANK_BY, rank_formulas, read_f_table
+from .curves.screening import DEFAULT_ALPHA
 from .errors import InputError, OptionError
-from .formulas import NAME_CLASHES, get_formula, registry_table, select_formulas
-from .hydrocyclone import water_recovery_statements
-from .lab import KINDS, PARTITION_METHOD_TEXT, PARTITION_METHODS, LabOptions, YieldWarning, read_experiments, read_lab
+from .loading.lab import KINDS, PARTITION_METHOD_TEXT, PARTITION_METHODS, LabOptions, YieldWarning, read_experiments, read_lab
+from .loading.tables import InputNote
 from .model_commands import add_model_commands
-from .outputs import check_input_file, check_output_file, check_output_folder, figure_file_names, replace_folder
-from .ranking import RANK_BY, rank_formulas, read_f_table
-from .screening import DEFAULT_ALPHA
-from .tables import InputNote
+from .output.outputs import check_input_file, check_output_file, check_output_folder, figure_file_names, replace_folder
+from .output.views import PARTITION_TO, balance_view, partition_view
+from .statistics.hydrocyclone import water_recovery_statements
 from .validation import (
     MAX_BOOTSTRAP,
     MAX_DECKS,
@@ -43,7 +44,6 @@ from .validation import (
     check_water_recovery,
     cli_type,
 )
-from .views import PARTITION_TO, balance_view, partition_view
 from .workbench import fit_experiments, model_averages, print_progress, write_atomically
 
 #: Above this many experiments, --figures auto draws one overview figure and the console
@@ -611,8 +611,8 @@ def _run_balance(args) -> int:
 
 
 def _run_sieve_identify(args) -> int:
-    from .sieve import identify_from_table
-    from .tables import read_table
+    from .classifiers.sieve import identify_from_table
+    from .loading.tables import read_table
 
     check_input_file(args.data)
     check_output_file(args.output, inputs=[args.data])
@@ -629,7 +629,7 @@ def _run_sieve_identify(args) -> int:
 
 
 def _run_sieve_pg(args) -> int:
-    from .sieve import closed_form_valid, geometric_probability
+    from .classifiers.sieve import closed_form_valid, geometric_probability
 
     value = geometric_probability(args.hole, args.length, args.width, args.cell_width / 2, method=args.method)
     closed = closed_form_valid(args.hole, args.length, args.width, args.cell_width / 2)
@@ -641,7 +641,7 @@ def _run_sieve_pg(args) -> int:
 
 
 def _run_sieve_bin(args) -> int:
-    from .sieve import design_bin, distance_moments
+    from .classifiers.sieve import design_bin, distance_moments
 
     for method in ("exact", "normal"):
         design = design_bin(args.decks, args.length, args.recovery, method=method)
@@ -722,7 +722,7 @@ def _run_fit(args) -> int:
         _refuse_if_nothing_fitted(bench, args.input)
         fits, ranking = bench.fits_table(), bench.ranking_table()
         if args.ci is not None or args.bootstrap:
-            from .uncertainty import interval_columns
+            from .statistics.uncertainty import interval_columns
 
             with _progress_bar(len(bench.fits), "intervals", quiet=quiet) as progress:
                 intervals = interval_columns(
@@ -897,7 +897,7 @@ def _formula_keys(args):
 
 
 def _run_report(args) -> int:
-    from .report import build_report, write_report
+    from .output.report import build_report, write_report
 
     formulas = _checked_formulas(args)
     check_input_file(args.input)
@@ -936,7 +936,7 @@ def _run_report(args) -> int:
 
 
 def _run_compare(args) -> int:
-    from .compare import shared_fit
+    from .statistics.compare import shared_fit
 
     check_input_file(args.input)
     experiments, _ = read_experiments(args.input, _lab_options(args))
@@ -966,7 +966,7 @@ def _run_compare(args) -> int:
 
 
 def _run_export(args) -> int:
-    from .export import export_fits
+    from .output.export import export_fits
 
     folder = args.fits_dir if args.fits_dir.is_dir() else args.fits_dir.parent
     output = args.output or folder / f"export_{args.to.replace('-', '_')}.csv"
@@ -986,7 +986,7 @@ def _run_export(args) -> int:
 
 
 def _run_trend(args) -> int:
-    from .trend import monitor_surveys, read_surveys, write_trend
+    from .statistics.trend import monitor_surveys, read_surveys, write_trend
 
     check_input_file(args.input)
     check_output_folder(args.outdir, inputs=[args.input])
@@ -1076,7 +1076,7 @@ def _overview_png(fits) -> bytes:
     import matplotlib
 
     matplotlib.use("Agg")
-    from .plotting import plot_batch_overview, save_figure
+    from .output.plotting import plot_batch_overview, save_figure
 
     buffer = io.BytesIO()
     save_figure(plot_batch_overview(fits)[0], buffer)
@@ -1087,7 +1087,7 @@ def _figure_png(fits, size_unit, best, partition_to) -> bytes:
     import matplotlib
 
     matplotlib.use("Agg")
-    from .plotting import plot_tromp_fits, save_figure
+    from .output.plotting import plot_tromp_fits, save_figure
 
     buffer = io.BytesIO()
     save_figure(plot_tromp_fits(fits, size_unit=size_unit, best=best, partition_to=partition_to), buffer)
@@ -1097,9 +1097,9 @@ def _figure_png(fits, size_unit, best, partition_to) -> bytes:
 def _write_fit_outputs(args, bench, experiments, balances, fits, ranking, averages, failures) -> dict[str, Path]:
     """Write the fit's tables and figures: CSVs and PNGs into the folder (and results.xlsx
     with ``--excel``), or only the workbook when ``-o`` names a .xlsx file.  The folder is
-    replaced as a whole only when everything is written (:func:`tromplab.outputs.replace_folder`):
+    replaced as a whole only when everything is written (:func:`tromplab.output.outputs.replace_folder`):
     no stale figure of an earlier run stays beside the new tables."""
-    from .workbook import write_workbook
+    from .output.workbook import write_workbook
 
     size_unit = _data_size_unit(experiments, args.size_unit)
     figures = {}

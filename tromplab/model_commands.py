@@ -19,7 +19,7 @@ import numpy as np
 import pandas as pd
 
 from .errors import InputError, OptionError
-from .outputs import check_input_file, check_output_file
+from .output.outputs import check_input_file, check_output_file
 from .validation import check_count, check_non_negative, check_positive, check_probability, check_share, cli_type
 from .workbench import write_atomically
 
@@ -213,7 +213,7 @@ def _initial(args) -> list[float]:
 
 
 def run_layer_simulate(args) -> int:
-    from .layer import LayerModel
+    from .classifiers.layer import LayerModel
 
     _check_paths(args)
     try:
@@ -243,8 +243,8 @@ def run_layer_simulate(args) -> int:
 
 
 def run_layer_fit(args) -> int:
-    from .layer import fit_layer_model
-    from .tables import read_table
+    from .classifiers.layer import fit_layer_model
+    from .loading.tables import read_table
 
     _check_paths(args)
     table = read_table(args.data)
@@ -313,7 +313,7 @@ _PULP_HELP = {
 
 
 def _add_pulp(commands) -> None:
-    from .pulp import PulpScreen
+    from .classifiers.pulp import PulpScreen
 
     pulp = commands.add_parser("pulp", help="productivity of a pulp pressure screen with pulsation cleaning")
     pulp_commands = pulp.add_subparsers(dest="pulp_command", metavar="PULP_COMMAND", required=True)
@@ -358,7 +358,7 @@ def _add_pulp(commands) -> None:
 
 
 def _pulp_screen(args):
-    from .pulp import PulpScreen
+    from .classifiers.pulp import PulpScreen
 
     values = {item.name: getattr(args, item.name) for item in fields(PulpScreen)}
     try:
@@ -389,8 +389,8 @@ def run_pulp_optimum(args) -> int:
 
 
 def run_pulp_fit(args) -> int:
-    from .pulp import fit_pulp_screen
-    from .tables import read_table
+    from .classifiers.pulp import fit_pulp_screen
+    from .loading.tables import read_table
 
     _check_paths(args)
     table = read_table(args.data)
@@ -495,7 +495,7 @@ def _add_optimize(commands) -> None:
 
 
 def run_optimize(args) -> int:
-    from .choice import choose, sieve_speed_problem
+    from .classifiers.choice import choose, sieve_speed_problem
 
     _check_paths(args)
     if not args.speed_min < args.speed_max:

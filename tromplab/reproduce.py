@@ -13,8 +13,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from . import sieve
-from .ranking import rank_formulas, read_f_table
+from .classifiers import sieve
+from .curves.ranking import rank_formulas, read_f_table
 
 # Example of the kinetics paper: sieve 1.6 x 1.0 m, cells 3.2 x 3.2 mm, hole 2 mm,
 # bulk density 1150 kg/m3, feed gap 4 mm, printed kinetic coefficients of two fractions.

@@ -1,6 +1,6 @@
 """Batch fitting: every formula to every experiment, screened and ranked.
 
-A failing formula gives a failed :class:`~tromplab.curves.CurveFit`; a failing
+A failing formula gives a failed :class:`~tromplab.curves.curve_fit.CurveFit`; a failing
 experiment (too few points, say) is recorded in ``failures`` and skipped by the
 ranking.  Neither stops the batch.
 """
@@ -17,11 +17,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .curves import CurveFit, attach_diagnostics, attach_indices, failed_fit, fit_formula
-from .formulas import Formula, select_formulas
-from .points import TrompPoints
-from .ranking import add_delta_aicc, add_ranks, fit_verdicts, rank_formulas
-from .screening import DEFAULT_ALPHA
+from .curves.curve_fit import CurveFit, attach_diagnostics, attach_indices, failed_fit, fit_formula
+from .curves.formulas import Formula, select_formulas
+from .curves.ranking import add_delta_aicc, add_ranks, fit_verdicts, rank_formulas
+from .curves.screening import DEFAULT_ALPHA
+from .loading.points import TrompPoints
 from .validation import check_optional, check_positive, check_probability, check_water_recovery
 
 logger = logging.getLogger(__name__)
@@ -87,7 +87,7 @@ class Workbench:
     def fits_table(self) -> pd.DataFrame:
         """One row per experiment and formula (columns :data:`FIT_COLUMNS`; with a
         ``water_recovery`` also ``water_recovery`` and ``water_recovery_check``, the
-        fitted bypass compared with it, see :mod:`tromplab.hydrocyclone`)."""
+        fitted bypass compared with it, see :mod:`tromplab.statistics.hydrocyclone`)."""
         return self._fits_frame.copy()
 
     @cached_property
@@ -117,7 +117,7 @@ class Workbench:
         table["delta_aicc"] = add_delta_aicc(table)
         table = table.reindex(columns=list(FIT_COLUMNS))
         if self.water_recovery is not None:
-            from .hydrocyclone import bypass_against_water_recovery
+            from .statistics.hydrocyclone import bypass_against_water_recovery
 
             checks = bypass_against_water_recovery(self.fits, self.water_recovery)
             table = table.merge(checks, on=["experiment", "formula"], how="left")
@@ -170,7 +170,7 @@ class Workbench:
         return ranking.sort_values(["place", "equation"]).reset_index(drop=True)
 
     def verdicts(self, experiment: str) -> list[str]:
-        """Plain-language statements on the fits of an experiment (:func:`tromplab.ranking.fit_verdicts`)."""
+        """Plain-language statements on the fits of an experiment (:func:`tromplab.curves.ranking.fit_verdicts`)."""
         table = self._fits_frame
         fits = self.fits_of(experiment)
         sizes = (float(fits[0].points.size.min()), float(fits[0].points.size.max())) if fits else None
@@ -194,14 +194,14 @@ class Workbench:
     def experiments(self) -> list[str]:
         return list(self._by_experiment)
 
-    # --- readable views and saving (tromplab.results) ---------------------------------------
+    # --- readable views and saving (tromplab.output.results) ---------------------------------------
     def __repr__(self) -> str:
-        from .results import workbench_repr
+        from .output.results import workbench_repr
 
         return workbench_repr(self)
 
     def _repr_html_(self) -> str:
-        from .results import workbench_html
+        from .output.results import workbench_html
 
         return workbench_html(self)
 
@@ -219,11 +219,11 @@ class Workbench:
 
     def plot(self, experiment: str | None = None, *, ax=None, **options):
         """Measured points and fitted curves of one experiment (the first by default),
-        best fit thick with its band; ``options`` go to :func:`tromplab.plotting.plot_tromp_fits`.
+        best fit thick with its band; ``options`` go to :func:`tromplab.output.plotting.plot_tromp_fits`.
 
         Returns the matplotlib Axes.
         """
-        from .plotting import plot_tromp_fits
+        from .output.plotting import plot_tromp_fits
 
         experiment = self.experiments[0] if experiment is None else experiment
         if experiment not in self.experiments:
@@ -236,7 +236,7 @@ class Workbench:
         ``balances``: the mass balances of lab input (from :func:`tromplab.read_lab`), for
         the balance section.  Returns ``{file name: path}`` of the written files.
         """
-        from .report import build_report, write_report
+        from .output.report import build_report, write_report
 
         sources = dict.fromkeys(fit.points.source for fit in self.fits if fit.points.source)
         source = ", ".join(sources) or "data given in Python"
@@ -245,7 +245,7 @@ class Workbench:
 
     def save(self, directory) -> dict[str, Path]:
         """Save the batch with its inputs, options and version (see :func:`tromplab.load`)."""
-        from .results import save_workbench
+        from .output.results import save_workbench
 
         return save_workbench(self, directory)
 
@@ -295,15 +295,15 @@ def fit_experiments(
     client : dask.distributed.Client, optional
         Run the chunks on this Dask cluster instead of local processes.
     engine : bool
-        Fit with the batched engine (:mod:`tromplab.engine`); False fits one experiment
-        and formula at a time with :func:`tromplab.curves.fit_formula`.
+        Fit with the batched engine (:mod:`tromplab.curves.engine`); False fits one experiment
+        and formula at a time with :func:`tromplab.curves.curve_fit.fit_formula`.
     size_unit : str
         Unit of the sizes, recorded on every fit (``CurveFit.options``).
     water_recovery : float, optional
         Share of the feed water reporting to the underflow (hydrocyclones), in [0, 1).
         The formulas are still fitted to the actual partition; the fits table gains
         ``water_recovery`` and ``water_recovery_check`` (the fitted bypass of the curves
-        with bypass against it, :func:`tromplab.hydrocyclone.bypass_against_water_recovery`).
+        with bypass against it, :func:`tromplab.statistics.hydrocyclone.bypass_against_water_recovery`).
 
     Returns
     -------
@@ -373,7 +373,7 @@ def fit_chunk(experiments: Sequence[TrompPoints], *, formulas, alpha, delta_max,
     Batchable formulas go through the engine for all experiments at once; the others
     (and a formula whose batch raised) are fitted one by one.
     """
-    from .engine import fit_formula_batch, is_batchable
+    from .curves.engine import fit_formula_batch, is_batchable
 
     per_formula = []
     for formula in select_formulas(formulas):
@@ -440,7 +440,7 @@ def _fit_chunk_star(options, chunk):
 def _as_points(experiments) -> list[TrompPoints]:
     """Points from a sequence of TrompPoints or a Dask DataFrame of points."""
     if hasattr(experiments, "dask") and hasattr(experiments, "compute"):
-        from .points import points_from_frame
+        from .loading.points import points_from_frame
 
         return points_from_frame(experiments.compute(), source="dask dataframe")
     return list(experiments)
@@ -456,7 +456,7 @@ def load(directory) -> Workbench:
     directory : str or path-like
         A directory written by :meth:`Workbench.save`.
     """
-    from .results import load_workbench
+    from .output.results import load_workbench
 
     return load_workbench(directory)
 
@@ -485,7 +485,7 @@ def _ambiguous_measured_cut(points: TrompPoints) -> str | None:
     """A note when the measured cut, and with it formula (11)'s measured efficiency, moves
     far with partitions changed within :data:`curves.CUT_BAND` (a plateau at 1/2, or a
     curve crossing 1/2 more than once): the fit of (11) then hangs on the data's last digits."""
-    from .curves import AMBIGUOUS_CUT_RATIO, CUT_BAND, measured_cut_band, measured_efficiency
+    from .curves.curve_fit import AMBIGUOUS_CUT_RATIO, CUT_BAND, measured_cut_band, measured_efficiency
 
     low, high = measured_cut_band(points)
     if not high > AMBIGUOUS_CUT_RATIO * low:
@@ -533,7 +533,7 @@ def model_averages(bench: Workbench, *, level: float = 0.95, jobs: int | None = 
 
 
 def _averages_of_chunk(level, groups) -> list[pd.DataFrame]:
-    from .uncertainty import batched_delta_indices, model_average
+    from .statistics.uncertainty import batched_delta_indices, model_average
 
     known = batched_delta_indices([fit for fits in groups for fit in fits])  # the whole chunk in one call per formula
     frames = [model_average(fits, level=level, known=known).assign(experiment=fits[0].experiment) for fits in groups]
@@ -563,8 +563,8 @@ def write_atomically(outputs: dict[str, Callable[[Path], None]], outdir) -> dict
 
     ``outputs`` maps file names to writers taking a path.  If any writer fails, nothing
     is left in ``outdir``.  For a whole output folder that replaces the previous run in
-    one step, see :func:`tromplab.outputs.replace_folder`.
+    one step, see :func:`tromplab.output.outputs.replace_folder`.
     """
-    from .outputs import write_files
+    from .output.outputs import write_files
 
     return write_files(outputs, outdir)

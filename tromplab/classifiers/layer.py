@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from .fitting import ParameterFit, ParameterSpec, least_squares
+from ..curves.fitting import ParameterFit, ParameterSpec, least_squares
 
 
 @dataclass(frozen=True)

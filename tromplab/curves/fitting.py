@@ -17,10 +17,10 @@ from dataclasses import dataclass, field
 import lmfit
 import numpy as np
 
-from .errors import InputError
+from ..errors import InputError
 from .parameters import Parameter
 
-#: The fitting layer's name for :class:`tromplab.parameters.Parameter` (the one parameter record).
+#: The fitting layer's name for :class:`tromplab.curves.parameters.Parameter` (the one parameter record).
 ParameterSpec = Parameter
 
 

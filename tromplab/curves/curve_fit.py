@@ -23,11 +23,11 @@ from functools import cached_property
 import numpy as np
 from scipy import optimize
 
+from ..loading.points import TrompPoints
 from .diagnostics import RESIDUAL_WARNING, ResidualDiagnostics, residual_diagnostics
 from .fitting import ParameterFit, ParameterSpec, least_squares, on_bound
 from .formulas import Formula, NoBreakPointError, get_formula, shuvalov_break
 from .indices import CurveIndices, curve_indices
-from .points import TrompPoints
 from .screening import DEFAULT_ALPHA, FisherScreen, check_screenable, fisher_screen
 
 GRID_SLOPES = -np.geomspace(0.02, 20.0, 41)
@@ -278,20 +278,20 @@ class CurveFit:
             "warnings": "; ".join(self.warnings),
         }
 
-    # --- readable views (tromplab.results): the same fields as row(), for notebooks and logs
+    # --- readable views (tromplab.output.results): the same fields as row(), for notebooks and logs
     def __repr__(self) -> str:
-        from .results import fit_repr
+        from ..output.results import fit_repr
 
         return fit_repr(self)
 
     def _repr_html_(self) -> str:
-        from .results import fit_html
+        from ..output.results import fit_html
 
         return fit_html(self)
 
     def summary(self):
         """One-row :class:`pandas.DataFrame` with the columns of ``fits.csv`` except ``rank``."""
-        from .results import fit_summary
+        from ..output.results import fit_summary
 
         return fit_summary(self)
 
@@ -299,7 +299,7 @@ class CurveFit:
         """Text report: parameters with standard errors and ``level`` intervals (profile
         likelihood, else Wald), the F screen, indices with delta-method errors, residual
         diagnostics and warnings (like lmfit's ``fit_report``)."""
-        from .results import fit_report
+        from ..output.results import fit_report
 
         return fit_report(self, level=level, profile=profile)
 
@@ -307,8 +307,8 @@ class CurveFit:
 def attach_indices(fits) -> None:
     """Compute the indices of many fits at once and cache them on each fit.
 
-    Successful fits of the formulas :func:`tromplab.indices.batchable_indices` covers are
-    grouped by formula and go through :func:`tromplab.indices.batch_curve_indices` (one
+    Successful fits of the formulas :func:`tromplab.curves.indices.batchable_indices` covers are
+    grouped by formula and go through :func:`tromplab.curves.indices.batch_curve_indices` (one
     array computation per formula instead of root finding and quadrature per fit); the
     cached ``CurveFit.indices`` is then not computed again.  Other fits are left to the
     lazy property.
@@ -336,7 +336,7 @@ def attach_indices(fits) -> None:
 def attach_diagnostics(fits) -> None:
     """Compute the residual diagnostics of many fits at once and cache them on each fit.
 
-    :func:`tromplab.diagnostics.batch_residual_diagnostics` gives the values
+    :func:`tromplab.curves.diagnostics.batch_residual_diagnostics` gives the values
     ``CurveFit.diagnostics`` would compute fit by fit; fits without residuals (failed
     ones) are left to the lazy property.
     """

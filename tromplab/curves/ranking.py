@@ -43,9 +43,9 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from .errors import InputError
+from ..errors import InputError
+from ..loading.tables import read_table
 from .screening import DEFAULT_ALPHA, critical_f
-from .tables import read_table
 
 RANK_BY = {"F": False, "aicc": True}  # criterion -> lower is better
 #: Relative difference of F below which two formulas share their rank.

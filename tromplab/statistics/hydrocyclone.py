@@ -30,7 +30,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from .validation import check_water_recovery
+from ..validation import check_water_recovery
 
 #: Confidence level of the bypass interval the water recovery is compared with.
 BYPASS_CHECK_LEVEL = 0.95

@@ -37,9 +37,9 @@ import numpy as np
 import pandas as pd
 from scipy import optimize
 
-from .errors import InputError
-from .formulas import LN2, get_formula, whiten_beta_star
-from .tables import read_table
+from ..curves.formulas import LN2, get_formula, whiten_beta_star
+from ..errors import InputError
+from ..loading.tables import read_table
 
 #: ln 2 as Plitt (1976) and Dyssol's Screen unit print it.
 PLITT_LN2 = 0.693

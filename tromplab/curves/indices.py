@@ -1,6 +1,6 @@
 """Efficiency indices of a separation curve.
 
-All indices are computed from a formula of :mod:`tromplab.formulas` with given ``d_cut``
+All indices are computed from a formula of :mod:`tromplab.curves.formulas` with given ``d_cut``
 and shape, in the conventions of Shuvalov et al. (2018), section 3 of the package spec:
 
 * classifier efficiency (Ushakov), the recovery of fines:

@@ -12,7 +12,7 @@ section 6):
   ``lambda = P V / (2a)``, oversize share ``gamma = exp(-P L / (2a))``, efficiency
   ``E = gamma_i^i (1 - gamma_i^{i+1})`` and capacity ``Q = rho h B V``;
 * identification of ``(Vk, sigma)`` from residues measured at several speed regimes,
-  through the common fitting layer (:mod:`tromplab.fitting`);
+  through the common fitting layer (:mod:`tromplab.curves.fitting`);
 * the multi-deck random-walk (Pascal) model: cell distribution, distance distribution
   on the m-th deck, bin design for a required recovery.
 
@@ -35,8 +35,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import integrate, optimize, special, stats
 
-from .errors import InputError
-from .fitting import ParameterFit, ParameterSpec, least_squares
+from ..curves.fitting import ParameterFit, ParameterSpec, least_squares
+from ..errors import InputError
 
 SECONDS_PER_HOUR = 3600.0
 
@@ -375,7 +375,7 @@ def design_bin(decks, sieve_length, recovery, *, method="exact") -> BinDesign:
     >>> round(b.c, 2), round(b.x1, 4)
     (14.22, 0.9867)
     """
-    from .validation import MAX_DECKS, check_count
+    from ..validation import MAX_DECKS, check_count
 
     check_count(decks, "decks", maximum=MAX_DECKS)
     if not 0 < recovery < 1:
@@ -482,7 +482,7 @@ def fit_dependence(hole_diameter, length, values, *, form=DEFAULT_DEPENDENCE) ->
     """
     import inspect
 
-    from .fitting import expression_function
+    from ..curves.fitting import expression_function
 
     D, l, y = (np.asarray(v, dtype=float) for v in (hole_diameter, length, values))
     if not D.shape == l.shape == y.shape:
@@ -524,7 +524,7 @@ def identify_from_table(table, *, two_sided: bool = False, level: float = 0.95):
     """
     import pandas as pd
 
-    from .errors import InputError
+    from ..errors import InputError
 
     table.require(*IDENTIFY_COLUMNS)
     table.refuse_unknown((*IDENTIFY_COLUMNS, "P_g", *PG_COLUMNS), what="residue table")

@@ -1,6 +1,6 @@
 """Batched fitting engine: one formula fitted to many experiments (or resamples) at once.
 
-The single fit of :func:`tromplab.curves.fit_formula` runs a Python-level grid and three
+The single fit of :func:`tromplab.curves.curve_fit.fit_formula` runs a Python-level grid and three
 lmfit solves per experiment; most of its time is interpreter and solver overhead, not
 model evaluation.  This engine reaches the same least-squares optimum with numpy arrays
 that hold every experiment and every starting point at once:
@@ -29,8 +29,8 @@ only) are reported by :func:`is_batchable` as not batchable and fitted one by on
 caller.
 
 The engine itself does not use lmfit; :func:`fit_formula_batch` wraps its optimum in the
-same :class:`~tromplab.curves.CurveFit` a single fit returns, and
-:func:`tromplab.curves.with_lmfit` turns it into an lmfit result where one is needed
+same :class:`~tromplab.curves.curve_fit.CurveFit` a single fit returns, and
+:func:`tromplab.curves.curve_fit.with_lmfit` turns it into an lmfit result where one is needed
 (profile intervals).
 """
 
@@ -44,10 +44,10 @@ from functools import cache
 import numpy as np
 from scipy import special
 
+from ..loading.points import TrompPoints
 from .formulas import LN2, Formula, _rosin_rammler_area, get_formula, rosin_rammler
-from .points import TrompPoints
 
-#: Slopes at the cut of the shape grid (as :data:`tromplab.curves.GRID_SLOPES`, every other one).
+#: Slopes at the cut of the shape grid (as :data:`tromplab.curves.curve_fit.GRID_SLOPES`, every other one).
 ENGINE_GRID_SLOPES = -np.geomspace(0.02, 20.0, 21)
 #: The piecewise formulas (10) and (11) have kinks in the sum of squares, where a descent
 #: method can stop short: they get the single fit's full grid and more starts from it.
@@ -178,11 +178,11 @@ def shuvalov_breaks(kr, efficiency) -> np.ndarray:
     Newton's steps stall (about 35 per root), while in :math:`w` the derivative
     :math:`dF/dw = -\ln 2\, k_r \varphi_5(x_a) / (k_r + 1)` never vanishes and a root
     takes about 7 steps.  Outside :math:`[1/2, \eta_5]` the nearer end is returned, as
-    :func:`tromplab.formulas.shuvalov` does.
+    :func:`tromplab.curves.formulas.shuvalov` does.
 
     Examples
     --------
-    >>> from tromplab.formulas import shuvalov_break
+    >>> from tromplab.curves.formulas import shuvalov_break
     >>> bool(abs(shuvalov_breaks(2.0, 0.8) - shuvalov_break(2.0, 0.8)) < 1e-13)
     True
     """
@@ -611,17 +611,17 @@ def fit_formula_batch(
     start: dict[str, float] | None = None,
     size_unit: str = "",
 ) -> list:
-    """:func:`tromplab.curves.fit_formula` for many experiments at once.
+    """:func:`tromplab.curves.curve_fit.fit_formula` for many experiments at once.
 
-    Returns one :class:`~tromplab.curves.CurveFit` per experiment, in order, with the same
+    Returns one :class:`~tromplab.curves.curve_fit.CurveFit` per experiment, in order, with the same
     recorded options as a single fit, so its screen, indices, diagnostics and warnings
     are derived in the same way.  The fit's ``ParameterFit`` is built from the batched
-    optimum (``raw`` is None; :func:`tromplab.curves.with_lmfit` gives an lmfit result).
+    optimum (``raw`` is None; :func:`tromplab.curves.curve_fit.with_lmfit` gives an lmfit result).
     Experiments with too few points for the formula get a failed fit with the reason.
     ``global_search`` and ``start`` (one further start for every experiment) are as for a
     single fit; the bootstrap refits its resamples from the optimum without the grid.
     """
-    from .curves import CurveFit, FitOptions, failed_fit, formula_context, measured_cut_size, measured_slope
+    from .curve_fit import CurveFit, FitOptions, failed_fit, formula_context, measured_cut_size, measured_slope
     from .screening import DEFAULT_ALPHA
 
     alpha = DEFAULT_ALPHA if alpha is None else alpha
@@ -664,7 +664,7 @@ def fit_formula_batch(
 
 
 def _parameter_fit(optimum: BatchOptimum, row: int, stderr: np.ndarray, points: TrompPoints):
-    from .curves import _parameter_specs
+    from .curve_fit import _parameter_specs
     from .fitting import ParameterFit, parameters_at_bounds
 
     specs = _parameter_specs(optimum.formula, points)
@@ -739,7 +739,7 @@ def refit_resamples(fit, samples: Sequence[TrompPoints], *, delta_max: float | N
     starts=[fit values])`` per resample; formulas the engine cannot evaluate on arrays are
     refitted one by one.
     """
-    from .curves import fit_formula
+    from .curve_fit import fit_formula
 
     options = fit.options
     delta_max = options.delta_max if delta_max is None else delta_max

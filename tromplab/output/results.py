@@ -1,6 +1,6 @@
 """Readable views of fit and batch results: short reprs, HTML, summaries, text reports, saving.
 
-:class:`~tromplab.curves.CurveFit` and :class:`~tromplab.workbench.Workbench` call these
+:class:`~tromplab.curves.curve_fit.CurveFit` and :class:`~tromplab.workbench.Workbench` call these
 functions from their methods (``repr(fit)``, ``fit.summary()``, ``fit.report()``,
 ``bench.save(dir)``, ...); they are views of the same recorded fields as ``fits.csv``, in
 the spirit of lmfit's ``fit_report`` and statsmodels' ``summary()``.
@@ -16,8 +16,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ._version import __version__
-from .errors import InputError
+from .._version import __version__
+from ..errors import InputError
 
 #: Files of a saved batch (:func:`save_workbench`).
 SAVED_FILES = ("workbench.pkl", "manifest.json", "fits.csv", "ranking.csv", "points.csv")
@@ -56,7 +56,7 @@ def fit_repr(fit) -> str:
 
 def fit_summary(fit) -> pd.DataFrame:
     """One-row DataFrame: the columns of ``fits.csv`` (README, "What the main job writes") but ``rank``."""
-    from .workbench import FIT_COLUMNS
+    from ..workbench import FIT_COLUMNS
 
     return pd.DataFrame([fit.row()]).reindex(columns=[c for c in FIT_COLUMNS if c != "rank"])
 
@@ -82,7 +82,7 @@ def fit_html(fit) -> str:
 def fit_report(fit, *, level: float = 0.95, profile: bool = True) -> str:
     """Text report of one fit: parameters with standard errors and intervals, F screen,
     indices with delta-method standard errors, residual diagnostics and warnings."""
-    from .uncertainty import interval_table
+    from ..statistics.uncertainty import interval_table
 
     formula = fit.formula
     lines = [
@@ -160,7 +160,7 @@ def save_workbench(bench, directory) -> dict[str, Path]:
 
     Written atomically (all files or none).  Load with :func:`load_workbench`.
     """
-    from .workbench import write_atomically
+    from ..workbench import write_atomically
 
     points = pd.concat([p.to_frame() for p in _inputs(bench)], ignore_index=True) if bench.fits else pd.DataFrame()
     manifest = {

@@ -56,7 +56,7 @@ from dataclasses import dataclass, field, fields
 import numpy as np
 import pandas as pd
 
-from .errors import InputError
+from ..errors import InputError
 from .points import SIZE_UNITS, TrompPoints, experiment_rows, normal_unit, resolve_size_unit, size_column_unit
 from .tables import Table, read_table
 
@@ -133,7 +133,7 @@ class LabOptions:
         Share of the feed water reporting to the underflow (coarse product) of a
         hydrocyclone, in [0, 1) (``--water-recovery``); the points table then also gives
         the Kelsall-corrected partition ``partition_fine_corrected`` (see
-        :func:`tromplab.hydrocyclone.kelsall_corrected`).
+        :func:`tromplab.statistics.hydrocyclone.kelsall_corrected`).
     """
 
     kind: str | None = None
@@ -159,7 +159,7 @@ class LabOptions:
             raise ValueError(f"unknown kind {self.kind!r}; choose one of {', '.join(KINDS)}")
         if self.partition_from not in PARTITION_METHODS:
             raise ValueError(f"unknown partition_from {self.partition_from!r}; choose one of {', '.join(PARTITION_METHODS)}")
-        from .validation import (
+        from ..validation import (
             check_non_negative,
             check_optional,
             check_positive,
@@ -261,7 +261,7 @@ class MassBalance:
         ]
         table = table[columns]
         if self.water_recovery is not None:
-            from .hydrocyclone import kelsall_corrected
+            from ..statistics.hydrocyclone import kelsall_corrected
 
             table.insert(3, "partition_fine_corrected", kelsall_corrected(table["partition_fine"], self.water_recovery))
         if unit_in_names and self.size_unit:

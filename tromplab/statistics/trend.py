@@ -23,7 +23,7 @@ term accounts for ``mu0`` being estimated from ``m`` baseline surveys), with ``s
 the standard deviation of the quantity over the baseline surveys: it holds the
 survey-to-survey variation of the classifier as well as the scatter of each fit.
 
-Two joint-fit equality tests (the extra-sum-of-squares test of :mod:`tromplab.compare`,
+Two joint-fit equality tests (the extra-sum-of-squares test of :mod:`tromplab.statistics.compare`,
 on the whole curve: one curve through both data sets against one curve each) are run
 for every survey: against the previous survey (``p_previous``) and against the pooled
 baseline surveys (``p_baseline``).
@@ -46,12 +46,12 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from ..curves.curve_fit import CurveFit, fit_formula, normalised_weights
+from ..curves.fitting import ParameterFit
+from ..curves.formulas import get_formula
+from ..errors import InputError
+from ..loading.points import TrompPoints
 from .compare import ExtraSumOfSquares
-from .curves import CurveFit, fit_formula, normalised_weights
-from .errors import InputError
-from .fitting import ParameterFit
-from .formulas import get_formula
-from .points import TrompPoints
 
 EWMA_LAMBDA = 0.2
 EWMA_L = 3.5
@@ -160,9 +160,9 @@ def read_surveys(path, options=None) -> list[Survey]:
         Naming file, row and column: no date/survey column, a date that cannot be read,
         a survey with two dates, and every error of the points or lab schema.
     """
-    from .lab import LabOptions, _renamed, balances_from_table, is_lab_table
-    from .points import points_from_table
-    from .tables import Table, read_table
+    from ..loading.lab import LabOptions, _renamed, balances_from_table, is_lab_table
+    from ..loading.points import points_from_table
+    from ..loading.tables import Table, read_table
 
     options = options or LabOptions()
     table = _renamed(read_table(path, sheet=options.sheet), options.rename)
@@ -206,8 +206,8 @@ def joint_fit(groups: Sequence[TrompPoints], formula, starts: Sequence[dict]) ->
     are parameter mappings (the groups' own optima are good ones); when empty, the
     data-driven start of the first group is used.
     """
-    from .curves import measured_cut_size, measured_efficiency, measured_slope
-    from .fitting import least_squares
+    from ..curves.curve_fit import measured_cut_size, measured_efficiency, measured_slope
+    from ..curves.fitting import least_squares
 
     formula = get_formula(formula)
     specs = list(formula.parameters(np.concatenate([g.size for g in groups])))
@@ -241,7 +241,7 @@ def equality_test(first: Sequence[TrompPoints], second: Sequence[TrompPoints], f
     ``first`` and ``second`` are groups of surveys (each group fitted with one curve).
     The reduced model has ``p`` parameters, the full one ``2p``; the test has
     ``(p, N - 2p)`` degrees of freedom.  ``fits`` may give the two groups' own fits
-    (:class:`~tromplab.curves.CurveFit` or :class:`~tromplab.fitting.ParameterFit`).
+    (:class:`~tromplab.curves.curve_fit.CurveFit` or :class:`~tromplab.curves.fitting.ParameterFit`).
     """
     formula = get_formula(formula)
     groups = [list(first), list(second)]
@@ -447,7 +447,7 @@ def monitor_surveys(
 
 
 def _best_formula(surveys):
-    from .workbench import fit_experiments
+    from ..workbench import fit_experiments
 
     ranking = fit_experiments([s.points for s in surveys]).ranking_table()
     if ranking.empty:
@@ -461,8 +461,8 @@ def write_trend(result: TrendResult, outdir, *, size_unit: str = "", figures: bo
 
     ``size_unit`` labels the figures and replaces the unit ``size`` in ``trend.csv``.
     """
-    from .report import Report, add_trend_section
-    from .workbench import write_atomically
+    from ..output.report import Report, add_trend_section
+    from ..workbench import write_atomically
 
     table = result.table.replace({"unit": {"size": size_unit}}) if size_unit else result.table
     outputs = {
@@ -473,7 +473,7 @@ def write_trend(result: TrendResult, outdir, *, size_unit: str = "", figures: bo
         import matplotlib
 
         matplotlib.use("Agg")
-        from .plotting import plot_control_chart, save_figure
+        from ..output.plotting import plot_control_chart, save_figure
 
         for quantity in result.quantities:
             outputs[f"trend_{quantity}.png"] = lambda p, q=quantity: save_figure(

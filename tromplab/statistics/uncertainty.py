@@ -26,11 +26,11 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from .curves import CurveFit, attach_indices, formula_context, with_lmfit
-from .engine import refit_resamples
-from .fitting import on_bound
-from .indices import curve_indices
-from .points import TrompPoints
+from ..curves.curve_fit import CurveFit, attach_indices, formula_context, with_lmfit
+from ..curves.engine import refit_resamples
+from ..curves.fitting import on_bound
+from ..curves.indices import curve_indices
+from ..loading.points import TrompPoints
 
 logger = logging.getLogger(__name__)
 
@@ -194,13 +194,13 @@ def batched_delta_indices(fits: Sequence[CurveFit], delta_max: float | None = No
 
     The delta method of a fit evaluates its indices at the fitted values and one step
     either side of each parameter (and of a data-derived input such as formula (11)'s
-    measured efficiency).  For the formulas :func:`~tromplab.indices.batch_curve_indices`
+    measured efficiency).  For the formulas :func:`~tromplab.curves.indices.batch_curve_indices`
     covers, this evaluates all of them for many fits at once; the result, passed as
     ``known`` to :func:`interval_table` or :func:`model_average`, replaces one
-    :func:`~tromplab.indices.curve_indices` call per evaluation (same definitions; the
+    :func:`~tromplab.curves.indices.curve_indices` call per evaluation (same definitions; the
     quadrature agrees with the adaptive one to 1e-9).
     """
-    from .indices import batch_curve_indices, batchable_indices
+    from ..curves.indices import batch_curve_indices, batchable_indices
 
     wanted: dict[str, list] = {}
     for fit in fits:
@@ -358,7 +358,7 @@ def interval_table(
 
 
 def _specs(fit: CurveFit):
-    from .curves import _parameter_specs
+    from ..curves.curve_fit import _parameter_specs
 
     return _parameter_specs(fit.formula, fit.points)
 
@@ -709,7 +709,7 @@ def interval_columns(
     bootstrap limits on a bound.  Keyed by ``experiment`` and ``formula``; failed fits
     get nan.  Every fit's own ``delta_max`` and alpha are used.
     """
-    from .validation import check_bootstrap, check_optional, check_probability, check_seed
+    from ..validation import check_bootstrap, check_optional, check_probability, check_seed
 
     check_optional(check_probability, level, "level")
     n_bootstrap, seed = check_bootstrap(n_bootstrap, "n_bootstrap"), check_seed(seed, "seed")

@@ -22,7 +22,7 @@ from dataclasses import dataclass, fields, replace
 import numpy as np
 from scipy import optimize
 
-from .fitting import ParameterFit, ParameterSpec, least_squares
+from ..curves.fitting import ParameterFit, ParameterSpec, least_squares
 
 
 @dataclass(frozen=True)

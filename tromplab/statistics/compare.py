@@ -16,12 +16,12 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from .curves import CurveFit, fit_formula, measured_efficiency, normalised_weights
-from .errors import InputError
-from .fitting import ParameterFit, ParameterSpec, least_squares
-from .formulas import get_formula
-from .parameters import d_cut_parameter
-from .points import TrompPoints
+from ..curves.curve_fit import CurveFit, fit_formula, measured_efficiency, normalised_weights
+from ..curves.fitting import ParameterFit, ParameterSpec, least_squares
+from ..curves.formulas import get_formula
+from ..curves.parameters import d_cut_parameter
+from ..errors import InputError
+from ..loading.points import TrompPoints
 
 
 @dataclass(frozen=True)

@@ -2,7 +2,7 @@
 
 The formula registry declares its shape and extra parameters with it, the cut size of
 every curve comes from :func:`d_cut_parameter`, and the fitting layer
-(:func:`tromplab.fitting.least_squares`) takes the same records as its bounds, so a
+(:func:`tromplab.curves.fitting.least_squares`) takes the same records as its bounds, so a
 parameter is described in one place only.  This module imports numpy only.
 """
 

@@ -11,7 +11,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .curves import CurveFit
+from ..curves.curve_fit import CurveFit
 
 #: Colours of up to 12 curves: tab10, then a dark indigo and a dark green, as far from every tab10 colour
 #: as the tab10 colours are from each other (RGB distance >= 0.26).
@@ -108,11 +108,11 @@ def save_figure(ax, path, *, dpi: int = 120) -> None:
 def curve_band(fit: CurveFit, size, *, level: float = 0.95):
     """Pointwise delta-method band of a fitted curve: ``(low, high)`` at ``size``.
 
-    Standard errors by :func:`tromplab.uncertainty.delta_standard_errors`.
+    Standard errors by :func:`tromplab.statistics.uncertainty.delta_standard_errors`.
     """
     from scipy import stats
 
-    from .uncertainty import delta_standard_errors
+    from ..statistics.uncertainty import delta_standard_errors
 
     size = np.asarray(size, dtype=float)
     centre = fit.predict(size)
@@ -216,7 +216,7 @@ def _partition_reader(partition_to: str):
 
 
 def plot_pareto(result, *, ax=None):
-    """Pareto front of a :class:`tromplab.choice.ChoiceResult` in the criteria plane, with the
+    """Pareto front of a :class:`tromplab.classifiers.choice.ChoiceResult` in the criteria plane, with the
     single-criterion optima and the compromise marked.  Returns the Axes."""
     ax = _axes(ax)
     first, second = list(result.ranges)
@@ -305,7 +305,7 @@ def plot_ranking(ranking, *, ax=None):
 def plot_equal_slope_family(slope: float, *, ax=None, formulas=None, x_max: float = 3.0):
     """The formulas at equal slope ``slope`` at the cut (Fig. 1 at -0.5, Fig. 2 at -0.4 of
     Shuvalov et al. 2018), against the relative size x = size / d_cut."""
-    from .formulas import FORMULAS
+    from ..curves.formulas import FORMULAS
 
     ax = _axes(ax)
     x = np.linspace(1e-3, x_max, 600)
@@ -339,7 +339,7 @@ def plot_plitt_lognormal_relation(*, ax=None, ks=None):
 
 def plot_geometric_probability(curves, *, ax=None):
     """P_g against D/l for several shape factors (a frame from
-    :func:`tromplab.sieve.geometric_probability_curves`)."""
+    :func:`tromplab.classifiers.sieve.geometric_probability_curves`)."""
     ax = _axes(ax)
     for factor, group in curves.groupby("shape_factor"):
         ax.plot(group["D_over_l"], group["P_g"], label=f"d/l = {factor:g}")
@@ -368,7 +368,7 @@ def plot_residue_and_efficiency(speeds, residues, efficiency, *, labels=("fracti
 def plot_distance_densities(decks: int, c_values, *, bin_edges=None, labels=None, ax=None, x_max: float | None = None):
     """Densities f_m of the distance travelled on the bottom deck for several fractions
     (one ``C`` each), with the collecting bin shaded."""
-    from .sieve import distance_pdf
+    from ..classifiers.sieve import distance_pdf
 
     ax = _axes(ax)
     c_values = list(c_values)
@@ -420,7 +420,7 @@ def plot_batch_overview(fits_table, *, axes=None):
 
 
 def plot_control_chart(result, quantity: str, *, ax=None, size_unit: str = ""):
-    """Control chart of one quantity of a :class:`~tromplab.trend.TrendResult` against the date.
+    """Control chart of one quantity of a :class:`~tromplab.statistics.trend.TrendResult` against the date.
 
     The survey values with their intervals, the baseline period shaded with its mean, the
     EWMA line with its limits, and the flagged surveys (changed) marked.

@@ -40,7 +40,7 @@ def ExtraParameter(name: str, bounds: tuple[float, float], start: float, meaning
     """A parameter beyond ``d_cut`` and the shape (bypass, fish-hook) as a :class:`Parameter`.
 
     Kept under its earlier name so declarations written before the one parameter record
-    still read the same; the record itself is :class:`tromplab.parameters.Parameter`.
+    still read the same; the record itself is :class:`tromplab.curves.parameters.Parameter`.
     """
     low, high = bounds
     return Parameter(name, low, high, unit=unit, meaning=meaning, start=start, start_rule=f"fixed at {start:g}")
@@ -630,7 +630,7 @@ def shuvalov(x, kr, *, measured_efficiency):
         Shape, 0.05..40 (dimensionless), as in :func:`rosin_rammler`.
     measured_efficiency : float
         Classifier efficiency of the measured curve, 0.5..1 (dimensionless;
-        :func:`tromplab.curves.measured_efficiency`).
+        :func:`tromplab.curves.curve_fit.measured_efficiency`).
 
     Returns
     -------

@@ -17,11 +17,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ._version import __version__
-from .hydrocyclone import water_recovery_statements
-from .lab import PARTITION_METHOD_TEXT, MassBalance
-from .uncertainty import interval_table
-from .workbench import Workbench, model_averages
+from .._version import __version__
+from ..loading.lab import PARTITION_METHOD_TEXT, MassBalance
+from ..statistics.hydrocyclone import water_recovery_statements
+from ..statistics.uncertainty import interval_table
+from ..workbench import Workbench, model_averages
 
 SECTIONS = ("summary", "balance", "fits", "parameters", "ranking", "averages", "figures")
 _CSS = """
@@ -279,7 +279,7 @@ def write_report(report: Report, html_path) -> dict[str, Path]:
     html_path : str or path-like
         The HTML file; the Markdown and figures go beside it (written atomically).
     """
-    from .workbench import write_atomically
+    from ..workbench import write_atomically
 
     html_path = Path(html_path)
     stem = html_path.stem
@@ -295,12 +295,12 @@ def write_report(report: Report, html_path) -> dict[str, Path]:
 
 
 def add_trend_section(report: Report, result, *, size_unit: str = "", figures: bool = True) -> None:
-    """Add the monitoring section of a :class:`~tromplab.trend.TrendResult` to ``report``.
+    """Add the monitoring section of a :class:`~tromplab.statistics.trend.TrendResult` to ``report``.
 
     The survey flags, the rule, the tidy table of the charted quantities and (with
     ``figures``) one control chart per quantity captioned ``Control chart of <quantity>``.
     """
-    from .trend import EWMA_L, EWMA_LAMBDA
+    from ..statistics.trend import EWMA_L, EWMA_LAMBDA
 
     if "trend" not in report.order:
         report.order = (*report.order, "trend")

@@ -1,0 +1,1 @@
+"""Sieve classifiers: velocity-probability identification, random walk, Markov layer, pulp screens, choice."""

@@ -1,0 +1,1 @@
+"""Outputs: figures, reports, export, result views and the all-or-nothing writing of output folders."""

@@ -1,0 +1,1 @@
+"""Statistics on fitted curves: intervals and model averages, comparisons between experiments, trends over time, hydrocyclone water recovery."""
