@@ -29,9 +29,23 @@ def _points(path, shift):
     return path
 
 
+def _as_in_a_terminal():
+    # the child of a test run started in the background (``cmd &``, nohup) inherits SIGINT
+    # ignored, and tromplab keeps a signal ignored on purpose; a user's Ctrl-C reaches a
+    # process whose SIGINT is at its default, so the children start that way
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _start(arguments, **environment):
     env = {**os.environ, "PYTHONPATH": str(REPOSITORY), **environment}
-    return subprocess.Popen(LAUNCH + arguments, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, env=env)
+    return subprocess.Popen(
+        LAUNCH + arguments,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+        preexec_fn=_as_in_a_terminal,
+    )
 
 
 def _fit(points, out, **environment):
@@ -191,7 +205,9 @@ def test_a_signal_while_the_interpreter_exits_gives_one_line_and_no_traceback(si
         "sys.exit(tromplab_launch.main())\n"
     )
     env = {**os.environ, "PYTHONPATH": str(REPOSITORY)}
-    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=60)
+    done = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=60, preexec_fn=_as_in_a_terminal
+    )
     assert "Traceback" not in done.stderr
     assert done.returncode == (130 if signum == signal.SIGINT else 143), done.stderr
     assert len(done.stderr.strip().splitlines()) == 1, done.stderr
