@@ -225,3 +225,42 @@ def test_cli_refuses_an_absurd_bootstrap_before_fitting(tmp_path, capsys):
     )  # usage: the parser refuses the count
     assert "100,000 resamples" in capsys.readouterr().err
     assert not (tmp_path / "o").exists()
+
+
+def test_11_finds_its_optimum_where_a_point_crosses_the_break():
+    # a three-class step table (found by the lab-table scaling invariant): the optimum of (11)
+    # sits where the finest point crosses the break, a ridge of kinks; before the search along
+    # crossings the fits stopped up to 1 % above it, differently in each size unit
+    from scipy.optimize import minimize_scalar
+
+    from tromplab import read_experiments
+    from tromplab.curves.curve_fit import formula_context
+
+    third = 100.0 / 3.0
+    frame = pd.DataFrame(
+        {
+            "experiment": "step",
+            "size_lower": [1.5e-6, 1e-6, np.nan],
+            "size_upper": [np.nan, 1.5e-6, 1e-6],
+            "feed_pct": [third, third, third],
+            "fine_pct": [0.0, 0.0, 100.0],
+            "coarse_pct": [400.0 / 9.0, 400.0 / 9.0, 100.0 / 9.0],
+        }
+    )
+    formula = get_formula("shuvalov")
+    found = []
+    for scale in (1.0, 1e-3, 1e3):
+        points = read_experiments(frame.assign(size_lower=frame["size_lower"] * scale, size_upper=frame["size_upper"] * scale))[0]
+        (fit,) = fit_formula_batch(points, formula)
+        found.append((fit.fit.values["d_cut"] / scale, fit.fit.ssr))
+    points = read_experiments(frame)[0][0]
+    efficiency = formula_context(formula, points)["measured_efficiency"]
+
+    def on_crossing(kr):  # the finest point on the break: d_cut = size / x_a(kr); scalar root finding
+        d_cut = points.size[0] / shuvalov_break(kr, efficiency)
+        return float(np.sum((formula.phi(points.size / d_cut, kr, measured_efficiency=efficiency) - points.partition_fine) ** 2))
+
+    independent = minimize_scalar(on_crossing, bounds=(5.0, 10.0), method="bounded", options={"xatol": 1e-10}).fun
+    for d_cut, ssr in found:
+        assert ssr <= independent * (1 + 1e-7)
+        assert_allclose((d_cut, ssr), found[0], rtol=1e-6)

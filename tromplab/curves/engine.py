@@ -500,6 +500,64 @@ def compass_search(
     return params, ssr, nfev
 
 
+#: A measured point within this distance (in ln x) of the break of (11) at the optimum found
+#: so far gets the search along its crossing (:func:`search_break_crossings`).
+CROSSING_NEAR = 0.03
+#: Golden-section steps along a crossing: the bracket of ln kr shrinks by 0.618 per step.
+CROSSING_STEPS = 36
+
+
+def search_break_crossings(problem: _Problem, params: np.ndarray, rows: np.ndarray):
+    """Formula (11): the optimum may sit where a measured point crosses the break, ``size_i /
+    d_cut = x_a(kr)``.  Along that curve the sum of squares has a ridge of kinks that steps
+    along the axes or diagonals (:func:`compass_search`) cannot follow; search it directly:
+    for each point near the break, ``kr`` by golden section on ``ln kr`` (x/÷ 1.25 around the
+    current value) with ``d_cut = size_i / x_a(kr)``.  Rows keep the lower sum of squares.
+    Returns ``(params, ssr, nfev)``."""
+    data = problem.data
+    params = params.copy()
+    ssr = _ssr(problem.residual(params, rows))
+    nfev = np.ones(rows.size, dtype=int)
+    x_break = shuvalov_breaks(params[:, 1], problem.efficiency[rows])
+    with np.errstate(all="ignore"):
+        distance = np.abs(np.log(data.size[rows] / np.exp(params[:, :1])) - np.log(x_break)[:, None])
+    real = np.arange(data.size.shape[1])[None, :] < data.n[rows][:, None]
+    pair_row, pair_point = np.nonzero(real & (distance < CROSSING_NEAR) & np.isfinite(ssr)[:, None])
+    if pair_row.size == 0:
+        return params, ssr, nfev
+    work_rows = rows[pair_row]
+    size = data.size[work_rows, pair_point]
+    efficiency = problem.efficiency[work_rows]
+    shape_low, shape_high = problem.lower[work_rows, 1], problem.upper[work_rows, 1]
+    cut_low, cut_high = problem.lower[work_rows, 0], problem.upper[work_rows, 0]
+    center = np.log(params[pair_row, 1])
+    low = np.maximum(center - np.log(1.25), np.log(shape_low))
+    high = np.minimum(center + np.log(1.25), np.log(shape_high))
+
+    def crossing(log_shape):
+        shape = np.exp(log_shape)
+        with np.errstate(divide="ignore"):  # no break (x_a = 0): the crossing runs off to the cut's bound
+            cut = np.clip(np.log(size / shuvalov_breaks(shape, efficiency)), cut_low, cut_high)
+        trial = np.column_stack([cut, shape])
+        return trial, _ssr(problem.residual(trial, work_rows))
+
+    ratio = (np.sqrt(5.0) - 1.0) / 2.0
+    a, b = low + (1 - ratio) * (high - low), low + ratio * (high - low)
+    (_, at_a), (_, at_b) = crossing(a), crossing(b)
+    for _ in range(CROSSING_STEPS):
+        left = at_a <= at_b  # the minimum lies in [low, b]
+        high, low = np.where(left, b, high), np.where(left, low, a)
+        a, b = low + (1 - ratio) * (high - low), low + ratio * (high - low)
+        (_, at_a), (_, at_b) = crossing(a), crossing(b)
+    trial, trial_ssr = crossing(0.5 * (low + high))
+    np.add.at(nfev, pair_row, 2 * CROSSING_STEPS + 3)
+    for pair in np.argsort(trial_ssr):  # best first, so each row keeps its lowest
+        row = pair_row[pair]
+        if trial_ssr[pair] < ssr[row]:
+            params[row, :2], ssr[row] = trial[pair], trial_ssr[pair]
+    return params, ssr, nfev
+
+
 def fit_batch(
     formula,
     data: PaddedPoints,
@@ -569,6 +627,8 @@ def fit_batch(
             nfev[best] += more
             lower_ssr = kinked_ssr < ssr[best]
             params[best[lower_ssr]], ssr[best[lower_ssr]] = kinked[lower_ssr], kinked_ssr[lower_ssr]
+            params[best], ssr[best], more = search_break_crossings(problem, params[best], rows[best])
+            nfev[best] += more
     ssr = ssr.reshape(count, n_starts)
     best = np.argmin(ssr, axis=1)
     pick = np.arange(count) * n_starts + best
