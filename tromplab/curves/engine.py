@@ -536,10 +536,11 @@ def search_break_crossings(problem: _Problem, params: np.ndarray, rows: np.ndarr
 
     def crossing(log_shape):
         shape = np.exp(log_shape)
+        x_break = shuvalov_breaks(shape, efficiency)
         with np.errstate(divide="ignore"):  # no break (x_a = 0): the crossing runs off to the cut's bound
-            cut = np.clip(np.log(size / shuvalov_breaks(shape, efficiency)), cut_low, cut_high)
+            cut = np.clip(np.log(size / x_break), cut_low, cut_high)
         trial = np.column_stack([cut, shape])
-        return trial, _ssr(problem.residual(trial, work_rows))
+        return trial, _ssr(problem.residual(trial, work_rows, x_break[:, None]))
 
     ratio = (np.sqrt(5.0) - 1.0) / 2.0
     a, b = low + (1 - ratio) * (high - low), low + ratio * (high - low)
