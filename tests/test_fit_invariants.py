@@ -92,6 +92,10 @@ def _cut_outside_the_sizes(fits: pd.DataFrame, experiments) -> np.ndarray:
     return ~inside.to_numpy()
 
 
+def _says(fits: pd.DataFrame, words: str) -> pd.Series:
+    return fits["warnings"].fillna("").str.contains(words, regex=False)
+
+
 def _fits(frame: pd.DataFrame) -> pd.DataFrame:
     experiments, _ = read_experiments(frame)
     return fit_experiments(experiments).fits_table().set_index(["experiment", "formula"]).sort_index()
@@ -208,7 +212,11 @@ def test_swapping_fine_and_coarse_gives_the_mirrored_partition_and_the_same_fits
     hanging = reference.index.get_level_values("experiment").isin(ambiguous) & (
         reference.index.get_level_values("formula") == "shuvalov"
     )
-    _assert_same_results(reference, mirrored_fits, rtol=1e-4, unpinned=_cut_outside_the_sizes(reference, original) | hanging)
+    # a fit that says a parameter is not determined by the data (a flat valley: formula (11) on
+    # three classes, its d_cut 3.6 % apart at the same sum of squares to 1e-9) has no unique optimum
+    flat = (_says(reference, "not determined") | _says(mirrored_fits, "not determined")).to_numpy()
+    unpinned = _cut_outside_the_sizes(reference, original) | hanging | flat
+    _assert_same_results(reference, mirrored_fits, rtol=1e-4, unpinned=unpinned)
 
 
 @pytest.mark.slow

@@ -83,6 +83,15 @@ class FitOptions:
         return cls(float(alpha), largest, normalised_weights(points), size_unit or "", global_search)
 
 
+#: A parameter whose standard error exceeds this many times its value is reported as not
+#: determined by the data: its 95 % interval would span the value 20 times over.
+UNDETERMINED_RATIO = 10.0
+
+
+def _undetermined(value: float, stderr: float) -> bool:
+    return bool(np.isfinite(stderr) and stderr > UNDETERMINED_RATIO * abs(value))
+
+
 @dataclass(frozen=True)
 class CurveFit:
     """Result of fitting one formula to one experiment.
@@ -214,6 +223,12 @@ class CurveFit:
                 warnings.append(
                     f"{spec.name} = {value:.4g} at its bound {bound:g}: the unconstrained optimum lies beyond "
                     f"it{reason} and the standard error is unreliable"
+                )
+            elif _undetermined(self.fit.values[spec.name], self.fit.stderr[spec.name]):
+                value, stderr = self.fit.values[spec.name], self.fit.stderr[spec.name]
+                warnings.append(
+                    f"{spec.name} = {value:.4g} is not determined by the data (standard error {stderr:.3g}): the sum "
+                    "of squares is nearly flat along it, so quite different values fit as well"
                 )
         if self.formula.context_from_efficiency:
             warnings += _break_point(self.shape, self.context["measured_efficiency"])[1]
