@@ -12,7 +12,7 @@ from tromplab.curves.formulas import get_formula
 from tromplab.loading.points import TrompPoints
 from tromplab.workbench import fit_experiments
 
-from .conftest import formula_ids
+from .conftest import DATASETS, formula_ids
 
 D_CUT = 85.0
 SIZES = D_CUT * np.geomspace(0.15, 5.0, 12)
@@ -212,3 +212,28 @@ def test_a_bound_is_reached_relative_to_its_size():
     assert on_bound(7.07e-12 * (1 + 1e-7), 7.07e-12)
     assert on_bound(1e-9, 0.0) and not on_bound(1e-6, 0.0)  # a bypass on its lower bound 0
     assert on_bound(40.0 - 1e-5, 40.0) and not on_bound(39.9, 40.0)
+
+
+def test_a_parameter_the_data_do_not_determine_is_said_in_words():
+    # three classes, all below 1/2: formula (11) with its measured efficiency at 1/2 has a flat
+    # valley, and copies of the table differing by 1e-9 gave cuts 3.6 % apart at the same sum of squares
+    import pandas as pd
+
+    from tromplab import read_experiments
+
+    frame = pd.DataFrame(
+        {
+            "experiment": "three classes",
+            "size_lower": [2e-6, 1e-6, np.nan],
+            "size_upper": [np.nan, 2e-6, 1e-6],
+            "feed_pct": [65.671642, 8.955224, 25.373134],
+            "fine_pct": [0.0, 21.581922, 78.418078],
+            "coarse_pct": [77.773407, 6.628415, 15.598178],
+        }
+    )
+    fits = fit_experiments(read_experiments(frame)[0]).fits_table().set_index("formula")
+    assert "d_cut = " in fits.loc["shuvalov", "warnings"] and "not determined by the data" in fits.loc["shuvalov", "warnings"]
+    assert fits.loc["shuvalov", "d_cut_stderr"] > 10 * fits.loc["shuvalov", "d_cut"]
+    assert "not determined" not in fits.loc["rosin_rammler", "warnings"]  # standard error a third of the cut
+    decks = fit_experiments(read_experiments(DATASETS / "double_deck_screen_decks_lab.csv", size_unit="mm")[0]).fits_table()
+    assert not decks["warnings"].str.contains("not determined").any()
