@@ -63,7 +63,13 @@ def _assert_same_results(reference, other, scale: float = 1.0, rtol: float = RTO
     for fits in (reference, other):  # a curve through every point, or a failed fit, on both sides
         chosen = fits.loc[through_every_point]
         assert ((chosen["ssr"] < 1e3 * EXACT_SSR) | ~chosen["success"]).all()
-    exact = through_every_point if unpinned is None else through_every_point | unpinned
+    # a fit that says a parameter is not determined by the data (a flat valley: formula (11) on
+    # three classes found cuts 3.6 % apart at sums of squares equal to 1e-9) has no unique
+    # optimum, and the warning's threshold may fall either side of a standard error that moves
+    # with the unit by 5e-3
+    exact = through_every_point | (_says(reference, "not determined") | _says(other, "not determined")).to_numpy()
+    if unpinned is not None:
+        exact = exact | unpinned
     assert (other.loc[~exact, "success"] == reference.loc[~exact, "success"]).all()
     for column in SIZE_COLUMNS:
         assert_allclose(other.loc[~exact, column] / scale, reference.loc[~exact, column], rtol=rtol, err_msg=column)
@@ -120,6 +126,7 @@ def test_scaling_the_sizes_scales_the_cut_sizes_and_nothing_else(frame, scale):
     scaled = _fits(frame.assign(size=frame["size"] * scale))
     _assert_same_results(reference, scaled, scale)
     exact = _fits_to_rounding(reference) | _fits_to_rounding(scaled)
+    exact = exact | _says(reference, "not determined") | _says(scaled, "not determined")
     for column in ("adequate", "residuals"):
         assert scaled.loc[~exact, column].equals(reference.loc[~exact, column]), column
     # standard errors: relative to their value, or to the estimate when they are near 0
@@ -212,10 +219,7 @@ def test_swapping_fine_and_coarse_gives_the_mirrored_partition_and_the_same_fits
     hanging = reference.index.get_level_values("experiment").isin(ambiguous) & (
         reference.index.get_level_values("formula") == "shuvalov"
     )
-    # a fit that says a parameter is not determined by the data (a flat valley: formula (11) on
-    # three classes, its d_cut 3.6 % apart at the same sum of squares to 1e-9) has no unique optimum
-    flat = (_says(reference, "not determined") | _says(mirrored_fits, "not determined")).to_numpy()
-    unpinned = _cut_outside_the_sizes(reference, original) | hanging | flat
+    unpinned = _cut_outside_the_sizes(reference, original) | hanging
     _assert_same_results(reference, mirrored_fits, rtol=1e-4, unpinned=unpinned)
 
 

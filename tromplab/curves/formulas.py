@@ -665,11 +665,21 @@ def _shuvalov_efficiency(kr, x_max, *, measured_efficiency):
     return _plateau_efficiency(kr, x_max, _shuvalov_break_or_edge(kr, measured_efficiency))
 
 
+#: Shape range searched for Lynch's start; its slope at the cut runs from -0.25 (kl -> 0) to -200.
+_LYNCH_START_SHAPES = (1e-9, 800.0)
+
+
 def _lynch_shape_for_slope(s):
+    low, high = _LYNCH_START_SHAPES
     target = -s
-    if target <= 0.25:
+    # compared with the slopes at the ends themselves, not with their limits: a measured slope
+    # of -0.25000000000000006 (a size-unit rounding) lay beyond the slope at 1e-9, so the root
+    # was not bracketed and the whole fit failed in one unit only
+    if target <= -_lynch_slope(low):
         return 1e-6
-    return optimize.brentq(lambda kl: -_lynch_slope(kl) - target, 1e-9, 800.0, xtol=1e-14)
+    if target >= -_lynch_slope(high):
+        return high
+    return optimize.brentq(lambda kl: -_lynch_slope(kl) - target, low, high, xtol=1e-14)
 
 
 def _rosin_rammler_shape_for_slope(s):
