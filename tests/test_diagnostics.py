@@ -47,3 +47,14 @@ def test_a_chunk_caches_the_diagnostics_the_lazy_property_would_compute():
     for fit in fits:
         assert "diagnostics" in fit.__dict__
         assert fit.diagnostics == residual_diagnostics(fit.fit.residual, alpha=fit.options.alpha)
+
+
+def test_residuals_at_rounding_level_do_not_change_the_runs_test():
+    # a partition of 1e-274 against a curve of 1e-300: the sign is rounding, and it moved the
+    # runs test's p-value from 1.0 to 0.91 when the sizes were given in another unit
+    base = [0.1, -0.1, 0.2, 0.0, 0.0, -0.1, 0.1, -0.05]
+    variants = [base, [0.1, -0.1, 0.2, 1e-274, -1e-300, -0.1, 0.1, -0.05], [0.1, -0.1, 0.2, -1e-9, 3e-8, -0.1, 0.1, -0.05]]
+    found = [residual_diagnostics(v) for v in variants]
+    assert len({(d.runs_p, d.n_runs) for d in found}) == 1
+    assert [(d.runs_p, d.n_runs) for d in batch_residual_diagnostics(variants)] == [(d.runs_p, d.n_runs) for d in found]
+    assert residual_diagnostics([0.1, -0.1, 0.2, 2e-7, -0.1]).n_runs == 4  # above the floor: counted
