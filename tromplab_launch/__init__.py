@@ -18,26 +18,29 @@ EXIT_INTERRUPTED = 130  # 128 + SIGINT
 EXIT_TERMINATED = 143  # 128 + SIGTERM
 
 
+def _leave(signum, moment: str) -> None:
+    """One line on stderr, then exit 130 (SIGINT) or 143 (SIGTERM) at once."""
+    what = "terminated (SIGTERM)" if signum == signal.SIGTERM else "interrupted"
+    os.write(2, f"tromplab: {what} {moment}\n".encode())
+    os._exit(EXIT_TERMINATED if signum == signal.SIGTERM else EXIT_INTERRUPTED)
+
+
 def _stop_during_start_up(signum, frame):
     # nothing is staged or written before the command line runs, so leaving at once is safe;
     # os._exit skips the half-finished imports' clean-up, which could itself be interrupted
-    what = "terminated (SIGTERM)" if signum == signal.SIGTERM else "interrupted"
-    os.write(2, f"tromplab: {what} while starting; nothing was written\n".encode())
-    os._exit(EXIT_TERMINATED if signum == signal.SIGTERM else EXIT_INTERRUPTED)
+    _leave(signum, "while starting; nothing was written")
 
 
 def _stop_while_exiting(signum, frame):
     # the command has returned and its outputs are in place (or it failed and said so); the
     # interpreter is closing process pools and clients, where an exception would only print a
-    # traceback of Python's own: leave at once instead
-    what = "terminated (SIGTERM)" if signum == signal.SIGTERM else "interrupted"
+    # traceback of Python's own: leave at once instead, after what was already printed
     for stream in (sys.stdout, sys.stderr):
         try:
             stream.flush()
         except (OSError, ValueError):  # closed or a broken pipe: nothing more can be shown
             pass
-    os.write(2, f"tromplab: {what} while exiting; the command had finished\n".encode())
-    os._exit(EXIT_TERMINATED if signum == signal.SIGTERM else EXIT_INTERRUPTED)
+    _leave(signum, "while exiting; the command had finished")
 
 
 def _handle(signum, handler) -> None:

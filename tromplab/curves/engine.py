@@ -313,6 +313,25 @@ def _ssr(residual: np.ndarray) -> np.ndarray:
     return np.where(np.isfinite(value), value, np.inf)
 
 
+def golden_section(objective, lo: np.ndarray, hi: np.ndarray, steps: int):
+    """Golden-section minimisation of ``objective`` on ``[lo, hi]``, elementwise on arrays:
+    one evaluation per step, the bracket shrinking by 0.618 each time.  Returns the better
+    interior point and its value."""
+    ratio = (np.sqrt(5.0) - 1.0) / 2.0
+    a, b = hi - ratio * (hi - lo), lo + ratio * (hi - lo)
+    fa, fb = objective(a), objective(b)
+    for _ in range(steps):
+        left = fa <= fb
+        lo, hi = np.where(left, lo, a), np.where(left, b, hi)
+        a_new = np.where(left, hi - ratio * (hi - lo), b)
+        b_new = np.where(left, a, lo + ratio * (hi - lo))
+        moved = np.where(left, a_new, b_new)
+        f_moved = objective(moved)
+        fa, fb = np.where(left, f_moved, fb), np.where(left, fa, f_moved)
+        a, b = a_new, b_new
+    return np.where(fa <= fb, a, b), np.minimum(fa, fb)
+
+
 def _grid_starts(problem: _Problem, start_cut: np.ndarray, extra_start: np.ndarray):
     """Best ``GRID_STARTS`` profiled grid points per experiment and the grid minimum."""
     formula, data = problem.formula, problem.data
@@ -365,20 +384,7 @@ def _grid_starts(problem: _Problem, start_cut: np.ndarray, extra_start: np.ndarr
             params[:, 0] = log_cut.ravel()
             return _ssr(problem.residual(params, rows, x_break)).reshape(count, n_shapes)
 
-        ratio = (np.sqrt(5.0) - 1.0) / 2.0
-        a, b = hi - ratio * (hi - lo), lo + ratio * (hi - lo)
-        fa, fb = ssr_at(a), ssr_at(b)
-        for _ in range(GOLDEN_STEPS):
-            left = fa <= fb
-            lo, hi = np.where(left, lo, a), np.where(left, b, hi)
-            a_new = np.where(left, hi - ratio * (hi - lo), b)
-            b_new = np.where(left, a, lo + ratio * (hi - lo))
-            moved = np.where(left, a_new, b_new)
-            f_moved = ssr_at(moved)
-            fa, fb = np.where(left, f_moved, fb), np.where(left, fa, f_moved)
-            a, b = a_new, b_new
-        refined = np.where(fa <= fb, a, b)
-        refined_ssr = np.minimum(fa, fb)
+        refined, refined_ssr = golden_section(ssr_at, lo, hi, GOLDEN_STEPS)
         better = refined_ssr < best_ssr[block]
         best_cut[block] = np.where(better, refined, best_cut[block])
         best_ssr[block] = np.where(better, refined_ssr, best_ssr[block])
@@ -507,7 +513,7 @@ CROSSING_NEAR = 0.03
 CROSSING_STEPS = 36
 
 
-def search_break_crossings(problem: _Problem, params: np.ndarray, rows: np.ndarray):
+def search_break_crossings(problem: _Problem, params: np.ndarray, ssr: np.ndarray, rows: np.ndarray):
     """Formula (11): the optimum may sit where a measured point crosses the break, ``size_i /
     d_cut = x_a(kr)``.  Along that curve the sum of squares has a ridge of kinks that steps
     along the axes or diagonals (:func:`compass_search`) cannot follow; search it directly:
@@ -515,12 +521,10 @@ def search_break_crossings(problem: _Problem, params: np.ndarray, rows: np.ndarr
     current value) with ``d_cut = size_i / x_a(kr)``.  Rows keep the lower sum of squares.
     Returns ``(params, ssr, nfev)``."""
     data = problem.data
-    params = params.copy()
-    ssr = _ssr(problem.residual(params, rows))
-    nfev = np.ones(rows.size, dtype=int)
-    x_break = shuvalov_breaks(params[:, 1], problem.efficiency[rows])
+    params, ssr = params.copy(), ssr.copy()
+    nfev = np.zeros(rows.size, dtype=int)
     with np.errstate(all="ignore"):
-        distance = np.abs(np.log(data.size[rows] / np.exp(params[:, :1])) - np.log(x_break)[:, None])
+        distance = np.abs(np.log(data.size[rows] / np.exp(params[:, :1])) - np.log(problem.breaks(params, rows)))
     real = np.arange(data.size.shape[1])[None, :] < data.n[rows][:, None]
     pair_row, pair_point = np.nonzero(real & (distance < CROSSING_NEAR) & np.isfinite(ssr)[:, None])
     if pair_row.size == 0:
@@ -528,11 +532,10 @@ def search_break_crossings(problem: _Problem, params: np.ndarray, rows: np.ndarr
     work_rows = rows[pair_row]
     size = data.size[work_rows, pair_point]
     efficiency = problem.efficiency[work_rows]
-    shape_low, shape_high = problem.lower[work_rows, 1], problem.upper[work_rows, 1]
     cut_low, cut_high = problem.lower[work_rows, 0], problem.upper[work_rows, 0]
     center = np.log(params[pair_row, 1])
-    low = np.maximum(center - np.log(1.25), np.log(shape_low))
-    high = np.minimum(center + np.log(1.25), np.log(shape_high))
+    low = np.maximum(center - np.log(1.25), np.log(problem.lower[work_rows, 1]))
+    high = np.minimum(center + np.log(1.25), np.log(problem.upper[work_rows, 1]))
 
     def crossing(log_shape):
         shape = np.exp(log_shape)
@@ -542,16 +545,9 @@ def search_break_crossings(problem: _Problem, params: np.ndarray, rows: np.ndarr
         trial = np.column_stack([cut, shape])
         return trial, _ssr(problem.residual(trial, work_rows, x_break[:, None]))
 
-    ratio = (np.sqrt(5.0) - 1.0) / 2.0
-    a, b = low + (1 - ratio) * (high - low), low + ratio * (high - low)
-    (_, at_a), (_, at_b) = crossing(a), crossing(b)
-    for _ in range(CROSSING_STEPS):
-        left = at_a <= at_b  # the minimum lies in [low, b]
-        high, low = np.where(left, b, high), np.where(left, low, a)
-        a, b = low + (1 - ratio) * (high - low), low + ratio * (high - low)
-        (_, at_a), (_, at_b) = crossing(a), crossing(b)
-    trial, trial_ssr = crossing(0.5 * (low + high))
-    np.add.at(nfev, pair_row, 2 * CROSSING_STEPS + 3)
+    best_log_shape, _ = golden_section(lambda log_shape: crossing(log_shape)[1], low, high, CROSSING_STEPS)
+    trial, trial_ssr = crossing(best_log_shape)
+    np.add.at(nfev, pair_row, CROSSING_STEPS + 3)
     for pair in np.argsort(trial_ssr):  # best first, so each row keeps its lowest
         row = pair_row[pair]
         if trial_ssr[pair] < ssr[row]:
@@ -628,7 +624,7 @@ def fit_batch(
             nfev[best] += more
             lower_ssr = kinked_ssr < ssr[best]
             params[best[lower_ssr]], ssr[best[lower_ssr]] = kinked[lower_ssr], kinked_ssr[lower_ssr]
-            params[best], ssr[best], more = search_break_crossings(problem, params[best], rows[best])
+            params[best], ssr[best], more = search_break_crossings(problem, params[best], ssr[best], rows[best])
             nfev[best] += more
     ssr = ssr.reshape(count, n_starts)
     best = np.argmin(ssr, axis=1)

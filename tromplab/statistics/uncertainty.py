@@ -433,7 +433,7 @@ class Bootstrap:
                 f"{side} limit on the bound {edge:g}"
                 for side, limit in (("lower", low), ("upper", high))
                 for edge in edges
-                if abs(limit - edge) <= 1e-9 * abs(edge) + (1e-12 if edge == 0 else 0.0)  # relative: any unit
+                if on_bound(limit, edge, rtol=1e-9, atol_at_zero=1e-12)
             ]
             rows.append(
                 {
