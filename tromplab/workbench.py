@@ -17,7 +17,17 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .curves.curve_fit import CurveFit, attach_diagnostics, attach_indices, failed_fit, fit_formula
+from .curves.curve_fit import (
+    AMBIGUOUS_CUT_RATIO,
+    CUT_BAND,
+    CurveFit,
+    attach_diagnostics,
+    attach_indices,
+    failed_fit,
+    fit_formula,
+    measured_cut_band,
+    measured_efficiency,
+)
 from .curves.formulas import Formula, select_formulas
 from .curves.ranking import add_delta_aicc, add_ranks, fit_verdicts, rank_formulas
 from .curves.screening import DEFAULT_ALPHA
@@ -483,10 +493,8 @@ def data_notes(points: TrompPoints) -> tuple[str, ...]:
 
 def _ambiguous_measured_cut(points: TrompPoints) -> str | None:
     """A note when the measured cut, and with it formula (11)'s measured efficiency, moves
-    far with partitions changed within :data:`curves.CUT_BAND` (a plateau at 1/2, or a
+    far with partitions changed within :data:`~tromplab.curves.curve_fit.CUT_BAND` (a plateau at 1/2, or a
     curve crossing 1/2 more than once): the fit of (11) then hangs on the data's last digits."""
-    from .curves.curve_fit import AMBIGUOUS_CUT_RATIO, CUT_BAND, measured_cut_band, measured_efficiency
-
     low, high = measured_cut_band(points)
     if not high > AMBIGUOUS_CUT_RATIO * low:
         return None
