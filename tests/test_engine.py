@@ -8,7 +8,7 @@ from numpy.testing import assert_allclose
 from tromplab import workbench
 from tromplab._synthetic import synthetic
 from tromplab.cli import main
-from tromplab.curves.curve_fit import fit_formula, with_lmfit
+from tromplab.curves.curve_fit import fit_formula
 from tromplab.curves.engine import (
     check_bootstrap_request,
     fit_formula_batch,
@@ -106,7 +106,7 @@ def test_vectorised_break_points_solve_their_equation_to_rounding():
 def test_engine_fit_becomes_an_lmfit_result_with_the_same_optimum():
     fit = fit_formula_batch(EXPERIMENTS[:1], "plitt")[0]
     assert fit.fit.raw is None
-    polished = with_lmfit(fit)
+    polished = fit.with_lmfit()
     assert polished.fit.raw is not None and polished.fit.minimizer is not None
     assert_allclose(polished.fit.ssr, fit.fit.ssr, rtol=1e-8)
     assert_allclose(polished.fit.values["d_cut"], fit.d_cut, rtol=1e-4)
@@ -234,7 +234,7 @@ def test_11_finds_its_optimum_where_a_point_crosses_the_break():
     from scipy.optimize import minimize_scalar
 
     from tromplab import read_experiments
-    from tromplab.curves.curve_fit import formula_context
+    from tromplab.curves.measured import formula_context
 
     third = 100.0 / 3.0
     frame = pd.DataFrame(

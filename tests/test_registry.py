@@ -10,7 +10,6 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from tromplab.curves.curve_fit import _parameter_specs
 from tromplab.curves.formulas import (
     ALL_FORMULAS,
     EXPRESSION_FUNCTIONS,
@@ -20,6 +19,7 @@ from tromplab.curves.formulas import (
     shuvalov_break,
     whiten_beta_star,
 )
+from tromplab.curves.measured import parameter_specs
 from tromplab.curves.parameters import Parameter, d_cut_parameter
 from tromplab.loading.points import TrompPoints
 from tromplab.output.plotting import curve_styles
@@ -126,7 +126,7 @@ def test_derived_formulas_share_their_base_declaration():
 def test_one_parameter_record_serves_registry_fit_and_comparison():
     points = TrompPoints("run", np.array([1.0, 2.0, 4.0, 8.0]), np.array([0.9, 0.7, 0.3, 0.1]))
     formula = get_formula("whiten")
-    specs = _parameter_specs(formula, points)
+    specs = parameter_specs(formula, points)
     assert specs == list(formula.parameters(points.size))
     assert specs[0] == d_cut_parameter(points.size) and specs[0].bounds == (0.01, 800.0)
     assert [s.name for s in specs] == ["d_cut", "alpha", "bypass", "fishhook"]

@@ -10,10 +10,10 @@ import pandas as pd
 import pytest
 
 import tromplab
+from tromplab.curves.curve_fit import FIT_COLUMNS
 from tromplab.errors import InputError
 from tromplab.loading.points import TrompPoints
 from tromplab.statistics.uncertainty import AVERAGED_QUANTITIES
-from tromplab.workbench import FIT_COLUMNS
 
 matplotlib.use("Agg")
 

@@ -986,7 +986,7 @@ def _run_export(args) -> int:
 
 
 def _run_trend(args) -> int:
-    from .statistics.trend import monitor_surveys, read_surveys, write_trend
+    from .trend import monitor_surveys, read_surveys, write_trend
 
     check_input_file(args.input)
     check_output_folder(args.outdir, inputs=[args.input])

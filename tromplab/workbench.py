@@ -7,78 +7,36 @@ ranking.  Neither stops the batch.
 
 from __future__ import annotations
 
+import functools
 import logging
+import os
 import sys
 from collections.abc import Callable, Sequence
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from scipy import stats
 
-from .curves.curve_fit import (
-    AMBIGUOUS_CUT_RATIO,
-    CUT_BAND,
-    CurveFit,
-    attach_diagnostics,
-    attach_indices,
-    failed_fit,
-    fit_formula,
-    measured_cut_band,
-    measured_efficiency,
-)
-from .curves.formulas import Formula, select_formulas
+from .curves.curve_fit import FIT_COLUMNS, CurveFit, attach_diagnostics, attach_indices, failed_fit, fit_formula
+from .curves.engine import fit_formula_batch
+from .curves.formulas import Formula, is_batchable, select_formulas
+from .curves.measured import AMBIGUOUS_CUT_RATIO, CUT_BAND, measured_cut_band, measured_efficiency
 from .curves.ranking import add_delta_aicc, add_ranks, fit_verdicts, rank_formulas
 from .curves.screening import DEFAULT_ALPHA
-from .loading.points import TrompPoints
+from .loading.points import TrompPoints, points_from_frame
+from .output.outputs import write_files
+from .output.plotting import plot_tromp_fits
+from .output.report import build_report, write_report
+from .output.results import load_workbench, save_workbench, workbench_html, workbench_repr
+from .statistics.hydrocyclone import bypass_against_water_recovery
+from .statistics.uncertainty import batched_delta_indices, model_average
 from .validation import check_optional, check_positive, check_probability, check_water_recovery
 
 logger = logging.getLogger(__name__)
-
-#: Columns of ``fits.csv``, in order.
-FIT_COLUMNS = (
-    "experiment",
-    "equation",
-    "formula",
-    "n",
-    "d_cut",
-    "d_cut_stderr",
-    "shape_name",
-    "shape",
-    "shape_stderr",
-    "ssr",
-    "F",
-    "F_crit",
-    "adequate",
-    "rank",
-    "eta",
-    "epsilon",
-    "slope",
-    "d25",
-    "d75",
-    "ep",
-    "imperfection",
-    "d50",
-    "d50c",
-    "ep_c",
-    "imperfection_c",
-    "aic",
-    "aicc",
-    "delta_aicc",
-    "bic",
-    "bypass",
-    "fishhook",
-    "extras",
-    "runs_p",
-    "normality_p",
-    "residuals",
-    "extrapolated",
-    "x_break",
-    "success",
-    "message",
-    "warnings",
-)
 
 
 @dataclass(frozen=True)
@@ -127,8 +85,6 @@ class Workbench:
         table["delta_aicc"] = add_delta_aicc(table)
         table = table.reindex(columns=list(FIT_COLUMNS))
         if self.water_recovery is not None:
-            from .statistics.hydrocyclone import bypass_against_water_recovery
-
             checks = bypass_against_water_recovery(self.fits, self.water_recovery)
             table = table.merge(checks, on=["experiment", "formula"], how="left")
             table["water_recovery"] = self.water_recovery  # failed experiments too
@@ -206,13 +162,9 @@ class Workbench:
 
     # --- readable views and saving (tromplab.output.results) ---------------------------------------
     def __repr__(self) -> str:
-        from .output.results import workbench_repr
-
         return workbench_repr(self)
 
     def _repr_html_(self) -> str:
-        from .output.results import workbench_html
-
         return workbench_html(self)
 
     def summary(self) -> pd.DataFrame:
@@ -233,8 +185,6 @@ class Workbench:
 
         Returns the matplotlib Axes.
         """
-        from .output.plotting import plot_tromp_fits
-
         experiment = self.experiments[0] if experiment is None else experiment
         if experiment not in self.experiments:
             raise KeyError(f"no experiment {experiment!r}; experiments: {', '.join(self.experiments)}")
@@ -246,8 +196,6 @@ class Workbench:
         ``balances``: the mass balances of lab input (from :func:`tromplab.read_lab`), for
         the balance section.  Returns ``{file name: path}`` of the written files.
         """
-        from .output.report import build_report, write_report
-
         sources = dict.fromkeys(fit.points.source for fit in self.fits if fit.points.source)
         source = ", ".join(sources) or "data given in Python"
         built = build_report(self, list(balances), source=source, level=level, size_unit=size_unit, title=title)
@@ -255,8 +203,6 @@ class Workbench:
 
     def save(self, directory) -> dict[str, Path]:
         """Save the batch with its inputs, options and version (see :func:`tromplab.load`)."""
-        from .output.results import save_workbench
-
         return save_workbench(self, directory)
 
 
@@ -383,8 +329,6 @@ def fit_chunk(experiments: Sequence[TrompPoints], *, formulas, alpha, delta_max,
     Batchable formulas go through the engine for all experiments at once; the others
     (and a formula whose batch raised) are fitted one by one.
     """
-    from .curves.engine import fit_formula_batch, is_batchable
-
     per_formula = []
     for formula in select_formulas(formulas):
         batch = None
@@ -422,9 +366,6 @@ def _map_chunks(chunks, options, *, jobs, client):
 def _map_work(function, chunks, argument, *, jobs, client):
     """Yield ``function(argument, chunk)`` for each chunk, in order: in process, in a
     process pool of ``jobs`` workers (None: all cores), or on a Dask client."""
-    import functools
-    import os
-
     work = functools.partial(function, argument)
     if client is not None:
         for future in client.map(work, chunks, pure=False):
@@ -434,8 +375,6 @@ def _map_work(function, chunks, argument, *, jobs, client):
     if workers <= 1:
         yield from map(work, chunks)
         return
-    from concurrent.futures import ProcessPoolExecutor
-
     with ProcessPoolExecutor(max_workers=workers) as pool:
         yield from pool.map(work, chunks)
 
@@ -450,8 +389,6 @@ def _fit_chunk_star(options, chunk):
 def _as_points(experiments) -> list[TrompPoints]:
     """Points from a sequence of TrompPoints or a Dask DataFrame of points."""
     if hasattr(experiments, "dask") and hasattr(experiments, "compute"):
-        from .loading.points import points_from_frame
-
         return points_from_frame(experiments.compute(), source="dask dataframe")
     return list(experiments)
 
@@ -466,15 +403,11 @@ def load(directory) -> Workbench:
     directory : str or path-like
         A directory written by :meth:`Workbench.save`.
     """
-    from .output.results import load_workbench
-
     return load_workbench(directory)
 
 
 def data_notes(points: TrompPoints) -> tuple[str, ...]:
     """Warnings about the measured points themselves, before any fit."""
-    from scipy import stats
-
     notes = []
     if points.n >= 3 and np.ptp(points.partition_fine) > 0:
         rho = stats.spearmanr(points.size, points.partition_fine).statistic
@@ -493,7 +426,7 @@ def data_notes(points: TrompPoints) -> tuple[str, ...]:
 
 def _ambiguous_measured_cut(points: TrompPoints) -> str | None:
     """A note when the measured cut, and with it formula (11)'s measured efficiency, moves
-    far with partitions changed within :data:`~tromplab.curves.curve_fit.CUT_BAND` (a plateau at 1/2, or a
+    far with partitions changed within :data:`~tromplab.curves.measured.CUT_BAND` (a plateau at 1/2, or a
     curve crossing 1/2 more than once): the fit of (11) then hangs on the data's last digits."""
     low, high = measured_cut_band(points)
     if not high > AMBIGUOUS_CUT_RATIO * low:
@@ -541,8 +474,6 @@ def model_averages(bench: Workbench, *, level: float = 0.95, jobs: int | None = 
 
 
 def _averages_of_chunk(level, groups) -> list[pd.DataFrame]:
-    from .statistics.uncertainty import batched_delta_indices, model_average
-
     known = batched_delta_indices([fit for fits in groups for fit in fits])  # the whole chunk in one call per formula
     frames = [model_average(fits, level=level, known=known).assign(experiment=fits[0].experiment) for fits in groups]
     # one frame per chunk: the main process then unpickles and concatenates tens of frames, not
@@ -573,6 +504,4 @@ def write_atomically(outputs: dict[str, Callable[[Path], None]], outdir) -> dict
     is left in ``outdir``.  For a whole output folder that replaces the previous run in
     one step, see :func:`tromplab.output.outputs.replace_folder`.
     """
-    from .output.outputs import write_files
-
     return write_files(outputs, outdir)

@@ -35,8 +35,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import integrate, optimize, special, stats
 
-from ..curves.fitting import ParameterFit, ParameterSpec, least_squares
+from ..curves.fitting import ParameterFit, ParameterSpec, expression_function, least_squares
 from ..errors import InputError
+from ..validation import MAX_DECKS, check_count
 
 SECONDS_PER_HOUR = 3600.0
 
@@ -375,8 +376,6 @@ def design_bin(decks, sieve_length, recovery, *, method="exact") -> BinDesign:
     >>> round(b.c, 2), round(b.x1, 4)
     (14.22, 0.9867)
     """
-    from ..validation import MAX_DECKS, check_count
-
     check_count(decks, "decks", maximum=MAX_DECKS)
     if not 0 < recovery < 1:
         raise InputError(f"the required recovery must lie in (0, 1), got {recovery}")
@@ -482,8 +481,6 @@ def fit_dependence(hole_diameter, length, values, *, form=DEFAULT_DEPENDENCE) ->
     """
     import inspect
 
-    from ..curves.fitting import expression_function
-
     D, l, y = (np.asarray(v, dtype=float) for v in (hole_diameter, length, values))
     if not D.shape == l.shape == y.shape:
         raise ValueError("hole sizes, particle sizes and values must have the same length")
@@ -523,8 +520,6 @@ def identify_from_table(table, *, two_sided: bool = False, level: float = 0.95):
         sigma_stderr, sigma_low, sigma_high, linear_v_k, linear_sigma, success, message``.
     """
     import pandas as pd
-
-    from ..errors import InputError
 
     table.require(*IDENTIFY_COLUMNS)
     table.refuse_unknown((*IDENTIFY_COLUMNS, "P_g", *PG_COLUMNS), what="residue table")

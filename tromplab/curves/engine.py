@@ -30,7 +30,7 @@ caller.
 
 The engine itself does not use lmfit; :func:`fit_formula_batch` wraps its optimum in the
 same :class:`~tromplab.curves.curve_fit.CurveFit` a single fit returns, and
-:func:`tromplab.curves.curve_fit.with_lmfit` turns it into an lmfit result where one is needed
+:meth:`tromplab.curves.curve_fit.CurveFit.with_lmfit` turns it into an lmfit result where one is needed
 (profile intervals).
 """
 
@@ -39,15 +39,18 @@ from __future__ import annotations
 import copy
 from collections.abc import Sequence
 from dataclasses import dataclass
-from functools import cache
 
 import numpy as np
 from scipy import special
 
 from ..loading.points import TrompPoints
-from .formulas import LN2, Formula, _rosin_rammler_area, get_formula, rosin_rammler
+from .curve_fit import CurveFit, FitOptions, failed_fit, fit_formula
+from .fitting import ParameterFit, parameters_at_bounds
+from .formulas import LN2, Formula, _rosin_rammler_area, get_formula, is_batchable, rosin_rammler
+from .measured import formula_context, measured_cut_size, measured_slope, parameter_specs
+from .screening import DEFAULT_ALPHA
 
-#: Slopes at the cut of the shape grid (as :data:`tromplab.curves.curve_fit.GRID_SLOPES`, every other one).
+#: Slopes at the cut of the shape grid (as :data:`tromplab.curves.measured.GRID_SLOPES`, every other one).
 ENGINE_GRID_SLOPES = -np.geomspace(0.02, 20.0, 21)
 #: The piecewise formulas (10) and (11) have kinks in the sum of squares, where a descent
 #: method can stop short: they get the single fit's full grid and more starts from it.
@@ -142,30 +145,6 @@ class BatchOptimum:
     def stderr(self) -> np.ndarray:
         with np.errstate(invalid="ignore"):
             return np.sqrt(np.diagonal(self.covariance, axis1=1, axis2=2))
-
-
-# --- the curves on arrays ----------------------------------------------------------------
-def is_batchable(formula) -> bool:
-    """True when the engine can evaluate ``formula`` on arrays of parameters."""
-    return _batchable(get_formula(formula).id)
-
-
-@cache
-def _batchable(formula_id: str) -> bool:
-    formula = get_formula(formula_id)
-    if formula.id == "shuvalov":
-        return True
-    if len(formula.extras) >= 2:  # interacting extras (Teipel-Hennig's alpha and bypass): one start is not enough
-        return False
-    x = np.array([[0.5, 1.0, 2.0], [0.5, 1.0, 2.0]])
-    shape = np.array([[formula.clip_shape(1.0)], [formula.clip_shape(2.0)]])
-    extras = {extra.name: np.full((2, 1), extra.start) for extra in formula.extras}
-    try:
-        with np.errstate(all="ignore"):
-            value = np.asarray(formula.phi(x, shape, **extras), dtype=float)
-    except (TypeError, ValueError):  # needs a scalar parameter (a root per parameter set)
-        return False
-    return value.shape == x.shape
 
 
 def shuvalov_breaks(kr, efficiency) -> np.ndarray:
@@ -673,13 +652,11 @@ def fit_formula_batch(
     Returns one :class:`~tromplab.curves.curve_fit.CurveFit` per experiment, in order, with the same
     recorded options as a single fit, so its screen, indices, diagnostics and warnings
     are derived in the same way.  The fit's ``ParameterFit`` is built from the batched
-    optimum (``raw`` is None; :func:`tromplab.curves.curve_fit.with_lmfit` gives an lmfit result).
+    optimum (``raw`` is None; :meth:`tromplab.curves.curve_fit.CurveFit.with_lmfit` gives an lmfit result).
     Experiments with too few points for the formula get a failed fit with the reason.
     ``global_search`` and ``start`` (one further start for every experiment) are as for a
     single fit; the bootstrap refits its resamples from the optimum without the grid.
     """
-    from .curve_fit import CurveFit, FitOptions, failed_fit, formula_context, measured_cut_size, measured_slope
-    from .screening import DEFAULT_ALPHA
 
     alpha = DEFAULT_ALPHA if alpha is None else alpha
     formula = get_formula(formula)
@@ -721,10 +698,8 @@ def fit_formula_batch(
 
 
 def _parameter_fit(optimum: BatchOptimum, row: int, stderr: np.ndarray, points: TrompPoints):
-    from .curve_fit import _parameter_specs
-    from .fitting import ParameterFit, parameters_at_bounds
 
-    specs = _parameter_specs(optimum.formula, points)
+    specs = parameter_specs(optimum.formula, points)
     if not np.isfinite(optimum.ssr[row]):
         return ParameterFit.failed(specs, points.n, "fit failed from every start: non-finite sum of squares", optimum.n_starts)
     values = {name: float(v) for name, v in zip(optimum.names, optimum.values[row])}
@@ -796,7 +771,6 @@ def refit_resamples(fit, samples: Sequence[TrompPoints], *, delta_max: float | N
     starts=[fit values])`` per resample; formulas the engine cannot evaluate on arrays are
     refitted one by one.
     """
-    from .curve_fit import fit_formula
 
     options = fit.options
     delta_max = options.delta_max if delta_max is None else delta_max

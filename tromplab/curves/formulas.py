@@ -21,7 +21,7 @@ from __future__ import annotations
 import re
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from functools import lru_cache
+from functools import cache, lru_cache
 
 import numpy as np
 from scipy import optimize, special
@@ -630,7 +630,7 @@ def shuvalov(x, kr, *, measured_efficiency):
         Shape, 0.05..40 (dimensionless), as in :func:`rosin_rammler`.
     measured_efficiency : float
         Classifier efficiency of the measured curve, 0.5..1 (dimensionless;
-        :func:`tromplab.curves.curve_fit.measured_efficiency`).
+        :func:`tromplab.curves.measured.measured_efficiency`).
 
     Returns
     -------
@@ -1467,3 +1467,27 @@ def formula_table_markdown(family: str = "paper") -> str:
             f"[{low:g}, {high:g}] | `{formula.slope_expression}` |"
         )
     return "\n".join(lines)
+
+
+# --- the curves on arrays ----------------------------------------------------------------
+def is_batchable(formula) -> bool:
+    """True when the engine can evaluate ``formula`` on arrays of parameters."""
+    return _batchable(get_formula(formula).id)
+
+
+@cache
+def _batchable(formula_id: str) -> bool:
+    formula = get_formula(formula_id)
+    if formula.id == "shuvalov":
+        return True
+    if len(formula.extras) >= 2:  # interacting extras (Teipel-Hennig's alpha and bypass): one start is not enough
+        return False
+    x = np.array([[0.5, 1.0, 2.0], [0.5, 1.0, 2.0]])
+    shape = np.array([[formula.clip_shape(1.0)], [formula.clip_shape(2.0)]])
+    extras = {extra.name: np.full((2, 1), extra.start) for extra in formula.extras}
+    try:
+        with np.errstate(all="ignore"):
+            value = np.asarray(formula.phi(x, shape, **extras), dtype=float)
+    except (TypeError, ValueError):  # needs a scalar parameter (a root per parameter set)
+        return False
+    return value.shape == x.shape

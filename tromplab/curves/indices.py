@@ -29,7 +29,7 @@ from functools import lru_cache
 import numpy as np
 from scipy import integrate, optimize
 
-from .formulas import Formula, get_formula
+from .formulas import Formula, _shuvalov_break_or_edge, get_formula, is_batchable, rosin_rammler_plateau
 
 #: Share of eta or epsilon that may come from sizes outside the measured range before the
 #: index is flagged as extrapolated: a tenth of the index would then rest on the formula's
@@ -340,8 +340,6 @@ _DOUBLINGS = 39
 def batchable_indices(formula) -> bool:
     """True when :func:`batch_curve_indices` covers ``formula``: curves without extra
     parameters whose ``phi`` takes arrays of shapes (the nine paper formulas)."""
-    from .engine import is_batchable
-
     formula = get_formula(formula)
     return not formula.extras and is_batchable(formula)
 
@@ -379,7 +377,6 @@ def batch_curve_indices(formula, d_cut, shape, *, delta_max, measured_sizes=None
     >>> [round(i.d25, 3) for i in batch_curve_indices("plitt", [100.0, 50.0], [2.0, 2.0], delta_max=[600.0, 600.0])]
     [57.735, 28.868]
     """
-    from .formulas import _shuvalov_break_or_edge
 
     formula = get_formula(formula)
     if not batchable_indices(formula):
@@ -463,7 +460,6 @@ def _extrapolated_flags(d25, d75, eta, epsilon, x_max, above, area_below, area_a
 
 def _curve_on_arrays(formula: Formula, shape: np.ndarray, x_break):
     """``phi(x)`` of each curve, ``x`` of shape ``(N, ...)`` against the ``N`` shapes."""
-    from .formulas import rosin_rammler_plateau
 
     def curve(x, rows=slice(None)):
         expand = (slice(None),) + (None,) * (np.ndim(x) - 1)

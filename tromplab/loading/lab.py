@@ -57,7 +57,9 @@ import numpy as np
 import pandas as pd
 
 from ..errors import InputError
-from .points import SIZE_UNITS, TrompPoints, experiment_rows, normal_unit, resolve_size_unit, size_column_unit
+from ..validation import check_non_negative, check_optional, check_positive, check_probability, check_share, check_water_recovery
+from .kelsall import kelsall_corrected
+from .points import SIZE_UNITS, TrompPoints, experiment_rows, normal_unit, points_from_table, resolve_size_unit, size_column_unit
 from .tables import Table, read_table
 
 logger = logging.getLogger(__name__)
@@ -133,7 +135,7 @@ class LabOptions:
         Share of the feed water reporting to the underflow (coarse product) of a
         hydrocyclone, in [0, 1) (``--water-recovery``); the points table then also gives
         the Kelsall-corrected partition ``partition_fine_corrected`` (see
-        :func:`tromplab.statistics.hydrocyclone.kelsall_corrected`).
+        :func:`tromplab.loading.kelsall.kelsall_corrected`).
     """
 
     kind: str | None = None
@@ -159,15 +161,6 @@ class LabOptions:
             raise ValueError(f"unknown kind {self.kind!r}; choose one of {', '.join(KINDS)}")
         if self.partition_from not in PARTITION_METHODS:
             raise ValueError(f"unknown partition_from {self.partition_from!r}; choose one of {', '.join(PARTITION_METHODS)}")
-        from ..validation import (
-            check_non_negative,
-            check_optional,
-            check_positive,
-            check_probability,
-            check_share,
-            check_water_recovery,
-        )
-
         for name in ("fine_yield", "coarse_yield"):
             check_optional(check_probability, getattr(self, name), name)
         check_share(self.min_feed_share, "min_feed_share")
@@ -261,8 +254,6 @@ class MassBalance:
         ]
         table = table[columns]
         if self.water_recovery is not None:
-            from ..statistics.hydrocyclone import kelsall_corrected
-
             table.insert(3, "partition_fine_corrected", kelsall_corrected(table["partition_fine"], self.water_recovery))
         if unit_in_names and self.size_unit:
             table = table.rename(columns={c: f"{c}_{self.size_unit}" for c in ("size", "size_lower", "size_upper")})
@@ -1138,8 +1129,6 @@ def read_experiments(path, options: LabOptions | None = None, **option_values) -
         The points of each experiment and, for a lab table, the mass balances they came
         from (empty for a points file).
     """
-    from .points import points_from_table
-
     options = _options(options, option_values)
     table = _renamed(read_table(path, sheet=options.sheet, sep=options.sep, decimal=options.decimal), options.rename)
     if is_lab_table(table.frame.columns):

@@ -31,7 +31,7 @@ import time
 from collections.abc import Callable, Iterable
 from pathlib import Path
 
-from ..errors import OutputError
+from ..errors import InputError, OutputError
 
 logger = logging.getLogger(__name__)
 
@@ -48,8 +48,6 @@ _STAGING = re.compile(r"^\.(?P<name>.+)\.(?P<what>tmp|old)-(?P<pid>\d+)(?:-[A-Za
 # --- checks before any work -------------------------------------------------------------
 def check_input_file(path, *, option: str = "input") -> Path:
     """``path`` exists, is a regular file and can be read; else :class:`OutputError`'s sibling."""
-    from ..errors import InputError
-
     path = Path(path)
     if not path.exists():
         raise InputError("file not found", source=str(path))

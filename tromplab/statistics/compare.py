@@ -16,9 +16,10 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from ..curves.curve_fit import CurveFit, fit_formula, measured_efficiency, normalised_weights
+from ..curves.curve_fit import CurveFit, fit_formula
 from ..curves.fitting import ParameterFit, ParameterSpec, least_squares
 from ..curves.formulas import get_formula
+from ..curves.measured import measured_efficiency, normalised_weights
 from ..curves.parameters import d_cut_parameter
 from ..errors import InputError
 from ..loading.points import TrompPoints
