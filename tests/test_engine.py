@@ -178,7 +178,7 @@ def test_data_notes_come_back_from_the_workers_in_batch_order(monkeypatch):
 
 def test_engine_and_single_fits_give_the_same_table():
     batched = fit_experiments(EXPERIMENTS[:6], formulas=["plitt", "luckie_austin"]).fits_table()
-    single = fit_experiments(EXPERIMENTS[:6], formulas=["plitt", "luckie_austin"], engine=False).fits_table()
+    single = fit_experiments(EXPERIMENTS[:6], formulas=["plitt", "luckie_austin"], single_fits=True).fits_table()
     assert list(batched["experiment"]) == list(single["experiment"])
     assert (batched["rank"].to_numpy() == single["rank"].to_numpy()).all()
     assert_allclose(batched["ssr"], single["ssr"], rtol=1e-6)

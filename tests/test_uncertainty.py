@@ -116,7 +116,7 @@ def test_bootstrap_is_seeded_and_supports_cases():
     assert not bootstrap(fit, n=30, seed=6).samples.equals(first.samples)
     cases = bootstrap(fit, n=30, seed=5, method="cases")
     assert cases.n_failed == 0 and len(cases.samples) == 30
-    with pytest.raises(ValueError, match="'residuals' or 'cases'"):
+    with pytest.raises(ValueError, match="method must be one of residuals, cases, got 'jackknife'"):
         bootstrap(fit, n=10, method="jackknife")
 
 

@@ -19,7 +19,8 @@ import numpy as np
 import pandas as pd
 
 from .errors import InputError, OptionError
-from .output.outputs import check_input_file, check_output_file
+from .loading.tables import check_input_file
+from .output.outputs import check_output_file
 from .validation import check_count, check_non_negative, check_positive, check_probability, check_share, cli_type
 from .workbench import write_atomically
 

@@ -52,6 +52,7 @@ import logging
 import re
 import warnings
 from dataclasses import dataclass, field, fields
+from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -1111,7 +1112,17 @@ def mix_streams(shares, yields):
     return mixed, total
 
 
-def read_experiments(path, options: LabOptions | None = None, **option_values) -> tuple[list[TrompPoints], list[MassBalance]]:
+class Experiments(NamedTuple):
+    """What :func:`read_experiments` returns: the points of each experiment and, for a lab
+    table, the mass balances they came from (empty for a points file).  It unpacks as
+    ``points, balances = read_experiments(path)`` and is taken whole by
+    :func:`tromplab.fit_experiments`, which keeps the balances for the report and workbook."""
+
+    points: list[TrompPoints]
+    balances: list[MassBalance]
+
+
+def read_experiments(path, options: LabOptions | None = None, **option_values) -> Experiments:
     """Tromp points from either a points file or a lab table (told apart by their columns).
 
     Parameters
@@ -1125,9 +1136,9 @@ def read_experiments(path, options: LabOptions | None = None, **option_values) -
 
     Returns
     -------
-    (list of TrompPoints, list of MassBalance)
-        The points of each experiment and, for a lab table, the mass balances they came
-        from (empty for a points file).
+    Experiments
+        ``(points, balances)``: the points of each experiment and, for a lab table, the mass
+        balances they came from (empty for a points file).
     """
     options = _options(options, option_values)
     table = _renamed(read_table(path, sheet=options.sheet, sep=options.sep, decimal=options.decimal), options.rename)
@@ -1136,7 +1147,9 @@ def read_experiments(path, options: LabOptions | None = None, **option_values) -
         logger.info(
             "%s: lab table, %d experiment(s) balanced (partition from %s)", table.source, len(balances), options.partition_from
         )
-        return [balance.to_points(weight_by_feed_share=options.weight_by_feed_share) for balance in balances], balances
+        return Experiments(
+            [balance.to_points(weight_by_feed_share=options.weight_by_feed_share) for balance in balances], balances
+        )
     experiments = points_from_table(table, size_unit=options.size_unit)
     logger.info("%s: Tromp points, %d experiment(s)", table.source, len(experiments))
-    return experiments, []
+    return Experiments(experiments, [])

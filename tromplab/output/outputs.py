@@ -31,7 +31,7 @@ import time
 from collections.abc import Callable, Iterable
 from pathlib import Path
 
-from ..errors import InputError, OutputError
+from ..errors import OutputError
 
 logger = logging.getLogger(__name__)
 
@@ -43,21 +43,6 @@ MANIFEST = ".tromplab-manifest"
 SWAP_PAUSE_VARIABLE = "TROMPLAB_TEST_SWAP_PAUSE"
 _RENAME_EXCHANGE = 2
 _STAGING = re.compile(r"^\.(?P<name>.+)\.(?P<what>tmp|old)-(?P<pid>\d+)(?:-[A-Za-z0-9_]+)?$")
-
-
-# --- checks before any work -------------------------------------------------------------
-def check_input_file(path, *, option: str = "input") -> Path:
-    """``path`` exists, is a regular file and can be read; else :class:`OutputError`'s sibling."""
-    path = Path(path)
-    if not path.exists():
-        raise InputError("file not found", source=str(path))
-    if path.is_dir():
-        raise InputError(f"is a folder; the {option} must be a file", source=str(path))
-    if not path.is_file():
-        raise InputError(f"is not a regular file; the {option} must be a file", source=str(path))
-    if not os.access(path, os.R_OK):
-        raise InputError("cannot be read (permission denied)", source=str(path))
-    return path
 
 
 def check_output_folder(outdir, *, inputs: Iterable = (), option: str = "--outdir") -> Path:

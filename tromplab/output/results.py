@@ -1,9 +1,8 @@
-"""Readable views of fit and batch results: short reprs, HTML, summaries, text reports, saving.
+"""Readable views of a batch (short repr, HTML) and the files that make a saved batch reloadable.
 
-:class:`~tromplab.curves.curve_fit.CurveFit` and :class:`~tromplab.workbench.Workbench` call these
-functions from their methods (``repr(fit)``, ``fit.summary()``, ``fit.report()``,
-``bench.save(dir)``, ...); they are views of the same recorded fields as ``fits.csv``, in
-the spirit of lmfit's ``fit_report`` and statsmodels' ``summary()``.
+:class:`~tromplab.workbench.Workbench` calls these from its methods (``repr(bench)``,
+``bench._repr_html_()``, ``bench.save(dir, reloadable=True)``, :func:`tromplab.load`); the
+views of one fit are in :mod:`tromplab.curves.views`.
 """
 
 from __future__ import annotations
@@ -17,10 +16,9 @@ import pandas as pd
 
 from .._version import __version__
 from ..errors import InputError
-from .outputs import write_files
 
-#: Files of a saved batch (:func:`save_workbench`).
-SAVED_FILES = ("workbench.pkl", "manifest.json", "fits.csv", "ranking.csv", "points.csv")
+#: Files that make a results folder reloadable (:func:`batch_files`).
+SAVED_FILES = ("workbench.pkl", "manifest.json", "points.csv")
 
 
 # --- a batch -------------------------------------------------------------------------------
@@ -50,13 +48,11 @@ def _major(version: str) -> str:
     return str(version).split(".")[0]
 
 
-def save_workbench(bench, directory) -> dict[str, Path]:
-    """Write a batch into ``directory``: the pickled batch with its inputs and options, and
-    readable tables (``fits.csv``, ``ranking.csv``, ``points.csv``) and ``manifest.json``.
-
-    Written atomically (all files or none).  Load with :func:`load_workbench`.
-    """
-    points = pd.concat([p.to_frame() for p in _inputs(bench)], ignore_index=True) if bench.fits else pd.DataFrame()
+def batch_files(bench) -> dict:
+    """Writers of the files that make a results folder reloadable (:func:`load_workbench`):
+    the pickled batch with its inputs and options, ``manifest.json`` (version, options,
+    files) and the input points as ``points.csv``."""
+    points = pd.concat([p.to_frame() for p in bench.inputs], ignore_index=True) if bench.inputs else pd.DataFrame()
     manifest = {
         "tromplab_version": __version__,
         "experiments": bench.experiments,
@@ -67,22 +63,15 @@ def save_workbench(bench, directory) -> dict[str, Path]:
         "rank_extended": bench.rank_extended,
         "files": list(SAVED_FILES),
     }
-    outputs = {
+    return {
         "workbench.pkl": lambda p: p.write_bytes(pickle.dumps(bench, protocol=pickle.HIGHEST_PROTOCOL)),
         "manifest.json": lambda p: p.write_text(json.dumps(manifest, indent=2) + "\n", encoding="utf-8"),
-        "fits.csv": lambda p: bench.fits_table().to_csv(p, index=False),
-        "ranking.csv": lambda p: bench.ranking_table().to_csv(p, index=False),
         "points.csv": lambda p: points.to_csv(p, index=False),
     }
-    return write_files(outputs, directory)
-
-
-def _inputs(bench):
-    return list({fit.experiment: fit.points for fit in bench.fits}.values())
 
 
 def load_workbench(directory):
-    """A batch saved by :func:`save_workbench` (only load directories you trust: it unpickles).
+    """A batch saved with ``reloadable=True`` (:func:`batch_files`) (only load directories you trust: it unpickles).
 
     Raises
     ------

@@ -45,6 +45,9 @@ from ..validation import check_bootstrap, check_optional, check_probability, che
 
 logger = logging.getLogger(__name__)
 
+#: How the bootstrap resamples: the residuals of the fit (added to the fitted curve) or whole points.
+BOOTSTRAP_METHODS = ("residuals", "cases")
+
 
 @dataclass(frozen=True)
 class Bootstrap:
@@ -129,8 +132,8 @@ def bootstrap(
     """
     if not fit.success:
         raise ValueError(f"{fit.formula.id} on {fit.experiment}: cannot bootstrap a failed fit")
-    if method not in ("residuals", "cases"):
-        raise ValueError("method must be 'residuals' or 'cases'")
+    if method not in BOOTSTRAP_METHODS:
+        raise ValueError(f"method must be one of {', '.join(BOOTSTRAP_METHODS)}, got {method!r}")
     if n < 2:
         raise ValueError("the bootstrap needs at least 2 resamples")
     rng = np.random.default_rng(seed)
