@@ -21,8 +21,9 @@ that hold every experiment and every starting point at once:
    covariance estimate, ``(J^T J)^{-1} SSR / (n - p)``.
 
 Every formula whose curve broadcasts over array-valued shapes runs here, the piecewise
-(10) included; formula (11) gets a vectorised break-point solver
-(:func:`shuvalov_breaks`).  Curves that need a scalar root per parameter set (Whiten's
+(10) included; a formula whose break moves with its shape, as (11), declares the hooks the
+engine calls (:class:`~tromplab.curves.formulas.MovingBreak`: for (11) the vectorised
+break-point solver :func:`shuvalov_breaks`).  Curves that need a scalar root per parameter set (Whiten's
 fish-hook curve, whose ``beta*`` solves an equation) and curves with two or more extra
 parameters (their extras interact, and the engine starts them at one declared value
 only) are reported by :func:`is_batchable` as not batchable and fitted one by one by the
@@ -45,13 +46,13 @@ import numpy as np
 from scipy import special
 
 from ..loading.points import TrompPoints
-from .formulas import LN2, Formula, _rosin_rammler_area, get_formula, rosin_rammler
+from .formulas import LN2, Formula, _rosin_rammler_area, get_formula
 
 #: Slopes at the cut of the shape grid (as :data:`tromplab.curves.curve_fit.GRID_SLOPES`, every other one).
 ENGINE_GRID_SLOPES = -np.geomspace(0.02, 20.0, 21)
-#: The piecewise formulas (10) and (11) have kinks in the sum of squares, where a descent
-#: method can stop short: they get the single fit's full grid and more starts from it.
-PIECEWISE = frozenset({"luckie_austin", "shuvalov"})
+#: The piecewise formulas (``Formula.piecewise``: (10) and (11)) have kinks in the sum of
+#: squares, where a descent method can stop short: they get the single fit's full grid and
+#: more starts from it.
 PIECEWISE_GRID_SLOPES = -np.geomspace(0.02, 20.0, 41)
 PIECEWISE_GRID_STARTS = 6
 #: Log-spaced ``d_cut`` values per grid shape, before the golden-section refinement.
@@ -153,7 +154,7 @@ def is_batchable(formula) -> bool:
 @cache
 def _batchable(formula_id: str) -> bool:
     formula = get_formula(formula_id)
-    if formula.id == "shuvalov":
+    if formula.moving_break is not None:  # evaluated through its break hooks
         return True
     if len(formula.extras) >= 2:  # interacting extras (Teipel-Hennig's alpha and bypass): one start is not enough
         return False
@@ -238,18 +239,18 @@ def shuvalov_kink(efficiency, bounds) -> np.ndarray:
 
 def curve_values(formula: Formula, x, shape, extras: dict, efficiency=None, x_break=None) -> np.ndarray:
     """Partition to fines of ``formula`` with array-valued parameters broadcast against ``x``
-    (``x_break``: break points of (11) already solved for these shapes)."""
-    if formula.id == "shuvalov" and x_break is not None:
-        return rosin_rammler(np.maximum(x, x_break), shape)
-    if formula.id == "shuvalov":
-        # one root per distinct (kr, efficiency): grid rows and Jacobian columns in d_cut share them
+    (``x_break``: break points of a moving break, as (11)'s, already solved for these shapes)."""
+    moving = formula.moving_break
+    if moving is None:
+        return formula.phi(x, shape, **extras)
+    if x_break is None:
+        # one root per distinct (shape, efficiency): grid rows and Jacobian columns in d_cut share them
         kr, eff = np.broadcast_arrays(np.asarray(shape, dtype=float), np.asarray(efficiency, dtype=float))
         # a pair as one complex number: np.unique(axis=...) would compare structured rows, whose
         # dtype promotion runs Python code in which numpy turns a Ctrl-C into a TypeError
         pairs, inverse = np.unique(kr.ravel() + 1j * eff.ravel(), return_inverse=True)
-        x_break = shuvalov_breaks(pairs.real, pairs.imag)[inverse.ravel()].reshape(kr.shape)
-        return rosin_rammler(np.maximum(x, x_break), shape)
-    return formula.phi(x, shape, **extras)
+        x_break = moving.on_arrays(pairs.real, pairs.imag)[inverse.ravel()].reshape(kr.shape)
+    return moving.phi(x, shape, x_break)
 
 
 # --- the fit -------------------------------------------------------------------------------
@@ -274,11 +275,12 @@ class _Problem:
         self.upper = np.column_stack([high_cut, np.full(count, shape_high), *[np.full(count, v) for v in extra_high]])
 
     def breaks(self, params: np.ndarray, rows: np.ndarray):
-        """Break points of (11) for these rows (None for other formulas); they depend on the
-        shape and the measured efficiency only, so steps in d_cut reuse them."""
-        if self.formula.id != "shuvalov":
+        """Break points of a moving break (``Formula.moving_break``, (11)) for these rows, None
+        for other formulas; they depend on the shape and the measured efficiency only, so
+        steps in d_cut reuse them."""
+        if self.formula.moving_break is None:
             return None
-        return shuvalov_breaks(params[:, 1], self.efficiency[rows])[:, None]
+        return self.formula.moving_break.on_arrays(params[:, 1], self.efficiency[rows])[:, None]
 
     def residual(self, params: np.ndarray, rows: np.ndarray, x_break=None) -> np.ndarray:
         """Weighted residuals ``(len(rows), P)`` at internal parameters ``params``."""
@@ -335,9 +337,7 @@ def golden_section(objective, lo: np.ndarray, hi: np.ndarray, steps: int):
 def _grid_starts(problem: _Problem, start_cut: np.ndarray, extra_start: np.ndarray):
     """Best ``GRID_STARTS`` profiled grid points per experiment and the grid minimum."""
     formula, data = problem.formula, problem.data
-    slopes, n_starts = (
-        (PIECEWISE_GRID_SLOPES, PIECEWISE_GRID_STARTS) if formula.id in PIECEWISE else (ENGINE_GRID_SLOPES, GRID_STARTS)
-    )
+    slopes, n_starts = (PIECEWISE_GRID_SLOPES, PIECEWISE_GRID_STARTS) if formula.piecewise else (ENGINE_GRID_SLOPES, GRID_STARTS)
     shapes = np.array(sorted({formula.clip_shape(formula.shape_for_slope(s)) for s in slopes}))
     count, n_shapes = len(data), shapes.size
     low, high = problem.lower[:, 0], problem.upper[:, 0]
@@ -514,8 +514,8 @@ CROSSING_STEPS = 36
 
 
 def search_break_crossings(problem: _Problem, params: np.ndarray, ssr: np.ndarray, rows: np.ndarray):
-    """Formula (11): the optimum may sit where a measured point crosses the break, ``size_i /
-    d_cut = x_a(kr)``.  Along that curve the sum of squares has a ridge of kinks that steps
+    """A moving break (``Formula.moving_break``, formula (11)): the optimum may sit where a
+    measured point crosses the break, ``size_i / d_cut = x_a(kr)``.  Along that curve the sum of squares has a ridge of kinks that steps
     along the axes or diagonals (:func:`compass_search`) cannot follow; search it directly:
     for each point near the break, ``kr`` by golden section on ``ln kr`` (x/÷ 1.25 around the
     current value) with ``d_cut = size_i / x_a(kr)``.  Rows keep the lower sum of squares.
@@ -539,7 +539,7 @@ def search_break_crossings(problem: _Problem, params: np.ndarray, ssr: np.ndarra
 
     def crossing(log_shape):
         shape = np.exp(log_shape)
-        x_break = shuvalov_breaks(shape, efficiency)
+        x_break = problem.formula.moving_break.on_arrays(shape, efficiency)
         with np.errstate(divide="ignore"):  # no break (x_a = 0): the crossing runs off to the cut's bound
             cut = np.clip(np.log(size / x_break), cut_low, cut_high)
         trial = np.column_stack([cut, shape])
@@ -600,21 +600,23 @@ def fit_batch(
         grid_cut, grid_shape, grid_ssr = _grid_starts(problem, starts[:, 0, 0], extra_start)
         extras = np.broadcast_to(np.array(extra_start), (count, grid_cut.shape[1], len(extra_start)))
         starts = np.concatenate([starts, np.concatenate([grid_cut[..., None], grid_shape[..., None], extras], axis=2)], axis=1)
-    if formula.id == "shuvalov" and global_search:
-        kink = shuvalov_kink(efficiency, formula.shape_bounds)
+    moving = formula.moving_break if global_search else None
+    kink = None
+    if moving is not None and moving.kink is not None:  # start on both sides of the kink
+        kink = moving.kink(efficiency, formula.shape_bounds)
         sides = np.stack([np.clip(kink * f, *formula.shape_bounds) for f in (0.97, 1.03, 1.2)], axis=1)
         near = np.stack([np.broadcast_to(starts[:, :1, 0], sides.shape), sides], axis=2)
         starts = np.concatenate([starts, near], axis=1)
     n_starts = starts.shape[1]
     rows = np.repeat(np.arange(count), n_starts)
     params, ssr, nfev = levenberg_marquardt(problem, starts.reshape(count * n_starts, -1), rows)
-    if formula.id in PIECEWISE:  # past the kinks without derivatives, then polish again
+    if formula.piecewise:  # past the kinks without derivatives, then polish again
         best = np.argmin(ssr.reshape(count, n_starts), axis=1) + np.arange(count) * n_starts
         params[best], ssr[best], more = compass_search(problem, params[best], rows[best])
         nfev[best] += more
         params[best], ssr[best], more = levenberg_marquardt(problem, params[best], rows[best])
         nfev[best] += more
-        if formula.id == "shuvalov" and global_search:  # the optimum can sit on the kink itself: d_cut alone at kr*
+        if kink is not None:  # the optimum can sit on the kink itself: d_cut alone at the kink's shape
             on_kink = copy.copy(problem)
             on_kink.lower, on_kink.upper = problem.lower.copy(), problem.upper.copy()
             on_kink.lower[:, 1] = on_kink.upper[:, 1] = kink
@@ -624,6 +626,7 @@ def fit_batch(
             nfev[best] += more
             lower_ssr = kinked_ssr < ssr[best]
             params[best[lower_ssr]], ssr[best[lower_ssr]] = kinked[lower_ssr], kinked_ssr[lower_ssr]
+        if moving is not None:  # along the crossings of measured points with the moving break
             params[best], ssr[best], more = search_break_crossings(problem, params[best], ssr[best], rows[best])
             nfev[best] += more
     ssr = ssr.reshape(count, n_starts)

@@ -47,6 +47,38 @@ def ExtraParameter(name: str, bounds: tuple[float, float], start: float, meaning
 
 
 @dataclass(frozen=True)
+class MovingBreak:
+    """Hooks of a piecewise formula whose break point follows its shape and the measured efficiency.
+
+    Formula (11) is ``phi(max(x, x_b))`` with a break ``x_b`` solved from the shape and the
+    measured efficiency.  The batched engine (:mod:`tromplab.curves.engine`) and the batched
+    indices (:func:`tromplab.curves.indices.batch_curve_indices`) call these hooks instead of
+    ``phi``, so that a formula of this kind is declared here and nowhere else.
+
+    Attributes
+    ----------
+    at : callable
+        ``at(shape, measured_efficiency) -> float``: the break of one curve, as ``phi``
+        places it (the nearer end of ``[0, 1]`` where none exists).
+    on_arrays : callable
+        ``on_arrays(shape, measured_efficiency) -> ndarray``: the same break points solved on
+        arrays (broadcast), for the engine's many rows at once.
+    phi : callable
+        ``phi(x, shape, x_break) -> ndarray``: the curve with its break already solved
+        (arrays broadcast), so that steps in ``d_cut`` reuse the break points.
+    kink : callable or None
+        ``kink(measured_efficiency, shape_bounds) -> ndarray``: the shape at which the break
+        appears, where the sum of squares has a kink between two basins; the engine then
+        starts on both sides of it and fits ``d_cut`` alone there.
+    """
+
+    at: Callable[[float, float], float]
+    on_arrays: Callable[..., np.ndarray]
+    phi: Callable[..., np.ndarray]
+    kink: Callable[..., np.ndarray] | None = None
+
+
+@dataclass(frozen=True)
 class Formula:
     """Declaration of one separation-curve formula.
 
@@ -99,6 +131,15 @@ class Formula:
     nests : str or None
         Id of the paper formula this one reduces to when its extras vanish (for the
         extra-sum-of-squares test).
+    piecewise : bool
+        True when ``phi`` is pieced together at a break (formulas (10) and (11)): the sum
+        of squares has kinks where a measured point crosses the break, so the batched
+        engine searches a finer shape grid with more starts and follows its
+        Levenberg-Marquardt pass with a derivative-free search.
+    moving_break : MovingBreak or None
+        The break of a piecewise formula whose break point moves with the shape and the
+        measured efficiency ((11)): the hooks the batched engine and the batched indices
+        call instead of ``phi`` (:class:`MovingBreak`); None for every other formula.
     """
 
     id: str
@@ -122,6 +163,8 @@ class Formula:
     family: str = "paper"
     nests: str | None = None
     shape_meaning: str = ""
+    piecewise: bool = False
+    moving_break: MovingBreak | None = None
 
     def __reduce__(self):
         # Records hold lambdas and closures; they travel (pickle, process pools) by their id.
@@ -665,6 +708,26 @@ def _shuvalov_efficiency(kr, x_max, *, measured_efficiency):
     return _plateau_efficiency(kr, x_max, _shuvalov_break_or_edge(kr, measured_efficiency))
 
 
+def _shuvalov_breaks_on_arrays(kr, measured_efficiency):
+    # the vectorised solver is the engine's (tromplab.curves.engine imports this module, so
+    # it is imported on call)
+    from .engine import shuvalov_breaks
+
+    return shuvalov_breaks(kr, measured_efficiency)
+
+
+def _shuvalov_kink(measured_efficiency, bounds):
+    from .engine import shuvalov_kink
+
+    return shuvalov_kink(measured_efficiency, bounds)
+
+
+#: The moving break of (11): x_a from kr and the measured efficiency.
+SHUVALOV_BREAK = MovingBreak(
+    at=_shuvalov_break_or_edge, on_arrays=_shuvalov_breaks_on_arrays, phi=rosin_rammler_plateau, kink=_shuvalov_kink
+)
+
+
 #: Shape range searched for Lynch's start; its slope at the cut runs from -0.25 (kl -> 0) to -200.
 _LYNCH_START_SHAPES = (1e-9, 800.0)
 
@@ -722,11 +785,13 @@ def with_plateau(
     efficiency=None,
     context_from_efficiency: bool = False,
     defaults=None,
+    moving_break: MovingBreak | None = None,
 ) -> Formula:
     """``base`` above a break ``x_b``, held at its value there below (formulas (10) and (11)).
 
     The shape, its bounds, the slope at the cut (``x_b < 1``) and the expression are the
     base formula's; ``break_text`` names the break (``"1/2"``, ``"x_a"``) in the expression.
+    The record is ``piecewise``; ``moving_break`` declares a break that moves with the shape.
     """
     expression = re.sub(r"\bx\b", f"max(x, {break_text})", base.expression)
     return Formula(
@@ -746,6 +811,8 @@ def with_plateau(
         context_from_efficiency=context_from_efficiency,
         defaults=defaults or {},
         shape_meaning=base.shape_meaning,
+        piecewise=True,
+        moving_break=moving_break,
     )
 
 
@@ -896,6 +963,7 @@ FORMULAS: tuple[Formula, ...] = (
         efficiency=_shuvalov_efficiency,
         context_from_efficiency=True,
         defaults={"measured_efficiency": 0.75},
+        moving_break=SHUVALOV_BREAK,
     ),
 )
 
