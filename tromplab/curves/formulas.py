@@ -263,7 +263,8 @@ def molerus_hoffmann(x, km2):
     x : array_like
         Relative size ``size / d_cut`` (> 0, dimensionless).
     km2 : float
-        Shape, -1..60 (dimensionless); ``km2 = 0`` is Plitt's curve with ``ks = 2``.
+        Shape, 0..60 (dimensionless) as fitted; ``km2 = 0`` is Plitt's curve with ``ks = 2``.
+        The curve is also defined for ``km2 < 0``, where it rises again (Notes).
 
     Returns
     -------
@@ -459,7 +460,8 @@ def ogawa_allen(x, kp):
     x : array_like
         Relative size ``size / d_cut`` (> 0, dimensionless).
     kp : float
-        Shape, -1..60 (dimensionless); ``kp = 0`` is Plitt's curve with ``ks = 1``.
+        Shape, 0..60 (dimensionless) as fitted; ``kp = 0`` is Plitt's curve with ``ks = 1``.
+        The curve is also defined for ``kp < 0``, where it rises again (Notes).
 
     Returns
     -------
@@ -970,7 +972,7 @@ FORMULAS: tuple[Formula, ...] = (
 # --- extended curves: bypass and fish-hook ------------------------------------------------
 NAPIER_MUNN_1996 = (
     "Napier-Munn T.J., Morrell S., Morrison R.D., Kojovic T. (1996). Mineral Comminution Circuits: "
-    "Their Operation and Optimisation. JKMRC, Brisbane (Whiten's efficiency curve with the fish-hook term)"
+    "Their Operation and Optimisation. JKMRC, Brisbane"
 )
 PLITT_1976 = "Plitt L.R. (1976). A mathematical model of the hydrocyclone classifier. CIM Bulletin 69(776), 114-123"
 KELSALL_1953 = "Kelsall D.F. (1953). A further study of the hydraulic cyclone. Chem. Eng. Sci. 2, 254-272 (bypass correction)"
@@ -1019,7 +1021,7 @@ def with_bypass(base: Formula, *, equation: int, citation: str, family: str = "e
     shape : float
         ``{base.shape_name}`` of the base formula, {base.shape_bounds[0]:g}..{base.shape_bounds[1]:g}.
     bypass : float
-        Share of every size sent to the coarse product unclassified, 0..0.95.
+        Share of every size sent to the coarse product unclassified, {BYPASS.lower:g}..{BYPASS.upper:g}.
 
     Returns
     -------
@@ -1139,7 +1141,7 @@ EXTENDED_FORMULAS: tuple[Formula, ...] = (
         slope_at_cut=_lynch_slope,
         slope_expression="(1 - bypass)*(-alpha*exp(alpha)/(4*(exp(alpha) - 1)))",
         shape_for_slope=_lynch_shape_for_slope,
-        citation=NAPIER_MUNN_1996,
+        citation=NAPIER_MUNN_1996 + " (Whiten's efficiency curve with the fish-hook term)",
         notes="Reduces to Lynch (6) with kl = alpha without bypass and fish-hook; may exceed 1 for a large "
         "fish-hook with little bypass. b_star keeps phi(1) = (1 - bypass)/2 (whiten_beta_star); the slope "
         "expression holds for fishhook = 0.",
@@ -1196,7 +1198,8 @@ def normal_linear(x, sigma_rel):
     .. [1] King R.P. (2001). Modeling and Simulation of Mineral Processing Systems.
        Butterworth-Heinemann, Oxford (ch. 5).
     .. [2] Skorych V., Dosta M., Heinrich S. (2020). Dyssol - an open-source flowsheet simulation
-       framework for particulate materials. SoftwareX 12, 100572 (Screen unit, Probability model).
+       framework for particulate materials. SoftwareX 12, 100572. doi:10.1016/j.softx.2020.100572
+       (Screen unit, Probability model).
     .. [3] Shuvalov S.I., Novoseltseva S.S., Zhukov V.P. (2018). Justifying the choice of a
        dependence for the Tromp separation curve approximation. Vestnik IGEU 6, 15-23
        (the conventions: x = size/d_cut, partition to the fine product).
@@ -1288,7 +1291,8 @@ def teipel_hennig(x, k, *, th_alpha=1.0, bypass=0.0):
     References
     ----------
     .. [1] Skorych V., Dosta M., Heinrich S. (2020). Dyssol - an open-source flowsheet simulation
-       framework for particulate materials. SoftwareX 12, 100572 (Screen unit, Teipel & Hennig model).
+       framework for particulate materials. SoftwareX 12, 100572. doi:10.1016/j.softx.2020.100572
+       (Screen unit, Teipel & Hennig model).
     .. [2] Shuvalov S.I., Novoseltseva S.S., Zhukov V.P. (2018). Justifying the choice of a
        dependence for the Tromp separation curve approximation. Vestnik IGEU 6, 15-23
        (the conventions: x = size/d_cut, partition to the fine product).
