@@ -23,11 +23,11 @@ that hold every experiment and every starting point at once:
 Every formula whose curve broadcasts over array-valued shapes runs here, the piecewise
 (10) included; a formula whose break moves with its shape, as (11), declares the hooks the
 engine calls (:class:`~tromplab.curves.formulas.MovingBreak`: for (11) the vectorised
-break-point solver :func:`shuvalov_breaks`).  Curves that need a scalar root per parameter set (Whiten's
-fish-hook curve, whose ``beta*`` solves an equation) and curves with two or more extra
-parameters (their extras interact, and the engine starts them at one declared value
-only) are reported by :func:`is_batchable` as not batchable and fitted one by one by the
-caller.
+break-point solver :func:`shuvalov_breaks`), so the engine names no formula.  Curves that
+need a scalar root per parameter set (Whiten's fish-hook curve, whose ``beta*`` solves an
+equation) and curves with two or more extra parameters (their extras interact, and the
+engine starts them at one declared value only) are reported by :func:`is_batchable` as not
+batchable and fitted one by one by the caller.
 
 The engine itself does not use lmfit; :func:`fit_formula_batch` wraps its optimum in the
 same :class:`~tromplab.curves.curve_fit.CurveFit` a single fit returns, and
@@ -515,8 +515,9 @@ CROSSING_STEPS = 36
 
 def search_break_crossings(problem: _Problem, params: np.ndarray, ssr: np.ndarray, rows: np.ndarray):
     """A moving break (``Formula.moving_break``, formula (11)): the optimum may sit where a
-    measured point crosses the break, ``size_i / d_cut = x_a(kr)``.  Along that curve the sum of squares has a ridge of kinks that steps
-    along the axes or diagonals (:func:`compass_search`) cannot follow; search it directly:
+    measured point crosses the break, ``size_i / d_cut = x_a(kr)``.  Along that curve the sum
+    of squares has a ridge of kinks that steps along the axes or diagonals
+    (:func:`compass_search`) cannot follow; search it directly:
     for each point near the break, ``kr`` by golden section on ``ln kr`` (x/÷ 1.25 around the
     current value) with ``d_cut = size_i / x_a(kr)``.  Rows keep the lower sum of squares.
     Returns ``(params, ssr, nfev)``."""
