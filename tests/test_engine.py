@@ -9,14 +9,8 @@ from tromplab import workbench
 from tromplab._synthetic import synthetic
 from tromplab.cli import main
 from tromplab.curves.curve_fit import fit_formula
-from tromplab.curves.engine import (
-    check_bootstrap_request,
-    fit_formula_batch,
-    is_batchable,
-    refit_resamples,
-    shuvalov_breaks,
-)
-from tromplab.curves.formulas import ALL_FORMULAS, FORMULAS, get_formula, shuvalov_break
+from tromplab.curves.engine import check_bootstrap_request, fit_formula_batch, refit_resamples
+from tromplab.curves.formulas import ALL_FORMULAS, FORMULAS, get_formula, is_batchable, shuvalov_break, shuvalov_breaks
 from tromplab.loading.points import TrompPoints
 from tromplab.workbench import fit_experiments
 
