@@ -358,6 +358,13 @@ def _parser() -> argparse.ArgumentParser:
     compare.add_argument("--formula", default="plitt", help="formula id or equation number (default plitt)")
     compare.add_argument("--shared", choices=("shape", "d_cut"), default="shape", help="parameter shared by the joint fit")
     compare.add_argument("--experiments", default=None, help="comma-separated experiments to compare (default: all)")
+    compare.add_argument(
+        "--margin",
+        type=cli_type(check_share, "--margin"),
+        default=0.01,
+        help="relative margin of practical equivalence: estimates closer than it are 'equal within the margin' "
+        "whatever the F test says (default 0.01)",
+    )
     compare.set_defaults(run=_run_compare)
 
     export = commands.add_parser(
@@ -868,11 +875,8 @@ def _run_compare(args) -> int:
     result = shared_fit(experiments, formula, shared=args.shared)
     print(result.table().to_string(index=False, float_format=lambda v: f"{v:.4g}"))
     test = result.test
-    verdict = "differ" if test.needed() else "are consistent with one"
-    print(
-        f"\nExtra sum of squares: F = {test.F:.4g} on ({test.df_extra}, {test.df_full}) df, p = {test.p_value:.4g}: "
-        f"the experiments {verdict} {result.shared} (alpha 0.05)"
-    )
+    print(f"\nExtra sum of squares: F = {test.F:.4g} on ({test.df_extra}, {test.df_full}) df, p = {test.p_value:.4g}")
+    print(result.conclusion(margin=args.margin))
     return 0
 
 

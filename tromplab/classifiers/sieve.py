@@ -501,6 +501,15 @@ def fit_dependence(hole_diameter, length, values, *, form=DEFAULT_DEPENDENCE) ->
 
 
 # --- tables -----------------------------------------------------------------------------
+def _refuse_outside(table, values, column: str, rule: str, *, upper: float = np.inf, upper_allowed: bool = False) -> None:
+    """Raise the :class:`~tromplab.errors.InputError` of the first value of ``column`` not in
+    ``(0, upper)`` (``(0, upper]`` when ``upper_allowed``), naming its row."""
+    inside = (values > 0) & ((values <= upper) if upper_allowed else (values < upper))
+    if not inside.all():
+        i = int(np.flatnonzero(~inside)[0])
+        raise table.error(f"{column} {values[i]:g} {rule}", index=i, column=column)
+
+
 IDENTIFY_COLUMNS = ("sieve", "fraction", "relative_speed", "residue", "sieve_length", "cell_pitch")
 PG_COLUMNS = ("hole_diameter", "length", "width", "half_cell_width")
 
@@ -510,8 +519,17 @@ def identify_from_table(table, *, two_sided: bool = False, level: float = 0.95):
 
     The table has one row per regime x fraction x sieve with the columns
     :data:`IDENTIFY_COLUMNS` and either ``P_g`` or :data:`PG_COLUMNS` (then ``P_g`` is
-    computed).  A group that cannot be identified gets ``success = False`` and the
-    reason; the others go on.
+    computed).  A cell no identification could use is refused as input, naming the file,
+    row and column: a residue outside the open interval (0, 1) (the share retained on the
+    sieve; 0 and 1 carry no quantile), a sieve length or cell pitch that is not positive,
+    a ``P_g`` outside (0, 1].  A group that cannot be identified from valid cells (fewer
+    than two regimes, a sieving probability above ``P_g``) gets ``success = False`` and
+    the reason; the others go on.
+
+    Raises
+    ------
+    InputError
+        When a column is missing or unknown, or a cell is outside its range.
 
     Returns
     -------
@@ -524,8 +542,12 @@ def identify_from_table(table, *, two_sided: bool = False, level: float = 0.95):
     table.require(*IDENTIFY_COLUMNS)
     table.refuse_unknown((*IDENTIFY_COLUMNS, "P_g", *PG_COLUMNS), what="residue table")
     numbers = {c: table.numeric(c) for c in IDENTIFY_COLUMNS[2:]}
+    _refuse_outside(table, numbers["residue"], "residue", "must lie strictly between 0 and 1 (the share retained)", upper=1.0)
+    for column in ("sieve_length", "cell_pitch"):
+        _refuse_outside(table, numbers[column], column, "must be positive")
     if "P_g" in table.frame.columns:
         pg = table.numeric("P_g")
+        _refuse_outside(table, pg, "P_g", "must lie in (0, 1]", upper=1.0, upper_allowed=True)
     elif all(c in table.frame.columns for c in PG_COLUMNS):
         sizes = [table.numeric(c) for c in PG_COLUMNS]
         pg = np.array([geometric_probability(*row) for row in zip(*sizes)])

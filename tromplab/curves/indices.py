@@ -301,9 +301,9 @@ def _area(formula: Formula, shape: float, lower: float, upper: float, context: d
 def eta_plitt_printed(ks):
     """Printed approximation (20): ``eta = 0.6 ks^0.1``.
 
-    Not reproducible: it lies 13-18 % below the exact Plitt efficiency on ks = 1..3 (the
-    best power law there is about ``0.696 ks^0.170``).  Kept for comparison only; see
-    ``docs/errata.md``.
+    Not reproducible: it lies 13.4 % (ks = 1) to 19.9 % (ks = 3) below the exact Plitt
+    efficiency on ks = 1..3 (the best power law there is about ``0.696 ks^0.170``).  Kept
+    for comparison only; see ``docs/errata.md``.
     """
     return 0.6 * np.power(ks, 0.1)
 

@@ -241,7 +241,9 @@ def model_average(
     quantity's range (``method`` says so).  ``d50c`` is the corrected cut of each
     formula (for the nine paper formulas, which have no bypass, the corrected curve is
     the actual one and ``d50c = d50 = d_cut``); a corrected cut is never averaged with an
-    actual one.
+    actual one.  When a formula in the average has no standard error of the quantity (a
+    parameter not determined), the average's ``stderr``, ``low`` and ``high`` stay empty
+    (nan) and ``note`` names the formula: a missing error is not taken as zero.
 
     Returns ``quantity, value, stderr, low, high, method, akaike_share, n_formulas, note``
     plus one weight column per formula (``weight_<id>``).
@@ -297,11 +299,18 @@ def model_average(
             rows.append(row)
             continue
         w = weights[usable] / share
-        theta, se = values[usable], np.nan_to_num(errors[usable])
+        theta, se = values[usable], errors[usable]  # a missing se stays missing: the average's is then unknown
         mean = float(np.sum(w * theta))
         domain = quantity_domain(quantity, x_max=widest_x_max)
         row.update(value=mean, stderr=float(np.sum(w * np.sqrt(se**2 + (theta - mean) ** 2))))
-        if domain.inside(mean) and all(domain.inside(t) for t in theta):
+        ids = [fit.formula.id for fit, used in zip(good, usable) if used]
+        without_se = [name for name, error in zip(ids, se) if not np.isfinite(error)]
+        if without_se:
+            row["note"] = (
+                f"no standard error and no interval: the fit of {', '.join(without_se)} "
+                f"({float(w[~np.isfinite(se)].sum()):.2%} of the weight) gives no standard error of {quantity}"
+            )
+        elif domain.inside(mean) and all(domain.inside(t) for t in theta):
             g_mean = domain.forward(mean)
             se_g = float(np.sum(w * np.sqrt((se * domain.slope(theta)) ** 2 + (domain.forward(theta) - g_mean) ** 2)))
             low, high = sorted((float(domain.backward(g_mean - z * se_g)), float(domain.backward(g_mean + z * se_g))))
