@@ -124,3 +124,20 @@ def test_indistinguishable_fits_and_non_normal_residuals_are_said_in_the_console
     rows = [line for line in block.splitlines() if line.strip().startswith("4.5")]
     assert len(rows) == 8 and all("yes*" in row and "NOT NORMAL" in row for row in rows)
     assert max(len(line) for line in printed.splitlines() if not line.startswith("  /")) <= 100
+
+
+@pytest.mark.parametrize(
+    ("argv", "flag"),
+    [
+        (["fit", "x.csv", "--jobs", "-3"], "--jobs"),
+        (["fit", "x.csv", "--bootstrap", "many"], "--bootstrap"),
+        (["fit", "x.csv", "--alpha", "2"], "--alpha"),
+        (["layer", "simulate", "--diffusion", "1.5"], "--diffusion"),
+    ],
+)
+def test_an_option_error_is_one_line_and_a_pointer_to_the_help(capsys, argv, flag):
+    assert main(argv) == 2
+    said = capsys.readouterr().err.strip().splitlines()
+    command = " ".join(["tromplab", *argv[:2]]) if argv[0] == "layer" else f"tromplab {argv[0]}"
+    assert len(said) == 2 and flag in said[0] and "usage:" not in said[0]
+    assert said[1] == f"  see '{command} -h' for the options"

@@ -13,7 +13,7 @@ from numpy.testing import assert_allclose
 from tromplab import __version__
 from tromplab.classifiers.layer import LayerModel
 from tromplab.classifiers.pulp import PulpScreen
-from tromplab.cli import _parser, main
+from tromplab.cli import build_parser, main
 
 from .conftest import DATASETS, ROOT
 
@@ -30,9 +30,9 @@ def _walk(parser, path=("tromplab",)):
 
 
 def test_every_command_and_option_has_help_text():
-    missing = [f"{' '.join(path)} {option}" for path, option, text in _walk(_parser()) if not (text and text.strip())]
+    missing = [f"{' '.join(path)} {option}" for path, option, text in _walk(build_parser()) if not (text and text.strip())]
     assert missing == []
-    commands = {path[1] for path, _, _ in _walk(_parser()) if len(path) > 1}
+    commands = {path[1] for path, _, _ in _walk(build_parser()) if len(path) > 1}
     assert {"fit", "layer", "pulp", "optimize", "sieve"} <= commands
 
 

@@ -18,18 +18,23 @@ import numpy as np
 import pandas as pd
 
 from ._version import __version__
+from .classifiers.sieve import closed_form_valid, design_bin, distance_moments, geometric_probability, identify_from_table
 from .curves.diagnostics import RESIDUAL_WARNING
 from .curves.formulas import NAME_CLASHES, get_formula, registry_table
 from .curves.ranking import RANK_BY, rank_formulas, read_f_table
 from .curves.screening import DEFAULT_ALPHA
 from .errors import InputError, OptionError
 from .loading.lab import KINDS, PARTITION_METHOD_TEXT, PARTITION_METHODS, LabOptions, YieldWarning, read_experiments, read_lab
-from .loading.tables import InputNote, check_input_file
+from .loading.tables import InputNote, check_input_file, read_table
 from .model_commands import add_model_commands
-from .output.folder import AUTO_FIGURE_LIMIT
+from .output.export import export_fits
+from .output.folder import AUTO_FIGURE_LIMIT, FIGURE_CHOICES, TABLE_FORMATS
 from .output.outputs import check_output_file, check_output_folder
 from .output.views import PARTITION_TO, balance_view, partition_view
+from .statistics.compare import DEFAULT_MARGIN, shared_fit
 from .statistics.hydrocyclone import water_recovery_statements
+from .statistics.uncertainty import BOOTSTRAP_METHODS
+from .trend import monitor_surveys, read_surveys, write_trend
 from .validation import (
     MAX_BOOTSTRAP,
     MAX_DECKS,
@@ -79,7 +84,7 @@ def _sigterm_as_interrupt():
 def main(argv=None) -> int:
     """Run the command line; returns the exit code (0 done, 1 bad input, 2 usage,
     3 partial, 70 internal error, 130 interrupted by SIGINT, 143 terminated by SIGTERM)."""
-    parser = _parser()
+    parser = build_parser()
     try:
         args = parser.parse_args(argv)
     except SystemExit as stop:  # argparse stops on a usage error (2) or after --help/--version (0)
@@ -250,8 +255,9 @@ def _show_input_notes(show):
     return showwarning
 
 
-def _parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+def build_parser() -> argparse.ArgumentParser:
+    """The ``tromplab`` parser: one builder per command, from the option groups declared once."""
+    parser = _CommandParser(
         prog="tromplab",
         description="Fit, screen and rank separation (Tromp) curves.",
         parents=[_global_options(in_subcommand=False)],
@@ -260,17 +266,27 @@ def _parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"tromplab {__version__}")
     commands = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_SubcommandParser)
+    groups = {"lab": _lab_options_parser(), "shared": _fit_options_parser(), "water": _water_recovery_parser()}
+    for add_command in (_add_formulas, _add_fit, _add_report, _add_compare, _add_export, _add_trend, _add_points, _add_balance):
+        add_command(commands, groups)
+    _add_sieve(commands)
+    _add_rank(commands)
+    add_model_commands(commands)  # layer, pulp, optimize
+    return parser
 
+
+def _add_formulas(commands, groups) -> None:
     formulas = commands.add_parser(
         "formulas", help="list the separation-curve formulas (the nine of the paper, then the extended curves)"
     )
     formulas.set_defaults(run=_run_formulas)
 
-    lab = _lab_options_parser()
-    shared = _fit_options_parser()
-    water = _water_recovery_parser()
+
+def _add_fit(commands, groups) -> None:
     fit = commands.add_parser(
-        "fit", parents=[shared, lab, water], help="fit, screen and rank the formulas on Tromp points or lab data"
+        "fit",
+        parents=[groups["shared"], groups["lab"], groups["water"]],
+        help="fit, screen and rank the formulas on Tromp points or lab data",
     )
     fit.add_argument(
         "-o",
@@ -286,14 +302,19 @@ def _parser() -> argparse.ArgumentParser:
     _add_partition_to(fit)
     fit.add_argument(
         "--figures",
-        choices=("auto", "all", "best", "none"),
+        choices=FIGURE_CHOICES,
         default="auto",
         help=f"per-experiment figures with every fit (all) or the top-ranked one (best); auto: all up to "
         f"{AUTO_FIGURE_LIMIT} experiments, then one overview figure (default auto)",
     )
     fit.add_argument("--no-figures", dest="figures", action="store_const", const="none", help="same as --figures none")
-    fit.add_argument("--format", choices=("csv", "parquet"), default="csv", help="format of the tables (parquet needs pyarrow)")
-    scale = fit.add_argument_group("scale")
+    fit.add_argument("--format", choices=TABLE_FORMATS, default="csv", help="format of the tables (parquet needs pyarrow)")
+    _add_scale_options(fit.add_argument_group("scale"))
+    _add_uncertainty_options(fit.add_argument_group("uncertainty"))
+    fit.set_defaults(run=_run_fit)
+
+
+def _add_scale_options(scale) -> None:
     scale.add_argument(
         "--jobs",
         type=cli_type(check_count, "--jobs", minimum=0, maximum=4096),
@@ -308,7 +329,9 @@ def _parser() -> argparse.ArgumentParser:
         action="store_true",
         help="fit one experiment and formula at a time with lmfit instead of the batched engine",
     )
-    uncertainty = fit.add_argument_group("uncertainty")
+
+
+def _add_uncertainty_options(uncertainty) -> None:
     uncertainty.add_argument(
         "--ci",
         type=cli_type(check_probability, "--ci"),
@@ -325,7 +348,7 @@ def _parser() -> argparse.ArgumentParser:
     )
     uncertainty.add_argument(
         "--bootstrap-method",
-        choices=("residuals", "cases"),
+        choices=BOOTSTRAP_METHODS,
         default="residuals",
         help="resample the residuals of the fit or whole points (default: residuals)",
     )
@@ -335,10 +358,13 @@ def _parser() -> argparse.ArgumentParser:
         default=0,
         help="seed of the bootstrap, a whole number >= 0: the same seed gives the same intervals (default %(default)s)",
     )
-    fit.set_defaults(run=_run_fit)
 
+
+def _add_report(commands, groups) -> None:
     report = commands.add_parser(
-        "report", parents=[shared, lab, water], help="HTML and Markdown report: balance, ranked fits, uncertainties, figures"
+        "report",
+        parents=[groups["shared"], groups["lab"], groups["water"]],
+        help="HTML and Markdown report: balance, ranked fits, uncertainties, figures",
     )
     report.add_argument(
         "-o", "--output", type=Path, default=Path("results/report.html"), help="HTML file (a .md twin is written beside it)"
@@ -353,7 +379,12 @@ def _parser() -> argparse.ArgumentParser:
     report.add_argument("--title", default="tromplab report", help="title of the report (default: tromplab report)")
     _add_partition_to(report)
     report.set_defaults(run=_run_report)
-    compare = commands.add_parser("compare", parents=[lab], help="did the sharpness (or the cut) change between experiments?")
+
+
+def _add_compare(commands, groups) -> None:
+    compare = commands.add_parser(
+        "compare", parents=[groups["lab"]], help="did the sharpness (or the cut) change between experiments?"
+    )
     compare.add_argument("input", type=Path, help="Tromp points or a lab table with two or more experiments")
     compare.add_argument("--formula", default="plitt", help="formula id or equation number (default plitt)")
     compare.add_argument("--shared", choices=("shape", "d_cut"), default="shape", help="parameter shared by the joint fit")
@@ -361,12 +392,14 @@ def _parser() -> argparse.ArgumentParser:
     compare.add_argument(
         "--margin",
         type=cli_type(check_share, "--margin"),
-        default=0.01,
+        default=DEFAULT_MARGIN,
         help="relative margin of practical equivalence: estimates closer than it are 'equal within the margin' "
-        "whatever the F test says (default 0.01)",
+        "whatever the F test says (default %(default)s)",
     )
     compare.set_defaults(run=_run_compare)
 
+
+def _add_export(commands, groups) -> None:
     export = commands.add_parser(
         "export", help="write fitted parameters in a simulator's convention (whiten, plitt, dyssol, csv-long)"
     )
@@ -380,7 +413,11 @@ def _parser() -> argparse.ArgumentParser:
     export.add_argument("--size-unit", default=None, help="unit of the fitted sizes: um, mm, cm or m (required by --to dyssol)")
     export.set_defaults(run=_run_export)
 
-    trend = commands.add_parser("trend", parents=[lab], help="monitor a classifier over surveys: control charts and change flags")
+
+def _add_trend(commands, groups) -> None:
+    trend = commands.add_parser(
+        "trend", parents=[groups["lab"]], help="monitor a classifier over surveys: control charts and change flags"
+    )
     trend.add_argument("input", type=Path, help="Tromp points or a lab table with a 'date' (or 'survey') column")
     trend.add_argument("-o", "--outdir", type=Path, default=Path("results/trend"), help="output folder (default: results/trend)")
     trend.add_argument("--formula", default=None, help="formula id (default: the best-ranked of the nine over all surveys)")
@@ -394,17 +431,25 @@ def _parser() -> argparse.ArgumentParser:
     trend.add_argument("--no-figures", action="store_true", help="do not draw figures")
     trend.set_defaults(run=_run_trend)
 
-    points = commands.add_parser("points", parents=[lab, water], help="turn a lab table into Tromp points with diagnostics")
+
+def _add_points(commands, groups) -> None:
+    points = commands.add_parser(
+        "points", parents=[groups["lab"], groups["water"]], help="turn a lab table into Tromp points with diagnostics"
+    )
     points.add_argument("input", type=Path, help="lab table (CSV or .xlsx)")
     points.add_argument("-o", "--output", type=Path, required=True, help="Tromp points CSV to write")
     _add_partition_to(points)
     points.set_defaults(run=_run_points)
 
-    balance = commands.add_parser("balance", parents=[lab], help="yield estimate and mass-balance table of a lab table")
+
+def _add_balance(commands, groups) -> None:
+    balance = commands.add_parser("balance", parents=[groups["lab"]], help="yield estimate and mass-balance table of a lab table")
     balance.add_argument("input", type=Path, help="lab table (CSV or .xlsx)")
     _add_partition_to(balance)
     balance.set_defaults(run=_run_balance)
 
+
+def _add_sieve(commands) -> None:
     sieve = commands.add_parser("sieve", help="sieve classifiers: identification, geometric probability, bin design")
     sieve_commands = sieve.add_subparsers(dest="sieve_command", metavar="SIEVE_COMMAND", required=True)
     identify = sieve_commands.add_parser("identify", help="identify Vk and sigma from residues at several speed regimes")
@@ -421,6 +466,11 @@ def _parser() -> argparse.ArgumentParser:
         "--level", type=cli_type(check_probability, "--level"), default=0.95, help="confidence level of the intervals, in (0, 1)"
     )
     identify.set_defaults(run=_run_sieve_identify)
+    _add_sieve_pg(sieve_commands)
+    _add_sieve_bin(sieve_commands)
+
+
+def _add_sieve_pg(sieve_commands) -> None:
     pg = sieve_commands.add_parser("pg", help="geometric probability of a particle passing a round hole")
     pg.add_argument("--hole", type=cli_type(check_positive, "--hole"), required=True, help="hole diameter D")
     pg.add_argument("--length", type=cli_type(check_positive, "--length"), required=True, help="particle length l")
@@ -440,6 +490,9 @@ def _parser() -> argparse.ArgumentParser:
         help="closed form, quadrature, or auto: the closed form where it is valid (default)",
     )
     pg.set_defaults(run=_run_sieve_pg)
+
+
+def _add_sieve_bin(sieve_commands) -> None:
     bin_ = sieve_commands.add_parser("bin", help="collecting-bin position on the bottom deck for a required recovery")
     bin_.add_argument(
         "--decks",
@@ -456,6 +509,8 @@ def _parser() -> argparse.ArgumentParser:
     )
     bin_.set_defaults(run=_run_sieve_bin)
 
+
+def _add_rank(commands) -> None:
     rank = commands.add_parser("rank", help="rank formulas from a table of F values (Table 2 -> Table 3)")
     rank.add_argument("table", type=Path, help="CSV with experiment, equation, F and n or F_crit [, adequate]")
     rank.add_argument(
@@ -470,9 +525,6 @@ def _parser() -> argparse.ArgumentParser:
     rank.add_argument("--computed-adequacy", action="store_true", help="ignore an 'adequate' column and use F > F_crit")
     rank.set_defaults(run=_run_rank)
 
-    add_model_commands(commands)  # layer, pulp, optimize
-    return parser
-
 
 def _add_partition_to(parser) -> None:
     parser.add_argument(
@@ -483,7 +535,14 @@ def _add_partition_to(parser) -> None:
     )
 
 
-class _SubcommandParser(argparse.ArgumentParser):
+class _CommandParser(argparse.ArgumentParser):
+    """A usage error prints the error and where to look, not the whole usage block."""
+
+    def error(self, message):
+        self.exit(EXIT_USAGE, f"{self.prog}: error: {message}\n  see '{self.prog} -h' for the options\n")
+
+
+class _SubcommandParser(_CommandParser):
     """Every command accepts the global options after its name too (``tromplab fit -q ...``)."""
 
     def __init__(self, *args, **kwargs):
@@ -625,9 +684,6 @@ def _run_balance(args) -> int:
 
 
 def _run_sieve_identify(args) -> int:
-    from .classifiers.sieve import identify_from_table
-    from .loading.tables import read_table
-
     check_input_file(args.data)
     check_output_file(args.output, inputs=[args.data])
     laws = identify_from_table(read_table(args.data), two_sided=args.two_sided, level=args.level)
@@ -643,8 +699,6 @@ def _run_sieve_identify(args) -> int:
 
 
 def _run_sieve_pg(args) -> int:
-    from .classifiers.sieve import closed_form_valid, geometric_probability
-
     value = geometric_probability(args.hole, args.length, args.width, args.cell_width / 2, method=args.method)
     closed = closed_form_valid(args.hole, args.length, args.width, args.cell_width / 2)
     print(
@@ -655,8 +709,6 @@ def _run_sieve_pg(args) -> int:
 
 
 def _run_sieve_bin(args) -> int:
-    from .classifiers.sieve import design_bin, distance_moments
-
     for method in ("exact", "normal"):
         design = design_bin(args.decks, args.length, args.recovery, method=method)
         print(
@@ -854,8 +906,6 @@ def _run_report(args) -> int:
 
 
 def _run_compare(args) -> int:
-    from .statistics.compare import shared_fit
-
     check_input_file(args.input)
     experiments, _ = read_experiments(args.input, _lab_options(args))
     if args.experiments:
@@ -881,8 +931,6 @@ def _run_compare(args) -> int:
 
 
 def _run_export(args) -> int:
-    from .output.export import export_fits
-
     folder = args.fits_dir if args.fits_dir.is_dir() else args.fits_dir.parent
     output = args.output or folder / f"export_{args.to.replace('-', '_')}.csv"
     check_output_file(output, inputs=[] if args.fits_dir.is_dir() else [args.fits_dir])
@@ -901,8 +949,6 @@ def _run_export(args) -> int:
 
 
 def _run_trend(args) -> int:
-    from .trend import monitor_surveys, read_surveys, write_trend
-
     check_input_file(args.input)
     check_output_folder(args.outdir, inputs=[args.input])
     surveys = read_surveys(args.input, _lab_options(args))

@@ -18,8 +18,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from .classifiers.choice import choose, sieve_speed_problem
+from .classifiers.layer import LayerModel, fit_layer_model
+from .classifiers.pulp import PulpScreen, fit_pulp_screen
 from .errors import InputError, OptionError
-from .loading.tables import check_input_file
+from .loading.tables import check_input_file, read_table
 from .output.outputs import check_output_file
 from .validation import check_count, check_non_negative, check_positive, check_probability, check_share, cli_type
 from .workbench import write_atomically
@@ -124,7 +127,20 @@ def _add_layer(commands) -> None:
         "layer", help="Markov-chain model of fines segregation and passage in a layer on a vibrating sieve"
     )
     layer_commands = layer.add_subparsers(dest="layer_command", metavar="LAYER_COMMAND", required=True)
+    shared = _layer_options_parser()
+    _add_layer_simulate(layer_commands, shared)
+    fit = layer_commands.add_parser("fit", parents=[shared], help="identify d, v0 and vf0 from measured extraction")
+    fit.add_argument(
+        "data", type=Path, help="CSV or .xlsx with 'extraction' (0..1) and 'step' or 'time' (seconds, see --step-seconds)"
+    )
+    fit.add_argument("--fit-threshold", action="store_true", help="also identify the lock threshold (profiled)")
+    _level_option(fit)
+    fit.add_argument("-o", "--output", type=Path, default=None, help="CSV of the identified parameters")
+    fit.set_defaults(run=run_layer_fit)
 
+
+def _layer_options_parser() -> argparse.ArgumentParser:
+    """The options of the layer shared by ``layer simulate`` and ``layer fit``."""
     shared = argparse.ArgumentParser(add_help=False)
     group = shared.add_argument_group("layer")
     group.add_argument(
@@ -158,7 +174,10 @@ def _add_layer(commands) -> None:
         default=0.2,
         help="length of one step in seconds (default 0.2)",
     )
+    return shared
 
+
+def _add_layer_simulate(layer_commands, shared) -> None:
     simulate = layer_commands.add_parser("simulate", parents=[shared], help="extraction and concentrations step by step")
     simulate.add_argument(
         "--diffusion",
@@ -194,15 +213,6 @@ def _add_layer(commands) -> None:
     )
     simulate.set_defaults(run=run_layer_simulate)
 
-    fit = layer_commands.add_parser("fit", parents=[shared], help="identify d, v0 and vf0 from measured extraction")
-    fit.add_argument(
-        "data", type=Path, help="CSV or .xlsx with 'extraction' (0..1) and 'step' or 'time' (seconds, see --step-seconds)"
-    )
-    fit.add_argument("--fit-threshold", action="store_true", help="also identify the lock threshold (profiled)")
-    _level_option(fit)
-    fit.add_argument("-o", "--output", type=Path, default=None, help="CSV of the identified parameters")
-    fit.set_defaults(run=run_layer_fit)
-
 
 def _initial(args) -> list[float]:
     if args.initial:
@@ -219,8 +229,6 @@ def _initial(args) -> list[float]:
 
 
 def run_layer_simulate(args) -> int:
-    from .classifiers.layer import LayerModel
-
     _check_paths(args)
     try:
         model = LayerModel(
@@ -254,9 +262,6 @@ def run_layer_simulate(args) -> int:
 
 
 def run_layer_fit(args) -> int:
-    from .classifiers.layer import fit_layer_model
-    from .loading.tables import read_table
-
     _check_paths(args)
     table = read_table(args.data)
     table.require("extraction")
@@ -324,8 +329,6 @@ _PULP_HELP = {
 
 
 def _add_pulp(commands) -> None:
-    from .classifiers.pulp import PulpScreen
-
     pulp = commands.add_parser("pulp", help="productivity of a pulp pressure screen with pulsation cleaning")
     pulp_commands = pulp.add_subparsers(dest="pulp_command", metavar="PULP_COMMAND", required=True)
     model = argparse.ArgumentParser(add_help=False)
@@ -369,8 +372,6 @@ def _add_pulp(commands) -> None:
 
 
 def _pulp_screen(args):
-    from .classifiers.pulp import PulpScreen
-
     values = {item.name: getattr(args, item.name) for item in fields(PulpScreen)}
     try:
         return PulpScreen(**values)
@@ -400,9 +401,6 @@ def run_pulp_optimum(args) -> int:
 
 
 def run_pulp_fit(args) -> int:
-    from .classifiers.pulp import fit_pulp_screen
-    from .loading.tables import read_table
-
     _check_paths(args)
     table = read_table(args.data)
     table.require("applied_pressure", "frequency", "productivity")
@@ -435,7 +433,13 @@ def _add_optimize(commands) -> None:
     optimize = commands.add_parser(
         "optimize", help="operating point of a sieve: capacity against efficiency (Pareto front, compromise)"
     )
-    group = optimize.add_argument_group("sieve (defaults: the kinetics paper's example)")
+    _add_sieve_options(optimize.add_argument_group("sieve (defaults: the kinetics paper's example)"))
+    _add_choice_options(optimize.add_argument_group("choice"))
+    optimize.add_argument("-o", "--output", type=Path, default=None, help="CSV of the Pareto front (l1, V, Q, E, success)")
+    optimize.set_defaults(run=run_optimize)
+
+
+def _add_sieve_options(group) -> None:
     group.add_argument(
         "--lambda-target",
         type=cli_type(check_positive, "--lambda-target"),
@@ -482,7 +486,9 @@ def _add_optimize(commands) -> None:
         default=0.2,
         help="highest mean transport speed V, m/s (default 0.2)",
     )
-    choice = optimize.add_argument_group("choice")
+
+
+def _add_choice_options(choice) -> None:
     choice.add_argument(
         "--min-efficiency",
         type=cli_type(check_non_negative, "--min-efficiency"),
@@ -501,13 +507,9 @@ def _add_optimize(commands) -> None:
         default=11,
         help="number of weights l1 in 0..1 of the Pareto sweep (default 11)",
     )
-    optimize.add_argument("-o", "--output", type=Path, default=None, help="CSV of the Pareto front (l1, V, Q, E, success)")
-    optimize.set_defaults(run=run_optimize)
 
 
 def run_optimize(args) -> int:
-    from .classifiers.choice import choose, sieve_speed_problem
-
     _check_paths(args)
     if not args.speed_min < args.speed_max:
         raise OptionError("--speed-min", f"must be below --speed-max, got {args.speed_min:g} and {args.speed_max:g}")
