@@ -20,7 +20,9 @@ import pandas as pd
 
 import tromplab
 
-DATASETS = Path(__file__).resolve().parents[1] / "datasets"
+# the repository root (sphinx-gallery runs each example from examples/, without __file__)
+ROOT = Path(globals().get("__file__", "example.py")).resolve().parents[1]
+DATASETS = ROOT / "datasets"
 
 table2 = pd.read_csv(DATASETS / "shuvalov2018_table2_F.csv", comment="#")
 table2.head(9)

@@ -15,7 +15,9 @@ import matplotlib.pyplot as plt
 
 import tromplab
 
-LAB = Path(__file__).resolve().parents[1] / "datasets" / "double_deck_screen_decks_lab.csv"
+# the repository root (sphinx-gallery runs each example from examples/, without __file__)
+ROOT = Path(globals().get("__file__", "example.py")).resolve().parents[1]
+LAB = ROOT / "datasets" / "double_deck_screen_decks_lab.csv"
 
 experiments, balances = tromplab.read_experiments(LAB, estimate_yield=True)
 [(points.experiment, len(points.size)) for points in experiments]

@@ -21,7 +21,9 @@ import pandas as pd
 
 import tromplab
 
-SHEET = Path(__file__).resolve().parents[1] / "tests" / "data" / "hydrocyclone_size_class_um.csv"
+# the repository root (sphinx-gallery runs each example from examples/, without __file__)
+ROOT = Path(globals().get("__file__", "example.py")).resolve().parents[1]
+SHEET = ROOT / "tests" / "data" / "hydrocyclone_size_class_um.csv"
 sheet = pd.read_csv(SHEET, comment="#")
 sheet[["size_class_um", "feed_pct"]]
 

@@ -18,7 +18,9 @@ import numpy as np
 
 import tromplab
 
-LAB = Path(__file__).resolve().parents[1] / "datasets" / "double_deck_screen_decks_lab.csv"
+# the repository root (sphinx-gallery runs each example from examples/, without __file__)
+ROOT = Path(globals().get("__file__", "example.py")).resolve().parents[1]
+LAB = ROOT / "datasets" / "double_deck_screen_decks_lab.csv"
 experiments, _ = tromplab.read_experiments(LAB, estimate_yield=True)
 bench = tromplab.fit_experiments(experiments, size_unit="mm")
 fit = bench.best_fit("deck_65mesh")

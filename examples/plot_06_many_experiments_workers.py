@@ -17,7 +17,9 @@ import pandas as pd
 
 import tromplab
 
-SURVEYS = Path(__file__).resolve().parents[1] / "datasets" / "classifier_trend_surveys.csv"
+# the repository root (sphinx-gallery runs each example from examples/, without __file__)
+ROOT = Path(globals().get("__file__", "example.py")).resolve().parents[1]
+SURVEYS = ROOT / "datasets" / "classifier_trend_surveys.csv"
 frame = pd.read_csv(SURVEYS, comment="#")
 points = frame.rename(columns={"survey": "experiment"})[["experiment", "size", "partition_fine"]]
 experiments = tromplab.read_points(points, size_unit="um")

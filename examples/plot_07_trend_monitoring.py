@@ -16,7 +16,9 @@ import matplotlib.pyplot as plt
 
 from tromplab.statistics import trend
 
-SURVEYS = Path(__file__).resolve().parents[1] / "datasets" / "classifier_trend_surveys.csv"
+# the repository root (sphinx-gallery runs each example from examples/, without __file__)
+ROOT = Path(globals().get("__file__", "example.py")).resolve().parents[1]
+SURVEYS = ROOT / "datasets" / "classifier_trend_surveys.csv"
 surveys = trend.read_surveys(SURVEYS)
 result = trend.monitor_surveys(surveys, formula="plitt_bypass")
 print(result.summary())

@@ -21,7 +21,9 @@ import pandas as pd
 from tromplab.classifiers import sieve
 from tromplab.loading.tables import read_table
 
-RESIDUES = Path(__file__).resolve().parents[1] / "datasets" / "sieve_identify_residues_example.csv"
+# the repository root (sphinx-gallery runs each example from examples/, without __file__)
+ROOT = Path(globals().get("__file__", "example.py")).resolve().parents[1]
+RESIDUES = ROOT / "datasets" / "sieve_identify_residues_example.csv"
 table = pd.read_csv(RESIDUES, comment="#")
 table.head(6)
 

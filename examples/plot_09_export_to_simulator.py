@@ -20,7 +20,9 @@ import numpy as np
 import tromplab
 from tromplab.output.export import export_fits
 
-LAB = Path(__file__).resolve().parents[1] / "datasets" / "double_deck_screen_decks_lab.csv"
+# the repository root (sphinx-gallery runs each example from examples/, without __file__)
+ROOT = Path(globals().get("__file__", "example.py")).resolve().parents[1]
+LAB = ROOT / "datasets" / "double_deck_screen_decks_lab.csv"
 experiments, _ = tromplab.read_experiments(LAB, estimate_yield=True)
 bench = tromplab.fit_experiments(experiments, formulas=["paper", "other"], size_unit="mm")
 

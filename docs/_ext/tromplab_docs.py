@@ -417,9 +417,10 @@ def api_reference() -> str:
         ".. This page is generated from tromplab.__all__ and the package's modules by docs/_ext/tromplab_docs.py.\n",
         _title("API reference", "#"),
         ".. currentmodule:: tromplab\n",
-        "The public API is ``tromplab.__all__``: these names stay stable across releases. "
-        f"``tromplab.__version__`` is the installed version ({tromplab.__version__}).\n",
+        "The public API is ``tromplab.__all__``: these names stay stable across releases.\n",
         _title("Public names (tromplab.__all__)", "="),
+        f".. data:: __version__\n   :type: str\n\n   The installed version of tromplab ({tromplab.__version__}); "
+        "kept in ``tromplab/_version.py`` only, which ``pyproject.toml`` reads.\n",
         ".. autosummary::\n   :toctree: api\n\n" + "\n".join(f"   {name}" for name in public_names()) + "\n",
         _title("Modules", "="),
         "The functions and classes each module of the package defines (names of ``tromplab.__all__`` "
