@@ -315,10 +315,11 @@ def formula_section(formula, figure: str | None) -> str:
     parts.append(_math_block(formula))
     parts.append(f"Reader syntax: {_literal(formula.expression)} with ``x = size/d_cut``.\n")
     parts.append(_table(("parameter", "bounds", "unit", "meaning"), _parameter_rows(formula)))
-    slope_mid = formula.slope_at_cut(formula.clip_shape(formula.shape_for_slope(-1.0)))
+    shape = formula.clip_shape(formula.shape_for_slope(-1.0))
     parts.append(
         f"Slope at the cut: {_literal(formula.slope_expression)} "
-        f"(shape {formula.clip_shape(formula.shape_for_slope(-1.0)):.4g} gives {slope_mid:.4g}).\n"
+        f"({formula.shape_name} = {shape:.4g} gives {formula.slope_at_cut(shape):.4g}"
+        f"{' with the extra parameters at zero' if formula.extras else ''}).\n"
     )
     if formula.notes:
         parts.append(f"Notes: {_rst_text(formula.notes)}\n")
