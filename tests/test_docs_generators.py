@@ -117,3 +117,18 @@ def test_the_version_lives_in_one_place():
     changelog = (ROOT / "CHANGELOG.md").read_text()
     assert f"## [{tromplab.__version__}]" in changelog or "## [Unreleased]" in changelog
     assert (ROOT / "LICENSE").read_text().startswith("MIT License")
+
+
+def test_getting_started_first_fit_runs(monkeypatch):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    page = (ROOT / "docs" / "getting_started.md").read_text()
+    code = page.split("## A first fit in Python", 1)[1].split("```python\n", 1)[1].split("```", 1)[0]
+    monkeypatch.chdir(ROOT)  # the page's paths are relative to the repository root
+    namespace = {}
+    exec(compile(code, "docs/getting_started.md", "exec"), namespace)  # noqa: S102 - the page's own example
+    assert namespace["fit"].success and namespace["fit"].experiment == "deck_20mesh"
+    plt.close("all")
