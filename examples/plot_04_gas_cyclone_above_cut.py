@@ -7,7 +7,7 @@ finest class a sieve or a laser analysis of the collected dust resolves well. Ev
 measured class then lies above the cut and every partition number to the fine product
 (the gas outlet) is below 1/2. The points below are the grade efficiency of such a
 cyclone, 1/(1 + (d/d50)^2) (the form of Lapple's and Plitt's curves with d50 = 2.2 um),
-read at seven classes from 3 to 30 um. What does tromplab say?
+read at seven classes from 3 to 30 um with a small measurement error. What does tromplab say?
 """
 
 import matplotlib.pyplot as plt
@@ -17,9 +17,9 @@ import pandas as pd
 import tromplab
 
 sizes_um = np.array([3.0, 4.5, 6.5, 9.5, 14.0, 20.0, 30.0])
-points = pd.DataFrame(
-    {"experiment": "cyclone", "size_um": sizes_um, "partition_fine": (1.0 / (1.0 + (sizes_um / 2.2) ** 2)).round(4)}
-)
+# the curve read with a measurement error of 0.005 on each partition number (fixed seed)
+measured = 1.0 / (1.0 + (sizes_um / 2.2) ** 2) + np.random.default_rng(7).normal(0.0, 0.005, sizes_um.size)
+points = pd.DataFrame({"experiment": "cyclone", "size_um": sizes_um, "partition_fine": np.clip(measured, 0.0, 1.0).round(4)})
 points
 
 # %%
@@ -38,15 +38,25 @@ for verdict in bench.verdicts("cyclone"):
     print("verdict:", verdict)
 
 # %%
-# The cut each formula extrapolates to differs by more than its standard error: with no
-# point below the cut, the curve's shape there comes from the formula, not the data.
-fits = bench.summary().sort_values("d_cut")
+# Some fits say more in their warnings: a parameter the data do not determine (its
+# standard error larger than itself), or a shape that ended on its bound.
+fits = bench.summary()
+for formula, warning in fits.loc[fits["warnings"] != "", ["formula", "warnings"]].itertuples(index=False):
+    print(f"{formula}: {warning}")
+
+# %%
+# The cut each formula extrapolates to, with its 95 % Wald interval: with no point below
+# the cut, where it lies comes from the formula's shape, not from the data. Fits whose cut
+# the data do not determine are left out of the figure.
+determined = fits[fits["d_cut_stderr"] < fits["d_cut"]].sort_values("d_cut")
 fig, ax = plt.subplots(figsize=(6.5, 3.8))
-ax.errorbar(fits["d_cut"], fits["formula"], xerr=1.96 * fits["d_cut_stderr"], fmt="o")
+ax.errorbar(determined["d_cut"], determined["formula"], xerr=1.96 * determined["d_cut_stderr"], fmt="o")
 ax.axvline(sizes_um.min(), color="C3", linestyle="--", label="finest measured class")
 ax.axvline(2.2, color="0.4", linestyle=":", label="cut of the curve that made the points")
 ax.set_xlabel("fitted d_cut [um] with 95 % Wald interval")
-ax.legend(fontsize=8)
+left_out = sorted(set(fits["formula"]) - set(determined["formula"]))
+ax.set_title("left out (cut not determined): " + (", ".join(left_out) or "none"), fontsize=9)
+ax.legend(fontsize=8, loc="lower right")
 fig.tight_layout()
 
 # %%

@@ -50,12 +50,13 @@ averages = tromplab.model_averages(bench)
 averages
 
 # %%
-# Each formula's cut with its interval, and the model average.
+# Each formula's cut with its interval and Akaike weight w, and the model average.
 rows = deck.sort_values("d50")
 average = averages[(averages["experiment"] == "deck_65mesh") & (averages["quantity"] == "d50")].iloc[0]
 fig, ax = plt.subplots(figsize=(6.5, 4))
 ax.errorbar(rows["d50"], rows["formula"], xerr=1.96 * rows["d_cut_stderr"], fmt="o", label="single formula (Wald 95 %)")
-ax.scatter(rows["d50"], rows["formula"], s=400 * rows["weight"] + 1, alpha=0.3, color="C1", label="Akaike weight (area)")
+for d50, formula, weight in rows[["d50", "formula", "weight"]].itertuples(index=False):
+    ax.annotate(f"w = {weight:.2f}", (d50, formula), xytext=(0, 6), textcoords="offset points", ha="center", fontsize=7)
 ax.axvline(average["value"], color="C3", label="model average d50")
 if np.isfinite(average["low"]) and np.isfinite(average["high"]):
     ax.axvspan(average["low"], average["high"], color="C3", alpha=0.15, label="its 95 % interval")
