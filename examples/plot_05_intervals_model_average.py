@@ -3,7 +3,7 @@ Intervals and model averages
 ============================
 
 A cut size without an interval is half an answer, and the choice among nine formulas that
-fit about equally well is itself uncertain. This example takes the 65-mesh deck of the
+fit about equally well is itself uncertain. This example takes the 20-mesh deck of the
 bundled double-deck screen (``datasets/double_deck_screen_decks_lab.csv``) and shows the
 profile-likelihood and delta-method intervals of one fit
 (:func:`tromplab.interval_table`), a bootstrap of it (:func:`tromplab.bootstrap`), the
@@ -23,8 +23,8 @@ ROOT = Path(globals().get("__file__", "example.py")).resolve().parents[1]
 LAB = ROOT / "datasets" / "double_deck_screen_decks_lab.csv"
 experiments, _ = tromplab.read_experiments(LAB, estimate_yield=True)
 bench = tromplab.fit_experiments(experiments, size_unit="mm")
-fit = bench.best_fit("deck_65mesh")
-print(fit.formula.id, "ranked first on the 65-mesh deck")
+fit = bench.best_fit("deck_20mesh")
+print(fit.formula.id, "ranked first on the 20-mesh deck")
 
 # %%
 # Intervals of the parameters (profile likelihood) and of the indices (delta method).
@@ -39,7 +39,7 @@ boot.intervals
 # %%
 # Akaike weights of the nine formulas on this deck: how much the data prefer each.
 table = bench.summary()
-deck = table[table["experiment"] == "deck_65mesh"].copy()
+deck = table[table["experiment"] == "deck_20mesh"].copy()
 deck["weight"] = tromplab.akaike_weights(deck["aicc"].to_numpy())
 deck[["formula", "rank", "F", "aicc", "delta_aicc", "weight", "d50", "ep"]].sort_values("weight", ascending=False)
 
@@ -52,7 +52,7 @@ averages
 # %%
 # Each formula's cut with its interval and Akaike weight w, and the model average.
 rows = deck.sort_values("d50")
-average = averages[(averages["experiment"] == "deck_65mesh") & (averages["quantity"] == "d50")].iloc[0]
+average = averages[(averages["experiment"] == "deck_20mesh") & (averages["quantity"] == "d50")].iloc[0]
 fig, ax = plt.subplots(figsize=(6.5, 4))
 ax.errorbar(rows["d50"], rows["formula"], xerr=1.96 * rows["d_cut_stderr"], fmt="o", label="single formula (Wald 95 %)")
 for d50, formula, weight in rows[["d50", "formula", "weight"]].itertuples(index=False):
