@@ -117,8 +117,8 @@ def run_fits(n, workers, folder):
 
 
 def run_bare(n, limit):
-    from tromplab.curves.curve_fit import measured_efficiency
     from tromplab.curves.formulas import FORMULAS
+    from tromplab.curves.measured import measured_efficiency
 
     data = experiments(min(n, limit))
     rows = []

@@ -1,9 +1,9 @@
-"""False-alarm rate and detection delay of the monitoring rule of tromplab.statistics.trend.
+"""False-alarm rate and detection delay of the monitoring rule of tromplab.trend.
 
-Draws seeded survey series from tromplab.statistics.trend.simulate_surveys: ``--series`` series
+Draws seeded survey series from tromplab.trend.simulate_surveys: ``--series`` series
 without any change (false alarms) and as many with the bundled design's two changes
 (a bypass step at survey 13, a cut drifting by 4 % per survey from survey 19), runs
-tromplab.statistics.trend.monitor_surveys on each (formula plitt_bypass, default baseline: the
+tromplab.trend.monitor_surveys on each (formula plitt_bypass, default baseline: the
 first 8 surveys, alpha 0.01), and evaluates the rule at several EWMA limit widths L
 on the same fits.  Results are printed and written to benchmarks/output/trend_false_alarms.csv;
 docs/trend.md states them.
@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from tromplab.statistics.trend import EWMA_L, SeriesDesign, flag_changes, monitor_surveys, simulate_surveys, surveys_from_frame
+from tromplab.trend import EWMA_L, SeriesDesign, flag_changes, monitor_surveys, simulate_surveys, surveys_from_frame
 
 WIDTHS = (3.0, 3.5, EWMA_L, 4.0)
 NO_CHANGE = SeriesDesign(bypass_step_at=None, drift_from=None)

@@ -32,7 +32,7 @@ extensions = [
 source_suffix = {".rst": "restructuredtext", ".md": "markdown"}
 root_doc = "index"
 exclude_patterns = ["_build", "_ext", "Thumbs.db", ".DS_Store", "sg_execution_times.rst"]
-templates_path = []
+templates_path = ["_templates"]  # autosummary/class.rst: members in full, not a table of first sentences
 
 # Markdown pages (the user guide) under myst: heading anchors for their '#section' links
 myst_enable_extensions = ["dollarmath", "colon_fence"]
@@ -42,7 +42,6 @@ myst_heading_anchors = 3
 # formatted for help() and doctests, so numpydoc's style validation stays off.
 autosummary_generate = True
 autosummary_imported_members = False
-autodoc_default_options = {"members": False}
 autodoc_typehints = "none"
 numpydoc_show_class_members = False
 numpydoc_class_members_toctree = False

@@ -7,14 +7,14 @@ generated with known changes: the bypass rises by 0.08 from survey S13, the cut 
 4 % a survey from S19). Each survey is fitted with Plitt's curve with bypass; the first
 eight surveys set the baseline; an EWMA chart follows the cut, Ep, eta and the bypass,
 and a joint-fit equality test compares each survey with the baseline. This is
-``tromplab trend`` in Python (``tromplab.statistics.trend``, as the README documents).
+``tromplab trend`` in Python (``tromplab.trend``, as the README documents).
 """
 
 from pathlib import Path
 
 import matplotlib.pyplot as plt
 
-from tromplab.statistics import trend
+from tromplab import trend
 
 # the repository root (sphinx-gallery runs each example from examples/, without __file__)
 ROOT = Path(globals().get("__file__", "example.py")).resolve().parents[1]

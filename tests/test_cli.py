@@ -4,7 +4,7 @@ import pandas as pd
 import pytest
 
 from tromplab.cli import main
-from tromplab.workbench import FIT_COLUMNS
+from tromplab.curves.curve_fit import FIT_COLUMNS
 
 from .conftest import DATASETS, TWO_EXPERIMENT_POINTS, write
 

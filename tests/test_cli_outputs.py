@@ -80,12 +80,12 @@ def test_dash_o_xlsx_writes_only_the_workbook(tmp_path):
 
 
 def test_a_failing_workbook_leaves_nothing_behind(tmp_path, monkeypatch):
-    import tromplab.output.workbook
+    import tromplab.output.folder
 
     def broken(*args, **kwargs):
         raise RuntimeError("disk full")
 
-    monkeypatch.setattr(tromplab.output.workbook, "write_workbook", broken)
+    monkeypatch.setattr(tromplab.output.folder, "write_workbook", broken)
     out = tmp_path / "out"
     # a writer that breaks is a bug, not bad input: exit 70, and nothing is written
     assert main(["fit", str(write(tmp_path, POINTS)), "-o", str(out), "--excel", "--no-figures"]) == 70

@@ -6,9 +6,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
-from tromplab.curves.curve_fit import fit_formula, measured_cut_size, measured_efficiency
+from tromplab.curves.curve_fit import fit_formula
 from tromplab.curves.fitting import ParameterSpec, least_squares
 from tromplab.curves.formulas import get_formula
+from tromplab.curves.measured import measured_cut_size, measured_efficiency
 from tromplab.loading.points import TrompPoints
 from tromplab.workbench import fit_experiments
 

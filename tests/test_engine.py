@@ -8,15 +8,9 @@ from numpy.testing import assert_allclose
 from tromplab import workbench
 from tromplab._synthetic import synthetic
 from tromplab.cli import main
-from tromplab.curves.curve_fit import fit_formula, with_lmfit
-from tromplab.curves.engine import (
-    check_bootstrap_request,
-    fit_formula_batch,
-    is_batchable,
-    refit_resamples,
-    shuvalov_breaks,
-)
-from tromplab.curves.formulas import ALL_FORMULAS, FORMULAS, get_formula, shuvalov_break
+from tromplab.curves.curve_fit import fit_formula
+from tromplab.curves.engine import check_bootstrap_request, fit_formula_batch, refit_resamples
+from tromplab.curves.formulas import ALL_FORMULAS, FORMULAS, get_formula, is_batchable, shuvalov_break, shuvalov_breaks
 from tromplab.loading.points import TrompPoints
 from tromplab.workbench import fit_experiments
 
@@ -106,7 +100,7 @@ def test_vectorised_break_points_solve_their_equation_to_rounding():
 def test_engine_fit_becomes_an_lmfit_result_with_the_same_optimum():
     fit = fit_formula_batch(EXPERIMENTS[:1], "plitt")[0]
     assert fit.fit.raw is None
-    polished = with_lmfit(fit)
+    polished = fit.with_lmfit()
     assert polished.fit.raw is not None and polished.fit.minimizer is not None
     assert_allclose(polished.fit.ssr, fit.fit.ssr, rtol=1e-8)
     assert_allclose(polished.fit.values["d_cut"], fit.d_cut, rtol=1e-4)
@@ -178,7 +172,7 @@ def test_data_notes_come_back_from_the_workers_in_batch_order(monkeypatch):
 
 def test_engine_and_single_fits_give_the_same_table():
     batched = fit_experiments(EXPERIMENTS[:6], formulas=["plitt", "luckie_austin"]).fits_table()
-    single = fit_experiments(EXPERIMENTS[:6], formulas=["plitt", "luckie_austin"], engine=False).fits_table()
+    single = fit_experiments(EXPERIMENTS[:6], formulas=["plitt", "luckie_austin"], single_fits=True).fits_table()
     assert list(batched["experiment"]) == list(single["experiment"])
     assert (batched["rank"].to_numpy() == single["rank"].to_numpy()).all()
     assert_allclose(batched["ssr"], single["ssr"], rtol=1e-6)
@@ -234,7 +228,7 @@ def test_11_finds_its_optimum_where_a_point_crosses_the_break():
     from scipy.optimize import minimize_scalar
 
     from tromplab import read_experiments
-    from tromplab.curves.curve_fit import formula_context
+    from tromplab.curves.measured import formula_context
 
     third = 100.0 / 3.0
     frame = pd.DataFrame(

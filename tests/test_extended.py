@@ -8,7 +8,7 @@ from tromplab.cli import main
 from tromplab.curves.curve_fit import fit_formula
 from tromplab.curves.formulas import EXTENDED_FORMULAS, get_formula, whiten_beta_star
 from tromplab.loading.points import TrompPoints
-from tromplab.statistics.compare import nested_f_test, shared_fit
+from tromplab.statistics.compare import DEFAULT_MARGIN, nested_f_test, shared_fit
 from tromplab.workbench import fit_experiments
 
 SIZES = np.geomspace(10, 400, 12)
@@ -95,9 +95,53 @@ def test_compare_command(tmp_path, capsys):
     path = tmp_path / "two.csv"
     frame.to_csv(path, index=False)
     assert main(["compare", str(path), "--formula", "plitt"]) == 0
-    assert "the experiments differ ks" in capsys.readouterr().out
+    assert "the experiments differ in ks: their estimates differ by" in capsys.readouterr().out
     assert main(["compare", str(path), "--experiments", "a,zzz"]) == 1
     assert "unknown experiment(s) zzz" in capsys.readouterr().err
+
+
+def _plitt_run(ks, seed, noise, name, d_cut=80.0, count=30):
+    sizes = np.geomspace(20, 400, count)
+    rng = np.random.default_rng(seed)
+    return TrompPoints(name, sizes, get_formula("plitt")(sizes, d_cut, ks) + rng.normal(0, noise, count))
+
+
+def test_a_tiny_p_value_with_estimates_within_the_margin_is_equal_within_the_margin():
+    """Issue 22 E: ks 2.50 against 2.52 on 30 points with noise 2e-4: the F test tells them apart
+    (p ~ 1e-32), but they differ by 0.8 %, less than the default margin of 1 %."""
+    result = shared_fit([_plitt_run(2.5, 1, 2e-4, "a"), _plitt_run(2.52, 2, 2e-4, "b", d_cut=100.0)], "plitt")
+    separate = [fit.fit.values["ks"] for fit in result.separate]
+    assert_allclose(result.relative_difference, (max(separate) - min(separate)) / result.fit.values["ks"], rtol=1e-12)
+    assert 0.005 < result.relative_difference < DEFAULT_MARGIN == 0.01
+    assert result.test.p_value < 1e-20
+    assert result.verdict() == "equal within the margin"
+    assert result.conclusion().startswith("the experiments are equal within the margin in ks: their estimates differ by 0.")
+    assert "although the F test tells them apart" in result.conclusion()
+    assert result.verdict(margin=0.005) == "differ"
+
+
+def test_no_difference_detected_but_estimates_beyond_the_margin_is_undecided():
+    """Six noisy points each (noise 0.05): ks 2.5 against 3.0 is not detected (p ~ 0.6), yet the
+    estimates differ by 15 %: the data cannot tell whether the runs are equal."""
+    result = shared_fit([_plitt_run(2.5, 1, 0.05, "a", count=6), _plitt_run(3.0, 2, 0.05, "b", count=6)], "plitt")
+    assert not result.test.needed() and result.relative_difference > 0.1
+    assert result.verdict() == "undecided"
+    assert "the data cannot tell whether the experiments are equal" in result.conclusion()
+    assert result.verdict(margin=0.2) == "equal within the margin"
+
+
+def test_compare_command_takes_a_margin(tmp_path, capsys):
+    import pandas as pd
+
+    frame = pd.concat([_plitt_run(2.5, 1, 2e-4, "a").to_frame(), _plitt_run(2.52, 2, 2e-4, "b", d_cut=100.0).to_frame()])
+    path = tmp_path / "close.csv"
+    frame.to_csv(path, index=False)
+    assert main(["compare", str(path)]) == 0
+    assert "the experiments are equal within the margin in ks" in capsys.readouterr().out
+    assert main(["compare", str(path), "--margin", "0.001"]) == 0
+    assert "the experiments differ in ks" in capsys.readouterr().out
+    assert main(["compare", str(path), "--margin", "1.5"]) == 2
+    assert "--margin" in capsys.readouterr().err
 
 
 def test_systematic_residuals_are_flagged_even_when_adequate():

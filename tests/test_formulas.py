@@ -166,7 +166,7 @@ def test_registry_table_is_a_frame():
 def test_every_start_shape_exists_for_any_measured_slope(formula):
     # a measured slope of -0.25000000000000006 (Lynch's limit, reached by a size-unit rounding on
     # a three-class table) was not bracketed, and the fit of (6) failed in one unit only
-    from tromplab.curves.curve_fit import GRID_SLOPES
+    from tromplab.curves.measured import GRID_SLOPES
 
     edges = [GRID_SLOPES.min(), GRID_SLOPES.max(), -0.25, np.nextafter(-0.25, -1.0), -0.5, -200.0, np.nextafter(-200.0, -1e3)]
     for slope in edges:

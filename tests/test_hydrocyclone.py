@@ -8,10 +8,11 @@ import pytest
 import tromplab
 from tromplab.cli import main
 from tromplab.errors import OptionError
+from tromplab.loading.kelsall import kelsall_corrected
 from tromplab.loading.lab import LabOptions, read_lab
 from tromplab.loading.points import TrompPoints
 from tromplab.output.views import partition_view
-from tromplab.statistics.hydrocyclone import bypass_against_water_recovery, kelsall_corrected
+from tromplab.statistics.hydrocyclone import bypass_against_water_recovery
 from tromplab.workbench import fit_experiments
 
 from .conftest import LAB_CLASS_HEADER, LAB_CLASS_ROWS, write

@@ -2,9 +2,10 @@
 
 import numpy as np
 import pytest
-from numpy.testing import assert_allclose
+from numpy.testing import assert_allclose, assert_array_equal
 
 from tromplab.classifiers.layer import LayerModel, fit_layer_model
+from tromplab.cli import main
 
 from .conftest import reference_rows
 
@@ -50,6 +51,56 @@ def test_locking_slows_the_passage_by_the_square_root_rule():
     after_move = model._transition(run.concentrations[k].copy(), 1)
     assert_allclose(gained * 2.0, after_move[-1] * 0.21 * np.sqrt(3 / 4), rtol=1e-12)
     assert bottom_before > 0
+
+
+#: The published run (d, v0, vf0 of paper 001; 4 cells at 50 %) with a lock threshold of 0.02,
+#: over the 600 steps of the paper's Fig. 3.
+LOCKING = dict(diffusion=0.005, segregation=0.026, passage=0.21, lock_threshold=0.02)
+
+
+def _lock_steps(run) -> list[int]:
+    """Step at which the first, second, ... cell locked."""
+    return [int(np.flatnonzero(run.locked >= count)[0]) + 1 for count in range(1, run.locked.max() + 1)]
+
+
+@pytest.mark.parametrize("constant, steps", [(False, [206, 261, 293]), (True, [206, 260, 292])], ids=["fig3b", "fig3a"])
+def test_lock_steps_of_the_published_run_with_threshold_002(constant, steps):
+    """Paper 001 (text under Fig. 5): 'at k = 200 (40 s) the layer is one cell thinner'; the threshold
+    is not stated. With 0.02 the three upper cells lock at steps 206, 261 and 293 (computed: the
+    paper gives only the first, about 200); with a constant passage the later locks come one step
+    earlier (the bottom cell passes more, the cells above empty sooner)."""
+    run = LayerModel(**LOCKING, constant_passage=constant).simulate(START, 600)
+    assert _lock_steps(run) == steps
+
+
+def test_figure_3a_constant_passage_after_a_lock():
+    """Paper 001, Fig. 3: kinetics at constant (a) and variable (b) passage. The text: almost the same
+    at the start, then the variable passage slows the process noticeably; the figure's axes end at
+    k = 600 and extraction 1, where both curves end (the only readable values of the figure)."""
+    variable = LayerModel(**LOCKING).simulate(START, 600)
+    constant = LayerModel(**LOCKING, constant_passage=True).simulate(START, 600)
+    first = variable.first_lock
+    assert constant.first_lock == first == 206
+    assert_array_equal(constant.extraction[:first], variable.extraction[:first])  # one model until a cell locks
+    later = slice(first + 1, None)
+    assert np.all(constant.extraction[later] > variable.extraction[later] - 1e-15)
+    assert_allclose((constant.extraction - variable.extraction).max(), 0.00424, atol=5e-6)  # largest gap 0.42 % at k = 297
+    assert constant.extraction[599] > 1 - 1e-9 and variable.extraction[599] > 1 - 1e-9
+    # the step after the first lock passes vf0 of the bottom cell (Fig. 3a), not vf0 sqrt(3/4) (Fig. 3b)
+    after_move = LayerModel(0.005, 0.026, 0.21)._transition(constant.concentrations[first - 1].copy(), 1)
+    assert_allclose(constant.extraction[first] - constant.extraction[first - 1], after_move[-1] * 0.21 / 2.0, rtol=1e-12)
+
+
+def test_layer_command_takes_the_constant_passage_of_figure_3a(tmp_path, capsys):
+    out = tmp_path / "fig3a.csv"
+    options = ["layer", "simulate", "--lock-threshold", "0.02", "--steps", "600", "-o", str(out)]
+    assert main([*options, "--constant-passage"]) == 0
+    written = np.loadtxt(out, delimiter=",", skiprows=1, usecols=-2)
+    assert_allclose(written, LayerModel(**LOCKING, constant_passage=True).simulate(START, 600).extraction, rtol=1e-12)
+    assert main(options) == 0
+    variable = np.loadtxt(out, delimiter=",", skiprows=1, usecols=-2)
+    assert (written - variable).max() > 4e-3  # the option changed the run
+    assert "first cell locked at step 206" in capsys.readouterr().out
 
 
 @pytest.mark.parametrize("cells, low, high", [(4, 1.15, 1.25), (16, 1.9, 2.1)])

@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
+from scipy import optimize
 
 from tromplab.classifiers.pulp import PulpScreen, fit_pulp_screen
 
@@ -35,6 +36,25 @@ def test_frequency_maximum_with_rotor_pulsation():
     frequency, top, interior = ROTOR.best_frequency(0.5)
     assert interior and 1 < frequency < 100
     assert top > ROTOR.productivity(0.5, frequency * 0.7) and top > ROTOR.productivity(0.5, frequency * 1.4)
+
+
+def test_frequency_optimum_of_the_rotor_screen_at_applied_head_05():
+    """Paper 004, Fig. 1 inputs (F = 1 m^2, k0 = 0.2, c = 10 kg/m^3, t1 = 0.01 s, beta = 2, r = 2,
+    lambda = 3, s = 0.5, tau = 2, phi = 0.0025) with relations (10)-(11) read as alpha = beta H^r,
+    a = lambda H^s (docs/errata.md): the best pulsation frequency at H' = 0.5 is 14.888 1/s
+    (computed, printed by ``tromplab pulp optimum --phi 0.0025 --applied 0.5``; the paper draws the
+    curves only). Checked against the zero of dQ/dN found independently, to half a unit of the
+    third decimal."""
+    frequency, top, interior = ROTOR.best_frequency(0.5)
+    assert interior
+    assert_allclose(frequency, 14.888, atol=5e-4)
+
+    def slope(n, h=1e-6):
+        return (ROTOR.productivity(0.5, n * (1 + h)) - ROTOR.productivity(0.5, n * (1 - h))) / (2 * h * n)
+
+    assert slope(14.8) > 0 > slope(15.0)
+    assert_allclose(frequency, optimize.brentq(slope, 10.0, 20.0, xtol=1e-10), atol=1e-5)
+    assert_allclose(top, ROTOR.productivity(0.5, 14.888), rtol=1e-9)
 
 
 def test_fit_round_trip():

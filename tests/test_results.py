@@ -10,10 +10,10 @@ import pandas as pd
 import pytest
 
 import tromplab
+from tromplab.curves.curve_fit import FIT_COLUMNS
 from tromplab.errors import InputError
 from tromplab.loading.points import TrompPoints
 from tromplab.statistics.uncertainty import AVERAGED_QUANTITIES
-from tromplab.workbench import FIT_COLUMNS
 
 matplotlib.use("Agg")
 
@@ -94,7 +94,7 @@ def test_workbench_views(bench, tmp_path):
 
 
 def test_save_and_load_round_trip(bench, tmp_path):
-    bench.save(tmp_path / "batch")
+    bench.save(tmp_path / "batch", reloadable=True)
     loaded = tromplab.load(tmp_path / "batch")
     pd.testing.assert_frame_equal(loaded.fits_table(), bench.fits_table())
     pd.testing.assert_frame_equal(loaded.ranking_table(), bench.ranking_table())
@@ -114,7 +114,7 @@ def test_save_and_load_round_trip(bench, tmp_path):
 
 
 def test_load_refuses_another_major_version_and_missing_files(bench, tmp_path):
-    bench.save(tmp_path / "batch")
+    bench.save(tmp_path / "batch", reloadable=True)
     manifest = json.loads((tmp_path / "batch" / "manifest.json").read_text())
     manifest["tromplab_version"] = "9.0.0"
     (tmp_path / "batch" / "manifest.json").write_text(json.dumps(manifest))

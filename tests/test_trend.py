@@ -7,7 +7,7 @@ from numpy.testing import assert_allclose
 
 from tromplab.cli import main
 from tromplab.errors import InputError
-from tromplab.statistics.trend import (
+from tromplab.trend import (
     SeriesDesign,
     equality_test,
     ewma_chart,
@@ -168,7 +168,8 @@ def test_best_ranked_formula_is_used_when_none_is_given():
 
 
 def test_trend_section_joins_an_ordinary_report_after_its_sections(bundled):
-    from tromplab.output.report import SECTIONS, Report, add_trend_section
+    from tromplab.output.report import SECTIONS, Report
+    from tromplab.trend import add_trend_section
 
     report = Report("survey report", "surveys.csv")
     add_trend_section(report, bundled, size_unit="um", figures=False)

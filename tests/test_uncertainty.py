@@ -1,5 +1,7 @@
 """Uncertainty of fits and indices, information criteria and model averaging."""
 
+import dataclasses
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -116,7 +118,7 @@ def test_bootstrap_is_seeded_and_supports_cases():
     assert not bootstrap(fit, n=30, seed=6).samples.equals(first.samples)
     cases = bootstrap(fit, n=30, seed=5, method="cases")
     assert cases.n_failed == 0 and len(cases.samples) == 30
-    with pytest.raises(ValueError, match="'residuals' or 'cases'"):
+    with pytest.raises(ValueError, match="method must be one of residuals, cases, got 'jackknife'"):
         bootstrap(fit, n=10, method="jackknife")
 
 
@@ -143,6 +145,23 @@ def test_model_average_weights_the_formulas():
     assert_allclose(table.loc["d50", "value"], table.loc["d50c", "value"])  # no bypass: the actual cut is the corrected one
     with pytest.raises(ValueError, match="one experiment"):
         model_average([fits[0], fit_formula(experiment(8, name="other"), PLITT)])
+
+
+def test_model_average_keeps_a_missing_standard_error_missing():
+    """Issue 22: a formula without a standard error (lmfit could not estimate it) entered the
+    average as if its error were 0, giving a too narrow interval; now the average has none and
+    says which formula lacks it."""
+    fits = [fit_formula(experiment(7), get_formula(name)) for name in ("plitt", "lognormal", "rosin_rammler")]
+    complete = model_average(fits, quantities=("d50c", "eta")).set_index("quantity")
+    blind = dataclasses.replace(fits[0].fit, stderr={**fits[0].fit.stderr, "d_cut": np.nan})
+    fits[0] = dataclasses.replace(fits[0], fit=blind)
+    table = model_average(fits, quantities=("d50c", "eta")).set_index("quantity")
+    assert_allclose(table.loc["d50c", "value"], complete.loc["d50c", "value"], rtol=1e-12)  # the estimate needs no error
+    assert table.loc["d50c", ["stderr", "low", "high"]].isna().all()
+    assert table.loc["d50c", "note"].startswith("no standard error and no interval: the fit of plitt (")
+    assert table.loc["d50c", "note"].endswith("of the weight) gives no standard error of d50c")
+    assert_allclose(table.loc["eta", ["stderr", "low", "high"]].to_numpy(float), complete.loc["eta", ["stderr", "low", "high"]])
+    assert table.loc["eta", "note"] == ""
 
 
 def test_f_and_aicc_rankings_coincide_for_two_parameter_formulas():

@@ -7,8 +7,11 @@ instead of keeping two copies of the generator in step.
 
 import numpy as np
 
-from tromplab.curves.formulas import FORMULAS
+from tromplab.curves.curve_fit import fit_formula
+from tromplab.curves.formulas import FORMULAS, get_formula
+from tromplab.curves.indices import curve_indices
 from tromplab.loading.points import TrompPoints
+from tromplab.statistics.uncertainty import interval_table
 
 
 def synthetic(seed: int, weighted: bool = True) -> TrompPoints:
@@ -76,11 +79,6 @@ def interval_coverage(
         missing`` (``missing``: replicates without an interval, left out of the share).
     """
     import pandas as pd
-
-    from tromplab.curves.curve_fit import fit_formula
-    from tromplab.curves.formulas import get_formula
-    from tromplab.curves.indices import curve_indices
-    from tromplab.statistics.uncertainty import interval_table
 
     curve = get_formula(formula)
     shape = COVERAGE_TRUTH[formula] if shape is None else float(shape)

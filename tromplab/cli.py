@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import io
 import logging
 import os
 import re
@@ -20,15 +19,15 @@ import pandas as pd
 
 from ._version import __version__
 from .curves.diagnostics import RESIDUAL_WARNING
-from .curves.engine import check_bootstrap_request
-from .curves.formulas import NAME_CLASHES, get_formula, registry_table, select_formulas
+from .curves.formulas import NAME_CLASHES, get_formula, registry_table
 from .curves.ranking import RANK_BY, rank_formulas, read_f_table
 from .curves.screening import DEFAULT_ALPHA
 from .errors import InputError, OptionError
 from .loading.lab import KINDS, PARTITION_METHOD_TEXT, PARTITION_METHODS, LabOptions, YieldWarning, read_experiments, read_lab
-from .loading.tables import InputNote
+from .loading.tables import InputNote, check_input_file
 from .model_commands import add_model_commands
-from .output.outputs import check_input_file, check_output_file, check_output_folder, figure_file_names, replace_folder
+from .output.folder import AUTO_FIGURE_LIMIT
+from .output.outputs import check_output_file, check_output_folder
 from .output.views import PARTITION_TO, balance_view, partition_view
 from .statistics.hydrocyclone import water_recovery_statements
 from .validation import (
@@ -44,11 +43,8 @@ from .validation import (
     check_water_recovery,
     cli_type,
 )
-from .workbench import fit_experiments, model_averages, print_progress, write_atomically
+from .workbench import check_formula_selection, fit_experiments, print_progress, write_atomically
 
-#: Above this many experiments, --figures auto draws one overview figure and the console
-#: shows the first experiments only (every row is in fits.csv).
-AUTO_FIGURE_LIMIT = 20
 TERMINAL_COLUMNS = ["rank", "equation", "formula", "d_cut", "shape_name", "shape", "F", "F_crit", "adequate", "eta", "ep"]
 
 
@@ -107,7 +103,7 @@ def main(argv=None) -> int:
     except InputError as error:  # the project's own input, option and output errors
         if args.debug:
             traceback.print_exc()
-        print(f"{command}: error: {_cli_words(str(error), parser)}", file=sys.stderr)
+        print(f"{command}: error: {_cli_message(error, parser)}", file=sys.stderr)
         return EXIT_USAGE if isinstance(error, OptionError) else EXIT_INPUT
     except Exception as error:  # anything else is a bug in tromplab: say so, do not dress it up as bad input
         if args.debug:
@@ -151,6 +147,17 @@ def _verbosity(args):
         if handler is not None:
             library.removeHandler(handler)
             library.setLevel(previous_level)
+
+
+def _cli_message(error: InputError, parser: argparse.ArgumentParser) -> str:
+    """The error in the command line's words: an option error of the library (``formulas``,
+    ``bootstrap``) names the option as typed (``--formulas``), other Python names too."""
+    if isinstance(error, OptionError) and not error.option.startswith("-"):
+        flags = {action.dest: flag for action in _all_actions(parser) for flag in action.option_strings if flag.startswith("--")}
+        flag = flags.get(error.option) or flags.get({"n_bootstrap": "bootstrap"}.get(error.option, ""))
+        if flag:
+            return f"{flag} {_cli_words(error.reason, parser)}"
+    return _cli_words(str(error), parser)
 
 
 def _cli_words(message: str, parser: argparse.ArgumentParser) -> str:
@@ -351,6 +358,13 @@ def _parser() -> argparse.ArgumentParser:
     compare.add_argument("--formula", default="plitt", help="formula id or equation number (default plitt)")
     compare.add_argument("--shared", choices=("shape", "d_cut"), default="shape", help="parameter shared by the joint fit")
     compare.add_argument("--experiments", default=None, help="comma-separated experiments to compare (default: all)")
+    compare.add_argument(
+        "--margin",
+        type=cli_type(check_share, "--margin"),
+        default=0.01,
+        help="relative margin of practical equivalence: estimates closer than it are 'equal within the margin' "
+        "whatever the F test says (default 0.01)",
+    )
     compare.set_defaults(run=_run_compare)
 
     export = commands.add_parser(
@@ -686,7 +700,7 @@ def _run_formulas(args) -> int:
 
 
 def _run_fit(args) -> int:
-    formulas = _checked_formulas(args)
+    formulas = check_formula_selection(args.formulas, args.extended)
     check_input_file(args.input)
     if args.outdir.suffix.lower() == ".xlsx":
         check_output_file(args.outdir, inputs=[args.input], option="--outdir")
@@ -694,49 +708,43 @@ def _run_fit(args) -> int:
         check_output_folder(args.outdir, inputs=[args.input])
     if args.format == "parquet":
         _require("pyarrow", "--format parquet", "pip install 'tromplab[dask]'")
-    experiments, balances = read_experiments(args.input, _lab_options(args))
-    if args.bootstrap:
-        try:
-            check_bootstrap_request(args.bootstrap, n_fits=len(experiments) * len(select_formulas(formulas)))
-        except ValueError as error:  # too much work for these data: a usage error, before any fitting
-            raise OptionError("--bootstrap", str(error).removeprefix("--bootstrap ")) from None
-    _print_balance_notes(balances)
-    quiet = getattr(args, "quiet", False)
-    with _cluster(args) as client:
-        with _progress_bar(len(experiments), "fitting", quiet=quiet) as progress:
-            bench = fit_experiments(
-                experiments,
-                formulas=formulas,
-                alpha=args.alpha,
-                delta_max=args.delta_max,
-                rank_by=args.rank_by,
-                rank_extended=args.rank_extended,
-                progress=progress,
-                jobs=args.jobs or None,
-                client=client,
-                engine=not args.single_fits,
-                size_unit=_data_size_unit(experiments, args.size_unit),
-                water_recovery=args.water_recovery,
-            )
-        failures = failure_table(bench)
-        _refuse_if_nothing_fitted(bench, args.input)
-        fits, ranking = bench.fits_table(), bench.ranking_table()
-        if args.ci is not None or args.bootstrap:
-            from .statistics.uncertainty import interval_columns
+    experiments = read_experiments(args.input, _lab_options(args))
+    _print_balance_notes(experiments.balances)
+    with _progress_bars(quiet=args.quiet) as progress:
+        bench = fit_experiments(experiments, **_fit_keywords(args, formulas), progress=progress)
+    bench.check_fitted(args.input)
+    written = bench.save(args.outdir, figures=args.figures, format=args.format, excel=args.excel)
+    _print_fits(bench, args)
+    _print_written(list(written.values()), args.outdir)
+    return _report_failures(bench.failure_table())
 
-            with _progress_bar(len(bench.fits), "intervals", quiet=quiet) as progress:
-                intervals = interval_columns(
-                    bench.fits,
-                    level=args.ci,
-                    n_bootstrap=args.bootstrap,
-                    method=args.bootstrap_method,
-                    seed=args.seed,
-                    progress=progress,
-                )
-            fits = fits.merge(intervals, on=["experiment", "formula"], how="left")
-        averages = model_averages(bench, level=args.ci or 0.95, jobs=args.jobs or None, client=client)
-    fits = partition_view(fits, args.partition_to)
-    written = _write_fit_outputs(args, bench, experiments, balances, fits, ranking, averages, failures)
+
+def _fit_keywords(args, formulas) -> dict:
+    """The keywords of :func:`tromplab.fit_experiments` from the options of the same names."""
+    return dict(
+        formulas=formulas,
+        alpha=args.alpha,
+        delta_max=args.delta_max,
+        rank_by=args.rank_by,
+        rank_extended=args.rank_extended,
+        size_unit=args.size_unit,
+        water_recovery=args.water_recovery,
+        partition_to=args.partition_to,
+        ci=getattr(args, "ci", None),
+        bootstrap=getattr(args, "bootstrap", 0),
+        bootstrap_method=getattr(args, "bootstrap_method", "residuals"),
+        seed=getattr(args, "seed", 0),
+        jobs=getattr(args, "jobs", 1) or None,
+        scheduler=getattr(args, "scheduler", None),
+        dask=getattr(args, "dask", None),
+        single_fits=getattr(args, "single_fits", False),
+    )
+
+
+def _print_fits(bench, args) -> None:
+    """The console view of a fit run: data notes, the ranked fits of the first experiments
+    with their verdicts, the water-recovery checks, failures and the ranking across experiments."""
+    fits, ranking = bench.fits_table(), bench.ranking_table()
     for experiment, notes in bench.notes.items():
         for note in notes:
             print(textwrap.fill(f"warning ({experiment}): {note}", width=98), file=sys.stderr)
@@ -760,35 +768,14 @@ def _run_fit(args) -> int:
     if ranking.shape[0] and len(bench.experiments) > 1:
         print("\nRanking across experiments (points: rank sum, inadequate ranks counted twice):")
         print(ranking.to_string(index=False))
+
+
+def _print_written(paths: list, outdir) -> None:
     print("\nWrote:")
-    paths = list(written.values())
     for path in paths[: AUTO_FIGURE_LIMIT + 3]:
         print(f"  {path}")
     if len(paths) > AUTO_FIGURE_LIMIT + 3:
-        print(f"  ... and {len(paths) - AUTO_FIGURE_LIMIT - 3} more files in {args.outdir}")
-    return _report_failures(failures)
-
-
-def failure_table(bench) -> pd.DataFrame:
-    """``experiment, formula, reason`` of every experiment or formula that could not be fitted."""
-    rows = [{"experiment": e, "formula": "", "reason": reason} for e, reason in bench.failures.items()]
-    rows += [
-        {"experiment": fit.experiment, "formula": fit.formula.id, "reason": fit.fit.message or "the fit failed"}
-        for fit in bench.fits
-        if not fit.success
-    ]
-    return pd.DataFrame(rows, columns=["experiment", "formula", "reason"])
-
-
-def _refuse_if_nothing_fitted(bench, source) -> None:
-    """No formula fitted to any experiment: bad input, nothing is written (exit 1)."""
-    if any(fit.success for fit in bench.fits):
-        return
-    reasons = dict(bench.failures)
-    for fit in bench.fits:
-        reasons.setdefault(fit.experiment, f"{fit.formula.id}: {fit.fit.message}")
-    listed = "; ".join(f"{experiment}: {reason}" for experiment, reason in reasons.items())
-    raise InputError(f"no formula could be fitted to any experiment ({listed})", source=str(source))
+        print(f"  ... and {len(paths) - AUTO_FIGURE_LIMIT - 3} more files in {outdir}")
 
 
 def _report_failures(failures: pd.DataFrame, *, listed_in: str = "failures.csv") -> int:
@@ -802,16 +789,6 @@ def _report_failures(failures: pd.DataFrame, *, listed_in: str = "failures.csv")
     return EXIT_PARTIAL
 
 
-def _checked_formulas(args):
-    """The --formulas selection, checked before any work."""
-    formulas = _formula_keys(args)
-    try:
-        select_formulas(formulas)
-    except KeyError as error:
-        raise OptionError("--formulas", f"names an {error.args[0]}") from None
-    return formulas
-
-
 def _require(module: str, option: str, install: str) -> None:
     import importlib.util
 
@@ -819,47 +796,14 @@ def _require(module: str, option: str, install: str) -> None:
         raise InputError(f"{option} needs the package {module}: {install}")
 
 
-def _table_writer(table: pd.DataFrame, fmt: str):
-    if fmt == "parquet":
-        return lambda p: table.to_parquet(p, index=False)
-    return lambda p: table.to_csv(p, index=False)
+class _progress_bars:
+    """tqdm bars on standard error with rate and ETA, as one ``progress(done, total, label)``
+    callback: a bar for the fits, then one for the intervals (labels ``"intervals: ..."``);
+    silent when standard error is not a terminal, with --quiet, or without tqdm."""
 
-
-class _cluster:
-    """The Dask client asked for by --scheduler / --dask local (None otherwise), closed afterwards."""
-
-    def __init__(self, args):
-        self.scheduler, self.local = getattr(args, "scheduler", None), getattr(args, "dask", None)
-        self.client = self.cluster = None
-
-    def __enter__(self):
-        if self.scheduler is None and self.local is None:
-            return None
-        _require("distributed", "--scheduler / --dask", "pip install 'tromplab[dask]'")
-        from dask.distributed import Client, LocalCluster
-
-        if self.scheduler is not None:
-            self.client = Client(self.scheduler)
-        else:
-            self.cluster = LocalCluster(n_workers=2, threads_per_worker=1, dashboard_address=None)
-            self.client = Client(self.cluster)
-        return self.client
-
-    def __exit__(self, *exc):
-        if self.client is not None:
-            self.client.close()
-        if self.cluster is not None:
-            self.cluster.close()
-        return False
-
-
-class _progress_bar:
-    """tqdm bar on standard error with rate and ETA, as a ``progress(done, total, label)``
-    callback; silent when standard error is not a terminal, with --quiet, or without tqdm."""
-
-    def __init__(self, total: int, what: str, *, quiet: bool = False):
-        self.total, self.what, self.bar = total, what, None
-        self.enabled = not quiet and total > 1 and sys.stderr.isatty()
+    def __init__(self, *, quiet: bool = False):
+        self.enabled = not quiet and sys.stderr.isatty()
+        self.bar, self.stage = None, None
 
     def __enter__(self):
         if not self.enabled:
@@ -868,71 +812,45 @@ class _progress_bar:
             from tqdm import tqdm
         except ImportError:
             return print_progress
-        self.bar = tqdm(
-            total=self.total, desc=self.what, unit="exp" if self.what == "fitting" else "fit", file=sys.stderr, dynamic_ncols=True
-        )
 
         def update(done, total, label):
+            stage = "intervals" if label.startswith("intervals: ") else "fitting"
+            if total <= 1:
+                return
+            if stage != self.stage:
+                self._close()
+                self.bar = tqdm(
+                    total=total, desc=stage, unit="fit" if stage == "intervals" else "exp", file=sys.stderr, dynamic_ncols=True
+                )
+                self.stage = stage
             self.bar.update(done - self.bar.n)
 
         return update
 
-    def __exit__(self, *exc):
+    def _close(self):
         if self.bar is not None:
             self.bar.close()
+
+    def __exit__(self, *exc):
+        self._close()
         return False
 
 
-def _data_size_unit(experiments, fallback: str) -> str:
-    """The unit the loader found (column suffix, else --size-unit), for labels."""
-    units = {p.size_unit for p in experiments if p.size_unit}
-    return units.pop() if len(units) == 1 else fallback
-
-
-def _formula_keys(args):
-    keys = args.formulas or ("paper" if args.extended else None)
-    if args.extended and "extended" not in (keys or ""):
-        keys = f"{keys},extended"
-    return keys
-
-
 def _run_report(args) -> int:
-    from .output.report import build_report, write_report
-
-    formulas = _checked_formulas(args)
+    formulas = check_formula_selection(args.formulas, args.extended)
     check_input_file(args.input)
     check_output_file(args.output, inputs=[args.input])
-    experiments, balances = read_experiments(args.input, _lab_options(args))
-    size_unit = _data_size_unit(experiments, args.size_unit)
-    with _progress_bar(len(experiments), "fitting", quiet=getattr(args, "quiet", False)) as progress:
-        bench = fit_experiments(
-            experiments,
-            formulas=formulas,
-            alpha=args.alpha,
-            delta_max=args.delta_max,
-            rank_by=args.rank_by,
-            rank_extended=args.rank_extended,
-            progress=progress,
-            size_unit=size_unit,
-            water_recovery=args.water_recovery,
-        )
-    failures = failure_table(bench)
-    _refuse_if_nothing_fitted(bench, args.input)
-    report = build_report(
-        bench,
-        balances,
-        source=str(args.input),
-        level=args.ci,
-        size_unit=size_unit,
-        title=args.title,
-        partition_to=args.partition_to,
-    )
+    experiments = read_experiments(args.input, _lab_options(args))
+    keywords = {**_fit_keywords(args, formulas), "ci": None}  # the report's --ci is the level of its tables, not interval columns
+    with _progress_bars(quiet=args.quiet) as progress:
+        bench = fit_experiments(experiments, **keywords, progress=progress)
+    bench.check_fitted(args.input)
     args.output.parent.mkdir(parents=True, exist_ok=True)
-    written = write_report(report, args.output)
+    written = bench.report(args.output, level=args.ci, title=args.title)
     print("Wrote:")
     for path in written.values():
         print(f"  {path}")
-    return _report_failures(failures, listed_in="the report")
+    return _report_failures(bench.failure_table(), listed_in="the report")
 
 
 def _run_compare(args) -> int:
@@ -957,11 +875,8 @@ def _run_compare(args) -> int:
     result = shared_fit(experiments, formula, shared=args.shared)
     print(result.table().to_string(index=False, float_format=lambda v: f"{v:.4g}"))
     test = result.test
-    verdict = "differ" if test.needed() else "are consistent with one"
-    print(
-        f"\nExtra sum of squares: F = {test.F:.4g} on ({test.df_extra}, {test.df_full}) df, p = {test.p_value:.4g}: "
-        f"the experiments {verdict} {result.shared} (alpha 0.05)"
-    )
+    print(f"\nExtra sum of squares: F = {test.F:.4g} on ({test.df_extra}, {test.df_full}) df, p = {test.p_value:.4g}")
+    print(result.conclusion(margin=args.margin))
     return 0
 
 
@@ -986,7 +901,7 @@ def _run_export(args) -> int:
 
 
 def _run_trend(args) -> int:
-    from .statistics.trend import monitor_surveys, read_surveys, write_trend
+    from .trend import monitor_surveys, read_surveys, write_trend
 
     check_input_file(args.input)
     check_output_folder(args.outdir, inputs=[args.input])
@@ -1070,87 +985,6 @@ def format_fits(fits: pd.DataFrame, verdicts: dict[str, list[str]] | None = None
             if isinstance(note, str) and note:
                 blocks.append(textwrap.fill(f"note {formula}: {note}", width=98, initial_indent="  ", subsequent_indent="    "))
     return "\n".join(blocks)
-
-
-def _overview_png(fits) -> bytes:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    from .output.plotting import plot_batch_overview, save_figure
-
-    buffer = io.BytesIO()
-    save_figure(plot_batch_overview(fits)[0], buffer)
-    return buffer.getvalue()
-
-
-def _figure_png(fits, size_unit, best, partition_to) -> bytes:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    from .output.plotting import plot_tromp_fits, save_figure
-
-    buffer = io.BytesIO()
-    save_figure(plot_tromp_fits(fits, size_unit=size_unit, best=best, partition_to=partition_to), buffer)
-    return buffer.getvalue()
-
-
-def _write_fit_outputs(args, bench, experiments, balances, fits, ranking, averages, failures) -> dict[str, Path]:
-    """Write the fit's tables and figures: CSVs and PNGs into the folder (and results.xlsx
-    with ``--excel``), or only the workbook when ``-o`` names a .xlsx file.  The folder is
-    replaced as a whole only when everything is written (:func:`tromplab.output.outputs.replace_folder`):
-    no stale figure of an earlier run stays beside the new tables."""
-    from .output.workbook import write_workbook
-
-    size_unit = _data_size_unit(experiments, args.size_unit)
-    figures = {}
-    mode = args.figures
-    if mode == "auto":
-        mode = "all" if len(bench.experiments) <= AUTO_FIGURE_LIMIT else "overview"
-    figure_names = {}
-    if mode in ("all", "best"):
-        fits_by_experiment = bench.fits_by_experiment()
-        figure_names = figure_file_names(bench.experiments)
-        for experiment, name in figure_names.items():
-            best = bench.best_fit(experiment)
-            shown = fits_by_experiment[experiment] if mode == "all" or best is None else [best]
-            figures[name] = _figure_png(shown, size_unit, best, args.partition_to)
-    elif mode == "overview" and fits["rank"].notna().any():
-        figures["overview.png"] = _overview_png(fits)
-    tables = {"fits": fits, "ranking": ranking, "averages": averages}
-    only_workbook = args.outdir.suffix.lower() == ".xlsx"
-    if only_workbook or args.excel:
-        if balances:
-            balance = pd.concat([b.classes for b in balances], ignore_index=True)
-            points = pd.concat(
-                [b.points_table(weight_by_feed_share=args.weight_by_feed_share) for b in balances], ignore_index=True
-            )
-        else:
-            balance, points = pd.DataFrame(), pd.concat([p.to_frame() for p in experiments], ignore_index=True)
-        sheets = {
-            **tables,
-            "balance": partition_view(balance, args.partition_to),
-            "points": partition_view(points, args.partition_to),
-        }
-        notes = {
-            "balance": "no mass balance: the input holds Tromp points, not a lab table",
-            "averages": "no model average: no experiment has a successful fit",
-        }
-
-        def workbook(path):
-            write_workbook(path, sheets, figures=figures, size_unit=size_unit, notes=notes)
-
-    if only_workbook:
-        return write_atomically({args.outdir.name: workbook}, args.outdir.parent)
-    outputs = {f"{name}.{args.format}": _table_writer(table, args.format) for name, table in tables.items()}
-    outputs.update({name: (lambda p, png=png: p.write_bytes(png)) for name, png in figures.items()})
-    if figure_names:
-        mapping = pd.DataFrame({"experiment": list(figure_names), "file": list(figure_names.values())})
-        outputs["figures.csv"] = lambda p: mapping.to_csv(p, index=False)
-    if not failures.empty:
-        outputs["failures.csv"] = lambda p: failures.to_csv(p, index=False)
-    if args.excel:
-        outputs["results.xlsx"] = workbook
-    return replace_folder(outputs, args.outdir)
 
 
 if __name__ == "__main__":

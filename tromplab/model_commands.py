@@ -19,7 +19,8 @@ import numpy as np
 import pandas as pd
 
 from .errors import InputError, OptionError
-from .output.outputs import check_input_file, check_output_file
+from .loading.tables import check_input_file
+from .output.outputs import check_output_file
 from .validation import check_count, check_non_negative, check_positive, check_probability, check_share, cli_type
 from .workbench import write_atomically
 
@@ -184,6 +185,11 @@ def _add_layer(commands) -> None:
         help="number of steps (default 300)",
     )
     simulate.add_argument(
+        "--constant-passage",
+        action="store_true",
+        help="keep the passage at vf0 after a cell locks (the paper's Fig. 3a; default: vf0 sqrt((m - i)/m), Fig. 3b)",
+    )
+    simulate.add_argument(
         "-o", "--output", type=Path, default=None, help="CSV of every step (step, time, C_1..C_m, extraction, locked)"
     )
     simulate.set_defaults(run=run_layer_simulate)
@@ -218,7 +224,12 @@ def run_layer_simulate(args) -> int:
     _check_paths(args)
     try:
         model = LayerModel(
-            args.diffusion, args.segregation, args.passage, nonlinear=not args.linear, lock_threshold=args.lock_threshold
+            args.diffusion,
+            args.segregation,
+            args.passage,
+            nonlinear=not args.linear,
+            lock_threshold=args.lock_threshold,
+            constant_passage=args.constant_passage,
         )
     except ValueError as error:  # the model speaks of its fields; name the options
         raise _option_error(_with_options(str(error), ("diffusion", "segregation", "passage"))) from None

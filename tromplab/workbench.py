@@ -7,78 +7,42 @@ ranking.  Neither stops the batch.
 
 from __future__ import annotations
 
+import contextlib
+import functools
+import importlib.util
 import logging
+import os
 import sys
 from collections.abc import Callable, Sequence
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from scipy import stats
 
-from .curves.curve_fit import (
-    AMBIGUOUS_CUT_RATIO,
-    CUT_BAND,
-    CurveFit,
-    attach_diagnostics,
-    attach_indices,
-    failed_fit,
-    fit_formula,
-    measured_cut_band,
-    measured_efficiency,
-)
-from .curves.formulas import Formula, select_formulas
-from .curves.ranking import add_delta_aicc, add_ranks, fit_verdicts, rank_formulas
+from .curves.curve_fit import FIT_COLUMNS, CurveFit, attach_diagnostics, attach_indices, failed_fit, fit_formula
+from .curves.engine import check_bootstrap_request, fit_formula_batch
+from .curves.formulas import Formula, is_batchable, select_formulas
+from .curves.measured import AMBIGUOUS_CUT_RATIO, CUT_BAND, measured_cut_band, measured_efficiency
+from .curves.ranking import RANK_BY, add_delta_aicc, add_ranks, fit_verdicts, rank_formulas
 from .curves.screening import DEFAULT_ALPHA
-from .loading.points import TrompPoints
-from .validation import check_optional, check_positive, check_probability, check_water_recovery
+from .errors import InputError, OptionError
+from .loading.lab import Experiments, MassBalance
+from .loading.points import TrompPoints, points_from_frame
+from .output.folder import write_results_folder
+from .output.outputs import write_files
+from .output.plotting import plot_tromp_fits
+from .output.report import build_report, write_report
+from .output.results import load_workbench, workbench_html, workbench_repr
+from .output.views import check_partition_to, partition_view
+from .statistics.hydrocyclone import bypass_against_water_recovery
+from .statistics.uncertainty import BOOTSTRAP_METHODS, batched_delta_indices, interval_columns, model_average
+from .validation import check_bootstrap, check_optional, check_positive, check_probability, check_seed, check_water_recovery
 
 logger = logging.getLogger(__name__)
-
-#: Columns of ``fits.csv``, in order.
-FIT_COLUMNS = (
-    "experiment",
-    "equation",
-    "formula",
-    "n",
-    "d_cut",
-    "d_cut_stderr",
-    "shape_name",
-    "shape",
-    "shape_stderr",
-    "ssr",
-    "F",
-    "F_crit",
-    "adequate",
-    "rank",
-    "eta",
-    "epsilon",
-    "slope",
-    "d25",
-    "d75",
-    "ep",
-    "imperfection",
-    "d50",
-    "d50c",
-    "ep_c",
-    "imperfection_c",
-    "aic",
-    "aicc",
-    "delta_aicc",
-    "bic",
-    "bypass",
-    "fishhook",
-    "extras",
-    "runs_p",
-    "normality_p",
-    "residuals",
-    "extrapolated",
-    "x_break",
-    "success",
-    "message",
-    "warnings",
-)
 
 
 @dataclass(frozen=True)
@@ -93,12 +57,31 @@ class Workbench:
     rank_extended: bool = False
     notes: dict[str, tuple[str, ...]] = field(default_factory=dict)
     water_recovery: float | None = None
+    ci: float | None = None
+    bootstrap: int = 0
+    bootstrap_method: str = "residuals"
+    seed: int = 0
+    partition_to: str = "fine"
+    size_unit: str = ""
+    inputs: tuple[TrompPoints, ...] = field(default=(), repr=False)
+    balances: tuple[MassBalance, ...] = field(default=(), repr=False)
+    intervals: pd.DataFrame | None = field(default=None, repr=False, compare=False)
 
     def fits_table(self) -> pd.DataFrame:
-        """One row per experiment and formula (columns :data:`FIT_COLUMNS`; with a
-        ``water_recovery`` also ``water_recovery`` and ``water_recovery_check``, the
-        fitted bypass compared with it, see :mod:`tromplab.statistics.hydrocyclone`)."""
-        return self._fits_frame.copy()
+        """The table ``fits.csv`` holds: one row per experiment and formula (columns
+        :data:`FIT_COLUMNS`; with a ``water_recovery`` also ``water_recovery`` and
+        ``water_recovery_check``, the fitted bypass compared with it, see
+        :mod:`tromplab.statistics.hydrocyclone`), with the interval columns when the batch
+        was fitted with ``ci`` or ``bootstrap``, read as partition to ``partition_to``
+        (:func:`tromplab.output.views.partition_view`)."""
+        return self._output_frame.copy()
+
+    @cached_property
+    def _output_frame(self) -> pd.DataFrame:
+        table = self._fits_frame
+        if self.intervals is not None:
+            table = table.merge(self.intervals, on=["experiment", "formula"], how="left")
+        return partition_view(table, self.partition_to)
 
     @cached_property
     def _fits_frame(self) -> pd.DataFrame:
@@ -127,8 +110,6 @@ class Workbench:
         table["delta_aicc"] = add_delta_aicc(table)
         table = table.reindex(columns=list(FIT_COLUMNS))
         if self.water_recovery is not None:
-            from .statistics.hydrocyclone import bypass_against_water_recovery
-
             checks = bypass_against_water_recovery(self.fits, self.water_recovery)
             table = table.merge(checks, on=["experiment", "formula"], how="left")
             table["water_recovery"] = self.water_recovery  # failed experiments too
@@ -206,13 +187,9 @@ class Workbench:
 
     # --- readable views and saving (tromplab.output.results) ---------------------------------------
     def __repr__(self) -> str:
-        from .output.results import workbench_repr
-
         return workbench_repr(self)
 
     def _repr_html_(self) -> str:
-        from .output.results import workbench_html
-
         return workbench_html(self)
 
     def summary(self) -> pd.DataFrame:
@@ -223,9 +200,39 @@ class Workbench:
         """Ranks per experiment, points and place per formula (:meth:`ranking_table`)."""
         return self.ranking_table()
 
-    def averages(self, *, level: float = 0.95) -> pd.DataFrame:
-        """Akaike-weighted d_cut, Ep and eta per experiment (:func:`model_averages`)."""
-        return model_averages(self, level=level)
+    def averages(self, *, level: float | None = None, jobs: int | None = 1, client=None) -> pd.DataFrame:
+        """Akaike-weighted d_cut, Ep and eta per experiment (:func:`model_averages`), with
+        intervals at ``level`` (default: the batch's ``ci``, else 0.95); the table of ``averages.csv``.
+
+        Computed once per level and kept; ``jobs`` and ``client`` spread the first
+        computation over workers (the table is the same whatever they are).
+        """
+        level = (self.ci or 0.95) if level is None else level
+        kept = self.__dict__.setdefault("_averages_by_level", {})  # a frozen dataclass keeps caches in __dict__
+        if level not in kept:
+            kept[level] = model_averages(self, level=level, jobs=jobs, client=client)
+        return kept[level].copy()
+
+    def failure_table(self) -> pd.DataFrame:
+        """``experiment, formula, reason`` of every experiment or fit that failed (``failures.csv``)."""
+        rows = [{"experiment": e, "formula": "", "reason": reason} for e, reason in self.failures.items()]
+        rows += [
+            {"experiment": fit.experiment, "formula": fit.formula.id, "reason": fit.fit.message or "the fit failed"}
+            for fit in self.fits
+            if not fit.success
+        ]
+        return pd.DataFrame(rows, columns=["experiment", "formula", "reason"])
+
+    def check_fitted(self, source: str = "") -> None:
+        """Raise :class:`~tromplab.errors.InputError` when no formula could be fitted to any
+        experiment (the command line then writes nothing and exits 1)."""
+        if any(fit.success for fit in self.fits):
+            return
+        reasons = dict(self.failures)
+        for fit in self.fits:
+            reasons.setdefault(fit.experiment, f"{fit.formula.id}: {fit.fit.message}")
+        listed = "; ".join(f"{experiment}: {reason}" for experiment, reason in reasons.items())
+        raise InputError(f"no formula could be fitted to any experiment ({listed})", source=str(source) or None)
 
     def plot(self, experiment: str | None = None, *, ax=None, **options):
         """Measured points and fitted curves of one experiment (the first by default),
@@ -233,31 +240,40 @@ class Workbench:
 
         Returns the matplotlib Axes.
         """
-        from .output.plotting import plot_tromp_fits
-
         experiment = self.experiments[0] if experiment is None else experiment
         if experiment not in self.experiments:
             raise KeyError(f"no experiment {experiment!r}; experiments: {', '.join(self.experiments)}")
         return plot_tromp_fits(self.fits_of(experiment), ax=ax, best=self.best_fit(experiment), **options)
 
-    def report(self, path, *, balances=(), level: float = 0.95, size_unit: str = "", title: str = "tromplab report"):
+    def report(
+        self, path, *, balances=None, level: float | None = None, size_unit: str | None = None, title: str = "tromplab report"
+    ):
         """Write the HTML report (and its Markdown twin) to ``path``, as ``tromplab report`` does.
 
-        ``balances``: the mass balances of lab input (from :func:`tromplab.read_lab`), for
-        the balance section.  Returns ``{file name: path}`` of the written files.
+        ``balances`` (default: those the batch was read with, :func:`tromplab.read_experiments`),
+        ``level`` (default: the batch's ``ci``, else 0.95) and ``size_unit`` (default: the
+        batch's) as for the command.  Returns ``{file name: path}`` of the written files.
         """
-        from .output.report import build_report, write_report
-
         sources = dict.fromkeys(fit.points.source for fit in self.fits if fit.points.source)
-        source = ", ".join(sources) or "data given in Python"
-        built = build_report(self, list(balances), source=source, level=level, size_unit=size_unit, title=title)
+        built = build_report(
+            self,
+            list(self.balances if balances is None else balances),
+            source=", ".join(sources) or "data given in Python",
+            level=(self.ci or 0.95) if level is None else level,
+            size_unit=self.size_unit if size_unit is None else size_unit,
+            title=title,
+            partition_to=self.partition_to,
+        )
         return write_report(built, path)
 
-    def save(self, directory) -> dict[str, Path]:
-        """Save the batch with its inputs, options and version (see :func:`tromplab.load`)."""
-        from .output.results import save_workbench
-
-        return save_workbench(self, directory)
+    def save(self, directory, *, figures: str = "auto", format: str = "csv", excel: bool = False, reloadable: bool = False):
+        """Write the results folder, the same files as ``tromplab fit ... -o DIRECTORY``:
+        ``fits``, ``ranking`` and ``averages`` tables, figures, ``failures.csv`` when fits
+        failed, ``results.xlsx`` with ``excel`` (only the workbook when ``directory`` ends in
+        ``.xlsx``); with ``reloadable`` also the pickled batch, so :func:`load` reads it back.
+        See :func:`tromplab.output.folder.write_results_folder`.  Returns ``{file name: path}``.
+        """
+        return write_results_folder(self, directory, figures=figures, format=format, excel=excel, reloadable=reloadable)
 
 
 #: Experiments per unit of work: fixed, so that results do not depend on the number of workers.
@@ -265,60 +281,90 @@ CHUNK_SIZE = 64
 
 
 def fit_experiments(
-    experiments: Sequence[TrompPoints],
+    experiments,
     *,
     formulas=None,
+    extended: bool = False,
     alpha: float = DEFAULT_ALPHA,
     delta_max: float | None = None,
     rank_by: str = "F",
     rank_extended: bool = False,
-    progress: Callable[[int, int, str], None] | None = None,
-    jobs: int | None = 1,
-    client=None,
-    engine: bool = True,
     size_unit: str = "",
     water_recovery: float | None = None,
+    partition_to: str = "fine",
+    ci: float | None = None,
+    bootstrap: int = 0,
+    bootstrap_method: str = "residuals",
+    seed: int = 0,
+    jobs: int | None = 1,
+    scheduler: str | None = None,
+    dask: str | None = None,
+    client=None,
+    single_fits: bool = False,
+    progress: Callable[[int, int, str], None] | None = None,
 ) -> Workbench:
-    """Fit, screen and rank ``formulas`` (default: all nine) on each experiment.
+    """Fit, screen and rank ``formulas`` (default: all nine) on each experiment: what
+    ``tromplab fit`` does, with its options as keywords of the same names.
 
     Parameters
     ----------
-    experiments : sequence of TrompPoints, or a Dask DataFrame of points
-        A Dask DataFrame (columns ``experiment, size, partition_fine[, weight]``) is
-        read partition by partition into points.
-    formulas : iterable of ids or equation numbers, optional
+    experiments : Experiments, sequence of TrompPoints, or a Dask DataFrame of points
+        What :func:`tromplab.read_experiments` returns (its mass balances are kept for the
+        report and the workbook), the points alone, or a Dask DataFrame (columns
+        ``experiment, size, partition_fine[, weight]``).
+    formulas : str or iterable of ids or equation numbers, optional
+        ``"paper"`` = the nine, ``"extended"`` = the bypass and fish-hook curves,
+        ``"other"`` = other tools' curves (default: the nine).
+    extended : bool
+        Also fit the extended curves (reported, kept out of the ranking unless ``rank_extended``).
     alpha : float
-        Significance level of the Fisher screen.
+        Significance level of the Fisher screen, in (0, 1).
     delta_max : float, optional
         Largest feed size for the misplacement index; default per experiment, its
         ``delta_max`` if known, else its largest size.
     rank_by : {"F", "aicc"}
     rank_extended : bool
-        Rank the extended curves (bypass, fish-hook) with the nine; by default they are
-        fitted and reported but kept out of the paper's ranking.
-    progress : callable, optional
-        Called as ``progress(done, total, experiment)`` as experiments are fitted.
+        Rank the extended curves with the nine.
+    size_unit : str
+        Unit of the sizes, for labels and records; the unit the loader found in the column
+        names wins when all experiments share one.
+    water_recovery : float, optional
+        Hydrocyclones: share of the feed water reporting to the underflow, in [0, 1).  The
+        formulas are still fitted to the actual partition; the fits table gains
+        ``water_recovery`` and ``water_recovery_check`` (the fitted bypass against it,
+        :func:`tromplab.statistics.hydrocyclone.bypass_against_water_recovery`).
+    partition_to : {"fine", "coarse"}
+        Product whose partition the tables and figures show (the fits are the same).
+    ci : float, optional
+        Add interval columns at this level (profile likelihood for the parameters, the
+        delta method for the indices); also the level of the model averages (default 0.95).
+    bootstrap : int
+        Add bootstrap percentile intervals from this many resamples (0: none).
+    bootstrap_method : {"residuals", "cases"}
+    seed : int
+        Seed of the bootstrap: the same seed gives the same intervals.
     jobs : int or None
         Worker processes (None or 0: all cores).  The experiments are cut into chunks of
         :data:`CHUNK_SIZE` whatever ``jobs`` is, so the results are identical for any
         number of workers.
+    scheduler : str, optional
+        Address of a Dask scheduler (``tcp://host:8786``) to run the chunks on.
+    dask : {"local"}, optional
+        Run the chunks on a local Dask cluster of two workers.
     client : dask.distributed.Client, optional
-        Run the chunks on this Dask cluster instead of local processes.
-    engine : bool
-        Fit with the batched engine (:mod:`tromplab.curves.engine`); False fits one experiment
-        and formula at a time with :func:`tromplab.curves.curve_fit.fit_formula`.
-    size_unit : str
-        Unit of the sizes, recorded on every fit (``CurveFit.options``).
-    water_recovery : float, optional
-        Share of the feed water reporting to the underflow (hydrocyclones), in [0, 1).
-        The formulas are still fitted to the actual partition; the fits table gains
-        ``water_recovery`` and ``water_recovery_check`` (the fitted bypass of the curves
-        with bypass against it, :func:`tromplab.statistics.hydrocyclone.bypass_against_water_recovery`).
+        Run the chunks on this Dask client.
+    single_fits : bool
+        Fit one experiment and formula at a time with lmfit
+        (:func:`tromplab.curves.curve_fit.fit_formula`) instead of the batched engine.
+    progress : callable, optional
+        Called as ``progress(done, total, label)`` as experiments are fitted, then (with
+        ``ci`` or ``bootstrap``) as fits get their intervals (labels ``"intervals: ..."``).
 
     Returns
     -------
     Workbench
-        Every fit, with the fits and ranking tables; never raises for a failing fit.
+        Every fit, with the fits, ranking and averages tables; never raises for a failing
+        fit.  ``bench.save(DIR)`` writes what ``tromplab fit ... -o DIR`` writes.
 
     Examples
     --------
@@ -327,43 +373,119 @@ def fit_experiments(
     >>> bench.ranking()[["formula", "place"]].values.tolist()
     [['plitt', 1], ['lognormal', 2], ['molerus', 3]]
     """
-    check_probability(alpha, "alpha")
-    check_optional(check_positive, delta_max, "delta_max")
-    water_recovery = check_optional(check_water_recovery, water_recovery, "water_recovery")
-    experiments = _as_points(experiments)
-    chosen = select_formulas(formulas)
-    failures, notes, fittable = {}, {}, []
+    balances = tuple(experiments.balances) if isinstance(experiments, Experiments) else ()
+    experiments = _as_points(experiments.points if isinstance(experiments, Experiments) else experiments)
+    chosen = select_formulas(check_formula_selection(formulas, extended))
+    settings = _checked_settings(
+        locals(), n_fits=len(experiments) * len(chosen), size_unit=_data_size_unit(experiments, size_unit)
+    )
+    with dask_client(scheduler=scheduler, dask=dask, client=client) as cluster:
+        failures, fittable = _screenable(experiments)
+        fits, notes = _fit_in_chunks(fittable, chosen, settings, jobs=jobs, client=cluster, progress=progress)
+        intervals = None
+        if ci is not None or bootstrap:
+            intervals = interval_columns(
+                fits,
+                level=ci,
+                n_bootstrap=bootstrap,
+                method=bootstrap_method,
+                seed=seed,
+                progress=None if progress is None else (lambda done, total, label: progress(done, total, f"intervals: {label}")),
+            )
+        bench = Workbench(
+            tuple(fits), failures, chosen, rank_by, alpha, rank_extended, notes, settings["water_recovery"],
+            ci, bootstrap, bootstrap_method, seed, partition_to, settings["size_unit"], tuple(experiments), balances, intervals,
+        )  # fmt: skip
+        if jobs != 1 or cluster is not None:  # the workers are there: the model averages are made on them too
+            bench.averages(jobs=jobs, client=cluster)
+    return bench
+
+
+def check_formula_selection(formulas=None, extended: bool = False):
+    """The selection :func:`formula_keys` makes, refused with an
+    :class:`~tromplab.errors.OptionError` naming ``formulas`` when it names an unknown formula."""
+    keys = formula_keys(formulas, extended)
+    try:
+        select_formulas(keys)
+    except KeyError as error:
+        raise OptionError("formulas", f"names an {error.args[0]}") from None
+    return keys
+
+
+def formula_keys(formulas=None, extended: bool = False):
+    """The formula selection of ``formulas`` plus the extended curves when ``extended``
+    (``formulas`` default: the nine), as :func:`tromplab.curves.formulas.select_formulas` reads it."""
+    if not extended:
+        return formulas
+    keys = formulas if formulas is not None else "paper"
+    keys = keys if isinstance(keys, str) else ",".join(str(key) for key in keys)
+    return keys if "extended" in keys else f"{keys},extended"
+
+
+def _checked_settings(given: dict, *, n_fits: int, size_unit: str) -> dict:
+    """The options of :func:`fit_experiments` checked (an :class:`~tromplab.errors.OptionError`
+    names the option), before any fitting."""
+    check_probability(given["alpha"], "alpha")
+    check_optional(check_positive, given["delta_max"], "delta_max")
+    check_partition_to(given["partition_to"])
+    check_optional(check_probability, given["ci"], "ci")
+    check_seed(given["seed"], "seed")
+    if given["rank_by"] not in RANK_BY:
+        raise OptionError("rank_by", f"must be one of {', '.join(sorted(RANK_BY))}, got {given['rank_by']!r}")
+    if given["bootstrap_method"] not in BOOTSTRAP_METHODS:
+        raise OptionError("bootstrap_method", f"must be one of {', '.join(BOOTSTRAP_METHODS)}, got {given['bootstrap_method']!r}")
+    if check_bootstrap(given["bootstrap"], "bootstrap"):
+        try:
+            check_bootstrap_request(given["bootstrap"], n_fits=n_fits)
+        except ValueError as error:  # too much work for these data, said before any fitting
+            raise OptionError("bootstrap", str(error).removeprefix("--bootstrap ")) from None
+    return {
+        "alpha": given["alpha"],
+        "delta_max": given["delta_max"],
+        "engine": not given["single_fits"],
+        "size_unit": size_unit,
+        "water_recovery": check_optional(check_water_recovery, given["water_recovery"], "water_recovery"),
+    }
+
+
+def _data_size_unit(experiments: Sequence[TrompPoints], fallback: str) -> str:
+    """The unit the loader found (column suffix) when all experiments share one, else ``fallback``."""
+    units = {p.size_unit for p in experiments if p.size_unit}
+    return units.pop() if len(units) == 1 else fallback
+
+
+def _screenable(experiments: Sequence[TrompPoints]) -> tuple[dict[str, str], list[TrompPoints]]:
+    """The experiments the Fisher screen cannot judge (with the reason), and the others."""
+    failures, fittable = {}, []
     for points in experiments:
         if points.n <= 2:
             failures[points.experiment] = (
                 f"experiment '{points.experiment}' has {points.n} points; the Fisher screen needs at least 3"
             )
-            continue
-        if np.ptp(points.partition_fine) == 0:  # F = 0/0: no curve can be told from another
+        elif np.ptp(points.partition_fine) == 0:  # F = 0/0: no curve can be told from another
             failures[points.experiment] = (
                 f"experiment '{points.experiment}' is flat: every partition equals {points.partition_fine[0]:g}, "
                 "so there is no cut to fit and the Fisher screen is undefined (0/0)"
             )
-            continue
-        fittable.append(points)
+        else:
+            fittable.append(points)
+    return failures, fittable
+
+
+def _fit_in_chunks(fittable, chosen, settings: dict, *, jobs, client, progress) -> tuple[list[CurveFit], dict]:
+    """The fits and data notes of ``fittable``, chunk by chunk in order, wherever the chunks run."""
     chunks = [fittable[i : i + CHUNK_SIZE] for i in range(0, len(fittable), CHUNK_SIZE)]
-    options = {
-        "formulas": tuple(f.id for f in chosen),
-        "alpha": alpha,
-        "delta_max": delta_max,
-        "engine": engine,
-        "size_unit": size_unit,
-    }
+    options = {key: settings[key] for key in ("alpha", "delta_max", "engine", "size_unit")}
+    options["formulas"] = tuple(f.id for f in chosen)
     logger.info(
-        "fitting %d experiment(s) x %d formula(s) in %d chunk(s) of up to %d (%s; %d experiment(s) not fittable)",
+        "fitting %d experiment(s) x %d formula(s) in %d chunk(s) of up to %d (%s)",
         len(fittable),
         len(chosen),
         len(chunks),
         CHUNK_SIZE,
         "on a Dask cluster" if client is not None else f"jobs={jobs or 'all cores'}",
-        len(failures),
     )
-    fits = []
+    fits, notes = [], {}
     for number, (chunk, (chunk_fits, chunk_notes)) in enumerate(
         zip(chunks, _map_chunks(chunks, options, jobs=jobs, client=client)), 1
     ):
@@ -374,7 +496,32 @@ def fit_experiments(
         )
         if progress is not None:
             progress(len(fits) // max(len(chosen), 1), len(fittable), chunk[-1].experiment)
-    return Workbench(tuple(fits), failures, chosen, rank_by, alpha, rank_extended, notes, water_recovery)
+    return fits, notes
+
+
+@contextlib.contextmanager
+def dask_client(*, scheduler: str | None = None, dask: str | None = None, client=None):
+    """The Dask client to run on: ``client`` as given, one connected to ``scheduler``, or
+    one on a local cluster of two workers (``dask="local"``); None when none is asked for.
+    A client made here is closed afterwards."""
+    if client is not None or (scheduler is None and dask is None):
+        yield client
+        return
+    if dask not in (None, "local"):
+        raise OptionError("dask", f"must be 'local', got {dask!r}")
+    if importlib.util.find_spec("distributed") is None:
+        raise OptionError(
+            "scheduler" if scheduler is not None else "dask", "needs the package distributed: pip install 'tromplab[dask]'"
+        )
+    from dask.distributed import Client, LocalCluster
+
+    with contextlib.ExitStack() as stack:
+        if scheduler is not None:
+            made = stack.enter_context(Client(scheduler))
+        else:
+            cluster = stack.enter_context(LocalCluster(n_workers=2, threads_per_worker=1, dashboard_address=None))
+            made = stack.enter_context(Client(cluster))
+        yield made
 
 
 def fit_chunk(experiments: Sequence[TrompPoints], *, formulas, alpha, delta_max, engine=True, size_unit="") -> list[CurveFit]:
@@ -383,8 +530,6 @@ def fit_chunk(experiments: Sequence[TrompPoints], *, formulas, alpha, delta_max,
     Batchable formulas go through the engine for all experiments at once; the others
     (and a formula whose batch raised) are fitted one by one.
     """
-    from .curves.engine import fit_formula_batch, is_batchable
-
     per_formula = []
     for formula in select_formulas(formulas):
         batch = None
@@ -422,9 +567,6 @@ def _map_chunks(chunks, options, *, jobs, client):
 def _map_work(function, chunks, argument, *, jobs, client):
     """Yield ``function(argument, chunk)`` for each chunk, in order: in process, in a
     process pool of ``jobs`` workers (None: all cores), or on a Dask client."""
-    import functools
-    import os
-
     work = functools.partial(function, argument)
     if client is not None:
         for future in client.map(work, chunks, pure=False):
@@ -434,8 +576,6 @@ def _map_work(function, chunks, argument, *, jobs, client):
     if workers <= 1:
         yield from map(work, chunks)
         return
-    from concurrent.futures import ProcessPoolExecutor
-
     with ProcessPoolExecutor(max_workers=workers) as pool:
         yield from pool.map(work, chunks)
 
@@ -450,8 +590,6 @@ def _fit_chunk_star(options, chunk):
 def _as_points(experiments) -> list[TrompPoints]:
     """Points from a sequence of TrompPoints or a Dask DataFrame of points."""
     if hasattr(experiments, "dask") and hasattr(experiments, "compute"):
-        from .loading.points import points_from_frame
-
         return points_from_frame(experiments.compute(), source="dask dataframe")
     return list(experiments)
 
@@ -466,15 +604,11 @@ def load(directory) -> Workbench:
     directory : str or path-like
         A directory written by :meth:`Workbench.save`.
     """
-    from .output.results import load_workbench
-
     return load_workbench(directory)
 
 
 def data_notes(points: TrompPoints) -> tuple[str, ...]:
     """Warnings about the measured points themselves, before any fit."""
-    from scipy import stats
-
     notes = []
     if points.n >= 3 and np.ptp(points.partition_fine) > 0:
         rho = stats.spearmanr(points.size, points.partition_fine).statistic
@@ -493,7 +627,7 @@ def data_notes(points: TrompPoints) -> tuple[str, ...]:
 
 def _ambiguous_measured_cut(points: TrompPoints) -> str | None:
     """A note when the measured cut, and with it formula (11)'s measured efficiency, moves
-    far with partitions changed within :data:`~tromplab.curves.curve_fit.CUT_BAND` (a plateau at 1/2, or a
+    far with partitions changed within :data:`~tromplab.curves.measured.CUT_BAND` (a plateau at 1/2, or a
     curve crossing 1/2 more than once): the fit of (11) then hangs on the data's last digits."""
     low, high = measured_cut_band(points)
     if not high > AMBIGUOUS_CUT_RATIO * low:
@@ -541,8 +675,6 @@ def model_averages(bench: Workbench, *, level: float = 0.95, jobs: int | None = 
 
 
 def _averages_of_chunk(level, groups) -> list[pd.DataFrame]:
-    from .statistics.uncertainty import batched_delta_indices, model_average
-
     known = batched_delta_indices([fit for fits in groups for fit in fits])  # the whole chunk in one call per formula
     frames = [model_average(fits, level=level, known=known).assign(experiment=fits[0].experiment) for fits in groups]
     # one frame per chunk: the main process then unpickles and concatenates tens of frames, not
@@ -573,6 +705,4 @@ def write_atomically(outputs: dict[str, Callable[[Path], None]], outdir) -> dict
     is left in ``outdir``.  For a whole output folder that replaces the previous run in
     one step, see :func:`tromplab.output.outputs.replace_folder`.
     """
-    from .output.outputs import write_files
-
     return write_files(outputs, outdir)

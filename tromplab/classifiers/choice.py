@@ -26,6 +26,8 @@ import numpy as np
 import pandas as pd
 from scipy import optimize
 
+from .sieve import capacity, sieve_efficiency
+
 
 @dataclass(frozen=True)
 class Variable:
@@ -191,7 +193,6 @@ def sieve_speed_problem(
     linking vibration frequency and angle to ``V`` and ``Va`` is not given, so the
     decision variable is ``V`` itself (see the README and ``docs/errata.md``).
     """
-    from .sieve import capacity, sieve_efficiency
 
     def retained(coefficient, speed):
         return np.exp(-coefficient * sieve_length / speed)

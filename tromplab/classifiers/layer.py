@@ -10,10 +10,12 @@ sieve.  Extraction is the passed amount over the initial amount.
 
 Layer thinning: when the top active cell's concentration falls below a threshold, its
 content moves down, the cell is locked, and the passage becomes
-``vf = vf0 sqrt((m - i)/m)`` with ``i`` locked cells.
+``vf = vf0 sqrt((m - i)/m)`` with ``i`` locked cells (the paper's eq. (14), its Fig. 3b,
+"variable passage"); with ``constant_passage`` it stays ``vf0`` after a lock (Fig. 3a).
 
-The paper does not state ``m``, the initial concentrations or the threshold; here they
-are explicit inputs (spec section 7; ``docs/errata.md``).
+The paper states ``m = 4`` cells and an initial fines concentration of 50 % for its
+experiment; it does not state the lock threshold.  All three are explicit inputs here
+(spec section 7; ``docs/errata.md``).
 """
 
 from __future__ import annotations
@@ -42,6 +44,10 @@ class LayerModel:
         Segregation slowed by the fines in the cell below.
     lock_threshold : float or None
         Concentration below which the top active cell empties and locks (None: never).
+    constant_passage : bool
+        Keep the passage at ``vf0`` after a lock (the paper's Fig. 3a, "constant"); by
+        default it falls as ``vf0 sqrt((m - i)/m)`` with ``i`` locked cells (eq. (14),
+        Fig. 3b).  Without locking both are the same model.
     """
 
     diffusion: float
@@ -49,6 +55,7 @@ class LayerModel:
     passage: float
     nonlinear: bool = True
     lock_threshold: float | None = None
+    constant_passage: bool = False
 
     def __post_init__(self):
         for name in ("diffusion", "segregation", "passage"):
@@ -86,7 +93,7 @@ class LayerModel:
         passed, locked = 0.0, 0
         for k in range(steps):
             concentration = self._transition(concentration, locked)
-            vf = self.passage * np.sqrt((cells - locked) / cells)
+            vf = self.passage if self.constant_passage else self.passage * np.sqrt((cells - locked) / cells)
             flow = concentration[-1] * vf
             concentration[-1] -= flow
             passed += flow

@@ -35,8 +35,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import integrate, optimize, special, stats
 
-from ..curves.fitting import ParameterFit, ParameterSpec, least_squares
+from ..curves.fitting import ParameterFit, ParameterSpec, expression_function, least_squares
 from ..errors import InputError
+from ..validation import MAX_DECKS, check_count
 
 SECONDS_PER_HOUR = 3600.0
 
@@ -375,8 +376,6 @@ def design_bin(decks, sieve_length, recovery, *, method="exact") -> BinDesign:
     >>> round(b.c, 2), round(b.x1, 4)
     (14.22, 0.9867)
     """
-    from ..validation import MAX_DECKS, check_count
-
     check_count(decks, "decks", maximum=MAX_DECKS)
     if not 0 < recovery < 1:
         raise InputError(f"the required recovery must lie in (0, 1), got {recovery}")
@@ -482,8 +481,6 @@ def fit_dependence(hole_diameter, length, values, *, form=DEFAULT_DEPENDENCE) ->
     """
     import inspect
 
-    from ..curves.fitting import expression_function
-
     D, l, y = (np.asarray(v, dtype=float) for v in (hole_diameter, length, values))
     if not D.shape == l.shape == y.shape:
         raise ValueError("hole sizes, particle sizes and values must have the same length")
@@ -504,6 +501,15 @@ def fit_dependence(hole_diameter, length, values, *, form=DEFAULT_DEPENDENCE) ->
 
 
 # --- tables -----------------------------------------------------------------------------
+def _refuse_outside(table, values, column: str, rule: str, *, upper: float = np.inf, upper_allowed: bool = False) -> None:
+    """Raise the :class:`~tromplab.errors.InputError` of the first value of ``column`` not in
+    ``(0, upper)`` (``(0, upper]`` when ``upper_allowed``), naming its row."""
+    inside = (values > 0) & ((values <= upper) if upper_allowed else (values < upper))
+    if not inside.all():
+        i = int(np.flatnonzero(~inside)[0])
+        raise table.error(f"{column} {values[i]:g} {rule}", index=i, column=column)
+
+
 IDENTIFY_COLUMNS = ("sieve", "fraction", "relative_speed", "residue", "sieve_length", "cell_pitch")
 PG_COLUMNS = ("hole_diameter", "length", "width", "half_cell_width")
 
@@ -513,8 +519,17 @@ def identify_from_table(table, *, two_sided: bool = False, level: float = 0.95):
 
     The table has one row per regime x fraction x sieve with the columns
     :data:`IDENTIFY_COLUMNS` and either ``P_g`` or :data:`PG_COLUMNS` (then ``P_g`` is
-    computed).  A group that cannot be identified gets ``success = False`` and the
-    reason; the others go on.
+    computed).  A cell no identification could use is refused as input, naming the file,
+    row and column: a residue outside the open interval (0, 1) (the share retained on the
+    sieve; 0 and 1 carry no quantile), a sieve length or cell pitch that is not positive,
+    a ``P_g`` outside (0, 1].  A group that cannot be identified from valid cells (fewer
+    than two regimes, a sieving probability above ``P_g``) gets ``success = False`` and
+    the reason; the others go on.
+
+    Raises
+    ------
+    InputError
+        When a column is missing or unknown, or a cell is outside its range.
 
     Returns
     -------
@@ -524,13 +539,15 @@ def identify_from_table(table, *, two_sided: bool = False, level: float = 0.95):
     """
     import pandas as pd
 
-    from ..errors import InputError
-
     table.require(*IDENTIFY_COLUMNS)
     table.refuse_unknown((*IDENTIFY_COLUMNS, "P_g", *PG_COLUMNS), what="residue table")
     numbers = {c: table.numeric(c) for c in IDENTIFY_COLUMNS[2:]}
+    _refuse_outside(table, numbers["residue"], "residue", "must lie strictly between 0 and 1 (the share retained)", upper=1.0)
+    for column in ("sieve_length", "cell_pitch"):
+        _refuse_outside(table, numbers[column], column, "must be positive")
     if "P_g" in table.frame.columns:
         pg = table.numeric("P_g")
+        _refuse_outside(table, pg, "P_g", "must lie in (0, 1]", upper=1.0, upper_allowed=True)
     elif all(c in table.frame.columns for c in PG_COLUMNS):
         sizes = [table.numeric(c) for c in PG_COLUMNS]
         pg = np.array([geometric_probability(*row) for row in zip(*sizes)])

@@ -21,16 +21,25 @@ from dataclasses import dataclass, field, replace
 from functools import cached_property
 
 import numpy as np
+import pandas as pd
 from scipy import optimize
 
 from ..loading.points import TrompPoints
-from .diagnostics import RESIDUAL_WARNING, ResidualDiagnostics, residual_diagnostics
-from .fitting import ParameterFit, ParameterSpec, least_squares, on_bound
+from .diagnostics import RESIDUAL_WARNING, ResidualDiagnostics, batch_residual_diagnostics, residual_diagnostics
+from .fitting import ParameterFit, least_squares, on_bound
 from .formulas import Formula, NoBreakPointError, get_formula, shuvalov_break
-from .indices import CurveIndices, curve_indices
+from .indices import CurveIndices, batch_curve_indices, batchable_indices, curve_indices
+from .measured import (
+    GRID_SLOPES,
+    formula_context,
+    measured_cut_size,
+    measured_slope,
+    normalised_weights,
+    parameter_specs,
+)
 from .screening import DEFAULT_ALPHA, FisherScreen, check_screenable, fisher_screen
+from .views import fit_html, fit_report, fit_repr
 
-GRID_SLOPES = -np.geomspace(0.02, 20.0, 41)
 N_GRID_STARTS = 2
 
 
@@ -214,7 +223,7 @@ class CurveFit:
         if not self.success:
             return ()
         warnings = []
-        for spec in _parameter_specs(self.formula, self.points):
+        for spec in parameter_specs(self.formula, self.points):
             if spec.name in self.fit.at_bound:
                 value = self.fit.values[spec.name]
                 bound = spec.lower if on_bound(value, spec.lower) else spec.upper
@@ -249,7 +258,7 @@ class CurveFit:
         return tuple(warnings)
 
     def row(self) -> dict:
-        """One row of ``fits.csv`` (see :data:`FIT_COLUMNS`)."""
+        """One row of ``fits.csv`` (see :data:`FIT_COLUMNS`): the one place a fit becomes a table row."""
         screen, ind = self.screen, self.indices
         criteria = self.fit.information_criteria()
         return {
@@ -293,30 +302,44 @@ class CurveFit:
             "warnings": "; ".join(self.warnings),
         }
 
-    # --- readable views (tromplab.output.results): the same fields as row(), for notebooks and logs
+    # --- readable views (tromplab.curves.views): the same fields as row(), for notebooks and logs
     def __repr__(self) -> str:
-        from ..output.results import fit_repr
-
         return fit_repr(self)
 
     def _repr_html_(self) -> str:
-        from ..output.results import fit_html
-
         return fit_html(self)
 
-    def summary(self):
+    def summary(self) -> pd.DataFrame:
         """One-row :class:`pandas.DataFrame` with the columns of ``fits.csv`` except ``rank``."""
-        from ..output.results import fit_summary
-
-        return fit_summary(self)
+        return pd.DataFrame([self.row()]).reindex(columns=[c for c in FIT_COLUMNS if c != "rank"])
 
     def report(self, *, level: float = 0.95, profile: bool = True) -> str:
         """Text report: parameters with standard errors and ``level`` intervals (profile
         likelihood, else Wald), the F screen, indices with delta-method errors, residual
         diagnostics and warnings (like lmfit's ``fit_report``)."""
-        from ..output.results import fit_report
-
         return fit_report(self, level=level, profile=profile)
+
+    def with_lmfit(self) -> CurveFit:
+        """This fit with an lmfit result: a fit made by the batched engine (or one that
+        travelled through a process pool) is refitted by lmfit from its optimum, without the
+        grid, so that ``fit.fit.raw`` and profile intervals are available.  A fit that
+        already has them, or a failed one, is returned as is; so is the fit when lmfit ends
+        above its optimum."""
+        if not self.success or self.fit.minimizer is not None:
+            return self
+        options = self.options
+        polished = fit_formula(
+            self.points,
+            self.formula,
+            alpha=options.alpha,
+            delta_max=options.delta_max,
+            size_unit=options.size_unit,
+            global_search=False,
+            starts=[dict(self.fit.values)],
+        )
+        if not polished.success or polished.fit.ssr > self.fit.ssr * (1 + 1e-9):
+            return self
+        return replace(self, fit=polished.fit)
 
 
 def attach_indices(fits) -> None:
@@ -328,8 +351,6 @@ def attach_indices(fits) -> None:
     cached ``CurveFit.indices`` is then not computed again.  Other fits are left to the
     lazy property.
     """
-    from .indices import batch_curve_indices, batchable_indices
-
     groups: dict[str, list[CurveFit]] = {}
     for fit in fits:
         if fit.success and "indices" not in fit.__dict__ and batchable_indices(fit.formula):
@@ -355,86 +376,10 @@ def attach_diagnostics(fits) -> None:
     ``CurveFit.diagnostics`` would compute fit by fit; fits without residuals (failed
     ones) are left to the lazy property.
     """
-    from .diagnostics import batch_residual_diagnostics
-
     chosen = [fit for fit in fits if fit.success and fit.fit.residual is not None and "diagnostics" not in fit.__dict__]
     found = batch_residual_diagnostics([fit.fit.residual for fit in chosen], alpha=[fit.options.alpha for fit in chosen])
     for fit, diagnostics in zip(chosen, found):
         fit.__dict__["diagnostics"] = diagnostics  # where functools.cached_property keeps its value
-
-
-def measured_cut_size(points: TrompPoints, level: float = 0.5) -> float:
-    """Size where the measured curve first falls through ``level`` (1/2: the measured cut),
-    interpolated in log size.
-
-    Where the points never cross the level the size of the point closest to it is returned.
-    """
-    phi, log_size = points.partition_fine, np.log(points.size)
-    above = phi >= level
-    for i in range(points.n - 1):
-        if above[i] and not above[i + 1]:
-            t = (phi[i] - level) / (phi[i] - phi[i + 1])
-            return float(np.exp(log_size[i] + t * (log_size[i + 1] - log_size[i])))
-    return float(points.size[np.argmin(np.abs(phi - level))])
-
-
-#: Half-width of the band around 1/2 in which a measured partition is taken as "at the cut"
-#: when the measured cut is checked for ambiguity (partitions are often given to 1-2 %).
-CUT_BAND = 0.02
-#: Ratio of the sizes where the measured curve falls through 1/2 + CUT_BAND and 1/2 -
-#: CUT_BAND above which the measured cut is called ambiguous: a curve of Plitt slope m = 1
-#: (a flat classifier) gives about 1.1, a plateau at 1/2 over one sieve interval (sqrt 2) 1.5+.
-AMBIGUOUS_CUT_RATIO = 1.5
-
-
-def measured_cut_band(points: TrompPoints) -> tuple[float, float]:
-    """Sizes where the measured curve falls through 1/2 + :data:`CUT_BAND` and 1/2 -
-    :data:`CUT_BAND`: the range of measured cuts that partitions within the band allow."""
-    return measured_cut_size(points, 0.5 + CUT_BAND), measured_cut_size(points, 0.5 - CUT_BAND)
-
-
-def measured_efficiency(points: TrompPoints, d_cut: float | None = None) -> float:
-    """Classifier efficiency eta of the measured curve, used by formula (11).
-
-    Rule: relative sizes ``x = size / d_cut_exp`` with ``d_cut_exp`` from
-    :func:`measured_cut_size` (or the ``d_cut`` given); the points are joined linearly in
-    ``x``; below the smallest measured size the curve is held at its first value (down to
-    ``x = 0``), and ``phi(1) = 1/2`` closes the interval; ``eta_exp`` is the area on
-    ``0 <= x <= 1``.
-    """
-    if d_cut is None:
-        d_cut = measured_cut_size(points)
-    x = points.size / d_cut
-    inside = x < 1.0
-    knots_x = np.concatenate(([0.0], x[inside], [1.0]))
-    first = points.partition_fine[inside][0] if inside.any() else 0.5
-    knots_phi = np.concatenate(([first], points.partition_fine[inside], [0.5]))
-    return float(np.trapezoid(knots_phi, knots_x))
-
-
-def measured_slope(points: TrompPoints, d_cut: float) -> float:
-    """Slope d phi / d x near the cut: least-squares line through the points with
-    0.1 <= phi <= 0.9 (or the two points nearest the cut)."""
-    x = points.size / d_cut
-    phi = points.partition_fine
-    middle = (phi >= 0.1) & (phi <= 0.9)
-    if middle.sum() < 2:
-        middle = np.zeros_like(middle)
-        middle[np.argsort(np.abs(x - 1.0))[:2]] = True
-    slope = np.polyfit(x[middle], phi[middle], 1)[0] if np.ptp(x[middle]) > 0 else -0.5
-    return float(np.clip(slope, GRID_SLOPES.min(), GRID_SLOPES.max()))
-
-
-def _parameter_specs(formula: Formula, points: TrompPoints) -> list[ParameterSpec]:
-    return list(formula.parameters(points.size))
-
-
-def normalised_weights(points: TrompPoints) -> np.ndarray:
-    """Least-squares weights scaled to mean 1 (all ones when the points carry none), so the
-    weighted sums of squares of the fit and of the Fisher screen share one scale."""
-    if points.weight is None:
-        return np.ones(points.n)
-    return points.weight / points.weight.mean()
 
 
 def fit_formula(
@@ -492,7 +437,7 @@ def fit_formula(
     formula = get_formula(formula)
     check_screenable(points.n, n_params=formula.n_params)
     options = FitOptions.for_points(points, alpha=alpha, delta_max=delta_max, size_unit=size_unit, global_search=global_search)
-    specs = _parameter_specs(formula, points)
+    specs = parameter_specs(formula, points)
     context = formula_context(formula, points)
     root_weights = np.sqrt(options.weights)
     extra_starts = {extra.name: extra.start for extra in formula.extras}
@@ -517,14 +462,6 @@ def fit_formula(
     return CurveFit(formula=formula, points=points, fit=fit, context=context, options=options, grid_ssr=grid_ssr)
 
 
-def formula_context(formula: Formula, points: TrompPoints) -> dict[str, float]:
-    """Inputs a formula takes from the measured points rather than from the fit
-    (``measured_efficiency`` for formula (11)); empty for the others."""
-    if formula.context_from_efficiency:
-        return {"measured_efficiency": measured_efficiency(points)}
-    return {}
-
-
 def failed_fit(
     points: TrompPoints,
     formula,
@@ -540,30 +477,8 @@ def failed_fit(
         options = FitOptions.for_points(points, alpha=alpha, delta_max=delta_max, size_unit=size_unit)
     except ValueError:
         options = FitOptions(float(alpha), np.nan, normalised_weights(points), size_unit or "")
-    specs = _parameter_specs(formula, points)
+    specs = parameter_specs(formula, points)
     return CurveFit(formula=formula, points=points, fit=ParameterFit.failed(specs, points.n, message), options=options)
-
-
-def with_lmfit(fit: CurveFit) -> CurveFit:
-    """``fit`` with an lmfit result: a fit made by the batched engine (or one that travelled
-    through a process pool) is refitted by lmfit from its optimum, without the grid, so
-    that ``fit.fit.raw`` and profile intervals are available.  A fit that already has them,
-    or a failed one, is returned as is; so is ``fit`` when lmfit ends above its optimum."""
-    if not fit.success or fit.fit.minimizer is not None:
-        return fit
-    options = fit.options
-    polished = fit_formula(
-        fit.points,
-        fit.formula,
-        alpha=options.alpha,
-        delta_max=options.delta_max,
-        size_unit=options.size_unit,
-        global_search=False,
-        starts=[dict(fit.fit.values)],
-    )
-    if not polished.success or polished.fit.ssr > fit.fit.ssr * (1 + 1e-9):
-        return fit
-    return replace(fit, fit=polished.fit)
 
 
 def _break_point(kr: float, efficiency: float) -> tuple[float, list[str]]:
@@ -595,3 +510,48 @@ def _profile_grid(formula, specs, residual_at, d_cut_start):
                 grid.append((float(ssr), {"d_cut": d_cut, formula.shape_name: shape}))
     grid.sort(key=lambda item: item[0])
     return grid
+
+
+#: Columns of ``fits.csv``, in order.
+FIT_COLUMNS = (
+    "experiment",
+    "equation",
+    "formula",
+    "n",
+    "d_cut",
+    "d_cut_stderr",
+    "shape_name",
+    "shape",
+    "shape_stderr",
+    "ssr",
+    "F",
+    "F_crit",
+    "adequate",
+    "rank",
+    "eta",
+    "epsilon",
+    "slope",
+    "d25",
+    "d75",
+    "ep",
+    "imperfection",
+    "d50",
+    "d50c",
+    "ep_c",
+    "imperfection_c",
+    "aic",
+    "aicc",
+    "delta_aicc",
+    "bic",
+    "bypass",
+    "fishhook",
+    "extras",
+    "runs_p",
+    "normality_p",
+    "residuals",
+    "extrapolated",
+    "x_break",
+    "success",
+    "message",
+    "warnings",
+)

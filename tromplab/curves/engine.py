@@ -21,16 +21,17 @@ that hold every experiment and every starting point at once:
    covariance estimate, ``(J^T J)^{-1} SSR / (n - p)``.
 
 Every formula whose curve broadcasts over array-valued shapes runs here, the piecewise
-(10) included; formula (11) gets a vectorised break-point solver
-(:func:`shuvalov_breaks`).  Curves that need a scalar root per parameter set (Whiten's
-fish-hook curve, whose ``beta*`` solves an equation) and curves with two or more extra
-parameters (their extras interact, and the engine starts them at one declared value
-only) are reported by :func:`is_batchable` as not batchable and fitted one by one by the
-caller.
+(10) included; a formula whose break moves with its shape, as (11), declares the hooks the
+engine calls (:class:`~tromplab.curves.formulas.MovingBreak`: for (11) the vectorised
+break-point solver :func:`~tromplab.curves.formulas.shuvalov_breaks`), so the engine names no formula.  Curves that
+need a scalar root per parameter set (Whiten's fish-hook curve, whose ``beta*`` solves an
+equation) and curves with two or more extra parameters (their extras interact, and the
+engine starts them at one declared value only) are reported by :func:`~tromplab.curves.formulas.is_batchable` as not
+batchable and fitted one by one by the caller.
 
 The engine itself does not use lmfit; :func:`fit_formula_batch` wraps its optimum in the
 same :class:`~tromplab.curves.curve_fit.CurveFit` a single fit returns, and
-:func:`tromplab.curves.curve_fit.with_lmfit` turns it into an lmfit result where one is needed
+:meth:`tromplab.curves.curve_fit.CurveFit.with_lmfit` turns it into an lmfit result where one is needed
 (profile intervals).
 """
 
@@ -39,19 +40,21 @@ from __future__ import annotations
 import copy
 from collections.abc import Sequence
 from dataclasses import dataclass
-from functools import cache
 
 import numpy as np
-from scipy import special
 
 from ..loading.points import TrompPoints
-from .formulas import LN2, Formula, _rosin_rammler_area, get_formula, rosin_rammler
+from .curve_fit import CurveFit, FitOptions, failed_fit, fit_formula
+from .fitting import ParameterFit, parameters_at_bounds
+from .formulas import Formula, get_formula, is_batchable
+from .measured import formula_context, measured_cut_size, measured_slope, parameter_specs
+from .screening import DEFAULT_ALPHA
 
-#: Slopes at the cut of the shape grid (as :data:`tromplab.curves.curve_fit.GRID_SLOPES`, every other one).
+#: Slopes at the cut of the shape grid (as :data:`tromplab.curves.measured.GRID_SLOPES`, every other one).
 ENGINE_GRID_SLOPES = -np.geomspace(0.02, 20.0, 21)
-#: The piecewise formulas (10) and (11) have kinks in the sum of squares, where a descent
-#: method can stop short: they get the single fit's full grid and more starts from it.
-PIECEWISE = frozenset({"luckie_austin", "shuvalov"})
+#: The piecewise formulas (``Formula.piecewise``: (10) and (11)) have kinks in the sum of
+#: squares, where a descent method can stop short: they get the single fit's full grid and
+#: more starts from it.
 PIECEWISE_GRID_SLOPES = -np.geomspace(0.02, 20.0, 41)
 PIECEWISE_GRID_STARTS = 6
 #: Log-spaced ``d_cut`` values per grid shape, before the golden-section refinement.
@@ -144,112 +147,20 @@ class BatchOptimum:
             return np.sqrt(np.diagonal(self.covariance, axis1=1, axis2=2))
 
 
-# --- the curves on arrays ----------------------------------------------------------------
-def is_batchable(formula) -> bool:
-    """True when the engine can evaluate ``formula`` on arrays of parameters."""
-    return _batchable(get_formula(formula).id)
-
-
-@cache
-def _batchable(formula_id: str) -> bool:
-    formula = get_formula(formula_id)
-    if formula.id == "shuvalov":
-        return True
-    if len(formula.extras) >= 2:  # interacting extras (Teipel-Hennig's alpha and bypass): one start is not enough
-        return False
-    x = np.array([[0.5, 1.0, 2.0], [0.5, 1.0, 2.0]])
-    shape = np.array([[formula.clip_shape(1.0)], [formula.clip_shape(2.0)]])
-    extras = {extra.name: np.full((2, 1), extra.start) for extra in formula.extras}
-    try:
-        with np.errstate(all="ignore"):
-            value = np.asarray(formula.phi(x, shape, **extras), dtype=float)
-    except (TypeError, ValueError):  # needs a scalar parameter (a root per parameter set)
-        return False
-    return value.shape == x.shape
-
-
-def shuvalov_breaks(kr, efficiency) -> np.ndarray:
-    r"""Break points :math:`x_a` of formula (11), vectorised over ``kr`` and ``efficiency``.
-
-    Solves :math:`F(x_a) = x_a \varphi_5(x_a) + \int_{x_a}^1 \varphi_5\,dx = \eta_{exp}`
-    (the left side falls monotonically from :math:`\eta_5(k_r)` at 0 to 1/2 at 1) by Newton
-    steps kept inside a bisection bracket.  The steps are taken in :math:`w = x_a^{k_r + 1}`:
-    near :math:`x_a = 0` the left side is flat like :math:`x_a^{k_r + 1}`, so in :math:`x_a`
-    Newton's steps stall (about 35 per root), while in :math:`w` the derivative
-    :math:`dF/dw = -\ln 2\, k_r \varphi_5(x_a) / (k_r + 1)` never vanishes and a root
-    takes about 7 steps.  Outside :math:`[1/2, \eta_5]` the nearer end is returned, as
-    :func:`tromplab.curves.formulas.shuvalov` does.
-
-    Examples
-    --------
-    >>> from tromplab.curves.formulas import shuvalov_break
-    >>> bool(abs(shuvalov_breaks(2.0, 0.8) - shuvalov_break(2.0, 0.8)) < 1e-13)
-    True
-    """
-    kr, efficiency = np.broadcast_arrays(np.asarray(kr, dtype=float), np.asarray(efficiency, dtype=float))
-    eta_plain = _rosin_rammler_area(0.0, 1.0, kr)
-    result = np.where(efficiency < 0.5, 1.0, 0.0)
-    solve = (efficiency >= 0.5) & (efficiency < eta_plain)
-    k, target = kr[solve], efficiency[solve]
-    # _rosin_rammler_area(x, 1, k) = scale * (whole - gammainc(1/k, ln2 x^k)): the parts without x once
-    a = 1.0 / k
-    scale = special.gamma(a) * LN2 ** (-a) / k
-    whole = special.gammainc(a, LN2)
-    exponent = 1.0 / (k + 1.0)
-    low, high = np.zeros_like(k), np.ones_like(k)
-    w = np.full_like(k, 0.5)
-    open_ = np.arange(k.size)
-    for _ in range(100):
-        kk, ww = k[open_], w[open_]
-        x = ww ** exponent[open_]
-        power = x**kk
-        phi = np.exp(-LN2 * power)
-        value = x * phi + scale[open_] * (whole[open_] - special.gammainc(a[open_], LN2 * power)) - target[open_]
-        lo = np.where(value > 0, ww, low[open_])
-        hi = np.where(value > 0, high[open_], ww)
-        newton = ww + value * (kk + 1.0) / (LN2 * kk * phi)
-        step = np.where((newton > lo) & (newton < hi), newton, 0.5 * (lo + hi))
-        converged = np.abs(value) <= 1e-16
-        step = np.where(converged, ww, step)
-        low[open_], high[open_], w[open_] = lo, hi, step
-        done = converged | (np.abs(step - ww) <= 1e-15) | (hi - lo <= 1e-15)
-        open_ = open_[~done]
-        if not open_.size:
-            break
-    result[solve] = w**exponent
-    return result
-
-
-def shuvalov_kink(efficiency, bounds) -> np.ndarray:
-    r"""Shape :math:`k_r^*` of formula (11) where the break point appears: :math:`\eta_5(k_r^*) = \eta_{exp}`.
-
-    Below it (in a sharper-than-measured sense) no break exists and (11) is the plain
-    Rosin-Rammler form (5); the sum of squares has a kink there that separates two basins,
-    so the engine starts on both sides of it.  Clipped to ``bounds``.
-    """
-    efficiency = np.asarray(efficiency, dtype=float)
-    low, high = np.full(efficiency.shape, np.log(bounds[0])), np.full(efficiency.shape, np.log(bounds[1]))
-    for _ in range(60):  # eta_5 rises with kr from 1/2 towards 1
-        middle = 0.5 * (low + high)
-        above = _rosin_rammler_area(0.0, 1.0, np.exp(middle)) > efficiency
-        low, high = np.where(above, low, middle), np.where(above, middle, high)
-    return np.exp(0.5 * (low + high))
-
-
 def curve_values(formula: Formula, x, shape, extras: dict, efficiency=None, x_break=None) -> np.ndarray:
     """Partition to fines of ``formula`` with array-valued parameters broadcast against ``x``
-    (``x_break``: break points of (11) already solved for these shapes)."""
-    if formula.id == "shuvalov" and x_break is not None:
-        return rosin_rammler(np.maximum(x, x_break), shape)
-    if formula.id == "shuvalov":
-        # one root per distinct (kr, efficiency): grid rows and Jacobian columns in d_cut share them
+    (``x_break``: break points of a moving break, as (11)'s, already solved for these shapes)."""
+    moving = formula.moving_break
+    if moving is None:
+        return formula.phi(x, shape, **extras)
+    if x_break is None:
+        # one root per distinct (shape, efficiency): grid rows and Jacobian columns in d_cut share them
         kr, eff = np.broadcast_arrays(np.asarray(shape, dtype=float), np.asarray(efficiency, dtype=float))
         # a pair as one complex number: np.unique(axis=...) would compare structured rows, whose
         # dtype promotion runs Python code in which numpy turns a Ctrl-C into a TypeError
         pairs, inverse = np.unique(kr.ravel() + 1j * eff.ravel(), return_inverse=True)
-        x_break = shuvalov_breaks(pairs.real, pairs.imag)[inverse.ravel()].reshape(kr.shape)
-        return rosin_rammler(np.maximum(x, x_break), shape)
-    return formula.phi(x, shape, **extras)
+        x_break = moving.on_arrays(pairs.real, pairs.imag)[inverse.ravel()].reshape(kr.shape)
+    return moving.phi(x, shape, x_break)
 
 
 # --- the fit -------------------------------------------------------------------------------
@@ -274,11 +185,12 @@ class _Problem:
         self.upper = np.column_stack([high_cut, np.full(count, shape_high), *[np.full(count, v) for v in extra_high]])
 
     def breaks(self, params: np.ndarray, rows: np.ndarray):
-        """Break points of (11) for these rows (None for other formulas); they depend on the
-        shape and the measured efficiency only, so steps in d_cut reuse them."""
-        if self.formula.id != "shuvalov":
+        """Break points of a moving break (``Formula.moving_break``, (11)) for these rows, None
+        for other formulas; they depend on the shape and the measured efficiency only, so
+        steps in d_cut reuse them."""
+        if self.formula.moving_break is None:
             return None
-        return shuvalov_breaks(params[:, 1], self.efficiency[rows])[:, None]
+        return self.formula.moving_break.on_arrays(params[:, 1], self.efficiency[rows])[:, None]
 
     def residual(self, params: np.ndarray, rows: np.ndarray, x_break=None) -> np.ndarray:
         """Weighted residuals ``(len(rows), P)`` at internal parameters ``params``."""
@@ -335,9 +247,7 @@ def golden_section(objective, lo: np.ndarray, hi: np.ndarray, steps: int):
 def _grid_starts(problem: _Problem, start_cut: np.ndarray, extra_start: np.ndarray):
     """Best ``GRID_STARTS`` profiled grid points per experiment and the grid minimum."""
     formula, data = problem.formula, problem.data
-    slopes, n_starts = (
-        (PIECEWISE_GRID_SLOPES, PIECEWISE_GRID_STARTS) if formula.id in PIECEWISE else (ENGINE_GRID_SLOPES, GRID_STARTS)
-    )
+    slopes, n_starts = (PIECEWISE_GRID_SLOPES, PIECEWISE_GRID_STARTS) if formula.piecewise else (ENGINE_GRID_SLOPES, GRID_STARTS)
     shapes = np.array(sorted({formula.clip_shape(formula.shape_for_slope(s)) for s in slopes}))
     count, n_shapes = len(data), shapes.size
     low, high = problem.lower[:, 0], problem.upper[:, 0]
@@ -514,9 +424,10 @@ CROSSING_STEPS = 36
 
 
 def search_break_crossings(problem: _Problem, params: np.ndarray, ssr: np.ndarray, rows: np.ndarray):
-    """Formula (11): the optimum may sit where a measured point crosses the break, ``size_i /
-    d_cut = x_a(kr)``.  Along that curve the sum of squares has a ridge of kinks that steps
-    along the axes or diagonals (:func:`compass_search`) cannot follow; search it directly:
+    """A moving break (``Formula.moving_break``, formula (11)): the optimum may sit where a
+    measured point crosses the break, ``size_i / d_cut = x_a(kr)``.  Along that curve the sum
+    of squares has a ridge of kinks that steps along the axes or diagonals
+    (:func:`compass_search`) cannot follow; search it directly:
     for each point near the break, ``kr`` by golden section on ``ln kr`` (x/÷ 1.25 around the
     current value) with ``d_cut = size_i / x_a(kr)``.  Rows keep the lower sum of squares.
     Returns ``(params, ssr, nfev)``."""
@@ -539,7 +450,7 @@ def search_break_crossings(problem: _Problem, params: np.ndarray, ssr: np.ndarra
 
     def crossing(log_shape):
         shape = np.exp(log_shape)
-        x_break = shuvalov_breaks(shape, efficiency)
+        x_break = problem.formula.moving_break.on_arrays(shape, efficiency)
         with np.errstate(divide="ignore"):  # no break (x_a = 0): the crossing runs off to the cut's bound
             cut = np.clip(np.log(size / x_break), cut_low, cut_high)
         trial = np.column_stack([cut, shape])
@@ -600,21 +511,23 @@ def fit_batch(
         grid_cut, grid_shape, grid_ssr = _grid_starts(problem, starts[:, 0, 0], extra_start)
         extras = np.broadcast_to(np.array(extra_start), (count, grid_cut.shape[1], len(extra_start)))
         starts = np.concatenate([starts, np.concatenate([grid_cut[..., None], grid_shape[..., None], extras], axis=2)], axis=1)
-    if formula.id == "shuvalov" and global_search:
-        kink = shuvalov_kink(efficiency, formula.shape_bounds)
+    moving = formula.moving_break if global_search else None
+    kink = None
+    if moving is not None and moving.kink is not None:  # start on both sides of the kink
+        kink = moving.kink(efficiency, formula.shape_bounds)
         sides = np.stack([np.clip(kink * f, *formula.shape_bounds) for f in (0.97, 1.03, 1.2)], axis=1)
         near = np.stack([np.broadcast_to(starts[:, :1, 0], sides.shape), sides], axis=2)
         starts = np.concatenate([starts, near], axis=1)
     n_starts = starts.shape[1]
     rows = np.repeat(np.arange(count), n_starts)
     params, ssr, nfev = levenberg_marquardt(problem, starts.reshape(count * n_starts, -1), rows)
-    if formula.id in PIECEWISE:  # past the kinks without derivatives, then polish again
+    if formula.piecewise:  # past the kinks without derivatives, then polish again
         best = np.argmin(ssr.reshape(count, n_starts), axis=1) + np.arange(count) * n_starts
         params[best], ssr[best], more = compass_search(problem, params[best], rows[best])
         nfev[best] += more
         params[best], ssr[best], more = levenberg_marquardt(problem, params[best], rows[best])
         nfev[best] += more
-        if formula.id == "shuvalov" and global_search:  # the optimum can sit on the kink itself: d_cut alone at kr*
+        if kink is not None:  # the optimum can sit on the kink itself: d_cut alone at the kink's shape
             on_kink = copy.copy(problem)
             on_kink.lower, on_kink.upper = problem.lower.copy(), problem.upper.copy()
             on_kink.lower[:, 1] = on_kink.upper[:, 1] = kink
@@ -624,6 +537,7 @@ def fit_batch(
             nfev[best] += more
             lower_ssr = kinked_ssr < ssr[best]
             params[best[lower_ssr]], ssr[best[lower_ssr]] = kinked[lower_ssr], kinked_ssr[lower_ssr]
+        if moving is not None:  # along the crossings of measured points with the moving break
             params[best], ssr[best], more = search_break_crossings(problem, params[best], ssr[best], rows[best])
             nfev[best] += more
     ssr = ssr.reshape(count, n_starts)
@@ -673,13 +587,11 @@ def fit_formula_batch(
     Returns one :class:`~tromplab.curves.curve_fit.CurveFit` per experiment, in order, with the same
     recorded options as a single fit, so its screen, indices, diagnostics and warnings
     are derived in the same way.  The fit's ``ParameterFit`` is built from the batched
-    optimum (``raw`` is None; :func:`tromplab.curves.curve_fit.with_lmfit` gives an lmfit result).
+    optimum (``raw`` is None; :meth:`tromplab.curves.curve_fit.CurveFit.with_lmfit` gives an lmfit result).
     Experiments with too few points for the formula get a failed fit with the reason.
     ``global_search`` and ``start`` (one further start for every experiment) are as for a
     single fit; the bootstrap refits its resamples from the optimum without the grid.
     """
-    from .curve_fit import CurveFit, FitOptions, failed_fit, formula_context, measured_cut_size, measured_slope
-    from .screening import DEFAULT_ALPHA
 
     alpha = DEFAULT_ALPHA if alpha is None else alpha
     formula = get_formula(formula)
@@ -721,10 +633,8 @@ def fit_formula_batch(
 
 
 def _parameter_fit(optimum: BatchOptimum, row: int, stderr: np.ndarray, points: TrompPoints):
-    from .curve_fit import _parameter_specs
-    from .fitting import ParameterFit, parameters_at_bounds
 
-    specs = _parameter_specs(optimum.formula, points)
+    specs = parameter_specs(optimum.formula, points)
     if not np.isfinite(optimum.ssr[row]):
         return ParameterFit.failed(specs, points.n, "fit failed from every start: non-finite sum of squares", optimum.n_starts)
     values = {name: float(v) for name, v in zip(optimum.names, optimum.values[row])}
@@ -796,7 +706,6 @@ def refit_resamples(fit, samples: Sequence[TrompPoints], *, delta_max: float | N
     starts=[fit values])`` per resample; formulas the engine cannot evaluate on arrays are
     refitted one by one.
     """
-    from .curve_fit import fit_formula
 
     options = fit.options
     delta_max = options.delta_max if delta_max is None else delta_max

@@ -21,7 +21,7 @@ from __future__ import annotations
 import re
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from functools import lru_cache
+from functools import cache, lru_cache
 
 import numpy as np
 from scipy import optimize, special
@@ -44,6 +44,38 @@ def ExtraParameter(name: str, bounds: tuple[float, float], start: float, meaning
     """
     low, high = bounds
     return Parameter(name, low, high, unit=unit, meaning=meaning, start=start, start_rule=f"fixed at {start:g}")
+
+
+@dataclass(frozen=True)
+class MovingBreak:
+    """Hooks of a piecewise formula whose break point follows its shape and the measured efficiency.
+
+    Formula (11) is ``phi(max(x, x_b))`` with a break ``x_b`` solved from the shape and the
+    measured efficiency.  The batched engine (:mod:`tromplab.curves.engine`) and the batched
+    indices (:func:`tromplab.curves.indices.batch_curve_indices`) call these hooks instead of
+    ``phi``, so that a formula of this kind is declared here and nowhere else.
+
+    Attributes
+    ----------
+    at : callable
+        ``at(shape, measured_efficiency) -> float``: the break of one curve, as ``phi``
+        places it (the nearer end of ``[0, 1]`` where none exists).
+    on_arrays : callable
+        ``on_arrays(shape, measured_efficiency) -> ndarray``: the same break points solved on
+        arrays (broadcast), for the engine's many rows at once.
+    phi : callable
+        ``phi(x, shape, x_break) -> ndarray``: the curve with its break already solved
+        (arrays broadcast), so that steps in ``d_cut`` reuse the break points.
+    kink : callable or None
+        ``kink(measured_efficiency, shape_bounds) -> ndarray``: the shape at which the break
+        appears, where the sum of squares has a kink between two basins; the engine then
+        starts on both sides of it and fits ``d_cut`` alone there.
+    """
+
+    at: Callable[[float, float], float]
+    on_arrays: Callable[..., np.ndarray]
+    phi: Callable[..., np.ndarray]
+    kink: Callable[..., np.ndarray] | None = None
 
 
 @dataclass(frozen=True)
@@ -99,6 +131,15 @@ class Formula:
     nests : str or None
         Id of the paper formula this one reduces to when its extras vanish (for the
         extra-sum-of-squares test).
+    piecewise : bool
+        True when ``phi`` is pieced together at a break (formulas (10) and (11)): the sum
+        of squares has kinks where a measured point crosses the break, so the batched
+        engine searches a finer shape grid with more starts and follows its
+        Levenberg-Marquardt pass with a derivative-free search.
+    moving_break : MovingBreak or None
+        The break of a piecewise formula whose break point moves with the shape and the
+        measured efficiency ((11)): the hooks the batched engine and the batched indices
+        call instead of ``phi`` (:class:`MovingBreak`); None for every other formula.
     """
 
     id: str
@@ -122,6 +163,8 @@ class Formula:
     family: str = "paper"
     nests: str | None = None
     shape_meaning: str = ""
+    piecewise: bool = False
+    moving_break: MovingBreak | None = None
 
     def __reduce__(self):
         # Records hold lambdas and closures; they travel (pickle, process pools) by their id.
@@ -220,7 +263,8 @@ def molerus_hoffmann(x, km2):
     x : array_like
         Relative size ``size / d_cut`` (> 0, dimensionless).
     km2 : float
-        Shape, -1..60 (dimensionless); ``km2 = 0`` is Plitt's curve with ``ks = 2``.
+        Shape, 0..60 (dimensionless) as fitted; ``km2 = 0`` is Plitt's curve with ``ks = 2``.
+        The curve is also defined for ``km2 < 0``, where it rises again (Notes).
 
     Returns
     -------
@@ -325,7 +369,9 @@ def lynch(x, kl):
     -----
     Valid and decreasing for :math:`x > 0`, :math:`k_l > 0`.  Evaluated as
     :math:`(1 - e^{-k_l})/(e^{k_l(x-1)} + 1 - 2e^{-k_l})`, which equals the printed form
-    but lets large sizes underflow to 0 instead of giving inf/inf.  Slope at the cut
+    but lets large sizes underflow to 0 instead of giving inf/inf, with
+    :math:`1 - e^{-k_l}` and :math:`e^{k_l(x-1)} - 1` taken by ``expm1`` (at the lower
+    shape bound, :math:`k_l = 10^{-6}`, the plain differences lost ten digits).  Slope at the cut
     :math:`-k_l e^{k_l} / (4 (e^{k_l} - 1))`, never shallower than -1/4 (the limit
     :math:`k_l \to 0` is Plitt's curve with :math:`k_s = 1`).  Shuvalov et al. attribute
     it to Lynch (1977); the form was published by Lynch and Rao (1975).
@@ -345,9 +391,9 @@ def lynch(x, kl):
     """
     x = _as_array(x)
     with np.errstate(over="ignore"):
-        grow = np.exp(kl * (x - 1.0))
-    tail = np.exp(-kl)
-    return (1.0 - tail) / (grow + 1.0 - 2.0 * tail)
+        grow = np.expm1(kl * (x - 1.0))
+    passed = -np.expm1(-kl)  # 1 - e^-kl
+    return passed / (grow + 2.0 * passed)
 
 
 def _lynch_slope(kl):
@@ -416,7 +462,8 @@ def ogawa_allen(x, kp):
     x : array_like
         Relative size ``size / d_cut`` (> 0, dimensionless).
     kp : float
-        Shape, -1..60 (dimensionless); ``kp = 0`` is Plitt's curve with ``ks = 1``.
+        Shape, 0..60 (dimensionless) as fitted; ``kp = 0`` is Plitt's curve with ``ks = 1``.
+        The curve is also defined for ``kp < 0``, where it rises again (Notes).
 
     Returns
     -------
@@ -491,14 +538,49 @@ def lognormal(x, kf):
 
 
 def _lognormal_efficiency(kf, x_max):
-    eta = 0.5 + 0.5 * np.exp(kf**2 / 4.0) * special.erfc(kf / 2.0)
+    r"""``(eta, eps)`` of formula (9) in closed form, free of cancellation over the shape range.
+
+    The textbook forms (package spec, section 3)
+
+    .. math::
+        \eta = \tfrac12 + \tfrac12 e^{k_f^2/4}\operatorname{erfc}(k_f/2), \qquad
+        \varepsilon = \tfrac12 X \operatorname{erfc}(L/k_f) - \tfrac12
+        + \tfrac12 e^{k_f^2/4}\left[\operatorname{erf}\left(\frac{L - k_f^2/2}{k_f}\right)
+        + \operatorname{erf}(k_f/2)\right],\quad L = \ln X,
+
+    multiply :math:`e^{k_f^2/4}` (1e23 at kf = 14.5) by a difference of two error functions
+    near 1: eps lost 3e-3 at kf = 12 and 4-12 % at kf 14.5-30.  Written with the scaled
+    complementary error function :math:`\operatorname{erfcx}(z) = e^{z^2}\operatorname{erfc}(z)`
+    and :math:`c = k_f/2 - L/k_f` they read
+
+    .. math::
+        \eta = \tfrac12 + \tfrac12 \operatorname{erfcx}(k_f/2), \qquad
+        \varepsilon = \tfrac12 (X - 1)\operatorname{erfc}(L/k_f) + \tfrac12 \left[G - \operatorname{erf}(L/k_f)\right],
+
+    .. math::
+        G = e^{k_f^2/4}\left[\operatorname{erfc}(c) - \operatorname{erfc}(k_f/2)\right]
+          = e^{L - L^2/k_f^2}\operatorname{erfcx}(c) - \operatorname{erfcx}(k_f/2) \quad (c \ge 0),
+
+    and for :math:`c < 0` (:math:`k_f^2 < 2L`, so :math:`e^{k_f^2/4} < \sqrt X` stays small)
+    :math:`G` is taken as written.  Both terms of eps are non-negative (the bracket is
+    :math:`\frac{2}{\sqrt\pi k_f}\int_0^L (e^u - 1) e^{-u^2/k_f^2} du`), so nothing large
+    cancels: eta and eps agree with the printed forms evaluated by mpmath at 250 digits to
+    2e-12 relative over kf 0.01..30 and X 1.001..1e300 (``tests/test_indices.py``).  As for
+    every closed form, eps is a difference of order ``X - 1`` when ``X`` is within 1e-3 of
+    the cut: its absolute error stays at 1e-16, its relative error grows as
+    ``1e-16 / (X - 1)``.
+    """
+    eta = 0.5 + 0.5 * special.erfcx(kf / 2.0)
     big_x = max(x_max, 1.0)
     log_x = np.log(big_x)
-    eps = (
-        0.5 * big_x * special.erfc(log_x / kf)
-        - 0.5
-        + 0.5 * np.exp(kf**2 / 4.0) * (special.erf((log_x - kf**2 / 2.0) / kf) + special.erf(kf / 2.0))
-    )
+    ratio = log_x / kf
+    c = kf / 2.0 - ratio
+    if c >= 0.0:
+        shifted = np.exp(log_x - ratio * ratio) * special.erfcx(c)
+    else:
+        shifted = np.exp(kf * kf / 4.0) * special.erfc(c)
+    g = shifted - special.erfcx(kf / 2.0)
+    eps = 0.5 * (big_x - 1.0) * special.erfc(ratio) + 0.5 * (g - special.erf(ratio))
     return float(eta), float(eps)
 
 
@@ -630,7 +712,7 @@ def shuvalov(x, kr, *, measured_efficiency):
         Shape, 0.05..40 (dimensionless), as in :func:`rosin_rammler`.
     measured_efficiency : float
         Classifier efficiency of the measured curve, 0.5..1 (dimensionless;
-        :func:`tromplab.curves.curve_fit.measured_efficiency`).
+        :func:`tromplab.curves.measured.measured_efficiency`).
 
     Returns
     -------
@@ -663,6 +745,78 @@ def shuvalov(x, kr, *, measured_efficiency):
 
 def _shuvalov_efficiency(kr, x_max, *, measured_efficiency):
     return _plateau_efficiency(kr, x_max, _shuvalov_break_or_edge(kr, measured_efficiency))
+
+
+def shuvalov_breaks(kr, efficiency) -> np.ndarray:
+    r"""Break points :math:`x_a` of formula (11), vectorised over ``kr`` and ``efficiency``.
+
+    Solves :math:`F(x_a) = x_a \varphi_5(x_a) + \int_{x_a}^1 \varphi_5\,dx = \eta_{exp}`
+    (the left side falls monotonically from :math:`\eta_5(k_r)` at 0 to 1/2 at 1) by Newton
+    steps kept inside a bisection bracket.  The steps are taken in :math:`w = x_a^{k_r + 1}`:
+    near :math:`x_a = 0` the left side is flat like :math:`x_a^{k_r + 1}`, so in :math:`x_a`
+    Newton's steps stall (about 35 per root), while in :math:`w` the derivative
+    :math:`dF/dw = -\ln 2\, k_r \varphi_5(x_a) / (k_r + 1)` never vanishes and a root
+    takes about 7 steps.  Outside :math:`[1/2, \eta_5]` the nearer end is returned, as
+    :func:`tromplab.curves.formulas.shuvalov` does.
+
+    Examples
+    --------
+    >>> from tromplab.curves.formulas import shuvalov_break
+    >>> bool(abs(shuvalov_breaks(2.0, 0.8) - shuvalov_break(2.0, 0.8)) < 1e-13)
+    True
+    """
+    kr, efficiency = np.broadcast_arrays(np.asarray(kr, dtype=float), np.asarray(efficiency, dtype=float))
+    eta_plain = _rosin_rammler_area(0.0, 1.0, kr)
+    result = np.where(efficiency < 0.5, 1.0, 0.0)
+    solve = (efficiency >= 0.5) & (efficiency < eta_plain)
+    k, target = kr[solve], efficiency[solve]
+    # _rosin_rammler_area(x, 1, k) = scale * (whole - gammainc(1/k, ln2 x^k)): the parts without x once
+    a = 1.0 / k
+    scale = special.gamma(a) * LN2 ** (-a) / k
+    whole = special.gammainc(a, LN2)
+    exponent = 1.0 / (k + 1.0)
+    low, high = np.zeros_like(k), np.ones_like(k)
+    w = np.full_like(k, 0.5)
+    open_ = np.arange(k.size)
+    for _ in range(100):
+        kk, ww = k[open_], w[open_]
+        x = ww ** exponent[open_]
+        power = x**kk
+        phi = np.exp(-LN2 * power)
+        value = x * phi + scale[open_] * (whole[open_] - special.gammainc(a[open_], LN2 * power)) - target[open_]
+        lo = np.where(value > 0, ww, low[open_])
+        hi = np.where(value > 0, high[open_], ww)
+        newton = ww + value * (kk + 1.0) / (LN2 * kk * phi)
+        step = np.where((newton > lo) & (newton < hi), newton, 0.5 * (lo + hi))
+        converged = np.abs(value) <= 1e-16
+        step = np.where(converged, ww, step)
+        low[open_], high[open_], w[open_] = lo, hi, step
+        done = converged | (np.abs(step - ww) <= 1e-15) | (hi - lo <= 1e-15)
+        open_ = open_[~done]
+        if not open_.size:
+            break
+    result[solve] = w**exponent
+    return result
+
+
+def shuvalov_kink(efficiency, bounds) -> np.ndarray:
+    r"""Shape :math:`k_r^*` of formula (11) where the break point appears: :math:`\eta_5(k_r^*) = \eta_{exp}`.
+
+    Below it (in a sharper-than-measured sense) no break exists and (11) is the plain
+    Rosin-Rammler form (5); the sum of squares has a kink there that separates two basins,
+    so the engine starts on both sides of it.  Clipped to ``bounds``.
+    """
+    efficiency = np.asarray(efficiency, dtype=float)
+    low, high = np.full(efficiency.shape, np.log(bounds[0])), np.full(efficiency.shape, np.log(bounds[1]))
+    for _ in range(60):  # eta_5 rises with kr from 1/2 towards 1
+        middle = 0.5 * (low + high)
+        above = _rosin_rammler_area(0.0, 1.0, np.exp(middle)) > efficiency
+        low, high = np.where(above, low, middle), np.where(above, middle, high)
+    return np.exp(0.5 * (low + high))
+
+
+#: The moving break of (11): x_a from kr and the measured efficiency.
+SHUVALOV_BREAK = MovingBreak(at=_shuvalov_break_or_edge, on_arrays=shuvalov_breaks, phi=rosin_rammler_plateau, kink=shuvalov_kink)
 
 
 #: Shape range searched for Lynch's start; its slope at the cut runs from -0.25 (kl -> 0) to -200.
@@ -722,11 +876,13 @@ def with_plateau(
     efficiency=None,
     context_from_efficiency: bool = False,
     defaults=None,
+    moving_break: MovingBreak | None = None,
 ) -> Formula:
     """``base`` above a break ``x_b``, held at its value there below (formulas (10) and (11)).
 
     The shape, its bounds, the slope at the cut (``x_b < 1``) and the expression are the
     base formula's; ``break_text`` names the break (``"1/2"``, ``"x_a"``) in the expression.
+    The record is ``piecewise``; ``moving_break`` declares a break that moves with the shape.
     """
     expression = re.sub(r"\bx\b", f"max(x, {break_text})", base.expression)
     return Formula(
@@ -746,6 +902,8 @@ def with_plateau(
         context_from_efficiency=context_from_efficiency,
         defaults=defaults or {},
         shape_meaning=base.shape_meaning,
+        piecewise=True,
+        moving_break=moving_break,
     )
 
 
@@ -896,13 +1054,14 @@ FORMULAS: tuple[Formula, ...] = (
         efficiency=_shuvalov_efficiency,
         context_from_efficiency=True,
         defaults={"measured_efficiency": 0.75},
+        moving_break=SHUVALOV_BREAK,
     ),
 )
 
 # --- extended curves: bypass and fish-hook ------------------------------------------------
 NAPIER_MUNN_1996 = (
     "Napier-Munn T.J., Morrell S., Morrison R.D., Kojovic T. (1996). Mineral Comminution Circuits: "
-    "Their Operation and Optimisation. JKMRC, Brisbane (Whiten's efficiency curve with the fish-hook term)"
+    "Their Operation and Optimisation. JKMRC, Brisbane"
 )
 PLITT_1976 = "Plitt L.R. (1976). A mathematical model of the hydrocyclone classifier. CIM Bulletin 69(776), 114-123"
 KELSALL_1953 = "Kelsall D.F. (1953). A further study of the hydraulic cyclone. Chem. Eng. Sci. 2, 254-272 (bypass correction)"
@@ -951,7 +1110,7 @@ def with_bypass(base: Formula, *, equation: int, citation: str, family: str = "e
     shape : float
         ``{base.shape_name}`` of the base formula, {base.shape_bounds[0]:g}..{base.shape_bounds[1]:g}.
     bypass : float
-        Share of every size sent to the coarse product unclassified, 0..0.95.
+        Share of every size sent to the coarse product unclassified, {BYPASS.lower:g}..{BYPASS.upper:g}.
 
     Returns
     -------
@@ -1071,7 +1230,7 @@ EXTENDED_FORMULAS: tuple[Formula, ...] = (
         slope_at_cut=_lynch_slope,
         slope_expression="(1 - bypass)*(-alpha*exp(alpha)/(4*(exp(alpha) - 1)))",
         shape_for_slope=_lynch_shape_for_slope,
-        citation=NAPIER_MUNN_1996,
+        citation=NAPIER_MUNN_1996 + " (Whiten's efficiency curve with the fish-hook term)",
         notes="Reduces to Lynch (6) with kl = alpha without bypass and fish-hook; may exceed 1 for a large "
         "fish-hook with little bypass. b_star keeps phi(1) = (1 - bypass)/2 (whiten_beta_star); the slope "
         "expression holds for fishhook = 0.",
@@ -1128,7 +1287,8 @@ def normal_linear(x, sigma_rel):
     .. [1] King R.P. (2001). Modeling and Simulation of Mineral Processing Systems.
        Butterworth-Heinemann, Oxford (ch. 5).
     .. [2] Skorych V., Dosta M., Heinrich S. (2020). Dyssol - an open-source flowsheet simulation
-       framework for particulate materials. SoftwareX 12, 100572 (Screen unit, Probability model).
+       framework for particulate materials. SoftwareX 12, 100572. doi:10.1016/j.softx.2020.100572
+       (Screen unit, Probability model).
     .. [3] Shuvalov S.I., Novoseltseva S.S., Zhukov V.P. (2018). Justifying the choice of a
        dependence for the Tromp separation curve approximation. Vestnik IGEU 6, 15-23
        (the conventions: x = size/d_cut, partition to the fine product).
@@ -1220,7 +1380,8 @@ def teipel_hennig(x, k, *, th_alpha=1.0, bypass=0.0):
     References
     ----------
     .. [1] Skorych V., Dosta M., Heinrich S. (2020). Dyssol - an open-source flowsheet simulation
-       framework for particulate materials. SoftwareX 12, 100572 (Screen unit, Teipel & Hennig model).
+       framework for particulate materials. SoftwareX 12, 100572. doi:10.1016/j.softx.2020.100572
+       (Screen unit, Teipel & Hennig model).
     .. [2] Shuvalov S.I., Novoseltseva S.S., Zhukov V.P. (2018). Justifying the choice of a
        dependence for the Tromp separation curve approximation. Vestnik IGEU 6, 15-23
        (the conventions: x = size/d_cut, partition to the fine product).
@@ -1467,3 +1628,27 @@ def formula_table_markdown(family: str = "paper") -> str:
             f"[{low:g}, {high:g}] | `{formula.slope_expression}` |"
         )
     return "\n".join(lines)
+
+
+# --- the curves on arrays ----------------------------------------------------------------
+def is_batchable(formula) -> bool:
+    """True when the engine can evaluate ``formula`` on arrays of parameters."""
+    return _batchable(get_formula(formula).id)
+
+
+@cache
+def _batchable(formula_id: str) -> bool:
+    formula = get_formula(formula_id)
+    if formula.moving_break is not None:  # evaluated through its break hooks
+        return True
+    if len(formula.extras) >= 2:  # interacting extras (Teipel-Hennig's alpha and bypass): one start is not enough
+        return False
+    x = np.array([[0.5, 1.0, 2.0], [0.5, 1.0, 2.0]])
+    shape = np.array([[formula.clip_shape(1.0)], [formula.clip_shape(2.0)]])
+    extras = {extra.name: np.full((2, 1), extra.start) for extra in formula.extras}
+    try:
+        with np.errstate(all="ignore"):
+            value = np.asarray(formula.phi(x, shape, **extras), dtype=float)
+    except (TypeError, ValueError):  # needs a scalar parameter (a root per parameter set)
+        return False
+    return value.shape == x.shape

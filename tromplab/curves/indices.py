@@ -29,7 +29,7 @@ from functools import lru_cache
 import numpy as np
 from scipy import integrate, optimize
 
-from .formulas import Formula, get_formula
+from .formulas import Formula, get_formula, is_batchable
 
 #: Share of eta or epsilon that may come from sizes outside the measured range before the
 #: index is flagged as extrapolated: a tenth of the index would then rest on the formula's
@@ -301,9 +301,9 @@ def _area(formula: Formula, shape: float, lower: float, upper: float, context: d
 def eta_plitt_printed(ks):
     """Printed approximation (20): ``eta = 0.6 ks^0.1``.
 
-    Not reproducible: it lies 13-18 % below the exact Plitt efficiency on ks = 1..3 (the
-    best power law there is about ``0.696 ks^0.170``).  Kept for comparison only; see
-    ``docs/errata.md``.
+    Not reproducible: it lies 13.4 % (ks = 1) to 19.9 % (ks = 3) below the exact Plitt
+    efficiency on ks = 1..3 (the best power law there is about ``0.696 ks^0.170``).  Kept
+    for comparison only; see ``docs/errata.md``.
     """
     return 0.6 * np.power(ks, 0.1)
 
@@ -340,8 +340,6 @@ _DOUBLINGS = 39
 def batchable_indices(formula) -> bool:
     """True when :func:`batch_curve_indices` covers ``formula``: curves without extra
     parameters whose ``phi`` takes arrays of shapes (the nine paper formulas)."""
-    from .engine import is_batchable
-
     formula = get_formula(formula)
     return not formula.extras and is_batchable(formula)
 
@@ -379,8 +377,6 @@ def batch_curve_indices(formula, d_cut, shape, *, delta_max, measured_sizes=None
     >>> [round(i.d25, 3) for i in batch_curve_indices("plitt", [100.0, 50.0], [2.0, 2.0], delta_max=[600.0, 600.0])]
     [57.735, 28.868]
     """
-    from .formulas import _shuvalov_break_or_edge
-
     formula = get_formula(formula)
     if not batchable_indices(formula):
         raise ValueError(f"formula {formula.id} has no batched indices; use curve_indices")
@@ -388,9 +384,10 @@ def batch_curve_indices(formula, d_cut, shape, *, delta_max, measured_sizes=None
     d_cut, shape, delta_max = np.broadcast_arrays(d_cut, shape, delta_max)
     x_max = delta_max / d_cut
     x_break = None
-    if formula.context_from_efficiency:  # (11): x_a per curve (remembered per shape and efficiency)
+    if formula.context_from_efficiency:
         efficiency_of = np.broadcast_to(np.asarray(measured_efficiency, dtype=float), shape.shape)
-        x_break = np.array([_shuvalov_break_or_edge(k, e) for k, e in zip(shape, efficiency_of)])
+    if formula.moving_break is not None:  # (11): x_a per curve (remembered per shape and efficiency)
+        x_break = np.array([formula.moving_break.at(k, e) for k, e in zip(shape, efficiency_of)])
     curve = _curve_on_arrays(formula, shape, x_break)
     if formula.efficiency is not None:
         context = [{}] * shape.size
@@ -462,14 +459,14 @@ def _extrapolated_flags(d25, d75, eta, epsilon, x_max, above, area_below, area_a
 
 
 def _curve_on_arrays(formula: Formula, shape: np.ndarray, x_break):
-    """``phi(x)`` of each curve, ``x`` of shape ``(N, ...)`` against the ``N`` shapes."""
-    from .formulas import rosin_rammler_plateau
+    """``phi(x)`` of each curve, ``x`` of shape ``(N, ...)`` against the ``N`` shapes (``x_break``:
+    the solved break points of a moving break, ``Formula.moving_break``)."""
 
     def curve(x, rows=slice(None)):
         expand = (slice(None),) + (None,) * (np.ndim(x) - 1)
         with np.errstate(all="ignore"):
             if x_break is not None:
-                return rosin_rammler_plateau(x, shape[rows][expand], x_break[rows][expand])
+                return formula.moving_break.phi(x, shape[rows][expand], x_break[rows][expand])
             return formula.phi(x, shape[rows][expand])
 
     return curve

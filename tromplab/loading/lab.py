@@ -52,12 +52,15 @@ import logging
 import re
 import warnings
 from dataclasses import dataclass, field, fields
+from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
 
 from ..errors import InputError
-from .points import SIZE_UNITS, TrompPoints, experiment_rows, normal_unit, resolve_size_unit, size_column_unit
+from ..validation import check_non_negative, check_optional, check_positive, check_probability, check_share, check_water_recovery
+from .kelsall import kelsall_corrected
+from .points import SIZE_UNITS, TrompPoints, experiment_rows, normal_unit, points_from_table, resolve_size_unit, size_column_unit
 from .tables import Table, read_table
 
 logger = logging.getLogger(__name__)
@@ -133,7 +136,7 @@ class LabOptions:
         Share of the feed water reporting to the underflow (coarse product) of a
         hydrocyclone, in [0, 1) (``--water-recovery``); the points table then also gives
         the Kelsall-corrected partition ``partition_fine_corrected`` (see
-        :func:`tromplab.statistics.hydrocyclone.kelsall_corrected`).
+        :func:`tromplab.loading.kelsall.kelsall_corrected`).
     """
 
     kind: str | None = None
@@ -159,15 +162,6 @@ class LabOptions:
             raise ValueError(f"unknown kind {self.kind!r}; choose one of {', '.join(KINDS)}")
         if self.partition_from not in PARTITION_METHODS:
             raise ValueError(f"unknown partition_from {self.partition_from!r}; choose one of {', '.join(PARTITION_METHODS)}")
-        from ..validation import (
-            check_non_negative,
-            check_optional,
-            check_positive,
-            check_probability,
-            check_share,
-            check_water_recovery,
-        )
-
         for name in ("fine_yield", "coarse_yield"):
             check_optional(check_probability, getattr(self, name), name)
         check_share(self.min_feed_share, "min_feed_share")
@@ -261,8 +255,6 @@ class MassBalance:
         ]
         table = table[columns]
         if self.water_recovery is not None:
-            from ..statistics.hydrocyclone import kelsall_corrected
-
             table.insert(3, "partition_fine_corrected", kelsall_corrected(table["partition_fine"], self.water_recovery))
         if unit_in_names and self.size_unit:
             table = table.rename(columns={c: f"{c}_{self.size_unit}" for c in ("size", "size_lower", "size_upper")})
@@ -1120,7 +1112,17 @@ def mix_streams(shares, yields):
     return mixed, total
 
 
-def read_experiments(path, options: LabOptions | None = None, **option_values) -> tuple[list[TrompPoints], list[MassBalance]]:
+class Experiments(NamedTuple):
+    """What :func:`read_experiments` returns: the points of each experiment and, for a lab
+    table, the mass balances they came from (empty for a points file).  It unpacks as
+    ``points, balances = read_experiments(path)`` and is taken whole by
+    :func:`tromplab.fit_experiments`, which keeps the balances for the report and workbook."""
+
+    points: list[TrompPoints]
+    balances: list[MassBalance]
+
+
+def read_experiments(path, options: LabOptions | None = None, **option_values) -> Experiments:
     """Tromp points from either a points file or a lab table (told apart by their columns).
 
     Parameters
@@ -1134,12 +1136,10 @@ def read_experiments(path, options: LabOptions | None = None, **option_values) -
 
     Returns
     -------
-    (list of TrompPoints, list of MassBalance)
-        The points of each experiment and, for a lab table, the mass balances they came
-        from (empty for a points file).
+    Experiments
+        ``(points, balances)``: the points of each experiment and, for a lab table, the mass
+        balances they came from (empty for a points file).
     """
-    from .points import points_from_table
-
     options = _options(options, option_values)
     table = _renamed(read_table(path, sheet=options.sheet, sep=options.sep, decimal=options.decimal), options.rename)
     if is_lab_table(table.frame.columns):
@@ -1147,7 +1147,9 @@ def read_experiments(path, options: LabOptions | None = None, **option_values) -
         logger.info(
             "%s: lab table, %d experiment(s) balanced (partition from %s)", table.source, len(balances), options.partition_from
         )
-        return [balance.to_points(weight_by_feed_share=options.weight_by_feed_share) for balance in balances], balances
+        return Experiments(
+            [balance.to_points(weight_by_feed_share=options.weight_by_feed_share) for balance in balances], balances
+        )
     experiments = points_from_table(table, size_unit=options.size_unit)
     logger.info("%s: Tromp points, %d experiment(s)", table.source, len(experiments))
-    return experiments, []
+    return Experiments(experiments, [])

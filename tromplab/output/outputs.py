@@ -45,23 +45,6 @@ _RENAME_EXCHANGE = 2
 _STAGING = re.compile(r"^\.(?P<name>.+)\.(?P<what>tmp|old)-(?P<pid>\d+)(?:-[A-Za-z0-9_]+)?$")
 
 
-# --- checks before any work -------------------------------------------------------------
-def check_input_file(path, *, option: str = "input") -> Path:
-    """``path`` exists, is a regular file and can be read; else :class:`OutputError`'s sibling."""
-    from ..errors import InputError
-
-    path = Path(path)
-    if not path.exists():
-        raise InputError("file not found", source=str(path))
-    if path.is_dir():
-        raise InputError(f"is a folder; the {option} must be a file", source=str(path))
-    if not path.is_file():
-        raise InputError(f"is not a regular file; the {option} must be a file", source=str(path))
-    if not os.access(path, os.R_OK):
-        raise InputError("cannot be read (permission denied)", source=str(path))
-    return path
-
-
 def check_output_folder(outdir, *, inputs: Iterable = (), option: str = "--outdir") -> Path:
     """Raise :class:`OutputError` before any work when ``outdir`` cannot take the outputs."""
     outdir = Path(outdir)

@@ -11,7 +11,11 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from ..classifiers.sieve import distance_pdf
 from ..curves.curve_fit import CurveFit
+from ..curves.formulas import FORMULAS
+from ..curves.intervals import delta_standard_errors
+from .views import check_partition_to
 
 #: Colours of up to 12 curves: tab10, then a dark indigo and a dark green, as far from every tab10 colour
 #: as the tab10 colours are from each other (RGB distance >= 0.26).
@@ -80,6 +84,14 @@ def _axes(ax):
     return ax
 
 
+def offscreen_axes(nrows: int = 1, ncols: int = 1, *, figsize=(7.5, 5.0)):
+    """Axes of a figure made without pyplot, for figures written to files: no backend is
+    chosen or changed (the user's stays as it is) and no figure is left open."""
+    from matplotlib.figure import Figure
+
+    return Figure(figsize=figsize).subplots(nrows, ncols, squeeze=True)
+
+
 def plain_text(text, *, max_length: int = 80) -> str:
     """``text`` shown literally by matplotlib: ``$`` escaped (no mathtext), control
     characters dropped, cut to ``max_length`` characters with an ellipsis.
@@ -97,22 +109,22 @@ def plain_text(text, *, max_length: int = 80) -> str:
 
 def save_figure(ax, path, *, dpi: int = 120) -> None:
     """Lay out the Axes' figure, save it (format from the file name or a file object) and close it."""
-    import matplotlib.pyplot as plt
-
-    ax.figure.tight_layout()
+    figure = ax.figure
+    figure.tight_layout()
     to_file = isinstance(path, (str, os.PathLike))
-    ax.figure.savefig(path, dpi=dpi, format=None if to_file else "png")
-    plt.close(ax.figure)
+    figure.savefig(path, dpi=dpi, format=None if to_file else "png")
+    if figure.canvas.manager is not None:  # made by pyplot: release it from pyplot's list of open figures
+        import matplotlib.pyplot as plt
+
+        plt.close(figure)
 
 
 def curve_band(fit: CurveFit, size, *, level: float = 0.95):
     """Pointwise delta-method band of a fitted curve: ``(low, high)`` at ``size``.
 
-    Standard errors by :func:`tromplab.statistics.uncertainty.delta_standard_errors`.
+    Standard errors by :func:`tromplab.curves.intervals.delta_standard_errors`.
     """
     from scipy import stats
-
-    from ..statistics.uncertainty import delta_standard_errors
 
     size = np.asarray(size, dtype=float)
     centre = fit.predict(size)
@@ -208,8 +220,6 @@ def plot_tromp_fits(
 
 def _partition_reader(partition_to: str):
     """Turn partitions to fines into the reading asked for."""
-    from .views import check_partition_to
-
     if check_partition_to(partition_to) == "fine":
         return lambda phi: np.asarray(phi, dtype=float)
     return lambda phi: 1.0 - np.asarray(phi, dtype=float)
@@ -305,8 +315,6 @@ def plot_ranking(ranking, *, ax=None):
 def plot_equal_slope_family(slope: float, *, ax=None, formulas=None, x_max: float = 3.0):
     """The formulas at equal slope ``slope`` at the cut (Fig. 1 at -0.5, Fig. 2 at -0.4 of
     Shuvalov et al. 2018), against the relative size x = size / d_cut."""
-    from ..curves.formulas import FORMULAS
-
     ax = _axes(ax)
     x = np.linspace(1e-3, x_max, 600)
     for formula in formulas or FORMULAS[:7]:
@@ -368,8 +376,6 @@ def plot_residue_and_efficiency(speeds, residues, efficiency, *, labels=("fracti
 def plot_distance_densities(decks: int, c_values, *, bin_edges=None, labels=None, ax=None, x_max: float | None = None):
     """Densities f_m of the distance travelled on the bottom deck for several fractions
     (one ``C`` each), with the collecting bin shaded."""
-    from ..classifiers.sieve import distance_pdf
-
     ax = _axes(ax)
     c_values = list(c_values)
     x_max = x_max or 2.5 * np.sqrt(2 * decks / min(c_values))
@@ -420,7 +426,7 @@ def plot_batch_overview(fits_table, *, axes=None):
 
 
 def plot_control_chart(result, quantity: str, *, ax=None, size_unit: str = ""):
-    """Control chart of one quantity of a :class:`~tromplab.statistics.trend.TrendResult` against the date.
+    """Control chart of one quantity of a :class:`~tromplab.trend.TrendResult` against the date.
 
     The survey values with their intervals, the baseline period shaded with its mean, the
     EWMA line with its limits, and the flagged surveys (changed) marked.

@@ -18,10 +18,12 @@ import numpy as np
 import pandas as pd
 
 from .._version import __version__
+from ..curves.intervals import interval_table
 from ..loading.lab import PARTITION_METHOD_TEXT, MassBalance
 from ..statistics.hydrocyclone import water_recovery_statements
-from ..statistics.uncertainty import interval_table
-from ..workbench import Workbench, model_averages
+from .outputs import write_files
+from .plotting import offscreen_axes, plot_f_heatmap, plot_ranking, plot_residuals, plot_tromp_fits, save_figure
+from .views import balance_view, check_partition_to
 
 SECTIONS = ("summary", "balance", "fits", "parameters", "ranking", "averages", "figures")
 _CSS = """
@@ -112,16 +114,15 @@ def _number(value) -> str:
     return f"{value:.4g}" if isinstance(value, (float, np.floating)) else str(value)
 
 
-def _png(ax) -> bytes:
-    from .plotting import save_figure
-
+def figure_png(ax) -> bytes:
+    """The Axes' figure as PNG bytes (at 100 dpi, the size the report embeds)."""
     buffer = io.BytesIO()
     save_figure(ax, buffer, dpi=100)
     return buffer.getvalue()
 
 
 def build_report(
-    bench: Workbench,
+    bench,
     balances: list[MassBalance],
     *,
     source: str,
@@ -147,14 +148,7 @@ def build_report(
     partition_to : {"fine", "coarse"}
         Product whose partition the balance tables and curve figures show.
     """
-    from .views import balance_view, check_partition_to
-
     check_partition_to(partition_to)
-    import matplotlib
-
-    matplotlib.use("Agg")
-    from .plotting import plot_f_heatmap, plot_ranking, plot_residuals, plot_tromp_fits
-
     report = Report(title, source)
     fits, ranking = bench.fits_table(), bench.ranking_table()
     summary = pd.DataFrame(
@@ -240,7 +234,7 @@ def build_report(
                 caption=f"Experiment {experiment}: top-ranked formula {best.formula.id} ({level:.0%} intervals)",
             )
     report.add("ranking", "table", ranking)
-    averages = model_averages(bench, level=level)
+    averages = bench.averages(level=level)
     if not averages.empty:
         report.add("averages", "table", averages[["experiment", "quantity", "value", "stderr", "low", "high"]])
     for experiment in bench.experiments:
@@ -249,9 +243,13 @@ def build_report(
             report.add(
                 "figures",
                 "figure",
-                _png(
+                figure_png(
                     plot_tromp_fits(
-                        experiment_fits, size_unit=size_unit, best=bench.best_fit(experiment), partition_to=partition_to
+                        experiment_fits,
+                        size_unit=size_unit,
+                        best=bench.best_fit(experiment),
+                        partition_to=partition_to,
+                        ax=offscreen_axes(),
                     )
                 ),
                 caption=f"Tromp curve, experiment {experiment}",
@@ -259,13 +257,23 @@ def build_report(
             report.add(
                 "figures",
                 "figure",
-                _png(plot_residuals(experiment_fits, size_unit=size_unit, partition_to=partition_to)),
+                figure_png(plot_residuals(experiment_fits, size_unit=size_unit, partition_to=partition_to, ax=offscreen_axes())),
                 caption=f"Residuals, experiment {experiment}",
             )
     if fits["success"].any():
-        report.add("figures", "figure", _png(plot_f_heatmap(fits)), caption="Fisher's F across experiments and formulas")
+        report.add(
+            "figures",
+            "figure",
+            figure_png(plot_f_heatmap(fits, ax=offscreen_axes())),
+            caption="Fisher's F across experiments and formulas",
+        )
     if len(ranking) and len(bench.experiments) > 1:
-        report.add("figures", "figure", _png(plot_ranking(ranking)), caption="Points and places across experiments")
+        report.add(
+            "figures",
+            "figure",
+            figure_png(plot_ranking(ranking, ax=offscreen_axes())),
+            caption="Points and places across experiments",
+        )
     return report
 
 
@@ -279,8 +287,6 @@ def write_report(report: Report, html_path) -> dict[str, Path]:
     html_path : str or path-like
         The HTML file; the Markdown and figures go beside it (written atomically).
     """
-    from ..workbench import write_atomically
-
     html_path = Path(html_path)
     stem = html_path.stem
     figures = [(caption, content) for items in report.sections.values() for kind, content, caption in items if kind == "figure"]
@@ -291,47 +297,4 @@ def write_report(report: Report, html_path) -> dict[str, Path]:
     }
     for caption, content in figures:
         outputs[names[caption]] = lambda p, content=content: p.write_bytes(content)
-    return write_atomically(outputs, html_path.parent)
-
-
-def add_trend_section(report: Report, result, *, size_unit: str = "", figures: bool = True) -> None:
-    """Add the monitoring section of a :class:`~tromplab.statistics.trend.TrendResult` to ``report``.
-
-    The survey flags, the rule, the tidy table of the charted quantities and (with
-    ``figures``) one control chart per quantity captioned ``Control chart of <quantity>``.
-    """
-    from ..statistics.trend import EWMA_L, EWMA_LAMBDA
-
-    if "trend" not in report.order:
-        report.order = (*report.order, "trend")
-    base = [result.surveys[i].name for i in result.baseline]
-    report.add(
-        "trend",
-        "text",
-        f"Formula {result.formula_id} fitted to each of {len(result.surveys)} surveys; baseline "
-        f"{base[0]} to {base[-1]} ({len(base)} surveys). EWMA with lambda = {EWMA_LAMBDA:g} and limits at "
-        f"{EWMA_L:g} sigma (centre and standard deviation from the baseline surveys). A survey after the baseline is "
-        f"flagged 'changed' when an EWMA leaves its limits and the joint-fit equality test against the baseline "
-        f"rejects at alpha = {result.alpha:g}; intervals at {result.level:.0%}. Sizes in {size_unit or 'the unit of the input'}.",
-    )
-    for name, reason in result.failures.items():
-        report.add("trend", "warning", f"survey {name} not fitted: {reason}")
-    points = result.change_points()
-    report.add("trend", "text", "Change points: " + (", ".join(points) if points else "none") + ".")
-    flags = result.survey_flags()
-    report.add("trend", "table", flags.assign(date=flags["date"].dt.strftime("%Y-%m-%d")), caption="Surveys and flags")
-    if figures:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        from .plotting import plot_control_chart
-
-        for quantity in result.quantities:
-            report.add(
-                "trend",
-                "figure",
-                _png(plot_control_chart(result, quantity, size_unit=size_unit)),
-                caption=f"Control chart of {quantity}",
-            )
-    table = result.table.drop(columns=["formula"])
-    report.add("trend", "table", table.assign(date=table["date"].dt.strftime("%Y-%m-%d")), caption="Charted quantities")
+    return write_files(outputs, html_path.parent)

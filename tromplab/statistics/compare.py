@@ -4,7 +4,11 @@
   The extra-sum-of-squares F test of a reduced model nested in a full one.
 * :func:`shared_fit`: did the sharpness (or the cut size) change between experiments?
   One formula fitted to several experiments at once with the shape (or ``d_cut``) shared,
-  against separate fits, by the same extra-sum-of-squares test.
+  against separate fits, by the same extra-sum-of-squares test.  A significant F test
+  says the data tell the values apart, not that the difference matters:
+  :meth:`SharedFit.conclusion` says "equal within the margin" when the experiments'
+  estimates differ by less than a relative margin of practical equivalence
+  (:data:`DEFAULT_MARGIN`), however small the p-value.
 """
 
 from __future__ import annotations
@@ -16,9 +20,10 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from ..curves.curve_fit import CurveFit, fit_formula, measured_efficiency, normalised_weights
+from ..curves.curve_fit import CurveFit, fit_formula
 from ..curves.fitting import ParameterFit, ParameterSpec, least_squares
 from ..curves.formulas import get_formula
+from ..curves.measured import measured_efficiency, normalised_weights
 from ..curves.parameters import d_cut_parameter
 from ..errors import InputError
 from ..loading.points import TrompPoints
@@ -88,6 +93,11 @@ def nested_f_test(reduced: CurveFit, full: CurveFit) -> ExtraSumOfSquares:
     return ExtraSumOfSquares(reduced.fit.ssr, full.fit.ssr, extra, full.points.n - full.formula.n_params)
 
 
+#: Relative margin of practical equivalence of :meth:`SharedFit.conclusion` (and of
+#: ``tromplab compare --margin``): estimates within 1 % of each other are equal for practice.
+DEFAULT_MARGIN = 0.01
+
+
 @dataclass(frozen=True)
 class SharedFit:
     """A formula fitted to several experiments with one parameter shared."""
@@ -98,6 +108,53 @@ class SharedFit:
     separate: tuple[CurveFit, ...]
     test: ExtraSumOfSquares
     experiments: tuple[str, ...]
+
+    @property
+    def relative_difference(self) -> float:
+        """Largest minus smallest separate estimate of the shared parameter, over the joint
+        estimate (nan when the joint estimate is 0, as km2 or kp at their lower bound)."""
+        values = [fit.fit.values[self.shared] for fit in self.separate]
+        joint = abs(self.fit.values[self.shared])
+        return float((max(values) - min(values)) / joint) if joint > 0 else float("nan")
+
+    def verdict(self, *, margin: float = DEFAULT_MARGIN, alpha: float = 0.05) -> str:
+        """``"equal within the margin"``, ``"differ"`` or ``"undecided"``.
+
+        ``"equal within the margin"``: the estimates differ by less than ``margin``
+        (relative, :attr:`relative_difference`), whatever the p-value of the F test.
+        ``"differ"``: they differ by ``margin`` or more and the F test tells them apart
+        (p < ``alpha``).  ``"undecided"``: they differ by ``margin`` or more but the F test
+        finds no difference: the data cannot tell whether the experiments are equal.
+        """
+        if self.relative_difference < margin:
+            return "equal within the margin"
+        return "differ" if self.test.needed(alpha) else "undecided"
+
+    def conclusion(self, *, margin: float = DEFAULT_MARGIN, alpha: float = 0.05) -> str:
+        """:meth:`verdict` in a sentence, with the relative difference and the F test.
+
+        Examples
+        --------
+        >>> first = TrompPoints("run1", [10, 20, 40, 80, 160], [0.98, 0.91, 0.62, 0.21, 0.04])
+        >>> second = TrompPoints("run2", [10, 20, 40, 80, 160], [0.99, 0.95, 0.60, 0.10, 0.01])
+        >>> joint = shared_fit([first, second], "plitt")
+        >>> joint.verdict(), joint.verdict(margin=0.5)
+        ('differ', 'equal within the margin')
+        >>> print(joint.conclusion())
+        the experiments differ in ks: their estimates differ by 35.9 % (margin 1 %) and the F test tells them apart (p = 4.67e-07, alpha 0.05)
+        """
+        verdict = self.verdict(margin=margin, alpha=alpha)
+        test = f"p = {self.test.p_value:.3g}, alpha {alpha:g}"
+        differ = f"their estimates differ by {self.relative_difference * 100:.3g} % (margin {margin * 100:g} %)"
+        if verdict == "equal within the margin":
+            told = "although the F test tells them apart" if self.test.needed(alpha) else "and the F test finds no difference"
+            return f"the experiments are equal within the margin in {self.shared}: {differ}, {told} ({test})"
+        if verdict == "differ":
+            return f"the experiments differ in {self.shared}: {differ} and the F test tells them apart ({test})"
+        return (
+            f"the F test finds no difference in {self.shared} ({test}), but {differ}: the data cannot tell "
+            "whether the experiments are equal"
+        )
 
     def table(self) -> pd.DataFrame:
         """Per experiment: the shared-fit parameters beside the separate fits'."""

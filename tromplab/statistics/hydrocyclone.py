@@ -1,19 +1,11 @@
-"""Hydrocyclones: the Kelsall correction for the water split, and the fitted bypass against it.
+"""Hydrocyclones: the fitted bypass against the measured water recovery.
 
-In a hydrocyclone a share ``Rf`` of the feed water reports to the underflow (the coarse
-product), and with it the same share of every size of fine particle, unclassified.
-Kelsall (1953) removes it from the actual partition to the underflow ``Y``:
-
-.. math::
-
-    Y' = \\frac{Y - R_f}{1 - R_f}
-
-(Napier-Munn et al. 1996, ch. 12).  tromplab's partition is to the fines,
-``phi = 1 - Y``, so the corrected partition to the fines is ``phi' = 1 - Y' = phi / (1 -
-Rf)``.  The curves with bypass (``plitt_bypass``, ``lognormal_bypass``, ``whiten`` ...)
-model exactly this, ``phi = (1 - bypass) phi_c``: their fitted bypass estimates the share
-the data say went to the underflow unclassified, which the measured water recovery should
-match when the fines follow the water.
+In a hydrocyclone a share ``Rf`` of the feed water reports to the underflow, and with it the
+same share of every size of fine particle, unclassified (the Kelsall correction,
+:mod:`tromplab.loading.kelsall`).  The curves with bypass (``plitt_bypass``,
+``lognormal_bypass``, ``whiten`` ...) model exactly this, ``phi = (1 - bypass) phi_c``: their
+fitted bypass estimates the share the data say went to the underflow unclassified, which the
+measured water recovery should match when the fines follow the water.
 
 References
 ----------
@@ -30,37 +22,11 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
+from ..curves.intervals import UNIT, transformed_interval
 from ..validation import check_water_recovery
 
 #: Confidence level of the bypass interval the water recovery is compared with.
 BYPASS_CHECK_LEVEL = 0.95
-
-
-def kelsall_corrected(partition_fine, water_recovery: float):
-    """Kelsall-corrected partition to the fines, ``phi / (1 - Rf)``.
-
-    Parameters
-    ----------
-    partition_fine : array_like
-        Actual partition to the fine product (overflow), 0..1.
-    water_recovery : float
-        Share of the feed water reporting to the underflow, in [0, 1).
-
-    Returns
-    -------
-    same type as ``partition_fine``
-        The corrected partition to the fines, ``1 - Y'`` with ``Y' = (Y - Rf)/(1 - Rf)``
-        the corrected partition to the underflow.  Not clipped: a value above 1 means the
-        class went to the overflow more than its water did (measurement error, or water
-        recovery overstated), and is left visible.
-
-    Examples
-    --------
-    >>> kelsall_corrected(np.array([0.7, 0.35]), 0.3).round(3).tolist()
-    [1.0, 0.5]
-    """
-    water_recovery = check_water_recovery(water_recovery, "water_recovery")
-    return partition_fine / (1.0 - water_recovery)
 
 
 def bypass_against_water_recovery(fits: Sequence, water_recovery: float, *, level: float = BYPASS_CHECK_LEVEL) -> pd.DataFrame:
@@ -73,7 +39,6 @@ def bypass_against_water_recovery(fits: Sequence, water_recovery: float, *, leve
     a bypass on its bound of 0 gets the one-sided interval from 0); empty for the other
     fits.
     """
-    from .uncertainty import UNIT, transformed_interval
 
     water_recovery = check_water_recovery(water_recovery, "water_recovery")
     rows = []

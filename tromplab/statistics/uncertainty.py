@@ -26,380 +26,27 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from ..curves.curve_fit import CurveFit, attach_indices, formula_context, with_lmfit
+from ..curves.curve_fit import CurveFit, attach_indices
 from ..curves.engine import refit_resamples
 from ..curves.fitting import on_bound
-from ..curves.indices import curve_indices
+from ..curves.intervals import (
+    INDEX_NAMES,
+    batched_delta_indices,
+    delta_standard_errors,
+    indices_at,
+    interval_method,
+    interval_table,
+    quantity_domain,
+    relative_size_limit,
+)
+from ..curves.measured import parameter_specs
 from ..loading.points import TrompPoints
+from ..validation import check_bootstrap, check_optional, check_probability, check_seed
 
 logger = logging.getLogger(__name__)
 
-INDEX_NAMES = ("slope", "eta", "epsilon", "d25", "d75", "ep", "imperfection", "d50", "ep_c", "imperfection_c")
-
-
-# --- the range of every reported quantity -------------------------------------------------
-@dataclass(frozen=True)
-class Domain:
-    """The range a quantity can take, and the scale on which its intervals are made.
-
-    ``positive`` quantities get intervals on the log scale, ones bounded on both sides
-    (in [0, 1], or epsilon in [0, x_max - 1]) on the logit scale of their position in the range, ``negative`` ones on the log of minus the value, ``real`` ones on the
-    natural scale; the limits are transformed back, so an interval never leaves the range.
-    A quantity bounded below by another value (a shape parameter admissible above -1)
-    uses the log of its distance from that bound.
-    """
-
-    name: str
-    lower: float
-    upper: float
-    scale: str
-
-    def contains(self, value) -> np.ndarray:
-        value = np.asarray(value, dtype=float)
-        return (value >= self.lower) & (value <= self.upper)
-
-    def inside(self, value: float) -> bool:
-        """Strictly inside the range (the transformed scale exists there)."""
-        return bool(np.isfinite(value) and self.lower < value < self.upper)
-
-    def forward(self, value):
-        value = np.asarray(value, dtype=float)
-        if self.scale == "log":
-            return np.log(value - self.lower)
-        if self.scale == "neglog":
-            return np.log(self.upper - value)
-        if self.scale == "logit":
-            return np.log(value - self.lower) - np.log(self.upper - value)
-        return value
-
-    def backward(self, value):
-        value = np.asarray(value, dtype=float)
-        with np.errstate(over="ignore"):  # an interval end far out on the log scale is infinite, not an error
-            if self.scale == "log":
-                return self.lower + np.exp(value)
-            if self.scale == "neglog":
-                return self.upper - np.exp(value)
-            if self.scale == "logit":
-                return self.lower + (self.upper - self.lower) / (1.0 + np.exp(-value))
-        return value
-
-    def slope(self, value):
-        """Derivative of :meth:`forward` (turns a standard error onto the transformed scale)."""
-        value = np.asarray(value, dtype=float)
-        if self.scale == "log":
-            return 1.0 / (value - self.lower)
-        if self.scale == "neglog":
-            return 1.0 / (self.upper - value)
-        if self.scale == "logit":
-            return (self.upper - self.lower) / ((value - self.lower) * (self.upper - value))
-        return np.ones_like(value)
-
-
-POSITIVE = Domain("positive", 0.0, np.inf, "log")
-UNIT = Domain("unit interval", 0.0, 1.0, "logit")
-NEGATIVE = Domain("negative", -np.inf, 0.0, "neglog")
-REAL = Domain("real", -np.inf, np.inf, "identity")
-
-#: Range of every reported quantity (sizes in the unit of the data).  The shape parameter's
-#: range follows from its formula (:func:`quantity_domain`).
-QUANTITY_DOMAINS = {
-    "d_cut": POSITIVE,
-    "d50c": POSITIVE,
-    "d50": POSITIVE,
-    "d25": POSITIVE,
-    "d75": POSITIVE,
-    "ep": POSITIVE,
-    "ep_c": POSITIVE,
-    "imperfection": POSITIVE,
-    "imperfection_c": POSITIVE,
-    "epsilon": POSITIVE,
-    "eta": UNIT,
-    "bypass": UNIT,
-    "sharpness": UNIT,
-    "fishhook": POSITIVE,
-    "slope": NEGATIVE,
-}
-
-
-def quantity_domain(quantity: str, formula=None, *, x_max: float | None = None) -> Domain:
-    """Range of a reported quantity.
-
-    A shape parameter is positive when its formula admits only positive values, and
-    bounded below by the formula's lower shape bound otherwise (km2 and kp above -1).
-    Epsilon, the area under the curve between x = 1 and ``x_max = delta_max / d_cut``,
-    lies in [0, x_max - 1] when ``x_max`` is given (positive otherwise).
-    """
-    if quantity == "epsilon" and x_max is not None and np.isfinite(x_max) and x_max > 1.0:
-        return epsilon_domain(x_max)
-    if quantity in QUANTITY_DOMAINS:
-        return QUANTITY_DOMAINS[quantity]
-    if formula is not None and quantity == formula.shape_name:
-        lower = formula.shape_bounds[0]
-        return POSITIVE if lower >= 0 else Domain(f"above {lower:g}", float(lower), np.inf, "log")
-    return REAL
-
-
-def epsilon_domain(x_max: float) -> Domain:
-    """Epsilon's range [0, x_max - 1]: the curve, at most 1, integrated over [1, x_max]."""
-    return Domain("0 to x_max - 1", 0.0, float(x_max) - 1.0, "logit")
-
-
-def _relative_size_limit(fit: CurveFit, values: dict[str, float], delta_max: float) -> float:
-    """``x_max = delta_max / d_cut`` at the fitted cut (the upper end of epsilon's integral)."""
-    d_cut = fit.curve_arguments(values)[0]
-    return delta_max / d_cut if d_cut > 0 else np.nan
-
-
-def transformed_interval(value: float, stderr: float, half: float, domain: Domain) -> tuple[float, float]:
-    """``value +- half * stderr`` made on the domain's scale and transformed back.
-
-    ``half`` is the quantile (t or normal) times one; ``stderr`` is on the natural scale
-    and carried to the transformed one by the derivative of the transform (delta method).
-    nan where the estimate is not strictly inside its range or the error is unknown.
-    """
-    if not (domain.inside(value) and np.isfinite(stderr) and np.isfinite(half)):
-        return np.nan, np.nan
-    centre, spread = domain.forward(value), half * stderr * domain.slope(value)
-    low, high = sorted((float(domain.backward(centre - spread)), float(domain.backward(centre + spread))))
-    # the round trip through the transform may move a zero-width interval off the estimate by one ulp
-    return min(low, value), max(high, value)
-
-
-def _method(kind: str, domain: Domain) -> str:
-    return kind if domain.scale == "identity" else f"{kind}-{domain.scale}"
-
-
-def _indices_at(fit: CurveFit, values: dict[str, float], delta_max: float, known: dict | None = None) -> np.ndarray:
-    if known:
-        found = known.get(_index_key(fit, values, delta_max))
-        if found is not None:
-            return found
-    d_cut, shape, extras = fit.curve_arguments(values)
-    found = curve_indices(fit.formula, d_cut, shape, delta_max=delta_max, **fit.context_at(values), **extras)
-    return np.array([getattr(found, name) for name in INDEX_NAMES])
-
-
-def _index_key(fit: CurveFit, values: dict[str, float], delta_max: float) -> tuple:
-    d_cut, shape, extras = fit.curve_arguments(values)
-    return (fit.formula.id, d_cut, shape, *extras.values(), *fit.context_at(values).values(), delta_max)
-
-
-def _step(value: float) -> float:
-    """Central-difference step of the delta method: relative 1e-5, at least 1e-8."""
-    return 1e-5 * max(abs(value), 1e-3)
-
-
-def batched_delta_indices(fits: Sequence[CurveFit], delta_max: float | None = None) -> dict:
-    """The indices the delta method of ``fits`` evaluates, computed in one batched call per formula.
-
-    The delta method of a fit evaluates its indices at the fitted values and one step
-    either side of each parameter (and of a data-derived input such as formula (11)'s
-    measured efficiency).  For the formulas :func:`~tromplab.curves.indices.batch_curve_indices`
-    covers, this evaluates all of them for many fits at once; the result, passed as
-    ``known`` to :func:`interval_table` or :func:`model_average`, replaces one
-    :func:`~tromplab.curves.indices.curve_indices` call per evaluation (same definitions; the
-    quadrature agrees with the adaptive one to 1e-9).
-    """
-    from ..curves.indices import batch_curve_indices, batchable_indices
-
-    wanted: dict[str, list] = {}
-    for fit in fits:
-        if not (fit.success and fit.fit.covariance is not None and batchable_indices(fit.formula)):
-            continue
-        limit = fit.options.delta_max if delta_max is None else delta_max
-        values = {**fit.context_at(), **fit.fit.values}
-        sets = [values]
-        for name in (*fit.fit.names, *fit.context):
-            step = _step(values[name])
-            sets += [{**values, name: values[name] + step}, {**values, name: values[name] - step}]
-        wanted.setdefault(fit.formula.id, []).extend((fit, each, limit) for each in sets)
-    known = {}
-    for formula_id, evaluations in wanted.items():
-        arguments = [fit.curve_arguments(values) for fit, values, _ in evaluations]
-        context = [fit.context_at(values) for fit, values, _ in evaluations]
-        efficiency = [c.get("measured_efficiency", np.nan) for c in context] if context[0] else None
-        found = batch_curve_indices(
-            formula_id,
-            [a[0] for a in arguments],
-            [a[1] for a in arguments],
-            delta_max=[limit for _, _, limit in evaluations],
-            measured_efficiency=efficiency,
-        )
-        for (fit, values, limit), indices in zip(evaluations, found):
-            known[_index_key(fit, values, limit)] = np.array([getattr(indices, name) for name in INDEX_NAMES])
-    return known
-
-
-def _difference(evaluate, values: dict[str, float], name: str) -> np.ndarray:
-    step = _step(values[name])
-    upper = np.asarray(evaluate({**values, name: values[name] + step}), dtype=float)
-    lower = np.asarray(evaluate({**values, name: values[name] - step}), dtype=float)
-    return (upper - lower) / (2 * step)
-
-
-def delta_standard_errors(fit: CurveFit, evaluate: Callable[[dict[str, float]], np.ndarray]) -> np.ndarray:
-    """Delta-method standard errors of ``evaluate(parameter values)`` (an array).
-
-    The gradient with respect to each fitted parameter is a central difference with a
-    relative step of 1e-5; the variance is ``g C g^T`` with the fit's covariance ``C``.
-
-    A formula that also takes inputs from the measured points (formula (11): the measured
-    efficiency, which fixes the break point x_a) depends on the data twice: through the
-    fitted parameters and through that input.  Its errors are propagated from the data
-    themselves: with ``J`` the Jacobian of the curve at the points, ``W`` the weights and
-    ``s^2`` the residual variance, a change ``d phi`` of the points moves the parameters by
-    ``(J'WJ)^-1 J'W (d phi - f_e de)`` and the input by ``de = e_phi' d phi``, so the
-    variance is ``s^2 sum_i (dq/dphi_i)^2 / w_i`` (this equals ``g C g^T`` when there is
-    no such input).  nan where the covariance is unknown or the gradient is not finite.
-    """
-    values = {**fit.context_at(), **fit.fit.values}
-    centre = np.asarray(evaluate(values), dtype=float)
-    covariance = fit.fit.covariance
-    if covariance is None:
-        return np.full(centre.shape, np.nan)
-    gradient = np.array([_difference(evaluate, values, name) for name in fit.fit.names])
-    if not fit.context:
-        variance = np.einsum("i...,ij,j...->...", gradient, covariance, gradient)
-        return np.where(np.all(np.isfinite(gradient), axis=0), np.sqrt(np.maximum(variance, 0.0)), np.nan)
-    points, weights = fit.points, fit.options.weights
-    dof = points.n - len(fit.fit.names)
-    s_sq = fit.fit.ssr / dof if dof > 0 else np.nan
-    curve = lambda v: fit.predict(points.size, v)  # noqa: E731
-    jacobian = np.array([_difference(curve, values, name) for name in fit.fit.names]).T  # n x p
-    sensitivity = covariance / s_sq @ jacobian.T * weights  # (J'WJ)^-1 J'W, p x n
-    flat = gradient.reshape(len(fit.fit.names), -1)  # p x q
-    per_point = flat.T @ sensitivity  # q x n
-    for name in fit.context:
-        input_by_point = _input_by_point(fit, name)
-        curve_by_input = _difference(curve, values, name)
-        index_by_input = _difference(evaluate, values, name).reshape(-1)
-        per_point += -(flat.T @ (sensitivity @ curve_by_input))[:, None] * input_by_point[None, :]
-        per_point += index_by_input[:, None] * input_by_point[None, :]
-    variance = s_sq * np.sum(per_point**2 / weights, axis=1)
-    finite = np.all(np.isfinite(per_point), axis=1)
-    return np.where(finite, np.sqrt(np.maximum(variance, 0.0)), np.nan).reshape(centre.shape)
-
-
-def _input_by_point(fit: CurveFit, name: str) -> np.ndarray:
-    """Derivative of a data-derived formula input with respect to each measured partition."""
-    points, step = fit.points, 1e-6
-    out = np.empty(points.n)
-    for i in range(points.n):
-        shifted = []
-        for sign in (1.0, -1.0):
-            phi = points.partition_fine.copy()
-            phi[i] += sign * step
-            shifted.append(formula_context(fit.formula, TrompPoints(points.experiment, points.size, phi, points.weight))[name])
-        out[i] = (shifted[0] - shifted[1]) / (2 * step)
-    return out
-
-
-def interval_table(
-    fit: CurveFit, *, level: float = 0.95, delta_max: float | None = None, profile: bool = True, known: dict | None = None
-) -> pd.DataFrame:
-    """Estimates, standard errors and intervals of the parameters and indices of one fit.
-
-    Returns a DataFrame with columns ``quantity, value, stderr, low, high, method, flag``.
-    Every interval lies inside its quantity's range (:data:`QUANTITY_DOMAINS`):
-
-    * parameters: the profile likelihood (``profile``; lmfit keeps it inside the
-      parameter bounds), else Wald on the log / logit scale (``wald-log``,
-      ``wald-logit``); a parameter on a bound of its fit gets a one-sided interval from
-      that bound (``one-sided``, flagged);
-    * indices: the delta method on the log / logit scale (``delta-log``, ``delta-logit``,
-      ``delta-neglog`` for the negative slope).
-
-    ``flag`` says when an interval is one-sided or could not be made.
-
-    Parameters
-    ----------
-    fit : CurveFit
-        A successful fit.
-    level : float
-        Confidence level, 0..1 (default 0.95).
-    delta_max : float, optional
-        Largest feed size for the misplacement (size unit); default the one the fit was
-        made with.
-    profile : bool
-        Profile-likelihood intervals for the parameters (slower than Wald).
-    known : dict, optional
-        Indices evaluated beforehand by :func:`batched_delta_indices` (for many fits at once).
-    """
-    if not fit.success:
-        raise ValueError(f"{fit.formula.id} on {fit.experiment}: the fit failed ({fit.fit.message})")
-    delta_max = fit.options.delta_max if delta_max is None else delta_max
-    dof = fit.points.n - len(fit.fit.names)
-    two_sided = stats.t.ppf(0.5 + level / 2.0, dof) if dof > 0 else np.nan
-    one_sided = stats.t.ppf(level, dof) if dof > 0 else np.nan
-    profiled = with_lmfit(fit).fit.profile_intervals(level) if profile else {}  # engine fits: lmfit from the optimum
-    bounds = {spec.name: (spec.lower, spec.upper) for spec in _specs(fit)}
-    rows = []
-    for name in fit.fit.names:
-        value, se = fit.fit.values[name], fit.fit.stderr[name]
-        domain = quantity_domain(name, fit.formula)
-        flag = ""
-        if name in fit.fit.at_bound:
-            lower, upper = bounds[name]
-            at_lower = on_bound(value, lower)
-            low, high = _one_sided(value, se, one_sided, domain, at_lower)
-            method = "one-sided"
-            flag = f"{name} on its {'lower' if at_lower else 'upper'} bound {value:.4g}: one-sided interval"
-        else:
-            low, high = profiled.get(name, (np.nan, np.nan))
-            method = "profile"
-            if not (np.isfinite(low) and np.isfinite(high) and low <= value <= high):
-                low, high = transformed_interval(value, se, two_sided, domain)
-                method = _method("wald", domain)
-        if not np.isfinite(low) or not np.isfinite(high):
-            flag = flag or "interval not available (no standard error)"
-        rows.append({"quantity": name, "value": value, "stderr": se, "low": low, "high": high, "method": method, "flag": flag})
-    rows += _delta_rows(fit, two_sided, delta_max, known)
-    return pd.DataFrame(rows)
-
-
-def _specs(fit: CurveFit):
-    from ..curves.curve_fit import _parameter_specs
-
-    return _parameter_specs(fit.formula, fit.points)
-
-
-def _one_sided(value: float, se: float, quantile: float, domain: Domain, at_lower: bool) -> tuple[float, float]:
-    """Interval from the bound the estimate sits on to the one-sided limit on the other side."""
-    if not (np.isfinite(se) and np.isfinite(quantile)):
-        return (value, np.nan) if at_lower else (np.nan, value)
-    if domain.inside(value):
-        low, high = transformed_interval(value, se, quantile, domain)
-    else:  # on the edge of the range itself (bypass = 0): the natural scale, clipped into it
-        low, high = value - quantile * se, value + quantile * se
-    low, high = float(np.clip(low, domain.lower, domain.upper)), float(np.clip(high, domain.lower, domain.upper))
-    return (value, high) if at_lower else (low, value)
-
-
-def _delta_rows(fit: CurveFit, half: float, delta_max: float, known: dict | None = None) -> list[dict]:
-    centre = _indices_at(fit, {**fit.context_at(), **fit.fit.values}, delta_max, known)
-    errors = delta_standard_errors(fit, lambda values: _indices_at(fit, values, delta_max, known))
-    x_max = _relative_size_limit(fit, {**fit.context_at(), **fit.fit.values}, delta_max)
-    rows = []
-    for name, value, se in zip(INDEX_NAMES, centre, errors):
-        domain = quantity_domain(name, x_max=x_max)
-        low, high = transformed_interval(value, se, half, domain)
-        flag = ""
-        if not np.isfinite(value):
-            flag = "not defined for this curve"
-        elif not (np.isfinite(low) and np.isfinite(high)):
-            flag = "interval not available" + ("" if domain.inside(value) else " (estimate on the edge of its range)")
-        rows.append(
-            {
-                "quantity": name,
-                "value": value,
-                "stderr": se,
-                "low": low,
-                "high": high,
-                "method": _method("delta", domain),
-                "flag": flag,
-            }
-        )
-    return rows
+#: How the bootstrap resamples: the residuals of the fit (added to the fitted curve) or whole points.
+BOOTSTRAP_METHODS = ("residuals", "cases")
 
 
 @dataclass(frozen=True)
@@ -485,8 +132,8 @@ def bootstrap(
     """
     if not fit.success:
         raise ValueError(f"{fit.formula.id} on {fit.experiment}: cannot bootstrap a failed fit")
-    if method not in ("residuals", "cases"):
-        raise ValueError("method must be 'residuals' or 'cases'")
+    if method not in BOOTSTRAP_METHODS:
+        raise ValueError(f"method must be one of {', '.join(BOOTSTRAP_METHODS)}, got {method!r}")
     if n < 2:
         raise ValueError("the bootstrap needs at least 2 resamples")
     rng = np.random.default_rng(seed)
@@ -528,10 +175,10 @@ def bootstrap(
         sum(not refit.success for refit in refits),
     )
     rows = [{**refit.fit.values, **{k: getattr(refit.indices, k) for k in INDEX_NAMES}} for refit in refits if refit.success]
-    x_max = _relative_size_limit(fit, {**fit.context_at(), **fit.fit.values}, delta_max)
+    x_max = relative_size_limit(fit, {**fit.context_at(), **fit.fit.values}, delta_max)
     domains = {name: quantity_domain(name, fit.formula, x_max=x_max) for name in (*fit.fit.names, *INDEX_NAMES)}
     bounds = {name: (domain.lower, domain.upper) for name, domain in domains.items()}
-    for spec in _specs(fit):
+    for spec in parameter_specs(fit.formula, fit.points):
         bounds[spec.name] = (*bounds[spec.name], spec.lower, spec.upper)
     return Bootstrap(pd.DataFrame(rows), n, method, seed, bounds)
 
@@ -594,7 +241,9 @@ def model_average(
     quantity's range (``method`` says so).  ``d50c`` is the corrected cut of each
     formula (for the nine paper formulas, which have no bypass, the corrected curve is
     the actual one and ``d50c = d50 = d_cut``); a corrected cut is never averaged with an
-    actual one.
+    actual one.  When a formula in the average has no standard error of the quantity (a
+    parameter not determined), the average's ``stderr``, ``low`` and ``high`` stay empty
+    (nan) and ``note`` names the formula: a missing error is not taken as zero.
 
     Returns ``quantity, value, stderr, low, high, method, akaike_share, n_formulas, note``
     plus one weight column per formula (``weight_<id>``).
@@ -650,15 +299,22 @@ def model_average(
             rows.append(row)
             continue
         w = weights[usable] / share
-        theta, se = values[usable], np.nan_to_num(errors[usable])
+        theta, se = values[usable], errors[usable]  # a missing se stays missing: the average's is then unknown
         mean = float(np.sum(w * theta))
         domain = quantity_domain(quantity, x_max=widest_x_max)
         row.update(value=mean, stderr=float(np.sum(w * np.sqrt(se**2 + (theta - mean) ** 2))))
-        if domain.inside(mean) and all(domain.inside(t) for t in theta):
+        ids = [fit.formula.id for fit, used in zip(good, usable) if used]
+        without_se = [name for name, error in zip(ids, se) if not np.isfinite(error)]
+        if without_se:
+            row["note"] = (
+                f"no standard error and no interval: the fit of {', '.join(without_se)} "
+                f"({float(w[~np.isfinite(se)].sum()):.2%} of the weight) gives no standard error of {quantity}"
+            )
+        elif domain.inside(mean) and all(domain.inside(t) for t in theta):
             g_mean = domain.forward(mean)
             se_g = float(np.sum(w * np.sqrt((se * domain.slope(theta)) ** 2 + (domain.forward(theta) - g_mean) ** 2)))
             low, high = sorted((float(domain.backward(g_mean - z * se_g)), float(domain.backward(g_mean + z * se_g))))
-            row.update(low=low, high=high, method=_method("akaike", domain))
+            row.update(low=low, high=high, method=interval_method("akaike", domain))
         else:
             row["note"] = "no interval: an estimate lies on the edge of the quantity's range"
         if share < 1.0 - 1e-9:
@@ -683,8 +339,8 @@ def _estimates_and_errors(fit: CurveFit, delta_max: float | None, known: dict | 
     ``d_cut`` of every formula (the corrected cut)."""
     limit = fit.options.delta_max if delta_max is None else delta_max
     values = {**fit.context_at(), **fit.fit.values}
-    centre = _indices_at(fit, values, limit, known)
-    errors = delta_standard_errors(fit, lambda at: _indices_at(fit, at, limit, known))
+    centre = indices_at(fit, values, limit, known)
+    errors = delta_standard_errors(fit, lambda at: indices_at(fit, at, limit, known))
     found = {name: (float(fit.fit.values[name]), float(fit.fit.stderr[name])) for name in fit.fit.names}
     found.update({name: (float(v), float(e)) for name, v, e in zip(INDEX_NAMES, centre, errors)})
     found["d50c"] = found["d_cut"]
@@ -709,8 +365,6 @@ def interval_columns(
     bootstrap limits on a bound.  Keyed by ``experiment`` and ``formula``; failed fits
     get nan.  Every fit's own ``delta_max`` and alpha are used.
     """
-    from ..validation import check_bootstrap, check_optional, check_probability, check_seed
-
     check_optional(check_probability, level, "level")
     n_bootstrap, seed = check_bootstrap(n_bootstrap, "n_bootstrap"), check_seed(seed, "seed")
     bootstrap_level = 0.95 if level is None else level

@@ -46,12 +46,20 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..curves.curve_fit import CurveFit, fit_formula, normalised_weights
-from ..curves.fitting import ParameterFit
-from ..curves.formulas import get_formula
-from ..errors import InputError
-from ..loading.points import TrompPoints
-from .compare import ExtraSumOfSquares
+from .curves.curve_fit import CurveFit, fit_formula
+from .curves.fitting import ParameterFit, least_squares
+from .curves.formulas import get_formula
+from .curves.intervals import interval_table
+from .curves.measured import measured_cut_size, measured_efficiency, measured_slope, normalised_weights
+from .errors import InputError
+from .loading.lab import LabOptions, _renamed, balances_from_table, is_lab_table
+from .loading.points import TrompPoints, points_from_table
+from .loading.tables import Table, read_table
+from .output.outputs import write_files
+from .output.plotting import offscreen_axes, plot_control_chart, save_figure
+from .output.report import Report, figure_png
+from .statistics.compare import ExtraSumOfSquares
+from .workbench import fit_experiments
 
 EWMA_LAMBDA = 0.2
 EWMA_L = 3.5
@@ -160,10 +168,6 @@ def read_surveys(path, options=None) -> list[Survey]:
         Naming file, row and column: no date/survey column, a date that cannot be read,
         a survey with two dates, and every error of the points or lab schema.
     """
-    from ..loading.lab import LabOptions, _renamed, balances_from_table, is_lab_table
-    from ..loading.points import points_from_table
-    from ..loading.tables import Table, read_table
-
     options = options or LabOptions()
     table = _renamed(read_table(path, sheet=options.sheet), options.rename)
     frame = table.frame.copy()
@@ -206,9 +210,6 @@ def joint_fit(groups: Sequence[TrompPoints], formula, starts: Sequence[dict]) ->
     are parameter mappings (the groups' own optima are good ones); when empty, the
     data-driven start of the first group is used.
     """
-    from ..curves.curve_fit import measured_cut_size, measured_efficiency, measured_slope
-    from ..curves.fitting import least_squares
-
     formula = get_formula(formula)
     specs = list(formula.parameters(np.concatenate([g.size for g in groups])))
     contexts = [{"measured_efficiency": measured_efficiency(g)} if formula.context_from_efficiency else {} for g in groups]
@@ -380,8 +381,6 @@ def monitor_surveys(
         Also test each survey against the previous one (``p_previous``; not used by the
         flag, so the benchmark turns it off).
     """
-    from .uncertainty import interval_table
-
     surveys = sorted(surveys, key=lambda s: s.date)
     if len(surveys) < 4:
         raise InputError(f"a trend needs at least four surveys, got {len(surveys)}")
@@ -447,8 +446,6 @@ def monitor_surveys(
 
 
 def _best_formula(surveys):
-    from ..workbench import fit_experiments
-
     ranking = fit_experiments([s.points for s in surveys]).ranking_table()
     if ranking.empty:
         raise InputError("no formula could be fitted to the surveys; give one with --formula")
@@ -461,23 +458,15 @@ def write_trend(result: TrendResult, outdir, *, size_unit: str = "", figures: bo
 
     ``size_unit`` labels the figures and replaces the unit ``size`` in ``trend.csv``.
     """
-    from ..output.report import Report, add_trend_section
-    from ..workbench import write_atomically
-
     table = result.table.replace({"unit": {"size": size_unit}}) if size_unit else result.table
     outputs = {
         "trend.csv": lambda p: table.to_csv(p, index=False, date_format="%Y-%m-%d"),
         "trend_surveys.csv": lambda p: result.survey_flags().to_csv(p, index=False, date_format="%Y-%m-%d"),
     }
     if figures:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        from ..output.plotting import plot_control_chart, save_figure
-
         for quantity in result.quantities:
             outputs[f"trend_{quantity}.png"] = lambda p, q=quantity: save_figure(
-                plot_control_chart(result, q, size_unit=size_unit), p
+                plot_control_chart(result, q, size_unit=size_unit, ax=offscreen_axes()), p
             )
     report = Report("tromplab trend report", ", ".join(dict.fromkeys(s.points.source for s in result.surveys)), order=("trend",))
     add_trend_section(report, result, size_unit=size_unit, figures=figures)
@@ -486,7 +475,7 @@ def write_trend(result: TrendResult, outdir, *, size_unit: str = "", figures: bo
     }  # the Markdown links the PNGs written beside it
     outputs["trend_report.html"] = lambda p: p.write_text(report.html(), encoding="utf-8")
     outputs["trend_report.md"] = lambda p: p.write_text(report.markdown(names), encoding="utf-8")
-    return write_atomically(outputs, outdir)
+    return write_files(outputs, outdir)
 
 
 # --- a documented generator of survey series --------------------------------------------------
@@ -564,3 +553,39 @@ def surveys_from_frame(frame: pd.DataFrame) -> list[Survey]:
         )
         surveys.append(Survey(str(name), pd.Timestamp(group["date"].iloc[0]), points))
     return sorted(surveys, key=lambda s: s.date)
+
+
+def add_trend_section(report: Report, result, *, size_unit: str = "", figures: bool = True) -> None:
+    """Add the monitoring section of a :class:`~tromplab.trend.TrendResult` to ``report``.
+
+    The survey flags, the rule, the tidy table of the charted quantities and (with
+    ``figures``) one control chart per quantity captioned ``Control chart of <quantity>``.
+    """
+    if "trend" not in report.order:
+        report.order = (*report.order, "trend")
+    base = [result.surveys[i].name for i in result.baseline]
+    report.add(
+        "trend",
+        "text",
+        f"Formula {result.formula_id} fitted to each of {len(result.surveys)} surveys; baseline "
+        f"{base[0]} to {base[-1]} ({len(base)} surveys). EWMA with lambda = {EWMA_LAMBDA:g} and limits at "
+        f"{EWMA_L:g} sigma (centre and standard deviation from the baseline surveys). A survey after the baseline is "
+        f"flagged 'changed' when an EWMA leaves its limits and the joint-fit equality test against the baseline "
+        f"rejects at alpha = {result.alpha:g}; intervals at {result.level:.0%}. Sizes in {size_unit or 'the unit of the input'}.",
+    )
+    for name, reason in result.failures.items():
+        report.add("trend", "warning", f"survey {name} not fitted: {reason}")
+    points = result.change_points()
+    report.add("trend", "text", "Change points: " + (", ".join(points) if points else "none") + ".")
+    flags = result.survey_flags()
+    report.add("trend", "table", flags.assign(date=flags["date"].dt.strftime("%Y-%m-%d")), caption="Surveys and flags")
+    if figures:
+        for quantity in result.quantities:
+            report.add(
+                "trend",
+                "figure",
+                figure_png(plot_control_chart(result, quantity, size_unit=size_unit, ax=offscreen_axes())),
+                caption=f"Control chart of {quantity}",
+            )
+    table = result.table.drop(columns=["formula"])
+    report.add("trend", "table", table.assign(date=table["date"].dt.strftime("%Y-%m-%d")), caption="Charted quantities")

@@ -1,0 +1,394 @@
+"""Standard errors and intervals of one fit: the range of every reported quantity, Wald and
+profile-likelihood intervals of the parameters, the delta method for the indices.
+
+They are the inference of a single :class:`~tromplab.curves.curve_fit.CurveFit` (its
+``report()`` prints them, as a statsmodels result prints its ``conf_int()``), so they sit
+below it; the bootstrap, model averaging and the interval columns of a batch build on them
+in :mod:`tromplab.statistics.uncertainty`.  ``fit`` arguments are duck-typed: a
+``CurveFit`` or anything with its fields.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+import pandas as pd
+from scipy import stats
+
+from ..loading.points import TrompPoints
+from .fitting import on_bound
+from .indices import batch_curve_indices, batchable_indices, curve_indices
+from .measured import formula_context, parameter_specs
+
+if TYPE_CHECKING:
+    from .curve_fit import CurveFit
+
+
+INDEX_NAMES = ("slope", "eta", "epsilon", "d25", "d75", "ep", "imperfection", "d50", "ep_c", "imperfection_c")
+
+
+# --- the range of every reported quantity -------------------------------------------------
+@dataclass(frozen=True)
+class Domain:
+    """The range a quantity can take, and the scale on which its intervals are made.
+
+    ``positive`` quantities get intervals on the log scale, ones bounded on both sides
+    (in [0, 1], or epsilon in [0, x_max - 1]) on the logit scale of their position in the range, ``negative`` ones on the log of minus the value, ``real`` ones on the
+    natural scale; the limits are transformed back, so an interval never leaves the range.
+    A quantity bounded below by another value (a shape parameter admissible above -1)
+    uses the log of its distance from that bound.
+    """
+
+    name: str
+    lower: float
+    upper: float
+    scale: str
+
+    def contains(self, value) -> np.ndarray:
+        value = np.asarray(value, dtype=float)
+        return (value >= self.lower) & (value <= self.upper)
+
+    def inside(self, value: float) -> bool:
+        """Strictly inside the range (the transformed scale exists there)."""
+        return bool(np.isfinite(value) and self.lower < value < self.upper)
+
+    def forward(self, value):
+        value = np.asarray(value, dtype=float)
+        if self.scale == "log":
+            return np.log(value - self.lower)
+        if self.scale == "neglog":
+            return np.log(self.upper - value)
+        if self.scale == "logit":
+            return np.log(value - self.lower) - np.log(self.upper - value)
+        return value
+
+    def backward(self, value):
+        value = np.asarray(value, dtype=float)
+        with np.errstate(over="ignore"):  # an interval end far out on the log scale is infinite, not an error
+            if self.scale == "log":
+                return self.lower + np.exp(value)
+            if self.scale == "neglog":
+                return self.upper - np.exp(value)
+            if self.scale == "logit":
+                return self.lower + (self.upper - self.lower) / (1.0 + np.exp(-value))
+        return value
+
+    def slope(self, value):
+        """Derivative of :meth:`forward` (turns a standard error onto the transformed scale)."""
+        value = np.asarray(value, dtype=float)
+        if self.scale == "log":
+            return 1.0 / (value - self.lower)
+        if self.scale == "neglog":
+            return 1.0 / (self.upper - value)
+        if self.scale == "logit":
+            return (self.upper - self.lower) / ((value - self.lower) * (self.upper - value))
+        return np.ones_like(value)
+
+
+POSITIVE = Domain("positive", 0.0, np.inf, "log")
+
+
+UNIT = Domain("unit interval", 0.0, 1.0, "logit")
+
+
+NEGATIVE = Domain("negative", -np.inf, 0.0, "neglog")
+
+
+REAL = Domain("real", -np.inf, np.inf, "identity")
+
+
+#: Range of every reported quantity (sizes in the unit of the data).  The shape parameter's
+#: range follows from its formula (:func:`quantity_domain`).
+QUANTITY_DOMAINS = {
+    "d_cut": POSITIVE,
+    "d50c": POSITIVE,
+    "d50": POSITIVE,
+    "d25": POSITIVE,
+    "d75": POSITIVE,
+    "ep": POSITIVE,
+    "ep_c": POSITIVE,
+    "imperfection": POSITIVE,
+    "imperfection_c": POSITIVE,
+    "epsilon": POSITIVE,
+    "eta": UNIT,
+    "bypass": UNIT,
+    "sharpness": UNIT,
+    "fishhook": POSITIVE,
+    "slope": NEGATIVE,
+}
+
+
+def quantity_domain(quantity: str, formula=None, *, x_max: float | None = None) -> Domain:
+    """Range of a reported quantity.
+
+    A shape parameter is positive when its formula admits only positive values, and
+    bounded below by the formula's lower shape bound otherwise (km2 and kp above -1).
+    Epsilon, the area under the curve between x = 1 and ``x_max = delta_max / d_cut``,
+    lies in [0, x_max - 1] when ``x_max`` is given (positive otherwise).
+    """
+    if quantity == "epsilon" and x_max is not None and np.isfinite(x_max) and x_max > 1.0:
+        return epsilon_domain(x_max)
+    if quantity in QUANTITY_DOMAINS:
+        return QUANTITY_DOMAINS[quantity]
+    if formula is not None and quantity == formula.shape_name:
+        lower = formula.shape_bounds[0]
+        return POSITIVE if lower >= 0 else Domain(f"above {lower:g}", float(lower), np.inf, "log")
+    return REAL
+
+
+def epsilon_domain(x_max: float) -> Domain:
+    """Epsilon's range [0, x_max - 1]: the curve, at most 1, integrated over [1, x_max]."""
+    return Domain("0 to x_max - 1", 0.0, float(x_max) - 1.0, "logit")
+
+
+def relative_size_limit(fit: CurveFit, values: dict[str, float], delta_max: float) -> float:
+    """``x_max = delta_max / d_cut`` at the fitted cut (the upper end of epsilon's integral)."""
+    d_cut = fit.curve_arguments(values)[0]
+    return delta_max / d_cut if d_cut > 0 else np.nan
+
+
+def transformed_interval(value: float, stderr: float, half: float, domain: Domain) -> tuple[float, float]:
+    """``value +- half * stderr`` made on the domain's scale and transformed back.
+
+    ``half`` is the quantile (t or normal) times one; ``stderr`` is on the natural scale
+    and carried to the transformed one by the derivative of the transform (delta method).
+    nan where the estimate is not strictly inside its range or the error is unknown.
+    """
+    if not (domain.inside(value) and np.isfinite(stderr) and np.isfinite(half)):
+        return np.nan, np.nan
+    centre, spread = domain.forward(value), half * stderr * domain.slope(value)
+    low, high = sorted((float(domain.backward(centre - spread)), float(domain.backward(centre + spread))))
+    # the round trip through the transform may move a zero-width interval off the estimate by one ulp
+    return min(low, value), max(high, value)
+
+
+def interval_method(kind: str, domain: Domain) -> str:
+    return kind if domain.scale == "identity" else f"{kind}-{domain.scale}"
+
+
+def indices_at(fit: CurveFit, values: dict[str, float], delta_max: float, known: dict | None = None) -> np.ndarray:
+    if known:
+        found = known.get(_index_key(fit, values, delta_max))
+        if found is not None:
+            return found
+    d_cut, shape, extras = fit.curve_arguments(values)
+    found = curve_indices(fit.formula, d_cut, shape, delta_max=delta_max, **fit.context_at(values), **extras)
+    return np.array([getattr(found, name) for name in INDEX_NAMES])
+
+
+def _index_key(fit: CurveFit, values: dict[str, float], delta_max: float) -> tuple:
+    d_cut, shape, extras = fit.curve_arguments(values)
+    return (fit.formula.id, d_cut, shape, *extras.values(), *fit.context_at(values).values(), delta_max)
+
+
+def _step(value: float) -> float:
+    """Central-difference step of the delta method: relative 1e-5, at least 1e-8."""
+    return 1e-5 * max(abs(value), 1e-3)
+
+
+def batched_delta_indices(fits: Sequence[CurveFit], delta_max: float | None = None) -> dict:
+    """The indices the delta method of ``fits`` evaluates, computed in one batched call per formula.
+
+    The delta method of a fit evaluates its indices at the fitted values and one step
+    either side of each parameter (and of a data-derived input such as formula (11)'s
+    measured efficiency).  For the formulas :func:`~tromplab.curves.indices.batch_curve_indices`
+    covers, this evaluates all of them for many fits at once; the result, passed as
+    ``known`` to :func:`interval_table` or :func:`model_average`, replaces one
+    :func:`~tromplab.curves.indices.curve_indices` call per evaluation (same definitions; the
+    quadrature agrees with the adaptive one to 1e-9).
+    """
+    wanted: dict[str, list] = {}
+    for fit in fits:
+        if not (fit.success and fit.fit.covariance is not None and batchable_indices(fit.formula)):
+            continue
+        limit = fit.options.delta_max if delta_max is None else delta_max
+        values = {**fit.context_at(), **fit.fit.values}
+        sets = [values]
+        for name in (*fit.fit.names, *fit.context):
+            step = _step(values[name])
+            sets += [{**values, name: values[name] + step}, {**values, name: values[name] - step}]
+        wanted.setdefault(fit.formula.id, []).extend((fit, each, limit) for each in sets)
+    known = {}
+    for formula_id, evaluations in wanted.items():
+        arguments = [fit.curve_arguments(values) for fit, values, _ in evaluations]
+        context = [fit.context_at(values) for fit, values, _ in evaluations]
+        efficiency = [c.get("measured_efficiency", np.nan) for c in context] if context[0] else None
+        found = batch_curve_indices(
+            formula_id,
+            [a[0] for a in arguments],
+            [a[1] for a in arguments],
+            delta_max=[limit for _, _, limit in evaluations],
+            measured_efficiency=efficiency,
+        )
+        for (fit, values, limit), indices in zip(evaluations, found):
+            known[_index_key(fit, values, limit)] = np.array([getattr(indices, name) for name in INDEX_NAMES])
+    return known
+
+
+def _difference(evaluate, values: dict[str, float], name: str) -> np.ndarray:
+    step = _step(values[name])
+    upper = np.asarray(evaluate({**values, name: values[name] + step}), dtype=float)
+    lower = np.asarray(evaluate({**values, name: values[name] - step}), dtype=float)
+    return (upper - lower) / (2 * step)
+
+
+def delta_standard_errors(fit: CurveFit, evaluate: Callable[[dict[str, float]], np.ndarray]) -> np.ndarray:
+    """Delta-method standard errors of ``evaluate(parameter values)`` (an array).
+
+    The gradient with respect to each fitted parameter is a central difference with a
+    relative step of 1e-5; the variance is ``g C g^T`` with the fit's covariance ``C``.
+
+    A formula that also takes inputs from the measured points (formula (11): the measured
+    efficiency, which fixes the break point x_a) depends on the data twice: through the
+    fitted parameters and through that input.  Its errors are propagated from the data
+    themselves: with ``J`` the Jacobian of the curve at the points, ``W`` the weights and
+    ``s^2`` the residual variance, a change ``d phi`` of the points moves the parameters by
+    ``(J'WJ)^-1 J'W (d phi - f_e de)`` and the input by ``de = e_phi' d phi``, so the
+    variance is ``s^2 sum_i (dq/dphi_i)^2 / w_i`` (this equals ``g C g^T`` when there is
+    no such input).  nan where the covariance is unknown or the gradient is not finite.
+    """
+    values = {**fit.context_at(), **fit.fit.values}
+    centre = np.asarray(evaluate(values), dtype=float)
+    covariance = fit.fit.covariance
+    if covariance is None:
+        return np.full(centre.shape, np.nan)
+    gradient = np.array([_difference(evaluate, values, name) for name in fit.fit.names])
+    if not fit.context:
+        variance = np.einsum("i...,ij,j...->...", gradient, covariance, gradient)
+        return np.where(np.all(np.isfinite(gradient), axis=0), np.sqrt(np.maximum(variance, 0.0)), np.nan)
+    points, weights = fit.points, fit.options.weights
+    dof = points.n - len(fit.fit.names)
+    s_sq = fit.fit.ssr / dof if dof > 0 else np.nan
+    curve = lambda v: fit.predict(points.size, v)  # noqa: E731
+    jacobian = np.array([_difference(curve, values, name) for name in fit.fit.names]).T  # n x p
+    sensitivity = covariance / s_sq @ jacobian.T * weights  # (J'WJ)^-1 J'W, p x n
+    flat = gradient.reshape(len(fit.fit.names), -1)  # p x q
+    per_point = flat.T @ sensitivity  # q x n
+    for name in fit.context:
+        input_by_point = _input_by_point(fit, name)
+        curve_by_input = _difference(curve, values, name)
+        index_by_input = _difference(evaluate, values, name).reshape(-1)
+        per_point += -(flat.T @ (sensitivity @ curve_by_input))[:, None] * input_by_point[None, :]
+        per_point += index_by_input[:, None] * input_by_point[None, :]
+    variance = s_sq * np.sum(per_point**2 / weights, axis=1)
+    finite = np.all(np.isfinite(per_point), axis=1)
+    return np.where(finite, np.sqrt(np.maximum(variance, 0.0)), np.nan).reshape(centre.shape)
+
+
+def _input_by_point(fit: CurveFit, name: str) -> np.ndarray:
+    """Derivative of a data-derived formula input with respect to each measured partition."""
+    points, step = fit.points, 1e-6
+    out = np.empty(points.n)
+    for i in range(points.n):
+        shifted = []
+        for sign in (1.0, -1.0):
+            phi = points.partition_fine.copy()
+            phi[i] += sign * step
+            shifted.append(formula_context(fit.formula, TrompPoints(points.experiment, points.size, phi, points.weight))[name])
+        out[i] = (shifted[0] - shifted[1]) / (2 * step)
+    return out
+
+
+def interval_table(
+    fit: CurveFit, *, level: float = 0.95, delta_max: float | None = None, profile: bool = True, known: dict | None = None
+) -> pd.DataFrame:
+    """Estimates, standard errors and intervals of the parameters and indices of one fit.
+
+    Returns a DataFrame with columns ``quantity, value, stderr, low, high, method, flag``.
+    Every interval lies inside its quantity's range (:data:`QUANTITY_DOMAINS`):
+
+    * parameters: the profile likelihood (``profile``; lmfit keeps it inside the
+      parameter bounds), else Wald on the log / logit scale (``wald-log``,
+      ``wald-logit``); a parameter on a bound of its fit gets a one-sided interval from
+      that bound (``one-sided``, flagged);
+    * indices: the delta method on the log / logit scale (``delta-log``, ``delta-logit``,
+      ``delta-neglog`` for the negative slope).
+
+    ``flag`` says when an interval is one-sided or could not be made.
+
+    Parameters
+    ----------
+    fit : CurveFit
+        A successful fit.
+    level : float
+        Confidence level, 0..1 (default 0.95).
+    delta_max : float, optional
+        Largest feed size for the misplacement (size unit); default the one the fit was
+        made with.
+    profile : bool
+        Profile-likelihood intervals for the parameters (slower than Wald).
+    known : dict, optional
+        Indices evaluated beforehand by :func:`batched_delta_indices` (for many fits at once).
+    """
+    if not fit.success:
+        raise ValueError(f"{fit.formula.id} on {fit.experiment}: the fit failed ({fit.fit.message})")
+    delta_max = fit.options.delta_max if delta_max is None else delta_max
+    dof = fit.points.n - len(fit.fit.names)
+    two_sided = stats.t.ppf(0.5 + level / 2.0, dof) if dof > 0 else np.nan
+    one_sided = stats.t.ppf(level, dof) if dof > 0 else np.nan
+    profiled = fit.with_lmfit().fit.profile_intervals(level) if profile else {}  # engine fits: lmfit from the optimum
+    bounds = {spec.name: (spec.lower, spec.upper) for spec in parameter_specs(fit.formula, fit.points)}
+    rows = []
+    for name in fit.fit.names:
+        value, se = fit.fit.values[name], fit.fit.stderr[name]
+        domain = quantity_domain(name, fit.formula)
+        flag = ""
+        if name in fit.fit.at_bound:
+            lower, upper = bounds[name]
+            at_lower = on_bound(value, lower)
+            low, high = _one_sided(value, se, one_sided, domain, at_lower)
+            method = "one-sided"
+            flag = f"{name} on its {'lower' if at_lower else 'upper'} bound {value:.4g}: one-sided interval"
+        else:
+            low, high = profiled.get(name, (np.nan, np.nan))
+            method = "profile"
+            if not (np.isfinite(low) and np.isfinite(high) and low <= value <= high):
+                low, high = transformed_interval(value, se, two_sided, domain)
+                method = interval_method("wald", domain)
+        if not np.isfinite(low) or not np.isfinite(high):
+            flag = flag or "interval not available (no standard error)"
+        rows.append({"quantity": name, "value": value, "stderr": se, "low": low, "high": high, "method": method, "flag": flag})
+    rows += _delta_rows(fit, two_sided, delta_max, known)
+    return pd.DataFrame(rows)
+
+
+def _one_sided(value: float, se: float, quantile: float, domain: Domain, at_lower: bool) -> tuple[float, float]:
+    """Interval from the bound the estimate sits on to the one-sided limit on the other side."""
+    if not (np.isfinite(se) and np.isfinite(quantile)):
+        return (value, np.nan) if at_lower else (np.nan, value)
+    if domain.inside(value):
+        low, high = transformed_interval(value, se, quantile, domain)
+    else:  # on the edge of the range itself (bypass = 0): the natural scale, clipped into it
+        low, high = value - quantile * se, value + quantile * se
+    low, high = float(np.clip(low, domain.lower, domain.upper)), float(np.clip(high, domain.lower, domain.upper))
+    return (value, high) if at_lower else (low, value)
+
+
+def _delta_rows(fit: CurveFit, half: float, delta_max: float, known: dict | None = None) -> list[dict]:
+    centre = indices_at(fit, {**fit.context_at(), **fit.fit.values}, delta_max, known)
+    errors = delta_standard_errors(fit, lambda values: indices_at(fit, values, delta_max, known))
+    x_max = relative_size_limit(fit, {**fit.context_at(), **fit.fit.values}, delta_max)
+    rows = []
+    for name, value, se in zip(INDEX_NAMES, centre, errors):
+        domain = quantity_domain(name, x_max=x_max)
+        low, high = transformed_interval(value, se, half, domain)
+        flag = ""
+        if not np.isfinite(value):
+            flag = "not defined for this curve"
+        elif not (np.isfinite(low) and np.isfinite(high)):
+            flag = "interval not available" + ("" if domain.inside(value) else " (estimate on the edge of its range)")
+        rows.append(
+            {
+                "quantity": name,
+                "value": value,
+                "stderr": se,
+                "low": low,
+                "high": high,
+                "method": interval_method("delta", domain),
+                "flag": flag,
+            }
+        )
+    return rows

@@ -1,0 +1,101 @@
+"""What the measured points say before any fit: the measured cut, slope and efficiency,
+the weights, and the inputs a formula takes from the data.
+
+The fits start from these (:mod:`tromplab.curves.curve_fit`, :mod:`tromplab.curves.engine`),
+formula (11) takes its measured efficiency from them, and the batch notes an ambiguous
+measured cut with them.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..loading.points import TrompPoints
+from .fitting import ParameterSpec
+from .formulas import Formula
+
+GRID_SLOPES = -np.geomspace(0.02, 20.0, 41)
+
+
+def measured_cut_size(points: TrompPoints, level: float = 0.5) -> float:
+    """Size where the measured curve first falls through ``level`` (1/2: the measured cut),
+    interpolated in log size.
+
+    Where the points never cross the level the size of the point closest to it is returned.
+    """
+    phi, log_size = points.partition_fine, np.log(points.size)
+    above = phi >= level
+    for i in range(points.n - 1):
+        if above[i] and not above[i + 1]:
+            t = (phi[i] - level) / (phi[i] - phi[i + 1])
+            return float(np.exp(log_size[i] + t * (log_size[i + 1] - log_size[i])))
+    return float(points.size[np.argmin(np.abs(phi - level))])
+
+
+#: Half-width of the band around 1/2 in which a measured partition is taken as "at the cut"
+#: when the measured cut is checked for ambiguity (partitions are often given to 1-2 %).
+CUT_BAND = 0.02
+
+
+#: Ratio of the sizes where the measured curve falls through 1/2 + CUT_BAND and 1/2 -
+#: CUT_BAND above which the measured cut is called ambiguous: a curve of Plitt slope m = 1
+#: (a flat classifier) gives about 1.1, a plateau at 1/2 over one sieve interval (sqrt 2) 1.5+.
+AMBIGUOUS_CUT_RATIO = 1.5
+
+
+def measured_cut_band(points: TrompPoints) -> tuple[float, float]:
+    """Sizes where the measured curve falls through 1/2 + :data:`CUT_BAND` and 1/2 -
+    :data:`CUT_BAND`: the range of measured cuts that partitions within the band allow."""
+    return measured_cut_size(points, 0.5 + CUT_BAND), measured_cut_size(points, 0.5 - CUT_BAND)
+
+
+def measured_efficiency(points: TrompPoints, d_cut: float | None = None) -> float:
+    """Classifier efficiency eta of the measured curve, used by formula (11).
+
+    Rule: relative sizes ``x = size / d_cut_exp`` with ``d_cut_exp`` from
+    :func:`measured_cut_size` (or the ``d_cut`` given); the points are joined linearly in
+    ``x``; below the smallest measured size the curve is held at its first value (down to
+    ``x = 0``), and ``phi(1) = 1/2`` closes the interval; ``eta_exp`` is the area on
+    ``0 <= x <= 1``.
+    """
+    if d_cut is None:
+        d_cut = measured_cut_size(points)
+    x = points.size / d_cut
+    inside = x < 1.0
+    knots_x = np.concatenate(([0.0], x[inside], [1.0]))
+    first = points.partition_fine[inside][0] if inside.any() else 0.5
+    knots_phi = np.concatenate(([first], points.partition_fine[inside], [0.5]))
+    return float(np.trapezoid(knots_phi, knots_x))
+
+
+def measured_slope(points: TrompPoints, d_cut: float) -> float:
+    """Slope d phi / d x near the cut: least-squares line through the points with
+    0.1 <= phi <= 0.9 (or the two points nearest the cut)."""
+    x = points.size / d_cut
+    phi = points.partition_fine
+    middle = (phi >= 0.1) & (phi <= 0.9)
+    if middle.sum() < 2:
+        middle = np.zeros_like(middle)
+        middle[np.argsort(np.abs(x - 1.0))[:2]] = True
+    slope = np.polyfit(x[middle], phi[middle], 1)[0] if np.ptp(x[middle]) > 0 else -0.5
+    return float(np.clip(slope, GRID_SLOPES.min(), GRID_SLOPES.max()))
+
+
+def parameter_specs(formula: Formula, points: TrompPoints) -> list[ParameterSpec]:
+    return list(formula.parameters(points.size))
+
+
+def normalised_weights(points: TrompPoints) -> np.ndarray:
+    """Least-squares weights scaled to mean 1 (all ones when the points carry none), so the
+    weighted sums of squares of the fit and of the Fisher screen share one scale."""
+    if points.weight is None:
+        return np.ones(points.n)
+    return points.weight / points.weight.mean()
+
+
+def formula_context(formula: Formula, points: TrompPoints) -> dict[str, float]:
+    """Inputs a formula takes from the measured points rather than from the fit
+    (``measured_efficiency`` for formula (11)); empty for the others."""
+    if formula.context_from_efficiency:
+        return {"measured_efficiency": measured_efficiency(points)}
+    return {}

@@ -1,0 +1,143 @@
+"""The results folder of a fitted batch: what ``tromplab fit -o DIR`` and ``Workbench.save(DIR)`` write.
+
+One function builds the folder, so the command line and the Python API write the same
+files byte for byte: ``fits``, ``ranking`` and ``averages`` tables (CSV or Parquet), the
+figures with ``figures.csv`` mapping experiments to files, ``failures.csv`` when some fits
+failed, and the Excel workbook when asked (or only the workbook, when the target is a
+``.xlsx`` file).  With ``reloadable`` the pickled batch and its manifest are added, so
+:func:`tromplab.load` can read the folder back.  The folder is replaced as a whole only
+when every file is written (:func:`tromplab.output.outputs.replace_folder`).
+"""
+
+from __future__ import annotations
+
+import io
+from pathlib import Path
+
+import pandas as pd
+
+from ..errors import OptionError
+from .outputs import figure_file_names, replace_folder, write_files
+from .plotting import offscreen_axes, plot_batch_overview, plot_tromp_fits, save_figure
+from .results import batch_files
+from .views import partition_view
+from .workbook import write_workbook
+
+#: Above this many experiments, ``figures="auto"`` draws one overview figure instead of one
+#: figure per experiment (every fit is still in the fits table).
+AUTO_FIGURE_LIMIT = 20
+#: What ``figures`` may be: every fit per experiment, the top-ranked one, auto, or none.
+FIGURE_CHOICES = ("auto", "all", "best", "none")
+#: Formats of the tables (parquet needs pyarrow).
+TABLE_FORMATS = ("csv", "parquet")
+
+
+def check_folder_options(*, figures: str, format: str) -> None:
+    """Refuse an unknown ``figures`` or ``format`` choice (:class:`~tromplab.errors.OptionError`)."""
+    if figures not in FIGURE_CHOICES:
+        raise OptionError("figures", f"must be one of {', '.join(FIGURE_CHOICES)}, got {figures!r}")
+    if format not in TABLE_FORMATS:
+        raise OptionError("format", f"must be one of {', '.join(TABLE_FORMATS)}, got {format!r}")
+
+
+def write_results_folder(
+    bench, outdir, *, figures: str = "auto", format: str = "csv", excel: bool = False, reloadable: bool = False
+) -> dict[str, Path]:
+    """Write the tables and figures of ``bench`` into ``outdir`` (or only the workbook,
+    when ``outdir`` names a ``.xlsx`` file).
+
+    Parameters
+    ----------
+    bench : Workbench
+    outdir : str or path-like
+        The folder, replaced as a whole when everything is written, or a ``.xlsx`` file.
+    figures : {"auto", "all", "best", "none"}
+        Per-experiment figures with every fit (``all``) or the top-ranked one (``best``);
+        ``auto``: ``all`` up to :data:`AUTO_FIGURE_LIMIT` experiments, then one overview.
+    format : {"csv", "parquet"}
+        Format of the tables.
+    excel : bool
+        Also write every table and figure as one workbook, ``results.xlsx``.
+    reloadable : bool
+        Also write ``workbench.pkl``, ``manifest.json`` and ``points.csv``, so that
+        :func:`tromplab.load` reads the batch back.
+
+    Returns
+    -------
+    dict
+        File name -> written path.
+    """
+    check_folder_options(figures=figures, format=format)
+    outdir = Path(outdir)
+    fits = bench.fits_table()
+    tables = {"fits": fits, "ranking": bench.ranking_table(), "averages": bench.averages()}
+    drawn, figure_names = _figures(bench, fits, figures)
+    only_workbook = outdir.suffix.lower() == ".xlsx"
+    if only_workbook or excel:
+        sheets = {**tables, **_input_sheets(bench)}
+        notes = {
+            "balance": "no mass balance: the input holds Tromp points, not a lab table",
+            "averages": "no model average: no experiment has a successful fit",
+        }
+
+        def workbook(path):
+            write_workbook(path, sheets, figures=drawn, size_unit=bench.size_unit, notes=notes)
+
+        if only_workbook:
+            return write_files({outdir.name: workbook}, outdir.parent)
+    outputs = {f"{name}.{format}": _table_writer(table, format) for name, table in tables.items()}
+    outputs.update({name: (lambda p, png=png: p.write_bytes(png)) for name, png in drawn.items()})
+    if figure_names:
+        mapping = pd.DataFrame({"experiment": list(figure_names), "file": list(figure_names.values())})
+        outputs["figures.csv"] = lambda p: mapping.to_csv(p, index=False)
+    failures = bench.failure_table()
+    if not failures.empty:
+        outputs["failures.csv"] = lambda p: failures.to_csv(p, index=False)
+    if excel:
+        outputs["results.xlsx"] = workbook
+    if reloadable:
+        outputs.update(batch_files(bench))
+    return replace_folder(outputs, outdir)
+
+
+def _figures(bench, fits: pd.DataFrame, mode: str) -> tuple[dict[str, bytes], dict[str, str]]:
+    """PNG bytes by file name, and the experiment -> file mapping of per-experiment figures."""
+    if mode == "auto":
+        mode = "all" if len(bench.experiments) <= AUTO_FIGURE_LIMIT else "overview"
+    if mode == "overview":
+        return ({"overview.png": _png(plot_batch_overview(fits, axes=offscreen_axes(2, 2, figsize=(9, 6.5)))[0])}
+                if fits["rank"].notna().any() else {}), {}  # fmt: skip
+    if mode not in ("all", "best"):
+        return {}, {}
+    names = figure_file_names(bench.experiments)
+    drawn = {}
+    for experiment, name in names.items():
+        best = bench.best_fit(experiment)
+        shown = bench.fits_of(experiment) if mode == "all" or best is None else [best]
+        ax = plot_tromp_fits(shown, size_unit=bench.size_unit, best=best, partition_to=bench.partition_to, ax=offscreen_axes())
+        drawn[name] = _png(ax)
+    return drawn, names
+
+
+def _png(ax) -> bytes:
+    buffer = io.BytesIO()
+    save_figure(ax, buffer)
+    return buffer.getvalue()
+
+
+def _input_sheets(bench) -> dict[str, pd.DataFrame]:
+    """The ``balance`` and ``points`` sheets: the mass balances of lab input, else the points."""
+    if bench.balances:
+        # the loader weights lab points only with weight_by_feed_share, so the weights tell it
+        weighted = any(fit.points.weight is not None for fit in bench.fits)
+        balance = pd.concat([b.classes for b in bench.balances], ignore_index=True)
+        points = pd.concat([b.points_table(weight_by_feed_share=weighted) for b in bench.balances], ignore_index=True)
+    else:
+        balance, points = pd.DataFrame(), pd.concat([p.to_frame() for p in bench.inputs], ignore_index=True)
+    return {"balance": partition_view(balance, bench.partition_to), "points": partition_view(points, bench.partition_to)}
+
+
+def _table_writer(table: pd.DataFrame, format: str):
+    if format == "parquet":
+        return lambda p: table.to_parquet(p, index=False)
+    return lambda p: table.to_csv(p, index=False)
