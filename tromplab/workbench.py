@@ -602,7 +602,8 @@ def load(directory) -> Workbench:
     Parameters
     ----------
     directory : str or path-like
-        A directory written by :meth:`Workbench.save`.
+        A directory written by :meth:`Workbench.save` with ``reloadable=True`` (the
+        pickled batch and its manifest are written only then).
     """
     return load_workbench(directory)
 
