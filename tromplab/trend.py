@@ -54,7 +54,8 @@ from .curves.measured import measured_cut_size, measured_efficiency, measured_sl
 from .errors import InputError
 from .loading.lab import LabOptions, _renamed, balances_from_table, is_lab_table
 from .loading.points import TrompPoints, points_from_table
-from .loading.tables import Table, read_table
+from .loading.surveys import has_survey_columns, split_survey_columns
+from .loading.tables import read_table
 from .output.outputs import write_files
 from .output.plotting import offscreen_axes, plot_control_chart, save_figure
 from .output.report import Report, figure_png
@@ -170,35 +171,16 @@ def read_surveys(path, options=None) -> list[Survey]:
     """
     options = options or LabOptions()
     table = _renamed(read_table(path, sheet=options.sheet), options.rename)
-    frame = table.frame.copy()
-    if "date" not in frame.columns and "survey" not in frame.columns:
+    if not has_survey_columns(table):
         raise InputError("a trend needs a 'date' or 'survey' column (one survey per date)", source=table.source)
-    if "date" in frame.columns:
-        dates = pd.to_datetime(frame["date"].astype(str).str.strip(), errors="coerce", format="mixed")
-        bad = np.flatnonzero(dates.isna().to_numpy())
-        if bad.size:
-            raise table.error(f"'{frame['date'].iloc[bad[0]]}' is not a date (use YYYY-MM-DD)", index=int(bad[0]), column="date")
-    labels = frame["survey"].astype(str).str.strip() if "survey" in frame.columns else dates.dt.strftime("%Y-%m-%d")
-    if "date" not in frame.columns:
-        order = {name: i for i, name in enumerate(dict.fromkeys(labels))}
-        dates = pd.Series(pd.Timestamp("2000-01-01") + pd.to_timedelta([order[n] for n in labels], unit="D"))
-    survey_dates = {}
-    for i, (label, date) in enumerate(zip(labels, dates)):
-        if survey_dates.setdefault(label, date) != date:
-            raise table.error(
-                f"survey {label} has two dates ({survey_dates[label]:%Y-%m-%d} and {date:%Y-%m-%d})", index=i, column="date"
-            )
-    frame["experiment"] = labels.to_numpy()
-    # "<parameter>_true" columns hold the values a synthetic series was drawn with: kept for checking, not read as data
-    dropped = [c for c in frame.columns if c in ("date", "survey") or str(c).endswith("_true")]
-    table = Table(frame.drop(columns=dropped), table.rows, table.source)
+    table, found = split_survey_columns(table)
     if is_lab_table(table.frame.columns):
         experiments = [
             b.to_points(weight_by_feed_share=options.weight_by_feed_share) for b in balances_from_table(table, options)
         ]
     else:
         experiments = points_from_table(table)
-    surveys = [Survey(p.experiment, pd.Timestamp(survey_dates[p.experiment]), p) for p in experiments]
+    surveys = [Survey(p.experiment, pd.Timestamp(found[p.experiment]["date"]), p) for p in experiments]
     return sorted(surveys, key=lambda s: s.date)
 
 

@@ -32,6 +32,7 @@ from .curves.screening import DEFAULT_ALPHA
 from .errors import InputError, OptionError
 from .loading.lab import Experiments, MassBalance
 from .loading.points import TrompPoints, points_from_frame
+from .loading.surveys import with_survey_columns
 from .output.folder import write_results_folder
 from .output.outputs import write_files
 from .output.plotting import plot_tromp_fits
@@ -81,7 +82,7 @@ class Workbench:
         table = self._fits_frame
         if self.intervals is not None:
             table = table.merge(self.intervals, on=["experiment", "formula"], how="left")
-        return partition_view(table, self.partition_to)
+        return partition_view(with_survey_columns(table, self.inputs), self.partition_to)
 
     @cached_property
     def _fits_frame(self) -> pd.DataFrame:
@@ -210,7 +211,7 @@ class Workbench:
         level = (self.ci or 0.95) if level is None else level
         kept = self.__dict__.setdefault("_averages_by_level", {})  # a frozen dataclass keeps caches in __dict__
         if level not in kept:
-            kept[level] = model_averages(self, level=level, jobs=jobs, client=client)
+            kept[level] = with_survey_columns(model_averages(self, level=level, jobs=jobs, client=client), self.inputs)
         return kept[level].copy()
 
     def failure_table(self) -> pd.DataFrame:

@@ -61,6 +61,7 @@ from ..errors import InputError
 from ..validation import check_non_negative, check_optional, check_positive, check_probability, check_share, check_water_recovery
 from .kelsall import kelsall_corrected
 from .points import SIZE_UNITS, TrompPoints, experiment_rows, normal_unit, points_from_table, resolve_size_unit, size_column_unit
+from .surveys import has_survey_columns, split_survey_columns, with_survey_meta
 from .tables import Table, read_table
 
 logger = logging.getLogger(__name__)
@@ -1142,6 +1143,18 @@ def read_experiments(path, options: LabOptions | None = None, **option_values) -
     """
     options = _options(options, option_values)
     table = _renamed(read_table(path, sheet=options.sheet, sep=options.sep, decimal=options.decimal), options.rename)
+    if not has_survey_columns(table):
+        return _experiments_from_table(table, options)
+    # a monitoring file (tromplab trend) fits as it is: survey and date go with the points, in date order
+    dated = "date" in table.frame.columns
+    table, found = split_survey_columns(table)
+    points, balances = _experiments_from_table(table, options)
+    points = with_survey_meta(points, found, dated=dated)
+    order = {p.experiment: i for i, p in enumerate(points)}
+    return Experiments(points, sorted(balances, key=lambda b: order[b.experiment]))
+
+
+def _experiments_from_table(table: Table, options: LabOptions) -> Experiments:
     if is_lab_table(table.frame.columns):
         balances = balances_from_table(table, options)
         logger.info(
