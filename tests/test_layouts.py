@@ -152,7 +152,8 @@ def test_a_class_with_feed_but_no_product_is_flagged_with_its_bounds(tmp_path, c
     assert not first["used"] and "neither product has any" in first["flag"]
     assert balance.left_out == [f"class 800-top um (row 2) left out: {first['flag']}"]
     assert main(["balance", str(path)]) == 0
-    assert "class 800-top um (row 2) left out" in capsys.readouterr().err.replace("\n", " ")
+    said = capsys.readouterr().err.replace("\n", " ")  # one line per experiment, the classes with their reasons
+    assert "1 class(es) left out: 800-top um (the feed has material in this class but neither product has any: 1)" in said
 
 
 def test_swapping_fine_and_coarse_gives_one_minus_the_partition():

@@ -165,16 +165,20 @@ def _cli_message(error: InputError, parser: argparse.ArgumentParser) -> str:
     return _cli_words(str(error), parser)
 
 
-def _cli_words(message: str, parser: argparse.ArgumentParser) -> str:
+def _cli_words(message: str, parser: argparse.ArgumentParser | None = None) -> str:
     """Replace Python argument names (``fine_yield``) by the CLI's options (``--fine-yield``)."""
+    for name, flag in _python_names_of_options(parser or build_parser()).items():
+        message = re.sub(rf"(?<![-\w'\"]){name}(?![\w'\"])", flag, message)  # not inside quoted column names
+    return message
+
+
+def _python_names_of_options(parser: argparse.ArgumentParser) -> dict[str, str]:
     options = {"sum_tolerance_pct": "--sum-tolerance", "n_bootstrap": "--bootstrap"}  # Python names unlike the option
     for action in _all_actions(parser):
         for flag in action.option_strings:
             if flag.startswith("--") and "_" in action.dest:
                 options[action.dest] = flag
-    for name, flag in options.items():
-        message = re.sub(rf"(?<![-\w'\"]){name}(?![\w'\"])", flag, message)  # not inside quoted column names
-    return message
+    return options
 
 
 def _all_actions(parser: argparse.ArgumentParser):
@@ -638,12 +642,15 @@ def _lab_options(args) -> LabOptions:
     )
 
 
-def _print_balance_notes(balances) -> None:
+def _print_balance_notes(balances, *, listed_in: str = "") -> None:
+    """The balance warnings, and one line per experiment for the classes left out (where
+    the full list is, when it is written: ``listed_in``)."""
     for balance in balances:
         for note in balance.notes:
-            print(textwrap.fill(f"warning ({balance.experiment}): {note}", width=98), file=sys.stderr)
-        for message in balance.left_out:
-            print(textwrap.fill(f"note ({balance.experiment}): {message}", width=98), file=sys.stderr)
+            print(textwrap.fill(f"warning ({balance.experiment}): {_cli_words(note)}", width=98), file=sys.stderr)
+        if summary := balance.left_out_summary():
+            where = f"; the list is in {listed_in}" if listed_in else ""
+            print(textwrap.fill(f"note ({balance.experiment}): {summary}{where}", width=98), file=sys.stderr)
 
 
 def _run_points(args) -> int:
@@ -761,7 +768,7 @@ def _run_fit(args) -> int:
     if args.format == "parquet":
         _require("pyarrow", "--format parquet", "pip install 'tromplab[dask]'")
     experiments = read_experiments(args.input, _lab_options(args))
-    _print_balance_notes(experiments.balances)
+    _print_balance_notes(experiments.balances, listed_in="left_out.csv")
     with _progress_bars(quiet=args.quiet) as progress:
         bench = fit_experiments(experiments, **_fit_keywords(args, formulas), progress=progress)
     bench.check_fitted(args.input)

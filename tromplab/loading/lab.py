@@ -218,11 +218,25 @@ class MassBalance:
         unit = f" {self.size_unit}" if self.size_unit else ""
         messages = []
         for row in self.classes.loc[~self.classes["used"]].itertuples(index=False):
-            lower = "pan" if not np.isfinite(row.size_lower) else f"{row.size_lower:g}"
-            upper = "top" if not np.isfinite(row.size_upper) else f"{row.size_upper:g}"
             where = f" (row {row.row})" if row.row is not None else ""
-            messages.append(f"class {lower}-{upper}{unit}{where} left out: {row.flag}")
+            messages.append(f"class {_class_label(row.size_lower, row.size_upper)}{unit}{where} left out: {row.flag}")
         return messages
+
+    def left_out_table(self) -> pd.DataFrame:
+        """``experiment, size_lower, size_upper, row, reason`` of every class left out of the fit."""
+        dropped = self.classes.loc[~self.classes["used"], ["experiment", "size_lower", "size_upper", "row", "flag"]]
+        return dropped.rename(columns={"flag": "reason"}).reset_index(drop=True)
+
+    def left_out_summary(self) -> str:
+        """One line: how many classes were left out and why (empty when none was)."""
+        dropped = self.left_out_table()
+        if dropped.empty:
+            return ""
+        reasons = dropped["reason"].str.replace(r"^feed share .*", "feed share below the limit", regex=True)
+        counted = "; ".join(f"{reason.split(':')[0]}: {count}" for reason, count in reasons.value_counts(sort=False).items())
+        unit = f" {self.size_unit}" if self.size_unit else ""
+        bounds = ", ".join(_class_label(lo, hi) for lo, hi in zip(dropped["size_lower"], dropped["size_upper"]))
+        return f"{len(dropped)} class(es) left out: {bounds}{unit} ({counted})"
 
     def to_points(self, *, weight_by_feed_share: bool = False) -> TrompPoints:
         used = self.classes[self.classes["used"]]
@@ -541,6 +555,7 @@ def _balance_one(table: Table, name: str, streams, layout: _SizeLayout, options:
     classes["used"] = used
     classes["flag"] = flags
     classes["row"] = class_rows
+    notes += _cut_region_note(classes, options.min_feed_share)
     if used.sum() < 3:
         raise InputError(
             f"experiment '{name}' has {int(used.sum())} usable size classes; at least 3 are needed "
@@ -1022,6 +1037,30 @@ def _check_empty_feed(table: Table, a, b, c, class_rows) -> None:
             row=row,
             column="feed",
         )
+
+
+def _class_label(lower: float, upper: float) -> str:
+    """``4.1-5.3``, with ``pan`` and ``top`` for the open ends."""
+    return f"{'pan' if not np.isfinite(lower) else f'{lower:g}'}-{'top' if not np.isfinite(upper) else f'{upper:g}'}"
+
+
+#: Partitions around the cut: a class whose partition lies between them measures the cut region.
+CUT_REGION = (0.25, 0.75)
+
+
+def _cut_region_note(classes: pd.DataFrame, min_feed_share: float) -> list[str]:
+    """A note when the feed-share filter left out every class around the cut (partitions in
+    :data:`CUT_REGION`): the points then say nothing of the cut, whatever is fitted to them."""
+    low, high = CUT_REGION
+    around_cut = classes["partition_fine"].between(low, high)
+    dropped = around_cut & ~classes["used"] & classes["flag"].str.startswith("feed share")
+    if not dropped.any() or (around_cut & classes["used"]).any():
+        return []
+    return [
+        f"every class around the cut (partition between {low:g} and {high:g}: {int(dropped.sum())} class(es)) was left "
+        f"out by the feed-share filter (min_feed_share = {100 * min_feed_share:g} %), so the points do not measure the "
+        "cut; give a smaller min_feed_share (0 keeps every class) to fit them"
+    ]
 
 
 def _flag_classes(feed_share, phi, min_feed_share, empty_products=None):

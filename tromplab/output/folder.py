@@ -3,8 +3,8 @@
 One function builds the folder, so the command line and the Python API write the same
 files byte for byte: ``fits``, ``ranking`` and ``averages`` tables (CSV or Parquet), the
 figures with ``figures.csv`` mapping experiments to files, ``failures.csv`` when some fits
-failed, and the Excel workbook when asked (or only the workbook, when the target is a
-``.xlsx`` file).  With ``reloadable`` the pickled batch and its manifest are added, so
+failed, ``left_out.csv`` when the loader left classes of lab input out, and the Excel
+workbook when asked (or only the workbook, when the target is a ``.xlsx`` file).  With ``reloadable`` the pickled batch and its manifest are added, so
 :func:`tromplab.load` can read the folder back.  The folder is replaced as a whole only
 when every file is written (:func:`tromplab.output.outputs.replace_folder`).
 """
@@ -93,6 +93,10 @@ def write_results_folder(
     failures = bench.failure_table()
     if not failures.empty:
         outputs["failures.csv"] = lambda p: failures.to_csv(p, index=False)
+    left_out = [b.left_out_table() for b in bench.balances]
+    if any(not table.empty for table in left_out):  # the classes the console summarises in one line per experiment
+        listed = pd.concat([table for table in left_out if not table.empty], ignore_index=True)
+        outputs["left_out.csv"] = lambda p: listed.to_csv(p, index=False)
     if excel:
         outputs["results.xlsx"] = workbook
     if reloadable:
