@@ -118,7 +118,9 @@ def test_a_bad_water_recovery_is_refused_on_the_command_line(tmp_path, capsys, c
 @pytest.mark.parametrize("bad", BAD_VALUES)
 def test_a_bad_water_recovery_is_refused_in_python_with_the_same_words(tmp_path, bad, capsys):
     assert main(["points", "lab.csv", "-o", str(tmp_path / "p.csv"), f"--water-recovery={bad}"]) == 2
-    cli_reason = capsys.readouterr().err.strip().splitlines()[0].split("--water-recovery: ")[-1]  # the line before the pointer to -h
+    cli_reason = (
+        capsys.readouterr().err.strip().splitlines()[0].split("--water-recovery: ")[-1]
+    )  # the line before the pointer to -h
     for call in (
         lambda: LabOptions(water_recovery=float(bad)),
         lambda: fit_experiments([_cyclone(0, 0.3)], formulas=["plitt"], water_recovery=float(bad)),

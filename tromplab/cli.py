@@ -810,6 +810,7 @@ def _print_fits(bench, args) -> None:
     shown_experiments = list(dict.fromkeys(fits["experiment"]))[:AUTO_FIGURE_LIMIT]
     verdicts = {experiment: bench.verdicts(experiment) for experiment in shown_experiments}
     print(format_fits(fits[fits["experiment"].isin(shown_experiments)], verdicts, rank_by=args.rank_by))
+    _print_nested_tests(fits[fits["experiment"].isin(shown_experiments)], alpha=bench.alpha)
     checks = [(e, s) for e in shown_experiments for s in water_recovery_statements(fits, e)]
     if args.water_recovery is not None and not checks:
         print(f"\nnote: no curve with bypass was fitted, so the water recovery {args.water_recovery:g} is compared with "
@@ -827,6 +828,19 @@ def _print_fits(bench, args) -> None:
     if ranking.shape[0] and len(bench.experiments) > 1:
         print("\nRanking across experiments (points: rank sum, inadequate ranks counted twice):")
         print(ranking.to_string(index=False))
+
+
+def _print_nested_tests(fits: pd.DataFrame, *, alpha: float) -> None:
+    """One line per curve that nests another (``--extended``): is its extra term needed?"""
+    if "nested_p" not in fits.columns:
+        return
+    tested = fits[fits["nested_p"].notna()]
+    if tested.empty:
+        return
+    print(f"\nExtra terms needed? Nested F test of each extended curve against the curve it extends (alpha {alpha:g}):")
+    for row in tested.itertuples(index=False):
+        needed = "yes" if row.nested_p < alpha else "no"
+        print(f"  {row.experiment}: {row.formula} against {row.nests}: F = {row.nested_F:.4g}, p = {row.nested_p:.3g}: {needed}")
 
 
 def _print_written(paths: list, outdir) -> None:

@@ -39,6 +39,7 @@ from .output.plotting import plot_tromp_fits
 from .output.report import build_report, write_report
 from .output.results import load_workbench, workbench_html, workbench_repr
 from .output.views import check_partition_to, partition_view
+from .statistics.compare import nested_tests
 from .statistics.hydrocyclone import bypass_against_water_recovery
 from .statistics.uncertainty import BOOTSTRAP_METHODS, batched_delta_indices, interval_columns, model_average
 from .validation import check_bootstrap, check_optional, check_positive, check_probability, check_seed, check_water_recovery
@@ -115,6 +116,9 @@ class Workbench:
             table = table.merge(checks, on=["experiment", "formula"], how="left")
             table["water_recovery"] = self.water_recovery  # failed experiments too
             table["water_recovery_check"] = table["water_recovery_check"].fillna("")
+        fitted = {f.id for f in self.formulas}
+        if any(f.nests in fitted for f in self.formulas):  # is the bypass (fish-hook) needed? the nested F test
+            table = table.merge(nested_tests(self.fits), on=["experiment", "formula"], how="left")
         return table
 
     @property

@@ -93,6 +93,32 @@ def nested_f_test(reduced: CurveFit, full: CurveFit) -> ExtraSumOfSquares:
     return ExtraSumOfSquares(reduced.fit.ssr, full.fit.ssr, extra, full.points.n - full.formula.n_params)
 
 
+#: Columns of :func:`nested_tests` beside ``experiment`` and ``formula`` (in ``fits.csv``).
+NESTED_COLUMNS = ("nests", "nested_F", "nested_p")
+
+
+def nested_tests(fits: Sequence[CurveFit]) -> pd.DataFrame:
+    """:func:`nested_f_test` of every successful fit whose formula nests another fitted to the
+    same experiment (``plitt_bypass`` against ``plitt``: is the bypass needed?).
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``experiment, formula, nests, nested_F, nested_p``, one row per such fit (no rows when
+        none was fitted with the formula it nests).
+    """
+    by_key = {(fit.experiment, fit.formula.id): fit for fit in fits if fit.success}
+    rows = []
+    for (experiment, formula_id), full in by_key.items():
+        reduced = by_key.get((experiment, full.formula.nests))
+        if reduced is None:
+            continue
+        test = nested_f_test(reduced, full)
+        rows.append({"experiment": experiment, "formula": formula_id, "nests": reduced.formula.id,
+                     "nested_F": test.F, "nested_p": test.p_value})  # fmt: skip
+    return pd.DataFrame(rows, columns=["experiment", "formula", *NESTED_COLUMNS])
+
+
 #: Relative margin of practical equivalence of :meth:`SharedFit.conclusion` (and of
 #: ``tromplab compare --margin``): estimates within 1 % of each other are equal for practice.
 DEFAULT_MARGIN = 0.01
