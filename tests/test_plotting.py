@@ -174,3 +174,16 @@ def test_sieve_figures():
     design = sieve.design_bin(12, 1.6, 0.9)
     ax = plotting.plot_distance_densities(12, [30, design.c, 7], bin_edges=(design.x1, design.x2))
     assert len(ax.get_lines()) == 3 and len(ax.patches) == 1
+
+
+def test_f_heatmap_of_a_wide_batch_labels_the_columns_seaborn_kept():
+    # 45 experiments: seaborn labels every other column, and the F_crit labels must follow it
+    # (a label per experiment raised "number of FixedLocator locations does not match")
+    from tromplab._synthetic import synthetic
+
+    bench = fit_experiments([synthetic(seed) for seed in range(45)], formulas=["plitt", "lognormal"])
+    ax = plotting.plot_f_heatmap(bench.fits_table())
+    ticks, labels = ax.get_xticks(), [label.get_text() for label in ax.get_xticklabels()]
+    assert 1 < len(ticks) == len(labels) < 45
+    for tick, label in zip(ticks, labels):
+        assert label.startswith(f"s{int(tick)}\nF_crit ")

@@ -291,7 +291,10 @@ def plot_f_heatmap(fits_table, *, ax=None):
         annot_kws={"fontsize": 7},
     )
     critical = table.groupby("experiment", sort=False)["F_crit"].first().reindex(f_values.columns)
-    ax.set_xticklabels([f"{e}\nF_crit {c:.3g}" for e, c in critical.items()], rotation=0, fontsize=7)
+    # seaborn labels only every k-th column of a wide table: label the ticks it kept (column i at i + 0.5)
+    shown = [int(tick) for tick in ax.get_xticks()]
+    ax.set_xticks([i + 0.5 for i in shown], [f"{critical.index[i]}\nF_crit {critical.iloc[i]:.3g}" for i in shown])
+    ax.tick_params(axis="x", labelrotation=0, labelsize=7)
     ax.set_xlabel("experiment (* = inadequate, F <= F_crit)")
     ax.set_ylabel("")
     return ax
