@@ -23,12 +23,16 @@ formula (needs mpmath, in the test extra); it takes about two minutes:
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import mpmath as mp
 import numpy as np
 
 from tromplab.curves.formulas import EXTENDED_FORMULAS, FORMULAS, evaluate_expression
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository, for a run as a script
+from tests.reference.make_phi_reference import beta_star, break_point, rosin_rammler_area  # noqa: E402
 
 mp.mp.dps = 30
 OUT = Path(__file__).resolve().parent / "efficiency_reference.csv"
@@ -50,28 +54,6 @@ def shapes_of(formula):
     low, high = formula.shape_bounds
     inner = [formula.clip_shape(formula.shape_for_slope(s)) for s in SLOPES]
     return sorted({float(f"{shape:.12g}") for shape in (low, high, *inner)})
-
-
-def rosin_rammler_area(a, b, kr):
-    return mp.quad(lambda x: mp.exp(-mp.log(2) * x**kr), [a, b])
-
-
-def break_point(kr, efficiency):
-    return mp.findroot(
-        lambda xa: xa * mp.exp(-mp.log(2) * xa**kr) + rosin_rammler_area(xa, 1, kr) - efficiency,
-        (mp.mpf("1e-30"), mp.mpf(1) - mp.mpf("1e-30")),
-        solver="anderson",
-    )
-
-
-def beta_star(alpha, fishhook):
-    def gap(star):
-        return (1 + fishhook * star) * (mp.exp(alpha) - 1) / (mp.exp(alpha * star) + mp.exp(alpha) - 2) - mp.mpf("0.5")
-
-    high = mp.mpf(1)
-    while gap(high) > 0:
-        high *= 2
-    return mp.findroot(gap, (mp.mpf(0), high), solver="anderson")
 
 
 def integral(curve, lower, upper, kinks):
