@@ -7,9 +7,7 @@ before they are.
 The public API (``__all__``, one line each, from each object's own docstring):
 """
 
-from __future__ import annotations
-
-import importlib
+import importlib as _importlib
 from typing import TYPE_CHECKING
 
 from ._version import __version__
@@ -136,15 +134,16 @@ _SUBMODULES = frozenset({"classifiers", "curves", "errors", "loading", "output",
 def __getattr__(name: str):
     """Import a public name (or a subpackage) on first access and keep it in the module (PEP 562)."""
     if name in _PUBLIC:
-        value = getattr(importlib.import_module(_PUBLIC[name][0], __name__), name)
+        value = getattr(_importlib.import_module(_PUBLIC[name][0], __name__), name)
         globals()[name] = value  # later accesses skip __getattr__
         return value
     if name in _SUBMODULES:
-        return importlib.import_module(f".{name}", __name__)  # the import binds it in the package
+        return _importlib.import_module(f".{name}", __name__)  # the import binds it in the package
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def __dir__() -> list[str]:
+    """The module's names with the public ones not yet imported and the subpackages."""
     return sorted(set(globals()) | set(__all__) | _SUBMODULES)
 
 
