@@ -1,7 +1,10 @@
 """Plot functions: take ax=None, return the Axes, draw what they say; nothing styled on import."""
 
+import ast
+import os
 import subprocess
 import sys
+from pathlib import Path
 
 import matplotlib
 
@@ -40,6 +43,37 @@ def bench():
 def test_importing_tromplab_styles_and_plots_nothing():
     code = "import sys, tromplab, tromplab.output.plotting, tromplab.output.report, tromplab.cli; print('matplotlib.pyplot' in sys.modules)"
     assert subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip() == "False"
+
+
+def test_no_library_module_chooses_a_backend_or_a_style():
+    # matplotlib.use, pyplot.switch_backend, style.use: the caller's choice (scripts, notebooks, tests)
+    package = Path(plotting.__file__).resolve().parents[1]
+    calls = [
+        f"{path.relative_to(package)}:{node.lineno}"
+        for path in sorted(package.rglob("*.py"))
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8")))
+        if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) and node.func.attr in ("use", "switch_backend")
+    ]
+    assert calls == []
+
+
+def test_the_command_draws_with_agg_whatever_backend_is_configured(tmp_path):
+    """The command's figures are pyplot-free Figures saved by Agg's PNG printer: no backend is
+    loaded, so one that cannot load (a GUI backend on a server) does not matter."""
+    points = tmp_path / "points.csv"
+    rows = [f"E{k},{size:.3f},{value:.4f}" for k in range(2) for size, value in zip(SIZES, np.linspace(0.98, 0.03, 10))]
+    points.write_text("experiment,size,partition_fine\n" + "\n".join(rows) + "\n", encoding="utf-8")
+    code = (
+        "import sys\nfrom tromplab.cli import main\n"
+        f"code = main(['fit', {str(points)!r}, '-o', {str(tmp_path / 'out')!r}, '--figures', 'all'])\n"
+        "print(code, 'matplotlib.pyplot' in sys.modules, 'matplotlib.backends.backend_agg' in sys.modules)\n"
+    )
+    env = {**os.environ, "MPLBACKEND": "module://no_such_backend"}
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=300)
+    assert done.stdout.splitlines()[-1] == "0 False True", done.stderr
+    figures = sorted((tmp_path / "out").glob("*.png"))
+    assert [figure.name for figure in figures] == ["curves_E0.png", "curves_E1.png"]
+    assert all(figure.read_bytes().startswith(b"\x89PNG") for figure in figures)
 
 
 def test_tromp_fits_draws_every_formula_and_the_band(bench):

@@ -18,9 +18,11 @@ from tromplab.output.outputs import MANIFEST, SWAP_PAUSE_VARIABLE, clean_stale
 SIZES = (10, 20, 40, 80, 160, 320)
 CURVE = (0.97, 0.9, 0.7, 0.35, 0.1, 0.02)
 REPOSITORY = Path(__file__).resolve().parents[1]
-# what the installed ``tromplab`` console script runs (pyproject [project.scripts]); PYTHONPATH
-# finds tromplab_launch also in an editable install made before it existed
-LAUNCH = [sys.executable, "-c", "import sys, tromplab_launch; sys.exit(tromplab_launch.main())"]
+# what the installed ``tromplab`` console script runs (pyproject [project.scripts]), and ``python -m
+# tromplab``: both go through tromplab._launch; PYTHONPATH finds this checkout's tromplab
+SCRIPT = [sys.executable, "-c", "import sys; from tromplab._launch import main; sys.exit(main())"]
+MODULE = [sys.executable, "-m", "tromplab"]
+LAUNCH = SCRIPT
 
 
 def _points(path, shift):
@@ -36,10 +38,10 @@ def _as_in_a_terminal():
     signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
-def _start(arguments, **environment):
+def _start(arguments, launch=LAUNCH, **environment):
     env = {**os.environ, "PYTHONPATH": str(REPOSITORY), **environment}
     return subprocess.Popen(
-        LAUNCH + arguments,
+        launch + arguments,
         stdout=subprocess.DEVNULL,
         stderr=subprocess.PIPE,
         text=True,
@@ -149,7 +151,7 @@ def test_the_swap_pause_hook_is_off_unless_set_to_a_positive_number(monkeypatch)
 
 
 def _catches_sigterm(pid) -> bool:
-    """Whether the process has a SIGTERM handler (Linux /proc), i.e. tromplab_launch runs."""
+    """Whether the process has a SIGTERM handler (Linux /proc), i.e. tromplab._launch runs."""
     for line in Path(f"/proc/{pid}/status").read_text().splitlines():
         if line.startswith("SigCgt:"):
             return bool(int(line.split()[1], 16) >> (signal.SIGTERM - 1) & 1)
@@ -157,15 +159,16 @@ def _catches_sigterm(pid) -> bool:
 
 
 @pytest.mark.skipif(not Path("/proc/self/status").exists(), reason="reads the signal mask from /proc (Linux)")
+@pytest.mark.parametrize("launch", [SCRIPT, MODULE], ids=["script", "python-m"])
 @pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
-def test_a_signal_during_start_up_imports_prints_one_line_and_no_traceback(tmp_path, signum):
+def test_a_signal_during_start_up_imports_prints_one_line_and_no_traceback(tmp_path, signum, launch):
     """Sent as soon as the entry point runs, while numpy/pandas are imported (about a second).
 
     The first ~20 ms belong to Python's own start-up (``site``), before any tromplab code:
     a SIGINT there is Python's (see docs/reliability.md); the test starts after it."""
     points = _points(tmp_path / "p.csv", 0.0)
     for delay in (0.0, 0.1, 0.3):
-        process = _start(["fit", str(points), "-o", str(tmp_path / "out"), "--no-figures"])
+        process = _start(["fit", str(points), "-o", str(tmp_path / "out"), "--no-figures"], launch)
         deadline = time.monotonic() + 30
         while not _catches_sigterm(process.pid):
             assert time.monotonic() < deadline and process.poll() is None
@@ -198,11 +201,11 @@ def test_a_signal_while_the_interpreter_exits_gives_one_line_and_no_traceback(si
     # after the command has returned, Python still runs the atexit handlers (process pools, Dask):
     # a Ctrl-C there used to print "Exception ignored in atexit callback" with a traceback
     script = (
-        "import atexit, os, signal, sys, time, tromplab_launch\n"
-        "from tromplab import cli\n"
+        "import atexit, os, signal, sys, time\n"
+        "from tromplab import _launch, cli\n"
         "cli.main = lambda: 0\n"
         f"atexit.register(lambda: (os.kill(os.getpid(), {int(signum)}), time.sleep(5)))\n"
-        "sys.exit(tromplab_launch.main())\n"
+        "sys.exit(_launch.main())\n"
     )
     env = {**os.environ, "PYTHONPATH": str(REPOSITORY)}
     done = subprocess.run(

@@ -1,22 +1,30 @@
 """tromplab: separation (Tromp) curves of particle classifiers and sieve-classifier models.
 
 Importing the package has no side effects: no plotting style, no files, no network.
+It is also quick: the public names load on first use (PEP 562), so ``import tromplab``
+imports neither numpy nor pandas, and the ``tromplab`` command installs its signal handling
+before they are.
 The public API (``__all__``, one line each, from each object's own docstring):
 """
 
+import importlib as _importlib
+from typing import TYPE_CHECKING
+
 from ._version import __version__
-from .curves.curve_fit import CurveFit, fit_formula
-from .curves.formulas import ALL_FORMULAS, FORMULAS, Formula, get_formula, registry_table, select_formulas
-from .curves.indices import curve_indices
-from .curves.parameters import Parameter
-from .curves.ranking import rank_formulas
-from .errors import InputError
-from .loading.lab import LabOptions, MassBalance, read_experiments, read_lab
-from .loading.points import TrompPoints, read_points
-from .output.report import build_report, write_report
-from .statistics.compare import nested_f_test, shared_fit
-from .statistics.uncertainty import akaike_weights, bootstrap, interval_table, model_average
-from .workbench import Workbench, fit_experiments, load, model_averages
+
+if TYPE_CHECKING:  # the names as static tools see them; at run time __getattr__ imports them
+    from .curves.curve_fit import CurveFit, fit_formula
+    from .curves.formulas import ALL_FORMULAS, FORMULAS, Formula, get_formula, registry_table, select_formulas
+    from .curves.indices import curve_indices
+    from .curves.parameters import Parameter
+    from .curves.ranking import rank_formulas
+    from .errors import InputError
+    from .loading.lab import LabOptions, MassBalance, read_experiments, read_lab
+    from .loading.points import TrompPoints, read_points
+    from .output.report import build_report, write_report
+    from .statistics.compare import nested_f_test, shared_fit
+    from .statistics.uncertainty import akaike_weights, bootstrap, interval_table, model_average
+    from .workbench import Workbench, fit_experiments, load, model_averages
 
 __all__ = [
     "__version__",
@@ -57,15 +65,93 @@ __all__ = [
     "load",
 ]
 
+# Each public name: the module that defines it and the first paragraph of its docstring (for a
+# tuple: what it holds).  Written out so that neither the docstring below nor ``dir()`` imports
+# anything; tests/test_package.py checks every line against the object itself.
+_PUBLIC: dict[str, tuple[str, str]] = {
+    "read_points": (".loading.points", "Read and validate Tromp points (schema in the module docstring)."),
+    "read_lab": (".loading.lab", "Read a lab table and compute the Tromp points of each experiment."),
+    "read_experiments": (
+        ".loading.lab",
+        "Tromp points from either a points file or a lab table (told apart by their columns).",
+    ),
+    "LabOptions": (".loading.lab", "How to read a lab table."),
+    "MassBalance": (".loading.lab", "One experiment of a lab table turned into Tromp points."),
+    "TrompPoints": (".loading.points", "Measured separation curve of one experiment, validated on construction."),
+    "InputError": (".errors", "Bad input data."),
+    "FORMULAS": (".curves.formulas", "tuple of 9 formula records (the paper's nine)"),
+    "ALL_FORMULAS": (".curves.formulas", "tuple of 16 formula records (with extended curves)"),
+    "Formula": (".curves.formulas", "Declaration of one separation-curve formula."),
+    "Parameter": (".curves.parameters", "A fitted parameter and everything a reader or a fit needs to know about it."),
+    "get_formula": (
+        ".curves.formulas",
+        'Look a formula up by id (``"plitt"``) or equation number (``7``, ``"7"``, ``"(7)"``).',
+    ),
+    "select_formulas": (".curves.formulas", "The formulas named by ``keys`` (ids or equation numbers), or all nine."),
+    "registry_table": (".curves.formulas", "The registry as a :class:`pandas.DataFrame` (one row per formula)."),
+    "fit_formula": (".curves.curve_fit", "Fit ``formula`` to ``points`` and record the options with the result."),
+    "fit_experiments": (
+        ".workbench",
+        "Fit, screen and rank ``formulas`` (default: all nine) on each experiment: what ``tromplab fit`` does, "
+        "with its options as keywords of the same names.",
+    ),
+    "CurveFit": (".curves.curve_fit", "Result of fitting one formula to one experiment."),
+    "Workbench": (".workbench", "All fits of a batch with their tables."),
+    "curve_indices": (".curves.indices", "All indices of one fitted curve."),
+    "rank_formulas": (".curves.ranking", "Ranking table from a tidy table of per-experiment scores."),
+    "interval_table": (
+        ".statistics.uncertainty",
+        "Estimates, standard errors and intervals of the parameters and indices of one fit.",
+    ),
+    "bootstrap": (".statistics.uncertainty", "Refit ``n`` resampled data sets from the optimum of ``fit``."),
+    "akaike_weights": (
+        ".statistics.uncertainty",
+        "Akaike weights ``exp(-Delta/2) / sum exp(-Delta/2)``; missing criteria get weight 0.",
+    ),
+    "model_average": (".statistics.uncertainty", "Akaike-weighted averages of ``quantities`` over the fits of one experiment."),
+    "model_averages": (".workbench", "Akaike-weighted d_cut, Ep and eta per experiment (the formulas ranked by the batch)."),
+    "shared_fit": (
+        ".statistics.compare",
+        "Fit ``formula`` to all experiments at once with the shape (or ``d_cut``) shared.",
+    ),
+    "nested_f_test": (
+        ".statistics.compare",
+        "Whether the extra terms of ``full`` are needed beyond ``reduced`` (same points).",
+    ),
+    "build_report": (".output.report", "Assemble the report of a fitted batch (and the balances of lab input)."),
+    "write_report": (
+        ".output.report",
+        "Write ``REPORT.html`` and ``REPORT.md`` (figures for the Markdown in ``REPORT_figures/``).",
+    ),
+    "load": (".workbench", "A batch saved by :meth:`Workbench.save` (refused when saved by another major version)."),
+}
 
-def _one_line(name: str) -> str:
-    obj = globals()[name]
-    if name == "__version__":
-        return f"installed version ({__version__})"
-    if isinstance(obj, tuple):
-        return f"tuple of {len(obj)} formula records" + (" (the paper's nine)" if obj is FORMULAS else " (with extended curves)")
-    doc = (obj.__doc__ or "").strip()
-    return doc.split("\n\n")[0].replace("\n", " ").strip()
+# Subpackages that ``import tromplab`` used to import along with the public names: still
+# reachable as attributes (``tromplab.curves.formulas``), imported on first access.
+_SUBMODULES = frozenset({"classifiers", "curves", "errors", "loading", "output", "statistics", "validation", "workbench"})
 
 
-__doc__ += "\n" + "\n".join(f"- ``{name}``: {_one_line(name)}" for name in __all__) + "\n"
+def __getattr__(name: str):
+    """Import a public name (or a subpackage) on first access and keep it in the module (PEP 562)."""
+    if name in _PUBLIC:
+        value = getattr(_importlib.import_module(_PUBLIC[name][0], __name__), name)
+        globals()[name] = value  # later accesses skip __getattr__
+        return value
+    if name in _SUBMODULES:
+        return _importlib.import_module(f".{name}", __name__)  # the import binds it in the package
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    """The module's names with the public ones not yet imported and the subpackages."""
+    return sorted(set(globals()) | set(__all__) | _SUBMODULES)
+
+
+__doc__ += (
+    "\n"
+    + "\n".join(
+        f"- ``{name}``: " + (f"installed version ({__version__})" if name == "__version__" else _PUBLIC[name][1])
+        for name in __all__
+    )
+    + "\n"
+)

@@ -1,13 +1,13 @@
-"""Console entry point of the ``tromplab`` command, installed before anything heavy is imported.
+"""Entry point of the ``tromplab`` command and of ``python -m tromplab``: signal handling first.
 
-``import tromplab`` takes about a second (numpy, pandas, scipy, statsmodels).  The console
-script of a package imports that package before running any of its code, so with
-``tromplab.cli:main`` as the entry point a Ctrl-C or SIGTERM in that second ended in Python's
-own ``KeyboardInterrupt`` traceback or a silent kill.  This module lives outside the
-``tromplab`` package and imports only :mod:`signal` and :mod:`sys`: it installs the handling
-first, then imports the command line.  An interrupt at any moment prints one line and exits
-with 130 (SIGINT) or 143 (SIGTERM); during start-up nothing has been written yet, and once the
-command has returned (while the interpreter shuts down its pools) the outputs are final.
+The command line imports numpy, pandas, scipy and statsmodels (about a second).  An interrupt
+in that second used to end in Python's own ``KeyboardInterrupt`` traceback or a silent kill.
+``import tromplab`` loads its public names lazily and imports none of them, and this module
+imports only :mod:`os`, :mod:`signal` and :mod:`sys`: the console script
+(``tromplab._launch:main``) and ``tromplab/__main__.py`` install the handling here, then import
+the command line.  An interrupt at any moment prints one line and exits with 130 (SIGINT) or
+143 (SIGTERM); during start-up nothing has been written yet, and once the command has returned
+(while the interpreter shuts down its pools) the outputs are final.
 """
 
 import os
@@ -52,7 +52,7 @@ def main() -> int:
     """Run ``tromplab`` with SIGINT and SIGTERM handled from the first line on."""
     _handle(signal.SIGINT, _stop_during_start_up)
     _handle(signal.SIGTERM, _stop_during_start_up)
-    from tromplab import cli
+    from . import cli
 
     # from here on the command line's own handling applies: SIGINT raises KeyboardInterrupt and
     # SIGTERM cli.Terminated, so the output folder is cleaned up as the command unwinds
