@@ -83,6 +83,8 @@ def column_unit(column: str, size_unit: str = "") -> str:
         "sharpness",
         "runs_p",
         "normality_p",
+        "nested_F",
+        "nested_p",
     ):
         return "-"
     return ""
