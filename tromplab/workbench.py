@@ -532,8 +532,14 @@ def fit_chunk(experiments: Sequence[TrompPoints], *, formulas, alpha, delta_max,
         if engine and is_batchable(formula):
             try:
                 batch = fit_formula_batch(experiments, formula, alpha=alpha, delta_max=delta_max, size_unit=size_unit)
-            except Exception:  # a broken batch falls back to single fits, which report per fit
-                batch = None
+            except Exception as error:  # a broken batch falls back to single fits, which report per fit
+                logger.warning(
+                    "batched engine failed on formula %s for %d experiment(s) (%s: %s); fitting them one at a time instead",
+                    formula.id,
+                    len(experiments),
+                    type(error).__name__,
+                    error,
+                )
         per_formula.append(batch or [_fit_guarded(points, formula, alpha, delta_max, size_unit) for points in experiments])
     fits = [fits[i] for i in range(len(experiments)) for fits in per_formula]
     attach_indices(fits)
