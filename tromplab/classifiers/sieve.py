@@ -35,7 +35,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import integrate, optimize, special, stats
 
-from ..curves.fitting import ParameterFit, ParameterSpec, expression_function, least_squares
+from ..curves.fitting import ParameterFit, expression_function, least_squares
+from ..curves.parameters import Parameter
 from ..errors import InputError
 from ..validation import MAX_DECKS, check_count
 
@@ -297,8 +298,8 @@ def fit_velocity_quantiles(relative_speeds, u_obs, *, two_sided=False) -> Veloci
     start_sigma = linear_sigma if np.isfinite(linear_sigma) and linear_sigma > 0 else 0.3 * scale
     start_v_k = linear_v_k if np.isfinite(linear_v_k) else float(np.mean(speeds))
     specs = [
-        ParameterSpec("v_k", 1e-9 * scale if two_sided else -10 * scale, 10 * scale),
-        ParameterSpec("sigma", 1e-6 * scale, 10 * scale),
+        Parameter("v_k", 1e-9 * scale if two_sided else -10 * scale, 10 * scale),
+        Parameter("sigma", 1e-6 * scale, 10 * scale),
     ]
     starts = [{"v_k": start_v_k, "sigma": start_sigma}, {"v_k": float(np.mean(speeds)), "sigma": 0.3 * scale}]
     fit = least_squares(lambda values: computed(values) - u_obs, specs, starts)
@@ -493,7 +494,7 @@ def fit_dependence(hole_diameter, length, values, *, form=DEFAULT_DEPENDENCE) ->
         label = getattr(form, "__name__", "callable")
     if y.size <= len(names):
         raise ValueError(f"{y.size} fractions cannot determine the {len(names)} parameters of {label!r}")
-    specs = [ParameterSpec(name) for name in names]
+    specs = [Parameter(name) for name in names]
     fit = least_squares(
         lambda p: function(D=D, l=l, **p) - y, specs, [{name: 0.1 for name in names}, {name: 1.0 for name in names}]
     )

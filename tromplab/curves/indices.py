@@ -23,7 +23,7 @@ area lies above the largest measured size (``delta_max`` beyond the data).
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
@@ -67,9 +67,6 @@ class CurveIndices:
     def d50c(self) -> float:
         """Corrected cut size (the fitted ``d_cut``)."""
         return self.d_cut
-
-    def as_dict(self) -> dict[str, float]:
-        return asdict(self)
 
 
 def efficiency_by_quadrature(formula: Formula, shape: float, x_max: float, **context) -> tuple[float, float]:

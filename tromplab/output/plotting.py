@@ -13,7 +13,7 @@ import numpy as np
 
 from ..classifiers.sieve import distance_pdf
 from ..curves.curve_fit import CurveFit
-from ..curves.formulas import FORMULAS
+from ..curves.formulas import select_formulas
 from ..curves.intervals import delta_standard_errors
 from .views import check_partition_to
 
@@ -312,12 +312,17 @@ def plot_ranking(ranking, *, ax=None):
     return ax
 
 
+#: The equations Figs. 1 and 2 of Shuvalov et al. (2018) draw at equal slope: (3) to (9), the curves without a break.
+EQUAL_SLOPE_FIGURE_EQUATIONS = (3, 4, 5, 6, 7, 8, 9)
+
+
 def plot_equal_slope_family(slope: float, *, ax=None, formulas=None, x_max: float = 3.0):
     """The formulas at equal slope ``slope`` at the cut (Fig. 1 at -0.5, Fig. 2 at -0.4 of
-    Shuvalov et al. 2018), against the relative size x = size / d_cut."""
+    Shuvalov et al. 2018), against the relative size x = size / d_cut; by default those the
+    figures draw (:data:`EQUAL_SLOPE_FIGURE_EQUATIONS`)."""
     ax = _axes(ax)
     x = np.linspace(1e-3, x_max, 600)
-    for formula in formulas or FORMULAS[:7]:
+    for formula in formulas or select_formulas(EQUAL_SLOPE_FIGURE_EQUATIONS):
         shape = formula.shape_for_slope(slope)
         ax.plot(
             x,

@@ -10,7 +10,6 @@ precision).  Written with openpyxl, readable in Excel and LibreOffice.
 from __future__ import annotations
 
 import io
-import re
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -92,11 +91,6 @@ def header_with_unit(column: str, size_unit: str = "") -> str:
     """``"d_cut [mm]"``; a column without a unit keeps its bare name."""
     unit = column_unit(column, size_unit)
     return f"{column} [{unit}]" if unit else column
-
-
-def strip_unit(header: str) -> str:
-    """Inverse of :func:`header_with_unit`: ``"d_cut [mm]"`` -> ``"d_cut"``."""
-    return re.sub(r" \[[^\]]*\]$", "", str(header))
 
 
 def _stem(column: str) -> str:
@@ -199,9 +193,3 @@ def _cell_value(value):
     if value is pd.NA or value is pd.NaT:
         return None
     return value
-
-
-def read_workbook_sheet(path, sheet: str) -> pd.DataFrame:
-    """A table sheet read back with the units stripped from its headers (for checks and tests)."""
-    frame = pd.read_excel(path, sheet_name=sheet)
-    return frame.rename(columns=strip_unit)
