@@ -136,14 +136,30 @@ def bootstrap(
         raise ValueError(f"method must be one of {', '.join(BOOTSTRAP_METHODS)}, got {method!r}")
     if n < 2:
         raise ValueError("the bootstrap needs at least 2 resamples")
-    rng = np.random.default_rng(seed)
+    delta_max = fit.options.delta_max if delta_max is None else delta_max
+    samples = _resamples(fit, n, np.random.default_rng(seed), method, progress)
+    refits = refit_resamples(fit, samples, delta_max=delta_max)  # all resamples in one batched call
+    attach_indices(refits)  # and their indices in one array computation
+    logger.debug(
+        "bootstrap %s %s: %d %s resamples, %d refits failed",
+        fit.experiment,
+        fit.formula.id,
+        n,
+        method,
+        sum(not refit.success for refit in refits),
+    )
+    rows = [{**refit.fit.values, **{k: getattr(refit.indices, k) for k in INDEX_NAMES}} for refit in refits if refit.success]
+    return Bootstrap(pd.DataFrame(rows), n, method, seed, _bootstrap_bounds(fit, delta_max))
+
+
+def _resamples(fit: CurveFit, n: int, rng: np.random.Generator, method: str, progress) -> list[TrompPoints]:
+    """The ``n`` resampled data sets of :func:`bootstrap`, drawn from ``rng`` by ``method``."""
     points = fit.points
     p = fit.formula.n_params
     fitted = fit.predict(points.size)
     root_weights = np.sqrt(fit.options.weights)
     scaled = root_weights * (points.partition_fine - fitted)
     residuals = (scaled - scaled.mean()) * np.sqrt(points.n / max(points.n - p, 1))
-    delta_max = fit.options.delta_max if delta_max is None else delta_max
     samples = []
     for i in range(n):
         if progress is not None:
@@ -164,23 +180,18 @@ def bootstrap(
                     break
             weight = None if points.weight is None else points.weight[pick]
             samples.append(TrompPoints(points.experiment, points.size[pick], points.partition_fine[pick], weight, resampled=True))
-    refits = refit_resamples(fit, samples, delta_max=delta_max)  # all resamples in one batched call
-    attach_indices(refits)  # and their indices in one array computation
-    logger.debug(
-        "bootstrap %s %s: %d %s resamples, %d refits failed",
-        fit.experiment,
-        fit.formula.id,
-        n,
-        method,
-        sum(not refit.success for refit in refits),
-    )
-    rows = [{**refit.fit.values, **{k: getattr(refit.indices, k) for k in INDEX_NAMES}} for refit in refits if refit.success]
+    return samples
+
+
+def _bootstrap_bounds(fit: CurveFit, delta_max: float) -> dict[str, tuple[float, ...]]:
+    """:attr:`Bootstrap.bounds`: the edges each parameter and index cannot pass (its range and, for a
+    parameter, the bounds of the fit)."""
     x_max = relative_size_limit(fit, {**fit.context_at(), **fit.fit.values}, delta_max)
     domains = {name: quantity_domain(name, fit.formula, x_max=x_max) for name in (*fit.fit.names, *INDEX_NAMES)}
     bounds = {name: (domain.lower, domain.upper) for name, domain in domains.items()}
     for spec in parameter_specs(fit.formula, fit.points):
         bounds[spec.name] = (*bounds[spec.name], spec.lower, spec.upper)
-    return Bootstrap(pd.DataFrame(rows), n, method, seed, bounds)
+    return bounds
 
 
 # --- information criteria and model averaging --------------------------------------------
