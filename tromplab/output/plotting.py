@@ -176,13 +176,9 @@ def plot_tromp_fits(
     good = [f for f in fits if f.success]
     failed = [f.formula.id for f in fits if not f.success]
     low, high = points.size.min(), points.size.max()
-    if log_size:
-        grid = np.geomspace(low / 1.5, high * 1.5, 400)
-    else:
-        grid = np.linspace(0.0, high * 1.1, 400)[1:]
-    if best is None and good:
-        candidates = [f for f in good if f.formula.family == "paper"] or good
-        best = min(candidates, key=lambda f: f.fit.ssr)
+    grid = np.geomspace(low / 1.5, high * 1.5, 400) if log_size else np.linspace(0.0, high * 1.1, 400)[1:]
+    if best is None and good:  # the paper formula with the lowest sum of squares
+        best = min([f for f in good if f.formula.family == "paper"] or good, key=lambda f: f.fit.ssr)
     read = _partition_reader(partition_to)
     for style, fit in zip(curve_styles(len(fits)), fits):
         if not fit.success:
@@ -201,11 +197,7 @@ def plot_tromp_fits(
         )
     ax.plot(points.size, read(points.partition_fine), "ko", ms=6, label="measured", zorder=4)
     if best is not None:
-        if band:
-            low, high = sorted((read(bound) for bound in curve_band(best, grid)), key=np.sum)
-            ax.fill_between(grid, low, high, color="0.5", alpha=0.2, lw=0, label=f"95 % band, {best.formula.id}")
-        ax.axvline(best.d_cut, color="0.4", lw=0.8, ls=":")
-        ax.annotate(f"d_cut = {best.d_cut:.4g}", (best.d_cut, 0.5), xytext=(6, 6), textcoords="offset points", fontsize=8)
+        _mark_best_fit(ax, best, grid, read, band=band)
     if log_size:
         log_size_axis(ax, grid[0], grid[-1])
     unit = f" [{plain_text(size_unit)}]" if size_unit else ""
@@ -216,6 +208,15 @@ def plot_tromp_fits(
     title = f"failed: {', '.join(failed)}" if failed else None
     ax.legend(fontsize=7, title=title, title_fontsize=7, loc="best")
     return ax
+
+
+def _mark_best_fit(ax, best: CurveFit, grid, read, *, band: bool) -> None:
+    """The best fit's cut size marked on ``ax`` and, with ``band``, its 95 % delta-method band shaded."""
+    if band:
+        low, high = sorted((read(bound) for bound in curve_band(best, grid)), key=np.sum)
+        ax.fill_between(grid, low, high, color="0.5", alpha=0.2, lw=0, label=f"95 % band, {best.formula.id}")
+    ax.axvline(best.d_cut, color="0.4", lw=0.8, ls=":")
+    ax.annotate(f"d_cut = {best.d_cut:.4g}", (best.d_cut, 0.5), xytext=(6, 6), textcoords="offset points", fontsize=8)
 
 
 def _partition_reader(partition_to: str):
