@@ -554,8 +554,9 @@ def identify_from_table(table, *, two_sided: bool = False, level: float = 0.95):
     Returns
     -------
     DataFrame
-        ``sieve, fraction, n_regimes, P_g, v_k, v_k_stderr, v_k_low, v_k_high, sigma,
-        sigma_stderr, sigma_low, sigma_high, linear_v_k, linear_sigma, success, message``.
+        Columns :data:`IDENTIFIED_COLUMNS`: ``sieve, fraction, n_regimes, P_g, v_k, v_k_stderr,
+        v_k_low, v_k_high, sigma, sigma_stderr, sigma_low, sigma_high, linear_v_k, linear_sigma,
+        success, message``.
     """
     import pandas as pd
 
