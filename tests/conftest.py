@@ -1,3 +1,4 @@
+import re
 from pathlib import Path
 
 import numpy as np
@@ -26,6 +27,12 @@ LAB_CLASS_ROWS = (
 TWO_EXPERIMENT_POINTS = "experiment,size,partition_fine\n" + "\n".join(
     f"{e},{s},{p}" for e in ("A", "B") for s, p in zip((10, 20, 40, 80, 160, 320), (0.97, 0.9, 0.7, 0.35, 0.1, 0.02))
 )
+
+
+def strip_unit(header: str) -> str:
+    """A workbook header read back as the column name: the inverse of
+    :func:`tromplab.output.workbook.header_with_unit` (``"d_cut [mm]"`` -> ``"d_cut"``)."""
+    return re.sub(r" \[[^\]]*\]$", "", str(header))
 
 
 def write(tmp_path, text, name="points.csv"):

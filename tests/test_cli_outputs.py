@@ -6,9 +6,9 @@ import pandas as pd
 from numpy.testing import assert_allclose
 
 from tromplab.cli import main
-from tromplab.output.workbook import SHEETS, strip_unit
+from tromplab.output.workbook import SHEETS
 
-from .conftest import DATASETS, TWO_EXPERIMENT_POINTS, write
+from .conftest import DATASETS, TWO_EXPERIMENT_POINTS, strip_unit, write
 
 LAB = DATASETS / "double_deck_screen_decks_lab.csv"
 POINTS = TWO_EXPERIMENT_POINTS

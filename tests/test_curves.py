@@ -7,9 +7,10 @@ from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
 from tromplab.curves.curve_fit import fit_formula
-from tromplab.curves.fitting import ParameterSpec, least_squares
+from tromplab.curves.fitting import least_squares
 from tromplab.curves.formulas import get_formula
 from tromplab.curves.measured import measured_cut_size, measured_efficiency
+from tromplab.curves.parameters import Parameter
 from tromplab.loading.points import TrompPoints
 from tromplab.workbench import fit_experiments
 
@@ -68,7 +69,7 @@ def test_fit_from_a_bad_start_alone_misses_what_the_safeguard_finds():
     """A single lmfit run from a far start lands worse than the tromplab fit (baseline comparison)."""
     points, _ = synthetic(get_formula("plitt"), slope=-1.5, noise=0.0)
     formula = get_formula("molerus")
-    specs = [ParameterSpec("d_cut", SIZES.min() / 100, SIZES.max() * 100), ParameterSpec("km1", *formula.shape_bounds)]
+    specs = [Parameter("d_cut", SIZES.min() / 100, SIZES.max() * 100), Parameter("km1", *formula.shape_bounds)]
 
     def residual(v):
         return formula(points.size, v["d_cut"], v["km1"]) - points.partition_fine
@@ -93,7 +94,7 @@ def test_a_failed_fit_returns_a_result_with_a_message():
     def broken(values):
         raise ValueError("model exploded")
 
-    result = least_squares(broken, [ParameterSpec("a", 0, 1)], [{"a": 0.5}])
+    result = least_squares(broken, [Parameter("a", 0, 1)], [{"a": 0.5}])
     assert not result.success and "model exploded" in result.message
     assert np.isnan(result.values["a"])
     assert points.n == 3

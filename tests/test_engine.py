@@ -179,6 +179,24 @@ def test_engine_and_single_fits_give_the_same_table():
     assert_allclose(batched["d_cut"], single["d_cut"], rtol=1e-3)
 
 
+def test_a_failing_engine_is_logged_and_falls_back_to_single_fits(monkeypatch, caplog):
+    def broken_engine(*args, **kwargs):
+        raise FloatingPointError("overflow in the Jacobian")
+
+    monkeypatch.setattr(workbench, "fit_formula_batch", broken_engine)
+    with caplog.at_level("WARNING", logger="tromplab.workbench"):
+        fits = fit_experiments(EXPERIMENTS[:3], formulas=["plitt", "luckie_austin"]).fits
+    failures = [r.getMessage() for r in caplog.records if r.levelname == "WARNING"]
+    assert len(failures) == 2
+    assert "formula plitt for 3 experiment(s)" in failures[0] and "formula luckie_austin" in failures[1]
+    assert all("FloatingPointError: overflow in the Jacobian" in message for message in failures)
+    single = fit_experiments(EXPERIMENTS[:3], formulas=["plitt", "luckie_austin"], single_fits=True).fits
+    assert all(fit.success for fit in fits) and len(fits) == 6
+    for fit, expected in zip(fits, single):
+        assert (fit.experiment, fit.formula.id) == (expected.experiment, expected.formula.id)
+        assert fit.fit.ssr == expected.fit.ssr  # the same lmfit single fit, not the engine
+
+
 @pytest.mark.slow
 def test_dask_cluster_gives_the_serial_results(monkeypatch):
     distributed = pytest.importorskip("dask.distributed")

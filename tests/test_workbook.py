@@ -6,7 +6,9 @@ import pytest
 from numpy.testing import assert_allclose
 
 from tromplab.output.views import partition_view
-from tromplab.output.workbook import column_unit, header_with_unit, strip_unit, write_workbook
+from tromplab.output.workbook import column_unit, header_with_unit, write_workbook
+
+from .conftest import strip_unit
 
 
 def test_partition_view_turns_partitions_and_the_slope_with_its_bounds():
@@ -48,7 +50,7 @@ def test_headers_carry_units_and_strip_back():
     assert header_with_unit("ep", "") == "ep [size unit]"
     assert header_with_unit("weight_plitt") == "weight_plitt [0..1]" and header_with_unit("weight") == "weight"
     assert column_unit("F") == "-" and column_unit("experiment") == ""
-    assert strip_unit("d_cut [mm]") == "d_cut" and strip_unit("formula") == "formula"
+    assert strip_unit(header_with_unit("d_cut", "mm")) == "d_cut" and strip_unit("formula") == "formula"  # the tests read back
 
 
 def test_workbook_keeps_full_precision_and_leaves_missing_values_empty(tmp_path):

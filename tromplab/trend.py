@@ -363,40 +363,14 @@ def monitor_surveys(
         Also test each survey against the previous one (``p_previous``; not used by the
         flag, so the benchmark turns it off).
     """
-    surveys = sorted(surveys, key=lambda s: s.date)
-    if len(surveys) < 4:
-        raise InputError(f"a trend needs at least four surveys, got {len(surveys)}")
-    if not 0 < alpha < 1:
-        raise InputError(f"alpha must lie between 0 and 1, got {alpha}")
-    for survey in surveys:  # a cut-short survey cannot be fitted and screened (found by benchmarks/fuzz_cli.py)
-        if survey.points.n < 3:
-            raise InputError(f"survey '{survey.name}' has {survey.points.n} point(s); each survey needs at least 3")
+    surveys = _checked_surveys(surveys, alpha)
     base = baseline_indices(surveys, baseline)
     formula = get_formula(formula) if formula is not None else _best_formula(surveys)
     fits = tuple(fit_formula(s.points, formula) for s in surveys)
     failures = {s.name: f.message for s, f in zip(surveys, fits) if not f.success}
     quantities = ["d_cut", "ep", "eta"] + (["bypass"] if any(e.name == "bypass" for e in formula.extras) else [])
-    values = {q: np.full(len(surveys), np.nan) for q in quantities}
-    lows, highs = {q: values[q].copy() for q in quantities}, {q: values[q].copy() for q in quantities}
-    for i, fit in enumerate(fits):
-        if not fit.success:
-            continue
-        intervals = interval_table(fit, level=level, profile=False).set_index("quantity")
-        for q in quantities:
-            values[q][i], lows[q][i], highs[q][i] = intervals.loc[q, ["value", "low", "high"]]
-    baseline_points = [surveys[i].points for i in base]
-    baseline_fit = joint_fit(baseline_points, formula, [dict(fits[i].fit.values) for i in base if fits[i].success])
-    p_previous, p_baseline = np.full(len(surveys), np.nan), np.full(len(surveys), np.nan)
-    for i in range(len(surveys)):
-        if not fits[i].success:
-            continue
-        if consecutive and i > 0 and fits[i - 1].success:
-            p_previous[i] = equality_test(
-                [surveys[i - 1].points], [surveys[i].points], formula, fits=(fits[i - 1], fits[i])
-            ).p_value
-        if i not in base:
-            test = equality_test(baseline_points, [surveys[i].points], formula, fits=(baseline_fit, fits[i]))
-            p_baseline[i] = test.p_value
+    values, lows, highs = _charted_values(fits, quantities, level)
+    p_previous, p_baseline = _equality_p_values(surveys, fits, formula, base, consecutive=consecutive)
     charts, alarms, changed, change_point = flag_changes(values, p_baseline, base, alpha=alpha, lam=lam, width=width)
     rows = []
     for i, survey in enumerate(surveys):
@@ -425,6 +399,53 @@ def monitor_surveys(
             )
     table = pd.DataFrame(rows, columns=list(TREND_COLUMNS))
     return TrendResult(formula.id, tuple(surveys), fits, base, table, alpha, level, failures)
+
+
+def _checked_surveys(surveys: Sequence[Survey], alpha: float) -> list[Survey]:
+    """The surveys in date order, refused (:class:`~tromplab.errors.InputError`) when fewer than
+    four, when one has fewer than three points, or when ``alpha`` is not in (0, 1)."""
+    surveys = sorted(surveys, key=lambda s: s.date)
+    if len(surveys) < 4:
+        raise InputError(f"a trend needs at least four surveys, got {len(surveys)}")
+    if not 0 < alpha < 1:
+        raise InputError(f"alpha must lie between 0 and 1, got {alpha}")
+    for survey in surveys:  # a cut-short survey cannot be fitted and screened (found by benchmarks/fuzz_cli.py)
+        if survey.points.n < 3:
+            raise InputError(f"survey '{survey.name}' has {survey.points.n} point(s); each survey needs at least 3")
+    return surveys
+
+
+def _charted_values(fits, quantities: list[str], level: float) -> tuple[dict, dict, dict]:
+    """``values, lows, highs``: per quantity, an array over the surveys of the estimate and its
+    interval at ``level`` (nan where the fit failed)."""
+    values = {q: np.full(len(fits), np.nan) for q in quantities}
+    lows, highs = {q: values[q].copy() for q in quantities}, {q: values[q].copy() for q in quantities}
+    for i, fit in enumerate(fits):
+        if not fit.success:
+            continue
+        intervals = interval_table(fit, level=level, profile=False).set_index("quantity")
+        for q in quantities:
+            values[q][i], lows[q][i], highs[q][i] = intervals.loc[q, ["value", "low", "high"]]
+    return values, lows, highs
+
+
+def _equality_p_values(surveys, fits, formula, base, *, consecutive: bool) -> tuple[np.ndarray, np.ndarray]:
+    """``p_previous, p_baseline``: p-values of the equality test of each survey's curve against the
+    previous survey's (with ``consecutive``) and against the joint fit of the baseline (nan where not tested)."""
+    baseline_points = [surveys[i].points for i in base]
+    baseline_fit = joint_fit(baseline_points, formula, [dict(fits[i].fit.values) for i in base if fits[i].success])
+    p_previous, p_baseline = np.full(len(surveys), np.nan), np.full(len(surveys), np.nan)
+    for i in range(len(surveys)):
+        if not fits[i].success:
+            continue
+        if consecutive and i > 0 and fits[i - 1].success:
+            p_previous[i] = equality_test(
+                [surveys[i - 1].points], [surveys[i].points], formula, fits=(fits[i - 1], fits[i])
+            ).p_value
+        if i not in base:
+            test = equality_test(baseline_points, [surveys[i].points], formula, fits=(baseline_fit, fits[i]))
+            p_baseline[i] = test.p_value
+    return p_previous, p_baseline
 
 
 def _best_formula(surveys):

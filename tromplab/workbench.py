@@ -314,50 +314,40 @@ def fit_experiments(
     Parameters
     ----------
     experiments : Experiments, sequence of TrompPoints, or a Dask DataFrame of points
-        What :func:`tromplab.read_experiments` returns (its mass balances are kept for the
-        report and the workbook), the points alone, or a Dask DataFrame (columns
-        ``experiment, size, partition_fine[, weight]``).
+        What :func:`tromplab.read_experiments` returns (its mass balances kept for the report and
+        workbook), the points alone, or a Dask DataFrame (columns ``experiment, size, partition_fine[, weight]``).
     formulas : str or iterable of ids or equation numbers, optional
-        ``"paper"`` = the nine, ``"extended"`` = the bypass and fish-hook curves,
-        ``"other"`` = other tools' curves (default: the nine).
-    extended : bool
-        Also fit the extended curves (reported, kept out of the ranking unless ``rank_extended``).
+        ``"paper"``: the nine; ``"extended"``: the bypass and fish-hook curves; ``"other"``: other tools' curves.
+    extended, rank_extended : bool
+        Also fit the extended curves (reported, kept out of the ranking); rank them with the nine.
     alpha : float
         Significance level of the Fisher screen, in (0, 1).
     delta_max : float, optional
-        Largest feed size for the misplacement index; default per experiment, its
-        ``delta_max`` if known, else its largest size.
+        Largest feed size for the misplacement index (default per experiment: its
+        ``delta_max`` if known, else its largest size).
     rank_by : {"F", "aicc"}
-    rank_extended : bool
-        Rank the extended curves with the nine.
     size_unit : str
-        Unit of the sizes, for labels and records; the unit the loader found in the column
-        names wins when all experiments share one.
+        Unit of the sizes, for labels and records (the unit the loader found in the column names wins
+        when all experiments share one).
     water_recovery : float, optional
-        Hydrocyclones: share of the feed water reporting to the underflow, in [0, 1).  The
-        formulas are still fitted to the actual partition; the fits table gains
-        ``water_recovery`` and ``water_recovery_check`` (the fitted bypass against it,
-        :func:`tromplab.statistics.hydrocyclone.bypass_against_water_recovery`).
+        Hydrocyclones: share of the feed water reporting to the underflow, in [0, 1).  The formulas are
+        still fitted to the actual partition; the fits table gains ``water_recovery`` and ``water_recovery_check``
+        (the fitted bypass against it, :func:`tromplab.statistics.hydrocyclone.bypass_against_water_recovery`).
     partition_to : {"fine", "coarse"}
         Product whose partition the tables and figures show (the fits are the same).
     ci : float, optional
         Add interval columns at this level (profile likelihood for the parameters, the
         delta method for the indices); also the level of the model averages (default 0.95).
-    bootstrap : int
-        Add bootstrap percentile intervals from this many resamples (0: none).
+    bootstrap, seed : int
+        Add bootstrap percentile intervals from ``bootstrap`` resamples (0: none), drawn by
+        ``bootstrap_method`` from ``seed`` (the same seed gives the same intervals).
     bootstrap_method : {"residuals", "cases"}
-    seed : int
-        Seed of the bootstrap: the same seed gives the same intervals.
     jobs : int or None
         Worker processes (None or 0: all cores).  The experiments are cut into chunks of
-        :data:`CHUNK_SIZE` whatever ``jobs`` is, so the results are identical for any
-        number of workers.
-    scheduler : str, optional
-        Address of a Dask scheduler (``tcp://host:8786``) to run the chunks on.
-    dask : {"local"}, optional
-        Run the chunks on a local Dask cluster of two workers.
-    client : dask.distributed.Client, optional
-        Run the chunks on this Dask client.
+        :data:`CHUNK_SIZE` whatever ``jobs`` is, so the results are identical for any number.
+    scheduler, dask, client : optional
+        Run the chunks on Dask: on the scheduler at ``scheduler`` (``tcp://host:8786``), on a
+        local cluster of two workers (``dask="local"``) or on ``client`` (a ``dask.distributed.Client``).
     single_fits : bool
         Fit one experiment and formula at a time with lmfit
         (:func:`tromplab.curves.curve_fit.fit_formula`) instead of the batched engine.
@@ -378,25 +368,16 @@ def fit_experiments(
     >>> bench.ranking()[["formula", "place"]].values.tolist()
     [['plitt', 1], ['lognormal', 2], ['molerus', 3]]
     """
-    balances = tuple(experiments.balances) if isinstance(experiments, Experiments) else ()
-    experiments = _as_points(experiments.points if isinstance(experiments, Experiments) else experiments)
+    experiments, balances = _points_and_balances(experiments)
     chosen = select_formulas(check_formula_selection(formulas, extended))
-    settings = _checked_settings(
-        locals(), n_fits=len(experiments) * len(chosen), size_unit=_data_size_unit(experiments, size_unit)
-    )
+    n_fits = len(experiments) * len(chosen)
+    settings = _checked_settings(locals(), n_fits=n_fits, size_unit=_data_size_unit(experiments, size_unit))
     with dask_client(scheduler=scheduler, dask=dask, client=client) as cluster:
         failures, fittable = _screenable(experiments)
         fits, notes = _fit_in_chunks(fittable, chosen, settings, jobs=jobs, client=cluster, progress=progress)
-        intervals = None
-        if ci is not None or bootstrap:
-            intervals = interval_columns(
-                fits,
-                level=ci,
-                n_bootstrap=bootstrap,
-                method=bootstrap_method,
-                seed=seed,
-                progress=None if progress is None else (lambda done, total, label: progress(done, total, f"intervals: {label}")),
-            )
+        intervals = _batch_intervals(
+            fits, ci=ci, bootstrap=bootstrap, bootstrap_method=bootstrap_method, seed=seed, progress=progress
+        )
         bench = Workbench(
             tuple(fits), failures, chosen, rank_by, alpha, rank_extended, notes, settings["water_recovery"],
             ci, bootstrap, bootstrap_method, seed, partition_to, settings["size_unit"], tuple(experiments), balances, intervals,
@@ -404,6 +385,21 @@ def fit_experiments(
         if jobs != 1 or cluster is not None:  # the workers are there: the model averages are made on them too
             bench.averages(jobs=jobs, client=cluster)
     return bench
+
+
+def _batch_intervals(fits, *, ci, bootstrap, bootstrap_method, seed, progress) -> pd.DataFrame | None:
+    """The interval columns of a batch's fits (None without ``ci`` or ``bootstrap``), reported to
+    ``progress`` with labels ``"intervals: ..."``."""
+    if ci is None and not bootstrap:
+        return None
+    return interval_columns(
+        fits,
+        level=ci,
+        n_bootstrap=bootstrap,
+        method=bootstrap_method,
+        seed=seed,
+        progress=None if progress is None else (lambda done, total, label: progress(done, total, f"intervals: {label}")),
+    )
 
 
 def check_formula_selection(formulas=None, extended: bool = False):
@@ -541,8 +537,14 @@ def fit_chunk(experiments: Sequence[TrompPoints], *, formulas, alpha, delta_max,
         if engine and is_batchable(formula):
             try:
                 batch = fit_formula_batch(experiments, formula, alpha=alpha, delta_max=delta_max, size_unit=size_unit)
-            except Exception:  # a broken batch falls back to single fits, which report per fit
-                batch = None
+            except Exception as error:  # a broken batch falls back to single fits, which report per fit
+                logger.warning(
+                    "batched engine failed on formula %s for %d experiment(s) (%s: %s); fitting them one at a time instead",
+                    formula.id,
+                    len(experiments),
+                    type(error).__name__,
+                    error,
+                )
         per_formula.append(batch or [_fit_guarded(points, formula, alpha, delta_max, size_unit) for points in experiments])
     fits = [fits[i] for i in range(len(experiments)) for fits in per_formula]
     attach_indices(fits)
@@ -592,11 +594,14 @@ def _fit_chunk_star(options, chunk):
     return fit_chunk(chunk, **options), notes
 
 
-def _as_points(experiments) -> list[TrompPoints]:
-    """Points from a sequence of TrompPoints or a Dask DataFrame of points."""
+def _points_and_balances(experiments) -> tuple[list[TrompPoints], tuple[MassBalance, ...]]:
+    """Points (and the mass balances of lab input) from Experiments, a sequence of TrompPoints
+    or a Dask DataFrame of points."""
+    if isinstance(experiments, Experiments):
+        return list(experiments.points), tuple(experiments.balances)
     if hasattr(experiments, "dask") and hasattr(experiments, "compute"):
-        return points_from_frame(experiments.compute(), source="dask dataframe")
-    return list(experiments)
+        return points_from_frame(experiments.compute(), source="dask dataframe"), ()
+    return list(experiments), ()
 
 
 def load(directory) -> Workbench:

@@ -25,7 +25,8 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from ..curves.fitting import ParameterFit, ParameterSpec, least_squares
+from ..curves.fitting import ParameterFit, least_squares
+from ..curves.parameters import Parameter
 
 
 @dataclass(frozen=True)
@@ -233,7 +234,7 @@ def fit_layer_model(
 
 def _fit_rates(steps, extraction, initial, nonlinear, lock_threshold, starts=None) -> LayerFit:
     horizon = int(steps.max())
-    specs = [ParameterSpec("diffusion", 0.0, 0.3), ParameterSpec("segregation", 0.0, 0.4), ParameterSpec("passage", 1e-6, 1.0)]
+    specs = [Parameter("diffusion", 0.0, 0.3), Parameter("segregation", 0.0, 0.4), Parameter("passage", 1e-6, 1.0)]
 
     def model_of(values):
         return LayerModel(values["diffusion"], values["segregation"], values["passage"], nonlinear, lock_threshold)

@@ -22,7 +22,8 @@ from dataclasses import dataclass, fields, replace
 import numpy as np
 from scipy import optimize
 
-from ..curves.fitting import ParameterFit, ParameterSpec, least_squares
+from ..curves.fitting import ParameterFit, least_squares
+from ..curves.parameters import Parameter
 
 
 @dataclass(frozen=True)
@@ -145,7 +146,7 @@ def fit_pulp_screen(applied, frequency, productivity, *, fitted=("beta", "lam"),
         raise ValueError(f"cannot fit {', '.join(sorted(unknown))}; choose from {', '.join(sorted(allowed))}")
     upper = {"beta": 1e4, "r": 10.0, "lam": 1e4, "s": 10.0, "phi": 1.0, "tau": 5.0, "delay": 10.0}
     lower = {"phi": 0.0, "delay": 0.0}
-    specs = [ParameterSpec(name, lower.get(name, 1e-6), upper[name]) for name in fitted]
+    specs = [Parameter(name, lower.get(name, 1e-6), upper[name]) for name in fitted]
 
     def residual(values):
         return base_with(values).productivity(applied, frequency) / productivity - 1.0

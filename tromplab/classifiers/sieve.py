@@ -35,7 +35,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import integrate, optimize, special, stats
 
-from ..curves.fitting import ParameterFit, ParameterSpec, expression_function, least_squares
+from ..curves.fitting import ParameterFit, expression_function, least_squares
+from ..curves.parameters import Parameter
 from ..errors import InputError
 from ..validation import MAX_DECKS, check_count
 
@@ -297,8 +298,8 @@ def fit_velocity_quantiles(relative_speeds, u_obs, *, two_sided=False) -> Veloci
     start_sigma = linear_sigma if np.isfinite(linear_sigma) and linear_sigma > 0 else 0.3 * scale
     start_v_k = linear_v_k if np.isfinite(linear_v_k) else float(np.mean(speeds))
     specs = [
-        ParameterSpec("v_k", 1e-9 * scale if two_sided else -10 * scale, 10 * scale),
-        ParameterSpec("sigma", 1e-6 * scale, 10 * scale),
+        Parameter("v_k", 1e-9 * scale if two_sided else -10 * scale, 10 * scale),
+        Parameter("sigma", 1e-6 * scale, 10 * scale),
     ]
     starts = [{"v_k": start_v_k, "sigma": start_sigma}, {"v_k": float(np.mean(speeds)), "sigma": 0.3 * scale}]
     fit = least_squares(lambda values: computed(values) - u_obs, specs, starts)
@@ -493,7 +494,7 @@ def fit_dependence(hole_diameter, length, values, *, form=DEFAULT_DEPENDENCE) ->
         label = getattr(form, "__name__", "callable")
     if y.size <= len(names):
         raise ValueError(f"{y.size} fractions cannot determine the {len(names)} parameters of {label!r}")
-    specs = [ParameterSpec(name) for name in names]
+    specs = [Parameter(name) for name in names]
     fit = least_squares(
         lambda p: function(D=D, l=l, **p) - y, specs, [{name: 0.1 for name in names}, {name: 1.0 for name in names}]
     )
@@ -512,6 +513,25 @@ def _refuse_outside(table, values, column: str, rule: str, *, upper: float = np.
 
 IDENTIFY_COLUMNS = ("sieve", "fraction", "relative_speed", "residue", "sieve_length", "cell_pitch")
 PG_COLUMNS = ("hole_diameter", "length", "width", "half_cell_width")
+#: The columns :func:`identify_from_table` returns, in order.
+IDENTIFIED_COLUMNS = (
+    "sieve",
+    "fraction",
+    "n_regimes",
+    "P_g",
+    "v_k",
+    "v_k_stderr",
+    "v_k_low",
+    "v_k_high",
+    "sigma",
+    "sigma_stderr",
+    "sigma_low",
+    "sigma_high",
+    "linear_v_k",
+    "linear_sigma",
+    "success",
+    "message",
+)
 
 
 def identify_from_table(table, *, two_sided: bool = False, level: float = 0.95):
@@ -534,11 +554,25 @@ def identify_from_table(table, *, two_sided: bool = False, level: float = 0.95):
     Returns
     -------
     DataFrame
-        ``sieve, fraction, n_regimes, P_g, v_k, v_k_stderr, v_k_low, v_k_high, sigma,
-        sigma_stderr, sigma_low, sigma_high, linear_v_k, linear_sigma, success, message``.
+        Columns :data:`IDENTIFIED_COLUMNS`: ``sieve, fraction, n_regimes, P_g, v_k, v_k_stderr,
+        v_k_low, v_k_high, sigma, sigma_stderr, sigma_low, sigma_high, linear_v_k, linear_sigma,
+        success, message``.
     """
     import pandas as pd
 
+    numbers, pg = _checked_residue_table(table)
+    keys = list(zip(table.frame["sieve"].astype(str), table.frame["fraction"].astype(str)))
+    rows = []
+    for key in dict.fromkeys(keys):
+        index = np.array([k == key for k in keys])
+        row = {"sieve": key[0], "fraction": key[1], "n_regimes": int(index.sum()), "P_g": float(pg[index][0])}
+        rows.append(_identified_row(row, {column: values[index] for column, values in numbers.items()}, two_sided, level))
+    return pd.DataFrame(rows).reindex(columns=IDENTIFIED_COLUMNS)
+
+
+def _checked_residue_table(table) -> tuple[dict[str, np.ndarray], np.ndarray]:
+    """The numeric columns of a residue table and ``P_g`` of each row (given or computed from
+    :data:`PG_COLUMNS`), every cell checked (an :class:`~tromplab.errors.InputError` names it)."""
     table.require(*IDENTIFY_COLUMNS)
     table.refuse_unknown((*IDENTIFY_COLUMNS, "P_g", *PG_COLUMNS), what="residue table")
     numbers = {c: table.numeric(c) for c in IDENTIFY_COLUMNS[2:]}
@@ -553,64 +587,40 @@ def identify_from_table(table, *, two_sided: bool = False, level: float = 0.95):
         pg = np.array([geometric_probability(*row) for row in zip(*sizes)])
     else:
         raise InputError(f"give a 'P_g' column or the columns {', '.join(PG_COLUMNS)}", source=table.source)
-    keys = list(zip(table.frame["sieve"].astype(str), table.frame["fraction"].astype(str)))
-    rows = []
-    for key in dict.fromkeys(keys):
-        index = np.array([k == key for k in keys])
-        row = {"sieve": key[0], "fraction": key[1], "n_regimes": int(index.sum()), "P_g": float(pg[index][0])}
-        try:
-            for column in ("sieve_length", "cell_pitch"):
-                if np.ptp(numbers[column][index]) > 0:
-                    raise ValueError(f"{column} differs between the regimes of one sieve")
-            law = identify_velocity_law(
-                numbers["relative_speed"][index],
-                numbers["residue"][index],
-                geometric_prob=row["P_g"],
-                sieve_length=numbers["sieve_length"][index][0],
-                cell_pitch=numbers["cell_pitch"][index][0],
-                two_sided=two_sided,
-            )
-        except ValueError as error:
-            rows.append({**row, "success": False, "message": str(error)})
-            continue
-        intervals = law.fit.confidence_intervals(level)
-        for name in ("v_k", "sigma"):
-            row.update(
-                {
-                    name: law.fit.values[name],
-                    f"{name}_stderr": law.fit.stderr[name],
-                    f"{name}_low": intervals[name][0],
-                    f"{name}_high": intervals[name][1],
-                }
-            )
+    return numbers, pg
+
+
+def _identified_row(row: dict, numbers: dict[str, np.ndarray], two_sided: bool, level: float) -> dict:
+    """``row`` (one sieve and fraction) with its identified law, or ``success = False`` and the reason;
+    ``numbers`` are the columns of its regimes."""
+    try:
+        for column in ("sieve_length", "cell_pitch"):
+            if np.ptp(numbers[column]) > 0:
+                raise ValueError(f"{column} differs between the regimes of one sieve")
+        law = identify_velocity_law(
+            numbers["relative_speed"],
+            numbers["residue"],
+            geometric_prob=row["P_g"],
+            sieve_length=numbers["sieve_length"][0],
+            cell_pitch=numbers["cell_pitch"][0],
+            two_sided=two_sided,
+        )
+    except ValueError as error:
+        return {**row, "success": False, "message": str(error)}
+    intervals = law.fit.confidence_intervals(level)
+    for name in ("v_k", "sigma"):
         row.update(
             {
-                "linear_v_k": law.linear_v_k,
-                "linear_sigma": law.linear_sigma,
-                "success": law.fit.success,
-                "message": law.fit.message,
+                name: law.fit.values[name],
+                f"{name}_stderr": law.fit.stderr[name],
+                f"{name}_low": intervals[name][0],
+                f"{name}_high": intervals[name][1],
             }
         )
-        rows.append(row)
-    columns = [
-        "sieve",
-        "fraction",
-        "n_regimes",
-        "P_g",
-        "v_k",
-        "v_k_stderr",
-        "v_k_low",
-        "v_k_high",
-        "sigma",
-        "sigma_stderr",
-        "sigma_low",
-        "sigma_high",
-        "linear_v_k",
-        "linear_sigma",
-        "success",
-        "message",
-    ]
-    return pd.DataFrame(rows).reindex(columns=columns)
+    row.update(
+        {"linear_v_k": law.linear_v_k, "linear_sigma": law.linear_sigma, "success": law.fit.success, "message": law.fit.message}
+    )
+    return row
 
 
 def identify_from_bin_shares(

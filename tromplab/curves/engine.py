@@ -501,6 +501,35 @@ def fit_batch(
         raise ValueError(f"formula {formula.id} cannot be evaluated on arrays of parameters; fit it one by one")
     problem = _Problem(formula, data, efficiency, cut_factor)
     count = len(data)
+    starts, grid_ssr, kink = _all_starts(problem, starts, efficiency, global_search=global_search)
+    n_starts = starts.shape[1]
+    rows = np.repeat(np.arange(count), n_starts)
+    params, ssr, nfev = levenberg_marquardt(problem, starts.reshape(count * n_starts, -1), rows)
+    if formula.piecewise:  # past the kinks without derivatives, then polish again
+        best = np.argmin(ssr.reshape(count, n_starts), axis=1) + np.arange(count) * n_starts
+        moving = formula.moving_break if global_search else None
+        _polish_piecewise(problem, params, ssr, nfev, best, rows[best], kink=kink, moving=moving)
+    ssr = ssr.reshape(count, n_starts)
+    best = np.argmin(ssr, axis=1)
+    pick = np.arange(count) * n_starts + best
+    best_params, best_ssr = params[pick], ssr[np.arange(count), best]
+    all_rows = np.arange(count)
+    residual = problem.residual(best_params, all_rows)
+    native = best_params.copy()
+    native[:, 0] = np.exp(best_params[:, 0])
+    jac = problem.jacobian(best_params, all_rows, residual)
+    jac[:, :, 0] /= native[:, :1]  # d r / d d_cut = (d r / d ln d_cut) / d_cut
+    covariance = _covariance(jac, best_ssr, data.n, native.shape[1])
+    names = ("d_cut", formula.shape_name, *problem.extra_names)
+    total_nfev = nfev.reshape(count, n_starts).sum(axis=1)
+    return BatchOptimum(formula, names, native, best_ssr, residual, covariance, grid_ssr, total_nfev, n_starts)
+
+
+def _all_starts(problem: _Problem, starts, efficiency, *, global_search: bool):
+    """``(starts, grid_ssr, kink)``: the given starts (``ln d_cut``, clipped into the bounds), with
+    ``global_search`` the best points of the profiled shape grid and, for a moving break with a
+    kink, starts on both sides of it; the grid's SSR (nan without the search) and the kink (or None)."""
+    formula, count = problem.formula, len(problem.data)
     starts = np.array(starts, dtype=float)
     low, high = problem.lower[:, None, :], problem.upper[:, None, :]
     starts[..., 0] = np.log(starts[..., 0])
@@ -518,42 +547,30 @@ def fit_batch(
         sides = np.stack([np.clip(kink * f, *formula.shape_bounds) for f in (0.97, 1.03, 1.2)], axis=1)
         near = np.stack([np.broadcast_to(starts[:, :1, 0], sides.shape), sides], axis=2)
         starts = np.concatenate([starts, near], axis=1)
-    n_starts = starts.shape[1]
-    rows = np.repeat(np.arange(count), n_starts)
-    params, ssr, nfev = levenberg_marquardt(problem, starts.reshape(count * n_starts, -1), rows)
-    if formula.piecewise:  # past the kinks without derivatives, then polish again
-        best = np.argmin(ssr.reshape(count, n_starts), axis=1) + np.arange(count) * n_starts
-        params[best], ssr[best], more = compass_search(problem, params[best], rows[best])
+    return starts, grid_ssr, kink
+
+
+def _polish_piecewise(problem: _Problem, params, ssr, nfev, best, rows, *, kink, moving) -> None:
+    """Move the ``best`` optimum of each experiment of a piecewise formula past its kinks (in place):
+    a compass search without derivatives, Levenberg-Marquardt again, then ``d_cut`` alone at the
+    ``kink``'s shape and the search along the crossings with the ``moving`` break, where they exist."""
+    params[best], ssr[best], more = compass_search(problem, params[best], rows)
+    nfev[best] += more
+    params[best], ssr[best], more = levenberg_marquardt(problem, params[best], rows)
+    nfev[best] += more
+    if kink is not None:  # the optimum can sit on the kink itself: d_cut alone at the kink's shape
+        on_kink = copy.copy(problem)
+        on_kink.lower, on_kink.upper = problem.lower.copy(), problem.upper.copy()
+        on_kink.lower[:, 1] = on_kink.upper[:, 1] = kink
+        kinked = params[best].copy()
+        kinked[:, 1] = kink
+        kinked, kinked_ssr, more = levenberg_marquardt(on_kink, kinked, rows)
         nfev[best] += more
-        params[best], ssr[best], more = levenberg_marquardt(problem, params[best], rows[best])
+        lower_ssr = kinked_ssr < ssr[best]
+        params[best[lower_ssr]], ssr[best[lower_ssr]] = kinked[lower_ssr], kinked_ssr[lower_ssr]
+    if moving is not None:  # along the crossings of measured points with the moving break
+        params[best], ssr[best], more = search_break_crossings(problem, params[best], ssr[best], rows)
         nfev[best] += more
-        if kink is not None:  # the optimum can sit on the kink itself: d_cut alone at the kink's shape
-            on_kink = copy.copy(problem)
-            on_kink.lower, on_kink.upper = problem.lower.copy(), problem.upper.copy()
-            on_kink.lower[:, 1] = on_kink.upper[:, 1] = kink
-            kinked = params[best].copy()
-            kinked[:, 1] = kink
-            kinked, kinked_ssr, more = levenberg_marquardt(on_kink, kinked, rows[best])
-            nfev[best] += more
-            lower_ssr = kinked_ssr < ssr[best]
-            params[best[lower_ssr]], ssr[best[lower_ssr]] = kinked[lower_ssr], kinked_ssr[lower_ssr]
-        if moving is not None:  # along the crossings of measured points with the moving break
-            params[best], ssr[best], more = search_break_crossings(problem, params[best], ssr[best], rows[best])
-            nfev[best] += more
-    ssr = ssr.reshape(count, n_starts)
-    best = np.argmin(ssr, axis=1)
-    pick = np.arange(count) * n_starts + best
-    best_params, best_ssr = params[pick], ssr[np.arange(count), best]
-    all_rows = np.arange(count)
-    residual = problem.residual(best_params, all_rows)
-    native = best_params.copy()
-    native[:, 0] = np.exp(best_params[:, 0])
-    jac = problem.jacobian(best_params, all_rows, residual)
-    jac[:, :, 0] /= native[:, :1]  # d r / d d_cut = (d r / d ln d_cut) / d_cut
-    covariance = _covariance(jac, best_ssr, data.n, native.shape[1])
-    names = ("d_cut", formula.shape_name, *problem.extra_names)
-    total_nfev = nfev.reshape(count, n_starts).sum(axis=1)
-    return BatchOptimum(formula, names, native, best_ssr, residual, covariance, grid_ssr, total_nfev, n_starts)
 
 
 def _covariance(jac: np.ndarray, ssr: np.ndarray, n: np.ndarray, n_params: int) -> np.ndarray:

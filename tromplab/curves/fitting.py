@@ -20,9 +20,6 @@ import numpy as np
 from ..errors import InputError
 from .parameters import Parameter
 
-#: The fitting layer's name for :class:`tromplab.curves.parameters.Parameter` (the one parameter record).
-ParameterSpec = Parameter
-
 
 @dataclass(frozen=True)
 class ParameterFit:
@@ -154,7 +151,7 @@ class ParameterFit:
         return out
 
     @classmethod
-    def failed(cls, specs: Sequence[ParameterSpec], n_points: int, message: str, n_starts: int = 0) -> ParameterFit:
+    def failed(cls, specs: Sequence[Parameter], n_points: int, message: str, n_starts: int = 0) -> ParameterFit:
         names = tuple(s.name for s in specs)
         nan = {name: np.nan for name in names}
         return cls(names, dict(nan), dict(nan), np.nan, n_points, False, message, n_starts=n_starts)
@@ -176,7 +173,7 @@ def parameters_at_bounds(specs, values: dict) -> tuple[str, ...]:
 
 def least_squares(
     residual: Callable[[Mapping[str, float]], np.ndarray],
-    specs: Sequence[ParameterSpec],
+    specs: Sequence[Parameter],
     starts: Sequence[Mapping[str, float]],
     *,
     max_nfev: int = 2000,
@@ -187,7 +184,7 @@ def least_squares(
     ----------
     residual : callable
         Maps a ``{name: value}`` mapping to the residual vector.
-    specs : sequence of ParameterSpec
+    specs : sequence of Parameter
         Names and bounds of the fitted parameters.
     starts : sequence of mapping
         Starting points; each is clipped into the bounds.  The best optimum is kept.
@@ -203,7 +200,7 @@ def least_squares(
     --------
     >>> x = np.linspace(0, 1, 5)
     >>> fit = least_squares(lambda p: p["a"] * x + p["b"] - (2 * x + 1),
-    ...                     [ParameterSpec("a"), ParameterSpec("b")], [{"a": 0.0, "b": 0.0}])
+    ...                     [Parameter("a"), Parameter("b")], [{"a": 0.0, "b": 0.0}])
     >>> round(fit.values["a"], 6), round(fit.values["b"], 6), fit.success
     (2.0, 1.0, True)
     """

@@ -36,16 +36,6 @@ SHUVALOV_2018 = (
 )
 
 
-def ExtraParameter(name: str, bounds: tuple[float, float], start: float, meaning: str, unit: str = "1") -> Parameter:  # noqa: N802
-    """A parameter beyond ``d_cut`` and the shape (bypass, fish-hook) as a :class:`Parameter`.
-
-    Kept under its earlier name so declarations written before the one parameter record
-    still read the same; the record itself is :class:`tromplab.curves.parameters.Parameter`.
-    """
-    low, high = bounds
-    return Parameter(name, low, high, unit=unit, meaning=meaning, start=start, start_rule=f"fixed at {start:g}")
-
-
 @dataclass(frozen=True)
 class MovingBreak:
     """Hooks of a piecewise formula whose break point follows its shape and the measured efficiency.
@@ -159,7 +149,7 @@ class Formula:
     monotone: bool = True
     lower_bound_reason: str = ""
     defaults: Mapping[str, float] = field(default_factory=dict)
-    extras: tuple[ExtraParameter, ...] = ()
+    extras: tuple[Parameter, ...] = ()
     family: str = "paper"
     nests: str | None = None
     shape_meaning: str = ""
@@ -1249,11 +1239,14 @@ DYSSOL_2020 = (
     "particulate materials. SoftwareX 12, 100572. doi:10.1016/j.softx.2020.100572 (Screen unit models)"
 )
 KING_2001 = "King R.P. (2001). Modeling and Simulation of Mineral Processing Systems. Butterworth-Heinemann, Oxford (ch. 5, classification functions)"
-TEIPEL_HENNIG_ALPHA = ExtraParameter(
+TEIPEL_HENNIG_ALPHA = Parameter(
     "th_alpha",
-    (0.0, 50.0),
-    1.0,
-    "Teipel/Hennig alpha: the exponent is (x + alpha) beta, written here as k (x + alpha)/(1 + alpha)",
+    0.0,
+    50.0,
+    unit="1",
+    meaning="Teipel/Hennig alpha: the exponent is (x + alpha) beta, written here as k (x + alpha)/(1 + alpha)",
+    start=1.0,
+    start_rule="fixed at 1",
 )
 
 

@@ -23,7 +23,7 @@ area lies above the largest measured size (``delta_max`` beyond the data).
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
@@ -67,9 +67,6 @@ class CurveIndices:
     def d50c(self) -> float:
         """Corrected cut size (the fitted ``d_cut``)."""
         return self.d_cut
-
-    def as_dict(self) -> dict[str, float]:
-        return asdict(self)
 
 
 def efficiency_by_quadrature(formula: Formula, shape: float, x_max: float, **context) -> tuple[float, float]:
@@ -383,69 +380,73 @@ def batch_curve_indices(formula, d_cut, shape, *, delta_max, measured_sizes=None
     d_cut, shape, delta_max = (np.atleast_1d(np.asarray(v, dtype=float)) for v in (d_cut, shape, delta_max))
     d_cut, shape, delta_max = np.broadcast_arrays(d_cut, shape, delta_max)
     x_max = delta_max / d_cut
-    x_break = None
+    x_break = efficiency_of = None
     if formula.context_from_efficiency:
         efficiency_of = np.broadcast_to(np.asarray(measured_efficiency, dtype=float), shape.shape)
     if formula.moving_break is not None:  # (11): x_a per curve (remembered per shape and efficiency)
         x_break = np.array([formula.moving_break.at(k, e) for k, e in zip(shape, efficiency_of)])
     curve = _curve_on_arrays(formula, shape, x_break)
-    if formula.efficiency is not None:
-        context = [{}] * shape.size
-        if formula.context_from_efficiency:
-            context = [{"measured_efficiency": float(e)} for e in efficiency_of]
-        pairs = [formula.efficiency(float(k), float(x), **c) for k, x, c in zip(shape, x_max, context)]
-        eta = np.array([float(p[0]) for p in pairs])
-        eps = np.array([float(p[1]) for p in pairs])
-    else:
-        eta = _pieces_area(curve, np.zeros_like(x_max), np.ones_like(x_max))
-        eps = _pieces_area(curve, np.ones_like(x_max), np.maximum(x_max, 1.0))
+    eta, eps = _batched_efficiency(formula, curve, shape, x_max, efficiency_of)
     x25 = _relative_sizes(curve, 0.75, shape.size)
     x75 = _relative_sizes(curve, 0.25, shape.size)
     flags = [()] * shape.size
     if measured_sizes is not None:
-        smallest, largest = (np.broadcast_to(np.asarray(v, dtype=float), shape.shape) for v in measured_sizes)
-        below = np.minimum(smallest / d_cut, 1.0)
-        above = np.maximum(largest / d_cut, 1.0)
-        area_below = _pieces_area(curve, np.zeros_like(below), below, x_break)
-        area_above = _pieces_area(curve, above, np.where(x_max > above, x_max, above), x_break)
-        flags = [
-            _extrapolated_flags(
-                d_cut[i] * x25[i],
-                d_cut[i] * x75[i],
-                eta[i],
-                eps[i],
-                x_max[i],
-                above[i],
-                area_below[i],
-                area_above[i],
-                smallest[i],
-                largest[i],
-            )
-            for i in range(shape.size)
-        ]
-    results = []
-    for i in range(shape.size):
-        cut = float(d_cut[i])
-        d25, d75 = cut * x25[i], cut * x75[i]
-        ep = (d75 - d25) / 2.0
-        results.append(
-            CurveIndices(
-                d_cut=cut,
-                slope=float(formula.slope_at_cut(float(shape[i]))),
-                eta=float(eta[i]),
-                epsilon=float(eps[i]),
-                d25=float(d25),
-                d75=float(d75),
-                ep=float(ep),
-                imperfection=float(ep / cut),
-                sharpness=float(d25 / d75),
-                d50=cut,
-                ep_c=float(ep),
-                imperfection_c=float(ep / cut),
-                extrapolated=flags[i],
-            )
+        flags = _batched_extrapolated(curve, d_cut * x25, d_cut * x75, eta, eps, d_cut, x_max, x_break, measured_sizes)
+    return [
+        _indices_of_curve(float(d_cut[i]), float(formula.slope_at_cut(float(shape[i]))), eta[i], eps[i], x25[i], x75[i], flags[i])
+        for i in range(shape.size)
+    ]
+
+
+def _batched_efficiency(formula: Formula, curve, shape, x_max, efficiency_of) -> tuple[np.ndarray, np.ndarray]:
+    """eta and eps of each curve: the formula's closed forms one curve at a time (given the
+    measured efficiencies where its context asks for them), else batched quadrature."""
+    if formula.efficiency is None:
+        eta = _pieces_area(curve, np.zeros_like(x_max), np.ones_like(x_max))
+        eps = _pieces_area(curve, np.ones_like(x_max), np.maximum(x_max, 1.0))
+        return eta, eps
+    context = [{}] * shape.size
+    if efficiency_of is not None:
+        context = [{"measured_efficiency": float(e)} for e in efficiency_of]
+    pairs = [formula.efficiency(float(k), float(x), **c) for k, x, c in zip(shape, x_max, context)]
+    return np.array([float(p[0]) for p in pairs]), np.array([float(p[1]) for p in pairs])
+
+
+def _batched_extrapolated(curve, d25, d75, eta, eps, d_cut, x_max, x_break, measured_sizes) -> list[tuple[str, ...]]:
+    """``extrapolated`` of each curve: the areas of eta and eps outside the measured sizes by
+    the batched quadrature, then the same flags as :func:`extrapolated_indices`."""
+    smallest, largest = (np.broadcast_to(np.asarray(v, dtype=float), d_cut.shape) for v in measured_sizes)
+    below = np.minimum(smallest / d_cut, 1.0)
+    above = np.maximum(largest / d_cut, 1.0)
+    area_below = _pieces_area(curve, np.zeros_like(below), below, x_break)
+    area_above = _pieces_area(curve, above, np.where(x_max > above, x_max, above), x_break)
+    return [
+        _extrapolated_flags(
+            d25[i], d75[i], eta[i], eps[i], x_max[i], above[i], area_below[i], area_above[i], smallest[i], largest[i]
         )
-    return results
+        for i in range(d_cut.size)
+    ]
+
+
+def _indices_of_curve(cut: float, slope: float, eta, eps, x25, x75, flags: tuple[str, ...]) -> CurveIndices:
+    """The :class:`CurveIndices` of one curve of the batch from its cut, slope, areas and relative d25, d75."""
+    d25, d75 = cut * x25, cut * x75
+    ep = (d75 - d25) / 2.0
+    return CurveIndices(
+        d_cut=cut,
+        slope=slope,
+        eta=float(eta),
+        epsilon=float(eps),
+        d25=float(d25),
+        d75=float(d75),
+        ep=float(ep),
+        imperfection=float(ep / cut),
+        sharpness=float(d25 / d75),
+        d50=cut,
+        ep_c=float(ep),
+        imperfection_c=float(ep / cut),
+        extrapolated=flags,
+    )
 
 
 def _extrapolated_flags(d25, d75, eta, epsilon, x_max, above, area_below, area_above, smallest, largest) -> tuple[str, ...]:

@@ -11,8 +11,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..loading.points import TrompPoints
-from .fitting import ParameterSpec
 from .formulas import Formula
+from .parameters import Parameter
 
 GRID_SLOPES = -np.geomspace(0.02, 20.0, 41)
 
@@ -81,7 +81,7 @@ def measured_slope(points: TrompPoints, d_cut: float) -> float:
     return float(np.clip(slope, GRID_SLOPES.min(), GRID_SLOPES.max()))
 
 
-def parameter_specs(formula: Formula, points: TrompPoints) -> list[ParameterSpec]:
+def parameter_specs(formula: Formula, points: TrompPoints) -> list[Parameter]:
     return list(formula.parameters(points.size))
 
 

@@ -60,7 +60,7 @@ import pandas as pd
 from ..errors import InputError
 from ..validation import check_non_negative, check_optional, check_positive, check_probability, check_share, check_water_recovery
 from .kelsall import kelsall_corrected
-from .points import SIZE_UNITS, TrompPoints, experiment_rows, normal_unit, points_from_table, resolve_size_unit, size_column_unit
+from .points import TrompPoints, experiment_rows, normal_unit, points_from_table, resolve_size_unit, size_column_unit
 from .surveys import has_survey_columns, split_survey_columns, with_survey_meta
 from .tables import Table, read_table
 
@@ -70,7 +70,6 @@ STREAMS = ("feed", "fine", "coarse")
 STREAM_ALIASES = {"overflow": "fine", "underflow": "coarse"}  # hydrocyclone wording
 KINDS = ("mass", "pct", "frac", "retained_pct", "retained_frac", "passing_pct", "passing_frac")
 CUMULATIVE_KINDS = {"retained_pct", "retained_frac", "passing_pct", "passing_frac"}
-UNITS = SIZE_UNITS
 SIZE_STEMS = ("size", "size_lower", "size_upper", "size_class", "size_representative")
 PARTITION_METHODS = ("products", "feed")
 PARTITION_METHOD_TEXT = {  # how each partition method reads in outputs

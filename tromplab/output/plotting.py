@@ -13,7 +13,7 @@ import numpy as np
 
 from ..classifiers.sieve import distance_pdf
 from ..curves.curve_fit import CurveFit
-from ..curves.formulas import FORMULAS
+from ..curves.formulas import select_formulas
 from ..curves.intervals import delta_standard_errors
 from .views import check_partition_to
 
@@ -176,13 +176,9 @@ def plot_tromp_fits(
     good = [f for f in fits if f.success]
     failed = [f.formula.id for f in fits if not f.success]
     low, high = points.size.min(), points.size.max()
-    if log_size:
-        grid = np.geomspace(low / 1.5, high * 1.5, 400)
-    else:
-        grid = np.linspace(0.0, high * 1.1, 400)[1:]
-    if best is None and good:
-        candidates = [f for f in good if f.formula.family == "paper"] or good
-        best = min(candidates, key=lambda f: f.fit.ssr)
+    grid = np.geomspace(low / 1.5, high * 1.5, 400) if log_size else np.linspace(0.0, high * 1.1, 400)[1:]
+    if best is None and good:  # the paper formula with the lowest sum of squares
+        best = min([f for f in good if f.formula.family == "paper"] or good, key=lambda f: f.fit.ssr)
     read = _partition_reader(partition_to)
     for style, fit in zip(curve_styles(len(fits)), fits):
         if not fit.success:
@@ -201,11 +197,7 @@ def plot_tromp_fits(
         )
     ax.plot(points.size, read(points.partition_fine), "ko", ms=6, label="measured", zorder=4)
     if best is not None:
-        if band:
-            low, high = sorted((read(bound) for bound in curve_band(best, grid)), key=np.sum)
-            ax.fill_between(grid, low, high, color="0.5", alpha=0.2, lw=0, label=f"95 % band, {best.formula.id}")
-        ax.axvline(best.d_cut, color="0.4", lw=0.8, ls=":")
-        ax.annotate(f"d_cut = {best.d_cut:.4g}", (best.d_cut, 0.5), xytext=(6, 6), textcoords="offset points", fontsize=8)
+        _mark_best_fit(ax, best, grid, read, band=band)
     if log_size:
         log_size_axis(ax, grid[0], grid[-1])
     unit = f" [{plain_text(size_unit)}]" if size_unit else ""
@@ -216,6 +208,15 @@ def plot_tromp_fits(
     title = f"failed: {', '.join(failed)}" if failed else None
     ax.legend(fontsize=7, title=title, title_fontsize=7, loc="best")
     return ax
+
+
+def _mark_best_fit(ax, best: CurveFit, grid, read, *, band: bool) -> None:
+    """The best fit's cut size marked on ``ax`` and, with ``band``, its 95 % delta-method band shaded."""
+    if band:
+        low, high = sorted((read(bound) for bound in curve_band(best, grid)), key=np.sum)
+        ax.fill_between(grid, low, high, color="0.5", alpha=0.2, lw=0, label=f"95 % band, {best.formula.id}")
+    ax.axvline(best.d_cut, color="0.4", lw=0.8, ls=":")
+    ax.annotate(f"d_cut = {best.d_cut:.4g}", (best.d_cut, 0.5), xytext=(6, 6), textcoords="offset points", fontsize=8)
 
 
 def _partition_reader(partition_to: str):
@@ -315,12 +316,17 @@ def plot_ranking(ranking, *, ax=None):
     return ax
 
 
+#: The equations Figs. 1 and 2 of Shuvalov et al. (2018) draw at equal slope: (3) to (9), the curves without a break.
+EQUAL_SLOPE_FIGURE_EQUATIONS = (3, 4, 5, 6, 7, 8, 9)
+
+
 def plot_equal_slope_family(slope: float, *, ax=None, formulas=None, x_max: float = 3.0):
     """The formulas at equal slope ``slope`` at the cut (Fig. 1 at -0.5, Fig. 2 at -0.4 of
-    Shuvalov et al. 2018), against the relative size x = size / d_cut."""
+    Shuvalov et al. 2018), against the relative size x = size / d_cut; by default those the
+    figures draw (:data:`EQUAL_SLOPE_FIGURE_EQUATIONS`)."""
     ax = _axes(ax)
     x = np.linspace(1e-3, x_max, 600)
-    for formula in formulas or FORMULAS[:7]:
+    for formula in formulas or select_formulas(EQUAL_SLOPE_FIGURE_EQUATIONS):
         shape = formula.shape_for_slope(slope)
         ax.plot(
             x,

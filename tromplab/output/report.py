@@ -121,6 +121,29 @@ def figure_png(ax) -> bytes:
     return buffer.getvalue()
 
 
+_FIT_COLUMNS = [
+    "rank",
+    "equation",
+    "formula",
+    "n",
+    "F",
+    "F_crit",
+    "adequate",
+    "d_cut",
+    "shape_name",
+    "shape",
+    "eta",
+    "epsilon",
+    "ep",
+    "imperfection",
+    "delta_aicc",
+    "runs_p",
+    "normality_p",
+    "residuals",
+    "extrapolated",
+]  # the columns of the ranked-fits tables, in order
+
+
 def build_report(
     bench,
     balances: list[MassBalance],
@@ -151,6 +174,20 @@ def build_report(
     check_partition_to(partition_to)
     report = Report(title, source)
     fits, ranking = bench.fits_table(), bench.ranking_table()
+    _add_summary(report, bench, balances, size_unit=size_unit)
+    _add_balances(report, balances, partition_to=partition_to)
+    _add_fits(report, bench, fits)
+    _add_parameters(report, bench, level=level)
+    report.add("ranking", "table", ranking)
+    averages = bench.averages(level=level)
+    if not averages.empty:
+        report.add("averages", "table", averages[["experiment", "quantity", "value", "stderr", "low", "high"]])
+    _add_figures(report, bench, fits, ranking, size_unit=size_unit, partition_to=partition_to)
+    return report
+
+
+def _add_summary(report: Report, bench, balances: list[MassBalance], *, size_unit: str) -> None:
+    """Input summary: points and fits per experiment, the screen's settings, then every data warning."""
     summary = pd.DataFrame(
         [
             {
@@ -185,6 +222,10 @@ def build_report(
         if fit.warnings or not fit.success:
             detail = "; ".join(fit.warnings) if fit.success else f"fit failed: {fit.message}"  # solver chatter left out
             report.add("summary", "warning", f"{fit.experiment}, {fit.formula.id}: {detail}")
+
+
+def _add_balances(report: Report, balances: list[MassBalance], *, partition_to: str) -> None:
+    """Mass balance and yield of each lab experiment: how the yield and partition were found, and the class table."""
     for balance in balances:
         estimate = balance.yield_estimate
         text = f"Fine yield {balance.fine_yield:.4f} ({balance.yield_source})."
@@ -193,29 +234,12 @@ def build_report(
         text += f" Partition to fines from {PARTITION_METHOD_TEXT[balance.partition_method]}."
         report.add("balance", "text", text, caption=f"Experiment {balance.experiment}")
         report.add("balance", "table", balance_view(balance.classes, partition_to))
-    view = [
-        "rank",
-        "equation",
-        "formula",
-        "n",
-        "F",
-        "F_crit",
-        "adequate",
-        "d_cut",
-        "shape_name",
-        "shape",
-        "eta",
-        "epsilon",
-        "ep",
-        "imperfection",
-        "delta_aicc",
-        "runs_p",
-        "normality_p",
-        "residuals",
-        "extrapolated",
-    ]
+
+
+def _add_fits(report: Report, bench, fits: pd.DataFrame) -> None:
+    """Ranked fits per experiment, with the verdicts and the check of the fitted bypass against water recovery."""
     for experiment, group in fits.groupby("experiment", sort=False):
-        report.add("fits", "table", group.sort_values("rank")[view], caption=f"Experiment {experiment}")
+        report.add("fits", "table", group.sort_values("rank")[_FIT_COLUMNS], caption=f"Experiment {experiment}")
         for statement in bench.verdicts(experiment) if experiment in bench.experiments else []:
             report.add("fits", "warning", statement)
         statements = water_recovery_statements(fits, experiment)  # hydrocyclones: fitted bypass against Rf
@@ -223,6 +247,10 @@ def build_report(
             report.add("fits", "warning" if ": differs:" in statement else "text", f"water recovery: {statement}")
         if bench.water_recovery is not None and not statements:
             report.add("fits", "text", f"water recovery {bench.water_recovery:g}: no curve with bypass fitted to compare it with")
+
+
+def _add_parameters(report: Report, bench, *, level: float) -> None:
+    """Parameters and indices of each experiment's top-ranked formula, with their intervals."""
     for experiment in bench.experiments:
         best = bench.best_fit(experiment)
         if best is not None:
@@ -233,48 +261,29 @@ def build_report(
                 table,
                 caption=f"Experiment {experiment}: top-ranked formula {best.formula.id} ({level:.0%} intervals)",
             )
-    report.add("ranking", "table", ranking)
-    averages = bench.averages(level=level)
-    if not averages.empty:
-        report.add("averages", "table", averages[["experiment", "quantity", "value", "stderr", "low", "high"]])
+
+
+def _add_figures(report: Report, bench, fits: pd.DataFrame, ranking: pd.DataFrame, *, size_unit: str, partition_to: str) -> None:
+    """Tromp curves and residuals per experiment, then F across experiments and the ranking (when there are several)."""
     for experiment in bench.experiments:
         experiment_fits = bench.fits_of(experiment)
         if any(f.success for f in experiment_fits):
-            report.add(
-                "figures",
-                "figure",
-                figure_png(
-                    plot_tromp_fits(
-                        experiment_fits,
-                        size_unit=size_unit,
-                        best=bench.best_fit(experiment),
-                        partition_to=partition_to,
-                        ax=offscreen_axes(),
-                    )
-                ),
-                caption=f"Tromp curve, experiment {experiment}",
+            curves = plot_tromp_fits(
+                experiment_fits,
+                size_unit=size_unit,
+                best=bench.best_fit(experiment),
+                partition_to=partition_to,
+                ax=offscreen_axes(),
             )
-            report.add(
-                "figures",
-                "figure",
-                figure_png(plot_residuals(experiment_fits, size_unit=size_unit, partition_to=partition_to, ax=offscreen_axes())),
-                caption=f"Residuals, experiment {experiment}",
-            )
+            report.add("figures", "figure", figure_png(curves), caption=f"Tromp curve, experiment {experiment}")
+            residuals = plot_residuals(experiment_fits, size_unit=size_unit, partition_to=partition_to, ax=offscreen_axes())
+            report.add("figures", "figure", figure_png(residuals), caption=f"Residuals, experiment {experiment}")
     if fits["success"].any():
-        report.add(
-            "figures",
-            "figure",
-            figure_png(plot_f_heatmap(fits, ax=offscreen_axes())),
-            caption="Fisher's F across experiments and formulas",
-        )
+        heatmap = plot_f_heatmap(fits, ax=offscreen_axes())
+        report.add("figures", "figure", figure_png(heatmap), caption="Fisher's F across experiments and formulas")
     if len(ranking) and len(bench.experiments) > 1:
-        report.add(
-            "figures",
-            "figure",
-            figure_png(plot_ranking(ranking, ax=offscreen_axes())),
-            caption="Points and places across experiments",
-        )
-    return report
+        places = plot_ranking(ranking, ax=offscreen_axes())
+        report.add("figures", "figure", figure_png(places), caption="Points and places across experiments")
 
 
 def write_report(report: Report, html_path) -> dict[str, Path]:

@@ -10,7 +10,6 @@ precision).  Written with openpyxl, readable in Excel and LibreOffice.
 from __future__ import annotations
 
 import io
-import re
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -96,11 +95,6 @@ def header_with_unit(column: str, size_unit: str = "") -> str:
     return f"{column} [{unit}]" if unit else column
 
 
-def strip_unit(header: str) -> str:
-    """Inverse of :func:`header_with_unit`: ``"d_cut [mm]"`` -> ``"d_cut"``."""
-    return re.sub(r" \[[^\]]*\]$", "", str(header))
-
-
 def _stem(column: str) -> str:
     for suffix in sorted(_SUFFIXES, key=len, reverse=True):
         if column.endswith(suffix):
@@ -147,9 +141,6 @@ def write_workbook(
         Sheet name -> sentence shown on a sheet with no rows (why it is empty).
     """
     from openpyxl import Workbook
-    from openpyxl.drawing.image import Image
-    from openpyxl.styles import Font
-    from openpyxl.utils import get_column_letter
 
     book = Workbook()
     book.remove(book.active)
@@ -157,37 +148,53 @@ def write_workbook(
         sheet = book.create_sheet(name)
         if table is None or table.empty:
             sheet["A1"] = (notes or {}).get(name, "no rows")
-            continue
-        if "quantity" in table.columns and "unit" not in table.columns:
-            # a long table (one row per quantity, as the model averages): the unit goes in a column
-            table = table.copy()
-            table.insert(
-                table.columns.get_loc("quantity") + 1, "unit", table["quantity"].map(lambda q: column_unit(str(q), size_unit))
-            )
-        headers = [header_with_unit(str(c), size_unit) for c in table.columns]
-        sheet.append(headers)
-        for row in table.itertuples(index=False):
-            sheet.append([_cell_value(value) for value in row])
-        for index, column in enumerate(table.columns, start=1):
-            letter = get_column_letter(index)
-            sheet.cell(row=1, column=index).font = Font(bold=True)
-            sheet.column_dimensions[letter].width = max(10, min(40, len(headers[index - 1]) + 2))
-            if pd.api.types.is_numeric_dtype(table[column]) and not pd.api.types.is_bool_dtype(table[column]):
-                number_format = _number_format(str(column))
-                for cell in sheet[letter][1:]:
-                    cell.number_format = number_format
-        sheet.freeze_panes = "A2"
+        else:
+            _write_table(sheet, table, size_unit)
     if figures:
-        sheet = book.create_sheet("figures")
-        row = 1
-        for name, png in figures.items():
-            sheet.cell(row=row, column=1, value=name).font = Font(bold=True)
-            image = Image(io.BytesIO(png))
-            sheet.add_image(image, f"A{row + 1}")
-            row += int(np.ceil(image.height / 20)) + 3  # default row height is 20 pixels
+        _write_figures(book.create_sheet("figures"), figures)
     path = Path(path)
     book.save(path)
     return path
+
+
+def _write_table(sheet, table: pd.DataFrame, size_unit: str) -> None:
+    """``table`` on ``sheet``: a bold header with units, the rows at full precision, a number format
+    per numeric column and the header row frozen."""
+    from openpyxl.styles import Font
+    from openpyxl.utils import get_column_letter
+
+    if "quantity" in table.columns and "unit" not in table.columns:
+        # a long table (one row per quantity, as the model averages): the unit goes in a column
+        table = table.copy()
+        table.insert(
+            table.columns.get_loc("quantity") + 1, "unit", table["quantity"].map(lambda q: column_unit(str(q), size_unit))
+        )
+    headers = [header_with_unit(str(c), size_unit) for c in table.columns]
+    sheet.append(headers)
+    for row in table.itertuples(index=False):
+        sheet.append([_cell_value(value) for value in row])
+    for index, column in enumerate(table.columns, start=1):
+        letter = get_column_letter(index)
+        sheet.cell(row=1, column=index).font = Font(bold=True)
+        sheet.column_dimensions[letter].width = max(10, min(40, len(headers[index - 1]) + 2))
+        if pd.api.types.is_numeric_dtype(table[column]) and not pd.api.types.is_bool_dtype(table[column]):
+            number_format = _number_format(str(column))
+            for cell in sheet[letter][1:]:
+                cell.number_format = number_format
+    sheet.freeze_panes = "A2"
+
+
+def _write_figures(sheet, figures: Mapping[str, bytes]) -> None:
+    """The PNG ``figures`` on ``sheet``, one below the other, each under its name in bold."""
+    from openpyxl.drawing.image import Image
+    from openpyxl.styles import Font
+
+    row = 1
+    for name, png in figures.items():
+        sheet.cell(row=row, column=1, value=name).font = Font(bold=True)
+        image = Image(io.BytesIO(png))
+        sheet.add_image(image, f"A{row + 1}")
+        row += int(np.ceil(image.height / 20)) + 3  # default row height is 20 pixels
 
 
 def _cell_value(value):
@@ -201,9 +208,3 @@ def _cell_value(value):
     if value is pd.NA or value is pd.NaT:
         return None
     return value
-
-
-def read_workbook_sheet(path, sheet: str) -> pd.DataFrame:
-    """A table sheet read back with the units stripped from its headers (for checks and tests)."""
-    frame = pd.read_excel(path, sheet_name=sheet)
-    return frame.rename(columns=strip_unit)

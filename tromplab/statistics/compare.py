@@ -21,10 +21,10 @@ import pandas as pd
 from scipy import stats
 
 from ..curves.curve_fit import CurveFit, fit_formula
-from ..curves.fitting import ParameterFit, ParameterSpec, least_squares
+from ..curves.fitting import ParameterFit, least_squares
 from ..curves.formulas import get_formula
 from ..curves.measured import measured_efficiency, normalised_weights
-from ..curves.parameters import d_cut_parameter
+from ..curves.parameters import Parameter, d_cut_parameter
 from ..errors import InputError
 from ..loading.points import TrompPoints
 
@@ -247,8 +247,8 @@ def shared_fit(experiments: Sequence[TrompPoints], formula, *, shared: str = "sh
     contexts = [{"measured_efficiency": measured_efficiency(p)} if formula.context_from_efficiency else {} for p in experiments]
     root_weights = [np.sqrt(normalised_weights(p)) for p in experiments]
     sizes = np.concatenate([p.size for p in experiments])
-    specs = [ParameterSpec(shared_name, *(_bounds(formula, shared_name, sizes)))]
-    specs += [ParameterSpec(f"{free}_{i}", *_bounds(formula, free, p.size)) for i, p in enumerate(experiments)]
+    specs = [Parameter(shared_name, *(_bounds(formula, shared_name, sizes)))]
+    specs += [Parameter(f"{free}_{i}", *_bounds(formula, free, p.size)) for i, p in enumerate(experiments)]
 
     def residual(values):
         parts = []

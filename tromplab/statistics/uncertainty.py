@@ -136,14 +136,30 @@ def bootstrap(
         raise ValueError(f"method must be one of {', '.join(BOOTSTRAP_METHODS)}, got {method!r}")
     if n < 2:
         raise ValueError("the bootstrap needs at least 2 resamples")
-    rng = np.random.default_rng(seed)
+    delta_max = fit.options.delta_max if delta_max is None else delta_max
+    samples = _resamples(fit, n, np.random.default_rng(seed), method, progress)
+    refits = refit_resamples(fit, samples, delta_max=delta_max)  # all resamples in one batched call
+    attach_indices(refits)  # and their indices in one array computation
+    logger.debug(
+        "bootstrap %s %s: %d %s resamples, %d refits failed",
+        fit.experiment,
+        fit.formula.id,
+        n,
+        method,
+        sum(not refit.success for refit in refits),
+    )
+    rows = [{**refit.fit.values, **{k: getattr(refit.indices, k) for k in INDEX_NAMES}} for refit in refits if refit.success]
+    return Bootstrap(pd.DataFrame(rows), n, method, seed, _bootstrap_bounds(fit, delta_max))
+
+
+def _resamples(fit: CurveFit, n: int, rng: np.random.Generator, method: str, progress) -> list[TrompPoints]:
+    """The ``n`` resampled data sets of :func:`bootstrap`, drawn from ``rng`` by ``method``."""
     points = fit.points
     p = fit.formula.n_params
     fitted = fit.predict(points.size)
     root_weights = np.sqrt(fit.options.weights)
     scaled = root_weights * (points.partition_fine - fitted)
     residuals = (scaled - scaled.mean()) * np.sqrt(points.n / max(points.n - p, 1))
-    delta_max = fit.options.delta_max if delta_max is None else delta_max
     samples = []
     for i in range(n):
         if progress is not None:
@@ -164,23 +180,18 @@ def bootstrap(
                     break
             weight = None if points.weight is None else points.weight[pick]
             samples.append(TrompPoints(points.experiment, points.size[pick], points.partition_fine[pick], weight, resampled=True))
-    refits = refit_resamples(fit, samples, delta_max=delta_max)  # all resamples in one batched call
-    attach_indices(refits)  # and their indices in one array computation
-    logger.debug(
-        "bootstrap %s %s: %d %s resamples, %d refits failed",
-        fit.experiment,
-        fit.formula.id,
-        n,
-        method,
-        sum(not refit.success for refit in refits),
-    )
-    rows = [{**refit.fit.values, **{k: getattr(refit.indices, k) for k in INDEX_NAMES}} for refit in refits if refit.success]
+    return samples
+
+
+def _bootstrap_bounds(fit: CurveFit, delta_max: float) -> dict[str, tuple[float, ...]]:
+    """:attr:`Bootstrap.bounds`: the edges each parameter and index cannot pass (its range and, for a
+    parameter, the bounds of the fit)."""
     x_max = relative_size_limit(fit, {**fit.context_at(), **fit.fit.values}, delta_max)
     domains = {name: quantity_domain(name, fit.formula, x_max=x_max) for name in (*fit.fit.names, *INDEX_NAMES)}
     bounds = {name: (domain.lower, domain.upper) for name, domain in domains.items()}
     for spec in parameter_specs(fit.formula, fit.points):
         bounds[spec.name] = (*bounds[spec.name], spec.lower, spec.upper)
-    return Bootstrap(pd.DataFrame(rows), n, method, seed, bounds)
+    return bounds
 
 
 # --- information criteria and model averaging --------------------------------------------
@@ -274,54 +285,13 @@ def model_average(
     estimates = [_estimates_and_errors(fit, delta_max, known) for fit in good]
     # epsilon: each formula's range [0, x_max - 1] lies inside that of the largest x_max
     widest_x_max = max((fit.options.delta_max if delta_max is None else delta_max) / fit.d_cut for fit in good)
-    rows = []
     z = stats.norm.ppf(0.5 + level / 2.0)
+    ids = [fit.formula.id for fit in good]
+    rows = []
     for quantity in quantities:
         values = np.array([found.get(quantity, (np.nan, np.nan))[0] for found in estimates])
         errors = np.array([found.get(quantity, (np.nan, np.nan))[1] for found in estimates])
-        usable = np.isfinite(values) & (weights > 0)
-        share = float(weights[usable].sum())
-        row = {
-            "quantity": quantity,
-            "value": np.nan,
-            "stderr": np.nan,
-            "low": np.nan,
-            "high": np.nan,
-            "method": "",
-            "akaike_share": share,
-            "n_formulas": int(usable.sum()),
-            "note": "",
-        }
-        if share < min_share or not usable.any():
-            row["note"] = (
-                f"not averaged: defined only for formulas holding {share:.2%} of the Akaike weight (less than {min_share:.0%})"
-            )
-            rows.append(row)
-            continue
-        w = weights[usable] / share
-        theta, se = values[usable], errors[usable]  # a missing se stays missing: the average's is then unknown
-        mean = float(np.sum(w * theta))
-        domain = quantity_domain(quantity, x_max=widest_x_max)
-        row.update(value=mean, stderr=float(np.sum(w * np.sqrt(se**2 + (theta - mean) ** 2))))
-        ids = [fit.formula.id for fit, used in zip(good, usable) if used]
-        without_se = [name for name, error in zip(ids, se) if not np.isfinite(error)]
-        if without_se:
-            row["note"] = (
-                f"no standard error and no interval: the fit of {', '.join(without_se)} "
-                f"({float(w[~np.isfinite(se)].sum()):.2%} of the weight) gives no standard error of {quantity}"
-            )
-        elif domain.inside(mean) and all(domain.inside(t) for t in theta):
-            g_mean = domain.forward(mean)
-            se_g = float(np.sum(w * np.sqrt((se * domain.slope(theta)) ** 2 + (domain.forward(theta) - g_mean) ** 2)))
-            low, high = sorted((float(domain.backward(g_mean - z * se_g)), float(domain.backward(g_mean + z * se_g))))
-            row.update(low=low, high=high, method=interval_method("akaike", domain))
-        else:
-            row["note"] = "no interval: an estimate lies on the edge of the quantity's range"
-        if share < 1.0 - 1e-9:
-            row["note"] = (
-                row["note"] or f"averaged over the {int(usable.sum())} formulas where it is defined ({share:.2%} of the weight)"
-            )
-        rows.append(row)
+        rows.append(_averaged_row(quantity, values, errors, weights, ids=ids, z=z, x_max=widest_x_max, min_share=min_share))
     weight_columns = {f"weight_{fit.formula.id}": weight for fit, weight in zip(good, weights)}
     if not rows:  # no quantity asked for: the weights alone
         table = pd.DataFrame()
@@ -331,6 +301,58 @@ def model_average(
     # the weight columns go into each row: adding them to the frame one by one cost about
     # 1 ms each (9 ms per experiment, the largest part of the averages of a batch)
     return pd.DataFrame([{**row, **weight_columns} for row in rows])
+
+
+def _averaged_row(quantity: str, values, errors, weights, *, ids: list[str], z: float, x_max: float, min_share: float) -> dict:
+    """One row of :func:`model_average`: the Akaike-weighted average of one quantity over the
+    formulas where it is defined (``values`` and ``errors`` per formula, nan where undefined)."""
+    usable = np.isfinite(values) & (weights > 0)
+    share = float(weights[usable].sum())
+    row = {
+        "quantity": quantity,
+        "value": np.nan,
+        "stderr": np.nan,
+        "low": np.nan,
+        "high": np.nan,
+        "method": "",
+        "akaike_share": share,
+        "n_formulas": int(usable.sum()),
+        "note": "",
+    }
+    if share < min_share or not usable.any():
+        row["note"] = (
+            f"not averaged: defined only for formulas holding {share:.2%} of the Akaike weight (less than {min_share:.0%})"
+        )
+        return row
+    w = weights[usable] / share
+    theta, se = values[usable], errors[usable]  # a missing se stays missing: the average's is then unknown
+    mean = float(np.sum(w * theta))
+    row.update(value=mean, stderr=float(np.sum(w * np.sqrt(se**2 + (theta - mean) ** 2))))
+    used_ids = [name for name, used in zip(ids, usable) if used]
+    row.update(_averaged_interval(quantity, w, theta, se, mean, ids=used_ids, z=z, x_max=x_max))
+    if share < 1.0 - 1e-9:
+        row["note"] = (
+            row["note"] or f"averaged over the {int(usable.sum())} formulas where it is defined ({share:.2%} of the weight)"
+        )
+    return row
+
+
+def _averaged_interval(quantity: str, w, theta, se, mean: float, *, ids: list[str], z: float, x_max: float) -> dict:
+    """``low, high, method`` of the interval of an Akaike-weighted average, made on the scale of the
+    quantity's domain around ``g(mean)`` and transformed back; or the ``note`` saying why there is none."""
+    domain = quantity_domain(quantity, x_max=x_max)
+    without_se = [name for name, error in zip(ids, se) if not np.isfinite(error)]
+    if without_se:
+        return {
+            "note": f"no standard error and no interval: the fit of {', '.join(without_se)} "
+            f"({float(w[~np.isfinite(se)].sum()):.2%} of the weight) gives no standard error of {quantity}"
+        }
+    if not (domain.inside(mean) and all(domain.inside(t) for t in theta)):
+        return {"note": "no interval: an estimate lies on the edge of the quantity's range"}
+    g_mean = domain.forward(mean)
+    se_g = float(np.sum(w * np.sqrt((se * domain.slope(theta)) ** 2 + (domain.forward(theta) - g_mean) ** 2)))
+    low, high = sorted((float(domain.backward(g_mean - z * se_g)), float(domain.backward(g_mean + z * se_g))))
+    return {"low": low, "high": high, "method": interval_method("akaike", domain)}
 
 
 def _estimates_and_errors(fit: CurveFit, delta_max: float | None, known: dict | None) -> dict[str, tuple[float, float]]:
