@@ -80,3 +80,16 @@ def test_save_refuses_an_unknown_figure_choice(tmp_path):
     with pytest.raises(OptionError, match="figures must be one of auto, all, best, none"):
         bench.save(tmp_path / "out", figures="some")
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.slow
+def test_intervals_are_made_on_the_workers_and_do_not_depend_on_them(monkeypatch):
+    from tromplab._synthetic import synthetic
+    from tromplab.statistics.uncertainty import interval_columns
+
+    monkeypatch.setattr(tromplab.workbench, "CHUNK_SIZE", 3)  # four chunks of experiments from ten
+    experiments = [synthetic(seed) for seed in range(10)]
+    options = {"formulas": ["plitt", "lognormal"], "ci": 0.9, "bootstrap": 8, "seed": 3}
+    serial, parallel = (tromplab.fit_experiments(experiments, jobs=jobs, **options) for jobs in (1, 2))
+    whole = interval_columns(list(serial.fits), level=0.9, n_bootstrap=8, seed=3)
+    assert serial.intervals.to_csv(index=False) == parallel.intervals.to_csv(index=False) == whole.to_csv(index=False)

@@ -376,7 +376,14 @@ def fit_experiments(
         failures, fittable = _screenable(experiments)
         fits, notes = _fit_in_chunks(fittable, chosen, settings, jobs=jobs, client=cluster, progress=progress)
         intervals = _batch_intervals(
-            fits, ci=ci, bootstrap=bootstrap, bootstrap_method=bootstrap_method, seed=seed, progress=progress
+            fits,
+            ci=ci,
+            bootstrap=bootstrap,
+            bootstrap_method=bootstrap_method,
+            seed=seed,
+            jobs=jobs,
+            client=cluster,
+            progress=progress,
         )
         bench = Workbench(
             tuple(fits), failures, chosen, rank_by, alpha, rank_extended, notes, settings["water_recovery"],
@@ -387,19 +394,26 @@ def fit_experiments(
     return bench
 
 
-def _batch_intervals(fits, *, ci, bootstrap, bootstrap_method, seed, progress) -> pd.DataFrame | None:
-    """The interval columns of a batch's fits (None without ``ci`` or ``bootstrap``), reported to
-    ``progress`` with labels ``"intervals: ..."``."""
-    if ci is None and not bootstrap:
+def _batch_intervals(fits, *, ci, bootstrap, bootstrap_method, seed, jobs, client, progress) -> pd.DataFrame | None:
+    """The interval columns of a batch's fits (None without ``ci`` or ``bootstrap``), made on the
+    workers chunk by chunk (the fits of :data:`CHUNK_SIZE` experiments each) and reported to
+    ``progress`` with labels ``"intervals: ..."``; the same table for any number of workers
+    (each fit's intervals, its bootstrap seed included, depend on that fit only)."""
+    if (ci is None and not bootstrap) or not fits:
         return None
-    return interval_columns(
-        fits,
-        level=ci,
-        n_bootstrap=bootstrap,
-        method=bootstrap_method,
-        seed=seed,
-        progress=None if progress is None else (lambda done, total, label: progress(done, total, f"intervals: {label}")),
-    )
+    per_chunk = CHUNK_SIZE * len({fit.formula.id for fit in fits})
+    chunks = [fits[i : i + per_chunk] for i in range(0, len(fits), per_chunk)]
+    options = {"level": ci, "n_bootstrap": bootstrap, "method": bootstrap_method, "seed": seed}
+    frames = []
+    for chunk, frame in zip(chunks, _map_work(_intervals_of_chunk, chunks, options, jobs=jobs, client=client)):
+        frames.append(frame)
+        if progress is not None:
+            progress(sum(len(f) for f in frames), len(fits), f"intervals: {chunk[-1].experiment}")
+    return pd.concat(frames, ignore_index=True)
+
+
+def _intervals_of_chunk(options: dict, fits) -> pd.DataFrame:
+    return interval_columns(fits, **options)
 
 
 def check_formula_selection(formulas=None, extended: bool = False):
