@@ -457,6 +457,7 @@ def _parser() -> argparse.ArgumentParser:
     rank.set_defaults(run=_run_rank)
 
     add_model_commands(commands)  # layer, pulp, optimize
+    _add_circuit_command(commands)
     return parser
 
 
@@ -1151,6 +1152,39 @@ def _write_fit_outputs(args, bench, experiments, balances, fits, ranking, averag
     if args.excel:
         outputs["results.xlsx"] = workbook
     return replace_folder(outputs, args.outdir)
+
+
+def _add_circuit_command(commands) -> None:
+    """``tromplab circuit FLOWSHEET MEASUREMENTS -o DIR [--fit]`` (issue 25; the work is in circuit_command)."""
+    circuit = commands.add_parser(
+        "circuit", help="reconcile a plant survey over its flowsheet; partition curves of every separator (docs/circuit.md)"
+    )
+    circuit.add_argument("flowsheet", type=Path, help="flowsheet CSV: stream, from, to, product")
+    circuit.add_argument("measurements", type=Path, help="survey CSV: stream, size classes, retained_pct [, solids_flow]")
+    circuit.add_argument(
+        "-o", "--outdir", type=Path, default=Path("results/circuit"), help="output folder (default: results/circuit)"
+    )
+    circuit.add_argument("--fit", action="store_true", help="also fit the nine formulas and the extended curves per separator")
+    circuit.add_argument("--relative-error", type=cli_type(check_non_negative, "--relative-error"), default=0.05,
+                         help="relative error of a measured share where the table gives none (default 0.05)")  # fmt: skip
+    circuit.add_argument("--absolute-error", type=cli_type(check_non_negative, "--absolute-error"), default=0.001,
+                         help="absolute error of a share, as a fraction of the stream (default 0.001)")  # fmt: skip
+    circuit.add_argument("--alpha", type=cli_type(check_probability, "--alpha"), default=0.05,
+                         help="level of the chi-square and measurement tests (default 0.05)")  # fmt: skip
+    circuit.add_argument("--size-unit", default=None, help="unit of the sizes when the size columns carry none")
+    circuit.add_argument("--no-figures", action="store_true", help="do not draw the figures")
+    circuit.set_defaults(run=_run_circuit)
+
+
+def _run_circuit(args) -> int:
+    from .circuit import ErrorModel
+    from .circuit_command import console_report, run_circuit
+
+    errors = ErrorModel(relative_error=args.relative_error, absolute_error=args.absolute_error)
+    run = run_circuit(args.flowsheet, args.measurements, args.outdir, fit=args.fit, errors=errors, alpha=args.alpha,
+                      size_unit=args.size_unit, figures=not args.no_figures)  # fmt: skip
+    print(console_report(run))
+    return EXIT_OK
 
 
 if __name__ == "__main__":

@@ -46,10 +46,13 @@ size-analysis data by a relative error with a floor for the small classes.  ``re
 overrides it per row, ``relative_error`` / ``absolute_error`` columns per row, and
 :class:`ErrorModel` ``streams`` per stream.  A measured solids flow without sd has the
 relative error :data:`DEFAULT_FLOW_RELATIVE_ERROR` (5 %).  The model is evaluated at the
-measured value.  The errors of different measurements are independent.  Shares are used
-as given, not normalised: a stream summing to 99.6 % carries that miss into the balance.
-Masses are divided by the stream's total; such a stream's shares sum to 1 by
-construction, and the chi-square test counts one degree of freedom less for it.
+measured value.  The errors of the class masses of a sieve analysis are independent; a
+stream measured in every class is normalised to 100 % (as lab tables are), and its shares
+then carry the errors through the normalisation: with :math:`D = \mathrm{diag}(\sigma_i^2)`
+and :math:`P = I - x\,\mathbf{1}^T`, their covariance is :math:`P D P^T` (rank n - 1:
+the shares of a closed analysis are not independent).  A stream with classes left out is
+used as given, its shares independent.  Flows and shares of different streams are
+independent.
 
 References
 ----------
@@ -153,9 +156,9 @@ class Survey:
         ``stream, value, sd, row``.
     size_unit : str
     source : str
-    normalised_streams : tuple of str
-        Streams given as masses, whose shares are normalised to sum to 1 (each such stream
-        takes one degree of freedom from the chi-square test).
+    closed_streams : tuple of str
+        Streams measured in every class, normalised to sum to 1: their shares have the
+        covariance :math:`P D P^T` of the module docstring.
     """
 
     classes: pd.DataFrame
@@ -164,7 +167,7 @@ class Survey:
     pct_solids: pd.DataFrame
     size_unit: str = ""
     source: str = ""
-    normalised_streams: tuple[str, ...] = ()
+    closed_streams: tuple[str, ...] = ()
 
     @property
     def n_classes(self) -> int:
@@ -436,7 +439,6 @@ def _shares(table, names, has_class, class_of_row, n_classes, values_given, erro
         total = given.sum()
         complete = rows.size == n_classes
         if full is None:
-            normalised.append(stream)
             if not complete:
                 missing = n_classes - rows.size
                 raise table.error(
@@ -458,6 +460,9 @@ def _shares(table, names, has_class, class_of_row, n_classes, values_given, erro
                     index=int(rows[0]),
                     column=column,
                 )
+        if complete:
+            scale = total  # a closed analysis, normalised as lab tables are
+            normalised.append(stream)
         share = given / scale
         default = errors.share_sd(share, stream)
         stream_relative, stream_absolute = errors.streams.get(stream, (errors.relative_error, errors.absolute_error))

@@ -89,7 +89,13 @@ class _Problem:
     stream: np.ndarray  # stream index per measurement
     klass: np.ndarray  # class index per measurement (-1 for flows)
     y: np.ndarray
-    sd: np.ndarray
+    sd: np.ndarray  # of each measurement (of a closed analysis's share: before the closure)
+    cov: np.ndarray  # covariance of the measurements (closed analyses: P D P^T blocks)
+    W: np.ndarray  # whitening: W cov W^T = I on the range of cov (rows: independent pieces of information)
+
+    @property
+    def variance(self) -> np.ndarray:
+        return np.diag(self.cov)
 
     def predict(self, m: np.ndarray) -> np.ndarray:
         flows = m.reshape(self.n_streams, self.n_classes).sum(axis=1)
@@ -302,7 +308,7 @@ class CircuitBalance:
         predicted = problem.predict(m)
         cov_pred = H @ self.covariance @ H.T
         adjustment = self.measured_y - predicted  # measured minus reconciled
-        adjustment_var = problem.sd**2 - np.diag(cov_pred)
+        adjustment_var = problem.variance - np.diag(cov_pred)
         testable = adjustment_var > 1e-8 * problem.sd**2
         adjustment_sd = np.where(testable, np.sqrt(np.clip(adjustment_var, 0.0, None)), np.nan)
         with np.errstate(invalid="ignore", divide="ignore"):
@@ -322,7 +328,7 @@ class CircuitBalance:
                 "size_upper": [classes["size_upper"].iloc[i] if i >= 0 else np.nan for i in problem.klass],
                 "row": rows_of,
                 "measured": self.measured_y,
-                "sd": problem.sd,
+                "sd": np.sqrt(problem.variance),
                 "reconciled": predicted,
                 "reconciled_sd": np.sqrt(np.clip(np.diag(cov_pred), 0.0, None)),
                 "adjustment": -adjustment,  # reconciled minus measured: what was added to the measurement
@@ -352,7 +358,7 @@ class CircuitBalance:
             return float("nan")
         m = self.class_flows.ravel()
         H = problem.jacobian(m)
-        variance = problem.sd**2 - np.einsum("ij,jk,ik->i", H, self.covariance, H)
+        variance = problem.variance - np.einsum("ij,jk,ik->i", H, self.covariance, H)
         p = int(np.sum(variance > 1e-8 * problem.sd**2))
         if p == 0:
             return float("nan")
@@ -636,10 +642,10 @@ def reconcile(
     z0 = problem.N.T @ (start - problem.m0)
 
     def residuals(z):
-        return (problem.predict(problem.m0 + problem.N @ z) - problem.y) / problem.sd
+        return problem.W @ (problem.predict(problem.m0 + problem.N @ z) - problem.y)
 
     def jacobian(z):
-        return (problem.jacobian(problem.m0 + problem.N @ z) @ problem.N) / problem.sd[:, None]
+        return problem.W @ problem.jacobian(problem.m0 + problem.N @ z) @ problem.N
 
     if problem.N.shape[1] and problem.y.size:
         solution = optimize.least_squares(
@@ -672,7 +678,7 @@ def reconcile(
         m.reshape(len(flowsheet.streams), -1),
         covariance,
         chi,
-        int(problem.y.size - rank - len(survey.normalised_streams)),
+        int(problem.W.shape[0] - rank),
         alpha,
         success,
         message,
@@ -739,7 +745,37 @@ def _build(flowsheet: Flowsheet, survey: Survey) -> tuple[_Problem, str]:
     klass = np.array(list(shares["class_index"].astype(int)) + [-1] * len(free_flows), dtype=int)
     y = np.concatenate([shares["value"].to_numpy(float), free_flows["value"].to_numpy(float)])
     sd = np.concatenate([shares["sd"].to_numpy(float), free_flows["sd"].to_numpy(float)])
-    return _Problem(S, n, A, b, m0, N, kinds, stream, klass, y, sd), basis
+    cov, W = _measurement_covariance(shares, sd, survey.closed_streams)
+    return _Problem(S, n, A, b, m0, N, kinds, stream, klass, y, sd, cov, W), basis
+
+
+def _measurement_covariance(shares: pd.DataFrame, sd: np.ndarray, closed) -> tuple[np.ndarray, np.ndarray]:
+    """Covariance of the measurements and its whitening: independent, except the shares of a
+    closed (normalised) analysis, whose block is :math:`P D P^T`, :math:`P = I - x 1^T`."""
+    cov = np.diag(sd**2)
+    pieces = []
+    done = np.zeros(sd.size, dtype=bool)
+    streams = shares["stream"].to_numpy()
+    values = shares["value"].to_numpy(float)
+    for stream in closed:
+        where = np.flatnonzero(streams == stream)
+        if where.size == 0:
+            continue
+        x = values[where]
+        P = np.eye(where.size) - np.outer(x, np.ones(where.size))
+        block = P @ np.diag(sd[where] ** 2) @ P.T
+        cov[np.ix_(where, where)] = block
+        eigenvalues, vectors = np.linalg.eigh(block)
+        keep = eigenvalues > 1e-12 * eigenvalues.max()
+        rows = np.zeros((int(keep.sum()), sd.size))
+        rows[:, where] = (vectors[:, keep] / np.sqrt(eigenvalues[keep])).T
+        pieces.append(rows)
+        done[where] = True
+    single = np.flatnonzero(~done)
+    rows = np.zeros((single.size, sd.size))
+    rows[np.arange(single.size), single] = 1.0 / sd[single]
+    pieces.append(rows)
+    return cov, np.vstack(pieces)
 
 
 def _start(flowsheet: Flowsheet, survey: Survey, problem: _Problem) -> np.ndarray:
@@ -798,7 +834,7 @@ def _check_observable(flowsheet: Flowsheet, survey: Survey, problem: _Problem, m
         return
     S, n = problem.n_streams, problem.n_classes
     if problem.y.size:
-        J = (problem.jacobian(m) @ problem.N) / problem.sd[:, None]
+        J = problem.W @ problem.jacobian(m) @ problem.N
         rank_tol = 1e-8 * max(1.0, np.abs(J).max())
         _, singular, vt = np.linalg.svd(J, full_matrices=True)
         rank = int(np.sum(singular > rank_tol))

@@ -2,11 +2,11 @@ r"""Simulated circuit surveys with a known truth, for the validation of the reco
 
 A truth is the steady state of a flowsheet: the feeds' flows and distributions, the
 partition curve of every separator and the discharge distribution of every mill fix every
-class flow through one linear system (recycles included).  A survey draws each measured
-share from the error model of :class:`~tromplab.circuit.measurements.ErrorModel`,
-:math:`x + \sigma(x)\,\varepsilon` with :math:`\varepsilon \sim N(0, 1)`, independent, not
-clipped (an unbiased draw: small classes may come out slightly negative), and measured
-flows likewise.
+class flow through one linear system (recycles included).  A survey draws the class masses of
+each analysed stream from the error model of :class:`~tromplab.circuit.measurements.ErrorModel`,
+:math:`x + \sigma(x)\,\varepsilon` with :math:`\varepsilon \sim N(0, 1)` independent, not
+clipped (an unbiased draw: small classes may come out slightly negative), and normalises
+them to 100 % as a lab does; measured flows get :math:`F (1 + r \varepsilon)`.
 
 The separators' true curves are Plitt's (1976) partition to the coarse product with a bypass
 to it (Kelsall 1953),
@@ -204,6 +204,7 @@ def simulate_survey(
         value = x + errors.share_sd(x, stream) * rng.standard_normal(x.size)
         if gross is not None and gross[0] == stream and gross[1] >= 0:
             value[gross[1]] += gross[2] * errors.share_sd(x[gross[1]], stream)
+        value = value / value.sum()  # a closed analysis, normalised as the lab reports it
         for i in range(x.size):
             records.append(
                 {
@@ -224,7 +225,7 @@ def simulate_survey(
     shares = pd.DataFrame(records, columns=["stream", "class_index", "value", "sd", "row"])
     flow_table = pd.DataFrame(flow_records, columns=["stream", "value", "sd", "row"])
     empty = pd.DataFrame(columns=["stream", "value", "sd", "row"])
-    return Survey(truth.classes, shares, flow_table, empty, truth.size_unit, "simulated survey")
+    return Survey(truth.classes, shares, flow_table, empty, truth.size_unit, "simulated survey", tuple(measured))
 
 
 def survey_table(survey: Survey, *, decimals: int | None = 2) -> pd.DataFrame:
