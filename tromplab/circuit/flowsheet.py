@@ -180,7 +180,7 @@ class Flowsheet:
         )
 
 
-def read_flowsheet(path, *, sheet=None, sep: str | None = None, decimal: str | None = None) -> Flowsheet:
+def read_flowsheet(path, *, sheet=None, sep: str | None = None, decimal: str | None = None, source: str | None = None) -> Flowsheet:
     """Read and validate a flowsheet (schema in the module docstring).
 
     Parameters
@@ -189,6 +189,8 @@ def read_flowsheet(path, *, sheet=None, sep: str | None = None, decimal: str | N
         CSV or Excel file, or a DataFrame with the same columns.
     sheet, sep, decimal
         As for :func:`tromplab.loading.tables.read_table`.
+    source : str, optional
+        Name used in messages instead of the file's (for a DataFrame built in code).
 
     Returns
     -------
@@ -240,7 +242,7 @@ def read_flowsheet(path, *, sheet=None, sep: str | None = None, decimal: str | N
         if word and not source:
             raise table.error(f"stream '{name}' is a feed (no 'from') but is marked '{word}'", index=i, column="product")
         streams.append(Stream(name, source, target, PRODUCT_WORDS.get(word, ""), int(table.rows[i])))
-    return flowsheet_from_streams(streams, source=table.source)
+    return flowsheet_from_streams(streams, source=source or table.source)
 
 
 def _text(table: Table, i: int, column: str) -> str:

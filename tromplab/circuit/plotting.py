@@ -22,25 +22,32 @@ def _axes(ax, size=(8.0, 5.0)):
 
 
 def _layout(flowsheet: Flowsheet) -> dict:
-    """Positions: nodes in columns by their distance from the feeds; feeds on the left, products on the right."""
+    """Positions: nodes in columns by their distance from the feeds; each feed enters from the
+    left of its node, each final product leaves to the right of its node (coarse up, fine down)."""
     graph = nx.DiGraph()
+    graph.add_nodes_from(node.name for node in flowsheet.nodes)
     for stream in flowsheet.streams:
-        graph.add_edge(stream.source or f"in:{stream.name}", stream.target or f"out:{stream.name}")
-    sources = [f"in:{s}" for s in flowsheet.feeds]
+        if stream.source and stream.target:
+            graph.add_edge(stream.source, stream.target)
+    entries = [flowsheet.stream(s).target for s in flowsheet.feeds]
     depth = {}
-    for source in sources:
-        for node, distance in nx.single_source_shortest_path_length(graph, source).items():
+    for entry in entries:
+        for node, distance in nx.single_source_shortest_path_length(graph, entry).items():
             depth[node] = min(depth.get(node, distance), distance)
-    last = max(depth.values()) + 1
-    for stream in flowsheet.products:
-        depth[f"out:{stream}"] = last
     columns = {}
-    for node, column in depth.items():
-        columns.setdefault(column, []).append(node)
+    for node in flowsheet.nodes:
+        columns.setdefault(depth.get(node.name, 0), []).append(node.name)
     positions = {}
     for column, nodes in columns.items():
         for k, node in enumerate(nodes):
-            positions[node] = (float(column), (len(nodes) - 1) / 2.0 - k)
+            positions[node] = (1.6 * column, 1.4 * ((len(nodes) - 1) / 2.0 - k))
+    for name in flowsheet.feeds:
+        x, y = positions[flowsheet.stream(name).target]
+        positions[f"in:{name}"] = (x - 1.1, y)
+    for name in flowsheet.products:
+        stream = flowsheet.stream(name)
+        x, y = positions[stream.source]
+        positions[f"out:{name}"] = (x + 0.8, y + {"coarse": 0.9, "fine": -0.9}.get(stream.product, 0.0))
     return positions
 
 
@@ -69,6 +76,8 @@ def plot_flowsheet(balance, ax=None, *, flow_unit: str = ""):
         mid_x, mid_y = (start[0] + end[0]) / 2.0, (start[1] + end[1]) / 2.0
         if backwards:
             mid_y -= abs(rad) * abs(end[0] - start[0]) / 2.0 + 0.3
+        elif end[1] != start[1]:
+            mid_x += 0.15
         ax.text(mid_x, mid_y + 0.12, label, ha="center", va="bottom", fontsize=7.5, color="#222222")
     for stream in flowsheet.feeds:
         x, y = positions[f"in:{stream}"]

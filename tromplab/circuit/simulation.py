@@ -165,6 +165,50 @@ def two_deck_screen() -> CircuitTruth:
     return CircuitTruth(flowsheet, classes, flows, "mm", partitions)
 
 
+#: Sieve series of the bundled example plant (um): the pan below 38, the open top above 19000.
+EXAMPLE_EDGES_UM = (38, 75, 150, 300, 600, 1180, 2360, 4750, 9500, 19000)
+
+
+def example_plant() -> CircuitTruth:
+    """The bundled example (``datasets/circuit_example_*.csv``): a two-deck screen whose undersize
+    feeds a closed ball-mill and hydrocyclone circuit.
+
+    Screen feed 400 t/h, Rosin-Rammler d63 5 mm, n 0.9; top deck d50 8 mm (m 4), bottom deck
+    d50 2 mm (m 3.5), both without bypass; mill discharge Rosin-Rammler d63 250 um, n 1.0;
+    cyclone d50c 110 um (m 2.5) with a bypass of 0.20 to the underflow.  Synthetic: chosen to
+    look like a plant, not measured anywhere.
+    """
+    sheet = pd.DataFrame(
+        {
+            "stream": [
+                "screen_feed",
+                "oversize",
+                "top_deck_undersize",
+                "middlings",
+                "undersize",
+                "cyclone_feed",
+                "cyclone_overflow",
+                "cyclone_underflow",
+            ],
+            "from": ["", "top_deck", "top_deck", "bottom_deck", "bottom_deck", "mill", "cyclone", "cyclone"],
+            "to": ["top_deck", "", "bottom_deck", "", "mill", "cyclone", "", "mill"],
+            "product": ["", "coarse", "fine", "coarse", "fine", "ground", "fine", "coarse"],
+        }
+    )
+    flowsheet = read_flowsheet(sheet, source="example plant")
+    classes = classes_from_edges(EXAMPLE_EDGES_UM)
+    size = classes["size"]
+    partitions = {
+        "top_deck": plitt_partition_to_fines(size, 8000.0, 4.0),
+        "bottom_deck": plitt_partition_to_fines(size, 2000.0, 3.5),
+        "cyclone": plitt_partition_to_fines(size, 110.0, 2.5, bypass=0.2),
+    }
+    feed = 400.0 * rosin_rammler_shares(EXAMPLE_EDGES_UM, 5000.0, 0.9)
+    discharge = rosin_rammler_shares(EXAMPLE_EDGES_UM, 250.0, 1.0)
+    flows = steady_state(flowsheet, classes, {"screen_feed": feed}, partitions, {"mill": discharge})
+    return CircuitTruth(flowsheet, classes, flows, "um", partitions)
+
+
 def simulate_survey(
     truth: CircuitTruth,
     rng: np.random.Generator,
