@@ -180,7 +180,9 @@ class Flowsheet:
         )
 
 
-def read_flowsheet(path, *, sheet=None, sep: str | None = None, decimal: str | None = None, source: str | None = None) -> Flowsheet:
+def read_flowsheet(
+    path, *, sheet=None, sep: str | None = None, decimal: str | None = None, source: str | None = None
+) -> Flowsheet:
     """Read and validate a flowsheet (schema in the module docstring).
 
     Parameters
@@ -223,12 +225,12 @@ def read_flowsheet(path, *, sheet=None, sep: str | None = None, decimal: str | N
         if name in seen:
             raise table.error(f"stream '{name}' is declared twice (also at row {seen[name]})", index=i, column="stream")
         seen[name] = table.rows[i]
-        source, target = _text(table, i, "from"), _text(table, i, "to")
-        if not source and not target:
+        origin, target = _text(table, i, "from"), _text(table, i, "to")
+        if not origin and not target:
             raise table.error(f"stream '{name}' has neither 'from' nor 'to': it touches no node", index=i, column="from")
-        if source and source == target:
-            raise table.error(f"stream '{name}' leaves and enters node '{source}' (a loop on one node)", index=i, column="to")
-        for node, column in ((source, "from"), (target, "to")):
+        if origin and origin == target:
+            raise table.error(f"stream '{name}' leaves and enters node '{origin}' (a loop on one node)", index=i, column="to")
+        for node, column in ((origin, "from"), (target, "to")):
             if node == BOUNDARY:
                 raise table.error(f"'{BOUNDARY}' is reserved for the boundary; leave the cell blank", index=i, column=column)
         word = _text(table, i, "product").lower() if "product" in table.frame.columns else ""
@@ -239,9 +241,9 @@ def read_flowsheet(path, *, sheet=None, sep: str | None = None, decimal: str | N
                 index=i,
                 column="product",
             )
-        if word and not source:
+        if word and not origin:
             raise table.error(f"stream '{name}' is a feed (no 'from') but is marked '{word}'", index=i, column="product")
-        streams.append(Stream(name, source, target, PRODUCT_WORDS.get(word, ""), int(table.rows[i])))
+        streams.append(Stream(name, origin, target, PRODUCT_WORDS.get(word, ""), int(table.rows[i])))
     return flowsheet_from_streams(streams, source=source or table.source)
 
 

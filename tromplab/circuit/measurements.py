@@ -1,4 +1,4 @@
-"""The measurements of a plant survey: size analyses of streams, solids flows, per cent solids.
+r"""The measurements of a plant survey: size analyses of streams, solids flows, per cent solids.
 
 File schema (CSV or Excel), a long table, one row per stream and size class:
 
@@ -36,7 +36,7 @@ Error model
 -----------
 A measured share :math:`x` (fraction of the stream in a class) has the standard deviation
 
-.. math:: \\sigma = \\sqrt{(r\\,x)^2 + a^2}
+.. math:: \sigma = \sqrt{(r\,x)^2 + a^2}
 
 with the relative error :math:`r` (default :data:`DEFAULT_RELATIVE_ERROR` = 5 %) and the
 absolute error :math:`a` (default :data:`DEFAULT_ABSOLUTE_ERROR` = 0.001, i.e. 0.1
@@ -106,6 +106,10 @@ class ErrorModel:
         Standard deviation of a per cent solids without ``pct_solids_sd`` (percentage points).
     streams : dict
         Per-stream ``{stream: (relative_error, absolute_error)}`` overriding the two defaults.
+    closure : bool
+        True (default): a stream measured in every class is normalised to 100 % and its
+        shares get the covariance :math:`P D P^T` of a closed analysis.  False: every share
+        is used as given with its own independent error (data not normalised by the lab).
 
     Examples
     --------
@@ -119,6 +123,7 @@ class ErrorModel:
     flow_relative_error: float = DEFAULT_FLOW_RELATIVE_ERROR
     pct_solids_sd: float = DEFAULT_PCT_SOLIDS_SD
     streams: dict = field(default_factory=dict)
+    closure: bool = True
 
     def __post_init__(self):
         check_non_negative(self.relative_error, "relative_error")
@@ -460,7 +465,7 @@ def _shares(table, names, has_class, class_of_row, n_classes, values_given, erro
                     index=int(rows[0]),
                     column=column,
                 )
-        if complete:
+        if complete and (errors.closure or full is None):
             scale = total  # a closed analysis, normalised as lab tables are
             normalised.append(stream)
         share = given / scale

@@ -73,6 +73,9 @@ DEFAULT_ALPHA = 0.05
 #: points.csv as not used (partition not meaningful), as lab tables flag them.
 MIN_FEED_SHARE = 0.002
 _RANK_TOL = 1e-9
+#: Adjustments correlated beyond this are reported as indistinguishable: a gross error in one
+#: of them moves the others' standardised adjustments alike, so no test can tell which it is.
+EQUIVALENT_CORRELATION = 0.99
 
 
 @dataclass(frozen=True)
@@ -338,6 +341,15 @@ class CircuitBalance:
             }
         )
         table["suspect"] = np.abs(table["standardised"]) > self.measurement_test_critical
+        scale = np.sqrt(np.clip(adjustment_var, 1e-300, None))
+        correlation = (problem.cov - cov_pred) / np.outer(scale, scale)
+        names = table["measurement"].to_numpy()
+        table["indistinguishable_from"] = [
+            "; ".join(names[(np.abs(correlation[j]) > EQUIVALENT_CORRELATION) & testable & (np.arange(names.size) != j)])
+            if testable[j]
+            else ""
+            for j in range(names.size)
+        ]
         return table
 
     def _measurement_rows(self) -> list:
@@ -372,7 +384,11 @@ class CircuitBalance:
         ``measured, sd, reconciled, reconciled_sd, adjustment`` (reconciled - measured),
         ``adjustment_sd``, ``standardised`` (adjustment / adjustment_sd; NaN for a measurement
         without redundancy, which the balances cannot check), ``p_value`` (two-sided normal)
-        and ``suspect`` (|standardised| above :attr:`measurement_test_critical`).
+        ``suspect`` (|standardised| above :attr:`measurement_test_critical`) and
+        ``indistinguishable_from`` (the measurements whose adjustments are correlated with this
+        one beyond :data:`EQUIVALENT_CORRELATION`: a gross error in any of them looks the same,
+        e.g. the only two flowmeters of a loop, or one class of the three streams of a separator
+        whose split is free).
         """
         return self._adjustments.copy()
 
@@ -626,7 +642,7 @@ def reconcile(
     ...                       "retained_frac": feed + fine + coarse})
     >>> balance = reconcile(sheet, table)
     >>> round(float(balance.flows[1]), 6), balance.dof   # the fine product per 100 of the feed; the redundancy
-    (50.0, 4)
+    (50.0, 1)
     """
     alpha = check_probability(alpha, "alpha")
     if not isinstance(flowsheet, Flowsheet):
@@ -649,7 +665,7 @@ def reconcile(
 
     if problem.N.shape[1] and problem.y.size:
         solution = optimize.least_squares(
-            residuals, z0, jac=jacobian, method="trf", x_scale="jac", xtol=1e-14, ftol=1e-14, gtol=1e-12, max_nfev=500
+            residuals, z0, jac=jacobian, method="lm", x_scale="jac", xtol=1e-14, ftol=1e-14, gtol=1e-12, max_nfev=2000
         )
         z, success, message = solution.x, bool(solution.success), str(solution.message)
     else:

@@ -229,8 +229,10 @@ def simulate_survey(
         ``{stream: relative sd}`` of measured solids flows (none by default: flows relative to
         the basis of 100 on the first feed).
     gross : (stream, class index, size in sd), optional
-        Add a gross error of that many standard deviations to one measured share; a class
-        index of -1 puts it on the stream's measured flow.
+        Add a gross error of that many standard deviations to one measured share (of the
+        class mass, before the normalisation); a class index of -1 puts it on the stream's
+        measured flow, shifted by that many of its stated standard deviations (relative sd
+        times the value written).
 
     Returns
     -------
@@ -264,7 +266,7 @@ def simulate_survey(
         true = truth.flows[truth.flowsheet.stream_index[stream]]
         value = true * (1.0 + relative * rng.standard_normal())
         if gross is not None and gross[0] == stream and gross[1] < 0:
-            value += gross[2] * relative * true
+            value = value / (1.0 - gross[2] * relative)  # shifted by gross[2] times its stated sd, relative * value
         flow_records.append({"stream": stream, "value": value, "sd": relative * value, "row": None})
     shares = pd.DataFrame(records, columns=["stream", "class_index", "value", "sd", "row"])
     flow_table = pd.DataFrame(flow_records, columns=["stream", "value", "sd", "row"])
