@@ -36,7 +36,9 @@ def main() -> None:
     rng = np.random.default_rng(SEED)
     survey = simulate_survey(truth, rng, flows={"screen_feed": 0.02})
     sheet = truth.flowsheet.to_frame()
-    header = PROVENANCE + "# Flowsheet of tromplab circuit: one row per stream; blank from = a feed, blank to = a final product;\n"
+    header = (
+        PROVENANCE + "# Flowsheet of tromplab circuit: one row per stream; blank from = a feed, blank to = a final product;\n"
+    )
     header += "#   product fine/coarse on the two outputs of each separator, ground on the mill discharge.\n"
     _write(ROOT / "datasets" / "circuit_example_flowsheet.csv", header, sheet)
     table = survey_table(survey)
@@ -60,7 +62,9 @@ def main() -> None:
                     "solids_flow_true": round(truth.flows[s], 6),
                 }
             )
-    _write(ROOT / "datasets" / "circuit_example_truth.csv", PROVENANCE + "# True values of the example plant.\n", pd.DataFrame(rows))
+    _write(
+        ROOT / "datasets" / "circuit_example_truth.csv", PROVENANCE + "# True values of the example plant.\n", pd.DataFrame(rows)
+    )
 
 
 def _write(path: Path, header: str, table: pd.DataFrame) -> None:
