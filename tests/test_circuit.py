@@ -417,3 +417,12 @@ def test_the_figures_return_their_axes():
         fig, ax = plt.subplots()
         assert balance.plot(kind, ax=ax) is ax
         plt.close(fig)
+
+
+def test_the_bundled_example_is_the_example_plant_and_its_reconciled_flows_hold_the_truth():
+    truth = example_plant()
+    table = pd.read_csv(ROOT / "datasets" / "circuit_example_truth.csv", comment="#")
+    np.testing.assert_allclose(table["retained_pct_true"], 100 * truth.shares.ravel(), atol=1e-6)
+    balance = reconcile(FLOWSHEET, SURVEY)
+    z = (balance.flows - truth.flows) / balance.flow_sd
+    assert np.all(np.abs(z) < 3.5), z  # this draw's largest is 3.1 sd (docs/circuit.md, worked example)
