@@ -31,8 +31,23 @@ class CircuitRun:
 
 
 def fit_separators(balance: CircuitBalance, *, formulas=FIT_FORMULAS, alpha: float | None = None) -> Workbench:
-    """Fit, screen and rank the separation curves of every separator of a reconciled survey
-    (one experiment per separator node, points weighted by the precision of the partition)."""
+    """Fit, screen and rank the separation curves of every separator of a reconciled survey.
+
+    Parameters
+    ----------
+    balance : CircuitBalance
+        The reconciled survey; one experiment per separator node, its points weighted by the
+        precision of the reconciled partition (:meth:`CircuitBalance.to_points`).
+    formulas : str or iterable, optional
+        As for :func:`tromplab.workbench.fit_experiments` (default: the nine, ranked, and the
+        extended curves, reported).
+    alpha : float, optional
+        Significance level of the Fisher screen (default: fit_experiments' default).
+
+    Returns
+    -------
+    Workbench
+    """
     options = {} if alpha is None else {"alpha": alpha}
     return fit_experiments(balance.to_points(), formulas=formulas, size_unit=balance.survey.size_unit, **options)
 
@@ -50,6 +65,29 @@ def run_circuit(
 ) -> CircuitRun:
     """Reconcile the survey and write ``outdir`` as a whole (nothing written on bad input).
 
+    Parameters
+    ----------
+    flowsheet, measurements : path
+        The flowsheet and the measurement table (CSV or .xlsx).
+    outdir : path
+        Output folder, replaced as a whole when everything is written.
+    fit : bool
+        Also fit the separators' partition curves (:func:`fit_separators`).
+    errors : ErrorModel, optional
+        Standard deviations where the table gives none.
+    alpha : float
+        Level of the chi-square and measurement tests.
+    size_unit : str, optional
+        Unit of the sizes when the size columns carry none.
+    figures : bool
+        Draw the three figures.
+
+    Returns
+    -------
+    CircuitRun
+
+    Notes
+    -----
     Files: ``flows.csv``, ``distributions.csv``, ``adjustments.csv``, ``gross_errors.csv``,
     ``chi_square.csv``, ``degrees_of_freedom.csv``, ``partition.csv`` (with standard
     deviations), ``points.csv`` (Tromp-points schema with weights, what ``tromplab fit``

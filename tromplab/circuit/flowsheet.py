@@ -253,7 +253,19 @@ def _text(table: Table, i: int, column: str) -> str:
 
 
 def flowsheet_from_streams(streams, *, source: str = "flowsheet") -> Flowsheet:
-    """Validate streams as a flowsheet (the checks of :func:`read_flowsheet`)."""
+    """Validate streams as a flowsheet (the checks of :func:`read_flowsheet`).
+
+    Parameters
+    ----------
+    streams : iterable of Stream
+        The streams, in the order of the file.
+    source : str
+        Name of the flowsheet in messages.
+
+    Returns
+    -------
+    Flowsheet
+    """
     streams = tuple(streams)
     names = list(dict.fromkeys([n for s in streams for n in (s.source, s.target) if n]))
 

@@ -205,6 +205,12 @@ def read_survey(
         Default standard deviations (module docstring).
     size_unit : str, optional
         Unit of the sizes when the size columns carry no suffix.
+    sheet, sep, decimal
+        As for :func:`tromplab.loading.tables.read_table`.
+
+    Returns
+    -------
+    Survey
 
     Raises
     ------
