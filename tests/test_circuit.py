@@ -119,6 +119,9 @@ def test_a_bad_survey_table_is_refused_naming_file_row_and_column(tmp_path, chan
 
 def test_masses_need_every_class_and_flows_must_agree_within_a_stream(tmp_path):
     sheet = read_flowsheet(write(tmp_path, CYCLONE_SHEET, "sheet.csv"))
+    negative = GOOD.replace("retained_pct", "retained_mass").replace("underflow,0,50,30", "underflow,0,50,-3")
+    with pytest.raises(InputError, match="row 10, column 'retained_mass': negative retained mass -3"):
+        read_survey(write(tmp_path, negative, "n.csv"), sheet)
     masses = GOOD.replace("retained_pct", "retained_mass").replace("underflow,0,50,30\n", "")
     with pytest.raises(InputError, match="stream 'underflow' gives masses for 2 of 3 classes"):
         read_survey(write(tmp_path, masses, "m.csv"), sheet)
@@ -127,6 +130,20 @@ def test_masses_need_every_class_and_flows_must_agree_within_a_stream(tmp_path):
     flows = flows.replace("feed,50,100,30,", "feed,50,100,30,12")
     with pytest.raises(InputError, match="row 3, column 'solids_flow': stream 'feed' has two different solids_flow"):
         read_survey(write(tmp_path, flows, "f.csv"), sheet)
+
+
+def test_the_error_model_is_given_by_row_by_stream_or_as_the_default(tmp_path):
+    sheet = read_flowsheet(write(tmp_path, CYCLONE_SHEET, "sheet.csv"))
+    table = pd.read_csv(pd.io.common.StringIO(GOOD))
+    table["relative_error"] = np.where(table["stream"] == "feed", 0.1, np.nan)
+    table.loc[8, "retained_sd"] = 2.0  # percentage points, last underflow class
+    survey = read_survey(table, sheet, errors=ErrorModel(streams={"overflow": (0.02, 0.0005)}))
+    sd = survey.shares.set_index(["stream", "class_index"])["sd"]
+    np.testing.assert_allclose(sd["feed", 0], np.hypot(0.1 * 0.2, 0.001))  # row column, default absolute
+    np.testing.assert_allclose(sd["overflow", 2], np.hypot(0.02 * 0.7, 0.0005))  # per stream
+    np.testing.assert_allclose(sd["underflow", 0], np.hypot(0.05 * 0.35, 0.001))  # the default
+    np.testing.assert_allclose(sd["underflow", 2], 0.02)  # retained_sd, in the value's unit
+    assert set(survey.closed_streams) == {"feed", "overflow", "underflow"}
 
 
 def test_class_strings_and_class_bounds_read_the_same_survey():
