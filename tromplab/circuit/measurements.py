@@ -69,7 +69,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from ..errors import InputError
+from ..errors import InputError, OptionError
 from ..loading.points import normal_unit, resolve_size_unit, size_column_unit
 from ..loading.tables import Table, read_table
 from ..validation import check_non_negative, check_positive
@@ -131,7 +131,7 @@ class ErrorModel:
         check_positive(self.flow_relative_error, "flow_relative_error")
         check_positive(self.pct_solids_sd, "pct_solids_sd")
         if self.relative_error == 0 and self.absolute_error == 0:
-            raise InputError("relative_error and absolute_error are both 0: every share would be exact")
+            raise OptionError("relative_error", "and absolute_error are both 0: every share would be exact")
         for stream, pair in self.streams.items():
             relative, absolute = pair
             check_non_negative(relative, f"relative_error of stream '{stream}'")
