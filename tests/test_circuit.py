@@ -14,7 +14,7 @@ import pytest
 from scipy import optimize
 
 from tromplab.circuit import ErrorModel, read_flowsheet, read_survey, reconcile
-from tromplab.circuit.simulation import example_plant, grinding_circuit, simulate_survey, two_deck_screen
+from tromplab.circuit.simulation import example_plant, grinding_circuit, simulate_survey, survey_table, two_deck_screen
 from tromplab.cli import main
 from tromplab.errors import InputError
 from tromplab.loading.lab import estimate_fine_yield, read_lab
@@ -443,3 +443,17 @@ def test_the_bundled_example_is_the_example_plant_and_its_reconciled_flows_hold_
     balance = reconcile(FLOWSHEET, SURVEY)
     z = (balance.flows - truth.flows) / balance.flow_sd
     assert np.all(np.abs(z) < 3.5), z  # this draw's largest is 3.1 sd (docs/circuit.md, worked example)
+
+
+def test_a_class_left_out_of_one_stream_is_estimated_from_the_balance():
+    truth = grinding_circuit()
+    table = survey_table(simulate_survey(truth, np.random.default_rng(11), flows={"fresh_feed": 0.02}), decimals=None)
+    left_out = (table["stream"] == "cyclone_underflow") & (table["size_lower_um"] == 75)
+    survey = read_survey(table[~left_out], truth.flowsheet)
+    assert "cyclone_underflow" not in survey.closed_streams  # used as given, its shares independent
+    balance = reconcile(truth.flowsheet, survey)
+    s, i = truth.flowsheet.stream_index["cyclone_underflow"], int(np.flatnonzero(truth.classes["size_lower"] == 75)[0])
+    assert abs(balance.shares[s, i] - truth.shares[s, i]) < 3 * balance.share_sd[s, i]
+    distributions = balance.distributions_table()
+    row = distributions[(distributions["stream"] == "cyclone_underflow") & (distributions["size_lower"] == 75)]
+    assert row["measured"].isna().all() and row["reconciled_sd"].iloc[0] > 0
