@@ -17,8 +17,8 @@ and fractions (Smith & Ichiyen 1973; Hodouin & Everell 1980).  It is solved exac
 by alternating flows and fractions, in the class flows :math:`m_{s,i} = F_s x_{s,i}`:
 there the balances are linear, :math:`F_s = \sum_i m_{s,i}` and :math:`x_{s,i} =
 m_{s,i}/F_s`, so the feasible set is :math:`m = m_0 + N z` (:math:`N` an orthonormal basis
-of the null space of the constraints) and :math:`z` is the Gauss-Newton / trust-region
-least-squares problem of :func:`scipy.optimize.least_squares` without constraints.  Flows
+of the null space of the constraints) and :math:`z` is found without constraints by the Levenberg-Marquardt
+least squares of :func:`scipy.optimize.least_squares`.  Flows
 given with a standard deviation of 0 (and the basis of 100 on the first feed when no flow
 is measured) join the linear constraints.
 
