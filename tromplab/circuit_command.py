@@ -13,7 +13,7 @@ import io
 from dataclasses import dataclass
 
 from .circuit import CircuitBalance, ErrorModel, read_flowsheet, read_survey, reconcile
-from .output.outputs import check_input_file, check_output_folder, replace_folder
+from .output.outputs import check_output_folder, replace_folder
 from .workbench import Workbench, fit_experiments
 
 #: The formulas fitted by ``--fit``: the nine of the paper (ranked) and the extended curves
@@ -95,9 +95,7 @@ def run_circuit(
     ``flowsheet.png``, ``adjustments.png``, ``distributions.png``; with ``fit``
     ``fits.csv`` and ``ranking.csv``.
     """
-    check_input_file(flowsheet, option="flowsheet")
-    check_input_file(measurements, option="measurement table")
-    check_output_folder(outdir, inputs=[flowsheet, measurements])
+    check_output_folder(outdir, inputs=[flowsheet, measurements])  # the inputs are checked as they are read
     sheet = read_flowsheet(flowsheet)
     survey = read_survey(measurements, sheet, errors=errors, size_unit=size_unit)
     balance = reconcile(sheet, survey, alpha=alpha)
