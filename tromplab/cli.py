@@ -18,6 +18,8 @@ import numpy as np
 import pandas as pd
 
 from ._version import __version__
+from .circuit import ErrorModel
+from .circuit_command import console_report, run_circuit
 from .classifiers.sieve import closed_form_valid, design_bin, distance_moments, geometric_probability, identify_from_table
 from .curves.diagnostics import RESIDUAL_WARNING
 from .curves.formulas import NAME_CLASHES, get_formula, registry_table
@@ -276,6 +278,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_sieve(commands)
     _add_rank(commands)
     add_model_commands(commands)  # layer, pulp, optimize
+    _add_circuit_command(commands)
     return parser
 
 
@@ -1052,6 +1055,36 @@ def format_fits(fits: pd.DataFrame, verdicts: dict[str, list[str]] | None = None
             if isinstance(note, str) and note:
                 blocks.append(textwrap.fill(f"note {formula}: {note}", width=98, initial_indent="  ", subsequent_indent="    "))
     return "\n".join(blocks)
+
+
+def _add_circuit_command(commands) -> None:
+    """``tromplab circuit FLOWSHEET MEASUREMENTS -o DIR [--fit]`` (issue 25; the work is in circuit_command)."""
+    circuit = commands.add_parser(
+        "circuit", help="reconcile a plant survey over its flowsheet; partition curves of every separator (docs/circuit.md)"
+    )
+    circuit.add_argument("flowsheet", type=Path, help="flowsheet CSV: stream, from, to, product")
+    circuit.add_argument("measurements", type=Path, help="survey CSV: stream, size classes, retained_pct [, solids_flow]")
+    circuit.add_argument(
+        "-o", "--outdir", type=Path, default=Path("results/circuit"), help="output folder (default: results/circuit)"
+    )
+    circuit.add_argument("--fit", action="store_true", help="also fit the nine formulas and the extended curves per separator")
+    circuit.add_argument("--relative-error", type=cli_type(check_non_negative, "--relative-error"), default=0.05,
+                         help="relative error of a measured share where the table gives none (default 0.05)")  # fmt: skip
+    circuit.add_argument("--absolute-error", type=cli_type(check_non_negative, "--absolute-error"), default=0.001,
+                         help="absolute error of a share, as a fraction of the stream (default 0.001)")  # fmt: skip
+    circuit.add_argument("--alpha", type=cli_type(check_probability, "--alpha"), default=0.05,
+                         help="level of the chi-square and measurement tests (default 0.05)")  # fmt: skip
+    circuit.add_argument("--size-unit", default=None, help="unit of the sizes when the size columns carry none")
+    circuit.add_argument("--no-figures", action="store_true", help="do not draw the figures")
+    circuit.set_defaults(run=_run_circuit)
+
+
+def _run_circuit(args) -> int:
+    errors = ErrorModel(relative_error=args.relative_error, absolute_error=args.absolute_error)
+    run = run_circuit(args.flowsheet, args.measurements, args.outdir, fit=args.fit, errors=errors, alpha=args.alpha,
+                      size_unit=args.size_unit, figures=not args.no_figures)  # fmt: skip
+    print(console_report(run))
+    return EXIT_OK
 
 
 if __name__ == "__main__":

@@ -1,0 +1,332 @@
+"""The flowsheet of a plant survey: streams between nodes, validated as a directed graph.
+
+File schema (CSV or Excel), one row per stream:
+
+``stream``
+    the stream's name, unique (it is the key of the measurement table).
+``from``, ``to``
+    node names; blank ``from`` = a feed of the circuit, blank ``to`` = a final product
+    (the boundary).  Recycles are allowed.
+``product``
+    ``fine`` or ``coarse`` (also ``overflow`` / ``underflow``, ``undersize`` /
+    ``oversize``) on the two outputs of each separator; ``ground`` on the single output
+    of a mill or crusher (the sizes change there: only the total solids balance); blank
+    elsewhere.  A node whose single output is not marked ``ground`` is a junction (the
+    solids of every size class balance).
+``note``, ``comment``
+    free text, ignored.  Any other column is refused with its name.
+
+Every node needs an input and an output; the graph with the boundary as one more node
+must be connected, and every node must be fed from a feed and reach a final product
+(otherwise material could circulate unobserved).  Splitters (outputs of the same size
+distribution) are not supported: a node with several outputs is a separator with
+exactly one fine and one coarse output.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import networkx as nx
+import numpy as np
+import pandas as pd
+
+from ..errors import InputError
+from ..loading.tables import Table, read_table
+
+#: The boundary of the circuit as a node of the graph (feeds come from it, products go to it).
+BOUNDARY = "(boundary)"
+PRODUCT_WORDS = {
+    "fine": "fine",
+    "overflow": "fine",
+    "undersize": "fine",
+    "coarse": "coarse",
+    "underflow": "coarse",
+    "oversize": "coarse",
+    "ground": "ground",
+}
+NODE_KINDS = ("separator", "junction", "mill")
+
+
+@dataclass(frozen=True)
+class Stream:
+    """One stream of the flowsheet (``source`` / ``target`` "" at the boundary)."""
+
+    name: str
+    source: str
+    target: str
+    product: str
+    row: int | None = None
+
+
+@dataclass(frozen=True)
+class Node:
+    """A unit of the flowsheet.
+
+    ``kind`` is ``separator`` (two outputs, fine and coarse; every size class balances),
+    ``junction`` (one output; every size class balances) or ``mill`` (one output marked
+    ``ground``; only the total solids balance).
+    """
+
+    name: str
+    kind: str
+    inputs: tuple[str, ...]
+    outputs: tuple[str, ...]
+    fine: str = ""
+    coarse: str = ""
+
+    @property
+    def balances_classes(self) -> bool:
+        return self.kind != "mill"
+
+
+@dataclass(frozen=True)
+class Flowsheet:
+    """A validated flowsheet: streams, nodes and the stream-node incidence.
+
+    Build it with :func:`read_flowsheet` (file or DataFrame) or :func:`flowsheet_from_streams`.
+
+    Attributes
+    ----------
+    streams : tuple of Stream
+        In the order of the file.
+    nodes : tuple of Node
+        In order of first appearance.
+    source : str
+        Where the flowsheet came from (file name), for messages.
+    """
+
+    streams: tuple[Stream, ...]
+    nodes: tuple[Node, ...]
+    source: str = ""
+
+    @cached_property
+    def stream_names(self) -> tuple[str, ...]:
+        return tuple(s.name for s in self.streams)
+
+    @cached_property
+    def stream_index(self) -> dict[str, int]:
+        return {name: i for i, name in enumerate(self.stream_names)}
+
+    def stream(self, name: str) -> Stream:
+        return self.streams[self.stream_index[name]]
+
+    @property
+    def separators(self) -> tuple[Node, ...]:
+        return tuple(n for n in self.nodes if n.kind == "separator")
+
+    @property
+    def feeds(self) -> tuple[str, ...]:
+        return tuple(s.name for s in self.streams if not s.source)
+
+    @property
+    def products(self) -> tuple[str, ...]:
+        return tuple(s.name for s in self.streams if not s.target)
+
+    def incidence(self) -> np.ndarray:
+        """Nodes x streams: +1 where the stream enters the node, -1 where it leaves.
+
+        Each row times the vector of solids flows is the node's balance (inputs minus
+        outputs), zero when it closes.
+        """
+        matrix = np.zeros((len(self.nodes), len(self.streams)))
+        where = {node.name: k for k, node in enumerate(self.nodes)}
+        for j, stream in enumerate(self.streams):
+            if stream.target:
+                matrix[where[stream.target], j] += 1.0
+            if stream.source:
+                matrix[where[stream.source], j] -= 1.0
+        return matrix
+
+    @property
+    def flow_degrees_of_freedom(self) -> int:
+        """Stream flows left free by the total solids balances: streams minus independent balances.
+
+        One of them is the scale of the survey (a measured flow, or the basis of 100 on a feed);
+        the others (the splits of the separators and mills' recycles) must come from the size
+        analyses or from further measured flows.
+        """
+        return len(self.streams) - int(np.linalg.matrix_rank(self.incidence()))
+
+    def graph(self) -> nx.MultiDiGraph:
+        """The flowsheet as a networkx multigraph, the boundary as node :data:`BOUNDARY`;
+        each edge carries its stream's name in ``stream``."""
+        graph = nx.MultiDiGraph()
+        graph.add_node(BOUNDARY)
+        for node in self.nodes:
+            graph.add_node(node.name, kind=node.kind)
+        for stream in self.streams:
+            graph.add_edge(stream.source or BOUNDARY, stream.target or BOUNDARY, key=stream.name, stream=stream.name)
+        return graph
+
+    def to_frame(self) -> pd.DataFrame:
+        """The flowsheet in the file schema (``stream, from, to, product``)."""
+        return pd.DataFrame(
+            {
+                "stream": [s.name for s in self.streams],
+                "from": [s.source for s in self.streams],
+                "to": [s.target for s in self.streams],
+                "product": [s.product for s in self.streams],
+            }
+        )
+
+    def summary(self) -> str:
+        """One line: streams, nodes by kind, feeds, products and the flow degrees of freedom."""
+        kinds = ", ".join(f"{sum(n.kind == k for n in self.nodes)} {k}(s)" for k in NODE_KINDS)
+        return (
+            f"{len(self.streams)} streams, {len(self.nodes)} nodes ({kinds}); feeds {', '.join(self.feeds)}; "
+            f"products {', '.join(self.products)}; {self.flow_degrees_of_freedom} flow(s) free after the solids balances"
+        )
+
+
+def read_flowsheet(
+    path, *, sheet=None, sep: str | None = None, decimal: str | None = None, source: str | None = None
+) -> Flowsheet:
+    """Read and validate a flowsheet (schema in the module docstring).
+
+    Parameters
+    ----------
+    path : str, path-like or pandas.DataFrame
+        CSV or Excel file, or a DataFrame with the same columns.
+    sheet, sep, decimal
+        As for :func:`tromplab.loading.tables.read_table`.
+    source : str, optional
+        Name used in messages instead of the file's (for a DataFrame built in code).
+
+    Returns
+    -------
+    Flowsheet
+
+    Raises
+    ------
+    InputError
+        Naming the file, row and column, or the node or stream at fault: missing or
+        unknown columns, blank or repeated stream names, a stream that touches no node or
+        loops on one, a node without input or output, separator outputs not marked one
+        fine and one coarse, a graph in pieces or with material that cannot leave.
+
+    Examples
+    --------
+    >>> sheet = pd.DataFrame({"stream": ["feed", "over", "under"], "from": ["", "cyclone", "cyclone"],
+    ...                       "to": ["cyclone", "", ""], "product": ["", "fine", "coarse"]})
+    >>> read_flowsheet(sheet).summary()
+    '3 streams, 1 nodes (1 separator(s), 0 junction(s), 0 mill(s)); feeds feed; products over, under; 2 flow(s) free after the solids balances'
+    """
+    table = read_table(path, sheet=sheet, sep=sep, decimal=decimal)
+    table.require("stream", "from", "to")
+    table.refuse_unknown(["stream", "from", "to", "product"], what="flowsheet")
+    streams = []
+    seen = {}
+    for i in range(len(table.frame)):
+        name = _text(table, i, "stream")
+        if not name:
+            raise table.error("stream name is blank", index=i, column="stream")
+        if name in seen:
+            raise table.error(f"stream '{name}' is declared twice (also at row {seen[name]})", index=i, column="stream")
+        seen[name] = table.rows[i]
+        origin, target = _text(table, i, "from"), _text(table, i, "to")
+        if not origin and not target:
+            raise table.error(f"stream '{name}' has neither 'from' nor 'to': it touches no node", index=i, column="from")
+        if origin and origin == target:
+            raise table.error(f"stream '{name}' leaves and enters node '{origin}' (a loop on one node)", index=i, column="to")
+        for node, column in ((origin, "from"), (target, "to")):
+            if node == BOUNDARY:
+                raise table.error(f"'{BOUNDARY}' is reserved for the boundary; leave the cell blank", index=i, column=column)
+        word = _text(table, i, "product").lower() if "product" in table.frame.columns else ""
+        if word and word not in PRODUCT_WORDS:
+            raise table.error(
+                f"product '{word}' is not one of {', '.join(PRODUCT_WORDS)} (blank for a stream that is no separator "
+                "or mill output)",
+                index=i,
+                column="product",
+            )
+        if word and not origin:
+            raise table.error(f"stream '{name}' is a feed (no 'from') but is marked '{word}'", index=i, column="product")
+        streams.append(Stream(name, origin, target, PRODUCT_WORDS.get(word, ""), int(table.rows[i])))
+    return flowsheet_from_streams(streams, source=source or table.source)
+
+
+def _text(table: Table, i: int, column: str) -> str:
+    value = table.frame[column].iloc[i]
+    return "" if pd.isna(value) else str(value).strip()
+
+
+def flowsheet_from_streams(streams, *, source: str = "flowsheet") -> Flowsheet:
+    """Validate streams as a flowsheet (the checks of :func:`read_flowsheet`).
+
+    Parameters
+    ----------
+    streams : iterable of Stream
+        The streams, in the order of the file.
+    source : str
+        Name of the flowsheet in messages.
+
+    Returns
+    -------
+    Flowsheet
+    """
+    streams = tuple(streams)
+    names = list(dict.fromkeys([n for s in streams for n in (s.source, s.target) if n]))
+
+    def error(message, stream: Stream | None = None, column: str | None = None):
+        return InputError(message, source=source, row=stream.row if stream else None, column=column)
+
+    if not streams:
+        raise error("the flowsheet has no streams")
+    nodes = []
+    for name in names:
+        inputs = tuple(s.name for s in streams if s.target == name)
+        outputs = [s for s in streams if s.source == name]
+        if not inputs:
+            raise error(f"node '{name}' has no input (no stream has it in 'to')")
+        if not outputs:
+            raise error(f"node '{name}' has no output (no stream has it in 'from')")
+        marks = {s.product for s in outputs}
+        if len(outputs) == 1:
+            out = outputs[0]
+            if out.product in ("fine", "coarse"):
+                raise error(
+                    f"stream '{out.name}' is marked {out.product} but node '{name}' has one output: only the two outputs "
+                    "of a separator are fine and coarse",
+                    out,
+                    "product",
+                )
+            kind = "mill" if out.product == "ground" else "junction"
+            nodes.append(Node(name, kind, inputs, (out.name,)))
+            continue
+        listed = ", ".join(s.name for s in outputs)
+        if len(outputs) > 2 or marks != {"fine", "coarse"}:
+            raise error(
+                f"node '{name}' has {len(outputs)} outputs ({listed}): a node with several outputs is a separator with "
+                "exactly two, one marked fine and one coarse in 'product' (a multi-deck screen is one node per deck; "
+                "splitters are not supported)",
+                outputs[0],
+                "product",
+            )
+        fine = next(s.name for s in outputs if s.product == "fine")
+        coarse = next(s.name for s in outputs if s.product == "coarse")
+        nodes.append(Node(name, "separator", inputs, tuple(s.name for s in outputs), fine, coarse))
+    flowsheet = Flowsheet(streams, tuple(nodes), source)
+    _check_graph(flowsheet, error)
+    return flowsheet
+
+
+def _check_graph(flowsheet: Flowsheet, error) -> None:
+    graph = flowsheet.graph()
+    if not flowsheet.feeds:
+        raise error("the flowsheet has no feed (a stream with a blank 'from')")
+    if not flowsheet.products:
+        raise error("the flowsheet has no final product (a stream with a blank 'to')")
+    pieces = list(nx.weakly_connected_components(graph))
+    if len(pieces) > 1:
+        apart = sorted(min(piece) for piece in pieces if BOUNDARY not in piece)
+        raise error(f"the flowsheet is in {len(pieces)} pieces: node(s) {', '.join(apart)} are connected to no feed or product")
+    plain = nx.DiGraph()  # the boundary split into a source and a sink, to follow material from feeds to products
+    for stream in flowsheet.streams:
+        plain.add_edge(stream.source or "(feeds)", stream.target or "(products)")
+    for node in flowsheet.nodes:
+        if not nx.has_path(plain, "(feeds)", node.name):
+            raise error(f"node '{node.name}' is fed by no feed of the circuit (only by a closed loop)")
+        if not nx.has_path(plain, node.name, "(products)"):
+            raise error(f"material entering node '{node.name}' can never leave the circuit: no path to a final product")

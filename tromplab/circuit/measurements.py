@@ -1,0 +1,530 @@
+r"""The measurements of a plant survey: size analyses of streams, solids flows, per cent solids.
+
+File schema (CSV or Excel), a long table, one row per stream and size class:
+
+``stream``
+    a stream of the flowsheet.
+size columns
+    class bounds ``size_lower`` and ``size_upper`` (blank upper = the open top class, blank
+    or 0 lower = the pan), or class-range strings in ``size_class`` ("+1168", "-1168+589",
+    "-74"), as in lab tables; a unit suffix (``size_lower_um``) or the ``size_unit``
+    option names the unit.  The classes of all streams together must tile the size range
+    (no gap, no overlap); a stream may leave classes out.
+exactly one value column
+    ``retained_pct`` (per cent of the stream's solids retained in the class, i.e. between
+    its bounds - not cumulative), ``retained_frac`` (the same as a fraction) or
+    ``retained_mass`` (mass in the class, any unit; every class of the stream must then
+    be given).  A blank value = the class was not measured in that stream.
+``retained_sd``
+    optional standard deviation of the value, in the value's unit (for masses: in mass
+    units, divided by the stream's total mass).
+``relative_error``, ``absolute_error``
+    optional, per row (i.e. per class; give the same on every row for a per-stream
+    error): the error model of the share (below).
+``solids_flow``, ``solids_flow_sd``
+    optional measured solids flow of the stream (any unit, t/h say; every flow in the
+    same unit) and its standard deviation; an sd of 0 fixes the flow exactly (the basis
+    of the survey).  Given on any row of the stream (repeated values must agree); a row
+    with blank size columns may carry just the flow.
+``pct_solids``, ``pct_solids_sd``
+    optional per cent solids by mass of the stream's pulp and its standard deviation
+    (read, checked and reported; they do not enter the solids balance).
+``note``, ``comment``
+    free text, ignored.  Any other column is refused with its name.
+
+Error model
+-----------
+A measured share :math:`x` (fraction of the stream in a class) has the standard deviation
+
+.. math:: \sigma = \sqrt{(r\,x)^2 + a^2}
+
+with the relative error :math:`r` (default :data:`DEFAULT_RELATIVE_ERROR` = 5 %) and the
+absolute error :math:`a` (default :data:`DEFAULT_ABSOLUTE_ERROR` = 0.001, i.e. 0.1
+percentage point), the model of the existing one-node reconciliation
+(:func:`tromplab.loading.lab.reconcile`) and of Hodouin & Everell (1980), who weight
+size-analysis data by a relative error with a floor for the small classes.  ``retained_sd``
+overrides it per row, ``relative_error`` / ``absolute_error`` columns per row, and
+:class:`ErrorModel` ``streams`` per stream.  A measured solids flow without sd has the
+relative error :data:`DEFAULT_FLOW_RELATIVE_ERROR` (5 %).  The model is evaluated at the
+measured value.  The errors of the class masses of a sieve analysis are independent; a
+stream measured in every class is normalised to 100 % (as lab tables are), and its shares
+then carry the errors through the normalisation: with :math:`D = \mathrm{diag}(\sigma_i^2)`
+and :math:`P = I - x\,\mathbf{1}^T`, their covariance is :math:`P D P^T` (rank n - 1:
+the shares of a closed analysis are not independent).  A stream with classes left out is
+used as given, its shares independent.  Flows and shares of different streams are
+independent.
+
+References
+----------
+Hodouin, D. & Everell, M. D. (1980). A hierarchical procedure for adjustment and material
+balancing of mineral processes data. *International Journal of Mineral Processing* 7(2),
+91-116.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from ..errors import InputError, OptionError
+from ..loading.points import normal_unit, resolve_size_unit, size_column_unit
+from ..loading.tables import Table, read_table
+from ..validation import check_non_negative, check_positive
+from .flowsheet import Flowsheet
+
+DEFAULT_RELATIVE_ERROR = 0.05
+DEFAULT_ABSOLUTE_ERROR = 0.001
+DEFAULT_FLOW_RELATIVE_ERROR = 0.05
+DEFAULT_PCT_SOLIDS_SD = 1.0  # percentage points
+#: Per-class shares of a fully measured stream may miss 100 % by this much (percentage points)
+#: before the table is refused; within it they are used as given (each share has its own
+#: error, so the sum's miss is information the balance uses).
+SUM_TOLERANCE_PCT = 1.5
+VALUE_COLUMNS = {"retained_pct": 100.0, "retained_frac": 1.0, "retained_mass": None}
+STREAM_COLUMNS = ("solids_flow", "solids_flow_sd", "pct_solids", "pct_solids_sd")
+ROW_COLUMNS = ("retained_sd", "relative_error", "absolute_error")
+_CLASS = re.compile(r"([+-])(\d+(?:\.\d*)?(?:[eE][-+]?\d+)?)(?:([+-])(\d+(?:\.\d*)?(?:[eE][-+]?\d+)?))?")
+
+
+@dataclass(frozen=True)
+class ErrorModel:
+    """Standard deviations of the measurements where the table gives none.
+
+    Attributes
+    ----------
+    relative_error : float
+        Relative error :math:`r` of a measured share (0.05 = 5 %).
+    absolute_error : float
+        Absolute error :math:`a` of a share, as a fraction of the stream (0.001 = 0.1
+        percentage point); keeps small classes from getting an sd near zero.
+    flow_relative_error : float
+        Relative error of a measured solids flow without ``solids_flow_sd``.
+    pct_solids_sd : float
+        Standard deviation of a per cent solids without ``pct_solids_sd`` (percentage points).
+    streams : dict
+        Per-stream ``{stream: (relative_error, absolute_error)}`` overriding the two defaults.
+    closure : bool
+        True (default): a stream measured in every class is normalised to 100 % and its
+        shares get the covariance :math:`P D P^T` of a closed analysis.  False: every share
+        is used as given with its own independent error (data not normalised by the lab).
+
+    Examples
+    --------
+    >>> model = ErrorModel(streams={"underflow": (0.1, 0.002)})
+    >>> round(float(model.share_sd(0.2, "feed")), 6), round(float(model.share_sd(0.2, "underflow")), 6)
+    (0.01005, 0.0201)
+    """
+
+    relative_error: float = DEFAULT_RELATIVE_ERROR
+    absolute_error: float = DEFAULT_ABSOLUTE_ERROR
+    flow_relative_error: float = DEFAULT_FLOW_RELATIVE_ERROR
+    pct_solids_sd: float = DEFAULT_PCT_SOLIDS_SD
+    streams: dict = field(default_factory=dict)
+    closure: bool = True
+
+    def __post_init__(self):
+        check_non_negative(self.relative_error, "relative_error")
+        check_non_negative(self.absolute_error, "absolute_error")
+        check_positive(self.flow_relative_error, "flow_relative_error")
+        check_positive(self.pct_solids_sd, "pct_solids_sd")
+        if self.relative_error == 0 and self.absolute_error == 0:
+            raise OptionError("relative_error", "and absolute_error are both 0: every share would be exact")
+        for stream, pair in self.streams.items():
+            relative, absolute = pair
+            check_non_negative(relative, f"relative_error of stream '{stream}'")
+            check_non_negative(absolute, f"absolute_error of stream '{stream}'")
+
+    def share_sd(self, share, stream: str = ""):
+        r"""Standard deviation :math:`\sqrt{(r x)^2 + a^2}` of a measured share ``x`` of ``stream``."""
+        relative, absolute = self.streams.get(stream, (self.relative_error, self.absolute_error))
+        return np.sqrt((relative * np.asarray(share, dtype=float)) ** 2 + absolute**2)
+
+
+@dataclass(frozen=True)
+class Survey:
+    """The measurements of a survey, checked against the flowsheet.
+
+    Attributes
+    ----------
+    classes : pandas.DataFrame
+        The size classes, coarse to fine: ``size_lower, size_upper`` (NaN = open top /
+        pan, as given), ``size`` (representative: geometric mean of the bounds, the open
+        top and the pan continuing their neighbour's ratio).
+    shares : pandas.DataFrame
+        ``stream, class_index, value, sd, row``: measured shares (0..1) and their sd.
+    flows : pandas.DataFrame
+        ``stream, value, sd, row``: measured solids flows (sd 0 = fixed).
+    pct_solids : pandas.DataFrame
+        ``stream, value, sd, row``.
+    size_unit : str
+    source : str
+    closed_streams : tuple of str
+        Streams measured in every class, normalised to sum to 1: their shares have the
+        covariance :math:`P D P^T` of the module docstring.
+    """
+
+    classes: pd.DataFrame
+    shares: pd.DataFrame
+    flows: pd.DataFrame
+    pct_solids: pd.DataFrame
+    size_unit: str = ""
+    source: str = ""
+    closed_streams: tuple[str, ...] = ()
+
+    @property
+    def n_classes(self) -> int:
+        return len(self.classes)
+
+    @property
+    def measured_streams(self) -> tuple[str, ...]:
+        return tuple(dict.fromkeys(self.shares["stream"]))
+
+
+def read_survey(
+    path,
+    flowsheet: Flowsheet,
+    *,
+    errors: ErrorModel | None = None,
+    size_unit: str | None = None,
+    sheet=None,
+    sep: str | None = None,
+    decimal: str | None = None,
+) -> Survey:
+    """Read and check the measurement table of a survey (schema in the module docstring).
+
+    Parameters
+    ----------
+    path : str, path-like or pandas.DataFrame
+        CSV or Excel file, or a DataFrame with the same columns.
+    flowsheet : Flowsheet
+        The streams the measurements may name.
+    errors : ErrorModel, optional
+        Default standard deviations (module docstring).
+    size_unit : str, optional
+        Unit of the sizes when the size columns carry no suffix.
+    sheet, sep, decimal
+        As for :func:`tromplab.loading.tables.read_table`.
+
+    Returns
+    -------
+    Survey
+
+    Raises
+    ------
+    InputError
+        Naming the file, row and column: an unknown stream, negative amounts, shares of a
+        complete stream not summing to 100 %, classes that overlap or leave a gap, a class
+        given twice for a stream, flows that disagree within a stream.
+    """
+    errors = errors or ErrorModel()
+    table = read_table(path, sheet=sheet, sep=sep, decimal=decimal)
+    table.require("stream")
+    lower, upper, unit, size_columns = _size_bounds(table, size_unit)
+    values_given = [c for c in VALUE_COLUMNS if c in table.frame.columns]
+    if len(values_given) > 1:
+        raise InputError(f"several value columns ({', '.join(values_given)}): give one", source=table.source)
+    table.refuse_unknown(
+        ["stream", *size_columns, "size_unit", *VALUE_COLUMNS, *ROW_COLUMNS, *STREAM_COLUMNS], what="survey table"
+    )
+    names = np.array([_cell_text(table, i, "stream") for i in range(len(table.frame))], dtype=object)
+    for i, name in enumerate(names):
+        if not name:
+            raise table.error("stream name is blank", index=i, column="stream")
+        if name not in flowsheet.stream_index:
+            raise table.error(
+                f"unknown stream '{name}': the flowsheet {flowsheet.source} has {', '.join(flowsheet.stream_names)}",
+                index=i,
+                column="stream",
+            )
+    has_class = np.isfinite(lower) | np.isfinite(upper)
+    classes, class_of_row = _tiled_classes(table, lower, upper, has_class, size_columns)
+    shares, normalised = _shares(table, names, has_class, class_of_row, len(classes), values_given, errors)
+    flows = _stream_values(table, names, "solids_flow", "solids_flow_sd", lambda v: errors.flow_relative_error * v)
+    pct = _stream_values(table, names, "pct_solids", "pct_solids_sd", lambda v: np.full_like(v, errors.pct_solids_sd))
+    if len(pct):
+        bad = pct[(pct["value"] <= 0) | (pct["value"] > 100)]
+        if len(bad):
+            row = bad.iloc[0]
+            raise InputError(
+                f"per cent solids {row.value:g} outside (0, 100]", source=table.source, row=row.row, column="pct_solids"
+            )
+    if flows.empty and shares.empty:
+        raise InputError("the survey holds no measurement (no size analysis, no solids flow)", source=table.source)
+    return Survey(classes, shares, flows, pct, unit, table.source, normalised)
+
+
+def _cell_text(table: Table, i: int, column: str) -> str:
+    value = table.frame[column].iloc[i]
+    return "" if pd.isna(value) else str(value).strip()
+
+
+def _size_bounds(table: Table, size_unit):
+    found = {}
+    for column in table.frame.columns:
+        for stem in ("size_lower", "size_upper", "size_class"):
+            matched, unit = size_column_unit(column, stem)
+            if matched:
+                if stem in found:
+                    raise InputError(f"two {stem} columns ({found[stem][0]}, {column})", source=table.source, column=column)
+                found[stem] = (column, unit)
+    units = {unit for _, unit in found.values()}
+    if len(units) > 1:
+        raise InputError("mixed units in the size columns; use one unit", source=table.source)
+    suffix = units.pop() if units else ""
+    option = size_unit
+    if "size_unit" in table.frame.columns:
+        given = table.frame["size_unit"].dropna().astype(str).str.strip().unique()
+        if len(given) > 1:
+            raise InputError(f"mixed units in column 'size_unit': {', '.join(given)}", source=table.source, column="size_unit")
+        option = normal_unit(given[0]) if len(given) else option
+    first = next(iter(found.values()))[0] if found else "size_lower"
+    unit = resolve_size_unit(table, suffix, option, first)
+    if "size_class" in found:
+        if "size_lower" in found or "size_upper" in found:
+            raise InputError("the sizes are given twice (size_class and size_lower/size_upper): keep one", source=table.source)
+        column = found["size_class"][0]
+        lower, upper = _class_strings(table, column)
+        return lower, upper, unit, [column]
+    if not ("size_lower" in found and "size_upper" in found):
+        raise InputError(
+            "give class bounds 'size_lower' and 'size_upper' (with a unit suffix, e.g. size_lower_um) or size classes "
+            '\'size_class\' ("+1168", "-1168+589", "-74")',
+            source=table.source,
+        )
+    lower = table.numeric(found["size_lower"][0], allow_blank=True)
+    upper = table.numeric(found["size_upper"][0], allow_blank=True)
+    for values, column in ((lower, found["size_lower"][0]), (upper, found["size_upper"][0])):
+        bad = np.flatnonzero(values < 0)
+        if bad.size:
+            raise table.error(
+                "class bounds must be positive (a pan's lower bound may be 0 or blank)", index=int(bad[0]), column=column
+            )
+    bad = np.flatnonzero(upper == 0)
+    if bad.size:
+        raise table.error("an upper bound must be positive", index=int(bad[0]), column=found["size_upper"][0])
+    lower = np.where(lower == 0, np.nan, lower)
+    bad = np.flatnonzero(np.isfinite(lower) & np.isfinite(upper) & (lower >= upper))
+    if bad.size:
+        i = int(bad[0])
+        raise table.error(
+            f"lower bound {lower[i]:g} is not below the upper bound {upper[i]:g}", index=i, column=found["size_lower"][0]
+        )
+    return lower, upper, unit, [found["size_lower"][0], found["size_upper"][0]]
+
+
+def _class_strings(table: Table, column: str):
+    """Bounds from class strings ("+1168", "-1168+589", "-74"), the grammar of lab tables; blank = no class."""
+    lower = np.full(len(table.frame), np.nan)
+    upper = np.full(len(table.frame), np.nan)
+    for i, value in enumerate(table.frame[column]):
+        text = "" if pd.isna(value) else str(value).strip().replace("\u2212", "-").replace(" ", "")
+        if not text:
+            continue
+        parts = _CLASS.fullmatch(text)
+        if not parts or parts.group(1) == parts.group(3):
+            raise table.error(
+                f"'{value}' is not a size class: write '+1168' (retained on 1168), '-1168+589' or '-74'", index=i, column=column
+            )
+        for sign, number in ((parts.group(1), parts.group(2)), (parts.group(3), parts.group(4))):
+            if sign == "+" and float(number) > 0:
+                lower[i] = float(number)
+            elif sign == "-":
+                upper[i] = float(number)
+        if np.isnan(lower[i]) and np.isnan(upper[i]):
+            raise table.error(f"'{value}' is not a size class", index=i, column=column)
+        if np.isfinite(lower[i]) and np.isfinite(upper[i]) and lower[i] >= upper[i]:
+            raise table.error(f"class '{value}': the lower bound is not below the upper bound", index=i, column=column)
+    return lower, upper
+
+
+def _tiled_classes(table: Table, lower, upper, has_class, size_columns):
+    """The distinct classes, coarse to fine, checked to tile the size range; the class of each row."""
+    key_lower = np.where(np.isfinite(lower), lower, 0.0)
+    distinct = {}  # lower bound (0 = pan) -> (upper, first row index)
+    for i in np.flatnonzero(has_class):
+        k = float(key_lower[i])
+        match = next((other for other in distinct if np.isclose(other, k, rtol=1e-9, atol=0.0)), None)
+        if match is None:
+            distinct[k] = (upper[i], i)
+            continue
+        known, first = distinct[match]
+        if not (np.isnan(known) and np.isnan(upper[i]) or np.isclose(known, upper[i], rtol=1e-9)):
+            raise table.error(
+                f"class {_name(lower[i], upper[i])} overlaps class {_name(lower[first], known)} (row {table.rows[first]}): "
+                "the size classes of the streams do not tile the size range",
+                index=int(i),
+                column=size_columns[-1],
+            )
+    if not distinct:
+        return pd.DataFrame({"size_lower": [], "size_upper": [], "size": []}), np.full(len(lower), -1)
+    ordered = sorted(distinct, reverse=True)  # coarse to fine
+    for coarser, finer in zip(ordered[:-1], ordered[1:]):
+        top_of_finer, i = distinct[finer]
+        if np.isnan(top_of_finer):
+            raise table.error(
+                f"class {_name(lower[i], top_of_finer)} is open at the top but class {_name(coarser, distinct[coarser][0])} is "
+                "coarser: the classes do not tile the size range",
+                index=int(i),
+                column=size_columns[-1],
+            )
+        if not np.isclose(top_of_finer, coarser, rtol=1e-9):
+            what = "a gap" if top_of_finer < coarser else "an overlap"
+            raise table.error(
+                f"{what} between class {_name(lower[i], top_of_finer)} and class {_name(coarser, distinct[coarser][0])}: "
+                "the size classes of the streams must tile the size range (each upper bound the next class's lower bound)",
+                index=int(i),
+                column=size_columns[-1],
+            )
+    lows = np.array([k if k > 0 else np.nan for k in ordered])
+    highs = np.array([distinct[k][0] for k in ordered])
+    class_of_row = np.full(len(lower), -1)
+    for i in np.flatnonzero(has_class):
+        class_of_row[i] = int(np.argmin(np.abs(np.array(ordered) - key_lower[i])))
+    return pd.DataFrame({"size_lower": lows, "size_upper": highs, "size": _representative(table, lows, highs)}), class_of_row
+
+
+def _name(lower, upper) -> str:
+    low = "pan" if not np.isfinite(lower) or lower == 0 else f"{lower:g}"
+    high = "top" if not np.isfinite(upper) else f"{upper:g}"
+    return f"{low}-{high}"
+
+
+def _representative(table: Table, lower, upper) -> np.ndarray:
+    """Geometric means; the open top class and the pan continue their neighbour's size ratio."""
+    lower, upper = lower.copy(), upper.copy()
+    if len(lower) == 1 and not (np.isfinite(lower[0]) and np.isfinite(upper[0])):
+        raise InputError("a single open size class has no representative size", source=table.source)
+    if np.isnan(upper[0]):
+        upper[0] = lower[0] * (upper[1] / lower[1] if np.isfinite(lower[1]) else 2.0)
+    if np.isnan(lower[-1]):
+        lower[-1] = upper[-1] / (upper[-2] / lower[-2] if np.isfinite(upper[-2]) else 2.0)
+    return np.sqrt(lower) * np.sqrt(upper)
+
+
+def _shares(table, names, has_class, class_of_row, n_classes, values_given, errors: ErrorModel) -> pd.DataFrame:
+    columns = ["stream", "class_index", "value", "sd", "row"]
+    if not values_given:
+        if has_class.any():
+            raise InputError(
+                f"size classes are given but no value column: give one of {', '.join(VALUE_COLUMNS)}", source=table.source
+            )
+        return pd.DataFrame(columns=columns), ()
+    column = values_given[0]
+    full = VALUE_COLUMNS[column]
+    values = table.numeric(column, allow_blank=True)
+    bad = np.flatnonzero(values < 0)
+    if bad.size:
+        what = "mass" if full is None else "share"
+        raise table.error(f"negative retained {what} {values[bad[0]]:g}", index=int(bad[0]), column=column)
+    bad = np.flatnonzero(np.isfinite(values) & ~has_class)
+    if bad.size:
+        raise table.error("a retained value without a size class", index=int(bad[0]), column=column)
+    row_sd = (
+        table.numeric("retained_sd", allow_blank=True) if "retained_sd" in table.frame.columns else np.full(len(values), np.nan)
+    )
+    relative = _optional(table, "relative_error", len(values))
+    absolute = _optional(table, "absolute_error", len(values))
+    for array, name in ((row_sd, "retained_sd"), (relative, "relative_error"), (absolute, "absolute_error")):
+        bad = np.flatnonzero(array < 0)
+        if bad.size:
+            raise table.error(f"{name} must not be negative", index=int(bad[0]), column=name)
+    records, normalised = [], []
+    for stream in dict.fromkeys(names[has_class]):
+        rows = np.flatnonzero((names == stream) & has_class & np.isfinite(values))
+        if not rows.size:
+            continue
+        seen = {}
+        for i in rows:
+            if class_of_row[i] in seen:
+                raise table.error(
+                    f"stream '{stream}' gives size class {class_of_row[i] + 1} (coarse to fine) twice "
+                    f"(also at row {table.rows[seen[class_of_row[i]]]})",
+                    index=int(i),
+                    column=column,
+                )
+            seen[class_of_row[i]] = i
+        given = values[rows]
+        total = given.sum()
+        complete = rows.size == n_classes
+        if full is None:
+            if not complete:
+                missing = n_classes - rows.size
+                raise table.error(
+                    f"stream '{stream}' gives masses for {rows.size} of {n_classes} classes ({missing} missing): masses "
+                    "need every class (give shares, retained_pct, to leave classes out)",
+                    index=int(rows[0]),
+                    column=column,
+                )
+            if total <= 0:
+                raise table.error(f"stream '{stream}' holds no material", index=int(rows[0]), column=column)
+            scale = total
+        else:
+            scale = full
+            off = 100.0 * (total - full) / full
+            if (complete and abs(off) > SUM_TOLERANCE_PCT) or (not complete and off > SUM_TOLERANCE_PCT):
+                raise table.error(
+                    f"the shares of stream '{stream}' sum to {100 * total / full:.2f} % "
+                    f"({'over' if off > 0 else 'short'} by {abs(off):.2f} percentage points, tolerance {SUM_TOLERANCE_PCT:g})",
+                    index=int(rows[0]),
+                    column=column,
+                )
+        if complete and (errors.closure or full is None):
+            scale = total  # a closed analysis, normalised as lab tables are
+            normalised.append(stream)
+        share = given / scale
+        default = errors.share_sd(share, stream)
+        stream_relative, stream_absolute = errors.streams.get(stream, (errors.relative_error, errors.absolute_error))
+        r = np.where(np.isfinite(relative[rows]), relative[rows], stream_relative)
+        a = np.where(np.isfinite(absolute[rows]), absolute[rows], stream_absolute)
+        sd = np.where(np.isfinite(relative[rows]) | np.isfinite(absolute[rows]), np.sqrt((r * share) ** 2 + a**2), default)
+        sd = np.where(np.isfinite(row_sd[rows]), row_sd[rows] / scale, sd)
+        for i, x, s in zip(rows, share, sd):
+            records.append(
+                {"stream": stream, "class_index": int(class_of_row[i]), "value": x, "sd": s, "row": int(table.rows[i])}
+            )
+    return pd.DataFrame(records, columns=columns), tuple(normalised)
+
+
+def _optional(table: Table, column: str, n: int) -> np.ndarray:
+    return table.numeric(column, allow_blank=True) if column in table.frame.columns else np.full(n, np.nan)
+
+
+def _stream_values(table: Table, names, column: str, sd_column: str, default_sd) -> pd.DataFrame:
+    columns = ["stream", "value", "sd", "row"]
+    if column not in table.frame.columns:
+        if sd_column in table.frame.columns and table.frame[sd_column].notna().any():
+            raise InputError(f"column '{sd_column}' without '{column}'", source=table.source, column=sd_column)
+        return pd.DataFrame(columns=columns)
+    values = table.numeric(column, allow_blank=True)
+    sds = _optional(table, sd_column, len(values))
+    bad = np.flatnonzero(values < 0)
+    if bad.size:
+        raise table.error(f"negative {column.replace('_', ' ')} {values[bad[0]]:g}", index=int(bad[0]), column=column)
+    bad = np.flatnonzero(sds < 0)
+    if bad.size:
+        raise table.error("a standard deviation must not be negative", index=int(bad[0]), column=sd_column)
+    records = []
+    for stream in dict.fromkeys(names):
+        rows = np.flatnonzero((names == stream) & np.isfinite(values))
+        if not rows.size:
+            continue
+        first = rows[0]
+        for i in rows[1:]:
+            if not np.isclose(values[i], values[first], rtol=1e-9) or not (
+                np.isnan(sds[i]) and np.isnan(sds[first]) or np.isclose(sds[i], sds[first], rtol=1e-9)
+            ):
+                raise table.error(
+                    f"stream '{stream}' has two different {column} values (see row {table.rows[first]})",
+                    index=int(i),
+                    column=column,
+                )
+        sd = sds[first] if np.isfinite(sds[first]) else float(default_sd(np.array([values[first]]))[0])
+        if column == "solids_flow" and values[first] == 0 and sd == 0:
+            raise table.error(
+                f"stream '{stream}': a solids flow fixed at 0 leaves no stream to balance", index=int(first), column=column
+            )
+        records.append({"stream": stream, "value": float(values[first]), "sd": float(sd), "row": int(table.rows[first])})
+    return pd.DataFrame(records, columns=columns)

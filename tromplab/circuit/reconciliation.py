@@ -1,0 +1,885 @@
+r"""Reconciliation of a circuit survey: weighted least squares under the node balances.
+
+The unknowns are the solids flows :math:`F_s` of the streams and their size distributions
+:math:`x_{s,i}` (share of stream :math:`s` in class :math:`i`).  The reconciled values
+minimise the weighted sum of squared adjustments of every measurement
+
+.. math:: S = \sum_j \left(\frac{y_j - h_j}{\sigma_j}\right)^2
+
+subject to the balance of every size class at every separator and junction and of the
+total solids at every mill,
+
+.. math:: \sum_s M_{ks} F_s x_{s,i} = 0, \qquad \sum_s M_{ks} F_s = 0,
+
+with :math:`M` the node-stream incidence (+1 in, -1 out); the total solids balance of a
+separator or junction is the sum of its class balances.  The problem is bilinear in flows
+and fractions (Smith & Ichiyen 1973; Hodouin & Everell 1980).  It is solved exactly, not
+by alternating flows and fractions, in the class flows :math:`m_{s,i} = F_s x_{s,i}`:
+there the balances are linear, :math:`F_s = \sum_i m_{s,i}` and :math:`x_{s,i} =
+m_{s,i}/F_s`, so the feasible set is :math:`m = m_0 + N z` (:math:`N` an orthonormal basis
+of the null space of the constraints) and :math:`z` is found without constraints by the Levenberg-Marquardt
+least squares of :func:`scipy.optimize.least_squares`.  Flows
+given with a standard deviation of 0 (and the basis of 100 on the first feed when no flow
+is measured) join the linear constraints.
+
+Uncertainty is linearised at the solution (Kuehn & Davidson 1961; Hodouin & Everell
+1980): with :math:`J` the weighted Jacobian of the measurements in :math:`z`,
+:math:`\mathrm{cov}(z) = (J^T J)^{-1}`, :math:`\mathrm{cov}(m) = N\,\mathrm{cov}(z) N^T`,
+and every reconciled quantity (flows, shares, partition numbers) gets its standard deviation
+by the delta method.  Adjustments :math:`e = y - \hat y` have :math:`\mathrm{cov}(e) =
+\Sigma - \mathrm{cov}(\hat y)`; the standardised adjustment :math:`e_j /
+\sqrt{\mathrm{cov}(e)_{jj}}` is the measurement test of Mah & Tamhane (1982), compared with
+the Sidak-corrected normal quantile over the testable measurements.  The global test
+compares :math:`S` with the chi-square distribution with as many degrees of freedom as
+the redundancy (measurements minus the rank of :math:`J`) (Almasy & Sztano 1975).
+
+References
+----------
+Almasy, G. A. & Sztano, T. (1975). Checking and correction of measurements on the basis of
+linear system model. *Problems of Control and Information Theory* 4, 57-69.
+
+Hodouin, D. & Everell, M. D. (1980). A hierarchical procedure for adjustment and material
+balancing of mineral processes data. *International Journal of Mineral Processing* 7(2), 91-116.
+
+Kuehn, D. R. & Davidson, H. (1961). Computer control II. Mathematics of control.
+*Chemical Engineering Progress* 57(6), 44-47.
+
+Mah, R. S. H. & Tamhane, A. C. (1982). Detection of gross errors in process data.
+*AIChE Journal* 28(5), 828-830.
+
+Smith, H. W. & Ichiyen, N. (1973). Computer adjustment of metallurgical balances.
+*CIM Bulletin* 66(737), 97-100.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+import pandas as pd
+from scipy import linalg, optimize, stats
+
+from ..errors import InputError
+from ..loading.points import TrompPoints
+from ..validation import check_probability
+from . import plotting
+from .flowsheet import Flowsheet, read_flowsheet
+from .measurements import ErrorModel, Survey, read_survey
+
+#: Flow of the first feed when no solids flow is measured: flows are then per 100 of that feed.
+BASIS = 100.0
+DEFAULT_ALPHA = 0.05
+#: Separator classes whose feed share (of the separator's feed) is below this are written to
+#: points.csv as not used (partition not meaningful), as lab tables flag them.
+MIN_FEED_SHARE = 0.002
+_RANK_TOL = 1e-9
+#: Adjustments correlated beyond this are reported as indistinguishable: a gross error in one
+#: of them moves the others' standardised adjustments alike, so no test can tell which it is.
+EQUIVALENT_CORRELATION = 0.99
+
+
+@dataclass(frozen=True)
+class _Problem:
+    """The reconciliation problem in class flows (internal)."""
+
+    n_streams: int
+    n_classes: int
+    A: np.ndarray  # linear constraints A m = b
+    b: np.ndarray
+    m0: np.ndarray
+    N: np.ndarray  # orthonormal null-space basis of A
+    kinds: np.ndarray  # "share" / "flow" per measurement (sd > 0)
+    stream: np.ndarray  # stream index per measurement
+    klass: np.ndarray  # class index per measurement (-1 for flows)
+    y: np.ndarray
+    sd: np.ndarray  # of each measurement (of a closed analysis's share: before the closure)
+    cov: np.ndarray  # covariance of the measurements (closed analyses: P D P^T blocks)
+    W: np.ndarray  # whitening: W cov W^T = I on the range of cov (rows: independent pieces of information)
+
+    @property
+    def variance(self) -> np.ndarray:
+        return np.diag(self.cov)
+
+    def predict(self, m: np.ndarray) -> np.ndarray:
+        flows = m.reshape(self.n_streams, self.n_classes).sum(axis=1)
+        out = np.empty(self.y.size)
+        share = self.kinds == "share"
+        s, i = self.stream[share], self.klass[share]
+        out[share] = m[s * self.n_classes + i] / flows[s]
+        out[~share] = flows[self.stream[~share]]
+        return out
+
+    def jacobian(self, m: np.ndarray) -> np.ndarray:
+        """d(prediction)/d(m), measurements x class flows."""
+        n = self.n_classes
+        flows = m.reshape(self.n_streams, n).sum(axis=1)
+        H = np.zeros((self.y.size, m.size))
+        for j in range(self.y.size):
+            s = self.stream[j]
+            block = slice(s * n, (s + 1) * n)
+            if self.kinds[j] == "share":
+                i = self.klass[j]
+                H[j, block] = -m[s * n + i] / flows[s] ** 2
+                H[j, s * n + i] += 1.0 / flows[s]
+            else:
+                H[j, block] = 1.0
+        return H
+
+
+@dataclass(frozen=True)
+class CircuitBalance:
+    """A reconciled survey: flows and size distributions that close every balance.
+
+    Built by :func:`reconcile`.  Tables (pandas, fixed columns):
+
+    * :meth:`flows_table` - one row per stream: measured and reconciled solids flow, sd;
+    * :meth:`distributions_table` - one row per stream and class: measured and reconciled share;
+    * :meth:`adjustments_table` - one row per measurement: adjustment, its sd, the
+      standardised adjustment and the measurement test;
+    * :meth:`gross_errors_table` - the measurements whose standardised adjustment fails the test;
+    * :meth:`partition_table` - per separator and class: partition to the fine product and sd;
+    * :meth:`chi_square_table` - the global test;
+    * :meth:`degrees_of_freedom_table` - counts of unknowns, constraints and measurements.
+
+    :meth:`to_points` gives the separators' partition curves as
+    :class:`~tromplab.loading.points.TrompPoints` with weights, :meth:`points_table` the same
+    in the Tromp-points file schema.
+    """
+
+    flowsheet: Flowsheet
+    survey: Survey
+    class_flows: np.ndarray = field(repr=False)  # streams x classes
+    covariance: np.ndarray = field(repr=False)  # of the flattened class flows
+    chi_square: float
+    dof: int
+    alpha: float
+    success: bool
+    message: str
+    basis: str = ""
+    problem: _Problem | None = field(default=None, repr=False, compare=False)
+    measured_y: np.ndarray | None = field(default=None, repr=False, compare=False)
+
+    # --- the global test -------------------------------------------------------------
+    @property
+    def p_value(self) -> float:
+        """Probability of a chi-square at least as large under the error model (NaN without redundancy)."""
+        return float(stats.chi2.sf(self.chi_square, self.dof)) if self.dof > 0 else float("nan")
+
+    @property
+    def chi_square_critical(self) -> float:
+        return float(stats.chi2.ppf(1.0 - self.alpha, self.dof)) if self.dof > 0 else float("nan")
+
+    @property
+    def rejected(self) -> bool:
+        """True when the chi-square test rejects the error model (or a gross error is present) at ``alpha``."""
+        return bool(self.dof > 0 and self.chi_square > self.chi_square_critical)
+
+    def chi_square_table(self) -> pd.DataFrame:
+        """``statistic, dof, critical, alpha, p_value, rejected, verdict``."""
+        verdict = (
+            "no redundancy: nothing to test"
+            if self.dof <= 0
+            else (
+                f"rejected at {self.alpha:g}: the adjustments are larger than the error model allows (a gross error or "
+                "standard deviations too small)"
+                if self.rejected
+                else f"consistent with the error model at {self.alpha:g}"
+            )
+        )
+        return pd.DataFrame(
+            [
+                {
+                    "statistic": self.chi_square,
+                    "dof": self.dof,
+                    "critical": self.chi_square_critical,
+                    "alpha": self.alpha,
+                    "p_value": self.p_value,
+                    "rejected": self.rejected,
+                    "verdict": verdict,
+                }
+            ]
+        )
+
+    # --- reconciled quantities ---------------------------------------------------------
+    @property
+    def streams(self) -> tuple[str, ...]:
+        return self.flowsheet.stream_names
+
+    @property
+    def flows(self) -> np.ndarray:
+        return self.class_flows.sum(axis=1)
+
+    @property
+    def shares(self) -> np.ndarray:
+        """Reconciled size distributions, streams x classes (fractions)."""
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return self.class_flows / self.flows[:, None]
+
+    def _sd(self, gradients: np.ndarray) -> np.ndarray:
+        """Delta-method standard deviations of quantities with these gradients in the class flows."""
+        variance = np.einsum("ij,jk,ik->i", gradients, self.covariance, gradients)
+        return np.sqrt(np.clip(variance, 0.0, None))
+
+    @cached_property
+    def flow_sd(self) -> np.ndarray:
+        S, n = self.class_flows.shape
+        G = np.zeros((S, S * n))
+        for s in range(S):
+            G[s, s * n : (s + 1) * n] = 1.0
+        return self._sd(G)
+
+    @cached_property
+    def share_sd(self) -> np.ndarray:
+        S, n = self.class_flows.shape
+        G = np.zeros((S * n, S * n))
+        for s in range(S):
+            F, x = self.flows[s], self.shares[s]
+            for i in range(n):
+                G[s * n + i, s * n : (s + 1) * n] = -x[i] / F
+                G[s * n + i, s * n + i] += 1.0 / F
+        return self._sd(G).reshape(S, n)
+
+    def flows_table(self) -> pd.DataFrame:
+        """``stream, from, to, product, measured, measured_sd, reconciled, reconciled_sd, adjustment``."""
+        measured = self.survey.flows.set_index("stream")
+        rows = []
+        for s, stream in enumerate(self.flowsheet.streams):
+            given = stream.name in measured.index
+            value = float(measured.loc[stream.name, "value"]) if given else np.nan
+            rows.append(
+                {
+                    "stream": stream.name,
+                    "from": stream.source,
+                    "to": stream.target,
+                    "product": stream.product,
+                    "measured": value,
+                    "measured_sd": float(measured.loc[stream.name, "sd"]) if given else np.nan,
+                    "reconciled": self.flows[s],
+                    "reconciled_sd": self.flow_sd[s],
+                    "adjustment": self.flows[s] - value,
+                }
+            )
+        return pd.DataFrame(rows)
+
+    def distributions_table(self) -> pd.DataFrame:
+        """``stream, size_lower, size_upper, size, measured, measured_sd, reconciled, reconciled_sd``
+        (shares as fractions; measured NaN where the class was not measured in that stream)."""
+        classes = self.survey.classes
+        measured = {(r.stream, r.class_index): (r.value, r.sd) for r in self.survey.shares.itertuples()}
+        rows = []
+        for s, name in enumerate(self.streams):
+            for i in range(len(classes)):
+                value, sd = measured.get((name, i), (np.nan, np.nan))
+                rows.append(
+                    {
+                        "stream": name,
+                        "size_lower": classes["size_lower"].iloc[i],
+                        "size_upper": classes["size_upper"].iloc[i],
+                        "size": classes["size"].iloc[i],
+                        "measured": value,
+                        "measured_sd": sd,
+                        "reconciled": self.shares[s, i],
+                        "reconciled_sd": self.share_sd[s, i],
+                    }
+                )
+        return pd.DataFrame(rows)
+
+    @cached_property
+    def _adjustments(self) -> pd.DataFrame:
+        problem = self.problem
+        columns = [
+            "measurement",
+            "stream",
+            "class_index",
+            "size_lower",
+            "size_upper",
+            "row",
+            "measured",
+            "sd",
+            "reconciled",
+            "reconciled_sd",
+            "adjustment",
+            "adjustment_sd",
+            "standardised",
+            "p_value",
+            "suspect",
+        ]
+        if problem is None or problem.y.size == 0:
+            return pd.DataFrame(columns=columns)
+        m = self.class_flows.ravel()
+        H = problem.jacobian(m)
+        predicted = problem.predict(m)
+        cov_pred = H @ self.covariance @ H.T
+        adjustment = self.measured_y - predicted  # measured minus reconciled
+        adjustment_var = problem.variance - np.diag(cov_pred)
+        testable = adjustment_var > 1e-8 * problem.sd**2
+        adjustment_sd = np.where(testable, np.sqrt(np.clip(adjustment_var, 0.0, None)), np.nan)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            standardised = np.where(testable, adjustment / adjustment_sd, np.nan)
+        p_value = np.where(testable, 2.0 * stats.norm.sf(np.abs(standardised)), np.nan)
+        classes = self.survey.classes
+        rows_of = self._measurement_rows()
+        table = pd.DataFrame(
+            {
+                "measurement": [
+                    f"{self.streams[s]} flow" if k == "flow" else f"{self.streams[s]} class {_class_name(classes, i)}"
+                    for s, i, k in zip(problem.stream, problem.klass, problem.kinds)
+                ],
+                "stream": [self.streams[s] for s in problem.stream],
+                "class_index": problem.klass,
+                "size_lower": [classes["size_lower"].iloc[i] if i >= 0 else np.nan for i in problem.klass],
+                "size_upper": [classes["size_upper"].iloc[i] if i >= 0 else np.nan for i in problem.klass],
+                "row": rows_of,
+                "measured": self.measured_y,
+                "sd": np.sqrt(problem.variance),
+                "reconciled": predicted,
+                "reconciled_sd": np.sqrt(np.clip(np.diag(cov_pred), 0.0, None)),
+                "adjustment": -adjustment,  # reconciled minus measured: what was added to the measurement
+                "adjustment_sd": adjustment_sd,
+                "standardised": -standardised,
+                "p_value": p_value,
+            }
+        )
+        table["suspect"] = np.abs(table["standardised"]) > self.measurement_test_critical
+        scale = np.sqrt(np.clip(adjustment_var, 1e-300, None))
+        correlation = (problem.cov - cov_pred) / np.outer(scale, scale)
+        names = table["measurement"].to_numpy()
+        table["indistinguishable_from"] = [
+            "; ".join(names[(np.abs(correlation[j]) > EQUIVALENT_CORRELATION) & testable & (np.arange(names.size) != j)])
+            if testable[j]
+            else ""
+            for j in range(names.size)
+        ]
+        return table
+
+    def _measurement_rows(self) -> list:
+        rows = {(r.stream, r.class_index): r.row for r in self.survey.shares.itertuples()}
+        flows = {r.stream: r.row for r in self.survey.flows.itertuples()}
+        problem = self.problem
+        return [
+            flows.get(self.streams[s]) if k == "flow" else rows.get((self.streams[s], i))
+            for s, i, k in zip(problem.stream, problem.klass, problem.kinds)
+        ]
+
+    @property
+    def measurement_test_critical(self) -> float:
+        """Critical |standardised adjustment| of the measurement test: the normal quantile at the
+        Sidak-corrected level ``1 - (1 - alpha) ** (1 / p)`` over the p testable measurements."""
+        problem = self.problem
+        if problem is None or problem.y.size == 0:
+            return float("nan")
+        m = self.class_flows.ravel()
+        H = problem.jacobian(m)
+        variance = problem.variance - np.einsum("ij,jk,ik->i", H, self.covariance, H)
+        p = int(np.sum(variance > 1e-8 * problem.sd**2))
+        if p == 0:
+            return float("nan")
+        level = 1.0 - (1.0 - self.alpha) ** (1.0 / p)
+        return float(stats.norm.isf(level / 2.0))
+
+    def adjustments_table(self) -> pd.DataFrame:
+        """One row per measurement (flows given with sd 0 are constraints, not listed).
+
+        Columns ``measurement, stream, class_index, size_lower, size_upper, row`` (file row),
+        ``measured, sd, reconciled, reconciled_sd, adjustment`` (reconciled - measured),
+        ``adjustment_sd``, ``standardised`` (adjustment / adjustment_sd; NaN for a measurement
+        without redundancy, which the balances cannot check), ``p_value`` (two-sided normal)
+        ``suspect`` (|standardised| above :attr:`measurement_test_critical`) and
+        ``indistinguishable_from`` (the measurements whose adjustments are correlated with this
+        one beyond :data:`EQUIVALENT_CORRELATION`: a gross error in any of them looks the same,
+        e.g. the only two flowmeters of a loop, or one class of the three streams of a separator
+        whose split is free).
+        """
+        return self._adjustments.copy()
+
+    def gross_errors_table(self) -> pd.DataFrame:
+        """The measurements suspected of gross error, largest |standardised adjustment| first
+        (the measurement test); ``rank`` 1 is the first candidate."""
+        table = self._adjustments
+        suspects = table[table["suspect"]].copy()
+        suspects = suspects.reindex(suspects["standardised"].abs().sort_values(ascending=False).index)
+        suspects.insert(0, "rank", np.arange(1, len(suspects) + 1))
+        return suspects.reset_index(drop=True)
+
+    def largest_adjustments(self, n: int = 5) -> pd.DataFrame:
+        """The ``n`` measurements with the largest |standardised adjustment| (suspect or not)."""
+        table = self._adjustments.dropna(subset=["standardised"])
+        return table.reindex(table["standardised"].abs().sort_values(ascending=False).index).head(n).reset_index(drop=True)
+
+    # --- separators -----------------------------------------------------------------------
+    def partition_table(self) -> pd.DataFrame:
+        r"""Partition to the fine product of every separator and class, from the reconciled data.
+
+        .. math:: \varphi_i = \frac{m_{f,i}}{m_{f,i} + m_{c,i}}
+
+        with :math:`m_{f,i}`, :math:`m_{c,i}` the reconciled class flows of the fine and coarse
+        product.  Columns ``experiment`` (the separator's node), ``size_lower, size_upper,
+        size, feed_share`` (share of the separator's feed in the class), ``partition_fine,
+        partition_sd`` (delta method), ``fine_yield, fine_yield_sd, used, flag``.
+        """
+        classes = self.survey.classes
+        index = self.flowsheet.stream_index
+        n = self.class_flows.shape[1]
+        frames = []
+        for node in self.flowsheet.separators:
+            f, c = index[node.fine], index[node.coarse]
+            mf, mc = self.class_flows[f], self.class_flows[c]
+            total = mf + mc
+            G = np.zeros((n, self.class_flows.size))
+            with np.errstate(invalid="ignore", divide="ignore"):
+                phi = mf / total
+                G[np.arange(n), f * n + np.arange(n)] = mc / total**2
+                G[np.arange(n), c * n + np.arange(n)] = -mf / total**2
+            yield_gradient = np.zeros((1, self.class_flows.size))
+            Ff, Fc = mf.sum(), mc.sum()
+            yield_gradient[0, f * n : (f + 1) * n] = Fc / (Ff + Fc) ** 2
+            yield_gradient[0, c * n : (c + 1) * n] = -Ff / (Ff + Fc) ** 2
+            feed_share = total / total.sum()
+            flags, used = [], []
+            for share, value in zip(feed_share, phi):
+                if not np.isfinite(value) or share < MIN_FEED_SHARE:
+                    used.append(False)
+                    flags.append(f"feed share {100 * share:.3g} % below {100 * MIN_FEED_SHARE:g} %: partition not meaningful")
+                elif not 0.0 <= value <= 1.0:
+                    used.append(True)
+                    flags.append(f"reconciled partition {value:.4f} clipped to 0..1")
+                else:
+                    used.append(True)
+                    flags.append("")
+            frames.append(
+                pd.DataFrame(
+                    {
+                        "experiment": node.name,
+                        "size_lower": classes["size_lower"].to_numpy(),
+                        "size_upper": classes["size_upper"].to_numpy(),
+                        "size": classes["size"].to_numpy(),
+                        "feed_share": feed_share,
+                        "partition_fine": phi,
+                        "partition_sd": self._sd(G),
+                        "fine_yield": Ff / (Ff + Fc),
+                        "fine_yield_sd": float(self._sd(yield_gradient)[0]),
+                        "used": used,
+                        "flag": flags,
+                    }
+                )
+            )
+        if not frames:
+            return pd.DataFrame(
+                columns=["experiment", "size_lower", "size_upper", "size", "feed_share", "partition_fine", "partition_sd"]
+            )
+        return pd.concat(frames, ignore_index=True)
+
+    def points_table(self, *, unit_in_names: bool = True) -> pd.DataFrame:
+        """The separators' partition curves in the Tromp-points schema that ``tromplab fit`` reads.
+
+        Columns ``experiment, size[_unit], partition_fine, weight, used, size_lower[_unit],
+        size_upper[_unit], feed_share, flag``.  ``weight`` is :math:`1/\\sigma^2` of the
+        reconciled partition, scaled to a mean of 1 per separator over the used classes
+        (the fit's weighted least squares then weights each class by its precision).
+        """
+        table = self.partition_table()
+        unit = self.survey.size_unit
+        suffix = f"_{unit}" if unit and unit_in_names else ""
+        rows = []
+        for _, part in table.groupby("experiment", sort=False):
+            sd = part["partition_sd"].to_numpy()
+            floor = max(np.nanmax(sd) * 1e-6, 1e-12) if np.isfinite(sd).any() else 1.0
+            weight = 1.0 / np.maximum(np.nan_to_num(sd, nan=np.inf), floor) ** 2
+            used = part["used"].to_numpy()
+            weight = np.where(used & np.isfinite(weight) & (weight > 0), weight, np.nan)
+            weight = weight / np.nanmean(weight) if np.isfinite(weight).any() else weight
+            rows.append(
+                pd.DataFrame(
+                    {
+                        "experiment": part["experiment"].to_numpy(),
+                        f"size{suffix}": part["size"].to_numpy(),
+                        "partition_fine": np.clip(np.nan_to_num(part["partition_fine"].to_numpy(), nan=0.5), 0.0, 1.0),
+                        "weight": np.where(np.isfinite(weight), weight, 1.0),
+                        "used": np.where(used, "yes", "no"),
+                        f"size_lower{suffix}": part["size_lower"].to_numpy(),
+                        f"size_upper{suffix}": part["size_upper"].to_numpy(),
+                        "feed_share": part["feed_share"].to_numpy(),
+                        "flag": part["flag"].to_numpy(),
+                    }
+                )
+            )
+        if not rows:
+            return pd.DataFrame(columns=["experiment", f"size{suffix}", "partition_fine", "weight", "used"])
+        return pd.concat(rows, ignore_index=True)
+
+    def to_points(self) -> list[TrompPoints]:
+        """One :class:`~tromplab.loading.points.TrompPoints` per separator (experiment = node name),
+        the used classes only, weighted by the precision of the reconciled partition."""
+        table = self.points_table(unit_in_names=False)
+        points = []
+        for name, part in table.groupby("experiment", sort=False):
+            part = part[part["used"] == "yes"]
+            points.append(
+                TrompPoints(
+                    experiment=str(name),
+                    size=part["size"].to_numpy(),
+                    partition_fine=part["partition_fine"].to_numpy(),
+                    weight=part["weight"].to_numpy(),
+                    source=f"{self.survey.source} (reconciled)",
+                    size_unit=self.survey.size_unit,
+                )
+            )
+        return points
+
+    # --- counts ---------------------------------------------------------------------------
+    def degrees_of_freedom_table(self) -> pd.DataFrame:
+        """``quantity, count`` of the unknowns, the constraints and the measurements."""
+        problem = self.problem
+        S, n = self.class_flows.shape
+        free = problem.N.shape[1] if problem is not None else 0
+        measurements = int(problem.y.size) if problem is not None else 0
+        rows = [
+            ("streams", S),
+            ("nodes", len(self.flowsheet.nodes)),
+            ("size classes", n),
+            ("unknown class flows (streams x classes)", S * n),
+            ("independent linear constraints (balances, fixed flows, basis)", S * n - free),
+            ("free unknowns", free),
+            ("measurements with a standard deviation", measurements),
+            ("redundancy (degrees of freedom of the chi-square)", self.dof),
+            (
+                "flow degrees of freedom of the flowsheet (streams - independent solids balances)",
+                self.flowsheet.flow_degrees_of_freedom,
+            ),
+        ]
+        return pd.DataFrame(rows, columns=["quantity", "count"])
+
+    def summary(self) -> str:
+        """A few lines: what was balanced, the chi-square test and the gross-error candidates."""
+        lines = [
+            f"Circuit survey {self.survey.source}: {self.flowsheet.summary()}",
+            f"{self.problem.y.size if self.problem else 0} measurements, redundancy {self.dof}"
+            + (f"; flows relative to {self.basis}" if self.basis else ""),
+        ]
+        chi = self.chi_square_table().iloc[0]
+        if self.dof > 0:
+            lines.append(
+                f"chi-square {chi.statistic:.3g} on {self.dof} dof (critical {chi.critical:.3g} at {self.alpha:g}, "
+                f"p = {chi.p_value:.3g}): {chi.verdict}"
+            )
+        suspects = self.gross_errors_table()
+        if len(suspects):
+            listed = "; ".join(f"{r.measurement} (standardised {r.standardised:+.2f})" for r in suspects.head(5).itertuples())
+            lines.append(f"suspected gross errors (|standardised| > {self.measurement_test_critical:.2f}): {listed}")
+        return "\n".join(lines)
+
+    def __str__(self) -> str:
+        return self.summary()
+
+    # --- figures --------------------------------------------------------------------------
+    def plot(self, kind: str = "distributions", ax=None):
+        """``"distributions"``: reconciled against measured distributions per stream;
+        ``"adjustments"``: standardised adjustments; ``"flowsheet"``: the flowsheet with the
+        reconciled flows.  Returns the Axes (or the array of Axes for distributions)."""
+        figures = {
+            "distributions": plotting.plot_distributions,
+            "adjustments": plotting.plot_adjustments,
+            "flowsheet": plotting.plot_flowsheet,
+        }
+        if kind not in figures:
+            raise ValueError(f"unknown kind {kind!r}; choose one of {', '.join(figures)}")
+        return figures[kind](self, ax=ax)
+
+
+def _class_name(classes: pd.DataFrame, i: int) -> str:
+    lower, upper = classes["size_lower"].iloc[i], classes["size_upper"].iloc[i]
+    if not np.isfinite(upper):
+        return f"+{lower:g}"
+    if not np.isfinite(lower):
+        return f"-{upper:g}"
+    return f"-{upper:g}+{lower:g}"
+
+
+def reconcile(
+    flowsheet,
+    measurements,
+    *,
+    errors: ErrorModel | None = None,
+    alpha: float = DEFAULT_ALPHA,
+    size_unit: str | None = None,
+) -> CircuitBalance:
+    """Reconcile a circuit survey: flows and size distributions that close every node balance.
+
+    Parameters
+    ----------
+    flowsheet : Flowsheet, path or DataFrame
+        The flowsheet (:func:`~tromplab.circuit.flowsheet.read_flowsheet` schema).
+    measurements : Survey, path or DataFrame
+        The measurement table (:func:`~tromplab.circuit.measurements.read_survey` schema).
+    errors : ErrorModel, optional
+        Standard deviations where the table gives none (default: 5 % relative, 0.1
+        percentage point absolute for shares; 5 % for flows).
+    alpha : float
+        Significance level of the chi-square test and of the measurement test.
+    size_unit : str, optional
+        Unit of the sizes when the table's size columns carry none.
+
+    Returns
+    -------
+    CircuitBalance
+
+    Raises
+    ------
+    InputError
+        Bad flowsheet or measurements (naming file, row, node or stream), flows fixed
+        inconsistently, or a flow or distribution the survey cannot determine
+        (unobservable: naming the streams; more measurements are needed there).
+
+    Examples
+    --------
+    >>> sheet = pd.DataFrame({"stream": ["feed", "fine", "coarse"], "from": ["", "cyclone", "cyclone"],
+    ...                       "to": ["cyclone", "", ""], "product": ["", "fine", "coarse"]})
+    >>> feed, fine, coarse = [0.2, 0.3, 0.5], [0.05, 0.25, 0.7], [0.35, 0.35, 0.3]
+    >>> table = pd.DataFrame({"stream": ["feed"] * 3 + ["fine"] * 3 + ["coarse"] * 3,
+    ...                       "size_lower_um": [100, 50, 0] * 3, "size_upper_um": [200, 100, 50] * 3,
+    ...                       "retained_frac": feed + fine + coarse})
+    >>> balance = reconcile(sheet, table)
+    >>> round(float(balance.flows[1]), 6), balance.dof   # the fine product per 100 of the feed; the redundancy
+    (50.0, 1)
+    """
+    alpha = check_probability(alpha, "alpha")
+    if not isinstance(flowsheet, Flowsheet):
+        flowsheet = read_flowsheet(flowsheet)
+    survey = (
+        measurements
+        if isinstance(measurements, Survey)
+        else read_survey(measurements, flowsheet, errors=errors, size_unit=size_unit)
+    )
+    problem, basis = _build(flowsheet, survey)
+    start = _start(flowsheet, survey, problem)
+    _check_observable(flowsheet, survey, problem, start)
+    z0 = problem.N.T @ (start - problem.m0)
+
+    def residuals(z):
+        return problem.W @ (problem.predict(problem.m0 + problem.N @ z) - problem.y)
+
+    def jacobian(z):
+        return problem.W @ problem.jacobian(problem.m0 + problem.N @ z) @ problem.N
+
+    if problem.N.shape[1] and problem.y.size:
+        solution = optimize.least_squares(
+            residuals, z0, jac=jacobian, method="lm", x_scale="jac", xtol=1e-14, ftol=1e-14, gtol=1e-12, max_nfev=2000
+        )
+        z, success, message = solution.x, bool(solution.success), str(solution.message)
+    else:
+        z, success, message = z0, True, "nothing to adjust"
+    m = problem.m0 + problem.N @ z
+    flows = m.reshape(len(flowsheet.streams), -1).sum(axis=1)
+    if np.any(flows <= 0):
+        bad = [flowsheet.stream_names[s] for s in np.flatnonzero(flows <= 0)]
+        raise InputError(
+            f"the reconciled solids flow of stream(s) {', '.join(bad)} is not positive: the measurements contradict the "
+            "flowsheet (check the stream names in both files)",
+            source=survey.source,
+        )
+    if problem.y.size:
+        J = jacobian(z)
+        r = residuals(z)
+        chi = float(r @ r)
+        rank = int(np.linalg.matrix_rank(J, tol=_RANK_TOL * max(1.0, np.abs(J).max()))) if J.size else 0
+        cov_z = np.linalg.pinv(J.T @ J, rcond=1e-12) if J.size else np.zeros((0, 0))
+    else:
+        chi, rank, cov_z = 0.0, 0, np.zeros((problem.N.shape[1],) * 2)
+    covariance = problem.N @ cov_z @ problem.N.T
+    return CircuitBalance(
+        flowsheet,
+        survey,
+        m.reshape(len(flowsheet.streams), -1),
+        covariance,
+        chi,
+        int(problem.W.shape[0] - rank),
+        alpha,
+        success,
+        message,
+        basis,
+        problem,
+        problem.y.copy(),
+    )
+
+
+def _build(flowsheet: Flowsheet, survey: Survey) -> tuple[_Problem, str]:
+    S = len(flowsheet.streams)
+    n = max(survey.n_classes, 1)
+    M = flowsheet.incidence()
+    index = flowsheet.stream_index
+    rows, rhs = [], []
+    for k, node in enumerate(flowsheet.nodes):
+        if node.balances_classes:
+            for i in range(n):
+                row = np.zeros(S * n)
+                row[np.arange(S) * n + i] = M[k]
+                rows.append(row)
+                rhs.append(0.0)
+        else:
+            rows.append(np.repeat(M[k], n))
+            rhs.append(0.0)
+    fixed = survey.flows[survey.flows["sd"] == 0]
+    free_flows = survey.flows[survey.flows["sd"] > 0]
+    for record in fixed.itertuples():
+        row = np.zeros(S * n)
+        row[index[record.stream] * n : (index[record.stream] + 1) * n] = 1.0
+        rows.append(row)
+        rhs.append(record.value)
+    basis = ""
+    if survey.flows.empty:
+        feed = flowsheet.feeds[0]
+        row = np.zeros(S * n)
+        row[index[feed] * n : (index[feed] + 1) * n] = 1.0
+        rows.append(row)
+        rhs.append(BASIS)
+        basis = f"{BASIS:g} for stream '{feed}' (no solids flow measured)"
+    exact = survey.shares[survey.shares["sd"] == 0]
+    for record in exact.itertuples():  # an exact share: m_si - x sum_j m_sj = 0, linear in the class flows
+        s = index[record.stream]
+        row = np.zeros(S * n)
+        row[s * n : (s + 1) * n] = -record.value
+        row[s * n + record.class_index] += 1.0
+        rows.append(row)
+        rhs.append(0.0)
+    A = np.array(rows) if rows else np.zeros((0, S * n))
+    b = np.array(rhs)
+    if A.shape[0]:
+        m0 = np.linalg.lstsq(A, b, rcond=None)[0]
+        if np.linalg.norm(A @ m0 - b) > 1e-8 * max(1.0, np.linalg.norm(b)):
+            raise InputError(
+                "the flows and shares given with a standard deviation of 0 contradict the balances of the flowsheet",
+                source=survey.source,
+            )
+        N = linalg.null_space(A, rcond=1e-10)
+    else:
+        m0, N = np.zeros(S * n), np.eye(S * n)
+    shares = survey.shares[survey.shares["sd"] > 0]
+    kinds = np.array(["share"] * len(shares) + ["flow"] * len(free_flows), dtype=object)
+    stream = np.array([index[s] for s in shares["stream"]] + [index[s] for s in free_flows["stream"]], dtype=int)
+    klass = np.array(list(shares["class_index"].astype(int)) + [-1] * len(free_flows), dtype=int)
+    y = np.concatenate([shares["value"].to_numpy(float), free_flows["value"].to_numpy(float)])
+    sd = np.concatenate([shares["sd"].to_numpy(float), free_flows["sd"].to_numpy(float)])
+    cov, W = _measurement_covariance(shares, sd, survey.closed_streams)
+    return _Problem(S, n, A, b, m0, N, kinds, stream, klass, y, sd, cov, W), basis
+
+
+def _measurement_covariance(shares: pd.DataFrame, sd: np.ndarray, closed) -> tuple[np.ndarray, np.ndarray]:
+    """Covariance of the measurements and its whitening: independent, except the shares of a
+    closed (normalised) analysis, whose block is :math:`P D P^T`, :math:`P = I - x 1^T`."""
+    cov = np.diag(sd**2)
+    pieces = []
+    done = np.zeros(sd.size, dtype=bool)
+    streams = shares["stream"].to_numpy()
+    values = shares["value"].to_numpy(float)
+    for stream in closed:
+        where = np.flatnonzero(streams == stream)
+        if where.size == 0:
+            continue
+        x = values[where]
+        P = np.eye(where.size) - np.outer(x, np.ones(where.size))
+        block = P @ np.diag(sd[where] ** 2) @ P.T
+        cov[np.ix_(where, where)] = block
+        eigenvalues, vectors = np.linalg.eigh(block)
+        keep = eigenvalues > 1e-12 * eigenvalues.max()
+        rows = np.zeros((int(keep.sum()), sd.size))
+        rows[:, where] = (vectors[:, keep] / np.sqrt(eigenvalues[keep])).T
+        pieces.append(rows)
+        done[where] = True
+    single = np.flatnonzero(~done)
+    rows = np.zeros((single.size, sd.size))
+    rows[np.arange(single.size), single] = 1.0 / sd[single]
+    pieces.append(rows)
+    return cov, np.vstack(pieces)
+
+
+def _start(flowsheet: Flowsheet, survey: Survey, problem: _Problem) -> np.ndarray:
+    """A feasible starting point: measured (or average) distributions, flows from a bounded
+    linear least-squares fit of the balances, projected onto the constraints."""
+    S, n = problem.n_streams, problem.n_classes
+    index = flowsheet.stream_index
+    guess = np.full((S, n), np.nan)
+    for record in survey.shares.itertuples():
+        guess[index[record.stream], record.class_index] = record.value
+    measured = np.isfinite(guess).any(axis=1)
+    average = np.nanmean(guess[measured], axis=0) if measured.any() else np.full(n, 1.0 / n)
+    average = np.where(np.isfinite(average), average, 1.0 / n)
+    for s in range(S):
+        row = guess[s]
+        if not np.isfinite(row).any():
+            guess[s] = average / average.sum()
+            continue
+        missing = ~np.isfinite(row)
+        rest = max(1.0 - np.nansum(row), 0.0)
+        row[missing] = rest * average[missing] / max(average[missing].sum(), 1e-12) if missing.any() else 0
+        guess[s] = np.clip(row, 1e-6, None) / np.clip(row, 1e-6, None).sum()
+    # flows: class balances with the guessed distributions, the fixed and measured flows
+    rows, rhs = [], []
+    M = flowsheet.incidence()
+    for k, node in enumerate(flowsheet.nodes):
+        rows.append(M[k] * 10.0)
+        rhs.append(0.0)
+        if node.balances_classes:
+            for i in range(n):
+                rows.append(M[k] * guess[:, i])
+                rhs.append(0.0)
+    scale = BASIS
+    for record in survey.flows.itertuples():
+        row = np.zeros(S)
+        row[index[record.stream]] = 10.0
+        rows.append(row)
+        rhs.append(10.0 * record.value)
+        scale = record.value
+    if survey.flows.empty:
+        row = np.zeros(S)
+        row[index[flowsheet.feeds[0]]] = 10.0
+        rows.append(row)
+        rhs.append(10.0 * BASIS)
+    fit = optimize.lsq_linear(np.array(rows), np.array(rhs), bounds=(1e-3 * scale, np.inf))
+    m = (fit.x[:, None] * guess).ravel()
+    if problem.A.shape[0]:
+        m = m - np.linalg.lstsq(problem.A, problem.A @ m - problem.b, rcond=None)[0]
+    return m
+
+
+def _check_observable(flowsheet: Flowsheet, survey: Survey, problem: _Problem, m: np.ndarray) -> None:
+    """Refuse a survey that cannot determine every flow and distribution (naming the streams)."""
+    free = problem.N.shape[1]
+    if free == 0:
+        return
+    S, n = problem.n_streams, problem.n_classes
+    if problem.y.size:
+        J = problem.W @ problem.jacobian(m) @ problem.N
+        rank_tol = 1e-8 * max(1.0, np.abs(J).max())
+        _, singular, vt = np.linalg.svd(J, full_matrices=True)
+        rank = int(np.sum(singular > rank_tol))
+        unseen = vt[rank:].T  # directions of z the measurements do not see
+    else:
+        unseen = np.eye(free)
+    if unseen.shape[1] == 0:
+        return
+    directions = problem.N @ unseen  # in the class flows
+    flows = m.reshape(S, n).sum(axis=1)
+    blocks = directions.reshape(S, n, -1)
+    flow_change = np.abs(blocks.sum(axis=1)).max(axis=1) / np.maximum(np.abs(flows), 1e-12)
+    share_change = np.abs(blocks - (m.reshape(S, n) / flows[:, None])[:, :, None] * blocks.sum(axis=1)[:, None, :]).max(
+        axis=(1, 2)
+    )
+    share_change = share_change / np.maximum(np.abs(flows), 1e-12)
+    flow_bad = [flowsheet.stream_names[s] for s in np.flatnonzero(flow_change > 1e-6)]
+    share_bad = [
+        flowsheet.stream_names[s] for s in np.flatnonzero(share_change > 1e-6) if flowsheet.stream_names[s] not in flow_bad
+    ]
+    if not flow_bad and not share_bad:
+        return
+    nodes = sorted({n for s in flow_bad + share_bad for n in (flowsheet.stream(s).source, flowsheet.stream(s).target) if n})
+    parts = []
+    if flow_bad:
+        parts.append(f"the solids flow of stream(s) {', '.join(flow_bad)}")
+    if share_bad:
+        parts.append(f"the size distribution of stream(s) {', '.join(share_bad)}")
+    raise InputError(
+        f"the survey cannot determine {' and '.join(parts)} (unobservable: degrees of freedom left at node(s) "
+        f"{', '.join(nodes)}); measure the size distribution or the solids flow of one of these streams",
+        source=survey.source,
+    )

@@ -1,0 +1,297 @@
+r"""Simulated circuit surveys with a known truth, for the validation of the reconciliation.
+
+A truth is the steady state of a flowsheet: the feeds' flows and distributions, the
+partition curve of every separator and the discharge distribution of every mill fix every
+class flow through one linear system (recycles included).  A survey draws the class masses of
+each analysed stream from the error model of :class:`~tromplab.circuit.measurements.ErrorModel`,
+:math:`x + \sigma(x)\,\varepsilon` with :math:`\varepsilon \sim N(0, 1)` independent, not
+clipped (an unbiased draw: small classes may come out slightly negative), and normalises
+them to 100 % as a lab does; measured flows get :math:`F (1 + r \varepsilon)`.
+
+The separators' true curves are Plitt's (1976) partition to the coarse product with a bypass
+to it (Kelsall 1953),
+
+.. math:: c(d) = R_f + (1 - R_f)\left(1 - \exp\left[-0.693\,(d/d_{50})^m\right]\right),
+
+(:math:`R_f = 0` for screens); the feeds and mill discharges are Rosin-Rammler
+distributions, :math:`P(d) = 1 - \exp[-(d/d_{63})^n]` passing (Rosin & Rammler 1933).
+
+References
+----------
+Kelsall, D. F. (1953). A further study of the hydraulic cyclone. *Chemical Engineering
+Science* 2(6), 254-272.
+
+Plitt, L. R. (1976). A mathematical model of the hydrocyclone classifier. *CIM Bulletin*
+69(776), 114-123.
+
+Rosin, P. & Rammler, E. (1933). The laws governing the fineness of powdered coal.
+*Journal of the Institute of Fuel* 7, 29-36.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from .flowsheet import Flowsheet, read_flowsheet
+from .measurements import ErrorModel, Survey
+
+
+@dataclass(frozen=True)
+class CircuitTruth:
+    """The true steady state of a circuit: class flows of every stream (streams x classes)."""
+
+    flowsheet: Flowsheet
+    classes: pd.DataFrame
+    class_flows: np.ndarray
+    size_unit: str = "um"
+    partitions: dict = field(default_factory=dict)  # separator -> true partition to fines per class
+
+    @property
+    def flows(self) -> np.ndarray:
+        return self.class_flows.sum(axis=1)
+
+    @property
+    def shares(self) -> np.ndarray:
+        return self.class_flows / self.flows[:, None]
+
+
+def rosin_rammler_shares(edges, d63: float, n: float) -> np.ndarray:
+    """Shares of the classes between ``edges`` (increasing, the pan below the first, the open
+    top above the last), coarse to fine, of a Rosin-Rammler distribution."""
+    passing = 1.0 - np.exp(-((np.asarray(edges, dtype=float) / d63) ** n))
+    cumulative = np.concatenate(([0.0], passing, [1.0]))
+    return np.diff(cumulative)[::-1]
+
+
+def plitt_partition_to_fines(size, d50: float, m: float, bypass: float = 0.0) -> np.ndarray:
+    """Partition to the fine product, one minus Plitt's curve with a bypass to the coarse product."""
+    coarse = bypass + (1.0 - bypass) * (1.0 - np.exp(-0.693 * (np.asarray(size, dtype=float) / d50) ** m))
+    return 1.0 - coarse
+
+
+def classes_from_edges(edges) -> pd.DataFrame:
+    """Class table, coarse to fine, from increasing sieve sizes (pan and open top added)."""
+    edges = np.asarray(edges, dtype=float)
+    lower = np.concatenate(([np.nan], edges))[::-1]
+    upper = np.concatenate((edges, [np.nan]))[::-1]
+    ratio = edges[1] / edges[0]
+    low = np.where(np.isfinite(lower), lower, upper / ratio)
+    high = np.where(np.isfinite(upper), upper, lower * ratio)
+    return pd.DataFrame({"size_lower": lower, "size_upper": upper, "size": np.sqrt(low * high)})
+
+
+def steady_state(flowsheet: Flowsheet, classes: pd.DataFrame, feeds: dict, partitions: dict, discharges: dict) -> np.ndarray:
+    """Class flows (streams x classes) of the steady state.
+
+    ``feeds``: ``{stream: class flows}``; ``partitions``: ``{separator: partition to fines per
+    class}``; ``discharges``: ``{mill: discharge shares per class}``.
+    """
+    S, n = len(flowsheet.streams), len(classes)
+    index = flowsheet.stream_index
+    rows, rhs = [], []
+
+    def unit(stream, i):
+        row = np.zeros(S * n)
+        row[index[stream] * n + i] = 1.0
+        return row
+
+    for stream, flows in feeds.items():
+        for i in range(n):
+            rows.append(unit(stream, i))
+            rhs.append(flows[i])
+    for node in flowsheet.nodes:
+        feed_rows = [sum(unit(s, i) for s in node.inputs) for i in range(n)]
+        if node.kind == "separator":
+            phi = partitions[node.name]
+            for i in range(n):
+                rows.append(unit(node.fine, i) - phi[i] * feed_rows[i])
+                rows.append(unit(node.coarse, i) - (1.0 - phi[i]) * feed_rows[i])
+                rhs += [0.0, 0.0]
+        elif node.kind == "junction":
+            for i in range(n):
+                rows.append(unit(node.outputs[0], i) - feed_rows[i])
+                rhs.append(0.0)
+        else:
+            total = sum(feed_rows)
+            for i in range(n):
+                rows.append(unit(node.outputs[0], i) - discharges[node.name][i] * total)
+                rhs.append(0.0)
+    return np.linalg.solve(np.array(rows), np.array(rhs)).reshape(S, n)
+
+
+def grinding_circuit() -> CircuitTruth:
+    """A closed ball-mill circuit with a hydrocyclone: fresh feed and cyclone underflow to the
+    mill, mill discharge to the cyclone, overflow the product (ten classes, pan to +600 um)."""
+    sheet = pd.DataFrame(
+        {
+            "stream": ["fresh_feed", "cyclone_feed", "cyclone_overflow", "cyclone_underflow"],
+            "from": ["", "mill", "cyclone", "cyclone"],
+            "to": ["mill", "cyclone", "", "mill"],
+            "product": ["", "ground", "fine", "coarse"],
+        }
+    )
+    flowsheet = read_flowsheet(sheet)
+    classes = classes_from_edges([20, 38, 53, 75, 106, 150, 212, 300, 425, 600])
+    phi = plitt_partition_to_fines(classes["size"], 90.0, 2.5, bypass=0.25)
+    feed = 250.0 * rosin_rammler_shares([20, 38, 53, 75, 106, 150, 212, 300, 425, 600], 800.0, 1.0)
+    discharge = rosin_rammler_shares([20, 38, 53, 75, 106, 150, 212, 300, 425, 600], 180.0, 1.0)
+    flows = steady_state(flowsheet, classes, {"fresh_feed": feed}, {"cyclone": phi}, {"mill": discharge})
+    return CircuitTruth(flowsheet, classes, flows, "um", {"cyclone": phi})
+
+
+def two_deck_screen() -> CircuitTruth:
+    """A two-deck screen: the top deck's undersize feeds the bottom deck (an internal stream
+    no one samples); oversize, middlings and undersize leave (eight classes, mm)."""
+    sheet = pd.DataFrame(
+        {
+            "stream": ["screen_feed", "oversize", "top_deck_undersize", "middlings", "undersize"],
+            "from": ["", "top_deck", "top_deck", "bottom_deck", "bottom_deck"],
+            "to": ["top_deck", "", "bottom_deck", "", ""],
+            "product": ["", "coarse", "fine", "coarse", "fine"],
+        }
+    )
+    flowsheet = read_flowsheet(sheet)
+    edges = [0.5, 1, 2, 4, 8, 16, 31.5]
+    classes = classes_from_edges(edges)
+    partitions = {
+        "top_deck": plitt_partition_to_fines(classes["size"], 10.0, 4.0),
+        "bottom_deck": plitt_partition_to_fines(classes["size"], 3.0, 3.5),
+    }
+    feed = 100.0 * rosin_rammler_shares(edges, 6.0, 1.0)
+    flows = steady_state(flowsheet, classes, {"screen_feed": feed}, partitions, {})
+    return CircuitTruth(flowsheet, classes, flows, "mm", partitions)
+
+
+#: Sieve series of the bundled example plant (um): the pan below 38, the open top above 19000.
+EXAMPLE_EDGES_UM = (38, 75, 150, 300, 600, 1180, 2360, 4750, 9500, 19000)
+
+
+def example_plant() -> CircuitTruth:
+    """The bundled example (``datasets/circuit_example_*.csv``): a two-deck screen whose undersize
+    feeds a closed ball-mill and hydrocyclone circuit.
+
+    Screen feed 400 t/h, Rosin-Rammler d63 5 mm, n 0.9; top deck d50 8 mm (m 4), bottom deck
+    d50 2 mm (m 3.5), both without bypass; mill discharge Rosin-Rammler d63 250 um, n 1.0;
+    cyclone d50c 110 um (m 2.5) with a bypass of 0.20 to the underflow.  Synthetic: chosen to
+    look like a plant, not measured anywhere.
+    """
+    sheet = pd.DataFrame(
+        {
+            "stream": [
+                "screen_feed",
+                "oversize",
+                "top_deck_undersize",
+                "middlings",
+                "undersize",
+                "cyclone_feed",
+                "cyclone_overflow",
+                "cyclone_underflow",
+            ],
+            "from": ["", "top_deck", "top_deck", "bottom_deck", "bottom_deck", "mill", "cyclone", "cyclone"],
+            "to": ["top_deck", "", "bottom_deck", "", "mill", "cyclone", "", "mill"],
+            "product": ["", "coarse", "fine", "coarse", "fine", "ground", "fine", "coarse"],
+        }
+    )
+    flowsheet = read_flowsheet(sheet, source="example plant")
+    classes = classes_from_edges(EXAMPLE_EDGES_UM)
+    size = classes["size"]
+    partitions = {
+        "top_deck": plitt_partition_to_fines(size, 8000.0, 4.0),
+        "bottom_deck": plitt_partition_to_fines(size, 2000.0, 3.5),
+        "cyclone": plitt_partition_to_fines(size, 110.0, 2.5, bypass=0.2),
+    }
+    feed = 400.0 * rosin_rammler_shares(EXAMPLE_EDGES_UM, 5000.0, 0.9)
+    discharge = rosin_rammler_shares(EXAMPLE_EDGES_UM, 250.0, 1.0)
+    flows = steady_state(flowsheet, classes, {"screen_feed": feed}, partitions, {"mill": discharge})
+    return CircuitTruth(flowsheet, classes, flows, "um", partitions)
+
+
+def simulate_survey(
+    truth: CircuitTruth,
+    rng: np.random.Generator,
+    *,
+    errors: ErrorModel | None = None,
+    measured: tuple[str, ...] | None = None,
+    flows: dict | None = None,
+    gross: tuple | None = None,
+) -> Survey:
+    """One simulated survey of ``truth``.
+
+    Parameters
+    ----------
+    measured : tuple of str, optional
+        Streams with a size analysis (default: every stream except those no one can sample,
+        i.e. all but internal streams named ``*_deck_undersize``).
+    flows : dict, optional
+        ``{stream: relative sd}`` of measured solids flows (none by default: flows relative to
+        the basis of 100 on the first feed).
+    gross : (stream, class index, size in sd), optional
+        Add a gross error of that many standard deviations to one measured share (of the
+        class mass, before the normalisation); a class index of -1 puts it on the stream's
+        measured flow, shifted by that many of its stated standard deviations (relative sd
+        times the value written).
+
+    Returns
+    -------
+    Survey
+        With the standard deviations the error model gives at the measured values (as
+        :func:`~tromplab.circuit.measurements.read_survey` would).
+    """
+    errors = errors or ErrorModel()
+    if measured is None:
+        measured = tuple(s for s in truth.flowsheet.stream_names if not s.endswith("_deck_undersize"))
+    records = []
+    for stream in measured:
+        s = truth.flowsheet.stream_index[stream]
+        x = truth.shares[s]
+        value = x + errors.share_sd(x, stream) * rng.standard_normal(x.size)
+        if gross is not None and gross[0] == stream and gross[1] >= 0:
+            value[gross[1]] += gross[2] * errors.share_sd(x[gross[1]], stream)
+        value = value / value.sum()  # a closed analysis, normalised as the lab reports it
+        for i in range(x.size):
+            records.append(
+                {
+                    "stream": stream,
+                    "class_index": i,
+                    "value": value[i],
+                    "sd": float(errors.share_sd(value[i], stream)),
+                    "row": None,
+                }
+            )
+    flow_records = []
+    for stream, relative in (flows or {}).items():
+        true = truth.flows[truth.flowsheet.stream_index[stream]]
+        value = true * (1.0 + relative * rng.standard_normal())
+        if gross is not None and gross[0] == stream and gross[1] < 0:
+            value = value / (1.0 - gross[2] * relative)  # shifted by gross[2] times its stated sd, relative * value
+        flow_records.append({"stream": stream, "value": value, "sd": relative * value, "row": None})
+    shares = pd.DataFrame(records, columns=["stream", "class_index", "value", "sd", "row"])
+    flow_table = pd.DataFrame(flow_records, columns=["stream", "value", "sd", "row"])
+    empty = pd.DataFrame(columns=["stream", "value", "sd", "row"])
+    return Survey(truth.classes, shares, flow_table, empty, truth.size_unit, "simulated survey", tuple(measured))
+
+
+def survey_table(survey: Survey, *, decimals: int | None = 2) -> pd.DataFrame:
+    """A simulated survey as a measurement table (``retained_pct``, the flows on the first row
+    of each stream), negative shares clipped to 0 and rounded as a lab report prints them."""
+    classes = survey.classes
+    unit = survey.size_unit
+    rows = []
+    flows = survey.flows.set_index("stream")
+    for stream, part in survey.shares.groupby("stream", sort=False):
+        for k, record in enumerate(part.itertuples()):
+            value = 100.0 * max(record.value, 0.0)
+            row = {
+                "stream": stream,
+                f"size_lower_{unit}": classes["size_lower"].iloc[record.class_index],
+                f"size_upper_{unit}": classes["size_upper"].iloc[record.class_index],
+                "retained_pct": round(value, decimals) if decimals is not None else value,
+            }
+            if stream in flows.index and k == 0:
+                row["solids_flow"] = round(float(flows.loc[stream, "value"]), 1)
+                row["solids_flow_sd"] = round(float(flows.loc[stream, "sd"]), 1)
+            rows.append(row)
+    return pd.DataFrame(rows)
