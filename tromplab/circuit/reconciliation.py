@@ -364,7 +364,7 @@ class CircuitBalance:
 
     @property
     def measurement_test_critical(self) -> float:
-        """Critical |standardised adjustment| of the measurement test: the normal quantile at the
+        """Critical absolute standardised adjustment of the measurement test: the normal quantile at the
         Sidak-corrected level ``1 - (1 - alpha) ** (1 / p)`` over the p testable measurements."""
         problem = self.problem
         if problem is None or problem.y.size == 0:
@@ -385,7 +385,7 @@ class CircuitBalance:
         ``measured, sd, reconciled, reconciled_sd, adjustment`` (reconciled - measured),
         ``adjustment_sd``, ``standardised`` (adjustment / adjustment_sd; NaN for a measurement
         without redundancy, which the balances cannot check), ``p_value`` (two-sided normal)
-        ``suspect`` (|standardised| above :attr:`measurement_test_critical`) and
+        ``suspect`` (absolute ``standardised`` above :attr:`measurement_test_critical`) and
         ``indistinguishable_from`` (the measurements whose adjustments are correlated with this
         one beyond :data:`EQUIVALENT_CORRELATION`: a gross error in any of them looks the same,
         e.g. the only two flowmeters of a loop, or one class of the three streams of a separator
@@ -394,7 +394,7 @@ class CircuitBalance:
         return self._adjustments.copy()
 
     def gross_errors_table(self) -> pd.DataFrame:
-        """The measurements suspected of gross error, largest |standardised adjustment| first
+        """The measurements suspected of gross error, largest absolute standardised adjustment first
         (the measurement test); ``rank`` 1 is the first candidate."""
         table = self._adjustments
         suspects = table[table["suspect"]].copy()
@@ -403,7 +403,7 @@ class CircuitBalance:
         return suspects.reset_index(drop=True)
 
     def largest_adjustments(self, n: int = 5) -> pd.DataFrame:
-        """The ``n`` measurements with the largest |standardised adjustment| (suspect or not)."""
+        """The ``n`` measurements with the largest absolute standardised adjustments (suspect or not)."""
         table = self._adjustments.dropna(subset=["standardised"])
         return table.reindex(table["standardised"].abs().sort_values(ascending=False).index).head(n).reset_index(drop=True)
 
