@@ -5,9 +5,11 @@ import pandas as pd
 import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
+from tromplab.curves.formulas import get_formula
 from tromplab.curves.ranking import (
     F_TIE_RTOL,
     INDISTINGUISHABLE_DELTA_AICC,
+    add_ranks,
     fit_verdicts,
     rank_formulas,
     ranks_within,
@@ -175,3 +177,29 @@ def test_adequate_fits_with_systematic_residuals_are_stated_in_words():
         "(runs test), so 'adequate' overstates these fits.",
         "Extrapolated beyond the measured sizes (1 to 8): d75 of b; eta of b.",
     ]
+
+
+def test_fits_exact_to_rounding_share_their_rank():
+    """Issue 22: Molerus-Hoffmann with km2 -> 0 and Plitt with ks = 2 are the same curve; on
+    noise-free data their sums of squares (about 1e-18) differ by rounding only, and F, which
+    divides by them, must not rank one above the other."""
+    sizes = np.geomspace(10, 400, 10)
+    plitt = get_formula("plitt")
+    points = TrompPoints("exact", sizes, plitt(sizes, 80.0, 2.0))
+    fits = fit_experiments([points], formulas=["plitt", "molerus_hoffmann", "lognormal"]).fits_table().set_index("formula")
+    rms = np.sqrt(fits["ssr"] / fits["n"])
+    assert (rms[["plitt", "molerus_hoffmann"]] < 1e-7).all() and rms["lognormal"] > 1e-3
+    assert fits.loc["plitt", "F"] != fits.loc["molerus_hoffmann", "F"]  # F itself stays as computed
+    assert fits.loc["plitt", "rank"] == fits.loc["molerus_hoffmann", "rank"] == 1.5
+    assert fits.loc["lognormal", "rank"] == 3
+    bench = fit_experiments([points], formulas=["plitt", "molerus_hoffmann"])
+    assert "Shared rank 1.5: plitt, molerus_hoffmann (exact to rounding" in " ".join(bench.verdicts("exact"))
+
+
+def test_the_rounding_floor_leaves_ordinary_ties_alone():
+    table = pd.DataFrame(
+        {"experiment": "e", "formula": ["a", "b", "c"], "F": [100.0, 90.0, 80.0], "ssr": [1e-3, 2e-3, 3e-3], "n": 8}
+    )
+    assert add_ranks(table)["rank"].tolist() == [1.0, 2.0, 3.0]
+    exact = table.assign(ssr=[1e-16, 4e-16, 3e-3])  # two exact fits with F 100 and 90: tied
+    assert add_ranks(exact)["rank"].tolist() == [1.5, 1.5, 3.0]

@@ -23,11 +23,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats
 
+from .screening import EXACT_FIT_RMS
+
 SYSTEMATIC_P = 0.05
-#: Residuals with a root mean square below this (partition units: 1e-5 %) are solver and
-#: rounding noise - three orders below the best measured partition (about 1e-4) and at the
-#: level the least-squares solver stops (relative tolerance 1e-8 on the sum of squares).
-EXACT_FIT_RMS = 1e-7
 #: Start of the warning of a fit adequate by F whose residuals fail a test.
 RESIDUAL_WARNING = "adequate by F but the residuals"
 

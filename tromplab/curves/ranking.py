@@ -45,7 +45,7 @@ from scipy import stats
 
 from ..errors import InputError
 from ..loading.tables import read_table
-from .screening import DEFAULT_ALPHA, critical_f
+from .screening import DEFAULT_ALPHA, EXACT_FIT_RMS, critical_f
 
 RANK_BY = {"F": False, "aicc": True}  # criterion -> lower is better
 #: Relative difference of F below which two formulas share their rank.
@@ -134,13 +134,34 @@ def add_ranks(fits: pd.DataFrame, *, by: str = "F") -> pd.DataFrame:
         raise ValueError(f"unknown ranking criterion {by!r}; choose one of {', '.join(RANK_BY)}")
     out = fits.copy()
     scores = out[by].to_numpy(dtype=float)
+    exact = _exact_to_rounding(out)
     ranks = np.full(len(out), np.nan)
     # positions per experiment, ranked on plain arrays: a pandas transform with a Python
     # function cost about 0.5 ms per experiment, seconds for a batch of thousands
     for rows in out.groupby("experiment", sort=False).indices.values():
-        ranks[rows] = ranks_within(scores[rows], lower_is_better=RANK_BY[by], **TIE_TOLERANCE[by])
+        ranks[rows] = ranks_within(_tie_exact(scores[rows], exact[rows], by), lower_is_better=RANK_BY[by], **TIE_TOLERANCE[by])
     out["rank"] = ranks
     return out
+
+
+def _exact_to_rounding(fits: pd.DataFrame) -> np.ndarray:
+    """Fits whose root-mean-square residual lies below the rounding floor
+    (:data:`~tromplab.curves.screening.EXACT_FIT_RMS`, the floor of the runs test too)."""
+    if not {"ssr", "n"} <= set(fits.columns):
+        return np.zeros(len(fits), dtype=bool)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        rms = np.sqrt(fits["ssr"].to_numpy(dtype=float) / fits["n"].to_numpy(dtype=float))
+    return rms < EXACT_FIT_RMS
+
+
+def _tie_exact(scores: np.ndarray, exact: np.ndarray, by: str) -> np.ndarray:
+    """Scores with the fits exact to rounding given the best score among them: their sums of
+    squares differ by rounding only (4.7e-18 against 7.5e-18), so F (or AICc) cannot tell them apart."""
+    if exact.sum() < 2:
+        return scores
+    tied = scores.copy()
+    tied[exact] = np.nanmin(scores[exact]) if RANK_BY[by] else np.nanmax(scores[exact])
+    return tied
 
 
 def read_f_table(path, *, alpha: float = DEFAULT_ALPHA, use_given_marks: bool = True) -> pd.DataFrame:
@@ -225,9 +246,14 @@ def fit_verdicts(fits: pd.DataFrame, *, by: str = "F", measured_sizes: tuple[flo
             )
     rule = f"F equal to within a relative {F_TIE_RTOL:.0e}" if by == "F" else f"AICc equal to within {AICC_TIE_ATOL:.0e}"
     ranked = good[good["rank"].notna()]
+    exact = _exact_to_rounding(ranked)
     for rank, group in ranked.groupby("rank", sort=True):
         if len(group) > 1:
-            statements.append(f"Shared rank {rank:g}: {_names(group)} ({rule}).")
+            if exact[ranked.index.get_indexer(group.index)].all():
+                reason = f"exact to rounding: root-mean-square residuals below {EXACT_FIT_RMS:g}, where sums of squares differ by rounding only"
+            else:
+                reason = rule
+            statements.append(f"Shared rank {rank:g}: {_names(group)} ({reason}).")
     adequate = good[good["adequate"].astype(bool) & good["residuals"].fillna("").str.contains("systematic|not normal")]
     for verdict, group in adequate.groupby("residuals", sort=False):
         meaning = []

@@ -18,6 +18,12 @@ from scipy import stats
 DEFAULT_ALPHA = 0.05
 
 
+#: Residuals with a root mean square below this (partition units: 1e-5 %) are solver and
+#: rounding noise - three orders below the best measured partition (about 1e-4) and at the
+#: level the least-squares solver stops (relative tolerance 1e-8 on the sum of squares).
+EXACT_FIT_RMS = 1e-7
+
+
 @dataclass(frozen=True)
 class FisherScreen:
     """Outcome of the Fisher screen of one fit."""
