@@ -38,9 +38,8 @@ def test_save_writes_what_the_command_writes(tmp_path, options, keywords):
 
 
 def test_interval_and_partition_options_reach_the_fits_table():
-    bench = tromplab.fit_experiments(
-        tromplab.read_experiments(DECK), size_unit="mm", ci=0.95, partition_to="coarse", formulas=["plitt"]
-    )
+    hydrocyclone = DATASETS.parent / "tests" / "data" / "hydrocyclone_size_class_um.csv"  # a cut its points bracket
+    bench = tromplab.fit_experiments(tromplab.read_experiments(hydrocyclone), ci=0.95, partition_to="coarse", formulas=["plitt"])
     fits = bench.fits_table()
     assert {"d_cut_low", "d_cut_high", "slope_coarse"} <= set(fits.columns) and "slope" not in fits.columns
     assert (fits["slope_coarse"] > 0).all()

@@ -41,9 +41,16 @@ def test_clipped_partitions_lower_the_coverage():
     """The limitation documented in docs/uncertainty.md: on a sharp log-normal curve the
     intervals are calibrated when the noisy partitions are left unclipped, and cover clearly
     less when they are clipped to [0, 1] as measured ones are (same seeds)."""
-    unclipped = interval_coverage("lognormal", 120, shape=0.3).set_index("quantity")["coverage"]
+    study = interval_coverage("lognormal", 120, shape=0.3).set_index("quantity")
+    unclipped = study["coverage"]
     clipped = interval_coverage("lognormal", 120, shape=0.3, clip=True).set_index("quantity")["coverage"]
-    assert unclipped.between(0.90, 0.99).all(), unclipped.to_dict()
+    # the curve is so sharp that in about half the replicates no point lies between 0.25 and 0.75:
+    # the cut is then not bracketed and d_cut, d25, d75 and Ep get no interval (issue 22), so their
+    # coverage is over the other replicates only (57 of 120: binomial spread about 0.03)
+    cut = ["d_cut", "d25", "d75", "ep"]
+    assert (study.loc[cut, "missing"] > 0).all() and (study.drop(index=cut)["missing"] == 0).all()
+    assert unclipped.drop(index=cut).between(0.90, 0.99).all(), unclipped.to_dict()
+    assert unclipped[cut].between(0.85, 0.99).all(), unclipped.to_dict()
     assert (clipped < unclipped - 0.05).all(), (clipped.to_dict(), unclipped.to_dict())
 
 

@@ -23,6 +23,7 @@ from .circuit_command import console_report, run_circuit
 from .classifiers.sieve import closed_form_valid, design_bin, distance_moments, geometric_probability, identify_from_table
 from .curves.diagnostics import RESIDUAL_WARNING
 from .curves.formulas import NAME_CLASHES, get_formula, registry_table
+from .curves.measured import CUT_WARNING
 from .curves.ranking import RANK_BY, rank_formulas, read_f_table
 from .curves.screening import DEFAULT_ALPHA
 from .errors import InputError, OptionError
@@ -1050,8 +1051,10 @@ def format_fits(fits: pd.DataFrame, verdicts: dict[str, list[str]] | None = None
             blocks.append(f"{title}\n" + bounds.to_string(index=False, float_format=lambda v: f"{v:.4g}", na_rep="-"))
         for formula, success, message, warned in group[["formula", "success", "message", "warnings"]].itertuples(index=False):
             note = warned if success else f"fit failed: {message}"
-            if success and isinstance(note, str):  # residual warnings are stated above for all formulas at once
-                note = "; ".join(w for w in note.split("; ") if not w.startswith(RESIDUAL_WARNING))
+            if success and isinstance(
+                note, str
+            ):  # residual and cut warnings are stated once per experiment (verdicts, data notes)
+                note = "; ".join(w for w in note.split("; ") if not w.startswith((RESIDUAL_WARNING, CUT_WARNING)))
             if isinstance(note, str) and note:
                 blocks.append(textwrap.fill(f"note {formula}: {note}", width=98, initial_indent="  ", subsequent_indent="    "))
     return "\n".join(blocks)

@@ -26,7 +26,7 @@ from scipy import stats
 from .curves.curve_fit import FIT_COLUMNS, CurveFit, attach_diagnostics, attach_indices, failed_fit, fit_formula
 from .curves.engine import check_bootstrap_request, fit_formula_batch
 from .curves.formulas import Formula, is_batchable, select_formulas
-from .curves.measured import AMBIGUOUS_CUT_RATIO, CUT_BAND, measured_cut_band, measured_efficiency
+from .curves.measured import AMBIGUOUS_CUT_RATIO, CUT_BAND, CUT_WARNING, measured_cut_band, measured_efficiency, unbracketed_cut
 from .curves.ranking import RANK_BY, add_delta_aicc, add_ranks, fit_verdicts, rank_formulas
 from .curves.screening import DEFAULT_ALPHA
 from .errors import InputError, OptionError
@@ -642,9 +642,13 @@ def data_notes(points: TrompPoints) -> tuple[str, ...]:
                 f"the partition to fines rises with size (Spearman {rho:.2f}): is the column the partition to the "
                 "coarse product? (use partition_coarse)"
             )
-    if np.all(points.partition_fine > 0.5) or np.all(points.partition_fine < 0.5):
-        side = "above" if points.partition_fine[0] > 0.5 else "below"
-        notes.append(f"every point lies {side} 1/2: the cut size is extrapolated beyond the measured sizes")
+    one_sided = np.all(points.partition_fine > 0.5) or np.all(points.partition_fine < 0.5)
+    if unbracketed := unbracketed_cut(points):
+        extrapolated = "the cut size is extrapolated beyond the measured sizes, and " if one_sided else ""
+        notes.append(
+            f"{CUT_WARNING} ({unbracketed}): {extrapolated}no interval is given for d_cut, d50, d50c, d25, d75 and Ep, "
+            "which rest on the formula's shape, not on measurements"
+        )
     elif (ambiguous := _ambiguous_measured_cut(points)) is not None:
         notes.append(ambiguous)
     return tuple(notes)

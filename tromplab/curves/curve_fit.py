@@ -30,12 +30,14 @@ from .fitting import ParameterFit, least_squares, on_bound
 from .formulas import Formula, NoBreakPointError, get_formula, shuvalov_break
 from .indices import CurveIndices, batch_curve_indices, batchable_indices, curve_indices
 from .measured import (
+    CUT_WARNING,
     GRID_SLOPES,
     formula_context,
     measured_cut_size,
     measured_slope,
     normalised_weights,
     parameter_specs,
+    unbracketed_cut,
 )
 from .screening import DEFAULT_ALPHA, FisherScreen, check_screenable, fisher_screen
 from .views import fit_html, fit_report, fit_repr
@@ -95,6 +97,9 @@ class FitOptions:
 #: A parameter whose standard error exceeds this many times its value is reported as not
 #: determined by the data: its 95 % interval would span the value 20 times over.
 UNDETERMINED_RATIO = 10.0
+#: Correlation of an extra parameter (bypass, fish-hook) with the cut or the shape above which
+#: the data cannot tell them apart: the extra is then reported as not determined.
+UNDETERMINED_CORRELATION = 0.95
 
 
 def _undetermined(value: float, stderr: float) -> bool:
@@ -218,11 +223,53 @@ class CurveFit:
         return _break_point(self.shape, self.context["measured_efficiency"])[0]
 
     @cached_property
+    def unbracketed(self) -> str:
+        """Why the measured points do not bracket the cut (empty when they do:
+        :func:`tromplab.curves.measured.unbracketed_cut`); the quantities that rest on the cut
+        then get no interval."""
+        return unbracketed_cut(self.points)
+
+    @cached_property
+    def undetermined_extras(self) -> dict[str, str]:
+        """Extra parameters (bypass, fish-hook) the data cannot tell from the cut or the shape:
+        an estimate correlated with either beyond :data:`UNDETERMINED_CORRELATION`, with the
+        reason.  (A standard error above :data:`UNDETERMINED_RATIO` times the value is said in
+        :attr:`warnings` too, but keeps its interval: near 0 that interval still bounds the extra.)"""
+        if not (self.success and self.formula.extras and self.fit.covariance is not None):
+            return {}
+        names, covariance = list(self.fit.names), np.asarray(self.fit.covariance, dtype=float)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            scale = np.sqrt(np.diag(covariance))
+            correlation = covariance / np.outer(scale, scale)
+        found = {}
+        for extra in self.formula.extras:
+            if extra.name not in names or extra.name in self.fit.at_bound:
+                continue
+            row = correlation[names.index(extra.name)]
+            for other in ("d_cut", self.formula.shape_name):
+                r = row[names.index(other)] if other in names else np.nan
+                if np.isfinite(r) and abs(r) > UNDETERMINED_CORRELATION:
+                    found[extra.name] = f"correlated with {other} (r = {r:.3f})"
+                    break
+        return found
+
+    @cached_property
     def warnings(self) -> tuple[str, ...]:
         """What a user should know about a successful fit (empty for a failed one)."""
         if not self.success:
             return ()
         warnings = []
+        if self.unbracketed:
+            warnings.append(
+                f"{CUT_WARNING} ({self.unbracketed}): d_cut and the d50, d50c, "
+                "d25, d75 and Ep that rest on it are read off the formula's shape, not off measurements, so no interval "
+                "is given for them"
+            )
+        for name, reason in self.undetermined_extras.items():
+            warnings.append(
+                f"{name} = {self.fit.values[name]:.4g} is not determined by the data ({reason}): other values fit as well, "
+                "so no interval is given for it"
+            )
         for spec in parameter_specs(self.formula, self.points):
             if spec.name in self.fit.at_bound:
                 value = self.fit.values[spec.name]
@@ -233,7 +280,9 @@ class CurveFit:
                     f"{spec.name} = {value:.4g} at its bound {bound:g}: the unconstrained optimum lies beyond "
                     f"it{reason} and the standard error is unreliable"
                 )
-            elif _undetermined(self.fit.values[spec.name], self.fit.stderr[spec.name]):
+            elif spec.name not in self.undetermined_extras and _undetermined(
+                self.fit.values[spec.name], self.fit.stderr[spec.name]
+            ):
                 value, stderr = self.fit.values[spec.name], self.fit.stderr[spec.name]
                 warnings.append(
                     f"{spec.name} = {value:.4g} is not determined by the data (standard error {stderr:.3g}): the sum "
@@ -292,7 +341,7 @@ class CurveFit:
             "runs_p": self.diagnostics.runs_p if self.diagnostics else np.nan,
             "normality_p": self.diagnostics.normality_p if self.diagnostics else np.nan,
             "residuals": self.diagnostics.verdict if self.diagnostics else "",
-            "extrapolated": ";".join(ind.extrapolated) if ind else "",
+            "extrapolated": ";".join((*self._sizes_outside_data(), *ind.extrapolated)) if ind else "",
             "x_break": self.x_break,
             "bypass": self.fit.values.get("bypass", np.nan),
             "fishhook": self.fit.values.get("fishhook", np.nan),
@@ -301,6 +350,12 @@ class CurveFit:
             "message": self.message,
             "warnings": "; ".join(self.warnings),
         }
+
+    def _sizes_outside_data(self) -> tuple[str, ...]:
+        """d_cut, d50 and d50c when they lie outside the measured sizes."""
+        smallest, largest = self.points.size.min(), self.points.size.max()
+        sizes = {"d_cut": self.d_cut, "d50": self.indices.d50, "d50c": self.indices.d50c}
+        return tuple(name for name, size in sizes.items() if np.isfinite(size) and not smallest <= size <= largest)
 
     # --- readable views (tromplab.curves.views): the same fields as row(), for notebooks and logs
     def __repr__(self) -> str:

@@ -21,7 +21,7 @@ from scipy import stats
 from ..loading.points import TrompPoints
 from .fitting import on_bound
 from .indices import batch_curve_indices, batchable_indices, curve_indices
-from .measured import formula_context, parameter_specs
+from .measured import CUT_QUANTITIES, formula_context, parameter_specs
 
 if TYPE_CHECKING:
     from .curve_fit import CurveFit
@@ -307,7 +307,11 @@ def interval_table(
     * indices: the delta method on the log / logit scale (``delta-log``, ``delta-logit``,
       ``delta-neglog`` for the negative slope).
 
-    ``flag`` says when an interval is one-sided or could not be made.
+    ``flag`` says when an interval is one-sided or could not be made.  No interval is
+    given (``method`` ``none``, ``flag`` saying why) where the data do not determine the
+    quantity: d_cut, d50, d50c, d25, d75 and Ep when the points do not bracket the cut
+    (:func:`~tromplab.curves.measured.unbracketed_cut`), and an extra parameter correlated
+    with the cut or the shape (``CurveFit.undetermined_extras``).
 
     Parameters
     ----------
@@ -352,7 +356,27 @@ def interval_table(
             flag = flag or "interval not available (no standard error)"
         rows.append({"quantity": name, "value": value, "stderr": se, "low": low, "high": high, "method": method, "flag": flag})
     rows += _delta_rows(fit, two_sided, delta_max, known)
-    return pd.DataFrame(rows)
+    return pd.DataFrame([withheld_interval(fit, row) for row in rows])
+
+
+def withheld_interval(fit, row: dict) -> dict:
+    """The row without its interval when the data do not determine the quantity: a cut the
+    points do not bracket (``fit.unbracketed``, for the quantities that rest on the cut) or an
+    extra parameter the data cannot tell from the cut or the shape (``fit.undetermined_extras``)."""
+    unbracketed = getattr(fit, "unbracketed", "")
+    undetermined = getattr(fit, "undetermined_extras", {})
+    if unbracketed and row["quantity"] in CUT_QUANTITIES:
+        reason = f"no interval: the cut is not bracketed by the data ({unbracketed})"
+    elif row["quantity"] in undetermined:
+        reason = f"no interval: not determined by the data ({undetermined[row['quantity']]})"
+    else:
+        return row
+    return {**row, "low": np.nan, "high": np.nan, "method": "none", "flag": reason}
+
+
+def is_withheld(flag: str) -> bool:
+    """True for the flag :func:`withheld_interval` gives."""
+    return str(flag).startswith("no interval: ")
 
 
 def _one_sided(value: float, se: float, quantile: float, domain: Domain, at_lower: bool) -> tuple[float, float]:

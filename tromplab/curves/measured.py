@@ -99,3 +99,48 @@ def formula_context(formula: Formula, points: TrompPoints) -> dict[str, float]:
     if formula.context_from_efficiency:
         return {"measured_efficiency": measured_efficiency(points)}
     return {}
+
+
+#: Partitions between which a measured point sees the cut region.
+CUT_BRACKET = (0.25, 0.75)
+#: Start of the warning (of a fit) and note (of an experiment) on a cut the points do not bracket.
+CUT_WARNING = "the cut is not bracketed by the data"
+#: Reported quantities that rest on where the cut is: without a bracketed cut they get no interval.
+CUT_QUANTITIES = ("d_cut", "d50", "d50c", "d25", "d75", "ep", "ep_c", "imperfection", "imperfection_c")
+
+
+def unbracketed_cut(points: TrompPoints) -> str:
+    """Why the measured points do not bracket the cut, in words; empty when they do.
+
+    Rule: the cut is bracketed when some measured partition to fines lies in
+    :data:`CUT_BRACKET` (0.25 to 0.75, both included) and the points lie on both sides of
+    1/2 (at least one partition >= 1/2 and one <= 1/2).  Otherwise the cut size, and with it
+    d50, d50c, d25, d75 and Ep, is read off the formula's shape beyond or between the
+    measured points, not off measurements.
+
+    Examples
+    --------
+    >>> unbracketed_cut(TrompPoints("gas cyclone", [4.1, 8.2, 16.5, 33.0], [0.2, 0.08, 0.02, 0.004]))
+    'no measured partition lies between 0.25 and 0.75, and every one lies below 1/2'
+    >>> unbracketed_cut(TrompPoints("sharp screen", [0.3, 0.6, 0.85, 1.2], [0.99, 0.93, 0.05, 0.01]))
+    'no measured partition lies between 0.25 and 0.75: the partition falls from 0.93 to 0.05 between two adjacent measured sizes, and where in between the cut lies depends on the formula'
+    >>> unbracketed_cut(TrompPoints("screen", [10, 20, 40, 80], [0.95, 0.7, 0.3, 0.05]))
+    ''
+    """
+    low, high = CUT_BRACKET
+    phi = points.partition_fine
+    inside = np.any((phi >= low) & (phi <= high))
+    two_sided = np.any(phi >= 0.5) and np.any(phi <= 0.5)
+    if inside and two_sided:
+        return ""
+    side = "above" if phi.min() > 0.5 else "below"
+    if inside:
+        return f"every measured partition lies {side} 1/2"
+    if not two_sided:
+        return f"no measured partition lies between {low:g} and {high:g}, and every one lies {side} 1/2"
+    last_above = np.flatnonzero(phi > 0.5)[-1] if np.any(phi > 0.5) else 0
+    a, b = phi[last_above], phi[min(last_above + 1, points.n - 1)]
+    return (
+        f"no measured partition lies between {low:g} and {high:g}: the partition falls from {a:.3g} to {b:.3g} "
+        "between two adjacent measured sizes, and where in between the cut lies depends on the formula"
+    )

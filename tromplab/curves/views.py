@@ -65,6 +65,14 @@ def fit_html(fit) -> str:
     return "\n".join(parts)
 
 
+def _interval_text(row, *, method: bool = True) -> str:
+    """``[low, high] (method)``, or the words of an interval withheld because the data do not
+    determine the quantity (see [[Warnings]])."""
+    if row.method == "none":
+        return "no interval: not determined by the data (see [[Warnings]])"
+    return f"[{_g(row.low)}, {_g(row.high)}]" + (f" ({row.method})" if method else "")
+
+
 def fit_report(fit, *, level: float = 0.95, profile: bool = True) -> str:
     """Text report of one fit: parameters with standard errors and intervals, F screen,
     indices with delta-method standard errors, residual diagnostics and warnings."""
@@ -84,7 +92,7 @@ def fit_report(fit, *, level: float = 0.95, profile: bool = True) -> str:
         row = table.loc[parameter.name]
         lines.append(
             f"    {parameter.name:<9} = {_g(row.value):>11} +/- {_g(row.stderr):<10} "
-            f"[{_g(row.low)}, {_g(row.high)}] ({row.method}); {parameter.unit}, bounds "
+            f"{_interval_text(row)}; {parameter.unit}, bounds "
             f"[{parameter.lower:g}, {parameter.upper:g}]"
         )
     screen = fit.screen
@@ -97,7 +105,7 @@ def fit_report(fit, *, level: float = 0.95, profile: bool = True) -> str:
     for name, meaning in _INDEX_LINES:
         row = table.loc[name] if name in table.index else None
         value = getattr(fit.indices, name)
-        spread = f" +/- {_g(row.stderr)} [{_g(row.low)}, {_g(row.high)}]" if row is not None else ""
+        spread = f" +/- {_g(row.stderr)} {_interval_text(row, method=False)}" if row is not None else ""
         lines.append(f"    {name:<12} = {_g(value):>11}{spread}  {meaning}")
     criteria = fit.fit.information_criteria()
     diag = fit.diagnostics

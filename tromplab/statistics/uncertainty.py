@@ -36,8 +36,10 @@ from ..curves.intervals import (
     indices_at,
     interval_method,
     interval_table,
+    is_withheld,
     quantity_domain,
     relative_size_limit,
+    withheld_interval,
 )
 from ..curves.measured import parameter_specs
 from ..loading.points import TrompPoints
@@ -291,7 +293,8 @@ def model_average(
     for quantity in quantities:
         values = np.array([found.get(quantity, (np.nan, np.nan))[0] for found in estimates])
         errors = np.array([found.get(quantity, (np.nan, np.nan))[1] for found in estimates])
-        rows.append(_averaged_row(quantity, values, errors, weights, ids=ids, z=z, x_max=widest_x_max, min_share=min_share))
+        row = _averaged_row(quantity, values, errors, weights, ids=ids, z=z, x_max=widest_x_max, min_share=min_share)
+        rows.append(_without_undetermined_interval(good[0], row))
     weight_columns = {f"weight_{fit.formula.id}": weight for fit, weight in zip(good, weights)}
     if not rows:  # no quantity asked for: the weights alone
         table = pd.DataFrame()
@@ -335,6 +338,15 @@ def _averaged_row(quantity: str, values, errors, weights, *, ids: list[str], z: 
             row["note"] or f"averaged over the {int(usable.sum())} formulas where it is defined ({share:.2%} of the weight)"
         )
     return row
+
+
+def _without_undetermined_interval(fit, row: dict) -> dict:
+    """The averaged row without its interval when the points do not determine the quantity
+    (a cut they do not bracket: :func:`~tromplab.curves.intervals.withheld_interval`)."""
+    kept = withheld_interval(fit, {"quantity": row["quantity"], "low": row["low"], "high": row["high"], "flag": ""})
+    if not is_withheld(kept["flag"]) or not np.isfinite(row["value"]):
+        return row
+    return {**row, "low": np.nan, "high": np.nan, "method": "none", "note": kept["flag"]}
 
 
 def _averaged_interval(quantity: str, w, theta, se, mean: float, *, ids: list[str], z: float, x_max: float) -> dict:
@@ -402,7 +414,7 @@ def interval_columns(
         if progress is not None:
             progress(i + 1, len(fits), f"{fit.experiment} / {fit.formula.id}")
         if fit.success:
-            flags = []
+            flags, withheld = [], {}
             try:
                 if level is not None:
                     table = interval_table(fit, level=level).set_index("quantity")
@@ -411,7 +423,9 @@ def interval_columns(
                         row[f"{stem}_low"] = table.loc[quantity, "low"]
                         row[f"{stem}_high"] = table.loc[quantity, "high"]
                         row[f"{stem}_method"] = table.loc[quantity, "method"]
-                        if table.loc[quantity, "flag"] and np.isfinite(table.loc[quantity, "value"]):
+                        if is_withheld(table.loc[quantity, "flag"]):
+                            withheld.setdefault(table.loc[quantity, "flag"], []).append(stem)
+                        elif table.loc[quantity, "flag"] and np.isfinite(table.loc[quantity, "value"]):
                             flags.append(f"{stem}: {table.loc[quantity, 'flag']}")
                 if n_bootstrap:
                     boot = bootstrap(fit, n=n_bootstrap, seed=seed, method=method)
@@ -419,14 +433,17 @@ def interval_columns(
                         ["quantity", "low", "high", "flag"]
                     ].itertuples(index=False):
                         stem = _column(fit, quantity)
-                        row[f"{stem}_boot_low"] = low
-                        row[f"{stem}_boot_high"] = high
-                        if flag:
+                        kept = withheld_interval(fit, {"quantity": quantity, "low": low, "high": high, "flag": flag})
+                        row[f"{stem}_boot_low"], row[f"{stem}_boot_high"] = kept["low"], kept["high"]
+                        if is_withheld(kept["flag"]):
+                            withheld.setdefault(kept["flag"], []).append(f"{stem} bootstrap")
+                        elif flag:
                             flags.append(f"{stem} bootstrap: {flag}")
                     row["bootstrap_method"] = f"percentile ({method})"
                     row["bootstrap_failed"] = boot.n_failed
             except (ValueError, ArithmeticError, RuntimeError) as error:  # a batch reports and goes on
                 row["interval_message"] = f"intervals not computed: {error}"
+            flags += [f"{', '.join(dict.fromkeys(stems))}: {reason}" for reason, stems in withheld.items()]
             row["interval_flags"] = "; ".join(flags)
         rows.append(row)
     return pd.DataFrame(rows)
