@@ -1,0 +1,68 @@
+"""Dask as users run it beyond one machine: a scheduler and two workers in processes of their
+own, and ``tromplab fit --scheduler tcp://...`` writes what ``--jobs 1`` writes, byte for byte."""
+
+import filecmp
+import json
+import os
+import subprocess
+import sys
+import time
+
+import pytest
+
+from tromplab._synthetic import synthetic
+from tromplab.cli import main
+
+pytest.importorskip("distributed", reason="the dask extra (pip install 'tromplab[dask]') is not installed")
+
+
+def _start(*arguments, log):
+    # the same interpreter, so the workers unpickle the same tromplab as the client
+    return subprocess.Popen([sys.executable, "-m", "dask", *arguments], stdout=log, stderr=subprocess.STDOUT)
+
+
+@pytest.fixture
+def cluster(tmp_path):
+    """A scheduler on 127.0.0.1 and two single-threaded workers, torn down whatever happens."""
+    scheduler_file = tmp_path / "scheduler.json"
+    log = open(tmp_path / "cluster.log", "w")
+    processes = [_start("scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
+                        "--scheduler-file", str(scheduler_file), log=log)]  # fmt: skip
+    try:
+        deadline = time.monotonic() + 60
+        while not scheduler_file.exists() and time.monotonic() < deadline:
+            time.sleep(0.2)
+        assert scheduler_file.exists(), (tmp_path / "cluster.log").read_text()
+        address = json.loads(scheduler_file.read_text())["address"]
+        for _ in range(2):
+            processes.append(_start("worker", "--scheduler-file", str(scheduler_file), "--nworkers", "1", "--nthreads", "1",
+                                    "--no-dashboard", "--host", "127.0.0.1", log=log))  # fmt: skip
+        from distributed import Client
+
+        with Client(address, timeout=60) as client:
+            client.wait_for_workers(2, timeout=60)
+        yield address
+    finally:
+        for process in processes:
+            process.terminate()
+        for process in processes:
+            try:
+                process.wait(timeout=20)
+            except subprocess.TimeoutExpired:
+                process.kill()
+        log.close()
+
+
+@pytest.mark.slow
+def test_fit_on_a_cluster_of_separate_processes_writes_what_one_process_writes(tmp_path, cluster):
+    points = tmp_path / "points.csv"
+    frames = [synthetic(seed, weighted=False).to_frame() for seed in range(70)]  # two chunks of 64 experiments
+    import pandas as pd
+
+    pd.concat(frames, ignore_index=True).to_csv(points, index=False)
+    options = ["--figures", "none", "--ci", "0.9", "--formulas", "plitt,lognormal,shuvalov", "-q"]
+    assert main(["fit", str(points), "-o", str(tmp_path / "local"), "--jobs", "1", *options]) == 0
+    assert main(["fit", str(points), "-o", str(tmp_path / "cluster"), "--scheduler", cluster, *options]) == 0
+    for name in ("fits.csv", "ranking.csv", "averages.csv"):
+        assert filecmp.cmp(tmp_path / "local" / name, tmp_path / "cluster" / name, shallow=False), name
+    assert os.path.getsize(tmp_path / "cluster" / "fits.csv") > 0
