@@ -45,17 +45,24 @@ for formula, warning in fits.loc[fits["warnings"] != "", ["formula", "warnings"]
     print(f"{formula}: {warning}")
 
 # %%
-# The cut each formula extrapolates to, with its 95 % Wald interval: with no point below
-# the cut, where it lies comes from the formula's shape, not from the data. Fits whose cut
-# the data do not determine are left out of the figure.
-determined = fits[fits["d_cut_stderr"] < fits["d_cut"]].sort_values("d_cut")
+# With ``ci`` the fits get their intervals, but not the quantities that rest on where the cut
+# is: with no point between partitions 0.25 and 0.75 the cut is not bracketed by the data,
+# so d_cut, d50, d25, d75 and Ep get no interval (``method`` ``none``), while the shape,
+# the slope, eta and epsilon keep theirs.
+with_intervals = tromplab.fit_experiments(experiments, ci=0.95).summary()
+with_intervals[["formula", "d_cut", "d_cut_low", "d_cut_high", "d_cut_method", "shape_low", "shape_high", "eta_low", "eta_high"]]
+
+# %%
+# The cut each formula extrapolates to: one point per formula and no error bar, since the
+# data cannot tell where the cut is. The spread between the formulas is how much the answer
+# depends on the shape chosen, not a measurement error.
+ordered = with_intervals.sort_values("d_cut")
 fig, ax = plt.subplots(figsize=(6.5, 3.8))
-ax.errorbar(determined["d_cut"], determined["formula"], xerr=1.96 * determined["d_cut_stderr"], fmt="o")
+ax.plot(ordered["d_cut"], ordered["formula"], "o")
 ax.axvline(sizes_um.min(), color="C3", linestyle="--", label="finest measured class")
 ax.axvline(2.2, color="0.4", linestyle=":", label="cut of the curve that made the points")
-ax.set_xlabel("fitted d_cut [um] with 95 % Wald interval")
-left_out = sorted(set(fits["formula"]) - set(determined["formula"]))
-ax.set_title("left out (cut not determined): " + (", ".join(left_out) or "none"), fontsize=9)
+ax.set_xscale("log")
+ax.set_xlabel("fitted d_cut [um] (no interval: the cut is not bracketed by the data)")
 ax.legend(fontsize=8, loc="lower right")
 fig.tight_layout()
 
