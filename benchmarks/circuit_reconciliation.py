@@ -27,7 +27,7 @@ import numpy as np
 import pandas as pd
 
 from tromplab.circuit import reconcile
-from tromplab.circuit.simulation import example_plant, grinding_circuit, simulate_survey, two_deck_screen
+from tromplab.circuit.simulation import example_plant, grinding_circuit, reconciliation_study, simulate_survey, two_deck_screen
 
 CIRCUITS = {
     "grinding circuit": (grinding_circuit, {"fresh_feed": 0.02}),
@@ -39,34 +39,15 @@ FLOWMETERS = {"screen_feed": 0.01, "oversize": 0.10, "middlings": 0.10, "cyclone
 
 def null_study(name: str, n_surveys: int, seed: int) -> dict:
     make, flows = CIRCUITS[name]
-    truth = make()
-    rng = np.random.default_rng(seed)
-    rejected = covered = checked = 0
-    measured_error = reconciled_error = 0.0
-    for _ in range(n_surveys):
-        survey = simulate_survey(truth, rng, flows=flows)
-        balance = reconcile(truth.flowsheet, survey)
-        rejected += balance.rejected
-        streams = survey.shares["stream"].map(truth.flowsheet.stream_index).to_numpy()
-        classes = survey.shares["class_index"].to_numpy()
-        true = truth.shares[streams, classes]
-        measured_error += np.sum((survey.shares["value"].to_numpy() - true) ** 2)
-        reconciled_error += np.sum((balance.shares[streams, classes] - true) ** 2)
-        scale = balance.flows[0] / truth.flows[0] if not flows else 1.0
-        values = np.concatenate([balance.shares.ravel(), balance.flows])
-        sds = np.concatenate([balance.share_sd.ravel(), balance.flow_sd])
-        target = np.concatenate([truth.shares.ravel(), truth.flows * scale])
-        keep = sds > 0
-        covered += int(np.sum(np.abs(values - target)[keep] <= 1.959964 * sds[keep]))
-        checked += int(keep.sum())
+    study = reconciliation_study(make(), n_surveys, np.random.default_rng(seed), flows=flows)
     return {
         "study": "no gross error",
         "circuit": name,
         "surveys": n_surveys,
-        "dof": balance.dof,
-        "mse_reconciled_over_measured": reconciled_error / measured_error,
-        "coverage_95": covered / checked,
-        "chi_square_rejection_5pct": rejected / n_surveys,
+        "dof": study.dof,
+        "mse_reconciled_over_measured": study.reconciled_error / study.measured_error,
+        "coverage_95": study.coverage,
+        "chi_square_rejection_5pct": study.rejection_rate,
     }
 
 

@@ -14,7 +14,14 @@ import pytest
 from scipy import optimize
 
 from tromplab.circuit import ErrorModel, read_flowsheet, read_survey, reconcile
-from tromplab.circuit.simulation import example_plant, grinding_circuit, simulate_survey, survey_table, two_deck_screen
+from tromplab.circuit.simulation import (
+    example_plant,
+    grinding_circuit,
+    reconciliation_study,
+    simulate_survey,
+    survey_table,
+    two_deck_screen,
+)
 from tromplab.cli import main
 from tromplab.errors import InputError
 from tromplab.loading.lab import estimate_fine_yield, read_lab
@@ -339,28 +346,10 @@ def test_the_separators_points_are_tromp_points_with_weights_that_fit_reads(tmp_
 @pytest.mark.slow
 @pytest.mark.parametrize("make, flows", [(grinding_circuit, {"fresh_feed": 0.02}), (two_deck_screen, {})])
 def test_simulated_surveys_reconciled_closer_to_the_truth_covered_and_tested_at_the_nominal_rate(make, flows):
-    truth = make()
-    rng = np.random.default_rng(2025)
-    n_surveys, rejected, covered, checked, measured_error, reconciled_error = 400, 0, 0, 0, 0.0, 0.0
-    for _ in range(n_surveys):
-        survey = simulate_survey(truth, rng, flows=flows)
-        balance = reconcile(truth.flowsheet, survey)
-        rejected += balance.rejected
-        streams = survey.shares["stream"].map(truth.flowsheet.stream_index).to_numpy()
-        classes = survey.shares["class_index"].to_numpy()
-        true = truth.shares[streams, classes]
-        measured_error += np.sum((survey.shares["value"].to_numpy() - true) ** 2)
-        reconciled_error += np.sum((balance.shares[streams, classes] - true) ** 2)
-        scale = balance.flows[0] / truth.flows[0] if not flows else 1.0
-        values = np.concatenate([balance.shares.ravel(), balance.flows])
-        sds = np.concatenate([balance.share_sd.ravel(), balance.flow_sd])
-        target = np.concatenate([truth.shares.ravel(), truth.flows * scale])
-        keep = sds > 0
-        covered += np.sum(np.abs(values - target)[keep] <= 1.959964 * sds[keep])
-        checked += keep.sum()
-    assert reconciled_error < 0.8 * measured_error
-    assert 0.90 <= covered / checked <= 0.99, covered / checked
-    assert 0.03 <= rejected / n_surveys <= 0.07, rejected / n_surveys
+    study = reconciliation_study(make(), 400, np.random.default_rng(2025), flows=flows)
+    assert study.reconciled_error < 0.8 * study.measured_error
+    assert 0.90 <= study.coverage <= 0.99, study.coverage
+    assert 0.03 <= study.rejection_rate <= 0.07, study.rejection_rate
 
 
 @pytest.mark.slow
