@@ -2,6 +2,8 @@
 
 from html.parser import HTMLParser
 
+import pandas as pd
+
 from tromplab.cli import main
 from tromplab.output.report import SECTIONS
 
@@ -61,3 +63,21 @@ def test_report_of_points_says_when_a_section_does_not_apply(tmp_path):
     text = output.read_text()
     balance = text.split('<section id="balance">')[1].split("</section>")[0]
     assert "Not applicable to this input." in balance
+
+
+def test_a_large_batch_gets_a_condensed_report_with_its_full_tables_beside_it(tmp_path, monkeypatch):
+    """Issue 24: beyond REPORT_DETAIL_LIMIT experiments the sections show the first ones and the
+    flagged ones, the figures an overview, and every row goes to CSV files beside the report."""
+    import tromplab.output.report as report_module
+    from tromplab._synthetic import synthetic
+    from tromplab.workbench import fit_experiments as fit_batch
+
+    monkeypatch.setattr(report_module, "REPORT_DETAIL_LIMIT", 3)
+    bench = fit_batch([synthetic(seed, weighted=False) for seed in range(12)], formulas=["plitt", "lognormal"])
+    written = bench.report(tmp_path / "big.html")
+    assert {"big_fits.csv", "big_ranking.csv", "big_averages.csv"} <= set(written)
+    assert len(pd.read_csv(written["big_fits.csv"])) == 24  # every fit, not only those shown
+    html = written["big.html"].read_text()
+    shown = [f"Experiment s{seed}" for seed in range(12) if f"Experiment s{seed}<" in html or f"Experiment s{seed}:" in html]
+    assert 3 <= len(shown) <= 6 and "12 experiments: the sections below show the first 3" in html
+    assert "Top-ranked fits of all experiments" in html and "across experiments and formulas" not in html

@@ -19,10 +19,19 @@ import pandas as pd
 
 from .._version import __version__
 from ..curves.intervals import interval_table
+from ..curves.measured import CUT_WARNING
 from ..loading.lab import PARTITION_METHOD_TEXT, MassBalance
 from ..statistics.hydrocyclone import water_recovery_statements
 from .outputs import write_files
-from .plotting import offscreen_axes, plot_f_heatmap, plot_ranking, plot_residuals, plot_tromp_fits, save_figure
+from .plotting import (
+    offscreen_axes,
+    plot_batch_overview,
+    plot_f_heatmap,
+    plot_ranking,
+    plot_residuals,
+    plot_tromp_fits,
+    save_figure,
+)
 from .views import balance_view, check_partition_to
 
 SECTIONS = ("summary", "balance", "fits", "parameters", "ranking", "averages", "figures")
@@ -46,6 +55,7 @@ class Report:
     source: str
     sections: dict[str, list] = field(default_factory=dict)
     order: tuple[str, ...] = SECTIONS  # the sections rendered, in order (a trend report has its own)
+    tables: dict[str, pd.DataFrame] = field(default_factory=dict)  # full tables written beside the report as CSV
 
     def add(self, section: str, kind: str, content, caption: str = "") -> None:
         self.sections.setdefault(section, []).append((kind, content, caption))
@@ -174,20 +184,52 @@ def build_report(
     check_partition_to(partition_to)
     report = Report(title, source)
     fits, ranking = bench.fits_table(), bench.ranking_table()
-    _add_summary(report, bench, balances, size_unit=size_unit)
-    _add_balances(report, balances, partition_to=partition_to)
-    _add_fits(report, bench, fits)
-    _add_parameters(report, bench, level=level)
-    report.add("ranking", "table", ranking)
     averages = bench.averages(level=level)
+    shown = _detailed_experiments(bench)
+    if len(shown) < len(bench.experiments):  # a large batch: the sections show some experiments, the CSVs all
+        report.tables = {"fits": fits, "ranking": ranking, "averages": averages}
+        report.add("summary", "text", _condensed_text(bench, shown))
+    fits_shown = fits[fits["experiment"].isin(shown)] if len(shown) < len(bench.experiments) else fits
+    _add_summary(report, bench, balances, size_unit=size_unit, shown=shown)
+    _add_balances(report, [b for b in balances if b.experiment in shown], partition_to=partition_to)
+    _add_fits(report, bench, fits_shown)
+    _add_parameters(report, bench, level=level, shown=shown)
+    report.add("ranking", "table", ranking)
     if not averages.empty:
-        report.add("averages", "table", averages[["experiment", "quantity", "value", "stderr", "low", "high"]])
-    _add_figures(report, bench, fits, ranking, size_unit=size_unit, partition_to=partition_to)
+        averages_shown = averages[averages["experiment"].isin(shown)]
+        report.add("averages", "table", averages_shown[["experiment", "quantity", "value", "stderr", "low", "high"]])
+    _add_figures(report, bench, fits, ranking, size_unit=size_unit, partition_to=partition_to, shown=shown)
     return report
 
 
-def _add_summary(report: Report, bench, balances: list[MassBalance], *, size_unit: str) -> None:
-    """Input summary: points and fits per experiment, the screen's settings, then every data warning."""
+#: Experiments a report shows in full; beyond it the first ones and the flagged ones are shown,
+#: with an overview figure and the full tables as CSV files beside the report.
+REPORT_DETAIL_LIMIT = 20
+
+
+def _detailed_experiments(bench) -> list[str]:
+    """Every experiment up to :data:`REPORT_DETAIL_LIMIT`; beyond it the first ones and those
+    flagged (not fitted, a data note, or a failed fit), at most twice the limit in all."""
+    experiments = list(dict.fromkeys([*bench.experiments, *bench.failures]))
+    if len(experiments) <= REPORT_DETAIL_LIMIT:
+        return experiments
+    failed = {fit.experiment for fit in bench.fits if not fit.success}
+    flagged = [e for e in experiments[REPORT_DETAIL_LIMIT:] if e in bench.failures or e in bench.notes or e in failed]
+    return experiments[:REPORT_DETAIL_LIMIT] + flagged[:REPORT_DETAIL_LIMIT]
+
+
+def _condensed_text(bench, shown: list[str]) -> str:
+    total = len(set(bench.experiments) | set(bench.failures))
+    return (
+        f"{total} experiments: the sections below show the first {REPORT_DETAIL_LIMIT} and those flagged "
+        f"({len(shown)} in all), the figures an overview of all; every row is in the CSV files beside this report "
+        "(REPORT_fits.csv, REPORT_ranking.csv and REPORT_averages.csv, REPORT being the name of this report)."
+    )
+
+
+def _add_summary(report: Report, bench, balances: list[MassBalance], *, size_unit: str, shown: list[str]) -> None:
+    """Input summary: points and fits per experiment, the screen's settings, then every data
+    warning (of the experiments ``shown``)."""
     summary = pd.DataFrame(
         [
             {
@@ -199,6 +241,7 @@ def _add_summary(report: Report, bench, balances: list[MassBalance], *, size_uni
                 "successful": sum(x.success for x in f),
             }
             for e in bench.experiments
+            if e in shown
             for f in [bench.fits_of(e)]
         ]
     )
@@ -211,16 +254,20 @@ def _add_summary(report: Report, bench, balances: list[MassBalance], *, size_uni
     for experiment, reason in bench.failures.items():
         report.add("summary", "warning", f"experiment {experiment} not fitted: {reason}")
     for experiment, notes in bench.notes.items():
-        for note in notes:
+        for note in notes if experiment in shown else ():
             report.add("summary", "warning", f"{experiment}: {note}")
     for balance in balances:
+        if balance.experiment not in shown:
+            continue
         for note in balance.notes:
             report.add("summary", "warning", f"{balance.experiment}: {note}")
         for message in balance.left_out:
             report.add("summary", "warning", f"{balance.experiment}: {message}")
     for fit in bench.fits:
-        if fit.warnings or not fit.success:
-            detail = "; ".join(fit.warnings) if fit.success else f"fit failed: {fit.message}"  # solver chatter left out
+        # a cut the points do not bracket is a property of the data, said once above (bench.notes)
+        warnings = [w for w in fit.warnings if not w.startswith(CUT_WARNING)]
+        if fit.experiment in shown and (warnings or not fit.success):
+            detail = "; ".join(warnings) if fit.success else f"fit failed: {fit.message}"  # solver chatter left out
             report.add("summary", "warning", f"{fit.experiment}, {fit.formula.id}: {detail}")
 
 
@@ -249,9 +296,9 @@ def _add_fits(report: Report, bench, fits: pd.DataFrame) -> None:
             report.add("fits", "text", f"water recovery {bench.water_recovery:g}: no curve with bypass fitted to compare it with")
 
 
-def _add_parameters(report: Report, bench, *, level: float) -> None:
+def _add_parameters(report: Report, bench, *, level: float, shown: list[str]) -> None:
     """Parameters and indices of each experiment's top-ranked formula, with their intervals."""
-    for experiment in bench.experiments:
+    for experiment in [e for e in bench.experiments if e in shown]:
         best = bench.best_fit(experiment)
         if best is not None:
             table = interval_table(best, level=level)
@@ -263,9 +310,12 @@ def _add_parameters(report: Report, bench, *, level: float) -> None:
             )
 
 
-def _add_figures(report: Report, bench, fits: pd.DataFrame, ranking: pd.DataFrame, *, size_unit: str, partition_to: str) -> None:
-    """Tromp curves and residuals per experiment, then F across experiments and the ranking (when there are several)."""
-    for experiment in bench.experiments:
+def _add_figures(
+    report: Report, bench, fits: pd.DataFrame, ranking: pd.DataFrame, *, size_unit: str, partition_to: str, shown: list[str]
+) -> None:
+    """Tromp curves and residuals per experiment shown, then F across experiments (an overview
+    of the top-ranked fits for a large batch) and the ranking (when there are several)."""
+    for experiment in [e for e in bench.experiments if e in shown]:
         experiment_fits = bench.fits_of(experiment)
         if any(f.success for f in experiment_fits):
             curves = plot_tromp_fits(
@@ -278,7 +328,10 @@ def _add_figures(report: Report, bench, fits: pd.DataFrame, ranking: pd.DataFram
             report.add("figures", "figure", figure_png(curves), caption=f"Tromp curve, experiment {experiment}")
             residuals = plot_residuals(experiment_fits, size_unit=size_unit, partition_to=partition_to, ax=offscreen_axes())
             report.add("figures", "figure", figure_png(residuals), caption=f"Residuals, experiment {experiment}")
-    if fits["success"].any():
+    if fits["success"].any() and len(shown) < len(bench.experiments):
+        overview = plot_batch_overview(fits, axes=offscreen_axes(2, 2, figsize=(9, 6.5)))[0]
+        report.add("figures", "figure", figure_png(overview), caption="Top-ranked fits of all experiments")
+    elif fits["success"].any():
         heatmap = plot_f_heatmap(fits, ax=offscreen_axes())
         report.add("figures", "figure", figure_png(heatmap), caption="Fisher's F across experiments and formulas")
     if len(ranking) and len(bench.experiments) > 1:
@@ -306,4 +359,6 @@ def write_report(report: Report, html_path) -> dict[str, Path]:
     }
     for caption, content in figures:
         outputs[names[caption]] = lambda p, content=content: p.write_bytes(content)
+    for name, table in report.tables.items():
+        outputs[f"{stem}_{name}.csv"] = lambda p, table=table: table.to_csv(p, index=False)
     return write_files(outputs, html_path.parent)
