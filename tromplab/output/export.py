@@ -90,11 +90,16 @@ def read_fits(path) -> list[FittedCurve]:
     ok = table.boolean("success")
     d_cut, shape = table.numeric("d_cut", allow_blank=True), table.numeric("shape", allow_blank=True)
     bypass, fishhook = table.numeric("bypass", allow_blank=True), table.numeric("fishhook", allow_blank=True)
+    # whole columns once, then plain arrays per row: a row read through the frame cost about
+    # 0.1 ms, most of the 5 s that 90,000 rows took
+    experiments = table.frame["experiment"].astype(str).to_numpy()
+    formula_ids = table.frame["formula"].astype(str).to_numpy()
+    texts = table.frame["extras"].to_numpy() if "extras" in table.frame.columns else np.full(len(table.frame), "")
+    formulas = {}
     fits = []
     for i in np.flatnonzero(ok):
-        frame = table.frame.iloc[i]
         try:
-            formula = get_formula(str(frame["formula"]))
+            formula = formulas.get(formula_ids[i]) or formulas.setdefault(formula_ids[i], get_formula(formula_ids[i]))
         except KeyError as error:
             raise table.error(str(error.args[0]), index=int(i), column="formula") from None
         extras = {}
@@ -104,16 +109,15 @@ def read_fits(path) -> list[FittedCurve]:
             elif extra.name == "fishhook":
                 extras["fishhook"] = fishhook[i]
             else:
-                extras[extra.name] = _extra_from_text(table, int(i), extra.name)
+                extras[extra.name] = _extra_from_text(table, int(i), extra.name, str(texts[i]))
         values = [d_cut[i], shape[i], *extras.values()]
         if not np.all(np.isfinite(values)):
             raise table.error("a successful fit with a missing parameter value", index=int(i), column="d_cut")
-        fits.append(FittedCurve(str(frame["experiment"]), formula.id, float(d_cut[i]), float(shape[i]), extras))
+        fits.append(FittedCurve(experiments[i], formula.id, float(d_cut[i]), float(shape[i]), extras))
     return fits
 
 
-def _extra_from_text(table, index: int, name: str) -> float:
-    text = str(table.frame.iloc[index].get("extras", "")) if "extras" in table.frame.columns else ""
+def _extra_from_text(table, index: int, name: str, text: str) -> float:
     for pair in text.split(";"):
         key, _, value = pair.partition("=")
         if key.strip() == name:
