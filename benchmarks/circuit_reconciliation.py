@@ -12,7 +12,7 @@ error model and reconciles each:
 Gross errors: a 5-sd error planted in one of three product flowmeters (10 %; belt scale 1 %
 on the feed) of the example plant, and 5-sd and 8-sd errors in one random share of one
 random analysed stream of each circuit: how often the planted measurement is named first
-(largest standardised adjustment), and how often it is named first or among the
+(largest measurement test), and how often it is named first or among the
 measurements the first is indistinguishable from.  Results are printed and written to
 benchmarks/output/circuit_reconciliation.csv; docs/circuit.md states them.
 
@@ -52,8 +52,8 @@ def null_study(name: str, n_surveys: int, seed: int) -> dict:
 
 
 def _named(balance, stream: str, klass: int) -> tuple[bool, bool]:
-    table = balance.adjustments_table().dropna(subset=["standardised"])
-    first = table.loc[table["standardised"].abs().idxmax()]
+    table = balance.adjustments_table().dropna(subset=["measurement_test"])
+    first = table.loc[table["measurement_test"].abs().idxmax()]
     planted = f"{stream} flow" if klass < 0 else None
     hit = first["stream"] == stream and first["class_index"] == klass
     if planted is None:

@@ -369,6 +369,45 @@ def test_a_planted_five_sd_gross_error_in_a_flowmeter_is_named_first():
     assert named / n_surveys >= 0.90, named / n_surveys
 
 
+def _exact_survey_with_raw_error(truth, stream: str, klass: int, error: float):
+    """Exact shares of ``truth`` with ``error`` added to one raw class of one stream before the
+    normalisation, as a lab's weighing slip would be; sds from the default error model."""
+    survey = simulate_survey(truth, np.random.default_rng(0), errors=ErrorModel(relative_error=1e-12, absolute_error=1e-12))
+    shares = survey.shares.copy()
+    where = (shares["stream"] == stream).to_numpy()
+    values = shares.loc[where, "value"].to_numpy().copy()
+    values[klass] += error
+    shares.loc[where, "value"] = values / values.sum()
+    shares["sd"] = ErrorModel().share_sd(shares["value"])
+    return type(survey)(survey.classes, shares, survey.flows, survey.pct_solids, survey.size_unit, "slip", survey.closed_streams)
+
+
+@pytest.mark.parametrize("stream, klass", [("cyclone_feed", 0), ("cyclone_overflow", 9), ("cyclone_underflow", 6)])
+def test_the_measurement_test_estimates_a_raw_error_spread_by_the_closure(stream, klass):
+    """Exact data plus 3 percentage points in one raw class: the test's gross error at that
+    measurement is the planted 0.03 (to the linearisation, 6 %), and the planted measurement
+    has the largest test or is indistinguishable from the one that has."""
+    truth = grinding_circuit()
+    table = reconcile(truth.flowsheet, _exact_survey_with_raw_error(truth, stream, klass, 0.03)).adjustments_table()
+    planted = table[(table["stream"] == stream) & (table["class_index"] == klass)].iloc[0]
+    assert planted["gross_error"] == pytest.approx(0.03, rel=0.06)
+    assert planted["measurement_test"] == pytest.approx(-planted["gross_error"] / planted["gross_error_sd"])
+    first = table.loc[table["measurement_test"].abs().idxmax()]
+    assert planted["measurement"] in [first["measurement"], *first["indistinguishable_from"].split("; ")]
+    assert abs(planted["measurement_test"]) == pytest.approx(abs(first["measurement_test"]), rel=1e-6)
+    fresh = table[table["stream"] == "fresh_feed"]  # before the mill: no balance checks it
+    assert fresh["measurement_test"].isna().all() and not fresh["suspect"].any()
+
+
+def test_without_closure_the_measurement_test_is_the_standardised_adjustment():
+    truth = example_plant()
+    survey = survey_table(simulate_survey(truth, np.random.default_rng(4), flows={"screen_feed": 0.02, "oversize": 0.1}))
+    table = reconcile(truth.flowsheet, survey, errors=ErrorModel(closure=False)).adjustments_table()
+    testable = table["standardised"].notna()
+    assert testable.sum() > 20 and (table["measurement_test"].notna() == testable).all()
+    np.testing.assert_allclose(table.loc[testable, "measurement_test"], table.loc[testable, "standardised"], rtol=1e-7)
+
+
 def test_a_large_gross_error_is_flagged_first_with_its_row():
     survey = pd.read_csv(SURVEY, comment="#")
     row = survey.index[survey["stream"] == "cyclone_overflow"][0]

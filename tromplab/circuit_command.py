@@ -146,8 +146,8 @@ def console_report(run: CircuitRun) -> str:
     lines.append(flows.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
     largest = balance.largest_adjustments(5)
     if len(largest):
-        lines += ["", "Largest standardised adjustments:"]
-        lines.append(largest[["measurement", "row", "measured", "reconciled", "standardised", "suspect"]].to_string(
+        lines += ["", "Largest measurement tests (gross error: measured - true, as the balances estimate it):"]
+        lines.append(largest[["measurement", "row", "measured", "reconciled", "gross_error", "measurement_test", "suspect"]].to_string(
             index=False, float_format=lambda v: f"{v:.4g}"))  # fmt: skip
     if run.bench is not None:
         fits = run.bench.fits_table()

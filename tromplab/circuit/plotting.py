@@ -98,12 +98,13 @@ def plot_flowsheet(balance, ax=None, *, flow_unit: str = ""):
 
 
 def plot_adjustments(balance, ax=None):
-    """Standardised adjustment of every measurement (reconciled - measured, in its own standard
-    deviations), with the critical value of the measurement test; suspects in red."""
+    """The measurement test of every measurement (the gross error that best explains the
+    adjustments, in its standard deviations, with the sign of reconciled - measured), with its
+    critical value; suspects in red."""
     table = balance.adjustments_table()
     ax = _axes(ax, (8.0, max(3.0, 0.16 * len(table) + 1.0)))
     position = np.arange(len(table))[::-1]
-    values = table["standardised"].to_numpy(dtype=float)
+    values = table["measurement_test"].to_numpy(dtype=float)
     colours = np.where(table["suspect"].to_numpy(dtype=bool), "#c0392b", "#336699")
     ax.barh(position, np.nan_to_num(values), color=colours, height=0.7)
     critical = balance.measurement_test_critical
@@ -112,7 +113,7 @@ def plot_adjustments(balance, ax=None):
             ax.axvline(sign * critical, color="#c0392b", linestyle="--", linewidth=0.8)
     ax.axvline(0.0, color="black", linewidth=0.6)
     ax.set_yticks(position, table["measurement"], fontsize=6)
-    ax.set_xlabel("standardised adjustment (reconciled - measured) / sd of the adjustment")
+    ax.set_xlabel("measurement test: estimated gross error / its sd (sign of reconciled - measured)")
     ax.set_title(
         f"Adjustments: chi-square {balance.chi_square:.3g} on {balance.dof} dof (p = {balance.p_value:.3g})", fontsize=10
     )

@@ -28,8 +28,11 @@ Uncertainty is linearised at the solution (Kuehn & Davidson 1961; Hodouin & Ever
 and every reconciled quantity (flows, shares, partition numbers) gets its standard deviation
 by the delta method.  Adjustments :math:`e = y - \hat y` have :math:`\mathrm{cov}(e) =
 \Sigma - \mathrm{cov}(\hat y)`; the standardised adjustment :math:`e_j /
-\sqrt{\mathrm{cov}(e)_{jj}}` is the measurement test of Mah & Tamhane (1982), compared with
-the Sidak-corrected normal quantile over the testable measurements.  The global test
+\sqrt{\mathrm{cov}(e)_{jj}}` is the measurement test of Mah & Tamhane (1982).  Because the
+shares of a closed analysis share their errors, the gross-error test is the generalised
+likelihood ratio of an error in one raw measurement, spread by the closure (Narasimhan &
+Mah 1987), which reduces to the standardised adjustment for an independent measurement;
+it is compared with the Sidak-corrected normal quantile over the testable measurements.  The global test
 compares :math:`S` with the chi-square distribution with as many degrees of freedom as
 the redundancy (measurements minus the rank of :math:`J`) (Almasy & Sztano 1975).
 
@@ -47,6 +50,9 @@ Kuehn, D. R. & Davidson, H. (1961). Computer control II. Mathematics of control.
 Mah, R. S. H. & Tamhane, A. C. (1982). Detection of gross errors in process data.
 *AIChE Journal* 28(5), 828-830.
 
+Narasimhan, S. & Mah, R. S. H. (1987). Generalized likelihood ratio method for gross error
+identification. *AIChE Journal* 33(9), 1514-1521.
+
 Smith, H. W. & Ichiyen, N. (1973). Computer adjustment of metallurgical balances.
 *CIM Bulletin* 66(737), 97-100.
 """
@@ -55,6 +61,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from functools import cached_property
+from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -96,6 +103,7 @@ class _Problem:
     sd: np.ndarray  # of each measurement (of a closed analysis's share: before the closure)
     cov: np.ndarray  # covariance of the measurements (closed analyses: P D P^T blocks)
     W: np.ndarray  # whitening: W cov W^T = I on the range of cov (rows: independent pieces of information)
+    effects: np.ndarray  # column j: what a unit error in raw measurement j does to the reported values (P blocks)
 
     @property
     def variance(self) -> np.ndarray:
@@ -127,6 +135,14 @@ class _Problem:
         return H
 
 
+class _MeasurementTests(NamedTuple):
+    statistic: np.ndarray  # with the sign of the adjustment (reconciled - measured)
+    estimate: np.ndarray  # the gross error that best explains the adjustments (measured - true)
+    estimate_sd: np.ndarray
+    testable: np.ndarray
+    correlation: np.ndarray  # of the statistics: beyond EQUIVALENT_CORRELATION no test tells them apart
+
+
 @dataclass(frozen=True)
 class CircuitBalance:
     """A reconciled survey: flows and size distributions that close every balance.
@@ -137,7 +153,7 @@ class CircuitBalance:
     * :meth:`distributions_table` - one row per stream and class: measured and reconciled share;
     * :meth:`adjustments_table` - one row per measurement: adjustment, its sd, the
       standardised adjustment and the measurement test;
-    * :meth:`gross_errors_table` - the measurements whose standardised adjustment fails the test;
+    * :meth:`gross_errors_table` - the measurements whose measurement test fails;
     * :meth:`partition_table` - per separator and class: partition to the fine product and sd;
     * :meth:`chi_square_table` - the global test;
     * :meth:`degrees_of_freedom_table` - counts of unknowns, constraints and measurements.
@@ -302,8 +318,12 @@ class CircuitBalance:
             "adjustment",
             "adjustment_sd",
             "standardised",
+            "gross_error",
+            "gross_error_sd",
+            "measurement_test",
             "p_value",
             "suspect",
+            "indistinguishable_from",
         ]
         if problem is None or problem.y.size == 0:
             return pd.DataFrame(columns=columns)
@@ -317,7 +337,6 @@ class CircuitBalance:
         adjustment_sd = np.where(testable, np.sqrt(np.clip(adjustment_var, 0.0, None)), np.nan)
         with np.errstate(invalid="ignore", divide="ignore"):
             standardised = np.where(testable, adjustment / adjustment_sd, np.nan)
-        p_value = np.where(testable, 2.0 * stats.norm.sf(np.abs(standardised)), np.nan)
         classes = self.survey.classes
         rows_of = self._measurement_rows()
         table = pd.DataFrame(
@@ -338,16 +357,20 @@ class CircuitBalance:
                 "adjustment": -adjustment,  # reconciled minus measured: what was added to the measurement
                 "adjustment_sd": adjustment_sd,
                 "standardised": -standardised,
-                "p_value": p_value,
             }
         )
-        table["suspect"] = np.abs(table["standardised"]) > self.measurement_test_critical
-        scale = np.sqrt(np.clip(adjustment_var, 1e-300, None))
-        correlation = (problem.cov - cov_pred) / np.outer(scale, scale)
+        tests = self._measurement_tests
+        table["gross_error"] = tests.estimate
+        table["gross_error_sd"] = tests.estimate_sd
+        table["measurement_test"] = tests.statistic
+        table["p_value"] = 2.0 * stats.norm.sf(np.abs(tests.statistic))
+        table["suspect"] = np.abs(table["measurement_test"]) > self.measurement_test_critical
         names = table["measurement"].to_numpy()
         table["indistinguishable_from"] = [
-            "; ".join(names[(np.abs(correlation[j]) > EQUIVALENT_CORRELATION) & testable & (np.arange(names.size) != j)])
-            if testable[j]
+            "; ".join(
+                names[(np.abs(tests.correlation[j]) > EQUIVALENT_CORRELATION) & tests.testable & (np.arange(names.size) != j)]
+            )
+            if tests.testable[j]
             else ""
             for j in range(names.size)
         ]
@@ -362,17 +385,45 @@ class CircuitBalance:
             for s, i, k in zip(problem.stream, problem.klass, problem.kinds)
         ]
 
-    @property
-    def measurement_test_critical(self) -> float:
-        """Critical absolute standardised adjustment of the measurement test: the normal quantile at the
-        Sidak-corrected level ``1 - (1 - alpha) ** (1 / p)`` over the p testable measurements."""
+    @cached_property
+    def _measurement_tests(self) -> _MeasurementTests:
+        r"""The generalised likelihood ratio test of a gross error in each raw measurement.
+
+        A gross error :math:`b` in raw measurement :math:`j` shifts the reported values by
+        :math:`b f_j` (:math:`f_j` the column of :attr:`_Problem.effects`: a unit vector, or
+        in a closed analysis the shift of every share of the stream).  With the whitened
+        residuals :math:`\rho` and :math:`g_j = W f_j`, its least-squares estimate is
+        :math:`\hat b_j = g_j^T \rho / g_j^T Q g_j` with sd :math:`(g_j^T Q g_j)^{-1/2}`,
+        :math:`Q` the projection off the range of the whitened Jacobian; the statistic
+        :math:`\hat b_j / \mathrm{sd}` is the most powerful test of that error (Narasimhan &
+        Mah 1987) and, for a measurement whose error is independent of the others, equals the
+        standardised adjustment of Mah & Tamhane (1982) with the sign of the adjustment.
+        """
         problem = self.problem
         if problem is None or problem.y.size == 0:
-            return float("nan")
+            empty = np.zeros(0)
+            return _MeasurementTests(empty, empty, empty, empty.astype(bool), np.zeros((0, 0)))
         m = self.class_flows.ravel()
-        H = problem.jacobian(m)
-        variance = problem.variance - np.einsum("ij,jk,ik->i", H, self.covariance, H)
-        p = int(np.sum(variance > 1e-8 * problem.sd**2))
+        J = problem.W @ problem.jacobian(m) @ problem.N
+        residual = problem.W @ (self.measured_y - problem.predict(m))
+        basis, singular, _ = np.linalg.svd(J, full_matrices=False)
+        basis = basis[:, singular > _RANK_TOL * max(1.0, singular.max(initial=0.0))]
+        G = problem.W @ problem.effects
+        QG = G - basis @ (basis.T @ G)
+        information = np.einsum("ij,ij->j", G, QG)
+        testable = information > 1e-8 * np.einsum("ij,ij->j", G, G)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            estimate = np.where(testable, (G.T @ residual) / information, np.nan)
+            estimate_sd = np.where(testable, 1.0 / np.sqrt(np.abs(information)), np.nan)
+            scale = np.sqrt(np.clip(information, 1e-300, None))
+            correlation = (QG.T @ QG) / np.outer(scale, scale)
+        return _MeasurementTests(-estimate / estimate_sd, estimate, estimate_sd, testable, correlation)
+
+    @property
+    def measurement_test_critical(self) -> float:
+        """Critical absolute value of the measurement test: the normal quantile at the
+        Sidak-corrected level ``1 - (1 - alpha) ** (1 / p)`` over the p testable measurements."""
+        p = int(self._measurement_tests.testable.sum())
         if p == 0:
             return float("nan")
         level = 1.0 - (1.0 - self.alpha) ** (1.0 / p)
@@ -384,28 +435,33 @@ class CircuitBalance:
         Columns ``measurement, stream, class_index, size_lower, size_upper, row`` (file row),
         ``measured, sd, reconciled, reconciled_sd, adjustment`` (reconciled - measured),
         ``adjustment_sd``, ``standardised`` (adjustment / adjustment_sd; NaN for a measurement
-        without redundancy, which the balances cannot check), ``p_value`` (two-sided normal)
-        ``suspect`` (absolute ``standardised`` above :attr:`measurement_test_critical`) and
-        ``indistinguishable_from`` (the measurements whose adjustments are correlated with this
-        one beyond :data:`EQUIVALENT_CORRELATION`: a gross error in any of them looks the same,
-        e.g. the only two flowmeters of a loop, or one class of the three streams of a separator
-        whose split is free).
+        without redundancy, which the balances cannot check), ``gross_error`` and
+        ``gross_error_sd`` (the error in the raw measurement, before the closure of its
+        analysis, that best explains all adjustments: measured - true), ``measurement_test``
+        (gross_error / its sd, with the sign of the adjustment: the most powerful test of a
+        gross error there, equal to ``standardised`` when the measurement's error is
+        independent of the others'), ``p_value`` (two-sided normal), ``suspect`` (absolute
+        ``measurement_test`` above :attr:`measurement_test_critical`) and
+        ``indistinguishable_from`` (the measurements whose tests are correlated with this one
+        beyond :data:`EQUIVALENT_CORRELATION`: a gross error in any of them looks the same,
+        e.g. the only two flowmeters of a loop, or one class of the three streams of a
+        separator whose split is free).
         """
         return self._adjustments.copy()
 
     def gross_errors_table(self) -> pd.DataFrame:
-        """The measurements suspected of gross error, largest absolute standardised adjustment first
-        (the measurement test); ``rank`` 1 is the first candidate."""
+        """The measurements suspected of gross error, largest absolute measurement test first;
+        ``rank`` 1 is the first candidate."""
         table = self._adjustments
         suspects = table[table["suspect"]].copy()
-        suspects = suspects.reindex(suspects["standardised"].abs().sort_values(ascending=False).index)
+        suspects = suspects.reindex(suspects["measurement_test"].abs().sort_values(ascending=False).index)
         suspects.insert(0, "rank", np.arange(1, len(suspects) + 1))
         return suspects.reset_index(drop=True)
 
     def largest_adjustments(self, n: int = 5) -> pd.DataFrame:
-        """The ``n`` measurements with the largest absolute standardised adjustments (suspect or not)."""
-        table = self._adjustments.dropna(subset=["standardised"])
-        return table.reindex(table["standardised"].abs().sort_values(ascending=False).index).head(n).reset_index(drop=True)
+        """The ``n`` measurements with the largest absolute measurement tests (suspect or not)."""
+        table = self._adjustments.dropna(subset=["measurement_test"])
+        return table.reindex(table["measurement_test"].abs().sort_values(ascending=False).index).head(n).reset_index(drop=True)
 
     # --- separators -----------------------------------------------------------------------
     def partition_table(self) -> pd.DataFrame:
@@ -565,8 +621,11 @@ class CircuitBalance:
             )
         suspects = self.gross_errors_table()
         if len(suspects):
-            listed = "; ".join(f"{r.measurement} (standardised {r.standardised:+.2f})" for r in suspects.head(5).itertuples())
-            lines.append(f"suspected gross errors (|standardised| > {self.measurement_test_critical:.2f}): {listed}")
+            listed = "; ".join(
+                f"{r.measurement} (test {r.measurement_test:+.2f}, gross error {r.gross_error:+.3g})"
+                for r in suspects.head(5).itertuples()
+            )
+            lines.append(f"suspected gross errors (|measurement test| > {self.measurement_test_critical:.2f}): {listed}")
         return "\n".join(lines)
 
     def __str__(self) -> str:
@@ -760,14 +819,19 @@ def _build(flowsheet: Flowsheet, survey: Survey) -> tuple[_Problem, str]:
     klass = np.array(list(shares["class_index"].astype(int)) + [-1] * len(free_flows), dtype=int)
     y = np.concatenate([shares["value"].to_numpy(float), free_flows["value"].to_numpy(float)])
     sd = np.concatenate([shares["sd"].to_numpy(float), free_flows["sd"].to_numpy(float)])
-    cov, W = _measurement_covariance(shares, sd, survey.closed_streams)
-    return _Problem(S, n, A, b, m0, N, kinds, stream, klass, y, sd, cov, W), basis
+    cov, W, effects = _measurement_covariance(shares, sd, survey.closed_streams)
+    return _Problem(S, n, A, b, m0, N, kinds, stream, klass, y, sd, cov, W, effects), basis
 
 
-def _measurement_covariance(shares: pd.DataFrame, sd: np.ndarray, closed) -> tuple[np.ndarray, np.ndarray]:
-    """Covariance of the measurements and its whitening: independent, except the shares of a
-    closed (normalised) analysis, whose block is :math:`P D P^T`, :math:`P = I - x 1^T`."""
+def _measurement_covariance(shares: pd.DataFrame, sd: np.ndarray, closed) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Covariance of the measurements, its whitening and the effects of the raw errors.
+
+    The errors are independent, except in a closed (normalised) analysis: an error in one raw
+    class moves every reported share of the stream, by :math:`P = I - x 1^T`, so the block is
+    :math:`P D P^T`.  The third matrix holds :math:`P` (identity elsewhere).
+    """
     cov = np.diag(sd**2)
+    effects = np.eye(sd.size)
     pieces = []
     done = np.zeros(sd.size, dtype=bool)
     streams = shares["stream"].to_numpy()
@@ -780,6 +844,7 @@ def _measurement_covariance(shares: pd.DataFrame, sd: np.ndarray, closed) -> tup
         P = np.eye(where.size) - np.outer(x, np.ones(where.size))
         block = P @ np.diag(sd[where] ** 2) @ P.T
         cov[np.ix_(where, where)] = block
+        effects[np.ix_(where, where)] = P
         eigenvalues, vectors = np.linalg.eigh(block)
         keep = eigenvalues > 1e-12 * eigenvalues.max()
         rows = np.zeros((int(keep.sum()), sd.size))
@@ -790,7 +855,7 @@ def _measurement_covariance(shares: pd.DataFrame, sd: np.ndarray, closed) -> tup
     rows = np.zeros((single.size, sd.size))
     rows[np.arange(single.size), single] = 1.0 / sd[single]
     pieces.append(rows)
-    return cov, np.vstack(pieces)
+    return cov, np.vstack(pieces), effects
 
 
 def _start(flowsheet: Flowsheet, survey: Survey, problem: _Problem) -> np.ndarray:
