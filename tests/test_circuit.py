@@ -84,6 +84,8 @@ def test_the_example_flowsheet_is_a_graph_with_its_node_kinds_and_flow_degrees_o
         ),
         ("stream,from,to,product\na,,n,\nb,n,n,\n", "leaves and enters node 'n'"),
         ("stream,from,to,product\na,,n,\nb,n,,sideways\n", "product 'sideways' is not one of"),
+        ("stream,from,to,product\na,,n,\nb,n,m,\nc,m,,\nw,n,m,water\n", "row 5, column 'product': water stream 'w' runs"),
+        ("stream,from,to,product\na,,n,\nb,n,,\nw,,sump,water\n", "water stream 'w' touches node 'sump', which no solids"),
     ],
 )
 def test_a_bad_flowsheet_is_refused_naming_the_row_node_or_stream(tmp_path, text, fragment):
@@ -340,6 +342,116 @@ def test_the_separators_points_are_tromp_points_with_weights_that_fit_reads(tmp_
     z = (cyclone["partition_fine"].to_numpy() - truth)[used] / cyclone["partition_sd"].to_numpy()[used]
     assert np.all(np.abs(z) < 4)  # the reconciled curve with its sd is consistent with the true one
     assert [p.experiment for p in balance.to_points()] == ["top_deck", "bottom_deck", "cyclone"]
+
+
+# --- per cent solids: the water balance -----------------------------------------------------
+#: True per cent solids of the grinding circuit's streams (the cyclone feed's follows from its water balance).
+WATER_PCT = {"fresh_feed": 97.0, "cyclone_overflow": 35.0, "cyclone_underflow": 75.0}
+
+
+def _grinding_circuit_with_water():
+    """The simulated grinding circuit with mill water declared, and its true water flows
+    (solids streams, then the mill water) per the solids flows of the truth."""
+    truth = grinding_circuit()
+    sheet = truth.flowsheet.to_frame()
+    sheet.loc[len(sheet)] = ["mill_water", "", "mill", "water"]
+    flows = dict(zip(truth.flowsheet.stream_names, truth.flows))
+    water = {s: flows[s] * (100.0 - p) / p for s, p in WATER_PCT.items()}
+    water["cyclone_feed"] = water["cyclone_overflow"] + water["cyclone_underflow"]
+    water["mill_water"] = water["cyclone_feed"] - water["cyclone_underflow"] - water["fresh_feed"]
+    return truth, read_flowsheet(sheet), water
+
+
+def _with_pct_solids(table: pd.DataFrame, pct: dict, sd: float | None = None) -> pd.DataFrame:
+    table = table.copy()
+    table["pct_solids"] = np.nan
+    for stream, value in pct.items():
+        table.loc[table.index[table["stream"] == stream][0], "pct_solids"] = value
+    if sd is not None:
+        table["pct_solids_sd"] = np.where(table["pct_solids"].notna(), sd, np.nan)
+    return table
+
+
+def _true_pct(truth, water: dict) -> dict:
+    flows = dict(zip(truth.flowsheet.stream_names, truth.flows))
+    return {s: 100.0 * flows[s] / (flows[s] + water[s]) for s in flows}
+
+
+def test_exact_per_cent_solids_give_the_dilution_ratio_circulating_load():
+    """Per cent solids given exactly (sd 0) on the cyclone's three streams fix its split by the
+    water balance alone, whatever the (noisy) size analyses say:
+    U/O = (D_o - D_f) / (D_f - D_u), D = (100 - p) / p the dilution ratio."""
+    truth, sheet, _ = _grinding_circuit_with_water()
+    pct = {"cyclone_feed": 55.0, "cyclone_overflow": 33.0, "cyclone_underflow": 74.0}
+    table = _with_pct_solids(survey_table(simulate_survey(truth, np.random.default_rng(5))), pct, sd=0.0)
+    balance = reconcile(sheet, table)
+    dilution = {s: (100.0 - p) / p for s, p in pct.items()}
+    expected = (dilution["cyclone_overflow"] - dilution["cyclone_feed"]) / (
+        dilution["cyclone_feed"] - dilution["cyclone_underflow"]
+    )
+    index = sheet.stream_index
+    load = balance.flows[index["cyclone_underflow"]] / balance.flows[index["cyclone_overflow"]]
+    assert load == pytest.approx(expected, rel=1e-9)
+    water = balance.water_table().set_index("stream")
+    np.testing.assert_allclose(water.loc[list(pct), "pct_solids"], list(pct.values()), rtol=1e-9)
+    assert not water.loc["mill_water", "determined"]  # fresh feed's per cent solids not given: only the sum is known
+    assert "not determined" in water.loc["mill_water", "note"] and "mill_water" in balance.summary()
+
+
+def test_per_cent_solids_recover_the_true_water_flows_and_sharpen_the_split():
+    truth, sheet, water = _grinding_circuit_with_water()
+    exact = ErrorModel(relative_error=1e-12, absolute_error=1e-12)
+    sizes = survey_table(simulate_survey(truth, np.random.default_rng(0), errors=exact), decimals=None)
+    table = _with_pct_solids(sizes, _true_pct(truth, water))
+    balance = reconcile(sheet, table)
+    without = reconcile(truth.flowsheet, sizes)
+    scale = balance.flows[0] / truth.flows[0]
+    table_w = balance.water_table().set_index("stream")
+    assert table_w["determined"].all()
+    np.testing.assert_allclose(table_w["water_flow"], [water[s] * scale for s in table_w.index], rtol=1e-6)
+    assert balance.chi_square < 1e-8 and balance.dof == without.dof + 1  # the cyclone's water balance is one more check
+    index = sheet.stream_index["cyclone_underflow"]
+    assert balance.flow_sd[index] < without.flow_sd[index]
+    assert set(balance.adjustments_table()["class_index"]) >= {-2}  # per cent solids are measurements like the others
+
+
+@pytest.mark.slow
+def test_noisy_per_cent_solids_give_water_flows_covered_at_the_nominal_rate():
+    truth, sheet, water = _grinding_circuit_with_water()
+    rng = np.random.default_rng(11)
+    true_pct = _true_pct(truth, water)
+    inside = total = rejected = 0
+    n_surveys = 200
+    for _ in range(n_surveys):
+        noisy = {s: p + rng.standard_normal() for s, p in true_pct.items()}  # the default sd: 1 point
+        survey = simulate_survey(truth, rng, flows={"fresh_feed": 0.02})
+        balance = reconcile(sheet, _with_pct_solids(survey_table(survey, decimals=None), noisy))
+        table = balance.water_table().set_index("stream")
+        truth_flow = np.array([water[s] for s in table.index])
+        inside += int(np.sum(np.abs(table["water_flow"] - truth_flow) <= 1.96 * table["water_flow_sd"]))
+        total += len(table)
+        rejected += balance.rejected
+    assert 0.90 <= inside / total <= 0.99, inside / total
+    assert rejected / n_surveys <= 0.10
+
+
+def test_the_command_writes_the_water_table_when_per_cent_solids_are_measured(tmp_path, capsys):
+    truth, sheet, water = _grinding_circuit_with_water()
+    table = _with_pct_solids(survey_table(simulate_survey(truth, np.random.default_rng(2))), _true_pct(truth, water))
+    sheet.to_frame().to_csv(tmp_path / "sheet.csv", index=False)
+    table.to_csv(tmp_path / "survey.csv", index=False)
+    assert main(["circuit", str(tmp_path / "sheet.csv"), str(tmp_path / "survey.csv"), "-o", str(tmp_path / "out")]) == 0
+    written = pd.read_csv(tmp_path / "out" / "water.csv")
+    assert list(written["stream"]) == [*truth.flowsheet.stream_names, "mill_water"] and written["determined"].all()
+    assert "mill_water" in pd.read_csv(tmp_path / "out" / "flowsheet.csv")["stream"].tolist()
+    assert "water balanced at every node" in capsys.readouterr().out
+
+
+def test_a_water_stream_in_the_measurements_is_refused_by_name(tmp_path):
+    _, sheet, _ = _grinding_circuit_with_water()
+    table = pd.DataFrame({"stream": ["mill_water"], "size_class_um": ["-20"], "retained_pct": [100.0]})
+    with pytest.raises(InputError, match="stream 'mill_water' is a water stream of the flowsheet"):
+        read_survey(table, sheet)
 
 
 # --- 6. validation by simulation (issue items 6b and 6c) ----------------------------------------

@@ -93,7 +93,7 @@ def run_circuit(
     deviations), ``points.csv`` (Tromp-points schema with weights, what ``tromplab fit``
     reads), the flowsheet as read (``flowsheet.csv``), ``summary.txt``; figures
     ``flowsheet.png``, ``adjustments.png``, ``distributions.png``; with ``fit``
-    ``fits.csv`` and ``ranking.csv``.
+    ``fits.csv`` and ``ranking.csv``; with per cent solids measured, ``water.csv``.
     """
     check_output_folder(outdir, inputs=[flowsheet, measurements])  # the inputs are checked as they are read
     sheet = read_flowsheet(flowsheet)
@@ -110,6 +110,8 @@ def run_circuit(
         "points": balance.points_table(),
         "flowsheet": sheet.to_frame(),
     }
+    if balance.balances_water:
+        tables["water"] = balance.water_table()
     bench = None
     if fit and balance.flowsheet.separators:
         bench = fit_separators(balance)

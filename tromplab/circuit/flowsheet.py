@@ -10,9 +10,13 @@ File schema (CSV or Excel), one row per stream:
 ``product``
     ``fine`` or ``coarse`` (also ``overflow`` / ``underflow``, ``undersize`` /
     ``oversize``) on the two outputs of each separator; ``ground`` on the single output
-    of a mill or crusher (the sizes change there: only the total solids balance); blank
-    elsewhere.  A node whose single output is not marked ``ground`` is a junction (the
-    solids of every size class balance).
+    of a mill or crusher (the sizes change there: only the total solids balance); ``water``
+    on a stream of water alone, added at a node (blank ``from``: mill water, sump water,
+    spray water) or removed from it (blank ``to``); blank elsewhere.  A node whose single
+    solids output is not marked ``ground`` is a junction (the solids of every size class
+    balance).  Water streams matter only when per cent solids are measured: water then
+    balances at every node, with the declared water streams as its only additions and
+    removals.
 ``note``, ``comment``
     free text, ignored.  Any other column is refused with its name.
 
@@ -45,6 +49,7 @@ PRODUCT_WORDS = {
     "underflow": "coarse",
     "oversize": "coarse",
     "ground": "ground",
+    "water": "water",
 }
 NODE_KINDS = ("separator", "junction", "mill")
 
@@ -90,7 +95,7 @@ class Flowsheet:
     Attributes
     ----------
     streams : tuple of Stream
-        In the order of the file.
+        The streams that carry solids, in the order of the file.
     nodes : tuple of Node
         In order of first appearance.
     source : str
@@ -100,6 +105,7 @@ class Flowsheet:
     streams: tuple[Stream, ...]
     nodes: tuple[Node, ...]
     source: str = ""
+    water_streams: tuple[Stream, ...] = ()
 
     @cached_property
     def stream_names(self) -> tuple[str, ...]:
@@ -139,6 +145,14 @@ class Flowsheet:
                 matrix[where[stream.source], j] -= 1.0
         return matrix
 
+    def water_incidence(self) -> np.ndarray:
+        """Nodes x water streams: +1 where water is added to the node, -1 where it is removed."""
+        matrix = np.zeros((len(self.nodes), len(self.water_streams)))
+        where = {node.name: k for k, node in enumerate(self.nodes)}
+        for j, stream in enumerate(self.water_streams):
+            matrix[where[stream.target or stream.source], j] = 1.0 if stream.target else -1.0
+        return matrix
+
     @property
     def flow_degrees_of_freedom(self) -> int:
         """Stream flows left free by the total solids balances: streams minus independent balances.
@@ -161,21 +175,23 @@ class Flowsheet:
         return graph
 
     def to_frame(self) -> pd.DataFrame:
-        """The flowsheet in the file schema (``stream, from, to, product``)."""
+        """The flowsheet in the file schema (``stream, from, to, product``), water streams last."""
+        streams = self.streams + self.water_streams
         return pd.DataFrame(
             {
-                "stream": [s.name for s in self.streams],
-                "from": [s.source for s in self.streams],
-                "to": [s.target for s in self.streams],
-                "product": [s.product for s in self.streams],
+                "stream": [s.name for s in streams],
+                "from": [s.source for s in streams],
+                "to": [s.target for s in streams],
+                "product": [s.product for s in streams],
             }
         )
 
     def summary(self) -> str:
         """One line: streams, nodes by kind, feeds, products and the flow degrees of freedom."""
         kinds = ", ".join(f"{sum(n.kind == k for n in self.nodes)} {k}(s)" for k in NODE_KINDS)
+        water = f" (and {len(self.water_streams)} water stream(s))" if self.water_streams else ""
         return (
-            f"{len(self.streams)} streams, {len(self.nodes)} nodes ({kinds}); feeds {', '.join(self.feeds)}; "
+            f"{len(self.streams)} streams{water}, {len(self.nodes)} nodes ({kinds}); feeds {', '.join(self.feeds)}; "
             f"products {', '.join(self.products)}; {self.flow_degrees_of_freedom} flow(s) free after the solids balances"
         )
 
@@ -241,7 +257,14 @@ def read_flowsheet(
                 index=i,
                 column="product",
             )
-        if word and not origin:
+        if word == "water" and origin and target:
+            raise table.error(
+                f"water stream '{name}' runs between two nodes: a water stream is an addition (blank 'from') or a "
+                "removal (blank 'to'); water carried with the solids is given by their per cent solids",
+                index=i,
+                column="product",
+            )
+        if word and word != "water" and not origin:
             raise table.error(f"stream '{name}' is a feed (no 'from') but is marked '{word}'", index=i, column="product")
         streams.append(Stream(name, origin, target, PRODUCT_WORDS.get(word, ""), int(table.rows[i])))
     return flowsheet_from_streams(streams, source=source or table.source)
@@ -267,13 +290,19 @@ def flowsheet_from_streams(streams, *, source: str = "flowsheet") -> Flowsheet:
     Flowsheet
     """
     streams = tuple(streams)
+    water = tuple(s for s in streams if s.product == "water")
+    streams = tuple(s for s in streams if s.product != "water")
     names = list(dict.fromkeys([n for s in streams for n in (s.source, s.target) if n]))
 
     def error(message, stream: Stream | None = None, column: str | None = None):
         return InputError(message, source=source, row=stream.row if stream else None, column=column)
 
     if not streams:
-        raise error("the flowsheet has no streams")
+        raise error("the flowsheet has no streams" + (" carrying solids" if water else ""))
+    for stream in water:
+        node = stream.target or stream.source
+        if node not in names:
+            raise error(f"water stream '{stream.name}' touches node '{node}', which no solids stream passes", stream, "to")
     nodes = []
     for name in names:
         inputs = tuple(s.name for s in streams if s.target == name)
@@ -307,7 +336,7 @@ def flowsheet_from_streams(streams, *, source: str = "flowsheet") -> Flowsheet:
         fine = next(s.name for s in outputs if s.product == "fine")
         coarse = next(s.name for s in outputs if s.product == "coarse")
         nodes.append(Node(name, "separator", inputs, tuple(s.name for s in outputs), fine, coarse))
-    flowsheet = Flowsheet(streams, tuple(nodes), source)
+    flowsheet = Flowsheet(streams, tuple(nodes), source, water)
     _check_graph(flowsheet, error)
     return flowsheet
 

@@ -233,6 +233,13 @@ def read_survey(
     for i, name in enumerate(names):
         if not name:
             raise table.error("stream name is blank", index=i, column="stream")
+        if name in {w.name for w in flowsheet.water_streams}:
+            raise table.error(
+                f"stream '{name}' is a water stream of the flowsheet: it carries no solids to analyse or weigh (its flow "
+                "follows from the per cent solids of the solids streams at its node)",
+                index=i,
+                column="stream",
+            )
         if name not in flowsheet.stream_index:
             raise table.error(
                 f"unknown stream '{name}': the flowsheet {flowsheet.source} has {', '.join(flowsheet.stream_names)}",

@@ -48,6 +48,9 @@ def _layout(flowsheet: Flowsheet) -> dict:
         stream = flowsheet.stream(name)
         x, y = positions[stream.source]
         positions[f"out:{name}"] = (x + 0.8, y + {"coarse": 0.9, "fine": -0.9}.get(stream.product, 0.0))
+    for stream in flowsheet.water_streams:  # water drops in from above (or leaves below) its node
+        x, y = positions[stream.target or stream.source]
+        positions[f"water:{stream.name}"] = (x - 0.35, y + (1.0 if stream.target else -1.0))
     return positions
 
 
@@ -79,6 +82,17 @@ def plot_flowsheet(balance, ax=None, *, flow_unit: str = ""):
         elif end[1] != start[1]:
             mid_x += 0.15
         ax.text(mid_x, mid_y + 0.12, label, ha="center", va="bottom", fontsize=7.5, color="#222222")
+    water = balance.water_table().set_index("stream") if not isinstance(balance, Flowsheet) else None
+    for stream in flowsheet.water_streams:
+        node, end = positions[stream.target or stream.source], positions[f"water:{stream.name}"]
+        start, finish = (end, node) if stream.target else (node, end)
+        ax.annotate("", xy=finish, xytext=start,
+                    arrowprops={"arrowstyle": "-|>", "color": "#2a7fb8", "linestyle": "--", "shrinkA": 4, "shrinkB": 22})  # fmt: skip
+        label = f"{stream.name} (water)"
+        if water is not None and water.loc[stream.name, "determined"]:
+            label += f"\n{water.loc[stream.name, 'water_flow']:.4g} +/- {water.loc[stream.name, 'water_flow_sd']:.2g}"
+        ax.text(end[0], end[1] + (0.08 if stream.target else -0.08), label, ha="center",
+                va="bottom" if stream.target else "top", fontsize=7, color="#2a7fb8")  # fmt: skip
     for stream in flowsheet.feeds:
         x, y = positions[f"in:{stream}"]
         ax.plot([x], [y], marker=">", color="#336699")

@@ -104,32 +104,45 @@ class _Problem:
     cov: np.ndarray  # covariance of the measurements (closed analyses: P D P^T blocks)
     W: np.ndarray  # whitening: W cov W^T = I on the range of cov (rows: independent pieces of information)
     effects: np.ndarray  # column j: what a unit error in raw measurement j does to the reported values (P blocks)
+    n_water: int = 0  # water flows after the class flows (solids streams, then water streams); 0: water not balanced
 
     @property
     def variance(self) -> np.ndarray:
         return np.diag(self.cov)
 
-    def predict(self, m: np.ndarray) -> np.ndarray:
-        flows = m.reshape(self.n_streams, self.n_classes).sum(axis=1)
+    def _flows(self, v: np.ndarray) -> np.ndarray:
+        return v[: self.n_streams * self.n_classes].reshape(self.n_streams, self.n_classes).sum(axis=1)
+
+    def predict(self, v: np.ndarray) -> np.ndarray:
+        """The measured quantities at the unknowns ``v`` (class flows, then water flows)."""
+        flows = self._flows(v)
         out = np.empty(self.y.size)
-        share = self.kinds == "share"
+        share, pct = self.kinds == "share", self.kinds == "pct"
         s, i = self.stream[share], self.klass[share]
-        out[share] = m[s * self.n_classes + i] / flows[s]
-        out[~share] = flows[self.stream[~share]]
+        out[share] = v[s * self.n_classes + i] / flows[s]
+        flow = ~share & ~pct
+        out[flow] = flows[self.stream[flow]]
+        s = self.stream[pct]
+        out[pct] = 100.0 * flows[s] / (flows[s] + v[self.n_streams * self.n_classes + s])
         return out
 
-    def jacobian(self, m: np.ndarray) -> np.ndarray:
-        """d(prediction)/d(m), measurements x class flows."""
+    def jacobian(self, v: np.ndarray) -> np.ndarray:
+        """d(prediction)/d(v), measurements x unknowns."""
         n = self.n_classes
-        flows = m.reshape(self.n_streams, n).sum(axis=1)
-        H = np.zeros((self.y.size, m.size))
+        flows = self._flows(v)
+        H = np.zeros((self.y.size, v.size))
         for j in range(self.y.size):
             s = self.stream[j]
             block = slice(s * n, (s + 1) * n)
             if self.kinds[j] == "share":
                 i = self.klass[j]
-                H[j, block] = -m[s * n + i] / flows[s] ** 2
+                H[j, block] = -v[s * n + i] / flows[s] ** 2
                 H[j, s * n + i] += 1.0 / flows[s]
+            elif self.kinds[j] == "pct":
+                water = self.n_streams * n + s
+                total = flows[s] + v[water]
+                H[j, block] = 100.0 * v[water] / total**2
+                H[j, water] = -100.0 * flows[s] / total**2
             else:
                 H[j, block] = 1.0
         return H
@@ -166,7 +179,7 @@ class CircuitBalance:
     flowsheet: Flowsheet
     survey: Survey
     class_flows: np.ndarray = field(repr=False)  # streams x classes
-    covariance: np.ndarray = field(repr=False)  # of the flattened class flows
+    covariance: np.ndarray = field(repr=False)  # of the flattened class flows, then the water flows
     chi_square: float
     dof: int
     alpha: float
@@ -175,6 +188,13 @@ class CircuitBalance:
     basis: str = ""
     problem: _Problem | None = field(default=None, repr=False, compare=False)
     measured_y: np.ndarray | None = field(default=None, repr=False, compare=False)
+    #: Water flows of the solids streams, then of the water streams (None: water not balanced).
+    water_flows: np.ndarray | None = field(default=None, repr=False, compare=False)
+
+    @property
+    def _unknowns(self) -> np.ndarray:
+        water = self.water_flows if self.water_flows is not None else np.zeros(0)
+        return np.concatenate([self.class_flows.ravel(), water])
 
     # --- the global test -------------------------------------------------------------
     @property
@@ -234,7 +254,8 @@ class CircuitBalance:
 
     def _sd(self, gradients: np.ndarray) -> np.ndarray:
         """Delta-method standard deviations of quantities with these gradients in the class flows."""
-        variance = np.einsum("ij,jk,ik->i", gradients, self.covariance, gradients)
+        k = gradients.shape[1]  # the class flows lead the unknowns: a gradient in them alone is shorter
+        variance = np.einsum("ij,jk,ik->i", gradients, self.covariance[:k, :k], gradients)
         return np.sqrt(np.clip(variance, 0.0, None))
 
     @cached_property
@@ -277,6 +298,59 @@ class CircuitBalance:
                 }
             )
         return pd.DataFrame(rows)
+
+    @property
+    def balances_water(self) -> bool:
+        """True when per cent solids were measured: the water flows are then unknowns balanced at every node."""
+        return self.water_flows is not None
+
+    def water_table(self) -> pd.DataFrame:
+        """One row per stream (water streams last), empty unless :attr:`balances_water`.
+
+        Columns ``stream, from, to, product, measured_pct_solids, measured_sd,
+        pct_solids, pct_solids_sd`` (per cent solids by mass, 0-100; NaN for a water stream),
+        ``water_flow, water_flow_sd`` (in the unit of the solids flows), ``determined`` and
+        ``note``: a water flow the survey cannot determine (e.g. two additions at one node,
+        or a feed whose per cent solids was not measured) is NaN, said in words.
+        """
+        columns = ["stream", "from", "to", "product", "measured_pct_solids", "measured_sd", "pct_solids",
+                   "pct_solids_sd", "water_flow", "water_flow_sd", "determined", "note"]  # fmt: skip
+        if not self.balances_water:
+            return pd.DataFrame(columns=columns)
+        S, n = self.class_flows.shape
+        streams = self.flowsheet.streams + self.flowsheet.water_streams
+        k = self.water_flows.size
+        water_gradient = np.hstack([np.zeros((k, S * n)), np.eye(k)])
+        pct_gradient = np.zeros((S, S * n + k))
+        total = self.flows + self.water_flows[:S]
+        for s in range(S):
+            pct_gradient[s, s * n : (s + 1) * n] = 100.0 * self.water_flows[s] / total[s] ** 2
+            pct_gradient[s, S * n + s] = -100.0 * self.flows[s] / total[s] ** 2
+        unseen = _unseen_directions(self.problem, self._unknowns)
+        tolerance = 1e-7 * max(1.0, float(np.abs(self._unknowns).max()))
+        water_determined = np.abs(water_gradient @ unseen).max(axis=1, initial=0.0) < tolerance
+        pct_determined = np.abs(pct_gradient @ unseen).max(axis=1, initial=0.0) < tolerance
+        water_sd, pct_sd = self._sd(water_gradient), self._sd(pct_gradient)
+        pct = 100.0 * self.flows / total
+        measured = self.survey.pct_solids.set_index("stream")
+        rows = []
+        for j, stream in enumerate(streams):
+            solids = j < S
+            given = solids and stream.name in measured.index
+            determined = bool(water_determined[j])
+            rows.append({
+                "stream": stream.name, "from": stream.source, "to": stream.target, "product": stream.product,
+                "measured_pct_solids": float(measured.loc[stream.name, "value"]) if given else np.nan,
+                "measured_sd": float(measured.loc[stream.name, "sd"]) if given else np.nan,
+                "pct_solids": pct[j] if solids and pct_determined[j] else np.nan,
+                "pct_solids_sd": pct_sd[j] if solids and pct_determined[j] else np.nan,
+                "water_flow": self.water_flows[j] if determined else np.nan,
+                "water_flow_sd": water_sd[j] if determined else np.nan,
+                "determined": determined,
+                "note": "" if determined else "not determined by the survey: the water balances leave it free "
+                "(measure the per cent solids of this stream, or of the streams at its node)",
+            })  # fmt: skip
+        return pd.DataFrame(rows, columns=columns)
 
     def distributions_table(self) -> pd.DataFrame:
         """``stream, size_lower, size_upper, size, measured, measured_sd, reconciled, reconciled_sd``
@@ -327,7 +401,7 @@ class CircuitBalance:
         ]
         if problem is None or problem.y.size == 0:
             return pd.DataFrame(columns=columns)
-        m = self.class_flows.ravel()
+        m = self._unknowns
         H = problem.jacobian(m)
         predicted = problem.predict(m)
         cov_pred = H @ self.covariance @ H.T
@@ -342,7 +416,9 @@ class CircuitBalance:
         table = pd.DataFrame(
             {
                 "measurement": [
-                    f"{self.streams[s]} flow" if k == "flow" else f"{self.streams[s]} class {_class_name(classes, i)}"
+                    f"{self.streams[s]} {_MEASURED_QUANTITY[k]}"
+                    if k != "share"
+                    else f"{self.streams[s]} class {_class_name(classes, i)}"
                     for s, i, k in zip(problem.stream, problem.klass, problem.kinds)
                 ],
                 "stream": [self.streams[s] for s in problem.stream],
@@ -378,12 +454,10 @@ class CircuitBalance:
 
     def _measurement_rows(self) -> list:
         rows = {(r.stream, r.class_index): r.row for r in self.survey.shares.itertuples()}
-        flows = {r.stream: r.row for r in self.survey.flows.itertuples()}
+        rows |= {(r.stream, -1): r.row for r in self.survey.flows.itertuples()}
+        rows |= {(r.stream, -2): r.row for r in self.survey.pct_solids.itertuples()}
         problem = self.problem
-        return [
-            flows.get(self.streams[s]) if k == "flow" else rows.get((self.streams[s], i))
-            for s, i, k in zip(problem.stream, problem.klass, problem.kinds)
-        ]
+        return [rows.get((self.streams[s], i)) for s, i in zip(problem.stream, problem.klass)]
 
     @cached_property
     def _measurement_tests(self) -> _MeasurementTests:
@@ -403,7 +477,7 @@ class CircuitBalance:
         if problem is None or problem.y.size == 0:
             empty = np.zeros(0)
             return _MeasurementTests(empty, empty, empty, empty.astype(bool), np.zeros((0, 0)))
-        m = self.class_flows.ravel()
+        m = self._unknowns
         J = problem.W @ problem.jacobian(m) @ problem.N
         residual = problem.W @ (self.measured_y - problem.predict(m))
         basis, singular, _ = np.linalg.svd(J, full_matrices=False)
@@ -595,7 +669,8 @@ class CircuitBalance:
             ("nodes", len(self.flowsheet.nodes)),
             ("size classes", n),
             ("unknown class flows (streams x classes)", S * n),
-            ("independent linear constraints (balances, fixed flows, basis)", S * n - free),
+            *([("unknown water flows (streams and water streams)", self.water_flows.size)] if self.balances_water else []),
+            ("independent linear constraints (balances, fixed flows, basis)", self._unknowns.size - free),
             ("free unknowns", free),
             ("measurements with a standard deviation", measurements),
             ("redundancy (degrees of freedom of the chi-square)", self.dof),
@@ -613,6 +688,13 @@ class CircuitBalance:
             f"{self.problem.y.size if self.problem else 0} measurements, redundancy {self.dof}"
             + (f"; flows relative to {self.basis}" if self.basis else ""),
         ]
+        if self.balances_water:
+            water = self.water_table()
+            free = water.loc[~water["determined"], "stream"].tolist()
+            lines.append(
+                f"water balanced at every node from the per cent solids of {len(self.survey.pct_solids)} stream(s)"
+                + (f"; water flow not determined for {', '.join(free)}" if free else "")
+            )
         chi = self.chi_square_table().iloc[0]
         if self.dof > 0:
             lines.append(
@@ -644,6 +726,9 @@ class CircuitBalance:
         if kind not in figures:
             raise ValueError(f"unknown kind {kind!r}; choose one of {', '.join(figures)}")
         return figures[kind](self, ax=ax)
+
+
+_MEASURED_QUANTITY = {"flow": "flow", "pct": "per cent solids"}
 
 
 def _class_name(classes: pd.DataFrame, i: int) -> str:
@@ -728,8 +813,9 @@ def reconcile(
         z, success, message = solution.x, bool(solution.success), str(solution.message)
     else:
         z, success, message = z0, True, "nothing to adjust"
-    m = problem.m0 + problem.N @ z
-    flows = m.reshape(len(flowsheet.streams), -1).sum(axis=1)
+    v = problem.m0 + problem.N @ z
+    S, n = problem.n_streams, problem.n_classes
+    flows = v[: S * n].reshape(S, n).sum(axis=1)
     if np.any(flows <= 0):
         bad = [flowsheet.stream_names[s] for s in np.flatnonzero(flows <= 0)]
         raise InputError(
@@ -749,7 +835,7 @@ def reconcile(
     return CircuitBalance(
         flowsheet,
         survey,
-        m.reshape(len(flowsheet.streams), -1),
+        v[: S * n].reshape(S, n),
         covariance,
         chi,
         int(problem.W.shape[0] - rank),
@@ -759,68 +845,78 @@ def reconcile(
         basis,
         problem,
         problem.y.copy(),
+        v[S * n :] if problem.n_water else None,
     )
 
 
 def _build(flowsheet: Flowsheet, survey: Survey) -> tuple[_Problem, str]:
     S = len(flowsheet.streams)
     n = max(survey.n_classes, 1)
+    n_water = S + len(flowsheet.water_streams) if len(survey.pct_solids) else 0
+    size = S * n + n_water
     M = flowsheet.incidence()
     index = flowsheet.stream_index
     rows, rhs = [], []
+
+    def constraint(value: float = 0.0) -> np.ndarray:
+        rows.append(np.zeros(size))
+        rhs.append(value)
+        return rows[-1]
+
+    def solids_of(stream: str, row: np.ndarray) -> np.ndarray:
+        return row[index[stream] * n : (index[stream] + 1) * n]
+
     for k, node in enumerate(flowsheet.nodes):
         if node.balances_classes:
             for i in range(n):
-                row = np.zeros(S * n)
-                row[np.arange(S) * n + i] = M[k]
-                rows.append(row)
-                rhs.append(0.0)
+                constraint()[np.arange(S) * n + i] = M[k]
         else:
-            rows.append(np.repeat(M[k], n))
-            rhs.append(0.0)
+            constraint()[: S * n] = np.repeat(M[k], n)
+    if n_water:  # water balances at every node, the declared water streams its only additions and removals
+        water_incidence = np.hstack([M, flowsheet.water_incidence()])
+        for k in range(len(flowsheet.nodes)):
+            constraint()[S * n :] = water_incidence[k]
     fixed = survey.flows[survey.flows["sd"] == 0]
     free_flows = survey.flows[survey.flows["sd"] > 0]
     for record in fixed.itertuples():
-        row = np.zeros(S * n)
-        row[index[record.stream] * n : (index[record.stream] + 1) * n] = 1.0
-        rows.append(row)
-        rhs.append(record.value)
+        solids_of(record.stream, constraint(record.value))[:] = 1.0
     basis = ""
     if survey.flows.empty:
         feed = flowsheet.feeds[0]
-        row = np.zeros(S * n)
-        row[index[feed] * n : (index[feed] + 1) * n] = 1.0
-        rows.append(row)
-        rhs.append(BASIS)
+        solids_of(feed, constraint(BASIS))[:] = 1.0
         basis = f"{BASIS:g} for stream '{feed}' (no solids flow measured)"
-    exact = survey.shares[survey.shares["sd"] == 0]
-    for record in exact.itertuples():  # an exact share: m_si - x sum_j m_sj = 0, linear in the class flows
-        s = index[record.stream]
-        row = np.zeros(S * n)
-        row[s * n : (s + 1) * n] = -record.value
-        row[s * n + record.class_index] += 1.0
-        rows.append(row)
-        rhs.append(0.0)
-    A = np.array(rows) if rows else np.zeros((0, S * n))
+    for record in survey.shares[survey.shares["sd"] == 0].itertuples():  # m_si - x sum_j m_sj = 0: linear
+        row = solids_of(record.stream, constraint())
+        row[:] = -record.value
+        row[record.class_index] += 1.0
+    exact_pct = survey.pct_solids[survey.pct_solids["sd"] == 0]
+    for record in exact_pct.itertuples():  # (100 - p) F - p w = 0: linear too
+        row = constraint()
+        solids_of(record.stream, row)[:] = 100.0 - record.value
+        row[S * n + index[record.stream]] = -record.value
+    A = np.array(rows) if rows else np.zeros((0, size))
     b = np.array(rhs)
     if A.shape[0]:
         m0 = np.linalg.lstsq(A, b, rcond=None)[0]
         if np.linalg.norm(A @ m0 - b) > 1e-8 * max(1.0, np.linalg.norm(b)):
             raise InputError(
-                "the flows and shares given with a standard deviation of 0 contradict the balances of the flowsheet",
+                "the flows, shares and per cent solids given with a standard deviation of 0 contradict the balances of "
+                "the flowsheet",
                 source=survey.source,
             )
         N = linalg.null_space(A, rcond=1e-10)
     else:
-        m0, N = np.zeros(S * n), np.eye(S * n)
+        m0, N = np.zeros(size), np.eye(size)
     shares = survey.shares[survey.shares["sd"] > 0]
-    kinds = np.array(["share"] * len(shares) + ["flow"] * len(free_flows), dtype=object)
-    stream = np.array([index[s] for s in shares["stream"]] + [index[s] for s in free_flows["stream"]], dtype=int)
-    klass = np.array(list(shares["class_index"].astype(int)) + [-1] * len(free_flows), dtype=int)
-    y = np.concatenate([shares["value"].to_numpy(float), free_flows["value"].to_numpy(float)])
-    sd = np.concatenate([shares["sd"].to_numpy(float), free_flows["sd"].to_numpy(float)])
+    pct = survey.pct_solids[survey.pct_solids["sd"] > 0]
+    parts = ((shares, "share"), (free_flows, "flow"), (pct, "pct"))
+    kinds = np.array([kind for table, kind in parts for _ in range(len(table))], dtype=object)
+    stream = np.array([index[name] for table, _ in parts for name in table["stream"]], dtype=int)
+    klass = np.array([*shares["class_index"].astype(int), *[-1] * len(free_flows), *[-2] * len(pct)], dtype=int)
+    y = np.concatenate([table["value"].to_numpy(float) for table, _ in parts])
+    sd = np.concatenate([table["sd"].to_numpy(float) for table, _ in parts])
     cov, W, effects = _measurement_covariance(shares, sd, survey.closed_streams)
-    return _Problem(S, n, A, b, m0, N, kinds, stream, klass, y, sd, cov, W, effects), basis
+    return _Problem(S, n, A, b, m0, N, kinds, stream, klass, y, sd, cov, W, effects, n_water), basis
 
 
 def _measurement_covariance(shares: pd.DataFrame, sd: np.ndarray, closed) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -902,28 +998,48 @@ def _start(flowsheet: Flowsheet, survey: Survey, problem: _Problem) -> np.ndarra
         rhs.append(10.0 * BASIS)
     fit = optimize.lsq_linear(np.array(rows), np.array(rhs), bounds=(1e-3 * scale, np.inf))
     m = (fit.x[:, None] * guess).ravel()
+    if problem.n_water:
+        m = np.concatenate([m, _start_water(flowsheet, survey, fit.x)])
     if problem.A.shape[0]:
         m = m - np.linalg.lstsq(problem.A, problem.A @ m - problem.b, rcond=None)[0]
     return m
 
 
-def _check_observable(flowsheet: Flowsheet, survey: Survey, problem: _Problem, m: np.ndarray) -> None:
-    """Refuse a survey that cannot determine every flow and distribution (naming the streams)."""
+def _start_water(flowsheet: Flowsheet, survey: Survey, flows: np.ndarray) -> np.ndarray:
+    """Water flows from the measured per cent solids at the starting solids flows, completed by
+    the water balances (non-negative least squares)."""
+    incidence = np.hstack([flowsheet.incidence(), flowsheet.water_incidence()])
+    rows, rhs = list(incidence), [0.0] * len(incidence)
+    for record in survey.pct_solids.itertuples():
+        row = np.zeros(incidence.shape[1])
+        row[flowsheet.stream_index[record.stream]] = 1.0
+        rows.append(row)
+        rhs.append(flows[flowsheet.stream_index[record.stream]] * (100.0 - record.value) / record.value)
+    return optimize.lsq_linear(np.array(rows), np.array(rhs), bounds=(0.0, np.inf)).x
+
+
+def _unseen_directions(problem: _Problem, v: np.ndarray) -> np.ndarray:
+    """Directions of the unknowns (columns) that keep every constraint and move no measurement
+    at ``v``: what the survey cannot determine."""
     free = problem.N.shape[1]
     if free == 0:
-        return
+        return np.zeros((v.size, 0))
+    if not problem.y.size:
+        return problem.N
+    J = problem.W @ problem.jacobian(v) @ problem.N
+    _, singular, vt = np.linalg.svd(J, full_matrices=True)
+    rank = int(np.sum(singular > 1e-8 * max(1.0, np.abs(J).max())))
+    return problem.N @ vt[rank:].T
+
+
+def _check_observable(flowsheet: Flowsheet, survey: Survey, problem: _Problem, v: np.ndarray) -> None:
+    """Refuse a survey that cannot determine every solids flow and distribution (naming the
+    streams); water flows left undetermined are reported by the balance, not refused."""
     S, n = problem.n_streams, problem.n_classes
-    if problem.y.size:
-        J = problem.W @ problem.jacobian(m) @ problem.N
-        rank_tol = 1e-8 * max(1.0, np.abs(J).max())
-        _, singular, vt = np.linalg.svd(J, full_matrices=True)
-        rank = int(np.sum(singular > rank_tol))
-        unseen = vt[rank:].T  # directions of z the measurements do not see
-    else:
-        unseen = np.eye(free)
-    if unseen.shape[1] == 0:
+    directions = _unseen_directions(problem, v)[: S * n]
+    if directions.shape[1] == 0:
         return
-    directions = problem.N @ unseen  # in the class flows
+    m = v[: S * n]
     flows = m.reshape(S, n).sum(axis=1)
     blocks = directions.reshape(S, n, -1)
     flow_change = np.abs(blocks.sum(axis=1)).max(axis=1) / np.maximum(np.abs(flows), 1e-12)
