@@ -44,6 +44,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..loading.points import TrompPoints
+from .batched import BatchProblem, PaddedPoints, levenberg_marquardt, sum_of_squares
 from .curve_fit import CurveFit, FitOptions, failed_fit, fit_formula
 from .fitting import ParameterFit, parameters_at_bounds
 from .formulas import Formula, get_formula, is_batchable
@@ -62,61 +63,9 @@ GRID_CUTS = 24
 GOLDEN_STEPS = 14
 #: Best grid points used as starts (besides the data-driven start).
 GRID_STARTS = 3
-MAX_ITERATIONS = 400
-#: Relative decrease of the sum of squares below which an accepted step ends a row.
-SSR_TOLERANCE = 1e-13
 #: Elements per work array in the grid stage (bounds the memory of large batches).
 GRID_CHUNK_ELEMENTS = 2_000_000
 ENGINE_MESSAGE = "batched Levenberg-Marquardt: converged"
-
-
-@dataclass(frozen=True)
-class PaddedPoints:
-    """Experiments stacked into ``(experiments, points)`` arrays, padded with weight 0.
-
-    Attributes
-    ----------
-    size, observed : ndarray, shape (E, P)
-        Sizes and measured partition to fines; padding repeats the last point.
-    root_weight : ndarray, shape (E, P)
-        Square roots of the normalised weights (mean 1 over the real points); 0 on padding.
-    n : ndarray of int, shape (E,)
-        Number of real points per experiment.
-    """
-
-    size: np.ndarray
-    observed: np.ndarray
-    root_weight: np.ndarray
-    n: np.ndarray
-
-    @classmethod
-    def from_points(cls, experiments: Sequence[TrompPoints]) -> PaddedPoints:
-        count = len(experiments)
-        width = max(points.n for points in experiments)
-        size = np.ones((count, width))
-        observed = np.zeros((count, width))
-        root_weight = np.zeros((count, width))
-        n = np.array([points.n for points in experiments])
-        for row, points in enumerate(experiments):
-            k = points.n
-            size[row, :k], size[row, k:] = points.size, points.size[-1]
-            observed[row, :k], observed[row, k:] = points.partition_fine, points.partition_fine[-1]
-            weight = np.ones(k) if points.weight is None else points.weight / points.weight.mean()
-            root_weight[row, :k] = np.sqrt(weight)
-        return cls(size, observed, root_weight, n)
-
-    def __len__(self) -> int:
-        return self.size.shape[0]
-
-    def take(self, rows) -> PaddedPoints:
-        return PaddedPoints(self.size[rows], self.observed[rows], self.root_weight[rows], self.n[rows])
-
-    def cut_bounds(self, factor: float) -> tuple[np.ndarray, np.ndarray]:
-        """``(ln lower, ln upper)`` of ``d_cut``: smallest size / factor, largest size x factor."""
-        real = self.root_weight > 0
-        smallest = np.where(real, self.size, np.inf).min(axis=1)
-        largest = np.where(real, self.size, -np.inf).max(axis=1)
-        return np.log(smallest / factor), np.log(largest * factor)
 
 
 @dataclass(frozen=True)
@@ -147,84 +96,7 @@ class BatchOptimum:
             return np.sqrt(np.diagonal(self.covariance, axis1=1, axis2=2))
 
 
-def curve_values(formula: Formula, x, shape, extras: dict, efficiency=None, x_break=None) -> np.ndarray:
-    """Partition to fines of ``formula`` with array-valued parameters broadcast against ``x``
-    (``x_break``: break points of a moving break, as (11)'s, already solved for these shapes)."""
-    moving = formula.moving_break
-    if moving is None:
-        return formula.phi(x, shape, **extras)
-    if x_break is None:
-        # one root per distinct (shape, efficiency): grid rows and Jacobian columns in d_cut share them
-        kr, eff = np.broadcast_arrays(np.asarray(shape, dtype=float), np.asarray(efficiency, dtype=float))
-        # a pair as one complex number: np.unique(axis=...) would compare structured rows, whose
-        # dtype promotion runs Python code in which numpy turns a Ctrl-C into a TypeError
-        pairs, inverse = np.unique(kr.ravel() + 1j * eff.ravel(), return_inverse=True)
-        x_break = moving.on_arrays(pairs.real, pairs.imag)[inverse.ravel()].reshape(kr.shape)
-    return moving.phi(x, shape, x_break)
-
-
 # --- the fit -------------------------------------------------------------------------------
-class _Problem:
-    """Residuals of one formula on padded experiments, as a function of internal parameters.
-
-    Internal parameters per row: ``ln d_cut``, the shape, then the extras.  ``rows`` maps
-    each work row to its experiment (several starts share an experiment).
-    """
-
-    def __init__(self, formula: Formula, data: PaddedPoints, efficiency, cut_factor: float):
-        self.formula = formula
-        self.data = data
-        self.efficiency = None if efficiency is None else np.asarray(efficiency, dtype=float)
-        self.extra_names = tuple(extra.name for extra in formula.extras)
-        low_cut, high_cut = data.cut_bounds(cut_factor)
-        shape_low, shape_high = formula.shape_bounds
-        extra_low = [extra.bounds[0] for extra in formula.extras]
-        extra_high = [extra.bounds[1] for extra in formula.extras]
-        count = len(data)
-        self.lower = np.column_stack([low_cut, np.full(count, shape_low), *[np.full(count, v) for v in extra_low]])
-        self.upper = np.column_stack([high_cut, np.full(count, shape_high), *[np.full(count, v) for v in extra_high]])
-
-    def breaks(self, params: np.ndarray, rows: np.ndarray):
-        """Break points of a moving break (``Formula.moving_break``, (11)) for these rows, None
-        for other formulas; they depend on the shape and the measured efficiency only, so
-        steps in d_cut reuse them."""
-        if self.formula.moving_break is None:
-            return None
-        return self.formula.moving_break.on_arrays(params[:, 1], self.efficiency[rows])[:, None]
-
-    def residual(self, params: np.ndarray, rows: np.ndarray, x_break=None) -> np.ndarray:
-        """Weighted residuals ``(len(rows), P)`` at internal parameters ``params``."""
-        data = self.data
-        x = data.size[rows] / np.exp(params[:, :1])
-        extras = {name: params[:, 2 + i : 3 + i] for i, name in enumerate(self.extra_names)}
-        efficiency = None if self.efficiency is None else self.efficiency[rows][:, None]
-        with np.errstate(all="ignore"):
-            phi = curve_values(self.formula, x, params[:, 1:2], extras, efficiency, x_break)
-            return data.root_weight[rows] * (phi - data.observed[rows])
-
-    def jacobian(self, params: np.ndarray, rows: np.ndarray, base: np.ndarray, relative_step: float = 1.5e-8) -> np.ndarray:
-        """Forward-difference Jacobian ``(len(rows), P, p)``, stepping inwards at an upper bound."""
-        count, width = base.shape
-        jac = np.empty((count, width, params.shape[1]))
-        upper = self.upper[rows]
-        x_break = self.breaks(params, rows)
-        for j in range(params.shape[1]):
-            # column 0 is ln d_cut, whose value depends on the size unit: an absolute step keeps
-            # the Jacobian, and so the standard errors, the same in any unit (issue 15)
-            step = relative_step * (1.0 if j == 0 else np.maximum(np.abs(params[:, j]), 1.0))
-            step = np.broadcast_to(step, params.shape[:1])
-            step = np.where(params[:, j] + step > upper[:, j], -step, step)
-            moved = params.copy()
-            moved[:, j] += step
-            jac[:, :, j] = (self.residual(moved, rows, x_break if j != 1 else None) - base) / step[:, None]
-        return jac
-
-
-def _ssr(residual: np.ndarray) -> np.ndarray:
-    value = np.einsum("ij,ij->i", residual, residual)
-    return np.where(np.isfinite(value), value, np.inf)
-
-
 def golden_section(objective, lo: np.ndarray, hi: np.ndarray, steps: int):
     """Golden-section minimisation of ``objective`` on ``[lo, hi]``, elementwise on arrays:
     one evaluation per step, the bracket shrinking by 0.618 each time.  Returns the better
@@ -244,7 +116,7 @@ def golden_section(objective, lo: np.ndarray, hi: np.ndarray, steps: int):
     return np.where(fa <= fb, a, b), np.minimum(fa, fb)
 
 
-def _grid_starts(problem: _Problem, start_cut: np.ndarray, extra_start: np.ndarray):
+def _grid_starts(problem: BatchProblem, start_cut: np.ndarray, extra_start: np.ndarray):
     """Best ``GRID_STARTS`` profiled grid points per experiment and the grid minimum."""
     formula, data = problem.formula, problem.data
     slopes, n_starts = (PIECEWISE_GRID_SLOPES, PIECEWISE_GRID_STARTS) if formula.piecewise else (ENGINE_GRID_SLOPES, GRID_STARTS)
@@ -274,7 +146,7 @@ def _grid_starts(problem: _Problem, start_cut: np.ndarray, extra_start: np.ndarr
         per_shape = np.column_stack([np.zeros(block.size * n_shapes), np.tile(shapes, block.size)])
         x_break = problem.breaks(per_shape, np.repeat(block, n_shapes))
         x_break = None if x_break is None else np.repeat(x_break, cuts.shape[1], axis=0)
-        ssr = _ssr(problem.residual(params, rows, x_break)).reshape(block.size, n_shapes, cuts.shape[1])
+        ssr = sum_of_squares(problem.residual(params, rows, x_break)).reshape(block.size, n_shapes, cuts.shape[1])
         pick = np.argmin(ssr, axis=2)
         best_cut[block] = np.take_along_axis(cuts[:, None, :].repeat(n_shapes, axis=1), pick[..., None], axis=2)[..., 0]
         best_ssr[block] = np.take_along_axis(ssr, pick[..., None], axis=2)[..., 0]
@@ -292,7 +164,7 @@ def _grid_starts(problem: _Problem, start_cut: np.ndarray, extra_start: np.ndarr
         def ssr_at(log_cut, fixed=fixed, rows=shape_rows, count=block.size, x_break=block_breaks):
             params = fixed.copy()
             params[:, 0] = log_cut.ravel()
-            return _ssr(problem.residual(params, rows, x_break)).reshape(count, n_shapes)
+            return sum_of_squares(problem.residual(params, rows, x_break)).reshape(count, n_shapes)
 
         refined, refined_ssr = golden_section(ssr_at, lo, hi, GOLDEN_STEPS)
         better = refined_ssr < best_ssr[block]
@@ -307,78 +179,8 @@ def _grid_starts(problem: _Problem, start_cut: np.ndarray, extra_start: np.ndarr
     return cut, shape, best_ssr.min(axis=1)
 
 
-def levenberg_marquardt(
-    problem: _Problem,
-    params: np.ndarray,
-    rows: np.ndarray,
-    *,
-    max_iterations: int = MAX_ITERATIONS,
-    relative_step: float = 1.5e-8,
-):
-    """Projected Levenberg-Marquardt on every row at once.
-
-    Returns ``(params, ssr, nfev)`` per row.  A row stops when an accepted step lowers its
-    sum of squares by less than :data:`SSR_TOLERANCE` (relative), when the damping grows
-    past 1e12 without an accepted step (no descent left within the bounds), or after
-    ``max_iterations``.  ``relative_step`` is the forward-difference step; a coarse step
-    (1e-3) sees past the kinks of the piecewise formulas, where a fine one stalls.
-    """
-    lower, upper = problem.lower[rows], problem.upper[rows]
-    params = np.clip(params, lower, upper)
-    residual = problem.residual(params, rows)
-    ssr = _ssr(residual)
-    n_params = params.shape[1]
-    nfev = np.ones(rows.size, dtype=int)
-    damping = np.full(rows.size, 1e-3)
-    alive = np.isfinite(ssr)
-    need_jacobian = alive.copy()
-    gradient = np.zeros((rows.size, n_params))
-    hessian = np.zeros((rows.size, n_params, n_params))
-    eye = np.eye(n_params)
-    for _ in range(max_iterations):
-        work = np.flatnonzero(alive)
-        if not work.size:
-            break
-        fresh = work[need_jacobian[work]]
-        if fresh.size:
-            jac = problem.jacobian(params[fresh], rows[fresh], residual[fresh], relative_step)
-            nfev[fresh] += n_params
-            gradient[fresh] = np.einsum("bkp,bk->bp", jac, residual[fresh])
-            hessian[fresh] = np.einsum("bkp,bkq->bpq", jac, jac)
-            need_jacobian[fresh] = False
-        g, h, p = gradient[work], hessian[work], params[work]
-        span = upper[work] - lower[work]
-        pinned = ((p <= lower[work] + 1e-12 * span) & (g > 0)) | ((p >= upper[work] - 1e-12 * span) & (g < 0)) | (span == 0)
-        free = ~pinned
-        h_free = h * free[:, :, None] * free[:, None, :] + eye * pinned[:, :, None]
-        diagonal = np.maximum(np.diagonal(h_free, axis1=1, axis2=2), 1e-300)
-        system = h_free + damping[work, None, None] * eye * diagonal[:, None, :]
-        with np.errstate(all="ignore"):
-            try:
-                step = -np.linalg.solve(system, (g * free)[..., None])[..., 0]
-            except np.linalg.LinAlgError:
-                step = -(g * free) / diagonal
-        step = np.where(np.isfinite(step), step, 0.0)
-        trial = np.clip(p + step, lower[work], upper[work])
-        trial_residual = problem.residual(trial, rows[work])
-        trial_ssr = _ssr(trial_residual)
-        nfev[work] += 1
-        accepted = trial_ssr < ssr[work]
-        gain = np.where(accepted, (ssr[work] - trial_ssr) / np.maximum(ssr[work], 1e-300), 0.0)
-        took = work[accepted]
-        params[took], residual[took], ssr[took] = trial[accepted], trial_residual[accepted], trial_ssr[accepted]
-        need_jacobian[took] = True
-        damping[took] = np.maximum(damping[took] / 3.0, 1e-12)
-        refused = work[~accepted]
-        damping[refused] *= 4.0
-        stalled = np.all(trial == p, axis=1)
-        finished = (accepted & (gain < SSR_TOLERANCE)) | (~accepted & ((damping[work] > 1e12) | stalled))
-        alive[work[finished]] = False
-    return params, ssr, nfev
-
-
 def compass_search(
-    problem: _Problem, params: np.ndarray, rows: np.ndarray, *, first_step: float = 1e-2, last_step: float = 1e-11
+    problem: BatchProblem, params: np.ndarray, rows: np.ndarray, *, first_step: float = 1e-2, last_step: float = 1e-11
 ):
     """Derivative-free descent for the kinks of the piecewise formulas, on every row at once.
 
@@ -395,7 +197,7 @@ def compass_search(
     ]
     directions = np.array(directions + [-d for d in directions])
     params = params.copy()
-    ssr = _ssr(problem.residual(params, rows))
+    ssr = sum_of_squares(problem.residual(params, rows))
     nfev = np.ones(rows.size, dtype=int)
     step = np.full(rows.size, first_step)
     open_ = np.flatnonzero(np.isfinite(ssr))
@@ -403,7 +205,7 @@ def compass_search(
         scale = np.maximum(np.abs(params[open_]), 1.0) * step[open_, None]
         trials = np.clip(params[open_, None, :] + directions[None] * scale[:, None, :], lower[open_, None], upper[open_, None])
         flat = trials.reshape(-1, n_params)
-        trial_ssr = _ssr(problem.residual(flat, np.repeat(rows[open_], len(directions)))).reshape(open_.size, -1)
+        trial_ssr = sum_of_squares(problem.residual(flat, np.repeat(rows[open_], len(directions)))).reshape(open_.size, -1)
         nfev[open_] += len(directions)
         pick = np.argmin(trial_ssr, axis=1)
         best = trial_ssr[np.arange(open_.size), pick]
@@ -423,7 +225,7 @@ CROSSING_NEAR = 0.03
 CROSSING_STEPS = 36
 
 
-def search_break_crossings(problem: _Problem, params: np.ndarray, ssr: np.ndarray, rows: np.ndarray):
+def search_break_crossings(problem: BatchProblem, params: np.ndarray, ssr: np.ndarray, rows: np.ndarray):
     """A moving break (``Formula.moving_break``, formula (11)): the optimum may sit where a
     measured point crosses the break, ``size_i / d_cut = x_a(kr)``.  Along that curve the sum
     of squares has a ridge of kinks that steps along the axes or diagonals
@@ -454,7 +256,7 @@ def search_break_crossings(problem: _Problem, params: np.ndarray, ssr: np.ndarra
         with np.errstate(divide="ignore"):  # no break (x_a = 0): the crossing runs off to the cut's bound
             cut = np.clip(np.log(size / x_break), cut_low, cut_high)
         trial = np.column_stack([cut, shape])
-        return trial, _ssr(problem.residual(trial, work_rows, x_break[:, None]))
+        return trial, sum_of_squares(problem.residual(trial, work_rows, x_break[:, None]))
 
     best_log_shape, _ = golden_section(lambda log_shape: crossing(log_shape)[1], low, high, CROSSING_STEPS)
     trial, trial_ssr = crossing(best_log_shape)
@@ -499,7 +301,7 @@ def fit_batch(
     formula = get_formula(formula)
     if not is_batchable(formula):
         raise ValueError(f"formula {formula.id} cannot be evaluated on arrays of parameters; fit it one by one")
-    problem = _Problem(formula, data, efficiency, cut_factor)
+    problem = BatchProblem(formula, data, efficiency, cut_factor)
     count = len(data)
     starts, grid_ssr, kink = _all_starts(problem, starts, efficiency, global_search=global_search)
     n_starts = starts.shape[1]
@@ -525,7 +327,7 @@ def fit_batch(
     return BatchOptimum(formula, names, native, best_ssr, residual, covariance, grid_ssr, total_nfev, n_starts)
 
 
-def _all_starts(problem: _Problem, starts, efficiency, *, global_search: bool):
+def _all_starts(problem: BatchProblem, starts, efficiency, *, global_search: bool):
     """``(starts, grid_ssr, kink)``: the given starts (``ln d_cut``, clipped into the bounds), with
     ``global_search`` the best points of the profiled shape grid and, for a moving break with a
     kink, starts on both sides of it; the grid's SSR (nan without the search) and the kink (or None)."""
@@ -550,7 +352,7 @@ def _all_starts(problem: _Problem, starts, efficiency, *, global_search: bool):
     return starts, grid_ssr, kink
 
 
-def _polish_piecewise(problem: _Problem, params, ssr, nfev, best, rows, *, kink, moving) -> None:
+def _polish_piecewise(problem: BatchProblem, params, ssr, nfev, best, rows, *, kink, moving) -> None:
     """Move the ``best`` optimum of each experiment of a piecewise formula past its kinks (in place):
     a compass search without derivatives, Levenberg-Marquardt again, then ``d_cut`` alone at the
     ``kink``'s shape and the search along the crossings with the ``moving`` break, where they exist."""

@@ -19,7 +19,9 @@ import pandas as pd
 from scipy import stats
 
 from ..loading.points import TrompPoints
+from .batched import BatchProblem, PaddedPoints, profile_limits, sum_of_squares
 from .fitting import on_bound
+from .formulas import is_batchable
 from .indices import batch_curve_indices, batchable_indices, curve_indices
 from .measured import CUT_QUANTITIES, formula_context, parameter_specs
 
@@ -228,6 +230,54 @@ def batched_delta_indices(fits: Sequence[CurveFit], delta_max: float | None = No
     return known
 
 
+def batched_profile_intervals(fits: Sequence[CurveFit], level: float = 0.95) -> list[dict | None]:
+    """Profile-likelihood intervals of the parameters of many fits, one batched search per formula.
+
+    The same intervals as lmfit's ``conf_interval`` (F test, the other parameters
+    re-optimised, bounds respected; :func:`~tromplab.curves.batched.profile_limits`), to its
+    tolerance (it stops at 5e-5 relative; this search at 1e-9), for every formula the
+    batched engine evaluates on arrays (:func:`~tromplab.curves.formulas.is_batchable`).
+
+    Returns
+    -------
+    list
+        Per fit, ``{name: (low, high)}`` (nan where the profile reaches a bound below the
+        level), or None for a failed fit or a formula that is not batchable: its intervals
+        come from lmfit (:meth:`~tromplab.curves.fitting.ParameterFit.profile_intervals`).
+    """
+    found: list[dict | None] = [None] * len(fits)
+    groups: dict[str, list[int]] = {}
+    for i, fit in enumerate(fits):
+        if fit.success and is_batchable(fit.formula) and all(np.isfinite(list(fit.fit.values.values()))):
+            groups.setdefault(fit.formula.id, []).append(i)
+    for members in groups.values():
+        chosen = [fits[i] for i in members]
+        formula, names = chosen[0].formula, chosen[0].fit.names
+        efficiency = np.array([fit.context["measured_efficiency"] for fit in chosen]) if formula.context_from_efficiency else None
+        problem = BatchProblem(formula, PaddedPoints.from_points([fit.points for fit in chosen]), efficiency, 100.0)
+        values = np.array([[fit.fit.values[name] for name in names] for fit in chosen])
+        stderr = np.array([[fit.fit.stderr[name] for name in names] for fit in chosen])
+        best = values.copy()
+        best[:, 0] = np.log(values[:, 0])
+        stderr[:, 0] = stderr[:, 0] / values[:, 0]  # of ln d_cut
+        best_ssr = sum_of_squares(problem.residual(best, np.arange(len(chosen))))
+        free = np.array([fit.points.n - len(names) for fit in chosen], dtype=float)
+        with np.errstate(invalid="ignore", divide="ignore"):  # the Wald half-width: the limit of a quadratic profile
+            steps = stderr * np.sqrt(stats.f.ppf(level, 1, free))[:, None]
+        low, high = profile_limits(problem, best, best_ssr, steps, level)
+        low[:, 0], high[:, 0] = np.exp(low[:, 0]), np.exp(high[:, 0])
+        for row, i in enumerate(members):
+            found[i] = {name: (float(low[row, k]), float(high[row, k])) for k, name in enumerate(names)}
+    return found
+
+
+def profile_intervals(fit: CurveFit, level: float = 0.95) -> dict[str, tuple[float, float]]:
+    """Profile-likelihood intervals of one fit's parameters: the batched search where the
+    formula allows (:func:`batched_profile_intervals`), else lmfit's ``conf_interval``."""
+    found = batched_profile_intervals([fit], level)[0]
+    return found if found is not None else fit.with_lmfit().fit.profile_intervals(level)
+
+
 def _difference(evaluate, values: dict[str, float], name: str) -> np.ndarray:
     step = _step(values[name])
     upper = np.asarray(evaluate({**values, name: values[name] + step}), dtype=float)
@@ -293,15 +343,23 @@ def _input_by_point(fit: CurveFit, name: str) -> np.ndarray:
 
 
 def interval_table(
-    fit: CurveFit, *, level: float = 0.95, delta_max: float | None = None, profile: bool = True, known: dict | None = None
+    fit: CurveFit,
+    *,
+    level: float = 0.95,
+    delta_max: float | None = None,
+    profile: bool = True,
+    known: dict | None = None,
+    profiled: dict | None = None,
 ) -> pd.DataFrame:
     """Estimates, standard errors and intervals of the parameters and indices of one fit.
 
-    Returns a DataFrame with columns ``quantity, value, stderr, low, high, method, flag``.
+    Returns a DataFrame with columns ``quantity, value, stderr, low, high, method, flag``
+    (:func:`interval_rows`: the same rows as dicts, for many fits).
     Every interval lies inside its quantity's range (:data:`QUANTITY_DOMAINS`):
 
-    * parameters: the profile likelihood (``profile``; lmfit keeps it inside the
-      parameter bounds), else Wald on the log / logit scale (``wald-log``,
+    * parameters: the profile likelihood (``profile``; the F test of lmfit's
+      ``conf_interval``, found by :func:`batched_profile_intervals`, inside the parameter
+      bounds; lmfit itself for a formula the engine cannot evaluate on arrays), else Wald on the log / logit scale (``wald-log``,
       ``wald-logit``); a parameter on a bound of its fit gets a one-sided interval from
       that bound (``one-sided``, flagged);
     * indices: the delta method on the log / logit scale (``delta-log``, ``delta-logit``,
@@ -326,6 +384,28 @@ def interval_table(
         Profile-likelihood intervals for the parameters (slower than Wald).
     known : dict, optional
         Indices evaluated beforehand by :func:`batched_delta_indices` (for many fits at once).
+    profiled : dict, optional
+        The profile intervals of this fit made beforehand (:func:`batched_profile_intervals`,
+        for many fits at once); default :func:`profile_intervals` with ``profile``.
+    """
+    return pd.DataFrame(interval_rows(fit, level=level, delta_max=delta_max, profile=profile, known=known, profiled=profiled))
+
+
+def interval_rows(
+    fit: CurveFit,
+    *,
+    level: float = 0.95,
+    delta_max: float | None = None,
+    profile: bool = True,
+    known: dict | None = None,
+    profiled: dict | None = None,
+) -> list[dict]:
+    """The rows of :func:`interval_table` as dicts (the arguments are the same).
+
+    Returns
+    -------
+    list of dict
+        One per quantity, keys ``quantity, value, stderr, low, high, method, flag``.
     """
     if not fit.success:
         raise ValueError(f"{fit.formula.id} on {fit.experiment}: the fit failed ({fit.fit.message})")
@@ -333,7 +413,8 @@ def interval_table(
     dof = fit.points.n - len(fit.fit.names)
     two_sided = stats.t.ppf(0.5 + level / 2.0, dof) if dof > 0 else np.nan
     one_sided = stats.t.ppf(level, dof) if dof > 0 else np.nan
-    profiled = fit.with_lmfit().fit.profile_intervals(level) if profile else {}  # engine fits: lmfit from the optimum
+    if profiled is None:
+        profiled = profile_intervals(fit, level) if profile else {}
     bounds = {spec.name: (spec.lower, spec.upper) for spec in parameter_specs(fit.formula, fit.points)}
     rows = []
     for name in fit.fit.names:
@@ -356,7 +437,7 @@ def interval_table(
             flag = flag or "interval not available (no standard error)"
         rows.append({"quantity": name, "value": value, "stderr": se, "low": low, "high": high, "method": method, "flag": flag})
     rows += _delta_rows(fit, two_sided, delta_max, known)
-    return pd.DataFrame([withheld_interval(fit, row) for row in rows])
+    return [withheld_interval(fit, row) for row in rows]
 
 
 def withheld_interval(fit, row: dict) -> dict:

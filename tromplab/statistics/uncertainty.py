@@ -32,10 +32,12 @@ from ..curves.fitting import on_bound
 from ..curves.intervals import (
     INDEX_NAMES,
     batched_delta_indices,
+    batched_profile_intervals,
     delta_standard_errors,
     indices_at,
     interval_method,
-    interval_table,
+    interval_rows,
+    interval_table,  # noqa: F401 - part of this module's public face (tromplab.interval_table)
     is_withheld,
     quantity_domain,
     relative_size_limit,
@@ -408,6 +410,9 @@ def interval_columns(
         "no delta/profile intervals" if level is None else f"delta/profile at level {level:g}",
         f"bootstrap of {n_bootstrap} {method} resamples, seed {seed}" if n_bootstrap else "no bootstrap",
     )
+    # the profiles and the delta method's index evaluations of all fits in one batched call per formula
+    profiles = batched_profile_intervals(fits, level) if level is not None else [None] * len(fits)
+    known = batched_delta_indices([fit for fit in fits if fit.success]) if level is not None else None
     rows = []
     for i, fit in enumerate(fits):
         row = {"experiment": fit.experiment, "formula": fit.formula.id}
@@ -417,16 +422,14 @@ def interval_columns(
             flags, withheld = [], {}
             try:
                 if level is not None:
-                    table = interval_table(fit, level=level).set_index("quantity")
-                    for quantity in table.index:
-                        stem = _column(fit, quantity)
-                        row[f"{stem}_low"] = table.loc[quantity, "low"]
-                        row[f"{stem}_high"] = table.loc[quantity, "high"]
-                        row[f"{stem}_method"] = table.loc[quantity, "method"]
-                        if is_withheld(table.loc[quantity, "flag"]):
-                            withheld.setdefault(table.loc[quantity, "flag"], []).append(stem)
-                        elif table.loc[quantity, "flag"] and np.isfinite(table.loc[quantity, "value"]):
-                            flags.append(f"{stem}: {table.loc[quantity, 'flag']}")
+                    for record in interval_rows(fit, level=level, profiled=profiles[i], known=known):
+                        stem = _column(fit, record["quantity"])
+                        row[f"{stem}_low"], row[f"{stem}_high"] = record["low"], record["high"]
+                        row[f"{stem}_method"] = record["method"]
+                        if is_withheld(record["flag"]):
+                            withheld.setdefault(record["flag"], []).append(stem)
+                        elif record["flag"] and np.isfinite(record["value"]):
+                            flags.append(f"{stem}: {record['flag']}")
                 if n_bootstrap:
                     boot = bootstrap(fit, n=n_bootstrap, seed=seed, method=method)
                     for quantity, low, high, flag in boot.intervals(bootstrap_level)[

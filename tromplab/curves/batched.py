@@ -1,0 +1,397 @@
+"""Experiments as padded arrays and the batched Levenberg-Marquardt that fits them.
+
+The array machinery of :mod:`tromplab.curves.engine`, kept below the fit results
+(:mod:`tromplab.curves.curve_fit`) so that the single-fit inference of
+:mod:`tromplab.curves.intervals` can re-optimise with it too (the profile likelihood):
+
+* :class:`PaddedPoints` - experiments stacked into ``(experiments, points)`` arrays;
+* :class:`BatchProblem` - the weighted residuals of one formula as a function of
+  internal parameters (``ln d_cut``, the shape, the extras), row by row;
+* :func:`levenberg_marquardt` - a projected Levenberg-Marquardt on every row at once.
+"""
+
+from __future__ import annotations
+
+import copy
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import stats
+
+from ..loading.points import TrompPoints
+from .formulas import Formula
+
+MAX_ITERATIONS = 400
+#: Relative decrease of the sum of squares below which an accepted step ends a row.
+SSR_TOLERANCE = 1e-13
+
+
+@dataclass(frozen=True)
+class PaddedPoints:
+    """Experiments stacked into ``(experiments, points)`` arrays, padded with weight 0.
+
+    Attributes
+    ----------
+    size, observed : ndarray, shape (E, P)
+        Sizes and measured partition to fines; padding repeats the last point.
+    root_weight : ndarray, shape (E, P)
+        Square roots of the normalised weights (mean 1 over the real points); 0 on padding.
+    n : ndarray of int, shape (E,)
+        Number of real points per experiment.
+    """
+
+    size: np.ndarray
+    observed: np.ndarray
+    root_weight: np.ndarray
+    n: np.ndarray
+
+    @classmethod
+    def from_points(cls, experiments: Sequence[TrompPoints]) -> PaddedPoints:
+        count = len(experiments)
+        width = max(points.n for points in experiments)
+        size = np.ones((count, width))
+        observed = np.zeros((count, width))
+        root_weight = np.zeros((count, width))
+        n = np.array([points.n for points in experiments])
+        for row, points in enumerate(experiments):
+            k = points.n
+            size[row, :k], size[row, k:] = points.size, points.size[-1]
+            observed[row, :k], observed[row, k:] = points.partition_fine, points.partition_fine[-1]
+            weight = np.ones(k) if points.weight is None else points.weight / points.weight.mean()
+            root_weight[row, :k] = np.sqrt(weight)
+        return cls(size, observed, root_weight, n)
+
+    def __len__(self) -> int:
+        return self.size.shape[0]
+
+    def take(self, rows) -> PaddedPoints:
+        return PaddedPoints(self.size[rows], self.observed[rows], self.root_weight[rows], self.n[rows])
+
+    def cut_bounds(self, factor: float) -> tuple[np.ndarray, np.ndarray]:
+        """``(ln lower, ln upper)`` of ``d_cut``: smallest size / factor, largest size x factor."""
+        real = self.root_weight > 0
+        smallest = np.where(real, self.size, np.inf).min(axis=1)
+        largest = np.where(real, self.size, -np.inf).max(axis=1)
+        return np.log(smallest / factor), np.log(largest * factor)
+
+
+def curve_values(formula: Formula, x, shape, extras: dict, efficiency=None, x_break=None) -> np.ndarray:
+    """Partition to fines of ``formula`` with array-valued parameters broadcast against ``x``
+    (``x_break``: break points of a moving break, as (11)'s, already solved for these shapes)."""
+    moving = formula.moving_break
+    if moving is None:
+        return formula.phi(x, shape, **extras)
+    if x_break is None:
+        # one root per distinct (shape, efficiency): grid rows and Jacobian columns in d_cut share them
+        kr, eff = np.broadcast_arrays(np.asarray(shape, dtype=float), np.asarray(efficiency, dtype=float))
+        # a pair as one complex number: np.unique(axis=...) would compare structured rows, whose
+        # dtype promotion runs Python code in which numpy turns a Ctrl-C into a TypeError
+        pairs, inverse = np.unique(kr.ravel() + 1j * eff.ravel(), return_inverse=True)
+        x_break = moving.on_arrays(pairs.real, pairs.imag)[inverse.ravel()].reshape(kr.shape)
+    return moving.phi(x, shape, x_break)
+
+
+class BatchProblem:
+    """Residuals of one formula on padded experiments, as a function of internal parameters.
+
+    Internal parameters per row: ``ln d_cut``, the shape, then the extras.  ``rows`` maps
+    each work row to its experiment (several starts share an experiment).
+    """
+
+    def __init__(self, formula: Formula, data: PaddedPoints, efficiency, cut_factor: float):
+        self.formula = formula
+        self.data = data
+        self.efficiency = None if efficiency is None else np.asarray(efficiency, dtype=float)
+        self.extra_names = tuple(extra.name for extra in formula.extras)
+        low_cut, high_cut = data.cut_bounds(cut_factor)
+        shape_low, shape_high = formula.shape_bounds
+        extra_low = [extra.bounds[0] for extra in formula.extras]
+        extra_high = [extra.bounds[1] for extra in formula.extras]
+        count = len(data)
+        self.lower = np.column_stack([low_cut, np.full(count, shape_low), *[np.full(count, v) for v in extra_low]])
+        self.upper = np.column_stack([high_cut, np.full(count, shape_high), *[np.full(count, v) for v in extra_high]])
+
+    def breaks(self, params: np.ndarray, rows: np.ndarray):
+        """Break points of a moving break (``Formula.moving_break``, (11)) for these rows, None
+        for other formulas; they depend on the shape and the measured efficiency only, so
+        steps in d_cut reuse them."""
+        if self.formula.moving_break is None:
+            return None
+        return self.formula.moving_break.on_arrays(params[:, 1], self.efficiency[rows])[:, None]
+
+    def take(self, rows: np.ndarray) -> BatchProblem:
+        """The problem of these experiments (repeated as often as ``rows`` names them), same bounds."""
+        taken = copy.copy(self)
+        taken.data = self.data.take(rows)
+        taken.efficiency = None if self.efficiency is None else self.efficiency[rows]
+        taken.lower, taken.upper = self.lower[rows].copy(), self.upper[rows].copy()
+        return taken
+
+    def residual(self, params: np.ndarray, rows: np.ndarray, x_break=None) -> np.ndarray:
+        """Weighted residuals ``(len(rows), P)`` at internal parameters ``params``."""
+        data = self.data
+        x = data.size[rows] / np.exp(params[:, :1])
+        extras = {name: params[:, 2 + i : 3 + i] for i, name in enumerate(self.extra_names)}
+        efficiency = None if self.efficiency is None else self.efficiency[rows][:, None]
+        with np.errstate(all="ignore"):
+            phi = curve_values(self.formula, x, params[:, 1:2], extras, efficiency, x_break)
+            return data.root_weight[rows] * (phi - data.observed[rows])
+
+    def jacobian(self, params: np.ndarray, rows: np.ndarray, base: np.ndarray, relative_step: float = 1.5e-8) -> np.ndarray:
+        """Forward-difference Jacobian ``(len(rows), P, p)``, stepping inwards at an upper bound."""
+        count, width = base.shape
+        jac = np.empty((count, width, params.shape[1]))
+        upper = self.upper[rows]
+        x_break = self.breaks(params, rows)
+        for j in range(params.shape[1]):
+            # column 0 is ln d_cut, whose value depends on the size unit: an absolute step keeps
+            # the Jacobian, and so the standard errors, the same in any unit (issue 15)
+            step = relative_step * (1.0 if j == 0 else np.maximum(np.abs(params[:, j]), 1.0))
+            step = np.broadcast_to(step, params.shape[:1])
+            step = np.where(params[:, j] + step > upper[:, j], -step, step)
+            moved = params.copy()
+            moved[:, j] += step
+            jac[:, :, j] = (self.residual(moved, rows, x_break if j != 1 else None) - base) / step[:, None]
+        return jac
+
+
+def sum_of_squares(residual: np.ndarray) -> np.ndarray:
+    value = np.einsum("ij,ij->i", residual, residual)
+    return np.where(np.isfinite(value), value, np.inf)
+
+
+def levenberg_marquardt(
+    problem: BatchProblem,
+    params: np.ndarray,
+    rows: np.ndarray,
+    *,
+    max_iterations: int = MAX_ITERATIONS,
+    relative_step: float = 1.5e-8,
+):
+    """Projected Levenberg-Marquardt on every row at once.
+
+    Returns ``(params, ssr, nfev)`` per row.  A row stops when an accepted step lowers its
+    sum of squares by less than :data:`SSR_TOLERANCE` (relative), when the damping grows
+    past 1e12 without an accepted step (no descent left within the bounds), or after
+    ``max_iterations``.  ``relative_step`` is the forward-difference step; a coarse step
+    (1e-3) sees past the kinks of the piecewise formulas, where a fine one stalls.
+    """
+    lower, upper = problem.lower[rows], problem.upper[rows]
+    params = np.clip(params, lower, upper)
+    residual = problem.residual(params, rows)
+    ssr = sum_of_squares(residual)
+    n_params = params.shape[1]
+    nfev = np.ones(rows.size, dtype=int)
+    damping = np.full(rows.size, 1e-3)
+    alive = np.isfinite(ssr)
+    need_jacobian = alive.copy()
+    gradient = np.zeros((rows.size, n_params))
+    hessian = np.zeros((rows.size, n_params, n_params))
+    eye = np.eye(n_params)
+    for _ in range(max_iterations):
+        work = np.flatnonzero(alive)
+        if not work.size:
+            break
+        fresh = work[need_jacobian[work]]
+        if fresh.size:
+            jac = problem.jacobian(params[fresh], rows[fresh], residual[fresh], relative_step)
+            nfev[fresh] += n_params
+            gradient[fresh] = np.einsum("bkp,bk->bp", jac, residual[fresh])
+            hessian[fresh] = np.einsum("bkp,bkq->bpq", jac, jac)
+            need_jacobian[fresh] = False
+        g, h, p = gradient[work], hessian[work], params[work]
+        span = upper[work] - lower[work]
+        pinned = ((p <= lower[work] + 1e-12 * span) & (g > 0)) | ((p >= upper[work] - 1e-12 * span) & (g < 0)) | (span == 0)
+        free = ~pinned
+        h_free = h * free[:, :, None] * free[:, None, :] + eye * pinned[:, :, None]
+        diagonal = np.maximum(np.diagonal(h_free, axis1=1, axis2=2), 1e-300)
+        system = h_free + damping[work, None, None] * eye * diagonal[:, None, :]
+        with np.errstate(all="ignore"):
+            try:
+                step = -np.linalg.solve(system, (g * free)[..., None])[..., 0]
+            except np.linalg.LinAlgError:
+                step = -(g * free) / diagonal
+        step = np.where(np.isfinite(step), step, 0.0)
+        trial = np.clip(p + step, lower[work], upper[work])
+        trial_residual = problem.residual(trial, rows[work])
+        trial_ssr = sum_of_squares(trial_residual)
+        nfev[work] += 1
+        accepted = trial_ssr < ssr[work]
+        gain = np.where(accepted, (ssr[work] - trial_ssr) / np.maximum(ssr[work], 1e-300), 0.0)
+        took = work[accepted]
+        params[took], residual[took], ssr[took] = trial[accepted], trial_residual[accepted], trial_ssr[accepted]
+        need_jacobian[took] = True
+        damping[took] = np.maximum(damping[took] / 3.0, 1e-12)
+        refused = work[~accepted]
+        damping[refused] *= 4.0
+        stalled = np.all(trial == p, axis=1)
+        finished = (accepted & (gain < SSR_TOLERANCE)) | (~accepted & ((damping[work] > 1e12) | stalled))
+        alive[work[finished]] = False
+    return params, ssr, nfev
+
+
+# --- the profile likelihood on arrays ----------------------------------------------------------
+#: Doublings of the first step in search of a parameter value beyond the level (lmfit's
+#: conf_interval walks up to 400 steps; doubling covers any range of the bounds in far fewer).
+PROFILE_EXPANSIONS = 60
+PROFILE_ITERATIONS = 60
+#: Width of the final bracket of a limit, relative to 1 + |value| in internal parameters.
+PROFILE_TOLERANCE = 1e-9
+#: Starts across the bounds of another parameter from which every limit is re-optimised once
+#: more: a limit below which that search finds a lower sum of squares is not reported.
+PROFILE_CHECK_STARTS = 16
+
+
+def profile_limits(
+    problem: BatchProblem, best: np.ndarray, best_ssr: np.ndarray, steps: np.ndarray, level: float
+) -> tuple[np.ndarray, np.ndarray]:
+    r"""Profile-likelihood limits of every parameter of every experiment of ``problem`` at once.
+
+    The limit of parameter :math:`\theta_j` on one side is where the sum of squares,
+    re-optimised over the other parameters with :math:`\theta_j` held, reaches
+    :math:`S_{min} (1 + F_{1,\nu}^{-1}(\text{level}) / \nu)`, :math:`\nu` = points minus
+    parameters: the F test of lmfit's ``conf_interval`` with one parameter fixed.  Every
+    (experiment, parameter, side) is one row of one batched Levenberg-Marquardt per step: the
+    first step (``steps``, e.g. the Wald half-width) doubles until the level is passed, then
+    regula falsi (Illinois) on :math:`\sqrt{S - S_{min}}`, which is linear in :math:`\theta_j`
+    for a quadratic profile, closes the bracket.  Each point of the profile is re-optimised
+    from the previous one (continuation), and every limit found is
+    re-optimised once more from :data:`PROFILE_CHECK_STARTS` starts across the bounds of
+    another parameter: where that finds a sum of squares below the level, the limit is not
+    reported (the descent missed a lower branch of the profile).
+
+    Parameters
+    ----------
+    problem : BatchProblem
+        The experiments (one row each) and their parameter bounds.
+    best : ndarray, shape (E, p)
+        Internal parameters at the optimum (``ln d_cut``, shape, extras).
+    best_ssr : ndarray, shape (E,)
+        Sums of squares at ``best``.
+    steps : ndarray, shape (E, p)
+        First step away from the optimum per parameter (internal units, > 0).
+    level : float
+        Confidence level, 0..1.
+
+    Returns
+    -------
+    low, high : ndarray, shape (E, p)
+        Internal limits; nan where the profile stays below the level up to the parameter's
+        bound (lmfit warns "bound reached" there), where no finite sum of squares was found,
+        or where the global check found the profile below the level at the limit.
+    """
+    count, n_params = best.shape
+    free = problem.data.n - n_params
+    with np.errstate(all="ignore"):
+        target = best_ssr * (1.0 + stats.f.ppf(level, 1, free) / free)
+    experiment = np.repeat(np.arange(count), 2 * n_params)
+    column = np.tile(np.repeat(np.arange(n_params), 2), count)
+    side = np.tile([-1.0, 1.0], count * n_params)
+    rows = problem.take(experiment)  # one row per limit
+    index = np.arange(experiment.size)
+    centre = best[experiment, column]
+    room = np.where(side > 0, rows.upper[index, column] - centre, centre - rows.lower[index, column])
+    floor, goal = best_ssr[experiment], target[experiment]
+    scale = np.sqrt(np.maximum(goal - floor, 0.0))
+
+    def distance(work, ssr):  # sqrt(S - S_min) less its value at the level: linear in theta for a quadratic profile
+        with np.errstate(invalid="ignore"):
+            return np.where(np.isfinite(ssr), np.sqrt(np.maximum(ssr - floor[work], 0.0)) - scale[work], np.inf)
+
+    def profile(work, t, start):
+        """Re-optimised at theta_j = centre + side t, from the last point short of the level."""
+        value = centre[work] + side[work] * t
+        held = rows.lower.copy(), rows.upper.copy()
+        rows.lower[work, column[work]] = rows.upper[work, column[work]] = value
+        params = start.copy()
+        params[np.arange(work.size), column[work]] = value
+        params, ssr, _ = levenberg_marquardt(rows, params, work)
+        rows.lower, rows.upper = held
+        return params, ssr
+
+    t_low, t_high = np.zeros(index.size), np.full(index.size, np.nan)
+    h_low, h_high = -scale.copy(), np.full(index.size, np.nan)
+    start = best[experiment].copy()
+    step = np.where(np.isfinite(steps[experiment, column]) & (steps[experiment, column] > 0), steps[experiment, column], 0.1)
+    t = np.minimum(step, room)
+    searching = np.isfinite(goal) & (free[experiment] > 0) & (room > 0)
+    for _ in range(PROFILE_EXPANSIONS):  # outwards until the level is passed or the bound is reached
+        work = np.flatnonzero(searching)
+        if not work.size:
+            break
+        params, ssr = profile(work, t[work], start[work])
+        h = distance(work, ssr)
+        passed = np.isfinite(ssr) & (h >= 0)
+        short = np.isfinite(ssr) & ~passed
+        t_high[work[passed]], h_high[work[passed]] = t[work[passed]], h[passed]
+        t_low[work[short]], h_low[work[short]], start[work[short]] = t[work[short]], h[short], params[short]
+        at_bound = t[work] >= room[work]
+        searching[work[passed | ~np.isfinite(ssr) | at_bound]] = False
+        grow = work[short & ~at_bound]
+        t[grow] = np.minimum(2.0 * t[grow], room[grow])
+    solving = np.isfinite(t_high)
+    last_side = np.zeros(index.size)
+    for _ in range(PROFILE_ITERATIONS):  # regula falsi, Illinois variant, inside [t_low, t_high]
+        work = np.flatnonzero(solving)
+        if not work.size:
+            break
+        with np.errstate(all="ignore"):
+            trial = t_low[work] - h_low[work] * (t_high[work] - t_low[work]) / (h_high[work] - h_low[work])
+        inside = np.isfinite(trial) & (trial > t_low[work]) & (trial < t_high[work])
+        trial = np.where(inside, trial, 0.5 * (t_low[work] + t_high[work]))
+        params, ssr = profile(work, trial, start[work])
+        h = distance(work, ssr)
+        below = h < 0
+        low_rows, high_rows = work[below], work[~below]
+        t_low[low_rows], h_low[low_rows], start[low_rows] = trial[below], h[below], params[below]
+        t_high[high_rows], h_high[high_rows] = trial[~below], h[~below]
+        h_high[low_rows[last_side[low_rows] < 0]] *= 0.5  # the same end moved twice: halve the other's weight
+        h_low[high_rows[last_side[high_rows] > 0]] *= 0.5
+        last_side[low_rows], last_side[high_rows] = -1.0, 1.0
+        closed = (t_high[work] - t_low[work] <= PROFILE_TOLERANCE * (1.0 + np.abs(centre[work]))) | (
+            np.abs(h) <= 1e-12 * scale[work]
+        )
+        solving[work[closed]] = False
+    limit = centre + side * np.where(np.abs(h_high) <= np.abs(h_low), t_high, t_low)
+    # a crossing on the bound itself is the bound reached below the level (lmfit warns there)
+    on_bound = np.abs(np.where(side > 0, rows.upper[index, column], rows.lower[index, column]) - limit) <= PROFILE_TOLERANCE * (
+        1.0 + np.abs(centre)
+    )
+    found = np.flatnonzero(np.isfinite(t_high) & ~on_bound)
+    lowest = _grid_profile_ssr(rows, found, column[found], limit[found], best[experiment[found]])
+    below = lowest < goal[found] - 1e-3 * (goal[found] - floor[found])  # a lower branch the descent missed
+    limit = np.where(np.isfinite(t_high) & ~on_bound, limit, np.nan)
+    limit[found[below]] = np.nan
+    limit = limit.reshape(count, n_params, 2)
+    return limit[..., 0], limit[..., 1]
+
+
+def _grid_profile_ssr(problem: BatchProblem, work: np.ndarray, column: np.ndarray, value: np.ndarray, best: np.ndarray):
+    """The profile's sum of squares at ``value`` of ``column`` re-optimised from a grid of
+    :data:`PROFILE_CHECK_STARTS` values of the first other parameter across its bounds (the
+    rest at ``best``): the cheap global search that confirms a limit found by descent."""
+    if not work.size:
+        return np.zeros(0)
+    other = np.where(column == 0, 1, 0)
+    low, high = problem.lower[work, other], problem.upper[work, other]
+    positive = low > 0
+    fractions = np.linspace(0.0, 1.0, PROFILE_CHECK_STARTS)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        grid = np.where(
+            positive[:, None],
+            np.exp(
+                np.log(np.where(positive, low, 1.0))[:, None] + fractions * np.log(np.where(positive, high / low, 1.0))[:, None]
+            ),
+            low[:, None] + fractions * (high - low)[:, None],
+        )
+    starts = np.repeat(best, PROFILE_CHECK_STARTS, axis=0)
+    rows = np.repeat(work, PROFILE_CHECK_STARTS)
+    flat = np.arange(rows.size)
+    starts[flat, np.repeat(other, PROFILE_CHECK_STARTS)] = grid.ravel()
+    starts[flat, np.repeat(column, PROFILE_CHECK_STARTS)] = np.repeat(value, PROFILE_CHECK_STARTS)
+    pinned = problem.take(rows)
+    pinned.lower[flat, np.repeat(column, PROFILE_CHECK_STARTS)] = np.repeat(value, PROFILE_CHECK_STARTS)
+    pinned.upper[flat, np.repeat(column, PROFILE_CHECK_STARTS)] = np.repeat(value, PROFILE_CHECK_STARTS)
+    _, ssr, _ = levenberg_marquardt(pinned, starts, flat)
+    return ssr.reshape(work.size, PROFILE_CHECK_STARTS).min(axis=1)
