@@ -346,7 +346,7 @@ def test_the_separators_points_are_tromp_points_with_weights_that_fit_reads(tmp_
 
 # --- per cent solids: the water balance -----------------------------------------------------
 #: True per cent solids of the grinding circuit's streams (the cyclone feed's follows from its water balance).
-WATER_PCT = {"fresh_feed": 97.0, "cyclone_overflow": 35.0, "cyclone_underflow": 75.0}
+WATER_PCT = {"fresh_feed": 90.0, "cyclone_overflow": 35.0, "cyclone_underflow": 75.0}
 
 
 def _grinding_circuit_with_water():
