@@ -6,6 +6,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 from tromplab.cli import main
+from tromplab.curves.curve_fit import fit_formula
 from tromplab.errors import InputError
 from tromplab.trend import (
     SeriesDesign,
@@ -108,6 +109,24 @@ def test_equality_test_accepts_one_curve_and_rejects_a_changed_one():
     changed = equality_test([surveys[0].points, surveys[1].points], [surveys[2].points], "plitt_bypass")
     assert same.p_value > 0.01 and changed.p_value < 1e-6
     assert (same.df_extra, same.df_full) == (3, 24 - 6)
+
+
+@pytest.mark.parametrize("formula", ["plitt_bypass", "shuvalov"])
+def test_the_batched_trend_gives_the_one_by_one_fits_and_tests(formula):
+    """monitor_surveys fits the surveys and the pooled equality tests with the batched engine
+    ((11), whose measured efficiency differs per survey, pools one by one): the charted values
+    and p-values are those of single lmfit fits and equality_test per survey."""
+    surveys = sorted(surveys_from_frame(simulate_surveys(SeriesDesign(n_surveys=14), seed=3)), key=lambda s: s.date)
+    result = monitor_surveys(surveys, formula=formula, baseline=6)
+    table = result.table[result.table["quantity"] == "d_cut"].reset_index(drop=True)
+    single = [fit_formula(s.points, formula) for s in surveys]
+    assert_allclose(table["value"], [fit.d_cut for fit in single], rtol=1e-5)
+    baseline = [s.points for s in surveys[:6]]
+    for i in (6, 9, 13):
+        expected = equality_test(baseline, [surveys[i].points], formula).p_value
+        assert table.loc[i, "p_baseline"] == pytest.approx(expected, rel=1e-4, abs=1e-12)
+        previous = equality_test([surveys[i - 1].points], [surveys[i].points], formula).p_value
+        assert table.loc[i, "p_previous"] == pytest.approx(previous, rel=1e-4, abs=1e-12)
 
 
 def test_read_surveys_names_bad_input(tmp_path):

@@ -47,9 +47,10 @@ import numpy as np
 import pandas as pd
 
 from .curves.curve_fit import CurveFit, fit_formula
+from .curves.engine import fit_formula_batch
 from .curves.fitting import ParameterFit, least_squares
-from .curves.formulas import get_formula
-from .curves.intervals import interval_table
+from .curves.formulas import get_formula, is_batchable
+from .curves.intervals import batched_delta_indices, interval_rows
 from .curves.measured import measured_cut_size, measured_efficiency, measured_slope, normalised_weights
 from .errors import InputError
 from .loading.lab import LabOptions, _renamed, balances_from_table, is_lab_table
@@ -60,7 +61,7 @@ from .output.outputs import write_files
 from .output.plotting import offscreen_axes, plot_control_chart, save_figure
 from .output.report import Report, figure_png
 from .statistics.compare import ExtraSumOfSquares
-from .workbench import fit_experiments
+from .workbench import fit_chunk, fit_experiments
 
 EWMA_LAMBDA = 0.2
 EWMA_L = 3.5
@@ -366,7 +367,7 @@ def monitor_surveys(
     surveys = _checked_surveys(surveys, alpha)
     base = baseline_indices(surveys, baseline)
     formula = get_formula(formula) if formula is not None else _best_formula(surveys)
-    fits = tuple(fit_formula(s.points, formula) for s in surveys)
+    fits = tuple(fit_chunk([s.points for s in surveys], formulas=[formula.id], alpha=None, delta_max=None))
     failures = {s.name: f.message for s, f in zip(surveys, fits) if not f.success}
     quantities = ["d_cut", "ep", "eta"] + (["bypass"] if any(e.name == "bypass" for e in formula.extras) else [])
     values, lows, highs = _charted_values(fits, quantities, level)
@@ -420,32 +421,73 @@ def _charted_values(fits, quantities: list[str], level: float) -> tuple[dict, di
     interval at ``level`` (nan where the fit failed)."""
     values = {q: np.full(len(fits), np.nan) for q in quantities}
     lows, highs = {q: values[q].copy() for q in quantities}, {q: values[q].copy() for q in quantities}
+    known = batched_delta_indices([fit for fit in fits if fit.success])  # all surveys' index evaluations at once
     for i, fit in enumerate(fits):
         if not fit.success:
             continue
-        intervals = interval_table(fit, level=level, profile=False).set_index("quantity")
-        for q in quantities:
-            values[q][i], lows[q][i], highs[q][i] = intervals.loc[q, ["value", "low", "high"]]
+        for row in interval_rows(fit, level=level, profile=False, known=known):
+            if row["quantity"] in values:
+                q = row["quantity"]
+                values[q][i], lows[q][i], highs[q][i] = row["value"], row["low"], row["high"]
     return values, lows, highs
 
 
 def _equality_p_values(surveys, fits, formula, base, *, consecutive: bool) -> tuple[np.ndarray, np.ndarray]:
     """``p_previous, p_baseline``: p-values of the equality test of each survey's curve against the
-    previous survey's (with ``consecutive``) and against the joint fit of the baseline (nan where not tested)."""
+    previous survey's (with ``consecutive``) and against the joint fit of the baseline (nan where not tested);
+    the joint fits of all tests in one batched call where the formula allows (:func:`_joint_fits`)."""
     baseline_points = [surveys[i].points for i in base]
     baseline_fit = joint_fit(baseline_points, formula, [dict(fits[i].fit.values) for i in base if fits[i].success])
-    p_previous, p_baseline = np.full(len(surveys), np.nan), np.full(len(surveys), np.nan)
+    tests = []  # (column, survey, groups, the groups' own fits)
     for i in range(len(surveys)):
         if not fits[i].success:
             continue
         if consecutive and i > 0 and fits[i - 1].success:
-            p_previous[i] = equality_test(
-                [surveys[i - 1].points], [surveys[i].points], formula, fits=(fits[i - 1], fits[i])
-            ).p_value
+            tests.append((0, i, [surveys[i - 1].points, surveys[i].points], (fits[i - 1].fit, fits[i].fit)))
         if i not in base:
-            test = equality_test(baseline_points, [surveys[i].points], formula, fits=(baseline_fit, fits[i]))
-            p_baseline[i] = test.p_value
-    return p_previous, p_baseline
+            tests.append((1, i, [*baseline_points, surveys[i].points], (baseline_fit, fits[i].fit)))
+    # against the baseline, the pooled optimum lies next to the baseline's own (most of the points are
+    # the baseline's): started there without the grid; consecutive pairs get the global search
+    joint = [None] * len(tests)
+    for column, start in ((0, None), (1, dict(baseline_fit.values) if baseline_fit.success else None)):
+        chosen = [k for k, test in enumerate(tests) if test[0] == column]
+        found = _joint_fits([tests[k][2] for k in chosen], formula, [tests[k][3] for k in chosen], start=start)
+        for k, fit in zip(chosen, found):
+            joint[k] = fit
+    p_values = np.full((2, len(surveys)), np.nan)
+    p = formula.n_params
+    for (column, i, groups, own), together in zip(tests, joint):
+        if together.success and all(f.success for f in own):
+            n = sum(g.n for g in groups)
+            p_values[column, i] = ExtraSumOfSquares(together.ssr, sum(f.ssr for f in own), p, n - 2 * p).p_value
+    return p_values[0], p_values[1]
+
+
+def _joint_fits(
+    groups: Sequence[Sequence[TrompPoints]], formula, own: Sequence[Sequence[ParameterFit]], *, start: dict | None = None
+) -> list[ParameterFit]:
+    """One :func:`joint_fit` per set of ``groups``: for a batchable formula without data-derived
+    inputs, the pooled points of each set (each group keeping its normalised weights) fitted
+    by the batched engine at once (from the data-driven start and ``start`` alone, without the
+    grid, when ``start`` is given); otherwise one by one, started from the groups' ``own`` fits."""
+    if not groups:
+        return []
+    if is_batchable(formula) and not formula.context_from_efficiency:
+        pooled = [_pooled(points) for points in groups]
+        return [fit.fit for fit in fit_formula_batch(pooled, formula, global_search=start is None, start=start)]
+    return [joint_fit(points, formula, [dict(f.values) for f in fits if f.success]) for points, fits in zip(groups, own)]
+
+
+def _pooled(groups: Sequence[TrompPoints]) -> TrompPoints:
+    """Several surveys' points as one data set, each survey keeping its normalised weights
+    (their mean is then 1 over the pool, so the engine leaves them as they are)."""
+    return TrompPoints(
+        groups[0].experiment,
+        np.concatenate([g.size for g in groups]),
+        np.concatenate([g.partition_fine for g in groups]),
+        np.concatenate([normalised_weights(g) for g in groups]),
+        resampled=True,  # a size measured in two surveys appears twice
+    )
 
 
 def _best_formula(surveys):
