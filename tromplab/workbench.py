@@ -374,16 +374,15 @@ def fit_experiments(
     settings = _checked_settings(locals(), n_fits=n_fits, size_unit=_data_size_unit(experiments, size_unit))
     with dask_client(scheduler=scheduler, dask=dask, client=client) as cluster:
         failures, fittable = _screenable(experiments)
-        fits, notes = _fit_in_chunks(fittable, chosen, settings, jobs=jobs, client=cluster, progress=progress)
-        intervals = _batch_intervals(
-            fits,
-            ci=ci,
-            bootstrap=bootstrap,
-            bootstrap_method=bootstrap_method,
-            seed=seed,
+        wanted = {"level": ci, "n_bootstrap": bootstrap, "method": bootstrap_method, "seed": seed}
+        fits, notes, intervals = _fit_in_chunks(
+            fittable,
+            chosen,
+            settings,
             jobs=jobs,
             client=cluster,
             progress=progress,
+            intervals=wanted if ci or bootstrap else None,
         )
         bench = Workbench(
             tuple(fits), failures, chosen, rank_by, alpha, rank_extended, notes, settings["water_recovery"],
@@ -392,28 +391,6 @@ def fit_experiments(
         if jobs != 1 or cluster is not None:  # the workers are there: the model averages are made on them too
             bench.averages(jobs=jobs, client=cluster)
     return bench
-
-
-def _batch_intervals(fits, *, ci, bootstrap, bootstrap_method, seed, jobs, client, progress) -> pd.DataFrame | None:
-    """The interval columns of a batch's fits (None without ``ci`` or ``bootstrap``), made on the
-    workers chunk by chunk (the fits of :data:`CHUNK_SIZE` experiments each) and reported to
-    ``progress`` with labels ``"intervals: ..."``; the same table for any number of workers
-    (each fit's intervals, its bootstrap seed included, depend on that fit only)."""
-    if (ci is None and not bootstrap) or not fits:
-        return None
-    per_chunk = CHUNK_SIZE * len({fit.formula.id for fit in fits})
-    chunks = [fits[i : i + per_chunk] for i in range(0, len(fits), per_chunk)]
-    options = {"level": ci, "n_bootstrap": bootstrap, "method": bootstrap_method, "seed": seed}
-    frames = []
-    for chunk, frame in zip(chunks, _map_work(_intervals_of_chunk, chunks, options, jobs=jobs, client=client)):
-        frames.append(frame)
-        if progress is not None:
-            progress(sum(len(f) for f in frames), len(fits), f"intervals: {chunk[-1].experiment}")
-    return pd.concat(frames, ignore_index=True)
-
-
-def _intervals_of_chunk(options: dict, fits) -> pd.DataFrame:
-    return interval_columns(fits, **options)
 
 
 def check_formula_selection(formulas=None, extended: bool = False):
@@ -487,11 +464,22 @@ def _screenable(experiments: Sequence[TrompPoints]) -> tuple[dict[str, str], lis
     return failures, fittable
 
 
-def _fit_in_chunks(fittable, chosen, settings: dict, *, jobs, client, progress) -> tuple[list[CurveFit], dict]:
-    """The fits and data notes of ``fittable``, chunk by chunk in order, wherever the chunks run."""
+def _fit_in_chunks(
+    fittable, chosen, settings: dict, *, jobs, client, progress, intervals: dict | None = None
+) -> tuple[list[CurveFit], dict, pd.DataFrame | None]:
+    """The fits, data notes and (with ``intervals``, the options of
+    :func:`~tromplab.statistics.uncertainty.interval_columns`) the interval columns of
+    ``fittable``, chunk by chunk in order, wherever the chunks run.
+
+    A chunk's intervals are made by the worker that fitted it, right after the fits: the fits
+    do not travel to the main process and back again, and each fit's intervals (its bootstrap
+    seed included) depend on that fit only, so the table is the same for any number of workers.
+    ``progress`` hears of each chunk twice: its fits, then (labels ``"intervals: ..."``) its intervals.
+    """
     chunks = [fittable[i : i + CHUNK_SIZE] for i in range(0, len(fittable), CHUNK_SIZE)]
     options = {key: settings[key] for key in ("alpha", "delta_max", "engine", "size_unit")}
     options["formulas"] = tuple(f.id for f in chosen)
+    options["intervals"] = intervals
     logger.info(
         "fitting %d experiment(s) x %d formula(s) in %d chunk(s) of up to %d (%s)",
         len(fittable),
@@ -500,8 +488,8 @@ def _fit_in_chunks(fittable, chosen, settings: dict, *, jobs, client, progress) 
         CHUNK_SIZE,
         "on a Dask cluster" if client is not None else f"jobs={jobs or 'all cores'}",
     )
-    fits, notes = [], {}
-    for number, (chunk, (chunk_fits, chunk_notes)) in enumerate(
+    fits, notes, frames = [], {}, []
+    for number, (chunk, (chunk_fits, chunk_notes, frame)) in enumerate(
         zip(chunks, _map_chunks(chunks, options, jobs=jobs, client=client)), 1
     ):
         fits += chunk_fits
@@ -511,7 +499,11 @@ def _fit_in_chunks(fittable, chosen, settings: dict, *, jobs, client, progress) 
         )
         if progress is not None:
             progress(len(fits) // max(len(chosen), 1), len(fittable), chunk[-1].experiment)
-    return fits, notes
+        if frame is not None:
+            frames.append(frame)
+            if progress is not None:
+                progress(len(fits) // max(len(chosen), 1), len(fittable), f"intervals: {chunk[-1].experiment}")
+    return fits, notes, (pd.concat(frames, ignore_index=True) if frames else None)
 
 
 @contextlib.contextmanager
@@ -605,7 +597,10 @@ def _fit_chunk_star(options, chunk):
     # the notes on the points are made in the worker too: in the parent they were a serial
     # Spearman test per experiment (seconds at 10,000 experiments)
     notes = {points.experiment: found for points in chunk if (found := data_notes(points))}
-    return fit_chunk(chunk, **options), notes
+    options = dict(options)
+    intervals = options.pop("intervals", None)
+    fits = fit_chunk(chunk, **options)
+    return fits, notes, (interval_columns(fits, **intervals) if intervals else None)
 
 
 def _points_and_balances(experiments) -> tuple[list[TrompPoints], tuple[MassBalance, ...]]:
