@@ -1,6 +1,8 @@
 """Export to simulator conventions: each convention re-implemented here, independently of tromplab,
 from its published form, must reproduce tromplab's fitted curve at the measured sizes within 1e-6."""
 
+import re
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -183,3 +185,18 @@ def test_dyssol_default_screen_parameters_survive_a_fit_and_an_export(model, par
     assert exported["Model"] == model
     for name, value in params.items():
         assert_allclose(exported[name], value, rtol=1e-6, atol=1e-9)
+
+
+def test_a_large_export_prints_its_first_rows_and_writes_them_all(fits_dir, tmp_path, capsys):
+    """90,000 fits on the console took 5 s of pandas formatting: the console shows the first
+    40 rows (and 40 experiments per left-out formula), the file every row."""
+    fits = pd.read_csv(fits_dir / "fits.csv")
+    copies = pd.concat([fits.assign(experiment=fits["experiment"] + f"_{k}") for k in range(60)], ignore_index=True)
+    copies.to_csv(tmp_path / "fits.csv", index=False)
+    output = tmp_path / "long.csv"
+    assert main(["export", str(tmp_path), "--to", "csv-long", "-o", str(output)]) == 0
+    console = capsys.readouterr().out
+    written = pd.read_csv(output)
+    assert len(written) > 100 and f"... and {len(written) - 40} more rows in the file" in console
+    assert main(["export", str(tmp_path), "--to", "plitt", "-o", str(tmp_path / "plitt.csv")]) == 0
+    assert re.search(r"and \d+ more", capsys.readouterr().out)

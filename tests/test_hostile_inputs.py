@@ -259,6 +259,36 @@ DATA = os.path.join(os.path.dirname(__file__), "data")
 CLASS_PARTITIONS = [0.02, 0.10, 0.35, 0.70, 0.92, 0.99]  # the curve the three layout files were built from
 
 
+@pytest.mark.parametrize(
+    "text",
+    [
+        "a,b,c\n1,2,x\n3,4,y\n",  # no comment or blank line: pandas reads the file itself
+        "# a comment\na,b,c\n1,2,x\n\n3,4,y\n",  # comments and blank lines stripped first
+        "a,b,c\r\n1,2,x\r\n3,4,y\r\n\r\n\r\n",  # CRLF and trailing blank lines
+    ],
+)
+def test_a_table_read_for_some_columns_keeps_the_file_rows(tmp_path, text):
+    path = tmp_path / "t.csv"
+    path.write_bytes(text.encode())
+    whole, some = read_table(path), read_table(path, columns=("a", "c"))
+    assert list(some.frame.columns) == ["a", "c"]
+    assert some.frame.equals(whole.frame[["a", "c"]]) and list(some.rows) == list(whole.rows)
+    assert f"row {whole.rows[1]}, column 'a'" in str(some.error("bad", index=1, column="a"))
+
+
+def test_extra_fields_are_refused_by_row_on_the_fast_path_too(tmp_path):
+    path = tmp_path / "t.csv"
+    path.write_text("a,b\n1,2\n3,4,5\n6,7\n")
+    with pytest.raises(InputError, match="row 3: the row has 3 fields but the header has 2"):
+        read_table(path)
+    for text, row in (("a,b\n1,2,5\n3,4\n", 2), ('a,b\n1,"2,x"\n3,"4\n5",6\n', 3)):  # pandas warns, or is silent
+        path.write_text(text)
+        with pytest.raises(InputError, match=f"row {row}: the row has 3 fields but the header has 2"):
+            read_table(path, columns=("a",))
+    path.write_text('a,b\n1,"2,x"\n3,"4\n5"\n7,8,\n')  # quoted separators and line breaks, a trailing empty field
+    assert read_table(path, columns=("a",)).frame["a"].tolist() == [1, 3, 7]
+
+
 def test_semicolon_and_decimal_comma_are_detected_with_a_note():
     path = os.path.join(DATA, "european_semicolon_decimal_comma.csv")
     with pytest.warns(InputNote) as caught:

@@ -955,20 +955,29 @@ def _run_compare(args) -> int:
     return 0
 
 
+#: Rows of an export (and experiments per left-out formula) printed on the console; the file has all.
+EXPORT_CONSOLE_ROWS = 40
+
+
 def _run_export(args) -> int:
     folder = args.fits_dir if args.fits_dir.is_dir() else args.fits_dir.parent
     output = args.output or folder / f"export_{args.to.replace('-', '_')}.csv"
     check_output_file(output, inputs=[] if args.fits_dir.is_dir() else [args.fits_dir])
     result = export_fits(args.fits_dir, args.to, size_unit=args.size_unit)
     written = write_atomically({output.name: lambda p: result.table.to_csv(p, index=False)}, output.parent or Path("."))
-    print(result.table.to_string(index=False, float_format=lambda v: f"{v:.6g}", na_rep="-"))
+    shown = result.table.head(EXPORT_CONSOLE_ROWS)
+    print(shown.to_string(index=False, float_format=lambda v: f"{v:.6g}", na_rep="-"))
+    if len(result.table) > len(shown):
+        print(f"... and {len(result.table) - len(shown)} more rows in the file")
     if result.skipped:
         left_out = {}
         for experiment, formula, _ in result.skipped:
             left_out.setdefault(formula, []).append(experiment)
         print(f"\nNot expressible in the {args.to} convention (left out; docs/export.md lists what maps to what):")
         for formula, experiments in left_out.items():
-            print(textwrap.fill(f"{formula}: {', '.join(experiments)}", width=98, initial_indent="  ", subsequent_indent="    "))
+            named = ", ".join(experiments[:EXPORT_CONSOLE_ROWS])
+            more = f" and {len(experiments) - EXPORT_CONSOLE_ROWS} more" if len(experiments) > EXPORT_CONSOLE_ROWS else ""
+            print(textwrap.fill(f"{formula}: {named}{more}", width=98, initial_indent="  ", subsequent_indent="    "))
     print(f"\nWrote: {written[output.name]}")
     return 0
 

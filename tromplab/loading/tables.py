@@ -183,7 +183,9 @@ class Table:
         return Table(self.frame.iloc[selection].reset_index(drop=True), self.rows[selection], self.source, self.notes)
 
 
-def read_table(path, *, sheet: str | int | None = None, sep: str | None = None, decimal: str | None = None) -> Table:
+def read_table(
+    path, *, sheet: str | int | None = None, sep: str | None = None, decimal: str | None = None, columns=None
+) -> Table:
     """Read a CSV (``#`` comments allowed) or Excel file, or take a DataFrame, into a :class:`Table`.
 
     Parameters
@@ -196,6 +198,9 @@ def read_table(path, *, sheet: str | int | None = None, sep: str | None = None, 
     sep, decimal : str, optional
         CSV field separator and decimal mark; detected when not given (comma and point
         unless the header is split by semicolons and the cells use decimal commas).
+    columns : collection of str, optional
+        Keep only these columns of a CSV (the others are checked as the header is, but not
+        parsed: a large table read for a few of its columns needs a fraction of the memory).
 
     Raises
     ------
@@ -226,9 +231,9 @@ def read_table(path, *, sheet: str | int | None = None, sep: str | None = None, 
     else:
         if sheet is not None:
             raise InputError(f"a sheet ({sheet!r}) was given but the file is not an Excel workbook", source=source)
-        frame, rows, header, notes = _read_csv(path, sep=sep, decimal=decimal)
+        frame, rows, header, notes = _read_csv(path, sep=sep, decimal=decimal, columns=columns)
     _check_header(header, source)
-    frame.columns = [str(c).strip() for c in header]
+    frame.columns = [str(c).strip() for c in (header if columns is None else frame.columns)]
     frame = _drop_empty_unnamed(frame, source)
     if frame.empty:
         raise InputError("the table has a header but no data rows", source=source)
@@ -306,7 +311,11 @@ def _check_path(path: Path) -> None:
         raise InputError("the file is binary (it contains NUL bytes), not a CSV text table", source=source)
 
 
-def _read_csv(path: Path, *, sep, decimal):
+#: A comment line (first non-blank character '#') or a blank line, anywhere in a CSV's text.
+_COMMENT_OR_BLANK_LINE = re.compile(r"^[ \t]*(#|\r?$)", re.MULTILINE)
+
+
+def _read_csv(path: Path, *, sep, decimal, columns=None):
     source = str(path)
     raw = path.read_bytes()
     try:
@@ -319,8 +328,19 @@ def _read_csv(path: Path, *, sep, decimal):
             source=source,
             row=line,
         ) from None
-    lines = text.splitlines()
-    content = [i + 1 for i, line in enumerate(lines) if line.strip() and not line.lstrip().startswith("#")]
+    del raw
+    end = len(text)
+    while end and text[end - 1] in "\r\n \t":
+        end -= 1
+    if end and _COMMENT_OR_BLANK_LINE.search(text, 0, end) is None:  # the usual table: every line is content
+        content = list(range(1, text.count("\n", 0, end) + 2))
+        lines = [line.rstrip("\r") for line in text.split("\n", 51)[:51]]  # enough for the header and decimal marks
+        # pandas reads the file itself (a StringIO of a large text would hold four bytes per character)
+        body = path if text[end:] in ("", "\n", "\r\n") else text[:end]
+    else:
+        lines = text.splitlines()
+        content = [i + 1 for i, line in enumerate(lines) if line.strip() and not line.lstrip().startswith("#")]
+        body = "\n".join(lines[i - 1] for i in content)
     if not content:
         raise InputError("the file has no header and no data (only comments or blank lines)", source=source)
     notes = []
@@ -338,23 +358,37 @@ def _read_csv(path: Path, *, sep, decimal):
             notes.append("decimal commas detected and read as decimal marks (declare them with --decimal ',')")
     if sep == decimal:
         raise InputError(f"the separator and the decimal mark are both '{sep}'", source=source)
-    body = "\n".join(lines[i - 1] for i in content)
-    records = list(csv.reader(io.StringIO(body), delimiter=sep, skipinitialspace=True))
-    header = [cell.strip() for cell in records[0]]
-    if len(records) == len(content):
-        _check_field_counts(records, content, len(header), sep, source)
+    del lines, text
+    header = [cell.strip() for cell in next(csv.reader([header_line], delimiter=sep, skipinitialspace=True))]
+    wanted = None if columns is None else {str(c) for c in columns}
     try:
         # only whole lines starting with '#' are comments: a '#' inside a field ("run #2") is text
-        frame = pd.read_csv(
-            io.StringIO(body), sep=sep, decimal=decimal, skip_blank_lines=False, skipinitialspace=True, index_col=False, header=0
-        )
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", pd.errors.ParserWarning)
+            frame = pd.read_csv(
+                body if isinstance(body, Path) else io.StringIO(body),
+                encoding="utf-8-sig",
+                sep=sep,
+                decimal=decimal,
+                skip_blank_lines=False,
+                skipinitialspace=True,
+                index_col=False,
+                header=0,
+                usecols=None if wanted is None else (lambda name: str(name).strip() in wanted),
+            )
+        too_many = any(issubclass(w.category, pd.errors.ParserWarning) for w in caught)
     except (pd.errors.ParserError, ValueError) as error:
+        _check_field_counts_of(body, content, len(header), sep, source)  # says which row, in words
         raise InputError(f"cannot parse as CSV: {error}", source=source) from None
+    # pandas drops the extra fields of a row with a warning, or silently for the columns it does not
+    # read: refuse them, naming the row
+    if too_many or (wanted is not None and _has_long_records(body, sep, len(header))):
+        _check_field_counts_of(body, content, len(header), sep, source)
     rows = np.asarray(content[1:], dtype=int)
     if rows.size != len(frame):  # quoted fields spanning lines: fall back to record numbers
         rows = np.arange(len(frame)) + 2
     keep = ~frame.isna().all(axis=1).to_numpy()
-    return frame.loc[keep], rows[keep], header[: frame.shape[1]], notes
+    return frame.loc[keep], rows[keep], (header[: frame.shape[1]] if columns is None else header), notes
 
 
 def _detect_separator(header: str, suffix: str) -> str:
@@ -363,6 +397,52 @@ def _detect_separator(header: str, suffix: str) -> str:
     if header.count(";") > header.count(","):
         return ";"
     return ","
+
+
+def _has_long_records(body: str | Path, sep: str, expected: int, block: int = 1 << 20) -> bool:
+    """Whether a record after the header has more than ``expected`` fields, separators and line
+    breaks inside double quotes not counted: one pass over the bytes in blocks of ``block``,
+    without the Python strings of a full parse (trailing empty fields count here; the full
+    check that follows forgives them)."""
+    if isinstance(body, Path):
+        with body.open("rb") as stream:
+            blocks = iter(lambda: stream.read(block), b"")
+            return _long_records_in(blocks, sep, expected)
+    return _long_records_in([body.encode()], sep, expected)
+
+
+def _long_records_in(blocks, sep: str, expected: int) -> bool:
+    quote, separator, newline = ord('"'), ord(sep), ord("\n")
+    parity, pending, header_seen = 0, 0, False
+    for data in blocks:
+        data = np.frombuffer(data, dtype=np.uint8)
+        if not data.size:
+            continue
+        inside = ((np.cumsum(data == quote, dtype=np.uint8) + parity) & 1).astype(bool)
+        parity = int(inside[-1])
+        separators = np.cumsum((data == separator) & ~inside, dtype=np.int32)
+        ends = np.flatnonzero((data == newline) & ~inside)
+        if ends.size:
+            per_record = np.diff(separators[ends], prepend=0)
+            per_record[0] += pending
+            if not header_seen:
+                per_record, header_seen = per_record[1:], True
+            if np.any(per_record + 1 > expected):
+                return True
+            pending = int(separators[-1] - separators[ends[-1]])
+        else:
+            pending += int(separators[-1])
+    return header_seen and pending + 1 > expected
+
+
+def _check_field_counts_of(body: str | Path, line_numbers, expected: int, sep: str, source: str) -> None:
+    """Refuse the first row with more fields than the header (the full parse, only for a table
+    pandas could not read as it is; ``body`` the text without comments, or the file that has none)."""
+    text = body.read_text(encoding="utf-8-sig") if isinstance(body, Path) else body
+    records = list(csv.reader(io.StringIO(text), delimiter=sep, skipinitialspace=True))
+    if len(records) != len(line_numbers):  # quoted fields spanning lines: name the record (as the rows of the table do)
+        line_numbers = list(range(1, len(records) + 1))
+    _check_field_counts(records, line_numbers, expected, sep, source)
 
 
 def _check_field_counts(records, line_numbers, expected: int, sep: str, source: str) -> None:

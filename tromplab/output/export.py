@@ -29,6 +29,7 @@ approximated.  The conventions, and what each parameter means, are tabulated in
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -85,35 +86,32 @@ def read_fits(path) -> list[FittedCurve]:
         path = path / "fits.csv"
     if not path.exists():
         raise InputError("no fits.csv here: give the output folder of 'tromplab fit' or its fits.csv", source=str(path))
-    table = read_table(path)
+    table = read_table(path, columns=(*FITS_COLUMNS, "extras"))  # 10 of the 77 columns: a tenth of the memory
     table.require(*FITS_COLUMNS)
     ok = table.boolean("success")
     d_cut, shape = table.numeric("d_cut", allow_blank=True), table.numeric("shape", allow_blank=True)
     bypass, fishhook = table.numeric("bypass", allow_blank=True), table.numeric("fishhook", allow_blank=True)
-    # whole columns once, then plain arrays per row: a row read through the frame cost about
-    # 0.1 ms, most of the 5 s that 90,000 rows took
-    experiments = table.frame["experiment"].astype(str).to_numpy()
-    formula_ids = table.frame["formula"].astype(str).to_numpy()
-    texts = table.frame["extras"].to_numpy() if "extras" in table.frame.columns else np.full(len(table.frame), "")
+    # whole columns once, as Python lists: a row read through the frame cost about 0.1 ms (most
+    # of the 5 s that 90,000 rows took), a numpy scalar per value still a microsecond or two
+    columns = {"d_cut": d_cut.tolist(), "shape": shape.tolist(), "bypass": bypass.tolist(), "fishhook": fishhook.tolist()}
+    experiments = table.frame["experiment"].astype(str).tolist()
+    formula_ids = table.frame["formula"].astype(str).tolist()
+    texts = table.frame["extras"].tolist() if "extras" in table.frame.columns else [""] * len(table.frame)
     formulas = {}
     fits = []
-    for i in np.flatnonzero(ok):
+    for i in np.flatnonzero(ok).tolist():
         try:
             formula = formulas.get(formula_ids[i]) or formulas.setdefault(formula_ids[i], get_formula(formula_ids[i]))
         except KeyError as error:
-            raise table.error(str(error.args[0]), index=int(i), column="formula") from None
-        extras = {}
-        for extra in formula.extras:
-            if extra.name == "bypass":
-                extras["bypass"] = bypass[i]
-            elif extra.name == "fishhook":
-                extras["fishhook"] = fishhook[i]
-            else:
-                extras[extra.name] = _extra_from_text(table, int(i), extra.name, str(texts[i]))
-        values = [d_cut[i], shape[i], *extras.values()]
-        if not np.all(np.isfinite(values)):
-            raise table.error("a successful fit with a missing parameter value", index=int(i), column="d_cut")
-        fits.append(FittedCurve(experiments[i], formula.id, float(d_cut[i]), float(shape[i]), extras))
+            raise table.error(str(error.args[0]), index=i, column="formula") from None
+        extras = {
+            extra.name: columns[extra.name][i] if extra.name in columns else _extra_from_text(table, i, extra.name, str(texts[i]))
+            for extra in formula.extras
+        }
+        cut, slope = columns["d_cut"][i], columns["shape"][i]
+        if not (math.isfinite(cut) and math.isfinite(slope) and all(math.isfinite(v) for v in extras.values())):
+            raise table.error("a successful fit with a missing parameter value", index=i, column="d_cut")
+        fits.append(FittedCurve(experiments[i], formula.id, cut, slope, extras))
     return fits
 
 
@@ -256,7 +254,9 @@ PARAMETER_MEANINGS = {
 
 
 def _long_table(fits, size_unit) -> pd.DataFrame:
-    rows = []
+    columns = {name: [] for name in ("experiment", "formula", "parameter", "value", "unit", "meaning")}
+    sized_unit = size_unit or "size unit of the fit"
+    described = {}  # formula id -> {parameter: (unit, meaning)}: the same for every fit of a formula
     for fit in fits:
         formula = get_formula(fit.formula)
         values = {"d_cut": fit.d_cut, formula.shape_name: fit.shape, **fit.extras}
@@ -266,18 +266,14 @@ def _long_table(fits, size_unit) -> pd.DataFrame:
             values["sigma"] = fit.shape * fit.d_cut
         if fit.formula == "logistic":
             values["ep"] = fit.shape * fit.d_cut
-        meanings = {**{extra.name: extra.meaning for extra in formula.extras}, **PARAMETER_MEANINGS}
-        meanings.setdefault(formula.shape_name, f"shape parameter of {formula.title}")
+        if fit.formula not in described:
+            meanings = {**{extra.name: extra.meaning for extra in formula.extras}, **PARAMETER_MEANINGS}
+            meanings.setdefault(formula.shape_name, f"shape parameter of {formula.title}")
+            described[fit.formula] = {
+                name: (sized_unit if name in ("d_cut", "sigma", "ep") else "-", meanings.get(name, "")) for name in values
+            }
         for name, value in values.items():
-            sized = name in ("d_cut", "sigma", "ep")
-            rows.append(
-                {
-                    "experiment": fit.experiment,
-                    "formula": fit.formula,
-                    "parameter": name,
-                    "value": value,
-                    "unit": (size_unit or "size unit of the fit") if sized else "-",
-                    "meaning": meanings.get(name, ""),
-                }
-            )
-    return pd.DataFrame(rows, columns=["experiment", "formula", "parameter", "value", "unit", "meaning"])
+            unit, meaning = described[fit.formula][name]
+            for column, item in zip(columns, (fit.experiment, fit.formula, name, value, unit, meaning)):
+                columns[column].append(item)
+    return pd.DataFrame(columns)
