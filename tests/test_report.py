@@ -81,3 +81,22 @@ def test_a_large_batch_gets_a_condensed_report_with_its_full_tables_beside_it(tm
     shown = [f"Experiment s{seed}" for seed in range(12) if f"Experiment s{seed}<" in html or f"Experiment s{seed}:" in html]
     assert 3 <= len(shown) <= 6 and "12 experiments: the sections below show the first 3" in html
     assert "Top-ranked fits of all experiments" in html and "across experiments and formulas" not in html
+
+
+def test_the_figures_drawn_by_two_workers_give_the_same_report(tmp_path):
+    """tromplab report --jobs draws the per-experiment figures on the workers (in chunks of
+    FIGURE_CHUNK experiments): the HTML, with its embedded figures, is the same for 1 and 2."""
+    from tromplab._synthetic import synthetic
+
+    rows = [
+        pd.DataFrame({"experiment": p.experiment, "size": p.size, "partition_fine": p.partition_fine})
+        for p in (synthetic(seed) for seed in range(8))
+    ]
+    points = tmp_path / "points.csv"
+    pd.concat(rows).to_csv(points, index=False)
+    pages = []
+    for jobs in ("1", "2"):
+        out = tmp_path / f"report_{jobs}" / "report.html"
+        assert main(["report", str(points), "-o", str(out), "--jobs", jobs, "--formulas", "plitt,lognormal", "-q"]) == 0
+        pages.append(out.read_text(encoding="utf-8"))
+    assert pages[0] == pages[1] and pages[0].count("<img") >= 16

@@ -322,14 +322,18 @@ def _add_fit(commands, groups) -> None:
     fit.set_defaults(run=_run_fit)
 
 
-def _add_scale_options(scale) -> None:
-    scale.add_argument(
+def _add_jobs_option(group) -> None:
+    group.add_argument(
         "--jobs",
         type=cli_type(check_count, "--jobs", minimum=0, maximum=4096),
         default=0,
         metavar="N",
         help="worker processes (default 0: all cores)",
     )
+
+
+def _add_scale_options(scale) -> None:
+    _add_jobs_option(scale)
     scale.add_argument("--scheduler", default=None, metavar="ADDRESS", help="run on this Dask scheduler (tcp://host:8786)")
     scale.add_argument("--dask", choices=("local",), default=None, help="run on a local Dask cluster")
     scale.add_argument(
@@ -385,6 +389,7 @@ def _add_report(commands, groups) -> None:
         help="level of the intervals (default 0.95)",
     )
     report.add_argument("--title", default="tromplab report", help="title of the report (default: tromplab report)")
+    _add_jobs_option(report.add_argument_group("scale"))
     _add_partition_to(report)
     report.set_defaults(run=_run_report)
 
@@ -923,7 +928,7 @@ def _run_report(args) -> int:
         bench = fit_experiments(experiments, **keywords, progress=progress)
     bench.check_fitted(args.input)
     args.output.parent.mkdir(parents=True, exist_ok=True)
-    written = bench.report(args.output, level=args.ci, title=args.title)
+    written = bench.report(args.output, level=args.ci, title=args.title, jobs=args.jobs)
     print("Wrote:")
     for path in written.values():
         print(f"  {path}")

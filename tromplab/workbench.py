@@ -251,13 +251,22 @@ class Workbench:
         return plot_tromp_fits(self.fits_of(experiment), ax=ax, best=self.best_fit(experiment), **options)
 
     def report(
-        self, path, *, balances=None, level: float | None = None, size_unit: str | None = None, title: str = "tromplab report"
+        self,
+        path,
+        *,
+        balances=None,
+        level: float | None = None,
+        size_unit: str | None = None,
+        title: str = "tromplab report",
+        jobs: int | None = 1,
     ):
         """Write the HTML report (and its Markdown twin) to ``path``, as ``tromplab report`` does.
 
         ``balances`` (default: those the batch was read with, :func:`tromplab.read_experiments`),
         ``level`` (default: the batch's ``ci``, else 0.95) and ``size_unit`` (default: the
-        batch's) as for the command.  Returns ``{file name: path}`` of the written files.
+        batch's) as for the command; ``jobs`` worker processes draw the per-experiment
+        figures (None or 0: all cores; the report is the same for any number).  Returns
+        ``{file name: path}`` of the written files.
         """
         sources = dict.fromkeys(fit.points.source for fit in self.fits if fit.points.source)
         built = build_report(
@@ -268,6 +277,7 @@ class Workbench:
             size_unit=self.size_unit if size_unit is None else size_unit,
             title=title,
             partition_to=self.partition_to,
+            map_work=functools.partial(_map_work, jobs=jobs or None, client=None),
         )
         return write_report(built, path)
 

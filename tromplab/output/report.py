@@ -163,6 +163,7 @@ def build_report(
     size_unit: str = "",
     title: str = "tromplab report",
     partition_to: str = "fine",
+    map_work=None,
 ) -> Report:
     """Assemble the report of a fitted batch (and the balances of lab input).
 
@@ -180,6 +181,10 @@ def build_report(
     title : str
     partition_to : {"fine", "coarse"}
         Product whose partition the balance tables and curve figures show.
+    map_work : callable, optional
+        ``map_work(function, chunks, argument)`` yields ``function(argument, chunk)`` for each
+        chunk in order (the batch's workers: the per-experiment figures are drawn there);
+        default in this process.
     """
     check_partition_to(partition_to)
     report = Report(title, source)
@@ -198,7 +203,7 @@ def build_report(
     if not averages.empty:
         averages_shown = averages[averages["experiment"].isin(shown)]
         report.add("averages", "table", averages_shown[["experiment", "quantity", "value", "stderr", "low", "high"]])
-    _add_figures(report, bench, fits, ranking, size_unit=size_unit, partition_to=partition_to, shown=shown)
+    _add_figures(report, bench, fits, ranking, size_unit=size_unit, partition_to=partition_to, shown=shown, map_work=map_work)
     return report
 
 
@@ -310,24 +315,37 @@ def _add_parameters(report: Report, bench, *, level: float, shown: list[str]) ->
             )
 
 
+#: Experiments whose figures one worker draws at a time.
+FIGURE_CHUNK = 6
+
+
 def _add_figures(
-    report: Report, bench, fits: pd.DataFrame, ranking: pd.DataFrame, *, size_unit: str, partition_to: str, shown: list[str]
+    report: Report,
+    bench,
+    fits: pd.DataFrame,
+    ranking: pd.DataFrame,
+    *,
+    size_unit: str,
+    partition_to: str,
+    shown: list[str],
+    map_work=None,
 ) -> None:
-    """Tromp curves and residuals per experiment shown, then F across experiments (an overview
-    of the top-ranked fits for a large batch) and the ranking (when there are several)."""
-    for experiment in [e for e in bench.experiments if e in shown]:
-        experiment_fits = bench.fits_of(experiment)
-        if any(f.success for f in experiment_fits):
-            curves = plot_tromp_fits(
-                experiment_fits,
-                size_unit=size_unit,
-                best=bench.best_fit(experiment),
-                partition_to=partition_to,
-                ax=offscreen_axes(),
-            )
-            report.add("figures", "figure", figure_png(curves), caption=f"Tromp curve, experiment {experiment}")
-            residuals = plot_residuals(experiment_fits, size_unit=size_unit, partition_to=partition_to, ax=offscreen_axes())
-            report.add("figures", "figure", figure_png(residuals), caption=f"Residuals, experiment {experiment}")
+    """Tromp curves and residuals per experiment shown (drawn by ``map_work``'s workers), then F
+    across experiments (an overview of the top-ranked fits for a large batch) and the ranking
+    (when there are several)."""
+    drawn = [
+        (experiment, bench.fits_of(experiment), bench.best_fit(experiment))
+        for experiment in bench.experiments
+        if experiment in shown and any(f.success for f in bench.fits_of(experiment))
+    ]
+    chunks = [drawn[i : i + FIGURE_CHUNK] for i in range(0, len(drawn), FIGURE_CHUNK)]
+    options = {"size_unit": size_unit, "partition_to": partition_to}
+    if map_work is None:
+        map_work = _map_here
+    for chunk, pictures in zip(chunks, map_work(experiment_figures, chunks, options)):
+        for (experiment, _, _), (curves, residuals) in zip(chunk, pictures):
+            report.add("figures", "figure", curves, caption=f"Tromp curve, experiment {experiment}")
+            report.add("figures", "figure", residuals, caption=f"Residuals, experiment {experiment}")
     if fits["success"].any() and len(shown) < len(bench.experiments):
         overview = plot_batch_overview(fits, axes=offscreen_axes(2, 2, figsize=(9, 6.5)))[0]
         report.add("figures", "figure", figure_png(overview), caption="Top-ranked fits of all experiments")
@@ -337,6 +355,21 @@ def _add_figures(
     if len(ranking) and len(bench.experiments) > 1:
         places = plot_ranking(ranking, ax=offscreen_axes())
         report.add("figures", "figure", figure_png(places), caption="Points and places across experiments")
+
+
+def _map_here(function, chunks, argument):
+    return (function(argument, chunk) for chunk in chunks)
+
+
+def experiment_figures(options: dict, chunk) -> list[tuple[bytes, bytes]]:
+    """PNGs of the Tromp curves and of the residuals of each ``(experiment, fits, best)`` of
+    ``chunk`` (``options``: ``size_unit``, ``partition_to``): a unit of work for the workers."""
+    pictures = []
+    for _, experiment_fits, best in chunk:
+        curves = plot_tromp_fits(experiment_fits, best=best, ax=offscreen_axes(), **options)
+        residuals = plot_residuals(experiment_fits, ax=offscreen_axes(), **options)
+        pictures.append((figure_png(curves), figure_png(residuals)))
+    return pictures
 
 
 def write_report(report: Report, html_path) -> dict[str, Path]:
