@@ -366,8 +366,11 @@ def monitor_surveys(
     """
     surveys = _checked_surveys(surveys, alpha)
     base = baseline_indices(surveys, baseline)
-    formula = get_formula(formula) if formula is not None else _best_formula(surveys)
-    fits = tuple(fit_chunk([s.points for s in surveys], formulas=[formula.id], alpha=None, delta_max=None))
+    if formula is None:  # the ranking's fits of the best formula are the trend's
+        formula, fits = _best_formula(surveys)
+    else:
+        formula = get_formula(formula)
+        fits = tuple(fit_chunk([s.points for s in surveys], formulas=[formula.id], alpha=None, delta_max=None))
     failures = {s.name: f.message for s, f in zip(surveys, fits) if not f.success}
     quantities = ["d_cut", "ep", "eta"] + (["bypass"] if any(e.name == "bypass" for e in formula.extras) else [])
     values, lows, highs = _charted_values(fits, quantities, level)
@@ -490,11 +493,19 @@ def _pooled(groups: Sequence[TrompPoints]) -> TrompPoints:
     )
 
 
-def _best_formula(surveys):
-    ranking = fit_experiments([s.points for s in surveys]).ranking_table()
+def _best_formula(surveys) -> tuple:
+    """The best-ranked of the nine formulas over all surveys and its fit of each survey."""
+    bench = fit_experiments([s.points for s in surveys])
+    ranking = bench.ranking_table()
     if ranking.empty:
         raise InputError("no formula could be fitted to the surveys; give one with --formula")
-    return get_formula(ranking.iloc[0]["formula"])
+    formula = get_formula(ranking.iloc[0]["formula"])
+    by_experiment = bench.fits_by_experiment()
+    fits = []
+    for survey in surveys:  # a survey the batch could not fit (a flat one) gets its own failed fit
+        found = next((f for f in by_experiment.get(survey.name, ()) if f.formula.id == formula.id), None)
+        fits.append(found or fit_chunk([survey.points], formulas=[formula.id], alpha=None, delta_max=None)[0])
+    return formula, tuple(fits)
 
 
 def write_trend(result: TrendResult, outdir, *, size_unit: str = "", figures: bool = True) -> dict[str, Path]:
