@@ -710,10 +710,15 @@ def model_averages(bench: Workbench, *, level: float = 0.95, jobs: int | None = 
 
 def _averages_of_chunk(level, groups) -> list[pd.DataFrame]:
     known = batched_delta_indices([fit for fits in groups for fit in fits])  # the whole chunk in one call per formula
-    frames = [model_average(fits, level=level, known=known).assign(experiment=fits[0].experiment) for fits in groups]
-    # one frame per chunk: the main process then unpickles and concatenates tens of frames, not
-    # thousands (about 3 s of serial work at 10,000 experiments); the columns come out the same
-    return [pd.concat(frames, ignore_index=True)]
+    rows = [
+        {**row, "experiment": fits[0].experiment}
+        for fits in groups
+        for row in model_average(fits, level=level, known=known, as_frame=False)
+    ]
+    # one table per chunk, from all its experiments' rows: the main process then unpickles and
+    # concatenates tens of tables, not thousands (about 3 s of serial work at 10,000
+    # experiments), and the chunk builds one DataFrame instead of one per experiment
+    return [pd.DataFrame(rows)]
 
 
 def _fit_guarded(points, formula, alpha, delta_max, size_unit="") -> CurveFit:

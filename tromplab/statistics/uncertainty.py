@@ -239,6 +239,7 @@ def model_average(
     delta_max: float | None = None,
     min_share: float = MIN_WEIGHT_SHARE,
     known: dict | None = None,
+    as_frame: bool = True,
 ) -> pd.DataFrame:
     """Akaike-weighted averages of ``quantities`` over the fits of one experiment.
 
@@ -278,6 +279,9 @@ def model_average(
     known : dict, optional
         Indices of the delta method evaluated beforehand by :func:`batched_delta_indices`
         (default: evaluated here, batched over these fits).
+    as_frame : bool
+        False: the rows as a list of dicts (a batch builds one table from all experiments'
+        rows instead of one per experiment).
     """
     good = [fit for fit in fits if fit.success]
     if not good:
@@ -299,13 +303,15 @@ def model_average(
         rows.append(_without_undetermined_interval(good[0], row))
     weight_columns = {f"weight_{fit.formula.id}": weight for fit, weight in zip(good, weights)}
     if not rows:  # no quantity asked for: the weights alone
+        if not as_frame:
+            return [dict(weight_columns)]
         table = pd.DataFrame()
         for name, weight in weight_columns.items():
             table[name] = weight
         return table
     # the weight columns go into each row: adding them to the frame one by one cost about
     # 1 ms each (9 ms per experiment, the largest part of the averages of a batch)
-    return pd.DataFrame([{**row, **weight_columns} for row in rows])
+    return pd.DataFrame([{**row, **weight_columns} for row in rows]) if as_frame else [{**row, **weight_columns} for row in rows]
 
 
 def _averaged_row(quantity: str, values, errors, weights, *, ids: list[str], z: float, x_max: float, min_share: float) -> dict:
