@@ -265,6 +265,7 @@ CLASS_PARTITIONS = [0.02, 0.10, 0.35, 0.70, 0.92, 0.99]  # the curve the three l
         "a,b,c\n1,2,x\n3,4,y\n",  # no comment or blank line: pandas reads the file itself
         "# a comment\na,b,c\n1,2,x\n\n3,4,y\n",  # comments and blank lines stripped first
         "a,b,c\r\n1,2,x\r\n3,4,y\r\n\r\n\r\n",  # CRLF and trailing blank lines
+        "a,b,c\r1,2,x\r3,4,y\r",  # old Mac line ends: read line by line
     ],
 )
 def test_a_table_read_for_some_columns_keeps_the_file_rows(tmp_path, text):

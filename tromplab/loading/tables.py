@@ -332,7 +332,9 @@ def _read_csv(path: Path, *, sep, decimal, columns=None):
     end = len(text)
     while end and text[end - 1] in "\r\n \t":
         end -= 1
-    if end and _COMMENT_OR_BLANK_LINE.search(text, 0, end) is None:  # the usual table: every line is content
+    first_break = text.find("\n")
+    plain_breaks = first_break > 0 and "\r" not in text[: first_break - 1]  # not old Mac line ends (a bare CR)
+    if plain_breaks and _COMMENT_OR_BLANK_LINE.search(text, 0, end) is None:  # the usual table: every line is content
         content = list(range(1, text.count("\n", 0, end) + 2))
         lines = [line.rstrip("\r") for line in text.split("\n", 51)[:51]]  # enough for the header and decimal marks
         # pandas reads the file itself (a StringIO of a large text would hold four bytes per character)
