@@ -287,52 +287,86 @@ def profile_limits(
         target = best_ssr * (1.0 + stats.f.ppf(level, 1, free) / free)
     experiment = np.repeat(np.arange(count), 2 * n_params)
     column = np.tile(np.repeat(np.arange(n_params), 2), count)
-    side = np.tile([-1.0, 1.0], count * n_params)
-    rows = problem.take(experiment)  # one row per limit
-    index = np.arange(experiment.size)
-    centre = best[experiment, column]
-    room = np.where(side > 0, rows.upper[index, column] - centre, centre - rows.lower[index, column])
-    floor, goal = best_ssr[experiment], target[experiment]
-    scale = np.sqrt(np.maximum(goal - floor, 0.0))
+    search = _ProfileSearch(problem.take(experiment), column, np.tile([-1.0, 1.0], count * n_params),
+                            best[experiment, column], best_ssr[experiment], target[experiment])  # fmt: skip
+    start = best[experiment].copy()
+    step = steps[experiment, column]
+    step = np.where(np.isfinite(step) & (step > 0), step, 0.1)
+    searching = np.isfinite(search.goal) & (free[experiment] > 0) & (search.room > 0)
+    t_low, h_low, t_high, h_high = _bracket(search, start, np.minimum(step, search.room), searching)
+    _regula_falsi(search, start, t_low, h_low, t_high, h_high)
+    limit = search.centre + search.side * np.where(np.abs(h_high) <= np.abs(h_low), t_high, t_low)
+    # a crossing on the bound itself is the bound reached below the level (lmfit warns there)
+    on_bound = np.abs(search.bound - limit) <= PROFILE_TOLERANCE * (1.0 + np.abs(search.centre))
+    found = np.flatnonzero(np.isfinite(t_high) & ~on_bound)
+    lowest = _grid_profile_ssr(search.rows, found, column[found], limit[found], best[experiment[found]])
+    gap = search.goal[found] - search.floor[found]
+    missed = found[lowest < search.goal[found] - 1e-3 * gap]  # a lower branch the descent missed
+    limit = np.where(np.isfinite(t_high) & ~on_bound, limit, np.nan)
+    limit[missed] = np.nan
+    limit = limit.reshape(count, n_params, 2)
+    return limit[..., 0], limit[..., 1]
 
-    def distance(work, ssr):  # sqrt(S - S_min) less its value at the level: linear in theta for a quadratic profile
+
+class _ProfileSearch:
+    """The rows of :func:`profile_limits`: one per (experiment, parameter, side), the parameter
+    held at ``centre + side t`` while the others are re-optimised."""
+
+    def __init__(self, rows: BatchProblem, column, side, centre, floor, goal):
+        self.rows, self.column, self.side, self.centre, self.floor, self.goal = rows, column, side, centre, floor, goal
+        index = np.arange(column.size)
+        self.bound = np.where(side > 0, rows.upper[index, column], rows.lower[index, column])
+        self.room = np.abs(self.bound - centre)
+        self.scale = np.sqrt(np.maximum(goal - floor, 0.0))
+
+    def distance(self, work, ssr):
+        """sqrt(S - S_min) less its value at the level: linear in theta for a quadratic profile."""
         with np.errstate(invalid="ignore"):
-            return np.where(np.isfinite(ssr), np.sqrt(np.maximum(ssr - floor[work], 0.0)) - scale[work], np.inf)
+            return np.where(np.isfinite(ssr), np.sqrt(np.maximum(ssr - self.floor[work], 0.0)) - self.scale[work], np.inf)
 
-    def profile(work, t, start):
-        """Re-optimised at theta_j = centre + side t, from the last point short of the level."""
-        value = centre[work] + side[work] * t
+    def profile(self, work, t, start):
+        """Re-optimised at theta_j = centre + side t, from ``start`` (the last point short of the level)."""
+        rows, column = self.rows, self.column[work]
+        value = self.centre[work] + self.side[work] * t
         held = rows.lower.copy(), rows.upper.copy()
-        rows.lower[work, column[work]] = rows.upper[work, column[work]] = value
+        rows.lower[work, column] = rows.upper[work, column] = value
         params = start.copy()
-        params[np.arange(work.size), column[work]] = value
+        params[np.arange(work.size), column] = value
         params, ssr, _ = levenberg_marquardt(rows, params, work)
         rows.lower, rows.upper = held
         return params, ssr
 
-    t_low, t_high = np.zeros(index.size), np.full(index.size, np.nan)
-    h_low, h_high = -scale.copy(), np.full(index.size, np.nan)
-    start = best[experiment].copy()
-    step = np.where(np.isfinite(steps[experiment, column]) & (steps[experiment, column] > 0), steps[experiment, column], 0.1)
-    t = np.minimum(step, room)
-    searching = np.isfinite(goal) & (free[experiment] > 0) & (room > 0)
-    for _ in range(PROFILE_EXPANSIONS):  # outwards until the level is passed or the bound is reached
+
+def _bracket(search: _ProfileSearch, start, t, searching):
+    """Outwards from the optimum, doubling ``t``, until the level is passed or the bound is
+    reached: ``(t_low, h_low, t_high, h_high)``, t_high nan where the level was not passed;
+    ``start`` is updated in place to the last point short of the level."""
+    size = t.size
+    t_low, t_high = np.zeros(size), np.full(size, np.nan)
+    h_low, h_high = -search.scale.copy(), np.full(size, np.nan)
+    t, searching = t.copy(), searching.copy()
+    for _ in range(PROFILE_EXPANSIONS):
         work = np.flatnonzero(searching)
         if not work.size:
             break
-        params, ssr = profile(work, t[work], start[work])
-        h = distance(work, ssr)
+        params, ssr = search.profile(work, t[work], start[work])
+        h = search.distance(work, ssr)
         passed = np.isfinite(ssr) & (h >= 0)
         short = np.isfinite(ssr) & ~passed
         t_high[work[passed]], h_high[work[passed]] = t[work[passed]], h[passed]
         t_low[work[short]], h_low[work[short]], start[work[short]] = t[work[short]], h[short], params[short]
-        at_bound = t[work] >= room[work]
+        at_bound = t[work] >= search.room[work]
         searching[work[passed | ~np.isfinite(ssr) | at_bound]] = False
         grow = work[short & ~at_bound]
-        t[grow] = np.minimum(2.0 * t[grow], room[grow])
+        t[grow] = np.minimum(2.0 * t[grow], search.room[grow])
+    return t_low, h_low, t_high, h_high
+
+
+def _regula_falsi(search: _ProfileSearch, start, t_low, h_low, t_high, h_high) -> None:
+    """Close every bracket ``[t_low, t_high]`` on the level (Illinois variant), in place."""
     solving = np.isfinite(t_high)
-    last_side = np.zeros(index.size)
-    for _ in range(PROFILE_ITERATIONS):  # regula falsi, Illinois variant, inside [t_low, t_high]
+    last_side = np.zeros(t_low.size)
+    for _ in range(PROFILE_ITERATIONS):
         work = np.flatnonzero(solving)
         if not work.size:
             break
@@ -340,8 +374,8 @@ def profile_limits(
             trial = t_low[work] - h_low[work] * (t_high[work] - t_low[work]) / (h_high[work] - h_low[work])
         inside = np.isfinite(trial) & (trial > t_low[work]) & (trial < t_high[work])
         trial = np.where(inside, trial, 0.5 * (t_low[work] + t_high[work]))
-        params, ssr = profile(work, trial, start[work])
-        h = distance(work, ssr)
+        params, ssr = search.profile(work, trial, start[work])
+        h = search.distance(work, ssr)
         below = h < 0
         low_rows, high_rows = work[below], work[~below]
         t_low[low_rows], h_low[low_rows], start[low_rows] = trial[below], h[below], params[below]
@@ -349,22 +383,9 @@ def profile_limits(
         h_high[low_rows[last_side[low_rows] < 0]] *= 0.5  # the same end moved twice: halve the other's weight
         h_low[high_rows[last_side[high_rows] > 0]] *= 0.5
         last_side[low_rows], last_side[high_rows] = -1.0, 1.0
-        closed = (t_high[work] - t_low[work] <= PROFILE_TOLERANCE * (1.0 + np.abs(centre[work]))) | (
-            np.abs(h) <= 1e-12 * scale[work]
-        )
+        width = PROFILE_TOLERANCE * (1.0 + np.abs(search.centre[work]))
+        closed = (t_high[work] - t_low[work] <= width) | (np.abs(h) <= 1e-12 * search.scale[work])
         solving[work[closed]] = False
-    limit = centre + side * np.where(np.abs(h_high) <= np.abs(h_low), t_high, t_low)
-    # a crossing on the bound itself is the bound reached below the level (lmfit warns there)
-    on_bound = np.abs(np.where(side > 0, rows.upper[index, column], rows.lower[index, column]) - limit) <= PROFILE_TOLERANCE * (
-        1.0 + np.abs(centre)
-    )
-    found = np.flatnonzero(np.isfinite(t_high) & ~on_bound)
-    lowest = _grid_profile_ssr(rows, found, column[found], limit[found], best[experiment[found]])
-    below = lowest < goal[found] - 1e-3 * (goal[found] - floor[found])  # a lower branch the descent missed
-    limit = np.where(np.isfinite(t_high) & ~on_bound, limit, np.nan)
-    limit[found[below]] = np.nan
-    limit = limit.reshape(count, n_params, 2)
-    return limit[..., 0], limit[..., 1]
 
 
 def _grid_profile_ssr(problem: BatchProblem, work: np.ndarray, column: np.ndarray, value: np.ndarray, best: np.ndarray):
