@@ -49,6 +49,7 @@ from .curve_fit import CurveFit, FitOptions, failed_fit, fit_formula
 from .fitting import ParameterFit, parameters_at_bounds
 from .formulas import Formula, get_formula, is_batchable
 from .measured import formula_context, measured_cut_size, measured_slope, parameter_specs
+from .parameters import D_CUT_RANGE_FACTOR
 from .screening import DEFAULT_ALPHA
 
 #: Slopes at the cut of the shape grid (as :data:`tromplab.curves.measured.GRID_SLOPES`, every other one).
@@ -275,7 +276,7 @@ def fit_batch(
     starts: np.ndarray,
     efficiency=None,
     global_search: bool = True,
-    cut_factor: float = 100.0,
+    cut_factor: float = D_CUT_RANGE_FACTOR,
 ) -> BatchOptimum:
     """Fit ``formula`` to every experiment of ``data`` at once.
 

@@ -24,6 +24,7 @@ from .fitting import on_bound
 from .formulas import is_batchable
 from .indices import batch_curve_indices, batchable_indices, curve_indices
 from .measured import CUT_QUANTITIES, formula_context, parameter_specs
+from .parameters import D_CUT_RANGE_FACTOR
 
 if TYPE_CHECKING:
     from .curve_fit import CurveFit
@@ -254,7 +255,8 @@ def batched_profile_intervals(fits: Sequence[CurveFit], level: float = 0.95) -> 
         chosen = [fits[i] for i in members]
         formula, names = chosen[0].formula, chosen[0].fit.names
         efficiency = np.array([fit.context["measured_efficiency"] for fit in chosen]) if formula.context_from_efficiency else None
-        problem = BatchProblem(formula, PaddedPoints.from_points([fit.points for fit in chosen]), efficiency, 100.0)
+        data = PaddedPoints.from_points([fit.points for fit in chosen])
+        problem = BatchProblem(formula, data, efficiency, D_CUT_RANGE_FACTOR)  # the bounds of the fits
         values = np.array([[fit.fit.values[name] for name in names] for fit in chosen])
         stderr = np.array([[fit.fit.stderr[name] for name in names] for fit in chosen])
         best = values.copy()
