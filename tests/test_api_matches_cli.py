@@ -92,3 +92,21 @@ def test_intervals_are_made_on_the_workers_and_do_not_depend_on_them(monkeypatch
     serial, parallel = (tromplab.fit_experiments(experiments, jobs=jobs, **options) for jobs in (1, 2))
     whole = interval_columns(list(serial.fits), level=0.9, n_bootstrap=8, seed=3)
     assert serial.intervals.to_csv(index=False) == parallel.intervals.to_csv(index=False) == whole.to_csv(index=False)
+
+
+def test_the_figures_of_the_results_folder_are_the_same_drawn_by_two_workers(tmp_path, monkeypatch):
+    """Workbench.save(jobs=) and tromplab fit --jobs draw the per-experiment figures on the
+    workers, FIGURE_CHUNK experiments at a time: every file is the same for 1 and 2 workers."""
+    from tromplab._synthetic import synthetic
+    from tromplab.output import folder
+
+    monkeypatch.setattr(folder, "FIGURE_CHUNK", 2)  # three chunks from five experiments
+    bench = tromplab.fit_experiments([synthetic(seed) for seed in range(5)], formulas=["plitt", "lognormal"])
+    bench.save(tmp_path / "one", figures="all", jobs=1)
+    bench.save(tmp_path / "two", figures="all", jobs=2)
+    pictures = sorted(p.name for p in (tmp_path / "one").glob("*.png"))
+    assert len(pictures) == 5
+    match, mismatch, errors = filecmp.cmpfiles(
+        tmp_path / "one", tmp_path / "two", pictures + ["figures.csv", "fits.csv"], shallow=False
+    )
+    assert not mismatch and not errors

@@ -781,7 +781,7 @@ def _run_fit(args) -> int:
     with _progress_bars(quiet=args.quiet) as progress:
         bench = fit_experiments(experiments, **_fit_keywords(args, formulas), progress=progress)
     bench.check_fitted(args.input)
-    written = bench.save(args.outdir, figures=args.figures, format=args.format, excel=args.excel)
+    written = bench.save(args.outdir, figures=args.figures, format=args.format, excel=args.excel, jobs=args.jobs)
     _print_fits(bench, args)
     _print_written(list(written.values()), args.outdir)
     return _report_failures(bench.failure_table())

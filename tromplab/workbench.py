@@ -281,14 +281,33 @@ class Workbench:
         )
         return write_report(built, path)
 
-    def save(self, directory, *, figures: str = "auto", format: str = "csv", excel: bool = False, reloadable: bool = False):
+    def save(
+        self,
+        directory,
+        *,
+        figures: str = "auto",
+        format: str = "csv",
+        excel: bool = False,
+        reloadable: bool = False,
+        jobs: int | None = 1,
+    ):
         """Write the results folder, the same files as ``tromplab fit ... -o DIRECTORY``:
         ``fits``, ``ranking`` and ``averages`` tables, figures, ``failures.csv`` when fits
         failed, ``results.xlsx`` with ``excel`` (only the workbook when ``directory`` ends in
         ``.xlsx``); with ``reloadable`` also the pickled batch, so :func:`load` reads it back.
-        See :func:`tromplab.output.folder.write_results_folder`.  Returns ``{file name: path}``.
+        ``jobs`` worker processes draw the per-experiment figures (None or 0: all cores; the
+        files are the same for any number).  See
+        :func:`tromplab.output.folder.write_results_folder`.  Returns ``{file name: path}``.
         """
-        return write_results_folder(self, directory, figures=figures, format=format, excel=excel, reloadable=reloadable)
+        return write_results_folder(
+            self,
+            directory,
+            figures=figures,
+            format=format,
+            excel=excel,
+            reloadable=reloadable,
+            map_work=functools.partial(_map_work, jobs=jobs or None, client=None),
+        )
 
 
 #: Experiments per unit of work: fixed, so that results do not depend on the number of workers.

@@ -41,7 +41,14 @@ def check_folder_options(*, figures: str, format: str) -> None:
 
 
 def write_results_folder(
-    bench, outdir, *, figures: str = "auto", format: str = "csv", excel: bool = False, reloadable: bool = False
+    bench,
+    outdir,
+    *,
+    figures: str = "auto",
+    format: str = "csv",
+    excel: bool = False,
+    reloadable: bool = False,
+    map_work=None,
 ) -> dict[str, Path]:
     """Write the tables and figures of ``bench`` into ``outdir`` (or only the workbook,
     when ``outdir`` names a ``.xlsx`` file).
@@ -61,6 +68,10 @@ def write_results_folder(
     reloadable : bool
         Also write ``workbench.pkl``, ``manifest.json`` and ``points.csv``, so that
         :func:`tromplab.load` reads the batch back.
+    map_work : callable, optional
+        ``map_work(function, chunks, argument)`` yields ``function(argument, chunk)`` for each
+        chunk in order: the batch's workers, which draw the per-experiment figures; default
+        in this process.  The files are the same either way.
 
     Returns
     -------
@@ -71,7 +82,7 @@ def write_results_folder(
     outdir = Path(outdir)
     fits = bench.fits_table()
     tables = {"fits": fits, "ranking": bench.ranking_table(), "averages": bench.averages()}
-    drawn, figure_names = _figures(bench, fits, figures)
+    drawn, figure_names = _figures(bench, fits, figures, map_work or _map_here)
     only_workbook = outdir.suffix.lower() == ".xlsx"
     if only_workbook or excel:
         sheets = {**tables, **_input_sheets(bench)}
@@ -104,8 +115,13 @@ def write_results_folder(
     return replace_folder(outputs, outdir)
 
 
-def _figures(bench, fits: pd.DataFrame, mode: str) -> tuple[dict[str, bytes], dict[str, str]]:
-    """PNG bytes by file name, and the experiment -> file mapping of per-experiment figures."""
+#: Experiments whose figures one worker draws at a time.
+FIGURE_CHUNK = 16
+
+
+def _figures(bench, fits: pd.DataFrame, mode: str, map_work) -> tuple[dict[str, bytes], dict[str, str]]:
+    """PNG bytes by file name, and the experiment -> file mapping of per-experiment figures
+    (drawn by ``map_work``'s workers, :data:`FIGURE_CHUNK` experiments at a time)."""
     if mode == "auto":
         mode = "all" if len(bench.experiments) <= AUTO_FIGURE_LIMIT else "overview"
     if mode == "overview":
@@ -114,13 +130,24 @@ def _figures(bench, fits: pd.DataFrame, mode: str) -> tuple[dict[str, bytes], di
     if mode not in ("all", "best"):
         return {}, {}
     names = figure_file_names(bench.experiments)
-    drawn = {}
-    for experiment, name in names.items():
+    work = []
+    for experiment in names:
         best = bench.best_fit(experiment)
-        shown = bench.fits_of(experiment) if mode == "all" or best is None else [best]
-        ax = plot_tromp_fits(shown, size_unit=bench.size_unit, best=best, partition_to=bench.partition_to, ax=offscreen_axes())
-        drawn[name] = _png(ax)
-    return drawn, names
+        work.append((bench.fits_of(experiment) if mode == "all" or best is None else [best], best))
+    chunks = [work[i : i + FIGURE_CHUNK] for i in range(0, len(work), FIGURE_CHUNK)]
+    options = {"size_unit": bench.size_unit, "partition_to": bench.partition_to}
+    pictures = [png for drawn in map_work(tromp_figures, chunks, options) for png in drawn]
+    return dict(zip(names.values(), pictures)), names
+
+
+def tromp_figures(options: dict, chunk) -> list[bytes]:
+    """PNG of the Tromp curves of each ``(fits shown, best fit)`` of ``chunk`` (``options``:
+    ``size_unit``, ``partition_to``): a unit of work for the workers."""
+    return [_png(plot_tromp_fits(shown, best=best, ax=offscreen_axes(), **options)) for shown, best in chunk]
+
+
+def _map_here(function, chunks, argument):
+    return (function(argument, chunk) for chunk in chunks)
 
 
 def _png(ax) -> bytes:
