@@ -403,15 +403,9 @@ def fit_experiments(
     settings = _checked_settings(locals(), n_fits=n_fits, size_unit=_data_size_unit(experiments, size_unit))
     with dask_client(scheduler=scheduler, dask=dask, client=client) as cluster:
         failures, fittable = _screenable(experiments)
-        wanted = {"level": ci, "n_bootstrap": bootstrap, "method": bootstrap_method, "seed": seed}
+        wanted = {"level": ci, "n_bootstrap": bootstrap, "method": bootstrap_method, "seed": seed} if ci or bootstrap else None
         fits, notes, intervals = _fit_in_chunks(
-            fittable,
-            chosen,
-            settings,
-            jobs=jobs,
-            client=cluster,
-            progress=progress,
-            intervals=wanted if ci or bootstrap else None,
+            fittable, chosen, settings, jobs=jobs, client=cluster, progress=progress, intervals=wanted
         )
         bench = Workbench(
             tuple(fits), failures, chosen, rank_by, alpha, rank_extended, notes, settings["water_recovery"],

@@ -126,6 +126,13 @@ class _Problem:
         out[pct] = 100.0 * flows[s] / (flows[s] + v[self.n_streams * self.n_classes + s])
         return out
 
+    def whitened_residual(self, z: np.ndarray) -> np.ndarray:
+        """Whitened residuals (prediction - measurement) at ``m0 + N z``: their squares sum to the chi-square."""
+        return self.W @ (self.predict(self.m0 + self.N @ z) - self.y)
+
+    def whitened_jacobian(self, z: np.ndarray) -> np.ndarray:
+        return self.W @ self.jacobian(self.m0 + self.N @ z) @ self.N
+
     def jacobian(self, v: np.ndarray) -> np.ndarray:
         """d(prediction)/d(v), measurements x unknowns."""
         n = self.n_classes
@@ -799,39 +806,16 @@ def reconcile(
     start = _start(flowsheet, survey, problem)
     _check_observable(flowsheet, survey, problem, start)
     z0 = problem.N.T @ (start - problem.m0)
-
-    def residuals(z):
-        return problem.W @ (problem.predict(problem.m0 + problem.N @ z) - problem.y)
-
-    def jacobian(z):
-        return problem.W @ problem.jacobian(problem.m0 + problem.N @ z) @ problem.N
-
     if problem.N.shape[1] and problem.y.size:
-        solution = optimize.least_squares(
-            residuals, z0, jac=jacobian, method="lm", x_scale="jac", xtol=1e-14, ftol=1e-14, gtol=1e-12, max_nfev=2000
-        )
+        solution = optimize.least_squares(problem.whitened_residual, z0, jac=problem.whitened_jacobian, method="lm",
+                                          x_scale="jac", xtol=1e-14, ftol=1e-14, gtol=1e-12, max_nfev=2000)  # fmt: skip
         z, success, message = solution.x, bool(solution.success), str(solution.message)
     else:
         z, success, message = z0, True, "nothing to adjust"
     v = problem.m0 + problem.N @ z
     S, n = problem.n_streams, problem.n_classes
-    flows = v[: S * n].reshape(S, n).sum(axis=1)
-    if np.any(flows <= 0):
-        bad = [flowsheet.stream_names[s] for s in np.flatnonzero(flows <= 0)]
-        raise InputError(
-            f"the reconciled solids flow of stream(s) {', '.join(bad)} is not positive: the measurements contradict the "
-            "flowsheet (check the stream names in both files)",
-            source=survey.source,
-        )
-    if problem.y.size:
-        J = jacobian(z)
-        r = residuals(z)
-        chi = float(r @ r)
-        rank = int(np.linalg.matrix_rank(J, tol=_RANK_TOL * max(1.0, np.abs(J).max()))) if J.size else 0
-        cov_z = np.linalg.pinv(J.T @ J, rcond=1e-12) if J.size else np.zeros((0, 0))
-    else:
-        chi, rank, cov_z = 0.0, 0, np.zeros((problem.N.shape[1],) * 2)
-    covariance = problem.N @ cov_z @ problem.N.T
+    _check_positive_flows(flowsheet, survey, v[: S * n].reshape(S, n).sum(axis=1))
+    chi, rank, covariance = _linearised(problem, z)
     return CircuitBalance(
         flowsheet,
         survey,
@@ -847,6 +831,26 @@ def reconcile(
         problem.y.copy(),
         v[S * n :] if problem.n_water else None,
     )
+
+
+def _check_positive_flows(flowsheet: Flowsheet, survey: Survey, flows: np.ndarray) -> None:
+    if np.any(flows <= 0):
+        bad = [flowsheet.stream_names[s] for s in np.flatnonzero(flows <= 0)]
+        raise InputError(
+            f"the reconciled solids flow of stream(s) {', '.join(bad)} is not positive: the measurements contradict the "
+            "flowsheet (check the stream names in both files)",
+            source=survey.source,
+        )
+
+
+def _linearised(problem: _Problem, z: np.ndarray) -> tuple[float, int, np.ndarray]:
+    """``(chi-square, rank of the whitened Jacobian, covariance of the unknowns)`` at ``z``."""
+    if not problem.y.size:
+        return 0.0, 0, np.zeros((problem.N.shape[0],) * 2)
+    J, r = problem.whitened_jacobian(z), problem.whitened_residual(z)
+    rank = int(np.linalg.matrix_rank(J, tol=_RANK_TOL * max(1.0, np.abs(J).max()))) if J.size else 0
+    cov_z = np.linalg.pinv(J.T @ J, rcond=1e-12) if J.size else np.zeros((0, 0))
+    return float(r @ r), rank, problem.N @ cov_z @ problem.N.T
 
 
 def _build(flowsheet: Flowsheet, survey: Survey) -> tuple[_Problem, str]:
