@@ -41,7 +41,7 @@ def _seconds(work) -> tuple[float, object]:
     return time.perf_counter() - start, result
 
 
-def phases(n: int, jobs: int, bare_limit: int) -> pd.DataFrame:
+def phases(n: int, jobs: int, bare_limit: int, *, intervals: bool = True) -> pd.DataFrame:
     rows = []
     with tempfile.TemporaryDirectory() as folder:
         path = Path(folder) / "points.csv"
@@ -51,7 +51,7 @@ def phases(n: int, jobs: int, bare_limit: int) -> pd.DataFrame:
         pd.concat(table).to_csv(path, index=False)
         load, read = _seconds(lambda: read_experiments(path))
         fit, bench = _seconds(lambda: fit_experiments(read, jobs=jobs))
-        with_ci, _ = _seconds(lambda: fit_experiments(read, jobs=jobs, ci=0.95))
+        with_ci, _ = _seconds(lambda: fit_experiments(read, jobs=jobs, ci=0.95)) if intervals else (float("nan"), None)
         averages, _ = _seconds(lambda: bench.averages(jobs=jobs))
         write, _ = _seconds(lambda: bench.save(Path(folder) / "out", figures="none"))
         command = [sys.executable, "-m", "tromplab", "fit", str(path), "-o", str(Path(folder) / "cmd"), "--figures", "none"]
@@ -68,10 +68,11 @@ def main(argv=None) -> pd.DataFrame:
     parser.add_argument("--experiments", type=int, default=1024)
     parser.add_argument("--jobs", type=int, default=1)
     parser.add_argument("--bare-limit", type=int, default=256)
+    parser.add_argument("--no-intervals", action="store_true", help="skip the ci phase (long at 10,000 experiments)")
     parser.add_argument("--output", type=Path, default=HERE / "output" / "phases.csv")
     args = parser.parse_args(argv)
     load_before = os.getloadavg()[0]
-    table = phases(args.experiments, args.jobs, args.bare_limit)
+    table = phases(args.experiments, args.jobs, args.bare_limit, intervals=not args.no_intervals)
     args.output.parent.mkdir(parents=True, exist_ok=True)
     table.to_csv(args.output, index=False)
     print(table.to_string(index=False, float_format=lambda v: f"{v:.3g}"))
