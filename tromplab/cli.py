@@ -18,8 +18,6 @@ import numpy as np
 import pandas as pd
 
 from ._version import __version__
-from .circuit import ErrorModel
-from .circuit_command import console_report, run_circuit
 from .classifiers.sieve import closed_form_valid, design_bin, distance_moments, geometric_probability, identify_from_table
 from .curves.diagnostics import RESIDUAL_WARNING
 from .curves.formulas import NAME_CLASHES, get_formula, registry_table
@@ -37,7 +35,6 @@ from .output.views import PARTITION_TO, balance_view, partition_view
 from .statistics.compare import DEFAULT_MARGIN, shared_fit
 from .statistics.hydrocyclone import water_recovery_statements
 from .statistics.uncertainty import BOOTSTRAP_METHODS
-from .trend import monitor_surveys, read_surveys, write_trend
 from .validation import (
     MAX_BOOTSTRAP,
     MAX_DECKS,
@@ -988,6 +985,8 @@ def _run_export(args) -> int:
 
 
 def _run_trend(args) -> int:
+    from .trend import monitor_surveys, read_surveys, write_trend  # imported when the command runs, as the circuit's
+
     check_input_file(args.input)
     check_output_folder(args.outdir, inputs=[args.input])
     surveys = read_surveys(args.input, _lab_options(args))
@@ -1097,6 +1096,11 @@ def _add_circuit_command(commands) -> None:
 
 
 def _run_circuit(args) -> int:
+    # imported when the command runs: the other commands do not pay for networkx and the
+    # reconciliation at start-up (nothing imports the CLI, so this hides no cycle)
+    from .circuit import ErrorModel
+    from .circuit_command import console_report, run_circuit
+
     errors = ErrorModel(relative_error=args.relative_error, absolute_error=args.absolute_error)
     run = run_circuit(args.flowsheet, args.measurements, args.outdir, fit=args.fit, errors=errors, alpha=args.alpha,
                       size_unit=args.size_unit, figures=not args.no_figures)  # fmt: skip
