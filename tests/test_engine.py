@@ -276,3 +276,20 @@ def test_11_finds_its_optimum_where_a_point_crosses_the_break():
     for d_cut, ssr in found:
         assert ssr <= independent * (1 + 1e-7)
         assert_allclose((d_cut, ssr), found[0], rtol=1e-6)
+
+
+def test_the_numbers_do_not_depend_on_how_the_batch_is_cut(monkeypatch):
+    """Chunks of experiments with different numbers of points are padded to one width, so
+    the fits and the profile intervals are the same bit for bit however the batch is cut
+    (numpy's sums move in their last bits when a row gets more padding)."""
+    experiments = [synthetic(seed) for seed in range(6)]
+    experiments += [TrompPoints(f"short{seed}", p.size[:6], p.partition_fine[:6]) for seed, p in enumerate(experiments[:4])]
+    assert len({p.n for p in experiments}) > 1
+    options = {"formulas": ["plitt", "rosin_rammler", "11"], "ci": 0.9}
+    whole = fit_experiments(experiments, **options)
+    monkeypatch.setattr(workbench, "CHUNK_SIZE", 1)
+    monkeypatch.setattr(workbench, "MAX_CHUNK_SIZE", 3)  # short ones alone in some chunks
+    assert len(workbench.chunked(experiments, workers=1)) == 4
+    cut = fit_experiments(experiments, **options)
+    assert cut.fits_table().to_csv(index=False) == whole.fits_table().to_csv(index=False)
+    assert cut.intervals.to_csv(index=False) == whole.intervals.to_csv(index=False)

@@ -11,6 +11,7 @@ import contextlib
 import functools
 import importlib.util
 import logging
+import math
 import os
 import sys
 from collections.abc import Callable, Sequence
@@ -310,8 +311,28 @@ class Workbench:
         )
 
 
-#: Experiments per unit of work: fixed, so that results do not depend on the number of workers.
+#: Experiments per unit of work: at least ``CHUNK_SIZE`` (progress, and balance over the
+#: workers), at most ``MAX_CHUNK_SIZE`` (memory), in between two units per worker.  The
+#: numbers do not depend on the cut: every chunk is padded to the widest experiment of the
+#: batch (:class:`~tromplab.curves.batched.PaddedPoints`), and the fits of one experiment
+#: use its own rows only.  Large units matter: the engine's cost per call is mostly
+#: interpreter overhead that a larger batch shares (1,024 experiments on one worker, chunks
+#: of 64 against 512: 7.5 s against 4.3 s, docs/performance.md).
 CHUNK_SIZE = 64
+MAX_CHUNK_SIZE = 512
+
+
+def chunked(items: Sequence, *, workers: int) -> list:
+    """``items`` cut into consecutive units of work for ``workers`` (see :data:`CHUNK_SIZE`)."""
+    size = min(MAX_CHUNK_SIZE, max(CHUNK_SIZE, math.ceil(len(items) / (2 * max(workers, 1)))))
+    return [items[i : i + size] for i in range(0, len(items), size)]
+
+
+def _worker_count(jobs, client) -> int:
+    """Workers the chunks will run on: the Dask cluster's threads, else ``jobs`` (None or 0: all cores)."""
+    if client is not None:
+        return max(1, sum(client.nthreads().values()))
+    return jobs or os.cpu_count() or 1
 
 
 def fit_experiments(
@@ -372,8 +393,8 @@ def fit_experiments(
         ``bootstrap_method`` from ``seed`` (the same seed gives the same intervals).
     bootstrap_method : {"residuals", "cases"}
     jobs : int or None
-        Worker processes (None or 0: all cores).  The experiments are cut into chunks of
-        :data:`CHUNK_SIZE` whatever ``jobs`` is, so the results are identical for any number.
+        Worker processes (None or 0: all cores).  The experiments are cut into chunks
+        (:func:`chunked`) that are padded alike, so the results are identical for any number.
     scheduler, dask, client : optional
         Run the chunks on Dask: on the scheduler at ``scheduler`` (``tcp://host:8786``), on a
         local cluster of two workers (``dask="local"``) or on ``client`` (a ``dask.distributed.Client``).
@@ -499,16 +520,17 @@ def _fit_in_chunks(
     seed included) depend on that fit only, so the table is the same for any number of workers.
     ``progress`` hears of each chunk twice: its fits, then (labels ``"intervals: ..."``) its intervals.
     """
-    chunks = [fittable[i : i + CHUNK_SIZE] for i in range(0, len(fittable), CHUNK_SIZE)]
+    chunks = chunked(fittable, workers=_worker_count(jobs, client))
     options = {key: settings[key] for key in ("alpha", "delta_max", "engine", "size_unit")}
     options["formulas"] = tuple(f.id for f in chosen)
     options["intervals"] = intervals
+    options["width"] = max((points.n for points in fittable), default=0)  # one padding for every chunk
     logger.info(
         "fitting %d experiment(s) x %d formula(s) in %d chunk(s) of up to %d (%s)",
         len(fittable),
         len(chosen),
         len(chunks),
-        CHUNK_SIZE,
+        len(chunks[0]) if chunks else 0,
         "on a Dask cluster" if client is not None else f"jobs={jobs or 'all cores'}",
     )
     fits, notes, frames = [], {}, []
@@ -554,18 +576,22 @@ def dask_client(*, scheduler: str | None = None, dask: str | None = None, client
         yield made
 
 
-def fit_chunk(experiments: Sequence[TrompPoints], *, formulas, alpha, delta_max, engine=True, size_unit="") -> list[CurveFit]:
+def fit_chunk(
+    experiments: Sequence[TrompPoints], *, formulas, alpha, delta_max, engine=True, size_unit="", width=None
+) -> list[CurveFit]:
     """Fits of ``formulas`` to ``experiments``, experiment by experiment in formula order.
 
-    Batchable formulas go through the engine for all experiments at once; the others
-    (and a formula whose batch raised) are fitted one by one.
+    Batchable formulas go through the engine for all experiments at once, padded to
+    ``width`` points; the others (and a formula whose batch raised) are fitted one by one.
     """
     per_formula = []
     for formula in select_formulas(formulas):
         batch = None
         if engine and is_batchable(formula):
             try:
-                batch = fit_formula_batch(experiments, formula, alpha=alpha, delta_max=delta_max, size_unit=size_unit)
+                batch = fit_formula_batch(
+                    experiments, formula, alpha=alpha, delta_max=delta_max, size_unit=size_unit, width=width
+                )
             except Exception as error:  # a broken batch falls back to single fits, which report per fit
                 logger.warning(
                     "batched engine failed on formula %s for %d experiment(s) (%s: %s); fitting them one at a time instead",
@@ -623,7 +649,7 @@ def _fit_chunk_star(options, chunk):
     options = dict(options)
     intervals = options.pop("intervals", None)
     fits = fit_chunk(chunk, **options)
-    return fits, notes, (interval_columns(fits, **intervals) if intervals else None)
+    return fits, notes, (interval_columns(fits, **intervals, width=options["width"]) if intervals else None)
 
 
 def _points_and_balances(experiments) -> tuple[list[TrompPoints], tuple[MassBalance, ...]]:
@@ -712,7 +738,7 @@ def model_averages(bench: Workbench, *, level: float = 0.95, jobs: int | None = 
         chosen = [f for f in fits if f.success and f.formula.id in ranked]
         if chosen:
             groups.append(chosen)
-    chunks = [groups[i : i + CHUNK_SIZE] for i in range(0, len(groups), CHUNK_SIZE)]
+    chunks = chunked(groups, workers=_worker_count(jobs, client))
     logger.info("model averages of %d experiment(s) at level %g", len(groups), level)
     frames = [frame for chunk in _map_work(_averages_of_chunk, chunks, level, jobs=jobs, client=client) for frame in chunk]
     if not frames:

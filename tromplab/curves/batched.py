@@ -39,6 +39,10 @@ class PaddedPoints:
         Square roots of the normalised weights (mean 1 over the real points); 0 on padding.
     n : ndarray of int, shape (E,)
         Number of real points per experiment.
+
+    The sums over a row's points depend on the padded width in their last bits (numpy sums
+    in blocks whose grouping moves when zeros are appended), so callers that fit a batch in
+    chunks pad every chunk to one ``width`` and get the same numbers however it is cut.
     """
 
     size: np.ndarray
@@ -47,9 +51,9 @@ class PaddedPoints:
     n: np.ndarray
 
     @classmethod
-    def from_points(cls, experiments: Sequence[TrompPoints]) -> PaddedPoints:
+    def from_points(cls, experiments: Sequence[TrompPoints], width: int | None = None) -> PaddedPoints:
         count = len(experiments)
-        width = max(points.n for points in experiments)
+        width = max(max(points.n for points in experiments), width or 0)
         size = np.ones((count, width))
         observed = np.zeros((count, width))
         root_weight = np.zeros((count, width))

@@ -401,6 +401,7 @@ def fit_formula_batch(
     global_search: bool = True,
     start: dict[str, float] | None = None,
     size_unit: str = "",
+    width: int | None = None,
 ) -> list:
     """:func:`tromplab.curves.curve_fit.fit_formula` for many experiments at once.
 
@@ -411,6 +412,7 @@ def fit_formula_batch(
     Experiments with too few points for the formula get a failed fit with the reason.
     ``global_search`` and ``start`` (one further start for every experiment) are as for a
     single fit; the bootstrap refits its resamples from the optimum without the grid.
+    ``width`` pads the experiments to at least that many points (:class:`PaddedPoints`).
     """
 
     alpha = DEFAULT_ALPHA if alpha is None else alpha
@@ -425,7 +427,7 @@ def fit_formula_batch(
     if not usable:
         return results
     chosen = [experiments[i] for i in usable]
-    data = PaddedPoints.from_points(chosen)
+    data = PaddedPoints.from_points(chosen, width)
     starts = np.empty((len(chosen), 1 if start is None else 2, len(names)))
     for row, points in enumerate(chosen):
         cut = measured_cut_size(points)

@@ -231,13 +231,14 @@ def batched_delta_indices(fits: Sequence[CurveFit], delta_max: float | None = No
     return known
 
 
-def batched_profile_intervals(fits: Sequence[CurveFit], level: float = 0.95) -> list[dict | None]:
+def batched_profile_intervals(fits: Sequence[CurveFit], level: float = 0.95, *, width: int | None = None) -> list[dict | None]:
     """Profile-likelihood intervals of the parameters of many fits, one batched search per formula.
 
     The same intervals as lmfit's ``conf_interval`` (F test, the other parameters
     re-optimised, bounds respected; :func:`~tromplab.curves.batched.profile_limits`), to its
     tolerance (it stops at 5e-5 relative; this search at 1e-9), for every formula the
     batched engine evaluates on arrays (:func:`~tromplab.curves.formulas.is_batchable`).
+    ``width`` pads the points as :class:`~tromplab.curves.batched.PaddedPoints` does.
 
     Returns
     -------
@@ -255,7 +256,7 @@ def batched_profile_intervals(fits: Sequence[CurveFit], level: float = 0.95) -> 
         chosen = [fits[i] for i in members]
         formula, names = chosen[0].formula, chosen[0].fit.names
         efficiency = np.array([fit.context["measured_efficiency"] for fit in chosen]) if formula.context_from_efficiency else None
-        data = PaddedPoints.from_points([fit.points for fit in chosen])
+        data = PaddedPoints.from_points([fit.points for fit in chosen], width)
         problem = BatchProblem(formula, data, efficiency, D_CUT_RANGE_FACTOR)  # the bounds of the fits
         values = np.array([[fit.fit.values[name] for name in names] for fit in chosen])
         stderr = np.array([[fit.fit.stderr[name] for name in names] for fit in chosen])

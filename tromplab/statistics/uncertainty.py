@@ -397,6 +397,7 @@ def interval_columns(
     method: str = "residuals",
     seed: int = 0,
     progress: Callable[[int, int, str], None] | None = None,
+    width: int | None = None,
 ) -> pd.DataFrame:
     """Wide interval columns for ``fits.csv``.
 
@@ -405,7 +406,8 @@ def interval_columns(
     ``_boot_high`` (percentile, ``bootstrap_method`` says residuals or cases) and
     ``bootstrap_failed``.  ``interval_flags`` lists one-sided intervals, missing ones and
     bootstrap limits on a bound.  Keyed by ``experiment`` and ``formula``; failed fits
-    get nan.  Every fit's own ``delta_max`` and alpha are used.
+    get nan.  Every fit's own ``delta_max`` and alpha are used.  ``width`` pads the points of
+    the profile search (:class:`~tromplab.curves.batched.PaddedPoints`), as the fits were.
     """
     check_optional(check_probability, level, "level")
     n_bootstrap, seed = check_bootstrap(n_bootstrap, "n_bootstrap"), check_seed(seed, "seed")
@@ -417,7 +419,7 @@ def interval_columns(
         f"bootstrap of {n_bootstrap} {method} resamples, seed {seed}" if n_bootstrap else "no bootstrap",
     )
     # the profiles and the delta method's index evaluations of all fits in one batched call per formula
-    profiles = batched_profile_intervals(fits, level) if level is not None else [None] * len(fits)
+    profiles = batched_profile_intervals(fits, level, width=width) if level is not None else [None] * len(fits)
     known = batched_delta_indices([fit for fit in fits if fit.success]) if level is not None else None
     rows = []
     for i, fit in enumerate(fits):
