@@ -201,13 +201,20 @@ def batched_delta_indices(fits: Sequence[CurveFit], delta_max: float | None = No
     covers, this evaluates all of them for many fits at once; the result, passed as
     ``known`` to :func:`interval_table` or :func:`model_average`, replaces one
     :func:`~tromplab.curves.indices.curve_indices` call per evaluation (same definitions; the
-    quadrature agrees with the adaptive one to 1e-9).
+    quadrature agrees with the adaptive one to 1e-9).  For a formula without data-derived
+    inputs the gradients and the variances ``g C g^T`` of all its fits are formed on arrays
+    too, and ``known`` holds each fit's estimates and standard errors
+    (:func:`delta_indices` reads them).
     """
     wanted: dict[str, list] = {}
+    plain: dict[str, list] = {}
     for fit in fits:
         if not (fit.success and fit.fit.covariance is not None and batchable_indices(fit.formula)):
             continue
         limit = fit.options.delta_max if delta_max is None else delta_max
+        if not fit.context:
+            plain.setdefault(fit.formula.id, []).append((fit, limit))
+            continue
         values = {**fit.context_at(), **fit.fit.values}
         sets = [values]
         for name in (*fit.fit.names, *fit.context):
@@ -228,7 +235,53 @@ def batched_delta_indices(fits: Sequence[CurveFit], delta_max: float | None = No
         )
         for (fit, values, limit), indices in zip(evaluations, found):
             known[_index_key(fit, values, limit)] = np.array([getattr(indices, name) for name in INDEX_NAMES])
+    for formula_id, members in plain.items():
+        for (fit, limit), centre, errors in zip(members, *_delta_on_arrays(formula_id, members)):
+            known[_delta_key(fit, limit)] = (centre, errors)
     return known
+
+
+def _delta_on_arrays(formula_id: str, members: list) -> tuple[np.ndarray, np.ndarray]:
+    """Indices and their delta-method standard errors of fits ``(fit, delta_max)`` of one formula
+    without data-derived inputs, all at once: the central differences of
+    :func:`delta_standard_errors` (the same steps) and ``g C g^T`` on arrays."""
+    fit = members[0][0]
+    names, shape_at = fit.fit.names, fit.fit.names.index(fit.formula.shape_name)
+    values = np.array([[fit.fit.values[name] for name in names] for fit, _ in members])  # (m, p)
+    covariance = np.array([fit.fit.covariance for fit, _ in members])  # (m, p, p)
+    limits = np.array([limit for _, limit in members], dtype=float)
+    steps = 1e-5 * np.maximum(np.abs(values), 1e-3)  # as _step
+    count, n_params = values.shape
+    sets = np.repeat(values[:, None, :], 1 + 2 * n_params, axis=1)  # centre, then + and - each parameter
+    for j in range(n_params):
+        sets[:, 1 + 2 * j, j] += steps[:, j]
+        sets[:, 2 + 2 * j, j] -= steps[:, j]
+    found = batch_curve_indices(
+        formula_id,
+        sets[..., names.index("d_cut")].ravel(),
+        sets[..., shape_at].ravel(),
+        delta_max=np.repeat(limits, 1 + 2 * n_params),
+    )
+    table = np.array([[getattr(indices, name) for name in INDEX_NAMES] for indices in found]).reshape(count, 1 + 2 * n_params, -1)
+    gradient = (table[:, 1::2] - table[:, 2::2]) / (2 * steps[..., None])  # (m, p, q)
+    variance = np.einsum("mpq,mpr,mrq->mq", gradient, covariance, gradient)
+    errors = np.where(np.all(np.isfinite(gradient), axis=1), np.sqrt(np.maximum(variance, 0.0)), np.nan)
+    return table[:, 0], errors
+
+
+def _delta_key(fit: CurveFit, delta_max: float) -> tuple:
+    return ("delta", fit.experiment, fit.formula.id, *fit.fit.values.values(), delta_max)
+
+
+def delta_indices(fit: CurveFit, delta_max: float, known: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """``(indices, standard errors)`` of one fit in :data:`INDEX_NAMES` order: from ``known``
+    (:func:`batched_delta_indices`) where it holds them, else by :func:`delta_standard_errors`."""
+    if known:
+        found = known.get(_delta_key(fit, delta_max))
+        if found is not None:
+            return found
+    centre = indices_at(fit, {**fit.context_at(), **fit.fit.values}, delta_max, known)
+    return centre, delta_standard_errors(fit, lambda values: indices_at(fit, values, delta_max, known))
 
 
 def batched_profile_intervals(fits: Sequence[CurveFit], level: float = 0.95, *, width: int | None = None) -> list[dict | None]:
@@ -481,8 +534,7 @@ def _one_sided(value: float, se: float, quantile: float, domain: Domain, at_lowe
 
 
 def _delta_rows(fit: CurveFit, half: float, delta_max: float, known: dict | None = None) -> list[dict]:
-    centre = indices_at(fit, {**fit.context_at(), **fit.fit.values}, delta_max, known)
-    errors = delta_standard_errors(fit, lambda values: indices_at(fit, values, delta_max, known))
+    centre, errors = delta_indices(fit, delta_max, known)
     x_max = relative_size_limit(fit, {**fit.context_at(), **fit.fit.values}, delta_max)
     rows = []
     for name, value, se in zip(INDEX_NAMES, centre, errors):

@@ -33,8 +33,7 @@ from ..curves.intervals import (
     INDEX_NAMES,
     batched_delta_indices,
     batched_profile_intervals,
-    delta_standard_errors,
-    indices_at,
+    delta_indices,
     interval_method,
     interval_rows,
     interval_table,  # noqa: F401 - part of this module's public face (tromplab.interval_table)
@@ -380,9 +379,7 @@ def _estimates_and_errors(fit: CurveFit, delta_max: float | None, known: dict | 
     :func:`interval_table` reports them (without building its table); ``d50c`` is the fitted
     ``d_cut`` of every formula (the corrected cut)."""
     limit = fit.options.delta_max if delta_max is None else delta_max
-    values = {**fit.context_at(), **fit.fit.values}
-    centre = indices_at(fit, values, limit, known)
-    errors = delta_standard_errors(fit, lambda at: indices_at(fit, at, limit, known))
+    centre, errors = delta_indices(fit, limit, known)
     found = {name: (float(fit.fit.values[name]), float(fit.fit.stderr[name])) for name in fit.fit.names}
     found.update({name: (float(v), float(e)) for name, v, e in zip(INDEX_NAMES, centre, errors)})
     found["d50c"] = found["d_cut"]
