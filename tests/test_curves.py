@@ -235,7 +235,8 @@ def test_a_parameter_the_data_do_not_determine_is_said_in_words():
     )
     fits = fit_experiments(read_experiments(frame)[0]).fits_table().set_index("formula")
     assert "d_cut = " in fits.loc["shuvalov", "warnings"] and "not determined by the data" in fits.loc["shuvalov", "warnings"]
-    assert fits.loc["shuvalov", "d_cut_stderr"] > 10 * fits.loc["shuvalov", "d_cut"]
+    # the valley is flat: the standard error is either huge or, where J^T J is singular, none
+    assert not fits.loc["shuvalov", "d_cut_stderr"] <= 10 * fits.loc["shuvalov", "d_cut"]
     assert "not determined" not in fits.loc["rosin_rammler", "warnings"]  # standard error a third of the cut
     decks = fit_experiments(read_experiments(DATASETS / "double_deck_screen_decks_lab.csv", size_unit="mm")[0]).fits_table()
     assert not decks["warnings"].str.contains("not determined").any()

@@ -288,6 +288,11 @@ class CurveFit:
                     f"{spec.name} = {value:.4g} is not determined by the data (standard error {stderr:.3g}): the sum "
                     "of squares is nearly flat along it, so quite different values fit as well"
                 )
+            elif spec.name not in self.undetermined_extras and not np.isfinite(self.fit.stderr[spec.name]):
+                warnings.append(
+                    f"{spec.name} = {self.fit.values[spec.name]:.4g} is not determined by the data (no standard error: "
+                    "the sum of squares is flat along a direction at the optimum), so quite different values fit as well"
+                )
         if self.formula.context_from_efficiency:
             warnings += _break_point(self.shape, self.context["measured_efficiency"])[1]
         if self.formula.extras:
