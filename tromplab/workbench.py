@@ -25,7 +25,7 @@ import pandas as pd
 from scipy import stats
 
 from .curves.curve_fit import FIT_COLUMNS, CurveFit, attach_diagnostics, attach_indices, failed_fit, fit_formula
-from .curves.engine import check_bootstrap_request, fit_formula_batch
+from .curves.engine import check_bootstrap_request, fit_formula_batch, measured_start
 from .curves.formulas import Formula, is_batchable, select_formulas
 from .curves.measured import AMBIGUOUS_CUT_RATIO, CUT_BAND, CUT_WARNING, measured_cut_band, measured_efficiency, unbracketed_cut
 from .curves.ranking import RANK_BY, add_delta_aicc, add_ranks, fit_verdicts, rank_formulas
@@ -585,12 +585,13 @@ def fit_chunk(
     ``width`` points; the others (and a formula whose batch raised) are fitted one by one.
     """
     per_formula = []
+    measured = [measured_start(points) for points in experiments] if engine else None  # shared by the formulas
     for formula in select_formulas(formulas):
         batch = None
         if engine and is_batchable(formula):
             try:
                 batch = fit_formula_batch(
-                    experiments, formula, alpha=alpha, delta_max=delta_max, size_unit=size_unit, width=width
+                    experiments, formula, alpha=alpha, delta_max=delta_max, size_unit=size_unit, width=width, measured=measured
                 )
             except Exception as error:  # a broken batch falls back to single fits, which report per fit
                 logger.warning(
@@ -680,7 +681,9 @@ def data_notes(points: TrompPoints) -> tuple[str, ...]:
     """Warnings about the measured points themselves, before any fit."""
     notes = []
     if points.n >= 3 and np.ptp(points.partition_fine) > 0:
-        rho = stats.spearmanr(points.size, points.partition_fine).statistic
+        # Spearman's rho as Pearson's r of the ranks (the sizes are distinct and increasing, so
+        # their ranks are 1..n): stats.spearmanr's checks cost 0.3 ms, 3 s at 10,000 experiments
+        rho = float(np.corrcoef(np.arange(points.n), stats.rankdata(points.partition_fine))[0, 1])
         if rho > 0.5:
             notes.append(
                 f"the partition to fines rises with size (Spearman {rho:.2f}): is the column the partition to the "

@@ -406,6 +406,7 @@ def fit_formula_batch(
     start: dict[str, float] | None = None,
     size_unit: str = "",
     width: int | None = None,
+    measured: Sequence[tuple[float, float]] | None = None,
 ) -> list:
     """:func:`tromplab.curves.curve_fit.fit_formula` for many experiments at once.
 
@@ -416,7 +417,9 @@ def fit_formula_batch(
     Experiments with too few points for the formula get a failed fit with the reason.
     ``global_search`` and ``start`` (one further start for every experiment) are as for a
     single fit; the bootstrap refits its resamples from the optimum without the grid.
-    ``width`` pads the experiments to at least that many points (:class:`PaddedPoints`).
+    ``width`` pads the experiments to at least that many points (:class:`PaddedPoints`);
+    ``measured`` gives each experiment's :func:`measured_start` when the caller fits several
+    formulas to the same experiments (computed here otherwise).
     """
 
     alpha = DEFAULT_ALPHA if alpha is None else alpha
@@ -433,9 +436,9 @@ def fit_formula_batch(
     chosen = [experiments[i] for i in usable]
     data = PaddedPoints.from_points(chosen, width)
     starts = np.empty((len(chosen), 1 if start is None else 2, len(names)))
-    for row, points in enumerate(chosen):
-        cut = measured_cut_size(points)
-        starts[row, 0, :2] = cut, formula.shape_for_slope(measured_slope(points, cut))
+    for row, i in enumerate(usable):
+        cut, slope = measured_start(experiments[i]) if measured is None else measured[i]
+        starts[row, 0, :2] = cut, formula.shape_for_slope(slope)
         starts[row, 0, 2:] = [extra.start for extra in formula.extras]
     if start is not None:
         starts[:, 1, :] = [start[name] for name in names]
@@ -456,6 +459,12 @@ def fit_formula_batch(
             grid_ssr=float(optimum.grid_ssr[row]),
         )
     return results
+
+
+def measured_start(points: TrompPoints) -> tuple[float, float]:
+    """The measured cut size and the measured slope at it: the data-driven start of every formula."""
+    cut = measured_cut_size(points)
+    return cut, measured_slope(points, cut)
 
 
 def _parameter_fit(optimum: BatchOptimum, row: int, stderr: np.ndarray, points: TrompPoints):
