@@ -60,12 +60,16 @@ class MovingBreak:
         ``kink(measured_efficiency, shape_bounds) -> ndarray``: the shape at which the break
         appears, where the sum of squares has a kink between two basins; the engine then
         starts on both sides of it and fits ``d_cut`` alone there.
+    efficiency : callable or None
+        ``efficiency(shape, x_max, x_break) -> (eta, eps)`` on arrays, the closed forms with
+        the break already solved (the batched indices); None: per curve by ``Formula.efficiency``.
     """
 
     at: Callable[[float, float], float]
     on_arrays: Callable[..., np.ndarray]
     phi: Callable[..., np.ndarray]
     kink: Callable[..., np.ndarray] | None = None
+    efficiency: Callable[..., tuple] | None = None
 
 
 @dataclass(frozen=True)
@@ -333,7 +337,7 @@ def _rosin_rammler_area(lower, upper, kr):
 
 
 def _rosin_rammler_efficiency(kr, x_max):
-    return _rosin_rammler_area(0.0, 1.0, kr), _rosin_rammler_area(1.0, max(x_max, 1.0), kr)
+    return _rosin_rammler_area(0.0, 1.0, kr), _rosin_rammler_area(1.0, np.maximum(x_max, 1.0), kr)
 
 
 # --- (6) Lynch -------------------------------------------------------------------------
@@ -437,7 +441,7 @@ def _plitt_efficiency(ks, x_max):
         return upper * special.hyp2f1(1.0, a, 1.0 + a, -(upper**ks))
 
     eta = area_to(1.0)
-    return eta, area_to(max(x_max, 1.0)) - eta
+    return eta, area_to(np.maximum(x_max, 1.0)) - eta
 
 
 # --- (8) Ogawa, Allen's law ------------------------------------------------------------
@@ -561,17 +565,15 @@ def _lognormal_efficiency(kf, x_max):
     ``1e-16 / (X - 1)``.
     """
     eta = 0.5 + 0.5 * special.erfcx(kf / 2.0)
-    big_x = max(x_max, 1.0)
+    big_x = np.maximum(x_max, 1.0)
     log_x = np.log(big_x)
     ratio = log_x / kf
     c = kf / 2.0 - ratio
-    if c >= 0.0:
-        shifted = np.exp(log_x - ratio * ratio) * special.erfcx(c)
-    else:
-        shifted = np.exp(kf * kf / 4.0) * special.erfc(c)
+    with np.errstate(over="ignore", invalid="ignore"):  # each branch where the other is taken may overflow
+        shifted = np.where(c >= 0.0, np.exp(log_x - ratio * ratio) * special.erfcx(c), np.exp(kf * kf / 4.0) * special.erfc(c))
     g = shifted - special.erfcx(kf / 2.0)
     eps = 0.5 * (big_x - 1.0) * special.erfc(ratio) + 0.5 * (g - special.erf(ratio))
-    return float(eta), float(eps)
+    return eta, eps[()]
 
 
 # --- (10), (11) Rosin-Rammler with a flat fines plateau ---------------------------------
@@ -582,9 +584,9 @@ def rosin_rammler_plateau(x, kr, x_break):
 
 
 def _plateau_efficiency(kr, x_max, x_break):
-    plateau = x_break * float(rosin_rammler(x_break, kr))
+    plateau = x_break * rosin_rammler(x_break, kr)
     eta = plateau + _rosin_rammler_area(x_break, 1.0, kr)
-    return float(eta), float(_rosin_rammler_area(1.0, max(x_max, 1.0), kr))
+    return eta[()], _rosin_rammler_area(1.0, np.maximum(x_max, 1.0), kr)
 
 
 LUCKIE_AUSTIN_BREAK = 0.5
@@ -806,7 +808,13 @@ def shuvalov_kink(efficiency, bounds) -> np.ndarray:
 
 
 #: The moving break of (11): x_a from kr and the measured efficiency.
-SHUVALOV_BREAK = MovingBreak(at=_shuvalov_break_or_edge, on_arrays=shuvalov_breaks, phi=rosin_rammler_plateau, kink=shuvalov_kink)
+SHUVALOV_BREAK = MovingBreak(
+    at=_shuvalov_break_or_edge,
+    on_arrays=shuvalov_breaks,
+    phi=rosin_rammler_plateau,
+    kink=shuvalov_kink,
+    efficiency=_plateau_efficiency,
+)
 
 
 #: Shape range searched for Lynch's start; its slope at the cut runs from -0.25 (kl -> 0) to -200.
