@@ -19,6 +19,7 @@ from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -125,7 +126,7 @@ class Workbench:
     @property
     def ranked_formulas(self) -> tuple[Formula, ...]:
         """The formulas the ranking covers: the paper's nine unless extended curves are ranked too."""
-        return tuple(f for f in self.formulas if self.rank_extended or f.family == "paper")
+        return ranked_among(self.formulas, self.rank_extended)
 
     def best_fit(self, experiment: str) -> CurveFit | None:
         """The top-ranked successful fit of an experiment; among fits sharing the top rank
@@ -213,11 +214,21 @@ class Workbench:
         Computed once per level and kept; ``jobs`` and ``client`` spread the first
         computation over workers (the table is the same whatever they are).
         """
-        level = (self.ci or 0.95) if level is None else level
-        kept = self.__dict__.setdefault("_averages_by_level", {})  # a frozen dataclass keeps caches in __dict__
-        if level not in kept:
-            kept[level] = with_survey_columns(model_averages(self, level=level, jobs=jobs, client=client), self.inputs)
-        return kept[level].copy()
+        level = self._averages_level if level is None else level
+        if level not in self._averages_by_level:
+            self._keep_averages(level, model_averages(self, level=level, jobs=jobs, client=client))
+        return self._averages_by_level[level].copy()
+
+    @property
+    def _averages_level(self) -> float:
+        return self.ci or 0.95
+
+    @cached_property
+    def _averages_by_level(self) -> dict[float, pd.DataFrame]:
+        return {}  # a frozen dataclass keeps caches in __dict__
+
+    def _keep_averages(self, level: float, table: pd.DataFrame) -> None:
+        self._averages_by_level[level] = with_survey_columns(table, self.inputs)
 
     def failure_table(self) -> pd.DataFrame:
         """``experiment, formula, reason`` of every experiment or fit that failed (``failures.csv``)."""
@@ -425,16 +436,23 @@ def fit_experiments(
     with dask_client(scheduler=scheduler, dask=dask, client=client) as cluster:
         failures, fittable = _screenable(experiments)
         wanted = {"level": ci, "n_bootstrap": bootstrap, "method": bootstrap_method, "seed": seed} if ci or bootstrap else None
-        fits, notes, intervals = _fit_in_chunks(
-            fittable, chosen, settings, jobs=jobs, client=cluster, progress=progress, intervals=wanted
+        # with workers the model averages are made on them too, right after each chunk's fits
+        averaged = {"level": ci or 0.95, "ranked": ranked_among(chosen, rank_extended)} if jobs != 1 or cluster else None
+        found = _fit_in_chunks(
+            fittable, chosen, settings, jobs=jobs, client=cluster, progress=progress, intervals=wanted, averages=averaged
         )
         bench = Workbench(
-            tuple(fits), failures, chosen, rank_by, alpha, rank_extended, notes, settings["water_recovery"],
-            ci, bootstrap, bootstrap_method, seed, partition_to, settings["size_unit"], tuple(experiments), balances, intervals,
+            tuple(found.fits), failures, chosen, rank_by, alpha, rank_extended, found.notes, settings["water_recovery"], ci,
+            bootstrap, bootstrap_method, seed, partition_to, settings["size_unit"], tuple(experiments), balances, found.intervals,
         )  # fmt: skip
-        if jobs != 1 or cluster is not None:  # the workers are there: the model averages are made on them too
-            bench.averages(jobs=jobs, client=cluster)
+        if found.averages is not None:
+            bench._keep_averages(averaged["level"], found.averages)
     return bench
+
+
+def ranked_among(formulas, rank_extended: bool) -> tuple[Formula, ...]:
+    """The formulas a ranking covers: the paper's nine unless extended curves are ranked too."""
+    return tuple(f for f in formulas if rank_extended or f.family == "paper")
 
 
 def check_formula_selection(formulas=None, extended: bool = False):
@@ -508,12 +526,23 @@ def _screenable(experiments: Sequence[TrompPoints]) -> tuple[dict[str, str], lis
     return failures, fittable
 
 
+class ChunkResults(NamedTuple):
+    """What :func:`_fit_in_chunks` gathers: the fits, the data notes, the interval columns and
+    the model averages (each None when not asked for)."""
+
+    fits: list[CurveFit]
+    notes: dict
+    intervals: pd.DataFrame | None
+    averages: pd.DataFrame | None
+
+
 def _fit_in_chunks(
-    fittable, chosen, settings: dict, *, jobs, client, progress, intervals: dict | None = None
-) -> tuple[list[CurveFit], dict, pd.DataFrame | None]:
-    """The fits, data notes and (with ``intervals``, the options of
-    :func:`~tromplab.statistics.uncertainty.interval_columns`) the interval columns of
-    ``fittable``, chunk by chunk in order, wherever the chunks run.
+    fittable, chosen, settings: dict, *, jobs, client, progress, intervals: dict | None = None, averages: dict | None = None
+) -> ChunkResults:
+    """The fits, data notes, (with ``intervals``, the options of
+    :func:`~tromplab.statistics.uncertainty.interval_columns``) the interval columns and (with
+    ``averages``: ``level`` and the ``ranked`` formulas) the model averages of ``fittable``,
+    chunk by chunk in order, wherever the chunks run.
 
     A chunk's intervals are made by the worker that fitted it, right after the fits: the fits
     do not travel to the main process and back again, and each fit's intervals (its bootstrap
@@ -525,6 +554,7 @@ def _fit_in_chunks(
     options["formulas"] = tuple(f.id for f in chosen)
     options["intervals"] = intervals
     options["width"] = max((points.n for points in fittable), default=0)  # one padding for every chunk
+    options["averages"] = None if averages is None else (averages["level"], tuple(f.id for f in averages["ranked"]))
     logger.info(
         "fitting %d experiment(s) x %d formula(s) in %d chunk(s) of up to %d (%s)",
         len(fittable),
@@ -533,12 +563,13 @@ def _fit_in_chunks(
         len(chunks[0]) if chunks else 0,
         "on a Dask cluster" if client is not None else f"jobs={jobs or 'all cores'}",
     )
-    fits, notes, frames = [], {}, []
-    for number, (chunk, (chunk_fits, chunk_notes, frame)) in enumerate(
+    fits, notes, frames, averaged = [], {}, [], []
+    for number, (chunk, (chunk_fits, chunk_notes, frame, chunk_averages)) in enumerate(
         zip(chunks, _map_chunks(chunks, options, jobs=jobs, client=client)), 1
     ):
         fits += chunk_fits
         notes.update(chunk_notes)
+        averaged += chunk_averages or []
         logger.debug(
             "chunk %d/%d fitted: %d fits, %d failed", number, len(chunks), len(chunk_fits), sum(not f.success for f in chunk_fits)
         )
@@ -548,7 +579,12 @@ def _fit_in_chunks(
             frames.append(frame)
             if progress is not None:
                 progress(len(fits) // max(len(chosen), 1), len(fittable), f"intervals: {chunk[-1].experiment}")
-    return fits, notes, (pd.concat(frames, ignore_index=True) if frames else None)
+    return ChunkResults(
+        fits,
+        notes,
+        pd.concat(frames, ignore_index=True) if frames else None,
+        None if averages is None else _averages_table(averaged),
+    )
 
 
 @contextlib.contextmanager
@@ -648,9 +684,16 @@ def _fit_chunk_star(options, chunk):
     # Spearman test per experiment (seconds at 10,000 experiments)
     notes = {points.experiment: found for points in chunk if (found := data_notes(points))}
     options = dict(options)
-    intervals = options.pop("intervals", None)
+    intervals, averages = options.pop("intervals", None), options.pop("averages", None)
     fits = fit_chunk(chunk, **options)
-    return fits, notes, (interval_columns(fits, **intervals, width=options["width"]) if intervals else None)
+    columns = interval_columns(fits, **intervals, width=options["width"]) if intervals else None
+    if averages is None:
+        return fits, notes, columns, None
+    level, ranked = averages
+    grouped: dict[str, list[CurveFit]] = {}
+    for fit in fits:
+        grouped.setdefault(fit.experiment, []).append(fit)
+    return fits, notes, columns, _averages_of_chunk(level, _averaged_groups(grouped.values(), ranked))
 
 
 def _points_and_balances(experiments) -> tuple[list[TrompPoints], tuple[MassBalance, ...]]:
@@ -735,15 +778,22 @@ def model_averages(bench: Workbench, *, level: float = 0.95, jobs: int | None = 
         ``experiment, quantity, value, stderr, low, high`` and ``weight_<formula>`` columns.
 
     """
-    ranked = {f.id for f in bench.ranked_formulas}
-    groups = []
-    for fits in bench.fits_by_experiment().values():
-        chosen = [f for f in fits if f.success and f.formula.id in ranked]
-        if chosen:
-            groups.append(chosen)
+    groups = _averaged_groups(bench.fits_by_experiment().values(), [f.id for f in bench.ranked_formulas])
     chunks = chunked(groups, workers=_worker_count(jobs, client))
     logger.info("model averages of %d experiment(s) at level %g", len(groups), level)
-    frames = [frame for chunk in _map_work(_averages_of_chunk, chunks, level, jobs=jobs, client=client) for frame in chunk]
+    return _averages_table(
+        [frame for chunk in _map_work(_averages_of_chunk, chunks, level, jobs=jobs, client=client) for frame in chunk]
+    )
+
+
+def _averaged_groups(fits_by_experiment, ranked) -> list[list[CurveFit]]:
+    """The successful fits of the ``ranked`` formula ids, per experiment (experiments without any left out)."""
+    ranked = set(ranked)
+    groups = ([f for f in fits if f.success and f.formula.id in ranked] for fits in fits_by_experiment)
+    return [chosen for chosen in groups if chosen]
+
+
+def _averages_table(frames: list[pd.DataFrame]) -> pd.DataFrame:
     if not frames:
         return pd.DataFrame()
     table = pd.concat(frames, ignore_index=True)
