@@ -89,22 +89,25 @@ class Workbench:
 
     @cached_property
     def _fits_frame(self) -> pd.DataFrame:
-        # built once: the ranking, the best fits, the CLI and the report all read it
-        rows = [fit.row() for fit in self.fits]
-        for experiment, reason in self.failures.items():
-            for formula in self.formulas:
-                rows.append(
-                    {
-                        "experiment": experiment,
-                        "equation": formula.equation,
-                        "formula": formula.id,
-                        "shape_name": formula.shape_name,
-                        "adequate": False,
-                        "success": False,
-                        "message": reason,
-                    }
-                )
-        table = pd.DataFrame(rows).reindex(columns=[c for c in FIT_COLUMNS if c != "rank"])
+        # built once: the ranking, the best fits, the CLI and the report all read it; the rows
+        # of the fits were made by the workers that fitted them (_keep_fit_rows) where there were
+        made = self.__dict__.pop("_fit_rows", None)
+        failed = [
+            {
+                "experiment": experiment,
+                "equation": formula.equation,
+                "formula": formula.id,
+                "shape_name": formula.shape_name,
+                "adequate": False,
+                "success": False,
+                "message": reason,
+            }
+            for experiment, reason in self.failures.items()
+            for formula in self.formulas
+        ]
+        table = fit_rows_frame(self.fits) if made is None else made
+        if failed:
+            table = pd.concat([table, pd.DataFrame(failed).reindex(columns=table.columns)], ignore_index=True)
         table["adequate"] = table["adequate"].astype(bool)
         table["success"] = table["success"].astype(bool)
         in_ranking = table["formula"].isin([f.id for f in self.ranked_formulas])
@@ -226,6 +229,10 @@ class Workbench:
     @cached_property
     def _averages_by_level(self) -> dict[float, pd.DataFrame]:
         return {}  # a frozen dataclass keeps caches in __dict__
+
+    def _keep_fit_rows(self, table: pd.DataFrame) -> None:
+        """The table :func:`fit_rows_frame` makes of the fits, made beforehand (by the workers)."""
+        self.__dict__["_fit_rows"] = table
 
     def _keep_averages(self, level: float, table: pd.DataFrame) -> None:
         self._averages_by_level[level] = with_survey_columns(table, self.inputs)
@@ -445,9 +452,15 @@ def fit_experiments(
             tuple(found.fits), failures, chosen, rank_by, alpha, rank_extended, found.notes, settings["water_recovery"], ci,
             bootstrap, bootstrap_method, seed, partition_to, settings["size_unit"], tuple(experiments), balances, found.intervals,
         )  # fmt: skip
+        bench._keep_fit_rows(found.rows)
         if found.averages is not None:
             bench._keep_averages(averaged["level"], found.averages)
     return bench
+
+
+def fit_rows_frame(fits) -> pd.DataFrame:
+    """One row per fit (``CurveFit.row``) in the columns of ``fits.csv`` before ranking."""
+    return pd.DataFrame([fit.row() for fit in fits]).reindex(columns=[c for c in FIT_COLUMNS if c != "rank"])
 
 
 def ranked_among(formulas, rank_extended: bool) -> tuple[Formula, ...]:
@@ -534,6 +547,7 @@ class ChunkResults(NamedTuple):
     notes: dict
     intervals: pd.DataFrame | None
     averages: pd.DataFrame | None
+    rows: pd.DataFrame
 
 
 def _fit_in_chunks(
@@ -563,11 +577,12 @@ def _fit_in_chunks(
         len(chunks[0]) if chunks else 0,
         "on a Dask cluster" if client is not None else f"jobs={jobs or 'all cores'}",
     )
-    fits, notes, frames, averaged = [], {}, [], []
-    for number, (chunk, (chunk_fits, chunk_notes, frame, chunk_averages)) in enumerate(
+    fits, notes, frames, averaged, rows = [], {}, [], [], []
+    for number, (chunk, (chunk_fits, chunk_notes, frame, chunk_averages, chunk_rows)) in enumerate(
         zip(chunks, _map_chunks(chunks, options, jobs=jobs, client=client)), 1
     ):
         fits += chunk_fits
+        rows.append(chunk_rows)
         notes.update(chunk_notes)
         averaged += chunk_averages or []
         logger.debug(
@@ -584,6 +599,7 @@ def _fit_in_chunks(
         notes,
         pd.concat(frames, ignore_index=True) if frames else None,
         None if averages is None else _averages_table(averaged),
+        pd.concat(rows, ignore_index=True) if rows else fit_rows_frame([]),
     )
 
 
@@ -687,13 +703,14 @@ def _fit_chunk_star(options, chunk):
     intervals, averages = options.pop("intervals", None), options.pop("averages", None)
     fits = fit_chunk(chunk, **options)
     columns = interval_columns(fits, **intervals, width=options["width"]) if intervals else None
+    rows = fit_rows_frame(fits)  # the rows of fits.csv too: a serial 40 us per fit in the main process
     if averages is None:
-        return fits, notes, columns, None
+        return fits, notes, columns, None, rows
     level, ranked = averages
     grouped: dict[str, list[CurveFit]] = {}
     for fit in fits:
         grouped.setdefault(fit.experiment, []).append(fit)
-    return fits, notes, columns, _averages_of_chunk(level, _averaged_groups(grouped.values(), ranked))
+    return fits, notes, columns, _averages_of_chunk(level, _averaged_groups(grouped.values(), ranked)), rows
 
 
 def _points_and_balances(experiments) -> tuple[list[TrompPoints], tuple[MassBalance, ...]]:
