@@ -37,6 +37,7 @@ same :class:`~tromplab.curves.curve_fit.CurveFit` a single fit returns, and
 
 from __future__ import annotations
 
+import contextlib
 import copy
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -384,14 +385,17 @@ def _covariance(jac: np.ndarray, ssr: np.ndarray, n: np.ndarray, n_params: int) 
     """lmfit's estimate ``(J^T J)^{-1} SSR/(n - p)``; nan where singular or not finite."""
     hessian = np.einsum("bkp,bkq->bpq", jac, jac)
     covariance = np.full_like(hessian, np.nan)
-    usable = np.all(np.isfinite(hessian), axis=(1, 2)) & np.isfinite(ssr) & (n > n_params)
-    for row in np.flatnonzero(usable):  # small p x p inverses; singular ones stay nan
-        try:
-            inverse = np.linalg.inv(hessian[row])
-        except np.linalg.LinAlgError:
-            continue
-        if np.all(np.isfinite(inverse)):
-            covariance[row] = inverse * ssr[row] / (n[row] - n_params)
+    usable = np.flatnonzero(np.all(np.isfinite(hessian), axis=(1, 2)) & np.isfinite(ssr) & (n > n_params))
+    try:  # all small p x p inverses in one call (LAPACK per matrix, as one by one)
+        inverses = np.linalg.inv(hessian[usable])
+    except np.linalg.LinAlgError:  # a singular one among them: one by one, the singular ones stay nan
+        inverses = np.full((usable.size, n_params, n_params), np.nan)
+        for k, row in enumerate(usable):
+            with contextlib.suppress(np.linalg.LinAlgError):
+                inverses[k] = np.linalg.inv(hessian[row])
+    finite = np.all(np.isfinite(inverses), axis=(1, 2))
+    rows = usable[finite]
+    covariance[rows] = inverses[finite] * ssr[rows, None, None] / (n[rows] - n_params)[:, None, None]
     return covariance
 
 
