@@ -161,6 +161,11 @@ class Workbench:
 
     def ranking_table(self) -> pd.DataFrame:
         """Ranks per experiment, points and place per formula (failed experiments left out)."""
+        return self._ranking_frame.copy()
+
+    @cached_property
+    def _ranking_frame(self) -> pd.DataFrame:
+        # built once: the results folder, the console and the report all read it
         table = self._fits_frame
         table = table[~table["experiment"].isin(list(self.failures)) & table["rank"].notna()]
         if table.empty:
