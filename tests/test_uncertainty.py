@@ -108,14 +108,33 @@ def test_bootstrap_resamples_centred_weighted_residuals(monkeypatch):
     points = TrompPoints("weighted", base.size, base.partition_fine + 0.01, weights)  # a biased curve: residual mean != 0
     fit = fit_formula(points, PLITT)
     captured = []
-    monkeypatch.setattr(uncertainty, "refit_resamples", lambda fit, samples, **kw: captured.extend(samples) or [])
+    # the resampled partitions, as the refits on arrays receive them
+    monkeypatch.setattr(
+        uncertainty, "_replicates_on_arrays", lambda fit, partitions, delta_max: captured.extend(partitions) or []
+    )
     bootstrap(fit, n=400, seed=3)
     fitted = fit.predict(points.size)
     scaled = np.sqrt(weights) * (points.partition_fine - fitted)
     expected = (scaled - scaled.mean()) * np.sqrt(points.n / (points.n - 2))
-    drawn = np.array([np.sqrt(weights) * (sample.partition_fine - fitted) for sample in captured])
+    drawn = np.array([np.sqrt(weights) * (partition - fitted) for partition in captured])
+    assert drawn.shape == (400, points.n)
     assert np.isin(np.round(drawn, 12), np.round(expected, 12)).all()  # every draw is one of the centred, scaled residuals
     assert abs(drawn.mean()) < 3 * expected.std() / np.sqrt(drawn.size)
+
+
+def test_bootstrap_on_arrays_gives_the_refits_of_the_resampled_points():
+    """The residual bootstrap of a batchable formula refits its resamples as arrays
+    (engine.refit_partitions); the replicates equal those of the record-by-record path
+    (refit_resamples on TrompPoints, the same draws) to the solver's tolerance."""
+    fit = fit_formula(experiment(4), PLITT)
+    on_arrays = bootstrap(fit, n=200, seed=7).samples
+    rng = np.random.default_rng(7)
+    samples = uncertainty._resamples(fit, 200, rng, "residuals", None)
+    refits = uncertainty.refit_resamples(fit, samples)
+    uncertainty.attach_indices(refits)
+    expected = pd.DataFrame([{**r.fit.values, **{k: getattr(r.indices, k) for k in uncertainty.INDEX_NAMES}} for r in refits])
+    assert list(on_arrays.columns) == list(expected.columns) and len(on_arrays) == 200
+    assert_allclose(on_arrays.to_numpy(), expected.to_numpy(), rtol=1e-6)
 
 
 def test_bootstrap_is_seeded_and_supports_cases():

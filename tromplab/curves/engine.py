@@ -49,7 +49,7 @@ from .batched import BatchProblem, PaddedPoints, levenberg_marquardt, sum_of_squ
 from .curve_fit import CurveFit, FitOptions, failed_fit, fit_formula
 from .fitting import ParameterFit, parameters_at_bounds
 from .formulas import Formula, get_formula, is_batchable
-from .measured import formula_context, measured_cut_size, measured_slope, parameter_specs
+from .measured import formula_context, measured_cut_size, measured_slope, measured_starts, parameter_specs, with_partition
 from .parameters import D_CUT_RANGE_FACTOR
 from .screening import DEFAULT_ALPHA
 
@@ -503,7 +503,7 @@ MAX_BOOTSTRAP_RESAMPLES = 100_000
 #: Largest total number of bootstrap refits (resamples x fits) run without refusing.
 MAX_BOOTSTRAP_REFITS = 20_000_000
 #: Measured cost of one batched bootstrap refit with its indices (seconds, 2-core machine; docs/performance.md).
-SECONDS_PER_BOOTSTRAP_REFIT = 4e-4
+SECONDS_PER_BOOTSTRAP_REFIT = 1e-4  # 0.72 s for 1,000 x 9 (benchmarks/bootstrap.py, 2026-11-26); (11) about 3e-4
 
 
 def check_bootstrap_request(n_resamples: int, *, n_fits: int) -> float:
@@ -536,6 +536,40 @@ def _duration(seconds: float) -> str:
     if seconds < 7200:
         return f"{seconds / 60:.0f} min"
     return f"{seconds / 3600:.1f} h"
+
+
+def refit_partitions(fit, partitions: np.ndarray) -> tuple[BatchOptimum, np.ndarray | None]:
+    """Refit ``fit.formula`` to its points with each row of ``partitions`` as the measured
+    partition (the residual bootstrap's resamples), all at once and without the grid.
+
+    The arrays counterpart of :func:`refit_resamples` for a batchable formula: the same two
+    starts (each row's measured cut and slope, and the optimum of ``fit``), the same bounds and
+    weights, but no point records and no result objects per row.  Rows whose sum of squares is
+    not finite failed.  Returns the optimum and, for a formula that takes the measured
+    efficiency (11), each row's measured efficiency (else None).
+    """
+    points, formula = fit.points, fit.formula
+    partitions = np.atleast_2d(np.asarray(partitions, dtype=float))
+    count = partitions.shape[0]
+    weight = np.ones(points.n) if points.weight is None else points.weight / points.weight.mean()
+    data = PaddedPoints(
+        np.broadcast_to(points.size, partitions.shape).copy(),
+        partitions,
+        np.tile(np.sqrt(weight), (count, 1)),
+        np.full(count, points.n),
+    )
+    names = fit.fit.names
+    starts = np.empty((count, 2, len(names)))
+    cut, slope = measured_starts(points.size, partitions)
+    starts[:, 0, 0], starts[:, 0, 1] = cut, [formula.shape_for_slope(s) for s in slope]
+    starts[:, 0, 2:] = [extra.start for extra in formula.extras]
+    starts[:, 1, :] = [fit.fit.values[name] for name in names]
+    efficiency = None
+    if formula.context_from_efficiency:
+        efficiency = np.array(
+            [formula_context(formula, with_partition(points, row))["measured_efficiency"] for row in partitions]
+        )
+    return fit_batch(formula, data, starts=starts, efficiency=efficiency, global_search=False), efficiency
 
 
 def refit_resamples(fit, samples: Sequence[TrompPoints], *, delta_max: float | None = None) -> list:

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from types import SimpleNamespace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -23,7 +22,7 @@ from .batched import BatchProblem, PaddedPoints, profile_limits, sum_of_squares
 from .fitting import on_bound
 from .formulas import is_batchable
 from .indices import batch_curve_indices, batchable_indices, curve_indices
-from .measured import CUT_QUANTITIES, formula_context, parameter_specs
+from .measured import CUT_QUANTITIES, formula_context, parameter_specs, with_partition
 from .parameters import D_CUT_RANGE_FACTOR
 
 if TYPE_CHECKING:
@@ -393,12 +392,7 @@ def _input_by_point(fit: CurveFit, name: str) -> np.ndarray:
         for sign in (1.0, -1.0):
             phi = points.partition_fine.copy()
             phi[i] += sign * step
-            # the measured inputs read sizes and partitions only: a plain record, not a validated
-            # TrompPoints (two per point of every fit of (11) were a third of the model averages' time)
-            moved = SimpleNamespace(
-                experiment=points.experiment, size=points.size, partition_fine=phi, weight=points.weight, n=points.n
-            )
-            shifted.append(formula_context(fit.formula, moved)[name])
+            shifted.append(formula_context(fit.formula, with_partition(points, phi))[name])
         out[i] = (shifted[0] - shifted[1]) / (2 * step)
     return out
 

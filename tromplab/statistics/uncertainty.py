@@ -27,8 +27,10 @@ import pandas as pd
 from scipy import stats
 
 from ..curves.curve_fit import CurveFit, attach_indices
-from ..curves.engine import refit_resamples
+from ..curves.engine import refit_partitions, refit_resamples
 from ..curves.fitting import on_bound
+from ..curves.formulas import is_batchable
+from ..curves.indices import batch_curve_indices, batchable_indices
 from ..curves.intervals import (
     INDEX_NAMES,
     batched_delta_indices,
@@ -140,49 +142,70 @@ def bootstrap(
     if n < 2:
         raise ValueError("the bootstrap needs at least 2 resamples")
     delta_max = fit.options.delta_max if delta_max is None else delta_max
-    samples = _resamples(fit, n, np.random.default_rng(seed), method, progress)
-    refits = refit_resamples(fit, samples, delta_max=delta_max)  # all resamples in one batched call
-    attach_indices(refits)  # and their indices in one array computation
-    logger.debug(
-        "bootstrap %s %s: %d %s resamples, %d refits failed",
-        fit.experiment,
-        fit.formula.id,
-        n,
-        method,
-        sum(not refit.success for refit in refits),
-    )
-    rows = [{**refit.fit.values, **{k: getattr(refit.indices, k) for k in INDEX_NAMES}} for refit in refits if refit.success]
+    rng = np.random.default_rng(seed)
+    if method == "residuals" and is_batchable(fit.formula) and batchable_indices(fit.formula):
+        # resamples as arrays end to end: no point records or result objects per resample
+        rows = _replicates_on_arrays(fit, _resampled_partitions(fit, n, rng, progress), delta_max)
+    else:
+        refits = refit_resamples(fit, _resamples(fit, n, rng, method, progress), delta_max=delta_max)  # one batched call
+        attach_indices(refits)  # and their indices in one array computation
+        rows = [{**refit.fit.values, **{k: getattr(refit.indices, k) for k in INDEX_NAMES}} for refit in refits if refit.success]
+    logger.debug("bootstrap %s %s: %d %s resamples, %d refits failed", fit.experiment, fit.formula.id, n, method, n - len(rows))
     return Bootstrap(pd.DataFrame(rows), n, method, seed, _bootstrap_bounds(fit, delta_max))
+
+
+def _replicates_on_arrays(fit: CurveFit, partitions: np.ndarray, delta_max: float) -> list[dict]:
+    """The rows of :attr:`Bootstrap.samples` from refits of the resampled ``partitions`` on arrays
+    (:func:`~tromplab.curves.engine.refit_partitions`), with their indices computed on arrays."""
+    optimum, efficiency = refit_partitions(fit, partitions)
+    ok = optimum.success
+    values = optimum.values[ok]
+    shape_at = optimum.names.index(fit.formula.shape_name)
+    indices = batch_curve_indices(
+        fit.formula,
+        values[:, 0],
+        values[:, shape_at],
+        delta_max=np.full(values.shape[0], delta_max),
+        measured_efficiency=None if efficiency is None else efficiency[ok],
+    )
+    return [
+        {**dict(zip(optimum.names, map(float, row))), **{k: getattr(found, k) for k in INDEX_NAMES}}
+        for row, found in zip(values, indices)
+    ]
+
+
+def _resampled_partitions(fit: CurveFit, n: int, rng: np.random.Generator, progress) -> np.ndarray:
+    """The partitions of ``n`` residual resamples (rows): the fitted curve plus weighted
+    residuals drawn with replacement, centred and scaled as :func:`bootstrap` says."""
+    points = fit.points
+    fitted = fit.predict(points.size)
+    root_weights = np.sqrt(fit.options.weights)
+    scaled = root_weights * (points.partition_fine - fitted)
+    residuals = (scaled - scaled.mean()) * np.sqrt(points.n / max(points.n - fit.formula.n_params, 1))
+    partitions = np.empty((n, points.n))
+    for i in range(n):
+        if progress is not None:
+            progress(i + 1, n)
+        partitions[i] = fitted + rng.choice(residuals, points.n) / root_weights
+    return partitions
 
 
 def _resamples(fit: CurveFit, n: int, rng: np.random.Generator, method: str, progress) -> list[TrompPoints]:
     """The ``n`` resampled data sets of :func:`bootstrap`, drawn from ``rng`` by ``method``."""
     points = fit.points
-    p = fit.formula.n_params
-    fitted = fit.predict(points.size)
-    root_weights = np.sqrt(fit.options.weights)
-    scaled = root_weights * (points.partition_fine - fitted)
-    residuals = (scaled - scaled.mean()) * np.sqrt(points.n / max(points.n - p, 1))
+    if method == "residuals":
+        partitions = _resampled_partitions(fit, n, rng, progress)
+        return [TrompPoints(points.experiment, points.size, row, points.weight, resampled=True) for row in partitions]
     samples = []
     for i in range(n):
         if progress is not None:
             progress(i + 1, n)
-        if method == "residuals":
-            sample = TrompPoints(
-                points.experiment,
-                points.size,
-                fitted + rng.choice(residuals, points.n) / root_weights,
-                points.weight,
-                resampled=True,
-            )
-            samples.append(sample)
-        else:
-            while True:
-                pick = rng.integers(0, points.n, points.n)
-                if np.unique(points.size[pick]).size > p:
-                    break
-            weight = None if points.weight is None else points.weight[pick]
-            samples.append(TrompPoints(points.experiment, points.size[pick], points.partition_fine[pick], weight, resampled=True))
+        while True:
+            pick = rng.integers(0, points.n, points.n)
+            if np.unique(points.size[pick]).size > fit.formula.n_params:
+                break
+        weight = None if points.weight is None else points.weight[pick]
+        samples.append(TrompPoints(points.experiment, points.size[pick], points.partition_fine[pick], weight, resampled=True))
     return samples
 
 
