@@ -49,7 +49,7 @@ from .batched import BatchProblem, PaddedPoints, levenberg_marquardt, sum_of_squ
 from .curve_fit import CurveFit, FitOptions, failed_fit, fit_formula
 from .fitting import ParameterFit, parameters_at_bounds
 from .formulas import Formula, get_formula, is_batchable
-from .measured import formula_context, measured_cut_size, measured_slope, measured_starts, parameter_specs, with_partition
+from .measured import formula_context, formula_contexts, measured_cut_size, measured_slope, measured_starts, parameter_specs
 from .parameters import D_CUT_RANGE_FACTOR
 from .screening import DEFAULT_ALPHA
 
@@ -564,11 +564,7 @@ def refit_partitions(fit, partitions: np.ndarray) -> tuple[BatchOptimum, np.ndar
     starts[:, 0, 0], starts[:, 0, 1] = cut, [formula.shape_for_slope(s) for s in slope]
     starts[:, 0, 2:] = [extra.start for extra in formula.extras]
     starts[:, 1, :] = [fit.fit.values[name] for name in names]
-    efficiency = None
-    if formula.context_from_efficiency:
-        efficiency = np.array(
-            [formula_context(formula, with_partition(points, row))["measured_efficiency"] for row in partitions]
-        )
+    efficiency = formula_contexts(formula, points.size, partitions).get("measured_efficiency")
     return fit_batch(formula, data, starts=starts, efficiency=efficiency, global_search=False), efficiency
 
 

@@ -8,8 +8,6 @@ measured cut with them.
 
 from __future__ import annotations
 
-from types import SimpleNamespace
-
 import numpy as np
 
 from ..loading.points import TrompPoints
@@ -92,16 +90,7 @@ def measured_starts(size: np.ndarray, partition: np.ndarray) -> tuple[np.ndarray
     ``numpy.polyfit`` to rounding.
     """
     size, phi = np.broadcast_arrays(np.asarray(size, dtype=float), np.asarray(partition, dtype=float))
-    rows = np.arange(phi.shape[0])
-    log_size = np.log(size)
-    above = phi >= 0.5
-    crossing = above[:, :-1] & ~above[:, 1:]
-    first = np.argmax(crossing, axis=1)
-    with np.errstate(all="ignore"):  # rows that never cross 1/2 take the nearest size instead
-        t = (phi[rows, first] - 0.5) / (phi[rows, first] - phi[rows, first + 1])
-        crossed = np.exp(log_size[rows, first] + t * (log_size[rows, first + 1] - log_size[rows, first]))
-    nearest = size[rows, np.argmin(np.abs(phi - 0.5), axis=1)]
-    cut = np.where(crossing.any(axis=1), crossed, nearest)
+    cut = _measured_cuts(size, phi)
     x = size / cut[:, None]
     middle = (phi >= 0.1) & (phi <= 0.9)
     few = middle.sum(axis=1) < 2
@@ -119,13 +108,39 @@ def measured_starts(size: np.ndarray, partition: np.ndarray) -> tuple[np.ndarray
     return cut, np.clip(slope, GRID_SLOPES.min(), GRID_SLOPES.max())
 
 
-def with_partition(points: TrompPoints, partition: np.ndarray) -> SimpleNamespace:
-    """The points with another measured partition, as a plain record for the measured inputs
-    (:func:`formula_context`), which read sizes and partitions only: a validated TrompPoints
-    per perturbed or resampled partition cost a third of the model averages' time."""
-    return SimpleNamespace(
-        experiment=points.experiment, size=points.size, partition_fine=partition, weight=points.weight, n=points.n
-    )
+def _measured_cuts(size: np.ndarray, phi: np.ndarray) -> np.ndarray:
+    """:func:`measured_cut_size` (level 1/2) of every row of ``(sets, points)`` arrays."""
+    rows = np.arange(phi.shape[0])
+    log_size = np.log(size)
+    above = phi >= 0.5
+    crossing = above[:, :-1] & ~above[:, 1:]
+    first = np.argmax(crossing, axis=1)
+    with np.errstate(all="ignore"):  # rows that never cross 1/2 take the nearest size instead
+        t = (phi[rows, first] - 0.5) / (phi[rows, first] - phi[rows, first + 1])
+        crossed = np.exp(log_size[rows, first] + t * (log_size[rows, first + 1] - log_size[rows, first]))
+    nearest = size[rows, np.argmin(np.abs(phi - 0.5), axis=1)]
+    return np.where(crossing.any(axis=1), crossed, nearest)
+
+
+def measured_efficiencies(size: np.ndarray, partition: np.ndarray) -> np.ndarray:
+    """:func:`measured_efficiency` of every row of ``(sets, points)`` arrays (sizes increasing
+    along each row): the same trapezoid, its knots beyond the cut moved onto its end ``(1, 1/2)``
+    where they add segments of zero width (the sum agrees with one row at a time to rounding)."""
+    size, phi = np.broadcast_arrays(np.asarray(size, dtype=float), np.asarray(partition, dtype=float))
+    x = size / _measured_cuts(size, phi)[:, None]
+    inside = x < 1.0
+    first = np.where(inside[:, 0], phi[:, 0], 0.5)  # the sizes increase: the first point is inside if any is
+    count = phi.shape[0]
+    knots_x = np.column_stack([np.zeros(count), np.where(inside, x, 1.0), np.ones(count)])
+    knots_phi = np.column_stack([first, np.where(inside, phi, 0.5), np.full(count, 0.5)])
+    return np.trapezoid(knots_phi, knots_x, axis=1)
+
+
+def formula_contexts(formula: Formula, size: np.ndarray, partitions: np.ndarray) -> dict[str, np.ndarray]:
+    """:func:`formula_context` of many partitions of the same sizes at once (rows of ``partitions``)."""
+    if formula.context_from_efficiency:
+        return {"measured_efficiency": measured_efficiencies(size, partitions)}
+    return {}
 
 
 def parameter_specs(formula: Formula, points: TrompPoints) -> list[Parameter]:
