@@ -215,12 +215,17 @@ class CurveFit:
             else None
         )
 
-    @cached_property
+    @property
     def x_break(self) -> float:
         """Break point x_a of formula (11) at the fitted shape (nan for other formulas or without one)."""
+        return self._break[0]
+
+    @cached_property
+    def _break(self) -> tuple[float, list[str]]:
+        # solved once for x_break and the warnings
         if not (self.success and self.formula.context_from_efficiency):
-            return np.nan
-        return _break_point(self.shape, self.context["measured_efficiency"])[0]
+            return np.nan, []
+        return _break_point(self.shape, self.context["measured_efficiency"])
 
     @cached_property
     def unbracketed(self) -> str:
@@ -294,7 +299,7 @@ class CurveFit:
                     "the sum of squares is flat along a direction at the optimum), so quite different values fit as well"
                 )
         if self.formula.context_from_efficiency:
-            warnings += _break_point(self.shape, self.context["measured_efficiency"])[1]
+            warnings += self._break[1]
         if self.formula.extras:
             sizes = np.geomspace(self.points.size.min() / 10, self.points.size.max(), 400)
             peak = float(np.max(self.predict(sizes)))
