@@ -293,3 +293,14 @@ def test_the_numbers_do_not_depend_on_how_the_batch_is_cut(monkeypatch):
     cut = fit_experiments(experiments, **options)
     assert cut.fits_table().to_csv(index=False) == whole.fits_table().to_csv(index=False)
     assert cut.intervals.to_csv(index=False) == whole.intervals.to_csv(index=False)
+
+
+def test_units_of_work_are_two_per_worker_within_their_limits():
+    items = list(range(5000))
+    sizes = lambda workers: [len(chunk) for chunk in workbench.chunked(items, workers=workers)]  # noqa: E731
+    assert sizes(1) == [workbench.MAX_CHUNK_SIZE] * 9 + [5000 - 9 * workbench.MAX_CHUNK_SIZE]
+    assert sizes(8) == [313] * 15 + [5000 - 15 * 313]  # 5,000 / 16, below the largest unit
+    assert [len(c) for c in workbench.chunked(items[:1024], workers=2)] == [256] * 4
+    assert [len(c) for c in workbench.chunked(items[:100], workers=2)] == [64, 36]  # never below CHUNK_SIZE
+    assert sum(workbench.chunked(items[:777], workers=3), []) == items[:777]  # in order, nothing lost
+    assert workbench.chunked([], workers=2) == []
