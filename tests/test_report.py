@@ -3,6 +3,7 @@
 from html.parser import HTMLParser
 
 import pandas as pd
+import pytest
 
 from tromplab.cli import main
 from tromplab.output.report import SECTIONS
@@ -100,3 +101,30 @@ def test_the_figures_drawn_by_two_workers_give_the_same_report(tmp_path):
         assert main(["report", str(points), "-o", str(out), "--jobs", jobs, "--formulas", "plitt,lognormal", "-q"]) == 0
         pages.append(out.read_text(encoding="utf-8"))
     assert pages[0] == pages[1] and pages[0].count("<img") >= 16
+
+
+@pytest.mark.slow
+def test_tromplab_report_of_200_experiments(tmp_path):
+    """Issue 24 item 1: the command on 200 experiments (the F heatmap's labels broke it from
+    about 40 on) writes a condensed report with the full tables beside it, and its figures
+    stay bounded whatever the batch size."""
+    from tromplab._synthetic import synthetic
+    from tromplab.output.report import REPORT_DETAIL_LIMIT
+
+    rows = [
+        pd.DataFrame({"experiment": p.experiment, "size": p.size, "partition_fine": p.partition_fine})
+        for p in (synthetic(seed, weighted=False) for seed in range(200))
+    ]
+    points = tmp_path / "points.csv"
+    pd.concat(rows).to_csv(points, index=False)
+    out = tmp_path / "report.html"
+    assert main(["report", str(points), "-o", str(out), "--formulas", "plitt,lognormal,rosin_rammler", "-q"]) == 0
+    html = out.read_text(encoding="utf-8")
+    assert f"200 experiments: the sections below show the first {REPORT_DETAIL_LIMIT}" in html
+    assert "Top-ranked fits of all experiments" in html
+    drawn = html.count("<figcaption>Tromp curve, experiment")  # the first ones and the flagged ones (at most as many)
+    assert REPORT_DETAIL_LIMIT <= drawn <= 2 * REPORT_DETAIL_LIMIT
+    assert html.count("<figcaption>Residuals, experiment") == drawn
+    fits = pd.read_csv(tmp_path / "report_fits.csv")
+    assert len(fits) == 600 and set(fits["experiment"]) == {f"s{seed}" for seed in range(200)}
+    assert len(pd.read_csv(tmp_path / "report_ranking.csv")) == 3
