@@ -234,6 +234,11 @@ def batched_delta_indices(fits: Sequence[CurveFit], delta_max: float | None = No
         )
         for (fit, values, limit), indices in zip(evaluations, found):
             known[_index_key(fit, values, limit)] = np.array([getattr(indices, name) for name in INDEX_NAMES])
+        moving = evaluations[0][0].formula.moving_break
+        if moving is not None:  # the curve's break at each evaluation, for the delta method's Jacobian at the points
+            shapes, efficiencies = [a[1] for a in arguments], [c["measured_efficiency"] for c in context]
+            for shape, efficiency, x_break in zip(shapes, efficiencies, moving.on_arrays(shapes, efficiencies)):
+                known[("break", formula_id, shape, efficiency)] = x_break
     for formula_id, members in plain.items():
         for (fit, limit), centre, errors in zip(members, *_delta_on_arrays(formula_id, members)):
             known[_delta_key(fit, limit)] = (centre, errors)
@@ -280,7 +285,7 @@ def delta_indices(fit: CurveFit, delta_max: float, known: dict | None = None) ->
         if found is not None:
             return found
     centre = indices_at(fit, {**fit.context_at(), **fit.fit.values}, delta_max, known)
-    return centre, delta_standard_errors(fit, lambda values: indices_at(fit, values, delta_max, known))
+    return centre, delta_standard_errors(fit, lambda values: indices_at(fit, values, delta_max, known), known)
 
 
 def batched_profile_intervals(fits: Sequence[CurveFit], level: float = 0.95, *, width: int | None = None) -> list[dict | None]:
@@ -340,7 +345,21 @@ def _difference(evaluate, values: dict[str, float], name: str) -> np.ndarray:
     return (upper - lower) / (2 * step)
 
 
-def delta_standard_errors(fit: CurveFit, evaluate: Callable[[dict[str, float]], np.ndarray]) -> np.ndarray:
+def _curve_at(fit: CurveFit, size: np.ndarray, values: dict[str, float], known: dict | None) -> np.ndarray:
+    """``fit.predict(size, values)``, with a moving break (formula (11)) taken from ``known``
+    where :func:`batched_delta_indices` solved it on arrays (one brentq per call otherwise)."""
+    moving = fit.formula.moving_break
+    if known and moving is not None:
+        d_cut, shape, _ = fit.curve_arguments(values)
+        x_break = known.get(("break", fit.formula.id, shape, fit.context_at(values)["measured_efficiency"]))
+        if x_break is not None:
+            return moving.phi(np.asarray(size, dtype=float) / d_cut, shape, x_break)
+    return fit.predict(size, values)
+
+
+def delta_standard_errors(
+    fit: CurveFit, evaluate: Callable[[dict[str, float]], np.ndarray], known: dict | None = None
+) -> np.ndarray:
     """Delta-method standard errors of ``evaluate(parameter values)`` (an array).
 
     The gradient with respect to each fitted parameter is a central difference with a
@@ -354,6 +373,7 @@ def delta_standard_errors(fit: CurveFit, evaluate: Callable[[dict[str, float]], 
     ``(J'WJ)^-1 J'W (d phi - f_e de)`` and the input by ``de = e_phi' d phi``, so the
     variance is ``s^2 sum_i (dq/dphi_i)^2 / w_i`` (this equals ``g C g^T`` when there is
     no such input).  nan where the covariance is unknown or the gradient is not finite.
+    ``known`` (:func:`batched_delta_indices`) supplies break points solved beforehand.
     """
     values = {**fit.context_at(), **fit.fit.values}
     centre = np.asarray(evaluate(values), dtype=float)
@@ -367,7 +387,7 @@ def delta_standard_errors(fit: CurveFit, evaluate: Callable[[dict[str, float]], 
     points, weights = fit.points, fit.options.weights
     dof = points.n - len(fit.fit.names)
     s_sq = fit.fit.ssr / dof if dof > 0 else np.nan
-    curve = lambda v: fit.predict(points.size, v)  # noqa: E731
+    curve = lambda v: _curve_at(fit, points.size, v, known)  # noqa: E731
     jacobian = np.array([_difference(curve, values, name) for name in fit.fit.names]).T  # n x p
     sensitivity = covariance / s_sq @ jacobian.T * weights  # (J'WJ)^-1 J'W, p x n
     flat = gradient.reshape(len(fit.fit.names), -1)  # p x q
