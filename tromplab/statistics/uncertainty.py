@@ -24,7 +24,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
-from scipy import stats
 
 from ..curves.curve_fit import CurveFit, attach_indices
 from ..curves.engine import refit_partitions, refit_resamples
@@ -40,6 +39,7 @@ from ..curves.intervals import (
     interval_rows,
     interval_table,  # noqa: F401 - part of this module's public face (tromplab.interval_table)
     is_withheld,
+    normal_quantile,
     quantity_domain,
     relative_size_limit,
     withheld_interval,
@@ -315,7 +315,7 @@ def model_average(
     estimates = [_estimates_and_errors(fit, delta_max, known) for fit in good]
     # epsilon: each formula's range [0, x_max - 1] lies inside that of the largest x_max
     widest_x_max = max((fit.options.delta_max if delta_max is None else delta_max) / fit.d_cut for fit in good)
-    z = stats.norm.ppf(0.5 + level / 2.0)
+    z = normal_quantile(0.5 + level / 2.0)
     ids = [fit.formula.id for fit in good]
     rows = []
     for quantity in quantities:
