@@ -8,6 +8,7 @@ from numpy.testing import assert_allclose
 from tromplab import workbench
 from tromplab._synthetic import synthetic
 from tromplab.cli import main
+from tromplab.curves import engine
 from tromplab.curves.curve_fit import fit_formula
 from tromplab.curves.engine import check_bootstrap_request, fit_formula_batch, refit_resamples
 from tromplab.curves.formulas import ALL_FORMULAS, FORMULAS, get_formula, is_batchable, shuvalov_break, shuvalov_breaks
@@ -304,3 +305,20 @@ def test_units_of_work_are_two_per_worker_within_their_limits():
     assert [len(c) for c in workbench.chunked(items[:100], workers=2)] == [64, 36]  # never below CHUNK_SIZE
     assert sum(workbench.chunked(items[:777], workers=3), []) == items[:777]  # in order, nothing lost
     assert workbench.chunked([], workers=2) == []
+
+
+def test_formula_11_reaches_the_basin_next_to_its_grid_starts(monkeypatch):
+    """Synthetic experiment s7500: the points crossing (11)'s break cut the sum of squares into
+    basins a few per cent wide in kr; the optimum (kr 2.30) lies in one that no start of the
+    41-shape grid falls into (they end at kr 2.22 or 2.47, 1.4 % higher). The scan of shapes
+    around the optimum (engine.scan_shapes_nearby) finds it, as a grid of 161 shapes does."""
+    experiment = synthetic(7500, weighted=False)
+    found = fit_formula_batch([experiment], "shuvalov")[0]
+    monkeypatch.setattr(engine, "PIECEWISE_GRID_SLOPES", -np.geomspace(0.02, 20.0, 161))
+    dense = fit_formula_batch([experiment], "shuvalov")[0]
+    monkeypatch.setattr(engine, "scan_shapes_nearby", lambda problem, params, ssr, rows: (params, ssr, np.zeros(rows.size, int)))
+    monkeypatch.setattr(engine, "PIECEWISE_GRID_SLOPES", -np.geomspace(0.02, 20.0, 41))
+    without_scan = fit_formula_batch([experiment], "shuvalov")[0]
+    assert found.fit.ssr <= dense.fit.ssr * (1 + 1e-9)
+    assert without_scan.fit.ssr > 1.01 * found.fit.ssr  # the test sees the scan's work
+    assert_allclose(found.shape, 2.2984, rtol=1e-3)

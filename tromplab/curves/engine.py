@@ -379,6 +379,63 @@ def _polish_piecewise(problem: BatchProblem, params, ssr, nfev, best, rows, *, k
     if moving is not None:  # along the crossings of measured points with the moving break
         params[best], ssr[best], more = search_break_crossings(problem, params[best], ssr[best], rows)
         nfev[best] += more
+        params[best], ssr[best], more = scan_shapes_nearby(problem, params[best], ssr[best], rows)
+        nfev[best] += more
+
+
+#: Shapes scanned around the optimum of a moving-break formula (relative to its shape, in ln):
+#: the points crossing the break cut the sum of squares into basins a few per cent wide in
+#: the shape, narrower than the grid's step (19 %), so a basin next to the optimum can hold no
+#: grid start (8 fits of (11) among 10,000 synthetic experiments ended 0.01-1.4 % above it;
+#: with this scan none ends more than 1e-7 above what a grid of 161 shapes finds).
+NEARBY_SHAPES = np.linspace(-0.25, 0.25, 51)
+#: Half-width (in ln d_cut) of the golden-section search of d_cut at each scanned shape.
+NEARBY_CUT_SPAN = 0.15
+#: Best scanned points, in other basins than the optimum's, from which Levenberg-Marquardt runs.
+NEARBY_STARTS = 2
+
+
+def scan_shapes_nearby(problem: BatchProblem, params: np.ndarray, ssr: np.ndarray, rows: np.ndarray):
+    """Profile the sum of squares over shapes near each row's optimum (``d_cut`` by golden
+    section at each) and run Levenberg-Marquardt from the best scanned points; a row keeps a
+    lower sum of squares.  For formulas whose break moves with the shape (:class:`MovingBreak`).
+    Returns ``(params, ssr, nfev)``."""
+    params, ssr = params.copy(), ssr.copy()
+    count, n_shapes = rows.size, NEARBY_SHAPES.size
+    lower, upper = problem.lower[rows], problem.upper[rows]
+    shapes = np.clip(params[:, 1:2] * np.exp(NEARBY_SHAPES), lower[:, 1:2], upper[:, 1:2])  # (rows, K)
+    work_rows = np.repeat(rows, n_shapes)
+    fixed = np.column_stack([np.zeros(work_rows.size), shapes.ravel(), np.repeat(params[:, 2:], n_shapes, axis=0)])
+    x_break = problem.breaks(fixed, work_rows)  # the shapes stay fixed while d_cut moves
+
+    def ssr_at(log_cut):
+        trial = fixed.copy()
+        trial[:, 0] = log_cut
+        return sum_of_squares(problem.residual(trial, work_rows, x_break))
+
+    centre = np.repeat(params[:, 0], n_shapes)
+    low = np.maximum(centre - NEARBY_CUT_SPAN, np.repeat(lower[:, 0], n_shapes))
+    high = np.minimum(centre + NEARBY_CUT_SPAN, np.repeat(upper[:, 0], n_shapes))
+    log_cut, scanned = golden_section(ssr_at, low, high, GOLDEN_STEPS + 4)
+    scanned = scanned.reshape(count, n_shapes)
+    picks = np.argsort(scanned, axis=1)[:, :NEARBY_STARTS]
+    starts = np.concatenate(
+        [
+            np.take_along_axis(log_cut.reshape(count, n_shapes), picks, axis=1)[..., None],
+            np.take_along_axis(shapes, picks, axis=1)[..., None],
+        ],
+        axis=2,
+    )
+    if params.shape[1] > 2:
+        starts = np.concatenate([starts, np.repeat(params[:, None, 2:], NEARBY_STARTS, axis=1)], axis=2)
+    found, found_ssr, nfev = levenberg_marquardt(problem, starts.reshape(-1, params.shape[1]), np.repeat(rows, NEARBY_STARTS))
+    found_ssr = found_ssr.reshape(count, NEARBY_STARTS)
+    pick = np.argmin(found_ssr, axis=1)
+    best_ssr = found_ssr[np.arange(count), pick]
+    better = best_ssr < ssr
+    params[better] = found.reshape(count, NEARBY_STARTS, -1)[np.arange(count), pick][better]
+    ssr[better] = best_ssr[better]
+    return params, ssr, n_shapes * (GOLDEN_STEPS + 6) + nfev.reshape(count, NEARBY_STARTS).sum(axis=1)
 
 
 def _covariance(jac: np.ndarray, ssr: np.ndarray, n: np.ndarray, n_params: int) -> np.ndarray:
