@@ -322,3 +322,12 @@ def test_formula_11_reaches_the_basin_next_to_its_grid_starts(monkeypatch):
     assert found.fit.ssr <= dense.fit.ssr * (1 + 1e-9)
     assert without_scan.fit.ssr > 1.01 * found.fit.ssr  # the test sees the scan's work
     assert_allclose(found.shape, 2.2984, rtol=1e-3)
+
+
+def test_a_batch_where_every_experiment_fails_keeps_the_column_types():
+    """With no fit, the table is made of the failures alone (as before the rows were made on the
+    workers): equation stays an integer column, for any number of workers."""
+    tiny = [TrompPoints("a", [10.0, 20.0], [0.8, 0.2]), TrompPoints("b", [10.0, 20.0], [0.7, 0.1])]
+    tables = [fit_experiments(tiny, formulas=["plitt", "lognormal"], jobs=jobs).fits_table() for jobs in (1, 2)]
+    assert tables[0].to_csv(index=False) == tables[1].to_csv(index=False)
+    assert str(tables[0]["equation"].dtype) == "int64" and not tables[0]["success"].any() and len(tables[0]) == 4

@@ -106,7 +106,9 @@ class Workbench:
             for formula in self.formulas
         ]
         table = fit_rows_frame(self.fits) if made is None else made
-        if failed:
+        if failed and table.empty:  # no fit: the columns take their types from the failures alone
+            table = pd.DataFrame(failed).reindex(columns=table.columns)
+        elif failed:
             table = pd.concat([table, pd.DataFrame(failed).reindex(columns=table.columns)], ignore_index=True)
         table["adequate"] = table["adequate"].astype(bool)
         table["success"] = table["success"].astype(bool)
