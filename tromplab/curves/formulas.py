@@ -18,6 +18,7 @@ References
 
 from __future__ import annotations
 
+import math
 import re
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -1153,9 +1154,16 @@ def whiten_beta_star(alpha: float, fishhook: float) -> float:
     """
     if fishhook == 0.0:
         return 1.0
+    passed = -math.expm1(-alpha)  # 1 - e^-alpha, as lynch() takes it
 
     def gap(star):
-        return float((1.0 + fishhook * star) * lynch(star, alpha)) - 0.5
+        # lynch(star, alpha) on one float with the math module: numpy's scalar overhead made
+        # this root (one per evaluation of the curve) most of the time of Whiten's fits
+        try:
+            reduced = passed / (math.expm1(alpha * (star - 1.0)) + 2.0 * passed)
+        except OverflowError:  # e^(alpha (star - 1)) beyond the floats: the curve is 0 there, as lynch() gives
+            reduced = 0.0
+        return (1.0 + fishhook * star) * reduced - 0.5
 
     high = 1.0
     while gap(high) > 0.0:
