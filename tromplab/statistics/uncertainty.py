@@ -145,16 +145,19 @@ def bootstrap(
     rng = np.random.default_rng(seed)
     if method == "residuals" and is_batchable(fit.formula) and batchable_indices(fit.formula):
         # resamples as arrays end to end: no point records or result objects per resample
-        rows = _replicates_on_arrays(fit, _resampled_partitions(fit, n, rng, progress), delta_max)
+        samples = _replicates_on_arrays(fit, _resampled_partitions(fit, n, rng, progress), delta_max)
     else:
         refits = refit_resamples(fit, _resamples(fit, n, rng, method, progress), delta_max=delta_max)  # one batched call
         attach_indices(refits)  # and their indices in one array computation
         rows = [{**refit.fit.values, **{k: getattr(refit.indices, k) for k in INDEX_NAMES}} for refit in refits if refit.success]
-    logger.debug("bootstrap %s %s: %d %s resamples, %d refits failed", fit.experiment, fit.formula.id, n, method, n - len(rows))
-    return Bootstrap(pd.DataFrame(rows), n, method, seed, _bootstrap_bounds(fit, delta_max))
+        samples = pd.DataFrame(rows)
+    logger.debug(
+        "bootstrap %s %s: %d %s resamples, %d refits failed", fit.experiment, fit.formula.id, n, method, n - len(samples)
+    )
+    return Bootstrap(samples, n, method, seed, _bootstrap_bounds(fit, delta_max))
 
 
-def _replicates_on_arrays(fit: CurveFit, partitions: np.ndarray, delta_max: float) -> list[dict]:
+def _replicates_on_arrays(fit: CurveFit, partitions: np.ndarray, delta_max: float) -> pd.DataFrame:
     """The rows of :attr:`Bootstrap.samples` from refits of the resampled ``partitions`` on arrays
     (:func:`~tromplab.curves.engine.refit_partitions`), with their indices computed on arrays."""
     optimum, efficiency = refit_partitions(fit, partitions)
@@ -168,10 +171,9 @@ def _replicates_on_arrays(fit: CurveFit, partitions: np.ndarray, delta_max: floa
         delta_max=np.full(values.shape[0], delta_max),
         measured_efficiency=None if efficiency is None else efficiency[ok],
     )
-    return [
-        {**dict(zip(optimum.names, map(float, row))), **{k: getattr(found, k) for k in INDEX_NAMES}}
-        for row, found in zip(values, indices)
-    ]
+    columns = {name: values[:, k] for k, name in enumerate(optimum.names)}
+    columns.update({k: np.array([getattr(found, k) for found in indices], dtype=float) for k in INDEX_NAMES})
+    return pd.DataFrame(columns)
 
 
 def _resampled_partitions(fit: CurveFit, n: int, rng: np.random.Generator, progress) -> np.ndarray:
@@ -182,12 +184,10 @@ def _resampled_partitions(fit: CurveFit, n: int, rng: np.random.Generator, progr
     root_weights = np.sqrt(fit.options.weights)
     scaled = root_weights * (points.partition_fine - fitted)
     residuals = (scaled - scaled.mean()) * np.sqrt(points.n / max(points.n - fit.formula.n_params, 1))
-    partitions = np.empty((n, points.n))
-    for i in range(n):
-        if progress is not None:
-            progress(i + 1, n)
-        partitions[i] = fitted + rng.choice(residuals, points.n) / root_weights
-    return partitions
+    for i in range(n if progress is not None else 0):
+        progress(i + 1, n)
+    # all draws at once: the generator gives the same numbers as one call per resample
+    return fitted + rng.choice(residuals, (n, points.n)) / root_weights
 
 
 def _resamples(fit: CurveFit, n: int, rng: np.random.Generator, method: str, progress) -> list[TrompPoints]:
