@@ -193,10 +193,7 @@ class Workbench:
 
     @cached_property
     def _by_experiment(self) -> dict[str, list[CurveFit]]:
-        grouped: dict[str, list[CurveFit]] = {}
-        for fit in self.fits:
-            grouped.setdefault(fit.experiment, []).append(fit)
-        return grouped
+        return by_experiment(self.fits)
 
     @property
     def experiments(self) -> list[str]:
@@ -224,22 +221,22 @@ class Workbench:
         Computed once per level and kept; ``jobs`` and ``client`` spread the first
         computation over workers (the table is the same whatever they are).
         """
-        level = self._averages_level if level is None else level
+        level = averages_level(self.ci) if level is None else level
         if level not in self._averages_by_level:
             self._keep_averages(level, model_averages(self, level=level, jobs=jobs, client=client))
         return self._averages_by_level[level].copy()
-
-    @property
-    def _averages_level(self) -> float:
-        return self.ci or 0.95
 
     @cached_property
     def _averages_by_level(self) -> dict[float, pd.DataFrame]:
         return {}  # a frozen dataclass keeps caches in __dict__
 
-    def _keep_fit_rows(self, table: pd.DataFrame) -> None:
-        """The table :func:`fit_rows_frame` makes of the fits, made beforehand (by the workers)."""
-        self.__dict__["_fit_rows"] = table
+    def _keep_from_workers(self, found: ChunkResults) -> None:
+        """What the workers made beside the fits: the rows of the fits (the table
+        :func:`fit_rows_frame` makes) and, where they made them, the model averages at the
+        batch's level."""
+        self.__dict__["_fit_rows"] = found.rows
+        if found.averages is not None:
+            self._keep_averages(averages_level(self.ci), found.averages)
 
     def _keep_averages(self, level: float, table: pd.DataFrame) -> None:
         self._averages_by_level[level] = with_survey_columns(table, self.inputs)
@@ -450,8 +447,7 @@ def fit_experiments(
     with dask_client(scheduler=scheduler, dask=dask, client=client) as cluster:
         failures, fittable = _screenable(experiments)
         wanted = {"level": ci, "n_bootstrap": bootstrap, "method": bootstrap_method, "seed": seed} if ci or bootstrap else None
-        # with workers the model averages are made on them too, right after each chunk's fits
-        averaged = {"level": ci or 0.95, "ranked": ranked_among(chosen, rank_extended)} if jobs != 1 or cluster else None
+        averaged = {"level": averages_level(ci), "ranked": ranked_among(chosen, rank_extended)}
         found = _fit_in_chunks(
             fittable, chosen, settings, jobs=jobs, client=cluster, progress=progress, intervals=wanted, averages=averaged
         )
@@ -459,10 +455,21 @@ def fit_experiments(
             tuple(found.fits), failures, chosen, rank_by, alpha, rank_extended, found.notes, settings["water_recovery"], ci,
             bootstrap, bootstrap_method, seed, partition_to, settings["size_unit"], tuple(experiments), balances, found.intervals,
         )  # fmt: skip
-        bench._keep_fit_rows(found.rows)
-        if found.averages is not None:
-            bench._keep_averages(averaged["level"], found.averages)
+        bench._keep_from_workers(found)
     return bench
+
+
+def averages_level(ci: float | None) -> float:
+    """Confidence level of the model averages' intervals: the batch's ``ci``, else 0.95."""
+    return ci or 0.95
+
+
+def by_experiment(fits) -> dict[str, list[CurveFit]]:
+    """``fits`` grouped by experiment, in their order."""
+    grouped: dict[str, list[CurveFit]] = {}
+    for fit in fits:
+        grouped.setdefault(fit.experiment, []).append(fit)
+    return grouped
 
 
 def fit_rows_frame(fits) -> pd.DataFrame:
@@ -548,7 +555,7 @@ def _screenable(experiments: Sequence[TrompPoints]) -> tuple[dict[str, str], lis
 
 class ChunkResults(NamedTuple):
     """What :func:`_fit_in_chunks` gathers: the fits, the data notes, the interval columns and
-    the model averages (each None when not asked for)."""
+    the model averages (None when not asked for), and the rows of the fits."""
 
     fits: list[CurveFit]
     notes: dict
@@ -563,7 +570,8 @@ def _fit_in_chunks(
     """The fits, data notes, (with ``intervals``, the options of
     :func:`~tromplab.statistics.uncertainty.interval_columns``) the interval columns and (with
     ``averages``: ``level`` and the ``ranked`` formulas) the model averages of ``fittable``,
-    chunk by chunk in order, wherever the chunks run.
+    chunk by chunk in order, wherever the chunks run (the averages only where there are
+    workers: in one process they are made when first asked for).
 
     A chunk's intervals are made by the worker that fitted it, right after the fits: the fits
     do not travel to the main process and back again, and each fit's intervals (its bootstrap
@@ -575,6 +583,8 @@ def _fit_in_chunks(
     options["formulas"] = tuple(f.id for f in chosen)
     options["intervals"] = intervals
     options["width"] = max((points.n for points in fittable), default=0)  # one padding for every chunk
+    if jobs == 1 and client is None:  # one process: the model averages wait until they are asked for
+        averages = None
     options["averages"] = None if averages is None else (averages["level"], tuple(f.id for f in averages["ranked"]))
     logger.info(
         "fitting %d experiment(s) x %d formula(s) in %d chunk(s) of up to %d (%s)",
@@ -718,10 +728,7 @@ def _fit_chunk_star(options, chunk):
     if averages is None:
         return fits, notes, columns, None, rows
     level, ranked = averages
-    grouped: dict[str, list[CurveFit]] = {}
-    for fit in fits:
-        grouped.setdefault(fit.experiment, []).append(fit)
-    return fits, notes, columns, _averages_of_chunk(level, _averaged_groups(grouped.values(), ranked)), rows
+    return fits, notes, columns, _averages_of_chunk(level, _averaged_groups(by_experiment(fits).values(), ranked)), rows
 
 
 def _points_and_balances(experiments) -> tuple[list[TrompPoints], tuple[MassBalance, ...]]:

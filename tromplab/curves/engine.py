@@ -49,7 +49,15 @@ from .batched import BatchProblem, PaddedPoints, levenberg_marquardt, sum_of_squ
 from .curve_fit import CurveFit, FitOptions, failed_fit, fit_formula
 from .fitting import ParameterFit, parameters_at_bounds
 from .formulas import Formula, get_formula, is_batchable
-from .measured import formula_context, formula_contexts, measured_cut_size, measured_slope, measured_starts, parameter_specs
+from .measured import (
+    formula_context,
+    formula_contexts,
+    measured_cut_size,
+    measured_slope,
+    measured_starts,
+    normalised_weights,
+    parameter_specs,
+)
 from .parameters import D_CUT_RANGE_FACTOR
 from .screening import DEFAULT_ALPHA
 
@@ -391,8 +399,10 @@ def _polish_piecewise(problem: BatchProblem, params, ssr, nfev, best, rows, *, k
 NEARBY_SHAPES = np.linspace(-0.25, 0.25, 51)
 #: Half-width (in ln d_cut) of the golden-section search of d_cut at each scanned shape.
 NEARBY_CUT_SPAN = 0.15
-#: Best scanned points, in other basins than the optimum's, from which Levenberg-Marquardt runs.
+#: Best scanned points from which Levenberg-Marquardt runs.
 NEARBY_STARTS = 2
+#: Golden-section steps of d_cut at each scanned shape (more than the grid's: a narrower basin).
+NEARBY_GOLDEN_STEPS = GOLDEN_STEPS + 4
 
 
 def scan_shapes_nearby(problem: BatchProblem, params: np.ndarray, ssr: np.ndarray, rows: np.ndarray):
@@ -416,7 +426,7 @@ def scan_shapes_nearby(problem: BatchProblem, params: np.ndarray, ssr: np.ndarra
     centre = np.repeat(params[:, 0], n_shapes)
     low = np.maximum(centre - NEARBY_CUT_SPAN, np.repeat(lower[:, 0], n_shapes))
     high = np.minimum(centre + NEARBY_CUT_SPAN, np.repeat(upper[:, 0], n_shapes))
-    log_cut, scanned = golden_section(ssr_at, low, high, GOLDEN_STEPS + 4)
+    log_cut, scanned = golden_section(ssr_at, low, high, NEARBY_GOLDEN_STEPS)
     scanned = scanned.reshape(count, n_shapes)
     picks = np.argsort(scanned, axis=1)[:, :NEARBY_STARTS]
     starts = np.concatenate(
@@ -435,7 +445,8 @@ def scan_shapes_nearby(problem: BatchProblem, params: np.ndarray, ssr: np.ndarra
     better = best_ssr < ssr
     params[better] = found.reshape(count, NEARBY_STARTS, -1)[np.arange(count), pick][better]
     ssr[better] = best_ssr[better]
-    return params, ssr, n_shapes * (GOLDEN_STEPS + 6) + nfev.reshape(count, NEARBY_STARTS).sum(axis=1)
+    # golden_section evaluates two points, then one per step
+    return params, ssr, n_shapes * (NEARBY_GOLDEN_STEPS + 2) + nfev.reshape(count, NEARBY_STARTS).sum(axis=1)
 
 
 def _covariance(jac: np.ndarray, ssr: np.ndarray, n: np.ndarray, n_params: int) -> np.ndarray:
@@ -608,7 +619,7 @@ def refit_partitions(fit, partitions: np.ndarray) -> tuple[BatchOptimum, np.ndar
     points, formula = fit.points, fit.formula
     partitions = np.atleast_2d(np.asarray(partitions, dtype=float))
     count = partitions.shape[0]
-    weight = np.ones(points.n) if points.weight is None else points.weight / points.weight.mean()
+    weight = normalised_weights(points)
     data = PaddedPoints(
         np.broadcast_to(points.size, partitions.shape).copy(),
         partitions,

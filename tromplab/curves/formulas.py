@@ -391,6 +391,16 @@ def lynch(x, kl):
     return passed / (grow + 2.0 * passed)
 
 
+def _lynch_at(x: float, kl: float) -> float:
+    """:func:`lynch` at one relative size, with the math module: the same expression, a tenth
+    of numpy's cost on a scalar (Whiten's ``beta*`` root evaluates it once per step)."""
+    passed = -math.expm1(-kl)
+    try:
+        return passed / (math.expm1(kl * (x - 1.0)) + 2.0 * passed)
+    except OverflowError:  # e^(kl (x - 1)) beyond the floats: the curve is 0 there, as lynch() gives
+        return 0.0
+
+
 def _lynch_slope(kl):
     return -kl / (4.0 * -np.expm1(-kl))
 
@@ -1154,16 +1164,11 @@ def whiten_beta_star(alpha: float, fishhook: float) -> float:
     """
     if fishhook == 0.0:
         return 1.0
-    passed = -math.expm1(-alpha)  # 1 - e^-alpha, as lynch() takes it
 
     def gap(star):
-        # lynch(star, alpha) on one float with the math module: numpy's scalar overhead made
-        # this root (one per evaluation of the curve) most of the time of Whiten's fits
-        try:
-            reduced = passed / (math.expm1(alpha * (star - 1.0)) + 2.0 * passed)
-        except OverflowError:  # e^(alpha (star - 1)) beyond the floats: the curve is 0 there, as lynch() gives
-            reduced = 0.0
-        return (1.0 + fishhook * star) * reduced - 0.5
+        # on floats: numpy's scalar overhead made this root (one per evaluation of the curve)
+        # most of the time of Whiten's fits
+        return (1.0 + fishhook * star) * _lynch_at(star, alpha) - 0.5
 
     high = 1.0
     while gap(high) > 0.0:

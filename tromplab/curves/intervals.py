@@ -199,9 +199,9 @@ def _index_key(fit: CurveFit, values: dict[str, float], delta_max: float) -> tup
     return (fit.formula.id, d_cut, shape, *extras.values(), *fit.context_at(values).values(), delta_max)
 
 
-def _step(value: float) -> float:
-    """Central-difference step of the delta method: relative 1e-5, at least 1e-8."""
-    return 1e-5 * max(abs(value), 1e-3)
+def _step(value):
+    """Central-difference step of the delta method: relative 1e-5, at least 1e-8 (elementwise on arrays)."""
+    return 1e-5 * np.maximum(np.abs(value), 1e-3)
 
 
 def batched_delta_indices(fits: Sequence[CurveFit], delta_max: float | None = None) -> dict:
@@ -245,8 +245,8 @@ def batched_delta_indices(fits: Sequence[CurveFit], delta_max: float | None = No
             delta_max=[limit for _, _, limit in evaluations],
             measured_efficiency=efficiency,
         )
-        for (fit, values, limit), indices in zip(evaluations, found):
-            known[_index_key(fit, values, limit)] = np.array([getattr(indices, name) for name in INDEX_NAMES])
+        for (fit, values, limit), indices in zip(evaluations, index_array(found)):
+            known[_index_key(fit, values, limit)] = indices
         moving = evaluations[0][0].formula.moving_break
         if moving is not None:  # the curve's break at each evaluation, for the delta method's Jacobian at the points
             shapes, efficiencies = [a[1] for a in arguments], [c["measured_efficiency"] for c in context]
@@ -258,16 +258,23 @@ def batched_delta_indices(fits: Sequence[CurveFit], delta_max: float | None = No
     return known
 
 
+def index_array(found: Sequence) -> np.ndarray:
+    """The :data:`INDEX_NAMES` of each :class:`~tromplab.curves.indices.CurveIndices` as a row."""
+    return np.array([[getattr(indices, name) for name in INDEX_NAMES] for indices in found], dtype=float).reshape(
+        -1, len(INDEX_NAMES)
+    )
+
+
 def _delta_on_arrays(formula_id: str, members: list) -> tuple[np.ndarray, np.ndarray]:
     """Indices and their delta-method standard errors of fits ``(fit, delta_max)`` of one formula
     without data-derived inputs, all at once: the central differences of
     :func:`delta_standard_errors` (the same steps) and ``g C g^T`` on arrays."""
-    fit = members[0][0]
-    names, shape_at = fit.fit.names, fit.fit.names.index(fit.formula.shape_name)
+    first = members[0][0]
+    names, shape_at = first.fit.names, first.fit.names.index(first.formula.shape_name)
     values = np.array([[fit.fit.values[name] for name in names] for fit, _ in members])  # (m, p)
     covariance = np.array([fit.fit.covariance for fit, _ in members])  # (m, p, p)
     limits = np.array([limit for _, limit in members], dtype=float)
-    steps = 1e-5 * np.maximum(np.abs(values), 1e-3)  # as _step
+    steps = _step(values)
     count, n_params = values.shape
     sets = np.repeat(values[:, None, :], 1 + 2 * n_params, axis=1)  # centre, then + and - each parameter
     for j in range(n_params):
@@ -279,7 +286,7 @@ def _delta_on_arrays(formula_id: str, members: list) -> tuple[np.ndarray, np.nda
         sets[..., shape_at].ravel(),
         delta_max=np.repeat(limits, 1 + 2 * n_params),
     )
-    table = np.array([[getattr(indices, name) for name in INDEX_NAMES] for indices in found]).reshape(count, 1 + 2 * n_params, -1)
+    table = index_array(found).reshape(count, 1 + 2 * n_params, -1)
     gradient = (table[:, 1::2] - table[:, 2::2]) / (2 * steps[..., None])  # (m, p, q)
     variance = np.einsum("mpq,mpr,mrq->mq", gradient, covariance, gradient)
     errors = np.where(np.all(np.isfinite(gradient), axis=1), np.sqrt(np.maximum(variance, 0.0)), np.nan)

@@ -35,6 +35,7 @@ from ..curves.intervals import (
     batched_delta_indices,
     batched_profile_intervals,
     delta_indices,
+    index_array,
     interval_method,
     interval_rows,
     interval_table,  # noqa: F401 - part of this module's public face (tromplab.interval_table)
@@ -172,7 +173,7 @@ def _replicates_on_arrays(fit: CurveFit, partitions: np.ndarray, delta_max: floa
         measured_efficiency=None if efficiency is None else efficiency[ok],
     )
     columns = {name: values[:, k] for k, name in enumerate(optimum.names)}
-    columns.update({k: np.array([getattr(found, k) for found in indices], dtype=float) for k in INDEX_NAMES})
+    columns.update(zip(INDEX_NAMES, index_array(indices).T))
     return pd.DataFrame(columns)
 
 
