@@ -23,7 +23,7 @@ area lies above the largest measured size (``delta_max`` beyond the data).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from functools import lru_cache
 
 import numpy as np
@@ -374,6 +374,23 @@ def batch_curve_indices(formula, d_cut, shape, *, delta_max, measured_sizes=None
     >>> [round(i.d25, 3) for i in batch_curve_indices("plitt", [100.0, 50.0], [2.0, 2.0], delta_max=[600.0, 600.0])]
     [57.735, 28.868]
     """
+    columns, flags = batch_index_columns(
+        formula, d_cut, shape, delta_max=delta_max, measured_sizes=measured_sizes, measured_efficiency=measured_efficiency
+    )
+    names = [field.name for field in fields(CurveIndices) if field.name != "extrapolated"]
+    return [
+        CurveIndices(**dict(zip(names, (float(v) for v in row))), extrapolated=flag)
+        for row, flag in zip(zip(*(columns[name].tolist() for name in names)), flags)
+    ]
+
+
+def batch_index_columns(
+    formula, d_cut, shape, *, delta_max, measured_sizes=None, measured_efficiency=None
+) -> tuple[dict[str, np.ndarray], list[tuple[str, ...]]]:
+    """The indices of :func:`batch_curve_indices` as one array per :class:`CurveIndices` field
+    (``extrapolated`` aside, returned as the list of each curve's flags): the rows of many
+    curves without a result object per curve (the delta method and the bootstrap evaluate
+    tens of thousands)."""
     formula = get_formula(formula)
     if not batchable_indices(formula):
         raise ValueError(f"formula {formula.id} has no batched indices; use curve_indices")
@@ -390,12 +407,16 @@ def batch_curve_indices(formula, d_cut, shape, *, delta_max, measured_sizes=None
     x25 = _relative_sizes(curve, 0.75, shape.size)
     x75 = _relative_sizes(curve, 0.25, shape.size)
     flags = [()] * shape.size
+    d25, d75 = d_cut * x25, d_cut * x75
     if measured_sizes is not None:
-        flags = _batched_extrapolated(curve, d_cut * x25, d_cut * x75, eta, eps, d_cut, x_max, x_break, measured_sizes)
-    return [
-        _indices_of_curve(float(d_cut[i]), float(formula.slope_at_cut(float(shape[i]))), eta[i], eps[i], x25[i], x75[i], flags[i])
-        for i in range(shape.size)
-    ]
+        flags = _batched_extrapolated(curve, d25, d75, eta, eps, d_cut, x_max, x_break, measured_sizes)
+    ep = (d75 - d25) / 2.0
+    imperfection = ep / d_cut
+    slope = np.array([float(formula.slope_at_cut(k)) for k in shape.tolist()])  # scalar forms, as one curve's
+    columns = {"d_cut": d_cut, "slope": slope, "eta": np.asarray(eta, dtype=float), "epsilon": np.asarray(eps, dtype=float)}
+    columns |= {"d25": d25, "d75": d75, "ep": ep, "imperfection": imperfection, "sharpness": d25 / d75}
+    columns |= {"d50": d_cut, "ep_c": ep, "imperfection_c": imperfection}
+    return columns, flags
 
 
 def _batched_efficiency(formula: Formula, curve, shape, x_max, efficiency_of, x_break) -> tuple[np.ndarray, np.ndarray]:
@@ -434,27 +455,6 @@ def _batched_extrapolated(curve, d25, d75, eta, eps, d_cut, x_max, x_break, meas
         )
         for i in range(d_cut.size)
     ]
-
-
-def _indices_of_curve(cut: float, slope: float, eta, eps, x25, x75, flags: tuple[str, ...]) -> CurveIndices:
-    """The :class:`CurveIndices` of one curve of the batch from its cut, slope, areas and relative d25, d75."""
-    d25, d75 = cut * x25, cut * x75
-    ep = (d75 - d25) / 2.0
-    return CurveIndices(
-        d_cut=cut,
-        slope=slope,
-        eta=float(eta),
-        epsilon=float(eps),
-        d25=float(d25),
-        d75=float(d75),
-        ep=float(ep),
-        imperfection=float(ep / cut),
-        sharpness=float(d25 / d75),
-        d50=cut,
-        ep_c=float(ep),
-        imperfection_c=float(ep / cut),
-        extrapolated=flags,
-    )
 
 
 def _extrapolated_flags(d25, d75, eta, epsilon, x_max, above, area_below, area_above, smallest, largest) -> tuple[str, ...]:

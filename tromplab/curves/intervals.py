@@ -22,7 +22,7 @@ from scipy import stats
 from .batched import BatchProblem, PaddedPoints, profile_limits, sum_of_squares
 from .fitting import on_bound
 from .formulas import is_batchable
-from .indices import batch_curve_indices, batchable_indices, curve_indices
+from .indices import batch_index_columns, batchable_indices, curve_indices
 from .measured import CUT_QUANTITIES, formula_contexts, parameter_specs
 from .parameters import D_CUT_RANGE_FACTOR
 
@@ -238,14 +238,14 @@ def batched_delta_indices(fits: Sequence[CurveFit], delta_max: float | None = No
         arguments = [fit.curve_arguments(values) for fit, values, _ in evaluations]
         context = [fit.context_at(values) for fit, values, _ in evaluations]
         efficiency = [c.get("measured_efficiency", np.nan) for c in context] if context[0] else None
-        found = batch_curve_indices(
+        columns, _ = batch_index_columns(
             formula_id,
             [a[0] for a in arguments],
             [a[1] for a in arguments],
             delta_max=[limit for _, _, limit in evaluations],
             measured_efficiency=efficiency,
         )
-        for (fit, values, limit), indices in zip(evaluations, index_array(found)):
+        for (fit, values, limit), indices in zip(evaluations, index_array(columns)):
             known[_index_key(fit, values, limit)] = indices
         moving = evaluations[0][0].formula.moving_break
         if moving is not None:  # the curve's break at each evaluation, for the delta method's Jacobian at the points
@@ -258,11 +258,9 @@ def batched_delta_indices(fits: Sequence[CurveFit], delta_max: float | None = No
     return known
 
 
-def index_array(found: Sequence) -> np.ndarray:
-    """The :data:`INDEX_NAMES` of each :class:`~tromplab.curves.indices.CurveIndices` as a row."""
-    return np.array([[getattr(indices, name) for name in INDEX_NAMES] for indices in found], dtype=float).reshape(
-        -1, len(INDEX_NAMES)
-    )
+def index_array(columns: dict[str, np.ndarray]) -> np.ndarray:
+    """The :data:`INDEX_NAMES` of :func:`~tromplab.curves.indices.batch_index_columns`, a row per curve."""
+    return np.column_stack([columns[name] for name in INDEX_NAMES])
 
 
 def _delta_on_arrays(formula_id: str, members: list) -> tuple[np.ndarray, np.ndarray]:
@@ -280,13 +278,13 @@ def _delta_on_arrays(formula_id: str, members: list) -> tuple[np.ndarray, np.nda
     for j in range(n_params):
         sets[:, 1 + 2 * j, j] += steps[:, j]
         sets[:, 2 + 2 * j, j] -= steps[:, j]
-    found = batch_curve_indices(
+    columns, _ = batch_index_columns(
         formula_id,
         sets[..., names.index("d_cut")].ravel(),
         sets[..., shape_at].ravel(),
         delta_max=np.repeat(limits, 1 + 2 * n_params),
     )
-    table = index_array(found).reshape(count, 1 + 2 * n_params, -1)
+    table = index_array(columns).reshape(count, 1 + 2 * n_params, -1)
     gradient = (table[:, 1::2] - table[:, 2::2]) / (2 * steps[..., None])  # (m, p, q)
     variance = np.einsum("mpq,mpr,mrq->mq", gradient, covariance, gradient)
     errors = np.where(np.all(np.isfinite(gradient), axis=1), np.sqrt(np.maximum(variance, 0.0)), np.nan)

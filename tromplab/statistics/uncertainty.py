@@ -29,13 +29,12 @@ from ..curves.curve_fit import CurveFit, attach_indices
 from ..curves.engine import refit_partitions, refit_resamples
 from ..curves.fitting import on_bound
 from ..curves.formulas import is_batchable
-from ..curves.indices import batch_curve_indices, batchable_indices
+from ..curves.indices import batch_index_columns, batchable_indices
 from ..curves.intervals import (
     INDEX_NAMES,
     batched_delta_indices,
     batched_profile_intervals,
     delta_indices,
-    index_array,
     interval_method,
     interval_rows,
     interval_table,  # noqa: F401 - part of this module's public face (tromplab.interval_table)
@@ -165,7 +164,7 @@ def _replicates_on_arrays(fit: CurveFit, partitions: np.ndarray, delta_max: floa
     ok = optimum.success
     values = optimum.values[ok]
     shape_at = optimum.names.index(fit.formula.shape_name)
-    indices = batch_curve_indices(
+    indices, _ = batch_index_columns(
         fit.formula,
         values[:, 0],
         values[:, shape_at],
@@ -173,7 +172,7 @@ def _replicates_on_arrays(fit: CurveFit, partitions: np.ndarray, delta_max: floa
         measured_efficiency=None if efficiency is None else efficiency[ok],
     )
     columns = {name: values[:, k] for k, name in enumerate(optimum.names)}
-    columns.update(zip(INDEX_NAMES, index_array(indices).T))
+    columns.update((name, indices[name]) for name in INDEX_NAMES)
     return pd.DataFrame(columns)
 
 
