@@ -142,12 +142,16 @@ class BatchProblem:
             phi = curve_values(self.formula, x, params[:, 1:2], extras, efficiency, x_break)
             return data.root_weight[rows] * (phi - data.observed[rows])
 
-    def jacobian(self, params: np.ndarray, rows: np.ndarray, base: np.ndarray, relative_step: float = 1.5e-8) -> np.ndarray:
-        """Forward-difference Jacobian ``(len(rows), P, p)``, stepping inwards at an upper bound."""
+    def jacobian(
+        self, params: np.ndarray, rows: np.ndarray, base: np.ndarray, relative_step: float = 1.5e-8, x_break=None
+    ) -> np.ndarray:
+        """Forward-difference Jacobian ``(len(rows), P, p)``, stepping inwards at an upper bound
+        (``x_break``: the breaks at ``params`` when the caller has them, see :meth:`breaks`)."""
         count, width = base.shape
         jac = np.empty((count, width, params.shape[1]))
         upper = self.upper[rows]
-        x_break = self.breaks(params, rows)
+        if x_break is None:
+            x_break = self.breaks(params, rows)
         for j in range(params.shape[1]):
             # column 0 is ln d_cut, whose value depends on the size unit: an absolute step keeps
             # the Jacobian, and so the standard errors, the same in any unit (issue 15)
@@ -183,7 +187,9 @@ def levenberg_marquardt(
     """
     lower, upper = problem.lower[rows], problem.upper[rows]
     params = np.clip(params, lower, upper)
-    residual = problem.residual(params, rows)
+    # a moving break is solved once per point: the accepted trial's breaks serve its Jacobian
+    x_break = problem.breaks(params, rows)
+    residual = problem.residual(params, rows, x_break)
     ssr = sum_of_squares(residual)
     n_params = params.shape[1]
     nfev = np.ones(rows.size, dtype=int)
@@ -199,7 +205,8 @@ def levenberg_marquardt(
             break
         fresh = work[need_jacobian[work]]
         if fresh.size:
-            jac = problem.jacobian(params[fresh], rows[fresh], residual[fresh], relative_step)
+            breaks_here = None if x_break is None else x_break[fresh]
+            jac = problem.jacobian(params[fresh], rows[fresh], residual[fresh], relative_step, breaks_here)
             nfev[fresh] += n_params
             gradient[fresh] = np.einsum("bkp,bk->bp", jac, residual[fresh])
             hessian[fresh] = np.einsum("bkp,bkq->bpq", jac, jac)
@@ -218,13 +225,16 @@ def levenberg_marquardt(
                 step = -(g * free) / diagonal
         step = np.where(np.isfinite(step), step, 0.0)
         trial = np.clip(p + step, lower[work], upper[work])
-        trial_residual = problem.residual(trial, rows[work])
+        trial_break = problem.breaks(trial, rows[work])
+        trial_residual = problem.residual(trial, rows[work], trial_break)
         trial_ssr = sum_of_squares(trial_residual)
         nfev[work] += 1
         accepted = trial_ssr < ssr[work]
         gain = np.where(accepted, (ssr[work] - trial_ssr) / np.maximum(ssr[work], 1e-300), 0.0)
         took = work[accepted]
         params[took], residual[took], ssr[took] = trial[accepted], trial_residual[accepted], trial_ssr[accepted]
+        if x_break is not None:
+            x_break[took] = trial_break[accepted]
         need_jacobian[took] = True
         damping[took] = np.maximum(damping[took] / 3.0, 1e-12)
         refused = work[~accepted]

@@ -769,14 +769,17 @@ def shuvalov_breaks(kr, efficiency) -> np.ndarray:
     True
     """
     kr, efficiency = np.broadcast_arrays(np.asarray(kr, dtype=float), np.asarray(efficiency, dtype=float))
-    eta_plain = _rosin_rammler_area(0.0, 1.0, kr)
+    # _rosin_rammler_area(x, 1, k) = scale * (whole - gammainc(1/k, ln2 x^k)): the parts without x
+    # once, and eta_5 = _rosin_rammler_area(0, 1, k) = scale * whole (gammainc(a, 0) = 0)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        a = 1.0 / kr
+        scale = special.gamma(a) * LN2 ** (-a) / kr
+        whole = special.gammainc(a, LN2)
+        eta_plain = scale * (whole - 0.0)
     result = np.where(efficiency < 0.5, 1.0, 0.0)
     solve = (efficiency >= 0.5) & (efficiency < eta_plain)
     k, target = kr[solve], efficiency[solve]
-    # _rosin_rammler_area(x, 1, k) = scale * (whole - gammainc(1/k, ln2 x^k)): the parts without x once
-    a = 1.0 / k
-    scale = special.gamma(a) * LN2 ** (-a) / k
-    whole = special.gammainc(a, LN2)
+    a, scale, whole = a[solve], scale[solve], whole[solve]
     exponent = 1.0 / (k + 1.0)
     low, high = np.zeros_like(k), np.ones_like(k)
     w = np.full_like(k, 0.5)
