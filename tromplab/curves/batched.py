@@ -124,6 +124,19 @@ class BatchProblem:
             return None
         return self.formula.moving_break.on_arrays(params[:, 1], self.efficiency[rows])[:, None]
 
+    def breaks_near(self, params: np.ndarray, rows: np.ndarray, known_params: np.ndarray, known_breaks: np.ndarray):
+        """:meth:`breaks` at ``params``, taken from ``known_breaks`` (the breaks at
+        ``known_params``, row by row) where the shape is the same: one root per distinct
+        (shape, efficiency) of the others."""
+        same = params[:, 1] == known_params[:, 1]
+        found = known_breaks.copy()
+        other = np.flatnonzero(~same)
+        if other.size:
+            kr, efficiency = params[other, 1], self.efficiency[rows[other]]
+            pairs, inverse = np.unique(kr + 1j * efficiency, return_inverse=True)
+            found[other, 0] = self.formula.moving_break.on_arrays(pairs.real, pairs.imag)[inverse.ravel()]
+        return found
+
     def take(self, rows: np.ndarray) -> BatchProblem:
         """The problem of these experiments (repeated as often as ``rows`` names them), same bounds."""
         taken = copy.copy(self)

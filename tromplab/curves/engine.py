@@ -211,7 +211,8 @@ def compass_search(
     ]
     directions = np.array(directions + [-d for d in directions])
     params = params.copy()
-    ssr = sum_of_squares(problem.residual(params, rows))
+    x_break = problem.breaks(params, rows)
+    ssr = sum_of_squares(problem.residual(params, rows, x_break))
     nfev = np.ones(rows.size, dtype=int)
     step = np.full(rows.size, first_step)
     open_ = np.flatnonzero(np.isfinite(ssr))
@@ -219,7 +220,16 @@ def compass_search(
         scale = np.maximum(np.abs(params[open_]), 1.0) * step[open_, None]
         trials = np.clip(params[open_, None, :] + directions[None] * scale[:, None, :], lower[open_, None], upper[open_, None])
         flat = trials.reshape(-1, n_params)
-        trial_ssr = sum_of_squares(problem.residual(flat, np.repeat(rows[open_], len(directions)))).reshape(open_.size, -1)
+        trial_rows = np.repeat(rows[open_], len(directions))
+        trial_breaks = None
+        if x_break is not None:  # the steps in d_cut alone keep the current break
+            trial_breaks = problem.breaks_near(
+                flat,
+                trial_rows,
+                np.repeat(params[open_], len(directions), axis=0),
+                np.repeat(x_break[open_], len(directions), axis=0),
+            )
+        trial_ssr = sum_of_squares(problem.residual(flat, trial_rows, trial_breaks)).reshape(open_.size, -1)
         nfev[open_] += len(directions)
         pick = np.argmin(trial_ssr, axis=1)
         best = trial_ssr[np.arange(open_.size), pick]
@@ -227,6 +237,8 @@ def compass_search(
         moved = open_[improved]
         params[moved] = trials[improved, pick[improved]]
         ssr[moved] = best[improved]
+        if x_break is not None:
+            x_break[moved] = trial_breaks.reshape(open_.size, len(directions), 1)[improved, pick[improved]]
         step[open_[~improved]] *= 0.5
         open_ = open_[step[open_] >= last_step]
     return params, ssr, nfev
