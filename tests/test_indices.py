@@ -3,10 +3,12 @@
 import mpmath as mp
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 from scipy import special
 
-from tromplab.curves.formulas import EXTENDED_FORMULAS, FORMULAS, get_formula
+from tromplab.curves.formulas import EXTENDED_FORMULAS, FORMULAS, get_formula, with_bypass
 from tromplab.curves.indices import (
     batch_curve_indices,
     batchable_indices,
@@ -75,6 +77,7 @@ def test_lynch_at_its_flattest_shape_to_rounding():
 def test_batched_eta_and_eps_against_mpmath_over_the_whole_shape_range(formula):
     rows = MPMATH_EFFICIENCY[MPMATH_EFFICIENCY["formula"] == formula.id]
     extra = {"measured_efficiency": rows["measured_efficiency"].to_numpy()} if formula.context_from_efficiency else {}
+    extra |= {parameter.name: rows[parameter.name].to_numpy() for parameter in formula.extras}  # the bypass curves'
     shapes = rows["shape"].to_numpy()
     batched = batch_curve_indices(formula, np.ones(len(rows)), shapes, delta_max=rows["x_max"].to_numpy(), **extra)
     got = np.array([[b.eta, b.epsilon] for b in batched])
@@ -307,8 +310,90 @@ def test_batched_d25_is_exact_for_flat_curves():
     assert_allclose([f.d75 for f in found], 3.0 ** (1.0 / ks), rtol=1e-13)
 
 
-def test_batched_indices_refuse_curves_with_extras():
-    from tromplab.curves.indices import batch_curve_indices
-
+def test_batched_indices_refuse_curves_with_other_extras():
     with pytest.raises(ValueError, match="curve_indices"):
+        batch_curve_indices("whiten", [1.0], [2.0], delta_max=[3.0], bypass=[0.1])
+
+
+def test_batched_indices_of_a_bypass_curve_need_the_bypass():
+    with pytest.raises(ValueError, match="bypass of each curve"):
         batch_curve_indices("plitt_bypass", [1.0], [2.0], delta_max=[3.0])
+
+
+# --- batched indices of the curves with bypass: phi = (1 - bypass) phi_base ----------------------
+#: Bypass values: none, tiny, where the actual curve's maximum 1 - bypass meets 0.75 (d25) and
+#: 0.5 (d50) exactly or just misses them, and the upper bound.
+BYPASS_VALUES = (0.0, 1e-12, 0.1, 0.25, 0.25 + 1e-12, 0.3, 0.45, 0.5, 0.5 + 1e-12, 0.6, 0.95)
+#: Every base whose batched indices exist and whose phi takes no data-derived input (a bypass
+#: curve of (11) would need the measured efficiency): the registered plitt_bypass and
+#: lognormal_bypass and the same construction on the other paper formulas.
+BYPASS_CURVES = [
+    with_bypass(base, equation=0, citation="test") if base.id not in ("plitt", "lognormal") else get_formula(f"{base.id}_bypass")
+    for base in FORMULAS
+    if batchable_indices(base) and not base.context_from_efficiency
+]
+
+
+def _assert_bypass_indices_equal(formula, d_cut, shape, delta_max, bypass, measured):
+    """The batched indices of bypass curves against :func:`curve_indices`, curve by curve.
+
+    Relative 1e-9 for every index; crossings (d25, d50, d75, ep, sharpness) also within 1e-12
+    d_cut absolute: at relative sizes below 1e-4 (flat curves) brentq's absolute tolerance
+    of 1e-13 makes curve_indices' own value only that good (the batched one is the closer to
+    the closed-form root).  nan where curve_indices gives nan, the same extrapolated flags.
+    """
+    batched = batch_curve_indices(formula, d_cut, shape, delta_max=delta_max, measured_sizes=measured, bypass=bypass)
+    crossings = ("d25", "d50", "d75", "ep", "ep_c")
+    for i, got in enumerate(batched):
+        single = curve_indices(
+            formula, d_cut[i], shape[i], delta_max=delta_max[i], measured_sizes=(measured[0][i], measured[1][i]), bypass=bypass[i]
+        )
+        case = (formula.id, shape[i], bypass[i], got, single)
+        for name in ("slope", "eta", "epsilon", "imperfection", "imperfection_c", "d_cut", *crossings):
+            assert_allclose(
+                getattr(got, name),
+                getattr(single, name),
+                rtol=1e-9,
+                atol=1e-12 * d_cut[i] if name in crossings else 0,
+                err_msg=str(case),
+            )
+        assert_allclose(got.sharpness, single.sharpness, rtol=1e-9, atol=1e-12 * d_cut[i] / got.d75, err_msg=str(case))
+        assert got.extrapolated == single.extrapolated, case
+
+
+@pytest.mark.parametrize("formula", BYPASS_CURVES, ids=lambda f: f.id)
+def test_batched_bypass_indices_equal_the_single_curve_indices(formula):
+    shapes, d_cut, delta_max, measured, _ = _curves_across(formula)
+    count = shapes.size
+    shapes, d_cut, delta_max = (np.tile(v, len(BYPASS_VALUES)) for v in (shapes, d_cut, delta_max))
+    measured = tuple(np.tile(v, len(BYPASS_VALUES)) for v in measured)
+    bypass = np.repeat(BYPASS_VALUES, count)
+    _assert_bypass_indices_equal(formula, d_cut, shapes, delta_max, bypass, measured)
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    formula=st.sampled_from(BYPASS_CURVES),
+    place=st.floats(0.0, 1.0),
+    bypass=st.floats(0.0, 0.95),
+    top=st.floats(0.2, 1e4),
+    smallest=st.floats(0.01, 2.0),
+)
+def test_batched_bypass_indices_equal_the_single_curve_indices_anywhere(formula, place, bypass, top, smallest):
+    low, high = formula.shape_bounds
+    shape = low + place * (high - low) if low <= 0 else np.exp(np.log(low) + place * np.log(high / low))
+    one = np.ones(1)
+    _assert_bypass_indices_equal(
+        formula, 50.0 * one, shape * one, 50.0 * top * one, bypass * one, (50.0 * smallest * one, 500.0 * smallest * one)
+    )
+
+
+def test_batched_bypass_indices_are_missing_where_the_actual_curve_never_reaches_the_level():
+    found = batch_curve_indices("plitt_bypass", np.ones(3), np.full(3, 2.0), delta_max=np.full(3, 6.0), bypass=[0.1, 0.3, 0.6])
+    assert [np.isnan([f.d25, f.d50, f.d75]).tolist() for f in found] == [
+        [False, False, False],
+        [True, False, False],  # 1 - bypass = 0.7 < 0.75: no d25
+        [True, True, False],  # 0.4 < 0.5: no d50 either
+    ]
+    assert_allclose(found[1].d50, np.sqrt(0.7 / 0.5 - 1.0), rtol=1e-13)  # plitt: phi_base = 1/(1 + x^ks)
+    assert_allclose(found[2].ep_c, (np.sqrt(3.0) - np.sqrt(1.0 / 3.0)) / 2.0, rtol=1e-13)  # the corrected curve's

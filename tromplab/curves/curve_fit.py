@@ -422,13 +422,15 @@ def attach_indices(fits) -> None:
             groups.setdefault(fit.formula.id, []).append(fit)
     for formula_id, group in groups.items():
         efficiency = [fit.context.get("measured_efficiency", np.nan) for fit in group]
+        arguments = [fit.curve_arguments() for fit in group]
         computed = batch_curve_indices(
             formula_id,
-            [fit.d_cut for fit in group],
-            [fit.shape for fit in group],
+            [d_cut for d_cut, _, _ in arguments],
+            [shape for _, shape, _ in arguments],
             delta_max=[fit.options.delta_max for fit in group],
             measured_sizes=([fit.points.size.min() for fit in group], [fit.points.size.max() for fit in group]),
             measured_efficiency=efficiency if group[0].formula.context_from_efficiency else None,
+            **{extra.name: [extras[extra.name] for _, _, extras in arguments] for extra in group[0].formula.extras},
         )
         for fit, indices in zip(group, computed):
             fit.__dict__["indices"] = indices  # where functools.cached_property keeps its value

@@ -135,6 +135,11 @@ class Formula:
         The break of a piecewise formula whose break point moves with the shape and the
         measured efficiency ((11)): the hooks the batched engine and the batched indices
         call instead of ``phi`` (:class:`MovingBreak`); None for every other formula.
+    bypass_of : Formula or None
+        The formula this one is with bypass (:func:`with_bypass`): ``phi = (1 - bypass)``
+        times its ``phi``, so that the batched indices
+        (:func:`tromplab.curves.indices.batch_curve_indices`) are built on the base's; None
+        for every other formula.
     """
 
     id: str
@@ -160,6 +165,7 @@ class Formula:
     shape_meaning: str = ""
     piecewise: bool = False
     moving_break: MovingBreak | None = None
+    bypass_of: Formula | None = None
 
     def __reduce__(self):
         # Records hold lambdas and closures; they travel (pickle, process pools) by their id.
@@ -1156,6 +1162,7 @@ def with_bypass(base: Formula, *, equation: int, citation: str, family: str = "e
         family=family,
         nests=base.id,
         shape_meaning=base.shape_meaning,
+        bypass_of=base,
     )
 
 

@@ -155,9 +155,18 @@ def _relative_size_cached(formula: Formula, shape: float, level: float, context:
     """:func:`_relative_size_at`, remembered per formula, shape and context: the relative
     sizes do not depend on d_cut, so the delta method's steps in d_cut and the model
     averages of a batch ask for the same ones again."""
-    if get_formula(formula.id) is not formula:  # not a registry entry: nothing to key it by
+    if not _registered(formula):  # nothing to key it by
         return _relative_size_at(formula, shape, level, context)
     return _relative_size_by_key(formula.id, float(shape), level, tuple(sorted(context.items())))
+
+
+def _registered(formula: Formula) -> bool:
+    """True for a registry entry (False for a formula made elsewhere, such as a test's
+    ``with_bypass`` of another base, even when its id is unknown to the registry)."""
+    try:
+        return get_formula(formula.id) is formula
+    except KeyError:
+        return False
 
 
 @lru_cache(maxsize=50_000)
@@ -165,9 +174,13 @@ def _relative_size_by_key(formula_id: str, shape: float, level: float, context: 
     return _relative_size_at(get_formula(formula_id), shape, level, dict(context))
 
 
+#: Half-width of the central difference that gives the slope at the cut of curves with extras.
+SLOPE_STEP = 1e-6
+
+
 def _numeric_slope(formula: Formula, shape: float, context: dict) -> float:
     """Slope of the actual curve at x = 1 for curves with bypass or fish-hook (central difference)."""
-    h = 1e-6
+    h = SLOPE_STEP
     return float((formula.phi(1.0 + h, shape, **context) - formula.phi(1.0 - h, shape, **context)) / (2 * h))
 
 
@@ -336,12 +349,17 @@ _DOUBLINGS = 39
 
 def batchable_indices(formula) -> bool:
     """True when :func:`batch_curve_indices` covers ``formula``: curves without extra
-    parameters whose ``phi`` takes arrays of shapes (the nine paper formulas)."""
+    parameters whose ``phi`` takes arrays of shapes (the nine paper formulas), and such a
+    curve with bypass (``Formula.bypass_of``: ``plitt_bypass``, ``lognormal_bypass``)."""
     formula = get_formula(formula)
+    if formula.bypass_of is not None:
+        return batchable_indices(formula.bypass_of)
     return not formula.extras and is_batchable(formula)
 
 
-def batch_curve_indices(formula, d_cut, shape, *, delta_max, measured_sizes=None, measured_efficiency=None) -> list[CurveIndices]:
+def batch_curve_indices(
+    formula, d_cut, shape, *, delta_max, measured_sizes=None, measured_efficiency=None, bypass=None
+) -> list[CurveIndices]:
     """:func:`curve_indices` of many curves of one formula at once (arrays over curves).
 
     The same indices by the same definitions, computed on arrays: the closed forms of
@@ -363,6 +381,8 @@ def batch_curve_indices(formula, d_cut, shape, *, delta_max, measured_sizes=None
         Smallest and largest measured size of each curve, for ``extrapolated``.
     measured_efficiency : array_like, optional
         The measured efficiency of each curve (formula (11) only).
+    bypass : array_like, optional
+        The bypass of each curve (the curves with bypass only, where it is required).
 
     Returns
     -------
@@ -375,7 +395,13 @@ def batch_curve_indices(formula, d_cut, shape, *, delta_max, measured_sizes=None
     [57.735, 28.868]
     """
     columns, flags = batch_index_columns(
-        formula, d_cut, shape, delta_max=delta_max, measured_sizes=measured_sizes, measured_efficiency=measured_efficiency
+        formula,
+        d_cut,
+        shape,
+        delta_max=delta_max,
+        measured_sizes=measured_sizes,
+        measured_efficiency=measured_efficiency,
+        bypass=bypass,
     )
     names = [field.name for field in fields(CurveIndices) if field.name != "extrapolated"]
     return [
@@ -385,7 +411,7 @@ def batch_curve_indices(formula, d_cut, shape, *, delta_max, measured_sizes=None
 
 
 def batch_index_columns(
-    formula, d_cut, shape, *, delta_max, measured_sizes=None, measured_efficiency=None
+    formula, d_cut, shape, *, delta_max, measured_sizes=None, measured_efficiency=None, bypass=None
 ) -> tuple[dict[str, np.ndarray], list[tuple[str, ...]]]:
     """The indices of :func:`batch_curve_indices` as one array per :class:`CurveIndices` field
     (``extrapolated`` aside, returned as the list of each curve's flags): the rows of many
@@ -394,6 +420,10 @@ def batch_index_columns(
     formula = get_formula(formula)
     if not batchable_indices(formula):
         raise ValueError(f"formula {formula.id} has no batched indices; use curve_indices")
+    if formula.bypass_of is not None:
+        if bypass is None:
+            raise ValueError(f"formula {formula.id}: the batched indices need the bypass of each curve")
+        return _bypass_index_columns(formula.bypass_of, d_cut, shape, bypass, delta_max=delta_max, measured_sizes=measured_sizes)
     d_cut, shape, delta_max = (np.atleast_1d(np.asarray(v, dtype=float)) for v in (d_cut, shape, delta_max))
     d_cut, shape, delta_max = np.broadcast_arrays(d_cut, shape, delta_max)
     x_max = delta_max / d_cut
@@ -417,6 +447,44 @@ def batch_index_columns(
     columns |= {"d25": d25, "d75": d75, "ep": ep, "imperfection": imperfection, "sharpness": d25 / d75}
     columns |= {"d50": d_cut, "ep_c": ep, "imperfection_c": imperfection}
     return columns, flags
+
+
+def _bypass_index_columns(
+    base: Formula, d_cut, shape, bypass, *, delta_max, measured_sizes
+) -> tuple[dict[str, np.ndarray], list[tuple[str, ...]]]:
+    """:func:`batch_index_columns` of ``base`` with bypass, ``phi = (1 - bypass) phi_base``, by
+    the definitions of :func:`curve_indices`: the corrected curve is ``base`` itself (its
+    batched indices give ``ep_c``); the actual curve's eta and eps are ``(1 - bypass)`` times
+    the base's (both are areas of the actual curve), its d25, d50 and d75 the crossings of
+    0.75, 0.5 and 0.25 by the actual curve (the same doubling search from ``x = 1``, so nan
+    where the bypass keeps it below the level), its slope the same central difference."""
+    d_cut, shape, delta_max, bypass = np.broadcast_arrays(
+        *(np.atleast_1d(np.asarray(v, dtype=float)) for v in (d_cut, shape, delta_max, bypass))
+    )
+    corrected, _ = batch_index_columns(base, d_cut, shape, delta_max=delta_max)
+    actual = _scaled_curve(_curve_on_arrays(base, shape, None), 1.0 - bypass)
+    eta, eps = (1.0 - bypass) * corrected["eta"], (1.0 - bypass) * corrected["epsilon"]
+    d25, d50, d75 = (d_cut * _relative_sizes(actual, level, d_cut.size) for level in (0.75, 0.5, 0.25))
+    flags = [()] * d_cut.size
+    if measured_sizes is not None:
+        flags = _batched_extrapolated(actual, d25, d75, eta, eps, d_cut, delta_max / d_cut, None, measured_sizes)
+    around_cut = actual(np.broadcast_to([1.0 + SLOPE_STEP, 1.0 - SLOPE_STEP], (d_cut.size, 2)))
+    slope = (around_cut[:, 0] - around_cut[:, 1]) / (2 * SLOPE_STEP)  # as _numeric_slope
+    ep = (d75 - d25) / 2.0
+    columns = {"d_cut": d_cut, "slope": slope, "eta": eta, "epsilon": eps, "d25": d25, "d75": d75, "ep": ep}
+    columns |= {"imperfection": ep / d50, "sharpness": d25 / d75, "d50": d50}
+    columns |= {"ep_c": corrected["ep"], "imperfection_c": corrected["ep"] / d_cut}
+    return columns, flags
+
+
+def _scaled_curve(curve, factor: np.ndarray):
+    """``factor`` times each curve of :func:`_curve_on_arrays` (the same call signature)."""
+
+    def scaled(x, rows=slice(None)):
+        expand = (slice(None),) + (None,) * (np.ndim(x) - 1)
+        return factor[rows][expand] * curve(x, rows)
+
+    return scaled
 
 
 def _batched_efficiency(formula: Formula, curve, shape, x_max, efficiency_of, x_break) -> tuple[np.ndarray, np.ndarray]:

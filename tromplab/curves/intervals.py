@@ -244,6 +244,7 @@ def batched_delta_indices(fits: Sequence[CurveFit], delta_max: float | None = No
             [a[1] for a in arguments],
             delta_max=[limit for _, _, limit in evaluations],
             measured_efficiency=efficiency,
+            **{name: [a[2][name] for a in arguments] for name in arguments[0][2]},  # the bypass of bypass curves
         )
         for (fit, values, limit), indices in zip(evaluations, index_array(columns)):
             known[_index_key(fit, values, limit)] = indices
@@ -283,6 +284,7 @@ def _delta_on_arrays(formula_id: str, members: list) -> tuple[np.ndarray, np.nda
         sets[..., names.index("d_cut")].ravel(),
         sets[..., shape_at].ravel(),
         delta_max=np.repeat(limits, 1 + 2 * n_params),
+        **{extra.name: sets[..., names.index(extra.name)].ravel() for extra in first.formula.extras},  # the bypass
     )
     table = index_array(columns).reshape(count, 1 + 2 * n_params, -1)
     gradient = (table[:, 1::2] - table[:, 2::2]) / (2 * steps[..., None])  # (m, p, q)

@@ -170,6 +170,7 @@ def _replicates_on_arrays(fit: CurveFit, partitions: np.ndarray, delta_max: floa
         values[:, shape_at],
         delta_max=np.full(values.shape[0], delta_max),
         measured_efficiency=None if efficiency is None else efficiency[ok],
+        **{extra.name: values[:, optimum.names.index(extra.name)] for extra in fit.formula.extras},  # the bypass
     )
     columns = {name: values[:, k] for k, name in enumerate(optimum.names)}
     columns.update((name, indices[name]) for name in INDEX_NAMES)
