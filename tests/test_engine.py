@@ -331,3 +331,34 @@ def test_a_batch_where_every_experiment_fails_keeps_the_column_types():
     tables = [fit_experiments(tiny, formulas=["plitt", "lognormal"], jobs=jobs).fits_table() for jobs in (1, 2)]
     assert tables[0].to_csv(index=False) == tables[1].to_csv(index=False)
     assert str(tables[0]["equation"].dtype) == "int64" and not tables[0]["success"].any() and len(tables[0]) == 4
+
+
+def test_a_batch_leaves_no_object_frozen_out_of_garbage_collection(monkeypatch):
+    """Results are kept out of the cyclic collector while a batch runs (gc.freeze); after the
+    batch, whether it ends normally or with an error, every object is collectable again."""
+    import gc
+
+    monkeypatch.setattr(workbench, "CHUNK_SIZE", 2)
+    monkeypatch.setattr(workbench, "MAX_CHUNK_SIZE", 2)
+    frozen_during = []
+    fit_chunk = workbench.fit_chunk
+
+    def watched(experiments, **options):
+        frozen_during.append(gc.get_freeze_count())
+        return fit_chunk(experiments, **options)
+
+    monkeypatch.setattr(workbench, "fit_chunk", watched)
+    assert gc.get_freeze_count() == 0
+    bench = fit_experiments(EXPERIMENTS[:6], formulas=["plitt"], jobs=1)
+    assert len(bench.fits) == 6 and gc.get_freeze_count() == 0
+    # the later chunks ran with the earlier chunks' results (and the modules) frozen
+    assert len(frozen_during) == 3 and all(count > 0 for count in frozen_during)
+    assert frozen_during[2] > frozen_during[0]
+
+    def broken(experiments, **options):
+        raise RuntimeError("broken chunk")
+
+    monkeypatch.setattr(workbench, "fit_chunk", broken)
+    with pytest.raises(RuntimeError, match="broken chunk"):
+        fit_experiments(EXPERIMENTS[:6], formulas=["plitt"], jobs=1)
+    assert gc.get_freeze_count() == 0
