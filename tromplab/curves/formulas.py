@@ -1174,7 +1174,14 @@ def whiten_beta_star(alpha: float, fishhook: float) -> float:
     """
     if fishhook == 0.0:
         return 1.0
+    return _beta_star_of(float(alpha), float(fishhook))
 
+
+@lru_cache(maxsize=4096)
+def _beta_star_of(alpha: float, fishhook: float) -> float:
+    # Remembered: a fit evaluates the curve at the same (alpha, fish-hook) many times (the
+    # Jacobian's steps in d_cut and bypass, the grid of cuts): 48 experiments asked 48,008
+    # times for 5,796 distinct pairs
     def gap(star):
         # on floats: numpy's scalar overhead made this root (one per evaluation of the curve)
         # most of the time of Whiten's fits
