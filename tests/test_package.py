@@ -145,3 +145,41 @@ def test_one_top_level_package_is_installed_and_the_command_goes_through_launch(
     packages = setuptools.find_packages(where=str(REPOSITORY), include=include)
     assert {package.split(".")[0] for package in packages} == {"tromplab"}
     assert "tromplab.curves" in packages
+
+
+# What a command loads (issue 24): the parser is built from light modules and each command
+# imports what it needs when it runs, so these never load the fitting, plotting or statistics
+# stack.  Times are in docs/performance.md; this checks what they rest on.
+_COMMAND = """
+import json, sys
+from tromplab._launch import main
+sys.argv = ["tromplab", *{argv!r}]
+main()
+print(json.dumps(sorted(sys.modules)))
+"""
+NOT_AT_START_UP = (
+    "lmfit",
+    "matplotlib",
+    "statsmodels",
+    "scipy.stats",
+    "networkx",
+    "tromplab.workbench",
+    "tromplab.classifiers.sieve",
+    "tromplab.curves.fitting",
+    "tromplab.statistics",
+)
+
+
+def _loaded_by_command(*argv: str) -> set[str]:
+    done = subprocess.run(
+        [sys.executable, "-c", _COMMAND.format(argv=list(argv))], capture_output=True, text=True, timeout=120, cwd=REPOSITORY
+    )
+    assert done.returncode == 0, done.stderr
+    return set(json.loads(done.stdout.splitlines()[-1]))
+
+
+@pytest.mark.parametrize("argv", [["--version"], ["-h"], ["export", "-h"], ["fit", "-h"], ["pulp", "fit", "-h"]])
+def test_version_and_help_load_no_numerical_stack_beyond_numpy(argv):
+    loaded = _loaded_by_command(*argv)
+    assert "tromplab.cli" in loaded
+    assert sorted(name for name in loaded if name.split(".")[0] in ("scipy", "pandas") or name in NOT_AT_START_UP) == []

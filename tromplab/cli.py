@@ -13,28 +13,26 @@ import textwrap
 import traceback
 import warnings
 from pathlib import Path
-
-import numpy as np
-import pandas as pd
+from typing import TYPE_CHECKING
 
 from ._version import __version__
-from .classifiers.sieve import closed_form_valid, design_bin, distance_moments, geometric_probability, identify_from_table
-from .curves.diagnostics import RESIDUAL_WARNING
-from .curves.formulas import NAME_CLASHES, get_formula, registry_table
-from .curves.measured import CUT_WARNING
-from .curves.ranking import RANK_BY, rank_formulas, read_f_table
-from .curves.screening import DEFAULT_ALPHA
-from .errors import InputError, OptionError
-from .loading.lab import KINDS, PARTITION_METHOD_TEXT, PARTITION_METHODS, LabOptions, YieldWarning, read_experiments, read_lab
-from .loading.tables import InputNote, check_input_file, read_table
+from .errors import InputError, InputNote, OptionError, YieldWarning
 from .model_commands import add_model_commands
-from .output.export import export_fits
-from .output.folder import AUTO_FIGURE_LIMIT, FIGURE_CHOICES, TABLE_FORMATS
-from .output.outputs import check_output_file, check_output_folder
-from .output.views import PARTITION_TO, balance_view, partition_view
-from .statistics.compare import DEFAULT_MARGIN, shared_fit
-from .statistics.hydrocyclone import water_recovery_statements
-from .statistics.uncertainty import BOOTSTRAP_METHODS
+from .options import (
+    AUTO_FIGURE_LIMIT,
+    BOOTSTRAP_METHODS,
+    DEFAULT_ALPHA,
+    DEFAULT_MARGIN,
+    DEFAULT_MIN_FEED_SHARE,
+    DEFAULT_SUM_TOLERANCE_PCT,
+    FIGURE_CHOICES,
+    KINDS,
+    PARTITION_METHODS,
+    PARTITION_TO,
+    RANK_BY,
+    TABLE_FORMATS,
+)
+from .output.outputs import check_output_file, check_output_folder, write_files
 from .validation import (
     MAX_BOOTSTRAP,
     MAX_DECKS,
@@ -48,7 +46,15 @@ from .validation import (
     check_water_recovery,
     cli_type,
 )
-from .workbench import check_formula_selection, fit_experiments, print_progress, write_atomically
+
+# Each command imports the modules it needs when it runs: building the parser takes only the
+# light modules above, so --version, -h and a command that needs little (export) do not pay
+# for scipy.stats, lmfit, matplotlib and statsmodels at start-up (nothing imports the CLI, so
+# the imports inside the functions hide no cycle).
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from .loading.lab import LabOptions
 
 TERMINAL_COLUMNS = ["rank", "equation", "formula", "d_cut", "shape_name", "shape", "F", "F_crit", "adequate", "eta", "ep"]
 
@@ -586,13 +592,13 @@ def _lab_options_parser() -> argparse.ArgumentParser:
     group.add_argument(
         "--min-feed-share",
         type=cli_type(check_share, "--min-feed-share"),
-        default=LabOptions.min_feed_share,
+        default=DEFAULT_MIN_FEED_SHARE,
         help="leave out classes with a smaller feed share (fraction; default %(default)s)",
     )
     group.add_argument(
         "--sum-tolerance",
         type=cli_type(check_non_negative, "--sum-tolerance"),
-        default=LabOptions.sum_tolerance_pct,
+        default=DEFAULT_SUM_TOLERANCE_PCT,
         help="allowed deviation of per-class percentages from 100 (percentage points; default %(default)s)",
     )
     group.add_argument(
@@ -621,6 +627,8 @@ def _lab_options_parser() -> argparse.ArgumentParser:
 
 
 def _lab_options(args) -> LabOptions:
+    from .loading.lab import LabOptions
+
     rename = {}
     for pair in filter(None, (p.strip() for p in args.rename.split(","))):
         old, sep, new = pair.partition("=")
@@ -660,6 +668,12 @@ def _print_balance_notes(balances, *, listed_in: str = "") -> None:
 
 
 def _run_points(args) -> int:
+    import pandas as pd
+
+    from .loading.lab import read_lab
+    from .loading.tables import check_input_file
+    from .output.views import partition_view
+
     check_input_file(args.input)
     check_output_file(args.output, inputs=[args.input])
     balances = read_lab(args.input, _lab_options(args))
@@ -668,7 +682,7 @@ def _run_points(args) -> int:
     )
     table = partition_view(table, args.partition_to)
     args.output.parent.mkdir(parents=True, exist_ok=True)
-    written = write_atomically({args.output.name: lambda p: table.to_csv(p, index=False)}, args.output.parent)
+    written = write_files({args.output.name: lambda p: table.to_csv(p, index=False)}, args.output.parent)
     _print_balance_notes(balances)
     print(table.to_string(index=False, float_format=lambda v: f"{v:.4g}", na_rep="-"))
     print(f"\nWrote: {written[args.output.name]}")
@@ -676,6 +690,10 @@ def _run_points(args) -> int:
 
 
 def _run_balance(args) -> int:
+    from .loading.lab import PARTITION_METHOD_TEXT, read_lab
+    from .loading.tables import check_input_file
+    from .output.views import balance_view
+
     check_input_file(args.input)
     balances = read_lab(args.input, _lab_options(args))
     _print_balance_notes(balances)
@@ -697,10 +715,13 @@ def _run_balance(args) -> int:
 
 
 def _run_sieve_identify(args) -> int:
+    from .classifiers.sieve import identify_from_table
+    from .loading.tables import check_input_file, read_table
+
     check_input_file(args.data)
     check_output_file(args.output, inputs=[args.data])
     laws = identify_from_table(read_table(args.data), two_sided=args.two_sided, level=args.level)
-    written = write_atomically({args.output.name: lambda p: laws.to_csv(p, index=False)}, args.output.parent)
+    written = write_files({args.output.name: lambda p: laws.to_csv(p, index=False)}, args.output.parent)
     view = laws[["sieve", "fraction", "n_regimes", "v_k", "v_k_stderr", "sigma", "sigma_stderr", "success"]]
     print(view.to_string(index=False, float_format=lambda v: f"{v:.4g}", na_rep="-"))
     for sieve, fraction, message in laws.loc[~laws["success"].astype(bool), ["sieve", "fraction", "message"]].itertuples(
@@ -712,6 +733,8 @@ def _run_sieve_identify(args) -> int:
 
 
 def _run_sieve_pg(args) -> int:
+    from .classifiers.sieve import closed_form_valid, geometric_probability
+
     value = geometric_probability(args.hole, args.length, args.width, args.cell_width / 2, method=args.method)
     closed = closed_form_valid(args.hole, args.length, args.width, args.cell_width / 2)
     print(
@@ -722,6 +745,10 @@ def _run_sieve_pg(args) -> int:
 
 
 def _run_sieve_bin(args) -> int:
+    import numpy as np
+
+    from .classifiers.sieve import design_bin, distance_moments
+
     for method in ("exact", "normal"):
         design = design_bin(args.decks, args.length, args.recovery, method=method)
         print(
@@ -733,6 +760,8 @@ def _run_sieve_bin(args) -> int:
 
 
 def _run_formulas(args) -> int:
+    from .curves.formulas import NAME_CLASHES, registry_table
+
     table = registry_table()
     for family, heading in (
         ("paper", "The nine formulas of Shuvalov et al. (2018)"),
@@ -765,6 +794,10 @@ def _run_formulas(args) -> int:
 
 
 def _run_fit(args) -> int:
+    from .loading.lab import read_experiments
+    from .loading.tables import check_input_file
+    from .workbench import check_formula_selection, fit_experiments
+
     formulas = check_formula_selection(args.formulas, args.extended)
     check_input_file(args.input)
     if args.outdir.suffix.lower() == ".xlsx":
@@ -809,6 +842,8 @@ def _fit_keywords(args, formulas) -> dict:
 def _print_fits(bench, args) -> None:
     """The console view of a fit run: data notes, the ranked fits of the first experiments
     with their verdicts, the water-recovery checks, failures and the ranking across experiments."""
+    from .statistics.hydrocyclone import water_recovery_statements
+
     fits, ranking = bench.fits_table(), bench.ranking_table()
     for experiment, notes in bench.notes.items():
         for note in notes:
@@ -890,6 +925,8 @@ class _progress_bars:
         try:
             from tqdm import tqdm
         except ImportError:
+            from .workbench import print_progress
+
             return print_progress
 
         def update(done, total, label):
@@ -916,6 +953,10 @@ class _progress_bars:
 
 
 def _run_report(args) -> int:
+    from .loading.lab import read_experiments
+    from .loading.tables import check_input_file
+    from .workbench import check_formula_selection, fit_experiments
+
     formulas = check_formula_selection(args.formulas, args.extended)
     check_input_file(args.input)
     check_output_file(args.output, inputs=[args.input])
@@ -933,6 +974,11 @@ def _run_report(args) -> int:
 
 
 def _run_compare(args) -> int:
+    from .curves.formulas import get_formula
+    from .loading.lab import read_experiments
+    from .loading.tables import check_input_file
+    from .statistics.compare import shared_fit
+
     check_input_file(args.input)
     experiments, _ = read_experiments(args.input, _lab_options(args))
     if args.experiments:
@@ -962,11 +1008,13 @@ EXPORT_CONSOLE_ROWS = 40
 
 
 def _run_export(args) -> int:
+    from .output.export import export_fits
+
     folder = args.fits_dir if args.fits_dir.is_dir() else args.fits_dir.parent
     output = args.output or folder / f"export_{args.to.replace('-', '_')}.csv"
     check_output_file(output, inputs=[] if args.fits_dir.is_dir() else [args.fits_dir])
     result = export_fits(args.fits_dir, args.to, size_unit=args.size_unit)
-    written = write_atomically({output.name: lambda p: result.table.to_csv(p, index=False)}, output.parent or Path("."))
+    written = write_files({output.name: lambda p: result.table.to_csv(p, index=False)}, output.parent or Path("."))
     shown = result.table.head(EXPORT_CONSOLE_ROWS)
     print(shown.to_string(index=False, float_format=lambda v: f"{v:.6g}", na_rep="-"))
     if len(result.table) > len(shown):
@@ -985,7 +1033,8 @@ def _run_export(args) -> int:
 
 
 def _run_trend(args) -> int:
-    from .trend import monitor_surveys, read_surveys, write_trend  # imported when the command runs, as the circuit's
+    from .loading.tables import check_input_file
+    from .trend import monitor_surveys, read_surveys, write_trend
 
     check_input_file(args.input)
     check_output_folder(args.outdir, inputs=[args.input])
@@ -1000,11 +1049,14 @@ def _run_trend(args) -> int:
 
 
 def _run_rank(args) -> int:
+    from .curves.ranking import rank_formulas, read_f_table
+    from .loading.tables import check_input_file
+
     check_input_file(args.table)
     check_output_folder(args.outdir, inputs=[args.table])
     table = read_f_table(args.table, alpha=args.alpha, use_given_marks=not args.computed_adequacy)
     ranking = rank_formulas(table)
-    written = write_atomically({"ranking.csv": lambda p: ranking.to_csv(p, index=False)}, args.outdir)
+    written = write_files({"ranking.csv": lambda p: ranking.to_csv(p, index=False)}, args.outdir)
     print(ranking.to_string(index=False))
     print(f"\nWrote: {written['ranking.csv']}")
     return 0
@@ -1032,6 +1084,11 @@ def format_fits(fits: pd.DataFrame, verdicts: dict[str, list[str]] | None = None
     indices.  An adequate fit whose residuals fail a test is marked ``yes*`` in the
     adequacy column.
     """
+    import numpy as np
+
+    from .curves.diagnostics import RESIDUAL_WARNING
+    from .curves.measured import CUT_WARNING
+
     columns = list(TERMINAL_COLUMNS)
     if rank_by == "aicc":
         columns[columns.index("F_crit")] = "aicc"
@@ -1096,8 +1153,6 @@ def _add_circuit_command(commands) -> None:
 
 
 def _run_circuit(args) -> int:
-    # imported when the command runs: the other commands do not pay for networkx and the
-    # reconciliation at start-up (nothing imports the CLI, so this hides no cycle)
     from .circuit import ErrorModel
     from .circuit_command import console_report, run_circuit
 

@@ -14,18 +14,20 @@ from __future__ import annotations
 import argparse
 from dataclasses import fields
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 
-from .classifiers.choice import choose, sieve_speed_problem
-from .classifiers.layer import LayerModel, fit_layer_model
-from .classifiers.pulp import PulpScreen, fit_pulp_screen
+from .classifiers.pulp import PulpScreen
 from .errors import InputError, OptionError
-from .loading.tables import check_input_file, read_table
-from .output.outputs import check_output_file
+from .output.outputs import check_output_file, write_files
 from .validation import check_count, check_non_negative, check_positive, check_probability, check_share, cli_type
-from .workbench import write_atomically
+
+# The parser takes only PulpScreen's fields (its module imports numpy alone until a screen is
+# fitted or optimised); each command imports the models and readers it needs when it runs, so
+# the other commands do not pay for them at start-up.
+if TYPE_CHECKING:
+    import pandas as pd
 
 #: Most cells of a layer and steps of a simulation (a table of steps x cells is kept in memory).
 MAX_CELLS = 1_000
@@ -45,12 +47,14 @@ def add_model_commands(commands) -> None:
 def _write_csv(table: pd.DataFrame, output: Path | None) -> None:
     if output is None:
         return
-    written = write_atomically({output.name: lambda p: table.to_csv(p, index=False)}, output.parent)
+    written = write_files({output.name: lambda p: table.to_csv(p, index=False)}, output.parent)
     print(f"\nWrote: {written[output.name]}")
 
 
 def _parameter_table(fit, level: float = 0.95) -> pd.DataFrame:
     """One row per fitted parameter: value, standard error, confidence interval."""
+    import pandas as pd
+
     intervals = fit.confidence_intervals(level) if fit.success else {}
     return pd.DataFrame(
         [
@@ -82,6 +86,8 @@ def _print_fit(fit, table: pd.DataFrame, level: float) -> None:
 
 def _check_paths(args) -> None:
     """Input and ``-o`` checked before any work, as ``tromplab fit`` does (exit 1, nothing written)."""
+    from .loading.tables import check_input_file
+
     data = getattr(args, "data", None)
     if data is not None:
         check_input_file(data)
@@ -229,6 +235,8 @@ def _initial(args) -> list[float]:
 
 
 def run_layer_simulate(args) -> int:
+    from .classifiers.layer import LayerModel
+
     _check_paths(args)
     try:
         model = LayerModel(
@@ -262,6 +270,9 @@ def run_layer_simulate(args) -> int:
 
 
 def run_layer_fit(args) -> int:
+    from .classifiers.layer import fit_layer_model
+    from .loading.tables import read_table
+
     _check_paths(args)
     table = read_table(args.data)
     table.require("extraction")
@@ -401,6 +412,9 @@ def run_pulp_optimum(args) -> int:
 
 
 def run_pulp_fit(args) -> int:
+    from .classifiers.pulp import fit_pulp_screen
+    from .loading.tables import read_table
+
     _check_paths(args)
     table = read_table(args.data)
     table.require("applied_pressure", "frequency", "productivity")
@@ -510,6 +524,8 @@ def _add_choice_options(choice) -> None:
 
 
 def run_optimize(args) -> int:
+    from .classifiers.choice import choose, sieve_speed_problem
+
     _check_paths(args)
     if not args.speed_min < args.speed_max:
         raise OptionError("--speed-min", f"must be below --speed-max, got {args.speed_min:g} and {args.speed_max:g}")

@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..errors import InputError
+from ..errors import InputError, InputNote
 
 logger = logging.getLogger(__name__)
 
@@ -64,10 +64,6 @@ _MAGIC = (  # first bytes of formats that are not CSV text, and what to do about
 _TRUTH = {"true": True, "1": True, "yes": True, "y": True, "false": False, "0": False, "no": False, "n": False}
 _DECIMAL_COMMA = re.compile(r"^\s*[-+]?\d+,\d+(?:[eE][-+]?\d+)?\s*$")
 NOTE_COLUMNS = ("note", "comment")  # free-text columns every loader accepts and ignores
-
-
-class InputNote(UserWarning):
-    """Something about an input was inferred rather than declared (e.g. a detected CSV dialect)."""
 
 
 @dataclass(frozen=True)
