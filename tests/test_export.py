@@ -1,6 +1,7 @@
 """Export to simulator conventions: each convention re-implemented here, independently of tromplab,
 from its published form, must reproduce tromplab's fitted curve at the measured sizes within 1e-6."""
 
+import math
 import re
 
 import numpy as np
@@ -200,3 +201,59 @@ def test_a_large_export_prints_its_first_rows_and_writes_them_all(fits_dir, tmp_
     assert len(written) > 100 and f"... and {len(written) - 40} more rows in the file" in console
     assert main(["export", str(tmp_path), "--to", "plitt", "-o", str(tmp_path / "plitt.csv")]) == 0
     assert re.search(r"and \d+ more", capsys.readouterr().out)
+
+
+def _brentq_cases():
+    """Functions and brackets of every kind brentq meets: the export's own curves near their cut,
+    smooth and steep functions, flat stretches, steps, roots on a bracket end and values far from 1."""
+    rng = np.random.default_rng(24)
+    whiten, rosin_rammler = get_formula("whiten"), get_formula("rosin_rammler")
+    cases = []
+    for alpha, bypass, fishhook in zip(rng.uniform(0.5, 10, 60), rng.uniform(0, 0.6, 60), rng.uniform(0, 1, 60)):
+        cases.append((lambda x, a=alpha, c=bypass, b=fishhook: float(whiten.phi(x, a, bypass=c, fishhook=b)) - 0.5, 1e-6, 8.0))
+    for m, bypass in zip(rng.uniform(0.1, 30, 60), rng.uniform(0, 0.4, 60)):
+        cases.append((lambda x, m=m, c=bypass: float((1 - c) * rosin_rammler.phi(x, m)) - 0.5, 1e-6, 4.0))
+    for root, power, scale in zip(rng.uniform(-3, 3, 60), rng.integers(1, 9, 60), 10.0 ** rng.uniform(-200, 200, 60)):
+        cases.append((lambda x, r=root, p=power, s=scale: s * math.copysign(abs(x - r) ** p, x - r), -5.0, 5.0))
+    cases += [
+        (lambda x: math.tanh(50 * (x - 0.3)), -1.0, 1.0),
+        (lambda x: min(max(x - 0.25, -0.1), 0.1), -3.0, 7.0),  # flat at both ends
+        (lambda x: 1.0 if x < 0.123 else -1.0, 0.0, 1.0),  # a step: bisection to the end
+        (lambda x: 1e-200 if x < 0.5 else -1e-200, 0.0, 1.0),  # products of values underflow to 0
+        (lambda x: 0.5 - x, 0.5, 2.0),  # root on the lower end
+        (lambda x: 0.5 - x, -1.0, 0.5),  # and on the upper
+        (lambda x: x**3 - 2 * x - 5, 2.0, 3.0),
+    ]
+    return cases
+
+
+def _outcome(solve, *arguments, **keywords):
+    """The root found, or the refusal (its type and words)."""
+    try:
+        return solve(*arguments, **keywords)
+    except (ValueError, RuntimeError) as refusal:
+        return type(refusal), str(refusal)
+
+
+def test_the_exports_brentq_finds_scipys_roots_to_the_last_bit():
+    from scipy import optimize
+
+    from tromplab.output.export import _brentq
+
+    outcomes = []
+    for f, low, high in _brentq_cases():
+        for xtol in (1e-14, 2e-12, 1e-3):
+            outcomes.append(_outcome(_brentq, f, low, high, xtol=xtol))
+            assert outcomes[-1] == _outcome(optimize.brentq, f, low, high, xtol=xtol)
+    assert sum(isinstance(found, float) for found in outcomes) > 0.8 * len(outcomes)  # mostly roots, not refusals
+
+
+def test_the_exports_brentq_refuses_what_scipys_refuses():
+    from tromplab.output.export import _brentq
+
+    with pytest.raises(ValueError, match="f\\(a\\) and f\\(b\\) must have different signs"):
+        _brentq(lambda x: 1e-200, 0.0, 1.0, xtol=1e-14)  # same sign, though the product underflows
+    with pytest.raises(ValueError, match="The function value at x=0.0 is NaN; solver cannot continue."):
+        _brentq(lambda x: math.nan, 0.0, 1.0, xtol=1e-14)
+    with pytest.raises(ValueError, match="The function value at x=1.0 is NaN; solver cannot continue."):
+        _brentq(lambda x: math.nan if x > 0.7 else 0.5 - x, 0.0, 1.0, xtol=1e-14)

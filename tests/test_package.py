@@ -183,3 +183,18 @@ def test_version_and_help_load_no_numerical_stack_beyond_numpy(argv):
     loaded = _loaded_by_command(*argv)
     assert "tromplab.cli" in loaded
     assert sorted(name for name in loaded if name.split(".")[0] in ("scipy", "pandas") or name in NOT_AT_START_UP) == []
+
+
+def test_an_export_loads_neither_scipy_nor_the_fitting_stack(tmp_path):
+    fits = tmp_path / "fits.csv"
+    fits.write_text(
+        "experiment,formula,d_cut,shape_name,shape,bypass,fishhook,success,extras\n"
+        "a,lynch,100.0,kl,3.0,,,True,\n"
+        "a,rosin_rammler,98.0,kr,2.0,,,True,\n"
+        "a,plitt,97.0,ks,2.5,,,True,\n",
+        encoding="utf-8",
+    )
+    for convention in ("whiten", "plitt", "csv-long"):
+        loaded = _loaded_by_command("export", str(tmp_path), "--to", convention, "-q", "-o", str(tmp_path / "out.csv"))
+        assert "tromplab.output.export" in loaded
+        assert sorted(name for name in loaded if name.split(".")[0] == "scipy" or name in NOT_AT_START_UP) == []

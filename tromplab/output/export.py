@@ -30,13 +30,13 @@ approximated.  The conventions, and what each parameter means, are tabulated in
 from __future__ import annotations
 
 import math
+import sys
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from scipy import optimize
 
 from ..curves.formulas import LN2, get_formula, whiten_beta_star
 from ..errors import InputError
@@ -190,7 +190,78 @@ def _actual_cut(curve: Callable[[float], float]) -> float:
         high *= 2.0
         if high > 1e6:
             return np.nan
-    return float(optimize.brentq(lambda x: curve(x) - 0.5, low, high, xtol=1e-14))
+    return _brentq(lambda x: curve(x) - 0.5, low, high, xtol=1e-14)
+
+
+#: scipy.optimize.brentq's defaults: relative tolerance 4 machine epsilons, at most 100 steps.
+BRENTQ_RTOL, BRENTQ_ITERATIONS = 4 * sys.float_info.epsilon, 100
+
+
+def _brentq(f: Callable[[float], float], a: float, b: float, *, xtol: float) -> float:
+    """The root of ``f`` in ``[a, b]`` by ``scipy.optimize.brentq``'s algorithm, step for step
+    (a transcription of scipy's brentq.c on Python floats, so every root is the same double).
+
+    An export evaluates thousands of curves: scipy.optimize alone took a fifth of a second to
+    import, longer than these roots take.  tests/test_export.py checks the roots against scipy's.
+    """
+    x_previous, x_current = float(a), float(b)
+    f_previous, f_current = _checked_value(f, x_previous), _checked_value(f, x_current)
+    if f_previous == 0.0:
+        return x_previous
+    if f_current == 0.0:
+        return x_current
+    if math.copysign(1.0, f_previous) == math.copysign(1.0, f_current):
+        raise ValueError("f(a) and f(b) must have different signs")
+    x_block = f_block = step_previous = step_current = 0.0
+    for _ in range(BRENTQ_ITERATIONS):
+        if f_previous != 0.0 and f_current != 0.0 and math.copysign(1.0, f_previous) != math.copysign(1.0, f_current):
+            x_block, f_block = x_previous, f_previous
+            step_previous = step_current = x_current - x_previous
+        if abs(f_block) < abs(f_current):  # the best estimate is the one with the smaller value
+            x_previous, x_current, x_block = x_current, x_block, x_current
+            f_previous, f_current, f_block = f_current, f_block, f_current
+        delta = (xtol + BRENTQ_RTOL * abs(x_current)) / 2
+        bisection = (x_block - x_current) / 2
+        if f_current == 0.0 or abs(bisection) < delta:
+            return x_current
+        step_previous, step_current = _brent_step(
+            x_previous, x_current, x_block, f_previous, f_current, f_block, step_previous, step_current, delta, bisection
+        )
+        x_previous, f_previous = x_current, f_current
+        if abs(step_current) > delta:
+            x_current += step_current
+        else:
+            x_current += delta if bisection > 0 else -delta
+        f_current = _checked_value(f, x_current)
+    raise RuntimeError(f"Failed to converge after {BRENTQ_ITERATIONS} iterations.")
+
+
+def _brent_step(x_previous, x_current, x_block, f_previous, f_current, f_block, step_previous, step_current, delta, bisection):
+    """The next two steps of brentq: an interpolated one when it is short enough, else bisection."""
+    if abs(step_previous) > delta and abs(f_current) < abs(f_previous):
+        try:
+            if x_previous == x_block:  # linear interpolation
+                trial = -f_current * (x_current - x_previous) / (f_current - f_previous)
+            else:  # inverse quadratic extrapolation
+                slope_previous = (f_previous - f_current) / (x_previous - x_current)
+                slope_block = (f_block - f_current) / (x_block - x_current)
+                trial = (
+                    -f_current
+                    * (f_block * slope_block - f_previous * slope_previous)
+                    / (slope_block * slope_previous * (f_block - f_previous))
+                )
+        except ZeroDivisionError:  # C's division gives an infinite or undefined step: it bisects
+            return bisection, bisection
+        if 2 * abs(trial) < min(abs(step_previous), 3 * abs(bisection) - delta):
+            return step_current, trial
+    return bisection, bisection
+
+
+def _checked_value(f: Callable[[float], float], x: float) -> float:
+    value = float(f(x))  # a Python float, as scipy's C code takes it: numpy scalars warn where C does not
+    if math.isnan(value):
+        raise ValueError(f"The function value at x={x} is NaN; solver cannot continue.")
+    return value
 
 
 #: Convention -> (converter, its columns in order)
