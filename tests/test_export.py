@@ -257,3 +257,50 @@ def test_the_exports_brentq_refuses_what_scipys_refuses():
         _brentq(lambda x: math.nan, 0.0, 1.0, xtol=1e-14)
     with pytest.raises(ValueError, match="The function value at x=1.0 is NaN; solver cannot continue."):
         _brentq(lambda x: math.nan if x > 0.7 else 0.5 - x, 0.0, 1.0, xtol=1e-14)
+
+
+FITS_HEADER = "experiment,formula,d_cut,shape_name,shape,bypass,fishhook,success,extras\n"
+UNKNOWN = "unknown formula {}; known formulas: molerus (3)"
+
+
+@pytest.mark.parametrize(
+    "rows, error",
+    [
+        # the fits are read a formula at a time: the error is still the first row's, in the file's order
+        ("a,lynch,100,kl,3,,,True,\nb,lynch,,kl,3,,,True,\nc,nonsense,1,k,1,,,True,\n",
+         "row 3, column 'd_cut': a successful fit with a missing parameter value"),
+        ("a,lynch,100,kl,3,,,True,\nc,nonsense,1,k,1,,,True,\nb,lynch,,kl,3,,,True,\n",
+         "row 3, column 'formula': " + UNKNOWN.format("'nonsense'")),
+        ("a,lynch,100,kl,3,,,True,\nb,,1,k,1,,,True,\n", "row 3, column 'formula': " + UNKNOWN.format("nan")),
+        ("a,teipel_hennig,100,k,3,0.1,,True,th_alpha=2\nb,teipel_hennig,100,k,3,0.1,,True,bypass=0.1\n",
+         "row 3, column 'extras': the fitted value of th_alpha is missing (expected 'th_alpha=VALUE')"),
+        ("a,teipel_hennig,100,k,3,0.1,,True,th_alpha=inf\n", "row 2, column 'd_cut': a successful fit with a missing parameter value"),
+        # within a row: the missing text value before the missing number
+        ("a,teipel_hennig,100,k,,0.1,,True,\n",
+         "row 2, column 'extras': the fitted value of th_alpha is missing (expected 'th_alpha=VALUE')"),
+        ("a,whiten,100,a,3,0.1,,True,\n", "row 2, column 'd_cut': a successful fit with a missing parameter value"),
+        ("a,lynch,100,kl,3,,,True,\nb,lynch,100,kl,3,,,maybe,\n", "row 3, column 'success': 'maybe' is not a yes/no mark"),
+    ],
+)  # fmt: skip
+def test_a_broken_fits_table_is_refused_at_its_first_row_at_fault(tmp_path, rows, error):
+    (tmp_path / "fits.csv").write_text(FITS_HEADER + rows, encoding="utf-8")
+    with pytest.raises(InputError) as refused:
+        read_fits(tmp_path)
+    assert str(refused.value).startswith(f"{tmp_path / 'fits.csv'}, {error}")
+
+
+def test_fits_of_several_formulas_are_read_in_the_files_order(tmp_path):
+    rows = (
+        "a,teipel_hennig,100,k,3,0.1,,True,th_alpha=2; bypass=0.1\n"
+        "x,nonsense,,k,,,,False,\n"  # failed fits are not read
+        "b,(6),100,kl,3,,,1,\n"
+        "c,whiten,80,a,2,0.2,0.3,Y,\n"
+        "d,7,90,ks,2.5,,,yes,\n"
+    )
+    (tmp_path / "fits.csv").write_text(FITS_HEADER + rows, encoding="utf-8")
+    assert [(f.experiment, f.formula, f.d_cut, f.shape, f.extras) for f in read_fits(tmp_path)] == [
+        ("a", "teipel_hennig", 100.0, 3.0, {"th_alpha": 2.0, "bypass": 0.1}),
+        ("b", "lynch", 100.0, 3.0, {}),
+        ("c", "whiten", 80.0, 2.0, {"bypass": 0.2, "fishhook": 0.3}),
+        ("d", "plitt", 90.0, 2.5, {}),
+    ]

@@ -88,31 +88,64 @@ def read_fits(path) -> list[FittedCurve]:
         raise InputError("no fits.csv here: give the output folder of 'tromplab fit' or its fits.csv", source=str(path))
     table = read_table(path, columns=(*FITS_COLUMNS, "extras"))  # 10 of the 77 columns: a tenth of the memory
     table.require(*FITS_COLUMNS)
-    ok = table.boolean("success")
-    d_cut, shape = table.numeric("d_cut", allow_blank=True), table.numeric("shape", allow_blank=True)
-    bypass, fishhook = table.numeric("bypass", allow_blank=True), table.numeric("fishhook", allow_blank=True)
-    # whole columns once, as Python lists: a row read through the frame cost about 0.1 ms (most
-    # of the 5 s that 90,000 rows took), a numpy scalar per value still a microsecond or two
-    columns = {"d_cut": d_cut.tolist(), "shape": shape.tolist(), "bypass": bypass.tolist(), "fishhook": fishhook.tolist()}
-    experiments = table.frame["experiment"].astype(str).tolist()
-    formula_ids = table.frame["formula"].astype(str).tolist()
-    texts = table.frame["extras"].tolist() if "extras" in table.frame.columns else [""] * len(table.frame)
-    formulas = {}
-    fits = []
-    for i in np.flatnonzero(ok).tolist():
+    ok = np.flatnonzero(table.boolean("success"))
+    # whole columns once, as Python lists of the successful rows: a row read through the frame
+    # cost about 0.1 ms, a numpy scalar per value still a microsecond or two
+    numbers = {name: table.numeric(name, allow_blank=True)[ok] for name in ("d_cut", "shape", "bypass", "fishhook")}
+    texts = table.frame["extras"].to_numpy(dtype=object)[ok] if "extras" in table.frame.columns else np.full(ok.size, "")
+    formulas = table.frame["formula"].astype(str).to_numpy(dtype=object)[ok]
+    codes, formula_ids = pd.factorize(formulas, use_na_sentinel=False)  # a blank formula is refused below, as any unknown
+    experiments = table.frame["experiment"].astype(str).to_numpy(dtype=object)[ok].tolist()
+    fits, errors = [None] * ok.size, []  # errors: (position, error) of the first fault of each formula
+    for code, formula_id in enumerate(formula_ids):  # the fits of each formula at once
+        at = np.flatnonzero(codes == code)
         try:
-            formula = formulas.get(formula_ids[i]) or formulas.setdefault(formula_ids[i], get_formula(formula_ids[i]))
+            formula = get_formula(formula_id)
         except KeyError as error:
-            raise table.error(str(error.args[0]), index=i, column="formula") from None
-        extras = {
-            extra.name: columns[extra.name][i] if extra.name in columns else _extra_from_text(table, i, extra.name, str(texts[i]))
-            for extra in formula.extras
-        }
-        cut, slope = columns["d_cut"][i], columns["shape"][i]
-        if not (math.isfinite(cut) and math.isfinite(slope) and all(math.isfinite(v) for v in extras.values())):
-            raise table.error("a successful fit with a missing parameter value", index=i, column="d_cut")
-        fits.append(FittedCurve(experiments[i], formula.id, cut, slope, extras))
+            errors.append((at[0], table.error(str(error.args[0]), index=int(ok[at[0]]), column="formula")))
+            continue
+        extras = {extra.name: _extra_values(table, ok[at], extra.name, numbers, texts[at], at) for extra in formula.extras}
+        cuts, shapes = numbers["d_cut"][at], numbers["shape"][at]
+        bad = ~(np.isfinite(cuts) & np.isfinite(shapes))
+        for values in extras.values():
+            bad |= ~np.isfinite(values)  # a value missing from the text is nan here, refused in its own words
+        if bad.any():
+            first = int(np.flatnonzero(bad)[0])
+            errors.append((at[first], _fit_error(table, int(ok[at[first]]), formula, numbers, texts[at[first]])))
+            continue
+        names, columns = list(extras), [values.tolist() for values in extras.values()]
+        for position, cut, shape, *values in zip(at.tolist(), cuts.tolist(), shapes.tolist(), *columns):
+            fits[position] = FittedCurve(experiments[position], formula.id, cut, shape, dict(zip(names, values)))
+    if errors:  # the first row at fault, with the error reading the rows in order meets first
+        raise min(errors, key=lambda found: found[0])[1]
     return fits
+
+
+def _extra_values(table, rows: np.ndarray, name: str, numbers: dict, texts: np.ndarray, at: np.ndarray) -> np.ndarray:
+    """The fitted values of extra parameter ``name`` in table ``rows`` (positions ``at`` among the
+    successful fits): its own column, else the ``extras`` text (``name=VALUE; ...``), nan where
+    the text has no value."""
+    if name in numbers:
+        return numbers[name][at]
+    values = []
+    for row, text in zip(rows.tolist(), texts.tolist()):
+        try:
+            values.append(_extra_from_text(table, row, name, str(text)))
+        except InputError:
+            values.append(math.nan)
+    return np.asarray(values, dtype=float)
+
+
+def _fit_error(table, row: int, formula, numbers: dict, text) -> InputError:
+    """Why the successful fit at table ``row`` cannot be read: its first extra without a value in
+    the text, else a missing parameter value."""
+    for extra in formula.extras:
+        if extra.name not in numbers:
+            try:
+                _extra_from_text(table, row, extra.name, str(text))
+            except InputError as error:
+                return error
+    return table.error("a successful fit with a missing parameter value", index=row, column="d_cut")
 
 
 def _extra_from_text(table, index: int, name: str, text: str) -> float:
