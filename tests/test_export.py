@@ -245,11 +245,12 @@ def test_the_exports_brentq_finds_scipys_roots_to_the_last_bit():
         for xtol in (1e-14, 2e-12, 1e-3):
             outcomes.append(_outcome(_brentq, f, low, high, xtol=xtol))
             assert outcomes[-1] == _outcome(optimize.brentq, f, low, high, xtol=xtol)
+            assert _outcome(_brentq, f, low, high, xtol=xtol, ends=(f(low), f(high))) == outcomes[-1]
     assert sum(isinstance(found, float) for found in outcomes) > 0.8 * len(outcomes)  # mostly roots, not refusals
 
 
 def test_the_exports_brentq_refuses_what_scipys_refuses():
-    from tromplab.output.export import _brentq
+    from tromplab.output.export import _actual_cut, _brentq
 
     with pytest.raises(ValueError, match="f\\(a\\) and f\\(b\\) must have different signs"):
         _brentq(lambda x: 1e-200, 0.0, 1.0, xtol=1e-14)  # same sign, though the product underflows
@@ -257,6 +258,10 @@ def test_the_exports_brentq_refuses_what_scipys_refuses():
         _brentq(lambda x: math.nan, 0.0, 1.0, xtol=1e-14)
     with pytest.raises(ValueError, match="The function value at x=1.0 is NaN; solver cannot continue."):
         _brentq(lambda x: math.nan if x > 0.7 else 0.5 - x, 0.0, 1.0, xtol=1e-14)
+    with pytest.raises(ValueError, match="The function value at x=1e-06 is NaN; solver cannot continue."):
+        _actual_cut(lambda x: math.nan)  # as scipy's brentq said of it
+    assert math.isnan(_actual_cut(lambda x: 0.4)) and math.isnan(_actual_cut(lambda x: 0.6))
+    assert _actual_cut(lambda x: 1.0 - x / 4) == 2.0
 
 
 FITS_HEADER = "experiment,formula,d_cut,shape_name,shape,bypass,fishhook,success,extras\n"

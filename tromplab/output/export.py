@@ -217,28 +217,32 @@ def _dyssol(fit: FittedCurve, scale: float) -> dict | None:
 def _actual_cut(curve: Callable[[float], float]) -> float:
     """Relative size where the actual curve (with bypass) crosses 1/2; nan when it never does."""
     low, high = 1e-6, 1.0
-    if curve(low) < 0.5:
+    at_low = curve(low)
+    if at_low < 0.5:
         return np.nan
-    while curve(high) > 0.5:
+    while (at_high := curve(high)) > 0.5:
         high *= 2.0
         if high > 1e6:
             return np.nan
-    return _brentq(lambda x: curve(x) - 0.5, low, high, xtol=1e-14)
+    # the curve at the ends is known: half of the evaluations of a root that ends at once (Lynch's)
+    return _brentq(lambda x: curve(x) - 0.5, low, high, xtol=1e-14, ends=(at_low - 0.5, at_high - 0.5))
 
 
 #: scipy.optimize.brentq's defaults: relative tolerance 4 machine epsilons, at most 100 steps.
 BRENTQ_RTOL, BRENTQ_ITERATIONS = 4 * sys.float_info.epsilon, 100
 
 
-def _brentq(f: Callable[[float], float], a: float, b: float, *, xtol: float) -> float:
+def _brentq(f: Callable[[float], float], a: float, b: float, *, xtol: float, ends: tuple[float, float] | None = None) -> float:
     """The root of ``f`` in ``[a, b]`` by ``scipy.optimize.brentq``'s algorithm, step for step
     (a transcription of scipy's brentq.c on Python floats, so every root is the same double).
 
     An export evaluates thousands of curves: scipy.optimize alone took a fifth of a second to
     import, longer than these roots take.  tests/test_export.py checks the roots against scipy's.
+    ``ends``: ``f(a)`` and ``f(b)`` when the caller has them.
     """
     x_previous, x_current = float(a), float(b)
-    f_previous, f_current = _checked_value(f, x_previous), _checked_value(f, x_current)
+    f_previous = _checked_value(f(x_previous) if ends is None else ends[0], x_previous)
+    f_current = _checked_value(f(x_current) if ends is None else ends[1], x_current)
     if f_previous == 0.0:
         return x_previous
     if f_current == 0.0:
@@ -265,7 +269,7 @@ def _brentq(f: Callable[[float], float], a: float, b: float, *, xtol: float) -> 
             x_current += step_current
         else:
             x_current += delta if bisection > 0 else -delta
-        f_current = _checked_value(f, x_current)
+        f_current = _checked_value(f(x_current), x_current)
     raise RuntimeError(f"Failed to converge after {BRENTQ_ITERATIONS} iterations.")
 
 
@@ -290,8 +294,8 @@ def _brent_step(x_previous, x_current, x_block, f_previous, f_current, f_block, 
     return bisection, bisection
 
 
-def _checked_value(f: Callable[[float], float], x: float) -> float:
-    value = float(f(x))  # a Python float, as scipy's C code takes it: numpy scalars warn where C does not
+def _checked_value(value, x: float) -> float:
+    value = float(value)  # a Python float, as scipy's C code takes it: numpy scalars warn where C does not
     if math.isnan(value):
         raise ValueError(f"The function value at x={x} is NaN; solver cannot continue.")
     return value
