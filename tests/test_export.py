@@ -7,6 +7,8 @@ import re
 import numpy as np
 import pandas as pd
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 from scipy import special
 
@@ -309,3 +311,47 @@ def test_fits_of_several_formulas_are_read_in_the_files_order(tmp_path):
         ("c", "whiten", 80.0, 2.0, {"bypass": 0.2, "fishhook": 0.3}),
         ("d", "plitt", 90.0, 2.5, {}),
     ]
+
+
+CELLS = st.one_of(
+    st.none(),
+    st.text(alphabet=st.sampled_from("ab ,;\"'\n\r\tµé#"), max_size=8),
+)
+FLOATS = st.one_of(
+    st.floats(allow_nan=True, allow_infinity=True), st.sampled_from([0.0, -0.0, 1e16, 1e-5, 0.1, 66.98419291165737])
+)
+
+
+@settings(max_examples=400, deadline=None)
+@given(
+    data=st.data(), rows=st.integers(0, 6), kinds=st.lists(st.sampled_from(["float", "text", "str", "int", "mixed"]), max_size=5)
+)
+def test_write_csv_writes_the_bytes_of_pandas_to_csv(tmp_path_factory, data, rows, kinds):
+    from tromplab.output.export import write_csv
+
+    columns = {}
+    for k, kind in enumerate(kinds):
+        if kind == "float":
+            columns[f"f{k}"] = pd.Series(data.draw(st.lists(FLOATS, min_size=rows, max_size=rows)), dtype=float)
+        elif kind in ("text", "str"):
+            cells = data.draw(st.lists(CELLS, min_size=rows, max_size=rows))
+            columns[f"t,{k}" if k % 2 else f"t{k}"] = pd.Series(cells, dtype=object if kind == "text" else "str")
+        elif kind == "int":
+            columns[f"i{k}"] = pd.Series(data.draw(st.lists(st.integers(-5, 5), min_size=rows, max_size=rows)), dtype=int)
+        else:
+            columns[f"m{k}"] = pd.Series(
+                data.draw(st.lists(st.one_of(CELLS, FLOATS), min_size=rows, max_size=rows)), dtype=object
+            )
+    table = pd.DataFrame(columns, index=range(rows))
+    folder = tmp_path_factory.mktemp("csv")
+    table.to_csv(folder / "pandas.csv", index=False)
+    write_csv(table, folder / "ours.csv")
+    assert (folder / "ours.csv").read_bytes() == (folder / "pandas.csv").read_bytes()
+
+
+@pytest.mark.parametrize("convention", ["whiten", "plitt", "dyssol", "csv-long"])
+def test_an_export_is_written_as_pandas_writes_its_table(fits_dir, tmp_path, convention):
+    result = export_fits(fits_dir, convention, size_unit="um")
+    result.write_csv(tmp_path / "ours.csv")
+    result.table.to_csv(tmp_path / "pandas.csv", index=False)
+    assert (tmp_path / "ours.csv").read_bytes() == (tmp_path / "pandas.csv").read_bytes()

@@ -1014,7 +1014,7 @@ def _run_export(args) -> int:
     output = args.output or folder / f"export_{args.to.replace('-', '_')}.csv"
     check_output_file(output, inputs=[] if args.fits_dir.is_dir() else [args.fits_dir])
     result = export_fits(args.fits_dir, args.to, size_unit=args.size_unit)
-    written = write_files({output.name: lambda p: result.table.to_csv(p, index=False)}, output.parent or Path("."))
+    written = write_files({output.name: result.write_csv}, output.parent or Path("."))
     shown = result.table.head(EXPORT_CONSOLE_ROWS)
     print(shown.to_string(index=False, float_format=lambda v: f"{v:.6g}", na_rep="-"))
     if len(result.table) > len(shown):

@@ -29,7 +29,10 @@ approximated.  The conventions, and what each parameter means, are tabulated in
 
 from __future__ import annotations
 
+import csv
+import io
 import math
+import os
 import sys
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -70,6 +73,57 @@ class Export:
     convention: str
     table: pd.DataFrame
     skipped: tuple[tuple[str, str, str], ...]  # (experiment, formula, reason)
+
+    def write_csv(self, path) -> None:
+        """Write ``table`` to ``path`` as ``table.to_csv(path, index=False)`` writes it, byte for byte."""
+        write_csv(self.table, path)
+
+
+def write_csv(table: pd.DataFrame, path) -> None:
+    """``table.to_csv(path, index=False)``, the same bytes, for a table of float and text columns
+    in a third of the time: pandas wrote the 180,000 rows of a csv-long export (21 MB) through
+    the csv module row by row and spelled every float with numpy (0.4 s of a 1 s command).
+    Here each distinct text is quoted once by the csv module, the floats are spelled by
+    ``repr`` (numpy's spelling: tests/test_export.py checks both against pandas), and the lines
+    are joined.  Other tables are left to pandas."""
+    plain = table.shape[1] > 1 and table.columns.is_unique and not isinstance(table.columns, pd.MultiIndex)
+    columns = [_csv_fields(table[name]) for name in table.columns] if plain else [None]
+    if any(fields is None for fields in columns):  # one column (a lone blank is quoted), or not float nor text
+        table.to_csv(path, index=False)
+        return
+    header = ",".join(_csv_quoted([str(name) for name in table.columns]))
+    with open(path, "w", encoding="utf-8", newline="") as stream:
+        stream.write(os.linesep.join([header, *map(",".join, zip(*columns))]) + os.linesep)
+
+
+def _csv_fields(column: pd.Series) -> list[str] | None:
+    """The cells of ``column`` as pandas writes them (blank where missing), or None for a column
+    that is neither float nor text."""
+    missing = column.isna().to_numpy()
+    if column.dtype == np.float64:
+        fields = list(map(repr, column.to_numpy().tolist()))
+    else:
+        codes, texts = pd.factorize(column.to_numpy(dtype=object))  # missing cells: code -1
+        if not all(isinstance(text, str) for text in texts):
+            return None
+        fields = np.asarray([*_csv_quoted(texts.tolist()), ""], dtype=object)[codes].tolist()
+    for row in np.flatnonzero(missing).tolist():
+        fields[row] = ""
+    return fields
+
+
+def _csv_quoted(texts: list[str]) -> list[str]:
+    """Each text as the csv module writes a field of a row (quoted where pandas' writer quotes it)."""
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator=os.linesep)  # pandas' dialect: quotes texts holding a line break
+    ends = len("," + os.linesep)
+    fields = []
+    for text in texts:
+        writer.writerow([text, ""])
+        fields.append(buffer.getvalue()[:-ends])
+        buffer.seek(0)
+        buffer.truncate()
+    return fields
 
 
 def read_fits(path) -> list[FittedCurve]:
