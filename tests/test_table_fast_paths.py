@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 from tromplab.errors import InputError
 from tromplab.loading.tables import (
     _COMMENT_OR_BLANK_LINE,
+    _first_lines,
     _has_comment_or_blank_line,
     _long_records_in,
     read_table,
@@ -111,3 +112,9 @@ def test_marks_that_are_not_yes_or_no_are_refused_at_their_row(tmp_path):
     nullable = table_from_frame(pd.DataFrame({"success": pd.array([True, None, False], dtype="boolean"), "n": [1, 2, 3]}))
     with pytest.raises(InputError, match=r"DataFrame, row 1, column 'success': '<NA>' is not a yes/no mark"):
         nullable.boolean("success")
+
+
+@settings(max_examples=2000, deadline=None)
+@given(text=st.text(alphabet="ab\n\r", max_size=40), count=st.integers(1, 12))
+def test_the_first_lines_are_those_of_a_split(text, count):
+    assert _first_lines(text, count) == text.split("\n", count)[:count]

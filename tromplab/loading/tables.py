@@ -345,7 +345,7 @@ def _read_csv(path: Path, *, sep, decimal, columns=None):
     plain_breaks = first_break > 0 and "\r" not in text[: first_break - 1]  # not old Mac line ends (a bare CR)
     if plain_breaks and not _has_comment_or_blank_line(text, end):  # the usual table: every line is content
         content = list(range(1, text.count("\n", 0, end) + 2))
-        lines = [line.rstrip("\r") for line in text.split("\n", 51)[:51]]  # enough for the header and decimal marks
+        lines = [line.rstrip("\r") for line in _first_lines(text, 51)]  # enough for the header and decimal marks
         # pandas reads the file itself (a StringIO of a large text would hold four bytes per character)
         body = path if text[end:] in ("", "\n", "\r\n") else text[:end]
     else:
@@ -400,6 +400,17 @@ def _read_csv(path: Path, *, sep, decimal, columns=None):
         rows = np.arange(len(frame)) + 2
     keep = ~frame.isna().all(axis=1).to_numpy()
     return frame.loc[keep], rows[keep], (header[: frame.shape[1]] if columns is None else header), notes
+
+
+def _first_lines(text: str, count: int) -> list[str]:
+    """``text.split("\n", count)[:count]`` without the copy of the rest of the text (52 MB for
+    a large table) that the split makes as its last piece."""
+    end = -1
+    for _ in range(count):
+        end = text.find("\n", end + 1)
+        if end < 0:
+            return text.split("\n")
+    return text[:end].split("\n")
 
 
 def _detect_separator(header: str, suffix: str) -> str:
