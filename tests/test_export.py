@@ -355,3 +355,19 @@ def test_an_export_is_written_as_pandas_writes_its_table(fits_dir, tmp_path, con
     result.write_csv(tmp_path / "ours.csv")
     result.table.to_csv(tmp_path / "pandas.csv", index=False)
     assert (tmp_path / "ours.csv").read_bytes() == (tmp_path / "pandas.csv").read_bytes()
+
+
+def test_the_export_command_leaves_the_cycle_collector_as_it_found_it(fits_dir, tmp_path, capsys):
+    import gc
+
+    assert gc.isenabled()
+    assert main(["export", str(fits_dir), "--to", "whiten", "-o", str(tmp_path / "w.csv")]) == 0
+    assert gc.isenabled()
+    assert main(["export", str(tmp_path), "--to", "whiten"]) == 1  # no fits.csv: refused inside the pause
+    assert gc.isenabled()
+    gc.disable()
+    try:
+        assert main(["export", str(fits_dir), "--to", "plitt", "-o", str(tmp_path / "p.csv")]) == 0
+        assert not gc.isenabled()
+    finally:
+        gc.enable()

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import gc
 import logging
 import os
 import re
@@ -1013,8 +1014,9 @@ def _run_export(args) -> int:
     folder = args.fits_dir if args.fits_dir.is_dir() else args.fits_dir.parent
     output = args.output or folder / f"export_{args.to.replace('-', '_')}.csv"
     check_output_file(output, inputs=[] if args.fits_dir.is_dir() else [args.fits_dir])
-    result = export_fits(args.fits_dir, args.to, size_unit=args.size_unit)
-    written = write_files({output.name: result.write_csv}, output.parent or Path("."))
+    with _cycle_collection_paused():
+        result = export_fits(args.fits_dir, args.to, size_unit=args.size_unit)
+        written = write_files({output.name: result.write_csv}, output.parent or Path("."))
     shown = result.table.head(EXPORT_CONSOLE_ROWS)
     print(shown.to_string(index=False, float_format=lambda v: f"{v:.6g}", na_rep="-"))
     if len(result.table) > len(shown):
@@ -1030,6 +1032,21 @@ def _run_export(args) -> int:
             print(textwrap.fill(f"{formula}: {named}{more}", width=98, initial_indent="  ", subsequent_indent="    "))
     print(f"\nWrote: {written[output.name]}")
     return 0
+
+
+@contextlib.contextmanager
+def _cycle_collection_paused():
+    """Python's cycle collector off, then back as it was: an export makes hundreds of thousands of
+    small records without cycles (90,000 fits, 180,000 rows of csv-long), which reference counting
+    frees; the collector's passes over them and over the imported libraries took 0.15 s of a 1 s
+    command."""
+    was_enabled = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if was_enabled:
+            gc.enable()
 
 
 def _run_trend(args) -> int:

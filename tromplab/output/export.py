@@ -81,7 +81,7 @@ class Export:
 
 def write_csv(table: pd.DataFrame, path) -> None:
     """``table.to_csv(path, index=False)``, the same bytes, for a table of float and text columns
-    in a third of the time: pandas wrote the 180,000 rows of a csv-long export (21 MB) through
+    in about half the time: pandas wrote the 180,000 rows of a csv-long export (21 MB) through
     the csv module row by row and spelled every float with numpy (0.4 s of a 1 s command).
     Here each distinct text is quoted once by the csv module, the floats are spelled by
     ``repr`` (numpy's spelling: tests/test_export.py checks both against pandas), and the lines
@@ -103,10 +103,11 @@ def _csv_fields(column: pd.Series) -> list[str] | None:
     if column.dtype == np.float64:
         fields = list(map(repr, column.to_numpy().tolist()))
     else:
-        codes, texts = pd.factorize(column.to_numpy(dtype=object))  # missing cells: code -1
+        codes, texts = column.factorize()  # missing cells: code -1; pyarrow's for text columns
+        texts = texts.tolist()
         if not all(isinstance(text, str) for text in texts):
             return None
-        fields = np.asarray([*_csv_quoted(texts.tolist()), ""], dtype=object)[codes].tolist()
+        fields = np.asarray([*_csv_quoted(texts), ""], dtype=object)[codes].tolist()
     for row in np.flatnonzero(missing).tolist():
         fields[row] = ""
     return fields
@@ -143,8 +144,8 @@ def read_fits(path) -> list[FittedCurve]:
     table = read_table(path, columns=(*FITS_COLUMNS, "extras"))  # 10 of the 77 columns: a tenth of the memory
     table.require(*FITS_COLUMNS)
     ok = np.flatnonzero(table.boolean("success"))
-    # whole columns once, as Python lists of the successful rows: a row read through the frame
-    # cost about 0.1 ms, a numpy scalar per value still a microsecond or two
+    # whole columns once, of the successful rows (a row read through the frame cost about 0.1 ms),
+    # and Python floats for the records (a numpy scalar per value cost a microsecond or two)
     numbers = {name: table.numeric(name, allow_blank=True)[ok] for name in ("d_cut", "shape", "bypass", "fishhook")}
     texts = table.frame["extras"].to_numpy(dtype=object)[ok] if "extras" in table.frame.columns else np.full(ok.size, "")
     formulas = table.frame["formula"].astype(str).to_numpy(dtype=object)[ok]
