@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import gc
+import importlib
 import logging
 import os
 import re
@@ -88,9 +89,13 @@ def _sigterm_as_interrupt():
         signal.signal(signal.SIGTERM, previous)
 
 
-def main(argv=None) -> int:
+def main(argv=None, *, on_start=None) -> int:
     """Run the command line; returns the exit code (0 done, 1 bad input, 2 usage,
-    3 partial, 70 internal error, 130 interrupted by SIGINT, 143 terminated by SIGTERM)."""
+    3 partial, 70 internal error, 130 interrupted by SIGINT, 143 terminated by SIGTERM).
+
+    ``on_start`` (from :mod:`tromplab._launch`) is called when the command has imported its
+    modules and starts its work: until then an interrupt ends the start-up at once.
+    """
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
@@ -103,6 +108,12 @@ def main(argv=None) -> int:
         return EXIT_USAGE
     command = " ".join(filter(None, ("tromplab", args.command, getattr(args, "sieve_command", None))))
     try:
+        # a command imports its modules before it starts: an interrupt inside an import can stop
+        # a module half-initialised (an ImportError, or Python's exit by SIGINT instead of 130)
+        for module in getattr(args, "imports", ()):
+            importlib.import_module(module)
+        if on_start is not None:
+            on_start()
         with _sigterm_as_interrupt(), warnings.catch_warnings(), _verbosity(args):
             warnings.simplefilter("ignore", YieldWarning)  # printed from the balance notes instead
             warnings.showwarning = _show_input_notes(warnings.showwarning)
@@ -266,6 +277,12 @@ def _show_input_notes(show):
     return showwarning
 
 
+#: The modules each command imports when it runs (its functions' own imports), imported by
+#: main() before the command starts; the readers of lab tables import statsmodels, and with it
+#: scipy, when they estimate a yield.
+_READERS = ("tromplab.loading.lab", "tromplab.loading.tables", "scipy.stats")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The ``tromplab`` parser: one builder per command, from the option groups declared once."""
     parser = _CommandParser(
@@ -291,7 +308,7 @@ def _add_formulas(commands, groups) -> None:
     formulas = commands.add_parser(
         "formulas", help="list the separation-curve formulas (the nine of the paper, then the extended curves)"
     )
-    formulas.set_defaults(run=_run_formulas)
+    formulas.set_defaults(run=_run_formulas, imports=("tromplab.curves.formulas", "pandas", "scipy.special", "scipy.optimize"))
 
 
 def _add_fit(commands, groups) -> None:
@@ -323,7 +340,7 @@ def _add_fit(commands, groups) -> None:
     fit.add_argument("--format", choices=TABLE_FORMATS, default="csv", help="format of the tables (parquet needs pyarrow)")
     _add_scale_options(fit.add_argument_group("scale"))
     _add_uncertainty_options(fit.add_argument_group("uncertainty"))
-    fit.set_defaults(run=_run_fit)
+    fit.set_defaults(run=_run_fit, imports=(*_READERS, "tromplab.workbench", "tromplab.statistics.hydrocyclone"))
 
 
 def _add_jobs_option(group) -> None:
@@ -395,7 +412,7 @@ def _add_report(commands, groups) -> None:
     report.add_argument("--title", default="tromplab report", help="title of the report (default: tromplab report)")
     _add_jobs_option(report.add_argument_group("scale"))
     _add_partition_to(report)
-    report.set_defaults(run=_run_report)
+    report.set_defaults(run=_run_report, imports=(*_READERS, "tromplab.workbench"))
 
 
 def _add_compare(commands, groups) -> None:
@@ -413,7 +430,7 @@ def _add_compare(commands, groups) -> None:
         help="relative margin of practical equivalence: estimates closer than it are 'equal within the margin' "
         "whatever the F test says (default %(default)s)",
     )
-    compare.set_defaults(run=_run_compare)
+    compare.set_defaults(run=_run_compare, imports=(*_READERS, "tromplab.statistics.compare"))
 
 
 def _add_export(commands, groups) -> None:
@@ -428,7 +445,7 @@ def _add_export(commands, groups) -> None:
         "-o", "--output", type=Path, default=None, help="CSV to write (default: FITS_DIR/export_<convention>.csv)"
     )
     export.add_argument("--size-unit", default=None, help="unit of the fitted sizes: um, mm, cm or m (required by --to dyssol)")
-    export.set_defaults(run=_run_export)
+    export.set_defaults(run=_run_export, imports=("tromplab.output.export",))
 
 
 def _add_trend(commands, groups) -> None:
@@ -446,7 +463,7 @@ def _add_trend(commands, groups) -> None:
     trend.add_argument("--alpha", type=float, default=0.01, help="significance level of the change flags (default 0.01)")
     trend.add_argument("--size-unit", default="", help="unit of the sizes, for the figure labels")
     trend.add_argument("--no-figures", action="store_true", help="do not draw figures")
-    trend.set_defaults(run=_run_trend)
+    trend.set_defaults(run=_run_trend, imports=(*_READERS, "tromplab.trend"))
 
 
 def _add_points(commands, groups) -> None:
@@ -456,14 +473,14 @@ def _add_points(commands, groups) -> None:
     points.add_argument("input", type=Path, help="lab table (CSV or .xlsx)")
     points.add_argument("-o", "--output", type=Path, required=True, help="Tromp points CSV to write")
     _add_partition_to(points)
-    points.set_defaults(run=_run_points)
+    points.set_defaults(run=_run_points, imports=(*_READERS, "tromplab.output.views"))
 
 
 def _add_balance(commands, groups) -> None:
     balance = commands.add_parser("balance", parents=[groups["lab"]], help="yield estimate and mass-balance table of a lab table")
     balance.add_argument("input", type=Path, help="lab table (CSV or .xlsx)")
     _add_partition_to(balance)
-    balance.set_defaults(run=_run_balance)
+    balance.set_defaults(run=_run_balance, imports=(*_READERS, "tromplab.output.views"))
 
 
 def _add_sieve(commands) -> None:
@@ -482,7 +499,7 @@ def _add_sieve(commands) -> None:
     identify.add_argument(
         "--level", type=cli_type(check_probability, "--level"), default=0.95, help="confidence level of the intervals, in (0, 1)"
     )
-    identify.set_defaults(run=_run_sieve_identify)
+    identify.set_defaults(run=_run_sieve_identify, imports=("tromplab.classifiers.sieve", *_READERS))
     _add_sieve_pg(sieve_commands)
     _add_sieve_bin(sieve_commands)
 
@@ -506,7 +523,7 @@ def _add_sieve_pg(sieve_commands) -> None:
         default="auto",
         help="closed form, quadrature, or auto: the closed form where it is valid (default)",
     )
-    pg.set_defaults(run=_run_sieve_pg)
+    pg.set_defaults(run=_run_sieve_pg, imports=("tromplab.classifiers.sieve",))
 
 
 def _add_sieve_bin(sieve_commands) -> None:
@@ -524,7 +541,7 @@ def _add_sieve_bin(sieve_commands) -> None:
         required=True,
         help="required recovery g* of the target fraction, in (0, 1)",
     )
-    bin_.set_defaults(run=_run_sieve_bin)
+    bin_.set_defaults(run=_run_sieve_bin, imports=("tromplab.classifiers.sieve",))
 
 
 def _add_rank(commands) -> None:
@@ -540,7 +557,7 @@ def _add_rank(commands) -> None:
         help="significance level for F_crit from n, in (0, 1)",
     )
     rank.add_argument("--computed-adequacy", action="store_true", help="ignore an 'adequate' column and use F > F_crit")
-    rank.set_defaults(run=_run_rank)
+    rank.set_defaults(run=_run_rank, imports=("tromplab.curves.ranking", *_READERS))
 
 
 def _add_partition_to(parser) -> None:
@@ -1166,7 +1183,7 @@ def _add_circuit_command(commands) -> None:
                          help="level of the chi-square and measurement tests (default 0.05)")  # fmt: skip
     circuit.add_argument("--size-unit", default=None, help="unit of the sizes when the size columns carry none")
     circuit.add_argument("--no-figures", action="store_true", help="do not draw the figures")
-    circuit.set_defaults(run=_run_circuit)
+    circuit.set_defaults(run=_run_circuit, imports=("tromplab.circuit", "tromplab.circuit_command"))
 
 
 def _run_circuit(args) -> int:

@@ -34,6 +34,8 @@ MAX_CELLS = 1_000
 MAX_STEPS = 1_000_000
 #: Most weights of the Pareto sweep of ``optimize`` (each is one constrained optimisation).
 MAX_WEIGHTS = 1_001
+#: What the layer commands import when they run, imported before they start (see cli.main).
+_LAYER_IMPORTS = ("tromplab.classifiers.layer", "tromplab.loading.tables", "pandas")
 
 
 def add_model_commands(commands) -> None:
@@ -142,7 +144,7 @@ def _add_layer(commands) -> None:
     fit.add_argument("--fit-threshold", action="store_true", help="also identify the lock threshold (profiled)")
     _level_option(fit)
     fit.add_argument("-o", "--output", type=Path, default=None, help="CSV of the identified parameters")
-    fit.set_defaults(run=run_layer_fit)
+    fit.set_defaults(run=run_layer_fit, imports=_LAYER_IMPORTS)
 
 
 def _layer_options_parser() -> argparse.ArgumentParser:
@@ -217,7 +219,7 @@ def _add_layer_simulate(layer_commands, shared) -> None:
     simulate.add_argument(
         "-o", "--output", type=Path, default=None, help="CSV of every step (step, time, C_1..C_m, extraction, locked)"
     )
-    simulate.set_defaults(run=run_layer_simulate)
+    simulate.set_defaults(run=run_layer_simulate, imports=_LAYER_IMPORTS)
 
 
 def _initial(args) -> list[float]:
@@ -366,7 +368,7 @@ def _add_pulp(commands) -> None:
         default=None,
         help="applied pressure drop H': find the best pulsation frequency",
     )
-    optimum.set_defaults(run=run_pulp_optimum)
+    optimum.set_defaults(run=run_pulp_optimum, imports=("scipy.optimize",))
 
     fit = pulp_commands.add_parser("fit", parents=[model], help="fit model coefficients to measured productivity")
     fit.add_argument("data", type=Path, help="CSV or .xlsx with applied_pressure, frequency, productivity")
@@ -379,7 +381,7 @@ def _add_pulp(commands) -> None:
     )
     _level_option(fit)
     fit.add_argument("-o", "--output", type=Path, default=None, help="CSV of the fitted coefficients")
-    fit.set_defaults(run=run_pulp_fit)
+    fit.set_defaults(run=run_pulp_fit, imports=("tromplab.curves.fitting", "tromplab.loading.tables", "pandas"))
 
 
 def _pulp_screen(args):
@@ -450,7 +452,7 @@ def _add_optimize(commands) -> None:
     _add_sieve_options(optimize.add_argument_group("sieve (defaults: the kinetics paper's example)"))
     _add_choice_options(optimize.add_argument_group("choice"))
     optimize.add_argument("-o", "--output", type=Path, default=None, help="CSV of the Pareto front (l1, V, Q, E, success)")
-    optimize.set_defaults(run=run_optimize)
+    optimize.set_defaults(run=run_optimize, imports=("tromplab.classifiers.choice", "tromplab.loading.tables", "pandas"))
 
 
 def _add_sieve_options(group) -> None:
