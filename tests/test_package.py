@@ -7,6 +7,7 @@ it rests on: which modules an import loads."""
 
 import importlib
 import json
+import os
 import signal
 import subprocess
 import sys
@@ -145,3 +146,112 @@ def test_one_top_level_package_is_installed_and_the_command_goes_through_launch(
     packages = setuptools.find_packages(where=str(REPOSITORY), include=include)
     assert {package.split(".")[0] for package in packages} == {"tromplab"}
     assert "tromplab.curves" in packages
+
+
+# What a command loads (issue 24): the parser is built from light modules and each command
+# imports what it needs when it runs, so these never load the fitting, plotting or statistics
+# stack.  Times are in docs/performance.md; this checks what they rest on.
+_COMMAND = """
+import json, sys
+from tromplab._launch import main
+sys.argv = ["tromplab", *{argv!r}]
+main()
+print(json.dumps(sorted(sys.modules)))
+"""
+NOT_AT_START_UP = (
+    "lmfit",
+    "matplotlib",
+    "statsmodels",
+    "scipy.stats",
+    "networkx",
+    "tromplab.workbench",
+    "tromplab.classifiers.sieve",
+    "tromplab.curves.fitting",
+    "tromplab.statistics",
+)
+
+
+def _loaded_by_command(*argv: str) -> set[str]:
+    done = subprocess.run(
+        [sys.executable, "-c", _COMMAND.format(argv=list(argv))], capture_output=True, text=True, timeout=120, cwd=REPOSITORY
+    )
+    assert done.returncode == 0, done.stderr
+    return set(json.loads(done.stdout.splitlines()[-1]))
+
+
+@pytest.mark.parametrize("argv", [["--version"], ["-h"], ["export", "-h"], ["fit", "-h"], ["pulp", "fit", "-h"]])
+def test_version_and_help_load_no_numerical_stack_beyond_numpy(argv):
+    loaded = _loaded_by_command(*argv)
+    assert "tromplab.cli" in loaded
+    assert sorted(name for name in loaded if name.split(".")[0] in ("scipy", "pandas") or name in NOT_AT_START_UP) == []
+
+
+def test_an_export_loads_neither_scipy_nor_the_fitting_stack(tmp_path):
+    fits = tmp_path / "fits.csv"
+    fits.write_text(
+        "experiment,formula,d_cut,shape_name,shape,bypass,fishhook,success,extras\n"
+        "a,lynch,100.0,kl,3.0,,,True,\n"
+        "a,rosin_rammler,98.0,kr,2.0,,,True,\n"
+        "a,plitt,97.0,ks,2.5,,,True,\n",
+        encoding="utf-8",
+    )
+    for convention in ("whiten", "plitt", "csv-long"):
+        loaded = _loaded_by_command("export", str(tmp_path), "--to", convention, "-q", "-o", str(tmp_path / "out.csv"))
+        assert "tromplab.output.export" in loaded
+        assert sorted(name for name in loaded if name.split(".")[0] == "scipy" or name in NOT_AT_START_UP) == []
+
+
+# A command imports its modules before it starts its work (cli.main, on_start): until then an
+# interrupt ends the start-up at once (tromplab._launch), never inside a module's initialisation
+# (an ImportError, or Python's own exit by SIGINT instead of 130: tests/test_signals.py).
+_STARTED_LATE = """
+import json, sys
+from tromplab import _launch, cli
+late, started = [], []
+
+class Probe:  # the modules imported once the command has started its work
+    def find_spec(self, name, path=None, target=None):
+        if started:
+            late.append(name)
+        return None
+
+sys.meta_path.insert(0, Probe())
+main = cli.main
+cli.main = lambda argv=None, *, on_start: main(argv, on_start=lambda: (started.append(True), on_start()))
+sys.argv = ["tromplab", *{argv!r}]
+assert _launch.main() == 0 and started
+print(json.dumps(late))
+"""
+DATASETS = REPOSITORY / "datasets"
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["formulas"],
+        ["export", "{fits}", "--to", "whiten", "-o", "{tmp}/w.csv"],
+        ["fit", "{points}", "-o", "{tmp}/fit", "--no-figures", "--jobs", "1"],
+        ["points", str(DATASETS / "double_deck_screen_decks_lab.csv"), "-o", "{tmp}/points.csv"],
+        ["rank", str(DATASETS / "shuvalov2018_table2_F.csv"), "-o", "{tmp}/rank"],
+        ["sieve", "pg", "--hole", "2", "--length", "1.5", "--width", "0.5", "--cell-width", "4"],
+        ["layer", "simulate", "--steps", "20"],
+        ["pulp", "optimum", "--frequency", "10"],
+    ],
+    ids=lambda argv: " ".join(argv[:2]),
+)
+def test_a_command_imports_its_modules_before_it_starts(tmp_path, argv):
+    (tmp_path / "fits.csv").write_text(
+        "experiment,formula,d_cut,shape_name,shape,bypass,fishhook,success,extras\na,lynch,100.0,kl,3.0,,,True,\n",
+        encoding="utf-8",
+    )
+    rows = [f"E{k},{size},{share}" for k in range(2) for size, share in ((10, 0.95), (20, 0.85), (40, 0.6), (80, 0.3), (160, 0.1), (320, 0.03))]  # fmt: skip
+    (tmp_path / "points.csv").write_text("experiment,size,partition_fine\n" + "\n".join(rows) + "\n", encoding="utf-8")
+    argv = [a.format(fits=tmp_path, points=tmp_path / "points.csv", tmp=tmp_path) for a in argv]
+    done = subprocess.run(
+        [sys.executable, "-c", _STARTED_LATE.format(argv=argv)], capture_output=True, text=True, timeout=300, cwd=tmp_path,
+        env={**os.environ, "PYTHONPATH": str(REPOSITORY)},
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    late = json.loads(done.stdout.splitlines()[-1])
+    heavy = {"numpy", "pandas", "scipy", "scipy.special", "scipy.optimize", "scipy.stats", "lmfit", "matplotlib", "networkx"}
+    assert [name for name in late if name.startswith("tromplab") or name in heavy] == []

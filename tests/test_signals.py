@@ -203,7 +203,7 @@ def test_a_signal_while_the_interpreter_exits_gives_one_line_and_no_traceback(si
     script = (
         "import atexit, os, signal, sys, time\n"
         "from tromplab import _launch, cli\n"
-        "cli.main = lambda: 0\n"
+        "cli.main = lambda on_start: 0\n"
         f"atexit.register(lambda: (os.kill(os.getpid(), {int(signum)}), time.sleep(5)))\n"
         "sys.exit(_launch.main())\n"
     )

@@ -1,13 +1,14 @@
 """Entry point of the ``tromplab`` command and of ``python -m tromplab``: signal handling first.
 
-The command line imports numpy, pandas, scipy and statsmodels (about a second).  An interrupt
-in that second used to end in Python's own ``KeyboardInterrupt`` traceback or a silent kill.
+A command imports numpy, pandas, scipy and lmfit (up to a second).  An interrupt in that
+second used to end in Python's own ``KeyboardInterrupt`` traceback or a silent kill.
 ``import tromplab`` loads its public names lazily and imports none of them, and this module
 imports only :mod:`os`, :mod:`signal` and :mod:`sys`: the console script
 (``tromplab._launch:main``) and ``tromplab/__main__.py`` install the handling here, then import
-the command line.  An interrupt at any moment prints one line and exits with 130 (SIGINT) or
-143 (SIGTERM); during start-up nothing has been written yet, and once the command has returned
-(while the interpreter shuts down its pools) the outputs are final.
+the command line, which imports the command's modules before it starts the command (and calls
+back to install the command's own handling).  An interrupt at any moment prints one line and
+exits with 130 (SIGINT) or 143 (SIGTERM); during start-up nothing has been written yet, and once
+the command has returned (while the interpreter shuts down its pools) the outputs are final.
 """
 
 import os
@@ -54,12 +55,15 @@ def main() -> int:
     _handle(signal.SIGTERM, _stop_during_start_up)
     from . import cli
 
-    # from here on the command line's own handling applies: SIGINT raises KeyboardInterrupt and
-    # SIGTERM cli.Terminated, so the output folder is cleaned up as the command unwinds
-    _handle(signal.SIGTERM, cli.raise_terminated)
-    _handle(signal.SIGINT, signal.default_int_handler)
+    def command_handling():
+        # from here on the command line's own handling applies: SIGINT raises KeyboardInterrupt and
+        # SIGTERM cli.Terminated, so the output folder is cleaned up as the command unwinds; until
+        # the command has imported its modules (cli.main) an interrupt still leaves at once
+        _handle(signal.SIGTERM, cli.raise_terminated)
+        _handle(signal.SIGINT, signal.default_int_handler)
+
     try:
-        return cli.main()
+        return cli.main(on_start=command_handling)
     except KeyboardInterrupt as interruption:  # between the handlers above and cli.main's own
         return cli.interrupted(interruption)
     finally:

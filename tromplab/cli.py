@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import gc
+import importlib
 import logging
 import os
 import re
@@ -13,28 +15,26 @@ import textwrap
 import traceback
 import warnings
 from pathlib import Path
-
-import numpy as np
-import pandas as pd
+from typing import TYPE_CHECKING
 
 from ._version import __version__
-from .classifiers.sieve import closed_form_valid, design_bin, distance_moments, geometric_probability, identify_from_table
-from .curves.diagnostics import RESIDUAL_WARNING
-from .curves.formulas import NAME_CLASHES, get_formula, registry_table
-from .curves.measured import CUT_WARNING
-from .curves.ranking import RANK_BY, rank_formulas, read_f_table
-from .curves.screening import DEFAULT_ALPHA
-from .errors import InputError, OptionError
-from .loading.lab import KINDS, PARTITION_METHOD_TEXT, PARTITION_METHODS, LabOptions, YieldWarning, read_experiments, read_lab
-from .loading.tables import InputNote, check_input_file, read_table
+from .errors import InputError, InputNote, OptionError, YieldWarning
 from .model_commands import add_model_commands
-from .output.export import export_fits
-from .output.folder import AUTO_FIGURE_LIMIT, FIGURE_CHOICES, TABLE_FORMATS
-from .output.outputs import check_output_file, check_output_folder
-from .output.views import PARTITION_TO, balance_view, partition_view
-from .statistics.compare import DEFAULT_MARGIN, shared_fit
-from .statistics.hydrocyclone import water_recovery_statements
-from .statistics.uncertainty import BOOTSTRAP_METHODS
+from .options import (
+    AUTO_FIGURE_LIMIT,
+    BOOTSTRAP_METHODS,
+    DEFAULT_ALPHA,
+    DEFAULT_MARGIN,
+    DEFAULT_MIN_FEED_SHARE,
+    DEFAULT_SUM_TOLERANCE_PCT,
+    FIGURE_CHOICES,
+    KINDS,
+    PARTITION_METHODS,
+    PARTITION_TO,
+    RANK_BY,
+    TABLE_FORMATS,
+)
+from .output.outputs import check_output_file, check_output_folder, write_files
 from .validation import (
     MAX_BOOTSTRAP,
     MAX_DECKS,
@@ -48,7 +48,15 @@ from .validation import (
     check_water_recovery,
     cli_type,
 )
-from .workbench import check_formula_selection, fit_experiments, print_progress, write_atomically
+
+# Each command imports the modules it needs when it runs: building the parser takes only the
+# light modules above, so --version, -h and a command that needs little (export) do not pay
+# for scipy.stats, lmfit, matplotlib and statsmodels at start-up (nothing imports the CLI, so
+# the imports inside the functions hide no cycle).
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from .loading.lab import LabOptions
 
 TERMINAL_COLUMNS = ["rank", "equation", "formula", "d_cut", "shape_name", "shape", "F", "F_crit", "adequate", "eta", "ep"]
 
@@ -81,9 +89,13 @@ def _sigterm_as_interrupt():
         signal.signal(signal.SIGTERM, previous)
 
 
-def main(argv=None) -> int:
+def main(argv=None, *, on_start=None) -> int:
     """Run the command line; returns the exit code (0 done, 1 bad input, 2 usage,
-    3 partial, 70 internal error, 130 interrupted by SIGINT, 143 terminated by SIGTERM)."""
+    3 partial, 70 internal error, 130 interrupted by SIGINT, 143 terminated by SIGTERM).
+
+    ``on_start`` (from :mod:`tromplab._launch`) is called when the command has imported its
+    modules and starts its work: until then an interrupt ends the start-up at once.
+    """
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
@@ -96,6 +108,12 @@ def main(argv=None) -> int:
         return EXIT_USAGE
     command = " ".join(filter(None, ("tromplab", args.command, getattr(args, "sieve_command", None))))
     try:
+        # a command imports its modules before it starts: an interrupt inside an import can stop
+        # a module half-initialised (an ImportError, or Python's exit by SIGINT instead of 130)
+        for module in getattr(args, "imports", ()):
+            importlib.import_module(module)
+        if on_start is not None:
+            on_start()
         with _sigterm_as_interrupt(), warnings.catch_warnings(), _verbosity(args):
             warnings.simplefilter("ignore", YieldWarning)  # printed from the balance notes instead
             warnings.showwarning = _show_input_notes(warnings.showwarning)
@@ -259,6 +277,12 @@ def _show_input_notes(show):
     return showwarning
 
 
+#: The modules each command imports when it runs (its functions' own imports), imported by
+#: main() before the command starts; the readers of lab tables import statsmodels, and with it
+#: scipy, when they estimate a yield.
+_READERS = ("tromplab.loading.lab", "tromplab.loading.tables", "scipy.stats")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The ``tromplab`` parser: one builder per command, from the option groups declared once."""
     parser = _CommandParser(
@@ -284,7 +308,7 @@ def _add_formulas(commands, groups) -> None:
     formulas = commands.add_parser(
         "formulas", help="list the separation-curve formulas (the nine of the paper, then the extended curves)"
     )
-    formulas.set_defaults(run=_run_formulas)
+    formulas.set_defaults(run=_run_formulas, imports=("tromplab.curves.formulas", "pandas", "scipy.special", "scipy.optimize"))
 
 
 def _add_fit(commands, groups) -> None:
@@ -316,7 +340,7 @@ def _add_fit(commands, groups) -> None:
     fit.add_argument("--format", choices=TABLE_FORMATS, default="csv", help="format of the tables (parquet needs pyarrow)")
     _add_scale_options(fit.add_argument_group("scale"))
     _add_uncertainty_options(fit.add_argument_group("uncertainty"))
-    fit.set_defaults(run=_run_fit)
+    fit.set_defaults(run=_run_fit, imports=(*_READERS, "tromplab.workbench", "tromplab.statistics.hydrocyclone"))
 
 
 def _add_jobs_option(group) -> None:
@@ -388,7 +412,7 @@ def _add_report(commands, groups) -> None:
     report.add_argument("--title", default="tromplab report", help="title of the report (default: tromplab report)")
     _add_jobs_option(report.add_argument_group("scale"))
     _add_partition_to(report)
-    report.set_defaults(run=_run_report)
+    report.set_defaults(run=_run_report, imports=(*_READERS, "tromplab.workbench"))
 
 
 def _add_compare(commands, groups) -> None:
@@ -406,7 +430,7 @@ def _add_compare(commands, groups) -> None:
         help="relative margin of practical equivalence: estimates closer than it are 'equal within the margin' "
         "whatever the F test says (default %(default)s)",
     )
-    compare.set_defaults(run=_run_compare)
+    compare.set_defaults(run=_run_compare, imports=(*_READERS, "tromplab.statistics.compare"))
 
 
 def _add_export(commands, groups) -> None:
@@ -421,7 +445,7 @@ def _add_export(commands, groups) -> None:
         "-o", "--output", type=Path, default=None, help="CSV to write (default: FITS_DIR/export_<convention>.csv)"
     )
     export.add_argument("--size-unit", default=None, help="unit of the fitted sizes: um, mm, cm or m (required by --to dyssol)")
-    export.set_defaults(run=_run_export)
+    export.set_defaults(run=_run_export, imports=("tromplab.output.export",))
 
 
 def _add_trend(commands, groups) -> None:
@@ -439,7 +463,7 @@ def _add_trend(commands, groups) -> None:
     trend.add_argument("--alpha", type=float, default=0.01, help="significance level of the change flags (default 0.01)")
     trend.add_argument("--size-unit", default="", help="unit of the sizes, for the figure labels")
     trend.add_argument("--no-figures", action="store_true", help="do not draw figures")
-    trend.set_defaults(run=_run_trend)
+    trend.set_defaults(run=_run_trend, imports=(*_READERS, "tromplab.trend"))
 
 
 def _add_points(commands, groups) -> None:
@@ -449,14 +473,14 @@ def _add_points(commands, groups) -> None:
     points.add_argument("input", type=Path, help="lab table (CSV or .xlsx)")
     points.add_argument("-o", "--output", type=Path, required=True, help="Tromp points CSV to write")
     _add_partition_to(points)
-    points.set_defaults(run=_run_points)
+    points.set_defaults(run=_run_points, imports=(*_READERS, "tromplab.output.views"))
 
 
 def _add_balance(commands, groups) -> None:
     balance = commands.add_parser("balance", parents=[groups["lab"]], help="yield estimate and mass-balance table of a lab table")
     balance.add_argument("input", type=Path, help="lab table (CSV or .xlsx)")
     _add_partition_to(balance)
-    balance.set_defaults(run=_run_balance)
+    balance.set_defaults(run=_run_balance, imports=(*_READERS, "tromplab.output.views"))
 
 
 def _add_sieve(commands) -> None:
@@ -475,7 +499,7 @@ def _add_sieve(commands) -> None:
     identify.add_argument(
         "--level", type=cli_type(check_probability, "--level"), default=0.95, help="confidence level of the intervals, in (0, 1)"
     )
-    identify.set_defaults(run=_run_sieve_identify)
+    identify.set_defaults(run=_run_sieve_identify, imports=("tromplab.classifiers.sieve", *_READERS))
     _add_sieve_pg(sieve_commands)
     _add_sieve_bin(sieve_commands)
 
@@ -499,7 +523,7 @@ def _add_sieve_pg(sieve_commands) -> None:
         default="auto",
         help="closed form, quadrature, or auto: the closed form where it is valid (default)",
     )
-    pg.set_defaults(run=_run_sieve_pg)
+    pg.set_defaults(run=_run_sieve_pg, imports=("tromplab.classifiers.sieve",))
 
 
 def _add_sieve_bin(sieve_commands) -> None:
@@ -517,7 +541,7 @@ def _add_sieve_bin(sieve_commands) -> None:
         required=True,
         help="required recovery g* of the target fraction, in (0, 1)",
     )
-    bin_.set_defaults(run=_run_sieve_bin)
+    bin_.set_defaults(run=_run_sieve_bin, imports=("tromplab.classifiers.sieve",))
 
 
 def _add_rank(commands) -> None:
@@ -533,7 +557,7 @@ def _add_rank(commands) -> None:
         help="significance level for F_crit from n, in (0, 1)",
     )
     rank.add_argument("--computed-adequacy", action="store_true", help="ignore an 'adequate' column and use F > F_crit")
-    rank.set_defaults(run=_run_rank)
+    rank.set_defaults(run=_run_rank, imports=("tromplab.curves.ranking", *_READERS))
 
 
 def _add_partition_to(parser) -> None:
@@ -586,13 +610,13 @@ def _lab_options_parser() -> argparse.ArgumentParser:
     group.add_argument(
         "--min-feed-share",
         type=cli_type(check_share, "--min-feed-share"),
-        default=LabOptions.min_feed_share,
+        default=DEFAULT_MIN_FEED_SHARE,
         help="leave out classes with a smaller feed share (fraction; default %(default)s)",
     )
     group.add_argument(
         "--sum-tolerance",
         type=cli_type(check_non_negative, "--sum-tolerance"),
-        default=LabOptions.sum_tolerance_pct,
+        default=DEFAULT_SUM_TOLERANCE_PCT,
         help="allowed deviation of per-class percentages from 100 (percentage points; default %(default)s)",
     )
     group.add_argument(
@@ -621,6 +645,8 @@ def _lab_options_parser() -> argparse.ArgumentParser:
 
 
 def _lab_options(args) -> LabOptions:
+    from .loading.lab import LabOptions
+
     rename = {}
     for pair in filter(None, (p.strip() for p in args.rename.split(","))):
         old, sep, new = pair.partition("=")
@@ -660,6 +686,12 @@ def _print_balance_notes(balances, *, listed_in: str = "") -> None:
 
 
 def _run_points(args) -> int:
+    import pandas as pd
+
+    from .loading.lab import read_lab
+    from .loading.tables import check_input_file
+    from .output.views import partition_view
+
     check_input_file(args.input)
     check_output_file(args.output, inputs=[args.input])
     balances = read_lab(args.input, _lab_options(args))
@@ -668,7 +700,7 @@ def _run_points(args) -> int:
     )
     table = partition_view(table, args.partition_to)
     args.output.parent.mkdir(parents=True, exist_ok=True)
-    written = write_atomically({args.output.name: lambda p: table.to_csv(p, index=False)}, args.output.parent)
+    written = write_files({args.output.name: lambda p: table.to_csv(p, index=False)}, args.output.parent)
     _print_balance_notes(balances)
     print(table.to_string(index=False, float_format=lambda v: f"{v:.4g}", na_rep="-"))
     print(f"\nWrote: {written[args.output.name]}")
@@ -676,6 +708,10 @@ def _run_points(args) -> int:
 
 
 def _run_balance(args) -> int:
+    from .loading.lab import PARTITION_METHOD_TEXT, read_lab
+    from .loading.tables import check_input_file
+    from .output.views import balance_view
+
     check_input_file(args.input)
     balances = read_lab(args.input, _lab_options(args))
     _print_balance_notes(balances)
@@ -697,10 +733,13 @@ def _run_balance(args) -> int:
 
 
 def _run_sieve_identify(args) -> int:
+    from .classifiers.sieve import identify_from_table
+    from .loading.tables import check_input_file, read_table
+
     check_input_file(args.data)
     check_output_file(args.output, inputs=[args.data])
     laws = identify_from_table(read_table(args.data), two_sided=args.two_sided, level=args.level)
-    written = write_atomically({args.output.name: lambda p: laws.to_csv(p, index=False)}, args.output.parent)
+    written = write_files({args.output.name: lambda p: laws.to_csv(p, index=False)}, args.output.parent)
     view = laws[["sieve", "fraction", "n_regimes", "v_k", "v_k_stderr", "sigma", "sigma_stderr", "success"]]
     print(view.to_string(index=False, float_format=lambda v: f"{v:.4g}", na_rep="-"))
     for sieve, fraction, message in laws.loc[~laws["success"].astype(bool), ["sieve", "fraction", "message"]].itertuples(
@@ -712,6 +751,8 @@ def _run_sieve_identify(args) -> int:
 
 
 def _run_sieve_pg(args) -> int:
+    from .classifiers.sieve import closed_form_valid, geometric_probability
+
     value = geometric_probability(args.hole, args.length, args.width, args.cell_width / 2, method=args.method)
     closed = closed_form_valid(args.hole, args.length, args.width, args.cell_width / 2)
     print(
@@ -722,6 +763,10 @@ def _run_sieve_pg(args) -> int:
 
 
 def _run_sieve_bin(args) -> int:
+    import numpy as np
+
+    from .classifiers.sieve import design_bin, distance_moments
+
     for method in ("exact", "normal"):
         design = design_bin(args.decks, args.length, args.recovery, method=method)
         print(
@@ -733,6 +778,8 @@ def _run_sieve_bin(args) -> int:
 
 
 def _run_formulas(args) -> int:
+    from .curves.formulas import NAME_CLASHES, registry_table
+
     table = registry_table()
     for family, heading in (
         ("paper", "The nine formulas of Shuvalov et al. (2018)"),
@@ -765,6 +812,10 @@ def _run_formulas(args) -> int:
 
 
 def _run_fit(args) -> int:
+    from .loading.lab import read_experiments
+    from .loading.tables import check_input_file
+    from .workbench import check_formula_selection, fit_experiments
+
     formulas = check_formula_selection(args.formulas, args.extended)
     check_input_file(args.input)
     if args.outdir.suffix.lower() == ".xlsx":
@@ -809,6 +860,8 @@ def _fit_keywords(args, formulas) -> dict:
 def _print_fits(bench, args) -> None:
     """The console view of a fit run: data notes, the ranked fits of the first experiments
     with their verdicts, the water-recovery checks, failures and the ranking across experiments."""
+    from .statistics.hydrocyclone import water_recovery_statements
+
     for experiment, notes in bench.notes.items():
         for note in notes:
             print(textwrap.fill(f"warning ({experiment}): {note}", width=98), file=sys.stderr)
@@ -892,6 +945,8 @@ class _progress_bars:
         try:
             from tqdm import tqdm
         except ImportError:
+            from .workbench import print_progress
+
             return print_progress
 
         def update(done, total, label):
@@ -918,6 +973,10 @@ class _progress_bars:
 
 
 def _run_report(args) -> int:
+    from .loading.lab import read_experiments
+    from .loading.tables import check_input_file
+    from .workbench import check_formula_selection, fit_experiments
+
     formulas = check_formula_selection(args.formulas, args.extended)
     check_input_file(args.input)
     check_output_file(args.output, inputs=[args.input])
@@ -935,6 +994,11 @@ def _run_report(args) -> int:
 
 
 def _run_compare(args) -> int:
+    from .curves.formulas import get_formula
+    from .loading.lab import read_experiments
+    from .loading.tables import check_input_file
+    from .statistics.compare import shared_fit
+
     check_input_file(args.input)
     experiments, _ = read_experiments(args.input, _lab_options(args))
     if args.experiments:
@@ -964,11 +1028,14 @@ EXPORT_CONSOLE_ROWS = 40
 
 
 def _run_export(args) -> int:
+    from .output.export import export_fits
+
     folder = args.fits_dir if args.fits_dir.is_dir() else args.fits_dir.parent
     output = args.output or folder / f"export_{args.to.replace('-', '_')}.csv"
     check_output_file(output, inputs=[] if args.fits_dir.is_dir() else [args.fits_dir])
-    result = export_fits(args.fits_dir, args.to, size_unit=args.size_unit)
-    written = write_atomically({output.name: lambda p: result.table.to_csv(p, index=False)}, output.parent or Path("."))
+    with _cycle_collection_paused():
+        result = export_fits(args.fits_dir, args.to, size_unit=args.size_unit)
+        written = write_files({output.name: result.write_csv}, output.parent or Path("."))
     shown = result.table.head(EXPORT_CONSOLE_ROWS)
     print(shown.to_string(index=False, float_format=lambda v: f"{v:.6g}", na_rep="-"))
     if len(result.table) > len(shown):
@@ -986,8 +1053,24 @@ def _run_export(args) -> int:
     return 0
 
 
+@contextlib.contextmanager
+def _cycle_collection_paused():
+    """Python's cycle collector off, then back as it was: an export makes hundreds of thousands of
+    small records without cycles (90,000 fits, 180,000 rows of csv-long), which reference counting
+    frees; the collector's passes over them and over the imported libraries took 0.15 s of a 1 s
+    command."""
+    was_enabled = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if was_enabled:
+            gc.enable()
+
+
 def _run_trend(args) -> int:
-    from .trend import monitor_surveys, read_surveys, write_trend  # imported when the command runs, as the circuit's
+    from .loading.tables import check_input_file
+    from .trend import monitor_surveys, read_surveys, write_trend
 
     check_input_file(args.input)
     check_output_folder(args.outdir, inputs=[args.input])
@@ -1002,11 +1085,14 @@ def _run_trend(args) -> int:
 
 
 def _run_rank(args) -> int:
+    from .curves.ranking import rank_formulas, read_f_table
+    from .loading.tables import check_input_file
+
     check_input_file(args.table)
     check_output_folder(args.outdir, inputs=[args.table])
     table = read_f_table(args.table, alpha=args.alpha, use_given_marks=not args.computed_adequacy)
     ranking = rank_formulas(table)
-    written = write_atomically({"ranking.csv": lambda p: ranking.to_csv(p, index=False)}, args.outdir)
+    written = write_files({"ranking.csv": lambda p: ranking.to_csv(p, index=False)}, args.outdir)
     print(ranking.to_string(index=False))
     print(f"\nWrote: {written['ranking.csv']}")
     return 0
@@ -1034,6 +1120,11 @@ def format_fits(fits: pd.DataFrame, verdicts: dict[str, list[str]] | None = None
     indices.  An adequate fit whose residuals fail a test is marked ``yes*`` in the
     adequacy column.
     """
+    import numpy as np
+
+    from .curves.diagnostics import RESIDUAL_WARNING
+    from .curves.measured import CUT_WARNING
+
     columns = list(TERMINAL_COLUMNS)
     if rank_by == "aicc":
         columns[columns.index("F_crit")] = "aicc"
@@ -1094,12 +1185,10 @@ def _add_circuit_command(commands) -> None:
                          help="level of the chi-square and measurement tests (default 0.05)")  # fmt: skip
     circuit.add_argument("--size-unit", default=None, help="unit of the sizes when the size columns carry none")
     circuit.add_argument("--no-figures", action="store_true", help="do not draw the figures")
-    circuit.set_defaults(run=_run_circuit)
+    circuit.set_defaults(run=_run_circuit, imports=("tromplab.circuit", "tromplab.circuit_command"))
 
 
 def _run_circuit(args) -> int:
-    # imported when the command runs: the other commands do not pay for networkx and the
-    # reconciliation at start-up (nothing imports the CLI, so this hides no cycle)
     from .circuit import ErrorModel
     from .circuit_command import console_report, run_circuit
 

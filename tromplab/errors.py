@@ -1,4 +1,4 @@
-"""Errors raised for bad input: each names the file, row and column at fault."""
+"""Errors raised for bad input: each names the file, row and column at fault; and the warnings about input."""
 
 from __future__ import annotations
 
@@ -42,3 +42,13 @@ class OptionError(InputError):
 
 class OutputError(InputError):
     """An output path cannot be used (a file where a folder is needed, not writable, ...)."""
+
+
+# The warnings about input live here, beside the errors, so the command line can set its
+# filters for them without importing the loaders (tromplab.loading offers them too).
+class InputNote(UserWarning):
+    """Something about an input was inferred rather than declared (e.g. a detected CSV dialect)."""
+
+
+class YieldWarning(UserWarning):
+    """A stated yield contradicts the size distributions."""

@@ -14,24 +14,28 @@ from __future__ import annotations
 import argparse
 from dataclasses import fields
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 
-from .classifiers.choice import choose, sieve_speed_problem
-from .classifiers.layer import LayerModel, fit_layer_model
-from .classifiers.pulp import PulpScreen, fit_pulp_screen
+from .classifiers.pulp import PulpScreen
 from .errors import InputError, OptionError
-from .loading.tables import check_input_file, read_table
-from .output.outputs import check_output_file
+from .output.outputs import check_output_file, write_files
 from .validation import check_count, check_non_negative, check_positive, check_probability, check_share, cli_type
-from .workbench import write_atomically
+
+# The parser takes only PulpScreen's fields (its module imports numpy alone until a screen is
+# fitted or optimised); each command imports the models and readers it needs when it runs, so
+# the other commands do not pay for them at start-up.
+if TYPE_CHECKING:
+    import pandas as pd
 
 #: Most cells of a layer and steps of a simulation (a table of steps x cells is kept in memory).
 MAX_CELLS = 1_000
 MAX_STEPS = 1_000_000
 #: Most weights of the Pareto sweep of ``optimize`` (each is one constrained optimisation).
 MAX_WEIGHTS = 1_001
+#: What the layer commands import when they run, imported before they start (see cli.main).
+_LAYER_IMPORTS = ("tromplab.classifiers.layer", "tromplab.loading.tables", "pandas")
 
 
 def add_model_commands(commands) -> None:
@@ -45,12 +49,14 @@ def add_model_commands(commands) -> None:
 def _write_csv(table: pd.DataFrame, output: Path | None) -> None:
     if output is None:
         return
-    written = write_atomically({output.name: lambda p: table.to_csv(p, index=False)}, output.parent)
+    written = write_files({output.name: lambda p: table.to_csv(p, index=False)}, output.parent)
     print(f"\nWrote: {written[output.name]}")
 
 
 def _parameter_table(fit, level: float = 0.95) -> pd.DataFrame:
     """One row per fitted parameter: value, standard error, confidence interval."""
+    import pandas as pd
+
     intervals = fit.confidence_intervals(level) if fit.success else {}
     return pd.DataFrame(
         [
@@ -82,6 +88,8 @@ def _print_fit(fit, table: pd.DataFrame, level: float) -> None:
 
 def _check_paths(args) -> None:
     """Input and ``-o`` checked before any work, as ``tromplab fit`` does (exit 1, nothing written)."""
+    from .loading.tables import check_input_file
+
     data = getattr(args, "data", None)
     if data is not None:
         check_input_file(data)
@@ -136,7 +144,7 @@ def _add_layer(commands) -> None:
     fit.add_argument("--fit-threshold", action="store_true", help="also identify the lock threshold (profiled)")
     _level_option(fit)
     fit.add_argument("-o", "--output", type=Path, default=None, help="CSV of the identified parameters")
-    fit.set_defaults(run=run_layer_fit)
+    fit.set_defaults(run=run_layer_fit, imports=_LAYER_IMPORTS)
 
 
 def _layer_options_parser() -> argparse.ArgumentParser:
@@ -211,7 +219,7 @@ def _add_layer_simulate(layer_commands, shared) -> None:
     simulate.add_argument(
         "-o", "--output", type=Path, default=None, help="CSV of every step (step, time, C_1..C_m, extraction, locked)"
     )
-    simulate.set_defaults(run=run_layer_simulate)
+    simulate.set_defaults(run=run_layer_simulate, imports=_LAYER_IMPORTS)
 
 
 def _initial(args) -> list[float]:
@@ -229,6 +237,8 @@ def _initial(args) -> list[float]:
 
 
 def run_layer_simulate(args) -> int:
+    from .classifiers.layer import LayerModel
+
     _check_paths(args)
     try:
         model = LayerModel(
@@ -262,6 +272,9 @@ def run_layer_simulate(args) -> int:
 
 
 def run_layer_fit(args) -> int:
+    from .classifiers.layer import fit_layer_model
+    from .loading.tables import read_table
+
     _check_paths(args)
     table = read_table(args.data)
     table.require("extraction")
@@ -355,7 +368,7 @@ def _add_pulp(commands) -> None:
         default=None,
         help="applied pressure drop H': find the best pulsation frequency",
     )
-    optimum.set_defaults(run=run_pulp_optimum)
+    optimum.set_defaults(run=run_pulp_optimum, imports=("scipy.optimize",))
 
     fit = pulp_commands.add_parser("fit", parents=[model], help="fit model coefficients to measured productivity")
     fit.add_argument("data", type=Path, help="CSV or .xlsx with applied_pressure, frequency, productivity")
@@ -368,7 +381,7 @@ def _add_pulp(commands) -> None:
     )
     _level_option(fit)
     fit.add_argument("-o", "--output", type=Path, default=None, help="CSV of the fitted coefficients")
-    fit.set_defaults(run=run_pulp_fit)
+    fit.set_defaults(run=run_pulp_fit, imports=("tromplab.curves.fitting", "tromplab.loading.tables", "pandas"))
 
 
 def _pulp_screen(args):
@@ -401,6 +414,9 @@ def run_pulp_optimum(args) -> int:
 
 
 def run_pulp_fit(args) -> int:
+    from .classifiers.pulp import fit_pulp_screen
+    from .loading.tables import read_table
+
     _check_paths(args)
     table = read_table(args.data)
     table.require("applied_pressure", "frequency", "productivity")
@@ -436,7 +452,7 @@ def _add_optimize(commands) -> None:
     _add_sieve_options(optimize.add_argument_group("sieve (defaults: the kinetics paper's example)"))
     _add_choice_options(optimize.add_argument_group("choice"))
     optimize.add_argument("-o", "--output", type=Path, default=None, help="CSV of the Pareto front (l1, V, Q, E, success)")
-    optimize.set_defaults(run=run_optimize)
+    optimize.set_defaults(run=run_optimize, imports=("tromplab.classifiers.choice", "tromplab.loading.tables", "pandas"))
 
 
 def _add_sieve_options(group) -> None:
@@ -510,6 +526,8 @@ def _add_choice_options(choice) -> None:
 
 
 def run_optimize(args) -> int:
+    from .classifiers.choice import choose, sieve_speed_problem
+
     _check_paths(args)
     if not args.speed_min < args.speed_max:
         raise OptionError("--speed-min", f"must be below --speed-max, got {args.speed_min:g} and {args.speed_max:g}")

@@ -18,12 +18,16 @@ readable guess :math:`\alpha = \beta H^r`, :math:`a = \lambda H^s` (spec section
 from __future__ import annotations
 
 from dataclasses import dataclass, fields, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy import optimize
 
-from ..curves.fitting import ParameterFit, least_squares
 from ..curves.parameters import Parameter
+
+# scipy and lmfit are imported where a screen is optimised or fitted: the command line builds
+# its pulp options from PulpScreen's fields at start-up, which then costs numpy alone
+if TYPE_CHECKING:
+    from ..curves.fitting import ParameterFit
 
 
 @dataclass(frozen=True)
@@ -94,6 +98,8 @@ class PulpScreen:
 
     def best_pressure_drop(self, frequency, *, bounds=(1e-6, 100.0)) -> tuple[float, float]:
         """``(H', Q)`` maximising the productivity at a fixed frequency (bounded search)."""
+        from scipy import optimize
+
         result = optimize.minimize_scalar(
             lambda h: -self.productivity(h, frequency), bounds=bounds, method="bounded", options={"xatol": 1e-10}
         )
@@ -105,6 +111,8 @@ class PulpScreen:
         ``interior`` is False when the best frequency is the upper bound: the productivity
         still rises there, as it does for every frequency when ``phi = 0``.
         """
+        from scipy import optimize
+
         log_low, log_high = np.log(bounds[0]), np.log(bounds[1])
         result = optimize.minimize_scalar(
             lambda u: -self.productivity(applied, np.exp(u)),
@@ -132,6 +140,8 @@ def fit_pulp_screen(applied, frequency, productivity, *, fitted=("beta", "lam"),
     ``beta, r, lam, s, phi, tau, delay``); the others come from ``fixed``.  Residuals are
     relative, so small and large rates weigh alike.
     """
+    from ..curves.fitting import least_squares
+
     base = fixed or PulpScreen()
     applied, frequency, productivity = (np.asarray(v, dtype=float) for v in (applied, frequency, productivity))
     if not applied.shape == frequency.shape == productivity.shape:

@@ -18,6 +18,7 @@ References
 
 from __future__ import annotations
 
+import importlib
 import math
 import re
 from collections.abc import Callable, Mapping
@@ -25,9 +26,28 @@ from dataclasses import dataclass, field
 from functools import cache, lru_cache
 
 import numpy as np
-from scipy import optimize, special
 
 from .parameters import Parameter, d_cut_parameter
+
+
+class _ImportedOnFirstUse:
+    """A module imported when one of its names is first used, each name then kept as an attribute.
+
+    Reading fitted parameters back (``tromplab export``) evaluates curves of numpy alone: it
+    need not import scipy.special and scipy.optimize (a fifth of a second) with the registry.
+    """
+
+    def __init__(self, name: str):
+        self._name = name
+
+    def __getattr__(self, attribute: str):
+        value = getattr(importlib.import_module(self._name), attribute)
+        setattr(self, attribute, value)  # later uses are plain attribute look-ups
+        return value
+
+
+special = _ImportedOnFirstUse("scipy.special")
+optimize = _ImportedOnFirstUse("scipy.optimize")
 
 LN2 = np.log(2.0)
 SHUVALOV_2018 = (

@@ -45,9 +45,9 @@ from scipy import stats
 
 from ..errors import InputError
 from ..loading.tables import read_table
+from ..options import RANK_BY
 from .screening import DEFAULT_ALPHA, EXACT_FIT_RMS, critical_f
 
-RANK_BY = {"F": False, "aicc": True}  # criterion -> lower is better
 #: Relative difference of F below which two formulas share their rank.
 F_TIE_RTOL = 1e-4
 #: Absolute AICc difference below which two formulas share their rank.

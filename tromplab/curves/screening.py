@@ -15,8 +15,7 @@ from functools import lru_cache
 import numpy as np
 from scipy import stats
 
-DEFAULT_ALPHA = 0.05
-
+from ..options import DEFAULT_ALPHA
 
 #: Residuals with a root mean square below this (partition units: 1e-5 %) are solver and
 #: rounding noise - three orders below the best measured partition (about 1e-4) and at the

@@ -57,7 +57,8 @@ from typing import NamedTuple
 import numpy as np
 import pandas as pd
 
-from ..errors import InputError
+from ..errors import InputError, YieldWarning
+from ..options import DEFAULT_MIN_FEED_SHARE, DEFAULT_SUM_TOLERANCE_PCT, KINDS, PARTITION_METHODS
 from ..validation import check_non_negative, check_optional, check_positive, check_probability, check_share, check_water_recovery
 from .kelsall import kelsall_corrected
 from .points import TrompPoints, experiment_rows, normal_unit, points_from_table, resolve_size_unit, size_column_unit
@@ -68,10 +69,8 @@ logger = logging.getLogger(__name__)
 
 STREAMS = ("feed", "fine", "coarse")
 STREAM_ALIASES = {"overflow": "fine", "underflow": "coarse"}  # hydrocyclone wording
-KINDS = ("mass", "pct", "frac", "retained_pct", "retained_frac", "passing_pct", "passing_frac")
 CUMULATIVE_KINDS = {"retained_pct", "retained_frac", "passing_pct", "passing_frac"}
 SIZE_STEMS = ("size", "size_lower", "size_upper", "size_class", "size_representative")
-PARTITION_METHODS = ("products", "feed")
 PARTITION_METHOD_TEXT = {  # how each partition method reads in outputs
     "products": "both products, y b / (y b + (1 - y) c)",
     "feed": "the fine stream over the measured feed, y b / a",
@@ -80,13 +79,7 @@ PARTITION_METHOD_TEXT = {  # how each partition method reads in outputs
 YIELD_COLUMNS = {"fine_yield": "fine", "overflow_yield": "fine", "coarse_yield": "coarse", "underflow_yield": "coarse"}
 YIELD_MARGIN = 1e-9  # an estimated yield this close to 0 or 1 means one product is empty
 MASS_YIELD_TOLERANCE = 0.005  # |stated - implied| fine yield above which two product masses contradict a stated yield
-DEFAULT_SUM_TOLERANCE_PCT = 1.5
-DEFAULT_MIN_FEED_SHARE = 0.002
 PARTITION_SLACK = 0.02
-
-
-class YieldWarning(UserWarning):
-    """A stated yield contradicts the size distributions."""
 
 
 @dataclass(frozen=True)

@@ -29,14 +29,17 @@ approximated.  The conventions, and what each parameter means, are tabulated in
 
 from __future__ import annotations
 
+import csv
+import io
 import math
+import os
+import sys
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from scipy import optimize
 
 from ..curves.formulas import LN2, get_formula, whiten_beta_star
 from ..errors import InputError
@@ -71,6 +74,58 @@ class Export:
     table: pd.DataFrame
     skipped: tuple[tuple[str, str, str], ...]  # (experiment, formula, reason)
 
+    def write_csv(self, path) -> None:
+        """Write ``table`` to ``path`` as ``table.to_csv(path, index=False)`` writes it, byte for byte."""
+        write_csv(self.table, path)
+
+
+def write_csv(table: pd.DataFrame, path) -> None:
+    """``table.to_csv(path, index=False)``, the same bytes, for a table of float and text columns
+    in about half the time: pandas wrote the 180,000 rows of a csv-long export (21 MB) through
+    the csv module row by row and spelled every float with numpy (0.4 s of a 1 s command).
+    Here each distinct text is quoted once by the csv module, the floats are spelled by
+    ``repr`` (numpy's spelling: tests/test_export.py checks both against pandas), and the lines
+    are joined.  Other tables are left to pandas."""
+    plain = table.shape[1] > 1 and table.columns.is_unique and not isinstance(table.columns, pd.MultiIndex)
+    columns = [_csv_fields(table[name]) for name in table.columns] if plain else [None]
+    if any(fields is None for fields in columns):  # one column (a lone blank is quoted), or not float nor text
+        table.to_csv(path, index=False)
+        return
+    header = ",".join(_csv_quoted([str(name) for name in table.columns]))
+    with open(path, "w", encoding="utf-8", newline="") as stream:
+        stream.write(os.linesep.join([header, *map(",".join, zip(*columns))]) + os.linesep)
+
+
+def _csv_fields(column: pd.Series) -> list[str] | None:
+    """The cells of ``column`` as pandas writes them (blank where missing), or None for a column
+    that is neither float nor text."""
+    missing = column.isna().to_numpy()
+    if column.dtype == np.float64:
+        fields = list(map(repr, column.to_numpy().tolist()))
+    else:
+        codes, texts = column.factorize()  # missing cells: code -1; pyarrow's for text columns
+        texts = texts.tolist()
+        if not all(isinstance(text, str) for text in texts):
+            return None
+        fields = np.asarray([*_csv_quoted(texts), ""], dtype=object)[codes].tolist()
+    for row in np.flatnonzero(missing).tolist():
+        fields[row] = ""
+    return fields
+
+
+def _csv_quoted(texts: list[str]) -> list[str]:
+    """Each text as the csv module writes a field of a row (quoted where pandas' writer quotes it)."""
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator=os.linesep)  # pandas' dialect: quotes texts holding a line break
+    ends = len("," + os.linesep)
+    fields = []
+    for text in texts:
+        writer.writerow([text, ""])
+        fields.append(buffer.getvalue()[:-ends])
+        buffer.seek(0)
+        buffer.truncate()
+    return fields
+
 
 def read_fits(path) -> list[FittedCurve]:
     """The successful fits of a ``fits.csv`` (or of the ``fits.csv`` in folder ``path``).
@@ -88,31 +143,64 @@ def read_fits(path) -> list[FittedCurve]:
         raise InputError("no fits.csv here: give the output folder of 'tromplab fit' or its fits.csv", source=str(path))
     table = read_table(path, columns=(*FITS_COLUMNS, "extras"))  # 10 of the 77 columns: a tenth of the memory
     table.require(*FITS_COLUMNS)
-    ok = table.boolean("success")
-    d_cut, shape = table.numeric("d_cut", allow_blank=True), table.numeric("shape", allow_blank=True)
-    bypass, fishhook = table.numeric("bypass", allow_blank=True), table.numeric("fishhook", allow_blank=True)
-    # whole columns once, as Python lists: a row read through the frame cost about 0.1 ms (most
-    # of the 5 s that 90,000 rows took), a numpy scalar per value still a microsecond or two
-    columns = {"d_cut": d_cut.tolist(), "shape": shape.tolist(), "bypass": bypass.tolist(), "fishhook": fishhook.tolist()}
-    experiments = table.frame["experiment"].astype(str).tolist()
-    formula_ids = table.frame["formula"].astype(str).tolist()
-    texts = table.frame["extras"].tolist() if "extras" in table.frame.columns else [""] * len(table.frame)
-    formulas = {}
-    fits = []
-    for i in np.flatnonzero(ok).tolist():
+    ok = np.flatnonzero(table.boolean("success"))
+    # whole columns once, of the successful rows (a row read through the frame cost about 0.1 ms),
+    # and Python floats for the records (a numpy scalar per value cost a microsecond or two)
+    numbers = {name: table.numeric(name, allow_blank=True)[ok] for name in ("d_cut", "shape", "bypass", "fishhook")}
+    texts = table.frame["extras"].to_numpy(dtype=object)[ok] if "extras" in table.frame.columns else np.full(ok.size, "")
+    formulas = table.frame["formula"].astype(str).to_numpy(dtype=object)[ok]
+    codes, formula_ids = pd.factorize(formulas, use_na_sentinel=False)  # a blank formula is refused below, as any unknown
+    experiments = table.frame["experiment"].astype(str).to_numpy(dtype=object)[ok].tolist()
+    fits, errors = [None] * ok.size, []  # errors: (position, error) of the first fault of each formula
+    for code, formula_id in enumerate(formula_ids):  # the fits of each formula at once
+        at = np.flatnonzero(codes == code)
         try:
-            formula = formulas.get(formula_ids[i]) or formulas.setdefault(formula_ids[i], get_formula(formula_ids[i]))
+            formula = get_formula(formula_id)
         except KeyError as error:
-            raise table.error(str(error.args[0]), index=i, column="formula") from None
-        extras = {
-            extra.name: columns[extra.name][i] if extra.name in columns else _extra_from_text(table, i, extra.name, str(texts[i]))
-            for extra in formula.extras
-        }
-        cut, slope = columns["d_cut"][i], columns["shape"][i]
-        if not (math.isfinite(cut) and math.isfinite(slope) and all(math.isfinite(v) for v in extras.values())):
-            raise table.error("a successful fit with a missing parameter value", index=i, column="d_cut")
-        fits.append(FittedCurve(experiments[i], formula.id, cut, slope, extras))
+            errors.append((at[0], table.error(str(error.args[0]), index=int(ok[at[0]]), column="formula")))
+            continue
+        extras = {extra.name: _extra_values(table, ok[at], extra.name, numbers, texts[at], at) for extra in formula.extras}
+        cuts, shapes = numbers["d_cut"][at], numbers["shape"][at]
+        bad = ~(np.isfinite(cuts) & np.isfinite(shapes))
+        for values in extras.values():
+            bad |= ~np.isfinite(values)  # a value missing from the text is nan here, refused in its own words
+        if bad.any():
+            first = int(np.flatnonzero(bad)[0])
+            errors.append((at[first], _fit_error(table, int(ok[at[first]]), formula, numbers, texts[at[first]])))
+            continue
+        names, columns = list(extras), [values.tolist() for values in extras.values()]
+        for position, cut, shape, *values in zip(at.tolist(), cuts.tolist(), shapes.tolist(), *columns):
+            fits[position] = FittedCurve(experiments[position], formula.id, cut, shape, dict(zip(names, values)))
+    if errors:  # the first row at fault, with the error reading the rows in order meets first
+        raise min(errors, key=lambda found: found[0])[1]
     return fits
+
+
+def _extra_values(table, rows: np.ndarray, name: str, numbers: dict, texts: np.ndarray, at: np.ndarray) -> np.ndarray:
+    """The fitted values of extra parameter ``name`` in table ``rows`` (positions ``at`` among the
+    successful fits): its own column, else the ``extras`` text (``name=VALUE; ...``), nan where
+    the text has no value."""
+    if name in numbers:
+        return numbers[name][at]
+    values = []
+    for row, text in zip(rows.tolist(), texts.tolist()):
+        try:
+            values.append(_extra_from_text(table, row, name, str(text)))
+        except InputError:
+            values.append(math.nan)
+    return np.asarray(values, dtype=float)
+
+
+def _fit_error(table, row: int, formula, numbers: dict, text) -> InputError:
+    """Why the successful fit at table ``row`` cannot be read: its first extra without a value in
+    the text, else a missing parameter value."""
+    for extra in formula.extras:
+        if extra.name not in numbers:
+            try:
+                _extra_from_text(table, row, extra.name, str(text))
+            except InputError as error:
+                return error
+    return table.error("a successful fit with a missing parameter value", index=row, column="d_cut")
 
 
 def _extra_from_text(table, index: int, name: str, text: str) -> float:
@@ -184,13 +272,88 @@ def _dyssol(fit: FittedCurve, scale: float) -> dict | None:
 def _actual_cut(curve: Callable[[float], float]) -> float:
     """Relative size where the actual curve (with bypass) crosses 1/2; nan when it never does."""
     low, high = 1e-6, 1.0
-    if curve(low) < 0.5:
+    at_low = curve(low)
+    if at_low < 0.5:
         return np.nan
-    while curve(high) > 0.5:
+    while (at_high := curve(high)) > 0.5:
         high *= 2.0
         if high > 1e6:
             return np.nan
-    return float(optimize.brentq(lambda x: curve(x) - 0.5, low, high, xtol=1e-14))
+    # the curve at the ends is known: half of the evaluations of a root that ends at once (Lynch's)
+    return _brentq(lambda x: curve(x) - 0.5, low, high, xtol=1e-14, ends=(at_low - 0.5, at_high - 0.5))
+
+
+#: scipy.optimize.brentq's defaults: relative tolerance 4 machine epsilons, at most 100 steps.
+BRENTQ_RTOL, BRENTQ_ITERATIONS = 4 * sys.float_info.epsilon, 100
+
+
+def _brentq(f: Callable[[float], float], a: float, b: float, *, xtol: float, ends: tuple[float, float] | None = None) -> float:
+    """The root of ``f`` in ``[a, b]`` by ``scipy.optimize.brentq``'s algorithm, step for step
+    (a transcription of scipy's brentq.c on Python floats, so every root is the same double).
+
+    An export evaluates thousands of curves: scipy.optimize alone took a fifth of a second to
+    import, longer than these roots take.  tests/test_export.py checks the roots against scipy's.
+    ``ends``: ``f(a)`` and ``f(b)`` when the caller has them.
+    """
+    x_previous, x_current = float(a), float(b)
+    f_previous = _checked_value(f(x_previous) if ends is None else ends[0], x_previous)
+    f_current = _checked_value(f(x_current) if ends is None else ends[1], x_current)
+    if f_previous == 0.0:
+        return x_previous
+    if f_current == 0.0:
+        return x_current
+    if math.copysign(1.0, f_previous) == math.copysign(1.0, f_current):
+        raise ValueError("f(a) and f(b) must have different signs")
+    x_block = f_block = step_previous = step_current = 0.0
+    for _ in range(BRENTQ_ITERATIONS):
+        if f_previous != 0.0 and f_current != 0.0 and math.copysign(1.0, f_previous) != math.copysign(1.0, f_current):
+            x_block, f_block = x_previous, f_previous
+            step_previous = step_current = x_current - x_previous
+        if abs(f_block) < abs(f_current):  # the best estimate is the one with the smaller value
+            x_previous, x_current, x_block = x_current, x_block, x_current
+            f_previous, f_current, f_block = f_current, f_block, f_current
+        delta = (xtol + BRENTQ_RTOL * abs(x_current)) / 2
+        bisection = (x_block - x_current) / 2
+        if f_current == 0.0 or abs(bisection) < delta:
+            return x_current
+        step_previous, step_current = _brent_step(
+            x_previous, x_current, x_block, f_previous, f_current, f_block, step_previous, step_current, delta, bisection
+        )
+        x_previous, f_previous = x_current, f_current
+        if abs(step_current) > delta:
+            x_current += step_current
+        else:
+            x_current += delta if bisection > 0 else -delta
+        f_current = _checked_value(f(x_current), x_current)
+    raise RuntimeError(f"Failed to converge after {BRENTQ_ITERATIONS} iterations.")
+
+
+def _brent_step(x_previous, x_current, x_block, f_previous, f_current, f_block, step_previous, step_current, delta, bisection):
+    """The next two steps of brentq: an interpolated one when it is short enough, else bisection."""
+    if abs(step_previous) > delta and abs(f_current) < abs(f_previous):
+        try:
+            if x_previous == x_block:  # linear interpolation
+                trial = -f_current * (x_current - x_previous) / (f_current - f_previous)
+            else:  # inverse quadratic extrapolation
+                slope_previous = (f_previous - f_current) / (x_previous - x_current)
+                slope_block = (f_block - f_current) / (x_block - x_current)
+                trial = (
+                    -f_current
+                    * (f_block * slope_block - f_previous * slope_previous)
+                    / (slope_block * slope_previous * (f_block - f_previous))
+                )
+        except ZeroDivisionError:  # C's division gives an infinite or undefined step: it bisects
+            return bisection, bisection
+        if 2 * abs(trial) < min(abs(step_previous), 3 * abs(bisection) - delta):
+            return step_current, trial
+    return bisection, bisection
+
+
+def _checked_value(value, x: float) -> float:
+    value = float(value)  # a Python float, as scipy's C code takes it: numpy scalars warn where C does not
+    if math.isnan(value):
+        raise ValueError(f"The function value at x={x} is NaN; solver cannot continue.")
+    return value
 
 
 #: Convention -> (converter, its columns in order)
@@ -255,10 +418,12 @@ PARAMETER_MEANINGS = {
 
 def _long_table(fits, size_unit) -> pd.DataFrame:
     columns = {name: [] for name in ("experiment", "formula", "parameter", "value", "unit", "meaning")}
+    add_parameter, add_value = columns["parameter"].append, columns["value"].append
+    add_unit, add_meaning = columns["unit"].append, columns["meaning"].append
     sized_unit = size_unit or "size unit of the fit"
-    described = {}  # formula id -> {parameter: (unit, meaning)}: the same for every fit of a formula
+    formulas, described = {}, {}  # formula id -> its record, and -> {parameter: (unit, meaning)}: the same for every fit
     for fit in fits:
-        formula = get_formula(fit.formula)
+        formula = formulas.get(fit.formula) or formulas.setdefault(fit.formula, get_formula(fit.formula))
         values = {"d_cut": fit.d_cut, formula.shape_name: fit.shape, **fit.extras}
         if fit.formula == "whiten":
             values["beta_star"] = whiten_beta_star(fit.shape, fit.extras["fishhook"])
@@ -272,8 +437,13 @@ def _long_table(fits, size_unit) -> pd.DataFrame:
             described[fit.formula] = {
                 name: (sized_unit if name in ("d_cut", "sigma", "ep") else "-", meanings.get(name, "")) for name in values
             }
-        for name, value in values.items():
-            unit, meaning = described[fit.formula][name]
-            for column, item in zip(columns, (fit.experiment, fit.formula, name, value, unit, meaning)):
-                columns[column].append(item)
+        units = described[fit.formula]
+        for name, value in values.items():  # bound appends: a loop over the six columns per row took half the time
+            unit, meaning = units[name]
+            add_parameter(name)
+            add_value(value)
+            add_unit(unit)
+            add_meaning(meaning)
+        columns["experiment"] += [fit.experiment] * len(values)
+        columns["formula"] += [fit.formula] * len(values)
     return pd.DataFrame(columns)

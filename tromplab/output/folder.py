@@ -17,19 +17,12 @@ from pathlib import Path
 import pandas as pd
 
 from ..errors import OptionError
+from ..options import AUTO_FIGURE_LIMIT, FIGURE_CHOICES, TABLE_FORMATS
 from .outputs import figure_file_names, replace_folder, write_files
 from .plotting import offscreen_axes, plot_batch_overview, plot_tromp_fits, save_figure
 from .results import batch_files
 from .views import partition_view
 from .workbook import write_workbook
-
-#: Above this many experiments, ``figures="auto"`` draws one overview figure instead of one
-#: figure per experiment (every fit is still in the fits table).
-AUTO_FIGURE_LIMIT = 20
-#: What ``figures`` may be: every fit per experiment, the top-ranked one, auto, or none.
-FIGURE_CHOICES = ("auto", "all", "best", "none")
-#: Formats of the tables (parquet needs pyarrow).
-TABLE_FORMATS = ("csv", "parquet")
 
 
 def check_folder_options(*, figures: str, format: str) -> None:

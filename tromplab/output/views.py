@@ -10,8 +10,7 @@ from __future__ import annotations
 
 import pandas as pd
 
-#: The products a partition can be read to.
-PARTITION_TO = ("fine", "coarse")
+from ..options import PARTITION_TO
 
 
 def check_partition_to(partition_to: str) -> str:

@@ -27,6 +27,7 @@ from ..curves.measured import measured_efficiency, normalised_weights
 from ..curves.parameters import Parameter, d_cut_parameter
 from ..errors import InputError
 from ..loading.points import TrompPoints
+from ..options import DEFAULT_MARGIN
 
 
 @dataclass(frozen=True)
@@ -117,11 +118,6 @@ def nested_tests(fits: Sequence[CurveFit]) -> pd.DataFrame:
         rows.append({"experiment": experiment, "formula": formula_id, "nests": reduced.formula.id,
                      "nested_F": test.F, "nested_p": test.p_value})  # fmt: skip
     return pd.DataFrame(rows, columns=["experiment", "formula", *NESTED_COLUMNS])
-
-
-#: Relative margin of practical equivalence of :meth:`SharedFit.conclusion` (and of
-#: ``tromplab compare --margin``): estimates within 1 % of each other are equal for practice.
-DEFAULT_MARGIN = 0.01
 
 
 @dataclass(frozen=True)

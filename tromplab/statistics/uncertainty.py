@@ -46,12 +46,10 @@ from ..curves.intervals import (
 )
 from ..curves.measured import parameter_specs
 from ..loading.points import TrompPoints
+from ..options import BOOTSTRAP_METHODS
 from ..validation import check_bootstrap, check_optional, check_probability, check_seed
 
 logger = logging.getLogger(__name__)
-
-#: How the bootstrap resamples: the residuals of the fit (added to the fitted curve) or whole points.
-BOOTSTRAP_METHODS = ("residuals", "cases")
 
 
 @dataclass(frozen=True)

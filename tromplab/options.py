@@ -1,0 +1,41 @@
+"""Choices and defaults of options, declared once for the library and the command line.
+
+The modules that use them import them from here (and still offer them under their old
+names: ``tromplab.curves.ranking.RANK_BY`` is this ``RANK_BY``).  This module imports
+nothing, so the command line builds its parser, and answers ``--version`` and ``-h``,
+without importing the numerical libraries behind the commands.
+"""
+
+# --- lab tables (tromplab.loading.lab) ---------------------------------------------------
+#: What plain feed/fine/coarse columns of a lab table may hold.
+KINDS = ("mass", "pct", "frac", "retained_pct", "retained_frac", "passing_pct", "passing_frac")
+#: How the partition of three measured streams is computed: from both products or from the feed.
+PARTITION_METHODS = ("products", "feed")
+#: Allowed deviation of per-class percentages from 100 (percentage points).
+DEFAULT_SUM_TOLERANCE_PCT = 1.5
+#: Classes with a smaller feed share (fraction) are left out of the fit.
+DEFAULT_MIN_FEED_SHARE = 0.002
+
+# --- screening and ranking (tromplab.curves) ---------------------------------------------
+#: Significance level of the Fisher screen.
+DEFAULT_ALPHA = 0.05
+#: Ranking criterion -> whether lower is better.
+RANK_BY = {"F": False, "aicc": True}
+
+# --- uncertainty and comparison (tromplab.statistics) ------------------------------------
+#: How the bootstrap resamples: the residuals of the fit (added to the fitted curve) or whole points.
+BOOTSTRAP_METHODS = ("residuals", "cases")
+#: Relative margin of practical equivalence of :meth:`SharedFit.conclusion` (and of
+#: ``tromplab compare --margin``): estimates within 1 % of each other are equal for practice.
+DEFAULT_MARGIN = 0.01
+
+# --- outputs (tromplab.output) -----------------------------------------------------------
+#: The products a partition can be read to.
+PARTITION_TO = ("fine", "coarse")
+#: Above this many experiments, ``figures="auto"`` draws one overview figure instead of one
+#: figure per experiment (every fit is still in the fits table).
+AUTO_FIGURE_LIMIT = 20
+#: What ``figures`` may be: every fit per experiment, the top-ranked one, auto, or none.
+FIGURE_CHOICES = ("auto", "all", "best", "none")
+#: Formats of the tables (parquet needs pyarrow).
+TABLE_FORMATS = ("csv", "parquet")
