@@ -7,8 +7,6 @@ import re
 import numpy as np
 import pandas as pd
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 from scipy import special
 
@@ -205,63 +203,28 @@ def test_a_large_export_prints_its_first_rows_and_writes_them_all(fits_dir, tmp_
     assert re.search(r"and \d+ more", capsys.readouterr().out)
 
 
-def _brentq_cases():
-    """Functions and brackets of every kind brentq meets: the export's own curves near their cut,
-    smooth and steep functions, flat stretches, steps, roots on a bracket end and values far from 1."""
-    rng = np.random.default_rng(24)
-    whiten, rosin_rammler = get_formula("whiten"), get_formula("rosin_rammler")
-    cases = []
-    for alpha, bypass, fishhook in zip(rng.uniform(0.5, 10, 60), rng.uniform(0, 0.6, 60), rng.uniform(0, 1, 60)):
-        cases.append((lambda x, a=alpha, c=bypass, b=fishhook: float(whiten.phi(x, a, bypass=c, fishhook=b)) - 0.5, 1e-6, 8.0))
-    for m, bypass in zip(rng.uniform(0.1, 30, 60), rng.uniform(0, 0.4, 60)):
-        cases.append((lambda x, m=m, c=bypass: float((1 - c) * rosin_rammler.phi(x, m)) - 0.5, 1e-6, 4.0))
-    for root, power, scale in zip(rng.uniform(-3, 3, 60), rng.integers(1, 9, 60), 10.0 ** rng.uniform(-200, 200, 60)):
-        cases.append((lambda x, r=root, p=power, s=scale: s * math.copysign(abs(x - r) ** p, x - r), -5.0, 5.0))
-    cases += [
-        (lambda x: math.tanh(50 * (x - 0.3)), -1.0, 1.0),
-        (lambda x: min(max(x - 0.25, -0.1), 0.1), -3.0, 7.0),  # flat at both ends
-        (lambda x: 1.0 if x < 0.123 else -1.0, 0.0, 1.0),  # a step: bisection to the end
-        (lambda x: 1e-200 if x < 0.5 else -1e-200, 0.0, 1.0),  # products of values underflow to 0
-        (lambda x: 0.5 - x, 0.5, 2.0),  # root on the lower end
-        (lambda x: 0.5 - x, -1.0, 0.5),  # and on the upper
-        (lambda x: x**3 - 2 * x - 5, 2.0, 3.0),
-    ]
-    return cases
-
-
-def _outcome(solve, *arguments, **keywords):
-    """The root found, or the refusal (its type and words)."""
-    try:
-        return solve(*arguments, **keywords)
-    except (ValueError, RuntimeError) as refusal:
-        return type(refusal), str(refusal)
-
-
-def test_the_exports_brentq_finds_scipys_roots_to_the_last_bit():
+def test_the_actual_cut_is_scipys_brentq_root_with_the_same_refusals():
     from scipy import optimize
 
-    from tromplab.output.export import _brentq
+    from tromplab.output.export import _actual_cut
 
-    outcomes = []
-    for f, low, high in _brentq_cases():
-        for xtol in (1e-14, 2e-12, 1e-3):
-            outcomes.append(_outcome(_brentq, f, low, high, xtol=xtol))
-            assert outcomes[-1] == _outcome(optimize.brentq, f, low, high, xtol=xtol)
-            assert _outcome(_brentq, f, low, high, xtol=xtol, ends=(f(low), f(high))) == outcomes[-1]
-    assert sum(isinstance(found, float) for found in outcomes) > 0.8 * len(outcomes)  # mostly roots, not refusals
-
-
-def test_the_exports_brentq_refuses_what_scipys_refuses():
-    from tromplab.output.export import _actual_cut, _brentq
-
-    with pytest.raises(ValueError, match="f\\(a\\) and f\\(b\\) must have different signs"):
-        _brentq(lambda x: 1e-200, 0.0, 1.0, xtol=1e-14)  # same sign, though the product underflows
-    with pytest.raises(ValueError, match="The function value at x=0.0 is NaN; solver cannot continue."):
-        _brentq(lambda x: math.nan, 0.0, 1.0, xtol=1e-14)
-    with pytest.raises(ValueError, match="The function value at x=1.0 is NaN; solver cannot continue."):
-        _brentq(lambda x: math.nan if x > 0.7 else 0.5 - x, 0.0, 1.0, xtol=1e-14)
+    whiten, rosin_rammler = get_formula("whiten"), get_formula("rosin_rammler")
+    rng = np.random.default_rng(24)
+    curves = [
+        lambda x, a=a, c=c, b=b: float(whiten.phi(x, a, bypass=c, fishhook=b))
+        for a, c, b in rng.uniform(0, 1, (40, 3)) * [10, 0.4, 1]
+    ]
+    curves += [lambda x, m=m, c=c: float((1 - c) * rosin_rammler.phi(x, m)) for m, c in rng.uniform(0, 1, (40, 2)) * [30, 0.4]]
+    curves.append(lambda x: float(whiten.phi(x, 3.0)))  # Lynch's curve: 1/2 at x = 1 exactly
+    for curve in curves:
+        found = _actual_cut(curve)
+        high = 1.0
+        while curve(high) > 0.5:
+            high *= 2.0
+        assert found == optimize.brentq(lambda x, curve=curve: curve(x) - 0.5, 1e-6, high, xtol=1e-14)
+    assert _actual_cut(curves[-1]) == 1.0
     with pytest.raises(ValueError, match="The function value at x=1e-06 is NaN; solver cannot continue."):
-        _actual_cut(lambda x: math.nan)  # as scipy's brentq said of it
+        _actual_cut(lambda x: math.nan)  # scipy's brentq's words
     assert math.isnan(_actual_cut(lambda x: 0.4)) and math.isnan(_actual_cut(lambda x: 0.6))
     assert _actual_cut(lambda x: 1.0 - x / 4) == 2.0
 
@@ -311,50 +274,6 @@ def test_fits_of_several_formulas_are_read_in_the_files_order(tmp_path):
         ("c", "whiten", 80.0, 2.0, {"bypass": 0.2, "fishhook": 0.3}),
         ("d", "plitt", 90.0, 2.5, {}),
     ]
-
-
-CELLS = st.one_of(
-    st.none(),
-    st.text(alphabet=st.sampled_from("ab ,;\"'\n\r\tµé#"), max_size=8),
-)
-FLOATS = st.one_of(
-    st.floats(allow_nan=True, allow_infinity=True), st.sampled_from([0.0, -0.0, 1e16, 1e-5, 0.1, 66.98419291165737])
-)
-
-
-@settings(max_examples=400, deadline=None)
-@given(
-    data=st.data(), rows=st.integers(0, 6), kinds=st.lists(st.sampled_from(["float", "text", "str", "int", "mixed"]), max_size=5)
-)
-def test_write_csv_writes_the_bytes_of_pandas_to_csv(tmp_path_factory, data, rows, kinds):
-    from tromplab.output.export import write_csv
-
-    columns = {}
-    for k, kind in enumerate(kinds):
-        if kind == "float":
-            columns[f"f{k}"] = pd.Series(data.draw(st.lists(FLOATS, min_size=rows, max_size=rows)), dtype=float)
-        elif kind in ("text", "str"):
-            cells = data.draw(st.lists(CELLS, min_size=rows, max_size=rows))
-            columns[f"t,{k}" if k % 2 else f"t{k}"] = pd.Series(cells, dtype=object if kind == "text" else "str")
-        elif kind == "int":
-            columns[f"i{k}"] = pd.Series(data.draw(st.lists(st.integers(-5, 5), min_size=rows, max_size=rows)), dtype=int)
-        else:
-            columns[f"m{k}"] = pd.Series(
-                data.draw(st.lists(st.one_of(CELLS, FLOATS), min_size=rows, max_size=rows)), dtype=object
-            )
-    table = pd.DataFrame(columns, index=range(rows))
-    folder = tmp_path_factory.mktemp("csv")
-    table.to_csv(folder / "pandas.csv", index=False)
-    write_csv(table, folder / "ours.csv")
-    assert (folder / "ours.csv").read_bytes() == (folder / "pandas.csv").read_bytes()
-
-
-@pytest.mark.parametrize("convention", ["whiten", "plitt", "dyssol", "csv-long"])
-def test_an_export_is_written_as_pandas_writes_its_table(fits_dir, tmp_path, convention):
-    result = export_fits(fits_dir, convention, size_unit="um")
-    result.write_csv(tmp_path / "ours.csv")
-    result.table.to_csv(tmp_path / "pandas.csv", index=False)
-    assert (tmp_path / "ours.csv").read_bytes() == (tmp_path / "pandas.csv").read_bytes()
 
 
 def test_the_export_command_leaves_the_cycle_collector_as_it_found_it(fits_dir, tmp_path, capsys):

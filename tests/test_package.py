@@ -186,7 +186,7 @@ def test_version_and_help_load_no_numerical_stack_beyond_numpy(argv):
     assert sorted(name for name in loaded if name.split(".")[0] in ("scipy", "pandas") or name in NOT_AT_START_UP) == []
 
 
-def test_an_export_loads_neither_scipy_nor_the_fitting_stack(tmp_path):
+def test_an_export_loads_neither_scipys_submodules_nor_the_fitting_stack(tmp_path):
     fits = tmp_path / "fits.csv"
     fits.write_text(
         "experiment,formula,d_cut,shape_name,shape,bypass,fishhook,success,extras\n"
@@ -198,7 +198,10 @@ def test_an_export_loads_neither_scipy_nor_the_fitting_stack(tmp_path):
     for convention in ("whiten", "plitt", "csv-long"):
         loaded = _loaded_by_command("export", str(tmp_path), "--to", convention, "-q", "-o", str(tmp_path / "out.csv"))
         assert "tromplab.output.export" in loaded
-        assert sorted(name for name in loaded if name.split(".")[0] == "scipy" or name in NOT_AT_START_UP) == []
+        # scipy's package itself is light (2 ms); its numerical submodules load when first used
+        # (scipy.optimize for the root of a curve with bypass)
+        numerical = {"scipy.special", "scipy.optimize", "scipy.stats", "scipy.integrate", "scipy.linalg"}
+        assert sorted(name for name in loaded if name in numerical or name in NOT_AT_START_UP) == []
 
 
 # A command imports its modules before it starts its work (cli.main, on_start): until then an

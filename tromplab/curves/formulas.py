@@ -18,7 +18,6 @@ References
 
 from __future__ import annotations
 
-import importlib
 import math
 import re
 from collections.abc import Callable, Mapping
@@ -26,28 +25,9 @@ from dataclasses import dataclass, field
 from functools import cache, lru_cache
 
 import numpy as np
+import scipy  # scipy.special and scipy.optimize load when first used: tromplab export needs neither
 
 from .parameters import Parameter, d_cut_parameter
-
-
-class _ImportedOnFirstUse:
-    """A module imported when one of its names is first used, each name then kept as an attribute.
-
-    Reading fitted parameters back (``tromplab export``) evaluates curves of numpy alone: it
-    need not import scipy.special and scipy.optimize (a fifth of a second) with the registry.
-    """
-
-    def __init__(self, name: str):
-        self._name = name
-
-    def __getattr__(self, attribute: str):
-        value = getattr(importlib.import_module(self._name), attribute)
-        setattr(self, attribute, value)  # later uses are plain attribute look-ups
-        return value
-
-
-special = _ImportedOnFirstUse("scipy.special")
-optimize = _ImportedOnFirstUse("scipy.optimize")
 
 LN2 = np.log(2.0)
 SHUVALOV_2018 = (
@@ -269,7 +249,7 @@ def molerus(x, km1):
     0.0066928509
     """
     x = _as_array(x)
-    return special.expit(km1 * (1.0 - x * x))
+    return scipy.special.expit(km1 * (1.0 - x * x))
 
 
 # --- (4) Molerus-Hoffmann --------------------------------------------------------------
@@ -312,7 +292,7 @@ def molerus_hoffmann(x, km2):
     0.0351981161
     """
     x = _as_array(x)
-    return special.expit(km2 * (1.0 - x * x) - 2.0 * _log(x))
+    return scipy.special.expit(km2 * (1.0 - x * x) - 2.0 * _log(x))
 
 
 # --- (5) Rosin-Rammler form ------------------------------------------------------------
@@ -359,8 +339,8 @@ def rosin_rammler(x, kr):
 def _rosin_rammler_area(lower, upper, kr):
     """Integral of the Rosin-Rammler form from ``lower`` to ``upper`` (closed form)."""
     a = 1.0 / kr
-    scale = special.gamma(a) * LN2 ** (-a) / kr
-    return scale * (special.gammainc(a, LN2 * upper**kr) - special.gammainc(a, LN2 * lower**kr))
+    scale = scipy.special.gamma(a) * LN2 ** (-a) / kr
+    return scale * (scipy.special.gammainc(a, LN2 * upper**kr) - scipy.special.gammainc(a, LN2 * lower**kr))
 
 
 def _rosin_rammler_efficiency(kr, x_max):
@@ -469,13 +449,13 @@ def plitt(x, ks):
     0.2285714286
     """
     x = _as_array(x)
-    return special.expit(-ks * _log(x))
+    return scipy.special.expit(-ks * _log(x))
 
 
 def _plitt_efficiency(ks, x_max):
     def area_to(upper):
         a = 1.0 / ks
-        return upper * special.hyp2f1(1.0, a, 1.0 + a, -(upper**ks))
+        return upper * scipy.special.hyp2f1(1.0, a, 1.0 + a, -(upper**ks))
 
     eta = area_to(1.0)
     return eta, area_to(np.maximum(x_max, 1.0)) - eta
@@ -523,7 +503,7 @@ def ogawa_allen(x, kp):
     0.1969503133
     """
     x = _as_array(x)
-    return special.expit(kp * (1.0 - x) - _log(x))
+    return scipy.special.expit(kp * (1.0 - x) - _log(x))
 
 
 # --- (9) log-normal --------------------------------------------------------------------
@@ -565,7 +545,7 @@ def lognormal(x, kf):
     0.2367586858
     """
     x = _as_array(x)
-    return 0.5 * special.erfc(_log(x) / kf)
+    return 0.5 * scipy.special.erfc(_log(x) / kf)
 
 
 def _lognormal_efficiency(kf, x_max):
@@ -601,15 +581,17 @@ def _lognormal_efficiency(kf, x_max):
     the cut: its absolute error stays at 1e-16, its relative error grows as
     ``1e-16 / (X - 1)``.
     """
-    eta = 0.5 + 0.5 * special.erfcx(kf / 2.0)
+    eta = 0.5 + 0.5 * scipy.special.erfcx(kf / 2.0)
     big_x = np.maximum(x_max, 1.0)
     log_x = np.log(big_x)
     ratio = log_x / kf
     c = kf / 2.0 - ratio
     with np.errstate(over="ignore", invalid="ignore"):  # each branch where the other is taken may overflow
-        shifted = np.where(c >= 0.0, np.exp(log_x - ratio * ratio) * special.erfcx(c), np.exp(kf * kf / 4.0) * special.erfc(c))
-    g = shifted - special.erfcx(kf / 2.0)
-    eps = 0.5 * (big_x - 1.0) * special.erfc(ratio) + 0.5 * (g - special.erf(ratio))
+        shifted = np.where(
+            c >= 0.0, np.exp(log_x - ratio * ratio) * scipy.special.erfcx(c), np.exp(kf * kf / 4.0) * scipy.special.erfc(c)
+        )
+    g = shifted - scipy.special.erfcx(kf / 2.0)
+    eps = 0.5 * (big_x - 1.0) * scipy.special.erfc(ratio) + 0.5 * (g - scipy.special.erf(ratio))
     return eta, eps[()]
 
 
@@ -688,7 +670,7 @@ def shuvalov_break(kr: float, measured_efficiency: float) -> float:
         raise NoBreakPointError(kr, measured_efficiency, eta_plain)
     if measured_efficiency == eta_plain:
         return 0.0
-    return optimize.brentq(lambda xa: _plateau_efficiency(kr, 1.0, xa)[0] - measured_efficiency, 0.0, 1.0, xtol=1e-14)
+    return scipy.optimize.brentq(lambda xa: _plateau_efficiency(kr, 1.0, xa)[0] - measured_efficiency, 0.0, 1.0, xtol=1e-14)
 
 
 class NoBreakPointError(ValueError):
@@ -799,8 +781,8 @@ def shuvalov_breaks(kr, efficiency) -> np.ndarray:
     # once, and eta_5 = _rosin_rammler_area(0, 1, k) = scale * whole (gammainc(a, 0) = 0)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         a = 1.0 / kr
-        scale = special.gamma(a) * LN2 ** (-a) / kr
-        whole = special.gammainc(a, LN2)
+        scale = scipy.special.gamma(a) * LN2 ** (-a) / kr
+        whole = scipy.special.gammainc(a, LN2)
         eta_plain = scale * (whole - 0.0)
     result = np.where(efficiency < 0.5, 1.0, 0.0)
     solve = (efficiency >= 0.5) & (efficiency < eta_plain)
@@ -815,7 +797,7 @@ def shuvalov_breaks(kr, efficiency) -> np.ndarray:
         x = ww ** exponent[open_]
         power = x**kk
         phi = np.exp(-LN2 * power)
-        value = x * phi + scale[open_] * (whole[open_] - special.gammainc(a[open_], LN2 * power)) - target[open_]
+        value = x * phi + scale[open_] * (whole[open_] - scipy.special.gammainc(a[open_], LN2 * power)) - target[open_]
         lo = np.where(value > 0, ww, low[open_])
         hi = np.where(value > 0, high[open_], ww)
         newton = ww + value * (kk + 1.0) / (LN2 * kk * phi)
@@ -871,7 +853,7 @@ def _lynch_shape_for_slope(s):
         return 1e-6
     if target >= -_lynch_slope(high):
         return high
-    return optimize.brentq(lambda kl: -_lynch_slope(kl) - target, low, high, xtol=1e-14)
+    return scipy.optimize.brentq(lambda kl: -_lynch_slope(kl) - target, low, high, xtol=1e-14)
 
 
 def _rosin_rammler_shape_for_slope(s):
@@ -1210,7 +1192,7 @@ def _beta_star_of(alpha: float, fishhook: float) -> float:
     high = 1.0
     while gap(high) > 0.0:
         high *= 2.0
-    return optimize.brentq(gap, 0.0, high, xtol=1e-14)
+    return scipy.optimize.brentq(gap, 0.0, high, xtol=1e-14)
 
 
 def whiten(x, alpha, *, bypass=0.0, fishhook=0.0):
@@ -1350,7 +1332,7 @@ def normal_linear(x, sigma_rel):
     0.158655
     """
     x = _as_array(x)
-    return 0.5 * special.erfc((x - 1.0) / (np.sqrt(2.0) * sigma_rel))
+    return 0.5 * scipy.special.erfc((x - 1.0) / (np.sqrt(2.0) * sigma_rel))
 
 
 def logistic_linear(x, imperfection):
@@ -1394,7 +1376,7 @@ def logistic_linear(x, imperfection):
     0.25
     """
     x = _as_array(x)
-    return special.expit(-LN3 * (x - 1.0) / imperfection)
+    return scipy.special.expit(-LN3 * (x - 1.0) / imperfection)
 
 
 def teipel_hennig(x, k, *, th_alpha=1.0, bypass=0.0):
@@ -1550,7 +1532,7 @@ def evaluate_expression(text: str, values: Mapping[str, object], functions: Mapp
         functions = {
             "exp": np.exp,
             "ln": np.log,
-            "erfc": special.erfc,
+            "erfc": scipy.special.erfc,
             "sqrt": np.sqrt,
             "max": np.maximum,
             "pi": np.pi,

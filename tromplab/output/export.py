@@ -29,17 +29,14 @@ approximated.  The conventions, and what each parameter means, are tabulated in
 
 from __future__ import annotations
 
-import csv
-import io
 import math
-import os
-import sys
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
+import scipy
 
 from ..curves.formulas import LN2, get_formula, whiten_beta_star
 from ..errors import InputError
@@ -75,56 +72,8 @@ class Export:
     skipped: tuple[tuple[str, str, str], ...]  # (experiment, formula, reason)
 
     def write_csv(self, path) -> None:
-        """Write ``table`` to ``path`` as ``table.to_csv(path, index=False)`` writes it, byte for byte."""
-        write_csv(self.table, path)
-
-
-def write_csv(table: pd.DataFrame, path) -> None:
-    """``table.to_csv(path, index=False)``, the same bytes, for a table of float and text columns
-    in about half the time: pandas wrote the 180,000 rows of a csv-long export (21 MB) through
-    the csv module row by row and spelled every float with numpy (0.4 s of a 1 s command).
-    Here each distinct text is quoted once by the csv module, the floats are spelled by
-    ``repr`` (numpy's spelling: tests/test_export.py checks both against pandas), and the lines
-    are joined.  Other tables are left to pandas."""
-    plain = table.shape[1] > 1 and table.columns.is_unique and not isinstance(table.columns, pd.MultiIndex)
-    columns = [_csv_fields(table[name]) for name in table.columns] if plain else [None]
-    if any(fields is None for fields in columns):  # one column (a lone blank is quoted), or not float nor text
-        table.to_csv(path, index=False)
-        return
-    header = ",".join(_csv_quoted([str(name) for name in table.columns]))
-    with open(path, "w", encoding="utf-8", newline="") as stream:
-        stream.write(os.linesep.join([header, *map(",".join, zip(*columns))]) + os.linesep)
-
-
-def _csv_fields(column: pd.Series) -> list[str] | None:
-    """The cells of ``column`` as pandas writes them (blank where missing), or None for a column
-    that is neither float nor text."""
-    missing = column.isna().to_numpy()
-    if column.dtype == np.float64:
-        fields = list(map(repr, column.to_numpy().tolist()))
-    else:
-        codes, texts = column.factorize()  # missing cells: code -1; pyarrow's for text columns
-        texts = texts.tolist()
-        if not all(isinstance(text, str) for text in texts):
-            return None
-        fields = np.asarray([*_csv_quoted(texts), ""], dtype=object)[codes].tolist()
-    for row in np.flatnonzero(missing).tolist():
-        fields[row] = ""
-    return fields
-
-
-def _csv_quoted(texts: list[str]) -> list[str]:
-    """Each text as the csv module writes a field of a row (quoted where pandas' writer quotes it)."""
-    buffer = io.StringIO()
-    writer = csv.writer(buffer, lineterminator=os.linesep)  # pandas' dialect: quotes texts holding a line break
-    ends = len("," + os.linesep)
-    fields = []
-    for text in texts:
-        writer.writerow([text, ""])
-        fields.append(buffer.getvalue()[:-ends])
-        buffer.seek(0)
-        buffer.truncate()
-    return fields
+        """Write ``table`` to ``path`` (``DataFrame.to_csv``, without the index)."""
+        self.table.to_csv(path, index=False)
 
 
 def read_fits(path) -> list[FittedCurve]:
@@ -279,81 +228,10 @@ def _actual_cut(curve: Callable[[float], float]) -> float:
         high *= 2.0
         if high > 1e6:
             return np.nan
-    # the curve at the ends is known: half of the evaluations of a root that ends at once (Lynch's)
-    return _brentq(lambda x: curve(x) - 0.5, low, high, xtol=1e-14, ends=(at_low - 0.5, at_high - 0.5))
-
-
-#: scipy.optimize.brentq's defaults: relative tolerance 4 machine epsilons, at most 100 steps.
-BRENTQ_RTOL, BRENTQ_ITERATIONS = 4 * sys.float_info.epsilon, 100
-
-
-def _brentq(f: Callable[[float], float], a: float, b: float, *, xtol: float, ends: tuple[float, float] | None = None) -> float:
-    """The root of ``f`` in ``[a, b]`` by ``scipy.optimize.brentq``'s algorithm, step for step
-    (a transcription of scipy's brentq.c on Python floats, so every root is the same double).
-
-    An export evaluates thousands of curves: scipy.optimize alone took a fifth of a second to
-    import, longer than these roots take.  tests/test_export.py checks the roots against scipy's.
-    ``ends``: ``f(a)`` and ``f(b)`` when the caller has them.
-    """
-    x_previous, x_current = float(a), float(b)
-    f_previous = _checked_value(f(x_previous) if ends is None else ends[0], x_previous)
-    f_current = _checked_value(f(x_current) if ends is None else ends[1], x_current)
-    if f_previous == 0.0:
-        return x_previous
-    if f_current == 0.0:
-        return x_current
-    if math.copysign(1.0, f_previous) == math.copysign(1.0, f_current):
-        raise ValueError("f(a) and f(b) must have different signs")
-    x_block = f_block = step_previous = step_current = 0.0
-    for _ in range(BRENTQ_ITERATIONS):
-        if f_previous != 0.0 and f_current != 0.0 and math.copysign(1.0, f_previous) != math.copysign(1.0, f_current):
-            x_block, f_block = x_previous, f_previous
-            step_previous = step_current = x_current - x_previous
-        if abs(f_block) < abs(f_current):  # the best estimate is the one with the smaller value
-            x_previous, x_current, x_block = x_current, x_block, x_current
-            f_previous, f_current, f_block = f_current, f_block, f_current
-        delta = (xtol + BRENTQ_RTOL * abs(x_current)) / 2
-        bisection = (x_block - x_current) / 2
-        if f_current == 0.0 or abs(bisection) < delta:
-            return x_current
-        step_previous, step_current = _brent_step(
-            x_previous, x_current, x_block, f_previous, f_current, f_block, step_previous, step_current, delta, bisection
-        )
-        x_previous, f_previous = x_current, f_current
-        if abs(step_current) > delta:
-            x_current += step_current
-        else:
-            x_current += delta if bisection > 0 else -delta
-        f_current = _checked_value(f(x_current), x_current)
-    raise RuntimeError(f"Failed to converge after {BRENTQ_ITERATIONS} iterations.")
-
-
-def _brent_step(x_previous, x_current, x_block, f_previous, f_current, f_block, step_previous, step_current, delta, bisection):
-    """The next two steps of brentq: an interpolated one when it is short enough, else bisection."""
-    if abs(step_previous) > delta and abs(f_current) < abs(f_previous):
-        try:
-            if x_previous == x_block:  # linear interpolation
-                trial = -f_current * (x_current - x_previous) / (f_current - f_previous)
-            else:  # inverse quadratic extrapolation
-                slope_previous = (f_previous - f_current) / (x_previous - x_current)
-                slope_block = (f_block - f_current) / (x_block - x_current)
-                trial = (
-                    -f_current
-                    * (f_block * slope_block - f_previous * slope_previous)
-                    / (slope_block * slope_previous * (f_block - f_previous))
-                )
-        except ZeroDivisionError:  # C's division gives an infinite or undefined step: it bisects
-            return bisection, bisection
-        if 2 * abs(trial) < min(abs(step_previous), 3 * abs(bisection) - delta):
-            return step_current, trial
-    return bisection, bisection
-
-
-def _checked_value(value, x: float) -> float:
-    value = float(value)  # a Python float, as scipy's C code takes it: numpy scalars warn where C does not
-    if math.isnan(value):
-        raise ValueError(f"The function value at x={x} is NaN; solver cannot continue.")
-    return value
+    if at_low == 0.5 or at_high == 0.5:  # a root on the bracket's end, returned as brentq returns it
+        return low if at_low == 0.5 else high  # (Lynch's curve is 1/2 at x = 1: every fit of it)
+    # scipy.optimize loads here, the first time a root is needed (a fifth of a second of an export)
+    return float(scipy.optimize.brentq(lambda x: curve(x) - 0.5, low, high, xtol=1e-14))
 
 
 #: Convention -> (converter, its columns in order)
