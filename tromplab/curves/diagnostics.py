@@ -104,6 +104,34 @@ def residual_diagnostics(residuals, *, alpha: float = SYSTEMATIC_P) -> ResidualD
     return ResidualDiagnostics(float(runs_p), normality_p, n_runs, alpha)
 
 
+def _signs_and_spreads(vectors: list[np.ndarray]):
+    """Per vector, as :func:`residual_diagnostics` finds them: the runs of the signs of
+    :func:`_signs`, the positive and negative signs, whether the fit is exact (root mean
+    square below :data:`EXACT_FIT_RMS`) and whether Shapiro-Wilk applies (3 values or more,
+    not all equal); on the vectors laid end to end instead of one at a time."""
+    count = len(vectors)
+    lengths = np.array([vector.size for vector in vectors], dtype=int)
+    owner = np.repeat(np.arange(count), lengths)
+    values = np.concatenate(vectors) if count else np.zeros(0)
+    kept = np.abs(values) >= EXACT_FIT_RMS
+    signs, kept_owner = np.sign(values[kept]), owner[kept]
+    n_positive = np.bincount(kept_owner[signs > 0], minlength=count)
+    n_negative = np.bincount(kept_owner[signs < 0], minlength=count)
+    changes = (signs[1:] != signs[:-1]) & (kept_owner[1:] == kept_owner[:-1])
+    n_runs = np.where(n_positive + n_negative > 0, 1 + np.bincount(kept_owner[1:][changes], minlength=count), 0)
+    exact = np.zeros(count, dtype=bool)
+    normal_testable = np.zeros(count, dtype=bool)
+    filled = np.flatnonzero(lengths)
+    if filled.size:
+        starts = np.concatenate(([0], np.cumsum(lengths)[:-1]))[filled]
+        # each vector's own mean, as residual_diagnostics takes it (the same summation)
+        mean_square = np.array([np.mean(vectors[i] ** 2) for i in filled.tolist()])
+        exact[filled] = np.sqrt(mean_square) < EXACT_FIT_RMS
+        spread = np.maximum.reduceat(values, starts) - np.minimum.reduceat(values, starts)
+        normal_testable[filled] = (lengths[filled] >= 3) & (spread > 0)
+    return n_runs, n_positive, n_negative, exact, normal_testable
+
+
 def batch_residual_diagnostics(residuals: Sequence, *, alpha=SYSTEMATIC_P) -> list[ResidualDiagnostics]:
     """:func:`residual_diagnostics` of many residual vectors at once, with the same values.
 
@@ -126,18 +154,10 @@ def batch_residual_diagnostics(residuals: Sequence, *, alpha=SYSTEMATIC_P) -> li
     >>> [d.verdict for d in found], found[0].n_runs
     (['random', 'exact'], 2)
     """
-    vectors = [np.asarray(r, dtype=float) for r in residuals]
+    vectors = [np.asarray(r, dtype=float).ravel() for r in residuals]
     alphas = np.broadcast_to(np.asarray(alpha, dtype=float), (len(vectors),))
     count = len(vectors)
-    n_runs, n_positive, n_negative = np.zeros(count, dtype=int), np.zeros(count, dtype=int), np.zeros(count, dtype=int)
-    exact = np.zeros(count, dtype=bool)
-    normal_testable = np.zeros(count, dtype=bool)
-    for i, vector in enumerate(vectors):
-        signs = _signs(vector)
-        n_runs[i] = 1 + np.count_nonzero(np.diff(signs)) if signs.size else 0
-        n_positive[i], n_negative[i] = np.count_nonzero(signs > 0), np.count_nonzero(signs < 0)
-        exact[i] = bool(vector.size and np.sqrt(np.mean(vector**2)) < EXACT_FIT_RMS)
-        normal_testable[i] = vector.size >= 3 and np.ptp(vector) > 0
+    n_runs, n_positive, n_negative, exact, normal_testable = _signs_and_spreads(vectors)
     runs_p = np.full(count, np.nan)
     # both signs among at least 3 signs, so at least 2 runs (statsmodels' single-run branch never applies)
     testable = ~exact & (n_positive + n_negative >= 3) & (n_positive > 0) & (n_negative > 0)
