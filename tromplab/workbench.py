@@ -679,6 +679,11 @@ def fit_chunk(
     fits = [fits[i] for i in range(len(experiments)) for fits in per_formula]
     attach_indices(fits)
     attach_diagnostics(fits)
+    reasons = {}  # unbracketed is a property of the points, which the formulas of an experiment share
+    for fit in fits:
+        if id(fit.points) not in reasons:
+            reasons[id(fit.points)] = unbracketed_cut(fit.points)
+        fit.__dict__["unbracketed"] = reasons[id(fit.points)]  # where functools.cached_property keeps it
     for fit in fits:
         derive(fit)
     return fits
