@@ -25,8 +25,9 @@ sys.path.insert(0, {here!r})
 from scaling import experiments
 import tromplab.workbench as workbench
 if {without!r}:
-    class _NoFreeze:
+    class _NoFreeze:  # as if the process had frozen objects of its own: the batch then freezes nothing
         freeze = unfreeze = staticmethod(lambda: None)
+        get_freeze_count = staticmethod(lambda: 1)
     workbench.gc = _NoFreeze
 points = experiments({n})
 start = time.perf_counter()
