@@ -89,11 +89,16 @@ def curve_values(formula: Formula, x, shape, extras: dict, efficiency=None, x_br
     if x_break is None:
         # one root per distinct (shape, efficiency): grid rows and Jacobian columns in d_cut share them
         kr, eff = np.broadcast_arrays(np.asarray(shape, dtype=float), np.asarray(efficiency, dtype=float))
-        # a pair as one complex number: np.unique(axis=...) would compare structured rows, whose
-        # dtype promotion runs Python code in which numpy turns a Ctrl-C into a TypeError
-        pairs, inverse = np.unique(kr.ravel() + 1j * eff.ravel(), return_inverse=True)
-        x_break = moving.on_arrays(pairs.real, pairs.imag)[inverse.ravel()].reshape(kr.shape)
+        x_break = distinct_breaks(moving, kr.ravel(), eff.ravel()).reshape(kr.shape)
     return moving.phi(x, shape, x_break)
+
+
+def distinct_breaks(moving, shape: np.ndarray, efficiency: np.ndarray) -> np.ndarray:
+    """The break of each (shape, efficiency) pair of 1-d arrays, one root per distinct pair."""
+    # a pair as one complex number: np.unique(axis=...) would compare structured rows, whose
+    # dtype promotion runs Python code in which numpy turns a Ctrl-C into a TypeError
+    pairs, inverse = np.unique(shape + 1j * efficiency, return_inverse=True)
+    return moving.on_arrays(pairs.real, pairs.imag)[inverse.ravel()]
 
 
 class BatchProblem:
@@ -124,17 +129,14 @@ class BatchProblem:
             return None
         return self.formula.moving_break.on_arrays(params[:, 1], self.efficiency[rows])[:, None]
 
-    def breaks_near(self, params: np.ndarray, rows: np.ndarray, known_params: np.ndarray, known_breaks: np.ndarray):
-        """:meth:`breaks` at ``params``, taken from ``known_breaks`` (the breaks at
-        ``known_params``, row by row) where the shape is the same: one root per distinct
+    def breaks_near(self, params: np.ndarray, rows: np.ndarray, known_shapes: np.ndarray, known_breaks: np.ndarray):
+        """:meth:`breaks` at ``params``, taken from ``known_breaks`` (the breaks at the shapes
+        ``known_shapes``, row by row) where the shape is the same: one root per distinct
         (shape, efficiency) of the others."""
-        same = params[:, 1] == known_params[:, 1]
         found = known_breaks.copy()
-        other = np.flatnonzero(~same)
+        other = np.flatnonzero(params[:, 1] != known_shapes)
         if other.size:
-            kr, efficiency = params[other, 1], self.efficiency[rows[other]]
-            pairs, inverse = np.unique(kr + 1j * efficiency, return_inverse=True)
-            found[other, 0] = self.formula.moving_break.on_arrays(pairs.real, pairs.imag)[inverse.ravel()]
+            found[other, 0] = distinct_breaks(self.formula.moving_break, params[other, 1], self.efficiency[rows[other]])
         return found
 
     def take(self, rows: np.ndarray) -> BatchProblem:

@@ -224,10 +224,7 @@ def compass_search(
         trial_breaks = None
         if x_break is not None:  # the steps in d_cut alone keep the current break
             trial_breaks = problem.breaks_near(
-                flat,
-                trial_rows,
-                np.repeat(params[open_], len(directions), axis=0),
-                np.repeat(x_break[open_], len(directions), axis=0),
+                flat, trial_rows, np.repeat(params[open_, 1], len(directions)), np.repeat(x_break[open_], len(directions), axis=0)
             )
         trial_ssr = sum_of_squares(problem.residual(flat, trial_rows, trial_breaks)).reshape(open_.size, -1)
         nfev[open_] += len(directions)

@@ -783,7 +783,7 @@ def shuvalov_breaks(kr, efficiency) -> np.ndarray:
         a = 1.0 / kr
         scale = scipy.special.gamma(a) * LN2 ** (-a) / kr
         whole = scipy.special.gammainc(a, LN2)
-        eta_plain = scale * (whole - 0.0)
+        eta_plain = scale * whole
     result = np.where(efficiency < 0.5, 1.0, 0.0)
     solve = (efficiency >= 0.5) & (efficiency < eta_plain)
     k, target = kr[solve], efficiency[solve]
