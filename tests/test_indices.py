@@ -290,6 +290,26 @@ def test_batched_indices_equal_the_single_curve_indices(formula):
         assert got.extrapolated == single.extrapolated, (shapes[i], got, single)
 
 
+@pytest.mark.parametrize("formula", [*FORMULAS, get_formula("plitt_bypass")], ids=lambda f: f.id)
+def test_batched_indices_without_epsilon_leave_out_epsilon_alone(formula):
+    """``epsilon=False`` (the model averages) skips epsilon's integral; every other index is
+    the same to the last bit."""
+    from tromplab.curves.indices import batch_index_columns
+
+    shapes, d_cut, delta_max, measured, efficiency_of = _curves_across(formula)
+    extra = {"measured_efficiency": efficiency_of} if formula.context_from_efficiency else {}
+    if formula.bypass_of is not None:
+        extra["bypass"] = np.linspace(0.0, 0.4, shapes.size)
+    full, flags = batch_index_columns(formula, d_cut, shapes, delta_max=delta_max, measured_sizes=measured, **extra)
+    without, flags_without = batch_index_columns(
+        formula, d_cut, shapes, delta_max=delta_max, measured_sizes=measured, epsilon=False, **extra
+    )
+    assert np.isnan(without["epsilon"]).all() and np.isfinite(full["epsilon"]).any()
+    for name in full.keys() - {"epsilon"}:
+        np.testing.assert_array_equal(without[name], full[name], err_msg=name)
+    assert flags_without == [tuple(name for name in flag if name != "epsilon") for flag in flags]
+
+
 @pytest.mark.parametrize("formula", [f for f in FORMULAS if f.efficiency is None], ids=lambda f: f.id)
 @pytest.mark.parametrize("x_max", [1.0, 6.0, 500.0, 1e5])
 def test_batched_quadrature_against_adaptive_quadrature(formula, x_max):

@@ -238,6 +238,17 @@ def test_bootstrap_alone_adds_only_bootstrap_columns(tmp_path):
     assert "d_cut_boot_low" in columns and "d_cut_low" not in columns
 
 
+def test_an_averaged_epsilon_is_integrated_although_the_default_averages_leave_it_out():
+    """The batch's averages skip epsilon's integral (it is not averaged by default); asked
+    for, it is computed and agrees with one curve_indices call per evaluation."""
+    fits = [fit for fit in (fit_formula(synthetic(7, weighted=False), formula) for formula in FORMULAS) if fit.success]
+    averaged = model_average(fits, quantities=("epsilon", "eta"))
+    one_by_one = model_average(fits, quantities=("epsilon", "eta"), known={})
+    assert np.isfinite(averaged[["value", "stderr", "low", "high"]].to_numpy(float)).all()
+    for column in ("value", "stderr", "low", "high"):
+        assert_allclose(averaged[column].to_numpy(float), one_by_one[column].to_numpy(float), rtol=1e-6)
+
+
 def test_batched_delta_method_gives_the_per_fit_averages():
     """Model averages evaluate the delta method's indices for many fits in one batched call
     per formula (issue 11); the numbers agree with one curve_indices call per evaluation."""

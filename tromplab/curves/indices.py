@@ -411,19 +411,23 @@ def batch_curve_indices(
 
 
 def batch_index_columns(
-    formula, d_cut, shape, *, delta_max, measured_sizes=None, measured_efficiency=None, bypass=None
+    formula, d_cut, shape, *, delta_max, measured_sizes=None, measured_efficiency=None, bypass=None, epsilon: bool = True
 ) -> tuple[dict[str, np.ndarray], list[tuple[str, ...]]]:
     """The indices of :func:`batch_curve_indices` as one array per :class:`CurveIndices` field
     (``extrapolated`` aside, returned as the list of each curve's flags): the rows of many
     curves without a result object per curve (the delta method and the bootstrap evaluate
-    tens of thousands)."""
+    tens of thousands).  ``epsilon=False`` leaves epsilon nan, and out of the flags, for a
+    caller that does not report it (the model averages): without a closed form it is the
+    costliest integral."""
     formula = get_formula(formula)
     if not batchable_indices(formula):
         raise ValueError(f"formula {formula.id} has no batched indices; use curve_indices")
     if formula.bypass_of is not None:
         if bypass is None:
             raise ValueError(f"formula {formula.id}: the batched indices need the bypass of each curve")
-        return _bypass_index_columns(formula.bypass_of, d_cut, shape, bypass, delta_max=delta_max, measured_sizes=measured_sizes)
+        return _bypass_index_columns(
+            formula.bypass_of, d_cut, shape, bypass, delta_max=delta_max, measured_sizes=measured_sizes, epsilon=epsilon
+        )
     d_cut, shape, delta_max = (np.atleast_1d(np.asarray(v, dtype=float)) for v in (d_cut, shape, delta_max))
     d_cut, shape, delta_max = np.broadcast_arrays(d_cut, shape, delta_max)
     x_max = delta_max / d_cut
@@ -433,7 +437,7 @@ def batch_index_columns(
     if formula.moving_break is not None:  # (11): x_a of every curve, solved on arrays (within 1e-13 of one by one)
         x_break = formula.moving_break.on_arrays(shape, efficiency_of)
     curve = _curve_on_arrays(formula, shape, x_break)
-    eta, eps = _batched_efficiency(formula, curve, shape, x_max, efficiency_of, x_break)
+    eta, eps = _batched_efficiency(formula, curve, shape, x_max, efficiency_of, x_break, epsilon)
     x25 = _relative_sizes(curve, 0.75, shape.size)
     x75 = _relative_sizes(curve, 0.25, shape.size)
     flags = [()] * shape.size
@@ -450,7 +454,7 @@ def batch_index_columns(
 
 
 def _bypass_index_columns(
-    base: Formula, d_cut, shape, bypass, *, delta_max, measured_sizes
+    base: Formula, d_cut, shape, bypass, *, delta_max, measured_sizes, epsilon: bool
 ) -> tuple[dict[str, np.ndarray], list[tuple[str, ...]]]:
     """:func:`batch_index_columns` of ``base`` with bypass, ``phi = (1 - bypass) phi_base``, by
     the definitions of :func:`curve_indices`: the corrected curve is ``base`` itself (its
@@ -461,7 +465,7 @@ def _bypass_index_columns(
     d_cut, shape, delta_max, bypass = np.broadcast_arrays(
         *(np.atleast_1d(np.asarray(v, dtype=float)) for v in (d_cut, shape, delta_max, bypass))
     )
-    corrected, _ = batch_index_columns(base, d_cut, shape, delta_max=delta_max)
+    corrected, _ = batch_index_columns(base, d_cut, shape, delta_max=delta_max, epsilon=epsilon)
     actual = _scaled_curve(_curve_on_arrays(base, shape, None), 1.0 - bypass)
     eta, eps = (1.0 - bypass) * corrected["eta"], (1.0 - bypass) * corrected["epsilon"]
     d25, d50, d75 = (d_cut * _relative_sizes(actual, level, d_cut.size) for level in (0.75, 0.5, 0.25))
@@ -487,14 +491,17 @@ def _scaled_curve(curve, factor: np.ndarray):
     return scaled
 
 
-def _batched_efficiency(formula: Formula, curve, shape, x_max, efficiency_of, x_break) -> tuple[np.ndarray, np.ndarray]:
+def _batched_efficiency(
+    formula: Formula, curve, shape, x_max, efficiency_of, x_break, epsilon: bool = True
+) -> tuple[np.ndarray, np.ndarray]:
     """eta and eps of each curve: the formula's closed forms on arrays (with the solved breaks
     of a moving break), one curve at a time where the closed form needs the measured
     efficiencies in another way, else batched quadrature.  On arrays the closed forms agree
-    with their values one curve at a time to 1e-15 relative (numpy's vectorised powers)."""
+    with their values one curve at a time to 1e-15 relative (numpy's vectorised powers).
+    ``epsilon=False``: eps is nan (not integrated)."""
     if formula.efficiency is None:
         eta = _pieces_area(curve, np.zeros_like(x_max), np.ones_like(x_max))
-        eps = _pieces_area(curve, np.ones_like(x_max), np.maximum(x_max, 1.0))
+        eps = _pieces_area(curve, np.ones_like(x_max), np.maximum(x_max, 1.0)) if epsilon else np.full(x_max.shape, np.nan)
         return eta, eps
     moving = formula.moving_break
     if moving is not None and moving.efficiency is not None:
@@ -506,6 +513,7 @@ def _batched_efficiency(formula: Formula, curve, shape, x_max, efficiency_of, x_
             formula.efficiency(float(k), float(x), measured_efficiency=float(e)) for k, x, e in zip(shape, x_max, efficiency_of)
         ]
         eta, eps = np.array([float(p[0]) for p in pairs]), np.array([float(p[1]) for p in pairs])
+    eps = eps if epsilon else np.nan  # a closed form gives it with eta: left out alike
     return np.broadcast_to(np.asarray(eta, dtype=float), shape.shape), np.broadcast_to(np.asarray(eps, dtype=float), shape.shape)
 
 
@@ -564,9 +572,12 @@ def _pieces_area(curve, lower: np.ndarray, upper: np.ndarray, x_break=None) -> n
     nodes, weights = _gauss_legendre()
     half = (edges[:, 1:] - edges[:, :-1]) / 2.0
     middle = (edges[:, 1:] + edges[:, :-1]) / 2.0
-    x = middle[..., None] + half[..., None] * nodes
-    values = curve(x)
-    return np.einsum("npk,k,np->n", np.where(half[..., None] > 0, values, 0.0), weights, half)
+    # the curve only on the pieces of positive width (an edge clipped to the limits leaves the
+    # others empty: about half of them for eta, more for the areas outside the measured sizes)
+    curves, pieces = np.nonzero(half > 0)
+    values = np.zeros((*half.shape, nodes.size))
+    values[curves, pieces] = curve(middle[curves, pieces, None] + half[curves, pieces, None] * nodes, curves)
+    return np.einsum("npk,k,np->n", values, weights, half)
 
 
 @lru_cache(maxsize=1)

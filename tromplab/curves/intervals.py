@@ -204,7 +204,7 @@ def _step(value):
     return 1e-5 * np.maximum(np.abs(value), 1e-3)
 
 
-def batched_delta_indices(fits: Sequence[CurveFit], delta_max: float | None = None) -> dict:
+def batched_delta_indices(fits: Sequence[CurveFit], delta_max: float | None = None, *, epsilon: bool = True) -> dict:
     """The indices the delta method of ``fits`` evaluates, computed in one batched call per formula.
 
     The delta method of a fit evaluates its indices at the fitted values and one step
@@ -216,7 +216,8 @@ def batched_delta_indices(fits: Sequence[CurveFit], delta_max: float | None = No
     quadrature agrees with the adaptive one to 1e-9).  For a formula without data-derived
     inputs the gradients and the variances ``g C g^T`` of all its fits are formed on arrays
     too, and ``known`` holds each fit's estimates and standard errors
-    (:func:`delta_indices` reads them).
+    (:func:`delta_indices` reads them).  ``epsilon=False`` leaves epsilon and its error nan
+    (for a caller that does not report it: its integral is the costliest of the indices).
     """
     wanted: dict[str, list] = {}
     plain: dict[str, list] = {}
@@ -244,6 +245,7 @@ def batched_delta_indices(fits: Sequence[CurveFit], delta_max: float | None = No
             [a[1] for a in arguments],
             delta_max=[limit for _, _, limit in evaluations],
             measured_efficiency=efficiency,
+            epsilon=epsilon,
             **{name: [a[2][name] for a in arguments] for name in arguments[0][2]},  # the bypass of bypass curves
         )
         for (fit, values, limit), indices in zip(evaluations, index_array(columns)):
@@ -254,7 +256,7 @@ def batched_delta_indices(fits: Sequence[CurveFit], delta_max: float | None = No
             for shape, efficiency, x_break in zip(shapes, efficiencies, moving.on_arrays(shapes, efficiencies)):
                 known[("break", formula_id, shape, efficiency)] = x_break
     for formula_id, members in plain.items():
-        for (fit, limit), centre, errors in zip(members, *_delta_on_arrays(formula_id, members)):
+        for (fit, limit), centre, errors in zip(members, *_delta_on_arrays(formula_id, members, epsilon)):
             known[_delta_key(fit, limit)] = (centre, errors)
     return known
 
@@ -264,7 +266,7 @@ def index_array(columns: dict[str, np.ndarray]) -> np.ndarray:
     return np.column_stack([columns[name] for name in INDEX_NAMES])
 
 
-def _delta_on_arrays(formula_id: str, members: list) -> tuple[np.ndarray, np.ndarray]:
+def _delta_on_arrays(formula_id: str, members: list, epsilon: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """Indices and their delta-method standard errors of fits ``(fit, delta_max)`` of one formula
     without data-derived inputs, all at once: the central differences of
     :func:`delta_standard_errors` (the same steps) and ``g C g^T`` on arrays."""
@@ -284,6 +286,7 @@ def _delta_on_arrays(formula_id: str, members: list) -> tuple[np.ndarray, np.nda
         sets[..., names.index("d_cut")].ravel(),
         sets[..., shape_at].ravel(),
         delta_max=np.repeat(limits, 1 + 2 * n_params),
+        epsilon=epsilon,
         **{extra.name: sets[..., names.index(extra.name)].ravel() for extra in first.formula.extras},  # the bypass
     )
     table = index_array(columns).reshape(count, 1 + 2 * n_params, -1)

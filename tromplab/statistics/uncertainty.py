@@ -299,7 +299,8 @@ def model_average(
         Smallest share of the Akaike weight the formulas with the quantity must hold.
     known : dict, optional
         Indices of the delta method evaluated beforehand by :func:`batched_delta_indices`
-        (default: evaluated here, batched over these fits).
+        (default: evaluated here, batched over these fits); made with ``epsilon=False``, it
+        serves every quantity but epsilon.
     as_frame : bool
         False: the rows as a list of dicts (a batch builds one table from all experiments'
         rows instead of one per experiment).
@@ -310,7 +311,7 @@ def model_average(
     if len({fit.experiment for fit in good}) > 1:
         raise ValueError("model averaging combines the formulas fitted to one experiment")
     weights = akaike_weights([fit.fit.information_criteria()["aicc"] for fit in good])
-    known = batched_delta_indices(good, delta_max) if known is None else known
+    known = batched_delta_indices(good, delta_max, epsilon="epsilon" in quantities) if known is None else known
     estimates = [_estimates_and_errors(fit, delta_max, known) for fit in good]
     # epsilon: each formula's range [0, x_max - 1] lies inside that of the largest x_max
     widest_x_max = max((fit.options.delta_max if delta_max is None else delta_max) / fit.d_cut for fit in good)
