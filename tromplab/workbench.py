@@ -36,6 +36,7 @@ from .errors import InputError, OptionError
 from .loading.lab import Experiments, MassBalance
 from .loading.points import TrompPoints, points_from_frame
 from .loading.surveys import with_survey_columns
+from .output.csv_parts import CsvPart, csv_part
 from .output.folder import write_results_folder
 from .output.outputs import write_files
 from .output.plotting import plot_tromp_fits
@@ -83,51 +84,17 @@ class Workbench:
 
     @cached_property
     def _output_frame(self) -> pd.DataFrame:
-        table = self._fits_frame
-        if self.intervals is not None:
-            table = table.merge(self.intervals, on=["experiment", "formula"], how="left")
-        return partition_view(with_survey_columns(table, self.inputs), self.partition_to)
+        return output_view(self._fits_frame, self.intervals, self.inputs, self.partition_to)
 
     @cached_property
     def _fits_frame(self) -> pd.DataFrame:
         # built once: the ranking, the best fits, the CLI and the report all read it; the rows
         # of the fits were made by the workers that fitted them (_keep_fit_rows) where there were
         made = self.__dict__.pop("_fit_rows", None)
-        failed = [
-            {
-                "experiment": experiment,
-                "equation": formula.equation,
-                "formula": formula.id,
-                "shape_name": formula.shape_name,
-                "adequate": False,
-                "success": False,
-                "message": reason,
-            }
-            for experiment, reason in self.failures.items()
-            for formula in self.formulas
-        ]
-        table = fit_rows_frame(self.fits) if made is None else made
-        if failed and table.empty:  # no fit: the columns take their types from the failures alone
-            table = pd.DataFrame(failed).reindex(columns=table.columns)
-        elif failed:
-            table = pd.concat([table, pd.DataFrame(failed).reindex(columns=table.columns)], ignore_index=True)
-        table["adequate"] = table["adequate"].astype(bool)
-        table["success"] = table["success"].astype(bool)
-        in_ranking = table["formula"].isin([f.id for f in self.ranked_formulas])
-        ranked = add_ranks(table[in_ranking], by=self.rank_by)
-        table["rank"] = ranked["rank"]  # curves kept out of the ranking get no rank
-        table.loc[table["experiment"].isin(list(self.failures)), "rank"] = np.nan
-        table["delta_aicc"] = add_delta_aicc(table)
-        table = table.reindex(columns=list(FIT_COLUMNS))
-        if self.water_recovery is not None:
-            checks = bypass_against_water_recovery(self.fits, self.water_recovery)
-            table = table.merge(checks, on=["experiment", "formula"], how="left")
-            table["water_recovery"] = self.water_recovery  # failed experiments too
-            table["water_recovery_check"] = table["water_recovery_check"].fillna("")
-        fitted = {f.id for f in self.formulas}
-        if any(f.nests in fitted for f in self.formulas):  # is the bypass (fish-hook) needed? the nested F test
-            table = table.merge(nested_tests(self.fits), on=["experiment", "formula"], how="left")
-        return table
+        settings = fit_row_settings(self.formulas, self.rank_extended, self.rank_by, self.water_recovery)
+        return completed_fit_rows(
+            fit_rows_frame(self.fits) if made is None else made, self.fits, **settings, failures=self.failures
+        )
 
     @property
     def ranked_formulas(self) -> tuple[Formula, ...]:
@@ -234,10 +201,23 @@ class Workbench:
     def _keep_from_workers(self, found: ChunkResults) -> None:
         """What the workers made beside the fits: the rows of the fits (the table
         :func:`fit_rows_frame` makes) and, where they made them, the model averages at the
-        batch's level."""
+        batch's level and the CSV text of both tables (:meth:`formatted_parts`)."""
         self.__dict__["_fit_rows"] = found.rows
         if found.averages is not None:
             self._keep_averages(averages_level(self.ci), found.averages)
+        if found.csv_parts:
+            self.__dict__["_csv_parts"] = found.csv_parts
+
+    def formatted_parts(self, table: str) -> list[CsvPart] | None:
+        """The rows of ``fits.csv`` (``table="fits"``) or ``averages.csv`` (``"averages"``, at the
+        batch's level) as the workers formatted them, chunk by chunk (None where they did not):
+        the results folder joins them instead of formatting the whole table again
+        (:func:`tromplab.output.csv_parts.csv_from_parts`)."""
+        return self.__dict__.get("_csv_parts", {}).get(table)
+
+    def __getstate__(self) -> dict:
+        # the formatted text is for writing this run's folder; a saved batch formats again
+        return {key: value for key, value in self.__dict__.items() if key != "_csv_parts"}
 
     def _keep_averages(self, level: float, table: pd.DataFrame) -> None:
         self._averages_by_level[level] = with_survey_columns(table, self.inputs)
@@ -449,8 +429,17 @@ def fit_experiments(
         failures, fittable = _screenable(experiments)
         wanted = {"level": ci, "n_bootstrap": bootstrap, "method": bootstrap_method, "seed": seed} if ci or bootstrap else None
         averaged = {"level": averages_level(ci), "ranked": ranked_among(chosen, rank_extended)}
+        tables = {**fit_row_settings(chosen, rank_extended, rank_by, settings["water_recovery"]), "partition_to": partition_to}
         found = _fit_in_chunks(
-            fittable, chosen, settings, jobs=jobs, client=cluster, progress=progress, intervals=wanted, averages=averaged
+            fittable,
+            chosen,
+            settings,
+            jobs=jobs,
+            client=cluster,
+            progress=progress,
+            intervals=wanted,
+            averages=averaged,
+            tables=tables,
         )
         bench = Workbench(
             tuple(found.fits), failures, chosen, rank_by, alpha, rank_extended, found.notes, settings["water_recovery"], ci,
@@ -476,6 +465,67 @@ def by_experiment(fits) -> dict[str, list[CurveFit]]:
 def fit_rows_frame(fits) -> pd.DataFrame:
     """One row per fit (``CurveFit.row``) in the columns of ``fits.csv`` before ranking."""
     return pd.DataFrame([fit.row() for fit in fits]).reindex(columns=[c for c in FIT_COLUMNS if c != "rank"])
+
+
+def completed_fit_rows(
+    table: pd.DataFrame, fits, *, failures: dict, formulas, ranked, rank_by: str, water_recovery
+) -> pd.DataFrame:
+    """The fits table of :meth:`Workbench.fits_table` before its intervals and view: ``table``
+    (:func:`fit_rows_frame` of ``fits``) with a row per failed experiment and formula, the
+    ranks among the ``ranked`` formula ids and ``delta_aicc``, the check against the
+    ``water_recovery`` and the nested tests.  Every step works experiment by experiment, so a
+    worker completes the rows of its chunk (without ``failures``) as the whole batch's are."""
+    failed = [
+        {
+            "experiment": experiment,
+            "equation": formula.equation,
+            "formula": formula.id,
+            "shape_name": formula.shape_name,
+            "adequate": False,
+            "success": False,
+            "message": reason,
+        }
+        for experiment, reason in failures.items()
+        for formula in select_formulas(formulas)
+    ]
+    if failed and table.empty:  # no fit: the columns take their types from the failures alone
+        table = pd.DataFrame(failed).reindex(columns=table.columns)
+    elif failed:
+        table = pd.concat([table, pd.DataFrame(failed).reindex(columns=table.columns)], ignore_index=True)
+    table["adequate"] = table["adequate"].astype(bool)
+    table["success"] = table["success"].astype(bool)
+    in_ranking = table["formula"].isin(ranked)
+    table["rank"] = add_ranks(table[in_ranking], by=rank_by)["rank"]  # curves kept out of the ranking get no rank
+    table.loc[table["experiment"].isin(list(failures)), "rank"] = np.nan
+    table["delta_aicc"] = add_delta_aicc(table)
+    table = table.reindex(columns=list(FIT_COLUMNS))
+    if water_recovery is not None:
+        checks = bypass_against_water_recovery(fits, water_recovery)
+        table = table.merge(checks, on=["experiment", "formula"], how="left")
+        table["water_recovery"] = water_recovery  # failed experiments too
+        table["water_recovery_check"] = table["water_recovery_check"].fillna("")
+    fitted = {f.id for f in select_formulas(formulas)}
+    if any(f.nests in fitted for f in select_formulas(formulas)):  # is the bypass (fish-hook) needed? the nested F test
+        table = table.merge(nested_tests(fits), on=["experiment", "formula"], how="left")
+    return table
+
+
+def fit_row_settings(formulas, rank_extended: bool, rank_by: str, water_recovery) -> dict:
+    """The settings of :func:`completed_fit_rows` of a batch of ``formulas``."""
+    return {
+        "formulas": tuple(f.id for f in formulas),
+        "ranked": tuple(f.id for f in ranked_among(formulas, rank_extended)),
+        "rank_by": rank_by,
+        "water_recovery": water_recovery,
+    }
+
+
+def output_view(table: pd.DataFrame, intervals: pd.DataFrame | None, inputs, partition_to: str) -> pd.DataFrame:
+    """:func:`completed_fit_rows` with the ``intervals`` columns, the survey columns of the
+    ``inputs`` and read as partition to ``partition_to``: the table ``fits.csv`` holds."""
+    if intervals is not None:
+        table = table.merge(intervals, on=["experiment", "formula"], how="left")
+    return partition_view(with_survey_columns(table, inputs), partition_to)
 
 
 def ranked_among(formulas, rank_extended: bool) -> tuple[Formula, ...]:
@@ -556,23 +606,36 @@ def _screenable(experiments: Sequence[TrompPoints]) -> tuple[dict[str, str], lis
 
 class ChunkResults(NamedTuple):
     """What :func:`_fit_in_chunks` gathers: the fits, the data notes, the interval columns and
-    the model averages (None when not asked for), and the rows of the fits."""
+    the model averages (None when not asked for), the rows of the fits, and the workers' CSV
+    text of the tables (``{"fits": [CsvPart, ...], "averages": [...]}``, None in one process)."""
 
     fits: list[CurveFit]
     notes: dict
     intervals: pd.DataFrame | None
     averages: pd.DataFrame | None
     rows: pd.DataFrame
+    csv_parts: dict[str, list[CsvPart]] | None = None
 
 
 def _fit_in_chunks(
-    fittable, chosen, settings: dict, *, jobs, client, progress, intervals: dict | None = None, averages: dict | None = None
+    fittable,
+    chosen,
+    settings: dict,
+    *,
+    jobs,
+    client,
+    progress,
+    intervals: dict | None = None,
+    averages: dict | None = None,
+    tables: dict | None = None,
 ) -> ChunkResults:
     """The fits, data notes, (with ``intervals``, the options of
     :func:`~tromplab.statistics.uncertainty.interval_columns``) the interval columns and (with
     ``averages``: ``level`` and the ``ranked`` formulas) the model averages of ``fittable``,
     chunk by chunk in order, wherever the chunks run (the averages only where there are
-    workers: in one process they are made when first asked for).
+    workers: in one process they are made when first asked for).  Where there are workers,
+    each also formats its rows of ``fits.csv`` and ``averages.csv`` (``tables``: the
+    :func:`fit_row_settings` and ``partition_to``), which the main process only joins.
 
     A chunk's intervals are made by the worker that fitted it, right after the fits: the fits
     do not travel to the main process and back again, and each fit's intervals (its bootstrap
@@ -585,8 +648,9 @@ def _fit_in_chunks(
     options["intervals"] = intervals
     options["width"] = max((points.n for points in fittable), default=0)  # one padding for every chunk
     if jobs == 1 and client is None:  # one process: the model averages wait until they are asked for
-        averages = None
+        averages = tables = None
     options["averages"] = None if averages is None else (averages["level"], tuple(f.id for f in averages["ranked"]))
+    options["tables"] = tables
     logger.info(
         "fitting %d experiment(s) x %d formula(s) in %d chunk(s) of up to %d (%s)",
         len(fittable),
@@ -595,12 +659,14 @@ def _fit_in_chunks(
         len(chunks[0]) if chunks else 0,
         "on a Dask cluster" if client is not None else f"jobs={jobs or 'all cores'}",
     )
-    fits, notes, frames, averaged, rows = [], {}, [], [], []
-    for number, (chunk, (chunk_fits, chunk_notes, frame, chunk_averages, chunk_rows)) in enumerate(
+    fits, notes, frames, averaged, rows, parts = [], {}, [], [], [], {}
+    for number, (chunk, (chunk_fits, chunk_notes, frame, chunk_averages, chunk_rows, chunk_parts)) in enumerate(
         zip(chunks, _map_chunks(chunks, options, jobs=jobs, client=client)), 1
     ):
         fits += chunk_fits
         rows.append(chunk_rows)
+        for name, part in (chunk_parts or {}).items():
+            parts.setdefault(name, []).append(part)
         notes.update(chunk_notes)
         averaged += chunk_averages or []
         logger.debug(
@@ -618,6 +684,7 @@ def _fit_in_chunks(
         pd.concat(frames, ignore_index=True) if frames else None,
         None if averages is None else _averages_table(averaged),
         pd.concat(rows, ignore_index=True) if rows else fit_rows_frame([]),
+        parts if tables is not None else None,
     )
 
 
@@ -770,14 +837,26 @@ def _fit_chunk_star(options, chunk):
     # Spearman test per experiment (seconds at 10,000 experiments)
     notes = {points.experiment: found for points in chunk if (found := data_notes(points))}
     options = dict(options)
-    intervals, averages = options.pop("intervals", None), options.pop("averages", None)
+    intervals, averages, tables = options.pop("intervals", None), options.pop("averages", None), options.pop("tables", None)
     fits = fit_chunk(chunk, **options)
     columns = interval_columns(fits, **intervals, width=options["width"]) if intervals else None
     rows = fit_rows_frame(fits)  # the rows of fits.csv too: a serial 40 us per fit in the main process
-    if averages is None:
-        return fits, notes, columns, None, rows
-    level, ranked = averages
-    return fits, notes, columns, _averages_of_chunk(level, _averaged_groups(by_experiment(fits).values(), ranked)), rows
+    averaged = None
+    if averages is not None:
+        level, ranked = averages
+        averaged = _averages_of_chunk(level, _averaged_groups(by_experiment(fits).values(), ranked))
+    parts = None
+    if tables is not None:  # the text of the chunk's rows: 2.2 s of serial formatting at 10,000 experiments
+        tables = dict(tables)
+        partition_to = tables.pop("partition_to")
+        parts = {
+            "fits": csv_part(
+                output_view(completed_fit_rows(rows.copy(), fits, failures={}, **tables), columns, chunk, partition_to)
+            )
+        }
+        if averaged:
+            parts["averages"] = csv_part(with_survey_columns(_averages_table(averaged), chunk))
+    return fits, notes, columns, averaged, rows, parts
 
 
 def _points_and_balances(experiments) -> tuple[list[TrompPoints], tuple[MassBalance, ...]]:

@@ -18,6 +18,7 @@ import pandas as pd
 
 from ..errors import OptionError
 from ..options import AUTO_FIGURE_LIMIT, FIGURE_CHOICES, TABLE_FORMATS
+from .csv_parts import csv_from_parts
 from .outputs import figure_file_names, replace_folder, write_files
 from .plotting import offscreen_axes, plot_batch_overview, plot_tromp_fits, save_figure
 from .results import batch_files
@@ -89,7 +90,7 @@ def write_results_folder(
 
         if only_workbook:
             return write_files({outdir.name: workbook}, outdir.parent)
-    outputs = {f"{name}.{format}": _table_writer(table, format) for name, table in tables.items()}
+    outputs = {f"{name}.{format}": _table_writer(table, format, bench.formatted_parts(name)) for name, table in tables.items()}
     outputs.update({name: (lambda p, png=png: p.write_bytes(png)) for name, png in drawn.items()})
     if figure_names:
         mapping = pd.DataFrame({"experiment": list(figure_names), "file": list(figure_names.values())})
@@ -161,7 +162,18 @@ def _input_sheets(bench) -> dict[str, pd.DataFrame]:
     return {"balance": partition_view(balance, bench.partition_to), "points": partition_view(points, bench.partition_to)}
 
 
-def _table_writer(table: pd.DataFrame, format: str):
+def _table_writer(table: pd.DataFrame, format: str, parts=None):
+    """Writer of ``table`` in ``format``; a CSV joins the rows the workers formatted
+    (``parts``, :mod:`tromplab.output.csv_parts`) where they match the table."""
     if format == "parquet":
         return lambda p: table.to_parquet(p, index=False)
-    return lambda p: table.to_csv(p, index=False)
+
+    def write_csv(path):
+        text = csv_from_parts(table, parts)
+        if text is None:
+            table.to_csv(path, index=False)
+            return
+        with open(path, "w", encoding="utf-8", newline="") as file:  # as to_csv opens it
+            file.write(text)
+
+    return write_csv
