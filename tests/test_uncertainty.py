@@ -173,6 +173,34 @@ def test_model_average_weights_the_formulas():
         model_average([fits[0], fit_formula(experiment(8, name="other"), PLITT)])
 
 
+def test_the_averages_of_many_experiments_are_each_experiments_own():
+    """``averaged_rows`` lays the experiments side by side, padded to the widest; an
+    experiment with fewer formulas (one failed, one missing) gets the rows it gets alone."""
+    groups = [[fit_formula(experiment(seed), formula) for formula in FORMULAS[: 9 - seed % 4]] for seed in range(6)] + [
+        [fit_formula(experiment(40), get_formula("plitt"))]
+    ]
+    blind = groups[2][0]
+    groups[2][0] = dataclasses.replace(blind, fit=dataclasses.replace(blind.fit, stderr={**blind.fit.stderr, "d_cut": np.nan}))
+    together = uncertainty.averaged_rows(groups, quantities=("d50c", "ep", "eta", "epsilon"))
+    for fits, rows in zip(groups, together):
+        alone = model_average(fits, quantities=("d50c", "ep", "eta", "epsilon"))
+        both = pd.DataFrame(rows)
+        assert list(both.columns) == list(alone.columns)
+        for column in both.columns:
+            if not pd.api.types.is_numeric_dtype(both[column]):
+                assert both[column].tolist() == alone[column].tolist(), column
+            else:
+                assert_allclose(both[column].to_numpy(float), alone[column].to_numpy(float), rtol=1e-14, err_msg=column)
+    assert pd.DataFrame(together[2]).set_index("quantity").loc["d50c", "note"].startswith("no standard error")
+
+
+def test_model_average_of_no_quantity_gives_the_weights_alone():
+    fits = [fit_formula(experiment(7), formula) for formula in FORMULAS[:3]]
+    table = model_average(fits, quantities=())
+    assert len(table) == 1 and list(table.columns) == [f"weight_{fit.formula.id}" for fit in fits]
+    assert_allclose(table.iloc[0].sum(), 1.0)
+
+
 def test_model_average_keeps_a_missing_standard_error_missing():
     """Issue 22: a formula without a standard error (lmfit could not estimate it) entered the
     average as if its error were 0, giving a too narrow interval; now the average has none and

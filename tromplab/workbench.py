@@ -45,7 +45,7 @@ from .output.results import load_workbench, workbench_html, workbench_repr
 from .output.views import check_partition_to, partition_view
 from .statistics.compare import nested_tests
 from .statistics.hydrocyclone import bypass_against_water_recovery
-from .statistics.uncertainty import AVERAGED_QUANTITIES, BOOTSTRAP_METHODS, batched_delta_indices, interval_columns, model_average
+from .statistics.uncertainty import BOOTSTRAP_METHODS, averaged_rows, interval_columns
 from .validation import check_bootstrap, check_optional, check_positive, check_probability, check_seed, check_water_recovery
 
 logger = logging.getLogger(__name__)
@@ -964,12 +964,11 @@ def _averages_table(frames: list[pd.DataFrame]) -> pd.DataFrame:
 
 
 def _averages_of_chunk(level, groups) -> list[pd.DataFrame]:
-    # the whole chunk in one call per formula; epsilon only if it is averaged (it is not by default)
-    known = batched_delta_indices([fit for fits in groups for fit in fits], epsilon="epsilon" in AVERAGED_QUANTITIES)
+    # the whole chunk at once: the delta method in one call per formula, each quantity on arrays
     rows = [
         {**row, "experiment": fits[0].experiment}
-        for fits in groups
-        for row in model_average(fits, level=level, known=known, as_frame=False)
+        for fits, experiment_rows in zip(groups, averaged_rows(groups, level=level))
+        for row in experiment_rows
     ]
     # one table per chunk, from all its experiments' rows: the main process then unpickles and
     # concatenates tens of tables, not thousands (about 3 s of serial work at 10,000

@@ -310,64 +310,138 @@ def model_average(
         raise ValueError("no successful fit to average")
     if len({fit.experiment for fit in good}) > 1:
         raise ValueError("model averaging combines the formulas fitted to one experiment")
-    weights = akaike_weights([fit.fit.information_criteria()["aicc"] for fit in good])
-    known = batched_delta_indices(good, delta_max, epsilon="epsilon" in quantities) if known is None else known
-    estimates = [_estimates_and_errors(fit, delta_max, known) for fit in good]
+    (rows,) = averaged_rows([good], quantities=quantities, level=level, delta_max=delta_max, min_share=min_share, known=known)
+    if as_frame:
+        return pd.DataFrame(rows)
+    return rows
+
+
+def averaged_rows(
+    groups: Sequence[Sequence[CurveFit]],
+    *,
+    quantities=AVERAGED_QUANTITIES,
+    level: float = 0.95,
+    delta_max: float | None = None,
+    min_share: float = MIN_WEIGHT_SHARE,
+    known: dict | None = None,
+) -> list[list[dict]]:
+    """The rows of :func:`model_average` of many experiments, each quantity on arrays over all of them.
+
+    ``groups`` holds the successful fits of each experiment; the result holds each
+    experiment's rows (a dict per quantity, with the weight columns; only the weight columns
+    when ``quantities`` is empty).  The arguments are those of :func:`model_average`.
+    """
+    if known is None:
+        known = batched_delta_indices([fit for fits in groups for fit in fits], delta_max, epsilon="epsilon" in quantities)
+    count, width = len(groups), max((len(fits) for fits in groups), default=0)
+    weights = np.zeros((count, width))
+    estimates = [[_estimates_and_errors(fit, delta_max, known) for fit in fits] for fits in groups]
+    for row, fits in enumerate(groups):
+        weights[row, : len(fits)] = akaike_weights([fit.fit.information_criteria()["aicc"] for fit in fits])
     # epsilon: each formula's range [0, x_max - 1] lies inside that of the largest x_max
-    widest_x_max = max((fit.options.delta_max if delta_max is None else delta_max) / fit.d_cut for fit in good)
+    widest_x_max = np.array(
+        [max((fit.options.delta_max if delta_max is None else delta_max) / fit.d_cut for fit in fits) for fits in groups]
+    )
     z = normal_quantile(0.5 + level / 2.0)
-    ids = [fit.formula.id for fit in good]
-    rows = []
+    ids = [[fit.formula.id for fit in fits] for fits in groups]
+    by_quantity = []
     for quantity in quantities:
-        values = np.array([found.get(quantity, (np.nan, np.nan))[0] for found in estimates])
-        errors = np.array([found.get(quantity, (np.nan, np.nan))[1] for found in estimates])
-        row = _averaged_row(quantity, values, errors, weights, ids=ids, z=z, x_max=widest_x_max, min_share=min_share)
-        rows.append(_without_undetermined_interval(good[0], row))
-    weight_columns = {f"weight_{fit.formula.id}": weight for fit, weight in zip(good, weights)}
-    if not rows:  # no quantity asked for: the weights alone
-        if not as_frame:
-            return [dict(weight_columns)]
-        table = pd.DataFrame()
-        for name, weight in weight_columns.items():
-            table[name] = weight
-        return table
-    # the weight columns go into each row: adding them to the frame one by one cost about
-    # 1 ms each (9 ms per experiment, the largest part of the averages of a batch)
-    return pd.DataFrame([{**row, **weight_columns} for row in rows]) if as_frame else [{**row, **weight_columns} for row in rows]
+        values, errors = np.full((count, width), np.nan), np.full((count, width), np.nan)
+        for row, found in enumerate(estimates):
+            for column, each in enumerate(found):
+                values[row, column], errors[row, column] = each.get(quantity, (np.nan, np.nan))
+        averaged = _averaged_quantity(quantity, values, errors, weights, ids=ids, z=z, x_max=widest_x_max, min_share=min_share)
+        by_quantity.append([_without_undetermined_interval(fits[0], each) for fits, each in zip(groups, averaged)])
+    result = []
+    for row, fits in enumerate(groups):
+        weight_columns = {f"weight_{fit.formula.id}": weight for fit, weight in zip(fits, weights[row].tolist())}
+        # the weight columns go into each row: adding them to a frame one by one cost about
+        # 1 ms each (9 ms per experiment, the largest part of the averages of a batch)
+        result.append([{**rows[row], **weight_columns} for rows in by_quantity] if quantities else [weight_columns])
+    return result
 
 
-def _averaged_row(quantity: str, values, errors, weights, *, ids: list[str], z: float, x_max: float, min_share: float) -> dict:
-    """One row of :func:`model_average`: the Akaike-weighted average of one quantity over the
-    formulas where it is defined (``values`` and ``errors`` per formula, nan where undefined)."""
+def _averaged_quantity(quantity: str, values, errors, weights, *, ids, z: float, x_max, min_share: float) -> list[dict]:
+    """The rows of one quantity of :func:`averaged_rows`: ``values``, ``errors`` and Akaike
+    ``weights`` as ``(experiments, formulas)`` arrays (nan where a formula does not define the
+    quantity or was not fitted), ``ids`` the formulas of each experiment."""
     usable = np.isfinite(values) & (weights > 0)
-    share = float(weights[usable].sum())
-    row = {
-        "quantity": quantity,
-        "value": np.nan,
-        "stderr": np.nan,
-        "low": np.nan,
-        "high": np.nan,
-        "method": "",
-        "akaike_share": share,
-        "n_formulas": int(usable.sum()),
-        "note": "",
-    }
-    if share < min_share or not usable.any():
-        row["note"] = (
-            f"not averaged: defined only for formulas holding {share:.2%} of the Akaike weight (less than {min_share:.0%})"
-        )
-        return row
-    w = weights[usable] / share
-    theta, se = values[usable], errors[usable]  # a missing se stays missing: the average's is then unknown
-    mean = float(np.sum(w * theta))
-    row.update(value=mean, stderr=float(np.sum(w * np.sqrt(se**2 + (theta - mean) ** 2))))
-    used_ids = [name for name, used in zip(ids, usable) if used]
-    row.update(_averaged_interval(quantity, w, theta, se, mean, ids=used_ids, z=z, x_max=x_max))
-    if share < 1.0 - 1e-9:
-        row["note"] = (
-            row["note"] or f"averaged over the {int(usable.sum())} formulas where it is defined ({share:.2%} of the weight)"
-        )
-    return row
+    share = np.where(usable, weights, 0.0).sum(axis=1)
+    n_formulas = usable.sum(axis=1)
+    averaged = (share >= min_share) & (n_formulas > 0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        w = np.where(usable, weights, 0.0) / np.where(averaged, share, 1.0)[:, None]
+        theta = np.where(usable, values, 0.0)
+        se = np.where(usable, errors, 0.0)  # a missing se stays missing: the average's is then unknown
+        mean = (w * theta).sum(axis=1)
+        stderr = (w * np.sqrt(se**2 + (theta - mean[:, None]) ** 2)).sum(axis=1)
+    intervals = _averaged_intervals(quantity, usable & averaged[:, None], w, theta, se, mean, z=z, x_max=x_max)
+    rows = []
+    for row in range(values.shape[0]):
+        found = {
+            "quantity": quantity,
+            "value": np.nan,
+            "stderr": np.nan,
+            "low": np.nan,
+            "high": np.nan,
+            "method": "",
+            "akaike_share": float(share[row]),
+            "n_formulas": int(n_formulas[row]),
+            "note": "",
+        }
+        if not averaged[row]:
+            found["note"] = (
+                f"not averaged: defined only for formulas holding {share[row]:.2%} of the Akaike weight (less than {min_share:.0%})"
+            )
+            rows.append(found)
+            continue
+        found.update(value=float(mean[row]), stderr=float(stderr[row]))
+        missing = np.flatnonzero(usable[row] & ~np.isfinite(errors[row]))
+        if missing.size:
+            found["note"] = (
+                f"no standard error and no interval: the fit of {', '.join(ids[row][i] for i in missing)} "
+                f"({float(w[row, missing].sum()):.2%} of the weight) gives no standard error of {quantity}"
+            )
+        elif intervals[row] is None:
+            found["note"] = "no interval: an estimate lies on the edge of the quantity's range"
+        else:
+            found.update(intervals[row])
+        if share[row] < 1.0 - 1e-9:
+            found["note"] = found["note"] or (
+                f"averaged over the {int(n_formulas[row])} formulas where it is defined ({share[row]:.2%} of the weight)"
+            )
+        rows.append(found)
+    return rows
+
+
+def _averaged_intervals(quantity: str, used, w, theta, se, mean, *, z: float, x_max) -> list[dict | None]:
+    """``low, high, method`` of each experiment's average, made on the scale of the quantity's
+    domain around ``g(mean)`` and transformed back; None where an estimate (or the average)
+    is not strictly inside the domain.  ``used``: the formulas in each average."""
+    found: list[dict | None] = [None] * len(mean)
+    domains = [quantity_domain(quantity, x_max=limit) for limit in x_max]
+    for domain in {id(d): d for d in domains}.values():  # the experiments whose quantity shares a domain
+        rows = np.flatnonzero([d is domain for d in domains])
+        inside = _strictly_inside(domain, mean[rows]) & np.all(_strictly_inside(domain, theta[rows]) | ~used[rows], axis=1)
+        rows = rows[inside]
+        if not rows.size:
+            continue
+        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+            centre = np.where(used[rows], theta[rows], mean[rows, None])  # unused formulas: no spread, no error
+            g_mean = domain.forward(mean[rows])
+            spread = (se[rows] * domain.slope(centre)) ** 2 + (domain.forward(centre) - g_mean[:, None]) ** 2
+            se_g = (w[rows] * np.sqrt(np.where(used[rows], spread, 0.0))).sum(axis=1)
+            ends = np.sort(np.stack([domain.backward(g_mean - z * se_g), domain.backward(g_mean + z * se_g)], axis=1), axis=1)
+        method = interval_method("akaike", domain)
+        for row, (low, high) in zip(rows.tolist(), ends.tolist()):
+            found[row] = {"low": low, "high": high, "method": method}
+    return found
+
+
+def _strictly_inside(domain, value) -> np.ndarray:
+    """:meth:`Domain.inside` on arrays."""
+    value = np.asarray(value, dtype=float)
+    return np.isfinite(value) & (domain.lower < value) & (value < domain.upper)
 
 
 def _without_undetermined_interval(fit, row: dict) -> dict:
@@ -377,24 +451,6 @@ def _without_undetermined_interval(fit, row: dict) -> dict:
     if not is_withheld(kept["flag"]) or not np.isfinite(row["value"]):
         return row
     return {**row, "low": np.nan, "high": np.nan, "method": "none", "note": kept["flag"]}
-
-
-def _averaged_interval(quantity: str, w, theta, se, mean: float, *, ids: list[str], z: float, x_max: float) -> dict:
-    """``low, high, method`` of the interval of an Akaike-weighted average, made on the scale of the
-    quantity's domain around ``g(mean)`` and transformed back; or the ``note`` saying why there is none."""
-    domain = quantity_domain(quantity, x_max=x_max)
-    without_se = [name for name, error in zip(ids, se) if not np.isfinite(error)]
-    if without_se:
-        return {
-            "note": f"no standard error and no interval: the fit of {', '.join(without_se)} "
-            f"({float(w[~np.isfinite(se)].sum()):.2%} of the weight) gives no standard error of {quantity}"
-        }
-    if not (domain.inside(mean) and all(domain.inside(t) for t in theta)):
-        return {"note": "no interval: an estimate lies on the edge of the quantity's range"}
-    g_mean = domain.forward(mean)
-    se_g = float(np.sum(w * np.sqrt((se * domain.slope(theta)) ** 2 + (domain.forward(theta) - g_mean) ** 2)))
-    low, high = sorted((float(domain.backward(g_mean - z * se_g)), float(domain.backward(g_mean + z * se_g))))
-    return {"low": low, "high": high, "method": interval_method("akaike", domain)}
 
 
 def _estimates_and_errors(fit: CurveFit, delta_max: float | None, known: dict | None) -> dict[str, tuple[float, float]]:
