@@ -299,7 +299,8 @@ def test_the_numbers_do_not_depend_on_how_the_batch_is_cut(monkeypatch):
 def test_units_of_work_are_two_per_worker_within_their_limits():
     items = list(range(5000))
     sizes = lambda workers: [len(chunk) for chunk in workbench.chunked(items, workers=workers)]  # noqa: E731
-    assert sizes(1) == [workbench.MAX_CHUNK_SIZE] * 9 + [5000 - 9 * workbench.MAX_CHUNK_SIZE]
+    largest = workbench.MAX_CHUNK_SIZE
+    assert sizes(1) == [largest] * (5000 // largest) + [5000 % largest]
     assert sizes(8) == [313] * 15 + [5000 - 15 * 313]  # 5,000 / 16, below the largest unit
     assert [len(c) for c in workbench.chunked(items[:1024], workers=2)] == [256] * 4
     assert [len(c) for c in workbench.chunked(items[:100], workers=2)] == [64, 36]  # never below CHUNK_SIZE

@@ -320,9 +320,11 @@ class Workbench:
 #: batch (:class:`~tromplab.curves.batched.PaddedPoints`), and the fits of one experiment
 #: use its own rows only.  Large units matter: the engine's cost per call is mostly
 #: interpreter overhead that a larger batch shares (1,024 experiments on one worker, chunks
-#: of 64 against 512: 7.5 s against 4.3 s, docs/performance.md).
+#: of 64 against 512: 7.5 s against 4.3 s; 10,000 experiments on two workers, at most 1,024
+#: against at most 512: the workers' CPU 47.1-49.0 s against 49.7-55.0 s in six alternating
+#: runs, 20 MiB more at the peak; docs/performance.md).
 CHUNK_SIZE = 64
-MAX_CHUNK_SIZE = 512
+MAX_CHUNK_SIZE = 1024
 
 
 def chunked(items: Sequence, *, workers: int) -> list:

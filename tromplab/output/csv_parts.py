@@ -41,6 +41,13 @@ def csv_from_parts(table: pd.DataFrame, parts) -> str | None:
     """``table.to_csv(index=False)`` with its first rows taken from ``parts`` (in order), or
     None when a part was formatted in other columns or types than the table's, or when the
     parts hold more rows than the table."""
+    pieces = csv_pieces(table, parts)
+    return None if pieces is None else "".join(pieces)
+
+
+def csv_pieces(table: pd.DataFrame, parts) -> list[str] | None:
+    """The texts :func:`csv_from_parts` joins (header, the parts, the table's remaining rows),
+    to be written one after another without a copy of the whole table's text."""
     if not parts:
         return None
     layout = _layout(table)
@@ -48,4 +55,4 @@ def csv_from_parts(table: pd.DataFrame, parts) -> str | None:
     if covered > len(table) or any((part.columns, part.dtypes) != layout for part in parts):
         return None
     rest = table.iloc[covered:].to_csv(index=False, header=False) if covered < len(table) else ""
-    return table.iloc[:0].to_csv(index=False) + "".join(part.text for part in parts) + rest
+    return [table.iloc[:0].to_csv(index=False), *(part.text for part in parts), rest]

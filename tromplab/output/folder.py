@@ -18,7 +18,7 @@ import pandas as pd
 
 from ..errors import OptionError
 from ..options import AUTO_FIGURE_LIMIT, FIGURE_CHOICES, TABLE_FORMATS
-from .csv_parts import csv_from_parts
+from .csv_parts import csv_pieces
 from .outputs import figure_file_names, replace_folder, write_files
 from .plotting import offscreen_axes, plot_batch_overview, plot_tromp_fits, save_figure
 from .results import batch_files
@@ -169,11 +169,11 @@ def _table_writer(table: pd.DataFrame, format: str, parts=None):
         return lambda p: table.to_parquet(p, index=False)
 
     def write_csv(path):
-        text = csv_from_parts(table, parts)
-        if text is None:
+        pieces = csv_pieces(table, parts)
+        if pieces is None:
             table.to_csv(path, index=False)
             return
         with open(path, "w", encoding="utf-8", newline="") as file:  # as to_csv opens it
-            file.write(text)
+            file.writelines(pieces)
 
     return write_csv
