@@ -477,6 +477,7 @@ def completed_fit_rows(
     ranks among the ``ranked`` formula ids and ``delta_aicc``, the check against the
     ``water_recovery`` and the nested tests.  Every step works experiment by experiment, so a
     worker completes the rows of its chunk (without ``failures``) as the whole batch's are."""
+    chosen = select_formulas(formulas)
     failed = [
         {
             "experiment": experiment,
@@ -488,7 +489,7 @@ def completed_fit_rows(
             "message": reason,
         }
         for experiment, reason in failures.items()
-        for formula in select_formulas(formulas)
+        for formula in chosen
     ]
     if failed and table.empty:  # no fit: the columns take their types from the failures alone
         table = pd.DataFrame(failed).reindex(columns=table.columns)
@@ -506,8 +507,8 @@ def completed_fit_rows(
         table = table.merge(checks, on=["experiment", "formula"], how="left")
         table["water_recovery"] = water_recovery  # failed experiments too
         table["water_recovery_check"] = table["water_recovery_check"].fillna("")
-    fitted = {f.id for f in select_formulas(formulas)}
-    if any(f.nests in fitted for f in select_formulas(formulas)):  # is the bypass (fish-hook) needed? the nested F test
+    fitted = {f.id for f in chosen}
+    if any(f.nests in fitted for f in chosen):  # is the bypass (fish-hook) needed? the nested F test
         table = table.merge(nested_tests(fits), on=["experiment", "formula"], how="left")
     return table
 
