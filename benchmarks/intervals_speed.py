@@ -28,7 +28,7 @@ import pandas as pd
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
-from scaling import experiments, run_bare  # noqa: E402
+from scaling import experiments, run_bare, save_and_show, write_points  # noqa: E402
 
 from tromplab.curves.curve_fit import fit_formula  # noqa: E402
 from tromplab.curves.engine import fit_formula_batch  # noqa: E402
@@ -45,11 +45,8 @@ def _command_seconds(path: Path, folder: Path, jobs: int, *extra: str) -> float:
 
 
 def fit_with_intervals(n: int, jobs: int, bare_limit: int) -> list[dict]:
-    data = experiments(n)
     with tempfile.TemporaryDirectory() as folder:
-        path = Path(folder) / "points.csv"
-        rows = [pd.DataFrame({"experiment": p.experiment, "size": p.size, "partition_fine": p.partition_fine}) for p in data]
-        pd.concat(rows).to_csv(path, index=False)
+        path = write_points(Path(folder) / "points.csv", n)
         plain = _command_seconds(path, Path(folder) / "plain", jobs)
         with_ci = _command_seconds(path, Path(folder) / "ci", jobs, "--ci", "0.95")
     bare, _ = run_bare(n, bare_limit)
@@ -103,11 +100,7 @@ def main(argv=None) -> pd.DataFrame:
     rows.append(trend(args.surveys))
     table = pd.DataFrame(rows)
     table["ratio_to_floor"] = table["seconds"] / table["floor_seconds"]
-    args.output.parent.mkdir(parents=True, exist_ok=True)
-    table.to_csv(args.output, index=False)
-    print(table.to_string(index=False, float_format=lambda v: f"{v:.3g}"))
-    print(f"load average {load_before:.2f} before, {os.getloadavg()[0]:.2f} after; written to {args.output}")
-    return table
+    return save_and_show(table, args.output, load_before)
 
 
 if __name__ == "__main__":

@@ -29,7 +29,7 @@ import pandas as pd
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
-from scaling import experiments, run_bare  # noqa: E402
+from scaling import run_bare, save_and_show, write_points  # noqa: E402
 
 from tromplab.loading.lab import read_experiments  # noqa: E402
 from tromplab.workbench import fit_experiments  # noqa: E402
@@ -44,11 +44,7 @@ def _seconds(work) -> tuple[float, object]:
 def phases(n: int, jobs: int, bare_limit: int, *, intervals: bool = True) -> pd.DataFrame:
     rows = []
     with tempfile.TemporaryDirectory() as folder:
-        path = Path(folder) / "points.csv"
-        table = [
-            pd.DataFrame({"experiment": p.experiment, "size": p.size, "partition_fine": p.partition_fine}) for p in experiments(n)
-        ]
-        pd.concat(table).to_csv(path, index=False)
+        path = write_points(Path(folder) / "points.csv", n)
         load, read = _seconds(lambda: read_experiments(path))
         fit, bench = _seconds(lambda: fit_experiments(read, jobs=jobs))
         with_ci, _ = _seconds(lambda: fit_experiments(read, jobs=jobs, ci=0.95)) if intervals else (float("nan"), None)
@@ -73,12 +69,7 @@ def main(argv=None) -> pd.DataFrame:
     args = parser.parse_args(argv)
     load_before = os.getloadavg()[0]
     table = phases(args.experiments, args.jobs, args.bare_limit, intervals=not args.no_intervals)
-    args.output.parent.mkdir(parents=True, exist_ok=True)
-    table.to_csv(args.output, index=False)
-    print(table.to_string(index=False, float_format=lambda v: f"{v:.3g}"))
-    print(f"{args.experiments} experiments, {args.jobs} worker(s); load average {load_before:.2f} before, "
-          f"{os.getloadavg()[0]:.2f} after; written to {args.output}")  # fmt: skip
-    return table
+    return save_and_show(table, args.output, load_before, prefix=f"{args.experiments} experiments, {args.jobs} worker(s); ")
 
 
 if __name__ == "__main__":

@@ -26,7 +26,7 @@ import pandas as pd
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
-from scaling import experiments  # noqa: E402
+from scaling import save_and_show, write_points  # noqa: E402
 
 
 def _command_seconds(arguments: list[str]) -> float:
@@ -37,11 +37,7 @@ def _command_seconds(arguments: list[str]) -> float:
 
 def report_against_fit(n: int, jobs: int) -> pd.DataFrame:
     with tempfile.TemporaryDirectory() as folder:
-        path = Path(folder) / "points.csv"
-        table = [
-            pd.DataFrame({"experiment": p.experiment, "size": p.size, "partition_fine": p.partition_fine}) for p in experiments(n)
-        ]
-        pd.concat(table).to_csv(path, index=False)
+        path = write_points(Path(folder) / "points.csv", n)
         common = ["--jobs", str(jobs), "-q"]
         fit = _command_seconds(["fit", str(path), "-o", str(Path(folder) / "fit"), "--figures", "none", *common])
         report_path = Path(folder) / "report" / "report.html"
@@ -59,12 +55,7 @@ def main(argv=None) -> pd.DataFrame:
     parser.add_argument("--output", type=Path, default=HERE / "output" / "report_speed.csv")
     args = parser.parse_args(argv)
     load_before = os.getloadavg()[0]
-    table = report_against_fit(args.experiments, args.jobs)
-    args.output.parent.mkdir(parents=True, exist_ok=True)
-    table.to_csv(args.output, index=False)
-    print(table.to_string(index=False, float_format=lambda v: f"{v:.3g}"))
-    print(f"load average {load_before:.2f} before, {os.getloadavg()[0]:.2f} after; written to {args.output}")
-    return table
+    return save_and_show(report_against_fit(args.experiments, args.jobs), args.output, load_before)
 
 
 if __name__ == "__main__":

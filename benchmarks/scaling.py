@@ -28,6 +28,7 @@ Usage: ``python benchmarks/scaling.py [--sizes 1,128,1024,10000] [--bare-limit 1
 
 import argparse
 import json
+import os
 import resource
 import subprocess
 import sys
@@ -47,6 +48,24 @@ AT_OPTIMUM = 1e-6
 
 def experiments(n):
     return [synthetic(seed) for seed in range(n)]
+
+
+def write_points(path: Path, n: int) -> Path:
+    """The ``n`` synthetic :func:`experiments` as one Tromp-points CSV (the input the command line reads)."""
+    frames = [
+        pd.DataFrame({"experiment": p.experiment, "size": p.size, "partition_fine": p.partition_fine}) for p in experiments(n)
+    ]
+    pd.concat(frames).to_csv(path, index=False)
+    return path
+
+
+def save_and_show(table: pd.DataFrame, output: Path, load_before: float, prefix: str = "") -> pd.DataFrame:
+    """Write a benchmark's ``table`` to ``output`` and print it with the load average before and now."""
+    output.parent.mkdir(parents=True, exist_ok=True)
+    table.to_csv(output, index=False)
+    print(table.to_string(index=False, float_format=lambda v: f"{v:.3g}"))
+    print(f"{prefix}load average {load_before:.2f} before, {os.getloadavg()[0]:.2f} after; written to {output}")
+    return table
 
 
 def _cpu_seconds(who):
