@@ -476,7 +476,8 @@ def completed_fit_rows(
     (:func:`fit_rows_frame` of ``fits``) with a row per failed experiment and formula, the
     ranks among the ``ranked`` formula ids and ``delta_aicc``, the check against the
     ``water_recovery`` and the nested tests.  Every step works experiment by experiment, so a
-    worker completes the rows of its chunk (without ``failures``) as the whole batch's are."""
+    worker completes the rows of its chunk (without ``failures``) as the whole batch's are.
+    Columns are added to ``table`` itself: pass a copy of a table that is used again."""
     chosen = select_formulas(formulas)
     failed = [
         {
