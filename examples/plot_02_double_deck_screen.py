@@ -30,7 +30,7 @@ balances[0].points_table().head(8)
 # %%
 # Fit, screen and rank the nine formulas on both decks.
 bench = tromplab.fit_experiments(experiments, size_unit="mm")
-bench.ranking()
+bench.ranking_table()
 
 # %%
 # The top-ranked fit of the 20-mesh deck, with parameters, intervals and indices.

@@ -67,7 +67,7 @@ def test_report_of_points_says_when_a_section_does_not_apply(tmp_path):
 
 
 def test_a_large_batch_gets_a_condensed_report_with_its_full_tables_beside_it(tmp_path, monkeypatch):
-    """Issue 24: beyond REPORT_DETAIL_LIMIT experiments the sections show the first ones and the
+    """Beyond REPORT_DETAIL_LIMIT experiments the sections show the first ones and the
     flagged ones, the figures an overview, and every row goes to CSV files beside the report."""
     import tromplab.output.report as report_module
     from tromplab._synthetic import synthetic
@@ -105,7 +105,7 @@ def test_the_figures_drawn_by_two_workers_give_the_same_report(tmp_path):
 
 @pytest.mark.slow
 def test_tromplab_report_of_200_experiments(tmp_path):
-    """Issue 24 item 1: the command on 200 experiments (the F heatmap's labels broke it from
+    """The command on 200 experiments (the F heatmap's labels broke it from
     about 40 on) writes a condensed report with the full tables beside it, and its figures
     stay bounded whatever the batch size."""
     from tromplab._synthetic import synthetic

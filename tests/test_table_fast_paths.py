@@ -1,4 +1,4 @@
-"""The CSV reader's fast paths (issue 24: a 90,000-row fits.csv) give the answers of their plain
+"""The CSV reader's fast paths (a 90,000-row fits.csv) give the answers of their plain
 definitions for every input: the test for comment and blank lines, the count of fields per record
 (quotes spanning blocks, records spanning blocks, a last record without a line break), and the
 yes/no marks of a column already parsed as booleans."""

@@ -1,4 +1,15 @@
-"""Command-line interface: ``tromplab formulas | fit | report | compare | points | balance | sieve | rank | layer | pulp | optimize``."""
+"""Command-line interface: the parser of every command, their handlers and the shared start-up.
+
+Commands (``tromplab COMMAND -h`` for each; the command-line reference of the docs is generated from this parser):
+``formulas`` (the formula catalogue), ``fit`` (fit, screen and rank on points or lab tables),
+``report`` (HTML and Markdown report), ``compare`` (did the sharpness or the cut change),
+``export`` (parameters in a simulator's convention), ``trend`` (control charts over surveys),
+``points`` and ``balance`` (lab table to Tromp points, mass balance), ``sieve identify | pg |
+bin``, ``rank`` (F table to ranks), ``circuit`` (plant survey reconciled; its work is in
+:mod:`tromplab.circuit_command`), and from :mod:`tromplab.model_commands` ``layer simulate |
+fit``, ``pulp optimum | fit`` and ``optimize``. The console script enters through
+:mod:`tromplab._launch`, which handles SIGINT and SIGTERM before numpy is imported.
+"""
 
 from __future__ import annotations
 
@@ -1167,7 +1178,7 @@ def format_fits(fits: pd.DataFrame, verdicts: dict[str, list[str]] | None = None
 
 
 def _add_circuit_command(commands) -> None:
-    """``tromplab circuit FLOWSHEET MEASUREMENTS -o DIR [--fit]`` (issue 25; the work is in circuit_command)."""
+    """``tromplab circuit FLOWSHEET MEASUREMENTS -o DIR [--fit]`` (the work is in circuit_command)."""
     circuit = commands.add_parser(
         "circuit", help="reconcile a plant survey over its flowsheet; partition curves of every separator (docs/circuit.md)"
     )

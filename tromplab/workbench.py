@@ -19,7 +19,6 @@ from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from functools import cached_property
-from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
@@ -38,7 +37,6 @@ from .loading.points import TrompPoints, points_from_frame
 from .loading.surveys import with_survey_columns
 from .output.csv_parts import CsvPart, csv_part
 from .output.folder import write_results_folder
-from .output.outputs import write_files
 from .output.plotting import plot_tromp_fits
 from .output.report import build_report, write_report
 from .output.results import load_workbench, workbench_html, workbench_repr
@@ -173,14 +171,6 @@ class Workbench:
 
     def _repr_html_(self) -> str:
         return workbench_html(self)
-
-    def summary(self) -> pd.DataFrame:
-        """The fits table: one row per experiment and formula (columns :data:`FIT_COLUMNS`)."""
-        return self.fits_table()
-
-    def ranking(self) -> pd.DataFrame:
-        """Ranks per experiment, points and place per formula (:meth:`ranking_table`)."""
-        return self.ranking_table()
 
     def averages(self, *, level: float | None = None, jobs: int | None = 1, client=None) -> pd.DataFrame:
         """Akaike-weighted d_cut, Ep and eta per experiment (:func:`model_averages`), with
@@ -420,7 +410,7 @@ def fit_experiments(
     --------
     >>> points = TrompPoints("run", [10, 20, 40, 80, 160], [0.98, 0.91, 0.62, 0.21, 0.04])
     >>> bench = fit_experiments([points], formulas=["plitt", "lognormal", "molerus"])
-    >>> bench.ranking()[["formula", "place"]].values.tolist()
+    >>> bench.ranking_table()[["formula", "place"]].values.tolist()
     [['plitt', 1], ['lognormal', 2], ['molerus', 3]]
     """
     experiments, balances = _points_and_balances(experiments)
@@ -994,13 +984,3 @@ def print_progress(i: int, total: int, experiment: str) -> None:
     """Progress line on standard error (for batches of more than one experiment)."""
     if total > 1:
         print(f"[{i}/{total}] fitting experiment {experiment}", file=sys.stderr, flush=True)
-
-
-def write_atomically(outputs: dict[str, Callable[[Path], None]], outdir) -> dict[str, Path]:
-    """Write every output to a temporary file first, then move them all into ``outdir``.
-
-    ``outputs`` maps file names to writers taking a path.  If any writer fails, nothing
-    is left in ``outdir``.  For a whole output folder that replaces the previous run in
-    one step, see :func:`tromplab.output.outputs.replace_folder`.
-    """
-    return write_files(outputs, outdir)

@@ -1,14 +1,14 @@
 """A CSV table written from parts formatted elsewhere: the workers of a batch.
 
 Formatting the tables of a large batch (``fits.csv`` of 10,000 experiments: 90,000 rows,
-2.2 s of ``DataFrame.to_csv``) was serial work in the main process after every worker had
-finished.  Each worker now formats the rows of its own chunk (:func:`csv_part`) and the
+2.2 s of ``DataFrame.to_csv``) would be serial work in the main process after every worker
+had finished.  Each worker formats the rows of its own chunk (:func:`csv_part`) and the
 main process joins the texts (:func:`csv_from_parts`).  The text of a row depends on its
 values, on its column's type and on the order of the columns only, so the joined text is
 ``table.to_csv(index=False)`` byte for byte when every part was formatted in the table's
 columns and types; when one was not (a chunk without a column another chunk has, an
 integer column that the failed experiments' empty cells turn into floats), the table is
-formatted whole, as before.
+formatted whole in the main process.
 """
 
 from __future__ import annotations

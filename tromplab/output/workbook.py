@@ -126,7 +126,7 @@ def write_workbook(
     Parameters
     ----------
     path : path
-        The ``.xlsx`` file.  Write it through :func:`tromplab.workbench.write_atomically`
+        The ``.xlsx`` file.  Write it through :func:`tromplab.output.outputs.write_files`
         to make it all-or-nothing.
     tables : mapping
         Sheet name -> table, written in the given order; an empty table gets its
