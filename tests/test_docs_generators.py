@@ -86,6 +86,29 @@ def test_cli_help_texts_are_expanded(docs_ext):
     assert "default 0.05" in page  # --alpha's help, '%(default)s' filled in
 
 
+def test_cli_reference_shows_options_as_typed(docs_ext):
+    """Options in running text are literals, which Sphinx's smart quotes leave alone (a bare
+    ``--ci`` would be shown with a typographic dash)."""
+    from docutils import nodes
+    from docutils.core import publish_doctree
+
+    tree = publish_doctree(docs_ext.cli_reference(), settings_overrides={"report_level": 5, "halt_level": 5})
+    code = (nodes.literal, nodes.literal_block)
+    running = [node.astext() for node in tree.findall(nodes.Text) if not any(isinstance(up, code) for up in _ancestors(node))]
+    assert any("default 0.05" in text for text in running)  # help texts are there
+    bare = [text for text in running if re.search(r"(?<![\w-])--?[A-Za-z]", text)]
+    assert not bare, bare[:5]
+    assert docs_ext._rst_text("with --size-unit mm or -o DIR; pre-processing") == (
+        "with ``--size-unit`` mm or ``-o`` DIR; pre-processing"
+    )
+
+
+def _ancestors(node):
+    while node.parent is not None:
+        node = node.parent
+        yield node
+
+
 def test_parser_factory_is_found_under_either_name(docs_ext):
     assert docs_ext.find_parser_factory(cli)().prog == "tromplab"
     renamed = types.SimpleNamespace(__name__="renamed", build_parser=lambda: argparse.ArgumentParser(prog="renamed"))

@@ -74,3 +74,19 @@ SIX_CLASSES = [0.02, 0.10, 0.35, 0.70, 0.92, 0.99]  # partition to fines, coarse
 def test_each_test_table_holds_the_partitions_its_header_states(name, stated):
     (points,) = _points(name, min_feed_share=0.0)
     np.testing.assert_allclose(points.partition_fine[::-1], stated, atol=1e-5)  # sizes ascend
+
+
+def test_every_docs_page_is_in_the_readme_table():
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    table = readme.split("## Documentation\n", 1)[1].split("\n## ", 1)[0]
+    for page in sorted((ROOT / "docs").glob("*.md")):
+        if page.stem != "index":
+            assert f"docs/{page.name}" in table, f"docs/{page.name} is not in the README's documentation table"
+
+
+def test_the_readme_stays_short_and_keeps_its_two_commands():
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    assert len(readme.splitlines()) <= 150
+    lines = readme.splitlines()
+    assert "python -m pip install . && tromplab fit datasets/double_deck_screen_decks_lab.csv -o results --size-unit mm" in lines
+    assert 'python -m pip install -e ".[test]" && python -m pytest' in lines

@@ -123,11 +123,10 @@ def test_load_refuses_another_major_version_and_missing_files(bench, tmp_path):
         tromplab.load(tmp_path)
 
 
-def test_readme_python_section_lists_the_public_api_and_help_does_too():
+def test_the_python_page_lists_the_public_api_and_help_does_too():
     from .conftest import ROOT
 
-    readme = (ROOT / "README.md").read_text()
-    section = readme.split("## Python\n", 1)[1].split("\n## ", 1)[0]
+    section = (ROOT / "docs" / "python.md").read_text()
     listed = re.findall(r"^- `([\w]+)`: ", section, flags=re.MULTILINE)
     assert listed == list(tromplab.__all__)
     for name in tromplab.__all__:

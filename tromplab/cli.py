@@ -597,7 +597,7 @@ class _SubcommandParser(_CommandParser):
 
 def _lab_options_parser() -> argparse.ArgumentParser:
     lab = argparse.ArgumentParser(add_help=False)
-    group = lab.add_argument_group("lab data (see the README for the schema)")
+    group = lab.add_argument_group("lab data (schema: docs/lab_tables.md)")
     group.add_argument(
         "--kind",
         choices=KINDS,

@@ -41,11 +41,20 @@ def _literal(text: str) -> str:
     return f"``{text}``" if text.strip() else "(none)"
 
 
-def _rst_text(text: str) -> str:
-    """Plain text (help strings, notes) safe inside reStructuredText paragraphs."""
-    text = " ".join(str(text).split())
+#: An option as typed in a help text (``--size-unit``, ``-o``, ``--fine-yield=0.3``): shown as a
+#: literal, so that the HTML shows it as typed (Sphinx's smart quotes turn a bare ``--`` into a dash).
+OPTION_IN_TEXT = re.compile(r"(?<![\w-])(--?[A-Za-z][\w-]*(?:=[\w.]+)?)")
+
+
+def _rst_plain(text: str) -> str:
     text = text.replace("\\", "\\\\").replace("*", "\\*").replace("|", "\\|").replace("`", "'")
     return re.sub(r"(?<![\w\\])_", r"\\_", text)
+
+
+def _rst_text(text: str) -> str:
+    """Plain text (help strings, notes) safe inside reStructuredText paragraphs, options as literals."""
+    parts = OPTION_IN_TEXT.split(" ".join(str(text).split()))
+    return "".join(_literal(part) if i % 2 else _rst_plain(part) for i, part in enumerate(parts))
 
 
 # --- the command line -----------------------------------------------------------------

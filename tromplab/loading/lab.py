@@ -1,7 +1,7 @@
 """From laboratory sieve data to Tromp points, with the mass balance checked.
 
 Schema of a lab table (CSV or Excel), one row per size class (or per sieve) and
-experiment - see the README for an example:
+experiment - see docs/lab_tables.md for an example:
 
 ``experiment``
     optional; all rows form one experiment named after the file when absent.
