@@ -10,7 +10,7 @@ from tromplab.output.report import SECTIONS
 
 from .conftest import DATASETS
 
-VOID = {"meta", "img", "br", "hr", "link", "input"}
+VOID = {"meta", "img", "br", "hr", "link", "input", "wbr"}  # the void elements of HTML
 
 
 class TagChecker(HTMLParser):
@@ -52,8 +52,9 @@ def test_report_from_lab_data(tmp_path, capsys):
         assert needle in text
     markdown = (tmp_path / "out" / "report.md").read_text()
     assert markdown.count("\n## ") == len(SECTIONS)
-    assert "![Tromp curve, experiment deck_20mesh](report_figure1.png)" in markdown
-    assert (tmp_path / "out" / "report_figure1.png").stat().st_size > 10_000
+    assert "![Tromp curve, experiment deck_20mesh](report_figures/figure1.png)" in markdown
+    assert (tmp_path / "out" / "report_figures" / "figure1.png").stat().st_size > 10_000
+    assert not list((tmp_path / "out").glob("*.png"))  # no figure beside the user's files
 
 
 def test_report_of_points_says_when_a_section_does_not_apply(tmp_path):

@@ -69,7 +69,9 @@ if TYPE_CHECKING:
 
     from .loading.lab import LabOptions
 
-TERMINAL_COLUMNS = ["rank", "equation", "formula", "d_cut", "shape_name", "shape", "F", "F_crit", "adequate", "eta", "ep"]
+TERMINAL_COLUMNS = ["rank", "equation", "formula", "d50", "shape_name", "shape", "F", "F_crit", "adequate", "eta", "ep"]
+#: Said under an experiment's table when a curve with bypass is shown: the two cuts told apart.
+CUT_LEGEND = "d50: actual cut (partition 1/2) of every curve; d50c: corrected cut (of the classified part) of a curve with bypass"
 
 
 #: Exit codes (documented in the README and docs/reliability.md).
@@ -119,6 +121,7 @@ def main(argv=None, *, on_start=None) -> int:
         return EXIT_USAGE
     command = " ".join(filter(None, ("tromplab", args.command, getattr(args, "sieve_command", None))))
     try:
+        _check_input_paths(args)  # before the imports: a missing file answers at once
         # a command imports its modules before it starts: an interrupt inside an import can stop
         # a module half-initialised (an ImportError, or Python's exit by SIGINT instead of 130)
         for module in getattr(args, "imports", ()):
@@ -148,6 +151,20 @@ def main(argv=None, *, on_start=None) -> int:
             file=sys.stderr,
         )
         return EXIT_INTERNAL
+
+
+#: Positional arguments that name an input file, checked before a command imports its modules.
+INPUT_FILE_ARGUMENTS = ("input", "data", "table", "flowsheet", "measurements")
+
+
+def _check_input_paths(args) -> None:
+    """Every input file of the command exists and can be read (the loaders check it again)."""
+    from .loading.paths import check_input_file
+
+    for name in INPUT_FILE_ARGUMENTS:
+        path = getattr(args, name, None)
+        if isinstance(path, (str, os.PathLike)):
+            check_input_file(path, option=name)
 
 
 def interrupted(interruption=None) -> int:
@@ -196,9 +213,24 @@ def _cli_message(error: InputError, parser: argparse.ArgumentParser) -> str:
 
 def _cli_words(message: str, parser: argparse.ArgumentParser | None = None) -> str:
     """Replace Python argument names (``fine_yield``) by the CLI's options (``--fine-yield``)."""
-    for name, flag in _python_names_of_options(parser or build_parser()).items():
-        message = re.sub(rf"(?<![-\w'\"]){name}(?![\w'\"])", flag, message)  # not inside quoted column names
+    parser = parser or build_parser()
+    for name, flag in _python_names_of_options(parser).items():
+        if name in message:  # not inside quoted column names
+            message = re.sub(rf"(?<![-\w'\"]){name}(?![\w'\"])", flag, message)
+    for name, flag in _keywords_of_options(parser).items():  # kind='pct' -> --kind pct
+        if f"{name}=" in message:
+            message = re.sub(rf"(?<![-\w'\"]){name}=(['\"]?)([\w.,-]+)\1", rf"{flag} \2", message)
     return message
+
+
+def _keywords_of_options(parser: argparse.ArgumentParser) -> dict[str, str]:
+    """Every option's Python keyword (``kind``) and its flag (``--kind``)."""
+    return {
+        action.dest: flag
+        for action in _all_actions(parser)
+        for flag in action.option_strings
+        if flag.startswith("--") and flag[2:].replace("-", "_") == action.dest
+    }
 
 
 def _python_names_of_options(parser: argparse.ArgumentParser) -> dict[str, str]:
@@ -1148,7 +1180,9 @@ def format_fits(fits: pd.DataFrame, verdicts: dict[str, list[str]] | None = None
         if not group["success"].any():
             continue  # experiments that could not be fitted are listed separately
         ordered = group.sort_values("rank", na_position="last")
-        view = ordered[columns].copy()
+        corrected = _has_bypass(ordered)
+        shown = [*columns[:4], "d50c", *columns[4:]] if corrected else columns
+        view = ordered[shown].copy()
         flagged = ordered["residuals"].fillna("").str.contains("systematic|not normal")
         view["adequate"] = np.where(ordered["adequate"], np.where(flagged, "yes*", "yes"), "NO")
         view.loc[~ordered["success"], "adequate"] = "failed"
@@ -1158,11 +1192,14 @@ def format_fits(fits: pd.DataFrame, verdicts: dict[str, list[str]] | None = None
         n = int(group["n"].dropna().iloc[0]) if group["n"].notna().any() else 0
         ranked_by = "AICc (lowest first)" if rank_by == "aicc" else "F (highest first)"
         blocks.append(f"Experiment {experiment} (n = {n}), ranked by {ranked_by}:\n{text}")
+        if corrected:
+            blocks.append(textwrap.fill(CUT_LEGEND, width=98, initial_indent="  ", subsequent_indent="    "))
         for statement in (verdicts or {}).get(experiment, []):
             blocks.append(textwrap.fill(statement, width=98, initial_indent="  ! ", subsequent_indent="    "))
         if intervals:
+            cut = "d50c" if corrected else "d50"  # the fitted cut parameter: the actual cut of the nine formulas
             bounds = ordered[["formula", "d_cut", *intervals]].rename(
-                columns=lambda c: re.sub(r"(_boot)?_(low|high)$", r" \2", c)
+                columns=lambda c, cut=cut: re.sub(r"^d_cut", cut, re.sub(r"(_boot)?_(low|high)$", r" \2", c))
             )
             title = "  intervals:" if kind == "" else "  bootstrap intervals:"
             blocks.append(f"{title}\n" + bounds.to_string(index=False, float_format=lambda v: f"{v:.4g}", na_rep="-"))
@@ -1175,6 +1212,11 @@ def format_fits(fits: pd.DataFrame, verdicts: dict[str, list[str]] | None = None
             if isinstance(note, str) and note:
                 blocks.append(textwrap.fill(f"note {formula}: {note}", width=98, initial_indent="  ", subsequent_indent="    "))
     return "\n".join(blocks)
+
+
+def _has_bypass(fits: pd.DataFrame) -> bool:
+    """Whether some fit of the table is a curve with bypass (its d50c differs from its d50)."""
+    return bool("bypass" in fits.columns and fits["bypass"].notna().any())
 
 
 def _add_circuit_command(commands) -> None:

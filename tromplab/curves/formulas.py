@@ -1574,8 +1574,31 @@ def get_formula(key: str | int) -> Formula:
     number = text.strip("()")
     if number.isdigit() and int(number) in _BY_EQUATION:
         return _BY_EQUATION[int(number)]
-    known = ", ".join(f"{f.id} ({f.equation})" for f in FORMULAS)
-    raise KeyError(f"unknown formula {key!r}; known formulas: {known}")
+    raise KeyError(unknown_formula_message(key))
+
+
+#: The groups a formula selection may name (``--formulas paper,other``), in the order listed.
+FORMULA_GROUPS = {"paper": FORMULAS, "other": OTHER_FORMULAS, "extended": EXTENDED_FORMULAS}
+
+
+def unknown_formula_message(key) -> str:
+    """Why ``key`` names no formula: the closest ids and groups (:func:`difflib.get_close_matches`),
+    then every id with its equation number, group by group.
+
+    Examples
+    --------
+    >>> unknown_formula_message("plit").split(";")[0]
+    "unknown formula 'plit' (did you mean plitt?)"
+    """
+    import difflib
+
+    names = [*_BY_ID, *FORMULA_GROUPS]
+    close = difflib.get_close_matches(str(key).strip().lower(), names, n=3, cutoff=0.6)
+    hint = f" (did you mean {', '.join(close)}?)" if close else ""
+    groups = "; ".join(
+        f"{group}: " + ", ".join(f"{f.id} ({f.equation})" for f in formulas) for group, formulas in FORMULA_GROUPS.items()
+    )
+    return f"unknown formula {key!r}{hint}; give an id, an equation number or a group ({', '.join(FORMULA_GROUPS)}). {groups}"
 
 
 def select_formulas(keys=None) -> tuple[Formula, ...]:
@@ -1604,8 +1627,7 @@ def select_formulas(keys=None) -> tuple[Formula, ...]:
         keys = [k for k in keys.replace(" ", "").split(",") if k]
     chosen = []
     for key in keys:
-        groups = {"extended": EXTENDED_FORMULAS, "paper": FORMULAS, "other": OTHER_FORMULAS}
-        group = groups[key] if key in groups else (get_formula(key),)
+        group = FORMULA_GROUPS[key] if key in FORMULA_GROUPS else (get_formula(key),)
         chosen += [f for f in group if f not in chosen]
     return tuple(chosen)
 

@@ -388,8 +388,8 @@ def _stream_columns(table: Table, options: LabOptions) -> dict[str, tuple[str, s
         if kind is None:
             if options.kind is None:
                 raise InputError(
-                    f"what column '{column}' holds is not declared: pass a kind ({', '.join(KINDS)}) "
-                    f"or name the column with a suffix, e.g. '{column}_pct'",
+                    f"what column '{column}' holds is not declared: declare it with kind='pct' (or another of "
+                    f"{', '.join(KINDS)}) or name the column with a suffix, e.g. '{column}_pct'",
                     source=table.source,
                     column=column,
                 )

@@ -38,6 +38,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import InputError, InputNote
+from .paths import check_input_file  # noqa: F401 - read from here by the loaders' callers
 
 logger = logging.getLogger(__name__)
 
@@ -544,15 +545,3 @@ def _read_excel(path: Path, sheet):
 
 
 # --- checks before any work -------------------------------------------------------------
-def check_input_file(path, *, option: str = "input") -> Path:
-    """``path`` exists, is a regular file and can be read; else an :class:`InputError` naming it."""
-    path = Path(path)
-    if not path.exists():
-        raise InputError("file not found", source=str(path))
-    if path.is_dir():
-        raise InputError(f"is a folder; the {option} must be a file", source=str(path))
-    if not path.is_file():
-        raise InputError(f"is not a regular file; the {option} must be a file", source=str(path))
-    if not os.access(path, os.R_OK):
-        raise InputError("cannot be read (permission denied)", source=str(path))
-    return path
