@@ -155,3 +155,10 @@ def test_getting_started_first_fit_runs(monkeypatch):
     exec(compile(code, "docs/getting_started.md", "exec"), namespace)  # noqa: S102 - the page's own example
     assert namespace["fit"].success and namespace["fit"].experiment == "deck_20mesh"
     plt.close("all")
+
+
+def test_a_dash_in_a_generated_table_is_a_dash_not_a_bullet(docs_ext):
+    from docutils.core import publish_parts
+
+    body = publish_parts(docs_ext._table(("parameter", "unit"), [("km1", "-")]), writer="html")["body"]
+    assert "<td>-</td>" in body and "<li>" not in body

@@ -298,6 +298,7 @@ def _table(header: tuple[str, ...], rows) -> str:
     lines = [".. list-table::", "   :header-rows: 1", ""]
     for row in (header, *rows):
         cells = [_rst_text(cell) or "-" for cell in row]
+        cells = ["\\-" if cell == "-" else cell for cell in cells]  # a bare "-" would start a bullet list
         lines.append("   * - " + cells[0])
         lines.extend(f"     - {cell}" for cell in cells[1:])
     return "\n".join(lines) + "\n"
