@@ -159,6 +159,7 @@ def test_getting_started_first_fit_runs(monkeypatch):
 
 def test_a_dash_in_a_generated_table_is_a_dash_not_a_bullet(docs_ext):
     from docutils.core import publish_parts
+    from docutils.writers.html4css1 import Writer
 
-    body = publish_parts(docs_ext._table(("parameter", "unit"), [("km1", "-")]), writer="html")["body"]
+    body = publish_parts(docs_ext._table(("parameter", "unit"), [("km1", "-")]), writer=Writer())["body"]
     assert "<td>-</td>" in body and "<li>" not in body
