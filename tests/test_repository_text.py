@@ -90,3 +90,21 @@ def test_the_readme_stays_short_and_keeps_its_two_commands():
     lines = readme.splitlines()
     assert "python -m pip install . && tromplab fit datasets/double_deck_screen_decks_lab.csv -o results --size-unit mm" in lines
     assert 'python -m pip install -e ".[test]" && python -m pytest' in lines
+
+
+def test_the_architecture_page_names_every_module():
+    page = (ROOT / "docs" / "architecture.md").read_text(encoding="utf-8")
+    modules = sorted(path.stem for path in (ROOT / "tromplab").rglob("*.py") if path.stem != "__init__")
+    missing = [name for name in modules if f"`{name}`" not in page]
+    assert not missing, f"docs/architecture.md does not name {missing}"
+
+
+def test_the_cli_docstring_names_every_command():
+    import argparse
+
+    from tromplab import cli
+
+    parser = cli.build_parser()
+    (commands,) = [action for action in parser._actions if isinstance(action, argparse._SubParsersAction)]
+    for name in commands.choices:
+        assert f"``{name}" in cli.__doc__, f"the docstring of tromplab/cli.py does not name {name}"
