@@ -301,6 +301,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_rank(commands)
     add_model_commands(commands)  # layer, pulp, optimize
     _add_circuit_command(commands)
+    _add_density_command(commands)
     return parser
 
 
@@ -1197,6 +1198,15 @@ def _run_circuit(args) -> int:
                       size_unit=args.size_unit, figures=not args.no_figures)  # fmt: skip
     print(console_report(run))
     return EXIT_OK
+
+
+def _add_density_command(commands) -> None:
+    """``tromplab density predict`` (the work is in density_predict_command)."""
+    from .density_predict_command import add_predict_parser
+
+    density = commands.add_parser("density", help="density partition (Tromp curves) of gravity separators (docs/density.md)")
+    density_commands = density.add_subparsers(dest="density_command", metavar="SUBCOMMAND", parser_class=_SubcommandParser)
+    add_predict_parser(density_commands)
 
 
 if __name__ == "__main__":
