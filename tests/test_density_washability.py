@@ -48,8 +48,8 @@ a,1.6,,10,70
         (lambda t: t.replace("a,1.3,1.4", " ,1.3,1.4"), "row 3, column 'test': test name is blank"),
         (lambda t: t.replace("ash_pct", "ash_pc"), "unknown column(s) 'ash_pc' (did you mean 'ash_pct'?)"),
         (lambda t: t.replace("1.3,1.4,30,10", "1.3,1.4,thirty,10"), "row 3, column 'mass_pct': 'thirty' is not a number"),
-        (lambda t: t.replace("ash_pct\n", "ash_pct,mean_density\n").replace("a,1.3,1.4,30,10", "a,1.3,1.4,30,10,1.45"),
-         "row 3, column 'mean_density': mean density 1.45 lies outside its fraction 1.3-1.4"),
+        (lambda t: t.replace("ash_pct\n", "ash_pct,density_mean\n").replace("a,1.3,1.4,30,10", "a,1.3,1.4,30,10,1.45"),
+         "row 3, column 'density_mean': mean density 1.45 lies outside its fraction 1.3-1.4"),
     ],
 )  # fmt: skip
 def test_a_bad_washability_table_is_refused_naming_file_row_and_column(tmp_path, change, fragment):
@@ -152,7 +152,7 @@ def _independent_floats(path, rho50, ep):
     for test, rows in raw.groupby("test", sort=False):
         lower, upper = rows.density_lower.to_numpy(), rows.density_upper.to_numpy()
         width_first, width_last = upper[1] - lower[1], upper[-2] - lower[-2]
-        mean = rows.mean_density.to_numpy()
+        mean = rows.density_mean.to_numpy()
         lower = np.where(np.isnan(lower), np.where(np.isnan(mean), upper - width_first, 2 * mean - upper), lower)
         upper = np.where(np.isnan(upper), np.where(np.isnan(mean), lower + width_last, 2 * mean - lower), upper)
         rho = np.where(np.isnan(mean), (lower + upper) / 2, mean)

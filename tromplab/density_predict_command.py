@@ -109,7 +109,7 @@ def add_predict_parser(density_commands) -> None:
         "under a partition curve (docs/density.md)",
     )
     predict.add_argument("washability", type=Path, help="washability CSV: density_lower, density_upper, mass_pct, ash_pct "
-                         "[, mean_density, test]")  # fmt: skip
+                         "[, density_mean, test]")  # fmt: skip
     predict.add_argument("-o", "--output", type=Path, default=Path("prediction.csv"),
                          help="prediction CSV, one row per feed and cut density (default: prediction.csv)")  # fmt: skip
     predict.add_argument("--curve", choices=PREDICT_CURVES, default="normal",

@@ -18,7 +18,7 @@ File schema (CSV or Excel), one row per density fraction:
     to 100 within ``sum_tolerance_pct`` and are normalised to 100.
 ``ash_pct``
     ash per cent (dry basis, or the basis of the whole table) of the fraction, 0..100.
-``mean_density``
+``density_mean``
     optional: the measured mean relative density of the fraction (blank where not
     determined); it must lie within the fraction's bounds.
 ``test``
@@ -67,7 +67,7 @@ from ..options import DEFAULT_SUM_TOLERANCE_PCT
 from ..validation import check_cut_density, check_non_negative, check_optional, check_percent, check_positive, check_share
 
 #: The columns a washability table may have (besides free-text note and comment).
-WASHABILITY_COLUMNS = ("test", "density_lower", "density_upper", "mass_pct", "ash_pct", "mean_density")
+WASHABILITY_COLUMNS = ("test", "density_lower", "density_upper", "mass_pct", "ash_pct", "density_mean")
 #: Half-width of the near-gravity band (relative density units), Bird's +/- 0.1.
 NEAR_GRAVITY_BAND = 0.1
 #: The prediction columns, in the order :func:`prediction_table` writes them.
@@ -421,7 +421,7 @@ def read_washability(
     return tests
 
 
-def washability_from_arrays(density_lower, density_upper, mass_pct, ash_pct, mean_density=None, *, test="feed"):
+def washability_from_arrays(density_lower, density_upper, mass_pct, ash_pct, density_mean=None, *, test="feed"):
     """A :class:`Washability` from arrays (blank = NaN), checked as a file is.
 
     Examples
@@ -433,8 +433,8 @@ def washability_from_arrays(density_lower, density_upper, mass_pct, ash_pct, mea
     frame = pd.DataFrame(
         {"test": test, "density_lower": density_lower, "density_upper": density_upper, "mass_pct": mass_pct, "ash_pct": ash_pct}
     )
-    if mean_density is not None:
-        frame["mean_density"] = mean_density
+    if density_mean is not None:
+        frame["density_mean"] = density_mean
     (washability,) = read_washability(frame)
     return washability
 
@@ -471,13 +471,13 @@ def _one_test(table: Table, name: str, tolerance: float, float_lower, sink_upper
             column="mass_pct",
         )
     given = (
-        table.numeric("mean_density", allow_blank=True) if "mean_density" in table.frame.columns else np.full(len(mass), np.nan)
+        table.numeric("density_mean", allow_blank=True) if "density_mean" in table.frame.columns else np.full(len(mass), np.nan)
     )
     outside = np.isfinite(given) & ((given <= np.nan_to_num(lower, nan=0.0)) | (given >= np.nan_to_num(upper, nan=np.inf)))
     if outside.any():
         i = int(np.flatnonzero(outside)[0])
         raise table.error(f"mean density {given[i]:g} lies outside its fraction {_label(lower[i], upper[i])}", index=i,
-                          column="mean_density")  # fmt: skip
+                          column="density_mean")  # fmt: skip
     closed_lower, closed_upper = _closed_bounds(table, lower, upper, given, float_lower, sink_upper)
     density = np.where(np.isfinite(given), given, (closed_lower + closed_upper) / 2.0)
     density_from = ["mean" if np.isfinite(value) else "midpoint" for value in given]
@@ -541,19 +541,19 @@ def _checked_fractions(table: Table, lower: np.ndarray, upper: np.ndarray) -> np
     return order
 
 
-def _closed_bounds(table: Table, lower, upper, mean_density, float_lower, sink_upper):
+def _closed_bounds(table: Table, lower, upper, density_mean, float_lower, sink_upper):
     """The open fractions closed: by the stated bound, else symmetric about a measured mean density,
     else by the width of the neighbouring fraction."""
     closed_lower, closed_upper = lower.copy(), upper.copy()
     if np.isnan(lower[0]):
         if float_lower is not None:
             closed_lower[0] = float_lower
-        elif np.isfinite(mean_density[0]):
-            closed_lower[0] = 2.0 * mean_density[0] - upper[0]
+        elif np.isfinite(density_mean[0]):
+            closed_lower[0] = 2.0 * density_mean[0] - upper[0]
         else:
             closed_lower[0] = upper[0] - (upper[1] - lower[1])
         if np.isfinite(closed_lower[0]) and (
-            not 0 < closed_lower[0] < upper[0] or closed_lower[0] > np.nan_to_num(mean_density[0], nan=np.inf)
+            not 0 < closed_lower[0] < upper[0] or closed_lower[0] > np.nan_to_num(density_mean[0], nan=np.inf)
         ):
             raise InputError(
                 f"the open float fraction closes at {closed_lower[0]:g}, not between 0 and the lightest bound {upper[0]:g} "
@@ -563,11 +563,11 @@ def _closed_bounds(table: Table, lower, upper, mean_density, float_lower, sink_u
     if np.isnan(upper[-1]):
         if sink_upper is not None:
             closed_upper[-1] = sink_upper
-        elif np.isfinite(mean_density[-1]):
-            closed_upper[-1] = 2.0 * mean_density[-1] - lower[-1]
+        elif np.isfinite(density_mean[-1]):
+            closed_upper[-1] = 2.0 * density_mean[-1] - lower[-1]
         else:
             closed_upper[-1] = lower[-1] + (upper[-2] - lower[-2])
-        if np.isfinite(closed_upper[-1]) and not closed_upper[-1] > max(lower[-1], np.nan_to_num(mean_density[-1], nan=-np.inf)):
+        if np.isfinite(closed_upper[-1]) and not closed_upper[-1] > max(lower[-1], np.nan_to_num(density_mean[-1], nan=-np.inf)):
             raise InputError(
                 f"sink_upper_density {closed_upper[-1]:g} must lie above the heaviest bound {lower[-1]:g} and its mean density",
                 source=table.source,
