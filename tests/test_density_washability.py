@@ -273,3 +273,18 @@ def test_bad_input_exits_1_and_writes_nothing(tmp_path, capsys):
     out = tmp_path / "pred.csv"
     assert main(["density", "predict", str(path), "--rho50", "1.5", "--ep", "0.03", "-o", str(out)]) == 1
     assert "feed.csv, row 3, column 'mass_pct'" in capsys.readouterr().err and not out.exists()
+
+
+def test_a_fitted_curve_predicts_with_its_own_partition():
+    from tromplab.density.fitting import fit_density_curve
+    from tromplab.density.readers import read_density
+
+    points = pd.DataFrame({"density": [1.45, 1.5, 1.55, 1.6, 1.65], "partition_sinks": [0.04, 0.2, 0.55, 0.86, 0.97]})
+    fit = fit_density_curve(read_density(points)[0], "logistic")
+    (feed, _) = read_washability(WASHABILITY)
+    row = predict(feed, curve=fit).iloc[0]
+    direct = predict_products(feed, fit.partition)
+    assert row.floats_yield_pct == direct.floats_yield_pct and row.floats_ash_pct == direct.floats_ash_pct
+    assert row.curve == "logistic" and row.rho50 == fit.indices.rho50 and row.ep == fit.indices.ep
+    with pytest.raises(OptionError, match="come from the fit"):
+        predict(feed, curve=fit, rho50=1.5)

@@ -686,8 +686,10 @@ def predict(
     ----------
     washability : path, DataFrame, Washability or list of Washability
         The feed(s); files and frames are read by :func:`read_washability`.
-    curve : str
-        Registry curve id (see :func:`partition_curve`).
+    curve : str or DensityCurveFit
+        Registry curve id (see :func:`partition_curve`), or a fitted curve
+        (:func:`tromplab.density.fitting.fit_density_curve`): its partition is used as
+        fitted, and ``rho50``, ``ep``, the limits and ``target_ash_pct`` are not given.
     rho50 : float or sequence of float
         Cut density (or several: one row each).  Give ``rho50`` or ``target_ash_pct``.
     ep : float
@@ -711,6 +713,8 @@ def predict(
     >>> [round(float(row[name]), 3) for name in ("floats_yield_pct", "floats_ash_pct", "organic_efficiency_pct")]
     [47.784, 11.856, 91.133]
     """
+    if hasattr(curve, "sample") and hasattr(curve, "params"):
+        return _predict_fitted(washability, curve, read_options, rho50, ep, light_limit, heavy_limit, target_ash_pct)
     if ep is None:
         raise OptionError("ep", "is required: the probable error of the partition curve")
     if (rho50 is None) == (target_ash_pct is None):
@@ -733,6 +737,20 @@ def predict(
                 row = dict.fromkeys(PREDICTION_COLUMNS, np.nan)
                 row.update(test=table.test, curve=record.id, ep=ep, target_ash_pct=target, note=note, **_given(limits))
                 rows.append(row)
+    return prediction_table(rows)
+
+
+def _predict_fitted(washability, fit, read_options: dict, *given) -> pd.DataFrame:
+    if any(value is not None for value in given):
+        raise OptionError("curve", "is a fitted curve: rho50, ep, the limits and target_ash_pct come from the fit")
+    if not fit.success:
+        raise OptionError("curve", f"is a failed fit ({fit.message})")
+    limits = {name: fit.params[name] for name in ("light_limit", "heavy_limit") if name in fit.params}
+    inputs = {"curve": fit.curve.id, "rho50": fit.indices.rho50, "ep": fit.indices.ep, **limits}
+    rows = [
+        prediction_row(table, predict_products(table, fit.partition), **inputs)
+        for table in _washabilities(washability, read_options)
+    ]
     return prediction_table(rows)
 
 
