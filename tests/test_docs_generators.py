@@ -132,3 +132,16 @@ def test_getting_started_first_fit_runs(monkeypatch):
     exec(compile(code, "docs/getting_started.md", "exec"), namespace)  # noqa: S102 - the page's own example
     assert namespace["fit"].success and namespace["fit"].experiment == "deck_20mesh"
     plt.close("all")
+
+
+def test_catalogue_has_a_section_for_every_density_curve(docs_ext, tmp_path):
+    from tromplab.density.curves import DENSITY_CURVES
+
+    page = docs_ext.density_catalogue(figure_dir=tmp_path)
+    for curve in DENSITY_CURVES:
+        assert f".. _density-{curve.id}:" in page and curve.title in page, curve.id
+        assert f"``{curve.expression}``" in page, curve.id
+        assert (tmp_path / f"density_{curve.id}.png").exists(), curve.id
+        for parameter in curve.parameters:
+            assert f"[{parameter.lower:g}, {parameter.upper:g}]" in page, (curve.id, parameter.name)
+    assert page.count(".. math::") == len(DENSITY_CURVES)
