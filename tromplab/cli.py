@@ -1,4 +1,4 @@
-"""Command-line interface: ``tromplab formulas | fit | report | compare | points | balance | sieve | rank | layer | pulp | optimize``."""
+"""Command-line interface: ``tromplab formulas | fit | report | compare | points | balance | sieve | rank | layer | pulp | optimize | circuit | density``."""
 
 from __future__ import annotations
 
@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from ._version import __version__
+from .density_command import add_density_command
 from .errors import InputError, InputNote, OptionError, YieldWarning
 from .model_commands import add_model_commands
 from .options import (
@@ -301,6 +302,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_rank(commands)
     add_model_commands(commands)  # layer, pulp, optimize
     _add_circuit_command(commands)
+    add_density_command(commands)  # density fit (the sub-commands and their work are in density_command)
     return parser
 
 
