@@ -1,4 +1,4 @@
-"""Command-line interface: ``tromplab formulas | fit | report | compare | points | balance | sieve | rank | layer | pulp | optimize``."""
+"""Command-line interface: ``tromplab formulas | fit | report | compare | points | balance | sieve | rank | layer | pulp | optimize | circuit | density``."""
 
 from __future__ import annotations
 
@@ -18,6 +18,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from ._version import __version__
+from .density_command import add_density_command
+from .density_predict_command import add_predict_parser
 from .errors import InputError, InputNote, OptionError, YieldWarning
 from .model_commands import add_model_commands
 from .options import (
@@ -301,7 +303,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_rank(commands)
     add_model_commands(commands)  # layer, pulp, optimize
     _add_circuit_command(commands)
-    _add_density_command(commands)
+    density = add_density_command(commands)  # density fit (the sub-commands and their work are in density_command)
+    add_predict_parser(density.density_commands)  # density predict (density_predict_command)
     return parser
 
 
@@ -1198,15 +1201,6 @@ def _run_circuit(args) -> int:
                       size_unit=args.size_unit, figures=not args.no_figures)  # fmt: skip
     print(console_report(run))
     return EXIT_OK
-
-
-def _add_density_command(commands) -> None:
-    """``tromplab density predict`` (the work is in density_predict_command)."""
-    from .density_predict_command import add_predict_parser
-
-    density = commands.add_parser("density", help="density partition (Tromp curves) of gravity separators (docs/density.md)")
-    density_commands = density.add_subparsers(dest="density_command", metavar="SUBCOMMAND", parser_class=_SubcommandParser)
-    add_predict_parser(density_commands)
 
 
 if __name__ == "__main__":

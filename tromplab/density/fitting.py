@@ -67,7 +67,7 @@ METHODS = ("binomial", "least_squares")
 
 @dataclass(frozen=True)
 class DensityCurveFit:
-    """One density curve fitted to one sample (a test and size fraction).
+    r"""One density curve fitted to one sample (a test and size fraction).
 
     Attributes
     ----------
@@ -501,14 +501,14 @@ def limits_test_p(plain: DensityCurveFit, limited: DensityCurveFit) -> float:
     >>> from types import SimpleNamespace as Fit
     >>> plain = Fit(method="binomial", objective=12.0, overdispersed=False, dispersion=1.0, sample=None)
     >>> round(limits_test_p(plain, Fit(objective=8.16)), 4)  # Lambda = 3.84: half the chi2(1) tail, plus a quarter of chi2(2)'s
-    0.0631
+    0.0617
     """
     if plain.method == "binomial":
         ratio = (plain.objective - limited.objective) / (plain.dispersion if plain.overdispersed else 1.0)
     else:
         count = int(plain.sample.used.shape[0])
         ratio = count * math.log(plain.objective / limited.objective) if limited.objective > 0 else math.inf
-    if not ratio > 0:
+    if not ratio > 1e-9:  # the limits fitted on their bounds: the plain curve again, up to the optimiser's tolerance
         return 1.0
     return float(0.5 * scipy.stats.chi2.sf(ratio, 1) + 0.25 * scipy.stats.chi2.sf(ratio, 2))
 
@@ -528,3 +528,63 @@ def rank_fits(fits: list[DensityCurveFit]) -> list[tuple[DensityCurveFit, int, s
     if len(close) > 1:
         note = f"the data cannot tell {', '.join(fit.curve.id for fit in close)} apart (AIC within 2 of the best)"
     return [(fit, ranks.get(id(fit), 0), note if fit in close else "") for fit in fits]
+
+
+# --- the band of a fitted curve ---------------------------------------------------------------
+def partition_band(fit: DensityCurveFit, rho, *, level: float = 0.95) -> tuple[np.ndarray, np.ndarray]:
+    r"""Pointwise delta-method band of the fitted partition at ``rho``: ``(low, high)``, within 0..1.
+
+    The covariance of the parameters is :math:`2 s H^{-1}`, with ``H`` the Hessian of the
+    objective (deviance or weighted sum of squares, by central differences) and ``s`` the
+    scale (the quasi-binomial scale when overdispersed, else 1; the residual variance for
+    least squares); a limit on its bound is held there.  The band is
+    :math:`\hat P \pm z\,\sqrt{g^\top C g}` with ``g`` the gradient of ``P`` in the
+    parameters, clipped to 0..1.
+    """
+    rho = np.asarray(rho, dtype=float)
+    centre = fit.partition(rho)
+    names = [name for name in fit.curve.parameter_names if not _on_bound(fit.curve, name, fit.params[name])]
+    data = _data(fit.sample, fit.method)
+    objective = _objective_of(data)
+    values = np.array([fit.params[name] for name in names])
+    steps = 1e-4 * np.maximum(np.abs(values), 1e-2)
+
+    def at(vector, where):
+        return fit.curve.partition(where, **{**fit.params, **dict(zip(names, vector))})
+
+    hessian = _hessian(lambda vector: objective(at(vector, data.density)), values, steps)
+    scale = (fit.dispersion if fit.overdispersed else 1.0) if data.binomial else fit.dispersion
+    try:
+        covariance = 2.0 * scale * np.linalg.inv(hessian)
+    except np.linalg.LinAlgError:
+        return np.full_like(centre, np.nan), np.full_like(centre, np.nan)
+    gradient = np.stack(
+        [
+            (at(values + np.eye(len(names))[i] * steps[i], rho) - at(values - np.eye(len(names))[i] * steps[i], rho))
+            / (2 * steps[i])
+            for i in range(len(names))
+        ],
+        axis=-1,
+    )
+    variance = np.einsum("...i,ij,...j->...", gradient, covariance, gradient)
+    half = scipy.stats.norm.ppf(0.5 + level / 2) * np.sqrt(np.clip(variance, 0, None))
+    return np.clip(centre - half, 0, 1), np.clip(centre + half, 0, 1)
+
+
+def _on_bound(curve: DensityCurve, name: str, value: float) -> bool:
+    parameter = next(p for p in curve.parameters if p.name == name)
+    return name in ("light_limit", "heavy_limit") and min(abs(value - parameter.lower), abs(value - parameter.upper)) < 1e-6
+
+
+def _hessian(function, x: np.ndarray, steps: np.ndarray) -> np.ndarray:
+    size = x.size
+    hessian = np.empty((size, size))
+    unit = np.eye(size)
+    for i in range(size):
+        for j in range(i, size):
+            di, dj = unit[i] * steps[i], unit[j] * steps[j]
+            value = (function(x + di + dj) - function(x + di - dj) - function(x - di + dj) + function(x - di - dj)) / (
+                4 * steps[i] * steps[j]
+            )
+            hessian[i, j] = hessian[j, i] = value
+    return hessian
