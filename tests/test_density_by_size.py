@@ -142,3 +142,19 @@ def test_the_outputs_are_the_tables_and_one_figure_per_test(tmp_path):
     assert len(pd.read_csv(tmp_path / "by_size.csv")) == 4
     no_sizes = read_density(pd.DataFrame({"density": [1.4, 1.5, 1.6, 1.7], "partition_sinks": [0.05, 0.3, 0.8, 0.97]}))
     assert by_size_outputs([fit_density_curve(no_sizes[0], "normal")]) == {}
+
+
+def test_density_fit_writes_the_size_tables_the_python_api_writes(tmp_path, capsys):
+    from tromplab.cli import main
+    from tromplab.density import fit_density
+
+    assert main(["density", "fit", str(TRACERS), "-o", str(tmp_path / "cli"), "--ci", "0.9", "--curves", "normal"]) == 0
+    fit_density(TRACERS, ci=0.9, curves="normal").save(tmp_path / "api")
+    for name in ("by_size.csv", "ep_trend.csv"):
+        assert (tmp_path / "cli" / name).read_bytes() == (tmp_path / "api" / name).read_bytes()
+    assert (tmp_path / "cli" / "by_size_dmc_tracers.png").exists()
+    by_size = pd.read_csv(tmp_path / "cli" / "by_size.csv")
+    fits = pd.read_csv(tmp_path / "cli" / "fits.csv")
+    # the per-size indices are those of fits.csv
+    np.testing.assert_allclose(np.sort(by_size["ep"]), np.sort(fits["ep"]), rtol=1e-12)
+    assert by_size["ep_low"].notna().all()
