@@ -43,7 +43,7 @@ a,1.6,,10,70
         (lambda t: t.replace("a,1.4,1.6", "a,1.45,1.6"), "row 4, column 'density_lower': fraction 1.45-1.6 leaves a gap to"),
         (lambda t: t.replace("a,1.3,1.4,30", "a,1.3,1.2,30"), "row 3, column 'density_lower': lower bound 1.3 is not below"),
         (lambda t: t.replace("a,1.6,,10", "a,,1.35,10"), "only one open float fraction"),
-        (lambda t: t.replace("a,1.3,1.4,30,10\na,1.4,1.6,20,25", "a,1.4,1.6,20,25\na,1.3,1.4,30,10"), "row 4, column 'density_lower': density fractions are not sorted"),
+        (lambda t: t.replace("a,1.3,1.4,30,10\na,1.4,1.6,20,25", "a,1.4,1.6,20,25\na,1.3,1.4,30,10"), "row 4, column 'density_lower': density fractions not increasing: 1.3-1.4 follows 1.4-1.6"),
         (lambda t: t.replace("a,1.6,,10,70", "a,1.6,,20,70"), "column 'mass_pct': test 'a': mass_pct adds up to 110"),
         (lambda t: t.replace("a,1.3,1.4", " ,1.3,1.4"), "row 3, column 'test': test name is blank"),
         (lambda t: t.replace("ash_pct", "ash_pc"), "unknown column(s) 'ash_pc' (did you mean 'ash_pct'?)"),
@@ -59,17 +59,15 @@ def test_a_bad_washability_table_is_refused_naming_file_row_and_column(tmp_path,
     assert "feed.csv" in str(error.value) and fragment in str(error.value)
 
 
-def test_fractions_are_read_light_to_heavy_from_either_order_and_names_stay_text(tmp_path):
-    lines = GOOD.splitlines()
-    heavy_first = "\n".join([lines[0], *reversed(lines[1:])]).replace("a,", "007,") + "\n"
-    (light,) = read_washability(write(tmp_path, GOOD, "light.csv"))
-    (heavy,) = read_washability(write(tmp_path, heavy_first, "heavy.csv"))
-    assert heavy.test == "007"
-    np.testing.assert_array_equal(heavy.mass_pct, light.mass_pct)
-    np.testing.assert_array_equal(heavy.density, light.density)
+def test_fractions_are_read_light_to_heavy_and_names_stay_text(tmp_path):
+    (light,) = read_washability(write(tmp_path, GOOD.replace("a,", "007,"), "light.csv"))
+    assert light.test == "007" and light.rows.tolist() == [2, 3, 4, 5]
     # the open ends closed by their neighbour's width: floats 1.2-1.3, sinks 1.6-1.8
     np.testing.assert_allclose(light.density, [1.25, 1.35, 1.5, 1.7], rtol=0, atol=1e-12)
-    assert light.rows.tolist() == [2, 3, 4, 5] and heavy.rows.tolist() == [5, 4, 3, 2]
+    lines = GOOD.splitlines()
+    heavy_first = "\n".join([lines[0], *reversed(lines[1:])]) + "\n"
+    with pytest.raises(InputError, match="row 3, column 'density_lower': density fractions not increasing"):
+        read_washability(write(tmp_path, heavy_first, "heavy.csv"))
 
 
 def test_mean_densities_replace_midpoints_and_close_open_fractions_about_themselves():

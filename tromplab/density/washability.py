@@ -497,7 +497,7 @@ def _one_test(table: Table, name: str, tolerance: float, float_lower, sink_upper
 
 
 def _checked_fractions(table: Table, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
-    """Positions of the fractions light to heavy, after checking that they tile the density range."""
+    """Positions of the fractions (light to heavy, as given), after checking that they tile the density range."""
     for values, column in ((lower, "density_lower"), (upper, "density_upper")):
         bad = np.flatnonzero(values <= 0)
         if bad.size:
@@ -518,12 +518,16 @@ def _checked_fractions(table: Table, lower: np.ndarray, upper: np.ndarray) -> np
     if len(lower) < 2:
         raise table.error("a washability table needs at least two density fractions", index=0, column="density_lower")
     key = np.where(np.isfinite(lower), lower, upper - 1e9)
-    step = np.diff(key)
-    if not (np.all(step > 0) or np.all(step < 0)):
-        i = int(np.flatnonzero(step <= 0)[0] if step[0] > 0 else np.flatnonzero(step >= 0)[0]) + 1
-        raise table.error("density fractions are not sorted (give them light to heavy or heavy to light)", index=i,
-                          column="density_lower")  # fmt: skip
-    order = np.argsort(key)
+    behind = np.flatnonzero(np.diff(key) <= 0)
+    if behind.size:
+        i = int(behind[0]) + 1
+        raise table.error(
+            f"density fractions not increasing: {_label(lower[i], upper[i])} follows {_label(lower[i - 1], upper[i - 1])} "
+            "(give the fractions of a test light to heavy)",
+            index=i,
+            column="density_lower",
+        )
+    order = np.arange(len(key))
     inner_open = np.concatenate([order[:-1][np.isnan(upper[order[:-1]])], order[1:][np.isnan(lower[order[1:]])]])
     if inner_open.size:
         i = int(inner_open[0])
