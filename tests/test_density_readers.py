@@ -99,7 +99,9 @@ def test_analysis_not_summing_to_100_is_refused(tmp_path):
 def test_float_sink_balance_is_the_lab_tables_yield_estimate(tmp_path):
     sample = read_density(write(tmp_path, FLOAT_SINK, "fs.csv"))[0]
     points = sample.points
-    feed, floats, sinks = (np.array(column) / 100 for column in ([30, 25, 15, 10, 20], [42, 34, 16, 5, 3], [2, 4, 12.7, 21.7, 59.6]))
+    feed, floats, sinks = (
+        np.array(column) / 100 for column in ([30, 25, 15, 10, 20], [42, 34, 16, 5, 3], [2, 4, 12.7, 21.7, 59.6])
+    )
     estimate = estimate_fine_yield(feed / feed.sum(), sinks / sinks.sum(), floats / floats.sum())
     assert sample.yield_source == "least-squares estimate"
     assert_allclose(sample.floats_yield, 1 - estimate.value, rtol=1e-12)
@@ -112,14 +114,18 @@ def test_float_sink_balance_is_the_lab_tables_yield_estimate(tmp_path):
 
 
 def test_stated_yield_is_used_and_a_contradiction_said(tmp_path):
-    text = FLOAT_SINK.replace("sinks_pct\n", "sinks_pct,floats_yield\n").replace("\nA,,1.3,30,42.0,2.0", "\nA,,1.3,30,42.0,2.0,0.4")
+    text = FLOAT_SINK.replace("sinks_pct\n", "sinks_pct,floats_yield\n").replace(
+        "\nA,,1.3,30,42.0,2.0", "\nA,,1.3,30,42.0,2.0,0.4"
+    )
     sample = read_density(write(tmp_path, text))[0]
     assert sample.floats_yield == 0.4 and sample.yield_source == "column floats_yield"
     assert any("contradicts the float-sink analyses" in note for note in sample.notes)
 
 
 def test_mean_density_replaces_the_midpoint(tmp_path):
-    text = FLOAT_SINK.replace("sinks_pct\n", "sinks_pct,density_mean\n").replace("A,1.3,1.4,25,34.0,4.0", "A,1.3,1.4,25,34.0,4.0,1.37")
+    text = FLOAT_SINK.replace("sinks_pct\n", "sinks_pct,density_mean\n").replace(
+        "A,1.3,1.4,25,34.0,4.0", "A,1.3,1.4,25,34.0,4.0,1.37"
+    )
     text = "\n".join(line + ("," if line.count(",") == 5 and i else "") for i, line in enumerate(text.splitlines())) + "\n"
     assert_allclose(read_density(write(tmp_path, text))[0].points["density"], [1.25, 1.37, 1.45, 1.55, 1.65])
     with pytest.raises(InputError, match="mean density 1.45 outside its fraction") as caught:
@@ -157,7 +163,9 @@ def test_dataframe_rows_are_named_by_index_label():
 
 
 def test_open_size_fraction_label():
-    frame = pd.DataFrame({"density": [1.4, 1.5], "sinks": [1, 2], "floats": [3, 3], "size_lower_mm": [0, 0], "size_upper_mm": [0.5, 0.5]})
+    frame = pd.DataFrame(
+        {"density": [1.4, 1.5], "sinks": [1, 2], "floats": [3, 3], "size_lower_mm": [0, 0], "size_upper_mm": [0.5, 0.5]}
+    )
     sample = read_density(frame)[0]
     assert sample.size_fraction == "-0.5 mm" and math.isnan(sample.size_lower)
     assert get_density_curve("normal") is not None
