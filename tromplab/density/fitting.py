@@ -5,7 +5,7 @@ Tracer counts
     :math:`k_i \sim \mathrm{Binomial}(n_i, P(\rho_i))`.  A plain curve is a binomial GLM
     in ``rho`` with the curve's link (probit: normal, logit: logistic, complementary
     log-log: Gompertz), fitted by statsmodels; ``rho50 = (q50 - a)/b``, ``Ep = k/b``.  A
-    curve with limits is fitted by minimising the binomial deviance (scipy, L-BFGS-B, several
+    curve with limits is fitted by minimising the binomial deviance (scipy, SLSQP within the bounds, several
     starts).  Goodness of fit: the deviance against :math:`\chi^2_{n - p}`.  Overdispersion:
     the Pearson :math:`X^2 / (n - p)`; when the Pearson test rejects at 5 %
     (:math:`X^2 > \chi^2_{n-p, 0.95}`) that ratio is used as the quasi-binomial scale
@@ -197,7 +197,9 @@ def _minimise(value: Callable[[np.ndarray], float], starts, bounds) -> scipy.opt
     for start in starts:
         with warnings.catch_warnings(), np.errstate(all="ignore"):
             warnings.simplefilter("ignore", RuntimeWarning)
-            result = scipy.optimize.minimize(value, np.asarray(start, float), method="L-BFGS-B", bounds=bounds)
+            result = scipy.optimize.minimize(
+                value, np.asarray(start, float), method="SLSQP", bounds=bounds, options={"ftol": 1e-12, "maxiter": 500}
+            )
         if np.isfinite(result.fun) and (best is None or result.fun < best.fun):
             best = result
     return best
@@ -285,15 +287,17 @@ def _separation(data: _Data) -> str:
     if floats.all() or sinks.all():
         side = "floats: rho50 lies above the heaviest" if floats.all() else "sinks: rho50 lies below the lightest"
         return f"every tracer {side} tracer density, so the test does not bound the curve"
-    for j in range(k.size):
-        if floats[:j].all() and (sinks[j:].all() or sinks[j + 1 :].all()):
-            low, high = rho[max(j - 1, 0)], rho[min(j + 1, k.size - 1)] if not sinks[j:].all() else rho[j]
-            return (
-                f"the tracers separate completely between {low:g} and {high:g} (all lighter ones float, all heavier "
-                "ones sink): the maximum-likelihood curve is a step there, rho50 lies between those densities and Ep "
-                "is below what the test resolves"
-            )
-    return ""
+    last_float = int(np.argmin(floats)) - 1  # the last density up to which every tracer floats (-1: none)
+    first_sink = k.size - int(np.argmin(sinks[::-1]))  # the first density from which every tracer sinks (size: none)
+    if first_sink - last_float > 2:  # two or more densities with tracers in both products: a likelihood maximum exists
+        return ""
+    low = f"{rho[last_float]:g}" if last_float >= 0 else "below the lightest density"
+    high = f"{rho[first_sink]:g}" if first_sink < k.size else "above the heaviest density"
+    return (
+        f"the tracers separate completely between {low} and {high} (all lighter ones float, all heavier ones sink, "
+        "but for at most one density between): the maximum-likelihood curve is a step there, rho50 lies between those "
+        "densities and Ep is below what the test resolves"
+    )
 
 
 # --- goodness of fit, dispersion, AIC -------------------------------------------------------
@@ -373,19 +377,24 @@ def profile_interval(fit: DensityCurveFit, quantity: str, ci: float) -> tuple[fl
         return math.nan, math.nan, f"{quantity} has no interval: no degrees of freedom left for the error variance"
     free = [i for i in range(centre.size) if i != position]
 
+    warm = {"x": centre[free]}  # the optimum of the last profile point: the next one starts there
+
     def excess(value):
         def at(x):
             q = centre.copy()
             q[position], q[free] = value, x
             return objective(fit.curve.partition(data.density, **model(q)))
 
-        best = _minimise(at, [centre[free]], [bounds[i] for i in free])
-        return (min(best.fun, at(centre[free])) - fit.objective) / scale - threshold
+        starts = [warm["x"]] if len(free) == 1 else [warm["x"], centre[free]]
+        best = _minimise(at, starts, [bounds[i] for i in free])
+        warm["x"] = best.x
+        return (best.fun - fit.objective) / scale - threshold
 
     # a quarter of Ep (of I) is about the half-width of a 95 % interval from 30 tracers per density
     step = 0.25 * (fit.indices.imperfection if quantity == "imperfection" else fit.indices.ep)
     limits, notes = [], []
     for direction in (-1.0, 1.0):
+        warm["x"] = centre[free]
         value, note = _profile_limit(excess, centre[position], direction, bounds[position], step)
         limits.append(value)
         notes += [f"{quantity}: {note}"] if note else []
@@ -490,8 +499,8 @@ def _intervals(fit: DensityCurveFit, data: _Data, ci: float) -> tuple[dict, list
 def limits_test_p(plain: DensityCurveFit, limited: DensityCurveFit) -> float:
     r"""p-value of the two limits against the plain curve (chi-bar-squared, both limits on their bounds).
 
-    The likelihood ratio :math:`\Lambda` (the deviance difference, over the scale when
-    overdispersed; :math:`n\ln(S_0/S_1)` for least squares) is referred to
+    The likelihood ratio :math:`\Lambda` (the deviance difference, over the quasi-binomial
+    scale of the curve with limits when it is overdispersed; :math:`n\ln(S_0/S_1)` for least squares) is referred to
     :math:`\tfrac14\chi^2_0 + \tfrac12\chi^2_1 + \tfrac14\chi^2_2` (Self & Liang 1987):
     :math:`p = \tfrac12 P(\chi^2_1 > \Lambda) + \tfrac14 P(\chi^2_2 > \Lambda)` for
     :math:`\Lambda > 0`, and 1 otherwise.
@@ -499,12 +508,13 @@ def limits_test_p(plain: DensityCurveFit, limited: DensityCurveFit) -> float:
     Examples
     --------
     >>> from types import SimpleNamespace as Fit
-    >>> plain = Fit(method="binomial", objective=12.0, overdispersed=False, dispersion=1.0, sample=None)
-    >>> round(limits_test_p(plain, Fit(objective=8.16)), 4)  # Lambda = 3.84: half the chi2(1) tail, plus a quarter of chi2(2)'s
+    >>> plain = Fit(method="binomial", objective=12.0, sample=None)
+    >>> round(limits_test_p(plain, Fit(objective=8.16, overdispersed=False, dispersion=1.0)), 4)  # Lambda = 3.84: half the chi2(1) tail, plus a quarter of chi2(2)'s
     0.0617
     """
     if plain.method == "binomial":
-        ratio = (plain.objective - limited.objective) / (plain.dispersion if plain.overdispersed else 1.0)
+        # the scale of the larger model: a plain curve that misses real limits looks overdispersed itself
+        ratio = (plain.objective - limited.objective) / (limited.dispersion if limited.overdispersed else 1.0)
     else:
         count = int(plain.sample.used.shape[0])
         ratio = count * math.log(plain.objective / limited.objective) if limited.objective > 0 else math.inf
