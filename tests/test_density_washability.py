@@ -252,7 +252,8 @@ def test_an_unreachable_target_ash_is_said_in_words_and_exits_3(tmp_path, capsys
 def test_bad_options_are_usage_errors_and_write_nothing(tmp_path, capsys, options, fragment):
     out = tmp_path / "pred.csv"
     assert main(["density", "predict", str(WASHABILITY), *options, "-o", str(out)]) == 2
-    assert fragment in capsys.readouterr().err and not out.exists()
+    error = capsys.readouterr().err
+    assert fragment in error and error.startswith("tromplab density predict: error") and not out.exists()
 
 
 def test_the_api_refuses_the_same_options_in_its_own_words():
