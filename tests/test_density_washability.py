@@ -287,3 +287,9 @@ def test_a_fitted_curve_predicts_with_its_own_partition():
     assert row.curve == "logistic" and row.rho50 == fit.indices.rho50 and row.ep == fit.indices.ep
     with pytest.raises(OptionError, match="come from the fit"):
         predict(feed, curve=fit, rho50=1.5)
+
+
+def test_fractions_of_exactly_the_target_ash_are_taken_whole():
+    w = washability_from_arrays([np.nan, 1.4, 1.6], [1.4, 1.6, np.nan], [40, 30, 30], [5, 5, 50])
+    assert w.theoretical_yield_pct(5.0) == pytest.approx(70.0, abs=1e-12)
+    assert np.isnan(w.theoretical_yield_pct(4.999))

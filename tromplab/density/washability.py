@@ -220,20 +220,19 @@ class Washability:
         m, a = self.mass_pct, self.ash_pct
         yield_before = np.append(0.0, np.cumsum(m)[:-1])
         ash_before = np.append(0.0, np.cumsum(m * a)[:-1])
-        best = np.nan
-        for previous_yield, previous_ash, mass, ash in zip(yield_before, ash_before, m, a):
-            if mass <= 0:
-                continue
-            if ash == target:
-                share = 1.0  # the fraction has the target ash: all of it keeps the ash where it was (or sets it)
-                if previous_yield > 0 and abs(previous_ash / previous_yield - target) > 1e-12:
-                    share = np.nan
-            else:
-                share = (target * previous_yield - previous_ash) / (mass * (ash - target))
-            if np.isfinite(share) and -1e-12 <= share <= 1 + 1e-12:
-                best = previous_yield + min(max(share, 0.0), 1.0) * mass
         if target >= self.feed_ash_pct:
             return 100.0
+        best = np.nan
+        for previous_yield, previous_ash_mass, mass, ash in zip(yield_before, ash_before, m, a):
+            if mass <= 0:
+                continue
+            excess_before = previous_ash_mass - target * previous_yield  # ash mass above the target's, before this fraction
+            if ash == target:  # the fraction keeps the cumulative ash where it is: all of it, if that is the target
+                share = 1.0 if abs(excess_before) <= 1e-12 * max(previous_yield, 1.0) else np.nan
+            else:
+                share = -excess_before / (mass * (ash - target))
+            if np.isfinite(share) and -1e-12 <= share <= 1 + 1e-12:
+                best = previous_yield + min(max(share, 0.0), 1.0) * mass
         return float(best) if np.isfinite(best) and best > 0 else np.nan
 
     def predict(self, partition: Callable) -> Prediction:
