@@ -293,3 +293,11 @@ def test_fractions_of_exactly_the_target_ash_are_taken_whole():
     w = washability_from_arrays([np.nan, 1.4, 1.6], [1.4, 1.6, np.nan], [40, 30, 30], [5, 5, 50])
     assert w.theoretical_yield_pct(5.0) == pytest.approx(70.0, abs=1e-12)
     assert np.isnan(w.theoretical_yield_pct(4.999))
+
+
+def test_the_command_offers_every_registry_curve():
+    from tromplab.density.curves import DENSITY_CURVES
+    from tromplab.density_predict_command import PREDICT_CURVES
+
+    # declared in the command module so that building the parser imports no numerical library
+    assert PREDICT_CURVES == tuple(curve.id for curve in DENSITY_CURVES)

@@ -18,7 +18,8 @@ from .options import DEFAULT_SUM_TOLERANCE_PCT
 from .output.outputs import check_output_file, write_files
 from .validation import check_cut_density, check_non_negative, check_percent, check_positive, check_share, cli_type
 
-#: The curves ``--curve`` offers (the registry's plain curves; limits select their variants).
+#: The curves ``--curve`` offers: the registry's ids, written out so that building the parser imports no
+#: numerical library (a test checks them against the registry).
 PREDICT_CURVES = ("normal", "logistic", "gompertz", "normal_limits", "logistic_limits", "gompertz_limits")
 
 
