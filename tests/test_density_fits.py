@@ -1,6 +1,7 @@
 """Density fits: binomial maximum likelihood, least squares, profile intervals, ranking, the command and the API."""
 
 import math
+import re
 
 import numpy as np
 import pandas as pd
@@ -212,3 +213,26 @@ def test_tracer_study_small_binomial_coverage_near_nominal():
     assert abs(binomial["rho50_bias"]) < 0.004 and abs(binomial["ep_relative_bias"]) < 0.1
     # 60 tests: a 95 % coverage is seen between 0.85 and 1 (binomial 99.9 % range)
     assert 0.85 <= binomial["rho50_coverage"] <= 1.0 and 0.85 <= binomial["ep_coverage"] <= 1.0
+
+
+def _documented_columns() -> set[str]:
+    from .conftest import ROOT
+
+    names = set()
+    for line in (ROOT / "docs" / "density_columns.md").read_text().splitlines():
+        cells = [cell.strip() for cell in line.strip().strip("|").split("|")]
+        if len(cells) == 4 and cells[0].startswith("`"):
+            names |= set(re.findall(r"`([^`]+)`", cells[0]))
+    return names
+
+
+def test_every_written_column_is_documented(tmp_path):
+    documented = _documented_columns()
+    tracer_table = pd.concat([tracers(seed=1).assign(size_lower_mm=2, size_upper_mm=8), tracers(seed=2).assign(size_lower_mm=8)])
+    float_sink = float_sink_table("normal", {"rho50": 1.55, "ep": 0.05}, [1.3, 1.4, 1.5, 1.6, 1.7], [30, 20, 15, 10, 10, 15])
+    float_sink["feed_ash_pct"] = float_sink["floats_ash_pct"] = float_sink["sinks_ash_pct"] = 10.0
+    for data in (tracer_table, float_sink):
+        result = fit_density(data, ci=0.9, curves="normal,normal_limits")
+        for table in (result.fits_table(), result.partition_table()):
+            missing = set(table.columns) - documented
+            assert not missing, f"columns not in docs/density_columns.md: {sorted(missing)}"

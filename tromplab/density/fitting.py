@@ -375,6 +375,8 @@ def profile_interval(fit: DensityCurveFit, quantity: str, ci: float) -> tuple[fl
         threshold = scipy.stats.f.ppf(ci, 1, fit.df_resid) if fit.df_resid > 0 else math.nan
     if not (np.isfinite(scale) and scale > 0):
         return math.nan, math.nan, f"{quantity} has no interval: no degrees of freedom left for the error variance"
+    if not data.binomial and fit.objective <= 1e-20 * data.density.size:
+        return math.nan, math.nan, f"{quantity} has no interval: the curve passes through every point (no residual variance)"
     free = [i for i in range(centre.size) if i != position]
 
     warm = {"x": centre[free]}  # the optimum of the last profile point: the next one starts there
@@ -411,7 +413,11 @@ def _profile_limit(excess, centre: float, direction: float, bounds: tuple[float,
         if (outer - edge) * direction >= 0:
             outer = edge
         if excess(outer) > 0:
-            return float(scipy.optimize.brentq(excess, min(inner, outer), max(inner, outer), xtol=tolerance)), ""
+            try:
+                return float(scipy.optimize.brentq(excess, min(inner, outer), max(inner, outer), xtol=tolerance)), ""
+            except ValueError:  # the re-optimised profile is not monotone between the two points
+                side = "upper" if direction > 0 else "lower"
+                return math.nan, f"the {side} limit could not be found (the profile is not monotone near {outer:.4g})"
         if outer == edge:
             side = "upper" if direction > 0 else "lower"
             return math.nan, f"the profile does not reach the {side} limit within {edge:g}"

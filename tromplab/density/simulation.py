@@ -163,3 +163,55 @@ def _study_row(outcomes, step, retrieval, method, rho50, ep) -> dict:
         row[f"{quantity}_coverage"] = float(covered.mean()) if exists.any() else math.nan
         row[f"{quantity}_no_interval"] = int((~exists).sum())
     return row
+
+
+def limits_test_size(
+    *,
+    rho50: float = 1.55,
+    ep: float = 0.04,
+    step: float = 0.02,
+    retrieval: float = 0.9,
+    placed: int = 30,
+    tests: int = 200,
+    curve: str = "normal",
+    alpha: float = 0.05,
+    seed: int = 0,
+) -> dict:
+    """Rejection rate of the chi-bar-squared test of the limits when the true curve has none.
+
+    Simulated tracer tests of the plain ``curve`` are fitted with it and with its variant with
+    limits; the share of tests whose :func:`~tromplab.density.fitting.limits_test_p` falls
+    below ``alpha`` estimates the test's size (nominal ``alpha``), beside the share a plain
+    chi-square with 2 degrees of freedom would reject and the share of fits with both limits
+    on their bounds.
+
+    Returns
+    -------
+    dict
+        ``tests, fitted, mixture_rejects, chi2_2_rejects, both_on_bounds``.
+    """
+    import scipy.stats
+
+    from .fitting import limits_test_p
+
+    rng = np.random.default_rng(seed)
+    half = max(3 * ep, 2 * step)
+    densities = np.round(np.arange(rho50 - half, rho50 + half + step / 2, step), 6)
+    mixture, plain_chi2, on_bounds = [], [], []
+    for _ in range(tests):
+        sample = read_density(
+            simulate_tracer_test(curve, {"rho50": rho50, "ep": ep}, densities, placed=placed, retrieval=retrieval, rng=rng)
+        )[0]
+        plain, limited = fit_density_curve(sample, curve), fit_density_curve(sample, f"{curve}_limits")
+        if not (plain.success and limited.success):
+            continue
+        mixture.append(limits_test_p(plain, limited) < alpha)
+        plain_chi2.append(scipy.stats.chi2.sf(max(plain.objective - limited.objective, 0.0), 2) < alpha)
+        on_bounds.append(limited.params["light_limit"] <= 1e-6 and limited.params["heavy_limit"] >= 1 - 1e-6)
+    return {
+        "tests": tests,
+        "fitted": len(mixture),
+        "mixture_rejects": float(np.mean(mixture)) if mixture else math.nan,
+        "chi2_2_rejects": float(np.mean(plain_chi2)) if plain_chi2 else math.nan,
+        "both_on_bounds": float(np.mean(on_bounds)) if on_bounds else math.nan,
+    }
