@@ -163,3 +163,16 @@ def test_a_dash_in_a_generated_table_is_a_dash_not_a_bullet(docs_ext):
 
     body = publish_parts(docs_ext._table(("parameter", "unit"), [("km1", "-")]), writer=Writer())["body"]
     assert "<td>-</td>" in body and "<li>" not in body
+
+
+def test_catalogue_has_a_section_for_every_density_curve(docs_ext, tmp_path):
+    from tromplab.density.curves import DENSITY_CURVES
+
+    page = docs_ext.density_catalogue(figure_dir=tmp_path)
+    for curve in DENSITY_CURVES:
+        assert f".. _density-{curve.id}:" in page and curve.title in page, curve.id
+        assert f"``{curve.expression}``" in page, curve.id
+        assert (tmp_path / f"density_{curve.id}.png").exists(), curve.id
+        for parameter in curve.parameters:
+            assert f"[{parameter.lower:g}, {parameter.upper:g}]" in page, (curve.id, parameter.name)
+    assert page.count(".. math::") == len(DENSITY_CURVES)

@@ -7,7 +7,8 @@ Commands (``tromplab COMMAND -h`` for each; the command-line reference of the do
 ``points`` and ``balance`` (lab table to Tromp points, mass balance), ``sieve identify | pg |
 bin``, ``rank`` (F table to ranks), ``circuit`` (plant survey reconciled; its work is in
 :mod:`tromplab.circuit_command`), and from :mod:`tromplab.model_commands` ``layer simulate |
-fit``, ``pulp optimum | fit`` and ``optimize``. The console script enters through
+fit``, ``pulp optimum | fit`` and ``optimize``, and ``density fit | predict`` (density partition of gravity separators; its work
+is in :mod:`tromplab.density_command` and :mod:`tromplab.density_predict_command`). The console script enters through
 :mod:`tromplab._launch`, which handles SIGINT and SIGTERM before numpy is imported.
 """
 
@@ -29,6 +30,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from ._version import __version__
+from .density_command import add_density_command
+from .density_predict_command import add_predict_parser
 from .errors import InputError, InputNote, OptionError, YieldWarning
 from .model_commands import add_model_commands
 from .options import (
@@ -119,7 +122,9 @@ def main(argv=None, *, on_start=None) -> int:
     if not hasattr(args, "run"):
         parser.print_help()
         return EXIT_USAGE
-    command = " ".join(filter(None, ("tromplab", args.command, getattr(args, "sieve_command", None))))
+    command = " ".join(
+        filter(None, ("tromplab", args.command, getattr(args, "sieve_command", None), getattr(args, "density_command", None)))
+    )
     try:
         _check_input_paths(args)  # before the imports: a missing file answers at once
         # a command imports its modules before it starts: an interrupt inside an import can stop
@@ -344,6 +349,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_rank(commands)
     add_model_commands(commands)  # layer, pulp, optimize
     _add_circuit_command(commands)
+    density = add_density_command(commands)  # density fit (the sub-commands and their work are in density_command)
+    add_predict_parser(density.density_commands)  # density predict (density_predict_command)
     return parser
 
 

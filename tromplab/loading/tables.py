@@ -184,7 +184,13 @@ class Table:
 
 
 def read_table(
-    path, *, sheet: str | int | None = None, sep: str | None = None, decimal: str | None = None, columns=None
+    path,
+    *,
+    sheet: str | int | None = None,
+    sep: str | None = None,
+    decimal: str | None = None,
+    columns=None,
+    text_columns=(),
 ) -> Table:
     """Read a CSV (``#`` comments allowed) or Excel file, or take a DataFrame, into a :class:`Table`.
 
@@ -201,6 +207,9 @@ def read_table(
     columns : collection of str, optional
         Keep only these columns of a CSV (the others are checked as the header is, but not
         parsed: a large table read for a few of its columns needs a fraction of the memory).
+    text_columns : collection of str, optional
+        Columns of names that a CSV keeps as written ("007" stays "007", not the number 7);
+        Excel cells keep the type the workbook gives them.
 
     Raises
     ------
@@ -231,7 +240,7 @@ def read_table(
     else:
         if sheet is not None:
             raise InputError(f"a sheet ({sheet!r}) was given but the file is not an Excel workbook", source=source)
-        frame, rows, header, notes = _read_csv(path, sep=sep, decimal=decimal, columns=columns)
+        frame, rows, header, notes = _read_csv(path, sep=sep, decimal=decimal, columns=columns, text_columns=text_columns)
     _check_header(header, source)
     frame.columns = [str(c).strip() for c in (header if columns is None else frame.columns)]
     frame = _drop_empty_unnamed(frame, source)
@@ -325,7 +334,7 @@ def _has_comment_or_blank_line(text: str, end: int) -> bool:
     return bool(_FIRST_LINE_COMMENT_OR_BLANK.match(text, 0, end) or _LATER_LINE_COMMENT_OR_BLANK.search(text, 0, end))
 
 
-def _read_csv(path: Path, *, sep, decimal, columns=None):
+def _read_csv(path: Path, *, sep, decimal, columns=None, text_columns=()):
     source = str(path)
     raw = path.read_bytes()
     try:
@@ -387,6 +396,7 @@ def _read_csv(path: Path, *, sep, decimal, columns=None):
                 index_col=False,
                 header=0,
                 usecols=None if wanted is None else (lambda name: str(name).strip() in wanted),
+                dtype={name: str for name in header if name in set(text_columns)} or None,
             )
         too_many = any(issubclass(w.category, pd.errors.ParserWarning) for w in caught)
     except (pd.errors.ParserError, ValueError) as error:
