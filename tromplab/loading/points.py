@@ -32,7 +32,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import InputError
-from .tables import Table, read_table
+from .tables import Table, read_table, table_from_frame
 
 SIZE_UNITS = ("nm", "um", "mm", "cm", "m")  # mesh numbers are not sizes (larger = finer)
 _UNIT_SPELLINGS = {
@@ -378,4 +378,5 @@ def points_from_frame(frame: pd.DataFrame, *, source: str = "data frame") -> lis
     """Tromp points from a data frame in the file schema (same checks and messages as a file;
     rows are numbered from 1)."""
     frame = frame.reset_index(drop=True)
-    return points_from_table(Table(frame, np.arange(1, len(frame) + 1), source))
+    frame.index = frame.index + 1
+    return points_from_table(table_from_frame(frame, source=source))
