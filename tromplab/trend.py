@@ -56,6 +56,7 @@ from .errors import InputError
 from .loading.lab import LabOptions, balances_from_table, is_lab_table, read_renamed
 from .loading.points import TrompPoints, points_from_table
 from .loading.surveys import has_survey_columns, split_survey_columns
+from .output.csv_parts import write_csv
 from .output.outputs import write_files
 from .output.plotting import offscreen_axes, plot_control_chart, save_figure
 from .output.report import Report, figure_png
@@ -515,8 +516,8 @@ def write_trend(result: TrendResult, outdir, *, size_unit: str = "", figures: bo
     """
     table = result.table.replace({"unit": {"size": size_unit}}) if size_unit else result.table
     outputs = {
-        "trend.csv": lambda p: table.to_csv(p, index=False, date_format="%Y-%m-%d"),
-        "trend_surveys.csv": lambda p: result.survey_flags().to_csv(p, index=False, date_format="%Y-%m-%d"),
+        "trend.csv": lambda p: write_csv(table, p, date_format="%Y-%m-%d"),
+        "trend_surveys.csv": lambda p: write_csv(result.survey_flags(), p, date_format="%Y-%m-%d"),
     }
     if figures:
         for quantity in result.quantities:
