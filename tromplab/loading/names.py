@@ -124,5 +124,13 @@ def cell_name(value) -> str | None:
 
 def names_as_text(values: pd.Series) -> pd.Series:
     """A column of cells as names (:func:`cell_name`), blanks as NaN, in an object column."""
+    if pd.api.types.infer_dtype(values, skipna=True) in ("string", "empty"):  # text only: at once
+        names = values.str.strip()  # vectorised for a string column (pyarrow), a loop for objects
+        marked = names.str.startswith(TEXT_MARK, na=False).to_numpy()
+        names = names.to_numpy(dtype=object, na_value=np.nan, copy=True)
+        if marked.any():
+            names[marked] = [undefended(name) for name in names[marked]]
+        names[names == ""] = np.nan
+        return pd.Series(names, index=values.index, dtype=object)
     names = [cell_name(value) for value in values.tolist()]
     return pd.Series([np.nan if name is None else name for name in names], index=values.index, dtype=object)
