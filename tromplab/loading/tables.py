@@ -239,6 +239,8 @@ def read_table(
         if sep is not None or decimal is not None:
             raise InputError("sep and decimal apply to CSV files, not to a DataFrame", source=DATAFRAME_SOURCE)
         return table_from_frame(path, text_columns=text_columns)
+    if not isinstance(path, (str, os.PathLike)):
+        raise TypeError(f"a table is read from a file path (str or path-like) or a pandas DataFrame, got {type(path).__name__}")
     path = Path(path)
     source = str(path)
     sep = {"\\t": "\t", "tab": "\t"}.get(sep, sep)  # a tab is hard to type on a command line

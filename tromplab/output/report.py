@@ -25,6 +25,7 @@ import pandas as pd
 from .._version import __version__
 from ..curves.intervals import interval_table
 from ..curves.measured import CUT_WARNING
+from ..errors import expect_kind, expect_like
 from ..loading.lab import PARTITION_METHOD_TEXT, MassBalance
 from ..statistics.hydrocyclone import water_recovery_statements
 from .csv_parts import write_csv
@@ -240,6 +241,7 @@ def build_report(
         chunk in order (the batch's workers: the per-experiment figures are drawn there);
         default in this process.
     """
+    expect_like(bench, ("fits_table", "ranking_table", "fits_of"), "bench", "a Workbench (tromplab.fit_experiments)")
     check_partition_to(partition_to)
     report = Report(title, source)
     fits, ranking = bench.fits_table(), bench.ranking_table()
@@ -436,6 +438,7 @@ def write_report(report: Report, html_path) -> dict[str, Path]:
     html_path : str or path-like
         The HTML file; the Markdown and figures go beside it (written atomically).
     """
+    expect_kind(report, Report, "report", "a Report (tromplab.build_report)")
     html_path = Path(html_path)
     stem = html_path.stem
     figures = [(caption, content) for items in report.sections.values() for kind, content, caption in items if kind == "figure"]
