@@ -37,6 +37,7 @@ def _write_xlsx(path, rows: list[list]):
     return path
 
 
+@pytest.mark.filterwarnings("ignore::tromplab.errors.InputNote")  # the detected semicolon dialect
 @pytest.mark.parametrize("form", ["csv", "semicolon csv", "xlsx", "DataFrame"])
 def test_every_catalogue_name_is_read_as_written(tmp_path, form):
     frame = pd.DataFrame(points_rows(READ_NAMES))
@@ -231,3 +232,11 @@ def test_the_text_mark_round_trips_every_name(name):
     from tromplab.loading.names import defended
 
     assert undefended(defended(name)) == name
+
+
+def test_the_words_for_missing_are_pandas_own():
+    """Numbers keep exactly the blanks pandas gave them before names were read as text."""
+    parsers = pytest.importorskip("pandas._libs.parsers")
+    from tromplab.loading.names import MISSING_WORDS
+
+    assert set(MISSING_WORDS) == set(parsers.STR_NA_VALUES)

@@ -1561,7 +1561,7 @@ def get_formula(key: str | int) -> Formula:
     KeyError
         For an unknown key, listing the known formulas.
     TypeError
-        For a key that is neither text nor a whole number.
+        For a key that is no name at all (None, a boolean, a collection).
 
     Examples
     --------
@@ -1570,7 +1570,7 @@ def get_formula(key: str | int) -> Formula:
     """
     if isinstance(key, Formula):
         return key
-    if not isinstance(key, (str, int, np.integer)) or isinstance(key, (bool, np.bool_)):
+    if key is None or isinstance(key, (bool, np.bool_, bytes, list, tuple, dict, set, np.ndarray)):
         raise TypeError(f"a formula is named by its id (str) or its equation number (int), got {type(key).__name__}")
     text = str(key).strip()
     if text in _BY_ID:
