@@ -523,7 +523,7 @@ def _add_points(commands, groups) -> None:
     points.add_argument("input", type=Path, help="lab table (CSV or .xlsx)")
     points.add_argument("-o", "--output", type=Path, required=True, help="Tromp points CSV to write")
     _add_partition_to(points)
-    points.set_defaults(run=_run_points, imports=(*_READERS, "tromplab.output.views"))
+    points.set_defaults(run=_run_points, imports=(*_READERS, "tromplab.output.views", "tromplab.output.csv_parts"))
 
 
 def _add_balance(commands, groups) -> None:
@@ -549,7 +549,7 @@ def _add_sieve(commands) -> None:
     identify.add_argument(
         "--level", type=cli_type(check_probability, "--level"), default=0.95, help="confidence level of the intervals, in (0, 1)"
     )
-    identify.set_defaults(run=_run_sieve_identify, imports=("tromplab.classifiers.sieve", *_READERS))
+    identify.set_defaults(run=_run_sieve_identify, imports=("tromplab.classifiers.sieve", *_READERS, "tromplab.output.csv_parts"))
     _add_sieve_pg(sieve_commands)
     _add_sieve_bin(sieve_commands)
 
@@ -607,7 +607,7 @@ def _add_rank(commands) -> None:
         help="significance level for F_crit from n, in (0, 1)",
     )
     rank.add_argument("--computed-adequacy", action="store_true", help="ignore an 'adequate' column and use F > F_crit")
-    rank.set_defaults(run=_run_rank, imports=("tromplab.curves.ranking", *_READERS))
+    rank.set_defaults(run=_run_rank, imports=("tromplab.curves.ranking", *_READERS, "tromplab.output.csv_parts"))
 
 
 def _add_partition_to(parser) -> None:
@@ -750,7 +750,9 @@ def _run_points(args) -> int:
     )
     table = partition_view(table, args.partition_to)
     args.output.parent.mkdir(parents=True, exist_ok=True)
-    written = write_files({args.output.name: lambda p: table.to_csv(p, index=False)}, args.output.parent)
+    from .output.csv_parts import write_csv
+
+    written = write_files({args.output.name: lambda p: write_csv(table, p)}, args.output.parent)
     _print_balance_notes(balances)
     print(table.to_string(index=False, float_format=lambda v: f"{v:.4g}", na_rep="-"))
     print(f"\nWrote: {written[args.output.name]}")
@@ -785,11 +787,12 @@ def _run_balance(args) -> int:
 def _run_sieve_identify(args) -> int:
     from .classifiers.sieve import identify_from_table
     from .loading.tables import check_input_file, read_table
+    from .output.csv_parts import write_csv
 
     check_input_file(args.data)
     check_output_file(args.output, inputs=[args.data])
     laws = identify_from_table(read_table(args.data), two_sided=args.two_sided, level=args.level)
-    written = write_files({args.output.name: lambda p: laws.to_csv(p, index=False)}, args.output.parent)
+    written = write_files({args.output.name: lambda p: write_csv(laws, p)}, args.output.parent)
     view = laws[["sieve", "fraction", "n_regimes", "v_k", "v_k_stderr", "sigma", "sigma_stderr", "success"]]
     print(view.to_string(index=False, float_format=lambda v: f"{v:.4g}", na_rep="-"))
     for sieve, fraction, message in laws.loc[~laws["success"].astype(bool), ["sieve", "fraction", "message"]].itertuples(
@@ -1137,12 +1140,13 @@ def _run_trend(args) -> int:
 def _run_rank(args) -> int:
     from .curves.ranking import rank_formulas, read_f_table
     from .loading.tables import check_input_file
+    from .output.csv_parts import write_csv
 
     check_input_file(args.table)
     check_output_folder(args.outdir, inputs=[args.table])
     table = read_f_table(args.table, alpha=args.alpha, use_given_marks=not args.computed_adequacy)
     ranking = rank_formulas(table)
-    written = write_files({"ranking.csv": lambda p: ranking.to_csv(p, index=False)}, args.outdir)
+    written = write_files({"ranking.csv": lambda p: write_csv(ranking, p)}, args.outdir)
     print(ranking.to_string(index=False))
     print(f"\nWrote: {written['ranking.csv']}")
     return 0

@@ -24,6 +24,7 @@ import numpy as np
 import pandas as pd
 from scipy import optimize
 
+from ..errors import expect_kind
 from ..loading.points import TrompPoints
 from .diagnostics import RESIDUAL_WARNING, ResidualDiagnostics, batch_residual_diagnostics, residual_diagnostics
 from .fitting import ParameterFit, least_squares, on_bound
@@ -553,6 +554,7 @@ def fit_formula(
     >>> round(fit.d_cut, 2), round(fit.shape, 2), fit.screen.adequate
     (48.21, 2.62, True)
     """
+    expect_kind(points, TrompPoints, "points", "a TrompPoints (tromplab.TrompPoints or tromplab.read_points)")
     formula = get_formula(formula)
     check_screenable(points.n, n_params=formula.n_params)
     options = FitOptions.for_points(points, alpha=alpha, delta_max=delta_max, size_unit=size_unit, global_search=global_search)

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from functools import cache, lru_cache
 
@@ -1560,6 +1560,8 @@ def get_formula(key: str | int) -> Formula:
     ------
     KeyError
         For an unknown key, listing the known formulas.
+    TypeError
+        For a key that is no name at all (None, a boolean, a collection).
 
     Examples
     --------
@@ -1568,6 +1570,8 @@ def get_formula(key: str | int) -> Formula:
     """
     if isinstance(key, Formula):
         return key
+    if key is None or isinstance(key, (bool, np.bool_, bytes, list, tuple, dict, set, np.ndarray)):
+        raise TypeError(f"a formula is named by its id (str) or its equation number (int), got {type(key).__name__}")
     text = str(key).strip()
     if text in _BY_ID:
         return _BY_ID[text]
@@ -1606,7 +1610,7 @@ def select_formulas(keys=None) -> tuple[Formula, ...]:
 
     Parameters
     ----------
-    keys : str, iterable of str/int, or None
+    keys : str, int, iterable of str/int, or None
         Ids or equation numbers (a comma-separated string is split); ``"extended"``
         stands for every extended curve (bypass, fish-hook), ``"paper"`` for the nine,
         ``"other"`` for the curves of other tools (normal, logistic, Teipel/Hennig,
@@ -1625,9 +1629,13 @@ def select_formulas(keys=None) -> tuple[Formula, ...]:
         return FORMULAS
     if isinstance(keys, str):
         keys = [k for k in keys.replace(" ", "").split(",") if k]
+    elif isinstance(keys, (int, np.integer, Formula)):
+        keys = [keys]
+    elif not isinstance(keys, Iterable) or isinstance(keys, Mapping):
+        raise TypeError(f"formulas are ids or equation numbers (a str, an int or an iterable of them), got {type(keys).__name__}")
     chosen = []
     for key in keys:
-        group = FORMULA_GROUPS[key] if key in FORMULA_GROUPS else (get_formula(key),)
+        group = FORMULA_GROUPS[key] if isinstance(key, str) and key in FORMULA_GROUPS else (get_formula(key),)
         chosen += [f for f in group if f not in chosen]
     return tuple(chosen)
 

@@ -212,6 +212,9 @@ def curve_indices(
     >>> round(ind.d25, 3), round(ind.d75, 3), round(ind.ep, 3), ind.extrapolated
     (57.735, 173.205, 57.735, ('d25', 'eta'))
     """
+    for argument, value in (("d_cut", d_cut), ("shape", shape), ("delta_max", delta_max)):
+        if value is None or isinstance(value, (str, bytes, list, tuple, dict, set)):
+            raise TypeError(f"{argument} must be a number, got {type(value).__name__}")
     formula = get_formula(formula)
     eta, eps = efficiency(formula, shape, delta_max / d_cut, **context)
     slope = formula.slope_at_cut(shape) if not formula.extras else _numeric_slope(formula, shape, context)

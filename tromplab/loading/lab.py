@@ -61,6 +61,7 @@ from ..errors import InputError, YieldWarning
 from ..options import DEFAULT_MIN_FEED_SHARE, DEFAULT_SUM_TOLERANCE_PCT, KINDS, PARTITION_METHODS
 from ..validation import check_non_negative, check_optional, check_positive, check_probability, check_share, check_water_recovery
 from .kelsall import kelsall_corrected
+from .names import renamed_to_names
 from .points import TrompPoints, experiment_rows, normal_unit, points_from_table, resolve_size_unit, size_column_unit
 from .surveys import has_survey_columns, split_survey_columns, with_survey_meta
 from .tables import Table, read_table
@@ -307,8 +308,7 @@ def read_lab(path, options: LabOptions | None = None, **option_values) -> list[M
         For every kind of bad input, naming file, row and column.
     """
     options = _options(options, option_values)
-    table = read_table(path, sheet=options.sheet, sep=options.sep, decimal=options.decimal)
-    return balances_from_table(_renamed(table, options.rename), options)
+    return balances_from_table(read_renamed(path, options), options)
 
 
 def _options(options: LabOptions | None, values: dict) -> LabOptions:
@@ -340,6 +340,15 @@ def balances_from_table(table: Table, options: LabOptions) -> list[MassBalance]:
         part = table.subset(rows)
         balances.append(_balance_one(part, name, streams, size_layout, options))
     return balances
+
+
+def read_renamed(path, options: LabOptions) -> Table:
+    """The table at ``path`` (or a DataFrame) with ``options.rename`` applied; a column renamed
+    to a name column is read as text, as the name column itself would be."""
+    table = read_table(
+        path, sheet=options.sheet, sep=options.sep, decimal=options.decimal, text_columns=renamed_to_names(options.rename)
+    )
+    return _renamed(table, options.rename)
 
 
 def _renamed(table: Table, rename: dict) -> Table:
@@ -1173,7 +1182,7 @@ def read_experiments(path, options: LabOptions | None = None, **option_values) -
         balances they came from (empty for a points file).
     """
     options = _options(options, option_values)
-    table = _renamed(read_table(path, sheet=options.sheet, sep=options.sep, decimal=options.decimal), options.rename)
+    table = read_renamed(path, options)
     if not has_survey_columns(table):
         return _experiments_from_table(table, options)
     # a monitoring file (tromplab trend) fits as it is: survey and date go with the points, in date order

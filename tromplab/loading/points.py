@@ -32,7 +32,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import InputError
-from .tables import Table, read_table
+from .tables import Table, read_table, table_from_frame
 
 SIZE_UNITS = ("nm", "um", "mm", "cm", "m")  # mesh numbers are not sizes (larger = finer)
 _UNIT_SPELLINGS = {
@@ -121,13 +121,15 @@ class TrompPoints:
     resampled: bool = field(default=False, repr=False, compare=False)
 
     def __post_init__(self):
-        size = np.asarray(self.size, dtype=float)
-        phi = np.asarray(self.partition_fine, dtype=float)
+        if not isinstance(self.experiment, str):
+            raise TypeError(f"the experiment name must be text (str), got {type(self.experiment).__name__}")
+        size = self._numbers(self.size, "size")
+        phi = self._numbers(self.partition_fine, "partition_fine")
         if size.ndim != 1 or phi.ndim != 1 or size.shape != phi.shape:
             raise self._error(f"size has {size.size} values and partition_fine {phi.size}: give one partition per size")
         arrays = {"size": size, "partition_fine": phi}
         if self.weight is not None:
-            arrays["weight"] = np.asarray(self.weight, dtype=float)
+            arrays["weight"] = self._numbers(self.weight, "weight")
             if arrays["weight"].shape != size.shape:
                 raise self._error(f"weight has {arrays['weight'].size} values for {size.size} sizes", column="weight")
         for column, values in arrays.items():
@@ -150,6 +152,19 @@ class TrompPoints:
         object.__setattr__(self, "partition_fine", phi[order])
         if self.weight is not None:
             object.__setattr__(self, "weight", arrays["weight"][order])
+
+    def _numbers(self, values, column: str) -> np.ndarray:
+        """``values`` as an array of floats; text, nested or ragged sequences and other objects
+        are refused naming the column (not with numpy's words)."""
+        if isinstance(values, (str, bytes, dict)) or values is None:
+            raise self._error(f"{column} must be a sequence of numbers, got {type(values).__name__}", column=column)
+        try:
+            array = np.asarray(values, dtype=float)
+        except (TypeError, ValueError):
+            raise self._error(f"{column} must be a flat sequence of numbers; {_shown(values)} is not", column=column) from None
+        if array.ndim != 1:
+            raise self._error(f"{column} must be a flat sequence of numbers, got {array.ndim} dimension(s)", column=column)
+        return array
 
     def _error(self, message: str, *, column: str | None = None) -> InputError:
         return InputError(message, source=self.source or f"experiment '{self.experiment}'", column=column)
@@ -195,6 +210,12 @@ class TrompPoints:
         if self.weight is not None:
             frame["weight"] = self.weight
         return frame
+
+
+def _shown(values, limit: int = 60) -> str:
+    """``repr(values)`` cut to ``limit`` characters, for a message."""
+    text = repr(values)
+    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 def read_points(
@@ -378,4 +399,5 @@ def points_from_frame(frame: pd.DataFrame, *, source: str = "data frame") -> lis
     """Tromp points from a data frame in the file schema (same checks and messages as a file;
     rows are numbered from 1)."""
     frame = frame.reset_index(drop=True)
-    return points_from_table(Table(frame, np.arange(1, len(frame) + 1), source))
+    frame.index = frame.index + 1
+    return points_from_table(table_from_frame(frame, source=source))
