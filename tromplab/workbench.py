@@ -26,7 +26,15 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from .curves.curve_fit import FIT_COLUMNS, CurveFit, attach_diagnostics, attach_indices, failed_fit, fit_formula
+from .curves.curve_fit import (
+    FIT_COLUMNS,
+    CurveFit,
+    as_failure_if_implausible,
+    attach_diagnostics,
+    attach_indices,
+    failed_fit,
+    fit_formula,
+)
 from .curves.engine import check_bootstrap_request, fit_formula_batch, measured_start
 from .curves.formulas import Formula, is_batchable, select_formulas
 from .curves.measured import AMBIGUOUS_CUT_RATIO, CUT_BAND, CUT_WARNING, measured_cut_band, measured_efficiency, unbracketed_cut
@@ -34,7 +42,7 @@ from .curves.ranking import RANK_BY, add_delta_aicc, add_ranks, fit_verdicts, ra
 from .curves.screening import DEFAULT_ALPHA
 from .errors import InputError, OptionError
 from .loading.lab import Experiments, MassBalance
-from .loading.points import TrompPoints, points_from_frame
+from .loading.points import MAX_SIZE_SPAN, TrompPoints, points_from_frame
 from .loading.surveys import with_survey_columns
 from .output.csv_parts import CsvPart, csv_part
 from .output.folder import write_results_folder
@@ -46,7 +54,16 @@ from .output.views import check_partition_to, partition_view
 from .statistics.compare import nested_tests
 from .statistics.hydrocyclone import bypass_against_water_recovery
 from .statistics.uncertainty import BOOTSTRAP_METHODS, averaged_rows, interval_columns
-from .validation import check_bootstrap, check_optional, check_positive, check_probability, check_seed, check_water_recovery
+from .validation import (
+    MAX_JOBS,
+    check_bootstrap,
+    check_count,
+    check_optional,
+    check_probability,
+    check_seed,
+    check_size,
+    check_water_recovery,
+)
 
 logger = logging.getLogger(__name__)
 
@@ -540,6 +557,8 @@ def ranked_among(formulas, rank_extended: bool) -> tuple[Formula, ...]:
 def check_formula_selection(formulas=None, extended: bool = False):
     """The selection :func:`formula_keys` makes, refused with an
     :class:`~tromplab.errors.OptionError` naming ``formulas`` when it names an unknown formula."""
+    if isinstance(formulas, (list, tuple, set, frozenset)) and not formulas:
+        raise OptionError("formulas", "names no formula; leave it out (None) for the nine formulas")
     keys = formula_keys(formulas, extended)
     try:
         select_formulas(keys)
@@ -562,7 +581,8 @@ def _checked_settings(given: dict, *, n_fits: int, size_unit: str) -> dict:
     """The options of :func:`fit_experiments` checked (an :class:`~tromplab.errors.OptionError`
     names the option), before any fitting."""
     check_probability(given["alpha"], "alpha")
-    check_optional(check_positive, given["delta_max"], "delta_max")
+    _check_delta_max(given["delta_max"], given["experiments"])
+    check_optional(check_count, given["jobs"], "jobs", minimum=0, maximum=MAX_JOBS)
     check_partition_to(given["partition_to"])
     check_optional(check_probability, given["ci"], "ci")
     check_seed(given["seed"], "seed")
@@ -582,6 +602,22 @@ def _checked_settings(given: dict, *, n_fits: int, size_unit: str) -> dict:
         "size_unit": size_unit,
         "water_recovery": check_optional(check_water_recovery, given["water_recovery"], "water_recovery"),
     }
+
+
+def _check_delta_max(delta_max, experiments: Sequence[TrompPoints]) -> None:
+    """``delta_max`` a size (:func:`tromplab.validation.check_size`) at most
+    :data:`~tromplab.loading.points.MAX_SIZE_SPAN` times the smallest size of the data, the
+    rule the sizes of one experiment follow (a larger top size is a mistyped size or unit)."""
+    if delta_max is None:
+        return
+    delta_max = check_size(delta_max, "delta_max")
+    smallest = min((float(points.size.min()) for points in experiments), default=np.nan)
+    if delta_max / smallest > MAX_SIZE_SPAN:
+        raise OptionError(
+            "delta_max",
+            f"of {delta_max:g} is more than {MAX_SIZE_SPAN:g} times the smallest size of the data ({smallest:g}); "
+            "the top size or its unit is probably mistyped",
+        )
 
 
 def _data_size_unit(experiments: Sequence[TrompPoints], fallback: str) -> str:
@@ -749,6 +785,7 @@ def fit_chunk(
         per_formula.append(batch or [_fit_guarded(points, formula, alpha, delta_max, size_unit) for points in experiments])
     fits = [fits[i] for i in range(len(experiments)) for fits in per_formula]
     attach_indices(fits)
+    fits = [as_failure_if_implausible(fit) for fit in fits]  # a result out of its range is a failure
     attach_diagnostics(fits)
     reasons = {}  # unbracketed is a property of the points, which the formulas of an experiment share
     for fit in fits:

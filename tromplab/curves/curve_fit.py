@@ -436,6 +436,59 @@ def attach_indices(fits) -> None:
             fit.__dict__["indices"] = indices  # where functools.cached_property keeps its value
 
 
+#: Relative slack of the range checks of :func:`implausible_result` (rounding of the integrals).
+RANGE_SLACK = 1e-9
+
+
+def implausible_result(fit: CurveFit) -> str:
+    """Why the results of a successful ``fit`` leave their ranges (docs/columns.md), or ''.
+
+    d_cut, the shape, the sum of squares and eta must be finite numbers in their ranges;
+    epsilon, d25, d75, d50, d50c, Ep and the slope may be missing (a curve that never
+    reaches a level) but not infinite or outside their ranges.  Such a result comes from
+    arithmetic that overflowed at extreme inputs; it is reported as a failed fit, never as
+    a result.
+    """
+    if not fit.success:
+        return ""
+    ind = fit.indices
+    x_max = fit.options.delta_max / fit.d_cut if fit.d_cut > 0 else np.nan
+    low_shape, high_shape = fit.formula.shape_bounds
+    required = {
+        "d_cut": (fit.d_cut, 0.0, np.inf),
+        fit.formula.shape_name: (fit.shape, low_shape, high_shape),
+        "ssr": (fit.fit.ssr, 0.0, np.inf),
+        "eta": (ind.eta, 0.0, 1.0),
+    }
+    optional = {
+        "epsilon": (ind.epsilon, 0.0, max(x_max - 1.0, 0.0)),
+        "slope": (ind.slope, -np.inf, 0.0),
+        **{name: (getattr(ind, name), 0.0, np.inf) for name in ("d25", "d75", "ep", "d50", "d50c", "ep_c")},
+    }
+    for name, (value, low, high) in {**required, **optional}.items():
+        value = float(value)
+        if np.isnan(value) and name in optional:
+            continue
+        slack = RANGE_SLACK * max(1.0, abs(low) if np.isfinite(low) else 0.0, abs(high) if np.isfinite(high) else 0.0)
+        if not (np.isfinite(value) and low - slack <= value <= high + slack):
+            return (
+                f"{name} = {value:g} is outside its range [{low:g}, {high:g}]: the arithmetic did not hold at these "
+                f"inputs (delta_max {fit.options.delta_max:g}, d_cut {fit.d_cut:g})"
+            )
+    return ""
+
+
+def as_failure_if_implausible(fit: CurveFit) -> CurveFit:
+    """``fit``, or a failed fit saying why when :func:`implausible_result` finds a result out of range."""
+    reason = implausible_result(fit)
+    if not reason:
+        return fit
+    options = fit.options
+    return failed_fit(
+        fit.points, fit.formula, reason, alpha=options.alpha, delta_max=options.delta_max, size_unit=options.size_unit
+    )
+
+
 def attach_diagnostics(fits) -> None:
     """Compute the residual diagnostics of many fits at once and cache them on each fit.
 

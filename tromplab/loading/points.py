@@ -32,6 +32,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import InputError
+from ..validation import SIZE_LIMITS  # also offered here, beside MAX_SIZE_SPAN
 from .tables import Table, read_table
 
 SIZE_UNITS = ("nm", "um", "mm", "cm", "m")  # mesh numbers are not sizes (larger = finer)
@@ -63,9 +64,6 @@ PARTITION_SLACK = 0.1
 #: nine decades (1 nm to 1 m) hold any classifier test; more is a mistyped size or unit,
 #: and a ratio near 1e300 overflowed the efficiency integrals (found by benchmarks/fuzz_cli.py).
 MAX_SIZE_SPAN = 1e9
-#: Sizes are refused outside this range whatever the unit, so that the cut size searched
-#: from size / 100 to size x 100 and the indices stay finite and normal floating-point numbers.
-SIZE_LIMITS = (1e-250, 1e250)
 
 
 @dataclass(frozen=True)

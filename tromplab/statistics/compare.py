@@ -229,6 +229,12 @@ def shared_fit(experiments: Sequence[TrompPoints], formula, *, shared: str = "sh
     formula = get_formula(formula)
     if len(experiments) < 2:
         raise InputError("a shared fit needs at least two experiments")
+    names = [points.experiment for points in experiments]
+    repeated = sorted({name for name in names if names.count(name) > 1})
+    if repeated:  # a joint fit of an experiment with itself tests nothing (F = 0, p = 1)
+        raise InputError(
+            f"experiment(s) {', '.join(repr(name) for name in repeated)} given more than once; compare distinct experiments"
+        )
     if formula.extras:
         raise InputError("shared fits are offered for the two-parameter formulas")
     if shared not in ("shape", "d_cut"):
