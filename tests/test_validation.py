@@ -138,3 +138,87 @@ def test_model_commands_refuse_values_the_arithmetic_cannot_carry(capsys, argv, 
     assert main(argv) == code
     err = capsys.readouterr().err
     assert words in err and "Traceback" not in err and "nan" not in err
+
+
+@pytest.mark.parametrize(
+    "arrays, words",
+    [
+        (([10, 20, 30], [0.9 + 1j, 0.5, 0.1]), "column 'partition_fine': takes real numbers, got complex ones"),
+        (([[10, 20], [30]], [0.9, 0.5, 0.1]), "column 'size': takes one flat sequence of numbers, got a ragged nesting"),
+        (([[10, 20], [30, 40]], [0.9, 0.5]), "column 'size': takes one flat sequence of numbers, got an array of shape (2, 2)"),
+        (([10, 20, 30], ["a", 0.5, 0.1]), "column 'partition_fine': takes numbers, got 'a'"),
+        (([10, 20, 30], [0.9, float("nan"), 0.1]), "column 'partition_fine': value nan at point 2 is not a finite number"),
+    ],
+)
+def test_points_refuse_complex_ragged_and_text_arrays_naming_the_column(arrays, words):
+    with pytest.raises(InputError) as caught:
+        TrompPoints("r", *arrays)
+    assert words in str(caught.value)
+
+
+@pytest.mark.parametrize(
+    "arguments, words",
+    [
+        (([0.5, 0.5], [0.6, 0.4], [0.4, 0.6], 1.5), "fine_yield must lie strictly between 0 and 1, got 1.5"),
+        (([0.5, float("nan")], [0.6, 0.4], [0.4, 0.6], 0.5), "feed takes finite shares >= 0, got nan in class 2"),
+        (([0.5, 0.5], [0.6, 0.4 + 1j], [0.4, 0.6], 0.5), "fine takes one real share per class"),
+        (([0.5, 0.5], [0.6], [0.4, 0.6], 0.5), "feed, fine and coarse take one share per class each, got 2, 1, 2"),
+    ],
+)
+def test_reconciliation_and_partition_refuse_implausible_shares_and_yields(arguments, words):
+    from tromplab.loading.lab import partition_to_fines, reconcile
+
+    for function in (reconcile, partition_to_fines):
+        with pytest.raises(OptionError) as caught:
+            function(*arguments)
+        assert words in str(caught.value)
+
+
+def test_public_functions_say_what_they_take():
+    from tromplab import model_averages, rank_formulas, write_report
+
+    for call, words in [
+        (lambda: rank_formulas("abc"), "rank_formulas takes a pandas DataFrame"),
+        (lambda: write_report(None, "x.html"), "write_report takes a Report"),
+        (lambda: model_averages(None), "model_averages takes a Workbench"),
+    ]:
+        with pytest.raises(TypeError, match=words):
+            call()
+
+
+def _with_cell(tmp_path, dataset, column, value, name):
+    from .conftest import DATASETS
+
+    lines = [line for line in (DATASETS / dataset).read_text().splitlines() if not line.startswith("#")]
+    header = lines[0].split(",")
+    cells = lines[1].split(",")
+    cells[header.index(column)] = value
+    path = tmp_path / name
+    path.write_text("\n".join([lines[0], ",".join(cells), *lines[2:]]) + "\n")
+    return path
+
+
+@pytest.mark.parametrize(
+    "command, dataset, column, value, words",
+    [
+        (["sieve", "identify"], "sieve_identify_residues_example.csv", "relative_speed", "-0.5", "relative_speed -0.5 must lie in (0, 1000]"),
+        (["sieve", "identify"], "sieve_identify_residues_example.csv", "relative_speed", "1e308", "relative_speed 1e+308 must lie"),
+        (["pulp", "fit"], "pulp_screen_productivity_example.csv", "productivity", "1e308", "productivity 1e+308 must lie in (0, 1e+09]"),
+        (["pulp", "fit"], "pulp_screen_productivity_example.csv", "frequency", "1e300", "frequency 1e+300 must lie in [0.001, 10000]"),
+    ],
+)  # fmt: skip
+def test_implausible_model_data_are_refused_naming_row_and_column(tmp_path, capsys, command, dataset, column, value, words):
+    path = _with_cell(tmp_path, dataset, column, value, "data.csv")
+    out = tmp_path / "out.csv"
+    assert main([*command, str(path), "-o", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert f"row 2, column '{column}': {words}" in err and f"tromplab {' '.join(command)}: error" in err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("rows", [1, 2, 3])
+def test_a_layer_table_of_too_few_rows_is_bad_input(tmp_path, capsys, rows):
+    path = tmp_path / "layer.csv"
+    path.write_text("step,extraction\n" + "".join(f"{50 * (i + 1)},{0.3 + 0.1 * i}\n" for i in range(rows)))
+    assert main(["layer", "fit", str(path)]) == 1
+    assert f"{rows} point(s): the layer fit needs at least four" in capsys.readouterr().err

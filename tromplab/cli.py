@@ -117,7 +117,8 @@ def main(argv=None, *, on_start=None) -> int:
     if not hasattr(args, "run"):
         parser.print_help()
         return EXIT_USAGE
-    command = " ".join(filter(None, ("tromplab", args.command, getattr(args, "sieve_command", None))))
+    subcommands = (getattr(args, f"{name}_command", None) for name in ("sieve", "layer", "pulp"))
+    command = " ".join(filter(None, ("tromplab", args.command, *subcommands)))
     try:
         # a command imports its modules before it starts: an interrupt inside an import can stop
         # a module half-initialised (an ImportError, or Python's exit by SIGINT instead of 130)

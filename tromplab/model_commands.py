@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .classifiers.pulp import COEFFICIENT_RANGES, FREQUENCY_RANGE, PRESSURE_RANGE, PulpScreen
+from .classifiers.pulp import COEFFICIENT_RANGES, FREQUENCY_RANGE, MAX_PRODUCTIVITY, PRESSURE_RANGE, PulpScreen
 from .errors import InputError, OptionError, ResultError
 from .output.outputs import check_output_file, write_files
 from .validation import check_count, check_probability, check_range, check_share, cli_type
@@ -318,6 +318,10 @@ def run_layer_fit(args) -> int:
     bad = np.flatnonzero((extraction < 0) | (extraction > 1))
     if bad.size:
         raise table.error(f"extraction {extraction[bad[0]]:g} outside 0..1", index=int(bad[0]), column="extraction")
+    if extraction.size < 4:  # three parameters and a residual variance
+        raise InputError(
+            f"{extraction.size} point(s): the layer fit needs at least four (step, extraction) pairs", source=table.source
+        )
     level = args.level
     result = fit_layer_model(
         steps.astype(int),
@@ -451,14 +455,14 @@ def run_pulp_fit(args) -> int:
     table = read_table(args.data)
     table.require("applied_pressure", "frequency", "productivity")
     applied, frequency, productivity = (table.numeric(c) for c in ("applied_pressure", "frequency", "productivity"))
+    ranges = {"applied_pressure": PRESSURE_RANGE, "frequency": FREQUENCY_RANGE, "productivity": (0.0, MAX_PRODUCTIVITY)}
     for column, values in (("applied_pressure", applied), ("frequency", frequency), ("productivity", productivity)):
-        bad = np.flatnonzero(values <= 0) if column != "applied_pressure" else np.flatnonzero(values < 0)
+        low, high = ranges[column]
+        inside = (values > low if column == "productivity" else values >= low) & (values <= high)
+        bad = np.flatnonzero(~inside)
         if bad.size:
-            raise table.error(
-                f"{column} {values[bad[0]]:g} must be {'positive' if column != 'applied_pressure' else '>= 0'}",
-                index=int(bad[0]),
-                column=column,
-            )
+            shown = f"({low:g}, {high:g}]" if column == "productivity" else f"[{low:g}, {high:g}]"
+            raise table.error(f"{column} {values[bad[0]]:g} must lie in {shown}", index=int(bad[0]), column=column)
     fitted = tuple(name.strip().replace("-", "_") for name in args.fit.split(",") if name.strip())
     if not fitted:
         raise OptionError("--fit", "names no coefficient")

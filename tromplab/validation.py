@@ -80,6 +80,11 @@ def _integer(value, option: str) -> int:
     return int(number)
 
 
+def check_number(value, option: str) -> float:
+    """Any finite real number (a shape parameter, whose range the formula states)."""
+    return _number(value, option)
+
+
 def check_probability(value, option: str) -> float:
     """A level, share or significance strictly between 0 and 1."""
     number = _number(value, option)
@@ -202,6 +207,7 @@ def range_text(check: Callable, **kwargs) -> str:
         check_water_recovery: "[0, 1)",
         check_positive: "(0, inf)",
         check_non_negative: "[0, inf)",
+        check_number: "(-inf, inf)",
         check_size: interval_text(*SIZE_LIMITS),
         check_bootstrap: f"0 to {MAX_BOOTSTRAP:,}",
         check_seed: "0 to 2**63 - 1",

@@ -206,7 +206,8 @@ class Workbench:
         Computed once per level and kept; ``jobs`` and ``client`` spread the first
         computation over workers (the table is the same whatever they are).
         """
-        level = averages_level(self.ci) if level is None else level
+        level = averages_level(self.ci) if level is None else check_probability(level, "level")
+        check_optional(check_count, jobs, "jobs", minimum=0, maximum=MAX_JOBS)
         if level not in self._averages_by_level:
             self._keep_averages(level, model_averages(self, level=level, jobs=jobs, client=client))
         return self._averages_by_level[level].copy()
@@ -289,6 +290,8 @@ class Workbench:
         figures (None or 0: all cores; the report is the same for any number).  Returns
         ``{file name: path}`` of the written files.
         """
+        check_optional(check_probability, level, "level")
+        check_optional(check_count, jobs, "jobs", minimum=0, maximum=MAX_JOBS)
         sources = dict.fromkeys(fit.points.source for fit in self.fits if fit.points.source)
         built = build_report(
             self,
@@ -320,6 +323,7 @@ class Workbench:
         files are the same for any number).  See
         :func:`tromplab.output.folder.write_results_folder`.  Returns ``{file name: path}``.
         """
+        check_optional(check_count, jobs, "jobs", minimum=0, maximum=MAX_JOBS)
         return write_results_folder(
             self,
             directory,
@@ -982,6 +986,10 @@ def model_averages(bench: Workbench, *, level: float = 0.95, jobs: int | None = 
         ``experiment, quantity, value, stderr, low, high`` and ``weight_<formula>`` columns.
 
     """
+    check_probability(level, "level")
+    check_optional(check_count, jobs, "jobs", minimum=0, maximum=MAX_JOBS)
+    if not isinstance(bench, Workbench):
+        raise TypeError(f"model_averages takes a Workbench (from fit_experiments), got {type(bench).__name__}")
     groups = _averaged_groups(bench.fits_by_experiment().values(), [f.id for f in bench.ranked_formulas])
     chunks = chunked(groups, workers=_worker_count(jobs, client))
     logger.info("model averages of %d experiment(s) at level %g", len(groups), level)

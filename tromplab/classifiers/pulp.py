@@ -44,6 +44,9 @@ COEFFICIENT_RANGES = {
 #: search of the best frequency spans 1e-3..1e4 1/s.
 FREQUENCY_RANGE = (1e-3, 1e4)
 PRESSURE_RANGE = (0.0, 1e4)
+#: Largest measured productivity a fit takes (units of the inputs, kg/s in the examples): a
+#: thousand times the model's rate at the largest coefficients is beyond any screen.
+MAX_PRODUCTIVITY = 1e9
 
 # scipy and lmfit are imported where a screen is optimised or fitted: the command line builds
 # its pulp options from PulpScreen's fields at start-up, which then costs numpy alone

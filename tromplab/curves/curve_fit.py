@@ -25,6 +25,7 @@ import pandas as pd
 from scipy import optimize
 
 from ..loading.points import TrompPoints
+from ..validation import check_probability, check_size
 from .diagnostics import RESIDUAL_WARNING, ResidualDiagnostics, batch_residual_diagnostics, residual_diagnostics
 from .fitting import ParameterFit, least_squares, on_bound
 from .formulas import Formula, NoBreakPointError, get_formula, shuvalov_break
@@ -85,13 +86,11 @@ class FitOptions:
         size_unit: str = "",
         global_search: bool = True,
     ) -> FitOptions:
-        """Options resolved against ``points`` (``delta_max`` and weights filled in)."""
-        if not 0.0 < alpha < 1.0:
-            raise ValueError(f"alpha must lie in (0, 1), got {alpha}")
-        largest = points.largest_size if delta_max is None else float(delta_max)
-        if not (np.isfinite(largest) and largest > 0):
-            raise ValueError(f"delta_max must be a positive size, got {delta_max}")
-        return cls(float(alpha), largest, normalised_weights(points), size_unit or "", global_search)
+        """Options resolved against ``points`` (``delta_max`` and weights filled in); an
+        :class:`~tromplab.errors.OptionError` (a ValueError) names an argument out of range."""
+        alpha = check_probability(alpha, "alpha")
+        largest = points.largest_size if delta_max is None else check_size(delta_max, "delta_max")
+        return cls(alpha, largest, normalised_weights(points), size_unit or "", global_search)
 
 
 #: A parameter whose standard error exceeds this many times its value is reported as not

@@ -19,6 +19,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
+from ..validation import check_optional, check_probability, check_size
 from .batched import BatchProblem, PaddedPoints, profile_limits, sum_of_squares
 from .fitting import on_bound
 from .formulas import is_batchable
@@ -483,6 +484,8 @@ def interval_table(
         The profile intervals of this fit made beforehand (:func:`batched_profile_intervals`,
         for many fits at once); default :func:`profile_intervals` with ``profile``.
     """
+    level = check_probability(level, "level")
+    delta_max = check_optional(check_size, delta_max, "delta_max")
     return pd.DataFrame(interval_rows(fit, level=level, delta_max=delta_max, profile=profile, known=known, profiled=profiled))
 
 

@@ -118,6 +118,8 @@ def rank_formulas(table: pd.DataFrame, *, by: str = "F", key: str = "equation") 
         One row per formula: ``key``, one rank column per experiment (named by the
         experiment, in order of appearance), ``points`` and ``place``.
     """
+    if not isinstance(table, pd.DataFrame):
+        raise TypeError(f"rank_formulas takes a pandas DataFrame of scores, got {type(table).__name__}")
     ranked = add_ranks(table, by=by)
     ranked["counted"] = ranked["rank"] * np.where(ranked["adequate"].astype(bool), 1, 2)
     wide = ranked.pivot(index=key, columns="experiment", values="rank")

@@ -57,7 +57,7 @@ from typing import NamedTuple
 import numpy as np
 import pandas as pd
 
-from ..errors import InputError, YieldWarning
+from ..errors import InputError, OptionError, YieldWarning
 from ..options import DEFAULT_MIN_FEED_SHARE, DEFAULT_SUM_TOLERANCE_PCT, KINDS, PARTITION_METHODS
 from ..validation import check_non_negative, check_optional, check_positive, check_probability, check_share, check_water_recovery
 from .kelsall import kelsall_corrected
@@ -534,12 +534,12 @@ def _balance_one(table: Table, name: str, streams, layout: _SizeLayout, options:
     classes["balance_residual"] = a - fine_yield * b - (1 - fine_yield) * c
     method = options.partition_from
     if options.reconcile and len(shares) == 3:
-        adjusted = reconcile(a, b, c, fine_yield)
+        adjusted = _reconciled(a, b, c, fine_yield)
         for stream, values in zip(STREAMS, adjusted):
             classes[f"{stream}_adjusted"] = values
         a, b, c = adjusted
         method = "reconciled"
-    phi = partition_to_fines(a, b, c, fine_yield, method=method)
+    phi = _partition(a, b, c, fine_yield, method)
     empty_products = (a > 0) & (b <= 0) & (c <= 0) & ("fine" in shares) & ("coarse" in shares)
     used, flags = _flag_classes(a, phi, options.min_feed_share, empty_products)
     classes["partition_fine"] = np.where(np.isfinite(phi), np.clip(phi, 0.0, 1.0), np.nan)
@@ -590,8 +590,12 @@ def partition_to_fines(feed, fine, coarse, fine_yield, *, method: str = "product
     >>> partition_to_fines([0.5], [0.4], [0.5], 0.5, method="feed").round(4).tolist()
     [0.4]
     """
-    a, b, c = (np.asarray(v, dtype=float) for v in (feed, fine, coarse))
-    y = float(fine_yield)
+    a, b, c = _checked_shares(feed, fine, coarse)
+    return _partition(a, b, c, check_probability(fine_yield, "fine_yield"), method)
+
+
+def _partition(a, b, c, y: float, method: str) -> np.ndarray:
+    """:func:`partition_to_fines` of shares the reader has checked (a stream it computed may dip below 0)."""
     denominator = a if method == "feed" else y * b + (1 - y) * c
     with np.errstate(divide="ignore", invalid="ignore"):
         return np.where(denominator > 0, y * b / denominator, np.nan)
@@ -885,8 +889,15 @@ def reconcile(feed, fine, coarse, fine_yield, *, relative_error=0.05, absolute_e
     tuple of ndarray
         The adjusted feed, fine and coarse shares.
     """
-    a, b, c = (np.asarray(v, dtype=float) for v in (feed, fine, coarse))
-    y = float(fine_yield)
+    a, b, c = _checked_shares(feed, fine, coarse)
+    y = check_probability(fine_yield, "fine_yield")
+    check_non_negative(relative_error, "relative_error")
+    check_non_negative(absolute_error, "absolute_error")
+    return _reconciled(a, b, c, y, relative_error=relative_error, absolute_error=absolute_error)
+
+
+def _reconciled(a, b, c, y: float, *, relative_error=0.05, absolute_error=0.001):
+    """:func:`reconcile` of shares and a yield the reader has checked."""
     values = np.stack([a, b, c])
     variances = (relative_error * values) ** 2 + absolute_error**2
     gains = np.array([[-1.0], [y], [1.0 - y]])  # d(share)/d(lambda) per unit variance
@@ -901,6 +912,29 @@ def reconcile(feed, fine, coarse, fine_yield, *, relative_error=0.05, absolute_e
         values = np.where(negative, 0.0, values)
         a, b, c = values[0], values[1], values[2]
     return adjusted[0], adjusted[1], adjusted[2]
+
+
+def _checked_shares(feed, fine, coarse) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The three streams' shares per class as float arrays of one length, finite and not
+    negative, or an :class:`~tromplab.errors.OptionError` naming the argument at fault."""
+    arrays = []
+    for name, values in (("feed", feed), ("fine", fine), ("coarse", coarse)):
+        try:
+            raw = np.asarray(values)
+        except ValueError:
+            raise OptionError(name, "takes one share per class, got a ragged nesting") from None
+        if np.iscomplexobj(raw) or raw.ndim != 1 or raw.dtype.kind not in "biuf":
+            raise OptionError(name, f"takes one real share per class (a flat sequence of numbers), got {values!r}")
+        array = raw.astype(float)
+        bad = np.flatnonzero(~np.isfinite(array) | (array < 0))
+        if bad.size:
+            raise OptionError(name, f"takes finite shares >= 0, got {array[bad[0]]:g} in class {bad[0] + 1}")
+        arrays.append(array)
+    if len({array.size for array in arrays}) > 1:
+        raise OptionError(
+            "fine", f"feed, fine and coarse take one share per class each, got {', '.join(str(a.size) for a in arrays)}"
+        )
+    return arrays[0], arrays[1], arrays[2]
 
 
 def _given_yield(table: Table, options: LabOptions):

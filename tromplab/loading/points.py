@@ -66,6 +66,14 @@ PARTITION_SLACK = 0.1
 MAX_SIZE_SPAN = 1e9
 
 
+def _is_number(item) -> bool:
+    try:
+        float(item)
+    except (TypeError, ValueError):
+        return False
+    return True
+
+
 @dataclass(frozen=True)
 class TrompPoints:
     """Measured separation curve of one experiment, validated on construction.
@@ -119,13 +127,12 @@ class TrompPoints:
     resampled: bool = field(default=False, repr=False, compare=False)
 
     def __post_init__(self):
-        size = np.asarray(self.size, dtype=float)
-        phi = np.asarray(self.partition_fine, dtype=float)
+        size, phi = self._real_array(self.size, "size"), self._real_array(self.partition_fine, "partition_fine")
         if size.ndim != 1 or phi.ndim != 1 or size.shape != phi.shape:
             raise self._error(f"size has {size.size} values and partition_fine {phi.size}: give one partition per size")
         arrays = {"size": size, "partition_fine": phi}
         if self.weight is not None:
-            arrays["weight"] = np.asarray(self.weight, dtype=float)
+            arrays["weight"] = self._real_array(self.weight, "weight")
             if arrays["weight"].shape != size.shape:
                 raise self._error(f"weight has {arrays['weight'].size} values for {size.size} sizes", column="weight")
         for column, values in arrays.items():
@@ -148,6 +155,27 @@ class TrompPoints:
         object.__setattr__(self, "partition_fine", phi[order])
         if self.weight is not None:
             object.__setattr__(self, "weight", arrays["weight"][order])
+
+    def _real_array(self, values, column: str) -> np.ndarray:
+        """``values`` as a flat array of floats, or an :class:`InputError` naming ``column``:
+        complex numbers, nested (ragged) sequences and text are refused, not cast."""
+        raw = values if isinstance(values, np.ndarray) else None
+        try:
+            raw = np.asarray(values) if raw is None else raw
+        except ValueError:  # numpy refuses a ragged nesting
+            raise self._error("takes one flat sequence of numbers, got a ragged nesting", column=column) from None
+        if np.iscomplexobj(raw):  # numpy would drop the imaginary part with only a warning
+            raise self._error("takes real numbers, got complex ones", column=column)
+        if raw.dtype == object and any(isinstance(item, (list, tuple, np.ndarray)) for item in raw.ravel()):
+            raise self._error("takes one flat sequence of numbers, got a ragged nesting", column=column)
+        try:
+            array = np.asarray(raw, dtype=float)
+        except (TypeError, ValueError):
+            first = next(item for item in np.atleast_1d(raw).ravel() if not _is_number(item))
+            raise self._error(f"takes numbers, got {str(first)!r}", column=column) from None
+        if array.ndim != 1:
+            raise self._error(f"takes one flat sequence of numbers, got an array of shape {array.shape}", column=column)
+        return array
 
     def _error(self, message: str, *, column: str | None = None) -> InputError:
         return InputError(message, source=self.source or f"experiment '{self.experiment}'", column=column)

@@ -382,6 +382,8 @@ def write_report(report: Report, html_path) -> dict[str, Path]:
     html_path : str or path-like
         The HTML file; the Markdown and figures go beside it (written atomically).
     """
+    if not isinstance(report, Report):
+        raise TypeError(f"write_report takes a Report (from build_report), got {type(report).__name__}")
     html_path = Path(html_path)
     stem = html_path.stem
     figures = [(caption, content) for items in report.sections.values() for kind, content, caption in items if kind == "figure"]

@@ -25,7 +25,7 @@ from ..curves.fitting import ParameterFit, least_squares
 from ..curves.formulas import get_formula
 from ..curves.measured import measured_efficiency, normalised_weights
 from ..curves.parameters import Parameter, d_cut_parameter
-from ..errors import InputError
+from ..errors import InputError, OptionError
 from ..loading.points import TrompPoints
 from ..options import DEFAULT_MARGIN
 
@@ -238,7 +238,7 @@ def shared_fit(experiments: Sequence[TrompPoints], formula, *, shared: str = "sh
     if formula.extras:
         raise InputError("shared fits are offered for the two-parameter formulas")
     if shared not in ("shape", "d_cut"):
-        raise ValueError("shared must be 'shape' or 'd_cut'")
+        raise OptionError("shared", f"must be 'shape' or 'd_cut', got {shared!r}")
     shape = formula.shape_name
     shared_name = shape if shared == "shape" else "d_cut"
     free = "d_cut" if shared == "shape" else shape
