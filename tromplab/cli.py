@@ -34,7 +34,7 @@ from .options import (
     RANK_BY,
     TABLE_FORMATS,
 )
-from .output.outputs import check_output_file, check_output_folder, write_files
+from .output.outputs import check_output_file, check_output_folder, forget_written, write_files, written_outputs
 from .validation import (
     MAX_BOOTSTRAP,
     MAX_DECKS,
@@ -108,6 +108,7 @@ def main(argv=None, *, on_start=None) -> int:
     modules and starts its work: until then an interrupt ends the start-up at once.
     """
     parser = build_parser()
+    forget_written()
     try:
         args = parser.parse_args(argv)
     except SystemExit as stop:  # argparse stops on a usage error (2) or after --help/--version (0)
@@ -155,12 +156,18 @@ def main(argv=None, *, on_start=None) -> int:
 
 
 def interrupted(interruption=None) -> int:
-    """Print the one-line message for an interrupted run; return 130 (SIGINT) or 143 (SIGTERM)."""
-    if isinstance(interruption, Terminated):
-        print("tromplab: terminated (SIGTERM); the output folder was left as it was", file=sys.stderr)
-        return EXIT_TERMINATED
-    print("tromplab: interrupted; the output folder was left as it was", file=sys.stderr)
-    return EXIT_INTERRUPTED
+    """Print the one-line message for an interrupted run; return 130 (SIGINT) or 143 (SIGTERM).
+
+    The message says what is on disk: the previous outputs, or the new ones when the run was
+    interrupted after it had put them in place (they are complete: a swap is one step)."""
+    what = "terminated (SIGTERM)" if isinstance(interruption, Terminated) else "interrupted"
+    written = written_outputs()
+    if written:
+        places = ", ".join(dict.fromkeys(str(path) for path in written))
+        print(f"tromplab: {what} after the new results were written, complete, to {places}", file=sys.stderr)
+    else:
+        print(f"tromplab: {what}; the output folder was left as it was", file=sys.stderr)
+    return EXIT_TERMINATED if isinstance(interruption, Terminated) else EXIT_INTERRUPTED
 
 
 @contextlib.contextmanager
