@@ -130,7 +130,7 @@ def test_compare_refuses_an_experiment_named_twice(tmp_path, capsys):
         (["pulp", "optimum", "--applied", "0"], 2, "--applied 0 with --phi 0 leaves no pressure drop"),
         (["sieve", "pg", "--hole", "1e300", "--length", "1", "--width", "1", "--cell-width", "3"], 2, "--hole: must lie in"),
         (["sieve", "bin", "--decks", "1", "--length", "1", "--recovery", "0.999999999999999"], 3, "normal: the bin position"),
-        (["optimize", "--bulk-density", "1e300"], 2, "argument --bulk-density: must lie in (0, 25,000] kg/m^3"),
+        (["optimize", "--bulk-density", "1e300"], 2, "argument --bulk-density: must lie in [1, 25,000] kg/m^3"),
         (["layer", "simulate", "--step-seconds", "1e308"], 2, "argument --step-seconds: must lie in [1e-06, 3,600] s"),
     ],
 )

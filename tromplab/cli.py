@@ -118,8 +118,9 @@ def main(argv=None, *, on_start=None) -> int:
     if not hasattr(args, "run"):
         parser.print_help()
         return EXIT_USAGE
-    subcommands = (getattr(args, f"{name}_command", None) for name in ("sieve", "layer", "pulp"))
-    command = " ".join(filter(None, ("tromplab", args.command, *subcommands)))
+    path = [name for name in (args.command, *(getattr(args, f"{n}_command", None) for n in ("sieve", "layer", "pulp"))) if name]
+    command = " ".join(("tromplab", *path))
+    own = _command_parser(parser, path)  # its options, not another command's, name the Python words
     try:
         # a command imports its modules before it starts: an interrupt inside an import can stop
         # a module half-initialised (an ImportError, or Python's exit by SIGINT instead of 130)
@@ -139,10 +140,10 @@ def main(argv=None, *, on_start=None) -> int:
     except InputError as error:  # the project's own input, option and output errors
         if args.debug:
             traceback.print_exc()
-        print(f"{command}: error: {_cli_message(error, parser)}", file=sys.stderr)
+        print(f"{command}: error: {_cli_message(error, own)}", file=sys.stderr)
         return EXIT_USAGE if isinstance(error, OptionError) else EXIT_INPUT
     except ResultError as error:  # a result outside its range is a failure, not a result
-        print(f"{command}: failed: {_cli_words(str(error), parser)}", file=sys.stderr)
+        print(f"{command}: failed: {_cli_words(str(error), own)}", file=sys.stderr)
         return EXIT_PARTIAL
     except Exception as error:  # anything else is a bug in tromplab: say so, do not dress it up as bad input
         if args.debug:
@@ -192,6 +193,16 @@ def _verbosity(args):
         if handler is not None:
             library.removeHandler(handler)
             library.setLevel(previous_level)
+
+
+def _command_parser(parser: argparse.ArgumentParser, path) -> argparse.ArgumentParser:
+    """The parser of the (sub)command ``path`` (``["sieve", "identify"]``) under ``parser``."""
+    for name in path:
+        actions = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction) and name in a.choices]
+        if not actions:
+            break
+        parser = actions[0].choices[name]
+    return parser
 
 
 def _cli_message(error: InputError, parser: argparse.ArgumentParser) -> str:
@@ -790,6 +801,10 @@ def _run_sieve_identify(args) -> int:
 def _run_sieve_pg(args) -> int:
     from .classifiers.sieve import closed_form_valid, geometric_probability
 
+    if args.width > args.length:
+        raise OptionError(
+            "--width", f"must not exceed --length ({args.width:g} > {args.length:g}): the shape factor d/l is at most 1"
+        )
     value = geometric_probability(args.hole, args.length, args.width, args.cell_width / 2, method=args.method)
     if not 0.0 <= value <= 1.0:  # also nan
         raise ResultError(f"the geometric probability came out as {value!r}, outside 0..1")

@@ -40,12 +40,14 @@ STEP_SECONDS = {"low": 1e-6, "high": 3600.0, "unit": "s"}
 #: metres, a layer of millimetres to a metre, bulk densities below osmium's 22,600 kg/m^3),
 #: and small enough that capacity and efficiency stay finite numbers.
 SIEVE_RANGES = {
-    "lambda_target": {"low": 1e-9, "high": 1e3, "unit": "1/s"},
-    "lambda_next": {"low": 1e-9, "high": 1e3, "unit": "1/s"},
-    "sieve_length": {"low": 0.0, "high": 100.0, "low_open": True, "unit": "m"},
-    "bulk_density": {"low": 0.0, "high": 25_000.0, "low_open": True, "unit": "kg/m^3"},
-    "gap_height": {"low": 0.0, "high": 1.0, "low_open": True, "unit": "m"},
-    "width": {"low": 0.0, "high": 100.0, "low_open": True, "unit": "m"},
+    "lambda_target": {"low": 1e-6, "high": 1e3, "unit": "1/s"},
+    "lambda_next": {"low": 1e-6, "high": 1e3, "unit": "1/s"},
+    "sieve_length": {"low": 0.01, "high": 100.0, "unit": "m"},
+    "bulk_density": {"low": 1.0, "high": 25_000.0, "unit": "kg/m^3"},
+    "gap_height": {"low": 1e-4, "high": 1.0, "unit": "m"},
+    "width": {"low": 0.01, "high": 100.0, "unit": "m"},
+    "purity_limit": {"low": 1e-3, "high": 1.0, "high_open": True},
+    "capacity_share": {"low": 1e-3, "high": 1.0},
     "speed": {"low": 1e-3, "high": 100.0, "unit": "m/s"},
 }
 #: What the layer commands import when they run, imported before they start (see cli.main).
@@ -528,7 +530,7 @@ def _add_sieve_options(group) -> None:
     )
     group.add_argument(
         "--purity-limit",
-        type=cli_type(check_probability, "--purity-limit"),
+        type=cli_type(check_range, "--purity-limit", **SIEVE_RANGES["purity_limit"]),
         default=0.08,
         help="largest share of the next finer fraction left on the sieve (default 0.08)",
     )
@@ -555,7 +557,7 @@ def _add_choice_options(choice) -> None:
     )
     choice.add_argument(
         "--capacity-share",
-        type=cli_type(check_range, "--capacity-share", low=0.0, high=1.0, low_open=True),
+        type=cli_type(check_range, "--capacity-share", **SIEVE_RANGES["capacity_share"]),
         default=0.8,
         help="share of the largest capacity required while maximising the efficiency (default 0.8)",
     )
@@ -583,9 +585,15 @@ def run_optimize(args) -> int:
         purity_limit=args.purity_limit,
         speed_bounds=(args.speed_min, args.speed_max),
     )
-    result = choose(
-        problem, floor_second=args.min_efficiency, share_of_first=args.capacity_share, weights=np.linspace(0.0, 1.0, args.weights)
-    )
+    try:
+        result = choose(
+            problem,
+            floor_second=args.min_efficiency,
+            share_of_first=args.capacity_share,
+            weights=np.linspace(0.0, 1.0, args.weights),
+        )
+    except ValueError as error:  # the optimiser met a flat or non-finite criterion at these options
+        raise ResultError(f"no operating point found at these options: the optimisation stopped ({error})") from None
     for label, optimum in [
         (f"max Q with E >= {args.min_efficiency:g} %", result.best_first),
         (f"max E with Q >= {args.capacity_share:g} of max", result.best_second),

@@ -563,6 +563,8 @@ def check_formula_selection(formulas=None, extended: bool = False):
     :class:`~tromplab.errors.OptionError` naming ``formulas`` when it names an unknown formula."""
     if isinstance(formulas, (list, tuple, set, frozenset)) and not formulas:
         raise OptionError("formulas", "names no formula; leave it out (None) for the nine formulas")
+    if isinstance(formulas, str) and not formulas.replace(",", "").strip():
+        raise OptionError("formulas", f"names no formula, got {formulas!r}")
     keys = formula_keys(formulas, extended)
     try:
         select_formulas(keys)

@@ -59,7 +59,16 @@ import pandas as pd
 
 from ..errors import InputError, OptionError, YieldWarning
 from ..options import DEFAULT_MIN_FEED_SHARE, DEFAULT_SUM_TOLERANCE_PCT, KINDS, PARTITION_METHODS
-from ..validation import check_non_negative, check_optional, check_positive, check_probability, check_share, check_water_recovery
+from ..validation import (
+    SIZE_LIMITS,
+    check_non_negative,
+    check_optional,
+    check_probability,
+    check_range,
+    check_share,
+    check_size,
+    check_water_recovery,
+)
 from .kelsall import kelsall_corrected
 from .points import TrompPoints, experiment_rows, normal_unit, points_from_table, resolve_size_unit, size_column_unit
 from .surveys import has_survey_columns, split_survey_columns, with_survey_meta
@@ -80,6 +89,8 @@ YIELD_COLUMNS = {"fine_yield": "fine", "overflow_yield": "fine", "coarse_yield":
 YIELD_MARGIN = 1e-9  # an estimated yield this close to 0 or 1 means one product is empty
 MASS_YIELD_TOLERANCE = 0.005  # |stated - implied| fine yield above which two product masses contradict a stated yield
 PARTITION_SLACK = 0.02
+#: Largest amount (mass) of one class: sums over any number of classes stay finite.
+MAX_AMOUNT = 1e250
 
 
 @dataclass(frozen=True)
@@ -158,9 +169,9 @@ class LabOptions:
         for name in ("fine_yield", "coarse_yield"):
             check_optional(check_probability, getattr(self, name), name)
         check_share(self.min_feed_share, "min_feed_share")
-        check_non_negative(self.sum_tolerance_pct, "sum_tolerance_pct")
-        check_optional(check_positive, self.top_size, "top_size")
-        check_optional(check_non_negative, self.pan_lower_size, "pan_lower_size")
+        check_range(self.sum_tolerance_pct, "sum_tolerance_pct", low=0.0, high=100.0)
+        check_optional(check_size, self.top_size, "top_size")
+        check_optional(check_range, self.pan_lower_size, "pan_lower_size", low=0.0, high=SIZE_LIMITS[1])
         check_optional(check_water_recovery, self.water_recovery, "water_recovery")
         if self.fine_yield is not None and self.coarse_yield is not None:
             if not np.isclose(self.fine_yield + self.coarse_yield, 1.0, atol=1e-6):
@@ -713,6 +724,12 @@ def _per_class_shares(table: Table, column: str, kind: str, options: LabOptions)
     bad = np.flatnonzero(values < 0)
     if bad.size:
         raise table.error(f"negative amount {values[bad[0]]:g}", index=int(bad[0]), column=column)
+    largest = {"pct": 100.0 + options.sum_tolerance_pct, "frac": 1.0 + options.sum_tolerance_pct / 100.0}.get(kind, MAX_AMOUNT)
+    bad = np.flatnonzero(values > largest)
+    if bad.size:  # a share above the whole, or a mass whose sum would overflow
+        raise table.error(
+            f"amount {values[bad[0]]:g} is above {largest:g}, more than the whole stream", index=int(bad[0]), column=column
+        )
     total = values.sum()
     if total <= 0:
         raise InputError(f"column '{column}' holds no material", source=table.source, column=column)
