@@ -519,6 +519,33 @@ def surveys() -> list[Case]:
     ]
 
 
+def whole_commands() -> list[Case]:
+    """The commands that take longest, on good and on hostile data, their outputs checked."""
+    trend = _dataset("classifier_trend_surveys.csv")
+    points = points_text()
+    table = {
+        "trend of the example": (["trend", "{surveys.csv}", "-o", "{tmp}/trend", "--no-figures"], {"surveys.csv": trend}, 0),
+        "trend of three surveys": (
+            ["trend", "{surveys.csv}", "-o", "{tmp}/trend", "--no-figures"],
+            {"surveys.csv": "\n".join(trend.splitlines()[: 6 + 3 * 12]) + "\n"},
+            1,
+        ),
+        "report of two experiments": (["report", "{points.csv}", "-o", "{tmp}/r.html", "--jobs", "1"], {"points.csv": points}, 0),
+        "fit with intervals and a bootstrap": ([*FIT, "--ci", "0.9", "--bootstrap", "20"], {"points.csv": points}, 0),
+        "fit of the extended curves": (
+            ["fit", "{points.csv}", "-o", "{tmp}/out", "--extended", "--no-figures", "--jobs", "1"],
+            {"points.csv": points},
+            {0, 3},
+        ),
+        "circuit with fits": (
+            ["circuit", "{flowsheet.csv}", "{survey.csv}", "-o", "{tmp}/c", "--fit", "--no-figures"],
+            {"flowsheet.csv": _dataset("circuit_example_flowsheet.csv"), "survey.csv": _dataset("circuit_example_survey.csv")},
+            {0, 3},
+        ),
+    }
+    return [case("whole commands", name, expect, argv, files, slow=True) for name, (argv, files, expect) in table.items()]
+
+
 def api_calls() -> list[Case]:
     """The Python entry points with hostile arguments: refused naming the argument, or done."""
     import numpy as np
@@ -619,5 +646,6 @@ def catalogue() -> list[Case]:
         *model_corners(),
         *model_data(),
         *surveys(),
+        *whole_commands(),
         *api_calls(),
     ]

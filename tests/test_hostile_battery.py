@@ -85,11 +85,13 @@ def check_fits_table(path) -> None:
     for column in ("eta", "runs_p", "normality_p", "nested_p", "bypass"):
         if column in done:
             _inside(done[column], 0.0, 1.0, column)
-    for column in ("epsilon", "ssr", "F_crit", "delta_aicc", "d_cut_stderr", "shape_stderr"):
+    for column in ("epsilon", "ssr", "F_crit", "d_cut_stderr", "shape_stderr"):
         if column in done:
             _inside(done[column], 0.0, math.inf, column)
-    exact = pd.to_numeric(done["F"], errors="coerce") == math.inf  # a curve through every point
-    _inside(done.loc[~exact, "F"], 0.0, math.inf, "F")
+    # inf where documented: F of a curve through every point, AICc of too few points
+    for column, why in (("F", done["F"]), ("delta_aicc", done["aicc"])):
+        infinite = pd.to_numeric(why, errors="coerce") == math.inf
+        _inside(done.loc[~infinite, column], 0.0, math.inf, column)
     _inside(done["slope"], -math.inf, 0.0, "slope")
     for row in done.itertuples(index=False):
         low, high = get_formula(row.formula).shape_bounds
@@ -122,11 +124,28 @@ def check_points_table(path) -> None:
     _inside(points[partition], 0.0, 1.0, "partition")
 
 
+def check_trend_table(path) -> None:
+    trend = pd.read_csv(path)
+    for quantity, (low, high) in {
+        "eta": (0.0, 1.0),
+        "bypass": (0.0, 1.0),
+        "d_cut": (0.0, math.inf),
+        "ep": (0.0, math.inf),
+    }.items():
+        rows = trend[trend["quantity"] == quantity]
+        for column in ("value", "low", "high"):
+            _inside(rows[column], low, high, f"trend {quantity} {column}")
+    for column in ("p_previous", "p_baseline"):
+        _inside(trend[column], 0.0, 1.0, f"trend {column}")
+
+
 def check_results(folder) -> None:
     for path in folder.rglob("fits.csv"):
         check_fits_table(path)
     for path in folder.rglob("averages.csv"):
         check_averages_table(path)
+    for path in folder.rglob("trend.csv"):
+        check_trend_table(path)
     for path in list(folder.glob("pts.csv")) + list(folder.glob("sub/pts.csv")):
         check_points_table(path)
 
