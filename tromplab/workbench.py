@@ -32,6 +32,7 @@ from .curves.curve_fit import (
     as_failure_if_implausible,
     attach_diagnostics,
     attach_indices,
+    check_delta_max,
     failed_fit,
     fit_formula,
 )
@@ -42,7 +43,7 @@ from .curves.ranking import RANK_BY, add_delta_aicc, add_ranks, fit_verdicts, ra
 from .curves.screening import DEFAULT_ALPHA
 from .errors import InputError, OptionError
 from .loading.lab import Experiments, MassBalance
-from .loading.points import MAX_SIZE_SPAN, TrompPoints, points_from_frame
+from .loading.points import TrompPoints, points_from_frame
 from .loading.surveys import with_survey_columns
 from .output.csv_parts import CsvPart, csv_part
 from .output.folder import write_results_folder
@@ -61,7 +62,6 @@ from .validation import (
     check_optional,
     check_probability,
     check_seed,
-    check_size,
     check_water_recovery,
 )
 
@@ -587,7 +587,8 @@ def _checked_settings(given: dict, *, n_fits: int, size_unit: str) -> dict:
     """The options of :func:`fit_experiments` checked (an :class:`~tromplab.errors.OptionError`
     names the option), before any fitting."""
     check_probability(given["alpha"], "alpha")
-    _check_delta_max(given["delta_max"], given["experiments"])
+    if given["delta_max"] is not None:  # refused before any fitting, not in each fit
+        check_delta_max(given["delta_max"], given["experiments"])
     check_optional(check_count, given["jobs"], "jobs", minimum=0, maximum=MAX_JOBS)
     check_partition_to(given["partition_to"])
     check_optional(check_probability, given["ci"], "ci")
@@ -608,22 +609,6 @@ def _checked_settings(given: dict, *, n_fits: int, size_unit: str) -> dict:
         "size_unit": size_unit,
         "water_recovery": check_optional(check_water_recovery, given["water_recovery"], "water_recovery"),
     }
-
-
-def _check_delta_max(delta_max, experiments: Sequence[TrompPoints]) -> None:
-    """``delta_max`` a size (:func:`tromplab.validation.check_size`) at most
-    :data:`~tromplab.loading.points.MAX_SIZE_SPAN` times the smallest size of the data, the
-    rule the sizes of one experiment follow (a larger top size is a mistyped size or unit)."""
-    if delta_max is None:
-        return
-    delta_max = check_size(delta_max, "delta_max")
-    smallest = min((float(points.size.min()) for points in experiments), default=np.nan)
-    if delta_max / smallest > MAX_SIZE_SPAN:
-        raise OptionError(
-            "delta_max",
-            f"of {delta_max:g} is more than {MAX_SIZE_SPAN:g} times the smallest size of the data ({smallest:g}); "
-            "the top size or its unit is probably mistyped",
-        )
 
 
 def _data_size_unit(experiments: Sequence[TrompPoints], fallback: str) -> str:

@@ -24,7 +24,8 @@ import numpy as np
 import pandas as pd
 from scipy import optimize
 
-from ..loading.points import TrompPoints
+from ..errors import OptionError
+from ..loading.points import MAX_SIZE_SPAN, TrompPoints
 from ..validation import check_probability, check_size
 from .diagnostics import RESIDUAL_WARNING, ResidualDiagnostics, batch_residual_diagnostics, residual_diagnostics
 from .fitting import ParameterFit, least_squares, on_bound
@@ -89,8 +90,29 @@ class FitOptions:
         """Options resolved against ``points`` (``delta_max`` and weights filled in); an
         :class:`~tromplab.errors.OptionError` (a ValueError) names an argument out of range."""
         alpha = check_probability(alpha, "alpha")
-        largest = points.largest_size if delta_max is None else check_size(delta_max, "delta_max")
+        if delta_max is None:
+            largest = points.largest_size
+        elif points.resampled:  # a bootstrap resample may lack the smallest size its original was checked with
+            largest = check_size(delta_max, "delta_max")
+        else:
+            largest = check_delta_max(delta_max, [points])
         return cls(alpha, largest, normalised_weights(points), size_unit or "", global_search)
+
+
+def check_delta_max(delta_max, experiments) -> float:
+    """``delta_max`` a size (:func:`tromplab.validation.check_size`) at most
+    :data:`~tromplab.loading.points.MAX_SIZE_SPAN` times the smallest size of the ``experiments``
+    (the rule the sizes of one experiment follow: a larger top size is a mistyped size or unit,
+    and the misplacement integral up to it would leave the floating-point range)."""
+    delta_max = check_size(delta_max, "delta_max")
+    smallest = min((float(points.size.min()) for points in experiments), default=np.nan)
+    if delta_max / smallest > MAX_SIZE_SPAN:
+        raise OptionError(
+            "delta_max",
+            f"of {delta_max:g} is more than {MAX_SIZE_SPAN:g} times the smallest size of the data ({smallest:g}); "
+            "the top size or its unit is probably mistyped",
+        )
+    return delta_max
 
 
 #: A parameter whose standard error exceeds this many times its value is reported as not
