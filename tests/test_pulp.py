@@ -71,7 +71,7 @@ def test_fit_round_trip():
 
 
 def test_bad_input():
-    with pytest.raises(ValueError, match="beta must be positive"):
+    with pytest.raises(ValueError, match=r"beta must lie in \(0, 10,000\], got 0"):
         PulpScreen(beta=0)
     with pytest.raises(ValueError, match="cannot fit gamma"):
         fit_pulp_screen([1, 2, 3], [1, 2, 3], [1, 2, 3], fitted=("gamma",))

@@ -300,8 +300,8 @@ def _residue_table(tmp_path, **change):
         ("residue", 1.3, "residue 1.3 must lie strictly between 0 and 1"),
         ("residue", 1.0, "residue 1 must lie strictly between 0 and 1"),
         ("residue", 0.0, "residue 0 must lie strictly between 0 and 1"),
-        ("sieve_length", -1.6, "sieve_length -1.6 must be positive"),
-        ("cell_pitch", 0.0, "cell_pitch 0 must be positive"),
+        ("sieve_length", -1.6, r"sieve_length -1.6 must lie in \(0, 1e\+100\]"),
+        ("cell_pitch", 0.0, r"cell_pitch 0 must lie in \(0, 1e\+100\]"),
         ("P_g", 1.2, r"P_g 1.2 must lie in \(0, 1\]"),
     ],
 )

@@ -13,7 +13,9 @@ from pathlib import Path
 
 import pytest
 
-from tromplab.output.outputs import MANIFEST, SWAP_PAUSE_VARIABLE, clean_stale
+from tromplab.cli import main
+from tromplab.output import outputs
+from tromplab.output.outputs import MANIFEST, SWAP_PAUSE_VARIABLE, clean_stale, lock_folder, lock_path
 
 SIZES = (10, 20, 40, 80, 160, 320)
 CURVE = (0.97, 0.9, 0.7, 0.35, 0.1, 0.02)
@@ -193,7 +195,8 @@ def test_two_concurrent_runs_into_one_folder_leave_one_complete_run(tmp_path, ru
     assert second.wait(timeout=120) == 0, second.stderr.read()  # the lock serialises the swaps
     assert _content(out) in (old, new)
     assert not _staging_left(tmp_path)
-    assert os.path.exists(tmp_path / ".out.lock")
+    assert not list(tmp_path.glob("*.lock")) and not list(tmp_path.glob(".*.lock"))  # the lock lives elsewhere
+    assert lock_path(out).exists()
 
 
 @pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
@@ -215,3 +218,91 @@ def test_a_signal_while_the_interpreter_exits_gives_one_line_and_no_traceback(si
     assert done.returncode == (130 if signum == signal.SIGINT else 143), done.stderr
     assert len(done.stderr.strip().splitlines()) == 1, done.stderr
     assert "finished" in done.stderr
+
+
+def _interrupting(function, signum):
+    """``function`` that sends ``signum`` to this process while it runs (delivered in the main thread)."""
+
+    def wrapped(*args, **kwargs):
+        os.kill(os.getpid(), signum)
+        return function(*args, **kwargs)
+
+    return wrapped
+
+
+@pytest.mark.parametrize(
+    "signum, code, what", [(signal.SIGINT, 130, "interrupted"), (signal.SIGTERM, 143, "terminated (SIGTERM)")]
+)
+def test_a_signal_during_the_swap_waits_for_it_and_says_the_new_results_were_written(
+    tmp_path, runs, monkeypatch, capsys, signum, code, what
+):
+    _, old, new = runs
+    out, new_points = _previous_run(tmp_path, runs)
+    monkeypatch.setattr(outputs, "_swap_into_place", _interrupting(outputs._swap_into_place, signum))
+    assert main(["fit", str(new_points), "-o", str(out), "--bootstrap", "20", "--no-figures"]) == code
+    content = _content(out)  # the swap was held together: the whole new run, and the interrupt after it
+    assert content.keys() == new.keys() and content["fits.csv"] != old["fits.csv"]
+    assert content["fits.csv"].splitlines()[1:2] != old["fits.csv"].splitlines()[1:2]
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"tromplab: {what} after the new results were written, complete, to {out}"]
+
+
+def test_a_late_sigint_after_the_outputs_ends_with_its_message_and_130(tmp_path, runs, monkeypatch, capsys):
+    from tromplab import cli
+
+    out, new_points = _previous_run(tmp_path, runs)
+    monkeypatch.setattr(cli, "_print_written", _interrupting(cli._print_written, signal.SIGINT))
+    assert main(["fit", str(new_points), "-o", str(out), "--no-figures"]) == 130
+    assert capsys.readouterr().err.strip().splitlines() == [
+        f"tromplab: interrupted after the new results were written, complete, to {out}"
+    ]
+    assert main(["fit", str(new_points), "-o", str(tmp_path / "other"), "--alpha", "2"]) == 2  # the record is per command
+    monkeypatch.setattr(cli, "_print_fits", _interrupting(cli._print_fits, signal.SIGINT))
+    assert main(["fit", str(new_points), "-o", str(tmp_path / "third"), "--no-figures"]) == 130
+    assert f"complete, to {tmp_path / 'third'}" in capsys.readouterr().err
+
+
+def _lock_files(folder):
+    return sorted(str(p.relative_to(folder)) for p in folder.rglob("*") if p.name.endswith(".lock"))
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["fit", "{points}", "-o", "out", "--no-figures"],
+        ["fit", "{points}", "--no-figures"],  # the default folder, results/, in the working directory
+        ["points", "{lab}", "-o", "pts.csv"],
+        ["points", "{lab}", "-o", "sub/pts.csv"],
+        ["report", "{points}", "-o", "report.html"],
+        ["circuit", "{flowsheet}", "{survey}", "-o", "circ", "--no-figures"],
+    ],
+    ids=["fit", "fit-default", "points", "points-sub", "report", "circuit"],
+)
+def test_successful_runs_leave_no_lock_file_in_the_users_folders(tmp_path, monkeypatch, argv):
+    from .conftest import DATASETS, LAB_CLASS_HEADER, LAB_CLASS_ROWS
+
+    monkeypatch.chdir(tmp_path)
+    files = {
+        "points": _points(tmp_path / "p.csv", 0.0),
+        "lab": tmp_path / "lab.csv",
+        "flowsheet": DATASETS / "circuit_example_flowsheet.csv",
+        "survey": DATASETS / "circuit_example_survey.csv",
+    }
+    files["lab"].write_text(LAB_CLASS_HEADER + "\n".join(LAB_CLASS_ROWS) + "\n")
+    assert main([part.format(**files) for part in argv]) in (0, 3)
+    assert _lock_files(tmp_path) == []
+    assert lock_folder().stat().st_mode & 0o777 == 0o700
+
+
+def test_the_lock_folder_is_refused_when_others_can_enter_it(tmp_path, monkeypatch):
+    from tromplab.errors import OutputError
+
+    monkeypatch.setenv("XDG_RUNTIME_DIR", str(tmp_path))
+    folder = tmp_path / f"tromplab-locks-{os.getuid()}"
+    folder.mkdir(mode=0o777)
+    folder.chmod(0o777)
+    with pytest.raises(OutputError, match="not a private folder"):
+        lock_folder()
+    folder.chmod(0o700)
+    assert lock_path(tmp_path / "out").parent == folder
+    assert lock_path(tmp_path / "out") == lock_path(tmp_path / "x" / ".." / "out")

@@ -32,7 +32,7 @@ from typing import TYPE_CHECKING
 from ._version import __version__
 from .density_command import add_density_command
 from .density_predict_command import add_predict_parser
-from .errors import InputError, InputNote, OptionError, YieldWarning
+from .errors import InputError, InputNote, OptionError, ResultError, YieldWarning
 from .model_commands import add_model_commands
 from .options import (
     AUTO_FIGURE_LIMIT,
@@ -48,20 +48,31 @@ from .options import (
     RANK_BY,
     TABLE_FORMATS,
 )
-from .output.outputs import check_output_file, check_output_folder, write_files
+from .output.outputs import check_output_file, check_output_folder, forget_written, write_files, written_outputs
 from .validation import (
     MAX_BOOTSTRAP,
     MAX_DECKS,
+    MAX_JOBS,
+    SIZE_LIMITS,
     check_bootstrap,
     check_count,
     check_non_negative,
-    check_positive,
     check_probability,
+    check_range,
     check_seed,
     check_share,
+    check_size,
     check_water_recovery,
     cli_type,
+    state_ranges,
 )
+
+#: Lengths of ``sieve pg`` (any one unit): only their ratios matter, and within this range
+#: their squares and ratios stay normal floating-point numbers.
+SIEVE_LENGTHS = {"low": 1e-100, "high": 1e100}
+#: Sieve length of ``sieve bin`` (any unit): the design scales with it; beyond this range the
+#: normal approximation's root is no longer bracketed in floating point.
+BIN_LENGTHS = {"low": 1e-6, "high": 1e6}
 
 # Each command imports the modules it needs when it runs: building the parser takes only the
 # light modules above, so --version, -h and a command that needs little (export) do not pay
@@ -113,6 +124,7 @@ def main(argv=None, *, on_start=None) -> int:
     modules and starts its work: until then an interrupt ends the start-up at once.
     """
     parser = build_parser()
+    forget_written()
     try:
         args = parser.parse_args(argv)
     except SystemExit as stop:  # argparse stops on a usage error (2) or after --help/--version (0)
@@ -122,9 +134,13 @@ def main(argv=None, *, on_start=None) -> int:
     if not hasattr(args, "run"):
         parser.print_help()
         return EXIT_USAGE
-    command = " ".join(
-        filter(None, ("tromplab", args.command, getattr(args, "sieve_command", None), getattr(args, "density_command", None)))
-    )
+    path = [
+        name
+        for name in (args.command, *(getattr(args, f"{n}_command", None) for n in ("sieve", "layer", "pulp", "density")))
+        if name
+    ]
+    command = " ".join(("tromplab", *path))
+    own = _command_parser(parser, path)  # its options, not another command's, name the Python words
     try:
         _check_input_paths(args)  # before the imports: a missing file answers at once
         # a command imports its modules before it starts: an interrupt inside an import can stop
@@ -145,8 +161,11 @@ def main(argv=None, *, on_start=None) -> int:
     except InputError as error:  # the project's own input, option and output errors
         if args.debug:
             traceback.print_exc()
-        print(f"{command}: error: {_cli_message(error, parser)}", file=sys.stderr)
+        print(f"{command}: error: {_cli_message(error, own)}", file=sys.stderr)
         return EXIT_USAGE if isinstance(error, OptionError) else EXIT_INPUT
+    except ResultError as error:  # a result outside its range is a failure, not a result
+        print(f"{command}: failed: {_cli_words(str(error), own)}", file=sys.stderr)
+        return EXIT_PARTIAL
     except Exception as error:  # anything else is a bug in tromplab: say so, do not dress it up as bad input
         if args.debug:
             raise
@@ -173,12 +192,18 @@ def _check_input_paths(args) -> None:
 
 
 def interrupted(interruption=None) -> int:
-    """Print the one-line message for an interrupted run; return 130 (SIGINT) or 143 (SIGTERM)."""
-    if isinstance(interruption, Terminated):
-        print("tromplab: terminated (SIGTERM); the output folder was left as it was", file=sys.stderr)
-        return EXIT_TERMINATED
-    print("tromplab: interrupted; the output folder was left as it was", file=sys.stderr)
-    return EXIT_INTERRUPTED
+    """Print the one-line message for an interrupted run; return 130 (SIGINT) or 143 (SIGTERM).
+
+    The message says what is on disk: the previous outputs, or the new ones when the run was
+    interrupted after it had put them in place (they are complete: a swap is one step)."""
+    what = "terminated (SIGTERM)" if isinstance(interruption, Terminated) else "interrupted"
+    written = written_outputs()
+    if written:
+        places = ", ".join(dict.fromkeys(str(path) for path in written))
+        print(f"tromplab: {what} after the new results were written, complete, to {places}", file=sys.stderr)
+    else:
+        print(f"tromplab: {what}; the output folder was left as it was", file=sys.stderr)
+    return EXIT_TERMINATED if isinstance(interruption, Terminated) else EXIT_INTERRUPTED
 
 
 @contextlib.contextmanager
@@ -203,6 +228,16 @@ def _verbosity(args):
         if handler is not None:
             library.removeHandler(handler)
             library.setLevel(previous_level)
+
+
+def _command_parser(parser: argparse.ArgumentParser, path) -> argparse.ArgumentParser:
+    """The parser of the (sub)command ``path`` (``["sieve", "identify"]``) under ``parser``."""
+    for name in path:
+        actions = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction) and name in a.choices]
+        if not actions:
+            break
+        parser = actions[0].choices[name]
+    return parser
 
 
 def _cli_message(error: InputError, parser: argparse.ArgumentParser) -> str:
@@ -278,9 +313,10 @@ def _fit_options_parser() -> argparse.ArgumentParser:
     )
     shared.add_argument(
         "--delta-max",
-        type=cli_type(check_positive, "--delta-max"),
+        type=cli_type(check_size, "--delta-max"),
         default=None,
-        help="largest feed particle size for the misplacement eps (default: largest size of the data)",
+        help="largest feed particle size for the misplacement eps, at most 1e9 times the smallest size of "
+        "an experiment (default: largest size of the data)",
     )
     shared.add_argument(
         "--formulas",
@@ -351,6 +387,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_circuit_command(commands)
     density = add_density_command(commands)  # density fit (the sub-commands and their work are in density_command)
     add_predict_parser(density.density_commands)  # density predict (density_predict_command)
+    state_ranges(parser)
     return parser
 
 
@@ -396,7 +433,7 @@ def _add_fit(commands, groups) -> None:
 def _add_jobs_option(group) -> None:
     group.add_argument(
         "--jobs",
-        type=cli_type(check_count, "--jobs", minimum=0, maximum=4096),
+        type=cli_type(check_count, "--jobs", minimum=0, maximum=MAX_JOBS),
         default=0,
         metavar="N",
         help="worker processes (default 0: all cores)",
@@ -510,7 +547,12 @@ def _add_trend(commands, groups) -> None:
         default=None,
         help="baseline period: the first N surveys, or a date range FROM:TO (default: the first half, at most 8)",
     )
-    trend.add_argument("--alpha", type=float, default=0.01, help="significance level of the change flags (default 0.01)")
+    trend.add_argument(
+        "--alpha",
+        type=cli_type(check_probability, "--alpha"),
+        default=0.01,
+        help="significance level of the change flags (default 0.01)",
+    )
     trend.add_argument("--size-unit", default="", help="unit of the sizes, for the figure labels")
     trend.add_argument("--no-figures", action="store_true", help="do not draw figures")
     trend.set_defaults(run=_run_trend, imports=(*_READERS, "tromplab.trend"))
@@ -556,14 +598,17 @@ def _add_sieve(commands) -> None:
 
 def _add_sieve_pg(sieve_commands) -> None:
     pg = sieve_commands.add_parser("pg", help="geometric probability of a particle passing a round hole")
-    pg.add_argument("--hole", type=cli_type(check_positive, "--hole"), required=True, help="hole diameter D")
-    pg.add_argument("--length", type=cli_type(check_positive, "--length"), required=True, help="particle length l")
+    pg.add_argument("--hole", type=cli_type(check_range, "--hole", **SIEVE_LENGTHS), required=True, help="hole diameter D")
+    pg.add_argument("--length", type=cli_type(check_range, "--length", **SIEVE_LENGTHS), required=True, help="particle length l")
     pg.add_argument(
-        "--width", type=cli_type(check_positive, "--width"), required=True, help="particle width d (shape factor d/l)"
+        "--width",
+        type=cli_type(check_range, "--width", **SIEVE_LENGTHS),
+        required=True,
+        help="particle width d (shape factor d/l)",
     )
     pg.add_argument(
         "--cell-width",
-        type=cli_type(check_positive, "--cell-width"),
+        type=cli_type(check_range, "--cell-width", **SIEVE_LENGTHS),
         required=True,
         help="cell width 2b across the transport direction",
     )
@@ -584,7 +629,9 @@ def _add_sieve_bin(sieve_commands) -> None:
         required=True,
         help=f"number of decks m, 1 to {MAX_DECKS}",
     )
-    bin_.add_argument("--length", type=cli_type(check_positive, "--length"), required=True, help="sieve length L (= x2)")
+    bin_.add_argument(
+        "--length", type=cli_type(check_range, "--length", **BIN_LENGTHS), required=True, help="sieve length L (= x2)"
+    )
     bin_.add_argument(
         "--recovery",
         type=cli_type(check_probability, "--recovery"),
@@ -665,15 +712,18 @@ def _lab_options_parser() -> argparse.ArgumentParser:
     )
     group.add_argument(
         "--sum-tolerance",
-        type=cli_type(check_non_negative, "--sum-tolerance"),
+        type=cli_type(check_range, "--sum-tolerance", low=0.0, high=100.0),
         default=DEFAULT_SUM_TOLERANCE_PCT,
         help="allowed deviation of per-class percentages from 100 (percentage points; default %(default)s)",
     )
     group.add_argument(
-        "--top-size", type=cli_type(check_positive, "--top-size"), default=None, help="upper bound of the open top class"
+        "--top-size", type=cli_type(check_size, "--top-size"), default=None, help="upper bound of the open top class"
     )
     group.add_argument(
-        "--pan-lower-size", type=cli_type(check_non_negative, "--pan-lower-size"), default=None, help="lower bound of the pan"
+        "--pan-lower-size",
+        type=cli_type(check_range, "--pan-lower-size", low=0.0, high=SIZE_LIMITS[1]),
+        default=None,
+        help="lower bound of the pan",
     )
     group.add_argument("--rename", default="", help="column renames OLD=NEW,OLD=NEW applied before reading")
     group.add_argument("--sheet", default=None, help="Excel sheet name (default: the first sheet)")
@@ -806,7 +856,13 @@ def _run_sieve_identify(args) -> int:
 def _run_sieve_pg(args) -> int:
     from .classifiers.sieve import closed_form_valid, geometric_probability
 
+    if args.width > args.length:
+        raise OptionError(
+            "--width", f"must not exceed --length ({args.width:g} > {args.length:g}): the shape factor d/l is at most 1"
+        )
     value = geometric_probability(args.hole, args.length, args.width, args.cell_width / 2, method=args.method)
+    if not 0.0 <= value <= 1.0:  # also nan
+        raise ResultError(f"the geometric probability came out as {value!r}, outside 0..1")
     closed = closed_form_valid(args.hole, args.length, args.width, args.cell_width / 2)
     print(
         f"P_g = {value:.6f}  (D = {args.hole:g}, l = {args.length:g}, d = {args.width:g}, d/l = {args.width / args.length:.3g}, "
@@ -820,13 +876,34 @@ def _run_sieve_bin(args) -> int:
 
     from .classifiers.sieve import design_bin, distance_moments
 
+    failed = []
     for method in ("exact", "normal"):
-        design = design_bin(args.decks, args.length, args.recovery, method=method)
+        try:
+            design = design_bin(args.decks, args.length, args.recovery, method=method)
+        except ValueError as error:  # the root of the recovery equation is not bracketed
+            failed.append(f"{method}: no bin position found ({error})")
+            continue
+        # the normal approximation places the bin by its own distribution: only the exact
+        # method must reach the required recovery, both must place the bin on the deck
+        exact_enough = method != "exact" or abs(design.recovery - args.recovery) < 1e-6
+        if not (np.isfinite([design.c, design.x1, design.recovery]).all() and exact_enough and 0.0 <= design.x1 <= design.x2):
+            failed.append(
+                f"{method}: the bin position {design.x1:.4g} (deck length {design.x2:g}) gives a recovery of "
+                f"{design.recovery:.4g}, not the required {args.recovery:.15g}"
+            )
+            continue
         print(
             f"{method:>6}: C = {design.c:.4f}, x1 = {design.x1:.4f}, x2 = {design.x2:.4g}, recovery in the bin = {design.recovery:.4f}"
         )
-    mean, variance = distance_moments(args.decks, design_bin(args.decks, args.length, args.recovery).c)
-    print(f"exact mean distance on deck {args.decks}: {mean:.4f}, standard deviation {np.sqrt(variance):.4f}")
+        if method == "exact":
+            mean, variance = distance_moments(args.decks, design.c)
+            moments = f"exact mean distance on deck {args.decks}: {mean:.4f}, standard deviation {np.sqrt(variance):.4f}"
+    if len(failed) == 2:
+        raise ResultError("; ".join(failed))
+    if not failed[:1] or not failed[0].startswith("exact"):
+        print(moments)
+    if failed:
+        raise ResultError(failed[0])
     return 0
 
 
@@ -1056,6 +1133,9 @@ def _run_compare(args) -> int:
     experiments, _ = read_experiments(args.input, _lab_options(args))
     if args.experiments:
         wanted = [e.strip() for e in args.experiments.split(",") if e.strip()]
+        repeated = sorted({e for e in wanted if wanted.count(e) > 1})
+        if repeated:
+            raise OptionError("--experiments", f"names {', '.join(repeated)} more than once; compare distinct experiments")
         known = {p.experiment: p for p in experiments}
         missing = [e for e in wanted if e not in known]
         if missing:

@@ -40,6 +40,15 @@ class OptionError(InputError):
         self.reason = reason
 
 
+class ResultError(ArithmeticError):
+    """A computed result is not finite or lies outside its range (an overflow at extreme
+    inputs, a root the numbers cannot reach): it is reported as a failure, never as a result.
+
+    The command line prints the message and exits 3, as for failed fits, and writes nothing
+    for the command that failed.
+    """
+
+
 class OutputError(InputError):
     """An output path cannot be used (a file where a folder is needed, not writable, ...)."""
 

@@ -18,10 +18,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .classifiers.pulp import PulpScreen
-from .errors import InputError, OptionError
+from .classifiers.pulp import COEFFICIENT_RANGES, FREQUENCY_RANGE, MAX_PRODUCTIVITY, PRESSURE_RANGE, PulpScreen
+from .errors import InputError, OptionError, ResultError
 from .output.outputs import check_output_file, write_files
-from .validation import check_count, check_non_negative, check_positive, check_probability, check_share, cli_type
+from .validation import check_count, check_probability, check_range, check_share, cli_type
 
 # The parser takes only PulpScreen's fields (its module imports numpy alone until a screen is
 # fitted or optimised); each command imports the models and readers it needs when it runs, so
@@ -34,6 +34,22 @@ MAX_CELLS = 1_000
 MAX_STEPS = 1_000_000
 #: Most weights of the Pareto sweep of ``optimize`` (each is one constrained optimisation).
 MAX_WEIGHTS = 1_001
+#: Length of one step of the layer model, seconds: from a microsecond to an hour.
+STEP_SECONDS = {"low": 1e-6, "high": 3600.0, "unit": "s"}
+#: Ranges of the sieve options of ``optimize``: generous around real sieves (a sieve of
+#: metres, a layer of millimetres to a metre, bulk densities below osmium's 22,600 kg/m^3),
+#: and small enough that capacity and efficiency stay finite numbers.
+SIEVE_RANGES = {
+    "lambda_target": {"low": 1e-6, "high": 1e3, "unit": "1/s"},
+    "lambda_next": {"low": 1e-6, "high": 1e3, "unit": "1/s"},
+    "sieve_length": {"low": 0.01, "high": 100.0, "unit": "m"},
+    "bulk_density": {"low": 1.0, "high": 25_000.0, "unit": "kg/m^3"},
+    "gap_height": {"low": 1e-4, "high": 1.0, "unit": "m"},
+    "width": {"low": 0.01, "high": 100.0, "unit": "m"},
+    "purity_limit": {"low": 1e-3, "high": 1.0, "high_open": True},
+    "capacity_share": {"low": 1e-3, "high": 1.0},
+    "speed": {"low": 1e-3, "high": 100.0, "unit": "m/s"},
+}
 #: What the layer commands import when they run, imported before they start (see cli.main).
 _LAYER_IMPORTS = ("tromplab.classifiers.layer", "tromplab.loading.tables", "tromplab.output.csv_parts", "pandas")
 
@@ -78,6 +94,8 @@ def _parameter_table(fit, level: float = 0.95) -> pd.DataFrame:
 def _print_fit(fit, table: pd.DataFrame, level: float) -> None:
     if not fit.success:
         raise InputError(f"the fit failed: {fit.message}")
+    if not np.isfinite(table["value"]).all():
+        raise ResultError(f"the fit ended at values that are not finite numbers: {dict(zip(table['parameter'], table['value']))}")
     print(
         table.rename(columns={"low": f"low {level:g}", "high": f"high {level:g}"}).to_string(
             index=False, float_format=lambda v: f"{v:.5g}"
@@ -180,7 +198,7 @@ def _layer_options_parser() -> argparse.ArgumentParser:
     )
     group.add_argument(
         "--step-seconds",
-        type=cli_type(check_positive, "--step-seconds"),
+        type=cli_type(check_range, "--step-seconds", **STEP_SECONDS),
         default=0.2,
         help="length of one step in seconds (default 0.2)",
     )
@@ -254,6 +272,8 @@ def run_layer_simulate(args) -> int:
     except ValueError as error:  # the model speaks of its fields; name the options
         raise _option_error(_with_options(str(error), ("diffusion", "segregation", "passage"))) from None
     run = model.simulate(_initial(args), args.steps)
+    if not np.all((run.extraction >= 0) & (run.extraction <= 1 + 1e-9)):  # also nan
+        raise ResultError("the simulated extraction left 0..1 (the probabilities of a step no longer add up)")
     marks = sorted({max(1, round(args.steps * share)) for share in (1 / 6, 1 / 3, 2 / 3, 1.0)})
     print(
         f"{'nonlinear' if model.nonlinear else 'linear'} layer model: d = {model.diffusion:g}, v0 = {model.segregation:g}, "
@@ -302,6 +322,10 @@ def run_layer_fit(args) -> int:
     bad = np.flatnonzero((extraction < 0) | (extraction > 1))
     if bad.size:
         raise table.error(f"extraction {extraction[bad[0]]:g} outside 0..1", index=int(bad[0]), column="extraction")
+    if extraction.size < 4:  # three parameters and a residual variance
+        raise InputError(
+            f"{extraction.size} point(s): the layer fit needs at least four (step, extraction) pairs", source=table.source
+        )
     level = args.level
     result = fit_layer_model(
         steps.astype(int),
@@ -350,9 +374,12 @@ def _add_pulp(commands) -> None:
     group = model.add_argument_group("model (defaults: the spec's illustrative values)")
     for item in fields(PulpScreen):
         option = "--" + item.name.replace("_", "-")
-        check = check_non_negative if item.name in ("phi", "delay") else check_positive  # as PulpScreen requires
+        low, high, low_open = COEFFICIENT_RANGES[item.name]  # as PulpScreen requires
         group.add_argument(
-            option, type=cli_type(check, option), default=item.default, help=f"{_PULP_HELP[item.name]} (default %(default)s)"
+            option,
+            type=cli_type(check_range, option, low=low, high=high, low_open=low_open),
+            default=item.default,
+            help=f"{_PULP_HELP[item.name]} (default %(default)s)",
         )
 
     optimum = pulp_commands.add_parser(
@@ -360,13 +387,13 @@ def _add_pulp(commands) -> None:
     )
     optimum.add_argument(
         "--frequency",
-        type=cli_type(check_positive, "--frequency"),
+        type=cli_type(check_range, "--frequency", low=FREQUENCY_RANGE[0], high=FREQUENCY_RANGE[1], unit="1/s"),
         default=None,
         help="pulsation frequency N (1/s): find the best applied pressure drop",
     )
     optimum.add_argument(
         "--applied",
-        type=cli_type(check_non_negative, "--applied"),
+        type=cli_type(check_range, "--applied", low=PRESSURE_RANGE[0], high=PRESSURE_RANGE[1]),
         default=None,
         help="applied pressure drop H': find the best pulsation frequency",
     )
@@ -402,11 +429,15 @@ def run_pulp_optimum(args) -> int:
         raise OptionError(
             "--frequency", "or --applied is needed: --frequency finds the best pressure drop, --applied the best frequency"
         )
+    if args.applied == 0 and screen.phi == 0:
+        raise OptionError("--applied", "0 with --phi 0 leaves no pressure drop to drive the flow")
     if args.frequency is not None:
         applied, rate = screen.best_pressure_drop(args.frequency)
+        _check_rate(rate, f"--frequency {args.frequency:g}")
         print(f"at N = {args.frequency:g} 1/s: best applied pressure drop H' = {applied:.5g}, productivity Q = {rate:.5g}")
     if args.applied is not None:
         frequency, rate, interior = screen.best_frequency(args.applied)
+        _check_rate(rate, f"--applied {args.applied:g}")
         if interior:
             print(f"at H' = {args.applied:g}: best pulsation frequency N = {frequency:.5g} 1/s, productivity Q = {rate:.5g}")
         else:
@@ -417,6 +448,11 @@ def run_pulp_optimum(args) -> int:
     return 0
 
 
+def _check_rate(rate: float, where: str) -> None:
+    if not (np.isfinite(rate) and rate >= 0):
+        raise ResultError(f"the productivity at {where} came out as {rate!r}: the model's arithmetic overflowed there")
+
+
 def run_pulp_fit(args) -> int:
     from .classifiers.pulp import fit_pulp_screen
     from .loading.tables import read_table
@@ -425,14 +461,14 @@ def run_pulp_fit(args) -> int:
     table = read_table(args.data)
     table.require("applied_pressure", "frequency", "productivity")
     applied, frequency, productivity = (table.numeric(c) for c in ("applied_pressure", "frequency", "productivity"))
+    ranges = {"applied_pressure": PRESSURE_RANGE, "frequency": FREQUENCY_RANGE, "productivity": (0.0, MAX_PRODUCTIVITY)}
     for column, values in (("applied_pressure", applied), ("frequency", frequency), ("productivity", productivity)):
-        bad = np.flatnonzero(values <= 0) if column != "applied_pressure" else np.flatnonzero(values < 0)
+        low, high = ranges[column]
+        inside = (values > low if column == "productivity" else values >= low) & (values <= high)
+        bad = np.flatnonzero(~inside)
         if bad.size:
-            raise table.error(
-                f"{column} {values[bad[0]]:g} must be {'positive' if column != 'applied_pressure' else '>= 0'}",
-                index=int(bad[0]),
-                column=column,
-            )
+            shown = f"({low:g}, {high:g}]" if column == "productivity" else f"[{low:g}, {high:g}]"
+            raise table.error(f"{column} {values[bad[0]]:g} must lie in {shown}", index=int(bad[0]), column=column)
     fitted = tuple(name.strip().replace("-", "_") for name in args.fit.split(",") if name.strip())
     if not fitted:
         raise OptionError("--fit", "names no coefficient")
@@ -465,47 +501,55 @@ def _add_optimize(commands) -> None:
 def _add_sieve_options(group) -> None:
     group.add_argument(
         "--lambda-target",
-        type=cli_type(check_positive, "--lambda-target"),
+        type=cli_type(check_range, "--lambda-target", **SIEVE_RANGES["lambda_target"]),
         default=1.31e-3,
         help="kinetic coefficient of the target fraction, 1/s (default 1.31e-3)",
     )
     group.add_argument(
         "--lambda-next",
-        type=cli_type(check_positive, "--lambda-next"),
+        type=cli_type(check_range, "--lambda-next", **SIEVE_RANGES["lambda_next"]),
         default=0.127,
         help="kinetic coefficient of the next finer fraction, 1/s (default 0.127)",
     )
     group.add_argument(
-        "--sieve-length", type=cli_type(check_positive, "--sieve-length"), default=1.6, help="sieve length L, m (default 1.6)"
+        "--sieve-length",
+        type=cli_type(check_range, "--sieve-length", **SIEVE_RANGES["sieve_length"]),
+        default=1.6,
+        help="sieve length L, m (default 1.6)",
     )
     group.add_argument(
         "--bulk-density",
-        type=cli_type(check_positive, "--bulk-density"),
+        type=cli_type(check_range, "--bulk-density", **SIEVE_RANGES["bulk_density"]),
         default=1150.0,
         help="bulk density, kg/m^3 (default 1150)",
     )
     group.add_argument(
         "--gap-height",
-        type=cli_type(check_positive, "--gap-height"),
+        type=cli_type(check_range, "--gap-height", **SIEVE_RANGES["gap_height"]),
         default=0.004,
         help="height h of the layer, m (default 0.004)",
     )
-    group.add_argument("--width", type=cli_type(check_positive, "--width"), default=1.0, help="sieve width B, m (default 1)")
+    group.add_argument(
+        "--width",
+        type=cli_type(check_range, "--width", **SIEVE_RANGES["width"]),
+        default=1.0,
+        help="sieve width B, m (default 1)",
+    )
     group.add_argument(
         "--purity-limit",
-        type=cli_type(check_probability, "--purity-limit"),
+        type=cli_type(check_range, "--purity-limit", **SIEVE_RANGES["purity_limit"]),
         default=0.08,
         help="largest share of the next finer fraction left on the sieve (default 0.08)",
     )
     group.add_argument(
         "--speed-min",
-        type=cli_type(check_positive, "--speed-min"),
+        type=cli_type(check_range, "--speed-min", **SIEVE_RANGES["speed"]),
         default=0.02,
         help="lowest mean transport speed V, m/s (default 0.02)",
     )
     group.add_argument(
         "--speed-max",
-        type=cli_type(check_positive, "--speed-max"),
+        type=cli_type(check_range, "--speed-max", **SIEVE_RANGES["speed"]),
         default=0.2,
         help="highest mean transport speed V, m/s (default 0.2)",
     )
@@ -514,13 +558,13 @@ def _add_sieve_options(group) -> None:
 def _add_choice_options(choice) -> None:
     choice.add_argument(
         "--min-efficiency",
-        type=cli_type(check_non_negative, "--min-efficiency"),
+        type=cli_type(check_range, "--min-efficiency", low=0.0, high=100.0, unit="%"),
         default=80.0,
         help="efficiency E (%%) required while maximising the capacity (default 80)",
     )
     choice.add_argument(
         "--capacity-share",
-        type=cli_type(check_share, "--capacity-share"),
+        type=cli_type(check_range, "--capacity-share", **SIEVE_RANGES["capacity_share"]),
         default=0.8,
         help="share of the largest capacity required while maximising the efficiency (default 0.8)",
     )
@@ -538,10 +582,6 @@ def run_optimize(args) -> int:
     _check_paths(args)
     if not args.speed_min < args.speed_max:
         raise OptionError("--speed-min", f"must be below --speed-max, got {args.speed_min:g} and {args.speed_max:g}")
-    if args.capacity_share == 0:
-        raise OptionError("--capacity-share", "must be above 0 (a share of the largest capacity, up to 1)")
-    if args.min_efficiency > 100:
-        raise OptionError("--min-efficiency", f"is a percentage, at most 100, got {args.min_efficiency:g}")
     problem = sieve_speed_problem(
         lambda_target=args.lambda_target,
         lambda_next=args.lambda_next,
@@ -552,15 +592,25 @@ def run_optimize(args) -> int:
         purity_limit=args.purity_limit,
         speed_bounds=(args.speed_min, args.speed_max),
     )
-    result = choose(
-        problem, floor_second=args.min_efficiency, share_of_first=args.capacity_share, weights=np.linspace(0.0, 1.0, args.weights)
-    )
+    try:
+        result = choose(
+            problem,
+            floor_second=args.min_efficiency,
+            share_of_first=args.capacity_share,
+            weights=np.linspace(0.0, 1.0, args.weights),
+        )
+    except ValueError as error:  # the optimiser met a flat or non-finite criterion at these options
+        raise ResultError(f"no operating point found at these options: the optimisation stopped ({error})") from None
     for label, optimum in [
         (f"max Q with E >= {args.min_efficiency:g} %", result.best_first),
         (f"max E with Q >= {args.capacity_share:g} of max", result.best_second),
         ("compromise (max-min)", result.compromise),
     ]:
         point = optimum.point
+        if not (np.isfinite([point["V"], point["Q"], point["E"]]).all() and -1e-9 <= point["E"] <= 100 + 1e-9):
+            raise ResultError(
+                f"{label}: V = {point['V']:g}, Q = {point['Q']:g}, E = {point['E']:g} is not a finite operating point"
+            )
         flag = "" if optimum.success else f"  (not converged: {optimum.message})"
         print(f"{label:>30}: V = {point['V']:.4f} m/s, Q = {point['Q']:.0f} kg/h, E = {point['E']:.2f} %{flag}")
     for note in result.notes:

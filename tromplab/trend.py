@@ -61,6 +61,7 @@ from .output.outputs import write_files
 from .output.plotting import offscreen_axes, plot_control_chart, save_figure
 from .output.report import Report, figure_png
 from .statistics.compare import ExtraSumOfSquares
+from .validation import check_probability
 from .workbench import fit_chunk, fit_experiments
 
 EWMA_LAMBDA = 0.2
@@ -407,12 +408,12 @@ def monitor_surveys(
 
 def _checked_surveys(surveys: Sequence[Survey], alpha: float) -> list[Survey]:
     """The surveys in date order, refused (:class:`~tromplab.errors.InputError`) when fewer than
-    four, when one has fewer than three points, or when ``alpha`` is not in (0, 1)."""
+    four or when one has fewer than three points; an
+    :class:`~tromplab.errors.OptionError` when ``alpha`` is not in (0, 1)."""
+    check_probability(alpha, "alpha")
     surveys = sorted(surveys, key=lambda s: s.date)
     if len(surveys) < 4:
         raise InputError(f"a trend needs at least four surveys, got {len(surveys)}")
-    if not 0 < alpha < 1:
-        raise InputError(f"alpha must lie between 0 and 1, got {alpha}")
     for survey in surveys:  # a cut-short survey cannot be fitted and screened (found by benchmarks/fuzz_cli.py)
         if survey.points.n < 3:
             raise InputError(f"survey '{survey.name}' has {survey.points.n} point(s); each survey needs at least 3")

@@ -4,7 +4,11 @@ Each check takes the value and the option's name as the caller spells it (``alph
 Python, ``--alpha`` on the command line) and returns the value converted, or raises
 :class:`~tromplab.errors.OptionError` naming the option.  :func:`cli_type` turns a check
 into an argparse ``type=`` callable, so the parser refuses a bad value (exit code 2)
-before any work starts.
+before any work starts; :func:`state_ranges` writes each option's range into its help.
+
+In Python a check takes numbers only: a string such as ``"0.05"`` is refused, because the
+command line converts its text itself (:func:`cli_type`) and a string reaching the library
+is a caller's mistake that silent conversion would hide.
 
 Examples
 --------
@@ -14,6 +18,10 @@ Examples
 Traceback (most recent call last):
 ...
 tromplab.errors.OptionError: alpha must lie strictly between 0 and 1, got 2
+>>> check_probability("0.05", "alpha")
+Traceback (most recent call last):
+...
+tromplab.errors.OptionError: alpha takes a number, got the text '0.05'
 """
 
 from __future__ import annotations
@@ -33,11 +41,24 @@ MAX_DECKS = 1_000
 #: Largest seed: numpy's SeedSequence takes any non-negative integer; 2**63 - 1 keeps it
 #: representable in every integer column and file format.
 MAX_SEED = 2**63 - 1
+#: Most worker processes (``--jobs``, ``jobs=``): more than any machine tromplab runs on has cores.
+MAX_JOBS = 4_096
+#: Sizes in any unit are refused outside this range (options and data alike), so that a cut
+#: searched from size / 100 to size x 100 and the indices stay normal floating-point numbers.
+SIZE_LIMITS = (1e-250, 1e250)
+
+
+def _refuse_text_and_truth(value, option: str, kind: str) -> None:
+    if isinstance(value, bool):
+        raise OptionError(option, f"takes {kind}, got {value!r}")
+    if isinstance(value, (str, bytes)):
+        raise OptionError(option, f"takes {kind}, got the text {value!r}")
 
 
 def _number(value, option: str) -> float:
-    if isinstance(value, bool):
-        raise OptionError(option, f"takes a number, got {value!r}")
+    _refuse_text_and_truth(value, option, "a number")
+    if isinstance(value, complex):
+        raise OptionError(option, f"takes a real number, got {value!r}")
     try:
         number = float(value)
     except (TypeError, ValueError):
@@ -48,20 +69,20 @@ def _number(value, option: str) -> float:
 
 
 def _integer(value, option: str) -> int:
-    if isinstance(value, bool):
-        raise OptionError(option, f"takes a whole number, got {value!r}")
+    _refuse_text_and_truth(value, option, "a whole number")
     try:
         return operator.index(value)
     except TypeError:
         pass
-    text = str(value).strip()
-    try:
-        return int(text)
-    except ValueError:
-        number = _number(value, option)
-        if number != int(number):
-            raise OptionError(option, f"takes a whole number, got {value!r}") from None
-        return int(number)
+    number = _number(value, option)
+    if number != int(number):
+        raise OptionError(option, f"takes a whole number, got {value!r}") from None
+    return int(number)
+
+
+def check_number(value, option: str) -> float:
+    """Any finite real number (a shape parameter, whose range the formula states)."""
+    return _number(value, option)
 
 
 def check_probability(value, option: str) -> float:
@@ -105,6 +126,39 @@ def check_non_negative(value, option: str) -> float:
     if number < 0.0:
         raise OptionError(option, f"must be a finite number >= 0, got {value!r}")
     return number
+
+
+def check_range(
+    value, option: str, *, low: float, high: float, low_open: bool = False, high_open: bool = False, unit: str = ""
+) -> float:
+    """A number from ``low`` to ``high`` (each end excluded when ``low_open``/``high_open``).
+
+    ``unit`` is shown after the range in the message (``m/s``).
+    """
+    number = _number(value, option)
+    above = number > low if low_open else number >= low
+    below = number < high if high_open else number <= high
+    if not (above and below):
+        shown = f" {unit}" if unit else ""
+        raise OptionError(option, f"must lie in {interval_text(low, high, low_open, high_open)}{shown}, got {value!r}")
+    return number
+
+
+def interval_text(low: float, high: float, low_open: bool = False, high_open: bool = False) -> str:
+    """``(0, 1]``-style text of a range (``inf`` for an open end at infinity)."""
+    return f"{'(' if low_open else '['}{_bound_text(low)}, {_bound_text(high)}{')' if high_open else ']'}"
+
+
+def _bound_text(bound: float) -> str:
+    if math.isinf(bound):
+        return "inf" if bound > 0 else "-inf"
+    return f"{int(bound):,}" if float(bound).is_integer() and abs(bound) < 1e6 else f"{bound:g}"
+
+
+def check_size(value, option: str) -> float:
+    """A size in any unit, within :data:`SIZE_LIMITS` (as the sizes of the data are)."""
+    low, high = SIZE_LIMITS
+    return check_range(value, option, low=low, high=high)
 
 
 def check_count(value, option: str, *, maximum: int, minimum: int = 1) -> int:
@@ -160,14 +214,62 @@ def check_optional(check: Callable, value, option: str, **kwargs):
     return None if value is None else check(value, option, **kwargs)
 
 
+def range_text(check: Callable, **kwargs) -> str:
+    """The range ``check`` accepts with ``kwargs``, in the words of the help texts."""
+    if check is check_range:
+        return interval_text(kwargs["low"], kwargs["high"], kwargs.get("low_open", False), kwargs.get("high_open", False)) + (
+            f" {kwargs['unit']}" if kwargs.get("unit") else ""
+        )
+    if check is check_count:
+        return f"{kwargs.get('minimum', 1):,} to {kwargs['maximum']:,}"
+    fixed = {
+        check_probability: "(0, 1)",
+        check_share: "[0, 1]",
+        check_water_recovery: "[0, 1)",
+        check_positive: "(0, inf)",
+        check_non_negative: "[0, inf)",
+        check_number: "(-inf, inf)",
+        check_size: interval_text(*SIZE_LIMITS),
+        check_bootstrap: f"0 to {MAX_BOOTSTRAP:,}",
+        check_seed: "0 to 2**63 - 1",
+    }
+    return fixed[check]
+
+
+def _parsed_text(text: str) -> int | float:
+    """The number a command-line text spells (an integer where it is one), else the text."""
+    for convert in (int, float):
+        try:
+            return convert(text.strip())
+        except ValueError:
+            continue
+    return text
+
+
 def cli_type(check: Callable, option: str, **kwargs) -> Callable[[str], object]:
-    """An argparse ``type=`` callable running ``check``; argparse then names the option."""
+    """An argparse ``type=`` callable running ``check`` on the number the text spells;
+    argparse then names the option.  Its ``range`` attribute is :func:`range_text`."""
 
     def parse(text: str):
+        value = _parsed_text(text)
+        if isinstance(value, str):
+            raise argparse.ArgumentTypeError(f"takes a number, got {text!r}")
         try:
-            return check(text, option, **kwargs)
+            return check(value, option, **kwargs)
         except OptionError as error:
             raise argparse.ArgumentTypeError(error.reason) from None
 
     parse.__name__ = check.__name__.removeprefix("check_")  # argparse names the type in some messages
+    parse.range = range_text(check, **kwargs)
     return parse
+
+
+def state_ranges(parser: argparse.ArgumentParser) -> None:
+    """Add ``(range ...)`` to the help of every option of ``parser`` and its sub-commands
+    whose type comes from :func:`cli_type`, so ``--help`` and the CLI reference state it."""
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for sub in action.choices.values():
+                state_ranges(sub)
+        elif action.help and getattr(action.type, "range", None) and action.type.range not in action.help:
+            action.help = f"{action.help} (range {action.type.range.replace('%', '%%')})"  # argparse formats help with %

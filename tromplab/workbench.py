@@ -25,7 +25,16 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from .curves.curve_fit import FIT_COLUMNS, CurveFit, attach_diagnostics, attach_indices, failed_fit, fit_formula
+from .curves.curve_fit import (
+    FIT_COLUMNS,
+    CurveFit,
+    as_failure_if_implausible,
+    attach_diagnostics,
+    attach_indices,
+    check_delta_max,
+    failed_fit,
+    fit_formula,
+)
 from .curves.engine import check_bootstrap_request, fit_formula_batch, measured_start
 from .curves.formulas import Formula, is_batchable, select_formulas
 from .curves.measured import AMBIGUOUS_CUT_RATIO, CUT_BAND, CUT_WARNING, measured_cut_band, measured_efficiency, unbracketed_cut
@@ -44,7 +53,15 @@ from .output.views import check_partition_to, partition_view
 from .statistics.compare import nested_tests
 from .statistics.hydrocyclone import bypass_against_water_recovery
 from .statistics.uncertainty import BOOTSTRAP_METHODS, averaged_rows, interval_columns
-from .validation import check_bootstrap, check_optional, check_positive, check_probability, check_seed, check_water_recovery
+from .validation import (
+    MAX_JOBS,
+    check_bootstrap,
+    check_count,
+    check_optional,
+    check_probability,
+    check_seed,
+    check_water_recovery,
+)
 
 logger = logging.getLogger(__name__)
 
@@ -179,7 +196,8 @@ class Workbench:
         Computed once per level and kept; ``jobs`` and ``client`` spread the first
         computation over workers (the table is the same whatever they are).
         """
-        level = averages_level(self.ci) if level is None else level
+        level = averages_level(self.ci) if level is None else check_probability(level, "level")
+        check_optional(check_count, jobs, "jobs", minimum=0, maximum=MAX_JOBS)
         if level not in self._averages_by_level:
             self._keep_averages(level, model_averages(self, level=level, jobs=jobs, client=client))
         return self._averages_by_level[level].copy()
@@ -262,6 +280,8 @@ class Workbench:
         figures (None or 0: all cores; the report is the same for any number).  Returns
         ``{file name: path}`` of the written files.
         """
+        check_optional(check_probability, level, "level")
+        check_optional(check_count, jobs, "jobs", minimum=0, maximum=MAX_JOBS)
         sources = dict.fromkeys(fit.points.source for fit in self.fits if fit.points.source)
         built = build_report(
             self,
@@ -293,6 +313,7 @@ class Workbench:
         files are the same for any number).  See
         :func:`tromplab.output.folder.write_results_folder`.  Returns ``{file name: path}``.
         """
+        check_optional(check_count, jobs, "jobs", minimum=0, maximum=MAX_JOBS)
         return write_results_folder(
             self,
             directory,
@@ -536,6 +557,10 @@ def ranked_among(formulas, rank_extended: bool) -> tuple[Formula, ...]:
 def check_formula_selection(formulas=None, extended: bool = False):
     """The selection :func:`formula_keys` makes, refused with an
     :class:`~tromplab.errors.OptionError` naming ``formulas`` when it names an unknown formula."""
+    if isinstance(formulas, (list, tuple, set, frozenset)) and not formulas:
+        raise OptionError("formulas", "names no formula; leave it out (None) for the nine formulas")
+    if isinstance(formulas, str) and not formulas.replace(",", "").strip():
+        raise OptionError("formulas", f"names no formula, got {formulas!r}")
     keys = formula_keys(formulas, extended)
     try:
         select_formulas(keys)
@@ -558,7 +583,9 @@ def _checked_settings(given: dict, *, n_fits: int, size_unit: str) -> dict:
     """The options of :func:`fit_experiments` checked (an :class:`~tromplab.errors.OptionError`
     names the option), before any fitting."""
     check_probability(given["alpha"], "alpha")
-    check_optional(check_positive, given["delta_max"], "delta_max")
+    if given["delta_max"] is not None:  # refused before any fitting, not in each fit
+        check_delta_max(given["delta_max"], given["experiments"])
+    check_optional(check_count, given["jobs"], "jobs", minimum=0, maximum=MAX_JOBS)
     check_partition_to(given["partition_to"])
     check_optional(check_probability, given["ci"], "ci")
     check_seed(given["seed"], "seed")
@@ -745,6 +772,7 @@ def fit_chunk(
         per_formula.append(batch or [_fit_guarded(points, formula, alpha, delta_max, size_unit) for points in experiments])
     fits = [fits[i] for i in range(len(experiments)) for fits in per_formula]
     attach_indices(fits)
+    fits = [as_failure_if_implausible(fit) for fit in fits]  # a result out of its range is a failure
     attach_diagnostics(fits)
     reasons = {}  # unbracketed is a property of the points, which the formulas of an experiment share
     for fit in fits:
@@ -997,6 +1025,8 @@ def model_averages(bench: Workbench, *, level: float = 0.95, jobs: int | None = 
 
     """
     expect_kind(bench, Workbench, "bench", "a Workbench (tromplab.fit_experiments)")
+    check_probability(level, "level")
+    check_optional(check_count, jobs, "jobs", minimum=0, maximum=MAX_JOBS)
     groups = _averaged_groups(bench.fits_by_experiment().values(), [f.id for f in bench.ranked_formulas])
     chunks = chunked(groups, workers=_worker_count(jobs, client))
     logger.info("model averages of %d experiment(s) at level %g", len(groups), level)

@@ -195,7 +195,8 @@ def sieve_speed_problem(
     """
 
     def retained(coefficient, speed):
-        return np.exp(-coefficient * sieve_length / speed)
+        with np.errstate(over="ignore", divide="ignore"):  # the optimiser may probe beyond the speed bounds
+            return np.exp(-coefficient * sieve_length / speed)
 
     return Problem(
         variables=(Variable("V", *speed_bounds),),

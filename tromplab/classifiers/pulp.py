@@ -23,6 +23,30 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..curves.parameters import Parameter
+from ..validation import check_range
+
+#: Range of each coefficient, ``(low, high, low_open)``: wide around the spec's illustrative
+#: values, and small enough that ``H^r``, ``H^s`` and ``N^tau`` stay finite for the pressure
+#: drops and frequencies below (the fit's bounds lie inside them).
+COEFFICIENT_RANGES = {
+    "area": (0.0, 1e3, True),
+    "open_area": (0.0, 1.0, True),
+    "consistency": (0.0, 1e3, True),
+    "delay": (0.0, 1e3, False),
+    "beta": (0.0, 1e4, True),
+    "r": (0.0, 10.0, True),
+    "lam": (0.0, 1e4, True),
+    "s": (0.0, 10.0, True),
+    "phi": (0.0, 1e4, False),
+    "tau": (0.0, 5.0, True),
+}
+#: Pulsation frequencies N (1/s) and applied pressure drops H' the commands take: the
+#: search of the best frequency spans 1e-3..1e4 1/s.
+FREQUENCY_RANGE = (1e-3, 1e4)
+PRESSURE_RANGE = (0.0, 1e4)
+#: Largest measured productivity a fit takes (units of the inputs, kg/s in the examples): a
+#: thousand times the model's rate at the largest coefficients is beyond any screen.
+MAX_PRODUCTIVITY = 1e9
 
 # scipy and lmfit are imported where a screen is optimised or fitted: the command line builds
 # its pulp options from PulpScreen's fields at start-up, which then costs numpy alone
@@ -64,10 +88,9 @@ class PulpScreen:
     tau: float = 2.0
 
     def __post_init__(self):
-        for item in fields(self):
-            value = getattr(self, item.name)
-            if value < 0 or (value == 0 and item.name not in ("phi", "delay")):
-                raise ValueError(f"{item.name} must be positive, got {value:g}")
+        for item in fields(self):  # an OptionError (a ValueError) naming the coefficient
+            low, high, low_open = COEFFICIENT_RANGES[item.name]
+            check_range(getattr(self, item.name), item.name, low=low, high=high, low_open=low_open)
 
     def pressure_drop(self, applied, frequency):
         """Effective pressure drop ``H = H' + phi N^tau``."""

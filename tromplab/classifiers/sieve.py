@@ -513,6 +513,12 @@ def _refuse_outside(table, values, column: str, rule: str, *, upper: float = np.
 
 IDENTIFY_COLUMNS = ("sieve", "fraction", "relative_speed", "residue", "sieve_length", "cell_pitch")
 PG_COLUMNS = ("hole_diameter", "length", "width", "half_cell_width")
+#: Largest relative speed of a residue table (m/s): vibrating sieves move at a few m/s at
+#: most; a larger value is a mistyped unit, and near 1e308 the fit's bounds overflowed.
+MAX_RELATIVE_SPEED = 1e3
+#: Largest length of a residue table (any one unit, as for ``tromplab sieve pg``): only
+#: ratios of the lengths matter, and within 1e-100..1e100 their squares stay finite.
+MAX_LENGTH = 1e100
 #: The columns :func:`identify_from_table` returns, in order.
 IDENTIFIED_COLUMNS = (
     "sieve",
@@ -577,13 +583,24 @@ def _checked_residue_table(table) -> tuple[dict[str, np.ndarray], np.ndarray]:
     table.refuse_unknown((*IDENTIFY_COLUMNS, "P_g", *PG_COLUMNS), what="residue table")
     numbers = {c: table.numeric(c) for c in IDENTIFY_COLUMNS[2:]}
     _refuse_outside(table, numbers["residue"], "residue", "must lie strictly between 0 and 1 (the share retained)", upper=1.0)
+    _refuse_outside(
+        table, numbers["relative_speed"], "relative_speed", f"must lie in (0, {MAX_RELATIVE_SPEED:g}] m/s", upper=MAX_RELATIVE_SPEED,
+        upper_allowed=True,
+    )  # fmt: skip
     for column in ("sieve_length", "cell_pitch"):
-        _refuse_outside(table, numbers[column], column, "must be positive")
+        _refuse_outside(table, numbers[column], column, f"must lie in (0, {MAX_LENGTH:g}]", upper=MAX_LENGTH, upper_allowed=True)
     if "P_g" in table.frame.columns:
         pg = table.numeric("P_g")
         _refuse_outside(table, pg, "P_g", "must lie in (0, 1]", upper=1.0, upper_allowed=True)
     elif all(c in table.frame.columns for c in PG_COLUMNS):
         sizes = [table.numeric(c) for c in PG_COLUMNS]
+        for column, values in zip(PG_COLUMNS, sizes):
+            outside = np.flatnonzero(~((values >= 1.0 / MAX_LENGTH) & (values <= MAX_LENGTH)))
+            if outside.size:
+                i = int(outside[0])
+                raise table.error(
+                    f"{column} {values[i]:g} must lie in [{1 / MAX_LENGTH:g}, {MAX_LENGTH:g}]", index=i, column=column
+                )
         pg = np.array([geometric_probability(*row) for row in zip(*sizes)])
     else:
         raise InputError(f"give a 'P_g' column or the columns {', '.join(PG_COLUMNS)}", source=table.source)

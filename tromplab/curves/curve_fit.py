@@ -24,8 +24,9 @@ import numpy as np
 import pandas as pd
 from scipy import optimize
 
-from ..errors import expect_kind
-from ..loading.points import TrompPoints
+from ..errors import OptionError, expect_kind
+from ..loading.points import MAX_SIZE_SPAN, TrompPoints
+from ..validation import check_probability, check_size
 from .diagnostics import RESIDUAL_WARNING, ResidualDiagnostics, batch_residual_diagnostics, residual_diagnostics
 from .fitting import ParameterFit, least_squares, on_bound
 from .formulas import Formula, NoBreakPointError, get_formula, shuvalov_break
@@ -86,13 +87,32 @@ class FitOptions:
         size_unit: str = "",
         global_search: bool = True,
     ) -> FitOptions:
-        """Options resolved against ``points`` (``delta_max`` and weights filled in)."""
-        if not 0.0 < alpha < 1.0:
-            raise ValueError(f"alpha must lie in (0, 1), got {alpha}")
-        largest = points.largest_size if delta_max is None else float(delta_max)
-        if not (np.isfinite(largest) and largest > 0):
-            raise ValueError(f"delta_max must be a positive size, got {delta_max}")
-        return cls(float(alpha), largest, normalised_weights(points), size_unit or "", global_search)
+        """Options resolved against ``points`` (``delta_max`` and weights filled in); an
+        :class:`~tromplab.errors.OptionError` (a ValueError) names an argument out of range."""
+        alpha = check_probability(alpha, "alpha")
+        if delta_max is None:
+            largest = points.largest_size
+        elif points.resampled:  # a bootstrap resample may lack the smallest size its original was checked with
+            largest = check_size(delta_max, "delta_max")
+        else:
+            largest = check_delta_max(delta_max, [points])
+        return cls(alpha, largest, normalised_weights(points), size_unit or "", global_search)
+
+
+def check_delta_max(delta_max, experiments) -> float:
+    """``delta_max`` a size (:func:`tromplab.validation.check_size`) at most
+    :data:`~tromplab.loading.points.MAX_SIZE_SPAN` times the smallest size of the ``experiments``
+    (the rule the sizes of one experiment follow: a larger top size is a mistyped size or unit,
+    and the misplacement integral up to it would leave the floating-point range)."""
+    delta_max = check_size(delta_max, "delta_max")
+    smallest = min((float(points.size.min()) for points in experiments), default=np.nan)
+    if delta_max / smallest > MAX_SIZE_SPAN:
+        raise OptionError(
+            "delta_max",
+            f"of {delta_max:g} is more than {MAX_SIZE_SPAN:g} times the smallest size of the data ({smallest:g}); "
+            "the top size or its unit is probably mistyped",
+        )
+    return delta_max
 
 
 #: A parameter whose standard error exceeds this many times its value is reported as not
@@ -487,6 +507,59 @@ def attach_indices(fits) -> None:
         )
         for fit, indices in zip(group, computed):
             fit.__dict__["indices"] = indices  # where functools.cached_property keeps its value
+
+
+#: Relative slack of the range checks of :func:`implausible_result` (rounding of the integrals).
+RANGE_SLACK = 1e-9
+
+
+def implausible_result(fit: CurveFit) -> str:
+    """Why the results of a successful ``fit`` leave their ranges (docs/columns.md), or ''.
+
+    d_cut, the shape, the sum of squares and eta must be finite numbers in their ranges;
+    epsilon, d25, d75, d50, d50c, Ep and the slope may be missing (a curve that never
+    reaches a level) but not infinite or outside their ranges.  Such a result comes from
+    arithmetic that overflowed at extreme inputs; it is reported as a failed fit, never as
+    a result.
+    """
+    if not fit.success:
+        return ""
+    ind = fit.indices
+    x_max = fit.options.delta_max / fit.d_cut if fit.d_cut > 0 else np.nan
+    low_shape, high_shape = fit.formula.shape_bounds
+    required = {
+        "d_cut": (fit.d_cut, 0.0, np.inf),
+        fit.formula.shape_name: (fit.shape, low_shape, high_shape),
+        "ssr": (fit.fit.ssr, 0.0, np.inf),
+        "eta": (ind.eta, 0.0, 1.0),
+    }
+    optional = {
+        "epsilon": (ind.epsilon, 0.0, max(x_max - 1.0, 0.0)),
+        "slope": (ind.slope, -np.inf, 0.0),
+        **{name: (getattr(ind, name), 0.0, np.inf) for name in ("d25", "d75", "ep", "d50", "d50c", "ep_c")},
+    }
+    for name, (value, low, high) in {**required, **optional}.items():
+        value = float(value)
+        if np.isnan(value) and name in optional:
+            continue
+        slack = RANGE_SLACK * max(1.0, abs(low) if np.isfinite(low) else 0.0, abs(high) if np.isfinite(high) else 0.0)
+        if not (np.isfinite(value) and low - slack <= value <= high + slack):
+            return (
+                f"{name} = {value:g} is outside its range [{low:g}, {high:g}]: the arithmetic did not hold at these "
+                f"inputs (delta_max {fit.options.delta_max:g}, d_cut {fit.d_cut:g})"
+            )
+    return ""
+
+
+def as_failure_if_implausible(fit: CurveFit) -> CurveFit:
+    """``fit``, or a failed fit saying why when :func:`implausible_result` finds a result out of range."""
+    reason = implausible_result(fit)
+    if not reason:
+        return fit
+    options = fit.options
+    return failed_fit(
+        fit.points, fit.formula, reason, alpha=options.alpha, delta_max=options.delta_max, size_unit=options.size_unit
+    )
 
 
 def attach_diagnostics(fits) -> None:

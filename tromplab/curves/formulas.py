@@ -452,10 +452,26 @@ def plitt(x, ks):
     return scipy.special.expit(-ks * _log(x))
 
 
+#: Above this ``ks ln x`` the power ``x^ks`` of Plitt's area nears the floating-point limit
+#: (e^709): the area is then the whole area less the tail beyond x.
+_PLITT_FAR = 600.0
+
+
 def _plitt_efficiency(ks, x_max):
+    a = 1.0 / ks
+
     def area_to(upper):
-        a = 1.0 / ks
-        return upper * scipy.special.hyp2f1(1.0, a, 1.0 + a, -(upper**ks))
+        with np.errstate(over="ignore"):  # x^ks = inf gave 2F1 = 0 and a negative epsilon
+            direct = upper * scipy.special.hyp2f1(1.0, a, 1.0 + a, -(upper**ks))
+        far = (ks * np.log(upper) > _PLITT_FAR) & (ks > 1.0)
+        if not np.any(far):
+            return direct
+        # the area from 0 to infinity, (pi/ks) / sin(pi/ks), less the tail from upper on:
+        # upper^(1-ks) / (ks-1) 2F1(1, 1-a; 2-a; -upper^-ks) (term by term from the series)
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            whole = np.pi * a / np.sin(np.pi * a)
+            tail = upper ** (1.0 - ks) / (ks - 1.0) * scipy.special.hyp2f1(1.0, 1.0 - a, 2.0 - a, -(upper**-ks))
+        return np.where(far, whole - tail, direct)
 
     eta = area_to(1.0)
     return eta, area_to(np.maximum(x_max, 1.0)) - eta

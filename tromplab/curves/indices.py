@@ -29,6 +29,7 @@ from functools import lru_cache
 import numpy as np
 from scipy import integrate, optimize
 
+from ..validation import check_number, check_size
 from .formulas import Formula, get_formula, is_batchable
 
 #: Share of eta or epsilon that may come from sizes outside the measured range before the
@@ -216,6 +217,7 @@ def curve_indices(
         if value is None or isinstance(value, (str, bytes, list, tuple, dict, set)):
             raise TypeError(f"{argument} must be a number, got {type(value).__name__}")
     formula = get_formula(formula)
+    d_cut, shape, delta_max = check_size(d_cut, "d_cut"), check_number(shape, "shape"), check_size(delta_max, "delta_max")
     eta, eps = efficiency(formula, shape, delta_max / d_cut, **context)
     slope = formula.slope_at_cut(shape) if not formula.extras else _numeric_slope(formula, shape, context)
     d25 = d_cut * _relative_size_cached(formula, shape, 0.75, context)

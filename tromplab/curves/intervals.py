@@ -20,6 +20,7 @@ import pandas as pd
 from scipy import stats
 
 from ..errors import expect_like
+from ..validation import check_optional, check_probability, check_size
 from .batched import BatchProblem, PaddedPoints, profile_limits, sum_of_squares
 from .fitting import on_bound
 from .formulas import is_batchable
@@ -488,6 +489,8 @@ def interval_table(
         for many fits at once); default :func:`profile_intervals` with ``profile``.
     """
     expect_like(fit, FIT_ATTRIBUTES, "fit", "a CurveFit (tromplab.fit_formula)")
+    level = check_probability(level, "level")
+    delta_max = check_optional(check_size, delta_max, "delta_max")
     return pd.DataFrame(interval_rows(fit, level=level, delta_max=delta_max, profile=profile, known=known, profiled=profiled))
 
 

@@ -57,9 +57,18 @@ from typing import NamedTuple
 import numpy as np
 import pandas as pd
 
-from ..errors import InputError, YieldWarning
+from ..errors import InputError, OptionError, YieldWarning
 from ..options import DEFAULT_MIN_FEED_SHARE, DEFAULT_SUM_TOLERANCE_PCT, KINDS, PARTITION_METHODS
-from ..validation import check_non_negative, check_optional, check_positive, check_probability, check_share, check_water_recovery
+from ..validation import (
+    SIZE_LIMITS,
+    check_non_negative,
+    check_optional,
+    check_probability,
+    check_range,
+    check_share,
+    check_size,
+    check_water_recovery,
+)
 from .kelsall import kelsall_corrected
 from .names import renamed_to_names
 from .points import TrompPoints, experiment_rows, normal_unit, points_from_table, resolve_size_unit, size_column_unit
@@ -81,6 +90,8 @@ YIELD_COLUMNS = {"fine_yield": "fine", "overflow_yield": "fine", "coarse_yield":
 YIELD_MARGIN = 1e-9  # an estimated yield this close to 0 or 1 means one product is empty
 MASS_YIELD_TOLERANCE = 0.005  # |stated - implied| fine yield above which two product masses contradict a stated yield
 PARTITION_SLACK = 0.02
+#: Largest amount (mass) of one class: sums over any number of classes stay finite.
+MAX_AMOUNT = 1e250
 
 
 @dataclass(frozen=True)
@@ -159,9 +170,9 @@ class LabOptions:
         for name in ("fine_yield", "coarse_yield"):
             check_optional(check_probability, getattr(self, name), name)
         check_share(self.min_feed_share, "min_feed_share")
-        check_non_negative(self.sum_tolerance_pct, "sum_tolerance_pct")
-        check_optional(check_positive, self.top_size, "top_size")
-        check_optional(check_non_negative, self.pan_lower_size, "pan_lower_size")
+        check_range(self.sum_tolerance_pct, "sum_tolerance_pct", low=0.0, high=100.0)
+        check_optional(check_size, self.top_size, "top_size")
+        check_optional(check_range, self.pan_lower_size, "pan_lower_size", low=0.0, high=SIZE_LIMITS[1])
         check_optional(check_water_recovery, self.water_recovery, "water_recovery")
         if self.fine_yield is not None and self.coarse_yield is not None:
             if not np.isclose(self.fine_yield + self.coarse_yield, 1.0, atol=1e-6):
@@ -543,12 +554,12 @@ def _balance_one(table: Table, name: str, streams, layout: _SizeLayout, options:
     classes["balance_residual"] = a - fine_yield * b - (1 - fine_yield) * c
     method = options.partition_from
     if options.reconcile and len(shares) == 3:
-        adjusted = reconcile(a, b, c, fine_yield)
+        adjusted = _reconciled(a, b, c, fine_yield)
         for stream, values in zip(STREAMS, adjusted):
             classes[f"{stream}_adjusted"] = values
         a, b, c = adjusted
         method = "reconciled"
-    phi = partition_to_fines(a, b, c, fine_yield, method=method)
+    phi = _partition(a, b, c, fine_yield, method)
     empty_products = (a > 0) & (b <= 0) & (c <= 0) & ("fine" in shares) & ("coarse" in shares)
     used, flags = _flag_classes(a, phi, options.min_feed_share, empty_products)
     classes["partition_fine"] = np.where(np.isfinite(phi), np.clip(phi, 0.0, 1.0), np.nan)
@@ -599,8 +610,12 @@ def partition_to_fines(feed, fine, coarse, fine_yield, *, method: str = "product
     >>> partition_to_fines([0.5], [0.4], [0.5], 0.5, method="feed").round(4).tolist()
     [0.4]
     """
-    a, b, c = (np.asarray(v, dtype=float) for v in (feed, fine, coarse))
-    y = float(fine_yield)
+    a, b, c = _checked_shares(feed, fine, coarse)
+    return _partition(a, b, c, check_probability(fine_yield, "fine_yield"), method)
+
+
+def _partition(a, b, c, y: float, method: str) -> np.ndarray:
+    """:func:`partition_to_fines` of shares the reader has checked (a stream it computed may dip below 0)."""
     denominator = a if method == "feed" else y * b + (1 - y) * c
     with np.errstate(divide="ignore", invalid="ignore"):
         return np.where(denominator > 0, y * b / denominator, np.nan)
@@ -718,6 +733,12 @@ def _per_class_shares(table: Table, column: str, kind: str, options: LabOptions)
     bad = np.flatnonzero(values < 0)
     if bad.size:
         raise table.error(f"negative amount {values[bad[0]]:g}", index=int(bad[0]), column=column)
+    largest = {"pct": 100.0 + options.sum_tolerance_pct, "frac": 1.0 + options.sum_tolerance_pct / 100.0}.get(kind, MAX_AMOUNT)
+    bad = np.flatnonzero(values > largest)
+    if bad.size:  # a share above the whole, or a mass whose sum would overflow
+        raise table.error(
+            f"amount {values[bad[0]]:g} is above {largest:g}, more than the whole stream", index=int(bad[0]), column=column
+        )
     total = values.sum()
     if total <= 0:
         raise InputError(f"column '{column}' holds no material", source=table.source, column=column)
@@ -894,8 +915,15 @@ def reconcile(feed, fine, coarse, fine_yield, *, relative_error=0.05, absolute_e
     tuple of ndarray
         The adjusted feed, fine and coarse shares.
     """
-    a, b, c = (np.asarray(v, dtype=float) for v in (feed, fine, coarse))
-    y = float(fine_yield)
+    a, b, c = _checked_shares(feed, fine, coarse)
+    y = check_probability(fine_yield, "fine_yield")
+    check_non_negative(relative_error, "relative_error")
+    check_non_negative(absolute_error, "absolute_error")
+    return _reconciled(a, b, c, y, relative_error=relative_error, absolute_error=absolute_error)
+
+
+def _reconciled(a, b, c, y: float, *, relative_error=0.05, absolute_error=0.001):
+    """:func:`reconcile` of shares and a yield the reader has checked."""
     values = np.stack([a, b, c])
     variances = (relative_error * values) ** 2 + absolute_error**2
     gains = np.array([[-1.0], [y], [1.0 - y]])  # d(share)/d(lambda) per unit variance
@@ -910,6 +938,29 @@ def reconcile(feed, fine, coarse, fine_yield, *, relative_error=0.05, absolute_e
         values = np.where(negative, 0.0, values)
         a, b, c = values[0], values[1], values[2]
     return adjusted[0], adjusted[1], adjusted[2]
+
+
+def _checked_shares(feed, fine, coarse) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The three streams' shares per class as float arrays of one length, finite and not
+    negative, or an :class:`~tromplab.errors.OptionError` naming the argument at fault."""
+    arrays = []
+    for name, values in (("feed", feed), ("fine", fine), ("coarse", coarse)):
+        try:
+            raw = np.asarray(values)
+        except ValueError:
+            raise OptionError(name, "takes one share per class, got a ragged nesting") from None
+        if np.iscomplexobj(raw) or raw.ndim != 1 or raw.dtype.kind not in "biuf":
+            raise OptionError(name, f"takes one real share per class (a flat sequence of numbers), got {values!r}")
+        array = raw.astype(float)
+        bad = np.flatnonzero(~np.isfinite(array) | (array < 0))
+        if bad.size:
+            raise OptionError(name, f"takes finite shares >= 0, got {array[bad[0]]:g} in class {bad[0] + 1}")
+        arrays.append(array)
+    if len({array.size for array in arrays}) > 1:
+        raise OptionError(
+            "fine", f"feed, fine and coarse take one share per class each, got {', '.join(str(a.size) for a in arrays)}"
+        )
+    return arrays[0], arrays[1], arrays[2]
 
 
 def _given_yield(table: Table, options: LabOptions):

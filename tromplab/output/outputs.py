@@ -7,8 +7,14 @@ on Linux in one atomic ``renameat2(RENAME_EXCHANGE)`` call, elsewhere in two ren
 rolls back if the process died between them.  A killed run (SIGINT, SIGTERM, SIGKILL)
 therefore leaves ``OUT`` holding either the previous outputs or the new ones, never a
 mix.  Staging folders of dead runs are recognised by their pid and removed by the next
-run into the same place.  A lock file ``.OUT.lock`` (``fcntl.flock``) serialises the
-swap of concurrent runs into one folder, so the folder holds one run's outputs.
+run into the same place.  A lock (``fcntl.flock``) serialises the swap of concurrent runs
+into one folder, so the folder holds one run's outputs; its file lies in a private folder of
+the user outside the working tree (:func:`lock_folder`), named by a hash of the resolved
+output path, so a run leaves nothing beside its outputs.
+
+SIGINT and SIGTERM are held back during the swap itself and the record of it
+(:func:`written_outputs`), so an interrupt that arrives then or later says truthfully that
+the new outputs were written.
 
 The folder keeps files the previous run did not write (a report, the user's notes): a
 hidden manifest (:data:`MANIFEST`) lists what the run wrote, and the next run replaces
@@ -22,11 +28,15 @@ import contextlib
 import ctypes
 import ctypes.util
 import errno
+import hashlib
 import logging
 import os
 import re
 import shutil
+import signal
+import stat
 import tempfile
+import threading
 import time
 from collections.abc import Callable, Iterable
 from pathlib import Path
@@ -42,6 +52,8 @@ MANIFEST = ".tromplab-manifest"
 #: or not a number: no pause.  It changes nothing but the timing.
 SWAP_PAUSE_VARIABLE = "TROMPLAB_TEST_SWAP_PAUSE"
 _RENAME_EXCHANGE = 2
+#: Output folders and files this process has put in place (:func:`written_outputs`).
+_WRITTEN: list[Path] = []
 _STAGING = re.compile(r"^\.(?P<name>.+)\.(?P<what>tmp|old)-(?P<pid>\d+)(?:-[A-Za-z0-9_]+)?$")
 
 
@@ -119,7 +131,9 @@ def replace_folder(outputs: dict[str, Callable[[Path], None]], outdir) -> dict[s
             if outdir.is_dir():
                 _carry_over(outdir, staging, set(outputs))
             _pause_for_tests()
-            _swap_into_place(staging, outdir)
+            with _interrupts_held():  # the swap and its record are one step for an interrupt
+                _swap_into_place(staging, outdir)
+                _WRITTEN.append(outdir)
             logger.info("swapped the new outputs into %s", outdir)
     finally:
         shutil.rmtree(staging, ignore_errors=True)  # after the swap it holds the previous run
@@ -141,10 +155,11 @@ def write_files(outputs: dict[str, Callable[[Path], None]], outdir) -> dict[str,
             _check_name(name)
             writer(staging / name)
         written = {}
-        with _folder_lock(outdir, ".tromplab"):
+        with _folder_lock(outdir, ".tromplab"), _interrupts_held():
             for name in outputs:
                 os.replace(staging / name, outdir / name)
                 written[name] = outdir / name
+                _WRITTEN.append(outdir / name)
                 logger.info("wrote %s", outdir / name)
     finally:
         shutil.rmtree(staging, ignore_errors=True)
@@ -191,11 +206,73 @@ def _alive(pid: int) -> bool:
     return True
 
 
+def written_outputs() -> list[Path]:
+    """The output folders and files this process has put in place since :func:`forget_written`
+    (the command line says so when it is interrupted after them)."""
+    return list(_WRITTEN)
+
+
+def forget_written() -> None:
+    """Start a new record for :func:`written_outputs` (each command does)."""
+    _WRITTEN.clear()
+
+
+@contextlib.contextmanager
+def _interrupts_held():
+    """SIGINT and SIGTERM that arrive inside the block are held and handed to their handlers
+    when it is left.  Python runs signal handlers in the main thread whichever thread the
+    kernel delivered the signal to, so the handlers are swapped there (masking the signal in
+    one thread would not hold it: the pools' threads take it).  Elsewhere: nothing to hold."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    caught = []
+    previous = {}
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        handler = signal.getsignal(signum)
+        if handler is not None and handler is not signal.SIG_IGN:  # None: set outside Python, left alone
+            previous[signum] = signal.signal(signum, lambda number, frame: caught.append((number, frame)))
+    try:
+        yield
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+        for signum, frame in caught[:1]:  # the first one decides, as it would have
+            handler = previous[signum]
+            if callable(handler):
+                handler(signum, frame)
+            else:  # the default action (end the process): deliver it again now
+                os.kill(os.getpid(), signum)
+
+
+def lock_folder() -> Path:
+    """The private folder of this user's lock files: ``tromplab-locks-<uid>`` in
+    ``$XDG_RUNTIME_DIR`` (a per-user folder emptied at log-out) or else the system's
+    temporary folder; made with mode 0700 and refused if it is another user's or open to others."""
+    runtime = os.environ.get("XDG_RUNTIME_DIR", "")
+    base = Path(runtime) if runtime and os.path.isdir(runtime) else Path(tempfile.gettempdir())
+    folder = base / f"tromplab-locks-{os.getuid()}"
+    with contextlib.suppress(FileExistsError):
+        folder.mkdir(mode=0o700)
+    info = os.lstat(folder)
+    if not stat.S_ISDIR(info.st_mode) or info.st_uid != os.getuid() or info.st_mode & 0o077:
+        raise OutputError(f"the lock folder {folder} is not a private folder of this user (mode 0700); remove it")
+    return folder
+
+
+def lock_path(target) -> Path:
+    """The lock file of the output path ``target`` (resolved, so every spelling of one
+    folder shares one lock)."""
+    key = hashlib.sha256(os.fsencode(Path(target).resolve())).hexdigest()[:32]
+    return lock_folder() / f"{key}.lock"
+
+
 @contextlib.contextmanager
 def _folder_lock(parent: Path, name: str):
     import fcntl
 
-    with open(parent / f".{name}.lock", "a+b") as handle:
+    descriptor = os.open(lock_path(parent / name), os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW, 0o600)
+    with os.fdopen(descriptor, "r+b") as handle:
         fcntl.flock(handle, fcntl.LOCK_EX)  # released when the handle closes, also when killed
         yield
 

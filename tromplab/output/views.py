@@ -10,13 +10,14 @@ from __future__ import annotations
 
 import pandas as pd
 
+from ..errors import OptionError
 from ..options import PARTITION_TO
 
 
 def check_partition_to(partition_to: str) -> str:
     """Return ``partition_to`` if it is ``"fine"`` or ``"coarse"``, else raise ValueError."""
     if partition_to not in PARTITION_TO:
-        raise ValueError(f"partition_to must be 'fine' or 'coarse', got {partition_to!r}")
+        raise OptionError("partition_to", f"must be 'fine' or 'coarse', got {partition_to!r}")
     return partition_to
 
 

@@ -25,7 +25,7 @@ from ..curves.fitting import ParameterFit, least_squares
 from ..curves.formulas import get_formula
 from ..curves.measured import measured_efficiency, normalised_weights
 from ..curves.parameters import Parameter, d_cut_parameter
-from ..errors import InputError, expect_kind
+from ..errors import InputError, OptionError, expect_kind
 from ..loading.points import TrompPoints
 from ..options import DEFAULT_MARGIN
 
@@ -235,10 +235,16 @@ def shared_fit(experiments: Sequence[TrompPoints], formula, *, shared: str = "sh
         expect_kind(points, TrompPoints, f"experiments[{position}]", "a TrompPoints")
     if len(experiments) < 2:
         raise InputError("a shared fit needs at least two experiments")
+    names = [points.experiment for points in experiments]
+    repeated = sorted({name for name in names if names.count(name) > 1})
+    if repeated:  # a joint fit of an experiment with itself tests nothing (F = 0, p = 1)
+        raise InputError(
+            f"experiment(s) {', '.join(repr(name) for name in repeated)} given more than once; compare distinct experiments"
+        )
     if formula.extras:
         raise InputError("shared fits are offered for the two-parameter formulas")
     if shared not in ("shape", "d_cut"):
-        raise ValueError("shared must be 'shape' or 'd_cut'")
+        raise OptionError("shared", f"must be 'shape' or 'd_cut', got {shared!r}")
     shape = formula.shape_name
     shared_name = shape if shared == "shape" else "d_cut"
     free = "d_cut" if shared == "shape" else shape
