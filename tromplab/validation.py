@@ -232,6 +232,8 @@ def range_text(check: Callable, **kwargs) -> str:
         check_size: interval_text(*SIZE_LIMITS),
         check_bootstrap: f"0 to {MAX_BOOTSTRAP:,}",
         check_seed: "0 to 2**63 - 1",
+        check_cut_density: f"(1, {MAX_CUT_DENSITY:g}]",
+        check_percent: "(0, 100)",
     }
     return fixed[check]
 

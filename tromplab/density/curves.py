@@ -529,7 +529,9 @@ def density_registry_table():
             "id": curve.id,
             "title": curve.title,
             "expression": curve.expression,
-            "parameters": "; ".join(parameter.describe() for parameter in curve.parameters),
+            "parameters": "; ".join(
+                f"{p.name} in [{p.lower:g}, {p.upper:g}]{f' [{p.unit}]' if p.unit else ''}: {p.meaning}" for p in curve.parameters
+            ),
             "link": curve.link,
             "citation": curve.citation,
             "notes": curve.notes,
