@@ -348,6 +348,8 @@ TEMPLATES = {
     "optimize": ["optimize"],
     "circuit": ["circuit", "{points.csv}", "{lab.csv}", "-o", "{tmp}/c"],
     "export": ["export", "{points.csv}", "-o", "{tmp}/e.csv"],
+    "density fit": ["density", "fit", "{points.csv}", "-o", "{tmp}/d"],
+    "density predict": ["density", "predict", "{points.csv}", "--rho50", "1.5", "--ep", "0.05", "-o", "{tmp}/pred.csv"],
 }
 
 

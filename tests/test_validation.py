@@ -178,9 +178,9 @@ def test_public_functions_say_what_they_take():
     from tromplab import model_averages, rank_formulas, write_report
 
     for call, words in [
-        (lambda: rank_formulas("abc"), "rank_formulas takes a pandas DataFrame"),
-        (lambda: write_report(None, "x.html"), "write_report takes a Report"),
-        (lambda: model_averages(None), "model_averages takes a Workbench"),
+        (lambda: rank_formulas("abc"), "table must be a pandas DataFrame"),
+        (lambda: write_report(None, "x.html"), "report must be a Report"),
+        (lambda: model_averages(None), "bench must be a Workbench"),
     ]:
         with pytest.raises(TypeError, match=words):
             call()
