@@ -55,6 +55,7 @@ def plot_density_fits(
     for fit, style in zip(done, curve_styles(len(done))):
         thick = fit is best
         label = f"{fit.curve.id}" + (f" (best): rho50 {fit.indices.rho50:.3f}, Ep {fit.indices.ep:.3f}" if thick else "")
+        style = {**style, "ls": "-"} if thick else style  # the best curve solid and thick, whatever its place in the cycle
         ax.plot(
             grid, 100 * fit.partition(grid), lw=2.4 if thick else 1.2, label=plain_text(label), zorder=3 if thick else 2, **style
         )
