@@ -236,3 +236,16 @@ def test_every_written_column_is_documented(tmp_path):
         for table in (result.fits_table(), result.partition_table()):
             missing = set(table.columns) - documented
             assert not missing, f"columns not in docs/density_columns.md: {sorted(missing)}"
+
+
+def test_a_test_without_any_fitted_curve_exits_3_with_its_reasons_written(tmp_path, capsys):
+    separated = pd.DataFrame({"test": "sharp", "density": [1.4, 1.5, 1.6, 1.7], "placed": 30, "sinks": [0, 0, 30, 30], "floats": [30, 30, 0, 0]})
+    good = tracers().assign(test="fine")
+    path = tmp_path / "two.csv"
+    pd.concat([separated, good]).to_csv(path, index=False)
+    assert main(["density", "fit", str(path), "-o", str(tmp_path / "out"), "--curves", "plain", "--ci", "0.95"]) == 3
+    assert "no curve could be fitted to: sharp" in capsys.readouterr().out
+    fits = pd.read_csv(tmp_path / "out" / "fits.csv")
+    sharp = fits[fits["test"] == "sharp"]
+    assert (~sharp["success"]).all() and sharp["notes"].str.contains("separate completely between 1.5 and 1.6").all()
+    assert (fits.loc[fits["test"] == "fine", "rank"] > 0).all()
