@@ -239,7 +239,9 @@ def test_every_written_column_is_documented(tmp_path):
 
 
 def test_a_test_without_any_fitted_curve_exits_3_with_its_reasons_written(tmp_path, capsys):
-    separated = pd.DataFrame({"test": "sharp", "density": [1.4, 1.5, 1.6, 1.7], "placed": 30, "sinks": [0, 0, 30, 30], "floats": [30, 30, 0, 0]})
+    separated = pd.DataFrame(
+        {"test": "sharp", "density": [1.4, 1.5, 1.6, 1.7], "placed": 30, "sinks": [0, 0, 30, 30], "floats": [30, 30, 0, 0]}
+    )
     good = tracers().assign(test="fine")
     path = tmp_path / "two.csv"
     pd.concat([separated, good]).to_csv(path, index=False)
