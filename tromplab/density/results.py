@@ -171,6 +171,9 @@ class DensityResult:
                 lines.append(f"  no curve fitted: {reasons}")
                 continue
             lines.append(f"  best curve: {best.curve.id} ({best.method}) {_indices_text(best)}")
+            tie = next((note for fit, _, note in self._ranked if fit is best and note), "")
+            if tie:
+                lines.append(f"    {tie}")
         return "\n".join(lines)
 
     def plot(self, sample: DensitySample | int = 0, *, ax=None):
