@@ -183,3 +183,10 @@ def test_catalogue_figure_draws_each_curve_at_its_stated_indices(curve):
         x, y = line.get_data()
         rho25, rho50, rho75 = np.interp([25.0, 50.0, 75.0], y, x)  # read back from the drawn curve
         assert_allclose([rho50, (rho75 - rho25) / 2], [1.5, ep], atol=2e-3)
+
+
+@all_curves
+def test_curves_pickle_by_id(curve):
+    import pickle
+
+    assert pickle.loads(pickle.dumps(curve)) is curve

@@ -251,3 +251,8 @@ def test_a_test_without_any_fitted_curve_exits_3_with_its_reasons_written(tmp_pa
     sharp = fits[fits["test"] == "sharp"]
     assert (~sharp["success"]).all() and sharp["notes"].str.contains("separate completely between 1.5 and 1.6").all()
     assert (fits.loc[fits["test"] == "fine", "rank"] > 0).all()
+
+
+def test_result_repr_is_short():
+    result = fit_density(tracers(), curves="plain")
+    assert repr(result) == "<DensityResult: 1 test(s), 3 fits (3 succeeded), ci=None>"

@@ -53,6 +53,10 @@ class DensityResult:
     ci: float | None = None
     method: str | None = None
 
+    def __repr__(self) -> str:
+        done = sum(fit.success for fit in self.fits)
+        return f"<DensityResult: {len(self.samples)} test(s), {len(self.fits)} fits ({done} succeeded), ci={self.ci}>"
+
     @cached_property
     def _ranked(self) -> list[tuple[DensityCurveFit, int, str]]:
         ranked = []
