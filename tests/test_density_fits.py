@@ -2,12 +2,15 @@
 
 import math
 import re
+import warnings
 
 import numpy as np
 import pandas as pd
 import pytest
 import scipy.optimize
 import scipy.stats
+from hypothesis import example, given, settings
+from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
 from tromplab.cli import main
@@ -256,3 +259,29 @@ def test_a_test_without_any_fitted_curve_exits_3_with_its_reasons_written(tmp_pa
 def test_result_repr_is_short():
     result = fit_density(tracers(), curves="plain")
     assert repr(result) == "<DensityResult: 1 test(s), 3 fits (3 succeeded), ci=None>"
+
+
+@pytest.mark.slow
+@settings(max_examples=25, deadline=None)
+@given(st.lists(st.tuples(st.integers(0, 30), st.integers(0, 30)), min_size=2, max_size=9), st.sampled_from([0.01, 0.05, 0.2]))
+@example(
+    counts=[(23, 11), (26, 0), (0, 27), (23, 8), (12, 0)], step=0.01
+)  # a GLM cut below water; a profile started outside its bounds
+@example(counts=[(3, 28), (24, 0), (28, 8), (28, 8), (22, 23), (4, 4)], step=0.05)  # the Gompertz curve's exp overflowed
+def test_any_counts_give_fits_or_reasons_never_an_exception(counts, step):
+    sinks, floats = (np.array(column) for column in zip(*counts))
+    if ((sinks + floats) > 0).sum() < 2:
+        return
+    frame = pd.DataFrame({"density": np.round(1.3 + step * np.arange(len(counts)), 3), "sinks": sinks, "floats": floats})
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        result = fit_density(frame, ci=0.9)
+    table = result.fits_table()
+    assert len(table) == 6
+    assert (table["success"] | (table["notes"].str.len() > 0)).all()  # a failed fit says why
+    done = table[table["success"] & table["ep"].notna()]
+    assert_allclose(done["imperfection"], done["ep"] / (done["rho50"] - 1), rtol=1e-14)
+    for name in ("rho50", "ep", "imperfection"):
+        inside = done[[f"{name}_low", f"{name}_high"]].notna().all(axis=1)
+        rows = done[inside]
+        assert ((rows[f"{name}_low"] <= rows[name] * (1 + 1e-9)) & (rows[name] <= rows[f"{name}_high"] * (1 + 1e-9))).all(), name
