@@ -145,7 +145,8 @@ class StandardForm:
 
 
 def _gompertz_cdf(t):
-    return -np.expm1(-np.exp(t))
+    # exp(710) overflows; F is 1 to the last bit from t = 4 on, so the cap changes nothing
+    return -np.expm1(-np.exp(np.minimum(t, 700.0)))
 
 
 def _gompertz_quantile(p):

@@ -56,6 +56,10 @@ class DensityResult:
     ci: float | None = None
     method: str | None = None
 
+    def __repr__(self) -> str:
+        done = sum(fit.success for fit in self.fits)
+        return f"<DensityResult: {len(self.samples)} test(s), {len(self.fits)} fits ({done} succeeded), ci={self.ci}>"
+
     @cached_property
     def _ranked(self) -> list[tuple[DensityCurveFit, int, str]]:
         ranked = []
@@ -174,6 +178,9 @@ class DensityResult:
                 lines.append(f"  no curve fitted: {reasons}")
                 continue
             lines.append(f"  best curve: {best.curve.id} ({best.method}) {_indices_text(best)}")
+            tie = next((note for fit, _, note in self._ranked if fit is best and note), "")
+            if tie:
+                lines.append(f"    {tie}")
         return "\n".join(lines)
 
     def plot(self, sample: DensitySample | int = 0, *, ax=None):
