@@ -22,6 +22,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import OptionError
+from ..output.csv_parts import write_csv
 from ..validation import check_probability
 from .by_size import by_size_outputs
 from .curves import select_density_curves
@@ -206,7 +207,7 @@ class DensityResult:
         from ..output.outputs import figure_file_names, replace_folder
 
         tables = {"fits.csv": self.fits_table(), "partition.csv": self.partition_table()}
-        outputs = {name: (lambda path, table=table: table.to_csv(path, index=False)) for name, table in tables.items()}
+        outputs = {name: (lambda path, table=table: write_csv(table, path)) for name, table in tables.items()}
         summary = self.summary() + "\n"
         outputs["summary.txt"] = lambda path: path.write_text(summary, encoding="utf-8")
         names = figure_file_names([sample.label for sample in self.samples], prefix="density_")
@@ -216,7 +217,7 @@ class DensityResult:
             outputs[names[sample.label]] = lambda path, png=png: path.write_bytes(png)
             figure_rows.append({"test": sample.test, "size_fraction": sample.size_fraction, "file": names[sample.label]})
         figures = pd.DataFrame(figure_rows)
-        outputs["figures.csv"] = lambda path: figures.to_csv(path, index=False)
+        outputs["figures.csv"] = lambda path: write_csv(figures, path)
         # tests with size fractions: indices by size, the Ep trend and its figure (none without)
         outputs.update(by_size_outputs(self.fits, ci=self.ci or PARTITION_INTERVAL_LEVEL))
         return replace_folder(outputs, outdir)
