@@ -286,8 +286,26 @@ def test_linear_case_with_every_flow_fixed_is_the_closed_form_projection():
     gain = sigma @ A.T @ np.linalg.pinv(A @ sigma @ A.T)  # one class balance is the sum of the others
     expected = x - gain @ (A @ x - b)
     covariance = sigma - gain @ A @ sigma
-    np.testing.assert_allclose(balance.shares.ravel(), expected, atol=1e-10)
-    np.testing.assert_allclose(balance.share_sd.ravel(), np.sqrt(np.clip(np.diag(covariance), 0, None)), atol=1e-9)
+    fitted = balance.fitted.reshape(S, n) / balance.fitted.reshape(S, n).sum(axis=1, keepdims=True)
+    np.testing.assert_allclose(fitted.ravel(), expected, atol=1e-10)  # the least squares without the bounds
+    held = {stream for stream, _ in balance.held_at_zero}
+    assert held == {"cyclone_overflow"} and expected.min() < 0  # this draw leaves near-empty overflow classes below 0
+    plain = np.repeat([name not in held for name in truth.flowsheet.stream_names], n)
+    sd = np.sqrt(np.clip(np.diag(covariance), 0, None))
+    np.testing.assert_allclose(balance.share_sd.ravel()[plain], sd[plain], atol=1e-9)
+    # the reported shares: the same least squares with every share >= 0, a convex quadratic programme
+    weights = np.where(np.diag(sigma) > 0, 1.0 / np.where(np.diag(sigma) > 0, np.diag(sigma), 1.0), 0.0)
+    weights = weights / weights.max()  # the minimiser is the same; SLSQP's steps are not
+    U, singular, Vt = np.linalg.svd(A, full_matrices=False)
+    rank = int(np.sum(singular > 1e-10 * singular[0]))  # independent rows only: SLSQP stalls on redundant ones
+    A, b = Vt[:rank], (U[:, :rank].T @ b) / singular[:rank]
+    bounded = optimize.minimize(
+        lambda v: np.sum(weights * (v - x) ** 2), np.clip(expected, 0, None), jac=lambda v: 2 * weights * (v - x),
+        bounds=[(0, None)] * x.size, constraints=[{"type": "eq", "fun": lambda v: A @ v - b, "jac": lambda v: A}],
+        method="SLSQP", options={"ftol": 1e-15, "maxiter": 1000},
+    )  # fmt: skip
+    assert bounded.success and balance.shares.min() >= 0
+    np.testing.assert_allclose(balance.shares.ravel(), bounded.x, atol=1e-7)
 
 
 def test_the_bilinear_solution_is_a_minimum_of_the_problem_in_flows_and_fractions():
@@ -311,7 +329,8 @@ def test_the_bilinear_solution_is_a_minimum_of_the_problem_in_flows_and_fraction
         F, x = v[:S], v[S:].reshape(S, n)
         return np.concatenate([[F[0] - 1.0], M @ F, (M @ (F[:, None] * x)).ravel(), x.sum(axis=1) - 1.0])
 
-    ours = np.concatenate([balance.flows / 100.0, balance.shares.ravel()])
+    fitted = balance.fitted.reshape(S, n)  # the least squares without the bounds at 0, as written here
+    ours = np.concatenate([fitted.sum(axis=1) / 100.0, (fitted / fitted.sum(axis=1, keepdims=True)).ravel()])
     assert np.abs(equalities(ours)).max() < 1e-12
     np.testing.assert_allclose(objective(ours), balance.chi_square, rtol=1e-12)
     for method in ("SLSQP", "trust-constr"):
@@ -320,7 +339,7 @@ def test_the_bilinear_solution_is_a_minimum_of_the_problem_in_flows_and_fraction
         np.testing.assert_allclose(solution.x, ours, atol=1e-5)
     problem = balance.problem  # feasible neighbours: along the null space of the class-flow constraints
     rng = np.random.default_rng(10)
-    m = balance.class_flows.ravel()
+    m = balance.fitted
     for _ in range(200):
         other = m + problem.N @ rng.normal(0.0, 0.05, problem.N.shape[1])
         residual = problem.W @ (problem.predict(other) - problem.y)

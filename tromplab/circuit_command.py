@@ -13,6 +13,7 @@ import io
 from dataclasses import dataclass
 
 from .circuit import CircuitBalance, ErrorModel, read_flowsheet, read_survey, reconcile
+from .errors import OptionError
 from .output.outputs import check_output_folder, replace_folder
 from .workbench import Workbench, fit_experiments
 
@@ -98,6 +99,10 @@ def run_circuit(
     check_output_folder(outdir, inputs=[flowsheet, measurements])  # the inputs are checked as they are read
     sheet = read_flowsheet(flowsheet)
     survey = read_survey(measurements, sheet, errors=errors, size_unit=size_unit)
+    if fit and not survey.n_classes:
+        raise OptionError(
+            "fit", "needs size analyses: the survey holds flows and per cent solids only (no partition curve to fit)"
+        )
     balance = reconcile(sheet, survey, alpha=alpha)
     tables = {
         "flows": balance.flows_table(),
@@ -121,7 +126,7 @@ def run_circuit(
     summary = balance.summary() + "\n"
     outputs["summary.txt"] = lambda path: path.write_text(summary, encoding="utf-8")
     if figures:
-        for kind in ("flowsheet", "adjustments", "distributions"):
+        for kind in ("flowsheet", "adjustments", "distributions") if balance.has_size_classes else ("flowsheet", "adjustments"):
             png = _png(balance, kind)
             outputs[f"{kind}.png"] = lambda path, png=png: path.write_bytes(png)
     written = replace_folder(outputs, outdir)

@@ -43,8 +43,10 @@ from .validation import (
     check_non_negative,
     check_positive,
     check_probability,
+    check_relative_error,
     check_seed,
     check_share,
+    check_share_sd,
     check_water_recovery,
     cli_type,
 )
@@ -1177,10 +1179,10 @@ def _add_circuit_command(commands) -> None:
         "-o", "--outdir", type=Path, default=Path("results/circuit"), help="output folder (default: results/circuit)"
     )
     circuit.add_argument("--fit", action="store_true", help="also fit the nine formulas and the extended curves per separator")
-    circuit.add_argument("--relative-error", type=cli_type(check_non_negative, "--relative-error"), default=0.05,
-                         help="relative error of a measured share where the table gives none (default 0.05)")  # fmt: skip
-    circuit.add_argument("--absolute-error", type=cli_type(check_non_negative, "--absolute-error"), default=0.001,
-                         help="absolute error of a share, as a fraction of the stream (default 0.001)")  # fmt: skip
+    circuit.add_argument("--relative-error", type=cli_type(check_relative_error, "--relative-error"), default=0.05,
+                         help="relative error of a measured share where the table gives none, 0..1 (default 0.05)")  # fmt: skip
+    circuit.add_argument("--absolute-error", type=cli_type(check_share_sd, "--absolute-error"), default=0.001,
+                         help="absolute error of a share, as a fraction of the stream, 0..0.5 (default 0.001)")  # fmt: skip
     circuit.add_argument("--alpha", type=cli_type(check_probability, "--alpha"), default=0.05,
                          help="level of the chi-square and measurement tests (default 0.05)")  # fmt: skip
     circuit.add_argument("--size-unit", default=None, help="unit of the sizes when the size columns carry none")

@@ -72,7 +72,15 @@ import pandas as pd
 from ..errors import InputError, OptionError
 from ..loading.points import normal_unit, resolve_size_unit, size_column_unit
 from ..loading.tables import Table, read_table
-from ..validation import check_non_negative, check_positive
+from ..validation import (
+    MAX_PCT_SOLIDS_SD,
+    MAX_RELATIVE_ERROR,
+    MAX_SHARE_SD,
+    check_pct_solids_sd,
+    check_positive_relative_error,
+    check_relative_error,
+    check_share_sd,
+)
 from .flowsheet import Flowsheet
 
 DEFAULT_RELATIVE_ERROR = 0.05
@@ -126,16 +134,33 @@ class ErrorModel:
     closure: bool = True
 
     def __post_init__(self):
-        check_non_negative(self.relative_error, "relative_error")
-        check_non_negative(self.absolute_error, "absolute_error")
-        check_positive(self.flow_relative_error, "flow_relative_error")
-        check_positive(self.pct_solids_sd, "pct_solids_sd")
+        check_relative_error(self.relative_error, "relative_error")
+        check_share_sd(self.absolute_error, "absolute_error")
+        check_positive_relative_error(self.flow_relative_error, "flow_relative_error")
+        check_pct_solids_sd(self.pct_solids_sd, "pct_solids_sd")
         if self.relative_error == 0 and self.absolute_error == 0:
             raise OptionError("relative_error", "and absolute_error are both 0: every share would be exact")
+        if not isinstance(self.streams, dict):
+            raise OptionError("streams", f"takes a dict {{stream: (relative_error, absolute_error)}}, got {self.streams!r}")
         for stream, pair in self.streams.items():
+            if not isinstance(pair, (tuple, list)) or len(pair) != 2:
+                raise OptionError("streams", f"takes (relative_error, absolute_error) pairs, got {pair!r} for '{stream}'")
             relative, absolute = pair
-            check_non_negative(relative, f"relative_error of stream '{stream}'")
-            check_non_negative(absolute, f"absolute_error of stream '{stream}'")
+            check_relative_error(relative, f"relative_error of stream '{stream}'")
+            check_share_sd(absolute, f"absolute_error of stream '{stream}'")
+            if relative == 0 and absolute == 0:
+                raise OptionError(f"streams['{stream}']", "gives both errors 0: every share of the stream would be exact")
+
+    def check_streams(self, flowsheet: Flowsheet) -> None:
+        """Refuse a per-stream override naming a stream the flowsheet lacks (a typo would
+        otherwise leave the default model in place without a word)."""
+        unknown = [name for name in self.streams if name not in flowsheet.stream_index]
+        if unknown:
+            raise OptionError(
+                "streams",
+                f"of the error model names {', '.join(repr(n) for n in unknown)}, not a solids stream of the flowsheet "
+                f"{flowsheet.source} ({', '.join(flowsheet.stream_names)})",
+            )
 
     def share_sd(self, share, stream: str = ""):
         r"""Standard deviation :math:`\sqrt{(r x)^2 + a^2}` of a measured share ``x`` of ``stream``."""
@@ -164,6 +189,9 @@ class Survey:
     closed_streams : tuple of str
         Streams measured in every class, normalised to sum to 1: their shares have the
         covariance :math:`P D P^T` of the module docstring.
+    unmeasured : pandas.DataFrame
+        ``stream, class_index, row``: rows of the table that name a class of a stream but
+        leave its value blank (or NaN); the class is not measured in that stream.
     """
 
     classes: pd.DataFrame
@@ -173,6 +201,7 @@ class Survey:
     size_unit: str = ""
     source: str = ""
     closed_streams: tuple[str, ...] = ()
+    unmeasured: pd.DataFrame = field(default_factory=lambda: pd.DataFrame(columns=["stream", "class_index", "row"]))
 
     @property
     def n_classes(self) -> int:
@@ -220,6 +249,9 @@ def read_survey(
         given twice for a stream, flows that disagree within a stream.
     """
     errors = errors or ErrorModel()
+    if not isinstance(errors, ErrorModel):
+        raise OptionError("errors", f"takes an ErrorModel, got {type(errors).__name__}")
+    errors.check_streams(flowsheet)
     table = read_table(path, sheet=sheet, sep=sep, decimal=decimal)
     table.require("stream")
     lower, upper, unit, size_columns = _size_bounds(table, size_unit)
@@ -251,16 +283,52 @@ def read_survey(
     shares, normalised = _shares(table, names, has_class, class_of_row, len(classes), values_given, errors)
     flows = _stream_values(table, names, "solids_flow", "solids_flow_sd", lambda v: errors.flow_relative_error * v)
     pct = _stream_values(table, names, "pct_solids", "pct_solids_sd", lambda v: np.full_like(v, errors.pct_solids_sd))
+    implausible = flows[(flows["value"] > 0) & (flows["sd"] > MAX_RELATIVE_ERROR * flows["value"])]
+    if len(implausible):
+        row = implausible.iloc[0]
+        raise InputError(
+            f"solids flow sd {row.sd:g} is implausible for a flow of {row.value:g}: more than {MAX_RELATIVE_ERROR:.0%} of "
+            "the flow",
+            source=table.source,
+            row=row.row,
+            column="solids_flow_sd",
+        )
     if len(pct):
+        implausible = pct[pct["sd"] > MAX_PCT_SOLIDS_SD]
+        if len(implausible):
+            row = implausible.iloc[0]
+            raise InputError(
+                f"per cent solids sd {row.sd:g} is implausible: at most {MAX_PCT_SOLIDS_SD:g} percentage points (a per cent "
+                "solids lies in 0..100)",
+                source=table.source,
+                row=row.row,
+                column="pct_solids_sd",
+            )
         bad = pct[(pct["value"] <= 0) | (pct["value"] > 100)]
         if len(bad):
             row = bad.iloc[0]
             raise InputError(
                 f"per cent solids {row.value:g} outside (0, 100]", source=table.source, row=row.row, column="pct_solids"
             )
-    if flows.empty and shares.empty:
-        raise InputError("the survey holds no measurement (no size analysis, no solids flow)", source=table.source)
-    return Survey(classes, shares, flows, pct, unit, table.source, normalised)
+    if flows.empty and shares.empty and pct.empty:
+        raise InputError(
+            "the survey holds no measurement (no size analysis, no solids flow, no per cent solids)", source=table.source
+        )
+    unmeasured = _unmeasured(table, names, has_class, class_of_row, values_given)
+    return Survey(classes, shares, flows, pct, unit, table.source, normalised, unmeasured)
+
+
+def _unmeasured(table: Table, names, has_class, class_of_row, values_given) -> pd.DataFrame:
+    """Rows that name a class of a stream but leave its value blank (or NaN): not measured."""
+    columns = ["stream", "class_index", "row"]
+    if not values_given:
+        return pd.DataFrame(columns=columns)
+    blank = has_class & np.isnan(table.numeric(values_given[0], allow_blank=True))
+    where = np.flatnonzero(blank)
+    return pd.DataFrame(
+        {"stream": names[where], "class_index": class_of_row[where].astype(int), "row": np.asarray(table.rows)[where]},
+        columns=columns,
+    )
 
 
 def _cell_text(table: Table, i: int, column: str) -> str:
@@ -295,6 +363,9 @@ def _size_bounds(table: Table, size_unit):
         column = found["size_class"][0]
         lower, upper = _class_strings(table, column)
         return lower, upper, unit, [column]
+    if not found and not any(c in table.frame.columns for c in VALUE_COLUMNS):  # per cent solids and flows only
+        blank = np.full(len(table.frame), np.nan)
+        return blank, blank.copy(), unit, []
     if not ("size_lower" in found and "size_upper" in found):
         raise InputError(
             "give class bounds 'size_lower' and 'size_upper' (with a unit suffix, e.g. size_lower_um) or size classes "
@@ -438,6 +509,20 @@ def _shares(table, names, has_class, class_of_row, n_classes, values_given, erro
         bad = np.flatnonzero(array < 0)
         if bad.size:
             raise table.error(f"{name} must not be negative", index=int(bad[0]), column=name)
+    unit_of_value = full or 1.0  # masses: checked per stream below, once divided by the stream's total
+    limits = (
+        (relative, "relative_error", MAX_RELATIVE_ERROR, "a relative error of 100 % of the share"),
+        (absolute, "absolute_error", MAX_SHARE_SD, "a share lies in 0..1"),
+        (row_sd, "retained_sd", MAX_SHARE_SD * unit_of_value if full else np.inf, "a share lies in 0..1"),
+    )
+    for array, name, maximum, why in limits:
+        bad = np.flatnonzero(array > maximum)
+        if bad.size:
+            raise table.error(
+                f"{name.replace('_', ' ')} {array[bad[0]]:g} is implausible: at most {maximum:g} ({why})",
+                index=int(bad[0]),
+                column=name,
+            )
     records, normalised = [], []
     for stream in dict.fromkeys(names[has_class]):
         rows = np.flatnonzero((names == stream) & has_class & np.isfinite(values))
@@ -488,6 +573,14 @@ def _shares(table, names, has_class, class_of_row, n_classes, values_given, erro
         a = np.where(np.isfinite(absolute[rows]), absolute[rows], stream_absolute)
         sd = np.where(np.isfinite(relative[rows]) | np.isfinite(absolute[rows]), np.sqrt((r * share) ** 2 + a**2), default)
         sd = np.where(np.isfinite(row_sd[rows]), row_sd[rows] / scale, sd)
+        if np.any(sd > MAX_SHARE_SD):
+            i = int(rows[np.argmax(sd)])
+            raise table.error(
+                f"retained sd {row_sd[i]:g} is implausible: more than {MAX_SHARE_SD:g} of the stream's total (a share lies "
+                "in 0..1)",
+                index=i,
+                column="retained_sd",
+            )
         for i, x, s in zip(rows, share, sd):
             records.append(
                 {"stream": stream, "class_index": int(class_of_row[i]), "value": x, "sd": s, "row": int(table.rows[i])}

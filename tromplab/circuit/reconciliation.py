@@ -59,7 +59,7 @@ Smith, H. W. & Ichiyen, N. (1973). Computer adjustment of metallurgical balances
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from typing import NamedTuple
 
@@ -81,9 +81,15 @@ DEFAULT_ALPHA = 0.05
 #: points.csv as not used (partition not meaningful), as lab tables flag them.
 MIN_FEED_SHARE = 0.002
 _RANK_TOL = 1e-9
+#: A class or water flow below -this x the largest unknown is negative: it is held at its bound 0.
+_BOUND_TOL = 1e-12
 #: Adjustments correlated beyond this are reported as indistinguishable: a gross error in one
 #: of them moves the others' standardised adjustments alike, so no test can tell which it is.
 EQUIVALENT_CORRELATION = 0.99
+DISTRIBUTION_COLUMNS = ["stream", "size_lower", "size_upper", "size", "measured", "measured_sd", "reconciled",
+                        "reconciled_sd"]  # fmt: skip
+PARTITION_COLUMNS = ["experiment", "size_lower", "size_upper", "size", "feed_share", "partition_fine", "partition_sd",
+                     "fine_yield", "fine_yield_sd", "used", "flag"]  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -105,6 +111,15 @@ class _Problem:
     W: np.ndarray  # whitening: W cov W^T = I on the range of cov (rows: independent pieces of information)
     effects: np.ndarray  # column j: what a unit error in raw measurement j does to the reported values (P blocks)
     n_water: int = 0  # water flows after the class flows (solids streams, then water streams); 0: water not balanced
+    at_bound: tuple[int, ...] = ()  # unknowns held at their bound 0: the last rows of A
+
+    def fixed_at_zero(self, active: np.ndarray) -> _Problem:
+        """The problem with the unknowns flagged in ``active`` held at 0 (rows appended to the balances)."""
+        held = tuple(int(k) for k in np.flatnonzero(active))
+        A = np.vstack([self.A[: self.A.shape[0] - len(self.at_bound)], np.eye(self.m0.size)[list(held)]])
+        b = np.concatenate([self.b[: self.b.size - len(self.at_bound)], np.zeros(len(held))])
+        m0, N = _affine_form(A, b)
+        return replace(self, A=A, b=b, m0=m0, N=N, at_bound=held)
 
     @property
     def variance(self) -> np.ndarray:
@@ -197,11 +212,34 @@ class CircuitBalance:
     measured_y: np.ndarray | None = field(default=None, repr=False, compare=False)
     #: Water flows of the solids streams, then of the water streams (None: water not balanced).
     water_flows: np.ndarray | None = field(default=None, repr=False, compare=False)
+    #: The unknowns of the least squares without the bounds at 0 (class flows, then water flows):
+    #: the point of the tests and of the covariance (None: the reported values themselves).
+    fitted: np.ndarray | None = field(default=None, repr=False, compare=False)
+    #: Unknowns (indices into ``fitted``) that the bounds hold at 0 in the reported values.
+    at_bound: tuple[int, ...] = field(default=(), repr=False, compare=False)
+
+    @property
+    def has_size_classes(self) -> bool:
+        """False for a survey of flows and per cent solids only: no distribution, no partition."""
+        return self.survey.n_classes > 0
+
+    @property
+    def held_at_zero(self) -> list[tuple[str, int]]:
+        """``(stream, class index)`` of the class flows held at their bound 0 (class index -1: a
+        water flow): the unbounded least squares would have made them negative."""
+        S, n = self.class_flows.shape
+        names = self.flowsheet.stream_names + tuple(w.name for w in self.flowsheet.water_streams)
+        return [(names[k // n], k % n) if k < S * n else (names[k - S * n], -1) for k in self.at_bound]
 
     @property
     def _unknowns(self) -> np.ndarray:
         water = self.water_flows if self.water_flows is not None else np.zeros(0)
         return np.concatenate([self.class_flows.ravel(), water])
+
+    @property
+    def _test_point(self) -> np.ndarray:
+        """The unbounded least-squares solution: the tests' distributions hold there."""
+        return self.fitted if self.fitted is not None else self._unknowns
 
     # --- the global test -------------------------------------------------------------
     @property
@@ -333,8 +371,8 @@ class CircuitBalance:
         for s in range(S):
             pct_gradient[s, s * n : (s + 1) * n] = 100.0 * self.water_flows[s] / total[s] ** 2
             pct_gradient[s, S * n + s] = -100.0 * self.flows[s] / total[s] ** 2
-        unseen = _unseen_directions(self.problem, self._unknowns)
-        tolerance = 1e-7 * max(1.0, float(np.abs(self._unknowns).max()))
+        unseen = _unseen_directions(self.problem, self._test_point)
+        tolerance = 1e-7 * max(1.0, float(np.abs(self._test_point).max()))
         water_determined = np.abs(water_gradient @ unseen).max(axis=1, initial=0.0) < tolerance
         pct_determined = np.abs(pct_gradient @ unseen).max(axis=1, initial=0.0) < tolerance
         water_sd, pct_sd = self._sd(water_gradient), self._sd(pct_gradient)
@@ -380,7 +418,7 @@ class CircuitBalance:
                         "reconciled_sd": self.share_sd[s, i],
                     }
                 )
-        return pd.DataFrame(rows)
+        return pd.DataFrame(rows, columns=DISTRIBUTION_COLUMNS)
 
     @cached_property
     def _adjustments(self) -> pd.DataFrame:
@@ -408,11 +446,11 @@ class CircuitBalance:
         ]
         if problem is None or problem.y.size == 0:
             return pd.DataFrame(columns=columns)
-        m = self._unknowns
+        m = self._test_point
         H = problem.jacobian(m)
-        predicted = problem.predict(m)
+        predicted = problem.predict(self._unknowns)  # the reported values (bounded at 0)
         cov_pred = H @ self.covariance @ H.T
-        adjustment = self.measured_y - predicted  # measured minus reconciled
+        adjustment = self.measured_y - problem.predict(m)  # measured minus reconciled, without the bounds
         adjustment_var = problem.variance - np.diag(cov_pred)
         testable = adjustment_var > 1e-8 * problem.sd**2
         adjustment_sd = np.where(testable, np.sqrt(np.clip(adjustment_var, 0.0, None)), np.nan)
@@ -437,7 +475,7 @@ class CircuitBalance:
                 "sd": np.sqrt(problem.variance),
                 "reconciled": predicted,
                 "reconciled_sd": np.sqrt(np.clip(np.diag(cov_pred), 0.0, None)),
-                "adjustment": -adjustment,  # reconciled minus measured: what was added to the measurement
+                "adjustment": predicted - self.measured_y,  # what was added to the measurement
                 "adjustment_sd": adjustment_sd,
                 "standardised": -standardised,
             }
@@ -484,7 +522,7 @@ class CircuitBalance:
         if problem is None or problem.y.size == 0:
             empty = np.zeros(0)
             return _MeasurementTests(empty, empty, empty, empty.astype(bool), np.zeros((0, 0)))
-        m = self._unknowns
+        m = self._test_point
         J = problem.W @ problem.jacobian(m) @ problem.N
         residual = problem.W @ (self.measured_y - problem.predict(m))
         basis, singular, _ = np.linalg.svd(J, full_matrices=False)
@@ -534,7 +572,7 @@ class CircuitBalance:
         """The measurements suspected of gross error, largest absolute measurement test first;
         ``rank`` 1 is the first candidate."""
         table = self._adjustments
-        suspects = table[table["suspect"]].copy()
+        suspects = table.loc[table["suspect"].astype(bool)].copy()  # an empty object column would select columns
         suspects = suspects.reindex(suspects["measurement_test"].abs().sort_values(ascending=False).index)
         suspects.insert(0, "rank", np.arange(1, len(suspects) + 1))
         return suspects.reset_index(drop=True)
@@ -559,7 +597,7 @@ class CircuitBalance:
         index = self.flowsheet.stream_index
         n = self.class_flows.shape[1]
         frames = []
-        for node in self.flowsheet.separators:
+        for node in self.flowsheet.separators if self.has_size_classes else ():
             f, c = index[node.fine], index[node.coarse]
             mf, mc = self.class_flows[f], self.class_flows[c]
             total = mf + mc
@@ -573,17 +611,10 @@ class CircuitBalance:
             yield_gradient[0, f * n : (f + 1) * n] = Fc / (Ff + Fc) ** 2
             yield_gradient[0, c * n : (c + 1) * n] = -Ff / (Ff + Fc) ** 2
             feed_share = total / total.sum()
-            flags, used = [], []
-            for share, value in zip(feed_share, phi):
-                if not np.isfinite(value) or share < MIN_FEED_SHARE:
-                    used.append(False)
-                    flags.append(f"feed share {100 * share:.3g} % below {100 * MIN_FEED_SHARE:g} %: partition not meaningful")
-                elif not 0.0 <= value <= 1.0:
-                    used.append(True)
-                    flags.append(f"reconciled partition {value:.4f} clipped to 0..1")
-                else:
-                    used.append(True)
-                    flags.append("")
+            held = set(self.at_bound)
+            at_bound = np.array([f * n + i in held or c * n + i in held for i in range(n)])
+            used, flags = _partition_flags(feed_share, phi, at_bound)
+            phi = np.where(np.isfinite(phi) & (phi >= 0.0) & (phi <= 1.0), phi, np.nan)
             frames.append(
                 pd.DataFrame(
                     {
@@ -593,7 +624,7 @@ class CircuitBalance:
                         "size": classes["size"].to_numpy(),
                         "feed_share": feed_share,
                         "partition_fine": phi,
-                        "partition_sd": self._sd(G),
+                        "partition_sd": np.where(np.isfinite(phi), self._sd(G), np.nan),
                         "fine_yield": Ff / (Ff + Fc),
                         "fine_yield_sd": float(self._sd(yield_gradient)[0]),
                         "used": used,
@@ -602,9 +633,7 @@ class CircuitBalance:
                 )
             )
         if not frames:
-            return pd.DataFrame(
-                columns=["experiment", "size_lower", "size_upper", "size", "feed_share", "partition_fine", "partition_sd"]
-            )
+            return pd.DataFrame(columns=PARTITION_COLUMNS)
         return pd.concat(frames, ignore_index=True)
 
     def points_table(self, *, unit_in_names: bool = True) -> pd.DataFrame:
@@ -631,8 +660,8 @@ class CircuitBalance:
                     {
                         "experiment": part["experiment"].to_numpy(),
                         f"size{suffix}": part["size"].to_numpy(),
-                        "partition_fine": np.clip(np.nan_to_num(part["partition_fine"].to_numpy(), nan=0.5), 0.0, 1.0),
-                        "weight": np.where(np.isfinite(weight), weight, 1.0),
+                        "partition_fine": np.where(used, part["partition_fine"].to_numpy(), np.nan),
+                        "weight": np.where(used & np.isfinite(weight), weight, np.nan),
                         "used": np.where(used, "yes", "no"),
                         f"size_lower{suffix}": part["size_lower"].to_numpy(),
                         f"size_upper{suffix}": part["size_upper"].to_numpy(),
@@ -695,6 +724,7 @@ class CircuitBalance:
             f"{self.problem.y.size if self.problem else 0} measurements, redundancy {self.dof}"
             + (f"; flows relative to {self.basis}" if self.basis else ""),
         ]
+        lines += self._survey_notes()
         if self.balances_water:
             water = self.water_table()
             free = water.loc[~water["determined"], "stream"].tolist()
@@ -720,6 +750,29 @@ class CircuitBalance:
     def __str__(self) -> str:
         return self.summary()
 
+    def _survey_notes(self) -> list[str]:
+        """The summary's lines on what the survey lacks: size analyses, blank values, nothing to adjust, bounds."""
+        classes = self.survey.classes
+        lines = []
+        if not self.has_size_classes:
+            lines.append("no size analysis: flows and water only (no distribution, no partition curve)")
+        blank = self.survey.unmeasured
+        if len(blank):
+            listed = "; ".join(
+                f"{r.stream} class {_class_name(classes, int(r.class_index))} (row {r.row})" for r in blank.head(8).itertuples()
+            )
+            more = f" and {len(blank) - 8} more" if len(blank) > 8 else ""
+            lines.append(f"not measured (blank or NaN value in the table): {listed}{more}")
+        if self.problem is not None and self.problem.y.size == 0:
+            lines.append("every measurement is exact (standard deviation 0): nothing to adjust, nothing to test")
+        held = self.held_at_zero
+        if held:
+            listed = "; ".join(f"{stream} {'water' if i < 0 else 'class ' + _class_name(classes, i)}" for stream, i in held[:8])
+            lines.append(
+                f"held at 0 (the least squares would make them negative; the tests and sds are those without the bound): {listed}"
+            )
+        return lines
+
     # --- figures --------------------------------------------------------------------------
     def plot(self, kind: str = "distributions", ax=None):
         """``"distributions"``: reconciled against measured distributions per stream;
@@ -736,6 +789,23 @@ class CircuitBalance:
 
 
 _MEASURED_QUANTITY = {"flow": "flow", "pct": "per cent solids"}
+
+
+def _partition_flags(feed_share: np.ndarray, phi: np.ndarray, at_bound: np.ndarray) -> tuple[list, list]:
+    """``used`` and ``flag`` of each class of a separator: too little feed or a partition outside
+    0..1 (not used), or a product's class flow held at its bound 0 (used, said)."""
+    used, flags = [], []
+    for share, value, bound in zip(feed_share, phi, at_bound):
+        if not np.isfinite(value) or share < MIN_FEED_SHARE:
+            used.append(False)
+            flags.append(f"feed share {100 * share:.3g} % below {100 * MIN_FEED_SHARE:g} %: partition not meaningful")
+        elif not 0.0 <= value <= 1.0:
+            used.append(False)
+            flags.append(f"reconciled partition {value:.4g} outside 0..1: not a partition, left out")
+        else:
+            used.append(True)
+            flags.append("a product's class flow held at 0 (the least squares would make it negative)" if bound else "")
+    return used, flags
 
 
 def _class_name(classes: pd.DataFrame, i: int) -> str:
@@ -805,32 +875,81 @@ def reconcile(
     problem, basis = _build(flowsheet, survey)
     start = _start(flowsheet, survey, problem)
     _check_observable(flowsheet, survey, problem, start)
-    z0 = problem.N.T @ (start - problem.m0)
-    if problem.N.shape[1] and problem.y.size:
-        solution = optimize.least_squares(problem.whitened_residual, z0, jac=problem.whitened_jacobian, method="lm",
-                                          x_scale="jac", xtol=1e-14, ftol=1e-14, gtol=1e-12, max_nfev=2000)  # fmt: skip
-        z, success, message = solution.x, bool(solution.success), str(solution.message)
-    else:
-        z, success, message = z0, True, "nothing to adjust"
-    v = problem.m0 + problem.N @ z
+    z, success, message = _solve(problem, start)
+    fitted = problem.m0 + problem.N @ z
+    chi, rank, covariance = _linearised(problem, z)
+    held, v = _bounded_solution(problem, fitted)
+    if held and not np.all(np.isfinite(v)):
+        success, message = False, "the bounds on the flows did not settle (active-set iterations exhausted)"
     S, n = problem.n_streams, problem.n_classes
     _check_positive_flows(flowsheet, survey, v[: S * n].reshape(S, n).sum(axis=1))
-    chi, rank, covariance = _linearised(problem, z)
     return CircuitBalance(
-        flowsheet,
-        survey,
-        v[: S * n].reshape(S, n),
-        covariance,
-        chi,
-        int(problem.W.shape[0] - rank),
-        alpha,
-        success,
-        message,
-        basis,
-        problem,
-        problem.y.copy(),
-        v[S * n :] if problem.n_water else None,
+        flowsheet=flowsheet,
+        survey=survey,
+        class_flows=v[: S * n].reshape(S, n),
+        covariance=covariance,
+        chi_square=chi,
+        dof=int(problem.W.shape[0] - rank),
+        alpha=alpha,
+        success=success,
+        message=message,
+        basis=basis,
+        problem=problem,
+        measured_y=problem.y.copy(),
+        water_flows=v[S * n :] if problem.n_water else None,
+        fitted=fitted,
+        at_bound=held,
     )
+
+
+def _solve(problem: _Problem, start: np.ndarray) -> tuple[np.ndarray, bool, str]:
+    """The weighted least squares in the free unknowns ``z``, started from ``start`` projected onto the constraints."""
+    z0 = problem.N.T @ (start - problem.m0)
+    if not (problem.N.shape[1] and problem.y.size):
+        return z0, True, "nothing to adjust"
+    solution = optimize.least_squares(problem.whitened_residual, z0, jac=problem.whitened_jacobian, method="lm",
+                                      x_scale="jac", xtol=1e-14, ftol=1e-14, gtol=1e-12, max_nfev=2000)  # fmt: skip
+    return solution.x, bool(solution.success), str(solution.message)
+
+
+def _bounded_solution(problem: _Problem, fitted: np.ndarray) -> tuple[tuple[int, ...], np.ndarray]:
+    """``(held, v)``: the least squares with every class flow and water flow at least 0, by an
+    active-set iteration started from the unbounded solution ``fitted``.
+
+    A flow that comes out negative is held at 0 (it joins the linear constraints) and the survey
+    is reconciled again; a flow held at 0 is released when its Lagrange multiplier says the sum
+    of squares would fall by raising it (Lawson & Hanson 1974, ch. 23).  Without a negative flow
+    this is ``fitted``, untouched (``held`` empty); NaN if the iteration does not settle.
+    """
+    active = fitted < -_BOUND_TOL * max(np.abs(fitted).max(initial=0.0), 1e-300)
+    if not active.any():
+        return (), np.clip(fitted, 0.0, None)  # what is below 0 is rounding
+    start = np.clip(fitted, 0.0, None)
+    for _ in range(2 * fitted.size + 1):
+        current = problem.fixed_at_zero(active)
+        z, _, _ = _solve(current, start)
+        v = current.m0 + current.N @ z
+        negative = (v < -_BOUND_TOL * max(np.abs(v).max(), 1e-300)) & ~active
+        if negative.any():
+            active |= negative
+        else:
+            released = _wrong_sign_multiplier(current, v)
+            if released is None:
+                return current.at_bound, np.clip(v, 0.0, None)
+            active[released] = False
+        start = np.clip(v, 0.0, None)
+    return tuple(np.flatnonzero(active)), np.full(fitted.size, np.nan)
+
+
+def _wrong_sign_multiplier(problem: _Problem, v: np.ndarray) -> int | None:
+    """The unknown held at 0 whose multiplier is most negative (raising it lowers the sum of squares), or None."""
+    held = np.array(problem.at_bound, dtype=int)
+    if held.size == 0 or not problem.y.size:
+        return None
+    gradient = (problem.W @ problem.jacobian(v)).T @ (problem.W @ (problem.predict(v) - problem.y))
+    multipliers = np.linalg.lstsq(problem.A.T, gradient, rcond=None)[0][-held.size :]  # the bounds are A's last rows
+    worst = int(np.argmin(multipliers))
+    return int(held[worst]) if multipliers[worst] < -1e-8 * max(np.abs(gradient).max(), 1e-300) else None
 
 
 def _check_positive_flows(flowsheet: Flowsheet, survey: Survey, flows: np.ndarray) -> None:
@@ -900,17 +1019,12 @@ def _build(flowsheet: Flowsheet, survey: Survey) -> tuple[_Problem, str]:
         row[S * n + index[record.stream]] = -record.value
     A = np.array(rows) if rows else np.zeros((0, size))
     b = np.array(rhs)
-    if A.shape[0]:
-        m0 = np.linalg.lstsq(A, b, rcond=None)[0]
-        if np.linalg.norm(A @ m0 - b) > 1e-8 * max(1.0, np.linalg.norm(b)):
-            raise InputError(
-                "the flows, shares and per cent solids given with a standard deviation of 0 contradict the balances of "
-                "the flowsheet",
-                source=survey.source,
-            )
-        N = linalg.null_space(A, rcond=1e-10)
-    else:
-        m0, N = np.zeros(size), np.eye(size)
+    m0, N = _affine_form(A, b)
+    if np.linalg.norm(A @ m0 - b) > 1e-8 * max(1.0, np.linalg.norm(b)):
+        raise InputError(
+            "the flows, shares and per cent solids given with a standard deviation of 0 contradict the balances of the flowsheet",
+            source=survey.source,
+        )
     shares = survey.shares[survey.shares["sd"] > 0]
     pct = survey.pct_solids[survey.pct_solids["sd"] > 0]
     parts = ((shares, "share"), (free_flows, "flow"), (pct, "pct"))
@@ -921,6 +1035,13 @@ def _build(flowsheet: Flowsheet, survey: Survey) -> tuple[_Problem, str]:
     sd = np.concatenate([table["sd"].to_numpy(float) for table, _ in parts])
     cov, W, effects = _measurement_covariance(shares, sd, survey.closed_streams)
     return _Problem(S, n, A, b, m0, N, kinds, stream, klass, y, sd, cov, W, effects, n_water), basis
+
+
+def _affine_form(A: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(m0, N)``: a point of ``A m = b`` (least squares) and an orthonormal basis of the null space of ``A``."""
+    if not A.shape[0]:
+        return np.zeros(A.shape[1]), np.eye(A.shape[1])
+    return np.linalg.lstsq(A, b, rcond=None)[0], linalg.null_space(A, rcond=1e-10)
 
 
 def _measurement_covariance(shares: pd.DataFrame, sd: np.ndarray, closed) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
