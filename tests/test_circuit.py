@@ -6,6 +6,7 @@ coverage, chi-square at its nominal rate); (c) a planted gross error named first
 full-size studies are benchmarks/circuit_reconciliation.py.
 """
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -184,7 +185,7 @@ def test_exact_data_are_returned_unchanged_with_the_truth_and_the_expected_redun
     truth = make()
     survey = simulate_survey(truth, np.random.default_rng(0), errors=ErrorModel(relative_error=1e-12, absolute_error=1e-12))
     sds = survey.shares.assign(sd=ErrorModel().share_sd(survey.shares["value"]))  # exact values, the default sds
-    survey = type(survey)(survey.classes, sds, survey.flows, survey.pct_solids, survey.size_unit, "exact", survey.closed_streams)
+    survey = dataclasses.replace(survey, shares=sds, source="exact")
     balance = reconcile(truth.flowsheet, survey)
     scale = balance.flows[0] / truth.flows[0]  # no flow measured: per 100 of the first feed
     np.testing.assert_allclose(balance.flows, truth.flows * scale, rtol=1e-7)
@@ -250,7 +251,7 @@ def test_at_a_fixed_yield_the_shares_are_the_lab_one_node_reconciliation():
 
 
 def _independent(survey):
-    return type(survey)(survey.classes, survey.shares, survey.flows, survey.pct_solids, survey.size_unit, "open", ())
+    return dataclasses.replace(survey, source="open", closed_streams=())
 
 
 def test_linear_case_with_every_flow_fixed_is_the_closed_form_projection():
@@ -258,7 +259,7 @@ def test_linear_case_with_every_flow_fixed_is_the_closed_form_projection():
     truth = grinding_circuit()
     survey = _independent(simulate_survey(truth, np.random.default_rng(6)))
     fixed = pd.DataFrame({"stream": truth.flowsheet.stream_names, "value": truth.flows, "sd": 0.0, "row": None})
-    survey = type(survey)(survey.classes, survey.shares, fixed, survey.pct_solids, survey.size_unit, "fixed", ())
+    survey = dataclasses.replace(survey, flows=fixed, source="fixed", closed_streams=())
     balance = reconcile(truth.flowsheet, survey)
     S, n = truth.class_flows.shape
     x = np.zeros(S * n)
@@ -510,7 +511,7 @@ def _exact_survey_with_raw_error(truth, stream: str, klass: int, error: float):
     values[klass] += error
     shares.loc[where, "value"] = values / values.sum()
     shares["sd"] = ErrorModel().share_sd(shares["value"])
-    return type(survey)(survey.classes, shares, survey.flows, survey.pct_solids, survey.size_unit, "slip", survey.closed_streams)
+    return dataclasses.replace(survey, shares=shares, source="slip")
 
 
 @pytest.mark.parametrize("stream, klass", [("cyclone_feed", 0), ("cyclone_overflow", 9), ("cyclone_underflow", 6)])

@@ -13,13 +13,16 @@ import io
 from dataclasses import dataclass
 
 from .circuit import CircuitBalance, ErrorModel, read_flowsheet, read_survey, reconcile
+from .circuit.plotting import figure_size
 from .errors import OptionError
+from .options import CIRCUIT_FIT_FORMULAS, DEFAULT_ALPHA
 from .output.outputs import check_output_folder, replace_folder
+from .output.plotting import offscreen_axes
 from .workbench import Workbench, fit_experiments
 
 #: The formulas fitted by ``--fit``: the nine of the paper (ranked) and the extended curves
 #: with bypass and fish-hook (reported beside them, as ``tromplab fit --extended`` does).
-FIT_FORMULAS = "paper,extended"
+FIT_FORMULAS = CIRCUIT_FIT_FORMULAS
 
 
 @dataclass(frozen=True)
@@ -60,7 +63,7 @@ def run_circuit(
     *,
     fit: bool = False,
     errors: ErrorModel | None = None,
-    alpha: float = 0.05,
+    alpha: float = DEFAULT_ALPHA,
     size_unit: str | None = None,
     figures: bool = True,
 ) -> CircuitRun:
@@ -134,14 +137,11 @@ def run_circuit(
 
 
 def _png(balance: CircuitBalance, kind: str) -> bytes:
-    import matplotlib.pyplot as plt
-
-    ax = balance.plot(kind)
+    """Figure ``kind`` drawn on a figure made without pyplot (no backend chosen, no figure left open)."""
+    ax = offscreen_axes(figsize=figure_size(balance, kind))
+    balance.plot(kind, ax=ax)
     buffer = io.BytesIO()
-    try:
-        ax.figure.savefig(buffer, format="png", dpi=120, bbox_inches="tight")
-    finally:
-        plt.close(ax.figure)
+    ax.figure.savefig(buffer, format="png", dpi=120, bbox_inches="tight")
     return buffer.getvalue()
 
 

@@ -23,9 +23,13 @@ from .model_commands import add_model_commands
 from .options import (
     AUTO_FIGURE_LIMIT,
     BOOTSTRAP_METHODS,
+    DEFAULT_ABSOLUTE_ERROR,
     DEFAULT_ALPHA,
+    DEFAULT_FLOW_RELATIVE_ERROR,
     DEFAULT_MARGIN,
     DEFAULT_MIN_FEED_SHARE,
+    DEFAULT_PCT_SOLIDS_SD,
+    DEFAULT_RELATIVE_ERROR,
     DEFAULT_SUM_TOLERANCE_PCT,
     FIGURE_CHOICES,
     KINDS,
@@ -41,7 +45,9 @@ from .validation import (
     check_bootstrap,
     check_count,
     check_non_negative,
+    check_pct_solids_sd,
     check_positive,
+    check_positive_relative_error,
     check_probability,
     check_relative_error,
     check_seed,
@@ -1169,24 +1175,31 @@ def format_fits(fits: pd.DataFrame, verdicts: dict[str, list[str]] | None = None
 
 
 def _add_circuit_command(commands) -> None:
-    """``tromplab circuit FLOWSHEET MEASUREMENTS -o DIR [--fit]`` (issue 25; the work is in circuit_command)."""
+    """``tromplab circuit FLOWSHEET MEASUREMENTS -o DIR [--fit]`` (the work is in circuit_command)."""
     circuit = commands.add_parser(
         "circuit", help="reconcile a plant survey over its flowsheet; partition curves of every separator (docs/circuit.md)"
     )
     circuit.add_argument("flowsheet", type=Path, help="flowsheet CSV: stream, from, to, product")
     circuit.add_argument("measurements", type=Path, help="survey CSV: stream, size classes, retained_pct [, solids_flow]")
     circuit.add_argument(
-        "-o", "--outdir", type=Path, default=Path("results/circuit"), help="output folder (default: results/circuit)"
+        "-o", "--outdir", type=Path, default=Path("results/circuit"), help="output folder (default: %(default)s)"
     )
     circuit.add_argument("--fit", action="store_true", help="also fit the nine formulas and the extended curves per separator")
-    circuit.add_argument("--relative-error", type=cli_type(check_relative_error, "--relative-error"), default=0.05,
-                         help="relative error of a measured share where the table gives none, 0..1 (default 0.05)")  # fmt: skip
-    circuit.add_argument("--absolute-error", type=cli_type(check_share_sd, "--absolute-error"), default=0.001,
-                         help="absolute error of a share, as a fraction of the stream, 0..0.5 (default 0.001)")  # fmt: skip
-    circuit.add_argument("--alpha", type=cli_type(check_probability, "--alpha"), default=0.05,
-                         help="level of the chi-square and measurement tests (default 0.05)")  # fmt: skip
     circuit.add_argument("--size-unit", default=None, help="unit of the sizes when the size columns carry none")
     circuit.add_argument("--no-figures", action="store_true", help="do not draw the figures")
+    errors = circuit.add_argument_group("error model (where the survey table gives none)")
+    errors.add_argument("--relative-error", type=cli_type(check_relative_error, "--relative-error"),
+                        default=DEFAULT_RELATIVE_ERROR, help="relative error of a measured share, 0..1 (default %(default)s)")  # fmt: skip
+    errors.add_argument("--absolute-error", type=cli_type(check_share_sd, "--absolute-error"), default=DEFAULT_ABSOLUTE_ERROR,
+                        help="absolute error of a share, as a fraction of the stream, 0..0.5 (default %(default)s)")  # fmt: skip
+    errors.add_argument("--flow-relative-error", type=cli_type(check_positive_relative_error, "--flow-relative-error"),
+                        default=DEFAULT_FLOW_RELATIVE_ERROR,
+                        help="relative error of a measured solids flow, (0, 1] (default %(default)s)")  # fmt: skip
+    errors.add_argument("--pct-solids-sd", type=cli_type(check_pct_solids_sd, "--pct-solids-sd"), default=DEFAULT_PCT_SOLIDS_SD,
+                        help="sd of a per cent solids, percentage points, (0, 50] (default %(default)s)")  # fmt: skip
+    tests = circuit.add_argument_group("tests")
+    tests.add_argument("--alpha", type=cli_type(check_probability, "--alpha"), default=DEFAULT_ALPHA,
+                       help="level of the chi-square and measurement tests, in (0, 1) (default %(default)s)")  # fmt: skip
     circuit.set_defaults(run=_run_circuit, imports=("tromplab.circuit", "tromplab.circuit_command"))
 
 
@@ -1194,7 +1207,8 @@ def _run_circuit(args) -> int:
     from .circuit import ErrorModel
     from .circuit_command import console_report, run_circuit
 
-    errors = ErrorModel(relative_error=args.relative_error, absolute_error=args.absolute_error)
+    errors = ErrorModel(relative_error=args.relative_error, absolute_error=args.absolute_error,
+                        flow_relative_error=args.flow_relative_error, pct_solids_sd=args.pct_solids_sd)  # fmt: skip
     run = run_circuit(args.flowsheet, args.measurements, args.outdir, fit=args.fit, errors=errors, alpha=args.alpha,
                       size_unit=args.size_unit, figures=not args.no_figures)  # fmt: skip
     print(console_report(run))

@@ -38,14 +38,14 @@ A measured share :math:`x` (fraction of the stream in a class) has the standard 
 
 .. math:: \sigma = \sqrt{(r\,x)^2 + a^2}
 
-with the relative error :math:`r` (default :data:`DEFAULT_RELATIVE_ERROR` = 5 %) and the
-absolute error :math:`a` (default :data:`DEFAULT_ABSOLUTE_ERROR` = 0.001, i.e. 0.1
+with the relative error :math:`r` (default :data:`~tromplab.options.DEFAULT_RELATIVE_ERROR` = 5 %) and the
+absolute error :math:`a` (default :data:`~tromplab.options.DEFAULT_ABSOLUTE_ERROR` = 0.001, i.e. 0.1
 percentage point), the model of the existing one-node reconciliation
 (:func:`tromplab.loading.lab.reconcile`) and of Hodouin & Everell (1980), who weight
 size-analysis data by a relative error with a floor for the small classes.  ``retained_sd``
 overrides it per row, ``relative_error`` / ``absolute_error`` columns per row, and
 :class:`ErrorModel` ``streams`` per stream.  A measured solids flow without sd has the
-relative error :data:`DEFAULT_FLOW_RELATIVE_ERROR` (5 %).  The model is evaluated at the
+relative error :data:`~tromplab.options.DEFAULT_FLOW_RELATIVE_ERROR` (5 %).  The model is evaluated at the
 measured value.  The errors of the class masses of a sieve analysis are independent; a
 stream measured in every class is normalised to 100 % (as lab tables are), and its shares
 then carry the errors through the normalisation: with :math:`D = \mathrm{diag}(\sigma_i^2)`
@@ -63,15 +63,21 @@ balancing of mineral processes data. *International Journal of Mineral Processin
 
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
 
 from ..errors import InputError, OptionError
-from ..loading.points import normal_unit, resolve_size_unit, size_column_unit
+from ..loading.size_classes import class_string_bounds, size_columns
 from ..loading.tables import Table, read_table
+from ..options import (
+    DEFAULT_ABSOLUTE_ERROR,
+    DEFAULT_FLOW_RELATIVE_ERROR,
+    DEFAULT_PCT_SOLIDS_SD,
+    DEFAULT_RELATIVE_ERROR,
+    DEFAULT_SUM_TOLERANCE_PCT,
+)
 from ..validation import (
     MAX_PCT_SOLIDS_SD,
     MAX_RELATIVE_ERROR,
@@ -83,18 +89,14 @@ from ..validation import (
 )
 from .flowsheet import Flowsheet
 
-DEFAULT_RELATIVE_ERROR = 0.05
-DEFAULT_ABSOLUTE_ERROR = 0.001
-DEFAULT_FLOW_RELATIVE_ERROR = 0.05
-DEFAULT_PCT_SOLIDS_SD = 1.0  # percentage points
 #: Per-class shares of a fully measured stream may miss 100 % by this much (percentage points)
-#: before the table is refused; within it they are used as given (each share has its own
-#: error, so the sum's miss is information the balance uses).
-SUM_TOLERANCE_PCT = 1.5
+#: before the table is refused, as in lab tables; within it they are used as given (each share
+#: has its own error, so the sum's miss is information the balance uses).
+SUM_TOLERANCE_PCT = DEFAULT_SUM_TOLERANCE_PCT
 VALUE_COLUMNS = {"retained_pct": 100.0, "retained_frac": 1.0, "retained_mass": None}
 STREAM_COLUMNS = ("solids_flow", "solids_flow_sd", "pct_solids", "pct_solids_sd")
 ROW_COLUMNS = ("retained_sd", "relative_error", "absolute_error")
-_CLASS = re.compile(r"([+-])(\d+(?:\.\d*)?(?:[eE][-+]?\d+)?)(?:([+-])(\d+(?:\.\d*)?(?:[eE][-+]?\d+)?))?")
+SIZE_STEMS = ("size_lower", "size_upper", "size_class")
 
 
 @dataclass(frozen=True)
@@ -315,7 +317,16 @@ def read_survey(
             "the survey holds no measurement (no size analysis, no solids flow, no per cent solids)", source=table.source
         )
     unmeasured = _unmeasured(table, names, has_class, class_of_row, values_given)
-    return Survey(classes, shares, flows, pct, unit, table.source, normalised, unmeasured)
+    return Survey(
+        classes=classes,
+        shares=shares,
+        flows=flows,
+        pct_solids=pct,
+        size_unit=unit,
+        source=table.source,
+        closed_streams=normalised,
+        unmeasured=unmeasured,
+    )
 
 
 def _unmeasured(table: Table, names, has_class, class_of_row, values_given) -> pd.DataFrame:
@@ -337,44 +348,37 @@ def _cell_text(table: Table, i: int, column: str) -> str:
 
 
 def _size_bounds(table: Table, size_unit):
-    found = {}
-    for column in table.frame.columns:
-        for stem in ("size_lower", "size_upper", "size_class"):
-            matched, unit = size_column_unit(column, stem)
-            if matched:
-                if stem in found:
-                    raise InputError(f"two {stem} columns ({found[stem][0]}, {column})", source=table.source, column=column)
-                found[stem] = (column, unit)
-    units = {unit for _, unit in found.values()}
-    if len(units) > 1:
-        raise InputError("mixed units in the size columns; use one unit", source=table.source)
-    suffix = units.pop() if units else ""
-    option = size_unit
-    if "size_unit" in table.frame.columns:
-        given = table.frame["size_unit"].dropna().astype(str).str.strip().unique()
-        if len(given) > 1:
-            raise InputError(f"mixed units in column 'size_unit': {', '.join(given)}", source=table.source, column="size_unit")
-        option = normal_unit(given[0]) if len(given) else option
-    first = next(iter(found.values()))[0] if found else "size_lower"
-    unit = resolve_size_unit(table, suffix, option, first)
-    if "size_class" in found:
-        if "size_lower" in found or "size_upper" in found:
-            raise InputError("the sizes are given twice (size_class and size_lower/size_upper): keep one", source=table.source)
-        column = found["size_class"][0]
-        lower, upper = _class_strings(table, column)
-        return lower, upper, unit, [column]
+    found, unit, _ = size_columns(table, SIZE_STEMS, size_unit)
     if not found and not any(c in table.frame.columns for c in VALUE_COLUMNS):  # per cent solids and flows only
         blank = np.full(len(table.frame), np.nan)
         return blank, blank.copy(), unit, []
+    if "size_class" in found:
+        if "size_lower" in found or "size_upper" in found:
+            raise InputError("the sizes are given twice (size_class and size_lower/size_upper): keep one", source=table.source)
+        column = found["size_class"]
+        lower, upper = class_string_bounds(table, column, blank_allowed=True)  # blank: a row of stream values only
+        written = table.frame[column].notna().to_numpy() & (table.frame[column].astype(str).str.strip() != "").to_numpy()
+        bad = np.flatnonzero(written & ~(lower > 0) & np.isnan(upper))
+        if bad.size:
+            raise table.error("the class has neither a lower nor an upper bound", index=int(bad[0]), column=column)
+        lower = np.where(lower == 0, np.nan, lower)  # "+0": the pan
+        bad = np.flatnonzero(np.isfinite(lower) & np.isfinite(upper) & (lower >= upper))
+        if bad.size:
+            raise table.error(
+                f"class '{table.frame[column].iloc[bad[0]]}': the lower bound is not below the upper bound",
+                index=int(bad[0]),
+                column=column,
+            )
+        return lower, upper, unit, [column]
     if not ("size_lower" in found and "size_upper" in found):
         raise InputError(
             "give class bounds 'size_lower' and 'size_upper' (with a unit suffix, e.g. size_lower_um) or size classes "
             '\'size_class\' ("+1168", "-1168+589", "-74")',
             source=table.source,
         )
-    lower = table.numeric(found["size_lower"][0], allow_blank=True)
-    upper = table.numeric(found["size_upper"][0], allow_blank=True)
-    for values, column in ((lower, found["size_lower"][0]), (upper, found["size_upper"][0])):
+    lower = table.numeric(found["size_lower"], allow_blank=True)
+    upper = table.numeric(found["size_upper"], allow_blank=True)
+    for values, column in ((lower, found["size_lower"]), (upper, found["size_upper"])):
         bad = np.flatnonzero(values < 0)
         if bad.size:
             raise table.error(
@@ -382,40 +386,15 @@ def _size_bounds(table: Table, size_unit):
             )
     bad = np.flatnonzero(upper == 0)
     if bad.size:
-        raise table.error("an upper bound must be positive", index=int(bad[0]), column=found["size_upper"][0])
+        raise table.error("an upper bound must be positive", index=int(bad[0]), column=found["size_upper"])
     lower = np.where(lower == 0, np.nan, lower)
     bad = np.flatnonzero(np.isfinite(lower) & np.isfinite(upper) & (lower >= upper))
     if bad.size:
         i = int(bad[0])
         raise table.error(
-            f"lower bound {lower[i]:g} is not below the upper bound {upper[i]:g}", index=i, column=found["size_lower"][0]
+            f"lower bound {lower[i]:g} is not below the upper bound {upper[i]:g}", index=i, column=found["size_lower"]
         )
-    return lower, upper, unit, [found["size_lower"][0], found["size_upper"][0]]
-
-
-def _class_strings(table: Table, column: str):
-    """Bounds from class strings ("+1168", "-1168+589", "-74"), the grammar of lab tables; blank = no class."""
-    lower = np.full(len(table.frame), np.nan)
-    upper = np.full(len(table.frame), np.nan)
-    for i, value in enumerate(table.frame[column]):
-        text = "" if pd.isna(value) else str(value).strip().replace("\u2212", "-").replace(" ", "")
-        if not text:
-            continue
-        parts = _CLASS.fullmatch(text)
-        if not parts or parts.group(1) == parts.group(3):
-            raise table.error(
-                f"'{value}' is not a size class: write '+1168' (retained on 1168), '-1168+589' or '-74'", index=i, column=column
-            )
-        for sign, number in ((parts.group(1), parts.group(2)), (parts.group(3), parts.group(4))):
-            if sign == "+" and float(number) > 0:
-                lower[i] = float(number)
-            elif sign == "-":
-                upper[i] = float(number)
-        if np.isnan(lower[i]) and np.isnan(upper[i]):
-            raise table.error(f"'{value}' is not a size class", index=i, column=column)
-        if np.isfinite(lower[i]) and np.isfinite(upper[i]) and lower[i] >= upper[i]:
-            raise table.error(f"class '{value}': the lower bound is not below the upper bound", index=i, column=column)
-    return lower, upper
+    return lower, upper, unit, [found["size_lower"], found["size_upper"]]
 
 
 def _tiled_classes(table: Table, lower, upper, has_class, size_columns):

@@ -59,30 +59,36 @@ Smith, H. W. & Ichiyen, N. (1973). Computer adjustment of metallurgical balances
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from functools import cached_property
 from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
-from scipy import linalg, optimize, stats
+from scipy import stats
 
-from ..errors import InputError
 from ..loading.points import TrompPoints
+from ..options import DEFAULT_ALPHA, DEFAULT_MIN_FEED_SHARE
 from ..validation import check_probability
 from . import plotting
 from .flowsheet import Flowsheet, read_flowsheet
 from .measurements import ErrorModel, Survey, read_survey
+from .problem import (
+    Decomposition,
+    Problem,
+    bounded_solution,
+    build_problem,
+    check_observable,
+    check_positive_flows,
+    decompose,
+    linearised,
+    solve,
+    starting_point,
+)
 
-#: Flow of the first feed when no solids flow is measured: flows are then per 100 of that feed.
-BASIS = 100.0
-DEFAULT_ALPHA = 0.05
 #: Separator classes whose feed share (of the separator's feed) is below this are written to
 #: points.csv as not used (partition not meaningful), as lab tables flag them.
-MIN_FEED_SHARE = 0.002
-_RANK_TOL = 1e-9
-#: A class or water flow below -this x the largest unknown is negative: it is held at its bound 0.
-_BOUND_TOL = 1e-12
+MIN_FEED_SHARE = DEFAULT_MIN_FEED_SHARE
 #: Adjustments correlated beyond this are reported as indistinguishable: a gross error in one
 #: of them moves the others' standardised adjustments alike, so no test can tell which it is.
 EQUIVALENT_CORRELATION = 0.99
@@ -90,84 +96,6 @@ DISTRIBUTION_COLUMNS = ["stream", "size_lower", "size_upper", "size", "measured"
                         "reconciled_sd"]  # fmt: skip
 PARTITION_COLUMNS = ["experiment", "size_lower", "size_upper", "size", "feed_share", "partition_fine", "partition_sd",
                      "fine_yield", "fine_yield_sd", "used", "flag"]  # fmt: skip
-
-
-@dataclass(frozen=True)
-class _Problem:
-    """The reconciliation problem in class flows (internal)."""
-
-    n_streams: int
-    n_classes: int
-    A: np.ndarray  # linear constraints A m = b
-    b: np.ndarray
-    m0: np.ndarray
-    N: np.ndarray  # orthonormal null-space basis of A
-    kinds: np.ndarray  # "share" / "flow" per measurement (sd > 0)
-    stream: np.ndarray  # stream index per measurement
-    klass: np.ndarray  # class index per measurement (-1 for flows)
-    y: np.ndarray
-    sd: np.ndarray  # of each measurement (of a closed analysis's share: before the closure)
-    cov: np.ndarray  # covariance of the measurements (closed analyses: P D P^T blocks)
-    W: np.ndarray  # whitening: W cov W^T = I on the range of cov (rows: independent pieces of information)
-    effects: np.ndarray  # column j: what a unit error in raw measurement j does to the reported values (P blocks)
-    n_water: int = 0  # water flows after the class flows (solids streams, then water streams); 0: water not balanced
-    at_bound: tuple[int, ...] = ()  # unknowns held at their bound 0: the last rows of A
-
-    def fixed_at_zero(self, active: np.ndarray) -> _Problem:
-        """The problem with the unknowns flagged in ``active`` held at 0 (rows appended to the balances)."""
-        held = tuple(int(k) for k in np.flatnonzero(active))
-        A = np.vstack([self.A[: self.A.shape[0] - len(self.at_bound)], np.eye(self.m0.size)[list(held)]])
-        b = np.concatenate([self.b[: self.b.size - len(self.at_bound)], np.zeros(len(held))])
-        m0, N = _affine_form(A, b)
-        return replace(self, A=A, b=b, m0=m0, N=N, at_bound=held)
-
-    @property
-    def variance(self) -> np.ndarray:
-        return np.diag(self.cov)
-
-    def _flows(self, v: np.ndarray) -> np.ndarray:
-        return v[: self.n_streams * self.n_classes].reshape(self.n_streams, self.n_classes).sum(axis=1)
-
-    def predict(self, v: np.ndarray) -> np.ndarray:
-        """The measured quantities at the unknowns ``v`` (class flows, then water flows)."""
-        flows = self._flows(v)
-        out = np.empty(self.y.size)
-        share, pct = self.kinds == "share", self.kinds == "pct"
-        s, i = self.stream[share], self.klass[share]
-        out[share] = v[s * self.n_classes + i] / flows[s]
-        flow = ~share & ~pct
-        out[flow] = flows[self.stream[flow]]
-        s = self.stream[pct]
-        out[pct] = 100.0 * flows[s] / (flows[s] + v[self.n_streams * self.n_classes + s])
-        return out
-
-    def whitened_residual(self, z: np.ndarray) -> np.ndarray:
-        """Whitened residuals (prediction - measurement) at ``m0 + N z``: their squares sum to the chi-square."""
-        return self.W @ (self.predict(self.m0 + self.N @ z) - self.y)
-
-    def whitened_jacobian(self, z: np.ndarray) -> np.ndarray:
-        return self.W @ self.jacobian(self.m0 + self.N @ z) @ self.N
-
-    def jacobian(self, v: np.ndarray) -> np.ndarray:
-        """d(prediction)/d(v), measurements x unknowns."""
-        n = self.n_classes
-        flows = self._flows(v)
-        H = np.zeros((self.y.size, v.size))
-        for j in range(self.y.size):
-            s = self.stream[j]
-            block = slice(s * n, (s + 1) * n)
-            if self.kinds[j] == "share":
-                i = self.klass[j]
-                H[j, block] = -v[s * n + i] / flows[s] ** 2
-                H[j, s * n + i] += 1.0 / flows[s]
-            elif self.kinds[j] == "pct":
-                water = self.n_streams * n + s
-                total = flows[s] + v[water]
-                H[j, block] = 100.0 * v[water] / total**2
-                H[j, water] = -100.0 * flows[s] / total**2
-            else:
-                H[j, block] = 1.0
-        return H
 
 
 class _MeasurementTests(NamedTuple):
@@ -208,7 +136,7 @@ class CircuitBalance:
     success: bool
     message: str
     basis: str = ""
-    problem: _Problem | None = field(default=None, repr=False, compare=False)
+    problem: Problem | None = field(default=None, repr=False, compare=False)
     measured_y: np.ndarray | None = field(default=None, repr=False, compare=False)
     #: Water flows of the solids streams, then of the water streams (None: water not balanced).
     water_flows: np.ndarray | None = field(default=None, repr=False, compare=False)
@@ -217,6 +145,8 @@ class CircuitBalance:
     fitted: np.ndarray | None = field(default=None, repr=False, compare=False)
     #: Unknowns (indices into ``fitted``) that the bounds hold at 0 in the reported values.
     at_bound: tuple[int, ...] = field(default=(), repr=False, compare=False)
+    #: The whitened Jacobian at ``fitted`` split by the reconciliation's one rank decision.
+    decomposition: Decomposition | None = field(default=None, repr=False, compare=False)
 
     @property
     def has_size_classes(self) -> bool:
@@ -371,7 +301,8 @@ class CircuitBalance:
         for s in range(S):
             pct_gradient[s, s * n : (s + 1) * n] = 100.0 * self.water_flows[s] / total[s] ** 2
             pct_gradient[s, S * n + s] = -100.0 * self.flows[s] / total[s] ** 2
-        unseen = _unseen_directions(self.problem, self._test_point)
+        decomposition = self.decomposition or decompose(self.problem, self.problem.N.T @ (self._test_point - self.problem.m0))
+        unseen = self.problem.N @ decomposition.unseen
         tolerance = 1e-7 * max(1.0, float(np.abs(self._test_point).max()))
         water_determined = np.abs(water_gradient @ unseen).max(axis=1, initial=0.0) < tolerance
         pct_determined = np.abs(pct_gradient @ unseen).max(axis=1, initial=0.0) < tolerance
@@ -509,7 +440,7 @@ class CircuitBalance:
         r"""The generalised likelihood ratio test of a gross error in each raw measurement.
 
         A gross error :math:`b` in raw measurement :math:`j` shifts the reported values by
-        :math:`b f_j` (:math:`f_j` the column of :attr:`_Problem.effects`: a unit vector, or
+        :math:`b f_j` (:math:`f_j` the column of :attr:`Problem.effects`: a unit vector, or
         in a closed analysis the shift of every share of the stream).  With the whitened
         residuals :math:`\rho` and :math:`g_j = W f_j`, its least-squares estimate is
         :math:`\hat b_j = g_j^T \rho / g_j^T Q g_j` with sd :math:`(g_j^T Q g_j)^{-1/2}`,
@@ -523,10 +454,9 @@ class CircuitBalance:
             empty = np.zeros(0)
             return _MeasurementTests(empty, empty, empty, empty.astype(bool), np.zeros((0, 0)))
         m = self._test_point
-        J = problem.W @ problem.jacobian(m) @ problem.N
         residual = problem.W @ (self.measured_y - problem.predict(m))
-        basis, singular, _ = np.linalg.svd(J, full_matrices=False)
-        basis = basis[:, singular > _RANK_TOL * max(1.0, singular.max(initial=0.0))]
+        decomposition = self.decomposition or decompose(problem, problem.N.T @ (m - problem.m0))
+        basis = decomposition.range_basis
         G = problem.W @ problem.effects
         QG = G - basis @ (basis.T @ G)
         information = np.einsum("ij,ij->j", G, QG)
@@ -872,24 +802,24 @@ def reconcile(
         if isinstance(measurements, Survey)
         else read_survey(measurements, flowsheet, errors=errors, size_unit=size_unit)
     )
-    problem, basis = _build(flowsheet, survey)
-    start = _start(flowsheet, survey, problem)
-    _check_observable(flowsheet, survey, problem, start)
-    z, success, message = _solve(problem, start)
+    problem, basis = build_problem(flowsheet, survey)
+    start = starting_point(flowsheet, survey, problem)
+    check_observable(flowsheet, survey, problem, start)
+    z, success, message = solve(problem, start)
     fitted = problem.m0 + problem.N @ z
-    chi, rank, covariance = _linearised(problem, z)
-    held, v = _bounded_solution(problem, fitted)
+    chi, decomposition, covariance = linearised(problem, z)
+    held, v = bounded_solution(problem, fitted)
     if held and not np.all(np.isfinite(v)):
         success, message = False, "the bounds on the flows did not settle (active-set iterations exhausted)"
     S, n = problem.n_streams, problem.n_classes
-    _check_positive_flows(flowsheet, survey, v[: S * n].reshape(S, n).sum(axis=1))
+    check_positive_flows(flowsheet, survey, v[: S * n].reshape(S, n).sum(axis=1))
     return CircuitBalance(
         flowsheet=flowsheet,
         survey=survey,
         class_flows=v[: S * n].reshape(S, n),
         covariance=covariance,
         chi_square=chi,
-        dof=int(problem.W.shape[0] - rank),
+        dof=int(problem.W.shape[0] - decomposition.rank),
         alpha=alpha,
         success=success,
         message=message,
@@ -899,293 +829,5 @@ def reconcile(
         water_flows=v[S * n :] if problem.n_water else None,
         fitted=fitted,
         at_bound=held,
-    )
-
-
-def _solve(problem: _Problem, start: np.ndarray) -> tuple[np.ndarray, bool, str]:
-    """The weighted least squares in the free unknowns ``z``, started from ``start`` projected onto the constraints."""
-    z0 = problem.N.T @ (start - problem.m0)
-    if not (problem.N.shape[1] and problem.y.size):
-        return z0, True, "nothing to adjust"
-    solution = optimize.least_squares(problem.whitened_residual, z0, jac=problem.whitened_jacobian, method="lm",
-                                      x_scale="jac", xtol=1e-14, ftol=1e-14, gtol=1e-12, max_nfev=2000)  # fmt: skip
-    return solution.x, bool(solution.success), str(solution.message)
-
-
-def _bounded_solution(problem: _Problem, fitted: np.ndarray) -> tuple[tuple[int, ...], np.ndarray]:
-    """``(held, v)``: the least squares with every class flow and water flow at least 0, by an
-    active-set iteration started from the unbounded solution ``fitted``.
-
-    A flow that comes out negative is held at 0 (it joins the linear constraints) and the survey
-    is reconciled again; a flow held at 0 is released when its Lagrange multiplier says the sum
-    of squares would fall by raising it (Lawson & Hanson 1974, ch. 23).  Without a negative flow
-    this is ``fitted``, untouched (``held`` empty); NaN if the iteration does not settle.
-    """
-    active = fitted < -_BOUND_TOL * max(np.abs(fitted).max(initial=0.0), 1e-300)
-    if not active.any():
-        return (), np.clip(fitted, 0.0, None)  # what is below 0 is rounding
-    start = np.clip(fitted, 0.0, None)
-    for _ in range(2 * fitted.size + 1):
-        current = problem.fixed_at_zero(active)
-        z, _, _ = _solve(current, start)
-        v = current.m0 + current.N @ z
-        negative = (v < -_BOUND_TOL * max(np.abs(v).max(), 1e-300)) & ~active
-        if negative.any():
-            active |= negative
-        else:
-            released = _wrong_sign_multiplier(current, v)
-            if released is None:
-                return current.at_bound, np.clip(v, 0.0, None)
-            active[released] = False
-        start = np.clip(v, 0.0, None)
-    return tuple(np.flatnonzero(active)), np.full(fitted.size, np.nan)
-
-
-def _wrong_sign_multiplier(problem: _Problem, v: np.ndarray) -> int | None:
-    """The unknown held at 0 whose multiplier is most negative (raising it lowers the sum of squares), or None."""
-    held = np.array(problem.at_bound, dtype=int)
-    if held.size == 0 or not problem.y.size:
-        return None
-    gradient = (problem.W @ problem.jacobian(v)).T @ (problem.W @ (problem.predict(v) - problem.y))
-    multipliers = np.linalg.lstsq(problem.A.T, gradient, rcond=None)[0][-held.size :]  # the bounds are A's last rows
-    worst = int(np.argmin(multipliers))
-    return int(held[worst]) if multipliers[worst] < -1e-8 * max(np.abs(gradient).max(), 1e-300) else None
-
-
-def _check_positive_flows(flowsheet: Flowsheet, survey: Survey, flows: np.ndarray) -> None:
-    if np.any(flows <= 0):
-        bad = [flowsheet.stream_names[s] for s in np.flatnonzero(flows <= 0)]
-        raise InputError(
-            f"the reconciled solids flow of stream(s) {', '.join(bad)} is not positive: the measurements contradict the "
-            "flowsheet (check the stream names in both files)",
-            source=survey.source,
-        )
-
-
-def _linearised(problem: _Problem, z: np.ndarray) -> tuple[float, int, np.ndarray]:
-    """``(chi-square, rank of the whitened Jacobian, covariance of the unknowns)`` at ``z``."""
-    if not problem.y.size:
-        return 0.0, 0, np.zeros((problem.N.shape[0],) * 2)
-    J, r = problem.whitened_jacobian(z), problem.whitened_residual(z)
-    rank = int(np.linalg.matrix_rank(J, tol=_RANK_TOL * max(1.0, np.abs(J).max()))) if J.size else 0
-    cov_z = np.linalg.pinv(J.T @ J, rcond=1e-12) if J.size else np.zeros((0, 0))
-    return float(r @ r), rank, problem.N @ cov_z @ problem.N.T
-
-
-def _build(flowsheet: Flowsheet, survey: Survey) -> tuple[_Problem, str]:
-    S = len(flowsheet.streams)
-    n = max(survey.n_classes, 1)
-    n_water = S + len(flowsheet.water_streams) if len(survey.pct_solids) else 0
-    size = S * n + n_water
-    M = flowsheet.incidence()
-    index = flowsheet.stream_index
-    rows, rhs = [], []
-
-    def constraint(value: float = 0.0) -> np.ndarray:
-        rows.append(np.zeros(size))
-        rhs.append(value)
-        return rows[-1]
-
-    def solids_of(stream: str, row: np.ndarray) -> np.ndarray:
-        return row[index[stream] * n : (index[stream] + 1) * n]
-
-    for k, node in enumerate(flowsheet.nodes):
-        if node.balances_classes:
-            for i in range(n):
-                constraint()[np.arange(S) * n + i] = M[k]
-        else:
-            constraint()[: S * n] = np.repeat(M[k], n)
-    if n_water:  # water balances at every node, the declared water streams its only additions and removals
-        water_incidence = np.hstack([M, flowsheet.water_incidence()])
-        for k in range(len(flowsheet.nodes)):
-            constraint()[S * n :] = water_incidence[k]
-    fixed = survey.flows[survey.flows["sd"] == 0]
-    free_flows = survey.flows[survey.flows["sd"] > 0]
-    for record in fixed.itertuples():
-        solids_of(record.stream, constraint(record.value))[:] = 1.0
-    basis = ""
-    if survey.flows.empty:
-        feed = flowsheet.feeds[0]
-        solids_of(feed, constraint(BASIS))[:] = 1.0
-        basis = f"{BASIS:g} for stream '{feed}' (no solids flow measured)"
-    for record in survey.shares[survey.shares["sd"] == 0].itertuples():  # m_si - x sum_j m_sj = 0: linear
-        row = solids_of(record.stream, constraint())
-        row[:] = -record.value
-        row[record.class_index] += 1.0
-    exact_pct = survey.pct_solids[survey.pct_solids["sd"] == 0]
-    for record in exact_pct.itertuples():  # (100 - p) F - p w = 0: linear too
-        row = constraint()
-        solids_of(record.stream, row)[:] = 100.0 - record.value
-        row[S * n + index[record.stream]] = -record.value
-    A = np.array(rows) if rows else np.zeros((0, size))
-    b = np.array(rhs)
-    m0, N = _affine_form(A, b)
-    if np.linalg.norm(A @ m0 - b) > 1e-8 * max(1.0, np.linalg.norm(b)):
-        raise InputError(
-            "the flows, shares and per cent solids given with a standard deviation of 0 contradict the balances of the flowsheet",
-            source=survey.source,
-        )
-    shares = survey.shares[survey.shares["sd"] > 0]
-    pct = survey.pct_solids[survey.pct_solids["sd"] > 0]
-    parts = ((shares, "share"), (free_flows, "flow"), (pct, "pct"))
-    kinds = np.array([kind for table, kind in parts for _ in range(len(table))], dtype=object)
-    stream = np.array([index[name] for table, _ in parts for name in table["stream"]], dtype=int)
-    klass = np.array([*shares["class_index"].astype(int), *[-1] * len(free_flows), *[-2] * len(pct)], dtype=int)
-    y = np.concatenate([table["value"].to_numpy(float) for table, _ in parts])
-    sd = np.concatenate([table["sd"].to_numpy(float) for table, _ in parts])
-    cov, W, effects = _measurement_covariance(shares, sd, survey.closed_streams)
-    return _Problem(S, n, A, b, m0, N, kinds, stream, klass, y, sd, cov, W, effects, n_water), basis
-
-
-def _affine_form(A: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``(m0, N)``: a point of ``A m = b`` (least squares) and an orthonormal basis of the null space of ``A``."""
-    if not A.shape[0]:
-        return np.zeros(A.shape[1]), np.eye(A.shape[1])
-    return np.linalg.lstsq(A, b, rcond=None)[0], linalg.null_space(A, rcond=1e-10)
-
-
-def _measurement_covariance(shares: pd.DataFrame, sd: np.ndarray, closed) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Covariance of the measurements, its whitening and the effects of the raw errors.
-
-    The errors are independent, except in a closed (normalised) analysis: an error in one raw
-    class moves every reported share of the stream, by :math:`P = I - x 1^T`, so the block is
-    :math:`P D P^T`.  The third matrix holds :math:`P` (identity elsewhere).
-    """
-    cov = np.diag(sd**2)
-    effects = np.eye(sd.size)
-    pieces = []
-    done = np.zeros(sd.size, dtype=bool)
-    streams = shares["stream"].to_numpy()
-    values = shares["value"].to_numpy(float)
-    for stream in closed:
-        where = np.flatnonzero(streams == stream)
-        if where.size == 0:
-            continue
-        x = values[where]
-        P = np.eye(where.size) - np.outer(x, np.ones(where.size))
-        block = P @ np.diag(sd[where] ** 2) @ P.T
-        cov[np.ix_(where, where)] = block
-        effects[np.ix_(where, where)] = P
-        eigenvalues, vectors = np.linalg.eigh(block)
-        keep = eigenvalues > 1e-12 * eigenvalues.max()
-        rows = np.zeros((int(keep.sum()), sd.size))
-        rows[:, where] = (vectors[:, keep] / np.sqrt(eigenvalues[keep])).T
-        pieces.append(rows)
-        done[where] = True
-    single = np.flatnonzero(~done)
-    rows = np.zeros((single.size, sd.size))
-    rows[np.arange(single.size), single] = 1.0 / sd[single]
-    pieces.append(rows)
-    return cov, np.vstack(pieces), effects
-
-
-def _start(flowsheet: Flowsheet, survey: Survey, problem: _Problem) -> np.ndarray:
-    """A feasible starting point: measured (or average) distributions, flows from a bounded
-    linear least-squares fit of the balances, projected onto the constraints."""
-    S, n = problem.n_streams, problem.n_classes
-    index = flowsheet.stream_index
-    guess = np.full((S, n), np.nan)
-    for record in survey.shares.itertuples():
-        guess[index[record.stream], record.class_index] = record.value
-    measured = np.isfinite(guess).any(axis=1)
-    average = np.nanmean(guess[measured], axis=0) if measured.any() else np.full(n, 1.0 / n)
-    average = np.where(np.isfinite(average), average, 1.0 / n)
-    for s in range(S):
-        row = guess[s]
-        if not np.isfinite(row).any():
-            guess[s] = average / average.sum()
-            continue
-        missing = ~np.isfinite(row)
-        rest = max(1.0 - np.nansum(row), 0.0)
-        row[missing] = rest * average[missing] / max(average[missing].sum(), 1e-12) if missing.any() else 0
-        guess[s] = np.clip(row, 1e-6, None) / np.clip(row, 1e-6, None).sum()
-    # flows: class balances with the guessed distributions, the fixed and measured flows
-    rows, rhs = [], []
-    M = flowsheet.incidence()
-    for k, node in enumerate(flowsheet.nodes):
-        rows.append(M[k] * 10.0)
-        rhs.append(0.0)
-        if node.balances_classes:
-            for i in range(n):
-                rows.append(M[k] * guess[:, i])
-                rhs.append(0.0)
-    scale = BASIS
-    for record in survey.flows.itertuples():
-        row = np.zeros(S)
-        row[index[record.stream]] = 10.0
-        rows.append(row)
-        rhs.append(10.0 * record.value)
-        scale = record.value
-    if survey.flows.empty:
-        row = np.zeros(S)
-        row[index[flowsheet.feeds[0]]] = 10.0
-        rows.append(row)
-        rhs.append(10.0 * BASIS)
-    fit = optimize.lsq_linear(np.array(rows), np.array(rhs), bounds=(1e-3 * scale, np.inf))
-    m = (fit.x[:, None] * guess).ravel()
-    if problem.n_water:
-        m = np.concatenate([m, _start_water(flowsheet, survey, fit.x)])
-    if problem.A.shape[0]:
-        m = m - np.linalg.lstsq(problem.A, problem.A @ m - problem.b, rcond=None)[0]
-    return m
-
-
-def _start_water(flowsheet: Flowsheet, survey: Survey, flows: np.ndarray) -> np.ndarray:
-    """Water flows from the measured per cent solids at the starting solids flows, completed by
-    the water balances (non-negative least squares)."""
-    incidence = np.hstack([flowsheet.incidence(), flowsheet.water_incidence()])
-    rows, rhs = list(incidence), [0.0] * len(incidence)
-    for record in survey.pct_solids.itertuples():
-        row = np.zeros(incidence.shape[1])
-        row[flowsheet.stream_index[record.stream]] = 1.0
-        rows.append(row)
-        rhs.append(flows[flowsheet.stream_index[record.stream]] * (100.0 - record.value) / record.value)
-    return optimize.lsq_linear(np.array(rows), np.array(rhs), bounds=(0.0, np.inf)).x
-
-
-def _unseen_directions(problem: _Problem, v: np.ndarray) -> np.ndarray:
-    """Directions of the unknowns (columns) that keep every constraint and move no measurement
-    at ``v``: what the survey cannot determine."""
-    free = problem.N.shape[1]
-    if free == 0:
-        return np.zeros((v.size, 0))
-    if not problem.y.size:
-        return problem.N
-    J = problem.W @ problem.jacobian(v) @ problem.N
-    _, singular, vt = np.linalg.svd(J, full_matrices=True)
-    rank = int(np.sum(singular > 1e-8 * max(1.0, np.abs(J).max())))
-    return problem.N @ vt[rank:].T
-
-
-def _check_observable(flowsheet: Flowsheet, survey: Survey, problem: _Problem, v: np.ndarray) -> None:
-    """Refuse a survey that cannot determine every solids flow and distribution (naming the
-    streams); water flows left undetermined are reported by the balance, not refused."""
-    S, n = problem.n_streams, problem.n_classes
-    directions = _unseen_directions(problem, v)[: S * n]
-    if directions.shape[1] == 0:
-        return
-    m = v[: S * n]
-    flows = m.reshape(S, n).sum(axis=1)
-    blocks = directions.reshape(S, n, -1)
-    flow_change = np.abs(blocks.sum(axis=1)).max(axis=1) / np.maximum(np.abs(flows), 1e-12)
-    share_change = np.abs(blocks - (m.reshape(S, n) / flows[:, None])[:, :, None] * blocks.sum(axis=1)[:, None, :]).max(
-        axis=(1, 2)
-    )
-    share_change = share_change / np.maximum(np.abs(flows), 1e-12)
-    flow_bad = [flowsheet.stream_names[s] for s in np.flatnonzero(flow_change > 1e-6)]
-    share_bad = [
-        flowsheet.stream_names[s] for s in np.flatnonzero(share_change > 1e-6) if flowsheet.stream_names[s] not in flow_bad
-    ]
-    if not flow_bad and not share_bad:
-        return
-    nodes = sorted({n for s in flow_bad + share_bad for n in (flowsheet.stream(s).source, flowsheet.stream(s).target) if n})
-    parts = []
-    if flow_bad:
-        parts.append(f"the solids flow of stream(s) {', '.join(flow_bad)}")
-    if share_bad:
-        parts.append(f"the size distribution of stream(s) {', '.join(share_bad)}")
-    raise InputError(
-        f"the survey cannot determine {' and '.join(parts)} (unobservable: degrees of freedom left at node(s) "
-        f"{', '.join(nodes)}); measure the size distribution or the solids flow of one of these streams",
-        source=survey.source,
+        decomposition=decomposition,
     )

@@ -35,6 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from ..curves.formulas import get_formula
 from .flowsheet import Flowsheet, read_flowsheet
 from .measurements import ErrorModel, Survey
 from .reconciliation import reconcile
@@ -68,9 +69,10 @@ def rosin_rammler_shares(edges, d63: float, n: float) -> np.ndarray:
 
 
 def plitt_partition_to_fines(size, d50: float, m: float, bypass: float = 0.0) -> np.ndarray:
-    """Partition to the fine product, one minus Plitt's curve with a bypass to the coarse product."""
-    coarse = bypass + (1.0 - bypass) * (1.0 - np.exp(-0.693 * (np.asarray(size, dtype=float) / d50) ** m))
-    return 1.0 - coarse
+    r"""Partition to the fine product of Plitt's (1976) corrected curve with a bypass to the
+    coarse product: the registry's ``rosin_rammler_bypass``, :math:`(1 - R_f)\exp(-\ln 2\,(d/d_{50})^m)`."""
+    formula = get_formula("rosin_rammler_bypass")
+    return formula.phi(np.asarray(size, dtype=float) / d50, m, bypass=bypass)
 
 
 def classes_from_edges(edges) -> pd.DataFrame:
@@ -140,7 +142,7 @@ def grinding_circuit() -> CircuitTruth:
     feed = 250.0 * rosin_rammler_shares([20, 38, 53, 75, 106, 150, 212, 300, 425, 600], 800.0, 1.0)
     discharge = rosin_rammler_shares([20, 38, 53, 75, 106, 150, 212, 300, 425, 600], 180.0, 1.0)
     flows = steady_state(flowsheet, classes, {"fresh_feed": feed}, {"cyclone": phi}, {"mill": discharge})
-    return CircuitTruth(flowsheet, classes, flows, "um", {"cyclone": phi})
+    return CircuitTruth(flowsheet=flowsheet, classes=classes, class_flows=flows, size_unit="um", partitions={"cyclone": phi})
 
 
 def two_deck_screen() -> CircuitTruth:
@@ -163,7 +165,7 @@ def two_deck_screen() -> CircuitTruth:
     }
     feed = 100.0 * rosin_rammler_shares(edges, 6.0, 1.0)
     flows = steady_state(flowsheet, classes, {"screen_feed": feed}, partitions, {})
-    return CircuitTruth(flowsheet, classes, flows, "mm", partitions)
+    return CircuitTruth(flowsheet=flowsheet, classes=classes, class_flows=flows, size_unit="mm", partitions=partitions)
 
 
 #: Sieve series of the bundled example plant (um): the pan below 38, the open top above 19000.
@@ -207,7 +209,7 @@ def example_plant() -> CircuitTruth:
     feed = 400.0 * rosin_rammler_shares(EXAMPLE_EDGES_UM, 5000.0, 0.9)
     discharge = rosin_rammler_shares(EXAMPLE_EDGES_UM, 250.0, 1.0)
     flows = steady_state(flowsheet, classes, {"screen_feed": feed}, partitions, {"mill": discharge})
-    return CircuitTruth(flowsheet, classes, flows, "um", partitions)
+    return CircuitTruth(flowsheet=flowsheet, classes=classes, class_flows=flows, size_unit="um", partitions=partitions)
 
 
 def simulate_survey(
@@ -272,7 +274,8 @@ def simulate_survey(
     shares = pd.DataFrame(records, columns=["stream", "class_index", "value", "sd", "row"])
     flow_table = pd.DataFrame(flow_records, columns=["stream", "value", "sd", "row"])
     empty = pd.DataFrame(columns=["stream", "value", "sd", "row"])
-    return Survey(truth.classes, shares, flow_table, empty, truth.size_unit, "simulated survey", tuple(measured))
+    return Survey(classes=truth.classes, shares=shares, flows=flow_table, pct_solids=empty, size_unit=truth.size_unit,
+                  source="simulated survey", closed_streams=tuple(measured))  # fmt: skip
 
 
 def survey_table(survey: Survey, *, decimals: int | None = 2) -> pd.DataFrame:
