@@ -184,7 +184,9 @@ def test_an_unobservable_flow_is_refused_naming_the_streams():
 def test_exact_data_are_returned_unchanged_with_the_truth_and_the_expected_redundancy(make, n_redundant):
     truth = make()
     survey = simulate_survey(truth, np.random.default_rng(0), errors=ErrorModel(relative_error=1e-12, absolute_error=1e-12))
-    sds = survey.shares.assign(sd=ErrorModel().share_sd(survey.shares["value"]))  # exact values, the default sds
+    default = ErrorModel()  # exact values, the default error model
+    sds = survey.shares.assign(sd=default.share_sd(survey.shares["value"]), relative=default.relative_error,
+                               absolute=default.absolute_error)  # fmt: skip
     survey = dataclasses.replace(survey, shares=sds, source="exact")
     balance = reconcile(truth.flowsheet, survey)
     scale = balance.flows[0] / truth.flows[0]  # no flow measured: per 100 of the first feed
@@ -251,7 +253,8 @@ def test_at_a_fixed_yield_the_shares_are_the_lab_one_node_reconciliation():
 
 
 def _independent(survey):
-    return dataclasses.replace(survey, source="open", closed_streams=())
+    """Independent shares, their sds at the measured values: the problem of the classical closed forms."""
+    return dataclasses.replace(survey, source="open", closed_streams=(), evaluated_at="measured")
 
 
 def test_linear_case_with_every_flow_fixed_is_the_closed_form_projection():
@@ -510,7 +513,9 @@ def _exact_survey_with_raw_error(truth, stream: str, klass: int, error: float):
     values = shares.loc[where, "value"].to_numpy().copy()
     values[klass] += error
     shares.loc[where, "value"] = values / values.sum()
-    shares["sd"] = ErrorModel().share_sd(shares["value"])
+    default = ErrorModel()
+    shares["sd"] = default.share_sd(shares["value"])
+    shares["relative"], shares["absolute"] = default.relative_error, default.absolute_error
     return dataclasses.replace(survey, shares=shares, source="slip")
 
 

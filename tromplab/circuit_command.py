@@ -66,6 +66,7 @@ def run_circuit(
     alpha: float = DEFAULT_ALPHA,
     size_unit: str | None = None,
     figures: bool = True,
+    exclude=(),
 ) -> CircuitRun:
     """Reconcile the survey and write ``outdir`` as a whole (nothing written on bad input).
 
@@ -85,6 +86,9 @@ def run_circuit(
         Unit of the sizes when the size columns carry none.
     figures : bool
         Draw the three figures.
+    exclude : iterable of str or str, optional
+        Measurements left out (``STREAM``, ``STREAM:flow``, ``STREAM:pct_solids``,
+        ``STREAM:CLASS``), as :func:`~tromplab.circuit.reconciliation.reconcile` takes them.
 
     Returns
     -------
@@ -93,6 +97,7 @@ def run_circuit(
     Notes
     -----
     Files: ``flows.csv``, ``distributions.csv``, ``adjustments.csv``, ``gross_errors.csv``,
+    ``elimination.csv`` (serial elimination with compensation: a proposal), ``nodal_tests.csv``,
     ``chi_square.csv``, ``degrees_of_freedom.csv``, ``partition.csv`` (with standard
     deviations), ``points.csv`` (Tromp-points schema with weights, what ``tromplab fit``
     reads), the flowsheet as read (``flowsheet.csv``), ``summary.txt``; figures
@@ -106,12 +111,14 @@ def run_circuit(
         raise OptionError(
             "fit", "needs size analyses: the survey holds flows and per cent solids only (no partition curve to fit)"
         )
-    balance = reconcile(sheet, survey, alpha=alpha)
+    balance = reconcile(sheet, survey, alpha=alpha, exclude=exclude)
     tables = {
         "flows": balance.flows_table(),
         "distributions": balance.distributions_table(),
         "adjustments": balance.adjustments_table(),
         "gross_errors": balance.gross_errors_table(),
+        "elimination": balance.elimination_table(),
+        "nodal_tests": balance.nodal_tests_table(),
         "chi_square": balance.chi_square_table(),
         "degrees_of_freedom": balance.degrees_of_freedom_table(),
         "partition": balance.partition_table(),

@@ -31,6 +31,7 @@ from .options import (
     DEFAULT_PCT_SOLIDS_SD,
     DEFAULT_RELATIVE_ERROR,
     DEFAULT_SUM_TOLERANCE_PCT,
+    ERROR_MODEL_POINTS,
     FIGURE_CHOICES,
     KINDS,
     PARTITION_METHODS,
@@ -1187,6 +1188,9 @@ def _add_circuit_command(commands) -> None:
     circuit.add_argument("--fit", action="store_true", help="also fit the nine formulas and the extended curves per separator")
     circuit.add_argument("--size-unit", default=None, help="unit of the sizes when the size columns carry none")
     circuit.add_argument("--no-figures", action="store_true", help="do not draw the figures")
+    circuit.add_argument("--exclude", default="", metavar="STREAM[:WHAT],...",
+                         help="leave measurements out: a stream, or STREAM:flow, STREAM:pct_solids, STREAM:CLASS "
+                         "(e.g. cyclone_feed:-150+75); what the elimination proposes")  # fmt: skip
     errors = circuit.add_argument_group("error model (where the survey table gives none)")
     errors.add_argument("--relative-error", type=cli_type(check_relative_error, "--relative-error"),
                         default=DEFAULT_RELATIVE_ERROR, help="relative error of a measured share, 0..1 (default %(default)s)")  # fmt: skip
@@ -1197,6 +1201,9 @@ def _add_circuit_command(commands) -> None:
                         help="relative error of a measured solids flow, (0, 1] (default %(default)s)")  # fmt: skip
     errors.add_argument("--pct-solids-sd", type=cli_type(check_pct_solids_sd, "--pct-solids-sd"), default=DEFAULT_PCT_SOLIDS_SD,
                         help="sd of a per cent solids, percentage points, (0, 50] (default %(default)s)")  # fmt: skip
+    errors.add_argument("--error-model-at", choices=ERROR_MODEL_POINTS, default=ERROR_MODEL_POINTS[0],
+                        help="evaluate the error model at the reconciled values (iterated) or at the measured ones "
+                        "(default %(default)s)")  # fmt: skip
     tests = circuit.add_argument_group("tests")
     tests.add_argument("--alpha", type=cli_type(check_probability, "--alpha"), default=DEFAULT_ALPHA,
                        help="level of the chi-square and measurement tests, in (0, 1) (default %(default)s)")  # fmt: skip
@@ -1208,9 +1215,10 @@ def _run_circuit(args) -> int:
     from .circuit_command import console_report, run_circuit
 
     errors = ErrorModel(relative_error=args.relative_error, absolute_error=args.absolute_error,
-                        flow_relative_error=args.flow_relative_error, pct_solids_sd=args.pct_solids_sd)  # fmt: skip
+                        flow_relative_error=args.flow_relative_error, pct_solids_sd=args.pct_solids_sd,
+                        evaluated_at=args.error_model_at)  # fmt: skip
     run = run_circuit(args.flowsheet, args.measurements, args.outdir, fit=args.fit, errors=errors, alpha=args.alpha,
-                      size_unit=args.size_unit, figures=not args.no_figures)  # fmt: skip
+                      size_unit=args.size_unit, figures=not args.no_figures, exclude=args.exclude)  # fmt: skip
     print(console_report(run))
     return EXIT_OK
 

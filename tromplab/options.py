@@ -53,3 +53,6 @@ DEFAULT_PCT_SOLIDS_SD = 1.0
 CIRCUIT_BASIS = 100.0
 #: Formulas ``tromplab circuit --fit`` fits: the nine (ranked) and the extended curves (reported).
 CIRCUIT_FIT_FORMULAS = "paper,extended"
+#: Where the error model of a survey is evaluated: at the reconciled values (iterated to
+#: convergence, the default) or at the measured values.
+ERROR_MODEL_POINTS = ("reconciled", "measured")

@@ -63,7 +63,7 @@ balancing of mineral processes data. *International Journal of Mineral Processin
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import pandas as pd
@@ -77,6 +77,7 @@ from ..options import (
     DEFAULT_PCT_SOLIDS_SD,
     DEFAULT_RELATIVE_ERROR,
     DEFAULT_SUM_TOLERANCE_PCT,
+    ERROR_MODEL_POINTS,
 )
 from ..validation import (
     MAX_PCT_SOLIDS_SD,
@@ -97,11 +98,16 @@ VALUE_COLUMNS = {"retained_pct": 100.0, "retained_frac": 1.0, "retained_mass": N
 STREAM_COLUMNS = ("solids_flow", "solids_flow_sd", "pct_solids", "pct_solids_sd")
 ROW_COLUMNS = ("retained_sd", "relative_error", "absolute_error")
 SIZE_STEMS = ("size_lower", "size_upper", "size_class")
+#: Columns of :attr:`Survey.shares`: ``relative`` and ``absolute`` are the error model's errors of
+#: the share (NaN where the table gave its sd), ``at`` the share at which its sd is evaluated.
+SHARE_COLUMNS = ["stream", "class_index", "value", "sd", "row", "relative", "absolute"]
+#: Columns of :attr:`Survey.flows` and :attr:`Survey.pct_solids` (``relative``: NaN where the sd was given).
+STREAM_VALUE_COLUMNS = ["stream", "value", "sd", "row", "relative"]
 
 
 @dataclass(frozen=True)
 class ErrorModel:
-    """Standard deviations of the measurements where the table gives none.
+    r"""Standard deviations of the measurements where the table gives none.
 
     Attributes
     ----------
@@ -120,6 +126,11 @@ class ErrorModel:
         True (default): a stream measured in every class is normalised to 100 % and its
         shares get the covariance :math:`P D P^T` of a closed analysis.  False: every share
         is used as given with its own independent error (data not normalised by the lab).
+    evaluated_at : {"reconciled", "measured"}
+        Where :math:`\sigma(x)` and the closure :math:`P` are evaluated: at the reconciled
+        shares and flows, iterated until the standard deviations settle (default: a share
+        measured low or high then gets the same sd, so a test does not depend on the sign of
+        a slip), or at the measured values (one reconciliation).
 
     Examples
     --------
@@ -134,8 +145,11 @@ class ErrorModel:
     pct_solids_sd: float = DEFAULT_PCT_SOLIDS_SD
     streams: dict = field(default_factory=dict)
     closure: bool = True
+    evaluated_at: str = "reconciled"
 
     def __post_init__(self):
+        if self.evaluated_at not in ERROR_MODEL_POINTS:
+            raise OptionError("evaluated_at", f"is one of {', '.join(ERROR_MODEL_POINTS)}, got {self.evaluated_at!r}")
         check_relative_error(self.relative_error, "relative_error")
         check_share_sd(self.absolute_error, "absolute_error")
         check_positive_relative_error(self.flow_relative_error, "flow_relative_error")
@@ -204,6 +218,7 @@ class Survey:
     source: str = ""
     closed_streams: tuple[str, ...] = ()
     unmeasured: pd.DataFrame = field(default_factory=lambda: pd.DataFrame(columns=["stream", "class_index", "row"]))
+    evaluated_at: str = "reconciled"
 
     @property
     def n_classes(self) -> int:
@@ -212,6 +227,25 @@ class Survey:
     @property
     def measured_streams(self) -> tuple[str, ...]:
         return tuple(dict.fromkeys(self.shares["stream"]))
+
+    def with_errors_at(self, shares: np.ndarray, flows: np.ndarray, stream_index: dict) -> Survey:
+        """The survey with the error model evaluated at ``shares`` (streams x classes, clipped
+        at 0) and ``flows`` (per stream) instead of the measured values: the sd of every share
+        and flow whose sd the table did not give, and the share ``at`` which the closure of
+        its analysis is linearised.  Values and given sds are unchanged."""
+        table = self.shares.copy()
+        if len(table):
+            at = np.clip(shares[table["stream"].map(stream_index).to_numpy(), table["class_index"].to_numpy(int)], 0.0, None)
+            modelled = table["relative"].notna().to_numpy()
+            sd = np.sqrt((table["relative"].to_numpy(float) * at) ** 2 + table["absolute"].to_numpy(float) ** 2)
+            table["sd"] = np.where(modelled, sd, table["sd"].to_numpy(float))
+            table["at"] = at
+        flow_table = self.flows.copy()
+        if len(flow_table):
+            modelled = flow_table["relative"].notna().to_numpy()
+            reconciled = flows[flow_table["stream"].map(stream_index).to_numpy()]
+            flow_table["sd"] = np.where(modelled, flow_table["relative"].to_numpy(float) * reconciled, flow_table["sd"])
+        return replace(self, shares=table, flows=flow_table)
 
 
 def read_survey(
@@ -283,7 +317,9 @@ def read_survey(
     has_class = np.isfinite(lower) | np.isfinite(upper)
     classes, class_of_row = _tiled_classes(table, lower, upper, has_class, size_columns)
     shares, normalised = _shares(table, names, has_class, class_of_row, len(classes), values_given, errors)
-    flows = _stream_values(table, names, "solids_flow", "solids_flow_sd", lambda v: errors.flow_relative_error * v)
+    flows = _stream_values(
+        table, names, "solids_flow", "solids_flow_sd", lambda v: errors.flow_relative_error * v, errors.flow_relative_error
+    )
     pct = _stream_values(table, names, "pct_solids", "pct_solids_sd", lambda v: np.full_like(v, errors.pct_solids_sd))
     implausible = flows[(flows["value"] > 0) & (flows["sd"] > MAX_RELATIVE_ERROR * flows["value"])]
     if len(implausible):
@@ -326,6 +362,7 @@ def read_survey(
         source=table.source,
         closed_streams=normalised,
         unmeasured=unmeasured,
+        evaluated_at=errors.evaluated_at,
     )
 
 
@@ -462,7 +499,7 @@ def _representative(table: Table, lower, upper) -> np.ndarray:
 
 
 def _shares(table, names, has_class, class_of_row, n_classes, values_given, errors: ErrorModel) -> pd.DataFrame:
-    columns = ["stream", "class_index", "value", "sd", "row"]
+    columns = SHARE_COLUMNS
     if not values_given:
         if has_class.any():
             raise InputError(
@@ -560,10 +597,11 @@ def _shares(table, names, has_class, class_of_row, n_classes, values_given, erro
                 index=i,
                 column="retained_sd",
             )
-        for i, x, s in zip(rows, share, sd):
-            records.append(
-                {"stream": stream, "class_index": int(class_of_row[i]), "value": x, "sd": s, "row": int(table.rows[i])}
-            )
+        explicit = np.isfinite(row_sd[rows])
+        for i, x, s, r_i, a_i, given_sd in zip(rows, share, sd, r, a, explicit):
+            records.append({"stream": stream, "class_index": int(class_of_row[i]), "value": x, "sd": s,
+                            "row": int(table.rows[i]), "relative": np.nan if given_sd else r_i,
+                            "absolute": np.nan if given_sd else a_i})  # fmt: skip
     return pd.DataFrame(records, columns=columns), tuple(normalised)
 
 
@@ -571,8 +609,10 @@ def _optional(table: Table, column: str, n: int) -> np.ndarray:
     return table.numeric(column, allow_blank=True) if column in table.frame.columns else np.full(n, np.nan)
 
 
-def _stream_values(table: Table, names, column: str, sd_column: str, default_sd) -> pd.DataFrame:
-    columns = ["stream", "value", "sd", "row"]
+def _stream_values(table: Table, names, column: str, sd_column: str, default_sd, relative=np.nan) -> pd.DataFrame:
+    """One value per stream of ``column`` with its sd (``sd_column``, else ``default_sd``);
+    ``relative`` is the error model's relative error of a value without a given sd."""
+    columns = STREAM_VALUE_COLUMNS
     if column not in table.frame.columns:
         if sd_column in table.frame.columns and table.frame[sd_column].notna().any():
             raise InputError(f"column '{sd_column}' without '{column}'", source=table.source, column=sd_column)
@@ -605,5 +645,6 @@ def _stream_values(table: Table, names, column: str, sd_column: str, default_sd)
             raise table.error(
                 f"stream '{stream}': a solids flow fixed at 0 leaves no stream to balance", index=int(first), column=column
             )
-        records.append({"stream": stream, "value": float(values[first]), "sd": float(sd), "row": int(table.rows[first])})
+        records.append({"stream": stream, "value": float(values[first]), "sd": float(sd), "row": int(table.rows[first]),
+                        "relative": np.nan if np.isfinite(sds[first]) else relative})  # fmt: skip
     return pd.DataFrame(records, columns=columns)

@@ -117,13 +117,18 @@ class Problem:
 
 
 def solve(problem: Problem, start: np.ndarray) -> tuple[np.ndarray, bool, str]:
-    """The weighted least squares in the free unknowns ``z``, started from ``start`` projected onto the constraints."""
+    """The weighted least squares in the free unknowns ``z``, started from ``start`` projected onto the constraints.
+
+    Directions that no measurement sees (water flows the survey leaves undetermined) keep
+    their starting values: the solver's rounding would otherwise let them wander without bound.
+    """
     z0 = problem.N.T @ (start - problem.m0)
     if not (problem.N.shape[1] and problem.y.size):
         return z0, True, "nothing to adjust"
     solution = optimize.least_squares(problem.whitened_residual, z0, jac=problem.whitened_jacobian, method="lm",
                                       x_scale="jac", xtol=1e-14, ftol=1e-14, gtol=1e-12, max_nfev=2000)  # fmt: skip
-    return solution.x, bool(solution.success), str(solution.message)
+    unseen = decompose(problem, solution.x).unseen
+    return solution.x - unseen @ (unseen.T @ (solution.x - z0)), bool(solution.success), str(solution.message)
 
 
 def bounded_solution(problem: Problem, fitted: np.ndarray) -> tuple[tuple[int, ...], np.ndarray]:
@@ -298,12 +303,12 @@ def _measurement_covariance(shares: pd.DataFrame, sd: np.ndarray, closed) -> tup
     pieces = []
     done = np.zeros(sd.size, dtype=bool)
     streams = shares["stream"].to_numpy()
-    values = shares["value"].to_numpy(float)
+    values = shares["at" if "at" in shares.columns else "value"].to_numpy(float)  # where the closure is linearised
     for stream in closed:
         where = np.flatnonzero(streams == stream)
         if where.size == 0:
             continue
-        x = values[where]
+        x = values[where] / values[where].sum()  # the point of the closure: it sums to 1, as a closed analysis
         P = np.eye(where.size) - np.outer(x, np.ones(where.size))
         block = P @ np.diag(sd[where] ** 2) @ P.T
         cov[np.ix_(where, where)] = block

@@ -71,6 +71,7 @@ from ..loading.points import TrompPoints
 from ..options import DEFAULT_ALPHA, DEFAULT_MIN_FEED_SHARE
 from ..validation import check_probability
 from . import plotting
+from .elimination import nodal_tests, proposal, serial_elimination, without
 from .flowsheet import Flowsheet, read_flowsheet
 from .measurements import ErrorModel, Survey, read_survey
 from .problem import (
@@ -92,6 +93,9 @@ MIN_FEED_SHARE = DEFAULT_MIN_FEED_SHARE
 #: Adjustments correlated beyond this are reported as indistinguishable: a gross error in one
 #: of them moves the others' standardised adjustments alike, so no test can tell which it is.
 EQUIVALENT_CORRELATION = 0.99
+#: The error model at the reconciled values has settled when no sd moves by more than this share of itself.
+ERROR_MODEL_TOLERANCE = 1e-6
+MAX_ERROR_MODEL_ITERATIONS = 50
 DISTRIBUTION_COLUMNS = ["stream", "size_lower", "size_upper", "size", "measured", "measured_sd", "reconciled",
                         "reconciled_sd"]  # fmt: skip
 PARTITION_COLUMNS = ["experiment", "size_lower", "size_upper", "size", "feed_share", "partition_fine", "partition_sd",
@@ -147,6 +151,8 @@ class CircuitBalance:
     at_bound: tuple[int, ...] = field(default=(), repr=False, compare=False)
     #: The whitened Jacobian at ``fitted`` split by the reconciliation's one rank decision.
     decomposition: Decomposition | None = field(default=None, repr=False, compare=False)
+    #: The measurements left out on request (``exclude=`` of :func:`reconcile`).
+    excluded: tuple[str, ...] = field(default=(), compare=False)
 
     @property
     def has_size_classes(self) -> bool:
@@ -394,7 +400,7 @@ class CircuitBalance:
                 "measurement": [
                     f"{self.streams[s]} {_MEASURED_QUANTITY[k]}"
                     if k != "share"
-                    else f"{self.streams[s]} class {_class_name(classes, i)}"
+                    else f"{self.streams[s]} class {class_name(classes, i)}"
                     for s, i, k in zip(problem.stream, problem.klass, problem.kinds)
                 ],
                 "stream": [self.streams[s] for s in problem.stream],
@@ -506,6 +512,20 @@ class CircuitBalance:
         suspects = suspects.reindex(suspects["measurement_test"].abs().sort_values(ascending=False).index)
         suspects.insert(0, "rank", np.arange(1, len(suspects) + 1))
         return suspects.reset_index(drop=True)
+
+    @cached_property
+    def _elimination(self) -> pd.DataFrame:
+        return serial_elimination(self)
+
+    def elimination_table(self) -> pd.DataFrame:
+        """Serial elimination with compensation (:func:`~tromplab.circuit.elimination.serial_elimination`):
+        row 0 the survey as reconciled, then one row per measurement compensated, with the
+        global test after the step.  A proposal: nothing in this balance is changed."""
+        return self._elimination.copy()
+
+    def nodal_tests_table(self) -> pd.DataFrame:
+        """The nodal test of every node and class balance in the raw data (:func:`~tromplab.circuit.elimination.nodal_tests`)."""
+        return nodal_tests(self)
 
     def largest_adjustments(self, n: int = 5) -> pd.DataFrame:
         """The ``n`` measurements with the largest absolute measurement tests (suspect or not)."""
@@ -655,6 +675,8 @@ class CircuitBalance:
             + (f"; flows relative to {self.basis}" if self.basis else ""),
         ]
         lines += self._survey_notes()
+        if self.excluded:
+            lines.append(f"left out on request (exclude): {', '.join(self.excluded)}")
         if self.balances_water:
             water = self.water_table()
             free = water.loc[~water["determined"], "stream"].tolist()
@@ -675,6 +697,9 @@ class CircuitBalance:
                 for r in suspects.head(5).itertuples()
             )
             lines.append(f"suspected gross errors (|measurement test| > {self.measurement_test_critical:.2f}): {listed}")
+        if self.rejected:
+            words = proposal(self._elimination, self.alpha)
+            lines.append(words or "serial elimination finds no testable measurement to compensate")
         return "\n".join(lines)
 
     def __str__(self) -> str:
@@ -689,7 +714,7 @@ class CircuitBalance:
         blank = self.survey.unmeasured
         if len(blank):
             listed = "; ".join(
-                f"{r.stream} class {_class_name(classes, int(r.class_index))} (row {r.row})" for r in blank.head(8).itertuples()
+                f"{r.stream} class {class_name(classes, int(r.class_index))} (row {r.row})" for r in blank.head(8).itertuples()
             )
             more = f" and {len(blank) - 8} more" if len(blank) > 8 else ""
             lines.append(f"not measured (blank or NaN value in the table): {listed}{more}")
@@ -697,7 +722,7 @@ class CircuitBalance:
             lines.append("every measurement is exact (standard deviation 0): nothing to adjust, nothing to test")
         held = self.held_at_zero
         if held:
-            listed = "; ".join(f"{stream} {'water' if i < 0 else 'class ' + _class_name(classes, i)}" for stream, i in held[:8])
+            listed = "; ".join(f"{stream} {'water' if i < 0 else 'class ' + class_name(classes, i)}" for stream, i in held[:8])
             lines.append(
                 f"held at 0 (the least squares would make them negative; the tests and sds are those without the bound): {listed}"
             )
@@ -721,6 +746,38 @@ class CircuitBalance:
 _MEASURED_QUANTITY = {"flow": "flow", "pct": "per cent solids"}
 
 
+def _errors_at_reconciled(flowsheet: Flowsheet, survey: Survey, problem: Problem, z: np.ndarray):
+    """Evaluate the error model at the reconciled shares and flows and reconcile again, until
+    no standard deviation moves by more than :data:`ERROR_MODEL_TOLERANCE` of itself.
+
+    Returns ``(survey, problem, z, success, message)`` of the last reconciliation; the survey
+    holds the standard deviations it used.
+    """
+    S, n = problem.n_streams, problem.n_classes
+    success, message = True, ""
+    for _ in range(MAX_ERROR_MODEL_ITERATIONS):
+        v = problem.m0 + problem.N @ z
+        class_flows = v[: S * n].reshape(S, n)
+        flows = class_flows.sum(axis=1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            shares = np.where(flows[:, None] > 0, class_flows / flows[:, None], 0.0)
+        evaluated = survey.with_errors_at(shares, np.clip(flows, 0.0, None), flowsheet.stream_index)
+        before = np.concatenate([survey.shares["sd"].to_numpy(float), survey.flows["sd"].to_numpy(float)])
+        after = np.concatenate([evaluated.shares["sd"].to_numpy(float), evaluated.flows["sd"].to_numpy(float)])
+        survey = evaluated
+        problem, _ = build_problem(flowsheet, survey)
+        z, success, message = solve(problem, v)
+        if np.all(np.abs(after - before) <= ERROR_MODEL_TOLERANCE * np.maximum(before, 1e-300)):
+            return survey, problem, z, success, message
+    return (
+        survey,
+        problem,
+        z,
+        False,
+        f"the error model at the reconciled values did not settle in {MAX_ERROR_MODEL_ITERATIONS} rounds",
+    )
+
+
 def _partition_flags(feed_share: np.ndarray, phi: np.ndarray, at_bound: np.ndarray) -> tuple[list, list]:
     """``used`` and ``flag`` of each class of a separator: too little feed or a partition outside
     0..1 (not used), or a product's class flow held at its bound 0 (used, said)."""
@@ -738,7 +795,8 @@ def _partition_flags(feed_share: np.ndarray, phi: np.ndarray, at_bound: np.ndarr
     return used, flags
 
 
-def _class_name(classes: pd.DataFrame, i: int) -> str:
+def class_name(classes: pd.DataFrame, i: int) -> str:
+    """Class ``i`` as the tables name it: ``+600`` (open top), ``-600+300``, ``-38`` (the pan)."""
     lower, upper = classes["size_lower"].iloc[i], classes["size_upper"].iloc[i]
     if not np.isfinite(upper):
         return f"+{lower:g}"
@@ -754,6 +812,7 @@ def reconcile(
     errors: ErrorModel | None = None,
     alpha: float = DEFAULT_ALPHA,
     size_unit: str | None = None,
+    exclude=(),
 ) -> CircuitBalance:
     """Reconcile a circuit survey: flows and size distributions that close every node balance.
 
@@ -770,6 +829,11 @@ def reconcile(
         Significance level of the chi-square test and of the measurement test.
     size_unit : str, optional
         Unit of the sizes when the table's size columns carry none.
+    exclude : iterable of str or str, optional
+        Measurements left out: ``"STREAM"`` (all of the stream's), ``"STREAM:flow"``,
+        ``"STREAM:pct_solids"`` or ``"STREAM:CLASS"`` (``"cyclone_feed:-150+75"``); a
+        comma-separated string is split.  What :meth:`CircuitBalance.elimination_table`
+        proposes, acted on.
 
     Returns
     -------
@@ -802,10 +866,17 @@ def reconcile(
         if isinstance(measurements, Survey)
         else read_survey(measurements, flowsheet, errors=errors, size_unit=size_unit)
     )
+    entries = exclude.split(",") if isinstance(exclude, str) else exclude or ()
+    excluded = tuple(str(entry).strip() for entry in entries if str(entry).strip())
+    if excluded:
+        names = [class_name(survey.classes, i) for i in range(survey.n_classes)]
+        survey = without(survey, excluded, flowsheet.stream_names, names)
     problem, basis = build_problem(flowsheet, survey)
     start = starting_point(flowsheet, survey, problem)
     check_observable(flowsheet, survey, problem, start)
     z, success, message = solve(problem, start)
+    if survey.evaluated_at == "reconciled":
+        survey, problem, z, success, message = _errors_at_reconciled(flowsheet, survey, problem, z)
     fitted = problem.m0 + problem.N @ z
     chi, decomposition, covariance = linearised(problem, z)
     held, v = bounded_solution(problem, fitted)
@@ -830,4 +901,5 @@ def reconcile(
         fitted=fitted,
         at_bound=held,
         decomposition=decomposition,
+        excluded=excluded,
     )

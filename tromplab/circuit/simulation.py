@@ -37,7 +37,7 @@ import pandas as pd
 
 from ..curves.formulas import get_formula
 from .flowsheet import Flowsheet, read_flowsheet
-from .measurements import ErrorModel, Survey
+from .measurements import SHARE_COLUMNS, STREAM_VALUE_COLUMNS, ErrorModel, Survey, read_survey
 from .reconciliation import reconcile
 
 
@@ -254,28 +254,22 @@ def simulate_survey(
         if gross is not None and gross[0] == stream and gross[1] >= 0:
             value[gross[1]] += gross[2] * errors.share_sd(x[gross[1]], stream)
         value = value / value.sum()  # a closed analysis, normalised as the lab reports it
+        relative, absolute = errors.streams.get(stream, (errors.relative_error, errors.absolute_error))
         for i in range(x.size):
-            records.append(
-                {
-                    "stream": stream,
-                    "class_index": i,
-                    "value": value[i],
-                    "sd": float(errors.share_sd(value[i], stream)),
-                    "row": None,
-                }
-            )
+            records.append({"stream": stream, "class_index": i, "value": value[i], "sd": float(errors.share_sd(value[i], stream)),
+                            "row": None, "relative": relative, "absolute": absolute})  # fmt: skip
     flow_records = []
     for stream, relative in (flows or {}).items():
         true = truth.flows[truth.flowsheet.stream_index[stream]]
         value = true * (1.0 + relative * rng.standard_normal())
         if gross is not None and gross[0] == stream and gross[1] < 0:
             value = value / (1.0 - gross[2] * relative)  # shifted by gross[2] times its stated sd, relative * value
-        flow_records.append({"stream": stream, "value": value, "sd": relative * value, "row": None})
-    shares = pd.DataFrame(records, columns=["stream", "class_index", "value", "sd", "row"])
-    flow_table = pd.DataFrame(flow_records, columns=["stream", "value", "sd", "row"])
-    empty = pd.DataFrame(columns=["stream", "value", "sd", "row"])
+        flow_records.append({"stream": stream, "value": value, "sd": relative * value, "row": None, "relative": relative})
+    shares = pd.DataFrame(records, columns=SHARE_COLUMNS)
+    flow_table = pd.DataFrame(flow_records, columns=STREAM_VALUE_COLUMNS)
+    empty = pd.DataFrame(columns=STREAM_VALUE_COLUMNS)
     return Survey(classes=truth.classes, shares=shares, flows=flow_table, pct_solids=empty, size_unit=truth.size_unit,
-                  source="simulated survey", closed_streams=tuple(measured))  # fmt: skip
+                  source="simulated survey", closed_streams=tuple(measured), evaluated_at=errors.evaluated_at)  # fmt: skip
 
 
 def survey_table(survey: Survey, *, decimals: int | None = 2) -> pd.DataFrame:
@@ -324,23 +318,41 @@ class StudyResult:
         return self.rejected / self.surveys
 
 
-def reconciliation_study(truth: CircuitTruth, n_surveys: int, rng, *, flows: dict | None = None) -> StudyResult:
-    """Reconcile ``n_surveys`` surveys drawn from ``truth`` with the stated error model
-    (:func:`simulate_survey`) and count what the validation of ``docs/circuit.md`` reports:
-    chi-square rejections, 95 % interval coverage of the reconciled shares and flows, and the
-    squared errors of the measured and the reconciled shares against the truth."""
+def lab_survey(
+    truth: CircuitTruth,
+    rng: np.random.Generator,
+    *,
+    errors: ErrorModel | None = None,
+    flows: dict | None = None,
+    gross: tuple | None = None,
+    measured: tuple[str, ...] | None = None,
+) -> Survey:
+    """A simulated survey as a lab reports it: drawn by :func:`simulate_survey`, written as a
+    measurement table with the shares clipped at 0 and rounded to 0.01 % (:func:`survey_table`)
+    and read back through :func:`~tromplab.circuit.measurements.read_survey` with ``errors``."""
+    drawn = simulate_survey(truth, rng, errors=errors, flows=flows, gross=gross, measured=measured)
+    return read_survey(survey_table(drawn), truth.flowsheet, errors=errors, size_unit=truth.size_unit)
+
+
+def reconciliation_study(
+    truth: CircuitTruth, n_surveys: int, rng, *, flows: dict | None = None, errors: ErrorModel | None = None
+) -> StudyResult:
+    """Reconcile ``n_surveys`` surveys of ``truth`` as a lab reports them (:func:`lab_survey`)
+    and count what the validation of ``docs/circuit.md`` reports: chi-square rejections, 95 %
+    interval coverage of the reconciled shares and flows, and the squared errors of the measured
+    and the reconciled shares against the truth."""
     rejected = covered = checked = 0
     measured_error = reconciled_error = 0.0
     dof = 0
     for _ in range(n_surveys):
-        survey = simulate_survey(truth, rng, flows=flows or {})
+        survey = lab_survey(truth, rng, errors=errors, flows=flows or {})
         balance = reconcile(truth.flowsheet, survey)
         rejected += int(balance.rejected)
         dof = balance.dof
         streams = survey.shares["stream"].map(truth.flowsheet.stream_index).to_numpy()
-        classes = survey.shares["class_index"].to_numpy()
+        classes = survey.shares["class_index"].to_numpy(int)
         true = truth.shares[streams, classes]
-        measured_error += float(np.sum((survey.shares["value"].to_numpy() - true) ** 2))
+        measured_error += float(np.sum((survey.shares["value"].to_numpy(float) - true) ** 2))
         reconciled_error += float(np.sum((balance.shares[streams, classes] - true) ** 2))
         scale = balance.flows[0] / truth.flows[0] if not flows else 1.0  # without a flowmeter, flows are relative
         values = np.concatenate([balance.shares.ravel(), balance.flows])
