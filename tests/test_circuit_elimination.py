@@ -125,3 +125,27 @@ def test_on_lab_reported_surveys_the_reconciled_error_model_names_upward_slips_t
     assert measured <= 0.03 and reconciled >= 0.05, (measured, reconciled)
     null = bench.null_study("grinding circuit", "reconciled", 80, 3)
     assert 0.01 <= null["chi_square_rejection_5pct"] <= 0.10 and 0.92 <= null["coverage_95"] <= 0.98
+
+
+def test_what_each_measurement_is_worth_adds_up_to_each_results_variance():
+    """worth.csv: the shifts per sd of every raw measurement error make up the delta-method
+    variance of each result, the shares sum to 1, and a measurement no balance checks is just
+    determined (redundancy 0) while the others are redundant (redundancy in 0..1)."""
+    truth = grinding_circuit()
+    balance = reconcile(truth.flowsheet, lab_survey(truth, np.random.default_rng(2), flows={"fresh_feed": 0.02}))
+    table = balance.worth_table()
+    load = table[table["result"] == "circulating load cyclone"]
+    index = truth.flowsheet.stream_index
+    gradient = np.zeros(balance.covariance.shape[0])
+    n = balance.class_flows.shape[1]
+    u, o = index["cyclone_underflow"], index["cyclone_overflow"]
+    gradient[u * n : (u + 1) * n] = 1.0 / balance.flows[o]
+    gradient[o * n : (o + 1) * n] = -balance.flows[u] / balance.flows[o] ** 2
+    assert np.sqrt(np.sum(load["shift_per_sd"] ** 2)) == pytest.approx(
+        np.sqrt(gradient @ balance.covariance @ gradient), rel=1e-9
+    )
+    assert load["result_value"].iloc[0] == pytest.approx(balance.flows[u] / balance.flows[o])
+    assert table.groupby("result")["variance_share"].sum().to_numpy() == pytest.approx(1.0)
+    fresh = table[(table["stream"] == "fresh_feed") & (table["kind"] == "share")]
+    assert (fresh["solvability"] == "just determined").all() and (fresh["redundancy"] == 0).all()
+    assert table.loc[table["solvability"] == "redundant", "redundancy"].between(0, 1).all()

@@ -98,6 +98,7 @@ def run_circuit(
     -----
     Files: ``flows.csv``, ``distributions.csv``, ``adjustments.csv``, ``gross_errors.csv``,
     ``elimination.csv`` (serial elimination with compensation: a proposal), ``nodal_tests.csv``,
+    ``worth.csv`` (each measurement's solvability, redundancy and influence on the results),
     ``chi_square.csv``, ``degrees_of_freedom.csv``, ``partition.csv`` (with standard
     deviations), ``points.csv`` (Tromp-points schema with weights, what ``tromplab fit``
     reads), the flowsheet as read (``flowsheet.csv``), ``summary.txt``; figures
@@ -119,6 +120,7 @@ def run_circuit(
         "gross_errors": balance.gross_errors_table(),
         "elimination": balance.elimination_table(),
         "nodal_tests": balance.nodal_tests_table(),
+        "worth": balance.worth_table(),
         "chi_square": balance.chi_square_table(),
         "degrees_of_freedom": balance.degrees_of_freedom_table(),
         "partition": balance.partition_table(),

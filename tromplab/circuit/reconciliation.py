@@ -86,6 +86,7 @@ from .problem import (
     solve,
     starting_point,
 )
+from .worth import worth_table
 
 #: Separator classes whose feed share (of the separator's feed) is below this are written to
 #: points.csv as not used (partition not meaningful), as lab tables flag them.
@@ -526,6 +527,12 @@ class CircuitBalance:
     def nodal_tests_table(self) -> pd.DataFrame:
         """The nodal test of every node and class balance in the raw data (:func:`~tromplab.circuit.elimination.nodal_tests`)."""
         return nodal_tests(self)
+
+    def worth_table(self) -> pd.DataFrame:
+        """What each measurement is worth (:func:`~tromplab.circuit.worth.worth_table`): its
+        solvability class and redundancy, and its influence on every separator's fine yield,
+        partition per class and circulating load."""
+        return worth_table(self)
 
     def largest_adjustments(self, n: int = 5) -> pd.DataFrame:
         """The ``n`` measurements with the largest absolute measurement tests (suspect or not)."""
