@@ -39,7 +39,7 @@ import pandas as pd
 from scipy import stats
 
 from ..errors import OptionError
-from .measurements import Survey
+from .measurements import Survey, class_name
 
 #: Columns of the elimination table (``DIR/elimination.csv``).
 ELIMINATION_COLUMNS = ["step", "stream", "kind", "size_class", "estimated_error", "estimated_error_sd", "chi_square", "dof",
@@ -51,7 +51,7 @@ EXCLUDE_KINDS = {"flow": "flow", "pct_solids": "pct"}
 _KIND_NAMES = {"share": "share", "flow": "flow", "pct": "pct_solids"}
 
 
-def serial_elimination(balance, *, max_steps: int | None = None) -> pd.DataFrame:
+def serial_elimination(balance, reconcile, *, max_steps: int | None = None) -> pd.DataFrame:
     """The steps of serial elimination with compensation, from the reconciled ``balance``.
 
     Row 0 is the survey as reconciled; row k names the measurement compensated at step k,
@@ -61,6 +61,8 @@ def serial_elimination(balance, *, max_steps: int | None = None) -> pd.DataFrame
     Parameters
     ----------
     balance : CircuitBalance
+    reconcile : callable
+        :func:`~tromplab.circuit.reconciliation.reconcile`, which reconciles each compensated survey.
     max_steps : int, optional
         At most this many steps (default: as many as the redundancy allows).
 
@@ -69,8 +71,6 @@ def serial_elimination(balance, *, max_steps: int | None = None) -> pd.DataFrame
     pandas.DataFrame
         :data:`ELIMINATION_COLUMNS`.
     """
-    from .reconciliation import reconcile  # the balance's own module: reconcile the compensated survey
-
     rows = [_row(0, None, balance.chi_square, balance.dof)]
     current, dof = balance, balance.dof
     limit = balance.dof if max_steps is None else min(max_steps, balance.dof)
@@ -198,8 +198,6 @@ def nodal_tests(balance) -> pd.DataFrame:
     pandas.DataFrame
         :data:`NODAL_COLUMNS`; ``balance`` is ``class`` or ``total``.
     """
-    from .reconciliation import class_name
-
     survey, sheet = balance.survey, balance.flowsheet
     flows = balance.flows
     measured = {(r.stream, r.class_index): (r.value, r.sd) for r in survey.shares.itertuples()}

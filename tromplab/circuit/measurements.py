@@ -648,3 +648,13 @@ def _stream_values(table: Table, names, column: str, sd_column: str, default_sd,
         records.append({"stream": stream, "value": float(values[first]), "sd": float(sd), "row": int(table.rows[first]),
                         "relative": np.nan if np.isfinite(sds[first]) else relative})  # fmt: skip
     return pd.DataFrame(records, columns=columns)
+
+
+def class_name(classes: pd.DataFrame, i: int) -> str:
+    """Class ``i`` as the tables name it: ``+600`` (open top), ``-600+300``, ``-38`` (the pan)."""
+    lower, upper = classes["size_lower"].iloc[i], classes["size_upper"].iloc[i]
+    if not np.isfinite(upper):
+        return f"+{lower:g}"
+    if not np.isfinite(lower):
+        return f"-{upper:g}"
+    return f"-{upper:g}+{lower:g}"

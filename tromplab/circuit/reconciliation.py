@@ -73,7 +73,7 @@ from ..validation import check_probability
 from . import plotting
 from .elimination import nodal_tests, proposal, serial_elimination, without
 from .flowsheet import Flowsheet, read_flowsheet
-from .measurements import ErrorModel, Survey, read_survey
+from .measurements import ErrorModel, Survey, class_name, read_survey
 from .problem import (
     Decomposition,
     Problem,
@@ -516,7 +516,7 @@ class CircuitBalance:
 
     @cached_property
     def _elimination(self) -> pd.DataFrame:
-        return serial_elimination(self)
+        return serial_elimination(self, reconcile)
 
     def elimination_table(self) -> pd.DataFrame:
         """Serial elimination with compensation (:func:`~tromplab.circuit.elimination.serial_elimination`):
@@ -800,16 +800,6 @@ def _partition_flags(feed_share: np.ndarray, phi: np.ndarray, at_bound: np.ndarr
             used.append(True)
             flags.append("a product's class flow held at 0 (the least squares would make it negative)" if bound else "")
     return used, flags
-
-
-def class_name(classes: pd.DataFrame, i: int) -> str:
-    """Class ``i`` as the tables name it: ``+600`` (open top), ``-600+300``, ``-38`` (the pan)."""
-    lower, upper = classes["size_lower"].iloc[i], classes["size_upper"].iloc[i]
-    if not np.isfinite(upper):
-        return f"+{lower:g}"
-    if not np.isfinite(lower):
-        return f"-{upper:g}"
-    return f"-{upper:g}+{lower:g}"
 
 
 def reconcile(
