@@ -99,6 +99,7 @@ def run_circuit(
     Files: ``flows.csv``, ``distributions.csv``, ``adjustments.csv``, ``gross_errors.csv``,
     ``elimination.csv`` (serial elimination with compensation: a proposal), ``nodal_tests.csv``,
     ``worth.csv`` (each measurement's solvability, redundancy and influence on the results),
+    ``design.csv`` (the measurements one could add, ranked by the predicted reduction of sds),
     ``chi_square.csv``, ``degrees_of_freedom.csv``, ``partition.csv`` (with standard
     deviations), ``points.csv`` (Tromp-points schema with weights, what ``tromplab fit``
     reads), the flowsheet as read (``flowsheet.csv``), ``summary.txt``; figures
@@ -121,6 +122,7 @@ def run_circuit(
         "elimination": balance.elimination_table(),
         "nodal_tests": balance.nodal_tests_table(),
         "worth": balance.worth_table(),
+        "design": balance.design_table(),
         "chi_square": balance.chi_square_table(),
         "degrees_of_freedom": balance.degrees_of_freedom_table(),
         "partition": balance.partition_table(),

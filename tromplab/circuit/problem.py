@@ -303,7 +303,10 @@ def _measurement_covariance(shares: pd.DataFrame, sd: np.ndarray, closed) -> tup
     pieces = []
     done = np.zeros(sd.size, dtype=bool)
     streams = shares["stream"].to_numpy()
-    values = shares["at" if "at" in shares.columns else "value"].to_numpy(float)  # where the closure is linearised
+    values = shares["value"].to_numpy(float)
+    if "at" in shares.columns:  # where the error model was evaluated: the closure is linearised there too
+        at = shares["at"].to_numpy(float)
+        values = np.where(np.isfinite(at), at, values)
     for stream in closed:
         where = np.flatnonzero(streams == stream)
         if where.size == 0:

@@ -71,6 +71,7 @@ from ..loading.points import TrompPoints
 from ..options import DEFAULT_ALPHA, DEFAULT_MIN_FEED_SHARE
 from ..validation import check_probability
 from . import plotting
+from .design import design_table
 from .elimination import nodal_tests, proposal, serial_elimination, without
 from .flowsheet import Flowsheet, read_flowsheet
 from .measurements import ErrorModel, Survey, class_name, read_survey
@@ -534,6 +535,16 @@ class CircuitBalance:
         partition per class and circulating load."""
         return worth_table(self)
 
+    @cached_property
+    def _design(self) -> pd.DataFrame:
+        return design_table(self)
+
+    def design_table(self) -> pd.DataFrame:
+        """Survey design advice (:func:`~tromplab.circuit.design.design_table`): the measurements
+        one could add, ranked by how much they would lower the sd of each separator's partition
+        at its cut and of each circulating load, predicted from the linearised covariance."""
+        return self._design.copy()
+
     def largest_adjustments(self, n: int = 5) -> pd.DataFrame:
         """The ``n`` measurements with the largest absolute measurement tests (suspect or not)."""
         table = self._adjustments.dropna(subset=["measurement_test"])
@@ -704,6 +715,13 @@ class CircuitBalance:
                 for r in suspects.head(5).itertuples()
             )
             lines.append(f"suspected gross errors (|measurement test| > {self.measurement_test_critical:.2f}): {listed}")
+        design = self._design
+        if len(design):
+            top = design.iloc[0]
+            lines.append(
+                f"the measurement that would help most: {top.measurement} of {top.stream} (sd of {top.quantity} "
+                f"{top.sd_before:.3g} -> {top.sd_after:.3g}, predicted; design.csv ranks them all)"
+            )
         if self.rejected:
             words = proposal(self._elimination, self.alpha)
             lines.append(words or "serial elimination finds no testable measurement to compensate")
