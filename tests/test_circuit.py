@@ -488,20 +488,25 @@ def test_simulated_surveys_reconciled_closer_to_the_truth_covered_and_tested_at_
 
 
 @pytest.mark.slow
-def test_a_planted_five_sd_gross_error_in_a_flowmeter_is_named_first():
+@pytest.mark.parametrize("evaluated_at, least", [("measured", 0.90), ("reconciled", 0.82)])
+def test_a_planted_five_sd_gross_error_in_a_flowmeter_is_named_first(evaluated_at, least):
     """Example plant with a 1 % belt scale on the feed and 10 % flowmeters on three products:
-    a 5-sd error in one flowmeter is named first by the measurement test in >= 90 % of surveys."""
+    a 5-sd error (5 sds of the value written) in one flowmeter is named first by the measurement
+    test in >= 90 % of surveys with the error model at the measured values, and >= 82 % at the
+    reconciled values (whose sd of a meter that reads low is larger than the sd the slip was
+    measured in; docs/circuit.md gives 1,000-survey rates)."""
     truth = example_plant()
     flows = {"screen_feed": 0.01, "oversize": 0.10, "middlings": 0.10, "cyclone_overflow": 0.10}
     rng = np.random.default_rng(3)
+    errors = ErrorModel(evaluated_at=evaluated_at)
     named, n_surveys = 0, 150
     for _ in range(n_surveys):
         stream = ("oversize", "middlings", "cyclone_overflow")[rng.integers(3)]
         sign = rng.choice([-1.0, 1.0])
-        balance = reconcile(truth.flowsheet, simulate_survey(truth, rng, flows=flows, gross=(stream, -1, 5.0 * sign)))
-        first = balance.largest_adjustments(1).iloc[0]
+        survey = simulate_survey(truth, rng, flows=flows, gross=(stream, -1, 5.0 * sign), errors=errors)
+        first = reconcile(truth.flowsheet, survey).largest_adjustments(1).iloc[0]
         named += first["stream"] == stream and first["class_index"] == -1
-    assert named / n_surveys >= 0.90, named / n_surveys
+    assert named / n_surveys >= least, named / n_surveys
 
 
 def _exact_survey_with_raw_error(truth, stream: str, klass: int, error: float):
