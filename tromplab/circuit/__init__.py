@@ -1,9 +1,9 @@
 """Plant surveys: reconcile a whole circuit's size analyses, then give every separator its
-partition curve (issue 25).
+partition curve.
 
 ``tromplab.circuit.reconcile(flowsheet, measurements)`` returns a
-:class:`~tromplab.circuit.reconciliation.CircuitBalance`; ``tromplab circuit`` is the
-command.  The method, the error model and the validation are in ``docs/circuit.md``.
+:class:`~tromplab.circuit.reconciliation.CircuitBalance` (balance, tests, serial elimination,
+what each measurement is worth, survey design advice); ``tromplab circuit`` is the command.  The method, the error model and the validation are in ``docs/circuit.md``.
 """
 
 from .flowsheet import Flowsheet, Node, Stream, flowsheet_from_streams, read_flowsheet
