@@ -419,6 +419,7 @@ def test_exact_per_cent_solids_give_the_dilution_ratio_circulating_load():
     np.testing.assert_allclose(water.loc[list(pct), "pct_solids"], list(pct.values()), rtol=1e-9)
     assert not water.loc["mill_water", "determined"]  # fresh feed's per cent solids not given: only the sum is known
     assert "not determined" in water.loc["mill_water", "note"] and "mill_water" in balance.summary()
+    assert "the per cent solids of fresh_feed would determine it" in water.loc["mill_water", "note"]
 
 
 def test_per_cent_solids_recover_the_true_water_flows_and_sharpen_the_split():

@@ -132,6 +132,30 @@ def _pseudo_inverse(J: np.ndarray, extra: np.ndarray) -> np.ndarray:
     return (Vt[:rank].T / singular[:rank] ** 2) @ Vt[:rank]
 
 
+def water_determined_by(balance, gradients: np.ndarray, tolerance: float) -> list[list[str]]:
+    """For each row of ``gradients`` (a water flow the survey leaves free, as a gradient in the
+    unknowns): the solids streams whose per cent solids, measured as well, would determine it."""
+    problem, v = balance.problem, balance._test_point
+    S, n = problem.n_streams, problem.n_classes
+    J = problem.W @ problem.jacobian(v) @ problem.N
+    flows = v[: S * n].reshape(S, n).sum(axis=1)
+    measured = set(balance.survey.pct_solids["stream"])
+    found = [[] for _ in range(len(gradients))]
+    for s, stream in enumerate(balance.flowsheet.stream_names):
+        if stream in measured:
+            continue
+        water, total = v[S * n + s], flows[s] + v[S * n + s]
+        row = np.zeros(v.size)
+        row[s * n : (s + 1) * n], row[S * n + s] = 100.0 * water / total**2, -100.0 * flows[s] / total**2
+        stacked = np.vstack([J, row @ problem.N / DEFAULT_PCT_SOLIDS_SD])
+        _, singular, Vt = np.linalg.svd(stacked, full_matrices=True)
+        rank = int(np.sum(singular > RANK_TOL * singular.max(initial=0.0)))
+        unseen = problem.N @ Vt[rank:].T
+        for j in np.flatnonzero(np.abs(gradients @ unseen).max(axis=1, initial=0.0) < tolerance):
+            found[j].append(stream)
+    return found
+
+
 def survey_with(balance, stream: str, measurement: str) -> Survey:
     """The survey of ``balance`` with a candidate added at its reconciled value (a solids flow
     or a size analysis, default error model): what the design's prediction is checked against."""

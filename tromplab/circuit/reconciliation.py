@@ -71,7 +71,7 @@ from ..loading.points import TrompPoints
 from ..options import DEFAULT_ALPHA, DEFAULT_MIN_FEED_SHARE
 from ..validation import check_probability
 from . import plotting
-from .design import design_table
+from .design import design_table, water_determined_by
 from .elimination import nodal_tests, proposal, serial_elimination, without
 from .flowsheet import Flowsheet, read_flowsheet
 from .measurements import ErrorModel, Survey, class_name, read_survey
@@ -315,6 +315,7 @@ class CircuitBalance:
         water_determined = np.abs(water_gradient @ unseen).max(axis=1, initial=0.0) < tolerance
         pct_determined = np.abs(pct_gradient @ unseen).max(axis=1, initial=0.0) < tolerance
         water_sd, pct_sd = self._sd(water_gradient), self._sd(pct_gradient)
+        helpers = water_determined_by(self, water_gradient, tolerance) if not water_determined.all() else [[]] * k
         pct = 100.0 * self.flows / total
         measured = self.survey.pct_solids.set_index("stream")
         rows = []
@@ -331,8 +332,7 @@ class CircuitBalance:
                 "water_flow": self.water_flows[j] if determined else np.nan,
                 "water_flow_sd": water_sd[j] if determined else np.nan,
                 "determined": determined,
-                "note": "" if determined else "not determined by the survey: the water balances leave it free "
-                "(measure the per cent solids of this stream, or of the streams at its node)",
+                "note": "" if determined else _undetermined_water_note(helpers[j]),
             })  # fmt: skip
         return pd.DataFrame(rows, columns=columns)
 
@@ -801,6 +801,12 @@ def _errors_at_reconciled(flowsheet: Flowsheet, survey: Survey, problem: Problem
         False,
         f"the error model at the reconciled values did not settle in {MAX_ERROR_MODEL_ITERATIONS} rounds",
     )
+
+
+def _undetermined_water_note(streams: list[str]) -> str:
+    if streams:
+        return f"not determined by the survey: the water balances leave it free; the per cent solids of {' or '.join(streams)} would determine it"
+    return "not determined by the survey: the water balances leave it free, and no single per cent solids more would determine it"
 
 
 def _partition_flags(feed_share: np.ndarray, phi: np.ndarray, at_bound: np.ndarray) -> tuple[list, list]:
