@@ -297,23 +297,7 @@ def read_survey(
     table.refuse_unknown(
         ["stream", *size_columns, "size_unit", *VALUE_COLUMNS, *ROW_COLUMNS, *STREAM_COLUMNS], what="survey table"
     )
-    names = np.array([_cell_text(table, i, "stream") for i in range(len(table.frame))], dtype=object)
-    for i, name in enumerate(names):
-        if not name:
-            raise table.error("stream name is blank", index=i, column="stream")
-        if name in {w.name for w in flowsheet.water_streams}:
-            raise table.error(
-                f"stream '{name}' is a water stream of the flowsheet: it carries no solids to analyse or weigh (its flow "
-                "follows from the per cent solids of the solids streams at its node)",
-                index=i,
-                column="stream",
-            )
-        if name not in flowsheet.stream_index:
-            raise table.error(
-                f"unknown stream '{name}': the flowsheet {flowsheet.source} has {', '.join(flowsheet.stream_names)}",
-                index=i,
-                column="stream",
-            )
+    names = _stream_names(table, flowsheet)
     has_class = np.isfinite(lower) | np.isfinite(upper)
     classes, class_of_row = _tiled_classes(table, lower, upper, has_class, size_columns)
     shares, normalised = _shares(table, names, has_class, class_of_row, len(classes), values_given, errors)
@@ -321,33 +305,7 @@ def read_survey(
         table, names, "solids_flow", "solids_flow_sd", lambda v: errors.flow_relative_error * v, errors.flow_relative_error
     )
     pct = _stream_values(table, names, "pct_solids", "pct_solids_sd", lambda v: np.full_like(v, errors.pct_solids_sd))
-    implausible = flows[(flows["value"] > 0) & (flows["sd"] > MAX_RELATIVE_ERROR * flows["value"])]
-    if len(implausible):
-        row = implausible.iloc[0]
-        raise InputError(
-            f"solids flow sd {row.sd:g} is implausible for a flow of {row.value:g}: more than {MAX_RELATIVE_ERROR:.0%} of "
-            "the flow",
-            source=table.source,
-            row=row.row,
-            column="solids_flow_sd",
-        )
-    if len(pct):
-        implausible = pct[pct["sd"] > MAX_PCT_SOLIDS_SD]
-        if len(implausible):
-            row = implausible.iloc[0]
-            raise InputError(
-                f"per cent solids sd {row.sd:g} is implausible: at most {MAX_PCT_SOLIDS_SD:g} percentage points (a per cent "
-                "solids lies in 0..100)",
-                source=table.source,
-                row=row.row,
-                column="pct_solids_sd",
-            )
-        bad = pct[(pct["value"] <= 0) | (pct["value"] > 100)]
-        if len(bad):
-            row = bad.iloc[0]
-            raise InputError(
-                f"per cent solids {row.value:g} outside (0, 100]", source=table.source, row=row.row, column="pct_solids"
-            )
+    _check_stream_values(table, flows, pct)
     if flows.empty and shares.empty and pct.empty:
         raise InputError(
             "the survey holds no measurement (no size analysis, no solids flow, no per cent solids)", source=table.source
@@ -377,6 +335,59 @@ def _unmeasured(table: Table, names, has_class, class_of_row, values_given) -> p
         {"stream": names[where], "class_index": class_of_row[where].astype(int), "row": np.asarray(table.rows)[where]},
         columns=columns,
     )
+
+
+def _stream_names(table: Table, flowsheet: Flowsheet) -> np.ndarray:
+    """The stream of every row, checked against the flowsheet (blank, water stream, unknown)."""
+    names = np.array([_cell_text(table, i, "stream") for i in range(len(table.frame))], dtype=object)
+    for i, name in enumerate(names):
+        if not name:
+            raise table.error("stream name is blank", index=i, column="stream")
+        if name in {w.name for w in flowsheet.water_streams}:
+            raise table.error(
+                f"stream '{name}' is a water stream of the flowsheet: it carries no solids to analyse or weigh (its flow "
+                "follows from the per cent solids of the solids streams at its node)",
+                index=i,
+                column="stream",
+            )
+        if name not in flowsheet.stream_index:
+            raise table.error(
+                f"unknown stream '{name}': the flowsheet {flowsheet.source} has {', '.join(flowsheet.stream_names)}",
+                index=i,
+                column="stream",
+            )
+    return names
+
+
+def _check_stream_values(table: Table, flows: pd.DataFrame, pct: pd.DataFrame) -> None:
+    """Refuse implausible flow and per cent solids sds and per cent solids outside (0, 100], naming the row."""
+    implausible = flows[(flows["value"] > 0) & (flows["sd"] > MAX_RELATIVE_ERROR * flows["value"])]
+    if len(implausible):
+        row = implausible.iloc[0]
+        raise InputError(
+            f"solids flow sd {row.sd:g} is implausible for a flow of {row.value:g}: more than {MAX_RELATIVE_ERROR:.0%} of "
+            "the flow",
+            source=table.source,
+            row=row.row,
+            column="solids_flow_sd",
+        )
+    if len(pct):
+        implausible = pct[pct["sd"] > MAX_PCT_SOLIDS_SD]
+        if len(implausible):
+            row = implausible.iloc[0]
+            raise InputError(
+                f"per cent solids sd {row.sd:g} is implausible: at most {MAX_PCT_SOLIDS_SD:g} percentage points (a per cent "
+                "solids lies in 0..100)",
+                source=table.source,
+                row=row.row,
+                column="pct_solids_sd",
+            )
+        bad = pct[(pct["value"] <= 0) | (pct["value"] > 100)]
+        if len(bad):
+            row = bad.iloc[0]
+            raise InputError(
+                f"per cent solids {row.value:g} outside (0, 100]", source=table.source, row=row.row, column="pct_solids"
+            )
 
 
 def _cell_text(table: Table, i: int, column: str) -> str:
@@ -516,29 +527,7 @@ def _shares(table, names, has_class, class_of_row, n_classes, values_given, erro
     bad = np.flatnonzero(np.isfinite(values) & ~has_class)
     if bad.size:
         raise table.error("a retained value without a size class", index=int(bad[0]), column=column)
-    row_sd = (
-        table.numeric("retained_sd", allow_blank=True) if "retained_sd" in table.frame.columns else np.full(len(values), np.nan)
-    )
-    relative = _optional(table, "relative_error", len(values))
-    absolute = _optional(table, "absolute_error", len(values))
-    for array, name in ((row_sd, "retained_sd"), (relative, "relative_error"), (absolute, "absolute_error")):
-        bad = np.flatnonzero(array < 0)
-        if bad.size:
-            raise table.error(f"{name} must not be negative", index=int(bad[0]), column=name)
-    unit_of_value = full or 1.0  # masses: checked per stream below, once divided by the stream's total
-    limits = (
-        (relative, "relative_error", MAX_RELATIVE_ERROR, "a relative error of 100 % of the share"),
-        (absolute, "absolute_error", MAX_SHARE_SD, "a share lies in 0..1"),
-        (row_sd, "retained_sd", MAX_SHARE_SD * unit_of_value if full else np.inf, "a share lies in 0..1"),
-    )
-    for array, name, maximum, why in limits:
-        bad = np.flatnonzero(array > maximum)
-        if bad.size:
-            raise table.error(
-                f"{name.replace('_', ' ')} {array[bad[0]]:g} is implausible: at most {maximum:g} ({why})",
-                index=int(bad[0]),
-                column=name,
-            )
+    row_sd, relative, absolute = _error_columns(table, len(values), full)
     records, normalised = [], []
     for stream in dict.fromkeys(names[has_class]):
         rows = np.flatnonzero((names == stream) & has_class & np.isfinite(values))
@@ -603,6 +592,33 @@ def _shares(table, names, has_class, class_of_row, n_classes, values_given, erro
                             "row": int(table.rows[i]), "relative": np.nan if given_sd else r_i,
                             "absolute": np.nan if given_sd else a_i})  # fmt: skip
     return pd.DataFrame(records, columns=columns), tuple(normalised)
+
+
+def _error_columns(table: Table, n: int, full) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``retained_sd``, ``relative_error`` and ``absolute_error`` per row (NaN where blank),
+    refused when negative or implausible, naming the row; ``full`` is the value column's 100 %."""
+    row_sd = table.numeric("retained_sd", allow_blank=True) if "retained_sd" in table.frame.columns else np.full(n, np.nan)
+    relative = _optional(table, "relative_error", n)
+    absolute = _optional(table, "absolute_error", n)
+    for array, name in ((row_sd, "retained_sd"), (relative, "relative_error"), (absolute, "absolute_error")):
+        bad = np.flatnonzero(array < 0)
+        if bad.size:
+            raise table.error(f"{name} must not be negative", index=int(bad[0]), column=name)
+    unit_of_value = full or 1.0  # masses: checked per stream below, once divided by the stream's total
+    limits = (
+        (relative, "relative_error", MAX_RELATIVE_ERROR, "a relative error of 100 % of the share"),
+        (absolute, "absolute_error", MAX_SHARE_SD, "a share lies in 0..1"),
+        (row_sd, "retained_sd", MAX_SHARE_SD * unit_of_value if full else np.inf, "a share lies in 0..1"),
+    )
+    for array, name, maximum, why in limits:
+        bad = np.flatnonzero(array > maximum)
+        if bad.size:
+            raise table.error(
+                f"{name.replace('_', ' ')} {array[bad[0]]:g} is implausible: at most {maximum:g} ({why})",
+                index=int(bad[0]),
+                column=name,
+            )
+    return row_sd, relative, absolute
 
 
 def _optional(table: Table, column: str, n: int) -> np.ndarray:

@@ -98,6 +98,28 @@ EQUIVALENT_CORRELATION = 0.99
 #: The error model at the reconciled values has settled when no sd moves by more than this share of itself.
 ERROR_MODEL_TOLERANCE = 1e-6
 MAX_ERROR_MODEL_ITERATIONS = 50
+#: Columns of :meth:`CircuitBalance.adjustments_table`.
+ADJUSTMENT_COLUMNS = [
+    "measurement",
+    "stream",
+    "class_index",
+    "size_lower",
+    "size_upper",
+    "row",
+    "measured",
+    "sd",
+    "reconciled",
+    "reconciled_sd",
+    "adjustment",
+    "adjustment_sd",
+    "standardised",
+    "gross_error",
+    "gross_error_sd",
+    "measurement_test",
+    "p_value",
+    "suspect",
+    "indistinguishable_from",
+]
 DISTRIBUTION_COLUMNS = ["stream", "size_lower", "size_upper", "size", "measured", "measured_sd", "reconciled",
                         "reconciled_sd"]  # fmt: skip
 PARTITION_COLUMNS = ["experiment", "size_lower", "size_upper", "size", "feed_share", "partition_fine", "partition_sd",
@@ -362,29 +384,8 @@ class CircuitBalance:
     @cached_property
     def _adjustments(self) -> pd.DataFrame:
         problem = self.problem
-        columns = [
-            "measurement",
-            "stream",
-            "class_index",
-            "size_lower",
-            "size_upper",
-            "row",
-            "measured",
-            "sd",
-            "reconciled",
-            "reconciled_sd",
-            "adjustment",
-            "adjustment_sd",
-            "standardised",
-            "gross_error",
-            "gross_error_sd",
-            "measurement_test",
-            "p_value",
-            "suspect",
-            "indistinguishable_from",
-        ]
         if problem is None or problem.y.size == 0:
-            return pd.DataFrame(columns=columns)
+            return pd.DataFrame(columns=ADJUSTMENT_COLUMNS)
         m = self._test_point
         H = problem.jacobian(m)
         predicted = problem.predict(self._unknowns)  # the reported values (bounded at 0)
