@@ -234,6 +234,10 @@ def range_text(check: Callable, **kwargs) -> str:
         check_seed: "0 to 2**63 - 1",
         check_cut_density: f"(1, {MAX_CUT_DENSITY:g}]",
         check_percent: "(0, 100)",
+        check_relative_error: f"[0, {MAX_RELATIVE_ERROR:g}]",
+        check_positive_relative_error: f"(0, {MAX_RELATIVE_ERROR:g}]",
+        check_share_sd: f"[0, {MAX_SHARE_SD:g}]",
+        check_pct_solids_sd: f"(0, {MAX_PCT_SOLIDS_SD:g}]",
     }
     return fixed[check]
 
