@@ -15,7 +15,7 @@ from .fanout import CHUNK_SIZE, MAX_CHUNK_SIZE, ChunkResults, chunked, dask_clie
 from .inputs import ACCEPTED_EXPERIMENTS, data_notes
 from .result import Workbench, load, model_averages
 from .tables import by_experiment, completed_fit_rows, fit_row_settings, fit_rows_frame, output_view, ranked_among
-from .worker import derive, fit_chunk
+from .worker import ChunkOptions, FittedChunk, derive, fit_chunk, work_on_chunk
 
 # pickles name the class by its public path, which stays when the modules inside move
 Workbench.__module__ = __name__
@@ -24,7 +24,9 @@ __all__ = [
     "ACCEPTED_EXPERIMENTS",
     "CHUNK_SIZE",
     "MAX_CHUNK_SIZE",
+    "ChunkOptions",
     "ChunkResults",
+    "FittedChunk",
     "Workbench",
     "averages_level",
     "by_experiment",
@@ -44,4 +46,5 @@ __all__ = [
     "output_view",
     "print_progress",
     "ranked_among",
+    "work_on_chunk",
 ]

@@ -28,11 +28,11 @@ from ..validation import (
     check_seed,
     check_water_recovery,
 )
-from .averages import averages_level
 from .fanout import _fit_in_chunks, dask_client
 from .inputs import _data_size_unit, _points_and_balances, _screenable
 from .result import Workbench
-from .tables import fit_row_settings, ranked_among
+from .tables import ranked_among
+from .worker import ChunkOptions
 
 
 def fit_experiments(
@@ -130,20 +130,22 @@ def fit_experiments(
     settings = _checked_settings(locals(), n_fits=n_fits, size_unit=_data_size_unit(experiments, size_unit))
     with dask_client(scheduler=scheduler, dask=dask, client=client) as cluster:
         failures, fittable = _screenable(experiments)
-        wanted = {"level": ci, "n_bootstrap": bootstrap, "method": bootstrap_method, "seed": seed} if ci or bootstrap else None
-        averaged = {"level": averages_level(ci), "ranked": ranked_among(chosen, rank_extended)}
-        tables = {**fit_row_settings(chosen, rank_extended, rank_by, settings["water_recovery"]), "partition_to": partition_to}
-        found = _fit_in_chunks(
-            fittable,
-            chosen,
-            settings,
-            jobs=jobs,
-            client=cluster,
-            progress=progress,
-            intervals=wanted,
-            averages=averaged,
-            tables=tables,
+        options = ChunkOptions(
+            formulas=tuple(f.id for f in chosen),
+            ranked=tuple(f.id for f in ranked_among(chosen, rank_extended)),
+            alpha=settings["alpha"],
+            delta_max=settings["delta_max"],
+            engine=settings["engine"],
+            size_unit=settings["size_unit"],
+            ci=ci,
+            bootstrap=bootstrap,
+            bootstrap_method=bootstrap_method,
+            seed=seed,
+            rank_by=rank_by,
+            water_recovery=settings["water_recovery"],
+            partition_to=partition_to,
         )
+        found = _fit_in_chunks(fittable, options, jobs=jobs, client=cluster, progress=progress)
         bench = Workbench(
             tuple(found.fits), failures, chosen, rank_by, alpha, rank_extended, found.notes, settings["water_recovery"], ci,
             bootstrap, bootstrap_method, seed, partition_to, settings["size_unit"], tuple(experiments), balances, found.intervals,

@@ -11,19 +11,21 @@ import importlib.util
 import logging
 import math
 import os
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor
+from dataclasses import replace
 from typing import NamedTuple
 
 import pandas as pd
 
 from ..curves.curve_fit import CurveFit
 from ..errors import OptionError
+from ..loading.points import TrompPoints
 from ..output.csv_parts import CsvPart
 from .averages import _averages_table
 from .gc_control import _results_kept_out_of_collections, _with_older_objects_frozen
 from .tables import fit_rows_frame
-from .worker import _fit_chunk_star
+from .worker import ChunkOptions, FittedChunk, work_on_chunk
 
 # one logger for the batch layer: its lines read "tromplab.workbench: ..." whichever module makes them
 logger = logging.getLogger(__package__)
@@ -67,25 +69,12 @@ class ChunkResults(NamedTuple):
     csv_parts: dict[str, list[CsvPart]] | None = None
 
 
-def _fit_in_chunks(
-    fittable,
-    chosen,
-    settings: dict,
-    *,
-    jobs,
-    client,
-    progress,
-    intervals: dict | None = None,
-    averages: dict | None = None,
-    tables: dict | None = None,
-) -> ChunkResults:
-    """The fits, data notes, (with ``intervals``, the options of
-    :func:`~tromplab.statistics.uncertainty.interval_columns``) the interval columns and (with
-    ``averages``: ``level`` and the ``ranked`` formulas) the model averages of ``fittable``,
-    chunk by chunk in order, wherever the chunks run (the averages only where there are
-    workers: in one process they are made when first asked for).  Where there are workers,
-    each also formats its rows of ``fits.csv`` and ``averages.csv`` (``tables``: the
-    :func:`fit_row_settings` and ``partition_to``), which the main process only joins.
+def _fit_in_chunks(fittable: Sequence[TrompPoints], options: ChunkOptions, *, jobs, client, progress) -> ChunkResults:
+    """The fits, data notes, interval columns (with ``options.ci`` or ``options.bootstrap``) and
+    model averages of ``fittable``, chunk by chunk in order, wherever the chunks run (the
+    averages only where there are workers: in one process they are made when first asked
+    for).  Where there are workers, each also formats its rows of ``fits.csv`` and
+    ``averages.csv``, which the main process only joins.
 
     A chunk's intervals are made by the worker that fitted it, right after the fits: the fits
     do not travel to the main process and back again, and each fit's intervals (its bootstrap
@@ -93,48 +82,44 @@ def _fit_in_chunks(
     ``progress`` hears of each chunk twice: its fits, then (labels ``"intervals: ..."``) its intervals.
     """
     chunks = chunked(fittable, workers=_worker_count(jobs, client))
-    options = {key: settings[key] for key in ("alpha", "delta_max", "engine", "size_unit")}
-    options["formulas"] = tuple(f.id for f in chosen)
-    options["intervals"] = intervals
-    options["width"] = max((points.n for points in fittable), default=0)  # one padding for every chunk
-    if jobs == 1 and client is None:  # one process: the model averages wait until they are asked for
-        averages = tables = None
-    options["averages"] = None if averages is None else (averages["level"], tuple(f.id for f in averages["ranked"]))
-    options["tables"] = tables
+    options = replace(
+        options,
+        width=max((points.n for points in fittable), default=0),  # one padding for every chunk
+        tables_on_worker=not (jobs == 1 and client is None),  # in one process they wait until asked for
+    )
+    n_formulas = len(options.formulas)
     logger.info(
         "fitting %d experiment(s) x %d formula(s) in %d chunk(s) of up to %d (%s)",
         len(fittable),
-        len(chosen),
+        n_formulas,
         len(chunks),
         len(chunks[0]) if chunks else 0,
         "on a Dask cluster" if client is not None else f"jobs={jobs or 'all cores'}",
     )
     fits, notes, frames, averaged, rows, parts = [], {}, [], [], [], {}
-    for number, (chunk, (chunk_fits, chunk_notes, frame, chunk_averages, chunk_rows, chunk_parts)) in enumerate(
-        zip(chunks, _map_chunks(chunks, options, jobs=jobs, client=client)), 1
-    ):
-        fits += chunk_fits
-        rows.append(chunk_rows)
-        for name, part in (chunk_parts or {}).items():
+    for number, (chunk, done) in enumerate(zip(chunks, _map_chunks(chunks, options, jobs=jobs, client=client)), 1):
+        fits += done.fits
+        rows.append(done.rows)
+        for name, part in (done.csv_parts or {}).items():
             parts.setdefault(name, []).append(part)
-        notes.update(chunk_notes)
-        averaged += chunk_averages or []
+        notes.update(done.notes)
+        averaged += done.averages or []
         logger.debug(
-            "chunk %d/%d fitted: %d fits, %d failed", number, len(chunks), len(chunk_fits), sum(not f.success for f in chunk_fits)
+            "chunk %d/%d fitted: %d fits, %d failed", number, len(chunks), len(done.fits), sum(not f.success for f in done.fits)
         )
         if progress is not None:
-            progress(len(fits) // max(len(chosen), 1), len(fittable), chunk[-1].experiment)
-        if frame is not None:
-            frames.append(frame)
+            progress(len(fits) // max(n_formulas, 1), len(fittable), chunk[-1].experiment)
+        if done.intervals is not None:
+            frames.append(done.intervals)
             if progress is not None:
-                progress(len(fits) // max(len(chosen), 1), len(fittable), f"intervals: {chunk[-1].experiment}")
+                progress(len(fits) // max(n_formulas, 1), len(fittable), f"intervals: {chunk[-1].experiment}")
     return ChunkResults(
         fits,
         notes,
         pd.concat(frames, ignore_index=True) if frames else None,
-        None if averages is None else _averages_table(averaged),
+        _averages_table(averaged) if options.tables_on_worker else None,
         pd.concat(rows, ignore_index=True) if rows else fit_rows_frame([]),
-        parts if tables is not None else None,
+        parts if options.tables_on_worker else None,
     )
 
 
@@ -167,9 +152,9 @@ def dask_client(*, scheduler: str | None = None, dask: str | None = None, client
         yield made
 
 
-def _map_chunks(chunks, options, *, jobs, client):
-    """Yield the fits and the data notes of each chunk, in order: in process, in a process pool, or on Dask."""
-    yield from _map_work(_fit_chunk_star, chunks, options, jobs=jobs, client=client)
+def _map_chunks(chunks, options: ChunkOptions, *, jobs, client) -> Iterator[FittedChunk]:
+    """Yield what :func:`work_on_chunk` makes of each chunk, in order: in process, in a process pool, or on Dask."""
+    yield from _map_work(work_on_chunk, chunks, options, jobs=jobs, client=client)
 
 
 def _map_work(function, chunks, argument, *, jobs, client):
