@@ -119,6 +119,7 @@ def fit_experiments(
 
     Examples
     --------
+    >>> from tromplab import TrompPoints
     >>> points = TrompPoints("run", [10, 20, 40, 80, 160], [0.98, 0.91, 0.62, 0.21, 0.04])
     >>> bench = fit_experiments([points], formulas=["plitt", "lognormal", "molerus"])
     >>> bench.ranking_table()[["formula", "place"]].values.tolist()
