@@ -125,16 +125,21 @@ def test_limits_test_is_the_chi_bar_squared_mixture():
     assert limits_test_p(plain, limited) == pytest.approx(expected)
 
 
+@pytest.mark.parametrize("method", [None, "least_squares"], ids=["joint", "least_squares"])
 @pytest.mark.parametrize("curve", DENSITY_CURVES, ids=[c.id for c in DENSITY_CURVES])
-def test_float_sink_tables_of_known_curves_are_recovered_exactly(curve):
+def test_float_sink_tables_of_known_curves_are_recovered_exactly(curve, method):
     limits = {"light_limit": 0.03, "heavy_limit": 0.96} if curve.has_limits else {}
     params = curve.from_indices(rho50=1.58, ep=0.06, **limits)
     table = float_sink_table(curve, params, np.round(np.arange(1.30, 1.901, 0.05), 2), np.linspace(18, 3, 14))
-    fit = fit_density_curve(read_density(table)[0], curve)
-    assert fit.success and fit.method == "least_squares"
+    fit = fit_density_curve(read_density(table)[0], curve, method=method, ci=0.95)
+    assert fit.success and fit.method == (method or "joint_least_squares")
     assert_allclose(fit.indices.rho50, 1.58, rtol=1e-6)
     assert_allclose(fit.indices.ep, 0.06, rtol=1e-5)
-    assert fit.objective < 1e-16
+    if method is None:
+        assert fit.raw.largest_residual < 1e-9 and not fit.intervals
+        assert "no residual variance" in "; ".join(fit.notes)
+    else:
+        assert fit.objective < 1e-16
 
 
 def test_every_fits_row_has_imperfection_equal_to_ep_over_rho50_minus_one(tmp_path):
@@ -287,13 +292,19 @@ def test_any_counts_give_fits_or_reasons_never_an_exception(counts, step):
         assert ((rows[f"{name}_low"] <= rows[name] * (1 + 1e-9)) & (rows[name] <= rows[f"{name}_high"] * (1 + 1e-9))).all(), name
 
 
-def test_float_sink_fits_are_unbiased_and_their_intervals_say_what_they_leave_out():
+def test_joint_float_sink_fits_are_unbiased_and_their_intervals_cover_far_better_than_least_squares():
     from tromplab.density.fitting import FLOAT_SINK_INTERVAL_NOTE
     from tromplab.density.simulation import float_sink_study
 
-    study = float_sink_study(tests=40, seed=3)
-    assert study["fitted"] == 40 and abs(study["rho50_bias"]) < 0.002 and abs(study["ep_relative_bias"]) < 0.05
+    joint = float_sink_study(tests=60, seed=3)
+    assert joint["fitted"] == 60 and abs(joint["rho50_bias"]) < 0.002 and abs(joint["ep_relative_bias"]) < 0.05
+    # measured at 1,000 tests per level (docs/density_columns.md): joint 91-92 % for rho50, least squares 52-58 %
+    assert joint["rho50_coverage"] >= 0.8 and joint["ep_coverage"] >= 0.85
     table = float_sink_table("normal", {"rho50": 1.55, "ep": 0.05}, [1.3, 1.4, 1.5, 1.6, 1.7], [30, 20, 15, 10, 10, 15])
     table["sinks_pct"] = (table["sinks_pct"] * [1.02, 0.98, 1.01, 0.99, 1.0, 1.0]).round(2)
-    fit = fit_density_curve(read_density(table)[0], "normal", ci=0.95)
-    assert FLOAT_SINK_INTERVAL_NOTE in fit.notes
+    sample = read_density(table)[0]
+    fit = fit_density_curve(sample, "normal", ci=0.95)
+    assert fit.method == "joint_least_squares" and FLOAT_SINK_INTERVAL_NOTE not in fit.notes
+    low, high = fit.intervals["rho50"]
+    assert low < fit.indices.rho50 < high
+    assert FLOAT_SINK_INTERVAL_NOTE in fit_density_curve(sample, "normal", ci=0.95, method="least_squares").notes

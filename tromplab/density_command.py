@@ -59,7 +59,8 @@ def _add_fit(sub) -> None:
     fit.add_argument("--curves", default="all", metavar="IDS",
                      help="curves to fit: ids (normal, logistic, gompertz, normal_limits, ...) or plain, limits, all (default all)")  # fmt: skip
     fit.add_argument("--method", choices=("binomial", "least_squares"), default=None,
-                     help="binomial (tracer counts, the default for them) or least_squares on the shares (the spreadsheet way)")  # fmt: skip
+                     help="binomial (tracer counts, the default for them) or least_squares on the shares (the spreadsheet way); "
+                     "default for float-sink tables with a feed analysis: the joint fit of the three analyses")  # fmt: skip
     fit.add_argument("--floats-yield", type=cli_type(check_probability, "--floats-yield"), default=None, metavar="Y",
                      help="mass share of the feed to the floats (float-sink tables; estimated from three analyses when not given)")  # fmt: skip
     fit.add_argument("--sheet", default=None, help="Excel sheet (default: the first)")

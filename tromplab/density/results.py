@@ -49,7 +49,8 @@ class DensityResult:
     ci : float or None
         Level of the profile-likelihood intervals (None: no intervals).
     method : str or None
-        The fitting method asked (None: binomial for tracer counts, least squares for shares).
+        The fitting method asked (None: binomial for tracer counts, the joint fit for
+        float-sink tests with three analyses, least squares for other shares).
     """
 
     samples: list
@@ -275,8 +276,9 @@ def fit_density(
     curves : str or iterable
         Curve ids or the groups ``plain``, ``limits``, ``all`` (default: all six).
     method : {"binomial", "least_squares"}, optional
-        Force a method on tracer counts (``least_squares``: on the shares, as a spreadsheet
-        does); default binomial for tracers, least squares for shares.
+        Force a method (``least_squares``: on the shares, as a spreadsheet does); default
+        binomial for tracers, the joint fit of the three analyses for float-sink tests with a
+        feed analysis (``joint_least_squares`` in ``fits.csv``), least squares otherwise.
     floats_yield : float, optional
         Mass share of the feed to the floats (float-sink tables).
     sheet, sep, decimal : optional
