@@ -16,8 +16,10 @@ yield and the closure of each analysis move the partitions the way they move in 
 instead of being fixed at one estimate as the partition's least squares does.  The variance
 of a reported share of expected value :math:`\mu` is :math:`\sigma^2 (\alpha \mu^2 + \beta)`
 (a relative weighing error and an absolute one, in share units): ``alpha`` and ``beta`` are
-estimated from the squared residuals of a first fit weighted by :math:`1/(\mu + 10^{-3})`
-(non-negative least squares, ``beta`` at least the reporting resolution 0.01 %, squared),
+estimated from the squared residuals of a first fit weighted by :math:`1/(\mu + 10^{-3})`,
+each divided by ``1 - h`` (``h`` its leverage: a fraction's feed share is fitted almost by its
+own parameter, so its residual is small), by non-negative least squares (``beta`` at least
+the reporting resolution 0.01 %, squared),
 and a second fit is weighted by their inverse (once: iterating lets the weights follow the
 residuals and narrowed the intervals in the validation).  The covariance of the estimates
 is the sandwich :math:`\hat\sigma^2 B\,J^\top C J\,B`, :math:`B = (J^\top J)^{-1}`, with
@@ -62,6 +64,7 @@ FIRST_STAGE_FLOOR = 1e-3  # share units: the first fit's weight 1/(mu + floor) k
 VARIANCE_ITERATIONS = (
     1  # one reweighted fit: iterating lets the weights follow the residuals and narrows the intervals (measured)
 )
+LEVERAGE_FLOOR = 0.05  # 1 - h below this (a share its parameter fits almost exactly) counts as 0.05
 VARIANCE_FLOOR = 1e-8  # share units: the absolute variance is at least the reporting resolution, 0.01 percentage points, squared
 
 
@@ -137,7 +140,7 @@ def fit_joint(sample, curve: DensityCurve, start: dict) -> JointFit | None:
     variance = observed + FIRST_STAGE_FLOOR
     result = first
     for _ in range(VARIANCE_ITERATIONS):
-        variance = _variance_function(observed - mu, mu, variance, (3 * n) / df)
+        variance = _variance_function(observed - mu, mu, variance, _leverage_inflation(result.jac))
         result = fit_with(1.0 / variance, result.x)
         mu = model(result.x)
     return _summarise(curve, names, result, mu, variance, df, density, float(np.max(np.abs(observed - mu))))
@@ -167,6 +170,13 @@ def _summarise(curve, names, result, mu, variance, df, density, largest_residual
     m = 3 * (n - 1)
     neg2_loglik = float(np.sum(np.log(2 * math.pi * (ssr / m) * variance)) * (m / (3 * n)) + m)
     return JointFit(params, curve_block, free, feed, sinks_yield, ssr, sigma2, df, neg2_loglik, len(keep) + 2, largest_residual)
+
+
+def _leverage_inflation(jacobian: np.ndarray) -> np.ndarray:
+    """``1/(1 - h_i)``, ``h`` the leverages of the weighted fit: a share fitted by its own parameter (a fraction's
+    feed share) leaves a small residual, which would understate its variance (Carroll & Ruppert 1988, sect. 3.3)."""
+    leverage = np.einsum("ij,jk,ik->i", jacobian, np.linalg.pinv(jacobian.T @ jacobian), jacobian)
+    return 1.0 / np.clip(1.0 - leverage, LEVERAGE_FLOOR, None)
 
 
 def _variance_function(residual, mu, previous, inflation) -> np.ndarray:
