@@ -603,23 +603,6 @@ def limits_test_p(plain: DensityCurveFit, limited: DensityCurveFit) -> float:
     return float(0.5 * scipy.stats.chi2.sf(ratio, 1) + 0.25 * scipy.stats.chi2.sf(ratio, 2))
 
 
-def rank_fits(fits: list[DensityCurveFit]) -> list[tuple[DensityCurveFit, int, str]]:
-    """Rank the successful fits of one sample by AIC; say when the best two are closer than 2.
-
-    Returns
-    -------
-    list of (fit, rank, note)
-        In the order given; rank 0 for a failed fit.
-    """
-    done = sorted((fit for fit in fits if fit.success), key=lambda fit: fit.aic)
-    ranks = {id(fit): i + 1 for i, fit in enumerate(done)}
-    close = [fit for fit in done if fit.aic - done[0].aic < 2.0] if done else []
-    note = ""
-    if len(close) > 1:
-        note = f"the data cannot tell {', '.join(fit.curve.id for fit in close)} apart (AIC within 2 of the best)"
-    return [(fit, ranks.get(id(fit), 0), note if fit in close else "") for fit in fits]
-
-
 # --- the band of a fitted curve ---------------------------------------------------------------
 def partition_band(fit: DensityCurveFit, rho, *, level: float = 0.95) -> tuple[np.ndarray, np.ndarray]:
     r"""Pointwise delta-method band of the fitted partition at ``rho``: ``(low, high)``, within 0..1.

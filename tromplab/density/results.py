@@ -27,7 +27,8 @@ from ..errors import OptionError
 from ..output.csv_parts import write_csv
 from ..validation import check_probability
 from .curves import select_density_curves
-from .fitting import METHODS, DensityCurveFit, fit_density_curve, limits_test_p, rank_fits
+from .fitting import METHODS, DensityCurveFit, fit_density_curve, limits_test_p
+from .ranking import quasi_aic, rank_fits, variance_inflation
 from .readers import DensitySample, read_density
 
 #: The curves fitted when none are named: the three plain curves and their variants with limits.
@@ -120,6 +121,7 @@ class DensityResult:
         row["overdispersed"] = fit.overdispersed
         row["limits_p"] = self._limits_p(fit)
         row["aic"] = fit.aic
+        row["qaic"] = quasi_aic(fit, variance_inflation(self.fits_of(sample)))
         row["rank"] = rank
         row["notes"] = "; ".join(part for part in (fit.message, *fit.notes, ranking_note) if part)
         return row

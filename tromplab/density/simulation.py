@@ -283,3 +283,47 @@ def float_sink_study(
     row = _study_row(outcomes, math.nan, math.nan, method, rho50, ep)
     return {key: row[key] for key in ("tests", "fitted", "rho50_bias", "ep_relative_bias", "rho50_coverage", "ep_coverage",
                                       "rho50_no_interval", "ep_no_interval")}  # fmt: skip
+
+
+def overdispersed_ranking_study(
+    *, rho50: float = 1.55, ep: float = 0.04, step: float = 0.02, placed: int = 30, sharing: float = 4.0, tests: int = 200,
+    seed: int = 0,
+) -> dict:  # fmt: skip
+    """How often the curve with limits is ranked first, by AIC and by QAIC, on overdispersed tracer tests of a plain curve.
+
+    Tracers of one density share a fate: the sink probability of each density is drawn from a
+    beta distribution with mean ``P(density)`` of the normal curve and ``sharing`` pseudo-tracers
+    (smaller: more overdispersed), then its ``placed`` tracers sink with it (all recovered).
+    Each test is read through :func:`~tromplab.density.readers.read_density` and fitted with
+    the normal, logistic and normal-with-limits curves.
+
+    Returns
+    -------
+    dict
+        ``tests, overdispersed, limits_first_aic, limits_first_qaic`` (shares of the
+        overdispersed tests whose best curve is the one with limits).
+    """
+    from .ranking import quasi_aic, variance_inflation
+
+    rng = np.random.default_rng(seed)
+    half = max(3 * ep, 2 * step)
+    densities = np.round(np.arange(rho50 - half, rho50 + half + step / 2, step), 6)
+    p = get_density_curve("normal").partition(densities, rho50=rho50, ep=ep)
+    by_aic, by_qaic = [], []
+    for _ in range(tests):
+        sinks = rng.binomial(placed, rng.beta(p * sharing + 1e-3, (1 - p) * sharing + 1e-3))
+        table = pd.DataFrame({"test": "sim", "density": densities, "placed": placed, "sinks": sinks, "floats": placed - sinks})
+        sample = read_density(table)[0]
+        fits = [fit_density_curve(sample, curve) for curve in ("normal", "logistic", "normal_limits")]
+        inflation = variance_inflation(fits)
+        done = [fit for fit in fits if fit.success]
+        if not math.isfinite(inflation) or len(done) < len(fits):
+            continue
+        by_aic.append(min(done, key=lambda fit: fit.aic).curve.has_limits)
+        by_qaic.append(min(done, key=lambda fit: quasi_aic(fit, inflation)).curve.has_limits)
+    return {
+        "tests": tests,
+        "overdispersed": len(by_aic),
+        "limits_first_aic": float(np.mean(by_aic)) if by_aic else math.nan,
+        "limits_first_qaic": float(np.mean(by_qaic)) if by_qaic else math.nan,
+    }
