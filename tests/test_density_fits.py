@@ -308,6 +308,8 @@ def test_joint_float_sink_fits_are_unbiased_and_their_intervals_cover_far_better
     low, high = fit.intervals["rho50"]
     assert low < fit.indices.rho50 < high
     assert FLOAT_SINK_INTERVAL_NOTE in fit_density_curve(sample, "normal", ci=0.95, method="least_squares").notes
+    stated = read_density(table, floats_yield=0.6)[0]  # a stated yield is what the partitions use: no joint fit
+    assert fit_density_curve(stated, "normal", ci=0.95).method == "least_squares"
 
 
 def _overdispersed_tracers(seed):

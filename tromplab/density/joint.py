@@ -58,6 +58,8 @@ import scipy.stats
 
 from .curves import DensityCurve
 
+#: ``DensitySample.yield_source`` of a yield estimated from the three analyses (none stated).
+ESTIMATED_YIELD_SOURCE = "least-squares estimate"
 #: The method's name in the fits' ``method`` column.
 JOINT_METHOD = "joint_least_squares"
 FIRST_STAGE_FLOOR = 1e-3  # share units: the first fit's weight 1/(mu + floor) keeps empty fractions finite
@@ -86,8 +88,17 @@ class JointFit:
 
 
 def has_three_analyses(sample) -> bool:
-    """True when ``sample`` is a float-sink test with the feed, floats and sinks analyses."""
-    return sample.layout == "float-sink" and "feed_measured" in sample.points.columns
+    """True when ``sample`` is a float-sink test with the feed, floats and sinks analyses and no stated yield.
+
+    A stated floats yield is the one the partitions use (the reader says so); the joint fit,
+    which estimates the yield, is then not made.
+    """
+    return (
+        sample.layout == "float-sink"
+        and "feed_measured" in sample.points.columns
+        and sample.yield_estimate is not None
+        and sample.yield_source == ESTIMATED_YIELD_SOURCE
+    )
 
 
 def _observations(sample) -> tuple[np.ndarray, np.ndarray]:
