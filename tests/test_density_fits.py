@@ -312,6 +312,18 @@ def test_joint_float_sink_fits_are_unbiased_and_their_intervals_cover_far_better
     assert fit_density_curve(stated, "normal", ci=0.95).method == "least_squares"
 
 
+def test_a_test_with_too_few_fractions_for_the_joint_fit_is_fitted_on_its_partitions_and_says_so():
+    from tromplab.density.fitting import JOINT_FALLBACK_NOTE
+
+    params = get_density_curve("normal_limits").from_indices(rho50=1.55, ep=0.05, light_limit=0.02, heavy_limit=0.97)
+    table = float_sink_table("normal_limits", params, [1.4, 1.5, 1.6], [40, 25, 20, 15])
+    table["sinks_pct"] = (table["sinks_pct"] * [1.02, 0.98, 1.01, 0.99]).round(2)
+    sample = read_density(table)[0]
+    assert fit_density_curve(sample, "normal").method == "joint_least_squares"  # 2(4 - 1) - 2 - 2 = 2 left
+    limited = fit_density_curve(sample, "normal_limits")  # 2(4 - 1) - 4 - 2 = 0 left
+    assert limited.success and limited.method == "least_squares" and JOINT_FALLBACK_NOTE in limited.notes
+
+
 def _overdispersed_tracers(seed):
     """Tracers of one density sharing a fate: the sink probability of each density drawn from a beta around the curve."""
     rng = np.random.default_rng(seed)

@@ -68,6 +68,10 @@ INDEX_BOUNDS = {"rho50": (1.0 + 1e-6, 8.0), "ep": (1e-4, 2.0), "imperfection": (
 LIMIT_MARGIN = 1e-6  # the profiles keep l below 1/4 and h above 3/4 by this much
 OVERDISPERSION_LEVEL = 0.05
 METHODS = ("binomial", "least_squares")
+JOINT_FALLBACK_NOTE = (
+    "the three analyses could not be fitted jointly (too few fractions for the parameters and the variance function, "
+    "or a singular covariance): least squares on the partitions instead"
+)
 EXACT_SHARES = 1e-9  # share units: analyses this close to the fitted curve carry no error to make intervals from
 #: What the intervals of a float-sink fit leave out (measured by benchmarks/density_validation.py).
 FLOAT_SINK_INTERVAL_NOTE = (
@@ -498,8 +502,11 @@ def fit_density_curve(sample: DensitySample, curve, *, ci: float | None = None, 
     fit = DensityCurveFit(
         sample, curve, method, True, "", params, indices, value, **_statistics(curve, data, params, value), raw=raw
     )
+    joint_fit = _joint(fit, ci) if joint else None
+    if joint_fit is not None:
+        return joint_fit
     if joint:
-        return _joint(fit, ci)
+        notes.append(JOINT_FALLBACK_NOTE)
     if fit.overdispersed:
         notes.append(f"overdispersed (Pearson chi2/df = {fit.dispersion:.2f}): intervals use the quasi-binomial scale")
     intervals = {}
@@ -511,11 +518,12 @@ def fit_density_curve(sample: DensitySample, curve, *, ci: float | None = None, 
     return _replace(fit, intervals=intervals, notes=tuple(notes))
 
 
-def _joint(fit: DensityCurveFit, ci: float | None) -> DensityCurveFit:
-    """The fit of the three float-sink analyses together (:mod:`tromplab.density.joint`), started at ``fit``."""
+def _joint(fit: DensityCurveFit, ci: float | None) -> DensityCurveFit | None:
+    """The fit of the three float-sink analyses together (:mod:`tromplab.density.joint`), started at ``fit``;
+    None when it cannot be made (the caller keeps the fit of the partitions)."""
     result = fit_joint(fit.sample, fit.curve, fit.params)
     if result is None:
-        return _replace(fit, success=False, message="the joint fit of the three analyses found no curve with a finite covariance")
+        return None
     indices = fit.curve.indices(**result.params)
     notes = [indices.note] if indices.note else []
     intervals = {}

@@ -16,7 +16,8 @@ yield and the closure of each analysis move the partitions the way they move in 
 instead of being fixed at one estimate as the partition's least squares does.  The variance
 of a reported share of expected value :math:`\mu` is :math:`\sigma^2 (\alpha \mu^2 + \beta)`
 (a relative weighing error and an absolute one, in share units): ``alpha`` and ``beta`` are
-estimated from the squared residuals of a first fit weighted by :math:`1/(\mu + 10^{-3})`,
+estimated from the squared residuals of a first fit weighted by :math:`1/(a + 10^{-3})`
+(``a`` the reported share),
 each divided by ``1 - h`` (``h`` its leverage: a fraction's feed share is fitted almost by its
 own parameter, so its residual is small), by non-negative least squares (``beta`` at least
 the reporting resolution 0.01 %, squared),
@@ -62,10 +63,9 @@ from .curves import DensityCurve
 ESTIMATED_YIELD_SOURCE = "least-squares estimate"
 #: The method's name in the fits' ``method`` column.
 JOINT_METHOD = "joint_least_squares"
-FIRST_STAGE_FLOOR = 1e-3  # share units: the first fit's weight 1/(mu + floor) keeps empty fractions finite
-VARIANCE_ITERATIONS = (
-    1  # one reweighted fit: iterating lets the weights follow the residuals and narrows the intervals (measured)
-)
+FIRST_STAGE_FLOOR = 1e-3  # share units: the first fit's weight 1/(share + floor) keeps empty fractions finite
+# one reweighted fit: iterating lets the weights follow the residuals and narrowed the intervals (measured)
+VARIANCE_ITERATIONS = 1
 LEVERAGE_FLOOR = 0.05  # 1 - h below this (a share its parameter fits almost exactly) counts as 0.05
 VARIANCE_FLOOR = 1e-8  # share units: the absolute variance is at least the reporting resolution, 0.01 percentage points, squared
 
@@ -117,7 +117,8 @@ def _predict(curve: DensityCurve, density, curve_params: dict, feed_logits: np.n
 def fit_joint(sample, curve: DensityCurve, start: dict) -> JointFit | None:
     """Fit ``curve`` jointly to the three analyses of ``sample``, starting at the curve parameters ``start``.
 
-    Returns None when the optimiser finds no finite fit or the covariance is singular.
+    Returns None when there are too few fractions (``2(n - 1) - p - 2 <= 0``), the optimiser
+    finds no finite fit or the covariance is singular.
     """
     density, observed = _observations(sample)
     n = density.size
