@@ -77,8 +77,8 @@ EXACT_SHARES = 1e-9  # share units: analyses this close to the fitted curve carr
 FLOAT_SINK_INTERVAL_NOTE = (
     "the intervals treat the fractions' partitions as independent and leave out the uncertainty of the floats yield "
     "and the closure of the analyses: on simulated analyses they covered rho50 only 52-58 % of the time "
-    "(Ep 90-93 %); read them as lower bounds (with a feed analysis and no method asked, the three analyses are "
-    "fitted jointly and their intervals cover)"
+    "(Ep 90-93 %); read them as lower bounds (with a feed analysis, no stated yield and no method asked, the three "
+    "analyses are fitted jointly, with intervals that covered 93 %)"
 )
 
 
