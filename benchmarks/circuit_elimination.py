@@ -24,11 +24,15 @@ states them.
 """
 
 import argparse
+import sys
 import time
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from scaling import write_study_table  # noqa: E402
 
 from tromplab.circuit import reconcile
 from tromplab.circuit.simulation import example_plant, grinding_circuit, lab_survey, two_deck_screen
@@ -111,13 +115,7 @@ def main(argv=None) -> pd.DataFrame:
             continue
         rows += study(name, args.surveys, args.seed + k, args.size)
         print(rows[-2], rows[-1], sep="\n", flush=True)
-    table = pd.DataFrame(rows)
-    args.output.parent.mkdir(parents=True, exist_ok=True)
-    table.to_csv(args.output, index=False)
-    with pd.option_context("display.width", 250, "display.max_columns", 20):
-        print(table.to_string(index=False, float_format=lambda v: f"{v:.4f}"))
-    print(f"\n{time.perf_counter() - start:.0f} s; written to {args.output}")
-    return table
+    return write_study_table(pd.DataFrame(rows), args.output, start, width=250)
 
 
 if __name__ == "__main__":

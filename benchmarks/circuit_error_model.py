@@ -19,11 +19,15 @@ states them.
 """
 
 import argparse
+import sys
 import time
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from scaling import write_study_table  # noqa: E402
 
 from tromplab.circuit import ErrorModel, reconcile
 from tromplab.circuit.simulation import example_plant, grinding_circuit, lab_survey, reconciliation_study, two_deck_screen
@@ -80,13 +84,7 @@ def main(argv=None) -> pd.DataFrame:
             for sign in (1.0, -1.0):
                 rows.append(slip_study(name, at, sign, max(args.surveys // 2, 1), args.seed + 10 + k))
                 print(rows[-1], flush=True)
-    table = pd.DataFrame(rows)
-    args.output.parent.mkdir(parents=True, exist_ok=True)
-    table.to_csv(args.output, index=False)
-    with pd.option_context("display.width", 200, "display.max_columns", 20):
-        print(table.to_string(index=False, float_format=lambda v: f"{v:.4f}"))
-    print(f"\n{time.perf_counter() - start:.0f} s; written to {args.output}")
-    return table
+    return write_study_table(pd.DataFrame(rows), args.output, start)
 
 
 if __name__ == "__main__":

@@ -20,11 +20,15 @@ benchmarks/output/circuit_reconciliation.csv; docs/circuit.md states them.
 """
 
 import argparse
+import sys
 import time
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from scaling import write_study_table  # noqa: E402
 
 from tromplab.circuit import reconcile
 from tromplab.circuit.simulation import example_plant, grinding_circuit, reconciliation_study, simulate_survey, two_deck_screen
@@ -108,13 +112,7 @@ def main(argv=None) -> pd.DataFrame:
     for k, name in enumerate(CIRCUITS):
         for size in (5.0, 8.0):
             rows.append(share_study(name, max(args.surveys // 2, 1), args.seed + 20 + k, size))
-    table = pd.DataFrame(rows)
-    args.output.parent.mkdir(parents=True, exist_ok=True)
-    table.to_csv(args.output, index=False)
-    with pd.option_context("display.width", 200, "display.max_columns", 20):
-        print(table.to_string(index=False, float_format=lambda v: f"{v:.4f}"))
-    print(f"\n{time.perf_counter() - start:.0f} s; written to {args.output}")
-    return table
+    return write_study_table(pd.DataFrame(rows), args.output, start)
 
 
 if __name__ == "__main__":

@@ -68,6 +68,17 @@ def save_and_show(table: pd.DataFrame, output: Path, load_before: float, prefix:
     return table
 
 
+def write_study_table(table: pd.DataFrame, output: Path, started: float, *, width: int = 200) -> pd.DataFrame:
+    """Write a simulation study's ``table`` to ``output``, print it at four decimals and say how
+    long the study took (``started`` from :func:`time.perf_counter`)."""
+    output.parent.mkdir(parents=True, exist_ok=True)
+    table.to_csv(output, index=False)
+    with pd.option_context("display.width", width, "display.max_columns", 20):
+        print(table.to_string(index=False, float_format=lambda v: f"{v:.4f}"))
+    print(f"\n{time.perf_counter() - started:.0f} s; written to {output}")
+    return table
+
+
 def _cpu_seconds(who):
     usage = resource.getrusage(who)
     return usage.ru_utime + usage.ru_stime
