@@ -12,9 +12,6 @@ ROOT = Path(__file__).resolve().parents[1]
 DIST = ROOT / "dist"
 RELEASE_FILES = ("LICENSE", "CITATION.cff", "CHANGELOG.md", "README.md", "pyproject.toml")
 PACKAGE = "tromplab"
-# The console-script launcher is being moved inside the package; until its folder is gone from
-# the source tree, the wheel may carry it. Once the folder is removed the check is strict.
-TRANSITIONAL = {"tromplab_launch"} if (ROOT / "tromplab_launch").is_dir() else set()
 
 
 def main() -> int:
@@ -29,13 +26,11 @@ def main() -> int:
     with zipfile.ZipFile(wheels[0]) as wheel:
         top = {name.split("/", 1)[0] for name in wheel.namelist()}
     packages = {name for name in top if not name.endswith((".dist-info", ".data"))}
-    extra = packages - {PACKAGE} - TRANSITIONAL
+    extra = packages - {PACKAGE}
     if PACKAGE not in packages:
         problems.append(f"wheel lacks the {PACKAGE} package")
     if extra:
         problems.append(f"wheel installs more than the {PACKAGE} package: {sorted(extra)}")
-    for name in sorted(packages & TRANSITIONAL):
-        print(f"note: the wheel still installs {name}/ (tolerated while that folder exists; being moved into {PACKAGE})")
     for problem in problems:
         print(problem)
     if not problems:

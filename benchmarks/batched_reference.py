@@ -1,4 +1,4 @@
-"""Benchmark floor: a bare batched Levenberg-Marquardt in numpy against tromplab's fits (issue 24, item 6).
+"""Benchmark floor: a bare batched Levenberg-Marquardt in numpy against tromplab's fits.
 
 The floor the engine is measured against: for the seven smooth paper formulas, (3)-(9) (the
 piecewise (10) and (11) need the engine's kink handling), every experiment of a padded batch

@@ -1,4 +1,4 @@
-"""Full-size validation of tromplab.circuit (issue 25, items 6b and 6c).
+"""Full-size validation of tromplab.circuit.
 
 For each simulated circuit of tromplab.circuit.simulation (the grinding circuit, the two-deck
 screen and the bundled example plant), draws ``--surveys`` seeded surveys from the default

@@ -1,4 +1,4 @@
-"""What keeping a batch's results out of Python's cyclic garbage collections saves (issue 24).
+"""What keeping a batch's results out of Python's cyclic garbage collections saves.
 
 ``tromplab.workbench`` calls ``gc.freeze()`` after each chunk's results arrive and around
 each chunk's work, and ``gc.unfreeze()`` at the end of the batch.  This benchmark runs the

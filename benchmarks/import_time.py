@@ -1,4 +1,4 @@
-"""Benchmark: the start-up cost of ``import tromplab`` (issue 21: well under 0.3 s above a bare interpreter).
+"""Benchmark: the start-up cost of ``import tromplab`` (well under 0.3 s above a bare interpreter).
 
 Starts fresh interpreters and reports the median wall time of each statement over ``--runs``
 runs, and the difference to a bare ``python -c pass``:

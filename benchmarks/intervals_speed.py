@@ -1,4 +1,4 @@
-"""Intervals and trend at batch speed (issue 24, items 2 and 4), each against its floor in the same run.
+"""Intervals and trend at batch speed, each against its floor in the same run.
 
 * ``fit --ci``: the whole command ``tromplab fit FILE --ci 0.95 --figures none --jobs J`` and
   the same without ``--ci``, against nine bare single-start lmfit fits per experiment

@@ -1,4 +1,4 @@
-"""Where the time of ``tromplab fit`` goes, phase by phase, against the bare-lmfit floor (issue 24, item 6).
+"""Where the time of ``tromplab fit`` goes, phase by phase, against the bare-lmfit floor.
 
 On ``--experiments`` synthetic experiments written to a CSV, one run measures with the Python
 API (the calls ``tromplab fit`` makes):

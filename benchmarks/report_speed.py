@@ -1,4 +1,4 @@
-"""``tromplab report`` against ``tromplab fit`` of the same file (issue 24, item 1: report <= 3 x the fit).
+"""``tromplab report`` against ``tromplab fit`` of the same file (report <= 3 x the fit).
 
 On ``--experiments`` synthetic experiments written to a CSV, one run times the two whole
 commands in subprocesses, start-up included:

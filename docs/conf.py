@@ -23,11 +23,15 @@ extensions = [
     "sphinx.ext.autodoc",
     "sphinx.ext.autosummary",
     "sphinx.ext.mathjax",
+    "sphinx-mathjax-offline",  # MathJax 3 served with the site: the maths renders without a network
     "numpydoc",
     "myst_parser",
     "sphinx_gallery.gen_gallery",
     "tromplab_docs",
 ]
+
+# Smart quotes for quotes and ellipses only: "--ci" stays as typed, never an en dash.
+smartquotes_action = "qe"
 
 source_suffix = {".rst": "restructuredtext", ".md": "markdown"}
 root_doc = "index"

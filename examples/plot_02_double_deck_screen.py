@@ -5,7 +5,7 @@ A double-deck screen from a lab table
 The bundled lab table ``datasets/double_deck_screen_decks_lab.csv`` holds the sieve
 analyses of the feed, fine and coarse products of each deck of a 20-over-65-mesh
 double-deck screen (a worked exercise on McCabe, Smith & Harriott's quartz analysis),
-sizes in mm. This is the README's main job, done in Python: read the table, check the
+sizes in mm. This is the main job of the README, done in Python: read the table, check the
 mass balance, fit the nine formulas to each deck, rank them, and draw the curves.
 """
 
@@ -30,7 +30,7 @@ balances[0].points_table().head(8)
 # %%
 # Fit, screen and rank the nine formulas on both decks.
 bench = tromplab.fit_experiments(experiments, size_unit="mm")
-bench.ranking()
+bench.ranking_table()
 
 # %%
 # The top-ranked fit of the 20-mesh deck, with parameters, intervals and indices.

@@ -54,7 +54,7 @@ lab
 experiments, balances = tromplab.read_experiments(lab, water_recovery=WATER_RECOVERY)
 formulas = ["plitt", "rosin_rammler", "lognormal", "plitt_bypass", "lognormal_bypass"]
 bench = tromplab.fit_experiments(experiments, formulas=formulas, size_unit="um", water_recovery=WATER_RECOVERY)
-fits = bench.summary()
+fits = bench.fits_table()
 fits[["formula", "d50", "d50c", "ep", "ep_c", "bypass", "F", "adequate", "water_recovery_check"]]
 
 # %%

@@ -26,7 +26,7 @@ points
 # Fit the nine formulas. The fits succeed; the cut is found below the measured sizes.
 experiments = tromplab.read_points(points)
 bench = tromplab.fit_experiments(experiments)
-bench.summary()[["rank", "formula", "d_cut", "d_cut_stderr", "shape", "F", "adequate", "extrapolated"]]
+bench.fits_table()[["rank", "formula", "d_cut", "d_cut_stderr", "shape", "F", "adequate", "extrapolated"]]
 
 # %%
 # tromplab says so in words: a note on the data before any fit, and statements on the fits
@@ -40,7 +40,7 @@ for verdict in bench.verdicts("cyclone"):
 # %%
 # Some fits say more in their warnings: a parameter the data do not determine (its
 # standard error larger than itself), or a shape that ended on its bound.
-fits = bench.summary()
+fits = bench.fits_table()
 for formula, warning in fits.loc[fits["warnings"] != "", ["formula", "warnings"]].itertuples(index=False):
     print(f"{formula}: {warning}")
 
@@ -49,7 +49,7 @@ for formula, warning in fits.loc[fits["warnings"] != "", ["formula", "warnings"]
 # is: with no point between partitions 0.25 and 0.75 the cut is not bracketed by the data,
 # so d_cut, d50, d25, d75 and Ep get no interval (``method`` ``none``), while the shape,
 # the slope, eta and epsilon keep theirs.
-with_intervals = tromplab.fit_experiments(experiments, ci=0.95).summary()
+with_intervals = tromplab.fit_experiments(experiments, ci=0.95).fits_table()
 with_intervals[["formula", "d_cut", "d_cut_low", "d_cut_high", "d_cut_method", "shape_low", "shape_high", "eta_low", "eta_high"]]
 
 # %%

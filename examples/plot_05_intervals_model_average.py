@@ -38,7 +38,7 @@ boot.intervals
 
 # %%
 # Akaike weights of the nine formulas on this deck: how much the data prefer each.
-table = bench.summary()
+table = bench.fits_table()
 deck = table[table["experiment"] == "deck_20mesh"].copy()
 deck["weight"] = tromplab.akaike_weights(deck["aicc"].to_numpy())
 deck[["formula", "rank", "F", "aicc", "delta_aicc", "weight", "d50", "ep"]].sort_values("weight", ascending=False)

@@ -35,7 +35,7 @@ print(f"1 process: {time.perf_counter() - start:.2f} s")
 start = time.perf_counter()
 pooled = tromplab.fit_experiments(experiments, jobs=2)
 print(f"jobs=2: {time.perf_counter() - start:.2f} s")
-pd.testing.assert_frame_equal(serial.summary(), pooled.summary())
+pd.testing.assert_frame_equal(serial.fits_table(), pooled.fits_table())
 print("identical fits table")
 
 # %%
@@ -48,16 +48,16 @@ except ImportError:
 if Client is not None:
     with Client(processes=False, n_workers=1, threads_per_worker=2, dashboard_address=None) as client:
         on_dask = tromplab.fit_experiments(experiments, client=client)
-    pd.testing.assert_frame_equal(serial.summary(), on_dask.summary())
+    pd.testing.assert_frame_equal(serial.fits_table(), on_dask.fits_table())
     print("Dask: identical fits table")
 
 # %%
 # The ranking over the 24 experiments and the formula that won most often.
-ranking = serial.ranking()
+ranking = serial.ranking_table()
 ranking
 
 # %%
-top = serial.summary().query("rank == 1")
+top = serial.fits_table().query("rank == 1")
 wins = top["formula"].value_counts()
 fig, (left, right) = plt.subplots(1, 2, figsize=(10, 3.8))
 wins.plot.barh(ax=left)

@@ -7,7 +7,7 @@ generated with known changes: the bypass rises by 0.08 from survey S13, the cut 
 4 % a survey from S19). Each survey is fitted with Plitt's curve with bypass; the first
 eight surveys set the baseline; an EWMA chart follows the cut, Ep, eta and the bypass,
 and a joint-fit equality test compares each survey with the baseline. This is
-``tromplab trend`` in Python (``tromplab.trend``, as the README documents).
+``tromplab trend`` in Python (``tromplab.trend``, as docs/lab_tables.md and docs/trend.md document).
 """
 
 from pathlib import Path

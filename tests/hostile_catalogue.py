@@ -348,6 +348,8 @@ TEMPLATES = {
     "optimize": ["optimize"],
     "circuit": ["circuit", "{points.csv}", "{lab.csv}", "-o", "{tmp}/c"],
     "export": ["export", "{points.csv}", "-o", "{tmp}/e.csv"],
+    "density fit": ["density", "fit", "{points.csv}", "-o", "{tmp}/d"],
+    "density predict": ["density", "predict", "{points.csv}", "--rho50", "1.6", "--ep", "0.05"],
 }
 
 
@@ -621,7 +623,7 @@ def api_calls() -> list[Case]:
             "OptionError",
             "shared",
         ),
-        "rank_formulas of text": (lambda tmp: tromplab.rank_formulas("F.csv"), "TypeError", "DataFrame"),
+        "rank_formulas of text": (lambda tmp: tromplab.rank_formulas("F.csv"), "TypeError", "table must be a pandas DataFrame"),
         "write_report of None": (lambda tmp: tromplab.write_report(None, tmp / "r.html"), "TypeError", "Report"),
         "model_averages of None": (lambda tmp: tromplab.model_averages(None), "TypeError", "Workbench"),
         "LabOptions fine_yield='0.5'": (lambda tmp: tromplab.LabOptions(fine_yield="0.5"), "OptionError", "fine_yield"),

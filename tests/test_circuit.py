@@ -1,4 +1,4 @@
-"""Plant surveys (issue 25): flowsheet, survey table, reconciliation, partition curves, command.
+"""Plant surveys: flowsheet, survey table, reconciliation, partition curves, command.
 
 Validation items of the issue: (a) one node equals the lab table's least-squares yield and
 partition; (b) simulated circuits with a known truth (closer to the truth, 95 % interval

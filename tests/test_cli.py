@@ -104,7 +104,7 @@ def test_rising_partition_and_extrapolated_cut_are_warned(tmp_path, capsys):
 
 
 def test_indistinguishable_fits_and_non_normal_residuals_are_said_in_the_console(tmp_path, capsys):
-    """Issue 10: on deck_65mesh the nine formulas reach one sum of squares, yet got ranks 1..9, all
+    """On deck_65mesh the nine formulas reach one sum of squares, yet got ranks 1..9, all
     "adequate" while every normality p-value is about 0.0003, and nothing warned."""
     out = tmp_path / "out"
     lab = DATASETS / "double_deck_screen_decks_lab.csv"

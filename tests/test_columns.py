@@ -1,5 +1,5 @@
 """Every column tromplab writes is documented in docs/columns.md with the unit the workbook
-prints in its header (issue 10: every reported number has a definition, a unit and a range)."""
+prints in its header (every reported number has a definition, a unit and a range)."""
 
 import re
 

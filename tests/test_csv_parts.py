@@ -1,4 +1,4 @@
-"""The tables' CSV text formatted by the workers and joined by the main process (issue 24)."""
+"""The tables' CSV text formatted by the workers and joined by the main process."""
 
 import pickle
 

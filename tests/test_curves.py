@@ -154,7 +154,7 @@ def test_weights_change_the_fit():
 
 @pytest.mark.parametrize("formula_id, shape", [("molerus_hoffmann", -0.5), ("ogawa_allen", -0.6)])
 def test_curves_are_fitted_monotone_and_the_bound_is_explained(formula_id, shape):
-    """Issue 10: (4) was fitted with a negative km2, a curve rising again at large sizes, without a word."""
+    """Formula (4) was fitted with a negative km2, a curve rising again at large sizes, without a word."""
     formula = get_formula(formula_id)
     rng = np.random.default_rng(11)
     sizes = D_CUT * np.geomspace(0.2, 8.0, 12)
@@ -177,7 +177,7 @@ def test_every_fitted_paper_curve_is_non_increasing(formula):
 
 
 def test_a_fit_exact_to_rounding_raises_no_residual_alarm():
-    """Issue 10: the runs test flagged fits whose residuals are floating-point noise."""
+    """The runs test flagged fits whose residuals are floating-point noise."""
     points, _ = synthetic(get_formula("plitt"), slope=-0.9)
     result = fit_formula(points, "plitt")
     assert result.fit.ssr < 1e-20

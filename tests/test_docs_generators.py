@@ -86,6 +86,29 @@ def test_cli_help_texts_are_expanded(docs_ext):
     assert "default 0.05" in page  # --alpha's help, '%(default)s' filled in
 
 
+def test_cli_reference_shows_options_as_typed(docs_ext):
+    """Options in running text are literals, which Sphinx's smart quotes leave alone (a bare
+    ``--ci`` would be shown with a typographic dash)."""
+    from docutils import nodes
+    from docutils.core import publish_doctree
+
+    tree = publish_doctree(docs_ext.cli_reference(), settings_overrides={"report_level": 5, "halt_level": 5})
+    code = (nodes.literal, nodes.literal_block)
+    running = [node.astext() for node in tree.findall(nodes.Text) if not any(isinstance(up, code) for up in _ancestors(node))]
+    assert any("default 0.05" in text for text in running)  # help texts are there
+    bare = [text for text in running if re.search(r"(?<![\w-])--?[A-Za-z]", text)]
+    assert not bare, bare[:5]
+    assert docs_ext._rst_text("with --size-unit mm or -o DIR; pre-processing") == (
+        "with ``--size-unit`` mm or ``-o`` DIR; pre-processing"
+    )
+
+
+def _ancestors(node):
+    while node.parent is not None:
+        node = node.parent
+        yield node
+
+
 def test_parser_factory_is_found_under_either_name(docs_ext):
     assert docs_ext.find_parser_factory(cli)().prog == "tromplab"
     renamed = types.SimpleNamespace(__name__="renamed", build_parser=lambda: argparse.ArgumentParser(prog="renamed"))
@@ -132,3 +155,24 @@ def test_getting_started_first_fit_runs(monkeypatch):
     exec(compile(code, "docs/getting_started.md", "exec"), namespace)  # noqa: S102 - the page's own example
     assert namespace["fit"].success and namespace["fit"].experiment == "deck_20mesh"
     plt.close("all")
+
+
+def test_a_dash_in_a_generated_table_is_a_dash_not_a_bullet(docs_ext):
+    from docutils.core import publish_parts
+    from docutils.writers.html4css1 import Writer
+
+    body = publish_parts(docs_ext._table(("parameter", "unit"), [("km1", "-")]), writer=Writer())["body"]
+    assert "<td>-</td>" in body and "<li>" not in body
+
+
+def test_catalogue_has_a_section_for_every_density_curve(docs_ext, tmp_path):
+    from tromplab.density.curves import DENSITY_CURVES
+
+    page = docs_ext.density_catalogue(figure_dir=tmp_path)
+    for curve in DENSITY_CURVES:
+        assert f".. _density-{curve.id}:" in page and curve.title in page, curve.id
+        assert f"``{curve.expression}``" in page, curve.id
+        assert (tmp_path / f"density_{curve.id}.png").exists(), curve.id
+        for parameter in curve.parameters:
+            assert f"[{parameter.lower:g}, {parameter.upper:g}]" in page, (curve.id, parameter.name)
+    assert page.count(".. math::") == len(DENSITY_CURVES)

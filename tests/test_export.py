@@ -230,7 +230,7 @@ def test_the_actual_cut_is_scipys_brentq_root_with_the_same_refusals():
 
 
 FITS_HEADER = "experiment,formula,d_cut,shape_name,shape,bypass,fishhook,success,extras\n"
-UNKNOWN = "unknown formula {}; known formulas: molerus (3)"
+UNKNOWN = "unknown formula {}; give an id, an equation number or a group (paper, other, extended). paper: molerus (3)"
 
 
 @pytest.mark.parametrize(

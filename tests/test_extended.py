@@ -107,7 +107,7 @@ def _plitt_run(ks, seed, noise, name, d_cut=80.0, count=30):
 
 
 def test_a_tiny_p_value_with_estimates_within_the_margin_is_equal_within_the_margin():
-    """Issue 22 E: ks 2.50 against 2.52 on 30 points with noise 2e-4: the F test tells them apart
+    """The shapes ks 2.50 against 2.52 on 30 points with noise 2e-4: the F test tells them apart
     (p ~ 1e-32), but they differ by 0.8 %, less than the default margin of 1 %."""
     result = shared_fit([_plitt_run(2.5, 1, 2e-4, "a"), _plitt_run(2.52, 2, 2e-4, "b", d_cut=100.0)], "plitt")
     separate = [fit.fit.values["ks"] for fit in result.separate]

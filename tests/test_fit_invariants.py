@@ -1,4 +1,4 @@
-"""Fit-level invariants on generated experiments (issue 15): scaling the sizes scales the
+"""Fit-level invariants on generated experiments: scaling the sizes scales the
 cut sizes and their intervals and changes nothing else; row order changes nothing;
 swapping the fine and coarse products of a lab table gives 1 - partition and, read as a
 partition to the coarse product, the same fits.  docs/reliability.md states the tolerances."""

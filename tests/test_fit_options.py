@@ -1,4 +1,4 @@
-"""Issue 10 item 2: the options travel with the fit; failed fits of any formula are nan, never KeyError."""
+"""The options travel with the fit; failed fits of any formula are nan, never KeyError."""
 
 import pickle
 
@@ -49,7 +49,7 @@ def test_intervals_bootstrap_and_averages_use_the_fits_delta_max():
 
 
 def test_cli_delta_max_reaches_the_intervals(tmp_path):
-    # issue 10: --delta-max 2000 --ci 0.95 wrote epsilon 0.677 with the interval [0.518, 0.604]
+    # --delta-max 2000 --ci 0.95 wrote epsilon 0.677 with the interval [0.518, 0.604]
     source = DATASETS / "double_deck_screen_decks_lab.csv"
     assert (
         main(

@@ -1,4 +1,4 @@
-"""Hostile command lines and outputs (issue 15): exit codes, options named, nothing half
+"""Hostile command lines and outputs: exit codes, options named, nothing half
 written, previous results kept, distinct figure names, safe expressions."""
 
 import pandas as pd
@@ -122,7 +122,7 @@ def test_rank_table_with_a_missing_cell_is_refused(tmp_path, capsys):
 
 @pytest.mark.slow
 def test_outputs_are_byte_identical_whatever_the_hash_seed(tmp_path):
-    """Issue 15 item 6: same input and seed, same bytes, whatever PYTHONHASHSEED."""
+    """Same input and seed, same bytes, whatever PYTHONHASHSEED."""
     import os
     import subprocess
     import sys

@@ -254,7 +254,7 @@ def test_the_sieve_and_rank_tables_refuse_non_finite_values(tmp_path):
         read_f_table(ranks)
 
 
-# --- layouts that load (issue 13) ---------------------------------------------------------
+# --- layouts that load ---------------------------------------------------------
 DATA = os.path.join(os.path.dirname(__file__), "data")
 CLASS_PARTITIONS = [0.02, 0.10, 0.35, 0.70, 0.92, 0.99]  # the curve the three layout files were built from
 

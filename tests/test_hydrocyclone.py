@@ -1,4 +1,4 @@
-"""Hydrocyclones: ``--water-recovery`` / ``water_recovery=`` (issue 10, item 3): the Kelsall-
+"""Hydrocyclones: ``--water-recovery`` / ``water_recovery=``: the Kelsall-
 corrected partition and the fitted bypass compared with the measured water split."""
 
 import numpy as np

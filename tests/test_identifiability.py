@@ -1,4 +1,4 @@
-"""Say what the data cannot tell (issue 22): a cut the points do not bracket, and a bypass the
+"""Say what the data cannot tell: a cut the points do not bracket, and a bypass the
 data cannot tell from the cut, get words and no confident interval."""
 
 import numpy as np

@@ -52,7 +52,7 @@ def _context(formula, row) -> dict:
 
 @pytest.mark.parametrize("formula", WITH_MPMATH_REFERENCE, ids=[f.id for f in WITH_MPMATH_REFERENCE])
 def test_eta_and_eps_against_mpmath_over_the_whole_shape_range(formula):
-    """Issue 22: the closed form of eps of (9) lost 3e-3 at kf = 12 and up to 12 % at kf 15-30;
+    """The closed form of eps of (9) lost 3e-3 at kf = 12 and up to 12 % at kf 15-30;
     Lynch (6) lost 3e-11 at kl = 1e-6. Every index now within each row's rtol (1e-10)."""
     rows = MPMATH_EFFICIENCY[MPMATH_EFFICIENCY["formula"] == formula.id]
     assert {rows["shape"].min(), rows["shape"].max()} == set(formula.shape_bounds)
@@ -213,7 +213,7 @@ def _dense_efficiency(formula, shape, x_max, **context):
 
 
 def test_sharp_molerus_misplacement_over_a_long_tail():
-    """Issue 10: km1 = 30 at x_max = 500 gave eps = 1.7e-18 (quad missed the step at the cut)."""
+    """With km1 = 30 at x_max = 500 gave eps = 1.7e-18 (quad missed the step at the cut)."""
     formula = get_formula("molerus")
     eta, eps = efficiency_by_quadrature(formula, 30.0, 500.0)
     assert_allclose((eta, eps), _dense_efficiency(formula, 30.0, 500.0), rtol=1e-6)
@@ -255,7 +255,7 @@ def test_eta_flag_follows_the_share_below_the_smallest_size(formula):
         assert ("eta" in found.extrapolated) == (share > EXTRAPOLATED_SHARE), (smallest, share)
 
 
-# --- batched indices (issue 11: the indices of a whole chunk of fits at once) --------------------
+# --- batched indices (the indices of a whole chunk of fits at once) --------------------
 def _curves_across(formula, seed=11):
     """Curves spread over the formula's shape range (bounds included), cut sizes, feed top
     sizes from below the cut to 2000 cuts, and measured ranges on either side of the cut."""

@@ -1,5 +1,5 @@
 """Every interval tromplab reports contains its estimate and stays inside the quantity's range
-(issue 10, item 1): on the bundled double-deck data where eta > 1, negative Ep and a negative
+on the bundled double-deck data where eta > 1, negative Ep and a negative
 lower limit of ks were seen, and on generated experiments with bypass, few points, sharp and
 flat curves."""
 
@@ -29,7 +29,7 @@ def test_bundled_deck_intervals_stay_in_range_and_name_their_method(tmp_path):
     fits = pd.read_csv(out / "fits.csv")
     fits = fits[fits["success"]]
     # the decks' partitions jump across the cut between two sieves (no point between 0.25 and
-    # 0.75): the quantities resting on the cut get no interval, and say so (issue 22)
+    # 0.75): the quantities resting on the cut get no interval, and say so
     for quantity in ("d_cut", "ep", "imperfection", "d25", "d75"):
         assert fits[f"{quantity}_low"].isna().all() and (fits[f"{quantity}_method"] == "none").all(), quantity
     for quantity in ("eta", "epsilon", "slope"):
@@ -145,7 +145,7 @@ def test_epsilon_interval_stays_below_x_max_minus_one():
 
 
 def test_averages_leave_out_a_quantity_the_favoured_formulas_lack():
-    """Issue 10 item 4: with 80 % bypass the actual curve never reaches 1/4, so the favoured
+    """With 80 % bypass the actual curve never reaches 1/4, so the favoured
     bypass curve has no actual cut or Ep; averaging the formulas that do (0.0001 % of the
     weight) would report a number the data do not support."""
     size = np.geomspace(5, 500, 12)

@@ -1,4 +1,4 @@
-"""Input layouts as laboratories write them load without reshaping (issue 13): size-class
+"""Input layouts as laboratories write them load without reshaping: size-class
 strings, a pan written as 0, hydrocyclone stream names, units in column names, product
 masses, representative sizes; and the partition uses both products (swap-symmetric)."""
 

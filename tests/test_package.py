@@ -1,4 +1,4 @@
-"""The package itself (issue 21, part 3): ``import tromplab`` is quick and side-effect free,
+"""The package itself: ``import tromplab`` is quick and side-effect free,
 its public names load on first use (PEP 562), and the ``tromplab`` command and ``python -m
 tromplab`` install their signal handling before numpy or pandas are imported.
 
@@ -148,7 +148,7 @@ def test_one_top_level_package_is_installed_and_the_command_goes_through_launch(
     assert "tromplab.curves" in packages
 
 
-# What a command loads (issue 24): the parser is built from light modules and each command
+# What a command loads: the parser is built from light modules and each command
 # imports what it needs when it runs, so these never load the fitting, plotting or statistics
 # stack.  Times are in docs/performance.md; this checks what they rest on.
 _COMMAND = """

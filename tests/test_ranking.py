@@ -107,7 +107,7 @@ def test_f_table_rejects_a_bad_mark(tmp_path):
         read_f_table(path)
 
 
-# --- tie rule (issue 10, item 5) -------------------------------------------------------------
+# --- tie rule -------------------------------------------------------------
 def test_close_f_values_share_their_rank_and_ties_do_not_chain():
     # 99.995 and 99.991 lie within 1e-4 of the leader 100; 99.985 does not (although it lies
     # within 1e-4 of 99.991: groups are anchored at their best value)
@@ -132,7 +132,7 @@ def test_the_tie_rule_ties_only_the_values_printed_equal_in_table_2():
 
 
 def test_unit_scaling_of_sizes_does_not_reorder_formulas_that_fit_alike():
-    """Issue 15: (5) and (10) coincide when no point lies below d_cut/2; rounding decided their order."""
+    """Formulas (5) and (10) coincide when no point lies below d_cut/2; rounding decided their order."""
     rng = np.random.default_rng(3)
     sizes = 40.0 * np.geomspace(0.6, 4.0, 9)
     phi = np.clip(np.exp(-np.log(2) * (sizes / 40.0) ** 2.5) + rng.normal(0, 0.02, sizes.size), 0, 1)
@@ -180,7 +180,7 @@ def test_adequate_fits_with_systematic_residuals_are_stated_in_words():
 
 
 def test_fits_exact_to_rounding_share_their_rank():
-    """Issue 22: Molerus-Hoffmann with km2 -> 0 and Plitt with ks = 2 are the same curve; on
+    """Molerus-Hoffmann with km2 -> 0 and Plitt with ks = 2 are the same curve; on
     noise-free data their sums of squares (about 1e-18) differ by rounding only, and F, which
     divides by them, must not rank one above the other."""
     sizes = np.geomspace(10, 400, 10)

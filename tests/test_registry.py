@@ -190,7 +190,7 @@ def _cited_works(citation: str):
 
 @all_formulas
 def test_docstring_ranges_are_the_declared_bounds(formula):
-    """The Parameters section of phi states the bounds the fits use (issue 21: two said -1..60 for 0..60)."""
+    """The Parameters section of phi states the bounds the fits use (two said -1..60 for 0..60)."""
     shape_argument = list(inspect.signature(formula.phi).parameters)[1]
     declared = {shape_argument: formula.shape_bounds, **{extra.name: extra.bounds for extra in formula.extras}}
     documented = _documented_ranges(formula.phi)

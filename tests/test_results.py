@@ -80,8 +80,7 @@ def test_workbench_views(bench, tmp_path):
     text = repr(bench)
     assert len(text) < 400 and "2 experiments x 3 formulas, 6 fits" in text
     assert bench._repr_html_().count("<tr") == len(bench.ranking_table()) + 1  # header + one row per formula
-    pd.testing.assert_frame_equal(bench.summary(), bench.fits_table())
-    pd.testing.assert_frame_equal(bench.ranking(), bench.ranking_table())
+    assert not hasattr(bench, "summary") and not hasattr(bench, "ranking")  # fits_table / ranking_table only
     averages = bench.averages()
     assert set(averages["experiment"]) == {"run1", "run2"} and set(averages["quantity"]) == set(AVERAGED_QUANTITIES)
     ax = bench.plot("run2")
@@ -124,11 +123,10 @@ def test_load_refuses_another_major_version_and_missing_files(bench, tmp_path):
         tromplab.load(tmp_path)
 
 
-def test_readme_python_section_lists_the_public_api_and_help_does_too():
+def test_the_python_page_lists_the_public_api_and_help_does_too():
     from .conftest import ROOT
 
-    readme = (ROOT / "README.md").read_text()
-    section = readme.split("## Python\n", 1)[1].split("\n## ", 1)[0]
+    section = (ROOT / "docs" / "python.md").read_text()
     listed = re.findall(r"^- `([\w]+)`: ", section, flags=re.MULTILINE)
     assert listed == list(tromplab.__all__)
     for name in tromplab.__all__:
@@ -149,4 +147,4 @@ def test_readme_five_lines_run(tmp_path, monkeypatch):
     namespace = {}
     exec(compile(code, "README", "exec"), namespace)  # noqa: S102 - the README's own example
     assert (tmp_path / "report.html").exists()
-    assert list(namespace["bench"].ranking()["place"])[0] == 1
+    assert list(namespace["bench"].ranking_table()["place"])[0] == 1

@@ -306,7 +306,7 @@ def _residue_table(tmp_path, **change):
     ],
 )
 def test_identify_refuses_a_cell_outside_its_range_naming_file_row_and_column(tmp_path, column, value, words):
-    """Issue 22: a residue of 1.3 gave a table with success False and exit 0; the Python API and
+    """A residue of 1.3 gave a table with success False and exit 0; the Python API and
     the command now refuse the input as fit does (row 4 = the third data row)."""
     from tromplab.errors import InputError
     from tromplab.loading.tables import read_table

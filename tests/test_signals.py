@@ -1,4 +1,4 @@
-"""Killed and concurrent runs (issue 15): the output folder holds exactly the previous
+"""Killed and concurrent runs: the output folder holds exactly the previous
 run or exactly the new one, never a mix; SIGINT/SIGTERM exit with one line, no traceback,
 at any moment from the start of the process on."""
 

@@ -45,7 +45,7 @@ def test_clipped_partitions_lower_the_coverage():
     unclipped = study["coverage"]
     clipped = interval_coverage("lognormal", 120, shape=0.3, clip=True).set_index("quantity")["coverage"]
     # the curve is so sharp that in about half the replicates no point lies between 0.25 and 0.75:
-    # the cut is then not bracketed and d_cut, d25, d75 and Ep get no interval (issue 22), so their
+    # the cut is then not bracketed and d_cut, d25, d75 and Ep get no interval, so their
     # coverage is over the other replicates only (57 of 120: binomial spread about 0.03)
     cut = ["d_cut", "d25", "d75", "ep"]
     assert (study.loc[cut, "missing"] > 0).all() and (study.drop(index=cut)["missing"] == 0).all()
@@ -90,7 +90,7 @@ def test_delta_method_and_bootstrap_agree():
 
 @pytest.mark.parametrize("seed", [2, 11])
 def test_delta_method_of_formula_11_follows_its_break_point(seed):
-    """Issue 10 item 7: formula (11)'s eta depends on the data through its break point x_a;
+    """Formula (11)'s eta depends on the data through its break point x_a;
     dropping that dependence gave a delta-method error of 4e-13 against 0.015 by bootstrap."""
     fit = fit_formula(synthetic(seed, weighted=False), "shuvalov")
     delta = interval_table(fit, profile=False).set_index("quantity")
@@ -101,7 +101,7 @@ def test_delta_method_of_formula_11_follows_its_break_point(seed):
 
 
 def test_bootstrap_resamples_centred_weighted_residuals(monkeypatch):
-    """Issue 10 item 7: residual resampling draws from the weighted residuals, centred and
+    """Residual resampling draws from the weighted residuals, centred and
     inflated by sqrt(n / (n - p)), and divides them by the root weight of the point they land on."""
     base = experiment(4)
     weights = np.linspace(0.5, 2.0, base.n)
@@ -202,7 +202,7 @@ def test_model_average_of_no_quantity_gives_the_weights_alone():
 
 
 def test_model_average_keeps_a_missing_standard_error_missing():
-    """Issue 22: a formula without a standard error (lmfit could not estimate it) entered the
+    """A formula without a standard error (lmfit could not estimate it) entered the
     average as if its error were 0, giving a too narrow interval; now the average has none and
     says which formula lacks it."""
     fits = [fit_formula(experiment(7), get_formula(name)) for name in ("plitt", "lognormal", "rosin_rammler")]
@@ -279,7 +279,7 @@ def test_an_averaged_epsilon_is_integrated_although_the_default_averages_leave_i
 
 def test_batched_delta_method_gives_the_per_fit_averages():
     """Model averages evaluate the delta method's indices for many fits in one batched call
-    per formula (issue 11); the numbers agree with one curve_indices call per evaluation."""
+    per formula; the numbers agree with one curve_indices call per evaluation."""
     fits = [fit for fit in (fit_formula(synthetic(7, weighted=False), formula) for formula in FORMULAS) if fit.success]
     batched = model_average(fits)
     one_by_one = model_average(fits, known={})  # nothing evaluated beforehand: one call per evaluation

@@ -128,7 +128,9 @@ _PUBLIC: dict[str, tuple[str, str]] = {
 
 # Subpackages that ``import tromplab`` used to import along with the public names: still
 # reachable as attributes (``tromplab.curves.formulas``), imported on first access.
-_SUBMODULES = frozenset({"classifiers", "curves", "errors", "loading", "output", "statistics", "validation", "workbench"})
+_SUBMODULES = frozenset(
+    {"classifiers", "curves", "density", "errors", "loading", "output", "statistics", "validation", "workbench"}
+)
 
 
 def __getattr__(name: str):

@@ -13,6 +13,7 @@ import io
 from dataclasses import dataclass
 
 from .circuit import CircuitBalance, ErrorModel, read_flowsheet, read_survey, reconcile
+from .output.csv_parts import write_csv
 from .output.outputs import check_output_folder, replace_folder
 from .workbench import Workbench, fit_experiments
 
@@ -117,7 +118,7 @@ def run_circuit(
         bench = fit_separators(balance)
         tables["fits"] = bench.fits_table()
         tables["ranking"] = bench.ranking_table()
-    outputs = {f"{name}.csv": (lambda path, table=table: table.to_csv(path, index=False)) for name, table in tables.items()}
+    outputs = {f"{name}.csv": (lambda path, table=table: write_csv(table, path)) for name, table in tables.items()}
     summary = balance.summary() + "\n"
     outputs["summary.txt"] = lambda path: path.write_text(summary, encoding="utf-8")
     if figures:

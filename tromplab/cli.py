@@ -1,4 +1,16 @@
-"""Command-line interface: ``tromplab formulas | fit | report | compare | points | balance | sieve | rank | layer | pulp | optimize``."""
+"""Command-line interface: the parser of every command, their handlers and the shared start-up.
+
+Commands (``tromplab COMMAND -h`` for each; the command-line reference of the docs is generated from this parser):
+``formulas`` (the formula catalogue), ``fit`` (fit, screen and rank on points or lab tables),
+``report`` (HTML and Markdown report), ``compare`` (did the sharpness or the cut change),
+``export`` (parameters in a simulator's convention), ``trend`` (control charts over surveys),
+``points`` and ``balance`` (lab table to Tromp points, mass balance), ``sieve identify | pg |
+bin``, ``rank`` (F table to ranks), ``circuit`` (plant survey reconciled; its work is in
+:mod:`tromplab.circuit_command`), and from :mod:`tromplab.model_commands` ``layer simulate |
+fit``, ``pulp optimum | fit`` and ``optimize``, and ``density fit | predict`` (density partition of gravity separators; its work
+is in :mod:`tromplab.density_command` and :mod:`tromplab.density_predict_command`). The console script enters through
+:mod:`tromplab._launch`, which handles SIGINT and SIGTERM before numpy is imported.
+"""
 
 from __future__ import annotations
 
@@ -18,6 +30,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from ._version import __version__
+from .density_command import add_density_command
+from .density_predict_command import add_predict_parser
 from .errors import InputError, InputNote, OptionError, ResultError, YieldWarning
 from .model_commands import add_model_commands
 from .options import (
@@ -69,7 +83,9 @@ if TYPE_CHECKING:
 
     from .loading.lab import LabOptions
 
-TERMINAL_COLUMNS = ["rank", "equation", "formula", "d_cut", "shape_name", "shape", "F", "F_crit", "adequate", "eta", "ep"]
+TERMINAL_COLUMNS = ["rank", "equation", "formula", "d50", "shape_name", "shape", "F", "F_crit", "adequate", "eta", "ep"]
+#: Said under an experiment's table when a curve with bypass is shown: the two cuts told apart.
+CUT_LEGEND = "d50: actual cut (partition 1/2) of every curve; d50c: corrected cut (of the classified part) of a curve with bypass"
 
 
 #: Exit codes (documented in the README and docs/reliability.md).
@@ -118,10 +134,12 @@ def main(argv=None, *, on_start=None) -> int:
     if not hasattr(args, "run"):
         parser.print_help()
         return EXIT_USAGE
-    path = [name for name in (args.command, *(getattr(args, f"{n}_command", None) for n in ("sieve", "layer", "pulp"))) if name]
+    subcommands = (getattr(args, f"{n}_command", None) for n in ("sieve", "layer", "pulp", "density"))
+    path = [name for name in (args.command, *subcommands) if name]
     command = " ".join(("tromplab", *path))
     own = _command_parser(parser, path)  # its options, not another command's, name the Python words
     try:
+        _check_input_paths(args)  # before the imports: a missing file answers at once
         # a command imports its modules before it starts: an interrupt inside an import can stop
         # a module half-initialised (an ImportError, or Python's exit by SIGINT instead of 130)
         for module in getattr(args, "imports", ()):
@@ -154,6 +172,20 @@ def main(argv=None, *, on_start=None) -> int:
             file=sys.stderr,
         )
         return EXIT_INTERNAL
+
+
+#: Positional arguments that name an input file, checked before a command imports its modules.
+INPUT_FILE_ARGUMENTS = ("input", "data", "table", "flowsheet", "measurements")
+
+
+def _check_input_paths(args) -> None:
+    """Every input file of the command exists and can be read (the loaders check it again)."""
+    from .loading.paths import check_input_file
+
+    for name in INPUT_FILE_ARGUMENTS:
+        path = getattr(args, name, None)
+        if isinstance(path, (str, os.PathLike)):
+            check_input_file(path, option=name)
 
 
 def interrupted(interruption=None) -> int:
@@ -218,9 +250,24 @@ def _cli_message(error: InputError, parser: argparse.ArgumentParser) -> str:
 
 def _cli_words(message: str, parser: argparse.ArgumentParser | None = None) -> str:
     """Replace Python argument names (``fine_yield``) by the CLI's options (``--fine-yield``)."""
-    for name, flag in _python_names_of_options(parser or build_parser()).items():
-        message = re.sub(rf"(?<![-\w'\"]){name}(?![\w'\"])", flag, message)  # not inside quoted column names
+    parser = parser or build_parser()
+    for name, flag in _python_names_of_options(parser).items():
+        if name in message:  # not inside quoted column names
+            message = re.sub(rf"(?<![-\w'\"]){name}(?![\w'\"])", flag, message)
+    for name, flag in _keywords_of_options(parser).items():  # kind='pct' -> --kind pct
+        if f"{name}=" in message:
+            message = re.sub(rf"(?<![-\w'\"]){name}=(['\"]?)([\w.,-]+)\1", rf"{flag} \2", message)
     return message
+
+
+def _keywords_of_options(parser: argparse.ArgumentParser) -> dict[str, str]:
+    """Every option's Python keyword (``kind``) and its flag (``--kind``)."""
+    return {
+        action.dest: flag
+        for action in _all_actions(parser)
+        for flag in action.option_strings
+        if flag.startswith("--") and flag[2:].replace("-", "_") == action.dest
+    }
 
 
 def _python_names_of_options(parser: argparse.ArgumentParser) -> dict[str, str]:
@@ -335,6 +382,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_rank(commands)
     add_model_commands(commands)  # layer, pulp, optimize
     _add_circuit_command(commands)
+    density = add_density_command(commands)  # density fit (the sub-commands and their work are in density_command)
+    add_predict_parser(density.density_commands)  # density predict (density_predict_command)
     state_ranges(parser)
     return parser
 
@@ -513,7 +562,7 @@ def _add_points(commands, groups) -> None:
     points.add_argument("input", type=Path, help="lab table (CSV or .xlsx)")
     points.add_argument("-o", "--output", type=Path, required=True, help="Tromp points CSV to write")
     _add_partition_to(points)
-    points.set_defaults(run=_run_points, imports=(*_READERS, "tromplab.output.views"))
+    points.set_defaults(run=_run_points, imports=(*_READERS, "tromplab.output.views", "tromplab.output.csv_parts"))
 
 
 def _add_balance(commands, groups) -> None:
@@ -539,7 +588,7 @@ def _add_sieve(commands) -> None:
     identify.add_argument(
         "--level", type=cli_type(check_probability, "--level"), default=0.95, help="confidence level of the intervals, in (0, 1)"
     )
-    identify.set_defaults(run=_run_sieve_identify, imports=("tromplab.classifiers.sieve", *_READERS))
+    identify.set_defaults(run=_run_sieve_identify, imports=("tromplab.classifiers.sieve", *_READERS, "tromplab.output.csv_parts"))
     _add_sieve_pg(sieve_commands)
     _add_sieve_bin(sieve_commands)
 
@@ -602,7 +651,7 @@ def _add_rank(commands) -> None:
         help="significance level for F_crit from n, in (0, 1)",
     )
     rank.add_argument("--computed-adequacy", action="store_true", help="ignore an 'adequate' column and use F > F_crit")
-    rank.set_defaults(run=_run_rank, imports=("tromplab.curves.ranking", *_READERS))
+    rank.set_defaults(run=_run_rank, imports=("tromplab.curves.ranking", *_READERS, "tromplab.output.csv_parts"))
 
 
 def _add_partition_to(parser) -> None:
@@ -631,7 +680,7 @@ class _SubcommandParser(_CommandParser):
 
 def _lab_options_parser() -> argparse.ArgumentParser:
     lab = argparse.ArgumentParser(add_help=False)
-    group = lab.add_argument_group("lab data (see the README for the schema)")
+    group = lab.add_argument_group("lab data (schema: docs/lab_tables.md)")
     group.add_argument(
         "--kind",
         choices=KINDS,
@@ -748,7 +797,9 @@ def _run_points(args) -> int:
     )
     table = partition_view(table, args.partition_to)
     args.output.parent.mkdir(parents=True, exist_ok=True)
-    written = write_files({args.output.name: lambda p: table.to_csv(p, index=False)}, args.output.parent)
+    from .output.csv_parts import write_csv
+
+    written = write_files({args.output.name: lambda p: write_csv(table, p)}, args.output.parent)
     _print_balance_notes(balances)
     print(table.to_string(index=False, float_format=lambda v: f"{v:.4g}", na_rep="-"))
     print(f"\nWrote: {written[args.output.name]}")
@@ -783,11 +834,12 @@ def _run_balance(args) -> int:
 def _run_sieve_identify(args) -> int:
     from .classifiers.sieve import identify_from_table
     from .loading.tables import check_input_file, read_table
+    from .output.csv_parts import write_csv
 
     check_input_file(args.data)
     check_output_file(args.output, inputs=[args.data])
     laws = identify_from_table(read_table(args.data), two_sided=args.two_sided, level=args.level)
-    written = write_files({args.output.name: lambda p: laws.to_csv(p, index=False)}, args.output.parent)
+    written = write_files({args.output.name: lambda p: write_csv(laws, p)}, args.output.parent)
     view = laws[["sieve", "fraction", "n_regimes", "v_k", "v_k_stderr", "sigma", "sigma_stderr", "success"]]
     print(view.to_string(index=False, float_format=lambda v: f"{v:.4g}", na_rep="-"))
     for sieve, fraction, message in laws.loc[~laws["success"].astype(bool), ["sieve", "fraction", "message"]].itertuples(
@@ -1165,12 +1217,13 @@ def _run_trend(args) -> int:
 def _run_rank(args) -> int:
     from .curves.ranking import rank_formulas, read_f_table
     from .loading.tables import check_input_file
+    from .output.csv_parts import write_csv
 
     check_input_file(args.table)
     check_output_folder(args.outdir, inputs=[args.table])
     table = read_f_table(args.table, alpha=args.alpha, use_given_marks=not args.computed_adequacy)
     ranking = rank_formulas(table)
-    written = write_files({"ranking.csv": lambda p: ranking.to_csv(p, index=False)}, args.outdir)
+    written = write_files({"ranking.csv": lambda p: write_csv(ranking, p)}, args.outdir)
     print(ranking.to_string(index=False))
     print(f"\nWrote: {written['ranking.csv']}")
     return 0
@@ -1215,7 +1268,9 @@ def format_fits(fits: pd.DataFrame, verdicts: dict[str, list[str]] | None = None
         if not group["success"].any():
             continue  # experiments that could not be fitted are listed separately
         ordered = group.sort_values("rank", na_position="last")
-        view = ordered[columns].copy()
+        corrected = _has_bypass(ordered)
+        shown = [*columns[:4], "d50c", *columns[4:]] if corrected else columns
+        view = ordered[shown].copy()
         flagged = ordered["residuals"].fillna("").str.contains("systematic|not normal")
         view["adequate"] = np.where(ordered["adequate"], np.where(flagged, "yes*", "yes"), "NO")
         view.loc[~ordered["success"], "adequate"] = "failed"
@@ -1225,11 +1280,14 @@ def format_fits(fits: pd.DataFrame, verdicts: dict[str, list[str]] | None = None
         n = int(group["n"].dropna().iloc[0]) if group["n"].notna().any() else 0
         ranked_by = "AICc (lowest first)" if rank_by == "aicc" else "F (highest first)"
         blocks.append(f"Experiment {experiment} (n = {n}), ranked by {ranked_by}:\n{text}")
+        if corrected:
+            blocks.append(textwrap.fill(CUT_LEGEND, width=98, initial_indent="  ", subsequent_indent="    "))
         for statement in (verdicts or {}).get(experiment, []):
             blocks.append(textwrap.fill(statement, width=98, initial_indent="  ! ", subsequent_indent="    "))
         if intervals:
+            cut = "d50c" if corrected else "d50"  # the fitted cut parameter: the actual cut of the nine formulas
             bounds = ordered[["formula", "d_cut", *intervals]].rename(
-                columns=lambda c: re.sub(r"(_boot)?_(low|high)$", r" \2", c)
+                columns=lambda c, cut=cut: re.sub(r"^d_cut", cut, re.sub(r"(_boot)?_(low|high)$", r" \2", c))
             )
             title = "  intervals:" if kind == "" else "  bootstrap intervals:"
             blocks.append(f"{title}\n" + bounds.to_string(index=False, float_format=lambda v: f"{v:.4g}", na_rep="-"))
@@ -1244,8 +1302,13 @@ def format_fits(fits: pd.DataFrame, verdicts: dict[str, list[str]] | None = None
     return "\n".join(blocks)
 
 
+def _has_bypass(fits: pd.DataFrame) -> bool:
+    """Whether some fit of the table is a curve with bypass (its d50c differs from its d50)."""
+    return bool("bypass" in fits.columns and fits["bypass"].notna().any())
+
+
 def _add_circuit_command(commands) -> None:
-    """``tromplab circuit FLOWSHEET MEASUREMENTS -o DIR [--fit]`` (issue 25; the work is in circuit_command)."""
+    """``tromplab circuit FLOWSHEET MEASUREMENTS -o DIR [--fit]`` (the work is in circuit_command)."""
     circuit = commands.add_parser(
         "circuit", help="reconcile a plant survey over its flowsheet; partition curves of every separator (docs/circuit.md)"
     )

@@ -61,3 +61,27 @@ class InputNote(UserWarning):
 
 class YieldWarning(UserWarning):
     """A stated yield contradicts the size distributions."""
+
+
+def expect_kind(value, kinds, argument: str, accepted: str):
+    """``value`` when it is an instance of ``kinds``; else a :class:`TypeError` that names the
+    argument, says what it accepts and what it got (never an ``AttributeError`` later on).
+
+    Examples
+    --------
+    >>> expect_kind([1], dict, "table", "a pandas DataFrame")
+    Traceback (most recent call last):
+    ...
+    TypeError: table must be a pandas DataFrame, got list
+    """
+    if not isinstance(value, kinds):
+        raise TypeError(f"{argument} must be {accepted}, got {type(value).__name__}")
+    return value
+
+
+def expect_like(value, attributes, argument: str, accepted: str):
+    """``value`` when it has every one of ``attributes`` (for a kind a lower layer cannot
+    import); else the :class:`TypeError` of :func:`expect_kind`."""
+    if not all(hasattr(value, name) for name in attributes):
+        raise TypeError(f"{argument} must be {accepted}, got {type(value).__name__}")
+    return value

@@ -51,7 +51,7 @@ SIEVE_RANGES = {
     "speed": {"low": 1e-3, "high": 100.0, "unit": "m/s"},
 }
 #: What the layer commands import when they run, imported before they start (see cli.main).
-_LAYER_IMPORTS = ("tromplab.classifiers.layer", "tromplab.loading.tables", "pandas")
+_LAYER_IMPORTS = ("tromplab.classifiers.layer", "tromplab.loading.tables", "tromplab.output.csv_parts", "pandas")
 
 
 def add_model_commands(commands) -> None:
@@ -65,7 +65,9 @@ def add_model_commands(commands) -> None:
 def _write_csv(table: pd.DataFrame, output: Path | None) -> None:
     if output is None:
         return
-    written = write_files({output.name: lambda p: table.to_csv(p, index=False)}, output.parent)
+    from .output.csv_parts import write_csv
+
+    written = write_files({output.name: lambda p: write_csv(table, p)}, output.parent)
     print(f"\nWrote: {written[output.name]}")
 
 
@@ -408,7 +410,9 @@ def _add_pulp(commands) -> None:
     )
     _level_option(fit)
     fit.add_argument("-o", "--output", type=Path, default=None, help="CSV of the fitted coefficients")
-    fit.set_defaults(run=run_pulp_fit, imports=("tromplab.curves.fitting", "tromplab.loading.tables", "pandas"))
+    fit.set_defaults(
+        run=run_pulp_fit, imports=("tromplab.curves.fitting", "tromplab.loading.tables", "tromplab.output.csv_parts", "pandas")
+    )
 
 
 def _pulp_screen(args):
@@ -488,7 +492,10 @@ def _add_optimize(commands) -> None:
     _add_sieve_options(optimize.add_argument_group("sieve (defaults: the kinetics paper's example)"))
     _add_choice_options(optimize.add_argument_group("choice"))
     optimize.add_argument("-o", "--output", type=Path, default=None, help="CSV of the Pareto front (l1, V, Q, E, success)")
-    optimize.set_defaults(run=run_optimize, imports=("tromplab.classifiers.choice", "tromplab.loading.tables", "pandas"))
+    optimize.set_defaults(
+        run=run_optimize,
+        imports=("tromplab.classifiers.choice", "tromplab.loading.tables", "tromplab.output.csv_parts", "pandas"),
+    )
 
 
 def _add_sieve_options(group) -> None:

@@ -15,6 +15,7 @@ import pandas as pd
 
 from .classifiers import sieve
 from .curves.ranking import rank_formulas, read_f_table
+from .output.csv_parts import write_csv
 
 # Example of the kinetics paper: sieve 1.6 x 1.0 m, cells 3.2 x 3.2 mm, hole 2 mm,
 # bulk density 1150 kg/m3, feed gap 4 mm, printed kinetic coefficients of two fractions.
@@ -176,5 +177,5 @@ def write_table(frame: pd.DataFrame, outdir, name: str) -> Path:
     outdir = Path(outdir)
     outdir.mkdir(parents=True, exist_ok=True)
     path = outdir / name
-    frame.to_csv(path, index=False)
+    write_csv(frame, path)
     return path

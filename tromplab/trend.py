@@ -53,10 +53,10 @@ from .curves.formulas import get_formula, is_batchable
 from .curves.intervals import batched_delta_indices, interval_rows
 from .curves.measured import measured_cut_size, measured_efficiency, measured_slope, normalised_weights
 from .errors import InputError
-from .loading.lab import LabOptions, _renamed, balances_from_table, is_lab_table
+from .loading.lab import LabOptions, balances_from_table, is_lab_table, read_renamed
 from .loading.points import TrompPoints, points_from_table
 from .loading.surveys import has_survey_columns, split_survey_columns
-from .loading.tables import read_table
+from .output.csv_parts import write_csv
 from .output.outputs import write_files
 from .output.plotting import offscreen_axes, plot_control_chart, save_figure
 from .output.report import Report, figure_png
@@ -172,7 +172,7 @@ def read_surveys(path, options=None) -> list[Survey]:
         a survey with two dates, and every error of the points or lab schema.
     """
     options = options or LabOptions()
-    table = _renamed(read_table(path, sheet=options.sheet), options.rename)
+    table = read_renamed(path, options)
     if not has_survey_columns(table):
         raise InputError("a trend needs a 'date' or 'survey' column (one survey per date)", source=table.source)
     table, found = split_survey_columns(table)
@@ -517,8 +517,8 @@ def write_trend(result: TrendResult, outdir, *, size_unit: str = "", figures: bo
     """
     table = result.table.replace({"unit": {"size": size_unit}}) if size_unit else result.table
     outputs = {
-        "trend.csv": lambda p: table.to_csv(p, index=False, date_format="%Y-%m-%d"),
-        "trend_surveys.csv": lambda p: result.survey_flags().to_csv(p, index=False, date_format="%Y-%m-%d"),
+        "trend.csv": lambda p: write_csv(table, p, date_format="%Y-%m-%d"),
+        "trend_surveys.csv": lambda p: write_csv(result.survey_flags(), p, date_format="%Y-%m-%d"),
     }
     if figures:
         for quantity in result.quantities:

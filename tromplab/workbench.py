@@ -15,11 +15,10 @@ import logging
 import math
 import os
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
-from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
@@ -41,13 +40,12 @@ from .curves.formulas import Formula, is_batchable, select_formulas
 from .curves.measured import AMBIGUOUS_CUT_RATIO, CUT_BAND, CUT_WARNING, measured_cut_band, measured_efficiency, unbracketed_cut
 from .curves.ranking import RANK_BY, add_delta_aicc, add_ranks, fit_verdicts, rank_formulas
 from .curves.screening import DEFAULT_ALPHA
-from .errors import InputError, OptionError
-from .loading.lab import Experiments, MassBalance
+from .errors import InputError, OptionError, expect_kind
+from .loading.lab import Experiments, MassBalance, read_experiments
 from .loading.points import TrompPoints, points_from_frame
 from .loading.surveys import with_survey_columns
 from .output.csv_parts import CsvPart, csv_part
 from .output.folder import write_results_folder
-from .output.outputs import write_files
 from .output.plotting import plot_tromp_fits
 from .output.report import build_report, write_report
 from .output.results import load_workbench, workbench_html, workbench_repr
@@ -190,14 +188,6 @@ class Workbench:
 
     def _repr_html_(self) -> str:
         return workbench_html(self)
-
-    def summary(self) -> pd.DataFrame:
-        """The fits table: one row per experiment and formula (columns :data:`FIT_COLUMNS`)."""
-        return self.fits_table()
-
-    def ranking(self) -> pd.DataFrame:
-        """Ranks per experiment, points and place per formula (:meth:`ranking_table`)."""
-        return self.ranking_table()
 
     def averages(self, *, level: float | None = None, jobs: int | None = 1, client=None) -> pd.DataFrame:
         """Akaike-weighted d_cut, Ep and eta per experiment (:func:`model_averages`), with
@@ -389,9 +379,15 @@ def fit_experiments(
 
     Parameters
     ----------
-    experiments : Experiments, sequence of TrompPoints, or a Dask DataFrame of points
-        What :func:`tromplab.read_experiments` returns (its mass balances kept for the report and
-        workbook), the points alone, or a Dask DataFrame (columns ``experiment, size, partition_fine[, weight]``).
+    experiments : path, DataFrame, Experiments, mapping or iterable of TrompPoints
+        A points file or lab table (path) or a pandas DataFrame of one, read by
+        :func:`tromplab.read_experiments` with its defaults; what that function returns (its mass
+        balances kept for the report and workbook); a Dask DataFrame of points (columns
+        ``experiment, size, partition_fine[, weight]``); a mapping of experiment name (str) to
+        its ``TrompPoints`` (renamed to the key), to a DataFrame of its points or to a
+        ``(sizes, partitions)`` pair; or an iterable of ``TrompPoints``.  Two experiments of one
+        name, or none at all, are an :class:`~tromplab.errors.InputError`; anything else is a
+        ``TypeError`` saying what is accepted.
     formulas : str or iterable of ids or equation numbers, optional
         ``"paper"``: the nine; ``"extended"``: the bypass and fish-hook curves; ``"other"``: other tools' curves.
     extended, rank_extended : bool
@@ -441,7 +437,7 @@ def fit_experiments(
     --------
     >>> points = TrompPoints("run", [10, 20, 40, 80, 160], [0.98, 0.91, 0.62, 0.21, 0.04])
     >>> bench = fit_experiments([points], formulas=["plitt", "lognormal", "molerus"])
-    >>> bench.ranking()[["formula", "place"]].values.tolist()
+    >>> bench.ranking_table()[["formula", "place"]].values.tolist()
     [['plitt', 1], ['lognormal', 2], ['molerus', 3]]
     """
     experiments, balances = _points_and_balances(experiments)
@@ -891,14 +887,68 @@ def _fit_chunk_star(options, chunk):
     return fits, notes, columns, averaged, rows, parts
 
 
+#: What :func:`fit_experiments` takes as its experiments, for the message refusing anything else.
+ACCEPTED_EXPERIMENTS = (
+    "a path to a points file or lab table, a pandas or Dask DataFrame, what read_experiments returns, "
+    "a mapping of experiment name to TrompPoints (or to a DataFrame of its points, or to a (sizes, "
+    "partitions) pair), or an iterable of TrompPoints"
+)
+
+
 def _points_and_balances(experiments) -> tuple[list[TrompPoints], tuple[MassBalance, ...]]:
-    """Points (and the mass balances of lab input) from Experiments, a sequence of TrompPoints
-    or a Dask DataFrame of points."""
+    """Points (and the mass balances of lab input) from any of :data:`ACCEPTED_EXPERIMENTS`;
+    an empty input, or two experiments of one name, is an :class:`InputError`."""
+    balances = ()
+    if isinstance(experiments, (str, os.PathLike, pd.DataFrame)):
+        experiments = read_experiments(experiments)
     if isinstance(experiments, Experiments):
-        return list(experiments.points), tuple(experiments.balances)
-    if hasattr(experiments, "dask") and hasattr(experiments, "compute"):
-        return points_from_frame(experiments.compute(), source="dask dataframe"), ()
-    return list(experiments), ()
+        points, balances = list(experiments.points), tuple(experiments.balances)
+    elif hasattr(experiments, "dask") and hasattr(experiments, "compute"):
+        points = points_from_frame(experiments.compute(), source="dask dataframe")
+    elif isinstance(experiments, Mapping):
+        points = [_named_points(name, value) for name, value in experiments.items()]
+    elif isinstance(experiments, Iterable) and not isinstance(experiments, (bytes, bytearray)):
+        points = list(experiments)
+        for position, item in enumerate(points):
+            if not isinstance(item, TrompPoints):
+                raise TypeError(
+                    f"experiments[{position}] is a {type(item).__name__}, not a TrompPoints; experiments must be "
+                    f"{ACCEPTED_EXPERIMENTS}"
+                )
+    else:
+        raise TypeError(f"experiments must be {ACCEPTED_EXPERIMENTS}; got {type(experiments).__name__}")
+    if not points:
+        raise InputError("no experiment to fit: the input is empty", source="experiments")
+    seen = set()
+    for item in points:
+        if item.experiment in seen:
+            raise InputError(
+                f"two experiments are named '{item.experiment}': give each experiment its own name", source="experiments"
+            )
+        seen.add(item.experiment)
+    return points, balances
+
+
+def _named_points(name, value) -> TrompPoints:
+    """The points of experiment ``name`` of a mapping: a TrompPoints (renamed to the key), a
+    DataFrame of one experiment's points (the file schema, its own experiment column ignored)
+    or a ``(sizes, partitions)`` pair."""
+    if not isinstance(name, str):
+        raise TypeError(
+            f"the names of a mapping of experiments are text (str), got {type(name).__name__} {name!r}: map each "
+            "name (str) to its TrompPoints, a DataFrame of its points or a (sizes, partitions) pair"
+        )
+    source = f"experiments['{name}']"
+    if isinstance(value, TrompPoints):
+        return value if value.experiment == name else replace(value, experiment=name)
+    if isinstance(value, pd.DataFrame):
+        found = points_from_frame(value.drop(columns=["experiment"], errors="ignore"), source=source)
+        return replace(found[0], experiment=name)
+    if isinstance(value, (tuple, list)) and len(value) == 2:
+        return TrompPoints(name, value[0], value[1], source=source)
+    raise TypeError(
+        f"{source} is a {type(value).__name__}; give a TrompPoints, a DataFrame of its points or a (sizes, partitions) pair"
+    )
 
 
 def load(directory) -> Workbench:
@@ -912,6 +962,7 @@ def load(directory) -> Workbench:
         A directory written by :meth:`Workbench.save` with ``reloadable=True`` (the
         pickled batch and its manifest are written only then).
     """
+    expect_kind(directory, (str, os.PathLike), "directory", "a path (str or path-like) to a saved results folder")
     return load_workbench(directory)
 
 
@@ -973,10 +1024,9 @@ def model_averages(bench: Workbench, *, level: float = 0.95, jobs: int | None = 
         ``experiment, quantity, value, stderr, low, high`` and ``weight_<formula>`` columns.
 
     """
+    expect_kind(bench, Workbench, "bench", "a Workbench (tromplab.fit_experiments)")
     check_probability(level, "level")
     check_optional(check_count, jobs, "jobs", minimum=0, maximum=MAX_JOBS)
-    if not isinstance(bench, Workbench):
-        raise TypeError(f"model_averages takes a Workbench (from fit_experiments), got {type(bench).__name__}")
     groups = _averaged_groups(bench.fits_by_experiment().values(), [f.id for f in bench.ranked_formulas])
     chunks = chunked(groups, workers=_worker_count(jobs, client))
     logger.info("model averages of %d experiment(s) at level %g", len(groups), level)
@@ -1026,13 +1076,3 @@ def print_progress(i: int, total: int, experiment: str) -> None:
     """Progress line on standard error (for batches of more than one experiment)."""
     if total > 1:
         print(f"[{i}/{total}] fitting experiment {experiment}", file=sys.stderr, flush=True)
-
-
-def write_atomically(outputs: dict[str, Callable[[Path], None]], outdir) -> dict[str, Path]:
-    """Write every output to a temporary file first, then move them all into ``outdir``.
-
-    ``outputs`` maps file names to writers taking a path.  If any writer fails, nothing
-    is left in ``outdir``.  For a whole output folder that replaces the previous run in
-    one step, see :func:`tromplab.output.outputs.replace_folder`.
-    """
-    return write_files(outputs, outdir)

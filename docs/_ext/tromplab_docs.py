@@ -5,6 +5,9 @@
 - :func:`formula_catalogue` writes one section per formula of ``tromplab.ALL_FORMULAS``
   (expression, parameters with bounds, slope at the cut, a figure of the curve family,
   citation, simulator conventions of ``tromplab export``);
+- :func:`density_catalogue` writes one section per density partition curve of
+  ``tromplab.density.curves.DENSITY_CURVES`` (expression, parameters, indices of an example,
+  a figure, citation), appended to the formula catalogue;
 - :func:`api_reference` lists every name of ``tromplab.__all__`` and the public functions and
   classes of each module of the package for autosummary.
 
@@ -41,11 +44,20 @@ def _literal(text: str) -> str:
     return f"``{text}``" if text.strip() else "(none)"
 
 
-def _rst_text(text: str) -> str:
-    """Plain text (help strings, notes) safe inside reStructuredText paragraphs."""
-    text = " ".join(str(text).split())
+#: An option as typed in a help text (``--size-unit``, ``-o``, ``--fine-yield=0.3``): shown as a
+#: literal, so that the HTML shows it as typed (Sphinx's smart quotes turn a bare ``--`` into a dash).
+OPTION_IN_TEXT = re.compile(r"(?<![\w-])(--?[A-Za-z][\w-]*(?:=[\w.]+)?)")
+
+
+def _rst_plain(text: str) -> str:
     text = text.replace("\\", "\\\\").replace("*", "\\*").replace("|", "\\|").replace("`", "'")
     return re.sub(r"(?<![\w\\])_", r"\\_", text)
+
+
+def _rst_text(text: str) -> str:
+    """Plain text (help strings, notes) safe inside reStructuredText paragraphs, options as literals."""
+    parts = OPTION_IN_TEXT.split(" ".join(str(text).split()))
+    return "".join(_literal(part) if i % 2 else _rst_plain(part) for i, part in enumerate(parts))
 
 
 # --- the command line -----------------------------------------------------------------
@@ -289,6 +301,7 @@ def _table(header: tuple[str, ...], rows) -> str:
     lines = [".. list-table::", "   :header-rows: 1", ""]
     for row in (header, *rows):
         cells = [_rst_text(cell) or "-" for cell in row]
+        cells = ["\\-" if cell == "-" else cell for cell in cells]  # a bare "-" would start a bullet list
         lines.append("   * - " + cells[0])
         lines.extend(f"     - {cell}" for cell in cells[1:])
     return "\n".join(lines) + "\n"
@@ -371,6 +384,115 @@ def formula_catalogue(formulas=None, *, figure_dir: Path | None = None, figure_p
     return "\n".join(parts)
 
 
+# --- the density curves -----------------------------------------------------------------
+#: The standard forms F of the density curves in LaTeX, by their binomial link.
+DENSITY_FORMS_TEX = {
+    "probit": r"\Phi(t) = \tfrac12 \operatorname{erfc}(-t/\sqrt2)",
+    "logit": r"\frac{1}{1 + e^{-t}}",
+    "cloglog": r"1 - \exp\left(-e^{t}\right)",
+}
+#: The curves drawn in a density figure: rho50 and, for the plain curves, Ep; for the curves
+#: with limits Ep 0.04 and these (light, heavy) limits.
+DENSITY_FIGURE_CUT = 1.5
+DENSITY_FIGURE_EPS = (0.02, 0.04, 0.08)
+DENSITY_FIGURE_LIMITS = ((0.0, 1.0), (0.03, 0.97), (0.1, 0.9))
+
+
+def _density_math(curve) -> str:
+    form = curve.form
+    centre = "" if form.centre == 0.0 else f"{form.centre:.10g} + "
+    cut, ep = (r"\rho_c", r"E_{p,c}") if curve.has_limits else (r"\rho_{50}", r"E_p")
+    outer = r"l + (h - l)\,F(t)" if curve.has_limits else "F(t)"
+    inner = DENSITY_FORMS_TEX.get(form.link)
+    lines = [rf"P(\rho) = {outer}, \qquad t = {centre}{form.scale:.10g}\,\frac{{\rho - {cut}}}{{{ep}}}"]
+    if inner:
+        lines.append(rf"F(t) = {inner}")
+    return ".. math::\n\n" + "\n\n".join(_indent(line) for line in lines) + "\n"
+
+
+def _density_examples(curve) -> list[tuple[str, dict]]:
+    """(label, parameters) of the curves drawn for ``curve``: cut 1.5 and several Ep or limits."""
+    if not curve.has_limits:
+        return [(f"Ep = {ep:g}", curve.from_indices(rho50=DENSITY_FIGURE_CUT, ep=ep)) for ep in DENSITY_FIGURE_EPS]
+    return [
+        (
+            f"l = {light:g}, h = {heavy:g}",
+            curve.from_indices(rho50=DENSITY_FIGURE_CUT, ep=0.04, light_limit=light, heavy_limit=heavy),
+        )
+        for light, heavy in DENSITY_FIGURE_LIMITS
+    ]
+
+
+def draw_density_family(curve, path: Path) -> None:
+    """Partition to sinks (%) against relative density of ``curve`` for the examples (no pyplot)."""
+    import numpy as np
+    from matplotlib.figure import Figure
+
+    rho = np.linspace(1.2, 1.8, 600)
+    figure = Figure(figsize=(6.4, 3.4), dpi=100, layout="constrained")
+    ax = figure.add_subplot()
+    for i, (label, params) in enumerate(_density_examples(curve)):
+        ax.plot(rho, 100.0 * curve.partition(rho, **params), color=f"C{i}", label=label)
+    ax.axhline(50.0, color="0.6", linewidth=0.8, linestyle=":")
+    ax.axvline(DENSITY_FIGURE_CUT, color="0.6", linewidth=0.8, linestyle=":")
+    ax.set_xlabel("relative density (g/cm3)")
+    ax.set_ylabel("partition to sinks (%)")
+    ax.set_ylim(-2, 102)
+    ax.set_title(f"{curve.id}: rho50 = {DENSITY_FIGURE_CUT:g}" + (", Ep = 0.04" if curve.has_limits else ""), fontsize=10)
+    ax.legend(fontsize=7, loc="lower right", frameon=False)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    figure.savefig(path)
+
+
+def density_curve_section(curve, figure: str | None) -> str:
+    """One section of the density catalogue: expression, parameters, indices, figure, citation."""
+    parts = [f".. _density-{curve.id}:\n", _title(curve.title, "-")]
+    parts.append(f"Registry id {_literal(curve.id)}, binomial link {_literal(curve.link)}, {curve.n_params} fitted parameters.\n")
+    parts.append(_density_math(curve))
+    parts.append(f"Plain text: {_literal(curve.expression)}.\n")
+    rows = [(p.name, f"[{p.lower:g}, {p.upper:g}]", {"1": "-"}.get(p.unit, p.unit or "-"), p.meaning) for p in curve.parameters]
+    parts.append(_table(("parameter", "bounds", "unit", "meaning"), rows))
+    label, params = _density_examples(curve)[1]
+    index = curve.indices(**params)
+    parts.append(
+        f"Indices of the example with rho50 = {DENSITY_FIGURE_CUT:g} and {label if curve.has_limits else 'Ep = 0.04'}"
+        f"{' (Ep = 0.04)' if curve.has_limits else ''}: rho25 = {index.rho25:.4f}, rho75 = {index.rho75:.4f}, "
+        f"Ep = (rho75 - rho25)/2 = {index.ep:.4f}, imperfection Ep/(rho50 - 1) = {index.imperfection:.4f}.\n"
+    )
+    if curve.notes:
+        parts.append(f"Notes: {_rst_text(curve.notes)}\n")
+    if figure:
+        parts.append(
+            f".. figure:: {figure}\n   :alt: {curve.id} density curves\n\n"
+            f"   Partition to sinks of {curve.id} with the cut density {DENSITY_FIGURE_CUT:g} "
+            + ("and Ep 0.04 for three pairs of limits.\n" if curve.has_limits else "for three probable errors.\n")
+        )
+    parts.append(f"Citation: {_rst_text(curve.citation)}\n")
+    return "\n".join(parts)
+
+
+def density_catalogue(curves=None, *, figure_dir: Path | None = None, figure_prefix: str = "formulas") -> str:
+    """The density section of the catalogue over ``curves`` (default every registry density curve)."""
+    from tromplab.density.curves import DENSITY_CURVES
+
+    curves = tuple(DENSITY_CURVES if curves is None else curves)
+    parts = [
+        _title("Density partition curves (gravity separators)", "="),
+        f"The partition to the sinks P(rho) of relative density rho of dense-medium and gravity separators "
+        f"({len(curves)} curves, generated from ``tromplab.density.curves.DENSITY_CURVES``): each plain curve is "
+        "written with the cut density rho50 (P = 1/2) and the probable error Ep = (rho75 - rho25)/2 in density units; "
+        "each has a variant with a light-end limit l and a heavy-end limit h, whose rho50 and Ep are read from P "
+        "itself. Fitting, washability predictions and the size trend are in :doc:`../density`.\n",
+    ]
+    for curve in curves:
+        figure = None
+        if figure_dir is not None:
+            draw_density_family(curve, Path(figure_dir) / f"density_{curve.id}.png")
+            figure = f"{figure_prefix}/density_{curve.id}.png"
+        parts.append(density_curve_section(curve, figure))
+    return "\n".join(parts)
+
+
 # --- the API reference ----------------------------------------------------------------
 def public_names() -> list[str]:
     import tromplab
@@ -448,7 +570,8 @@ def write_pages(srcdir) -> None:
     """Write ``cli.rst``, ``formulas.rst`` (with figures) and ``api.rst`` into ``srcdir/generated``."""
     out = Path(srcdir) / GENERATED
     _write_if_changed(out / "cli.rst", cli_reference())
-    _write_if_changed(out / "formulas.rst", formula_catalogue(figure_dir=out / "formulas"))
+    catalogue = formula_catalogue(figure_dir=out / "formulas") + "\n" + density_catalogue(figure_dir=out / "formulas")
+    _write_if_changed(out / "formulas.rst", catalogue)
     _write_if_changed(out / "api.rst", api_reference())
 
 

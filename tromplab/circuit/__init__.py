@@ -1,5 +1,5 @@
 """Plant surveys: reconcile a whole circuit's size analyses, then give every separator its
-partition curve (issue 25).
+partition curve.
 
 ``tromplab.circuit.reconcile(flowsheet, measurements)`` returns a
 :class:`~tromplab.circuit.reconciliation.CircuitBalance`; ``tromplab circuit`` is the

@@ -191,7 +191,7 @@ def sieve_speed_problem(
     compromise (``Va = 0.287 m/s``); ``Q = rho h B V``; ``E = gamma_target (1 - gamma_next)``
     in %; purity: ``gamma_next <= purity_limit``.  The papers' vibratory-transport model
     linking vibration frequency and angle to ``V`` and ``Va`` is not given, so the
-    decision variable is ``V`` itself (see the README and ``docs/errata.md``).
+    decision variable is ``V`` itself (see ``docs/process_models.md`` and ``docs/errata.md``).
     """
 
     def retained(coefficient, speed):

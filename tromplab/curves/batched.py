@@ -169,7 +169,7 @@ class BatchProblem:
             x_break = self.breaks(params, rows)
         for j in range(params.shape[1]):
             # column 0 is ln d_cut, whose value depends on the size unit: an absolute step keeps
-            # the Jacobian, and so the standard errors, the same in any unit (issue 15)
+            # the Jacobian, and so the standard errors, the same in any unit
             step = relative_step * (1.0 if j == 0 else np.maximum(np.abs(params[:, j]), 1.0))
             step = np.broadcast_to(step, params.shape[:1])
             step = np.where(params[:, j] + step > upper[:, j], -step, step)

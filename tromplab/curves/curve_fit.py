@@ -24,7 +24,7 @@ import numpy as np
 import pandas as pd
 from scipy import optimize
 
-from ..errors import OptionError
+from ..errors import OptionError, expect_kind
 from ..loading.points import MAX_SIZE_SPAN, TrompPoints
 from ..validation import check_probability, check_size
 from .diagnostics import RESIDUAL_WARNING, ResidualDiagnostics, batch_residual_diagnostics, residual_diagnostics
@@ -405,6 +405,58 @@ class CurveFit:
         diagnostics and warnings (like lmfit's ``fit_report``)."""
         return fit_report(self, level=level, profile=profile)
 
+    def model_result(self):
+        """This fit as an :class:`lmfit.model.ModelResult`, made on demand from any successful fit.
+
+        lmfit's :class:`~lmfit.model.Model` of the formula's curve in the sizes
+        (independent variable ``size``, parameters ``d_cut``, the shape and any extras, with
+        the fit's bounds and the square roots of its weights) is fitted by lmfit from this
+        fit's optimum, so the result has lmfit's own ``eval``, ``eval_uncertainty``,
+        ``plot``, ``fit_report`` and ``conf_interval``.  Its parameters equal this fit's to
+        the solver's tolerance and its ``chisqr`` is this fit's ``ssr``; a fit made by the
+        batched engine gets one the same way (``fit.fit.raw`` is lmfit's lower-level
+        ``MinimizerResult``, and None for a batched fit).  Formula (11) keeps the measured
+        efficiency the fit was made with.
+
+        Raises
+        ------
+        ValueError
+            When the fit failed (it has no optimum to start from).
+
+        Examples
+        --------
+        >>> points = TrompPoints("run", [10, 20, 40, 80, 160], [0.98, 0.91, 0.62, 0.21, 0.04])
+        >>> result = fit_formula(points, "plitt").model_result()
+        >>> round(result.params["d_cut"].value, 2), round(float(result.eval(size=48.21)), 3)
+        (48.21, 0.5)
+        """
+        import inspect
+
+        import lmfit
+
+        if not self.success:
+            raise ValueError(f"formula {self.formula.id} on {self.experiment!r} has no lmfit result: {self.message}")
+        formula, context, names = self.formula, dict(self.context), list(self.fit.names)
+
+        def partition_fine(size, **values):
+            d_cut, shape, extras = self.curve_arguments(values)
+            return formula(size, d_cut, shape, **context, **extras)
+
+        arguments = [inspect.Parameter(name, inspect.Parameter.POSITIONAL_OR_KEYWORD) for name in ["size", *names]]
+        partition_fine.__signature__ = inspect.Signature(arguments)
+        partition_fine.__name__ = formula.id
+        model = lmfit.Model(partition_fine, independent_vars=["size"])
+        params = model.make_params()
+        for spec in parameter_specs(formula, self.points):
+            params[spec.name].set(value=spec.clip(self.fit.values[spec.name]), min=spec.lower, max=spec.upper)
+        return model.fit(
+            self.points.partition_fine,
+            params,
+            size=self.points.size,
+            weights=np.sqrt(self.options.weights),
+            method="least_squares",
+        )
+
     def with_lmfit(self) -> CurveFit:
         """This fit with an lmfit result: a fit made by the batched engine (or one that
         travelled through a process pool) is refitted by lmfit from its optimum, without the
@@ -575,6 +627,7 @@ def fit_formula(
     >>> round(fit.d_cut, 2), round(fit.shape, 2), fit.screen.adequate
     (48.21, 2.62, True)
     """
+    expect_kind(points, TrompPoints, "points", "a TrompPoints (tromplab.TrompPoints or tromplab.read_points)")
     formula = get_formula(formula)
     check_screenable(points.n, n_params=formula.n_params)
     options = FitOptions.for_points(points, alpha=alpha, delta_max=delta_max, size_unit=size_unit, global_search=global_search)

@@ -580,7 +580,7 @@ MAX_BOOTSTRAP_RESAMPLES = 100_000
 #: Largest total number of bootstrap refits (resamples x fits) run without refusing.
 MAX_BOOTSTRAP_REFITS = 20_000_000
 #: Measured cost of one batched bootstrap refit with its indices (seconds, 2-core machine; docs/performance.md).
-SECONDS_PER_BOOTSTRAP_REFIT = 1e-4  # 0.72 s for 1,000 x 9 (benchmarks/bootstrap.py, 2026-11-26); (11) about 3e-4
+SECONDS_PER_BOOTSTRAP_REFIT = 1e-4  # 0.72 s for 1,000 x 9 (benchmarks/bootstrap.py); (11) about 3e-4
 
 
 def check_bootstrap_request(n_resamples: int, *, n_fits: int) -> float:

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from functools import cache, lru_cache
 
@@ -1576,6 +1576,8 @@ def get_formula(key: str | int) -> Formula:
     ------
     KeyError
         For an unknown key, listing the known formulas.
+    TypeError
+        For a key that is no name at all (None, a boolean, a collection).
 
     Examples
     --------
@@ -1584,14 +1586,39 @@ def get_formula(key: str | int) -> Formula:
     """
     if isinstance(key, Formula):
         return key
+    if key is None or isinstance(key, (bool, np.bool_, bytes, list, tuple, dict, set, np.ndarray)):
+        raise TypeError(f"a formula is named by its id (str) or its equation number (int), got {type(key).__name__}")
     text = str(key).strip()
     if text in _BY_ID:
         return _BY_ID[text]
     number = text.strip("()")
     if number.isdigit() and int(number) in _BY_EQUATION:
         return _BY_EQUATION[int(number)]
-    known = ", ".join(f"{f.id} ({f.equation})" for f in FORMULAS)
-    raise KeyError(f"unknown formula {key!r}; known formulas: {known}")
+    raise KeyError(unknown_formula_message(key))
+
+
+#: The groups a formula selection may name (``--formulas paper,other``), in the order listed.
+FORMULA_GROUPS = {"paper": FORMULAS, "other": OTHER_FORMULAS, "extended": EXTENDED_FORMULAS}
+
+
+def unknown_formula_message(key) -> str:
+    """Why ``key`` names no formula: the closest ids and groups (:func:`difflib.get_close_matches`),
+    then every id with its equation number, group by group.
+
+    Examples
+    --------
+    >>> unknown_formula_message("plit").split(";")[0]
+    "unknown formula 'plit' (did you mean plitt?)"
+    """
+    import difflib
+
+    names = [*_BY_ID, *FORMULA_GROUPS]
+    close = difflib.get_close_matches(str(key).strip().lower(), names, n=3, cutoff=0.6)
+    hint = f" (did you mean {', '.join(close)}?)" if close else ""
+    groups = "; ".join(
+        f"{group}: " + ", ".join(f"{f.id} ({f.equation})" for f in formulas) for group, formulas in FORMULA_GROUPS.items()
+    )
+    return f"unknown formula {key!r}{hint}; give an id, an equation number or a group ({', '.join(FORMULA_GROUPS)}). {groups}"
 
 
 def select_formulas(keys=None) -> tuple[Formula, ...]:
@@ -1599,7 +1626,7 @@ def select_formulas(keys=None) -> tuple[Formula, ...]:
 
     Parameters
     ----------
-    keys : str, iterable of str/int, or None
+    keys : str, int, iterable of str/int, or None
         Ids or equation numbers (a comma-separated string is split); ``"extended"``
         stands for every extended curve (bypass, fish-hook), ``"paper"`` for the nine,
         ``"other"`` for the curves of other tools (normal, logistic, Teipel/Hennig,
@@ -1618,10 +1645,13 @@ def select_formulas(keys=None) -> tuple[Formula, ...]:
         return FORMULAS
     if isinstance(keys, str):
         keys = [k for k in keys.replace(" ", "").split(",") if k]
+    elif isinstance(keys, (int, np.integer, Formula)):
+        keys = [keys]
+    elif not isinstance(keys, Iterable) or isinstance(keys, Mapping):
+        raise TypeError(f"formulas are ids or equation numbers (a str, an int or an iterable of them), got {type(keys).__name__}")
     chosen = []
     for key in keys:
-        groups = {"extended": EXTENDED_FORMULAS, "paper": FORMULAS, "other": OTHER_FORMULAS}
-        group = groups[key] if key in groups else (get_formula(key),)
+        group = FORMULA_GROUPS[key] if isinstance(key, str) and key in FORMULA_GROUPS else (get_formula(key),)
         chosen += [f for f in group if f not in chosen]
     return tuple(chosen)
 

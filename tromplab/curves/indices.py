@@ -213,6 +213,9 @@ def curve_indices(
     >>> round(ind.d25, 3), round(ind.d75, 3), round(ind.ep, 3), ind.extrapolated
     (57.735, 173.205, 57.735, ('d25', 'eta'))
     """
+    for argument, value in (("d_cut", d_cut), ("shape", shape), ("delta_max", delta_max)):
+        if value is None or isinstance(value, (str, bytes, list, tuple, dict, set)):
+            raise TypeError(f"{argument} must be a number, got {type(value).__name__}")
     formula = get_formula(formula)
     d_cut, shape, delta_max = check_size(d_cut, "d_cut"), check_number(shape, "shape"), check_size(delta_max, "delta_max")
     eta, eps = efficiency(formula, shape, delta_max / d_cut, **context)

@@ -19,6 +19,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
+from ..errors import expect_like
 from ..validation import check_optional, check_probability, check_size
 from .batched import BatchProblem, PaddedPoints, profile_limits, sum_of_squares
 from .fitting import on_bound
@@ -29,6 +30,9 @@ from .parameters import D_CUT_RANGE_FACTOR
 
 if TYPE_CHECKING:
     from .curve_fit import CurveFit
+
+#: What a fit handed to the interval functions has (a CurveFit; this layer cannot import the class).
+FIT_ATTRIBUTES = ("fit", "points", "formula", "success", "options")
 
 
 INDEX_NAMES = ("slope", "eta", "epsilon", "d25", "d75", "ep", "imperfection", "d50", "ep_c", "imperfection_c")
@@ -484,6 +488,7 @@ def interval_table(
         The profile intervals of this fit made beforehand (:func:`batched_profile_intervals`,
         for many fits at once); default :func:`profile_intervals` with ``profile``.
     """
+    expect_like(fit, FIT_ATTRIBUTES, "fit", "a CurveFit (tromplab.fit_formula)")
     level = check_probability(level, "level")
     delta_max = check_optional(check_size, delta_max, "delta_max")
     return pd.DataFrame(interval_rows(fit, level=level, delta_max=delta_max, profile=profile, known=known, profiled=profiled))

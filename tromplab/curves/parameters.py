@@ -59,11 +59,6 @@ class Parameter:
         """``value`` moved into the bounds."""
         return float(np.clip(value, self.lower, self.upper))
 
-    def describe(self) -> str:
-        """One line for tables and reports: name, bounds, unit and meaning."""
-        unit = f" [{self.unit}]" if self.unit else ""
-        return f"{self.name} in [{self.lower:g}, {self.upper:g}]{unit}: {self.meaning}"
-
 
 def d_cut_parameter(sizes) -> Parameter:
     """The cut-size parameter for a curve measured at ``sizes`` (same unit as the sizes).

@@ -43,7 +43,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from ..errors import InputError
+from ..errors import InputError, expect_kind
 from ..loading.tables import read_table
 from ..options import RANK_BY
 from .screening import DEFAULT_ALPHA, EXACT_FIT_RMS, critical_f
@@ -118,8 +118,10 @@ def rank_formulas(table: pd.DataFrame, *, by: str = "F", key: str = "equation") 
         One row per formula: ``key``, one rank column per experiment (named by the
         experiment, in order of appearance), ``points`` and ``place``.
     """
-    if not isinstance(table, pd.DataFrame):
-        raise TypeError(f"rank_formulas takes a pandas DataFrame of scores, got {type(table).__name__}")
+    expect_kind(table, pd.DataFrame, "table", f"a pandas DataFrame with columns experiment, {key}, adequate and {by}")
+    missing = [c for c in ("experiment", key, "adequate", by) if c not in table.columns]
+    if missing:
+        raise InputError(f"the table has no column(s) {', '.join(missing)}", source="table")
     ranked = add_ranks(table, by=by)
     ranked["counted"] = ranked["rank"] * np.where(ranked["adequate"].astype(bool), 1, 2)
     wide = ranked.pivot(index=key, columns="experiment", values="rank")

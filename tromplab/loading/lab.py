@@ -1,7 +1,7 @@
 """From laboratory sieve data to Tromp points, with the mass balance checked.
 
 Schema of a lab table (CSV or Excel), one row per size class (or per sieve) and
-experiment - see the README for an example:
+experiment - see docs/lab_tables.md for an example:
 
 ``experiment``
     optional; all rows form one experiment named after the file when absent.
@@ -70,6 +70,7 @@ from ..validation import (
     check_water_recovery,
 )
 from .kelsall import kelsall_corrected
+from .names import renamed_to_names
 from .points import TrompPoints, experiment_rows, normal_unit, points_from_table, resolve_size_unit, size_column_unit
 from .surveys import has_survey_columns, split_survey_columns, with_survey_meta
 from .tables import Table, read_table
@@ -318,8 +319,7 @@ def read_lab(path, options: LabOptions | None = None, **option_values) -> list[M
         For every kind of bad input, naming file, row and column.
     """
     options = _options(options, option_values)
-    table = read_table(path, sheet=options.sheet, sep=options.sep, decimal=options.decimal)
-    return balances_from_table(_renamed(table, options.rename), options)
+    return balances_from_table(read_renamed(path, options), options)
 
 
 def _options(options: LabOptions | None, values: dict) -> LabOptions:
@@ -351,6 +351,15 @@ def balances_from_table(table: Table, options: LabOptions) -> list[MassBalance]:
         part = table.subset(rows)
         balances.append(_balance_one(part, name, streams, size_layout, options))
     return balances
+
+
+def read_renamed(path, options: LabOptions) -> Table:
+    """The table at ``path`` (or a DataFrame) with ``options.rename`` applied; a column renamed
+    to a name column is read as text, as the name column itself would be."""
+    table = read_table(
+        path, sheet=options.sheet, sep=options.sep, decimal=options.decimal, text_columns=renamed_to_names(options.rename)
+    )
+    return _renamed(table, options.rename)
 
 
 def _renamed(table: Table, rename: dict) -> Table:
@@ -399,8 +408,8 @@ def _stream_columns(table: Table, options: LabOptions) -> dict[str, tuple[str, s
         if kind is None:
             if options.kind is None:
                 raise InputError(
-                    f"what column '{column}' holds is not declared: pass a kind ({', '.join(KINDS)}) "
-                    f"or name the column with a suffix, e.g. '{column}_pct'",
+                    f"what column '{column}' holds is not declared: declare it with kind='pct' (or another of "
+                    f"{', '.join(KINDS)}) or name the column with a suffix, e.g. '{column}_pct'",
                     source=table.source,
                     column=column,
                 )
@@ -1224,7 +1233,7 @@ def read_experiments(path, options: LabOptions | None = None, **option_values) -
         balances they came from (empty for a points file).
     """
     options = _options(options, option_values)
-    table = _renamed(read_table(path, sheet=options.sheet, sep=options.sep, decimal=options.decimal), options.rename)
+    table = read_renamed(path, options)
     if not has_survey_columns(table):
         return _experiments_from_table(table, options)
     # a monitoring file (tromplab trend) fits as it is: survey and date go with the points, in date order

@@ -33,7 +33,7 @@ import pandas as pd
 
 from ..errors import InputError
 from ..validation import SIZE_LIMITS  # also offered here, beside MAX_SIZE_SPAN
-from .tables import Table, read_table
+from .tables import Table, read_table, table_from_frame
 
 SIZE_UNITS = ("nm", "um", "mm", "cm", "m")  # mesh numbers are not sizes (larger = finer)
 _UNIT_SPELLINGS = {
@@ -64,14 +64,6 @@ PARTITION_SLACK = 0.1
 #: nine decades (1 nm to 1 m) hold any classifier test; more is a mistyped size or unit,
 #: and a ratio near 1e300 overflowed the efficiency integrals (found by benchmarks/fuzz_cli.py).
 MAX_SIZE_SPAN = 1e9
-
-
-def _is_number(item) -> bool:
-    try:
-        float(item)
-    except (TypeError, ValueError):
-        return False
-    return True
 
 
 @dataclass(frozen=True)
@@ -127,12 +119,15 @@ class TrompPoints:
     resampled: bool = field(default=False, repr=False, compare=False)
 
     def __post_init__(self):
-        size, phi = self._real_array(self.size, "size"), self._real_array(self.partition_fine, "partition_fine")
+        if not isinstance(self.experiment, str):
+            raise TypeError(f"the experiment name must be text (str), got {type(self.experiment).__name__}")
+        size = self._numbers(self.size, "size")
+        phi = self._numbers(self.partition_fine, "partition_fine")
         if size.ndim != 1 or phi.ndim != 1 or size.shape != phi.shape:
             raise self._error(f"size has {size.size} values and partition_fine {phi.size}: give one partition per size")
         arrays = {"size": size, "partition_fine": phi}
         if self.weight is not None:
-            arrays["weight"] = self._real_array(self.weight, "weight")
+            arrays["weight"] = self._numbers(self.weight, "weight")
             if arrays["weight"].shape != size.shape:
                 raise self._error(f"weight has {arrays['weight'].size} values for {size.size} sizes", column="weight")
         for column, values in arrays.items():
@@ -156,25 +151,24 @@ class TrompPoints:
         if self.weight is not None:
             object.__setattr__(self, "weight", arrays["weight"][order])
 
-    def _real_array(self, values, column: str) -> np.ndarray:
-        """``values`` as a flat array of floats, or an :class:`InputError` naming ``column``:
-        complex numbers, nested (ragged) sequences and text are refused, not cast."""
-        raw = values if isinstance(values, np.ndarray) else None
+    def _numbers(self, values, column: str) -> np.ndarray:
+        """``values`` as an array of floats; text, complex numbers, nested or ragged sequences
+        and other objects are refused naming the column (not with numpy's words, and not cast:
+        numpy would drop an imaginary part with only a warning)."""
+        if isinstance(values, (str, bytes, dict)) or values is None:
+            raise self._error(f"{column} must be a sequence of numbers, got {type(values).__name__}", column=column)
+        if (
+            np.iscomplexobj(values)
+            if isinstance(values, np.ndarray)
+            else any(isinstance(v, (complex, np.complexfloating)) for v in values)
+        ):
+            raise self._error(f"{column} must hold real numbers, got complex ones", column=column)
         try:
-            raw = np.asarray(values) if raw is None else raw
-        except ValueError:  # numpy refuses a ragged nesting
-            raise self._error("takes one flat sequence of numbers, got a ragged nesting", column=column) from None
-        if np.iscomplexobj(raw):  # numpy would drop the imaginary part with only a warning
-            raise self._error("takes real numbers, got complex ones", column=column)
-        if raw.dtype == object and any(isinstance(item, (list, tuple, np.ndarray)) for item in raw.ravel()):
-            raise self._error("takes one flat sequence of numbers, got a ragged nesting", column=column)
-        try:
-            array = np.asarray(raw, dtype=float)
+            array = np.asarray(values, dtype=float)
         except (TypeError, ValueError):
-            first = next(item for item in np.atleast_1d(raw).ravel() if not _is_number(item))
-            raise self._error(f"takes numbers, got {str(first)!r}", column=column) from None
+            raise self._error(f"{column} must be a flat sequence of numbers; {_shown(values)} is not", column=column) from None
         if array.ndim != 1:
-            raise self._error(f"takes one flat sequence of numbers, got an array of shape {array.shape}", column=column)
+            raise self._error(f"{column} must be a flat sequence of numbers, got {array.ndim} dimension(s)", column=column)
         return array
 
     def _error(self, message: str, *, column: str | None = None) -> InputError:
@@ -221,6 +215,12 @@ class TrompPoints:
         if self.weight is not None:
             frame["weight"] = self.weight
         return frame
+
+
+def _shown(values, limit: int = 60) -> str:
+    """``repr(values)`` cut to ``limit`` characters, for a message."""
+    text = repr(values)
+    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 def read_points(
@@ -404,4 +404,5 @@ def points_from_frame(frame: pd.DataFrame, *, source: str = "data frame") -> lis
     """Tromp points from a data frame in the file schema (same checks and messages as a file;
     rows are numbered from 1)."""
     frame = frame.reset_index(drop=True)
-    return points_from_table(Table(frame, np.arange(1, len(frame) + 1), source))
+    frame.index = frame.index + 1
+    return points_from_table(table_from_frame(frame, source=source))

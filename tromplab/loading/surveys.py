@@ -49,10 +49,10 @@ def split_survey_columns(table: Table) -> tuple[Table, dict[str, dict]]:
     """
     frame = table.frame.copy()
     dates = _dates(table) if "date" in frame.columns else None
-    surveys = frame["survey"].astype(str).str.strip() if "survey" in frame.columns else None
+    surveys = pd.Series(table.names("survey", what="survey")) if "survey" in frame.columns else None
     what = "experiment" if "experiment" in frame.columns else "survey"
     if "experiment" in frame.columns:
-        labels = frame["experiment"].astype(str).str.strip()
+        labels = pd.Series(table.names("experiment", what="experiment"))
     else:
         labels = surveys if surveys is not None else dates.dt.strftime("%Y-%m-%d")
         frame["experiment"] = labels.to_numpy()

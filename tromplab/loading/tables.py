@@ -1,9 +1,19 @@
 """Reading tidy input tables (CSV or Excel) with row numbers kept for error messages.
 
-Rows are numbered as in the file: for CSV the line number (comment lines starting with
-``#`` count, so the number is where an editor shows the row; a ``#`` inside a line is
-text, not a comment); for Excel the sheet row (header = row 1); for a pandas DataFrame
-its index label (messages say "DataFrame, row <label>").  A DataFrame goes through the
+Rows are numbered as in the file: for CSV the line number (comment lines count, so the
+number is where an editor shows the row); for Excel the sheet row; for a pandas DataFrame
+its index label (messages say "DataFrame, row <label>").
+
+Comments: lines (sheet rows) above the header whose first non-blank character is ``#`` are
+comments, as are blank lines anywhere.  From the header on, every line that is not blank is
+data, whatever it starts with, so a comment can never swallow a row (an experiment named
+``#3`` is an experiment).
+
+Names (``experiment``, ``survey``, ``stream`` and the other columns of
+:data:`tromplab.loading.names.NAME_COLUMNS`, and class strings) are read as text exactly as
+written (:mod:`tromplab.loading.names`): ``01`` and ``1`` are two names, and ``NA`` or
+``None`` are names; only an empty cell is blank.  In other columns the words pandas reads as
+missing (``NA``, ``nan``, ``null``, ...) are blanks, as before.  A DataFrame goes through the
 same :class:`Table` checks as a file, so the Python API and the CLI refuse the same
 input with the same words.
 
@@ -38,6 +48,8 @@ import numpy as np
 import pandas as pd
 
 from ..errors import InputError, InputNote
+from .names import MISSING_WORDS, cell_name, is_name_column, names_as_text
+from .paths import check_input_file  # noqa: F401 - read from here by the loaders' callers
 
 logger = logging.getLogger(__name__)
 
@@ -164,15 +176,20 @@ class Table:
             marks.append(_TRUTH[text])
         return np.asarray(marks, dtype=bool)
 
+    def names(self, column: str, *, what: str | None = None) -> np.ndarray:
+        """A name column as text (read so by :func:`read_table`); with ``what``, a blank cell
+        is refused ("{what} name is blank"), else it is ""."""
+        names = [value if isinstance(value, str) else cell_name(value) for value in self.frame[column].tolist()]
+        blank = np.fromiter((not name for name in names), dtype=bool, count=len(names))
+        if what is not None and blank.any():
+            raise self.error(f"{what} name is blank", index=int(np.flatnonzero(blank)[0]), column=column)
+        return np.asarray([name or "" for name in names], dtype=object)
+
     def experiment_labels(self) -> np.ndarray:
-        """The ``experiment`` column as stripped text; the file's name when there is no such column."""
+        """The ``experiment`` column as names; the file's name when there is no such column."""
         if "experiment" not in self.frame.columns:
             return np.full(len(self.frame), Path(self.source).stem, dtype=object)
-        labels = self.frame["experiment"]
-        blank = labels.isna().to_numpy() | (labels.astype(str).str.strip() == "").to_numpy()
-        if blank.any():
-            raise self.error("experiment name is blank", index=int(np.flatnonzero(blank)[0]), column="experiment")
-        return labels.astype(str).str.strip().to_numpy(dtype=object)
+        return self.names("experiment", what="experiment")
 
     def subset(self, selection) -> Table:
         """The records selected by a boolean mask or by integer positions (in that order)."""
@@ -183,7 +200,13 @@ class Table:
 
 
 def read_table(
-    path, *, sheet: str | int | None = None, sep: str | None = None, decimal: str | None = None, columns=None
+    path,
+    *,
+    sheet: str | int | None = None,
+    sep: str | None = None,
+    decimal: str | None = None,
+    columns=None,
+    text_columns=(),
 ) -> Table:
     """Read a CSV (``#`` comments allowed) or Excel file, or take a DataFrame, into a :class:`Table`.
 
@@ -200,6 +223,9 @@ def read_table(
     columns : collection of str, optional
         Keep only these columns of a CSV (the others are checked as the header is, but not
         parsed: a large table read for a few of its columns needs a fraction of the memory).
+    text_columns : collection of str, optional
+        Columns read as names besides :data:`~tromplab.loading.names.NAME_COLUMNS` (the
+        columns a rename will turn into name columns).
 
     Raises
     ------
@@ -213,7 +239,9 @@ def read_table(
             raise InputError(f"a sheet ({sheet!r}) was given with a DataFrame", source=DATAFRAME_SOURCE)
         if sep is not None or decimal is not None:
             raise InputError("sep and decimal apply to CSV files, not to a DataFrame", source=DATAFRAME_SOURCE)
-        return table_from_frame(path)
+        return table_from_frame(path, text_columns=text_columns)
+    if not isinstance(path, (str, os.PathLike)):
+        raise TypeError(f"a table is read from a file path (str or path-like) or a pandas DataFrame, got {type(path).__name__}")
     path = Path(path)
     source = str(path)
     sep = {"\\t": "\t", "tab": "\t"}.get(sep, sep)  # a tab is hard to type on a command line
@@ -225,15 +253,15 @@ def read_table(
     if suffix in EXCEL_SUFFIXES:
         if sep is not None or decimal is not None:
             raise InputError("sep and decimal apply to CSV files, not to an Excel workbook", source=source)
-        frame, rows, header = _read_excel(path, sheet)
+        frame, rows, header = _read_excel(path, sheet, text_columns)
         notes = ()
     else:
         if sheet is not None:
             raise InputError(f"a sheet ({sheet!r}) was given but the file is not an Excel workbook", source=source)
-        frame, rows, header, notes = _read_csv(path, sep=sep, decimal=decimal, columns=columns)
+        frame, rows, header, notes = _read_csv(path, sep=sep, decimal=decimal, columns=columns, text_columns=text_columns)
     _check_header(header, source)
     frame.columns = [str(c).strip() for c in (header if columns is None else frame.columns)]
-    frame = _drop_empty_unnamed(frame, source)
+    frame = _with_names_as_text(_drop_empty_unnamed(frame, source), text_columns)
     if frame.empty:
         raise InputError("the table has a header but no data rows", source=source)
     for note in notes:
@@ -245,11 +273,12 @@ def read_table(
 DATAFRAME_SOURCE = "DataFrame"
 
 
-def table_from_frame(frame: pd.DataFrame, *, source: str = DATAFRAME_SOURCE) -> Table:
+def table_from_frame(frame: pd.DataFrame, *, source: str = DATAFRAME_SOURCE, text_columns=()) -> Table:
     """A :class:`Table` from a DataFrame; rows are named by the frame's index labels.
 
-    Column names are stripped of spaces and rows that are blank throughout are dropped, as
-    for a file; the frame itself is not changed.
+    Column names are stripped of spaces, name columns (and ``text_columns``) become text as
+    a file's do (a number ``1`` the name ``"1"``; a missing value stays blank) and rows that
+    are blank throughout are dropped, as for a file; the frame itself is not changed.
 
     Examples
     --------
@@ -266,12 +295,24 @@ def table_from_frame(frame: pd.DataFrame, *, source: str = DATAFRAME_SOURCE) -> 
     if len(set(frame.columns)) != len(frame.columns):
         twice = sorted({c for c in frame.columns if list(frame.columns).count(c) > 1})
         raise InputError(f"column(s) {', '.join(twice)} appear more than once", source=source)
+    frame = _with_names_as_text(frame, text_columns)
     keep = ~frame.isna().all(axis=1).to_numpy()
     rows = np.asarray(frame.index[keep], dtype=object)
     frame = frame.loc[keep].reset_index(drop=True)
     if frame.empty:
         raise InputError("the table has no data rows", source=source)
     return Table(frame, rows, source)
+
+
+def _with_names_as_text(frame: pd.DataFrame, text_columns=()) -> pd.DataFrame:
+    """``frame`` with its name columns as text (:func:`~tromplab.loading.names.names_as_text`)."""
+    named = [position for position, column in enumerate(frame.columns) if is_name_column(column, text_columns)]
+    if not named:
+        return frame
+    frame = frame.copy()
+    for position in named:
+        frame[frame.columns[position]] = names_as_text(frame.iloc[:, position])
+    return frame
 
 
 def _check_path(path: Path) -> None:
@@ -310,21 +351,42 @@ def _check_path(path: Path) -> None:
         raise InputError("the file is binary (it contains NUL bytes), not a CSV text table", source=source)
 
 
-#: A comment line (first non-blank character '#') or a blank line, anywhere in a CSV's text.
-_COMMENT_OR_BLANK_LINE = re.compile(r"^[ \t]*(#|\r?$)", re.MULTILINE)
-#: The same, as the first line and as a line after a line break: searched by the literal line
-#: break, which the regex engine finds a block at a time (the ``^`` of MULTILINE is tried at
-#: every character: 0.2 s on 52 MB)
+#: A comment line (first non-blank character '#') or a blank line (spaces and tabs only), its
+#: line break removed.
+_COMMENT_OR_BLANK_LINE = re.compile(r"[ \t]*(?:#|\Z)")
+#: The first line as a comment or blank, and a blank line after a line break: searched by the
+#: literal line break, which the regex engine finds a block at a time (the ``^`` of MULTILINE is
+#: tried at every character: 0.2 s on 52 MB)
 _FIRST_LINE_COMMENT_OR_BLANK = re.compile(r"[ \t]*(?:#|\r?(?:\n|\Z))")
-_LATER_LINE_COMMENT_OR_BLANK = re.compile(r"\n[ \t]*(?:#|\r?(?:\n|\Z))")
+_LATER_BLANK_LINE = re.compile(r"\n[ \t]*\r?(?:\n|\Z)")
+_LINE_BREAK = re.compile(r"\r\n|\r|\n")
 
 
-def _has_comment_or_blank_line(text: str, end: int) -> bool:
-    """Whether ``text[:end]`` has a line that :data:`_COMMENT_OR_BLANK_LINE` matches."""
-    return bool(_FIRST_LINE_COMMENT_OR_BLANK.match(text, 0, end) or _LATER_LINE_COMMENT_OR_BLANK.search(text, 0, end))
+def is_comment_or_blank(line: str) -> bool:
+    """Whether a line above the header is a comment (first non-blank character ``#``) or blank.
+
+    Below the header only a blank line is skipped: a line starting with ``#`` there is data.
+    The CSV reader and the Excel reader (for the first non-empty cell of a row) both ask this.
+    """
+    return bool(_COMMENT_OR_BLANK_LINE.match(line))
 
 
-def _read_csv(path: Path, *, sep, decimal, columns=None):
+def _lines_to_skip(text: str, end: int) -> bool:
+    """Whether ``text[:end]`` has a line the reader skips: a comment or blank first line, or a
+    blank line anywhere (else pandas reads the file as it is)."""
+    return bool(_FIRST_LINE_COMMENT_OR_BLANK.match(text, 0, end) or _LATER_BLANK_LINE.search(text, 0, end))
+
+
+def _content_lines(lines: list[str]) -> list[int]:
+    """Numbers (1-based) of the header line and the data lines: comments and blank lines
+    above the header are skipped, below it blank lines only."""
+    header = next((i for i, line in enumerate(lines) if not is_comment_or_blank(line)), None)
+    if header is None:
+        return []
+    return [header + 1] + [i + 1 for i in range(header + 1, len(lines)) if lines[i].strip(" \t")]
+
+
+def _read_csv(path: Path, *, sep, decimal, columns=None, text_columns=()):
     source = str(path)
     raw = path.read_bytes()
     try:
@@ -343,14 +405,14 @@ def _read_csv(path: Path, *, sep, decimal, columns=None):
         end -= 1
     first_break = text.find("\n")
     plain_breaks = first_break > 0 and "\r" not in text[: first_break - 1]  # not old Mac line ends (a bare CR)
-    if plain_breaks and not _has_comment_or_blank_line(text, end):  # the usual table: every line is content
+    if plain_breaks and not _lines_to_skip(text, end):  # the usual table: every line is content
         content = list(range(1, text.count("\n", 0, end) + 2))
         lines = [line.rstrip("\r") for line in _first_lines(text, 51)]  # enough for the header and decimal marks
         # pandas reads the file itself (a StringIO of a large text would hold four bytes per character)
         body = path if text[end:] in ("", "\n", "\r\n") else text[:end]
     else:
-        lines = text.splitlines()
-        content = [i + 1 for i, line in enumerate(lines) if line.strip() and not line.lstrip().startswith("#")]
+        lines = _LINE_BREAK.split(text[:end])  # line breaks only: a name may hold a form feed or U+2028
+        content = _content_lines(lines)
         body = "\n".join(lines[i - 1] for i in content)
     if not content:
         raise InputError("the file has no header and no data (only comments or blank lines)", source=source)
@@ -373,7 +435,7 @@ def _read_csv(path: Path, *, sep, decimal, columns=None):
     header = [cell.strip() for cell in next(csv.reader([header_line], delimiter=sep, skipinitialspace=True))]
     wanted = None if columns is None else {str(c) for c in columns}
     try:
-        # only whole lines starting with '#' are comments: a '#' inside a field ("run #2") is text
+        values = _value_options(header_line, sep, text_columns)
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", pd.errors.ParserWarning)
             frame = pd.read_csv(
@@ -386,6 +448,7 @@ def _read_csv(path: Path, *, sep, decimal, columns=None):
                 index_col=False,
                 header=0,
                 usecols=None if wanted is None else (lambda name: str(name).strip() in wanted),
+                **values,
             )
         too_many = any(issubclass(w.category, pd.errors.ParserWarning) for w in caught)
     except (pd.errors.ParserError, ValueError) as error:
@@ -400,6 +463,19 @@ def _read_csv(path: Path, *, sep, decimal, columns=None):
         rows = np.arange(len(frame)) + 2
     keep = ~frame.isna().all(axis=1).to_numpy()
     return frame.loc[keep], rows[keep], (header[: frame.shape[1]] if columns is None else header), notes
+
+
+def _value_options(header_line: str, sep: str, text_columns) -> dict:
+    """The ``read_csv`` options that read name columns as text with only an empty cell blank,
+    and every other column with pandas' words for missing (keyed by the labels pandas gives the
+    header's cells)."""
+    labels = pd.read_csv(io.StringIO(header_line), sep=sep, skipinitialspace=True, index_col=False, nrows=0).columns
+    named = [label for label in labels if is_name_column(label, text_columns)]
+    return {
+        "dtype": dict.fromkeys(named, str),
+        "keep_default_na": False,
+        "na_values": {label: ([""] if label in named else list(MISSING_WORDS)) for label in labels},
+    }
 
 
 def _first_lines(text: str, count: int) -> list[str]:
@@ -523,7 +599,7 @@ def _date_cells(values: pd.Series) -> np.ndarray:
     return np.fromiter((isinstance(v, kinds) for v in values), dtype=bool, count=len(values))
 
 
-def _read_excel(path: Path, sheet):
+def _read_excel(path: Path, sheet, text_columns=()):
     try:
         workbook = pd.ExcelFile(path)
     except Exception as error:  # openpyxl raises several unrelated types for a bad workbook
@@ -532,27 +608,33 @@ def _read_excel(path: Path, sheet):
         sheet = workbook.sheet_names[0]
     elif isinstance(sheet, str) and sheet not in workbook.sheet_names:
         raise InputError(f"no sheet named '{sheet}' (sheets: {', '.join(workbook.sheet_names)})", source=str(path))
-    frame = pd.read_excel(workbook, sheet_name=sheet, header=None)
-    if frame.empty:
-        raise InputError(f"sheet '{sheet}' is empty", source=str(path))
-    header = ["" if pd.isna(v) else str(v) for v in frame.iloc[0]]
-    frame = frame.iloc[1:].infer_objects()
+    # every cell as the sheet holds it (an empty one as ""): names keep "NA" and "01" as text
+    frame = pd.read_excel(workbook, sheet_name=sheet, header=None, dtype=object, keep_default_na=False)
+    at = next((i for i, row in enumerate(frame.itertuples(index=False)) if not is_comment_or_blank(_first_text(row))), None)
+    if at is None:
+        raise InputError(f"sheet '{sheet}' is empty (or holds only comments)", source=str(path))
+    header = [str(v) for v in frame.iloc[at]]
+    frame = frame.iloc[at + 1 :]
     frame.columns = range(frame.shape[1])
+    for position, name in enumerate(header):
+        cells = frame[position]
+        if is_name_column(name, text_columns):
+            frame[position] = cells.where(cells != "", np.nan)
+        else:
+            frame[position] = cells.where(~cells.map(_missing_word), np.nan)
+    frame = frame.infer_objects()
     keep = ~frame.isna().all(axis=1).to_numpy()
-    rows = (np.arange(len(frame)) + 2)[keep]
+    rows = (np.arange(len(frame)) + at + 2)[keep]
     return frame.loc[keep], rows, header
 
 
+def _missing_word(value) -> bool:
+    return isinstance(value, str) and value in MISSING_WORDS
+
+
+def _first_text(row) -> str:
+    """The first cell of a sheet row that is not empty, as text ("" for an empty row)."""
+    return next((text for text in (str(v) for v in row) if text.strip()), "")
+
+
 # --- checks before any work -------------------------------------------------------------
-def check_input_file(path, *, option: str = "input") -> Path:
-    """``path`` exists, is a regular file and can be read; else an :class:`InputError` naming it."""
-    path = Path(path)
-    if not path.exists():
-        raise InputError("file not found", source=str(path))
-    if path.is_dir():
-        raise InputError(f"is a folder; the {option} must be a file", source=str(path))
-    if not path.is_file():
-        raise InputError(f"is not a regular file; the {option} must be a file", source=str(path))
-    if not os.access(path, os.R_OK):
-        raise InputError("cannot be read (permission denied)", source=str(path))
-    return path

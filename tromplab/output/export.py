@@ -41,6 +41,7 @@ import scipy
 from ..curves.formulas import LN2, get_formula, whiten_beta_star
 from ..errors import InputError
 from ..loading.tables import read_table
+from .csv_parts import write_csv
 
 #: ln 2 as Plitt (1976) and Dyssol's Screen unit print it.
 PLITT_LN2 = 0.693
@@ -72,8 +73,9 @@ class Export:
     skipped: tuple[tuple[str, str, str], ...]  # (experiment, formula, reason)
 
     def write_csv(self, path) -> None:
-        """Write ``table`` to ``path`` (``DataFrame.to_csv``, without the index)."""
-        self.table.to_csv(path, index=False)
+        """Write ``table`` to ``path`` (:func:`~tromplab.output.csv_parts.write_csv`: without the
+        index, text that starts as a formula marked as text)."""
+        write_csv(self.table, path)
 
 
 def read_fits(path) -> list[FittedCurve]:

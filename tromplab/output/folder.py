@@ -18,7 +18,7 @@ import pandas as pd
 
 from ..errors import OptionError
 from ..options import AUTO_FIGURE_LIMIT, FIGURE_CHOICES, TABLE_FORMATS
-from .csv_parts import csv_pieces
+from .csv_parts import csv_pieces, write_csv
 from .outputs import figure_file_names, replace_folder, write_files
 from .plotting import offscreen_axes, plot_batch_overview, plot_tromp_fits, save_figure
 from .results import batch_files
@@ -94,14 +94,14 @@ def write_results_folder(
     outputs.update({name: (lambda p, png=png: p.write_bytes(png)) for name, png in drawn.items()})
     if figure_names:
         mapping = pd.DataFrame({"experiment": list(figure_names), "file": list(figure_names.values())})
-        outputs["figures.csv"] = lambda p: mapping.to_csv(p, index=False)
+        outputs["figures.csv"] = lambda p: write_csv(mapping, p)
     failures = bench.failure_table()
     if not failures.empty:
-        outputs["failures.csv"] = lambda p: failures.to_csv(p, index=False)
+        outputs["failures.csv"] = lambda p: write_csv(failures, p)
     left_out = [b.left_out_table() for b in bench.balances]
     if any(not table.empty for table in left_out):  # the classes the console summarises in one line per experiment
         listed = pd.concat([table for table in left_out if not table.empty], ignore_index=True)
-        outputs["left_out.csv"] = lambda p: listed.to_csv(p, index=False)
+        outputs["left_out.csv"] = lambda p: write_csv(listed, p)
     if excel:
         outputs["results.xlsx"] = workbook
     if reloadable:
@@ -168,12 +168,12 @@ def _table_writer(table: pd.DataFrame, format: str, parts=None):
     if format == "parquet":
         return lambda p: table.to_parquet(p, index=False)
 
-    def write_csv(path):
+    def write_table_csv(path):
         pieces = csv_pieces(table, parts)
         if pieces is None:
-            table.to_csv(path, index=False)
+            write_csv(table, path)
             return
         with open(path, "w", encoding="utf-8", newline="") as file:  # as to_csv opens it
             file.writelines(pieces)
 
-    return write_csv
+    return write_table_csv

@@ -211,8 +211,14 @@ def plot_tromp_fits(
 
 
 def _mark_best_fit(ax, best: CurveFit, grid, read, *, band: bool) -> None:
-    """The best fit's cut size marked on ``ax`` and, with ``band``, its 95 % delta-method band shaded."""
-    if band:
+    """The best fit's cut size marked on ``ax`` and, with ``band``, its 95 % delta-method band shaded.
+
+    No band is drawn where the fit's intervals are withheld because the points do not bracket
+    the cut (``CurveFit.unbracketed``): the legend says so instead.
+    """
+    if band and best.unbracketed:
+        ax.plot([], [], " ", label="no 95 % band: the points do not bracket the cut")
+    elif band:
         low, high = sorted((read(bound) for bound in curve_band(best, grid)), key=np.sum)
         ax.fill_between(grid, low, high, color="0.5", alpha=0.2, lw=0, label=f"95 % band, {best.formula.id}")
     ax.axvline(best.d_cut, color="0.4", lw=0.8, ls=":")

@@ -16,6 +16,7 @@ import pandas as pd
 
 from .._version import __version__
 from ..errors import InputError
+from .csv_parts import write_csv
 
 #: Files that make a results folder reloadable (:func:`batch_files`).
 SAVED_FILES = ("workbench.pkl", "manifest.json", "points.csv")
@@ -66,7 +67,7 @@ def batch_files(bench) -> dict:
     return {
         "workbench.pkl": lambda p: p.write_bytes(pickle.dumps(bench, protocol=pickle.HIGHEST_PROTOCOL)),
         "manifest.json": lambda p: p.write_text(json.dumps(manifest, indent=2) + "\n", encoding="utf-8"),
-        "points.csv": lambda p: points.to_csv(p, index=False),
+        "points.csv": lambda p: write_csv(points, p),
     }
 
 

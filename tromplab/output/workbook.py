@@ -5,6 +5,14 @@ are given, ``figures``.  Each table sheet holds the same values as the CSV of th
 name; the header row carries the unit of each column in brackets (``d_cut [mm]``),
 is frozen, and the numbers have a display format (the stored values keep full
 precision).  Written with openpyxl, readable in Excel and LibreOffice.
+
+Every text cell is written as text, never as a formula: openpyxl would store a string that
+starts with ``=`` as a formula, so a name such as ``=1+1`` taken from the data would run in
+the reader's spreadsheet.  Text that starts as a formula would (``=``, ``+``, ``-``, ``@``, a
+tab, a carriage return) is also given the spreadsheet's text mark (``quotePrefix``), so that
+editing the cell keeps it text.  The cell holds the name exactly; control characters that a
+workbook cannot hold, and a carriage return, are written in the workbook's own escape
+(``_x0001_``, ``_x000D_``), which Excel shows as the character.
 """
 
 from __future__ import annotations
@@ -15,6 +23,8 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+
+from ..loading.names import FORMULA_STARTS
 
 #: Sheets of the workbook, in order (``figures`` last, when there are figures).
 SHEETS = ("fits", "ranking", "averages", "balance", "points")
@@ -126,7 +136,7 @@ def write_workbook(
     Parameters
     ----------
     path : path
-        The ``.xlsx`` file.  Write it through :func:`tromplab.workbench.write_atomically`
+        The ``.xlsx`` file.  Write it through :func:`tromplab.output.outputs.write_files`
         to make it all-or-nothing.
     tables : mapping
         Sheet name -> table, written in the given order; an empty table gets its
@@ -147,7 +157,7 @@ def write_workbook(
     for name, table in tables.items():
         sheet = book.create_sheet(name)
         if table is None or table.empty:
-            sheet["A1"] = (notes or {}).get(name, "no rows")
+            _set_text(sheet["A1"], (notes or {}).get(name, "no rows"))
         else:
             _write_table(sheet, table, size_unit)
     if figures:
@@ -170,9 +180,14 @@ def _write_table(sheet, table: pd.DataFrame, size_unit: str) -> None:
             table.columns.get_loc("quantity") + 1, "unit", table["quantity"].map(lambda q: column_unit(str(q), size_unit))
         )
     headers = [header_with_unit(str(c), size_unit) for c in table.columns]
-    sheet.append(headers)
+    sheet.append([_storable(header) for header in headers])
     for row in table.itertuples(index=False):
         sheet.append([_cell_value(value) for value in row])
+    for index, column in enumerate(table.columns, start=1):
+        text_column = not pd.api.types.is_numeric_dtype(table[column]) or pd.api.types.is_bool_dtype(table[column])
+        for cell in sheet[get_column_letter(index)] if text_column else sheet[get_column_letter(index)][:1]:
+            if isinstance(cell.value, str):
+                _mark_text(cell)
     for index, column in enumerate(table.columns, start=1):
         letter = get_column_letter(index)
         sheet.cell(row=1, column=index).font = Font(bold=True)
@@ -191,10 +206,34 @@ def _write_figures(sheet, figures: Mapping[str, bytes]) -> None:
 
     row = 1
     for name, png in figures.items():
-        sheet.cell(row=row, column=1, value=name).font = Font(bold=True)
+        cell = sheet.cell(row=row, column=1)
+        _set_text(cell, name)
+        cell.font = Font(bold=True)
         image = Image(io.BytesIO(png))
         sheet.add_image(image, f"A{row + 1}")
         row += int(np.ceil(image.height / 20)) + 3  # default row height is 20 pixels
+
+
+def _storable(text: str) -> str:
+    """``text`` with the control characters a workbook cannot hold, and the carriage return
+    (which XML reads as a line feed), in the workbook's escape ``_xHHHH_``, as Excel writes them."""
+    from openpyxl.cell.cell import ILLEGAL_CHARACTERS_RE
+
+    text = ILLEGAL_CHARACTERS_RE.sub(lambda found: f"_x{ord(found.group()):04X}_", text)
+    return text.replace("\r", "_x000D_")
+
+
+def _mark_text(cell) -> None:
+    """Keep the text in ``cell`` a text cell, never a formula (module docstring)."""
+    cell.data_type = "s"
+    if cell.value.startswith(FORMULA_STARTS):
+        cell.quotePrefix = True
+
+
+def _set_text(cell, text: str) -> None:
+    """Store ``text`` in ``cell`` as a text cell."""
+    cell.value = _storable(text)
+    _mark_text(cell)
 
 
 def _cell_value(value):
@@ -207,4 +246,4 @@ def _cell_value(value):
             return None
     if value is pd.NA or value is pd.NaT:
         return None
-    return value
+    return _storable(value) if isinstance(value, str) else value

@@ -25,7 +25,7 @@ from ..curves.fitting import ParameterFit, least_squares
 from ..curves.formulas import get_formula
 from ..curves.measured import measured_efficiency, normalised_weights
 from ..curves.parameters import Parameter, d_cut_parameter
-from ..errors import InputError, OptionError
+from ..errors import InputError, OptionError, expect_kind
 from ..loading.points import TrompPoints
 from ..options import DEFAULT_MARGIN
 
@@ -81,6 +81,8 @@ def nested_f_test(reduced: CurveFit, full: CurveFit) -> ExtraSumOfSquares:
     ValueError
         When the fits are to different points, failed, or not nested.
     """
+    expect_kind(reduced, CurveFit, "reduced", "a CurveFit (tromplab.fit_formula)")
+    expect_kind(full, CurveFit, "full", "a CurveFit (tromplab.fit_formula)")
     if reduced.points is not full.points and not (
         np.array_equal(reduced.points.size, full.points.size)
         and np.array_equal(reduced.points.partition_fine, full.points.partition_fine)
@@ -227,6 +229,10 @@ def shared_fit(experiments: Sequence[TrompPoints], formula, *, shared: str = "sh
     (True, [2.62, 3.72])
     """
     formula = get_formula(formula)
+    if isinstance(experiments, (str, bytes)) or not isinstance(experiments, Sequence):
+        raise TypeError(f"experiments must be a sequence of TrompPoints, got {type(experiments).__name__}")
+    for position, points in enumerate(experiments):
+        expect_kind(points, TrompPoints, f"experiments[{position}]", "a TrompPoints")
     if len(experiments) < 2:
         raise InputError("a shared fit needs at least two experiments")
     names = [points.experiment for points in experiments]

@@ -19,7 +19,7 @@ Springer.  Efron B., Tibshirani R.J. (1993). An Introduction to the Bootstrap. C
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -45,6 +45,7 @@ from ..curves.intervals import (
     withheld_interval,
 )
 from ..curves.measured import parameter_specs
+from ..errors import InputError, expect_kind
 from ..loading.points import TrompPoints
 from ..options import BOOTSTRAP_METHODS
 from ..validation import check_bootstrap, check_optional, check_probability, check_seed
@@ -133,6 +134,7 @@ def bootstrap(
     progress : callable, optional
         Called as ``progress(i, n)`` before each resample.
     """
+    expect_kind(fit, CurveFit, "fit", "a CurveFit (tromplab.fit_formula)")
     if not fit.success:
         raise ValueError(f"{fit.formula.id} on {fit.experiment}: cannot bootstrap a failed fit")
     if method not in BOOTSTRAP_METHODS:
@@ -220,6 +222,19 @@ def _bootstrap_bounds(fit: CurveFit, delta_max: float) -> dict[str, tuple[float,
 
 
 # --- information criteria and model averaging --------------------------------------------
+def _criteria(values) -> np.ndarray:
+    """A flat array of criteria (nan allowed); other shapes and non-numbers are refused in words."""
+    if isinstance(values, (str, bytes, dict)):
+        raise TypeError(f"aicc must be a sequence of numbers, got {type(values).__name__}")
+    try:
+        array = np.asarray(values, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(f"must be a flat sequence of numbers; {values!r:.60} is not", source="aicc") from None
+    if array.ndim != 1:
+        raise InputError(f"must be a flat sequence of numbers, got {array.ndim} dimension(s)", source="aicc")
+    return array
+
+
 def akaike_weights(aicc: Sequence[float]) -> np.ndarray:
     """Akaike weights ``exp(-Delta/2) / sum exp(-Delta/2)``; missing criteria get weight 0.
 
@@ -233,7 +248,7 @@ def akaike_weights(aicc: Sequence[float]) -> np.ndarray:
     >>> akaike_weights([10.0, 12.0, np.nan]).round(4).tolist()
     [0.7311, 0.2689, 0.0]
     """
-    aicc = np.asarray(aicc, dtype=float)
+    aicc = _criteria(aicc)
     finite = np.isfinite(aicc)
     weights = np.zeros_like(aicc)
     if finite.any():
@@ -305,9 +320,14 @@ def model_average(
         False: the rows as a list of dicts (a batch builds one table from all experiments'
         rows instead of one per experiment).
     """
+    if isinstance(fits, (str, bytes, CurveFit)) or not isinstance(fits, Iterable):
+        raise TypeError(f"fits must be a sequence of CurveFit (the fits of one experiment), got {type(fits).__name__}")
+    fits = list(fits)
+    for position, fit in enumerate(fits):
+        expect_kind(fit, CurveFit, f"fits[{position}]", "a CurveFit (tromplab.fit_formula)")
     good = [fit for fit in fits if fit.success]
     if not good:
-        raise ValueError("no successful fit to average")
+        raise InputError("no successful fit to average", source="fits")
     if len({fit.experiment for fit in good}) > 1:
         raise ValueError("model averaging combines the formulas fitted to one experiment")
     (rows,) = averaged_rows([good], quantities=quantities, level=level, delta_max=delta_max, min_share=min_share, known=known)

@@ -1,0 +1,58 @@
+"""Validation of the density fits on simulated tracer tests: bias and 95 % interval coverage of rho50 and Ep.
+
+Each cell of the design (density step x retrieval) simulates ``--tests`` tracer tests of a
+separator with a known normal partition curve (rho50 1.55, Ep 0.04 by default; 30 tracers per
+density, densities from rho50 - max(3 Ep, 2 step) to rho50 + max(3 Ep, 2 step); each tracer
+recovered with the retrieval probability), reads each as a lab table through
+``tromplab.density.read_density`` and fits the true curve twice: binomial maximum likelihood
+on the counts and least squares on the shares (what a spreadsheet does), each with its
+profile-likelihood intervals (``tromplab.density.simulation.tracer_study``).  Then, per step,
+as many tests (retrieval 0.9) are fitted with the curve and its variant with limits, and the
+rejection rate of the chi-bar-squared test of the limits at nominal 5 % is measured
+(``limits_test_size``).  The tables are printed and written to
+benchmarks/output/density_validation.csv and density_limits_test_size.csv; docs/density_columns.md
+records it.  The test suite runs a small version
+(``test_tracer_study_small_binomial_coverage_near_nominal``).
+
+    python benchmarks/density_validation.py --tests 1000
+"""
+
+import argparse
+import time
+from pathlib import Path
+
+import pandas as pd
+
+from tromplab.density.simulation import limits_test_size, tracer_study
+
+OUTPUT = Path(__file__).resolve().parent / "output"
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--tests", type=int, default=1000, help="simulated tests per step and retrieval")
+    parser.add_argument("--rho50", type=float, default=1.55)
+    parser.add_argument("--ep", type=float, default=0.04)
+    parser.add_argument("--curve", default="normal")
+    parser.add_argument("--seed", type=int, default=0)
+    args = parser.parse_args(argv)
+    start = time.perf_counter()
+    table = tracer_study(rho50=args.rho50, ep=args.ep, curve=args.curve, tests=args.tests, seed=args.seed,
+                         steps=(0.01, 0.02, 0.05), retrievals=(0.7, 0.85, 1.0))  # fmt: skip
+    OUTPUT.mkdir(exist_ok=True)
+    table.to_csv(OUTPUT / "density_validation.csv", index=False)
+    with pd.option_context("display.width", 200, "display.max_columns", 20):
+        print(table.to_string(index=False, float_format=lambda v: f"{v:.4f}"))
+    sizes = pd.DataFrame(
+        [{"step": step, **limits_test_size(rho50=args.rho50, ep=args.ep, curve=args.curve, step=step, tests=args.tests, seed=args.seed)}
+         for step in (0.01, 0.02, 0.05)]
+    )  # fmt: skip
+    sizes.to_csv(OUTPUT / "density_limits_test_size.csv", index=False)
+    print("\nThe test of the limits when the truth has none (nominal 5 %):")
+    print(sizes.to_string(index=False, float_format=lambda v: f"{v:.4f}"))
+    print(f"\nwrote {OUTPUT / 'density_validation.csv'} and density_limits_test_size.csv; {time.perf_counter() - start:.0f} s")
+    return table, sizes
+
+
+if __name__ == "__main__":
+    main()

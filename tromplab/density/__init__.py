@@ -1,0 +1,41 @@
+"""Density partition of gravity separators: Tromp curves by relative density.
+
+The curves (partition to the sinks against relative density, with the cut density
+``rho50``, the probable error ``Ep`` and the imperfection ``I = Ep / (rho50 - 1)``) are
+declared in :mod:`tromplab.density.curves`; tracer counts, float-sink analyses and
+partitions are read by :mod:`tromplab.density.readers`, fitted by
+:mod:`tromplab.density.fitting` (binomial maximum likelihood, least squares) and
+:func:`fit_density` returns a :class:`~tromplab.density.results.DensityResult` whose
+``save(DIR)`` writes what ``tromplab density fit FILE -o DIR`` writes.
+"""
+
+from .curves import (
+    DENSITY_CURVES,
+    LIMIT_CURVES,
+    PLAIN_CURVES,
+    DensityCurve,
+    DensityIndices,
+    density_registry_table,
+    get_density_curve,
+    select_density_curves,
+)
+from .fitting import DensityCurveFit, fit_density_curve
+from .readers import DensitySample, read_density
+from .results import DensityResult, fit_density
+
+__all__ = [
+    "DENSITY_CURVES",
+    "LIMIT_CURVES",
+    "PLAIN_CURVES",
+    "DensityCurve",
+    "DensityIndices",
+    "DensityCurveFit",
+    "DensityResult",
+    "DensitySample",
+    "fit_density",
+    "fit_density_curve",
+    "read_density",
+    "density_registry_table",
+    "get_density_curve",
+    "select_density_curves",
+]

@@ -1,0 +1,86 @@
+"""Figures of density partition curves: partition to sinks (per cent) against relative density (linear).
+
+Plot functions take ``ax=None`` (a new figure is made) and return the Axes; nothing is
+shown and no style is set on import.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..output.plotting import curve_styles, plain_text
+from .fitting import DensityCurveFit, partition_band
+from .readers import DensitySample
+
+
+def _axes(ax):
+    if ax is None:
+        import matplotlib.pyplot as plt
+
+        _, ax = plt.subplots(figsize=(7.5, 5.0))
+    return ax
+
+
+def plot_density_fits(
+    sample: DensitySample, fits: list[DensityCurveFit], best: DensityCurveFit | None = None, *, ax=None, level: float = 0.95
+):
+    """The measured partition to sinks with its intervals, every fitted curve and the band of the best.
+
+    Parameters
+    ----------
+    sample : DensitySample
+        The data; tracer partitions carry their Wilson intervals at ``level``.
+    fits : list of DensityCurveFit
+        The curves drawn (failed fits are skipped).
+    best : DensityCurveFit, optional
+        Drawn thicker, with its pointwise delta-method band at ``level``
+        (:func:`tromplab.density.fitting.partition_band`).
+    ax : matplotlib Axes, optional
+    level : float
+        Level of the intervals and the band.
+
+    Returns
+    -------
+    matplotlib Axes
+    """
+    ax = _axes(ax)
+    points = sample.points
+    used = points["used"].to_numpy(bool)
+    density = points["density"].to_numpy(float)
+    share = 100 * points["partition_sinks"].to_numpy(float)
+    low, high = density.min(), density.max()
+    pad = 0.1 * (high - low) if high > low else 0.05
+    grid = np.linspace(low - pad, high + pad, 300)
+    done = [fit for fit in fits if fit.success]
+    for fit, style in zip(done, curve_styles(len(done))):
+        thick = fit is best
+        label = f"{fit.curve.id}" + (f" (best): rho50 {fit.indices.rho50:.3f}, Ep {fit.indices.ep:.3f}" if thick else "")
+        ax.plot(
+            grid, 100 * fit.partition(grid), lw=2.4 if thick else 1.2, label=plain_text(label), zorder=3 if thick else 2, **style
+        )
+    if best is not None:
+        band_low, band_high = partition_band(best, grid, level=level)
+        if np.isfinite(band_low).all():
+            ax.fill_between(
+                grid, 100 * band_low, 100 * band_high, color="0.6", alpha=0.3, lw=0, label=f"{100 * level:g} % band of the best"
+            )
+    if sample.layout == "tracers":
+        from statsmodels.stats.proportion import proportion_confint
+
+        recovered = points["recovered"].to_numpy()
+        with np.errstate(all="ignore"):
+            lo, hi = proportion_confint(points["sinks"].to_numpy(), np.maximum(recovered, 1), alpha=1 - level, method="wilson")
+        errors = np.clip(np.array([share - 100 * lo, 100 * hi - share]), 0, None)  # 0 where rounding puts a limit past the share
+        ax.errorbar(density[used], share[used], yerr=errors[:, used], fmt="o", color="k", ms=4, capsize=2, zorder=4,
+                    label=f"tracers in the sinks (Wilson {100 * level:g} %)")  # fmt: skip
+    else:
+        ax.plot(density[used], share[used], "o", color="k", ms=4, zorder=4, label="measured partition")
+    if (~used).any():
+        ax.plot(density[~used], np.nan_to_num(share[~used]), "x", color="0.4", label="left out")
+    ax.set_xlabel("relative density (g/cm3)")
+    ax.set_ylabel("partition to sinks (%)")
+    ax.set_ylim(-2, 102)
+    ax.set_title(plain_text(f"{sample.label}: density partition"))
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8, loc="upper left")
+    return ax

@@ -1,0 +1,305 @@
+"""The result of fitting density curves to a table of tests, its tables, figures and folder.
+
+:func:`fit_density` reads a tracer, float-sink or partition table
+(:func:`~tromplab.density.readers.read_density`), fits the chosen curves to every test and
+size fraction (:func:`~tromplab.density.fitting.fit_density_curve`), ranks them, and
+returns a :class:`DensityResult`; ``result.save(DIR)`` writes what ``tromplab density fit
+FILE -o DIR`` writes, byte for byte: ``fits.csv``, ``partition.csv``, ``summary.txt`` and one
+figure per test and size fraction (``figures.csv`` maps them); for tests with size fractions
+also ``by_size.csv``, ``ep_trend.csv`` and ``by_size_<test>.png``
+(:func:`tromplab.density.by_size.by_size_outputs`); the folder replaced as a
+whole (:func:`tromplab.output.outputs.replace_folder`).
+"""
+
+from __future__ import annotations
+
+import io
+import math
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+import pandas as pd
+
+from ..errors import OptionError
+from ..validation import check_probability
+from .by_size import by_size_outputs
+from .curves import select_density_curves
+from .fitting import METHODS, DensityCurveFit, fit_density_curve, limits_test_p, rank_fits
+from .readers import DensitySample, read_density
+
+#: The curves fitted when none are named: the three plain curves and their variants with limits.
+DEFAULT_DENSITY_CURVES = "all"
+#: Level of the partitions' binomial intervals in ``partition.csv`` when no ``ci`` is given.
+PARTITION_INTERVAL_LEVEL = 0.95
+INTERVAL_QUANTITIES = ("rho50", "ep", "imperfection")
+
+
+@dataclass(frozen=True)
+class DensityResult:
+    """Density curves fitted to every test (and size fraction) of one table.
+
+    Attributes
+    ----------
+    samples : list of DensitySample
+        The data, one per test and size fraction.
+    fits : list of DensityCurveFit
+        One per sample and curve, samples in order, curves in the order asked.
+    ci : float or None
+        Level of the profile-likelihood intervals (None: no intervals).
+    method : str or None
+        The fitting method asked (None: binomial for tracer counts, least squares for shares).
+    """
+
+    samples: list
+    fits: list
+    ci: float | None = None
+    method: str | None = None
+
+    @cached_property
+    def _ranked(self) -> list[tuple[DensityCurveFit, int, str]]:
+        ranked = []
+        for sample in self.samples:
+            ranked += rank_fits([fit for fit in self.fits if fit.sample is sample])
+        return ranked
+
+    def fits_of(self, sample: DensitySample) -> list[DensityCurveFit]:
+        """The fits of one sample."""
+        return [fit for fit in self.fits if fit.sample is sample]
+
+    def best(self, sample: DensitySample) -> DensityCurveFit | None:
+        """The curve ranked first on ``sample`` (None when every fit failed)."""
+        ranked = [(rank, fit) for fit, rank, _ in self._ranked if fit.sample is sample and rank == 1]
+        return ranked[0][1] if ranked else None
+
+    def fits_table(self) -> pd.DataFrame:
+        """One row per test, size fraction and curve (columns defined in ``docs/columns.md``)."""
+        rows = [self._fit_row(fit, rank, note) for fit, rank, note in self._ranked]
+        table = pd.DataFrame(rows)
+        if not any(sample.has_size for sample in self.samples):
+            table = table.drop(columns=["size_fraction", "size_lower", "size_upper"])
+        return table
+
+    def _fit_row(self, fit: DensityCurveFit, rank: int, ranking_note: str) -> dict:
+        sample = fit.sample
+        row = {
+            "test": sample.test,
+            "size_fraction": sample.size_fraction,
+            "size_lower": sample.size_lower,
+            "size_upper": sample.size_upper,
+            "layout": sample.layout,
+            "method": fit.method,
+            "curve": fit.curve.id,
+            "success": fit.success,
+        }
+        index = (
+            fit.indices.as_dict() if fit.indices else dict.fromkeys(("rho25", "rho50", "rho75", "ep", "imperfection"), math.nan)
+        )
+        row.update({name: index[name] for name in ("rho50", "ep", "imperfection")})
+        if self.ci is not None:
+            for name in INTERVAL_QUANTITIES:
+                low, high = fit.intervals.get(name, (math.nan, math.nan))
+                row[f"{name}_low"], row[f"{name}_high"] = low, high
+        row.update({"rho25": index["rho25"], "rho75": index["rho75"]})
+        for name in ("rho_c", "ep_c", "light_limit", "heavy_limit"):
+            row[name] = fit.params.get(name, math.nan)
+        binomial = fit.method == "binomial"
+        row["n_points"] = int(sample.used.shape[0])
+        row["deviance"] = fit.objective if binomial else math.nan
+        row["ssr"] = fit.objective if not binomial else math.nan
+        row["df_resid"] = fit.df_resid
+        row["gof_p"] = fit.gof_p
+        row["dispersion"] = fit.dispersion
+        row["overdispersed"] = fit.overdispersed
+        row["limits_p"] = self._limits_p(fit)
+        row["aic"] = fit.aic
+        row["rank"] = rank
+        row["notes"] = "; ".join(part for part in (fit.message, *fit.notes, ranking_note) if part)
+        return row
+
+    def _limits_p(self, fit: DensityCurveFit) -> float:
+        if not (fit.success and fit.curve.has_limits):
+            return math.nan
+        plain = [other for other in self.fits_of(fit.sample) if other.curve is fit.curve.limits_of and other.success]
+        return limits_test_p(plain[0], fit) if plain else math.nan
+
+    def partition_table(self) -> pd.DataFrame:
+        """The measured partition per density with its binomial interval (tracers), one row per point."""
+        from statsmodels.stats.proportion import proportion_confint
+
+        level = self.ci if self.ci is not None else PARTITION_INTERVAL_LEVEL
+        parts = []
+        for sample in self.samples:
+            points = sample.points.copy()
+            low = high = np.full(len(points), np.nan)
+            if sample.layout == "tracers":
+                recovered = points["recovered"].to_numpy()
+                with np.errstate(all="ignore"):
+                    low, high = proportion_confint(
+                        points["sinks"].to_numpy(), np.maximum(recovered, 1), alpha=1 - level, method="wilson"
+                    )
+                share = points["partition_sinks"].to_numpy(float)
+                # Wilson's limits at k = 0 and k = n are the share itself; rounding can put them a hair past it
+                low = np.where(recovered > 0, np.minimum(low, share), np.nan)
+                high = np.where(recovered > 0, np.maximum(high, share), np.nan)
+            points.insert(2, "partition_low", low)
+            points.insert(3, "partition_high", high)
+            front = {
+                "test": sample.test,
+                "size_fraction": sample.size_fraction,
+                "size_lower": sample.size_lower,
+                "size_upper": sample.size_upper,
+            }
+            parts.append(pd.concat([pd.DataFrame(front, index=points.index), points], axis=1))
+        table = pd.concat(parts, ignore_index=True)
+        if not any(sample.has_size for sample in self.samples):
+            table = table.drop(columns=["size_fraction", "size_lower", "size_upper"])
+        return table.rename(
+            columns={"feed": "feed_share", "floats": "floats_share", "sinks": "sinks_share"}
+            if self.samples[0].layout == "float-sink"
+            else {}
+        )
+
+    def summary(self) -> str:
+        """The best curve of every test and size fraction, with its intervals and notes, as text."""
+        lines = []
+        for sample in self.samples:
+            lines.append(
+                f"{sample.label}: {sample.layout}, {sample.used.shape[0]} points"
+                + (f"; {'; '.join(sample.notes)}" if sample.notes else "")
+            )
+            best = self.best(sample)
+            if best is None:
+                reasons = "; ".join(sorted({fit.message for fit in self.fits_of(sample)}))
+                lines.append(f"  no curve fitted: {reasons}")
+                continue
+            lines.append(f"  best curve: {best.curve.id} ({best.method}) {_indices_text(best)}")
+        return "\n".join(lines)
+
+    def plot(self, sample: DensitySample | int = 0, *, ax=None):
+        """Figure of one sample (or its position): the points, every fitted curve and the band of the best."""
+        from .plotting import plot_density_fits
+
+        sample = self.samples[sample] if isinstance(sample, int) else sample
+        return plot_density_fits(
+            sample, self.fits_of(sample), self.best(sample), ax=ax, level=self.ci or PARTITION_INTERVAL_LEVEL
+        )
+
+    def save(self, outdir) -> dict:
+        """Write ``fits.csv``, ``partition.csv``, ``summary.txt``, ``figures.csv`` and the figures into ``outdir``.
+
+        The folder is replaced as a whole when everything is written; the same files as
+        ``tromplab density fit``.
+
+        Returns
+        -------
+        dict
+            File name -> written path.
+        """
+        from ..output.outputs import figure_file_names, replace_folder
+
+        tables = {"fits.csv": self.fits_table(), "partition.csv": self.partition_table()}
+        outputs = {name: (lambda path, table=table: table.to_csv(path, index=False)) for name, table in tables.items()}
+        summary = self.summary() + "\n"
+        outputs["summary.txt"] = lambda path: path.write_text(summary, encoding="utf-8")
+        names = figure_file_names([sample.label for sample in self.samples], prefix="density_")
+        figure_rows = []
+        for position, sample in enumerate(self.samples):
+            png = _png(self.plot(position, ax=_offscreen()))
+            outputs[names[sample.label]] = lambda path, png=png: path.write_bytes(png)
+            figure_rows.append({"test": sample.test, "size_fraction": sample.size_fraction, "file": names[sample.label]})
+        figures = pd.DataFrame(figure_rows)
+        outputs["figures.csv"] = lambda path: figures.to_csv(path, index=False)
+        # tests with size fractions: indices by size, the Ep trend and its figure (none without)
+        outputs.update(by_size_outputs(self.fits, ci=self.ci or PARTITION_INTERVAL_LEVEL))
+        return replace_folder(outputs, outdir)
+
+
+def _indices_text(fit: DensityCurveFit) -> str:
+    index = fit.indices
+    parts = []
+    for name, unit in (("rho50", " g/cm3"), ("ep", " g/cm3"), ("imperfection", "")):
+        value = getattr(index, name)
+        text = f"{name} = {value:.4g}{unit}" if math.isfinite(value) else f"{name} does not exist"
+        low, high = fit.intervals.get(name, (math.nan, math.nan))
+        if math.isfinite(low) or math.isfinite(high):
+            text += f" [{low:.4g}, {high:.4g}]"
+        parts.append(text)
+    notes = f"\n    notes: {'; '.join(fit.notes)}" if fit.notes else ""
+    return ", ".join(parts) + notes
+
+
+def _offscreen():
+    from ..output.plotting import offscreen_axes
+
+    return offscreen_axes()
+
+
+def _png(ax) -> bytes:
+    from ..output.plotting import save_figure
+
+    buffer = io.BytesIO()
+    save_figure(ax, buffer)
+    return buffer.getvalue()
+
+
+def fit_density(
+    data,
+    *,
+    ci: float | None = None,
+    curves=DEFAULT_DENSITY_CURVES,
+    method: str | None = None,
+    floats_yield: float | None = None,
+    sheet=None,
+    sep: str | None = None,
+    decimal: str | None = None,
+) -> DensityResult:
+    """Fit density partition curves to every test of a tracer, float-sink or partition table.
+
+    What ``tromplab density fit`` does, with its options as keywords of the same names.
+
+    Parameters
+    ----------
+    data : str, path-like, pandas.DataFrame or list of DensitySample
+        The table (:func:`tromplab.density.readers.read_density` reads it) or samples already read.
+    ci : float, optional
+        Level of the profile-likelihood intervals of rho50, Ep and the imperfection, in (0, 1).
+    curves : str or iterable
+        Curve ids or the groups ``plain``, ``limits``, ``all`` (default: all six).
+    method : {"binomial", "least_squares"}, optional
+        Force a method on tracer counts (``least_squares``: on the shares, as a spreadsheet
+        does); default binomial for tracers, least squares for shares.
+    floats_yield : float, optional
+        Mass share of the feed to the floats (float-sink tables).
+    sheet, sep, decimal : optional
+        How to read the file.
+
+    Returns
+    -------
+    DensityResult
+
+    Examples
+    --------
+    >>> tracers = pd.DataFrame({"density": [1.45, 1.5, 1.55, 1.6, 1.65], "sinks": [1, 6, 15, 24, 29],
+    ...                         "floats": [29, 24, 15, 6, 1]})
+    >>> result = fit_density(tracers, curves="normal")
+    >>> row = result.fits_table().iloc[0]
+    >>> row["curve"], round(float(row["rho50"]), 3), round(float(row["ep"]), 4)
+    ('normal', 1.55, 0.038)
+    """
+    if ci is not None:
+        ci = check_probability(ci, "ci")
+    if method is not None and method not in METHODS:
+        raise OptionError("method", f"must be one of {', '.join(METHODS)}, got {method!r}")
+    try:
+        chosen = select_density_curves(curves)
+    except KeyError as error:
+        raise OptionError("curves", error.args[0]) from None
+    if isinstance(data, list) and all(isinstance(item, DensitySample) for item in data):
+        samples = data
+    else:
+        samples = read_density(data, sheet=sheet, sep=sep, decimal=decimal, floats_yield=floats_yield)
+    if method == "binomial" and any(sample.layout != "tracers" for sample in samples):
+        raise OptionError("method", "binomial needs tracer counts (density, sinks, floats); the table gives shares")
+    fits = [fit_density_curve(sample, curve, ci=ci, method=method) for sample in samples for curve in chosen]
+    return DensityResult(samples, fits, ci, method)

@@ -1,0 +1,217 @@
+"""Simulated density data with a known curve: tracer tests and float-sink analyses, as a lab writes them.
+
+:func:`simulate_tracer_test` puts ``placed`` tracers of each density into the feed of a
+separator with a known partition curve, recovers each with a given probability and
+counts the sinks and floats (whole numbers, the table a lab writes: ``test, density,
+placed, sinks, floats``).  :func:`float_sink_table` writes the float-sink analyses of the
+products of a separator with a known curve, so that the partition the reader computes
+equals the curve at each fraction's mean density.  :func:`tracer_study` repeats simulated
+tests and reports the bias of rho50 and Ep and the coverage of their intervals, for the
+binomial fit and for least squares on the shares (``analysis/density_validation.py``
+runs it at full size; its numbers are in ``docs/density_columns.md``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+
+from .curves import get_density_curve
+from .fitting import fit_density_curve, profile_interval
+from .readers import read_density
+
+
+def simulate_tracer_test(
+    curve, params: dict, densities, *, placed: int = 30, retrieval: float = 1.0, rng=None, test: str = "sim"
+) -> pd.DataFrame:
+    """A tracer test of a separator whose partition to sinks is ``curve`` with ``params``.
+
+    Each of the ``placed`` tracers of each density reports to the sinks with probability
+    ``P(density)`` and is recovered with probability ``retrieval``, independently.
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``test, density, placed, sinks, floats`` (whole numbers).
+
+    Examples
+    --------
+    >>> table = simulate_tracer_test("normal", {"rho50": 1.5, "ep": 0.05}, [1.4, 1.5, 1.6], rng=np.random.default_rng(0))
+    >>> table.columns.tolist(), int(table["placed"].sum())
+    (['test', 'density', 'placed', 'sinks', 'floats'], 90)
+    """
+    rng = np.random.default_rng(rng)
+    densities = np.asarray(densities, dtype=float)
+    partition = get_density_curve(curve).partition(densities, **params)
+    recovered = rng.binomial(placed, retrieval, size=densities.size)
+    sinks = rng.binomial(recovered, partition)
+    return pd.DataFrame({"test": test, "density": densities, "placed": placed, "sinks": sinks, "floats": recovered - sinks})
+
+
+def float_sink_table(curve, params: dict, bounds, feed_pct, *, test: str = "sim", with_feed: bool = True) -> pd.DataFrame:
+    """Float-sink analyses of the products of a separator with a known partition curve.
+
+    The partition of each fraction is the curve at the fraction's ``density_mean`` (its
+    midpoint; for an open end, the midpoint of the fraction extended by its neighbour's width,
+    the reader's convention), so the reader recovers the curve there exactly.
+
+    Parameters
+    ----------
+    bounds : sequence of float
+        Fraction boundaries in increasing density; the first fraction is open below (the
+        float below ``bounds[0]``) and the last open above (the sink above ``bounds[-1]``).
+    feed_pct : sequence of float
+        Mass per cent of the feed in each of the ``len(bounds) + 1`` fractions.
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``test, density_lower, density_upper, [feed_pct,] floats_pct, sinks_pct`` (and
+        ``floats_yield`` without the feed analysis).
+    """
+    bounds = np.asarray(bounds, dtype=float)
+    lower = np.concatenate(([np.nan], bounds))
+    upper = np.concatenate((bounds, [np.nan]))
+    extended_lower = np.concatenate(([bounds[0] - (bounds[1] - bounds[0])], bounds))
+    extended_upper = np.concatenate((bounds, [bounds[-1] + (bounds[-1] - bounds[-2])]))
+    mean = (extended_lower + extended_upper) / 2
+    feed = np.asarray(feed_pct, dtype=float) / np.sum(feed_pct)
+    partition = get_density_curve(curve).partition(mean, **params)
+    sinks_yield = float(np.sum(feed * partition))
+    table = pd.DataFrame({"test": test, "density_lower": lower, "density_upper": upper})
+    if with_feed:
+        table["feed_pct"] = 100 * feed
+    table["floats_pct"] = 100 * feed * (1 - partition) / (1 - sinks_yield)
+    table["sinks_pct"] = 100 * feed * partition / sinks_yield
+    if not with_feed:
+        table["floats_yield"] = 1 - sinks_yield
+    return table
+
+
+def tracer_study(
+    *,
+    rho50: float = 1.55,
+    ep: float = 0.04,
+    steps=(0.01, 0.02, 0.05),
+    retrievals=(0.7, 0.85, 1.0),
+    placed: int = 30,
+    tests: int = 100,
+    curve: str = "normal",
+    ci: float = 0.95,
+    seed: int = 0,
+) -> pd.DataFrame:
+    """Bias and interval coverage of rho50 and Ep over simulated tracer tests, binomial fit and least squares side by side.
+
+    For each density step and retrieval, ``tests`` tracer tests are simulated at densities
+    ``rho50 - max(3 Ep, 2 step)`` to ``rho50 + max(3 Ep, 2 step)`` in steps of ``step``, read through
+    :func:`~tromplab.density.readers.read_density` as a lab file would be, and fitted with the
+    true curve by binomial maximum likelihood and by least squares on the shares; each
+    gives its profile intervals at ``ci``.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per step, retrieval and method: ``step, retrieval, method, tests, fitted,
+        rho50_bias, ep_bias, ep_relative_bias, rho50_coverage, ep_coverage,
+        rho50_no_interval, ep_no_interval`` (coverage over the tests whose interval
+        exists; a test whose fit failed counts in neither).
+    """
+    rng = np.random.default_rng(seed)
+    rows = []
+    for step in steps:
+        half = max(3 * ep, 2 * step)
+        densities = np.round(np.arange(rho50 - half, rho50 + half + step / 2, step), 6)
+        for retrieval in retrievals:
+            results = {"binomial": [], "least_squares": []}
+            for _ in range(tests):
+                table = simulate_tracer_test(
+                    curve, {"rho50": rho50, "ep": ep}, densities, placed=placed, retrieval=retrieval, rng=rng
+                )
+                sample = read_density(table)[0]
+                for method in results:
+                    results[method].append(_one_test(sample, curve, method, ci))
+            for method, outcomes in results.items():
+                rows.append(_study_row(outcomes, step, retrieval, method, rho50, ep))
+    return pd.DataFrame(rows)
+
+
+def _one_test(sample, curve, method, ci) -> dict:
+    fit = fit_density_curve(sample, curve, method=method)
+    if not fit.success or not math.isfinite(fit.indices.ep):
+        return {"fitted": False}
+    outcome = {"fitted": True, "rho50": fit.indices.rho50, "ep": fit.indices.ep}
+    for quantity in ("rho50", "ep"):
+        low, high, _ = profile_interval(fit, quantity, ci)
+        outcome[quantity + "_interval"] = (low, high)
+    return outcome
+
+
+def _study_row(outcomes, step, retrieval, method, rho50, ep) -> dict:
+    fitted = [o for o in outcomes if o["fitted"]]
+    row = {"step": step, "retrieval": retrieval, "method": method, "tests": len(outcomes), "fitted": len(fitted)}
+    rho50_hat = np.array([o["rho50"] for o in fitted])
+    ep_hat = np.array([o["ep"] for o in fitted])
+    row["rho50_bias"] = float(np.mean(rho50_hat - rho50)) if fitted else math.nan
+    row["ep_bias"] = float(np.mean(ep_hat - ep)) if fitted else math.nan
+    row["ep_relative_bias"] = row["ep_bias"] / ep
+    for quantity, truth in (("rho50", rho50), ("ep", ep)):
+        intervals = np.array([o[quantity + "_interval"] for o in fitted]).reshape(-1, 2)
+        exists = np.isfinite(intervals).all(axis=1)
+        covered = (intervals[exists, 0] <= truth) & (truth <= intervals[exists, 1])
+        row[f"{quantity}_coverage"] = float(covered.mean()) if exists.any() else math.nan
+        row[f"{quantity}_no_interval"] = int((~exists).sum())
+    return row
+
+
+def limits_test_size(
+    *,
+    rho50: float = 1.55,
+    ep: float = 0.04,
+    step: float = 0.02,
+    retrieval: float = 0.9,
+    placed: int = 30,
+    tests: int = 200,
+    curve: str = "normal",
+    alpha: float = 0.05,
+    seed: int = 0,
+) -> dict:
+    """Rejection rate of the chi-bar-squared test of the limits when the true curve has none.
+
+    Simulated tracer tests of the plain ``curve`` are fitted with it and with its variant with
+    limits; the share of tests whose :func:`~tromplab.density.fitting.limits_test_p` falls
+    below ``alpha`` estimates the test's size (nominal ``alpha``), beside the share a plain
+    chi-square with 2 degrees of freedom would reject and the share of fits with both limits
+    on their bounds.
+
+    Returns
+    -------
+    dict
+        ``tests, fitted, mixture_rejects, chi2_2_rejects, both_on_bounds``.
+    """
+    import scipy.stats
+
+    from .fitting import limits_test_p
+
+    rng = np.random.default_rng(seed)
+    half = max(3 * ep, 2 * step)
+    densities = np.round(np.arange(rho50 - half, rho50 + half + step / 2, step), 6)
+    mixture, plain_chi2, on_bounds = [], [], []
+    for _ in range(tests):
+        sample = read_density(
+            simulate_tracer_test(curve, {"rho50": rho50, "ep": ep}, densities, placed=placed, retrieval=retrieval, rng=rng)
+        )[0]
+        plain, limited = fit_density_curve(sample, curve), fit_density_curve(sample, f"{curve}_limits")
+        if not (plain.success and limited.success):
+            continue
+        mixture.append(limits_test_p(plain, limited) < alpha)
+        plain_chi2.append(scipy.stats.chi2.sf(max(plain.objective - limited.objective, 0.0), 2) < alpha)
+        on_bounds.append(limited.params["light_limit"] <= 1e-6 and limited.params["heavy_limit"] >= 1 - 1e-6)
+    return {
+        "tests": tests,
+        "fitted": len(mixture),
+        "mixture_rejects": float(np.mean(mixture)) if mixture else math.nan,
+        "chi2_2_rejects": float(np.mean(plain_chi2)) if plain_chi2 else math.nan,
+        "both_on_bounds": float(np.mean(on_bounds)) if on_bounds else math.nan,
+    }

@@ -1,0 +1,167 @@
+"""``tromplab density predict WASHABILITY --curve normal --rho50 1.55 --ep 0.035 -o pred.csv``.
+
+The products a density separator with a given partition curve makes of a feed of known
+washability: yield and ash of floats and sinks, the theoretical yield at the same ash and
+the organic efficiency (:mod:`tromplab.density.washability`), one row per feed and cut
+density; with ``--target-ash`` the cut density giving floats of that ash.  The Python face
+is :func:`run_predict` (the same file, byte for byte) or
+:func:`tromplab.density.washability.predict` (the same rows as a table).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from .errors import OptionError
+from .options import DEFAULT_SUM_TOLERANCE_PCT
+from .output.outputs import check_output_file, write_files
+from .validation import check_cut_density, check_non_negative, check_percent, check_positive, check_share, cli_type
+
+#: The curves ``--curve`` offers: the registry's ids, written out so that building the parser imports no
+#: numerical library (a test checks them against the registry).
+PREDICT_CURVES = ("normal", "logistic", "gompertz", "normal_limits", "logistic_limits", "gompertz_limits")
+
+
+@dataclass(frozen=True)
+class PredictRun:
+    """What ``tromplab density predict`` did: the prediction rows, the washability tables and the files written."""
+
+    predictions: object
+    washability: object
+    written: dict
+
+
+def run_predict(
+    washability,
+    output,
+    *,
+    curve: str = "normal",
+    rho50=None,
+    ep: float | None = None,
+    light_limit: float | None = None,
+    heavy_limit: float | None = None,
+    target_ash_pct=None,
+    table_output=None,
+    sum_tolerance_pct: float = DEFAULT_SUM_TOLERANCE_PCT,
+    float_lower_density: float | None = None,
+    sink_upper_density: float | None = None,
+) -> PredictRun:
+    """Predict the products of every feed in ``washability`` and write them to ``output`` (CSV).
+
+    Parameters
+    ----------
+    washability : path
+        The washability table(s) (:func:`tromplab.density.washability.read_washability`).
+    output : path
+        The prediction CSV (columns :data:`~tromplab.density.washability.PREDICTION_COLUMNS`).
+    curve, rho50, ep, light_limit, heavy_limit, target_ash_pct
+        As for :func:`tromplab.density.washability.predict`.
+    table_output : path, optional
+        Also write the washability tables (cumulative floats and sinks, near-gravity
+        material; :meth:`Washability.cumulative_table`) to this CSV.
+    sum_tolerance_pct, float_lower_density, sink_upper_density
+        As for :func:`~tromplab.density.washability.read_washability`.
+
+    Returns
+    -------
+    PredictRun
+
+    Notes
+    -----
+    Bad input ends in an :class:`~tromplab.errors.InputError` before anything is written;
+    the files are replaced each in one step.
+    """
+    import pandas as pd
+
+    from .density.washability import predict, read_washability
+    from .loading.tables import check_input_file
+
+    check_input_file(washability)
+    output = check_output_file(output, inputs=[washability], option="output")
+    if table_output is not None:
+        table_output = check_output_file(table_output, inputs=[washability], option="table_output")
+        if Path(table_output).resolve() == Path(output).resolve():
+            raise OptionError("table_output", "names the same file as output")
+    tables = read_washability(
+        washability, sum_tolerance_pct=sum_tolerance_pct, float_lower_density=float_lower_density,
+        sink_upper_density=sink_upper_density,
+    )  # fmt: skip
+    predictions = predict(tables, curve=curve, rho50=rho50, ep=ep, light_limit=light_limit, heavy_limit=heavy_limit,
+                          target_ash_pct=target_ash_pct)  # fmt: skip
+    written = _write_csv(predictions, Path(output))
+    cumulative = pd.concat([table.cumulative_table() for table in tables], ignore_index=True)
+    if table_output is not None:
+        written.update(_write_csv(cumulative, Path(table_output)))
+    return PredictRun(predictions, cumulative, written)
+
+
+def _write_csv(table, path: Path) -> dict:
+    path.absolute().parent.mkdir(parents=True, exist_ok=True)
+    return write_files({path.name: lambda target: table.to_csv(target, index=False)}, path.absolute().parent)
+
+
+# --- command line ----------------------------------------------------------------------------
+def add_predict_parser(density_commands) -> None:
+    """Register ``predict`` on the sub-command parsers of ``tromplab density``."""
+    predict = density_commands.add_parser(
+        "predict",
+        help="yield and ash of floats and sinks, theoretical yield and organic efficiency of a feed's washability "
+        "under a partition curve (docs/density.md)",
+    )
+    predict.add_argument("washability", type=Path, help="washability CSV: density_lower, density_upper, mass_pct, ash_pct "
+                         "[, density_mean, test]")  # fmt: skip
+    predict.add_argument("-o", "--output", type=Path, default=Path("prediction.csv"),
+                         help="prediction CSV, one row per feed and cut density (default: prediction.csv)")  # fmt: skip
+    predict.add_argument("--curve", choices=PREDICT_CURVES, default="normal",
+                         help="partition curve of the registry (default normal); --light-limit/--heavy-limit select its "
+                         "variant with limits")  # fmt: skip
+    cut = predict.add_mutually_exclusive_group(required=True)
+    cut.add_argument("--rho50", type=cli_type(check_cut_density, "--rho50"), nargs="+", metavar="RHO50",
+                     help="cut density (relative density, above 1); several give one row each")  # fmt: skip
+    cut.add_argument("--target-ash", type=cli_type(check_percent, "--target-ash"), nargs="+", metavar="ASH_PCT",
+                     help="floats ash per cent sought: the cut density giving it is found (Brent's method)")  # fmt: skip
+    predict.add_argument("--ep", type=cli_type(check_positive, "--ep"), required=True,
+                         help="probable error Ep = (rho75 - rho25)/2, relative density units")  # fmt: skip
+    predict.add_argument("--light-limit", type=cli_type(check_share, "--light-limit"), default=None,
+                         help="partition to sinks of the lightest material, in [0, 0.25) (default 0)")  # fmt: skip
+    predict.add_argument("--heavy-limit", type=cli_type(check_share, "--heavy-limit"), default=None,
+                         help="partition to sinks of the heaviest material, in (0.75, 1] (default 1)")  # fmt: skip
+    predict.add_argument("--table", type=Path, default=None,
+                         help="also write the washability table (cumulative floats and sinks, near-gravity material) "
+                         "to this CSV")  # fmt: skip
+    predict.add_argument("--sum-tolerance", type=cli_type(check_non_negative, "--sum-tolerance"),
+                         default=DEFAULT_SUM_TOLERANCE_PCT,
+                         help=f"allowed deviation of mass_pct totals from 100 (default {DEFAULT_SUM_TOLERANCE_PCT:g})")  # fmt: skip
+    predict.add_argument("--float-lower-density", type=cli_type(check_positive, "--float-lower-density"), default=None,
+                         help="lower bound of the open float fraction (default: the width of its neighbour)")  # fmt: skip
+    predict.add_argument("--sink-upper-density", type=cli_type(check_positive, "--sink-upper-density"), default=None,
+                         help="upper bound of the open sink fraction (default: the width of its neighbour)")  # fmt: skip
+    predict.set_defaults(run=_run_predict, imports=("tromplab.density.washability", "tromplab.density.curves", "scipy.optimize"))
+
+
+def _run_predict(args) -> int:
+    try:
+        run = run_predict(
+            args.washability, args.output, curve=args.curve, rho50=args.rho50, ep=args.ep, light_limit=args.light_limit,
+            heavy_limit=args.heavy_limit, target_ash_pct=args.target_ash, table_output=args.table,
+            sum_tolerance_pct=args.sum_tolerance, float_lower_density=args.float_lower_density,
+            sink_upper_density=args.sink_upper_density,
+        )  # fmt: skip
+    except OptionError as error:
+        raise OptionError(_cli_name(error.option), error.reason) from None
+    print(console_report(run))
+    return 3 if run.predictions["floats_yield_pct"].isna().any() else 0  # 3: some predictions failed (notes say why)
+
+
+def _cli_name(option: str) -> str:
+    names = {"target_ash_pct": "--target-ash", "table_output": "--table", "output": "--output"}
+    return names.get(option, "--" + option.replace("_", "-"))
+
+
+def console_report(run: PredictRun) -> str:
+    """What the command prints: the predictions and the files written."""
+    shown = ["test", "curve", "rho50", "ep", "floats_yield_pct", "floats_ash_pct", "sinks_ash_pct", "organic_efficiency_pct"]
+    table = run.predictions[shown].to_string(index=False, float_format=lambda v: f"{v:.4g}", na_rep="-")
+    notes = [f"note ({row.test}): {row.note}" for row in run.predictions.itertuples() if isinstance(row.note, str) and row.note]
+    return "\n".join([table, *notes, "", "Wrote:", *(f"  {path}" for path in run.written.values())])
