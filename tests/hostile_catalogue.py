@@ -36,7 +36,8 @@ class Case:
     ``argv`` may hold ``{name}`` for the path of an input file of ``files`` (file name ->
     text, bytes or a function writing the path) and ``{tmp}`` for the folder of the run.
     ``call`` (API cases) takes that folder and returns anything; its exception's class
-    name is the outcome.
+    name is the outcome.  ``check`` takes the folder of a run that ended in 0 or 3 and asserts
+    what the case is about (names read back, no formula cell).
     """
 
     family: str
@@ -47,11 +48,12 @@ class Case:
     words: str = ""
     call: Callable | None = None
     slow: bool = False
+    check: Callable | None = None
 
 
-def case(family, id, expect, argv=(), files=None, words="", call=None, slow=False) -> Case:
+def case(family, id, expect, argv=(), files=None, words="", call=None, slow=False, check=None) -> Case:
     expect = frozenset(expect if isinstance(expect, (set, frozenset, tuple, list)) else [expect])
-    return Case(family, id, expect, tuple(argv), dict(files or {}), words, call, slow)
+    return Case(family, id, expect, tuple(argv), dict(files or {}), words, call, slow, check)
 
 
 # --- good inputs --------------------------------------------------------------------------
@@ -632,6 +634,129 @@ def api_calls() -> list[Case]:
     return [case("api", name, outcome, call=call, words=words) for name, (call, outcome, words) in table.items()]
 
 
+# --- names and writers ---------------------------------------------------------------------
+def _csv_text(rows) -> str:
+    import csv
+    import io
+
+    buffer = io.StringIO()
+    csv.writer(buffer, lineterminator="\n").writerows(rows)
+    return buffer.getvalue()
+
+
+def _no_formula_cells(folder: str, table: str = "", expected=()):
+    """A check: no CSV or workbook cell under ``folder`` starts as a formula, and ``table``
+    (when given) reads back with the experiment names ``expected``, in order."""
+
+    def check(tmp):
+        from tromplab.loading.tables import read_table
+
+        from .test_formula_injection import assert_no_formula_cell_in_csv, assert_no_formula_cell_in_workbook
+
+        for path in (tmp / folder).rglob("*.csv"):
+            assert_no_formula_cell_in_csv(path)
+        for path in (tmp / folder).rglob("*.xlsx"):
+            assert_no_formula_cell_in_workbook(path)
+        if table:
+            assert list(dict.fromkeys(read_table(tmp / folder / table).experiment_labels())) == list(expected)
+
+    return check
+
+
+def names_as_text() -> list[Case]:
+    """Every name of tests/hostile_names.py beside a plain one, and names that look alike:
+    fitted, written to CSV and a workbook, and read back as written."""
+    from .hostile_names import HOSTILE_NAMES, as_read
+
+    argv = ["fit", "{points.csv}", "-o", "{tmp}/out", "--formulas", "plitt", "--no-figures", "--excel", "--jobs", "1"]
+    pairs = [(name, "plain") for name, _ in HOSTILE_NAMES]
+    pairs += [("01", "1"), ("007", "7"), ("1e3", "1000"), ("4E2", "400"), ("TRUE", "true"), ("NA", "N/A"), ("None", "null")]
+    cases = []
+    for first, second in pairs:
+        rows = [["experiment", "size", "partition_fine"]]
+        rows += [[name, str(size), str(p)] for name, curve in ((first, CURVE), (second, OTHER)) for size, p in zip(SIZES, curve)]
+        check = _no_formula_cells("out", "fits.csv", [as_read(first), as_read(second)])
+        cases.append(case("names as text", f"{first!r} and {second!r}", 0, argv, {"points.csv": _csv_text(rows)}, check=check))
+    return cases
+
+
+def formula_writers() -> list[Case]:
+    """Names that start as a spreadsheet formula through the other writers: points (a lab
+    table), rank, sieve identify and the report (slow); every CSV marked, names read back."""
+    from .hostile_names import FORMULA_LIKE, as_read
+
+    cases = []
+    for name in FORMULA_LIKE:
+        names = [as_read(name), "plain"]
+        lab = [["experiment", *LAB_CLASS_HEADER.strip().split(",")]]
+        lab += [[label, *row.split(",")] for label in (name, "plain") for row in LAB_CLASS_ROWS]
+        argv = ["points", "{lab.csv}", "-o", "{tmp}/out/pts.csv"]
+        cases.append(
+            case(
+                "formula writers",
+                f"points: {name!r}",
+                0,
+                argv,
+                {"lab.csv": _csv_text(lab)},
+                check=_no_formula_cells("out", "pts.csv", names),
+            )
+        )
+        ranks = [
+            ["experiment", "equation", "F", "F_crit"],
+            [name, 3, 5, 3],
+            [name, 7, 4, 3],
+            ["plain", 3, 6, 3],
+            ["plain", 7, 2, 3],
+        ]
+        argv = ["rank", "{ranks.csv}", "-o", "{tmp}/out"]
+        cases.append(
+            case("formula writers", f"rank: {name!r}", 0, argv, {"ranks.csv": _csv_text(ranks)}, check=_no_formula_cells("out"))
+        )
+        argv = ["sieve", "identify", "{residues.csv}", "-o", "{tmp}/out/laws.csv"]
+        cases.append(
+            case(
+                "formula writers",
+                f"sieve identify: {name!r}",
+                0,
+                argv,
+                {"residues.csv": _with_sieve_name(name)},
+                check=_no_formula_cells("out"),
+            )
+        )
+        points = _csv_text([["experiment", "size", "partition_fine"], *([name, s, p] for s, p in zip(SIZES, CURVE))])
+        argv = ["report", "{points.csv}", "-o", "{tmp}/out/r.html", "--jobs", "1"]
+        cases.append(
+            case(
+                "formula writers",
+                f"report: {name!r}",
+                0,
+                argv,
+                {"points.csv": points},
+                check=_in_the_report(as_read(name)),
+                slow=True,
+            )
+        )
+    return cases
+
+
+def _in_the_report(name: str):
+    """A check: the HTML report shows ``name`` escaped, the Markdown report holds it."""
+
+    def check(tmp):
+        import html
+
+        page = (tmp / "out" / "r.html").read_text(encoding="utf-8")
+        assert html.escape(name) in page
+        assert (tmp / "out" / "r.md").is_file()
+
+    return check
+
+
+def _with_sieve_name(name: str) -> str:
+    lines = [line for line in _dataset("sieve_identify_residues_example.csv").splitlines() if not line.startswith("#")]
+    return _csv_text([lines[0].split(","), *([name, *line.split(",")[1:]] for line in lines[1:])])
+
+
 def catalogue() -> list[Case]:
     """Every case of the battery."""
     return [
@@ -649,5 +774,7 @@ def catalogue() -> list[Case]:
         *model_data(),
         *surveys(),
         *whole_commands(),
+        *names_as_text(),
+        *formula_writers(),
         *api_calls(),
     ]

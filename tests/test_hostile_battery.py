@@ -166,6 +166,8 @@ def test_every_hostile_command_line_ends_in_its_documented_outcome(case, tmp_pat
         assert "error" in captured.err
     else:
         check_results(tmp_path)
+        if case.check is not None:
+            case.check(tmp_path)
         if case.family == "model corners":
             assert "nan" not in captured.out.lower(), captured.out
 
