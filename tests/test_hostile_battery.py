@@ -74,6 +74,18 @@ def _inside(values, low, high, what):
     assert outside.size == 0, f"{what}: {outside[:3]} outside [{low}, {high}]"
 
 
+#: Ranges of the quantities whose intervals fits.csv holds (docs/columns.md, docs/uncertainty.md).
+INTERVAL_RANGES = {
+    "d_cut": (0.0, math.inf),
+    "d50": (0.0, math.inf),
+    "d50c": (0.0, math.inf),
+    "ep": (0.0, math.inf),
+    "eta": (0.0, 1.0),
+    "epsilon": (0.0, math.inf),
+    "bypass": (0.0, 1.0),
+}
+
+
 def check_fits_table(path) -> None:
     """Every number of a fits.csv inside the range docs/columns.md gives it."""
     fits = pd.read_csv(path, keep_default_na=False, na_values=[""])
@@ -99,6 +111,9 @@ def check_fits_table(path) -> None:
     ranked = pd.to_numeric(fits["rank"], errors="coerce").dropna()
     per_experiment = fits.groupby("experiment")["formula"].nunique().max()
     _inside(ranked, 1.0, float(per_experiment), "rank")
+    for quantity, (low, high) in INTERVAL_RANGES.items():  # intervals stay in the quantity's range
+        for column in [c for c in fits.columns if c.startswith(quantity + "_") and c.endswith(("_low", "_high"))]:
+            _inside(fits[column], low, high, column)
     for column in [c for c in fits.columns if c.endswith("_low")]:
         quantity, high = column[: -len("_low")], column[: -len("_low")] + "_high"
         if high in fits and quantity in fits:
