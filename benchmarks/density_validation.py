@@ -9,8 +9,11 @@ on the counts and least squares on the shares (what a spreadsheet does), each wi
 profile-likelihood intervals (``tromplab.density.simulation.tracer_study``).  Then, per step,
 as many tests (retrieval 0.9) are fitted with the curve and its variant with limits, and the
 rejection rate of the chi-bar-squared test of the limits at nominal 5 % is measured
-(``limits_test_size``).  The tables are printed and written to
-benchmarks/output/density_validation.csv and density_limits_test_size.csv; docs/density_columns.md
+(``limits_test_size``).  Last, float-sink analyses of the same kind of separator (rho50 1.55,
+Ep 0.05, 14 fractions) with weighing errors on each analysis are fitted by weighted least
+squares (``float_sink_study``).  The tables are printed and written to
+benchmarks/output/density_validation.csv, density_limits_test_size.csv and
+density_float_sink_study.csv; docs/density_columns.md
 records it.  The test suite runs a small version
 (``test_tracer_study_small_binomial_coverage_near_nominal``).
 
@@ -23,7 +26,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from tromplab.density.simulation import limits_test_size, tracer_study
+from tromplab.density.simulation import float_sink_study, limits_test_size, tracer_study
 
 OUTPUT = Path(__file__).resolve().parent / "output"
 
@@ -35,8 +38,11 @@ def main(argv=None):
     parser.add_argument("--ep", type=float, default=0.04)
     parser.add_argument("--curve", default="normal")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--float-sink-only", action="store_true", help="run only the float-sink study")
     args = parser.parse_args(argv)
     start = time.perf_counter()
+    if args.float_sink_only:
+        return _float_sink(args, start)
     table = tracer_study(rho50=args.rho50, ep=args.ep, curve=args.curve, tests=args.tests, seed=args.seed,
                          steps=(0.01, 0.02, 0.05), retrievals=(0.7, 0.85, 1.0))  # fmt: skip
     OUTPUT.mkdir(exist_ok=True)
@@ -50,8 +56,21 @@ def main(argv=None):
     sizes.to_csv(OUTPUT / "density_limits_test_size.csv", index=False)
     print("\nThe test of the limits when the truth has none (nominal 5 %):")
     print(sizes.to_string(index=False, float_format=lambda v: f"{v:.4f}"))
-    print(f"\nwrote {OUTPUT / 'density_validation.csv'} and density_limits_test_size.csv; {time.perf_counter() - start:.0f} s")
-    return table, sizes
+    float_sink = _float_sink(args, start)
+    return table, sizes, float_sink
+
+
+def _float_sink(args, start):
+    OUTPUT.mkdir(exist_ok=True)
+    float_sink = pd.DataFrame(
+        [{"relative_error": r, "absolute_error_pct": e, **float_sink_study(tests=args.tests, seed=args.seed, relative_error=r, absolute_error=e)}
+         for r, e in ((0.01, 0.02), (0.03, 0.05))]
+    )  # fmt: skip
+    float_sink.to_csv(OUTPUT / "density_float_sink_study.csv", index=False)
+    print("\nFloat-sink analyses with weighing errors, weighted least squares (nominal 95 %):")
+    print(float_sink.to_string(index=False, float_format=lambda v: f"{v:.4f}"))
+    print(f"\nwrote {OUTPUT}/density_*.csv; {time.perf_counter() - start:.0f} s")
+    return float_sink
 
 
 if __name__ == "__main__":

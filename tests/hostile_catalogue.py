@@ -351,7 +351,7 @@ TEMPLATES = {
     "circuit": ["circuit", "{points.csv}", "{lab.csv}", "-o", "{tmp}/c"],
     "export": ["export", "{points.csv}", "-o", "{tmp}/e.csv"],
     "density fit": ["density", "fit", "{points.csv}", "-o", "{tmp}/d"],
-    "density predict": ["density", "predict", "{points.csv}", "--rho50", "1.6", "--ep", "0.05"],
+    "density predict": ["density", "predict", "{points.csv}", "--rho50", "1.5", "--ep", "0.05", "-o", "{tmp}/pred.csv"],
 }
 
 

@@ -169,3 +169,24 @@ def test_wrong_parameters_are_named():
         get_density_curve("normal").partition(1.5, rho50=1.5)
     with pytest.raises(KeyError, match="known curves: normal"):
         get_density_curve("weibull")
+
+
+@all_curves
+def test_catalogue_figure_draws_each_curve_at_its_stated_indices(curve):
+    from tromplab.density.plotting import FAMILY_EPS, plot_density_curve_family
+    from tromplab.output.plotting import offscreen_axes
+
+    ax = plot_density_curve_family(curve, ax=offscreen_axes())
+    lines = [line for line in ax.get_lines() if line.get_label().startswith("Ep ")]
+    assert [line.get_label() for line in lines] == [f"Ep {ep:g}" for ep in FAMILY_EPS]
+    for line, ep in zip(lines, FAMILY_EPS):
+        x, y = line.get_data()
+        rho25, rho50, rho75 = np.interp([25.0, 50.0, 75.0], y, x)  # read back from the drawn curve
+        assert_allclose([rho50, (rho75 - rho25) / 2], [1.5, ep], atol=2e-3)
+
+
+@all_curves
+def test_curves_pickle_by_id(curve):
+    import pickle
+
+    assert pickle.loads(pickle.dumps(curve)) is curve

@@ -2,12 +2,15 @@
 
 import math
 import re
+import warnings
 
 import numpy as np
 import pandas as pd
 import pytest
 import scipy.optimize
 import scipy.stats
+from hypothesis import example, given, settings
+from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
 from tromplab.cli import main
@@ -236,3 +239,61 @@ def test_every_written_column_is_documented(tmp_path):
         for table in (result.fits_table(), result.partition_table()):
             missing = set(table.columns) - documented
             assert not missing, f"columns not in docs/density_columns.md: {sorted(missing)}"
+
+
+def test_a_test_without_any_fitted_curve_exits_3_with_its_reasons_written(tmp_path, capsys):
+    separated = pd.DataFrame(
+        {"test": "sharp", "density": [1.4, 1.5, 1.6, 1.7], "placed": 30, "sinks": [0, 0, 30, 30], "floats": [30, 30, 0, 0]}
+    )
+    good = tracers().assign(test="fine")
+    path = tmp_path / "two.csv"
+    pd.concat([separated, good]).to_csv(path, index=False)
+    assert main(["density", "fit", str(path), "-o", str(tmp_path / "out"), "--curves", "plain", "--ci", "0.95"]) == 3
+    assert "no curve could be fitted to: sharp" in capsys.readouterr().out
+    fits = pd.read_csv(tmp_path / "out" / "fits.csv")
+    sharp = fits[fits["test"] == "sharp"]
+    assert (~sharp["success"]).all() and sharp["notes"].str.contains("separate completely between 1.5 and 1.6").all()
+    assert (fits.loc[fits["test"] == "fine", "rank"] > 0).all()
+
+
+def test_result_repr_is_short():
+    result = fit_density(tracers(), curves="plain")
+    assert repr(result) == "<DensityResult: 1 test(s), 3 fits (3 succeeded), ci=None>"
+
+
+@pytest.mark.slow
+@settings(max_examples=25, deadline=None)
+@given(st.lists(st.tuples(st.integers(0, 30), st.integers(0, 30)), min_size=2, max_size=9), st.sampled_from([0.01, 0.05, 0.2]))
+@example(
+    counts=[(23, 11), (26, 0), (0, 27), (23, 8), (12, 0)], step=0.01
+)  # a GLM cut below water; a profile started outside its bounds
+@example(counts=[(3, 28), (24, 0), (28, 8), (28, 8), (22, 23), (4, 4)], step=0.05)  # the Gompertz curve's exp overflowed
+def test_any_counts_give_fits_or_reasons_never_an_exception(counts, step):
+    sinks, floats = (np.array(column) for column in zip(*counts))
+    if ((sinks + floats) > 0).sum() < 2:
+        return
+    frame = pd.DataFrame({"density": np.round(1.3 + step * np.arange(len(counts)), 3), "sinks": sinks, "floats": floats})
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        result = fit_density(frame, ci=0.9)
+    table = result.fits_table()
+    assert len(table) == 6
+    assert (table["success"] | (table["notes"].str.len() > 0)).all()  # a failed fit says why
+    done = table[table["success"] & table["ep"].notna()]
+    assert_allclose(done["imperfection"], done["ep"] / (done["rho50"] - 1), rtol=1e-14)
+    for name in ("rho50", "ep", "imperfection"):
+        inside = done[[f"{name}_low", f"{name}_high"]].notna().all(axis=1)
+        rows = done[inside]
+        assert ((rows[f"{name}_low"] <= rows[name] * (1 + 1e-9)) & (rows[name] <= rows[f"{name}_high"] * (1 + 1e-9))).all(), name
+
+
+def test_float_sink_fits_are_unbiased_and_their_intervals_say_what_they_leave_out():
+    from tromplab.density.fitting import FLOAT_SINK_INTERVAL_NOTE
+    from tromplab.density.simulation import float_sink_study
+
+    study = float_sink_study(tests=40, seed=3)
+    assert study["fitted"] == 40 and abs(study["rho50_bias"]) < 0.002 and abs(study["ep_relative_bias"]) < 0.05
+    table = float_sink_table("normal", {"rho50": 1.55, "ep": 0.05}, [1.3, 1.4, 1.5, 1.6, 1.7], [30, 20, 15, 10, 10, 15])
+    table["sinks_pct"] = (table["sinks_pct"] * [1.02, 0.98, 1.01, 0.99, 1.0, 1.0]).round(2)
+    fit = fit_density_curve(read_density(table)[0], "normal", ci=0.95)
+    assert FLOAT_SINK_INTERVAL_NOTE in fit.notes

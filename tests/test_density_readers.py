@@ -6,6 +6,8 @@ import re
 import numpy as np
 import pandas as pd
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
 from tromplab.density.curves import DENSITY_CURVES, get_density_curve
@@ -169,3 +171,31 @@ def test_open_size_fraction_label():
     sample = read_density(frame)[0]
     assert sample.size_fraction == "-0.5 mm" and math.isnan(sample.size_lower)
     assert get_density_curve("normal") is not None
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    st.lists(st.tuples(st.integers(0, 40), st.integers(0, 40), st.integers(0, 5)), min_size=2, max_size=12),
+    st.floats(1.2, 1.9),
+)
+def test_tracer_counts_read_as_written(counts, start):
+    density = np.round(start + 0.01 * np.arange(len(counts)), 2)
+    sinks, floats, lost = (np.array(column) for column in zip(*counts))
+    frame = pd.DataFrame({"density": density, "placed": sinks + floats + lost, "sinks": sinks, "floats": floats})
+    recovered = sinks + floats
+    if (recovered > 0).sum() < 2:
+        with pytest.raises(InputError, match="usable densities"):
+            read_density(frame)
+        return
+    points = read_density(frame)[0].points
+    assert points["lost"].tolist() == lost.tolist() and points["recovered"].tolist() == recovered.tolist()
+    used = recovered > 0
+    assert points["used"].tolist() == used.tolist()
+    assert_allclose(points["partition_sinks"][used], sinks[used] / recovered[used])
+
+
+def test_a_csv_and_the_same_dataframe_read_alike(tmp_path):
+    frame = pd.read_csv(write(tmp_path, TRACERS, "tracers.csv"))
+    from_file, from_frame = read_density(tmp_path / "tracers.csv")[0], read_density(frame)[0]
+    pd.testing.assert_frame_equal(from_file.points.drop(columns="row"), from_frame.points.drop(columns="row"))
+    assert from_file.notes == from_frame.notes

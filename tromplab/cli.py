@@ -134,12 +134,15 @@ def main(argv=None, *, on_start=None) -> int:
     if not hasattr(args, "run"):
         parser.print_help()
         return EXIT_USAGE
-    subcommands = (getattr(args, f"{n}_command", None) for n in ("sieve", "layer", "pulp", "density"))
-    path = [name for name in (args.command, *subcommands) if name]
+    path = [
+        name
+        for name in (args.command, *(getattr(args, f"{n}_command", None) for n in ("sieve", "layer", "pulp", "density")))
+        if name
+    ]
     command = " ".join(("tromplab", *path))
     own = _command_parser(parser, path)  # its options, not another command's, name the Python words
     try:
-        _check_input_paths(args)  # before the imports: a missing file answers at once
+        _check_input_paths(args, own)  # before the imports: a missing file answers at once
         # a command imports its modules before it starts: an interrupt inside an import can stop
         # a module half-initialised (an ImportError, or Python's exit by SIGINT instead of 130)
         for module in getattr(args, "imports", ()):
@@ -178,12 +181,14 @@ def main(argv=None, *, on_start=None) -> int:
 INPUT_FILE_ARGUMENTS = ("input", "data", "table", "flowsheet", "measurements")
 
 
-def _check_input_paths(args) -> None:
-    """Every input file of the command exists and can be read (the loaders check it again)."""
+def _check_input_paths(args, command_parser: argparse.ArgumentParser) -> None:
+    """Every input file of the command exists and can be read (the loaders check it again).
+    Only positional arguments are input files (an option such as ``--table`` may name an output)."""
     from .loading.paths import check_input_file
 
+    positional = {action.dest for action in command_parser._actions if not action.option_strings}
     for name in INPUT_FILE_ARGUMENTS:
-        path = getattr(args, name, None)
+        path = getattr(args, name, None) if name in positional else None
         if isinstance(path, (str, os.PathLike)):
             check_input_file(path, option=name)
 

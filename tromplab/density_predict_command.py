@@ -15,6 +15,7 @@ from pathlib import Path
 
 from .errors import OptionError
 from .options import DEFAULT_SUM_TOLERANCE_PCT
+from .output.csv_parts import write_csv
 from .output.outputs import check_output_file, write_files
 from .validation import check_cut_density, check_non_negative, check_percent, check_positive, check_share, cli_type
 
@@ -98,7 +99,7 @@ def run_predict(
 
 def _write_csv(table, path: Path) -> dict:
     path.absolute().parent.mkdir(parents=True, exist_ok=True)
-    return write_files({path.name: lambda target: table.to_csv(target, index=False)}, path.absolute().parent)
+    return write_files({path.name: lambda target: write_csv(table, target)}, path.absolute().parent)
 
 
 # --- command line ----------------------------------------------------------------------------

@@ -231,9 +231,9 @@ def range_text(check: Callable, **kwargs) -> str:
         check_number: "(-inf, inf)",
         check_size: interval_text(*SIZE_LIMITS),
         check_bootstrap: f"0 to {MAX_BOOTSTRAP:,}",
-        check_cut_density: interval_text(1.0, MAX_CUT_DENSITY, low_open=True),
-        check_percent: "(0, 100)",
         check_seed: "0 to 2**63 - 1",
+        check_cut_density: f"(1, {MAX_CUT_DENSITY:g}]",
+        check_percent: "(0, 100)",
     }
     return fixed[check]
 

@@ -41,6 +41,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from ..output.csv_parts import write_csv
+
 #: Columns of :func:`by_size_table`, in order.
 BY_SIZE_COLUMNS = (
     "test",
@@ -416,8 +418,8 @@ def by_size_outputs(fits, *, ci: float = 0.95, figures: bool = True) -> dict:
         return {}
     by_size, trends = by_size_table(fits, ci=ci)
     outputs = {
-        "by_size.csv": lambda path: by_size.to_csv(path, index=False),
-        "ep_trend.csv": lambda path: trends.to_csv(path, index=False),
+        "by_size.csv": lambda path: write_csv(by_size, path),
+        "ep_trend.csv": lambda path: write_csv(trends, path),
     }
     if figures:
         tests = list(dict.fromkeys(by_size["test"]))

@@ -145,7 +145,8 @@ class StandardForm:
 
 
 def _gompertz_cdf(t):
-    return -np.expm1(-np.exp(t))
+    # exp(710) overflows; F is 1 to the last bit from t = 4 on, so the cap changes nothing
+    return -np.expm1(-np.exp(np.minimum(t, 700.0)))
 
 
 def _gompertz_quantile(p):
@@ -529,7 +530,9 @@ def density_registry_table():
             "id": curve.id,
             "title": curve.title,
             "expression": curve.expression,
-            "parameters": "; ".join(parameter.describe() for parameter in curve.parameters),
+            "parameters": "; ".join(
+                f"{p.name} in [{p.lower:g}, {p.upper:g}]{f' [{p.unit}]' if p.unit else ''}: {p.meaning}" for p in curve.parameters
+            ),
             "link": curve.link,
             "citation": curve.citation,
             "notes": curve.notes,

@@ -55,6 +55,7 @@ def plot_density_fits(
     for fit, style in zip(done, curve_styles(len(done))):
         thick = fit is best
         label = f"{fit.curve.id}" + (f" (best): rho50 {fit.indices.rho50:.3f}, Ep {fit.indices.ep:.3f}" if thick else "")
+        style = {**style, "ls": "-"} if thick else style  # the best curve solid and thick, whatever its place in the cycle
         ax.plot(
             grid, 100 * fit.partition(grid), lw=2.4 if thick else 1.2, label=plain_text(label), zorder=3 if thick else 2, **style
         )
@@ -83,4 +84,38 @@ def plot_density_fits(
     ax.set_title(plain_text(f"{sample.label}: density partition"))
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8, loc="upper left")
+    return ax
+
+
+#: The probable errors of the catalogue's family figures (g/cm3) at the cut 1.5, and the limits of the variants.
+FAMILY_EPS = (0.02, 0.05, 0.1)
+FAMILY_LIMITS = {"light_limit": 0.05, "heavy_limit": 0.95}
+
+
+def plot_density_curve_family(curve, *, ax=None, rho50: float = 1.5):
+    """One density curve at the cut ``rho50`` and the probable errors :data:`FAMILY_EPS` (the catalogue's figure).
+
+    A curve with limits is drawn with the limits :data:`FAMILY_LIMITS` and the same rho50
+    and Ep of ``P`` itself (:meth:`~tromplab.density.curves.DensityCurve.from_indices`).
+
+    Returns
+    -------
+    matplotlib Axes
+    """
+    from .curves import get_density_curve
+
+    curve = get_density_curve(curve)
+    ax = _axes(ax)
+    grid = np.linspace(rho50 - 0.4, rho50 + 0.4, 400)
+    limits = FAMILY_LIMITS if curve.has_limits else {}
+    for ep, style in zip(FAMILY_EPS, curve_styles(len(FAMILY_EPS))):
+        params = curve.from_indices(rho50=rho50, ep=ep, **limits)
+        ax.plot(grid, 100 * curve.partition(grid, **params), label=f"Ep {ep:g}", **style)
+    ax.axvline(rho50, color="0.5", lw=0.8)
+    ax.axhline(50, color="0.5", lw=0.8)
+    ax.set_xlabel("relative density (g/cm3)")
+    ax.set_ylabel("partition to sinks (%)")
+    ax.set_title(plain_text(f"{curve.id}: rho50 {rho50:g}" + (", limits 0.05 and 0.95" if limits else "")))
+    ax.legend(fontsize=8, loc="upper left")
+    ax.grid(True, alpha=0.3)
     return ax

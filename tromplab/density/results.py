@@ -22,6 +22,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import OptionError
+from ..output.csv_parts import write_csv
 from ..validation import check_probability
 from .by_size import by_size_outputs
 from .curves import select_density_curves
@@ -55,6 +56,10 @@ class DensityResult:
     fits: list
     ci: float | None = None
     method: str | None = None
+
+    def __repr__(self) -> str:
+        done = sum(fit.success for fit in self.fits)
+        return f"<DensityResult: {len(self.samples)} test(s), {len(self.fits)} fits ({done} succeeded), ci={self.ci}>"
 
     @cached_property
     def _ranked(self) -> list[tuple[DensityCurveFit, int, str]]:
@@ -174,6 +179,9 @@ class DensityResult:
                 lines.append(f"  no curve fitted: {reasons}")
                 continue
             lines.append(f"  best curve: {best.curve.id} ({best.method}) {_indices_text(best)}")
+            tie = next((note for fit, _, note in self._ranked if fit is best and note), "")
+            if tie:
+                lines.append(f"    {tie}")
         return "\n".join(lines)
 
     def plot(self, sample: DensitySample | int = 0, *, ax=None):
@@ -199,7 +207,7 @@ class DensityResult:
         from ..output.outputs import figure_file_names, replace_folder
 
         tables = {"fits.csv": self.fits_table(), "partition.csv": self.partition_table()}
-        outputs = {name: (lambda path, table=table: table.to_csv(path, index=False)) for name, table in tables.items()}
+        outputs = {name: (lambda path, table=table: write_csv(table, path)) for name, table in tables.items()}
         summary = self.summary() + "\n"
         outputs["summary.txt"] = lambda path: path.write_text(summary, encoding="utf-8")
         names = figure_file_names([sample.label for sample in self.samples], prefix="density_")
@@ -209,7 +217,7 @@ class DensityResult:
             outputs[names[sample.label]] = lambda path, png=png: path.write_bytes(png)
             figure_rows.append({"test": sample.test, "size_fraction": sample.size_fraction, "file": names[sample.label]})
         figures = pd.DataFrame(figure_rows)
-        outputs["figures.csv"] = lambda path: figures.to_csv(path, index=False)
+        outputs["figures.csv"] = lambda path: write_csv(figures, path)
         # tests with size fractions: indices by size, the Ep trend and its figure (none without)
         outputs.update(by_size_outputs(self.fits, ci=self.ci or PARTITION_INTERVAL_LEVEL))
         return replace_folder(outputs, outdir)

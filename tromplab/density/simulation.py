@@ -7,8 +7,10 @@ placed, sinks, floats``).  :func:`float_sink_table` writes the float-sink analys
 products of a separator with a known curve, so that the partition the reader computes
 equals the curve at each fraction's mean density.  :func:`tracer_study` repeats simulated
 tests and reports the bias of rho50 and Ep and the coverage of their intervals, for the
-binomial fit and for least squares on the shares (``analysis/density_validation.py``
-runs it at full size; its numbers are in ``docs/density_columns.md``).
+binomial fit and for least squares on the shares; :func:`limits_test_size` measures the size
+of the test of the limits and :func:`float_sink_study` the float-sink fits' bias and coverage
+(``benchmarks/density_validation.py`` runs them at full size; the numbers are in
+``docs/density_columns.md``).
 """
 
 from __future__ import annotations
@@ -215,3 +217,50 @@ def limits_test_size(
         "chi2_2_rejects": float(np.mean(plain_chi2)) if plain_chi2 else math.nan,
         "both_on_bounds": float(np.mean(on_bounds)) if on_bounds else math.nan,
     }
+
+
+#: The feed of the float-sink study: mass per cent in the fractions (float below 1.30, 0.05 steps to
+#: 1.90, sink above): a coal with much clean coal, a middlings tail and a reject peak at the heavy end.
+STUDY_BOUNDS = tuple(np.round(np.arange(1.30, 1.901, 0.05), 2))
+STUDY_FEED_PCT = (30.0, 18.0, 11.0, 7.0, 5.0, 4.0, 3.5, 3.0, 2.5, 2.0, 2.0, 2.0, 2.0, 8.0)
+
+
+def noisy_analysis(share_pct, rng, *, relative_error: float = 0.03, absolute_error: float = 0.05) -> np.ndarray:
+    """One float-sink analysis as a lab reports it: each fraction weighed with a relative and an
+    absolute error (percentage points), clipped at 0, brought back to 100 % and rounded to 0.01."""
+    share = np.asarray(share_pct, dtype=float)
+    measured = np.clip(
+        share * (1 + rng.normal(0, relative_error, share.size)) + rng.normal(0, absolute_error, share.size), 0, None
+    )
+    return np.round(100 * measured / measured.sum(), 2)
+
+
+def float_sink_study(
+    *, rho50: float = 1.55, ep: float = 0.05, tests: int = 200, ci: float = 0.95, curve: str = "normal", seed: int = 0, **errors
+) -> dict:
+    """Bias and interval coverage of rho50 and Ep fitted by weighted least squares to noisy float-sink analyses.
+
+    Each test takes the float-sink analyses of a separator with the known curve
+    (:func:`float_sink_table` at :data:`STUDY_BOUNDS` with :data:`STUDY_FEED_PCT`), adds the
+    weighing errors of :func:`noisy_analysis` (``errors``: its ``relative_error`` and
+    ``absolute_error``) to each of the three analyses, reads them through
+    :func:`~tromplab.density.readers.read_density` (the floats yield estimated from the three)
+    and fits the true curve by weighted least squares with its profile intervals at ``ci``.
+
+    Returns
+    -------
+    dict
+        ``tests, fitted, rho50_bias, ep_relative_bias, rho50_coverage, ep_coverage,
+        rho50_no_interval, ep_no_interval``.
+    """
+    rng = np.random.default_rng(seed)
+    clean = float_sink_table(curve, {"rho50": rho50, "ep": ep}, STUDY_BOUNDS, STUDY_FEED_PCT)
+    outcomes = []
+    for _ in range(tests):
+        table = clean.copy()
+        for column in ("feed_pct", "floats_pct", "sinks_pct"):
+            table[column] = noisy_analysis(clean[column], rng, **errors)
+        outcomes.append(_one_test(read_density(table)[0], curve, "least_squares", ci))
+    row = _study_row(outcomes, math.nan, math.nan, "least_squares", rho50, ep)
+    return {key: row[key] for key in ("tests", "fitted", "rho50_bias", "ep_relative_bias", "rho50_coverage", "ep_coverage",
+                                      "rho50_no_interval", "ep_no_interval")}  # fmt: skip

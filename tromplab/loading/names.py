@@ -26,7 +26,7 @@ import pandas as pd
 
 #: Columns read as text by every table reader (names of experiments, surveys, streams, nodes,
 #: sieves, size fractions and the equations of a ``rank`` table).
-NAME_COLUMNS = ("experiment", "survey", "stream", "from", "to", "sieve", "fraction", "equation")
+NAME_COLUMNS = ("experiment", "survey", "stream", "from", "to", "sieve", "fraction", "equation", "test")
 _CLASS_COLUMN = re.compile(r"size_class(?:_[A-Za-z]+)?")
 #: First characters that make a spreadsheet read a cell as a formula (OWASP, "CSV injection").
 FORMULA_STARTS = ("=", "+", "-", "@", "\t", "\r")

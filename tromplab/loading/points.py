@@ -66,6 +66,14 @@ PARTITION_SLACK = 0.1
 MAX_SIZE_SPAN = 1e9
 
 
+def _is_number(item) -> bool:
+    try:
+        float(item)
+    except (TypeError, ValueError):
+        return False
+    return True
+
+
 @dataclass(frozen=True)
 class TrompPoints:
     """Measured separation curve of one experiment, validated on construction.
@@ -121,13 +129,12 @@ class TrompPoints:
     def __post_init__(self):
         if not isinstance(self.experiment, str):
             raise TypeError(f"the experiment name must be text (str), got {type(self.experiment).__name__}")
-        size = self._numbers(self.size, "size")
-        phi = self._numbers(self.partition_fine, "partition_fine")
+        size, phi = self._real_array(self.size, "size"), self._real_array(self.partition_fine, "partition_fine")
         if size.ndim != 1 or phi.ndim != 1 or size.shape != phi.shape:
             raise self._error(f"size has {size.size} values and partition_fine {phi.size}: give one partition per size")
         arrays = {"size": size, "partition_fine": phi}
         if self.weight is not None:
-            arrays["weight"] = self._numbers(self.weight, "weight")
+            arrays["weight"] = self._real_array(self.weight, "weight")
             if arrays["weight"].shape != size.shape:
                 raise self._error(f"weight has {arrays['weight'].size} values for {size.size} sizes", column="weight")
         for column, values in arrays.items():
@@ -151,24 +158,25 @@ class TrompPoints:
         if self.weight is not None:
             object.__setattr__(self, "weight", arrays["weight"][order])
 
-    def _numbers(self, values, column: str) -> np.ndarray:
-        """``values`` as an array of floats; text, complex numbers, nested or ragged sequences
-        and other objects are refused naming the column (not with numpy's words, and not cast:
-        numpy would drop an imaginary part with only a warning)."""
-        if isinstance(values, (str, bytes, dict)) or values is None:
-            raise self._error(f"{column} must be a sequence of numbers, got {type(values).__name__}", column=column)
-        if (
-            np.iscomplexobj(values)
-            if isinstance(values, np.ndarray)
-            else any(isinstance(v, (complex, np.complexfloating)) for v in values)
-        ):
-            raise self._error(f"{column} must hold real numbers, got complex ones", column=column)
+    def _real_array(self, values, column: str) -> np.ndarray:
+        """``values`` as a flat array of floats, or an :class:`InputError` naming ``column``:
+        complex numbers, nested (ragged) sequences and text are refused, not cast."""
+        raw = values if isinstance(values, np.ndarray) else None
         try:
-            array = np.asarray(values, dtype=float)
+            raw = np.asarray(values) if raw is None else raw
+        except ValueError:  # numpy refuses a ragged nesting
+            raise self._error("takes one flat sequence of numbers, got a ragged nesting", column=column) from None
+        if np.iscomplexobj(raw):  # numpy would drop the imaginary part with only a warning
+            raise self._error("takes real numbers, got complex ones", column=column)
+        if raw.dtype == object and any(isinstance(item, (list, tuple, np.ndarray)) for item in raw.ravel()):
+            raise self._error("takes one flat sequence of numbers, got a ragged nesting", column=column)
+        try:
+            array = np.asarray(raw, dtype=float)
         except (TypeError, ValueError):
-            raise self._error(f"{column} must be a flat sequence of numbers; {_shown(values)} is not", column=column) from None
+            first = next(item for item in np.atleast_1d(raw).ravel() if not _is_number(item))
+            raise self._error(f"takes numbers, got {str(first)!r}", column=column) from None
         if array.ndim != 1:
-            raise self._error(f"{column} must be a flat sequence of numbers, got {array.ndim} dimension(s)", column=column)
+            raise self._error(f"takes one flat sequence of numbers, got an array of shape {array.shape}", column=column)
         return array
 
     def _error(self, message: str, *, column: str | None = None) -> InputError:
