@@ -1,4 +1,4 @@
-"""Full-size validation of tromplab.circuit.
+"""Full-size validation of tromplab.circuit: reconciliation and gross-error tests on simulated surveys.
 
 For each simulated circuit of tromplab.circuit.simulation (the grinding circuit, the two-deck
 screen and the bundled example plant), draws ``--surveys`` seeded surveys from the default

@@ -1,11 +1,12 @@
 """Plant surveys: flowsheet, survey table, reconciliation, partition curves, command.
 
-Validation items of the issue: (a) one node equals the lab table's least-squares yield and
+Validation: (a) one node equals the lab table's least-squares yield and
 partition; (b) simulated circuits with a known truth (closer to the truth, 95 % interval
 coverage, chi-square at its nominal rate); (c) a planted gross error named first.  The
 full-size studies are benchmarks/circuit_reconciliation.py.
 """
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -183,8 +184,10 @@ def test_an_unobservable_flow_is_refused_naming_the_streams():
 def test_exact_data_are_returned_unchanged_with_the_truth_and_the_expected_redundancy(make, n_redundant):
     truth = make()
     survey = simulate_survey(truth, np.random.default_rng(0), errors=ErrorModel(relative_error=1e-12, absolute_error=1e-12))
-    sds = survey.shares.assign(sd=ErrorModel().share_sd(survey.shares["value"]))  # exact values, the default sds
-    survey = type(survey)(survey.classes, sds, survey.flows, survey.pct_solids, survey.size_unit, "exact", survey.closed_streams)
+    default = ErrorModel()  # exact values, the default error model
+    sds = survey.shares.assign(sd=default.share_sd(survey.shares["value"]), relative=default.relative_error,
+                               absolute=default.absolute_error)  # fmt: skip
+    survey = dataclasses.replace(survey, shares=sds, source="exact")
     balance = reconcile(truth.flowsheet, survey)
     scale = balance.flows[0] / truth.flows[0]  # no flow measured: per 100 of the first feed
     np.testing.assert_allclose(balance.flows, truth.flows * scale, rtol=1e-7)
@@ -250,7 +253,8 @@ def test_at_a_fixed_yield_the_shares_are_the_lab_one_node_reconciliation():
 
 
 def _independent(survey):
-    return type(survey)(survey.classes, survey.shares, survey.flows, survey.pct_solids, survey.size_unit, "open", ())
+    """Independent shares, their sds at the measured values: the problem of the classical closed forms."""
+    return dataclasses.replace(survey, source="open", closed_streams=(), evaluated_at="measured")
 
 
 def test_linear_case_with_every_flow_fixed_is_the_closed_form_projection():
@@ -258,7 +262,7 @@ def test_linear_case_with_every_flow_fixed_is_the_closed_form_projection():
     truth = grinding_circuit()
     survey = _independent(simulate_survey(truth, np.random.default_rng(6)))
     fixed = pd.DataFrame({"stream": truth.flowsheet.stream_names, "value": truth.flows, "sd": 0.0, "row": None})
-    survey = type(survey)(survey.classes, survey.shares, fixed, survey.pct_solids, survey.size_unit, "fixed", ())
+    survey = dataclasses.replace(survey, flows=fixed, source="fixed", closed_streams=())
     balance = reconcile(truth.flowsheet, survey)
     S, n = truth.class_flows.shape
     x = np.zeros(S * n)
@@ -286,8 +290,26 @@ def test_linear_case_with_every_flow_fixed_is_the_closed_form_projection():
     gain = sigma @ A.T @ np.linalg.pinv(A @ sigma @ A.T)  # one class balance is the sum of the others
     expected = x - gain @ (A @ x - b)
     covariance = sigma - gain @ A @ sigma
-    np.testing.assert_allclose(balance.shares.ravel(), expected, atol=1e-10)
-    np.testing.assert_allclose(balance.share_sd.ravel(), np.sqrt(np.clip(np.diag(covariance), 0, None)), atol=1e-9)
+    fitted = balance.fitted.reshape(S, n) / balance.fitted.reshape(S, n).sum(axis=1, keepdims=True)
+    np.testing.assert_allclose(fitted.ravel(), expected, atol=1e-10)  # the least squares without the bounds
+    held = {stream for stream, _ in balance.held_at_zero}
+    assert held == {"cyclone_overflow"} and expected.min() < 0  # this draw leaves near-empty overflow classes below 0
+    plain = np.repeat([name not in held for name in truth.flowsheet.stream_names], n)
+    sd = np.sqrt(np.clip(np.diag(covariance), 0, None))
+    np.testing.assert_allclose(balance.share_sd.ravel()[plain], sd[plain], atol=1e-9)
+    # the reported shares: the same least squares with every share >= 0, a convex quadratic programme
+    weights = np.where(np.diag(sigma) > 0, 1.0 / np.where(np.diag(sigma) > 0, np.diag(sigma), 1.0), 0.0)
+    weights = weights / weights.max()  # the minimiser is the same; SLSQP's steps are not
+    U, singular, Vt = np.linalg.svd(A, full_matrices=False)
+    rank = int(np.sum(singular > 1e-10 * singular[0]))  # independent rows only: SLSQP stalls on redundant ones
+    A, b = Vt[:rank], (U[:, :rank].T @ b) / singular[:rank]
+    bounded = optimize.minimize(
+        lambda v: np.sum(weights * (v - x) ** 2), np.clip(expected, 0, None), jac=lambda v: 2 * weights * (v - x),
+        bounds=[(0, None)] * x.size, constraints=[{"type": "eq", "fun": lambda v: A @ v - b, "jac": lambda v: A}],
+        method="SLSQP", options={"ftol": 1e-15, "maxiter": 1000},
+    )  # fmt: skip
+    assert bounded.success and balance.shares.min() >= 0
+    np.testing.assert_allclose(balance.shares.ravel(), bounded.x, atol=1e-7)
 
 
 def test_the_bilinear_solution_is_a_minimum_of_the_problem_in_flows_and_fractions():
@@ -311,7 +333,8 @@ def test_the_bilinear_solution_is_a_minimum_of_the_problem_in_flows_and_fraction
         F, x = v[:S], v[S:].reshape(S, n)
         return np.concatenate([[F[0] - 1.0], M @ F, (M @ (F[:, None] * x)).ravel(), x.sum(axis=1) - 1.0])
 
-    ours = np.concatenate([balance.flows / 100.0, balance.shares.ravel()])
+    fitted = balance.fitted.reshape(S, n)  # the least squares without the bounds at 0, as written here
+    ours = np.concatenate([fitted.sum(axis=1) / 100.0, (fitted / fitted.sum(axis=1, keepdims=True)).ravel()])
     assert np.abs(equalities(ours)).max() < 1e-12
     np.testing.assert_allclose(objective(ours), balance.chi_square, rtol=1e-12)
     for method in ("SLSQP", "trust-constr"):
@@ -320,7 +343,7 @@ def test_the_bilinear_solution_is_a_minimum_of_the_problem_in_flows_and_fraction
         np.testing.assert_allclose(solution.x, ours, atol=1e-5)
     problem = balance.problem  # feasible neighbours: along the null space of the class-flow constraints
     rng = np.random.default_rng(10)
-    m = balance.class_flows.ravel()
+    m = balance.fitted
     for _ in range(200):
         other = m + problem.N @ rng.normal(0.0, 0.05, problem.N.shape[1])
         residual = problem.W @ (problem.predict(other) - problem.y)
@@ -396,6 +419,7 @@ def test_exact_per_cent_solids_give_the_dilution_ratio_circulating_load():
     np.testing.assert_allclose(water.loc[list(pct), "pct_solids"], list(pct.values()), rtol=1e-9)
     assert not water.loc["mill_water", "determined"]  # fresh feed's per cent solids not given: only the sum is known
     assert "not determined" in water.loc["mill_water", "note"] and "mill_water" in balance.summary()
+    assert "the per cent solids of fresh_feed would determine it" in water.loc["mill_water", "note"]
 
 
 def test_per_cent_solids_recover_the_true_water_flows_and_sharpen_the_split():
@@ -465,20 +489,25 @@ def test_simulated_surveys_reconciled_closer_to_the_truth_covered_and_tested_at_
 
 
 @pytest.mark.slow
-def test_a_planted_five_sd_gross_error_in_a_flowmeter_is_named_first():
+@pytest.mark.parametrize("evaluated_at, least", [("measured", 0.90), ("reconciled", 0.82)])
+def test_a_planted_five_sd_gross_error_in_a_flowmeter_is_named_first(evaluated_at, least):
     """Example plant with a 1 % belt scale on the feed and 10 % flowmeters on three products:
-    a 5-sd error in one flowmeter is named first by the measurement test in >= 90 % of surveys."""
+    a 5-sd error (5 sds of the value written) in one flowmeter is named first by the measurement
+    test in >= 90 % of surveys with the error model at the measured values, and >= 82 % at the
+    reconciled values (whose sd of a meter that reads low is larger than the sd the slip was
+    measured in; docs/circuit.md gives 1,000-survey rates)."""
     truth = example_plant()
     flows = {"screen_feed": 0.01, "oversize": 0.10, "middlings": 0.10, "cyclone_overflow": 0.10}
     rng = np.random.default_rng(3)
+    errors = ErrorModel(evaluated_at=evaluated_at)
     named, n_surveys = 0, 150
     for _ in range(n_surveys):
         stream = ("oversize", "middlings", "cyclone_overflow")[rng.integers(3)]
         sign = rng.choice([-1.0, 1.0])
-        balance = reconcile(truth.flowsheet, simulate_survey(truth, rng, flows=flows, gross=(stream, -1, 5.0 * sign)))
-        first = balance.largest_adjustments(1).iloc[0]
+        survey = simulate_survey(truth, rng, flows=flows, gross=(stream, -1, 5.0 * sign), errors=errors)
+        first = reconcile(truth.flowsheet, survey).largest_adjustments(1).iloc[0]
         named += first["stream"] == stream and first["class_index"] == -1
-    assert named / n_surveys >= 0.90, named / n_surveys
+    assert named / n_surveys >= least, named / n_surveys
 
 
 def _exact_survey_with_raw_error(truth, stream: str, klass: int, error: float):
@@ -490,8 +519,10 @@ def _exact_survey_with_raw_error(truth, stream: str, klass: int, error: float):
     values = shares.loc[where, "value"].to_numpy().copy()
     values[klass] += error
     shares.loc[where, "value"] = values / values.sum()
-    shares["sd"] = ErrorModel().share_sd(shares["value"])
-    return type(survey)(survey.classes, shares, survey.flows, survey.pct_solids, survey.size_unit, "slip", survey.closed_streams)
+    default = ErrorModel()
+    shares["sd"] = default.share_sd(shares["value"])
+    shares["relative"], shares["absolute"] = default.relative_error, default.absolute_error
+    return dataclasses.replace(survey, shares=shares, source="slip")
 
 
 @pytest.mark.parametrize("stream, klass", [("cyclone_feed", 0), ("cyclone_overflow", 9), ("cyclone_underflow", 6)])

@@ -13,13 +13,17 @@ import io
 from dataclasses import dataclass
 
 from .circuit import CircuitBalance, ErrorModel, read_flowsheet, read_survey, reconcile
+from .circuit.plotting import figure_size
+from .errors import OptionError
+from .options import CIRCUIT_FIT_FORMULAS, DEFAULT_ALPHA
 from .output.csv_parts import write_csv
 from .output.outputs import check_output_folder, replace_folder
+from .output.plotting import offscreen_axes
 from .workbench import Workbench, fit_experiments
 
 #: The formulas fitted by ``--fit``: the nine of the paper (ranked) and the extended curves
 #: with bypass and fish-hook (reported beside them, as ``tromplab fit --extended`` does).
-FIT_FORMULAS = "paper,extended"
+FIT_FORMULAS = CIRCUIT_FIT_FORMULAS
 
 
 @dataclass(frozen=True)
@@ -60,9 +64,10 @@ def run_circuit(
     *,
     fit: bool = False,
     errors: ErrorModel | None = None,
-    alpha: float = 0.05,
+    alpha: float = DEFAULT_ALPHA,
     size_unit: str | None = None,
     figures: bool = True,
+    exclude=(),
 ) -> CircuitRun:
     """Reconcile the survey and write ``outdir`` as a whole (nothing written on bad input).
 
@@ -82,6 +87,9 @@ def run_circuit(
         Unit of the sizes when the size columns carry none.
     figures : bool
         Draw the three figures.
+    exclude : iterable of str or str, optional
+        Measurements left out (``STREAM``, ``STREAM:flow``, ``STREAM:pct_solids``,
+        ``STREAM:CLASS``), as :func:`~tromplab.circuit.reconciliation.reconcile` takes them.
 
     Returns
     -------
@@ -90,6 +98,9 @@ def run_circuit(
     Notes
     -----
     Files: ``flows.csv``, ``distributions.csv``, ``adjustments.csv``, ``gross_errors.csv``,
+    ``elimination.csv`` (serial elimination with compensation: a proposal), ``nodal_tests.csv``,
+    ``worth.csv`` (each measurement's solvability, redundancy and influence on the results),
+    ``design.csv`` (the measurements one could add, ranked by the predicted reduction of sds),
     ``chi_square.csv``, ``degrees_of_freedom.csv``, ``partition.csv`` (with standard
     deviations), ``points.csv`` (Tromp-points schema with weights, what ``tromplab fit``
     reads), the flowsheet as read (``flowsheet.csv``), ``summary.txt``; figures
@@ -99,12 +110,20 @@ def run_circuit(
     check_output_folder(outdir, inputs=[flowsheet, measurements])  # the inputs are checked as they are read
     sheet = read_flowsheet(flowsheet)
     survey = read_survey(measurements, sheet, errors=errors, size_unit=size_unit)
-    balance = reconcile(sheet, survey, alpha=alpha)
+    if fit and not survey.n_classes:
+        raise OptionError(
+            "fit", "needs size analyses: the survey holds flows and per cent solids only (no partition curve to fit)"
+        )
+    balance = reconcile(sheet, survey, alpha=alpha, exclude=exclude)
     tables = {
         "flows": balance.flows_table(),
         "distributions": balance.distributions_table(),
         "adjustments": balance.adjustments_table(),
         "gross_errors": balance.gross_errors_table(),
+        "elimination": balance.elimination_table(),
+        "nodal_tests": balance.nodal_tests_table(),
+        "worth": balance.worth_table(),
+        "design": balance.design_table(),
         "chi_square": balance.chi_square_table(),
         "degrees_of_freedom": balance.degrees_of_freedom_table(),
         "partition": balance.partition_table(),
@@ -122,7 +141,7 @@ def run_circuit(
     summary = balance.summary() + "\n"
     outputs["summary.txt"] = lambda path: path.write_text(summary, encoding="utf-8")
     if figures:
-        for kind in ("flowsheet", "adjustments", "distributions"):
+        for kind in ("flowsheet", "adjustments", "distributions") if balance.has_size_classes else ("flowsheet", "adjustments"):
             png = _png(balance, kind)
             outputs[f"{kind}.png"] = lambda path, png=png: path.write_bytes(png)
     written = replace_folder(outputs, outdir)
@@ -130,14 +149,11 @@ def run_circuit(
 
 
 def _png(balance: CircuitBalance, kind: str) -> bytes:
-    import matplotlib.pyplot as plt
-
-    ax = balance.plot(kind)
+    """Figure ``kind`` drawn on a figure made without pyplot (no backend chosen, no figure left open)."""
+    ax = offscreen_axes(figsize=figure_size(balance, kind))
+    balance.plot(kind, ax=ax)
     buffer = io.BytesIO()
-    try:
-        ax.figure.savefig(buffer, format="png", dpi=120, bbox_inches="tight")
-    finally:
-        plt.close(ax.figure)
+    ax.figure.savefig(buffer, format="png", dpi=120, bbox_inches="tight")
     return buffer.getvalue()
 
 

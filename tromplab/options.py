@@ -39,3 +39,20 @@ AUTO_FIGURE_LIMIT = 20
 FIGURE_CHOICES = ("auto", "all", "best", "none")
 #: Formats of the tables (parquet needs pyarrow).
 TABLE_FORMATS = ("csv", "parquet")
+
+# --- circuit surveys (tromplab.circuit) --------------------------------------------------
+#: Relative error of a measured share where the survey gives none (0.05 = 5 %).
+DEFAULT_RELATIVE_ERROR = 0.05
+#: Absolute error of a share, a fraction of the stream (0.001 = 0.1 percentage point).
+DEFAULT_ABSOLUTE_ERROR = 0.001
+#: Relative error of a measured solids flow without a standard deviation.
+DEFAULT_FLOW_RELATIVE_ERROR = 0.05
+#: Standard deviation of a per cent solids without one (percentage points).
+DEFAULT_PCT_SOLIDS_SD = 1.0
+#: Flow of the first feed when no solids flow is measured: flows are then per 100 of that feed.
+CIRCUIT_BASIS = 100.0
+#: Formulas ``tromplab circuit --fit`` fits: the nine (ranked) and the extended curves (reported).
+CIRCUIT_FIT_FORMULAS = "paper,extended"
+#: Where the error model of a survey is evaluated: at the reconciled values (iterated to
+#: convergence, the default) or at the measured values.
+ERROR_MODEL_POINTS = ("reconciled", "measured")

@@ -234,6 +234,10 @@ def range_text(check: Callable, **kwargs) -> str:
         check_seed: "0 to 2**63 - 1",
         check_cut_density: f"(1, {MAX_CUT_DENSITY:g}]",
         check_percent: "(0, 100)",
+        check_relative_error: f"[0, {MAX_RELATIVE_ERROR:g}]",
+        check_positive_relative_error: f"(0, {MAX_RELATIVE_ERROR:g}]",
+        check_share_sd: f"[0, {MAX_SHARE_SD:g}]",
+        check_pct_solids_sd: f"(0, {MAX_PCT_SOLIDS_SD:g}]",
     }
     return fixed[check]
 
@@ -275,3 +279,44 @@ def state_ranges(parser: argparse.ArgumentParser) -> None:
                 state_ranges(sub)
         elif action.help and getattr(action.type, "range", None) and action.type.range not in action.help:
             action.help = f"{action.help} (range {action.type.range.replace('%', '%%')})"  # argparse formats help with %
+
+
+# --- circuit surveys: ranges of the error model of tromplab.circuit ----------------------
+#: Largest relative error of a measurement (1 = 100 % of the measured value): beyond it the
+#: measurement says nothing about its value, and the weights of the reconciliation span more
+#: than floating point resolves (a relative error of 1e6 made every flow look unobservable).
+MAX_RELATIVE_ERROR = 1.0
+#: Largest standard deviation of a share (fraction of the stream): a share lies in 0..1.
+MAX_SHARE_SD = 0.5
+#: Largest standard deviation of a per cent solids (percentage points): it lies in 0..100.
+MAX_PCT_SOLIDS_SD = 50.0
+
+
+def _at_most(number: float, value, option: str, maximum: float, what: str) -> float:
+    if number > maximum:
+        raise OptionError(option, f"is at most {maximum:g} ({what}), got {value!r}")
+    return number
+
+
+def check_relative_error(value, option: str) -> float:
+    """A relative error of a measurement, 0 to :data:`MAX_RELATIVE_ERROR` (0.05 = 5 %)."""
+    number = check_non_negative(value, option)
+    return _at_most(number, value, option, MAX_RELATIVE_ERROR, "a relative error of 100 % of the measured value")
+
+
+def check_positive_relative_error(value, option: str) -> float:
+    """A relative error above 0 (a measurement that is not exact) up to :data:`MAX_RELATIVE_ERROR`."""
+    number = check_positive(value, option)
+    return _at_most(number, value, option, MAX_RELATIVE_ERROR, "a relative error of 100 % of the measured value")
+
+
+def check_share_sd(value, option: str) -> float:
+    """A standard deviation of a share (fraction of the stream), 0 to :data:`MAX_SHARE_SD`."""
+    number = check_non_negative(value, option)
+    return _at_most(number, value, option, MAX_SHARE_SD, "a share lies in 0..1")
+
+
+def check_pct_solids_sd(value, option: str) -> float:
+    """A standard deviation of a per cent solids above 0, up to :data:`MAX_PCT_SOLIDS_SD` percentage points."""
+    number = check_positive(value, option)
+    return _at_most(number, value, option, MAX_PCT_SOLIDS_SD, "a per cent solids lies in 0..100")

@@ -2,8 +2,8 @@
 partition curve.
 
 ``tromplab.circuit.reconcile(flowsheet, measurements)`` returns a
-:class:`~tromplab.circuit.reconciliation.CircuitBalance`; ``tromplab circuit`` is the
-command.  The method, the error model and the validation are in ``docs/circuit.md``.
+:class:`~tromplab.circuit.reconciliation.CircuitBalance` (balance, tests, serial elimination,
+what each measurement is worth, survey design advice); ``tromplab circuit`` is the command.  The method, the error model and the validation are in ``docs/circuit.md``.
 """
 
 from .flowsheet import Flowsheet, Node, Stream, flowsheet_from_streams, read_flowsheet

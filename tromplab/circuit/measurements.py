@@ -38,14 +38,14 @@ A measured share :math:`x` (fraction of the stream in a class) has the standard 
 
 .. math:: \sigma = \sqrt{(r\,x)^2 + a^2}
 
-with the relative error :math:`r` (default :data:`DEFAULT_RELATIVE_ERROR` = 5 %) and the
-absolute error :math:`a` (default :data:`DEFAULT_ABSOLUTE_ERROR` = 0.001, i.e. 0.1
+with the relative error :math:`r` (default :data:`~tromplab.options.DEFAULT_RELATIVE_ERROR` = 5 %) and the
+absolute error :math:`a` (default :data:`~tromplab.options.DEFAULT_ABSOLUTE_ERROR` = 0.001, i.e. 0.1
 percentage point), the model of the existing one-node reconciliation
 (:func:`tromplab.loading.lab.reconcile`) and of Hodouin & Everell (1980), who weight
 size-analysis data by a relative error with a floor for the small classes.  ``retained_sd``
 overrides it per row, ``relative_error`` / ``absolute_error`` columns per row, and
 :class:`ErrorModel` ``streams`` per stream.  A measured solids flow without sd has the
-relative error :data:`DEFAULT_FLOW_RELATIVE_ERROR` (5 %).  The model is evaluated at the
+relative error :data:`~tromplab.options.DEFAULT_FLOW_RELATIVE_ERROR` (5 %).  The model is evaluated at the
 measured value.  The errors of the class masses of a sieve analysis are independent; a
 stream measured in every class is normalised to 100 % (as lab tables are), and its shares
 then carry the errors through the normalisation: with :math:`D = \mathrm{diag}(\sigma_i^2)`
@@ -63,35 +63,51 @@ balancing of mineral processes data. *International Journal of Mineral Processin
 
 from __future__ import annotations
 
-import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import pandas as pd
 
 from ..errors import InputError, OptionError
-from ..loading.points import normal_unit, resolve_size_unit, size_column_unit
+from ..loading.size_classes import class_string_bounds, size_columns
 from ..loading.tables import Table, read_table
-from ..validation import check_non_negative, check_positive
+from ..options import (
+    DEFAULT_ABSOLUTE_ERROR,
+    DEFAULT_FLOW_RELATIVE_ERROR,
+    DEFAULT_PCT_SOLIDS_SD,
+    DEFAULT_RELATIVE_ERROR,
+    DEFAULT_SUM_TOLERANCE_PCT,
+    ERROR_MODEL_POINTS,
+)
+from ..validation import (
+    MAX_PCT_SOLIDS_SD,
+    MAX_RELATIVE_ERROR,
+    MAX_SHARE_SD,
+    check_pct_solids_sd,
+    check_positive_relative_error,
+    check_relative_error,
+    check_share_sd,
+)
 from .flowsheet import Flowsheet
 
-DEFAULT_RELATIVE_ERROR = 0.05
-DEFAULT_ABSOLUTE_ERROR = 0.001
-DEFAULT_FLOW_RELATIVE_ERROR = 0.05
-DEFAULT_PCT_SOLIDS_SD = 1.0  # percentage points
 #: Per-class shares of a fully measured stream may miss 100 % by this much (percentage points)
-#: before the table is refused; within it they are used as given (each share has its own
-#: error, so the sum's miss is information the balance uses).
-SUM_TOLERANCE_PCT = 1.5
+#: before the table is refused, as in lab tables; within it they are used as given (each share
+#: has its own error, so the sum's miss is information the balance uses).
+SUM_TOLERANCE_PCT = DEFAULT_SUM_TOLERANCE_PCT
 VALUE_COLUMNS = {"retained_pct": 100.0, "retained_frac": 1.0, "retained_mass": None}
 STREAM_COLUMNS = ("solids_flow", "solids_flow_sd", "pct_solids", "pct_solids_sd")
 ROW_COLUMNS = ("retained_sd", "relative_error", "absolute_error")
-_CLASS = re.compile(r"([+-])(\d+(?:\.\d*)?(?:[eE][-+]?\d+)?)(?:([+-])(\d+(?:\.\d*)?(?:[eE][-+]?\d+)?))?")
+SIZE_STEMS = ("size_lower", "size_upper", "size_class")
+#: Columns of :attr:`Survey.shares`: ``relative`` and ``absolute`` are the error model's errors of
+#: the share (NaN where the table gave its sd), ``at`` the share at which its sd is evaluated.
+SHARE_COLUMNS = ["stream", "class_index", "value", "sd", "row", "relative", "absolute"]
+#: Columns of :attr:`Survey.flows` and :attr:`Survey.pct_solids` (``relative``: NaN where the sd was given).
+STREAM_VALUE_COLUMNS = ["stream", "value", "sd", "row", "relative"]
 
 
 @dataclass(frozen=True)
 class ErrorModel:
-    """Standard deviations of the measurements where the table gives none.
+    r"""Standard deviations of the measurements where the table gives none.
 
     Attributes
     ----------
@@ -110,6 +126,11 @@ class ErrorModel:
         True (default): a stream measured in every class is normalised to 100 % and its
         shares get the covariance :math:`P D P^T` of a closed analysis.  False: every share
         is used as given with its own independent error (data not normalised by the lab).
+    evaluated_at : {"reconciled", "measured"}
+        Where :math:`\sigma(x)` and the closure :math:`P` are evaluated: at the reconciled
+        shares and flows, iterated until the standard deviations settle (default: a share
+        measured low or high then gets the same sd, so a test does not depend on the sign of
+        a slip), or at the measured values (one reconciliation).
 
     Examples
     --------
@@ -124,18 +145,38 @@ class ErrorModel:
     pct_solids_sd: float = DEFAULT_PCT_SOLIDS_SD
     streams: dict = field(default_factory=dict)
     closure: bool = True
+    evaluated_at: str = "reconciled"
 
     def __post_init__(self):
-        check_non_negative(self.relative_error, "relative_error")
-        check_non_negative(self.absolute_error, "absolute_error")
-        check_positive(self.flow_relative_error, "flow_relative_error")
-        check_positive(self.pct_solids_sd, "pct_solids_sd")
+        if self.evaluated_at not in ERROR_MODEL_POINTS:
+            raise OptionError("evaluated_at", f"is one of {', '.join(ERROR_MODEL_POINTS)}, got {self.evaluated_at!r}")
+        check_relative_error(self.relative_error, "relative_error")
+        check_share_sd(self.absolute_error, "absolute_error")
+        check_positive_relative_error(self.flow_relative_error, "flow_relative_error")
+        check_pct_solids_sd(self.pct_solids_sd, "pct_solids_sd")
         if self.relative_error == 0 and self.absolute_error == 0:
             raise OptionError("relative_error", "and absolute_error are both 0: every share would be exact")
+        if not isinstance(self.streams, dict):
+            raise OptionError("streams", f"takes a dict {{stream: (relative_error, absolute_error)}}, got {self.streams!r}")
         for stream, pair in self.streams.items():
+            if not isinstance(pair, (tuple, list)) or len(pair) != 2:
+                raise OptionError("streams", f"takes (relative_error, absolute_error) pairs, got {pair!r} for '{stream}'")
             relative, absolute = pair
-            check_non_negative(relative, f"relative_error of stream '{stream}'")
-            check_non_negative(absolute, f"absolute_error of stream '{stream}'")
+            check_relative_error(relative, f"relative_error of stream '{stream}'")
+            check_share_sd(absolute, f"absolute_error of stream '{stream}'")
+            if relative == 0 and absolute == 0:
+                raise OptionError(f"streams['{stream}']", "gives both errors 0: every share of the stream would be exact")
+
+    def check_streams(self, flowsheet: Flowsheet) -> None:
+        """Refuse a per-stream override naming a stream the flowsheet lacks (a typo would
+        otherwise leave the default model in place without a word)."""
+        unknown = [name for name in self.streams if name not in flowsheet.stream_index]
+        if unknown:
+            raise OptionError(
+                "streams",
+                f"of the error model names {', '.join(repr(n) for n in unknown)}, not a solids stream of the flowsheet "
+                f"{flowsheet.source} ({', '.join(flowsheet.stream_names)})",
+            )
 
     def share_sd(self, share, stream: str = ""):
         r"""Standard deviation :math:`\sqrt{(r x)^2 + a^2}` of a measured share ``x`` of ``stream``."""
@@ -164,6 +205,9 @@ class Survey:
     closed_streams : tuple of str
         Streams measured in every class, normalised to sum to 1: their shares have the
         covariance :math:`P D P^T` of the module docstring.
+    unmeasured : pandas.DataFrame
+        ``stream, class_index, row``: rows of the table that name a class of a stream but
+        leave its value blank (or NaN); the class is not measured in that stream.
     """
 
     classes: pd.DataFrame
@@ -173,6 +217,8 @@ class Survey:
     size_unit: str = ""
     source: str = ""
     closed_streams: tuple[str, ...] = ()
+    unmeasured: pd.DataFrame = field(default_factory=lambda: pd.DataFrame(columns=["stream", "class_index", "row"]))
+    evaluated_at: str = "reconciled"
 
     @property
     def n_classes(self) -> int:
@@ -181,6 +227,25 @@ class Survey:
     @property
     def measured_streams(self) -> tuple[str, ...]:
         return tuple(dict.fromkeys(self.shares["stream"]))
+
+    def with_errors_at(self, shares: np.ndarray, flows: np.ndarray, stream_index: dict) -> Survey:
+        """The survey with the error model evaluated at ``shares`` (streams x classes, clipped
+        at 0) and ``flows`` (per stream) instead of the measured values: the sd of every share
+        and flow whose sd the table did not give, and the share ``at`` which the closure of
+        its analysis is linearised.  Values and given sds are unchanged."""
+        table = self.shares.copy()
+        if len(table):
+            at = np.clip(shares[table["stream"].map(stream_index).to_numpy(), table["class_index"].to_numpy(int)], 0.0, None)
+            modelled = table["relative"].notna().to_numpy()
+            sd = np.sqrt((table["relative"].to_numpy(float) * at) ** 2 + table["absolute"].to_numpy(float) ** 2)
+            table["sd"] = np.where(modelled, sd, table["sd"].to_numpy(float))
+            table["at"] = at
+        flow_table = self.flows.copy()
+        if len(flow_table):
+            modelled = flow_table["relative"].notna().to_numpy()
+            reconciled = flows[flow_table["stream"].map(stream_index).to_numpy()]
+            flow_table["sd"] = np.where(modelled, flow_table["relative"].to_numpy(float) * reconciled, flow_table["sd"])
+        return replace(self, shares=table, flows=flow_table)
 
 
 def read_survey(
@@ -220,6 +285,9 @@ def read_survey(
         given twice for a stream, flows that disagree within a stream.
     """
     errors = errors or ErrorModel()
+    if not isinstance(errors, ErrorModel):
+        raise OptionError("errors", f"takes an ErrorModel, got {type(errors).__name__}")
+    errors.check_streams(flowsheet)
     table = read_table(path, sheet=sheet, sep=sep, decimal=decimal)
     table.require("stream")
     lower, upper, unit, size_columns = _size_bounds(table, size_unit)
@@ -229,6 +297,48 @@ def read_survey(
     table.refuse_unknown(
         ["stream", *size_columns, "size_unit", *VALUE_COLUMNS, *ROW_COLUMNS, *STREAM_COLUMNS], what="survey table"
     )
+    names = _stream_names(table, flowsheet)
+    has_class = np.isfinite(lower) | np.isfinite(upper)
+    classes, class_of_row = _tiled_classes(table, lower, upper, has_class, size_columns)
+    shares, normalised = _shares(table, names, has_class, class_of_row, len(classes), values_given, errors)
+    flows = _stream_values(
+        table, names, "solids_flow", "solids_flow_sd", lambda v: errors.flow_relative_error * v, errors.flow_relative_error
+    )
+    pct = _stream_values(table, names, "pct_solids", "pct_solids_sd", lambda v: np.full_like(v, errors.pct_solids_sd))
+    _check_stream_values(table, flows, pct)
+    if flows.empty and shares.empty and pct.empty:
+        raise InputError(
+            "the survey holds no measurement (no size analysis, no solids flow, no per cent solids)", source=table.source
+        )
+    unmeasured = _unmeasured(table, names, has_class, class_of_row, values_given)
+    return Survey(
+        classes=classes,
+        shares=shares,
+        flows=flows,
+        pct_solids=pct,
+        size_unit=unit,
+        source=table.source,
+        closed_streams=normalised,
+        unmeasured=unmeasured,
+        evaluated_at=errors.evaluated_at,
+    )
+
+
+def _unmeasured(table: Table, names, has_class, class_of_row, values_given) -> pd.DataFrame:
+    """Rows that name a class of a stream but leave its value blank (or NaN): not measured."""
+    columns = ["stream", "class_index", "row"]
+    if not values_given:
+        return pd.DataFrame(columns=columns)
+    blank = has_class & np.isnan(table.numeric(values_given[0], allow_blank=True))
+    where = np.flatnonzero(blank)
+    return pd.DataFrame(
+        {"stream": names[where], "class_index": class_of_row[where].astype(int), "row": np.asarray(table.rows)[where]},
+        columns=columns,
+    )
+
+
+def _stream_names(table: Table, flowsheet: Flowsheet) -> np.ndarray:
+    """The stream of every row, checked against the flowsheet (blank, water stream, unknown)."""
     names = np.array([_cell_text(table, i, "stream") for i in range(len(table.frame))], dtype=object)
     for i, name in enumerate(names):
         if not name:
@@ -246,21 +356,38 @@ def read_survey(
                 index=i,
                 column="stream",
             )
-    has_class = np.isfinite(lower) | np.isfinite(upper)
-    classes, class_of_row = _tiled_classes(table, lower, upper, has_class, size_columns)
-    shares, normalised = _shares(table, names, has_class, class_of_row, len(classes), values_given, errors)
-    flows = _stream_values(table, names, "solids_flow", "solids_flow_sd", lambda v: errors.flow_relative_error * v)
-    pct = _stream_values(table, names, "pct_solids", "pct_solids_sd", lambda v: np.full_like(v, errors.pct_solids_sd))
+    return names
+
+
+def _check_stream_values(table: Table, flows: pd.DataFrame, pct: pd.DataFrame) -> None:
+    """Refuse implausible flow and per cent solids sds and per cent solids outside (0, 100], naming the row."""
+    implausible = flows[(flows["value"] > 0) & (flows["sd"] > MAX_RELATIVE_ERROR * flows["value"])]
+    if len(implausible):
+        row = implausible.iloc[0]
+        raise InputError(
+            f"solids flow sd {row.sd:g} is implausible for a flow of {row.value:g}: more than {MAX_RELATIVE_ERROR:.0%} of "
+            "the flow",
+            source=table.source,
+            row=row.row,
+            column="solids_flow_sd",
+        )
     if len(pct):
+        implausible = pct[pct["sd"] > MAX_PCT_SOLIDS_SD]
+        if len(implausible):
+            row = implausible.iloc[0]
+            raise InputError(
+                f"per cent solids sd {row.sd:g} is implausible: at most {MAX_PCT_SOLIDS_SD:g} percentage points (a per cent "
+                "solids lies in 0..100)",
+                source=table.source,
+                row=row.row,
+                column="pct_solids_sd",
+            )
         bad = pct[(pct["value"] <= 0) | (pct["value"] > 100)]
         if len(bad):
             row = bad.iloc[0]
             raise InputError(
                 f"per cent solids {row.value:g} outside (0, 100]", source=table.source, row=row.row, column="pct_solids"
             )
-    if flows.empty and shares.empty:
-        raise InputError("the survey holds no measurement (no size analysis, no solids flow)", source=table.source)
-    return Survey(classes, shares, flows, pct, unit, table.source, normalised)
 
 
 def _cell_text(table: Table, i: int, column: str) -> str:
@@ -269,31 +396,27 @@ def _cell_text(table: Table, i: int, column: str) -> str:
 
 
 def _size_bounds(table: Table, size_unit):
-    found = {}
-    for column in table.frame.columns:
-        for stem in ("size_lower", "size_upper", "size_class"):
-            matched, unit = size_column_unit(column, stem)
-            if matched:
-                if stem in found:
-                    raise InputError(f"two {stem} columns ({found[stem][0]}, {column})", source=table.source, column=column)
-                found[stem] = (column, unit)
-    units = {unit for _, unit in found.values()}
-    if len(units) > 1:
-        raise InputError("mixed units in the size columns; use one unit", source=table.source)
-    suffix = units.pop() if units else ""
-    option = size_unit
-    if "size_unit" in table.frame.columns:
-        given = table.frame["size_unit"].dropna().astype(str).str.strip().unique()
-        if len(given) > 1:
-            raise InputError(f"mixed units in column 'size_unit': {', '.join(given)}", source=table.source, column="size_unit")
-        option = normal_unit(given[0]) if len(given) else option
-    first = next(iter(found.values()))[0] if found else "size_lower"
-    unit = resolve_size_unit(table, suffix, option, first)
+    found, unit, _ = size_columns(table, SIZE_STEMS, size_unit)
+    if not found and not any(c in table.frame.columns for c in VALUE_COLUMNS):  # per cent solids and flows only
+        blank = np.full(len(table.frame), np.nan)
+        return blank, blank.copy(), unit, []
     if "size_class" in found:
         if "size_lower" in found or "size_upper" in found:
             raise InputError("the sizes are given twice (size_class and size_lower/size_upper): keep one", source=table.source)
-        column = found["size_class"][0]
-        lower, upper = _class_strings(table, column)
+        column = found["size_class"]
+        lower, upper = class_string_bounds(table, column, blank_allowed=True)  # blank: a row of stream values only
+        written = table.frame[column].notna().to_numpy() & (table.frame[column].astype(str).str.strip() != "").to_numpy()
+        bad = np.flatnonzero(written & ~(lower > 0) & np.isnan(upper))
+        if bad.size:
+            raise table.error("the class has neither a lower nor an upper bound", index=int(bad[0]), column=column)
+        lower = np.where(lower == 0, np.nan, lower)  # "+0": the pan
+        bad = np.flatnonzero(np.isfinite(lower) & np.isfinite(upper) & (lower >= upper))
+        if bad.size:
+            raise table.error(
+                f"class '{table.frame[column].iloc[bad[0]]}': the lower bound is not below the upper bound",
+                index=int(bad[0]),
+                column=column,
+            )
         return lower, upper, unit, [column]
     if not ("size_lower" in found and "size_upper" in found):
         raise InputError(
@@ -301,9 +424,9 @@ def _size_bounds(table: Table, size_unit):
             '\'size_class\' ("+1168", "-1168+589", "-74")',
             source=table.source,
         )
-    lower = table.numeric(found["size_lower"][0], allow_blank=True)
-    upper = table.numeric(found["size_upper"][0], allow_blank=True)
-    for values, column in ((lower, found["size_lower"][0]), (upper, found["size_upper"][0])):
+    lower = table.numeric(found["size_lower"], allow_blank=True)
+    upper = table.numeric(found["size_upper"], allow_blank=True)
+    for values, column in ((lower, found["size_lower"]), (upper, found["size_upper"])):
         bad = np.flatnonzero(values < 0)
         if bad.size:
             raise table.error(
@@ -311,40 +434,15 @@ def _size_bounds(table: Table, size_unit):
             )
     bad = np.flatnonzero(upper == 0)
     if bad.size:
-        raise table.error("an upper bound must be positive", index=int(bad[0]), column=found["size_upper"][0])
+        raise table.error("an upper bound must be positive", index=int(bad[0]), column=found["size_upper"])
     lower = np.where(lower == 0, np.nan, lower)
     bad = np.flatnonzero(np.isfinite(lower) & np.isfinite(upper) & (lower >= upper))
     if bad.size:
         i = int(bad[0])
         raise table.error(
-            f"lower bound {lower[i]:g} is not below the upper bound {upper[i]:g}", index=i, column=found["size_lower"][0]
+            f"lower bound {lower[i]:g} is not below the upper bound {upper[i]:g}", index=i, column=found["size_lower"]
         )
-    return lower, upper, unit, [found["size_lower"][0], found["size_upper"][0]]
-
-
-def _class_strings(table: Table, column: str):
-    """Bounds from class strings ("+1168", "-1168+589", "-74"), the grammar of lab tables; blank = no class."""
-    lower = np.full(len(table.frame), np.nan)
-    upper = np.full(len(table.frame), np.nan)
-    for i, value in enumerate(table.frame[column]):
-        text = "" if pd.isna(value) else str(value).strip().replace("\u2212", "-").replace(" ", "")
-        if not text:
-            continue
-        parts = _CLASS.fullmatch(text)
-        if not parts or parts.group(1) == parts.group(3):
-            raise table.error(
-                f"'{value}' is not a size class: write '+1168' (retained on 1168), '-1168+589' or '-74'", index=i, column=column
-            )
-        for sign, number in ((parts.group(1), parts.group(2)), (parts.group(3), parts.group(4))):
-            if sign == "+" and float(number) > 0:
-                lower[i] = float(number)
-            elif sign == "-":
-                upper[i] = float(number)
-        if np.isnan(lower[i]) and np.isnan(upper[i]):
-            raise table.error(f"'{value}' is not a size class", index=i, column=column)
-        if np.isfinite(lower[i]) and np.isfinite(upper[i]) and lower[i] >= upper[i]:
-            raise table.error(f"class '{value}': the lower bound is not below the upper bound", index=i, column=column)
-    return lower, upper
+    return lower, upper, unit, [found["size_lower"], found["size_upper"]]
 
 
 def _tiled_classes(table: Table, lower, upper, has_class, size_columns):
@@ -412,7 +510,7 @@ def _representative(table: Table, lower, upper) -> np.ndarray:
 
 
 def _shares(table, names, has_class, class_of_row, n_classes, values_given, errors: ErrorModel) -> pd.DataFrame:
-    columns = ["stream", "class_index", "value", "sd", "row"]
+    columns = SHARE_COLUMNS
     if not values_given:
         if has_class.any():
             raise InputError(
@@ -429,15 +527,7 @@ def _shares(table, names, has_class, class_of_row, n_classes, values_given, erro
     bad = np.flatnonzero(np.isfinite(values) & ~has_class)
     if bad.size:
         raise table.error("a retained value without a size class", index=int(bad[0]), column=column)
-    row_sd = (
-        table.numeric("retained_sd", allow_blank=True) if "retained_sd" in table.frame.columns else np.full(len(values), np.nan)
-    )
-    relative = _optional(table, "relative_error", len(values))
-    absolute = _optional(table, "absolute_error", len(values))
-    for array, name in ((row_sd, "retained_sd"), (relative, "relative_error"), (absolute, "absolute_error")):
-        bad = np.flatnonzero(array < 0)
-        if bad.size:
-            raise table.error(f"{name} must not be negative", index=int(bad[0]), column=name)
+    row_sd, relative, absolute = _error_columns(table, len(values), full)
     records, normalised = [], []
     for stream in dict.fromkeys(names[has_class]):
         rows = np.flatnonzero((names == stream) & has_class & np.isfinite(values))
@@ -488,19 +578,57 @@ def _shares(table, names, has_class, class_of_row, n_classes, values_given, erro
         a = np.where(np.isfinite(absolute[rows]), absolute[rows], stream_absolute)
         sd = np.where(np.isfinite(relative[rows]) | np.isfinite(absolute[rows]), np.sqrt((r * share) ** 2 + a**2), default)
         sd = np.where(np.isfinite(row_sd[rows]), row_sd[rows] / scale, sd)
-        for i, x, s in zip(rows, share, sd):
-            records.append(
-                {"stream": stream, "class_index": int(class_of_row[i]), "value": x, "sd": s, "row": int(table.rows[i])}
+        if np.any(sd > MAX_SHARE_SD):
+            i = int(rows[np.argmax(sd)])
+            raise table.error(
+                f"retained sd {row_sd[i]:g} is implausible: more than {MAX_SHARE_SD:g} of the stream's total (a share lies "
+                "in 0..1)",
+                index=i,
+                column="retained_sd",
             )
+        explicit = np.isfinite(row_sd[rows])
+        for i, x, s, r_i, a_i, given_sd in zip(rows, share, sd, r, a, explicit):
+            records.append({"stream": stream, "class_index": int(class_of_row[i]), "value": x, "sd": s,
+                            "row": int(table.rows[i]), "relative": np.nan if given_sd else r_i,
+                            "absolute": np.nan if given_sd else a_i})  # fmt: skip
     return pd.DataFrame(records, columns=columns), tuple(normalised)
+
+
+def _error_columns(table: Table, n: int, full) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``retained_sd``, ``relative_error`` and ``absolute_error`` per row (NaN where blank),
+    refused when negative or implausible, naming the row; ``full`` is the value column's 100 %."""
+    row_sd = table.numeric("retained_sd", allow_blank=True) if "retained_sd" in table.frame.columns else np.full(n, np.nan)
+    relative = _optional(table, "relative_error", n)
+    absolute = _optional(table, "absolute_error", n)
+    for array, name in ((row_sd, "retained_sd"), (relative, "relative_error"), (absolute, "absolute_error")):
+        bad = np.flatnonzero(array < 0)
+        if bad.size:
+            raise table.error(f"{name} must not be negative", index=int(bad[0]), column=name)
+    unit_of_value = full or 1.0  # masses: checked per stream below, once divided by the stream's total
+    limits = (
+        (relative, "relative_error", MAX_RELATIVE_ERROR, "a relative error of 100 % of the share"),
+        (absolute, "absolute_error", MAX_SHARE_SD, "a share lies in 0..1"),
+        (row_sd, "retained_sd", MAX_SHARE_SD * unit_of_value if full else np.inf, "a share lies in 0..1"),
+    )
+    for array, name, maximum, why in limits:
+        bad = np.flatnonzero(array > maximum)
+        if bad.size:
+            raise table.error(
+                f"{name.replace('_', ' ')} {array[bad[0]]:g} is implausible: at most {maximum:g} ({why})",
+                index=int(bad[0]),
+                column=name,
+            )
+    return row_sd, relative, absolute
 
 
 def _optional(table: Table, column: str, n: int) -> np.ndarray:
     return table.numeric(column, allow_blank=True) if column in table.frame.columns else np.full(n, np.nan)
 
 
-def _stream_values(table: Table, names, column: str, sd_column: str, default_sd) -> pd.DataFrame:
-    columns = ["stream", "value", "sd", "row"]
+def _stream_values(table: Table, names, column: str, sd_column: str, default_sd, relative=np.nan) -> pd.DataFrame:
+    """One value per stream of ``column`` with its sd (``sd_column``, else ``default_sd``);
+    ``relative`` is the error model's relative error of a value without a given sd."""
+    columns = STREAM_VALUE_COLUMNS
     if column not in table.frame.columns:
         if sd_column in table.frame.columns and table.frame[sd_column].notna().any():
             raise InputError(f"column '{sd_column}' without '{column}'", source=table.source, column=sd_column)
@@ -533,5 +661,16 @@ def _stream_values(table: Table, names, column: str, sd_column: str, default_sd)
             raise table.error(
                 f"stream '{stream}': a solids flow fixed at 0 leaves no stream to balance", index=int(first), column=column
             )
-        records.append({"stream": stream, "value": float(values[first]), "sd": float(sd), "row": int(table.rows[first])})
+        records.append({"stream": stream, "value": float(values[first]), "sd": float(sd), "row": int(table.rows[first]),
+                        "relative": np.nan if np.isfinite(sds[first]) else relative})  # fmt: skip
     return pd.DataFrame(records, columns=columns)
+
+
+def class_name(classes: pd.DataFrame, i: int) -> str:
+    """Class ``i`` as the tables name it: ``+600`` (open top), ``-600+300``, ``-38`` (the pan)."""
+    lower, upper = classes["size_lower"].iloc[i], classes["size_upper"].iloc[i]
+    if not np.isfinite(upper):
+        return f"+{lower:g}"
+    if not np.isfinite(lower):
+        return f"-{upper:g}"
+    return f"-{upper:g}+{lower:g}"

@@ -12,7 +12,17 @@ import numpy as np
 from .flowsheet import Flowsheet
 
 
-def _axes(ax, size=(8.0, 5.0)):
+def figure_size(balance, kind: str) -> tuple[float, float]:
+    """Width and height (inches) of figure ``kind`` of ``balance``, for a caller that makes the axes."""
+    if kind == "flowsheet":
+        return (10.0, 5.5)
+    if kind == "adjustments":
+        return (8.0, max(3.0, 0.16 * len(balance.adjustments_table()) + 1.0))
+    return (8.0, 5.0)
+
+
+def _axes(ax, size):
+    """``ax``, or the axes of a new pyplot figure (interactive use, as the library's other figures)."""
     if ax is not None:
         return ax
     import matplotlib.pyplot as plt
@@ -58,7 +68,7 @@ def plot_flowsheet(balance, ax=None, *, flow_unit: str = ""):
     """The flowsheet as boxes and arrows, each stream labelled with its reconciled solids flow
     +/- its standard deviation (``balance`` a CircuitBalance, or a Flowsheet for the bare graph)."""
     flowsheet = balance if isinstance(balance, Flowsheet) else balance.flowsheet
-    ax = _axes(ax, (10.0, 5.5))
+    ax = _axes(ax, figure_size(balance, "flowsheet"))
     positions = _layout(flowsheet)
     for node in flowsheet.nodes:
         x, y = positions[node.name]
@@ -116,7 +126,7 @@ def plot_adjustments(balance, ax=None):
     adjustments, in its standard deviations, with the sign of reconciled - measured), with its
     critical value; suspects in red."""
     table = balance.adjustments_table()
-    ax = _axes(ax, (8.0, max(3.0, 0.16 * len(table) + 1.0)))
+    ax = _axes(ax, figure_size(balance, "adjustments"))
     position = np.arange(len(table))[::-1]
     values = table["measurement_test"].to_numpy(dtype=float)
     colours = np.where(table["suspect"].to_numpy(dtype=bool), "#c0392b", "#336699")
@@ -137,7 +147,7 @@ def plot_adjustments(balance, ax=None):
 def plot_distributions(balance, ax=None):
     """Measured (points with +/- 2 sd bars) and reconciled (lines) size distributions of every
     stream: share of the stream per class against the representative size."""
-    ax = _axes(ax)
+    ax = _axes(ax, figure_size(balance, "distributions"))
     table = balance.distributions_table()
     unit = balance.survey.size_unit
     for k, (stream, part) in enumerate(table.groupby("stream", sort=False)):

@@ -65,94 +65,65 @@ from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
-from scipy import linalg, optimize, stats
+from scipy import stats
 
-from ..errors import InputError
 from ..loading.points import TrompPoints
+from ..options import DEFAULT_ALPHA, DEFAULT_MIN_FEED_SHARE
 from ..validation import check_probability
 from . import plotting
+from .design import design_table, water_determined_by
+from .elimination import nodal_tests, proposal, serial_elimination, without
 from .flowsheet import Flowsheet, read_flowsheet
-from .measurements import ErrorModel, Survey, read_survey
+from .measurements import ErrorModel, Survey, class_name, read_survey
+from .problem import (
+    Decomposition,
+    Problem,
+    bounded_solution,
+    build_problem,
+    check_observable,
+    check_positive_flows,
+    decompose,
+    linearised,
+    solve,
+    starting_point,
+)
+from .worth import worth_table
 
-#: Flow of the first feed when no solids flow is measured: flows are then per 100 of that feed.
-BASIS = 100.0
-DEFAULT_ALPHA = 0.05
 #: Separator classes whose feed share (of the separator's feed) is below this are written to
 #: points.csv as not used (partition not meaningful), as lab tables flag them.
-MIN_FEED_SHARE = 0.002
-_RANK_TOL = 1e-9
+MIN_FEED_SHARE = DEFAULT_MIN_FEED_SHARE
 #: Adjustments correlated beyond this are reported as indistinguishable: a gross error in one
 #: of them moves the others' standardised adjustments alike, so no test can tell which it is.
 EQUIVALENT_CORRELATION = 0.99
-
-
-@dataclass(frozen=True)
-class _Problem:
-    """The reconciliation problem in class flows (internal)."""
-
-    n_streams: int
-    n_classes: int
-    A: np.ndarray  # linear constraints A m = b
-    b: np.ndarray
-    m0: np.ndarray
-    N: np.ndarray  # orthonormal null-space basis of A
-    kinds: np.ndarray  # "share" / "flow" per measurement (sd > 0)
-    stream: np.ndarray  # stream index per measurement
-    klass: np.ndarray  # class index per measurement (-1 for flows)
-    y: np.ndarray
-    sd: np.ndarray  # of each measurement (of a closed analysis's share: before the closure)
-    cov: np.ndarray  # covariance of the measurements (closed analyses: P D P^T blocks)
-    W: np.ndarray  # whitening: W cov W^T = I on the range of cov (rows: independent pieces of information)
-    effects: np.ndarray  # column j: what a unit error in raw measurement j does to the reported values (P blocks)
-    n_water: int = 0  # water flows after the class flows (solids streams, then water streams); 0: water not balanced
-
-    @property
-    def variance(self) -> np.ndarray:
-        return np.diag(self.cov)
-
-    def _flows(self, v: np.ndarray) -> np.ndarray:
-        return v[: self.n_streams * self.n_classes].reshape(self.n_streams, self.n_classes).sum(axis=1)
-
-    def predict(self, v: np.ndarray) -> np.ndarray:
-        """The measured quantities at the unknowns ``v`` (class flows, then water flows)."""
-        flows = self._flows(v)
-        out = np.empty(self.y.size)
-        share, pct = self.kinds == "share", self.kinds == "pct"
-        s, i = self.stream[share], self.klass[share]
-        out[share] = v[s * self.n_classes + i] / flows[s]
-        flow = ~share & ~pct
-        out[flow] = flows[self.stream[flow]]
-        s = self.stream[pct]
-        out[pct] = 100.0 * flows[s] / (flows[s] + v[self.n_streams * self.n_classes + s])
-        return out
-
-    def whitened_residual(self, z: np.ndarray) -> np.ndarray:
-        """Whitened residuals (prediction - measurement) at ``m0 + N z``: their squares sum to the chi-square."""
-        return self.W @ (self.predict(self.m0 + self.N @ z) - self.y)
-
-    def whitened_jacobian(self, z: np.ndarray) -> np.ndarray:
-        return self.W @ self.jacobian(self.m0 + self.N @ z) @ self.N
-
-    def jacobian(self, v: np.ndarray) -> np.ndarray:
-        """d(prediction)/d(v), measurements x unknowns."""
-        n = self.n_classes
-        flows = self._flows(v)
-        H = np.zeros((self.y.size, v.size))
-        for j in range(self.y.size):
-            s = self.stream[j]
-            block = slice(s * n, (s + 1) * n)
-            if self.kinds[j] == "share":
-                i = self.klass[j]
-                H[j, block] = -v[s * n + i] / flows[s] ** 2
-                H[j, s * n + i] += 1.0 / flows[s]
-            elif self.kinds[j] == "pct":
-                water = self.n_streams * n + s
-                total = flows[s] + v[water]
-                H[j, block] = 100.0 * v[water] / total**2
-                H[j, water] = -100.0 * flows[s] / total**2
-            else:
-                H[j, block] = 1.0
-        return H
+#: The error model at the reconciled values has settled when no sd moves by more than this share of itself.
+ERROR_MODEL_TOLERANCE = 1e-6
+MAX_ERROR_MODEL_ITERATIONS = 50
+#: Columns of :meth:`CircuitBalance.adjustments_table`.
+ADJUSTMENT_COLUMNS = [
+    "measurement",
+    "stream",
+    "class_index",
+    "size_lower",
+    "size_upper",
+    "row",
+    "measured",
+    "sd",
+    "reconciled",
+    "reconciled_sd",
+    "adjustment",
+    "adjustment_sd",
+    "standardised",
+    "gross_error",
+    "gross_error_sd",
+    "measurement_test",
+    "p_value",
+    "suspect",
+    "indistinguishable_from",
+]
+DISTRIBUTION_COLUMNS = ["stream", "size_lower", "size_upper", "size", "measured", "measured_sd", "reconciled",
+                        "reconciled_sd"]  # fmt: skip
+PARTITION_COLUMNS = ["experiment", "size_lower", "size_upper", "size", "feed_share", "partition_fine", "partition_sd",
+                     "fine_yield", "fine_yield_sd", "used", "flag"]  # fmt: skip
 
 
 class _MeasurementTests(NamedTuple):
@@ -193,15 +164,42 @@ class CircuitBalance:
     success: bool
     message: str
     basis: str = ""
-    problem: _Problem | None = field(default=None, repr=False, compare=False)
+    problem: Problem | None = field(default=None, repr=False, compare=False)
     measured_y: np.ndarray | None = field(default=None, repr=False, compare=False)
     #: Water flows of the solids streams, then of the water streams (None: water not balanced).
     water_flows: np.ndarray | None = field(default=None, repr=False, compare=False)
+    #: The unknowns of the least squares without the bounds at 0 (class flows, then water flows):
+    #: the point of the tests and of the covariance (None: the reported values themselves).
+    fitted: np.ndarray | None = field(default=None, repr=False, compare=False)
+    #: Unknowns (indices into ``fitted``) that the bounds hold at 0 in the reported values.
+    at_bound: tuple[int, ...] = field(default=(), repr=False, compare=False)
+    #: The whitened Jacobian at ``fitted`` split by the reconciliation's one rank decision.
+    decomposition: Decomposition | None = field(default=None, repr=False, compare=False)
+    #: The measurements left out on request (``exclude=`` of :func:`reconcile`).
+    excluded: tuple[str, ...] = field(default=(), compare=False)
+
+    @property
+    def has_size_classes(self) -> bool:
+        """False for a survey of flows and per cent solids only: no distribution, no partition."""
+        return self.survey.n_classes > 0
+
+    @property
+    def held_at_zero(self) -> list[tuple[str, int]]:
+        """``(stream, class index)`` of the class flows held at their bound 0 (class index -1: a
+        water flow): the unbounded least squares would have made them negative."""
+        S, n = self.class_flows.shape
+        names = self.flowsheet.stream_names + tuple(w.name for w in self.flowsheet.water_streams)
+        return [(names[k // n], k % n) if k < S * n else (names[k - S * n], -1) for k in self.at_bound]
 
     @property
     def _unknowns(self) -> np.ndarray:
         water = self.water_flows if self.water_flows is not None else np.zeros(0)
         return np.concatenate([self.class_flows.ravel(), water])
+
+    @property
+    def _test_point(self) -> np.ndarray:
+        """The unbounded least-squares solution: the tests' distributions hold there."""
+        return self.fitted if self.fitted is not None else self._unknowns
 
     # --- the global test -------------------------------------------------------------
     @property
@@ -333,11 +331,13 @@ class CircuitBalance:
         for s in range(S):
             pct_gradient[s, s * n : (s + 1) * n] = 100.0 * self.water_flows[s] / total[s] ** 2
             pct_gradient[s, S * n + s] = -100.0 * self.flows[s] / total[s] ** 2
-        unseen = _unseen_directions(self.problem, self._unknowns)
-        tolerance = 1e-7 * max(1.0, float(np.abs(self._unknowns).max()))
+        decomposition = self.decomposition or decompose(self.problem, self.problem.N.T @ (self._test_point - self.problem.m0))
+        unseen = self.problem.N @ decomposition.unseen
+        tolerance = 1e-7 * max(1.0, float(np.abs(self._test_point).max()))
         water_determined = np.abs(water_gradient @ unseen).max(axis=1, initial=0.0) < tolerance
         pct_determined = np.abs(pct_gradient @ unseen).max(axis=1, initial=0.0) < tolerance
         water_sd, pct_sd = self._sd(water_gradient), self._sd(pct_gradient)
+        helpers = water_determined_by(self, water_gradient, tolerance) if not water_determined.all() else [[]] * k
         pct = 100.0 * self.flows / total
         measured = self.survey.pct_solids.set_index("stream")
         rows = []
@@ -354,8 +354,7 @@ class CircuitBalance:
                 "water_flow": self.water_flows[j] if determined else np.nan,
                 "water_flow_sd": water_sd[j] if determined else np.nan,
                 "determined": determined,
-                "note": "" if determined else "not determined by the survey: the water balances leave it free "
-                "(measure the per cent solids of this stream, or of the streams at its node)",
+                "note": "" if determined else _undetermined_water_note(helpers[j]),
             })  # fmt: skip
         return pd.DataFrame(rows, columns=columns)
 
@@ -380,39 +379,18 @@ class CircuitBalance:
                         "reconciled_sd": self.share_sd[s, i],
                     }
                 )
-        return pd.DataFrame(rows)
+        return pd.DataFrame(rows, columns=DISTRIBUTION_COLUMNS)
 
     @cached_property
     def _adjustments(self) -> pd.DataFrame:
         problem = self.problem
-        columns = [
-            "measurement",
-            "stream",
-            "class_index",
-            "size_lower",
-            "size_upper",
-            "row",
-            "measured",
-            "sd",
-            "reconciled",
-            "reconciled_sd",
-            "adjustment",
-            "adjustment_sd",
-            "standardised",
-            "gross_error",
-            "gross_error_sd",
-            "measurement_test",
-            "p_value",
-            "suspect",
-            "indistinguishable_from",
-        ]
         if problem is None or problem.y.size == 0:
-            return pd.DataFrame(columns=columns)
-        m = self._unknowns
+            return pd.DataFrame(columns=ADJUSTMENT_COLUMNS)
+        m = self._test_point
         H = problem.jacobian(m)
-        predicted = problem.predict(m)
+        predicted = problem.predict(self._unknowns)  # the reported values (bounded at 0)
         cov_pred = H @ self.covariance @ H.T
-        adjustment = self.measured_y - predicted  # measured minus reconciled
+        adjustment = self.measured_y - problem.predict(m)  # measured minus reconciled, without the bounds
         adjustment_var = problem.variance - np.diag(cov_pred)
         testable = adjustment_var > 1e-8 * problem.sd**2
         adjustment_sd = np.where(testable, np.sqrt(np.clip(adjustment_var, 0.0, None)), np.nan)
@@ -425,7 +403,7 @@ class CircuitBalance:
                 "measurement": [
                     f"{self.streams[s]} {_MEASURED_QUANTITY[k]}"
                     if k != "share"
-                    else f"{self.streams[s]} class {_class_name(classes, i)}"
+                    else f"{self.streams[s]} class {class_name(classes, i)}"
                     for s, i, k in zip(problem.stream, problem.klass, problem.kinds)
                 ],
                 "stream": [self.streams[s] for s in problem.stream],
@@ -437,7 +415,7 @@ class CircuitBalance:
                 "sd": np.sqrt(problem.variance),
                 "reconciled": predicted,
                 "reconciled_sd": np.sqrt(np.clip(np.diag(cov_pred), 0.0, None)),
-                "adjustment": -adjustment,  # reconciled minus measured: what was added to the measurement
+                "adjustment": predicted - self.measured_y,  # what was added to the measurement
                 "adjustment_sd": adjustment_sd,
                 "standardised": -standardised,
             }
@@ -471,7 +449,7 @@ class CircuitBalance:
         r"""The generalised likelihood ratio test of a gross error in each raw measurement.
 
         A gross error :math:`b` in raw measurement :math:`j` shifts the reported values by
-        :math:`b f_j` (:math:`f_j` the column of :attr:`_Problem.effects`: a unit vector, or
+        :math:`b f_j` (:math:`f_j` the column of :attr:`Problem.effects`: a unit vector, or
         in a closed analysis the shift of every share of the stream).  With the whitened
         residuals :math:`\rho` and :math:`g_j = W f_j`, its least-squares estimate is
         :math:`\hat b_j = g_j^T \rho / g_j^T Q g_j` with sd :math:`(g_j^T Q g_j)^{-1/2}`,
@@ -484,11 +462,10 @@ class CircuitBalance:
         if problem is None or problem.y.size == 0:
             empty = np.zeros(0)
             return _MeasurementTests(empty, empty, empty, empty.astype(bool), np.zeros((0, 0)))
-        m = self._unknowns
-        J = problem.W @ problem.jacobian(m) @ problem.N
+        m = self._test_point
         residual = problem.W @ (self.measured_y - problem.predict(m))
-        basis, singular, _ = np.linalg.svd(J, full_matrices=False)
-        basis = basis[:, singular > _RANK_TOL * max(1.0, singular.max(initial=0.0))]
+        decomposition = self.decomposition or decompose(problem, problem.N.T @ (m - problem.m0))
+        basis = decomposition.range_basis
         G = problem.W @ problem.effects
         QG = G - basis @ (basis.T @ G)
         information = np.einsum("ij,ij->j", G, QG)
@@ -534,10 +511,40 @@ class CircuitBalance:
         """The measurements suspected of gross error, largest absolute measurement test first;
         ``rank`` 1 is the first candidate."""
         table = self._adjustments
-        suspects = table[table["suspect"]].copy()
+        suspects = table.loc[table["suspect"].astype(bool)].copy()  # an empty object column would select columns
         suspects = suspects.reindex(suspects["measurement_test"].abs().sort_values(ascending=False).index)
         suspects.insert(0, "rank", np.arange(1, len(suspects) + 1))
         return suspects.reset_index(drop=True)
+
+    @cached_property
+    def _elimination(self) -> pd.DataFrame:
+        return serial_elimination(self, reconcile)
+
+    def elimination_table(self) -> pd.DataFrame:
+        """Serial elimination with compensation (:func:`~tromplab.circuit.elimination.serial_elimination`):
+        row 0 the survey as reconciled, then one row per measurement compensated, with the
+        global test after the step.  A proposal: nothing in this balance is changed."""
+        return self._elimination.copy()
+
+    def nodal_tests_table(self) -> pd.DataFrame:
+        """The nodal test of every node and class balance in the raw data (:func:`~tromplab.circuit.elimination.nodal_tests`)."""
+        return nodal_tests(self)
+
+    def worth_table(self) -> pd.DataFrame:
+        """What each measurement is worth (:func:`~tromplab.circuit.worth.worth_table`): its
+        solvability class and redundancy, and its influence on every separator's fine yield,
+        partition per class and circulating load."""
+        return worth_table(self)
+
+    @cached_property
+    def _design(self) -> pd.DataFrame:
+        return design_table(self)
+
+    def design_table(self) -> pd.DataFrame:
+        """Survey design advice (:func:`~tromplab.circuit.design.design_table`): the measurements
+        one could add, ranked by how much they would lower the sd of each separator's partition
+        at its cut and of each circulating load, predicted from the linearised covariance."""
+        return self._design.copy()
 
     def largest_adjustments(self, n: int = 5) -> pd.DataFrame:
         """The ``n`` measurements with the largest absolute measurement tests (suspect or not)."""
@@ -559,7 +566,7 @@ class CircuitBalance:
         index = self.flowsheet.stream_index
         n = self.class_flows.shape[1]
         frames = []
-        for node in self.flowsheet.separators:
+        for node in self.flowsheet.separators if self.has_size_classes else ():
             f, c = index[node.fine], index[node.coarse]
             mf, mc = self.class_flows[f], self.class_flows[c]
             total = mf + mc
@@ -573,17 +580,10 @@ class CircuitBalance:
             yield_gradient[0, f * n : (f + 1) * n] = Fc / (Ff + Fc) ** 2
             yield_gradient[0, c * n : (c + 1) * n] = -Ff / (Ff + Fc) ** 2
             feed_share = total / total.sum()
-            flags, used = [], []
-            for share, value in zip(feed_share, phi):
-                if not np.isfinite(value) or share < MIN_FEED_SHARE:
-                    used.append(False)
-                    flags.append(f"feed share {100 * share:.3g} % below {100 * MIN_FEED_SHARE:g} %: partition not meaningful")
-                elif not 0.0 <= value <= 1.0:
-                    used.append(True)
-                    flags.append(f"reconciled partition {value:.4f} clipped to 0..1")
-                else:
-                    used.append(True)
-                    flags.append("")
+            held = set(self.at_bound)
+            at_bound = np.array([f * n + i in held or c * n + i in held for i in range(n)])
+            used, flags = _partition_flags(feed_share, phi, at_bound)
+            phi = np.where(np.isfinite(phi) & (phi >= 0.0) & (phi <= 1.0), phi, np.nan)
             frames.append(
                 pd.DataFrame(
                     {
@@ -593,7 +593,7 @@ class CircuitBalance:
                         "size": classes["size"].to_numpy(),
                         "feed_share": feed_share,
                         "partition_fine": phi,
-                        "partition_sd": self._sd(G),
+                        "partition_sd": np.where(np.isfinite(phi), self._sd(G), np.nan),
                         "fine_yield": Ff / (Ff + Fc),
                         "fine_yield_sd": float(self._sd(yield_gradient)[0]),
                         "used": used,
@@ -602,9 +602,7 @@ class CircuitBalance:
                 )
             )
         if not frames:
-            return pd.DataFrame(
-                columns=["experiment", "size_lower", "size_upper", "size", "feed_share", "partition_fine", "partition_sd"]
-            )
+            return pd.DataFrame(columns=PARTITION_COLUMNS)
         return pd.concat(frames, ignore_index=True)
 
     def points_table(self, *, unit_in_names: bool = True) -> pd.DataFrame:
@@ -631,8 +629,8 @@ class CircuitBalance:
                     {
                         "experiment": part["experiment"].to_numpy(),
                         f"size{suffix}": part["size"].to_numpy(),
-                        "partition_fine": np.clip(np.nan_to_num(part["partition_fine"].to_numpy(), nan=0.5), 0.0, 1.0),
-                        "weight": np.where(np.isfinite(weight), weight, 1.0),
+                        "partition_fine": np.where(used, part["partition_fine"].to_numpy(), np.nan),
+                        "weight": np.where(used & np.isfinite(weight), weight, np.nan),
                         "used": np.where(used, "yes", "no"),
                         f"size_lower{suffix}": part["size_lower"].to_numpy(),
                         f"size_upper{suffix}": part["size_upper"].to_numpy(),
@@ -695,6 +693,9 @@ class CircuitBalance:
             f"{self.problem.y.size if self.problem else 0} measurements, redundancy {self.dof}"
             + (f"; flows relative to {self.basis}" if self.basis else ""),
         ]
+        lines += self._survey_notes()
+        if self.excluded:
+            lines.append(f"left out on request (exclude): {', '.join(self.excluded)}")
         if self.balances_water:
             water = self.water_table()
             free = water.loc[~water["determined"], "stream"].tolist()
@@ -715,10 +716,43 @@ class CircuitBalance:
                 for r in suspects.head(5).itertuples()
             )
             lines.append(f"suspected gross errors (|measurement test| > {self.measurement_test_critical:.2f}): {listed}")
+        design = self._design
+        if len(design):
+            top = design.iloc[0]
+            lines.append(
+                f"the measurement that would help most: {top.measurement} of {top.stream} (sd of {top.quantity} "
+                f"{top.sd_before:.3g} -> {top.sd_after:.3g}, predicted; design.csv ranks them all)"
+            )
+        if self.rejected:
+            words = proposal(self._elimination, self.alpha)
+            lines.append(words or "serial elimination finds no testable measurement to compensate")
         return "\n".join(lines)
 
     def __str__(self) -> str:
         return self.summary()
+
+    def _survey_notes(self) -> list[str]:
+        """The summary's lines on what the survey lacks: size analyses, blank values, nothing to adjust, bounds."""
+        classes = self.survey.classes
+        lines = []
+        if not self.has_size_classes:
+            lines.append("no size analysis: flows and water only (no distribution, no partition curve)")
+        blank = self.survey.unmeasured
+        if len(blank):
+            listed = "; ".join(
+                f"{r.stream} class {class_name(classes, int(r.class_index))} (row {r.row})" for r in blank.head(8).itertuples()
+            )
+            more = f" and {len(blank) - 8} more" if len(blank) > 8 else ""
+            lines.append(f"not measured (blank or NaN value in the table): {listed}{more}")
+        if self.problem is not None and self.problem.y.size == 0:
+            lines.append("every measurement is exact (standard deviation 0): nothing to adjust, nothing to test")
+        held = self.held_at_zero
+        if held:
+            listed = "; ".join(f"{stream} {'water' if i < 0 else 'class ' + class_name(classes, i)}" for stream, i in held[:8])
+            lines.append(
+                f"held at 0 (the least squares would make them negative; the tests and sds are those without the bound): {listed}"
+            )
+        return lines
 
     # --- figures --------------------------------------------------------------------------
     def plot(self, kind: str = "distributions", ax=None):
@@ -738,13 +772,59 @@ class CircuitBalance:
 _MEASURED_QUANTITY = {"flow": "flow", "pct": "per cent solids"}
 
 
-def _class_name(classes: pd.DataFrame, i: int) -> str:
-    lower, upper = classes["size_lower"].iloc[i], classes["size_upper"].iloc[i]
-    if not np.isfinite(upper):
-        return f"+{lower:g}"
-    if not np.isfinite(lower):
-        return f"-{upper:g}"
-    return f"-{upper:g}+{lower:g}"
+def _errors_at_reconciled(flowsheet: Flowsheet, survey: Survey, problem: Problem, z: np.ndarray):
+    """Evaluate the error model at the reconciled shares and flows and reconcile again, until
+    no standard deviation moves by more than :data:`ERROR_MODEL_TOLERANCE` of itself.
+
+    Returns ``(survey, problem, z, success, message)`` of the last reconciliation; the survey
+    holds the standard deviations it used.
+    """
+    S, n = problem.n_streams, problem.n_classes
+    success, message = True, ""
+    for _ in range(MAX_ERROR_MODEL_ITERATIONS):
+        v = problem.m0 + problem.N @ z
+        class_flows = v[: S * n].reshape(S, n)
+        flows = class_flows.sum(axis=1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            shares = np.where(flows[:, None] > 0, class_flows / flows[:, None], 0.0)
+        evaluated = survey.with_errors_at(shares, np.clip(flows, 0.0, None), flowsheet.stream_index)
+        before = np.concatenate([survey.shares["sd"].to_numpy(float), survey.flows["sd"].to_numpy(float)])
+        after = np.concatenate([evaluated.shares["sd"].to_numpy(float), evaluated.flows["sd"].to_numpy(float)])
+        survey = evaluated
+        problem, _ = build_problem(flowsheet, survey)
+        z, success, message = solve(problem, v)
+        if np.all(np.abs(after - before) <= ERROR_MODEL_TOLERANCE * np.maximum(before, 1e-300)):
+            return survey, problem, z, success, message
+    return (
+        survey,
+        problem,
+        z,
+        False,
+        f"the error model at the reconciled values did not settle in {MAX_ERROR_MODEL_ITERATIONS} rounds",
+    )
+
+
+def _undetermined_water_note(streams: list[str]) -> str:
+    if streams:
+        return f"not determined by the survey: the water balances leave it free; the per cent solids of {' or '.join(streams)} would determine it"
+    return "not determined by the survey: the water balances leave it free, and no single per cent solids more would determine it"
+
+
+def _partition_flags(feed_share: np.ndarray, phi: np.ndarray, at_bound: np.ndarray) -> tuple[list, list]:
+    """``used`` and ``flag`` of each class of a separator: too little feed or a partition outside
+    0..1 (not used), or a product's class flow held at its bound 0 (used, said)."""
+    used, flags = [], []
+    for share, value, bound in zip(feed_share, phi, at_bound):
+        if not np.isfinite(value) or share < MIN_FEED_SHARE:
+            used.append(False)
+            flags.append(f"feed share {100 * share:.3g} % below {100 * MIN_FEED_SHARE:g} %: partition not meaningful")
+        elif not 0.0 <= value <= 1.0:
+            used.append(False)
+            flags.append(f"reconciled partition {value:.4g} outside 0..1: not a partition, left out")
+        else:
+            used.append(True)
+            flags.append("a product's class flow held at 0 (the least squares would make it negative)" if bound else "")
+    return used, flags
 
 
 def reconcile(
@@ -754,6 +834,7 @@ def reconcile(
     errors: ErrorModel | None = None,
     alpha: float = DEFAULT_ALPHA,
     size_unit: str | None = None,
+    exclude=(),
 ) -> CircuitBalance:
     """Reconcile a circuit survey: flows and size distributions that close every node balance.
 
@@ -770,6 +851,11 @@ def reconcile(
         Significance level of the chi-square test and of the measurement test.
     size_unit : str, optional
         Unit of the sizes when the table's size columns carry none.
+    exclude : iterable of str or str, optional
+        Measurements left out: ``"STREAM"`` (all of the stream's), ``"STREAM:flow"``,
+        ``"STREAM:pct_solids"`` or ``"STREAM:CLASS"`` (``"cyclone_feed:-150+75"``); a
+        comma-separated string is split.  What :meth:`CircuitBalance.elimination_table`
+        proposes, acted on.
 
     Returns
     -------
@@ -802,269 +888,40 @@ def reconcile(
         if isinstance(measurements, Survey)
         else read_survey(measurements, flowsheet, errors=errors, size_unit=size_unit)
     )
-    problem, basis = _build(flowsheet, survey)
-    start = _start(flowsheet, survey, problem)
-    _check_observable(flowsheet, survey, problem, start)
-    z0 = problem.N.T @ (start - problem.m0)
-    if problem.N.shape[1] and problem.y.size:
-        solution = optimize.least_squares(problem.whitened_residual, z0, jac=problem.whitened_jacobian, method="lm",
-                                          x_scale="jac", xtol=1e-14, ftol=1e-14, gtol=1e-12, max_nfev=2000)  # fmt: skip
-        z, success, message = solution.x, bool(solution.success), str(solution.message)
-    else:
-        z, success, message = z0, True, "nothing to adjust"
-    v = problem.m0 + problem.N @ z
+    entries = exclude.split(",") if isinstance(exclude, str) else exclude or ()
+    excluded = tuple(str(entry).strip() for entry in entries if str(entry).strip())
+    if excluded:
+        names = [class_name(survey.classes, i) for i in range(survey.n_classes)]
+        survey = without(survey, excluded, flowsheet.stream_names, names)
+    problem, basis = build_problem(flowsheet, survey)
+    start = starting_point(flowsheet, survey, problem)
+    check_observable(flowsheet, survey, problem, start)
+    z, success, message = solve(problem, start)
+    if survey.evaluated_at == "reconciled":
+        survey, problem, z, success, message = _errors_at_reconciled(flowsheet, survey, problem, z)
+    fitted = problem.m0 + problem.N @ z
+    chi, decomposition, covariance = linearised(problem, z)
+    held, v = bounded_solution(problem, fitted)
+    if held and not np.all(np.isfinite(v)):
+        success, message = False, "the bounds on the flows did not settle (active-set iterations exhausted)"
     S, n = problem.n_streams, problem.n_classes
-    _check_positive_flows(flowsheet, survey, v[: S * n].reshape(S, n).sum(axis=1))
-    chi, rank, covariance = _linearised(problem, z)
+    check_positive_flows(flowsheet, survey, v[: S * n].reshape(S, n).sum(axis=1))
     return CircuitBalance(
-        flowsheet,
-        survey,
-        v[: S * n].reshape(S, n),
-        covariance,
-        chi,
-        int(problem.W.shape[0] - rank),
-        alpha,
-        success,
-        message,
-        basis,
-        problem,
-        problem.y.copy(),
-        v[S * n :] if problem.n_water else None,
-    )
-
-
-def _check_positive_flows(flowsheet: Flowsheet, survey: Survey, flows: np.ndarray) -> None:
-    if np.any(flows <= 0):
-        bad = [flowsheet.stream_names[s] for s in np.flatnonzero(flows <= 0)]
-        raise InputError(
-            f"the reconciled solids flow of stream(s) {', '.join(bad)} is not positive: the measurements contradict the "
-            "flowsheet (check the stream names in both files)",
-            source=survey.source,
-        )
-
-
-def _linearised(problem: _Problem, z: np.ndarray) -> tuple[float, int, np.ndarray]:
-    """``(chi-square, rank of the whitened Jacobian, covariance of the unknowns)`` at ``z``."""
-    if not problem.y.size:
-        return 0.0, 0, np.zeros((problem.N.shape[0],) * 2)
-    J, r = problem.whitened_jacobian(z), problem.whitened_residual(z)
-    rank = int(np.linalg.matrix_rank(J, tol=_RANK_TOL * max(1.0, np.abs(J).max()))) if J.size else 0
-    cov_z = np.linalg.pinv(J.T @ J, rcond=1e-12) if J.size else np.zeros((0, 0))
-    return float(r @ r), rank, problem.N @ cov_z @ problem.N.T
-
-
-def _build(flowsheet: Flowsheet, survey: Survey) -> tuple[_Problem, str]:
-    S = len(flowsheet.streams)
-    n = max(survey.n_classes, 1)
-    n_water = S + len(flowsheet.water_streams) if len(survey.pct_solids) else 0
-    size = S * n + n_water
-    M = flowsheet.incidence()
-    index = flowsheet.stream_index
-    rows, rhs = [], []
-
-    def constraint(value: float = 0.0) -> np.ndarray:
-        rows.append(np.zeros(size))
-        rhs.append(value)
-        return rows[-1]
-
-    def solids_of(stream: str, row: np.ndarray) -> np.ndarray:
-        return row[index[stream] * n : (index[stream] + 1) * n]
-
-    for k, node in enumerate(flowsheet.nodes):
-        if node.balances_classes:
-            for i in range(n):
-                constraint()[np.arange(S) * n + i] = M[k]
-        else:
-            constraint()[: S * n] = np.repeat(M[k], n)
-    if n_water:  # water balances at every node, the declared water streams its only additions and removals
-        water_incidence = np.hstack([M, flowsheet.water_incidence()])
-        for k in range(len(flowsheet.nodes)):
-            constraint()[S * n :] = water_incidence[k]
-    fixed = survey.flows[survey.flows["sd"] == 0]
-    free_flows = survey.flows[survey.flows["sd"] > 0]
-    for record in fixed.itertuples():
-        solids_of(record.stream, constraint(record.value))[:] = 1.0
-    basis = ""
-    if survey.flows.empty:
-        feed = flowsheet.feeds[0]
-        solids_of(feed, constraint(BASIS))[:] = 1.0
-        basis = f"{BASIS:g} for stream '{feed}' (no solids flow measured)"
-    for record in survey.shares[survey.shares["sd"] == 0].itertuples():  # m_si - x sum_j m_sj = 0: linear
-        row = solids_of(record.stream, constraint())
-        row[:] = -record.value
-        row[record.class_index] += 1.0
-    exact_pct = survey.pct_solids[survey.pct_solids["sd"] == 0]
-    for record in exact_pct.itertuples():  # (100 - p) F - p w = 0: linear too
-        row = constraint()
-        solids_of(record.stream, row)[:] = 100.0 - record.value
-        row[S * n + index[record.stream]] = -record.value
-    A = np.array(rows) if rows else np.zeros((0, size))
-    b = np.array(rhs)
-    if A.shape[0]:
-        m0 = np.linalg.lstsq(A, b, rcond=None)[0]
-        if np.linalg.norm(A @ m0 - b) > 1e-8 * max(1.0, np.linalg.norm(b)):
-            raise InputError(
-                "the flows, shares and per cent solids given with a standard deviation of 0 contradict the balances of "
-                "the flowsheet",
-                source=survey.source,
-            )
-        N = linalg.null_space(A, rcond=1e-10)
-    else:
-        m0, N = np.zeros(size), np.eye(size)
-    shares = survey.shares[survey.shares["sd"] > 0]
-    pct = survey.pct_solids[survey.pct_solids["sd"] > 0]
-    parts = ((shares, "share"), (free_flows, "flow"), (pct, "pct"))
-    kinds = np.array([kind for table, kind in parts for _ in range(len(table))], dtype=object)
-    stream = np.array([index[name] for table, _ in parts for name in table["stream"]], dtype=int)
-    klass = np.array([*shares["class_index"].astype(int), *[-1] * len(free_flows), *[-2] * len(pct)], dtype=int)
-    y = np.concatenate([table["value"].to_numpy(float) for table, _ in parts])
-    sd = np.concatenate([table["sd"].to_numpy(float) for table, _ in parts])
-    cov, W, effects = _measurement_covariance(shares, sd, survey.closed_streams)
-    return _Problem(S, n, A, b, m0, N, kinds, stream, klass, y, sd, cov, W, effects, n_water), basis
-
-
-def _measurement_covariance(shares: pd.DataFrame, sd: np.ndarray, closed) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Covariance of the measurements, its whitening and the effects of the raw errors.
-
-    The errors are independent, except in a closed (normalised) analysis: an error in one raw
-    class moves every reported share of the stream, by :math:`P = I - x 1^T`, so the block is
-    :math:`P D P^T`.  The third matrix holds :math:`P` (identity elsewhere).
-    """
-    cov = np.diag(sd**2)
-    effects = np.eye(sd.size)
-    pieces = []
-    done = np.zeros(sd.size, dtype=bool)
-    streams = shares["stream"].to_numpy()
-    values = shares["value"].to_numpy(float)
-    for stream in closed:
-        where = np.flatnonzero(streams == stream)
-        if where.size == 0:
-            continue
-        x = values[where]
-        P = np.eye(where.size) - np.outer(x, np.ones(where.size))
-        block = P @ np.diag(sd[where] ** 2) @ P.T
-        cov[np.ix_(where, where)] = block
-        effects[np.ix_(where, where)] = P
-        eigenvalues, vectors = np.linalg.eigh(block)
-        keep = eigenvalues > 1e-12 * eigenvalues.max()
-        rows = np.zeros((int(keep.sum()), sd.size))
-        rows[:, where] = (vectors[:, keep] / np.sqrt(eigenvalues[keep])).T
-        pieces.append(rows)
-        done[where] = True
-    single = np.flatnonzero(~done)
-    rows = np.zeros((single.size, sd.size))
-    rows[np.arange(single.size), single] = 1.0 / sd[single]
-    pieces.append(rows)
-    return cov, np.vstack(pieces), effects
-
-
-def _start(flowsheet: Flowsheet, survey: Survey, problem: _Problem) -> np.ndarray:
-    """A feasible starting point: measured (or average) distributions, flows from a bounded
-    linear least-squares fit of the balances, projected onto the constraints."""
-    S, n = problem.n_streams, problem.n_classes
-    index = flowsheet.stream_index
-    guess = np.full((S, n), np.nan)
-    for record in survey.shares.itertuples():
-        guess[index[record.stream], record.class_index] = record.value
-    measured = np.isfinite(guess).any(axis=1)
-    average = np.nanmean(guess[measured], axis=0) if measured.any() else np.full(n, 1.0 / n)
-    average = np.where(np.isfinite(average), average, 1.0 / n)
-    for s in range(S):
-        row = guess[s]
-        if not np.isfinite(row).any():
-            guess[s] = average / average.sum()
-            continue
-        missing = ~np.isfinite(row)
-        rest = max(1.0 - np.nansum(row), 0.0)
-        row[missing] = rest * average[missing] / max(average[missing].sum(), 1e-12) if missing.any() else 0
-        guess[s] = np.clip(row, 1e-6, None) / np.clip(row, 1e-6, None).sum()
-    # flows: class balances with the guessed distributions, the fixed and measured flows
-    rows, rhs = [], []
-    M = flowsheet.incidence()
-    for k, node in enumerate(flowsheet.nodes):
-        rows.append(M[k] * 10.0)
-        rhs.append(0.0)
-        if node.balances_classes:
-            for i in range(n):
-                rows.append(M[k] * guess[:, i])
-                rhs.append(0.0)
-    scale = BASIS
-    for record in survey.flows.itertuples():
-        row = np.zeros(S)
-        row[index[record.stream]] = 10.0
-        rows.append(row)
-        rhs.append(10.0 * record.value)
-        scale = record.value
-    if survey.flows.empty:
-        row = np.zeros(S)
-        row[index[flowsheet.feeds[0]]] = 10.0
-        rows.append(row)
-        rhs.append(10.0 * BASIS)
-    fit = optimize.lsq_linear(np.array(rows), np.array(rhs), bounds=(1e-3 * scale, np.inf))
-    m = (fit.x[:, None] * guess).ravel()
-    if problem.n_water:
-        m = np.concatenate([m, _start_water(flowsheet, survey, fit.x)])
-    if problem.A.shape[0]:
-        m = m - np.linalg.lstsq(problem.A, problem.A @ m - problem.b, rcond=None)[0]
-    return m
-
-
-def _start_water(flowsheet: Flowsheet, survey: Survey, flows: np.ndarray) -> np.ndarray:
-    """Water flows from the measured per cent solids at the starting solids flows, completed by
-    the water balances (non-negative least squares)."""
-    incidence = np.hstack([flowsheet.incidence(), flowsheet.water_incidence()])
-    rows, rhs = list(incidence), [0.0] * len(incidence)
-    for record in survey.pct_solids.itertuples():
-        row = np.zeros(incidence.shape[1])
-        row[flowsheet.stream_index[record.stream]] = 1.0
-        rows.append(row)
-        rhs.append(flows[flowsheet.stream_index[record.stream]] * (100.0 - record.value) / record.value)
-    return optimize.lsq_linear(np.array(rows), np.array(rhs), bounds=(0.0, np.inf)).x
-
-
-def _unseen_directions(problem: _Problem, v: np.ndarray) -> np.ndarray:
-    """Directions of the unknowns (columns) that keep every constraint and move no measurement
-    at ``v``: what the survey cannot determine."""
-    free = problem.N.shape[1]
-    if free == 0:
-        return np.zeros((v.size, 0))
-    if not problem.y.size:
-        return problem.N
-    J = problem.W @ problem.jacobian(v) @ problem.N
-    _, singular, vt = np.linalg.svd(J, full_matrices=True)
-    rank = int(np.sum(singular > 1e-8 * max(1.0, np.abs(J).max())))
-    return problem.N @ vt[rank:].T
-
-
-def _check_observable(flowsheet: Flowsheet, survey: Survey, problem: _Problem, v: np.ndarray) -> None:
-    """Refuse a survey that cannot determine every solids flow and distribution (naming the
-    streams); water flows left undetermined are reported by the balance, not refused."""
-    S, n = problem.n_streams, problem.n_classes
-    directions = _unseen_directions(problem, v)[: S * n]
-    if directions.shape[1] == 0:
-        return
-    m = v[: S * n]
-    flows = m.reshape(S, n).sum(axis=1)
-    blocks = directions.reshape(S, n, -1)
-    flow_change = np.abs(blocks.sum(axis=1)).max(axis=1) / np.maximum(np.abs(flows), 1e-12)
-    share_change = np.abs(blocks - (m.reshape(S, n) / flows[:, None])[:, :, None] * blocks.sum(axis=1)[:, None, :]).max(
-        axis=(1, 2)
-    )
-    share_change = share_change / np.maximum(np.abs(flows), 1e-12)
-    flow_bad = [flowsheet.stream_names[s] for s in np.flatnonzero(flow_change > 1e-6)]
-    share_bad = [
-        flowsheet.stream_names[s] for s in np.flatnonzero(share_change > 1e-6) if flowsheet.stream_names[s] not in flow_bad
-    ]
-    if not flow_bad and not share_bad:
-        return
-    nodes = sorted({n for s in flow_bad + share_bad for n in (flowsheet.stream(s).source, flowsheet.stream(s).target) if n})
-    parts = []
-    if flow_bad:
-        parts.append(f"the solids flow of stream(s) {', '.join(flow_bad)}")
-    if share_bad:
-        parts.append(f"the size distribution of stream(s) {', '.join(share_bad)}")
-    raise InputError(
-        f"the survey cannot determine {' and '.join(parts)} (unobservable: degrees of freedom left at node(s) "
-        f"{', '.join(nodes)}); measure the size distribution or the solids flow of one of these streams",
-        source=survey.source,
+        flowsheet=flowsheet,
+        survey=survey,
+        class_flows=v[: S * n].reshape(S, n),
+        covariance=covariance,
+        chi_square=chi,
+        dof=int(problem.W.shape[0] - decomposition.rank),
+        alpha=alpha,
+        success=success,
+        message=message,
+        basis=basis,
+        problem=problem,
+        measured_y=problem.y.copy(),
+        water_flows=v[S * n :] if problem.n_water else None,
+        fitted=fitted,
+        at_bound=held,
+        decomposition=decomposition,
+        excluded=excluded,
     )

@@ -35,8 +35,9 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from ..curves.formulas import get_formula
 from .flowsheet import Flowsheet, read_flowsheet
-from .measurements import ErrorModel, Survey
+from .measurements import SHARE_COLUMNS, STREAM_VALUE_COLUMNS, ErrorModel, Survey, read_survey
 from .reconciliation import reconcile
 
 
@@ -68,9 +69,10 @@ def rosin_rammler_shares(edges, d63: float, n: float) -> np.ndarray:
 
 
 def plitt_partition_to_fines(size, d50: float, m: float, bypass: float = 0.0) -> np.ndarray:
-    """Partition to the fine product, one minus Plitt's curve with a bypass to the coarse product."""
-    coarse = bypass + (1.0 - bypass) * (1.0 - np.exp(-0.693 * (np.asarray(size, dtype=float) / d50) ** m))
-    return 1.0 - coarse
+    r"""Partition to the fine product of Plitt's (1976) corrected curve with a bypass to the
+    coarse product: the registry's ``rosin_rammler_bypass``, :math:`(1 - R_f)\exp(-\ln 2\,(d/d_{50})^m)`."""
+    formula = get_formula("rosin_rammler_bypass")
+    return formula.phi(np.asarray(size, dtype=float) / d50, m, bypass=bypass)
 
 
 def classes_from_edges(edges) -> pd.DataFrame:
@@ -140,7 +142,7 @@ def grinding_circuit() -> CircuitTruth:
     feed = 250.0 * rosin_rammler_shares([20, 38, 53, 75, 106, 150, 212, 300, 425, 600], 800.0, 1.0)
     discharge = rosin_rammler_shares([20, 38, 53, 75, 106, 150, 212, 300, 425, 600], 180.0, 1.0)
     flows = steady_state(flowsheet, classes, {"fresh_feed": feed}, {"cyclone": phi}, {"mill": discharge})
-    return CircuitTruth(flowsheet, classes, flows, "um", {"cyclone": phi})
+    return CircuitTruth(flowsheet=flowsheet, classes=classes, class_flows=flows, size_unit="um", partitions={"cyclone": phi})
 
 
 def two_deck_screen() -> CircuitTruth:
@@ -163,7 +165,7 @@ def two_deck_screen() -> CircuitTruth:
     }
     feed = 100.0 * rosin_rammler_shares(edges, 6.0, 1.0)
     flows = steady_state(flowsheet, classes, {"screen_feed": feed}, partitions, {})
-    return CircuitTruth(flowsheet, classes, flows, "mm", partitions)
+    return CircuitTruth(flowsheet=flowsheet, classes=classes, class_flows=flows, size_unit="mm", partitions=partitions)
 
 
 #: Sieve series of the bundled example plant (um): the pan below 38, the open top above 19000.
@@ -207,7 +209,7 @@ def example_plant() -> CircuitTruth:
     feed = 400.0 * rosin_rammler_shares(EXAMPLE_EDGES_UM, 5000.0, 0.9)
     discharge = rosin_rammler_shares(EXAMPLE_EDGES_UM, 250.0, 1.0)
     flows = steady_state(flowsheet, classes, {"screen_feed": feed}, partitions, {"mill": discharge})
-    return CircuitTruth(flowsheet, classes, flows, "um", partitions)
+    return CircuitTruth(flowsheet=flowsheet, classes=classes, class_flows=flows, size_unit="um", partitions=partitions)
 
 
 def simulate_survey(
@@ -252,27 +254,22 @@ def simulate_survey(
         if gross is not None and gross[0] == stream and gross[1] >= 0:
             value[gross[1]] += gross[2] * errors.share_sd(x[gross[1]], stream)
         value = value / value.sum()  # a closed analysis, normalised as the lab reports it
+        relative, absolute = errors.streams.get(stream, (errors.relative_error, errors.absolute_error))
         for i in range(x.size):
-            records.append(
-                {
-                    "stream": stream,
-                    "class_index": i,
-                    "value": value[i],
-                    "sd": float(errors.share_sd(value[i], stream)),
-                    "row": None,
-                }
-            )
+            records.append({"stream": stream, "class_index": i, "value": value[i], "sd": float(errors.share_sd(value[i], stream)),
+                            "row": None, "relative": relative, "absolute": absolute})  # fmt: skip
     flow_records = []
     for stream, relative in (flows or {}).items():
         true = truth.flows[truth.flowsheet.stream_index[stream]]
         value = true * (1.0 + relative * rng.standard_normal())
         if gross is not None and gross[0] == stream and gross[1] < 0:
             value = value / (1.0 - gross[2] * relative)  # shifted by gross[2] times its stated sd, relative * value
-        flow_records.append({"stream": stream, "value": value, "sd": relative * value, "row": None})
-    shares = pd.DataFrame(records, columns=["stream", "class_index", "value", "sd", "row"])
-    flow_table = pd.DataFrame(flow_records, columns=["stream", "value", "sd", "row"])
-    empty = pd.DataFrame(columns=["stream", "value", "sd", "row"])
-    return Survey(truth.classes, shares, flow_table, empty, truth.size_unit, "simulated survey", tuple(measured))
+        flow_records.append({"stream": stream, "value": value, "sd": relative * value, "row": None, "relative": relative})
+    shares = pd.DataFrame(records, columns=SHARE_COLUMNS)
+    flow_table = pd.DataFrame(flow_records, columns=STREAM_VALUE_COLUMNS)
+    empty = pd.DataFrame(columns=STREAM_VALUE_COLUMNS)
+    return Survey(classes=truth.classes, shares=shares, flows=flow_table, pct_solids=empty, size_unit=truth.size_unit,
+                  source="simulated survey", closed_streams=tuple(measured), evaluated_at=errors.evaluated_at)  # fmt: skip
 
 
 def survey_table(survey: Survey, *, decimals: int | None = 2) -> pd.DataFrame:
@@ -321,23 +318,41 @@ class StudyResult:
         return self.rejected / self.surveys
 
 
-def reconciliation_study(truth: CircuitTruth, n_surveys: int, rng, *, flows: dict | None = None) -> StudyResult:
-    """Reconcile ``n_surveys`` surveys drawn from ``truth`` with the stated error model
-    (:func:`simulate_survey`) and count what the validation of ``docs/circuit.md`` reports:
-    chi-square rejections, 95 % interval coverage of the reconciled shares and flows, and the
-    squared errors of the measured and the reconciled shares against the truth."""
+def lab_survey(
+    truth: CircuitTruth,
+    rng: np.random.Generator,
+    *,
+    errors: ErrorModel | None = None,
+    flows: dict | None = None,
+    gross: tuple | None = None,
+    measured: tuple[str, ...] | None = None,
+) -> Survey:
+    """A simulated survey as a lab reports it: drawn by :func:`simulate_survey`, written as a
+    measurement table with the shares clipped at 0 and rounded to 0.01 % (:func:`survey_table`)
+    and read back through :func:`~tromplab.circuit.measurements.read_survey` with ``errors``."""
+    drawn = simulate_survey(truth, rng, errors=errors, flows=flows, gross=gross, measured=measured)
+    return read_survey(survey_table(drawn), truth.flowsheet, errors=errors, size_unit=truth.size_unit)
+
+
+def reconciliation_study(
+    truth: CircuitTruth, n_surveys: int, rng, *, flows: dict | None = None, errors: ErrorModel | None = None
+) -> StudyResult:
+    """Reconcile ``n_surveys`` surveys of ``truth`` as a lab reports them (:func:`lab_survey`)
+    and count what the validation of ``docs/circuit.md`` reports: chi-square rejections, 95 %
+    interval coverage of the reconciled shares and flows, and the squared errors of the measured
+    and the reconciled shares against the truth."""
     rejected = covered = checked = 0
     measured_error = reconciled_error = 0.0
     dof = 0
     for _ in range(n_surveys):
-        survey = simulate_survey(truth, rng, flows=flows or {})
+        survey = lab_survey(truth, rng, errors=errors, flows=flows or {})
         balance = reconcile(truth.flowsheet, survey)
         rejected += int(balance.rejected)
         dof = balance.dof
         streams = survey.shares["stream"].map(truth.flowsheet.stream_index).to_numpy()
-        classes = survey.shares["class_index"].to_numpy()
+        classes = survey.shares["class_index"].to_numpy(int)
         true = truth.shares[streams, classes]
-        measured_error += float(np.sum((survey.shares["value"].to_numpy() - true) ** 2))
+        measured_error += float(np.sum((survey.shares["value"].to_numpy(float) - true) ** 2))
         reconciled_error += float(np.sum((balance.shares[streams, classes] - true) ** 2))
         scale = balance.flows[0] / truth.flows[0] if not flows else 1.0  # without a flowmeter, flows are relative
         values = np.concatenate([balance.shares.ravel(), balance.flows])

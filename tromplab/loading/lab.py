@@ -71,7 +71,8 @@ from ..validation import (
 )
 from .kelsall import kelsall_corrected
 from .names import renamed_to_names
-from .points import TrompPoints, experiment_rows, normal_unit, points_from_table, resolve_size_unit, size_column_unit
+from .points import TrompPoints, experiment_rows, points_from_table
+from .size_classes import class_string_bounds, size_columns
 from .surveys import has_survey_columns, split_survey_columns, with_survey_meta
 from .tables import Table, read_table
 
@@ -440,39 +441,7 @@ class _SizeLayout:
 
 
 def _size_layout(table: Table, options: LabOptions | None = None) -> _SizeLayout:
-    found = {}  # stem -> (column, unit suffix)
-    for column in table.frame.columns:
-        for stem in SIZE_STEMS:
-            matched, unit = size_column_unit(column, stem)
-            if matched:
-                if stem in found:
-                    raise InputError(
-                        f"two {stem} columns ({found[stem][0]}, {column}): give one", source=table.source, column=column
-                    )
-                found[stem] = (column, unit)
-    units = {unit for _, unit in found.values()}
-    if len(units) > 1:
-        described = ", ".join(f"{column} ({unit or 'no unit'})" for column, unit in found.values())
-        raise InputError(f"mixed units in the size columns: {described}; use one unit", source=table.source)
-    suffix = units.pop() if units else ""
-    unit = suffix
-    if "size_unit" in table.frame.columns:
-        given = table.frame["size_unit"].dropna().astype(str).str.strip().unique()
-        if len(given) > 1:
-            raise InputError(f"mixed units in column 'size_unit': {', '.join(given)}", source=table.source, column="size_unit")
-        if len(given) == 1:
-            unit = resolve_size_unit(
-                table, suffix, given[0], next(iter(found.values()))[0] if found else "size_unit", given_as="in column 'size_unit'"
-            )
-    if unit and not suffix and options and options.size_unit and unit != normal_unit(options.size_unit):
-        raise InputError(
-            f"the size unit '{options.size_unit}' given as an option (--size-unit) contradicts column 'size_unit' ({unit})",
-            source=table.source,
-            column="size_unit",
-        )
-    unit = resolve_size_unit(
-        table, unit, options.size_unit if options else None, next(iter(found.values()))[0] if found else "size"
-    )
+    found, unit, suffix = size_columns(table, SIZE_STEMS, options.size_unit if options else None)
     layouts = [
         name
         for name, present in (
@@ -488,17 +457,17 @@ def _size_layout(table: Table, options: LabOptions | None = None) -> _SizeLayout
             "in 'size_representative')",
             source=table.source,
         )
-    representative = found.get("size_representative", (None,))[0]
+    representative = found.get("size_representative")
     if "size_lower" in found or "size_upper" in found:
         if not ("size_lower" in found and "size_upper" in found):
             missing = "size_upper" if "size_lower" in found else "size_lower"
             raise InputError(f"class bounds need both size_lower and size_upper; {missing} is missing", source=table.source)
         return _SizeLayout(
-            False, (found["size_lower"][0], found["size_upper"][0]), representative=representative, unit=unit, unit_suffix=suffix
+            False, (found["size_lower"], found["size_upper"]), representative=representative, unit=unit, unit_suffix=suffix
         )
     if "size_class" in found:
         return _SizeLayout(
-            False, (found["size_class"][0],), class_strings=True, representative=representative, unit=unit, unit_suffix=suffix
+            False, (found["size_class"],), class_strings=True, representative=representative, unit=unit, unit_suffix=suffix
         )
     if "size" in found:
         if representative:
@@ -507,7 +476,7 @@ def _size_layout(table: Table, options: LabOptions | None = None) -> _SizeLayout
                 source=table.source,
                 column=representative,
             )
-        return _SizeLayout(True, (found["size"][0],), unit=unit, unit_suffix=suffix)
+        return _SizeLayout(True, (found["size"],), unit=unit, unit_suffix=suffix)
     raise InputError(
         "give class bounds 'size_lower' and 'size_upper', size classes 'size_class' (\"+1168\", \"-1168+589\", \"-74\"), "
         "or sieve sizes 'size'",
@@ -532,7 +501,9 @@ def _balance_one(table: Table, name: str, streams, layout: _SizeLayout, options:
         if layout.sieve_sizes:
             lower, upper = _retained_on_sieves(table, layout.columns[0])
         elif layout.class_strings:
-            lower, upper = _checked_bounds(table, *_class_strings(table, layout.columns[0]), layout.columns[0], layout.columns[0])
+            lower, upper = _checked_bounds(
+                table, *class_string_bounds(table, layout.columns[0]), layout.columns[0], layout.columns[0]
+            )
         else:
             lower, upper = _class_bounds(table, *layout.columns)
         shares = {}
@@ -619,29 +590,6 @@ def _partition(a, b, c, y: float, method: str) -> np.ndarray:
     denominator = a if method == "feed" else y * b + (1 - y) * c
     with np.errstate(divide="ignore", invalid="ignore"):
         return np.where(denominator > 0, y * b / denominator, np.nan)
-
-
-def _class_strings(table: Table, column: str):
-    """Bounds from class-range strings: "+1168" (retained on 1168: the open top class),
-    "-1168+589" (through 1168, on 589), "-74" (through 74: the pan); "+0" = the pan."""
-    lower = np.full(len(table.frame), np.nan)
-    upper = np.full(len(table.frame), np.nan)
-    for i, value in enumerate(table.frame[column]):
-        text = "" if pd.isna(value) else str(value).strip().replace("\u2212", "-").replace(" ", "")
-        parts = re.fullmatch(r"([+-])(\d+(?:\.\d*)?(?:[eE][-+]?\d+)?)(?:([+-])(\d+(?:\.\d*)?(?:[eE][-+]?\d+)?))?", text)
-        if not parts or parts.group(1) == parts.group(3):
-            raise table.error(
-                f"'{value}' is not a size class: write '+1168' (retained on 1168), '-1168+589' (through 1168, on 589) "
-                "or '-74' (through 74)",
-                index=i,
-                column=column,
-            )
-        for sign, number in ((parts.group(1), parts.group(2)), (parts.group(3), parts.group(4))):
-            if sign == "+":
-                lower[i] = float(number)
-            elif sign == "-":
-                upper[i] = float(number)
-    return lower, upper
 
 
 def _mass_implied_yield(streams, totals) -> float | None:

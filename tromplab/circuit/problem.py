@@ -1,0 +1,433 @@
+r"""The reconciliation of a circuit survey as a numerical problem: unknowns, constraints, solution.
+
+The unknowns are the class flows :math:`m_{s,i}` of every stream (then, when per cent solids
+are measured, the water flows); the node balances, the fixed flows and the exact
+measurements are linear constraints :math:`A m = b`, so the feasible set is
+:math:`m = m_0 + N z` with :math:`N` an orthonormal basis of the null space of :math:`A`.
+:func:`solve` minimises the whitened residuals in :math:`z` by Levenberg-Marquardt,
+:func:`bounded_solution` adds the bounds :math:`m \ge 0` by an active set, and
+:func:`decompose` makes the one rank decision of a reconciliation (redundancy, covariance,
+observability and the projections of the tests all read it).  The method is in
+``docs/circuit.md`` and :mod:`tromplab.circuit.reconciliation`.
+
+References
+----------
+Lawson, C. L. & Hanson, R. J. (1974). *Solving Least Squares Problems*. Prentice-Hall.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import NamedTuple
+
+import numpy as np
+import pandas as pd
+from scipy import linalg, optimize
+
+from ..errors import InputError
+from ..options import CIRCUIT_BASIS
+from .flowsheet import Flowsheet
+from .measurements import Survey
+
+#: Flow of the first feed when no solids flow is measured: flows are then per 100 of that feed.
+BASIS = CIRCUIT_BASIS
+#: Singular values of the whitened Jacobian below this x the largest are zero: the one rank
+#: decision of a reconciliation (redundancy, covariance, observability, the tests' projection).
+RANK_TOL = 1e-9
+#: A class or water flow below -this x the largest unknown is negative: it is held at its bound 0.
+BOUND_TOL = 1e-12
+
+
+@dataclass(frozen=True)
+class Problem:
+    """The reconciliation problem in class flows (internal)."""
+
+    n_streams: int
+    n_classes: int
+    A: np.ndarray  # linear constraints A m = b
+    b: np.ndarray
+    m0: np.ndarray
+    N: np.ndarray  # orthonormal null-space basis of A
+    kinds: np.ndarray  # "share" / "flow" per measurement (sd > 0)
+    stream: np.ndarray  # stream index per measurement
+    klass: np.ndarray  # class index per measurement (-1 for flows)
+    y: np.ndarray
+    sd: np.ndarray  # of each measurement (of a closed analysis's share: before the closure)
+    cov: np.ndarray  # covariance of the measurements (closed analyses: P D P^T blocks)
+    W: np.ndarray  # whitening: W cov W^T = I on the range of cov (rows: independent pieces of information)
+    effects: np.ndarray  # column j: what a unit error in raw measurement j does to the reported values (P blocks)
+    n_water: int = 0  # water flows after the class flows (solids streams, then water streams); 0: water not balanced
+    at_bound: tuple[int, ...] = ()  # unknowns held at their bound 0: the last rows of A
+
+    def fixed_at_zero(self, active: np.ndarray) -> Problem:
+        """The problem with the unknowns flagged in ``active`` held at 0 (rows appended to the balances)."""
+        held = tuple(int(k) for k in np.flatnonzero(active))
+        A = np.vstack([self.A[: self.A.shape[0] - len(self.at_bound)], np.eye(self.m0.size)[list(held)]])
+        b = np.concatenate([self.b[: self.b.size - len(self.at_bound)], np.zeros(len(held))])
+        m0, N = _affine_form(A, b)
+        return replace(self, A=A, b=b, m0=m0, N=N, at_bound=held)
+
+    @property
+    def variance(self) -> np.ndarray:
+        return np.diag(self.cov)
+
+    def _flows(self, v: np.ndarray) -> np.ndarray:
+        return v[: self.n_streams * self.n_classes].reshape(self.n_streams, self.n_classes).sum(axis=1)
+
+    def predict(self, v: np.ndarray) -> np.ndarray:
+        """The measured quantities at the unknowns ``v`` (class flows, then water flows)."""
+        flows = self._flows(v)
+        out = np.empty(self.y.size)
+        share, pct = self.kinds == "share", self.kinds == "pct"
+        s, i = self.stream[share], self.klass[share]
+        out[share] = v[s * self.n_classes + i] / flows[s]
+        flow = ~share & ~pct
+        out[flow] = flows[self.stream[flow]]
+        s = self.stream[pct]
+        out[pct] = 100.0 * flows[s] / (flows[s] + v[self.n_streams * self.n_classes + s])
+        return out
+
+    def whitened_residual(self, z: np.ndarray) -> np.ndarray:
+        """Whitened residuals (prediction - measurement) at ``m0 + N z``: their squares sum to the chi-square."""
+        return self.W @ (self.predict(self.m0 + self.N @ z) - self.y)
+
+    def whitened_jacobian(self, z: np.ndarray) -> np.ndarray:
+        return self.W @ self.jacobian(self.m0 + self.N @ z) @ self.N
+
+    def jacobian(self, v: np.ndarray) -> np.ndarray:
+        """d(prediction)/d(v), measurements x unknowns."""
+        n = self.n_classes
+        flows = self._flows(v)
+        H = np.zeros((self.y.size, v.size))
+        for j in range(self.y.size):
+            s = self.stream[j]
+            block = slice(s * n, (s + 1) * n)
+            if self.kinds[j] == "share":
+                i = self.klass[j]
+                H[j, block] = -v[s * n + i] / flows[s] ** 2
+                H[j, s * n + i] += 1.0 / flows[s]
+            elif self.kinds[j] == "pct":
+                water = self.n_streams * n + s
+                total = flows[s] + v[water]
+                H[j, block] = 100.0 * v[water] / total**2
+                H[j, water] = -100.0 * flows[s] / total**2
+            else:
+                H[j, block] = 1.0
+        return H
+
+
+def solve(problem: Problem, start: np.ndarray) -> tuple[np.ndarray, bool, str]:
+    """The weighted least squares in the free unknowns ``z``, started from ``start`` projected onto the constraints.
+
+    Directions that no measurement sees (water flows the survey leaves undetermined) keep
+    their starting values: the solver's rounding would otherwise let them wander without bound.
+    """
+    z0 = problem.N.T @ (start - problem.m0)
+    if not (problem.N.shape[1] and problem.y.size):
+        return z0, True, "nothing to adjust"
+    solution = optimize.least_squares(problem.whitened_residual, z0, jac=problem.whitened_jacobian, method="lm",
+                                      x_scale="jac", xtol=1e-14, ftol=1e-14, gtol=1e-12, max_nfev=2000)  # fmt: skip
+    unseen = decompose(problem, solution.x).unseen
+    return solution.x - unseen @ (unseen.T @ (solution.x - z0)), bool(solution.success), str(solution.message)
+
+
+def bounded_solution(problem: Problem, fitted: np.ndarray) -> tuple[tuple[int, ...], np.ndarray]:
+    """``(held, v)``: the least squares with every class flow and water flow at least 0, by an
+    active-set iteration started from the unbounded solution ``fitted``.
+
+    A flow that comes out negative is held at 0 (it joins the linear constraints) and the survey
+    is reconciled again; a flow held at 0 is released when its Lagrange multiplier says the sum
+    of squares would fall by raising it (Lawson & Hanson 1974, ch. 23).  Without a negative flow
+    this is ``fitted``, untouched (``held`` empty); NaN if the iteration does not settle.
+    """
+    active = fitted < -BOUND_TOL * max(np.abs(fitted).max(initial=0.0), 1e-300)
+    if not active.any():
+        return (), np.clip(fitted, 0.0, None)  # what is below 0 is rounding
+    start = np.clip(fitted, 0.0, None)
+    for _ in range(2 * fitted.size + 1):
+        current = problem.fixed_at_zero(active)
+        z, _, _ = solve(current, start)
+        v = current.m0 + current.N @ z
+        negative = (v < -BOUND_TOL * max(np.abs(v).max(), 1e-300)) & ~active
+        if negative.any():
+            active |= negative
+        else:
+            released = _wrong_sign_multiplier(current, v)
+            if released is None:
+                return current.at_bound, np.clip(v, 0.0, None)
+            active[released] = False
+        start = np.clip(v, 0.0, None)
+    return tuple(np.flatnonzero(active)), np.full(fitted.size, np.nan)
+
+
+def _wrong_sign_multiplier(problem: Problem, v: np.ndarray) -> int | None:
+    """The unknown held at 0 whose multiplier is most negative (raising it lowers the sum of squares), or None."""
+    held = np.array(problem.at_bound, dtype=int)
+    if held.size == 0 or not problem.y.size:
+        return None
+    gradient = (problem.W @ problem.jacobian(v)).T @ (problem.W @ (problem.predict(v) - problem.y))
+    multipliers = np.linalg.lstsq(problem.A.T, gradient, rcond=None)[0][-held.size :]  # the bounds are A's last rows
+    worst = int(np.argmin(multipliers))
+    return int(held[worst]) if multipliers[worst] < -1e-8 * max(np.abs(gradient).max(), 1e-300) else None
+
+
+def check_positive_flows(flowsheet: Flowsheet, survey: Survey, flows: np.ndarray) -> None:
+    if np.any(flows <= 0):
+        bad = [flowsheet.stream_names[s] for s in np.flatnonzero(flows <= 0)]
+        raise InputError(
+            f"the reconciled solids flow of stream(s) {', '.join(bad)} is not positive: the measurements contradict the "
+            "flowsheet (check the stream names in both files)",
+            source=survey.source,
+        )
+
+
+class Decomposition(NamedTuple):
+    """The whitened Jacobian :math:`J` of the measurements in the free unknowns at one point,
+    split by the one rank decision of a reconciliation (singular values above :data:`RANK_TOL`
+    times the largest)."""
+
+    rank: int
+    range_basis: np.ndarray  # orthonormal columns spanning the range of J
+    singular: np.ndarray  # its ``rank`` singular values
+    seen: np.ndarray  # rows: the directions of z that the measurements see
+    unseen: np.ndarray  # columns: the directions of z that no measurement sees
+
+    def covariance(self) -> np.ndarray:
+        """:math:`(J^T J)^+` of rank :attr:`rank`: the linearised covariance of ``z``."""
+        return (self.seen.T / self.singular**2) @ self.seen
+
+
+def decompose(problem: Problem, z: np.ndarray) -> Decomposition:
+    """The :class:`Decomposition` of the whitened Jacobian at ``m0 + N z``."""
+    free = problem.N.shape[1]
+    if not problem.y.size or not free:
+        return Decomposition(0, np.zeros((problem.W.shape[0], 0)), np.zeros(0), np.zeros((0, free)), np.eye(free))
+    J = problem.whitened_jacobian(z)
+    U, singular, Vt = np.linalg.svd(J, full_matrices=True)
+    rank = int(np.sum(singular > RANK_TOL * singular.max(initial=0.0)))
+    return Decomposition(rank, U[:, :rank], singular[:rank], Vt[:rank], Vt[rank:].T)
+
+
+def linearised(problem: Problem, z: np.ndarray) -> tuple[float, Decomposition, np.ndarray]:
+    """``(chi-square, decomposition, covariance of the unknowns)`` at ``z``."""
+    decomposition = decompose(problem, z)
+    if not problem.y.size:
+        return 0.0, decomposition, np.zeros((problem.N.shape[0],) * 2)
+    residual = problem.whitened_residual(z)
+    return float(residual @ residual), decomposition, problem.N @ decomposition.covariance() @ problem.N.T
+
+
+def build_problem(flowsheet: Flowsheet, survey: Survey) -> tuple[Problem, str]:
+    S = len(flowsheet.streams)
+    n = max(survey.n_classes, 1)
+    n_water = S + len(flowsheet.water_streams) if len(survey.pct_solids) else 0
+    size = S * n + n_water
+    M = flowsheet.incidence()
+    index = flowsheet.stream_index
+    rows, rhs = [], []
+
+    def constraint(value: float = 0.0) -> np.ndarray:
+        rows.append(np.zeros(size))
+        rhs.append(value)
+        return rows[-1]
+
+    def solids_of(stream: str, row: np.ndarray) -> np.ndarray:
+        return row[index[stream] * n : (index[stream] + 1) * n]
+
+    for k, node in enumerate(flowsheet.nodes):
+        if node.balances_classes:
+            for i in range(n):
+                constraint()[np.arange(S) * n + i] = M[k]
+        else:
+            constraint()[: S * n] = np.repeat(M[k], n)
+    if n_water:  # water balances at every node, the declared water streams its only additions and removals
+        water_incidence = np.hstack([M, flowsheet.water_incidence()])
+        for k in range(len(flowsheet.nodes)):
+            constraint()[S * n :] = water_incidence[k]
+    fixed = survey.flows[survey.flows["sd"] == 0]
+    free_flows = survey.flows[survey.flows["sd"] > 0]
+    for record in fixed.itertuples():
+        solids_of(record.stream, constraint(record.value))[:] = 1.0
+    basis = ""
+    if survey.flows.empty:
+        feed = flowsheet.feeds[0]
+        solids_of(feed, constraint(BASIS))[:] = 1.0
+        basis = f"{BASIS:g} for stream '{feed}' (no solids flow measured)"
+    for record in survey.shares[survey.shares["sd"] == 0].itertuples():  # m_si - x sum_j m_sj = 0: linear
+        row = solids_of(record.stream, constraint())
+        row[:] = -record.value
+        row[record.class_index] += 1.0
+    exact_pct = survey.pct_solids[survey.pct_solids["sd"] == 0]
+    for record in exact_pct.itertuples():  # (100 - p) F - p w = 0: linear too
+        row = constraint()
+        solids_of(record.stream, row)[:] = 100.0 - record.value
+        row[S * n + index[record.stream]] = -record.value
+    A = np.array(rows) if rows else np.zeros((0, size))
+    b = np.array(rhs)
+    m0, N = _affine_form(A, b)
+    if np.linalg.norm(A @ m0 - b) > 1e-8 * max(1.0, np.linalg.norm(b)):
+        raise InputError(
+            "the flows, shares and per cent solids given with a standard deviation of 0 contradict the balances of the flowsheet",
+            source=survey.source,
+        )
+    shares = survey.shares[survey.shares["sd"] > 0]
+    pct = survey.pct_solids[survey.pct_solids["sd"] > 0]
+    parts = ((shares, "share"), (free_flows, "flow"), (pct, "pct"))
+    kinds = np.array([kind for table, kind in parts for _ in range(len(table))], dtype=object)
+    stream = np.array([index[name] for table, _ in parts for name in table["stream"]], dtype=int)
+    klass = np.array([*shares["class_index"].astype(int), *[-1] * len(free_flows), *[-2] * len(pct)], dtype=int)
+    y = np.concatenate([table["value"].to_numpy(float) for table, _ in parts])
+    sd = np.concatenate([table["sd"].to_numpy(float) for table, _ in parts])
+    cov, W, effects = _measurement_covariance(shares, sd, survey.closed_streams)
+    problem = Problem(n_streams=S, n_classes=n, A=A, b=b, m0=m0, N=N, kinds=kinds, stream=stream, klass=klass, y=y, sd=sd,
+                      cov=cov, W=W, effects=effects, n_water=n_water)  # fmt: skip
+    return problem, basis
+
+
+def _affine_form(A: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(m0, N)``: a point of ``A m = b`` (least squares) and an orthonormal basis of the null space of ``A``."""
+    if not A.shape[0]:
+        return np.zeros(A.shape[1]), np.eye(A.shape[1])
+    return np.linalg.lstsq(A, b, rcond=None)[0], linalg.null_space(A, rcond=1e-10)
+
+
+def _measurement_covariance(shares: pd.DataFrame, sd: np.ndarray, closed) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Covariance of the measurements, its whitening and the effects of the raw errors.
+
+    The errors are independent, except in a closed (normalised) analysis: an error in one raw
+    class moves every reported share of the stream, by :math:`P = I - x 1^T`, so the block is
+    :math:`P D P^T`.  The third matrix holds :math:`P` (identity elsewhere).
+    """
+    cov = np.diag(sd**2)
+    effects = np.eye(sd.size)
+    pieces = []
+    done = np.zeros(sd.size, dtype=bool)
+    streams = shares["stream"].to_numpy()
+    values = shares["value"].to_numpy(float)
+    if "at" in shares.columns:  # where the error model was evaluated: the closure is linearised there too
+        at = shares["at"].to_numpy(float)
+        values = np.where(np.isfinite(at), at, values)
+    for stream in closed:
+        where = np.flatnonzero(streams == stream)
+        if where.size == 0:
+            continue
+        x = values[where] / values[where].sum()  # the point of the closure: it sums to 1, as a closed analysis
+        P = np.eye(where.size) - np.outer(x, np.ones(where.size))
+        block = P @ np.diag(sd[where] ** 2) @ P.T
+        cov[np.ix_(where, where)] = block
+        effects[np.ix_(where, where)] = P
+        eigenvalues, vectors = np.linalg.eigh(block)
+        keep = eigenvalues > 1e-12 * eigenvalues.max()
+        rows = np.zeros((int(keep.sum()), sd.size))
+        rows[:, where] = (vectors[:, keep] / np.sqrt(eigenvalues[keep])).T
+        pieces.append(rows)
+        done[where] = True
+    single = np.flatnonzero(~done)
+    rows = np.zeros((single.size, sd.size))
+    rows[np.arange(single.size), single] = 1.0 / sd[single]
+    pieces.append(rows)
+    return cov, np.vstack(pieces), effects
+
+
+def starting_point(flowsheet: Flowsheet, survey: Survey, problem: Problem) -> np.ndarray:
+    """A feasible starting point: measured (or average) distributions, flows from a bounded
+    linear least-squares fit of the balances, projected onto the constraints."""
+    S, n = problem.n_streams, problem.n_classes
+    index = flowsheet.stream_index
+    guess = np.full((S, n), np.nan)
+    for record in survey.shares.itertuples():
+        guess[index[record.stream], record.class_index] = record.value
+    measured = np.isfinite(guess).any(axis=1)
+    average = np.nanmean(guess[measured], axis=0) if measured.any() else np.full(n, 1.0 / n)
+    average = np.where(np.isfinite(average), average, 1.0 / n)
+    for s in range(S):
+        row = guess[s]
+        if not np.isfinite(row).any():
+            guess[s] = average / average.sum()
+            continue
+        missing = ~np.isfinite(row)
+        rest = max(1.0 - np.nansum(row), 0.0)
+        row[missing] = rest * average[missing] / max(average[missing].sum(), 1e-12) if missing.any() else 0
+        guess[s] = np.clip(row, 1e-6, None) / np.clip(row, 1e-6, None).sum()
+    # flows: class balances with the guessed distributions, the fixed and measured flows
+    rows, rhs = [], []
+    M = flowsheet.incidence()
+    for k, node in enumerate(flowsheet.nodes):
+        rows.append(M[k] * 10.0)
+        rhs.append(0.0)
+        if node.balances_classes:
+            for i in range(n):
+                rows.append(M[k] * guess[:, i])
+                rhs.append(0.0)
+    scale = BASIS
+    for record in survey.flows.itertuples():
+        row = np.zeros(S)
+        row[index[record.stream]] = 10.0
+        rows.append(row)
+        rhs.append(10.0 * record.value)
+        scale = record.value
+    if survey.flows.empty:
+        row = np.zeros(S)
+        row[index[flowsheet.feeds[0]]] = 10.0
+        rows.append(row)
+        rhs.append(10.0 * BASIS)
+    fit = optimize.lsq_linear(np.array(rows), np.array(rhs), bounds=(1e-3 * scale, np.inf))
+    m = (fit.x[:, None] * guess).ravel()
+    if problem.n_water:
+        m = np.concatenate([m, _start_water(flowsheet, survey, fit.x)])
+    if problem.A.shape[0]:
+        m = m - np.linalg.lstsq(problem.A, problem.A @ m - problem.b, rcond=None)[0]
+    return m
+
+
+def _start_water(flowsheet: Flowsheet, survey: Survey, flows: np.ndarray) -> np.ndarray:
+    """Water flows from the measured per cent solids at the starting solids flows, completed by
+    the water balances (non-negative least squares)."""
+    incidence = np.hstack([flowsheet.incidence(), flowsheet.water_incidence()])
+    rows, rhs = list(incidence), [0.0] * len(incidence)
+    for record in survey.pct_solids.itertuples():
+        row = np.zeros(incidence.shape[1])
+        row[flowsheet.stream_index[record.stream]] = 1.0
+        rows.append(row)
+        rhs.append(flows[flowsheet.stream_index[record.stream]] * (100.0 - record.value) / record.value)
+    return optimize.lsq_linear(np.array(rows), np.array(rhs), bounds=(0.0, np.inf)).x
+
+
+def unseen_directions(problem: Problem, v: np.ndarray) -> np.ndarray:
+    """Directions of the unknowns (columns) that keep every constraint and move no measurement
+    at ``v``: what the survey cannot determine."""
+    return problem.N @ decompose(problem, problem.N.T @ (v - problem.m0)).unseen
+
+
+def check_observable(flowsheet: Flowsheet, survey: Survey, problem: Problem, v: np.ndarray) -> None:
+    """Refuse a survey that cannot determine every solids flow and distribution (naming the
+    streams); water flows left undetermined are reported by the balance, not refused."""
+    S, n = problem.n_streams, problem.n_classes
+    directions = unseen_directions(problem, v)[: S * n]
+    if directions.shape[1] == 0:
+        return
+    m = v[: S * n]
+    flows = m.reshape(S, n).sum(axis=1)
+    blocks = directions.reshape(S, n, -1)
+    flow_change = np.abs(blocks.sum(axis=1)).max(axis=1) / np.maximum(np.abs(flows), 1e-12)
+    share_change = np.abs(blocks - (m.reshape(S, n) / flows[:, None])[:, :, None] * blocks.sum(axis=1)[:, None, :]).max(
+        axis=(1, 2)
+    )
+    share_change = share_change / np.maximum(np.abs(flows), 1e-12)
+    flow_bad = [flowsheet.stream_names[s] for s in np.flatnonzero(flow_change > 1e-6)]
+    share_bad = [
+        flowsheet.stream_names[s] for s in np.flatnonzero(share_change > 1e-6) if flowsheet.stream_names[s] not in flow_bad
+    ]
+    if not flow_bad and not share_bad:
+        return
+    nodes = sorted({n for s in flow_bad + share_bad for n in (flowsheet.stream(s).source, flowsheet.stream(s).target) if n})
+    parts = []
+    if flow_bad:
+        parts.append(f"the solids flow of stream(s) {', '.join(flow_bad)}")
+    if share_bad:
+        parts.append(f"the size distribution of stream(s) {', '.join(share_bad)}")
+    raise InputError(
+        f"the survey cannot determine {' and '.join(parts)} (unobservable: degrees of freedom left at node(s) "
+        f"{', '.join(nodes)}); measure the size distribution or the solids flow of one of these streams",
+        source=survey.source,
+    )
