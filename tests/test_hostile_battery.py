@@ -37,7 +37,10 @@ def _ids(cases):
 
 
 def _marks(c):
-    return pytest.param(c, marks=pytest.mark.slow) if c.slow else c
+    marks = [pytest.mark.slow] if c.slow else []
+    if c.known:
+        marks.append(pytest.mark.xfail(reason=c.known, strict=True))
+    return pytest.param(c, marks=marks)
 
 
 def _write_inputs(case, folder) -> dict[str, str]:
@@ -154,7 +157,23 @@ def check_trend_table(path) -> None:
         _inside(trend[column], 0.0, 1.0, f"trend {column}")
 
 
+def check_circuit_tables(folder) -> None:
+    """Reconciled flows and water not negative; partitions written as measured inside 0..1."""
+    flows = pd.read_csv(folder / "flows.csv")
+    _inside(flows["reconciled"], 0.0, math.inf, "reconciled solids flow")
+    if (folder / "water.csv").is_file():
+        water = pd.read_csv(folder / "water.csv")
+        for column in [c for c in ("water_flow", "pct_solids") if c in water]:
+            _inside(water[column], 0.0, math.inf if column == "water_flow" else 100.0, f"water {column}")
+    partition = pd.read_csv(folder / "partition.csv")
+    if not partition.empty:
+        used = partition[partition["used"].astype(str).str.lower() == "true"]
+        _inside(used["partition_fine"], 0.0, 1.0, "circuit partition")
+
+
 def check_results(folder) -> None:
+    for path in folder.rglob("flows.csv"):
+        check_circuit_tables(path.parent)
     for path in folder.rglob("fits.csv"):
         check_fits_table(path)
     for path in folder.rglob("averages.csv"):
