@@ -6,11 +6,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from tromplab import workbench
 from tromplab._synthetic import synthetic
 from tromplab.loading.points import TrompPoints
 from tromplab.output.csv_parts import csv_from_parts, csv_part
-from tromplab.workbench import fit_experiments
+from tromplab.workbench import fanout, fit_experiments
 
 
 def _awkward_table() -> pd.DataFrame:
@@ -44,7 +43,7 @@ def test_parts_formatted_in_another_layout_are_not_joined():
 
 @pytest.mark.slow
 def test_the_workers_format_the_rows_the_results_folder_writes(tmp_path, monkeypatch):
-    monkeypatch.setattr(workbench, "CHUNK_SIZE", 3)  # several chunks from a small batch
+    monkeypatch.setattr(fanout, "CHUNK_SIZE", 3)  # several chunks from a small batch
     batch = [synthetic(seed) for seed in range(7)]
     bench = fit_experiments(batch, formulas=["plitt", "11", "lognormal"], jobs=2, partition_to="coarse")
     for name, table in (("fits", bench.fits_table()), ("averages", bench.averages())):
@@ -61,7 +60,7 @@ def test_the_workers_format_the_rows_the_results_folder_writes(tmp_path, monkeyp
 def test_a_batch_with_failed_experiments_is_formatted_whole(monkeypatch):
     """The failed experiments' empty cells turn integer columns into floats in the whole
     table ("10.0"), so the workers' rows ("10") are not joined."""
-    monkeypatch.setattr(workbench, "CHUNK_SIZE", 2)
+    monkeypatch.setattr(fanout, "CHUNK_SIZE", 2)
     batch = [synthetic(seed) for seed in range(4)] + [TrompPoints("two points", [1.0, 2.0], [0.9, 0.1])]
     bench = fit_experiments(batch, formulas=["plitt"], jobs=2)
     table = bench.fits_table()

@@ -13,7 +13,7 @@ from tromplab.curves.curve_fit import fit_formula
 from tromplab.curves.engine import check_bootstrap_request, fit_formula_batch, refit_resamples
 from tromplab.curves.formulas import ALL_FORMULAS, FORMULAS, get_formula, is_batchable, shuvalov_break, shuvalov_breaks
 from tromplab.loading.points import TrompPoints
-from tromplab.workbench import fit_experiments
+from tromplab.workbench import fanout, fit_experiments, worker
 
 BATCHABLE = [f for f in ALL_FORMULAS if is_batchable(f)]
 
@@ -146,7 +146,7 @@ def _write(tmp_path, experiments):
 
 @pytest.mark.slow
 def test_output_is_byte_identical_whatever_the_number_of_workers(tmp_path, monkeypatch):
-    monkeypatch.setattr(workbench, "CHUNK_SIZE", 4)  # several chunks from a small batch
+    monkeypatch.setattr(fanout, "CHUNK_SIZE", 4)  # several chunks from a small batch
     path = _write(tmp_path, EXPERIMENTS[:10])
     outputs = {}
     for jobs in (1, 2):
@@ -159,7 +159,7 @@ def test_output_is_byte_identical_whatever_the_number_of_workers(tmp_path, monke
 def test_data_notes_come_back_from_the_workers_in_batch_order(monkeypatch):
     from tromplab.workbench import data_notes
 
-    monkeypatch.setattr(workbench, "CHUNK_SIZE", 2)
+    monkeypatch.setattr(fanout, "CHUNK_SIZE", 2)
     sizes = [10.0, 20.0, 40.0, 80.0, 160.0]
     rising = TrompPoints("rising", sizes, [0.05, 0.2, 0.6, 0.9, 0.97])
     above = TrompPoints("above", sizes, [0.99, 0.95, 0.85, 0.7, 0.6])
@@ -184,7 +184,7 @@ def test_a_failing_engine_is_logged_and_falls_back_to_single_fits(monkeypatch, c
     def broken_engine(*args, **kwargs):
         raise FloatingPointError("overflow in the Jacobian")
 
-    monkeypatch.setattr(workbench, "fit_formula_batch", broken_engine)
+    monkeypatch.setattr(worker, "fit_formula_batch", broken_engine)
     with caplog.at_level("WARNING", logger="tromplab.workbench"):
         fits = fit_experiments(EXPERIMENTS[:3], formulas=["plitt", "luckie_austin"]).fits
     failures = [r.getMessage() for r in caplog.records if r.levelname == "WARNING"]
@@ -202,7 +202,7 @@ def test_a_failing_engine_is_logged_and_falls_back_to_single_fits(monkeypatch, c
 def test_dask_cluster_gives_the_serial_results(monkeypatch):
     distributed = pytest.importorskip("dask.distributed")
     dd = pytest.importorskip("dask.dataframe")
-    monkeypatch.setattr(workbench, "CHUNK_SIZE", 3)
+    monkeypatch.setattr(fanout, "CHUNK_SIZE", 3)
     experiments = EXPERIMENTS[:7]
     serial = fit_experiments(experiments, formulas=["plitt", "rosin_rammler"]).fits_table()
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False, dashboard_address=None) as cluster:
@@ -288,8 +288,8 @@ def test_the_numbers_do_not_depend_on_how_the_batch_is_cut(monkeypatch):
     assert len({p.n for p in experiments}) > 1
     options = {"formulas": ["plitt", "rosin_rammler", "11"], "ci": 0.9}
     whole = fit_experiments(experiments, **options)
-    monkeypatch.setattr(workbench, "CHUNK_SIZE", 1)
-    monkeypatch.setattr(workbench, "MAX_CHUNK_SIZE", 3)  # short ones alone in some chunks
+    monkeypatch.setattr(fanout, "CHUNK_SIZE", 1)
+    monkeypatch.setattr(fanout, "MAX_CHUNK_SIZE", 3)  # short ones alone in some chunks
     assert len(workbench.chunked(experiments, workers=1)) == 4
     cut = fit_experiments(experiments, **options)
     assert cut.fits_table().to_csv(index=False) == whole.fits_table().to_csv(index=False)
@@ -339,8 +339,8 @@ def test_a_batch_leaves_no_object_frozen_out_of_garbage_collection(monkeypatch):
     batch, whether it ends normally or with an error, every object is collectable again."""
     import gc
 
-    monkeypatch.setattr(workbench, "CHUNK_SIZE", 2)
-    monkeypatch.setattr(workbench, "MAX_CHUNK_SIZE", 2)
+    monkeypatch.setattr(fanout, "CHUNK_SIZE", 2)
+    monkeypatch.setattr(fanout, "MAX_CHUNK_SIZE", 2)
     frozen_during = []
     fit_chunk = workbench.fit_chunk
 
@@ -348,7 +348,7 @@ def test_a_batch_leaves_no_object_frozen_out_of_garbage_collection(monkeypatch):
         frozen_during.append(gc.get_freeze_count())
         return fit_chunk(experiments, **options)
 
-    monkeypatch.setattr(workbench, "fit_chunk", watched)
+    monkeypatch.setattr(worker, "fit_chunk", watched)
     assert gc.get_freeze_count() == 0
     bench = fit_experiments(EXPERIMENTS[:6], formulas=["plitt"], jobs=1)
     assert len(bench.fits) == 6 and gc.get_freeze_count() == 0
@@ -359,13 +359,13 @@ def test_a_batch_leaves_no_object_frozen_out_of_garbage_collection(monkeypatch):
     def broken(experiments, **options):
         raise RuntimeError("broken chunk")
 
-    monkeypatch.setattr(workbench, "fit_chunk", broken)
+    monkeypatch.setattr(worker, "fit_chunk", broken)
     with pytest.raises(RuntimeError, match="broken chunk"):
         fit_experiments(EXPERIMENTS[:6], formulas=["plitt"], jobs=1)
     assert gc.get_freeze_count() == 0
 
     # objects the process froze itself stay frozen, and the batch freezes nothing more
-    monkeypatch.setattr(workbench, "fit_chunk", fit_chunk)
+    monkeypatch.setattr(worker, "fit_chunk", fit_chunk)
     gc.freeze()
     try:
         owned = gc.get_freeze_count()

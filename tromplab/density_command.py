@@ -59,9 +59,14 @@ def _add_fit(sub) -> None:
     fit.add_argument("--curves", default="all", metavar="IDS",
                      help="curves to fit: ids (normal, logistic, gompertz, normal_limits, ...) or plain, limits, all (default all)")  # fmt: skip
     fit.add_argument("--method", choices=("binomial", "least_squares"), default=None,
-                     help="binomial (tracer counts, the default for them) or least_squares on the shares (the spreadsheet way)")  # fmt: skip
+                     help="binomial (tracer counts, the default for them) or least_squares on the shares (the spreadsheet way); "
+                     "default for float-sink tables with a feed analysis: the joint fit of the three analyses")  # fmt: skip
     fit.add_argument("--floats-yield", type=cli_type(check_probability, "--floats-yield"), default=None, metavar="Y",
                      help="mass share of the feed to the floats (float-sink tables; estimated from three analyses when not given)")  # fmt: skip
+    fit.add_argument("--excel", action="store_true",
+                     help="also write the tables and figures as one workbook, results.xlsx, in the folder")  # fmt: skip
+    fit.add_argument("--report", action="store_true",
+                     help="also write report.html (figures embedded) and its Markdown twin report.md in the folder")  # fmt: skip
     fit.add_argument("--sheet", default=None, help="Excel sheet (default: the first)")
     fit.add_argument("--sep", default=None, help="CSV field separator (detected when not given)")
     fit.add_argument("--decimal", default=None, help="CSV decimal mark (detected when not given)")
@@ -75,7 +80,7 @@ def run_density_fit(args) -> int:
     check_output_folder(args.outdir, inputs=[args.file])
     result = fit_density(args.file, ci=args.ci, curves=args.curves, method=args.method, floats_yield=args.floats_yield,
                          sheet=args.sheet, sep=args.sep, decimal=args.decimal)  # fmt: skip
-    written = result.save(args.outdir)
+    written = result.save(args.outdir, excel=args.excel, report=args.report)
     print(result.summary())
     print("\nWrote:")
     for path in written.values():

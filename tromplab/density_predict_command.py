@@ -15,7 +15,6 @@ from pathlib import Path
 
 from .errors import OptionError
 from .options import DEFAULT_SUM_TOLERANCE_PCT
-from .output.csv_parts import write_csv
 from .output.outputs import check_output_file, write_files
 from .validation import check_cut_density, check_non_negative, check_percent, check_positive, check_share, cli_type
 
@@ -98,6 +97,8 @@ def run_predict(
 
 
 def _write_csv(table, path: Path) -> dict:
+    from .output.csv_parts import write_csv  # pandas: imported when the command runs, not when the parser is built
+
     path.absolute().parent.mkdir(parents=True, exist_ok=True)
     return write_files({path.name: lambda target: write_csv(table, target)}, path.absolute().parent)
 
@@ -138,7 +139,10 @@ def add_predict_parser(density_commands) -> None:
                          help="lower bound of the open float fraction (default: the width of its neighbour)")  # fmt: skip
     predict.add_argument("--sink-upper-density", type=cli_type(check_positive, "--sink-upper-density"), default=None,
                          help="upper bound of the open sink fraction (default: the width of its neighbour)")  # fmt: skip
-    predict.set_defaults(run=_run_predict, imports=("tromplab.density.washability", "tromplab.density.curves", "scipy.optimize"))
+    predict.set_defaults(
+        run=_run_predict,
+        imports=("tromplab.density.washability", "tromplab.density.curves", "tromplab.output.csv_parts", "scipy.optimize"),
+    )
 
 
 def _run_predict(args) -> int:

@@ -95,6 +95,9 @@ from .flowsheet import Flowsheet
 #: has its own error, so the sum's miss is information the balance uses).
 SUM_TOLERANCE_PCT = DEFAULT_SUM_TOLERANCE_PCT
 VALUE_COLUMNS = {"retained_pct": 100.0, "retained_frac": 1.0, "retained_mass": None}
+#: Largest retained mass of one class (any unit): sums of masses stay far from floating point's
+#: overflow, and no sample weighs more.
+MAX_RETAINED_MASS = 1e12
 STREAM_COLUMNS = ("solids_flow", "solids_flow_sd", "pct_solids", "pct_solids_sd")
 ROW_COLUMNS = ("retained_sd", "relative_error", "absolute_error")
 SIZE_STEMS = ("size_lower", "size_upper", "size_class")
@@ -524,6 +527,10 @@ def _shares(table, names, has_class, class_of_row, n_classes, values_given, erro
     if bad.size:
         what = "mass" if full is None else "share"
         raise table.error(f"negative retained {what} {values[bad[0]]:g}", index=int(bad[0]), column=column)
+    bad = np.flatnonzero(values > full) if full is not None else np.flatnonzero(values > MAX_RETAINED_MASS)
+    if bad.size:
+        limit = f"{full:g} (the whole stream)" if full is not None else f"{MAX_RETAINED_MASS:g} (beyond any weighing)"
+        raise table.error(f"retained value {values[bad[0]]:g} above {limit}", index=int(bad[0]), column=column)
     bad = np.flatnonzero(np.isfinite(values) & ~has_class)
     if bad.size:
         raise table.error("a retained value without a size class", index=int(bad[0]), column=column)

@@ -35,6 +35,7 @@ Butterworth-Heinemann, chapter 11.
 
 from __future__ import annotations
 
+import io
 import math
 from dataclasses import dataclass, field
 
@@ -411,20 +412,31 @@ def by_size_outputs(fits, *, ci: float = 0.95, figures: bool = True) -> dict:
     dict
         File name -> writer taking the path (for :func:`tromplab.output.outputs.replace_folder`).
     """
+    tables, pictures = by_size_artifacts(fits, ci=ci, figures=figures)
+    outputs = {f"{name}.csv": (lambda path, table=table: write_csv(table, path)) for name, table in tables.items()}
+    outputs.update({name: (lambda path, png=png: path.write_bytes(png)) for name, png in pictures.items()})
+    return outputs
+
+
+def by_size_artifacts(fits, *, ci: float = 0.95, figures: bool = True) -> tuple[dict, dict]:
+    """The tables (``by_size``, ``ep_trend``) and PNG figures (file name -> bytes) of the tests with size fractions.
+
+    Both empty when no test has size fractions; :func:`by_size_outputs` writes them, the
+    workbook and the report show them.
+    """
     from ..output.outputs import figure_file_names
 
     fits = [fit for fit in fits if fit.sample.has_size]
     if not fits:
-        return {}
+        return {}, {}
     by_size, trends = by_size_table(fits, ci=ci)
-    outputs = {
-        "by_size.csv": lambda path: write_csv(by_size, path),
-        "ep_trend.csv": lambda path: write_csv(trends, path),
-    }
+    pictures = {}
     if figures:
         tests = list(dict.fromkeys(by_size["test"]))
         for test, name in figure_file_names(tests, prefix="by_size_").items():
             figure = plot_by_size(fits, by_size, trends, test=test)
             if figure is not None:
-                outputs[name] = lambda path, figure=figure: figure.savefig(path, dpi=120)
-    return outputs
+                buffer = io.BytesIO()
+                figure.savefig(buffer, dpi=120, format="png")
+                pictures[name] = buffer.getvalue()
+    return {"by_size": by_size, "ep_trend": trends}, pictures

@@ -17,6 +17,10 @@ spreadsheet way)
     share for float-sink data (its partition is measured on a sample mass proportional to
     it, so its variance is inversely proportional to it: the size lab tables'
     ``weight_by_feed_share``) and 1 otherwise.
+Float-sink tests with all three analyses (feed, floats, sinks)
+    By default fitted jointly: the curve, the feed composition and through them the yield,
+    to every reported share, with Wald intervals from the joint covariance
+    (:mod:`tromplab.density.joint`); ``method="least_squares"`` fits the partitions as above.
 
 Intervals for ``rho50``, ``Ep`` and the imperfection are profile-likelihood intervals:
 the curve is written in ``(rho50, Ep[, l, h])`` (``(rho50, I[, l, h])`` for the
@@ -56,6 +60,7 @@ import scipy.special
 import scipy.stats
 
 from .curves import DensityCurve, DensityIndices, get_density_curve
+from .joint import JOINT_METHOD, fit_joint, has_three_analyses, joint_intervals
 from .readers import DensitySample
 
 #: Lowest and highest values the profile searches and the fits of a curve with limits may take.
@@ -63,11 +68,17 @@ INDEX_BOUNDS = {"rho50": (1.0 + 1e-6, 8.0), "ep": (1e-4, 2.0), "imperfection": (
 LIMIT_MARGIN = 1e-6  # the profiles keep l below 1/4 and h above 3/4 by this much
 OVERDISPERSION_LEVEL = 0.05
 METHODS = ("binomial", "least_squares")
+JOINT_FALLBACK_NOTE = (
+    "the three analyses could not be fitted jointly (too few fractions for the parameters and the variance function, "
+    "or a singular covariance): least squares on the partitions instead"
+)
+EXACT_SHARES = 1e-9  # share units: analyses this close to the fitted curve carry no error to make intervals from
 #: What the intervals of a float-sink fit leave out (measured by benchmarks/density_validation.py).
 FLOAT_SINK_INTERVAL_NOTE = (
     "the intervals treat the fractions' partitions as independent and leave out the uncertainty of the floats yield "
     "and the closure of the analyses: on simulated analyses they covered rho50 only 52-58 % of the time "
-    "(Ep 90-93 %); read them as lower bounds"
+    "(Ep 90-93 %); read them as lower bounds (with a feed analysis, no stated yield and no method asked, the three "
+    "analyses are fitted jointly, with intervals that covered 93 %)"
 )
 
 
@@ -450,13 +461,16 @@ def fit_density_curve(sample: DensitySample, curve, *, ci: float | None = None, 
     ci : float, optional
         Level of the profile-likelihood intervals of rho50, Ep and I (none when None).
     method : {"binomial", "least_squares"}, optional
-        Default: binomial for tracer counts, least squares for shares.
+        Default: binomial for tracer counts, the joint fit of the three analyses
+        (``"joint_least_squares"``) for float-sink tests with a feed analysis, least squares
+        on the partitions otherwise.
 
     Returns
     -------
     DensityCurveFit
     """
     curve = get_density_curve(curve)
+    joint = method is None and has_three_analyses(sample)
     method = method or ("binomial" if sample.layout == "tracers" else "least_squares")
     data = _data(sample, method)
     failed = {"sample": sample, "curve": curve, "method": method, "success": False}
@@ -488,6 +502,11 @@ def fit_density_curve(sample: DensitySample, curve, *, ci: float | None = None, 
     fit = DensityCurveFit(
         sample, curve, method, True, "", params, indices, value, **_statistics(curve, data, params, value), raw=raw
     )
+    joint_fit = _joint(fit, ci) if joint else None
+    if joint_fit is not None:
+        return joint_fit
+    if joint:
+        notes.append(JOINT_FALLBACK_NOTE)
     if fit.overdispersed:
         notes.append(f"overdispersed (Pearson chi2/df = {fit.dispersion:.2f}): intervals use the quasi-binomial scale")
     intervals = {}
@@ -497,6 +516,36 @@ def fit_density_curve(sample: DensitySample, curve, *, ci: float | None = None, 
         if sample.layout == "float-sink" and intervals:
             notes.append(FLOAT_SINK_INTERVAL_NOTE)
     return _replace(fit, intervals=intervals, notes=tuple(notes))
+
+
+def _joint(fit: DensityCurveFit, ci: float | None) -> DensityCurveFit | None:
+    """The fit of the three float-sink analyses together (:mod:`tromplab.density.joint`), started at ``fit``;
+    None when it cannot be made (the caller keeps the fit of the partitions)."""
+    result = fit_joint(fit.sample, fit.curve, fit.params)
+    if result is None:
+        return None
+    indices = fit.curve.indices(**result.params)
+    notes = [indices.note] if indices.note else []
+    intervals = {}
+    if ci is not None and result.largest_residual < EXACT_SHARES:
+        notes.append("no intervals: the curve passes through every analysed share (no residual variance)")
+    elif ci is not None:
+        intervals = joint_intervals(fit.curve, result, ci)
+        if not intervals:
+            notes.append("no intervals: the fitted curve has no rho50, Ep or imperfection")
+    return _replace(
+        fit,
+        method=JOINT_METHOD,
+        params=result.params,
+        indices=indices,
+        objective=result.ssr,
+        df_resid=result.df_resid,
+        dispersion=result.sigma2,
+        aic=result.neg2_loglik + 2 * result.n_params,
+        intervals=intervals,
+        notes=tuple(notes),
+        raw=result,
+    )
 
 
 def _replace(fit: DensityCurveFit, **changes) -> DensityCurveFit:
@@ -562,23 +611,6 @@ def limits_test_p(plain: DensityCurveFit, limited: DensityCurveFit) -> float:
     return float(0.5 * scipy.stats.chi2.sf(ratio, 1) + 0.25 * scipy.stats.chi2.sf(ratio, 2))
 
 
-def rank_fits(fits: list[DensityCurveFit]) -> list[tuple[DensityCurveFit, int, str]]:
-    """Rank the successful fits of one sample by AIC; say when the best two are closer than 2.
-
-    Returns
-    -------
-    list of (fit, rank, note)
-        In the order given; rank 0 for a failed fit.
-    """
-    done = sorted((fit for fit in fits if fit.success), key=lambda fit: fit.aic)
-    ranks = {id(fit): i + 1 for i, fit in enumerate(done)}
-    close = [fit for fit in done if fit.aic - done[0].aic < 2.0] if done else []
-    note = ""
-    if len(close) > 1:
-        note = f"the data cannot tell {', '.join(fit.curve.id for fit in close)} apart (AIC within 2 of the best)"
-    return [(fit, ranks.get(id(fit), 0), note if fit in close else "") for fit in fits]
-
-
 # --- the band of a fitted curve ---------------------------------------------------------------
 def partition_band(fit: DensityCurveFit, rho, *, level: float = 0.95) -> tuple[np.ndarray, np.ndarray]:
     r"""Pointwise delta-method band of the fitted partition at ``rho``: ``(low, high)``, within 0..1.
@@ -592,6 +624,8 @@ def partition_band(fit: DensityCurveFit, rho, *, level: float = 0.95) -> tuple[n
     """
     rho = np.asarray(rho, dtype=float)
     centre = fit.partition(rho)
+    if fit.method == JOINT_METHOD:
+        return _band(fit, rho, centre, list(fit.raw.free), fit.raw.covariance, level)
     names = [name for name in fit.curve.parameter_names if not _on_bound(fit.curve, name, fit.params[name])]
     data = _data(fit.sample, fit.method)
     objective = _objective_of(data)
@@ -607,6 +641,16 @@ def partition_band(fit: DensityCurveFit, rho, *, level: float = 0.95) -> tuple[n
         covariance = 2.0 * scale * np.linalg.inv(hessian)
     except np.linalg.LinAlgError:
         return np.full_like(centre, np.nan), np.full_like(centre, np.nan)
+    return _band(fit, rho, centre, names, covariance, level)
+
+
+def _band(fit: DensityCurveFit, rho, centre, names: list, covariance: np.ndarray, level: float):
+    values = np.array([fit.params[name] for name in names])
+    steps = 1e-4 * np.maximum(np.abs(values), 1e-2)
+
+    def at(vector, where):
+        return fit.curve.partition(where, **{**fit.params, **dict(zip(names, vector))})
+
     gradient = np.stack(
         [
             (at(values + np.eye(len(names))[i] * steps[i], rho) - at(values - np.eye(len(names))[i] * steps[i], rho))

@@ -7,7 +7,9 @@ returns a :class:`DensityResult`; ``result.save(DIR)`` writes what ``tromplab de
 FILE -o DIR`` writes, byte for byte: ``fits.csv``, ``partition.csv``, ``summary.txt`` and one
 figure per test and size fraction (``figures.csv`` maps them); for tests with size fractions
 also ``by_size.csv``, ``ep_trend.csv`` and ``by_size_<test>.png``
-(:func:`tromplab.density.by_size.by_size_outputs`); the folder replaced as a
+(:func:`tromplab.density.by_size.by_size_artifacts`); with ``excel=True`` the workbook
+``results.xlsx`` and with ``report=True`` ``report.html`` and ``report.md``
+(:mod:`tromplab.density.documents`); the folder replaced as a
 whole (:func:`tromplab.output.outputs.replace_folder`).
 """
 
@@ -24,9 +26,9 @@ import pandas as pd
 from ..errors import OptionError
 from ..output.csv_parts import write_csv
 from ..validation import check_probability
-from .by_size import by_size_outputs
 from .curves import select_density_curves
-from .fitting import METHODS, DensityCurveFit, fit_density_curve, limits_test_p, rank_fits
+from .fitting import METHODS, DensityCurveFit, fit_density_curve, limits_test_p
+from .ranking import quasi_aic, rank_fits, variance_inflation
 from .readers import DensitySample, read_density
 
 #: The curves fitted when none are named: the three plain curves and their variants with limits.
@@ -49,7 +51,8 @@ class DensityResult:
     ci : float or None
         Level of the profile-likelihood intervals (None: no intervals).
     method : str or None
-        The fitting method asked (None: binomial for tracer counts, least squares for shares).
+        The fitting method asked (None: binomial for tracer counts, the joint fit for
+        float-sink tests with three analyses, least squares for other shares).
     """
 
     samples: list
@@ -118,6 +121,7 @@ class DensityResult:
         row["overdispersed"] = fit.overdispersed
         row["limits_p"] = self._limits_p(fit)
         row["aic"] = fit.aic
+        row["qaic"] = quasi_aic(fit, variance_inflation(self.fits_of(sample)))
         row["rank"] = rank
         row["notes"] = "; ".join(part for part in (fit.message, *fit.notes, ranking_note) if part)
         return row
@@ -193,11 +197,23 @@ class DensityResult:
             sample, self.fits_of(sample), self.best(sample), ax=ax, level=self.ci or PARTITION_INTERVAL_LEVEL
         )
 
-    def save(self, outdir) -> dict:
+    def save(self, outdir, *, excel: bool = False, report: bool = False) -> dict:
         """Write ``fits.csv``, ``partition.csv``, ``summary.txt``, ``figures.csv`` and the figures into ``outdir``.
 
         The folder is replaced as a whole when everything is written; the same files as
-        ``tromplab density fit``.
+        ``tromplab density fit`` with the same options.
+
+        Parameters
+        ----------
+        outdir : path
+            The output folder.
+        excel : bool
+            Also write ``results.xlsx``: the sheets ``fits``, ``partition`` (``by_size`` and
+            ``ep_trend`` for tests with size fractions) and ``figures``
+            (:mod:`tromplab.density.documents`).
+        report : bool
+            Also write ``report.html`` (figures embedded) and its Markdown twin ``report.md``
+            (linking the figures in the folder).
 
         Returns
         -------
@@ -205,22 +221,40 @@ class DensityResult:
             File name -> written path.
         """
         from ..output.outputs import figure_file_names, replace_folder
+        from .by_size import by_size_artifacts
 
-        tables = {"fits.csv": self.fits_table(), "partition.csv": self.partition_table()}
-        outputs = {name: (lambda path, table=table: write_csv(table, path)) for name, table in tables.items()}
+        tables = {"fits": self.fits_table(), "partition": self.partition_table()}
+        names = figure_file_names([sample.label for sample in self.samples], prefix="density_")
+        figures, figure_rows = {}, []
+        for position, sample in enumerate(self.samples):
+            figures[names[sample.label]] = _png(self.plot(position, ax=_offscreen()))
+            figure_rows.append({"test": sample.test, "size_fraction": sample.size_fraction, "file": names[sample.label]})
+        # tests with size fractions: indices by size, the Ep trend and its figure (none without)
+        size_tables, size_figures = by_size_artifacts(self.fits, ci=self.ci or PARTITION_INTERVAL_LEVEL)
+        tables.update(size_tables)
+        figures.update(size_figures)
+        outputs = {f"{name}.csv": (lambda path, table=table: write_csv(table, path)) for name, table in tables.items()}
         summary = self.summary() + "\n"
         outputs["summary.txt"] = lambda path: path.write_text(summary, encoding="utf-8")
-        names = figure_file_names([sample.label for sample in self.samples], prefix="density_")
-        figure_rows = []
-        for position, sample in enumerate(self.samples):
-            png = _png(self.plot(position, ax=_offscreen()))
-            outputs[names[sample.label]] = lambda path, png=png: path.write_bytes(png)
-            figure_rows.append({"test": sample.test, "size_fraction": sample.size_fraction, "file": names[sample.label]})
-        figures = pd.DataFrame(figure_rows)
-        outputs["figures.csv"] = lambda path: write_csv(figures, path)
-        # tests with size fractions: indices by size, the Ep trend and its figure (none without)
-        outputs.update(by_size_outputs(self.fits, ci=self.ci or PARTITION_INTERVAL_LEVEL))
+        outputs.update({name: (lambda path, png=png: path.write_bytes(png)) for name, png in figures.items()})
+        figure_table = pd.DataFrame(figure_rows)
+        outputs["figures.csv"] = lambda path: write_csv(figure_table, path)
+        outputs.update(self._documents(tables, figures, excel=excel, report=report))
         return replace_folder(outputs, outdir)
+
+    def _documents(self, tables: dict, figures: dict, *, excel: bool, report: bool) -> dict:
+        from .documents import REPORT_HTML, REPORT_MARKDOWN, WORKBOOK_NAME, density_report, write_density_workbook
+
+        outputs = {}
+        if excel:
+            size_unit = next((sample.size_unit for sample in self.samples if sample.size_unit), "")
+            outputs[WORKBOOK_NAME] = lambda path: write_density_workbook(path, tables, figures, size_unit=size_unit)
+        if report:
+            document = density_report(self, tables, figures)
+            outputs[REPORT_HTML] = lambda path: path.write_text(document.html(), encoding="utf-8")
+            links = {name: name for name in figures}
+            outputs[REPORT_MARKDOWN] = lambda path: path.write_text(document.markdown(links), encoding="utf-8")
+        return outputs
 
 
 def _indices_text(fit: DensityCurveFit) -> str:
@@ -275,8 +309,9 @@ def fit_density(
     curves : str or iterable
         Curve ids or the groups ``plain``, ``limits``, ``all`` (default: all six).
     method : {"binomial", "least_squares"}, optional
-        Force a method on tracer counts (``least_squares``: on the shares, as a spreadsheet
-        does); default binomial for tracers, least squares for shares.
+        Force a method (``least_squares``: on the shares, as a spreadsheet does); default
+        binomial for tracers, the joint fit of the three analyses for float-sink tests with a
+        feed analysis (``joint_least_squares`` in ``fits.csv``), least squares otherwise.
     floats_yield : float, optional
         Mass share of the feed to the floats (float-sink tables).
     sheet, sep, decimal : optional

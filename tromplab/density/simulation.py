@@ -22,6 +22,7 @@ import pandas as pd
 
 from .curves import get_density_curve
 from .fitting import fit_density_curve, profile_interval
+from .joint import JOINT_METHOD, has_three_analyses
 from .readers import read_density
 
 
@@ -140,14 +141,22 @@ def tracer_study(
 
 
 def _one_test(sample, curve, method, ci) -> dict:
-    fit = fit_density_curve(sample, curve, method=method)
+    fit = fit_density_curve(sample, curve, method=method, ci=ci if fit_has_own_intervals(sample, method) else None)
     if not fit.success or not math.isfinite(fit.indices.ep):
         return {"fitted": False}
     outcome = {"fitted": True, "rho50": fit.indices.rho50, "ep": fit.indices.ep}
     for quantity in ("rho50", "ep"):
-        low, high, _ = profile_interval(fit, quantity, ci)
+        if fit.method == JOINT_METHOD:
+            low, high = fit.intervals.get(quantity, (math.nan, math.nan))
+        else:
+            low, high, _ = profile_interval(fit, quantity, ci)
         outcome[quantity + "_interval"] = (low, high)
     return outcome
+
+
+def fit_has_own_intervals(sample, method) -> bool:
+    """True when the fit of ``sample`` by ``method`` is the joint fit, whose intervals come with it."""
+    return method is None and has_three_analyses(sample)
 
 
 def _study_row(outcomes, step, retrieval, method, rho50, ep) -> dict:
@@ -236,7 +245,15 @@ def noisy_analysis(share_pct, rng, *, relative_error: float = 0.03, absolute_err
 
 
 def float_sink_study(
-    *, rho50: float = 1.55, ep: float = 0.05, tests: int = 200, ci: float = 0.95, curve: str = "normal", seed: int = 0, **errors
+    *,
+    rho50: float = 1.55,
+    ep: float = 0.05,
+    tests: int = 200,
+    ci: float = 0.95,
+    curve: str = "normal",
+    method: str | None = None,
+    seed: int = 0,
+    **errors,
 ) -> dict:
     """Bias and interval coverage of rho50 and Ep fitted by weighted least squares to noisy float-sink analyses.
 
@@ -245,7 +262,9 @@ def float_sink_study(
     weighing errors of :func:`noisy_analysis` (``errors``: its ``relative_error`` and
     ``absolute_error``) to each of the three analyses, reads them through
     :func:`~tromplab.density.readers.read_density` (the floats yield estimated from the three)
-    and fits the true curve by weighted least squares with its profile intervals at ``ci``.
+    and fits the true curve with its intervals at ``ci``: by default jointly to the three
+    analyses (:mod:`tromplab.density.joint`, Wald intervals), with ``method="least_squares"``
+    by weighted least squares on the partitions (profile intervals).
 
     Returns
     -------
@@ -260,7 +279,51 @@ def float_sink_study(
         table = clean.copy()
         for column in ("feed_pct", "floats_pct", "sinks_pct"):
             table[column] = noisy_analysis(clean[column], rng, **errors)
-        outcomes.append(_one_test(read_density(table)[0], curve, "least_squares", ci))
-    row = _study_row(outcomes, math.nan, math.nan, "least_squares", rho50, ep)
+        outcomes.append(_one_test(read_density(table)[0], curve, method, ci))
+    row = _study_row(outcomes, math.nan, math.nan, method, rho50, ep)
     return {key: row[key] for key in ("tests", "fitted", "rho50_bias", "ep_relative_bias", "rho50_coverage", "ep_coverage",
                                       "rho50_no_interval", "ep_no_interval")}  # fmt: skip
+
+
+def overdispersed_ranking_study(
+    *, rho50: float = 1.55, ep: float = 0.04, step: float = 0.02, placed: int = 30, sharing: float = 4.0, tests: int = 200,
+    seed: int = 0,
+) -> dict:  # fmt: skip
+    """How often the curve with limits is ranked first, by AIC and by QAIC, on overdispersed tracer tests of a plain curve.
+
+    Tracers of one density share a fate: the sink probability of each density is drawn from a
+    beta distribution with mean ``P(density)`` of the normal curve and ``sharing`` pseudo-tracers
+    (smaller: more overdispersed), then its ``placed`` tracers sink with it (all recovered).
+    Each test is read through :func:`~tromplab.density.readers.read_density` and fitted with
+    the normal, logistic and normal-with-limits curves.
+
+    Returns
+    -------
+    dict
+        ``tests, overdispersed, limits_first_aic, limits_first_qaic`` (shares of the
+        overdispersed tests whose best curve is the one with limits).
+    """
+    from .ranking import quasi_aic, variance_inflation
+
+    rng = np.random.default_rng(seed)
+    half = max(3 * ep, 2 * step)
+    densities = np.round(np.arange(rho50 - half, rho50 + half + step / 2, step), 6)
+    p = get_density_curve("normal").partition(densities, rho50=rho50, ep=ep)
+    by_aic, by_qaic = [], []
+    for _ in range(tests):
+        sinks = rng.binomial(placed, rng.beta(p * sharing + 1e-3, (1 - p) * sharing + 1e-3))
+        table = pd.DataFrame({"test": "sim", "density": densities, "placed": placed, "sinks": sinks, "floats": placed - sinks})
+        sample = read_density(table)[0]
+        fits = [fit_density_curve(sample, curve) for curve in ("normal", "logistic", "normal_limits")]
+        inflation = variance_inflation(fits)
+        done = [fit for fit in fits if fit.success]
+        if not math.isfinite(inflation) or len(done) < len(fits):
+            continue
+        by_aic.append(min(done, key=lambda fit: fit.aic).curve.has_limits)
+        by_qaic.append(min(done, key=lambda fit: quasi_aic(fit, inflation)).curve.has_limits)
+    return {
+        "tests": tests,
+        "overdispersed": len(by_aic),
+        "limits_first_aic": float(np.mean(by_aic)) if by_aic else math.nan,
+        "limits_first_qaic": float(np.mean(by_qaic)) if by_qaic else math.nan,
+    }

@@ -138,6 +138,8 @@ _HEADINGS = {
     "averages": "Model-averaged cut size, Ep and efficiency",
     "figures": "Figures",
     "trend": "Monitoring over time",
+    "partition": "Measured partition",
+    "by_size": "Indices by size fraction",
 }
 
 

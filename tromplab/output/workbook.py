@@ -18,7 +18,7 @@ workbook cannot hold, and a carriage return, are written in the workbook's own e
 from __future__ import annotations
 
 import io
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 
 import numpy as np
@@ -130,6 +130,7 @@ def write_workbook(
     figures: Mapping[str, bytes] | None = None,
     size_unit: str = "",
     notes: Mapping[str, str] | None = None,
+    column_units: Callable[[str], str] | None = None,
 ) -> Path:
     """Write ``tables`` (sheet name -> DataFrame) and PNG ``figures`` into one workbook.
 
@@ -149,6 +150,9 @@ def write_workbook(
         Unit of the sizes, shown in the headers of size columns.
     notes : mapping, optional
         Sheet name -> sentence shown on a sheet with no rows (why it is empty).
+    column_units : callable, optional
+        Column name -> its unit for the header, in place of :func:`column_unit` (tables
+        whose columns are not sizes and shares, as the density fits').
     """
     from openpyxl import Workbook
 
@@ -159,7 +163,7 @@ def write_workbook(
         if table is None or table.empty:
             _set_text(sheet["A1"], (notes or {}).get(name, "no rows"))
         else:
-            _write_table(sheet, table, size_unit)
+            _write_table(sheet, table, size_unit, column_units)
     if figures:
         _write_figures(book.create_sheet("figures"), figures)
     path = Path(path)
@@ -167,7 +171,7 @@ def write_workbook(
     return path
 
 
-def _write_table(sheet, table: pd.DataFrame, size_unit: str) -> None:
+def _write_table(sheet, table: pd.DataFrame, size_unit: str, column_units=None) -> None:
     """``table`` on ``sheet``: a bold header with units, the rows at full precision, a number format
     per numeric column and the header row frozen."""
     from openpyxl.styles import Font
@@ -179,7 +183,10 @@ def _write_table(sheet, table: pd.DataFrame, size_unit: str) -> None:
         table.insert(
             table.columns.get_loc("quantity") + 1, "unit", table["quantity"].map(lambda q: column_unit(str(q), size_unit))
         )
-    headers = [header_with_unit(str(c), size_unit) for c in table.columns]
+    if column_units is None:
+        headers = [header_with_unit(str(c), size_unit) for c in table.columns]
+    else:
+        headers = [f"{c} [{column_units(str(c))}]" if column_units(str(c)) else str(c) for c in table.columns]
     sheet.append([_storable(header) for header in headers])
     for row in table.itertuples(index=False):
         sheet.append([_cell_value(value) for value in row])

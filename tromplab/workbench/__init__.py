@@ -1,0 +1,50 @@
+"""The batch layer: every formula fitted to many experiments, on processes or Dask, and the
+:class:`Workbench` that holds the results.
+
+Modules, top first (each imports only from those below it): ``batch``
+(:func:`fit_experiments`), ``result`` (:class:`Workbench`, :func:`load`,
+:func:`model_averages`), ``fanout`` (chunks on a process pool or a Dask cluster), ``worker``
+(what a worker does with one chunk), then ``gc_control``, ``averages``, ``tables`` (the fits
+table) and ``inputs`` (the experiments a batch accepts).  Import the names below from
+``tromplab.workbench`` (or :mod:`tromplab`): the modules may change.
+"""
+
+from .averages import averages_level
+from .batch import check_formula_selection, fit_experiments, formula_keys, print_progress
+from .fanout import CHUNK_SIZE, MAX_CHUNK_SIZE, ChunkResults, chunked, dask_client
+from .inputs import ACCEPTED_EXPERIMENTS, data_notes
+from .result import Workbench, load, model_averages
+from .tables import by_experiment, completed_fit_rows, fit_row_settings, fit_rows_frame, output_view, ranked_among
+from .worker import ChunkOptions, FittedChunk, derive, fit_chunk, work_on_chunk
+
+# pickles name the class by its public path, which stays when the modules inside move
+Workbench.__module__ = __name__
+
+__all__ = [
+    "ACCEPTED_EXPERIMENTS",
+    "CHUNK_SIZE",
+    "MAX_CHUNK_SIZE",
+    "ChunkOptions",
+    "ChunkResults",
+    "FittedChunk",
+    "Workbench",
+    "averages_level",
+    "by_experiment",
+    "check_formula_selection",
+    "chunked",
+    "completed_fit_rows",
+    "dask_client",
+    "data_notes",
+    "derive",
+    "fit_chunk",
+    "fit_experiments",
+    "fit_row_settings",
+    "fit_rows_frame",
+    "formula_keys",
+    "load",
+    "model_averages",
+    "output_view",
+    "print_progress",
+    "ranked_among",
+    "work_on_chunk",
+]

@@ -1,0 +1,214 @@
+"""Batch fitting: every formula to every experiment, screened and ranked
+(:func:`fit_experiments`, what ``tromplab fit`` does, with its options as keywords).
+
+A failing formula gives a failed :class:`~tromplab.curves.curve_fit.CurveFit`; a failing
+experiment (too few points, say) is recorded in ``failures`` and skipped by the
+ranking.  Neither stops the batch.
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Callable
+
+from ..curves.curve_fit import check_delta_max
+from ..curves.engine import check_bootstrap_request
+from ..curves.formulas import select_formulas
+from ..curves.ranking import RANK_BY
+from ..curves.screening import DEFAULT_ALPHA
+from ..errors import OptionError
+from ..output.views import check_partition_to
+from ..statistics.uncertainty import BOOTSTRAP_METHODS
+from ..validation import (
+    MAX_JOBS,
+    check_bootstrap,
+    check_count,
+    check_optional,
+    check_probability,
+    check_seed,
+    check_water_recovery,
+)
+from .fanout import _fit_in_chunks, dask_client
+from .inputs import _data_size_unit, _points_and_balances, _screenable
+from .result import Workbench
+from .tables import ranked_among
+from .worker import ChunkOptions
+
+
+def fit_experiments(
+    experiments,
+    *,
+    formulas=None,
+    extended: bool = False,
+    alpha: float = DEFAULT_ALPHA,
+    delta_max: float | None = None,
+    rank_by: str = "F",
+    rank_extended: bool = False,
+    size_unit: str = "",
+    water_recovery: float | None = None,
+    partition_to: str = "fine",
+    ci: float | None = None,
+    bootstrap: int = 0,
+    bootstrap_method: str = "residuals",
+    seed: int = 0,
+    jobs: int | None = 1,
+    scheduler: str | None = None,
+    dask: str | None = None,
+    client=None,
+    single_fits: bool = False,
+    progress: Callable[[int, int, str], None] | None = None,
+) -> Workbench:
+    """Fit, screen and rank ``formulas`` (default: all nine) on each experiment: what
+    ``tromplab fit`` does, with its options as keywords of the same names.
+
+    Parameters
+    ----------
+    experiments : path, DataFrame, Experiments, mapping or iterable of TrompPoints
+        A points file or lab table (path) or a pandas DataFrame of one, read by
+        :func:`tromplab.read_experiments` with its defaults; what that function returns (its mass
+        balances kept for the report and workbook); a Dask DataFrame of points (columns
+        ``experiment, size, partition_fine[, weight]``); a mapping of experiment name (str) to
+        its ``TrompPoints`` (renamed to the key), to a DataFrame of its points or to a
+        ``(sizes, partitions)`` pair; or an iterable of ``TrompPoints``.  Two experiments of one
+        name, or none at all, are an :class:`~tromplab.errors.InputError`; anything else is a
+        ``TypeError`` saying what is accepted.
+    formulas : str or iterable of ids or equation numbers, optional
+        ``"paper"``: the nine; ``"extended"``: the bypass and fish-hook curves; ``"other"``: other tools' curves.
+    extended, rank_extended : bool
+        Also fit the extended curves (reported, kept out of the ranking); rank them with the nine.
+    alpha : float
+        Significance level of the Fisher screen, in (0, 1).
+    delta_max : float, optional
+        Largest feed size for the misplacement index (default per experiment: its
+        ``delta_max`` if known, else its largest size).
+    rank_by : {"F", "aicc"}
+    size_unit : str
+        Unit of the sizes, for labels and records (the unit the loader found in the column names wins
+        when all experiments share one).
+    water_recovery : float, optional
+        Hydrocyclones: share of the feed water reporting to the underflow, in [0, 1).  The formulas are
+        still fitted to the actual partition; the fits table gains ``water_recovery`` and ``water_recovery_check``
+        (the fitted bypass against it, :func:`tromplab.statistics.hydrocyclone.bypass_against_water_recovery`).
+    partition_to : {"fine", "coarse"}
+        Product whose partition the tables and figures show (the fits are the same).
+    ci : float, optional
+        Add interval columns at this level (profile likelihood for the parameters, the
+        delta method for the indices); also the level of the model averages (default 0.95).
+    bootstrap, seed : int
+        Add bootstrap percentile intervals from ``bootstrap`` resamples (0: none), drawn by
+        ``bootstrap_method`` from ``seed`` (the same seed gives the same intervals).
+    bootstrap_method : {"residuals", "cases"}
+    jobs : int or None
+        Worker processes (None or 0: all cores).  The experiments are cut into chunks
+        (:func:`chunked`) that are padded alike, so the results are identical for any number.
+    scheduler, dask, client : optional
+        Run the chunks on Dask: on the scheduler at ``scheduler`` (``tcp://host:8786``), on a
+        local cluster of two workers (``dask="local"``) or on ``client`` (a ``dask.distributed.Client``).
+    single_fits : bool
+        Fit one experiment and formula at a time with lmfit
+        (:func:`tromplab.curves.curve_fit.fit_formula`) instead of the batched engine.
+    progress : callable, optional
+        Called as ``progress(done, total, label)`` as experiments are fitted, then (with
+        ``ci`` or ``bootstrap``) as fits get their intervals (labels ``"intervals: ..."``).
+
+    Returns
+    -------
+    Workbench
+        Every fit, with the fits, ranking and averages tables; never raises for a failing
+        fit.  ``bench.save(DIR)`` writes what ``tromplab fit ... -o DIR`` writes.
+
+    Examples
+    --------
+    >>> from tromplab import TrompPoints
+    >>> points = TrompPoints("run", [10, 20, 40, 80, 160], [0.98, 0.91, 0.62, 0.21, 0.04])
+    >>> bench = fit_experiments([points], formulas=["plitt", "lognormal", "molerus"])
+    >>> bench.ranking_table()[["formula", "place"]].values.tolist()
+    [['plitt', 1], ['lognormal', 2], ['molerus', 3]]
+    """
+    experiments, balances = _points_and_balances(experiments)
+    chosen = select_formulas(check_formula_selection(formulas, extended))
+    n_fits = len(experiments) * len(chosen)
+    settings = _checked_settings(locals(), n_fits=n_fits, size_unit=_data_size_unit(experiments, size_unit))
+    with dask_client(scheduler=scheduler, dask=dask, client=client) as cluster:
+        failures, fittable = _screenable(experiments)
+        options = ChunkOptions(
+            formulas=tuple(f.id for f in chosen),
+            ranked=tuple(f.id for f in ranked_among(chosen, rank_extended)),
+            alpha=settings["alpha"],
+            delta_max=settings["delta_max"],
+            engine=settings["engine"],
+            size_unit=settings["size_unit"],
+            ci=ci,
+            bootstrap=bootstrap,
+            bootstrap_method=bootstrap_method,
+            seed=seed,
+            rank_by=rank_by,
+            water_recovery=settings["water_recovery"],
+            partition_to=partition_to,
+        )
+        found = _fit_in_chunks(fittable, options, jobs=jobs, client=cluster, progress=progress)
+        bench = Workbench(
+            tuple(found.fits), failures, chosen, rank_by, alpha, rank_extended, found.notes, settings["water_recovery"], ci,
+            bootstrap, bootstrap_method, seed, partition_to, settings["size_unit"], tuple(experiments), balances, found.intervals,
+        )  # fmt: skip
+        bench._keep_from_workers(found)
+    return bench
+
+
+def check_formula_selection(formulas=None, extended: bool = False):
+    """The selection :func:`formula_keys` makes, refused with an
+    :class:`~tromplab.errors.OptionError` naming ``formulas`` when it names an unknown formula."""
+    if isinstance(formulas, (list, tuple, set, frozenset)) and not formulas:
+        raise OptionError("formulas", "names no formula; leave it out (None) for the nine formulas")
+    if isinstance(formulas, str) and not formulas.replace(",", "").strip():
+        raise OptionError("formulas", f"names no formula, got {formulas!r}")
+    keys = formula_keys(formulas, extended)
+    try:
+        select_formulas(keys)
+    except KeyError as error:
+        raise OptionError("formulas", f"names an {error.args[0]}") from None
+    return keys
+
+
+def formula_keys(formulas=None, extended: bool = False):
+    """The formula selection of ``formulas`` plus the extended curves when ``extended``
+    (``formulas`` default: the nine), as :func:`tromplab.curves.formulas.select_formulas` reads it."""
+    if not extended:
+        return formulas
+    keys = formulas if formulas is not None else "paper"
+    keys = keys if isinstance(keys, str) else ",".join(str(key) for key in keys)
+    return keys if "extended" in keys else f"{keys},extended"
+
+
+def _checked_settings(given: dict, *, n_fits: int, size_unit: str) -> dict:
+    """The options of :func:`fit_experiments` checked (an :class:`~tromplab.errors.OptionError`
+    names the option), before any fitting."""
+    check_probability(given["alpha"], "alpha")
+    if given["delta_max"] is not None:  # refused before any fitting, not in each fit
+        check_delta_max(given["delta_max"], given["experiments"])
+    check_optional(check_count, given["jobs"], "jobs", minimum=0, maximum=MAX_JOBS)
+    check_partition_to(given["partition_to"])
+    check_optional(check_probability, given["ci"], "ci")
+    check_seed(given["seed"], "seed")
+    if given["rank_by"] not in RANK_BY:
+        raise OptionError("rank_by", f"must be one of {', '.join(sorted(RANK_BY))}, got {given['rank_by']!r}")
+    if given["bootstrap_method"] not in BOOTSTRAP_METHODS:
+        raise OptionError("bootstrap_method", f"must be one of {', '.join(BOOTSTRAP_METHODS)}, got {given['bootstrap_method']!r}")
+    if check_bootstrap(given["bootstrap"], "bootstrap"):
+        try:
+            check_bootstrap_request(given["bootstrap"], n_fits=n_fits)
+        except ValueError as error:  # too much work for these data, said before any fitting
+            raise OptionError("bootstrap", str(error).removeprefix("--bootstrap ")) from None
+    return {
+        "alpha": given["alpha"],
+        "delta_max": given["delta_max"],
+        "engine": not given["single_fits"],
+        "size_unit": size_unit,
+        "water_recovery": check_optional(check_water_recovery, given["water_recovery"], "water_recovery"),
+    }
+
+
+def print_progress(i: int, total: int, experiment: str) -> None:
+    """Progress line on standard error (for batches of more than one experiment)."""
+    if total > 1:
+        print(f"[{i}/{total}] fitting experiment {experiment}", file=sys.stderr, flush=True)

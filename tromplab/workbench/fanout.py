@@ -1,0 +1,179 @@
+"""The fan-out of a batch: experiments cut into chunks (:func:`chunked`), the chunks run in
+process, on a process pool or on a Dask cluster (:func:`dask_client`), and their results
+gathered in order (:class:`ChunkResults`).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+import importlib.util
+import logging
+import math
+import os
+from collections.abc import Iterator, Sequence
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import replace
+from typing import NamedTuple
+
+import pandas as pd
+
+from ..curves.curve_fit import CurveFit
+from ..errors import OptionError
+from ..loading.points import TrompPoints
+from ..output.csv_parts import CsvPart
+from .averages import _averages_table
+from .gc_control import _results_kept_out_of_collections, _with_older_objects_frozen
+from .tables import fit_rows_frame
+from .worker import ChunkOptions, FittedChunk, work_on_chunk
+
+# one logger for the batch layer: its lines read "tromplab.workbench: ..." whichever module makes them
+logger = logging.getLogger(__package__)
+
+#: Experiments per unit of work: at least ``CHUNK_SIZE`` (progress, and balance over the
+#: workers), at most ``MAX_CHUNK_SIZE`` (memory), in between two units per worker.  The
+#: numbers do not depend on the cut: every chunk is padded to the widest experiment of the
+#: batch (:class:`~tromplab.curves.batched.PaddedPoints`), and the fits of one experiment
+#: use its own rows only.  Large units matter: the engine's cost per call is mostly
+#: interpreter overhead that a larger batch shares (1,024 experiments on one worker, chunks
+#: of 64 against 512: 7.5 s against 4.3 s; 10,000 experiments on two workers, at most 1,024
+#: against at most 512: the workers' CPU 47.1-49.0 s against 49.7-55.0 s in six alternating
+#: runs, 20 MiB more at the peak; docs/performance.md).
+CHUNK_SIZE = 64
+MAX_CHUNK_SIZE = 1024
+
+
+def chunked(items: Sequence, *, workers: int) -> list:
+    """``items`` cut into consecutive units of work for ``workers`` (see :data:`CHUNK_SIZE`)."""
+    size = min(MAX_CHUNK_SIZE, max(CHUNK_SIZE, math.ceil(len(items) / (2 * max(workers, 1)))))
+    return [items[i : i + size] for i in range(0, len(items), size)]
+
+
+def _worker_count(jobs, client) -> int:
+    """Workers the chunks will run on: the Dask cluster's threads, else ``jobs`` (None or 0: all cores)."""
+    if client is not None:
+        return max(1, sum(client.nthreads().values()))
+    return jobs or os.cpu_count() or 1
+
+
+class ChunkResults(NamedTuple):
+    """What :func:`_fit_in_chunks` gathers: the fits, the data notes, the interval columns and
+    the model averages (None when not asked for), the rows of the fits, and the workers' CSV
+    text of the tables (``{"fits": [CsvPart, ...], "averages": [...]}``, None in one process)."""
+
+    fits: list[CurveFit]
+    notes: dict
+    intervals: pd.DataFrame | None
+    averages: pd.DataFrame | None
+    rows: pd.DataFrame
+    csv_parts: dict[str, list[CsvPart]] | None = None
+
+
+def _fit_in_chunks(fittable: Sequence[TrompPoints], options: ChunkOptions, *, jobs, client, progress) -> ChunkResults:
+    """The fits, data notes, interval columns (with ``options.ci`` or ``options.bootstrap``) and
+    model averages of ``fittable``, chunk by chunk in order, wherever the chunks run (the
+    averages only where there are workers: in one process they are made when first asked
+    for).  Where there are workers, each also formats its rows of ``fits.csv`` and
+    ``averages.csv``, which the main process only joins.
+
+    A chunk's intervals are made by the worker that fitted it, right after the fits: the fits
+    do not travel to the main process and back again, and each fit's intervals (its bootstrap
+    seed included) depend on that fit only, so the table is the same for any number of workers.
+    ``progress`` hears of each chunk twice: its fits, then (labels ``"intervals: ..."``) its intervals.
+    """
+    chunks = chunked(fittable, workers=_worker_count(jobs, client))
+    options = replace(
+        options,
+        width=max((points.n for points in fittable), default=0),  # one padding for every chunk
+        tables_on_worker=not (jobs == 1 and client is None),  # in one process they wait until asked for
+    )
+    n_formulas = len(options.formulas)
+    logger.info(
+        "fitting %d experiment(s) x %d formula(s) in %d chunk(s) of up to %d (%s)",
+        len(fittable),
+        n_formulas,
+        len(chunks),
+        len(chunks[0]) if chunks else 0,
+        "on a Dask cluster" if client is not None else f"jobs={jobs or 'all cores'}",
+    )
+    fits, notes, frames, averaged, rows, parts = [], {}, [], [], [], {}
+    for number, (chunk, done) in enumerate(zip(chunks, _map_chunks(chunks, options, jobs=jobs, client=client)), 1):
+        fits += done.fits
+        rows.append(done.rows)
+        for name, part in (done.csv_parts or {}).items():
+            parts.setdefault(name, []).append(part)
+        notes.update(done.notes)
+        averaged += done.averages or []
+        logger.debug(
+            "chunk %d/%d fitted: %d fits, %d failed", number, len(chunks), len(done.fits), sum(not f.success for f in done.fits)
+        )
+        if progress is not None:
+            progress(len(fits) // max(n_formulas, 1), len(fittable), chunk[-1].experiment)
+        if done.intervals is not None:
+            frames.append(done.intervals)
+            if progress is not None:
+                progress(len(fits) // max(n_formulas, 1), len(fittable), f"intervals: {chunk[-1].experiment}")
+    return ChunkResults(
+        fits,
+        notes,
+        pd.concat(frames, ignore_index=True) if frames else None,
+        _averages_table(averaged) if options.tables_on_worker else None,
+        pd.concat(rows, ignore_index=True) if rows else fit_rows_frame([]),
+        parts if options.tables_on_worker else None,
+    )
+
+
+@contextlib.contextmanager
+def dask_client(*, scheduler: str | None = None, dask: str | None = None, client=None):
+    """The Dask client to run on: ``client`` as given, one connected to ``scheduler``, or
+    one on a local cluster of two workers (``dask="local"``); None when none is asked for.
+    A client made here is closed afterwards."""
+    if client is not None or (scheduler is None and dask is None):
+        yield client
+        return
+    if dask not in (None, "local"):
+        raise OptionError("dask", f"must be 'local', got {dask!r}")
+    if importlib.util.find_spec("distributed") is None:
+        raise OptionError(
+            "scheduler" if scheduler is not None else "dask", "needs the package distributed: pip install 'tromplab[dask]'"
+        )
+    from dask import config as dask_config
+    from dask.distributed import Client, LocalCluster
+
+    with contextlib.ExitStack() as stack:
+        if scheduler is not None:
+            made = stack.enter_context(Client(scheduler))
+        else:
+            # Dask's nanny starts its workers with MALLOC_TRIM_THRESHOLD_=65536, which makes
+            # glibc map and unmap every numpy array above 64 KiB: the fits ran 1.5 x slower
+            with dask_config.set({"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}):
+                cluster = stack.enter_context(LocalCluster(n_workers=2, threads_per_worker=1, dashboard_address=None))
+            made = stack.enter_context(Client(cluster))
+        yield made
+
+
+def _map_chunks(chunks, options: ChunkOptions, *, jobs, client) -> Iterator[FittedChunk]:
+    """Yield what :func:`work_on_chunk` makes of each chunk, in order: in process, in a process pool, or on Dask."""
+    yield from _map_work(work_on_chunk, chunks, options, jobs=jobs, client=client)
+
+
+def _map_work(function, chunks, argument, *, jobs, client):
+    """Yield ``function(argument, chunk)`` for each chunk, in order: in process, in a
+    process pool of ``jobs`` workers (None: all cores), or on a Dask client."""
+    work = functools.partial(_with_older_objects_frozen, function, argument)
+    with _results_kept_out_of_collections() as keep:
+        if client is not None:
+            for future in client.map(work, chunks, pure=False):
+                yield future.result()
+                keep()
+            return
+        workers = min(jobs or os.cpu_count() or 1, len(chunks))
+        if workers <= 1:
+            for result in map(work, chunks):
+                yield result
+                keep()
+            return
+        with ProcessPoolExecutor(max_workers=workers) as pool:
+            for result in pool.map(work, chunks):
+                yield result
+                keep()

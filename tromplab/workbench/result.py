@@ -1,0 +1,338 @@
+"""The result of a batch: :class:`Workbench` (every fit with its fits, ranking and averages
+tables, figures, report and results folder), :func:`load` of a saved batch, and
+:func:`model_averages` of a batch spread over workers.
+"""
+
+from __future__ import annotations
+
+import functools
+import logging
+import os
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import pandas as pd
+
+from ..curves.curve_fit import CurveFit
+from ..curves.formulas import Formula
+from ..curves.ranking import fit_verdicts, rank_formulas
+from ..curves.screening import DEFAULT_ALPHA
+from ..errors import InputError, expect_kind
+from ..loading.lab import MassBalance
+from ..loading.points import TrompPoints
+from ..loading.surveys import with_survey_columns
+from ..output.csv_parts import CsvPart
+from ..output.folder import write_results_folder
+from ..output.plotting import plot_tromp_fits
+from ..output.report import build_report, write_report
+from ..output.results import load_workbench, workbench_html, workbench_repr
+from ..validation import MAX_JOBS, check_count, check_optional, check_probability
+from .averages import _averaged_groups, _averages_of_chunk, _averages_table, averages_level
+from .fanout import ChunkResults, _map_work, _worker_count, chunked
+from .tables import by_experiment, completed_fit_rows, fit_row_settings, fit_rows_frame, output_view, ranked_among
+
+# one logger for the batch layer: its lines read "tromplab.workbench: ..." whichever module makes them
+logger = logging.getLogger(__package__)
+
+
+@dataclass(frozen=True)
+class Workbench:
+    """All fits of a batch with their tables."""
+
+    fits: tuple[CurveFit, ...]
+    failures: dict[str, str] = field(default_factory=dict)
+    formulas: tuple[Formula, ...] = ()
+    rank_by: str = "F"
+    alpha: float = DEFAULT_ALPHA
+    rank_extended: bool = False
+    notes: dict[str, tuple[str, ...]] = field(default_factory=dict)
+    water_recovery: float | None = None
+    ci: float | None = None
+    bootstrap: int = 0
+    bootstrap_method: str = "residuals"
+    seed: int = 0
+    partition_to: str = "fine"
+    size_unit: str = ""
+    inputs: tuple[TrompPoints, ...] = field(default=(), repr=False)
+    balances: tuple[MassBalance, ...] = field(default=(), repr=False)
+    intervals: pd.DataFrame | None = field(default=None, repr=False, compare=False)
+
+    def fits_table(self) -> pd.DataFrame:
+        """The table ``fits.csv`` holds: one row per experiment and formula (columns
+        :data:`FIT_COLUMNS`; with a ``water_recovery`` also ``water_recovery`` and
+        ``water_recovery_check``, the fitted bypass compared with it, see
+        :mod:`tromplab.statistics.hydrocyclone`), with the interval columns when the batch
+        was fitted with ``ci`` or ``bootstrap``, read as partition to ``partition_to``
+        (:func:`tromplab.output.views.partition_view`)."""
+        return self._output_frame.copy()
+
+    @cached_property
+    def _output_frame(self) -> pd.DataFrame:
+        return output_view(self._fits_frame, self.intervals, self.inputs, self.partition_to)
+
+    @cached_property
+    def _fits_frame(self) -> pd.DataFrame:
+        # built once: the ranking, the best fits, the CLI and the report all read it; the rows
+        # of the fits were made by the workers that fitted them (_keep_fit_rows) where there were
+        made = self.__dict__.pop("_fit_rows", None)
+        settings = fit_row_settings(self.formulas, self.rank_extended, self.rank_by, self.water_recovery)
+        return completed_fit_rows(
+            fit_rows_frame(self.fits) if made is None else made, self.fits, **settings, failures=self.failures
+        )
+
+    @property
+    def ranked_formulas(self) -> tuple[Formula, ...]:
+        """The formulas the ranking covers: the paper's nine unless extended curves are ranked too."""
+        return ranked_among(self.formulas, self.rank_extended)
+
+    def best_fit(self, experiment: str) -> CurveFit | None:
+        """The top-ranked successful fit of an experiment; among fits sharing the top rank
+        (indistinguishable by the tie rule) the one with the lowest sum of squares."""
+        best = self._best_formulas.get(experiment)
+        if best is None:
+            return None
+        return next(f for f in self.fits_of(experiment) if f.formula.id == best)
+
+    @cached_property
+    def _best_formulas(self) -> dict[str, str]:
+        # one pass over the table instead of a scan per experiment
+        table = self._fits_frame
+        rows = table[table["success"] & table["rank"].notna()].sort_values(["rank", "ssr", "equation"], kind="stable")
+        return dict(rows.drop_duplicates("experiment")[["experiment", "formula"]].itertuples(index=False))
+
+    def top_ranked(self, experiment: str) -> pd.DataFrame:
+        """Rows of the fits table that share the top rank of ``experiment`` (several when tied)."""
+        top = self._top_rows.get(experiment)
+        return self._fits_frame.iloc[0:0] if top is None else top
+
+    @cached_property
+    def _top_rows(self) -> dict[str, pd.DataFrame]:
+        # grouped once: a scan of the whole table per experiment is quadratic in the batch
+        table = self._fits_frame
+        rows = table[table["success"] & table["rank"].notna()]
+        rows = rows[rows["rank"] == rows.groupby("experiment", sort=False)["rank"].transform("min")]
+        return {experiment: group for experiment, group in rows.groupby("experiment", sort=False)}
+
+    def ranking_table(self) -> pd.DataFrame:
+        """Ranks per experiment, points and place per formula (failed experiments left out)."""
+        return self._ranking_frame.copy()
+
+    @cached_property
+    def _ranking_frame(self) -> pd.DataFrame:
+        # built once: the results folder, the console and the report all read it
+        table = self._fits_frame
+        table = table[~table["experiment"].isin(list(self.failures)) & table["rank"].notna()]
+        if table.empty:
+            return pd.DataFrame(columns=["equation", "formula", "points", "place"])
+        ranking = rank_formulas(table, by=self.rank_by, key="formula")
+        equation = {f.id: f.equation for f in self.formulas}
+        ranking.insert(0, "equation", ranking["formula"].map(equation))
+        return ranking.sort_values(["place", "equation"]).reset_index(drop=True)
+
+    def verdicts(self, experiment: str) -> list[str]:
+        """Plain-language statements on the fits of an experiment (:func:`tromplab.curves.ranking.fit_verdicts`)."""
+        table = self._fits_frame
+        fits = self.fits_of(experiment)
+        sizes = (float(fits[0].points.size.min()), float(fits[0].points.size.max())) if fits else None
+        return fit_verdicts(table[table["experiment"] == experiment], by=self.rank_by, measured_sizes=sizes)
+
+    def fits_of(self, experiment: str) -> list[CurveFit]:
+        return list(self.fits_by_experiment().get(experiment, []))
+
+    def fits_by_experiment(self) -> dict[str, list[CurveFit]]:
+        """The fits grouped by experiment, in batch order."""
+        return self._by_experiment
+
+    @cached_property
+    def _by_experiment(self) -> dict[str, list[CurveFit]]:
+        return by_experiment(self.fits)
+
+    @property
+    def experiments(self) -> list[str]:
+        return list(self._by_experiment)
+
+    # --- readable views and saving (tromplab.output.results) ---------------------------------------
+    def __repr__(self) -> str:
+        return workbench_repr(self)
+
+    def _repr_html_(self) -> str:
+        return workbench_html(self)
+
+    def averages(self, *, level: float | None = None, jobs: int | None = 1, client=None) -> pd.DataFrame:
+        """Akaike-weighted d_cut, Ep and eta per experiment (:func:`model_averages`), with
+        intervals at ``level`` (default: the batch's ``ci``, else 0.95); the table of ``averages.csv``.
+
+        Computed once per level and kept; ``jobs`` and ``client`` spread the first
+        computation over workers (the table is the same whatever they are).
+        """
+        level = averages_level(self.ci) if level is None else check_probability(level, "level")
+        check_optional(check_count, jobs, "jobs", minimum=0, maximum=MAX_JOBS)
+        if level not in self._averages_by_level:
+            self._keep_averages(level, model_averages(self, level=level, jobs=jobs, client=client))
+        return self._averages_by_level[level].copy()
+
+    @cached_property
+    def _averages_by_level(self) -> dict[float, pd.DataFrame]:
+        return {}  # a frozen dataclass keeps caches in __dict__
+
+    def _keep_from_workers(self, found: ChunkResults) -> None:
+        """What the workers made beside the fits: the rows of the fits (the table
+        :func:`fit_rows_frame` makes) and, where they made them, the model averages at the
+        batch's level and the CSV text of both tables (:meth:`formatted_parts`)."""
+        self.__dict__["_fit_rows"] = found.rows
+        if found.averages is not None:
+            self._keep_averages(averages_level(self.ci), found.averages)
+        if found.csv_parts:
+            self.__dict__["_csv_parts"] = found.csv_parts
+
+    def formatted_parts(self, table: str) -> list[CsvPart] | None:
+        """The rows of ``fits.csv`` (``table="fits"``) or ``averages.csv`` (``"averages"``, at the
+        batch's level) as the workers formatted them, chunk by chunk (None where they did not):
+        the results folder joins them instead of formatting the whole table again
+        (:func:`tromplab.output.csv_parts.csv_from_parts`)."""
+        return self.__dict__.get("_csv_parts", {}).get(table)
+
+    def __getstate__(self) -> dict:
+        # the formatted text is for writing this run's folder; a saved batch formats again
+        return {key: value for key, value in self.__dict__.items() if key != "_csv_parts"}
+
+    def _keep_averages(self, level: float, table: pd.DataFrame) -> None:
+        self._averages_by_level[level] = with_survey_columns(table, self.inputs)
+
+    def failure_table(self) -> pd.DataFrame:
+        """``experiment, formula, reason`` of every experiment or fit that failed (``failures.csv``)."""
+        rows = [{"experiment": e, "formula": "", "reason": reason} for e, reason in self.failures.items()]
+        rows += [
+            {"experiment": fit.experiment, "formula": fit.formula.id, "reason": fit.fit.message or "the fit failed"}
+            for fit in self.fits
+            if not fit.success
+        ]
+        return pd.DataFrame(rows, columns=["experiment", "formula", "reason"])
+
+    def check_fitted(self, source: str = "") -> None:
+        """Raise :class:`~tromplab.errors.InputError` when no formula could be fitted to any
+        experiment (the command line then writes nothing and exits 1)."""
+        if any(fit.success for fit in self.fits):
+            return
+        reasons = dict(self.failures)
+        for fit in self.fits:
+            reasons.setdefault(fit.experiment, f"{fit.formula.id}: {fit.fit.message}")
+        listed = "; ".join(f"{experiment}: {reason}" for experiment, reason in reasons.items())
+        raise InputError(f"no formula could be fitted to any experiment ({listed})", source=str(source) or None)
+
+    def plot(self, experiment: str | None = None, *, ax=None, **options):
+        """Measured points and fitted curves of one experiment (the first by default),
+        best fit thick with its band; ``options`` go to :func:`tromplab.output.plotting.plot_tromp_fits`.
+
+        Returns the matplotlib Axes.
+        """
+        experiment = self.experiments[0] if experiment is None else experiment
+        if experiment not in self.experiments:
+            raise KeyError(f"no experiment {experiment!r}; experiments: {', '.join(self.experiments)}")
+        return plot_tromp_fits(self.fits_of(experiment), ax=ax, best=self.best_fit(experiment), **options)
+
+    def report(
+        self,
+        path,
+        *,
+        balances=None,
+        level: float | None = None,
+        size_unit: str | None = None,
+        title: str = "tromplab report",
+        jobs: int | None = 1,
+    ):
+        """Write the HTML report (and its Markdown twin) to ``path``, as ``tromplab report`` does.
+
+        ``balances`` (default: those the batch was read with, :func:`tromplab.read_experiments`),
+        ``level`` (default: the batch's ``ci``, else 0.95) and ``size_unit`` (default: the
+        batch's) as for the command; ``jobs`` worker processes draw the per-experiment
+        figures (None or 0: all cores; the report is the same for any number).  Returns
+        ``{file name: path}`` of the written files.
+        """
+        check_optional(check_probability, level, "level")
+        check_optional(check_count, jobs, "jobs", minimum=0, maximum=MAX_JOBS)
+        sources = dict.fromkeys(fit.points.source for fit in self.fits if fit.points.source)
+        built = build_report(
+            self,
+            list(self.balances if balances is None else balances),
+            source=", ".join(sources) or "data given in Python",
+            level=(self.ci or 0.95) if level is None else level,
+            size_unit=self.size_unit if size_unit is None else size_unit,
+            title=title,
+            partition_to=self.partition_to,
+            map_work=functools.partial(_map_work, jobs=jobs or None, client=None),
+        )
+        return write_report(built, path)
+
+    def save(
+        self,
+        directory,
+        *,
+        figures: str = "auto",
+        format: str = "csv",
+        excel: bool = False,
+        reloadable: bool = False,
+        jobs: int | None = 1,
+    ):
+        """Write the results folder, the same files as ``tromplab fit ... -o DIRECTORY``:
+        ``fits``, ``ranking`` and ``averages`` tables, figures, ``failures.csv`` when fits
+        failed, ``results.xlsx`` with ``excel`` (only the workbook when ``directory`` ends in
+        ``.xlsx``); with ``reloadable`` also the pickled batch, so :func:`load` reads it back.
+        ``jobs`` worker processes draw the per-experiment figures (None or 0: all cores; the
+        files are the same for any number).  See
+        :func:`tromplab.output.folder.write_results_folder`.  Returns ``{file name: path}``.
+        """
+        check_optional(check_count, jobs, "jobs", minimum=0, maximum=MAX_JOBS)
+        return write_results_folder(
+            self,
+            directory,
+            figures=figures,
+            format=format,
+            excel=excel,
+            reloadable=reloadable,
+            map_work=functools.partial(_map_work, jobs=jobs or None, client=None),
+        )
+
+
+def load(directory) -> Workbench:
+    """A batch saved by :meth:`Workbench.save` (refused when saved by another major version).
+
+    Only load directories you trust: the batch is unpickled.
+
+    Parameters
+    ----------
+    directory : str or path-like
+        A directory written by :meth:`Workbench.save` with ``reloadable=True`` (the
+        pickled batch and its manifest are written only then).
+    """
+    expect_kind(directory, (str, os.PathLike), "directory", "a path (str or path-like) to a saved results folder")
+    return load_workbench(directory)
+
+
+def model_averages(bench: Workbench, *, level: float = 0.95, jobs: int | None = 1, client=None) -> pd.DataFrame:
+    """Akaike-weighted d_cut, Ep and eta per experiment (the formulas ranked by the batch).
+
+    Parameters
+    ----------
+    bench : Workbench
+    level : float
+        Confidence level of the intervals, 0..1.
+    jobs, client
+        Spread the experiments over worker processes or a Dask cluster as
+        :func:`fit_experiments` does; the table is the same whatever they are.
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``experiment, quantity, value, stderr, low, high`` and ``weight_<formula>`` columns.
+
+    """
+    expect_kind(bench, Workbench, "bench", "a Workbench (tromplab.fit_experiments)")
+    check_probability(level, "level")
+    check_optional(check_count, jobs, "jobs", minimum=0, maximum=MAX_JOBS)
+    groups = _averaged_groups(bench.fits_by_experiment().values(), [f.id for f in bench.ranked_formulas])
+    chunks = chunked(groups, workers=_worker_count(jobs, client))
+    logger.info("model averages of %d experiment(s) at level %g", len(groups), level)
+    return _averages_table(
+        [frame for chunk in _map_work(_averages_of_chunk, chunks, level, jobs=jobs, client=client) for frame in chunk]
+    )

@@ -1,0 +1,213 @@
+"""What a worker does with one chunk of experiments: the fits of every formula (batched
+engine or single fits), their intervals, the data notes, the rows of the fits table and,
+where asked, the model averages and the CSV text of both tables.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import pandas as pd
+
+from ..curves.curve_fit import CurveFit, as_failure_if_implausible, attach_diagnostics, attach_indices, failed_fit, fit_formula
+from ..curves.engine import fit_formula_batch, measured_start
+from ..curves.formulas import is_batchable, select_formulas
+from ..curves.measured import unbracketed_cut
+from ..loading.points import TrompPoints
+from ..loading.surveys import with_survey_columns
+from ..output.csv_parts import CsvPart, csv_part
+from ..statistics.uncertainty import interval_columns
+from .averages import _averaged_groups, _averages_of_chunk, _averages_table, averages_level
+from .inputs import data_notes
+from .tables import by_experiment, completed_fit_rows, fit_rows_frame, output_view
+
+# one logger for the batch layer: its lines read "tromplab.workbench: ..." whichever module makes them
+logger = logging.getLogger(__package__)
+
+
+@dataclass(frozen=True)
+class ChunkOptions:
+    """The options of a batch that a worker needs for each chunk: made by
+    :func:`~tromplab.workbench.fit_experiments` from its keywords (checked there), completed by
+    the fan-out with ``width`` and ``tables_on_worker``, and read by :func:`work_on_chunk`.
+
+    Attributes
+    ----------
+    formulas : tuple of str
+        Ids of the formulas to fit, in the batch's order.
+    ranked : tuple of str
+        Ids of the formulas the ranking and the model averages cover.
+    alpha : float
+        Significance level of the Fisher screen.
+    delta_max : float or None
+        Largest feed size for the misplacement index (None: per experiment).
+    engine : bool
+        Fit with the batched engine (else one lmfit fit per experiment and formula).
+    size_unit : str
+        Unit of the sizes, for labels and records.
+    ci : float or None
+        Level of the profile-likelihood and delta-method intervals (None: none).
+    bootstrap : int
+        Bootstrap resamples per fit (0: none), drawn by ``bootstrap_method`` from ``seed``.
+    bootstrap_method : str
+        ``"residuals"`` or ``"cases"``.
+    seed : int
+        Seed of the bootstrap; a fit's resamples depend on it and on that fit only.
+    rank_by : str
+        ``"F"`` or ``"aicc"``: the order of the ranks in the fits table.
+    water_recovery : float or None
+        Share of the feed water to the underflow, for the fits table's check of the bypass.
+    partition_to : str
+        ``"fine"`` or ``"coarse"``: the product whose partition the tables show.
+    width : int
+        Points every chunk is padded to (the largest experiment of the batch), so that the
+        fits do not depend on how the batch is cut.
+    tables_on_worker : bool
+        Also make the model averages (at ``ci``, else 0.95) and the CSV text of the chunk's
+        rows of ``fits.csv`` and ``averages.csv`` (where there are workers; in one process
+        the main process makes them when they are first asked for).
+    """
+
+    formulas: tuple[str, ...]
+    ranked: tuple[str, ...]
+    alpha: float
+    delta_max: float | None
+    engine: bool
+    size_unit: str
+    ci: float | None
+    bootstrap: int
+    bootstrap_method: str
+    seed: int
+    rank_by: str
+    water_recovery: float | None
+    partition_to: str
+    width: int = 0
+    tables_on_worker: bool = False
+
+
+class FittedChunk(NamedTuple):
+    """What :func:`work_on_chunk` sends back from one chunk: its fits, the data notes
+    (``{experiment: notes}``), the interval columns (None without ``ci`` or ``bootstrap``),
+    the rows of the fits before ranking, and with ``tables_on_worker`` the model averages
+    (one table per chunk, in a list) and the CSV text of the tables
+    (``{"fits": CsvPart, "averages": CsvPart}``)."""
+
+    fits: list[CurveFit]
+    notes: dict[str, tuple[str, ...]]
+    intervals: pd.DataFrame | None
+    rows: pd.DataFrame
+    averages: list[pd.DataFrame] | None = None
+    csv_parts: dict[str, CsvPart] | None = None
+
+
+def fit_chunk(
+    experiments: Sequence[TrompPoints], *, formulas, alpha, delta_max, engine=True, size_unit="", width=None
+) -> list[CurveFit]:
+    """Fits of ``formulas`` to ``experiments``, experiment by experiment in formula order.
+
+    Batchable formulas go through the engine for all experiments at once, padded to
+    ``width`` points; the others (and a formula whose batch raised) are fitted one by one.
+    """
+    per_formula = []
+    measured = [measured_start(points) for points in experiments] if engine else None  # shared by the formulas
+    for formula in select_formulas(formulas):
+        batch = None
+        if engine and is_batchable(formula):
+            try:
+                batch = fit_formula_batch(
+                    experiments, formula, alpha=alpha, delta_max=delta_max, size_unit=size_unit, width=width, measured=measured
+                )
+            except Exception as error:  # a broken batch falls back to single fits, which report per fit
+                logger.warning(
+                    "batched engine failed on formula %s for %d experiment(s) (%s: %s); fitting them one at a time instead",
+                    formula.id,
+                    len(experiments),
+                    type(error).__name__,
+                    error,
+                )
+        per_formula.append(batch or [_fit_guarded(points, formula, alpha, delta_max, size_unit) for points in experiments])
+    fits = [fits[i] for i in range(len(experiments)) for fits in per_formula]
+    attach_indices(fits)
+    fits = [as_failure_if_implausible(fit) for fit in fits]  # a result out of its range is a failure
+    attach_diagnostics(fits)
+    reasons = {}  # unbracketed is a property of the points, which the formulas of an experiment share
+    for fit in fits:
+        if id(fit.points) not in reasons:
+            reasons[id(fit.points)] = unbracketed_cut(fit.points)
+        fit.__dict__["unbracketed"] = reasons[id(fit.points)]  # where functools.cached_property keeps it
+    for fit in fits:
+        derive(fit)
+    return fits
+
+
+def derive(fit: CurveFit) -> CurveFit:
+    """Compute the cached screen, indices, diagnostics, break point and warnings of ``fit`` now.
+
+    The chunk's worker does it, so that they travel back with the pickled fit instead of
+    being computed one by one in the parent when the tables are built (the serial part
+    that kept two workers from being twice as fast as one).
+    """
+    for name in ("screen", "indices", "diagnostics", "x_break", "warnings"):
+        getattr(fit, name)
+    return fit
+
+
+def work_on_chunk(options: ChunkOptions, chunk: Sequence[TrompPoints]) -> FittedChunk:
+    """What a worker makes of ``chunk`` (consecutive experiments of the batch) with ``options``:
+    the fits, the data notes, the interval columns (with ``ci`` or ``bootstrap``), the rows of
+    the fits table and, with ``tables_on_worker``, the model averages and the CSV text of both
+    tables.  Each result depends on the chunk's own experiments only, so the tables are the
+    same however the batch is cut."""
+    # the notes on the points are made in the worker too: in the parent they were a serial
+    # Spearman test per experiment (seconds at 10,000 experiments)
+    notes = {points.experiment: found for points in chunk if (found := data_notes(points))}
+    fits = fit_chunk(
+        chunk,
+        formulas=options.formulas,
+        alpha=options.alpha,
+        delta_max=options.delta_max,
+        engine=options.engine,
+        size_unit=options.size_unit,
+        width=options.width,
+    )
+    columns = None
+    if options.ci or options.bootstrap:
+        columns = interval_columns(
+            fits,
+            level=options.ci,
+            n_bootstrap=options.bootstrap,
+            method=options.bootstrap_method,
+            seed=options.seed,
+            width=options.width,
+        )
+    rows = fit_rows_frame(fits)  # the rows of fits.csv too: a serial 40 us per fit in the main process
+    if not options.tables_on_worker:
+        return FittedChunk(fits, notes, columns, rows)
+    averaged = _averages_of_chunk(averages_level(options.ci), _averaged_groups(by_experiment(fits).values(), options.ranked))
+    # the text of the chunk's rows: 2.2 s of serial formatting at 10,000 experiments
+    completed = completed_fit_rows(
+        rows.copy(),
+        fits,
+        failures={},
+        formulas=options.formulas,
+        ranked=options.ranked,
+        rank_by=options.rank_by,
+        water_recovery=options.water_recovery,
+    )
+    parts = {"fits": csv_part(output_view(completed, columns, chunk, options.partition_to))}
+    if averaged:
+        parts["averages"] = csv_part(with_survey_columns(_averages_table(averaged), chunk))
+    return FittedChunk(fits, notes, columns, rows, averaged, parts)
+
+
+def _fit_guarded(points, formula, alpha, delta_max, size_unit="") -> CurveFit:
+    size_unit = size_unit or getattr(points, "size_unit", "")  # the unit the loader read from the column name
+    try:
+        return fit_formula(points, formula, alpha=alpha, delta_max=delta_max, size_unit=size_unit)
+    except Exception as error:  # a batch reports a broken fit instead of stopping
+        return failed_fit(
+            points, formula, f"{type(error).__name__}: {error}", alpha=alpha, delta_max=delta_max, size_unit=size_unit
+        )
