@@ -176,3 +176,9 @@ def test_catalogue_has_a_section_for_every_density_curve(docs_ext, tmp_path):
         for parameter in curve.parameters:
             assert f"[{parameter.lower:g}, {parameter.upper:g}]" in page, (curve.id, parameter.name)
     assert page.count(".. math::") == len(DENSITY_CURVES)
+
+
+def test_a_function_in_a_formula_is_not_shown_as_an_option(docs_ext):
+    """``-exp(t)`` in a curve's notes is maths: a literal there broke the catalogue's reST."""
+    assert "``" not in docs_ext._rst_text("P = 1 - exp(-exp(t)) rises slowly")
+    assert "``--size-unit``" in docs_ext._rst_text("give --size-unit mm")

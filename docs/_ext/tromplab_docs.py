@@ -46,7 +46,8 @@ def _literal(text: str) -> str:
 
 #: An option as typed in a help text (``--size-unit``, ``-o``, ``--fine-yield=0.3``): shown as a
 #: literal, so that the HTML shows it as typed (Sphinx's smart quotes turn a bare ``--`` into a dash).
-OPTION_IN_TEXT = re.compile(r"(?<![\w-])(--?[A-Za-z][\w-]*(?:=[\w.]+)?)")
+#: A name followed by a parenthesis is a function in a formula (``1 - exp(-exp(t))``), not an option.
+OPTION_IN_TEXT = re.compile(r"(?<![\w-])(--?[A-Za-z][\w-]*(?:=[\w.]+)?)(?![\w(-])")
 
 
 def _rst_plain(text: str) -> str:
