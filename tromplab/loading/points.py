@@ -225,12 +225,6 @@ class TrompPoints:
         return frame
 
 
-def _shown(values, limit: int = 60) -> str:
-    """``repr(values)`` cut to ``limit`` characters, for a message."""
-    text = repr(values)
-    return text if len(text) <= limit else text[: limit - 3] + "..."
-
-
 def read_points(
     path, *, sheet=None, size_unit: str | None = None, sep: str | None = None, decimal: str | None = None
 ) -> list[TrompPoints]:
