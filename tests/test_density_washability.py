@@ -8,6 +8,7 @@ import pytest
 from scipy import optimize, stats
 
 from tromplab.cli import main
+from tromplab.cli.density_predict import run_predict
 from tromplab.density.washability import (
     PREDICTION_COLUMNS,
     partition_curve,
@@ -17,7 +18,6 @@ from tromplab.density.washability import (
     rho50_for_floats_ash,
     washability_from_arrays,
 )
-from tromplab.density_predict_command import run_predict
 from tromplab.errors import InputError, OptionError
 
 from .conftest import DATASETS, write
@@ -296,8 +296,8 @@ def test_fractions_of_exactly_the_target_ash_are_taken_whole():
 
 
 def test_the_command_offers_every_registry_curve():
+    from tromplab.cli.density_predict import PREDICT_CURVES
     from tromplab.density.curves import DENSITY_CURVES
-    from tromplab.density_predict_command import PREDICT_CURVES
 
     # declared in the command module so that building the parser imports no numerical library
     assert PREDICT_CURVES == tuple(curve.id for curve in DENSITY_CURVES)

@@ -107,4 +107,4 @@ def test_the_cli_docstring_names_every_command():
     parser = cli.build_parser()
     (commands,) = [action for action in parser._actions if isinstance(action, argparse._SubParsersAction)]
     for name in commands.choices:
-        assert f"``{name}" in cli.__doc__, f"the docstring of tromplab/cli.py does not name {name}"
+        assert f"``{name}" in cli.__doc__, f"the docstring of tromplab/cli/__init__.py does not name {name}"

@@ -248,16 +248,16 @@ def test_a_signal_during_the_swap_waits_for_it_and_says_the_new_results_were_wri
 
 
 def test_a_late_sigint_after_the_outputs_ends_with_its_message_and_130(tmp_path, runs, monkeypatch, capsys):
-    from tromplab import cli
+    from tromplab.cli import fit as fit_command
 
     out, new_points = _previous_run(tmp_path, runs)
-    monkeypatch.setattr(cli, "_print_written", _interrupting(cli._print_written, signal.SIGINT))
+    monkeypatch.setattr(fit_command, "_print_written", _interrupting(fit_command._print_written, signal.SIGINT))
     assert main(["fit", str(new_points), "-o", str(out), "--no-figures"]) == 130
     assert capsys.readouterr().err.strip().splitlines() == [
         f"tromplab: interrupted after the new results were written, complete, to {out}"
     ]
     assert main(["fit", str(new_points), "-o", str(tmp_path / "other"), "--alpha", "2"]) == 2  # the record is per command
-    monkeypatch.setattr(cli, "_print_fits", _interrupting(cli._print_fits, signal.SIGINT))
+    monkeypatch.setattr(fit_command, "_print_fits", _interrupting(fit_command._print_fits, signal.SIGINT))
     assert main(["fit", str(new_points), "-o", str(tmp_path / "third"), "--no-figures"]) == 130
     assert f"complete, to {tmp_path / 'third'}" in capsys.readouterr().err
 

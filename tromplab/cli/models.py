@@ -18,10 +18,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .classifiers.pulp import COEFFICIENT_RANGES, FREQUENCY_RANGE, MAX_PRODUCTIVITY, PRESSURE_RANGE, PulpScreen
-from .errors import InputError, OptionError, ResultError
-from .output.outputs import check_output_file, write_files
-from .validation import check_count, check_probability, check_range, check_share, cli_type
+from ..classifiers.pulp import COEFFICIENT_RANGES, FREQUENCY_RANGE, MAX_PRODUCTIVITY, PRESSURE_RANGE, PulpScreen
+from ..errors import InputError, OptionError, ResultError
+from ..output.outputs import check_output_file, write_files
+from ..validation import check_count, check_probability, check_range, check_share, cli_type
 
 # The parser takes only PulpScreen's fields (its module imports numpy alone until a screen is
 # fitted or optimised); each command imports the models and readers it needs when it runs, so
@@ -65,7 +65,7 @@ def add_model_commands(commands) -> None:
 def _write_csv(table: pd.DataFrame, output: Path | None) -> None:
     if output is None:
         return
-    from .output.csv_parts import write_csv
+    from ..output.csv_parts import write_csv
 
     written = write_files({output.name: lambda p: write_csv(table, p)}, output.parent)
     print(f"\nWrote: {written[output.name]}")
@@ -108,7 +108,7 @@ def _print_fit(fit, table: pd.DataFrame, level: float) -> None:
 
 def _check_paths(args) -> None:
     """Input and ``-o`` checked before any work, as ``tromplab fit`` does (exit 1, nothing written)."""
-    from .loading.tables import check_input_file
+    from ..loading.tables import check_input_file
 
     data = getattr(args, "data", None)
     if data is not None:
@@ -257,7 +257,7 @@ def _initial(args) -> list[float]:
 
 
 def run_layer_simulate(args) -> int:
-    from .classifiers.layer import LayerModel
+    from ..classifiers.layer import LayerModel
 
     _check_paths(args)
     try:
@@ -294,8 +294,8 @@ def run_layer_simulate(args) -> int:
 
 
 def run_layer_fit(args) -> int:
-    from .classifiers.layer import fit_layer_model
-    from .loading.tables import read_table
+    from ..classifiers.layer import fit_layer_model
+    from ..loading.tables import read_table
 
     _check_paths(args)
     table = read_table(args.data)
@@ -454,8 +454,8 @@ def _check_rate(rate: float, where: str) -> None:
 
 
 def run_pulp_fit(args) -> int:
-    from .classifiers.pulp import fit_pulp_screen
-    from .loading.tables import read_table
+    from ..classifiers.pulp import fit_pulp_screen
+    from ..loading.tables import read_table
 
     _check_paths(args)
     table = read_table(args.data)
@@ -577,7 +577,7 @@ def _add_choice_options(choice) -> None:
 
 
 def run_optimize(args) -> int:
-    from .classifiers.choice import choose, sieve_speed_problem
+    from ..classifiers.choice import choose, sieve_speed_problem
 
     _check_paths(args)
     if not args.speed_min < args.speed_max:

@@ -13,13 +13,12 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from .output.outputs import check_output_folder
-from .validation import check_probability, cli_type
+from ..output.outputs import check_output_folder
+from ..validation import check_probability, cli_type
+from .startup import EXIT_OK, EXIT_PARTIAL  # done, and some tests without any fitted curve
 
 #: What ``density fit`` imports when it runs (imported before it starts, under the CLI's signal handling).
 FIT_IMPORTS = ("tromplab.density", "tromplab.loading.tables", "statsmodels.api", "scipy.stats", "scipy.optimize")
-#: Exit codes of the command line (tromplab.cli): done, and some tests without any fitted curve.
-EXIT_OK, EXIT_PARTIAL = 0, 3
 
 
 def add_density_command(commands) -> argparse.ArgumentParser:
@@ -75,7 +74,7 @@ def _add_fit(sub) -> None:
 
 def run_density_fit(args) -> int:
     """Run ``tromplab density fit``: read, fit, write the folder, print the summary and the files written."""
-    from .density import fit_density
+    from ..density import fit_density
 
     check_output_folder(args.outdir, inputs=[args.file])
     result = fit_density(args.file, ci=args.ci, curves=args.curves, method=args.method, floats_yield=args.floats_yield,

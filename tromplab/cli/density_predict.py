@@ -13,10 +13,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from .errors import OptionError
-from .options import DEFAULT_SUM_TOLERANCE_PCT
-from .output.outputs import check_output_file, write_files
-from .validation import check_cut_density, check_non_negative, check_percent, check_positive, check_share, cli_type
+from ..errors import OptionError
+from ..options import DEFAULT_SUM_TOLERANCE_PCT
+from ..output.outputs import check_output_file, write_files
+from ..validation import check_cut_density, check_non_negative, check_percent, check_positive, check_share, cli_type
 
 #: The curves ``--curve`` offers: the registry's ids, written out so that building the parser imports no
 #: numerical library (a test checks them against the registry).
@@ -74,8 +74,8 @@ def run_predict(
     """
     import pandas as pd
 
-    from .density.washability import predict, read_washability
-    from .loading.tables import check_input_file
+    from ..density.washability import predict, read_washability
+    from ..loading.tables import check_input_file
 
     check_input_file(washability)
     output = check_output_file(output, inputs=[washability], option="output")
@@ -97,7 +97,7 @@ def run_predict(
 
 
 def _write_csv(table, path: Path) -> dict:
-    from .output.csv_parts import write_csv  # pandas: imported when the command runs, not when the parser is built
+    from ..output.csv_parts import write_csv  # pandas: imported when the command runs, not when the parser is built
 
     path.absolute().parent.mkdir(parents=True, exist_ok=True)
     return write_files({path.name: lambda target: write_csv(table, target)}, path.absolute().parent)

@@ -1,0 +1,195 @@
+"""Command-line interface: the ``tromplab`` parser built from one module per command, and the
+dispatch that runs a command with the shared start-up.
+
+Commands (``tromplab COMMAND -h`` for each; the command-line reference of the docs is generated
+from :func:`build_parser`), each in its own module of this package:
+
+- ``formulas`` (the formula catalogue): :mod:`~tromplab.cli.formulas`;
+- ``fit`` (fit, screen and rank on points or lab tables): :mod:`~tromplab.cli.fit`;
+- ``report`` (HTML and Markdown report), ``compare`` (did the sharpness or the cut change) and
+  ``export`` (parameters in a simulator's convention): :mod:`~tromplab.cli.report`;
+- ``trend`` (control charts over surveys): :mod:`~tromplab.cli.trend`;
+- ``points`` and ``balance`` (lab table to Tromp points, mass balance): :mod:`~tromplab.cli.points`;
+- ``sieve identify | pg | bin``: :mod:`~tromplab.cli.sieve`;
+- ``rank`` (F table to ranks): :mod:`~tromplab.cli.rank`;
+- ``layer simulate | fit``, ``pulp optimum | fit`` and ``optimize`` (the process models):
+  :mod:`~tromplab.cli.models`;
+- ``circuit`` (plant survey reconciled; its work is in :mod:`tromplab.circuit_command`):
+  :mod:`~tromplab.cli.circuit`;
+- ``density fit | predict`` (density partition of gravity separators):
+  :mod:`~tromplab.cli.density` and :mod:`~tromplab.cli.density_predict`.
+
+Shared by the commands: :mod:`~tromplab.cli.startup` (exit codes, signals, verbosity, progress
+bars, the parser classes, errors in the command line's words), :mod:`~tromplab.cli.option_groups`
+(options declared once) and :mod:`~tromplab.cli.printing` (console tables).  The console script
+enters through :mod:`tromplab._launch`, which handles SIGINT and SIGTERM before numpy is imported.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import os
+import sys
+import traceback
+import warnings
+
+from .._version import __version__
+from ..errors import InputError, OptionError, ResultError, YieldWarning
+from ..output.outputs import forget_written
+from ..validation import state_ranges
+from . import circuit, fit, formulas, points, rank, report, sieve, trend
+from .density import add_density_command
+from .density_predict import add_predict_parser
+from .models import add_model_commands
+from .option_groups import shared_groups
+from .startup import (
+    EXIT_INPUT,
+    EXIT_INTERNAL,
+    EXIT_OK,
+    EXIT_PARTIAL,
+    EXIT_USAGE,
+    CommandParser,
+    SubcommandParser,
+    Terminated,
+    cli_message,
+    cli_words,
+    global_options,
+    interrupted,
+    raise_terminated,
+    show_input_notes,
+    sigterm_as_interrupt,
+    verbosity,
+    words_of,
+)
+
+# Each command imports the modules it needs when it runs: building the parser takes only the
+# light modules above, so --version, -h and a command that needs little (export) do not pay
+# for scipy.stats, lmfit, matplotlib and statsmodels at start-up (nothing imports the CLI, so
+# the imports inside the functions hide no cycle).
+
+__all__ = ["Terminated", "build_parser", "interrupted", "main", "raise_terminated"]
+
+
+def main(argv=None, *, on_start=None) -> int:
+    """Run the command line; returns the exit code (0 done, 1 bad input, 2 usage,
+    3 partial, 70 internal error, 130 interrupted by SIGINT, 143 terminated by SIGTERM).
+
+    ``on_start`` (from :mod:`tromplab._launch`) is called when the command has imported its
+    modules and starts its work: until then an interrupt ends the start-up at once.
+    """
+    parser = build_parser()
+    forget_written()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as stop:  # argparse stops on a usage error (2) or after --help/--version (0)
+        return stop.code if isinstance(stop.code, int) else EXIT_USAGE
+    except KeyboardInterrupt:
+        return interrupted()
+    if not hasattr(args, "run"):
+        parser.print_help()
+        return EXIT_USAGE
+    path = [
+        name
+        for name in (args.command, *(getattr(args, f"{n}_command", None) for n in ("sieve", "layer", "pulp", "density")))
+        if name
+    ]
+    command = " ".join(("tromplab", *path))
+    own = _command_parser(parser, path)  # its options, not another command's, name the Python words
+    try:
+        _check_input_paths(args, own)  # before the imports: a missing file answers at once
+        # a command imports its modules before it starts: an interrupt inside an import can stop
+        # a module half-initialised (an ImportError, or Python's exit by SIGINT instead of 130)
+        for module in getattr(args, "imports", ()):
+            importlib.import_module(module)
+        if on_start is not None:
+            on_start()
+        with sigterm_as_interrupt(), warnings.catch_warnings(), verbosity(args), words_of(parser):
+            warnings.simplefilter("ignore", YieldWarning)  # printed from the balance notes instead
+            warnings.showwarning = show_input_notes(warnings.showwarning)
+            return args.run(args)
+    except BrokenPipeError:  # output piped into head or less and closed early
+        sys.stderr.close()
+        return EXIT_OK
+    except KeyboardInterrupt as interruption:
+        return interrupted(interruption)
+    except InputError as error:  # the project's own input, option and output errors
+        if args.debug:
+            traceback.print_exc()
+        print(f"{command}: error: {cli_message(error, own)}", file=sys.stderr)
+        return EXIT_USAGE if isinstance(error, OptionError) else EXIT_INPUT
+    except ResultError as error:  # a result outside its range is a failure, not a result
+        print(f"{command}: failed: {cli_words(str(error), own)}", file=sys.stderr)
+        return EXIT_PARTIAL
+    except Exception as error:  # anything else is a bug in tromplab: say so, do not dress it up as bad input
+        if args.debug:
+            raise
+        print(
+            f"{command}: internal error (a bug in tromplab, please report it): {type(error).__name__}: {error}\n"
+            f"  run again with --debug for the traceback",
+            file=sys.stderr,
+        )
+        return EXIT_INTERNAL
+
+
+#: Positional arguments that name an input file, checked before a command imports its modules.
+INPUT_FILE_ARGUMENTS = ("input", "data", "table", "flowsheet", "measurements")
+
+
+def _check_input_paths(args, command_parser: argparse.ArgumentParser) -> None:
+    """Every input file of the command exists and can be read (the loaders check it again).
+    Only positional arguments are input files (an option such as ``--table`` may name an output)."""
+    from ..loading.paths import check_input_file
+
+    positional = {action.dest for action in command_parser._actions if not action.option_strings}
+    for name in INPUT_FILE_ARGUMENTS:
+        path = getattr(args, name, None) if name in positional else None
+        if isinstance(path, (str, os.PathLike)):
+            check_input_file(path, option=name)
+
+
+def _command_parser(parser: argparse.ArgumentParser, path) -> argparse.ArgumentParser:
+    """The parser of the (sub)command ``path`` (``["sieve", "identify"]``) under ``parser``."""
+    for name in path:
+        actions = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction) and name in a.choices]
+        if not actions:
+            break
+        parser = actions[0].choices[name]
+    return parser
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``tromplab`` parser: one builder per command, from the option groups declared once."""
+    parser = CommandParser(
+        prog="tromplab",
+        description="Fit, screen and rank separation (Tromp) curves.",
+        parents=[global_options(in_subcommand=False)],
+        epilog="Exit codes: 0 done, 1 bad input (nothing written), 2 usage, 3 partial "
+        "(failures listed in failures.csv), 70 internal error, 130 interrupted, 143 terminated.",
+    )
+    parser.add_argument("--version", action="version", version=f"tromplab {__version__}")
+    commands = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=SubcommandParser)
+    groups = shared_groups()
+    for add_command in (
+        formulas.add_formulas,
+        fit.add_fit,
+        report.add_report,
+        report.add_compare,
+        report.add_export,
+        trend.add_trend,
+        points.add_points,
+        points.add_balance,
+    ):
+        add_command(commands, groups)
+    sieve.add_sieve(commands)
+    rank.add_rank(commands)
+    add_model_commands(commands)  # layer, pulp, optimize
+    circuit._add_circuit_command(commands)
+    density = add_density_command(commands)  # density fit (the sub-commands and their work are in cli.density)
+    add_predict_parser(density.density_commands)  # density predict (cli.density_predict)
+    state_ranges(parser)
+    return parser
+
+
+if __name__ == "__main__":
+    sys.exit(main())

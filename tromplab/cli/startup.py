@@ -1,0 +1,243 @@
+"""The shared start-up of every command: exit codes, signals, verbosity, progress bars, the
+parser classes and the command line's wording of errors.
+
+Nothing here imports the numerical stack, so building the parser and checking a command's
+input paths stay fast (``tromplab fit nosuch.csv`` answers before numpy is loaded).
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import contextvars
+import logging
+import os
+import re
+import signal
+import sys
+import textwrap
+
+from ..errors import InputError, InputNote, OptionError
+from ..output.outputs import written_outputs
+
+#: Exit codes (documented in the README and docs/reliability.md).
+EXIT_OK, EXIT_INPUT, EXIT_USAGE, EXIT_PARTIAL, EXIT_INTERNAL, EXIT_INTERRUPTED = 0, 1, 2, 3, 70, 130
+EXIT_TERMINATED = 143  # 128 + SIGTERM, as shells report a process ended by SIGTERM
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised in the main thread so the same clean-up runs as for Ctrl-C."""
+
+
+def raise_terminated(signum, frame):
+    """Signal handler: SIGTERM becomes :class:`Terminated`."""
+    raise Terminated
+
+
+@contextlib.contextmanager
+def sigterm_as_interrupt():
+    """Turn SIGTERM into :class:`Terminated` while the command runs (main thread only)."""
+    try:
+        previous = signal.signal(signal.SIGTERM, raise_terminated)
+    except ValueError:  # not the main thread (main() called from a worker thread): leave signals alone
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def interrupted(interruption=None) -> int:
+    """Print the one-line message for an interrupted run; return 130 (SIGINT) or 143 (SIGTERM).
+
+    The message says what is on disk: the previous outputs, or the new ones when the run was
+    interrupted after it had put them in place (they are complete: a swap is one step)."""
+    what = "terminated (SIGTERM)" if isinstance(interruption, Terminated) else "interrupted"
+    written = written_outputs()
+    if written:
+        places = ", ".join(dict.fromkeys(str(path) for path in written))
+        print(f"tromplab: {what} after the new results were written, complete, to {places}", file=sys.stderr)
+    else:
+        print(f"tromplab: {what}; the output folder was left as it was", file=sys.stderr)
+    return EXIT_TERMINATED if isinstance(interruption, Terminated) else EXIT_INTERRUPTED
+
+
+@contextlib.contextmanager
+def verbosity(args):
+    """``--quiet`` silences the tables and progress on standard output and error (errors and
+    warnings stay); ``-v`` adds the library's informational log lines."""
+    handler = None
+    library = logging.getLogger("tromplab")
+    previous_level = library.level
+    if args.verbose:  # a handler for this command only: main() may run many times in one process
+        handler = logging.StreamHandler(sys.stderr)
+        handler.setFormatter(logging.Formatter("%(name)s: %(message)s"))
+        library.addHandler(handler)
+        library.setLevel(logging.INFO if args.verbose == 1 else logging.DEBUG)
+    try:
+        if args.quiet:
+            with open(os.devnull, "w") as sink, contextlib.redirect_stdout(sink):
+                yield
+        else:
+            yield
+    finally:
+        if handler is not None:
+            library.removeHandler(handler)
+            library.setLevel(previous_level)
+
+
+def show_input_notes(show):
+    """A ``warnings.showwarning`` that prints input notes (e.g. a detected CSV dialect) as one line."""
+
+    def showwarning(message, category, filename, lineno, file=None, line=None):
+        if issubclass(category, InputNote):
+            print(textwrap.fill(f"note: {message}", width=98, break_on_hyphens=False), file=sys.stderr)
+        else:
+            show(message, category, filename, lineno, file, line)
+
+    return showwarning
+
+
+def global_options(*, in_subcommand: bool) -> argparse.ArgumentParser:
+    """--quiet, -v and --debug, accepted before or after the command."""
+    options = argparse.ArgumentParser(add_help=False)
+    default = argparse.SUPPRESS if in_subcommand else None
+    group = options.add_argument_group("general")
+    group.add_argument("-q", "--quiet", action="store_true", default=default or False, help="print only errors and warnings")
+    group.add_argument("-v", "--verbose", action="count", default=default or 0, help="more detail (repeat for more)")
+    group.add_argument("--debug", action="store_true", default=default or False, help="show the Python traceback of an error")
+    return options
+
+
+class CommandParser(argparse.ArgumentParser):
+    """A usage error prints the error and where to look, not the whole usage block."""
+
+    def error(self, message):
+        self.exit(EXIT_USAGE, f"{self.prog}: error: {message}\n  see '{self.prog} -h' for the options\n")
+
+
+class SubcommandParser(CommandParser):
+    """Every command accepts the global options after its name too (``tromplab fit -q ...``)."""
+
+    def __init__(self, *args, **kwargs):
+        kwargs["parents"] = [*kwargs.get("parents", []), global_options(in_subcommand=True)]
+        super().__init__(*args, **kwargs)
+
+
+def cli_message(error: InputError, parser: argparse.ArgumentParser) -> str:
+    """The error in the command line's words: an option error of the library (``formulas``,
+    ``bootstrap``) names the option as typed (``--formulas``), other Python names too."""
+    if isinstance(error, OptionError) and not error.option.startswith("-"):
+        flags = {action.dest: flag for action in _all_actions(parser) for flag in action.option_strings if flag.startswith("--")}
+        flag = flags.get(error.option) or flags.get({"n_bootstrap": "bootstrap"}.get(error.option, ""))
+        if flag:
+            return f"{flag} {cli_words(error.reason, parser)}"
+    return cli_words(str(error), parser)
+
+
+#: The whole ``tromplab`` parser while a command runs (see :func:`words_of`).
+_RUNNING_PARSER: contextvars.ContextVar[argparse.ArgumentParser | None] = contextvars.ContextVar("parser", default=None)
+
+
+@contextlib.contextmanager
+def words_of(parser: argparse.ArgumentParser):
+    """While the command runs, messages worded without a command's parser (the balance notes of
+    lab tables) take the options of ``parser``, the whole command line's.  A context variable, not
+    an argument: the command modules sit below the module that builds the parser."""
+    token = _RUNNING_PARSER.set(parser)
+    try:
+        yield
+    finally:
+        _RUNNING_PARSER.reset(token)
+
+
+def cli_words(message: str, parser: argparse.ArgumentParser | None = None) -> str:
+    """Replace Python argument names (``fine_yield``) by the CLI's options (``--fine-yield``);
+    without ``parser``, those of the running command line (:func:`words_of`)."""
+    parser = parser or _RUNNING_PARSER.get()
+    if parser is None:
+        raise RuntimeError("cli_words needs a parser outside a running command (tromplab.cli.main)")
+    for name, flag in _python_names_of_options(parser).items():
+        if name in message:  # not inside quoted column names
+            message = re.sub(rf"(?<![-\w'\"]){name}(?![\w'\"])", flag, message)
+    for name, flag in _keywords_of_options(parser).items():  # kind='pct' -> --kind pct
+        if f"{name}=" in message:
+            message = re.sub(rf"(?<![-\w'\"]){name}=(['\"]?)([\w.,-]+)\1", rf"{flag} \2", message)
+    return message
+
+
+def _keywords_of_options(parser: argparse.ArgumentParser) -> dict[str, str]:
+    """Every option's Python keyword (``kind``) and its flag (``--kind``)."""
+    return {
+        action.dest: flag
+        for action in _all_actions(parser)
+        for flag in action.option_strings
+        if flag.startswith("--") and flag[2:].replace("-", "_") == action.dest
+    }
+
+
+def _python_names_of_options(parser: argparse.ArgumentParser) -> dict[str, str]:
+    options = {"sum_tolerance_pct": "--sum-tolerance", "n_bootstrap": "--bootstrap"}  # Python names unlike the option
+    for action in _all_actions(parser):
+        for flag in action.option_strings:
+            if flag.startswith("--") and "_" in action.dest:
+                options[action.dest] = flag
+    return options
+
+
+def _all_actions(parser: argparse.ArgumentParser):
+    for action in parser._actions:
+        yield action
+        if isinstance(action, argparse._SubParsersAction):
+            for sub in action.choices.values():
+                yield from _all_actions(sub)
+
+
+def require(module: str, option: str, install: str) -> None:
+    import importlib.util
+
+    if importlib.util.find_spec(module) is None:
+        raise InputError(f"{option} needs the package {module}: {install}")
+
+
+class progress_bars:
+    """tqdm bars on standard error with rate and ETA, as one ``progress(done, total, label)``
+    callback: a bar for the fits, then one for the intervals (labels ``"intervals: ..."``);
+    silent when standard error is not a terminal, with --quiet, or without tqdm."""
+
+    def __init__(self, *, quiet: bool = False):
+        self.enabled = not quiet and sys.stderr.isatty()
+        self.bar, self.stage = None, None
+
+    def __enter__(self):
+        if not self.enabled:
+            return None
+        try:
+            from tqdm import tqdm
+        except ImportError:
+            from ..workbench import print_progress
+
+            return print_progress
+
+        def update(done, total, label):
+            stage = "intervals" if label.startswith("intervals: ") else "fitting"
+            if total <= 1:
+                return
+            if stage != self.stage:
+                self._close()
+                self.bar = tqdm(
+                    total=total, desc=stage, unit="fit" if stage == "intervals" else "exp", file=sys.stderr, dynamic_ncols=True
+                )
+                self.stage = stage
+            self.bar.update(done - self.bar.n)
+
+        return update
+
+    def _close(self):
+        if self.bar is not None:
+            self.bar.close()
+
+    def __exit__(self, *exc):
+        self._close()
+        return False
