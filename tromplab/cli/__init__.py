@@ -63,10 +63,10 @@ from .startup import (
     words_of,
 )
 
-# Each command imports the modules it needs when it runs: building the parser takes only the
-# light modules above, so --version, -h and a command that needs little (export) do not pay
-# for scipy.stats, lmfit, matplotlib and statsmodels at start-up (nothing imports the CLI, so
-# the imports inside the functions hide no cycle).
+# Each command module imports the library modules it needs when the command runs: building the
+# parser takes only the light modules, so --version, -h and a command that needs little (export)
+# do not pay for scipy.stats, lmfit, matplotlib and statsmodels at start-up (nothing below
+# imports the CLI, so the imports inside the functions hide no cycle).
 
 __all__ = ["Terminated", "build_parser", "interrupted", "main", "raise_terminated"]
 
@@ -189,7 +189,3 @@ def build_parser() -> argparse.ArgumentParser:
     add_predict_parser(density.density_commands)  # density predict (cli.density_predict)
     state_ranges(parser)
     return parser
-
-
-if __name__ == "__main__":
-    sys.exit(main())
