@@ -62,6 +62,18 @@ def summary_html(table, context: str) -> str:
     return f'<div class="tromplab-result">\n<p><b>{html.escape(context)}</b></p>\n{shown}\n</div>'
 
 
+def parameters_frame(fit):
+    """One row per fitted parameter of ``fit`` (a :class:`~tromplab.curves.fitting.ParameterFit`):
+    ``parameter, value, stderr``, then ``ssr`` and ``success`` of the fit on every row."""
+    import pandas as pd
+
+    rows = [
+        {"parameter": name, "value": value, "stderr": fit.stderr.get(name, float("nan")), "ssr": fit.ssr, "success": fit.success}
+        for name, value in fit.values.items()
+    ]
+    return pd.DataFrame(rows, columns=["parameter", "value", "stderr", "ssr", "success"])
+
+
 def check_version(result_class: str, saved_version: str | None) -> None:
     """Warn with :class:`~tromplab.errors.InconsistentVersionWarning` when ``saved_version``
     (the stamp of a pickle; None: no stamp) is not this tromplab's version."""
