@@ -528,6 +528,26 @@ class Dependence(ResultContract):
     def _result_context(self) -> str:
         return f"Dependence {self.form}"
 
+    def __getstate__(self):
+        # the function asteval made of an expression does not pickle: it is made again on load
+        # (a function given as a callable is pickled as it is, so it must be importable)
+        state = super().__getstate__()
+        if self._from_expression():
+            state["function"] = None
+        return state
+
+    def __setstate__(self, state):
+        super().__setstate__(state)
+        if self.function is None:
+            object.__setattr__(self, "function", expression_function(self.form, ["D", "l"])[0])
+
+    def _from_expression(self) -> bool:
+        try:
+            expression_function(self.form, ["D", "l"])
+        except (InputError, SyntaxError, ValueError):
+            return False
+        return True
+
     def predict(self, hole_diameter, length) -> np.ndarray:
         return self.function(D=np.asarray(hole_diameter, dtype=float), l=np.asarray(length, dtype=float), **self.fit.values)
 
