@@ -352,8 +352,18 @@ def _trend_api(folder):
     return _trend().save(folder)
 
 
+def _circuit_command(folder):
+    sheet, survey = DATASETS / "circuit_example_flowsheet.csv", DATASETS / "circuit_example_survey.csv"
+    assert main(["circuit", str(sheet), str(survey), "-o", str(folder)]) == 0
+
+
+def _circuit_api(folder):
+    return _circuit_balance().save(folder)
+
+
 #: Classes with ``save``: the command writing the same folder, and the same through the API.
 SAVES = {
+    CircuitBalance: (_circuit_command, _circuit_api),
     Workbench: (_fit_command, _fit_api),
     DensityResult: (_density_command, _density_api),
     TrendResult: (_trend_command, _trend_api),

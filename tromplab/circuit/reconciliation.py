@@ -752,6 +752,14 @@ class CircuitBalance(ResultContract):
     def _result_context(self) -> str:
         return f"Circuit survey {self.survey.source}: {self.flowsheet.describe()}"
 
+    def save(self, directory, *, figures: bool = True) -> dict:
+        """Write what ``tromplab circuit FLOWSHEET MEASUREMENTS -o DIRECTORY`` writes (without
+        ``--fit``), all or nothing (:mod:`tromplab.circuit.outputs`).  Returns ``{file name: path}``."""
+        from ..output.outputs import replace_folder
+        from .outputs import balance_outputs
+
+        return replace_folder(balance_outputs(self, figures=figures), directory)
+
     def report(self) -> str:
         """A few lines: what was balanced, the chi-square test and the gross-error candidates."""
         lines = [
