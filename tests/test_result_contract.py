@@ -333,7 +333,7 @@ def _fit_command(folder):
 
 def _fit_api(folder):
     bench = tromplab.fit_experiments(tromplab.read_experiments(DECK), formulas=["plitt", "lognormal"])
-    return bench.save(folder, figures="best")
+    return bench, bench.save(folder, figures="best")
 
 
 def _density_command(folder):
@@ -341,7 +341,8 @@ def _density_command(folder):
 
 
 def _density_api(folder):
-    return fit_density(TRACERS, curves="normal").save(folder)
+    result = fit_density(TRACERS, curves="normal")
+    return result, result.save(folder)
 
 
 def _trend_command(folder):
@@ -349,7 +350,7 @@ def _trend_command(folder):
 
 
 def _trend_api(folder):
-    return _trend().save(folder)
+    return _trend(), _trend().save(folder)
 
 
 def _circuit_command(folder):
@@ -358,7 +359,7 @@ def _circuit_command(folder):
 
 
 def _circuit_api(folder):
-    return _circuit_balance().save(folder)
+    return _circuit_balance(), _circuit_balance().save(folder)
 
 
 #: Classes with ``save``: the command writing the same folder, and the same through the API.
@@ -368,6 +369,10 @@ SAVES = {
     DensityResult: (_density_command, _density_api),
     TrendResult: (_trend_command, _trend_api),
 }
+
+
+#: The main file of each command: what ``to_frame()`` returns.
+MAIN_FILES = {CircuitBalance: "flows.csv", Workbench: "fits.csv", DensityResult: "fits.csv", TrendResult: "trend.csv"}
 
 
 @pytest.mark.parametrize("cls", CLASSES, ids=lambda cls: cls.__name__)
@@ -381,10 +386,12 @@ def test_save_writes_what_the_command_writes(cls, tmp_path, capsys):
     command, api = SAVES[cls]
     command(tmp_path / "command")
     capsys.readouterr()
-    written = api(tmp_path / "api")
+    result, written = api(tmp_path / "api")
     assert written and sorted(written) == sorted(p.name for p in (tmp_path / "command").iterdir() if not p.name.startswith("."))
     for name in written:
         assert filecmp.cmp(tmp_path / "command" / name, tmp_path / "api" / name, shallow=False), name
+    main_file = pd.read_csv(written[MAIN_FILES[cls]], nrows=0)
+    assert list(result.to_frame().columns) == list(main_file.columns), f"to_frame() is {MAIN_FILES[cls]}"
 
 
 @pytest.mark.parametrize("cls", list(SAVES), ids=lambda cls: cls.__name__)

@@ -285,10 +285,14 @@ class Workbench(ResultContract):
         many fits share the top rank) and ``reason`` (why an experiment has no ranked fit)."""
         return experiment_summary(self)
 
+    def to_frame(self) -> pd.DataFrame:
+        """The main table, ``fits.csv`` (:meth:`fits_table`)."""
+        return self.fits_table()
+
     def _result_context(self) -> str:
         return workbench_repr(self)
 
-    def report(self, path=None, **options) -> str:
+    def report(self, path=None, **options) -> str | dict:
         """Text: the batch in a line, then the top-ranked fit of every experiment (:meth:`summary`).
 
         Writing the HTML report with ``report(path, ...)`` is deprecated: use
