@@ -1,4 +1,5 @@
-"""Errors raised for bad input: each names the file, row and column at fault; and the warnings about input."""
+"""Errors raised for bad input: each names the file, row and column at fault; the warnings about
+input; and the warning about a result unpickled from another tromplab version."""
 
 from __future__ import annotations
 
