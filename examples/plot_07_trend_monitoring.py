@@ -21,7 +21,7 @@ ROOT = Path(globals().get("__file__", "example.py")).resolve().parents[1]
 SURVEYS = ROOT / "datasets" / "classifier_trend_surveys.csv"
 surveys = trend.read_surveys(SURVEYS)
 result = trend.monitor_surveys(surveys, formula="plitt_bypass")
-print(result.summary())
+print(result.report())
 
 # %%
 # The flagged surveys: the bypass step is caught at S14, the cut drift at S19-S22.

@@ -418,7 +418,7 @@ def test_exact_per_cent_solids_give_the_dilution_ratio_circulating_load():
     water = balance.water_table().set_index("stream")
     np.testing.assert_allclose(water.loc[list(pct), "pct_solids"], list(pct.values()), rtol=1e-9)
     assert not water.loc["mill_water", "determined"]  # fresh feed's per cent solids not given: only the sum is known
-    assert "not determined" in water.loc["mill_water", "note"] and "mill_water" in balance.summary()
+    assert "not determined" in water.loc["mill_water", "note"] and "mill_water" in balance.report()
     assert "the per cent solids of fresh_feed would determine it" in water.loc["mill_water", "note"]
 
 
@@ -562,7 +562,7 @@ def test_a_large_gross_error_is_flagged_first_with_its_row():
     first = balance.gross_errors_table().iloc[0]
     assert first["measurement"] == "cyclone_overflow flow" and first["rank"] == 1
     assert first["row"] == row  # a DataFrame's rows are its index labels
-    assert "suspected gross errors" in balance.summary()
+    assert "suspected gross errors" in balance.report()
 
 
 # --- 5. command -----------------------------------------------------------------------------

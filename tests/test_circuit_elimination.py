@@ -53,7 +53,7 @@ def test_excluding_the_proposal_reconciles_as_the_compensation_step_said(tmp_pat
     without = reconcile(sheet, survey, exclude=["middlings:flow"])
     assert without.dof == balance.dof - 1 and not without.rejected
     assert without.chi_square == pytest.approx(steps.iloc[-1]["chi_square"], rel=1e-3)  # compensating = leaving out
-    assert "left out on request (exclude): middlings:flow" in without.summary()
+    assert "left out on request (exclude): middlings:flow" in without.report()
     out = tmp_path / "out"
     assert main(["circuit", str(sheet), str(survey), "-o", str(out), "--no-figures", "--exclude", "middlings:flow"]) == 0
     assert len(pd.read_csv(out / "elimination.csv")) == 1  # nothing left to propose
@@ -64,7 +64,7 @@ def test_a_survey_that_passes_gets_no_proposal():
     truth = grinding_circuit()
     balance = reconcile(truth.flowsheet, lab_survey(truth, np.random.default_rng(1), flows={"fresh_feed": 0.02}))
     assert not balance.rejected
-    assert len(balance.elimination_table()) == 1 and "serial elimination" not in balance.summary()
+    assert len(balance.elimination_table()) == 1 and "serial elimination" not in balance.report()
 
 
 @pytest.mark.parametrize(
@@ -169,4 +169,4 @@ def test_the_design_advice_predicts_the_sd_a_measurement_brings(make, flows):
         observed = np.sqrt(gradient @ again.covariance @ gradient)
         assert observed == pytest.approx(row["sd_after"], rel=0.10)
         assert observed < row["sd_before"]
-    assert "the measurement that would help most" in balance.summary()
+    assert "the measurement that would help most" in balance.report()

@@ -100,7 +100,7 @@ def test_a_blank_or_nan_share_is_reported_as_not_measured(tmp_path):
         .replace("overflow,50,100,0.25", "overflow,50,100,NaN")
     )
     balance = reconcile(write(tmp_path, CYCLONE, "sheet.csv"), write(tmp_path, table, "survey.csv"))
-    assert "not measured (blank or NaN value in the table): overflow class -100+50 (row 6)" in balance.summary()
+    assert "not measured (blank or NaN value in the table): overflow class -100+50 (row 6)" in balance.report()
     measured = balance.distributions_table().set_index(["stream", "size_lower"])["measured"]
     assert np.isnan(measured[("overflow", 50.0)])
 
@@ -160,4 +160,4 @@ def test_reconciled_shares_are_never_negative_and_partitions_stay_in_0_1(tmp_pat
     partition = balance.partition_table()
     assert partition["partition_fine"].between(0.0, 1.0).all()
     assert partition["partition_fine"].iloc[0] == 0.0 and "held at 0" in partition["flag"].iloc[0]
-    assert "held at 0" in balance.summary() and "overflow class +400" in balance.summary()
+    assert "held at 0" in balance.report() and "overflow class +400" in balance.report()

@@ -99,7 +99,7 @@ def test_no_band_is_drawn_when_the_points_do_not_bracket_the_cut():
 def test_write_report_puts_the_markdown_figures_in_their_folder(tmp_path):
     bench = tromplab.fit_experiments(tromplab.read_experiments(HYDROCYCLONE), formulas=["plitt", "lognormal"])
     (tmp_path / "mine.png").write_bytes(b"not tromplab's")
-    written = bench.report(tmp_path / "REPORT.html")
+    written = bench.write_report(tmp_path / "REPORT.html")
     figures = sorted((tmp_path / "REPORT_figures").glob("*.png"))
     assert figures and {f"REPORT_figures/{f.name}" for f in figures} <= set(written)
     assert sorted(p.name for p in tmp_path.glob("*.png")) == ["mine.png"]  # nothing beside the user's files

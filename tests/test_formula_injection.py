@@ -219,7 +219,7 @@ def test_the_html_and_markdown_reports_escape_the_same_names(tmp_path):
     names = ["<script>alert(1)</script>", "a|b`c`", "=1+1", "-150+75"]
     points = [TrompPoints(name, [10, 20, 40, 80, 160], partitions(i)) for i, name in enumerate(names)]
     bench = fit_experiments(points, formulas=["plitt"])
-    written = bench.report(tmp_path / "report.html")
+    written = bench.write_report(tmp_path / "report.html")
     html = written["report.html"].read_text(encoding="utf-8")
     markdown = written["report.md"].read_text(encoding="utf-8")
     assert "<script>" not in html and "&lt;script&gt;alert(1)&lt;/script&gt;" in html

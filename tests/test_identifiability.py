@@ -44,7 +44,7 @@ def test_a_gas_cyclone_above_its_cut_is_flagged_in_every_face(tmp_path, capsys):
 
 def test_the_report_and_the_workbook_say_it_too(tmp_path):
     bench = tromplab.fit_experiments(tromplab.read_experiments(GAS_CYCLONE), formulas=["plitt"], ci=0.9)
-    html = (bench.report(tmp_path / "report.html")["report.html"]).read_text()
+    html = (bench.write_report(tmp_path / "report.html")["report.html"]).read_text()
     assert CUT_WARNING in html
     workbook = bench.save(tmp_path / "results.xlsx")["results.xlsx"]
     fits = pd.read_excel(workbook, sheet_name="fits")

@@ -76,7 +76,7 @@ def test_a_large_batch_gets_a_condensed_report_with_its_full_tables_beside_it(tm
 
     monkeypatch.setattr(report_module, "REPORT_DETAIL_LIMIT", 3)
     bench = fit_batch([synthetic(seed, weighted=False) for seed in range(12)], formulas=["plitt", "lognormal"])
-    written = bench.report(tmp_path / "big.html")
+    written = bench.write_report(tmp_path / "big.html")
     assert {"big_fits.csv", "big_ranking.csv", "big_averages.csv"} <= set(written)
     assert len(pd.read_csv(written["big_fits.csv"])) == 24  # every fit, not only those shown
     html = written["big.html"].read_text()

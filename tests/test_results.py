@@ -80,14 +80,16 @@ def test_workbench_views(bench, tmp_path):
     text = repr(bench)
     assert len(text) < 400 and "2 experiments x 3 formulas, 6 fits" in text
     assert bench._repr_html_().count("<tr") == len(bench.ranking_table()) + 1  # header + one row per formula
-    assert not hasattr(bench, "summary") and not hasattr(bench, "ranking")  # fits_table / ranking_table only
+    assert not hasattr(bench, "ranking")  # ranking_table only
+    summary = bench.summary()  # one row per experiment, its top-ranked fit
+    assert list(summary["experiment"]) == ["run1", "run2"] and list(summary["formula"]) == ["plitt", "lognormal"]
     averages = bench.averages()
     assert set(averages["experiment"]) == {"run1", "run2"} and set(averages["quantity"]) == set(AVERAGED_QUANTITIES)
     ax = bench.plot("run2")
     assert ax.get_title().endswith("run2") and len(ax.lines) >= 4  # three curves, the points, the cut marker
     with pytest.raises(KeyError, match="no experiment 'run3'"):
         bench.plot("run3")
-    written = bench.report(tmp_path / "report.html")
+    written = bench.write_report(tmp_path / "report.html")
     html = written["report.html"].read_text()
     assert "run1" in html and "synthetic" in html and "<img" in html
 

@@ -9,16 +9,13 @@ folder all-or-nothing (:func:`tromplab.output.outputs.replace_folder`): bad inpu
 
 from __future__ import annotations
 
-import io
 from dataclasses import dataclass
 
 from .circuit import CircuitBalance, ErrorModel, read_flowsheet, read_survey, reconcile
-from .circuit.plotting import figure_size
+from .circuit.outputs import balance_outputs, balance_tables
 from .errors import OptionError
 from .options import CIRCUIT_FIT_FORMULAS, DEFAULT_ALPHA
-from .output.csv_parts import write_csv
 from .output.outputs import check_output_folder, replace_folder
-from .output.plotting import offscreen_axes
 from .workbench import Workbench, fit_experiments
 
 #: The formulas fitted by ``--fit``: the nine of the paper (ranked) and the extended curves
@@ -115,52 +112,21 @@ def run_circuit(
             "fit", "needs size analyses: the survey holds flows and per cent solids only (no partition curve to fit)"
         )
     balance = reconcile(sheet, survey, alpha=alpha, exclude=exclude)
-    tables = {
-        "flows": balance.flows_table(),
-        "distributions": balance.distributions_table(),
-        "adjustments": balance.adjustments_table(),
-        "gross_errors": balance.gross_errors_table(),
-        "elimination": balance.elimination_table(),
-        "nodal_tests": balance.nodal_tests_table(),
-        "worth": balance.worth_table(),
-        "design": balance.design_table(),
-        "chi_square": balance.chi_square_table(),
-        "degrees_of_freedom": balance.degrees_of_freedom_table(),
-        "partition": balance.partition_table(),
-        "points": balance.points_table(),
-        "flowsheet": sheet.to_frame(),
-    }
-    if balance.balances_water:
-        tables["water"] = balance.water_table()
+    tables = balance_tables(balance)
     bench = None
     if fit and balance.flowsheet.separators:
         bench = fit_separators(balance)
         tables["fits"] = bench.fits_table()
         tables["ranking"] = bench.ranking_table()
-    outputs = {f"{name}.csv": (lambda path, table=table: write_csv(table, path)) for name, table in tables.items()}
-    summary = balance.summary() + "\n"
-    outputs["summary.txt"] = lambda path: path.write_text(summary, encoding="utf-8")
-    if figures:
-        for kind in ("flowsheet", "adjustments", "distributions") if balance.has_size_classes else ("flowsheet", "adjustments"):
-            png = _png(balance, kind)
-            outputs[f"{kind}.png"] = lambda path, png=png: path.write_bytes(png)
+    outputs = balance_outputs(balance, figures=figures, tables=tables)
     written = replace_folder(outputs, outdir)
     return CircuitRun(balance, bench, written)
-
-
-def _png(balance: CircuitBalance, kind: str) -> bytes:
-    """Figure ``kind`` drawn on a figure made without pyplot (no backend chosen, no figure left open)."""
-    ax = offscreen_axes(figsize=figure_size(balance, kind))
-    balance.plot(kind, ax=ax)
-    buffer = io.BytesIO()
-    ax.figure.savefig(buffer, format="png", dpi=120, bbox_inches="tight")
-    return buffer.getvalue()
 
 
 def console_report(run: CircuitRun) -> str:
     """What the command prints: the summary, the flows, the largest adjustments, the fits' ranking and the files."""
     balance = run.balance
-    lines = [balance.summary(), "", "Reconciled solids flows:"]
+    lines = [balance.report(), "", "Reconciled solids flows:"]
     flows = balance.flows_table()[["stream", "measured", "reconciled", "reconciled_sd"]]
     lines.append(flows.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
     largest = balance.largest_adjustments(5)

@@ -1,4 +1,5 @@
-"""Errors raised for bad input: each names the file, row and column at fault; and the warnings about input."""
+"""Errors raised for bad input: each names the file, row and column at fault; the warnings about
+input; and the warning about a result unpickled from another tromplab version."""
 
 from __future__ import annotations
 
@@ -61,6 +62,28 @@ class InputNote(UserWarning):
 
 class YieldWarning(UserWarning):
     """A stated yield contradicts the size distributions."""
+
+
+class InconsistentVersionWarning(UserWarning):
+    """A result was unpickled from a pickle written by another tromplab version.
+
+    The result loads (its data are plain records), but numbers derived on first use (the
+    indices, intervals and tables computed from the stored fit) may differ from what the
+    version that wrote it reported, and a record whose layout changed may fail later.
+    Refit with this version, or load with the version named in ``saved_version``.  A
+    warning rather than an error, as scikit-learn does for its estimators: it keeps a saved
+    result readable across a patch release (:func:`tromplab.load` refuses a batch saved by
+    another major version outright).
+    """
+
+    def __init__(self, *, result_class: str, saved_version: str, current_version: str):
+        self.result_class = result_class
+        self.saved_version = saved_version
+        self.current_version = current_version
+        super().__init__(
+            f"{result_class} unpickled from tromplab {saved_version}, this is tromplab {current_version}: "
+            "numbers derived on first use may differ from those the other version reported; refit to be sure"
+        )
 
 
 def expect_kind(value, kinds, argument: str, accepted: str):

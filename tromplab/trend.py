@@ -60,6 +60,7 @@ from .output.csv_parts import write_csv
 from .output.outputs import write_files
 from .output.plotting import offscreen_axes, plot_control_chart, save_figure
 from .output.report import Report, figure_png
+from .results_contract import ResultContract
 from .statistics.compare import ExtraSumOfSquares
 from .validation import check_probability
 from .workbench import fit_chunk, fit_experiments
@@ -99,10 +100,33 @@ class Survey:
 
 
 @dataclass(frozen=True)
-class TrendResult:
+class TrendResult(ResultContract):
     """Fits, control charts and flags of a series of surveys.
 
     ``table`` has one row per survey and quantity (columns :data:`TREND_COLUMNS`).
+    :meth:`summary` has one row per survey (:meth:`survey_flags`), :meth:`report` is what
+    ``tromplab trend`` prints, :meth:`save` writes what it writes.
+
+    Attributes
+    ----------
+    formula_id : str
+        The formula fitted to every survey.
+    surveys : tuple of Survey
+        The surveys, in date order.
+    fits : tuple of CurveFit
+        The fit of each survey.
+    baseline : tuple of int
+        Positions of the baseline surveys.
+    table : pandas.DataFrame
+        One row per survey and quantity (``trend.csv``).
+    alpha : float
+        Level of the equality tests.
+    level : float
+        Confidence level of the intervals.
+    failures : dict
+        Survey -> why it could not be fitted.
+    quantities : list of str
+        The quantities charted, in table order.
     """
 
     formula_id: str
@@ -141,7 +165,26 @@ class TrendResult:
         flags = self.survey_flags()
         return list(flags.loc[flags["change_point"], "survey"])
 
-    def summary(self) -> str:
+    def summary(self) -> pd.DataFrame:
+        """One row per survey: date, p-values, alarms and change points (:meth:`survey_flags`)."""
+        return self.survey_flags()
+
+    def to_frame(self) -> pd.DataFrame:
+        """The main table, ``trend.csv``: one row per survey and quantity."""
+        return self.table.copy()
+
+    def _result_context(self) -> str:
+        return f"Trend of {len(self.surveys)} surveys fitted with {self.formula_id}"
+
+    def save(self, directory, *, size_unit: str = "", figures: bool = True) -> dict[str, Path]:
+        """Write what ``tromplab trend ... -o DIRECTORY`` writes (:func:`write_trend`), all or nothing.
+
+        Returns ``{file name: path}``.
+        """
+        return write_trend(self, directory, size_unit=size_unit, figures=figures)
+
+    def report(self) -> str:
+        """What ``tromplab trend`` prints: the settings, one line per survey and the change points."""
         flags = self.survey_flags()
         base = [self.surveys[i].name for i in self.baseline]
         lines = [

@@ -186,7 +186,7 @@ class Flowsheet:
             }
         )
 
-    def summary(self) -> str:
+    def describe(self) -> str:
         """One line: streams, nodes by kind, feeds, products and the flow degrees of freedom."""
         kinds = ", ".join(f"{sum(n.kind == k for n in self.nodes)} {k}(s)" for k in NODE_KINDS)
         water = f" (and {len(self.water_streams)} water stream(s))" if self.water_streams else ""
@@ -226,7 +226,7 @@ def read_flowsheet(
     --------
     >>> sheet = pd.DataFrame({"stream": ["feed", "over", "under"], "from": ["", "cyclone", "cyclone"],
     ...                       "to": ["cyclone", "", ""], "product": ["", "fine", "coarse"]})
-    >>> read_flowsheet(sheet).summary()
+    >>> read_flowsheet(sheet).describe()
     '3 streams, 1 nodes (1 separator(s), 0 junction(s), 0 mill(s)); feeds feed; products over, under; 2 flow(s) free after the solids balances'
     """
     table = read_table(path, sheet=sheet, sep=sep, decimal=decimal)

@@ -69,6 +69,7 @@ from scipy import stats
 
 from ..loading.points import TrompPoints
 from ..options import DEFAULT_ALPHA, DEFAULT_MIN_FEED_SHARE
+from ..results_contract import ResultContract
 from ..validation import check_probability
 from . import plotting
 from .design import design_table, water_determined_by
@@ -135,7 +136,7 @@ class _MeasurementTests(NamedTuple):
 
 
 @dataclass(frozen=True)
-class CircuitBalance:
+class CircuitBalance(ResultContract):
     """A reconciled survey: flows and size distributions that close every balance.
 
     Built by :func:`reconcile`.  Tables (pandas, fixed columns):
@@ -151,7 +152,61 @@ class CircuitBalance:
 
     :meth:`to_points` gives the separators' partition curves as
     :class:`~tromplab.loading.points.TrompPoints` with weights, :meth:`points_table` the same
-    in the Tromp-points file schema.
+    in the Tromp-points file schema.  :meth:`summary` has one row per stream, :meth:`report`
+    is the text ``tromplab circuit`` prints first (and writes as ``summary.txt``).
+
+    Attributes
+    ----------
+    flowsheet : Flowsheet
+        The circuit balanced.
+    survey : Survey
+        The measurements, with their standard deviations.
+    class_flows : numpy.ndarray
+        Reconciled solids flow of every stream (rows) and size class (columns).
+    covariance : numpy.ndarray
+        Covariance of the flattened class flows, then the water flows.
+    chi_square : float
+        The global test statistic (sum of squared standardised adjustments).
+    dof : int
+        Its degrees of freedom (the redundancy).
+    alpha : float
+        Level of the chi-square and measurement tests.
+    success, message
+        Whether the reconciliation converged, and the solver's message.
+    basis : str
+        The stream the flows are relative to ("" when flows are measured).
+    problem : Problem or None
+        The linear constraints and measurements the reconciliation solved.
+    measured_y : numpy.ndarray or None
+        The measurement vector.
+    water_flows : numpy.ndarray or None
+        Water flows of the solids streams, then of the water streams (None: water not balanced).
+    fitted : numpy.ndarray or None
+        The unknowns of the least squares without the bounds at 0.
+    at_bound : tuple of int
+        Unknowns the bounds hold at 0.
+    decomposition : Decomposition or None
+        The whitened Jacobian split by the reconciliation's rank decision.
+    excluded : tuple of str
+        The measurements left out on request.
+    has_size_classes : bool
+        False for a survey of flows and per cent solids only.
+    held_at_zero : list of tuple
+        ``(stream, class index)`` of the class flows held at 0.
+    p_value, chi_square_critical : float
+        The chi-square test's p-value and critical value at ``alpha``.
+    rejected : bool
+        True when the chi-square test rejects the measurements as a whole.
+    streams : tuple of str
+        The solids streams, in flowsheet order.
+    flows, flow_sd : numpy.ndarray
+        Reconciled solids flow per stream and its standard deviation.
+    shares, share_sd : numpy.ndarray
+        Reconciled class shares per stream and class, and their standard deviations.
+    balances_water : bool
+        True when per cent solids were measured and water is balanced too.
+    measurement_test_critical : float
+        Critical value of the measurement tests (Sidak-corrected at ``alpha``).
     """
 
     flowsheet: Flowsheet
@@ -686,10 +741,29 @@ class CircuitBalance:
         ]
         return pd.DataFrame(rows, columns=["quantity", "count"])
 
-    def summary(self) -> str:
+    def summary(self) -> pd.DataFrame:
+        """One row per stream: measured and reconciled solids flow and its sd (:meth:`flows_table`)."""
+        return self.flows_table()[["stream", "measured", "reconciled", "reconciled_sd"]]
+
+    def to_frame(self) -> pd.DataFrame:
+        """The main table, ``flows.csv`` (:meth:`flows_table`)."""
+        return self.flows_table()
+
+    def _result_context(self) -> str:
+        return f"Circuit survey {self.survey.source}: {self.flowsheet.describe()}"
+
+    def save(self, directory, *, figures: bool = True) -> dict:
+        """Write what ``tromplab circuit FLOWSHEET MEASUREMENTS -o DIRECTORY`` writes (without
+        ``--fit``), all or nothing (:mod:`tromplab.circuit.outputs`).  Returns ``{file name: path}``."""
+        from ..output.outputs import replace_folder
+        from .outputs import balance_outputs
+
+        return replace_folder(balance_outputs(self, figures=figures), directory)
+
+    def report(self) -> str:
         """A few lines: what was balanced, the chi-square test and the gross-error candidates."""
         lines = [
-            f"Circuit survey {self.survey.source}: {self.flowsheet.summary()}",
+            self._result_context(),
             f"{self.problem.y.size if self.problem else 0} measurements, redundancy {self.dof}"
             + (f"; flows relative to {self.basis}" if self.basis else ""),
         ]
@@ -729,7 +803,7 @@ class CircuitBalance:
         return "\n".join(lines)
 
     def __str__(self) -> str:
-        return self.summary()
+        return self.report()
 
     def _survey_notes(self) -> list[str]:
         """The summary's lines on what the survey lacks: size analyses, blank values, nothing to adjust, bounds."""

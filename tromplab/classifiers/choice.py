@@ -26,6 +26,7 @@ import numpy as np
 import pandas as pd
 from scipy import optimize
 
+from ..results_contract import ResultContract
 from .sieve import capacity, sieve_efficiency
 
 
@@ -102,8 +103,24 @@ def _solve(problem: Problem, objective, extra: Sequence[Constraint] = ()) -> Opt
 
 
 @dataclass(frozen=True)
-class ChoiceResult:
-    """Single-criterion optima, the pay-off normalisation, the Pareto front and the compromise."""
+class ChoiceResult(ResultContract):
+    """Single-criterion optima, the pay-off normalisation, the Pareto front and the compromise.
+
+    :meth:`summary` has one row per optimum, :meth:`to_frame` is the Pareto front.
+
+    Attributes
+    ----------
+    best_first, best_second : Optimum
+        The optimum of each criterion alone.
+    ranges : dict
+        Criterion -> ``(low, high)``: its values at the two single-criterion optima (the pay-off normalisation).
+    pareto : pandas.DataFrame
+        The Pareto front: one row per point, the variables and both criteria.
+    compromise : Optimum
+        The point chosen on the front.
+    notes : tuple of str
+        What the reader must know about the choice.
+    """
 
     best_first: Optimum
     best_second: Optimum
@@ -111,6 +128,19 @@ class ChoiceResult:
     pareto: pd.DataFrame
     compromise: Optimum
     notes: tuple[str, ...] = field(default_factory=tuple)
+
+    def summary(self) -> pd.DataFrame:
+        """One row per optimum (``best_first``, ``best_second``, ``compromise``): its point, both criteria, success."""
+        optima = {"best_first": self.best_first, "best_second": self.best_second, "compromise": self.compromise}
+        rows = [{"optimum": name, **optimum.point, "success": optimum.success} for name, optimum in optima.items()]
+        return pd.DataFrame(rows)
+
+    def to_frame(self) -> pd.DataFrame:
+        """The Pareto front (:attr:`pareto`)."""
+        return self.pareto.copy()
+
+    def _result_context(self) -> str:
+        return f"Choice of a classifier: {len(self.pareto)} Pareto points" + (f"; {'; '.join(self.notes)}" if self.notes else "")
 
 
 def choose(

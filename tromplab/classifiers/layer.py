@@ -27,6 +27,7 @@ import pandas as pd
 
 from ..curves.fitting import ParameterFit, least_squares
 from ..curves.parameters import Parameter
+from ..results_contract import ResultContract, parameters_frame
 
 
 @dataclass(frozen=True)
@@ -153,17 +154,34 @@ class LayerSimulation:
 
 
 @dataclass(frozen=True)
-class LayerFit:
+class LayerFit(ResultContract):
     """Layer-model parameters identified from measured extraction.
 
     ``profile`` holds, when the lock threshold was identified, the sum of squares of the
     best three-parameter fit at each threshold tried (columns ``lock_threshold, ssr``).
     The threshold acts through a discrete event, so it has no standard error.
+    :meth:`summary` has one row per fitted parameter.
+
+    Attributes
+    ----------
+    model : LayerModel or None
+        The model at the fitted parameters (None when the fit failed).
+    fit : ParameterFit
+        Values, standard errors and sum of squares of the fitted parameters.
+    profile : pandas.DataFrame or None
+        Sum of squares per lock threshold tried (None when the threshold was not identified).
     """
 
     model: LayerModel | None
     fit: ParameterFit
     profile: pd.DataFrame | None = None
+
+    def summary(self) -> pd.DataFrame:
+        """One row per fitted parameter: ``parameter, value, stderr, ssr, success``."""
+        return parameters_frame(self.fit)
+
+    def _result_context(self) -> str:
+        return f"Layer model fitted to measured extraction ({'converged' if self.fit.success else 'failed'})"
 
 
 def fit_layer_model(

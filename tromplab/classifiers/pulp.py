@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..curves.parameters import Parameter
+from ..results_contract import ResultContract, parameters_frame
 from ..validation import check_range
 
 #: Range of each coefficient, ``(low, high, low_open)``: wide around the spec's illustrative
@@ -149,11 +150,28 @@ class PulpScreen:
 
 
 @dataclass(frozen=True)
-class PulpFit:
-    """Model coefficients identified from measured productivity."""
+class PulpFit(ResultContract):
+    """Model coefficients identified from measured productivity.
+
+    :meth:`summary` has one row per fitted coefficient.
+
+    Attributes
+    ----------
+    screen : PulpScreen
+        The screen model at the fitted coefficients.
+    fit : ParameterFit
+        Values, standard errors and sum of squares of the fitted coefficients.
+    """
 
     screen: PulpScreen
     fit: ParameterFit
+
+    def summary(self):
+        """One row per fitted coefficient: ``parameter, value, stderr, ssr, success``."""
+        return parameters_frame(self.fit)
+
+    def _result_context(self) -> str:
+        return f"Pulp screen fitted to measured productivity ({'converged' if self.fit.success else 'failed'})"
 
 
 def fit_pulp_screen(applied, frequency, productivity, *, fitted=("beta", "lam"), fixed: PulpScreen | None = None) -> PulpFit:

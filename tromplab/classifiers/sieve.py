@@ -38,6 +38,7 @@ from scipy import integrate, optimize, special, stats
 from ..curves.fitting import ParameterFit, expression_function, least_squares
 from ..curves.parameters import Parameter
 from ..errors import InputError
+from ..results_contract import ResultContract, parameters_frame
 from ..validation import MAX_DECKS, check_count
 
 SECONDS_PER_HOUR = 3600.0
@@ -202,8 +203,24 @@ def capacity(bulk_density, gap_height, width, transport_speed):
 
 # --- identification from residues -------------------------------------------------------
 @dataclass(frozen=True)
-class VelocityLaw:
-    """Identified normal law of the critical speed of one fraction on one sieve."""
+class VelocityLaw(ResultContract):
+    """Identified normal law of the critical speed of one fraction on one sieve.
+
+    Attributes
+    ----------
+    v_k, sigma : float
+        Mean and standard deviation of the critical relative speed.
+    fit : ParameterFit
+        The least-squares fit of the observed quantiles.
+    two_sided : bool
+        Whether the two-sided velocity probability was fitted.
+    observed_quantiles : numpy.ndarray
+        The observed quantiles :math:`U_s` the law was fitted to.
+    linear_v_k, linear_sigma : float
+        The same from the straight line through the quantiles (nan when not computed).
+    stderr : dict
+        Standard errors of ``v_k`` and ``sigma``.
+    """
 
     v_k: float
     sigma: float
@@ -216,6 +233,16 @@ class VelocityLaw:
     @property
     def stderr(self) -> dict[str, float]:
         return self.fit.stderr
+
+    def summary(self):
+        """One row per parameter (``v_k``, ``sigma``): value, stderr, and the straight line's value."""
+        table = parameters_frame(self.fit)
+        table["linear"] = table["parameter"].map({"v_k": self.linear_v_k, "sigma": self.linear_sigma})
+        return table
+
+    def _result_context(self) -> str:
+        side = "two-sided" if self.two_sided else "one-sided"
+        return f"Velocity law ({side}) from {len(self.observed_quantiles)} speed regimes"
 
 
 def observed_quantiles(residues, geometric_prob, sieve_length, cell_pitch) -> np.ndarray:
@@ -354,14 +381,37 @@ def distance_moments_printed(decks, c) -> tuple[float, float]:
 
 
 @dataclass(frozen=True)
-class BinDesign:
-    """Position of the collecting bin of the target fraction on the bottom deck."""
+class BinDesign(ResultContract):
+    """Position of the collecting bin of the target fraction on the bottom deck.
+
+    Attributes
+    ----------
+    c : float
+        Passage intensity coefficient ``C`` (passages form a Poisson stream of intensity
+        ``C x``) that puts the bin's far edge at the sieve's end.
+    x1, x2 : float
+        Start and end of the bin along the bottom deck, in the unit of the sieve length
+        (``x2`` is the sieve length).
+    recovery : float
+        The recovery the bin achieves, ``F_m(x2) - F_m(x1)``.
+    method : str
+        ``"exact"`` (regularised gamma) or ``"normal"`` approximation.
+    """
 
     c: float
     x1: float
     x2: float
     recovery: float
     method: str
+
+    def summary(self):
+        """One row: ``c, x1, x2, recovery, method``."""
+        import pandas as pd
+
+        return pd.DataFrame([{"c": self.c, "x1": self.x1, "x2": self.x2, "recovery": self.recovery, "method": self.method}])
+
+    def _result_context(self) -> str:
+        return f"Collecting bin for recovery {self.recovery:g} ({self.method})"
 
 
 def design_bin(decks, sieve_length, recovery, *, method="exact") -> BinDesign:
@@ -454,12 +504,49 @@ DEFAULT_DEPENDENCE = "c0 + c1 * l / D"
 
 
 @dataclass(frozen=True)
-class Dependence:
-    """A fitted dependence of a velocity-law parameter on hole size ``D`` and particle size ``l``."""
+class Dependence(ResultContract):
+    """A fitted dependence of a velocity-law parameter on hole size ``D`` and particle size ``l``.
+
+    Attributes
+    ----------
+    form : str
+        The expression fitted, in ``D`` and ``l``.
+    fit : ParameterFit
+        Values and standard errors of its coefficients.
+    function : callable
+        The expression as a function of ``D``, ``l`` and the coefficients.
+    """
 
     form: str
     fit: ParameterFit
     function: object
+
+    def summary(self):
+        """One row per coefficient: ``parameter, value, stderr, ssr, success``."""
+        return parameters_frame(self.fit)
+
+    def _result_context(self) -> str:
+        return f"Dependence {self.form}"
+
+    def __getstate__(self):
+        # the function asteval made of an expression does not pickle: it is made again on load
+        # (a function given as a callable is pickled as it is, so it must be importable)
+        state = super().__getstate__()
+        if self._from_expression():
+            state["function"] = None
+        return state
+
+    def __setstate__(self, state):
+        super().__setstate__(state)
+        if self.function is None:
+            object.__setattr__(self, "function", expression_function(self.form, ["D", "l"])[0])
+
+    def _from_expression(self) -> bool:
+        try:
+            expression_function(self.form, ["D", "l"])
+        except (InputError, SyntaxError, ValueError):
+            return False
+        return True
 
     def predict(self, hole_diameter, length) -> np.ndarray:
         return self.function(D=np.asarray(hole_diameter, dtype=float), l=np.asarray(length, dtype=float), **self.fit.values)

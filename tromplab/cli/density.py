@@ -80,7 +80,7 @@ def run_density_fit(args) -> int:
     result = fit_density(args.file, ci=args.ci, curves=args.curves, method=args.method, floats_yield=args.floats_yield,
                          sheet=args.sheet, sep=args.sep, decimal=args.decimal)  # fmt: skip
     written = result.save(args.outdir, excel=args.excel, report=args.report)
-    print(result.summary())
+    print(result.report())
     print("\nWrote:")
     for path in written.values():
         print(f"  {path}")

@@ -55,7 +55,7 @@ def _run_report(args) -> int:
         bench = fit_experiments(experiments, **keywords, progress=progress)
     bench.check_fitted(args.input)
     args.output.parent.mkdir(parents=True, exist_ok=True)
-    written = bench.report(args.output, level=args.ci, title=args.title, jobs=args.jobs)
+    written = bench.write_report(args.output, level=args.ci, title=args.title, jobs=args.jobs)
     print("Wrote:")
     for path in written.values():
         print(f"  {path}")

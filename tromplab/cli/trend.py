@@ -41,7 +41,7 @@ def _run_trend(args) -> int:
     surveys = read_surveys(args.input, lab_options(args))
     result = monitor_surveys(surveys, formula=args.formula, baseline=args.baseline, alpha=args.alpha)
     written = write_trend(result, args.outdir, size_unit=args.size_unit, figures=not args.no_figures)
-    print(result.summary())
+    print(result.report())
     print("\nWrote:")
     for path in written.values():
         print(f"  {path}")

@@ -26,6 +26,7 @@ from scipy import optimize
 
 from ..errors import OptionError, expect_kind
 from ..loading.points import MAX_SIZE_SPAN, TrompPoints
+from ..results_contract import ResultContract
 from ..validation import check_probability, check_size
 from .diagnostics import RESIDUAL_WARNING, ResidualDiagnostics, batch_residual_diagnostics, residual_diagnostics
 from .fitting import ParameterFit, least_squares, on_bound
@@ -128,7 +129,7 @@ def _undetermined(value: float, stderr: float) -> bool:
 
 
 @dataclass(frozen=True)
-class CurveFit:
+class CurveFit(ResultContract):
     """Result of fitting one formula to one experiment.
 
     The result stores what the solver found (``fit``) and the options it was made with
@@ -140,6 +141,45 @@ class CurveFit:
     :meth:`predict` returns nan.  ``warnings`` lists conditions a user should know about
     a successful fit (a parameter on its bound, formula (11) without a break point,
     systematic residuals, a curve above 1).
+
+    Attributes
+    ----------
+    formula : Formula
+        The formula fitted.
+    points : TrompPoints
+        The measured points it was fitted to.
+    fit : ParameterFit
+        What the solver found: values, standard errors, covariance, sum of squares.
+    context : dict
+        The formula's data-derived inputs (``measured_efficiency`` of formula (11)).
+    options : FitOptions
+        The options the fit was made with (alpha, weights, delta_max, ...).
+    grid_ssr : float
+        Sum of squares at the best point of the starting grid (nan when no grid was searched).
+    experiment : str
+        The experiment's name (``points.experiment``).
+    success : bool
+        False when the fit failed; ``message`` then says why.
+    message : str
+        The solver's message, or why the fit failed.
+    d_cut, shape : float
+        The fitted cut size and shape parameter (nan for a failed fit).
+    extras : dict
+        Fitted bypass / fish-hook parameters (empty for the nine paper formulas).
+    screen : FisherScreen or None
+        The Fisher screen of the fit (None for a failed fit).
+    indices : CurveIndices or None
+        Indices of the fitted curve (None for a failed fit).
+    diagnostics : ResidualDiagnostics or None
+        Runs and normality tests of the residuals (None for a failed fit).
+    x_break : float
+        Break point of formula (11) (nan for other formulas).
+    unbracketed : str
+        Why the points do not bracket the cut ("" when they do).
+    undetermined_extras : dict
+        Extra parameters the data cannot tell from the cut or the shape, with the reason.
+    warnings : tuple of str
+        What a user should know about a successful fit.
     """
 
     formula: Formula
@@ -398,6 +438,22 @@ class CurveFit:
     def summary(self) -> pd.DataFrame:
         """One-row :class:`pandas.DataFrame` with the columns of ``fits.csv`` except ``rank``."""
         return pd.DataFrame([self.row()]).reindex(columns=[c for c in FIT_COLUMNS if c != "rank"])
+
+    def to_frame(self) -> pd.DataFrame:
+        """The measured points beside the fitted curve: ``size, partition_fine, fitted, residual``
+        (``fitted`` nan for a failed fit)."""
+        fitted = self.predict(self.points.size)
+        return pd.DataFrame(
+            {
+                "size": self.points.size,
+                "partition_fine": self.points.partition_fine,
+                "fitted": fitted,
+                "residual": self.points.partition_fine - fitted,
+            }
+        )
+
+    def _result_context(self) -> str:
+        return fit_repr(self)
 
     def report(self, *, level: float = 0.95, profile: bool = True) -> str:
         """Text report: parameters with standard errors and ``level`` intervals (profile

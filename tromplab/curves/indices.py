@@ -29,6 +29,7 @@ from functools import lru_cache
 import numpy as np
 from scipy import integrate, optimize
 
+from ..results_contract import ResultContract
 from ..validation import check_number, check_size
 from .formulas import Formula, get_formula, is_batchable
 
@@ -39,7 +40,7 @@ EXTRAPOLATED_SHARE = 0.1
 
 
 @dataclass(frozen=True)
-class CurveIndices:
+class CurveIndices(ResultContract):
     """Indices of one separation curve (sizes in the unit of ``d_cut``).
 
     For curves with bypass or fish-hook the *actual* curve (what the classifier does)
@@ -47,7 +48,31 @@ class CurveIndices:
     d50c, ``d50`` the actual cut (where the actual curve crosses 1/2), ``d25``, ``d75``,
     ``ep`` and ``imperfection = ep / d50`` belong to the actual curve (nan where it never
     reaches the level), ``ep_c`` and ``imperfection_c = ep_c / d50c`` to the corrected
-    curve.  For the nine paper formulas both curves are the same curve.
+    curve.  For the nine paper formulas both curves are the same curve.  :meth:`summary`
+    is one row of them all (definitions in ``docs/columns.md``).
+
+    Attributes
+    ----------
+    d_cut, d50c : float
+        The corrected cut size (the fitted ``d_cut``).
+    slope : float
+        Slope of the curve at the cut, ``d phi / dx`` at ``x = 1``.
+    eta : float
+        Efficiency: area under the curve from ``x = 0`` to 1.
+    epsilon : float
+        Misplacement: area under the curve from ``x = 1`` to ``delta_max / d_cut``.
+    d25, d75 : float
+        Sizes where the actual curve (partition to fines) is 0.75 and 0.25.
+    ep, imperfection : float
+        ``Ep = (d75 - d25) / 2`` and ``Ep / d50`` of the actual curve.
+    sharpness : float
+        ``d25 / d75`` of the actual curve.
+    d50 : float
+        The actual cut, where the actual curve crosses 1/2.
+    ep_c, imperfection_c : float
+        The same of the corrected curve.
+    extrapolated : tuple of str
+        Indices read beyond the measured sizes.
     """
 
     d_cut: float
@@ -68,6 +93,16 @@ class CurveIndices:
     def d50c(self) -> float:
         """Corrected cut size (the fitted ``d_cut``)."""
         return self.d_cut
+
+    def summary(self):
+        """One row: every index, ``d50c`` beside ``d_cut`` and the indices read beyond the data."""
+        import pandas as pd
+
+        row = {field.name: getattr(self, field.name) for field in fields(self)}
+        return pd.DataFrame([{**row, "d50c": self.d50c, "extrapolated": ";".join(self.extrapolated)}])
+
+    def _result_context(self) -> str:
+        return f"Indices of a separation curve with d_cut = {self.d_cut:.4g}"
 
 
 def efficiency_by_quadrature(formula: Formula, shape: float, x_max: float, **context) -> tuple[float, float]:

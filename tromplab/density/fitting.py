@@ -59,6 +59,7 @@ import scipy.optimize
 import scipy.special
 import scipy.stats
 
+from ..results_contract import ResultContract
 from .curves import DensityCurve, DensityIndices, get_density_curve
 from .joint import JOINT_METHOD, fit_joint, has_three_analyses, joint_intervals
 from .readers import DensitySample
@@ -83,7 +84,7 @@ FLOAT_SINK_INTERVAL_NOTE = (
 
 
 @dataclass(frozen=True)
-class DensityCurveFit:
+class DensityCurveFit(ResultContract):
     r"""One density curve fitted to one sample (a test and size fraction).
 
     Attributes
@@ -144,6 +145,23 @@ class DensityCurveFit:
     def partition(self, rho) -> np.ndarray:
         """The fitted partition to sinks at ``rho``."""
         return self.curve.partition(rho, **self.params)
+
+    def summary(self):
+        """One row: the sample, the curve, the method, the indices with their intervals, the fit's criteria and notes."""
+        import pandas as pd
+
+        index = self.indices.as_dict() if self.indices else {}
+        row = {"test": self.sample.test, "size_fraction": self.sample.size_fraction, "curve": self.curve.id,
+               "method": self.method, "success": self.success}  # fmt: skip
+        for name in ("rho50", "ep", "imperfection"):
+            low, high = self.intervals.get(name, (math.nan, math.nan))
+            row.update({name: index.get(name, math.nan), f"{name}_low": low, f"{name}_high": high})
+        row.update({"aic": self.aic, "gof_p": self.gof_p, "notes": "; ".join((self.message, *self.notes)).strip("; ")})
+        return pd.DataFrame([row])
+
+    def _result_context(self) -> str:
+        state = "fitted" if self.success else f"not fitted ({self.message})"
+        return f"Density curve {self.curve.id} {state} to {self.sample.label} by {self.method}"
 
 
 # --- the data of one fit ------------------------------------------------------------------

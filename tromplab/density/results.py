@@ -25,6 +25,7 @@ import pandas as pd
 
 from ..errors import OptionError
 from ..output.csv_parts import write_csv
+from ..results_contract import ResultContract
 from ..validation import check_probability
 from .curves import select_density_curves
 from .fitting import METHODS, DensityCurveFit, fit_density_curve, limits_test_p
@@ -39,8 +40,12 @@ INTERVAL_QUANTITIES = ("rho50", "ep", "imperfection")
 
 
 @dataclass(frozen=True)
-class DensityResult:
+class DensityResult(ResultContract):
     """Density curves fitted to every test (and size fraction) of one table.
+
+    :meth:`summary` has one row per test and size fraction (its best curve),
+    :meth:`to_frame` is ``fits.csv``, :meth:`report` what ``tromplab density fit`` prints
+    (and writes as ``summary.txt``), :meth:`save` the folder it writes.
 
     Attributes
     ----------
@@ -169,7 +174,37 @@ class DensityResult:
             else {}
         )
 
-    def summary(self) -> str:
+    def summary(self) -> pd.DataFrame:
+        """One row per test and size fraction: its best curve (``curve``, ``method``, ``rho50``,
+        ``ep``, ``imperfection``; empty and nan when no curve could be fitted) and ``notes``."""
+        rows = []
+        for sample in self.samples:
+            best = self.best(sample)
+            index = best.indices.as_dict() if best is not None and best.indices else {}
+            notes = best.notes if best is not None else sorted({fit.message for fit in self.fits_of(sample)})
+            rows.append(
+                {
+                    "test": sample.test,
+                    "size_fraction": sample.size_fraction,
+                    "layout": sample.layout,
+                    "n_points": int(sample.used.shape[0]),
+                    "curve": best.curve.id if best is not None else "",
+                    "method": best.method if best is not None else "",
+                    **{name: index.get(name, math.nan) for name in ("rho50", "ep", "imperfection")},
+                    "notes": "; ".join(notes),
+                }  # fmt: skip
+            )
+        table = pd.DataFrame(rows)
+        return table if any(sample.has_size for sample in self.samples) else table.drop(columns=["size_fraction"])
+
+    def to_frame(self) -> pd.DataFrame:
+        """The main table, ``fits.csv`` (:meth:`fits_table`)."""
+        return self.fits_table()
+
+    def _result_context(self) -> str:
+        return repr(self)
+
+    def report(self) -> str:
         """The best curve of every test and size fraction, with its intervals and notes, as text."""
         lines = []
         for sample in self.samples:
@@ -234,7 +269,7 @@ class DensityResult:
         tables.update(size_tables)
         figures.update(size_figures)
         outputs = {f"{name}.csv": (lambda path, table=table: write_csv(table, path)) for name, table in tables.items()}
-        summary = self.summary() + "\n"
+        summary = self.report() + "\n"
         outputs["summary.txt"] = lambda path: path.write_text(summary, encoding="utf-8")
         outputs.update({name: (lambda path, png=png: path.write_bytes(png)) for name, png in figures.items()})
         figure_table = pd.DataFrame(figure_rows)

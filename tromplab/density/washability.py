@@ -64,6 +64,7 @@ import pandas as pd
 from ..errors import InputError, OptionError
 from ..loading.tables import Table, read_table
 from ..options import DEFAULT_SUM_TOLERANCE_PCT
+from ..results_contract import ResultContract
 from ..validation import check_cut_density, check_non_negative, check_optional, check_percent, check_positive, check_share
 
 #: The columns a washability table may have (besides free-text note and comment).
@@ -91,7 +92,7 @@ PREDICTION_COLUMNS = (
 
 
 @dataclass(frozen=True)
-class Washability:
+class Washability(ResultContract):
     """The float-sink analysis of one feed, fractions ordered light to heavy.
 
     Attributes
@@ -115,6 +116,12 @@ class Washability:
         The file (or ``DataFrame``) the table came from.
     rows : numpy.ndarray
         File row of each fraction (for messages).
+    feed_ash_pct : float
+        Ash per cent of the whole feed.
+
+    Notes
+    -----
+    :meth:`summary` has one row per fraction (:meth:`cumulative_table`), as does :meth:`to_frame`.
     """
 
     test: str
@@ -133,6 +140,13 @@ class Washability:
     def feed_ash_pct(self) -> float:
         """Ash per cent of the whole feed, :math:`\\sum m_i a_i / 100`."""
         return float(np.sum(self.mass_pct * self.ash_pct) / 100.0)
+
+    def summary(self) -> pd.DataFrame:
+        """One row per fraction: the washability table (:meth:`cumulative_table`)."""
+        return self.cumulative_table()
+
+    def _result_context(self) -> str:
+        return f"Washability of {self.test}: {len(self.mass_pct)} fractions, feed ash {self.feed_ash_pct:.4g} %"
 
     def cumulative_table(self) -> pd.DataFrame:
         r"""The washability table: each fraction with the cumulative floats and sinks.
@@ -241,7 +255,7 @@ class Washability:
 
 
 @dataclass(frozen=True)
-class Prediction:
+class Prediction(ResultContract):
     r"""Predicted products of one washability table for one partition curve.
 
     Attributes
@@ -261,6 +275,10 @@ class Prediction:
         it sends to the floats and to the sinks.
     note : str
         Why a number is missing ("" when none is).
+
+    Notes
+    -----
+    :meth:`summary` is one row (the products), :meth:`to_frame` the fractions.
     """
 
     floats_yield_pct: float
@@ -271,6 +289,20 @@ class Prediction:
     organic_efficiency_pct: float
     fractions: pd.DataFrame
     note: str = ""
+
+    def summary(self) -> pd.DataFrame:
+        """One row: yield and ash of both products, the theoretical yield, the organic efficiency, the note."""
+        names = ("floats_yield_pct", "floats_ash_pct", "sinks_yield_pct", "sinks_ash_pct", "theoretical_yield_pct",
+                 "organic_efficiency_pct", "note")  # fmt: skip
+        return pd.DataFrame([{name: getattr(self, name) for name in names}])
+
+    def to_frame(self) -> pd.DataFrame:
+        """The fractions: density, partition to sinks and the mass sent to each product."""
+        return self.fractions.copy()
+
+    def _result_context(self) -> str:
+        return (f"Predicted products: floats {self.floats_yield_pct:.4g} % at {self.floats_ash_pct:.4g} % ash, "
+                f"sinks {self.sinks_yield_pct:.4g} % at {self.sinks_ash_pct:.4g} % ash")  # fmt: skip
 
 
 def predict_products(washability: Washability, partition: Callable) -> Prediction:

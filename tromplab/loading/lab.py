@@ -59,6 +59,7 @@ import pandas as pd
 
 from ..errors import InputError, OptionError, YieldWarning
 from ..options import DEFAULT_MIN_FEED_SHARE, DEFAULT_SUM_TOLERANCE_PCT, KINDS, PARTITION_METHODS
+from ..results_contract import ResultContract
 from ..validation import (
     SIZE_LIMITS,
     check_non_negative,
@@ -191,7 +192,7 @@ class YieldEstimate:
 
 
 @dataclass(frozen=True)
-class MassBalance:
+class MassBalance(ResultContract):
     """One experiment of a lab table turned into Tromp points.
 
     ``classes`` has one row per size class with columns ``experiment, size_lower,
@@ -203,6 +204,35 @@ class MassBalance:
     the adjusted shares.  ``partition_method`` says how the partition was computed
     (see :class:`LabOptions`), ``size_unit`` the unit of the sizes ("" when unknown),
     ``water_recovery`` the water split to the underflow when given (hydrocyclones).
+    :meth:`summary` is one row (the yield and the classes used), :meth:`to_frame` the classes,
+    :meth:`report` what ``tromplab balance`` prints for the experiment.
+
+    Attributes
+    ----------
+    experiment : str
+        The experiment's name.
+    classes : pandas.DataFrame
+        One row per size class (columns above).
+    fine_yield : float
+        Mass share of the feed reporting to the fine product, 0..1.
+    yield_source : str
+        Where ``fine_yield`` came from (stated, estimated from the three streams, ...).
+    yield_estimate : YieldEstimate or None
+        The least-squares estimate from the three size distributions (None without them).
+    top_size : float
+        Largest size of the feed (the upper bound of the coarsest class).
+    notes : tuple of str
+        What was inferred or left out, in words.
+    source : str
+        The file the table came from.
+    partition_method : str
+        How the partition was computed (see :class:`LabOptions`).
+    size_unit : str
+        Unit of the sizes ("" when unknown).
+    water_recovery : float or None
+        Water split to the underflow (hydrocyclones; None when not given).
+    left_out : list of str
+        One message per class left out of the fit.
     """
 
     experiment: str
@@ -226,6 +256,35 @@ class MassBalance:
             where = f" (row {row.row})" if row.row is not None else ""
             messages.append(f"class {_class_label(row.size_lower, row.size_upper)}{unit}{where} left out: {row.flag}")
         return messages
+
+    def summary(self) -> pd.DataFrame:
+        """One row: the fine yield and its source (with the three-stream estimate and its standard
+        error when there is one), the partition method and the classes used of all."""
+        estimate = self.yield_estimate
+        row = {"experiment": self.experiment, "fine_yield": self.fine_yield, "yield_source": self.yield_source,
+               "yield_estimate": estimate.value if estimate else np.nan,
+               "yield_estimate_stderr": estimate.stderr if estimate else np.nan,
+               "partition_method": self.partition_method, "classes": len(self.classes),
+               "classes_used": int(self.classes["used"].sum()), "top_size": self.top_size}  # fmt: skip
+        return pd.DataFrame([row])
+
+    def to_frame(self) -> pd.DataFrame:
+        """The classes: one row per size class with the shares, the partition and the flags."""
+        return self.classes.copy()
+
+    def _result_context(self) -> str:
+        return (f"Experiment {self.experiment}: fine yield {self.fine_yield:.4f} ({self.yield_source}); "
+                f"partition from {PARTITION_METHOD_TEXT[self.partition_method]}")  # fmt: skip
+
+    def report(self) -> str:
+        """What ``tromplab balance`` prints for the experiment: the yield, the estimate and the classes."""
+        lines = [self._result_context()]
+        estimate = self.yield_estimate
+        if estimate is not None:
+            lines.append(f"  least-squares estimate from the three streams: {estimate.value:.4f} +/- {estimate.stderr:.4f} "
+                         f"(standard error, {estimate.n_classes} classes); coarse yield {1 - estimate.value:.4f}")  # fmt: skip
+        lines.append(self.classes.to_string(index=False, float_format=lambda v: f"{v:.4g}", na_rep="-"))
+        return "\n".join(lines)
 
     def left_out_table(self) -> pd.DataFrame:
         """``experiment, size_lower, size_upper, row, reason`` of every class left out of the fit."""

@@ -40,6 +40,40 @@ def workbench_repr(bench) -> str:
     )
 
 
+#: Columns of :func:`experiment_summary` taken from ``fits.csv`` (those present in the batch's table).
+SUMMARY_COLUMNS = ("experiment", "equation", "formula", "rank", "d_cut", "shape_name", "shape", "F", "F_crit", "adequate",
+                   "eta", "ep", "aicc", "residuals")  # fmt: skip
+
+
+def experiment_summary(bench) -> pd.DataFrame:
+    """One row per experiment of ``bench``: the columns :data:`SUMMARY_COLUMNS` of its top-ranked
+    fit (:meth:`~tromplab.workbench.Workbench.best_fit`), ``tied`` (fits sharing the top rank)
+    and ``reason`` (why the experiment has no ranked fit; "" when it has one)."""
+    table = bench.fits_table()
+    columns = [column for column in SUMMARY_COLUMNS if column in table.columns]
+    rows = []
+    for experiment in dict.fromkeys([*bench.experiments, *bench.failures]):
+        best = bench.best_fit(experiment)
+        if best is None:
+            reason = bench.failures.get(experiment, "no successful fit among the ranked formulas")
+            rows.append({"experiment": experiment, "tied": 0, "reason": reason})
+            continue
+        row = table[(table["experiment"] == experiment) & (table["formula"] == best.formula.id)].iloc[0]
+        rows.append({**row[columns].to_dict(), "tied": len(bench.top_ranked(experiment)), "reason": ""})
+    return pd.DataFrame(rows, columns=[*columns, "tied", "reason"])
+
+
+def summary_text(bench) -> str:
+    """The text of :meth:`~tromplab.workbench.Workbench.report`: the batch in a line, the
+    summary table, then the experiments that could not be fitted."""
+    summary = experiment_summary(bench)
+    shown = summary.drop(columns=["reason"]).to_string(index=False, float_format=lambda value: f"{value:.4g}", na_rep="-")
+    lines = [workbench_repr(bench), "", "Top-ranked fit of each experiment (every fit: fits_table()):", shown]
+    failed = summary[summary["reason"] != ""]
+    lines += [f"not ranked: {row.experiment}: {row.reason}" for row in failed.itertuples(index=False)]
+    return "\n".join(lines)
+
+
 def workbench_html(bench) -> str:
     """HTML for Jupyter: the repr line and the ranking table."""
     return f"<p><b>{html.escape(workbench_repr(bench))}</b></p>\n" + bench.ranking_table().to_html(index=False)

@@ -28,11 +28,26 @@ from ..curves.parameters import Parameter, d_cut_parameter
 from ..errors import InputError, OptionError, expect_kind
 from ..loading.points import TrompPoints
 from ..options import DEFAULT_MARGIN
+from ..results_contract import ResultContract
 
 
 @dataclass(frozen=True)
-class ExtraSumOfSquares:
-    """Extra-sum-of-squares F test of a reduced model against a fuller one."""
+class ExtraSumOfSquares(ResultContract):
+    """Extra-sum-of-squares F test of a reduced model against a fuller one.
+
+    Attributes
+    ----------
+    ssr_reduced, ssr_full : float
+        Sums of squares of the reduced and the fuller model.
+    df_extra : int
+        Parameters the fuller model adds.
+    df_full : int
+        Residual degrees of freedom of the fuller model.
+    F : float
+        ``((ssr_reduced - ssr_full) / df_extra) / (ssr_full / df_full)`` (inf when ``ssr_full`` is 0).
+    p_value : float
+        Upper tail of the F distribution on ``(df_extra, df_full)`` at ``F``.
+    """
 
     ssr_reduced: float
     ssr_full: float
@@ -52,6 +67,15 @@ class ExtraSumOfSquares:
     def needed(self, alpha: float = 0.05) -> bool:
         """True when the fuller model is needed at significance ``alpha``."""
         return self.p_value < alpha
+
+    def summary(self) -> pd.DataFrame:
+        """One row: the sums of squares, the degrees of freedom, ``F``, ``p_value`` and ``needed`` (at 0.05)."""
+        row = {"ssr_reduced": self.ssr_reduced, "ssr_full": self.ssr_full, "df_extra": self.df_extra,
+               "df_full": self.df_full, "F": self.F, "p_value": self.p_value, "needed": self.needed()}  # fmt: skip
+        return pd.DataFrame([row])
+
+    def _result_context(self) -> str:
+        return f"Extra sum of squares: F = {self.F:.4g} on ({self.df_extra}, {self.df_full}) df, p = {self.p_value:.4g}"
 
 
 def nested_f_test(reduced: CurveFit, full: CurveFit) -> ExtraSumOfSquares:
@@ -123,8 +147,28 @@ def nested_tests(fits: Sequence[CurveFit]) -> pd.DataFrame:
 
 
 @dataclass(frozen=True)
-class SharedFit:
-    """A formula fitted to several experiments with one parameter shared."""
+class SharedFit(ResultContract):
+    """A formula fitted to several experiments with one parameter shared.
+
+    :meth:`report` is what ``tromplab compare`` prints; :meth:`to_frame` its table.
+
+    Attributes
+    ----------
+    formula_id : str
+        The formula fitted.
+    shared : str
+        The parameter shared by the experiments (the shape, or ``d_cut``).
+    fit : ParameterFit
+        The joint fit: ``shared`` and one free parameter per experiment (``<name>_<i>``).
+    separate : tuple of CurveFit
+        The formula fitted to each experiment alone.
+    test : ExtraSumOfSquares
+        The F test of the joint fit against the separate ones.
+    experiments : tuple of str
+        The experiments, in order.
+    relative_difference : float
+        Spread of the separate estimates of ``shared`` over the joint estimate.
+    """
 
     formula_id: str
     shared: str
@@ -196,6 +240,28 @@ class SharedFit:
                 }
             )
         return pd.DataFrame(rows)
+
+    def to_frame(self) -> pd.DataFrame:
+        """:meth:`table`: per experiment, the shared-fit parameters beside the separate fits'."""
+        return self.table()
+
+    def summary(self, *, margin: float = DEFAULT_MARGIN, alpha: float = 0.05) -> pd.DataFrame:
+        """One row: the formula, the shared parameter and its joint estimate, the F test, the
+        relative difference and the :meth:`verdict` at ``margin`` and ``alpha``."""
+        row = {"formula": self.formula_id, "shared": self.shared, "experiments": ", ".join(self.experiments),
+               "estimate": self.fit.values[self.shared], "F": self.test.F, "p_value": self.test.p_value,
+               "relative_difference": self.relative_difference, "verdict": self.verdict(margin=margin, alpha=alpha)}  # fmt: skip
+        return pd.DataFrame([row])
+
+    def _result_context(self) -> str:
+        return f"{self.formula_id} fitted to {', '.join(self.experiments)} with {self.shared} shared"
+
+    def report(self, *, margin: float = DEFAULT_MARGIN, alpha: float = 0.05) -> str:
+        """What ``tromplab compare`` prints: the table, the F test and the :meth:`conclusion`."""
+        table = self.table().to_string(index=False, float_format=lambda v: f"{v:.4g}")
+        test = self.test
+        f_test = f"Extra sum of squares: F = {test.F:.4g} on ({test.df_extra}, {test.df_full}) df, p = {test.p_value:.4g}"
+        return f"{self._result_context()}\n{table}\n\n{f_test}\n{self.conclusion(margin=margin, alpha=alpha)}"
 
 
 def shared_fit(experiments: Sequence[TrompPoints], formula, *, shared: str = "shape") -> SharedFit:

@@ -48,17 +48,34 @@ from ..curves.measured import parameter_specs
 from ..errors import InputError, expect_kind
 from ..loading.points import TrompPoints
 from ..options import BOOTSTRAP_METHODS
+from ..results_contract import ResultContract
 from ..validation import check_bootstrap, check_optional, check_probability, check_seed
 
 logger = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
-class Bootstrap:
+class Bootstrap(ResultContract):
     """Bootstrap replicates of one fit: one row per successful resample.
 
     ``bounds`` maps each quantity to the edges it cannot pass (its range, and for the
     parameters the bounds of the fit); percentile limits on an edge are flagged.
+    :meth:`summary` is :meth:`intervals` at 0.95, :meth:`to_frame` the replicates.
+
+    Attributes
+    ----------
+    samples : pandas.DataFrame
+        One row per successful resample, one column per parameter and index.
+    n_requested : int
+        Resamples asked for.
+    method : str
+        ``"residuals"`` or ``"cases"``.
+    seed : int
+        Seed of the resampling.
+    bounds : dict
+        Quantity -> the edges it cannot pass.
+    n_failed : int
+        Resamples whose refit failed.
     """
 
     samples: pd.DataFrame
@@ -70,6 +87,18 @@ class Bootstrap:
     @property
     def n_failed(self) -> int:
         return self.n_requested - len(self.samples)
+
+    def summary(self, level: float = 0.95) -> pd.DataFrame:
+        """One row per quantity: its percentile interval at ``level`` (:meth:`intervals`)."""
+        return self.intervals(level)
+
+    def to_frame(self) -> pd.DataFrame:
+        """The replicates (:attr:`samples`): one row per successful resample."""
+        return self.samples.copy()
+
+    def _result_context(self) -> str:
+        return (f"Bootstrap ({self.method}, seed {self.seed}): {len(self.samples)} of {self.n_requested} resamples "
+                f"refitted, {self.n_failed} failed; 95 % percentile intervals")  # fmt: skip
 
     def intervals(self, level: float = 0.95) -> pd.DataFrame:
         """Percentile intervals: ``quantity, low, high, stderr`` (standard deviation of the

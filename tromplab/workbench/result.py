@@ -8,6 +8,7 @@ from __future__ import annotations
 import functools
 import logging
 import os
+import warnings
 from dataclasses import dataclass, field
 from functools import cached_property
 
@@ -25,7 +26,8 @@ from ..output.csv_parts import CsvPart
 from ..output.folder import write_results_folder
 from ..output.plotting import plot_tromp_fits
 from ..output.report import build_report, write_report
-from ..output.results import load_workbench, workbench_html, workbench_repr
+from ..output.results import experiment_summary, load_workbench, summary_text, workbench_html, workbench_repr
+from ..results_contract import ResultContract
 from ..validation import MAX_JOBS, check_count, check_optional, check_probability
 from .averages import _averaged_groups, _averages_of_chunk, _averages_table, averages_level
 from .fanout import ChunkResults, _map_work, _worker_count, chunked
@@ -36,8 +38,55 @@ logger = logging.getLogger(__package__)
 
 
 @dataclass(frozen=True)
-class Workbench:
-    """All fits of a batch with their tables."""
+class Workbench(ResultContract):
+    """All fits of a batch with their tables.
+
+    Made by :func:`tromplab.fit_experiments` (or :func:`tromplab.load`).  :meth:`summary`
+    has one row per experiment (its top-ranked fit), :meth:`to_frame` is ``fits.csv``,
+    :meth:`report` the text, :meth:`write_report` the HTML report, :meth:`save` the folder
+    ``tromplab fit`` writes.
+
+    Attributes
+    ----------
+    fits : tuple of CurveFit
+        Every fit, experiment by experiment in batch order.
+    failures : dict
+        Experiment -> why it could not be fitted at all.
+    formulas : tuple of Formula
+        The formulas fitted.
+    rank_by : str
+        The criterion of the ranking (``"F"``, ``"aicc"``, ...).
+    alpha : float
+        Significance level of the Fisher screen.
+    rank_extended : bool
+        Whether the extended curves are ranked with the paper's nine.
+    notes : dict
+        Experiment -> notes on its data (classes left out, inferred columns).
+    water_recovery : float or None
+        Water split to the underflow, compared with the fitted bypass (hydrocyclones).
+    ci : float or None
+        Level of the intervals in the fits table (None: no intervals).
+    bootstrap : int
+        Bootstrap resamples per fit (0: none).
+    bootstrap_method : str
+        ``"residuals"`` or ``"cases"``.
+    seed : int
+        Seed of the bootstrap.
+    partition_to : str
+        ``"fine"`` or ``"coarse"``: the product the tables' partition refers to.
+    size_unit : str
+        Unit of the sizes ("" when unknown).
+    inputs : tuple of TrompPoints
+        The points of every experiment, as fitted.
+    balances : tuple of MassBalance
+        The lab balances the points came from (empty for points input).
+    intervals : pandas.DataFrame or None
+        The interval columns of the fits table (None without ``ci`` or ``bootstrap``).
+    ranked_formulas : tuple of Formula
+        The formulas the ranking covers.
+    experiments : list of str
+        The experiments, in batch order.
+    """
 
     fits: tuple[CurveFit, ...]
     failures: dict[str, str] = field(default_factory=dict)
@@ -194,7 +243,7 @@ class Workbench:
 
     def __getstate__(self) -> dict:
         # the formatted text is for writing this run's folder; a saved batch formats again
-        return {key: value for key, value in self.__dict__.items() if key != "_csv_parts"}
+        return {key: value for key, value in super().__getstate__().items() if key != "_csv_parts"}
 
     def _keep_averages(self, level: float, table: pd.DataFrame) -> None:
         self._averages_by_level[level] = with_survey_columns(table, self.inputs)
@@ -231,7 +280,37 @@ class Workbench:
             raise KeyError(f"no experiment {experiment!r}; experiments: {', '.join(self.experiments)}")
         return plot_tromp_fits(self.fits_of(experiment), ax=ax, best=self.best_fit(experiment), **options)
 
-    def report(
+    def summary(self) -> pd.DataFrame:
+        """One row per experiment: its top-ranked fit (columns of ``fits.csv``), ``tied`` (how
+        many fits share the top rank) and ``reason`` (why an experiment has no ranked fit)."""
+        return experiment_summary(self)
+
+    def to_frame(self) -> pd.DataFrame:
+        """The main table, ``fits.csv`` (:meth:`fits_table`)."""
+        return self.fits_table()
+
+    def _result_context(self) -> str:
+        return workbench_repr(self)
+
+    def report(self, path=None, **options) -> str | dict:
+        """Text: the batch in a line, then the top-ranked fit of every experiment (:meth:`summary`).
+
+        Writing the HTML report with ``report(path, ...)`` is deprecated: use
+        :meth:`write_report`, which takes the same arguments.
+        """
+        if path is not None:
+            warnings.warn(
+                "Workbench.report(path) is deprecated and will write nothing in a future release: "
+                "report() returns text; write_report(path) writes the HTML report",
+                FutureWarning,
+                stacklevel=2,
+            )
+            return self.write_report(path, **options)
+        if options:
+            raise TypeError(f"report() takes no options without a path: {', '.join(options)}")
+        return summary_text(self)
+
+    def write_report(
         self,
         path,
         *,
