@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from .circuit import CircuitBalance, ErrorModel, read_flowsheet, read_survey, reconcile
 from .circuit.plotting import figure_size
 from .errors import OptionError
+from .loading.weights import weight_notes
 from .options import CIRCUIT_FIT_FORMULAS, DEFAULT_ALPHA
 from .output.csv_parts import write_csv
 from .output.outputs import check_output_folder, replace_folder
@@ -138,7 +139,7 @@ def run_circuit(
         tables["fits"] = bench.fits_table()
         tables["ranking"] = bench.ranking_table()
     outputs = {f"{name}.csv": (lambda path, table=table: write_csv(table, path)) for name, table in tables.items()}
-    summary = balance.summary() + "\n"
+    summary = "\n".join([balance.summary(), *weight_notes(tables["points"])]) + "\n"
     outputs["summary.txt"] = lambda path: path.write_text(summary, encoding="utf-8")
     if figures:
         for kind in ("flowsheet", "adjustments", "distributions") if balance.has_size_classes else ("flowsheet", "adjustments"):
@@ -160,7 +161,7 @@ def _png(balance: CircuitBalance, kind: str) -> bytes:
 def console_report(run: CircuitRun) -> str:
     """What the command prints: the summary, the flows, the largest adjustments, the fits' ranking and the files."""
     balance = run.balance
-    lines = [balance.summary(), "", "Reconciled solids flows:"]
+    lines = [balance.summary(), *weight_notes(balance.points_table()), "", "Reconciled solids flows:"]
     flows = balance.flows_table()[["stream", "measured", "reconciled", "reconciled_sd"]]
     lines.append(flows.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
     largest = balance.largest_adjustments(5)

@@ -52,6 +52,7 @@ from .options import (
     PARTITION_TO,
     RANK_BY,
     TABLE_FORMATS,
+    WEIGHTINGS,
 )
 from .output.outputs import check_output_file, check_output_folder, forget_written, write_files, written_outputs
 from .validation import (
@@ -743,6 +744,14 @@ def _lab_options_parser() -> argparse.ArgumentParser:
         help="weight each point by its class's feed share (variance inversely proportional to it)",
     )
     group.add_argument(
+        "--weighting",
+        choices=WEIGHTINGS,
+        default="none",
+        help="how the points are weighted in the fit: every class alike (default), by its feed share (as "
+        "--weight-by-feed-share), or by the inverse variance of its partition under the error model of the size "
+        "analyses with a floor relative to the feed share (as tromplab circuit --fit weights them)",
+    )
+    group.add_argument(
         "--partition-from",
         choices=PARTITION_METHODS,
         default="products",
@@ -781,6 +790,7 @@ def _lab_options(args) -> LabOptions:
         sep=args.sep,
         decimal=args.decimal,
         water_recovery=getattr(args, "water_recovery", None),
+        weighting=args.weighting,
     )
 
 

@@ -49,7 +49,7 @@ products given as masses imply the yield ``fine / (fine + coarse)``, compared li
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 from typing import NamedTuple
 
 import numpy as np
@@ -81,8 +81,10 @@ from .node_balance import (
     yield_contradiction,
 )
 from .points import TrompPoints, experiment_rows, points_from_table
+from .size_classes import class_label
 from .surveys import has_survey_columns, split_survey_columns, with_survey_meta
 from .tables import Table, read_table
+from .weights import concentration_note, partition_weights
 
 #: The public names, kept importable from here where they were before the lab reader was split
 #: into the modules of its parts (options, columns, size classes, the balance of one node).
@@ -129,7 +131,8 @@ class MassBalance:
     When reconciled, ``feed_adjusted``, ``fine_adjusted`` and ``coarse_adjusted`` hold
     the adjusted shares.  ``partition_method`` says how the partition was computed
     (see :class:`LabOptions`), ``size_unit`` the unit of the sizes ("" when unknown),
-    ``water_recovery`` the water split to the underflow when given (hydrocyclones).
+    ``water_recovery`` the water split to the underflow when given (hydrocyclones),
+    ``weighting`` how its points are weighted in the fit (:class:`LabOptions`).
     """
 
     experiment: str
@@ -143,6 +146,7 @@ class MassBalance:
     partition_method: str = "products"
     size_unit: str = ""
     water_recovery: float | None = None
+    weighting: str = "none"
 
     @property
     def left_out(self) -> list[str]:
@@ -151,7 +155,7 @@ class MassBalance:
         messages = []
         for row in self.classes.loc[~self.classes["used"]].itertuples(index=False):
             where = f" (row {row.row})" if row.row is not None else ""
-            messages.append(f"class {_class_label(row.size_lower, row.size_upper)}{unit}{where} left out: {row.flag}")
+            messages.append(f"class {class_label(row.size_lower, row.size_upper)}{unit}{where} left out: {row.flag}")
         return messages
 
     def left_out_table(self) -> pd.DataFrame:
@@ -167,16 +171,27 @@ class MassBalance:
         reasons = dropped["reason"].str.replace(r"^feed share .*", "feed share below the limit", regex=True)
         counted = "; ".join(f"{reason.split(':')[0]}: {count}" for reason, count in reasons.value_counts(sort=False).items())
         unit = f" {self.size_unit}" if self.size_unit else ""
-        bounds = ", ".join(_class_label(lo, hi) for lo, hi in zip(dropped["size_lower"], dropped["size_upper"]))
+        bounds = ", ".join(class_label(lo, hi) for lo, hi in zip(dropped["size_lower"], dropped["size_upper"]))
         return f"{len(dropped)} class(es) left out: {bounds}{unit} ({counted})"
 
+    def class_weights(self, *, weight_by_feed_share: bool = False) -> np.ndarray | None:
+        """The weight of every class in the fit under :attr:`weighting` (``weight_by_feed_share``:
+        the feed share when the balance has no weighting of its own), None when unweighted;
+        :func:`tromplab.loading.weights.partition_weights`."""
+        weighting = "feed-share" if weight_by_feed_share and self.weighting == "none" else self.weighting
+        if weighting == "feed-share":
+            return self.classes["feed"].to_numpy()  # every class, as the feed share column reads
+        classes = self.classes
+        return partition_weights(weighting, classes["partition_fine"], classes["feed"], self.fine_yield, classes["used"])
+
     def to_points(self, *, weight_by_feed_share: bool = False) -> TrompPoints:
-        used = self.classes[self.classes["used"]]
+        used = self.classes["used"].to_numpy()
+        weight = self.class_weights(weight_by_feed_share=weight_by_feed_share)
         return TrompPoints(
             experiment=self.experiment,
-            size=used["size"].to_numpy(),
-            partition_fine=used["partition_fine"].to_numpy(),
-            weight=used["feed"].to_numpy() if weight_by_feed_share else None,
+            size=self.classes["size"].to_numpy()[used],
+            partition_fine=self.classes["partition_fine"].to_numpy()[used],
+            weight=None if weight is None else weight[used],
             delta_max=self.top_size,
             source=self.source,
             size_unit=self.size_unit,
@@ -184,7 +199,7 @@ class MassBalance:
 
     def points_table(self, *, weight_by_feed_share: bool = False, unit_in_names: bool = False) -> pd.DataFrame:
         """Rows in the ``tromplab fit`` schema plus per-class diagnostics (and a ``weight``
-        column equal to the feed share when asked); with ``unit_in_names`` the size columns
+        column under the balance's weighting, or the feed share when asked); with ``unit_in_names`` the size columns
         carry the unit (``size_um``), so the file read back keeps it.  With a
         ``water_recovery`` the Kelsall-corrected partition ``partition_fine_corrected``
         follows ``partition_fine``."""
@@ -205,7 +220,8 @@ class MassBalance:
             table.insert(3, "partition_fine_corrected", kelsall_corrected(table["partition_fine"], self.water_recovery))
         if unit_in_names and self.size_unit:
             table = table.rename(columns={c: f"{c}_{self.size_unit}" for c in ("size", "size_lower", "size_upper")})
-        return table.assign(weight=table["feed_share"]) if weight_by_feed_share else table
+        weight = self.class_weights(weight_by_feed_share=weight_by_feed_share)
+        return table if weight is None else table.assign(weight=weight)
 
 
 # --- reading ----------------------------------------------------------------------------
@@ -333,7 +349,7 @@ def _balance_one(table: Table, name: str, streams, layout: _SizeLayout, options:
             f"(flags: {'; '.join(f for f in flags if f) or 'none'})",
             source=table.source,
         )
-    return MassBalance(
+    balance = MassBalance(
         name,
         classes,
         fine_yield,
@@ -345,12 +361,20 @@ def _balance_one(table: Table, name: str, streams, layout: _SizeLayout, options:
         partition_method=method,
         size_unit=layout.unit,
         water_recovery=options.water_recovery,
+        weighting=options.weighting,
     )
+    return _with_weight_note(balance)
 
 
-def _class_label(lower: float, upper: float) -> str:
-    """``4.1-5.3``, with ``pan`` and ``top`` for the open ends."""
-    return f"{'pan' if not np.isfinite(lower) else f'{lower:g}'}-{'top' if not np.isfinite(upper) else f'{upper:g}'}"
+def _with_weight_note(balance: MassBalance) -> MassBalance:
+    """The balance with a note when a few classes carry most of the weight of its points."""
+    weight = balance.class_weights()
+    if weight is None:
+        return balance
+    classes = balance.classes
+    labels = [class_label(lo, hi, balance.size_unit) for lo, hi in zip(classes["size_lower"], classes["size_upper"])]
+    note = concentration_note(np.where(classes["used"], weight, np.nan), labels)
+    return replace(balance, notes=(*balance.notes, note)) if note else balance
 
 
 #: Partitions around the cut: a class whose partition lies between them measures the cut region.

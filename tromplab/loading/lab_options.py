@@ -6,10 +6,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import InputError
-from ..options import DEFAULT_MIN_FEED_SHARE, DEFAULT_SUM_TOLERANCE_PCT, KINDS, PARTITION_METHODS
+from ..errors import InputError, OptionError
+from ..options import DEFAULT_MIN_FEED_SHARE, DEFAULT_SUM_TOLERANCE_PCT, KINDS, PARTITION_METHODS, WEIGHTINGS
 from ..validation import (
     SIZE_LIMITS,
+    check_choice,
     check_optional,
     check_probability,
     check_range,
@@ -48,9 +49,16 @@ class LabOptions:
     sheet : str or None
         Excel sheet.
     weight_by_feed_share : bool
-        Weight each Tromp point by the feed share of its class.  Error model: the
-        partition of a class is measured on a sample mass proportional to its feed
-        share, so its variance is inversely proportional to that share.
+        Weight each Tromp point by the feed share of its class (the same as
+        ``weighting="feed-share"``).  Error model: the partition of a class is measured on
+        a sample mass proportional to its feed share, so its variance is inversely
+        proportional to that share.
+    weighting : {"none", "feed-share", "error-model"}
+        How the Tromp points are weighted in the fit (:mod:`tromplab.loading.weights`):
+        every class alike (default), by its feed share, or by the inverse variance of its
+        partition under the error model of the size analyses with a floor relative to the
+        feed share (the weighting of ``tromplab circuit --fit``, so that one node gives the
+        same fits by both paths).
     partition_from : {"products", "feed"}
         With three measured streams: ``"products"`` (default) computes the partition
         from both products, :math:`y b / (y b + (1-y) c)`, so swapping the fine and
@@ -86,8 +94,15 @@ class LabOptions:
     sep: str | None = None
     decimal: str | None = None
     water_recovery: float | None = None
+    weighting: str = "none"
 
     def __post_init__(self):
+        check_choice(self.weighting, "weighting", choices=WEIGHTINGS)
+        if self.weight_by_feed_share and self.weighting not in ("none", "feed-share"):
+            raise OptionError("weighting", f"is {self.weighting!r} and weight_by_feed_share is set too: give one weighting")
+        if self.weight_by_feed_share or self.weighting == "feed-share":  # the two spellings of one weighting agree
+            object.__setattr__(self, "weighting", "feed-share")
+            object.__setattr__(self, "weight_by_feed_share", True)
         if self.kind is not None and self.kind not in KINDS:
             raise ValueError(f"unknown kind {self.kind!r}; choose one of {', '.join(KINDS)}")
         if self.partition_from not in PARTITION_METHODS:

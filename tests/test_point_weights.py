@@ -1,0 +1,140 @@
+"""The weights of Tromp points (tromplab.loading.weights): one weighting for the lab and the
+circuit paths, a partition variance that matches simulation, no class taken as exact, and a
+note when a few classes carry most of the weight."""
+
+import io
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from tromplab import fit_formula
+from tromplab.circuit import reconcile
+from tromplab.cli import main
+from tromplab.errors import OptionError
+from tromplab.loading.lab import LabOptions, read_lab
+from tromplab.loading.weights import (
+    concentration_note,
+    partition_variance,
+    partition_weights,
+    weight_concentration,
+    weight_notes,
+)
+from tromplab.options import DEFAULT_PARTITION_FLOOR, WEIGHT_CONCENTRATION_SHARE
+
+from .conftest import write
+
+CYCLONE_SHEET = "stream,from,to,product\nfeed,,cyclone,\noverflow,cyclone,,fine\nunderflow,cyclone,,coarse\n"
+LOWER = np.array([300, 212, 150, 106, 75, 53, 38, np.nan])
+UPPER = np.array([np.nan, 300, 212, 150, 106, 75, 53, 38])
+FEED = np.array([0.14, 0.11, 0.12, 0.12, 0.11, 0.10, 0.07, 0.23])
+#: A hydrocyclone's partition to the overflow: nothing of the top class reaches the overflow.
+PARTITION = np.array([0.0, 0.004, 0.06, 0.30, 0.58, 0.80, 0.90, 0.96])
+
+
+def _exact_node():
+    """Feed, overflow and underflow shares of one hydrocyclone that balance exactly (not rounded)."""
+    y = float(np.sum(FEED * PARTITION))
+    return FEED, FEED * PARTITION / y, FEED * (1 - PARTITION) / (1 - y)
+
+
+def _lab_table(feed, fine, coarse) -> pd.DataFrame:
+    return pd.DataFrame(
+        {"size_lower_um": LOWER, "size_upper_um": UPPER, "feed_frac": feed, "overflow_frac": fine, "underflow_frac": coarse}
+    )
+
+
+def _survey(feed, fine, coarse) -> pd.DataFrame:
+    frames = [
+        pd.DataFrame({"stream": stream, "size_lower_um": LOWER, "size_upper_um": UPPER, "retained_frac": values})
+        for stream, values in (("feed", feed), ("overflow", fine), ("underflow", coarse))
+    ]
+    return pd.concat(frames, ignore_index=True)
+
+
+def test_one_node_gives_the_same_weights_and_fits_by_the_lab_and_the_circuit_path():
+    shares = _exact_node()
+    (lab_balance,) = read_lab(_lab_table(*shares), weighting="error-model")
+    lab = lab_balance.to_points()
+    (circuit,) = reconcile(pd.read_csv(io.StringIO(CYCLONE_SHEET)), _survey(*shares)).to_points()
+    np.testing.assert_allclose(lab.size, circuit.size, rtol=1e-12)
+    np.testing.assert_allclose(lab.partition_fine, circuit.partition_fine, atol=1e-10)
+    np.testing.assert_allclose(lab.weight, circuit.weight, rtol=1e-10, atol=1e-10)
+    assert not np.allclose(lab.weight, 1.0)  # a weighting, not the unweighted fit
+    for formula in ("plitt", "rosin_rammler", "whiten"):
+        by_lab, by_circuit = fit_formula(lab, formula), fit_formula(circuit, formula)
+        assert by_lab.success and by_circuit.success
+        np.testing.assert_allclose(by_lab.d_cut, by_circuit.d_cut, rtol=1e-6)
+        np.testing.assert_allclose(by_lab.shape, by_circuit.shape, rtol=1e-6)
+
+
+def test_the_weighting_has_one_name_on_both_faces(tmp_path, capsys):
+    path = write(tmp_path, _lab_table(*_exact_node()).to_csv(index=False), "lab.csv")
+    out = tmp_path / "points.csv"
+    assert main(["points", str(path), "-o", str(out), "--weighting", "error-model"]) == 0
+    written = pd.read_csv(out)
+    (balance,) = read_lab(path, weighting="error-model")
+    np.testing.assert_allclose(written["weight"], balance.points_table()["weight"], rtol=1e-12)
+    with pytest.raises(OptionError, match="weighting"):
+        read_lab(path, weighting="precision")
+    capsys.readouterr()
+    assert main(["points", str(path), "-o", str(out), "--weighting", "precision"]) == 2
+    assert "--weighting" in capsys.readouterr().err
+
+
+def test_two_spellings_of_the_feed_share_weighting_agree_and_two_weightings_are_refused():
+    assert LabOptions(weighting="feed-share") == LabOptions(weight_by_feed_share=True)
+    with pytest.raises(OptionError, match="give one weighting"):
+        LabOptions(weight_by_feed_share=True, weighting="error-model")
+
+
+@pytest.mark.parametrize("phi, share", [(0.5, 0.25), (0.9, 0.1), (0.98, 0.2)])
+def test_the_partition_variance_is_that_of_the_partition_computed_from_noisy_products(phi, share):
+    """Delta method checked by simulation: product shares drawn from the error model at the
+    shares the partition implies, the partition recomputed as y b / (y b + (1 - y) c)."""
+    y, r, e = 0.6, 0.05, 0.001
+    fine, coarse = share * phi / y, share * (1 - phi) / (1 - y)
+    rng = np.random.default_rng(7)
+    b = fine + np.hypot(r * fine, e) * rng.standard_normal(400_000)
+    c = coarse + np.hypot(r * coarse, e) * rng.standard_normal(400_000)
+    simulated = np.std(y * b / (y * b + (1 - y) * c))
+    predicted = np.sqrt(partition_variance([phi], [share], y, floor=0.0))[0]
+    np.testing.assert_allclose(predicted, simulated, rtol=0.03)
+
+
+def test_a_class_all_in_one_product_does_not_take_most_of_the_weight():
+    """The top class's overflow share is 0: the error model alone gives it a variance from the
+    absolute error only; the floor keeps the heaviest two classes below the share of the
+    inverse variance of the reconciled partition."""
+    balance = reconcile(pd.read_csv(io.StringIO(CYCLONE_SHEET)), _survey(*_exact_node()))
+    part = balance.partition_table()
+    reconciled = weight_concentration(1.0 / part["partition_sd"].to_numpy() ** 2)
+    default = weight_concentration(balance.points_table()["weight"])
+    without_floor = weight_concentration(
+        partition_weights("error-model", part["partition_fine"], part["feed_share"], part["fine_yield"].iloc[0], floor=0.0)
+    )
+    assert reconciled.share > 0.55 and without_floor.share > 0.55
+    assert default.share < WEIGHT_CONCENTRATION_SHARE
+    assert DEFAULT_PARTITION_FLOOR > 0
+
+
+def test_a_note_names_the_classes_that_carry_most_of_the_weight(tmp_path, capsys):
+    feed = np.array([0.40, 0.38, 0.05, 0.05, 0.04, 0.04, 0.02, 0.02])
+    y = float(np.sum(feed * PARTITION))
+    table = _lab_table(feed, feed * PARTITION / y, feed * (1 - PARTITION) / (1 - y))
+    (balance,) = read_lab(table, weighting="feed-share")
+    (note,) = [n for n in balance.notes if "of the weight" in n]
+    assert note.startswith("2 of 8 classes (300-top um, 212-300 um) carry 78 % of the weight")
+    (unweighted,) = read_lab(table)
+    assert not any("of the weight" in n for n in unweighted.notes)
+    path = write(tmp_path, table.to_csv(index=False), "lab.csv")
+    assert main(["points", str(path), "-o", str(tmp_path / "points.csv"), "--weighting", "feed-share"]) == 0
+    assert "carry 78 % of the weight" in capsys.readouterr().err.replace("\n", " ")
+    points = balance.points_table(unit_in_names=True)
+    assert weight_notes(points) == [f"note ({balance.experiment}): {note}"]
+
+
+def test_the_concentration_threshold_needs_enough_classes():
+    assert concentration_note([5.0, 1.0, 1.0], ["a", "b", "c"]) is None  # three classes: two always carry much
+    assert concentration_note([1.0] * 8, list("abcdefgh")) is None
+    assert "2 of 4 classes (a, b)" in concentration_note([3.0, 2.0, 0.5, 0.5], list("abcd"))
