@@ -11,6 +11,10 @@ clipped at 0, rounded to 0.01 %, read back through ``read_survey``:
 - ``error-model tau=...``: :func:`tromplab.loading.weights.partition_weights` with the
   partition floor tau (0: the error model alone).
 
+The floor of the ``error-model`` weighting (:data:`tromplab.options.DEFAULT_PARTITION_FLOOR`)
+is the one with the smallest worst ratio of its RMSE to the best weighting's over the truths,
+formulas and the two indices (the ``regret`` table).
+
 Truths: Plitt's corrected curve (the registry's ``rosin_rammler_bypass``, d50c 100 um, m 2.5)
 without and with a bypass of 15 % to the coarse product, on eight classes (pan to +300 um) of
 a Rosin-Rammler feed (d63 150 um, n 1); fitted with the formula of the truth and with Plitt's
@@ -129,6 +133,26 @@ def summary(results: pd.DataFrame) -> pd.DataFrame:
     ).round(2)
 
 
+def regret(table: pd.DataFrame) -> pd.DataFrame:
+    """Per weighting, the RMSE of each (truth, formula, d50 or Ep) over the smallest RMSE any
+    weighting reached there: the largest and the geometric mean of these ratios (1 = always
+    the best), and the plain mean of the RMSEs."""
+    cells = table[["d50_rmse_pct", "ep_rmse_pct"]].unstack("weighting")
+    ratios = {}
+    for column in ("d50_rmse_pct", "ep_rmse_pct"):
+        block = cells[column]
+        ratios[column] = block.div(block.min(axis=1), axis=0)
+    ratio = pd.concat(ratios.values())
+    rmse = pd.concat([cells["d50_rmse_pct"], cells["ep_rmse_pct"]])
+    return pd.DataFrame(
+        {
+            "worst_ratio": ratio.max(),
+            "geometric_mean_ratio": np.exp(np.log(ratio).mean()),
+            "mean_rmse_pct": rmse.mean(),
+        }
+    ).round(3)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--surveys", type=int, default=500)
@@ -137,7 +161,10 @@ def main() -> None:
     started = time.perf_counter()
     results = study(args.surveys, args.seed)
     with pd.option_context("display.width", 200, "display.max_rows", 200):
-        print(summary(results).to_string())
+        table = summary(results)
+        print(table.to_string())
+        print("\nAgainst the best weighting of each truth, formula and index:")
+        print(regret(table).to_string())
     print(f"\n{args.surveys} surveys per truth, seed {args.seed}, {time.perf_counter() - started:.0f} s")
 
 

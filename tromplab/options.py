@@ -20,7 +20,7 @@ DEFAULT_MIN_FEED_SHARE = 0.002
 WEIGHTINGS = ("none", "feed-share", "error-model")
 #: Partition standard deviation added for a class of average feed share under the "error-model"
 #: weighting (scaled by the inverse feed share), so that no class is taken as exact.
-DEFAULT_PARTITION_FLOOR = 0.01
+DEFAULT_PARTITION_FLOOR = 0.03
 #: A note says the weights are concentrated when this many classes carry more than this share of
 #: the total weight (and at least twice as many classes are weighted).
 WEIGHT_CONCENTRATION_CLASSES = 2

@@ -68,7 +68,7 @@ from ..options import (
     WEIGHT_CONCENTRATION_SHARE,
     WEIGHTINGS,
 )
-from ..validation import check_choice
+from ..validation import check_choice, check_non_negative
 from .size_classes import class_label
 
 
@@ -108,13 +108,14 @@ def partition_variance(
 
     Examples
     --------
-    A class all in the fine product is not exact (the floor and the coarse share's absolute
-    error), and a class at the cut is known less well than one in the tail:
+    A class all in the fine product is not exact (the coarse share's absolute error, even
+    without the floor), and a class at the cut is known less well than one in the tail:
 
     >>> v = partition_variance([1.0, 0.5], [0.2, 0.2], 0.5, floor=0.0)
     >>> np.sqrt(v).round(4).tolist()
     [0.0025, 0.0178]
     """
+    check_non_negative(floor, "floor")
     phi = np.clip(np.asarray(partition_fine, dtype=float), 0.0, 1.0)
     a = np.asarray(feed_share, dtype=float)
     y = float(fine_yield)
@@ -177,7 +178,7 @@ def partition_weights(
     Examples
     --------
     >>> partition_weights("error-model", [0.0, 0.3, 0.7, 1.0], [0.2, 0.3, 0.3, 0.2], 0.5).round(3).tolist()
-    [1.399, 0.601, 0.601, 1.399]
+    [0.924, 1.076, 1.076, 0.924]
     """
     check_choice(weighting, "weighting", choices=WEIGHTINGS)
     feed_share = np.asarray(feed_share, dtype=float)
