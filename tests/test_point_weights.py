@@ -177,3 +177,16 @@ def test_on_simulated_surveys_the_default_weights_no_longer_let_two_classes_move
     rmse = {name: np.sqrt(np.mean(np.square(values))) for name, values in errors.items()}
     assert rmse["former"] > 0.08 and rmse["default"] < rmse["former"] / 2
     assert np.median(shares["former"]) > WEIGHT_CONCENTRATION_SHARE > np.median(shares["default"])
+
+
+def test_tromplab_circuit_says_when_two_classes_carry_most_of_the_weight(tmp_path, capsys):
+    feed = np.array([0.40, 0.38, 0.05, 0.05, 0.04, 0.04, 0.02, 0.02])  # two classes hold most of the feed
+    y = float(np.sum(feed * PARTITION))
+    write(tmp_path, CYCLONE_SHEET, "sheet.csv")
+    _survey(feed, feed * PARTITION / y, feed * (1 - PARTITION) / (1 - y)).to_csv(tmp_path / "survey.csv", index=False)
+    out = tmp_path / "out"
+    assert main(["circuit", str(tmp_path / "sheet.csv"), str(tmp_path / "survey.csv"), "-o", str(out)]) == 0
+    printed = capsys.readouterr().out
+    (note,) = weight_notes(pd.read_csv(out / "points.csv"))
+    assert note.startswith("note (cyclone): 2 of 8 classes (300-top um, 212-300 um) carry")
+    assert note in printed and note in (out / "summary.txt").read_text(encoding="utf-8")
