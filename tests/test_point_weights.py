@@ -3,13 +3,14 @@ circuit paths, a partition variance that matches simulation, no class taken as e
 note when a few classes carry most of the weight."""
 
 import io
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
 
 from tromplab import TrompPoints, curve_indices, fit_formula
-from tromplab.circuit import read_flowsheet, reconcile
+from tromplab.circuit import ErrorModel, read_flowsheet, reconcile
 from tromplab.circuit.simulation import (
     CircuitTruth,
     classes_from_edges,
@@ -27,7 +28,12 @@ from tromplab.loading.weights import (
     weight_concentration,
     weight_notes,
 )
-from tromplab.options import DEFAULT_PARTITION_FLOOR, WEIGHT_CONCENTRATION_SHARE
+from tromplab.options import (
+    DEFAULT_ABSOLUTE_ERROR,
+    DEFAULT_PARTITION_FLOOR,
+    DEFAULT_RELATIVE_ERROR,
+    WEIGHT_CONCENTRATION_SHARE,
+)
 
 from .conftest import write
 
@@ -190,3 +196,39 @@ def test_tromplab_circuit_says_when_two_classes_carry_most_of_the_weight(tmp_pat
     (note,) = weight_notes(pd.read_csv(out / "points.csv"))
     assert note.startswith("note (cyclone): 2 of 8 classes (300-top um, 212-300 um) carry")
     assert note in printed and note in (out / "summary.txt").read_text(encoding="utf-8")
+
+
+def test_the_textbook_table_gives_the_same_weights_by_both_paths_to_its_rounding():
+    """tests/data/hydrocyclone_size_class_um.csv balances to its printed 1e-6: the lab path and
+    the one-node survey agree on the weights to that order."""
+    textbook = Path(__file__).resolve().parent / "data" / "hydrocyclone_size_class_um.csv"
+    lab = pd.read_csv(textbook, comment="#")
+    survey = pd.concat(
+        [
+            pd.DataFrame({"stream": stream, "size_class_um": lab["size_class_um"], "retained_pct": lab[f"{stream}_pct"]})
+            for stream in ("feed", "overflow", "underflow")
+        ],
+        ignore_index=True,
+    )
+    (circuit,) = reconcile(pd.read_csv(io.StringIO(CYCLONE_SHEET)), survey).to_points()
+    (by_lab,) = read_lab(textbook, weighting="error-model")
+    np.testing.assert_allclose(by_lab.to_points().weight, circuit.weight, atol=1e-6)
+
+
+def test_the_circuit_weights_follow_the_error_model_of_each_product():
+    shares = _exact_node()
+    errors = ErrorModel(streams={"overflow": (0.02, 0.0005)})
+    balance = reconcile(pd.read_csv(io.StringIO(CYCLONE_SHEET)), _survey(*shares), errors=errors)
+    part = balance.partition_table()
+    expected = partition_weights(
+        "error-model",
+        part["partition_fine"],
+        part["feed_share"],
+        part["fine_yield"].iloc[0],
+        part["used"],
+        fine_error=(0.02, 0.0005),
+        coarse_error=(DEFAULT_RELATIVE_ERROR, DEFAULT_ABSOLUTE_ERROR),
+    )
+    np.testing.assert_allclose(balance.points_table()["weight"], expected, rtol=1e-12)
+    default = reconcile(pd.read_csv(io.StringIO(CYCLONE_SHEET)), _survey(*shares)).points_table()["weight"]
+    assert not np.allclose(default, expected, rtol=1e-3)
