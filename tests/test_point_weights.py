@@ -95,10 +95,14 @@ def test_the_weighting_has_one_name_on_both_faces(tmp_path, capsys):
     assert "--weighting" in capsys.readouterr().err
 
 
-def test_two_spellings_of_the_feed_share_weighting_agree_and_two_weightings_are_refused():
+def test_two_spellings_of_the_feed_share_weighting_agree_and_two_weightings_are_refused(tmp_path, capsys):
     assert LabOptions(weighting="feed-share") == LabOptions(weight_by_feed_share=True)
-    with pytest.raises(OptionError, match="give one weighting"):
+    with pytest.raises(OptionError, match="weighting is 'error-model' and weight_by_feed_share is set too"):
         LabOptions(weight_by_feed_share=True, weighting="error-model")
+    path = write(tmp_path, _lab_table(*_exact_node()).to_csv(index=False), "lab.csv")
+    both = ["--weight-by-feed-share", "--weighting", "error-model"]
+    assert main(["points", str(path), "-o", str(tmp_path / "points.csv"), *both]) == 2
+    assert "--weighting is 'error-model' and --weight-by-feed-share is set too" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("phi, share", [(0.5, 0.25), (0.9, 0.1), (0.98, 0.2)])
