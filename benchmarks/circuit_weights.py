@@ -23,13 +23,22 @@ is for the formula fitted).  Reported: the root-mean-square relative error (%) o
 cut d50 and Ep of the actual curve against the truth's, and the median share of the total
 weight on the two heaviest classes.
 
-Usage: ``OPENBLAS_NUM_THREADS=1 python benchmarks/circuit_weights.py --surveys 500 --seed 2026``
+Also the textbook hydrocyclone table of the tests (``tests/data/hydrocyclone_size_class_um.csv``)
+as a one-node survey: the share of the weight on its two heaviest classes and the cut and Ep of
+three formulas fitted with the former weights and with the default, against the unweighted
+fit of the lab path.
+
+Usage: ``OPENBLAS_NUM_THREADS=1 python benchmarks/circuit_weights.py --surveys 200 --seed 2026``
+(``--surveys 0``: the textbook table only).
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import io
 import time
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -43,7 +52,10 @@ from tromplab.circuit.simulation import (
     plitt_partition_to_fines,
     rosin_rammler_shares,
 )
+from tromplab.loading.lab import read_lab
 from tromplab.loading.weights import partition_weights, scaled_to_mean_one, weight_concentration
+
+TEXTBOOK = Path(__file__).resolve().parent.parent / "tests" / "data" / "hydrocyclone_size_class_um.csv"
 
 EDGES = [38, 53, 75, 106, 150, 212, 300]
 D50C, SHAPE = 100.0, 2.5
@@ -133,6 +145,43 @@ def summary(results: pd.DataFrame) -> pd.DataFrame:
     ).round(2)
 
 
+def textbook() -> pd.DataFrame:
+    """The textbook table: cut and Ep per formula, unweighted (lab path), former and default weights."""
+    lab = pd.read_csv(TEXTBOOK, comment="#")
+    survey = pd.concat(
+        [
+            pd.DataFrame({"stream": stream, "size_class_um": lab["size_class_um"], "retained_pct": lab[f"{stream}_pct"]})
+            for stream in ("feed", "overflow", "underflow")
+        ],
+        ignore_index=True,
+    )
+    sheet = "stream,from,to,product\nfeed,,cyclone,\noverflow,cyclone,,fine\nunderflow,cyclone,,coarse\n"
+    balance = reconcile(pd.read_csv(io.StringIO(sheet)), survey)
+    (default,) = balance.to_points()
+    part = balance.partition_table()
+    former = scaled_to_mean_one(1.0 / part["partition_sd"].to_numpy() ** 2, part["used"].to_numpy())
+    ordered = TrompPoints(experiment="cyclone", size=part["size"].to_numpy(), partition_fine=part["partition_fine"].to_numpy(),
+                          weight=former)  # fmt: skip
+    (unweighted,) = read_lab(TEXTBOOK)
+    rows = []
+    for formula in ("plitt", "rosin_rammler", "logistic"):
+        fits = {
+            "unweighted": fit_formula(unweighted.to_points(), formula),
+            "former": fit_formula(dataclasses.replace(default, weight=ordered.weight), formula),
+            "default": fit_formula(default, formula),
+        }
+        base = fits["unweighted"].indices
+        for name, fit in fits.items():
+            rows.append({"formula": formula, "weights": name, "d50_um": fit.indices.d50, "ep_um": fit.indices.ep,
+                         "d50_change_pct": 100 * (fit.indices.d50 / base.d50 - 1),
+                         "ep_change_pct": 100 * (fit.indices.ep / base.ep - 1)})  # fmt: skip
+    print(
+        "textbook table, share of the weight on the two heaviest classes: "
+        f"former {weight_concentration(former).share:.2f}, default {weight_concentration(default.weight).share:.2f}"
+    )
+    return pd.DataFrame(rows).round(2)
+
+
 def regret(table: pd.DataFrame) -> pd.DataFrame:
     """Per weighting, the RMSE of each (truth, formula, d50 or Ep) over the smallest RMSE any
     weighting reached there: the largest and the geometric mean of these ratios (1 = always
@@ -159,6 +208,10 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=2026)
     args = parser.parse_args()
     started = time.perf_counter()
+    with pd.option_context("display.width", 200):
+        print(textbook().to_string(index=False), "\n")
+    if args.surveys < 1:
+        return
     results = study(args.surveys, args.seed)
     with pd.option_context("display.width", 200, "display.max_rows", 200):
         table = summary(results)
