@@ -236,3 +236,13 @@ def test_the_circuit_weights_follow_the_error_model_of_each_product():
     np.testing.assert_allclose(balance.points_table()["weight"], expected, rtol=1e-12)
     default = reconcile(pd.read_csv(io.StringIO(CYCLONE_SHEET)), _survey(*shares)).points_table()["weight"]
     assert not np.allclose(default, expected, rtol=1e-3)
+
+
+def test_the_circuit_points_take_the_other_weightings_and_refuse_an_unknown_one():
+    balance = reconcile(pd.read_csv(io.StringIO(CYCLONE_SHEET)), _survey(*_exact_node()))
+    np.testing.assert_array_equal(balance.points_table(weighting="none")["weight"], np.ones(len(FEED)))
+    np.testing.assert_allclose(balance.points_table(weighting="feed-share")["weight"], FEED, rtol=1e-9)
+    (lab,) = read_lab(_lab_table(*_exact_node()), weighting="feed-share")
+    np.testing.assert_allclose(balance.to_points(weighting="feed-share")[0].weight, lab.to_points().weight, rtol=1e-9)
+    with pytest.raises(OptionError, match="weighting"):
+        balance.points_table(weighting="precision")
