@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from .circuit import CircuitBalance, ErrorModel, read_flowsheet, read_survey, reconcile
 from .circuit.outputs import balance_outputs, balance_tables
 from .errors import OptionError
+from .loading.weights import weight_notes
 from .options import CIRCUIT_FIT_FORMULAS, DEFAULT_ALPHA
 from .output.outputs import check_output_folder, replace_folder
 from .workbench import Workbench, fit_experiments
@@ -126,7 +127,7 @@ def run_circuit(
 def console_report(run: CircuitRun) -> str:
     """What the command prints: the summary, the flows, the largest adjustments, the fits' ranking and the files."""
     balance = run.balance
-    lines = [balance.report(), "", "Reconciled solids flows:"]
+    lines = [balance.report(), *weight_notes(balance.points_table()), "", "Reconciled solids flows:"]
     flows = balance.flows_table()[["stream", "measured", "reconciled", "reconciled_sd"]]
     lines.append(flows.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
     largest = balance.largest_adjustments(5)

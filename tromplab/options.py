@@ -15,6 +15,16 @@ PARTITION_METHODS = ("products", "feed")
 DEFAULT_SUM_TOLERANCE_PCT = 1.5
 #: Classes with a smaller feed share (fraction) are left out of the fit.
 DEFAULT_MIN_FEED_SHARE = 0.002
+#: How Tromp points are weighted in the fit (tromplab.loading.weights): every class alike, by its
+#: feed share, or by the inverse variance of its partition under the error model of the analyses.
+WEIGHTINGS = ("none", "feed-share", "error-model")
+#: Partition standard deviation added for a class of average feed share under the "error-model"
+#: weighting (scaled by the inverse feed share), so that no class is taken as exact.
+DEFAULT_PARTITION_FLOOR = 0.03
+#: A note says the weights are concentrated when this many classes carry more than this share of
+#: the total weight (and at least twice as many classes are weighted).
+WEIGHT_CONCENTRATION_CLASSES = 2
+WEIGHT_CONCENTRATION_SHARE = 0.5
 
 # --- screening and ranking (tromplab.curves) ---------------------------------------------
 #: Significance level of the Fisher screen.

@@ -209,6 +209,13 @@ def check_percent(value, option: str) -> float:
     return number
 
 
+def check_choice(value, option: str, *, choices: tuple[str, ...]) -> str:
+    """One of ``choices`` (a string), else an :class:`~tromplab.errors.OptionError` listing them."""
+    if not isinstance(value, str) or value not in choices:
+        raise OptionError(option, f"takes one of {', '.join(repr(c) for c in choices)}, got {value!r}")
+    return value
+
+
 def check_optional(check: Callable, value, option: str, **kwargs):
     """``check`` unless ``value`` is None (an option left at its default)."""
     return None if value is None else check(value, option, **kwargs)

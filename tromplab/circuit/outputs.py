@@ -16,6 +16,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from ..loading.weights import weight_notes
 from ..output.csv_parts import write_csv
 from ..output.plotting import offscreen_axes
 from .plotting import figure_size
@@ -48,7 +49,7 @@ def balance_outputs(balance, *, figures: bool = True, tables: dict | None = None
     further tables, such as the fits of ``--fit``), for :func:`tromplab.output.outputs.replace_folder`."""
     tables = balance_tables(balance) if tables is None else tables
     outputs = {f"{name}.csv": (lambda path, table=table: write_csv(table, path)) for name, table in tables.items()}
-    summary = balance.report() + "\n"
+    summary = "\n".join([balance.report(), *weight_notes(tables["points"])]) + "\n"
     outputs["summary.txt"] = lambda path: path.write_text(summary, encoding="utf-8")
     if figures:
         for kind in ("flowsheet", "adjustments", "distributions") if balance.has_size_classes else ("flowsheet", "adjustments"):

@@ -68,6 +68,7 @@ import pandas as pd
 from scipy import stats
 
 from ..loading.points import TrompPoints
+from ..loading.weights import partition_weights, stream_error
 from ..options import DEFAULT_ALPHA, DEFAULT_MIN_FEED_SHARE
 from ..results_contract import ResultContract
 from ..validation import check_probability
@@ -660,25 +661,27 @@ class CircuitBalance(ResultContract):
             return pd.DataFrame(columns=PARTITION_COLUMNS)
         return pd.concat(frames, ignore_index=True)
 
-    def points_table(self, *, unit_in_names: bool = True) -> pd.DataFrame:
+    def points_table(self, *, unit_in_names: bool = True, weighting: str = "error-model") -> pd.DataFrame:
         """The separators' partition curves in the Tromp-points schema that ``tromplab fit`` reads.
 
         Columns ``experiment, size[_unit], partition_fine, weight, used, size_lower[_unit],
-        size_upper[_unit], feed_share, flag``.  ``weight`` is :math:`1/\\sigma^2` of the
-        reconciled partition, scaled to a mean of 1 per separator over the used classes
-        (the fit's weighted least squares then weights each class by its precision).
+        size_upper[_unit], feed_share, flag``.  ``weight`` follows ``weighting``
+        (:func:`tromplab.loading.weights.partition_weights`, the function of the lab path): by
+        default the inverse variance of each class's partition under the error model of the
+        separator's products at the shares the partition implies, with a floor relative to
+        the feed share, scaled to a mean of 1 per separator over the used classes.
         """
         table = self.partition_table()
         unit = self.survey.size_unit
         suffix = f"_{unit}" if unit and unit_in_names else ""
         rows = []
-        for _, part in table.groupby("experiment", sort=False):
-            sd = part["partition_sd"].to_numpy()
-            floor = max(np.nanmax(sd) * 1e-6, 1e-12) if np.isfinite(sd).any() else 1.0
-            weight = 1.0 / np.maximum(np.nan_to_num(sd, nan=np.inf), floor) ** 2
+        products = {node.name: (node.fine, node.coarse) for node in self.flowsheet.separators}
+        for name, part in table.groupby("experiment", sort=False):
             used = part["used"].to_numpy()
-            weight = np.where(used & np.isfinite(weight) & (weight > 0), weight, np.nan)
-            weight = weight / np.nanmean(weight) if np.isfinite(weight).any() else weight
+            fine, coarse = (stream_error(self.survey.shares, stream) for stream in products[name])
+            weight = partition_weights(weighting, part["partition_fine"], part["feed_share"], part["fine_yield"].iloc[0],
+                                       used, fine_error=fine, coarse_error=coarse)  # fmt: skip
+            weight = np.where(used, 1.0, np.nan) if weight is None else weight
             rows.append(
                 pd.DataFrame(
                     {
@@ -698,10 +701,10 @@ class CircuitBalance(ResultContract):
             return pd.DataFrame(columns=["experiment", f"size{suffix}", "partition_fine", "weight", "used"])
         return pd.concat(rows, ignore_index=True)
 
-    def to_points(self) -> list[TrompPoints]:
+    def to_points(self, *, weighting: str = "error-model") -> list[TrompPoints]:
         """One :class:`~tromplab.loading.points.TrompPoints` per separator (experiment = node name),
-        the used classes only, weighted by the precision of the reconciled partition."""
-        table = self.points_table(unit_in_names=False)
+        the used classes only, weighted as :meth:`points_table` says."""
+        table = self.points_table(unit_in_names=False, weighting=weighting)
         points = []
         for name, part in table.groupby("experiment", sort=False):
             part = part[part["used"] == "yes"]

@@ -18,6 +18,7 @@ from ..options import (
     PARTITION_METHODS,
     PARTITION_TO,
     RANK_BY,
+    WEIGHTINGS,
 )
 from ..validation import (
     MAX_BOOTSTRAP,
@@ -219,6 +220,14 @@ def _add_reading_options(group) -> None:
         help="weight each point by its class's feed share (variance inversely proportional to it)",
     )
     group.add_argument(
+        "--weighting",
+        choices=WEIGHTINGS,
+        default="none",
+        help="how the points are weighted in the fit: every class alike (default), by its feed share (as "
+        "--weight-by-feed-share), or by the inverse variance of its partition under the error model of the size "
+        "analyses with a floor relative to the feed share (as tromplab circuit --fit weights them)",
+    )
+    group.add_argument(
         "--partition-from",
         choices=PARTITION_METHODS,
         default="products",
@@ -256,4 +265,5 @@ def lab_options(args) -> LabOptions:
         sep=args.sep,
         decimal=args.decimal,
         water_recovery=getattr(args, "water_recovery", None),
+        weighting=args.weighting,
     )

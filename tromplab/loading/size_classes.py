@@ -109,3 +109,17 @@ def class_string_bounds(table: Table, column: str, *, blank_allowed: bool = Fals
             elif sign == "-":
                 upper[i] = float(number)
     return lower, upper
+
+
+def class_label(lower: float, upper: float, unit: str = "") -> str:
+    """How a class reads in a message: ``4.1-5.3``, with ``pan`` and ``top`` for the open ends
+    (NaN bounds) and the unit after it when given.
+
+    Examples
+    --------
+    >>> class_label(np.nan, 38.0, "um"), class_label(300.0, np.nan)
+    ('pan-38 um', '300-top')
+    """
+    low = "pan" if not np.isfinite(lower) else f"{lower:g}"
+    high = "top" if not np.isfinite(upper) else f"{upper:g}"
+    return f"{low}-{high}{f' {unit}' if unit else ''}"
