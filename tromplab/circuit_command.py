@@ -9,21 +9,91 @@ folder all-or-nothing (:func:`tromplab.output.outputs.replace_folder`): bad inpu
 
 from __future__ import annotations
 
+import functools
 import io
 from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING
 
-from .circuit import CircuitBalance, ErrorModel, read_flowsheet, read_survey, reconcile
-from .circuit.plotting import figure_size
 from .errors import OptionError
-from .options import CIRCUIT_FIT_FORMULAS, DEFAULT_ALPHA
-from .output.csv_parts import write_csv
+from .options import (
+    CIRCUIT_FIT_FORMULAS,
+    DEFAULT_ABSOLUTE_ERROR,
+    DEFAULT_ALPHA,
+    DEFAULT_FLOW_RELATIVE_ERROR,
+    DEFAULT_PCT_SOLIDS_SD,
+    DEFAULT_RELATIVE_ERROR,
+    ERROR_MODEL_POINTS,
+)
 from .output.outputs import check_output_folder, replace_folder
-from .output.plotting import offscreen_axes
-from .workbench import Workbench, fit_experiments
+from .validation import (
+    check_pct_solids_sd,
+    check_positive_relative_error,
+    check_probability,
+    check_relative_error,
+    check_share_sd,
+    cli_type,
+)
+
+if TYPE_CHECKING:
+    from .circuit import CircuitBalance, ErrorModel
+    from .workbench import Workbench
+
+#: What the circuit commands import when they run (before they start, under the CLI's signal handling).
+IMPORTS = ("tromplab.circuit", "tromplab.workbench", "tromplab.output.csv_parts", "tromplab.output.plotting")
+#: Exit code of the command line (tromplab.cli): done.
+EXIT_OK = 0
 
 #: The formulas fitted by ``--fit``: the nine of the paper (ranked) and the extended curves
 #: with bypass and fish-hook (reported beside them, as ``tromplab fit --extended`` does).
 FIT_FORMULAS = CIRCUIT_FIT_FORMULAS
+
+
+def add_circuit_command(commands, *, format_fits=None) -> None:
+    """``tromplab circuit FLOWSHEET MEASUREMENTS -o DIR [--fit]`` (the work is in circuit_command)."""
+    circuit = commands.add_parser(
+        "circuit", help="reconcile a plant survey over its flowsheet; partition curves of every separator (docs/circuit.md)"
+    )
+    circuit.add_argument("flowsheet", type=Path, help="flowsheet CSV: stream, from, to, product")
+    circuit.add_argument("measurements", type=Path, help="survey CSV: stream, size classes, retained_pct [, solids_flow]")
+    circuit.add_argument(
+        "-o", "--outdir", type=Path, default=Path("results/circuit"), help="output folder (default: %(default)s)"
+    )
+    circuit.add_argument("--fit", action="store_true", help="also fit the nine formulas and the extended curves per separator")
+    circuit.add_argument("--size-unit", default=None, help="unit of the sizes when the size columns carry none")
+    circuit.add_argument("--no-figures", action="store_true", help="do not draw the figures")
+    circuit.add_argument("--exclude", default="", metavar="STREAM[:WHAT],...",
+                         help="leave measurements out: a stream, or STREAM:flow, STREAM:pct_solids, STREAM:CLASS "
+                         "(e.g. cyclone_feed:-150+75); what the elimination proposes")  # fmt: skip
+    errors = circuit.add_argument_group("error model (where the survey table gives none)")
+    errors.add_argument("--relative-error", type=cli_type(check_relative_error, "--relative-error"),
+                        default=DEFAULT_RELATIVE_ERROR, help="relative error of a measured share, 0..1 (default %(default)s)")  # fmt: skip
+    errors.add_argument("--absolute-error", type=cli_type(check_share_sd, "--absolute-error"), default=DEFAULT_ABSOLUTE_ERROR,
+                        help="absolute error of a share, as a fraction of the stream, 0..0.5 (default %(default)s)")  # fmt: skip
+    errors.add_argument("--flow-relative-error", type=cli_type(check_positive_relative_error, "--flow-relative-error"),
+                        default=DEFAULT_FLOW_RELATIVE_ERROR,
+                        help="relative error of a measured solids flow, (0, 1] (default %(default)s)")  # fmt: skip
+    errors.add_argument("--pct-solids-sd", type=cli_type(check_pct_solids_sd, "--pct-solids-sd"), default=DEFAULT_PCT_SOLIDS_SD,
+                        help="sd of a per cent solids, percentage points, (0, 50] (default %(default)s)")  # fmt: skip
+    errors.add_argument("--error-model-at", choices=ERROR_MODEL_POINTS, default=ERROR_MODEL_POINTS[0],
+                        help="evaluate the error model at the reconciled values (iterated) or at the measured ones "
+                        "(default %(default)s)")  # fmt: skip
+    tests = circuit.add_argument_group("tests")
+    tests.add_argument("--alpha", type=cli_type(check_probability, "--alpha"), default=DEFAULT_ALPHA,
+                       help="level of the chi-square and measurement tests, in (0, 1) (default %(default)s)")  # fmt: skip
+    circuit.set_defaults(run=functools.partial(_run_circuit, format_fits=format_fits), imports=IMPORTS)
+
+
+def _run_circuit(args, *, format_fits=None) -> int:
+    from .circuit import ErrorModel
+
+    errors = ErrorModel(relative_error=args.relative_error, absolute_error=args.absolute_error,
+                        flow_relative_error=args.flow_relative_error, pct_solids_sd=args.pct_solids_sd,
+                        evaluated_at=args.error_model_at)  # fmt: skip
+    run = run_circuit(args.flowsheet, args.measurements, args.outdir, fit=args.fit, errors=errors, alpha=args.alpha,
+                      size_unit=args.size_unit, figures=not args.no_figures, exclude=args.exclude)  # fmt: skip
+    print(console_report(run))
+    return EXIT_OK
 
 
 @dataclass(frozen=True)
@@ -53,6 +123,8 @@ def fit_separators(balance: CircuitBalance, *, formulas=FIT_FORMULAS, alpha: flo
     -------
     Workbench
     """
+    from .workbench import fit_experiments
+
     options = {} if alpha is None else {"alpha": alpha}
     return fit_experiments(balance.to_points(), formulas=formulas, size_unit=balance.survey.size_unit, **options)
 
@@ -107,6 +179,9 @@ def run_circuit(
     ``flowsheet.png``, ``adjustments.png``, ``distributions.png``; with ``fit``
     ``fits.csv`` and ``ranking.csv``; with per cent solids measured, ``water.csv``.
     """
+    from .circuit import read_flowsheet, read_survey, reconcile
+    from .output.csv_parts import write_csv
+
     check_output_folder(outdir, inputs=[flowsheet, measurements])  # the inputs are checked as they are read
     sheet = read_flowsheet(flowsheet)
     survey = read_survey(measurements, sheet, errors=errors, size_unit=size_unit)
@@ -150,6 +225,9 @@ def run_circuit(
 
 def _png(balance: CircuitBalance, kind: str) -> bytes:
     """Figure ``kind`` drawn on a figure made without pyplot (no backend chosen, no figure left open)."""
+    from .circuit.plotting import figure_size
+    from .output.plotting import offscreen_axes
+
     ax = offscreen_axes(figsize=figure_size(balance, kind))
     balance.plot(kind, ax=ax)
     buffer = io.BytesIO()
