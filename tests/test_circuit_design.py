@@ -223,3 +223,89 @@ def test_the_console_names_the_next_steps_and_prints_the_fits_as_tromplab_fit_do
     summary = (tmp_path / "out" / "summary.txt").read_text(encoding="utf-8")
     assert summary.count("\nnext: ") == 2
     assert read_flowsheet(sheet).stream_names == truth.flowsheet.stream_names
+
+
+# --- the flowsheet figure ----------------------------------------------------------------------
+#: A flowsheet that crowds a figure: two feeds into one node, a feed into a later node, long
+#: names, and a recycle back over two columns.
+CROWDED = pd.DataFrame({
+    "stream": ["new_feed_from_the_crusher_line", "second_feed", "primary_cyclone_feed", "primary_overflow_to_flotation",
+               "primary_underflow", "secondary_feed_long_name", "secondary_fines", "secondary_coarse_back_to_mill"],
+    "from": ["", "", "mill", "cyclone_1", "cyclone_1", "", "screen", "screen"],
+    "to": ["mill", "mill", "cyclone_1", "", "screen", "screen", "", "mill"],
+    "product": ["", "", "ground", "fine", "coarse", "", "fine", "coarse"],
+})  # fmt: skip
+
+
+def _drawn_flowsheet(which):
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    from tromplab.circuit.plotting import figure_size, plot_flowsheet
+    from tromplab.output.plotting import offscreen_axes
+
+    if which == "crowded":
+        subject = read_flowsheet(CROWDED)
+    elif which == "water":
+        truth, sheet, _ = _grinding_circuit_with_water()
+        pct = {"fresh_feed": 90.0, "cyclone_feed": 55.0, "cyclone_overflow": 33.0, "cyclone_underflow": 74.0}
+        subject = reconcile(sheet, _with_pct_solids(survey_table(simulate_survey(truth, np.random.default_rng(5))), pct, sd=1.0))
+    else:
+        truth = {"example": example_plant, "grinding": grinding_circuit}[which]()
+        subject = reconcile(truth.flowsheet, lab_survey(truth, np.random.default_rng(2), flows={truth.flowsheet.feeds[0]: 0.02}))
+    ax = offscreen_axes(figsize=figure_size(subject, "flowsheet"))
+    plot_flowsheet(subject, ax=ax)
+    FigureCanvasAgg(ax.figure).draw()
+    return subject, ax
+
+
+def _polyline_points(annotation, step: float = 1.0) -> np.ndarray:
+    """Points every ``step`` pixels along the drawn arrow (its line and head), in display coordinates."""
+    patch = annotation.arrow_patch
+    path = patch.get_transform().transform_path(patch.get_path())
+    points = []
+    for line in path.to_polygons(closed_only=False):
+        for a, b in zip(line[:-1], line[1:]):
+            count = max(2, int(np.hypot(*(b - a)) / step) + 1)
+            points.append(a + np.linspace(0.0, 1.0, count)[:, None] * (b - a))
+    return np.vstack(points)
+
+
+@pytest.mark.parametrize("which", ["example", "grinding", "water", "crowded"])
+def test_no_label_of_the_flowsheet_lies_over_a_box_an_arrow_or_another_label(which):
+    """From the drawn bounding boxes (get_window_extent after the canvas is drawn): each label's
+    extent meets no node box, no other label and no point of any arrow's line."""
+    from tromplab.circuit.plotting import flowsheet_overlaps
+
+    _, ax = _drawn_flowsheet(which)
+    labels = [t for t in ax.texts if t.get_gid() == "label"]
+    boxes = [t.get_bbox_patch().get_window_extent() for t in ax.texts if t.get_gid() == "node"]
+    arrows = [a for a in ax.texts if a.get_gid() == "stream"]
+    assert len(labels) == len(arrows) >= 4 and boxes
+    extents = [label.get_window_extent() for label in labels]
+    for k, extent in enumerate(extents):
+        name = labels[k].get_text()
+        assert not any(extent.overlaps(box) for box in boxes), name
+        assert not any(extent.overlaps(other) for j, other in enumerate(extents) if j != k), name
+        for arrow in arrows:
+            points = _polyline_points(arrow)
+            inside = (
+                (points[:, 0] > extent.x0) & (points[:, 0] < extent.x1) & (points[:, 1] > extent.y0) & (points[:, 1] < extent.y1)
+            )
+            assert not inside.any(), name
+    assert flowsheet_overlaps(ax) == []
+
+
+def test_a_recycle_is_drawn_back_below_the_nodes_in_its_own_colour():
+    from matplotlib.colors import to_hex
+
+    from tromplab.circuit.plotting import RECYCLE_COLOUR, STREAM_COLOUR
+
+    balance, ax = _drawn_flowsheet("example")
+    arrows = [a for a in ax.texts if a.get_gid() == "stream"]
+    colours = [to_hex(a.arrow_patch.get_edgecolor()) for a in arrows]
+    names = balance.flowsheet.stream_names
+    assert colours[names.index("cyclone_underflow")] == RECYCLE_COLOUR
+    assert colours.count(RECYCLE_COLOUR) == 1 and colours.count(STREAM_COLOUR) == len(names) - 1
+    recycle = _polyline_points(arrows[names.index("cyclone_underflow")])
+    lowest_box = min(t.get_bbox_patch().get_window_extent().y0 for t in ax.texts if t.get_gid() == "node")
+    assert recycle[:, 1].min() < lowest_box  # it runs back under the boxes, not through them
