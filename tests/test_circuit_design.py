@@ -217,7 +217,7 @@ def test_the_console_names_the_next_steps_and_prints_the_fits_as_tromplab_fit_do
     printed = capsys.readouterr().out
     steps = printed.split("\nNext:\n")[1].split("\n\n")[0]
     assert steps.startswith("  1. check the measurement(s) the serial elimination names (middlings:flow")
-    assert "--exclude middlings:flow" in steps and "  2. next survey: add the" in steps
+    assert "--exclude middlings:flow" in steps and "  2. for the next survey, add the" in steps
     assert "Experiment cyclone (n = " in printed and "ranked by F (highest first)" in printed  # the fit command's table
     assert "sizes (d50, d50c) in um" in printed
     summary = (tmp_path / "out" / "summary.txt").read_text(encoding="utf-8")

@@ -237,6 +237,6 @@ def next_steps(
     design = balance.design_table() if design is None else design
     if len(design) and design.iloc[0]["reduction"] > 0:
         top = design.iloc[0]
-        steps.append(f"next survey: add the {top.measurement} of {top.stream} (sd of {top.quantity} "
+        steps.append(f"for the next survey, add the {top.measurement} of {top.stream} (sd of {top.quantity} "
                      f"{top.sd_before:.3g} -> {top.sd_after:.3g}, predicted; design.csv)")  # fmt: skip
     return steps[:limit]
