@@ -135,7 +135,8 @@ def select_quantities(balance, names, option: str = "quantity") -> list[tuple[st
         else:
             matched = [item for item in everything if item[0] == name]
         if not matched:
-            known = ", ".join(repr(n) for n, _ in everything[:12]) + (" ..." if len(everything) > 12 else "")
+            kinds = {n.split(" ")[0]: n for n, _ in everything}  # one result of each kind as an example
+            known = ", ".join(repr(n) for n in kinds.values())
             raise OptionError(option, f"names {name!r}, not a result of this survey: use one of {', '.join(QUANTITY_WORDS)}, "
                               f"or a result such as {known}")  # fmt: skip
         chosen.update(matched)
