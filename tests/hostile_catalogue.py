@@ -352,6 +352,7 @@ TEMPLATES = {
     "pulp fit": ["pulp", "fit", "{points.csv}"],
     "optimize": ["optimize"],
     "circuit": ["circuit", "{points.csv}", "{lab.csv}", "-o", "{tmp}/c"],
+    "circuit design": ["circuit", "design", "{points.csv}", "-o", "{tmp}/cd"],
     "export": ["export", "{points.csv}", "-o", "{tmp}/e.csv"],
     "density fit": ["density", "fit", "{points.csv}", "-o", "{tmp}/d"],
     "density predict": ["density", "predict", "{points.csv}", "--rho50", "1.5", "--ep", "0.05", "-o", "{tmp}/pred.csv"],

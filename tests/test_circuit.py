@@ -570,7 +570,7 @@ def test_the_command_writes_every_table_figure_and_fits_on_the_bundled_example(t
     out = tmp_path / "circuit"
     assert main(["circuit", str(FLOWSHEET), str(SURVEY), "-o", str(out), "--fit"]) == 0
     console = capsys.readouterr().out
-    assert "chi-square" in console and "Best-ranked curve per separator" in console
+    assert "chi-square" in console and "ranked by F (highest first)" in console  # the fit command's table
     for name in ("flows", "distributions", "adjustments", "gross_errors", "chi_square", "partition", "points", "fits", "ranking"):
         assert (out / f"{name}.csv").is_file(), name
     for name in ("flowsheet", "adjustments", "distributions"):

@@ -30,6 +30,7 @@ import tromplab
 from tromplab import results_contract
 from tromplab._version import __version__
 from tromplab.circuit import CircuitBalance, read_flowsheet, read_survey, reconcile
+from tromplab.circuit.planning import DesignAdvice, design_advice
 from tromplab.classifiers import choice, layer, pulp, sieve
 from tromplab.cli import main
 from tromplab.curves.curve_fit import CurveFit
@@ -120,6 +121,11 @@ def _mass_balance():
 def _circuit_balance():
     sheet = read_flowsheet(DATASETS / "circuit_example_flowsheet.csv")
     return reconcile(sheet, read_survey(DATASETS / "circuit_example_survey.csv", sheet))
+
+
+@registered(DesignAdvice, "circuit_example_survey", "size analysis")
+def _design_advice():
+    return design_advice(DATASETS / "circuit_example_flowsheet.csv", DATASETS / "circuit_example_survey.csv")
 
 
 @registered(TrendResult, "plitt", "surveys")
@@ -365,8 +371,18 @@ def _circuit_api(folder):
     return _circuit_balance(), _circuit_balance().save(folder)
 
 
+def _design_command(folder):
+    sheet, survey = DATASETS / "circuit_example_flowsheet.csv", DATASETS / "circuit_example_survey.csv"
+    assert main(["circuit", "design", str(sheet), str(survey), "-o", str(folder)]) == 0
+
+
+def _design_api(folder):
+    return _design_advice(), _design_advice().save(folder)
+
+
 #: Classes with ``save``: the command writing the same folder, and the same through the API.
 SAVES = {
+    DesignAdvice: (_design_command, _design_api),
     CircuitBalance: (_circuit_command, _circuit_api),
     Workbench: (_fit_command, _fit_api),
     DensityResult: (_density_command, _density_api),
@@ -375,7 +391,13 @@ SAVES = {
 
 
 #: The main file of each command: what ``to_frame()`` returns.
-MAIN_FILES = {CircuitBalance: "flows.csv", Workbench: "fits.csv", DensityResult: "fits.csv", TrendResult: "trend.csv"}
+MAIN_FILES = {
+    DesignAdvice: "design.csv",
+    CircuitBalance: "flows.csv",
+    Workbench: "fits.csv",
+    DensityResult: "fits.csv",
+    TrendResult: "trend.csv",
+}
 
 
 @pytest.mark.parametrize("cls", CLASSES, ids=lambda cls: cls.__name__)
@@ -397,20 +419,26 @@ def test_save_writes_what_the_command_writes(cls, tmp_path, capsys):
     assert list(result.to_frame().columns) == list(main_file.columns), f"to_frame() is {MAIN_FILES[cls]}"
 
 
+#: Where a save is made to fail half-way: the second figure, or (a result without figures) the second table.
+FAILING_WRITER = {DesignAdvice: ("tromplab.output.csv_parts", "write_csv")}
+
+
 @pytest.mark.parametrize("cls", list(SAVES), ids=lambda cls: cls.__name__)
 def test_save_writes_nothing_half(cls, tmp_path, monkeypatch):
     from matplotlib.figure import Figure
 
-    drawn = Figure.savefig
+    owner, name = FAILING_WRITER.get(cls, (Figure, "savefig"))
+    owner = importlib.import_module(owner) if isinstance(owner, str) else owner
+    written = getattr(owner, name)
 
-    def fail_second(figure, *args, **kwargs):  # the first figure is written, the second fails
+    def fail_second(*args, **kwargs):  # the first file is written, the second fails
         fail_second.calls += 1
         if fail_second.calls > 1:
             raise OSError("disk full")
-        return drawn(figure, *args, **kwargs)
+        return written(*args, **kwargs)
 
     fail_second.calls = 0
-    monkeypatch.setattr(Figure, "savefig", fail_second)
+    monkeypatch.setattr(owner, name, fail_second)
     with pytest.raises(OSError, match="disk full"):
         SAVES[cls][1](tmp_path / "out")
     assert fail_second.calls > 1
@@ -425,7 +453,7 @@ NOT_RESULTS = {
     "tromplab.circuit.flowsheet.Flowsheet": "input (read_flowsheet): the circuit's description",
     "tromplab.circuit.measurements.Survey": "input (read_survey): the measurements",
     "tromplab.density.readers.DensitySample": "input (read_density): one test's data",
-    "tromplab.loading.lab.LabOptions": "options of read_lab",
+    "tromplab.loading.lab_options.LabOptions": "options of read_lab",
     "tromplab.curves.formulas.Formula": "a registry record",
     "tromplab.curves.parameters.Parameter": "a registry record",
     "tromplab.density.curves.DensityCurve": "a registry record",

@@ -1,23 +1,33 @@
 """``tromplab circuit FLOWSHEET MEASUREMENTS -o DIR [--fit]``: reconcile a plant survey, write
-its tables, figures and the separators' Tromp points, and (``--fit``) fit them.
+its tables, figures and the separators' Tromp points, and (``--fit``) fit them;
+``tromplab circuit design FLOWSHEET [SURVEY] -o DIR``: rank the measurements one could add.
 
-The library is :mod:`tromplab.circuit`; this module only reads the two files, calls it,
-fits the points through :func:`tromplab.workbench.fit_experiments` and writes the output
-folder all-or-nothing (:func:`tromplab.output.outputs.replace_folder`): bad input ends in an
-:class:`~tromplab.errors.InputError` before anything is written.
+The library is :mod:`tromplab.circuit`; this module (under the command line's
+:mod:`tromplab.cli.circuit`, which parses the options) reads the files, calls the library, fits the points through
+:func:`tromplab.workbench.fit_experiments` and writes the output folder all-or-nothing
+(:func:`tromplab.output.outputs.replace_folder`): bad input ends in an
+:class:`~tromplab.errors.InputError` before anything is written.  :func:`run_circuit` and
+:func:`run_design` are the Python faces of the commands, with the same option names.  The
+library is imported when a command runs.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING
 
-from .circuit import CircuitBalance, ErrorModel, read_flowsheet, read_survey, reconcile
-from .circuit.outputs import balance_outputs, balance_tables
 from .errors import OptionError
-from .loading.weights import weight_notes
-from .options import CIRCUIT_FIT_FORMULAS, DEFAULT_ALPHA
+from .options import (
+    CIRCUIT_FIT_FORMULAS,
+    DEFAULT_ALPHA,
+)
 from .output.outputs import check_output_folder, replace_folder
-from .workbench import Workbench, fit_experiments
+
+if TYPE_CHECKING:
+    from .circuit import CircuitBalance, ErrorModel
+    from .circuit.planning import DesignAdvice
+    from .workbench import Workbench
 
 #: The formulas fitted by ``--fit``: the nine of the paper (ranked) and the extended curves
 #: with bypass and fish-hook (reported beside them, as ``tromplab fit --extended`` does).
@@ -31,6 +41,7 @@ class CircuitRun:
     balance: CircuitBalance
     bench: Workbench | None
     written: dict
+    next_steps: tuple[str, ...] = ()
 
 
 def fit_separators(balance: CircuitBalance, *, formulas=FIT_FORMULAS, alpha: float | None = None) -> Workbench:
@@ -51,6 +62,8 @@ def fit_separators(balance: CircuitBalance, *, formulas=FIT_FORMULAS, alpha: flo
     -------
     Workbench
     """
+    from .workbench import fit_experiments
+
     options = {} if alpha is None else {"alpha": alpha}
     return fit_experiments(balance.to_points(), formulas=formulas, size_unit=balance.survey.size_unit, **options)
 
@@ -78,7 +91,8 @@ def run_circuit(
     fit : bool
         Also fit the separators' partition curves (:func:`fit_separators`).
     errors : ErrorModel, optional
-        Standard deviations where the table gives none.
+        Standard deviations where the table gives none (also those of the candidates of
+        ``design.csv``).
     alpha : float
         Level of the chi-square and measurement tests.
     size_unit : str, optional
@@ -98,13 +112,17 @@ def run_circuit(
     Files: ``flows.csv``, ``distributions.csv``, ``adjustments.csv``, ``gross_errors.csv``,
     ``elimination.csv`` (serial elimination with compensation: a proposal), ``nodal_tests.csv``,
     ``worth.csv`` (each measurement's solvability, redundancy and influence on the results),
-    ``design.csv`` (the measurements one could add, ranked by the predicted reduction of sds),
-    ``chi_square.csv``, ``degrees_of_freedom.csv``, ``partition.csv`` (with standard
-    deviations), ``points.csv`` (Tromp-points schema with weights, what ``tromplab fit``
-    reads), the flowsheet as read (``flowsheet.csv``), ``summary.txt``; figures
-    ``flowsheet.png``, ``adjustments.png``, ``distributions.png``; with ``fit``
-    ``fits.csv`` and ``ranking.csv``; with per cent solids measured, ``water.csv``.
+    ``observability.csv`` (every unmeasured quantity: observable or not, and what would make
+    it so), ``design.csv`` (the measurements one could add, ranked by the predicted reduction
+    of sds: what ``tromplab circuit design`` writes for the same survey), ``chi_square.csv``,
+    ``degrees_of_freedom.csv``, ``partition.csv`` (with standard deviations), ``points.csv``
+    (Tromp-points schema with weights, what ``tromplab fit`` reads), the flowsheet as read
+    (``flowsheet.csv``), ``summary.txt`` (ending with the next steps); figures
+    ``flowsheet.png``, ``adjustments.png``, ``distributions.png``; with ``fit`` ``fits.csv``
+    and ``ranking.csv``; with per cent solids measured, ``water.csv``.
     """
+    from .circuit import read_flowsheet, read_survey, reconcile
+
     check_output_folder(outdir, inputs=[flowsheet, measurements])  # the inputs are checked as they are read
     sheet = read_flowsheet(flowsheet)
     survey = read_survey(measurements, sheet, errors=errors, size_unit=size_unit)
@@ -113,20 +131,84 @@ def run_circuit(
             "fit", "needs size analyses: the survey holds flows and per cent solids only (no partition curve to fit)"
         )
     balance = reconcile(sheet, survey, alpha=alpha, exclude=exclude)
-    tables = balance_tables(balance)
+    from .circuit.outputs import balance_next_steps, balance_outputs, balance_tables
+
+    tables = balance_tables(balance, errors)
     bench = None
     if fit and balance.flowsheet.separators:
         bench = fit_separators(balance)
-        tables["fits"] = bench.fits_table()
-        tables["ranking"] = bench.ranking_table()
-    outputs = balance_outputs(balance, figures=figures, tables=tables)
-    written = replace_folder(outputs, outdir)
-    return CircuitRun(balance, bench, written)
+        tables["fits"], tables["ranking"] = bench.fits_table(), bench.ranking_table()
+    steps = balance_next_steps(balance, tables)
+    written = replace_folder(balance_outputs(balance, figures=figures, tables=tables, steps=steps), outdir)
+    return CircuitRun(balance, bench, written, steps)
 
 
-def console_report(run: CircuitRun) -> str:
-    """What the command prints: the summary, the flows, the largest adjustments, the fits' ranking and the files."""
+@dataclass(frozen=True)
+class DesignRun:
+    """What ``tromplab circuit design`` did: the advice and the files written."""
+
+    advice: DesignAdvice
+    written: dict
+
+
+def run_design(
+    flowsheet,
+    measurements=None,
+    outdir=Path("results/circuit-design"),
+    *,
+    quantity=None,
+    sampled=None,
+    flows=None,
+    errors: ErrorModel | None = None,
+    alpha: float = DEFAULT_ALPHA,
+    size_unit: str | None = None,
+    exclude=(),
+) -> DesignRun:
+    """Rank the measurements one could add to a survey and write ``outdir`` as a whole.
+
+    Parameters
+    ----------
+    flowsheet : path
+        The flowsheet.
+    measurements : path, optional
+        The survey taken; without it, a survey simulated from the flowsheet
+        (:func:`~tromplab.circuit.planning.simulated_survey`, its assumptions written in
+        ``summary.txt``).
+    outdir : path
+        Output folder, replaced as a whole when everything is written.
+    quantity, sampled, flows, errors, alpha, size_unit, exclude
+        As for :func:`~tromplab.circuit.planning.design_advice` (``--quantity``,
+        ``--sampled``, ``--flows``, the error model options, ``--alpha``, ``--size-unit``,
+        ``--exclude``).
+
+    Returns
+    -------
+    DesignRun
+
+    Notes
+    -----
+    Files: ``design.csv`` (:data:`~tromplab.circuit.design.DESIGN_COLUMNS`),
+    ``observability.csv``, ``summary.txt`` and, for a simulated survey,
+    ``simulated_survey.csv`` (the survey as a measurement table, rounded as a lab prints it).
+    """
+    from .circuit import read_flowsheet, read_survey
+    from .circuit.planning import design_advice
+
+    check_output_folder(outdir, inputs=[flowsheet] + ([measurements] if measurements is not None else []))
+    sheet = read_flowsheet(flowsheet)
+    survey = None if measurements is None else read_survey(measurements, sheet, errors=errors, size_unit=size_unit)
+    advice = design_advice(sheet, survey, quantity=quantity, sampled=sampled, flows=flows, errors=errors, alpha=alpha,
+                           exclude=exclude)  # fmt: skip
+    return DesignRun(advice, advice.save(outdir))
+
+
+def console_report(run: CircuitRun, *, format_fits=None) -> str:
+    """What ``tromplab circuit`` prints: the summary, the flows, the largest adjustments, the
+    fits (with ``format_fits``, the fit command's table, else the best curve per separator),
+    the next steps and the files."""
     balance = run.balance
+    from .loading.weights import weight_notes
+
     lines = [balance.report(), *weight_notes(balance.points_table()), "", "Reconciled solids flows:"]
     flows = balance.flows_table()[["stream", "measured", "reconciled", "reconciled_sd"]]
     lines.append(flows.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
@@ -136,8 +218,19 @@ def console_report(run: CircuitRun) -> str:
         lines.append(largest[["measurement", "row", "measured", "reconciled", "gross_error", "measurement_test", "suspect"]].to_string(
             index=False, float_format=lambda v: f"{v:.4g}"))  # fmt: skip
     if run.bench is not None:
-        fits = run.bench.fits_table()
-        best = fits[fits["rank"] == 1][["experiment", "formula", "d_cut", "shape", "F", "adequate"]]
-        lines += ["", "Best-ranked curve per separator (every fit in fits.csv):", best.to_string(index=False)]
+        lines += ["", _fits_text(run.bench, format_fits, balance.survey.size_unit)]
+    if run.next_steps:
+        lines += ["", "Next:", *(f"  {k}. {step}" for k, step in enumerate(run.next_steps, start=1))]
     lines += ["", "Wrote:", *(f"  {path}" for path in run.written.values())]
     return "\n".join(lines)
+
+
+def _fits_text(bench: Workbench, format_fits, size_unit: str) -> str:
+    """The fits of the separators: the fit command's table when given, else the best curve of each."""
+    fits = bench.fits_table()
+    if format_fits is not None:
+        verdicts = {experiment: bench.verdicts(experiment) for experiment in dict.fromkeys(fits["experiment"])}
+        unit = f"sizes (d50, d50c) in {size_unit}" if size_unit else "sizes in the unit of the survey"
+        return f"Partition curves of the separators, {unit}; every fit in fits.csv:\n" + format_fits(fits, verdicts)
+    best = fits[fits["rank"] == 1][["experiment", "formula", "d_cut", "shape", "F", "adequate"]]
+    return "Best-ranked curve per separator (every fit in fits.csv):\n" + best.to_string(index=False)

@@ -2,7 +2,7 @@
 :meth:`CircuitBalance.save <tromplab.circuit.CircuitBalance.save>` writes, from one place.
 
 Tables ``flows.csv``, ``distributions.csv``, ``adjustments.csv``, ``gross_errors.csv``,
-``elimination.csv``, ``nodal_tests.csv``, ``worth.csv``, ``design.csv``, ``chi_square.csv``,
+``elimination.csv``, ``nodal_tests.csv``, ``worth.csv``, ``observability.csv``, ``design.csv``, ``chi_square.csv``,
 ``degrees_of_freedom.csv``, ``partition.csv``, ``points.csv``, ``flowsheet.csv`` (and
 ``water.csv`` with per cent solids measured), ``summary.txt`` (:meth:`CircuitBalance.report`)
 and the figures ``flowsheet.png``, ``adjustments.png`` and ``distributions.png``.
@@ -19,11 +19,16 @@ import pandas as pd
 from ..loading.weights import weight_notes
 from ..output.csv_parts import write_csv
 from ..output.plotting import offscreen_axes
+from .elimination import exclusion_name
 from .plotting import figure_size
 
 
-def balance_tables(balance) -> dict[str, pd.DataFrame]:
-    """Name (without ``.csv``) -> table of every table of the reconciled survey ``balance``."""
+def balance_tables(balance, errors=None) -> dict[str, pd.DataFrame]:
+    """Name (without ``.csv``) -> table of every table of the reconciled survey ``balance``
+    (``errors``: the error model the survey was read with, for the design advice and the
+    observability table; default :class:`~tromplab.circuit.measurements.ErrorModel`)."""
+    from .design import design_table, observability_table
+
     tables = {
         "flows": balance.flows_table(),
         "distributions": balance.distributions_table(),
@@ -32,7 +37,8 @@ def balance_tables(balance) -> dict[str, pd.DataFrame]:
         "elimination": balance.elimination_table(),
         "nodal_tests": balance.nodal_tests_table(),
         "worth": balance.worth_table(),
-        "design": balance.design_table(),
+        "observability": observability_table(balance, errors),
+        "design": design_table(balance, errors=errors),
         "chi_square": balance.chi_square_table(),
         "degrees_of_freedom": balance.degrees_of_freedom_table(),
         "partition": balance.partition_table(),
@@ -44,12 +50,27 @@ def balance_tables(balance) -> dict[str, pd.DataFrame]:
     return tables
 
 
-def balance_outputs(balance, *, figures: bool = True, tables: dict | None = None) -> dict[str, Callable[[Path], None]]:
+def balance_next_steps(balance, tables: dict) -> tuple[str, ...]:
+    """The one or two things to do next (:func:`next_steps`) from the tables of :func:`balance_tables`."""
+    return tuple(next_steps(balance, observability=tables["observability"], design=tables["design"]))
+
+
+def balance_summary(balance, tables: dict, steps=()) -> str:
+    """``summary.txt``: the report, the notes on the weights of the points and the next steps."""
+    lines = [balance.report(), *weight_notes(tables["points"]), *(f"next: {step}" for step in steps)]
+    return "\n".join(lines) + "\n"
+
+
+def balance_outputs(
+    balance, *, figures: bool = True, tables: dict | None = None, steps=None
+) -> dict[str, Callable[[Path], None]]:
     """File name -> writer of every file of ``balance`` (``tables``: :func:`balance_tables` and any
-    further tables, such as the fits of ``--fit``), for :func:`tromplab.output.outputs.replace_folder`."""
+    further tables, such as the fits of ``--fit``; ``steps``: :func:`balance_next_steps`), for
+    :func:`tromplab.output.outputs.replace_folder`."""
     tables = balance_tables(balance) if tables is None else tables
+    steps = balance_next_steps(balance, tables) if steps is None else steps
     outputs = {f"{name}.csv": (lambda path, table=table: write_csv(table, path)) for name, table in tables.items()}
-    summary = "\n".join([balance.report(), *weight_notes(tables["points"])]) + "\n"
+    summary = balance_summary(balance, tables, steps)
     outputs["summary.txt"] = lambda path: path.write_text(summary, encoding="utf-8")
     if figures:
         for kind in ("flowsheet", "adjustments", "distributions") if balance.has_size_classes else ("flowsheet", "adjustments"):
@@ -65,3 +86,33 @@ def balance_png(balance, kind: str) -> bytes:
     buffer = io.BytesIO()
     ax.figure.savefig(buffer, format="png", dpi=120, bbox_inches="tight")
     return buffer.getvalue()
+
+
+def next_steps(balance, *, observability=None, design=None, limit: int = 2) -> list[str]:
+    """The one or two things to do next, most pressing first: act on the serial elimination's
+    proposal when the global test rejects, measure what would determine a quantity the survey
+    leaves free, and take the measurement that would lower a result's sd the most."""
+    steps = []
+    if balance.rejected and len(balance.elimination_table()) > 1:
+        names = ",".join(
+            exclusion_name(r.stream, r.kind, r.size_class) for r in balance.elimination_table().iloc[1:].itertuples()
+        )
+        steps.append(f"check the measurement(s) the serial elimination names ({names.replace(',', ', ')}; "
+                     f"elimination.csv), then reconcile without them: --exclude {names}")  # fmt: skip
+    if observability is None:
+        from .design import observability_table
+
+        observability = observability_table(balance)
+    free = observability[observability["observable"] == "no"]
+    if len(free):
+        first = free.iloc[0]
+        helper = first["made_observable_by"].split("; ")[0] if first["made_observable_by"] else ""
+        listed = ", ".join(f"{r.quantity} of {r.stream}" for r in free.head(3).itertuples()) + (" ..." if len(free) > 3 else "")
+        steps.append(f"the survey leaves {listed} undetermined"
+                     + (f": measure the {helper} (observability.csv)" if helper else " (observability.csv)"))  # fmt: skip
+    design = balance.design_table() if design is None else design
+    if len(design) and design.iloc[0]["reduction"] > 0:
+        top = design.iloc[0]
+        steps.append(f"for the next survey, add the {top.measurement} of {top.stream} (sd of {top.quantity} "
+                     f"{top.sd_before:.3g} -> {top.sd_after:.3g}, predicted; design.csv)")  # fmt: skip
+    return steps[:limit]

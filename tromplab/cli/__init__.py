@@ -184,7 +184,7 @@ def build_parser() -> argparse.ArgumentParser:
     sieve.add_sieve(commands)
     rank.add_rank(commands)
     add_model_commands(commands)  # layer, pulp, optimize
-    circuit._add_circuit_command(commands)
+    circuit.add_circuit_command(commands)
     density = add_density_command(commands)  # density fit (the sub-commands and their work are in cli.density)
     add_predict_parser(density.density_commands)  # density predict (cli.density_predict)
     state_ranges(parser)

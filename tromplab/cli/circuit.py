@@ -1,8 +1,12 @@
-"""``tromplab circuit``: a plant survey reconciled over its flowsheet, the partition curves of
-every separator (the work is in :mod:`tromplab.circuit_command`)."""
+"""``tromplab circuit FLOWSHEET MEASUREMENTS -o DIR [--fit]`` and ``tromplab circuit design
+FLOWSHEET [SURVEY] -o DIR``: the parsers and the runs of the two commands (the work is in
+:mod:`tromplab.circuit_command`, their Python faces :func:`~tromplab.circuit_command.run_circuit`
+and :func:`~tromplab.circuit_command.run_design`)."""
 
 from __future__ import annotations
 
+import argparse
+import sys
 from pathlib import Path
 
 from ..options import (
@@ -21,13 +25,31 @@ from ..validation import (
     check_share_sd,
     cli_type,
 )
+from .printing import format_fits
 from .startup import EXIT_OK
 
+#: What the circuit commands import when they run (before they start, under the CLI's signal handling).
+IMPORTS = (
+    "tromplab.circuit_command",
+    "tromplab.circuit",
+    "tromplab.circuit.planning",
+    "tromplab.workbench",
+    "tromplab.output.csv_parts",
+    "tromplab.output.plotting",
+)
+_USAGE = (
+    "tromplab circuit FLOWSHEET MEASUREMENTS [-o DIR] [--fit] [options]\n"
+    "       tromplab circuit design FLOWSHEET [SURVEY] [-o DIR] [options]"
+)
 
-def _add_circuit_command(commands) -> None:
-    """``tromplab circuit FLOWSHEET MEASUREMENTS -o DIR [--fit]`` (the work is in circuit_command)."""
+
+def add_circuit_command(commands) -> argparse.ArgumentParser:
+    """Register ``tromplab circuit`` and ``tromplab circuit design``; returns the circuit parser."""
     circuit = commands.add_parser(
-        "circuit", help="reconcile a plant survey over its flowsheet; partition curves of every separator (docs/circuit.md)"
+        "circuit",
+        usage=_USAGE,
+        help="reconcile a plant survey over its flowsheet; partition curves of every separator; "
+        "'circuit design': what to measure next (docs/circuit.md)",
     )
     circuit.add_argument("flowsheet", type=Path, help="flowsheet CSV: stream, from, to, product")
     circuit.add_argument("measurements", type=Path, help="survey CSV: stream, size classes, retained_pct [, solids_flow]")
@@ -35,12 +57,34 @@ def _add_circuit_command(commands) -> None:
         "-o", "--outdir", type=Path, default=Path("results/circuit"), help="output folder (default: %(default)s)"
     )
     circuit.add_argument("--fit", action="store_true", help="also fit the nine formulas and the extended curves per separator")
-    circuit.add_argument("--size-unit", default=None, help="unit of the sizes when the size columns carry none")
+    _add_survey_options(circuit)
     circuit.add_argument("--no-figures", action="store_true", help="do not draw the figures")
-    circuit.add_argument("--exclude", default="", metavar="STREAM[:WHAT],...",
-                         help="leave measurements out: a stream, or STREAM:flow, STREAM:pct_solids, STREAM:CLASS "
-                         "(e.g. cyclone_feed:-150+75); what the elimination proposes")  # fmt: skip
-    errors = circuit.add_argument_group("error model (where the survey table gives none)")
+    _add_error_model_options(circuit)
+    circuit.set_defaults(run=_run_circuit, imports=IMPORTS)
+    sub = circuit.add_subparsers(
+        dest="circuit_command", metavar="design", parser_class=type(circuit), required=False, prog=circuit.prog
+    )
+    design = sub.add_parser(
+        "design",
+        help="rank the measurements one could add (a flow, a size analysis, a repeat, a per cent solids) by the sd "
+        "they would remove, from a survey taken or one simulated from the flowsheet",
+        description="Write DIR/design.csv: every measurement one could add, with the predicted sd of each result "
+        "named, ranked; with SURVEY at its reconciled values, without it at a survey simulated from the flowsheet.",
+    )
+    _add_design_options(design)
+    _route_design(circuit, design)
+    return circuit
+
+
+def _add_survey_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--size-unit", default=None, help="unit of the sizes when the size columns carry none")
+    parser.add_argument("--exclude", default="", metavar="STREAM[:WHAT],...",
+                        help="leave measurements out: a stream, or STREAM:flow, STREAM:pct_solids, STREAM:CLASS "
+                        "(e.g. cyclone_feed:-150+75); what the elimination proposes")  # fmt: skip
+
+
+def _add_error_model_options(parser: argparse.ArgumentParser) -> None:
+    errors = parser.add_argument_group("error model (where the survey table gives none)")
     errors.add_argument("--relative-error", type=cli_type(check_relative_error, "--relative-error"),
                         default=DEFAULT_RELATIVE_ERROR, help="relative error of a measured share, 0..1 (default %(default)s)")  # fmt: skip
     errors.add_argument("--absolute-error", type=cli_type(check_share_sd, "--absolute-error"), default=DEFAULT_ABSOLUTE_ERROR,
@@ -53,20 +97,74 @@ def _add_circuit_command(commands) -> None:
     errors.add_argument("--error-model-at", choices=ERROR_MODEL_POINTS, default=ERROR_MODEL_POINTS[0],
                         help="evaluate the error model at the reconciled values (iterated) or at the measured ones "
                         "(default %(default)s)")  # fmt: skip
-    tests = circuit.add_argument_group("tests")
+    tests = parser.add_argument_group("tests")
     tests.add_argument("--alpha", type=cli_type(check_probability, "--alpha"), default=DEFAULT_ALPHA,
                        help="level of the chi-square and measurement tests, in (0, 1) (default %(default)s)")  # fmt: skip
-    circuit.set_defaults(run=_run_circuit, imports=("tromplab.circuit", "tromplab.circuit_command"))
+
+
+def _add_design_options(design: argparse.ArgumentParser) -> None:
+    design.add_argument("flowsheet", type=Path, help="flowsheet CSV: stream, from, to, product")
+    design.add_argument("measurements", type=Path, nargs="?", default=None, metavar="SURVEY",
+                        help="survey CSV (as for 'tromplab circuit'); without it, a survey simulated from the flowsheet")  # fmt: skip
+    design.add_argument("-o", "--outdir", type=Path, default=Path("results/circuit-design"),
+                        help="output folder (default: %(default)s)")  # fmt: skip
+    design.add_argument("--quantity", action="append", default=None, metavar="RESULT",
+                        help="a result whose sd matters, repeatable: 'partition at cut', 'partition', 'fine yield', "
+                        "'circulating load' (every separator) or one result as worth.csv names it "
+                        "(default: each separator's partition at its cut and each circulating load)")  # fmt: skip
+    design.add_argument("--sampled", default=None, metavar="STREAM,...",
+                        help="without SURVEY: the streams with a size analysis (default: every stream)")  # fmt: skip
+    design.add_argument("--flows", default=None, metavar="STREAM,...",
+                        help="without SURVEY: the streams with a measured solids flow (default: none, flows relative to a feed of 100)")  # fmt: skip
+    _add_survey_options(design)
+    _add_error_model_options(design)
+    design.set_defaults(run=_run_design, imports=IMPORTS)
+
+
+def _route_design(circuit: argparse.ArgumentParser, design: argparse.ArgumentParser) -> None:
+    """Parse ``circuit design ...`` with the design parser and ``circuit FLOWSHEET MEASUREMENTS``
+    with the circuit parser.
+
+    argparse cannot have both a sub-command and positional files on one parser (it would read
+    ``design`` as the flowsheet), so the circuit parser sends a leading ``design`` to the
+    sub-parser itself; the sub-parser stays registered so that help, the generated reference
+    and the option names of messages know it.
+    """
+    parse_circuit = circuit.parse_known_args
+
+    def parse_known_args(args=None, namespace=None):
+        args = list(sys.argv[1:] if args is None else args)
+        if args[:1] == ["design"]:
+            namespace, rest = design.parse_known_args(args[1:], namespace)
+            namespace.circuit_command = "design"
+            return namespace, rest
+        return parse_circuit(args, namespace)
+
+    circuit.parse_known_args = parse_known_args
+
+
+def _error_model(args):
+    from ..circuit import ErrorModel
+
+    return ErrorModel(relative_error=args.relative_error, absolute_error=args.absolute_error,
+                      flow_relative_error=args.flow_relative_error, pct_solids_sd=args.pct_solids_sd,
+                      evaluated_at=args.error_model_at)  # fmt: skip
 
 
 def _run_circuit(args) -> int:
-    from ..circuit import ErrorModel
     from ..circuit_command import console_report, run_circuit
 
-    errors = ErrorModel(relative_error=args.relative_error, absolute_error=args.absolute_error,
-                        flow_relative_error=args.flow_relative_error, pct_solids_sd=args.pct_solids_sd,
-                        evaluated_at=args.error_model_at)  # fmt: skip
-    run = run_circuit(args.flowsheet, args.measurements, args.outdir, fit=args.fit, errors=errors, alpha=args.alpha,
+    run = run_circuit(args.flowsheet, args.measurements, args.outdir, fit=args.fit, errors=_error_model(args), alpha=args.alpha,
                       size_unit=args.size_unit, figures=not args.no_figures, exclude=args.exclude)  # fmt: skip
-    print(console_report(run))
+    print(console_report(run, format_fits=format_fits))
+    return EXIT_OK
+
+
+def _run_design(args) -> int:
+    from ..circuit_command import run_design
+
+    run = run_design(args.flowsheet, args.measurements, args.outdir, quantity=args.quantity, sampled=args.sampled,
+                     flows=args.flows, errors=_error_model(args), alpha=args.alpha, size_unit=args.size_unit,
+                     exclude=args.exclude)  # fmt: skip
+    print(run.advice.report() + "\n\nWrote:\n" + "\n".join(f"  {path}" for path in run.written.values()))
     return EXIT_OK
