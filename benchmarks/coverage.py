@@ -9,7 +9,8 @@ should cover 90-99 % of the time.
 Usage: ``python benchmarks/coverage.py [--replicates 400] [--profile-replicates 150]
 [--formula lognormal --shape 0.3] [--clip]`` (``--clip``: partitions clipped to [0, 1] as
 measured ones are; with a sharp ``--shape`` several sizes then sit exactly at 0 or 1)
-(minutes; the suite runs a smaller version, ``test_reported_intervals_cover_the_truth``).
+(minutes; the suite runs a smaller version, ``test_reported_intervals_cover_the_truth`` and
+``test_clipped_partitions_lower_the_coverage``, with tolerances from the binomial sd).
 """
 
 import argparse

@@ -439,13 +439,19 @@ def test_per_cent_solids_recover_the_true_water_flows_and_sharpen_the_split():
     assert set(balance.adjustments_table()["class_index"]) >= {-2}  # per cent solids are measurements like the others
 
 
-@pytest.mark.slow
+def _binomial_sd(rate: float, n: int) -> float:
+    return float(np.sqrt(rate * (1.0 - rate) / n))
+
+
 def test_noisy_per_cent_solids_give_water_flows_covered_at_the_nominal_rate():
+    """A small version of the 1,000-survey study of docs/circuit.md (coverage 94.7 %, rejections
+    4.6 %): 40 surveys, the 90-99 % band and the nominal 5 % widened by 3 binomial sd (counted
+    per survey, which the intervals of one survey share)."""
     truth, sheet, water = _grinding_circuit_with_water()
     rng = np.random.default_rng(11)
     true_pct = _true_pct(truth, water)
     inside = total = rejected = 0
-    n_surveys = 200
+    n_surveys = 40
     for _ in range(n_surveys):
         noisy = {s: p + rng.standard_normal() for s, p in true_pct.items()}  # the default sd: 1 point
         survey = simulate_survey(truth, rng, flows={"fresh_feed": 0.02})
@@ -455,8 +461,8 @@ def test_noisy_per_cent_solids_give_water_flows_covered_at_the_nominal_rate():
         inside += int(np.sum(np.abs(table["water_flow"] - truth_flow) <= 1.96 * table["water_flow_sd"]))
         total += len(table)
         rejected += balance.rejected
-    assert 0.90 <= inside / total <= 0.99, inside / total
-    assert rejected / n_surveys <= 0.10
+    assert 0.90 - 3 * _binomial_sd(0.90, n_surveys) <= inside / total <= 0.99 + 3 * _binomial_sd(0.99, n_surveys), inside / total
+    assert rejected / n_surveys <= 0.05 + 3 * _binomial_sd(0.05, n_surveys)
 
 
 def test_the_command_writes_the_water_table_when_per_cent_solids_are_measured(tmp_path, capsys):
@@ -482,25 +488,31 @@ def test_a_water_stream_in_the_measurements_is_refused_by_name(tmp_path):
 @pytest.mark.slow
 @pytest.mark.parametrize("make, flows", [(grinding_circuit, {"fresh_feed": 0.02}), (two_deck_screen, {})])
 def test_simulated_surveys_reconciled_closer_to_the_truth_covered_and_tested_at_the_nominal_rate(make, flows):
-    study = reconciliation_study(make(), 400, np.random.default_rng(2025), flows=flows)
-    assert study.reconciled_error < 0.8 * study.measured_error
-    assert 0.90 <= study.coverage <= 0.99, study.coverage
-    assert 0.03 <= study.rejection_rate <= 0.07, study.rejection_rate
+    """A small version of benchmarks/circuit_reconciliation.py (1,000 surveys: squared error
+    ratio 0.70-0.74, coverage 95-96 %, rejections 5 %; docs/circuit.md): 60 surveys, coverage in
+    90-99 % and rejections at the nominal 5 %, each widened by 3 binomial sd over the surveys."""
+    n = 60
+    study = reconciliation_study(make(), n, np.random.default_rng(2025), flows=flows)
+    assert study.reconciled_error < 0.9 * study.measured_error
+    assert 0.90 - 3 * _binomial_sd(0.90, n) <= study.coverage <= 0.99 + 3 * _binomial_sd(0.99, n), study.coverage
+    assert study.rejection_rate <= 0.05 + 3 * _binomial_sd(0.05, n), study.rejection_rate
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("evaluated_at, least", [("measured", 0.90), ("reconciled", 0.82)])
-def test_a_planted_five_sd_gross_error_in_a_flowmeter_is_named_first(evaluated_at, least):
+@pytest.mark.parametrize("evaluated_at, rate", [("measured", 0.918), ("reconciled", 0.862)])
+def test_a_planted_five_sd_gross_error_in_a_flowmeter_is_named_first(evaluated_at, rate):
     """Example plant with a 1 % belt scale on the feed and 10 % flowmeters on three products:
     a 5-sd error (5 sds of the value written) in one flowmeter is named first by the measurement
-    test in >= 90 % of surveys with the error model at the measured values, and >= 82 % at the
-    reconciled values (whose sd of a meter that reads low is larger than the sd the slip was
-    measured in; docs/circuit.md gives 1,000-survey rates)."""
+    test in 91.8 % of 1,000 surveys with the error model at the measured values, and 86.2 % at
+    the reconciled values (whose sd of a meter that reads low is larger than the sd the slip was
+    measured in; benchmarks/circuit_reconciliation.py, docs/circuit.md).  Kept here at 50
+    surveys: at least the benchmark's rate less 3 binomial sd."""
     truth = example_plant()
     flows = {"screen_feed": 0.01, "oversize": 0.10, "middlings": 0.10, "cyclone_overflow": 0.10}
     rng = np.random.default_rng(3)
     errors = ErrorModel(evaluated_at=evaluated_at)
-    named, n_surveys = 0, 150
+    named, n_surveys = 0, 50
+    least = rate - 3 * _binomial_sd(rate, n_surveys)
     for _ in range(n_surveys):
         stream = ("oversize", "middlings", "cyclone_overflow")[rng.integers(3)]
         sign = rng.choice([-1.0, 1.0])

@@ -34,7 +34,9 @@ def _float_sink(tmp_path):
     return path
 
 
-@pytest.mark.parametrize("make", [_by_size_tracers, _float_sink], ids=["tracers_by_size", "float_sink"])
+@pytest.mark.parametrize(
+    "make", [pytest.param(_by_size_tracers, marks=pytest.mark.slow), _float_sink], ids=["tracers_by_size", "float_sink"]
+)
 def test_command_and_api_write_the_same_workbook_report_and_csvs(tmp_path, make):
     path = make(tmp_path)
     options = ["--ci", "0.95", "--curves", "normal,logistic"]

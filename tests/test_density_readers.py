@@ -79,9 +79,10 @@ FLOAT_SINK = (
 @pytest.mark.parametrize(
     ("replace", "row", "column", "words"),
     [
-        (("A,1.4,1.5,", "A,1.35,1.5,"), 3, "density_upper", "fraction 1.3-1.4 overlaps the next, which starts at 1.35"),
-        (("A,1.5,1.6,", "A,1.2,1.6,"), 5, "density_lower", "densities not increasing"),
-        (("A,1.3,1.4,25", "A,1.3,,25"), 3, "density_upper", "only the heaviest fraction may be open above"),
+        (("A,1.4,1.5,", "A,1.35,1.5,"), 4, "density_lower", "fraction 1.35-1.5 overlaps the fraction 1.3-1.4"),
+        (("A,1.4,1.5,", "A,1.45,1.5,"), 4, "density_lower", "fraction 1.45-1.5 leaves a gap to the fraction 1.3-1.4"),
+        (("A,1.5,1.6,", "A,1.2,1.6,"), 5, "density_lower", "density fractions not increasing: 1.2-1.6 follows 1.4-1.5"),
+        (("A,1.3,1.4,25", "A,1.3,,25"), 3, "density_upper", "only the heaviest open above"),
         (("A,1.6,,20,3.0", "A,1.6,,20,-3.0"), 6, "floats_pct", "negative amount -3"),
     ],
 )
@@ -130,7 +131,7 @@ def test_mean_density_replaces_the_midpoint(tmp_path):
     )
     text = "\n".join(line + ("," if line.count(",") == 5 and i else "") for i, line in enumerate(text.splitlines())) + "\n"
     assert_allclose(read_density(write(tmp_path, text))[0].points["density"], [1.25, 1.37, 1.45, 1.55, 1.65])
-    with pytest.raises(InputError, match="mean density 1.45 outside its fraction") as caught:
+    with pytest.raises(InputError, match="mean density 1.45 lies outside its fraction 1.3-1.4") as caught:
         read_density(write(tmp_path, text.replace("1.37", "1.45")))
     assert caught.value.column == "density_mean"
 

@@ -42,7 +42,7 @@ a,1.6,,10,70
         (lambda t: t.replace("a,1.4,1.6", "a,1.35,1.6"), "row 4, column 'density_lower': fraction 1.35-1.6 overlaps the fraction 1.3-1.4"),
         (lambda t: t.replace("a,1.4,1.6", "a,1.45,1.6"), "row 4, column 'density_lower': fraction 1.45-1.6 leaves a gap to"),
         (lambda t: t.replace("a,1.3,1.4,30", "a,1.3,1.2,30"), "row 3, column 'density_lower': lower bound 1.3 is not below"),
-        (lambda t: t.replace("a,1.6,,10", "a,,1.35,10"), "only one open float fraction"),
+        (lambda t: t.replace("a,1.6,,10", "a,,1.35,10"), "row 5, column 'density_lower': density fractions not increasing: -1.35 follows"),
         (lambda t: t.replace("a,1.3,1.4,30,10\na,1.4,1.6,20,25", "a,1.4,1.6,20,25\na,1.3,1.4,30,10"), "row 4, column 'density_lower': density fractions not increasing: 1.3-1.4 follows 1.4-1.6"),
         (lambda t: t.replace("a,1.6,,10,70", "a,1.6,,20,70"), "column 'mass_pct': test 'a': mass_pct adds up to 110"),
         (lambda t: t.replace("a,1.3,1.4", " ,1.3,1.4"), "row 3, column 'test': test name is blank"),

@@ -24,34 +24,44 @@ def experiment(seed, noise=0.02, d_cut=80.0, ks=2.5, name="e"):
     return TrompPoints(name, SIZES, PLITT(SIZES, d_cut, ks) + rng.normal(0, noise, SIZES.size))
 
 
-@pytest.mark.slow
+def _binomial_sd(rate: float, n: int) -> float:
+    return float(np.sqrt(rate * (1.0 - rate) / n))
+
+
 def test_reported_intervals_cover_the_truth():
     """Seeded replicates of a known curve: the reported 95 % intervals (log/logit/neglog
     transformed Wald and delta intervals) cover the true d_cut, shape, slope, eta, epsilon,
-    d25, d75 and Ep 90-99 % of the time (Plitt; the long study over three formulas:
-    benchmarks/coverage.py)."""
-    table = interval_coverage("plitt", 400).set_index("quantity")
-    assert (table["missing"] == 0).all()
-    assert table["coverage"].between(0.90, 0.99).all(), table["coverage"].to_dict()
+    d25, d75 and Ep.  The study (400 replicates per formula, 90-99 % each:
+    ``benchmarks/coverage.py``, docs/uncertainty.md) is kept here at 100 Plitt replicates: each
+    coverage within the study's band widened by 3 binomial sd at 100 replicates (0.81-1), which
+    still fails intervals of half their width (a 1-sd interval covers 68 %)."""
+    n = 100
+    table = interval_coverage("plitt", n).set_index("quantity")
+    assert (table["missing"] == 0).all() and (table["replicates"] == n).all()
+    low, high = 0.90 - 3 * _binomial_sd(0.90, n), 0.99 + 3 * _binomial_sd(0.99, n)
+    assert table["coverage"].between(low, high).all(), table["coverage"].to_dict()
     assert table.loc["d_cut", "method"] == "wald-log" and table.loc["eta", "method"] == "delta-logit"
 
 
-@pytest.mark.slow
 def test_clipped_partitions_lower_the_coverage():
-    """The limitation documented in docs/uncertainty.md: on a sharp log-normal curve the
-    intervals are calibrated when the noisy partitions are left unclipped, and cover clearly
-    less when they are clipped to [0, 1] as measured ones are (same seeds)."""
-    study = interval_coverage("lognormal", 120, shape=0.3).set_index("quantity")
+    """The limitation documented in docs/uncertainty.md (400 replicates: 95 % unclipped, 82-85 %
+    clipped, ``benchmarks/coverage.py --formula lognormal --shape 0.3 [--clip]``), kept at 60
+    replicates: on a sharp log-normal curve the intervals are calibrated when the noisy
+    partitions are left unclipped, and cover less for every quantity when the same partitions
+    are clipped to [0, 1] as measured ones are."""
+    n = 60
+    study = interval_coverage("lognormal", n, shape=0.3).set_index("quantity")
     unclipped = study["coverage"]
-    clipped = interval_coverage("lognormal", 120, shape=0.3, clip=True).set_index("quantity")["coverage"]
+    clipped = interval_coverage("lognormal", n, shape=0.3, clip=True).set_index("quantity")["coverage"]
     # the curve is so sharp that in about half the replicates no point lies between 0.25 and 0.75:
     # the cut is then not bracketed and d_cut, d25, d75 and Ep get no interval, so their
-    # coverage is over the other replicates only (57 of 120: binomial spread about 0.03)
+    # coverage is over the other replicates only
     cut = ["d_cut", "d25", "d75", "ep"]
     assert (study.loc[cut, "missing"] > 0).all() and (study.drop(index=cut)["missing"] == 0).all()
-    assert unclipped.drop(index=cut).between(0.90, 0.99).all(), unclipped.to_dict()
-    assert unclipped[cut].between(0.85, 0.99).all(), unclipped.to_dict()
-    assert (clipped < unclipped - 0.05).all(), (clipped.to_dict(), unclipped.to_dict())
+    made = study["replicates"]
+    band_low = 0.90 - 3 * np.sqrt(0.90 * 0.10 / made)
+    assert (unclipped >= band_low).all(), unclipped.to_dict()
+    assert (clipped < unclipped).all(), (clipped.to_dict(), unclipped.to_dict())
 
 
 def test_interval_table_reports_parameters_and_indices():

@@ -83,8 +83,7 @@ def interval_coverage(
     curve = get_formula(formula)
     shape = COVERAGE_TRUTH[formula] if shape is None else float(shape)
     delta_max = float(COVERAGE_SIZES[-1])
-    true_indices = curve_indices(curve, 80.0, shape, delta_max=delta_max)
-    truth = {"d_cut": 80.0, "shape": shape, **{q: getattr(true_indices, q) for q in COVERAGE_QUANTITIES[2:]}}
+    truth = _true_quantities(curve, shape, delta_max)
     counts = {q: [0, 0, 0] for q in COVERAGE_QUANTITIES}  # covered, made, missing
     methods = {q: set() for q in COVERAGE_QUANTITIES}
     for seed in range(first_seed, first_seed + replicates):
@@ -98,15 +97,7 @@ def interval_coverage(
                 counts[q][2] += 1
             continue
         table = interval_table(fit, level=level, profile=profile).set_index("quantity")
-        table = table.rename(index={curve.shape_name: "shape"})
-        for q in COVERAGE_QUANTITIES:
-            low, high = table.loc[q, "low"], table.loc[q, "high"]
-            if np.isfinite(low) and np.isfinite(high):
-                counts[q][0] += bool(low <= truth[q] <= high)
-                counts[q][1] += 1
-                methods[q].add(table.loc[q, "method"])
-            else:
-                counts[q][2] += 1
+        _count_covered(table.rename(index={curve.shape_name: "shape"}), truth, counts, methods)
     return pd.DataFrame(
         [
             {
@@ -121,3 +112,22 @@ def interval_coverage(
             for q, (covered, made, missing) in counts.items()
         ]
     )
+
+
+def _true_quantities(curve, shape: float, delta_max: float) -> dict:
+    """The true value of every quantity of :data:`COVERAGE_QUANTITIES` for the generating curve."""
+    true_indices = curve_indices(curve, 80.0, shape, delta_max=delta_max)
+    return {"d_cut": 80.0, "shape": shape, **{q: getattr(true_indices, q) for q in COVERAGE_QUANTITIES[2:]}}
+
+
+def _count_covered(table, truth: dict, counts: dict, methods: dict) -> None:
+    """Add one replicate's intervals (``table`` by quantity) to ``counts`` (covered, made,
+    missing per quantity) and the methods that made them."""
+    for q in COVERAGE_QUANTITIES:
+        low, high = table.loc[q, "low"], table.loc[q, "high"]
+        if np.isfinite(low) and np.isfinite(high):
+            counts[q][0] += bool(low <= truth[q] <= high)
+            counts[q][1] += 1
+            methods[q].add(table.loc[q, "method"])
+        else:
+            counts[q][2] += 1

@@ -84,6 +84,11 @@ def sieve_checks() -> pd.DataFrame:
     Each printed value is kept as printed (a string) and compared at its printed
     precision by :func:`compare_printed`.
     """
+    return pd.DataFrame(_kinetics_checks() + _random_walk_checks())
+
+
+def _kinetics_checks() -> list[dict]:
+    """The checks of the sieve-kinetics paper: P_g, P_v, E and Q, at the printed and the corrected speed."""
     k = KINETICS
     rows = [
         _row(
@@ -134,14 +139,20 @@ def sieve_checks() -> pd.DataFrame:
             f"gamma_1^1 = {b1:.3f}, gamma_1^2 = {b2:.3f}",
         )
     )
+    return rows
+
+
+def _random_walk_checks() -> list[dict]:
+    """The checks of the random-walk (bin) paper: C, x1, E and Q."""
     w = RANDOM_WALK
+    rows = []
     exact, normal = sieve.design_bin(w["m"], w["L"], w["g"]), sieve.design_bin(w["m"], w["L"], w["g"], method="normal")
     rows.append(_row("random walk", "C, 1/m^2", "14.22", exact.c))
     rows.append(_row("random walk", "x1, exact, m", "0.98", exact.x1, "0.9867 unrounded"))
     rows.append(_row("random walk", "x1, normal approximation, m", "0.98", normal.x1))
     rows.append(_row("random walk", "E = g (1 - S), %", "81.5", sieve.bin_efficiency(w["g"], w["impurity"])))
     rows.append(_row("random walk", "Q = rho h B V, kg/h", "1490", sieve.capacity(w["rho"], w["h"], w["B"], w["V"])))
-    return pd.DataFrame(rows)
+    return rows
 
 
 def shuvalov_table3(table2_path, table3_path, *, use_given_marks: bool = True) -> pd.DataFrame:

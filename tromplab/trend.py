@@ -410,11 +410,7 @@ def monitor_surveys(
     """
     surveys = _checked_surveys(surveys, alpha)
     base = baseline_indices(surveys, baseline)
-    if formula is None:  # the ranking's fits of the best formula are the trend's
-        formula, fits = _best_formula(surveys)
-    else:
-        formula = get_formula(formula)
-        fits = tuple(fit_chunk([s.points for s in surveys], formulas=[formula.id], alpha=None, delta_max=None))
+    formula, fits = _trend_fits(surveys, formula)
     failures = {s.name: f.message for s, f in zip(surveys, fits) if not f.success}
     quantities = ["d_cut", "ep", "eta"] + (["bypass"] if any(e.name == "bypass" for e in formula.extras) else [])
     values, lows, highs = _charted_values(fits, quantities, level)
@@ -447,6 +443,15 @@ def monitor_surveys(
             )
     table = pd.DataFrame(rows, columns=list(TREND_COLUMNS))
     return TrendResult(formula.id, tuple(surveys), fits, base, table, alpha, level, failures)
+
+
+def _trend_fits(surveys: Sequence[Survey], formula) -> tuple:
+    """The formula of the trend and its fit of every survey: by default the ranking's best
+    formula over all surveys, whose fits are the ranking's."""
+    if formula is None:
+        return _best_formula(surveys)
+    formula = get_formula(formula)
+    return formula, tuple(fit_chunk([s.points for s in surveys], formulas=[formula.id], alpha=None, delta_max=None))
 
 
 def _checked_surveys(surveys: Sequence[Survey], alpha: float) -> list[Survey]:

@@ -205,6 +205,37 @@ def least_squares(
     (2.0, 1.0, True)
     """
     names = [s.name for s in specs]
+    best, failures = _best_of_starts(residual, specs, starts, max_nfev)
+    if best is None:
+        detail = "; ".join(dict.fromkeys(failures)) or "no starting point given"
+        return ParameterFit.failed(specs, 0, f"fit failed from every start: {detail}", len(starts))
+    ssr, result, minimizer = best
+    n_points = result.residual.size
+    values = {name: float(result.params[name].value) for name in names}
+    stderr = {name: _stderr(result.params[name]) for name in names}
+    at_bound = parameters_at_bounds(specs, values)
+    return ParameterFit(
+        names=tuple(names),
+        values=values,
+        stderr=stderr,
+        ssr=ssr,
+        n_points=n_points,
+        success=bool(result.success),
+        message=str(result.message),
+        at_bound=at_bound,
+        n_starts=len(starts),
+        nfev=int(result.nfev),
+        covariance=result.covar,
+        residual=np.asarray(result.residual),
+        raw=result,
+        minimizer=minimizer,
+    )
+
+
+def _best_of_starts(residual, specs: Sequence[Parameter], starts, max_nfev: int):
+    """``(ssr, lmfit result, minimizer)`` of the lowest finite optimum over ``starts`` (None when
+    every start failed), and why each failing start failed."""
+    names = [s.name for s in specs]
 
     def objective(params: lmfit.Parameters) -> np.ndarray:
         return np.asarray(residual({name: params[name].value for name in names}), dtype=float)
@@ -227,30 +258,7 @@ def least_squares(
             continue
         if best is None or ssr < best[0]:
             best = (ssr, result, minimizer)
-    n_points = 0 if best is None else best[1].residual.size
-    if best is None:
-        detail = "; ".join(dict.fromkeys(failures)) or "no starting point given"
-        return ParameterFit.failed(specs, n_points, f"fit failed from every start: {detail}", len(starts))
-    ssr, result, minimizer = best
-    values = {name: float(result.params[name].value) for name in names}
-    stderr = {name: _stderr(result.params[name]) for name in names}
-    at_bound = parameters_at_bounds(specs, values)
-    return ParameterFit(
-        names=tuple(names),
-        values=values,
-        stderr=stderr,
-        ssr=ssr,
-        n_points=n_points,
-        success=bool(result.success),
-        message=str(result.message),
-        at_bound=at_bound,
-        n_starts=len(starts),
-        nfev=int(result.nfev),
-        covariance=result.covar,
-        residual=np.asarray(result.residual),
-        raw=result,
-        minimizer=minimizer,
-    )
+    return best, failures
 
 
 def _stderr(param: lmfit.Parameter) -> float:

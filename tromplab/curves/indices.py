@@ -248,26 +248,13 @@ def curve_indices(
     >>> round(ind.d25, 3), round(ind.d75, 3), round(ind.ep, 3), ind.extrapolated
     (57.735, 173.205, 57.735, ('d25', 'eta'))
     """
-    for argument, value in (("d_cut", d_cut), ("shape", shape), ("delta_max", delta_max)):
-        if value is None or isinstance(value, (str, bytes, list, tuple, dict, set)):
-            raise TypeError(f"{argument} must be a number, got {type(value).__name__}")
-    formula = get_formula(formula)
-    d_cut, shape, delta_max = check_size(d_cut, "d_cut"), check_number(shape, "shape"), check_size(delta_max, "delta_max")
+    formula, d_cut, shape, delta_max = _checked_curve_arguments(formula, d_cut, shape, delta_max)
     eta, eps = efficiency(formula, shape, delta_max / d_cut, **context)
     slope = formula.slope_at_cut(shape) if not formula.extras else _numeric_slope(formula, shape, context)
     d25 = d_cut * _relative_size_cached(formula, shape, 0.75, context)
     d75 = d_cut * _relative_size_cached(formula, shape, 0.25, context)
     ep = (d75 - d25) / 2.0
-    if "bypass" in context:  # the corrected curve: the same curve without bypass
-        corrected = {**context, "bypass": 0.0}
-        d50 = d_cut * _relative_size_at(formula, shape, 0.5, context)
-        ep_c = (
-            d_cut
-            * (_relative_size_at(formula, shape, 0.25, corrected) - _relative_size_at(formula, shape, 0.75, corrected))
-            / 2.0
-        )
-    else:
-        d50, ep_c = d_cut, ep
+    d50, ep_c = _actual_cut_and_corrected_ep(formula, d_cut, shape, ep, context)
     extrapolated = ()
     if measured_sizes is not None:
         extrapolated = extrapolated_indices(
@@ -297,6 +284,25 @@ def curve_indices(
         imperfection_c=float(ep_c / d_cut),
         extrapolated=extrapolated,
     )
+
+
+def _checked_curve_arguments(formula, d_cut, shape, delta_max) -> tuple:
+    for argument, value in (("d_cut", d_cut), ("shape", shape), ("delta_max", delta_max)):
+        if value is None or isinstance(value, (str, bytes, list, tuple, dict, set)):
+            raise TypeError(f"{argument} must be a number, got {type(value).__name__}")
+    formula = get_formula(formula)
+    return formula, check_size(d_cut, "d_cut"), check_number(shape, "shape"), check_size(delta_max, "delta_max")
+
+
+def _actual_cut_and_corrected_ep(formula, d_cut: float, shape: float, ep: float, context: dict) -> tuple[float, float]:
+    """``(d50, ep_c)``: the cut of the actual curve and the Ep of the corrected one (the same
+    curve without bypass); ``(d_cut, ep)`` for a curve without bypass."""
+    if "bypass" not in context:
+        return d_cut, ep
+    corrected = {**context, "bypass": 0.0}
+    d50 = d_cut * _relative_size_at(formula, shape, 0.5, context)
+    ep_c = d_cut * (_relative_size_at(formula, shape, 0.25, corrected) - _relative_size_at(formula, shape, 0.75, corrected)) / 2.0
+    return d50, ep_c
 
 
 def extrapolated_indices(

@@ -248,9 +248,26 @@ def fit_verdicts(fits: pd.DataFrame, *, by: str = "F", measured_sizes: tuple[flo
                 f"The data cannot tell apart {_names(close)}: their AICc lie within {INDISTINGUISHABLE_DELTA_AICC:g} "
                 "of the lowest, so their order is no evidence."
             )
+    statements += _shared_rank_statements(good, by)
+    statements += _residual_statements(good)
+    flags = good["extrapolated"].fillna("").astype(str)
+    where = f" ({measured_sizes[0]:.4g} to {measured_sizes[1]:.4g})" if measured_sizes else ""
+    parts = []
+    for index in ("d25", "d75", "eta", "epsilon"):
+        holders = good[flags.str.split(";").apply(lambda names, index=index: index in names)]
+        if len(holders):
+            parts.append(f"{index} of {_names(holders, of=len(good))}")
+    if parts:
+        statements.append(f"Extrapolated beyond the measured sizes{where}: {'; '.join(parts)}.")
+    return statements
+
+
+def _shared_rank_statements(good: pd.DataFrame, by: str) -> list[str]:
+    """One sentence per rank shared by several fits, with the rule that tied them."""
     rule = f"F equal to within a relative {F_TIE_RTOL:.0e}" if by == "F" else f"AICc equal to within {AICC_TIE_ATOL:.0e}"
     ranked = good[good["rank"].notna()]
     exact = _exact_to_rounding(ranked)
+    statements = []
     for rank, group in ranked.groupby("rank", sort=True):
         if len(group) > 1:
             if exact[ranked.index.get_indexer(group.index)].all():
@@ -258,7 +275,13 @@ def fit_verdicts(fits: pd.DataFrame, *, by: str = "F", measured_sizes: tuple[flo
             else:
                 reason = rule
             statements.append(f"Shared rank {rank:g}: {_names(group)} ({reason}).")
+    return statements
+
+
+def _residual_statements(good: pd.DataFrame) -> list[str]:
+    """One sentence per residual verdict that makes 'adequate by F' overstate the fits holding it."""
     adequate = good[good["adequate"].astype(bool) & good["residuals"].fillna("").str.contains("systematic|not normal")]
+    statements = []
     for verdict, group in adequate.groupby("residuals", sort=False):
         meaning = []
         if "systematic" in verdict:
@@ -270,15 +293,6 @@ def fit_verdicts(fits: pd.DataFrame, *, by: str = "F", measured_sizes: tuple[flo
             f"Adequate by F, but the residuals are {verdict}: {_names(group, of=len(good))}. "
             f"{reason[0].upper()}{reason[1:]}, so 'adequate' overstates these fits."
         )
-    flags = good["extrapolated"].fillna("").astype(str)
-    where = f" ({measured_sizes[0]:.4g} to {measured_sizes[1]:.4g})" if measured_sizes else ""
-    parts = []
-    for index in ("d25", "d75", "eta", "epsilon"):
-        holders = good[flags.str.split(";").apply(lambda names, index=index: index in names)]
-        if len(holders):
-            parts.append(f"{index} of {_names(holders, of=len(good))}")
-    if parts:
-        statements.append(f"Extrapolated beyond the measured sizes{where}: {'; '.join(parts)}.")
     return statements
 
 

@@ -516,14 +516,19 @@ def fit_density_curve(sample: DensitySample, curve, *, ci: float | None = None, 
             **failed,
             message=f"the fitted cut density {indices.rho50:.4g} lies outside {low:g}..{high:g} g/cm3: the data do not locate the cut",
         )
-    notes = [indices.note] if indices.note else []
     fit = DensityCurveFit(
         sample, curve, method, True, "", params, indices, value, **_statistics(curve, data, params, value), raw=raw
     )
     joint_fit = _joint(fit, ci) if joint else None
     if joint_fit is not None:
         return joint_fit
-    if joint:
+    return _with_intervals_and_notes(fit, data, ci, joint_fell_back=joint)
+
+
+def _with_intervals_and_notes(fit: DensityCurveFit, data, ci: float | None, *, joint_fell_back: bool) -> DensityCurveFit:
+    """The fit on the partitions with its intervals at ``ci`` and the notes on how it was made."""
+    notes = [fit.indices.note] if fit.indices.note else []
+    if joint_fell_back:
         notes.append(JOINT_FALLBACK_NOTE)
     if fit.overdispersed:
         notes.append(f"overdispersed (Pearson chi2/df = {fit.dispersion:.2f}): intervals use the quasi-binomial scale")
@@ -531,7 +536,7 @@ def fit_density_curve(sample: DensitySample, curve, *, ci: float | None = None, 
     if ci is not None:
         intervals, interval_notes = _intervals(fit, data, ci)
         notes += interval_notes
-        if sample.layout == "float-sink" and intervals:
+        if fit.sample.layout == "float-sink" and intervals:
             notes.append(FLOAT_SINK_INTERVAL_NOTE)
     return _replace(fit, intervals=intervals, notes=tuple(notes))
 

@@ -65,17 +65,7 @@ def plot_density_fits(
             ax.fill_between(
                 grid, 100 * band_low, 100 * band_high, color="0.6", alpha=0.3, lw=0, label=f"{100 * level:g} % band of the best"
             )
-    if sample.layout == "tracers":
-        from statsmodels.stats.proportion import proportion_confint
-
-        recovered = points["recovered"].to_numpy()
-        with np.errstate(all="ignore"):
-            lo, hi = proportion_confint(points["sinks"].to_numpy(), np.maximum(recovered, 1), alpha=1 - level, method="wilson")
-        errors = np.clip(np.array([share - 100 * lo, 100 * hi - share]), 0, None)  # 0 where rounding puts a limit past the share
-        ax.errorbar(density[used], share[used], yerr=errors[:, used], fmt="o", color="k", ms=4, capsize=2, zorder=4,
-                    label=f"tracers in the sinks (Wilson {100 * level:g} %)")  # fmt: skip
-    else:
-        ax.plot(density[used], share[used], "o", color="k", ms=4, zorder=4, label="measured partition")
+    _draw_measured_points(ax, sample, density, share, used, level)
     if (~used).any():
         ax.plot(density[~used], np.nan_to_num(share[~used]), "x", color="0.4", label="left out")
     ax.set_xlabel("relative density (g/cm3)")
@@ -85,6 +75,22 @@ def plot_density_fits(
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8, loc="upper left")
     return ax
+
+
+def _draw_measured_points(ax, sample, density, share, used, level: float) -> None:
+    """The measured partitions (per cent): tracer counts with their Wilson interval, other layouts as points."""
+    if sample.layout != "tracers":
+        ax.plot(density[used], share[used], "o", color="k", ms=4, zorder=4, label="measured partition")
+        return
+    from statsmodels.stats.proportion import proportion_confint
+
+    points = sample.points
+    recovered = points["recovered"].to_numpy()
+    with np.errstate(all="ignore"):
+        lo, hi = proportion_confint(points["sinks"].to_numpy(), np.maximum(recovered, 1), alpha=1 - level, method="wilson")
+    errors = np.clip(np.array([share - 100 * lo, 100 * hi - share]), 0, None)  # 0 where rounding puts a limit past the share
+    ax.errorbar(density[used], share[used], yerr=errors[:, used], fmt="o", color="k", ms=4, capsize=2, zorder=4,
+                label=f"tracers in the sinks (Wilson {100 * level:g} %)")  # fmt: skip
 
 
 #: The probable errors of the catalogue's family figures (g/cm3) at the cut 1.5, and the limits of the variants.

@@ -58,6 +58,7 @@ from ..loading.lab import (
 from ..loading.points import experiment_rows, size_column_unit
 from ..loading.tables import Table, read_table
 from ..options import DEFAULT_SUM_TOLERANCE_PCT
+from .fractions import densities, density_fractions
 
 LAYOUTS = ("tracers", "float-sink", "partition")
 TRACER_COLUMNS = ("density", "sinks", "floats")
@@ -65,7 +66,6 @@ FLOAT_SINK_COLUMNS = ("density_lower", "density_upper", "floats_pct", "sinks_pct
 PARTITION_COLUMNS = ("density", "partition_sinks")
 ASH_COLUMNS = ("feed_ash_pct", "floats_ash_pct", "sinks_ash_pct")
 #: Relative densities outside this range are a mistyped value (or a unit that is not g/cm3).
-DENSITY_RANGE = (0.5, 25.0)
 #: An estimated yield this close to 0 or 1 means one product is empty.
 YIELD_MARGIN = 1e-9
 
@@ -288,17 +288,6 @@ def _size_bounds(table: Table, columns: tuple[str, ...]) -> tuple[np.ndarray, np
     return lower, upper
 
 
-def _densities(table: Table, column: str, *, allow_blank: bool = False) -> np.ndarray:
-    values = table.numeric(column, allow_blank=allow_blank)
-    low, high = DENSITY_RANGE
-    bad = np.flatnonzero(np.isfinite(values) & ((values < low) | (values > high)) & ~((values == 0) & allow_blank))
-    if bad.size:
-        raise table.error(
-            f"relative density {values[bad[0]]:g} outside {low:g}..{high:g} (g/cm3, water = 1)", index=int(bad[0]), column=column
-        )
-    return values
-
-
 def _check_increasing(table: Table, values: np.ndarray, column: str) -> None:
     step = np.diff(values)
     bad = np.flatnonzero(~(step > 0))
@@ -332,7 +321,7 @@ def _base_sample(table: Table, context: dict, layout: str, points: pd.DataFrame,
 
 
 def _tracer_sample(table: Table, context: dict) -> DensitySample:
-    density = _densities(table, "density")
+    density = densities(table, "density")
     _check_increasing(table, density, "density")
     sinks, floats = _counts(table, "sinks"), _counts(table, "floats")
     recovered = sinks + floats
@@ -376,7 +365,7 @@ def _tracer_sample(table: Table, context: dict) -> DensitySample:
 
 
 def _partition_sample(table: Table, context: dict) -> DensitySample:
-    density = _densities(table, "density")
+    density = densities(table, "density")
     _check_increasing(table, density, "density")
     share = table.numeric("partition_sinks")
     bad = np.flatnonzero((share < 0) | (share > 1))
@@ -387,63 +376,9 @@ def _partition_sample(table: Table, context: dict) -> DensitySample:
     return _base_sample(table, context, "partition", points, ["partition given directly: fitted by unweighted least squares"])
 
 
-def _fraction_bounds(table: Table) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str]]:
-    """Checked density fractions, their extended bounds for the open ends, and where each is plotted."""
-    lower = _densities(table, "density_lower", allow_blank=True)
-    upper = _densities(table, "density_upper", allow_blank=True)
-    lower = np.where(lower == 0, np.nan, lower)
-    count = lower.size
-    for i in range(count):
-        if np.isnan(lower[i]) and i != 0:
-            raise table.error(
-                "only the lightest fraction may be open below (blank density_lower)", index=i, column="density_lower"
-            )
-        if np.isnan(upper[i]) and i != count - 1:
-            raise table.error(
-                "only the heaviest fraction may be open above (blank density_upper)", index=i, column="density_upper"
-            )
-        if np.isfinite(lower[i]) and np.isfinite(upper[i]) and not lower[i] < upper[i]:
-            raise table.error(
-                f"density_lower {lower[i]:g} is not below density_upper {upper[i]:g}", index=i, column="density_lower"
-            )
-    if count < 3:
-        raise InputError(f"test has {count} density fraction(s); at least 3 are needed", source=table.source)
-    key = np.where(np.isfinite(lower), lower, -np.inf)
-    _check_increasing(table, key, "density_lower")
-    for i in range(count - 1):
-        if upper[i] > lower[i + 1] + 1e-12:
-            raise table.error(
-                f"fraction {lower[i]:g}-{upper[i]:g} overlaps the next, which starts at {lower[i + 1]:g}",
-                index=i,
-                column="density_upper",
-            )
-    notes = []
-    extended_lower, extended_upper = lower.copy(), upper.copy()
-    if np.isnan(lower[0]):
-        extended_lower[0] = upper[0] - (upper[1] - lower[1])
-        notes.append(
-            f"the float below {upper[0]:g} is placed as the fraction {extended_lower[0]:g}-{upper[0]:g} (the width of its neighbour)"
-        )
-    if np.isnan(upper[-1]):
-        extended_upper[-1] = lower[-1] + (upper[-2] - lower[-2])
-        notes.append(
-            f"the sink above {lower[-1]:g} is placed as the fraction {lower[-1]:g}-{extended_upper[-1]:g} (the width of its neighbour)"
-        )
-    density = (extended_lower + extended_upper) / 2.0
-    if "density_mean" in table.frame.columns:
-        given = _densities(table, "density_mean", allow_blank=True)
-        bad = np.flatnonzero(
-            np.isfinite(given) & ((given < np.nan_to_num(lower, nan=-np.inf)) | (given > np.nan_to_num(upper, nan=np.inf)))
-        )
-        if bad.size:
-            i = int(bad[0])
-            raise table.error(f"mean density {given[i]:g} outside its fraction", index=i, column="density_mean")
-        density = np.where(np.isfinite(given), given, density)
-    return lower, upper, density, notes
-
-
 def _float_sink_sample(table: Table, context: dict, options: LabOptions, floats_yield: float | None) -> DensitySample:
-    lower, upper, density, notes = _fraction_bounds(table)
+    fractions = density_fractions(table, minimum=3)
+    lower, upper, density, notes = fractions.lower, fractions.upper, fractions.density, list(fractions.notes)
     shares = {}
     for stream, column in (("feed", "feed_pct"), ("sinks", "sinks_pct"), ("floats", "floats_pct")):
         if column in table.frame.columns:

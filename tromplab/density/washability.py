@@ -11,8 +11,9 @@ File schema (CSV or Excel), one row per density fraction:
 ``density_lower``, ``density_upper``
     relative density bounds of the fraction (g/cm3, water = 1); a blank lower bound is the
     open float fraction (floats of the lightest liquid), a blank upper bound the open sink
-    fraction (sinks of the heaviest liquid).  The fractions of a test must tile the range
-    without gap or overlap, light to heavy or heavy to light.
+    fraction (sinks of the heaviest liquid).  The fractions of a test are given light to
+    heavy and tile the range without gap or overlap (:mod:`tromplab.density.fractions`, the
+    convention every density reader shares).
 ``mass_pct``
     mass per cent of the feed in the fraction, >= 0; the fractions of a test must add up
     to 100 within ``sum_tolerance_pct`` and are normalised to 100.
@@ -66,6 +67,7 @@ from ..loading.tables import Table, read_table
 from ..options import DEFAULT_SUM_TOLERANCE_PCT
 from ..results_contract import ResultContract
 from ..validation import check_cut_density, check_non_negative, check_optional, check_percent, check_positive, check_share
+from .fractions import density_fractions
 
 #: The columns a washability table may have (besides free-text note and comment).
 WASHABILITY_COLUMNS = ("test", "density_lower", "density_upper", "mass_pct", "ash_pct", "density_mean")
@@ -484,10 +486,7 @@ def _test_names(table: Table) -> np.ndarray:
 
 
 def _one_test(table: Table, name: str, tolerance: float, float_lower, sink_upper) -> Washability:
-    lower = table.numeric("density_lower", allow_blank=True)
-    upper = table.numeric("density_upper", allow_blank=True)
-    order = _checked_fractions(table, lower, upper)
-    table, lower, upper = table.subset(order), lower[order], upper[order]
+    fractions = density_fractions(table, float_lower=float_lower, sink_upper=sink_upper)
     mass = table.numeric("mass_pct")
     ash = table.numeric("ash_pct")
     for values, column, low, high in ((mass, "mass_pct", 0.0, np.inf), (ash, "ash_pct", 0.0, 100.0)):
@@ -501,126 +500,19 @@ def _one_test(table: Table, name: str, tolerance: float, float_lower, sink_upper
             source=table.source,
             column="mass_pct",
         )
-    given = (
-        table.numeric("density_mean", allow_blank=True) if "density_mean" in table.frame.columns else np.full(len(mass), np.nan)
-    )
-    outside = np.isfinite(given) & ((given <= np.nan_to_num(lower, nan=0.0)) | (given >= np.nan_to_num(upper, nan=np.inf)))
-    if outside.any():
-        i = int(np.flatnonzero(outside)[0])
-        raise table.error(f"mean density {given[i]:g} lies outside its fraction {_label(lower[i], upper[i])}", index=i,
-                          column="density_mean")  # fmt: skip
-    closed_lower, closed_upper = _closed_bounds(table, lower, upper, given, float_lower, sink_upper)
-    density = np.where(np.isfinite(given), given, (closed_lower + closed_upper) / 2.0)
-    density_from = ["mean" if np.isfinite(value) else "midpoint" for value in given]
     return Washability(
         test=name,
-        density_lower=lower,
-        density_upper=upper,
-        closed_lower=closed_lower,
-        closed_upper=closed_upper,
-        density=density,
-        density_from=tuple(density_from),
+        density_lower=fractions.lower,
+        density_upper=fractions.upper,
+        closed_lower=fractions.closed_lower,
+        closed_upper=fractions.closed_upper,
+        density=fractions.density,
+        density_from=fractions.density_from,
         mass_pct=mass * (100.0 / total),
         ash_pct=ash,
         source=table.source,
         rows=table.rows,
     )
-
-
-def _checked_fractions(table: Table, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
-    """Positions of the fractions (light to heavy, as given), after checking that they tile the density range."""
-    for values, column in ((lower, "density_lower"), (upper, "density_upper")):
-        bad = np.flatnonzero(values <= 0)
-        if bad.size:
-            raise table.error(f"relative density {values[bad[0]]:g} must be positive", index=int(bad[0]), column=column)
-    bad = np.flatnonzero(lower >= upper)
-    if bad.size:
-        i = int(bad[0])
-        raise table.error(f"lower bound {lower[i]:g} is not below the upper bound {upper[i]:g}", index=i, column="density_lower")
-    bad = np.flatnonzero(np.isnan(lower) & np.isnan(upper))
-    if bad.size:
-        raise table.error("the fraction has neither a lower nor an upper bound", index=int(bad[0]), column="density_lower")
-    for open_rows, column, what in (
-        (np.flatnonzero(np.isnan(lower)), "density_lower", "open float fraction (blank density_lower)"),
-        (np.flatnonzero(np.isnan(upper)), "density_upper", "open sink fraction (blank density_upper)"),
-    ):
-        if open_rows.size > 1:
-            raise table.error(f"only one {what} is allowed per test", index=int(open_rows[1]), column=column)
-    if len(lower) < 2:
-        raise table.error("a washability table needs at least two density fractions", index=0, column="density_lower")
-    key = np.where(np.isfinite(lower), lower, upper - 1e9)
-    behind = np.flatnonzero(np.diff(key) <= 0)
-    if behind.size:
-        i = int(behind[0]) + 1
-        raise table.error(
-            f"density fractions not increasing: {_label(lower[i], upper[i])} follows {_label(lower[i - 1], upper[i - 1])} "
-            "(give the fractions of a test light to heavy)",
-            index=i,
-            column="density_lower",
-        )
-    order = np.arange(len(key))
-    inner_open = np.concatenate([order[:-1][np.isnan(upper[order[:-1]])], order[1:][np.isnan(lower[order[1:]])]])
-    if inner_open.size:
-        i = int(inner_open[0])
-        raise table.error("only the lightest fraction may be open below and only the heaviest open above", index=i,
-                          column="density_lower")  # fmt: skip
-    for lighter, heavier in zip(order[:-1], order[1:]):
-        if not np.isclose(upper[lighter], lower[heavier], rtol=0, atol=1e-9):
-            what = "overlaps" if upper[lighter] > lower[heavier] else "leaves a gap to"
-            raise table.error(
-                f"fraction {_label(lower[heavier], upper[heavier])} {what} the fraction "
-                f"{_label(lower[lighter], upper[lighter])} (each fraction starts where the lighter one ends)",
-                index=int(heavier),
-                column="density_lower",
-            )
-    return order
-
-
-def _closed_bounds(table: Table, lower, upper, density_mean, float_lower, sink_upper):
-    """The open fractions closed: by the stated bound, else symmetric about a measured mean density,
-    else by the width of the neighbouring fraction."""
-    closed_lower, closed_upper = lower.copy(), upper.copy()
-    if np.isnan(lower[0]):
-        if float_lower is not None:
-            closed_lower[0] = float_lower
-        elif np.isfinite(density_mean[0]):
-            closed_lower[0] = 2.0 * density_mean[0] - upper[0]
-        else:
-            closed_lower[0] = upper[0] - (upper[1] - lower[1])
-        if np.isfinite(closed_lower[0]) and (
-            not 0 < closed_lower[0] < upper[0] or closed_lower[0] > np.nan_to_num(density_mean[0], nan=np.inf)
-        ):
-            raise InputError(
-                f"the open float fraction closes at {closed_lower[0]:g}, not between 0 and the lightest bound {upper[0]:g} "
-                "(and its mean density); give float_lower_density",
-                source=table.source,
-            )
-    if np.isnan(upper[-1]):
-        if sink_upper is not None:
-            closed_upper[-1] = sink_upper
-        elif np.isfinite(density_mean[-1]):
-            closed_upper[-1] = 2.0 * density_mean[-1] - lower[-1]
-        else:
-            closed_upper[-1] = lower[-1] + (upper[-2] - lower[-2])
-        if np.isfinite(closed_upper[-1]) and not closed_upper[-1] > max(lower[-1], np.nan_to_num(density_mean[-1], nan=-np.inf)):
-            raise InputError(
-                f"sink_upper_density {closed_upper[-1]:g} must lie above the heaviest bound {lower[-1]:g} and its mean density",
-                source=table.source,
-            )
-    if not (np.all(np.isfinite(closed_lower)) and np.all(np.isfinite(closed_upper))):
-        raise InputError(
-            "an open fraction needs a closed neighbour to take its width from; give float_lower_density / sink_upper_density",
-            source=table.source,
-        )
-    return closed_lower, closed_upper
-
-
-def _label(lower: float, upper: float) -> str:
-    if np.isnan(lower):
-        return f"-{upper:g}"
-    if np.isnan(upper):
-        return f"+{lower:g}"
-    return f"{lower:g}-{upper:g}"
 
 
 # --- tables -----------------------------------------------------------------------------------

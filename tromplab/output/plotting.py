@@ -180,6 +180,24 @@ def plot_tromp_fits(
     if best is None and good:  # the paper formula with the lowest sum of squares
         best = min([f for f in good if f.formula.family == "paper"] or good, key=lambda f: f.fit.ssr)
     read = _partition_reader(partition_to)
+    _draw_fitted_curves(ax, fits, best, grid, read)
+    ax.plot(points.size, read(points.partition_fine), "ko", ms=6, label="measured", zorder=4)
+    if best is not None:
+        _mark_best_fit(ax, best, grid, read, band=band)
+    if log_size:
+        log_size_axis(ax, grid[0], grid[-1])
+    unit = f" [{plain_text(size_unit)}]" if size_unit else ""
+    ax.set_xlabel(f"particle size{unit}")
+    ax.set_ylabel(f"partition to {'fines' if partition_to == 'fine' else 'coarse product'}")
+    ax.set_ylim(-0.03, 1.03)
+    ax.set_title(f"Experiment {plain_text(points.experiment)}")
+    title = f"failed: {', '.join(failed)}" if failed else None
+    ax.legend(fontsize=7, title=title, title_fontsize=7, loc="best")
+    return ax
+
+
+def _draw_fitted_curves(ax, fits: Sequence[CurveFit], best: CurveFit | None, grid, read) -> None:
+    """One line per successful fit in its registry style: the best thick, the inadequate faint."""
     for style, fit in zip(curve_styles(len(fits)), fits):
         if not fit.success:
             continue
@@ -195,19 +213,6 @@ def plot_tromp_fits(
             label=label,
             zorder=3 if is_best else 2,
         )
-    ax.plot(points.size, read(points.partition_fine), "ko", ms=6, label="measured", zorder=4)
-    if best is not None:
-        _mark_best_fit(ax, best, grid, read, band=band)
-    if log_size:
-        log_size_axis(ax, grid[0], grid[-1])
-    unit = f" [{plain_text(size_unit)}]" if size_unit else ""
-    ax.set_xlabel(f"particle size{unit}")
-    ax.set_ylabel(f"partition to {'fines' if partition_to == 'fine' else 'coarse product'}")
-    ax.set_ylim(-0.03, 1.03)
-    ax.set_title(f"Experiment {plain_text(points.experiment)}")
-    title = f"failed: {', '.join(failed)}" if failed else None
-    ax.legend(fontsize=7, title=title, title_fontsize=7, loc="best")
-    return ax
 
 
 def _mark_best_fit(ax, best: CurveFit, grid, read, *, band: bool) -> None:

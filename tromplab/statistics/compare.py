@@ -295,22 +295,7 @@ def shared_fit(experiments: Sequence[TrompPoints], formula, *, shared: str = "sh
     (True, [2.62, 3.72])
     """
     formula = get_formula(formula)
-    if isinstance(experiments, (str, bytes)) or not isinstance(experiments, Sequence):
-        raise TypeError(f"experiments must be a sequence of TrompPoints, got {type(experiments).__name__}")
-    for position, points in enumerate(experiments):
-        expect_kind(points, TrompPoints, f"experiments[{position}]", "a TrompPoints")
-    if len(experiments) < 2:
-        raise InputError("a shared fit needs at least two experiments")
-    names = [points.experiment for points in experiments]
-    repeated = sorted({name for name in names if names.count(name) > 1})
-    if repeated:  # a joint fit of an experiment with itself tests nothing (F = 0, p = 1)
-        raise InputError(
-            f"experiment(s) {', '.join(repr(name) for name in repeated)} given more than once; compare distinct experiments"
-        )
-    if formula.extras:
-        raise InputError("shared fits are offered for the two-parameter formulas")
-    if shared not in ("shape", "d_cut"):
-        raise OptionError("shared", f"must be 'shape' or 'd_cut', got {shared!r}")
+    _check_shared_fit_inputs(experiments, formula, shared)
     shape = formula.shape_name
     shared_name = shape if shared == "shape" else "d_cut"
     free = "d_cut" if shared == "shape" else shape
@@ -344,6 +329,25 @@ def shared_fit(experiments: Sequence[TrompPoints], formula, *, shared: str = "sh
     ssr_separate = float(sum(f.fit.ssr for f in separate))
     test = ExtraSumOfSquares(fit.ssr, ssr_separate, k - 1, n_total - 2 * k)
     return SharedFit(formula.id, shared_name, fit, separate, test, tuple(p.experiment for p in experiments))
+
+
+def _check_shared_fit_inputs(experiments, formula, shared) -> None:
+    if isinstance(experiments, (str, bytes)) or not isinstance(experiments, Sequence):
+        raise TypeError(f"experiments must be a sequence of TrompPoints, got {type(experiments).__name__}")
+    for position, points in enumerate(experiments):
+        expect_kind(points, TrompPoints, f"experiments[{position}]", "a TrompPoints")
+    if len(experiments) < 2:
+        raise InputError("a shared fit needs at least two experiments")
+    names = [points.experiment for points in experiments]
+    repeated = sorted({name for name in names if names.count(name) > 1})
+    if repeated:  # a joint fit of an experiment with itself tests nothing (F = 0, p = 1)
+        raise InputError(
+            f"experiment(s) {', '.join(repr(name) for name in repeated)} given more than once; compare distinct experiments"
+        )
+    if formula.extras:
+        raise InputError("shared fits are offered for the two-parameter formulas")
+    if shared not in ("shape", "d_cut"):
+        raise OptionError("shared", f"must be 'shape' or 'd_cut', got {shared!r}")
 
 
 def _bounds(formula, name, sizes):

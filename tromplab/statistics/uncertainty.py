@@ -555,26 +555,12 @@ def interval_columns(
             flags, withheld = [], {}
             try:
                 if level is not None:
-                    for record in interval_rows(fit, level=level, profiled=profiles[i], known=known):
-                        stem = _column(fit, record["quantity"])
-                        row[f"{stem}_low"], row[f"{stem}_high"] = record["low"], record["high"]
-                        row[f"{stem}_method"] = record["method"]
-                        if is_withheld(record["flag"]):
-                            withheld.setdefault(record["flag"], []).append(stem)
-                        elif record["flag"] and np.isfinite(record["value"]):
-                            flags.append(f"{stem}: {record['flag']}")
+                    _add_delta_profile_columns(
+                        row, flags, withheld, fit, interval_rows(fit, level=level, profiled=profiles[i], known=known)
+                    )
                 if n_bootstrap:
                     boot = bootstrap(fit, n=n_bootstrap, seed=seed, method=method)
-                    for quantity, low, high, flag in boot.intervals(bootstrap_level)[
-                        ["quantity", "low", "high", "flag"]
-                    ].itertuples(index=False):
-                        stem = _column(fit, quantity)
-                        kept = withheld_interval(fit, {"quantity": quantity, "low": low, "high": high, "flag": flag})
-                        row[f"{stem}_boot_low"], row[f"{stem}_boot_high"] = kept["low"], kept["high"]
-                        if is_withheld(kept["flag"]):
-                            withheld.setdefault(kept["flag"], []).append(f"{stem} bootstrap")
-                        elif flag:
-                            flags.append(f"{stem} bootstrap: {flag}")
+                    _add_bootstrap_columns(row, flags, withheld, fit, boot.intervals(bootstrap_level))
                     row["bootstrap_method"] = f"percentile ({method})"
                     row["bootstrap_failed"] = boot.n_failed
             except (ValueError, ArithmeticError, RuntimeError) as error:  # a batch reports and goes on
@@ -583,6 +569,32 @@ def interval_columns(
             row["interval_flags"] = "; ".join(flags)
         rows.append(row)
     return pd.DataFrame(rows)
+
+
+def _add_delta_profile_columns(row: dict, flags: list, withheld: dict, fit: CurveFit, records) -> None:
+    """``<quantity>_low/_high/_method`` of the delta/profile ``records`` into ``row``; their flags
+    into ``flags``, the withheld ones grouped by reason into ``withheld``."""
+    for record in records:
+        stem = _column(fit, record["quantity"])
+        row[f"{stem}_low"], row[f"{stem}_high"] = record["low"], record["high"]
+        row[f"{stem}_method"] = record["method"]
+        if is_withheld(record["flag"]):
+            withheld.setdefault(record["flag"], []).append(stem)
+        elif record["flag"] and np.isfinite(record["value"]):
+            flags.append(f"{stem}: {record['flag']}")
+
+
+def _add_bootstrap_columns(row: dict, flags: list, withheld: dict, fit: CurveFit, intervals: pd.DataFrame) -> None:
+    """``<quantity>_boot_low/_boot_high`` of the bootstrap ``intervals`` into ``row`` (withheld
+    where the fit's delta/profile interval would be), their flags as above."""
+    for quantity, low, high, flag in intervals[["quantity", "low", "high", "flag"]].itertuples(index=False):
+        stem = _column(fit, quantity)
+        kept = withheld_interval(fit, {"quantity": quantity, "low": low, "high": high, "flag": flag})
+        row[f"{stem}_boot_low"], row[f"{stem}_boot_high"] = kept["low"], kept["high"]
+        if is_withheld(kept["flag"]):
+            withheld.setdefault(kept["flag"], []).append(f"{stem} bootstrap")
+        elif flag:
+            flags.append(f"{stem} bootstrap: {flag}")
 
 
 def _column(fit: CurveFit, quantity: str) -> str:
