@@ -37,10 +37,12 @@ import csv
 import datetime
 import difflib
 import io
+import itertools
 import logging
 import os
 import re
 import warnings
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -235,19 +237,10 @@ def read_table(
         fields than the header, no data rows, or the sheet does not exist.
     """
     if isinstance(path, pd.DataFrame):
-        if sheet is not None:
-            raise InputError(f"a sheet ({sheet!r}) was given with a DataFrame", source=DATAFRAME_SOURCE)
-        if sep is not None or decimal is not None:
-            raise InputError("sep and decimal apply to CSV files, not to a DataFrame", source=DATAFRAME_SOURCE)
+        _refuse_file_options_with_a_frame(sheet, sep, decimal)
         return table_from_frame(path, text_columns=text_columns)
-    if not isinstance(path, (str, os.PathLike)):
-        raise TypeError(f"a table is read from a file path (str or path-like) or a pandas DataFrame, got {type(path).__name__}")
-    path = Path(path)
+    path, sep = _checked_file_request(path, sep, decimal)
     source = str(path)
-    sep = {"\\t": "\t", "tab": "\t"}.get(sep, sep)  # a tab is hard to type on a command line
-    for name, value in (("separator (--sep)", sep), ("decimal mark (--decimal)", decimal)):
-        if value is not None and (len(value) != 1 or value in '"\n\r' or value.isalnum()):
-            raise InputError(f"the {name} must be one character such as ';' or ',', got {value!r}", source=source)
     _check_path(path)
     suffix = path.suffix.lower()
     if suffix in EXCEL_SUFFIXES:
@@ -259,15 +252,161 @@ def read_table(
         if sheet is not None:
             raise InputError(f"a sheet ({sheet!r}) was given but the file is not an Excel workbook", source=source)
         frame, rows, header, notes = _read_csv(path, sep=sep, decimal=decimal, columns=columns, text_columns=text_columns)
-    _check_header(header, source)
-    frame.columns = [str(c).strip() for c in (header if columns is None else frame.columns)]
-    frame = _with_names_as_text(_drop_empty_unnamed(frame, source), text_columns)
+    frame = _named_columns(frame, header, columns, source, text_columns)
     if frame.empty:
         raise InputError("the table has a header but no data rows", source=source)
     for note in notes:
         warnings.warn(f"{source}: {note}", InputNote, stacklevel=2)
     logger.info("read %s: %d data rows, columns %s", source, len(frame), ", ".join(map(str, frame.columns)))
     return Table(frame.reset_index(drop=True), rows, source, tuple(notes))
+
+
+def _refuse_file_options_with_a_frame(sheet, sep, decimal) -> None:
+    if sheet is not None:
+        raise InputError(f"a sheet ({sheet!r}) was given with a DataFrame", source=DATAFRAME_SOURCE)
+    if sep is not None or decimal is not None:
+        raise InputError("sep and decimal apply to CSV files, not to a DataFrame", source=DATAFRAME_SOURCE)
+
+
+def _checked_file_request(path, sep: str | None, decimal: str | None) -> tuple[Path, str | None]:
+    """The path of a table file and its separator (a tab spelled out as ``\\t`` or ``tab``), or
+    an error for another kind of argument or a separator or decimal mark that is not one character."""
+    if not isinstance(path, (str, os.PathLike)):
+        raise TypeError(f"a table is read from a file path (str or path-like) or a pandas DataFrame, got {type(path).__name__}")
+    path = Path(path)
+    sep = {"\\t": "\t", "tab": "\t"}.get(sep, sep)  # a tab is hard to type on a command line
+    for name, value in (("separator (--sep)", sep), ("decimal mark (--decimal)", decimal)):
+        if value is not None and (len(value) != 1 or value in '"\n\r' or value.isalnum()):
+            raise InputError(f"the {name} must be one character such as ';' or ',', got {value!r}", source=str(path))
+    return path, sep
+
+
+def _named_columns(frame: pd.DataFrame, header, columns, source: str, text_columns) -> pd.DataFrame:
+    """``frame`` with the header's names (trimmed, checked), empty unnamed columns dropped and
+    name columns as text."""
+    _check_header(header, source)
+    frame.columns = [str(c).strip() for c in (header if columns is None else frame.columns)]
+    return _with_names_as_text(_drop_empty_unnamed(frame, source), text_columns)
+
+
+#: Records per piece of :func:`read_table_in_pieces` (a piece of 10,000 points takes about 2 MB).
+DEFAULT_PIECE_ROWS = 10_000
+
+
+def read_table_in_pieces(
+    path, *, piece_rows: int = DEFAULT_PIECE_ROWS, sep=None, decimal=None, columns=None, text_columns=()
+) -> Iterator[Table]:
+    """Read a CSV table in pieces of at most ``piece_rows`` records, each a :class:`Table`.
+
+    The memory of the reading is bounded by the piece, not the file: the lines are read one
+    after another and each piece is parsed by pandas as :func:`read_table` parses the whole
+    file, so the pieces hold the same values, row numbers, notes and errors (comments above
+    the header, names as text, the separator and decimal mark detected from the header and
+    the first 49 data lines).  An Excel workbook or a DataFrame is not read in pieces: it
+    comes whole, as one table.
+
+    Parameters
+    ----------
+    path : str, path-like or pandas.DataFrame
+        The file, as for :func:`read_table`.
+    piece_rows : int
+        Most records per piece (at least 1); a record with quoted line breaks is never cut.
+    sep, decimal, columns, text_columns
+        As for :func:`read_table`.
+
+    Yields
+    ------
+    Table
+        Consecutive records of the file, with their line numbers; a piece whose lines are
+        all blank cells is left out.
+
+    Raises
+    ------
+    InputError
+        As :func:`read_table`, when the piece with the fault is read.  Where a quoted field
+        spans lines, rows are numbered by their first line (the whole-file reader numbers
+        such a table's records instead).
+    """
+    if isinstance(path, pd.DataFrame) or (isinstance(path, (str, os.PathLike)) and Path(path).suffix.lower() in EXCEL_SUFFIXES):
+        yield read_table(path, sep=sep, decimal=decimal, columns=columns, text_columns=text_columns)
+        return
+    if int(piece_rows) < 1:
+        raise ValueError(f"piece_rows must be at least 1, got {piece_rows}")
+    path, sep = _checked_file_request(path, sep, decimal)
+    _check_path(path)
+    source = str(path)
+    lines = _content_lines_of(path)
+    header_number, header_line = next(lines, (0, None))
+    if header_line is None:
+        raise InputError("the file has no header and no data (only comments or blank lines)", source=source)
+    first = list(itertools.islice(lines, 49))
+    sep, decimal, notes = csv_layout(header_line, [line for _, line in first], sep, decimal, path.suffix.lower(), source)
+    header = header_cells(header_line, sep)
+    _check_header(header, source)
+    for note in notes:
+        warnings.warn(f"{source}: {note}", InputNote, stacklevel=2)
+    count = lines_before = 0
+    for piece in _pieces(itertools.chain(first, lines), int(piece_rows)):
+        body = "\n".join([header_line, *(line for _, line in piece)])
+        frame, rows = parse_csv_body(body, [header_number, *(number for number, _ in piece)], header, header_line, sep=sep,
+                                     decimal=decimal, columns=columns, text_columns=text_columns, source=source,
+                                     records_before=lines_before)  # fmt: skip
+        lines_before += len(piece)
+        frame = _named_columns(frame, header[: frame.shape[1]] if columns is None else header, columns, source, text_columns)
+        if not frame.empty:
+            count += len(frame)
+            yield Table(frame.reset_index(drop=True), rows, source, tuple(notes))
+    if not count:
+        raise InputError("the table has a header but no data rows", source=source)
+    logger.info("read %s in pieces of %d records: %d data rows", source, piece_rows, count)
+
+
+def _content_lines_of(path: Path) -> Iterator[tuple[int, str]]:
+    """``(number, line)`` of the header line and the data lines of a CSV file, read one after
+    another (line breaks ``\\r\\n``, ``\\r`` or ``\\n``): comments and blank lines above the
+    header are skipped, below it blank lines only, as :func:`_content_lines` does."""
+    header_seen = False
+    try:
+        with path.open(encoding="utf-8-sig", newline=None) as stream:
+            for number, line in enumerate(stream, 1):
+                line = line[:-1] if line.endswith("\n") else line
+                if (line.strip(" \t") != "") if header_seen else not is_comment_or_blank(line):
+                    header_seen = True
+                    yield number, line
+    except UnicodeDecodeError:
+        raise _first_undecodable(path) from None
+
+
+def _first_undecodable(path: Path, block: int = 1 << 20) -> InputError:
+    """The error :func:`_decoded_text` gives for the first byte of ``path`` that is not UTF-8,
+    found block by block."""
+    lines, carry = 0, b""
+    with path.open("rb") as stream:
+        for data in iter(lambda: stream.read(block), b""):
+            data = carry + data
+            try:
+                data.decode("utf-8")
+                carry = b""
+            except UnicodeDecodeError as error:
+                if error.reason != "unexpected end of data":  # not a character cut by the block's end
+                    return not_utf8(str(path), data[error.start], lines + data[: error.start].count(b"\n") + 1)
+                carry = data[error.start :]
+                data = data[: error.start]
+            lines += data.count(b"\n")
+    return not_utf8(str(path), carry[0], lines + 1)
+
+
+def _pieces(lines, piece_rows: int) -> Iterator[list[tuple[int, str]]]:
+    """Consecutive lists of at most ``piece_rows`` lines, longer only to end inside no quotes."""
+    piece, inside = [], False
+    for numbered in lines:
+        piece.append(numbered)
+        inside ^= numbered[1].count('"') % 2 == 1
+        if len(piece) >= piece_rows and not inside:
+            yield piece
+            piece = []
+    if piece:
+        yield piece
 
 
 DATAFRAME_SOURCE = "DataFrame"
@@ -388,18 +527,42 @@ def _content_lines(lines: list[str]) -> list[int]:
 
 def _read_csv(path: Path, *, sep, decimal, columns=None, text_columns=()):
     source = str(path)
+    text = _decoded_text(path)
+    lines, content, body = _csv_content(path, text)
+    if not content:
+        raise InputError("the file has no header and no data (only comments or blank lines)", source=source)
+    header_line = lines[content[0] - 1]
+    first_rows = [lines[i - 1] for i in content[1:50]]
+    del lines, text
+    sep, decimal, notes = csv_layout(header_line, first_rows, sep, decimal, path.suffix.lower(), source)
+    header = header_cells(header_line, sep)
+    frame, rows = parse_csv_body(body, content, header, header_line, sep=sep, decimal=decimal, columns=columns,
+                                 text_columns=text_columns, source=source)  # fmt: skip
+    return frame, rows, (header[: frame.shape[1]] if columns is None else header), notes
+
+
+def _decoded_text(path: Path) -> str:
+    """The file as text, or an error naming the line of the first byte that is not UTF-8."""
     raw = path.read_bytes()
     try:
-        text = raw.decode("utf-8-sig")
+        return raw.decode("utf-8-sig")
     except UnicodeDecodeError as error:
-        line = raw[: error.start].count(b"\n") + 1
-        raise InputError(
-            f"the text is not UTF-8 (byte 0x{raw[error.start]:02x} cannot be decoded): save the file as UTF-8 "
-            "(in Excel: CSV UTF-8)",
-            source=source,
-            row=line,
-        ) from None
-    del raw
+        raise not_utf8(str(path), raw[error.start], raw[: error.start].count(b"\n") + 1) from None
+
+
+def not_utf8(source: str, byte: int, line: int) -> InputError:
+    """The error for a byte that cannot be decoded as UTF-8 on ``line`` (1-based)."""
+    return InputError(
+        f"the text is not UTF-8 (byte 0x{byte:02x} cannot be decoded): save the file as UTF-8 (in Excel: CSV UTF-8)",
+        source=source,
+        row=line,
+    )
+
+
+def _csv_content(path: Path, text: str) -> tuple[list[str], list[int], str | Path]:
+    """``(lines, content, body)``: lines enough for the header and the layout's detection, the
+    numbers (1-based) of the header line and the data lines, and what pandas parses (the file
+    itself when every line is content, else the content lines joined)."""
     end = len(text)
     while end and text[end - 1] in "\r\n \t":
         end -= 1
@@ -409,33 +572,45 @@ def _read_csv(path: Path, *, sep, decimal, columns=None, text_columns=()):
         content = list(range(1, text.count("\n", 0, end) + 2))
         lines = [line.rstrip("\r") for line in _first_lines(text, 51)]  # enough for the header and decimal marks
         # pandas reads the file itself (a StringIO of a large text would hold four bytes per character)
-        body = path if text[end:] in ("", "\n", "\r\n") else text[:end]
-    else:
-        lines = _LINE_BREAK.split(text[:end])  # line breaks only: a name may hold a form feed or U+2028
-        content = _content_lines(lines)
-        body = "\n".join(lines[i - 1] for i in content)
-    if not content:
-        raise InputError("the file has no header and no data (only comments or blank lines)", source=source)
+        return lines, content, (path if text[end:] in ("", "\n", "\r\n") else text[:end])
+    lines = _LINE_BREAK.split(text[:end])  # line breaks only: a name may hold a form feed or U+2028
+    content = _content_lines(lines)
+    return lines, content, "\n".join(lines[i - 1] for i in content)
+
+
+def csv_layout(header_line: str, first_rows, sep, decimal, suffix: str, source: str) -> tuple[str, str, list[str]]:
+    """``(sep, decimal, notes)``: the separator and decimal mark given, or detected from the
+    header line and the first data lines (``first_rows``, up to 49), with a note for each found."""
     notes = []
-    header_line = lines[content[0] - 1]
     if sep is None:
-        sep = _detect_separator(header_line, path.suffix.lower())
+        sep = _detect_separator(header_line, suffix)
         if sep != ",":
             notes.append(
                 f"read as {'semicolon' if sep == ';' else 'tab'}-separated (detected from the header; declare it with --sep)"
             )
     if decimal is None:
         decimal = "."
-        if sep != "," and any(_DECIMAL_COMMA.match(cell) for i in content[1:50] for cell in lines[i - 1].split(sep)):
+        if sep != "," and any(_DECIMAL_COMMA.match(cell) for line in first_rows for cell in line.split(sep)):
             decimal = ","
             notes.append("decimal commas detected and read as decimal marks (declare them with --decimal ',')")
     if sep == decimal:
         raise InputError(f"the separator and the decimal mark are both '{sep}'", source=source)
-    del lines, text
-    header = [cell.strip() for cell in next(csv.reader([header_line], delimiter=sep, skipinitialspace=True))]
+    return sep, decimal, notes
+
+
+def header_cells(header_line: str, sep: str) -> list[str]:
+    """The column names of a header line, trimmed."""
+    return [cell.strip() for cell in next(csv.reader([header_line], delimiter=sep, skipinitialspace=True))]
+
+
+def parse_csv_body(body, content, header, header_line, *, sep, decimal, columns, text_columns, source, records_before=0):
+    """``(frame, rows)``: the records of ``body`` (CSV text from the header line on, or a file
+    of it) read as :func:`read_table` reads them, rows blank throughout dropped, and the line
+    number of each record (``content``: the numbers of the header and data lines in ``body``);
+    a record with more fields than the header is refused naming its line.  Where quoted fields
+    span lines, records are numbered instead (from 2, after ``records_before`` records)."""
     wanted = None if columns is None else {str(c) for c in columns}
     try:
-        values = _value_options(header_line, sep, text_columns)
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", pd.errors.ParserWarning)
             frame = pd.read_csv(
@@ -448,7 +623,7 @@ def _read_csv(path: Path, *, sep, decimal, columns=None, text_columns=()):
                 index_col=False,
                 header=0,
                 usecols=None if wanted is None else (lambda name: str(name).strip() in wanted),
-                **values,
+                **_value_options(header_line, sep, text_columns),
             )
         too_many = any(issubclass(w.category, pd.errors.ParserWarning) for w in caught)
     except (pd.errors.ParserError, ValueError) as error:
@@ -460,9 +635,9 @@ def _read_csv(path: Path, *, sep, decimal, columns=None, text_columns=()):
         _check_field_counts_of(body, content, len(header), sep, source)
     rows = np.asarray(content[1:], dtype=int)
     if rows.size != len(frame):  # quoted fields spanning lines: fall back to record numbers
-        rows = np.arange(len(frame)) + 2
+        rows = np.arange(len(frame)) + 2 + records_before
     keep = ~frame.isna().all(axis=1).to_numpy()
-    return frame.loc[keep], rows[keep], (header[: frame.shape[1]] if columns is None else header), notes
+    return frame.loc[keep], rows[keep]
 
 
 def _value_options(header_line: str, sep: str, text_columns) -> dict:
