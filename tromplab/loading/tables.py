@@ -294,7 +294,7 @@ DEFAULT_PIECE_ROWS = 10_000
 
 
 def read_table_in_pieces(
-    path, *, piece_rows: int = DEFAULT_PIECE_ROWS, sep=None, decimal=None, columns=None, text_columns=()
+    path, *, piece_rows: int = DEFAULT_PIECE_ROWS, sep=None, decimal=None, columns=None, text_columns=(), warn: bool = True
 ) -> Iterator[Table]:
     """Read a CSV table in pieces of at most ``piece_rows`` records, each a :class:`Table`.
 
@@ -313,6 +313,9 @@ def read_table_in_pieces(
         Most records per piece (at least 1); a record with quoted line breaks is never cut.
     sep, decimal, columns, text_columns
         As for :func:`read_table`.
+    warn : bool
+        Warn of the layout detected (:class:`~tromplab.errors.InputNote`), as :func:`read_table`
+        does; False for a second reading of the same file.
 
     Yields
     ------
@@ -343,7 +346,7 @@ def read_table_in_pieces(
     sep, decimal, notes = csv_layout(header_line, [line for _, line in first], sep, decimal, path.suffix.lower(), source)
     header = header_cells(header_line, sep)
     _check_header(header, source)
-    for note in notes:
+    for note in notes if warn else ():
         warnings.warn(f"{source}: {note}", InputNote, stacklevel=2)
     count = lines_before = 0
     for piece in _pieces(itertools.chain(first, lines), int(piece_rows)):
