@@ -28,6 +28,7 @@ from __future__ import annotations
 import contextlib
 import os
 import re
+import tempfile
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -533,8 +534,11 @@ def iter_experiments(
     def pieces(warn: bool):
         return read_table_in_pieces(path, piece_rows=piece_rows, sep=sep, decimal=decimal, warn=warn)
 
-    columns, counts = _index_experiments(pieces(warn=True), size_unit)
-    yield from _experiments_of_pieces(pieces(warn=False), columns, counts)
+    index = _index_experiments(pieces(warn=True), size_unit)
+    if index.consecutive:
+        yield from _experiments_of_pieces(pieces(warn=False), index.columns, index.counts)
+    else:
+        yield from _experiments_sorted_on_disk(pieces(warn=False), index, piece_rows)
 
 
 class _FaultAt(Exception):
@@ -553,26 +557,47 @@ def _numbered_check(step: int):
         raise _FaultAt(step, error) from None
 
 
-def _index_experiments(pieces, size_unit: str | None) -> tuple[PointsColumns, dict[str, int]]:
-    """The first pass: every check of a points table on every piece, and the number of used
-    rows of each experiment in order of first appearance.  Raises the fault the whole-table
-    reader would name: the one of the earliest check, the first in the file among them."""
-    columns, fault, counts, used = None, None, {}, 0
+@dataclass
+class _ExperimentIndex:
+    """What the first pass over the pieces finds: the columns, the number of used rows of each
+    experiment in order of first appearance, and whether each experiment's rows are consecutive."""
+
+    columns: PointsColumns | None = None
+    counts: dict[str, int] = field(default_factory=dict)
+    consecutive: bool = True
+    last: str | None = None
+
+    def add(self, labels: np.ndarray) -> None:
+        if not labels.size:
+            return
+        runs = labels[np.flatnonzero(np.r_[True, labels[1:] != labels[:-1]])]
+        fresh = runs[1:] if runs[0] == self.last else runs
+        if len(set(fresh)) < fresh.size or any(name in self.counts for name in fresh):
+            self.consecutive = False
+        self.last = runs[-1]
+        for name, rows in experiment_rows(labels).items():
+            self.counts[name] = self.counts.get(name, 0) + rows.size
+
+
+def _index_experiments(pieces, size_unit: str | None) -> _ExperimentIndex:
+    """The first pass: every check of a points table on every piece, and the rows of each
+    experiment counted.  Raises the fault the whole-table reader would name: the one of the
+    earliest check, the first in the file among them."""
+    index, fault, used = _ExperimentIndex(), None, 0
     for table in pieces:
-        columns = columns or points_columns(table, size_unit)
+        index.columns = index.columns or points_columns(table, size_unit)
         used += _used_rows(table)
         try:
-            table, values = checked_values(table, columns, _numbered_check, require_used=False)
+            table, values = checked_values(table, index.columns, _numbered_check, require_used=False)
         except _FaultAt as found:
             fault = found if fault is None or found.step < fault.step else fault
             continue
-        for name, rows in experiment_rows(values.labels).items():
-            counts[name] = counts.get(name, 0) + rows.size
+        index.add(values.labels)
     if not used and (fault is None or fault.step > USED_MARKS):
         raise InputError("no row is marked as used", source=str(table.source), column="used")
     if fault is not None:
         raise fault.error
-    return columns, counts
+    return index
 
 
 def _used_rows(table: Table) -> int:
@@ -610,3 +635,38 @@ def _joined(parts: list[PointsValues]) -> PointsValues:
     return PointsValues(
         *(np.concatenate([getattr(p, name) for p in parts]) for name in ("labels", "size", "partition_fine")), weight
     )
+
+
+#: Most temporary files among which the rows of a file whose experiments are not consecutive
+#: are sorted (experiments in order of first appearance, a run of them per file).
+MAX_SORT_FILES = 256
+
+
+def _experiments_sorted_on_disk(pieces, index: _ExperimentIndex, piece_rows: int) -> Iterator[TrompPoints]:
+    """The second pass for experiments whose rows are spread over the file: an external sort.
+    The checked rows of each piece (experiment, row number, size, partition, weight) go to
+    temporary binary files, each holding a run of consecutive experiments (about ``piece_rows``
+    rows, or a 256th of the file); each file is then read, sorted and cut into experiments."""
+    names = list(index.counts)
+    position = {name: i for i, name in enumerate(names)}
+    rows_per_experiment = sum(index.counts.values()) / len(names)
+    per_file = max(1, int(piece_rows / rows_per_experiment), -(-len(names) // MAX_SORT_FILES))
+    weighted, source = False, ""
+    with tempfile.TemporaryDirectory(prefix="tromplab-sort-") as folder:
+        for table in pieces:
+            table, values = checked_values(table, index.columns, require_used=False)
+            number = np.fromiter((position[name] for name in values.labels), dtype=float, count=values.labels.size)
+            weighted, source = values.weight is not None, table.source
+            weight = values.weight if weighted else np.ones(number.size)
+            records = np.column_stack([number, table.rows.astype(float), values.size, values.partition_fine, weight])
+            run = number.astype(int) // per_file
+            for file in np.unique(run):
+                with open(Path(folder) / f"{file}.bin", "ab") as stream:
+                    records[run == file].tofile(stream)
+        for file in range(-(-len(names) // per_file)):
+            records = np.fromfile(Path(folder) / f"{file}.bin").reshape(-1, 5)
+            records = records[np.argsort(records[:, 0], kind="stable")]  # file order within an experiment
+            for part in np.split(records, np.flatnonzero(np.diff(records[:, 0])) + 1):
+                values = PointsValues(None, part[:, 2], part[:, 3], part[:, 4] if weighted else None)
+                name = names[int(part[0, 0])]
+                yield experiment_points(name, part[:, 1].astype(int), values, source=source, columns=index.columns)

@@ -298,12 +298,10 @@ def read_table_in_pieces(
 ) -> Iterator[Table]:
     """Read a CSV table in pieces of at most ``piece_rows`` records, each a :class:`Table`.
 
-    The memory of the reading is bounded by the piece, not the file: the lines are read one
-    after another and each piece is parsed by pandas as :func:`read_table` parses the whole
-    file, so the pieces hold the same values, row numbers, notes and errors (comments above
-    the header, names as text, the separator and decimal mark detected from the header and
-    the first 49 data lines).  An Excel workbook or a DataFrame is not read in pieces: it
-    comes whole, as one table.
+    The memory is bounded by the piece, not the file: lines are read one after another and
+    each piece is parsed by pandas as :func:`read_table` parses the whole file (same values,
+    row numbers, notes and errors; the layout detected from the header and the first 49 data
+    lines).  An Excel workbook or a DataFrame is not read in pieces: it comes whole.
 
     Parameters
     ----------
@@ -338,20 +336,17 @@ def read_table_in_pieces(
     path, sep = _checked_file_request(path, sep, decimal)
     _check_path(path)
     source = str(path)
-    lines = _content_lines_of(path)
-    header_number, header_line = next(lines, (0, None))
-    if header_line is None:
+    blocks = _content_blocks(path, min(1 << 20, 64 * int(piece_rows)))  # characters: about a piece's lines
+    numbers, lines = _first_lines_of(blocks, 50)
+    if not lines:
         raise InputError("the file has no header and no data (only comments or blank lines)", source=source)
-    first = list(itertools.islice(lines, 49))
-    sep, decimal, notes = csv_layout(header_line, [line for _, line in first], sep, decimal, path.suffix.lower(), source)
-    header = header_cells(header_line, sep)
-    _check_header(header, source)
-    for note in notes if warn else ():
-        warnings.warn(f"{source}: {note}", InputNote, stacklevel=2)
+    header_number, header_line = numbers[0], lines[0]
+    sep, decimal, notes = csv_layout(header_line, lines[1:50], sep, decimal, path.suffix.lower(), source)
+    header = _checked_header_line(header_line, sep, source, notes if warn else ())
     count = lines_before = 0
-    for piece in _pieces(itertools.chain(first, lines), int(piece_rows)):
-        body = "\n".join([header_line, *(line for _, line in piece)])
-        frame, rows = parse_csv_body(body, [header_number, *(number for number, _ in piece)], header, header_line, sep=sep,
+    for piece_numbers, piece in _pieces(itertools.chain([(numbers[1:], lines[1:])], blocks), int(piece_rows)):
+        body = "\n".join([header_line, *piece])
+        frame, rows = parse_csv_body(body, [header_number, *piece_numbers], header, header_line, sep=sep,
                                      decimal=decimal, columns=columns, text_columns=text_columns, source=source,
                                      records_before=lines_before)  # fmt: skip
         lines_before += len(piece)
@@ -364,20 +359,67 @@ def read_table_in_pieces(
     logger.info("read %s in pieces of %d records: %d data rows", source, piece_rows, count)
 
 
-def _content_lines_of(path: Path) -> Iterator[tuple[int, str]]:
-    """``(number, line)`` of the header line and the data lines of a CSV file, read one after
-    another (line breaks ``\\r\\n``, ``\\r`` or ``\\n``): comments and blank lines above the
-    header are skipped, below it blank lines only, as :func:`_content_lines` does."""
-    header_seen = False
+def _checked_header_line(header_line: str, sep: str, source: str, notes) -> list[str]:
+    """The checked names of a header line; the notes on the layout are warned of."""
+    header = header_cells(header_line, sep)
+    _check_header(header, source)
+    for note in notes:
+        warnings.warn(f"{source}: {note}", InputNote, stacklevel=3)
+    return header
+
+
+def _content_blocks(path: Path, block: int = 1 << 20) -> Iterator[tuple[list[int], list[str]]]:
+    """``(numbers, lines)`` of the header line and the data lines of a CSV file, a block of
+    about ``block`` characters at a time (line breaks ``\\r\\n``, ``\\r`` or ``\\n``): comments
+    and blank lines above the header are skipped, below it blank lines only, as
+    :func:`_content_lines` does."""
+    count, header_seen = 0, False
     try:
         with path.open(encoding="utf-8-sig", newline=None) as stream:
-            for number, line in enumerate(stream, 1):
-                line = line[:-1] if line.endswith("\n") else line
-                if (line.strip(" \t") != "") if header_seen else not is_comment_or_blank(line):
+            for text in _line_blocks(stream, block):
+                lines = text.split("\n")
+                numbers = range(count + 1, count + 1 + len(lines))
+                count += len(lines)
+                if not header_seen:
+                    first = next((i for i, line in enumerate(lines) if not is_comment_or_blank(line)), None)
+                    if first is None:
+                        continue
                     header_seen = True
-                    yield number, line
+                    lines, numbers = lines[first:], numbers[first:]
+                if any(not line.strip(" \t") for line in lines):
+                    keep = [i for i, line in enumerate(lines) if line.strip(" \t")]
+                    lines, numbers = [lines[i] for i in keep], [numbers[i] for i in keep]
+                if lines:
+                    yield list(numbers), lines
     except UnicodeDecodeError:
         raise _first_undecodable(path) from None
+
+
+def _line_blocks(stream, block: int) -> Iterator[str]:
+    """The text of ``stream`` in blocks of whole lines, each without its last line break."""
+    carry = ""
+    while text := stream.read(block):
+        text = carry + text
+        cut = text.rfind("\n")
+        if cut < 0:
+            carry = text
+            continue
+        carry = text[cut + 1 :]
+        yield text[:cut]
+    if carry:
+        yield carry
+
+
+def _first_lines_of(blocks, count: int) -> tuple[list[int], list[str]]:
+    """At least ``count`` content lines from ``blocks`` (all there are when fewer), with their numbers."""
+    numbers, lines = [], []
+    while len(lines) < count:
+        found = next(blocks, None)
+        if found is None:
+            break
+        numbers += found[0]
+        lines += found[1]
+    return numbers, lines
 
 
 def _first_undecodable(path: Path, block: int = 1 << 20) -> InputError:
@@ -399,17 +441,33 @@ def _first_undecodable(path: Path, block: int = 1 << 20) -> InputError:
     return not_utf8(str(path), carry[0], lines + 1)
 
 
-def _pieces(lines, piece_rows: int) -> Iterator[list[tuple[int, str]]]:
-    """Consecutive lists of at most ``piece_rows`` lines, longer only to end inside no quotes."""
-    piece, inside = [], False
-    for numbered in lines:
-        piece.append(numbered)
-        inside ^= numbered[1].count('"') % 2 == 1
-        if len(piece) >= piece_rows and not inside:
-            yield piece
-            piece = []
-    if piece:
-        yield piece
+def _pieces(blocks, piece_rows: int) -> Iterator[tuple[list[int], list[str]]]:
+    """``(numbers, lines)`` of consecutive pieces of at most ``piece_rows`` lines of ``blocks``,
+    longer only to end outside double quotes (a quoted field may hold a line break)."""
+    numbers, lines = [], []
+    for more_numbers, more_lines in blocks:
+        numbers += more_numbers
+        lines += more_lines
+        start = 0
+        while len(lines) - start >= piece_rows:
+            end = _end_outside_quotes(lines, start, start + piece_rows)
+            if end is None:
+                break
+            yield numbers[start:end], lines[start:end]
+            start = end
+        numbers, lines = numbers[start:], lines[start:]
+    if lines:
+        yield numbers, lines
+
+
+def _end_outside_quotes(lines: list[str], start: int, end: int) -> int | None:
+    """The first end at or after ``end`` where ``lines[start:end]`` hold an even number of
+    double quotes; None when the lines run out first."""
+    quotes = "".join(lines[start:end]).count('"')
+    while quotes % 2 and end < len(lines):
+        quotes += lines[end].count('"')
+        end += 1
+    return None if quotes % 2 else end
 
 
 DATAFRAME_SOURCE = "DataFrame"
