@@ -149,16 +149,18 @@ class BatchProblem:
 
     def residual(self, params: np.ndarray, rows: np.ndarray, x_break=None) -> np.ndarray:
         """Weighted residuals ``(len(rows), P)`` at internal parameters ``params``."""
-        return self._residual_of(self._gathered(rows), params, x_break)
+        return self.residual_of(self.gathered(rows), params, x_break)
 
-    def _gathered(self, rows: np.ndarray) -> tuple:
-        """The data of these rows (sizes, observed, root weights, efficiency), gathered once for
-        the several evaluations of a Jacobian."""
+    def gathered(self, rows: np.ndarray) -> tuple:
+        """The data of these rows (sizes, observed, root weights, efficiency) for
+        :meth:`residual_of`: gathered once for the several evaluations of a Jacobian or of a
+        search along ``d_cut`` on the same rows."""
         data = self.data
         efficiency = None if self.efficiency is None else self.efficiency[rows][:, None]
         return data.size[rows], data.observed[rows], data.root_weight[rows], efficiency
 
-    def _residual_of(self, gathered: tuple, params: np.ndarray, x_break=None) -> np.ndarray:
+    def residual_of(self, gathered: tuple, params: np.ndarray, x_break=None) -> np.ndarray:
+        """:meth:`residual` on the rows whose data are ``gathered`` (:meth:`gathered`)."""
         size, observed, root_weight, efficiency = gathered
         x = size / np.exp(params[:, :1])
         extras = {name: params[:, 2 + i : 3 + i] for i, name in enumerate(self.extra_names)}
@@ -174,7 +176,7 @@ class BatchProblem:
         count, width = base.shape
         jac = np.empty((count, width, params.shape[1]))
         upper = self.upper[rows]
-        gathered = self._gathered(rows)
+        gathered = self.gathered(rows)
         if x_break is None:
             x_break = self.breaks(params, rows)
         for j in range(params.shape[1]):
@@ -185,7 +187,9 @@ class BatchProblem:
             step = np.where(params[:, j] + step > upper[:, j], -step, step)
             moved = params.copy()
             moved[:, j] += step
-            jac[:, :, j] = (self._residual_of(gathered, moved, x_break if j != 1 else None) - base) / step[:, None]
+            # a step in the shape moves a moving break: solved for each row (no pair repeats here)
+            moved_break = x_break if j != 1 or x_break is None else self.breaks(moved, rows)
+            jac[:, :, j] = (self.residual_of(gathered, moved, moved_break) - base) / step[:, None]
         return jac
 
 
@@ -362,17 +366,24 @@ def profile_limits(
     searching = np.isfinite(search.goal) & (free[experiment] > 0) & (search.room > 0)
     t_low, h_low, t_high, h_high = _bracket(search, start, np.minimum(step, search.room), searching)
     _regula_falsi(search, start, t_low, h_low, t_high, h_high)
+    limit = _confirmed_limits(search, best[experiment], t_low, h_low, t_high, h_high).reshape(count, n_params, 2)
+    return limit[..., 0], limit[..., 1]
+
+
+def _confirmed_limits(search: _ProfileSearch, best: np.ndarray, t_low, h_low, t_high, h_high) -> np.ndarray:
+    """The limit of each closed bracket, nan where the level was not passed, where it was
+    passed on the bound itself (the bound reached below the level: lmfit warns there) or where
+    the profile re-optimised from a grid of starts (:func:`_grid_profile_ssr`) lies below the
+    level at the limit (a lower branch the descent missed)."""
     limit = search.centre + search.side * np.where(np.abs(h_high) <= np.abs(h_low), t_high, t_low)
-    # a crossing on the bound itself is the bound reached below the level (lmfit warns there)
     on_bound = np.abs(search.bound - limit) <= PROFILE_TOLERANCE * (1.0 + np.abs(search.centre))
     found = np.flatnonzero(np.isfinite(t_high) & ~on_bound)
-    lowest = _grid_profile_ssr(search.rows, found, column[found], limit[found], best[experiment[found]])
+    lowest = _grid_profile_ssr(search.rows, found, search.column[found], limit[found], best[found])
     gap = search.goal[found] - search.floor[found]
-    missed = found[lowest < search.goal[found] - 1e-3 * gap]  # a lower branch the descent missed
+    missed = found[lowest < search.goal[found] - 1e-3 * gap]
     limit = np.where(np.isfinite(t_high) & ~on_bound, limit, np.nan)
     limit[missed] = np.nan
-    limit = limit.reshape(count, n_params, 2)
-    return limit[..., 0], limit[..., 1]
+    return limit
 
 
 class _ProfileSearch:

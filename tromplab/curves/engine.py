@@ -174,11 +174,12 @@ def _grid_starts(problem: BatchProblem, start_cut: np.ndarray, extra_start: np.n
 
         fixed = np.column_stack([np.zeros(shape_rows.size), flat_shapes, *extra_columns])
         block_breaks = problem.breaks(fixed, shape_rows)  # the shapes stay fixed while d_cut moves
+        block_data = problem.gathered(shape_rows)
 
-        def ssr_at(log_cut, fixed=fixed, rows=shape_rows, count=block.size, x_break=block_breaks):
+        def ssr_at(log_cut, fixed=fixed, gathered=block_data, count=block.size, x_break=block_breaks):
             params = fixed.copy()
             params[:, 0] = log_cut.ravel()
-            return sum_of_squares(problem.residual(params, rows, x_break)).reshape(count, n_shapes)
+            return sum_of_squares(problem.residual_of(gathered, params, x_break)).reshape(count, n_shapes)
 
         refined, refined_ssr = golden_section(ssr_at, lo, hi, GOLDEN_STEPS)
         better = refined_ssr < best_ssr[block]
@@ -272,6 +273,7 @@ def search_break_crossings(problem: BatchProblem, params: np.ndarray, ssr: np.nd
     center = np.log(params[pair_row, 1])
     low = np.maximum(center - np.log(1.25), np.log(problem.lower[work_rows, 1]))
     high = np.minimum(center + np.log(1.25), np.log(problem.upper[work_rows, 1]))
+    gathered = problem.gathered(work_rows)
 
     def crossing(log_shape):
         shape = np.exp(log_shape)
@@ -279,7 +281,7 @@ def search_break_crossings(problem: BatchProblem, params: np.ndarray, ssr: np.nd
         with np.errstate(divide="ignore"):  # no break (x_a = 0): the crossing runs off to the cut's bound
             cut = np.clip(np.log(size / x_break), cut_low, cut_high)
         trial = np.column_stack([cut, shape])
-        return trial, sum_of_squares(problem.residual(trial, work_rows, x_break[:, None]))
+        return trial, sum_of_squares(problem.residual_of(gathered, trial, x_break[:, None]))
 
     best_log_shape, _ = golden_section(lambda log_shape: crossing(log_shape)[1], low, high, CROSSING_STEPS)
     trial, trial_ssr = crossing(best_log_shape)
@@ -426,11 +428,12 @@ def scan_shapes_nearby(problem: BatchProblem, params: np.ndarray, ssr: np.ndarra
     work_rows = np.repeat(rows, n_shapes)
     fixed = np.column_stack([np.zeros(work_rows.size), shapes.ravel(), np.repeat(params[:, 2:], n_shapes, axis=0)])
     x_break = problem.breaks(fixed, work_rows)  # the shapes stay fixed while d_cut moves
+    gathered = problem.gathered(work_rows)
 
     def ssr_at(log_cut):
         trial = fixed.copy()
         trial[:, 0] = log_cut
-        return sum_of_squares(problem.residual(trial, work_rows, x_break))
+        return sum_of_squares(problem.residual_of(gathered, trial, x_break))
 
     centre = np.repeat(params[:, 0], n_shapes)
     low = np.maximum(centre - NEARBY_CUT_SPAN, np.repeat(lower[:, 0], n_shapes))
@@ -505,7 +508,6 @@ def fit_formula_batch(
 
     alpha = DEFAULT_ALPHA if alpha is None else alpha
     formula = get_formula(formula)
-    names = ("d_cut", formula.shape_name, *(extra.name for extra in formula.extras))
     usable = [i for i, points in enumerate(experiments) if points.n > formula.n_params]
     results: list = [None] * len(experiments)
     for i, points in enumerate(experiments):
@@ -515,16 +517,10 @@ def fit_formula_batch(
     if not usable:
         return results
     chosen = [experiments[i] for i in usable]
-    data = PaddedPoints.from_points(chosen, width)
-    starts = np.empty((len(chosen), 1 if start is None else 2, len(names)))
-    for row, i in enumerate(usable):
-        cut, slope = measured_start(experiments[i]) if measured is None else measured[i]
-        starts[row, 0, :2] = cut, formula.shape_for_slope(slope)
-        starts[row, 0, 2:] = [extra.start for extra in formula.extras]
-    if start is not None:
-        starts[:, 1, :] = [start[name] for name in names]
+    starts = _given_starts(formula, [measured_start(experiments[i]) if measured is None else measured[i] for i in usable], start)
     contexts = [formula_context(formula, points) for points in chosen]
     efficiency = np.array([c["measured_efficiency"] for c in contexts]) if formula.context_from_efficiency else None
+    data = PaddedPoints.from_points(chosen, width)
     optimum = fit_batch(formula, data, starts=starts, efficiency=efficiency, global_search=global_search)
     stderr = optimum.stderr()
     for row, (i, points) in enumerate(zip(usable, chosen)):
@@ -540,6 +536,20 @@ def fit_formula_batch(
             grid_ssr=float(optimum.grid_ssr[row]),
         )
     return results
+
+
+def _given_starts(formula: Formula, measured: Sequence[tuple[float, float]], start: dict[str, float] | None) -> np.ndarray:
+    """The starts of :func:`fit_formula_batch` in native parameters, ``(experiments, 1 or 2,
+    parameters)``: each experiment's measured cut and slope (the extras at their declared
+    start), and ``start`` for every experiment when given."""
+    names = ("d_cut", formula.shape_name, *(extra.name for extra in formula.extras))
+    starts = np.empty((len(measured), 1 if start is None else 2, len(names)))
+    for row, (cut, slope) in enumerate(measured):
+        starts[row, 0, :2] = cut, formula.shape_for_slope(slope)
+        starts[row, 0, 2:] = [extra.start for extra in formula.extras]
+    if start is not None:
+        starts[:, 1, :] = [start[name] for name in names]
+    return starts
 
 
 def measured_start(points: TrompPoints) -> tuple[float, float]:
