@@ -13,9 +13,11 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from tromplab.errors import InputError, InputNote
+from tromplab.loading.lab import LabOptions, balances_from_table, read_lab
 from tromplab.loading.points import iter_experiments, read_points
-from tromplab.loading.tables import read_table, read_table_in_pieces
+from tromplab.loading.tables import iter_experiment_tables, read_table, read_table_in_pieces
 
+from .conftest import DATASETS
 from .hostile_names import NAMES, distinct_as_read, points_rows
 from .strategies import mutated, points_tables, write_frame
 from .test_hostile_inputs import FILE_CASES, POINTS, TEXT_CASES
@@ -196,3 +198,23 @@ def test_the_memory_of_reading_in_pieces_is_bounded_by_the_piece(tmp_path):
     pieces = _peak_bytes(consume)
     assert count["n"] == experiments
     assert pieces < whole / 3, (pieces, whole)
+
+
+@pytest.mark.parametrize("shuffled", [False, True])
+def test_a_lab_table_balances_the_same_experiment_by_experiment_in_pieces(tmp_path, shuffled):
+    """What a lab reader in pieces would do: the mass balance of each experiment's table from
+    ``iter_experiment_tables`` gives the points of the whole-table reader, rows in any order."""
+    frame = read_table(DATASETS / "double_deck_screen_decks_lab.csv").frame
+    frame = pd.concat([frame.assign(experiment=frame["experiment"] + f" {copy}") for copy in range(4)], ignore_index=True)
+    if shuffled:
+        # experiments interleaved row by row (the classes of each stay in order, as a lab table needs)
+        frame = frame.iloc[np.argsort(frame.groupby("experiment", sort=False).cumcount().to_numpy(), kind="stable")]
+    path = write_frame(frame, tmp_path / "lab.csv")
+    options = LabOptions(size_unit="mm")
+    whole = [balance.to_points() for balance in read_lab(path, options)]
+    tables = list(iter_experiment_tables(path, piece_rows=3))
+    pieces = [balance.to_points() for table in tables for balance in balances_from_table(table, options)]
+    assert [p.experiment for p in pieces] == [p.experiment for p in whole]
+    for a, b in zip(pieces, whole):
+        assert a.size.tolist() == b.size.tolist() and a.partition_fine.tolist() == b.partition_fine.tolist()
+    assert sorted(np.concatenate([t.rows for t in tables]).tolist()) == list(range(2, len(frame) + 2))

@@ -38,7 +38,16 @@ import pandas as pd
 
 from ..errors import InputError
 from ..validation import SIZE_LIMITS  # also offered here, beside MAX_SIZE_SPAN
-from .tables import DEFAULT_PIECE_ROWS, EXCEL_SUFFIXES, Table, read_table, read_table_in_pieces, table_from_frame
+from .tables import (
+    DEFAULT_PIECE_ROWS,
+    EXCEL_SUFFIXES,
+    ExperimentIndex,
+    Table,
+    experiment_rows,  # noqa: F401 - also offered here (lab and density readers import it from points)
+    read_table,
+    read_table_in_pieces,
+    table_from_frame,
+)
 
 SIZE_UNITS = ("nm", "um", "mm", "cm", "m")  # mesh numbers are not sizes (larger = finer)
 _UNIT_SPELLINGS = {
@@ -438,13 +447,6 @@ def experiment_points(name: str, rows: np.ndarray, values: PointsValues, *, sour
     )
 
 
-def experiment_rows(labels) -> dict:
-    """Positions of each experiment's rows, experiments in order of first appearance (one
-    pass over the labels: a file of 10,000 experiments is not scanned 10,000 times)."""
-    groups = pd.Series(np.arange(len(labels))).groupby(pd.Series(labels, dtype=object), sort=False).indices
-    return {name: np.asarray(groups[name]) for name in dict.fromkeys(labels)}
-
-
 def _known_points_columns(size_column: str) -> list[str]:
     suffix = size_column[len("size") :]
     return [
@@ -557,33 +559,11 @@ def _numbered_check(step: int):
         raise _FaultAt(step, error) from None
 
 
-@dataclass
-class _ExperimentIndex:
-    """What the first pass over the pieces finds: the columns, the number of used rows of each
-    experiment in order of first appearance, and whether each experiment's rows are consecutive."""
-
-    columns: PointsColumns | None = None
-    counts: dict[str, int] = field(default_factory=dict)
-    consecutive: bool = True
-    last: str | None = None
-
-    def add(self, labels: np.ndarray) -> None:
-        if not labels.size:
-            return
-        runs = labels[np.flatnonzero(np.r_[True, labels[1:] != labels[:-1]])]
-        fresh = runs[1:] if runs[0] == self.last else runs
-        if len(set(fresh)) < fresh.size or any(name in self.counts for name in fresh):
-            self.consecutive = False
-        self.last = runs[-1]
-        for name, rows in experiment_rows(labels).items():
-            self.counts[name] = self.counts.get(name, 0) + rows.size
-
-
-def _index_experiments(pieces, size_unit: str | None) -> _ExperimentIndex:
+def _index_experiments(pieces, size_unit: str | None) -> ExperimentIndex:
     """The first pass: every check of a points table on every piece, and the rows of each
     experiment counted.  Raises the fault the whole-table reader would name: the one of the
     earliest check, the first in the file among them."""
-    index, fault, used = _ExperimentIndex(), None, 0
+    index, fault, used = ExperimentIndex(), None, 0
     for table in pieces:
         index.columns = index.columns or points_columns(table, size_unit)
         used += _used_rows(table)
@@ -637,20 +617,13 @@ def _joined(parts: list[PointsValues]) -> PointsValues:
     )
 
 
-#: Most temporary files among which the rows of a file whose experiments are not consecutive
-#: are sorted (experiments in order of first appearance, a run of them per file).
-MAX_SORT_FILES = 256
-
-
-def _experiments_sorted_on_disk(pieces, index: _ExperimentIndex, piece_rows: int) -> Iterator[TrompPoints]:
+def _experiments_sorted_on_disk(pieces, index: ExperimentIndex, piece_rows: int) -> Iterator[TrompPoints]:
     """The second pass for experiments whose rows are spread over the file: an external sort.
     The checked rows of each piece (experiment, row number, size, partition, weight) go to
     temporary binary files, each holding a run of consecutive experiments (about ``piece_rows``
     rows, or a 256th of the file); each file is then read, sorted and cut into experiments."""
     names = list(index.counts)
-    position = {name: i for i, name in enumerate(names)}
-    rows_per_experiment = sum(index.counts.values()) / len(names)
-    per_file = max(1, int(piece_rows / rows_per_experiment), -(-len(names) // MAX_SORT_FILES))
+    position, per_file = index.runs(piece_rows)
     weighted, source = False, ""
     with tempfile.TemporaryDirectory(prefix="tromplab-sort-") as folder:
         for table in pieces:

@@ -40,10 +40,12 @@ import io
 import itertools
 import logging
 import os
+import pickle
 import re
+import tempfile
 import warnings
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -468,6 +470,133 @@ def _end_outside_quotes(lines: list[str], start: int, end: int) -> int | None:
         quotes += lines[end].count('"')
         end += 1
     return None if quotes % 2 else end
+
+
+#: Most temporary files among which the rows of a table whose experiments are not consecutive
+#: are sorted (experiments in order of first appearance, a run of them per file).
+MAX_SORT_FILES = 256
+
+
+@dataclass
+class ExperimentIndex:
+    """What a first pass over the pieces of a table finds: the number of rows of each
+    experiment in order of first appearance, and whether each experiment's rows are
+    consecutive (one entry per experiment in memory).  ``columns`` is for the caller (the
+    columns its checks found)."""
+
+    counts: dict = field(default_factory=dict)
+    consecutive: bool = True
+    last: str | None = None
+    columns: object = None
+
+    def add(self, labels: np.ndarray) -> None:
+        """Count the rows of a piece, ``labels`` naming the experiment of each."""
+        if not labels.size:
+            return
+        runs = labels[np.flatnonzero(np.r_[True, labels[1:] != labels[:-1]])]
+        fresh = runs[1:] if runs[0] == self.last else runs
+        if len(set(fresh)) < fresh.size or any(name in self.counts for name in fresh):
+            self.consecutive = False
+        self.last = runs[-1]
+        names, first, counts = np.unique(labels, return_index=True, return_counts=True)
+        for at in np.argsort(first, kind="stable"):
+            self.counts[names[at]] = self.counts.get(names[at], 0) + int(counts[at])
+
+    def runs(self, rows_per_run: int) -> tuple[dict, int]:
+        """The position of each experiment and how many consecutive experiments share one of
+        at most :data:`MAX_SORT_FILES` runs of about ``rows_per_run`` rows."""
+        rows_per_experiment = sum(self.counts.values()) / len(self.counts)
+        per_run = max(1, int(rows_per_run / rows_per_experiment), -(-len(self.counts) // MAX_SORT_FILES))
+        return {name: i for i, name in enumerate(self.counts)}, per_run
+
+
+def iter_experiment_tables(
+    path, *, piece_rows: int = DEFAULT_PIECE_ROWS, sep=None, decimal=None, text_columns=()
+) -> Iterator[Table]:
+    """The rows of each experiment of a CSV table as a :class:`Table`, the file read in pieces.
+
+    For readers that work experiment by experiment (a lab table's mass balances): the tables
+    come in order of first appearance, each with the file's row numbers, after a first pass
+    that counts each experiment's rows (and makes the checks of :func:`read_table`, and the
+    blank-name check of :meth:`Table.experiment_labels`).  Rows of one experiment spread over
+    the file are sorted on disk (at most :data:`MAX_SORT_FILES` temporary files).  Without an
+    ``experiment`` column the whole table is one experiment, and comes whole.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The file (a workbook or DataFrame is read whole, see :func:`read_table_in_pieces`).
+    piece_rows : int
+        Records per piece.
+    sep, decimal, text_columns
+        As for :func:`read_table`.
+
+    Yields
+    ------
+    Table
+        The rows of one experiment.
+    """
+
+    def pieces(warn: bool):
+        return read_table_in_pieces(path, piece_rows=piece_rows, sep=sep, decimal=decimal, text_columns=text_columns, warn=warn)
+
+    index = ExperimentIndex()
+    for table in pieces(True):
+        index.add(table.experiment_labels())
+    if index.consecutive:
+        yield from _consecutive_experiment_tables(pieces(False), index.counts)
+        return
+    position, per_run = index.runs(piece_rows)
+    with tempfile.TemporaryDirectory(prefix="tromplab-sort-") as folder:
+        for table in pieces(False):
+            run = (
+                np.fromiter((position[name] for name in table.experiment_labels()), dtype=int, count=len(table.frame)) // per_run
+            )
+            for number in np.unique(run):
+                with open(Path(folder) / f"{number}.pickle", "ab") as stream:  # our own file, read back below
+                    pickle.dump(table.subset(run == number), stream)
+        for number in range(-(-len(position) // per_run)):
+            with open(Path(folder) / f"{number}.pickle", "rb") as stream:
+                parts = list(_pickled(stream))
+            yield from _consecutive_experiment_tables([_joined_tables(parts)], None)
+
+
+def _pickled(stream):
+    while True:
+        try:
+            yield pickle.load(stream)  # noqa: S301 - a temporary file this module wrote
+        except EOFError:
+            return
+
+
+def _consecutive_experiment_tables(pieces, counts: dict | None) -> Iterator[Table]:
+    """The table of each experiment of ``pieces``, yielded when its ``counts`` rows are read
+    (``counts`` None: every experiment of the pieces, at their end)."""
+    pending: dict[str, list[Table]] = {}
+    order = iter(counts.items()) if counts is not None else None
+    waiting, expected = next(order, (None, 0)) if order is not None else (None, 0)
+    for table in pieces:
+        for name, rows in experiment_rows(table.experiment_labels()).items():
+            pending.setdefault(name, []).append(table.subset(rows))
+        while waiting is not None and sum(len(part.frame) for part in pending.get(waiting, ())) == expected:
+            yield _joined_tables(pending.pop(waiting))
+            waiting, expected = next(order, (None, 0))
+    for parts in pending.values():  # counts None: all at the end, in order of first appearance
+        yield _joined_tables(parts)
+
+
+def experiment_rows(labels) -> dict:
+    """Positions of each experiment's rows, experiments in order of first appearance (one
+    pass over the labels: a file of 10,000 experiments is not scanned 10,000 times)."""
+    groups = pd.Series(np.arange(len(labels))).groupby(pd.Series(labels, dtype=object), sort=False).indices
+    return {name: np.asarray(groups[name]) for name in dict.fromkeys(labels)}
+
+
+def _joined_tables(parts: list[Table]) -> Table:
+    if len(parts) == 1:
+        return parts[0]
+    frame = pd.concat([part.frame for part in parts], ignore_index=True)
+    return Table(frame, np.concatenate([part.rows for part in parts]), parts[0].source, parts[0].notes)
 
 
 DATAFRAME_SOURCE = "DataFrame"
