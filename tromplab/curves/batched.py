@@ -159,13 +159,22 @@ class BatchProblem:
         efficiency = None if self.efficiency is None else self.efficiency[rows][:, None]
         return data.size[rows], data.observed[rows], data.root_weight[rows], efficiency
 
+    def stacked(self, rows: np.ndarray) -> tuple:
+        """The data of these rows shaped ``(len(rows), 1, P)``, for :meth:`residual_of` with
+        parameters ``(len(rows), k, p)``: k parameter sets of each row's experiment without
+        the data repeated k times (the grid of starts)."""
+        data = self.data
+        efficiency = None if self.efficiency is None else self.efficiency[rows][:, None, None]
+        return data.size[rows][:, None, :], data.observed[rows][:, None, :], data.root_weight[rows][:, None, :], efficiency
+
     def residual_of(self, gathered: tuple, params: np.ndarray, x_break=None) -> np.ndarray:
-        """:meth:`residual` on the rows whose data are ``gathered`` (:meth:`gathered`)."""
+        """:meth:`residual` on the rows whose data are ``gathered`` (:meth:`gathered`, or
+        :meth:`stacked` with parameters and breaks of one more dimension)."""
         size, observed, root_weight, efficiency = gathered
-        x = size / np.exp(params[:, :1])
-        extras = {name: params[:, 2 + i : 3 + i] for i, name in enumerate(self.extra_names)}
+        x = size / np.exp(params[..., :1])
+        extras = {name: params[..., 2 + i : 3 + i] for i, name in enumerate(self.extra_names)}
         with np.errstate(all="ignore"):
-            phi = curve_values(self.formula, x, params[:, 1:2], extras, efficiency, x_break)
+            phi = curve_values(self.formula, x, params[..., 1:2], extras, efficiency, x_break)
             return root_weight * (phi - observed)
 
     def jacobian(
