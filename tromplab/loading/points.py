@@ -521,6 +521,13 @@ def iter_experiments(
         within an experiment, or points that :class:`TrompPoints` refuses, when that
         experiment is reached in the second pass (after the experiments before it).
 
+    Notes
+    -----
+    For a batch of any size: take the experiments in chunks as they come
+    (``itertools.islice(experiments, 1024)`` until it is empty) and fit each chunk before the
+    next is read; nothing of a chunk need stay once its results are written.  Reading the
+    file is done by the consumer's process, in order; the iterator is not thread-safe.
+
     Examples
     --------
     >>> import pathlib, tempfile
