@@ -285,13 +285,25 @@ class _MarquardtRows:
                 step = -(g * free) / diagonal
         return np.where(np.isfinite(step), step, 0.0)
 
+    def breaks_at(self, trial: np.ndarray, work: np.ndarray, p: np.ndarray):
+        """The moving break's points at ``trial`` (None without one): those of the current point
+        ``p`` where the trial keeps its shape (a shape held on a bound or fixed), solved anew
+        for the others."""
+        if self.x_break is None:
+            return None
+        found = self.x_break[work]
+        moved = np.flatnonzero(trial[:, 1] != p[:, 1])
+        if moved.size:
+            found[moved] = self.problem.breaks(trial[moved], self.rows[work[moved]])
+        return found
+
     def take_step(self, work: np.ndarray) -> None:
         """Try the step of every row of ``work``: keep it where the sum of squares falls (less
         damping), else more damping; end the rows that converged or cannot descend."""
         problem, p, lower, upper = self.problem, self.params[work], self.lower[work], self.upper[work]
         trial = np.clip(p + self.damped_step(work, p, lower, upper), lower, upper)
         work_rows = self.rows[work]
-        trial_break = problem.breaks(trial, work_rows)
+        trial_break = self.breaks_at(trial, work, p)
         trial_residual = problem.residual(trial, work_rows, trial_break)
         trial_ssr = sum_of_squares(trial_residual)
         self.nfev[work] += 1
