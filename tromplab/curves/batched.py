@@ -149,13 +149,33 @@ class BatchProblem:
 
     def residual(self, params: np.ndarray, rows: np.ndarray, x_break=None) -> np.ndarray:
         """Weighted residuals ``(len(rows), P)`` at internal parameters ``params``."""
+        return self.residual_of(self.gathered(rows), params, x_break)
+
+    def gathered(self, rows: np.ndarray) -> tuple:
+        """The data of these rows (sizes, observed, root weights, efficiency) for
+        :meth:`residual_of`: gathered once for the several evaluations of a Jacobian or of a
+        search along ``d_cut`` on the same rows."""
         data = self.data
-        x = data.size[rows] / np.exp(params[:, :1])
-        extras = {name: params[:, 2 + i : 3 + i] for i, name in enumerate(self.extra_names)}
         efficiency = None if self.efficiency is None else self.efficiency[rows][:, None]
+        return data.size[rows], data.observed[rows], data.root_weight[rows], efficiency
+
+    def stacked(self, rows: np.ndarray) -> tuple:
+        """The data of these rows shaped ``(len(rows), 1, P)``, for :meth:`residual_of` with
+        parameters ``(len(rows), k, p)``: k parameter sets of each row's experiment without
+        the data repeated k times (the grid of starts)."""
+        data = self.data
+        efficiency = None if self.efficiency is None else self.efficiency[rows][:, None, None]
+        return data.size[rows][:, None, :], data.observed[rows][:, None, :], data.root_weight[rows][:, None, :], efficiency
+
+    def residual_of(self, gathered: tuple, params: np.ndarray, x_break=None) -> np.ndarray:
+        """:meth:`residual` on the rows whose data are ``gathered`` (:meth:`gathered`, or
+        :meth:`stacked` with parameters and breaks of one more dimension)."""
+        size, observed, root_weight, efficiency = gathered
+        x = size / np.exp(params[..., :1])
+        extras = {name: params[..., 2 + i : 3 + i] for i, name in enumerate(self.extra_names)}
         with np.errstate(all="ignore"):
-            phi = curve_values(self.formula, x, params[:, 1:2], extras, efficiency, x_break)
-            return data.root_weight[rows] * (phi - data.observed[rows])
+            phi = curve_values(self.formula, x, params[..., 1:2], extras, efficiency, x_break)
+            return root_weight * (phi - observed)
 
     def jacobian(
         self, params: np.ndarray, rows: np.ndarray, base: np.ndarray, relative_step: float = 1.5e-8, x_break=None
@@ -165,6 +185,7 @@ class BatchProblem:
         count, width = base.shape
         jac = np.empty((count, width, params.shape[1]))
         upper = self.upper[rows]
+        gathered = self.gathered(rows)
         if x_break is None:
             x_break = self.breaks(params, rows)
         for j in range(params.shape[1]):
@@ -175,7 +196,9 @@ class BatchProblem:
             step = np.where(params[:, j] + step > upper[:, j], -step, step)
             moved = params.copy()
             moved[:, j] += step
-            jac[:, :, j] = (self.residual(moved, rows, x_break if j != 1 else None) - base) / step[:, None]
+            # a step in the shape moves a moving break: solved for each row (no pair repeats here)
+            moved_break = x_break if j != 1 or x_break is None else self.breaks(moved, rows)
+            jac[:, :, j] = (self.residual_of(gathered, moved, moved_break) - base) / step[:, None]
         return jac
 
 
@@ -200,64 +223,104 @@ def levenberg_marquardt(
     ``max_iterations``.  ``relative_step`` is the forward-difference step; a coarse step
     (1e-3) sees past the kinks of the piecewise formulas, where a fine one stalls.
     """
-    lower, upper = problem.lower[rows], problem.upper[rows]
-    params = np.clip(params, lower, upper)
-    # a moving break is solved once per point: the accepted trial's breaks serve its Jacobian
-    x_break = problem.breaks(params, rows)
-    residual = problem.residual(params, rows, x_break)
-    ssr = sum_of_squares(residual)
-    n_params = params.shape[1]
-    nfev = np.ones(rows.size, dtype=int)
-    damping = np.full(rows.size, 1e-3)
-    alive = np.isfinite(ssr)
-    need_jacobian = alive.copy()
-    gradient = np.zeros((rows.size, n_params))
-    hessian = np.zeros((rows.size, n_params, n_params))
-    eye = np.eye(n_params)
+    state = _MarquardtRows(problem, params, rows)
     for _ in range(max_iterations):
-        work = np.flatnonzero(alive)
+        work = np.flatnonzero(state.alive)
         if not work.size:
             break
-        fresh = work[need_jacobian[work]]
-        if fresh.size:
-            breaks_here = None if x_break is None else x_break[fresh]
-            jac = problem.jacobian(params[fresh], rows[fresh], residual[fresh], relative_step, breaks_here)
-            nfev[fresh] += n_params
-            gradient[fresh] = np.einsum("bkp,bk->bp", jac, residual[fresh])
-            hessian[fresh] = np.einsum("bkp,bkq->bpq", jac, jac)
-            need_jacobian[fresh] = False
-        g, h, p = gradient[work], hessian[work], params[work]
-        span = upper[work] - lower[work]
-        pinned = ((p <= lower[work] + 1e-12 * span) & (g > 0)) | ((p >= upper[work] - 1e-12 * span) & (g < 0)) | (span == 0)
+        state.refresh_jacobians(work, relative_step)
+        state.take_step(work)
+    return state.params, state.ssr, state.nfev
+
+
+class _MarquardtRows:
+    """The state of :func:`levenberg_marquardt`, row by row: parameters (kept within the
+    bounds), residuals and their sum of squares, the breaks of a moving break (solved once per
+    point: the accepted trial's breaks serve its Jacobian), the damping, the gradient and
+    Gauss-Newton Hessian of the last accepted point, and which rows are still descending."""
+
+    def __init__(self, problem: BatchProblem, params: np.ndarray, rows: np.ndarray):
+        self.problem, self.rows = problem, rows
+        self.lower, self.upper = problem.lower[rows], problem.upper[rows]
+        self.params = np.clip(params, self.lower, self.upper)
+        self.x_break = problem.breaks(self.params, rows)
+        self.residual = problem.residual(self.params, rows, self.x_break)
+        self.ssr = sum_of_squares(self.residual)
+        n_params = self.params.shape[1]
+        self.nfev = np.ones(rows.size, dtype=int)
+        self.damping = np.full(rows.size, 1e-3)
+        self.alive = np.isfinite(self.ssr)
+        self.need_jacobian = self.alive.copy()
+        self.gradient = np.zeros((rows.size, n_params))
+        self.hessian = np.zeros((rows.size, n_params, n_params))
+        self.eye = np.eye(n_params)
+
+    def refresh_jacobians(self, work: np.ndarray, relative_step: float) -> None:
+        """Gradient and Hessian at the rows of ``work`` that moved since their last Jacobian."""
+        fresh = work[self.need_jacobian[work]]
+        if not fresh.size:
+            return
+        breaks_here = None if self.x_break is None else self.x_break[fresh]
+        residual = self.residual[fresh]
+        jac = self.problem.jacobian(self.params[fresh], self.rows[fresh], residual, relative_step, breaks_here)
+        self.nfev[fresh] += self.params.shape[1]
+        self.gradient[fresh] = np.einsum("bkp,bk->bp", jac, residual)
+        self.hessian[fresh] = np.einsum("bkp,bkq->bpq", jac, jac)
+        self.need_jacobian[fresh] = False
+
+    def damped_step(self, work: np.ndarray, p: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
+        """The damped Gauss-Newton step of the rows of ``work``, parameters on a bound whose
+        gradient points outwards held."""
+        g, h, eye = self.gradient[work], self.hessian[work], self.eye
+        span = upper - lower
+        pinned = ((p <= lower + 1e-12 * span) & (g > 0)) | ((p >= upper - 1e-12 * span) & (g < 0)) | (span == 0)
         free = ~pinned
         h_free = h * free[:, :, None] * free[:, None, :] + eye * pinned[:, :, None]
         diagonal = np.maximum(np.diagonal(h_free, axis1=1, axis2=2), 1e-300)
-        system = h_free + damping[work, None, None] * eye * diagonal[:, None, :]
+        system = h_free + self.damping[work, None, None] * eye * diagonal[:, None, :]
         with np.errstate(all="ignore"):
             try:
                 step = -np.linalg.solve(system, (g * free)[..., None])[..., 0]
             except np.linalg.LinAlgError:
                 step = -(g * free) / diagonal
-        step = np.where(np.isfinite(step), step, 0.0)
-        trial = np.clip(p + step, lower[work], upper[work])
-        trial_break = problem.breaks(trial, rows[work])
-        trial_residual = problem.residual(trial, rows[work], trial_break)
+        return np.where(np.isfinite(step), step, 0.0)
+
+    def breaks_at(self, trial: np.ndarray, work: np.ndarray, p: np.ndarray):
+        """The moving break's points at ``trial`` (None without one): those of the current point
+        ``p`` where the trial keeps its shape (a shape held on a bound or fixed), solved anew
+        for the others."""
+        if self.x_break is None:
+            return None
+        found = self.x_break[work]
+        moved = np.flatnonzero(trial[:, 1] != p[:, 1])
+        if moved.size:
+            found[moved] = self.problem.breaks(trial[moved], self.rows[work[moved]])
+        return found
+
+    def take_step(self, work: np.ndarray) -> None:
+        """Try the step of every row of ``work``: keep it where the sum of squares falls (less
+        damping), else more damping; end the rows that converged or cannot descend."""
+        problem, p, lower, upper = self.problem, self.params[work], self.lower[work], self.upper[work]
+        trial = np.clip(p + self.damped_step(work, p, lower, upper), lower, upper)
+        work_rows = self.rows[work]
+        trial_break = self.breaks_at(trial, work, p)
+        trial_residual = problem.residual(trial, work_rows, trial_break)
         trial_ssr = sum_of_squares(trial_residual)
-        nfev[work] += 1
-        accepted = trial_ssr < ssr[work]
-        gain = np.where(accepted, (ssr[work] - trial_ssr) / np.maximum(ssr[work], 1e-300), 0.0)
+        self.nfev[work] += 1
+        ssr = self.ssr[work]
+        accepted = trial_ssr < ssr
+        gain = np.where(accepted, (ssr - trial_ssr) / np.maximum(ssr, 1e-300), 0.0)
         took = work[accepted]
-        params[took], residual[took], ssr[took] = trial[accepted], trial_residual[accepted], trial_ssr[accepted]
-        if x_break is not None:
-            x_break[took] = trial_break[accepted]
-        need_jacobian[took] = True
+        self.params[took], self.residual[took], self.ssr[took] = trial[accepted], trial_residual[accepted], trial_ssr[accepted]
+        if self.x_break is not None:
+            self.x_break[took] = trial_break[accepted]
+        self.need_jacobian[took] = True
+        damping = self.damping
         damping[took] = np.maximum(damping[took] / 3.0, 1e-12)
-        refused = work[~accepted]
-        damping[refused] *= 4.0
+        damping[work[~accepted]] *= 4.0
         stalled = np.all(trial == p, axis=1)
         finished = (accepted & (gain < SSR_TOLERANCE)) | (~accepted & ((damping[work] > 1e12) | stalled))
-        alive[work[finished]] = False
-    return params, ssr, nfev
+        self.alive[work[finished]] = False
 
 
 # --- the profile likelihood on arrays ----------------------------------------------------------
@@ -324,17 +387,24 @@ def profile_limits(
     searching = np.isfinite(search.goal) & (free[experiment] > 0) & (search.room > 0)
     t_low, h_low, t_high, h_high = _bracket(search, start, np.minimum(step, search.room), searching)
     _regula_falsi(search, start, t_low, h_low, t_high, h_high)
+    limit = _confirmed_limits(search, best[experiment], t_low, h_low, t_high, h_high).reshape(count, n_params, 2)
+    return limit[..., 0], limit[..., 1]
+
+
+def _confirmed_limits(search: _ProfileSearch, best: np.ndarray, t_low, h_low, t_high, h_high) -> np.ndarray:
+    """The limit of each closed bracket, nan where the level was not passed, where it was
+    passed on the bound itself (the bound reached below the level: lmfit warns there) or where
+    the profile re-optimised from a grid of starts (:func:`_grid_profile_ssr`) lies below the
+    level at the limit (a lower branch the descent missed)."""
     limit = search.centre + search.side * np.where(np.abs(h_high) <= np.abs(h_low), t_high, t_low)
-    # a crossing on the bound itself is the bound reached below the level (lmfit warns there)
     on_bound = np.abs(search.bound - limit) <= PROFILE_TOLERANCE * (1.0 + np.abs(search.centre))
     found = np.flatnonzero(np.isfinite(t_high) & ~on_bound)
-    lowest = _grid_profile_ssr(search.rows, found, column[found], limit[found], best[experiment[found]])
+    lowest = _grid_profile_ssr(search.rows, found, search.column[found], limit[found], best[found])
     gap = search.goal[found] - search.floor[found]
-    missed = found[lowest < search.goal[found] - 1e-3 * gap]  # a lower branch the descent missed
+    missed = found[lowest < search.goal[found] - 1e-3 * gap]
     limit = np.where(np.isfinite(t_high) & ~on_bound, limit, np.nan)
     limit[missed] = np.nan
-    limit = limit.reshape(count, n_params, 2)
-    return limit[..., 0], limit[..., 1]
+    return limit
 
 
 class _ProfileSearch:

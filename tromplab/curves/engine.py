@@ -149,41 +149,8 @@ def _grid_starts(problem: BatchProblem, start_cut: np.ndarray, extra_start: np.n
         block = np.arange(first, min(first + chunk, count))
         cuts = span_low[block, None] + fractions * (span_high - span_low)[block, None]
         cuts = np.concatenate([cuts, start_cut[block, None]], axis=1)  # (b, C)
-        rows = np.repeat(block, n_shapes * cuts.shape[1])
-        params = np.column_stack(
-            [
-                cuts[:, None, :].repeat(n_shapes, axis=1).ravel(),
-                np.broadcast_to(shapes[None, :, None], (block.size, n_shapes, cuts.shape[1])).ravel(),
-                *[np.full(rows.size, value) for value in extra_start],
-            ]
-        )
-        per_shape = np.column_stack([np.zeros(block.size * n_shapes), np.tile(shapes, block.size)])
-        x_break = problem.breaks(per_shape, np.repeat(block, n_shapes))
-        x_break = None if x_break is None else np.repeat(x_break, cuts.shape[1], axis=0)
-        ssr = sum_of_squares(problem.residual(params, rows, x_break)).reshape(block.size, n_shapes, cuts.shape[1])
-        pick = np.argmin(ssr, axis=2)
-        best_cut[block] = np.take_along_axis(cuts[:, None, :].repeat(n_shapes, axis=1), pick[..., None], axis=2)[..., 0]
-        best_ssr[block] = np.take_along_axis(ssr, pick[..., None], axis=2)[..., 0]
-        # golden-section refinement of ln d_cut within one grid step of the best grid cut
         width = ((span_high - span_low) / (GRID_CUTS - 1))[block, None]
-        lo = np.clip(best_cut[block] - width, low[block, None], high[block, None])
-        hi = np.clip(best_cut[block] + width, low[block, None], high[block, None])
-        shape_rows = np.repeat(block, n_shapes)
-        flat_shapes = np.tile(shapes, block.size)
-        extra_columns = [np.full(shape_rows.size, value) for value in extra_start]
-
-        fixed = np.column_stack([np.zeros(shape_rows.size), flat_shapes, *extra_columns])
-        block_breaks = problem.breaks(fixed, shape_rows)  # the shapes stay fixed while d_cut moves
-
-        def ssr_at(log_cut, fixed=fixed, rows=shape_rows, count=block.size, x_break=block_breaks):
-            params = fixed.copy()
-            params[:, 0] = log_cut.ravel()
-            return sum_of_squares(problem.residual(params, rows, x_break)).reshape(count, n_shapes)
-
-        refined, refined_ssr = golden_section(ssr_at, lo, hi, GOLDEN_STEPS)
-        better = refined_ssr < best_ssr[block]
-        best_cut[block] = np.where(better, refined, best_cut[block])
-        best_ssr[block] = np.where(better, refined_ssr, best_ssr[block])
+        best_cut[block], best_ssr[block] = _profiled_grid(problem, block, cuts, shapes, extra_start, width)
     # local minima of the profile along the shape first (one start per basin), then the rest
     padded = np.pad(best_ssr, ((0, 0), (1, 1)), constant_values=np.inf)
     basin = (best_ssr <= padded[:, :-2]) & (best_ssr <= padded[:, 2:])
@@ -191,6 +158,41 @@ def _grid_starts(problem: BatchProblem, start_cut: np.ndarray, extra_start: np.n
     cut = np.take_along_axis(best_cut, order, axis=1)
     shape = shapes[order]
     return cut, shape, best_ssr.min(axis=1)
+
+
+def _profiled_grid(problem: BatchProblem, block: np.ndarray, cuts: np.ndarray, shapes: np.ndarray, extra_start, width):
+    """``(cut, ssr)``, each ``(b, shapes)``: the best ``ln d_cut`` at each grid shape for the
+    experiments of ``block``, first among ``cuts`` ``(b, C)``, then refined by golden section
+    within ``width`` of it (the extras at ``extra_start``)."""
+    count, n_shapes, n_cuts = block.size, shapes.size, cuts.shape[1]
+    fixed = np.column_stack(
+        [np.zeros(count * n_shapes), np.tile(shapes, count), *[np.full(count * n_shapes, v) for v in extra_start]]
+    )
+    x_break = problem.breaks(fixed, np.repeat(block, n_shapes))  # the shapes stay fixed while d_cut moves
+    data = problem.stacked(block)
+
+    def ssr_of(params: np.ndarray, breaks) -> np.ndarray:  # params (b, k, p), breaks (b * k, 1)
+        breaks = None if breaks is None else breaks.reshape(*params.shape[:2], 1)
+        return sum_of_squares(problem.residual_of(data, params, breaks).reshape(-1, data[0].shape[2]))
+
+    grid = np.repeat(fixed.reshape(count, n_shapes, -1), n_cuts, axis=1)  # (b, shapes x cuts, p)
+    grid[:, :, 0] = np.repeat(cuts[:, None, :], n_shapes, axis=1).reshape(count, -1)
+    ssr = ssr_of(grid, None if x_break is None else np.repeat(x_break, n_cuts, axis=0)).reshape(count, n_shapes, n_cuts)
+    pick = np.argmin(ssr, axis=2)
+    best_cut = np.take_along_axis(np.repeat(cuts[:, None, :], n_shapes, axis=1), pick[..., None], axis=2)[..., 0]
+    best_ssr = np.take_along_axis(ssr, pick[..., None], axis=2)[..., 0]
+    low, high = problem.lower[block, :1], problem.upper[block, :1]
+
+    def ssr_at(log_cut):
+        params = fixed.copy()
+        params[:, 0] = log_cut.ravel()
+        return ssr_of(params.reshape(count, n_shapes, -1), x_break).reshape(count, n_shapes)
+
+    refined, refined_ssr = golden_section(
+        ssr_at, np.clip(best_cut - width, low, high), np.clip(best_cut + width, low, high), GOLDEN_STEPS
+    )
+    better = refined_ssr < best_ssr
+    return np.where(better, refined, best_cut), np.where(better, refined_ssr, best_ssr)
 
 
 def compass_search(
@@ -272,6 +274,7 @@ def search_break_crossings(problem: BatchProblem, params: np.ndarray, ssr: np.nd
     center = np.log(params[pair_row, 1])
     low = np.maximum(center - np.log(1.25), np.log(problem.lower[work_rows, 1]))
     high = np.minimum(center + np.log(1.25), np.log(problem.upper[work_rows, 1]))
+    gathered = problem.gathered(work_rows)
 
     def crossing(log_shape):
         shape = np.exp(log_shape)
@@ -279,7 +282,7 @@ def search_break_crossings(problem: BatchProblem, params: np.ndarray, ssr: np.nd
         with np.errstate(divide="ignore"):  # no break (x_a = 0): the crossing runs off to the cut's bound
             cut = np.clip(np.log(size / x_break), cut_low, cut_high)
         trial = np.column_stack([cut, shape])
-        return trial, sum_of_squares(problem.residual(trial, work_rows, x_break[:, None]))
+        return trial, sum_of_squares(problem.residual_of(gathered, trial, x_break[:, None]))
 
     best_log_shape, _ = golden_section(lambda log_shape: crossing(log_shape)[1], low, high, CROSSING_STEPS)
     trial, trial_ssr = crossing(best_log_shape)
@@ -426,11 +429,12 @@ def scan_shapes_nearby(problem: BatchProblem, params: np.ndarray, ssr: np.ndarra
     work_rows = np.repeat(rows, n_shapes)
     fixed = np.column_stack([np.zeros(work_rows.size), shapes.ravel(), np.repeat(params[:, 2:], n_shapes, axis=0)])
     x_break = problem.breaks(fixed, work_rows)  # the shapes stay fixed while d_cut moves
+    gathered = problem.gathered(work_rows)
 
     def ssr_at(log_cut):
         trial = fixed.copy()
         trial[:, 0] = log_cut
-        return sum_of_squares(problem.residual(trial, work_rows, x_break))
+        return sum_of_squares(problem.residual_of(gathered, trial, x_break))
 
     centre = np.repeat(params[:, 0], n_shapes)
     low = np.maximum(centre - NEARBY_CUT_SPAN, np.repeat(lower[:, 0], n_shapes))
@@ -505,7 +509,6 @@ def fit_formula_batch(
 
     alpha = DEFAULT_ALPHA if alpha is None else alpha
     formula = get_formula(formula)
-    names = ("d_cut", formula.shape_name, *(extra.name for extra in formula.extras))
     usable = [i for i, points in enumerate(experiments) if points.n > formula.n_params]
     results: list = [None] * len(experiments)
     for i, points in enumerate(experiments):
@@ -515,16 +518,10 @@ def fit_formula_batch(
     if not usable:
         return results
     chosen = [experiments[i] for i in usable]
-    data = PaddedPoints.from_points(chosen, width)
-    starts = np.empty((len(chosen), 1 if start is None else 2, len(names)))
-    for row, i in enumerate(usable):
-        cut, slope = measured_start(experiments[i]) if measured is None else measured[i]
-        starts[row, 0, :2] = cut, formula.shape_for_slope(slope)
-        starts[row, 0, 2:] = [extra.start for extra in formula.extras]
-    if start is not None:
-        starts[:, 1, :] = [start[name] for name in names]
+    starts = _given_starts(formula, [measured_start(experiments[i]) if measured is None else measured[i] for i in usable], start)
     contexts = [formula_context(formula, points) for points in chosen]
     efficiency = np.array([c["measured_efficiency"] for c in contexts]) if formula.context_from_efficiency else None
+    data = PaddedPoints.from_points(chosen, width)
     optimum = fit_batch(formula, data, starts=starts, efficiency=efficiency, global_search=global_search)
     stderr = optimum.stderr()
     for row, (i, points) in enumerate(zip(usable, chosen)):
@@ -540,6 +537,20 @@ def fit_formula_batch(
             grid_ssr=float(optimum.grid_ssr[row]),
         )
     return results
+
+
+def _given_starts(formula: Formula, measured: Sequence[tuple[float, float]], start: dict[str, float] | None) -> np.ndarray:
+    """The starts of :func:`fit_formula_batch` in native parameters, ``(experiments, 1 or 2,
+    parameters)``: each experiment's measured cut and slope (the extras at their declared
+    start), and ``start`` for every experiment when given."""
+    names = ("d_cut", formula.shape_name, *(extra.name for extra in formula.extras))
+    starts = np.empty((len(measured), 1 if start is None else 2, len(names)))
+    for row, (cut, slope) in enumerate(measured):
+        starts[row, 0, :2] = cut, formula.shape_for_slope(slope)
+        starts[row, 0, 2:] = [extra.start for extra in formula.extras]
+    if start is not None:
+        starts[:, 1, :] = [start[name] for name in names]
+    return starts
 
 
 def measured_start(points: TrompPoints) -> tuple[float, float]:

@@ -25,15 +25,29 @@ diagnostics written by ``tromplab points``
 
 from __future__ import annotations
 
+import contextlib
+import os
 import re
+import tempfile
+from collections.abc import Iterator
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from ..errors import InputError
 from ..validation import SIZE_LIMITS  # also offered here, beside MAX_SIZE_SPAN
-from .tables import Table, read_table, table_from_frame
+from .tables import (
+    DEFAULT_PIECE_ROWS,
+    EXCEL_SUFFIXES,
+    ExperimentIndex,
+    Table,
+    experiment_rows,  # noqa: F401 - also offered here (lab and density readers import it from points)
+    read_table,
+    read_table_in_pieces,
+    table_from_frame,
+)
 
 SIZE_UNITS = ("nm", "um", "mm", "cm", "m")  # mesh numbers are not sizes (larger = finer)
 _UNIT_SPELLINGS = {
@@ -305,6 +319,41 @@ def resolve_size_unit(
 
 def points_from_table(table: Table, *, size_unit: str | None = None) -> list[TrompPoints]:
     """Tromp points from a table; rows with ``used`` false (written by ``tromplab points``) are skipped."""
+    columns = points_columns(table, size_unit)
+    table, values = checked_values(table, columns)
+    return [
+        experiment_points(name, table.rows[rows], values.take(rows), source=table.source, columns=columns)
+        for name, rows in experiment_rows(values.labels).items()
+    ]
+
+
+@dataclass(frozen=True)
+class PointsColumns:
+    """The columns of a Tromp-points table: the size column, the unit of its sizes and every
+    column the table may hold."""
+
+    size: str
+    unit: str
+    known: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class PointsValues:
+    """The checked values of the rows of a Tromp-points table: experiment names, sizes,
+    partitions to fines and weights (or None)."""
+
+    labels: np.ndarray
+    size: np.ndarray
+    partition_fine: np.ndarray
+    weight: np.ndarray | None
+
+    def take(self, rows) -> PointsValues:
+        weight = None if self.weight is None else self.weight[rows]
+        return PointsValues(self.labels[rows], self.size[rows], self.partition_fine[rows], weight)
+
+
+def points_columns(table: Table, size_unit: str | None) -> PointsColumns:
+    """The size column (exactly one, with its unit) and the known columns of a points table."""
     size_columns = [c for c in table.frame.columns if size_column_unit(c)[0]]
     if len(size_columns) > 1:
         raise InputError(
@@ -312,15 +361,59 @@ def points_from_table(table: Table, *, size_unit: str | None = None) -> list[Tro
         )
     size_column = size_columns[0] if size_columns else "size"
     unit = resolve_size_unit(table, size_column_unit(size_column)[1], size_unit, size_column)
-    known = _known_points_columns(size_column)
+    return PointsColumns(size_column, unit, tuple(_known_points_columns(size_column)))
+
+
+#: The checks of :func:`checked_values` in the order they are made (``check`` receives them).
+USED_MARKS, NO_ROW_USED, COLUMNS, SIZES, PARTITIONS, PARTITION_RANGE, POSITIVE_SIZES, WEIGHTS, POSITIVE_WEIGHTS, NAMES = range(10)
+
+
+def checked_values(
+    table: Table, columns: PointsColumns, check=contextlib.nullcontext, *, require_used: bool = True
+) -> tuple[Table, PointsValues]:
+    """The used rows of a points table and their checked values.
+
+    ``check(step)`` is entered around each check (the steps numbered as above), so that a
+    reader in pieces can tell which fault the whole-table reader would name first;
+    ``require_used`` False lets a piece have no used row (the reader counts them).
+    """
     if "used" in table.frame.columns:
-        table = table.subset(table.boolean("used"))
-        if table.frame.empty:
+        with check(USED_MARKS):
+            table = table.subset(table.boolean("used"))
+        if require_used and table.frame.empty:
             raise InputError("no row is marked as used", source=table.source, column="used")
-    table.require(size_column)
+    with check(COLUMNS):
+        column = _partition_column(table, columns)
+    scale, to_fines = PARTITION_COLUMNS[column]
+    with check(SIZES):
+        size = table.numeric(columns.size)
+    with check(PARTITIONS):
+        partition = table.numeric(column)
+    with check(PARTITION_RANGE):
+        _refuse_first(
+            table, (partition < 0) | (partition > scale), column, lambda i: f"partition {partition[i]:g} outside 0..{scale:g}"
+        )
+    with check(POSITIVE_SIZES):
+        _refuse_first(table, size <= 0, columns.size, lambda i: f"size must be positive, got {size[i]:g}")
+    weight = None
+    if "weight" in table.frame.columns:
+        with check(WEIGHTS):
+            weight = table.numeric("weight")
+        with check(POSITIVE_WEIGHTS):
+            _refuse_first(table, weight <= 0, "weight", lambda i: "weight must be positive")
+    phi = partition / scale
+    with check(NAMES):
+        labels = table.experiment_labels()
+    return table, PointsValues(labels, size, phi if to_fines else 1.0 - phi, weight)
+
+
+def _partition_column(table: Table, columns: PointsColumns) -> str:
+    """The one partition column of a points table; the size column must be there and no
+    column unknown."""
+    table.require(columns.size)
     given = [c for c in PARTITION_COLUMNS if c in table.frame.columns]
     if not given:
-        unknown = table.unknown_columns(known)
+        unknown = table.unknown_columns(columns.known)
         raise InputError(
             f"no partition column: give exactly one of {', '.join(PARTITION_COLUMNS)}"
             + (f"; unknown column(s) {unknown}" if unknown else ""),
@@ -330,50 +423,28 @@ def points_from_table(table: Table, *, size_unit: str | None = None) -> list[Tro
         raise InputError(
             f"several partition columns ({', '.join(given)}): give exactly one", source=table.source, column=given[1]
         )
-    table.refuse_unknown(known, what="Tromp-points file")
-    column = given[0]
-    scale, to_fines = PARTITION_COLUMNS[column]
-    size = table.numeric(size_column)
-    partition = table.numeric(column)
-    upper = scale
-    bad = np.flatnonzero((partition < 0) | (partition > upper))
-    if bad.size:
-        i = int(bad[0])
-        raise table.error(f"partition {partition[i]:g} outside 0..{upper:g}", index=i, column=column)
-    bad = np.flatnonzero(size <= 0)
-    if bad.size:
-        raise table.error(f"size must be positive, got {size[bad[0]]:g}", index=int(bad[0]), column=size_column)
-    weight = None
-    if "weight" in table.frame.columns:
-        weight = table.numeric("weight")
-        bad = np.flatnonzero(weight <= 0)
-        if bad.size:
-            raise table.error("weight must be positive", index=int(bad[0]), column="weight")
-    phi = partition / scale
-    if not to_fines:
-        phi = 1.0 - phi
-    experiments = table.experiment_labels()
-    result = []
-    for name, rows in experiment_rows(experiments).items():
-        _check_unique_sizes(table, rows, size, size_column)
-        result.append(
-            TrompPoints(
-                experiment=name,
-                size=size[rows],
-                partition_fine=phi[rows],
-                weight=None if weight is None else weight[rows],
-                source=table.source,
-                size_unit=unit,
-            )
-        )
-    return result
+    table.refuse_unknown(columns.known, what="Tromp-points file")
+    return given[0]
 
 
-def experiment_rows(labels) -> dict:
-    """Positions of each experiment's rows, experiments in order of first appearance (one
-    pass over the labels: a file of 10,000 experiments is not scanned 10,000 times)."""
-    groups = pd.Series(np.arange(len(labels))).groupby(pd.Series(labels, dtype=object), sort=False).indices
-    return {name: np.asarray(groups[name]) for name in dict.fromkeys(labels)}
+def _refuse_first(table: Table, bad: np.ndarray, column: str, message) -> None:
+    """Refuse the first row marked ``bad`` with ``message(index)``."""
+    found = np.flatnonzero(bad)
+    if found.size:
+        raise table.error(message(int(found[0])), index=int(found[0]), column=column)
+
+
+def experiment_points(name: str, rows: np.ndarray, values: PointsValues, *, source: str, columns: PointsColumns) -> TrompPoints:
+    """The points of experiment ``name`` from its rows (``rows``: their numbers in the file)."""
+    _check_unique_sizes(source, rows, values.size, columns.size)
+    return TrompPoints(
+        experiment=name,
+        size=values.size,
+        partition_fine=values.partition_fine,
+        weight=values.weight,
+        source=source,
+        size_unit=columns.unit,
+    )
 
 
 def _known_points_columns(size_column: str) -> list[str]:
@@ -390,16 +461,17 @@ def _known_points_columns(size_column: str) -> list[str]:
     ]
 
 
-def _check_unique_sizes(table: Table, rows: np.ndarray, size: np.ndarray, column: str = "size") -> None:
+def _check_unique_sizes(source: str, rows: np.ndarray, size: np.ndarray, column: str = "size") -> None:
     seen = {}
-    for i in rows:
-        if size[i] in seen:
-            raise table.error(
-                f"duplicate size {size[i]:g} in the same experiment (also at row {table.rows[seen[size[i]]]})",
-                index=int(i),
+    for row, value in zip(rows, size):
+        if value in seen:
+            raise InputError(
+                f"duplicate size {value:g} in the same experiment (also at row {seen[value]})",
+                source=source,
+                row=int(row) if isinstance(row, (int, np.integer)) else row,  # a DataFrame's index label may be text
                 column=column,
             )
-        seen[size[i]] = i
+        seen[value] = row
 
 
 def points_from_frame(frame: pd.DataFrame, *, source: str = "data frame") -> list[TrompPoints]:
@@ -408,3 +480,173 @@ def points_from_frame(frame: pd.DataFrame, *, source: str = "data frame") -> lis
     frame = frame.reset_index(drop=True)
     frame.index = frame.index + 1
     return points_from_table(table_from_frame(frame, source=source))
+
+
+# --- a points file read in pieces ----------------------------------------------------------------
+def iter_experiments(
+    path, *, piece_rows: int = DEFAULT_PIECE_ROWS, size_unit: str | None = None, sep=None, decimal=None, sheet=None
+) -> Iterator[TrompPoints]:
+    """The experiments of a Tromp-points file one at a time, the file read in pieces.
+
+    The same points, checks and messages as :func:`read_points` (file, row, column), in the
+    same order (that of first appearance), with the memory of a piece of ``piece_rows``
+    records and of the experiments not yet complete, however large the file.  Two passes
+    over the file: the first makes every check of :func:`read_points` and counts the rows of
+    each experiment (one entry per experiment in memory); the second reads the pieces again
+    and yields each experiment as soon as all its rows are read.  When the rows of every
+    experiment are consecutive (the usual file) an experiment is yielded at the end of the
+    piece that completes it; rows of an experiment spread over the file are kept until its
+    last row is read, so for such a file the memory grows with the span of the experiments
+    (sort the file by experiment to avoid it).  An Excel workbook or a DataFrame is read whole.
+
+    Parameters
+    ----------
+    path : str, path-like or pandas.DataFrame
+        A points file, as for :func:`read_points`.
+    piece_rows : int
+        Records per piece (:func:`~tromplab.loading.tables.read_table_in_pieces`).
+    size_unit, sep, decimal, sheet
+        As for :func:`read_points`.
+
+    Yields
+    ------
+    TrompPoints
+        One per experiment, in order of first appearance.
+
+    Raises
+    ------
+    InputError
+        As :func:`read_points`: every fault of a row is found by the first pass, before any
+        experiment is yielded, and named as :func:`read_points` names it; a size repeated
+        within an experiment, or points that :class:`TrompPoints` refuses, when that
+        experiment is reached in the second pass (after the experiments before it).
+
+    Notes
+    -----
+    For a batch of any size: take the experiments in chunks as they come
+    (``itertools.islice(experiments, 1024)`` until it is empty) and fit each chunk before the
+    next is read; nothing of a chunk need stay once its results are written.  Reading the
+    file is done by the consumer's process, in order; the iterator is not thread-safe.
+
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> folder = pathlib.Path(tempfile.mkdtemp())
+    >>> _ = (folder / "points.csv").write_text("experiment,size,partition_fine\\na,10,0.9\\nb,10,0.8\\na,20,0.4\\nb,20,0.3\\n")
+    >>> [(p.experiment, p.n) for p in iter_experiments(folder / "points.csv", piece_rows=2)]
+    [('a', 2), ('b', 2)]
+    """
+    if sheet is not None or not isinstance(path, (str, os.PathLike)) or Path(path).suffix.lower() in EXCEL_SUFFIXES:
+        yield from read_points(path, sheet=sheet, size_unit=size_unit, sep=sep, decimal=decimal)
+        return
+
+    def pieces(warn: bool):
+        return read_table_in_pieces(path, piece_rows=piece_rows, sep=sep, decimal=decimal, warn=warn)
+
+    index = _index_experiments(pieces(warn=True), size_unit)
+    if index.consecutive:
+        yield from _experiments_of_pieces(pieces(warn=False), index.columns, index.counts)
+    else:
+        yield from _experiments_sorted_on_disk(pieces(warn=False), index, piece_rows)
+
+
+class _FaultAt(Exception):
+    """An :class:`InputError` met at step ``step`` of :func:`checked_values`."""
+
+    def __init__(self, step: int, error: InputError):
+        super().__init__(step, error)
+        self.step, self.error = step, error
+
+
+@contextlib.contextmanager
+def _numbered_check(step: int):
+    try:
+        yield
+    except InputError as error:
+        raise _FaultAt(step, error) from None
+
+
+def _index_experiments(pieces, size_unit: str | None) -> ExperimentIndex:
+    """The first pass: every check of a points table on every piece, and the rows of each
+    experiment counted.  Raises the fault the whole-table reader would name: the one of the
+    earliest check, the first in the file among them."""
+    index, fault, used = ExperimentIndex(), None, 0
+    for table in pieces:
+        index.columns = index.columns or points_columns(table, size_unit)
+        used += _used_rows(table)
+        try:
+            table, values = checked_values(table, index.columns, _numbered_check, require_used=False)
+        except _FaultAt as found:
+            fault = found if fault is None or found.step < fault.step else fault
+            continue
+        index.add(values.labels)
+    if not used and (fault is None or fault.step > USED_MARKS):
+        raise InputError("no row is marked as used", source=str(table.source), column="used")
+    if fault is not None:
+        raise fault.error
+    return index
+
+
+def _used_rows(table: Table) -> int:
+    """How many rows of a piece are marked as used (all without a ``used`` column; none where
+    a mark is not yes or no, a fault the checks report)."""
+    if "used" not in table.frame.columns:
+        return len(table.frame)
+    try:
+        return int(table.boolean("used").sum())
+    except InputError:
+        return 0
+
+
+def _experiments_of_pieces(pieces, columns: PointsColumns, counts: dict[str, int]) -> Iterator[TrompPoints]:
+    """The second pass: the rows of each experiment gathered from the pieces, each experiment
+    yielded (in order of first appearance) as soon as its last row is read."""
+    order = iter(counts.items())
+    waiting, gathered = next(order, (None, 0))
+    pending: dict[str, list] = {}
+    for table in pieces:
+        table, values = checked_values(table, columns, require_used=False)
+        for name, rows in experiment_rows(values.labels).items():
+            pending.setdefault(name, []).append((table.rows[rows], values.take(rows)))
+        while waiting is not None and sum(len(rows) for rows, _ in pending.get(waiting, ())) == gathered:
+            parts = pending.pop(waiting)
+            rows = np.concatenate([rows for rows, _ in parts])
+            yield experiment_points(waiting, rows, _joined([part for _, part in parts]), source=table.source, columns=columns)
+            waiting, gathered = next(order, (None, 0))
+
+
+def _joined(parts: list[PointsValues]) -> PointsValues:
+    if len(parts) == 1:
+        return parts[0]
+    weight = None if parts[0].weight is None else np.concatenate([p.weight for p in parts])
+    return PointsValues(
+        *(np.concatenate([getattr(p, name) for p in parts]) for name in ("labels", "size", "partition_fine")), weight
+    )
+
+
+def _experiments_sorted_on_disk(pieces, index: ExperimentIndex, piece_rows: int) -> Iterator[TrompPoints]:
+    """The second pass for experiments whose rows are spread over the file: an external sort.
+    The checked rows of each piece (experiment, row number, size, partition, weight) go to
+    temporary binary files, each holding a run of consecutive experiments (about ``piece_rows``
+    rows, or a 256th of the file); each file is then read, sorted and cut into experiments."""
+    names = list(index.counts)
+    position, per_file = index.runs(piece_rows)
+    weighted, source = False, ""
+    with tempfile.TemporaryDirectory(prefix="tromplab-sort-") as folder:
+        for table in pieces:
+            table, values = checked_values(table, index.columns, require_used=False)
+            number = np.fromiter((position[name] for name in values.labels), dtype=float, count=values.labels.size)
+            weighted, source = values.weight is not None, table.source
+            weight = values.weight if weighted else np.ones(number.size)
+            records = np.column_stack([number, table.rows.astype(float), values.size, values.partition_fine, weight])
+            run = number.astype(int) // per_file
+            for file in np.unique(run):
+                with open(Path(folder) / f"{file}.bin", "ab") as stream:
+                    records[run == file].tofile(stream)
+        for file in range(-(-len(names) // per_file)):
+            records = np.fromfile(Path(folder) / f"{file}.bin").reshape(-1, 5)
+            records = records[np.argsort(records[:, 0], kind="stable")]  # file order within an experiment
+            for part in np.split(records, np.flatnonzero(np.diff(records[:, 0])) + 1):
+                values = PointsValues(None, part[:, 2], part[:, 3], part[:, 4] if weighted else None)
+                name = names[int(part[0, 0])]
+                yield experiment_points(name, part[:, 1].astype(int), values, source=source, columns=index.columns)

@@ -37,11 +37,15 @@ import csv
 import datetime
 import difflib
 import io
+import itertools
 import logging
 import os
+import pickle
 import re
+import tempfile
 import warnings
-from dataclasses import dataclass
+from collections.abc import Iterator
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -235,19 +239,10 @@ def read_table(
         fields than the header, no data rows, or the sheet does not exist.
     """
     if isinstance(path, pd.DataFrame):
-        if sheet is not None:
-            raise InputError(f"a sheet ({sheet!r}) was given with a DataFrame", source=DATAFRAME_SOURCE)
-        if sep is not None or decimal is not None:
-            raise InputError("sep and decimal apply to CSV files, not to a DataFrame", source=DATAFRAME_SOURCE)
+        _refuse_file_options_with_a_frame(sheet, sep, decimal)
         return table_from_frame(path, text_columns=text_columns)
-    if not isinstance(path, (str, os.PathLike)):
-        raise TypeError(f"a table is read from a file path (str or path-like) or a pandas DataFrame, got {type(path).__name__}")
-    path = Path(path)
+    path, sep = _checked_file_request(path, sep, decimal)
     source = str(path)
-    sep = {"\\t": "\t", "tab": "\t"}.get(sep, sep)  # a tab is hard to type on a command line
-    for name, value in (("separator (--sep)", sep), ("decimal mark (--decimal)", decimal)):
-        if value is not None and (len(value) != 1 or value in '"\n\r' or value.isalnum()):
-            raise InputError(f"the {name} must be one character such as ';' or ',', got {value!r}", source=source)
     _check_path(path)
     suffix = path.suffix.lower()
     if suffix in EXCEL_SUFFIXES:
@@ -259,15 +254,349 @@ def read_table(
         if sheet is not None:
             raise InputError(f"a sheet ({sheet!r}) was given but the file is not an Excel workbook", source=source)
         frame, rows, header, notes = _read_csv(path, sep=sep, decimal=decimal, columns=columns, text_columns=text_columns)
-    _check_header(header, source)
-    frame.columns = [str(c).strip() for c in (header if columns is None else frame.columns)]
-    frame = _with_names_as_text(_drop_empty_unnamed(frame, source), text_columns)
+    frame = _named_columns(frame, header, columns, source, text_columns)
     if frame.empty:
         raise InputError("the table has a header but no data rows", source=source)
     for note in notes:
         warnings.warn(f"{source}: {note}", InputNote, stacklevel=2)
     logger.info("read %s: %d data rows, columns %s", source, len(frame), ", ".join(map(str, frame.columns)))
     return Table(frame.reset_index(drop=True), rows, source, tuple(notes))
+
+
+def _refuse_file_options_with_a_frame(sheet, sep, decimal) -> None:
+    if sheet is not None:
+        raise InputError(f"a sheet ({sheet!r}) was given with a DataFrame", source=DATAFRAME_SOURCE)
+    if sep is not None or decimal is not None:
+        raise InputError("sep and decimal apply to CSV files, not to a DataFrame", source=DATAFRAME_SOURCE)
+
+
+def _checked_file_request(path, sep: str | None, decimal: str | None) -> tuple[Path, str | None]:
+    """The path of a table file and its separator (a tab spelled out as ``\\t`` or ``tab``), or
+    an error for another kind of argument or a separator or decimal mark that is not one character."""
+    if not isinstance(path, (str, os.PathLike)):
+        raise TypeError(f"a table is read from a file path (str or path-like) or a pandas DataFrame, got {type(path).__name__}")
+    path = Path(path)
+    sep = {"\\t": "\t", "tab": "\t"}.get(sep, sep)  # a tab is hard to type on a command line
+    for name, value in (("separator (--sep)", sep), ("decimal mark (--decimal)", decimal)):
+        if value is not None and (len(value) != 1 or value in '"\n\r' or value.isalnum()):
+            raise InputError(f"the {name} must be one character such as ';' or ',', got {value!r}", source=str(path))
+    return path, sep
+
+
+def _named_columns(frame: pd.DataFrame, header, columns, source: str, text_columns) -> pd.DataFrame:
+    """``frame`` with the header's names (trimmed, checked), empty unnamed columns dropped and
+    name columns as text."""
+    _check_header(header, source)
+    frame.columns = [str(c).strip() for c in (header if columns is None else frame.columns)]
+    return _with_names_as_text(_drop_empty_unnamed(frame, source), text_columns)
+
+
+#: Records per piece of :func:`read_table_in_pieces` (a piece of 10,000 points takes about 2 MB).
+DEFAULT_PIECE_ROWS = 10_000
+
+
+def read_table_in_pieces(
+    path, *, piece_rows: int = DEFAULT_PIECE_ROWS, sep=None, decimal=None, columns=None, text_columns=(), warn: bool = True
+) -> Iterator[Table]:
+    """Read a CSV table in pieces of at most ``piece_rows`` records, each a :class:`Table`.
+
+    The memory is bounded by the piece, not the file: lines are read one after another and
+    each piece is parsed by pandas as :func:`read_table` parses the whole file (same values,
+    row numbers, notes and errors; the layout detected from the header and the first 49 data
+    lines).  An Excel workbook or a DataFrame is not read in pieces: it comes whole.
+
+    Parameters
+    ----------
+    path : str, path-like or pandas.DataFrame
+        The file, as for :func:`read_table`.
+    piece_rows : int
+        Most records per piece (at least 1); a record with quoted line breaks is never cut.
+    sep, decimal, columns, text_columns
+        As for :func:`read_table`.
+    warn : bool
+        Warn of the layout detected (:class:`~tromplab.errors.InputNote`), as :func:`read_table`
+        does; False for a second reading of the same file.
+
+    Yields
+    ------
+    Table
+        Consecutive records of the file, with their line numbers; a piece whose lines are
+        all blank cells is left out.
+
+    Raises
+    ------
+    InputError
+        As :func:`read_table`, when the piece with the fault is read.  Where a quoted field
+        spans lines, rows are numbered by their first line (the whole-file reader numbers
+        such a table's records instead).
+    """
+    if isinstance(path, pd.DataFrame) or (isinstance(path, (str, os.PathLike)) and Path(path).suffix.lower() in EXCEL_SUFFIXES):
+        yield read_table(path, sep=sep, decimal=decimal, columns=columns, text_columns=text_columns)
+        return
+    if int(piece_rows) < 1:
+        raise ValueError(f"piece_rows must be at least 1, got {piece_rows}")
+    path, sep = _checked_file_request(path, sep, decimal)
+    _check_path(path)
+    source = str(path)
+    blocks = _content_blocks(path, min(1 << 20, 64 * int(piece_rows)))  # characters: about a piece's lines
+    numbers, lines = _first_lines_of(blocks, 50)
+    if not lines:
+        raise InputError("the file has no header and no data (only comments or blank lines)", source=source)
+    header_number, header_line = numbers[0], lines[0]
+    sep, decimal, notes = csv_layout(header_line, lines[1:50], sep, decimal, path.suffix.lower(), source)
+    header = _checked_header_line(header_line, sep, source, notes if warn else ())
+    count = lines_before = 0
+    for piece_numbers, piece in _pieces(itertools.chain([(numbers[1:], lines[1:])], blocks), int(piece_rows)):
+        body = "\n".join([header_line, *piece])
+        frame, rows = parse_csv_body(body, [header_number, *piece_numbers], header, header_line, sep=sep,
+                                     decimal=decimal, columns=columns, text_columns=text_columns, source=source,
+                                     records_before=lines_before)  # fmt: skip
+        lines_before += len(piece)
+        frame = _named_columns(frame, header[: frame.shape[1]] if columns is None else header, columns, source, text_columns)
+        if not frame.empty:
+            count += len(frame)
+            yield Table(frame.reset_index(drop=True), rows, source, tuple(notes))
+    if not count:
+        raise InputError("the table has a header but no data rows", source=source)
+    logger.info("read %s in pieces of %d records: %d data rows", source, piece_rows, count)
+
+
+def _checked_header_line(header_line: str, sep: str, source: str, notes) -> list[str]:
+    """The checked names of a header line; the notes on the layout are warned of."""
+    header = header_cells(header_line, sep)
+    _check_header(header, source)
+    for note in notes:
+        warnings.warn(f"{source}: {note}", InputNote, stacklevel=3)
+    return header
+
+
+def _content_blocks(path: Path, block: int = 1 << 20) -> Iterator[tuple[list[int], list[str]]]:
+    """``(numbers, lines)`` of the header line and the data lines of a CSV file, a block of
+    about ``block`` characters at a time (line breaks ``\\r\\n``, ``\\r`` or ``\\n``): comments
+    and blank lines above the header are skipped, below it blank lines only, as
+    :func:`_content_lines` does."""
+    count, header_seen = 0, False
+    try:
+        with path.open(encoding="utf-8-sig", newline=None) as stream:
+            for text in _line_blocks(stream, block):
+                lines = text.split("\n")
+                numbers = range(count + 1, count + 1 + len(lines))
+                count += len(lines)
+                if not header_seen:
+                    first = next((i for i, line in enumerate(lines) if not is_comment_or_blank(line)), None)
+                    if first is None:
+                        continue
+                    header_seen = True
+                    lines, numbers = lines[first:], numbers[first:]
+                if any(not line.strip(" \t") for line in lines):
+                    keep = [i for i, line in enumerate(lines) if line.strip(" \t")]
+                    lines, numbers = [lines[i] for i in keep], [numbers[i] for i in keep]
+                if lines:
+                    yield list(numbers), lines
+    except UnicodeDecodeError:
+        raise _first_undecodable(path) from None
+
+
+def _line_blocks(stream, block: int) -> Iterator[str]:
+    """The text of ``stream`` in blocks of whole lines, each without its last line break."""
+    carry = ""
+    while text := stream.read(block):
+        text = carry + text
+        cut = text.rfind("\n")
+        if cut < 0:
+            carry = text
+            continue
+        carry = text[cut + 1 :]
+        yield text[:cut]
+    if carry:
+        yield carry
+
+
+def _first_lines_of(blocks, count: int) -> tuple[list[int], list[str]]:
+    """At least ``count`` content lines from ``blocks`` (all there are when fewer), with their numbers."""
+    numbers, lines = [], []
+    while len(lines) < count:
+        found = next(blocks, None)
+        if found is None:
+            break
+        numbers += found[0]
+        lines += found[1]
+    return numbers, lines
+
+
+def _first_undecodable(path: Path, block: int = 1 << 20) -> InputError:
+    """The error :func:`_decoded_text` gives for the first byte of ``path`` that is not UTF-8,
+    found block by block."""
+    lines, carry = 0, b""
+    with path.open("rb") as stream:
+        for data in iter(lambda: stream.read(block), b""):
+            data = carry + data
+            try:
+                data.decode("utf-8")
+                carry = b""
+            except UnicodeDecodeError as error:
+                if error.reason != "unexpected end of data":  # not a character cut by the block's end
+                    return not_utf8(str(path), data[error.start], lines + data[: error.start].count(b"\n") + 1)
+                carry = data[error.start :]
+                data = data[: error.start]
+            lines += data.count(b"\n")
+    return not_utf8(str(path), carry[0], lines + 1)
+
+
+def _pieces(blocks, piece_rows: int) -> Iterator[tuple[list[int], list[str]]]:
+    """``(numbers, lines)`` of consecutive pieces of at most ``piece_rows`` lines of ``blocks``,
+    longer only to end outside double quotes (a quoted field may hold a line break)."""
+    numbers, lines = [], []
+    for more_numbers, more_lines in blocks:
+        numbers += more_numbers
+        lines += more_lines
+        start = 0
+        while len(lines) - start >= piece_rows:
+            end = _end_outside_quotes(lines, start, start + piece_rows)
+            if end is None:
+                break
+            yield numbers[start:end], lines[start:end]
+            start = end
+        numbers, lines = numbers[start:], lines[start:]
+    if lines:
+        yield numbers, lines
+
+
+def _end_outside_quotes(lines: list[str], start: int, end: int) -> int | None:
+    """The first end at or after ``end`` where ``lines[start:end]`` hold an even number of
+    double quotes; None when the lines run out first."""
+    quotes = "".join(lines[start:end]).count('"')
+    while quotes % 2 and end < len(lines):
+        quotes += lines[end].count('"')
+        end += 1
+    return None if quotes % 2 else end
+
+
+#: Most temporary files among which the rows of a table whose experiments are not consecutive
+#: are sorted (experiments in order of first appearance, a run of them per file).
+MAX_SORT_FILES = 256
+
+
+@dataclass
+class ExperimentIndex:
+    """What a first pass over the pieces of a table finds: the number of rows of each
+    experiment in order of first appearance, and whether each experiment's rows are
+    consecutive (one entry per experiment in memory).  ``columns`` is for the caller (the
+    columns its checks found)."""
+
+    counts: dict = field(default_factory=dict)
+    consecutive: bool = True
+    last: str | None = None
+    columns: object = None
+
+    def add(self, labels: np.ndarray) -> None:
+        """Count the rows of a piece, ``labels`` naming the experiment of each."""
+        if not labels.size:
+            return
+        runs = labels[np.flatnonzero(np.r_[True, labels[1:] != labels[:-1]])]
+        fresh = runs[1:] if runs[0] == self.last else runs
+        if len(set(fresh)) < fresh.size or any(name in self.counts for name in fresh):
+            self.consecutive = False
+        self.last = runs[-1]
+        names, first, counts = np.unique(labels, return_index=True, return_counts=True)
+        for at in np.argsort(first, kind="stable"):
+            self.counts[names[at]] = self.counts.get(names[at], 0) + int(counts[at])
+
+    def runs(self, rows_per_run: int) -> tuple[dict, int]:
+        """The position of each experiment and how many consecutive experiments share one of
+        at most :data:`MAX_SORT_FILES` runs of about ``rows_per_run`` rows."""
+        rows_per_experiment = sum(self.counts.values()) / len(self.counts)
+        per_run = max(1, int(rows_per_run / rows_per_experiment), -(-len(self.counts) // MAX_SORT_FILES))
+        return {name: i for i, name in enumerate(self.counts)}, per_run
+
+
+def iter_experiment_tables(
+    path, *, piece_rows: int = DEFAULT_PIECE_ROWS, sep=None, decimal=None, text_columns=()
+) -> Iterator[Table]:
+    """The rows of each experiment of a CSV table as a :class:`Table`, the file read in pieces.
+
+    For readers that work experiment by experiment (a lab table's mass balances): the tables
+    come in order of first appearance, each with the file's row numbers, after a first pass
+    that counts each experiment's rows (and makes the checks of :func:`read_table`, and the
+    blank-name check of :meth:`Table.experiment_labels`).  Rows of one experiment spread over
+    the file are sorted on disk (at most :data:`MAX_SORT_FILES` temporary files).  Without an
+    ``experiment`` column the whole table is one experiment, and comes whole.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The file (a workbook or DataFrame is read whole, see :func:`read_table_in_pieces`).
+    piece_rows : int
+        Records per piece.
+    sep, decimal, text_columns
+        As for :func:`read_table`.
+
+    Yields
+    ------
+    Table
+        The rows of one experiment.
+    """
+
+    def pieces(warn: bool):
+        return read_table_in_pieces(path, piece_rows=piece_rows, sep=sep, decimal=decimal, text_columns=text_columns, warn=warn)
+
+    index = ExperimentIndex()
+    for table in pieces(True):
+        index.add(table.experiment_labels())
+    if index.consecutive:
+        yield from _consecutive_experiment_tables(pieces(False), index.counts)
+        return
+    position, per_run = index.runs(piece_rows)
+    with tempfile.TemporaryDirectory(prefix="tromplab-sort-") as folder:
+        for table in pieces(False):
+            run = (
+                np.fromiter((position[name] for name in table.experiment_labels()), dtype=int, count=len(table.frame)) // per_run
+            )
+            for number in np.unique(run):
+                with open(Path(folder) / f"{number}.pickle", "ab") as stream:  # our own file, read back below
+                    pickle.dump(table.subset(run == number), stream)
+        for number in range(-(-len(position) // per_run)):
+            with open(Path(folder) / f"{number}.pickle", "rb") as stream:
+                parts = list(_pickled(stream))
+            yield from _consecutive_experiment_tables([_joined_tables(parts)], None)
+
+
+def _pickled(stream):
+    while True:
+        try:
+            yield pickle.load(stream)  # noqa: S301 - a temporary file this module wrote
+        except EOFError:
+            return
+
+
+def _consecutive_experiment_tables(pieces, counts: dict | None) -> Iterator[Table]:
+    """The table of each experiment of ``pieces``, yielded when its ``counts`` rows are read
+    (``counts`` None: every experiment of the pieces, at their end)."""
+    pending: dict[str, list[Table]] = {}
+    order = iter(counts.items()) if counts is not None else None
+    waiting, expected = next(order, (None, 0)) if order is not None else (None, 0)
+    for table in pieces:
+        for name, rows in experiment_rows(table.experiment_labels()).items():
+            pending.setdefault(name, []).append(table.subset(rows))
+        while waiting is not None and sum(len(part.frame) for part in pending.get(waiting, ())) == expected:
+            yield _joined_tables(pending.pop(waiting))
+            waiting, expected = next(order, (None, 0))
+    for parts in pending.values():  # counts None: all at the end, in order of first appearance
+        yield _joined_tables(parts)
+
+
+def experiment_rows(labels) -> dict:
+    """Positions of each experiment's rows, experiments in order of first appearance (one
+    pass over the labels: a file of 10,000 experiments is not scanned 10,000 times)."""
+    groups = pd.Series(np.arange(len(labels))).groupby(pd.Series(labels, dtype=object), sort=False).indices
+    return {name: np.asarray(groups[name]) for name in dict.fromkeys(labels)}
+
+
+def _joined_tables(parts: list[Table]) -> Table:
+    if len(parts) == 1:
+        return parts[0]
+    frame = pd.concat([part.frame for part in parts], ignore_index=True)
+    return Table(frame, np.concatenate([part.rows for part in parts]), parts[0].source, parts[0].notes)
 
 
 DATAFRAME_SOURCE = "DataFrame"
@@ -388,18 +717,42 @@ def _content_lines(lines: list[str]) -> list[int]:
 
 def _read_csv(path: Path, *, sep, decimal, columns=None, text_columns=()):
     source = str(path)
+    text = _decoded_text(path)
+    lines, content, body = _csv_content(path, text)
+    if not content:
+        raise InputError("the file has no header and no data (only comments or blank lines)", source=source)
+    header_line = lines[content[0] - 1]
+    first_rows = [lines[i - 1] for i in content[1:50]]
+    del lines, text
+    sep, decimal, notes = csv_layout(header_line, first_rows, sep, decimal, path.suffix.lower(), source)
+    header = header_cells(header_line, sep)
+    frame, rows = parse_csv_body(body, content, header, header_line, sep=sep, decimal=decimal, columns=columns,
+                                 text_columns=text_columns, source=source)  # fmt: skip
+    return frame, rows, (header[: frame.shape[1]] if columns is None else header), notes
+
+
+def _decoded_text(path: Path) -> str:
+    """The file as text, or an error naming the line of the first byte that is not UTF-8."""
     raw = path.read_bytes()
     try:
-        text = raw.decode("utf-8-sig")
+        return raw.decode("utf-8-sig")
     except UnicodeDecodeError as error:
-        line = raw[: error.start].count(b"\n") + 1
-        raise InputError(
-            f"the text is not UTF-8 (byte 0x{raw[error.start]:02x} cannot be decoded): save the file as UTF-8 "
-            "(in Excel: CSV UTF-8)",
-            source=source,
-            row=line,
-        ) from None
-    del raw
+        raise not_utf8(str(path), raw[error.start], raw[: error.start].count(b"\n") + 1) from None
+
+
+def not_utf8(source: str, byte: int, line: int) -> InputError:
+    """The error for a byte that cannot be decoded as UTF-8 on ``line`` (1-based)."""
+    return InputError(
+        f"the text is not UTF-8 (byte 0x{byte:02x} cannot be decoded): save the file as UTF-8 (in Excel: CSV UTF-8)",
+        source=source,
+        row=line,
+    )
+
+
+def _csv_content(path: Path, text: str) -> tuple[list[str], list[int], str | Path]:
+    """``(lines, content, body)``: lines enough for the header and the layout's detection, the
+    numbers (1-based) of the header line and the data lines, and what pandas parses (the file
+    itself when every line is content, else the content lines joined)."""
     end = len(text)
     while end and text[end - 1] in "\r\n \t":
         end -= 1
@@ -409,33 +762,45 @@ def _read_csv(path: Path, *, sep, decimal, columns=None, text_columns=()):
         content = list(range(1, text.count("\n", 0, end) + 2))
         lines = [line.rstrip("\r") for line in _first_lines(text, 51)]  # enough for the header and decimal marks
         # pandas reads the file itself (a StringIO of a large text would hold four bytes per character)
-        body = path if text[end:] in ("", "\n", "\r\n") else text[:end]
-    else:
-        lines = _LINE_BREAK.split(text[:end])  # line breaks only: a name may hold a form feed or U+2028
-        content = _content_lines(lines)
-        body = "\n".join(lines[i - 1] for i in content)
-    if not content:
-        raise InputError("the file has no header and no data (only comments or blank lines)", source=source)
+        return lines, content, (path if text[end:] in ("", "\n", "\r\n") else text[:end])
+    lines = _LINE_BREAK.split(text[:end])  # line breaks only: a name may hold a form feed or U+2028
+    content = _content_lines(lines)
+    return lines, content, "\n".join(lines[i - 1] for i in content)
+
+
+def csv_layout(header_line: str, first_rows, sep, decimal, suffix: str, source: str) -> tuple[str, str, list[str]]:
+    """``(sep, decimal, notes)``: the separator and decimal mark given, or detected from the
+    header line and the first data lines (``first_rows``, up to 49), with a note for each found."""
     notes = []
-    header_line = lines[content[0] - 1]
     if sep is None:
-        sep = _detect_separator(header_line, path.suffix.lower())
+        sep = _detect_separator(header_line, suffix)
         if sep != ",":
             notes.append(
                 f"read as {'semicolon' if sep == ';' else 'tab'}-separated (detected from the header; declare it with --sep)"
             )
     if decimal is None:
         decimal = "."
-        if sep != "," and any(_DECIMAL_COMMA.match(cell) for i in content[1:50] for cell in lines[i - 1].split(sep)):
+        if sep != "," and any(_DECIMAL_COMMA.match(cell) for line in first_rows for cell in line.split(sep)):
             decimal = ","
             notes.append("decimal commas detected and read as decimal marks (declare them with --decimal ',')")
     if sep == decimal:
         raise InputError(f"the separator and the decimal mark are both '{sep}'", source=source)
-    del lines, text
-    header = [cell.strip() for cell in next(csv.reader([header_line], delimiter=sep, skipinitialspace=True))]
+    return sep, decimal, notes
+
+
+def header_cells(header_line: str, sep: str) -> list[str]:
+    """The column names of a header line, trimmed."""
+    return [cell.strip() for cell in next(csv.reader([header_line], delimiter=sep, skipinitialspace=True))]
+
+
+def parse_csv_body(body, content, header, header_line, *, sep, decimal, columns, text_columns, source, records_before=0):
+    """``(frame, rows)``: the records of ``body`` (CSV text from the header line on, or a file
+    of it) read as :func:`read_table` reads them, rows blank throughout dropped, and the line
+    number of each record (``content``: the numbers of the header and data lines in ``body``);
+    a record with more fields than the header is refused naming its line.  Where quoted fields
+    span lines, records are numbered instead (from 2, after ``records_before`` records)."""
     wanted = None if columns is None else {str(c) for c in columns}
     try:
-        values = _value_options(header_line, sep, text_columns)
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", pd.errors.ParserWarning)
             frame = pd.read_csv(
@@ -448,7 +813,7 @@ def _read_csv(path: Path, *, sep, decimal, columns=None, text_columns=()):
                 index_col=False,
                 header=0,
                 usecols=None if wanted is None else (lambda name: str(name).strip() in wanted),
-                **values,
+                **_value_options(header_line, sep, text_columns),
             )
         too_many = any(issubclass(w.category, pd.errors.ParserWarning) for w in caught)
     except (pd.errors.ParserError, ValueError) as error:
@@ -460,9 +825,9 @@ def _read_csv(path: Path, *, sep, decimal, columns=None, text_columns=()):
         _check_field_counts_of(body, content, len(header), sep, source)
     rows = np.asarray(content[1:], dtype=int)
     if rows.size != len(frame):  # quoted fields spanning lines: fall back to record numbers
-        rows = np.arange(len(frame)) + 2
+        rows = np.arange(len(frame)) + 2 + records_before
     keep = ~frame.isna().all(axis=1).to_numpy()
-    return frame.loc[keep], rows[keep], (header[: frame.shape[1]] if columns is None else header), notes
+    return frame.loc[keep], rows[keep]
 
 
 def _value_options(header_line: str, sep: str, text_columns) -> dict:
