@@ -96,6 +96,15 @@ def _equal_rows(left, right) -> bool:
     return a.keys() == b.keys() and all(x == y or (x != x and y != y) for x, y in zip(a.values(), b.values()))
 
 
+def test_workers_that_cannot_see_the_folder_send_their_files_back_with_the_same_result(tmp_path, monkeypatch):
+    """Gather mode: a Dask cluster's workers on machines without the output folder."""
+    data = _batch()
+    fit_to_folder(data, tmp_path / "memory", stream=False, formulas=FORMULAS, jobs=2, ci=0.9)
+    monkeypatch.setattr(stream_module, "_workers_see", lambda cluster, folder: False)
+    fit_to_folder(data, tmp_path / "gathered", stream=True, formulas=FORMULAS, jobs=2, ci=0.9)
+    assert _same_folders(tmp_path / "memory", tmp_path / "gathered") == []
+
+
 def test_a_failing_streamed_run_leaves_no_folder_and_no_scratch(tmp_path, monkeypatch):
     real = stream_module.spool_chunk
 
