@@ -24,9 +24,11 @@ from pathlib import Path
 from typing import NamedTuple
 
 import pandas as pd
+from scipy import stats
 
 from ..curves.ranking import rank_formulas
 from ..loading.points import TrompPoints
+from ..loading.surveys import with_survey_columns
 from ..output.csv_parts import csv_part, defended_frame, holds_carriage_return, write_csv
 from ..output.outputs import check_output_folder
 from .averages import _averages_table
@@ -106,8 +108,6 @@ def spool_chunk(options: SpoolOptions, work: ChunkWork) -> ChunkSummary:
     files, layouts = {}, {}
     for name, table in tables.items():
         if name == "averages":
-            from ..loading.surveys import with_survey_columns
-
             table = with_survey_columns(table, [*chunk, *options.chunk.survey_probe])
         part = csv_part(table)
         layouts[name] = (part.columns, part.dtypes, part.rows, holds_carriage_return(table))
@@ -201,8 +201,6 @@ class Spool:
         wide = pd.concat([piece.drop(columns=["points", "place"]).reindex(order) for piece in indexed], axis=1)
         wide.index.name = "formula"
         wide["points"] = sum(piece["points"].reindex(order, fill_value=0.0) for piece in indexed)
-        from scipy import stats
-
         wide["place"] = stats.rankdata(wide["points"].to_numpy(), method="min").astype(int)
         return wide.reset_index()
 
