@@ -320,11 +320,11 @@ def _speedup(rows) -> float:
 
 def extrapolated(table: pd.DataFrame, target: int = 1_000_000) -> pd.DataFrame:
     """Seconds and peak memory of each mode at ``target`` experiments, from a straight line
-    ``a + b n`` through the sizes from 10,000 up (through all sizes when fewer than two are)."""
+    ``a + b n`` through the sizes from 10,000 up (none for a mode measured at fewer than two
+    of them: below, the fixed costs and the load of the machine would steer the line)."""
     rows = []
     for mode, group in table.groupby("mode", sort=False):
-        large = group[group["experiments"] >= 10_000]
-        group = large if len(large) >= 2 else group
+        group = group[group["experiments"] >= 10_000]
         if len(group) < 2:
             continue
         n = group["experiments"].to_numpy(dtype=float)
@@ -426,7 +426,8 @@ def main(argv=None):
             wanted = ["2 workers"] if args.acceptance and n == sizes[-1] else modes
             rows += measure_size(n, wanted, folder, cluster, args.bare_limit)
     table = pd.DataFrame(rows).assign(extrapolated=False)
-    table = pd.concat([table, extrapolated(table)], ignore_index=True)
+    extra = extrapolated(table)
+    table = table if extra.empty else pd.concat([table, extra], ignore_index=True)
     save_and_show(table, args.output, load_before)
     columns = ["experiments", "mode", "seconds", "s_per_1000_experiments", "peak_tree_mib", "against_bare_lmfit",
                "speedup_1_to_2_workers", "main_cpu_s", "workers_cpu_s", *[f"main: {s}" for s in STEPS]]  # fmt: skip

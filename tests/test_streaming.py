@@ -96,6 +96,13 @@ def _equal_rows(left, right) -> bool:
     return a.keys() == b.keys() and all(x == y or (x != x and y != y) for x, y in zip(a.values(), b.values()))
 
 
+def test_a_streamed_batch_writes_the_same_folder_on_one_worker_and_on_two(tmp_path):
+    data = _batch()
+    fit_to_folder(data, tmp_path / "one", stream=True, formulas=FORMULAS, jobs=1, bootstrap=10)
+    fit_to_folder(data, tmp_path / "two", stream=True, formulas=FORMULAS, jobs=2, bootstrap=10)
+    assert _same_folders(tmp_path / "one", tmp_path / "two") == []
+
+
 def test_workers_that_cannot_see_the_folder_send_their_files_back_with_the_same_result(tmp_path, monkeypatch):
     """Gather mode: a Dask cluster's workers on machines without the output folder."""
     data = _batch()

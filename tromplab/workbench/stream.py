@@ -16,6 +16,7 @@ from __future__ import annotations
 import inspect
 import logging
 import os
+import threading
 import time
 from dataclasses import replace
 
@@ -77,7 +78,10 @@ def fit_to_folder(experiments, outdir, *, figures: str = "auto", format: str = "
         jobs = given["jobs"]
         return bench, bench.save(outdir, figures=figures, format=format, excel=excel, reloadable=reloadable, jobs=jobs)
     with dask_client(scheduler=given["scheduler"], dask=given["dask"], client=given["client"]) as cluster, Spool(outdir) as spool:
+        warming = _figure_modules_loading() if figures == "auto" and (cluster is not None or given["jobs"] != 1) else None
         bench = _spooled_batch(plan, given, spool, cluster, outdir)
+        if warming is not None:
+            warming.join()
         bench.check_fitted(source or "")
         started = time.perf_counter()
         tables = {f"{name}.csv": spool.table_writer(name) for name in ("fits", "averages")}
@@ -150,6 +154,21 @@ def _spooled_batch(plan, given: dict, spool: Spool, cluster, outdir) -> Workbenc
     bench._attach_spooled_run(run)
     seconds["join the summaries"] = time.perf_counter() - started
     return bench
+
+
+def _figure_modules_loading() -> threading.Thread:
+    """A thread importing matplotlib's figure and Agg modules (its font list included, about
+    0.5 s), started while the workers fit: the overview is drawn after the last chunk, in the
+    serial part of the run.  Nothing is drawn in it (matplotlib's fonts are not shared safely
+    between threads); join it before drawing."""
+
+    def load():
+        import matplotlib.backends.backend_agg  # noqa: F401
+        import matplotlib.figure  # noqa: F401
+
+    thread = threading.Thread(target=load, name="tromplab-figure-modules", daemon=True)
+    thread.start()
+    return thread
 
 
 def _workers_see(cluster, folder) -> bool:
