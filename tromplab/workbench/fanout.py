@@ -169,8 +169,11 @@ def _map_work(function, chunks, argument, *, jobs, client):
     work = functools.partial(_with_older_objects_frozen, function, argument)
     with _results_kept_out_of_collections() as keep:
         if client is not None:
-            for future in client.map(work, chunks, pure=False):
-                yield future.result()
+            futures = client.map(work, chunks, pure=False)
+            for position in range(len(futures)):
+                result = futures[position].result()
+                futures[position] = None  # released: the worker that made it forgets it now, not at the end
+                yield result
                 keep()
             return
         workers = min(jobs or os.cpu_count() or 1, len(chunks))

@@ -42,7 +42,13 @@ logger = logging.getLogger(__package__)
 
 @dataclass(frozen=True)
 class Workbench:
-    """All fits of a batch with their tables."""
+    """All fits of a batch with their tables.
+
+    A batch streamed to disk (:func:`~tromplab.workbench.fit_to_folder`, from
+    :data:`~tromplab.workbench.STREAM_THRESHOLD` experiments) keeps no fit: its ``fits`` is a
+    sequence that refits the experiments when read, its tables come from its results folder,
+    and :meth:`fit` refits one experiment (docs/performance.md, "Large batches").
+    """
 
     fits: tuple[CurveFit, ...]
     failures: dict[str, str] = field(default_factory=dict)
