@@ -185,6 +185,8 @@ def child_run(points, outdir, workers, scheduler):
                 "streamed": bench._spooled is not None,
                 "main_cpu_s": _cpu_seconds(resource.RUSAGE_SELF) - main_before,
                 "workers_cpu_s": _cpu_seconds(resource.RUSAGE_CHILDREN) - workers_before,
+                "peak_main_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+                "peak_one_worker_mib": resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024,
                 **{f"main: {step}": steps.get(step, float("nan")) for step in STEPS},
             }
         )
@@ -429,7 +431,7 @@ def main(argv=None):
     extra = extrapolated(table)
     table = table if extra.empty else pd.concat([table, extra], ignore_index=True)
     save_and_show(table, args.output, load_before)
-    columns = ["experiments", "mode", "seconds", "s_per_1000_experiments", "peak_tree_mib", "against_bare_lmfit",
+    columns = ["experiments", "mode", "seconds", "s_per_1000_experiments", "peak_tree_mib", "peak_main_mib", "against_bare_lmfit",
                "speedup_1_to_2_workers", "main_cpu_s", "workers_cpu_s", *[f"main: {s}" for s in STEPS]]  # fmt: skip
     with pd.option_context("display.width", 250, "display.max_columns", 30):
         print(table[[c for c in columns if c in table.columns]].to_string(index=False, float_format=lambda v: f"{v:.3g}"))

@@ -150,3 +150,29 @@ def test_save_of_a_streamed_batch_copies_its_files_and_refuses_what_needs_the_fi
 
     with pytest.raises(OptionError, match="excel"):
         streamed.save(tmp_path / "other", excel=True)
+
+
+def test_chunks_typed_differently_are_joined_from_their_rows_into_the_whole_table_s_text(tmp_path):
+    """The fallback of the joined files: one chunk's integer column is another's float column
+    (``n`` would print ``10`` in one and ``10.0`` in the other), so the texts cannot be glued."""
+    import pickle
+
+    from tromplab.output.csv_parts import csv_part, write_csv
+    from tromplab.workbench.spool import ChunkSummary, Spool, chunk_file
+
+    chunks = [pd.DataFrame({"experiment": ["a", "b"], "n": [10, 12]}), pd.DataFrame({"experiment": ["c"], "n": [np.nan]})]
+    with Spool(tmp_path / "out") as spool:
+        for number, frame in enumerate(chunks):
+            part = csv_part(frame)
+            files = {
+                chunk_file("fits", number, "csv"): part.text.encode(),
+                chunk_file("fits", number, "pkl"): pickle.dumps(frame),
+            }
+            layouts = {"fits": (part.columns, part.dtypes, part.rows, False)}
+            spool.keep(ChunkSummary(number, {}, 0, 0, [], layouts, None, pd.DataFrame(), None, files))
+        spool.table_writer("fits")(tmp_path / "joined.csv")
+        glued = tmp_path / "glued.csv"
+        write_csv(pd.concat(chunks, ignore_index=True), glued)
+        assert (tmp_path / "joined.csv").read_text() == glued.read_text()
+        assert "10.0" in glued.read_text()  # the whole table's type, not the first chunk's
+    assert not any(p.name.startswith(".out.tmp") for p in tmp_path.iterdir())  # the scratch folder is gone

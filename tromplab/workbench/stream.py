@@ -137,6 +137,8 @@ def _spooled_batch(plan, given: dict, spool: Spool, cluster, outdir) -> Workbenc
         waited += now - mark
         spool.keep(summary)
         done += len(chunk)
+        logger.debug("chunk %d/%d fitted: %d fits, %d failed", summary.number + 1, len(chunks), summary.fits,
+                     summary.fits - summary.successes)  # fmt: skip
         if given["progress"] is not None:
             given["progress"](done, len(fittable), chunk[-1].experiment)
             if options.ci or options.bootstrap:
