@@ -176,3 +176,11 @@ def test_chunks_typed_differently_are_joined_from_their_rows_into_the_whole_tabl
         assert (tmp_path / "joined.csv").read_text() == glued.read_text()
         assert "10.0" in glued.read_text()  # the whole table's type, not the first chunk's
     assert not any(p.name.startswith(".out.tmp") for p in tmp_path.iterdir())  # the scratch folder is gone
+
+
+def test_per_experiment_figures_keep_the_fits_in_memory(tmp_path):
+    """``figures="auto"`` draws every fitted experiment up to 20 of them (failed ones not
+    counted): those figures need the fits, so the batch is not streamed whatever ``stream`` says."""
+    data = _batch(19)  # 19 fitted and two failed: 21 experiments, per-experiment figures
+    bench, written = fit_to_folder(data, tmp_path / "out", stream=True, formulas="plitt", jobs=1)
+    assert bench._spooled is None and "figures.csv" in written and "overview.png" not in written

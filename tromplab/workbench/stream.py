@@ -71,7 +71,7 @@ def fit_to_folder(experiments, outdir, *, figures: str = "auto", format: str = "
     given = _fit_keywords(experiments, keywords)
     plan = prepared_batch(given)
     streamable = format == "csv" and not excel and not reloadable and str(outdir).lower()[-5:] != ".xlsx"
-    streamable &= figures == "none" or (figures == "auto" and len(plan.experiments) > AUTO_FIGURE_LIMIT)
+    streamable &= figures == "none" or (figures == "auto" and len(plan.fittable) > AUTO_FIGURE_LIMIT)  # as _figures counts
     if not (streamable and plan.fittable and (stream or (stream is None and len(plan.fittable) >= STREAM_THRESHOLD))):
         bench = fit_prepared(plan, given)
         bench.check_fitted(source or "")
