@@ -184,3 +184,30 @@ def test_per_experiment_figures_keep_the_fits_in_memory(tmp_path):
     data = _batch(19)  # 19 fitted and two failed: 21 experiments, per-experiment figures
     bench, written = fit_to_folder(data, tmp_path / "out", stream=True, formulas="plitt", jobs=1)
     assert bench._spooled is None and "figures.csv" in written and "overview.png" not in written
+
+
+def test_a_killed_streamed_run_leaves_only_a_scratch_folder_that_the_next_run_removes(tmp_path):
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    from tromplab.output.outputs import clean_stale
+
+    points = tmp_path / "points.csv"
+    pd.concat([p.to_frame() for p in _batch(failures=False)], ignore_index=True).to_csv(points, index=False)
+    script = (
+        "import sys; from tromplab.loading.lab import read_experiments; from tromplab.workbench import fit_to_folder; "
+        "fit_to_folder(read_experiments(sys.argv[1]), sys.argv[2], stream=True, jobs=1)"
+    )
+    out = tmp_path / "out"
+    process = subprocess.Popen([sys.executable, "-c", script, str(points), str(out)])
+    deadline = time.monotonic() + 120
+    while not any(p.name.startswith(".out.tmp-") for p in tmp_path.iterdir()) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    process.send_signal(signal.SIGKILL)  # no handler runs: the scratch folder stays behind
+    process.wait(timeout=30)
+    left = [p.name for p in tmp_path.iterdir() if p.name != "points.csv"]
+    assert not out.exists() and len(left) == 1 and left[0].startswith(f".out.tmp-{process.pid}-")
+    assert [p.name for p in clean_stale(out)] == left  # named as a staging folder of a dead run
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["points.csv"]
