@@ -211,3 +211,14 @@ def test_a_killed_streamed_run_leaves_only_a_scratch_folder_that_the_next_run_re
     assert not out.exists() and len(left) == 1 and left[0].startswith(f".out.tmp-{process.pid}-")
     assert [p.name for p in clean_stale(out)] == left  # named as a staging folder of a dead run
     assert sorted(p.name for p in tmp_path.iterdir()) == ["points.csv"]
+
+
+def test_a_streamed_workbench_pickles_without_its_fits_and_still_refits(tmp_path):
+    import pickle
+
+    streamed, _ = fit_to_folder(_batch(failures=False), tmp_path / "out", stream=True, formulas=FORMULAS, jobs=1)
+    made = streamed.fit("s5", "plitt")
+    copy = pickle.loads(pickle.dumps(streamed))
+    assert "_refits" not in copy.__dict__ and copy.experiments == streamed.experiments
+    assert copy.fit("s5", "plitt").fit.ssr == made.fit.ssr
+    pd.testing.assert_frame_equal(copy.ranking_table(), streamed.ranking_table())

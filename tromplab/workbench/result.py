@@ -275,8 +275,9 @@ class Workbench:
         return self.__dict__.get("_csv_parts", {}).get(table)
 
     def __getstate__(self) -> dict:
-        # the formatted text is for writing this run's folder; a saved batch formats again
-        return {key: value for key, value in self.__dict__.items() if key != "_csv_parts"}
+        # the formatted text is for writing this run's folder; a saved batch formats again; a
+        # streamed batch's refitted experiments are a cache, made again when asked for
+        return {key: value for key, value in self.__dict__.items() if key not in ("_csv_parts", "_refits")}
 
     def _keep_averages(self, level: float, table: pd.DataFrame) -> None:
         self._averages_by_level[level] = with_survey_columns(table, self.inputs)
