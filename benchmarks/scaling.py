@@ -1,38 +1,48 @@
-"""Benchmark: how tromplab scales with the number of experiments and workers.
+"""Benchmark: time and peak memory of ``tromplab fit`` against the number of experiments, on
+one and two worker processes and on a Dask cluster of two workers, against bare lmfit.
 
-For each batch size (default 1, 128, 1024, 10,000 seeded synthetic experiments of
-``fit_robustness.synthetic``: curves of every formula, 8-12 sizes, noise 0.01-0.03) it
-measures, in one run and on the same data:
+For each batch size (default 1,000, 4,000, 10,000, 40,000 and 100,000 seeded synthetic
+experiments of ``fit_robustness.synthetic``: curves of every formula, 8-12 sizes, noise
+0.01-0.03) it runs the whole ``fit`` command (read the points file, fit the nine formulas,
+write the results folder with its overview figure; ``tromplab.workbench.fit_to_folder``, as
+the command line calls it) in a fresh process and measures:
 
-* **fits**: ``fit_experiments`` (nine formulas: fits, F screen, indices, diagnostics) plus
-  the fits and ranking tables, with 1 and 2 worker processes;
-* **full**: the ``tromplab fit`` command (tables, model averages, figures ``auto``) with
-  ``--jobs 1`` and ``--jobs 2``;
-* **bare lmfit**: nine single-start ``lmfit.minimize`` fits per experiment from a generic
-  start (d_cut = median size, shape = 1), as in ``fit_robustness.py`` - on all
-  experiments up to ``--bare-limit``, above it on the first ``--bare-limit`` experiments
-  and scaled linearly (it is linear in the number of experiments);
-* the share of fits at the optimum for tromplab and for bare lmfit: within 1e-6
-  (relative) of the lower of the two sums of squares;
-* peak memory (largest resident set of the main process and of any worker), and the
-  1 -> 2 worker speed-up;
-* the CPU time of the main process and of the workers in the 2-worker fits, and from them
-  the speed-up two *free* cores would give (Amdahl: the main process's work is serial, the
-  workers' is shared by two): on a machine shared with other work the measured speed-up
-  says more about the load than about tromplab.
+* the wall-clock seconds, and the seconds per 1,000 experiments;
+* the peak memory of the whole process tree: the resident sets of the main process, its
+  worker processes and (for Dask) the scheduler and workers, summed and sampled every 50 ms
+  (psutil where installed, else ``/proc``);
+* where the main process's time goes (reading the file, preparing the chunks, waiting for
+  the workers, keeping their summaries, joining them, writing the folder) and its CPU time
+  against the workers': the serial part that keeps two workers from being twice as fast;
+* bare lmfit: nine single-start ``lmfit.minimize`` fits per experiment from a generic start,
+  on the first ``--bare-limit`` experiments and scaled linearly; the ratio to it carries over
+  between machines better than a time does;
+* whether the results folders of one worker, two workers and Dask are identical.
 
-Each tromplab measurement runs in a fresh process so that its peak memory is its own.
-Usage: ``python benchmarks/scaling.py [--sizes 1,128,1024,10000] [--bare-limit 1024]``
-(not part of the test suite; about 10 minutes on 2 cores with the defaults).
+The time and the memory are extrapolated to 1,000,000 experiments by a straight line through
+the sizes from 10,000 up (``a + b n``).  Output: a CSV table and a figure (``--output``, its
+``.png`` beside it).  ``--acceptance`` runs what the targets need (10,000 experiments on
+1 and 2 workers and on Dask, 40,000 on 2 workers) and prints PASS or FAIL with the numbers:
+40,000 experiments on two workers within 1 GiB for the whole tree and no slower per
+experiment than 10,000; 1 -> 2 workers at least 1.8 x at 10,000 with identical outputs; the
+Dask cluster (scheduler and workers started as separate processes, as ``dask scheduler`` and
+``dask worker`` start them) no slower per core than two local workers, with identical outputs.
+
+Not part of the test suite: run it on a quiet machine (the timings of a shared machine say
+more about its load than about tromplab).  ``python benchmarks/scaling.py --sizes 1000,4000
+--no-dask`` takes a few minutes; the default sizes about an hour on two cores.
 """
 
 import argparse
+import contextlib
+import filecmp
 import json
 import os
 import resource
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 
@@ -44,6 +54,11 @@ sys.path.insert(0, str(HERE))
 from fit_robustness import bare_lmfit, synthetic  # noqa: E402
 
 AT_OPTIMUM = 1e-6
+MIB = 1024.0 * 1024.0
+#: Modes of a run: worker processes, or a Dask cluster of two single-threaded workers.
+MODES = ("1 worker", "2 workers", "dask, 2 workers")
+#: The main process's steps (``Workbench._spooled.seconds`` plus the reading of the file).
+STEPS = ("read", "prepare", "wait for the workers", "keep the chunks' summaries", "join the summaries", "write the folder")
 
 
 def experiments(n):
@@ -84,66 +99,159 @@ def _cpu_seconds(who):
     return usage.ru_utime + usage.ru_stime
 
 
-def _peak_mib(who):
-    return resource.getrusage(who).ru_maxrss / 1024.0
+def _tree_rss(roots) -> int:
+    """Bytes resident in the processes ``roots`` (pids) and all their descendants."""
+    try:
+        import psutil
+    except ImportError:
+        return _tree_rss_proc(roots)
+    total = 0
+    for root in roots:
+        try:
+            process = psutil.Process(root)
+            members = [process, *process.children(recursive=True)]
+        except psutil.NoSuchProcess:
+            continue
+        for member in members:
+            try:
+                total += member.memory_info().rss
+            except psutil.NoSuchProcess:
+                pass
+    return total
 
 
-def child_fits(n, workers, out):
-    from tromplab.workbench import fit_experiments
+def _tree_rss_proc(roots) -> int:
+    """:func:`_tree_rss` from ``/proc`` (Linux) where psutil is not installed."""
+    children = {}
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                fields = (entry / "stat").read_text().rsplit(")", 1)[1].split()
+                children.setdefault(int(fields[1]), []).append(int(entry.name))
+            except (OSError, IndexError):
+                continue
+    total, todo = 0, list(roots)
+    while todo:
+        pid = todo.pop()
+        todo += children.get(pid, [])
+        try:
+            resident_pages = int(Path(f"/proc/{pid}/statm").read_text().split()[1])
+            total += resident_pages * os.sysconf("SC_PAGE_SIZE")
+        except (OSError, IndexError, ValueError):
+            continue
+    return total
 
-    data = experiments(n)
+
+class TreeMemory:
+    """The peak of :func:`_tree_rss` over ``roots``, sampled every ``interval`` seconds in a thread."""
+
+    def __init__(self, roots, interval=0.05):
+        self.roots, self.interval, self.peak = list(roots), interval, 0
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._sample, daemon=True)
+
+    def _sample(self):
+        while not self._stop.is_set():
+            self.peak = max(self.peak, _tree_rss(self.roots))
+            self._stop.wait(self.interval)
+
+    def __enter__(self):
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc):
+        self._stop.set()
+        self._thread.join()
+        return False
+
+
+def child_run(points, outdir, workers, scheduler):
+    """In a fresh process: the whole ``fit`` command on ``points`` into ``outdir``; prints JSON
+    with the main process's steps and CPU time and the workers' CPU time."""
+    from tromplab.loading.lab import read_experiments
+    from tromplab.workbench import fit_to_folder
+
     main_before, workers_before = _cpu_seconds(resource.RUSAGE_SELF), _cpu_seconds(resource.RUSAGE_CHILDREN)
-    start = time.perf_counter()
-    bench = fit_experiments(data, jobs=workers)
-    table = bench.fits_table()
-    bench.ranking_table()
-    seconds = time.perf_counter() - start
-    main_cpu = _cpu_seconds(resource.RUSAGE_SELF) - main_before
-    workers_cpu = _cpu_seconds(resource.RUSAGE_CHILDREN) - workers_before
-    table[["experiment", "formula", "ssr"]].to_csv(out, index=False)
+    started = time.perf_counter()
+    data = read_experiments(points)
+    read = time.perf_counter() - started
+    bench, _ = fit_to_folder(data, outdir, jobs=workers, scheduler=scheduler, source=points)
+    seconds = time.perf_counter() - started
+    steps = {"read": read, **(bench._spooled.seconds if bench._spooled is not None else {})}
     print(
         json.dumps(
             {
-                "seconds": seconds,
-                "main_cpu_s": main_cpu,
-                "workers_cpu_s": workers_cpu,
-                "peak_main_mib": _peak_mib(resource.RUSAGE_SELF),
-                "peak_worker_mib": _peak_mib(resource.RUSAGE_CHILDREN),
+                "seconds_in_process": seconds,
+                "streamed": bench._spooled is not None,
+                "main_cpu_s": _cpu_seconds(resource.RUSAGE_SELF) - main_before,
+                "workers_cpu_s": _cpu_seconds(resource.RUSAGE_CHILDREN) - workers_before,
+                "peak_main_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+                "peak_one_worker_mib": resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024,
+                **{f"main: {step}": steps.get(step, float("nan")) for step in STEPS},
             }
         )
     )
 
 
-def run_full(n, workers, folder):
-    points = folder / f"points_{n}.csv"
-    if not points.exists():
-        pd.concat([p.to_frame() for p in experiments(n)]).to_csv(points, index=False)
-    command = [
-        sys.executable,
-        "-c",
-        "import sys, resource, json; from tromplab.cli import main; code = main(sys.argv[1:]); "
-        "print(json.dumps({'peak_main_mib': resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, "
-        "'peak_worker_mib': resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024}), file=sys.stderr); "
-        "sys.exit(code)",
-        "fit",
-        str(points),
-        "-o",
-        str(folder / f"out_{n}_{workers}"),
-        "--jobs",
-        str(workers),
-    ]
-    start = time.perf_counter()
-    done = subprocess.run(command, capture_output=True, text=True, check=True)
-    seconds = time.perf_counter() - start
-    peaks = json.loads(done.stderr.strip().splitlines()[-1])
-    return {"seconds": seconds, **peaks}
+def run_fit(points: Path, outdir: Path, mode: str, cluster=None) -> dict:
+    """The whole command in a fresh process, its process tree's peak memory sampled (with the
+    Dask ``cluster``'s processes, whose memory is part of the run's)."""
+    workers = 1 if mode == "1 worker" else 2
+    scheduler = cluster.address if mode.startswith("dask") else ""
+    command = [sys.executable, __file__, "--child", str(points), str(outdir), str(workers), scheduler]
+    started = time.perf_counter()
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    with TreeMemory([process.pid, *(cluster.pids if scheduler else [])]) as memory:
+        out, err = process.communicate()
+    seconds = time.perf_counter() - started
+    if process.returncode != 0:
+        raise RuntimeError(f"{mode} failed ({process.returncode}): {err[-2000:]}")
+    return {"seconds": seconds, "peak_tree_mib": memory.peak / MIB, **json.loads(out.strip().splitlines()[-1])}
 
 
-def run_fits(n, workers, folder):
-    out = folder / f"ssr_{n}_{workers}.csv"
-    command = [sys.executable, __file__, "--child", str(n), str(workers), str(out)]
-    done = subprocess.run(command, capture_output=True, text=True, check=True)
-    return json.loads(done.stdout.strip().splitlines()[-1]), pd.read_csv(out)
+class DaskCluster:
+    """A scheduler and two single-threaded workers started as separate processes (``dask
+    scheduler``, ``dask worker --no-nanny``: without the nanny's ``MALLOC_TRIM_THRESHOLD_``,
+    see docs/performance.md), stopped on leaving."""
+
+    def __init__(self, folder: Path):
+        self.folder, self.processes, self.address = folder, [], None
+
+    def __enter__(self):
+        scheduler_file = self.folder / "scheduler.json"
+        self.log = open(self.folder / "cluster.log", "w")
+        self._start("scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard", "--scheduler-file", str(scheduler_file))
+        deadline = time.monotonic() + 60
+        while not scheduler_file.exists() and time.monotonic() < deadline:
+            time.sleep(0.2)
+        self.address = json.loads(scheduler_file.read_text())["address"]
+        for _ in range(2):
+            self._start("worker", "--scheduler-file", str(scheduler_file), "--nthreads", "1", "--no-nanny",
+                        "--no-dashboard", "--host", "127.0.0.1")  # fmt: skip
+        from distributed import Client
+
+        with Client(self.address, timeout=60) as client:
+            client.wait_for_workers(2, timeout=60)
+        return self
+
+    def _start(self, *arguments):
+        command = [sys.executable, "-m", "dask", *arguments]
+        self.processes.append(subprocess.Popen(command, stdout=self.log, stderr=subprocess.STDOUT))
+
+    @property
+    def pids(self):
+        return [process.pid for process in self.processes]
+
+    def __exit__(self, *exc):
+        for process in self.processes:
+            process.terminate()
+        for process in self.processes:
+            try:
+                process.wait(timeout=20)
+            except subprocess.TimeoutExpired:
+                process.kill()
+        self.log.close()
+        return False
 
 
 def run_bare(n, limit):
@@ -164,49 +272,175 @@ def run_bare(n, limit):
     return seconds, pd.DataFrame(rows)
 
 
+def measure_size(n, modes, folder: Path, cluster, bare_limit) -> list[dict]:
+    """One row per mode for ``n`` experiments: the run's numbers, bare lmfit's and whether the
+    results folder is the first mode's, file for file."""
+    points = folder / f"points_{n}.csv"
+    if not points.exists():
+        write_points(points, n)
+    bare_seconds, bare = run_bare(n, bare_limit)
+    rows, first = [], None
+    for mode in modes:
+        out = folder / f"out_{n}_{mode.replace(' ', '_').replace(',', '')}"
+        measured = run_fit(points, out, mode, cluster)
+        row = {"experiments": n, "mode": mode, **measured, "bare_lmfit_s": bare_seconds}
+        row["s_per_1000_experiments"] = 1000 * measured["seconds"] / n
+        row["against_bare_lmfit"] = measured["seconds"] / bare_seconds
+        if first is None:
+            first = out
+            row.update(_at_optimum(out, bare))
+        else:
+            row["same_files_as_first_mode"] = _same_folders(first, out)
+        rows.append(row)
+        print(f"{n} experiments, {mode}: {measured['seconds']:.1f} s, {row['peak_tree_mib']:.0f} MiB", flush=True)
+    for row in rows:
+        row["speedup_1_to_2_workers"] = _speedup(rows)
+    return rows
+
+
+def _at_optimum(out: Path, bare: pd.DataFrame) -> dict:
+    """Share of fits at the optimum (within :data:`AT_OPTIMUM` of the lower sum of squares) for tromplab and bare lmfit."""
+    both = pd.read_csv(out / "fits.csv", usecols=["experiment", "formula", "ssr"]).merge(bare, on=["experiment", "formula"])
+    best = np.minimum(both["ssr"], both["bare_ssr"])
+    return {
+        "tromplab_at_optimum_pct": 100 * float(np.mean(both["ssr"] <= best * (1 + AT_OPTIMUM) + 1e-15)),
+        "bare_at_optimum_pct": 100 * float(np.mean(both["bare_ssr"] <= best * (1 + AT_OPTIMUM) + 1e-15)),
+    }
+
+
+def _same_folders(left: Path, right: Path) -> bool:
+    names = sorted(p.name for p in left.iterdir())
+    if names != sorted(p.name for p in right.iterdir()):
+        return False
+    return all(filecmp.cmp(left / name, right / name, shallow=False) for name in names)
+
+
+def _speedup(rows) -> float:
+    seconds = {row["mode"]: row["seconds"] for row in rows}
+    return seconds.get("1 worker", np.nan) / seconds.get("2 workers", np.nan)
+
+
+def extrapolated(table: pd.DataFrame, target: int = 1_000_000) -> pd.DataFrame:
+    """Seconds and peak memory of each mode at ``target`` experiments, from a straight line
+    ``a + b n`` through the sizes from 10,000 up (none for a mode measured at fewer than two
+    of them: below, the fixed costs and the load of the machine would steer the line)."""
+    rows = []
+    for mode, group in table.groupby("mode", sort=False):
+        group = group[group["experiments"] >= 10_000]
+        if len(group) < 2:
+            continue
+        n = group["experiments"].to_numpy(dtype=float)
+        row = {"experiments": target, "mode": mode, "extrapolated": True}
+        for column in ("seconds", "peak_tree_mib"):
+            slope, intercept = np.polyfit(n, group[column].to_numpy(dtype=float), 1)
+            row[column] = intercept + slope * target
+        row["s_per_1000_experiments"] = 1000 * row["seconds"] / target
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def draw(table: pd.DataFrame, path: Path) -> None:
+    """Seconds per 1,000 experiments and peak memory of the process tree against the number of
+    experiments, per mode (dashed: to the extrapolation), with bare lmfit's time."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    figure, (time_axes, memory_axes) = plt.subplots(1, 2, figsize=(10, 4))
+    measured = table[~table["extrapolated"].astype(bool)]
+    for mode, group in table.groupby("mode", sort=False):
+        group = group.sort_values("experiments")
+        own = measured[measured["mode"] == mode].sort_values("experiments")
+        line = time_axes.plot(own["experiments"], own["s_per_1000_experiments"], "o-", label=mode)[0]
+        time_axes.plot(group["experiments"], group["s_per_1000_experiments"], "--", color=line.get_color())
+        memory_axes.plot(own["experiments"], own["peak_tree_mib"], "o-", color=line.get_color(), label=mode)
+        memory_axes.plot(group["experiments"], group["peak_tree_mib"], "--", color=line.get_color())
+    bare = measured.drop_duplicates("experiments")
+    time_axes.plot(bare["experiments"], 1000 * bare["bare_lmfit_s"] / bare["experiments"], "k:", label="bare lmfit (9 fits)")
+    memory_axes.axhline(1024, color="0.6", lw=0.8)
+    for axes, label in ((time_axes, "seconds per 1,000 experiments"), (memory_axes, "peak memory of the process tree (MiB)")):
+        axes.set_xscale("log")
+        axes.set_xlabel("experiments (dashed: extrapolated)")
+        axes.set_ylabel(label)
+    time_axes.legend(fontsize=8)
+    figure.tight_layout()
+    figure.savefig(path, dpi=110)
+    plt.close(figure)
+
+
+def acceptance(table: pd.DataFrame, small: int, large: int) -> bool:
+    """Print PASS or FAIL, with the numbers, for each target; True when every one passes."""
+
+    def row(n, mode):
+        found = table[(table["experiments"] == n) & (table["mode"] == mode) & ~table["extrapolated"].astype(bool)]
+        return found.iloc[0] if len(found) else None
+
+    one, two, dask, big = row(small, "1 worker"), row(small, "2 workers"), row(small, "dask, 2 workers"), row(large, "2 workers")
+    speedup = one["seconds"] / two["seconds"]
+    checks = [
+        (f"{large:,} experiments on 2 workers: process tree at most 1 GiB",
+         big["peak_tree_mib"] <= 1024, f"{big['peak_tree_mib']:.0f} MiB"),
+        (f"{large:,} experiments on 2 workers: time per experiment no worse than at {small:,}",
+         big["s_per_1000_experiments"] <= two["s_per_1000_experiments"],
+         f"{big['s_per_1000_experiments']:.2f} s against {two['s_per_1000_experiments']:.2f} s per 1,000 experiments"),
+        (f"1 -> 2 workers at {small:,} experiments: at least 1.8 x, identical files",
+         speedup >= 1.8 and bool(two["same_files_as_first_mode"]),
+         f"{speedup:.2f} x; identical: {bool(two['same_files_as_first_mode'])}"),
+    ]  # fmt: skip
+    if dask is not None:
+        identical = bool(dask["same_files_as_first_mode"])
+        checks.append((f"Dask (2 worker processes of their own) at {small:,}: no slower per core than 2 local workers, identical files",
+                       dask["seconds"] <= two["seconds"] and identical,
+                       f"{dask['seconds']:.1f} s against {two['seconds']:.1f} s; identical: {identical}"))  # fmt: skip
+    print()
+    for name, passed, numbers in checks:
+        print(f"{'PASS' if passed else 'FAIL'}  {name}: {numbers}")
+    steps = ", ".join(f"{step} {two[f'main: {step}']:.2f}" for step in STEPS)
+    cpu = f"main process CPU {two['main_cpu_s']:.1f} s, workers CPU {two['workers_cpu_s']:.1f} s"
+    print(f"\nwhere the main process's time goes at {small:,} experiments on 2 workers (s): {steps}; {cpu}")
+    return all(passed for _, passed, _ in checks)
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--sizes", default="1,128,1024,10000")
-    parser.add_argument("--bare-limit", type=int, default=1024)
-    parser.add_argument("--no-full", action="store_true", help="skip the full-pipeline runs")
-    parser.add_argument("--child", nargs=3, help=argparse.SUPPRESS)
+    parser.add_argument(
+        "--sizes", help="experiments per run (default 1000,4000,10000,40000,100000; with --acceptance two sizes, 10000,40000)"
+    )
+    parser.add_argument("--bare-limit", type=int, default=512)
+    parser.add_argument("--no-dask", action="store_true", help="skip the Dask cluster")
+    parser.add_argument("--acceptance", action="store_true", help="check the targets: PASS or FAIL with the numbers")
+    parser.add_argument("--output", type=Path, default=HERE / "output" / "scaling.csv")
+    parser.add_argument("--child", nargs=4, help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.child:
-        child_fits(int(args.child[0]), int(args.child[1]), args.child[2])
-        return
+        points, outdir, workers, scheduler = args.child
+        return child_run(points, outdir, int(workers), scheduler or None)
+    default = "10000,40000" if args.acceptance else "1000,4000,10000,40000,100000"
+    sizes = [int(s) for s in (args.sizes or default).split(",")]
+    modes = [m for m in MODES if not (args.no_dask and m.startswith("dask"))]
+    load_before = os.getloadavg()[0]
     rows = []
-    with tempfile.TemporaryDirectory() as tmp:
+    with tempfile.TemporaryDirectory() as tmp, contextlib.ExitStack() as stack:
         folder = Path(tmp)
-        for n in [int(s) for s in args.sizes.split(",")]:
-            bare_seconds, bare = run_bare(n, args.bare_limit)
-            row = {"experiments": n, "bare_lmfit_s": bare_seconds}
-            for workers in (1, 2):
-                measured, ssr = run_fits(n, workers, folder)
-                row[f"fits_{workers}w_s"] = measured["seconds"]
-                row[f"fits_{workers}w_peak_mib"] = max(measured["peak_main_mib"], measured["peak_worker_mib"])
-                row[f"fits_{workers}w_main_cpu_s"] = measured["main_cpu_s"]
-                row[f"fits_{workers}w_workers_cpu_s"] = measured["workers_cpu_s"]
-                if not args.no_full:
-                    full = run_full(n, workers, folder)
-                    row[f"full_{workers}w_s"] = full["seconds"]
-                    row[f"full_{workers}w_peak_mib"] = max(full["peak_main_mib"], full["peak_worker_mib"])
-            both = ssr.merge(bare, on=["experiment", "formula"])
-            best = np.minimum(both["ssr"], both["bare_ssr"])
-            row["tromplab_at_optimum_pct"] = 100 * float(np.mean(both["ssr"] <= best * (1 + AT_OPTIMUM) + 1e-15))
-            row["bare_at_optimum_pct"] = 100 * float(np.mean(both["bare_ssr"] <= best * (1 + AT_OPTIMUM) + 1e-15))
-            row["fits_1w_vs_bare"] = row["fits_1w_s"] / bare_seconds
-            row["fits_2w_vs_bare"] = row["fits_2w_s"] / bare_seconds
-            row["speedup_fits_1_to_2"] = row["fits_1w_s"] / row["fits_2w_s"]
-            row["speedup_fits_free_cores_bound"] = (row["fits_2w_main_cpu_s"] + row["fits_2w_workers_cpu_s"]) / (
-                row["fits_2w_main_cpu_s"] + row["fits_2w_workers_cpu_s"] / 2
-            )
-            if not args.no_full:
-                row["speedup_full_1_to_2"] = row["full_1w_s"] / row["full_2w_s"]
-            rows.append(row)
-            print(pd.DataFrame([row]).T.to_string(header=False, float_format=lambda v: f"{v:.3g}"), flush=True)
-            print(flush=True)
-    print(pd.DataFrame(rows).set_index("experiments").T.to_string(float_format=lambda v: f"{v:.3g}"))
+        cluster = None if args.no_dask else stack.enter_context(DaskCluster(folder))
+        for n in sizes:
+            wanted = ["2 workers"] if args.acceptance and n == sizes[-1] else modes
+            rows += measure_size(n, wanted, folder, cluster, args.bare_limit)
+    table = pd.DataFrame(rows).assign(extrapolated=False)
+    extra = extrapolated(table)
+    table = table if extra.empty else pd.concat([table, extra], ignore_index=True)
+    save_and_show(table, args.output, load_before)
+    columns = ["experiments", "mode", "seconds", "s_per_1000_experiments", "peak_tree_mib", "peak_main_mib", "against_bare_lmfit",
+               "speedup_1_to_2_workers", "main_cpu_s", "workers_cpu_s", *[f"main: {s}" for s in STEPS]]  # fmt: skip
+    with pd.option_context("display.width", 250, "display.max_columns", 30):
+        print(table[[c for c in columns if c in table.columns]].to_string(index=False, float_format=lambda v: f"{v:.3g}"))
+    draw(table, args.output.with_suffix(".png"))
+    print(f"figure: {args.output.with_suffix('.png')}")
+    if args.acceptance:
+        return 0 if acceptance(table, sizes[0], sizes[-1]) else 1
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

@@ -34,9 +34,6 @@ MODULE_DEBT = {}
 FUNCTION_DEBT = {
     "circuit/measurements.py:_shares": 87,
     "circuit/problem.py:build_problem": 62,
-    "curves/batched.py:levenberg_marquardt": 65,
-    "loading/points.py:points_from_table": 63,
-    "loading/tables.py:_read_csv": 74,
 }
 
 _NOT_CODE = {

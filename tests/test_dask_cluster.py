@@ -1,5 +1,6 @@
 """Dask as users run it beyond one machine: a scheduler and two workers in processes of their
-own, and ``tromplab fit --scheduler tcp://...`` writes what ``--jobs 1`` writes, byte for byte."""
+own, and ``tromplab fit --scheduler tcp://...`` writes what ``--jobs 1`` writes, byte for byte,
+also when the results stream to disk (the workers write their chunks' files themselves)."""
 
 import filecmp
 import json
@@ -54,17 +55,27 @@ def cluster(tmp_path):
 
 
 @pytest.mark.slow
-def test_fit_on_a_cluster_of_separate_processes_writes_what_one_process_writes(tmp_path, cluster):
+def test_fit_on_a_cluster_of_separate_processes_writes_what_one_process_writes(tmp_path, cluster, monkeypatch, caplog):
     points = tmp_path / "points.csv"
     frames = [synthetic(seed, weighted=False).to_frame() for seed in range(70)]  # two chunks of 64 experiments
     import pandas as pd
+
+    from tromplab.workbench import stream
 
     pd.concat(frames, ignore_index=True).to_csv(points, index=False)
     options = ["--figures", "none", "--ci", "0.9", "--formulas", "plitt,lognormal,shuvalov", "-q"]
     assert main(["fit", str(points), "-o", str(tmp_path / "local"), "--jobs", "1", *options]) == 0
     assert main(["fit", str(points), "-o", str(tmp_path / "cluster"), "--scheduler", cluster, *options]) == 0
+    monkeypatch.setattr(stream, "STREAM_THRESHOLD", 10)  # the results stream to disk from 10 experiments
+    with caplog.at_level("INFO", logger="tromplab.workbench"):
+        assert main(["fit", str(points), "-o", str(tmp_path / "streamed"), "--scheduler", cluster, *options]) == 0
+    assert "streamed to" in caplog.text and "workers write the files" in caplog.text
+    names = sorted(p.name for p in (tmp_path / "local").iterdir())
+    assert names == sorted(p.name for p in (tmp_path / "streamed").iterdir())
     for name in ("fits.csv", "ranking.csv", "averages.csv"):
         assert filecmp.cmp(tmp_path / "local" / name, tmp_path / "cluster" / name, shallow=False), name
+    for name in names:
+        assert filecmp.cmp(tmp_path / "local" / name, tmp_path / "streamed" / name, shallow=False), name
     assert os.path.getsize(tmp_path / "cluster" / "fits.csv") > 0
 
 

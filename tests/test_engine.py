@@ -300,7 +300,8 @@ def test_units_of_work_are_two_per_worker_within_their_limits():
     items = list(range(5000))
     sizes = lambda workers: [len(chunk) for chunk in workbench.chunked(items, workers=workers)]  # noqa: E731
     largest = workbench.MAX_CHUNK_SIZE
-    assert sizes(1) == [largest] * (5000 // largest) + [5000 % largest]
+    assert sizes(1) == [1000] * 5  # as few units as the largest allows, of equal size
+    assert max(sizes(1)) <= largest and sizes(2) == [834] * 5 + [5000 - 5 * 834]  # 6 units: 3 for each worker
     assert sizes(8) == [313] * 15 + [5000 - 15 * 313]  # 5,000 / 16, below the largest unit
     assert [len(c) for c in workbench.chunked(items[:1024], workers=2)] == [256] * 4
     assert [len(c) for c in workbench.chunked(items[:100], workers=2)] == [64, 36]  # never below CHUNK_SIZE

@@ -91,7 +91,10 @@ def main(argv=None, *, on_start=None) -> int:
         return EXIT_USAGE
     path = [
         name
-        for name in (args.command, *(getattr(args, f"{n}_command", None) for n in ("sieve", "layer", "pulp", "density", "circuit")))
+        for name in (
+            args.command,
+            *(getattr(args, f"{n}_command", None) for n in ("sieve", "layer", "pulp", "density", "circuit")),
+        )
         if name
     ]
     command = " ".join(("tromplab", *path))

@@ -53,7 +53,7 @@ def add_fit(commands, groups) -> None:
 def _run_fit(args) -> int:
     from ..loading.lab import read_experiments
     from ..loading.tables import check_input_file
-    from ..workbench import check_formula_selection, fit_experiments
+    from ..workbench import check_formula_selection, fit_to_folder
 
     formulas = check_formula_selection(args.formulas, args.extended)
     check_input_file(args.input)
@@ -66,9 +66,8 @@ def _run_fit(args) -> int:
     experiments = read_experiments(args.input, lab_options(args))
     print_balance_notes(experiments.balances, listed_in="left_out.csv")
     with progress_bars(quiet=args.quiet) as progress:
-        bench = fit_experiments(experiments, **fit_keywords(args, formulas), progress=progress)
-    bench.check_fitted(args.input)
-    written = bench.save(args.outdir, figures=args.figures, format=args.format, excel=args.excel, jobs=args.jobs)
+        bench, written = fit_to_folder(experiments, args.outdir, figures=args.figures, format=args.format, excel=args.excel,
+                                       source=args.input, **fit_keywords(args, formulas), progress=progress)  # fmt: skip
     _print_fits(bench, args)
     _print_written(list(written.values()), args.outdir)
     return report_failures(bench.failure_table())
@@ -106,8 +105,8 @@ def _print_fits(bench, args) -> None:
             print(textwrap.fill(f"warning ({experiment}): {note}", width=98), file=sys.stderr)
     if args.quiet:  # standard output goes nowhere: formatting the tables would be wasted (0.3 s at 1,024 experiments)
         return
-    fits, ranking = bench.fits_table(), bench.ranking_table()
-    shown_experiments = list(dict.fromkeys(fits["experiment"]))[:AUTO_FIGURE_LIMIT]
+    shown_experiments = [*bench.experiments, *bench.failures][:AUTO_FIGURE_LIMIT]  # the fits table's order
+    fits, ranking = bench.fits_table(experiments=shown_experiments), bench.ranking_table()
     verdicts = {experiment: bench.verdicts(experiment) for experiment in shown_experiments}
     print(format_fits(fits[fits["experiment"].isin(shown_experiments)], verdicts, rank_by=args.rank_by))
     _print_nested_tests(fits[fits["experiment"].isin(shown_experiments)], alpha=bench.alpha)

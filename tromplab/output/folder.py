@@ -95,6 +95,55 @@ def write_results_folder(
     if figure_names:
         mapping = pd.DataFrame({"experiment": list(figure_names), "file": list(figure_names.values())})
         outputs["figures.csv"] = lambda p: write_csv(mapping, p)
+    outputs.update(_failure_files(bench))
+    if excel:
+        outputs["results.xlsx"] = workbook
+    if reloadable:
+        outputs.update(batch_files(bench))
+    return replace_folder(outputs, outdir)
+
+
+def write_streamed_folder(bench, outdir, tables: dict, *, overview: pd.DataFrame | None = None) -> dict[str, Path]:
+    """Write the results folder of a batch whose tables were streamed to disk: the files
+    :func:`write_results_folder` writes with ``format="csv"`` and ``figures`` ``"none"`` (or
+    ``"auto"`` above :data:`AUTO_FIGURE_LIMIT` experiments, when ``overview`` holds the
+    columns of the overview figure of each experiment's top-ranked fit, None when no fit is
+    ranked), byte for byte.
+
+    Parameters
+    ----------
+    bench : Workbench
+        The streamed batch: its ranking, failures and mass balances.
+    outdir : str or path-like
+        The folder, replaced as a whole when everything is written.
+    tables : dict
+        Writers (taking a path) of ``fits.csv`` and ``averages.csv``.
+    overview : pandas.DataFrame, optional
+        Columns ``experiment, formula, rank, d_cut, ep, eta`` of each experiment's top-ranked
+        fit (:func:`~tromplab.output.plotting.plot_batch_overview`).
+
+    Returns
+    -------
+    dict
+        File name -> written path.
+    """
+    ranking = bench.ranking_table()
+    outputs = {
+        "fits.csv": tables["fits.csv"],
+        "ranking.csv": lambda p: write_csv(ranking, p),
+        "averages.csv": tables["averages.csv"],
+    }
+    if overview is not None:
+        png = _overview_png(overview)
+        outputs["overview.png"] = lambda p: p.write_bytes(png)
+    outputs.update(_failure_files(bench))
+    return replace_folder(outputs, Path(outdir))
+
+
+def _failure_files(bench) -> dict:
+    """Writers of ``failures.csv`` (when fits failed) and ``left_out.csv`` (when the loader left
+    classes of lab input out)."""
+    outputs = {}
     failures = bench.failure_table()
     if not failures.empty:
         outputs["failures.csv"] = lambda p: write_csv(failures, p)
@@ -102,11 +151,11 @@ def write_results_folder(
     if any(not table.empty for table in left_out):  # the classes the console summarises in one line per experiment
         listed = pd.concat([table for table in left_out if not table.empty], ignore_index=True)
         outputs["left_out.csv"] = lambda p: write_csv(listed, p)
-    if excel:
-        outputs["results.xlsx"] = workbook
-    if reloadable:
-        outputs.update(batch_files(bench))
-    return replace_folder(outputs, outdir)
+    return outputs
+
+
+def _overview_png(fits: pd.DataFrame) -> bytes:
+    return _png(plot_batch_overview(fits, axes=offscreen_axes(2, 2, figsize=(9, 6.5)))[0])
 
 
 #: Experiments whose figures one worker draws at a time.
@@ -119,8 +168,7 @@ def _figures(bench, fits: pd.DataFrame, mode: str, map_work) -> tuple[dict[str, 
     if mode == "auto":
         mode = "all" if len(bench.experiments) <= AUTO_FIGURE_LIMIT else "overview"
     if mode == "overview":
-        return ({"overview.png": _png(plot_batch_overview(fits, axes=offscreen_axes(2, 2, figsize=(9, 6.5)))[0])}
-                if fits["rank"].notna().any() else {}), {}  # fmt: skip
+        return ({"overview.png": _overview_png(fits)} if fits["rank"].notna().any() else {}), {}
     if mode not in ("all", "best"):
         return {}, {}
     names = figure_file_names(bench.experiments)

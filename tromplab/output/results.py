@@ -25,7 +25,7 @@ SAVED_FILES = ("workbench.pkl", "manifest.json", "points.csv")
 # --- a batch -------------------------------------------------------------------------------
 def workbench_repr(bench) -> str:
     """``<Workbench: 2 experiments x 9 formulas, 18 fits (18 successful), ranked by F ...>``."""
-    n_ok = sum(fit.success for fit in bench.fits)
+    n_ok = bench.n_successful
     best = []
     for experiment in bench.experiments[:4]:
         fit = bench.best_fit(experiment)

@@ -1,11 +1,13 @@
 """The batch layer: every formula fitted to many experiments, on processes or Dask, and the
 :class:`Workbench` that holds the results.
 
-Modules, top first (each imports only from those below it): ``batch``
-(:func:`fit_experiments`), ``result`` (:class:`Workbench`, :func:`load`,
-:func:`model_averages`), ``fanout`` (chunks on a process pool or a Dask cluster), ``worker``
-(what a worker does with one chunk), then ``gc_control``, ``averages``, ``tables`` (the fits
-table) and ``inputs`` (the experiments a batch accepts).  Import the names below from
+Modules, top first (each imports only from those below it): ``stream``
+(:func:`fit_to_folder`: fit and write the results folder, a large batch streamed to disk),
+``batch`` (:func:`fit_experiments`), ``result`` (:class:`Workbench`, :func:`load`,
+:func:`model_averages`), ``fanout`` (chunks on a process pool or a Dask cluster) and
+``spool`` (the chunks' rows written to disk by the workers), ``worker`` (what a worker does
+with one chunk), then ``gc_control``, ``averages``, ``tables`` (the fits table) and
+``inputs`` (the experiments a batch accepts).  Import the names below from
 ``tromplab.workbench`` (or :mod:`tromplab`): the modules may change.
 """
 
@@ -14,6 +16,7 @@ from .batch import check_formula_selection, fit_experiments, formula_keys, print
 from .fanout import CHUNK_SIZE, MAX_CHUNK_SIZE, ChunkResults, chunked, dask_client
 from .inputs import ACCEPTED_EXPERIMENTS, data_notes
 from .result import Workbench, load, model_averages
+from .stream import STREAM_THRESHOLD, fit_to_folder
 from .tables import by_experiment, completed_fit_rows, fit_row_settings, fit_rows_frame, output_view, ranked_among
 from .worker import ChunkOptions, FittedChunk, derive, fit_chunk, work_on_chunk
 
@@ -24,6 +27,7 @@ __all__ = [
     "ACCEPTED_EXPERIMENTS",
     "CHUNK_SIZE",
     "MAX_CHUNK_SIZE",
+    "STREAM_THRESHOLD",
     "ChunkOptions",
     "ChunkResults",
     "FittedChunk",
@@ -40,6 +44,7 @@ __all__ = [
     "fit_experiments",
     "fit_row_settings",
     "fit_rows_frame",
+    "fit_to_folder",
     "formula_keys",
     "load",
     "model_averages",

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import sys
 from collections.abc import Callable
+from typing import NamedTuple
 
 from ..curves.curve_fit import check_delta_max
 from ..curves.engine import check_bootstrap_request
@@ -125,34 +126,68 @@ def fit_experiments(
     >>> bench.ranking_table()[["formula", "place"]].values.tolist()
     [['plitt', 1], ['lognormal', 2], ['molerus', 3]]
     """
-    experiments, balances = _points_and_balances(experiments)
-    chosen = select_formulas(check_formula_selection(formulas, extended))
-    n_fits = len(experiments) * len(chosen)
-    settings = _checked_settings(locals(), n_fits=n_fits, size_unit=_data_size_unit(experiments, size_unit))
-    with dask_client(scheduler=scheduler, dask=dask, client=client) as cluster:
-        failures, fittable = _screenable(experiments)
-        options = ChunkOptions(
-            formulas=tuple(f.id for f in chosen),
-            ranked=tuple(f.id for f in ranked_among(chosen, rank_extended)),
-            alpha=settings["alpha"],
-            delta_max=settings["delta_max"],
-            engine=settings["engine"],
-            size_unit=settings["size_unit"],
-            ci=ci,
-            bootstrap=bootstrap,
-            bootstrap_method=bootstrap_method,
-            seed=seed,
-            rank_by=rank_by,
-            water_recovery=settings["water_recovery"],
-            partition_to=partition_to,
-        )
-        found = _fit_in_chunks(fittable, options, jobs=jobs, client=cluster, progress=progress)
-        bench = Workbench(
-            tuple(found.fits), failures, chosen, rank_by, alpha, rank_extended, found.notes, settings["water_recovery"], ci,
-            bootstrap, bootstrap_method, seed, partition_to, settings["size_unit"], tuple(experiments), balances, found.intervals,
-        )  # fmt: skip
+    given = locals()
+    return fit_prepared(prepared_batch(given), given)
+
+
+def fit_prepared(plan, given: dict) -> Workbench:
+    """:func:`fit_experiments` of a :func:`prepared_batch` (``given``: its keywords), the fits kept in memory."""
+    with dask_client(scheduler=given["scheduler"], dask=given["dask"], client=given["client"]) as cluster:
+        found = _fit_in_chunks(plan.fittable, plan.options, jobs=given["jobs"], client=cluster, progress=given["progress"])
+        bench = batch_workbench(plan, given, tuple(found.fits), found.notes, found.intervals)
         bench._keep_from_workers(found)
     return bench
+
+
+class PreparedBatch(NamedTuple):
+    """A batch checked and ready to fit (:func:`prepared_batch`): its experiments and mass
+    balances, the chosen formulas, the checked settings, the experiments the screen cannot
+    judge (``failures``), the others (``fittable``) and the options of every chunk."""
+
+    experiments: list
+    balances: tuple
+    chosen: tuple
+    settings: dict
+    failures: dict
+    fittable: list
+    options: ChunkOptions
+
+
+def prepared_batch(given: dict) -> PreparedBatch:
+    """The keywords of :func:`fit_experiments` (``given``, its ``locals()``) read and checked,
+    before any fit (an :class:`~tromplab.errors.OptionError` names a wrong option)."""
+    experiments, balances = _points_and_balances(given["experiments"])
+    chosen = select_formulas(check_formula_selection(given["formulas"], given["extended"]))
+    n_fits = len(experiments) * len(chosen)
+    settings = _checked_settings({**given, "experiments": experiments}, n_fits=n_fits,
+                                 size_unit=_data_size_unit(experiments, given["size_unit"]))  # fmt: skip
+    failures, fittable = _screenable(experiments)
+    options = ChunkOptions(
+        formulas=tuple(f.id for f in chosen),
+        ranked=tuple(f.id for f in ranked_among(chosen, given["rank_extended"])),
+        alpha=settings["alpha"],
+        delta_max=settings["delta_max"],
+        engine=settings["engine"],
+        size_unit=settings["size_unit"],
+        ci=given["ci"],
+        bootstrap=given["bootstrap"],
+        bootstrap_method=given["bootstrap_method"],
+        seed=given["seed"],
+        rank_by=given["rank_by"],
+        water_recovery=settings["water_recovery"],
+        partition_to=given["partition_to"],
+    )
+    return PreparedBatch(experiments, balances, tuple(chosen), settings, failures, fittable, options)
+
+
+def batch_workbench(plan: PreparedBatch, given: dict, fits, notes, intervals) -> Workbench:
+    """The :class:`Workbench` of a fitted batch (``given``: the keywords of :func:`fit_experiments`)."""
+    settings = plan.settings
+    return Workbench(
+        fits, plan.failures, plan.chosen, given["rank_by"], given["alpha"], given["rank_extended"], notes,
+        settings["water_recovery"], given["ci"], given["bootstrap"], given["bootstrap_method"], given["seed"],
+        given["partition_to"], settings["size_unit"], tuple(plan.experiments), plan.balances, intervals,
+    )  # fmt: skip
 
 
 def check_formula_selection(formulas=None, extended: bool = False):

@@ -44,8 +44,14 @@ MAX_CHUNK_SIZE = 1024
 
 
 def chunked(items: Sequence, *, workers: int) -> list:
-    """``items`` cut into consecutive units of work for ``workers`` (see :data:`CHUNK_SIZE`)."""
-    size = min(MAX_CHUNK_SIZE, max(CHUNK_SIZE, math.ceil(len(items) / (2 * max(workers, 1)))))
+    """``items`` cut into consecutive units of work for ``workers`` (see :data:`CHUNK_SIZE`):
+    at least two per worker, as many for each worker (units of at most :data:`MAX_CHUNK_SIZE`
+    of equal size, so that no worker is left with a short last unit while another works on a
+    full one: 10,000 experiments on 2 workers are 10 units of 1,000, not 9 of 1,024 and one of 784)."""
+    workers = max(workers, 1)
+    units = max(math.ceil(len(items) / MAX_CHUNK_SIZE), 2 * workers)
+    units = math.ceil(units / workers) * workers
+    size = min(MAX_CHUNK_SIZE, max(CHUNK_SIZE, math.ceil(len(items) / units)))
     return [items[i : i + size] for i in range(0, len(items), size)]
 
 
@@ -163,8 +169,11 @@ def _map_work(function, chunks, argument, *, jobs, client):
     work = functools.partial(_with_older_objects_frozen, function, argument)
     with _results_kept_out_of_collections() as keep:
         if client is not None:
-            for future in client.map(work, chunks, pure=False):
-                yield future.result()
+            futures = client.map(work, chunks, pure=False)
+            for position in range(len(futures)):
+                result = futures[position].result()
+                futures[position] = None  # released: the worker that made it forgets it now, not at the end
+                yield result
                 keep()
             return
         workers = min(jobs or os.cpu_count() or 1, len(chunks))

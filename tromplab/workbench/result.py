@@ -8,9 +8,12 @@ from __future__ import annotations
 import functools
 import logging
 import os
+import shutil
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
+from pathlib import Path
 
 import pandas as pd
 
@@ -18,20 +21,22 @@ from ..curves.curve_fit import CurveFit
 from ..curves.formulas import Formula
 from ..curves.ranking import fit_verdicts, rank_formulas
 from ..curves.screening import DEFAULT_ALPHA
-from ..errors import InputError, expect_kind
+from ..errors import InputError, OptionError, expect_kind
 from ..loading.lab import MassBalance
 from ..loading.points import TrompPoints
 from ..loading.surveys import with_survey_columns
 from ..output.csv_parts import CsvPart
 from ..output.folder import write_results_folder
+from ..output.outputs import replace_folder
 from ..output.plotting import plot_tromp_fits
 from ..output.report import build_report, write_report
 from ..output.results import experiment_summary, load_workbench, summary_text, workbench_html, workbench_repr
 from ..results_contract import ResultContract
 from ..validation import MAX_JOBS, check_count, check_optional, check_probability
 from .averages import _averaged_groups, _averages_of_chunk, _averages_table, averages_level
-from .fanout import ChunkResults, _map_work, _worker_count, chunked
+from .fanout import MAX_CHUNK_SIZE, ChunkResults, _map_work, _worker_count, chunked
 from .tables import by_experiment, completed_fit_rows, fit_row_settings, fit_rows_frame, output_view, ranked_among
+from .worker import ChunkOptions, completed_rows, fit_chunk
 
 # one logger for the batch layer: its lines read "tromplab.workbench: ..." whichever module makes them
 logger = logging.getLogger(__package__)
@@ -45,6 +50,11 @@ class Workbench(ResultContract):
     has one row per experiment (its top-ranked fit), :meth:`to_frame` is ``fits.csv``,
     :meth:`report` the text, :meth:`write_report` the HTML report, :meth:`save` the folder
     ``tromplab fit`` writes.
+
+    A batch streamed to disk (:func:`~tromplab.workbench.fit_to_folder`, from
+    :data:`~tromplab.workbench.STREAM_THRESHOLD` experiments) keeps no fit: its ``fits`` is a
+    sequence that refits the experiments when read, its tables come from its results folder,
+    and :meth:`fit` refits one experiment (docs/performance.md, "Large batches").
 
     Attributes
     ----------
@@ -106,14 +116,27 @@ class Workbench(ResultContract):
     balances: tuple[MassBalance, ...] = field(default=(), repr=False)
     intervals: pd.DataFrame | None = field(default=None, repr=False, compare=False)
 
-    def fits_table(self) -> pd.DataFrame:
+    def fits_table(self, experiments=None) -> pd.DataFrame:
         """The table ``fits.csv`` holds: one row per experiment and formula (columns
         :data:`FIT_COLUMNS`; with a ``water_recovery`` also ``water_recovery`` and
         ``water_recovery_check``, the fitted bypass compared with it, see
         :mod:`tromplab.statistics.hydrocyclone`), with the interval columns when the batch
         was fitted with ``ci`` or ``bootstrap``, read as partition to ``partition_to``
-        (:func:`tromplab.output.views.partition_view`)."""
-        return self._output_frame.copy()
+        (:func:`tromplab.output.views.partition_view`); only the rows of ``experiments``
+        (names) when given.
+
+        A streamed batch (:func:`~tromplab.workbench.fit_to_folder`) reads the table from
+        its folder's ``fits.csv`` (the types a CSV reader gives), except the rows of the
+        first experiments, which it keeps as they were made."""
+        run = self._spooled
+        wanted = None if experiments is None else list(experiments)
+        if run is None:
+            table = self._output_frame
+        elif wanted is not None and run.head is not None and set(wanted) <= set(run.head[1]["experiment"]):
+            table = run.head[1]
+        else:
+            return run.read_table("fits", wanted)
+        return (table if wanted is None else table[table["experiment"].isin(wanted)]).copy()
 
     @cached_property
     def _output_frame(self) -> pd.DataFrame:
@@ -137,7 +160,7 @@ class Workbench(ResultContract):
     def best_fit(self, experiment: str) -> CurveFit | None:
         """The top-ranked successful fit of an experiment; among fits sharing the top rank
         (indistinguishable by the tie rule) the one with the lowest sum of squares."""
-        best = self._best_formulas.get(experiment)
+        best = (self._best_formulas if self._spooled is None else _best_formulas_of(self._rows_of(experiment))).get(experiment)
         if best is None:
             return None
         return next(f for f in self.fits_of(experiment) if f.formula.id == best)
@@ -145,22 +168,18 @@ class Workbench(ResultContract):
     @cached_property
     def _best_formulas(self) -> dict[str, str]:
         # one pass over the table instead of a scan per experiment
-        table = self._fits_frame
-        rows = table[table["success"] & table["rank"].notna()].sort_values(["rank", "ssr", "equation"], kind="stable")
-        return dict(rows.drop_duplicates("experiment")[["experiment", "formula"]].itertuples(index=False))
+        return _best_formulas_of(self._fits_frame)
 
     def top_ranked(self, experiment: str) -> pd.DataFrame:
         """Rows of the fits table that share the top rank of ``experiment`` (several when tied)."""
-        top = self._top_rows.get(experiment)
-        return self._fits_frame.iloc[0:0] if top is None else top
+        table = self._fits_frame if self._spooled is None else self._rows_of(experiment)
+        top = (self._top_rows if self._spooled is None else _top_rows_of(table)).get(experiment)
+        return table.iloc[0:0] if top is None else top
 
     @cached_property
     def _top_rows(self) -> dict[str, pd.DataFrame]:
         # grouped once: a scan of the whole table per experiment is quadratic in the batch
-        table = self._fits_frame
-        rows = table[table["success"] & table["rank"].notna()]
-        rows = rows[rows["rank"] == rows.groupby("experiment", sort=False)["rank"].transform("min")]
-        return {experiment: group for experiment, group in rows.groupby("experiment", sort=False)}
+        return _top_rows_of(self._fits_frame)
 
     def ranking_table(self) -> pd.DataFrame:
         """Ranks per experiment, points and place per formula (failed experiments left out)."""
@@ -169,24 +188,53 @@ class Workbench(ResultContract):
     @cached_property
     def _ranking_frame(self) -> pd.DataFrame:
         # built once: the results folder, the console and the report all read it
-        table = self._fits_frame
-        table = table[~table["experiment"].isin(list(self.failures)) & table["rank"].notna()]
-        if table.empty:
+        if self._spooled is not None:
+            ranking = self._spooled.ranking
+        else:
+            table = self._fits_frame
+            table = table[~table["experiment"].isin(list(self.failures)) & table["rank"].notna()]
+            ranking = None if table.empty else rank_formulas(table, by=self.rank_by, key="formula")
+        if ranking is None:
             return pd.DataFrame(columns=["equation", "formula", "points", "place"])
-        ranking = rank_formulas(table, by=self.rank_by, key="formula")
+        ranking = ranking.copy()
         equation = {f.id: f.equation for f in self.formulas}
         ranking.insert(0, "equation", ranking["formula"].map(equation))
         return ranking.sort_values(["place", "equation"]).reset_index(drop=True)
 
     def verdicts(self, experiment: str) -> list[str]:
         """Plain-language statements on the fits of an experiment (:func:`tromplab.curves.ranking.fit_verdicts`)."""
-        table = self._fits_frame
+        table = self._fits_frame if self._spooled is None else self._rows_of(experiment)
         fits = self.fits_of(experiment)
         sizes = (float(fits[0].points.size.min()), float(fits[0].points.size.max())) if fits else None
         return fit_verdicts(table[table["experiment"] == experiment], by=self.rank_by, measured_sizes=sizes)
 
     def fits_of(self, experiment: str) -> list[CurveFit]:
+        """The fits of ``experiment`` in formula order (none for an experiment not fitted); a
+        streamed batch refits the experiment (:meth:`fit`)."""
+        if self._spooled is not None:
+            return list(self._refitted(experiment))
         return list(self.fits_by_experiment().get(experiment, []))
+
+    def fit(self, experiment: str, formula: str) -> CurveFit:
+        """The fit of ``formula`` (its id) to ``experiment``.
+
+        A streamed batch (:func:`~tromplab.workbench.fit_to_folder`) keeps no fit in memory:
+        it fits the experiment again from its points with the batch's options and padding,
+        which gives the fit the worker made (the fits of an experiment depend on its own
+        points only).  Raises KeyError for an experiment or formula the batch did not fit.
+        """
+        for found in self.fits_of(experiment):
+            if found.formula.id == formula:
+                return found
+        if experiment not in self.experiments:
+            raise KeyError(f"no fitted experiment {experiment!r}")
+        raise KeyError(f"no fit of formula {formula!r} in this batch; formulas: {', '.join(f.id for f in self.formulas)}")
+
+    @property
+    def n_successful(self) -> int:
+        """The number of successful fits."""
+        run = self._spooled
+        return run.successes if run is not None else sum(fit.success for fit in self.fits)
 
     def fits_by_experiment(self) -> dict[str, list[CurveFit]]:
         """The fits grouped by experiment, in batch order."""
@@ -198,7 +246,38 @@ class Workbench(ResultContract):
 
     @property
     def experiments(self) -> list[str]:
-        return list(self._by_experiment)
+        """The fitted experiments, in batch order."""
+        return list(self._spooled.fitted) if self._spooled is not None else list(self._by_experiment)
+
+    # --- a streamed batch (fit_to_folder): the tables on disk, fits refitted when asked for -------
+    @property
+    def _spooled(self) -> SpooledRun | None:
+        return self.__dict__.get("_spooled_run")
+
+    def _attach_spooled_run(self, run: SpooledRun) -> None:
+        self.__dict__["_spooled_run"] = run
+        object.__setattr__(self, "fits", RebuiltFits(self))
+
+    def _refitted(self, experiment: str) -> list[CurveFit]:
+        run = self._spooled
+        cache = self.__dict__.setdefault("_refits", {})
+        if experiment not in cache:
+            points = {p.experiment: p for p in self.inputs}.get(experiment) if experiment in run.fitted_set else None
+            if len(cache) >= 64:
+                cache.clear()
+            cache[experiment] = run.refit([points]) if points is not None else []
+        return cache[experiment]
+
+    def _rows_of(self, experiment: str) -> pd.DataFrame:
+        """The completed rows of one experiment (those of :meth:`fits_table` before its view):
+        kept for the console's experiments, else made again from the refitted experiment."""
+        run = self._spooled
+        if run.head is not None and experiment in set(run.head[0]["experiment"]):
+            rows = run.head[0]
+            return rows[rows["experiment"] == experiment]
+        fits = self.fits_of(experiment)
+        rows = completed_rows(run.options, fit_rows_frame(fits), fits)
+        return rows[rows["experiment"] == experiment]
 
     # --- readable views and saving (tromplab.output.results) ---------------------------------------
     def __repr__(self) -> str:
@@ -216,6 +295,8 @@ class Workbench(ResultContract):
         """
         level = averages_level(self.ci) if level is None else check_probability(level, "level")
         check_optional(check_count, jobs, "jobs", minimum=0, maximum=MAX_JOBS)
+        if level not in self._averages_by_level and self._spooled is not None and level == averages_level(self.ci):
+            return self._spooled.read_table("averages")
         if level not in self._averages_by_level:
             self._keep_averages(level, model_averages(self, level=level, jobs=jobs, client=client))
         return self._averages_by_level[level].copy()
@@ -242,8 +323,9 @@ class Workbench(ResultContract):
         return self.__dict__.get("_csv_parts", {}).get(table)
 
     def __getstate__(self) -> dict:
-        # the formatted text is for writing this run's folder; a saved batch formats again
-        return {key: value for key, value in super().__getstate__().items() if key != "_csv_parts"}
+        # the formatted text is for writing this run's folder; a saved batch formats again; a
+        # streamed batch's refitted experiments are a cache, made again when asked for
+        return {key: value for key, value in super().__getstate__().items() if key not in ("_csv_parts", "_refits")}
 
     def _keep_averages(self, level: float, table: pd.DataFrame) -> None:
         self._averages_by_level[level] = with_survey_columns(table, self.inputs)
@@ -252,20 +334,25 @@ class Workbench(ResultContract):
         """``experiment, formula, reason`` of every experiment or fit that failed (``failures.csv``)."""
         rows = [{"experiment": e, "formula": "", "reason": reason} for e, reason in self.failures.items()]
         rows += [
-            {"experiment": fit.experiment, "formula": fit.formula.id, "reason": fit.fit.message or "the fit failed"}
-            for fit in self.fits
-            if not fit.success
+            {"experiment": experiment, "formula": formula, "reason": message or "the fit failed"}
+            for experiment, formula, message in self._failed_fits()
         ]
         return pd.DataFrame(rows, columns=["experiment", "formula", "reason"])
+
+    def _failed_fits(self) -> list[tuple[str, str, str | None]]:
+        """``(experiment, formula id, message)`` of each failed fit, in batch order."""
+        if self._spooled is not None:
+            return list(self._spooled.failed_fits)
+        return [(fit.experiment, fit.formula.id, fit.fit.message) for fit in self.fits if not fit.success]
 
     def check_fitted(self, source: str = "") -> None:
         """Raise :class:`~tromplab.errors.InputError` when no formula could be fitted to any
         experiment (the command line then writes nothing and exits 1)."""
-        if any(fit.success for fit in self.fits):
+        if self.n_successful:
             return
         reasons = dict(self.failures)
-        for fit in self.fits:
-            reasons.setdefault(fit.experiment, f"{fit.formula.id}: {fit.fit.message}")
+        for experiment, formula, message in self._failed_fits():
+            reasons.setdefault(experiment, f"{formula}: {message}")
         listed = "; ".join(f"{experiment}: {reason}" for experiment, reason in reasons.items())
         raise InputError(f"no formula could be fitted to any experiment ({listed})", source=str(source) or None)
 
@@ -362,6 +449,8 @@ class Workbench(ResultContract):
         :func:`tromplab.output.folder.write_results_folder`.  Returns ``{file name: path}``.
         """
         check_optional(check_count, jobs, "jobs", minimum=0, maximum=MAX_JOBS)
+        if self._spooled is not None:
+            return self._spooled.copy_folder(directory, figures=figures, format=format, excel=excel, reloadable=reloadable)
         return write_results_folder(
             self,
             directory,
@@ -371,6 +460,108 @@ class Workbench(ResultContract):
             reloadable=reloadable,
             map_work=functools.partial(_map_work, jobs=jobs or None, client=None),
         )
+
+
+def _best_formulas_of(table: pd.DataFrame) -> dict[str, str]:
+    """The formula of each experiment's best fit in ``table`` (completed rows, see :meth:`Workbench.best_fit`)."""
+    rows = table[table["success"] & table["rank"].notna()].sort_values(["rank", "ssr", "equation"], kind="stable")
+    return dict(rows.drop_duplicates("experiment")[["experiment", "formula"]].itertuples(index=False))
+
+
+def _top_rows_of(table: pd.DataFrame) -> dict[str, pd.DataFrame]:
+    """The rows sharing each experiment's top rank in ``table`` (completed rows)."""
+    rows = table[table["success"] & table["rank"].notna()]
+    rows = rows[rows["rank"] == rows.groupby("experiment", sort=False)["rank"].transform("min")]
+    return {experiment: group for experiment, group in rows.groupby("experiment", sort=False)}
+
+
+@dataclass
+class SpooledRun:
+    """What a streamed batch (:func:`~tromplab.workbench.fit_to_folder`) keeps in memory instead
+    of its fits: the results folder holding its tables, the options its chunks were fitted with
+    (to refit an experiment), the fitted experiments, each failed fit's ``(experiment, formula,
+    message)``, the count of successful fits, the ranking (:func:`rank_formulas` of the batch,
+    None when nothing is ranked), the console's rows (completed rows and ``fits.csv`` rows of
+    the first experiments), the main process's seconds per step and the written file names."""
+
+    folder: Path
+    options: ChunkOptions
+    fitted: tuple[str, ...]
+    failed_fits: tuple
+    successes: int
+    ranking: pd.DataFrame | None
+    head: tuple | None
+    seconds: dict
+    written: tuple[str, ...] = ()
+
+    @cached_property
+    def fitted_set(self) -> frozenset:
+        return frozenset(self.fitted)
+
+    def refit(self, experiments) -> list[CurveFit]:
+        """The fits of ``experiments`` (TrompPoints) as the batch's workers made them."""
+        options = self.options
+        return fit_chunk(experiments, formulas=options.formulas, alpha=options.alpha, delta_max=options.delta_max,
+                         engine=options.engine, size_unit=options.size_unit, width=options.width)  # fmt: skip
+
+    def read_table(self, table: str, experiments=None) -> pd.DataFrame:
+        """``table`` (``"fits"`` or ``"averages"``) read from the folder's CSV file (floats as
+        written, exactly), only the rows of ``experiments`` when given."""
+        path = Path(self.folder) / f"{table}.csv"
+        try:
+            if experiments is None:
+                return pd.read_csv(path, float_precision="round_trip")
+            wanted = set(experiments)
+            pieces = pd.read_csv(path, float_precision="round_trip", chunksize=100_000)
+            return pd.concat([piece[piece["experiment"].isin(wanted)] for piece in pieces], ignore_index=True)
+        except pd.errors.EmptyDataError:
+            return pd.DataFrame()
+
+    def copy_folder(self, directory, *, figures: str, format: str, excel: bool, reloadable: bool) -> dict[str, Path]:
+        """:meth:`Workbench.save` of a streamed batch: the files of its folder copied (figures
+        as the run drew them; none with ``figures="none"``).  What needs the fits in memory is
+        refused with an :class:`~tromplab.errors.OptionError`."""
+        for option, refused in (("format", format != "csv"), ("excel", excel), ("reloadable", reloadable),
+                                ("figures", figures in ("all", "best"))):  # fmt: skip
+            if refused or str(directory).lower().endswith(".xlsx"):
+                raise OptionError(
+                    option if refused else "directory",
+                    "needs the fits in memory, which a streamed batch does not keep: fit again with stream=False",
+                )
+        source = Path(self.folder)
+        names = [name for name in self.written if figures != "none" or not name.endswith(".png")]
+        return replace_folder({name: (lambda p, name=name: shutil.copyfile(source / name, p)) for name in names}, directory)
+
+
+class RebuiltFits(Sequence):
+    """The fits of a streamed batch in batch order, each experiment refitted when read
+    (:meth:`SpooledRun.refit`, a chunk of experiments at a time when iterated)."""
+
+    def __init__(self, bench: Workbench):
+        self._bench = bench
+
+    def __len__(self) -> int:
+        run = self._bench._spooled
+        return len(run.fitted) * len(run.options.formulas)
+
+    def __getitem__(self, index):
+        if isinstance(index, slice):
+            return [self[i] for i in range(*index.indices(len(self)))]
+        index = index + len(self) if index < 0 else index
+        if not 0 <= index < len(self):
+            raise IndexError("fit index out of range")
+        run = self._bench._spooled
+        per_experiment = len(run.options.formulas)
+        return self._bench.fits_of(run.fitted[index // per_experiment])[index % per_experiment]
+
+    def __iter__(self):
+        run = self._bench._spooled
+        points = {p.experiment: p for p in self._bench.inputs}
+        for start in range(0, len(run.fitted), MAX_CHUNK_SIZE):
+            yield from run.refit([points[name] for name in run.fitted[start : start + MAX_CHUNK_SIZE]])
+
+    def __repr__(self) -> str:
+        return f"<{len(self)} fits of a streamed batch, refitted when read>"
 
 
 def load(directory) -> Workbench:

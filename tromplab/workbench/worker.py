@@ -69,6 +69,12 @@ class ChunkOptions:
         Also make the model averages (at ``ci``, else 0.95) and the CSV text of the chunk's
         rows of ``fits.csv`` and ``averages.csv`` (where there are workers; in one process
         the main process makes them when they are first asked for).
+    failure_example : tuple of (str, str)
+        One failed experiment of the batch with its reason (empty when none failed): the
+        rows are typed as in the whole table, which ends with the failed experiments.
+    survey_probe : tuple of TrompPoints
+        Experiments of the batch holding its survey columns (``date``, ``survey``), so that
+        every chunk's rows have the columns the whole table has.
     """
 
     formulas: tuple[str, ...]
@@ -86,6 +92,8 @@ class ChunkOptions:
     partition_to: str
     width: int = 0
     tables_on_worker: bool = False
+    failure_example: tuple[tuple[str, str], ...] = ()
+    survey_probe: tuple[TrompPoints, ...] = ()
 
 
 class FittedChunk(NamedTuple):
@@ -161,6 +169,20 @@ def work_on_chunk(options: ChunkOptions, chunk: Sequence[TrompPoints]) -> Fitted
     the fits table and, with ``tables_on_worker``, the model averages and the CSV text of both
     tables.  Each result depends on the chunk's own experiments only, so the tables are the
     same however the batch is cut."""
+    fits, notes, columns, rows = fitted_chunk(options, chunk)
+    if not options.tables_on_worker:
+        return FittedChunk(fits, notes, columns, rows)
+    averaged, _, view = chunk_tables(options, chunk, fits, columns, rows)
+    # the text of the chunk's rows: 2.2 s of serial formatting at 10,000 experiments
+    parts = {"fits": csv_part(view)}
+    if averaged:
+        parts["averages"] = csv_part(with_survey_columns(_averages_table(averaged), [*chunk, *options.survey_probe]))
+    return FittedChunk(fits, notes, columns, rows, averaged, parts)
+
+
+def fitted_chunk(options: ChunkOptions, chunk: Sequence[TrompPoints]) -> tuple:
+    """The fits of ``chunk``, its data notes, its interval columns (None without ``ci`` or
+    ``bootstrap``) and the rows of its fits (:func:`fit_rows_frame`)."""
     # the notes on the points are made in the worker too: in the parent they were a serial
     # Spearman test per experiment (seconds at 10,000 experiments)
     notes = {points.experiment: found for points in chunk if (found := data_notes(points))}
@@ -184,23 +206,42 @@ def work_on_chunk(options: ChunkOptions, chunk: Sequence[TrompPoints]) -> Fitted
             width=options.width,
         )
     rows = fit_rows_frame(fits)  # the rows of fits.csv too: a serial 40 us per fit in the main process
-    if not options.tables_on_worker:
-        return FittedChunk(fits, notes, columns, rows)
+    return fits, notes, columns, rows
+
+
+def chunk_tables(options: ChunkOptions, chunk, fits, columns, rows, failures=None, failed_points=()) -> tuple:
+    """The model averages of a chunk (a list of one table, or empty), its completed rows
+    (:func:`completed_rows`) and its rows of ``fits.csv`` (:func:`output_view` of the completed
+    rows), in the types the whole table has.
+
+    The batch's failed experiments come last in the whole table, and their empty cells turn
+    its integer columns into floats: the rows are completed together with those of
+    ``options.failure_example`` (one failed experiment of the batch), which are then left out;
+    the last chunk of a batch is given all the batch's ``failures`` (``{experiment: reason}``)
+    with their ``failed_points`` instead, and its rows end with theirs, as the whole table does.
+    """
     averaged = _averages_of_chunk(averages_level(options.ci), _averaged_groups(by_experiment(fits).values(), options.ranked))
-    # the text of the chunk's rows: 2.2 s of serial formatting at 10,000 experiments
-    completed = completed_fit_rows(
-        rows.copy(),
+    completed = completed_rows(options, rows.copy(), fits, failures)
+    view = output_view(completed, columns, [*chunk, *options.survey_probe, *failed_points], options.partition_to)
+    if failures is None and options.failure_example:
+        left_out = [name for name, _ in options.failure_example]
+        completed = completed[~completed["experiment"].isin(left_out)]
+        view = view[~view["experiment"].isin(left_out)]
+    return averaged, completed, view
+
+
+def completed_rows(options: ChunkOptions, rows: pd.DataFrame, fits, failures=None) -> pd.DataFrame:
+    """:func:`completed_fit_rows` of a chunk's ``rows`` with the batch's settings and ``failures``
+    (default: ``options.failure_example``, see :func:`chunk_tables`); ``rows`` is changed."""
+    return completed_fit_rows(
+        rows,
         fits,
-        failures={},
+        failures=dict(options.failure_example) if failures is None else failures,
         formulas=options.formulas,
         ranked=options.ranked,
         rank_by=options.rank_by,
         water_recovery=options.water_recovery,
     )
-    parts = {"fits": csv_part(output_view(completed, columns, chunk, options.partition_to))}
-    if averaged:
-        parts["averages"] = csv_part(with_survey_columns(_averages_table(averaged), chunk))
-    return FittedChunk(fits, notes, columns, rows, averaged, parts)
 
 
 def _fit_guarded(points, formula, alpha, delta_max, size_unit="") -> CurveFit:

@@ -1,0 +1,224 @@
+"""A batch streamed to disk chunk by chunk (``fit_to_folder(stream=True)``, what ``tromplab fit``
+does from ``STREAM_THRESHOLD`` experiments) writes the results folder of the in-memory path
+byte for byte, for every configuration; its Workbench refits an experiment into the fits the
+workers had; a run that fails leaves no folder and no scratch files."""
+
+import filecmp
+import os
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from tromplab import TrompPoints
+from tromplab._synthetic import synthetic
+from tromplab.cli import main
+from tromplab.workbench import fit_to_folder
+from tromplab.workbench import stream as stream_module
+
+FORMULAS = "plitt,lognormal,shuvalov"
+
+
+def _batch(n=70, *, failures=True):
+    """``n`` synthetic experiments (two chunks of 64 on one worker) and, with ``failures``, one with
+    two points and a flat one, which the screen cannot judge (their rows end the fits table)."""
+    data = [synthetic(seed, weighted=False) for seed in range(n)]
+    if failures:
+        data.insert(3, TrompPoints("two_points", [10.0, 40.0], [0.9, 0.2]))
+        data.insert(40, TrompPoints("flat", [10.0, 20.0, 40.0], [0.5, 0.5, 0.5]))
+    return data
+
+
+def _same_folders(left, right) -> list[str]:
+    names = sorted(p.name for p in left.iterdir())
+    assert names == sorted(p.name for p in right.iterdir())
+    assert "fits.csv" in names and "ranking.csv" in names and "averages.csv" in names
+    return [name for name in names if not filecmp.cmp(left / name, right / name, shallow=False)]
+
+
+CONFIGURATIONS = {
+    "plain": {},
+    "ci": {"ci": 0.9},
+    "bootstrap": {"bootstrap": 20, "seed": 3},
+    "extended": {"extended": True},
+    "coarse": {"partition_to": "coarse", "ci": 0.9},
+    "water recovery, aicc": {"water_recovery": 0.3, "rank_by": "aicc", "formulas": "plitt,plitt_bypass,lognormal"},
+}
+
+
+@pytest.mark.parametrize("jobs", [1, 2])
+@pytest.mark.parametrize("configuration", list(CONFIGURATIONS))
+def test_a_streamed_batch_writes_the_folder_of_the_in_memory_path_byte_for_byte(tmp_path, configuration, jobs):
+    options = {"formulas": FORMULAS, **CONFIGURATIONS[configuration], "jobs": jobs}
+    data = _batch()
+    kept, _ = fit_to_folder(data, tmp_path / "memory", stream=False, **options)
+    streamed, written = fit_to_folder(data, tmp_path / "streamed", stream=True, **options)
+    assert streamed._spooled is not None and kept._spooled is None
+    assert "overview.png" in written and "failures.csv" in written
+    assert _same_folders(tmp_path / "memory", tmp_path / "streamed") == []
+    assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []  # no scratch left
+    pd.testing.assert_frame_equal(streamed.ranking_table(), kept.ranking_table())
+    pd.testing.assert_frame_equal(streamed.failure_table(), kept.failure_table())
+    assert streamed.experiments == kept.experiments and streamed.notes == kept.notes
+
+
+def test_a_streamed_workbench_refits_an_experiment_into_the_fits_the_workers_made(tmp_path):
+    data = _batch()
+    kept, _ = fit_to_folder(data, tmp_path / "memory", stream=False, formulas=FORMULAS, jobs=1, ci=0.9)
+    streamed, _ = fit_to_folder(data, tmp_path / "streamed", stream=True, formulas=FORMULAS, jobs=1, ci=0.9)
+    for experiment in ("s0", "s50", "s69"):  # the first, a middle and the last chunk
+        for formula in FORMULAS.split(","):
+            made, rebuilt = kept.fit(experiment, formula), streamed.fit(experiment, formula)
+            assert _equal_rows(rebuilt, made)
+            assert rebuilt.fit.ssr == made.fit.ssr
+            assert rebuilt.fit.values == made.fit.values
+            assert str(rebuilt.fit.stderr) == str(made.fit.stderr)  # nan compares unequal to itself
+            assert rebuilt.warnings == made.warnings
+        assert streamed.best_fit(experiment).formula.id == kept.best_fit(experiment).formula.id
+        assert streamed.verdicts(experiment) == kept.verdicts(experiment)
+        top = streamed.top_ranked(experiment).reset_index(drop=True)  # the row labels of one experiment's own table
+        pd.testing.assert_frame_equal(top, kept.top_ranked(experiment).reset_index(drop=True))
+    assert len(streamed.fits) == len(kept.fits) and streamed.n_successful == kept.n_successful
+    assert [f.formula.id for f in streamed.fits[9:12]] == [f.formula.id for f in kept.fits[9:12]]
+    with pytest.raises(KeyError, match="no fitted experiment"):
+        streamed.fit("two_points", "plitt")
+    # the tables of a streamed batch come from its folder: the values written, exactly
+    read = streamed.fits_table()
+    made = kept.fits_table()
+    assert list(read.columns) == list(made.columns) and len(read) == len(made)
+    np.testing.assert_array_equal(read["ssr"].to_numpy(), made["ssr"].to_numpy())
+    head = streamed.fits_table(experiments=["s1", "s2"])
+    pd.testing.assert_frame_equal(head.reset_index(drop=True), kept.fits_table(experiments=["s1", "s2"]).reset_index(drop=True))
+
+
+def _equal_rows(left, right) -> bool:
+    a, b = left.row(), right.row()
+    return a.keys() == b.keys() and all(x == y or (x != x and y != y) for x, y in zip(a.values(), b.values()))
+
+
+def test_a_streamed_batch_writes_the_same_folder_on_one_worker_and_on_two(tmp_path):
+    data = _batch()
+    fit_to_folder(data, tmp_path / "one", stream=True, formulas=FORMULAS, jobs=1, bootstrap=10)
+    fit_to_folder(data, tmp_path / "two", stream=True, formulas=FORMULAS, jobs=2, bootstrap=10)
+    assert _same_folders(tmp_path / "one", tmp_path / "two") == []
+
+
+def test_workers_that_cannot_see_the_folder_send_their_files_back_with_the_same_result(tmp_path, monkeypatch):
+    """Gather mode: a Dask cluster's workers on machines without the output folder."""
+    data = _batch()
+    fit_to_folder(data, tmp_path / "memory", stream=False, formulas=FORMULAS, jobs=2, ci=0.9)
+    monkeypatch.setattr(stream_module, "_workers_see", lambda cluster, folder: False)
+    fit_to_folder(data, tmp_path / "gathered", stream=True, formulas=FORMULAS, jobs=2, ci=0.9)
+    assert _same_folders(tmp_path / "memory", tmp_path / "gathered") == []
+
+
+def test_a_failing_streamed_run_leaves_no_folder_and_no_scratch(tmp_path, monkeypatch):
+    real = stream_module.spool_chunk
+
+    def failing(options, work):
+        if work.number == 1:
+            raise RuntimeError("the second chunk's worker died")
+        return real(options, work)
+
+    monkeypatch.setattr(stream_module, "spool_chunk", failing)
+    with pytest.raises(RuntimeError, match="second chunk"):
+        fit_to_folder(_batch(), tmp_path / "out", stream=True, formulas=FORMULAS, jobs=1)
+    assert os.listdir(tmp_path) == []
+
+
+def test_the_command_line_streams_a_large_batch_with_the_same_files_and_console(tmp_path, monkeypatch, capsys):
+    points = tmp_path / "points.csv"
+    pd.concat([p.to_frame() for p in _batch(failures=False)], ignore_index=True).to_csv(points, index=False)
+    options = ["--formulas", FORMULAS, "--jobs", "2", "--ci", "0.9"]
+    assert main(["fit", str(points), "-o", str(tmp_path / "memory"), *options]) == 0
+    kept = capsys.readouterr()
+    monkeypatch.setattr(stream_module, "STREAM_THRESHOLD", 10)
+    assert main(["fit", str(points), "-o", str(tmp_path / "streamed"), *options]) == 0
+    streamed = capsys.readouterr()
+    assert _same_folders(tmp_path / "memory", tmp_path / "streamed") == []
+    assert streamed.out.replace("streamed", "memory") == kept.out
+    assert streamed.err == kept.err
+
+
+def test_save_of_a_streamed_batch_copies_its_files_and_refuses_what_needs_the_fits(tmp_path):
+    streamed, _ = fit_to_folder(_batch(failures=False), tmp_path / "streamed", stream=True, formulas=FORMULAS, jobs=1)
+    written = streamed.save(tmp_path / "copy", figures="none")
+    assert sorted(written) == ["averages.csv", "fits.csv", "ranking.csv"]
+    for name in written:
+        assert filecmp.cmp(tmp_path / "streamed" / name, tmp_path / "copy" / name, shallow=False), name
+    from tromplab.errors import OptionError
+
+    with pytest.raises(OptionError, match="excel"):
+        streamed.save(tmp_path / "other", excel=True)
+
+
+def test_chunks_typed_differently_are_joined_from_their_rows_into_the_whole_table_s_text(tmp_path):
+    """The fallback of the joined files: one chunk's integer column is another's float column
+    (``n`` would print ``10`` in one and ``10.0`` in the other), so the texts cannot be glued."""
+    import pickle
+
+    from tromplab.output.csv_parts import csv_part, write_csv
+    from tromplab.workbench.spool import ChunkSummary, Spool, chunk_file
+
+    chunks = [pd.DataFrame({"experiment": ["a", "b"], "n": [10, 12]}), pd.DataFrame({"experiment": ["c"], "n": [np.nan]})]
+    with Spool(tmp_path / "out") as spool:
+        for number, frame in enumerate(chunks):
+            part = csv_part(frame)
+            files = {
+                chunk_file("fits", number, "csv"): part.text.encode(),
+                chunk_file("fits", number, "pkl"): pickle.dumps(frame),
+            }
+            layouts = {"fits": (part.columns, part.dtypes, part.rows, False)}
+            spool.keep(ChunkSummary(number, {}, 0, 0, [], layouts, None, pd.DataFrame(), None, files))
+        spool.table_writer("fits")(tmp_path / "joined.csv")
+        glued = tmp_path / "glued.csv"
+        write_csv(pd.concat(chunks, ignore_index=True), glued)
+        assert (tmp_path / "joined.csv").read_text() == glued.read_text()
+        assert "10.0" in glued.read_text()  # the whole table's type, not the first chunk's
+    assert not any(p.name.startswith(".out.tmp") for p in tmp_path.iterdir())  # the scratch folder is gone
+
+
+def test_per_experiment_figures_keep_the_fits_in_memory(tmp_path):
+    """``figures="auto"`` draws every fitted experiment up to 20 of them (failed ones not
+    counted): those figures need the fits, so the batch is not streamed whatever ``stream`` says."""
+    data = _batch(19)  # 19 fitted and two failed: 21 experiments, per-experiment figures
+    bench, written = fit_to_folder(data, tmp_path / "out", stream=True, formulas="plitt", jobs=1)
+    assert bench._spooled is None and "figures.csv" in written and "overview.png" not in written
+
+
+def test_a_killed_streamed_run_leaves_only_a_scratch_folder_that_the_next_run_removes(tmp_path):
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    from tromplab.output.outputs import clean_stale
+
+    points = tmp_path / "points.csv"
+    pd.concat([p.to_frame() for p in _batch(failures=False)], ignore_index=True).to_csv(points, index=False)
+    script = (
+        "import sys; from tromplab.loading.lab import read_experiments; from tromplab.workbench import fit_to_folder; "
+        "fit_to_folder(read_experiments(sys.argv[1]), sys.argv[2], stream=True, jobs=1)"
+    )
+    out = tmp_path / "out"
+    process = subprocess.Popen([sys.executable, "-c", script, str(points), str(out)])
+    deadline = time.monotonic() + 120
+    while not any(p.name.startswith(".out.tmp-") for p in tmp_path.iterdir()) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    process.send_signal(signal.SIGKILL)  # no handler runs: the scratch folder stays behind
+    process.wait(timeout=30)
+    left = [p.name for p in tmp_path.iterdir() if p.name != "points.csv"]
+    assert not out.exists() and len(left) == 1 and left[0].startswith(f".out.tmp-{process.pid}-")
+    assert [p.name for p in clean_stale(out)] == left  # named as a staging folder of a dead run
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["points.csv"]
+
+
+def test_a_streamed_workbench_pickles_without_its_fits_and_still_refits(tmp_path):
+    import pickle
+
+    streamed, _ = fit_to_folder(_batch(failures=False), tmp_path / "out", stream=True, formulas=FORMULAS, jobs=1)
+    made = streamed.fit("s5", "plitt")
+    copy = pickle.loads(pickle.dumps(streamed))
+    assert "_refits" not in copy.__dict__ and copy.experiments == streamed.experiments
+    assert copy.fit("s5", "plitt").fit.ssr == made.fit.ssr
+    pd.testing.assert_frame_equal(copy.ranking_table(), streamed.ranking_table())

@@ -1,0 +1,194 @@
+"""Fit a batch and write its results folder in one go (:func:`fit_to_folder`, what ``tromplab
+fit -o DIR`` does): a large batch streams its results to disk chunk by chunk, so the main
+process holds no fit and its memory does not grow with the batch.
+
+A streamed run's workers fit their chunks and write the chunks' rows of ``fits.csv`` and
+``averages.csv`` (:mod:`~tromplab.workbench.spool`); the main process keeps the counts, the
+failures, the ranks (``ranking.csv`` has a column per experiment), the console's rows and
+the top-ranked fit of each experiment (the overview figure), then joins the files and swaps
+the folder into place as a whole.  The files are byte for byte those of the in-memory path.
+The :class:`~tromplab.workbench.Workbench` it returns reads its tables from the folder and
+refits an experiment when its fits are asked for (:meth:`Workbench.fit`).
+"""
+
+from __future__ import annotations
+
+import inspect
+import logging
+import os
+import threading
+import time
+from dataclasses import replace
+
+from ..options import AUTO_FIGURE_LIMIT
+from ..output.folder import check_folder_options, write_streamed_folder
+from .batch import batch_workbench, fit_experiments, fit_prepared, prepared_batch
+from .fanout import _map_work, _worker_count, chunked, dask_client
+from .result import SpooledRun, Workbench
+from .spool import ChunkWork, Spool, SpoolOptions, spool_chunk
+
+# one logger for the batch layer: its lines read "tromplab.workbench: ..." whichever module makes them
+logger = logging.getLogger(__package__)
+
+#: Fitted experiments from which :func:`fit_to_folder` streams when ``stream`` is None: below it
+#: the fits stay in memory, where every :class:`Workbench` method is at hand without refitting.
+STREAM_THRESHOLD = 1000
+
+
+def fit_to_folder(experiments, outdir, *, figures: str = "auto", format: str = "csv", excel: bool = False,
+                  reloadable: bool = False, stream: bool | None = None, source=None, **keywords):  # fmt: skip
+    """Fit ``experiments`` as :func:`~tromplab.workbench.fit_experiments` does (its keywords) and
+    write the results folder ``outdir`` as :meth:`Workbench.save` does (``figures``, ``format``,
+    ``excel``, ``reloadable``): what ``tromplab fit INPUT -o OUTDIR`` does.
+
+    Parameters
+    ----------
+    experiments, keywords
+        As for :func:`~tromplab.workbench.fit_experiments`.
+    outdir : str or path-like
+        The results folder, replaced as a whole when every file is written.
+    figures, format, excel, reloadable
+        As for :meth:`Workbench.save`.
+    stream : bool, optional
+        Stream the results to disk chunk by chunk (True), or keep every fit in memory and
+        save them afterwards (False).  Default: stream from :data:`STREAM_THRESHOLD` fitted
+        experiments.  Streaming needs CSV tables, no workbook, no reloadable batch and no
+        per-experiment figures (``figures`` ``"none"``, or ``"auto"`` above
+        :data:`~tromplab.options.AUTO_FIGURE_LIMIT` experiments, which draws one overview);
+        otherwise the fits are kept in memory whatever ``stream`` says.  The files are the
+        same either way.
+    source : str or path-like, optional
+        Named in the :class:`~tromplab.errors.InputError` raised, before anything is written,
+        when no formula could be fitted to any experiment.
+
+    Returns
+    -------
+    tuple
+        The :class:`Workbench` (a streamed one reads its tables from ``outdir``) and
+        ``{file name: path}`` of the written files.
+    """
+    check_folder_options(figures=figures, format=format)
+    given = _fit_keywords(experiments, keywords)
+    plan = prepared_batch(given)
+    streamable = format == "csv" and not excel and not reloadable and str(outdir).lower()[-5:] != ".xlsx"
+    streamable &= figures == "none" or (figures == "auto" and len(plan.fittable) > AUTO_FIGURE_LIMIT)  # as _figures counts
+    if not (streamable and plan.fittable and (stream or (stream is None and len(plan.fittable) >= STREAM_THRESHOLD))):
+        bench = fit_prepared(plan, given)
+        bench.check_fitted(source or "")
+        jobs = given["jobs"]
+        return bench, bench.save(outdir, figures=figures, format=format, excel=excel, reloadable=reloadable, jobs=jobs)
+    with dask_client(scheduler=given["scheduler"], dask=given["dask"], client=given["client"]) as cluster, Spool(outdir) as spool:
+        warming = _figure_modules_loading() if figures == "auto" and (cluster is not None or given["jobs"] != 1) else None
+        bench = _spooled_batch(plan, given, spool, cluster, outdir)
+        if warming is not None:
+            warming.join()
+        bench.check_fitted(source or "")
+        started = time.perf_counter()
+        tables = {f"{name}.csv": spool.table_writer(name) for name in ("fits", "averages")}
+        written = write_streamed_folder(bench, outdir, tables, overview=spool.best_rows() if figures == "auto" else None)
+        bench._spooled.seconds["write the folder"] = time.perf_counter() - started
+        bench._spooled.written = tuple(written)
+    return bench, written
+
+
+def _fit_keywords(experiments, keywords: dict) -> dict:
+    """The keywords of :func:`fit_experiments`, its defaults filled in; an unknown one is a TypeError."""
+    parameters = inspect.signature(fit_experiments).parameters
+    unknown = sorted(set(keywords) - set(parameters))
+    if unknown:
+        raise TypeError(f"fit_to_folder() got unexpected keyword argument(s): {', '.join(unknown)}")
+    given = {name: p.default for name, p in parameters.items() if p.default is not inspect.Parameter.empty}
+    return {**given, **keywords, "experiments": experiments}
+
+
+def _spooled_batch(plan, given: dict, spool: Spool, cluster, outdir) -> Workbench:
+    """Fit the chunks of ``plan`` on the workers, which write their rows into ``spool``; the
+    streamed :class:`Workbench` of the batch."""
+    seconds = {}
+    started = time.perf_counter()
+    fittable, failures = plan.fittable, plan.failures
+    scratch = str(spool.scratch) if _workers_see(cluster, spool.scratch) else None
+    example = next(iter(failures.items()), None)
+    options = replace(
+        plan.options,
+        width=max(points.n for points in fittable),  # one padding for every chunk, as in memory
+        tables_on_worker=True,
+        failure_example=(example,) if example else (),
+        survey_probe=_survey_probe(plan.experiments),
+    )
+    table_order = [points.experiment for points in fittable] + list(failures)
+    chunks = chunked(fittable, workers=_worker_count(given["jobs"], cluster))
+    failed_points = tuple(points for points in plan.experiments if points.experiment in failures)
+    work = [ChunkWork(number, chunk) for number, chunk in enumerate(chunks)]
+    work[-1] = work[-1]._replace(failures=failures, failed_points=failed_points)
+    logger.info(
+        "fitting %d experiment(s) x %d formula(s) in %d chunk(s) of up to %d, streamed to %s (%s)",
+        len(fittable), len(options.formulas), len(chunks), len(chunks[0]), spool.scratch,
+        "workers write the files" if scratch else "the files travel back: the workers cannot see the folder",
+    )  # fmt: skip
+    head = tuple(table_order[:AUTO_FIGURE_LIMIT])
+    seconds["prepare"] = time.perf_counter() - started
+    done, waited, kept = 0, 0.0, 0.0
+    mark = time.perf_counter()
+    for chunk, summary in zip(
+        chunks, _map_work(spool_chunk, work, SpoolOptions(options, scratch, head), jobs=given["jobs"], client=cluster)
+    ):
+        now = time.perf_counter()
+        waited += now - mark
+        spool.keep(summary)
+        done += len(chunk)
+        logger.debug("chunk %d/%d fitted: %d fits, %d failed", summary.number + 1, len(chunks), summary.fits,
+                     summary.fits - summary.successes)  # fmt: skip
+        if given["progress"] is not None:
+            given["progress"](done, len(fittable), chunk[-1].experiment)
+            if options.ci or options.bootstrap:
+                given["progress"](done, len(fittable), f"intervals: {chunk[-1].experiment}")
+        mark = time.perf_counter()
+        kept += mark - now
+    seconds.update({"wait for the workers": waited, "keep the chunks' summaries": kept})
+    started = time.perf_counter()
+    bench = batch_workbench(plan, given, (), spool.notes(), None)
+    run = SpooledRun(
+        folder=outdir, options=options, fitted=tuple(points.experiment for points in fittable),
+        failed_fits=tuple(spool.failed_fits()), successes=sum(s.successes for s in spool.summaries),
+        ranking=spool.ranking(), head=spool.head(), seconds=seconds,
+    )  # fmt: skip
+    bench._attach_spooled_run(run)
+    seconds["join the summaries"] = time.perf_counter() - started
+    return bench
+
+
+def _figure_modules_loading() -> threading.Thread:
+    """A thread importing matplotlib's figure and Agg modules (its font list included, about
+    0.5 s), started while the workers fit: the overview is drawn after the last chunk, in the
+    serial part of the run.  Nothing is drawn in it (matplotlib's fonts are not shared safely
+    between threads); join it before drawing."""
+
+    def load():
+        import matplotlib.backends.backend_agg  # noqa: F401
+        import matplotlib.figure  # noqa: F401
+
+    thread = threading.Thread(target=load, name="tromplab-figure-modules", daemon=True)
+    thread.start()
+    return thread
+
+
+def _workers_see(cluster, folder) -> bool:
+    """Whether the chunks' workers can write into ``folder``: always for local processes; on a
+    Dask cluster when every worker finds it (a folder shared by the machines, or one machine)."""
+    if cluster is None:
+        return True
+    found = cluster.run(os.access, str(folder), os.W_OK)
+    return bool(found) and all(found.values())
+
+
+def _survey_probe(experiments) -> tuple:
+    """The first experiment holding each survey column (``date``, ``survey``), for every chunk."""
+    from ..loading.surveys import SURVEY_COLUMNS
+
+    probe = {}
+    for column in SURVEY_COLUMNS:
+        holder = next((points for points in experiments if column in points.meta), None)
+        if holder is not None:
+            probe[holder.experiment] = holder
+    return tuple(probe.values())
