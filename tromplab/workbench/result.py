@@ -96,6 +96,8 @@ class Workbench(ResultContract):
         The formulas the ranking covers.
     experiments : list of str
         The experiments, in batch order.
+    n_successful : int
+        The number of successful fits (of a streamed batch too, without refitting).
     """
 
     fits: tuple[CurveFit, ...]
