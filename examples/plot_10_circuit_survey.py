@@ -18,7 +18,8 @@ import pandas as pd
 
 import tromplab.circuit as circuit
 from tromplab.circuit.design import observability_table
-from tromplab.circuit.planning import design_advice, next_steps
+from tromplab.circuit.outputs import next_steps
+from tromplab.circuit.planning import design_advice
 
 # the repository root (sphinx-gallery runs each example from examples/, without __file__)
 ROOT = Path(globals().get("__file__", "example.py")).resolve().parents[1]
