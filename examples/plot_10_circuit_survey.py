@@ -73,13 +73,13 @@ print(observability_table(balance)[["stream", "quantity", "observable", "reconci
 # reconciled values: the sd of each separator's partition at its cut and of the circulating
 # load, before and with the candidate.
 advice = design_advice(sheet, survey)
-print(advice.summary(top=4))
+print(advice.report(top=4))
 
 # %%
 # The same advice for a plant not yet surveyed: from the flowsheet alone, at a survey
 # simulated under stated assumptions (every stream analysed, the screen feed weighed).
 planned = design_advice(sheet, flows="screen_feed")
-print(planned.summary(top=3))
+print(planned.report(top=3))
 
 fig, ax = plt.subplots(figsize=(7, 3.5))
 best = advice.table.drop_duplicates(["stream", "measurement"]).head(8)
