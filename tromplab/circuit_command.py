@@ -105,7 +105,9 @@ def run_circuit(
     deviations), ``points.csv`` (Tromp-points schema with weights, what ``tromplab fit``
     reads), the flowsheet as read (``flowsheet.csv``), ``summary.txt``; figures
     ``flowsheet.png``, ``adjustments.png``, ``distributions.png``; with ``fit``
-    ``fits.csv`` and ``ranking.csv``; with per cent solids measured, ``water.csv``.
+    ``fits.csv`` and ``ranking.csv``; with per cent solids measured, ``water.csv``; with
+    per-class assays, ``components.csv`` (and a curve per separator and component in
+    ``partition.csv``, ``points.csv`` and the fits).
     """
     check_output_folder(outdir, inputs=[flowsheet, measurements])  # the inputs are checked as they are read
     sheet = read_flowsheet(flowsheet)
@@ -132,6 +134,8 @@ def run_circuit(
     }
     if balance.balances_water:
         tables["water"] = balance.water_table()
+    if balance.survey.components:
+        tables["components"] = balance.components_table()
     bench = None
     if fit and balance.flowsheet.separators:
         bench = fit_separators(balance)

@@ -42,6 +42,12 @@ SOLIDS = "solids"
 ASSAY_COLUMNS = ["stream", "class_index", "component", "value", "sd", "row", "relative", "absolute"]
 
 
+#: An assay of a class holding less than this share of its stream (as measured) is set aside:
+#: too little material to assay, and its prediction (component flow over a class flow near 0)
+#: would dominate the Jacobian by orders of magnitude and blur the rank decision.
+MIN_ASSAYED_SHARE = 0.001
+
+
 def empty_assays() -> pd.DataFrame:
     return pd.DataFrame(columns=ASSAY_COLUMNS)
 
@@ -140,3 +146,12 @@ def assays_at(assays: pd.DataFrame, grades: np.ndarray, stream_index: dict, comp
     sd = np.sqrt((table["relative"].to_numpy(float) * at) ** 2 + table["absolute"].to_numpy(float) ** 2)
     table["sd"] = np.where(modelled, sd, table["sd"].to_numpy(float))
     return table
+
+
+def set_aside(assays: pd.DataFrame, shares: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """``(used, set_aside)``: the assays of classes whose measured share of their stream is below
+    :data:`MIN_ASSAYED_SHARE` are set aside (an assay of a class not size-analysed is used)."""
+    measured = {(r.stream, r.class_index): r.value for r in shares.itertuples()}
+    scarce = np.array([measured.get((s, i), np.inf) < MIN_ASSAYED_SHARE for s, i in zip(assays["stream"], assays["class_index"])],
+                      dtype=bool)  # fmt: skip
+    return assays[~scarce].reset_index(drop=True), assays[scarce].reset_index(drop=True)

@@ -95,7 +95,7 @@ from ..validation import (
     check_relative_error,
     check_share_sd,
 )
-from .assays import assay_columns, assays_at, empty_assays, read_assays
+from .assays import assay_columns, assays_at, empty_assays, read_assays, set_aside
 from .flowsheet import Flowsheet
 
 #: Per-class shares of a fully measured stream may miss 100 % by this much (percentage points)
@@ -248,6 +248,9 @@ class Survey:
         assays (fractions of the class's solids, :mod:`tromplab.circuit.assays`).
     components : tuple of str
         The components assayed, in the order of the table's columns.
+    assays_set_aside : pandas.DataFrame
+        Assays of classes measured below :data:`~tromplab.circuit.assays.MIN_ASSAYED_SHARE` of
+        their stream: too little material to assay; not used.
     """
 
     classes: pd.DataFrame
@@ -261,6 +264,7 @@ class Survey:
     evaluated_at: str = "reconciled"
     assays: pd.DataFrame = field(default_factory=empty_assays)
     components: tuple[str, ...] = ()
+    assays_set_aside: pd.DataFrame = field(default_factory=empty_assays)
 
     @property
     def n_classes(self) -> int:
@@ -345,7 +349,7 @@ def read_survey(
     classes, class_of_row = _tiled_classes(table, lower, upper, has_class, size_columns)
     shares, normalised = _shares(table, names, has_class, class_of_row, len(classes), values_given, errors)
     flows, pct = _stream_measurements(table, names, errors)
-    assays = read_assays(table, names, has_class, class_of_row, errors)
+    assays, scarce = set_aside(read_assays(table, names, has_class, class_of_row, errors), shares)
     if flows.empty and shares.empty and pct.empty:
         raise InputError(
             "the survey holds no measurement (no size analysis, no solids flow, no per cent solids)", source=table.source
@@ -353,7 +357,8 @@ def read_survey(
     unmeasured = _unmeasured(table, names, has_class, class_of_row, values_given)
     return Survey(classes=classes, shares=shares, flows=flows, pct_solids=pct, size_unit=unit, source=table.source,
                   closed_streams=normalised, unmeasured=unmeasured, evaluated_at=errors.evaluated_at, assays=assays,
-                  components=tuple(dict.fromkeys(assays["component"])))  # fmt: skip
+                  components=tuple(dict.fromkeys([*assays["component"], *scarce["component"]])),
+                  assays_set_aside=scarce)  # fmt: skip
 
 
 def _stream_measurements(table: Table, names, errors: ErrorModel) -> tuple[pd.DataFrame, pd.DataFrame]:

@@ -68,9 +68,10 @@ import pandas as pd
 from scipy import stats
 
 from ..loading.points import TrompPoints
-from ..options import DEFAULT_ALPHA, DEFAULT_MIN_FEED_SHARE
+from ..options import DEFAULT_ALPHA
 from ..validation import check_probability
 from . import plotting
+from .assays import MIN_ASSAYED_SHARE
 from .design import design_table, water_determined_by
 from .elimination import nodal_tests, proposal, serial_elimination, without
 from .flowsheet import Flowsheet, read_flowsheet
@@ -87,11 +88,11 @@ from .problem import (
     solve,
     starting_point,
 )
+from .separators import MIN_FEED_SHARE, PARTITION_COLUMNS, components_table, curve_names, partition_table
 from .worth import worth_table
 
-#: Separator classes whose feed share (of the separator's feed) is below this are written to
-#: points.csv as not used (partition not meaningful), as lab tables flag them.
-MIN_FEED_SHARE = DEFAULT_MIN_FEED_SHARE
+__all__ = ["MIN_FEED_SHARE", "PARTITION_COLUMNS", "CircuitBalance", "reconcile"]
+
 #: Adjustments correlated beyond this are reported as indistinguishable: a gross error in one
 #: of them moves the others' standardised adjustments alike, so no test can tell which it is.
 EQUIVALENT_CORRELATION = 0.99
@@ -122,8 +123,6 @@ ADJUSTMENT_COLUMNS = [
 ]
 DISTRIBUTION_COLUMNS = ["stream", "size_lower", "size_upper", "size", "measured", "measured_sd", "reconciled",
                         "reconciled_sd"]  # fmt: skip
-PARTITION_COLUMNS = ["experiment", "size_lower", "size_upper", "size", "feed_share", "partition_fine", "partition_sd",
-                     "fine_yield", "fine_yield_sd", "used", "flag"]  # fmt: skip
 
 
 class _MeasurementTests(NamedTuple):
@@ -177,6 +176,8 @@ class CircuitBalance:
     decomposition: Decomposition | None = field(default=None, repr=False, compare=False)
     #: The measurements left out on request (``exclude=`` of :func:`reconcile`).
     excluded: tuple[str, ...] = field(default=(), compare=False)
+    #: Class flows of every assayed component (components x streams x classes; None: no assay).
+    component_flows: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     @property
     def has_size_classes(self) -> bool:
@@ -189,12 +190,14 @@ class CircuitBalance:
         water flow): the unbounded least squares would have made them negative."""
         S, n = self.class_flows.shape
         names = self.flowsheet.stream_names + tuple(w.name for w in self.flowsheet.water_streams)
-        return [(names[k // n], k % n) if k < S * n else (names[k - S * n], -1) for k in self.at_bound]
+        solids_and_water = S * n + len(names) if self.balances_water else S * n  # a component's flow is flagged per curve
+        return [(names[k // n], k % n) if k < S * n else (names[k - S * n], -1) for k in self.at_bound if k < solids_and_water]
 
     @property
     def _unknowns(self) -> np.ndarray:
         water = self.water_flows if self.water_flows is not None else np.zeros(0)
-        return np.concatenate([self.class_flows.ravel(), water])
+        components = self.component_flows.ravel() if self.component_flows is not None else np.zeros(0)
+        return np.concatenate([self.class_flows.ravel(), water, components])
 
     @property
     def _test_point(self) -> np.ndarray:
@@ -400,12 +403,7 @@ class CircuitBalance:
         rows_of = self._measurement_rows()
         table = pd.DataFrame(
             {
-                "measurement": [
-                    f"{self.streams[s]} {_MEASURED_QUANTITY[k]}"
-                    if k != "share"
-                    else f"{self.streams[s]} class {class_name(classes, i)}"
-                    for s, i, k in zip(problem.stream, problem.klass, problem.kinds)
-                ],
+                "measurement": self._measurement_names(),
                 "stream": [self.streams[s] for s in problem.stream],
                 "class_index": problem.klass,
                 "size_lower": [classes["size_lower"].iloc[i] if i >= 0 else np.nan for i in problem.klass],
@@ -420,6 +418,9 @@ class CircuitBalance:
                 "standardised": -standardised,
             }
         )
+        if self.survey.components:
+            names = np.array(("",) + self.survey.components, dtype=object)
+            table.insert(table.columns.get_loc("class_index") + 1, "component", names[problem.component + 1])
         tests = self._measurement_tests
         table["gross_error"] = tests.estimate
         table["gross_error_sd"] = tests.estimate_sd
@@ -437,12 +438,27 @@ class CircuitBalance:
         ]
         return table
 
+    def _measurement_names(self) -> list[str]:
+        """``STREAM class CLASS``, ``STREAM COMPONENT assay class CLASS``, ``STREAM flow``, ``STREAM per cent solids``."""
+        problem, classes = self.problem, self.survey.classes
+        names = []
+        for s, i, kind, k in zip(problem.stream, problem.klass, problem.kinds, problem.component):
+            if kind == "share":
+                names.append(f"{self.streams[s]} class {class_name(classes, i)}")
+            elif kind == "assay":
+                names.append(f"{self.streams[s]} {self.survey.components[k]} assay class {class_name(classes, i)}")
+            else:
+                names.append(f"{self.streams[s]} {_MEASURED_QUANTITY[kind]}")
+        return names
+
     def _measurement_rows(self) -> list:
-        rows = {(r.stream, r.class_index): r.row for r in self.survey.shares.itertuples()}
-        rows |= {(r.stream, -1): r.row for r in self.survey.flows.itertuples()}
-        rows |= {(r.stream, -2): r.row for r in self.survey.pct_solids.itertuples()}
+        rows = {(r.stream, r.class_index, -1): r.row for r in self.survey.shares.itertuples()}
+        rows |= {(r.stream, -1, -1): r.row for r in self.survey.flows.itertuples()}
+        rows |= {(r.stream, -2, -1): r.row for r in self.survey.pct_solids.itertuples()}
+        order = {name: k for k, name in enumerate(self.survey.components)}
+        rows |= {(r.stream, r.class_index, order[r.component]): r.row for r in self.survey.assays.itertuples()}
         problem = self.problem
-        return [rows.get((self.streams[s], i)) for s, i in zip(problem.stream, problem.klass)]
+        return [rows.get((self.streams[s], i, k)) for s, i, k in zip(problem.stream, problem.klass, problem.component)]
 
     @cached_property
     def _measurement_tests(self) -> _MeasurementTests:
@@ -553,67 +569,27 @@ class CircuitBalance:
 
     # --- separators -----------------------------------------------------------------------
     def partition_table(self) -> pd.DataFrame:
-        r"""Partition to the fine product of every separator and class, from the reconciled data.
+        """Partition to the fine product of every separator and class, of the whole solids and of
+        each assayed component (:func:`~tromplab.circuit.separators.partition_table`)."""
+        return partition_table(self)
 
-        .. math:: \varphi_i = \frac{m_{f,i}}{m_{f,i} + m_{c,i}}
-
-        with :math:`m_{f,i}`, :math:`m_{c,i}` the reconciled class flows of the fine and coarse
-        product.  Columns ``experiment`` (the separator's node), ``size_lower, size_upper,
-        size, feed_share`` (share of the separator's feed in the class), ``partition_fine,
-        partition_sd`` (delta method), ``fine_yield, fine_yield_sd, used, flag``.
-        """
-        classes = self.survey.classes
-        index = self.flowsheet.stream_index
-        n = self.class_flows.shape[1]
-        frames = []
-        for node in self.flowsheet.separators if self.has_size_classes else ():
-            f, c = index[node.fine], index[node.coarse]
-            mf, mc = self.class_flows[f], self.class_flows[c]
-            total = mf + mc
-            G = np.zeros((n, self.class_flows.size))
-            with np.errstate(invalid="ignore", divide="ignore"):
-                phi = mf / total
-                G[np.arange(n), f * n + np.arange(n)] = mc / total**2
-                G[np.arange(n), c * n + np.arange(n)] = -mf / total**2
-            yield_gradient = np.zeros((1, self.class_flows.size))
-            Ff, Fc = mf.sum(), mc.sum()
-            yield_gradient[0, f * n : (f + 1) * n] = Fc / (Ff + Fc) ** 2
-            yield_gradient[0, c * n : (c + 1) * n] = -Ff / (Ff + Fc) ** 2
-            feed_share = total / total.sum()
-            held = set(self.at_bound)
-            at_bound = np.array([f * n + i in held or c * n + i in held for i in range(n)])
-            used, flags = _partition_flags(feed_share, phi, at_bound)
-            phi = np.where(np.isfinite(phi) & (phi >= 0.0) & (phi <= 1.0), phi, np.nan)
-            frames.append(
-                pd.DataFrame(
-                    {
-                        "experiment": node.name,
-                        "size_lower": classes["size_lower"].to_numpy(),
-                        "size_upper": classes["size_upper"].to_numpy(),
-                        "size": classes["size"].to_numpy(),
-                        "feed_share": feed_share,
-                        "partition_fine": phi,
-                        "partition_sd": np.where(np.isfinite(phi), self._sd(G), np.nan),
-                        "fine_yield": Ff / (Ff + Fc),
-                        "fine_yield_sd": float(self._sd(yield_gradient)[0]),
-                        "used": used,
-                        "flag": flags,
-                    }
-                )
-            )
-        if not frames:
-            return pd.DataFrame(columns=PARTITION_COLUMNS)
-        return pd.concat(frames, ignore_index=True)
+    def components_table(self) -> pd.DataFrame:
+        """Each assayed component at each separator: grades, fine yield and recovery with sds
+        (:func:`~tromplab.circuit.separators.components_table`; empty without assays)."""
+        return components_table(self)
 
     def points_table(self, *, unit_in_names: bool = True) -> pd.DataFrame:
         """The separators' partition curves in the Tromp-points schema that ``tromplab fit`` reads.
 
         Columns ``experiment, size[_unit], partition_fine, weight, used, size_lower[_unit],
-        size_upper[_unit], feed_share, flag``.  ``weight`` is :math:`1/\\sigma^2` of the
-        reconciled partition, scaled to a mean of 1 per separator over the used classes
+        size_upper[_unit], feed_share, flag, component``.  One curve per separator and
+        component: ``experiment`` is the separator's node for the whole solids and
+        ``NODE:COMPONENT`` for an assayed component.  ``weight`` is :math:`1/\\sigma^2` of the
+        reconciled partition, scaled to a mean of 1 per curve over the used classes
         (the fit's weighted least squares then weights each class by its precision).
         """
         table = self.partition_table()
+        table["experiment"] = curve_names(table)
         unit = self.survey.size_unit
         suffix = f"_{unit}" if unit and unit_in_names else ""
         rows = []
@@ -636,16 +612,18 @@ class CircuitBalance:
                         f"size_upper{suffix}": part["size_upper"].to_numpy(),
                         "feed_share": part["feed_share"].to_numpy(),
                         "flag": part["flag"].to_numpy(),
+                        "component": part["component"].to_numpy(),
                     }
                 )
             )
         if not rows:
-            return pd.DataFrame(columns=["experiment", f"size{suffix}", "partition_fine", "weight", "used"])
+            return pd.DataFrame(columns=["experiment", f"size{suffix}", "partition_fine", "weight", "used", "component"])
         return pd.concat(rows, ignore_index=True)
 
     def to_points(self) -> list[TrompPoints]:
-        """One :class:`~tromplab.loading.points.TrompPoints` per separator (experiment = node name),
-        the used classes only, weighted by the precision of the reconciled partition."""
+        """One :class:`~tromplab.loading.points.TrompPoints` per separator and component
+        (experiment = node name, ``NODE:COMPONENT`` for an assayed component), the used classes
+        only, weighted by the precision of the reconciled partition."""
         table = self.points_table(unit_in_names=False)
         points = []
         for name, part in table.groupby("experiment", sort=False):
@@ -746,6 +724,7 @@ class CircuitBalance:
             lines.append(f"not measured (blank or NaN value in the table): {listed}{more}")
         if self.problem is not None and self.problem.y.size == 0:
             lines.append("every measurement is exact (standard deviation 0): nothing to adjust, nothing to test")
+        lines += _assay_notes(self.survey)
         held = self.held_at_zero
         if held:
             listed = "; ".join(f"{stream} {'water' if i < 0 else 'class ' + class_name(classes, i)}" for stream, i in held[:8])
@@ -787,9 +766,9 @@ def _errors_at_reconciled(flowsheet: Flowsheet, survey: Survey, problem: Problem
         flows = class_flows.sum(axis=1)
         with np.errstate(invalid="ignore", divide="ignore"):
             shares = np.where(flows[:, None] > 0, class_flows / flows[:, None], 0.0)
-        evaluated = survey.with_errors_at(shares, np.clip(flows, 0.0, None), flowsheet.stream_index)
-        before = np.concatenate([survey.shares["sd"].to_numpy(float), survey.flows["sd"].to_numpy(float)])
-        after = np.concatenate([evaluated.shares["sd"].to_numpy(float), evaluated.flows["sd"].to_numpy(float)])
+        evaluated = survey.with_errors_at(shares, np.clip(flows, 0.0, None), flowsheet.stream_index, _grades(problem, v))
+        before, after = (np.concatenate([s.shares["sd"].to_numpy(float), s.flows["sd"].to_numpy(float),
+                                         s.assays["sd"].to_numpy(float)]) for s in (survey, evaluated))  # fmt: skip
         survey = evaluated
         problem, _ = build_problem(flowsheet, survey)
         z, success, message = solve(problem, v)
@@ -804,27 +783,37 @@ def _errors_at_reconciled(flowsheet: Flowsheet, survey: Survey, problem: Problem
     )
 
 
+def _assay_notes(survey: Survey) -> list[str]:
+    """The summary's lines on the per-class assays: the components balanced, the assays set aside."""
+    if not survey.components:
+        return []
+    lines = [f"per-class assays of {', '.join(survey.components)}: balanced per class at separators and junctions and in "
+             "total at mills (partition curve per component in partition.csv, grades and recoveries in components.csv)"]  # fmt: skip
+    scarce = survey.assays_set_aside
+    if len(scarce):
+        listed = "; ".join(f"{r.stream} {r.component} class {class_name(survey.classes, int(r.class_index))} (row {r.row})"
+                           for r in scarce.head(6).itertuples())  # fmt: skip
+        more = f" and {len(scarce) - 6} more" if len(scarce) > 6 else ""
+        lines.append(f"assays set aside (the class holds less than {100 * MIN_ASSAYED_SHARE:g} % of its stream, too little "
+                     f"material to assay): {listed}{more}")  # fmt: skip
+    return lines
+
+
+def _grades(problem: Problem, v: np.ndarray) -> np.ndarray | None:
+    """The assays at the unknowns ``v`` (components x streams x classes; 0 in an empty class), None without components."""
+    if not problem.n_components:
+        return None
+    S, n = problem.n_streams, problem.n_classes
+    components = v[problem.component_offset :].reshape(problem.n_components, S, n)
+    class_flows = v[: S * n].reshape(S, n)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(class_flows > 0, components / class_flows, 0.0)
+
+
 def _undetermined_water_note(streams: list[str]) -> str:
     if streams:
         return f"not determined by the survey: the water balances leave it free; the per cent solids of {' or '.join(streams)} would determine it"
     return "not determined by the survey: the water balances leave it free, and no single per cent solids more would determine it"
-
-
-def _partition_flags(feed_share: np.ndarray, phi: np.ndarray, at_bound: np.ndarray) -> tuple[list, list]:
-    """``used`` and ``flag`` of each class of a separator: too little feed or a partition outside
-    0..1 (not used), or a product's class flow held at its bound 0 (used, said)."""
-    used, flags = [], []
-    for share, value, bound in zip(feed_share, phi, at_bound):
-        if not np.isfinite(value) or share < MIN_FEED_SHARE:
-            used.append(False)
-            flags.append(f"feed share {100 * share:.3g} % below {100 * MIN_FEED_SHARE:g} %: partition not meaningful")
-        elif not 0.0 <= value <= 1.0:
-            used.append(False)
-            flags.append(f"reconciled partition {value:.4g} outside 0..1: not a partition, left out")
-        else:
-            used.append(True)
-            flags.append("a product's class flow held at 0 (the least squares would make it negative)" if bound else "")
-    return used, flags
 
 
 def reconcile(
@@ -893,6 +882,11 @@ def reconcile(
     if excluded:
         names = [class_name(survey.classes, i) for i in range(survey.n_classes)]
         survey = without(survey, excluded, flowsheet.stream_names, names)
+    return _balance(flowsheet, survey, alpha, excluded)
+
+
+def _balance(flowsheet: Flowsheet, survey: Survey, alpha: float, excluded: tuple[str, ...]) -> CircuitBalance:
+    """Reconcile ``survey``: solve, evaluate the error model at the reconciled values, linearise, bound at 0."""
     problem, basis = build_problem(flowsheet, survey)
     start = starting_point(flowsheet, survey, problem)
     check_observable(flowsheet, survey, problem, start)
@@ -906,22 +900,10 @@ def reconcile(
         success, message = False, "the bounds on the flows did not settle (active-set iterations exhausted)"
     S, n = problem.n_streams, problem.n_classes
     check_positive_flows(flowsheet, survey, v[: S * n].reshape(S, n).sum(axis=1))
-    return CircuitBalance(
-        flowsheet=flowsheet,
-        survey=survey,
-        class_flows=v[: S * n].reshape(S, n),
-        covariance=covariance,
-        chi_square=chi,
-        dof=int(problem.W.shape[0] - decomposition.rank),
-        alpha=alpha,
-        success=success,
-        message=message,
-        basis=basis,
-        problem=problem,
-        measured_y=problem.y.copy(),
-        water_flows=v[S * n :] if problem.n_water else None,
-        fitted=fitted,
-        at_bound=held,
-        decomposition=decomposition,
-        excluded=excluded,
-    )
+    water = v[S * n : problem.component_offset]
+    return CircuitBalance(flowsheet=flowsheet, survey=survey, class_flows=v[: S * n].reshape(S, n), covariance=covariance,
+                          chi_square=chi, dof=int(problem.W.shape[0] - decomposition.rank), alpha=alpha, success=success,
+                          message=message, basis=basis, problem=problem, measured_y=problem.y.copy(),
+                          water_flows=water if problem.n_water else None, fitted=fitted, at_bound=held,
+                          decomposition=decomposition, excluded=excluded,
+                          component_flows=v[problem.component_offset :].reshape(-1, S, n) if problem.n_components else None)  # fmt: skip
