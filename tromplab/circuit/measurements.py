@@ -332,10 +332,7 @@ def read_survey(
         complete stream not summing to 100 %, classes that overlap or leave a gap, a class
         given twice for a stream, flows that disagree within a stream.
     """
-    errors = errors or ErrorModel()
-    if not isinstance(errors, ErrorModel):
-        raise OptionError("errors", f"takes an ErrorModel, got {type(errors).__name__}")
-    errors.check_streams(flowsheet)
+    errors = _checked_errors(errors, flowsheet)
     table = read_table(path, sheet=sheet, sep=sep, decimal=decimal)
     table.require("stream")
     lower, upper, unit, size_columns = _size_bounds(table, size_unit)
@@ -359,6 +356,14 @@ def read_survey(
                   closed_streams=normalised, unmeasured=unmeasured, evaluated_at=errors.evaluated_at, assays=assays,
                   components=tuple(dict.fromkeys([*assays["component"], *scarce["component"]])),
                   assays_set_aside=scarce)  # fmt: skip
+
+
+def _checked_errors(errors, flowsheet: Flowsheet) -> ErrorModel:
+    errors = errors or ErrorModel()
+    if not isinstance(errors, ErrorModel):
+        raise OptionError("errors", f"takes an ErrorModel, got {type(errors).__name__}")
+    errors.check_streams(flowsheet)
+    return errors
 
 
 def _stream_measurements(table: Table, names, errors: ErrorModel) -> tuple[pd.DataFrame, pd.DataFrame]:

@@ -61,7 +61,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -71,6 +70,7 @@ from ..loading.points import TrompPoints
 from ..options import DEFAULT_ALPHA
 from ..validation import check_probability
 from . import plotting
+from .adjustments import ADJUSTMENT_COLUMNS, EQUIVALENT_CORRELATION, MeasurementTests, adjustments_frame, measurement_tests
 from .assays import MIN_ASSAYED_SHARE
 from .design import design_table, water_determined_by
 from .elimination import nodal_tests, proposal, serial_elimination, without
@@ -91,46 +91,13 @@ from .problem import (
 from .separators import MIN_FEED_SHARE, PARTITION_COLUMNS, components_table, curve_names, partition_table
 from .worth import worth_table
 
-__all__ = ["MIN_FEED_SHARE", "PARTITION_COLUMNS", "CircuitBalance", "reconcile"]
+__all__ = ["ADJUSTMENT_COLUMNS", "EQUIVALENT_CORRELATION", "MIN_FEED_SHARE", "PARTITION_COLUMNS", "CircuitBalance", "reconcile"]
 
-#: Adjustments correlated beyond this are reported as indistinguishable: a gross error in one
-#: of them moves the others' standardised adjustments alike, so no test can tell which it is.
-EQUIVALENT_CORRELATION = 0.99
 #: The error model at the reconciled values has settled when no sd moves by more than this share of itself.
 ERROR_MODEL_TOLERANCE = 1e-6
 MAX_ERROR_MODEL_ITERATIONS = 50
-#: Columns of :meth:`CircuitBalance.adjustments_table`.
-ADJUSTMENT_COLUMNS = [
-    "measurement",
-    "stream",
-    "class_index",
-    "size_lower",
-    "size_upper",
-    "row",
-    "measured",
-    "sd",
-    "reconciled",
-    "reconciled_sd",
-    "adjustment",
-    "adjustment_sd",
-    "standardised",
-    "gross_error",
-    "gross_error_sd",
-    "measurement_test",
-    "p_value",
-    "suspect",
-    "indistinguishable_from",
-]
 DISTRIBUTION_COLUMNS = ["stream", "size_lower", "size_upper", "size", "measured", "measured_sd", "reconciled",
                         "reconciled_sd"]  # fmt: skip
-
-
-class _MeasurementTests(NamedTuple):
-    statistic: np.ndarray  # with the sign of the adjustment (reconciled - measured)
-    estimate: np.ndarray  # the gross error that best explains the adjustments (measured - true)
-    estimate_sd: np.ndarray
-    testable: np.ndarray
-    correlation: np.ndarray  # of the statistics: beyond EQUIVALENT_CORRELATION no test tells them apart
 
 
 @dataclass(frozen=True)
@@ -386,112 +353,11 @@ class CircuitBalance:
 
     @cached_property
     def _adjustments(self) -> pd.DataFrame:
-        problem = self.problem
-        if problem is None or problem.y.size == 0:
-            return pd.DataFrame(columns=ADJUSTMENT_COLUMNS)
-        m = self._test_point
-        H = problem.jacobian(m)
-        predicted = problem.predict(self._unknowns)  # the reported values (bounded at 0)
-        cov_pred = H @ self.covariance @ H.T
-        adjustment = self.measured_y - problem.predict(m)  # measured minus reconciled, without the bounds
-        adjustment_var = problem.variance - np.diag(cov_pred)
-        testable = adjustment_var > 1e-8 * problem.sd**2
-        adjustment_sd = np.where(testable, np.sqrt(np.clip(adjustment_var, 0.0, None)), np.nan)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            standardised = np.where(testable, adjustment / adjustment_sd, np.nan)
-        classes = self.survey.classes
-        rows_of = self._measurement_rows()
-        table = pd.DataFrame(
-            {
-                "measurement": self._measurement_names(),
-                "stream": [self.streams[s] for s in problem.stream],
-                "class_index": problem.klass,
-                "size_lower": [classes["size_lower"].iloc[i] if i >= 0 else np.nan for i in problem.klass],
-                "size_upper": [classes["size_upper"].iloc[i] if i >= 0 else np.nan for i in problem.klass],
-                "row": rows_of,
-                "measured": self.measured_y,
-                "sd": np.sqrt(problem.variance),
-                "reconciled": predicted,
-                "reconciled_sd": np.sqrt(np.clip(np.diag(cov_pred), 0.0, None)),
-                "adjustment": predicted - self.measured_y,  # what was added to the measurement
-                "adjustment_sd": adjustment_sd,
-                "standardised": -standardised,
-            }
-        )
-        if self.survey.components:
-            names = np.array(("",) + self.survey.components, dtype=object)
-            table.insert(table.columns.get_loc("class_index") + 1, "component", names[problem.component + 1])
-        tests = self._measurement_tests
-        table["gross_error"] = tests.estimate
-        table["gross_error_sd"] = tests.estimate_sd
-        table["measurement_test"] = tests.statistic
-        table["p_value"] = 2.0 * stats.norm.sf(np.abs(tests.statistic))
-        table["suspect"] = np.abs(table["measurement_test"]) > self.measurement_test_critical
-        names = table["measurement"].to_numpy()
-        table["indistinguishable_from"] = [
-            "; ".join(
-                names[(np.abs(tests.correlation[j]) > EQUIVALENT_CORRELATION) & tests.testable & (np.arange(names.size) != j)]
-            )
-            if tests.testable[j]
-            else ""
-            for j in range(names.size)
-        ]
-        return table
-
-    def _measurement_names(self) -> list[str]:
-        """``STREAM class CLASS``, ``STREAM COMPONENT assay class CLASS``, ``STREAM flow``, ``STREAM per cent solids``."""
-        problem, classes = self.problem, self.survey.classes
-        names = []
-        for s, i, kind, k in zip(problem.stream, problem.klass, problem.kinds, problem.component):
-            if kind == "share":
-                names.append(f"{self.streams[s]} class {class_name(classes, i)}")
-            elif kind == "assay":
-                names.append(f"{self.streams[s]} {self.survey.components[k]} assay class {class_name(classes, i)}")
-            else:
-                names.append(f"{self.streams[s]} {_MEASURED_QUANTITY[kind]}")
-        return names
-
-    def _measurement_rows(self) -> list:
-        rows = {(r.stream, r.class_index, -1): r.row for r in self.survey.shares.itertuples()}
-        rows |= {(r.stream, -1, -1): r.row for r in self.survey.flows.itertuples()}
-        rows |= {(r.stream, -2, -1): r.row for r in self.survey.pct_solids.itertuples()}
-        order = {name: k for k, name in enumerate(self.survey.components)}
-        rows |= {(r.stream, r.class_index, order[r.component]): r.row for r in self.survey.assays.itertuples()}
-        problem = self.problem
-        return [rows.get((self.streams[s], i, k)) for s, i, k in zip(problem.stream, problem.klass, problem.component)]
+        return adjustments_frame(self)
 
     @cached_property
-    def _measurement_tests(self) -> _MeasurementTests:
-        r"""The generalised likelihood ratio test of a gross error in each raw measurement.
-
-        A gross error :math:`b` in raw measurement :math:`j` shifts the reported values by
-        :math:`b f_j` (:math:`f_j` the column of :attr:`Problem.effects`: a unit vector, or
-        in a closed analysis the shift of every share of the stream).  With the whitened
-        residuals :math:`\rho` and :math:`g_j = W f_j`, its least-squares estimate is
-        :math:`\hat b_j = g_j^T \rho / g_j^T Q g_j` with sd :math:`(g_j^T Q g_j)^{-1/2}`,
-        :math:`Q` the projection off the range of the whitened Jacobian; the statistic
-        :math:`\hat b_j / \mathrm{sd}` is the most powerful test of that error (Narasimhan &
-        Mah 1987) and, for a measurement whose error is independent of the others, equals the
-        standardised adjustment of Mah & Tamhane (1982) with the sign of the adjustment.
-        """
-        problem = self.problem
-        if problem is None or problem.y.size == 0:
-            empty = np.zeros(0)
-            return _MeasurementTests(empty, empty, empty, empty.astype(bool), np.zeros((0, 0)))
-        m = self._test_point
-        residual = problem.W @ (self.measured_y - problem.predict(m))
-        decomposition = self.decomposition or decompose(problem, problem.N.T @ (m - problem.m0))
-        basis = decomposition.range_basis
-        G = problem.W @ problem.effects
-        QG = G - basis @ (basis.T @ G)
-        information = np.einsum("ij,ij->j", G, QG)
-        testable = information > 1e-8 * np.einsum("ij,ij->j", G, G)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            estimate = np.where(testable, (G.T @ residual) / information, np.nan)
-            estimate_sd = np.where(testable, 1.0 / np.sqrt(np.abs(information)), np.nan)
-            scale = np.sqrt(np.clip(information, 1e-300, None))
-            correlation = (QG.T @ QG) / np.outer(scale, scale)
-        return _MeasurementTests(-estimate / estimate_sd, estimate, estimate_sd, testable, correlation)
+    def _measurement_tests(self) -> MeasurementTests:
+        return measurement_tests(self)
 
     @property
     def measurement_test_critical(self) -> float:
@@ -517,7 +383,7 @@ class CircuitBalance:
         independent of the others'), ``p_value`` (two-sided normal), ``suspect`` (absolute
         ``measurement_test`` above :attr:`measurement_test_critical`) and
         ``indistinguishable_from`` (the measurements whose tests are correlated with this one
-        beyond :data:`EQUIVALENT_CORRELATION`: a gross error in any of them looks the same,
+        beyond :data:`~tromplab.circuit.adjustments.EQUIVALENT_CORRELATION`: a gross error in any of them looks the same,
         e.g. the only two flowmeters of a loop, or one class of the three streams of a
         separator whose split is free).
         """
@@ -748,9 +614,6 @@ class CircuitBalance:
         return figures[kind](self, ax=ax)
 
 
-_MEASURED_QUANTITY = {"flow": "flow", "pct": "per cent solids"}
-
-
 def _errors_at_reconciled(flowsheet: Flowsheet, survey: Survey, problem: Problem, z: np.ndarray):
     """Evaluate the error model at the reconciled shares and flows and reconcile again, until
     no standard deviation moves by more than :data:`ERROR_MODEL_TOLERANCE` of itself.
@@ -877,12 +740,18 @@ def reconcile(
         if isinstance(measurements, Survey)
         else read_survey(measurements, flowsheet, errors=errors, size_unit=size_unit)
     )
+    survey, excluded = _without_excluded(survey, flowsheet, exclude)
+    return _balance(flowsheet, survey, alpha, excluded)
+
+
+def _without_excluded(survey: Survey, flowsheet: Flowsheet, exclude) -> tuple[Survey, tuple[str, ...]]:
+    """The survey without the measurements ``exclude`` names, and the names as given."""
     entries = exclude.split(",") if isinstance(exclude, str) else exclude or ()
     excluded = tuple(str(entry).strip() for entry in entries if str(entry).strip())
     if excluded:
         names = [class_name(survey.classes, i) for i in range(survey.n_classes)]
         survey = without(survey, excluded, flowsheet.stream_names, names)
-    return _balance(flowsheet, survey, alpha, excluded)
+    return survey, excluded
 
 
 def _balance(flowsheet: Flowsheet, survey: Survey, alpha: float, excluded: tuple[str, ...]) -> CircuitBalance:

@@ -306,20 +306,25 @@ def simulate_survey(
         for i in range(x.size):
             records.append({"stream": stream, "class_index": i, "value": value[i], "sd": float(errors.share_sd(value[i], stream)),
                             "row": None, "relative": relative, "absolute": absolute})  # fmt: skip
-    flow_records = []
-    for stream, relative in (flows or {}).items():
-        true = truth.flows[truth.flowsheet.stream_index[stream]]
-        value = true * (1.0 + relative * rng.standard_normal())
-        if gross is not None and gross[0] == stream and gross[1] < 0:
-            value = value / (1.0 - gross[2] * relative)  # shifted by gross[2] times its stated sd, relative * value
-        flow_records.append({"stream": stream, "value": value, "sd": relative * value, "row": None, "relative": relative})
     shares = pd.DataFrame(records, columns=SHARE_COLUMNS)
-    flow_table = pd.DataFrame(flow_records, columns=STREAM_VALUE_COLUMNS)
+    flow_table = _drawn_flows(truth, rng, flows or {}, gross)
     empty = pd.DataFrame(columns=STREAM_VALUE_COLUMNS)
     assays = _drawn_assays(truth, rng, errors, measured if assayed is None else assayed)
     return Survey(classes=truth.classes, shares=shares, flows=flow_table, pct_solids=empty, size_unit=truth.size_unit,
                   source="simulated survey", closed_streams=tuple(measured), evaluated_at=errors.evaluated_at,
                   assays=assays, components=truth.components)  # fmt: skip
+
+
+def _drawn_flows(truth: CircuitTruth, rng: np.random.Generator, flows: dict, gross) -> pd.DataFrame:
+    """Measured solids flows ``{stream: relative sd}``, the gross error on a flow when ``gross`` names one."""
+    records = []
+    for stream, relative in flows.items():
+        true = truth.flows[truth.flowsheet.stream_index[stream]]
+        value = true * (1.0 + relative * rng.standard_normal())
+        if gross is not None and gross[0] == stream and gross[1] < 0:
+            value = value / (1.0 - gross[2] * relative)  # shifted by gross[2] times its stated sd, relative * value
+        records.append({"stream": stream, "value": value, "sd": relative * value, "row": None, "relative": relative})
+    return pd.DataFrame(records, columns=STREAM_VALUE_COLUMNS)
 
 
 def _drawn_assays(truth: CircuitTruth, rng: np.random.Generator, errors: ErrorModel, streams) -> pd.DataFrame:
