@@ -13,9 +13,10 @@ import pytest
 from tromplab.circuit import ErrorModel, read_survey, reconcile
 from tromplab.circuit.simulation import component_study, lab_survey, mineral_circuit, simulate_survey, survey_table
 from tromplab.circuit_command import run_circuit
-from tromplab.cli import main
+from tromplab.cli import build_parser, main
 from tromplab.errors import InputError, OptionError
 from tromplab.loading.points import read_points
+from tromplab.output.plotting import offscreen_axes
 
 MINERALS = ("magnetite", "pyrite")
 
@@ -197,6 +198,21 @@ def test_the_command_writes_the_components_and_fits_a_curve_per_separator_and_mi
     assert set(ranked["experiment"]) == {"cyclone", "cyclone:magnetite", "cyclone:pyrite"}
     assert main(["fit", str(tmp_path / "out" / "points.csv"), "-o", str(tmp_path / "fit"), "--no-figures", "--formulas",
                  "plitt"]) == 0  # fmt: skip
+
+
+def test_the_command_line_takes_the_assay_errors_with_the_api_defaults_and_ranges(tmp_path, capsys):
+    args = build_parser().parse_args(["circuit", "sheet.csv", "survey.csv"])
+    model = ErrorModel()
+    assert (args.assay_relative_error, args.assay_absolute_error) == (model.assay_relative_error, model.assay_absolute_error)
+    assert main(["circuit", "sheet.csv", "survey.csv", "-o", str(tmp_path / "out"), "--assay-absolute-error", "0.7"]) == 2
+    assert "--assay-absolute-error: is at most 0.5" in capsys.readouterr().err
+
+
+def test_the_partition_figure_draws_a_curve_per_separator_and_component(surveyed):
+    _, balance = surveyed
+    ax = balance.plot("partition", ax=offscreen_axes())
+    labels = [text.get_text() for text in ax.get_legend().get_texts()]
+    assert labels == ["cyclone:solids", "cyclone:magnetite", "cyclone:pyrite"]
 
 
 @pytest.mark.slow

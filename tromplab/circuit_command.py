@@ -106,8 +106,8 @@ def run_circuit(
     reads), the flowsheet as read (``flowsheet.csv``), ``summary.txt``; figures
     ``flowsheet.png``, ``adjustments.png``, ``distributions.png``; with ``fit``
     ``fits.csv`` and ``ranking.csv``; with per cent solids measured, ``water.csv``; with
-    per-class assays, ``components.csv`` (and a curve per separator and component in
-    ``partition.csv``, ``points.csv`` and the fits).
+    per-class assays, ``components.csv`` and ``partition.png`` (and a curve per separator and
+    component in ``partition.csv``, ``points.csv`` and the fits).
     """
     check_output_folder(outdir, inputs=[flowsheet, measurements])  # the inputs are checked as they are read
     sheet = read_flowsheet(flowsheet)
@@ -145,7 +145,8 @@ def run_circuit(
     summary = balance.summary() + "\n"
     outputs["summary.txt"] = lambda path: path.write_text(summary, encoding="utf-8")
     if figures:
-        for kind in ("flowsheet", "adjustments", "distributions") if balance.has_size_classes else ("flowsheet", "adjustments"):
+        kinds = ("flowsheet", "adjustments", "distributions") if balance.has_size_classes else ("flowsheet", "adjustments")
+        for kind in kinds + (("partition",) if balance.survey.components else ()):
             png = _png(balance, kind)
             outputs[f"{kind}.png"] = lambda path, png=png: path.write_bytes(png)
     written = replace_folder(outputs, outdir)

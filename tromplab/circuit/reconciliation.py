@@ -88,7 +88,7 @@ from .problem import (
     solve,
     starting_point,
 )
-from .separators import MIN_FEED_SHARE, PARTITION_COLUMNS, components_table, curve_names, partition_table
+from .separators import MIN_FEED_SHARE, PARTITION_COLUMNS, components_table, curve_names, partition_table, plot_partitions
 from .worth import worth_table
 
 __all__ = ["ADJUSTMENT_COLUMNS", "EQUIVALENT_CORRELATION", "MIN_FEED_SHARE", "PARTITION_COLUMNS", "CircuitBalance", "reconcile"]
@@ -603,11 +603,12 @@ class CircuitBalance:
     def plot(self, kind: str = "distributions", ax=None):
         """``"distributions"``: reconciled against measured distributions per stream;
         ``"adjustments"``: standardised adjustments; ``"flowsheet"``: the flowsheet with the
-        reconciled flows.  Returns the Axes (or the array of Axes for distributions)."""
+        reconciled flows; ``"partition"``: the partition curves per separator and component.  Returns the Axes (or the array of Axes for distributions)."""
         figures = {
             "distributions": plotting.plot_distributions,
             "adjustments": plotting.plot_adjustments,
             "flowsheet": plotting.plot_flowsheet,
+            "partition": plot_partitions,
         }
         if kind not in figures:
             raise ValueError(f"unknown kind {kind!r}; choose one of {', '.join(figures)}")

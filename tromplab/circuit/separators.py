@@ -198,3 +198,29 @@ def components_table(balance) -> pd.DataFrame:
             row["recovery_fine_low"], row["recovery_fine_high"] = _logit_interval(row["recovery_fine"], row["recovery_fine_sd"])
             rows.append(row)
     return pd.DataFrame(rows, columns=COMPONENT_COLUMNS)
+
+
+def plot_partitions(balance, ax=None):
+    """The reconciled partition curves (to the fine product, +/- 2 sd) of every separator: one
+    curve for the whole solids and one per assayed component, the used classes only."""
+    from .plotting import _axes, figure_size
+
+    ax = _axes(ax, figure_size(balance, "partition"))
+    table = balance.partition_table()
+    table["curve"] = curve_names(table)
+    table = table[table["used"].astype(bool)]
+    markers = {SOLIDS: "o", **{name: "sDv^<>"[k % 6] for k, name in enumerate(balance.survey.components)}}
+    for k, (curve, part) in enumerate(table.groupby("curve", sort=False)):
+        component = part["component"].iloc[0]
+        ax.errorbar(part["size"], part["partition_fine"], yerr=2 * part["partition_sd"], color=f"C{k % 10}",
+                    marker=markers[component], markersize=4, linewidth=1.6 if component == SOLIDS else 1.0,
+                    linestyle="-" if component == SOLIDS else "--", elinewidth=0.7, capsize=1.5,
+                    label=f"{curve}:{SOLIDS}" if component == SOLIDS else curve)  # fmt: skip
+    unit = balance.survey.size_unit
+    ax.set_xscale("log")
+    ax.set_ylim(-0.05, 1.05)
+    ax.set_xlabel(f"size ({unit})" if unit else "size")
+    ax.set_ylabel("partition to the fine product")
+    ax.set_title("Partition per separator and component: reconciled (+/- 2 sd)", fontsize=10)
+    ax.legend(fontsize=7)
+    return ax
