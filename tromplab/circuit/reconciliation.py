@@ -519,6 +519,11 @@ class CircuitBalance:
             ("size classes", n),
             ("unknown class flows (streams x classes)", S * n),
             *([("unknown water flows (streams and water streams)", self.water_flows.size)] if self.balances_water else []),
+            *(
+                [("unknown component class flows (components x streams x classes)", self.component_flows.size)]
+                if self.component_flows is not None
+                else []
+            ),  # fmt: skip
             ("independent linear constraints (balances, fixed flows, basis)", self._unknowns.size - free),
             ("free unknowns", free),
             ("measurements with a standard deviation", measurements),
