@@ -330,11 +330,9 @@ def read_survey(
     InputError
         Naming the file, row and column: an unknown stream, negative amounts, shares of a
         complete stream not summing to 100 %, classes that overlap or leave a gap, a class
-        given twice for a stream, flows that disagree within a stream, an assay outside 0..100
-        or without a size class (:func:`~tromplab.circuit.assays.read_assays`).
+        given twice for a stream, flows that disagree within a stream, an assay outside 0..100.
     OptionError
-        An error model whose per-stream or per-component override names a stream the
-        flowsheet or a component the table lacks.
+        An override of the error model naming a stream or component the survey lacks.
     """
     errors = _checked_errors(errors, flowsheet)
     table = read_table(path, sheet=sheet, sep=sep, decimal=decimal)
