@@ -164,7 +164,7 @@ def solve(problem: Problem, start: np.ndarray) -> tuple[np.ndarray, bool, str]:
     Directions that no measurement sees (water flows the survey leaves undetermined) keep
     their starting values: the solver's rounding would otherwise let them wander without bound.
     """
-    z0 = problem.N.T @ (start - problem.m0)
+    z0 = problem.N.T @ (_assayed_classes_filled(problem, start) - problem.m0)
     if not (problem.N.shape[1] and problem.y.size):
         return z0, True, "nothing to adjust"
     missing = max(problem.N.shape[1] - problem.W.shape[0], 0)  # Levenberg-Marquardt wants as many residuals as unknowns
@@ -179,6 +179,20 @@ def solve(problem: Problem, start: np.ndarray) -> tuple[np.ndarray, bool, str]:
                                       gtol=1e-12, max_nfev=2000)  # fmt: skip
     unseen = decompose(problem, solution.x).unseen
     return solution.x - unseen @ (unseen.T @ (solution.x - z0)), bool(solution.success), str(solution.message)
+
+
+def _assayed_classes_filled(problem: Problem, start: np.ndarray) -> np.ndarray:
+    """``start`` with every assayed class flow not held at 0 raised to a millionth of the largest
+    class flow at least: the assay of an empty class, 0/0, has no value to start from."""
+    if not problem.n_components:
+        return start
+    S, n = problem.n_streams, problem.n_classes
+    assay = problem.kinds == "assay"
+    assayed = np.zeros(start.size, dtype=bool)
+    assayed[problem.stream[assay] * n + problem.klass[assay]] = True
+    assayed[list(problem.at_bound)] = False
+    floor = 1e-6 * max(float(np.abs(start[: S * n]).max(initial=0.0)), 1e-300)
+    return np.where(assayed & (start < floor), floor, start)
 
 
 def bounded_solution(problem: Problem, fitted: np.ndarray) -> tuple[tuple[int, ...], np.ndarray]:
@@ -480,6 +494,26 @@ def starting_point(flowsheet: Flowsheet, survey: Survey, problem: Problem) -> np
     if problem.A.shape[0]:
         m = m - np.linalg.lstsq(problem.A, problem.A @ m - problem.b, rcond=None)[0]
     return m
+
+
+def solids_first_start(flowsheet: Flowsheet, survey: Survey, problem: Problem) -> np.ndarray:
+    """The starting point of a survey with assays: the survey reconciled without its assays
+    (its solids and water flows), the component flows of the measured assays at those class
+    flows, projected onto the component balances.
+
+    An assay predicts a component flow over a class flow; started from class flows that the
+    projection of :func:`starting_point` leaves near 0, its rows would outweigh every other
+    measurement by orders of magnitude and blur the rank decision.
+    """
+    solids_survey = replace(survey, assays=survey.assays.iloc[:0], components=())
+    solids_problem, _ = build_problem(flowsheet, solids_survey)
+    start = starting_point(flowsheet, solids_survey, solids_problem)
+    check_observable(flowsheet, solids_survey, solids_problem, start)
+    z, _, _ = solve(solids_problem, start)
+    solids = solids_problem.m0 + solids_problem.N @ z
+    S, n = problem.n_streams, problem.n_classes
+    v = np.concatenate([solids, _start_components(survey, flowsheet.stream_index, solids[: S * n].reshape(S, n))])
+    return v - np.linalg.lstsq(problem.A, problem.A @ v - problem.b, rcond=None)[0]
 
 
 def _start_components(survey: Survey, index: dict, class_flows: np.ndarray) -> np.ndarray:

@@ -85,6 +85,7 @@ from .problem import (
     check_positive_flows,
     decompose,
     linearised,
+    solids_first_start,
     solve,
     starting_point,
 )
@@ -763,7 +764,7 @@ def _without_excluded(survey: Survey, flowsheet: Flowsheet, exclude) -> tuple[Su
 def _balance(flowsheet: Flowsheet, survey: Survey, alpha: float, excluded: tuple[str, ...]) -> CircuitBalance:
     """Reconcile ``survey``: solve, evaluate the error model at the reconciled values, linearise, bound at 0."""
     problem, basis = build_problem(flowsheet, survey)
-    start = starting_point(flowsheet, survey, problem)
+    start = solids_first_start(flowsheet, survey, problem) if problem.n_components else starting_point(flowsheet, survey, problem)
     check_observable(flowsheet, survey, problem, start)
     z, success, message = solve(problem, start)
     if survey.evaluated_at == "reconciled":
