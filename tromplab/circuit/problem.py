@@ -201,13 +201,15 @@ def bounded_solution(problem: Problem, fitted: np.ndarray) -> tuple[tuple[int, .
 
     A flow that comes out negative is held at 0 (it joins the linear constraints) and the survey
     is reconciled again; a flow held at 0 is released when its Lagrange multiplier says the sum
-    of squares would fall by raising it (Lawson & Hanson 1974, ch. 23).  Without a negative flow
-    this is ``fitted``, untouched (``held`` empty); NaN if the iteration does not settle.
+    of squares would fall by raising it (Lawson & Hanson 1974, ch. 23), once at most (a flow
+    released and negative again stays held: the iteration cannot cycle).  Without a negative
+    flow this is ``fitted``, untouched (``held`` empty); NaN if the iteration does not settle.
     """
     active = fitted < -BOUND_TOL * max(np.abs(fitted).max(initial=0.0), 1e-300)
     if not active.any():
         return (), np.clip(fitted, 0.0, None)  # what is below 0 is rounding
     start = np.clip(fitted, 0.0, None)
+    released_before = np.zeros(fitted.size, dtype=bool)
     for _ in range(2 * fitted.size + 1):
         current = problem.fixed_at_zero(active)
         z, _, _ = solve(current, start)
@@ -216,16 +218,18 @@ def bounded_solution(problem: Problem, fitted: np.ndarray) -> tuple[tuple[int, .
         if negative.any():
             active |= negative
         else:
-            released = _wrong_sign_multiplier(current, v)
+            released = _wrong_sign_multiplier(current, v, released_before)
             if released is None:
                 return current.at_bound, np.clip(v, 0.0, None)
             active[released] = False
+            released_before[released] = True  # released once only: the iteration cannot cycle
         start = np.clip(v, 0.0, None)
     return tuple(np.flatnonzero(active)), np.full(fitted.size, np.nan)
 
 
-def _wrong_sign_multiplier(problem: Problem, v: np.ndarray) -> int | None:
-    """The unknown held at 0 whose multiplier is most negative (raising it lowers the sum of squares), or None."""
+def _wrong_sign_multiplier(problem: Problem, v: np.ndarray, released_before: np.ndarray) -> int | None:
+    """The unknown held at 0 whose multiplier is most negative (raising it lowers the sum of squares), or
+    None; an unknown released before (then negative again) stays held."""
     held = np.array(problem.at_bound, dtype=int)
     if held.size == 0 or not problem.y.size:
         return None
@@ -234,6 +238,7 @@ def _wrong_sign_multiplier(problem: Problem, v: np.ndarray) -> int | None:
     active = np.zeros(v.size, dtype=bool)
     active[held] = True
     multipliers = np.where(problem.emptied(active)[held], np.inf, multipliers)  # held with their class, not on their own
+    multipliers = np.where(released_before[held], np.inf, multipliers)
     worst = int(np.argmin(multipliers))
     return int(held[worst]) if multipliers[worst] < -1e-8 * max(np.abs(gradient).max(), 1e-300) else None
 
