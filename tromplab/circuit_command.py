@@ -119,7 +119,9 @@ def run_circuit(
     (Tromp-points schema with weights, what ``tromplab fit`` reads), the flowsheet as read
     (``flowsheet.csv``), ``summary.txt`` (ending with the next steps); figures
     ``flowsheet.png``, ``adjustments.png``, ``distributions.png``; with ``fit`` ``fits.csv``
-    and ``ranking.csv``; with per cent solids measured, ``water.csv``.
+    and ``ranking.csv``; with per cent solids measured, ``water.csv``; with per-class assays,
+    ``components.csv`` and ``partition.png`` (and a curve per separator and component in
+    ``partition.csv``, ``points.csv`` and the fits).
     """
     from .circuit import read_flowsheet, read_survey, reconcile
 

@@ -59,6 +59,10 @@ DEFAULT_ABSOLUTE_ERROR = 0.001
 DEFAULT_FLOW_RELATIVE_ERROR = 0.05
 #: Standard deviation of a per cent solids without one (percentage points).
 DEFAULT_PCT_SOLIDS_SD = 1.0
+#: Relative error of a per-class assay (mass share of a component in a class of a stream).
+DEFAULT_ASSAY_RELATIVE_ERROR = 0.05
+#: Absolute error of an assay, a fraction of the class's solids (0.0005 = 0.05 percentage point).
+DEFAULT_ASSAY_ABSOLUTE_ERROR = 0.0005
 #: Flow of the first feed when no solids flow is measured: flows are then per 100 of that feed.
 CIRCUIT_BASIS = 100.0
 #: Formulas ``tromplab circuit --fit`` fits: the nine (ranked) and the extended curves (reported).

@@ -244,6 +244,7 @@ def range_text(check: Callable, **kwargs) -> str:
         check_relative_error: f"[0, {MAX_RELATIVE_ERROR:g}]",
         check_positive_relative_error: f"(0, {MAX_RELATIVE_ERROR:g}]",
         check_share_sd: f"[0, {MAX_SHARE_SD:g}]",
+        check_assay_sd: f"[0, {MAX_ASSAY_SD:g}]",
         check_pct_solids_sd: f"(0, {MAX_PCT_SOLIDS_SD:g}]",
     }
     return fixed[check]
@@ -297,6 +298,8 @@ MAX_RELATIVE_ERROR = 1.0
 MAX_SHARE_SD = 0.5
 #: Largest standard deviation of a per cent solids (percentage points): it lies in 0..100.
 MAX_PCT_SOLIDS_SD = 50.0
+#: Largest standard deviation of an assay (fraction of the class's solids): an assay lies in 0..1.
+MAX_ASSAY_SD = 0.5
 
 
 def _at_most(number: float, value, option: str, maximum: float, what: str) -> float:
@@ -321,6 +324,12 @@ def check_share_sd(value, option: str) -> float:
     """A standard deviation of a share (fraction of the stream), 0 to :data:`MAX_SHARE_SD`."""
     number = check_non_negative(value, option)
     return _at_most(number, value, option, MAX_SHARE_SD, "a share lies in 0..1")
+
+
+def check_assay_sd(value, option: str) -> float:
+    """A standard deviation of an assay (fraction of the class's solids), 0 to :data:`MAX_ASSAY_SD`."""
+    number = check_non_negative(value, option)
+    return _at_most(number, value, option, MAX_ASSAY_SD, "an assay lies in 0..1 of the class's solids")
 
 
 def check_pct_solids_sd(value, option: str) -> float:

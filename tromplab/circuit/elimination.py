@@ -95,9 +95,10 @@ def _row(step: int, suspect, chi_square: float, dof: int) -> dict:
     if suspect is None:
         return row | {"stream": "", "kind": "", "size_class": "", "measurement": "(as reconciled)", "indistinguishable_from": ""}
     kind = "share" if suspect["class_index"] >= 0 else "flow" if suspect["class_index"] == -1 else "pct"
+    component = suspect.get("component", "")
     return row | {
         "stream": suspect["stream"],
-        "kind": _KIND_NAMES[kind],
+        "kind": f"assay_{component}_pct" if component else _KIND_NAMES[kind],
         "size_class": suspect["measurement"].split(" class ", 1)[1] if kind == "share" else "",
         "estimated_error": float(suspect["gross_error"]),
         "estimated_error_sd": float(suspect["gross_error_sd"]),
@@ -112,14 +113,15 @@ def _compensated(balance, j: int, bias: float) -> Survey:
     problem = balance.problem
     values = problem.y - bias * problem.effects[:, j]
     survey = balance.survey
-    shares, flows, pct = survey.shares.copy(), survey.flows.copy(), survey.pct_solids.copy()
-    parts = [(shares, shares["sd"] > 0), (flows, flows["sd"] > 0), (pct, pct["sd"] > 0)]
+    shares, flows, pct, assays = survey.shares.copy(), survey.flows.copy(), survey.pct_solids.copy(), survey.assays.copy()
+    parts = [(shares, shares["sd"] > 0), (flows, flows["sd"] > 0), (pct, pct["sd"] > 0), (assays, assays["sd"] > 0)]
     start = 0
     for table, used in parts:
         count = int(used.sum())
         table.loc[used.to_numpy(), "value"] = values[start : start + count]
         start += count
-    return dataclasses.replace(survey, shares=shares, flows=flows, pct_solids=pct, source=f"{survey.source} (compensated)")
+    return dataclasses.replace(survey, shares=shares, flows=flows, pct_solids=pct, assays=assays,
+                               source=f"{survey.source} (compensated)")  # fmt: skip
 
 
 def proposal(table: pd.DataFrame, alpha: float) -> str:
@@ -148,14 +150,17 @@ def proposal(table: pd.DataFrame, alpha: float) -> str:
 
 
 def exclusion_name(stream: str, kind: str, size_class: str) -> str:
-    """``STREAM:WHAT`` as ``--exclude`` reads it (``flow``, ``pct_solids`` or the size class)."""
+    """``STREAM:WHAT`` as ``--exclude`` reads it (``flow``, ``pct_solids``, the size class, or
+    ``assay_NAME_pct:CLASS`` for an assay)."""
+    if kind.startswith("assay_"):
+        return f"{stream}:{kind}:{size_class}"
     return f"{stream}:{size_class if kind == 'share' else kind}"
 
 
 def without(survey: Survey, exclude, stream_names, class_names) -> Survey:
     """``survey`` without the measurements named in ``exclude``: ``STREAM`` (all of the stream's),
-    ``STREAM:flow``, ``STREAM:pct_solids`` or ``STREAM:CLASS`` (a size class as the tables name
-    it, ``-150+75``).  A stream losing a class is no longer a closed analysis.
+    ``STREAM:flow``, ``STREAM:pct_solids``, ``STREAM:CLASS`` (a size class as the tables name
+    it, ``-150+75``) or ``STREAM:assay_NAME_pct[:CLASS]`` (a component's assays).  A stream losing a class is no longer a closed analysis.
 
     Raises
     ------
@@ -166,8 +171,13 @@ def without(survey: Survey, exclude, stream_names, class_names) -> Survey:
         exclude = [part for part in exclude.split(",") if part.strip()]
     shares, flows, pct = survey.shares, survey.flows, survey.pct_solids
     closed = set(survey.closed_streams)
+    assays = [str(entry).strip() for entry in exclude if ":assay_" in str(entry)]
+    if assays:
+        survey = _without_assays(survey, assays, class_names)
     for entry in exclude:
         text = str(entry).strip()
+        if text in assays:
+            continue
         stream, what = (text, "") if text in stream_names else (text.rsplit(":", 1) + [""])[:2]
         if stream not in stream_names:
             raise OptionError("exclude", f"names {text!r}: no stream {stream!r} in the flowsheet ({', '.join(stream_names)})")
@@ -182,10 +192,33 @@ def without(survey: Survey, exclude, stream_names, class_names) -> Survey:
             drop = (shares["stream"] == stream) & (True if not what else shares["class_index"] == class_names.index(what))
             shares = shares[~drop]
             closed.discard(stream)
+        if not what:  # the whole stream: its assays too
+            survey = dataclasses.replace(survey, assays=survey.assays[survey.assays["stream"] != stream])
         if len(shares) + len(flows) + len(pct) == before:
             raise OptionError("exclude", f"names {text!r}, which the survey does not measure")
     kept = tuple(s for s in survey.closed_streams if s in closed)
     return dataclasses.replace(survey, shares=shares, flows=flows, pct_solids=pct, closed_streams=kept)
+
+
+def _without_assays(survey: Survey, exclude, class_names) -> Survey:
+    """``survey`` without the assays named ``STREAM:assay_NAME_pct`` (every class) or
+    ``STREAM:assay_NAME_pct:CLASS``."""
+    assays = survey.assays
+    for text in exclude:
+        stream, what = text.split(":", 1)
+        column, size_class = (what.split(":", 1) + [""])[:2]
+        component = column[len("assay_") : -len("_pct")] if column.endswith("_pct") else ""
+        if component not in survey.components:
+            raise OptionError("exclude", f"names {text!r}: no assay column {column!r} in the survey")
+        if size_class and size_class not in class_names:
+            raise OptionError("exclude", f"names {text!r}: no size class {size_class!r} (classes {', '.join(class_names)})")
+        drop = (assays["stream"] == stream) & (assays["component"] == component)
+        if size_class:
+            drop &= assays["class_index"] == class_names.index(size_class)
+        if not drop.any():
+            raise OptionError("exclude", f"names {text!r}, which the survey does not measure")
+        assays = assays[~drop]
+    return dataclasses.replace(survey, assays=assays)
 
 
 def nodal_tests(balance) -> pd.DataFrame:

@@ -28,7 +28,11 @@ exactly one value column
     with blank size columns may carry just the flow.
 ``pct_solids``, ``pct_solids_sd``
     optional per cent solids by mass of the stream's pulp and its standard deviation
-    (read, checked and reported; they do not enter the solids balance).
+    (the water balances then join the reconciliation).
+``assay_<name>_pct``
+    optional per-class assays: the mass per cent of component ``<name>`` in the solids of
+    the row's stream and class (any number of such columns; blank = not assayed), with the
+    error model of :mod:`tromplab.circuit.assays`.
 ``note``, ``comment``
     free text, ignored.  Any other column is refused with its name.
 
@@ -73,6 +77,8 @@ from ..loading.size_classes import class_string_bounds, size_columns
 from ..loading.tables import Table, read_table
 from ..options import (
     DEFAULT_ABSOLUTE_ERROR,
+    DEFAULT_ASSAY_ABSOLUTE_ERROR,
+    DEFAULT_ASSAY_RELATIVE_ERROR,
     DEFAULT_FLOW_RELATIVE_ERROR,
     DEFAULT_PCT_SOLIDS_SD,
     DEFAULT_RELATIVE_ERROR,
@@ -83,11 +89,13 @@ from ..validation import (
     MAX_PCT_SOLIDS_SD,
     MAX_RELATIVE_ERROR,
     MAX_SHARE_SD,
+    check_assay_sd,
     check_pct_solids_sd,
     check_positive_relative_error,
     check_relative_error,
     check_share_sd,
 )
+from .assays import assay_columns, assays_at, empty_assays, read_assays, set_aside
 from .flowsheet import Flowsheet
 
 #: Per-class shares of a fully measured stream may miss 100 % by this much (percentage points)
@@ -129,6 +137,13 @@ class ErrorModel:
         True (default): a stream measured in every class is normalised to 100 % and its
         shares get the covariance :math:`P D P^T` of a closed analysis.  False: every share
         is used as given with its own independent error (data not normalised by the lab).
+    assay_relative_error : float
+        Relative error of a per-class assay (:mod:`tromplab.circuit.assays`).
+    assay_absolute_error : float
+        Absolute error of an assay, a fraction of the class's solids.
+    components : dict
+        Per-component ``{component: (relative_error, absolute_error)}`` overriding the two
+        assay defaults.
     evaluated_at : {"reconciled", "measured"}
         Where :math:`\sigma(x)` and the closure :math:`P` are evaluated: at the reconciled
         shares and flows, iterated until the standard deviations settle (default: a share
@@ -149,6 +164,9 @@ class ErrorModel:
     streams: dict = field(default_factory=dict)
     closure: bool = True
     evaluated_at: str = "reconciled"
+    assay_relative_error: float = DEFAULT_ASSAY_RELATIVE_ERROR
+    assay_absolute_error: float = DEFAULT_ASSAY_ABSOLUTE_ERROR
+    components: dict = field(default_factory=dict)
 
     def __post_init__(self):
         if self.evaluated_at not in ERROR_MODEL_POINTS:
@@ -157,18 +175,14 @@ class ErrorModel:
         check_share_sd(self.absolute_error, "absolute_error")
         check_positive_relative_error(self.flow_relative_error, "flow_relative_error")
         check_pct_solids_sd(self.pct_solids_sd, "pct_solids_sd")
+        check_relative_error(self.assay_relative_error, "assay_relative_error")
+        check_assay_sd(self.assay_absolute_error, "assay_absolute_error")
         if self.relative_error == 0 and self.absolute_error == 0:
             raise OptionError("relative_error", "and absolute_error are both 0: every share would be exact")
-        if not isinstance(self.streams, dict):
-            raise OptionError("streams", f"takes a dict {{stream: (relative_error, absolute_error)}}, got {self.streams!r}")
-        for stream, pair in self.streams.items():
-            if not isinstance(pair, (tuple, list)) or len(pair) != 2:
-                raise OptionError("streams", f"takes (relative_error, absolute_error) pairs, got {pair!r} for '{stream}'")
-            relative, absolute = pair
-            check_relative_error(relative, f"relative_error of stream '{stream}'")
-            check_share_sd(absolute, f"absolute_error of stream '{stream}'")
-            if relative == 0 and absolute == 0:
-                raise OptionError(f"streams['{stream}']", "gives both errors 0: every share of the stream would be exact")
+        if self.assay_relative_error == 0 and self.assay_absolute_error == 0:
+            raise OptionError("assay_relative_error", "and assay_absolute_error are both 0: every assay would be exact")
+        _check_error_pairs(self.streams, "streams", "stream", "share", check_share_sd)
+        _check_error_pairs(self.components, "components", "component", "assay", check_assay_sd)
 
     def check_streams(self, flowsheet: Flowsheet) -> None:
         """Refuse a per-stream override naming a stream the flowsheet lacks (a typo would
@@ -181,10 +195,28 @@ class ErrorModel:
                 f"{flowsheet.source} ({', '.join(flowsheet.stream_names)})",
             )
 
+    def assay_errors(self, component: str) -> tuple[float, float]:
+        """``(relative, absolute)`` error of an assay of ``component``."""
+        return self.components.get(component, (self.assay_relative_error, self.assay_absolute_error))
+
     def share_sd(self, share, stream: str = ""):
         r"""Standard deviation :math:`\sqrt{(r x)^2 + a^2}` of a measured share ``x`` of ``stream``."""
         relative, absolute = self.streams.get(stream, (self.relative_error, self.absolute_error))
         return np.sqrt((relative * np.asarray(share, dtype=float)) ** 2 + absolute**2)
+
+
+def _check_error_pairs(pairs, option: str, what: str, measured: str, check_absolute) -> None:
+    """Refuse a per-stream or per-component override that is not ``{name: (relative, absolute)}`` in range."""
+    if not isinstance(pairs, dict):
+        raise OptionError(option, f"takes a dict {{{what}: (relative_error, absolute_error)}}, got {pairs!r}")
+    for name, pair in pairs.items():
+        if not isinstance(pair, (tuple, list)) or len(pair) != 2:
+            raise OptionError(option, f"takes (relative_error, absolute_error) pairs, got {pair!r} for '{name}'")
+        relative, absolute = pair
+        check_relative_error(relative, f"relative_error of {what} '{name}'")
+        check_absolute(absolute, f"absolute_error of {what} '{name}'")
+        if relative == 0 and absolute == 0:
+            raise OptionError(f"{option}['{name}']", f"gives both errors 0: every {measured} of the {what} would be exact")
 
 
 @dataclass(frozen=True)
@@ -211,6 +243,14 @@ class Survey:
     unmeasured : pandas.DataFrame
         ``stream, class_index, row``: rows of the table that name a class of a stream but
         leave its value blank (or NaN); the class is not measured in that stream.
+    assays : pandas.DataFrame
+        ``stream, class_index, component, value, sd, row, relative, absolute``: per-class
+        assays (fractions of the class's solids, :mod:`tromplab.circuit.assays`).
+    components : tuple of str
+        The components assayed, in the order of the table's columns.
+    assays_set_aside : pandas.DataFrame
+        Assays of classes measured below :data:`~tromplab.circuit.assays.MIN_ASSAYED_SHARE` of
+        their stream: too little material to assay; not used.
     """
 
     classes: pd.DataFrame
@@ -222,6 +262,9 @@ class Survey:
     closed_streams: tuple[str, ...] = ()
     unmeasured: pd.DataFrame = field(default_factory=lambda: pd.DataFrame(columns=["stream", "class_index", "row"]))
     evaluated_at: str = "reconciled"
+    assays: pd.DataFrame = field(default_factory=empty_assays)
+    components: tuple[str, ...] = ()
+    assays_set_aside: pd.DataFrame = field(default_factory=empty_assays)
 
     @property
     def n_classes(self) -> int:
@@ -231,11 +274,12 @@ class Survey:
     def measured_streams(self) -> tuple[str, ...]:
         return tuple(dict.fromkeys(self.shares["stream"]))
 
-    def with_errors_at(self, shares: np.ndarray, flows: np.ndarray, stream_index: dict) -> Survey:
+    def with_errors_at(self, shares: np.ndarray, flows: np.ndarray, stream_index: dict, grades=None) -> Survey:
         """The survey with the error model evaluated at ``shares`` (streams x classes, clipped
-        at 0) and ``flows`` (per stream) instead of the measured values: the sd of every share
-        and flow whose sd the table did not give, and the share ``at`` which the closure of
-        its analysis is linearised.  Values and given sds are unchanged."""
+        at 0), ``flows`` (per stream) and ``grades`` (components x streams x classes: the
+        assays) instead of the measured values: the sd of every share, flow and assay whose sd
+        the table did not give, and the share ``at`` which the closure of its analysis is
+        linearised.  Values and given sds are unchanged."""
         table = self.shares.copy()
         if len(table):
             at = np.clip(shares[table["stream"].map(stream_index).to_numpy(), table["class_index"].to_numpy(int)], 0.0, None)
@@ -248,7 +292,8 @@ class Survey:
             modelled = flow_table["relative"].notna().to_numpy()
             reconciled = flows[flow_table["stream"].map(stream_index).to_numpy()]
             flow_table["sd"] = np.where(modelled, flow_table["relative"].to_numpy(float) * reconciled, flow_table["sd"])
-        return replace(self, shares=table, flows=flow_table)
+        assays = self.assays if grades is None else assays_at(self.assays, grades, stream_index, self.components)
+        return replace(self, shares=table, flows=flow_table, assays=assays)
 
 
 def read_survey(
@@ -285,46 +330,52 @@ def read_survey(
     InputError
         Naming the file, row and column: an unknown stream, negative amounts, shares of a
         complete stream not summing to 100 %, classes that overlap or leave a gap, a class
-        given twice for a stream, flows that disagree within a stream.
+        given twice for a stream, flows that disagree within a stream, an assay outside 0..100.
+    OptionError
+        An override of the error model naming a stream or component the survey lacks.
     """
-    errors = errors or ErrorModel()
-    if not isinstance(errors, ErrorModel):
-        raise OptionError("errors", f"takes an ErrorModel, got {type(errors).__name__}")
-    errors.check_streams(flowsheet)
+    errors = _checked_errors(errors, flowsheet)
     table = read_table(path, sheet=sheet, sep=sep, decimal=decimal)
     table.require("stream")
     lower, upper, unit, size_columns = _size_bounds(table, size_unit)
     values_given = [c for c in VALUE_COLUMNS if c in table.frame.columns]
     if len(values_given) > 1:
         raise InputError(f"several value columns ({', '.join(values_given)}): give one", source=table.source)
-    table.refuse_unknown(
-        ["stream", *size_columns, "size_unit", *VALUE_COLUMNS, *ROW_COLUMNS, *STREAM_COLUMNS], what="survey table"
-    )
+    known = ["stream", *size_columns, "size_unit", *VALUE_COLUMNS, *ROW_COLUMNS, *STREAM_COLUMNS]
+    table.refuse_unknown([*known, *assay_columns(table).values()], what="survey table")
     names = _stream_names(table, flowsheet)
     has_class = np.isfinite(lower) | np.isfinite(upper)
     classes, class_of_row = _tiled_classes(table, lower, upper, has_class, size_columns)
     shares, normalised = _shares(table, names, has_class, class_of_row, len(classes), values_given, errors)
-    flows = _stream_values(
-        table, names, "solids_flow", "solids_flow_sd", lambda v: errors.flow_relative_error * v, errors.flow_relative_error
-    )
-    pct = _stream_values(table, names, "pct_solids", "pct_solids_sd", lambda v: np.full_like(v, errors.pct_solids_sd))
-    _check_stream_values(table, flows, pct)
+    flows, pct = _stream_measurements(table, names, errors)
+    assays, scarce = set_aside(read_assays(table, names, has_class, class_of_row, errors), shares)
     if flows.empty and shares.empty and pct.empty:
         raise InputError(
             "the survey holds no measurement (no size analysis, no solids flow, no per cent solids)", source=table.source
         )
     unmeasured = _unmeasured(table, names, has_class, class_of_row, values_given)
-    return Survey(
-        classes=classes,
-        shares=shares,
-        flows=flows,
-        pct_solids=pct,
-        size_unit=unit,
-        source=table.source,
-        closed_streams=normalised,
-        unmeasured=unmeasured,
-        evaluated_at=errors.evaluated_at,
+    return Survey(classes=classes, shares=shares, flows=flows, pct_solids=pct, size_unit=unit, source=table.source,
+                  closed_streams=normalised, unmeasured=unmeasured, evaluated_at=errors.evaluated_at, assays=assays,
+                  components=tuple(dict.fromkeys([*assays["component"], *scarce["component"]])),
+                  assays_set_aside=scarce)  # fmt: skip
+
+
+def _checked_errors(errors, flowsheet: Flowsheet) -> ErrorModel:
+    errors = errors or ErrorModel()
+    if not isinstance(errors, ErrorModel):
+        raise OptionError("errors", f"takes an ErrorModel, got {type(errors).__name__}")
+    errors.check_streams(flowsheet)
+    return errors
+
+
+def _stream_measurements(table: Table, names, errors: ErrorModel) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """The solids flows and per cent solids of the streams, checked."""
+    flows = _stream_values(
+        table, names, "solids_flow", "solids_flow_sd", lambda v: errors.flow_relative_error * v, errors.flow_relative_error
     )
+    pct = _stream_values(table, names, "pct_solids", "pct_solids_sd", lambda v: np.full_like(v, errors.pct_solids_sd))
+    _check_stream_values(table, flows, pct)
+    return flows, pct
 
 
 def _unmeasured(table: Table, names, has_class, class_of_row, values_given) -> pd.DataFrame:
@@ -513,15 +564,32 @@ def _representative(table: Table, lower, upper) -> np.ndarray:
 
 
 def _shares(table, names, has_class, class_of_row, n_classes, values_given, errors: ErrorModel) -> pd.DataFrame:
-    columns = SHARE_COLUMNS
+    """The measured shares (:data:`SHARE_COLUMNS`) and the streams normalised as closed analyses."""
     if not values_given:
         if has_class.any():
             raise InputError(
                 f"size classes are given but no value column: give one of {', '.join(VALUE_COLUMNS)}", source=table.source
             )
-        return pd.DataFrame(columns=columns), ()
+        return pd.DataFrame(columns=SHARE_COLUMNS), ()
     column = values_given[0]
     full = VALUE_COLUMNS[column]
+    values = _retained_values(table, column, full, has_class)
+    row_errors = _error_columns(table, len(values), full)
+    records, normalised = [], []
+    for stream in dict.fromkeys(names[has_class]):
+        rows = np.flatnonzero((names == stream) & has_class & np.isfinite(values))
+        if not rows.size:
+            continue
+        _check_distinct_classes(table, stream, rows, class_of_row, column)
+        scale, closed = _stream_scale(table, stream, values[rows], rows, n_classes, full, column, errors)
+        if closed:
+            normalised.append(stream)
+        records += _stream_share_records(table, stream, rows, values[rows] / scale, scale, class_of_row, row_errors, errors)
+    return pd.DataFrame(records, columns=SHARE_COLUMNS), tuple(normalised)
+
+
+def _retained_values(table: Table, column: str, full, has_class) -> np.ndarray:
+    """The value column, refused where negative, above the whole stream, or without a size class."""
     values = table.numeric(column, allow_blank=True)
     bad = np.flatnonzero(values < 0)
     if bad.size:
@@ -534,71 +602,72 @@ def _shares(table, names, has_class, class_of_row, n_classes, values_given, erro
     bad = np.flatnonzero(np.isfinite(values) & ~has_class)
     if bad.size:
         raise table.error("a retained value without a size class", index=int(bad[0]), column=column)
-    row_sd, relative, absolute = _error_columns(table, len(values), full)
-    records, normalised = [], []
-    for stream in dict.fromkeys(names[has_class]):
-        rows = np.flatnonzero((names == stream) & has_class & np.isfinite(values))
-        if not rows.size:
-            continue
-        seen = {}
-        for i in rows:
-            if class_of_row[i] in seen:
-                raise table.error(
-                    f"stream '{stream}' gives size class {class_of_row[i] + 1} (coarse to fine) twice "
-                    f"(also at row {table.rows[seen[class_of_row[i]]]})",
-                    index=int(i),
-                    column=column,
-                )
-            seen[class_of_row[i]] = i
-        given = values[rows]
-        total = given.sum()
-        complete = rows.size == n_classes
-        if full is None:
-            if not complete:
-                missing = n_classes - rows.size
-                raise table.error(
-                    f"stream '{stream}' gives masses for {rows.size} of {n_classes} classes ({missing} missing): masses "
-                    "need every class (give shares, retained_pct, to leave classes out)",
-                    index=int(rows[0]),
-                    column=column,
-                )
-            if total <= 0:
-                raise table.error(f"stream '{stream}' holds no material", index=int(rows[0]), column=column)
-            scale = total
-        else:
-            scale = full
-            off = 100.0 * (total - full) / full
-            if (complete and abs(off) > SUM_TOLERANCE_PCT) or (not complete and off > SUM_TOLERANCE_PCT):
-                raise table.error(
-                    f"the shares of stream '{stream}' sum to {100 * total / full:.2f} % "
-                    f"({'over' if off > 0 else 'short'} by {abs(off):.2f} percentage points, tolerance {SUM_TOLERANCE_PCT:g})",
-                    index=int(rows[0]),
-                    column=column,
-                )
-        if complete and (errors.closure or full is None):
-            scale = total  # a closed analysis, normalised as lab tables are
-            normalised.append(stream)
-        share = given / scale
-        default = errors.share_sd(share, stream)
-        stream_relative, stream_absolute = errors.streams.get(stream, (errors.relative_error, errors.absolute_error))
-        r = np.where(np.isfinite(relative[rows]), relative[rows], stream_relative)
-        a = np.where(np.isfinite(absolute[rows]), absolute[rows], stream_absolute)
-        sd = np.where(np.isfinite(relative[rows]) | np.isfinite(absolute[rows]), np.sqrt((r * share) ** 2 + a**2), default)
-        sd = np.where(np.isfinite(row_sd[rows]), row_sd[rows] / scale, sd)
-        if np.any(sd > MAX_SHARE_SD):
-            i = int(rows[np.argmax(sd)])
+    return values
+
+
+def _check_distinct_classes(table: Table, stream: str, rows, class_of_row, column: str) -> None:
+    seen = {}
+    for i in rows:
+        if class_of_row[i] in seen:
             raise table.error(
-                f"retained sd {row_sd[i]:g} is implausible: more than {MAX_SHARE_SD:g} of the stream's total (a share lies "
-                "in 0..1)",
-                index=i,
-                column="retained_sd",
+                f"stream '{stream}' gives size class {class_of_row[i] + 1} (coarse to fine) twice "
+                f"(also at row {table.rows[seen[class_of_row[i]]]})",
+                index=int(i),
+                column=column,
             )
-        explicit = np.isfinite(row_sd[rows])
-        for i, x, s, r_i, a_i, given_sd in zip(rows, share, sd, r, a, explicit):
-            records.append({"stream": stream, "class_index": int(class_of_row[i]), "value": x, "sd": s,
-                            "row": int(table.rows[i]), "relative": np.nan if given_sd else r_i,
-                            "absolute": np.nan if given_sd else a_i})  # fmt: skip
-    return pd.DataFrame(records, columns=columns), tuple(normalised)
+        seen[class_of_row[i]] = i
+
+
+def _stream_scale(table: Table, stream: str, given, rows, n_classes: int, full, column: str, errors) -> tuple[float, bool]:
+    """``(scale, closed)``: what the stream's values are divided by to give shares, and whether
+    the stream is a closed analysis (every class given, normalised as lab tables are)."""
+    total = given.sum()
+    complete = rows.size == n_classes
+    if full is None:
+        if not complete:
+            missing = n_classes - rows.size
+            raise table.error(
+                f"stream '{stream}' gives masses for {rows.size} of {n_classes} classes ({missing} missing): masses "
+                "need every class (give shares, retained_pct, to leave classes out)",
+                index=int(rows[0]),
+                column=column,
+            )
+        if total <= 0:
+            raise table.error(f"stream '{stream}' holds no material", index=int(rows[0]), column=column)
+    else:
+        off = 100.0 * (total - full) / full
+        if (complete and abs(off) > SUM_TOLERANCE_PCT) or (not complete and off > SUM_TOLERANCE_PCT):
+            raise table.error(
+                f"the shares of stream '{stream}' sum to {100 * total / full:.2f} % "
+                f"({'over' if off > 0 else 'short'} by {abs(off):.2f} percentage points, tolerance {SUM_TOLERANCE_PCT:g})",
+                index=int(rows[0]),
+                column=column,
+            )
+    closed = complete and (errors.closure or full is None)
+    return (total if closed else full), closed
+
+
+def _stream_share_records(table: Table, stream: str, rows, share, scale, class_of_row, row_errors, errors) -> list[dict]:
+    """The share records of one stream with their sds: the row's ``retained_sd``, else its
+    ``relative_error``/``absolute_error``, else the stream's or the default error model."""
+    row_sd, relative, absolute = row_errors
+    default = errors.share_sd(share, stream)
+    stream_relative, stream_absolute = errors.streams.get(stream, (errors.relative_error, errors.absolute_error))
+    r = np.where(np.isfinite(relative[rows]), relative[rows], stream_relative)
+    a = np.where(np.isfinite(absolute[rows]), absolute[rows], stream_absolute)
+    sd = np.where(np.isfinite(relative[rows]) | np.isfinite(absolute[rows]), np.sqrt((r * share) ** 2 + a**2), default)
+    sd = np.where(np.isfinite(row_sd[rows]), row_sd[rows] / scale, sd)
+    if np.any(sd > MAX_SHARE_SD):
+        i = int(rows[np.argmax(sd)])
+        raise table.error(
+            f"retained sd {row_sd[i]:g} is implausible: more than {MAX_SHARE_SD:g} of the stream's total (a share lies in 0..1)",
+            index=i,
+            column="retained_sd",
+        )
+    explicit = np.isfinite(row_sd[rows])
+    return [{"stream": stream, "class_index": int(class_of_row[i]), "value": x, "sd": s, "row": int(table.rows[i]),
+             "relative": np.nan if given_sd else r_i, "absolute": np.nan if given_sd else a_i}
+            for i, x, s, r_i, a_i, given_sd in zip(rows, share, sd, r, a, explicit)]  # fmt: skip
 
 
 def _error_columns(table: Table, n: int, full) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

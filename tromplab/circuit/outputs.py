@@ -4,8 +4,9 @@
 Tables ``flows.csv``, ``distributions.csv``, ``adjustments.csv``, ``gross_errors.csv``,
 ``elimination.csv``, ``nodal_tests.csv``, ``worth.csv``, ``observability.csv``, ``design.csv``, ``chi_square.csv``,
 ``degrees_of_freedom.csv``, ``partition.csv``, ``points.csv``, ``flowsheet.csv`` (and
-``water.csv`` with per cent solids measured), ``summary.txt`` (:meth:`CircuitBalance.report`)
-and the figures ``flowsheet.png``, ``adjustments.png`` and ``distributions.png``.
+``water.csv`` with per cent solids measured, ``components.csv`` with per-class assays), ``summary.txt`` (:meth:`CircuitBalance.report`)
+and the figures ``flowsheet.png``, ``adjustments.png``, ``distributions.png`` (and
+``partition.png`` with per-class assays).
 """
 
 from __future__ import annotations
@@ -47,6 +48,8 @@ def balance_tables(balance, errors=None) -> dict[str, pd.DataFrame]:
     }
     if balance.balances_water:
         tables["water"] = balance.water_table()
+    if balance.survey.components:
+        tables["components"] = balance.components_table()
     return tables
 
 
@@ -73,7 +76,8 @@ def balance_outputs(
     summary = balance_summary(balance, tables, steps)
     outputs["summary.txt"] = lambda path: path.write_text(summary, encoding="utf-8")
     if figures:
-        for kind in ("flowsheet", "adjustments", "distributions") if balance.has_size_classes else ("flowsheet", "adjustments"):
+        kinds = ("flowsheet", "adjustments", "distributions") if balance.has_size_classes else ("flowsheet", "adjustments")
+        for kind in kinds + (("partition",) if balance.survey.components else ()):
             png = balance_png(balance, kind)
             outputs[f"{kind}.png"] = lambda path, png=png: path.write_bytes(png)
     return outputs

@@ -1,7 +1,9 @@
 r"""The reconciliation of a circuit survey as a numerical problem: unknowns, constraints, solution.
 
 The unknowns are the class flows :math:`m_{s,i}` of every stream (then, when per cent solids
-are measured, the water flows); the node balances, the fixed flows and the exact
+are measured, the water flows; then, when the survey holds per-class assays, the class flows
+:math:`c_{k,s,i}` of every component :math:`k`, whose assay is :math:`c_{k,s,i}/m_{s,i}`);
+the node balances, the fixed flows and the exact
 measurements are linear constraints :math:`A m = b`, so the feasible set is
 :math:`m = m_0 + N z` with :math:`N` an orthonormal basis of the null space of :math:`A`.
 :func:`solve` minimises the whitened residuals in :math:`z` by Levenberg-Marquardt,
@@ -58,14 +60,46 @@ class Problem:
     effects: np.ndarray  # column j: what a unit error in raw measurement j does to the reported values (P blocks)
     n_water: int = 0  # water flows after the class flows (solids streams, then water streams); 0: water not balanced
     at_bound: tuple[int, ...] = ()  # unknowns held at their bound 0: the last rows of A
+    n_components: int = 0  # component class flows after the water flows (component, stream, class)
+    component: np.ndarray | None = None  # component index per measurement (-1: not an assay)
+
+    @property
+    def component_offset(self) -> int:
+        """Index of the first component class flow among the unknowns."""
+        return self.n_streams * self.n_classes + self.n_water
+
+    def component_index(self, k, s, i):
+        """Index among the unknowns of the flow of component ``k`` in class ``i`` of stream ``s``."""
+        return self.component_offset + (k * self.n_streams + s) * self.n_classes + i
 
     def fixed_at_zero(self, active: np.ndarray) -> Problem:
-        """The problem with the unknowns flagged in ``active`` held at 0 (rows appended to the balances)."""
+        """The problem with the unknowns flagged in ``active`` held at 0 (rows appended to the
+        balances); a class whose solids flow is held holds every component's flow there too, and
+        its assays (of an empty class) leave the measurements."""
+        active = active | self.emptied(active)
         held = tuple(int(k) for k in np.flatnonzero(active))
         A = np.vstack([self.A[: self.A.shape[0] - len(self.at_bound)], np.eye(self.m0.size)[list(held)]])
         b = np.concatenate([self.b[: self.b.size - len(self.at_bound)], np.zeros(len(held))])
         m0, N = _affine_form(A, b)
-        return replace(self, A=A, b=b, m0=m0, N=N, at_bound=held)
+        current = replace(self, A=A, b=b, m0=m0, N=N, at_bound=held)
+        empty_class = active[self.stream * self.n_classes + np.maximum(self.klass, 0)]
+        return current._measurements(~((self.kinds == "assay") & empty_class)) if self.n_components else current
+
+    def emptied(self, active: np.ndarray) -> np.ndarray:
+        """The component flows of the classes whose solids flow ``active`` holds at 0."""
+        forced = np.zeros(active.size, dtype=bool)
+        if self.n_components:
+            forced[self.component_offset :] = np.tile(active[: self.n_streams * self.n_classes], self.n_components)
+        return forced
+
+    def _measurements(self, keep: np.ndarray) -> Problem:
+        """The problem with the measurements flagged in ``keep`` only (those left out independent of the rest)."""
+        if keep.all():
+            return self
+        W = self.W[:, keep]
+        return replace(self, kinds=self.kinds[keep], stream=self.stream[keep], klass=self.klass[keep], y=self.y[keep],
+                       sd=self.sd[keep], cov=self.cov[np.ix_(keep, keep)], W=W[np.abs(W).sum(axis=1) > 0],
+                       effects=self.effects[np.ix_(keep, keep)], component=self.component[keep])  # fmt: skip
 
     @property
     def variance(self) -> np.ndarray:
@@ -78,10 +112,13 @@ class Problem:
         """The measured quantities at the unknowns ``v`` (class flows, then water flows)."""
         flows = self._flows(v)
         out = np.empty(self.y.size)
-        share, pct = self.kinds == "share", self.kinds == "pct"
+        share, pct, assay = self.kinds == "share", self.kinds == "pct", self.kinds == "assay"
         s, i = self.stream[share], self.klass[share]
         out[share] = v[s * self.n_classes + i] / flows[s]
-        flow = ~share & ~pct
+        s, i = self.stream[assay], self.klass[assay]
+        with np.errstate(invalid="ignore", divide="ignore"):  # an empty class: its assay is not defined
+            out[assay] = v[self.component_index(self.component[assay], s, i)] / v[s * self.n_classes + i]
+        flow = ~share & ~pct & ~assay
         out[flow] = flows[self.stream[flow]]
         s = self.stream[pct]
         out[pct] = 100.0 * flows[s] / (flows[s] + v[self.n_streams * self.n_classes + s])
@@ -99,20 +136,25 @@ class Problem:
         n = self.n_classes
         flows = self._flows(v)
         H = np.zeros((self.y.size, v.size))
-        for j in range(self.y.size):
-            s = self.stream[j]
-            block = slice(s * n, (s + 1) * n)
-            if self.kinds[j] == "share":
-                i = self.klass[j]
-                H[j, block] = -v[s * n + i] / flows[s] ** 2
-                H[j, s * n + i] += 1.0 / flows[s]
-            elif self.kinds[j] == "pct":
-                water = self.n_streams * n + s
-                total = flows[s] + v[water]
-                H[j, block] = 100.0 * v[water] / total**2
-                H[j, water] = -100.0 * flows[s] / total**2
-            else:
-                H[j, block] = 1.0
+        rows = np.arange(self.y.size)
+        block = self.stream[:, None] * n + np.arange(n)[None, :]  # each measurement's stream's class flows
+        share, pct, assay = self.kinds == "share", self.kinds == "pct", self.kinds == "assay"
+        j, s = rows[share], self.stream[share]
+        own = s * n + self.klass[share]
+        H[j[:, None], block[share]] = (-v[own] / flows[s] ** 2)[:, None]
+        H[j, own] += 1.0 / flows[s]
+        j, s = rows[pct], self.stream[pct]
+        water = self.n_streams * n + s
+        total = flows[s] + v[water]
+        H[j[:, None], block[pct]] = (100.0 * v[water] / total**2)[:, None]
+        H[j, water] = -100.0 * flows[s] / total**2
+        j, s = rows[assay], self.stream[assay]
+        own = s * n + self.klass[assay]
+        component = self.component_index(self.component[assay], s, self.klass[assay])
+        H[j, component] = 1.0 / v[own]
+        H[j, own] = -v[component] / v[own] ** 2
+        flow = ~share & ~pct & ~assay
+        H[rows[flow][:, None], block[flow]] = 1.0
         return H
 
 
@@ -122,13 +164,35 @@ def solve(problem: Problem, start: np.ndarray) -> tuple[np.ndarray, bool, str]:
     Directions that no measurement sees (water flows the survey leaves undetermined) keep
     their starting values: the solver's rounding would otherwise let them wander without bound.
     """
-    z0 = problem.N.T @ (start - problem.m0)
+    z0 = problem.N.T @ (_assayed_classes_filled(problem, start) - problem.m0)
     if not (problem.N.shape[1] and problem.y.size):
         return z0, True, "nothing to adjust"
-    solution = optimize.least_squares(problem.whitened_residual, z0, jac=problem.whitened_jacobian, method="lm",
-                                      x_scale="jac", xtol=1e-14, ftol=1e-14, gtol=1e-12, max_nfev=2000)  # fmt: skip
+    missing = max(problem.N.shape[1] - problem.W.shape[0], 0)  # Levenberg-Marquardt wants as many residuals as unknowns
+
+    def residual(z):
+        return np.concatenate([problem.whitened_residual(z), np.zeros(missing)])
+
+    def jacobian(z):
+        return np.vstack([problem.whitened_jacobian(z), np.zeros((missing, z.size))])
+
+    solution = optimize.least_squares(residual, z0, jac=jacobian, method="lm", x_scale="jac", xtol=1e-14, ftol=1e-14,
+                                      gtol=1e-12, max_nfev=2000)  # fmt: skip
     unseen = decompose(problem, solution.x).unseen
     return solution.x - unseen @ (unseen.T @ (solution.x - z0)), bool(solution.success), str(solution.message)
+
+
+def _assayed_classes_filled(problem: Problem, start: np.ndarray) -> np.ndarray:
+    """``start`` with every assayed class flow not held at 0 raised to a millionth of the largest
+    class flow at least: the assay of an empty class, 0/0, has no value to start from."""
+    if not problem.n_components:
+        return start
+    S, n = problem.n_streams, problem.n_classes
+    assay = problem.kinds == "assay"
+    assayed = np.zeros(start.size, dtype=bool)
+    assayed[problem.stream[assay] * n + problem.klass[assay]] = True
+    assayed[list(problem.at_bound)] = False
+    floor = 1e-6 * max(float(np.abs(start[: S * n]).max(initial=0.0)), 1e-300)
+    return np.where(assayed & (start < floor), floor, start)
 
 
 def bounded_solution(problem: Problem, fitted: np.ndarray) -> tuple[tuple[int, ...], np.ndarray]:
@@ -137,13 +201,15 @@ def bounded_solution(problem: Problem, fitted: np.ndarray) -> tuple[tuple[int, .
 
     A flow that comes out negative is held at 0 (it joins the linear constraints) and the survey
     is reconciled again; a flow held at 0 is released when its Lagrange multiplier says the sum
-    of squares would fall by raising it (Lawson & Hanson 1974, ch. 23).  Without a negative flow
-    this is ``fitted``, untouched (``held`` empty); NaN if the iteration does not settle.
+    of squares would fall by raising it (Lawson & Hanson 1974, ch. 23), once at most (a flow
+    released and negative again stays held: the iteration cannot cycle).  Without a negative
+    flow this is ``fitted``, untouched (``held`` empty); NaN if the iteration does not settle.
     """
     active = fitted < -BOUND_TOL * max(np.abs(fitted).max(initial=0.0), 1e-300)
     if not active.any():
         return (), np.clip(fitted, 0.0, None)  # what is below 0 is rounding
     start = np.clip(fitted, 0.0, None)
+    released_before = np.zeros(fitted.size, dtype=bool)
     for _ in range(2 * fitted.size + 1):
         current = problem.fixed_at_zero(active)
         z, _, _ = solve(current, start)
@@ -152,21 +218,27 @@ def bounded_solution(problem: Problem, fitted: np.ndarray) -> tuple[tuple[int, .
         if negative.any():
             active |= negative
         else:
-            released = _wrong_sign_multiplier(current, v)
+            released = _wrong_sign_multiplier(current, v, released_before)
             if released is None:
                 return current.at_bound, np.clip(v, 0.0, None)
             active[released] = False
+            released_before[released] = True  # released once only: the iteration cannot cycle
         start = np.clip(v, 0.0, None)
     return tuple(np.flatnonzero(active)), np.full(fitted.size, np.nan)
 
 
-def _wrong_sign_multiplier(problem: Problem, v: np.ndarray) -> int | None:
-    """The unknown held at 0 whose multiplier is most negative (raising it lowers the sum of squares), or None."""
+def _wrong_sign_multiplier(problem: Problem, v: np.ndarray, released_before: np.ndarray) -> int | None:
+    """The unknown held at 0 whose multiplier is most negative (raising it lowers the sum of squares), or
+    None; an unknown released before (then negative again) stays held."""
     held = np.array(problem.at_bound, dtype=int)
     if held.size == 0 or not problem.y.size:
         return None
     gradient = (problem.W @ problem.jacobian(v)).T @ (problem.W @ (problem.predict(v) - problem.y))
     multipliers = np.linalg.lstsq(problem.A.T, gradient, rcond=None)[0][-held.size :]  # the bounds are A's last rows
+    active = np.zeros(v.size, dtype=bool)
+    active[held] = True
+    multipliers = np.where(problem.emptied(active)[held], np.inf, multipliers)  # held with their class, not on their own
+    multipliers = np.where(released_before[held], np.inf, multipliers)
     worst = int(np.argmin(multipliers))
     return int(held[worst]) if multipliers[worst] < -1e-8 * max(np.abs(gradient).max(), 1e-300) else None
 
@@ -217,71 +289,118 @@ def linearised(problem: Problem, z: np.ndarray) -> tuple[float, Decomposition, n
     return float(residual @ residual), decomposition, problem.N @ decomposition.covariance() @ problem.N.T
 
 
+class _Constraints:
+    """Rows of the linear constraints ``A v = b``, added one at a time."""
+
+    def __init__(self, size: int):
+        self.size, self.rows, self.rhs = size, [], []
+
+    def add(self, value: float = 0.0) -> np.ndarray:
+        self.rows.append(np.zeros(self.size))
+        self.rhs.append(value)
+        return self.rows[-1]
+
+    def arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        return (np.array(self.rows) if self.rows else np.zeros((0, self.size))), np.array(self.rhs)
+
+
 def build_problem(flowsheet: Flowsheet, survey: Survey) -> tuple[Problem, str]:
+    """The :class:`Problem` of ``survey`` on ``flowsheet`` and the basis of its flows ("" when a flow is measured)."""
     S = len(flowsheet.streams)
     n = max(survey.n_classes, 1)
     n_water = S + len(flowsheet.water_streams) if len(survey.pct_solids) else 0
-    size = S * n + n_water
-    M = flowsheet.incidence()
-    index = flowsheet.stream_index
-    rows, rhs = [], []
+    layout = Problem(n_streams=S, n_classes=n, A=None, b=None, m0=None, N=None, kinds=None, stream=None, klass=None, y=None,
+                     sd=None, cov=None, W=None, effects=None, n_water=n_water, n_components=len(survey.components))  # fmt: skip
+    constraints = _Constraints(S * n + n_water + layout.n_components * S * n)
+    _node_balances(constraints, flowsheet, layout)
+    basis = _exact_measurements(constraints, flowsheet, survey, layout)
+    A, b = constraints.arrays()
+    m0, N = _affine_form(A, b)
+    if np.linalg.norm(A @ m0 - b) > 1e-8 * max(1.0, np.linalg.norm(b)):
+        raise InputError(
+            "the flows, shares, per cent solids and assays given with a standard deviation of 0 contradict the balances "
+            "of the flowsheet",
+            source=survey.source,
+        )
+    shares = survey.shares[survey.shares["sd"] > 0]
+    measured = _measurement_arrays(survey, flowsheet.stream_index)
+    cov, W, effects = _measurement_covariance(shares, measured["sd"], survey.closed_streams)
+    problem = replace(layout, A=A, b=b, m0=m0, N=N, cov=cov, W=W, effects=effects, **measured)
+    return problem, basis
 
-    def constraint(value: float = 0.0) -> np.ndarray:
-        rows.append(np.zeros(size))
-        rhs.append(value)
-        return rows[-1]
+
+def _measurement_arrays(survey: Survey, index: dict) -> dict:
+    """The measurements with an sd (shares, flows, per cent solids, assays, in this order) as
+    the arrays of :class:`Problem`: ``kinds, stream, klass, component, y, sd``."""
+    parts = {"share": survey.shares, "flow": survey.flows, "pct": survey.pct_solids, "assay": survey.assays}
+    parts = {kind: table[table["sd"] > 0] for kind, table in parts.items()}
+    order = {name: k for k, name in enumerate(survey.components)}
+    klass = {"share": lambda t: t["class_index"], "flow": lambda t: np.full(len(t), -1), "pct": lambda t: np.full(len(t), -2),
+             "assay": lambda t: t["class_index"]}  # fmt: skip
+    return {
+        "kinds": np.array([kind for kind, table in parts.items() for _ in range(len(table))], dtype=object),
+        "stream": np.array([index[name] for table in parts.values() for name in table["stream"]], dtype=int),
+        "klass": np.concatenate([np.asarray(klass[kind](table), dtype=int) for kind, table in parts.items()]).astype(int),
+        "component": np.concatenate(
+            [
+                np.full(sum(len(t) for k, t in parts.items() if k != "assay"), -1),
+                parts["assay"]["component"].map(order).to_numpy(dtype=int),
+            ]
+        ).astype(int),  # fmt: skip
+        "y": np.concatenate([table["value"].to_numpy(float) for table in parts.values()]),
+        "sd": np.concatenate([table["sd"].to_numpy(float) for table in parts.values()]),
+    }
+
+
+def _node_balances(constraints: _Constraints, flowsheet: Flowsheet, layout: Problem) -> None:
+    """Every class of every separator and junction, the total solids of every mill, the same for
+    every component, and (per cent solids measured) the water of every node."""
+    S, n = layout.n_streams, layout.n_classes
+    M = flowsheet.incidence()
+    for offset in [0] + [layout.component_index(k, 0, 0) for k in range(layout.n_components)]:
+        for k, node in enumerate(flowsheet.nodes):
+            if node.balances_classes:
+                for i in range(n):
+                    constraint = constraints.add()
+                    constraint[offset + np.arange(S) * n + i] = M[k]
+            else:
+                constraints.add()[offset : offset + S * n] = np.repeat(M[k], n)
+    if layout.n_water:  # water balances at every node, the declared water streams its only additions and removals
+        water_incidence = np.hstack([M, flowsheet.water_incidence()])
+        for k in range(len(flowsheet.nodes)):
+            constraints.add()[S * n : S * n + layout.n_water] = water_incidence[k]
+
+
+def _exact_measurements(constraints: _Constraints, flowsheet: Flowsheet, survey: Survey, layout: Problem) -> str:
+    """Flows, shares, per cent solids and assays given with an sd of 0 (and the basis when no
+    flow is measured) as linear constraints; returns the basis in words ("" without)."""
+    S, n = layout.n_streams, layout.n_classes
+    index = flowsheet.stream_index
 
     def solids_of(stream: str, row: np.ndarray) -> np.ndarray:
         return row[index[stream] * n : (index[stream] + 1) * n]
 
-    for k, node in enumerate(flowsheet.nodes):
-        if node.balances_classes:
-            for i in range(n):
-                constraint()[np.arange(S) * n + i] = M[k]
-        else:
-            constraint()[: S * n] = np.repeat(M[k], n)
-    if n_water:  # water balances at every node, the declared water streams its only additions and removals
-        water_incidence = np.hstack([M, flowsheet.water_incidence()])
-        for k in range(len(flowsheet.nodes)):
-            constraint()[S * n :] = water_incidence[k]
-    fixed = survey.flows[survey.flows["sd"] == 0]
-    free_flows = survey.flows[survey.flows["sd"] > 0]
-    for record in fixed.itertuples():
-        solids_of(record.stream, constraint(record.value))[:] = 1.0
+    for record in survey.flows[survey.flows["sd"] == 0].itertuples():
+        solids_of(record.stream, constraints.add(record.value))[:] = 1.0
     basis = ""
     if survey.flows.empty:
         feed = flowsheet.feeds[0]
-        solids_of(feed, constraint(BASIS))[:] = 1.0
+        solids_of(feed, constraints.add(BASIS))[:] = 1.0
         basis = f"{BASIS:g} for stream '{feed}' (no solids flow measured)"
     for record in survey.shares[survey.shares["sd"] == 0].itertuples():  # m_si - x sum_j m_sj = 0: linear
-        row = solids_of(record.stream, constraint())
+        row = solids_of(record.stream, constraints.add())
         row[:] = -record.value
         row[record.class_index] += 1.0
-    exact_pct = survey.pct_solids[survey.pct_solids["sd"] == 0]
-    for record in exact_pct.itertuples():  # (100 - p) F - p w = 0: linear too
-        row = constraint()
+    for record in survey.pct_solids[survey.pct_solids["sd"] == 0].itertuples():  # (100 - p) F - p w = 0: linear too
+        row = constraints.add()
         solids_of(record.stream, row)[:] = 100.0 - record.value
         row[S * n + index[record.stream]] = -record.value
-    A = np.array(rows) if rows else np.zeros((0, size))
-    b = np.array(rhs)
-    m0, N = _affine_form(A, b)
-    if np.linalg.norm(A @ m0 - b) > 1e-8 * max(1.0, np.linalg.norm(b)):
-        raise InputError(
-            "the flows, shares and per cent solids given with a standard deviation of 0 contradict the balances of the flowsheet",
-            source=survey.source,
-        )
-    shares = survey.shares[survey.shares["sd"] > 0]
-    pct = survey.pct_solids[survey.pct_solids["sd"] > 0]
-    parts = ((shares, "share"), (free_flows, "flow"), (pct, "pct"))
-    kinds = np.array([kind for table, kind in parts for _ in range(len(table))], dtype=object)
-    stream = np.array([index[name] for table, _ in parts for name in table["stream"]], dtype=int)
-    klass = np.array([*shares["class_index"].astype(int), *[-1] * len(free_flows), *[-2] * len(pct)], dtype=int)
-    y = np.concatenate([table["value"].to_numpy(float) for table, _ in parts])
-    sd = np.concatenate([table["sd"].to_numpy(float) for table, _ in parts])
-    cov, W, effects = _measurement_covariance(shares, sd, survey.closed_streams)
-    problem = Problem(n_streams=S, n_classes=n, A=A, b=b, m0=m0, N=N, kinds=kinds, stream=stream, klass=klass, y=y, sd=sd,
-                      cov=cov, W=W, effects=effects, n_water=n_water)  # fmt: skip
-    return problem, basis
+    order = {name: k for k, name in enumerate(survey.components)}
+    for record in survey.assays[survey.assays["sd"] == 0].itertuples():  # c_ksi - a m_si = 0
+        row, s = constraints.add(), index[record.stream]
+        row[layout.component_index(order[record.component], s, record.class_index)] = 1.0
+        row[s * n + record.class_index] = -record.value
+    return basis
 
 
 def _affine_form(A: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -375,9 +494,50 @@ def starting_point(flowsheet: Flowsheet, survey: Survey, problem: Problem) -> np
     m = (fit.x[:, None] * guess).ravel()
     if problem.n_water:
         m = np.concatenate([m, _start_water(flowsheet, survey, fit.x)])
+    if problem.n_components:
+        m = np.concatenate([m, _start_components(survey, index, m[: S * n].reshape(S, n))])
     if problem.A.shape[0]:
         m = m - np.linalg.lstsq(problem.A, problem.A @ m - problem.b, rcond=None)[0]
     return m
+
+
+def solids_first_start(flowsheet: Flowsheet, survey: Survey, problem: Problem) -> np.ndarray:
+    """The starting point of a survey with assays: the survey reconciled without its assays
+    (its solids and water flows), the component flows of the measured assays at those class
+    flows, projected onto the component balances.
+
+    An assay predicts a component flow over a class flow; started from class flows that the
+    projection of :func:`starting_point` leaves near 0, its rows would outweigh every other
+    measurement by orders of magnitude and blur the rank decision.
+    """
+    solids_survey = replace(survey, assays=survey.assays.iloc[:0], components=())
+    solids_problem, _ = build_problem(flowsheet, solids_survey)
+    start = starting_point(flowsheet, solids_survey, solids_problem)
+    check_observable(flowsheet, solids_survey, solids_problem, start)
+    z, _, _ = solve(solids_problem, start)
+    solids = solids_problem.m0 + solids_problem.N @ z
+    S, n = problem.n_streams, problem.n_classes
+    v = np.concatenate([solids, _start_components(survey, flowsheet.stream_index, solids[: S * n].reshape(S, n))])
+    return v - np.linalg.lstsq(problem.A, problem.A @ v - problem.b, rcond=None)[0]
+
+
+def _start_components(survey: Survey, index: dict, class_flows: np.ndarray) -> np.ndarray:
+    """Component class flows: the measured assays times the starting class flows; a class not
+    assayed takes the component's mean assay of that class over the streams assayed there (else
+    over all classes)."""
+    S, n = class_flows.shape
+    grades = np.full((len(survey.components), S, n), np.nan)
+    order = {name: k for k, name in enumerate(survey.components)}
+    for record in survey.assays.itertuples():
+        grades[order[record.component], index[record.stream], record.class_index] = record.value
+    for k in range(grades.shape[0]):
+        overall = np.nanmean(grades[k]) if np.isfinite(grades[k]).any() else 0.0
+        given = np.isfinite(grades[k])
+        by_class = np.where(
+            given.any(axis=0), np.where(given, grades[k], 0.0).sum(axis=0) / np.maximum(given.sum(axis=0), 1), overall
+        )
+        grades[k] = np.where(np.isfinite(grades[k]), grades[k], by_class[None, :])
+    return (grades * class_flows[None, :, :]).ravel()
 
 
 def _start_water(flowsheet: Flowsheet, survey: Survey, flows: np.ndarray) -> np.ndarray:

@@ -61,7 +61,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -69,10 +68,12 @@ from scipy import stats
 
 from ..loading.points import TrompPoints
 from ..loading.weights import partition_weights, stream_error
-from ..options import DEFAULT_ALPHA, DEFAULT_MIN_FEED_SHARE
+from ..options import DEFAULT_ALPHA
 from ..results_contract import ResultContract
 from ..validation import check_probability
 from . import plotting
+from .adjustments import ADJUSTMENT_COLUMNS, EQUIVALENT_CORRELATION, MeasurementTests, adjustments_frame, measurement_tests
+from .assays import MIN_ASSAYED_SHARE
 from .design import design_table, water_determined_by
 from .elimination import nodal_tests, proposal, serial_elimination, without
 from .flowsheet import Flowsheet, read_flowsheet
@@ -86,54 +87,20 @@ from .problem import (
     check_positive_flows,
     decompose,
     linearised,
+    solids_first_start,
     solve,
     starting_point,
 )
+from .separators import MIN_FEED_SHARE, PARTITION_COLUMNS, components_table, curve_names, partition_table, plot_partitions
 from .worth import worth_table
 
-#: Separator classes whose feed share (of the separator's feed) is below this are written to
-#: points.csv as not used (partition not meaningful), as lab tables flag them.
-MIN_FEED_SHARE = DEFAULT_MIN_FEED_SHARE
-#: Adjustments correlated beyond this are reported as indistinguishable: a gross error in one
-#: of them moves the others' standardised adjustments alike, so no test can tell which it is.
-EQUIVALENT_CORRELATION = 0.99
+__all__ = ["ADJUSTMENT_COLUMNS", "EQUIVALENT_CORRELATION", "MIN_FEED_SHARE", "PARTITION_COLUMNS", "CircuitBalance", "reconcile"]
+
 #: The error model at the reconciled values has settled when no sd moves by more than this share of itself.
 ERROR_MODEL_TOLERANCE = 1e-6
 MAX_ERROR_MODEL_ITERATIONS = 50
-#: Columns of :meth:`CircuitBalance.adjustments_table`.
-ADJUSTMENT_COLUMNS = [
-    "measurement",
-    "stream",
-    "class_index",
-    "size_lower",
-    "size_upper",
-    "row",
-    "measured",
-    "sd",
-    "reconciled",
-    "reconciled_sd",
-    "adjustment",
-    "adjustment_sd",
-    "standardised",
-    "gross_error",
-    "gross_error_sd",
-    "measurement_test",
-    "p_value",
-    "suspect",
-    "indistinguishable_from",
-]
 DISTRIBUTION_COLUMNS = ["stream", "size_lower", "size_upper", "size", "measured", "measured_sd", "reconciled",
                         "reconciled_sd"]  # fmt: skip
-PARTITION_COLUMNS = ["experiment", "size_lower", "size_upper", "size", "feed_share", "partition_fine", "partition_sd",
-                     "fine_yield", "fine_yield_sd", "used", "flag"]  # fmt: skip
-
-
-class _MeasurementTests(NamedTuple):
-    statistic: np.ndarray  # with the sign of the adjustment (reconciled - measured)
-    estimate: np.ndarray  # the gross error that best explains the adjustments (measured - true)
-    estimate_sd: np.ndarray
-    testable: np.ndarray
-    correlation: np.ndarray  # of the statistics: beyond EQUIVALENT_CORRELATION no test tells them apart
 
 
 @dataclass(frozen=True)
@@ -233,6 +200,8 @@ class CircuitBalance(ResultContract):
     decomposition: Decomposition | None = field(default=None, repr=False, compare=False)
     #: The measurements left out on request (``exclude=`` of :func:`reconcile`).
     excluded: tuple[str, ...] = field(default=(), compare=False)
+    #: Class flows of every assayed component (components x streams x classes; None: no assay).
+    component_flows: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     @property
     def has_size_classes(self) -> bool:
@@ -245,12 +214,14 @@ class CircuitBalance(ResultContract):
         water flow): the unbounded least squares would have made them negative."""
         S, n = self.class_flows.shape
         names = self.flowsheet.stream_names + tuple(w.name for w in self.flowsheet.water_streams)
-        return [(names[k // n], k % n) if k < S * n else (names[k - S * n], -1) for k in self.at_bound]
+        solids_and_water = S * n + len(names) if self.balances_water else S * n  # a component's flow is flagged per curve
+        return [(names[k // n], k % n) if k < S * n else (names[k - S * n], -1) for k in self.at_bound if k < solids_and_water]
 
     @property
     def _unknowns(self) -> np.ndarray:
         water = self.water_flows if self.water_flows is not None else np.zeros(0)
-        return np.concatenate([self.class_flows.ravel(), water])
+        components = self.component_flows.ravel() if self.component_flows is not None else np.zeros(0)
+        return np.concatenate([self.class_flows.ravel(), water, components])
 
     @property
     def _test_point(self) -> np.ndarray:
@@ -439,99 +410,11 @@ class CircuitBalance(ResultContract):
 
     @cached_property
     def _adjustments(self) -> pd.DataFrame:
-        problem = self.problem
-        if problem is None or problem.y.size == 0:
-            return pd.DataFrame(columns=ADJUSTMENT_COLUMNS)
-        m = self._test_point
-        H = problem.jacobian(m)
-        predicted = problem.predict(self._unknowns)  # the reported values (bounded at 0)
-        cov_pred = H @ self.covariance @ H.T
-        adjustment = self.measured_y - problem.predict(m)  # measured minus reconciled, without the bounds
-        adjustment_var = problem.variance - np.diag(cov_pred)
-        testable = adjustment_var > 1e-8 * problem.sd**2
-        adjustment_sd = np.where(testable, np.sqrt(np.clip(adjustment_var, 0.0, None)), np.nan)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            standardised = np.where(testable, adjustment / adjustment_sd, np.nan)
-        classes = self.survey.classes
-        rows_of = self._measurement_rows()
-        table = pd.DataFrame(
-            {
-                "measurement": [
-                    f"{self.streams[s]} {_MEASURED_QUANTITY[k]}"
-                    if k != "share"
-                    else f"{self.streams[s]} class {class_name(classes, i)}"
-                    for s, i, k in zip(problem.stream, problem.klass, problem.kinds)
-                ],
-                "stream": [self.streams[s] for s in problem.stream],
-                "class_index": problem.klass,
-                "size_lower": [classes["size_lower"].iloc[i] if i >= 0 else np.nan for i in problem.klass],
-                "size_upper": [classes["size_upper"].iloc[i] if i >= 0 else np.nan for i in problem.klass],
-                "row": rows_of,
-                "measured": self.measured_y,
-                "sd": np.sqrt(problem.variance),
-                "reconciled": predicted,
-                "reconciled_sd": np.sqrt(np.clip(np.diag(cov_pred), 0.0, None)),
-                "adjustment": predicted - self.measured_y,  # what was added to the measurement
-                "adjustment_sd": adjustment_sd,
-                "standardised": -standardised,
-            }
-        )
-        tests = self._measurement_tests
-        table["gross_error"] = tests.estimate
-        table["gross_error_sd"] = tests.estimate_sd
-        table["measurement_test"] = tests.statistic
-        table["p_value"] = 2.0 * stats.norm.sf(np.abs(tests.statistic))
-        table["suspect"] = np.abs(table["measurement_test"]) > self.measurement_test_critical
-        names = table["measurement"].to_numpy()
-        table["indistinguishable_from"] = [
-            "; ".join(
-                names[(np.abs(tests.correlation[j]) > EQUIVALENT_CORRELATION) & tests.testable & (np.arange(names.size) != j)]
-            )
-            if tests.testable[j]
-            else ""
-            for j in range(names.size)
-        ]
-        return table
-
-    def _measurement_rows(self) -> list:
-        rows = {(r.stream, r.class_index): r.row for r in self.survey.shares.itertuples()}
-        rows |= {(r.stream, -1): r.row for r in self.survey.flows.itertuples()}
-        rows |= {(r.stream, -2): r.row for r in self.survey.pct_solids.itertuples()}
-        problem = self.problem
-        return [rows.get((self.streams[s], i)) for s, i in zip(problem.stream, problem.klass)]
+        return adjustments_frame(self)
 
     @cached_property
-    def _measurement_tests(self) -> _MeasurementTests:
-        r"""The generalised likelihood ratio test of a gross error in each raw measurement.
-
-        A gross error :math:`b` in raw measurement :math:`j` shifts the reported values by
-        :math:`b f_j` (:math:`f_j` the column of :attr:`Problem.effects`: a unit vector, or
-        in a closed analysis the shift of every share of the stream).  With the whitened
-        residuals :math:`\rho` and :math:`g_j = W f_j`, its least-squares estimate is
-        :math:`\hat b_j = g_j^T \rho / g_j^T Q g_j` with sd :math:`(g_j^T Q g_j)^{-1/2}`,
-        :math:`Q` the projection off the range of the whitened Jacobian; the statistic
-        :math:`\hat b_j / \mathrm{sd}` is the most powerful test of that error (Narasimhan &
-        Mah 1987) and, for a measurement whose error is independent of the others, equals the
-        standardised adjustment of Mah & Tamhane (1982) with the sign of the adjustment.
-        """
-        problem = self.problem
-        if problem is None or problem.y.size == 0:
-            empty = np.zeros(0)
-            return _MeasurementTests(empty, empty, empty, empty.astype(bool), np.zeros((0, 0)))
-        m = self._test_point
-        residual = problem.W @ (self.measured_y - problem.predict(m))
-        decomposition = self.decomposition or decompose(problem, problem.N.T @ (m - problem.m0))
-        basis = decomposition.range_basis
-        G = problem.W @ problem.effects
-        QG = G - basis @ (basis.T @ G)
-        information = np.einsum("ij,ij->j", G, QG)
-        testable = information > 1e-8 * np.einsum("ij,ij->j", G, G)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            estimate = np.where(testable, (G.T @ residual) / information, np.nan)
-            estimate_sd = np.where(testable, 1.0 / np.sqrt(np.abs(information)), np.nan)
-            scale = np.sqrt(np.clip(information, 1e-300, None))
-            correlation = (QG.T @ QG) / np.outer(scale, scale)
-        return _MeasurementTests(-estimate / estimate_sd, estimate, estimate_sd, testable, correlation)
+    def _measurement_tests(self) -> MeasurementTests:
+        return measurement_tests(self)
 
     @property
     def measurement_test_critical(self) -> float:
@@ -557,7 +440,7 @@ class CircuitBalance(ResultContract):
         independent of the others'), ``p_value`` (two-sided normal), ``suspect`` (absolute
         ``measurement_test`` above :attr:`measurement_test_critical`) and
         ``indistinguishable_from`` (the measurements whose tests are correlated with this one
-        beyond :data:`EQUIVALENT_CORRELATION`: a gross error in any of them looks the same,
+        beyond :data:`~tromplab.circuit.adjustments.EQUIVALENT_CORRELATION`: a gross error in any of them looks the same,
         e.g. the only two flowmeters of a loop, or one class of the three streams of a
         separator whose split is free).
         """
@@ -609,76 +492,38 @@ class CircuitBalance(ResultContract):
 
     # --- separators -----------------------------------------------------------------------
     def partition_table(self) -> pd.DataFrame:
-        r"""Partition to the fine product of every separator and class, from the reconciled data.
+        """Partition to the fine product of every separator and class, of the whole solids and of
+        each assayed component (:func:`~tromplab.circuit.separators.partition_table`)."""
+        return partition_table(self)
 
-        .. math:: \varphi_i = \frac{m_{f,i}}{m_{f,i} + m_{c,i}}
-
-        with :math:`m_{f,i}`, :math:`m_{c,i}` the reconciled class flows of the fine and coarse
-        product.  Columns ``experiment`` (the separator's node), ``size_lower, size_upper,
-        size, feed_share`` (share of the separator's feed in the class), ``partition_fine,
-        partition_sd`` (delta method), ``fine_yield, fine_yield_sd, used, flag``.
-        """
-        classes = self.survey.classes
-        index = self.flowsheet.stream_index
-        n = self.class_flows.shape[1]
-        frames = []
-        for node in self.flowsheet.separators if self.has_size_classes else ():
-            f, c = index[node.fine], index[node.coarse]
-            mf, mc = self.class_flows[f], self.class_flows[c]
-            total = mf + mc
-            G = np.zeros((n, self.class_flows.size))
-            with np.errstate(invalid="ignore", divide="ignore"):
-                phi = mf / total
-                G[np.arange(n), f * n + np.arange(n)] = mc / total**2
-                G[np.arange(n), c * n + np.arange(n)] = -mf / total**2
-            yield_gradient = np.zeros((1, self.class_flows.size))
-            Ff, Fc = mf.sum(), mc.sum()
-            yield_gradient[0, f * n : (f + 1) * n] = Fc / (Ff + Fc) ** 2
-            yield_gradient[0, c * n : (c + 1) * n] = -Ff / (Ff + Fc) ** 2
-            feed_share = total / total.sum()
-            held = set(self.at_bound)
-            at_bound = np.array([f * n + i in held or c * n + i in held for i in range(n)])
-            used, flags = _partition_flags(feed_share, phi, at_bound)
-            phi = np.where(np.isfinite(phi) & (phi >= 0.0) & (phi <= 1.0), phi, np.nan)
-            frames.append(
-                pd.DataFrame(
-                    {
-                        "experiment": node.name,
-                        "size_lower": classes["size_lower"].to_numpy(),
-                        "size_upper": classes["size_upper"].to_numpy(),
-                        "size": classes["size"].to_numpy(),
-                        "feed_share": feed_share,
-                        "partition_fine": phi,
-                        "partition_sd": np.where(np.isfinite(phi), self._sd(G), np.nan),
-                        "fine_yield": Ff / (Ff + Fc),
-                        "fine_yield_sd": float(self._sd(yield_gradient)[0]),
-                        "used": used,
-                        "flag": flags,
-                    }
-                )
-            )
-        if not frames:
-            return pd.DataFrame(columns=PARTITION_COLUMNS)
-        return pd.concat(frames, ignore_index=True)
+    def components_table(self) -> pd.DataFrame:
+        """Each assayed component at each separator: grades, fine yield and recovery with sds
+        (:func:`~tromplab.circuit.separators.components_table`; empty without assays)."""
+        return components_table(self)
 
     def points_table(self, *, unit_in_names: bool = True, weighting: str = "error-model") -> pd.DataFrame:
         """The separators' partition curves in the Tromp-points schema that ``tromplab fit`` reads.
 
         Columns ``experiment, size[_unit], partition_fine, weight, used, size_lower[_unit],
-        size_upper[_unit], feed_share, flag``.  ``weight`` follows ``weighting``
+        size_upper[_unit], feed_share, flag, component``.  One curve per separator and
+        component: ``experiment`` is the separator's node for the whole solids and
+        ``NODE:COMPONENT`` for an assayed component.  ``weight`` follows ``weighting``
         (:func:`tromplab.loading.weights.partition_weights`, the function of the lab path): by
         default the inverse variance of each class's partition under the error model of the
-        separator's products at the shares the partition implies, with a floor relative to
-        the feed share, scaled to a mean of 1 per separator over the used classes.
+        separator's products' size analyses at the shares the partition implies, with a floor
+        relative to the feed share, scaled to a mean of 1 per curve over the used classes (a
+        component's curve is weighted with the same model).
         """
         table = self.partition_table()
+        table["node"] = table["experiment"]
+        table["experiment"] = curve_names(table)
         unit = self.survey.size_unit
         suffix = f"_{unit}" if unit and unit_in_names else ""
         rows = []
         products = {node.name: (node.fine, node.coarse) for node in self.flowsheet.separators}
-        for name, part in table.groupby("experiment", sort=False):
+        for _curve, part in table.groupby("experiment", sort=False):
             used = part["used"].to_numpy()
-            fine, coarse = (stream_error(self.survey.shares, stream) for stream in products[name])
+            fine, coarse = (stream_error(self.survey.shares, stream) for stream in products[part["node"].iloc[0]])
             weight = partition_weights(weighting, part["partition_fine"], part["feed_share"], part["fine_yield"].iloc[0],
                                        used, fine_error=fine, coarse_error=coarse)  # fmt: skip
             weight = np.where(used, 1.0, np.nan) if weight is None else weight
@@ -694,16 +539,18 @@ class CircuitBalance(ResultContract):
                         f"size_upper{suffix}": part["size_upper"].to_numpy(),
                         "feed_share": part["feed_share"].to_numpy(),
                         "flag": part["flag"].to_numpy(),
+                        "component": part["component"].to_numpy(),
                     }
                 )
             )
         if not rows:
-            return pd.DataFrame(columns=["experiment", f"size{suffix}", "partition_fine", "weight", "used"])
+            return pd.DataFrame(columns=["experiment", f"size{suffix}", "partition_fine", "weight", "used", "component"])
         return pd.concat(rows, ignore_index=True)
 
     def to_points(self, *, weighting: str = "error-model") -> list[TrompPoints]:
-        """One :class:`~tromplab.loading.points.TrompPoints` per separator (experiment = node name),
-        the used classes only, weighted as :meth:`points_table` says."""
+        """One :class:`~tromplab.loading.points.TrompPoints` per separator and component
+        (experiment = node name, ``NODE:COMPONENT`` for an assayed component), the used classes
+        only, weighted as :meth:`points_table` says."""
         table = self.points_table(unit_in_names=False, weighting=weighting)
         points = []
         for name, part in table.groupby("experiment", sort=False):
@@ -733,6 +580,11 @@ class CircuitBalance(ResultContract):
             ("size classes", n),
             ("unknown class flows (streams x classes)", S * n),
             *([("unknown water flows (streams and water streams)", self.water_flows.size)] if self.balances_water else []),
+            *(
+                [("unknown component class flows (components x streams x classes)", self.component_flows.size)]
+                if self.component_flows is not None
+                else []
+            ),  # fmt: skip
             ("independent linear constraints (balances, fixed flows, basis)", self._unknowns.size - free),
             ("free unknowns", free),
             ("measurements with a standard deviation", measurements),
@@ -823,6 +675,7 @@ class CircuitBalance(ResultContract):
             lines.append(f"not measured (blank or NaN value in the table): {listed}{more}")
         if self.problem is not None and self.problem.y.size == 0:
             lines.append("every measurement is exact (standard deviation 0): nothing to adjust, nothing to test")
+        lines += _assay_notes(self.survey)
         held = self.held_at_zero
         if held:
             listed = "; ".join(f"{stream} {'water' if i < 0 else 'class ' + class_name(classes, i)}" for stream, i in held[:8])
@@ -835,18 +688,16 @@ class CircuitBalance(ResultContract):
     def plot(self, kind: str = "distributions", ax=None):
         """``"distributions"``: reconciled against measured distributions per stream;
         ``"adjustments"``: standardised adjustments; ``"flowsheet"``: the flowsheet with the
-        reconciled flows.  Returns the Axes (or the array of Axes for distributions)."""
+        reconciled flows; ``"partition"``: the partition curves per separator and component.  Returns the Axes (or the array of Axes for distributions)."""
         figures = {
             "distributions": plotting.plot_distributions,
             "adjustments": plotting.plot_adjustments,
             "flowsheet": plotting.plot_flowsheet,
+            "partition": plot_partitions,
         }
         if kind not in figures:
             raise ValueError(f"unknown kind {kind!r}; choose one of {', '.join(figures)}")
         return figures[kind](self, ax=ax)
-
-
-_MEASURED_QUANTITY = {"flow": "flow", "pct": "per cent solids"}
 
 
 def _errors_at_reconciled(flowsheet: Flowsheet, survey: Survey, problem: Problem, z: np.ndarray):
@@ -864,9 +715,9 @@ def _errors_at_reconciled(flowsheet: Flowsheet, survey: Survey, problem: Problem
         flows = class_flows.sum(axis=1)
         with np.errstate(invalid="ignore", divide="ignore"):
             shares = np.where(flows[:, None] > 0, class_flows / flows[:, None], 0.0)
-        evaluated = survey.with_errors_at(shares, np.clip(flows, 0.0, None), flowsheet.stream_index)
-        before = np.concatenate([survey.shares["sd"].to_numpy(float), survey.flows["sd"].to_numpy(float)])
-        after = np.concatenate([evaluated.shares["sd"].to_numpy(float), evaluated.flows["sd"].to_numpy(float)])
+        evaluated = survey.with_errors_at(shares, np.clip(flows, 0.0, None), flowsheet.stream_index, _grades(problem, v))
+        before, after = (np.concatenate([s.shares["sd"].to_numpy(float), s.flows["sd"].to_numpy(float),
+                                         s.assays["sd"].to_numpy(float)]) for s in (survey, evaluated))  # fmt: skip
         survey = evaluated
         problem, _ = build_problem(flowsheet, survey)
         z, success, message = solve(problem, v)
@@ -881,27 +732,37 @@ def _errors_at_reconciled(flowsheet: Flowsheet, survey: Survey, problem: Problem
     )
 
 
+def _assay_notes(survey: Survey) -> list[str]:
+    """The summary's lines on the per-class assays: the components balanced, the assays set aside."""
+    if not survey.components:
+        return []
+    lines = [f"per-class assays of {', '.join(survey.components)}: balanced per class at separators and junctions and in "
+             "total at mills (partition curve per component in partition.csv, grades and recoveries in components.csv)"]  # fmt: skip
+    scarce = survey.assays_set_aside
+    if len(scarce):
+        listed = "; ".join(f"{r.stream} {r.component} class {class_name(survey.classes, int(r.class_index))} (row {r.row})"
+                           for r in scarce.head(6).itertuples())  # fmt: skip
+        more = f" and {len(scarce) - 6} more" if len(scarce) > 6 else ""
+        lines.append(f"assays set aside (the class holds less than {100 * MIN_ASSAYED_SHARE:g} % of its stream, too little "
+                     f"material to assay): {listed}{more}")  # fmt: skip
+    return lines
+
+
+def _grades(problem: Problem, v: np.ndarray) -> np.ndarray | None:
+    """The assays at the unknowns ``v`` (components x streams x classes; 0 in an empty class), None without components."""
+    if not problem.n_components:
+        return None
+    S, n = problem.n_streams, problem.n_classes
+    components = v[problem.component_offset :].reshape(problem.n_components, S, n)
+    class_flows = v[: S * n].reshape(S, n)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(class_flows > 0, components / class_flows, 0.0)
+
+
 def _undetermined_water_note(streams: list[str]) -> str:
     if streams:
         return f"not determined by the survey: the water balances leave it free; the per cent solids of {' or '.join(streams)} would determine it"
     return "not determined by the survey: the water balances leave it free, and no single per cent solids more would determine it"
-
-
-def _partition_flags(feed_share: np.ndarray, phi: np.ndarray, at_bound: np.ndarray) -> tuple[list, list]:
-    """``used`` and ``flag`` of each class of a separator: too little feed or a partition outside
-    0..1 (not used), or a product's class flow held at its bound 0 (used, said)."""
-    used, flags = [], []
-    for share, value, bound in zip(feed_share, phi, at_bound):
-        if not np.isfinite(value) or share < MIN_FEED_SHARE:
-            used.append(False)
-            flags.append(f"feed share {100 * share:.3g} % below {100 * MIN_FEED_SHARE:g} %: partition not meaningful")
-        elif not 0.0 <= value <= 1.0:
-            used.append(False)
-            flags.append(f"reconciled partition {value:.4g} outside 0..1: not a partition, left out")
-        else:
-            used.append(True)
-            flags.append("a product's class flow held at 0 (the least squares would make it negative)" if bound else "")
-    return used, flags
 
 
 def reconcile(
@@ -965,13 +826,24 @@ def reconcile(
         if isinstance(measurements, Survey)
         else read_survey(measurements, flowsheet, errors=errors, size_unit=size_unit)
     )
+    survey, excluded = _without_excluded(survey, flowsheet, exclude)
+    return _balance(flowsheet, survey, alpha, excluded)
+
+
+def _without_excluded(survey: Survey, flowsheet: Flowsheet, exclude) -> tuple[Survey, tuple[str, ...]]:
+    """The survey without the measurements ``exclude`` names, and the names as given."""
     entries = exclude.split(",") if isinstance(exclude, str) else exclude or ()
     excluded = tuple(str(entry).strip() for entry in entries if str(entry).strip())
     if excluded:
         names = [class_name(survey.classes, i) for i in range(survey.n_classes)]
         survey = without(survey, excluded, flowsheet.stream_names, names)
+    return survey, excluded
+
+
+def _balance(flowsheet: Flowsheet, survey: Survey, alpha: float, excluded: tuple[str, ...]) -> CircuitBalance:
+    """Reconcile ``survey``: solve, evaluate the error model at the reconciled values, linearise, bound at 0."""
     problem, basis = build_problem(flowsheet, survey)
-    start = starting_point(flowsheet, survey, problem)
+    start = solids_first_start(flowsheet, survey, problem) if problem.n_components else starting_point(flowsheet, survey, problem)
     check_observable(flowsheet, survey, problem, start)
     z, success, message = solve(problem, start)
     if survey.evaluated_at == "reconciled":
@@ -983,22 +855,10 @@ def reconcile(
         success, message = False, "the bounds on the flows did not settle (active-set iterations exhausted)"
     S, n = problem.n_streams, problem.n_classes
     check_positive_flows(flowsheet, survey, v[: S * n].reshape(S, n).sum(axis=1))
-    return CircuitBalance(
-        flowsheet=flowsheet,
-        survey=survey,
-        class_flows=v[: S * n].reshape(S, n),
-        covariance=covariance,
-        chi_square=chi,
-        dof=int(problem.W.shape[0] - decomposition.rank),
-        alpha=alpha,
-        success=success,
-        message=message,
-        basis=basis,
-        problem=problem,
-        measured_y=problem.y.copy(),
-        water_flows=v[S * n :] if problem.n_water else None,
-        fitted=fitted,
-        at_bound=held,
-        decomposition=decomposition,
-        excluded=excluded,
-    )
+    water = v[S * n : problem.component_offset]
+    return CircuitBalance(flowsheet=flowsheet, survey=survey, class_flows=v[: S * n].reshape(S, n), covariance=covariance,
+                          chi_square=chi, dof=int(problem.W.shape[0] - decomposition.rank), alpha=alpha, success=success,
+                          message=message, basis=basis, problem=problem, measured_y=problem.y.copy(),
+                          water_flows=water if problem.n_water else None, fitted=fitted, at_bound=held,
+                          decomposition=decomposition, excluded=excluded,
+                          component_flows=v[problem.component_offset :].reshape(-1, S, n) if problem.n_components else None)  # fmt: skip

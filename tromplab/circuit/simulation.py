@@ -36,6 +36,7 @@ import numpy as np
 import pandas as pd
 
 from ..curves.formulas import get_formula
+from .assays import ASSAY_COLUMNS
 from .flowsheet import Flowsheet, read_flowsheet
 from .measurements import SHARE_COLUMNS, STREAM_VALUE_COLUMNS, ErrorModel, Survey, read_survey
 from .reconciliation import reconcile
@@ -50,6 +51,16 @@ class CircuitTruth:
     class_flows: np.ndarray
     size_unit: str = "um"
     partitions: dict = field(default_factory=dict)  # separator -> true partition to fines per class
+    #: Assayed components: their names and class flows (components x streams x classes); the
+    #: solids may hold more (an unassayed gangue).
+    components: tuple[str, ...] = ()
+    component_flows: np.ndarray | None = None
+    component_partitions: dict = field(default_factory=dict)  # (separator, component) -> partition to fines
+
+    @property
+    def grades(self) -> np.ndarray:
+        """True assays, components x streams x classes (fractions of the class's solids)."""
+        return self.component_flows / self.class_flows[None, :, :]
 
     @property
     def flows(self) -> np.ndarray:
@@ -212,6 +223,38 @@ def example_plant() -> CircuitTruth:
     return CircuitTruth(flowsheet=flowsheet, classes=classes, class_flows=flows, size_unit="um", partitions=partitions)
 
 
+def mineral_circuit(bypass: float = 0.25) -> CircuitTruth:
+    """The closed grinding circuit of :func:`grinding_circuit` treating an ore of three minerals:
+    a heavy mineral (``magnetite``, 5 % of the fresh feed) classified at a finer cut than the
+    gangue (the cyclone's d50c 50 um against 95 um: a denser particle settles as a larger light
+    one), a sulphide of intermediate density (``pyrite``, 3 %, 65 um), and the gangue (92 %,
+    not assayed).  Every mineral follows the registry's ``rosin_rammler_bypass`` curve with the
+    same bypass to the underflow (the water split); the mill grinds each to its own Rosin-Rammler
+    discharge (d63 150, 170 and 185 um) and conserves each.  The solids are their sum, so the
+    solids' partition is the mass-weighted mixture of the minerals' (synthetic, chosen to look
+    like a magnetite circuit).
+    """
+    base = grinding_circuit()
+    edges = [20, 38, 53, 75, 106, 150, 212, 300, 425, 600]
+    size = base.classes["size"]
+    minerals = {"magnetite": (0.05, 50.0, 150.0), "pyrite": (0.03, 65.0, 170.0), "gangue": (0.92, 95.0, 185.0)}
+    feed = 250.0 * rosin_rammler_shares(edges, 800.0, 1.0)
+    flows, partitions = {}, {}
+    for name, (grade, d50, d63) in minerals.items():
+        partitions[("cyclone", name)] = plitt_partition_to_fines(size, d50, 2.5, bypass=bypass)
+        discharge = rosin_rammler_shares(edges, d63, 1.0)
+        flows[name] = steady_state(base.flowsheet, base.classes, {"fresh_feed": grade * feed},
+                                   {"cyclone": partitions[("cyclone", name)]}, {"mill": discharge})  # fmt: skip
+    class_flows = sum(flows.values())
+    f, c = base.flowsheet.stream_index["cyclone_overflow"], base.flowsheet.stream_index["cyclone_underflow"]
+    solids_partition = class_flows[f] / (class_flows[f] + class_flows[c])
+    assayed = ("magnetite", "pyrite")
+    return CircuitTruth(flowsheet=base.flowsheet, classes=base.classes, class_flows=class_flows, size_unit="um",
+                        partitions={"cyclone": solids_partition}, components=assayed,
+                        component_flows=np.array([flows[name] for name in assayed]),
+                        component_partitions={key: phi for key, phi in partitions.items() if key[1] in assayed})  # fmt: skip
+
+
 def simulate_survey(
     truth: CircuitTruth,
     rng: np.random.Generator,
@@ -220,6 +263,7 @@ def simulate_survey(
     measured: tuple[str, ...] | None = None,
     flows: dict | None = None,
     gross: tuple | None = None,
+    assayed: tuple[str, ...] | None = None,
 ) -> Survey:
     """One simulated survey of ``truth``.
 
@@ -236,6 +280,10 @@ def simulate_survey(
         class mass, before the normalisation); a class index of -1 puts it on the stream's
         measured flow, shifted by that many of its stated standard deviations (relative sd
         times the value written).
+    assayed : tuple of str, optional
+        Streams with per-class assays of every component of ``truth`` (default: the streams
+        with a size analysis), each drawn as :math:`a + \\sigma(a)\\,\\varepsilon` from the assay
+        error model.
 
     Returns
     -------
@@ -258,27 +306,51 @@ def simulate_survey(
         for i in range(x.size):
             records.append({"stream": stream, "class_index": i, "value": value[i], "sd": float(errors.share_sd(value[i], stream)),
                             "row": None, "relative": relative, "absolute": absolute})  # fmt: skip
-    flow_records = []
-    for stream, relative in (flows or {}).items():
+    shares = pd.DataFrame(records, columns=SHARE_COLUMNS)
+    flow_table = _drawn_flows(truth, rng, flows or {}, gross)
+    empty = pd.DataFrame(columns=STREAM_VALUE_COLUMNS)
+    assays = _drawn_assays(truth, rng, errors, measured if assayed is None else assayed)
+    return Survey(classes=truth.classes, shares=shares, flows=flow_table, pct_solids=empty, size_unit=truth.size_unit,
+                  source="simulated survey", closed_streams=tuple(measured), evaluated_at=errors.evaluated_at,
+                  assays=assays, components=truth.components)  # fmt: skip
+
+
+def _drawn_flows(truth: CircuitTruth, rng: np.random.Generator, flows: dict, gross) -> pd.DataFrame:
+    """Measured solids flows ``{stream: relative sd}``, the gross error on a flow when ``gross`` names one."""
+    records = []
+    for stream, relative in flows.items():
         true = truth.flows[truth.flowsheet.stream_index[stream]]
         value = true * (1.0 + relative * rng.standard_normal())
         if gross is not None and gross[0] == stream and gross[1] < 0:
             value = value / (1.0 - gross[2] * relative)  # shifted by gross[2] times its stated sd, relative * value
-        flow_records.append({"stream": stream, "value": value, "sd": relative * value, "row": None, "relative": relative})
-    shares = pd.DataFrame(records, columns=SHARE_COLUMNS)
-    flow_table = pd.DataFrame(flow_records, columns=STREAM_VALUE_COLUMNS)
-    empty = pd.DataFrame(columns=STREAM_VALUE_COLUMNS)
-    return Survey(classes=truth.classes, shares=shares, flows=flow_table, pct_solids=empty, size_unit=truth.size_unit,
-                  source="simulated survey", closed_streams=tuple(measured), evaluated_at=errors.evaluated_at)  # fmt: skip
+        records.append({"stream": stream, "value": value, "sd": relative * value, "row": None, "relative": relative})
+    return pd.DataFrame(records, columns=STREAM_VALUE_COLUMNS)
+
+
+def _drawn_assays(truth: CircuitTruth, rng: np.random.Generator, errors: ErrorModel, streams) -> pd.DataFrame:
+    """Per-class assays of ``streams`` drawn from the assay error model (not clipped: unbiased)."""
+    records = []
+    for k, component in enumerate(truth.components):
+        relative, absolute = errors.assay_errors(component)
+        for stream in streams:
+            s = truth.flowsheet.stream_index[stream]
+            true = truth.grades[k, s]
+            value = true + np.sqrt((relative * true) ** 2 + absolute**2) * rng.standard_normal(true.size)
+            records += [{"stream": stream, "class_index": i, "component": component, "value": value[i],
+                         "sd": float(np.hypot(relative * value[i], absolute)), "row": None, "relative": relative,
+                         "absolute": absolute} for i in range(true.size)]  # fmt: skip
+    return pd.DataFrame(records, columns=ASSAY_COLUMNS)
 
 
 def survey_table(survey: Survey, *, decimals: int | None = 2) -> pd.DataFrame:
-    """A simulated survey as a measurement table (``retained_pct``, the flows on the first row
-    of each stream), negative shares clipped to 0 and rounded as a lab report prints them."""
+    """A simulated survey as a measurement table (``retained_pct``, ``assay_<name>_pct``, the
+    flows on the first row of each stream), negative shares and assays clipped to 0 and rounded
+    as a lab report prints them."""
     classes = survey.classes
     unit = survey.size_unit
     rows = []
     flows = survey.flows.set_index("stream")
+    assays = {(r.stream, r.class_index, r.component): r.value for r in survey.assays.itertuples()}
     for stream, part in survey.shares.groupby("stream", sort=False):
         for k, record in enumerate(part.itertuples()):
             value = 100.0 * max(record.value, 0.0)
@@ -288,6 +360,9 @@ def survey_table(survey: Survey, *, decimals: int | None = 2) -> pd.DataFrame:
                 f"size_upper_{unit}": classes["size_upper"].iloc[record.class_index],
                 "retained_pct": round(value, decimals) if decimals is not None else value,
             }
+            for component in survey.components:
+                grade = 100.0 * max(assays.get((stream, record.class_index, component), np.nan), 0.0)
+                row[f"assay_{component}_pct"] = round(grade, decimals) if decimals is not None else grade
             if stream in flows.index and k == 0:
                 row["solids_flow"] = round(float(flows.loc[stream, "value"]), 1)
                 row["solids_flow_sd"] = round(float(flows.loc[stream, "sd"]), 1)
@@ -326,11 +401,13 @@ def lab_survey(
     flows: dict | None = None,
     gross: tuple | None = None,
     measured: tuple[str, ...] | None = None,
+    assayed: tuple[str, ...] | None = None,
 ) -> Survey:
     """A simulated survey as a lab reports it: drawn by :func:`simulate_survey`, written as a
-    measurement table with the shares clipped at 0 and rounded to 0.01 % (:func:`survey_table`)
-    and read back through :func:`~tromplab.circuit.measurements.read_survey` with ``errors``."""
-    drawn = simulate_survey(truth, rng, errors=errors, flows=flows, gross=gross, measured=measured)
+    measurement table with the shares and assays clipped at 0 and rounded to 0.01 %
+    (:func:`survey_table`) and read back through
+    :func:`~tromplab.circuit.measurements.read_survey` with ``errors``."""
+    drawn = simulate_survey(truth, rng, errors=errors, flows=flows, gross=gross, measured=measured, assayed=assayed)
     return read_survey(survey_table(drawn), truth.flowsheet, errors=errors, size_unit=truth.size_unit)
 
 
@@ -362,3 +439,69 @@ def reconciliation_study(
         covered += int(np.sum(np.abs(values - target)[keep] <= 1.959964 * sds[keep]))
         checked += int(keep.sum())
     return StudyResult(n_surveys, rejected, covered, checked, measured_error, reconciled_error, dof)
+
+
+@dataclass(frozen=True)
+class ComponentStudyResult:
+    """Counts of a study of the per-component partitions on simulated surveys with assays."""
+
+    surveys: int
+    rejected: int
+    covered: int  # reconciled partitions of a component whose 95 % interval covers the truth
+    checked: int
+    recovery_covered: int  # recoveries to the fine product whose 95 % (logit) interval covers the truth
+    recovery_checked: int
+    dof: int
+
+    @property
+    def coverage(self) -> float:
+        return self.covered / self.checked
+
+    @property
+    def recovery_coverage(self) -> float:
+        return self.recovery_covered / self.recovery_checked
+
+    @property
+    def rejection_rate(self) -> float:
+        return self.rejected / self.surveys
+
+
+def component_study(
+    truth: CircuitTruth,
+    n_surveys: int,
+    rng,
+    *,
+    flows: dict | None = None,
+    errors: ErrorModel | None = None,
+    assayed: tuple[str, ...] | None = None,
+) -> ComponentStudyResult:
+    """Reconcile ``n_surveys`` surveys of ``truth`` with per-class assays, as a lab reports them
+    (:func:`lab_survey`; ``assayed``: the streams with assays, default every analysed one), and
+    count the chi-square rejections and the 95 % intervals of each component's partition (used
+    classes) and recovery to the fine product covering the truth."""
+    rejected = covered = checked = recovered = recovery_checked = dof = 0
+    for _ in range(n_surveys):
+        balance = reconcile(truth.flowsheet, lab_survey(truth, rng, errors=errors, flows=flows or {}, assayed=assayed))
+        rejected += int(balance.rejected)
+        dof = balance.dof
+        partition = balance.partition_table()
+        recoveries = balance.components_table().set_index(["separator", "component"])
+        for (node, component), phi in truth.component_partitions.items():
+            rows = partition[(partition["experiment"] == node) & (partition["component"] == component)]
+            keep = rows["used"].astype(bool).to_numpy() & np.isfinite(rows["partition_sd"].to_numpy(float))
+            error = np.abs(rows["partition_fine"].to_numpy(float) - phi)[keep]
+            covered += int(np.sum(error <= 1.959964 * rows["partition_sd"].to_numpy(float)[keep]))
+            checked += int(keep.sum())
+            fine, coarse = _products(truth, node)
+            component_flows = truth.component_flows[truth.components.index(component)]
+            true = component_flows[fine].sum() / (component_flows[fine].sum() + component_flows[coarse].sum())
+            row = recoveries.loc[(node, component)]
+            if np.isfinite(row["recovery_fine_low"]):
+                recovered += int(row["recovery_fine_low"] <= true <= row["recovery_fine_high"])
+                recovery_checked += 1
+    return ComponentStudyResult(n_surveys, rejected, covered, checked, recovered, recovery_checked, dof)
+
+
+def _products(truth: CircuitTruth, node: str) -> tuple[int, int]:
+    separator = next(s for s in truth.flowsheet.separators if s.name == node)
+    return truth.flowsheet.stream_index[separator.fine], truth.flowsheet.stream_index[separator.coarse]

@@ -37,6 +37,7 @@ def results(balance) -> list[tuple[str, float, np.ndarray]]:
     size = balance.covariance.shape[0]
     found = []
     partition = balance.partition_table()
+    partition = partition[partition["component"] == "solids"]  # the whole solids' curves; components have their own
     for node in sheet.separators:
         f, c = sheet.stream_index[node.fine], sheet.stream_index[node.coarse]
         Ff, Fc = flows[f], flows[c]
@@ -80,6 +81,8 @@ def worth_table(balance) -> pd.DataFrame:
     redundancy = np.clip((adjustments["adjustment_sd"].to_numpy(float) / adjustments["sd"].to_numpy(float)) ** 2, 0.0, 1.0)
     redundant = np.isfinite(redundancy) & (redundancy > 1e-8)
     kinds = np.where(adjustments["class_index"] >= 0, "share", np.where(adjustments["class_index"] == -1, "flow", "pct_solids"))
+    if "component" in adjustments.columns:  # a per-class assay
+        kinds = np.where(adjustments["component"].astype(bool), "assay", kinds)
     frames = []
     for name, value, gradient in results(balance):
         shift = gradient @ raw

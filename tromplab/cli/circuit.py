@@ -12,12 +12,15 @@ from pathlib import Path
 from ..options import (
     DEFAULT_ABSOLUTE_ERROR,
     DEFAULT_ALPHA,
+    DEFAULT_ASSAY_ABSOLUTE_ERROR,
+    DEFAULT_ASSAY_RELATIVE_ERROR,
     DEFAULT_FLOW_RELATIVE_ERROR,
     DEFAULT_PCT_SOLIDS_SD,
     DEFAULT_RELATIVE_ERROR,
     ERROR_MODEL_POINTS,
 )
 from ..validation import (
+    check_assay_sd,
     check_pct_solids_sd,
     check_positive_relative_error,
     check_probability,
@@ -94,6 +97,12 @@ def _add_error_model_options(parser: argparse.ArgumentParser) -> None:
                         help="relative error of a measured solids flow, (0, 1] (default %(default)s)")  # fmt: skip
     errors.add_argument("--pct-solids-sd", type=cli_type(check_pct_solids_sd, "--pct-solids-sd"), default=DEFAULT_PCT_SOLIDS_SD,
                         help="sd of a per cent solids, percentage points, (0, 50] (default %(default)s)")  # fmt: skip
+    errors.add_argument("--assay-relative-error", type=cli_type(check_relative_error, "--assay-relative-error"),
+                        default=DEFAULT_ASSAY_RELATIVE_ERROR,
+                        help="relative error of a per-class assay, 0..1 (default %(default)s)")  # fmt: skip
+    errors.add_argument("--assay-absolute-error", type=cli_type(check_assay_sd, "--assay-absolute-error"),
+                        default=DEFAULT_ASSAY_ABSOLUTE_ERROR,
+                        help="absolute error of an assay, as a fraction of the class's solids, 0..0.5 (default %(default)s)")  # fmt: skip
     errors.add_argument("--error-model-at", choices=ERROR_MODEL_POINTS, default=ERROR_MODEL_POINTS[0],
                         help="evaluate the error model at the reconciled values (iterated) or at the measured ones "
                         "(default %(default)s)")  # fmt: skip
@@ -148,7 +157,8 @@ def _error_model(args):
 
     return ErrorModel(relative_error=args.relative_error, absolute_error=args.absolute_error,
                       flow_relative_error=args.flow_relative_error, pct_solids_sd=args.pct_solids_sd,
-                      evaluated_at=args.error_model_at)  # fmt: skip
+                      evaluated_at=args.error_model_at, assay_relative_error=args.assay_relative_error,
+                      assay_absolute_error=args.assay_absolute_error)  # fmt: skip
 
 
 def _run_circuit(args) -> int:

@@ -18,8 +18,8 @@ exactly one partition column
     optional yes/no; rows marked no are left out (``tromplab points`` writes it).
 diagnostics written by ``tromplab points``
     ``size_lower``, ``size_upper`` (same unit suffix as ``size``), ``feed_share``,
-    ``balance_residual``, ``flag``: accepted and ignored, as are free-text ``note`` and
-    ``comment`` columns.  Any other column is refused with its name (a typo such as
+    ``balance_residual``, ``flag``, ``component`` (``tromplab circuit``: the solids or a
+    mineral): accepted and ignored, as are free-text ``note`` and ``comment`` columns.  Any other column is refused with its name (a typo such as
     ``partiton_fine`` or ``experimnet`` would otherwise be ignored silently).
 """
 
@@ -60,7 +60,7 @@ _UNIT_SPELLINGS = {
     "millimetre": "mm",
     "millimeter": "mm",
 }
-POINTS_DIAGNOSTIC_COLUMNS = ("feed_share", "balance_residual", "flag")
+POINTS_DIAGNOSTIC_COLUMNS = ("feed_share", "balance_residual", "flag", "component")
 
 PARTITION_COLUMNS = {
     # column: (scale to a fraction, True if it is the partition to fines)
