@@ -21,8 +21,10 @@ from .errors import OptionError
 from .options import (
     CIRCUIT_FIT_FORMULAS,
     DEFAULT_ALPHA,
+    WEIGHTINGS,
 )
 from .output.outputs import check_output_folder, replace_folder
+from .validation import check_choice
 
 if TYPE_CHECKING:
     from .circuit import CircuitBalance, ErrorModel
@@ -44,19 +46,24 @@ class CircuitRun:
     next_steps: tuple[str, ...] = ()
 
 
-def fit_separators(balance: CircuitBalance, *, formulas=FIT_FORMULAS, alpha: float | None = None) -> Workbench:
+def fit_separators(
+    balance: CircuitBalance, *, formulas=FIT_FORMULAS, alpha: float | None = None, weighting: str = "error-model"
+) -> Workbench:
     """Fit, screen and rank the separation curves of every separator of a reconciled survey.
 
     Parameters
     ----------
     balance : CircuitBalance
-        The reconciled survey; one experiment per separator node, its points weighted by the
-        precision of the reconciled partition (:meth:`CircuitBalance.to_points`).
+        The reconciled survey; one experiment per separator node (and assayed component), its
+        points weighted as ``weighting`` says (:meth:`CircuitBalance.to_points`).
     formulas : str or iterable, optional
         As for :func:`tromplab.workbench.fit_experiments` (default: the nine, ranked, and the
         extended curves, reported).
     alpha : float, optional
         Significance level of the Fisher screen (default: fit_experiments' default).
+    weighting : {"error-model", "feed-share", "none"}
+        The weights of the points (:func:`tromplab.loading.weights.partition_weights`; the
+        option of the same name of ``tromplab fit`` on a lab table).
 
     Returns
     -------
@@ -65,7 +72,9 @@ def fit_separators(balance: CircuitBalance, *, formulas=FIT_FORMULAS, alpha: flo
     from .workbench import fit_experiments
 
     options = {} if alpha is None else {"alpha": alpha}
-    return fit_experiments(balance.to_points(), formulas=formulas, size_unit=balance.survey.size_unit, **options)
+    return fit_experiments(
+        balance.to_points(weighting=weighting), formulas=formulas, size_unit=balance.survey.size_unit, **options
+    )
 
 
 def run_circuit(
@@ -79,6 +88,7 @@ def run_circuit(
     size_unit: str | None = None,
     figures: bool = True,
     exclude=(),
+    weighting: str = "error-model",
 ) -> CircuitRun:
     """Reconcile the survey and write ``outdir`` as a whole (nothing written on bad input).
 
@@ -102,6 +112,8 @@ def run_circuit(
     exclude : iterable of str or str, optional
         Measurements left out (``STREAM``, ``STREAM:flow``, ``STREAM:pct_solids``,
         ``STREAM:CLASS``), as :func:`~tromplab.circuit.reconciliation.reconcile` takes them.
+    weighting : {"error-model", "feed-share", "none"}
+        The weights of ``points.csv`` and of the fits (``--weighting``; default the error model).
 
     Returns
     -------
@@ -125,6 +137,7 @@ def run_circuit(
     """
     from .circuit import read_flowsheet, read_survey, reconcile
 
+    weighting = check_choice(weighting, "weighting", choices=WEIGHTINGS)
     check_output_folder(outdir, inputs=[flowsheet, measurements])  # the inputs are checked as they are read
     sheet = read_flowsheet(flowsheet)
     survey = read_survey(measurements, sheet, errors=errors, size_unit=size_unit)
@@ -135,10 +148,10 @@ def run_circuit(
     balance = reconcile(sheet, survey, alpha=alpha, exclude=exclude)
     from .circuit.outputs import balance_next_steps, balance_outputs, balance_tables
 
-    tables = balance_tables(balance, errors)
+    tables = balance_tables(balance, errors, weighting=weighting)
     bench = None
     if fit and balance.flowsheet.separators:
-        bench = fit_separators(balance)
+        bench = fit_separators(balance, weighting=weighting)
         tables["fits"], tables["ranking"] = bench.fits_table(), bench.ranking_table()
     steps = balance_next_steps(balance, tables)
     written = replace_folder(balance_outputs(balance, figures=figures, tables=tables, steps=steps), outdir)

@@ -24,10 +24,11 @@ from .elimination import exclusion_name
 from .plotting import figure_size
 
 
-def balance_tables(balance, errors=None) -> dict[str, pd.DataFrame]:
+def balance_tables(balance, errors=None, *, weighting: str = "error-model") -> dict[str, pd.DataFrame]:
     """Name (without ``.csv``) -> table of every table of the reconciled survey ``balance``
     (``errors``: the error model the survey was read with, for the design advice and the
-    observability table; default :class:`~tromplab.circuit.measurements.ErrorModel`)."""
+    observability table; default :class:`~tromplab.circuit.measurements.ErrorModel`;
+    ``weighting``: the weights of ``points.csv``, :meth:`CircuitBalance.points_table`)."""
     from .design import design_table, observability_table
 
     tables = {
@@ -43,7 +44,7 @@ def balance_tables(balance, errors=None) -> dict[str, pd.DataFrame]:
         "chi_square": balance.chi_square_table(),
         "degrees_of_freedom": balance.degrees_of_freedom_table(),
         "partition": balance.partition_table(),
-        "points": balance.points_table(),
+        "points": balance.points_table(weighting=weighting),
         "flowsheet": balance.flowsheet.to_frame(),
     }
     if balance.balances_water:

@@ -18,6 +18,7 @@ from ..options import (
     DEFAULT_PCT_SOLIDS_SD,
     DEFAULT_RELATIVE_ERROR,
     ERROR_MODEL_POINTS,
+    WEIGHTINGS,
 )
 from ..validation import (
     check_assay_sd,
@@ -60,6 +61,10 @@ def add_circuit_command(commands) -> argparse.ArgumentParser:
         "-o", "--outdir", type=Path, default=Path("results/circuit"), help="output folder (default: %(default)s)"
     )
     circuit.add_argument("--fit", action="store_true", help="also fit the nine formulas and the extended curves per separator")
+    circuit.add_argument("--weighting", choices=WEIGHTINGS, default="error-model",
+                         help="the weights of points.csv and of --fit: the inverse variance of each class's partition "
+                         "under the error model with a floor relative to its feed share (default), its feed share, or "
+                         "none (as tromplab fit --weighting)")  # fmt: skip
     _add_survey_options(circuit)
     circuit.add_argument("--no-figures", action="store_true", help="do not draw the figures")
     _add_error_model_options(circuit)
@@ -165,7 +170,7 @@ def _run_circuit(args) -> int:
     from ..circuit_command import console_report, run_circuit
 
     run = run_circuit(args.flowsheet, args.measurements, args.outdir, fit=args.fit, errors=_error_model(args), alpha=args.alpha,
-                      size_unit=args.size_unit, figures=not args.no_figures, exclude=args.exclude)  # fmt: skip
+                      size_unit=args.size_unit, figures=not args.no_figures, exclude=args.exclude, weighting=args.weighting)  # fmt: skip
     print(console_report(run, format_fits=format_fits))
     return EXIT_OK
 
