@@ -157,6 +157,8 @@ class CircuitBalance(ResultContract):
         The whitened Jacobian split by the reconciliation's rank decision.
     excluded : tuple of str
         The measurements left out on request.
+    component_flows : numpy.ndarray or None
+        Class flows of every assayed component (components x streams x classes; None: no assay).
     has_size_classes : bool
         False for a survey of flows and per cent solids only.
     held_at_zero : list of tuple
