@@ -7,6 +7,7 @@ from __future__ import annotations
 import os
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import replace
+from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -15,7 +16,8 @@ from scipy import stats
 from ..curves.measured import AMBIGUOUS_CUT_RATIO, CUT_BAND, CUT_WARNING, measured_cut_band, measured_efficiency, unbracketed_cut
 from ..errors import InputError
 from ..loading.lab import Experiments, MassBalance, read_experiments
-from ..loading.points import TrompPoints, points_from_frame
+from ..loading.points import TrompPoints, iter_experiments, points_from_frame
+from ..loading.tables import DEFAULT_PIECE_ROWS
 
 
 def _data_size_unit(experiments: Sequence[TrompPoints], fallback: str) -> str:
@@ -40,6 +42,93 @@ def _screenable(experiments: Sequence[TrompPoints]) -> tuple[dict[str, str], lis
         else:
             fittable.append(points)
     return failures, fittable
+
+
+class ExperimentsInPieces:
+    """The experiments of a points file (CSV) read in pieces each time they are iterated
+    (:func:`~tromplab.loading.points.iter_experiments`): what :func:`fit_to_folder` streams
+    through in bounded memory.  The first iteration warns of the layout detected, the
+    later ones read silently.  Anything else a batch takes reads it whole (a list).
+
+    Parameters
+    ----------
+    path : str or path-like
+        The points file.
+    size_unit, sep, decimal : optional
+        As for :func:`~tromplab.loading.points.read_points`.
+    piece_rows : int
+        Records per piece.
+    """
+
+    def __init__(self, path, *, size_unit=None, sep=None, decimal=None, piece_rows: int = DEFAULT_PIECE_ROWS):
+        self.path, self.piece_rows = path, piece_rows
+        self._reading = {"size_unit": size_unit, "sep": sep, "decimal": decimal}
+        self._warned = False
+
+    def __iter__(self):
+        warn, self._warned = not self._warned, True
+        return iter_experiments(self.path, piece_rows=self.piece_rows, warn=warn, **self._reading)
+
+    def __repr__(self) -> str:
+        return f"ExperimentsInPieces({str(self.path)!r})"
+
+
+class Census(NamedTuple):
+    """What a batch needs to know of its experiments before the first is fitted, from one
+    reading of an :class:`ExperimentsInPieces` (:func:`census`): one name per experiment,
+    not its points."""
+
+    fitted: list  # the names of the experiments the screen can judge, in order
+    failures: dict  # experiment -> why the screen cannot judge it
+    failed_points: tuple  # their points
+    width: int  # the most points of a fitted experiment
+    units: set  # the size units the loader found
+    smallest: tuple  # the points of the smallest size (for the check of delta_max)
+    survey_probe: tuple  # the first experiment holding each survey column
+    total: int  # experiments in all
+
+
+def census(source: ExperimentsInPieces) -> Census:
+    """One reading of ``source``: every check of its reader (so a bad row is refused before
+    anything is fitted or written) and the :class:`Census` of its experiments."""
+    from ..loading.surveys import SURVEY_COLUMNS
+
+    fitted, failures, failed, units, probe = [], {}, [], set(), {}
+    width, smallest, total = 0, None, 0
+    for points in source:
+        total += 1
+        failure, _ = _screenable([points])
+        if failure:
+            failures.update(failure)
+            failed.append(points)
+        else:
+            fitted.append(points.experiment)
+            width = max(width, points.n)
+        units.add(points.size_unit)
+        if smallest is None or points.size.min() < smallest.size.min():
+            smallest = points
+        for column in SURVEY_COLUMNS:
+            if column in points.meta and column not in probe:
+                probe[column] = points
+    if not total:
+        raise InputError("no experiment to fit: the input is empty", source="experiments")
+    holders = {probe[c].experiment: probe[c] for c in SURVEY_COLUMNS if c in probe}  # as _survey_probe finds them
+    return Census(fitted, failures, tuple(failed), width, units - {""}, (smallest,), tuple(holders.values()), total)
+
+
+class FittableInPieces:
+    """The experiments of ``source`` the screen can judge (``len`` from its :class:`Census`),
+    read again in pieces each time they are iterated."""
+
+    def __init__(self, source: ExperimentsInPieces, found: Census):
+        self.source, self.census = source, found
+
+    def __len__(self) -> int:
+        return len(self.census.fitted)
+
+    def __iter__(self):
+        failures = self.census.failures
+        return (points for points in self.source if points.experiment not in failures)
 
 
 #: What :func:`fit_experiments` takes as its experiments, for the message refusing anything else.
