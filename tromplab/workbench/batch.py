@@ -30,7 +30,7 @@ from ..validation import (
     check_water_recovery,
 )
 from .fanout import _fit_in_chunks, dask_client
-from .inputs import ExperimentsInPieces, FittableInPieces, _data_size_unit, _points_and_balances, _screenable, census
+from .inputs import ExperimentsInPieces, FittableInPieces, _data_size_unit, _points_and_balances, _screenable
 from .result import Workbench
 from .tables import ranked_among
 from .worker import ChunkOptions
@@ -159,7 +159,8 @@ def prepared_batch(given: dict, *, in_pieces: bool = False) -> PreparedBatch:
     ``in_pieces``, an :class:`ExperimentsInPieces` is read once for its :func:`census` and
     stays on disk: its ``experiments`` is the source and its ``fittable`` a :class:`FittableInPieces`."""
     if in_pieces and isinstance(given["experiments"], ExperimentsInPieces):
-        experiments, balances, found = given["experiments"], (), census(given["experiments"])
+        experiments, found = given["experiments"], given["experiments"].census()
+        balances = tuple(experiments.balances)
         checked, n_experiments = list(found.smallest), found.total
         size_unit = next(iter(found.units)) if len(found.units) == 1 else given["size_unit"]
         failures, fittable = found.failures, FittableInPieces(experiments, found)

@@ -15,8 +15,8 @@ from scipy import stats
 
 from ..curves.measured import AMBIGUOUS_CUT_RATIO, CUT_BAND, CUT_WARNING, measured_cut_band, measured_efficiency, unbracketed_cut
 from ..errors import InputError
-from ..loading.lab import Experiments, MassBalance, read_experiments
-from ..loading.points import TrompPoints, iter_experiments, points_from_frame
+from ..loading.lab import Experiments, LabOptions, MassBalance, iter_experiments_in_pieces, read_experiments
+from ..loading.points import TrompPoints, points_from_frame
 from ..loading.tables import DEFAULT_PIECE_ROWS
 
 
@@ -45,32 +45,74 @@ def _screenable(experiments: Sequence[TrompPoints]) -> tuple[dict[str, str], lis
 
 
 class ExperimentsInPieces:
-    """The experiments of a points file (CSV) read in pieces each time they are iterated
-    (:func:`~tromplab.loading.points.iter_experiments`): what :func:`fit_to_folder` streams
-    through in bounded memory.  The first iteration warns of the layout detected, the
-    later ones read silently.  Anything else a batch takes reads it whole (a list).
+    """The experiments of a points file or lab table (CSV) read in pieces each time they are
+    iterated (:func:`~tromplab.loading.lab.iter_experiments_in_pieces`): what
+    :func:`fit_to_folder` streams through in bounded memory.  The first reading (the
+    :meth:`census`, which makes every check of the reader) warns of the layout detected and
+    keeps the balance notes of lab input (:attr:`balances`); the later ones read silently.
 
     Parameters
     ----------
     path : str or path-like
-        The points file.
-    size_unit, sep, decimal : optional
-        As for :func:`~tromplab.loading.points.read_points`.
+        The file.
+    options : LabOptions, optional
+        How to read it, as for :func:`~tromplab.loading.lab.read_experiments`.
     piece_rows : int
         Records per piece.
+
+    Attributes
+    ----------
+    balances : list of BalanceNotes
+        After the census: the notes and classes left out of each lab experiment that has any
+        (what the console and ``left_out.csv`` show), not the balances themselves.
     """
 
-    def __init__(self, path, *, size_unit=None, sep=None, decimal=None, piece_rows: int = DEFAULT_PIECE_ROWS):
-        self.path, self.piece_rows = path, piece_rows
-        self._reading = {"size_unit": size_unit, "sep": sep, "decimal": decimal}
-        self._warned = False
+    def __init__(self, path, options: LabOptions | None = None, *, piece_rows: int = DEFAULT_PIECE_ROWS):
+        self.path, self.options, self.piece_rows = path, options, piece_rows
+        self.balances: list[BalanceNotes] = []
+        self._census = None
 
     def __iter__(self):
-        warn, self._warned = not self._warned, True
-        return iter_experiments(self.path, piece_rows=self.piece_rows, warn=warn, **self._reading)
+        first = self._census is None and not self.balances
+        found = iter_experiments_in_pieces(self.path, self.options, piece_rows=self.piece_rows, warn=first)
+        for points, balance in found:
+            if first and balance is not None and (balance.notes or not balance.left_out_table().empty):
+                self.balances.append(BalanceNotes(balance.experiment, balance.notes, balance.left_out_table(),
+                                                  balance.left_out_summary()))  # fmt: skip
+            yield points
+
+    def census(self) -> Census:
+        """The :class:`Census` of the experiments, made by a first reading (then kept)."""
+        if self._census is None:
+            self.balances.clear()
+            self._census = census(self)
+        return self._census
+
+    def read_whole(self) -> Experiments:
+        """Every experiment and mass balance in memory, as :func:`~tromplab.loading.lab.read_experiments`
+        gives them (read silently after the census, which warned)."""
+        warn = self._census is None and not self.balances
+        pairs = list(iter_experiments_in_pieces(self.path, self.options, piece_rows=self.piece_rows, warn=warn))
+        return Experiments([points for points, _ in pairs], [balance for _, balance in pairs if balance is not None])
 
     def __repr__(self) -> str:
         return f"ExperimentsInPieces({str(self.path)!r})"
+
+
+class BalanceNotes(NamedTuple):
+    """What the console and ``left_out.csv`` show of a lab experiment's mass balance
+    (:class:`~tromplab.loading.lab.MassBalance`): its notes and the classes left out."""
+
+    experiment: str
+    notes: tuple
+    left_out: pd.DataFrame
+    summary: str
+
+    def left_out_table(self) -> pd.DataFrame:
+        return self.left_out
+
+    def left_out_summary(self) -> str:
+        return self.summary
 
 
 class Census(NamedTuple):
@@ -143,6 +185,8 @@ def _points_and_balances(experiments) -> tuple[list[TrompPoints], tuple[MassBala
     """Points (and the mass balances of lab input) from any of :data:`ACCEPTED_EXPERIMENTS`;
     an empty input, or two experiments of one name, is an :class:`InputError`."""
     balances = ()
+    if isinstance(experiments, ExperimentsInPieces):
+        experiments = experiments.read_whole()
     if isinstance(experiments, (str, os.PathLike, pd.DataFrame)):
         experiments = read_experiments(experiments)
     if isinstance(experiments, Experiments):

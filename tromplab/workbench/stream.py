@@ -80,7 +80,7 @@ def fit_to_folder(experiments, outdir, *, figures: str = "auto", format: str = "
     streamable &= figures == "none" or (figures == "auto" and len(plan.fittable) > AUTO_FIGURE_LIMIT)  # as _figures counts
     if not (streamable and plan.fittable and (stream or (stream is None and len(plan.fittable) >= STREAM_THRESHOLD))):
         if isinstance(plan.fittable, FittableInPieces):  # kept in memory: read whole after all
-            given["experiments"] = list(given["experiments"])
+            given["experiments"] = given["experiments"].read_whole()
             plan = prepared_batch(given)
         bench = fit_prepared(plan, given)
         bench.check_fitted(source or "")
