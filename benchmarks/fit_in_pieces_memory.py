@@ -69,9 +69,20 @@ def main() -> None:
         for size in map(int, args.sizes.split(",")):
             path = write_points(Path(folder) / f"points_{size}.csv", size)
             for mode in ("whole", "pieces"):
-                command = [sys.executable, __file__, "--jobs", str(args.jobs), "--one", str(path), mode, f"{folder}/out_{size}_{mode}"]
+                command = [
+                    sys.executable,
+                    __file__,
+                    "--jobs",
+                    str(args.jobs),
+                    "--one",
+                    str(path),
+                    mode,
+                    f"{folder}/out_{size}_{mode}",
+                ]
                 found = json.loads(subprocess.run(command, check=True, capture_output=True, text=True).stdout)
-                print(f"{size:>11,}  {mode:<6}  {found['python_peak_mib']:>17.1f}  {found['rss_peak_mib']:>14.1f}  {found['seconds']:>7.1f}")
+                print(
+                    f"{size:>11,}  {mode:<6}  {found['python_peak_mib']:>17.1f}  {found['rss_peak_mib']:>14.1f}  {found['seconds']:>7.1f}"
+                )
 
 
 if __name__ == "__main__":
