@@ -109,9 +109,11 @@ class BalanceNotes(NamedTuple):
     summary: str
 
     def left_out_table(self) -> pd.DataFrame:
+        """The classes left out, as :meth:`MassBalance.left_out_table` gives them."""
         return self.left_out
 
     def left_out_summary(self) -> str:
+        """The one-line summary of the classes left out (empty when none was)."""
         return self.summary
 
 
