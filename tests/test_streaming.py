@@ -371,7 +371,8 @@ def _main_process_memory(tmp_path, monkeypatch, experiments, *, in_pieces) -> tu
     keep, write = Spool.keep, stream_module.write_streamed_folder
 
     def counted(spool, summary):
-        alive.append(sum(isinstance(found, TrompPoints) for found in gc.get_objects()))
+        # this file's points only: a test run before this one may have left points of its own
+        alive.append(sum(isinstance(found, TrompPoints) and path.name in str(found.source) for found in gc.get_objects()))
         return keep(spool, summary)
 
     monkeypatch.setattr(Spool, "keep", counted)

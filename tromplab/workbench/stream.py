@@ -129,10 +129,6 @@ def _spooled_batch(plan, given: dict, spool: Spool, cluster, outdir) -> Workbenc
     fitted = tuple(fittable.census.fitted if in_pieces else (points.experiment for points in fittable))
     size = chunk_size(len(fittable), workers=_worker_count(given["jobs"], cluster))
     n_chunks = -(-len(fittable) // size)
-    if in_pieces:
-        failed_points = fittable.census.failed_points
-    else:
-        failed_points = tuple(points for points in plan.experiments if points.experiment in failures)
     logger.info(
         "fitting %d experiment(s) x %d formula(s) in %d chunk(s) of up to %d, streamed to %s (%s%s)",
         len(fittable), len(options.formulas), n_chunks, size, spool.scratch,
@@ -142,17 +138,12 @@ def _spooled_batch(plan, given: dict, spool: Spool, cluster, outdir) -> Workbenc
     head = (fitted + tuple(failures))[:AUTO_FIGURE_LIMIT]
     seconds["prepare"] = time.perf_counter() - started
     shapes = collections.deque()  # (experiments, last experiment) of each chunk handed out and not yet back
-
-    def work():
-        for number, chunk in enumerate(chunks_of(fittable, size)):
-            shapes.append((len(chunk), chunk[-1].experiment))
-            last = number == n_chunks - 1
-            yield ChunkWork(number, chunk, failures if last else None, failed_points if last else ())
-
     done, waited, kept = 0, 0.0, 0.0
     mark = time.perf_counter()
-    spooling = SpoolOptions(options, scratch, head)
-    for summary in _map_work(spool_chunk, work(), spooling, jobs=given["jobs"], client=cluster, count=n_chunks):
+    work = _chunk_work(plan, size, n_chunks, shapes)
+    for summary in _map_work(
+        spool_chunk, work, SpoolOptions(options, scratch, head), jobs=given["jobs"], client=cluster, count=n_chunks
+    ):
         now = time.perf_counter()
         waited += now - mark
         spool.keep(summary)
@@ -177,6 +168,21 @@ def _spooled_batch(plan, given: dict, spool: Spool, cluster, outdir) -> Workbenc
     bench._attach_spooled_run(run)
     seconds["join the summaries"] = time.perf_counter() - started
     return bench
+
+
+def _chunk_work(plan, size: int, n_chunks: int, shapes: collections.deque):
+    """The :class:`ChunkWork` of each chunk of ``size`` experiments of ``plan.fittable``, cut
+    as they are taken (the file read on, for a batch read in pieces); the last one carries the
+    failed experiments.  ``shapes`` hears each chunk's size and last experiment."""
+    fittable, failures = plan.fittable, plan.failures
+    if isinstance(fittable, FittableInPieces):
+        failed_points = fittable.census.failed_points
+    else:
+        failed_points = tuple(points for points in plan.experiments if points.experiment in failures)
+    for number, chunk in enumerate(chunks_of(fittable, size)):
+        shapes.append((len(chunk), chunk[-1].experiment))
+        last = number == n_chunks - 1
+        yield ChunkWork(number, chunk, failures if last else None, failed_points if last else ())
 
 
 def _figure_modules_loading() -> threading.Thread:
