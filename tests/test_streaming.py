@@ -407,3 +407,28 @@ def test_the_main_process_holds_no_points_of_the_batch_when_the_file_is_read_in_
     assert whole[small][1] >= small and whole[large][1] >= large
     in_flight = fanout_module.CHUNKS_IN_FLIGHT * 2 * 64
     assert pieces[small][1] <= in_flight + 64 and pieces[large][1] <= in_flight + 64  # a chunk being cut too
+
+
+@pytest.mark.parametrize(
+    ("suffix", "options", "expected"),
+    [
+        (".csv", [], True),
+        (".csv", ["--no-figures"], True),
+        (".csv", ["--excel"], False),
+        (".csv", ["--figures", "best"], False),
+        (".csv", ["--format", "parquet"], False),
+        (".xlsx", [], False),
+    ],
+)
+def test_the_command_line_reads_in_pieces_only_a_large_csv_whose_results_can_stream(
+    tmp_path, monkeypatch, suffix, options, expected
+):
+    from tromplab.cli import build_parser
+
+    path = tmp_path / f"input{suffix}"
+    path.write_bytes(b"x" * 64)
+    args = build_parser().parse_args(["fit", str(path), "-o", str(tmp_path / "out"), *options])
+    monkeypatch.setattr(fit_command, "IN_PIECES_FROM_BYTES", 64)
+    assert fit_command.reads_in_pieces(args) is expected
+    monkeypatch.setattr(fit_command, "IN_PIECES_FROM_BYTES", 65)  # below the size: read whole
+    assert fit_command.reads_in_pieces(args) is False

@@ -148,7 +148,8 @@ def census(source: ExperimentsInPieces) -> Census:
         else:
             fitted.append(points.experiment)
             width = max(width, points.n)
-        units.add(points.size_unit)
+        if points.size_unit:
+            units.add(points.size_unit)
         if smallest is None or points.size.min() < smallest.size.min():
             smallest = points
         for column in SURVEY_COLUMNS:
@@ -157,7 +158,7 @@ def census(source: ExperimentsInPieces) -> Census:
     if not total:
         raise InputError("no experiment to fit: the input is empty", source="experiments")
     holders = {probe[c].experiment: probe[c] for c in SURVEY_COLUMNS if c in probe}  # as _survey_probe finds them
-    return Census(fitted, failures, tuple(failed), width, units - {""}, (smallest,), tuple(holders.values()), total)
+    return Census(fitted, failures, tuple(failed), width, units, (smallest,), tuple(holders.values()), total)
 
 
 class FittableInPieces:
