@@ -12,9 +12,15 @@ import pytest
 
 from tromplab import TrompPoints
 from tromplab._synthetic import synthetic
+from tromplab.cli import fit as fit_command
 from tromplab.cli import main
-from tromplab.workbench import fit_to_folder
+from tromplab.loading.lab import LabOptions, read_experiments
+from tromplab.loading.tables import read_table
+from tromplab.workbench import ExperimentsInPieces, fit_to_folder
+from tromplab.workbench import fanout as fanout_module
 from tromplab.workbench import stream as stream_module
+
+from .conftest import DATASETS
 
 FORMULAS = "plitt,lognormal,shuvalov"
 
@@ -222,3 +228,207 @@ def test_a_streamed_workbench_pickles_without_its_fits_and_still_refits(tmp_path
     assert "_refits" not in copy.__dict__ and copy.experiments == streamed.experiments
     assert copy.fit("s5", "plitt").fit.ssr == made.fit.ssr
     pd.testing.assert_frame_equal(copy.ranking_table(), streamed.ranking_table())
+
+
+def _points_file(path, data, *, interleaved=False):
+    """``data`` written as a points file; ``interleaved``: the experiments' rows mixed (row i of each, then i + 1)."""
+    frame = pd.concat([p.to_frame() for p in data], ignore_index=True)
+    if interleaved:
+        frame = frame.iloc[np.argsort(frame.groupby("experiment", sort=False).cumcount().to_numpy(), kind="stable")]
+    frame.to_csv(path, index=False)
+    return path
+
+
+def _lab_file(path, *, copies=30, interleaved=False):
+    """The bundled lab table's experiments ``copies`` times over (renamed), as one lab table."""
+    frame = read_table(DATASETS / "double_deck_screen_decks_lab.csv").frame
+    frame = pd.concat([frame.assign(experiment=frame["experiment"] + f" {copy}") for copy in range(copies)], ignore_index=True)
+    if interleaved:  # the classes of each experiment stay in order, as a lab table needs
+        frame = frame.iloc[np.argsort(frame.groupby("experiment", sort=False).cumcount().to_numpy(), kind="stable")]
+    frame.to_csv(path, index=False)
+    return path
+
+
+@pytest.mark.parametrize("jobs", [1, 2])
+@pytest.mark.parametrize("interleaved", [False, True])
+def test_a_points_file_read_in_pieces_streams_the_folder_of_the_whole_file(tmp_path, jobs, interleaved):
+    path = _points_file(tmp_path / "points.csv", _batch(), interleaved=interleaved)
+    options = {"formulas": FORMULAS, "jobs": jobs, "ci": 0.9}
+    kept, _ = fit_to_folder(str(path), tmp_path / "memory", stream=False, **options)
+    source = ExperimentsInPieces(path, piece_rows=37)  # pieces that cut experiments, two chunks of 64 and more
+    streamed, written = fit_to_folder(source, tmp_path / "streamed", stream=True, **options)
+    assert streamed._spooled is not None and "failures.csv" in written
+    assert _same_folders(tmp_path / "memory", tmp_path / "streamed") == []
+    assert streamed.inputs is source  # not held in memory: a refit reads the file again
+    assert streamed.fit("s5", "plitt").fit.ssr == kept.fit("s5", "plitt").fit.ssr
+
+
+@pytest.mark.parametrize("jobs", [1, 2])
+@pytest.mark.parametrize("interleaved", [False, True])
+def test_a_lab_table_read_in_pieces_streams_the_folder_of_the_whole_table(tmp_path, jobs, interleaved):
+    path = _lab_file(tmp_path / "lab.csv", interleaved=interleaved)
+    options = {"formulas": FORMULAS, "jobs": jobs, "figures": "none"}
+    lab = LabOptions(size_unit="mm", min_feed_share=0.05)  # some classes left out: left_out.csv and notes
+    kept, _ = fit_to_folder(read_experiments(path, lab), tmp_path / "memory", stream=False, **options)
+    source = ExperimentsInPieces(path, lab, piece_rows=11)
+    streamed, written = fit_to_folder(source, tmp_path / "streamed", stream=True, **options)
+    assert streamed._spooled is not None and "left_out.csv" in written
+    assert _same_folders(tmp_path / "memory", tmp_path / "streamed") == []
+    whole = {b.experiment: b for b in kept.balances}
+    assert [(b.experiment, b.notes, b.left_out_summary()) for b in source.balances] == [
+        (b.experiment, b.notes, b.left_out_summary()) for b in kept.balances if b.notes or b.left_out_summary()
+    ]
+    assert whole and len(source.balances) > 0
+
+
+def test_a_source_read_in_pieces_is_read_whole_when_the_run_keeps_its_fits(tmp_path):
+    path = _lab_file(tmp_path / "lab.csv", copies=2)
+    lab = LabOptions(size_unit="mm", min_feed_share=0.05)
+    kept, _ = fit_to_folder(read_experiments(path, lab), tmp_path / "memory", formulas=FORMULAS, figures="best")
+    again, _ = fit_to_folder(ExperimentsInPieces(path, lab), tmp_path / "pieces", formulas=FORMULAS, figures="best")
+    assert again._spooled is None and [b.experiment for b in again.balances] == [b.experiment for b in kept.balances]
+    assert _same_folders(tmp_path / "memory", tmp_path / "pieces") == []
+
+
+@pytest.mark.parametrize("kind", ["points", "lab"])
+def test_the_command_line_reads_a_large_csv_in_pieces_with_the_same_files_and_console(tmp_path, monkeypatch, capsys, kind):
+    if kind == "points":
+        path, options = _points_file(tmp_path / "points.csv", _batch(), interleaved=True), []
+    else:
+        path, options = _lab_file(tmp_path / "lab.csv", interleaved=True), ["--size-unit", "mm", "--min-feed-share", "0.05"]
+    options += ["--formulas", FORMULAS, "--jobs", "2", "--no-figures"]
+    assert main(["fit", str(path), "-o", str(tmp_path / "memory"), *options]) in (0, 3)
+    kept = capsys.readouterr()
+    monkeypatch.setattr(fit_command, "IN_PIECES_FROM_BYTES", 0)
+    monkeypatch.setattr(stream_module, "STREAM_THRESHOLD", 10)
+    read = []
+    monkeypatch.setattr(ExperimentsInPieces, "census", _recording(ExperimentsInPieces.census, read))
+    assert main(["fit", str(path), "-o", str(tmp_path / "streamed"), *options]) in (0, 3)
+    streamed = capsys.readouterr()
+    assert read, "the input was read whole"
+    assert _same_folders(tmp_path / "memory", tmp_path / "streamed") == []
+    assert streamed.out.replace("streamed", "memory") == kept.out
+    assert streamed.err == kept.err
+    assert kind == "points" or "note (" in streamed.err  # the balance notes, before the fits
+
+
+def _recording(method, calls):
+    def recorded(self):
+        calls.append(self.path)
+        return method(self)
+
+    return recorded
+
+
+@pytest.mark.parametrize("kind", ["points", "lab"])
+def test_a_bad_row_deep_in_a_file_read_in_pieces_is_exit_1_with_nothing_written_before_any_fit(
+    tmp_path, monkeypatch, capsys, kind
+):
+    if kind == "points":
+        path = _points_file(tmp_path / "points.csv", _batch(failures=False))
+        options = []
+    else:
+        path = _lab_file(tmp_path / "lab.csv")
+        options = ["--size-unit", "mm"]
+    lines = path.read_text().splitlines()
+    cells = lines[-5].split(",")
+    cells[-1 if kind == "points" else 3] = "abc"  # a partition / a feed share that is no number
+    lines[-5] = ",".join(cells)
+    path.write_text("\n".join(lines) + "\n")
+    args = ["fit", str(path), "--formulas", FORMULAS, "--jobs", "2", "--no-figures", *options]
+    assert main([*args, "-o", str(tmp_path / "whole")]) == 1
+    whole = capsys.readouterr()
+    monkeypatch.setattr(fit_command, "IN_PIECES_FROM_BYTES", 0)
+    monkeypatch.setattr(stream_module, "STREAM_THRESHOLD", 10)
+    fitted = []
+    monkeypatch.setattr(stream_module, "_spooled_batch", lambda *a: fitted.append(a))
+    assert main([*args, "-o", str(tmp_path / "pieces")]) == 1
+    pieces = capsys.readouterr()
+    assert fitted == [] and sorted(p.name for p in tmp_path.iterdir()) == [path.name]
+    assert pieces.err == whole.err
+    assert "abc" in pieces.err and str(len(lines) - 4) in pieces.err  # the cell and its line, as the whole reader names them
+
+
+def _main_process_memory(tmp_path, monkeypatch, experiments, *, in_pieces) -> tuple[int, int]:
+    """The peak of the main process's Python allocations (tracemalloc) until the folder is
+    written, and the most experiments' points alive in it as the chunks come back, while it
+    fits a points file of ``experiments`` (streamed, two workers), read whole or in pieces."""
+    import gc
+    import tracemalloc
+
+    from tromplab.workbench.spool import Spool
+
+    rng = np.random.default_rng(experiments)
+    size = 5.0 * 2.0 ** np.arange(12) / 8
+    cut = rng.uniform(2, 20, (experiments, 1))
+    partition = np.clip(1 / (1 + (size / cut) ** 3) + rng.normal(0, 0.01, (experiments, size.size)), 0, 1).round(4)
+    path = tmp_path / f"points_{experiments}.csv"
+    names = np.repeat([f"survey {i:06d}" for i in range(experiments)], size.size)
+    pd.DataFrame({"experiment": names, "size": np.tile(size, experiments), "partition_fine": partition.ravel()}).to_csv(
+        path, index=False
+    )
+    alive, fitted = [], []
+    keep, write = Spool.keep, stream_module.write_streamed_folder
+
+    def counted(spool, summary):
+        # this file's points only: a test run before this one may have left points of its own
+        alive.append(sum(isinstance(found, TrompPoints) and path.name in str(found.source) for found in gc.get_objects()))
+        return keep(spool, summary)
+
+    monkeypatch.setattr(Spool, "keep", counted)
+    monkeypatch.setattr(
+        stream_module,
+        "write_streamed_folder",
+        lambda *a, **k: (fitted.append(tracemalloc.get_traced_memory()[1]), write(*a, **k))[1],
+    )
+    tracemalloc.start()
+    try:
+        source = ExperimentsInPieces(path, piece_rows=2000) if in_pieces else read_experiments(path)
+        fit_to_folder(source, tmp_path / f"out_{experiments}_{in_pieces}", stream=True, formulas="plitt", figures="none", jobs=2)
+        del source
+        return fitted[0], max(alive)
+    finally:
+        tracemalloc.stop()
+
+
+@pytest.mark.slow
+def test_the_main_process_holds_no_points_of_the_batch_when_the_file_is_read_in_pieces(tmp_path, monkeypatch):
+    """Five times the experiments (chunks of 64, so that the chunks in flight are as large for
+    both sizes): read whole, the main process holds every experiment's points while the chunks
+    are fitted; read in pieces, those of the chunks in flight only, as many for both sizes.
+    (The peaks of its allocations, printed, are measured at larger sizes by
+    benchmarks/fit_in_pieces_memory.py: here the per-experiment names and ranks and the
+    transients of the reading weigh as much as the points.)"""
+    monkeypatch.setattr(fanout_module, "MAX_CHUNK_SIZE", 64)
+    small, large = 200, 1000
+    pieces = {n: _main_process_memory(tmp_path, monkeypatch, n, in_pieces=True) for n in (small, large)}
+    whole = {n: _main_process_memory(tmp_path, monkeypatch, n, in_pieces=False) for n in (small, large)}
+    print({"in pieces": pieces, "whole": whole})
+    assert whole[small][1] >= small and whole[large][1] >= large
+    in_flight = fanout_module.CHUNKS_IN_FLIGHT * 2 * 64
+    assert pieces[small][1] <= in_flight + 64 and pieces[large][1] <= in_flight + 64  # a chunk being cut too
+
+
+@pytest.mark.parametrize(
+    ("suffix", "options", "expected"),
+    [
+        (".csv", [], True),
+        (".csv", ["--no-figures"], True),
+        (".csv", ["--excel"], False),
+        (".csv", ["--figures", "best"], False),
+        (".csv", ["--format", "parquet"], False),
+        (".xlsx", [], False),
+    ],
+)
+def test_the_command_line_reads_in_pieces_only_a_large_csv_whose_results_can_stream(
+    tmp_path, monkeypatch, suffix, options, expected
+):
+    from tromplab.cli import build_parser
+
+    path = tmp_path / f"input{suffix}"
+    path.write_bytes(b"x" * 64)
+    args = build_parser().parse_args(["fit", str(path), "-o", str(tmp_path / "out"), *options])
+    monkeypatch.setattr(fit_command, "IN_PIECES_FROM_BYTES", 64)
+    assert fit_command.reads_in_pieces(args) is expected
+    monkeypatch.setattr(fit_command, "IN_PIECES_FROM_BYTES", 65)  # below the size: read whole
+    assert fit_command.reads_in_pieces(args) is False

@@ -48,7 +48,10 @@ products given as masses imply the yield ``fine / (fine + coarse)``, compared li
 
 from __future__ import annotations
 
+import contextlib
 import logging
+import os
+from collections.abc import Iterator
 from dataclasses import dataclass, fields, replace
 from typing import NamedTuple
 
@@ -81,10 +84,10 @@ from .node_balance import (
     reconcile,
     yield_contradiction,
 )
-from .points import TrompPoints, experiment_rows, points_from_table
+from .points import TrompPoints, experiment_rows, iter_experiments, points_from_table
 from .size_classes import class_label
 from .surveys import has_survey_columns, split_survey_columns, with_survey_meta
-from .tables import Table, read_table
+from .tables import DEFAULT_PIECE_ROWS, Table, iter_experiment_tables, read_table, read_table_in_pieces
 from .weights import concentration_note, partition_weights
 
 #: The public names, kept importable from here where they were before the lab reader was split
@@ -599,3 +602,57 @@ def _experiments_from_table(table: Table, options: LabOptions) -> Experiments:
     experiments = points_from_table(table, size_unit=options.size_unit)
     logger.info("%s: Tromp points, %d experiment(s)", table.source, len(experiments))
     return Experiments(experiments, [])
+
+
+def iter_experiments_in_pieces(path, options: LabOptions | None = None, *, piece_rows: int = DEFAULT_PIECE_ROWS,
+                               warn: bool = True) -> Iterator[tuple[TrompPoints, MassBalance | None]]:  # fmt: skip
+    """The experiments of a points file or lab table (CSV) one at a time, the file read in
+    pieces: what :func:`read_experiments` reads, with its checks and messages, in the memory of
+    a piece and of one experiment.
+
+    A points file goes through :func:`~tromplab.loading.points.iter_experiments`, a lab table
+    through :func:`~tromplab.loading.tables.iter_experiment_tables` and the mass balance of
+    each experiment's rows (:func:`balances_from_table`).  Read whole, as
+    :func:`read_experiments` reads it, is a workbook or DataFrame, a monitoring file (survey or
+    date columns: its experiments go in date order) and a points file with ``options.rename``.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The file.
+    options : LabOptions, optional
+        How to read a lab table, as for :func:`read_experiments`.
+    piece_rows : int
+        Records per piece.
+    warn : bool
+        Warn of the layout detected; False for a second reading of the file.
+
+    Yields
+    ------
+    tuple
+        ``(points, balance)`` per experiment in order of first appearance (``balance`` None
+        for a points file).
+    """
+    options = options or LabOptions()
+    text_columns = renamed_to_names(options.rename)
+    head = None
+    if isinstance(path, (str, os.PathLike)) and options.sheet is None:
+        pieces = read_table_in_pieces(path, piece_rows=1, sep=options.sep, decimal=options.decimal,
+                                      text_columns=text_columns, warn=False)  # fmt: skip
+        with contextlib.closing(pieces):
+            head = next(pieces, None)
+    head = None if head is None else _renamed(head, options.rename)
+    lab = head is not None and is_lab_table(head.frame.columns)
+    if head is None or has_survey_columns(head) or (options.rename and not lab):
+        found = read_experiments(path, options)
+        yield from zip(found.points, found.balances or [None] * len(found.points))
+        return
+    if not lab:
+        for points in iter_experiments(path, piece_rows=piece_rows, size_unit=options.size_unit, sep=options.sep,
+                                       decimal=options.decimal, warn=warn):  # fmt: skip
+            yield points, None
+        return
+    for table in iter_experiment_tables(path, piece_rows=piece_rows, sep=options.sep, decimal=options.decimal,
+                                        text_columns=text_columns, warn=warn):  # fmt: skip
+        for balance in balances_from_table(_renamed(table, options.rename), options):
+            yield balance.to_points(weight_by_feed_share=options.weight_by_feed_share), balance

@@ -484,8 +484,9 @@ def points_from_frame(frame: pd.DataFrame, *, source: str = "data frame") -> lis
 
 # --- a points file read in pieces ----------------------------------------------------------------
 def iter_experiments(
-    path, *, piece_rows: int = DEFAULT_PIECE_ROWS, size_unit: str | None = None, sep=None, decimal=None, sheet=None
-) -> Iterator[TrompPoints]:
+    path, *, piece_rows: int = DEFAULT_PIECE_ROWS, size_unit: str | None = None, sep=None, decimal=None, sheet=None,
+    warn: bool = True,
+) -> Iterator[TrompPoints]:  # fmt: skip
     """The experiments of a Tromp-points file one at a time, the file read in pieces.
 
     The same points, checks and messages as :func:`read_points` (file, row, column), in the
@@ -507,6 +508,8 @@ def iter_experiments(
         Records per piece (:func:`~tromplab.loading.tables.read_table_in_pieces`).
     size_unit, sep, decimal, sheet
         As for :func:`read_points`.
+    warn : bool
+        Warn of the layout detected, as :func:`read_points` does; False for a second reading.
 
     Yields
     ------
@@ -543,7 +546,7 @@ def iter_experiments(
     def pieces(warn: bool):
         return read_table_in_pieces(path, piece_rows=piece_rows, sep=sep, decimal=decimal, warn=warn)
 
-    index = _index_experiments(pieces(warn=True), size_unit)
+    index = _index_experiments(pieces(warn=warn), size_unit)
     if index.consecutive:
         yield from _experiments_of_pieces(pieces(warn=False), index.columns, index.counts)
     else:

@@ -511,7 +511,7 @@ class ExperimentIndex:
 
 
 def iter_experiment_tables(
-    path, *, piece_rows: int = DEFAULT_PIECE_ROWS, sep=None, decimal=None, text_columns=()
+    path, *, piece_rows: int = DEFAULT_PIECE_ROWS, sep=None, decimal=None, text_columns=(), warn: bool = True
 ) -> Iterator[Table]:
     """The rows of each experiment of a CSV table as a :class:`Table`, the file read in pieces.
 
@@ -530,6 +530,8 @@ def iter_experiment_tables(
         Records per piece.
     sep, decimal, text_columns
         As for :func:`read_table`.
+    warn : bool
+        Warn of the layout detected, as :func:`read_table` does; False for a second reading.
 
     Yields
     ------
@@ -541,7 +543,7 @@ def iter_experiment_tables(
         return read_table_in_pieces(path, piece_rows=piece_rows, sep=sep, decimal=decimal, text_columns=text_columns, warn=warn)
 
     index = ExperimentIndex()
-    for table in pieces(True):
+    for table in pieces(warn):
         index.add(table.experiment_labels())
     if index.consecutive:
         yield from _consecutive_experiment_tables(pieces(False), index.counts)

@@ -14,7 +14,7 @@ with one chunk), then ``gc_control``, ``averages``, ``tables`` (the fits table) 
 from .averages import averages_level
 from .batch import check_formula_selection, fit_experiments, formula_keys, print_progress
 from .fanout import CHUNK_SIZE, MAX_CHUNK_SIZE, ChunkResults, chunked, dask_client
-from .inputs import ACCEPTED_EXPERIMENTS, data_notes
+from .inputs import ACCEPTED_EXPERIMENTS, ExperimentsInPieces, data_notes
 from .result import Workbench, load, model_averages
 from .stream import STREAM_THRESHOLD, fit_to_folder
 from .tables import by_experiment, completed_fit_rows, fit_row_settings, fit_rows_frame, output_view, ranked_among
@@ -30,6 +30,7 @@ __all__ = [
     "STREAM_THRESHOLD",
     "ChunkOptions",
     "ChunkResults",
+    "ExperimentsInPieces",
     "FittedChunk",
     "Workbench",
     "averages_level",

@@ -30,7 +30,7 @@ from ..validation import (
     check_water_recovery,
 )
 from .fanout import _fit_in_chunks, dask_client
-from .inputs import _data_size_unit, _points_and_balances, _screenable
+from .inputs import ExperimentsInPieces, FittableInPieces, _data_size_unit, _points_and_balances, _screenable
 from .result import Workbench
 from .tables import ranked_among
 from .worker import ChunkOptions
@@ -153,15 +153,25 @@ class PreparedBatch(NamedTuple):
     options: ChunkOptions
 
 
-def prepared_batch(given: dict) -> PreparedBatch:
+def prepared_batch(given: dict, *, in_pieces: bool = False) -> PreparedBatch:
     """The keywords of :func:`fit_experiments` (``given``, its ``locals()``) read and checked,
-    before any fit (an :class:`~tromplab.errors.OptionError` names a wrong option)."""
-    experiments, balances = _points_and_balances(given["experiments"])
+    before any fit (an :class:`~tromplab.errors.OptionError` names a wrong option).  With
+    ``in_pieces``, an :class:`ExperimentsInPieces` is read once for its :func:`census` and
+    stays on disk: its ``experiments`` is the source and its ``fittable`` a :class:`FittableInPieces`."""
+    if in_pieces and isinstance(given["experiments"], ExperimentsInPieces):
+        experiments, found = given["experiments"], given["experiments"].census()
+        balances = tuple(experiments.balances)
+        checked, n_experiments = list(found.smallest), found.total
+        size_unit = next(iter(found.units)) if len(found.units) == 1 else given["size_unit"]
+        failures, fittable = found.failures, FittableInPieces(experiments, found)
+    else:
+        experiments, balances = _points_and_balances(given["experiments"])
+        checked, n_experiments = experiments, len(experiments)
+        size_unit = _data_size_unit(experiments, given["size_unit"])
+        failures, fittable = _screenable(experiments)
     chosen = select_formulas(check_formula_selection(given["formulas"], given["extended"]))
-    n_fits = len(experiments) * len(chosen)
-    settings = _checked_settings({**given, "experiments": experiments}, n_fits=n_fits,
-                                 size_unit=_data_size_unit(experiments, given["size_unit"]))  # fmt: skip
-    failures, fittable = _screenable(experiments)
+    n_fits = n_experiments * len(chosen)
+    settings = _checked_settings({**given, "experiments": checked}, n_fits=n_fits, size_unit=size_unit)
     options = ChunkOptions(
         formulas=tuple(f.id for f in chosen),
         ranked=tuple(f.id for f in ranked_among(chosen, given["rank_extended"])),
@@ -186,7 +196,9 @@ def batch_workbench(plan: PreparedBatch, given: dict, fits, notes, intervals) ->
     return Workbench(
         fits, plan.failures, plan.chosen, given["rank_by"], given["alpha"], given["rank_extended"], notes,
         settings["water_recovery"], given["ci"], given["bootstrap"], given["bootstrap_method"], given["seed"],
-        given["partition_to"], settings["size_unit"], tuple(plan.experiments), plan.balances, intervals,
+        given["partition_to"], settings["size_unit"],
+        plan.experiments if isinstance(plan.experiments, ExperimentsInPieces) else tuple(plan.experiments),
+        plan.balances, intervals,
     )  # fmt: skip
 
 

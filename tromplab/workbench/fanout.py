@@ -5,13 +5,15 @@ gathered in order (:class:`ChunkResults`).
 
 from __future__ import annotations
 
+import collections
 import contextlib
 import functools
 import importlib.util
+import itertools
 import logging
 import math
 import os
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import replace
 from typing import NamedTuple
@@ -48,11 +50,23 @@ def chunked(items: Sequence, *, workers: int) -> list:
     at least two per worker, as many for each worker (units of at most :data:`MAX_CHUNK_SIZE`
     of equal size, so that no worker is left with a short last unit while another works on a
     full one: 10,000 experiments on 2 workers are 10 units of 1,000, not 9 of 1,024 and one of 784)."""
-    workers = max(workers, 1)
-    units = max(math.ceil(len(items) / MAX_CHUNK_SIZE), 2 * workers)
-    units = math.ceil(units / workers) * workers
-    size = min(MAX_CHUNK_SIZE, max(CHUNK_SIZE, math.ceil(len(items) / units)))
+    size = chunk_size(len(items), workers=workers)
     return [items[i : i + size] for i in range(0, len(items), size)]
+
+
+def chunk_size(count: int, *, workers: int) -> int:
+    """The experiments per unit of work of :func:`chunked` for ``count`` experiments."""
+    workers = max(workers, 1)
+    units = max(math.ceil(count / MAX_CHUNK_SIZE), 2 * workers)
+    units = math.ceil(units / workers) * workers
+    return min(MAX_CHUNK_SIZE, max(CHUNK_SIZE, math.ceil(count / units)))
+
+
+def chunks_of(items: Iterable, size: int) -> Iterator[list]:
+    """Consecutive lists of ``size`` items of ``items`` (the last shorter), taken as they come."""
+    items = iter(items)
+    while chunk := list(itertools.islice(items, size)):
+        yield chunk
 
 
 def _worker_count(jobs, client) -> int:
@@ -163,26 +177,44 @@ def _map_chunks(chunks, options: ChunkOptions, *, jobs, client) -> Iterator[Fitt
     yield from _map_work(work_on_chunk, chunks, options, jobs=jobs, client=client)
 
 
-def _map_work(function, chunks, argument, *, jobs, client):
+def _map_work(function, chunks, argument, *, jobs, client, count: int | None = None):
     """Yield ``function(argument, chunk)`` for each chunk, in order: in process, in a
-    process pool of ``jobs`` workers (None: all cores), or on a Dask client."""
+    process pool of ``jobs`` workers (None: all cores), or on a Dask client.  ``chunks`` may
+    be an iterator (``count``: how many it yields): a chunk is taken from it when a worker
+    can soon start on it, at most :data:`CHUNKS_IN_FLIGHT` per worker ahead of the results."""
     work = functools.partial(_with_older_objects_frozen, function, argument)
+    count = len(chunks) if count is None else count
     with _results_kept_out_of_collections() as keep:
         if client is not None:
-            futures = client.map(work, chunks, pure=False)
-            for position in range(len(futures)):
-                result = futures[position].result()
-                futures[position] = None  # released: the worker that made it forgets it now, not at the end
+            submit = functools.partial(client.submit, work, pure=False)
+            ahead = CHUNKS_IN_FLIGHT * _worker_count(jobs, client)
+        else:
+            workers = min(jobs or os.cpu_count() or 1, count)
+            if workers <= 1:
+                for result in map(work, chunks):
+                    yield result
+                    keep()
+                return
+            pool = ProcessPoolExecutor(max_workers=workers)
+            submit, ahead = functools.partial(pool.submit, work), CHUNKS_IN_FLIGHT * workers
+        with contextlib.nullcontext() if client is not None else pool:
+            for result in _in_order(submit, chunks, ahead):
                 yield result
                 keep()
-            return
-        workers = min(jobs or os.cpu_count() or 1, len(chunks))
-        if workers <= 1:
-            for result in map(work, chunks):
-                yield result
-                keep()
-            return
-        with ProcessPoolExecutor(max_workers=workers) as pool:
-            for result in pool.map(work, chunks):
-                yield result
-                keep()
+
+
+#: Chunks submitted per worker ahead of the result awaited: one at work, one queued.
+CHUNKS_IN_FLIGHT = 2
+
+
+def _in_order(submit, chunks, ahead: int):
+    """The results of ``submit(chunk)`` for each chunk in order, with at most ``ahead``
+    chunks submitted and not yet returned; each future is released once its result is
+    taken (a Dask worker forgets it then, not at the end)."""
+    pending = collections.deque()
+    for chunk in chunks:
+        pending.append(submit(chunk))
+        if len(pending) >= ahead:
+            yield pending.popleft().result()
+    while pending:
+        yield pending.popleft().result()

@@ -7,6 +7,7 @@ from __future__ import annotations
 import os
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import replace
+from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -14,8 +15,9 @@ from scipy import stats
 
 from ..curves.measured import AMBIGUOUS_CUT_RATIO, CUT_BAND, CUT_WARNING, measured_cut_band, measured_efficiency, unbracketed_cut
 from ..errors import InputError
-from ..loading.lab import Experiments, MassBalance, read_experiments
+from ..loading.lab import Experiments, LabOptions, MassBalance, iter_experiments_in_pieces, read_experiments
 from ..loading.points import TrompPoints, points_from_frame
+from ..loading.tables import DEFAULT_PIECE_ROWS
 
 
 def _data_size_unit(experiments: Sequence[TrompPoints], fallback: str) -> str:
@@ -42,6 +44,138 @@ def _screenable(experiments: Sequence[TrompPoints]) -> tuple[dict[str, str], lis
     return failures, fittable
 
 
+class ExperimentsInPieces:
+    """The experiments of a points file or lab table (CSV) read in pieces each time they are
+    iterated (:func:`~tromplab.loading.lab.iter_experiments_in_pieces`): what
+    :func:`fit_to_folder` streams through in bounded memory.  The first reading (the
+    :meth:`census`, which makes every check of the reader) warns of the layout detected and
+    keeps the balance notes of lab input (:attr:`balances`); the later ones read silently.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The file.
+    options : LabOptions, optional
+        How to read it, as for :func:`~tromplab.loading.lab.read_experiments`.
+    piece_rows : int
+        Records per piece.
+
+    Attributes
+    ----------
+    balances : list of BalanceNotes
+        After the census: the notes and classes left out of each lab experiment that has any
+        (what the console and ``left_out.csv`` show), not the balances themselves.
+    """
+
+    def __init__(self, path, options: LabOptions | None = None, *, piece_rows: int = DEFAULT_PIECE_ROWS):
+        self.path, self.options, self.piece_rows = path, options, piece_rows
+        self.balances: list[BalanceNotes] = []
+        self._census = None
+
+    def __iter__(self):
+        first = self._census is None and not self.balances
+        found = iter_experiments_in_pieces(self.path, self.options, piece_rows=self.piece_rows, warn=first)
+        for points, balance in found:
+            if first and balance is not None and (balance.notes or not balance.left_out_table().empty):
+                self.balances.append(BalanceNotes(balance.experiment, balance.notes, balance.left_out_table(),
+                                                  balance.left_out_summary()))  # fmt: skip
+            yield points
+
+    def census(self) -> Census:
+        """The :class:`Census` of the experiments, made by a first reading (then kept)."""
+        if self._census is None:
+            self.balances.clear()
+            self._census = census(self)
+        return self._census
+
+    def read_whole(self) -> Experiments:
+        """Every experiment and mass balance in memory, as :func:`~tromplab.loading.lab.read_experiments`
+        gives them (read silently after the census, which warned)."""
+        warn = self._census is None and not self.balances
+        pairs = list(iter_experiments_in_pieces(self.path, self.options, piece_rows=self.piece_rows, warn=warn))
+        return Experiments([points for points, _ in pairs], [balance for _, balance in pairs if balance is not None])
+
+    def __repr__(self) -> str:
+        return f"ExperimentsInPieces({str(self.path)!r})"
+
+
+class BalanceNotes(NamedTuple):
+    """What the console and ``left_out.csv`` show of a lab experiment's mass balance
+    (:class:`~tromplab.loading.lab.MassBalance`): its notes and the classes left out."""
+
+    experiment: str
+    notes: tuple
+    left_out: pd.DataFrame
+    summary: str
+
+    def left_out_table(self) -> pd.DataFrame:
+        """The classes left out, as :meth:`MassBalance.left_out_table` gives them."""
+        return self.left_out
+
+    def left_out_summary(self) -> str:
+        """The one-line summary of the classes left out (empty when none was)."""
+        return self.summary
+
+
+class Census(NamedTuple):
+    """What a batch needs to know of its experiments before the first is fitted, from one
+    reading of an :class:`ExperimentsInPieces` (:func:`census`): one name per experiment,
+    not its points."""
+
+    fitted: list  # the names of the experiments the screen can judge, in order
+    failures: dict  # experiment -> why the screen cannot judge it
+    failed_points: tuple  # their points
+    width: int  # the most points of a fitted experiment
+    units: set  # the size units the loader found
+    smallest: tuple  # the points of the smallest size (for the check of delta_max)
+    survey_probe: tuple  # the first experiment holding each survey column
+    total: int  # experiments in all
+
+
+def census(source: ExperimentsInPieces) -> Census:
+    """One reading of ``source``: every check of its reader (so a bad row is refused before
+    anything is fitted or written) and the :class:`Census` of its experiments."""
+    from ..loading.surveys import SURVEY_COLUMNS
+
+    fitted, failures, failed, units, probe = [], {}, [], set(), {}
+    width, smallest, total = 0, None, 0
+    for points in source:
+        total += 1
+        failure, _ = _screenable([points])
+        if failure:
+            failures.update(failure)
+            failed.append(points)
+        else:
+            fitted.append(points.experiment)
+            width = max(width, points.n)
+        if points.size_unit:
+            units.add(points.size_unit)
+        if smallest is None or points.size.min() < smallest.size.min():
+            smallest = points
+        for column in SURVEY_COLUMNS:
+            if column in points.meta and column not in probe:
+                probe[column] = points
+    if not total:
+        raise InputError("no experiment to fit: the input is empty", source="experiments")
+    holders = {probe[c].experiment: probe[c] for c in SURVEY_COLUMNS if c in probe}  # as _survey_probe finds them
+    return Census(fitted, failures, tuple(failed), width, units, (smallest,), tuple(holders.values()), total)
+
+
+class FittableInPieces:
+    """The experiments of ``source`` the screen can judge (``len`` from its :class:`Census`),
+    read again in pieces each time they are iterated."""
+
+    def __init__(self, source: ExperimentsInPieces, found: Census):
+        self.source, self.census = source, found
+
+    def __len__(self) -> int:
+        return len(self.census.fitted)
+
+    def __iter__(self):
+        failures = self.census.failures
+        return (points for points in self.source if points.experiment not in failures)
+
+
 #: What :func:`fit_experiments` takes as its experiments, for the message refusing anything else.
 ACCEPTED_EXPERIMENTS = (
     "a path to a points file or lab table, a pandas or Dask DataFrame, what read_experiments returns, "
@@ -54,6 +188,8 @@ def _points_and_balances(experiments) -> tuple[list[TrompPoints], tuple[MassBala
     """Points (and the mass balances of lab input) from any of :data:`ACCEPTED_EXPERIMENTS`;
     an empty input, or two experiments of one name, is an :class:`InputError`."""
     balances = ()
+    if isinstance(experiments, ExperimentsInPieces):
+        experiments = experiments.read_whole()
     if isinstance(experiments, (str, os.PathLike, pd.DataFrame)):
         experiments = read_experiments(experiments)
     if isinstance(experiments, Experiments):

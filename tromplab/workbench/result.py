@@ -264,7 +264,7 @@ class Workbench(ResultContract):
         run = self._spooled
         cache = self.__dict__.setdefault("_refits", {})
         if experiment not in cache:
-            points = {p.experiment: p for p in self.inputs}.get(experiment) if experiment in run.fitted_set else None
+            points = next((p for p in self.inputs if p.experiment == experiment), None) if experiment in run.fitted_set else None
             if len(cache) >= 64:
                 cache.clear()
             cache[experiment] = run.refit([points]) if points is not None else []

@@ -13,6 +13,7 @@ refits an experiment when its fits are asked for (:meth:`Workbench.fit`).
 
 from __future__ import annotations
 
+import collections
 import inspect
 import logging
 import os
@@ -23,7 +24,8 @@ from dataclasses import replace
 from ..options import AUTO_FIGURE_LIMIT
 from ..output.folder import check_folder_options, write_streamed_folder
 from .batch import batch_workbench, fit_experiments, fit_prepared, prepared_batch
-from .fanout import _map_work, _worker_count, chunked, dask_client
+from .fanout import _map_work, _worker_count, chunk_size, chunks_of, dask_client
+from .inputs import FittableInPieces
 from .result import SpooledRun, Workbench
 from .spool import ChunkWork, Spool, SpoolOptions, spool_chunk
 
@@ -44,7 +46,11 @@ def fit_to_folder(experiments, outdir, *, figures: str = "auto", format: str = "
     Parameters
     ----------
     experiments, keywords
-        As for :func:`~tromplab.workbench.fit_experiments`.
+        As for :func:`~tromplab.workbench.fit_experiments`; also an
+        :class:`~tromplab.workbench.ExperimentsInPieces` (a points file read in pieces),
+        read once for its checks and census before anything is fitted or written, then, when
+        the run streams, again chunk by chunk as the workers take the chunks: the main
+        process holds a few chunks' points, never the batch's (else it is read whole).
     outdir : str or path-like
         The results folder, replaced as a whole when every file is written.
     figures, format, excel, reloadable
@@ -69,10 +75,13 @@ def fit_to_folder(experiments, outdir, *, figures: str = "auto", format: str = "
     """
     check_folder_options(figures=figures, format=format)
     given = _fit_keywords(experiments, keywords)
-    plan = prepared_batch(given)
+    plan = prepared_batch(given, in_pieces=True)
     streamable = format == "csv" and not excel and not reloadable and str(outdir).lower()[-5:] != ".xlsx"
     streamable &= figures == "none" or (figures == "auto" and len(plan.fittable) > AUTO_FIGURE_LIMIT)  # as _figures counts
     if not (streamable and plan.fittable and (stream or (stream is None and len(plan.fittable) >= STREAM_THRESHOLD))):
+        if isinstance(plan.fittable, FittableInPieces):  # kept in memory: read whole after all
+            given["experiments"] = given["experiments"].read_whole()
+            plan = prepared_batch(given)
         bench = fit_prepared(plan, given)
         bench.check_fitted(source or "")
         jobs = given["jobs"]
@@ -107,55 +116,73 @@ def _spooled_batch(plan, given: dict, spool: Spool, cluster, outdir) -> Workbenc
     seconds = {}
     started = time.perf_counter()
     fittable, failures = plan.fittable, plan.failures
+    in_pieces = isinstance(fittable, FittableInPieces)
     scratch = str(spool.scratch) if _workers_see(cluster, spool.scratch) else None
     example = next(iter(failures.items()), None)
     options = replace(
         plan.options,
-        width=max(points.n for points in fittable),  # one padding for every chunk, as in memory
+        width=fittable.census.width if in_pieces else max(points.n for points in fittable),  # one padding for every chunk
         tables_on_worker=True,
         failure_example=(example,) if example else (),
-        survey_probe=_survey_probe(plan.experiments),
+        survey_probe=fittable.census.survey_probe if in_pieces else _survey_probe(plan.experiments),
     )
-    table_order = [points.experiment for points in fittable] + list(failures)
-    chunks = chunked(fittable, workers=_worker_count(given["jobs"], cluster))
-    failed_points = tuple(points for points in plan.experiments if points.experiment in failures)
-    work = [ChunkWork(number, chunk) for number, chunk in enumerate(chunks)]
-    work[-1] = work[-1]._replace(failures=failures, failed_points=failed_points)
+    fitted = tuple(fittable.census.fitted if in_pieces else (points.experiment for points in fittable))
+    size = chunk_size(len(fittable), workers=_worker_count(given["jobs"], cluster))
+    n_chunks = -(-len(fittable) // size)
     logger.info(
-        "fitting %d experiment(s) x %d formula(s) in %d chunk(s) of up to %d, streamed to %s (%s)",
-        len(fittable), len(options.formulas), len(chunks), len(chunks[0]), spool.scratch,
+        "fitting %d experiment(s) x %d formula(s) in %d chunk(s) of up to %d, streamed to %s (%s%s)",
+        len(fittable), len(options.formulas), n_chunks, size, spool.scratch,
         "workers write the files" if scratch else "the files travel back: the workers cannot see the folder",
+        "; the input read in pieces" if in_pieces else "",
     )  # fmt: skip
-    head = tuple(table_order[:AUTO_FIGURE_LIMIT])
+    head = (fitted + tuple(failures))[:AUTO_FIGURE_LIMIT]
     seconds["prepare"] = time.perf_counter() - started
+    shapes = collections.deque()  # (experiments, last experiment) of each chunk handed out and not yet back
     done, waited, kept = 0, 0.0, 0.0
     mark = time.perf_counter()
-    for chunk, summary in zip(
-        chunks, _map_work(spool_chunk, work, SpoolOptions(options, scratch, head), jobs=given["jobs"], client=cluster)
+    work = _chunk_work(plan, size, n_chunks, shapes)
+    for summary in _map_work(
+        spool_chunk, work, SpoolOptions(options, scratch, head), jobs=given["jobs"], client=cluster, count=n_chunks
     ):
         now = time.perf_counter()
         waited += now - mark
         spool.keep(summary)
-        done += len(chunk)
-        logger.debug("chunk %d/%d fitted: %d fits, %d failed", summary.number + 1, len(chunks), summary.fits,
+        length, last_experiment = shapes.popleft()
+        done += length
+        logger.debug("chunk %d/%d fitted: %d fits, %d failed", summary.number + 1, n_chunks, summary.fits,
                      summary.fits - summary.successes)  # fmt: skip
         if given["progress"] is not None:
-            given["progress"](done, len(fittable), chunk[-1].experiment)
+            given["progress"](done, len(fittable), last_experiment)
             if options.ci or options.bootstrap:
-                given["progress"](done, len(fittable), f"intervals: {chunk[-1].experiment}")
+                given["progress"](done, len(fittable), f"intervals: {last_experiment}")
         mark = time.perf_counter()
         kept += mark - now
     seconds.update({"wait for the workers": waited, "keep the chunks' summaries": kept})
     started = time.perf_counter()
     bench = batch_workbench(plan, given, (), spool.notes(), None)
     run = SpooledRun(
-        folder=outdir, options=options, fitted=tuple(points.experiment for points in fittable),
+        folder=outdir, options=options, fitted=fitted,
         failed_fits=tuple(spool.failed_fits()), successes=sum(s.successes for s in spool.summaries),
         ranking=spool.ranking(), head=spool.head(), seconds=seconds,
     )  # fmt: skip
     bench._attach_spooled_run(run)
     seconds["join the summaries"] = time.perf_counter() - started
     return bench
+
+
+def _chunk_work(plan, size: int, n_chunks: int, shapes: collections.deque):
+    """The :class:`ChunkWork` of each chunk of ``size`` experiments of ``plan.fittable``, cut
+    as they are taken (the file read on, for a batch read in pieces); the last one carries the
+    failed experiments.  ``shapes`` hears each chunk's size and last experiment."""
+    fittable, failures = plan.fittable, plan.failures
+    if isinstance(fittable, FittableInPieces):
+        failed_points = fittable.census.failed_points
+    else:
+        failed_points = tuple(points for points in plan.experiments if points.experiment in failures)
+    for number, chunk in enumerate(chunks_of(fittable, size)):
+        shapes.append((len(chunk), chunk[-1].experiment))
+        last = number == n_chunks - 1
+        yield ChunkWork(number, chunk, failures if last else None, failed_points if last else ())
 
 
 def _figure_modules_loading() -> threading.Thread:
