@@ -35,8 +35,8 @@ more about its load than about tromplab).  ``python benchmarks/scaling.py --size
 
 import argparse
 import contextlib
-import importlib
 import filecmp
+import importlib
 import json
 import os
 import resource
@@ -238,7 +238,10 @@ class DaskCluster:
             started = time.perf_counter()
             client.run(importlib.import_module, "tromplab.workbench.worker")
             self.warm_up_seconds = time.perf_counter() - started
-        print(f"Dask cluster: tromplab imported in its 2 workers in {self.warm_up_seconds:.1f} s (not timed in the runs)", flush=True)
+        print(
+            f"Dask cluster: tromplab imported in its 2 workers in {self.warm_up_seconds:.1f} s (not timed in the runs)",
+            flush=True,
+        )
         return self
 
     def _start(self, *arguments):
@@ -416,7 +419,9 @@ def main(argv=None):
     )
     parser.add_argument("--bare-limit", type=int, default=512)
     parser.add_argument("--no-dask", action="store_true", help="skip the Dask cluster")
-    parser.add_argument("--modes", default="1,2,dask", help="the modes to run: 1 (one worker), 2 (two workers), dask (default all)")
+    parser.add_argument(
+        "--modes", default="1,2,dask", help="the modes to run: 1 (one worker), 2 (two workers), dask (default all)"
+    )
     parser.add_argument("--acceptance", action="store_true", help="check the targets: PASS or FAIL with the numbers")
     parser.add_argument("--output", type=Path, default=HERE / "output" / "scaling.csv")
     parser.add_argument("--child", nargs=4, help=argparse.SUPPRESS)
@@ -426,7 +431,9 @@ def main(argv=None):
         return child_run(points, outdir, int(workers), scheduler or None)
     default = "10000,40000" if args.acceptance else "1000,4000,10000,40000,100000"
     sizes = [int(s) for s in (args.sizes or default).split(",")]
-    modes = [m for m in MODES if not (args.no_dask and m.startswith("dask")) and m.split(" ")[0].rstrip(",") in args.modes.split(",")]
+    modes = [
+        m for m in MODES if not (args.no_dask and m.startswith("dask")) and m.split(" ")[0].rstrip(",") in args.modes.split(",")
+    ]
     load_before = os.getloadavg()[0]
     rows = []
     with tempfile.TemporaryDirectory() as tmp, contextlib.ExitStack() as stack:
