@@ -106,7 +106,7 @@ class BalanceNotes(NamedTuple):
     experiment: str
     notes: tuple
     left_out: pd.DataFrame
-    summary: str
+    left_out_line: str
 
     def left_out_table(self) -> pd.DataFrame:
         """The classes left out, as :meth:`MassBalance.left_out_table` gives them."""
@@ -114,7 +114,7 @@ class BalanceNotes(NamedTuple):
 
     def left_out_summary(self) -> str:
         """The one-line summary of the classes left out (empty when none was)."""
-        return self.summary
+        return self.left_out_line
 
 
 class Census(NamedTuple):
