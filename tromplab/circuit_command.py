@@ -44,6 +44,8 @@ class CircuitRun:
     bench: Workbench | None
     written: dict
     next_steps: tuple[str, ...] = ()
+    #: The notes on the weights of ``points.csv`` (:func:`tromplab.loading.weights.weight_notes`).
+    weight_notes: tuple[str, ...] = ()
 
 
 def fit_separators(
@@ -136,6 +138,8 @@ def run_circuit(
     ``partition.csv``, ``points.csv`` and the fits).
     """
     from .circuit import read_flowsheet, read_survey, reconcile
+    from .circuit.outputs import balance_next_steps, balance_outputs, balance_tables
+    from .loading.weights import weight_notes
 
     weighting = check_choice(weighting, "weighting", choices=WEIGHTINGS)
     check_output_folder(outdir, inputs=[flowsheet, measurements])  # the inputs are checked as they are read
@@ -146,8 +150,6 @@ def run_circuit(
             "fit", "needs size analyses: the survey holds flows and per cent solids only (no partition curve to fit)"
         )
     balance = reconcile(sheet, survey, alpha=alpha, exclude=exclude)
-    from .circuit.outputs import balance_next_steps, balance_outputs, balance_tables
-
     tables = balance_tables(balance, errors, weighting=weighting)
     bench = None
     if fit and balance.flowsheet.separators:
@@ -155,7 +157,7 @@ def run_circuit(
         tables["fits"], tables["ranking"] = bench.fits_table(), bench.ranking_table()
     steps = balance_next_steps(balance, tables)
     written = replace_folder(balance_outputs(balance, figures=figures, tables=tables, steps=steps), outdir)
-    return CircuitRun(balance, bench, written, steps)
+    return CircuitRun(balance, bench, written, steps, tuple(weight_notes(tables["points"])))
 
 
 @dataclass(frozen=True)
@@ -222,9 +224,7 @@ def console_report(run: CircuitRun, *, format_fits=None) -> str:
     fits (with ``format_fits``, the fit command's table, else the best curve per separator),
     the next steps and the files."""
     balance = run.balance
-    from .loading.weights import weight_notes
-
-    lines = [balance.report(), *weight_notes(balance.points_table()), "", "Reconciled solids flows:"]
+    lines = [balance.report(), *run.weight_notes, "", "Reconciled solids flows:"]
     flows = balance.flows_table()[["stream", "measured", "reconciled", "reconciled_sd"]]
     lines.append(flows.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
     largest = balance.largest_adjustments(5)
