@@ -18,7 +18,7 @@ from pathlib import Path
 import pandas as pd
 
 from ..loading.weights import weight_notes
-from ..output.csv_parts import write_csv
+from ..output.csv_parts import file_writers
 from ..output.plotting import offscreen_axes
 from .elimination import exclusion_name
 from .plotting import figure_size
@@ -73,15 +73,13 @@ def balance_outputs(
     :func:`tromplab.output.outputs.replace_folder`."""
     tables = balance_tables(balance) if tables is None else tables
     steps = balance_next_steps(balance, tables) if steps is None else steps
-    outputs = {f"{name}.csv": (lambda path, table=table: write_csv(table, path)) for name, table in tables.items()}
-    summary = balance_summary(balance, tables, steps)
-    outputs["summary.txt"] = lambda path: path.write_text(summary, encoding="utf-8")
+    pictures = {}
     if figures:
         kinds = ("flowsheet", "adjustments", "distributions") if balance.has_size_classes else ("flowsheet", "adjustments")
-        for kind in kinds + (("partition",) if balance.survey.components else ()):
-            png = balance_png(balance, kind)
-            outputs[f"{kind}.png"] = lambda path, png=png: path.write_bytes(png)
-    return outputs
+        pictures = {
+            f"{kind}.png": balance_png(balance, kind) for kind in kinds + (("partition",) if balance.survey.components else ())
+        }
+    return file_writers(tables, texts={"summary.txt": balance_summary(balance, tables, steps)}, pictures=pictures)
 
 
 def balance_png(balance, kind: str) -> bytes:

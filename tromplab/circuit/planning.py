@@ -102,17 +102,14 @@ class DesignAdvice(ResultContract):
         """Write what ``tromplab circuit design`` writes into ``directory`` (replaced as a whole):
         ``design.csv``, ``observability.csv``, ``summary.txt`` (:meth:`report`) and, for a simulated
         survey, ``simulated_survey.csv``.  Returns ``{file name: path}``."""
-        from ..output.csv_parts import write_csv
+        from ..output.csv_parts import file_writers
         from ..output.outputs import replace_folder
         from .simulation import survey_table
 
         tables = {"design": self.table, "observability": observability_table(self.balance, self.errors)}
         if self.simulated:
             tables["simulated_survey"] = survey_table(self.balance.survey)
-        outputs = {f"{name}.csv": (lambda path, table=table: write_csv(table, path)) for name, table in tables.items()}
-        text = self.report() + "\n"
-        outputs["summary.txt"] = lambda path: path.write_text(text, encoding="utf-8")
-        return replace_folder(outputs, directory)
+        return replace_folder(file_writers(tables, texts={"summary.txt": self.report() + "\n"}), directory)
 
     def report(self, top: int = 5) -> str:
         """A few lines: what the advice rests on and the best candidates, one per measurement."""

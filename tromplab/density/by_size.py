@@ -42,7 +42,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from ..output.csv_parts import write_csv
+from ..output.csv_parts import file_writers
 
 #: Columns of :func:`by_size_table`, in order.
 BY_SIZE_COLUMNS = (
@@ -413,9 +413,7 @@ def by_size_outputs(fits, *, ci: float = 0.95, figures: bool = True) -> dict:
         File name -> writer taking the path (for :func:`tromplab.output.outputs.replace_folder`).
     """
     tables, pictures = by_size_artifacts(fits, ci=ci, figures=figures)
-    outputs = {f"{name}.csv": (lambda path, table=table: write_csv(table, path)) for name, table in tables.items()}
-    outputs.update({name: (lambda path, png=png: path.write_bytes(png)) for name, png in pictures.items()})
-    return outputs
+    return file_writers(tables, pictures=pictures)
 
 
 def by_size_artifacts(fits, *, ci: float = 0.95, figures: bool = True) -> tuple[dict, dict]:

@@ -24,7 +24,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import OptionError
-from ..output.csv_parts import write_csv
+from ..output.csv_parts import file_writers, write_csv
 from ..results_contract import ResultContract
 from ..validation import check_probability
 from .curves import select_density_curves
@@ -268,10 +268,7 @@ class DensityResult(ResultContract):
         size_tables, size_figures = by_size_artifacts(self.fits, ci=self.ci or PARTITION_INTERVAL_LEVEL)
         tables.update(size_tables)
         figures.update(size_figures)
-        outputs = {f"{name}.csv": (lambda path, table=table: write_csv(table, path)) for name, table in tables.items()}
-        summary = self.report() + "\n"
-        outputs["summary.txt"] = lambda path: path.write_text(summary, encoding="utf-8")
-        outputs.update({name: (lambda path, png=png: path.write_bytes(png)) for name, png in figures.items()})
+        outputs = file_writers(tables, texts={"summary.txt": self.report() + "\n"}, pictures=figures)
         figure_table = pd.DataFrame(figure_rows)
         outputs["figures.csv"] = lambda path: write_csv(figure_table, path)
         outputs.update(self._documents(tables, figures, excel=excel, report=report))

@@ -24,6 +24,8 @@ takes a bare carriage return for the end of a row.
 from __future__ import annotations
 
 import csv
+from collections.abc import Callable, Mapping
+from pathlib import Path
 from typing import NamedTuple
 
 import pandas as pd
@@ -84,6 +86,23 @@ def write_csv(frame: pd.DataFrame, path, **options) -> None:
     if holds_carriage_return(frame):
         options.setdefault("quoting", csv.QUOTE_NONNUMERIC)
     defended_frame(frame).to_csv(path, index=False, **options)
+
+
+def file_writers(
+    tables: Mapping[str, pd.DataFrame] | None = None,
+    *,
+    texts: Mapping[str, str] | None = None,
+    pictures: Mapping[str, bytes] | None = None,
+) -> dict[str, Callable[[Path], None]]:
+    """File name -> writer of a results folder, for :func:`tromplab.output.outputs.replace_folder`:
+    each of ``tables`` (stem -> DataFrame) as ``stem.csv`` (:func:`write_csv`), then ``texts``
+    (file name -> text, UTF-8), then ``pictures`` (file name -> PNG bytes), in that order."""
+    writers = {f"{name}.csv": (lambda path, table=table: write_csv(table, path)) for name, table in (tables or {}).items()}
+    writers.update(
+        {name: (lambda path, text=text: path.write_text(text, encoding="utf-8")) for name, text in (texts or {}).items()}
+    )
+    writers.update({name: (lambda path, png=png: path.write_bytes(png)) for name, png in (pictures or {}).items()})
+    return writers
 
 
 def holds_carriage_return(frame: pd.DataFrame) -> bool:
