@@ -15,7 +15,6 @@ whole (:func:`tromplab.output.outputs.replace_folder`).
 
 from __future__ import annotations
 
-import io
 import math
 from dataclasses import dataclass
 from functools import cached_property
@@ -256,13 +255,14 @@ class DensityResult(ResultContract):
             File name -> written path.
         """
         from ..output.outputs import figure_file_names, replace_folder
+        from ..output.plotting import figure_png
         from .by_size import by_size_artifacts
 
         tables = {"fits": self.fits_table(), "partition": self.partition_table()}
         names = figure_file_names([sample.label for sample in self.samples], prefix="density_")
         figures, figure_rows = {}, []
         for position, sample in enumerate(self.samples):
-            figures[names[sample.label]] = _png(self.plot(position, ax=_offscreen()))
+            figures[names[sample.label]] = figure_png(self.plot(position, ax=_offscreen()))
             figure_rows.append({"test": sample.test, "size_fraction": sample.size_fraction, "file": names[sample.label]})
         # tests with size fractions: indices by size, the Ep trend and its figure (none without)
         size_tables, size_figures = by_size_artifacts(self.fits, ci=self.ci or PARTITION_INTERVAL_LEVEL)
@@ -307,14 +307,6 @@ def _offscreen():
     from ..output.plotting import offscreen_axes
 
     return offscreen_axes()
-
-
-def _png(ax) -> bytes:
-    from ..output.plotting import save_figure
-
-    buffer = io.BytesIO()
-    save_figure(ax, buffer)
-    return buffer.getvalue()
 
 
 def fit_density(

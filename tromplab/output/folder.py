@@ -11,7 +11,6 @@ when every file is written (:func:`tromplab.output.outputs.replace_folder`).
 
 from __future__ import annotations
 
-import io
 from pathlib import Path
 
 import pandas as pd
@@ -20,7 +19,7 @@ from ..errors import OptionError
 from ..options import AUTO_FIGURE_LIMIT, FIGURE_CHOICES, TABLE_FORMATS
 from .csv_parts import csv_pieces, write_csv
 from .outputs import figure_file_names, replace_folder, write_files
-from .plotting import offscreen_axes, plot_batch_overview, plot_tromp_fits, save_figure
+from .plotting import figure_png, offscreen_axes, plot_batch_overview, plot_tromp_fits
 from .results import batch_files
 from .views import partition_view
 from .workbook import write_workbook
@@ -155,7 +154,7 @@ def _failure_files(bench) -> dict:
 
 
 def _overview_png(fits: pd.DataFrame) -> bytes:
-    return _png(plot_batch_overview(fits, axes=offscreen_axes(2, 2, figsize=(9, 6.5)))[0])
+    return figure_png(plot_batch_overview(fits, axes=offscreen_axes(2, 2, figsize=(9, 6.5)))[0])
 
 
 #: Experiments whose figures one worker draws at a time.
@@ -185,17 +184,11 @@ def _figures(bench, fits: pd.DataFrame, mode: str, map_work) -> tuple[dict[str, 
 def tromp_figures(options: dict, chunk) -> list[bytes]:
     """PNG of the Tromp curves of each ``(fits shown, best fit)`` of ``chunk`` (``options``:
     ``size_unit``, ``partition_to``): a unit of work for the workers."""
-    return [_png(plot_tromp_fits(shown, best=best, ax=offscreen_axes(), **options)) for shown, best in chunk]
+    return [figure_png(plot_tromp_fits(shown, best=best, ax=offscreen_axes(), **options)) for shown, best in chunk]
 
 
 def _map_here(function, chunks, argument):
     return (function(argument, chunk) for chunk in chunks)
-
-
-def _png(ax) -> bytes:
-    buffer = io.BytesIO()
-    save_figure(ax, buffer)
-    return buffer.getvalue()
 
 
 def _input_sheets(bench) -> dict[str, pd.DataFrame]:

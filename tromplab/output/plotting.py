@@ -6,6 +6,7 @@ shown, and no style is set on import: scripts choose the seaborn theme.
 
 from __future__ import annotations
 
+import io
 import os
 from collections.abc import Sequence
 
@@ -117,6 +118,13 @@ def save_figure(ax, path, *, dpi: int = 120) -> None:
         import matplotlib.pyplot as plt
 
         plt.close(figure)
+
+
+def figure_png(ax, *, dpi: int = 120) -> bytes:
+    """The Axes' figure laid out and saved as PNG bytes (:func:`save_figure`), then closed."""
+    buffer = io.BytesIO()
+    save_figure(ax, buffer, dpi=dpi)
+    return buffer.getvalue()
 
 
 def curve_band(fit: CurveFit, size, *, level: float = 0.95):

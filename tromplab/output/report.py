@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import base64
 import html
-import io
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -31,13 +30,15 @@ from .csv_parts import write_csv
 from .display import display_table, grouped_warnings, input_names
 from .outputs import replace_folder, write_files
 from .plotting import (
+    figure_png as plotting_figure_png,
+)
+from .plotting import (
     offscreen_axes,
     plot_batch_overview,
     plot_f_heatmap,
     plot_ranking,
     plot_residuals,
     plot_tromp_fits,
-    save_figure,
 )
 from .views import balance_view, check_partition_to
 
@@ -196,9 +197,7 @@ def markdown_table(table: pd.DataFrame, *, text_columns=None) -> str:
 
 def figure_png(ax) -> bytes:
     """The Axes' figure as PNG bytes (at 100 dpi, the size the report embeds)."""
-    buffer = io.BytesIO()
-    save_figure(ax, buffer, dpi=100)
-    return buffer.getvalue()
+    return plotting_figure_png(ax, dpi=100)
 
 
 _FIT_COLUMNS = [
