@@ -210,10 +210,25 @@ def run_fit(points: Path, outdir: Path, mode: str, cluster=None) -> dict:
     return {"seconds": seconds, "peak_tree_mib": memory.peak / MIB, **json.loads(out.strip().splitlines()[-1])}
 
 
+def dask_environment() -> dict:
+    """``DASK_WORKER_CONFIG`` as the ``DASK_*`` environment variables Dask reads at start (the
+    nanny's setting left out: the workers run without a nanny)."""
+    from tromplab.workbench import DASK_WORKER_CONFIG
+
+    return {
+        "DASK_" + key.upper().replace(".", "__").replace("-", "_"): str(value)
+        for key, value in DASK_WORKER_CONFIG.items()
+        if not key.startswith("distributed.nanny.")
+    }
+
+
 class DaskCluster:
     """A scheduler and two single-threaded workers started as separate processes (``dask
-    scheduler``, ``dask worker --no-nanny``: without the nanny's ``MALLOC_TRIM_THRESHOLD_``,
-    see docs/performance.md), stopped on leaving."""
+    scheduler``, ``dask worker --no-nanny``: without the nanny's ``MALLOC_TRIM_THRESHOLD_``),
+    as docs/performance.md recommends: the other settings of ``DASK_WORKER_CONFIG`` in
+    ``DASK_*`` environment variables, and ``--preload`` of tromplab's worker module in the
+    scheduler and the workers (imported when they start, as local workers inherit it from the
+    forking process); stopped on leaving."""
 
     def __init__(self, folder: Path):
         self.folder, self.processes, self.address = folder, [], None
@@ -233,20 +248,23 @@ class DaskCluster:
 
         with Client(self.address, timeout=60) as client:
             client.wait_for_workers(2, timeout=60)
-            # a cluster in use has tromplab imported in its workers (local workers inherit it from
-            # the forking process); a cold cluster's first run pays the import once (WARM_UP_S)
+            # preloaded, the import is found done (local workers inherit it from the forking
+            # process); without the preload the first run would pay it, about 1 s
             started = time.perf_counter()
             client.run(importlib.import_module, "tromplab.workbench.worker")
             self.warm_up_seconds = time.perf_counter() - started
         print(
-            f"Dask cluster: tromplab imported in its 2 workers in {self.warm_up_seconds:.1f} s (not timed in the runs)",
+            f"Dask cluster: tromplab's worker module found imported in its 2 workers in {self.warm_up_seconds:.2f} s"
+            f" (preloaded; not timed in the runs); settings {dask_environment()}",
             flush=True,
         )
         return self
 
     def _start(self, *arguments):
         command = [sys.executable, "-m", "dask", *arguments]
-        self.processes.append(subprocess.Popen(command, stdout=self.log, stderr=subprocess.STDOUT))
+        command += ["--preload", "tromplab.workbench.worker"]  # the scheduler unpickles the tasks' functions too
+        environment = {**os.environ, **dask_environment()}
+        self.processes.append(subprocess.Popen(command, stdout=self.log, stderr=subprocess.STDOUT, env=environment))
 
     @property
     def pids(self):

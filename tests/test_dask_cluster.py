@@ -80,12 +80,21 @@ def test_fit_on_a_cluster_of_separate_processes_writes_what_one_process_writes(t
 
 
 @pytest.mark.slow
-def test_the_local_cluster_keeps_glibc_s_own_memory_trimming():
+def test_the_local_cluster_runs_its_workers_with_tromplab_s_dask_settings():
     """Dask's nanny starts workers with MALLOC_TRIM_THRESHOLD_=65536, which made glibc map and
     unmap every numpy array above 64 KiB: a chunk of fits ran 1.5 x slower on a Dask worker
-    than in process. The cluster of ``dask="local"`` starts its workers without it."""
-    from tromplab.workbench import dask_client
+    than in process. The cluster of ``dask="local"`` starts its workers without it, without the
+    statistical profiler and with the slower health checks of ``DASK_WORKER_CONFIG``."""
+    import dask
+
+    from tromplab.workbench import DASK_WORKER_CONFIG, dask_client
+
+    def settings(dask_worker):
+        found = {key: dask.config.get(key) for key in DASK_WORKER_CONFIG if "pre-spawn" not in key}
+        return os.environ.get("MALLOC_TRIM_THRESHOLD_"), "profile" in dask_worker.periodic_callbacks, found
 
     with dask_client(dask="local") as client:
-        found = client.run(lambda: os.environ.get("MALLOC_TRIM_THRESHOLD_"))
-    assert len(found) == 2 and set(found.values()) == {None}
+        found = client.run(settings)
+    expected = {key: value for key, value in DASK_WORKER_CONFIG.items() if "pre-spawn" not in key}
+    assert len(found) == 2
+    assert all(value == (None, False, expected) for value in found.values()), found

@@ -13,7 +13,7 @@ with one chunk), then ``gc_control``, ``averages``, ``tables`` (the fits table) 
 
 from .averages import averages_level
 from .batch import check_formula_selection, fit_experiments, formula_keys, print_progress
-from .fanout import CHUNK_SIZE, MAX_CHUNK_SIZE, ChunkResults, chunked, dask_client
+from .fanout import CHUNK_SIZE, DASK_WORKER_CONFIG, MAX_CHUNK_SIZE, ChunkResults, chunked, dask_client
 from .inputs import ACCEPTED_EXPERIMENTS, ExperimentsInPieces, data_notes
 from .result import Workbench, load, model_averages
 from .stream import STREAM_THRESHOLD, fit_to_folder
@@ -39,6 +39,7 @@ __all__ = [
     "chunked",
     "completed_fit_rows",
     "dask_client",
+    "DASK_WORKER_CONFIG",
     "data_notes",
     "derive",
     "fit_chunk",
