@@ -98,3 +98,34 @@ def test_the_local_cluster_runs_its_workers_with_tromplab_s_dask_settings():
     expected = {key: value for key, value in DASK_WORKER_CONFIG.items() if "pre-spawn" not in key}
     assert len(found) == 2
     assert all(value == (None, False, expected) for value in found.values()), found
+
+
+def test_the_documented_dask_settings_are_those_of_the_local_cluster():
+    """docs/performance.md gives the settings of DASK_WORKER_CONFIG as a Dask configuration file
+    and as environment variables; both must say what the local cluster uses."""
+    import re
+    from pathlib import Path
+
+    import dask
+    import yaml
+
+    from tromplab.workbench import DASK_WORKER_CONFIG
+
+    text = (Path(__file__).parents[1] / "docs" / "performance.md").read_text(encoding="utf-8")
+    block = re.search(r"```yaml\n# ~/.config/dask/tromplab.yaml\n(.*?)```", text, re.S).group(1)
+    documented = {}
+
+    def flatten(tree, prefix):
+        for key, value in tree.items():
+            if isinstance(value, dict):
+                flatten(value, f"{prefix}{key}.")
+            else:
+                documented[f"{prefix}{key}"] = value
+
+    flatten(yaml.safe_load(block), "")
+    assert documented == DASK_WORKER_CONFIG
+    variables = dict(re.findall(r"`(DASK_[A-Z_]+)=([^`]+)`", text))
+    from_environment = dask.config.collect_env(variables)
+    for key, value in DASK_WORKER_CONFIG.items():
+        if not key.startswith("distributed.nanny."):
+            assert dask.config.get(key, config=from_environment) == value, key
