@@ -17,6 +17,7 @@ worse than the grid; the grid minimum is kept in the result so that this can be 
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, replace
 from functools import cached_property
 
@@ -580,29 +581,28 @@ def implausible_result(fit: CurveFit) -> str:
     """
     if not fit.success:
         return ""
-    ind = fit.indices
-    x_max = fit.options.delta_max / fit.d_cut if fit.d_cut > 0 else np.nan
+    ind, d_cut, delta_max = fit.indices, fit.d_cut, fit.options.delta_max
+    x_max = delta_max / d_cut if d_cut > 0 else math.nan
     low_shape, high_shape = fit.formula.shape_bounds
-    required = {
-        "d_cut": (fit.d_cut, 0.0, np.inf),
-        fit.formula.shape_name: (fit.shape, low_shape, high_shape),
-        "ssr": (fit.fit.ssr, 0.0, np.inf),
-        "eta": (ind.eta, 0.0, 1.0),
-    }
-    optional = {
-        "epsilon": (ind.epsilon, 0.0, max(x_max - 1.0, 0.0)),
-        "slope": (ind.slope, -np.inf, 0.0),
-        **{name: (getattr(ind, name), 0.0, np.inf) for name in ("d25", "d75", "ep", "d50", "d50c", "ep_c")},
-    }
-    for name, (value, low, high) in {**required, **optional}.items():
+    # (name, value, low, high, may be missing); plain floats and math: a batch checks every fit
+    checks = (
+        ("d_cut", d_cut, 0.0, math.inf, False),
+        (fit.formula.shape_name, fit.shape, low_shape, high_shape, False),
+        ("ssr", fit.fit.ssr, 0.0, math.inf, False),
+        ("eta", ind.eta, 0.0, 1.0, False),
+        ("epsilon", ind.epsilon, 0.0, max(x_max - 1.0, 0.0), True),
+        ("slope", ind.slope, -math.inf, 0.0, True),
+        *((name, getattr(ind, name), 0.0, math.inf, True) for name in ("d25", "d75", "ep", "d50", "d50c", "ep_c")),
+    )
+    for name, value, low, high, optional in checks:
         value = float(value)
-        if np.isnan(value) and name in optional:
+        if optional and math.isnan(value):
             continue
-        slack = RANGE_SLACK * max(1.0, abs(low) if np.isfinite(low) else 0.0, abs(high) if np.isfinite(high) else 0.0)
-        if not (np.isfinite(value) and low - slack <= value <= high + slack):
+        slack = RANGE_SLACK * max(1.0, abs(low) if math.isfinite(low) else 0.0, abs(high) if math.isfinite(high) else 0.0)
+        if not (math.isfinite(value) and low - slack <= value <= high + slack):
             return (
                 f"{name} = {value:g} is outside its range [{low:g}, {high:g}]: the arithmetic did not hold at these "
-                f"inputs (delta_max {fit.options.delta_max:g}, d_cut {fit.d_cut:g})"
+                f"inputs (delta_max {delta_max:g}, d_cut {d_cut:g})"
             )
     return ""
 
