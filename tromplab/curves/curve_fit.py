@@ -43,7 +43,7 @@ from .measured import (
     parameter_specs,
     unbracketed_cut,
 )
-from .screening import DEFAULT_ALPHA, FisherScreen, check_screenable, fisher_screen
+from .screening import DEFAULT_ALPHA, FisherScreen, check_screenable, fisher_screen, observed_variance
 from .views import fit_html, fit_report, fit_repr
 
 N_GRID_STARTS = 2
@@ -242,14 +242,18 @@ class CurveFit(ResultContract):
     @cached_property
     def screen(self) -> FisherScreen | None:
         """Fisher screen at the recorded ``alpha`` and weights (None for a failed fit)."""
-        if not self.success:
-            return None
+        return self.screen_with() if self.success else None
+
+    def screen_with(self, s0_sq: float | None = None) -> FisherScreen:
+        """:attr:`screen` of a successful fit, with the variance of the measured points
+        ``s0_sq`` when the caller has it (:func:`attach_screens`)."""
         return fisher_screen(
             self.points.partition_fine,
             self.fit.ssr,
             alpha=self.options.alpha,
             n_params=self.formula.n_params,
             weights=self.options.weights,
+            s0_sq=s0_sq,
         )
 
     @cached_property
@@ -564,6 +568,21 @@ def attach_indices(fits) -> None:
         )
         for fit, indices in zip(group, computed):
             fit.__dict__["indices"] = indices  # where functools.cached_property keeps its value
+
+
+def attach_screens(fits) -> None:
+    """Compute the Fisher screens of many fits and cache them on each fit: the variance of the
+    measured points (:func:`~tromplab.curves.screening.observed_variance`) once per experiment
+    and weights, which the formulas fitted to it share."""
+    variances: dict[int, tuple[np.ndarray, float]] = {}
+    for fit in fits:
+        if not fit.success or "screen" in fit.__dict__:
+            continue
+        weights = fit.options.weights
+        known = variances.get(id(fit.points))
+        if known is None or not np.array_equal(known[0], weights):
+            known = variances[id(fit.points)] = (weights, observed_variance(fit.points.partition_fine, weights))
+        fit.__dict__["screen"] = fit.screen_with(known[1])  # where functools.cached_property keeps it
 
 
 #: Relative slack of the range checks of :func:`implausible_result` (rounding of the integrals).

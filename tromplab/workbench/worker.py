@@ -12,7 +12,15 @@ from typing import NamedTuple
 
 import pandas as pd
 
-from ..curves.curve_fit import CurveFit, as_failure_if_implausible, attach_diagnostics, attach_indices, failed_fit, fit_formula
+from ..curves.curve_fit import (
+    CurveFit,
+    as_failure_if_implausible,
+    attach_diagnostics,
+    attach_indices,
+    attach_screens,
+    failed_fit,
+    fit_formula,
+)
 from ..curves.engine import fit_formula_batch, measured_start
 from ..curves.formulas import is_batchable, select_formulas
 from ..curves.measured import unbracketed_cut
@@ -141,6 +149,7 @@ def fit_chunk(
     attach_indices(fits)
     fits = [as_failure_if_implausible(fit) for fit in fits]  # a result out of its range is a failure
     attach_diagnostics(fits)
+    attach_screens(fits)
     reasons = {}  # unbracketed is a property of the points, which the formulas of an experiment share
     for fit in fits:
         if id(fit.points) not in reasons:
