@@ -477,26 +477,43 @@ def batch_index_columns(
     d_cut, shape, delta_max = (np.atleast_1d(np.asarray(v, dtype=float)) for v in (d_cut, shape, delta_max))
     d_cut, shape, delta_max = np.broadcast_arrays(d_cut, shape, delta_max)
     x_max = delta_max / d_cut
-    x_break = efficiency_of = None
+    efficiency_of = None
     if formula.context_from_efficiency:
         efficiency_of = np.broadcast_to(np.asarray(measured_efficiency, dtype=float), shape.shape)
+    flags = [()] * shape.size
+    if epsilon or measured_sizes is not None:
+        x_break, curve, eta, eps, x25, x75, slope = _shape_indices(formula, shape, efficiency_of, x_max, epsilon)
+    else:  # the rest rests on the curve's shape alone: once per distinct curve (the delta method's steps in d_cut repeat it)
+        key = shape if efficiency_of is None else shape + 1j * efficiency_of
+        _, first, inverse = np.unique(key, return_index=True, return_inverse=True)
+        distinct = _shape_indices(
+            formula, shape[first], None if efficiency_of is None else efficiency_of[first], x_max[first], False
+        )
+        eta, eps, x25, x75, slope = (np.asarray(column)[inverse.ravel()] for column in distinct[2:])
+    d25, d75 = d_cut * x25, d_cut * x75
+    if measured_sizes is not None:
+        flags = _batched_extrapolated(curve, d25, d75, eta, eps, d_cut, x_max, x_break, measured_sizes)
+    ep = (d75 - d25) / 2.0
+    imperfection = ep / d_cut
+    columns = {"d_cut": d_cut, "slope": slope, "eta": np.asarray(eta, dtype=float), "epsilon": np.asarray(eps, dtype=float)}
+    columns |= {"d25": d25, "d75": d75, "ep": ep, "imperfection": imperfection, "sharpness": d25 / d75}
+    columns |= {"d50": d_cut, "ep_c": ep, "imperfection_c": imperfection}
+    return columns, flags
+
+
+def _shape_indices(formula: Formula, shape, efficiency_of, x_max, epsilon: bool) -> tuple:
+    """``(x_break, curve, eta, eps, x25, x75, slope)`` of the curves of ``shape`` (and the
+    measured efficiencies ``efficiency_of`` of a formula that takes them): the indices in
+    relative size, which do not depend on ``d_cut`` (eps on ``x_max``, nan without ``epsilon``)."""
+    x_break = None
     if formula.moving_break is not None:  # (11): x_a of every curve, solved on arrays (within 1e-13 of one by one)
         x_break = formula.moving_break.on_arrays(shape, efficiency_of)
     curve = _curve_on_arrays(formula, shape, x_break)
     eta, eps = _batched_efficiency(formula, curve, shape, x_max, efficiency_of, x_break, epsilon)
     x25 = _relative_sizes(curve, 0.75, shape.size)
     x75 = _relative_sizes(curve, 0.25, shape.size)
-    flags = [()] * shape.size
-    d25, d75 = d_cut * x25, d_cut * x75
-    if measured_sizes is not None:
-        flags = _batched_extrapolated(curve, d25, d75, eta, eps, d_cut, x_max, x_break, measured_sizes)
-    ep = (d75 - d25) / 2.0
-    imperfection = ep / d_cut
     slope = np.array([float(formula.slope_at_cut(k)) for k in shape.tolist()])  # scalar forms, as one curve's
-    columns = {"d_cut": d_cut, "slope": slope, "eta": np.asarray(eta, dtype=float), "epsilon": np.asarray(eps, dtype=float)}
-    columns |= {"d25": d25, "d75": d75, "ep": ep, "imperfection": imperfection, "sharpness": d25 / d75}
-    columns |= {"d50": d_cut, "ep_c": ep, "imperfection_c": imperfection}
-    return columns, flags
+    return x_break, curve, eta, eps, x25, x75, slope
 
 
 def _bypass_index_columns(
