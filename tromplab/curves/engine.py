@@ -77,11 +77,8 @@ GRID_CUTS = 12
 GOLDEN_STEPS = 10
 #: Best grid points used as starts (besides the data-driven start).
 GRID_STARTS = 3
-#: Elements per work array in the grid stage: bounds the memory of large batches, and keeps
-#: the temporaries of a block of experiments small enough to stay in the processor's caches
-#: (the grid of 1,024 experiments x 9 formulas took 0.68 s of CPU in blocks of 2 million
-#: elements, 0.54 s in blocks of 500,000; each experiment's numbers are the same either way).
-GRID_CHUNK_ELEMENTS = 500_000
+#: Elements per work array in the grid stage (bounds the memory of large batches).
+GRID_CHUNK_ELEMENTS = 2_000_000
 ENGINE_MESSAGE = "batched Levenberg-Marquardt: converged"
 
 
