@@ -580,7 +580,7 @@ def attach_screens(fits) -> None:
             continue
         weights = fit.options.weights
         known = variances.get(id(fit.points))
-        if known is None or not np.array_equal(known[0], weights):
+        if known is None or (known[0] is not weights and not np.array_equal(known[0], weights)):
             known = variances[id(fit.points)] = (weights, observed_variance(fit.points.partition_fine, weights))
         fit.__dict__["screen"] = fit.screen_with(known[1])  # where functools.cached_property keeps it
 

@@ -492,6 +492,7 @@ def fit_formula_batch(
     size_unit: str = "",
     width: int | None = None,
     measured: Sequence[tuple[float, float]] | None = None,
+    options: Sequence[FitOptions] | None = None,
 ) -> list:
     """:func:`tromplab.curves.curve_fit.fit_formula` for many experiments at once.
 
@@ -504,7 +505,9 @@ def fit_formula_batch(
     single fit; the bootstrap refits its resamples from the optimum without the grid.
     ``width`` pads the experiments to at least that many points (:class:`PaddedPoints`);
     ``measured`` gives each experiment's :func:`measured_start` when the caller fits several
-    formulas to the same experiments (computed here otherwise).
+    formulas to the same experiments (computed here otherwise), ``options`` each experiment's
+    :class:`~tromplab.curves.curve_fit.FitOptions` with the same arguments (the formulas of
+    an experiment then share them).
     """
 
     alpha = DEFAULT_ALPHA if alpha is None else alpha
@@ -523,17 +526,17 @@ def fit_formula_batch(
     efficiency = np.array([c["measured_efficiency"] for c in contexts]) if formula.context_from_efficiency else None
     data = PaddedPoints.from_points(chosen, width)
     optimum = fit_batch(formula, data, starts=starts, efficiency=efficiency, global_search=global_search)
-    stderr = optimum.stderr()
-    for row, (i, points) in enumerate(zip(usable, chosen)):
-        options = FitOptions.for_points(
-            points, alpha=alpha, delta_max=delta_max, size_unit=size_unit, global_search=global_search
-        )
+    for row, (i, points, fit) in enumerate(zip(usable, chosen, _parameter_fits(optimum, chosen))):
         results[i] = CurveFit(
             formula=formula,
             points=points,
-            fit=_parameter_fit(optimum, row, stderr[row], points),
+            fit=fit,
             context=contexts[row],
-            options=options,
+            options=options[i]
+            if options is not None
+            else FitOptions.for_points(
+                points, alpha=alpha, delta_max=delta_max, size_unit=size_unit, global_search=global_search
+            ),
             grid_ssr=float(optimum.grid_ssr[row]),
         )
     return results
@@ -559,29 +562,39 @@ def measured_start(points: TrompPoints) -> tuple[float, float]:
     return cut, measured_slope(points, cut)
 
 
-def _parameter_fit(optimum: BatchOptimum, row: int, stderr: np.ndarray, points: TrompPoints):
-
-    specs = parameter_specs(optimum.formula, points)
-    if not np.isfinite(optimum.ssr[row]):
-        return ParameterFit.failed(specs, points.n, "fit failed from every start: non-finite sum of squares", optimum.n_starts)
-    values = {name: float(v) for name, v in zip(optimum.names, optimum.values[row])}
-    covariance = optimum.covariance[row]
-    known = bool(np.all(np.isfinite(covariance)))
-    at_bound = parameters_at_bounds(specs, values)
-    return ParameterFit(
-        names=optimum.names,
-        values=values,
-        stderr={name: float(se) if known else np.nan for name, se in zip(optimum.names, stderr)},
-        ssr=float(optimum.ssr[row]),
-        n_points=points.n,
-        success=True,
-        message=ENGINE_MESSAGE,
-        at_bound=at_bound,
-        n_starts=optimum.n_starts,
-        nfev=int(optimum.nfev[row]),
-        covariance=covariance.copy() if known else None,
-        residual=optimum.residual[row, : points.n].copy(),
-    )
+def _parameter_fits(optimum: BatchOptimum, experiments: Sequence[TrompPoints]) -> list[ParameterFit]:
+    """The :class:`ParameterFit` of each experiment (row) of ``optimum``: standard errors and
+    covariance where ``J^T J`` could be inverted, the parameters on a bound named."""
+    names, formula = optimum.names, optimum.formula
+    finite = np.isfinite(optimum.ssr).tolist()
+    known = np.all(np.isfinite(optimum.covariance), axis=(1, 2)).tolist()
+    values, stderr = optimum.values.tolist(), optimum.stderr().tolist()
+    ssr, nfev = optimum.ssr.tolist(), optimum.nfev.tolist()
+    fits = []
+    for row, points in enumerate(experiments):
+        specs = parameter_specs(formula, points)
+        if not finite[row]:
+            failed = "fit failed from every start: non-finite sum of squares"
+            fits.append(ParameterFit.failed(specs, points.n, failed, optimum.n_starts))
+            continue
+        found = dict(zip(names, values[row]))
+        fits.append(
+            ParameterFit(
+                names=names,
+                values=found,
+                stderr=dict(zip(names, stderr[row])) if known[row] else dict.fromkeys(names, np.nan),
+                ssr=ssr[row],
+                n_points=points.n,
+                success=True,
+                message=ENGINE_MESSAGE,
+                at_bound=parameters_at_bounds(specs, found),
+                n_starts=optimum.n_starts,
+                nfev=nfev[row],
+                covariance=optimum.covariance[row].copy() if known[row] else None,
+                residual=optimum.residual[row, : points.n].copy(),
+            )
+        )
+    return fits
 
 
 # --- the bootstrap on the engine -------------------------------------------------------------

@@ -14,6 +14,7 @@ import pandas as pd
 
 from ..curves.curve_fit import (
     CurveFit,
+    FitOptions,
     as_failure_if_implausible,
     attach_diagnostics,
     attach_indices,
@@ -24,6 +25,7 @@ from ..curves.curve_fit import (
 from ..curves.engine import fit_formula_batch, measured_start
 from ..curves.formulas import is_batchable, select_formulas
 from ..curves.measured import unbracketed_cut
+from ..curves.screening import DEFAULT_ALPHA
 from ..loading.points import TrompPoints
 from ..loading.surveys import with_survey_columns
 from ..output.csv_parts import CsvPart, csv_part
@@ -129,12 +131,20 @@ def fit_chunk(
     """
     per_formula = []
     measured = [measured_start(points) for points in experiments] if engine else None  # shared by the formulas
+    shared = _shared_options(experiments, alpha, delta_max, size_unit) if engine else None
     for formula in select_formulas(formulas):
         batch = None
         if engine and is_batchable(formula):
             try:
                 batch = fit_formula_batch(
-                    experiments, formula, alpha=alpha, delta_max=delta_max, size_unit=size_unit, width=width, measured=measured
+                    experiments,
+                    formula,
+                    alpha=alpha,
+                    delta_max=delta_max,
+                    size_unit=size_unit,
+                    width=width,
+                    measured=measured,
+                    options=shared,
                 )
             except Exception as error:  # a broken batch falls back to single fits, which report per fit
                 logger.warning(
@@ -158,6 +168,20 @@ def fit_chunk(
     for fit in fits:
         derive(fit)
     return fits
+
+
+def _shared_options(experiments, alpha, delta_max, size_unit) -> list[FitOptions] | None:
+    """Each experiment's :class:`FitOptions`, made once for all its formulas; None where one
+    cannot be made (each formula's batch then meets the error, and reports it per fit)."""
+    try:
+        return [
+            FitOptions.for_points(
+                points, alpha=DEFAULT_ALPHA if alpha is None else alpha, delta_max=delta_max, size_unit=size_unit
+            )
+            for points in experiments
+        ]
+    except ValueError:
+        return None
 
 
 def derive(fit: CurveFit) -> CurveFit:
