@@ -494,7 +494,7 @@ def shuvalov_break(kr: float, measured_efficiency: float) -> float:
     NoBreakPointError
         When ``measured_efficiency`` is outside ``[0.5, eta_5(kr)]``.
     """
-    eta_plain, _ = _rosin_rammler_efficiency(kr, 1.0)
+    eta_plain = _rosin_rammler_area(0.0, 1.0, kr)  # eta of the plain form (5)
     if not 0.5 <= measured_efficiency <= eta_plain:
         raise NoBreakPointError(kr, measured_efficiency, eta_plain)
     if measured_efficiency == eta_plain:
