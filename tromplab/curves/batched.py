@@ -177,6 +177,22 @@ class BatchProblem:
             phi = curve_values(self.formula, x, params[..., 1:2], extras, efficiency, x_break)
             return root_weight * (phi - observed)
 
+    def ssr_on_grid(self, stacked: tuple, log_cuts: np.ndarray, shapes: np.ndarray, extras, x_break=None) -> np.ndarray:
+        """Sums of squares ``(b, shapes, cuts)`` of the ``b`` experiments whose data are
+        ``stacked`` (:meth:`stacked`) at each ``ln d_cut`` of ``log_cuts`` ``(b, cuts)`` with each
+        of the ``shapes``, the extras at the values ``extras`` (``x_break`` ``(b, shapes)``: a
+        moving break at each shape).  The residuals of :meth:`residual_of`, the sizes relative to
+        each cut divided out once for all the shapes."""
+        size, observed, root_weight, _ = stacked
+        x = size[:, :, None, :] / np.exp(log_cuts)[:, None, :, None]  # (b, 1, cuts, P)
+        extras = {name: np.full((1, 1, 1, 1), value, dtype=float) for name, value in zip(self.extra_names, extras)}
+        with np.errstate(all="ignore"):
+            breaks = None if x_break is None else x_break[:, :, None, None]
+            phi = curve_values(self.formula, x, shapes[None, :, None, None], extras, None, breaks)
+            residual = root_weight[:, :, None, :] * (phi - observed[:, :, None, :])
+        rows = np.ascontiguousarray(residual).reshape(-1, size.shape[-1])  # the rows summed as residual_of's
+        return sum_of_squares(rows).reshape(log_cuts.shape[0], shapes.size, log_cuts.shape[1])
+
     def jacobian(
         self, params: np.ndarray, rows: np.ndarray, base: np.ndarray, relative_step: float = 1.5e-8, x_break=None
     ) -> np.ndarray:

@@ -164,29 +164,24 @@ def _profiled_grid(problem: BatchProblem, block: np.ndarray, cuts: np.ndarray, s
     """``(cut, ssr)``, each ``(b, shapes)``: the best ``ln d_cut`` at each grid shape for the
     experiments of ``block``, first among ``cuts`` ``(b, C)``, then refined by golden section
     within ``width`` of it (the extras at ``extra_start``)."""
-    count, n_shapes, n_cuts = block.size, shapes.size, cuts.shape[1]
+    count, n_shapes = block.size, shapes.size
     fixed = np.column_stack(
         [np.zeros(count * n_shapes), np.tile(shapes, count), *[np.full(count * n_shapes, v) for v in extra_start]]
     )
     x_break = problem.breaks(fixed, np.repeat(block, n_shapes))  # the shapes stay fixed while d_cut moves
+    breaks = None if x_break is None else x_break.reshape(count, n_shapes, 1)
     data = problem.stacked(block)
-
-    def ssr_of(params: np.ndarray, breaks) -> np.ndarray:  # params (b, k, p), breaks (b * k, 1)
-        breaks = None if breaks is None else breaks.reshape(*params.shape[:2], 1)
-        return sum_of_squares(problem.residual_of(data, params, breaks).reshape(-1, data[0].shape[2]))
-
-    grid = np.repeat(fixed.reshape(count, n_shapes, -1), n_cuts, axis=1)  # (b, shapes x cuts, p)
-    grid[:, :, 0] = np.repeat(cuts[:, None, :], n_shapes, axis=1).reshape(count, -1)
-    ssr = ssr_of(grid, None if x_break is None else np.repeat(x_break, n_cuts, axis=0)).reshape(count, n_shapes, n_cuts)
+    ssr = problem.ssr_on_grid(data, cuts, shapes, extra_start, None if breaks is None else breaks[..., 0])
     pick = np.argmin(ssr, axis=2)
     best_cut = np.take_along_axis(np.repeat(cuts[:, None, :], n_shapes, axis=1), pick[..., None], axis=2)[..., 0]
     best_ssr = np.take_along_axis(ssr, pick[..., None], axis=2)[..., 0]
     low, high = problem.lower[block, :1], problem.upper[block, :1]
 
-    def ssr_at(log_cut):
+    def ssr_at(log_cut):  # (b, shapes)
         params = fixed.copy()
         params[:, 0] = log_cut.ravel()
-        return ssr_of(params.reshape(count, n_shapes, -1), x_break).reshape(count, n_shapes)
+        residual = problem.residual_of(data, params.reshape(count, n_shapes, -1), breaks)
+        return sum_of_squares(residual.reshape(-1, data[0].shape[2])).reshape(count, n_shapes)
 
     refined, refined_ssr = golden_section(
         ssr_at, np.clip(best_cut - width, low, high), np.clip(best_cut + width, low, high), GOLDEN_STEPS
