@@ -510,8 +510,7 @@ def _shape_indices(formula: Formula, shape, efficiency_of, x_max, epsilon: bool)
         x_break = formula.moving_break.on_arrays(shape, efficiency_of)
     curve = _curve_on_arrays(formula, shape, x_break)
     eta, eps = _batched_efficiency(formula, curve, shape, x_max, efficiency_of, x_break, epsilon)
-    x25 = _relative_sizes(curve, 0.75, shape.size)
-    x75 = _relative_sizes(curve, 0.25, shape.size)
+    x25, x75 = _relative_sizes_at(curve, (0.75, 0.25), shape.size)
     slope = np.array([float(formula.slope_at_cut(k)) for k in shape.tolist()])  # scalar forms, as one curve's
     return x_break, curve, eta, eps, x25, x75, slope
 
@@ -531,7 +530,7 @@ def _bypass_index_columns(
     corrected, _ = batch_index_columns(base, d_cut, shape, delta_max=delta_max, epsilon=epsilon)
     actual = _scaled_curve(_curve_on_arrays(base, shape, None), 1.0 - bypass)
     eta, eps = (1.0 - bypass) * corrected["eta"], (1.0 - bypass) * corrected["epsilon"]
-    d25, d50, d75 = (d_cut * _relative_sizes(actual, level, d_cut.size) for level in (0.75, 0.5, 0.25))
+    d25, d50, d75 = (d_cut * x for x in _relative_sizes_at(actual, (0.75, 0.5, 0.25), d_cut.size))
     flags = [()] * d_cut.size
     if measured_sizes is not None:
         flags = _batched_extrapolated(actual, d25, d75, eta, eps, d_cut, delta_max / d_cut, None, measured_sizes)
@@ -648,28 +647,37 @@ def _gauss_legendre() -> tuple[np.ndarray, np.ndarray]:
     return np.polynomial.legendre.leggauss(GAUSS_LEGENDRE_NODES)
 
 
-def _relative_sizes(curve, level: float, count: int) -> np.ndarray:
-    """Relative size of each curve's crossing of ``level`` next to the cut (nan where none):
-    the bracket of :func:`_relative_size_at` (doubling away from x = 1), then Chandrupatla."""
+def _relative_sizes_at(curve, levels: tuple[float, ...], count: int) -> list[np.ndarray]:
+    """Relative size of each curve's crossing of each of ``levels`` next to the cut (nan where
+    none): the bracket of :func:`_relative_size_at` (doubling away from x = 1), then
+    Chandrupatla's method, for the roots of all levels in one call (elementwise: each root as
+    found alone)."""
     from scipy.optimize import elementwise
 
-    at_cut = curve(np.ones((count, 1)))[:, 0] - level
+    at_one = curve(np.ones((count, 1)))[:, 0]
     powers = 2.0 ** np.arange(0, _DOUBLINGS + 1)
-    outward = np.where(at_cut[:, None] > 0, powers, 1.0 / powers)  # (N, D + 1): 1, 2, 4, ... or 1, 1/2, ...
-    gaps = curve(outward) - level
-    crossed = np.sign(gaps[:, 1:]) != np.sign(at_cut)[:, None]
-    found = crossed.any(axis=1) & (at_cut != 0)
-    step = np.argmax(crossed, axis=1)
-    rows = np.arange(count)
-    inner, outer = outward[rows, step], outward[rows, step + 1]
-    root = np.where(at_cut == 0, 1.0, np.nan)
-    if found.any():
+    roots, pending = [], []
+    for level in levels:
+        at_cut = at_one - level
+        outward = np.where(at_cut[:, None] > 0, powers, 1.0 / powers)  # (N, D + 1): 1, 2, 4, ... or 1, 1/2, ...
+        gaps = curve(outward) - level
+        crossed = np.sign(gaps[:, 1:]) != np.sign(at_cut)[:, None]
+        found = crossed.any(axis=1) & (at_cut != 0)
+        step = np.argmax(crossed, axis=1)
+        rows = np.arange(count)
+        inner, outer = outward[rows, step], outward[rows, step + 1]
+        roots.append(np.where(at_cut == 0, 1.0, np.nan))
         which = np.flatnonzero(found)
-        low, high = np.minimum(inner, outer)[which], np.maximum(inner, outer)[which]
+        pending.append((which, np.minimum(inner, outer)[which], np.maximum(inner, outer)[which], np.full(which.size, level)))
+    which, low, high, level_of = (np.concatenate(parts) for parts in zip(*pending))
+    if which.size:
 
-        def gap(x, rows_of):
-            return curve(x[:, None], rows_of.astype(int))[:, 0] - level
+        def gap(x, rows_of, levels_of):
+            return curve(x[:, None], rows_of.astype(int))[:, 0] - levels_of
 
-        result = elementwise.find_root(gap, (low, high), args=(which.astype(float),), tolerances={"xrtol": 1e-14})
-        root[which] = result.x
-    return root
+        result = elementwise.find_root(gap, (low, high), args=(which.astype(float), level_of), tolerances={"xrtol": 1e-14})
+        first = 0
+        for root, (rows_of, *_) in zip(roots, pending):
+            root[rows_of] = result.x[first : first + rows_of.size]
+            first += rows_of.size
+    return roots
