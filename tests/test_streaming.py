@@ -25,6 +25,13 @@ from .conftest import DATASETS
 FORMULAS = "plitt,lognormal,shuvalov"
 
 
+@pytest.fixture(autouse=True)
+def _units_of_64(monkeypatch):
+    """Units of work of at most 64 experiments: one worker makes as few as the largest unit
+    allows, and the batches here are to be joined from several chunks on one worker too."""
+    monkeypatch.setattr(fanout_module, "MAX_CHUNK_SIZE", 64)
+
+
 def _batch(n=70, *, failures=True):
     """``n`` synthetic experiments (two chunks of 64 on one worker) and, with ``failures``, one with
     two points and a flat one, which the screen cannot judge (their rows end the fits table)."""

@@ -3,7 +3,7 @@
 A command imports numpy, pandas, scipy and lmfit (up to a second).  An interrupt in that
 second used to end in Python's own ``KeyboardInterrupt`` traceback or a silent kill.
 ``import tromplab`` loads its public names lazily and imports none of them, and this module
-imports only :mod:`os`, :mod:`signal` and :mod:`sys`: the console script
+imports only :mod:`gc`, :mod:`os`, :mod:`signal` and :mod:`sys`: the console script
 (``tromplab._launch:main``) and ``tromplab/__main__.py`` install the handling here, then import
 the command line, which imports the command's modules before it starts the command (and calls
 back to install the command's own handling).  An interrupt at any moment prints one line and
@@ -11,6 +11,7 @@ exits with 130 (SIGINT) or 143 (SIGTERM); during start-up nothing has been writt
 the command has returned (while the interpreter shuts down its pools) the outputs are final.
 """
 
+import gc
 import os
 import signal
 import sys
@@ -69,6 +70,12 @@ def main() -> int:
     finally:
         _handle(signal.SIGINT, _stop_while_exiting)
         _handle(signal.SIGTERM, _stop_while_exiting)
+        # the process ends here: its objects handed to the collector's permanent generation, so
+        # the interpreter's shutdown does not run full collections over the hundreds of
+        # thousands of objects of the numerical stack (about 0.4 s of CPU after a fit of 1,024
+        # experiments); the atexit handlers run as before, and the command has closed its
+        # files, pools and clusters itself (only cycles of garbage are left to the system)
+        gc.freeze()
 
 
 if __name__ == "__main__":

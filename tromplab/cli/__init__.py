@@ -54,6 +54,7 @@ from .startup import (
     Terminated,
     cli_message,
     cli_words,
+    collector_paused,
     global_options,
     interrupted,
     raise_terminated,
@@ -103,8 +104,9 @@ def main(argv=None, *, on_start=None) -> int:
         _check_input_paths(args, own)  # before the imports: a missing file answers at once
         # a command imports its modules before it starts: an interrupt inside an import can stop
         # a module half-initialised (an ImportError, or Python's exit by SIGINT instead of 130)
-        for module in getattr(args, "imports", ()):
-            importlib.import_module(module)
+        with collector_paused():
+            for module in getattr(args, "imports", ()):
+                importlib.import_module(module)
         if on_start is not None:
             on_start()
         with sigterm_as_interrupt(), warnings.catch_warnings(), verbosity(args), words_of(parser):

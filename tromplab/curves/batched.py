@@ -177,6 +177,22 @@ class BatchProblem:
             phi = curve_values(self.formula, x, params[..., 1:2], extras, efficiency, x_break)
             return root_weight * (phi - observed)
 
+    def ssr_on_grid(self, stacked: tuple, log_cuts: np.ndarray, shapes: np.ndarray, extras, x_break=None) -> np.ndarray:
+        """Sums of squares ``(b, shapes, cuts)`` of the ``b`` experiments whose data are
+        ``stacked`` (:meth:`stacked`) at each ``ln d_cut`` of ``log_cuts`` ``(b, cuts)`` with each
+        of the ``shapes``, the extras at the values ``extras`` (``x_break`` ``(b, shapes)``: a
+        moving break at each shape).  The residuals of :meth:`residual_of`, the sizes relative to
+        each cut divided out once for all the shapes."""
+        size, observed, root_weight, _ = stacked
+        x = size[:, :, None, :] / np.exp(log_cuts)[:, None, :, None]  # (b, 1, cuts, P)
+        extras = {name: np.full((1, 1, 1, 1), value, dtype=float) for name, value in zip(self.extra_names, extras)}
+        with np.errstate(all="ignore"):
+            breaks = None if x_break is None else x_break[:, :, None, None]
+            phi = curve_values(self.formula, x, shapes[None, :, None, None], extras, None, breaks)
+            residual = root_weight[:, :, None, :] * (phi - observed[:, :, None, :])
+        rows = np.ascontiguousarray(residual).reshape(-1, size.shape[-1])  # the rows summed as residual_of's
+        return sum_of_squares(rows).reshape(log_cuts.shape[0], shapes.size, log_cuts.shape[1])
+
     def jacobian(
         self, params: np.ndarray, rows: np.ndarray, base: np.ndarray, relative_step: float = 1.5e-8, x_break=None
     ) -> np.ndarray:
@@ -191,8 +207,7 @@ class BatchProblem:
         for j in range(params.shape[1]):
             # column 0 is ln d_cut, whose value depends on the size unit: an absolute step keeps
             # the Jacobian, and so the standard errors, the same in any unit
-            step = relative_step * (1.0 if j == 0 else np.maximum(np.abs(params[:, j]), 1.0))
-            step = np.broadcast_to(step, params.shape[:1])
+            step = relative_step if j == 0 else relative_step * np.maximum(np.abs(params[:, j]), 1.0)
             step = np.where(params[:, j] + step > upper[:, j], -step, step)
             moved = params.copy()
             moved[:, j] += step
@@ -254,6 +269,8 @@ class _MarquardtRows:
         self.gradient = np.zeros((rows.size, n_params))
         self.hessian = np.zeros((rows.size, n_params, n_params))
         self.eye = np.eye(n_params)
+        span = self.upper - self.lower  # a parameter this close to a bound is on it (damped_step)
+        self.near_lower, self.near_upper, self.no_room = self.lower + 1e-12 * span, self.upper - 1e-12 * span, span == 0
 
     def refresh_jacobians(self, work: np.ndarray, relative_step: float) -> None:
         """Gradient and Hessian at the rows of ``work`` that moved since their last Jacobian."""
@@ -268,12 +285,11 @@ class _MarquardtRows:
         self.hessian[fresh] = np.einsum("bkp,bkq->bpq", jac, jac)
         self.need_jacobian[fresh] = False
 
-    def damped_step(self, work: np.ndarray, p: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
-        """The damped Gauss-Newton step of the rows of ``work``, parameters on a bound whose
-        gradient points outwards held."""
+    def damped_step(self, work: np.ndarray, p: np.ndarray) -> np.ndarray:
+        """The damped Gauss-Newton step of the rows of ``work`` (at ``p``), parameters on a
+        bound whose gradient points outwards held."""
         g, h, eye = self.gradient[work], self.hessian[work], self.eye
-        span = upper - lower
-        pinned = ((p <= lower + 1e-12 * span) & (g > 0)) | ((p >= upper - 1e-12 * span) & (g < 0)) | (span == 0)
+        pinned = ((p <= self.near_lower[work]) & (g > 0)) | ((p >= self.near_upper[work]) & (g < 0)) | self.no_room[work]
         free = ~pinned
         h_free = h * free[:, :, None] * free[:, None, :] + eye * pinned[:, :, None]
         diagonal = np.maximum(np.diagonal(h_free, axis1=1, axis2=2), 1e-300)
@@ -301,7 +317,7 @@ class _MarquardtRows:
         """Try the step of every row of ``work``: keep it where the sum of squares falls (less
         damping), else more damping; end the rows that converged or cannot descend."""
         problem, p, lower, upper = self.problem, self.params[work], self.lower[work], self.upper[work]
-        trial = np.clip(p + self.damped_step(work, p, lower, upper), lower, upper)
+        trial = np.clip(p + self.damped_step(work, p), lower, upper)
         work_rows = self.rows[work]
         trial_break = self.breaks_at(trial, work, p)
         trial_residual = problem.residual(trial, work_rows, trial_break)
@@ -318,7 +334,7 @@ class _MarquardtRows:
         damping = self.damping
         damping[took] = np.maximum(damping[took] / 3.0, 1e-12)
         damping[work[~accepted]] *= 4.0
-        stalled = np.all(trial == p, axis=1)
+        stalled = (trial == p).all(axis=1)
         finished = (accepted & (gain < SSR_TOLERANCE)) | (~accepted & ((damping[work] > 1e12) | stalled))
         self.alive[work[finished]] = False
 

@@ -17,6 +17,7 @@ worse than the grid; the grid minimum is kept in the result so that this can be 
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, replace
 from functools import cached_property
 
@@ -42,7 +43,7 @@ from .measured import (
     parameter_specs,
     unbracketed_cut,
 )
-from .screening import DEFAULT_ALPHA, FisherScreen, check_screenable, fisher_screen
+from .screening import DEFAULT_ALPHA, FisherScreen, check_screenable, fisher_screen, observed_variance
 from .views import fit_html, fit_report, fit_repr
 
 N_GRID_STARTS = 2
@@ -241,14 +242,18 @@ class CurveFit(ResultContract):
     @cached_property
     def screen(self) -> FisherScreen | None:
         """Fisher screen at the recorded ``alpha`` and weights (None for a failed fit)."""
-        if not self.success:
-            return None
+        return self.screen_with() if self.success else None
+
+    def screen_with(self, s0_sq: float | None = None) -> FisherScreen:
+        """:attr:`screen` of a successful fit, with the variance of the measured points
+        ``s0_sq`` when the caller has it (:func:`attach_screens`)."""
         return fisher_screen(
             self.points.partition_fine,
             self.fit.ssr,
             alpha=self.options.alpha,
             n_params=self.formula.n_params,
             weights=self.options.weights,
+            s0_sq=s0_sq,
         )
 
     @cached_property
@@ -565,6 +570,21 @@ def attach_indices(fits) -> None:
             fit.__dict__["indices"] = indices  # where functools.cached_property keeps its value
 
 
+def attach_screens(fits) -> None:
+    """Compute the Fisher screens of many fits and cache them on each fit: the variance of the
+    measured points (:func:`~tromplab.curves.screening.observed_variance`) once per experiment
+    and weights, which the formulas fitted to it share."""
+    variances: dict[int, tuple[np.ndarray, float]] = {}
+    for fit in fits:
+        if not fit.success or "screen" in fit.__dict__:
+            continue
+        weights = fit.options.weights
+        known = variances.get(id(fit.points))
+        if known is None or (known[0] is not weights and not np.array_equal(known[0], weights)):
+            known = variances[id(fit.points)] = (weights, observed_variance(fit.points.partition_fine, weights))
+        fit.__dict__["screen"] = fit.screen_with(known[1])  # where functools.cached_property keeps it
+
+
 #: Relative slack of the range checks of :func:`implausible_result` (rounding of the integrals).
 RANGE_SLACK = 1e-9
 
@@ -580,29 +600,28 @@ def implausible_result(fit: CurveFit) -> str:
     """
     if not fit.success:
         return ""
-    ind = fit.indices
-    x_max = fit.options.delta_max / fit.d_cut if fit.d_cut > 0 else np.nan
+    ind, d_cut, delta_max = fit.indices, fit.d_cut, fit.options.delta_max
+    x_max = delta_max / d_cut if d_cut > 0 else math.nan
     low_shape, high_shape = fit.formula.shape_bounds
-    required = {
-        "d_cut": (fit.d_cut, 0.0, np.inf),
-        fit.formula.shape_name: (fit.shape, low_shape, high_shape),
-        "ssr": (fit.fit.ssr, 0.0, np.inf),
-        "eta": (ind.eta, 0.0, 1.0),
-    }
-    optional = {
-        "epsilon": (ind.epsilon, 0.0, max(x_max - 1.0, 0.0)),
-        "slope": (ind.slope, -np.inf, 0.0),
-        **{name: (getattr(ind, name), 0.0, np.inf) for name in ("d25", "d75", "ep", "d50", "d50c", "ep_c")},
-    }
-    for name, (value, low, high) in {**required, **optional}.items():
+    # (name, value, low, high, may be missing); plain floats and math: a batch checks every fit
+    checks = (
+        ("d_cut", d_cut, 0.0, math.inf, False),
+        (fit.formula.shape_name, fit.shape, low_shape, high_shape, False),
+        ("ssr", fit.fit.ssr, 0.0, math.inf, False),
+        ("eta", ind.eta, 0.0, 1.0, False),
+        ("epsilon", ind.epsilon, 0.0, max(x_max - 1.0, 0.0), True),
+        ("slope", ind.slope, -math.inf, 0.0, True),
+        *((name, getattr(ind, name), 0.0, math.inf, True) for name in ("d25", "d75", "ep", "d50", "d50c", "ep_c")),
+    )
+    for name, value, low, high, optional in checks:
         value = float(value)
-        if np.isnan(value) and name in optional:
+        if optional and math.isnan(value):
             continue
-        slack = RANGE_SLACK * max(1.0, abs(low) if np.isfinite(low) else 0.0, abs(high) if np.isfinite(high) else 0.0)
-        if not (np.isfinite(value) and low - slack <= value <= high + slack):
+        slack = RANGE_SLACK * max(1.0, abs(low) if math.isfinite(low) else 0.0, abs(high) if math.isfinite(high) else 0.0)
+        if not (math.isfinite(value) and low - slack <= value <= high + slack):
             return (
                 f"{name} = {value:g} is outside its range [{low:g}, {high:g}]: the arithmetic did not hold at these "
-                f"inputs (delta_max {fit.options.delta_max:g}, d_cut {fit.d_cut:g})"
+                f"inputs (delta_max {delta_max:g}, d_cut {d_cut:g})"
             )
     return ""
 

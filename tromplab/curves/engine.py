@@ -164,29 +164,24 @@ def _profiled_grid(problem: BatchProblem, block: np.ndarray, cuts: np.ndarray, s
     """``(cut, ssr)``, each ``(b, shapes)``: the best ``ln d_cut`` at each grid shape for the
     experiments of ``block``, first among ``cuts`` ``(b, C)``, then refined by golden section
     within ``width`` of it (the extras at ``extra_start``)."""
-    count, n_shapes, n_cuts = block.size, shapes.size, cuts.shape[1]
+    count, n_shapes = block.size, shapes.size
     fixed = np.column_stack(
         [np.zeros(count * n_shapes), np.tile(shapes, count), *[np.full(count * n_shapes, v) for v in extra_start]]
     )
     x_break = problem.breaks(fixed, np.repeat(block, n_shapes))  # the shapes stay fixed while d_cut moves
+    breaks = None if x_break is None else x_break.reshape(count, n_shapes, 1)
     data = problem.stacked(block)
-
-    def ssr_of(params: np.ndarray, breaks) -> np.ndarray:  # params (b, k, p), breaks (b * k, 1)
-        breaks = None if breaks is None else breaks.reshape(*params.shape[:2], 1)
-        return sum_of_squares(problem.residual_of(data, params, breaks).reshape(-1, data[0].shape[2]))
-
-    grid = np.repeat(fixed.reshape(count, n_shapes, -1), n_cuts, axis=1)  # (b, shapes x cuts, p)
-    grid[:, :, 0] = np.repeat(cuts[:, None, :], n_shapes, axis=1).reshape(count, -1)
-    ssr = ssr_of(grid, None if x_break is None else np.repeat(x_break, n_cuts, axis=0)).reshape(count, n_shapes, n_cuts)
+    ssr = problem.ssr_on_grid(data, cuts, shapes, extra_start, None if breaks is None else breaks[..., 0])
     pick = np.argmin(ssr, axis=2)
     best_cut = np.take_along_axis(np.repeat(cuts[:, None, :], n_shapes, axis=1), pick[..., None], axis=2)[..., 0]
     best_ssr = np.take_along_axis(ssr, pick[..., None], axis=2)[..., 0]
     low, high = problem.lower[block, :1], problem.upper[block, :1]
 
-    def ssr_at(log_cut):
+    def ssr_at(log_cut):  # (b, shapes)
         params = fixed.copy()
         params[:, 0] = log_cut.ravel()
-        return ssr_of(params.reshape(count, n_shapes, -1), x_break).reshape(count, n_shapes)
+        residual = problem.residual_of(data, params.reshape(count, n_shapes, -1), breaks)
+        return sum_of_squares(residual.reshape(-1, data[0].shape[2])).reshape(count, n_shapes)
 
     refined, refined_ssr = golden_section(
         ssr_at, np.clip(best_cut - width, low, high), np.clip(best_cut + width, low, high), GOLDEN_STEPS
@@ -492,6 +487,7 @@ def fit_formula_batch(
     size_unit: str = "",
     width: int | None = None,
     measured: Sequence[tuple[float, float]] | None = None,
+    options: Sequence[FitOptions] | None = None,
 ) -> list:
     """:func:`tromplab.curves.curve_fit.fit_formula` for many experiments at once.
 
@@ -504,7 +500,9 @@ def fit_formula_batch(
     single fit; the bootstrap refits its resamples from the optimum without the grid.
     ``width`` pads the experiments to at least that many points (:class:`PaddedPoints`);
     ``measured`` gives each experiment's :func:`measured_start` when the caller fits several
-    formulas to the same experiments (computed here otherwise).
+    formulas to the same experiments (computed here otherwise), ``options`` each experiment's
+    :class:`~tromplab.curves.curve_fit.FitOptions` with the same arguments (the formulas of
+    an experiment then share them).
     """
 
     alpha = DEFAULT_ALPHA if alpha is None else alpha
@@ -523,17 +521,17 @@ def fit_formula_batch(
     efficiency = np.array([c["measured_efficiency"] for c in contexts]) if formula.context_from_efficiency else None
     data = PaddedPoints.from_points(chosen, width)
     optimum = fit_batch(formula, data, starts=starts, efficiency=efficiency, global_search=global_search)
-    stderr = optimum.stderr()
-    for row, (i, points) in enumerate(zip(usable, chosen)):
-        options = FitOptions.for_points(
-            points, alpha=alpha, delta_max=delta_max, size_unit=size_unit, global_search=global_search
-        )
+    for row, (i, points, fit) in enumerate(zip(usable, chosen, _parameter_fits(optimum, chosen))):
         results[i] = CurveFit(
             formula=formula,
             points=points,
-            fit=_parameter_fit(optimum, row, stderr[row], points),
+            fit=fit,
             context=contexts[row],
-            options=options,
+            options=options[i]
+            if options is not None
+            else FitOptions.for_points(
+                points, alpha=alpha, delta_max=delta_max, size_unit=size_unit, global_search=global_search
+            ),
             grid_ssr=float(optimum.grid_ssr[row]),
         )
     return results
@@ -559,29 +557,39 @@ def measured_start(points: TrompPoints) -> tuple[float, float]:
     return cut, measured_slope(points, cut)
 
 
-def _parameter_fit(optimum: BatchOptimum, row: int, stderr: np.ndarray, points: TrompPoints):
-
-    specs = parameter_specs(optimum.formula, points)
-    if not np.isfinite(optimum.ssr[row]):
-        return ParameterFit.failed(specs, points.n, "fit failed from every start: non-finite sum of squares", optimum.n_starts)
-    values = {name: float(v) for name, v in zip(optimum.names, optimum.values[row])}
-    covariance = optimum.covariance[row]
-    known = bool(np.all(np.isfinite(covariance)))
-    at_bound = parameters_at_bounds(specs, values)
-    return ParameterFit(
-        names=optimum.names,
-        values=values,
-        stderr={name: float(se) if known else np.nan for name, se in zip(optimum.names, stderr)},
-        ssr=float(optimum.ssr[row]),
-        n_points=points.n,
-        success=True,
-        message=ENGINE_MESSAGE,
-        at_bound=at_bound,
-        n_starts=optimum.n_starts,
-        nfev=int(optimum.nfev[row]),
-        covariance=covariance.copy() if known else None,
-        residual=optimum.residual[row, : points.n].copy(),
-    )
+def _parameter_fits(optimum: BatchOptimum, experiments: Sequence[TrompPoints]) -> list[ParameterFit]:
+    """The :class:`ParameterFit` of each experiment (row) of ``optimum``: standard errors and
+    covariance where ``J^T J`` could be inverted, the parameters on a bound named."""
+    names, formula = optimum.names, optimum.formula
+    finite = np.isfinite(optimum.ssr).tolist()
+    known = np.all(np.isfinite(optimum.covariance), axis=(1, 2)).tolist()
+    values, stderr = optimum.values.tolist(), optimum.stderr().tolist()
+    ssr, nfev = optimum.ssr.tolist(), optimum.nfev.tolist()
+    fits = []
+    for row, points in enumerate(experiments):
+        specs = parameter_specs(formula, points)
+        if not finite[row]:
+            failed = "fit failed from every start: non-finite sum of squares"
+            fits.append(ParameterFit.failed(specs, points.n, failed, optimum.n_starts))
+            continue
+        found = dict(zip(names, values[row]))
+        fits.append(
+            ParameterFit(
+                names=names,
+                values=found,
+                stderr=dict(zip(names, stderr[row])) if known[row] else dict.fromkeys(names, np.nan),
+                ssr=ssr[row],
+                n_points=points.n,
+                success=True,
+                message=ENGINE_MESSAGE,
+                at_bound=parameters_at_bounds(specs, found),
+                n_starts=optimum.n_starts,
+                nfev=nfev[row],
+                covariance=optimum.covariance[row].copy() if known[row] else None,
+                residual=optimum.residual[row, : points.n].copy(),
+            )
+        )
+    return fits
 
 
 # --- the bootstrap on the engine -------------------------------------------------------------

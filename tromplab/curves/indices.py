@@ -477,26 +477,42 @@ def batch_index_columns(
     d_cut, shape, delta_max = (np.atleast_1d(np.asarray(v, dtype=float)) for v in (d_cut, shape, delta_max))
     d_cut, shape, delta_max = np.broadcast_arrays(d_cut, shape, delta_max)
     x_max = delta_max / d_cut
-    x_break = efficiency_of = None
+    efficiency_of = None
     if formula.context_from_efficiency:
         efficiency_of = np.broadcast_to(np.asarray(measured_efficiency, dtype=float), shape.shape)
-    if formula.moving_break is not None:  # (11): x_a of every curve, solved on arrays (within 1e-13 of one by one)
-        x_break = formula.moving_break.on_arrays(shape, efficiency_of)
-    curve = _curve_on_arrays(formula, shape, x_break)
-    eta, eps = _batched_efficiency(formula, curve, shape, x_max, efficiency_of, x_break, epsilon)
-    x25 = _relative_sizes(curve, 0.75, shape.size)
-    x75 = _relative_sizes(curve, 0.25, shape.size)
     flags = [()] * shape.size
+    if epsilon or measured_sizes is not None:
+        x_break, curve, eta, eps, x25, x75, slope = _shape_indices(formula, shape, efficiency_of, x_max, epsilon)
+    else:  # the rest rests on the curve's shape alone: once per distinct curve (the delta method's steps in d_cut repeat it)
+        key = shape if efficiency_of is None else shape + 1j * efficiency_of
+        _, first, inverse = np.unique(key, return_index=True, return_inverse=True)
+        distinct = _shape_indices(
+            formula, shape[first], None if efficiency_of is None else efficiency_of[first], x_max[first], False
+        )
+        eta, eps, x25, x75, slope = (np.asarray(column)[inverse.ravel()] for column in distinct[2:])
     d25, d75 = d_cut * x25, d_cut * x75
     if measured_sizes is not None:
         flags = _batched_extrapolated(curve, d25, d75, eta, eps, d_cut, x_max, x_break, measured_sizes)
     ep = (d75 - d25) / 2.0
     imperfection = ep / d_cut
-    slope = np.array([float(formula.slope_at_cut(k)) for k in shape.tolist()])  # scalar forms, as one curve's
     columns = {"d_cut": d_cut, "slope": slope, "eta": np.asarray(eta, dtype=float), "epsilon": np.asarray(eps, dtype=float)}
     columns |= {"d25": d25, "d75": d75, "ep": ep, "imperfection": imperfection, "sharpness": d25 / d75}
     columns |= {"d50": d_cut, "ep_c": ep, "imperfection_c": imperfection}
     return columns, flags
+
+
+def _shape_indices(formula: Formula, shape, efficiency_of, x_max, epsilon: bool) -> tuple:
+    """``(x_break, curve, eta, eps, x25, x75, slope)`` of the curves of ``shape`` (and the
+    measured efficiencies ``efficiency_of`` of a formula that takes them): the indices in
+    relative size, which do not depend on ``d_cut`` (eps on ``x_max``, nan without ``epsilon``)."""
+    x_break = None
+    if formula.moving_break is not None:  # (11): x_a of every curve, solved on arrays (within 1e-13 of one by one)
+        x_break = formula.moving_break.on_arrays(shape, efficiency_of)
+    curve = _curve_on_arrays(formula, shape, x_break)
+    eta, eps = _batched_efficiency(formula, curve, shape, x_max, efficiency_of, x_break, epsilon)
+    x25, x75 = _relative_sizes_at(curve, (0.75, 0.25), shape.size)
+    slope = np.array([float(formula.slope_at_cut(k)) for k in shape.tolist()])  # scalar forms, as one curve's
+    return x_break, curve, eta, eps, x25, x75, slope
 
 
 def _bypass_index_columns(
@@ -514,7 +530,7 @@ def _bypass_index_columns(
     corrected, _ = batch_index_columns(base, d_cut, shape, delta_max=delta_max, epsilon=epsilon)
     actual = _scaled_curve(_curve_on_arrays(base, shape, None), 1.0 - bypass)
     eta, eps = (1.0 - bypass) * corrected["eta"], (1.0 - bypass) * corrected["epsilon"]
-    d25, d50, d75 = (d_cut * _relative_sizes(actual, level, d_cut.size) for level in (0.75, 0.5, 0.25))
+    d25, d50, d75 = (d_cut * x for x in _relative_sizes_at(actual, (0.75, 0.5, 0.25), d_cut.size))
     flags = [()] * d_cut.size
     if measured_sizes is not None:
         flags = _batched_extrapolated(actual, d25, d75, eta, eps, d_cut, delta_max / d_cut, None, measured_sizes)
@@ -631,28 +647,37 @@ def _gauss_legendre() -> tuple[np.ndarray, np.ndarray]:
     return np.polynomial.legendre.leggauss(GAUSS_LEGENDRE_NODES)
 
 
-def _relative_sizes(curve, level: float, count: int) -> np.ndarray:
-    """Relative size of each curve's crossing of ``level`` next to the cut (nan where none):
-    the bracket of :func:`_relative_size_at` (doubling away from x = 1), then Chandrupatla."""
+def _relative_sizes_at(curve, levels: tuple[float, ...], count: int) -> list[np.ndarray]:
+    """Relative size of each curve's crossing of each of ``levels`` next to the cut (nan where
+    none): the bracket of :func:`_relative_size_at` (doubling away from x = 1), then
+    Chandrupatla's method, for the roots of all levels in one call (elementwise: each root as
+    found alone)."""
     from scipy.optimize import elementwise
 
-    at_cut = curve(np.ones((count, 1)))[:, 0] - level
+    at_one = curve(np.ones((count, 1)))[:, 0]
     powers = 2.0 ** np.arange(0, _DOUBLINGS + 1)
-    outward = np.where(at_cut[:, None] > 0, powers, 1.0 / powers)  # (N, D + 1): 1, 2, 4, ... or 1, 1/2, ...
-    gaps = curve(outward) - level
-    crossed = np.sign(gaps[:, 1:]) != np.sign(at_cut)[:, None]
-    found = crossed.any(axis=1) & (at_cut != 0)
-    step = np.argmax(crossed, axis=1)
-    rows = np.arange(count)
-    inner, outer = outward[rows, step], outward[rows, step + 1]
-    root = np.where(at_cut == 0, 1.0, np.nan)
-    if found.any():
+    roots, pending = [], []
+    for level in levels:
+        at_cut = at_one - level
+        outward = np.where(at_cut[:, None] > 0, powers, 1.0 / powers)  # (N, D + 1): 1, 2, 4, ... or 1, 1/2, ...
+        gaps = curve(outward) - level
+        crossed = np.sign(gaps[:, 1:]) != np.sign(at_cut)[:, None]
+        found = crossed.any(axis=1) & (at_cut != 0)
+        step = np.argmax(crossed, axis=1)
+        rows = np.arange(count)
+        inner, outer = outward[rows, step], outward[rows, step + 1]
+        roots.append(np.where(at_cut == 0, 1.0, np.nan))
         which = np.flatnonzero(found)
-        low, high = np.minimum(inner, outer)[which], np.maximum(inner, outer)[which]
+        pending.append((which, np.minimum(inner, outer)[which], np.maximum(inner, outer)[which], np.full(which.size, level)))
+    which, low, high, level_of = (np.concatenate(parts) for parts in zip(*pending))
+    if which.size:
 
-        def gap(x, rows_of):
-            return curve(x[:, None], rows_of.astype(int))[:, 0] - level
+        def gap(x, rows_of, levels_of):
+            return curve(x[:, None], rows_of.astype(int))[:, 0] - levels_of
 
-        result = elementwise.find_root(gap, (low, high), args=(which.astype(float),), tolerances={"xrtol": 1e-14})
-        root[which] = result.x
-    return root
+        result = elementwise.find_root(gap, (low, high), args=(which.astype(float), level_of), tolerances={"xrtol": 1e-14})
+        first = 0
+        for root, (rows_of, *_) in zip(roots, pending):
+            root[rows_of] = result.x[first : first + rows_of.size]
+            first += rows_of.size
+    return roots

@@ -263,6 +263,8 @@ def batched_delta_indices(fits: Sequence[CurveFit], delta_max: float | None = No
     for formula_id, members in plain.items():
         for (fit, limit), centre, errors in zip(members, *_delta_on_arrays(formula_id, members, epsilon)):
             known[_delta_key(fit, limit)] = (centre, errors)
+    with_inputs = {id(fit): fit for evaluations in wanted.values() for fit, _, _ in evaluations}
+    _inputs_by_point(list(with_inputs.values()), known)
     return known
 
 
@@ -421,7 +423,7 @@ def delta_standard_errors(
     flat = gradient.reshape(len(fit.fit.names), -1)  # p x q
     per_point = flat.T @ sensitivity  # q x n
     for name in fit.context:
-        input_by_point = _input_by_point(fit, name)
+        input_by_point = _input_by_point(fit, name, known)
         curve_by_input = _difference(curve, values, name)
         index_by_input = _difference(evaluate, values, name).reshape(-1)
         per_point += -(flat.T @ (sensitivity @ curve_by_input))[:, None] * input_by_point[None, :]
@@ -431,15 +433,51 @@ def delta_standard_errors(
     return np.where(finite, np.sqrt(np.maximum(variance, 0.0)), np.nan).reshape(centre.shape)
 
 
-def _input_by_point(fit: CurveFit, name: str) -> np.ndarray:
-    """Derivative of a data-derived formula input with respect to each measured partition."""
-    points, step = fit.points, 1e-6
-    moved = np.repeat(points.partition_fine[None, :], 2 * points.n, axis=0)  # each point up, then down
+#: Step of a measured partition in the derivative of a data-derived input (:func:`_input_by_point`).
+INPUT_STEP = 1e-6
+
+
+def _input_by_point(fit: CurveFit, name: str, known: dict | None = None) -> np.ndarray:
+    """Derivative of a data-derived formula input with respect to each measured partition
+    (from ``known`` where :func:`_inputs_by_point` put it)."""
+    found = known.get(_input_key(fit, name)) if known else None
+    if found is not None:
+        return found
+    points = fit.points
+    inputs = formula_contexts(fit.formula, points.size, _moved_partitions(points))[name]
+    return (inputs[0::2] - inputs[1::2]) / (2 * INPUT_STEP)
+
+
+def _moved_partitions(points) -> np.ndarray:
+    """``(2 n, n)``: the measured partitions with each point moved up, then down, by :data:`INPUT_STEP`."""
+    moved = np.repeat(points.partition_fine[None, :], 2 * points.n, axis=0)
     each = np.arange(points.n)
-    moved[2 * each, each] += step
-    moved[2 * each + 1, each] -= step
-    inputs = formula_contexts(fit.formula, points.size, moved)[name]
-    return (inputs[0::2] - inputs[1::2]) / (2 * step)
+    moved[2 * each, each] += INPUT_STEP
+    moved[2 * each + 1, each] -= INPUT_STEP
+    return moved
+
+
+def _input_key(fit: CurveFit, name: str) -> tuple:
+    points = fit.points
+    return ("input", name, fit.formula.id, points.experiment, points.size.tobytes(), points.partition_fine.tobytes())
+
+
+def _inputs_by_point(fits: Sequence[CurveFit], known: dict) -> None:
+    """:func:`_input_by_point` of every data-derived input of ``fits`` into ``known``: the
+    moved partitions of all experiments with the same number of points in one call of
+    :func:`~tromplab.curves.measured.formula_contexts` per formula (row by row the same sums)."""
+    groups: dict[tuple, list[CurveFit]] = {}
+    for fit in fits:
+        if fit.context:
+            groups.setdefault((fit.formula.id, fit.points.n), []).append(fit)
+    for (_, n), members in groups.items():
+        size = np.repeat(np.array([fit.points.size for fit in members]), 2 * n, axis=0)
+        moved = np.concatenate([_moved_partitions(fit.points) for fit in members])
+        contexts = formula_contexts(members[0].formula, size, moved)
+        for name, inputs in contexts.items():
+            derivative = (inputs[0::2] - inputs[1::2]) / (2 * INPUT_STEP)
+            for fit, each in zip(members, derivative.reshape(len(members), n)):
+                known[_input_key(fit, name)] = each
 
 
 def interval_table(

@@ -64,12 +64,26 @@ def check_screenable(n: int, *, n_params: int = 2) -> None:
         )
 
 
-def fisher_screen(observed, ssr: float, *, alpha: float = DEFAULT_ALPHA, n_params: int = 2, weights=None) -> FisherScreen:
+def observed_variance(observed, weights=None) -> float:
+    """``S0^2`` of :func:`fisher_screen`: the (weighted) variance of the measured partition
+    numbers about their (weighted) mean, ``n - 1`` degrees of freedom."""
+    observed = np.asarray(observed, dtype=float)
+    if weights is None:
+        return float(np.var(observed, ddof=1))
+    weights = np.asarray(weights, dtype=float)
+    mean = np.average(observed, weights=weights)
+    return float(np.sum(weights * (observed - mean) ** 2) / (observed.size - 1))
+
+
+def fisher_screen(
+    observed, ssr: float, *, alpha: float = DEFAULT_ALPHA, n_params: int = 2, weights=None, s0_sq: float | None = None
+) -> FisherScreen:
     """Screen a fit with sum of squared residuals ``ssr`` to the ``observed`` values.
 
     With ``weights`` (scaled to mean 1, as the fit uses them) ``ssr`` is the weighted sum
     of squares and ``S0^2`` the weighted variance about the weighted mean, so that both
-    variances of the ratio are on the same scale.
+    variances of the ratio are on the same scale.  ``s0_sq`` is that variance when the
+    caller has it (:func:`observed_variance`; the formulas fitted to one experiment share it).
 
     Examples
     --------
@@ -80,12 +94,8 @@ def fisher_screen(observed, ssr: float, *, alpha: float = DEFAULT_ALPHA, n_param
     observed = np.asarray(observed, dtype=float)
     n = observed.size
     f_crit = critical_f(n, alpha=alpha, n_params=n_params)
-    if weights is None:
-        s0_sq = float(np.var(observed, ddof=1))
-    else:
-        weights = np.asarray(weights, dtype=float)
-        mean = np.average(observed, weights=weights)
-        s0_sq = float(np.sum(weights * (observed - mean) ** 2) / (n - 1))
+    if s0_sq is None:
+        s0_sq = observed_variance(observed, weights)
     s_res_sq = float(ssr) / (n - n_params)
     if s0_sq == 0:
         f_value = np.nan  # flat data: 0/0, neither adequate nor rankable

@@ -34,7 +34,8 @@ from .worker import ChunkOptions, FittedChunk, work_on_chunk
 logger = logging.getLogger(__package__)
 
 #: Experiments per unit of work: at least ``CHUNK_SIZE`` (progress, and balance over the
-#: workers), at most ``MAX_CHUNK_SIZE`` (memory), in between two units per worker.  The
+#: workers), at most ``MAX_CHUNK_SIZE`` (memory), in between two units per worker (one
+#: worker: as few units as ``MAX_CHUNK_SIZE`` allows, as there is nothing to balance).  The
 #: numbers do not depend on the cut: every chunk is padded to the widest experiment of the
 #: batch (:class:`~tromplab.curves.batched.PaddedPoints`), and the fits of one experiment
 #: use its own rows only.  Large units matter: the engine's cost per call is mostly
@@ -48,9 +49,10 @@ MAX_CHUNK_SIZE = 1024
 
 def chunked(items: Sequence, *, workers: int) -> list:
     """``items`` cut into consecutive units of work for ``workers`` (see :data:`CHUNK_SIZE`):
-    at least two per worker, as many for each worker (units of at most :data:`MAX_CHUNK_SIZE`
-    of equal size, so that no worker is left with a short last unit while another works on a
-    full one: 10,000 experiments on 2 workers are 10 units of 1,000, not 9 of 1,024 and one of 784)."""
+    at least two per worker where there are several, as many for each worker (units of at
+    most :data:`MAX_CHUNK_SIZE` of equal size, so that no worker is left with a short last
+    unit while another works on a full one: 10,000 experiments on 2 workers are 10 units of
+    1,000, not 9 of 1,024 and one of 784)."""
     size = chunk_size(len(items), workers=workers)
     return [items[i : i + size] for i in range(0, len(items), size)]
 
@@ -58,7 +60,7 @@ def chunked(items: Sequence, *, workers: int) -> list:
 def chunk_size(count: int, *, workers: int) -> int:
     """The experiments per unit of work of :func:`chunked` for ``count`` experiments."""
     workers = max(workers, 1)
-    units = max(math.ceil(count / MAX_CHUNK_SIZE), 2 * workers)
+    units = max(math.ceil(count / MAX_CHUNK_SIZE), 2 * workers if workers > 1 else 1)  # one worker: nothing to balance
     units = math.ceil(units / workers) * workers
     return min(MAX_CHUNK_SIZE, max(CHUNK_SIZE, math.ceil(count / units)))
 

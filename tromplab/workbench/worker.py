@@ -12,10 +12,20 @@ from typing import NamedTuple
 
 import pandas as pd
 
-from ..curves.curve_fit import CurveFit, as_failure_if_implausible, attach_diagnostics, attach_indices, failed_fit, fit_formula
+from ..curves.curve_fit import (
+    CurveFit,
+    FitOptions,
+    as_failure_if_implausible,
+    attach_diagnostics,
+    attach_indices,
+    attach_screens,
+    failed_fit,
+    fit_formula,
+)
 from ..curves.engine import fit_formula_batch, measured_start
 from ..curves.formulas import is_batchable, select_formulas
 from ..curves.measured import unbracketed_cut
+from ..curves.screening import DEFAULT_ALPHA
 from ..loading.points import TrompPoints
 from ..loading.surveys import with_survey_columns
 from ..output.csv_parts import CsvPart, csv_part
@@ -121,12 +131,20 @@ def fit_chunk(
     """
     per_formula = []
     measured = [measured_start(points) for points in experiments] if engine else None  # shared by the formulas
+    shared = _shared_options(experiments, alpha, delta_max, size_unit) if engine else None
     for formula in select_formulas(formulas):
         batch = None
         if engine and is_batchable(formula):
             try:
                 batch = fit_formula_batch(
-                    experiments, formula, alpha=alpha, delta_max=delta_max, size_unit=size_unit, width=width, measured=measured
+                    experiments,
+                    formula,
+                    alpha=alpha,
+                    delta_max=delta_max,
+                    size_unit=size_unit,
+                    width=width,
+                    measured=measured,
+                    options=shared,
                 )
             except Exception as error:  # a broken batch falls back to single fits, which report per fit
                 logger.warning(
@@ -141,6 +159,7 @@ def fit_chunk(
     attach_indices(fits)
     fits = [as_failure_if_implausible(fit) for fit in fits]  # a result out of its range is a failure
     attach_diagnostics(fits)
+    attach_screens(fits)
     reasons = {}  # unbracketed is a property of the points, which the formulas of an experiment share
     for fit in fits:
         if id(fit.points) not in reasons:
@@ -149,6 +168,20 @@ def fit_chunk(
     for fit in fits:
         derive(fit)
     return fits
+
+
+def _shared_options(experiments, alpha, delta_max, size_unit) -> list[FitOptions] | None:
+    """Each experiment's :class:`FitOptions`, made once for all its formulas; None where one
+    cannot be made (each formula's batch then meets the error, and reports it per fit)."""
+    try:
+        return [
+            FitOptions.for_points(
+                points, alpha=DEFAULT_ALPHA if alpha is None else alpha, delta_max=delta_max, size_unit=size_unit
+            )
+            for points in experiments
+        ]
+    except ValueError:
+        return None
 
 
 def derive(fit: CurveFit) -> CurveFit:

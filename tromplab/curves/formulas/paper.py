@@ -428,9 +428,13 @@ def rosin_rammler_plateau(x, kr, x_break):
 
 
 def _plateau_efficiency(kr, x_max, x_break):
+    return _plateau_eta(kr, x_break), _rosin_rammler_area(1.0, np.maximum(x_max, 1.0), kr)
+
+
+def _plateau_eta(kr, x_break):
+    """eta of the plateau form: the plateau's rectangle and the Rosin-Rammler area from the break to 1."""
     plateau = x_break * rosin_rammler(x_break, kr)
-    eta = plateau + _rosin_rammler_area(x_break, 1.0, kr)
-    return eta[()], _rosin_rammler_area(1.0, np.maximum(x_max, 1.0), kr)
+    return (plateau + _rosin_rammler_area(x_break, 1.0, kr))[()]
 
 
 LUCKIE_AUSTIN_BREAK = 0.5
@@ -490,12 +494,12 @@ def shuvalov_break(kr: float, measured_efficiency: float) -> float:
     NoBreakPointError
         When ``measured_efficiency`` is outside ``[0.5, eta_5(kr)]``.
     """
-    eta_plain, _ = _rosin_rammler_efficiency(kr, 1.0)
+    eta_plain = _rosin_rammler_area(0.0, 1.0, kr)  # eta of the plain form (5)
     if not 0.5 <= measured_efficiency <= eta_plain:
         raise NoBreakPointError(kr, measured_efficiency, eta_plain)
     if measured_efficiency == eta_plain:
         return 0.0
-    return scipy.optimize.brentq(lambda xa: _plateau_efficiency(kr, 1.0, xa)[0] - measured_efficiency, 0.0, 1.0, xtol=1e-14)
+    return scipy.optimize.brentq(lambda xa: _plateau_eta(kr, xa) - measured_efficiency, 0.0, 1.0, xtol=1e-14)
 
 
 class NoBreakPointError(ValueError):
