@@ -166,15 +166,21 @@ class TreeMemory:
         return False
 
 
-def child_run(points, outdir, workers, scheduler):
-    """In a fresh process: the whole ``fit`` command on ``points`` into ``outdir``; prints JSON
-    with the main process's steps and CPU time and the workers' CPU time."""
+def child_run(points, outdir, workers, scheduler, reading="pieces"):
+    """In a fresh process: the whole ``fit`` command on ``points`` into ``outdir``, the file
+    read in pieces (``reading`` ``"pieces"``, as ``tromplab fit`` reads a CSV of 1 MiB or more
+    whose results stream) or whole (``"whole"``, what a caller holding the experiments does);
+    prints JSON with the main process's steps and CPU time and the workers' CPU time."""
     from tromplab.loading.lab import read_experiments
-    from tromplab.workbench import fit_to_folder
+    from tromplab.workbench import ExperimentsInPieces, fit_to_folder
 
     main_before, workers_before = _cpu_seconds(resource.RUSAGE_SELF), _cpu_seconds(resource.RUSAGE_CHILDREN)
     started = time.perf_counter()
-    data = read_experiments(points)
+    if reading == "pieces":  # as the command line does: the census checks every row before anything is fitted
+        data = ExperimentsInPieces(points)
+        data.census()
+    else:
+        data = read_experiments(points)
     read = time.perf_counter() - started
     bench, _ = fit_to_folder(data, outdir, jobs=workers, scheduler=scheduler, source=points)
     seconds = time.perf_counter() - started
@@ -194,12 +200,12 @@ def child_run(points, outdir, workers, scheduler):
     )
 
 
-def run_fit(points: Path, outdir: Path, mode: str, cluster=None) -> dict:
+def run_fit(points: Path, outdir: Path, mode: str, cluster=None, reading: str = "pieces") -> dict:
     """The whole command in a fresh process, its process tree's peak memory sampled (with the
     Dask ``cluster``'s processes, whose memory is part of the run's)."""
     workers = 1 if mode == "1 worker" else 2
     scheduler = cluster.address if mode.startswith("dask") else ""
-    command = [sys.executable, __file__, "--child", str(points), str(outdir), str(workers), scheduler]
+    command = [sys.executable, __file__, "--child", str(points), str(outdir), str(workers), scheduler, reading]
     started = time.perf_counter()
     process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     with TreeMemory([process.pid, *(cluster.pids if scheduler else [])]) as memory:
@@ -282,7 +288,7 @@ def run_bare(n, limit):
     return seconds, pd.DataFrame(rows)
 
 
-def measure_size(n, modes, folder: Path, cluster, bare_limit) -> list[dict]:
+def measure_size(n, modes, folder: Path, cluster, bare_limit, reading: str = "pieces") -> list[dict]:
     """One row per mode for ``n`` experiments: the run's numbers, bare lmfit's and whether the
     results folder is the first mode's, file for file."""
     points = folder / f"points_{n}.csv"
@@ -292,8 +298,8 @@ def measure_size(n, modes, folder: Path, cluster, bare_limit) -> list[dict]:
     rows, first = [], None
     for mode in modes:
         out = folder / f"out_{n}_{mode.replace(' ', '_').replace(',', '')}"
-        measured = run_fit(points, out, mode, cluster)
-        row = {"experiments": n, "mode": mode, **measured, "bare_lmfit_s": bare_seconds}
+        measured = run_fit(points, out, mode, cluster, reading)
+        row = {"experiments": n, "mode": mode, "input": reading, **measured, "bare_lmfit_s": bare_seconds}
         row["s_per_1000_experiments"] = 1000 * measured["seconds"] / n
         row["against_bare_lmfit"] = measured["seconds"] / bare_seconds
         if first is None:
@@ -424,11 +430,18 @@ def main(argv=None):
     )
     parser.add_argument("--acceptance", action="store_true", help="check the targets: PASS or FAIL with the numbers")
     parser.add_argument("--output", type=Path, default=HERE / "output" / "scaling.csv")
-    parser.add_argument("--child", nargs=4, help=argparse.SUPPRESS)
+    parser.add_argument(
+        "--input",
+        choices=("pieces", "whole"),
+        default="pieces",
+        help="read the points file in pieces, as tromplab fit reads a CSV of 1 MiB or more (default), or whole, "
+        "as a Python caller holding the experiments gives them",
+    )
+    parser.add_argument("--child", nargs=5, help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.child:
-        points, outdir, workers, scheduler = args.child
-        return child_run(points, outdir, int(workers), scheduler or None)
+        points, outdir, workers, scheduler, reading = args.child
+        return child_run(points, outdir, int(workers), scheduler or None, reading)
     default = "10000,40000" if args.acceptance else "1000,4000,10000,40000,100000"
     sizes = [int(s) for s in (args.sizes or default).split(",")]
     modes = [
@@ -441,7 +454,7 @@ def main(argv=None):
         cluster = None if args.no_dask else stack.enter_context(DaskCluster(folder))
         for n in sizes:
             wanted = ["2 workers"] if args.acceptance and n == sizes[-1] else modes
-            rows += measure_size(n, wanted, folder, cluster, args.bare_limit)
+            rows += measure_size(n, wanted, folder, cluster, args.bare_limit, args.input)
     table = pd.DataFrame(rows).assign(extrapolated=False)
     extra = extrapolated(table)
     table = table if extra.empty else pd.concat([table, extra], ignore_index=True)

@@ -175,7 +175,7 @@ def test_chunks_typed_differently_are_joined_from_their_rows_into_the_whole_tabl
                 chunk_file("fits", number, "pkl"): pickle.dumps(frame),
             }
             layouts = {"fits": (part.columns, part.dtypes, part.rows, False)}
-            spool.keep(ChunkSummary(number, {}, 0, 0, [], layouts, None, pd.DataFrame(), None, files))
+            spool.keep(ChunkSummary(number, {}, 0, 0, [], layouts, None, None, None, files))
         spool.table_writer("fits")(tmp_path / "joined.csv")
         glued = tmp_path / "glued.csv"
         write_csv(pd.concat(chunks, ignore_index=True), glued)
