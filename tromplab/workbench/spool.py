@@ -276,10 +276,11 @@ class Spool:
         place, then equation, as :meth:`Workbench.ranking_table` sorts them; ``equations``:
         formula id -> equation), else, when a chunk's texts cannot be joined
         (:class:`ChunkRanks`), ``table()`` (that table) formatted whole."""
-        if ranks is None or not all(piece.joinable for piece in ranks.pieces):
-            if ranks is not None:
-                logger.info("an experiment's name cannot be joined as text: ranking.csv is formatted in memory")
+        if ranks is None:
             return lambda path: write_csv(table(), path)
+        in_memory = self._ranking_in_memory(table)
+        if not all(piece.joinable for piece in ranks.pieces):
+            return in_memory
         order = ranks.formulas()
         ends = pd.DataFrame({"formula": order, "points": ranks.points(order)})
         ends["place"] = stats.rankdata(ends["points"].to_numpy(), method="min").astype(int)
@@ -288,7 +289,7 @@ class Spool:
         starts = defended_frame(ends[["equation", "formula"]]).to_csv(index=False).split(os.linesep)[:-1]
         tails = defended_frame(ends[["points", "place"]]).to_csv(index=False).split(os.linesep)[:-1]
         if holds_carriage_return(ends) or len(starts) != len(ends) + 1:  # a line break in a cell
-            return lambda path: write_csv(table(), path)
+            return in_memory
 
         def write(path):
             with open(path, "wb") as file:
@@ -298,6 +299,14 @@ class Spool:
                         if summary.ranks is not None:
                             file.write(b"," + self._rank_cells(summary, formula))
                     file.write(f",{tail}{os.linesep}".encode())
+
+        return write
+
+    @staticmethod
+    def _ranking_in_memory(table):
+        def write(path):
+            logger.info("an experiment's or formula's name cannot be joined as text: ranking.csv is formatted in memory")
+            write_csv(table(), path)
 
         return write
 
