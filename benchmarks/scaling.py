@@ -11,6 +11,9 @@ the command line calls it) in a fresh process and measures:
 * the peak memory of the whole process tree: the resident sets of the main process, its
   worker processes and (for Dask) the scheduler and workers, summed and sampled every 50 ms
   (psutil where installed, else ``/proc``);
+* the main process's own peak resident set (``VmHWM``; after reading the input, and at the
+  end) and its growth per experiment (the slope of the straight line below, in KiB): what
+  must stay flat for a batch of any size;
 * where the main process's time goes (reading the file, preparing the chunks, waiting for
   the workers, keeping their summaries, joining them, writing the folder) and its CPU time
   against the workers': the serial part that keeps two workers from being twice as fast;
@@ -20,7 +23,9 @@ the command line calls it) in a fresh process and measures:
 * whether the results folders of one worker, two workers and Dask are identical.
 
 The time and the memory are extrapolated to 1,000,000 experiments by a straight line through
-the sizes from 10,000 up (``a + b n``).  Output: a CSV table and a figure (``--output``, its
+the sizes from 10,000 up (``a + b n``).  The input is read as ``tromplab fit`` reads a CSV of
+1 MiB or more whose results stream, in pieces (``--input whole``: read whole first, as a
+Python caller holding every experiment's points gives them).  Output: a CSV table and a figure (``--output``, its
 ``.png`` beside it).  ``--acceptance`` runs what the targets need (10,000 experiments on
 1 and 2 workers and on Dask, 40,000 on 2 workers) and prints PASS or FAIL with the numbers:
 40,000 experiments on two workers within 1 GiB for the whole tree and no slower per
@@ -98,6 +103,20 @@ def write_study_table(table: pd.DataFrame, output: Path, started: float, *, widt
 def _cpu_seconds(who):
     usage = resource.getrusage(who)
     return usage.ru_utime + usage.ru_stime
+
+
+def _peak_resident_mib() -> float:
+    """This process's peak resident set (MiB) since it started: ``VmHWM`` of ``/proc/self/status``
+    on Linux, which a fresh program starts anew; ``ru_maxrss`` elsewhere, which Linux carries
+    over an ``exec`` from the process that forked it (this benchmark's parent, which made the
+    points of every experiment: its peak, not the child's, would be reported)."""
+    try:
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith("VmHWM:"):
+                return int(line.split()[1]) / 1024
+    except OSError:
+        pass
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 
 
 def _tree_rss(roots) -> int:
@@ -182,6 +201,7 @@ def child_run(points, outdir, workers, scheduler, reading="pieces"):
     else:
         data = read_experiments(points)
     read = time.perf_counter() - started
+    peak_after_read = _peak_resident_mib()
     bench, _ = fit_to_folder(data, outdir, jobs=workers, scheduler=scheduler, source=points)
     seconds = time.perf_counter() - started
     steps = {"read": read, **(bench._spooled.seconds if bench._spooled is not None else {})}
@@ -192,7 +212,8 @@ def child_run(points, outdir, workers, scheduler, reading="pieces"):
                 "streamed": bench._spooled is not None,
                 "main_cpu_s": _cpu_seconds(resource.RUSAGE_SELF) - main_before,
                 "workers_cpu_s": _cpu_seconds(resource.RUSAGE_CHILDREN) - workers_before,
-                "peak_main_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+                "peak_main_mib": _peak_resident_mib(),
+                "peak_main_after_read_mib": peak_after_read,
                 "peak_one_worker_mib": resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024,
                 **{f"main: {step}": steps.get(step, float("nan")) for step in STEPS},
             }
@@ -347,9 +368,11 @@ def extrapolated(table: pd.DataFrame, target: int = 1_000_000) -> pd.DataFrame:
             continue
         n = group["experiments"].to_numpy(dtype=float)
         row = {"experiments": target, "mode": mode, "extrapolated": True}
-        for column in ("seconds", "peak_tree_mib"):
+        for column in ("seconds", "peak_tree_mib", "peak_main_mib"):
             slope, intercept = np.polyfit(n, group[column].to_numpy(dtype=float), 1)
             row[column] = intercept + slope * target
+            if column == "peak_main_mib":
+                row["main_growth_kib_per_experiment"] = slope * 1024
         row["s_per_1000_experiments"] = 1000 * row["seconds"] / target
         rows.append(row)
     return pd.DataFrame(rows)
@@ -459,7 +482,8 @@ def main(argv=None):
     extra = extrapolated(table)
     table = table if extra.empty else pd.concat([table, extra], ignore_index=True)
     save_and_show(table, args.output, load_before)
-    columns = ["experiments", "mode", "seconds", "s_per_1000_experiments", "peak_tree_mib", "peak_main_mib", "against_bare_lmfit",
+    columns = ["experiments", "mode", "seconds", "s_per_1000_experiments", "peak_tree_mib", "peak_main_mib", "peak_main_after_read_mib",
+               "main_growth_kib_per_experiment", "against_bare_lmfit",
                "speedup_1_to_2_workers", "main_cpu_s", "workers_cpu_s", *[f"main: {s}" for s in STEPS]]  # fmt: skip
     with pd.option_context("display.width", 250, "display.max_columns", 30):
         print(table[[c for c in columns if c in table.columns]].to_string(index=False, float_format=lambda v: f"{v:.3g}"))
