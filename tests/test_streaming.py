@@ -536,3 +536,25 @@ def test_a_streamed_batch_of_odd_names_in_many_chunks_writes_the_in_memory_folde
     assert "overview.png" in written
     assert _same_folders(tmp_path / "memory", tmp_path / "streamed") == []
     pd.testing.assert_frame_equal(streamed.ranking_table(), kept.ranking_table())
+
+
+def test_a_streamed_run_writes_its_folder_without_making_the_ranking_table(tmp_path, monkeypatch):
+    """The table with a column per experiment is what grew with the batch in the main process:
+    a streamed run writes ``ranking.csv`` without it (made only when ``ranking_table`` is asked
+    for), and draws the overview from the values kept per chunk."""
+    from tromplab.workbench.spool import BatchRanks
+
+    data = _batch()
+    fit_to_folder(data, tmp_path / "memory", stream=False, formulas=FORMULAS, jobs=1)
+    made = BatchRanks.frame
+
+    def refused(self):
+        raise AssertionError("the ranking table was made")
+
+    monkeypatch.setattr(BatchRanks, "frame", refused)
+    streamed, written = fit_to_folder(data, tmp_path / "streamed", stream=True, formulas=FORMULAS, jobs=1)
+    assert "overview.png" in written
+    assert _same_folders(tmp_path / "memory", tmp_path / "streamed") == []
+    monkeypatch.setattr(BatchRanks, "frame", made)
+    ranking = streamed.ranking_table()
+    assert ranking.shape == (3, 2 + 70 + 2)  # equation, formula, the 70 fitted experiments, points, place

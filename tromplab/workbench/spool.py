@@ -332,8 +332,8 @@ class Spool:
         first = np.cumsum([0, *(len(top.formulas) for top in tops)])
         codes = np.concatenate([np.zeros(0, dtype=np.int64), *(top.codes + base for top, base in zip(tops, first))])
         values = np.concatenate([np.zeros((0, 3)), *(top.values for top in tops)])
-        rows = pd.DataFrame({"experiment": np.arange(len(codes)), "formula": formulas[codes], "rank": 1.0})
-        return rows.assign(**{column: values[:, i] for i, column in enumerate(OVERVIEW_COLUMNS[3:])})
+        columns = {"experiment": np.arange(len(codes)), "formula": formulas[codes], "rank": np.ones(len(codes))}
+        return pd.DataFrame({**columns, **{column: values[:, i] for i, column in enumerate(OVERVIEW_COLUMNS[3:])}})
 
     def head(self) -> tuple[pd.DataFrame, pd.DataFrame] | None:
         """The completed rows and the ``fits.csv`` rows of the console's experiments."""
