@@ -11,6 +11,9 @@ the command line calls it) in a fresh process and measures:
 * the peak memory of the whole process tree: the resident sets of the main process, its
   worker processes and (for Dask) the scheduler and workers, summed and sampled every 50 ms
   (psutil where installed, else ``/proc``);
+* the main process's own peak resident set (``VmHWM``; after reading the input, and at the
+  end) and its growth per experiment (the slope of the straight line below, in KiB): what
+  must stay flat for a batch of any size;
 * where the main process's time goes (reading the file, preparing the chunks, waiting for
   the workers, keeping their summaries, joining them, writing the folder) and its CPU time
   against the workers': the serial part that keeps two workers from being twice as fast;
@@ -20,7 +23,9 @@ the command line calls it) in a fresh process and measures:
 * whether the results folders of one worker, two workers and Dask are identical.
 
 The time and the memory are extrapolated to 1,000,000 experiments by a straight line through
-the sizes from 10,000 up (``a + b n``).  Output: a CSV table and a figure (``--output``, its
+the sizes from 10,000 up (``a + b n``).  The input is read as ``tromplab fit`` reads a CSV of
+1 MiB or more whose results stream, in pieces (``--input whole``: read whole first, as a
+Python caller holding every experiment's points gives them).  Output: a CSV table and a figure (``--output``, its
 ``.png`` beside it).  ``--acceptance`` runs what the targets need (10,000 experiments on
 1 and 2 workers and on Dask, 40,000 on 2 workers) and prints PASS or FAIL with the numbers:
 40,000 experiments on two workers within 1 GiB for the whole tree and no slower per
@@ -100,6 +105,20 @@ def _cpu_seconds(who):
     return usage.ru_utime + usage.ru_stime
 
 
+def _peak_resident_mib() -> float:
+    """This process's peak resident set (MiB) since it started: ``VmHWM`` of ``/proc/self/status``
+    on Linux, which a fresh program starts anew; ``ru_maxrss`` elsewhere, which Linux carries
+    over an ``exec`` from the process that forked it (this benchmark's parent, which made the
+    points of every experiment: its peak, not the child's, would be reported)."""
+    try:
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith("VmHWM:"):
+                return int(line.split()[1]) / 1024
+    except OSError:
+        pass
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+
 def _tree_rss(roots) -> int:
     """Bytes resident in the processes ``roots`` (pids) and all their descendants."""
     try:
@@ -166,16 +185,23 @@ class TreeMemory:
         return False
 
 
-def child_run(points, outdir, workers, scheduler):
-    """In a fresh process: the whole ``fit`` command on ``points`` into ``outdir``; prints JSON
-    with the main process's steps and CPU time and the workers' CPU time."""
+def child_run(points, outdir, workers, scheduler, reading="pieces"):
+    """In a fresh process: the whole ``fit`` command on ``points`` into ``outdir``, the file
+    read in pieces (``reading`` ``"pieces"``, as ``tromplab fit`` reads a CSV of 1 MiB or more
+    whose results stream) or whole (``"whole"``, what a caller holding the experiments does);
+    prints JSON with the main process's steps and CPU time and the workers' CPU time."""
     from tromplab.loading.lab import read_experiments
-    from tromplab.workbench import fit_to_folder
+    from tromplab.workbench import ExperimentsInPieces, fit_to_folder
 
     main_before, workers_before = _cpu_seconds(resource.RUSAGE_SELF), _cpu_seconds(resource.RUSAGE_CHILDREN)
     started = time.perf_counter()
-    data = read_experiments(points)
+    if reading == "pieces":  # as the command line does: the census checks every row before anything is fitted
+        data = ExperimentsInPieces(points)
+        data.census()
+    else:
+        data = read_experiments(points)
     read = time.perf_counter() - started
+    peak_after_read = _peak_resident_mib()
     bench, _ = fit_to_folder(data, outdir, jobs=workers, scheduler=scheduler, source=points)
     seconds = time.perf_counter() - started
     steps = {"read": read, **(bench._spooled.seconds if bench._spooled is not None else {})}
@@ -186,7 +212,8 @@ def child_run(points, outdir, workers, scheduler):
                 "streamed": bench._spooled is not None,
                 "main_cpu_s": _cpu_seconds(resource.RUSAGE_SELF) - main_before,
                 "workers_cpu_s": _cpu_seconds(resource.RUSAGE_CHILDREN) - workers_before,
-                "peak_main_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+                "peak_main_mib": _peak_resident_mib(),
+                "peak_main_after_read_mib": peak_after_read,
                 "peak_one_worker_mib": resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024,
                 **{f"main: {step}": steps.get(step, float("nan")) for step in STEPS},
             }
@@ -194,12 +221,12 @@ def child_run(points, outdir, workers, scheduler):
     )
 
 
-def run_fit(points: Path, outdir: Path, mode: str, cluster=None) -> dict:
+def run_fit(points: Path, outdir: Path, mode: str, cluster=None, reading: str = "pieces") -> dict:
     """The whole command in a fresh process, its process tree's peak memory sampled (with the
     Dask ``cluster``'s processes, whose memory is part of the run's)."""
     workers = 1 if mode == "1 worker" else 2
     scheduler = cluster.address if mode.startswith("dask") else ""
-    command = [sys.executable, __file__, "--child", str(points), str(outdir), str(workers), scheduler]
+    command = [sys.executable, __file__, "--child", str(points), str(outdir), str(workers), scheduler, reading]
     started = time.perf_counter()
     process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     with TreeMemory([process.pid, *(cluster.pids if scheduler else [])]) as memory:
@@ -300,7 +327,7 @@ def run_bare(n, limit):
     return seconds, pd.DataFrame(rows)
 
 
-def measure_size(n, modes, folder: Path, cluster, bare_limit) -> list[dict]:
+def measure_size(n, modes, folder: Path, cluster, bare_limit, reading: str = "pieces") -> list[dict]:
     """One row per mode for ``n`` experiments: the run's numbers, bare lmfit's and whether the
     results folder is the first mode's, file for file."""
     points = folder / f"points_{n}.csv"
@@ -310,8 +337,8 @@ def measure_size(n, modes, folder: Path, cluster, bare_limit) -> list[dict]:
     rows, first = [], None
     for mode in modes:
         out = folder / f"out_{n}_{mode.replace(' ', '_').replace(',', '')}"
-        measured = run_fit(points, out, mode, cluster)
-        row = {"experiments": n, "mode": mode, **measured, "bare_lmfit_s": bare_seconds}
+        measured = run_fit(points, out, mode, cluster, reading)
+        row = {"experiments": n, "mode": mode, "input": reading, **measured, "bare_lmfit_s": bare_seconds}
         row["s_per_1000_experiments"] = 1000 * measured["seconds"] / n
         row["against_bare_lmfit"] = measured["seconds"] / bare_seconds
         if first is None:
@@ -359,9 +386,11 @@ def extrapolated(table: pd.DataFrame, target: int = 1_000_000) -> pd.DataFrame:
             continue
         n = group["experiments"].to_numpy(dtype=float)
         row = {"experiments": target, "mode": mode, "extrapolated": True}
-        for column in ("seconds", "peak_tree_mib"):
+        for column in ("seconds", "peak_tree_mib", "peak_main_mib"):
             slope, intercept = np.polyfit(n, group[column].to_numpy(dtype=float), 1)
             row[column] = intercept + slope * target
+            if column == "peak_main_mib":
+                row["main_growth_kib_per_experiment"] = slope * 1024
         row["s_per_1000_experiments"] = 1000 * row["seconds"] / target
         rows.append(row)
     return pd.DataFrame(rows)
@@ -442,11 +471,18 @@ def main(argv=None):
     )
     parser.add_argument("--acceptance", action="store_true", help="check the targets: PASS or FAIL with the numbers")
     parser.add_argument("--output", type=Path, default=HERE / "output" / "scaling.csv")
-    parser.add_argument("--child", nargs=4, help=argparse.SUPPRESS)
+    parser.add_argument(
+        "--input",
+        choices=("pieces", "whole"),
+        default="pieces",
+        help="read the points file in pieces, as tromplab fit reads a CSV of 1 MiB or more (default), or whole, "
+        "as a Python caller holding the experiments gives them",
+    )
+    parser.add_argument("--child", nargs=5, help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.child:
-        points, outdir, workers, scheduler = args.child
-        return child_run(points, outdir, int(workers), scheduler or None)
+        points, outdir, workers, scheduler, reading = args.child
+        return child_run(points, outdir, int(workers), scheduler or None, reading)
     default = "10000,40000" if args.acceptance else "1000,4000,10000,40000,100000"
     sizes = [int(s) for s in (args.sizes or default).split(",")]
     modes = [
@@ -459,12 +495,13 @@ def main(argv=None):
         cluster = None if args.no_dask else stack.enter_context(DaskCluster(folder))
         for n in sizes:
             wanted = ["2 workers"] if args.acceptance and n == sizes[-1] else modes
-            rows += measure_size(n, wanted, folder, cluster, args.bare_limit)
+            rows += measure_size(n, wanted, folder, cluster, args.bare_limit, args.input)
     table = pd.DataFrame(rows).assign(extrapolated=False)
     extra = extrapolated(table)
     table = table if extra.empty else pd.concat([table, extra], ignore_index=True)
     save_and_show(table, args.output, load_before)
-    columns = ["experiments", "mode", "seconds", "s_per_1000_experiments", "peak_tree_mib", "peak_main_mib", "against_bare_lmfit",
+    columns = ["experiments", "mode", "seconds", "s_per_1000_experiments", "peak_tree_mib", "peak_main_mib", "peak_main_after_read_mib",
+               "main_growth_kib_per_experiment", "against_bare_lmfit",
                "speedup_1_to_2_workers", "main_cpu_s", "workers_cpu_s", *[f"main: {s}" for s in STEPS]]  # fmt: skip
     with pd.option_context("display.width", 250, "display.max_columns", 30):
         print(table[[c for c in columns if c in table.columns]].to_string(index=False, float_format=lambda v: f"{v:.3g}"))

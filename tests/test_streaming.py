@@ -182,7 +182,7 @@ def test_chunks_typed_differently_are_joined_from_their_rows_into_the_whole_tabl
                 chunk_file("fits", number, "pkl"): pickle.dumps(frame),
             }
             layouts = {"fits": (part.columns, part.dtypes, part.rows, False)}
-            spool.keep(ChunkSummary(number, {}, 0, 0, [], layouts, None, pd.DataFrame(), None, files))
+            spool.keep(ChunkSummary(number, {}, 0, 0, [], layouts, None, None, None, files))
         spool.table_writer("fits")(tmp_path / "joined.csv")
         glued = tmp_path / "glued.csv"
         write_csv(pd.concat(chunks, ignore_index=True), glued)
@@ -439,3 +439,129 @@ def test_the_command_line_reads_in_pieces_only_a_large_csv_whose_results_can_str
     assert fit_command.reads_in_pieces(args) is expected
     monkeypatch.setattr(fit_command, "IN_PIECES_FROM_BYTES", 65)  # below the size: read whole
     assert fit_command.reads_in_pieces(args) is False
+
+
+def _ranking_joined_and_whole(tmp_path, chunks, equations, caplog) -> tuple[str, str, bool]:
+    """``ranking.csv`` joined from the rank files of ``chunks`` (tidy tables of per-experiment
+    scores, one per chunk) by :meth:`Spool.ranking_writer`, the same table ranked whole and
+    written by ``write_csv`` as ``Workbench.ranking_table`` orders it, and whether the join
+    fell back to the table in memory."""
+    import logging
+
+    from tromplab.curves.ranking import rank_formulas
+    from tromplab.output.csv_parts import write_csv
+    from tromplab.workbench.spool import ChunkSummary, Spool, chunk_file, chunk_ranks
+
+    whole = rank_formulas(pd.concat(chunks, ignore_index=True), key="formula")
+    table = whole.copy()
+    table.insert(0, "equation", table["formula"].map(equations))
+    table = table.sort_values(["place", "equation"]).reset_index(drop=True)
+    write_csv(table, tmp_path / "whole.csv")
+    caplog.clear()
+    with caplog.at_level(logging.INFO, logger="tromplab.workbench"), Spool(tmp_path / "out") as spool:
+        start = 0
+        for number, tidy in enumerate(chunks):
+            names = list(dict.fromkeys(tidy["experiment"]))
+            ranks, content = chunk_ranks(rank_formulas(tidy, key="formula"), names, start)
+            (spool.scratch / chunk_file("ranking", number, "csv")).write_bytes(content)
+            spool.keep(ChunkSummary(number, {}, 0, 0, [], {}, ranks, None, None, {}))
+            start += len(names)
+        batch = spool.ranks([name for tidy in chunks for name in dict.fromkeys(tidy["experiment"])])
+        pd.testing.assert_frame_equal(batch.frame(), whole)  # the table Workbench.ranking_table starts from
+        spool.ranking_writer(batch, equations, lambda: table)(tmp_path / "joined.csv")
+    in_memory = any("formatted in memory" in record.getMessage() for record in caplog.records)
+    return (tmp_path / "joined.csv").read_bytes(), (tmp_path / "whole.csv").read_bytes(), in_memory
+
+
+def _scores(names, formulas=("a", "b", "c"), seed=0):
+    """A tidy table of F scores of ``formulas`` for each experiment of ``names`` (ties included)."""
+    rng = np.random.default_rng(seed)
+    rows = [
+        {"experiment": name, "formula": formula, "adequate": bool(rng.integers(2)), "F": float(rng.integers(1, 4))}
+        for name in names
+        for formula in formulas
+    ]
+    return pd.DataFrame(rows)
+
+
+ODD_NAMES = {
+    "plain": ["s1", "s2", "s3"],
+    "quotes and commas": ['a "quoted", name', "b,c", "d'e"],
+    "formula-like": ["=1+1", "-3", "+x", "@sum"],
+    "unicode and spaces": ["Zürich  2", " lead", "trail "],
+    "a line break": ["first\nsecond", "third"],
+    "numbers": ["1", "2.50", "1e3"],
+}
+
+
+@pytest.mark.parametrize("names", list(ODD_NAMES))
+def test_ranking_csv_joined_from_the_chunks_is_the_whole_table_s_text(tmp_path, caplog, names):
+    """One, two and many chunks (a chunk of one experiment among them), odd experiment names
+    and a formula that one chunk ranked no fit of (its cells there are empty)."""
+    chosen = ODD_NAMES[names]
+    equations = {"a": "(1)", "b": "(2), shifted", "c": '"Plitt"'}
+    many = [_scores([f"{name} {i}" for name in chosen], seed=i) for i in range(4)]
+    many[2] = many[2][many[2]["formula"] != "b"]  # no fit of b ranked in that chunk
+    many.append(_scores([f"{chosen[0]} last"], seed=9).assign(F=[2.0, np.nan, 1.0]).dropna())  # one experiment, b unranked
+    for chunks in ([many[0]], many[:2], many):
+        joined, whole, in_memory = _ranking_joined_and_whole(tmp_path, chunks, equations, caplog)
+        assert joined == whole
+        assert not in_memory  # joined from the files, not formatted whole
+    line_b = joined[joined.index(b",b,") :].split(os.linesep.encode())[0]
+    assert b",," in line_b  # the empty cells of the chunks that ranked no fit of b
+
+
+def test_ranking_csv_with_a_carriage_return_in_a_name_is_formatted_in_memory_with_the_same_text(tmp_path, caplog):
+    """A carriage return in a cell makes ``write_csv`` quote every text, which the chunks' texts
+    cannot know: the table is formatted whole (the fallback), with the same bytes."""
+    chunks = [_scores(["s1", "carriage\rreturn"]), _scores(["s3", "s4"], seed=1)]
+    joined, whole, in_memory = _ranking_joined_and_whole(tmp_path, chunks, {"a": "(1)", "b": "(2)", "c": "(3)"}, caplog)
+    assert joined == whole and in_memory
+    assert b'"s1"' in whole  # every text quoted
+
+
+@pytest.mark.parametrize("gather", [False, True])
+def test_a_streamed_batch_of_odd_names_in_many_chunks_writes_the_in_memory_folder(tmp_path, monkeypatch, caplog, gather):
+    """Chunks of 8 experiments on two workers (and the gather mode of a Dask cluster whose
+    workers cannot see the folder), experiments named with commas, quotes, formula marks and a
+    line break, two the screen cannot judge: the folder is the in-memory path's, ranking.csv
+    joined from the chunks' files."""
+    import logging
+
+    monkeypatch.setattr(fanout_module, "MAX_CHUNK_SIZE", 8)
+    monkeypatch.setattr(fanout_module, "CHUNK_SIZE", 8)
+    odd = ['a "quoted", name', "=1+1", "-3", "Zürich", "line\nbreak", "b,c"]
+    data = [p if i >= len(odd) else TrompPoints(odd[i], p.size, p.partition_fine) for i, p in enumerate(_batch(40))]
+    options = {"formulas": FORMULAS, "jobs": 2}
+    kept, _ = fit_to_folder(data, tmp_path / "memory", stream=False, **options)
+    if gather:
+        monkeypatch.setattr(stream_module, "_workers_see", lambda cluster, folder: False)
+    with caplog.at_level(logging.INFO, logger="tromplab.workbench"):
+        streamed, written = fit_to_folder(data, tmp_path / "streamed", stream=True, **options)
+    assert len(streamed._spooled.ranks.pieces) == 5  # 40 fitted experiments in chunks of 8
+    assert not any("in memory" in record.getMessage() for record in caplog.records)
+    assert "overview.png" in written
+    assert _same_folders(tmp_path / "memory", tmp_path / "streamed") == []
+    pd.testing.assert_frame_equal(streamed.ranking_table(), kept.ranking_table())
+
+
+def test_a_streamed_run_writes_its_folder_without_making_the_ranking_table(tmp_path, monkeypatch):
+    """The table with a column per experiment is what grew with the batch in the main process:
+    a streamed run writes ``ranking.csv`` without it (made only when ``ranking_table`` is asked
+    for), and draws the overview from the values kept per chunk."""
+    from tromplab.workbench.spool import BatchRanks
+
+    data = _batch()
+    fit_to_folder(data, tmp_path / "memory", stream=False, formulas=FORMULAS, jobs=1)
+    made = BatchRanks.frame
+
+    def refused(self):
+        raise AssertionError("the ranking table was made")
+
+    monkeypatch.setattr(BatchRanks, "frame", refused)
+    streamed, written = fit_to_folder(data, tmp_path / "streamed", stream=True, formulas=FORMULAS, jobs=1)
+    assert "overview.png" in written
+    assert _same_folders(tmp_path / "memory", tmp_path / "streamed") == []
+    monkeypatch.setattr(BatchRanks, "frame", made)
+    ranking = streamed.ranking_table()
+    assert ranking.shape == (3, 2 + 70 + 2)  # equation, formula, the 70 fitted experiments, points, place

@@ -107,7 +107,7 @@ def write_streamed_folder(bench, outdir, tables: dict, *, overview: pd.DataFrame
     :func:`write_results_folder` writes with ``format="csv"`` and ``figures`` ``"none"`` (or
     ``"auto"`` above :data:`AUTO_FIGURE_LIMIT` experiments, when ``overview`` holds the
     columns of the overview figure of each experiment's top-ranked fit, None when no fit is
-    ranked), byte for byte.
+    ranked), byte for byte: its tables come from ``tables``, written as joined on disk.
 
     Parameters
     ----------
@@ -116,7 +116,7 @@ def write_streamed_folder(bench, outdir, tables: dict, *, overview: pd.DataFrame
     outdir : str or path-like
         The folder, replaced as a whole when everything is written.
     tables : dict
-        Writers (taking a path) of ``fits.csv`` and ``averages.csv``.
+        Writers (taking a path) of ``fits.csv``, ``ranking.csv`` and ``averages.csv``.
     overview : pandas.DataFrame, optional
         Columns ``experiment, formula, rank, d_cut, ep, eta`` of each experiment's top-ranked
         fit (:func:`~tromplab.output.plotting.plot_batch_overview`).
@@ -126,12 +126,7 @@ def write_streamed_folder(bench, outdir, tables: dict, *, overview: pd.DataFrame
     dict
         File name -> written path.
     """
-    ranking = bench.ranking_table()
-    outputs = {
-        "fits.csv": tables["fits.csv"],
-        "ranking.csv": lambda p: write_csv(ranking, p),
-        "averages.csv": tables["averages.csv"],
-    }
+    outputs = {name: tables[name] for name in ("fits.csv", "ranking.csv", "averages.csv")}
     if overview is not None:
         png = _overview_png(overview)
         outputs["overview.png"] = lambda p: p.write_bytes(png)

@@ -484,14 +484,17 @@ class SpooledRun:
     (to refit an experiment), the fitted experiments, each failed fit's ``(experiment, formula,
     message)``, the count of successful fits, the ranking (:func:`rank_formulas` of the batch,
     None when nothing is ranked), the console's rows (completed rows and ``fits.csv`` rows of
-    the first experiments), the main process's seconds per step and the written file names."""
+    the first experiments), the main process's seconds per step and the written file names.
+    The ranks are kept per chunk (:class:`~tromplab.workbench.spool.BatchRanks`, None when
+    nothing is ranked), a few bytes per experiment, and made into the ranking table when it is
+    first asked for (:attr:`ranking`)."""
 
     folder: Path
     options: ChunkOptions
     fitted: tuple[str, ...]
     failed_fits: tuple
     successes: int
-    ranking: pd.DataFrame | None
+    ranks: object | None
     head: tuple | None
     seconds: dict
     written: tuple[str, ...] = ()
@@ -499,6 +502,11 @@ class SpooledRun:
     @cached_property
     def fitted_set(self) -> frozenset:
         return frozenset(self.fitted)
+
+    @property
+    def ranking(self) -> pd.DataFrame | None:
+        """:func:`rank_formulas` of the batch (None when no fit is ranked)."""
+        return None if self.ranks is None else self.ranks.frame()
 
     def refit(self, experiments) -> list[CurveFit]:
         """The fits of ``experiments`` (TrompPoints) as the batch's workers made them."""

@@ -93,7 +93,12 @@ def fit_to_folder(experiments, outdir, *, figures: str = "auto", format: str = "
             warming.join()
         bench.check_fitted(source or "")
         started = time.perf_counter()
-        tables = {f"{name}.csv": spool.table_writer(name) for name in ("fits", "averages")}
+        equations = {formula.id: formula.equation for formula in bench.formulas}
+        tables = {
+            "fits.csv": spool.table_writer("fits"),
+            "ranking.csv": spool.ranking_writer(bench._spooled.ranks, equations, bench.ranking_table),
+            "averages.csv": spool.table_writer("averages"),
+        }
         written = write_streamed_folder(bench, outdir, tables, overview=spool.best_rows() if figures == "auto" else None)
         bench._spooled.seconds["write the folder"] = time.perf_counter() - started
         bench._spooled.written = tuple(written)
@@ -163,7 +168,7 @@ def _spooled_batch(plan, given: dict, spool: Spool, cluster, outdir) -> Workbenc
     run = SpooledRun(
         folder=outdir, options=options, fitted=fitted,
         failed_fits=tuple(spool.failed_fits()), successes=sum(s.successes for s in spool.summaries),
-        ranking=spool.ranking(), head=spool.head(), seconds=seconds,
+        ranks=spool.ranks(fitted), head=spool.head(), seconds=seconds,
     )  # fmt: skip
     bench._attach_spooled_run(run)
     seconds["join the summaries"] = time.perf_counter() - started
@@ -182,7 +187,7 @@ def _chunk_work(plan, size: int, n_chunks: int, shapes: collections.deque):
     for number, chunk in enumerate(chunks_of(fittable, size)):
         shapes.append((len(chunk), chunk[-1].experiment))
         last = number == n_chunks - 1
-        yield ChunkWork(number, chunk, failures if last else None, failed_points if last else ())
+        yield ChunkWork(number, chunk, failures if last else None, failed_points if last else (), number * size)
 
 
 def _figure_modules_loading() -> threading.Thread:
