@@ -33,6 +33,9 @@ experiment than 10,000; 1 -> 2 workers at least 1.8 x at 10,000 with identical o
 Dask cluster (scheduler and workers started as separate processes, as ``dask scheduler`` and
 ``dask worker`` start them) no slower per core than two local workers, with identical outputs.
 
+``--repeats N`` runs each mode N times in turn and reports its median run (odd N: the
+middle one), which is what a comparison of two modes at a few per cent should rest on.
+
 Not part of the test suite: run it on a quiet machine (the timings of a shared machine say
 more about its load than about tromplab).  ``python benchmarks/scaling.py --sizes 1000,4000
 --no-dask`` takes a few minutes; the default sizes about an hour on two cores.
@@ -327,18 +330,30 @@ def run_bare(n, limit):
     return seconds, pd.DataFrame(rows)
 
 
-def measure_size(n, modes, folder: Path, cluster, bare_limit, reading: str = "pieces") -> list[dict]:
+def measure_size(n, modes, folder: Path, cluster, bare_limit, reading: str = "pieces", repeats: int = 1) -> list[dict]:
     """One row per mode for ``n`` experiments: the run's numbers, bare lmfit's and whether the
-    results folder is the first mode's, file for file."""
+    results folder is the first mode's, file for file.  With ``repeats`` the modes run that
+    many times in turn (1, 2, Dask, 1, 2, Dask, ...: a change of the machine's load touches
+    every mode alike) and each row is the mode's median run, its times all listed."""
     points = folder / f"points_{n}.csv"
     if not points.exists():
         write_points(points, n)
     bare_seconds, bare = run_bare(n, bare_limit)
+    runs = {mode: [] for mode in modes}
+    for _ in range(repeats):
+        for mode in modes:
+            out = folder / f"out_{n}_{mode.replace(' ', '_').replace(',', '')}"
+            runs[mode].append(run_fit(points, out, mode, cluster, reading))
+            print(
+                f"{n} experiments, {mode}: {runs[mode][-1]['seconds']:.1f} s, {runs[mode][-1]['peak_tree_mib']:.0f} MiB",
+                flush=True,
+            )
     rows, first = [], None
     for mode in modes:
         out = folder / f"out_{n}_{mode.replace(' ', '_').replace(',', '')}"
-        measured = run_fit(points, out, mode, cluster, reading)
+        measured = sorted(runs[mode], key=lambda run: run["seconds"])[(len(runs[mode]) - 1) // 2]
         row = {"experiments": n, "mode": mode, "input": reading, **measured, "bare_lmfit_s": bare_seconds}
+        row["seconds_of_each_run"] = " ".join(f"{run['seconds']:.2f}" for run in runs[mode])
         row["s_per_1000_experiments"] = 1000 * measured["seconds"] / n
         row["against_bare_lmfit"] = measured["seconds"] / bare_seconds
         if first is None:
@@ -347,7 +362,6 @@ def measure_size(n, modes, folder: Path, cluster, bare_limit, reading: str = "pi
         else:
             row["same_files_as_first_mode"] = _same_folders(first, out)
         rows.append(row)
-        print(f"{n} experiments, {mode}: {measured['seconds']:.1f} s, {row['peak_tree_mib']:.0f} MiB", flush=True)
     for row in rows:
         row["speedup_1_to_2_workers"] = _speedup(rows)
     return rows
@@ -470,6 +484,9 @@ def main(argv=None):
         "--modes", default="1,2,dask", help="the modes to run: 1 (one worker), 2 (two workers), dask (default all)"
     )
     parser.add_argument("--acceptance", action="store_true", help="check the targets: PASS or FAIL with the numbers")
+    parser.add_argument(
+        "--repeats", type=int, default=1, help="runs of each mode, taken in turn; the table gives the median run (default 1)"
+    )
     parser.add_argument("--output", type=Path, default=HERE / "output" / "scaling.csv")
     parser.add_argument(
         "--input",
@@ -495,7 +512,7 @@ def main(argv=None):
         cluster = None if args.no_dask else stack.enter_context(DaskCluster(folder))
         for n in sizes:
             wanted = ["2 workers"] if args.acceptance and n == sizes[-1] else modes
-            rows += measure_size(n, wanted, folder, cluster, args.bare_limit, args.input)
+            rows += measure_size(n, wanted, folder, cluster, args.bare_limit, args.input, args.repeats)
     table = pd.DataFrame(rows).assign(extrapolated=False)
     extra = extrapolated(table)
     table = table if extra.empty else pd.concat([table, extra], ignore_index=True)

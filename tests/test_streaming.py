@@ -563,5 +563,31 @@ def test_a_streamed_run_writes_its_folder_without_making_the_ranking_table(tmp_p
     assert "overview.png" in written
     assert _same_folders(tmp_path / "memory", tmp_path / "streamed") == []
     monkeypatch.setattr(BatchRanks, "frame", made)
+    monkeypatch.setattr(BatchRanks, "frame", refused)
+    standings = streamed.ranking_table(per_experiment=False)  # what the console shows of a large batch
+    monkeypatch.setattr(BatchRanks, "frame", made)
     ranking = streamed.ranking_table()
     assert ranking.shape == (3, 2 + 70 + 2)  # equation, formula, the 70 fitted experiments, points, place
+    columns = ["equation", "formula", "points", "place"]
+    pd.testing.assert_frame_equal(standings, ranking[columns])
+    assert streamed.ranking_table(per_experiment=False).equals(standings)
+
+
+def test_the_console_ranks_a_large_batch_by_points_and_leaves_each_experiment_s_ranks_to_the_file(tmp_path, capsys):
+    """Beyond the console's experiments, a column per experiment would neither be read nor fit a
+    line: the console shows each formula's points and place and names the file with the ranks."""
+    data = _batch(failures=False)
+    _points_file(tmp_path / "points.csv", data)
+    assert main(["fit", str(tmp_path / "points.csv"), "-o", str(tmp_path / "out"), "--formulas", FORMULAS,
+                 "--jobs", "1", "--figures", "none"]) == 0  # fmt: skip
+    console = capsys.readouterr().out
+    note = "(the rank of each formula in each experiment is in ranking.csv)"
+    ranking = console[console.index("Ranking across experiments") : console.index(note) + len(note)].splitlines()
+    assert ranking[1].split() == ["equation", "formula", "points", "place"]
+    assert len(ranking) == 2 + len(FORMULAS.split(",")) + 1
+    written = pd.read_csv(tmp_path / "out" / "ranking.csv")
+    assert written.shape[1] == 2 + len(data) + 2
+    for line in ranking[2:-1]:
+        equation, formula, points, place = line.split()
+        row = written[written["formula"] == formula].iloc[0]
+        assert float(points) == pytest.approx(row["points"]) and int(place) == row["place"]

@@ -133,7 +133,8 @@ def _print_fits(bench, args) -> None:
     if args.quiet:  # standard output goes nowhere: formatting the tables would be wasted (0.3 s at 1,024 experiments)
         return
     shown_experiments = [*bench.experiments, *bench.failures][:AUTO_FIGURE_LIMIT]  # the fits table's order
-    fits, ranking = bench.fits_table(experiments=shown_experiments), bench.ranking_table()
+    many = len(bench.experiments) > AUTO_FIGURE_LIMIT  # a column per experiment would not be read, nor fit a line
+    fits, ranking = bench.fits_table(experiments=shown_experiments), bench.ranking_table(per_experiment=not many)
     verdicts = {experiment: bench.verdicts(experiment) for experiment in shown_experiments}
     print(format_fits(fits[fits["experiment"].isin(shown_experiments)], verdicts, rank_by=args.rank_by))
     _print_nested_tests(fits[fits["experiment"].isin(shown_experiments)], alpha=bench.alpha)
@@ -154,6 +155,8 @@ def _print_fits(bench, args) -> None:
     if ranking.shape[0] and len(bench.experiments) > 1:
         print("\nRanking across experiments (points: rank sum, inadequate ranks counted twice):")
         print(ranking.to_string(index=False))
+        if many:
+            print(f"(the rank of each formula in each experiment is in ranking.{args.format})")
 
 
 def _print_nested_tests(fits: pd.DataFrame, *, alpha: float) -> None:

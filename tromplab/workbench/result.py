@@ -16,6 +16,7 @@ from functools import cached_property
 from pathlib import Path
 
 import pandas as pd
+from scipy import stats
 
 from ..curves.curve_fit import CurveFit
 from ..curves.formulas import Formula
@@ -183,9 +184,20 @@ class Workbench(ResultContract):
         # grouped once: a scan of the whole table per experiment is quadratic in the batch
         return _top_rows_of(self._fits_frame)
 
-    def ranking_table(self) -> pd.DataFrame:
-        """Ranks per experiment, points and place per formula (failed experiments left out)."""
-        return self._ranking_frame.copy()
+    def ranking_table(self, *, per_experiment: bool = True) -> pd.DataFrame:
+        """Ranks per experiment, points and place per formula (failed experiments left out);
+        with ``per_experiment=False`` only the equation, formula, points and place, which a
+        streamed batch makes from its chunks' points without the table of every rank."""
+        if per_experiment or self._spooled is None or self._spooled.ranks is None or "_ranking_frame" in vars(self):
+            table = self._ranking_frame
+            return (table if per_experiment else table[["equation", "formula", "points", "place"]]).copy()
+        ranks = self._spooled.ranks
+        order = ranks.formulas()
+        points = ranks.points(order)
+        equation = {f.id: f.equation for f in self.formulas}
+        table = pd.DataFrame({"equation": [equation.get(formula) for formula in order], "formula": order,
+                              "points": points, "place": stats.rankdata(points, method="min").astype(int)})  # fmt: skip
+        return table.sort_values(["place", "equation"]).reset_index(drop=True)
 
     @cached_property
     def _ranking_frame(self) -> pd.DataFrame:
@@ -477,6 +489,11 @@ def _top_rows_of(table: pd.DataFrame) -> dict[str, pd.DataFrame]:
     return {experiment: group for experiment, group in rows.groupby("experiment", sort=False)}
 
 
+#: How read_csv reads back exactly the floats the folder's CSV files hold: pandas 3 does by
+#: default (and deprecates the argument), pandas 2 with its round-trip converter.
+_EXACT_FLOATS = {} if int(pd.__version__.split(".")[0]) >= 3 else {"float_precision": "round_trip"}
+
+
 @dataclass
 class SpooledRun:
     """What a streamed batch (:func:`~tromplab.workbench.fit_to_folder`) keeps in memory instead
@@ -520,9 +537,9 @@ class SpooledRun:
         path = Path(self.folder) / f"{table}.csv"
         try:
             if experiments is None:
-                return pd.read_csv(path, float_precision="round_trip")
+                return pd.read_csv(path, **_EXACT_FLOATS)
             wanted = set(experiments)
-            pieces = pd.read_csv(path, float_precision="round_trip", chunksize=100_000)
+            pieces = pd.read_csv(path, chunksize=100_000, **_EXACT_FLOATS)
             return pd.concat([piece[piece["experiment"].isin(wanted)] for piece in pieces], ignore_index=True)
         except pd.errors.EmptyDataError:
             return pd.DataFrame()
