@@ -149,7 +149,9 @@ def test_a_separator_assayed_in_one_product_only_leaves_the_mineral_undetermined
     partition = balance.partition_table()
     minerals = partition[partition["component"] != "solids"]
     determined = minerals["partition_fine"].notna().to_numpy()
-    assert determined.sum() <= 2 and np.all(minerals["partition_fine"].to_numpy()[determined] == 0.0)  # none in the overflow
+    # none in the overflow: zero to the rounding of the linear algebra, whose last bits follow
+    # the memory alignment of the arrays (3.5e-7 was seen in one whole-suite run, 0.0 alone)
+    assert determined.sum() <= 2 and np.all(np.abs(minerals["partition_fine"].to_numpy()[determined]) < 1e-5)
     flags = minerals["flag"][~determined]
     assert (flags != "").all() and flags.str.contains("not determined").mean() > 0.9  # the rest: outside 0..1
     components = balance.components_table()
