@@ -16,7 +16,6 @@ from functools import cached_property
 from pathlib import Path
 
 import pandas as pd
-from scipy import stats
 
 from ..curves.curve_fit import CurveFit
 from ..curves.formulas import Formula
@@ -188,16 +187,15 @@ class Workbench(ResultContract):
         """Ranks per experiment, points and place per formula (failed experiments left out);
         with ``per_experiment=False`` only the equation, formula, points and place, which a
         streamed batch makes from its chunks' points without the table of every rank."""
-        if per_experiment or self._spooled is None or self._spooled.ranks is None or "_ranking_frame" in vars(self):
+        if per_experiment or self._spooled is None or self._spooled.ranks is None:
             table = self._ranking_frame
             return (table if per_experiment else table[["equation", "formula", "points", "place"]]).copy()
-        ranks = self._spooled.ranks
-        order = ranks.formulas()
-        points = ranks.points(order)
-        equation = {f.id: f.equation for f in self.formulas}
-        table = pd.DataFrame({"equation": [equation.get(formula) for formula in order], "formula": order,
-                              "points": points, "place": stats.rankdata(points, method="min").astype(int)})  # fmt: skip
-        return table.sort_values(["place", "equation"]).reset_index(drop=True)
+        return self._spooled.ranks.standings(self._equations)
+
+    @property
+    def _equations(self) -> dict:
+        """Formula id -> equation number, of the batch's formulas."""
+        return {formula.id: formula.equation for formula in self.formulas}
 
     @cached_property
     def _ranking_frame(self) -> pd.DataFrame:
@@ -211,8 +209,7 @@ class Workbench(ResultContract):
         if ranking is None:
             return pd.DataFrame(columns=["equation", "formula", "points", "place"])
         ranking = ranking.copy()
-        equation = {f.id: f.equation for f in self.formulas}
-        ranking.insert(0, "equation", ranking["formula"].map(equation))
+        ranking.insert(0, "equation", ranking["formula"].map(self._equations))
         return ranking.sort_values(["place", "equation"]).reset_index(drop=True)
 
     def verdicts(self, experiment: str) -> list[str]:

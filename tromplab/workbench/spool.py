@@ -281,11 +281,7 @@ class Spool:
         in_memory = self._ranking_in_memory(table)
         if not all(piece.joinable for piece in ranks.pieces):
             return in_memory
-        order = ranks.formulas()
-        ends = pd.DataFrame({"formula": order, "points": ranks.points(order)})
-        ends["place"] = stats.rankdata(ends["points"].to_numpy(), method="min").astype(int)
-        ends.insert(0, "equation", ends["formula"].map(equations))
-        ends = ends.sort_values(["place", "equation"])  # the rows of Workbench.ranking_table, in its order
+        ends = ranks.standings(equations)  # the rows of Workbench.ranking_table, in its order
         starts = defended_frame(ends[["equation", "formula"]]).to_csv(index=False).split(os.linesep)[:-1]
         tails = defended_frame(ends[["points", "place"]]).to_csv(index=False).split(os.linesep)[:-1]
         if holds_carriage_return(ends) or len(starts) != len(ends) + 1:  # a line break in a cell
@@ -368,6 +364,16 @@ class BatchRanks:
         for piece in self.pieces:
             total = total + pd.Series(piece.points, index=list(piece.formulas)).reindex(order, fill_value=0.0)
         return total.to_numpy(dtype=float)
+
+    def standings(self, equations: dict) -> pd.DataFrame:
+        """Each formula's ``equation`` (``equations``: formula id -> equation), ``formula``,
+        ``points`` and ``place``, made from the chunks' points without the ranks, in the order
+        of :meth:`Workbench.ranking_table` (by place, then equation)."""
+        order = self.formulas()
+        table = pd.DataFrame({"formula": order, "points": self.points(order)})
+        table["place"] = stats.rankdata(table["points"].to_numpy(), method="min").astype(int)
+        table.insert(0, "equation", table["formula"].map(equations))
+        return table.sort_values(["place", "equation"]).reset_index(drop=True)
 
     def frame(self) -> pd.DataFrame:
         """:func:`~tromplab.curves.ranking.rank_formulas` of the whole batch."""

@@ -93,10 +93,9 @@ def fit_to_folder(experiments, outdir, *, figures: str = "auto", format: str = "
             warming.join()
         bench.check_fitted(source or "")
         started = time.perf_counter()
-        equations = {formula.id: formula.equation for formula in bench.formulas}
         tables = {
             "fits.csv": spool.table_writer("fits"),
-            "ranking.csv": spool.ranking_writer(bench._spooled.ranks, equations, bench.ranking_table),
+            "ranking.csv": spool.ranking_writer(bench._spooled.ranks, bench._equations, bench.ranking_table),
             "averages.csv": spool.table_writer("averages"),
         }
         written = write_streamed_folder(bench, outdir, tables, overview=spool.best_rows() if figures == "auto" else None)
