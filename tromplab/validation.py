@@ -193,6 +193,26 @@ def check_seed(value, option: str) -> int:
 MAX_CUT_DENSITY = 3.5
 
 
+#: A product's yield this close to 0 or 1 leaves the other product empty to rounding (1 - 1e-308 is 1).
+YIELD_MARGIN = 1e-9
+
+
+def check_yield(value, option: str) -> float:
+    """A product's share of the feed mass, from :data:`YIELD_MARGIN` to 1 - :data:`YIELD_MARGIN`.
+
+    Nearer 0 or 1 the other product's share, ``1 - value``, rounds to an empty product (or
+    to 1), and the balance would name the other product's yield instead of this option.
+    """
+    number = _number(value, option)
+    if not YIELD_MARGIN <= number <= 1.0 - YIELD_MARGIN:
+        raise OptionError(
+            option,
+            f"must lie in [{YIELD_MARGIN:g}, 1 - {YIELD_MARGIN:g}] (a share of the feed mass; nearer 0 or 1 one product "
+            f"is empty to rounding), got {value!r}",
+        )
+    return number
+
+
 def check_cut_density(value, option: str) -> float:
     """A cut (separation) relative density: above water's 1 and at most :data:`MAX_CUT_DENSITY`."""
     number = _number(value, option)
@@ -240,6 +260,7 @@ def range_text(check: Callable, **kwargs) -> str:
         check_bootstrap: f"0 to {MAX_BOOTSTRAP:,}",
         check_seed: "0 to 2**63 - 1",
         check_cut_density: f"(1, {MAX_CUT_DENSITY:g}]",
+        check_yield: f"[{YIELD_MARGIN:g}, 1 - {YIELD_MARGIN:g}]",
         check_percent: "(0, 100)",
         check_relative_error: f"[0, {MAX_RELATIVE_ERROR:g}]",
         check_positive_relative_error: f"(0, {MAX_RELATIVE_ERROR:g}]",

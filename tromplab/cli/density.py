@@ -14,7 +14,7 @@ import argparse
 from pathlib import Path
 
 from ..output.outputs import check_output_folder
-from ..validation import check_probability, cli_type
+from ..validation import check_probability, check_yield, cli_type
 from .startup import EXIT_OK, EXIT_PARTIAL  # done, and some tests without any fitted curve
 
 #: What ``density fit`` imports when it runs (imported before it starts, under the CLI's signal handling).
@@ -60,7 +60,7 @@ def _add_fit(sub) -> None:
     fit.add_argument("--method", choices=("binomial", "least_squares"), default=None,
                      help="binomial (tracer counts, the default for them) or least_squares on the shares (the spreadsheet way); "
                      "default for float-sink tables with a feed analysis: the joint fit of the three analyses")  # fmt: skip
-    fit.add_argument("--floats-yield", type=cli_type(check_probability, "--floats-yield"), default=None, metavar="Y",
+    fit.add_argument("--floats-yield", type=cli_type(check_yield, "--floats-yield"), default=None, metavar="Y",
                      help="mass share of the feed to the floats (float-sink tables; estimated from three analyses when not given)")  # fmt: skip
     fit.add_argument("--excel", action="store_true",
                      help="also write the tables and figures as one workbook, results.xlsx, in the folder")  # fmt: skip

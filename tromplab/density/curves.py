@@ -509,6 +509,8 @@ def select_density_curves(keys=None) -> tuple[DensityCurve, ...]:
     for key in keys:
         group = _GROUPS.get(key, None) or (get_density_curve(key),)
         chosen += [curve for curve in group if curve not in chosen]
+    if not chosen:  # an empty list or text: fitting nothing would report a test without a curve as a success
+        raise KeyError(f"names no curve: give curve ids ({', '.join(c.id for c in DENSITY_CURVES)}) or plain, limits, all")
     return tuple(chosen)
 
 

@@ -58,6 +58,7 @@ from ..loading.lab import (
 from ..loading.points import experiment_rows, size_column_unit
 from ..loading.tables import Table, read_table
 from ..options import DEFAULT_SUM_TOLERANCE_PCT
+from ..validation import YIELD_MARGIN, check_optional, check_yield
 from .fractions import densities, density_fractions
 
 LAYOUTS = ("tracers", "float-sink", "partition")
@@ -65,9 +66,12 @@ TRACER_COLUMNS = ("density", "sinks", "floats")
 FLOAT_SINK_COLUMNS = ("density_lower", "density_upper", "floats_pct", "sinks_pct")
 PARTITION_COLUMNS = ("density", "partition_sinks")
 ASH_COLUMNS = ("feed_ash_pct", "floats_ash_pct", "sinks_ash_pct")
-#: Relative densities outside this range are a mistyped value (or a unit that is not g/cm3).
-#: An estimated yield this close to 0 or 1 means one product is empty.
-YIELD_MARGIN = 1e-9
+#: Most tracers of one density: a tracer test places tens to a few thousand; a larger count is a
+#: mistyped value (and above 2**53 a count is no longer a whole number in floating point).
+MAX_TRACERS = 1_000_000_000
+#: A partition to sinks that falls by more than this from the lightest density to the heaviest
+#: is the partition to floats (or the products swapped): sinks take the heavy particles.
+FALLING_PARTITION = 0.5
 
 
 @dataclass(frozen=True)
@@ -206,6 +210,7 @@ def read_density(
     >>> sample.points["lost"].tolist(), sample.points["partition_sinks"].round(3).tolist()
     ([1, 1, 0], [0.034, 0.483, 0.967])
     """
+    floats_yield = check_optional(check_yield, floats_yield, "floats_yield")
     table = read_table(path, sheet=sheet, sep=sep, decimal=decimal)
     layout = density_layout(table.frame.columns)
     if layout is None:
@@ -306,6 +311,13 @@ def _counts(table: Table, column: str) -> np.ndarray:
     bad = np.flatnonzero(values < 0)
     if bad.size:
         raise table.error(f"negative count {values[bad[0]]:g}", index=int(bad[0]), column=column)
+    bad = np.flatnonzero(values > MAX_TRACERS)
+    if bad.size:
+        raise table.error(
+            f"count {values[bad[0]]:.6g} is more than {MAX_TRACERS:,} tracers: a mistyped value?",
+            index=int(bad[0]),
+            column=column,
+        )
     bad = np.flatnonzero(values != np.round(values))
     if bad.size:
         raise table.error(f"count {values[bad[0]]:g} is not a whole number of tracers", index=int(bad[0]), column=column)
@@ -317,7 +329,27 @@ def _base_sample(table: Table, context: dict, layout: str, points: pd.DataFrame,
     if used < 2:
         label = context["test"]
         raise InputError(f"test '{label}' has {used} usable densities; at least 2 are needed to fit a curve", source=table.source)
+    if layout == "partition":  # counts and analyses carry sampling noise: a few tracers may fall by chance
+        _refuse_falling(table, context["test"], points[points["used"]])
     return DensitySample(layout=layout, points=points, notes=tuple(notes), source=table.source, **context, **extra)
+
+
+def _refuse_falling(table: Table, test: str, used: pd.DataFrame) -> None:
+    """Refuse a partition to sinks given directly that falls from the lightest density to the heaviest.
+
+    Sinks take the heavy particles, so a partition to sinks rises with density; fitted as
+    given, a falling one ends with Ep at its bound and a negative rho25 reported as a success.
+    """
+    share = used["partition_sinks"].to_numpy(dtype=float)
+    drop = share[0] - share[-1]
+    if drop > FALLING_PARTITION:
+        raise InputError(
+            f"test '{test}': the partition to sinks falls with density, from {share[0]:.3g} at {used['density'].iloc[0]:g} "
+            f"to {share[-1]:.3g} at {used['density'].iloc[-1]:g} g/cm3; the sinks take the heavy particles, so it looks "
+            "like the partition to floats: give partition_sinks = 1 - the partition to floats",
+            source=table.source,
+            column="partition_sinks",
+        )
 
 
 def _tracer_sample(table: Table, context: dict) -> DensitySample:

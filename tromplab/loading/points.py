@@ -146,6 +146,8 @@ class TrompPoints:
         size, phi = self._real_array(self.size, "size"), self._real_array(self.partition_fine, "partition_fine")
         if size.ndim != 1 or phi.ndim != 1 or size.shape != phi.shape:
             raise self._error(f"size has {size.size} values and partition_fine {phi.size}: give one partition per size")
+        if size.size == 0:  # numpy's own reductions would fail on it with their words
+            raise self._error("no points: give the sizes and their partitions (at least 3 to fit a curve)", column="size")
         arrays = {"size": size, "partition_fine": phi}
         if self.weight is not None:
             arrays["weight"] = self._real_array(self.weight, "weight")
@@ -222,7 +224,7 @@ class TrompPoints:
         hint = ""
         if 1.5 < phi.max() <= 100.0 + PARTITION_SLACK and phi.min() >= 0:  # 0..100: percentages
             hint = ": these look like percentages; divide by 100 (or read a table with a partition_fine_pct column)"
-        raise self._error(f"partition {value:g} outside 0..1{hint}", column="partition_fine")
+        raise self._error(f"partition {value:.15g} outside 0..1{hint}", column="partition_fine")
 
     @property
     def n(self) -> int:
@@ -391,7 +393,10 @@ def checked_values(
         partition = table.numeric(column)
     with check(PARTITION_RANGE):
         _refuse_first(
-            table, (partition < 0) | (partition > scale), column, lambda i: f"partition {partition[i]:g} outside 0..{scale:g}"
+            table,
+            (partition < 0) | (partition > scale),
+            column,
+            lambda i: f"partition {partition[i]:.15g} outside 0..{scale:g}{_percent_hint(partition, column, scale)}",
         )
     with check(POSITIVE_SIZES):
         _refuse_first(table, size <= 0, columns.size, lambda i: f"size must be positive, got {size[i]:g}")
@@ -405,6 +410,13 @@ def checked_values(
     with check(NAMES):
         labels = table.experiment_labels()
     return table, PointsValues(labels, size, phi if to_fines else 1.0 - phi, weight)
+
+
+def _percent_hint(partition: np.ndarray, column: str, scale: float) -> str:
+    """The hint for shares given in per cent in a column of shares: name the per cent column."""
+    if scale == 1.0 and 1.5 < partition.max() <= 100.0 + PARTITION_SLACK and partition.min() >= 0:
+        return f": these look like percentages; name the column {column}_pct (0..100) or divide by 100"
+    return ""
 
 
 def _partition_column(table: Table, columns: PointsColumns) -> str:

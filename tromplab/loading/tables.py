@@ -39,6 +39,7 @@ import difflib
 import io
 import itertools
 import logging
+import math
 import os
 import pickle
 import re
@@ -144,7 +145,7 @@ class Table:
         if dates.any():
             i = int(np.flatnonzero(dates)[0])
             raise self.error(f"'{raw.iloc[i]}' is a date, not a number (a cell formatted as a date?)", index=i, column=column)
-        values = pd.to_numeric(raw, errors="coerce").to_numpy(dtype=float)
+        values = _as_floats(raw)
         text = raw.notna().to_numpy() & np.isnan(values)
         if text.any():
             i = int(np.flatnonzero(text)[0])
@@ -160,7 +161,7 @@ class Table:
         infinite = np.isinf(values)
         if infinite.any():
             i = int(np.flatnonzero(infinite)[0])
-            raise self.error(f"'{raw.iloc[i]}' is not a finite number", index=i, column=column)
+            raise self.error(f"'{_shortened(raw.iloc[i])}' is not a finite number", index=i, column=column)
         if not allow_blank and np.isnan(values).any():
             i = int(np.flatnonzero(np.isnan(values))[0])
             raise self.error("value is missing (blank or NaN)", index=i, column=column)
@@ -201,6 +202,29 @@ class Table:
         if selection.dtype != bool:
             selection = selection.astype(int)
         return Table(self.frame.iloc[selection].reset_index(drop=True), self.rows[selection], self.source, self.notes)
+
+
+def _as_floats(raw: pd.Series) -> np.ndarray:
+    """The cells as floats, NaN where a cell is not a number.  An integer too large for a
+    float (400 digits) is infinite, as ``float`` reads it, so that it is refused as such:
+    pandas raises an ``OverflowError`` on the whole column instead."""
+    try:
+        return pd.to_numeric(raw, errors="coerce").to_numpy(dtype=float)
+    except OverflowError:
+        return np.array([_cell_float(value) for value in raw.tolist()], dtype=float)
+
+
+def _cell_float(value) -> float:
+    try:
+        return float(str(value).strip())
+    except (TypeError, ValueError):
+        return math.nan
+
+
+def _shortened(value, width: int = 40) -> str:
+    """A cell as text for a message, long numbers cut in the middle (``1000...0000 (400 digits)``)."""
+    text = str(value)
+    return text if len(text) <= width else f"{text[:12]}...{text[-8:]} ({len(text)} characters)"
 
 
 def read_table(
@@ -376,10 +400,13 @@ def _content_blocks(path: Path, block: int = 1 << 20) -> Iterator[tuple[list[int
     and blank lines above the header are skipped, below it blank lines only, as
     :func:`_content_lines` does."""
     count, header_seen = 0, False
+    newline = None if _bare_carriage_returns(path) else ""
     try:
-        with path.open(encoding="utf-8-sig", newline=None) as stream:
+        with path.open(encoding="utf-8-sig", newline=newline) as stream:
             for text in _line_blocks(stream, block):
                 lines = text.split("\n")
+                if "\r" in text:  # CRLF line ends; a carriage return inside a quoted name stays (as read whole)
+                    lines = [line[:-1] if line.endswith("\r") else line for line in lines]
                 numbers = range(count + 1, count + 1 + len(lines))
                 count += len(lines)
                 if not header_seen:
@@ -395,6 +422,15 @@ def _content_blocks(path: Path, block: int = 1 << 20) -> Iterator[tuple[list[int
                     yield list(numbers), lines
     except UnicodeDecodeError:
         raise _first_undecodable(path) from None
+
+
+def _bare_carriage_returns(path: Path) -> bool:
+    """Whether the file's lines end in a bare carriage return (old Mac line ends): read with
+    universal newlines then; other files keep a carriage return inside a quoted name."""
+    with path.open("rb") as stream:
+        head = stream.read(1 << 16)
+    first_return, first_feed = head.find(b"\r"), head.find(b"\n")
+    return first_return >= 0 and (first_feed < 0 or first_return < first_feed - 1)
 
 
 def _line_blocks(stream, block: int) -> Iterator[str]:
