@@ -120,8 +120,9 @@ def _compensated(balance, j: int, bias: float) -> Survey:
         count = int(used.sum())
         table.loc[used.to_numpy(), "value"] = values[start : start + count]
         start += count
-    return dataclasses.replace(survey, shares=shares, flows=flows, pct_solids=pct, assays=assays,
-                               source=f"{survey.source} (compensated)")  # fmt: skip
+    # said once however many measurements were compensated: the source names the file in messages
+    source = survey.source if survey.source.endswith(" (compensated)") else f"{survey.source} (compensated)"
+    return dataclasses.replace(survey, shares=shares, flows=flows, pct_solids=pct, assays=assays, source=source)
 
 
 def proposal(table: pd.DataFrame, alpha: float) -> str:

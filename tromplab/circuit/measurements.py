@@ -274,6 +274,22 @@ class Survey:
     def measured_streams(self) -> tuple[str, ...]:
         return tuple(dict.fromkeys(self.shares["stream"]))
 
+    def exact_measurements(self) -> str:
+        """The measurements given as exact (a standard deviation of 0 in the table or from an
+        error model of 0), by stream and row of the table, for a message: "" when there is none."""
+        parts = []
+        for what, table in (("share", self.shares), ("flow", self.flows), ("per cent solids", self.pct_solids),
+                            ("assay", self.assays)):  # fmt: skip
+            if not len(table) or "sd" not in table:
+                continue
+            exact = table[table["sd"].to_numpy(float) == 0]
+            if "relative" in exact:  # a flow made the basis of a survey with one flow is not given as exact
+                exact = exact[exact["relative"].isna()]
+            for stream, rows in exact.groupby("stream", sort=False)["row"]:
+                listed = ", ".join(str(row) for row in list(dict.fromkeys(rows))[:6]) + (", ..." if rows.nunique() > 6 else "")
+                parts.append(f"{what}s of {stream} (row{'s' if rows.nunique() > 1 else ''} {listed})")
+        return "; ".join(parts)
+
     def with_errors_at(self, shares: np.ndarray, flows: np.ndarray, stream_index: dict, grades=None) -> Survey:
         """The survey with the error model evaluated at ``shares`` (streams x classes, clipped
         at 0), ``flows`` (per stream) and ``grades`` (components x streams x classes: the
@@ -537,6 +553,14 @@ def _tiled_classes(table: Table, lower, upper, has_class, size_columns):
                 index=int(i),
                 column=size_columns[-1],
             )
+    if len(ordered) == 1 and not (ordered[0] > 0 and np.isfinite(distinct[ordered[0]][0])):
+        top, i = distinct[ordered[0]]
+        raise table.error(
+            f"the only size class, {_name(ordered[0], top)}, is open: a size analysis needs two classes or more (the "
+            "partition is a curve over sizes), and an open class alone has no representative size",
+            index=int(i),
+            column=size_columns[-1] if np.isnan(top) else size_columns[0],
+        )
     lows = np.array([k if k > 0 else np.nan for k in ordered])
     highs = np.array([distinct[k][0] for k in ordered])
     class_of_row = np.full(len(lower), -1)
@@ -665,9 +689,38 @@ def _stream_share_records(table: Table, stream: str, rows, share, scale, class_o
             column="retained_sd",
         )
     explicit = np.isfinite(row_sd[rows])
+    _refuse_modelled_exact(
+        table, stream, rows, share, sd == 0, explicit, np.isfinite(relative[rows]) | np.isfinite(absolute[rows])
+    )
     return [{"stream": stream, "class_index": int(class_of_row[i]), "value": x, "sd": s, "row": int(table.rows[i]),
              "relative": np.nan if given_sd else r_i, "absolute": np.nan if given_sd else a_i}
             for i, x, s, r_i, a_i, given_sd in zip(rows, share, sd, r, a, explicit)]  # fmt: skip
+
+
+def _refuse_modelled_exact(table: Table, stream: str, rows, share, exact, explicit, from_row) -> None:
+    """Refuse a share the error model holds exact: a share of 0 with an absolute error of 0.
+
+    Held exact, such a share is a constraint of the balances (a stream with no material in
+    the class), which the measurements then contradict as gross errors one after another; a
+    share is made exact on purpose with a ``retained_sd`` of 0."""
+    held = np.flatnonzero(exact & ~explicit)
+    if not held.size:
+        return
+    k = int(held[0])
+    i = int(rows[k])
+    where = f"the share {share[k]:g} of stream '{stream}' at row {table.rows[i]}"
+    if from_row[k]:
+        raise table.error(
+            f"{where} has a standard deviation of 0 from its relative_error and absolute_error, so it would be held "
+            "exact: give an absolute_error above 0 (or a retained_sd of 0 to hold it exact on purpose)",
+            index=i,
+            column="absolute_error",
+        )
+    raise OptionError(
+        "absolute_error",
+        f"of 0 gives {where} a standard deviation of 0, so it would be held exact (a constraint no measurement may "
+        "contradict): give an absolute error above 0 (or a retained_sd of 0 to hold a share exact on purpose)",
+    )
 
 
 def _error_columns(table: Table, n: int, full) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

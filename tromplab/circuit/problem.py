@@ -319,7 +319,7 @@ def build_problem(flowsheet: Flowsheet, survey: Survey) -> tuple[Problem, str]:
     if np.linalg.norm(A @ m0 - b) > 1e-8 * max(1.0, np.linalg.norm(b)):
         raise InputError(
             "the flows, shares, per cent solids and assays given with a standard deviation of 0 contradict the balances "
-            "of the flowsheet",
+            f"of the flowsheet: {survey.exact_measurements()}; give them a standard deviation above 0, or correct them",
             source=survey.source,
         )
     shares = survey.shares[survey.shares["sd"] > 0]

@@ -110,15 +110,12 @@ class PulpScreen:
         alpha = self.beta * head**self.r
         flow = self.lam * head**self.s
         rate = alpha * flow
-        return (
-            self.area
-            * self.open_area
-            * frequency
-            * self.consistency
-            / alpha
-            * np.exp(-rate * self.delay)
-            * -np.expm1(-rate / frequency)
-        )
+        # N (1 - e^(-alpha a / N)) / alpha written as a (1 - e^-x) / x with x = alpha a / N: the
+        # same number, without 0 / 0 where alpha underflows at a tiny pressure drop (H' = 1e-308)
+        x = rate / frequency
+        x_safe = np.where(x > 0, x, 1.0)
+        passed = np.where(x > 0, -np.expm1(-x_safe) / x_safe, 1.0)
+        return self.area * self.open_area * self.consistency * flow * np.exp(-rate * self.delay) * passed
 
     def best_pressure_drop(self, frequency, *, bounds=(1e-6, 100.0)) -> tuple[float, float]:
         """``(H', Q)`` maximising the productivity at a fixed frequency (bounded search)."""

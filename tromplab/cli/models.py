@@ -472,6 +472,12 @@ def run_pulp_fit(args) -> int:
     fitted = tuple(name.strip().replace("-", "_") for name in args.fit.split(",") if name.strip())
     if not fitted:
         raise OptionError("--fit", "names no coefficient")
+    if productivity.size <= len(fitted):  # the data are short, not the option: bad input (exit 1)
+        raise InputError(
+            f"{productivity.size} measurement(s) cannot determine the {len(fitted)} coefficient(s) of --fit "
+            f"({', '.join(fitted)}): give at least {len(fitted) + 1} rows, or fit fewer coefficients",
+            source=table.source,
+        )
     level = args.level
     try:
         result = fit_pulp_screen(applied, frequency, productivity, fitted=fitted, fixed=_pulp_screen(args))

@@ -88,6 +88,14 @@ def _run_compare(args) -> int:
 
     check_input_file(args.input)
     experiments, _ = read_experiments(args.input, lab_options(args))
+    if len(experiments) < 2:
+        one = experiments[0].experiment
+        why = (
+            "the file has no 'experiment' column, so all its rows are one experiment named after the file"
+            if one == Path(args.input).stem
+            else f"the file holds only experiment '{one}'"
+        )
+        raise InputError(f"compare needs two experiments or more: {why}", source=str(args.input), column="experiment")
     if args.experiments:
         wanted = [e.strip() for e in args.experiments.split(",") if e.strip()]
         repeated = sorted({e for e in wanted if wanted.count(e) > 1})

@@ -3,12 +3,14 @@ residues, the geometric probability of passing a hole, the collecting-bin design
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 from ..errors import OptionError, ResultError
 from ..output.outputs import check_output_file, write_files
 from ..validation import MAX_DECKS, check_count, check_probability, check_range, cli_type
 from .option_groups import READERS
+from .startup import EXIT_OK, EXIT_PARTIAL
 
 #: Lengths of ``sieve pg`` (any one unit): only their ratios matter, and within this range
 #: their squares and ratios stay normal floating-point numbers.
@@ -97,12 +99,14 @@ def _run_sieve_identify(args) -> int:
     written = write_files({args.output.name: lambda p: write_csv(laws, p)}, args.output.parent)
     view = laws[["sieve", "fraction", "n_regimes", "v_k", "v_k_stderr", "sigma", "sigma_stderr", "success"]]
     print(view.to_string(index=False, float_format=lambda v: f"{v:.4g}", na_rep="-"))
-    for sieve, fraction, message in laws.loc[~laws["success"].astype(bool), ["sieve", "fraction", "message"]].itertuples(
-        index=False
-    ):
+    failed = laws.loc[~laws["success"].astype(bool), ["sieve", "fraction", "message"]]
+    for sieve, fraction, message in failed.itertuples(index=False):
         print(f"  not identified: sieve {sieve}, fraction {fraction}: {message}")
     print(f"\nWrote: {written[args.output.name]}")
-    return 0
+    if len(failed):  # a partial result, as failed fits are: written, and said on stderr with exit 3
+        print(f"{len(failed)} of {len(laws)} sieve fraction(s) not identified (success False in {args.output})", file=sys.stderr)
+        return EXIT_PARTIAL
+    return EXIT_OK
 
 
 def _run_sieve_pg(args) -> int:

@@ -126,7 +126,8 @@ def _class_bounds(table: Table, lower_column: str, upper_column: str):
 
 def _checked_bounds(table: Table, lower, upper, lower_column: str, upper_column: str):
     """Class bounds checked: positive (a lower bound of 0 = the pan), ordered, one open top, one pan, no overlap."""
-    lower = np.where(lower == 0, np.nan, lower)  # the pan written with a lower bound of 0
+    zero_lower = lower == 0
+    lower = np.where(zero_lower, np.nan, lower)  # the pan written with a lower bound of 0
     for values, column in ((lower, lower_column), (upper, upper_column)):
         bad = np.flatnonzero(values <= 0)
         if bad.size:
@@ -149,6 +150,7 @@ def _checked_bounds(table: Table, lower, upper, lower_column: str, upper_column:
     for rows, column, what in ((open_top, upper_column, "open top class"), (pan, lower_column, "pan")):
         if rows.size > 1:
             raise table.error(f"only one {what} (blank {column}) is allowed", index=int(rows[1]), column=column)
+    _refuse_open_inside(table, lower, upper, zero_lower, lower_column, upper_column)
     key = np.where(np.isfinite(lower), lower, 0.0)
     step = np.diff(key)
     if not (np.all(step < 0) or np.all(step > 0)):
@@ -165,6 +167,28 @@ def _checked_bounds(table: Table, lower, upper, lower_column: str, upper_column:
                 column=upper_column,
             )
     return lower, upper
+
+
+def _refuse_open_inside(table: Table, lower, upper, zero_lower, lower_column: str, upper_column: str) -> None:
+    """A blank lower bound belongs to the finest class (the pan) and a blank upper bound to the
+    coarsest; elsewhere it is a bound left out, named as blank (not as classes out of order)."""
+    for i in np.flatnonzero(np.isnan(lower)):
+        if np.any(upper[np.arange(upper.size) != i] < upper[i]):
+            given = "0" if zero_lower[i] else "blank"
+            raise table.error(
+                f"the lower bound is {given} but the class (upper bound {upper[i]:g}) is not the finest: only the pan may "
+                "have a blank or 0 lower bound; fill in the bound",
+                index=int(i),
+                column=lower_column,
+            )
+    for i in np.flatnonzero(np.isnan(upper)):
+        if np.any(lower[np.arange(lower.size) != i] > lower[i]):
+            raise table.error(
+                f"the upper bound is blank but the class (lower bound {lower[i]:g}) is not the coarsest: only the top class "
+                "may be open; fill in the bound",
+                index=int(i),
+                column=upper_column,
+            )
 
 
 def _retained_on_sieves(table: Table, size_column: str):
@@ -215,11 +239,20 @@ def _per_class_shares(table: Table, column: str, kind: str, options: LabOptions)
             raise InputError(
                 f"the per-class shares sum to {100 * total / full:.2f} % instead of 100 % "
                 f"({'over' if off_by > 0 else 'short'} by {abs(off_by):.2f} percentage points; "
-                f"tolerance {options.sum_tolerance_pct:g})",
+                f"tolerance {options.sum_tolerance_pct:g})"
+                + (f"; blank or NaN at {_rows_text(table.rows[blank])}, read as no material" if blank.size else ""),
                 source=table.source,
+                row=_single_row(table.rows[blank]),
                 column=column,
             )
     return values / total, float(total), note
+
+
+def _single_row(rows):
+    """The one row of ``rows`` as a message names it (a file line), or None."""
+    if len(rows) != 1:
+        return None
+    return int(rows[0]) if isinstance(rows[0], (int, np.integer)) else rows[0]
 
 
 def _rows_text(rows) -> str:
