@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 from tromplab.cli import build_parser
 
 from .conftest import DATASETS, LAB_CLASS_HEADER, LAB_CLASS_ROWS
+from .hostile_edges import last_edges
 from .test_hostile_inputs import FILE_CASES, TEXT_CASES
 
 SIZES = (10, 20, 40, 80, 160, 320)
@@ -848,4 +849,5 @@ def catalogue() -> list[Case]:
         *names_as_text(),
         *formula_writers(),
         *api_calls(),
+        *last_edges(case),
     ]
