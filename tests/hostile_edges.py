@@ -127,6 +127,12 @@ def _residues(rows_of_second: int) -> str:
     return "\n".join([lines[0], *(line for line in lines[1:] if ",2.0x1.5," not in line), *second[:rows_of_second]]) + "\n"
 
 
+def _dataset(name: str) -> str:
+    from .conftest import DATASETS
+
+    return (DATASETS / name).read_text(encoding="utf-8")
+
+
 def old_weak_messages(case) -> list:
     """The eight messages the campaign found weak, each now naming its cause; the other
     frictions of the command line met on the way (per cent in a column of shares, a one-row
@@ -165,6 +171,20 @@ def old_weak_messages(case) -> list:
         ),
         "a blank upper class bound inside the table": (
             points, {"data.csv": LAB.format(row="200,,30,16.3,35.4")}, 1, "size_upper",
+        ),
+        "circuit --absolute-error 0 with shares of 0": (
+            (*circuit, "--absolute-error", "0"),
+            {"sheet.csv": _dataset("circuit_example_flowsheet.csv"), "data.csv": _dataset("circuit_example_survey.csv")},
+            2,
+            "--absolute-error of 0 gives the share 0 of stream 'oversize' at row 30 a standard deviation of 0",
+        ),
+        "a relative and absolute error of 0 in the table on a share of 0": (
+            circuit,
+            {**sheet, "data.csv": "stream,size_lower_um,size_upper_um,retained_frac,relative_error,absolute_error,solids_flow\n"
+             "feed,100,,0.2,,,100\nfeed,0,100,0.8,,,\noverflow,100,,0,0.05,0,\noverflow,0,100,1,,,\nunderflow,100,,0.4,,,\n"
+             "underflow,0,100,0.6,,,\n"},
+            1,
+            "row 4, column 'absolute_error': the share 0 of stream 'overflow' at row 4 has a standard deviation of 0",
         ),
         "pulp optimum --applied 1e-308": (("pulp", "optimum", "--applied", "1e-308"), {}, 0, ""),
         "pulp optimum --frequency 1e-3 --applied 1e-308": (("pulp", "optimum", "--frequency", "0.001", "--applied", "1e-308"), {}, 0, ""),
