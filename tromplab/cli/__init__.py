@@ -52,6 +52,7 @@ from .startup import (
     CommandParser,
     SubcommandParser,
     Terminated,
+    broken_installation,
     cli_message,
     cli_words,
     collector_paused,
@@ -62,6 +63,7 @@ from .startup import (
     sigterm_as_interrupt,
     verbosity,
     words_of,
+    write_failure,
 )
 
 # Each command module imports the library modules it needs when the command runs: building the
@@ -129,6 +131,14 @@ def main(argv=None, *, on_start=None) -> int:
     except Exception as error:  # anything else is a bug in tromplab: say so, do not dress it up as bad input
         if args.debug:
             raise
+        place = write_failure(error, args) if isinstance(error, OSError) else None
+        if place is not None:  # a full disk or a folder not writable: the place, not tromplab
+            print(f"{command}: error: {place}", file=sys.stderr)
+            return EXIT_INPUT
+        broken = broken_installation(error) if isinstance(error, ImportError) else None
+        if broken is not None:
+            print(f"{command}: error: {broken}", file=sys.stderr)
+            return EXIT_INTERNAL
         print(
             f"{command}: internal error (a bug in tromplab, please report it): {type(error).__name__}: {error}\n"
             f"  run again with --debug for the traceback",

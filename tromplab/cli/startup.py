@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import contextvars
+import errno
 import gc
 import logging
 import os
@@ -17,6 +18,7 @@ import re
 import signal
 import sys
 import textwrap
+from pathlib import Path
 
 from ..errors import InputError, InputNote, OptionError
 from ..output.outputs import written_outputs
@@ -215,6 +217,46 @@ def _all_actions(parser: argparse.ArgumentParser):
         if isinstance(action, argparse._SubParsersAction):
             for sub in action.choices.values():
                 yield from _all_actions(sub)
+
+
+#: Errors of the file system that are the place, not tromplab: a full disk, a quota, a folder
+#: that cannot be written.  Every writer stages its files and swaps them in at the end, so the
+#: previous results are whole when one of these stops a run.
+_PLACE_ERRNOS = frozenset(
+    getattr(errno, name)
+    for name in ("ENOSPC", "EDQUOT", "EROFS", "EACCES", "EPERM", "EFBIG", "EMFILE", "ENFILE")
+    if hasattr(errno, name)
+)
+
+
+def write_failure(error: OSError, args) -> str | None:
+    """The message of a run stopped by the file system (disk full, no permission), naming the
+    folder and saying the old results are intact; None for another ``OSError`` (a bug)."""
+    if error.errno not in _PLACE_ERRNOS:
+        return None
+    target = next((getattr(args, name) for name in ("outdir", "output") if getattr(args, name, None) is not None), None)
+    folder = Path(target).absolute().parent if target is not None and Path(target).suffix else target
+    if folder is None and error.filename:
+        folder = Path(error.filename).parent
+    where = f" in {folder}" if folder is not None else ""
+    return (
+        f"could not write{where}: {error.strerror or error}; the previous results there are intact (nothing was "
+        "replaced): free some space or choose a folder you may write (-o)"
+    )
+
+
+def broken_installation(error: ImportError) -> str | None:
+    """The message of a module of tromplab (or a dependency) that cannot be imported: the
+    installation is broken, say how to reinstall; None when the import is not of those."""
+    name = error.name or ""
+    if not name:
+        return None
+    own = name == "tromplab" or name.startswith("tromplab.")
+    what = f"tromplab's module {name}" if own else f"the package {name.split('.')[0]}, which tromplab needs,"
+    return (
+        f"the installation is broken: {what} cannot be imported ({error}); reinstall with "
+        "'python -m pip install --force-reinstall tromplab' (from a source checkout: 'python -m pip install -e .')"
+    )
 
 
 def require(module: str, option: str, install: str) -> None:
