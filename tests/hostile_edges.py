@@ -192,6 +192,37 @@ def old_weak_messages(case) -> list:
     return [case("last edges", name, expect, argv, files, words) for name, (argv, files, expect, words) in table.items()]
 
 
+def _with_nan_assay(text: str, line_start: str, column: int) -> str:
+    lines = text.splitlines()
+    return (
+        "\n".join(
+            ",".join("NaN" if k == column else cell for k, cell in enumerate(line.split(",")))
+            if line.startswith(line_start)
+            else line
+            for line in lines
+        )
+        + "\n"
+    )
+
+
+def assay_cases(case) -> list:
+    """The bundled survey with per-class assays, one assay cell NaN (an assay not made): it
+    reconciles (an exit 70 "Residuals are not finite" came and went with the solver's last
+    digits), with and without the separators' fits."""
+    sheet, survey = _dataset("circuit_minerals_flowsheet.csv"), _dataset("circuit_minerals_survey.csv")
+    cases = []
+    for where, (line_start, column) in {
+        "cyclone feed": ("cyclone_feed,150.0,212.0", 4),
+        "overflow": ("cyclone_overflow,53.0,75.0", 5),
+    }.items():
+        files = {"sheet.csv": sheet, "survey.csv": _with_nan_assay(survey, line_start, column)}
+        for options in ([], ["--fit"]):
+            argv = ["circuit", "{sheet.csv}", "{survey.csv}", "-o", "{tmp}/c", "--no-figures", *options]
+            name = f"circuit: a NaN assay in the {where}{' with --fit' if options else ''}"
+            cases.append(case("last edges", name, {0, 3} if options else 0, argv, files, slow=True))
+    return cases
+
+
 def last_edges(case) -> list:
     """Every case of this module; ``case`` is the catalogue's constructor."""
-    return [*density_cases(case), *reader_cases(case), *old_weak_messages(case)]
+    return [*density_cases(case), *reader_cases(case), *old_weak_messages(case), *assay_cases(case)]

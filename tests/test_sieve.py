@@ -334,7 +334,8 @@ def test_pg_and_bin_commands(capsys):
     assert "P_g = 0.151140" in capsys.readouterr().out
     assert main(["sieve", "bin", "--decks", "12", "--length", "1.6", "--recovery", "0.9"]) == 0
     printed = capsys.readouterr().out
-    assert "C = 14.2246, x1 = 0.9867" in printed and "x1 = 0.9808" in printed
+    assert "C = 14.2246 per L-unit², x1 = 0.9867 L-units" in printed and "x1 = 0.9808 L-units" in printed
+    assert "C: the passage intensity coefficient" in printed and "L-unit: the unit --length was given in" in printed
 
 
 def test_identification_from_bin_shares_round_trip():

@@ -13,6 +13,8 @@ library is imported when a command runs.
 
 from __future__ import annotations
 
+import re
+import textwrap
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -224,7 +226,7 @@ def console_report(run: CircuitRun, *, format_fits=None) -> str:
     fits (with ``format_fits``, the fit command's table, else the best curve per separator),
     the next steps and the files."""
     balance = run.balance
-    lines = [balance.report(), *run.weight_notes, "", "Reconciled solids flows:"]
+    lines = [*map(_wrapped, balance.report().splitlines()), *map(_wrapped, run.weight_notes), "", "Reconciled solids flows:"]
     flows = balance.flows_table()[["stream", "measured", "reconciled", "reconciled_sd"]]
     lines.append(flows.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
     largest = balance.largest_adjustments(5)
@@ -235,9 +237,23 @@ def console_report(run: CircuitRun, *, format_fits=None) -> str:
     if run.bench is not None:
         lines += ["", _fits_text(run.bench, format_fits, balance.survey.size_unit)]
     if run.next_steps:
-        lines += ["", "Next:", *(f"  {k}. {step}" for k, step in enumerate(run.next_steps, start=1))]
+        lines += ["", "Next:", *(_wrapped(f"  {k}. {step}", indent="     ") for k, step in enumerate(run.next_steps, start=1))]
     lines += ["", "Wrote:", *(f"  {path}" for path in run.written.values())]
     return "\n".join(lines)
+
+
+#: The console's width, as the fit tables are wrapped (tromplab.cli.printing).
+CONSOLE_WIDTH = 98
+
+
+def _wrapped(line: str, *, indent: str = "  ") -> str:
+    """A summary line wrapped at :data:`CONSOLE_WIDTH`, its continuation indented (a line of a
+    table, starting with spaces and fitting the width, is left as it is)."""
+    if len(line) <= CONSOLE_WIDTH:
+        return line
+    kept = re.sub(r"(--[\w-]+) (?=\S)", "\\1\x00", line)  # an option stays on one line with its value
+    filled = textwrap.fill(kept, width=CONSOLE_WIDTH, subsequent_indent=indent, break_on_hyphens=False, break_long_words=False)
+    return filled.replace("\x00", " ")
 
 
 def _fits_text(bench: Workbench, format_fits, size_unit: str) -> str:

@@ -135,13 +135,15 @@ def _component_assays(table: Table, names, has_class, class_of_row, errors, comp
 
 def assays_at(assays: pd.DataFrame, grades: np.ndarray, stream_index: dict, components: tuple[str, ...]) -> pd.DataFrame:
     """``assays`` with the error model evaluated at ``grades`` (components x streams x classes,
-    fractions, clipped at 0) instead of the measured values; given sds stay."""
+    fractions, clipped to 0..1, NaN read as 0) instead of the measured values; given sds stay."""
     table = assays.copy()
     if not len(table):
         return table
     k = table["component"].map({name: j for j, name in enumerate(components)}).to_numpy(int)
     s = table["stream"].map(stream_index).to_numpy(int)
-    at = np.clip(grades[k, s, table["class_index"].to_numpy(int)], 0.0, None)
+    # an assay lies in 0..1: a reconciled grade outside (a class flow near 0 divides a component
+    # flow the rounding leaves a little off) would make its sd follow the last digits of the solver
+    at = np.clip(np.nan_to_num(grades[k, s, table["class_index"].to_numpy(int)], nan=0.0), 0.0, 1.0)
     modelled = table["relative"].notna().to_numpy()
     sd = np.sqrt((table["relative"].to_numpy(float) * at) ** 2 + table["absolute"].to_numpy(float) ** 2)
     table["sd"] = np.where(modelled, sd, table["sd"].to_numpy(float))

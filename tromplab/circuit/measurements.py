@@ -298,7 +298,7 @@ class Survey:
         linearised.  Values and given sds are unchanged."""
         table = self.shares.copy()
         if len(table):
-            at = np.clip(shares[table["stream"].map(stream_index).to_numpy(), table["class_index"].to_numpy(int)], 0.0, None)
+            at = np.clip(shares[table["stream"].map(stream_index).to_numpy(), table["class_index"].to_numpy(int)], 0.0, 1.0)
             modelled = table["relative"].notna().to_numpy()
             sd = np.sqrt((table["relative"].to_numpy(float) * at) ** 2 + table["absolute"].to_numpy(float) ** 2)
             table["sd"] = np.where(modelled, sd, table["sd"].to_numpy(float))

@@ -172,6 +172,9 @@ def solve(problem: Problem, start: np.ndarray) -> tuple[np.ndarray, bool, str]:
     def residual(z):
         return np.concatenate([problem.whitened_residual(z), np.zeros(missing)])
 
+    if not np.all(np.isfinite(residual(z0))):  # scipy would raise "Residuals are not finite in the initial point"
+        return z0, False, "the measurements' predictions are not finite at the starting point (an empty class or stream)"
+
     def jacobian(z):
         return np.vstack([problem.whitened_jacobian(z), np.zeros((missing, z.size))])
 

@@ -100,7 +100,8 @@ def _write_csv(table, path: Path) -> dict:
     from ..output.csv_parts import write_csv  # pandas: imported when the command runs, not when the parser is built
 
     path.absolute().parent.mkdir(parents=True, exist_ok=True)
-    return write_files({path.name: lambda target: write_csv(table, target)}, path.absolute().parent)
+    written = write_files({path.name: lambda target: write_csv(table, target)}, path.absolute().parent)
+    return {name: path.parent / name for name in written}  # as given (relative), as the other commands print it
 
 
 # --- command line ----------------------------------------------------------------------------

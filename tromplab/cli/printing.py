@@ -75,9 +75,11 @@ def format_fits(fits: pd.DataFrame, verdicts: dict[str, list[str]] | None = None
             blocks.append(textwrap.fill(statement, width=98, initial_indent="  ! ", subsequent_indent="    "))
         if intervals:
             cut = "d50c" if corrected else "d50"  # the fitted cut parameter: the actual cut of the nine formulas
-            bounds = ordered[["formula", "d_cut", *intervals]].rename(
+            named = ["shape_name"] if "shape_name" in ordered else []  # which parameter "shape" is, as in the table above
+            bounds = ordered[["formula", *named, "d_cut", *intervals]].rename(
                 columns=lambda c, cut=cut: re.sub(r"^d_cut", cut, re.sub(r"(_boot)?_(low|high)$", r" \2", c))
             )
+            bounds = bounds.rename(columns={"shape_name": "par"})
             title = "  intervals:" if kind == "" else "  bootstrap intervals:"
             blocks.append(f"{title}\n" + bounds.to_string(index=False, float_format=lambda v: f"{v:.4g}", na_rep="-"))
         for formula, success, message, warned in group[["formula", "success", "message", "warnings"]].itertuples(index=False):

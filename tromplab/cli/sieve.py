@@ -22,6 +22,14 @@ SIEVE_LENGTHS = {"low": 1e-100, "high": 1e100}
 BIN_LENGTHS = {"low": 1e-6, "high": 1e6}
 
 
+#: What ``sieve bin`` prints, in words (its numbers carry the unit of --length, here "L-unit").
+BIN_LEGEND = (
+    "x1, x2: start and end of the collecting bin along the bottom deck, measured from the deck's start (x2 = the sieve\n"
+    "length); C: the passage intensity coefficient (passages through the decks form a Poisson stream of intensity\n"
+    "C x along the deck); L-unit: the unit --length was given in (m for a length in metres)."
+)
+
+
 def add_sieve(commands) -> None:
     sieve = commands.add_parser("sieve", help="sieve classifiers: identification, geometric probability, bin design")
     sieve_commands = sieve.add_subparsers(dest="sieve_command", metavar="SIEVE_COMMAND", required=True)
@@ -149,15 +157,17 @@ def _run_sieve_bin(args) -> int:
             )
             continue
         print(
-            f"{method:>6}: C = {design.c:.4f}, x1 = {design.x1:.4f}, x2 = {design.x2:.4g}, recovery in the bin = {design.recovery:.4f}"
+            f"{method:>6}: C = {design.c:.4f} per L-unit², x1 = {design.x1:.4f} L-units, x2 = {design.x2:.4g} L-units, "
+            f"recovery in the bin = {design.recovery:.4f}"
         )
         if method == "exact":
             mean, variance = distance_moments(args.decks, design.c)
-            moments = f"exact mean distance on deck {args.decks}: {mean:.4f}, standard deviation {np.sqrt(variance):.4f}"
+            moments = f"exact mean distance on deck {args.decks}: {mean:.4f} L-units, standard deviation {np.sqrt(variance):.4f} L-units"
     if len(failed) == 2:
         raise ResultError("; ".join(failed))
     if not failed[:1] or not failed[0].startswith("exact"):
         print(moments)
+    print(BIN_LEGEND)
     if failed:
         raise ResultError(failed[0])
     return 0

@@ -211,6 +211,30 @@ def read_f_table(path, *, alpha: float = DEFAULT_ALPHA, use_given_marks: bool = 
     return frame
 
 
+def top_ranked(fits: pd.DataFrame) -> pd.DataFrame:
+    """Each experiment's best-ranked fit, one row per experiment in the table's order, with
+    ``tied``: how many formulas share that first place (1 when none does).
+
+    The best rank is the lowest of the experiment, not 1: formulas tied at the first place
+    share a rank such as 1.5 (or 4.5 for eight), and the first of them in the table's order
+    stands for the experiment.
+
+    Examples
+    --------
+    >>> fits = pd.DataFrame({"experiment": ["A", "A", "B", "B"], "formula": ["plitt", "lognormal"] * 2,
+    ...                      "rank": [1.5, 1.5, 1.0, 2.0]})
+    >>> top_ranked(fits)[["experiment", "formula", "tied"]].values.tolist()
+    [['A', 'plitt', 2], ['B', 'plitt', 1]]
+    """
+    rank = pd.to_numeric(fits["rank"], errors="coerce")
+    ranked = fits[rank.notna()]
+    rank = rank[rank.notna()]
+    first = rank == rank.groupby(ranked["experiment"], sort=False).transform("min")
+    top = ranked[first.to_numpy()]
+    tied = top.groupby("experiment", sort=False)["experiment"].transform("size").to_numpy()
+    return top.assign(tied=tied).drop_duplicates("experiment")
+
+
 def add_delta_aicc(fits: pd.DataFrame) -> pd.Series:
     """AICc minus the lowest AICc of the same experiment (0 for the best; nan for failed fits)."""
     return fits["aicc"] - fits.groupby("experiment", sort=False)["aicc"].transform("min")

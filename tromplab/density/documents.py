@@ -22,6 +22,8 @@ WORKBOOK_NAME = "results.xlsx"
 REPORT_HTML, REPORT_MARKDOWN = "report.html", "report.md"
 #: The sections of the density report, in order (headings in :mod:`tromplab.output.report`).
 REPORT_SECTIONS = ("summary", "fits", "partition", "by_size", "figures")
+#: Headings of the density report's own: its unit is the test (and size fraction), not the experiment.
+REPORT_HEADINGS = {"fits": "Ranked fits per test"}
 
 _DENSITY_STEMS = ("rho50", "rho25", "rho75", "rho_c", "ep", "ep_c", "density", "density_lower", "density_upper", "ep_at_1mm")
 _SHARE_STEMS = ("partition_sinks", "partition", "light_limit", "heavy_limit", "feed_share", "floats_share", "sinks_share",
@@ -73,7 +75,7 @@ def write_density_workbook(path, tables: dict[str, pd.DataFrame], figures: dict[
 def density_report(result, tables: dict[str, pd.DataFrame], figures: dict[str, bytes]) -> Report:
     """The report of a :class:`~tromplab.density.results.DensityResult`: summary, fits, partition, by size, figures."""
     source = ", ".join(dict.fromkeys(sample.source for sample in result.samples if sample.source)) or "table"
-    report = Report("tromplab density report", source, order=REPORT_SECTIONS)
+    report = Report("tromplab density report", source, order=REPORT_SECTIONS, headings=REPORT_HEADINGS)
     level = f"{result.ci:g}" if result.ci is not None else "none (no --ci)"
     for sample in result.samples:
         report.add("summary", "text", f"{sample.label}: {sample.layout}, {sample.used.shape[0]} points.")

@@ -16,6 +16,7 @@ from ..classifiers.sieve import distance_pdf
 from ..curves.curve_fit import CurveFit
 from ..curves.formulas import select_formulas
 from ..curves.intervals import delta_standard_errors
+from ..curves.ranking import top_ranked
 from .views import check_partition_to
 
 #: Colours of up to 12 curves: tab10, then a dark indigo and a dark green, as far from every tab10 colour
@@ -426,7 +427,10 @@ def plot_batch_overview(fits_table, *, axes=None):
     Parameters
     ----------
     fits_table : pandas.DataFrame
-        ``Workbench.fits_table()`` (columns ``experiment, formula, rank, d_cut, ep, eta``).
+        ``Workbench.fits_table()`` (columns ``experiment, formula, rank, d_cut, ep, eta``), or
+        the top-ranked rows of a streamed batch with ``tied`` (how many formulas share the
+        first place). An experiment whose first place is tied is shown by the first of its
+        tied formulas, counted in the bar ``(tied first place)`` and in the title.
     axes : array of 4 matplotlib Axes, optional
 
     Returns
@@ -435,21 +439,28 @@ def plot_batch_overview(fits_table, *, axes=None):
     """
     import matplotlib.pyplot as plt
     import numpy as np
+    import pandas as pd
 
     if axes is None:
         _, axes = plt.subplots(2, 2, figsize=(9, 6.5))
     axes = np.asarray(axes).ravel()
-    best = fits_table[fits_table["rank"] == 1].drop_duplicates("experiment")
+    best = fits_table if "tied" in fits_table else top_ranked(fits_table)  # a streamed batch's rows are the top ones
+    tied = best["tied"].to_numpy(dtype=float) > 1
     for ax, column, label in zip(axes[:3], ("d_cut", "ep", "eta"), ("cut size d_cut", "Ecart probable Ep", "efficiency eta")):
         values = best[column].to_numpy(dtype=float)
         values = values[np.isfinite(values)]
         ax.hist(values, bins=min(40, max(5, int(np.sqrt(values.size)))) if values.size else 5, color="0.45")
         ax.set_xlabel(f"{label} (top-ranked fit)")
         ax.set_ylabel("experiments")
-    wins = best["formula"].value_counts()
+    wins = best.loc[~tied, "formula"].value_counts()
+    if tied.any():  # formulas sharing the first place: no one of them wins the experiment
+        wins = pd.concat([wins, pd.Series({"(tied first place)": int(tied.sum())})])
     axes[3].barh(wins.index[::-1], wins.to_numpy()[::-1], color="0.45")
     axes[3].set_xlabel("experiments where the formula ranks first")
-    axes[0].figure.suptitle(f"{best['experiment'].nunique()} experiments")
+    title = f"{best['experiment'].nunique()} experiments"
+    if tied.any():
+        title += f" ({int(tied.sum())} with formulas tied at the first place: the first of them shown above)"
+    axes[0].figure.suptitle(title)
     return axes
 
 

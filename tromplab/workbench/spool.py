@@ -31,7 +31,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from ..curves.ranking import rank_formulas
+from ..curves.ranking import rank_formulas, top_ranked
 from ..loading.points import TrompPoints
 from ..loading.surveys import with_survey_columns
 from ..output.csv_parts import csv_part, defended_frame, holds_carriage_return, write_csv
@@ -45,7 +45,7 @@ logger = logging.getLogger(__package__)
 #: The tables whose rows the workers write, chunk by chunk.
 SPOOLED_TABLES = ("fits", "averages")
 #: Columns of the fits table the overview figure reads (:func:`tromplab.output.plotting.plot_batch_overview`).
-OVERVIEW_COLUMNS = ("experiment", "formula", "rank", "d_cut", "ep", "eta")
+OVERVIEW_COLUMNS = ("experiment", "formula", "rank", "d_cut", "ep", "eta", "tied")
 
 
 @dataclass(frozen=True)
@@ -96,7 +96,7 @@ class ChunkRanks(NamedTuple):
 class TopFits(NamedTuple):
     """The values the overview figure shows of each experiment's top-ranked fit, for a chunk:
     ``formulas`` (ids), ``codes`` (each experiment's formula, an index into ``formulas``) and
-    ``values`` (experiments x ``d_cut, ep, eta``)."""
+    ``values`` (experiments x ``d_cut, ep, eta, tied``: ``tied`` formulas share the first place)."""
 
     formulas: tuple
     codes: np.ndarray
@@ -202,7 +202,7 @@ def spool_chunk(options: SpoolOptions, work: ChunkWork) -> ChunkSummary:
         [(fit.experiment, fit.formula.id, fit.fit.message) for fit in fits if not fit.success],
         layouts,
         ranks,
-        TopFits.of(view[view["rank"] == 1].drop_duplicates("experiment")),
+        TopFits.of(top_ranked(view)),
         (completed[shown], view[view["experiment"].isin(options.head)]) if shown.any() else None,
         files,
         bool(view["rank"].notna().any()),
@@ -327,7 +327,7 @@ class Spool:
         formulas = np.array([formula for top in tops for formula in top.formulas], dtype=object)
         first = np.cumsum([0, *(len(top.formulas) for top in tops)])
         codes = np.concatenate([np.zeros(0, dtype=np.int64), *(top.codes + base for top, base in zip(tops, first))])
-        values = np.concatenate([np.zeros((0, 3)), *(top.values for top in tops)])
+        values = np.concatenate([np.zeros((0, len(OVERVIEW_COLUMNS) - 3)), *(top.values for top in tops)])
         columns = {"experiment": np.arange(len(codes)), "formula": formulas[codes], "rank": np.ones(len(codes))}
         return pd.DataFrame({**columns, **{column: values[:, i] for i, column in enumerate(OVERVIEW_COLUMNS[3:])}})
 
