@@ -206,3 +206,35 @@ def test_the_circuit_summary_is_wrapped_as_the_fit_tables(tmp_path, capsys):
     assert max(len(line) for line in summary) <= 98
     assert any(line.startswith("  ") for line in summary)  # a continuation
     assert "assays set aside (the class holds less than 0.1 % of its stream" in " ".join(" ".join(summary).split())
+
+
+def test_the_bundled_minerals_survey_is_what_its_script_draws():
+    """datasets/circuit_minerals_survey.csv = analysis/make_circuit_minerals_example.py's draw (seed 11)."""
+    import numpy as np
+
+    from tromplab.circuit.simulation import mineral_circuit, simulate_survey, survey_table
+
+    drawn = survey_table(simulate_survey(mineral_circuit(), np.random.default_rng(11), flows={"fresh_feed": 0.02}))
+    bundled = pd.read_csv(MINERALS_SURVEY, comment="#")
+    pd.testing.assert_frame_equal(bundled, drawn, check_dtype=False)
+    assert {"assay_magnetite_pct", "assay_pyrite_pct"} <= set(bundled.columns)
+
+
+# --- the lmfit object of a fit: its report says whose numbers it gives -----------------------
+@pytest.mark.parametrize("batched", [False, True])
+def test_the_fit_report_states_the_fits_own_starts_and_evaluations(batched):
+    import tromplab
+
+    points = tromplab.TrompPoints("run", [10, 20, 40, 80, 160], [0.98, 0.91, 0.62, 0.21, 0.04])
+    fit = (
+        tromplab.fit_experiments([points], formulas=["plitt"]).best_fit("run")
+        if batched
+        else tromplab.fit_formula(points, "plitt")
+    )
+    report = fit.model_result().fit_report()
+    assert fit.fit.nfev > 3 and fit.fit.n_starts >= 1
+    assert (
+        f"Model(plitt: tromplab's fit ({fit.fit.n_starts} start(s), {fit.fit.nfev} function evaluations), re-evaluated by "
+        "lmfit from its optimum)" in report
+    )
+    assert f"# function evals   = {fit.fit.nfev}\n" in report

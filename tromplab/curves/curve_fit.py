@@ -474,7 +474,9 @@ class CurveFit(ResultContract):
         the fit's bounds and the square roots of its weights) is fitted by lmfit from this
         fit's optimum, so the result has lmfit's own ``eval``, ``eval_uncertainty``,
         ``plot``, ``fit_report`` and ``conf_interval``.  Its parameters equal this fit's to
-        the solver's tolerance and its ``chisqr`` is this fit's ``ssr``; a fit made by the
+        the solver's tolerance and its ``chisqr`` is this fit's ``ssr``; its ``fit_report()``
+        names the model as tromplab's fit re-evaluated by lmfit from its optimum, with the fit's
+        starts, and gives the fit's own function evaluations (``fit.fit.nfev``); a fit made by the
         batched engine gets one the same way (``fit.fit.raw`` is lmfit's lower-level
         ``MinimizerResult``, and None for a batched fit).  Formula (11) keeps the measured
         efficiency the fit was made with.
@@ -506,17 +508,25 @@ class CurveFit(ResultContract):
         arguments = [inspect.Parameter(name, inspect.Parameter.POSITIONAL_OR_KEYWORD) for name in ["size", *names]]
         partition_fine.__signature__ = inspect.Signature(arguments)
         partition_fine.__name__ = formula.id
-        model = lmfit.Model(partition_fine, independent_vars=["size"])
+        # the report says what the numbers are: tromplab's fit (its starts and evaluations),
+        # which lmfit re-evaluates from the optimum, not a fit of lmfit's own from a guess
+        origin = (
+            f"{formula.id}: tromplab's fit ({self.fit.n_starts} start(s), {self.fit.nfev} function evaluations), "
+            "re-evaluated by lmfit from its optimum"
+        )
+        model = lmfit.Model(partition_fine, independent_vars=["size"], name=origin)
         params = model.make_params()
         for spec in parameter_specs(formula, self.points):
             params[spec.name].set(value=spec.clip(self.fit.values[spec.name]), min=spec.lower, max=spec.upper)
-        return model.fit(
+        result = model.fit(
             self.points.partition_fine,
             params,
             size=self.points.size,
             weights=np.sqrt(self.options.weights),
             method="least_squares",
         )
+        result.nfev = int(self.fit.nfev) or result.nfev  # fit_report's "function evals": the fit's, not the re-evaluation's
+        return result
 
     def with_lmfit(self) -> CurveFit:
         """This fit with an lmfit result: a fit made by the batched engine (or one that
