@@ -64,6 +64,9 @@ sphinx_gallery_conf = {
     "abort_on_example_error": True,
     "matplotlib_animations": False,
     "min_reported_time": 1,
+    # no computation-times page: sphinx-gallery's loads jQuery and DataTables from a CDN, and the
+    # site loads no remote script on any page (checked by .ci/check_offline_site.py)
+    "write_computation_times": False,
 }
 
 html_theme = "pydata_sphinx_theme"

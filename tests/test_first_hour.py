@@ -4,6 +4,7 @@ relative paths, wrapped lines), the fit report of an lmfit object, the overview 
 
 import errno
 import os
+import re
 
 import pandas as pd
 import pytest
@@ -238,3 +239,43 @@ def test_the_fit_report_states_the_fits_own_starts_and_evaluations(batched):
         "lmfit from its optimum)" in report
     )
     assert f"# function evals   = {fit.fit.nfev}\n" in report
+
+
+# --- the documentation site loads nothing from another host ------------------------------------
+def _offline_checker():
+    import importlib.util
+
+    from .conftest import ROOT
+
+    spec = importlib.util.spec_from_file_location("check_offline_site", ROOT / ".ci" / "check_offline_site.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_the_site_check_finds_the_gallery_timing_pages_remote_scripts(tmp_path):
+    checker = _offline_checker()
+    timing_page = (  # what sphinx-gallery 0.15-0.22 writes into sg_execution_times when it writes the page
+        '<link href="https://cdn.datatables.net/1.13.6/css/dataTables.bootstrap5.min.css" rel="stylesheet" />\n'
+        '<script src="https://code.jquery.com/jquery-3.7.0.js"></script>\n'
+        '<script src="https://cdn.datatables.net/1.13.6/js/jquery.dataTables.min.js"></script>\n'
+    )
+    assert checker.remote_loads(timing_page) == [
+        "https://cdn.datatables.net/1.13.6/css/dataTables.bootstrap5.min.css",
+        "https://code.jquery.com/jquery-3.7.0.js",
+        "https://cdn.datatables.net/1.13.6/js/jquery.dataTables.min.js",
+    ]
+    local = '<script src="_static/x.js"></script><img src="data:image/png;base64,AA"><a href="https://doi.org/x">doi</a>'
+    assert checker.remote_loads(local) == []
+    (tmp_path / "index.html").write_text(local, encoding="utf-8")
+    assert checker.main(str(tmp_path)) == 0
+    (tmp_path / "sg_execution_times.html").write_text(timing_page, encoding="utf-8")
+    assert checker.main(str(tmp_path)) == 1
+
+
+def test_the_gallery_writes_no_computation_times_page():
+    from .conftest import ROOT
+
+    text = (ROOT / "docs" / "conf.py").read_text(encoding="utf-8")
+    assert re.search(r'"write_computation_times":\s*False', text)
+    assert "python .ci/check_offline_site.py docs/_build/html" in (ROOT / ".ci" / "run").read_text(encoding="utf-8")
