@@ -45,14 +45,12 @@ from .models import add_model_commands
 from .option_groups import shared_groups
 from .startup import (
     EXIT_INPUT,
-    EXIT_INTERNAL,
     EXIT_OK,
     EXIT_PARTIAL,
     EXIT_USAGE,
     CommandParser,
     SubcommandParser,
     Terminated,
-    broken_installation,
     cli_message,
     cli_words,
     collector_paused,
@@ -61,9 +59,9 @@ from .startup import (
     raise_terminated,
     show_input_notes,
     sigterm_as_interrupt,
+    unexpected_error,
     verbosity,
     words_of,
-    write_failure,
 )
 
 # Each command module imports the library modules it needs when the command runs: building the
@@ -128,23 +126,10 @@ def main(argv=None, *, on_start=None) -> int:
     except ResultError as error:  # a result outside its range is a failure, not a result
         print(f"{command}: failed: {cli_words(str(error), own)}", file=sys.stderr)
         return EXIT_PARTIAL
-    except Exception as error:  # anything else is a bug in tromplab: say so, do not dress it up as bad input
+    except Exception as error:  # anything else is a bug in tromplab (or the place it writes to): say which
         if args.debug:
             raise
-        place = write_failure(error, args) if isinstance(error, OSError) else None
-        if place is not None:  # a full disk or a folder not writable: the place, not tromplab
-            print(f"{command}: error: {place}", file=sys.stderr)
-            return EXIT_INPUT
-        broken = broken_installation(error) if isinstance(error, ImportError) else None
-        if broken is not None:
-            print(f"{command}: error: {broken}", file=sys.stderr)
-            return EXIT_INTERNAL
-        print(
-            f"{command}: internal error (a bug in tromplab, please report it): {type(error).__name__}: {error}\n"
-            f"  run again with --debug for the traceback",
-            file=sys.stderr,
-        )
-        return EXIT_INTERNAL
+        return unexpected_error(command, error, args)
 
 
 #: Positional arguments that name an input file, checked before a command imports its modules.

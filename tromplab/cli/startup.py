@@ -259,6 +259,26 @@ def broken_installation(error: ImportError) -> str | None:
     )
 
 
+def unexpected_error(command: str, error: Exception, args) -> int:
+    """Print an error no check of the command foresaw and return its exit code: a full disk or
+    a folder that cannot be written is the place (exit 1, the old results intact), a module that
+    cannot be imported a broken installation, anything else a bug in tromplab (exit 70)."""
+    place = write_failure(error, args) if isinstance(error, OSError) else None
+    if place is not None:
+        print(f"{command}: error: {place}", file=sys.stderr)
+        return EXIT_INPUT
+    broken = broken_installation(error) if isinstance(error, ImportError) else None
+    if broken is not None:
+        print(f"{command}: error: {broken}", file=sys.stderr)
+        return EXIT_INTERNAL
+    print(
+        f"{command}: internal error (a bug in tromplab, please report it): {type(error).__name__}: {error}\n"
+        f"  run again with --debug for the traceback",
+        file=sys.stderr,
+    )
+    return EXIT_INTERNAL
+
+
 def require(module: str, option: str, install: str) -> None:
     import importlib.util
 
