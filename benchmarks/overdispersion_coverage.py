@@ -44,9 +44,9 @@ def main(argv=None):
                 overdispersion_coverage_study(densities=densities, precision=precision, tests=args.tests, seed=args.seed)
             )
             print(f"{densities} densities, precision {precision:g}: {time.perf_counter() - start:.0f} s", flush=True)
+            OUTPUT.mkdir(exist_ok=True)  # each cell as it is done: a long run interrupted keeps the cells it made
+            pd.concat(cells, ignore_index=True).to_csv(OUTPUT / "density_overdispersion_coverage.csv", index=False)
     table = pd.concat(cells, ignore_index=True)
-    OUTPUT.mkdir(exist_ok=True)
-    table.to_csv(OUTPUT / "density_overdispersion_coverage.csv", index=False)
     print(markdown(table))
     return table
 
