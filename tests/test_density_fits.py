@@ -16,7 +16,7 @@ from numpy.testing import assert_allclose
 from tromplab.cli import main
 from tromplab.density import fit_density, fit_density_curve, get_density_curve, read_density
 from tromplab.density.curves import DENSITY_CURVES, PLAIN_CURVES
-from tromplab.density.fitting import limits_test_p, partition_band, profile_interval
+from tromplab.density.fitting import limits_test_p, partition_band, profile_interval, profile_limits
 from tromplab.density.simulation import float_sink_table, simulate_tracer_test, tracer_study
 from tromplab.errors import OptionError
 
@@ -97,9 +97,10 @@ def test_overdispersion_is_detected_and_widens_the_intervals():
     fit = fit_density_curve(sample, "normal", ci=0.95)
     assert fit.overdispersed and fit.dispersion > 2
     low, high = fit.intervals["rho50"]
-    unscaled = profile_interval(fit.__class__(**{**fit.__dict__, "overdispersed": False}), "rho50", 0.95)
-    assert high - low > 1.3 * (unscaled[1] - unscaled[0])
+    binomial = profile_limits(fit, "rho50", 1.0, scipy.stats.chi2.ppf(0.95, 1))  # the interval of binomial counts
+    assert high - low > 1.3 * (binomial[1] - binomial[0])
     assert any("overdispersed" in note for note in fit.notes)
+    assert any(f"quasi-binomial scale {fit.dispersion:.3g}" in note and f"F(1, {fit.df_resid})" in note for note in fit.notes)
 
 
 def test_limits_on_their_bounds_give_p_one_and_real_limits_are_found():

@@ -77,3 +77,50 @@ def test_bad_input():
         fit_pulp_screen([1, 2, 3], [1, 2, 3], [1, 2, 3], fitted=("gamma",))
     with pytest.raises(ValueError, match="must be positive"):
         fit_pulp_screen([1, 2, 3], [1, 2, 3], [1, -2, 3])
+
+
+# The optima below were computed independently of tromplab with mpmath at 40 digits: the
+# productivity written out from paper 004's model (F 1, k0 0.2, c 10, t1 0.01, beta 2, r 2, lambda 3,
+# s 0.5, tau 2; alpha = beta H^r, a = lambda H^s) and the zero of its derivative found by
+# mpmath.findroot (the test repeats that computation).
+PLAIN_BEST_HEAD_N20 = (0.99483246625220199, 4.8818433851737025)  # H', Q at N = 20 1/s, phi = 0
+ROTOR_BEST_FREQUENCY_H0 = (20.673497031449763, 4.8925218459167849)  # N, Q at H' = 0, phi = 0.0025
+
+
+def _independent_productivity(head, frequency):
+    import mpmath
+
+    rate = 2 * head**2 * 3 * head ** mpmath.mpf("0.5")
+    return mpmath.mpf("0.2") * frequency * 10 / (2 * head**2) * mpmath.exp(-rate / 100) * (1 - mpmath.exp(-rate / frequency))
+
+
+def test_the_optimum_at_20_per_second_is_the_independent_one():
+    import mpmath
+
+    with mpmath.workdps(40):
+        head = mpmath.findroot(lambda h: mpmath.diff(lambda x: _independent_productivity(x, 20), h), 1.0)
+        assert_allclose([float(head), float(_independent_productivity(head, 20))], PLAIN_BEST_HEAD_N20, rtol=1e-15)
+    best, top = PLAIN.best_pressure_drop(20.0)
+    # the maximum is flat (Q'' small): the bounded search stops 2e-9 from it, Q agrees to rounding
+    assert_allclose(best, PLAIN_BEST_HEAD_N20[0], atol=1e-7)
+    assert_allclose(top, PLAIN_BEST_HEAD_N20[1], rtol=1e-12)
+
+
+def test_the_best_frequency_without_applied_pressure_is_the_independent_one():
+    import mpmath
+
+    with mpmath.workdps(40):
+        phi = mpmath.mpf("0.0025")
+        n = mpmath.findroot(lambda n: mpmath.diff(lambda x: _independent_productivity(phi * x**2, x), n), 20)
+        assert_allclose([float(n), float(_independent_productivity(phi * n**2, n))], ROTOR_BEST_FREQUENCY_H0, rtol=1e-15)
+    frequency, top, interior = ROTOR.best_frequency(0.0)
+    assert interior
+    assert_allclose(frequency, ROTOR_BEST_FREQUENCY_H0[0], atol=1e-6)
+    assert_allclose(top, ROTOR_BEST_FREQUENCY_H0[1], rtol=1e-12)
+
+
+def test_no_best_frequency_without_any_pressure_drop():
+    # the command line refuses --applied 0 with --phi 0; the API says the same instead of a raw
+    # division by zero and a frequency of nothing (it returned 0.47 1/s with Q = nan)
+    with pytest.raises(ValueError, match="applied 0 with phi 0 leaves no pressure drop to drive the flow"):
+        PLAIN.best_frequency(0.0)

@@ -168,6 +168,19 @@ def test_akaike_weights_and_information_criteria():
     assert_allclose(criteria["bic"], n * np.log(fit.fit.ssr / n) + k * np.log(n))
 
 
+def test_akaike_share_stays_within_one_when_the_weights_sum_above_it():
+    # two weights whose sum rounds above 1 on every IEEE machine (one addition, correctly rounded);
+    # more weights did so on one CPU and not on another (the order of a sum is the library's)
+    weights = np.array([[0.1, 0.9000000000000001]])
+    assert weights.sum() > 1.0
+    values, errors = np.full_like(weights, 100.0), np.full_like(weights, 5.0)
+    (row,) = uncertainty._averaged_quantity(
+        "d50", values, errors, weights, ids=[["a", "b"]], z=1.96, x_max=np.array([5.0]), min_share=0.5
+    )
+    assert row["akaike_share"] == 1.0  # in [0, 1] by construction
+    assert_allclose(row["value"], 100.0)
+
+
 def test_model_average_weights_the_formulas():
     points = experiment(7)
     fits = [fit_formula(points, formula) for formula in FORMULAS]

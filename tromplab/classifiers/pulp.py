@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..curves.parameters import Parameter
+from ..errors import OptionError
 from ..results_contract import ResultContract, parameters_frame
 from ..validation import check_range
 
@@ -131,8 +132,17 @@ class PulpScreen:
 
         ``interior`` is False when the best frequency is the upper bound: the productivity
         still rises there, as it does for every frequency when ``phi = 0``.
+
+        Raises
+        ------
+        OptionError
+            ``applied`` 0 on a screen without rotor pulsation (``phi = 0``): no pressure drop
+            drives the flow (as ``tromplab pulp optimum --applied 0`` says).
         """
         from scipy import optimize
+
+        if np.all(np.asarray(applied, dtype=float) == 0) and self.phi == 0:
+            raise OptionError("applied", "0 with phi 0 leaves no pressure drop to drive the flow")
 
         log_low, log_high = np.log(bounds[0]), np.log(bounds[1])
         result = optimize.minimize_scalar(

@@ -7,10 +7,11 @@ Tracer counts
     log-log: Gompertz), fitted by statsmodels; ``rho50 = (q50 - a)/b``, ``Ep = k/b``.  A
     curve with limits is fitted by minimising the binomial deviance (scipy, SLSQP within the bounds, several
     starts).  Goodness of fit: the deviance against :math:`\chi^2_{n - p}`.  Overdispersion:
-    the Pearson :math:`X^2 / (n - p)`; when the Pearson test rejects at 5 %
-    (:math:`X^2 > \chi^2_{n-p, 0.95}`) that ratio is used as the quasi-binomial scale
-    :math:`\phi` of the intervals (profile deviances divided by it); otherwise
-    :math:`\phi = 1`.
+    the Pearson :math:`X^2 / (n - p)`, flagged when the Pearson test rejects at 5 %
+    (:math:`X^2 > \chi^2_{n-p, 0.95}`); the intervals use :math:`\phi = \max(1, X^2/(n - p))`
+    as the quasi-binomial scale (profile deviances divided by it), with the
+    :math:`F_{1, n-p}` threshold where it is estimated above 1
+    (:mod:`tromplab.density.dispersion`).
 Shares (float-sink partitions, a partition given directly, or tracers fitted the
 spreadsheet way)
     Least squares :math:`\sum w_i (P_i - P(\rho_i))^2`, with ``w_i`` the fraction's feed
@@ -26,7 +27,7 @@ Intervals for ``rho50``, ``Ep`` and the imperfection are profile-likelihood inte
 the curve is written in ``(rho50, Ep[, l, h])`` (``(rho50, I[, l, h])`` for the
 imperfection, with ``Ep = I (rho50 - 1)``) and the other parameters re-optimised at each
 value; the limits are where :math:`(D(q) - \hat D)/\phi` reaches
-:math:`\chi^2_{1}(\text{ci})` (binomial) or :math:`(S(q) - \hat S)/(\hat S/(n-p))` reaches
+:math:`\chi^2_{1}(\text{ci})` (binomial; :math:`F_{1, n-p}(\text{ci})` when :math:`\phi > 1` was estimated) or :math:`(S(q) - \hat S)/(\hat S/(n-p))` reaches
 :math:`F_{1, n-p}(\text{ci})` (least squares).  Curves are ranked by AIC; a difference below
 2 is reported as the data not telling the curves apart.
 
@@ -61,13 +62,13 @@ import scipy.stats
 
 from ..results_contract import ResultContract
 from .curves import DensityCurve, DensityIndices, get_density_curve
+from .dispersion import pearson_rejects, profile_threshold, quasi_binomial_scale
 from .joint import JOINT_METHOD, fit_joint, has_three_analyses, joint_intervals
 from .readers import DensitySample
 
 #: Lowest and highest values the profile searches and the fits of a curve with limits may take.
 INDEX_BOUNDS = {"rho50": (1.0 + 1e-6, 8.0), "ep": (1e-4, 2.0), "imperfection": (1e-5, 20.0)}
 LIMIT_MARGIN = 1e-6  # the profiles keep l below 1/4 and h above 3/4 by this much
-OVERDISPERSION_LEVEL = 0.05
 METHODS = ("binomial", "least_squares")
 JOINT_FALLBACK_NOTE = (
     "the three analyses could not be fitted jointly (too few fractions for the parameters and the variance function, "
@@ -348,7 +349,7 @@ def _statistics(curve: DensityCurve, data: _Data, params: dict, objective: float
         k, n = data.sinks, data.trials
         pearson = float(np.sum((k - n * p_fit) ** 2 / (n * p_fit * (1 - p_fit))))
         dispersion = pearson / df if df > 0 else math.nan
-        overdispersed = df > 0 and pearson > scipy.stats.chi2.ppf(1 - OVERDISPERSION_LEVEL, df)
+        overdispersed = df > 0 and pearson_rejects(dispersion, df)
         loglik = float(scipy.stats.binom.logpmf(k, n, p_fit).sum())
         gof_p = float(scipy.stats.chi2.sf(objective, df)) if df > 0 else math.nan
         return {
@@ -403,20 +404,37 @@ def profile_interval(fit: DensityCurveFit, quantity: str, ci: float) -> tuple[fl
         NaN and ``note`` says so.
     """
     data = _data(fit.sample, fit.method)
-    objective = _objective_of(data)
-    model = _index_model(fit.curve, quantity)
-    centre, bounds = _index_vector(fit.curve, fit.params, fit.indices, quantity)
-    position = 0 if quantity == "rho50" else 1
     if data.binomial:
-        scale = fit.dispersion if fit.overdispersed else 1.0
-        threshold = scipy.stats.chi2.ppf(ci, 1)
-    else:
+        quasi = quasi_binomial_scale(fit.dispersion, fit.df_resid)
+        scale, threshold = quasi.scale, profile_threshold(ci, fit.df_resid, quasi.estimated)
+    else:  # the residual variance S/(n - p), estimated: F(1, n - p)
         scale = fit.objective / fit.df_resid if fit.df_resid > 0 else math.nan
-        threshold = scipy.stats.f.ppf(ci, 1, fit.df_resid) if fit.df_resid > 0 else math.nan
+        threshold = profile_threshold(ci, fit.df_resid, True)
     if not (np.isfinite(scale) and scale > 0):
         return math.nan, math.nan, f"{quantity} has no interval: no degrees of freedom left for the error variance"
     if not data.binomial and fit.objective <= 1e-20 * data.density.size:
         return math.nan, math.nan, f"{quantity} has no interval: the curve passes through every point (no residual variance)"
+    return profile_limits(fit, quantity, scale, threshold)
+
+
+def profile_limits(fit: DensityCurveFit, quantity: str, scale: float, threshold: float) -> tuple[float, float, str]:
+    """Where the profile of ``quantity``'s objective (deviance or sum of squares), its rise over the minimum divided by
+    ``scale``, reaches ``threshold``.
+
+    :func:`profile_interval` takes ``scale`` and ``threshold`` from the rules of
+    :mod:`tromplab.density.dispersion` (binomial) or from the residual variance (least squares);
+    the simulation studies compare rules with it.
+
+    Returns
+    -------
+    tuple
+        ``(low, high, note)`` as :func:`profile_interval`.
+    """
+    data = _data(fit.sample, fit.method)
+    objective = _objective_of(data)
+    model = _index_model(fit.curve, quantity)
+    centre, bounds = _index_vector(fit.curve, fit.params, fit.indices, quantity)
+    position = 0 if quantity == "rho50" else 1
     free = [i for i in range(centre.size) if i != position]
 
     warm = {"x": centre[free]}  # the optimum of the last profile point: the next one starts there
@@ -531,14 +549,26 @@ def _with_intervals_and_notes(fit: DensityCurveFit, data, ci: float | None, *, j
     if joint_fell_back:
         notes.append(JOINT_FALLBACK_NOTE)
     if fit.overdispersed:
-        notes.append(f"overdispersed (Pearson chi2/df = {fit.dispersion:.2f}): intervals use the quasi-binomial scale")
+        notes.append(f"overdispersed (Pearson chi2/df = {fit.dispersion:.2f}: the Pearson test rejects binomial counts at 5 %)")
     intervals = {}
     if ci is not None:
         intervals, interval_notes = _intervals(fit, data, ci)
         notes += interval_notes
+        notes += [note for note in [_scale_note(fit)] if note and data.binomial and intervals]
         if fit.sample.layout == "float-sink" and intervals:
             notes.append(FLOAT_SINK_INTERVAL_NOTE)
     return _replace(fit, intervals=intervals, notes=tuple(notes))
+
+
+def _scale_note(fit: DensityCurveFit) -> str:
+    """How the intervals of a binomial fit were scaled (:mod:`tromplab.density.dispersion`); "" on the binomial scale."""
+    quasi = quasi_binomial_scale(fit.dispersion, fit.df_resid)
+    if not quasi.estimated:
+        return ""
+    return (
+        f"intervals on the quasi-binomial scale {quasi.scale:.3g} (Pearson chi2/df, above 1): deviance rises over it "
+        f"against F(1, {fit.df_resid})"
+    )
 
 
 def _joint(fit: DensityCurveFit, ci: float | None) -> DensityCurveFit | None:
@@ -640,10 +670,12 @@ def partition_band(fit: DensityCurveFit, rho, *, level: float = 0.95) -> tuple[n
 
     The covariance of the parameters is :math:`2 s H^{-1}`, with ``H`` the Hessian of the
     objective (deviance or weighted sum of squares, by central differences) and ``s`` the
-    scale (the quasi-binomial scale when overdispersed, else 1; the residual variance for
+    scale (binomial: :func:`~tromplab.density.dispersion.quasi_binomial_scale`; the residual variance for
     least squares); a limit on its bound is held there.  The band is
     :math:`\hat P \pm z\,\sqrt{g^\top C g}` with ``g`` the gradient of ``P`` in the
-    parameters, clipped to 0..1.
+    parameters, clipped to 0..1; ``z`` is the normal quantile, or Student's t on ``n - p`` degrees of
+    freedom where the quasi-binomial scale was estimated (the square root of
+    :func:`~tromplab.density.dispersion.profile_threshold`).
     """
     rho = np.asarray(rho, dtype=float)
     centre = fit.partition(rho)
@@ -659,15 +691,20 @@ def partition_band(fit: DensityCurveFit, rho, *, level: float = 0.95) -> tuple[n
         return fit.curve.partition(where, **{**fit.params, **dict(zip(names, vector))})
 
     hessian = _hessian(lambda vector: objective(at(vector, data.density)), values, steps)
-    scale = (fit.dispersion if fit.overdispersed else 1.0) if data.binomial else fit.dispersion
+    quantile = None  # the normal's
+    if data.binomial:
+        quasi = quasi_binomial_scale(fit.dispersion, fit.df_resid)
+        scale, quantile = quasi.scale, math.sqrt(profile_threshold(level, fit.df_resid, quasi.estimated))
+    else:
+        scale = fit.dispersion
     try:
         covariance = 2.0 * scale * np.linalg.inv(hessian)
     except np.linalg.LinAlgError:
         return np.full_like(centre, np.nan), np.full_like(centre, np.nan)
-    return _band(fit, rho, centre, names, covariance, level)
+    return _band(fit, rho, centre, names, covariance, level, quantile=quantile)
 
 
-def _band(fit: DensityCurveFit, rho, centre, names: list, covariance: np.ndarray, level: float):
+def _band(fit: DensityCurveFit, rho, centre, names: list, covariance: np.ndarray, level: float, *, quantile=None):
     values = np.array([fit.params[name] for name in names])
     steps = 1e-4 * np.maximum(np.abs(values), 1e-2)
 
@@ -683,7 +720,8 @@ def _band(fit: DensityCurveFit, rho, centre, names: list, covariance: np.ndarray
         axis=-1,
     )
     variance = np.einsum("...i,ij,...j->...", gradient, covariance, gradient)
-    half = scipy.stats.norm.ppf(0.5 + level / 2) * np.sqrt(np.clip(variance, 0, None))
+    quantile = scipy.stats.norm.ppf(0.5 + level / 2) if quantile is None else quantile
+    half = quantile * np.sqrt(np.clip(variance, 0, None))
     return np.clip(centre - half, 0, 1), np.clip(centre + half, 0, 1)
 
 

@@ -418,7 +418,8 @@ def _float_sink_sample(table: Table, context: dict, options: LabOptions, floats_
             notes += [note] if note else []
     sinks_yield, yield_source, estimate = _sinks_yield(table, shares, floats_yield, notes)
     s, f = shares["sinks"], shares["floats"]
-    feed = sinks_yield * s + (1 - sinks_yield) * f
+    # a share between two shares; the sum of the two products can round an ulp above 1
+    feed = np.clip(sinks_yield * s + (1 - sinks_yield) * f, 0.0, 1.0)
     partition = partition_to_fines(feed, s, f, sinks_yield)
     used = np.isfinite(partition)
     if not used.all():

@@ -327,3 +327,125 @@ def overdispersed_ranking_study(
         "limits_first_aic": float(np.mean(by_aic)) if by_aic else math.nan,
         "limits_first_qaic": float(np.mean(by_qaic)) if by_qaic else math.nan,
     }
+
+
+def beta_binomial_tracer_test(
+    curve, params: dict, densities, *, placed: int = 30, precision: float = 10.0, rng=None, test: str = "sim"
+) -> pd.DataFrame:
+    """A tracer test whose tracers of one density share a fate: beta-binomial counts, as a lab writes them.
+
+    The sink probability of each density is drawn from a beta distribution with mean
+    ``P(density)`` and precision ``precision`` (its two parameters sum to it: the smaller, the
+    more the tracers of a density move together), then its ``placed`` tracers sink with it,
+    all recovered.  The variance of a count is the binomial one times
+    ``1 + (placed - 1) / (precision + 1)``; ``precision=inf`` gives binomial counts.
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``test, density, placed, sinks, floats`` (whole numbers).
+
+    Examples
+    --------
+    >>> table = beta_binomial_tracer_test("normal", {"rho50": 1.5, "ep": 0.05}, [1.4, 1.5, 1.6], rng=np.random.default_rng(0))
+    >>> (table["sinks"] + table["floats"]).tolist()
+    [30, 30, 30]
+    """
+    rng = np.random.default_rng(rng)
+    densities = np.asarray(densities, dtype=float)
+    partition = get_density_curve(curve).partition(densities, **params)
+    if math.isfinite(precision):
+        tiny = 1e-9  # a beta parameter must be positive where the curve reaches 0 or 1
+        partition = rng.beta(np.maximum(partition * precision, tiny), np.maximum((1 - partition) * precision, tiny))
+    sinks = rng.binomial(placed, partition)
+    return pd.DataFrame({"test": test, "density": densities, "placed": placed, "sinks": sinks, "floats": placed - sinks})
+
+
+#: The rules of the intervals' scale and threshold the overdispersion study compares: the policies of
+#: :func:`~tromplab.density.dispersion.quasi_binomial_scale` with their threshold, and the rule before them
+#: (the scale only where the Pearson test rejects, and the chi-square(1) threshold even then).
+INTERVAL_RULES = ("pearson_test_chi2", "pearson_test", "at_least_one")
+
+
+def _rule_scale_and_threshold(rule: str, dispersion: float, df_resid: int, ci: float) -> tuple[float, float]:
+    from .dispersion import profile_threshold, quasi_binomial_scale
+
+    policy = "pearson_test" if rule == "pearson_test_chi2" else rule
+    quasi = quasi_binomial_scale(dispersion, df_resid, policy=policy)
+    estimated = quasi.estimated and rule != "pearson_test_chi2"
+    return quasi.scale, profile_threshold(ci, df_resid, estimated)
+
+
+def overdispersion_coverage_study(
+    *, rho50: float = 1.55, ep: float = 0.04, densities: int = 7, placed: int = 30, precision: float = 10.0,
+    tests: int = 150, ci: float = 0.95, rules=INTERVAL_RULES, seed: int = 0,
+) -> pd.DataFrame:  # fmt: skip
+    """Coverage of the profile intervals of rho50 and Ep on beta-binomial tracer tests, rule by rule.
+
+    Each test (:func:`beta_binomial_tracer_test` of the normal curve at ``densities`` densities
+    evenly from ``rho50 - 3 Ep`` to ``rho50 + 3 Ep``) is written as a CSV file of whole counts,
+    read back through :func:`~tromplab.density.readers.read_density` as a lab's file is, and
+    fitted with the normal curve and its intervals at ``ci``
+    (:func:`~tromplab.density.fitting.fit_density_curve`); the intervals of the other ``rules``
+    (:data:`INTERVAL_RULES`) are profiled on the same fit.  A test counts as covered when its
+    interval holds the truth; a limit the profile does not reach within the search range is the
+    range's end; a failed fit or a missing interval counts as not covered.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per rule: ``densities, precision, rule, tests, fitted, scaled, rho50_coverage,
+        ep_coverage, rho50_no_interval, ep_no_interval, rho50_median_width, ep_median_width``
+        (``scaled``: the tests whose intervals used an estimated scale).
+    """
+    import tempfile
+    from pathlib import Path
+
+    from .dispersion import SCALE_POLICY
+
+    rng = np.random.default_rng(seed)
+    grid = np.round(np.linspace(rho50 - 3 * ep, rho50 + 3 * ep, densities), 6)
+    truth = {"rho50": rho50, "ep": ep}
+    outcomes = {rule: [] for rule in rules}
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "tracers.csv"
+        for _ in range(tests):
+            table = beta_binomial_tracer_test("normal", truth, grid, placed=placed, precision=precision, rng=rng)
+            table.to_csv(path, index=False)
+            fit = fit_density_curve(read_density(path)[0], "normal", ci=ci)
+            for rule in rules:
+                outcomes[rule].append(_rule_intervals(fit, rule, ci, library_rule=rule == SCALE_POLICY))
+    return pd.DataFrame([_coverage_row(outcomes[rule], truth, densities, precision, rule) for rule in rules])
+
+
+def _rule_intervals(fit, rule: str, ci: float, *, library_rule: bool) -> dict:
+    """The intervals of rho50 and Ep of ``fit`` by ``rule`` (where the fit has one), and whether its scale was estimated."""
+    from .fitting import INDEX_BOUNDS, profile_limits
+
+    if not fit.success:
+        return {"fitted": False}
+    scale, threshold = _rule_scale_and_threshold(rule, fit.dispersion, fit.df_resid, ci)
+    outcome = {"fitted": True, "scaled": scale != 1.0}
+    for quantity in ("rho50", "ep"):
+        if quantity not in fit.intervals:  # no interval by the fit's own rules (the notes say why)
+            outcome[quantity] = (math.nan, math.nan)
+            continue
+        low, high = fit.intervals[quantity] if library_rule else profile_limits(fit, quantity, scale, threshold)[:2]
+        lowest, highest = INDEX_BOUNDS[quantity]
+        outcome[quantity] = (lowest if math.isnan(low) else low, highest if math.isnan(high) else high)
+    return outcome
+
+
+def _coverage_row(outcomes: list[dict], truth: dict, densities: int, precision: float, rule: str) -> dict:
+    fitted = [o for o in outcomes if o["fitted"]]
+    row = {"densities": densities, "precision": precision, "rule": rule, "tests": len(outcomes), "fitted": len(fitted),
+           "scaled": sum(o["scaled"] for o in fitted)}  # fmt: skip
+    for quantity in ("rho50", "ep"):
+        intervals = np.array([o[quantity] for o in fitted], dtype=float).reshape(-1, 2)
+        exists = np.isfinite(intervals).all(axis=1)
+        covered = exists & (intervals[:, 0] <= truth[quantity]) & (truth[quantity] <= intervals[:, 1])
+        row[f"{quantity}_coverage"] = float(covered.sum() / len(outcomes)) if outcomes else math.nan
+        row[f"{quantity}_no_interval"] = len(outcomes) - int(exists.sum())
+        widths = intervals[exists, 1] - intervals[exists, 0]
+        row[f"{quantity}_median_width"] = float(np.median(widths)) if widths.size else math.nan
+    return row

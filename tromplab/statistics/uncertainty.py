@@ -415,7 +415,9 @@ def _averaged_quantity(quantity: str, values, errors, weights, *, ids, z: float,
     ``weights`` as ``(experiments, formulas)`` arrays (nan where a formula does not define the
     quantity or was not fitted), ``ids`` the formulas of each experiment."""
     usable = np.isfinite(values) & (weights > 0)
-    share = np.where(usable, weights, 0.0).sum(axis=1)
+    # a sum of normalised weights can round above 1 (1.0000000000000002 with another CPU's
+    # summation order): a share is held in [0, 1] by construction, not by the last bit
+    share = np.clip(np.where(usable, weights, 0.0).sum(axis=1), 0.0, 1.0)
     n_formulas = usable.sum(axis=1)
     averaged = (share >= min_share) & (n_formulas > 0)
     with np.errstate(invalid="ignore", divide="ignore"):
