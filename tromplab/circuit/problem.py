@@ -403,11 +403,25 @@ def _exact_measurements(constraints: _Constraints, flowsheet: Flowsheet, survey:
     return basis
 
 
+#: The last affine forms computed, by the bytes of ``(A, b)``: the rounds of the error model
+#: rebuild the problem with the same constraints (only the sds move), and the active set of the
+#: bounds returns to the same held flows; each pays for one SVD of ``A`` once.
+_AFFINE_FORMS: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
+_AFFINE_FORMS_KEPT = 16
+
+
 def _affine_form(A: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``(m0, N)``: a point of ``A m = b`` (least squares) and an orthonormal basis of the null space of ``A``."""
     if not A.shape[0]:
         return np.zeros(A.shape[1]), np.eye(A.shape[1])
-    return np.linalg.lstsq(A, b, rcond=None)[0], linalg.null_space(A, rcond=1e-10)
+    key = A.shape[1].to_bytes(8, "little") + A.tobytes() + b.tobytes()
+    if key not in _AFFINE_FORMS:
+        if len(_AFFINE_FORMS) >= _AFFINE_FORMS_KEPT:
+            _AFFINE_FORMS.pop(next(iter(_AFFINE_FORMS)))
+        m0, N = np.linalg.lstsq(A, b, rcond=None)[0], linalg.null_space(A, rcond=1e-10)
+        m0.flags.writeable = N.flags.writeable = False  # shared between problems: never changed in place
+        _AFFINE_FORMS[key] = m0, N
+    return _AFFINE_FORMS[key]
 
 
 def _measurement_covariance(shares: pd.DataFrame, sd: np.ndarray, closed) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

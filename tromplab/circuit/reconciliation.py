@@ -493,10 +493,14 @@ class CircuitBalance(ResultContract):
         return table.reindex(table["measurement_test"].abs().sort_values(ascending=False).index).head(n).reset_index(drop=True)
 
     # --- separators -----------------------------------------------------------------------
+    @cached_property
+    def _partition(self) -> pd.DataFrame:
+        return partition_table(self)
+
     def partition_table(self) -> pd.DataFrame:
         """Partition to the fine product of every separator and class, of the whole solids and of
         each assayed component (:func:`~tromplab.circuit.separators.partition_table`)."""
-        return partition_table(self)
+        return self._partition.copy()
 
     def components_table(self) -> pd.DataFrame:
         """Each assayed component at each separator: grades, fine yield and recovery with sds

@@ -72,7 +72,12 @@ CIRCUIT_CASES = {
 }
 DESIGN_CASES = {
     "design_simulated": [],
-    "design_simulated_flows": ["--flows", "screen_feed", "--sampled", "screen_feed,oversize,middlings,undersize,cyclone_feed,cyclone_overflow,cyclone_underflow"],
+    "design_simulated_flows": [
+        "--flows",
+        "screen_feed",
+        "--sampled",
+        "screen_feed,oversize,middlings,undersize,cyclone_feed,cyclone_overflow,cyclone_underflow",
+    ],
     "design_survey": [SURVEY, "--quantity", "partition", "--quantity", "fine yield", "--quantity", "circulating load"],
 }
 
