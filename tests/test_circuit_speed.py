@@ -143,3 +143,37 @@ def test_the_updates_equal_fresh_pseudo_inverses(case, monkeypatch):
     monkeypatch.setattr(CandidateUpdates, "_within_seen", lambda self, E: False)
     fresh = design_table(balance, errors=ErrorModel())
     _assert_tables_agree(fresh.to_csv(index=False), updated.to_csv(index=False), f"{case}/design.csv")
+
+
+def test_the_distribution_functions_are_scipy_stats_bit_for_bit():
+    from scipy import stats
+
+    from tromplab.circuit.distributions import chi2_ppf, chi2_sf, norm_isf, norm_sf
+
+    statistics = np.array([0.0, 1e-3, 0.5, 13.7, 21.71797430220539, 400.0])
+    for dof in (1, 2, 17, 21, 300):
+        np.testing.assert_array_equal(chi2_sf(statistics, dof), stats.chi2.sf(statistics, dof))
+        assert chi2_sf(13.7, dof) == stats.chi2.sf(13.7, dof)
+        for alpha in (0.05, 0.01, 1e-6):
+            assert chi2_ppf(1.0 - alpha, dof) == stats.chi2.ppf(1.0 - alpha, dof)
+    values = np.array([-40.0, -3.79, -0.5, 0.0, 0.5, 3.44, 8.0, np.nan])
+    np.testing.assert_array_equal(norm_sf(values), stats.norm.sf(values))
+    levels = np.array([1e-12, 1e-4, 0.0025, 0.025, 0.5, 0.975])
+    np.testing.assert_array_equal(norm_isf(levels), stats.norm.isf(levels))
+    assert norm_isf(0.025) == stats.norm.isf(0.025)
+
+
+def test_a_circuit_run_without_figures_and_fits_imports_neither_matplotlib_lmfit_nor_scipy_stats():
+    import subprocess
+    import sys
+
+    code = (
+        "import sys; from tromplab.cli import main; "
+        f"code = main(['circuit', {MAKE.FLOWSHEET!r}, {MAKE.SURVEY!r}, '-o', sys.argv[1], '--no-figures', '-q']); "
+        "print(code, *sorted(m for m in ('matplotlib', 'lmfit', 'scipy.stats', 'statsmodels', 'networkx') if m in sys.modules))"
+    )
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as folder:
+        done = subprocess.run([sys.executable, "-c", code, folder], cwd=REFERENCE, capture_output=True, text=True, check=True)
+    assert done.stdout.split() == ["0"]

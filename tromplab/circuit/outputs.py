@@ -19,7 +19,6 @@ import pandas as pd
 
 from ..loading.weights import weight_notes
 from ..output.csv_parts import file_writers
-from ..output.plotting import offscreen_axes
 from .elimination import exclusion_name
 from .plotting import figure_size
 
@@ -84,6 +83,8 @@ def balance_outputs(
 
 def balance_png(balance, kind: str) -> bytes:
     """Figure ``kind`` drawn on a figure made without pyplot (no backend chosen, no figure left open)."""
+    from ..output.plotting import offscreen_axes  # matplotlib only when a figure is drawn
+
     ax = offscreen_axes(figsize=figure_size(balance, kind))
     balance.plot(kind, ax=ax)
     buffer = io.BytesIO()

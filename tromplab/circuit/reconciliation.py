@@ -64,7 +64,6 @@ from functools import cached_property
 
 import numpy as np
 import pandas as pd
-from scipy import stats
 
 from ..loading.points import TrompPoints
 from ..loading.weights import partition_weights, stream_error
@@ -75,6 +74,7 @@ from . import plotting
 from .adjustments import ADJUSTMENT_COLUMNS, EQUIVALENT_CORRELATION, MeasurementTests, adjustments_frame, measurement_tests
 from .assays import MIN_ASSAYED_SHARE
 from .design import design_table, water_determined_by
+from .distributions import chi2_ppf, chi2_sf, norm_isf
 from .elimination import nodal_tests, proposal, serial_elimination, without
 from .flowsheet import Flowsheet, read_flowsheet
 from .measurements import ErrorModel, Survey, class_name, read_survey
@@ -234,11 +234,11 @@ class CircuitBalance(ResultContract):
     @property
     def p_value(self) -> float:
         """Probability of a chi-square at least as large under the error model (NaN without redundancy)."""
-        return float(stats.chi2.sf(self.chi_square, self.dof)) if self.dof > 0 else float("nan")
+        return float(chi2_sf(self.chi_square, self.dof)) if self.dof > 0 else float("nan")
 
     @property
     def chi_square_critical(self) -> float:
-        return float(stats.chi2.ppf(1.0 - self.alpha, self.dof)) if self.dof > 0 else float("nan")
+        return float(chi2_ppf(1.0 - self.alpha, self.dof)) if self.dof > 0 else float("nan")
 
     @property
     def rejected(self) -> bool:
@@ -426,7 +426,7 @@ class CircuitBalance(ResultContract):
         if p == 0:
             return float("nan")
         level = 1.0 - (1.0 - self.alpha) ** (1.0 / p)
-        return float(stats.norm.isf(level / 2.0))
+        return float(norm_isf(level / 2.0))
 
     def adjustments_table(self) -> pd.DataFrame:
         """One row per measurement (flows given with sd 0 are constraints, not listed).

@@ -32,15 +32,28 @@ from ..validation import (
 from .printing import format_fits
 from .startup import EXIT_OK
 
-#: What the circuit commands import when they run (before they start, under the CLI's signal handling).
+#: What the circuit commands import when they run (before they start, under the CLI's signal
+#: handling); the fits (``--fit``) and the figures add theirs (:func:`_imports`): lmfit and
+#: matplotlib are a third of a second of start-up a run without them does not pay.
 IMPORTS = (
     "tromplab.circuit_command",
     "tromplab.circuit",
     "tromplab.circuit.planning",
-    "tromplab.workbench",
     "tromplab.output.csv_parts",
-    "tromplab.output.plotting",
 )
+FIT_IMPORTS = ("tromplab.workbench",)
+FIGURE_IMPORTS = ("tromplab.output.plotting",)
+
+
+def _imports(namespace) -> tuple[str, ...]:
+    """The modules of this run of ``circuit`` (``design`` draws no figure and fits nothing)."""
+    if getattr(namespace, "circuit_command", None) == "design":
+        return IMPORTS
+    fit = FIT_IMPORTS if getattr(namespace, "fit", False) else ()
+    figures = () if getattr(namespace, "no_figures", False) else FIGURE_IMPORTS
+    return IMPORTS + fit + figures
+
+
 _USAGE = (
     "tromplab circuit FLOWSHEET MEASUREMENTS [-o DIR] [--fit] [options]\n"
     "       tromplab circuit design FLOWSHEET [SURVEY] [-o DIR] [options]"
@@ -151,8 +164,10 @@ def _route_design(circuit: argparse.ArgumentParser, design: argparse.ArgumentPar
         if args[:1] == ["design"]:
             namespace, rest = design.parse_known_args(args[1:], namespace)
             namespace.circuit_command = "design"
-            return namespace, rest
-        return parse_circuit(args, namespace)
+        else:
+            namespace, rest = parse_circuit(args, namespace)
+        namespace.imports = _imports(namespace)
+        return namespace, rest
 
     circuit.parse_known_args = parse_known_args
 
