@@ -177,3 +177,51 @@ def test_a_circuit_run_without_figures_and_fits_imports_neither_matplotlib_lmfit
     with tempfile.TemporaryDirectory() as folder:
         done = subprocess.run([sys.executable, "-c", code, folder], cwd=REFERENCE, capture_output=True, text=True, check=True)
     assert done.stdout.split() == ["0"]
+
+
+def test_progress_reports_each_stage_to_the_python_api(tmp_path, monkeypatch):
+    from tromplab.circuit_command import run_circuit, run_design
+
+    monkeypatch.chdir(REFERENCE)
+    heard = []
+    run_circuit(MAKE.FLOWSHEET, "inputs/assay_stream.csv", tmp_path / "c", figures=False, progress=lambda *a: heard.append(a))
+    stages = [label.split(": ")[0] for _, _, label in heard]
+    assert stages[0] == "reconciliation" and {"elimination", "design"} <= set(stages)
+    assert "reconciliation: round 2" in [label for _, _, label in heard]  # the error model's rounds
+    design = [(done, total) for done, total, label in heard if label.startswith("design: ")]
+    assert design[-1][0] == design[-1][1] == len(design)  # candidate i of n, each once
+    assert all(label.startswith("elimination: step ") for _, _, label in heard if label.startswith("elimination"))
+    heard.clear()
+    run_design(MAKE.FLOWSHEET, outdir=tmp_path / "d", progress=lambda *a: heard.append(a))
+    assert heard[0][2] == "reconciliation: round 1" and heard[-1][2].startswith("design: candidate")
+
+
+def test_the_command_line_is_silent_on_stderr_without_a_terminal(tmp_path, monkeypatch, capsys):
+    from tromplab.cli import main
+
+    monkeypatch.chdir(REFERENCE)
+    assert main(["circuit", MAKE.FLOWSHEET, "inputs/assay_stream.csv", "-o", str(tmp_path / "c"), "--no-figures"]) == 0
+    assert main(["circuit", "design", MAKE.FLOWSHEET, "-o", str(tmp_path / "d")]) == 0
+    assert capsys.readouterr().err == ""
+
+
+def test_the_stage_bars_draw_each_stage_on_a_terminal_and_nothing_with_quiet(monkeypatch):
+    pytest.importorskip("tqdm")
+    from tromplab.cli.startup import stage_bars
+
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+
+    screen = Terminal()
+    monkeypatch.setattr("sys.stderr", screen)
+    monkeypatch.setenv("COLUMNS", "100")
+    with stage_bars() as progress:
+        for label in ("reconciliation: round 1", "reconciliation: round 2"):
+            progress(0, 1, label)
+        for k in (1, 2, 3):
+            progress(k, 3, f"design: candidate {k} of 3")
+    drawn = screen.getvalue()
+    assert "reconciliation: round 2" in drawn and "design" in drawn and "3/3" in drawn and "candidate 3 of 3" in drawn
+    with stage_bars(quiet=True) as progress:
+        assert progress is None

@@ -51,7 +51,7 @@ EXCLUDE_KINDS = {"flow": "flow", "pct_solids": "pct"}
 _KIND_NAMES = {"share": "share", "flow": "flow", "pct": "pct_solids"}
 
 
-def serial_elimination(balance, reconcile, *, max_steps: int | None = None) -> pd.DataFrame:
+def serial_elimination(balance, reconcile, *, max_steps: int | None = None, progress=None) -> pd.DataFrame:
     """The steps of serial elimination with compensation, from the reconciled ``balance``.
 
     Row 0 is the survey as reconciled; row k names the measurement compensated at step k,
@@ -65,6 +65,8 @@ def serial_elimination(balance, reconcile, *, max_steps: int | None = None) -> p
         :func:`~tromplab.circuit.reconciliation.reconcile`, which reconciles each compensated survey.
     max_steps : int, optional
         At most this many steps (default: as many as the redundancy allows).
+    progress : callable, optional
+        ``progress(step, limit, "elimination: step k")`` before each step's reconciliation.
 
     Returns
     -------
@@ -83,6 +85,8 @@ def serial_elimination(balance, reconcile, *, max_steps: int | None = None) -> p
         j = int(table["measurement_test"].abs().idxmax())
         suspect = table.loc[j]
         survey = _compensated(current, j, float(suspect["gross_error"]))
+        if progress is not None:
+            progress(step - 1, limit, f"elimination: step {step}")
         current = reconcile(current.flowsheet, survey, alpha=current.alpha)
         dof -= 1
         rows.append(_row(step, suspect, current.chi_square, dof))

@@ -59,6 +59,7 @@ Smith, H. W. & Ichiyen, N. (1973). Computer adjustment of metallurgical balances
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import cached_property
 
@@ -204,6 +205,9 @@ class CircuitBalance(ResultContract):
     excluded: tuple[str, ...] = field(default=(), compare=False)
     #: Class flows of every assayed component (components x streams x classes; None: no assay).
     component_flows: np.ndarray | None = field(default=None, repr=False, compare=False)
+    #: ``progress(done, total, label)`` of the run that made the balance (``reconcile(progress=)``):
+    #: the serial elimination and the design advice, computed when first asked for, report to it.
+    progress: Callable[[int, int, str], None] | None = field(default=None, repr=False, compare=False)
 
     @property
     def has_size_classes(self) -> bool:
@@ -459,7 +463,7 @@ class CircuitBalance(ResultContract):
 
     @cached_property
     def _elimination(self) -> pd.DataFrame:
-        return serial_elimination(self, reconcile)
+        return serial_elimination(self, reconcile, progress=self.progress)
 
     def elimination_table(self) -> pd.DataFrame:
         """Serial elimination with compensation (:func:`~tromplab.circuit.elimination.serial_elimination`):
@@ -479,7 +483,7 @@ class CircuitBalance(ResultContract):
 
     @cached_property
     def _design(self) -> pd.DataFrame:
-        return design_table(self)
+        return design_table(self, progress=self.progress)
 
     def design_table(self) -> pd.DataFrame:
         """Survey design advice (:func:`~tromplab.circuit.design.design_table`): the measurements
@@ -706,7 +710,7 @@ class CircuitBalance(ResultContract):
         return figures[kind](self, ax=ax)
 
 
-def _errors_at_reconciled(flowsheet: Flowsheet, survey: Survey, problem: Problem, z: np.ndarray):
+def _errors_at_reconciled(flowsheet: Flowsheet, survey: Survey, problem: Problem, z: np.ndarray, progress=None):
     """Evaluate the error model at the reconciled shares and flows and reconcile again, until
     no standard deviation moves by more than :data:`ERROR_MODEL_TOLERANCE` of itself.
 
@@ -715,7 +719,9 @@ def _errors_at_reconciled(flowsheet: Flowsheet, survey: Survey, problem: Problem
     """
     S, n = problem.n_streams, problem.n_classes
     success, message = True, ""
-    for _ in range(MAX_ERROR_MODEL_ITERATIONS):
+    for round_number in range(2, MAX_ERROR_MODEL_ITERATIONS + 2):
+        if progress is not None:
+            progress(0, 1, f"reconciliation: round {round_number}")
         v = problem.m0 + problem.N @ z
         class_flows = v[: S * n].reshape(S, n)
         flows = class_flows.sum(axis=1)
@@ -779,6 +785,7 @@ def reconcile(
     alpha: float = DEFAULT_ALPHA,
     size_unit: str | None = None,
     exclude=(),
+    progress: Callable[[int, int, str], None] | None = None,
 ) -> CircuitBalance:
     """Reconcile a circuit survey: flows and size distributions that close every node balance.
 
@@ -800,6 +807,11 @@ def reconcile(
         ``"STREAM:pct_solids"`` or ``"STREAM:CLASS"`` (``"cyclone_feed:-150+75"``); a
         comma-separated string is split.  What :meth:`CircuitBalance.elimination_table`
         proposes, acted on.
+    progress : callable, optional
+        ``progress(done, total, label)`` at each stage: ``"reconciliation: round k"`` (the
+        rounds of the error model at the reconciled values), then, when the balance's tables
+        are first asked for, ``"elimination: step k"`` and ``"design: candidate i of n"``
+        (kept by the balance).  The command line draws it as a bar on a terminal.
 
     Returns
     -------
@@ -833,7 +845,7 @@ def reconcile(
         else read_survey(measurements, flowsheet, errors=errors, size_unit=size_unit)
     )
     survey, excluded = _without_excluded(survey, flowsheet, exclude)
-    return _balance(flowsheet, survey, alpha, excluded)
+    return _balance(flowsheet, survey, alpha, excluded, progress)
 
 
 def _without_excluded(survey: Survey, flowsheet: Flowsheet, exclude) -> tuple[Survey, tuple[str, ...]]:
@@ -846,14 +858,16 @@ def _without_excluded(survey: Survey, flowsheet: Flowsheet, exclude) -> tuple[Su
     return survey, excluded
 
 
-def _balance(flowsheet: Flowsheet, survey: Survey, alpha: float, excluded: tuple[str, ...]) -> CircuitBalance:
+def _balance(flowsheet: Flowsheet, survey: Survey, alpha: float, excluded: tuple[str, ...], progress=None) -> CircuitBalance:
     """Reconcile ``survey``: solve, evaluate the error model at the reconciled values, linearise, bound at 0."""
+    if progress is not None:
+        progress(0, 1, "reconciliation: round 1")
     problem, basis = build_problem(flowsheet, survey)
     start = solids_first_start(flowsheet, survey, problem) if problem.n_components else starting_point(flowsheet, survey, problem)
     check_observable(flowsheet, survey, problem, start)
     z, success, message = solve(problem, start)
     if survey.evaluated_at == "reconciled":
-        survey, problem, z, success, message = _errors_at_reconciled(flowsheet, survey, problem, z)
+        survey, problem, z, success, message = _errors_at_reconciled(flowsheet, survey, problem, z, progress)
     fitted = problem.m0 + problem.N @ z
     chi, decomposition, covariance = linearised(problem, z)
     held, v = bounded_solution(problem, fitted)
@@ -867,4 +881,5 @@ def _balance(flowsheet: Flowsheet, survey: Survey, alpha: float, excluded: tuple
                           message=message, basis=basis, problem=problem, measured_y=problem.y.copy(),
                           water_flows=water if problem.n_water else None, fitted=fitted, at_bound=held,
                           decomposition=decomposition, excluded=excluded,
-                          component_flows=v[problem.component_offset :].reshape(-1, S, n) if problem.n_components else None)  # fmt: skip
+                          component_flows=v[problem.component_offset :].reshape(-1, S, n) if problem.n_components else None,
+                          progress=progress)  # fmt: skip

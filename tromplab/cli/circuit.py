@@ -30,7 +30,7 @@ from ..validation import (
     cli_type,
 )
 from .printing import format_fits
-from .startup import EXIT_OK
+from .startup import EXIT_OK, stage_bars
 
 #: What the circuit commands import when they run (before they start, under the CLI's signal
 #: handling); the fits (``--fit``) and the figures add theirs (:func:`_imports`): lmfit and
@@ -184,8 +184,10 @@ def _error_model(args):
 def _run_circuit(args) -> int:
     from ..circuit_command import console_report, run_circuit
 
-    run = run_circuit(args.flowsheet, args.measurements, args.outdir, fit=args.fit, errors=_error_model(args), alpha=args.alpha,
-                      size_unit=args.size_unit, figures=not args.no_figures, exclude=args.exclude, weighting=args.weighting)  # fmt: skip
+    with stage_bars(quiet=args.quiet) as progress:
+        run = run_circuit(args.flowsheet, args.measurements, args.outdir, fit=args.fit, errors=_error_model(args),
+                          alpha=args.alpha, size_unit=args.size_unit, figures=not args.no_figures, exclude=args.exclude,
+                          weighting=args.weighting, progress=progress)  # fmt: skip
     print(console_report(run, format_fits=format_fits))
     return EXIT_OK
 
@@ -193,8 +195,9 @@ def _run_circuit(args) -> int:
 def _run_design(args) -> int:
     from ..circuit_command import run_design
 
-    run = run_design(args.flowsheet, args.measurements, args.outdir, quantity=args.quantity, sampled=args.sampled,
-                     flows=args.flows, errors=_error_model(args), alpha=args.alpha, size_unit=args.size_unit,
-                     exclude=args.exclude)  # fmt: skip
+    with stage_bars(quiet=args.quiet) as progress:
+        run = run_design(args.flowsheet, args.measurements, args.outdir, quantity=args.quantity, sampled=args.sampled,
+                         flows=args.flows, errors=_error_model(args), alpha=args.alpha, size_unit=args.size_unit,
+                         exclude=args.exclude, progress=progress)  # fmt: skip
     print(run.advice.report() + "\n\nWrote:\n" + "\n".join(f"  {path}" for path in run.written.values()))
     return EXIT_OK
