@@ -24,7 +24,6 @@ from ..errors import OptionError
 from ..options import DEFAULT_PCT_SOLIDS_SD
 from .measurements import SHARE_COLUMNS, STREAM_VALUE_COLUMNS, ErrorModel, Survey
 from .problem import RANK_TOL
-from .worth import results
 
 #: Columns of :func:`design_table` (``DIR/design.csv``).
 DESIGN_COLUMNS = ["rank", "stream", "measurement", "quantity", "sd_before", "sd_after", "reduction", "makes_testable",
@@ -101,7 +100,7 @@ QUANTITY_WORDS = ("partition at cut", "partition", "fine yield", "circulating lo
 def default_quantities(balance) -> list[tuple[str, np.ndarray]]:
     """Each separator's partition in the class nearest its cut (0.5) and each circulating load."""
     chosen, nearest = [], {}
-    for name, value, gradient in results(balance):
+    for name, value, gradient in balance._results:
         if name.startswith("circulating load"):
             chosen.append((name, gradient))
         elif name.startswith("partition"):
@@ -125,7 +124,7 @@ def select_quantities(balance, names, option: str = "quantity") -> list[tuple[st
     if names is None or (isinstance(names, str) and not names.strip()):
         return default_quantities(balance)
     names = [names] if isinstance(names, str) else list(names)
-    everything = [(name, gradient) for name, _, gradient in results(balance)]
+    everything = [(name, gradient) for name, _, gradient in balance._results]
     chosen: dict[str, np.ndarray] = {}
     for name in (str(n).strip() for n in names):
         if name == "partition at cut":

@@ -20,11 +20,12 @@ Lawson, C. L. & Hanson, R. J. (1974). *Solving Least Squares Problems*. Prentice
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from functools import cached_property
 from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
-from scipy import linalg, optimize
+from scipy import linalg, optimize, sparse
 
 from ..errors import InputError
 from ..options import CIRCUIT_BASIS
@@ -38,6 +39,10 @@ BASIS = CIRCUIT_BASIS
 RANK_TOL = 1e-9
 #: A class or water flow below -this x the largest unknown is negative: it is held at its bound 0.
 BOUND_TOL = 1e-12
+#: From this many unknowns on, the whitened Jacobian is formed with sparse matrices
+#: (:meth:`Problem.whitened_jacobian`); below it (the bundled example has 176) the dense product
+#: is as fast and its arithmetic that of the earlier versions.
+SPARSE_UNKNOWNS = 500
 
 
 @dataclass(frozen=True)
@@ -129,7 +134,16 @@ class Problem:
         return self.W @ (self.predict(self.m0 + self.N @ z) - self.y)
 
     def whitened_jacobian(self, z: np.ndarray) -> np.ndarray:
-        return self.W @ self.jacobian(self.m0 + self.N @ z) @ self.N
+        H = self.jacobian(self.m0 + self.N @ z)
+        if self.m0.size < SPARSE_UNKNOWNS:
+            return self.W @ H @ self.N
+        # a large flowsheet: W (block diagonal) and H (a few entries a row) as sparse matrices,
+        # the dense product W H N of a 30-node plant with assays took 7 s, this 0.2 s
+        return np.asarray((self._sparse_whitening @ sparse.csr_matrix(H)) @ self.N)
+
+    @cached_property
+    def _sparse_whitening(self):
+        return sparse.csr_matrix(self.W)
 
     def jacobian(self, v: np.ndarray) -> np.ndarray:
         """d(prediction)/d(v), measurements x unknowns."""

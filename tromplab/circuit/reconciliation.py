@@ -65,6 +65,7 @@ from functools import cached_property
 
 import numpy as np
 import pandas as pd
+from scipy import sparse
 
 from ..loading.points import TrompPoints
 from ..loading.weights import partition_weights, stream_error
@@ -80,6 +81,7 @@ from .elimination import nodal_tests, proposal, serial_elimination, without
 from .flowsheet import Flowsheet, read_flowsheet
 from .measurements import ErrorModel, Survey, class_name, read_survey
 from .problem import (
+    SPARSE_UNKNOWNS,
     Decomposition,
     Problem,
     bounded_solution,
@@ -93,7 +95,7 @@ from .problem import (
     starting_point,
 )
 from .separators import MIN_FEED_SHARE, PARTITION_COLUMNS, components_table, curve_names, partition_table, plot_partitions
-from .worth import worth_table
+from .worth import results, worth_table
 
 __all__ = ["ADJUSTMENT_COLUMNS", "EQUIVALENT_CORRELATION", "MIN_FEED_SHARE", "PARTITION_COLUMNS", "CircuitBalance", "reconcile"]
 
@@ -293,7 +295,10 @@ class CircuitBalance(ResultContract):
     def _sd(self, gradients: np.ndarray) -> np.ndarray:
         """Delta-method standard deviations of quantities with these gradients in the class flows."""
         k = gradients.shape[1]  # the class flows lead the unknowns: a gradient in them alone is shorter
-        variance = np.einsum("ij,jk,ik->i", gradients, self.covariance[:k, :k], gradients)
+        if k < SPARSE_UNKNOWNS:
+            variance = np.einsum("ij,jk,ik->i", gradients, self.covariance[:k, :k], gradients)
+        else:  # a large flowsheet: each gradient touches one or two streams (the three-operand einsum runs no BLAS)
+            variance = np.einsum("ij,ij->i", sparse.csr_matrix(gradients) @ self.covariance[:k, :k], gradients)
         return np.sqrt(np.clip(variance, 0.0, None))
 
     @cached_property
@@ -497,6 +502,10 @@ class CircuitBalance(ResultContract):
         return table.reindex(table["measurement_test"].abs().sort_values(ascending=False).index).head(n).reset_index(drop=True)
 
     # --- separators -----------------------------------------------------------------------
+    @cached_property
+    def _results(self) -> list:
+        return results(self)
+
     @cached_property
     def _partition(self) -> pd.DataFrame:
         return partition_table(self)
