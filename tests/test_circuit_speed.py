@@ -225,3 +225,30 @@ def test_the_stage_bars_draw_each_stage_on_a_terminal_and_nothing_with_quiet(mon
     assert "reconciliation: round 2" in drawn and "design" in drawn and "3/3" in drawn and "candidate 3 of 3" in drawn
     with stage_bars(quiet=True) as progress:
         assert progress is None
+
+
+def test_a_large_flowsheet_reconciled_by_gauss_newton_and_sparse_products_equals_the_dense_path(monkeypatch):
+    """From SPARSE_UNKNOWNS on, Gauss-Newton steps, sparse products, the bounds' affine forms by
+    projection and thin SVDs; below it, MINPACK's Levenberg-Marquardt and dense products (the
+    former path): on a 12-node plant of the same kind forced through both, the same balance."""
+    import warnings
+
+    from tromplab.circuit import problem, reconcile, reconciliation
+    from tromplab.circuit.simulation import lab_survey, large_plant
+
+    truth = large_plant(4, 20)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the truth's grade of an empty class is 0/0 (no assay drawn)
+        survey = lab_survey(truth, np.random.default_rng(40), flows={"fresh_feed": 0.02}, assayed=())
+    balances = {}
+    for path, threshold in (("dense", 10**9), ("large", 10)):
+        monkeypatch.setattr(problem, "SPARSE_UNKNOWNS", threshold)
+        monkeypatch.setattr(reconciliation, "SPARSE_UNKNOWNS", threshold)
+        balances[path] = reconcile(truth.flowsheet, survey)
+    dense, large = balances["dense"], balances["large"]
+    assert large.message.startswith("Gauss-Newton") and not dense.message.startswith("Gauss-Newton")
+    assert large.dof == dense.dof and large.at_bound == dense.at_bound
+    assert large.chi_square == pytest.approx(dense.chi_square, rel=1e-8)
+    np.testing.assert_allclose(large.flows, dense.flows, rtol=1e-8)
+    np.testing.assert_allclose(large.flow_sd, dense.flow_sd, rtol=1e-7)
+    np.testing.assert_allclose(large.share_sd, dense.share_sd, rtol=1e-7, atol=1e-12)
