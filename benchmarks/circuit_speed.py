@@ -17,7 +17,8 @@ One run measures, side by side:
   solids alone and (``--minerals``) with the four minerals assayed on every stream, each
   against its floor.
 
-It prints each time, its ratio to the yardstick (the targets of issue 40: ``circuit`` at most
+It prints each wall time and CPU time (user and system: on a loaded machine the steadier
+measure), their ratios to the yardstick's (the targets of issue 40: ``circuit`` at most
 0.3 each, ``circuit design`` at most 0.2) and to its floor, and the load average before and
 after.
 
@@ -27,6 +28,7 @@ after.
 
 import argparse
 import os
+import resource
 import subprocess
 import sys
 import tempfile
@@ -52,28 +54,32 @@ TARGETS = {"circuit": 0.3, "circuit design": 0.2}
 sys.path.insert(0, str(HERE))
 
 
-def yardstick_seconds(experiments: int = 100, curves: int = 10) -> float:
-    """Bare lmfit fits of ``experiments`` synthetic experiments x ``curves`` curves (seconds)."""
+def yardstick_seconds(experiments: int = 100, curves: int = 10) -> tuple[float, float]:
+    """Bare lmfit fits of ``experiments`` synthetic experiments x ``curves`` curves: ``(wall, CPU)`` seconds."""
     from fit_robustness import bare_lmfit, synthetic
 
     from tromplab.curves.formulas import FORMULAS
     from tromplab.curves.measured import measured_efficiency
 
     data = [synthetic(seed) for seed in range(experiments)]
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), time.process_time()
     for points in data:
         efficiency = measured_efficiency(points)
         for k in range(curves):
             formula = FORMULAS[k % len(FORMULAS)]
             bare_lmfit(points, formula, {"measured_efficiency": efficiency} if formula.context_from_efficiency else {})
-    return time.perf_counter() - start
+    return time.perf_counter() - start, time.process_time() - cpu
 
 
-def command_seconds(arguments: list[str]) -> float:
-    """Wall time of ``python -m tromplab ARGUMENTS`` (start-up included)."""
+def command_seconds(arguments: list[str]) -> tuple[float, float]:
+    """``(wall, CPU)`` seconds of ``python -m tromplab ARGUMENTS`` (start-up included; CPU: user
+    and system of the child, the measure a loaded machine disturbs least)."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
     subprocess.run([sys.executable, "-m", "tromplab", *arguments], check=True, capture_output=True)
-    return time.perf_counter() - start
+    wall = time.perf_counter() - start
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return wall, after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime
 
 
 def floor_seconds(flowsheet, survey, repeats: int = 20) -> float:
@@ -92,14 +98,16 @@ def floor_seconds(flowsheet, survey, repeats: int = 20) -> float:
     return float(np.median(times))
 
 
-def example_rows(folder: Path, yardstick: float, repeats: int) -> list[dict]:
+def example_rows(folder: Path, yardstick: tuple[float, float], repeats: int) -> list[dict]:
     from tromplab.circuit import read_flowsheet, read_survey
 
     sheet = read_flowsheet(FLOWSHEET)
     rows = []
     for name, path in SURVEYS.items():
-        seconds = min(command_seconds(["circuit", str(FLOWSHEET), str(path), "-o", str(folder / "c"), "--no-figures", "-q"])
-                      for _ in range(repeats))  # fmt: skip
+        seconds = min(
+            command_seconds(["circuit", str(FLOWSHEET), str(path), "-o", str(folder / "c"), "--no-figures", "-q"])
+            for _ in range(repeats)
+        )  # fmt: skip (the fastest run by wall time, with its CPU)
         floor = floor_seconds(sheet, read_survey(path, sheet))
         rows.append(_row("circuit", f"bundled example, {name}", seconds, yardstick, floor))
     seconds = min(command_seconds(["circuit", "design", str(FLOWSHEET), "-o", str(folder / "d"), "-q"]) for _ in range(repeats))
@@ -107,7 +115,7 @@ def example_rows(folder: Path, yardstick: float, repeats: int) -> list[dict]:
     return rows
 
 
-def plant_rows(yardstick: float, minerals: bool) -> list[dict]:
+def plant_rows(yardstick: tuple[float, float], minerals: bool) -> list[dict]:
     """The 30-node plant reconciled with every table (as ``circuit`` writes them), in this process."""
     from tromplab.circuit import reconcile
     from tromplab.circuit.outputs import balance_tables
@@ -120,20 +128,21 @@ def plant_rows(yardstick: float, minerals: bool) -> list[dict]:
             warnings.simplefilter("ignore")  # the truth's grade of an empty class is 0/0: not drawn
             survey = lab_survey(truth, np.random.default_rng(40), flows={"fresh_feed": 0.02},
                                 **({} if assayed else {"assayed": ()}))  # fmt: skip
-        start = time.perf_counter()
+        start, cpu = time.perf_counter(), time.process_time()
         balance_tables(reconcile(truth.flowsheet, survey))
-        seconds = time.perf_counter() - start
+        seconds = time.perf_counter() - start, time.process_time() - cpu
         what = "30-node plant, 20 classes" + (", 4 minerals assayed on every stream" if assayed else ", solids only")
         rows.append(_row("circuit (in process)", what, seconds, yardstick, floor_seconds(truth.flowsheet, survey)))
     return rows
 
 
-def _row(command: str, what: str, seconds: float, yardstick: float, floor: float) -> dict:
+def _row(command: str, what: str, seconds: tuple[float, float], yardstick: tuple[float, float], floor: float) -> dict:
+    """One line: wall and CPU seconds, their ratios to the yardstick's, the target, the floor."""
     target = TARGETS.get(command, np.nan)
-    ratio = seconds / yardstick
-    return {"command": command, "survey": what, "seconds": seconds, "yardstick_s": yardstick, "ratio": ratio,
-            "target": target, "met": bool(ratio <= target) if np.isfinite(target) else None, "floor_s": floor,
-            "against_floor": seconds / floor if np.isfinite(floor) else np.nan}  # fmt: skip
+    ratio, cpu_ratio = seconds[0] / yardstick[0], seconds[1] / yardstick[1]
+    return {"command": command, "survey": what, "seconds": seconds[0], "cpu_s": seconds[1], "yardstick_s": yardstick[0],
+            "ratio": ratio, "cpu_ratio": cpu_ratio, "target": target, "met": bool(ratio <= target) if np.isfinite(target) else None,
+            "floor_s": floor, "against_floor": seconds[0] / floor if np.isfinite(floor) else np.nan}  # fmt: skip
 
 
 def main(argv=None) -> pd.DataFrame:
