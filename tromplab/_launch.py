@@ -50,10 +50,21 @@ def _handle(signum, handler) -> None:
         signal.signal(signum, handler)
 
 
+#: The thread pools of the linear algebra, one thread each unless the caller set them (before
+#: numpy is imported: the libraries read them once).  A command's matrices are small (a survey's
+#: Jacobian is a few hundred square; a fit's a few dozen) and its parallelism is its worker
+#: processes: a pool of BLAS threads per process only spins.  Measured (docs/performance.md):
+#: ``tromplab circuit`` on the bundled example with assays took 15.2 s of wall time and 9.3 s of
+#: CPU with OpenBLAS's default pool on two loaded cores, 2.6 s and 1.6 s with one thread.
+BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+
+
 def main() -> int:
     """Run ``tromplab`` with SIGINT and SIGTERM handled from the first line on."""
     _handle(signal.SIGINT, _stop_during_start_up)
     _handle(signal.SIGTERM, _stop_during_start_up)
+    for variable in BLAS_THREAD_VARIABLES:
+        os.environ.setdefault(variable, "1")
     from . import cli
 
     def command_handling():

@@ -93,6 +93,7 @@ def run_circuit(
     figures: bool = True,
     exclude=(),
     weighting: str = "error-model",
+    progress=None,
 ) -> CircuitRun:
     """Reconcile the survey and write ``outdir`` as a whole (nothing written on bad input).
 
@@ -118,6 +119,9 @@ def run_circuit(
         ``STREAM:CLASS``), as :func:`~tromplab.circuit.reconciliation.reconcile` takes them.
     weighting : {"error-model", "feed-share", "none"}
         The weights of ``points.csv`` and of the fits (``--weighting``; default the error model).
+    progress : callable, optional
+        ``progress(done, total, label)`` at each stage (``"reconciliation: round k"``,
+        ``"elimination: step k"``, ``"design: candidate i of n"``; :func:`~tromplab.circuit.reconciliation.reconcile`).
 
     Returns
     -------
@@ -151,7 +155,7 @@ def run_circuit(
         raise OptionError(
             "fit", "needs size analyses: the survey holds flows and per cent solids only (no partition curve to fit)"
         )
-    balance = reconcile(sheet, survey, alpha=alpha, exclude=exclude)
+    balance = reconcile(sheet, survey, alpha=alpha, exclude=exclude, progress=progress)
     tables = balance_tables(balance, errors, weighting=weighting)
     bench = None
     if fit and balance.flowsheet.separators:
@@ -182,6 +186,7 @@ def run_design(
     alpha: float = DEFAULT_ALPHA,
     size_unit: str | None = None,
     exclude=(),
+    progress=None,
 ) -> DesignRun:
     """Rank the measurements one could add to a survey and write ``outdir`` as a whole.
 
@@ -199,6 +204,9 @@ def run_design(
         As for :func:`~tromplab.circuit.planning.design_advice` (``--quantity``,
         ``--sampled``, ``--flows``, the error model options, ``--alpha``, ``--size-unit``,
         ``--exclude``).
+    progress : callable, optional
+        ``progress(done, total, label)`` at each stage (the reconciliation, then
+        ``"design: candidate i of n"``).
 
     Returns
     -------
@@ -217,7 +225,7 @@ def run_design(
     sheet = read_flowsheet(flowsheet)
     survey = None if measurements is None else read_survey(measurements, sheet, errors=errors, size_unit=size_unit)
     advice = design_advice(sheet, survey, quantity=quantity, sampled=sampled, flows=flows, errors=errors, alpha=alpha,
-                           exclude=exclude)  # fmt: skip
+                           exclude=exclude, progress=progress)  # fmt: skip
     return DesignRun(advice, advice.save(outdir))
 
 

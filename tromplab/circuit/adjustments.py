@@ -21,8 +21,8 @@ from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
-from scipy import stats
 
+from .distributions import norm_sf
 from .measurements import class_name
 from .problem import decompose
 
@@ -105,7 +105,7 @@ def adjustments_frame(balance) -> pd.DataFrame:
     table["gross_error"] = tests.estimate
     table["gross_error_sd"] = tests.estimate_sd
     table["measurement_test"] = tests.statistic
-    table["p_value"] = 2.0 * stats.norm.sf(np.abs(tests.statistic))
+    table["p_value"] = 2.0 * norm_sf(np.abs(tests.statistic))
     table["suspect"] = np.abs(table["measurement_test"]) > balance.measurement_test_critical
     names = table["measurement"].to_numpy()
     table["indistinguishable_from"] = [

@@ -18,12 +18,12 @@ import dataclasses
 
 import numpy as np
 import pandas as pd
+from scipy import linalg
 
 from ..errors import OptionError
 from ..options import DEFAULT_PCT_SOLIDS_SD
 from .measurements import SHARE_COLUMNS, STREAM_VALUE_COLUMNS, ErrorModel, Survey
 from .problem import RANK_TOL
-from .worth import results
 
 #: Columns of :func:`design_table` (``DIR/design.csv``).
 DESIGN_COLUMNS = ["rank", "stream", "measurement", "quantity", "sd_before", "sd_after", "reduction", "makes_testable",
@@ -100,7 +100,7 @@ QUANTITY_WORDS = ("partition at cut", "partition", "fine yield", "circulating lo
 def default_quantities(balance) -> list[tuple[str, np.ndarray]]:
     """Each separator's partition in the class nearest its cut (0.5) and each circulating load."""
     chosen, nearest = [], {}
-    for name, value, gradient in results(balance):
+    for name, value, gradient in balance._results:
         if name.startswith("circulating load"):
             chosen.append((name, gradient))
         elif name.startswith("partition"):
@@ -124,7 +124,7 @@ def select_quantities(balance, names, option: str = "quantity") -> list[tuple[st
     if names is None or (isinstance(names, str) and not names.strip()):
         return default_quantities(balance)
     names = [names] if isinstance(names, str) else list(names)
-    everything = [(name, gradient) for name, _, gradient in results(balance)]
+    everything = [(name, gradient) for name, _, gradient in balance._results]
     chosen: dict[str, np.ndarray] = {}
     for name in (str(n).strip() for n in names):
         if name == "partition at cut":
@@ -143,7 +143,7 @@ def select_quantities(balance, names, option: str = "quantity") -> list[tuple[st
     return list(chosen.items())
 
 
-def design_table(balance, quantities=None, *, errors: ErrorModel | None = None) -> pd.DataFrame:
+def design_table(balance, quantities=None, *, errors: ErrorModel | None = None, progress=None) -> pd.DataFrame:
     """One row per candidate measurement and result (:data:`DESIGN_COLUMNS`), ranked by the
     relative reduction of the result's sd, then by the number of measurements it makes testable.
 
@@ -154,6 +154,8 @@ def design_table(balance, quantities=None, *, errors: ErrorModel | None = None) 
         Results and their gradients in the unknowns (default :func:`default_quantities`).
     errors : ErrorModel, optional
         The error model of the candidates (default: the library's defaults).
+    progress : callable, optional
+        ``progress(done, total, label)`` after each candidate (``"design: candidate i of n"``).
 
     Notes
     -----
@@ -161,28 +163,31 @@ def design_table(balance, quantities=None, *, errors: ErrorModel | None = None) 
     would become redundant (testable) with the candidate; ``testable`` says whether the
     candidate itself would be.  Both use the reconciliation's test of testability: the raw
     error of a measurement is testable when it is not in the range of the whitened Jacobian.
+
+    The candidates are evaluated by a low-rank update of the reconciliation's factors
+    (:class:`CandidateUpdates`), not by a fresh pseudo-inverse each.
     """
     problem, decomposition = balance.problem, balance.decomposition
     if problem is None or decomposition is None or not problem.y.size:
         return pd.DataFrame(columns=DESIGN_COLUMNS)
     quantities = default_quantities(balance) if quantities is None else quantities
     v = _design_point(balance)
-    J = problem.W @ problem.jacobian(v) @ problem.N
-    G = problem.W @ problem.effects
     names = balance.adjustments_table()["measurement"].to_numpy()
-    testable_now = _testable(J, G)
-    before = {name: float(np.sqrt(max(g @ balance.covariance @ g, 0.0))) for name, g in quantities}
+    updates = CandidateUpdates(balance, np.array([g for _, g in quantities]).reshape(len(quantities), -1), v)
+    before = dict(zip((name for name, _ in quantities), updates.sd_before))
     rows = []
-    for candidate in candidates(balance, errors, v):
-        covariance, testable_after = _with_candidate(balance, candidate, J, G)
-        newly = names[testable_after[: names.size] & ~testable_now]
-        for name, g in quantities:
-            after = float(np.sqrt(max(g @ covariance @ g, 0.0)))
+    found = candidates(balance, errors, v)
+    for number, candidate in enumerate(found, start=1):
+        sd_after, testable_after = updates.with_candidate(candidate)
+        newly = names[testable_after[: names.size] & ~updates.testable_now]
+        for (name, _), after in zip(quantities, sd_after):
             rows.append({"stream": candidate.stream, "measurement": candidate.measurement, "quantity": name,
                          "sd_before": before[name], "sd_after": after,
                          "reduction": 1.0 - after / before[name] if before[name] > 0 else 0.0,
                          "makes_testable": "; ".join(newly), "n_made_testable": int(newly.size),
                          "testable": bool(testable_after[names.size :].any()), "stated_error": candidate.stated_error})  # fmt: skip
+        if progress is not None:
+            progress(number, len(found), f"design: candidate {number} of {len(found)}")
     table = pd.DataFrame(rows, columns=DESIGN_COLUMNS[1:])
     table = table.sort_values(["reduction", "n_made_testable", "quantity"], ascending=[False, False, True], kind="stable")
     table = table.reset_index(drop=True)
@@ -190,22 +195,97 @@ def design_table(balance, quantities=None, *, errors: ErrorModel | None = None) 
     return table
 
 
-def _with_candidate(balance, candidate: Candidate, J: np.ndarray, G: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The covariance of the unknowns with the candidate added, and which raw errors (the
-    survey's, then the candidate's pieces) would be testable.
+class CandidateUpdates:
+    r"""The reconciliation's factors, taken once, that evaluate every candidate by a low-rank update.
 
-    A survey without a measured flow is scaled by a basis (a feed of 100); the first flow
-    measured replaces it: it sets the scale and nothing else, so it changes no sd of a
-    result relative to the flows (partitions, yields, circulating loads) and is not testable.
+    With :math:`C = (J^T J)^+` the covariance of the free unknowns (the reconciliation's rank
+    decision) and :math:`E` the candidate's whitened rows in them, a candidate inside the
+    directions the survey sees changes the covariance by the Sherman-Morrison-Woodbury identity
+
+    .. math:: C' = C - C E^T (I + E C E^T)^{-1} E C,
+
+    a solve of the candidate's few pieces, so the sd of a result with gradient :math:`q` is
+    :math:`q^T C' q` and the information of a raw error :math:`g` (whitened) off the range of
+    :math:`[J; E]` grows by :math:`\|(I + E C E^T)^{-1/2} E C J^T g\|^2`; a piece of the
+    candidate itself keeps :math:`[(I + E C E^T)^{-1}]_{ii}` of its own.  A candidate that
+    reaches a direction no measurement sees (it would change the rank), or whose update
+    cancels more than :data:`UPDATE_CANCELLATION` of a variance, is evaluated by a fresh
+    pseudo-inverse instead (:meth:`_refactored`), as the update would not be exact there.
     """
-    problem = balance.problem
-    extra = candidate.rows @ problem.N
-    if balance.basis and candidate.measurement == "solids flow":
-        return balance.covariance, np.concatenate([_testable(J, G), np.zeros(extra.shape[0], dtype=bool)])
-    covariance = problem.N @ _pseudo_inverse(J, extra) @ problem.N.T
-    pieces = extra.shape[0]
-    stacked_effects = np.block([[G, np.zeros((G.shape[0], pieces))], [np.zeros((pieces, G.shape[1])), np.eye(pieces)]])
-    return covariance, _testable(np.vstack([J, extra]), stacked_effects)
+
+    def __init__(self, balance, gradients: np.ndarray, v: np.ndarray):
+        problem, decomposition = balance.problem, balance.decomposition
+        self.balance, self.problem = balance, problem
+        self.J = problem.W @ problem.jacobian(v) @ problem.N
+        self.G = problem.W @ problem.effects
+        self.C = decomposition.covariance()
+        self.unseen = decomposition.unseen
+        self.Q = gradients[:, : problem.N.shape[0]] @ problem.N if len(gradients) else np.zeros((0, problem.N.shape[1]))
+        self.CQ = self.C @ self.Q.T
+        variance = np.einsum("ij,jk,ik->i", gradients, balance.covariance, gradients) if len(gradients) else np.zeros(0)
+        self.sd_before = np.sqrt(np.clip(variance, 0.0, None))
+        self.variance_before = np.einsum("ij,ji->i", self.Q, self.CQ)
+        self.information, self.testable_now = _information(self.J, self.G)
+        self.CJG = self.C @ (self.J.T @ self.G)
+        self.largest = float(np.linalg.norm(self.J, 2)) if self.J.size else 0.0
+
+    def with_candidate(self, candidate: Candidate) -> tuple[np.ndarray, np.ndarray]:
+        """``(sd after of each result, testable)``: which raw errors (the survey's, then the
+        candidate's pieces) would be testable with the candidate added.
+
+        A survey without a measured flow is scaled by a basis (a feed of 100); the first flow
+        measured replaces it: it sets the scale and nothing else, so it changes no sd of a
+        result relative to the flows (partitions, yields, circulating loads) and is not testable.
+        """
+        E = candidate.rows @ self.problem.N
+        if self.balance.basis and candidate.measurement == "solids flow":
+            return self.sd_before, np.concatenate([self.testable_now, np.zeros(E.shape[0], dtype=bool)])
+        if not self._within_seen(E):
+            return self._refactored(E)
+        EC = E @ self.C
+        inner = np.eye(E.shape[0]) + EC @ E.T
+        factor = linalg.cho_factor(inner)
+        ECQ = EC @ self.Q.T
+        variance = self.variance_before - np.einsum("ij,ij->j", ECQ, linalg.cho_solve(factor, ECQ))
+        if np.any(variance < UPDATE_CANCELLATION * self.variance_before):
+            return self._refactored(E)
+        ECJG = E @ self.CJG
+        information = self.information + np.einsum("ij,ij->j", ECJG, linalg.cho_solve(factor, ECJG))
+        survey_testable = information > 1e-8 * np.einsum("ij,ij->j", self.G, self.G)
+        own = np.diag(linalg.cho_solve(factor, np.eye(E.shape[0])))
+        return np.sqrt(np.clip(variance, 0.0, None)), np.concatenate([survey_testable, own > 1e-8])
+
+    def _within_seen(self, E: np.ndarray) -> bool:
+        """Whether the candidate's rows lie in the directions the survey sees (the rank stays)."""
+        if not self.unseen.shape[1]:
+            return True
+        return bool(np.linalg.norm(E @ self.unseen) <= RANK_TOL * 1e-3 * max(self.largest, np.linalg.norm(E)))
+
+    def _refactored(self, E: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The candidate by a fresh pseudo-inverse of the stacked Jacobian (its own rank decision)."""
+        covariance = _pseudo_inverse(self.J, E)
+        pieces = E.shape[0]
+        stacked_effects = np.block(
+            [[self.G, np.zeros((self.G.shape[0], pieces))], [np.zeros((pieces, self.G.shape[1])), np.eye(pieces)]]
+        )
+        variance = np.einsum("ij,jk,ik->i", self.Q, covariance, self.Q)
+        return np.sqrt(np.clip(variance, 0.0, None)), _testable(np.vstack([self.J, E]), stacked_effects)
+
+
+#: A low-rank update that removes more than all but this share of a variance loses digits to
+#: cancellation: such a candidate is evaluated by a fresh pseudo-inverse.
+UPDATE_CANCELLATION = 1e-4
+
+
+def _information(J: np.ndarray, G: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The information of each raw error (columns of the whitened effects ``G``) off the range of
+    ``J`` (the rank decision of :data:`RANK_TOL`), and whether it is testable (more than 1e-8 of
+    it, as in the measurement test)."""
+    U, singular, _ = np.linalg.svd(J, full_matrices=False)
+    rank = int(np.sum(singular > RANK_TOL * singular.max(initial=0.0)))
+    basis = U[:, :rank]
+    information = np.einsum("ij,ij->j", G, G - basis @ (basis.T @ G))
+    return information, information > 1e-8 * np.einsum("ij,ij->j", G, G)
 
 
 def _design_point(balance) -> np.ndarray:
@@ -218,11 +298,7 @@ def _testable(J: np.ndarray, G: np.ndarray) -> np.ndarray:
     """Which raw errors (columns of the whitened effects ``G``) a reconciliation with the whitened
     Jacobian ``J`` can test: their part off the range of ``J`` (the rank decision of
     :data:`RANK_TOL`) carries more than 1e-8 of them, as in the measurement test."""
-    U, singular, _ = np.linalg.svd(J, full_matrices=False)
-    rank = int(np.sum(singular > RANK_TOL * singular.max(initial=0.0)))
-    basis = U[:, :rank]
-    QG = G - basis @ (basis.T @ G)
-    return np.einsum("ij,ij->j", G, QG) > 1e-8 * np.einsum("ij,ij->j", G, G)
+    return _information(J, G)[1]
 
 
 def _pseudo_inverse(J: np.ndarray, extra: np.ndarray) -> np.ndarray:

@@ -36,9 +36,9 @@ import dataclasses
 
 import numpy as np
 import pandas as pd
-from scipy import stats
 
 from ..errors import OptionError
+from .distributions import chi2_sf, norm_isf, norm_sf
 from .measurements import Survey, class_name
 
 #: Columns of the elimination table (``DIR/elimination.csv``).
@@ -51,7 +51,7 @@ EXCLUDE_KINDS = {"flow": "flow", "pct_solids": "pct"}
 _KIND_NAMES = {"share": "share", "flow": "flow", "pct": "pct_solids"}
 
 
-def serial_elimination(balance, reconcile, *, max_steps: int | None = None) -> pd.DataFrame:
+def serial_elimination(balance, reconcile, *, max_steps: int | None = None, progress=None) -> pd.DataFrame:
     """The steps of serial elimination with compensation, from the reconciled ``balance``.
 
     Row 0 is the survey as reconciled; row k names the measurement compensated at step k,
@@ -65,6 +65,8 @@ def serial_elimination(balance, reconcile, *, max_steps: int | None = None) -> p
         :func:`~tromplab.circuit.reconciliation.reconcile`, which reconciles each compensated survey.
     max_steps : int, optional
         At most this many steps (default: as many as the redundancy allows).
+    progress : callable, optional
+        ``progress(step, limit, "elimination: step k")`` before each step's reconciliation.
 
     Returns
     -------
@@ -75,7 +77,7 @@ def serial_elimination(balance, reconcile, *, max_steps: int | None = None) -> p
     current, dof = balance, balance.dof
     limit = balance.dof if max_steps is None else min(max_steps, balance.dof)
     for step in range(1, limit + 1):
-        if dof <= 0 or stats.chi2.sf(current.chi_square, dof) > current.alpha:
+        if dof <= 0 or chi2_sf(current.chi_square, dof) > current.alpha:
             break
         table = current.adjustments_table().dropna(subset=["measurement_test"])
         if table.empty:
@@ -83,6 +85,8 @@ def serial_elimination(balance, reconcile, *, max_steps: int | None = None) -> p
         j = int(table["measurement_test"].abs().idxmax())
         suspect = table.loc[j]
         survey = _compensated(current, j, float(suspect["gross_error"]))
+        if progress is not None:
+            progress(step - 1, limit, f"elimination: step {step}")
         current = reconcile(current.flowsheet, survey, alpha=current.alpha)
         dof -= 1
         rows.append(_row(step, suspect, current.chi_square, dof))
@@ -90,7 +94,7 @@ def serial_elimination(balance, reconcile, *, max_steps: int | None = None) -> p
 
 
 def _row(step: int, suspect, chi_square: float, dof: int) -> dict:
-    p_value = float(stats.chi2.sf(chi_square, dof)) if dof > 0 else float("nan")
+    p_value = float(chi2_sf(chi_square, dof)) if dof > 0 else float("nan")
     row = {"step": step, "chi_square": chi_square, "dof": dof, "p_value": p_value}
     if suspect is None:
         return row | {"stream": "", "kind": "", "size_class": "", "measurement": "(as reconciled)", "indistinguishable_from": ""}
@@ -251,7 +255,7 @@ def nodal_tests(balance) -> pd.DataFrame:
     table = pd.DataFrame(rows, columns=NODAL_COLUMNS)
     if len(table):
         level = 1.0 - (1.0 - balance.alpha) ** (1.0 / len(table))
-        table["suspect"] = table["nodal_test"].abs() > stats.norm.isf(level / 2.0)
+        table["suspect"] = table["nodal_test"].abs() > norm_isf(level / 2.0)
     return table
 
 
@@ -259,6 +263,6 @@ def _nodal_row(node: str, kind: str, size_class: str, terms) -> dict:
     imbalance = sum(weight * value for weight, value, _ in terms)
     sd = float(np.sqrt(sum((weight * spread) ** 2 for weight, _, spread in terms)))
     test = imbalance / sd if sd > 0 else float("nan")
-    p_value = 2.0 * stats.norm.sf(abs(test)) if np.isfinite(test) else float("nan")
+    p_value = 2.0 * norm_sf(abs(test)) if np.isfinite(test) else float("nan")
     return {"node": node, "balance": kind, "size_class": size_class, "imbalance": imbalance, "imbalance_sd": sd,
             "nodal_test": test, "p_value": p_value, "suspect": False}  # fmt: skip

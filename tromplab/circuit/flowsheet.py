@@ -31,13 +31,16 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import cached_property
+from typing import TYPE_CHECKING
 
-import networkx as nx
 import numpy as np
 import pandas as pd
 
 from ..errors import InputError
 from ..loading.tables import Table, read_table
+
+if TYPE_CHECKING:
+    import networkx as nx
 
 #: The boundary of the circuit as a node of the graph (feeds come from it, products go to it).
 BOUNDARY = "(boundary)"
@@ -166,6 +169,8 @@ class Flowsheet:
     def graph(self) -> nx.MultiDiGraph:
         """The flowsheet as a networkx multigraph, the boundary as node :data:`BOUNDARY`;
         each edge carries its stream's name in ``stream``."""
+        import networkx as nx  # for the caller's graph algorithms; the checks of the reader need none
+
         graph = nx.MultiDiGraph()
         graph.add_node(BOUNDARY)
         for node in self.nodes:
@@ -342,20 +347,53 @@ def flowsheet_from_streams(streams, *, source: str = "flowsheet") -> Flowsheet:
 
 
 def _check_graph(flowsheet: Flowsheet, error) -> None:
-    graph = flowsheet.graph()
+    """Refuse a flowsheet in pieces, a node no feed reaches, or one from which no product is reached.
+
+    The graph searches are a few lines of breadth-first search over the streams (the boundary as
+    one node, then split into the feeds' source and the products' sink): networkx, a tenth of a
+    second of start-up, is imported for :meth:`Flowsheet.graph` and the figures only.
+    """
     if not flowsheet.feeds:
         raise error("the flowsheet has no feed (a stream with a blank 'from')")
     if not flowsheet.products:
         raise error("the flowsheet has no final product (a stream with a blank 'to')")
-    pieces = list(nx.weakly_connected_components(graph))
+    edges = [(stream.source or BOUNDARY, stream.target or BOUNDARY) for stream in flowsheet.streams]
+    pieces = _pieces([BOUNDARY, *(node.name for node in flowsheet.nodes)], edges)
     if len(pieces) > 1:
         apart = sorted(min(piece) for piece in pieces if BOUNDARY not in piece)
         raise error(f"the flowsheet is in {len(pieces)} pieces: node(s) {', '.join(apart)} are connected to no feed or product")
-    plain = nx.DiGraph()  # the boundary split into a source and a sink, to follow material from feeds to products
-    for stream in flowsheet.streams:
-        plain.add_edge(stream.source or "(feeds)", stream.target or "(products)")
+    forward = [(stream.source or "(feeds)", stream.target or "(products)") for stream in flowsheet.streams]
+    fed = _reached("(feeds)", forward)
+    leaving = _reached("(products)", [(target, source) for source, target in forward])
     for node in flowsheet.nodes:
-        if not nx.has_path(plain, "(feeds)", node.name):
+        if node.name not in fed:
             raise error(f"node '{node.name}' is fed by no feed of the circuit (only by a closed loop)")
-        if not nx.has_path(plain, node.name, "(products)"):
+        if node.name not in leaving:
             raise error(f"material entering node '{node.name}' can never leave the circuit: no path to a final product")
+
+
+def _reached(start: str, edges) -> set[str]:
+    """The nodes a directed path from ``start`` reaches along ``edges`` (``start`` included)."""
+    following: dict[str, list[str]] = {}
+    for source, target in edges:
+        following.setdefault(source, []).append(target)
+    reached, frontier = {start}, [start]
+    while frontier:
+        node = frontier.pop()
+        for after in following.get(node, ()):
+            if after not in reached:
+                reached.add(after)
+                frontier.append(after)
+    return reached
+
+
+def _pieces(nodes, edges) -> list[set[str]]:
+    """The weakly connected components of the graph of ``nodes`` and ``edges``."""
+    both = [*edges, *((target, source) for source, target in edges)]
+    pieces, seen = [], set()
+    for node in nodes:
+        if node not in seen:
+            piece = _reached(node, both)
+            seen |= piece
+            pieces.append(piece)
+    return pieces

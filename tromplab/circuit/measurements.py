@@ -797,7 +797,7 @@ def _stream_values(table: Table, names, column: str, sd_column: str, default_sd,
 
 def class_name(classes: pd.DataFrame, i: int) -> str:
     """Class ``i`` as the tables name it: ``+600`` (open top), ``-600+300``, ``-38`` (the pan)."""
-    lower, upper = classes["size_lower"].iloc[i], classes["size_upper"].iloc[i]
+    lower, upper = classes["size_lower"].to_numpy()[i], classes["size_upper"].to_numpy()[i]  # not .iloc: called per row
     if not np.isfinite(upper):
         return f"+{lower:g}"
     if not np.isfinite(lower):

@@ -19,7 +19,6 @@ import pandas as pd
 
 from ..loading.weights import weight_notes
 from ..output.csv_parts import file_writers
-from ..output.plotting import offscreen_axes
 from .elimination import exclusion_name
 from .plotting import figure_size
 
@@ -30,7 +29,12 @@ def balance_tables(balance, errors=None, *, weighting: str = "error-model") -> d
     observability table; default :class:`~tromplab.circuit.measurements.ErrorModel`;
     ``weighting``: the weights of ``points.csv``, :meth:`CircuitBalance.points_table`)."""
     from .design import design_table, observability_table
+    from .measurements import ErrorModel
 
+    # the report (summary.txt) reads the balance's own design table, of the default error model:
+    # with that model the file is the same table, computed once
+    default = errors is None or errors == ErrorModel()
+    design = balance.design_table() if default else design_table(balance, errors=errors, progress=balance.progress)
     tables = {
         "flows": balance.flows_table(),
         "distributions": balance.distributions_table(),
@@ -40,7 +44,7 @@ def balance_tables(balance, errors=None, *, weighting: str = "error-model") -> d
         "nodal_tests": balance.nodal_tests_table(),
         "worth": balance.worth_table(),
         "observability": observability_table(balance, errors),
-        "design": design_table(balance, errors=errors),
+        "design": design,
         "chi_square": balance.chi_square_table(),
         "degrees_of_freedom": balance.degrees_of_freedom_table(),
         "partition": balance.partition_table(),
@@ -84,6 +88,8 @@ def balance_outputs(
 
 def balance_png(balance, kind: str) -> bytes:
     """Figure ``kind`` drawn on a figure made without pyplot (no backend chosen, no figure left open)."""
+    from ..output.plotting import offscreen_axes  # matplotlib only when a figure is drawn
+
     ax = offscreen_axes(figsize=figure_size(balance, kind))
     balance.plot(kind, ax=ax)
     buffer = io.BytesIO()

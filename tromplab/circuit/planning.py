@@ -141,6 +141,7 @@ def design_advice(
     alpha: float | None = None,
     size_unit: str | None = None,
     exclude=(),
+    progress=None,
 ) -> DesignAdvice:
     """Rank the measurements one could add to a survey by how much they would lower the sd of
     the results named, and say which measurements they would make testable.
@@ -160,8 +161,9 @@ def design_advice(
         with a measured solids flow (default none: flows relative to a feed of 100).
     errors : ErrorModel, optional
         The error model of the survey and of the candidates.
-    alpha, size_unit, exclude
-        As for :func:`~tromplab.circuit.reconciliation.reconcile`.
+    alpha, size_unit, exclude, progress
+        As for :func:`~tromplab.circuit.reconciliation.reconcile` (``progress`` also hears
+        ``"design: candidate i of n"``).
 
     Returns
     -------
@@ -178,8 +180,8 @@ def design_advice(
             if value:
                 raise OptionError(name, "describes a survey to simulate: it is not taken with a survey given")
         survey, assumptions = measurements, ""
-    balance = reconcile(flowsheet, survey, errors=errors, size_unit=size_unit, exclude=exclude, **options)
-    table = design_table(balance, select_quantities(balance, quantity), errors=errors)
+    balance = reconcile(flowsheet, survey, errors=errors, size_unit=size_unit, exclude=exclude, progress=progress, **options)
+    table = design_table(balance, select_quantities(balance, quantity), errors=errors, progress=progress)
     return DesignAdvice(balance=balance, table=table, simulated=measurements is None, assumptions=assumptions, errors=errors)
 
 

@@ -6,7 +6,6 @@ and no style is set (the caller's scripts choose the backend and the theme).
 
 from __future__ import annotations
 
-import networkx as nx
 import numpy as np
 
 from .flowsheet import Flowsheet
@@ -52,6 +51,8 @@ def _columns(flowsheet: Flowsheet) -> dict[str, int]:
     A recycle is an edge back to a node on the path that reached it, in a depth-first walk
     from the feeds' nodes in the order of the file (so a loop is cut where the flowsheet
     returns, not where a second feed enters it)."""
+    import networkx as nx  # only when a figure is drawn
+
     graph = nx.DiGraph()
     graph.add_nodes_from(node.name for node in flowsheet.nodes)
     for stream in flowsheet.streams:

@@ -59,12 +59,13 @@ Smith, H. W. & Ichiyen, N. (1973). Computer adjustment of metallurgical balances
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
 import pandas as pd
-from scipy import stats
+from scipy import sparse
 
 from ..loading.points import TrompPoints
 from ..loading.weights import partition_weights, stream_error
@@ -75,10 +76,12 @@ from . import plotting
 from .adjustments import ADJUSTMENT_COLUMNS, EQUIVALENT_CORRELATION, MeasurementTests, adjustments_frame, measurement_tests
 from .assays import MIN_ASSAYED_SHARE
 from .design import design_table, water_determined_by
+from .distributions import chi2_ppf, chi2_sf, norm_isf
 from .elimination import nodal_tests, proposal, serial_elimination, without
 from .flowsheet import Flowsheet, read_flowsheet
 from .measurements import ErrorModel, Survey, class_name, read_survey
 from .problem import (
+    SPARSE_UNKNOWNS,
     Decomposition,
     Problem,
     bounded_solution,
@@ -92,7 +95,7 @@ from .problem import (
     starting_point,
 )
 from .separators import MIN_FEED_SHARE, PARTITION_COLUMNS, components_table, curve_names, partition_table, plot_partitions
-from .worth import worth_table
+from .worth import results, worth_table
 
 __all__ = ["ADJUSTMENT_COLUMNS", "EQUIVALENT_CORRELATION", "MIN_FEED_SHARE", "PARTITION_COLUMNS", "CircuitBalance", "reconcile"]
 
@@ -204,6 +207,9 @@ class CircuitBalance(ResultContract):
     excluded: tuple[str, ...] = field(default=(), compare=False)
     #: Class flows of every assayed component (components x streams x classes; None: no assay).
     component_flows: np.ndarray | None = field(default=None, repr=False, compare=False)
+    #: ``progress(done, total, label)`` of the run that made the balance (``reconcile(progress=)``):
+    #: the serial elimination and the design advice, computed when first asked for, report to it.
+    progress: Callable[[int, int, str], None] | None = field(default=None, repr=False, compare=False)
 
     @property
     def has_size_classes(self) -> bool:
@@ -234,11 +240,11 @@ class CircuitBalance(ResultContract):
     @property
     def p_value(self) -> float:
         """Probability of a chi-square at least as large under the error model (NaN without redundancy)."""
-        return float(stats.chi2.sf(self.chi_square, self.dof)) if self.dof > 0 else float("nan")
+        return float(chi2_sf(self.chi_square, self.dof)) if self.dof > 0 else float("nan")
 
     @property
     def chi_square_critical(self) -> float:
-        return float(stats.chi2.ppf(1.0 - self.alpha, self.dof)) if self.dof > 0 else float("nan")
+        return float(chi2_ppf(1.0 - self.alpha, self.dof)) if self.dof > 0 else float("nan")
 
     @property
     def rejected(self) -> bool:
@@ -289,7 +295,10 @@ class CircuitBalance(ResultContract):
     def _sd(self, gradients: np.ndarray) -> np.ndarray:
         """Delta-method standard deviations of quantities with these gradients in the class flows."""
         k = gradients.shape[1]  # the class flows lead the unknowns: a gradient in them alone is shorter
-        variance = np.einsum("ij,jk,ik->i", gradients, self.covariance[:k, :k], gradients)
+        if k < SPARSE_UNKNOWNS:
+            variance = np.einsum("ij,jk,ik->i", gradients, self.covariance[:k, :k], gradients)
+        else:  # a large flowsheet: each gradient touches one or two streams (the three-operand einsum runs no BLAS)
+            variance = np.einsum("ij,ij->i", sparse.csr_matrix(gradients) @ self.covariance[:k, :k], gradients)
         return np.sqrt(np.clip(variance, 0.0, None))
 
     @cached_property
@@ -426,7 +435,7 @@ class CircuitBalance(ResultContract):
         if p == 0:
             return float("nan")
         level = 1.0 - (1.0 - self.alpha) ** (1.0 / p)
-        return float(stats.norm.isf(level / 2.0))
+        return float(norm_isf(level / 2.0))
 
     def adjustments_table(self) -> pd.DataFrame:
         """One row per measurement (flows given with sd 0 are constraints, not listed).
@@ -459,7 +468,7 @@ class CircuitBalance(ResultContract):
 
     @cached_property
     def _elimination(self) -> pd.DataFrame:
-        return serial_elimination(self, reconcile)
+        return serial_elimination(self, reconcile, progress=self.progress)
 
     def elimination_table(self) -> pd.DataFrame:
         """Serial elimination with compensation (:func:`~tromplab.circuit.elimination.serial_elimination`):
@@ -479,7 +488,7 @@ class CircuitBalance(ResultContract):
 
     @cached_property
     def _design(self) -> pd.DataFrame:
-        return design_table(self)
+        return design_table(self, progress=self.progress)
 
     def design_table(self) -> pd.DataFrame:
         """Survey design advice (:func:`~tromplab.circuit.design.design_table`): the measurements
@@ -493,10 +502,18 @@ class CircuitBalance(ResultContract):
         return table.reindex(table["measurement_test"].abs().sort_values(ascending=False).index).head(n).reset_index(drop=True)
 
     # --- separators -----------------------------------------------------------------------
+    @cached_property
+    def _results(self) -> list:
+        return results(self)
+
+    @cached_property
+    def _partition(self) -> pd.DataFrame:
+        return partition_table(self)
+
     def partition_table(self) -> pd.DataFrame:
         """Partition to the fine product of every separator and class, of the whole solids and of
         each assayed component (:func:`~tromplab.circuit.separators.partition_table`)."""
-        return partition_table(self)
+        return self._partition.copy()
 
     def components_table(self) -> pd.DataFrame:
         """Each assayed component at each separator: grades, fine yield and recovery with sds
@@ -702,7 +719,7 @@ class CircuitBalance(ResultContract):
         return figures[kind](self, ax=ax)
 
 
-def _errors_at_reconciled(flowsheet: Flowsheet, survey: Survey, problem: Problem, z: np.ndarray):
+def _errors_at_reconciled(flowsheet: Flowsheet, survey: Survey, problem: Problem, z: np.ndarray, progress=None):
     """Evaluate the error model at the reconciled shares and flows and reconcile again, until
     no standard deviation moves by more than :data:`ERROR_MODEL_TOLERANCE` of itself.
 
@@ -711,7 +728,9 @@ def _errors_at_reconciled(flowsheet: Flowsheet, survey: Survey, problem: Problem
     """
     S, n = problem.n_streams, problem.n_classes
     success, message = True, ""
-    for _ in range(MAX_ERROR_MODEL_ITERATIONS):
+    for round_number in range(2, MAX_ERROR_MODEL_ITERATIONS + 2):
+        if progress is not None:
+            progress(0, 1, f"reconciliation: round {round_number}")
         v = problem.m0 + problem.N @ z
         class_flows = v[: S * n].reshape(S, n)
         flows = class_flows.sum(axis=1)
@@ -775,6 +794,7 @@ def reconcile(
     alpha: float = DEFAULT_ALPHA,
     size_unit: str | None = None,
     exclude=(),
+    progress: Callable[[int, int, str], None] | None = None,
 ) -> CircuitBalance:
     """Reconcile a circuit survey: flows and size distributions that close every node balance.
 
@@ -796,6 +816,11 @@ def reconcile(
         ``"STREAM:pct_solids"`` or ``"STREAM:CLASS"`` (``"cyclone_feed:-150+75"``); a
         comma-separated string is split.  What :meth:`CircuitBalance.elimination_table`
         proposes, acted on.
+    progress : callable, optional
+        ``progress(done, total, label)`` at each stage: ``"reconciliation: round k"`` (the
+        rounds of the error model at the reconciled values), then, when the balance's tables
+        are first asked for, ``"elimination: step k"`` and ``"design: candidate i of n"``
+        (kept by the balance).  The command line draws it as a bar on a terminal.
 
     Returns
     -------
@@ -829,7 +854,7 @@ def reconcile(
         else read_survey(measurements, flowsheet, errors=errors, size_unit=size_unit)
     )
     survey, excluded = _without_excluded(survey, flowsheet, exclude)
-    return _balance(flowsheet, survey, alpha, excluded)
+    return _balance(flowsheet, survey, alpha, excluded, progress)
 
 
 def _without_excluded(survey: Survey, flowsheet: Flowsheet, exclude) -> tuple[Survey, tuple[str, ...]]:
@@ -842,14 +867,16 @@ def _without_excluded(survey: Survey, flowsheet: Flowsheet, exclude) -> tuple[Su
     return survey, excluded
 
 
-def _balance(flowsheet: Flowsheet, survey: Survey, alpha: float, excluded: tuple[str, ...]) -> CircuitBalance:
+def _balance(flowsheet: Flowsheet, survey: Survey, alpha: float, excluded: tuple[str, ...], progress=None) -> CircuitBalance:
     """Reconcile ``survey``: solve, evaluate the error model at the reconciled values, linearise, bound at 0."""
+    if progress is not None:
+        progress(0, 1, "reconciliation: round 1")
     problem, basis = build_problem(flowsheet, survey)
     start = solids_first_start(flowsheet, survey, problem) if problem.n_components else starting_point(flowsheet, survey, problem)
     check_observable(flowsheet, survey, problem, start)
     z, success, message = solve(problem, start)
     if survey.evaluated_at == "reconciled":
-        survey, problem, z, success, message = _errors_at_reconciled(flowsheet, survey, problem, z)
+        survey, problem, z, success, message = _errors_at_reconciled(flowsheet, survey, problem, z, progress)
     fitted = problem.m0 + problem.N @ z
     chi, decomposition, covariance = linearised(problem, z)
     held, v = bounded_solution(problem, fitted)
@@ -863,4 +890,5 @@ def _balance(flowsheet: Flowsheet, survey: Survey, alpha: float, excluded: tuple
                           message=message, basis=basis, problem=problem, measured_y=problem.y.copy(),
                           water_flows=water if problem.n_water else None, fitted=fitted, at_bound=held,
                           decomposition=decomposition, excluded=excluded,
-                          component_flows=v[problem.component_offset :].reshape(-1, S, n) if problem.n_components else None)  # fmt: skip
+                          component_flows=v[problem.component_offset :].reshape(-1, S, n) if problem.n_components else None,
+                          progress=progress)  # fmt: skip

@@ -21,10 +21,11 @@ from __future__ import annotations
 
 import numpy as np
 import pandas as pd
-from scipy import special, stats
+from scipy import special
 
 from ..options import DEFAULT_MIN_FEED_SHARE
 from .assays import SOLIDS
+from .distributions import norm_isf
 
 #: Separator classes whose feed share (of the separator's feed) is below this are written to
 #: points.csv as not used (partition not meaningful), as lab tables flag them.
@@ -156,7 +157,7 @@ def _ratio(v: np.ndarray, numerator, denominator) -> tuple[float, np.ndarray]:
 def _logit_interval(value: float, sd: float, level: float = INTERVAL_LEVEL) -> tuple[float, float]:
     if not (np.isfinite(value) and np.isfinite(sd)) or not 0.0 < value < 1.0:
         return (value, value) if np.isfinite(value) and sd == 0 else (np.nan, np.nan)
-    half = stats.norm.isf((1.0 - level) / 2.0) * sd / (value * (1.0 - value))
+    half = norm_isf((1.0 - level) / 2.0) * sd / (value * (1.0 - value))
     return float(special.expit(special.logit(value) - half)), float(special.expit(special.logit(value) + half))
 
 

@@ -255,6 +255,50 @@ def mineral_circuit(bypass: float = 0.25) -> CircuitTruth:
                         component_partitions={key: phi for key, phi in partitions.items() if key[1] in assayed})  # fmt: skip
 
 
+#: The minerals of :func:`large_plant`: name, share of the fresh feed, cut of the first cyclone
+#: (um) and d63 of the first mill's discharge (um); the gangue (last) is not assayed.
+LARGE_PLANT_MINERALS = (("magnetite", 0.05, 60.0, 150.0), ("pyrite", 0.03, 75.0, 170.0),
+                        ("chalcopyrite", 0.02, 85.0, 180.0), ("sphalerite", 0.02, 90.0, 185.0),
+                        ("gangue", 0.88, 120.0, 200.0))  # fmt: skip
+
+
+def large_plant(blocks: int = 10, n_classes: int = 20) -> CircuitTruth:
+    """A synthetic plant of ``3 blocks`` nodes: ``blocks`` closed grinding stages in series, each a
+    sump (junction), a hydrocyclone and a ball mill whose discharge returns to the sump, the
+    overflow feeding the next stage's sump (the last the product); ``n_classes`` sieve classes
+    (a root-2 series from 10 um) and four assayed minerals and a gangue
+    (:data:`LARGE_PLANT_MINERALS`), each classified on Plitt's curve (bypass 0.2) at a cut that
+    falls by a factor 1.25 per stage and ground to its own Rosin-Rammler discharge.  The size of
+    survey that stays interactive (benchmarks/circuit_speed.py); synthetic, not a plant measured.
+    """
+    names = {"stream": [], "from": [], "to": [], "product": []}
+
+    def stream(name, source, target, product=""):
+        for key, value in zip(names, (name, source, target, product)):
+            names[key].append(value)
+
+    stream("fresh_feed", "", "sump_1")
+    for b in range(1, blocks + 1):
+        stream(f"cyclone_feed_{b}", f"sump_{b}", f"cyclone_{b}")
+        stream(f"overflow_{b}", f"cyclone_{b}", f"sump_{b + 1}" if b < blocks else "", "fine")
+        stream(f"underflow_{b}", f"cyclone_{b}", f"mill_{b}", "coarse")
+        stream(f"discharge_{b}", f"mill_{b}", f"sump_{b}", "ground")
+    flowsheet = read_flowsheet(pd.DataFrame(names), source="large plant")
+    edges = 10.0 * np.sqrt(2.0) ** np.arange(n_classes - 1)
+    classes = classes_from_edges(edges)
+    size = classes["size"]
+    feed = 500.0 * rosin_rammler_shares(edges, 2000.0, 0.9)
+    flows = {}
+    for name, grade, d50, d63 in LARGE_PLANT_MINERALS:
+        partitions = {f"cyclone_{b}": plitt_partition_to_fines(size, d50 / 1.25 ** (b - 1), 2.5, bypass=0.2)
+                      for b in range(1, blocks + 1)}  # fmt: skip
+        discharges = {f"mill_{b}": rosin_rammler_shares(edges, d63 / 1.25 ** (b - 1), 1.0) for b in range(1, blocks + 1)}
+        flows[name] = steady_state(flowsheet, classes, {"fresh_feed": grade * feed}, partitions, discharges)
+    assayed = tuple(name for name, *_ in LARGE_PLANT_MINERALS[:-1])
+    return CircuitTruth(flowsheet=flowsheet, classes=classes, class_flows=sum(flows.values()), size_unit="um",
+                        components=assayed, component_flows=np.array([flows[name] for name in assayed]))  # fmt: skip
+
+
 def simulate_survey(
     truth: CircuitTruth,
     rng: np.random.Generator,

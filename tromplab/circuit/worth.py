@@ -84,7 +84,7 @@ def worth_table(balance) -> pd.DataFrame:
     if "component" in adjustments.columns:  # a per-class assay
         kinds = np.where(adjustments["component"].astype(bool), "assay", kinds)
     frames = []
-    for name, value, gradient in results(balance):
+    for name, value, gradient in balance._results:
         shift = gradient @ raw
         variance = float(shift @ shift)
         frames.append(pd.DataFrame({

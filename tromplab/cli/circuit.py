@@ -30,17 +30,30 @@ from ..validation import (
     cli_type,
 )
 from .printing import format_fits
-from .startup import EXIT_OK
+from .startup import EXIT_OK, stage_bars
 
-#: What the circuit commands import when they run (before they start, under the CLI's signal handling).
+#: What the circuit commands import when they run (before they start, under the CLI's signal
+#: handling); the fits (``--fit``) and the figures add theirs (:func:`_imports`): lmfit and
+#: matplotlib are a third of a second of start-up a run without them does not pay.
 IMPORTS = (
     "tromplab.circuit_command",
     "tromplab.circuit",
     "tromplab.circuit.planning",
-    "tromplab.workbench",
     "tromplab.output.csv_parts",
-    "tromplab.output.plotting",
 )
+FIT_IMPORTS = ("tromplab.workbench",)
+FIGURE_IMPORTS = ("tromplab.output.plotting",)
+
+
+def _imports(namespace) -> tuple[str, ...]:
+    """The modules of this run of ``circuit`` (``design`` draws no figure and fits nothing)."""
+    if getattr(namespace, "circuit_command", None) == "design":
+        return IMPORTS
+    fit = FIT_IMPORTS if getattr(namespace, "fit", False) else ()
+    figures = () if getattr(namespace, "no_figures", False) else FIGURE_IMPORTS
+    return IMPORTS + fit + figures
+
+
 _USAGE = (
     "tromplab circuit FLOWSHEET MEASUREMENTS [-o DIR] [--fit] [options]\n"
     "       tromplab circuit design FLOWSHEET [SURVEY] [-o DIR] [options]"
@@ -151,8 +164,10 @@ def _route_design(circuit: argparse.ArgumentParser, design: argparse.ArgumentPar
         if args[:1] == ["design"]:
             namespace, rest = design.parse_known_args(args[1:], namespace)
             namespace.circuit_command = "design"
-            return namespace, rest
-        return parse_circuit(args, namespace)
+        else:
+            namespace, rest = parse_circuit(args, namespace)
+        namespace.imports = _imports(namespace)
+        return namespace, rest
 
     circuit.parse_known_args = parse_known_args
 
@@ -169,8 +184,10 @@ def _error_model(args):
 def _run_circuit(args) -> int:
     from ..circuit_command import console_report, run_circuit
 
-    run = run_circuit(args.flowsheet, args.measurements, args.outdir, fit=args.fit, errors=_error_model(args), alpha=args.alpha,
-                      size_unit=args.size_unit, figures=not args.no_figures, exclude=args.exclude, weighting=args.weighting)  # fmt: skip
+    with stage_bars(quiet=args.quiet) as progress:
+        run = run_circuit(args.flowsheet, args.measurements, args.outdir, fit=args.fit, errors=_error_model(args),
+                          alpha=args.alpha, size_unit=args.size_unit, figures=not args.no_figures, exclude=args.exclude,
+                          weighting=args.weighting, progress=progress)  # fmt: skip
     print(console_report(run, format_fits=format_fits))
     return EXIT_OK
 
@@ -178,8 +195,9 @@ def _run_circuit(args) -> int:
 def _run_design(args) -> int:
     from ..circuit_command import run_design
 
-    run = run_design(args.flowsheet, args.measurements, args.outdir, quantity=args.quantity, sampled=args.sampled,
-                     flows=args.flows, errors=_error_model(args), alpha=args.alpha, size_unit=args.size_unit,
-                     exclude=args.exclude)  # fmt: skip
+    with stage_bars(quiet=args.quiet) as progress:
+        run = run_design(args.flowsheet, args.measurements, args.outdir, quantity=args.quantity, sampled=args.sampled,
+                         flows=args.flows, errors=_error_model(args), alpha=args.alpha, size_unit=args.size_unit,
+                         exclude=args.exclude, progress=progress)  # fmt: skip
     print(run.advice.report() + "\n\nWrote:\n" + "\n".join(f"  {path}" for path in run.written.values()))
     return EXIT_OK

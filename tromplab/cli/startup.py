@@ -326,3 +326,49 @@ class progress_bars:
     def __exit__(self, *exc):
         self._close()
         return False
+
+
+class stage_bars:
+    """The progress of a command that works in stages (``tromplab circuit``): one tqdm bar per
+    stage on standard error, the stage being the label up to ``": "`` and the rest the step shown
+    beside the bar (``"reconciliation: round 2"``, ``"elimination: step 1"``, ``"design:
+    candidate 4 of 30"``), as one ``progress(done, total, label)`` callback; silent when standard
+    error is not a terminal, with --quiet, or without tqdm."""
+
+    def __init__(self, *, quiet: bool = False):
+        self.enabled = not quiet and sys.stderr.isatty()
+        self.bar, self.stage = None, None
+
+    def __enter__(self):
+        if not self.enabled:
+            return None
+        try:
+            from tqdm import tqdm
+        except ImportError:
+            return None
+
+        def update(done, total, label):
+            stage, _, step = label.partition(": ")
+            if stage != self.stage:
+                self._close()
+                counted = {} if total > 1 else {"bar_format": "{desc} [{elapsed}]"}  # a stage of unknown length: its step
+                self.bar = tqdm(total=total if total > 1 else None, desc=stage, unit="step", file=sys.stderr,
+                                dynamic_ncols=True, leave=False, **counted)  # fmt: skip
+                self.stage = stage
+            if step and total > 1:
+                self.bar.set_postfix_str(step, refresh=False)
+            elif step:
+                self.bar.set_description_str(label, refresh=False)
+            self.bar.update(max(done - self.bar.n, 0))
+            self.bar.refresh()
+
+        return update
+
+    def _close(self):
+        if self.bar is not None:
+            self.bar.close()
+            self.bar = None
+
+    def __exit__(self, *exc):
+        self._close()
+        return False

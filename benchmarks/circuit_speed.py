@@ -1,0 +1,171 @@
+"""``tromplab circuit`` and ``tromplab circuit design`` against their floors and the issue-40 yardstick.
+
+One run measures, side by side:
+
+* the yardstick: bare ``lmfit.minimize`` fits of 100 synthetic experiments x 10 curves (the nine
+  formulas of the paper and the first again, each from a generic start:
+  ``fit_robustness.bare_lmfit``), in this process;
+* ``tromplab circuit`` on the bundled example with a magnetite assay on the three cyclone
+  streams, by class and one value per stream (``tests/data/circuit_reference/inputs``: the
+  surveys of the reference outputs), elimination, design and worth included, figures off, as a
+  whole command in a subprocess (start-up and imports count), and its floor: one dense weighted
+  least-squares solve of the survey (``numpy.linalg.lstsq`` of the whitened Jacobian and
+  residuals at the starting point, the work of one Gauss-Newton step), median of 20;
+* ``tromplab circuit design`` of the bundled flowsheet without a survey (a whole command);
+* the synthetic 30-node plant (``tromplab.circuit.simulation.large_plant``: ten grinding stages
+  of sump, cyclone and mill; 20 classes), reconciled with its tables in this process, the
+  solids alone and (``--minerals``) with the four minerals assayed on every stream, each
+  against its floor.
+
+It prints each wall time and CPU time (user and system: on a loaded machine the steadier
+measure), their ratios to the yardstick's (the targets of issue 40: ``circuit`` at most
+0.3 each, ``circuit design`` at most 0.2) and to its floor, and the load average before and
+after.
+
+    python benchmarks/circuit_speed.py
+    python benchmarks/circuit_speed.py --repeats 3 --minerals
+"""
+
+import argparse
+import os
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+import warnings
+from pathlib import Path
+
+from tromplab._launch import BLAS_THREAD_VARIABLES
+
+for _variable in BLAS_THREAD_VARIABLES:  # as the command sets them (tromplab._launch), before numpy loads
+    os.environ.setdefault(_variable, "1")
+
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent
+REFERENCE = ROOT / "tests" / "data" / "circuit_reference"
+FLOWSHEET = ROOT / "datasets" / "circuit_example_flowsheet.csv"
+SURVEYS = {"assay by class": REFERENCE / "inputs" / "assay_class.csv",
+           "assay one value per stream": REFERENCE / "inputs" / "assay_stream.csv"}  # fmt: skip
+TARGETS = {"circuit": 0.3, "circuit design": 0.2}
+sys.path.insert(0, str(HERE))
+
+
+def yardstick_seconds(experiments: int = 100, curves: int = 10) -> tuple[float, float]:
+    """Bare lmfit fits of ``experiments`` synthetic experiments x ``curves`` curves: ``(wall, CPU)`` seconds."""
+    from fit_robustness import bare_lmfit, synthetic
+
+    from tromplab.curves.formulas import FORMULAS
+    from tromplab.curves.measured import measured_efficiency
+
+    data = [synthetic(seed) for seed in range(experiments)]
+    start, cpu = time.perf_counter(), time.process_time()
+    for points in data:
+        efficiency = measured_efficiency(points)
+        for k in range(curves):
+            formula = FORMULAS[k % len(FORMULAS)]
+            bare_lmfit(points, formula, {"measured_efficiency": efficiency} if formula.context_from_efficiency else {})
+    return time.perf_counter() - start, time.process_time() - cpu
+
+
+def command_seconds(arguments: list[str]) -> tuple[float, float]:
+    """``(wall, CPU)`` seconds of ``python -m tromplab ARGUMENTS`` (start-up included; CPU: user
+    and system of the child, the measure a loaded machine disturbs least)."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    start = time.perf_counter()
+    subprocess.run([sys.executable, "-m", "tromplab", *arguments], check=True, capture_output=True)
+    wall = time.perf_counter() - start
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return wall, after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime
+
+
+def floor_seconds(flowsheet, survey, repeats: int = 20) -> float:
+    """One dense weighted least-squares solve of the survey: the whitened Jacobian and residuals
+    at the starting point, solved by ``numpy.linalg.lstsq`` (median of ``repeats``)."""
+    from tromplab.circuit.problem import build_problem, starting_point
+
+    problem, _ = build_problem(flowsheet, survey)
+    z = problem.N.T @ (starting_point(flowsheet, survey, problem) - problem.m0)
+    J, residual = problem.whitened_jacobian(z), problem.whitened_residual(z)
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        np.linalg.lstsq(J, residual, rcond=None)
+        times.append(time.perf_counter() - start)
+    return float(np.median(times))
+
+
+def example_rows(folder: Path, yardstick: tuple[float, float], repeats: int) -> list[dict]:
+    from tromplab.circuit import read_flowsheet, read_survey
+
+    sheet = read_flowsheet(FLOWSHEET)
+    rows = []
+    for name, path in SURVEYS.items():
+        seconds = min(
+            command_seconds(["circuit", str(FLOWSHEET), str(path), "-o", str(folder / "c"), "--no-figures", "-q"])
+            for _ in range(repeats)
+        )  # fmt: skip (the fastest run by wall time, with its CPU)
+        floor = floor_seconds(sheet, read_survey(path, sheet))
+        rows.append(_row("circuit", f"bundled example, {name}", seconds, yardstick, floor))
+    seconds = min(command_seconds(["circuit", "design", str(FLOWSHEET), "-o", str(folder / "d"), "-q"]) for _ in range(repeats))
+    rows.append(_row("circuit design", "bundled flowsheet, no survey", seconds, yardstick, np.nan))
+    return rows
+
+
+def plant_rows(yardstick: tuple[float, float], minerals: bool) -> list[dict]:
+    """The 30-node plant reconciled with every table (as ``circuit`` writes them), in this process."""
+    from tromplab.circuit import reconcile
+    from tromplab.circuit.outputs import balance_tables
+    from tromplab.circuit.simulation import lab_survey, large_plant
+
+    truth = large_plant(10, 20)
+    rows = []
+    for assayed in [False, True] if minerals else [False]:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # the truth's grade of an empty class is 0/0: not drawn
+            survey = lab_survey(truth, np.random.default_rng(40), flows={"fresh_feed": 0.02},
+                                **({} if assayed else {"assayed": ()}))  # fmt: skip
+        start, cpu = time.perf_counter(), time.process_time()
+        balance_tables(reconcile(truth.flowsheet, survey))
+        seconds = time.perf_counter() - start, time.process_time() - cpu
+        what = "30-node plant, 20 classes" + (", 4 minerals assayed on every stream" if assayed else ", solids only")
+        rows.append(_row("circuit (in process)", what, seconds, yardstick, floor_seconds(truth.flowsheet, survey)))
+    return rows
+
+
+def _row(command: str, what: str, seconds: tuple[float, float], yardstick: tuple[float, float], floor: float) -> dict:
+    """One line: wall and CPU seconds, their ratios to the yardstick's, the target, the floor."""
+    target = TARGETS.get(command, np.nan)
+    ratio, cpu_ratio = seconds[0] / yardstick[0], seconds[1] / yardstick[1]
+    return {"command": command, "survey": what, "seconds": seconds[0], "cpu_s": seconds[1], "yardstick_s": yardstick[0],
+            "ratio": ratio, "cpu_ratio": cpu_ratio, "target": target, "met": bool(ratio <= target) if np.isfinite(target) else None,
+            "floor_s": floor, "against_floor": seconds[0] / floor if np.isfinite(floor) else np.nan}  # fmt: skip
+
+
+def main(argv=None) -> pd.DataFrame:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeats", type=int, default=3, help="runs of each command (the fastest counts)")
+    parser.add_argument("--minerals", action="store_true", help="also the 30-node plant with four minerals assayed")
+    parser.add_argument("--no-plant", action="store_true", help="leave the 30-node plant out")
+    parser.add_argument("--output", type=Path, default=HERE / "output" / "circuit_speed.csv")
+    args = parser.parse_args(argv)
+    load_before = os.getloadavg()[0]
+    yardstick = yardstick_seconds()
+    with tempfile.TemporaryDirectory() as folder:
+        rows = example_rows(Path(folder), yardstick, args.repeats)
+    if not args.no_plant:
+        rows += plant_rows(yardstick, args.minerals)
+    table = pd.DataFrame(rows)
+    args.output.parent.mkdir(parents=True, exist_ok=True)
+    table.to_csv(args.output, index=False)
+    with pd.option_context("display.width", 200, "display.max_columns", 20):
+        print(table.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
+    print(f"load average: {load_before:.2f} before, {os.getloadavg()[0]:.2f} after; {os.cpu_count()} cores")
+    return table
+
+
+if __name__ == "__main__":
+    main()
