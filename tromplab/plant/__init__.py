@@ -1,0 +1,22 @@
+"""A coal-washing plant from tests to tonnes: washability by size fraction, a device per size fraction.
+
+:func:`predict` reads the washability of every size fraction of the feed
+(:func:`~tromplab.plant.inputs.read_plant_washability`) and the device washing each
+(:func:`~tromplab.plant.inputs.read_plant`, or the curves of a ``density fit`` folder,
+:func:`~tromplab.plant.inputs.devices_from_fits`), and returns a
+:class:`~tromplab.plant.prediction.PlantPrediction` whose ``save(DIR)`` writes what
+``tromplab plant predict WASH PLANT -o DIR`` writes.  Definitions and sources in ``docs/plant.md``.
+"""
+
+from .inputs import Device, SizeFraction, devices_from_fits, read_plant, read_plant_washability
+from .prediction import PlantPrediction, predict
+
+__all__ = [
+    "Device",
+    "PlantPrediction",
+    "SizeFraction",
+    "devices_from_fits",
+    "predict",
+    "read_plant",
+    "read_plant_washability",
+]
