@@ -39,6 +39,8 @@ from tromplab.density import DensityCurveFit, DensityResult, fit_density
 from tromplab.density.washability import Prediction, Washability, partition_curve, read_washability
 from tromplab.errors import InconsistentVersionWarning
 from tromplab.loading.lab import MassBalance
+from tromplab.plant import PlantPrediction
+from tromplab.plant import predict as predict_plant
 from tromplab.results_contract import ResultContract
 from tromplab.statistics.compare import ExtraSumOfSquares, SharedFit
 from tromplab.statistics.uncertainty import Bootstrap
@@ -151,6 +153,15 @@ def _washability():
 @registered(Prediction, "floats", "sinks")
 def _prediction():
     return _washability().predict(partition_curve("normal", rho50=1.55, ep=0.05)[1])
+
+
+PLANT_WASH = DATASETS / "plant_washability_synthetic.csv"
+PLANT_DEVICES = DATASETS / "plant_devices_synthetic.csv"
+
+
+@registered(PlantPrediction, "dm_vessel", "clean_yield_pct")
+def _plant_prediction():
+    return predict_plant(PLANT_WASH, PLANT_DEVICES, draws=200)
 
 
 @registered(layer.LayerFit, "Layer model", "diffusion")
@@ -354,6 +365,14 @@ def _density_api(folder):
     return result, result.save(folder)
 
 
+def _plant_command(folder):
+    assert main(["plant", "predict", str(PLANT_WASH), str(PLANT_DEVICES), "--draws", "200", "-o", str(folder)]) == 0
+
+
+def _plant_api(folder):
+    return _plant_prediction(), _plant_prediction().save(folder)
+
+
 def _trend_command(folder):
     assert main(["trend", str(SURVEYS), "--formula", "plitt", "-o", str(folder)]) == 0
 
@@ -387,6 +406,7 @@ SAVES = {
     Workbench: (_fit_command, _fit_api),
     DensityResult: (_density_command, _density_api),
     TrendResult: (_trend_command, _trend_api),
+    PlantPrediction: (_plant_command, _plant_api),
 }
 
 
@@ -397,6 +417,7 @@ MAIN_FILES = {
     Workbench: "fits.csv",
     DensityResult: "fits.csv",
     TrendResult: "trend.csv",
+    PlantPrediction: "products.csv",
 }
 
 
@@ -457,6 +478,8 @@ NOT_RESULTS = {
     "tromplab.curves.formulas.Formula": "a registry record",
     "tromplab.curves.parameters.Parameter": "a registry record",
     "tromplab.density.curves.DensityCurve": "a registry record",
+    "tromplab.plant.inputs.SizeFraction": "input (read_plant_washability): one size fraction's washability",
+    "tromplab.plant.inputs.Device": "input (read_plant): one device's curve",
     "tromplab.output.report.Report": "a document being built (build_report): html() and markdown() are its outputs",
     "tromplab.output.export.Export": "an export file being built: its writers are the command's",
     "tromplab.trend.Survey": "input (read_surveys): one dated survey",
@@ -483,7 +506,7 @@ def _package_classes():
 def _public_functions():
     """The functions of ``tromplab.__all__`` and of the subpackages' ``__all__``."""
     functions = [getattr(tromplab, name) for name in tromplab.__all__]
-    for package in ("circuit", "density", "workbench"):
+    for package in ("circuit", "density", "workbench", "plant"):
         module = importlib.import_module(f"tromplab.{package}")
         functions += [getattr(module, name) for name in module.__all__]
     return [function for function in functions if inspect.isfunction(function)]

@@ -311,14 +311,24 @@ def _device(table: Table, index: int, name: str) -> Device:
 
 
 # --- the curves of a density fit --------------------------------------------------------------------
-def devices_from_fits(folder, fractions: list[SizeFraction]) -> list[Device]:
-    """The devices of a ``tromplab density fit`` results folder: each size fraction's best curve with its covariance.
+def devices_from_fits(fits, fractions: list[SizeFraction]) -> list[Device]:
+    """The devices of a ``tromplab density fit`` result: each size fraction's best curve with its covariance.
 
+    Parameters
+    ----------
+    fits : path or DensityResult
+        A results folder of ``tromplab density fit`` (its ``fits.csv`` and ``covariance.csv``),
+        or the :class:`~tromplab.density.results.DensityResult` itself.
+    fractions : list of SizeFraction
+        The size fractions to find a curve for.
+
+    Notes
+    -----
     A size fraction of the washability is matched to the fits whose ``size_fraction`` (``"8-16 mm"``)
-    or, for fits without size fractions, whose ``test`` has its name; of those, the curve ranked
-    first.  ``covariance.csv`` gives the covariance of ``(rho50, ep)``; without it (a folder
-    written before tromplab wrote it) the curves are taken as exact.  The device is named after
-    the test.  Curves with limits keep their fitted limits (held fixed).
+    or, failing that, whose ``test`` has its name; of those, the curve ranked first.  The
+    covariance of ``(rho50, ep)`` is ``covariance.csv``'s (:mod:`tromplab.density.covariance`);
+    without it (a folder written before tromplab wrote it) the curves are taken as exact.  The
+    device is named after the test.  Curves with limits keep their fitted limits, held fixed.
 
     Raises
     ------
@@ -326,26 +336,31 @@ def devices_from_fits(folder, fractions: list[SizeFraction]) -> list[Device]:
         Naming the folder's file: no fits.csv, a size fraction without a fitted curve or matched
         by fits of several tests.
     """
-    folder = Path(folder)
-    fits_path = folder / "fits.csv"
-    if not fits_path.is_file():
-        raise InputError("not a density fit results folder: fits.csv is missing", source=str(folder))
-    fits = pd.read_csv(fits_path, dtype={"test": str, "size_fraction": str}, keep_default_na=False, na_values=[""])
+    if hasattr(fits, "fits_table"):
+        from ..density.covariance import covariance_table
+
+        table, source = fits.fits_table(), "the density fits"
+        covariance = covariance_table(fits.fits, sizes="size_fraction" in table.columns)
+    else:
+        folder = Path(fits)
+        source = str(folder / "fits.csv")
+        if not (folder / "fits.csv").is_file():
+            raise InputError("not a density fit results folder: fits.csv is missing", source=str(folder))
+        table = pd.read_csv(folder / "fits.csv", dtype={"test": str, "size_fraction": str}, keep_default_na=False, na_values=[""])
+        covariance = _read_covariance(folder / "covariance.csv")
     needed = {"test", "curve", "rank", "rho50", "ep", "success"}
-    if not needed <= set(fits.columns):
-        raise InputError(f"fits.csv lacks the column(s) {', '.join(sorted(needed - set(fits.columns)))}", source=str(fits_path))
-    best = fits[(fits["rank"] == 1) & fits["success"].astype(str).isin(["True", "true", "1"])]
-    covariance = _read_covariance(folder / "covariance.csv")
+    if not needed <= set(table.columns):
+        raise InputError(f"fits.csv lacks the column(s) {', '.join(sorted(needed - set(table.columns)))}", source=source)
+    best = table[(table["rank"] == 1) & table["success"].astype(str).isin(["True", "true", "1"])]
     devices = []
     for fraction in fractions:
-        key = "size_fraction" if "size_fraction" in best.columns else "test"
-        matched = best[best[key].fillna("") == fraction.name]
-        if matched.empty and key == "size_fraction":
+        matched = best[best["size_fraction"].fillna("") == fraction.name] if "size_fraction" in best.columns else best[:0]
+        if matched.empty:
             matched = best[best["test"] == fraction.name]
         if len(matched) != 1:
             found = "no fitted curve" if matched.empty else f"fits of {len(matched)} tests ({', '.join(matched['test'])})"
-            raise InputError(f"size fraction '{fraction.name}': {found} in the folder's fits.csv", source=str(fits_path))
-        devices.append(_fitted_device(matched.iloc[0], fraction.name, covariance, str(fits_path)))
+            raise InputError(f"size fraction '{fraction.name}': {found} in the density fits", source=source)
+        devices.append(_fitted_device(matched.iloc[0], fraction.name, covariance, source))
     return devices
 
 
@@ -365,6 +380,8 @@ def _fitted_device(row: pd.Series, name: str, covariance: pd.DataFrame | None, s
         mine = covariance[(covariance["test"] == row["test"]) & (covariance["curve"] == row["curve"])]
         if "size_fraction" in covariance.columns:
             mine = mine[mine["size_fraction"].fillna("") == ("" if pd.isna(size) else size)]
+        if len(mine) != 2:
+            mine = mine[:0]
         block = mine.set_index("parameter").reindex(["rho50", "ep"])[["rho50", "ep"]].to_numpy(float)
         if np.isfinite(block).all():
             matrix = block

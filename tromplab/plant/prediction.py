@@ -158,9 +158,10 @@ def predict(
         The washability by size fraction (:func:`tromplab.plant.inputs.read_plant_washability`).
     plant : path or DataFrame, optional
         The plant table (:func:`tromplab.plant.inputs.read_plant`); or give ``curves_from``.
-    curves_from : path, optional
-        A ``tromplab density fit`` results folder: each size fraction's best curve with its
-        covariance (:func:`tromplab.plant.inputs.devices_from_fits`).
+    curves_from : path, DensityResult or list of Device, optional
+        A ``tromplab density fit`` results folder (or its result): each size fraction's best
+        curve with its covariance (:func:`tromplab.plant.inputs.devices_from_fits`); or the
+        devices themselves.
     ci : float
         Level of the percentile intervals, in (0, 1).
     draws : int
@@ -192,7 +193,7 @@ def predict(
     if (plant is None) == (curves_from is None):
         raise OptionError("plant", "or curves_from: give exactly one of them")
     fractions = _fractions(washability, sum_tolerance_pct, float_lower_density, sink_upper_density)
-    devices = read_plant(plant, fractions) if plant is not None else devices_from_fits(curves_from, fractions)
+    devices = read_plant(plant, fractions) if plant is not None else _devices_from(curves_from, fractions)
     uncertain = any(device.uncertain for device in devices)
     used = draws if uncertain else 0
     parameters = parameter_draws(devices, used, seed)
@@ -218,6 +219,15 @@ def _fractions(washability, tolerance, float_lower, sink_upper) -> list[SizeFrac
         return list(washability)
     return read_plant_washability(washability, sum_tolerance_pct=tolerance, float_lower_density=float_lower,
                                   sink_upper_density=sink_upper)  # fmt: skip
+
+
+def _devices_from(curves_from, fractions: list[SizeFraction]) -> list[Device]:
+    if isinstance(curves_from, list | tuple) and all(isinstance(item, Device) for item in curves_from):
+        names = [device.size_fraction for device in curves_from]
+        if names != [fraction.name for fraction in fractions]:
+            raise OptionError("curves_from", f"gives devices for {names}, not one for each size fraction in order")
+        return list(curves_from)
+    return devices_from_fits(curves_from, fractions)
 
 
 def product_columns(qualities, *, intervals: bool) -> list[str]:
