@@ -44,8 +44,8 @@ from . import circuit, fit, formulas, points, rank, report, sieve, trend
 from .density import add_density_command
 from .density_predict import add_predict_parser
 from .models import add_model_commands
-from .plant import add_plant_command
 from .option_groups import shared_groups
+from .plant import add_plant_command
 from .startup import (
     EXIT_INPUT,
     EXIT_INTERNAL,
