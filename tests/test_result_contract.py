@@ -39,7 +39,7 @@ from tromplab.density import DensityCurveFit, DensityResult, fit_density
 from tromplab.density.washability import Prediction, Washability, partition_curve, read_washability
 from tromplab.errors import InconsistentVersionWarning
 from tromplab.loading.lab import MassBalance
-from tromplab.plant import PlantPrediction
+from tromplab.plant import PlantOptimum, PlantPrediction, optimize
 from tromplab.plant import predict as predict_plant
 from tromplab.results_contract import ResultContract
 from tromplab.statistics.compare import ExtraSumOfSquares, SharedFit
@@ -162,6 +162,11 @@ PLANT_DEVICES = DATASETS / "plant_devices_synthetic.csv"
 @registered(PlantPrediction, "dm_vessel", "clean_yield_pct")
 def _plant_prediction():
     return predict_plant(PLANT_WASH, PLANT_DEVICES, draws=200)
+
+
+@registered(PlantOptimum, "dm_vessel", "incremental_ash_pct")
+def _plant_optimum():
+    return optimize(PLANT_WASH, PLANT_DEVICES, target_ash_pct=10, draws=200)
 
 
 @registered(layer.LayerFit, "Layer model", "diffusion")
@@ -373,6 +378,26 @@ def _plant_api(folder):
     return _plant_prediction(), _plant_prediction().save(folder)
 
 
+def _optimum_command(folder):
+    command = [
+        "plant",
+        "optimize",
+        str(PLANT_WASH),
+        str(PLANT_DEVICES),
+        "--target-ash",
+        "10",
+        "--draws",
+        "200",
+        "-o",
+        str(folder),
+    ]
+    assert main(command) == 0
+
+
+def _optimum_api(folder):
+    return _plant_optimum(), _plant_optimum().save(folder)
+
+
 def _trend_command(folder):
     assert main(["trend", str(SURVEYS), "--formula", "plitt", "-o", str(folder)]) == 0
 
@@ -407,6 +432,7 @@ SAVES = {
     DensityResult: (_density_command, _density_api),
     TrendResult: (_trend_command, _trend_api),
     PlantPrediction: (_plant_command, _plant_api),
+    PlantOptimum: (_optimum_command, _optimum_api),
 }
 
 
@@ -418,6 +444,7 @@ MAIN_FILES = {
     DensityResult: "fits.csv",
     TrendResult: "trend.csv",
     PlantPrediction: "products.csv",
+    PlantOptimum: "cuts.csv",
 }
 
 
@@ -480,6 +507,8 @@ NOT_RESULTS = {
     "tromplab.density.curves.DensityCurve": "a registry record",
     "tromplab.plant.inputs.SizeFraction": "input (read_plant_washability): one size fraction's washability",
     "tromplab.plant.inputs.Device": "input (read_plant): one device's curve",
+    "tromplab.plant.optimization.CutResponse": "a working record of the optimiser (one fraction's response to its cut)",
+    "tromplab.plant.optimization.CutSolution": "a working record of the optimiser (the cuts and the multiplier)",
     "tromplab.output.report.Report": "a document being built (build_report): html() and markdown() are its outputs",
     "tromplab.output.export.Export": "an export file being built: its writers are the command's",
     "tromplab.trend.Survey": "input (read_surveys): one dated survey",

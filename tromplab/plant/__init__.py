@@ -5,17 +5,22 @@
 (:func:`~tromplab.plant.inputs.read_plant`, or the curves of a ``density fit`` folder,
 :func:`~tromplab.plant.inputs.devices_from_fits`), and returns a
 :class:`~tromplab.plant.prediction.PlantPrediction` whose ``save(DIR)`` writes what
-``tromplab plant predict WASH PLANT -o DIR`` writes.  Definitions and sources in ``docs/plant.md``.
+``tromplab plant predict WASH PLANT -o DIR`` writes; :func:`optimize` finds the cut densities
+of the most clean coal at a contract ash (:class:`~tromplab.plant.optimum.PlantOptimum`, what
+``tromplab plant optimize`` writes).  Definitions and sources in ``docs/plant.md``.
 """
 
 from .inputs import Device, SizeFraction, devices_from_fits, read_plant, read_plant_washability
+from .optimum import PlantOptimum, optimize
 from .prediction import PlantPrediction, predict
 
 __all__ = [
     "Device",
+    "PlantOptimum",
     "PlantPrediction",
     "SizeFraction",
     "devices_from_fits",
+    "optimize",
     "predict",
     "read_plant",
     "read_plant_washability",

@@ -117,17 +117,22 @@ class PlantPrediction(ResultContract):
         dict
             File name -> written path.
         """
-        from ..output.csv_parts import file_writers
         from ..output.outputs import replace_folder
+
+        return replace_folder(self.writers(), outdir)
+
+    def writers(self, *, tables: dict | None = None, summary: str | None = None) -> dict:
+        """File name -> writer of the folder :meth:`save` writes; ``tables`` (stem -> DataFrame) are added
+        before the others and ``summary`` replaces :meth:`report` in ``summary.txt`` (for ``plant optimize``)."""
+        from ..output.csv_parts import file_writers
         from ..output.plotting import figure_png, offscreen_axes
         from .plotting import plot_partition_curves, plot_yield_ash
 
         yield_ash = figure_png(plot_yield_ash(self, ax=offscreen_axes(figsize=(7.5, 5.5))))
         partition = figure_png(plot_partition_curves(self, ax=offscreen_axes()))
-        outputs = file_writers({"products": self.products, "devices": self.devices_table()},
-                               texts={"summary.txt": self.report() + "\n"},
-                               pictures={"yield_ash.png": yield_ash, "partition.png": partition})  # fmt: skip
-        return replace_folder(outputs, outdir)
+        return file_writers({**(tables or {}), "products": self.products, "devices": self.devices_table()},
+                            texts={"summary.txt": (self.report() if summary is None else summary) + "\n"},
+                            pictures={"yield_ash.png": yield_ash, "partition.png": partition})  # fmt: skip
 
 
 def _correlation(covariance: np.ndarray) -> float:

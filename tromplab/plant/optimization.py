@@ -1,0 +1,260 @@
+r"""The cut densities that give the most clean coal at a product ash: the equal-incremental-ash principle.
+
+The plant's clean coal :math:`Y = \sum_j F_j Y_j(d_j)` is maximised over the cut densities
+:math:`d_j` (within their bounds) subject to its ash,
+:math:`\sum_j F_j M_j(d_j) \le A \sum_j F_j Y_j(d_j)` with :math:`M_j = Y_j A_j` the ash mass.
+With the multiplier of the constraint written as an ash :math:`\lambda`, the Lagrangian splits
+into one problem per size fraction,
+
+.. math:: \max_{d_j}\; Y_j(d_j) - M_j(d_j)/\lambda,
+
+whose interior solution has :math:`\mathrm{d}M_j/\mathrm{d}Y_j = \lambda`: the ash of the
+marginal clean coal, the *incremental ash*, is the same in every size fraction (Mayer 1950's
+M-curve; the principle behind the optimisation of parallel coal-washing circuits, King 2012
+ch. 11; Osborne 1988).  :func:`optimal_cuts` solves each fraction's problem on a grid of cuts
+refined by Brent's method, finds :math:`\lambda` by bisection so that the blended ash meets the
+target (Everett 1963: each Lagrangian solution is optimal for the ash it gives), and polishes
+the cuts with SLSQP on the whole problem.  A cut on its bound keeps its own incremental ash.
+
+Under the curves' uncertainty each device's actual curve is its estimate with the drawn error
+(:mod:`tromplab.plant.draws`): the cut density the operator sets, :math:`d_j`, becomes
+:math:`d_j + (\rho_{50,k} - \hat\rho_{50})` with the drawn scale :math:`s_k`.  The expected
+clean coal and ash mass are then averages over the draws.
+
+References
+----------
+Mayer, F. W. (1950). Die Mittelwertkurve, eine neue Methode zur Darstellung von Aufbereitungsergebnissen.
+*Glückauf* 86, 498-509.
+
+Everett, H. (1963). Generalized Lagrange multiplier method for solving problems of optimum allocation of
+resources. *Operations Research* 11(3), 399-417.
+
+King, R. P. (2012). *Modeling and Simulation of Mineral Processing Systems*, 2nd ed. (Schneider & King),
+SME, Englewood, ch. 11 (coal washing).
+
+Osborne, D. G. (1988). *Coal Preparation Technology*. Graham & Trotman, London.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.optimize
+
+from .inputs import Device, SizeFraction
+
+#: Spacing of the grid of cuts each fraction's problem is first solved on (g/cm3).
+GRID_STEP = 0.0005
+#: Cuts of a grid are evaluated this many at a time (memory of the draws x cuts x density fractions).
+CHUNK = 64
+#: Step of the central differences of the incremental ash (g/cm3).
+DERIVATIVE_STEP = 1e-5
+
+
+@dataclass(frozen=True)
+class CutResponse:
+    """Clean coal and ash mass of one size fraction as functions of its cut (per cent of the size fraction).
+
+    Attributes
+    ----------
+    fraction : SizeFraction
+        The size fraction.
+    device : Device
+        Its device.
+    offsets, scales : numpy.ndarray
+        Per draw the error of the cut (``rho50`` drawn minus estimated) and the scale (Ep or I);
+        one draw of no error for exact curves.
+    low, high : float
+        Bounds of the cut (g/cm3).
+    """
+
+    fraction: SizeFraction
+    device: Device
+    offsets: np.ndarray
+    scales: np.ndarray
+    low: float
+    high: float
+
+    def per_draw(self, cuts) -> tuple[np.ndarray, np.ndarray]:
+        """Clean mass and ash mass for each cut (rows) and draw (columns)."""
+        washability = self.fraction.washability
+        cuts = np.atleast_1d(np.asarray(cuts, dtype=float))
+        rho50 = np.maximum(cuts[:, None] + self.offsets[None, :], 1.0 + 1e-6)
+        sinks = self.device.partition(washability.density, rho50[..., None], self.scales[None, :, None])
+        clean = washability.mass_pct * (1.0 - sinks)
+        return clean.sum(axis=-1), clean @ washability.ash_pct
+
+    def expected(self, cuts) -> tuple[np.ndarray, np.ndarray]:
+        """Clean mass and ash mass for each cut, averaged over the draws (in chunks of cuts)."""
+        cuts = np.atleast_1d(np.asarray(cuts, dtype=float))
+        parts = [self.per_draw(cuts[start : start + CHUNK]) for start in range(0, cuts.size, CHUNK)]
+        return np.concatenate([p[0].mean(axis=1) for p in parts]), np.concatenate([p[1].mean(axis=1) for p in parts])
+
+    def incremental_ash(self, cut: float) -> float:
+        """The ash of the marginal clean coal at ``cut``, dM/dY (per cent), by central differences (one-sided at a bound)."""
+        low, high = max(cut - DERIVATIVE_STEP, self.low), min(cut + DERIVATIVE_STEP, self.high)
+        clean, ash = self.expected(np.array([low, high]))
+        gained = clean[1] - clean[0]
+        return float((ash[1] - ash[0]) / gained) if gained > 1e-12 else np.nan
+
+
+def cut_bounds(fraction: SizeFraction, device: Device) -> tuple[float, float]:
+    """The device's ``rho50_min``/``rho50_max``, else the size fraction's closed density range within (1, 3.5]."""
+    low = device.rho50_min if np.isfinite(device.rho50_min) else max(fraction.washability.closed_lower[0], 1.0 + 1e-6)
+    high = device.rho50_max if np.isfinite(device.rho50_max) else min(fraction.washability.closed_upper[-1], 3.5)
+    return float(low), float(high)
+
+
+@dataclass(frozen=True)
+class CutSolution:
+    """Cut densities of the size fractions and the multiplier they were found with.
+
+    Attributes
+    ----------
+    cuts : numpy.ndarray
+        The cut density of each size fraction (g/cm3).
+    multiplier : float
+        The incremental ash :math:`\\lambda` of the Lagrangian (per cent); NaN when the target
+        does not bind (every cut at its upper bound).
+    binding : bool
+        True when the ash constraint binds (the target ash is met with equality).
+    """
+
+    cuts: np.ndarray
+    multiplier: float
+    binding: bool
+
+
+class Blend:
+    """The plant's clean coal and ash for cut vectors, from the size fractions' responses and feed shares."""
+
+    def __init__(self, responses: list[CutResponse], shares: np.ndarray):
+        self.responses, self.shares = responses, shares
+        self.grids = [
+            np.linspace(r.low, r.high, int(np.clip(np.ceil((r.high - r.low) / GRID_STEP), 2, 4000)) + 1) for r in responses
+        ]
+        self.tables = [r.expected(grid) for r, grid in zip(responses, self.grids)]
+
+    def totals(self, cuts) -> tuple[float, float]:
+        """Expected clean yield (per cent of the plant feed) and its ash (per cent) at ``cuts``."""
+        clean = ash = 0.0
+        for share, response, cut in zip(self.shares, self.responses, cuts):
+            y, m = response.expected(np.array([cut]))
+            clean, ash = clean + share * y[0], ash + share * m[0]
+        return clean, ash / clean if clean > 0 else np.nan
+
+    def ash_per_draw(self, cuts) -> np.ndarray:
+        """The plant's clean-coal ash at ``cuts`` for each draw of the curves."""
+        clean = ash = 0.0
+        for share, response, cut in zip(self.shares, self.responses, cuts):
+            y, m = response.per_draw(np.array([cut]))
+            clean, ash = clean + share * y[0], ash + share * m[0]
+        return np.divide(ash, clean, out=np.full(np.shape(clean), np.nan), where=np.asarray(clean) > 0)
+
+    def lagrangian_cuts(self, multiplier: float, *, refine: bool = True) -> np.ndarray:
+        """Each fraction's cut maximising clean mass - ash mass / ``multiplier``: on the grid, then (``refine``) by Brent's method."""
+        cuts = []
+        for response, grid, (clean, ash) in zip(self.responses, self.grids, self.tables):
+            best = int(np.argmax(clean - ash / multiplier))
+            if not refine:
+                cuts.append(grid[best])
+                continue
+            low, high = grid[max(best - 1, 0)], grid[min(best + 1, grid.size - 1)]
+
+            def loss(cut, response=response):
+                y, m = response.expected(np.array([cut]))
+                return -(y[0] - m[0] / multiplier)
+
+            refined = scipy.optimize.minimize_scalar(loss, bounds=(low, high), method="bounded", options={"xatol": 1e-9})
+            cuts.append(refined.x if refined.fun <= loss(grid[best]) else grid[best])
+        return np.array(cuts)
+
+    def lowest_ash(self) -> float:
+        """The lowest clean-coal ash the plant reaches on the equal-incremental-ash path (all cuts low)."""
+        candidates = [self.totals([r.low for r in self.responses])[1]]
+        candidates += [self.totals(self.lagrangian_cuts(multiplier))[1] for multiplier in np.geomspace(0.01, 100.0, 25)]
+        return float(np.nanmin(candidates))
+
+
+def optimal_cuts(blend: Blend, target_ash_pct: float, *, polish: bool = True, refine: bool = True) -> CutSolution:
+    """The cuts of the most clean coal at a clean-coal ash of at most ``target_ash_pct`` (the caller checked it is reachable).
+
+    ``refine``: each fraction's cut refined by Brent's method between the grid's points (else the grid's);
+    ``polish``: the cuts polished by SLSQP on the whole problem.
+    """
+    highest = np.array([r.high for r in blend.responses])
+    if blend.totals(highest)[1] <= target_ash_pct:
+        return CutSolution(highest, np.nan, False)
+    low, high = np.log(1e-3), np.log(1e4)  # ln of the multiplier (an ash, per cent)
+    for _ in range(80):
+        middle = (low + high) / 2
+        if blend.totals(blend.lagrangian_cuts(np.exp(middle), refine=refine))[1] <= target_ash_pct:
+            low = middle
+        else:
+            high = middle
+        if high - low < (1e-12 if refine else 1e-6):
+            break
+    cuts = blend.lagrangian_cuts(np.exp(low), refine=refine)  # the feasible side of the bracket
+    if polish:
+        cuts = _polished(blend, cuts, target_ash_pct)
+    return CutSolution(cuts, float(np.exp(low)), True)
+
+
+def _polished(blend: Blend, start: np.ndarray, target: float) -> np.ndarray:
+    """SLSQP on the whole problem from the Lagrangian cuts; kept when feasible and better."""
+
+    def clean(cuts):
+        return -blend.totals(cuts)[0]
+
+    def slack(cuts):
+        total, ash = blend.totals(cuts)
+        return total * (target - ash) / 100.0  # ash mass below the target's, per cent of the feed
+
+    bounds = [(r.low, r.high) for r in blend.responses]
+    try:
+        result = scipy.optimize.minimize(clean, start, method="SLSQP", bounds=bounds,
+                                         constraints=[{"type": "ineq", "fun": slack}], options={"ftol": 1e-12, "maxiter": 200})  # fmt: skip
+    except (ValueError, np.linalg.LinAlgError):
+        return start
+    cuts = np.clip(result.x, [b[0] for b in bounds], [b[1] for b in bounds])
+    better = blend.totals(cuts)[0] > blend.totals(start)[0] and blend.totals(cuts)[1] <= target + 1e-10
+    return cuts if better else start
+
+
+def chance_constrained_cuts(
+    blend: Blend, target_ash_pct: float, confidence: float, lowest: float
+) -> tuple[CutSolution, float, float]:
+    """The cuts of the most expected clean coal whose ash stays at or below ``target_ash_pct`` with probability ``confidence``.
+
+    Searched along the equal-incremental-ash path of the expected products: the largest design ash
+    A' <= A whose optimal cuts keep P(ash <= A) >= ``confidence`` over the draws (bisection on A').
+
+    Returns
+    -------
+    tuple
+        ``(solution, design_ash, probability)``; ``solution`` None when not even the lowest
+        reachable design ash gives that probability.
+    """
+
+    def probability(design: float) -> tuple[CutSolution, float]:
+        solution = optimal_cuts(blend, design, polish=False, refine=False)
+        return solution, float(np.mean(blend.ash_per_draw(solution.cuts) <= target_ash_pct))
+
+    solution, chance = probability(target_ash_pct)
+    if chance >= confidence:
+        return solution, target_ash_pct, chance
+    low_solution, low_chance = probability(lowest + 1e-9)
+    if low_chance < confidence:
+        return None, lowest, low_chance
+    low, high, best = lowest + 1e-9, target_ash_pct, (low_solution, low_chance)
+    for _ in range(40):
+        middle = (low + high) / 2
+        solution, chance = probability(middle)
+        if chance >= confidence:
+            low, best = middle, (solution, chance)
+        else:
+            high = middle
+        if high - low < 1e-4:
+            break
+    return best[0], low, best[1]
