@@ -164,14 +164,21 @@ def test_exact_curves_give_no_interval_columns():
 
 
 def test_draws_follow_the_stated_covariance():
+    """Drawn through the linear predictor's coefficients, the draws of (rho50, Ep) have the stated covariance to
+    first order: with small standard deviations the sample sds and correlation match it."""
     from tromplab.density.curves import get_density_curve
 
-    covariance = np.array([[0.01**2, 0.6 * 0.01 * 0.004], [0.6 * 0.01 * 0.004, 0.004**2]])
-    device = Device("x", "d", get_density_curve("normal"), 1.5, "ep", 0.04, covariance)
-    [(rho50, ep)] = parameter_draws([device], 40000, seed=2)
-    # ln Ep has sd 0.004 / 0.04 = 0.1; the correlation of rho50 and ln Ep is the stated 0.6
-    assert_allclose([np.std(rho50[1:]), np.std(np.log(ep[1:]))], [0.01, 0.1], rtol=0.02)
-    assert_allclose(np.corrcoef(rho50[1:], np.log(ep[1:]))[0, 1], 0.6, atol=0.02)
+    covariance = np.array([[0.002**2, 0.6 * 0.002 * 0.0005], [0.6 * 0.002 * 0.0005, 0.0005**2]])
+    for curve in ("normal", "logistic", "gompertz"):
+        device = Device("x", "d", get_density_curve(curve), 1.5, "ep", 0.04, covariance)
+        [(rho50, ep)] = parameter_draws([device], 40000, seed=2)
+        assert_allclose([np.std(rho50[1:]), np.std(ep[1:])], [0.002, 0.0005], rtol=0.03)
+        assert_allclose(np.corrcoef(rho50[1:], ep[1:])[0, 1], 0.6, atol=0.02)
+        assert_allclose([np.mean(rho50[1:]), np.mean(ep[1:])], [1.5, 0.04], rtol=1e-3)
+    # a device given by its imperfection: I = Ep / (rho50 - 1) drawn with its stated sd
+    device = Device("x", "d", get_density_curve("normal"), 1.75, "imperfection", 0.2, np.diag([0.003**2, 0.004**2]))
+    [(rho50, imperfection)] = parameter_draws([device], 40000, seed=3)
+    assert_allclose([np.std(rho50[1:]), np.std(imperfection[1:])], [0.003, 0.004], rtol=0.03)
 
 
 @pytest.mark.slow

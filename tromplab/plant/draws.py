@@ -1,16 +1,21 @@
 r"""Parametric bootstrap of the devices' partition curves: draws of each curve's cut and scale.
 
 The parameters of device :math:`j`, :math:`\theta_j = (\rho_{50}, s)` with :math:`s` the
-probable error or the imperfection, are drawn as
+probable error or the imperfection, are drawn through the coefficients of the curve's linear
+predictor, :math:`P(\rho) = F(\alpha + \beta\rho)` with :math:`\beta = k/E_p` and
+:math:`\alpha = q_{50} - \beta\rho_{50}` (:mod:`tromplab.density.curves`; for a probit,
+logit or cloglog fit of tracer counts the GLM's own coefficients, whose sampling distribution
+is close to normal where the ratio :math:`\rho_{50} = (q_{50} - \alpha)/\beta` is not):
 
 .. math::
-    (\rho_{50}, \ln s) \sim N\big((\hat\rho_{50}, \ln \hat s),\ J \Sigma_j J^\top\big),
-    \qquad J = \mathrm{diag}(1, 1/\hat s),
+    (\alpha, \beta) \sim N\big((\hat\alpha, \hat\beta),\ J \Sigma_j J^\top\big),
+    \qquad \rho_{50} = (q_{50} - \alpha)/\beta, \quad E_p = k/\beta,
 
 with :math:`\Sigma_j` the covariance of :math:`(\rho_{50}, s)` (the plant table's standard
-deviations, or a ``density fit`` folder's ``covariance.csv``), independently between devices
-(each device is tested on its own).  The scale is drawn on the log scale so that every draw is
-positive; a drawn cut outside (1, 3.5] is set to that bound.  Every quantity of the plant is
+deviations, or a ``density fit`` folder's ``covariance.csv``) and :math:`J` the Jacobian of
+:math:`(\alpha, \beta)` in :math:`(\rho_{50}, s)` (delta method), independently between devices
+(each device is tested on its own).  A draw with :math:`\beta \le 0` (no separation) is drawn
+again; a drawn cut outside (1, 3.5] is set to that bound.  Every quantity of the plant is
 computed for each draw and its interval is the percentile interval of the draws
 (Efron & Tibshirani 1993, ch. 6 and 13: the parametric bootstrap, percentile intervals), so
 it stays within the quantity's range.
@@ -41,10 +46,10 @@ def parameter_draws(devices: list[Device], draws: int, seed: int) -> list[tuple[
     Examples
     --------
     >>> from tromplab.density.curves import get_density_curve
-    >>> device = Device("c", "dmc", get_density_curve("normal"), 1.5, "ep", 0.03, np.diag([0.01**2, 0.003**2]))
+    >>> device = Device("c", "dmc", get_density_curve("normal"), 1.5, "ep", 0.03, np.diag([0.005**2, 0.002**2]))
     >>> [(rho50, scale)] = parameter_draws([device], 20000, seed=1)
-    >>> round(float(rho50[0]), 6), round(float(np.std(rho50[1:])), 3), round(float(np.std(np.log(scale[1:]))), 2)
-    (1.5, 0.01, 0.1)
+    >>> round(float(rho50[0]), 6), round(float(np.std(rho50[1:])), 3), round(float(np.std(scale[1:])), 3)
+    (1.5, 0.005, 0.002)
     """
     generator = np.random.default_rng(seed)
     result = []
@@ -52,14 +57,41 @@ def parameter_draws(devices: list[Device], draws: int, seed: int) -> list[tuple[
         rho50 = np.full(draws + 1, device.rho50)
         scale = np.full(draws + 1, device.scale)
         if device.uncertain and draws:
-            jacobian = np.diag([1.0, 1.0 / device.scale])
-            covariance = jacobian @ device.covariance @ jacobian.T
-            centre = np.array([device.rho50, np.log(device.scale)])
-            drawn = generator.multivariate_normal(centre, covariance, size=draws, method="eigh")
-            rho50[1:] = np.clip(drawn[:, 0], 1.0 + 1e-6, MAX_CUT_DENSITY)
-            scale[1:] = np.exp(drawn[:, 1])
+            rho50[1:], scale[1:] = _drawn(device, draws, generator)
         result.append((rho50, scale))
     return result
+
+
+def _drawn(device: Device, draws: int, generator: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """Draws of (rho50, scale) through the coefficients (alpha, beta) of the curve's linear predictor."""
+    form = device.curve.form
+    centre, jacobian = _coefficients(device)
+    covariance = jacobian @ device.covariance @ jacobian.T
+    drawn = generator.multivariate_normal(centre, covariance, size=draws, method="eigh")
+    for _ in range(100):  # a slope at or below 0 is no separation: drawn again (rare unless the test says nothing)
+        flat = drawn[:, 1] <= 1e-9 * centre[1]
+        if not flat.any():
+            break
+        drawn[flat] = generator.multivariate_normal(centre, covariance, size=int(flat.sum()), method="eigh")
+    alpha, beta = drawn[:, 0], np.maximum(drawn[:, 1], 1e-9 * centre[1])
+    rho50 = np.clip((form.centre - alpha) / beta, 1.0 + 1e-6, MAX_CUT_DENSITY)
+    ep = form.scale / beta
+    return rho50, ep / (rho50 - 1.0) if device.scale_name == "imperfection" else ep
+
+
+def _coefficients(device: Device) -> tuple[np.ndarray, np.ndarray]:
+    """The linear predictor's (alpha, beta) at the estimate and their Jacobian in (rho50, scale)."""
+    q50, k, rho50, scale = device.curve.form.centre, device.curve.form.scale, device.rho50, device.scale
+    if device.scale_name == "imperfection":
+        ep = scale * (rho50 - 1.0)
+        d_ep = np.array([scale, rho50 - 1.0])  # dEp/d(rho50, I)
+    else:
+        ep = scale
+        d_ep = np.array([0.0, 1.0])
+    beta = k / ep
+    d_beta = -k / ep**2 * d_ep
+    d_alpha = -beta * np.array([1.0, 0.0]) - rho50 * d_beta
+    return np.array([q50 - beta * rho50, beta]), np.vstack([d_alpha, d_beta])
 
 
 def percentile_interval(values: np.ndarray, ci: float) -> tuple[float, float]:

@@ -10,8 +10,8 @@ into one problem per size fraction,
 
 whose interior solution has :math:`\mathrm{d}M_j/\mathrm{d}Y_j = \lambda`: the ash of the
 marginal clean coal, the *incremental ash*, is the same in every size fraction (Mayer 1950's
-M-curve; the principle behind the optimisation of parallel coal-washing circuits, King 2012
-ch. 11; Osborne 1988).  :func:`optimal_cuts` solves each fraction's problem on a grid of cuts
+M-curve; the principle behind the optimisation of parallel coal-washing circuits, King 2012;
+Osborne 1988).  :func:`optimal_cuts` solves each fraction's problem on a grid of cuts
 refined by Brent's method, finds :math:`\lambda` by bisection so that the blended ash meets the
 target (Everett 1963: each Lagrangian solution is optimal for the ash it gives), and polishes
 the cuts with SLSQP on the whole problem.  A cut on its bound keeps its own incremental ash.
@@ -23,14 +23,15 @@ clean coal and ash mass are then averages over the draws.
 
 References
 ----------
-Mayer, F. W. (1950). Die Mittelwertkurve, eine neue Methode zur Darstellung von Aufbereitungsergebnissen.
-*Glückauf* 86, 498-509.
+Mayer, F. W. (1950). The M-curve (Mittelwertkurve) of washability. *Glückauf* 86 (not reached from the
+development machine; cited as the coal-preparation literature cites it: the principle used here is derived
+above from the Lagrange conditions).
 
 Everett, H. (1963). Generalized Lagrange multiplier method for solving problems of optimum allocation of
 resources. *Operations Research* 11(3), 399-417.
 
 King, R. P. (2012). *Modeling and Simulation of Mineral Processing Systems*, 2nd ed. (Schneider & King),
-SME, Englewood, ch. 11 (coal washing).
+SME, Englewood (gravity separation and coal-washing plants in MODSIM).
 
 Osborne, D. G. (1988). *Coal Preparation Technology*. Graham & Trotman, London.
 """

@@ -130,7 +130,7 @@ def optimize(
     >>> plant = pd.DataFrame({"size_fraction": ["a", "b"], "device": ["bath", "dmc"], "curve": "normal",
     ...                       "rho50": 1.5, "ep": 0.03})
     >>> cuts = optimize(wash, plant, target_ash_pct=9).cuts.set_index("size_fraction")
-    >>> round(cuts.loc["total", "clean_ash_pct"], 6), bool(abs(cuts.loc["a", "incremental_ash_pct"] - cuts.loc["b", "incremental_ash_pct"]) < 0.01)
+    >>> round(float(cuts.loc["total", "clean_ash_pct"]), 6), bool(abs(cuts.loc["a", "incremental_ash_pct"] - cuts.loc["b", "incremental_ash_pct"]) < 0.01)
     (9.0, True)
     """
     target_ash_pct = check_percent(target_ash_pct, "target_ash_pct")

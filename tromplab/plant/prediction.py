@@ -187,10 +187,10 @@ def predict(
     --------
     >>> wash = pd.DataFrame({"size_fraction": "all", "fraction_pct": 100, "density_lower": [1.2, 1.4, 1.6],
     ...                      "density_upper": [1.4, 1.6, 2.0], "mass_pct": [60, 20, 20], "ash_pct": [5, 20, 60]})
-    >>> plant = pd.DataFrame({"size_fraction": ["all"], "device": ["bath"], "curve": ["normal"], "rho50": [1.6], "ep": [0.02]})
+    >>> plant = pd.DataFrame({"size_fraction": ["all"], "device": ["bath"], "curve": ["normal"], "rho50": [1.6], "ep": [0.005]})
     >>> total = predict(wash, plant).products.set_index("size_fraction").loc["total"]
-    >>> round(total["clean_yield_pct"], 3), round(total["clean_ash_pct"], 3), round(total["organic_efficiency_pct"], 2)
-    (80.0, 8.75, 100.0)
+    >>> [round(float(total[name]), 3) for name in ("clean_yield_pct", "clean_ash_pct", "organic_efficiency_pct")]
+    [80.0, 8.75, 100.0]
     """
     ci = check_probability(ci, "ci")
     draws = check_count(draws, "draws", minimum=0, maximum=MAX_DRAWS)
@@ -258,7 +258,7 @@ def _notes(devices: list[Device], uncertain: bool, draws: int, ci: float) -> lis
     notes = []
     if uncertain and draws:
         notes.append(f"intervals: {ci:g} percentile intervals of {draws} parametric-bootstrap draws of the curves' "
-                     "(rho50, ln Ep or ln I), independent between devices; the washability is taken as exact")  # fmt: skip
+                     "linear-predictor coefficients, independent between devices; the washability is taken as exact")  # fmt: skip
     elif uncertain:
         notes.append("the curves carry standard deviations but draws = 0: no intervals")
     else:

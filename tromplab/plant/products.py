@@ -10,7 +10,7 @@ partition to sinks :math:`P_j`:
     A_j = \frac{\sum_i m_{ij}\,(1 - P_j(\rho_{ij}))\,a_{ij}}{Y_j}, \qquad
     Y = \sum_j F_j Y_j / 100, \qquad A = \frac{\sum_j F_j Y_j A_j}{\sum_j F_j Y_j}
 
-(Wills & Finch 2016, ch. 11; King 2012, ch. 11 on coal-washing circuits).  Every function here
+(Wills & Finch 2016, ch. 11; King 2012 on coal-washing circuits).  Every function here
 takes arrays of cut densities and scales (one per parameter draw) and returns one value per draw.
 
 Definitions after ISO 923 (expression of the results of coal cleaning tests):
@@ -106,8 +106,8 @@ def composite_washability(fractions: list[SizeFraction]) -> Washability:
     >>> coarse = SizeFraction("c", 50.0, w([1.2, 1.4], [1.4, 1.8], [60, 40], [5, 40]))
     >>> fine = SizeFraction("f", 50.0, w([1.2, 1.6], [1.6, 1.8], [80, 20], [10, 50]))
     >>> whole = composite_washability([coarse, fine])
-    >>> whole.closed_lower.tolist(), whole.mass_pct.round(6).tolist()
-    ([1.2, 1.4, 1.6], [70.0, 20.0, 10.0])
+    >>> whole.closed_lower.tolist(), whole.mass_pct.round(6).tolist()  # 1.2-1.4: 30 + 20; 1.4-1.6: 10 + 20; 1.6-1.8: 10 + 10
+    ([1.2, 1.4, 1.6], [50.0, 30.0, 20.0])
     """
     bounds = np.unique(np.concatenate([np.append(f.washability.closed_lower, f.washability.closed_upper[-1]) for f in fractions]))
     lower, upper = bounds[:-1], bounds[1:]
