@@ -330,3 +330,31 @@ def test_the_fit_covariance_is_the_glm_covariance_by_the_delta_method():
         expected = jacobian @ observed @ jacobian.T
         scale = np.sqrt(np.outer(np.diag(expected), np.diag(expected)))  # the covariance relative to its variances
         assert_allclose(index_covariance(fit) / scale, expected / scale, atol=1e-4)
+
+
+def _documented_plant_columns() -> set[str]:
+    import re
+
+    from .conftest import ROOT
+
+    names = set()
+    for line in (ROOT / "docs" / "plant.md").read_text(encoding="utf-8").splitlines():
+        cells = [cell.strip() for cell in line.strip().strip("|").split("|")]
+        if len(cells) == 4 and cells[0].startswith("`"):
+            names |= set(re.findall(r"`([^`]+)`", cells[0]))
+    return names
+
+
+def test_every_written_column_is_documented(tmp_path):
+    from tromplab.plant import optimize
+
+    documented = _documented_plant_columns()
+    prediction = predict(WASH, DEVICES, draws=50)
+    optimum = optimize(WASH, DEVICES, target_ash_pct=10, draws=50)
+    qualities = {f"{side}_{name}_pct" for name in prediction.qualities for side in ("clean", "reject")}
+    assert qualities == {"clean_sulfur_pct", "reject_sulfur_pct"}
+    assert {"clean_<name>_pct", "reject_<name>_pct", "<column>_low", "<column>_high"} <= documented
+    for table in (prediction.products, prediction.devices_table(), optimum.cuts):
+        for column in table.columns:
+            stem = column.removesuffix("_low").removesuffix("_high")
+            assert column in documented or stem in documented or stem in qualities, f"{column} is not in docs/plant.md"
