@@ -354,7 +354,12 @@ def test_every_written_column_is_documented(tmp_path):
     qualities = {f"{side}_{name}_pct" for name in prediction.qualities for side in ("clean", "reject")}
     assert qualities == {"clean_sulfur_pct", "reject_sulfur_pct"}
     assert {"clean_<name>_pct", "reject_<name>_pct", "<column>_low", "<column>_high"} <= documented
-    for table in (prediction.products, prediction.devices_table(), optimum.cuts):
+    from tromplab.plant import evaluate
+
+    from .test_plant_evaluate import _test_table
+
+    evaluation = evaluate(_test_table())
+    for table in (prediction.products, prediction.devices_table(), optimum.cuts, evaluation.evaluation, evaluation.fractions):
         for column in table.columns:
             stem = column.removesuffix("_low").removesuffix("_high")
             assert column in documented or stem in documented or stem in qualities, f"{column} is not in docs/plant.md"

@@ -39,7 +39,7 @@ from tromplab.density import DensityCurveFit, DensityResult, fit_density
 from tromplab.density.washability import Prediction, Washability, partition_curve, read_washability
 from tromplab.errors import InconsistentVersionWarning
 from tromplab.loading.lab import MassBalance
-from tromplab.plant import PlantOptimum, PlantPrediction, optimize
+from tromplab.plant import PlantOptimum, PlantPrediction, SeparationEvaluation, evaluate, optimize
 from tromplab.plant import predict as predict_plant
 from tromplab.results_contract import ResultContract
 from tromplab.statistics.compare import ExtraSumOfSquares, SharedFit
@@ -167,6 +167,16 @@ def _plant_prediction():
 @registered(PlantOptimum, "dm_vessel", "incremental_ash_pct")
 def _plant_optimum():
     return optimize(PLANT_WASH, PLANT_DEVICES, target_ash_pct=10, draws=200)
+
+
+PLANT_TEST = pd.DataFrame({"test": [HOSTILE] * 3, "density_lower": [None, 1.4, 1.6], "density_upper": [1.4, 1.6, None],
+                           "feed_pct": [50, 25, 25], "floats_pct": [75, 20.8333, 4.1667], "sinks_pct": [12.5, 31.25, 56.25],
+                           "feed_ash_pct": [10, 30, 70]})  # fmt: skip
+
+
+@registered(SeparationEvaluation, HOSTILE, "organic_efficiency_pct")
+def _separation_evaluation():
+    return evaluate(PLANT_TEST)
 
 
 @registered(layer.LayerFit, "Layer model", "diffusion")
@@ -398,6 +408,15 @@ def _optimum_api(folder):
     return _plant_optimum(), _plant_optimum().save(folder)
 
 
+def _evaluation_command(folder):
+    PLANT_TEST.to_csv(folder.parent / "plant_test.csv", index=False)
+    assert main(["plant", "evaluate", str(folder.parent / "plant_test.csv"), "-o", str(folder)]) == 0
+
+
+def _evaluation_api(folder):
+    return _separation_evaluation(), _separation_evaluation().save(folder)
+
+
 def _trend_command(folder):
     assert main(["trend", str(SURVEYS), "--formula", "plitt", "-o", str(folder)]) == 0
 
@@ -433,6 +452,7 @@ SAVES = {
     TrendResult: (_trend_command, _trend_api),
     PlantPrediction: (_plant_command, _plant_api),
     PlantOptimum: (_optimum_command, _optimum_api),
+    SeparationEvaluation: (_evaluation_command, _evaluation_api),
 }
 
 
@@ -445,6 +465,7 @@ MAIN_FILES = {
     TrendResult: "trend.csv",
     PlantPrediction: "products.csv",
     PlantOptimum: "cuts.csv",
+    SeparationEvaluation: "evaluation.csv",
 }
 
 
@@ -468,7 +489,8 @@ def test_save_writes_what_the_command_writes(cls, tmp_path, capsys):
 
 
 #: Where a save is made to fail half-way: the second figure, or (a result without figures) the second table.
-FAILING_WRITER = {DesignAdvice: ("tromplab.output.csv_parts", "write_csv")}
+FAILING_WRITER = {DesignAdvice: ("tromplab.output.csv_parts", "write_csv"),
+                  SeparationEvaluation: ("tromplab.output.csv_parts", "write_csv")}  # fmt: skip
 
 
 @pytest.mark.parametrize("cls", list(SAVES), ids=lambda cls: cls.__name__)

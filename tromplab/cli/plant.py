@@ -1,9 +1,10 @@
-"""``tromplab plant predict | optimize WASH PLANT -o DIR``: the products of a coal-washing plant and its best cuts.
+"""``tromplab plant predict | optimize | evaluate``: a coal-washing plant's products, its best cuts, a tested separation.
 
 The library is :mod:`tromplab.plant`; this module registers the ``plant`` command and its
 sub-commands on the CLI's parser and runs them through :func:`tromplab.plant.predict` and
 :meth:`tromplab.plant.PlantPrediction.save`, :func:`tromplab.plant.optimize` and
-:meth:`tromplab.plant.PlantOptimum.save` (what the Python API writes, byte for byte).
+:meth:`tromplab.plant.PlantOptimum.save`, :func:`tromplab.plant.evaluate` and
+:meth:`tromplab.plant.evaluation.SeparationEvaluation.save` (what the Python API writes, byte for byte).
 The parser needs only the light modules imported here; the library is imported when a
 sub-command runs.
 """
@@ -31,6 +32,7 @@ def add_plant_command(commands) -> argparse.ArgumentParser:
     sub = plant.add_subparsers(dest="plant_command", metavar="SUBCOMMAND", parser_class=type(plant))
     _add_predict(sub)
     _add_optimize(sub)
+    _add_evaluate(sub)
     plant.set_defaults(run=lambda args: _usage(plant))
     return plant
 
@@ -68,6 +70,27 @@ def _add_optimize(sub) -> None:
                           help="maximise the expected clean coal subject to P(ash <= target) >= P under the curves' "
                           "uncertainty (needs their standard deviations or covariance)")  # fmt: skip
     optimize.set_defaults(run=run_plant_optimize, imports=PREDICT_IMPORTS + ("scipy.optimize",))
+
+
+def _add_evaluate(sub) -> None:
+    evaluate = sub.add_parser(
+        "evaluate",
+        help="a tested separation in the standard form: partition coefficients, cut density, Ep, imperfection, "
+        "yield and ash errors, organic efficiency, misplaced and near-gravity material (ISO 923)",
+        description="Evaluate every two-product float-sink test of FILE (analyses of the products by density fraction "
+        "with ash) and write evaluation.csv, fractions.csv and summary.txt into the output folder.",
+    )
+    evaluate.add_argument("file", type=Path, help="float-sink table: test, density_lower, density_upper, [feed_pct,] "
+                          "floats_pct, sinks_pct with feed_ash_pct or floats_ash_pct and sinks_ash_pct")  # fmt: skip
+    evaluate.add_argument("-o", "--outdir", type=Path, default=Path("results/evaluation"),
+                          help="output folder, replaced as a whole when the run succeeds (default: results/evaluation)")  # fmt: skip
+    evaluate.add_argument("--curve", choices=("normal", "logistic", "gompertz"), default="normal",
+                          help="the partition curve fitted for rho50, Ep and the imperfection (default normal)")  # fmt: skip
+    evaluate.add_argument("--floats-yield", type=cli_type(check_probability, "--floats-yield"), default=None, metavar="Y",
+                          help="mass share of the feed to the floats (estimated from three analyses when not given)")  # fmt: skip
+    evaluate.add_argument("--sum-tolerance", type=cli_type(check_non_negative, "--sum-tolerance"), default=DEFAULT_SUM_TOLERANCE_PCT,
+                          help=f"allowed deviation of each analysis from 100 (default {DEFAULT_SUM_TOLERANCE_PCT:g})")  # fmt: skip
+    evaluate.set_defaults(run=run_plant_evaluate, imports=("tromplab.plant.evaluation", "statsmodels.api", "scipy.optimize"))
 
 
 def _add_inputs(command) -> None:
@@ -129,4 +152,13 @@ def run_plant_optimize(args) -> int:
     with progress_bars(quiet=args.quiet) as progress:
         result = optimize(args.washability, args.plant, target_ash_pct=args.target_ash_pct, confidence=args.confidence,
                           progress=progress, **options)  # fmt: skip
+    return _finish(result, args.outdir)
+
+
+def run_plant_evaluate(args) -> int:
+    """Run ``tromplab plant evaluate``: read the tests, evaluate them, write the folder, print the report."""
+    from ..plant import evaluate
+
+    check_output_folder(args.outdir, inputs=[args.file])
+    result = evaluate(args.file, curve=args.curve, floats_yield=args.floats_yield, sum_tolerance_pct=args.sum_tolerance)
     return _finish(result, args.outdir)

@@ -7,9 +7,11 @@
 :class:`~tromplab.plant.prediction.PlantPrediction` whose ``save(DIR)`` writes what
 ``tromplab plant predict WASH PLANT -o DIR`` writes; :func:`optimize` finds the cut densities
 of the most clean coal at a contract ash (:class:`~tromplab.plant.optimum.PlantOptimum`, what
-``tromplab plant optimize`` writes).  Definitions and sources in ``docs/plant.md``.
+``tromplab plant optimize`` writes); :func:`evaluate` gives a tested separation's performance
+in the standard form (``tromplab plant evaluate``).  Definitions and sources in ``docs/plant.md``.
 """
 
+from .evaluation import SeparationEvaluation, evaluate
 from .inputs import Device, SizeFraction, devices_from_fits, read_plant, read_plant_washability
 from .optimum import PlantOptimum, optimize
 from .prediction import PlantPrediction, predict
@@ -18,8 +20,10 @@ __all__ = [
     "Device",
     "PlantOptimum",
     "PlantPrediction",
+    "SeparationEvaluation",
     "SizeFraction",
     "devices_from_fits",
+    "evaluate",
     "optimize",
     "predict",
     "read_plant",
