@@ -93,6 +93,15 @@ def test_an_ideal_separation_on_a_fraction_bound_gives_the_theoretical_yield_and
     # one cut for all: the plant's product is the whole feed's ideal floats, at 100 % organic efficiency
     products = predict(wash, _plant(1.5, 1e-5)).products.set_index("size_fraction")
     assert_allclose(products.loc["total", "organic_efficiency_pct"], 100.0, atol=1e-6)
+    # Ep = 0 is the ideal separation itself, and Ep towards 0 tends to it
+    ideal = predict(wash, _plant([1.4, 1.6, 1.8], 0.0)).products
+    sharp = predict(wash, _plant([1.4, 1.6, 1.8], 1e-5)).products
+    pd.testing.assert_frame_equal(ideal, sharp, atol=1e-9, rtol=0)
+    # an ideal cut's uncertainty moves the yield only when the cut crosses a fraction's midpoint (where it is read)
+    uncertain_cut = predict(wash, _plant([1.4, 1.6, 1.8], 0.0, rho50_sd=0.06), draws=400).products
+    assert (uncertain_cut["clean_yield_pct_high"] > uncertain_cut["clean_yield_pct_low"]).all()
+    narrow = predict(wash, _plant([1.4, 1.6, 1.8], 0.0, rho50_sd=0.01), draws=400).products  # 1.4 +/- 0.03 stays in 1.35-1.45
+    assert_allclose(narrow["clean_yield_pct_high"], narrow["clean_yield_pct_low"], rtol=0, atol=0)
 
 
 def test_theoretical_yield_inside_a_fraction_by_hand():
@@ -237,7 +246,7 @@ def test_size_fractions_must_add_up_to_the_feed(tmp_path):
         (_plant([1.5, 1.6, 1.7], 0.03).assign(curve=["normal", "erf", "normal"]), "curve", "unknown curve 'erf'"),
         (_plant([1.5, 1.6, 1.7], 0.03).assign(imperfection=0.1), "ep", "exactly one of ep and imperfection"),
         (_plant([1.5, 0.9, 1.7], 0.03), "rho50", "cut density above 1"),
-        (_plant([1.5, 1.6, 1.7], [0.03, -0.01, 0.03]), "ep", "probable error"),
+        (_plant([1.5, 1.6, 1.7], [0.03, -0.01, 0.03]), "ep", "probable error in \\[0, 2\\]"),
         (
             _plant([1.5, 1.6, 1.7], 0.03).assign(size_fraction=["50x12mm", "12x1mm", "fines"]),
             "size_fraction",

@@ -56,7 +56,11 @@ def parameter_draws(devices: list[Device], draws: int, seed: int) -> list[tuple[
     for device in devices:
         rho50 = np.full(draws + 1, device.rho50)
         scale = np.full(draws + 1, device.scale)
-        if device.uncertain and draws:
+        if device.uncertain and draws and device.scale == 0:  # an ideal separation: only its cut is uncertain
+            rho50[1:] = np.clip(
+                generator.normal(device.rho50, np.sqrt(device.covariance[0, 0]), draws), 1.0 + 1e-6, MAX_CUT_DENSITY
+            )
+        elif device.uncertain and draws:
             rho50[1:], scale[1:] = _drawn(device, draws, generator)
         result.append((rho50, scale))
     return result

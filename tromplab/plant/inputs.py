@@ -25,7 +25,8 @@ The plant table, one row per size fraction:
     cut density of the partition to sinks (relative density, above 1, at most 3.5).
 ``ep`` or ``imperfection``
     the probable error (g/cm3) or, for a device whose Ep scales with the cut, the imperfection
-    I with :math:`E_p = I(\rho_{50} - 1)` (Wills & Finch 2016, ch. 11); exactly one per row.
+    I with :math:`E_p = I(\rho_{50} - 1)` (Wills & Finch 2016, ch. 11); exactly one per row;
+    0 is the ideal separation (a step at the cut).
 ``rho50_sd``, ``ep_sd`` (or ``imperfection_sd``)
     optional standard deviations of the curve's parameters (blank = known exactly), taken
     as independent; a ``density fit`` folder gives their covariance (:func:`devices_from_fits`).
@@ -143,15 +144,20 @@ class Device:
 
     def partition(self, density, rho50=None, scale=None) -> np.ndarray:
         """Partition to sinks at ``density`` (arrays broadcast) for the cut ``rho50`` and ``scale`` (default: the device's)."""
-        rho50 = self.rho50 if rho50 is None else rho50
-        scale = self.scale if scale is None else scale
-        ep = scale * (np.asarray(rho50, dtype=float) - 1.0) if self.scale_name == "imperfection" else scale
+        rho50 = np.asarray(self.rho50 if rho50 is None else rho50, dtype=float)
+        scale = np.asarray(self.scale if scale is None else scale, dtype=float)
+        ep = scale * (rho50 - 1.0) if self.scale_name == "imperfection" else scale
+        ideal = ep == 0  # Ep 0: the ideal separation, a step at the cut (a density on the cut splits evenly)
+        ep = np.where(ideal, 1.0, ep)
         if self.light_limit == 0.0 and self.heavy_limit == 1.0:
-            return self.curve.partition(density, rho50=rho50, ep=ep)
-        limited = get_density_curve(f"{self.curve.id}_limits")
-        params = _limits_params(limited, np.asarray(rho50, dtype=float), np.asarray(ep, dtype=float), self.light_limit,
-                                self.heavy_limit)  # fmt: skip
-        return limited.partition(density, **params)
+            partition = self.curve.partition(density, rho50=rho50, ep=ep)
+        else:
+            limited = get_density_curve(f"{self.curve.id}_limits")
+            partition = limited.partition(density, **_limits_params(limited, rho50, ep, self.light_limit, self.heavy_limit))
+        if not np.any(ideal):
+            return partition
+        above = (np.sign(np.asarray(density, dtype=float) - rho50) + 1.0) / 2.0  # 0 below the cut, 1 above, 1/2 on it
+        return np.where(ideal, self.light_limit + (self.heavy_limit - self.light_limit) * above, partition)
 
 
 def _limits_params(curve: DensityCurve, rho50, ep, light: float, heavy: float) -> dict:
@@ -284,8 +290,8 @@ def _device(table: Table, index: int, name: str) -> Device:
     )
     if math.isnan(rho50):
         raise table.error("value is missing (blank or NaN)", index=index, column="rho50")
-    ep = _cell(table, index, "ep", 1e-6, 2.0, what="a probable error in (0, 2] g/cm3")
-    imperfection = _cell(table, index, "imperfection", 1e-6, 5.0, what="an imperfection in (0, 5]")
+    ep = _cell(table, index, "ep", 0.0, 2.0, what="a probable error in [0, 2] g/cm3 (0: an ideal separation)")
+    imperfection = _cell(table, index, "imperfection", 0.0, 5.0, what="an imperfection in [0, 5] (0: an ideal separation)")
     if math.isnan(ep) == math.isnan(imperfection):
         raise table.error("give exactly one of ep and imperfection", index=index,
                           column="ep" if "ep" in table.frame.columns else "imperfection")  # fmt: skip
