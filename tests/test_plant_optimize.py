@@ -116,3 +116,18 @@ def test_the_command_writes_what_the_api_saves(tmp_path, capsys):
         assert filecmp.cmp(tmp_path / "cli" / name, tmp_path / "api" / name, shallow=False), name
     assert main(["plant", "optimize", str(WASH), str(DEVICES), "--target-ash", "3", "-o", str(tmp_path / "x")]) == 2
     assert "--target-ash 3 % is below the lowest" in capsys.readouterr().err
+
+
+def test_progress_is_one_bar_that_ends_full():
+    for confidence in (None, 0.9):
+        calls: list = []
+        optimize(
+            WASH,
+            DEVICES,
+            target_ash_pct=10,
+            confidence=confidence,
+            draws=200,
+            progress=lambda *call, seen=calls: seen.append(call),
+        )
+        done = [call[0] for call in calls]
+        assert done == sorted(done) and len({call[1] for call in calls}) == 1 and done[-1] == calls[-1][1]

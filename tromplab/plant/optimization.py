@@ -49,6 +49,8 @@ from .inputs import Device, SizeFraction
 GRID_STEP = 0.0005
 #: Cuts of a grid are evaluated this many at a time (memory of the draws x cuts x density fractions).
 CHUNK = 64
+#: Design ashes the chance-constrained search tries at most (two ends, then bisection to 1e-4 points).
+CHANCE_STEPS = 40
 #: Step of the central differences of the incremental ash (g/cm3).
 DERIVATIVE_STEP = 1e-5
 
@@ -224,12 +226,15 @@ def _polished(blend: Blend, start: np.ndarray, target: float) -> np.ndarray:
 
 
 def chance_constrained_cuts(
-    blend: Blend, target_ash_pct: float, confidence: float, lowest: float
+    blend: Blend, target_ash_pct: float, confidence: float, lowest: float, *, progress=None
 ) -> tuple[CutSolution, float, float]:
     """The cuts of the most expected clean coal whose ash stays at or below ``target_ash_pct`` with probability ``confidence``.
 
     Searched along the equal-incremental-ash path of the expected products: the largest design ash
     A' <= A whose optimal cuts keep P(ash <= A) >= ``confidence`` over the draws (bisection on A').
+
+    ``progress(done, total, label)`` is called after each design ash tried (at most
+    :data:`CHANCE_STEPS`).
 
     Returns
     -------
@@ -237,9 +242,13 @@ def chance_constrained_cuts(
         ``(solution, design_ash, probability)``; ``solution`` None when not even the lowest
         reachable design ash gives that probability.
     """
+    tried = []
 
     def probability(design: float) -> tuple[CutSolution, float]:
         solution = optimal_cuts(blend, design, polish=False, refine=False)
+        tried.append(design)
+        if progress is not None:
+            progress(len(tried), CHANCE_STEPS, "design ash")
         return solution, float(np.mean(blend.ash_per_draw(solution.cuts) <= target_ash_pct))
 
     solution, chance = probability(target_ash_pct)
@@ -249,7 +258,7 @@ def chance_constrained_cuts(
     if low_chance < confidence:
         return None, lowest, low_chance
     low, high, best = lowest + 1e-9, target_ash_pct, (low_solution, low_chance)
-    for _ in range(40):
+    for _ in range(CHANCE_STEPS - 2):
         middle = (low + high) / 2
         solution, chance = probability(middle)
         if chance >= confidence:

@@ -21,7 +21,7 @@ from ..results_contract import ResultContract
 from ..validation import check_count, check_optional, check_percent, check_probability, check_seed
 from .draws import DEFAULT_DRAWS, MAX_DRAWS, parameter_draws
 from .inputs import read_plant
-from .optimization import Blend, CutResponse, chance_constrained_cuts, cut_bounds, optimal_cuts
+from .optimization import CHANCE_STEPS, Blend, CutResponse, chance_constrained_cuts, cut_bounds, optimal_cuts
 from .prediction import DEFAULT_CI, TOTAL, PlantPrediction, _devices_from, _fractions, predict
 
 #: The columns of ``cuts.csv``.
@@ -116,7 +116,7 @@ def optimize(
         Maximise the expected clean coal subject to P(ash <= target) >= ``confidence`` under the
         curves' uncertainty (needs curves with standard deviations or a covariance).
     progress : callable, optional
-        ``progress(done, total, label)`` after each stage.
+        ``progress(done, total, label)`` after each stage (and, with ``confidence``, each design ash tried).
 
     Returns
     -------
@@ -144,7 +144,8 @@ def optimize(
     if confidence is not None and not (draws and any(device.uncertain for device in devices)):
         raise OptionError("confidence", "needs curves with standard deviations or a covariance, and draws > 0")
     blend = Blend(_responses(fractions, devices, draws if confidence is not None else 0, seed), _shares(fractions))
-    _step(progress, 1, "responses")
+    steps = 3 + (CHANCE_STEPS if confidence is not None else 0)  # one bar: the stages and the design ashes tried
+    _step(progress, 1, steps, "responses")
     lowest = blend.lowest_ash()
     if target_ash_pct < lowest - 1e-9:
         raise OptionError("target_ash_pct", f"{target_ash_pct:g} % is below the lowest clean-coal ash the plant reaches, "
@@ -153,24 +154,25 @@ def optimize(
     if confidence is None:
         solution = optimal_cuts(blend, target_ash_pct)
     else:
-        solution, design, chance = chance_constrained_cuts(blend, target_ash_pct, confidence, lowest)
+        searched = None if progress is None else (lambda done, total, label: progress(1 + done, total + 3, label))
+        solution, design, chance = chance_constrained_cuts(blend, target_ash_pct, confidence, lowest, progress=searched)
         if solution is None:
             raise OptionError("confidence", f"no cuts keep the ash at or below {target_ash_pct:g} % with probability "
                               f"{confidence:g}: the lowest-ash cuts do with probability {chance:.3g}")  # fmt: skip
         notes.append(f"optimised for the expected products at a design ash of {design:.5g} %, which keeps the ash at or "
                      f"below {target_ash_pct:g} % in {100 * chance:.1f} % of {draws} draws of the curves")  # fmt: skip
-    _step(progress, 2, "cuts")
+    _step(progress, steps - 1, steps, "cuts")
     at_cuts = [dataclasses.replace(device, rho50=float(cut)) for device, cut in zip(devices, solution.cuts)]
     prediction = predict(fractions, curves_from=at_cuts, ci=ci, draws=draws, seed=seed)
-    _step(progress, 3, "products")
+    _step(progress, steps, steps, "products")
     notes += _notes(solution)
     cuts = _cut_table(blend, solution, prediction, confidence, target_ash_pct, draws)
     return PlantOptimum(cuts, prediction, target_ash_pct, confidence, design, tuple(notes))
 
 
-def _step(progress, done: int, label: str) -> None:
+def _step(progress, done: int, total: int, label: str) -> None:
     if progress is not None:
-        progress(done, 3, label)
+        progress(done, total, label)
 
 
 def _shares(fractions) -> np.ndarray:
