@@ -131,3 +131,42 @@ def test_progress_is_one_bar_that_ends_full():
         )
         done = [call[0] for call in calls]
         assert done == sorted(done) and len({call[1] for call in calls}) == 1 and done[-1] == calls[-1][1]
+
+
+@pytest.mark.parametrize("target", [9.0, 11.0])
+def test_sharp_curves_keep_a_finite_equal_incremental_ash_and_reach_the_grid(target):
+    """Ep 0.005 on fractions 0.05 to 0.6 wide: the marginal coal's ash is a ratio of derivatives of order 1e-30,
+    computed in logarithms (the spec's formula, sum m a p' / sum m p', with norm.pdf weights rescaled here too)."""
+    wash = pd.read_csv(WASH, comment="#")
+    plant = pd.read_csv(DEVICES, comment="#").assign(ep=0.005, imperfection=np.nan, imperfection_sd=np.nan)
+    cuts = optimize(WASH, plant, target_ash_pct=target, draws=0).cuts.set_index("size_fraction")
+    assert cuts.loc["total", "clean_yield_pct"] >= _brute_force(wash, plant, target) - 0.02
+    assert cuts.loc["total", "clean_ash_pct"] <= target + 1e-3
+    for name in ("50x12mm", "12x1mm", "1x0.15mm"):
+        rows = wash[wash["size_fraction"] == name]
+        density = ((rows["density_lower"] + rows["density_upper"]) / 2).to_numpy()
+        log_pdf = norm.logpdf(Z75 * (density - cuts.loc[name, "rho50"]) / 0.005)
+        weight = rows["mass_pct"].to_numpy() * np.exp(log_pdf - log_pdf.max())
+        assert_allclose(cuts.loc[name, "incremental_ash_pct"], np.sum(weight * rows["ash_pct"]) / np.sum(weight), rtol=1e-9)
+    interior = cuts.drop(index="total")
+    interior = interior[interior["bound"].fillna("") == ""]
+    assert len(interior) >= 2 and np.ptp(interior["incremental_ash_pct"]) < 0.5
+
+
+@pytest.mark.parametrize("curve", ["normal", "logistic", "gompertz"])
+@pytest.mark.parametrize("scale", ["ep", "imperfection"])
+def test_the_analytic_incremental_ash_equals_central_differences(curve, scale):
+    from tromplab.plant import read_plant, read_plant_washability
+    from tromplab.plant.optimization import CutResponse
+
+    fractions = read_plant_washability(WASH)
+    plant = pd.read_csv(DEVICES, comment="#").assign(curve=curve)
+    if scale == "ep":
+        plant = plant.assign(ep=0.06, imperfection=np.nan, imperfection_sd=np.nan)
+    else:
+        plant = plant.assign(ep=np.nan, ep_sd=np.nan, imperfection=0.1)
+    devices = read_plant(plant, fractions)
+    for fraction, device in zip(fractions, devices):
+        response = CutResponse(fraction, device, np.zeros(1), np.array([device.scale]), 1.3, 2.0)
+        for cut in (1.45, 1.6, 1.75):
+            assert_allclose(response.incremental_ash(cut), response._incremental_ash_by_differences(cut), rtol=1e-5)

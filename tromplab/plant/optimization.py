@@ -11,10 +11,11 @@ into one problem per size fraction,
 whose interior solution has :math:`\mathrm{d}M_j/\mathrm{d}Y_j = \lambda`: the ash of the
 marginal clean coal, the *incremental ash*, is the same in every size fraction (Mayer 1950's
 M-curve; the principle behind the optimisation of parallel coal-washing circuits, King 2012;
-Osborne 1988).  :func:`optimal_cuts` solves each fraction's problem on a grid of cuts
-refined by Brent's method, finds :math:`\lambda` by bisection so that the blended ash meets the
-target (Everett 1963: each Lagrangian solution is optimal for the ash it gives), and polishes
-the cuts with SLSQP on the whole problem.  A cut on its bound keeps its own incremental ash.
+Osborne 1988).  :func:`optimal_cuts` solves each fraction's problem on a grid of cuts refined
+to the cut where its incremental ash rises through :math:`\lambda` (Brent's method), finds
+:math:`\lambda` by bisection so that the blended ash meets the target (Everett 1963: each
+Lagrangian solution is optimal for the ash it gives), splits the marginal fraction where the
+cuts jump across the target (sharp curves), and polishes the cuts with SLSQP on the whole problem.  A cut on its bound keeps its own incremental ash.
 
 Under the curves' uncertainty each device's actual curve is its estimate with the drawn error
 (:mod:`tromplab.plant.draws`): the cut density the operator sets, :math:`d_j`, becomes
@@ -95,11 +96,81 @@ class CutResponse:
         return np.concatenate([p[0].mean(axis=1) for p in parts]), np.concatenate([p[1].mean(axis=1) for p in parts])
 
     def incremental_ash(self, cut: float) -> float:
-        """The ash of the marginal clean coal at ``cut``, dM/dY (per cent), by central differences (one-sided at a bound)."""
+        r"""The ash of the marginal clean coal at ``cut``, dM/dY (per cent).
+
+        For a plain curve, :math:`\sum_i m_i a_i w_i / \sum_i m_i w_i` with :math:`w_i` the
+        derivative of the partition of fraction :math:`i` in the cut,
+        :math:`f(t_i)\,|\partial t_i/\partial d|` (``f`` the standard form's density; with Ep
+        fixed :math:`|\partial t/\partial d| = k/E_p`, with Ep = I (d - 1) it is
+        :math:`k(\rho_i - 1)/(I (d - 1)^2)`), summed over the draws, in logarithms so that a
+        sharp curve far from every fraction keeps its ratio.  For a curve with limits, central
+        differences (one-sided at a bound).  NaN for an ideal separation (Ep 0).
+        """
+        return float(self.incremental_ashes(np.array([cut]))[0])
+
+    def incremental_ashes(self, cuts) -> np.ndarray:
+        """:meth:`incremental_ash` at each of ``cuts`` (in chunks of cuts)."""
+        cuts = np.atleast_1d(np.asarray(cuts, dtype=float))
+        device = self.device
+        if device.light_limit > 0 or device.heavy_limit < 1:
+            return np.array([self._incremental_ash_by_differences(cut) for cut in cuts])
+        return np.concatenate([self._analytic_increments(cuts[start : start + CHUNK]) for start in range(0, cuts.size, CHUNK)])
+
+    def _analytic_increments(self, cuts: np.ndarray) -> np.ndarray:
+        device, washability = self.device, self.fraction.washability
+        rho50 = np.maximum(cuts[:, None] + self.offsets[None, :], 1.0 + 1e-6)[..., None]  # cuts x draws x 1
+        scale = self.scales[None, :, None]
+        ep = scale * (rho50 - 1.0) if device.scale_name == "imperfection" else np.broadcast_to(scale, rho50.shape)
+        ideal = np.any(ep <= 0, axis=(1, 2))
+        ep = np.where(ep > 0, ep, 1.0)
+        form = device.curve.form
+        t = form.centre + form.scale * (washability.density - rho50) / ep
+        with np.errstate(divide="ignore"):
+            log_weight = _LOG_DENSITY[form.link](t) + np.log(washability.mass_pct) - np.log(ep)
+            if device.scale_name == "imperfection":
+                log_weight = log_weight + np.log(np.maximum(washability.density - 1.0, 1e-300)) - np.log(rho50 - 1.0)
+        flat = log_weight.reshape(len(cuts), -1)
+        top = np.max(flat, axis=1, keepdims=True)
+        usable = np.isfinite(top[:, 0]) & ~ideal
+        weight = np.exp(flat - np.where(np.isfinite(top), top, 0.0))
+        ash = np.broadcast_to(washability.ash_pct, log_weight.shape).reshape(len(cuts), -1)
+        with np.errstate(invalid="ignore"):
+            ratio = np.sum(weight * ash, axis=1) / np.sum(weight, axis=1)
+        return np.where(usable, ratio, np.nan)
+
+    def _incremental_ash_by_differences(self, cut: float) -> float:
         low, high = max(cut - DERIVATIVE_STEP, self.low), min(cut + DERIVATIVE_STEP, self.high)
         clean, ash = self.expected(np.array([low, high]))
         gained = clean[1] - clean[0]
         return float((ash[1] - ash[0]) / gained) if gained > 1e-12 else np.nan
+
+
+def _log_logistic_density(t):
+    magnitude = np.abs(t)
+    return -magnitude - 2.0 * np.log1p(np.exp(-magnitude))
+
+
+#: The logarithm of each standard form's density f = F', by its binomial link.
+_LOG_DENSITY = {
+    "probit": lambda t: -0.5 * t**2 - 0.5 * np.log(2 * np.pi),
+    "logit": _log_logistic_density,
+    "cloglog": lambda t: t - np.exp(np.minimum(t, 700.0)),
+}
+
+
+def _stationary_cut(response: CutResponse, grid, gain, increments, multiplier: float, best: int) -> float:
+    """The cut where the incremental ash rises through ``multiplier`` (a local maximum of the gain) with the
+    largest gain, refined by Brent's method; the grid's best cut when there is none or it gains less."""
+    with np.errstate(invalid="ignore"):
+        below = increments - multiplier < 0
+        rising = np.flatnonzero(below[:-1] & (increments[1:] - multiplier >= 0))
+    if rising.size == 0:
+        return float(grid[best])
+    step = rising[np.argmax(np.maximum(gain[rising], gain[rising + 1]))]
+    if max(gain[step], gain[step + 1]) < gain[best] - 1e-9 * max(abs(gain[best]), 1.0):
+        return float(grid[best])
+    return float(scipy.optimize.brentq(lambda cut: response.incremental_ash(cut) - multiplier, grid[step], grid[step + 1],
+                                       xtol=1e-12))  # fmt: skip
 
 
 def cut_bounds(fraction: SizeFraction, device: Device) -> tuple[float, float]:
@@ -138,6 +209,7 @@ class Blend:
             np.linspace(r.low, r.high, int(np.clip(np.ceil((r.high - r.low) / GRID_STEP), 2, 4000)) + 1) for r in responses
         ]
         self.tables = [r.expected(grid) for r, grid in zip(responses, self.grids)]
+        self.increments = [r.incremental_ashes(grid) for r, grid in zip(responses, self.grids)]
 
     def totals(self, cuts) -> tuple[float, float]:
         """Expected clean yield (per cent of the plant feed) and its ash (per cent) at ``cuts``."""
@@ -156,21 +228,16 @@ class Blend:
         return np.divide(ash, clean, out=np.full(np.shape(clean), np.nan), where=np.asarray(clean) > 0)
 
     def lagrangian_cuts(self, multiplier: float, *, refine: bool = True) -> np.ndarray:
-        """Each fraction's cut maximising clean mass - ash mass / ``multiplier``: on the grid, then (``refine``) by Brent's method."""
+        """Each fraction's cut maximising clean mass - ash mass / ``multiplier``: on the grid, then (``refine``)
+        the cut where the incremental ash rises through ``multiplier`` (the stationary point, by Brent's method)."""
         cuts = []
-        for response, grid, (clean, ash) in zip(self.responses, self.grids, self.tables):
-            best = int(np.argmax(clean - ash / multiplier))
-            if not refine:
-                cuts.append(grid[best])
-                continue
-            low, high = grid[max(best - 1, 0)], grid[min(best + 1, grid.size - 1)]
-
-            def loss(cut, response=response):
-                y, m = response.expected(np.array([cut]))
-                return -(y[0] - m[0] / multiplier)
-
-            refined = scipy.optimize.minimize_scalar(loss, bounds=(low, high), method="bounded", options={"xatol": 1e-9})
-            cuts.append(refined.x if refined.fun <= loss(grid[best]) else grid[best])
+        for response, grid, (clean, ash), increments in zip(self.responses, self.grids, self.tables, self.increments):
+            gain = clean - ash / multiplier
+            best = int(np.argmax(gain))
+            cut = grid[best]
+            if refine:
+                cut = _stationary_cut(response, grid, gain, increments, multiplier, best)
+            cuts.append(cut)
         return np.array(cuts)
 
     def lowest_ash(self) -> float:
@@ -199,9 +266,37 @@ def optimal_cuts(blend: Blend, target_ash_pct: float, *, polish: bool = True, re
         if high - low < (1e-12 if refine else 1e-6):
             break
     cuts = blend.lagrangian_cuts(np.exp(low), refine=refine)  # the feasible side of the bracket
+    if refine:
+        cuts = _filled(blend, cuts, blend.lagrangian_cuts(np.exp(high), refine=refine), target_ash_pct)
     if polish:
         cuts = _polished(blend, cuts, target_ash_pct)
     return CutSolution(cuts, float(np.exp(low)), True)
+
+
+def _filled(blend: Blend, feasible: np.ndarray, beyond: np.ndarray, target: float) -> np.ndarray:
+    """Where the Lagrangian cuts jump across the target (a sharp curve takes a density fraction all or nothing
+    as the multiplier passes its ash), the one fraction's cut between the two sides that meets the target
+    exactly, the others held (Everett's gap closed by splitting the marginal fraction)."""
+    best, best_yield = feasible, blend.totals(feasible)[0]
+    for j in np.flatnonzero(np.abs(beyond - feasible) > 1e-12):
+
+        def excess(cut, j=j):
+            trial = feasible.copy()
+            trial[j] = cut
+            return blend.totals(trial)[1] - target
+
+        if excess(feasible[j]) <= 0 < excess(beyond[j]):
+            inside, outside = feasible[j], beyond[j]  # bisection that keeps the feasible end
+            for _ in range(100):
+                middle = (inside + outside) / 2
+                inside, outside = (middle, outside) if excess(middle) <= 0 else (inside, middle)
+                if abs(outside - inside) < 1e-13:
+                    break
+            trial = feasible.copy()
+            trial[j] = inside
+            if blend.totals(trial)[0] > best_yield:
+                best, best_yield = trial, blend.totals(trial)[0]
+    return best
 
 
 def _polished(blend: Blend, start: np.ndarray, target: float) -> np.ndarray:
@@ -221,7 +316,8 @@ def _polished(blend: Blend, start: np.ndarray, target: float) -> np.ndarray:
     except (ValueError, np.linalg.LinAlgError):
         return start
     cuts = np.clip(result.x, [b[0] for b in bounds], [b[1] for b in bounds])
-    better = blend.totals(cuts)[0] > blend.totals(start)[0] and blend.totals(cuts)[1] <= target + 1e-10
+    # a gain within rounding is no gain: on the flat stretches of a sharp curve it would move the cuts anywhere
+    better = blend.totals(cuts)[0] > blend.totals(start)[0] + 1e-9 and blend.totals(cuts)[1] <= target + 1e-10
     return cuts if better else start
 
 
