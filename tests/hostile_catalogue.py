@@ -357,6 +357,9 @@ TEMPLATES = {
     "export": ["export", "{points.csv}", "-o", "{tmp}/e.csv"],
     "density fit": ["density", "fit", "{points.csv}", "-o", "{tmp}/d"],
     "density predict": ["density", "predict", "{points.csv}", "--rho50", "1.5", "--ep", "0.05", "-o", "{tmp}/pred.csv"],
+    "plant predict": ["plant", "predict", "{points.csv}", "{lab.csv}", "-o", "{tmp}/plant"],
+    "plant optimize": ["plant", "optimize", "{points.csv}", "{lab.csv}", "--target-ash", "10", "-o", "{tmp}/cuts"],
+    "plant evaluate": ["plant", "evaluate", "{points.csv}", "-o", "{tmp}/evaluation"],
 }
 
 

@@ -39,6 +39,8 @@ from tromplab.density import DensityCurveFit, DensityResult, fit_density
 from tromplab.density.washability import Prediction, Washability, partition_curve, read_washability
 from tromplab.errors import InconsistentVersionWarning
 from tromplab.loading.lab import MassBalance
+from tromplab.plant import PlantOptimum, PlantPrediction, SeparationEvaluation, evaluate, optimize
+from tromplab.plant import predict as predict_plant
 from tromplab.results_contract import ResultContract
 from tromplab.statistics.compare import ExtraSumOfSquares, SharedFit
 from tromplab.statistics.uncertainty import Bootstrap
@@ -151,6 +153,30 @@ def _washability():
 @registered(Prediction, "floats", "sinks")
 def _prediction():
     return _washability().predict(partition_curve("normal", rho50=1.55, ep=0.05)[1])
+
+
+PLANT_WASH = DATASETS / "plant_washability_synthetic.csv"
+PLANT_DEVICES = DATASETS / "plant_devices_synthetic.csv"
+
+
+@registered(PlantPrediction, "dm_vessel", "clean_yield_pct")
+def _plant_prediction():
+    return predict_plant(PLANT_WASH, PLANT_DEVICES, draws=200)
+
+
+@registered(PlantOptimum, "dm_vessel", "incremental_ash_pct")
+def _plant_optimum():
+    return optimize(PLANT_WASH, PLANT_DEVICES, target_ash_pct=10, draws=200)
+
+
+PLANT_TEST = pd.DataFrame({"test": [HOSTILE] * 3, "density_lower": [None, 1.4, 1.6], "density_upper": [1.4, 1.6, None],
+                           "feed_pct": [50, 25, 25], "floats_pct": [75, 20.8333, 4.1667], "sinks_pct": [12.5, 31.25, 56.25],
+                           "feed_ash_pct": [10, 30, 70]})  # fmt: skip
+
+
+@registered(SeparationEvaluation, HOSTILE, "organic_efficiency_pct")
+def _separation_evaluation():
+    return evaluate(PLANT_TEST)
 
 
 @registered(layer.LayerFit, "Layer model", "diffusion")
@@ -354,6 +380,43 @@ def _density_api(folder):
     return result, result.save(folder)
 
 
+def _plant_command(folder):
+    assert main(["plant", "predict", str(PLANT_WASH), str(PLANT_DEVICES), "--draws", "200", "-o", str(folder)]) == 0
+
+
+def _plant_api(folder):
+    return _plant_prediction(), _plant_prediction().save(folder)
+
+
+def _optimum_command(folder):
+    command = [
+        "plant",
+        "optimize",
+        str(PLANT_WASH),
+        str(PLANT_DEVICES),
+        "--target-ash",
+        "10",
+        "--draws",
+        "200",
+        "-o",
+        str(folder),
+    ]
+    assert main(command) == 0
+
+
+def _optimum_api(folder):
+    return _plant_optimum(), _plant_optimum().save(folder)
+
+
+def _evaluation_command(folder):
+    PLANT_TEST.to_csv(folder.parent / "plant_test.csv", index=False)
+    assert main(["plant", "evaluate", str(folder.parent / "plant_test.csv"), "-o", str(folder)]) == 0
+
+
+def _evaluation_api(folder):
+    return _separation_evaluation(), _separation_evaluation().save(folder)
+
+
 def _trend_command(folder):
     assert main(["trend", str(SURVEYS), "--formula", "plitt", "-o", str(folder)]) == 0
 
@@ -387,6 +450,9 @@ SAVES = {
     Workbench: (_fit_command, _fit_api),
     DensityResult: (_density_command, _density_api),
     TrendResult: (_trend_command, _trend_api),
+    PlantPrediction: (_plant_command, _plant_api),
+    PlantOptimum: (_optimum_command, _optimum_api),
+    SeparationEvaluation: (_evaluation_command, _evaluation_api),
 }
 
 
@@ -397,6 +463,9 @@ MAIN_FILES = {
     Workbench: "fits.csv",
     DensityResult: "fits.csv",
     TrendResult: "trend.csv",
+    PlantPrediction: "products.csv",
+    PlantOptimum: "cuts.csv",
+    SeparationEvaluation: "evaluation.csv",
 }
 
 
@@ -420,7 +489,8 @@ def test_save_writes_what_the_command_writes(cls, tmp_path, capsys):
 
 
 #: Where a save is made to fail half-way: the second figure, or (a result without figures) the second table.
-FAILING_WRITER = {DesignAdvice: ("tromplab.output.csv_parts", "write_csv")}
+FAILING_WRITER = {DesignAdvice: ("tromplab.output.csv_parts", "write_csv"),
+                  SeparationEvaluation: ("tromplab.output.csv_parts", "write_csv")}  # fmt: skip
 
 
 @pytest.mark.parametrize("cls", list(SAVES), ids=lambda cls: cls.__name__)
@@ -457,6 +527,10 @@ NOT_RESULTS = {
     "tromplab.curves.formulas.Formula": "a registry record",
     "tromplab.curves.parameters.Parameter": "a registry record",
     "tromplab.density.curves.DensityCurve": "a registry record",
+    "tromplab.plant.inputs.SizeFraction": "input (read_plant_washability): one size fraction's washability",
+    "tromplab.plant.inputs.Device": "input (read_plant): one device's curve",
+    "tromplab.plant.optimization.CutResponse": "a working record of the optimiser (one fraction's response to its cut)",
+    "tromplab.plant.optimization.CutSolution": "a working record of the optimiser (the cuts and the multiplier)",
     "tromplab.output.report.Report": "a document being built (build_report): html() and markdown() are its outputs",
     "tromplab.output.export.Export": "an export file being built: its writers are the command's",
     "tromplab.trend.Survey": "input (read_surveys): one dated survey",
@@ -483,7 +557,7 @@ def _package_classes():
 def _public_functions():
     """The functions of ``tromplab.__all__`` and of the subpackages' ``__all__``."""
     functions = [getattr(tromplab, name) for name in tromplab.__all__]
-    for package in ("circuit", "density", "workbench"):
+    for package in ("circuit", "density", "workbench", "plant"):
         module = importlib.import_module(f"tromplab.{package}")
         functions += [getattr(module, name) for name in module.__all__]
     return [function for function in functions if inspect.isfunction(function)]

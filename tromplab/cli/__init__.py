@@ -17,7 +17,9 @@ from :func:`build_parser`), each in its own module of this package:
 - ``circuit`` (plant survey reconciled; its work is in :mod:`tromplab.circuit_command`):
   :mod:`~tromplab.cli.circuit`;
 - ``density fit | predict`` (density partition of gravity separators):
-  :mod:`~tromplab.cli.density` and :mod:`~tromplab.cli.density_predict`.
+  :mod:`~tromplab.cli.density` and :mod:`~tromplab.cli.density_predict`;
+- ``plant predict`` (a coal-washing plant's products from washability and partition curves):
+  :mod:`~tromplab.cli.plant`.
 
 Shared by the commands: :mod:`~tromplab.cli.startup` (exit codes, signals, verbosity, progress
 bars, the parser classes, errors in the command line's words), :mod:`~tromplab.cli.option_groups`
@@ -43,6 +45,7 @@ from .density import add_density_command
 from .density_predict import add_predict_parser
 from .models import add_model_commands
 from .option_groups import shared_groups
+from .plant import add_plant_command
 from .startup import (
     EXIT_INPUT,
     EXIT_OK,
@@ -94,7 +97,7 @@ def main(argv=None, *, on_start=None) -> int:
         name
         for name in (
             args.command,
-            *(getattr(args, f"{n}_command", None) for n in ("sieve", "layer", "pulp", "density", "circuit")),
+            *(getattr(args, f"{n}_command", None) for n in ("sieve", "layer", "pulp", "density", "circuit", "plant")),
         )
         if name
     ]
@@ -187,5 +190,6 @@ def build_parser() -> argparse.ArgumentParser:
     circuit.add_circuit_command(commands)
     density = add_density_command(commands)  # density fit (the sub-commands and their work are in cli.density)
     add_predict_parser(density.density_commands)  # density predict (cli.density_predict)
+    add_plant_command(commands)  # plant predict (cli.plant)
     state_ranges(parser)
     return parser

@@ -5,7 +5,8 @@
 size fraction (:func:`~tromplab.density.fitting.fit_density_curve`), ranks them, and
 returns a :class:`DensityResult`; ``result.save(DIR)`` writes what ``tromplab density fit
 FILE -o DIR`` writes, byte for byte: ``fits.csv``, ``partition.csv``, ``summary.txt`` and one
-figure per test and size fraction (``figures.csv`` maps them); for tests with size fractions
+figure per test and size fraction (``figures.csv`` maps them), ``covariance.csv`` (the covariance
+of each fit's rho50 and Ep, :mod:`tromplab.density.covariance`); for tests with size fractions
 also ``by_size.csv``, ``ep_trend.csv`` and ``by_size_<test>.png``
 (:func:`tromplab.density.by_size.by_size_artifacts`); with ``excel=True`` the workbook
 ``results.xlsx`` and with ``report=True`` ``report.html`` and ``report.md``
@@ -232,7 +233,7 @@ class DensityResult(ResultContract):
         )
 
     def save(self, outdir, *, excel: bool = False, report: bool = False) -> dict:
-        """Write ``fits.csv``, ``partition.csv``, ``summary.txt``, ``figures.csv`` and the figures into ``outdir``.
+        """Write ``fits.csv``, ``partition.csv``, ``summary.txt``, ``figures.csv``, ``covariance.csv`` and the figures into ``outdir``.
 
         The folder is replaced as a whole when everything is written; the same files as
         ``tromplab density fit`` with the same options.
@@ -257,6 +258,7 @@ class DensityResult(ResultContract):
         from ..output.outputs import figure_file_names, replace_folder
         from ..output.plotting import figure_png
         from .by_size import by_size_artifacts
+        from .covariance import covariance_table
 
         tables = {"fits": self.fits_table(), "partition": self.partition_table()}
         names = figure_file_names([sample.label for sample in self.samples], prefix="density_")
@@ -271,6 +273,8 @@ class DensityResult(ResultContract):
         outputs = file_writers(tables, texts={"summary.txt": self.report() + "\n"}, pictures=figures)
         figure_table = pd.DataFrame(figure_rows)
         outputs["figures.csv"] = lambda path: write_csv(figure_table, path)
+        covariance = covariance_table(self.fits, sizes=any(sample.has_size for sample in self.samples))
+        outputs["covariance.csv"] = lambda path: write_csv(covariance, path)  # for `plant predict --curves-from`
         outputs.update(self._documents(tables, figures, excel=excel, report=report))
         return replace_folder(outputs, outdir)
 
