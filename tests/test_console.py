@@ -162,3 +162,13 @@ def test_regrouped_warnings_pass_other_warnings_through():
                 warnings.warn("file.csv: the stated fine yield 0.5 contradicts the size data", YieldWarning, stacklevel=1)
                 warnings.warn(f"unrelated {name}", UserWarning, stacklevel=1)
     assert [w.category for w in caught] == [UserWarning, UserWarning, YieldWarning]
+
+
+def test_the_docs_list_every_code_with_its_level():
+    from tromplab.notices import OTHER, level_of
+
+    from .conftest import ROOT
+
+    page = (ROOT / "docs" / "columns.md").read_text(encoding="utf-8")
+    for code in [kind.code for kind in WARNING_KINDS] + [OTHER]:
+        assert f"| `{code}` | {level_of(code)} |" in page, code

@@ -415,7 +415,8 @@ def _averaged_quantity(quantity: str, values, errors, weights, *, ids, z: float,
     ``weights`` as ``(experiments, formulas)`` arrays (nan where a formula does not define the
     quantity or was not fitted), ``ids`` the formulas of each experiment."""
     usable = np.isfinite(values) & (weights > 0)
-    share = np.where(usable, weights, 0.0).sum(axis=1)
+    # a part of weights that sum to 1 is at most 1; the sum's rounding can pass it (1 + 2e-16 on some CPUs)
+    share = np.minimum(np.where(usable, weights, 0.0).sum(axis=1), 1.0)
     n_formulas = usable.sum(axis=1)
     averaged = (share >= min_share) & (n_formulas > 0)
     with np.errstate(invalid="ignore", divide="ignore"):
