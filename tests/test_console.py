@@ -1,4 +1,4 @@
-"""The console a person reads (issue 41): a warning that repeats across experiments is printed
+"""The console a person reads: a warning that repeats across experiments is printed
 once per kind with its count and first names, every occurrence is in ``warnings.csv``;
 ``--quiet`` prints errors and a one-line result, ``-v`` every occurrence."""
 
@@ -128,10 +128,12 @@ def test_every_kind_of_note_the_library_makes_has_its_code():
 def test_a_kind_met_once_keeps_its_words_and_unknown_kinds_group_by_their_words():
     once = grouped_lines([Notice("a", "the measured cut is ambiguous: anywhere from 1 to 3")], total=5, labelled=True)
     assert once == ["warning (a): the measured cut is ambiguous: anywhere from 1 to 3"]
-    other = [Notice(f"e{i}", f"odd value {i}.5 seen") for i in range(4)] + [Notice("z", "another thing")]
+    other = [Notice(f"e{i}", f"odd value {i}.5 seen") for i in range(5)] + [Notice("z", "another thing")]
     lines = grouped_lines(other, total=9)
-    assert lines == ["4 of 9 experiments: odd value ... seen (e0, e1, e2 and 1 more; every one in warnings.csv)",
+    assert lines == ["5 of 9 experiments: odd value ... seen (e0, e1, e2 and 2 more; every one in warnings.csv)",
                      "(z): another thing"]  # fmt: skip
+    four = grouped_lines(other[:4], total=4, listed_in="")  # "and 1 more" would take its name's place
+    assert four == ["4 of 4 experiments: odd value ... seen (e0, e1, e2, e3; -v prints every one)"]
 
 
 def test_warnings_csv_names_are_defended_against_formula_injection(tmp_path):

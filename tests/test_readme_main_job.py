@@ -1,4 +1,4 @@
-"""The README's main job shows the headline feature (issue 41): every experiment's best fit
+"""The README's main job shows the headline feature: every experiment's best fit
 gets a finite interval for its cut and Ep, every share written lies in [0, 1], the bundled
 data set is what its generator writes, and the double-deck data say what they cannot tell."""
 
@@ -111,7 +111,7 @@ def test_the_console_says_when_the_yield_was_estimated_with_its_value_and_standa
     err = " ".join(capsys.readouterr().err.split())
     balances = read_experiments(DATA, estimate_yield=True).balances
     assert "note: 4 of 4 experiments: the fine yield was estimated by least squares from the three streams" in err
-    for balance in balances[:3]:  # the first names, each with its value and standard error
+    for balance in balances:  # all four named (not "and 1 more"), each with its value and standard error
         estimate = balance.yield_estimate
         assert f"{balance.experiment} {estimate.value:.4f} +/- {estimate.stderr:.4f}" in err
         assert balance.fine_yield == estimate.value and balance.yield_source == "least-squares estimate"

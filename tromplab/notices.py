@@ -80,7 +80,10 @@ WARNING_KINDS = (
         level="note",
     ),
     WarningKind(
-        "yield-from-masses", r"fine yield \S+ taken from the product masses", "the fine yield was taken from the product masses"
+        "yield-from-masses",
+        r"fine yield \S+ taken from the product masses",
+        "the fine yield was taken from the product masses",
+        level="note",
     ),
     WarningKind(
         "yield-contradicts-masses",
@@ -103,6 +106,67 @@ WARNING_KINDS = (
         "weight-concentrated",
         r"\d+ of \d+ classes \(.*\) carry \d+ % of the weight",
         "a few classes carry most of the weight of the fit: the fitted curve follows them more than the others",
+    ),
+    WarningKind(
+        "parameter-at-bound",
+        r"\S+ = \S+ at its bound",
+        "a parameter lies at its bound: the unconstrained optimum lies beyond it and its standard error is unreliable",
+    ),
+    WarningKind(
+        "parameter-undetermined",
+        r"\S+ = \S+ is not determined by the data",
+        "a parameter is not determined by the data: quite different values fit as well",
+    ),
+    WarningKind(
+        "no-break-point",
+        r"formula \(11\): no break point",
+        "formula (11) has no break point for its fitted kr: the curve falls back to the nearer limit",
+    ),
+    WarningKind("curve-exceeds-1", r"the fitted curve exceeds 1", "the fitted curve exceeds 1: not a physical partition"),
+    WarningKind(
+        "residuals-systematic",
+        r"adequate by F but the residuals are systematic",
+        "adequate by F but the residuals are systematic (runs test)",
+    ),
+    WarningKind(
+        "residuals-not-normal",
+        r"adequate by F but the residuals are not normal",
+        "adequate by F but the residuals are not normal (Shapiro-Wilk), as the F test assumes",
+    ),
+    # the density face (tromplab density fit): notes on the tests and on the fitted curves
+    WarningKind("tracers-lost", r"\d+ of \d+ tracers lost", "some tracers were lost and are not counted", level="note"),
+    WarningKind(
+        "overdispersed",
+        r"overdispersed \(Pearson",
+        "the counts are overdispersed (Pearson chi2/df > 1): intervals use the quasi-binomial scale",
+    ),
+    WarningKind(
+        "floats-yield-estimated",
+        r"floats yield .*estimated by least squares",
+        "the floats yield was estimated by least squares from the three analyses (value +/- standard error)",
+        detail=r"floats yield (\S+ \+/- \S+)",
+        level="note",
+    ),
+    WarningKind(
+        "floats-yield-contradicts",
+        r"the stated floats yield .* contradicts the float-sink analyses",
+        "the stated floats yield contradicts the float-sink analyses; the stated yield is used",
+    ),
+    WarningKind(
+        "open-fraction-placed",
+        r"the (float below|sink above) \S+ is placed as the fraction",
+        "an open density fraction was placed as a closed one",
+        level="note",
+    ),
+    WarningKind(
+        "no-interval",
+        r"(no intervals: |\S+ has no interval: |Ep and the imperfection have no interval: )",
+        "a quantity has no interval: the data do not bound it",
+    ),
+    WarningKind(
+        "no-cut-density",
+        r"no cut density between",
+        "no cut density gives floats of the ash sought with this curve (the reachable ash range is in the message)",
     ),
     WarningKind(
         "classes-left-out", r"\d+ class\(es\) left out", "size classes were left out of the fit (left_out.csv)", level="note"
@@ -174,7 +238,7 @@ def grouped_lines(
     A kind met once keeps its own words: ``(name): message``.  ``labelled``: each line begins
     with ``warning`` or ``note`` (:func:`level_of`), as the console prints it.  A kind met more often is said
     once with its count out of ``total`` ``noun``, the first :data:`NAMES_SHOWN` names and
-    where every occurrence is (``listed_in``).  The words of a known kind mention intervals
+    where every occurrence is (``listed_in``; empty: no file holds them all, ``-v`` prints them).  The words of a known kind mention intervals
     only when ``intervals`` (the run makes them).
 
     Examples
@@ -197,14 +261,16 @@ def grouped_lines(
             continue
         kind = _KINDS.get(first.code)
         subjects = list(dict.fromkeys(notice.subject for notice in members))
-        shown = list(dict.fromkeys(kind.named(n) if kind else n.subject for n in members))[:NAMES_SHOWN]
+        limit = NAMES_SHOWN + (len(subjects) == NAMES_SHOWN + 1)  # "and 1 more" would take the place of its name
+        shown = list(dict.fromkeys(kind.named(n) if kind else n.subject for n in members))[:limit]
         named = ", ".join(shown) + (f" and {len(subjects) - len(shown)} more" if len(subjects) > len(shown) else "")
         words = _NUMBER.sub("...", first.message) if kind is None else kind.summary
         if kind is not None and intervals and kind.intervals:
             words += f"; {kind.intervals}"
         counted = f"{len(subjects)} of {total} {noun}" + (f" ({len(members)} times)" if len(members) > len(subjects) else "")
         label = f"{level_of(first.code)}: " if labelled else ""
-        lines.append(f"{label}{counted}: {words} ({named}; every one in {listed_in})")
+        where = f"every one in {listed_in}" if listed_in else "-v prints every one"
+        lines.append(f"{label}{counted}: {words} ({named}; {where})")
     return lines
 
 
