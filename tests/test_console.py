@@ -174,3 +174,57 @@ def test_the_docs_list_every_code_with_its_level():
     page = (ROOT / "docs" / "columns.md").read_text(encoding="utf-8")
     for code in [kind.code for kind in WARNING_KINDS] + [OTHER]:
         assert f"| `{code}` | {level_of(code)} |" in page, code
+
+
+def test_trend_writes_its_warnings_and_prints_each_kind_once(tmp_path, capsys):
+    from .conftest import ROOT
+
+    series = ROOT / "datasets" / "classifier_trend_surveys.csv"
+    arguments = ["trend", str(series), "--formula", "plitt_bypass", "--size-unit", "um", "--no-figures"]
+    assert main([*arguments, "-o", str(tmp_path / "trend")]) == 0
+    err = capsys.readouterr().err
+    said = pd.read_csv(tmp_path / "trend" / "warnings.csv")
+    assert list(said.columns) == ["survey", "formula", "code", "message"] and len(said) >= 1
+    assert (said["formula"] == "plitt_bypass").all()
+    for row in said.itertuples():  # each kind once: here every kind is met once, so each whole
+        assert f"warning ({row.survey}, plitt_bypass): {row.message}" in " ".join(err.split())
+    assert main([*arguments, "-o", str(tmp_path / "quiet"), "--quiet"]) == 0
+    quiet = capsys.readouterr()
+    assert quiet.err == "" and quiet.out.startswith(f"tromplab trend: 24 survey(s) charted, {len(said)} warning(s)")
+
+
+def test_density_fit_groups_the_notes_of_its_tests(tmp_path, capsys):
+    from .conftest import ROOT
+
+    tracers = ROOT / "datasets" / "density_tracers_dmc_by_size_synthetic.csv"
+    assert main(["density", "fit", str(tracers), "-o", str(tmp_path / "density"), "--curves", "normal"]) == 0
+    err = " ".join(capsys.readouterr().err.split())
+    said = pd.read_csv(tmp_path / "density" / "warnings.csv")
+    assert list(said.columns) == ["test", "curve", "code", "message"]
+    lost = said[said["code"] == "tracers-lost"]
+    assert len(lost) == 4 and lost["message"].str.match(r"\d+ of 480 tracers lost").all()
+    assert "note: 4 of 4 tests: some tracers were lost and are not counted (dmc_tracers (2-4 mm)," in err
+
+
+def test_density_predict_says_a_repeated_note_once(tmp_path, capsys):
+    from .conftest import ROOT
+
+    washability = ROOT / "datasets" / "density_washability_synthetic.csv"
+    out = tmp_path / "pred.csv"
+    code = main(["density", "predict", str(washability), "-o", str(out), "--target-ash", "1", "2", "3", "4", "--ep", "0.05"])
+    printed = capsys.readouterr().out
+    notes = pd.read_csv(out)["note"].dropna()
+    assert code == 3 and len(notes) >= 3  # several targets no cut density reaches
+    assert printed.count("no cut density") == 1 and f"({notes.size} times)" in printed and "every one in pred.csv" in printed
+
+
+def test_report_prints_each_kind_once(tmp_path, capsys):
+    sizes = [10.0, 20.0, 40.0, 80.0, 160.0, 320.0]
+    gapped = [0.99, 0.98, 0.96, 0.04, 0.02, 0.01]  # falls across the band between two sizes
+    rows = [
+        f"e{i},{s:g},{p:.3f}" for i in range(4) for s, p in zip(sizes, gapped if i % 2 else [0.95, 0.85, 0.6, 0.3, 0.1, 0.03])
+    ]
+    (tmp_path / "points.csv").write_text("experiment,size,partition_fine\n" + "\n".join(rows) + "\n", encoding="utf-8")
+    assert main(["report", str(tmp_path / "points.csv"), "-o", str(tmp_path / "r.html"), "--formulas", "plitt"]) == 0
+    err = " ".join(capsys.readouterr().err.split())
+    assert "warning: 2 of 4 experiments: the cut is not bracketed by the data" in err and "(e1, e3; -v prints every one)" in err
