@@ -11,7 +11,7 @@ per kind.
 
 The codes are stable: a script may filter ``warnings.csv`` on them.  :data:`WARNING_KINDS`
 lists every code with the start of the messages it covers and the words the console prints
-for the kind (docs/outputs.md lists them for readers).
+for the kind (docs/columns.md lists them for readers, under ``warnings.csv``).
 """
 
 from __future__ import annotations
@@ -235,11 +235,12 @@ def grouped_lines(
 ) -> list[str]:
     """One line per kind of warning among ``notices``, in the order the kinds first occur.
 
-    A kind met once keeps its own words: ``(name): message``.  ``labelled``: each line begins
-    with ``warning`` or ``note`` (:func:`level_of`), as the console prints it.  A kind met more often is said
+    A kind met once keeps its own words: ``(name): message``.  A kind met more often is said
     once with its count out of ``total`` ``noun``, the first :data:`NAMES_SHOWN` names and
-    where every occurrence is (``listed_in``; empty: no file holds them all, ``-v`` prints them).  The words of a known kind mention intervals
-    only when ``intervals`` (the run makes them).
+    where every occurrence is (``listed_in``; empty: no file holds them all, ``-v`` prints
+    them).  The words of a known kind mention intervals only when ``intervals`` (the run
+    makes them).  ``labelled``: each line begins with ``warning`` or ``note``
+    (:func:`level_of`), as the console prints it.
 
     Examples
     --------
@@ -272,11 +273,6 @@ def grouped_lines(
         where = f"every one in {listed_in}" if listed_in else "-v prints every one"
         lines.append(f"{label}{counted}: {words} ({named}; {where})")
     return lines
-
-
-#: The columns of ``warnings.csv`` (the first two named for the face: experiment and formula
-#: for ``fit``, test and curve for ``density``).
-NOTICE_COLUMNS = ("subject", "curve", "code", "message")
 
 
 def notice_table(notices: Iterable[Notice], *, subject: str = "experiment", curve: str = "formula"):
@@ -318,7 +314,7 @@ def regroup_warnings(category: type[Warning], *, noun: str = "experiments", stac
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", category)
         subjects = _Subjects(caught)
-        yield subjects
+        yield subjects  # an error raised here ends the block unwarned: the error is what the caller must see
     _warn_again(caught, subjects, category, noun=noun, stacklevel=stacklevel + 3)
 
 
