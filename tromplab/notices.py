@@ -17,6 +17,7 @@ for the kind (docs/columns.md lists them for readers, under ``warnings.csv``).
 from __future__ import annotations
 
 import contextlib
+import functools
 import re
 import warnings
 from collections.abc import Iterable, Iterator
@@ -48,7 +49,7 @@ class WarningKind:
         return f"{notice.subject} {found.group(1)}" if found else notice.subject
 
     def matches(self, message: str) -> bool:
-        return re.match(self.pattern, message) is not None
+        return _compiled(self.pattern).match(message) is not None
 
 
 #: Every kind of warning the fit, report and reading of lab tables give, in the order the
@@ -174,6 +175,13 @@ WARNING_KINDS = (
 )
 
 _KINDS = {kind.code: kind for kind in WARNING_KINDS}
+
+
+@functools.cache
+def _compiled(pattern: str) -> re.Pattern:
+    return re.compile(pattern)
+
+
 _NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
 
 
@@ -263,7 +271,7 @@ def grouped_lines(
         kind = _KINDS.get(first.code)
         subjects = list(dict.fromkeys(notice.subject for notice in members))
         limit = NAMES_SHOWN + (len(subjects) == NAMES_SHOWN + 1)  # "and 1 more" would take the place of its name
-        shown = list(dict.fromkeys(kind.named(n) if kind else n.subject for n in members))[:limit]
+        shown = list(dict.fromkeys(kind.named(n) if kind else n.subject for n in members[: 4 * limit]))[:limit]
         named = ", ".join(shown) + (f" and {len(subjects) - len(shown)} more" if len(subjects) > len(shown) else "")
         words = _NUMBER.sub("...", first.message) if kind is None else kind.summary
         if kind is not None and intervals and kind.intervals:
