@@ -2,6 +2,7 @@
 once per kind with its count and first names, every occurrence is in ``warnings.csv``;
 ``--quiet`` prints errors and a one-line result, ``-v`` every occurrence."""
 
+import re
 import warnings
 
 import numpy as np
@@ -228,3 +229,19 @@ def test_report_prints_each_kind_once(tmp_path, capsys):
     assert main(["report", str(tmp_path / "points.csv"), "-o", str(tmp_path / "r.html"), "--formulas", "plitt"]) == 0
     err = " ".join(capsys.readouterr().err.split())
     assert "warning: 2 of 4 experiments: the cut is not bracketed by the data" in err and "(e1, e3; -v prints every one)" in err
+
+
+def test_circuit_prints_the_notes_of_its_separators_once_per_kind(tmp_path, capsys, monkeypatch):
+    from tromplab.workbench.result import Workbench
+
+    from .conftest import ROOT
+
+    def unbracketed_everywhere(bench):  # the example's cuts are bracketed: say every separator's is not
+        return [Notice(name, "the cut is not bracketed by the data (a gap)") for name in bench.experiments]
+
+    monkeypatch.setattr(Workbench, "notices", unbracketed_everywhere)
+    sheet, survey = ROOT / "datasets" / "circuit_example_flowsheet.csv", ROOT / "datasets" / "circuit_example_survey.csv"
+    assert main(["circuit", str(sheet), str(survey), "-o", str(tmp_path / "circuit"), "--fit", "--no-figures"]) == 0
+    err = " ".join(capsys.readouterr().err.split())
+    assert re.search(r"warning: (\d+) of \1 separators: the cut is not bracketed by the data", err), err
+    assert "-v prints every one" in err
