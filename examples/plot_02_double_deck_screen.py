@@ -5,8 +5,10 @@ A double-deck screen from a lab table
 The bundled lab table ``datasets/double_deck_screen_decks_lab.csv`` holds the sieve
 analyses of the feed, fine and coarse products of each deck of a 20-over-65-mesh
 double-deck screen (a worked exercise on McCabe, Smith & Harriott's quartz analysis),
-sizes in mm. This is the main job of the README, done in Python: read the table, check the
-mass balance, fit the nine formulas to each deck, rank them, and draw the curves.
+sizes in mm. It is the README's example of what the data cannot tell: neither deck has a
+measured partition between 0.25 and 0.75, so the cut and Ep rest on each formula's shape.
+Done in Python: read the table, check the mass balance, fit the nine formulas to each deck,
+rank them, and draw the curves.
 """
 
 from pathlib import Path

@@ -45,7 +45,9 @@ def test_excel_workbook_holds_the_csv_tables_with_units_frozen_headers_and_figur
         == 0
     )
     book = openpyxl.load_workbook(out / "results.xlsx")
-    assert book.sheetnames == [*SHEETS, "figures"]
+    assert book.sheetnames == [*SHEETS, "warnings", "figures"]  # neither deck's cut is bracketed: warnings.csv's rows
+    said = sheet_frame(book, "warnings")
+    assert list(said["code"]) == list(pd.read_csv(out / "warnings.csv")["code"]) == ["cut-not-bracketed"] * 2
     for name in SHEETS:
         assert book[name].freeze_panes == "A2", name
     fits_header = [cell.value for cell in book["fits"][1]]

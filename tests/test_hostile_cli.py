@@ -246,7 +246,9 @@ def test_verbose_adds_log_lines_of_each_step_and_quiet_removes_the_tables(tmp_pa
     assert "chunk 1/1 fitted" not in verbose.err and "chunk 1/1 fitted: 18 fits" in debug.err  # -vv: debug lines too
     assert "bootstrap A plitt: 3 residuals resamples" in debug.err
     assert verbose.out == default.out  # the log goes to stderr only
-    assert quiet.out == "" and default.out.strip() and len(quiet.err) <= len(default.err)
+    # --quiet: only errors and the one-line result (on standard output, where the result goes)
+    assert quiet.out.count("\n") == 1 and quiet.out.startswith("tromplab fit: 2 experiment(s) fitted") and default.out.strip()
+    assert len(quiet.err) <= len(default.err)
     import logging
 
     assert not logging.getLogger("tromplab").handlers  # removed after the command

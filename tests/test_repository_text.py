@@ -88,7 +88,10 @@ def test_the_readme_stays_short_and_keeps_its_two_commands():
     readme = (ROOT / "README.md").read_text(encoding="utf-8")
     assert len(readme.splitlines()) <= 150
     lines = readme.splitlines()
-    assert "python -m pip install . && tromplab fit datasets/double_deck_screen_decks_lab.csv -o results --size-unit mm" in lines
+    main_job = (
+        "python -m pip install . && tromplab fit datasets/air_classifier_lab_synthetic.csv -o results --size-unit um --ci 0.95"
+    )
+    assert main_job in lines
     assert 'python -m pip install -e ".[test]" && python -m pytest' in lines
 
 

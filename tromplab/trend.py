@@ -56,6 +56,7 @@ from .errors import InputError
 from .loading.lab import LabOptions, balances_from_table, is_lab_table, read_renamed
 from .loading.points import TrompPoints, points_from_table
 from .loading.surveys import has_survey_columns, split_survey_columns
+from .notices import Notice, notice_table
 from .output.csv_parts import write_csv
 from .output.outputs import write_files
 from .output.plotting import offscreen_axes, plot_control_chart, save_figure
@@ -182,6 +183,14 @@ class TrendResult(ResultContract):
         Returns ``{file name: path}``.
         """
         return write_trend(self, directory, size_unit=size_unit, figures=figures)
+
+    def notices(self) -> list[Notice]:
+        """The warnings of each survey's fit, survey by survey (:class:`~tromplab.notices.Notice`)."""
+        return [Notice(fit.experiment, warning, curve=self.formula_id) for fit in self.fits for warning in fit.warnings]
+
+    def warnings_table(self) -> pd.DataFrame:
+        """``survey, formula, code, message`` of every warning (``warnings.csv``)."""
+        return notice_table(self.notices(), subject="survey")
 
     def report(self) -> str:
         """What ``tromplab trend`` prints: the settings, one line per survey and the change points."""
@@ -558,8 +567,9 @@ def _best_formula(surveys) -> tuple:
 
 
 def write_trend(result: TrendResult, outdir, *, size_unit: str = "", figures: bool = True) -> dict[str, Path]:
-    """Write ``trend.csv`` (tidy), ``trend_surveys.csv`` (one row per survey), the charts
-    ``trend_<quantity>.png`` and ``trend_report.html`` (+ ``.md``), all or nothing.
+    """Write ``trend.csv`` (tidy), ``trend_surveys.csv`` (one row per survey), ``warnings.csv``
+    (when a survey's fit has a warning), the charts ``trend_<quantity>.png`` and
+    ``trend_report.html`` (+ ``.md``), all or nothing.
 
     ``size_unit`` labels the figures and replaces the unit ``size`` in ``trend.csv``.
     """
@@ -568,6 +578,8 @@ def write_trend(result: TrendResult, outdir, *, size_unit: str = "", figures: bo
         "trend.csv": lambda p: write_csv(table, p, date_format="%Y-%m-%d"),
         "trend_surveys.csv": lambda p: write_csv(result.survey_flags(), p, date_format="%Y-%m-%d"),
     }
+    if not (said := result.warnings_table()).empty:
+        outputs["warnings.csv"] = lambda p: write_csv(said, p)
     if figures:
         for quantity in result.quantities:
             outputs[f"trend_{quantity}.png"] = lambda p, q=quantity: save_figure(

@@ -59,8 +59,8 @@ from .startup import (
     collector_paused,
     global_options,
     interrupted,
+    python_warnings,
     raise_terminated,
-    show_input_notes,
     sigterm_as_interrupt,
     unexpected_error,
     verbosity,
@@ -114,8 +114,8 @@ def main(argv=None, *, on_start=None) -> int:
             on_start()
         with sigterm_as_interrupt(), warnings.catch_warnings(), verbosity(args), words_of(parser):
             warnings.simplefilter("ignore", YieldWarning)  # printed from the balance notes instead
-            warnings.showwarning = show_input_notes(warnings.showwarning)
-            return args.run(args)
+            with python_warnings(quiet=args.quiet, verbose=args.verbose):
+                return args.run(args)
     except BrokenPipeError:  # output piped into head or less and closed early
         sys.stderr.close()
         return EXIT_OK

@@ -29,7 +29,7 @@ from ..validation import (
     check_share_sd,
     cli_type,
 )
-from .printing import format_fits
+from .printing import format_fits, print_notices
 from .startup import EXIT_OK, stage_bars
 
 #: What the circuit commands import when they run (before they start, under the CLI's signal
@@ -189,6 +189,10 @@ def _run_circuit(args) -> int:
                           alpha=args.alpha, size_unit=args.size_unit, figures=not args.no_figures, exclude=args.exclude,
                           weighting=args.weighting, progress=progress)  # fmt: skip
     print(console_report(run, format_fits=format_fits))
+    if run.bench is not None:  # the notes on each separator's points (a cut they do not bracket), once per kind
+        notices = run.bench.notices()
+        print_notices(notices, total=len(run.bench.experiments) + len(run.bench.failures), quiet=args.quiet,
+                      verbose=args.verbose, noun="separators", listed_in="")  # fmt: skip
     return EXIT_OK
 
 

@@ -15,7 +15,8 @@ from pathlib import Path
 
 from ..output.outputs import check_output_folder
 from ..validation import check_probability, check_yield, cli_type
-from .startup import EXIT_OK, EXIT_PARTIAL  # done, and some tests without any fitted curve
+from .printing import print_notices
+from .startup import EXIT_OK, EXIT_PARTIAL, print_result  # done, and some tests without any fitted curve
 
 #: What ``density fit`` imports when it runs (imported before it starts, under the CLI's signal handling).
 FIT_IMPORTS = ("tromplab.density", "tromplab.loading.tables", "statsmodels.api", "scipy.stats", "scipy.optimize")
@@ -84,6 +85,12 @@ def run_density_fit(args) -> int:
     print("\nWrote:")
     for path in written.values():
         print(f"  {path}")
+    notices = result.notices()
+    print_notices(notices, total=len(result.samples), quiet=args.quiet, verbose=args.verbose, noun="tests",
+                  intervals=args.ci is not None)  # fmt: skip
+    if args.quiet:
+        said = f", {len(notices)} note(s) (warnings.csv)" if notices else ""
+        print_result(f"tromplab density fit: {len(result.samples)} test(s) fitted{said}; results in {args.outdir}")
     unfitted = [sample.label for sample in result.samples if result.best(sample) is None]
     if unfitted:
         print(f"\nno curve could be fitted to: {', '.join(unfitted)} (the reasons are in fits.csv)")

@@ -10,6 +10,7 @@ is :func:`run_predict` (the same file, byte for byte) or
 
 from __future__ import annotations
 
+import textwrap
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -169,5 +170,17 @@ def console_report(run: PredictRun) -> str:
     """What the command prints: the predictions and the files written."""
     shown = ["test", "curve", "rho50", "ep", "floats_yield_pct", "floats_ash_pct", "sinks_ash_pct", "organic_efficiency_pct"]
     table = run.predictions[shown].to_string(index=False, float_format=lambda v: f"{v:.4g}", na_rep="-")
-    notes = [f"note ({row.test}): {row.note}" for row in run.predictions.itertuples() if isinstance(row.note, str) and row.note]
+    notes = _grouped_notes(run)
     return "\n".join([table, *notes, "", "Wrote:", *(f"  {path}" for path in run.written.values())])
+
+
+def _grouped_notes(run: PredictRun) -> list[str]:
+    """The notes of the predictions, a note that repeats over rows once with its count and first
+    tests (:func:`tromplab.notices.grouped_lines`); every one is in the predictions file."""
+    from ..notices import Notice, grouped_lines
+
+    said = [Notice(str(row.test), row.note) for row in run.predictions.itertuples() if isinstance(row.note, str) and row.note]
+    listed_in = next(iter(run.written), "the predictions file")  # the predictions CSV is written first
+    tests = len(set(run.predictions["test"]))
+    lines = grouped_lines(said, total=tests, noun="tests", listed_in=listed_in)
+    return [textwrap.fill(f"note {line}" if line.startswith("(") else f"note: {line}", width=98) for line in lines]

@@ -3,16 +3,17 @@ the results folder (or one workbook) and print the ranked fits."""
 
 from __future__ import annotations
 
-import sys
 import textwrap
+from collections import Counter
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from ..notices import level_of
 from ..options import AUTO_FIGURE_LIMIT, FIGURE_CHOICES, TABLE_FORMATS
 from ..output.outputs import check_output_file, check_output_folder
 from .option_groups import READERS, add_partition_to, add_scale_options, add_uncertainty_options, lab_options
-from .printing import format_fits, print_balance_notes, report_failures
-from .startup import progress_bars, require
+from .printing import format_fits, print_notices, report_failures
+from .startup import print_result, progress_bars, require
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -68,13 +69,31 @@ def _run_fit(args) -> int:
         experiments.census()
     else:
         experiments = read_experiments(args.input, lab_options(args))
-    print_balance_notes(experiments.balances, listed_in="left_out.csv")
     with progress_bars(quiet=args.quiet) as progress:
         bench, written = fit_to_folder(experiments, args.outdir, figures=args.figures, format=args.format, excel=args.excel,
                                        source=args.input, **fit_keywords(args, formulas), progress=progress)  # fmt: skip
     _print_fits(bench, args)
     _print_written(list(written.values()), args.outdir)
+    notices = bench.notices()
+    total = len(bench.experiments) + len(bench.failures)
+    print_notices(notices, total=total, quiet=args.quiet, verbose=args.verbose, intervals=bool(bench.ci or bench.bootstrap),
+                  listed_in="the workbook's warnings sheet" if args.outdir.suffix.lower() == ".xlsx" else "warnings.csv")  # fmt: skip
+    if args.quiet:
+        print_result(result_line("tromplab fit", bench, notices, args.outdir))
     return report_failures(bench.failure_table())
+
+
+def result_line(command: str, bench, notices, outdir) -> str:
+    """What ``--quiet`` prints of a fit run: one line with the experiments, the failures, the
+    warnings and where the results are."""
+    total = len(bench.experiments) + len(bench.failures)
+    failed = len(bench.failure_table())
+    counted = f"{total} experiment(s) fitted" + (f", {failed} failure(s) (failures.csv)" if failed else "")
+    levels = Counter(level_of(notice.code) for notice in notices)
+    said = [f"{levels[level]} {level}(s)" for level in ("warning", "note") if levels[level]]
+    if said:
+        counted += f", {' and '.join(said)} ({'warnings sheet' if Path(outdir).suffix.lower() == '.xlsx' else 'warnings.csv'})"
+    return f"{command}: {counted}; results in {outdir}"
 
 
 #: Size of a CSV input from which ``tromplab fit`` reads it in pieces when its results can
@@ -127,9 +146,6 @@ def _print_fits(bench, args) -> None:
     with their verdicts, the water-recovery checks, failures and the ranking across experiments."""
     from ..statistics.hydrocyclone import water_recovery_statements
 
-    for experiment, notes in bench.notes.items():
-        for note in notes:
-            print(textwrap.fill(f"warning ({experiment}): {note}", width=98), file=sys.stderr)
     if args.quiet:  # standard output goes nowhere: formatting the tables would be wasted (0.3 s at 1,024 experiments)
         return
     shown_experiments = [*bench.experiments, *bench.failures][:AUTO_FIGURE_LIMIT]  # the fits table's order

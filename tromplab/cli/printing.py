@@ -109,6 +109,24 @@ def print_balance_notes(balances, *, listed_in: str = "") -> None:
             print(textwrap.fill(f"note ({balance.experiment}): {summary}{where}", width=98), file=sys.stderr)
 
 
+def print_notices(notices, *, total: int, quiet: bool, verbose: int, noun: str = "experiments", intervals: bool = False,
+                  listed_in: str = "warnings.csv") -> None:  # fmt: skip
+    """The warnings of a run on standard error: one line per kind with its count and the first
+    names (:func:`tromplab.notices.grouped_lines`), every occurrence with ``-v``, none with
+    ``--quiet`` (every one is in ``listed_in``).  ``intervals``: the run makes intervals, so a
+    kind's words may speak of them."""
+    from ..notices import grouped_lines, occurrence_line
+
+    if quiet:
+        return
+    if verbose:
+        lines = [occurrence_line(notice) for notice in notices]
+    else:
+        lines = grouped_lines(notices, total=total, noun=noun, intervals=intervals, listed_in=listed_in, labelled=True)
+    for line in lines:
+        print(textwrap.fill(cli_words(line), width=98, break_on_hyphens=False), file=sys.stderr)
+
+
 def report_failures(failures: pd.DataFrame, *, listed_in: str = "failures.csv") -> int:
     """Exit code 3 with the failures on standard error when some fits failed, else 0."""
     if failures.empty:

@@ -15,8 +15,8 @@ from ..output.outputs import check_output_file, write_files
 from ..validation import check_probability, check_share, cli_type
 from .fit import fit_keywords
 from .option_groups import READERS, add_jobs_option, add_partition_to, lab_options
-from .printing import report_failures
-from .startup import progress_bars
+from .printing import print_notices, report_failures
+from .startup import print_result, progress_bars
 
 
 def add_report(commands, groups) -> None:
@@ -59,6 +59,13 @@ def _run_report(args) -> int:
     print("Wrote:")
     for path in written.values():
         print(f"  {path}")
+    notices, total = bench.notices(), len(bench.experiments) + len(bench.failures)
+    # no file holds every one: the report details the first experiments and those flagged
+    print_notices(notices, total=total, quiet=args.quiet, verbose=args.verbose, intervals=True, listed_in="")
+    if args.quiet:
+        print_result(
+            f"tromplab report: {total} experiment(s) fitted, {len(notices)} warning(s) and note(s); report in {args.output}"
+        )
     return report_failures(bench.failure_table(), listed_in="the report")
 
 

@@ -19,6 +19,7 @@ import signal
 import sys
 import textwrap
 from pathlib import Path
+import warnings
 
 from ..errors import InputError, InputNote, OptionError
 from ..output.outputs import written_outputs
@@ -90,8 +91,9 @@ def collector_paused():
 
 @contextlib.contextmanager
 def verbosity(args):
-    """``--quiet`` silences the tables and progress on standard output and error (errors and
-    warnings stay); ``-v`` adds the library's informational log lines."""
+    """``--quiet`` silences the tables, warnings and progress on standard output and error
+    (errors stay, and a command prints a one-line result); ``-v`` adds the library's
+    informational log lines."""
     handler = None
     library = logging.getLogger("tromplab")
     previous_level = library.level
@@ -100,6 +102,7 @@ def verbosity(args):
         handler.setFormatter(logging.Formatter("%(name)s: %(message)s"))
         library.addHandler(handler)
         library.setLevel(logging.INFO if args.verbose == 1 else logging.DEBUG)
+    token = _RESULT_OUTPUT.set(sys.stdout)  # the one-line result of --quiet goes here, not to the sink
     try:
         if args.quiet:
             with open(os.devnull, "w") as sink, contextlib.redirect_stdout(sink):
@@ -107,21 +110,51 @@ def verbosity(args):
         else:
             yield
     finally:
+        _RESULT_OUTPUT.reset(token)
         if handler is not None:
             library.removeHandler(handler)
             library.setLevel(previous_level)
 
 
-def show_input_notes(show):
-    """A ``warnings.showwarning`` that prints input notes (e.g. a detected CSV dialect) as one line."""
+_RESULT_OUTPUT: contextvars.ContextVar = contextvars.ContextVar("result_output", default=None)
+
+
+def print_result(line: str) -> None:
+    """Print the one-line result of a command run with ``--quiet`` on standard output (which
+    :func:`verbosity` otherwise silences)."""
+    print(line, file=_RESULT_OUTPUT.get() or sys.stdout)
+
+
+@contextlib.contextmanager
+def python_warnings(*, quiet: bool, verbose: int):
+    """Python warnings raised while a command runs, as a person reads them: a note on the
+    input (a detected CSV dialect) as one line (none with ``--quiet``); any other warning held
+    and printed when the command ends, once per kind (same category, same words but for the
+    numbers) with how many more there were; with ``-v`` every one as it comes.  The caller
+    resets ``warnings.showwarning`` (``warnings.catch_warnings``)."""
+    show = warnings.showwarning
+    held: dict[tuple[str, str], list] = {}  # (category, words without numbers) -> [count, first message]
 
     def showwarning(message, category, filename, lineno, file=None, line=None):
         if issubclass(category, InputNote):
-            print(textwrap.fill(f"note: {message}", width=98, break_on_hyphens=False), file=sys.stderr)
-        else:
+            if not quiet:
+                print(textwrap.fill(f"note: {message}", width=98, break_on_hyphens=False), file=sys.stderr)
+        elif verbose:
             show(message, category, filename, lineno, file, line)
+        else:
+            key = (category.__name__, _NUMBER.sub("...", str(message)))
+            held.setdefault(key, [0, str(message)])[0] += 1
 
-    return showwarning
+    warnings.showwarning = showwarning
+    try:
+        yield
+    finally:
+        for (category, _), (count, first) in held.items():
+            more = f" (and {count - 1} more like it)" if count > 1 else ""
+            print(textwrap.fill(f"warning ({category}): {first}{more}", width=98, break_on_hyphens=False), file=sys.stderr)
+
+
+_NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
 
 
 def global_options(*, in_subcommand: bool) -> argparse.ArgumentParser:
@@ -129,7 +162,9 @@ def global_options(*, in_subcommand: bool) -> argparse.ArgumentParser:
     options = argparse.ArgumentParser(add_help=False)
     default = argparse.SUPPRESS if in_subcommand else None
     group = options.add_argument_group("general")
-    group.add_argument("-q", "--quiet", action="store_true", default=default or False, help="print only errors and warnings")
+    group.add_argument(
+        "-q", "--quiet", action="store_true", default=default or False, help="print only errors and a one-line result"
+    )
     group.add_argument("-v", "--verbose", action="count", default=default or 0, help="more detail (repeat for more)")
     group.add_argument("--debug", action="store_true", default=default or False, help="show the Python traceback of an error")
     return options

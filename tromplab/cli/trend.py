@@ -7,6 +7,8 @@ from pathlib import Path
 from ..output.outputs import check_output_folder
 from ..validation import check_probability, cli_type
 from .option_groups import READERS, lab_options
+from .printing import print_notices
+from .startup import print_result
 
 
 def add_trend(commands, groups) -> None:
@@ -45,4 +47,9 @@ def _run_trend(args) -> int:
     print("\nWrote:")
     for path in written.values():
         print(f"  {path}")
+    notices = result.notices()
+    print_notices(notices, total=len(result.surveys), quiet=args.quiet, verbose=args.verbose, noun="surveys", intervals=True)
+    if args.quiet:
+        said = f", {len(notices)} warning(s) (warnings.csv)" if notices else ""
+        print_result(f"tromplab trend: {len(result.surveys)} survey(s) charted{said}; results in {args.outdir}")
     return 0

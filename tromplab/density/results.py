@@ -24,6 +24,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import OptionError
+from ..notices import Notice, notice_table
 from ..output.csv_parts import file_writers, write_csv
 from ..results_contract import ResultContract
 from ..validation import check_probability
@@ -75,6 +76,19 @@ class DensityResult(ResultContract):
         for sample in self.samples:
             ranked += rank_fits([fit for fit in self.fits if fit.sample is sample])
         return ranked
+
+    def notices(self) -> list[Notice]:
+        """Every note of the tests and of their fitted curves, test by test
+        (:class:`~tromplab.notices.Notice`: the test's label, the curve, the code, the note)."""
+        found = []
+        for sample in self.samples:
+            found += [Notice(sample.label, note) for note in sample.notes]
+            found += [Notice(sample.label, note, curve=fit.curve.id) for fit in self.fits_of(sample) for note in fit.notes]
+        return found
+
+    def warnings_table(self) -> pd.DataFrame:
+        """``test, curve, code, message`` of every note (``warnings.csv``)."""
+        return notice_table(self.notices(), subject="test", curve="curve")
 
     def fits_of(self, sample: DensitySample) -> list[DensityCurveFit]:
         """The fits of one sample."""
@@ -233,7 +247,8 @@ class DensityResult(ResultContract):
         )
 
     def save(self, outdir, *, excel: bool = False, report: bool = False) -> dict:
-        """Write ``fits.csv``, ``partition.csv``, ``summary.txt``, ``figures.csv``, ``covariance.csv`` and the figures into ``outdir``.
+        """Write ``fits.csv``, ``partition.csv``, ``summary.txt``, ``figures.csv``, ``covariance.csv``,
+        the figures and (when a test or curve has a note) ``warnings.csv`` into ``outdir``.
 
         The folder is replaced as a whole when everything is written; the same files as
         ``tromplab density fit`` with the same options.
@@ -275,6 +290,8 @@ class DensityResult(ResultContract):
         outputs["figures.csv"] = lambda path: write_csv(figure_table, path)
         covariance = covariance_table(self.fits, sizes=any(sample.has_size for sample in self.samples))
         outputs["covariance.csv"] = lambda path: write_csv(covariance, path)  # for `plant predict --curves-from`
+        if not (said := self.warnings_table()).empty:
+            outputs["warnings.csv"] = lambda path: write_csv(said, path)
         outputs.update(self._documents(tables, figures, excel=excel, report=report))
         return replace_folder(outputs, outdir)
 

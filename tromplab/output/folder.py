@@ -79,6 +79,8 @@ def write_results_folder(
     only_workbook = outdir.suffix.lower() == ".xlsx"
     if only_workbook or excel:
         sheets = {**tables, **_input_sheets(bench)}
+        if not (said := bench.warnings_table()).empty:  # what warnings.csv holds beside the tables
+            sheets["warnings"] = said
         notes = {
             "balance": "no mass balance: the input holds Tromp points, not a lab table",
             "averages": "no model average: no experiment has a successful fit",
@@ -135,12 +137,16 @@ def write_streamed_folder(bench, outdir, tables: dict, *, overview: pd.DataFrame
 
 
 def _failure_files(bench) -> dict:
-    """Writers of ``failures.csv`` (when fits failed) and ``left_out.csv`` (when the loader left
-    classes of lab input out)."""
+    """Writers of ``failures.csv`` (when fits failed), ``warnings.csv`` (when the batch has
+    warnings: every occurrence of what the console groups by kind) and ``left_out.csv`` (when
+    the loader left classes of lab input out)."""
     outputs = {}
     failures = bench.failure_table()
     if not failures.empty:
         outputs["failures.csv"] = lambda p: write_csv(failures, p)
+    said = bench.warnings_table()
+    if not said.empty:
+        outputs["warnings.csv"] = lambda p: write_csv(said, p)
     left_out = [b.left_out_table() for b in bench.balances]
     if any(not table.empty for table in left_out):  # the classes the console summarises in one line per experiment
         listed = pd.concat([table for table in left_out if not table.empty], ignore_index=True)

@@ -18,6 +18,7 @@ from ..errors import InputError
 from ..loading.lab import Experiments, LabOptions, MassBalance, iter_experiments_in_pieces, read_experiments
 from ..loading.points import TrompPoints, points_from_frame
 from ..loading.tables import DEFAULT_PIECE_ROWS
+from ..notices import Notice
 
 
 def _data_size_unit(experiments: Sequence[TrompPoints], fallback: str) -> str:
@@ -242,8 +243,10 @@ def _named_points(name, value) -> TrompPoints:
     )
 
 
-def data_notes(points: TrompPoints) -> tuple[str, ...]:
-    """Warnings about the measured points themselves, before any fit."""
+def data_notes(points: TrompPoints, *, intervals: bool = False) -> tuple[str, ...]:
+    """Warnings about the measured points themselves, before any fit; the note on a cut the
+    points do not bracket says that no interval is given for it only with ``intervals`` (the
+    batch makes intervals: ``ci`` or ``bootstrap``)."""
     notes = []
     if points.n >= 3 and np.ptp(points.partition_fine) > 0:
         # Spearman's rho as Pearson's r of the ranks (the sizes are distinct and increasing, so
@@ -257,10 +260,10 @@ def data_notes(points: TrompPoints) -> tuple[str, ...]:
     one_sided = np.all(points.partition_fine > 0.5) or np.all(points.partition_fine < 0.5)
     if unbracketed := unbracketed_cut(points):
         extrapolated = "the cut size is extrapolated beyond the measured sizes, and " if one_sided else ""
-        notes.append(
-            f"{CUT_WARNING} ({unbracketed}): {extrapolated}no interval is given for d_cut, d50, d50c, d25, d75 and Ep, "
-            "which rest on the formula's shape, not on measurements"
-        )
+        rest = "d_cut, d50, d50c, d25, d75 and Ep rest on the formula's shape, not on measurements"
+        if intervals:
+            rest = "no interval is given for d_cut, d50, d50c, d25, d75 and Ep, which rest on the formula's shape, not on measurements"
+        notes.append(f"{CUT_WARNING} ({unbracketed}): {extrapolated}{rest}")
     elif (ambiguous := _ambiguous_measured_cut(points)) is not None:
         notes.append(ambiguous)
     return tuple(notes)
@@ -280,3 +283,20 @@ def _ambiguous_measured_cut(points: TrompPoints) -> str | None:
         f"({efficiencies[0]:.3f} to {efficiencies[1]:.3f} over that range), may change with the data's "
         "last digits"
     )
+
+
+def batch_notices(order, balances, notes: dict) -> list[Notice]:
+    """Every warning of a batch as :class:`~tromplab.notices.Notice` records, experiment by
+    experiment in ``order`` (names; experiments not in it last): the notes of its mass balance
+    (``balances``) and the classes it left out, then the notes on its points (``notes``)."""
+    found: dict[str, list[Notice]] = {}
+    for balance in balances:
+        said = found.setdefault(balance.experiment, [])
+        said += [Notice(balance.experiment, note) for note in balance.notes]
+        if left_out := balance.left_out_summary():
+            said.append(Notice(balance.experiment, f"{left_out}; the list is in left_out.csv", code="classes-left-out"))
+    for experiment, experiment_notes in notes.items():
+        found.setdefault(experiment, []).extend(Notice(experiment, note) for note in experiment_notes)
+    place = {name: i for i, name in enumerate(order)}
+    ranked = sorted(found, key=lambda name: place.get(name, len(place)))
+    return [notice for name in ranked for notice in found[name]]

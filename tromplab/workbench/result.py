@@ -25,6 +25,7 @@ from ..errors import InputError, OptionError, expect_kind
 from ..loading.lab import MassBalance
 from ..loading.points import TrompPoints
 from ..loading.surveys import with_survey_columns
+from ..notices import Notice, notice_table
 from ..output.csv_parts import CsvPart
 from ..output.folder import write_results_folder
 from ..output.outputs import replace_folder
@@ -35,6 +36,7 @@ from ..results_contract import ResultContract
 from ..validation import MAX_JOBS, check_count, check_optional, check_probability
 from .averages import _averaged_groups, _averages_of_chunk, _averages_table, averages_level
 from .fanout import MAX_CHUNK_SIZE, ChunkResults, _map_work, _worker_count, chunked
+from .inputs import batch_notices
 from .tables import by_experiment, completed_fit_rows, fit_row_settings, fit_rows_frame, output_view, ranked_among
 from .worker import ChunkOptions, completed_rows, fit_chunk
 
@@ -349,6 +351,17 @@ class Workbench(ResultContract):
             for experiment, formula, message in self._failed_fits()
         ]
         return pd.DataFrame(rows, columns=["experiment", "formula", "reason"])
+
+    def notices(self) -> list[Notice]:
+        """Every warning of the batch, one :class:`~tromplab.notices.Notice` per experiment and
+        kind: the notes of the mass balances (with the classes left out) and the notes on the
+        points, experiment by experiment in batch order; :meth:`warnings_table` as records."""
+        return batch_notices([*self.experiments, *self.failures], self.balances, self.notes)
+
+    def warnings_table(self) -> pd.DataFrame:
+        """``experiment, formula, code, message`` of every warning of the batch (``warnings.csv``;
+        the codes: :data:`tromplab.notices.WARNING_KINDS`, docs/outputs.md)."""
+        return notice_table(self.notices())
 
     def _failed_fits(self) -> list[tuple[str, str, str | None]]:
         """``(experiment, formula id, message)`` of each failed fit, in batch order."""

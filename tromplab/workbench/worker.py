@@ -218,7 +218,8 @@ def fitted_chunk(options: ChunkOptions, chunk: Sequence[TrompPoints]) -> tuple:
     ``bootstrap``) and the rows of its fits (:func:`fit_rows_frame`)."""
     # the notes on the points are made in the worker too: in the parent they were a serial
     # Spearman test per experiment (seconds at 10,000 experiments)
-    notes = {points.experiment: found for points in chunk if (found := data_notes(points))}
+    intervals = bool(options.ci or options.bootstrap)
+    notes = {points.experiment: found for points in chunk if (found := data_notes(points, intervals=intervals))}
     fits = fit_chunk(
         chunk,
         formulas=options.formulas,

@@ -1,0 +1,117 @@
+"""Write the bundled lab table datasets/air_classifier_lab_synthetic.csv.
+
+Four classifier tests as a laboratory reports them: the size analyses (mass % per class) of
+the feed, the fine product and the coarse product, and the fine yield from the weighed
+products (``tromplab fit --estimate-yield`` estimates it from the three streams instead).  The cut sizes are the published ones of four of
+Shuvalov, Novoseltseva & Zhukov's (2018, Table 1) ten industrial experiments; the paper does
+not publish their Tromp points, so everything else is drawn here (EXAMPLES below):
+
+* size classes: a sqrt(2) sieve series of 12 classes from about cut/7 to cut x 9 plus the pan
+  (everything below the finest bound), in um, bounds to 3 significant digits; the coarse
+  classes that hold less than 0.2 % of the feed are not sieved (the top sieve retains some);
+* feed: Rosin-Rammler distribution of sizes with d63 = ``feed_d63`` x cut and spread
+  ``feed_n``; the class shares are its mass between the class bounds;
+* true partition to fines of a class: the formula ``formula`` (of the nine) with the cut and
+  shape given, at the geometric mean of the class bounds (half the finest bound for the pan);
+* fine yield y = sum(feed x partition); fine product = feed x partition / y, coarse product =
+  feed x (1 - partition) / (1 - y);
+* noise of the analyses: every share of every stream multiplied by exp(N(0, 0.05)) and
+  0.03 % (absolute, folded to be positive) added, each stream normalised to 100 % and
+  rounded to 2 decimals, as a lab reports it;
+* ``fine_yield``: the true fine yield plus N(0, 0.003) (the weighing of the two products),
+  to 4 decimals (random generator numpy PCG64, seed ``SEED``, drawn in this order per test).
+
+Run from the repository root:
+
+    python analysis/make_classifier_lab_example.py [--output PATH]
+"""
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from tromplab.curves.formulas import get_formula
+
+SEED = 2018
+OUT = Path(__file__).resolve().parent.parent / "datasets" / "air_classifier_lab_synthetic.csv"
+CLASSES = 12
+RELATIVE_NOISE, ABSOLUTE_NOISE_PCT, WEIGHING_NOISE = 0.05, 0.03, 0.003
+#: Feed share (of the true distribution) below which a coarse class gets no sieve of its own.
+TOP_CLASS_SHARE = 0.002
+#: (experiment, Table 1 number, classifier, material, cut um, formula, shape, feed d63 / cut, feed spread)
+EXAMPLES = (
+    ("t1_ammophos", 1, "centrifugal static, flat zone", "ammophos", 93.5, "plitt", 3.2, 1.1, 1.2),
+    ("t3_quartz", 3, "centrifugal static, flat zone", "quartz", 15.3, "rosin_rammler", 2.4, 1.6, 0.9),
+    ("t6_nepheline", 6, "centrifugal dynamic Microplex", "nepheline", 38.0, "lognormal", 0.55, 1.3, 1.0),
+    ("t8_graphite", 8, "gravitational with shelves", "artificial graphite", 112.8, "plitt", 2.1, 0.9, 1.4),
+)
+
+
+def class_bounds(cut: float) -> np.ndarray:
+    """The sieve bounds (um, 3 significant digits, as sieves are named): sqrt(2) steps around the cut."""
+    steps = np.arange(-CLASSES // 2, CLASSES // 2 + 1) + 0.25  # no bound on the cut itself
+    return np.array([float(f"{b:.3g}") for b in cut * np.sqrt(2.0) ** steps])
+
+
+def test_table(rng, name, cut, formula, shape, d63_ratio, spread) -> tuple[pd.DataFrame, float]:
+    """One test's rows (coarsest class first, as a sieve stack reads) and its true fine yield."""
+    bounds = class_bounds(cut)
+    passing = 1 - np.exp(-((bounds / (d63_ratio * cut)) ** spread))  # Rosin-Rammler, cumulative passing
+    feed = np.diff(np.concatenate([[0.0], passing, [1.0]]))  # the pan, the 12 classes, what is coarser than the top bound
+    top = int(np.flatnonzero(feed[:-1] >= TOP_CLASS_SHARE)[-1])  # no sieve above the coarsest that retains some feed
+    feed = np.concatenate([feed[:top], [feed[top:].sum()]])  # the top class holds everything coarser
+    bounds = bounds[: top + 1]
+    mean_size = np.concatenate([[bounds[0] / 2], np.sqrt(bounds[:-1] * bounds[1:])])
+    partition = np.clip(get_formula(formula)(mean_size, cut, shape), 0, 1)
+    fine_yield = float(feed @ partition)
+    streams = {"feed": feed, "fine": feed * partition / fine_yield, "coarse": feed * (1 - partition) / (1 - fine_yield)}
+    table = pd.DataFrame({"experiment": name, "size_lower_um": np.concatenate([[np.nan], bounds[:-1]]), "size_upper_um": bounds})
+    for stream, shares in streams.items():
+        noise = np.abs(rng.normal(0, ABSOLUTE_NOISE_PCT / 100, shares.size))
+        noisy = shares * np.exp(rng.normal(0, RELATIVE_NOISE, shares.size)) + noise
+        table[f"{stream}_pct"] = np.round(100 * noisy / noisy.sum(), 2)
+    table["fine_yield"] = round(fine_yield + rng.normal(0, WEIGHING_NOISE), 4)
+    return table.iloc[::-1].reset_index(drop=True), fine_yield
+
+
+def header(yields: dict) -> list[str]:
+    lines = [
+        "# Lab table: four air-classifier tests, size analyses of feed, fine and coarse product (mass % per class).",
+        "# SYNTHETIC, generated by analysis/make_classifier_lab_example.py (seed 2018); regenerate with",
+        "#   python analysis/make_classifier_lab_example.py. The cut sizes are the published ones of Shuvalov S.I.,",
+        "#   Novoseltseva S.S., Zhukov V.P. (2018), Justifying the choice of a dependence for the Tromp separation",
+        "#   curve approximation, Vestnik IGEU 6, 15-23, doi:10.17588/2072-2672.2018.6.015-023, Table 1; the paper",
+        "#   publishes no Tromp points, so the size analyses below are drawn, not measured:",
+        "#   sizes: sqrt(2) sieve series of up to 12 classes from about cut/7 to cut x 9 plus the pan (blank lower",
+        "#   bound), um; no sieve above the coarsest that retains 0.2 % of the feed;",
+        "#   feed: Rosin-Rammler, d63 = ratio x cut, spread n; true partition to fines: the formula at the",
+        "#   class's geometric mean size (half the finest bound for the pan); products from the balance;",
+        f"#   noise: each share x exp(N(0, {RELATIVE_NOISE:g})) + |N(0, {ABSOLUTE_NOISE_PCT:g} %)|, each stream normalised to 100 % and",
+        "#   rounded to 2 decimals. fine_yield: the weighed products' (true yield + N(0, 0.003), 4 decimals);",
+        "#   tromplab fit --estimate-yield estimates it from the three streams instead.",
+        "# test (Table 1 no., classifier, material): true cut um, formula and shape, feed d63/cut and n, true fine yield",
+    ]
+    for name, number, classifier, material, cut, formula, shape, ratio, spread in EXAMPLES:
+        lines.append(f"#   {name} ({number}, {classifier}, {material}): {cut:g}, {formula} {shape:g}, {ratio:g} and {spread:g}, "
+                     f"{yields[name]:.4f}")  # fmt: skip
+    return lines
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description="Write the bundled air-classifier lab table.")
+    parser.add_argument("--output", type=Path, default=OUT)
+    target = parser.parse_args(argv).output
+    rng = np.random.default_rng(SEED)
+    tables, yields = [], {}
+    for name, _, _, _, cut, formula, shape, ratio, spread in EXAMPLES:
+        table, yields[name] = test_table(rng, name, cut, formula, shape, ratio, spread)
+        tables.append(table)
+    frame = pd.concat(tables, ignore_index=True)
+    target.write_text("\n".join(header(yields)) + "\n" + frame.to_csv(index=False, float_format="%.6g"), encoding="utf-8")
+    print(f"Wrote {target}")
+
+
+if __name__ == "__main__":
+    main()
