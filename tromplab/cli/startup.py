@@ -18,8 +18,8 @@ import re
 import signal
 import sys
 import textwrap
-from pathlib import Path
 import warnings
+from pathlib import Path
 
 from ..errors import InputError, InputNote, OptionError
 from ..output.outputs import written_outputs
