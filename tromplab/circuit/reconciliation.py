@@ -162,6 +162,9 @@ class CircuitBalance(ResultContract):
         The measurements left out on request.
     component_flows : numpy.ndarray or None
         Class flows of every assayed component (components x streams x classes; None: no assay).
+    progress : callable or None
+        ``progress(done, total, label)`` of the run that made the balance: the serial
+        elimination and the design advice report their steps to it when first computed.
     has_size_classes : bool
         False for a survey of flows and per cent solids only.
     held_at_zero : list of tuple
