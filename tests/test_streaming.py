@@ -348,7 +348,7 @@ def test_a_bad_row_deep_in_a_file_read_in_pieces_is_exit_1_with_nothing_written_
     monkeypatch.setattr(fit_command, "IN_PIECES_FROM_BYTES", 0)
     monkeypatch.setattr(stream_module, "STREAM_THRESHOLD", 10)
     fitted = []
-    monkeypatch.setattr(stream_module, "_spooled_batch", lambda *a: fitted.append(a))
+    monkeypatch.setattr(stream_module, "_streamed_batch", lambda *a: fitted.append(a))
     assert main([*args, "-o", str(tmp_path / "pieces")]) == 1
     pieces = capsys.readouterr()
     assert fitted == [] and sorted(p.name for p in tmp_path.iterdir()) == [path.name]

@@ -12,7 +12,7 @@ with one chunk), then ``gc_control``, ``averages``, ``tables`` (the fits table) 
 """
 
 from .averages import averages_level
-from .batch import check_formula_selection, fit_experiments, formula_keys, print_progress
+from .batch import check_formula_selection, fit_experiments, fit_with_settings, formula_keys, print_progress
 from .fanout import CHUNK_SIZE, DASK_WORKER_CONFIG, MAX_CHUNK_SIZE, ChunkResults, chunked, dask_client
 from .inputs import ACCEPTED_EXPERIMENTS, ExperimentsInPieces, data_notes
 from .result import Workbench, load, model_averages
@@ -47,6 +47,7 @@ __all__ = [
     "fit_row_settings",
     "fit_rows_frame",
     "fit_to_folder",
+    "fit_with_settings",
     "formula_keys",
     "load",
     "model_averages",

@@ -93,7 +93,7 @@ class ChunkResults(NamedTuple):
 
 
 def _fit_in_chunks(fittable: Sequence[TrompPoints], options: ChunkOptions, *, jobs, client, progress) -> ChunkResults:
-    """The fits, data notes, interval columns (with ``options.ci`` or ``options.bootstrap``) and
+    """The fits, data notes, interval columns (with ``options.settings.ci`` or ``options.settings.bootstrap``) and
     model averages of ``fittable``, chunk by chunk in order, wherever the chunks run (the
     averages only where there are workers: in one process they are made when first asked
     for).  Where there are workers, each also formats its rows of ``fits.csv`` and

@@ -20,7 +20,6 @@ import pandas as pd
 from ..curves.curve_fit import CurveFit
 from ..curves.formulas import Formula
 from ..curves.ranking import fit_verdicts, rank_formulas
-from ..curves.screening import DEFAULT_ALPHA
 from ..errors import InputError, OptionError, expect_kind
 from ..loading.lab import MassBalance
 from ..loading.points import TrompPoints
@@ -32,14 +31,26 @@ from ..output.plotting import plot_tromp_fits
 from ..output.report import build_report, write_report
 from ..output.results import experiment_summary, load_workbench, summary_text, workbench_html, workbench_repr
 from ..results_contract import ResultContract
-from ..validation import MAX_JOBS, check_count, check_optional, check_probability
+from ..validation import MAX_JOBS, FitSettings, check_count, check_optional, check_probability
 from .averages import _averaged_groups, _averages_of_chunk, _averages_table, averages_level
 from .fanout import MAX_CHUNK_SIZE, ChunkResults, _map_work, _worker_count, chunked
 from .tables import by_experiment, completed_fit_rows, fit_row_settings, fit_rows_frame, output_view, ranked_among
-from .worker import ChunkOptions, completed_rows, fit_chunk
+from .worker import ChunkOptions, completed_rows
 
 # one logger for the batch layer: its lines read "tromplab.workbench: ..." whichever module makes them
 logger = logging.getLogger(__package__)
+
+
+#: The settings a :class:`Workbench` offers as attributes (its fields of their own before they were one record).
+_SETTINGS_READ = ("rank_by", "alpha", "rank_extended", "water_recovery", "ci", "bootstrap", "bootstrap_method", "seed",
+                  "partition_to")  # fmt: skip
+
+
+def _from_settings(name: str) -> property:
+    """A read-only attribute of a :class:`Workbench`: the field ``name`` of its ``settings``."""
+    return property(
+        lambda bench: getattr(bench.settings, name), doc=f"``settings.{name}`` (:class:`~tromplab.validation.FitSettings`)."
+    )
 
 
 @dataclass(frozen=True)
@@ -64,14 +75,17 @@ class Workbench(ResultContract):
         Experiment -> why it could not be fitted at all.
     formulas : tuple of Formula
         The formulas fitted.
+    notes : dict
+        Experiment -> notes on its data (classes left out, inferred columns).
+    settings : FitSettings
+        The settings the batch was fitted with (:class:`tromplab.validation.FitSettings`);
+        the attributes ``rank_by`` to ``partition_to`` below read them.
     rank_by : str
         The criterion of the ranking (``"F"``, ``"aicc"``, ...).
     alpha : float
         Significance level of the Fisher screen.
     rank_extended : bool
         Whether the extended curves are ranked with the paper's nine.
-    notes : dict
-        Experiment -> notes on its data (classes left out, inferred columns).
     water_recovery : float or None
         Water split to the underflow, compared with the fitted bypass (hydrocyclones).
     ci : float or None
@@ -85,7 +99,8 @@ class Workbench(ResultContract):
     partition_to : str
         ``"fine"`` or ``"coarse"``: the product the tables' partition refers to.
     size_unit : str
-        Unit of the sizes ("" when unknown).
+        Unit of the sizes ("" when unknown): the loader's when every experiment has the same
+        one, else ``settings.size_unit``.
     inputs : tuple of TrompPoints
         The points of every experiment, as fitted.
     balances : tuple of MassBalance
@@ -103,20 +118,29 @@ class Workbench(ResultContract):
     fits: tuple[CurveFit, ...]
     failures: dict[str, str] = field(default_factory=dict)
     formulas: tuple[Formula, ...] = ()
-    rank_by: str = "F"
-    alpha: float = DEFAULT_ALPHA
-    rank_extended: bool = False
     notes: dict[str, tuple[str, ...]] = field(default_factory=dict)
-    water_recovery: float | None = None
-    ci: float | None = None
-    bootstrap: int = 0
-    bootstrap_method: str = "residuals"
-    seed: int = 0
-    partition_to: str = "fine"
+    settings: FitSettings = field(default_factory=FitSettings)
     size_unit: str = ""
     inputs: tuple[TrompPoints, ...] = field(default=(), repr=False)
     balances: tuple[MassBalance, ...] = field(default=(), repr=False)
     intervals: pd.DataFrame | None = field(default=None, repr=False, compare=False)
+
+    # the settings the batch was fitted with, read from its record
+    rank_by = _from_settings("rank_by")
+    alpha = _from_settings("alpha")
+    rank_extended = _from_settings("rank_extended")
+    water_recovery = _from_settings("water_recovery")
+    ci = _from_settings("ci")
+    bootstrap = _from_settings("bootstrap")
+    bootstrap_method = _from_settings("bootstrap_method")
+    seed = _from_settings("seed")
+    partition_to = _from_settings("partition_to")
+
+    def __setstate__(self, state: dict) -> None:
+        state = dict(state)
+        if "settings" not in state:  # pickled when the settings were fields of their own
+            state["settings"] = FitSettings(**{name: state.pop(name) for name in _SETTINGS_READ if name in state})
+        super().__setstate__(state)
 
     def fits_table(self, experiments=None) -> pd.DataFrame:
         """The table ``fits.csv`` holds: one row per experiment and formula (columns
@@ -524,9 +548,7 @@ class SpooledRun:
 
     def refit(self, experiments) -> list[CurveFit]:
         """The fits of ``experiments`` (TrompPoints) as the batch's workers made them."""
-        options = self.options
-        return fit_chunk(experiments, formulas=options.formulas, alpha=options.alpha, delta_max=options.delta_max,
-                         engine=options.engine, size_unit=options.size_unit, width=options.width)  # fmt: skip
+        return self.options.refit(experiments)
 
     def read_table(self, table: str, experiments=None) -> pd.DataFrame:
         """``table`` (``"fits"`` or ``"averages"``) read from the folder's CSV file (floats as
