@@ -125,7 +125,21 @@ def fit_experiments(
 
 
 def fit_with_settings(experiments, settings: FitSettings, *, client=None, progress=None) -> Workbench:
-    """:func:`fit_experiments` with its settings as one record (what the command line passes)."""
+    """:func:`fit_experiments` with its settings as one record (what the command line passes).
+
+    Parameters
+    ----------
+    experiments
+        As for :func:`fit_experiments`.
+    settings : FitSettings
+        The settings of the fit (:class:`tromplab.validation.FitSettings`), checked when made.
+    client, progress
+        As for :func:`fit_experiments`.
+
+    Returns
+    -------
+    Workbench
+    """
     return fit_prepared(prepared_batch(experiments, settings), client=client, progress=progress)
 
 
@@ -134,9 +148,7 @@ def fit_prepared(plan: PreparedBatch, *, client=None, progress=None) -> Workbenc
     settings = plan.settings
     with dask_client(scheduler=settings.scheduler, dask=settings.dask, client=client) as cluster:
         found = _fit_in_chunks(plan.fittable, plan.options, jobs=settings.jobs, client=cluster, progress=progress)
-        bench = batch_workbench(plan, tuple(found.fits), found.notes, found.intervals)
-        bench._keep_from_workers(found)
-    return bench
+        return batch_workbench(plan, tuple(found.fits), found.notes, found.intervals, made=found)
 
 
 class PreparedBatch(NamedTuple):
@@ -183,12 +195,18 @@ def prepared_batch(experiments, settings: FitSettings, *, in_pieces: bool = Fals
     return PreparedBatch(experiments, balances, tuple(chosen), settings, failures, fittable, options)
 
 
-def batch_workbench(plan: PreparedBatch, fits, notes, intervals) -> Workbench:
-    """The :class:`Workbench` of a fitted batch."""
-    inputs = plan.experiments if isinstance(plan.experiments, ExperimentsInPieces) else tuple(plan.experiments)
+def batch_workbench(plan: PreparedBatch, fits, notes, intervals, *, store=None, made=None) -> Workbench:
+    """The :class:`Workbench` of a fitted batch: its fits in memory with what the workers
+    ``made`` beside them (:class:`~tromplab.workbench.fanout.ChunkResults`), or read through ``store``."""
     return Workbench(
-        fits, plan.failures, plan.chosen, notes, plan.settings, plan.options.size_unit, inputs, plan.balances, intervals
-    )
+        fits, plan.failures, plan.chosen, notes, plan.settings, plan.options.size_unit, batch_inputs(plan), plan.balances,
+        intervals, store, made,
+    )  # fmt: skip
+
+
+def batch_inputs(plan: PreparedBatch):
+    """The points of the batch's experiments, as a :class:`Workbench` keeps them."""
+    return plan.experiments if isinstance(plan.experiments, ExperimentsInPieces) else tuple(plan.experiments)
 
 
 def check_formula_selection(formulas=None, extended: bool = False):

@@ -23,11 +23,12 @@ from dataclasses import fields, replace
 from ..options import AUTO_FIGURE_LIMIT
 from ..output.folder import check_folder_options, write_streamed_folder
 from ..validation import FitSettings
-from .batch import batch_workbench, fit_prepared, prepared_batch
-from .fanout import _map_work, _worker_count, chunk_size, chunks_of, dask_client
+from .batch import batch_inputs, batch_workbench, fit_prepared, prepared_batch
+from .fanout import chunk_size, chunks_of, dask_client, map_on_workers, worker_count
 from .inputs import FittableInPieces
-from .result import SpooledRun, Workbench
+from .result import Workbench
 from .spool import ChunkWork, Spool, SpoolOptions, spool_chunk
+from .store import FitsOnDisk
 
 # one logger for the batch layer: its lines read "tromplab.workbench: ..." whichever module makes them
 logger = logging.getLogger(__package__)
@@ -91,19 +92,19 @@ def fit_to_folder(experiments, outdir, *, figures: str = "auto", format: str = "
         return bench, saved
     with dask_client(scheduler=settings.scheduler, dask=settings.dask, client=client) as cluster, Spool(outdir) as spool:
         warming = _figure_modules_loading() if figures == "auto" and (cluster is not None or settings.jobs != 1) else None
-        bench = _streamed_batch(plan, spool, cluster, outdir, progress)
+        bench, store = _streamed_batch(plan, spool, cluster, outdir, progress)
         if warming is not None:
             warming.join()
         bench.check_fitted(source or "")
         started = time.perf_counter()
         tables = {
             "fits.csv": spool.table_writer("fits"),
-            "ranking.csv": spool.ranking_writer(bench._spooled.ranks, bench._equations, bench.ranking_table),
+            "ranking.csv": spool.ranking_writer(store.ranks, bench.equations, bench.ranking_table),
             "averages.csv": spool.table_writer("averages"),
         }
         written = write_streamed_folder(bench, outdir, tables, overview=spool.best_rows() if figures == "auto" else None)
-        bench._spooled.seconds["write the folder"] = time.perf_counter() - started
-        bench._spooled.written = tuple(written)
+        store.seconds["write the folder"] = time.perf_counter() - started
+        store.written = tuple(written)
     return bench, written
 
 
@@ -120,9 +121,9 @@ def _settings_of(settings: FitSettings | None, keywords: dict) -> FitSettings:
     return settings
 
 
-def _streamed_batch(plan, spool: Spool, cluster, outdir, progress) -> Workbench:
+def _streamed_batch(plan, spool: Spool, cluster, outdir, progress) -> tuple[Workbench, FitsOnDisk]:
     """Fit the chunks of ``plan`` on the workers, which write their rows into ``spool``; the
-    streamed :class:`Workbench` of the batch."""
+    streamed :class:`Workbench` of the batch and the store it reads its fits through."""
     seconds = {}
     started = time.perf_counter()
     fittable, failures = plan.fittable, plan.failures
@@ -137,7 +138,7 @@ def _streamed_batch(plan, spool: Spool, cluster, outdir, progress) -> Workbench:
         survey_probe=fittable.census.survey_probe if in_pieces else _survey_probe(plan.experiments),
     )
     fitted = tuple(fittable.census.fitted if in_pieces else (points.experiment for points in fittable))
-    size = chunk_size(len(fittable), workers=_worker_count(plan.settings.jobs, cluster))
+    size = chunk_size(len(fittable), workers=worker_count(plan.settings.jobs, cluster))
     n_chunks = -(-len(fittable) // size)
     logger.info(
         "fitting %d experiment(s) x %d formula(s) in %d chunk(s) of up to %d, streamed to %s (%s%s)",
@@ -151,7 +152,7 @@ def _streamed_batch(plan, spool: Spool, cluster, outdir, progress) -> Workbench:
     done, waited, kept = 0, 0.0, 0.0
     mark = time.perf_counter()
     work = _chunk_work(plan, size, n_chunks, shapes)
-    for summary in _map_work(
+    for summary in map_on_workers(
         spool_chunk, work, SpoolOptions(options, scratch, head), jobs=plan.settings.jobs, client=cluster, count=n_chunks
     ):
         now = time.perf_counter()
@@ -169,15 +170,14 @@ def _streamed_batch(plan, spool: Spool, cluster, outdir, progress) -> Workbench:
         kept += mark - now
     seconds.update({"wait for the workers": waited, "keep the chunks' summaries": kept})
     started = time.perf_counter()
-    bench = batch_workbench(plan, (), spool.notes(), None)
-    run = SpooledRun(
-        folder=outdir, options=options, fitted=fitted,
-        failed_fits=tuple(spool.failed_fits()), successes=sum(s.successes for s in spool.summaries),
+    store = FitsOnDisk(
+        folder=outdir, options=options, inputs=batch_inputs(plan), fitted=fitted,
+        failed_fits_made=tuple(spool.failed_fits()), successes=sum(s.successes for s in spool.summaries),
         ranks=spool.ranks(fitted), head=spool.head(), seconds=seconds,
     )  # fmt: skip
-    bench._attach_spooled_run(run)
+    bench = batch_workbench(plan, store.fits, spool.notes(), None, store=store)
     seconds["join the summaries"] = time.perf_counter() - started
-    return bench
+    return bench, store
 
 
 def _chunk_work(plan, size: int, n_chunks: int, shapes: collections.deque):
