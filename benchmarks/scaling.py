@@ -68,7 +68,7 @@ AT_OPTIMUM = 1e-6
 MIB = 1024.0 * 1024.0
 #: Modes of a run: worker processes, or a Dask cluster of two single-threaded workers.
 MODES = ("1 worker", "2 workers", "dask, 2 workers")
-#: The main process's steps (``Workbench._spooled.seconds`` plus the reading of the file).
+#: The main process's steps (``Workbench.store.seconds`` of a streamed batch, plus the reading of the file).
 STEPS = ("read", "prepare", "wait for the workers", "keep the chunks' summaries", "join the summaries", "write the folder")
 
 
@@ -199,7 +199,7 @@ def child_run(points, outdir, workers, scheduler, reading="pieces"):
     whose results stream) or whole (``"whole"``, what a caller holding the experiments does);
     prints JSON with the main process's steps and CPU time and the workers' CPU time."""
     from tromplab.loading.lab import read_experiments
-    from tromplab.workbench import ExperimentsInPieces, fit_to_folder
+    from tromplab.workbench import ExperimentsInPieces, FitsOnDisk, fit_to_folder
 
     main_before, workers_before = _cpu_seconds(resource.RUSAGE_SELF), _cpu_seconds(resource.RUSAGE_CHILDREN)
     started = time.perf_counter()
@@ -212,12 +212,12 @@ def child_run(points, outdir, workers, scheduler, reading="pieces"):
     peak_after_read = _peak_resident_mib()
     bench, _ = fit_to_folder(data, outdir, jobs=workers, scheduler=scheduler, source=points)
     seconds = time.perf_counter() - started
-    steps = {"read": read, **(bench._spooled.seconds if bench._spooled is not None else {})}
+    steps = {"read": read, **getattr(bench.store, "seconds", {})}
     print(
         json.dumps(
             {
                 "seconds_in_process": seconds,
-                "streamed": bench._spooled is not None,
+                "streamed": isinstance(bench.store, FitsOnDisk),
                 "main_cpu_s": _cpu_seconds(resource.RUSAGE_SELF) - main_before,
                 "workers_cpu_s": _cpu_seconds(resource.RUSAGE_CHILDREN) - workers_before,
                 "peak_main_mib": _peak_resident_mib(),

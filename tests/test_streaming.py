@@ -16,7 +16,7 @@ from tromplab.cli import fit as fit_command
 from tromplab.cli import main
 from tromplab.loading.lab import LabOptions, read_experiments
 from tromplab.loading.tables import read_table
-from tromplab.workbench import ExperimentsInPieces, fit_to_folder
+from tromplab.workbench import ExperimentsInPieces, FitsInMemory, FitsOnDisk, fit_to_folder
 from tromplab.workbench import fanout as fanout_module
 from tromplab.workbench import stream as stream_module
 
@@ -66,7 +66,7 @@ def test_a_streamed_batch_writes_the_folder_of_the_in_memory_path_byte_for_byte(
     data = _batch()
     kept, _ = fit_to_folder(data, tmp_path / "memory", stream=False, **options)
     streamed, written = fit_to_folder(data, tmp_path / "streamed", stream=True, **options)
-    assert streamed._spooled is not None and kept._spooled is None
+    assert isinstance(streamed.store, FitsOnDisk) and isinstance(kept.store, FitsInMemory)
     assert "overview.png" in written and "failures.csv" in written
     assert _same_folders(tmp_path / "memory", tmp_path / "streamed") == []
     assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []  # no scratch left
@@ -197,7 +197,7 @@ def test_per_experiment_figures_keep_the_fits_in_memory(tmp_path):
     counted): those figures need the fits, so the batch is not streamed whatever ``stream`` says."""
     data = _batch(19)  # 19 fitted and two failed: 21 experiments, per-experiment figures
     bench, written = fit_to_folder(data, tmp_path / "out", stream=True, formulas="plitt", jobs=1)
-    assert bench._spooled is None and "figures.csv" in written and "overview.png" not in written
+    assert isinstance(bench.store, FitsInMemory) and "figures.csv" in written and "overview.png" not in written
 
 
 def test_a_killed_streamed_run_leaves_only_a_scratch_folder_that_the_next_run_removes(tmp_path):
@@ -265,7 +265,7 @@ def test_a_points_file_read_in_pieces_streams_the_folder_of_the_whole_file(tmp_p
     kept, _ = fit_to_folder(str(path), tmp_path / "memory", stream=False, **options)
     source = ExperimentsInPieces(path, piece_rows=37)  # pieces that cut experiments, two chunks of 64 and more
     streamed, written = fit_to_folder(source, tmp_path / "streamed", stream=True, **options)
-    assert streamed._spooled is not None and "failures.csv" in written
+    assert isinstance(streamed.store, FitsOnDisk) and "failures.csv" in written
     assert _same_folders(tmp_path / "memory", tmp_path / "streamed") == []
     assert streamed.inputs is source  # not held in memory: a refit reads the file again
     assert streamed.fit("s5", "plitt").fit.ssr == kept.fit("s5", "plitt").fit.ssr
@@ -280,7 +280,7 @@ def test_a_lab_table_read_in_pieces_streams_the_folder_of_the_whole_table(tmp_pa
     kept, _ = fit_to_folder(read_experiments(path, lab), tmp_path / "memory", stream=False, **options)
     source = ExperimentsInPieces(path, lab, piece_rows=11)
     streamed, written = fit_to_folder(source, tmp_path / "streamed", stream=True, **options)
-    assert streamed._spooled is not None and "left_out.csv" in written
+    assert isinstance(streamed.store, FitsOnDisk) and "left_out.csv" in written
     assert _same_folders(tmp_path / "memory", tmp_path / "streamed") == []
     whole = {b.experiment: b for b in kept.balances}
     assert [(b.experiment, b.notes, b.left_out_summary()) for b in source.balances] == [
@@ -294,7 +294,8 @@ def test_a_source_read_in_pieces_is_read_whole_when_the_run_keeps_its_fits(tmp_p
     lab = LabOptions(size_unit="mm", min_feed_share=0.05)
     kept, _ = fit_to_folder(read_experiments(path, lab), tmp_path / "memory", formulas=FORMULAS, figures="best")
     again, _ = fit_to_folder(ExperimentsInPieces(path, lab), tmp_path / "pieces", formulas=FORMULAS, figures="best")
-    assert again._spooled is None and [b.experiment for b in again.balances] == [b.experiment for b in kept.balances]
+    assert isinstance(again.store, FitsInMemory)
+    assert [b.experiment for b in again.balances] == [b.experiment for b in kept.balances]
     assert _same_folders(tmp_path / "memory", tmp_path / "pieces") == []
 
 
@@ -349,7 +350,7 @@ def test_a_bad_row_deep_in_a_file_read_in_pieces_is_exit_1_with_nothing_written_
     monkeypatch.setattr(fit_command, "IN_PIECES_FROM_BYTES", 0)
     monkeypatch.setattr(stream_module, "STREAM_THRESHOLD", 10)
     fitted = []
-    monkeypatch.setattr(stream_module, "_spooled_batch", lambda *a: fitted.append(a))
+    monkeypatch.setattr(stream_module, "_streamed_batch", lambda *a: fitted.append(a))
     assert main([*args, "-o", str(tmp_path / "pieces")]) == 1
     pieces = capsys.readouterr()
     assert fitted == [] and sorted(p.name for p in tmp_path.iterdir()) == [path.name]
@@ -539,7 +540,7 @@ def test_a_streamed_batch_of_odd_names_in_many_chunks_writes_the_in_memory_folde
         monkeypatch.setattr(stream_module, "_workers_see", lambda cluster, folder: False)
     with caplog.at_level(logging.INFO, logger="tromplab.workbench"):
         streamed, written = fit_to_folder(data, tmp_path / "streamed", stream=True, **options)
-    assert len(streamed._spooled.ranks.pieces) == 5  # 40 fitted experiments in chunks of 8
+    assert len(streamed.store.ranks.pieces) == 5  # 40 fitted experiments in chunks of 8
     assert not any("in memory" in record.getMessage() for record in caplog.records)
     assert "overview.png" in written
     assert _same_folders(tmp_path / "memory", tmp_path / "streamed") == []

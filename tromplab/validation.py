@@ -27,11 +27,13 @@ tromplab.errors.OptionError: alpha takes a number, got the text '0.05'
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import operator
 from collections.abc import Callable
 
 from .errors import OptionError
+from .options import BOOTSTRAP_METHODS, DEFAULT_ALPHA, PARTITION_TO, RANK_BY
 
 #: Largest bootstrap request accepted: 100,000 resamples of nine formulas already take
 #: hours on a laptop (each resample is a full fit); more does not sharpen a 95 % interval.
@@ -357,3 +359,104 @@ def check_pct_solids_sd(value, option: str) -> float:
     """A standard deviation of a per cent solids above 0, up to :data:`MAX_PCT_SOLIDS_SD` percentage points."""
     number = check_positive(value, option)
     return _at_most(number, value, option, MAX_PCT_SOLIDS_SD, "a per cent solids lies in 0..100")
+
+
+# --- the settings of a batch fit -----------------------------------------------------------------
+@dataclasses.dataclass(frozen=True)
+class FitSettings:
+    """The settings of a batch fit (``tromplab fit``, :func:`tromplab.fit_experiments`), checked
+    once, here, and handed unchanged to the workers and the writers.
+
+    Built from the API's keywords (``FitSettings(alpha=0.1, ...)``) or from the command line's
+    parsed options (:meth:`from_options`); a field is the option of the same name (``rank_by``
+    is ``--rank-by``) with the same default.  A wrong value is an
+    :class:`~tromplab.errors.OptionError` naming the option.  What can only be checked against
+    the data (``delta_max`` against the sizes, the bootstrap's work against the number of fits,
+    ``formulas`` against the registry) is checked by the batch before any fit.
+
+    Attributes
+    ----------
+    formulas : str, iterable of ids or equation numbers, or None
+        The formulas to fit (None: the nine); a list is kept as a tuple.
+    extended, rank_extended : bool
+        Also fit the extended curves; rank them with the nine.
+    alpha : float
+        Significance level of the Fisher screen, in (0, 1).
+    delta_max : float or None
+        Largest feed size for the misplacement index (None: per experiment).
+    rank_by : str
+        ``"F"`` or ``"aicc"``: the criterion within an experiment.
+    size_unit : str
+        Unit of the sizes as given ("" when not given; the batch takes the loader's unit when
+        every experiment has the same one).
+    water_recovery : float or None
+        Share of the feed water to the underflow, in [0, 1), compared with the fitted bypass.
+    partition_to : str
+        ``"fine"`` or ``"coarse"``: the product whose partition the tables and figures show.
+    ci : float or None
+        Level of the interval columns, in (0, 1) (None: none).
+    bootstrap : int
+        Bootstrap resamples per fit (0: none), drawn by ``bootstrap_method`` from ``seed``.
+    bootstrap_method : str
+        ``"residuals"`` or ``"cases"``.
+    seed : int
+        Seed of the bootstrap, a whole number >= 0.
+    jobs : int or None
+        Worker processes (None or 0: all cores).  The command line's default is 0 (all cores),
+        the API's 1 (one process, as a library call should be unless asked): the field's
+        metadata ``cli_default`` says so.
+    scheduler : str or None
+        Address of a Dask scheduler to run the chunks on.
+    dask : str or None
+        ``"local"``: a local Dask cluster of two workers.
+    single_fits : bool
+        Fit one experiment and formula at a time with lmfit instead of the batched engine.
+    """
+
+    formulas: str | tuple | frozenset | None = None
+    extended: bool = False
+    alpha: float = DEFAULT_ALPHA
+    delta_max: float | None = None
+    rank_by: str = "F"
+    rank_extended: bool = False
+    size_unit: str = ""
+    water_recovery: float | None = None
+    partition_to: str = "fine"
+    ci: float | None = None
+    bootstrap: int = 0
+    bootstrap_method: str = "residuals"
+    seed: int = 0
+    jobs: int | None = dataclasses.field(default=1, metadata={"cli_default": 0})
+    scheduler: str | None = None
+    dask: str | None = None
+    single_fits: bool = False
+
+    def __post_init__(self) -> None:
+        if isinstance(self.formulas, list):
+            object.__setattr__(self, "formulas", tuple(self.formulas))
+        check_probability(self.alpha, "alpha")
+        check_optional(check_count, self.jobs, "jobs", minimum=0, maximum=MAX_JOBS)
+        if self.partition_to not in PARTITION_TO:
+            raise OptionError("partition_to", f"must be 'fine' or 'coarse', got {self.partition_to!r}")
+        check_optional(check_probability, self.ci, "ci")
+        check_seed(self.seed, "seed")
+        if self.rank_by not in RANK_BY:
+            raise OptionError("rank_by", f"must be one of {', '.join(sorted(RANK_BY))}, got {self.rank_by!r}")
+        if self.bootstrap_method not in BOOTSTRAP_METHODS:
+            raise OptionError("bootstrap_method", f"must be one of {', '.join(BOOTSTRAP_METHODS)}, got {self.bootstrap_method!r}")
+        check_bootstrap(self.bootstrap, "bootstrap")
+        object.__setattr__(self, "water_recovery", check_optional(check_water_recovery, self.water_recovery, "water_recovery"))
+
+    @property
+    def engine(self) -> bool:
+        """Whether the batched engine fits (else one lmfit fit per experiment and formula)."""
+        return not self.single_fits
+
+    @classmethod
+    def from_options(cls, options, **overrides) -> FitSettings:
+        """The settings of the command line's parsed ``options`` (an ``argparse.Namespace``):
+        each field from the option of its name, a field the command has no option for at its
+        default; ``overrides`` replace fields (``ci=None`` where a command's ``--ci`` means
+        something else)."""
+        given = {field.name: getattr(options, field.name, field.default) for field in dataclasses.fields(cls)}
+        return cls(**{**given, **overrides})

@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING
 from ..notices import level_of
 from ..options import AUTO_FIGURE_LIMIT, FIGURE_CHOICES, TABLE_FORMATS
 from ..output.outputs import check_output_file, check_output_folder
+from ..validation import FitSettings
 from .option_groups import READERS, add_partition_to, add_scale_options, add_uncertainty_options, lab_options
 from .printing import format_fits, print_notices, report_failures
 from .startup import print_result, progress_bars, require
@@ -56,7 +57,7 @@ def _run_fit(args) -> int:
     from ..loading.tables import check_input_file
     from ..workbench import ExperimentsInPieces, check_formula_selection, fit_to_folder
 
-    formulas = check_formula_selection(args.formulas, args.extended)
+    check_formula_selection(args.formulas, args.extended)  # refused before the input is read
     check_input_file(args.input)
     if args.outdir.suffix.lower() == ".xlsx":
         check_output_file(args.outdir, inputs=[args.input], option="--outdir")
@@ -71,7 +72,7 @@ def _run_fit(args) -> int:
         experiments = read_experiments(args.input, lab_options(args))
     with progress_bars(quiet=args.quiet) as progress:
         bench, written = fit_to_folder(experiments, args.outdir, figures=args.figures, format=args.format, excel=args.excel,
-                                       source=args.input, **fit_keywords(args, formulas), progress=progress)  # fmt: skip
+                                       source=args.input, settings=FitSettings.from_options(args), progress=progress)  # fmt: skip
     _print_fits(bench, args)
     _print_written(list(written.values()), args.outdir)
     notices = bench.notices()
@@ -116,28 +117,6 @@ def reads_in_pieces(args) -> bool:
         and path.suffix.lower() not in EXCEL_SUFFIXES
         and path.is_file()
         and path.stat().st_size >= IN_PIECES_FROM_BYTES
-    )
-
-
-def fit_keywords(args, formulas) -> dict:
-    """The keywords of :func:`tromplab.fit_experiments` from the options of the same names."""
-    return dict(
-        formulas=formulas,
-        alpha=args.alpha,
-        delta_max=args.delta_max,
-        rank_by=args.rank_by,
-        rank_extended=args.rank_extended,
-        size_unit=args.size_unit,
-        water_recovery=args.water_recovery,
-        partition_to=args.partition_to,
-        ci=getattr(args, "ci", None),
-        bootstrap=getattr(args, "bootstrap", 0),
-        bootstrap_method=getattr(args, "bootstrap_method", "residuals"),
-        seed=getattr(args, "seed", 0),
-        jobs=getattr(args, "jobs", 1) or None,
-        scheduler=getattr(args, "scheduler", None),
-        dask=getattr(args, "dask", None),
-        single_fits=getattr(args, "single_fits", False),
     )
 
 

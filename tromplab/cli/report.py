@@ -12,8 +12,7 @@ from pathlib import Path
 from ..errors import InputError, OptionError
 from ..options import DEFAULT_MARGIN
 from ..output.outputs import check_output_file, write_files
-from ..validation import check_probability, check_share, cli_type
-from .fit import fit_keywords
+from ..validation import FitSettings, check_probability, check_share, cli_type
 from .option_groups import READERS, add_jobs_option, add_partition_to, lab_options
 from .printing import print_notices, report_failures
 from .startup import print_result, progress_bars
@@ -44,15 +43,15 @@ def add_report(commands, groups) -> None:
 def _run_report(args) -> int:
     from ..loading.lab import read_experiments
     from ..loading.tables import check_input_file
-    from ..workbench import check_formula_selection, fit_experiments
+    from ..workbench import check_formula_selection, fit_with_settings
 
-    formulas = check_formula_selection(args.formulas, args.extended)
+    check_formula_selection(args.formulas, args.extended)  # refused before the input is read
     check_input_file(args.input)
     check_output_file(args.output, inputs=[args.input])
     experiments = read_experiments(args.input, lab_options(args))
-    keywords = {**fit_keywords(args, formulas), "ci": None}  # the report's --ci is the level of its tables, not interval columns
+    settings = FitSettings.from_options(args, ci=None)  # the report's --ci is the level of its tables, not interval columns
     with progress_bars(quiet=args.quiet) as progress:
-        bench = fit_experiments(experiments, **keywords, progress=progress)
+        bench = fit_with_settings(experiments, settings, progress=progress)
     bench.check_fitted(args.input)
     args.output.parent.mkdir(parents=True, exist_ok=True)
     written = bench.write_report(args.output, level=args.ci, title=args.title, jobs=args.jobs)

@@ -4,7 +4,8 @@
 Modules, top first (each imports only from those below it): ``stream``
 (:func:`fit_to_folder`: fit and write the results folder, a large batch streamed to disk),
 ``batch`` (:func:`fit_experiments`), ``result`` (:class:`Workbench`, :func:`load`,
-:func:`model_averages`), ``fanout`` (chunks on a process pool or a Dask cluster) and
+:func:`model_averages`), ``store`` (where a workbench reads its fits: :class:`FitStore`, in
+memory or read back from a streamed folder), ``fanout`` (chunks on a process pool or a Dask cluster) and
 ``spool`` (the chunks' rows written to disk by the workers), ``worker`` (what a worker does
 with one chunk), then ``gc_control``, ``averages``, ``tables`` (the fits table) and
 ``inputs`` (the experiments a batch accepts).  Import the names below from
@@ -12,10 +13,11 @@ with one chunk), then ``gc_control``, ``averages``, ``tables`` (the fits table) 
 """
 
 from .averages import averages_level
-from .batch import check_formula_selection, fit_experiments, formula_keys, print_progress
+from .batch import check_formula_selection, fit_experiments, fit_with_settings, formula_keys, print_progress
 from .fanout import CHUNK_SIZE, DASK_WORKER_CONFIG, MAX_CHUNK_SIZE, ChunkResults, chunked, dask_client
 from .inputs import ACCEPTED_EXPERIMENTS, ExperimentsInPieces, data_notes
 from .result import Workbench, load, model_averages
+from .store import FitsInMemory, FitsOnDisk, FitStore
 from .stream import STREAM_THRESHOLD, fit_to_folder
 from .tables import by_experiment, completed_fit_rows, fit_row_settings, fit_rows_frame, output_view, ranked_among
 from .worker import ChunkOptions, FittedChunk, derive, fit_chunk, work_on_chunk
@@ -31,6 +33,9 @@ __all__ = [
     "ChunkOptions",
     "ChunkResults",
     "ExperimentsInPieces",
+    "FitsInMemory",
+    "FitsOnDisk",
+    "FitStore",
     "FittedChunk",
     "Workbench",
     "averages_level",
@@ -47,6 +52,7 @@ __all__ = [
     "fit_row_settings",
     "fit_rows_frame",
     "fit_to_folder",
+    "fit_with_settings",
     "formula_keys",
     "load",
     "model_averages",

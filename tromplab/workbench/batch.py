@@ -15,20 +15,9 @@ from typing import NamedTuple
 from ..curves.curve_fit import check_delta_max
 from ..curves.engine import check_bootstrap_request
 from ..curves.formulas import select_formulas
-from ..curves.ranking import RANK_BY
 from ..curves.screening import DEFAULT_ALPHA
 from ..errors import OptionError
-from ..output.views import check_partition_to
-from ..statistics.uncertainty import BOOTSTRAP_METHODS
-from ..validation import (
-    MAX_JOBS,
-    check_bootstrap,
-    check_count,
-    check_optional,
-    check_probability,
-    check_seed,
-    check_water_recovery,
-)
+from ..validation import FitSettings
 from .fanout import _fit_in_chunks, dask_client
 from .inputs import ExperimentsInPieces, FittableInPieces, _data_size_unit, _points_and_balances, _screenable
 from .result import Workbench
@@ -126,80 +115,98 @@ def fit_experiments(
     >>> bench.ranking_table()[["formula", "place"]].values.tolist()
     [['plitt', 1], ['lognormal', 2], ['molerus', 3]]
     """
-    given = locals()
-    return fit_prepared(prepared_batch(given), given)
+    settings = FitSettings(
+        formulas=formulas, extended=extended, alpha=alpha, delta_max=delta_max, rank_by=rank_by,
+        rank_extended=rank_extended, size_unit=size_unit, water_recovery=water_recovery, partition_to=partition_to,
+        ci=ci, bootstrap=bootstrap, bootstrap_method=bootstrap_method, seed=seed, jobs=jobs, scheduler=scheduler,
+        dask=dask, single_fits=single_fits,
+    )  # fmt: skip
+    return fit_with_settings(experiments, settings, client=client, progress=progress)
 
 
-def fit_prepared(plan, given: dict) -> Workbench:
-    """:func:`fit_experiments` of a :func:`prepared_batch` (``given``: its keywords), the fits kept in memory."""
-    with dask_client(scheduler=given["scheduler"], dask=given["dask"], client=given["client"]) as cluster:
-        found = _fit_in_chunks(plan.fittable, plan.options, jobs=given["jobs"], client=cluster, progress=given["progress"])
-        bench = batch_workbench(plan, given, tuple(found.fits), found.notes, found.intervals)
-        bench._keep_from_workers(found)
-    return bench
+def fit_with_settings(experiments, settings: FitSettings, *, client=None, progress=None) -> Workbench:
+    """:func:`fit_experiments` with its settings as one record (what the command line passes).
+
+    Parameters
+    ----------
+    experiments
+        As for :func:`fit_experiments`.
+    settings : FitSettings
+        The settings of the fit (:class:`tromplab.validation.FitSettings`), checked when made.
+    client, progress
+        As for :func:`fit_experiments`.
+
+    Returns
+    -------
+    Workbench
+    """
+    return fit_prepared(prepared_batch(experiments, settings), client=client, progress=progress)
+
+
+def fit_prepared(plan: PreparedBatch, *, client=None, progress=None) -> Workbench:
+    """:func:`fit_experiments` of a :func:`prepared_batch`, the fits kept in memory."""
+    settings = plan.settings
+    with dask_client(scheduler=settings.scheduler, dask=settings.dask, client=client) as cluster:
+        found = _fit_in_chunks(plan.fittable, plan.options, jobs=settings.jobs, client=cluster, progress=progress)
+        return batch_workbench(plan, tuple(found.fits), found.notes, found.intervals, made=found)
 
 
 class PreparedBatch(NamedTuple):
     """A batch checked and ready to fit (:func:`prepared_batch`): its experiments and mass
-    balances, the chosen formulas, the checked settings, the experiments the screen cannot
-    judge (``failures``), the others (``fittable``) and the options of every chunk."""
+    balances, the chosen formulas, its settings, the experiments the screen cannot judge
+    (``failures``), the others (``fittable``) and the options of every chunk (the settings
+    with what the batch adds: the formulas' ids, the unit of the sizes, ...)."""
 
     experiments: list
     balances: tuple
     chosen: tuple
-    settings: dict
+    settings: FitSettings
     failures: dict
     fittable: list
     options: ChunkOptions
 
 
-def prepared_batch(given: dict, *, in_pieces: bool = False) -> PreparedBatch:
-    """The keywords of :func:`fit_experiments` (``given``, its ``locals()``) read and checked,
-    before any fit (an :class:`~tromplab.errors.OptionError` names a wrong option).  With
-    ``in_pieces``, an :class:`ExperimentsInPieces` is read once for its :func:`census` and
-    stays on disk: its ``experiments`` is the source and its ``fittable`` a :class:`FittableInPieces`."""
-    if in_pieces and isinstance(given["experiments"], ExperimentsInPieces):
-        experiments, found = given["experiments"], given["experiments"].census()
+def prepared_batch(experiments, settings: FitSettings, *, in_pieces: bool = False) -> PreparedBatch:
+    """``experiments`` read and checked against ``settings`` (what only the data can say:
+    ``delta_max`` against the sizes, the bootstrap's work against the number of fits, the
+    formulas against the registry), before any fit (an :class:`~tromplab.errors.OptionError`
+    names a wrong option).  With ``in_pieces``, an :class:`ExperimentsInPieces` is read once for
+    its :func:`census` and stays on disk: its ``experiments`` is the source and its ``fittable``
+    a :class:`FittableInPieces`."""
+    if in_pieces and isinstance(experiments, ExperimentsInPieces):
+        found = experiments.census()
         balances = tuple(experiments.balances)
         checked, n_experiments = list(found.smallest), found.total
-        size_unit = next(iter(found.units)) if len(found.units) == 1 else given["size_unit"]
+        size_unit = next(iter(found.units)) if len(found.units) == 1 else settings.size_unit
         failures, fittable = found.failures, FittableInPieces(experiments, found)
     else:
-        experiments, balances = _points_and_balances(given["experiments"])
+        experiments, balances = _points_and_balances(experiments)
         checked, n_experiments = experiments, len(experiments)
-        size_unit = _data_size_unit(experiments, given["size_unit"])
+        size_unit = _data_size_unit(experiments, settings.size_unit)
         failures, fittable = _screenable(experiments)
-    chosen = select_formulas(check_formula_selection(given["formulas"], given["extended"]))
-    n_fits = n_experiments * len(chosen)
-    settings = _checked_settings({**given, "experiments": checked}, n_fits=n_fits, size_unit=size_unit)
+    chosen = select_formulas(check_formula_selection(settings.formulas, settings.extended))
+    _check_against_data(settings, checked, n_fits=n_experiments * len(chosen))
     options = ChunkOptions(
+        settings=settings,
         formulas=tuple(f.id for f in chosen),
-        ranked=tuple(f.id for f in ranked_among(chosen, given["rank_extended"])),
-        alpha=settings["alpha"],
-        delta_max=settings["delta_max"],
-        engine=settings["engine"],
-        size_unit=settings["size_unit"],
-        ci=given["ci"],
-        bootstrap=given["bootstrap"],
-        bootstrap_method=given["bootstrap_method"],
-        seed=given["seed"],
-        rank_by=given["rank_by"],
-        water_recovery=settings["water_recovery"],
-        partition_to=given["partition_to"],
+        ranked=tuple(f.id for f in ranked_among(chosen, settings.rank_extended)),
+        size_unit=size_unit,
     )
     return PreparedBatch(experiments, balances, tuple(chosen), settings, failures, fittable, options)
 
 
-def batch_workbench(plan: PreparedBatch, given: dict, fits, notes, intervals) -> Workbench:
-    """The :class:`Workbench` of a fitted batch (``given``: the keywords of :func:`fit_experiments`)."""
-    settings = plan.settings
+def batch_workbench(plan: PreparedBatch, fits, notes, intervals, *, store=None, made=None) -> Workbench:
+    """The :class:`Workbench` of a fitted batch: its fits in memory with what the workers
+    ``made`` beside them (:class:`~tromplab.workbench.fanout.ChunkResults`), or read through ``store``."""
     return Workbench(
-        fits, plan.failures, plan.chosen, given["rank_by"], given["alpha"], given["rank_extended"], notes,
-        settings["water_recovery"], given["ci"], given["bootstrap"], given["bootstrap_method"], given["seed"],
-        given["partition_to"], settings["size_unit"],
-        plan.experiments if isinstance(plan.experiments, ExperimentsInPieces) else tuple(plan.experiments),
-        plan.balances, intervals,
+        fits, plan.failures, plan.chosen, notes, plan.settings, plan.options.size_unit, batch_inputs(plan), plan.balances,
+        intervals, store, made,
     )  # fmt: skip
+
+
+def batch_inputs(plan: PreparedBatch):
+    """The points of the batch's experiments, as a :class:`Workbench` keeps them."""
+    return plan.experiments if isinstance(plan.experiments, ExperimentsInPieces) else tuple(plan.experiments)
 
 
 def check_formula_selection(formulas=None, extended: bool = False):
@@ -227,32 +234,17 @@ def formula_keys(formulas=None, extended: bool = False):
     return keys if "extended" in keys else f"{keys},extended"
 
 
-def _checked_settings(given: dict, *, n_fits: int, size_unit: str) -> dict:
-    """The options of :func:`fit_experiments` checked (an :class:`~tromplab.errors.OptionError`
-    names the option), before any fitting."""
-    check_probability(given["alpha"], "alpha")
-    if given["delta_max"] is not None:  # refused before any fitting, not in each fit
-        check_delta_max(given["delta_max"], given["experiments"])
-    check_optional(check_count, given["jobs"], "jobs", minimum=0, maximum=MAX_JOBS)
-    check_partition_to(given["partition_to"])
-    check_optional(check_probability, given["ci"], "ci")
-    check_seed(given["seed"], "seed")
-    if given["rank_by"] not in RANK_BY:
-        raise OptionError("rank_by", f"must be one of {', '.join(sorted(RANK_BY))}, got {given['rank_by']!r}")
-    if given["bootstrap_method"] not in BOOTSTRAP_METHODS:
-        raise OptionError("bootstrap_method", f"must be one of {', '.join(BOOTSTRAP_METHODS)}, got {given['bootstrap_method']!r}")
-    if check_bootstrap(given["bootstrap"], "bootstrap"):
+def _check_against_data(settings: FitSettings, experiments, *, n_fits: int) -> None:
+    """What of ``settings`` only the data can check: ``delta_max`` against the sizes of
+    ``experiments``, the bootstrap's work against the ``n_fits`` fits (an
+    :class:`~tromplab.errors.OptionError` names the option), before any fitting."""
+    if settings.delta_max is not None:  # refused before any fitting, not in each fit
+        check_delta_max(settings.delta_max, experiments)
+    if settings.bootstrap:
         try:
-            check_bootstrap_request(given["bootstrap"], n_fits=n_fits)
+            check_bootstrap_request(settings.bootstrap, n_fits=n_fits)
         except ValueError as error:  # too much work for these data, said before any fitting
             raise OptionError("bootstrap", str(error).removeprefix("--bootstrap ")) from None
-    return {
-        "alpha": given["alpha"],
-        "delta_max": given["delta_max"],
-        "engine": not given["single_fits"],
-        "size_unit": size_unit,
-        "water_recovery": check_optional(check_water_recovery, given["water_recovery"], "water_recovery"),
-    }
 
 
 def print_progress(i: int, total: int, experiment: str) -> None:

@@ -72,7 +72,7 @@ def chunks_of(items: Iterable, size: int) -> Iterator[list]:
         yield chunk
 
 
-def _worker_count(jobs, client) -> int:
+def worker_count(jobs, client) -> int:
     """Workers the chunks will run on: the Dask cluster's threads, else ``jobs`` (None or 0: all cores)."""
     if client is not None:
         return max(1, sum(client.nthreads().values()))
@@ -93,7 +93,7 @@ class ChunkResults(NamedTuple):
 
 
 def _fit_in_chunks(fittable: Sequence[TrompPoints], options: ChunkOptions, *, jobs, client, progress) -> ChunkResults:
-    """The fits, data notes, interval columns (with ``options.ci`` or ``options.bootstrap``) and
+    """The fits, data notes, interval columns (with ``options.settings.ci`` or ``options.settings.bootstrap``) and
     model averages of ``fittable``, chunk by chunk in order, wherever the chunks run (the
     averages only where there are workers: in one process they are made when first asked
     for).  Where there are workers, each also formats its rows of ``fits.csv`` and
@@ -104,7 +104,7 @@ def _fit_in_chunks(fittable: Sequence[TrompPoints], options: ChunkOptions, *, jo
     seed included) depend on that fit only, so the table is the same for any number of workers.
     ``progress`` hears of each chunk twice: its fits, then (labels ``"intervals: ..."``) its intervals.
     """
-    chunks = chunked(fittable, workers=_worker_count(jobs, client))
+    chunks = chunked(fittable, workers=worker_count(jobs, client))
     options = replace(
         options,
         width=max((points.n for points in fittable), default=0),  # one padding for every chunk
@@ -195,10 +195,10 @@ def dask_client(*, scheduler: str | None = None, dask: str | None = None, client
 
 def _map_chunks(chunks, options: ChunkOptions, *, jobs, client) -> Iterator[FittedChunk]:
     """Yield what :func:`work_on_chunk` makes of each chunk, in order: in process, in a process pool, or on Dask."""
-    yield from _map_work(work_on_chunk, chunks, options, jobs=jobs, client=client)
+    yield from map_on_workers(work_on_chunk, chunks, options, jobs=jobs, client=client)
 
 
-def _map_work(function, chunks, argument, *, jobs, client, count: int | None = None):
+def map_on_workers(function, chunks, argument, *, jobs, client, count: int | None = None):
     """Yield ``function(argument, chunk)`` for each chunk, in order: in process, in a
     process pool of ``jobs`` workers (None: all cores), or on a Dask client.  ``chunks`` may
     be an iterator (``count``: how many it yields): a chunk is taken from it when a worker
@@ -213,7 +213,7 @@ def _map_work(function, chunks, argument, *, jobs, client, count: int | None = N
                 chunk = pickle.dumps(chunk, protocol=pickle.HIGHEST_PROTOCOL)
                 return client.submit(_call_pickled, pickled_work, chunk, pure=False)
 
-            ahead = CHUNKS_IN_FLIGHT * _worker_count(jobs, client)
+            ahead = CHUNKS_IN_FLIGHT * worker_count(jobs, client)
         else:
             workers = min(jobs or os.cpu_count() or 1, count)
             if workers <= 1:

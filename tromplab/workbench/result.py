@@ -8,40 +8,46 @@ from __future__ import annotations
 import functools
 import logging
 import os
-import shutil
 import warnings
-from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import InitVar, dataclass, field
 from functools import cached_property
-from pathlib import Path
 
 import pandas as pd
 
 from ..curves.curve_fit import CurveFit
 from ..curves.formulas import Formula
-from ..curves.ranking import fit_verdicts, rank_formulas
-from ..curves.screening import DEFAULT_ALPHA
-from ..errors import InputError, OptionError, expect_kind
+from ..curves.ranking import fit_verdicts
+from ..errors import InputError, expect_kind
 from ..loading.lab import MassBalance
 from ..loading.points import TrompPoints
 from ..loading.surveys import with_survey_columns
 from ..notices import Notice, notice_table
 from ..output.csv_parts import CsvPart
-from ..output.folder import write_results_folder
-from ..output.outputs import replace_folder
 from ..output.plotting import plot_tromp_fits
 from ..output.report import build_report, write_report
 from ..output.results import experiment_summary, load_workbench, summary_text, workbench_html, workbench_repr
 from ..results_contract import ResultContract
-from ..validation import MAX_JOBS, check_count, check_optional, check_probability
+from ..validation import MAX_JOBS, FitSettings, check_count, check_optional, check_probability
 from .averages import _averaged_groups, _averages_of_chunk, _averages_table, averages_level
-from .fanout import MAX_CHUNK_SIZE, ChunkResults, _map_work, _worker_count, chunked
+from .fanout import ChunkResults, chunked, map_on_workers, worker_count
 from .inputs import batch_notices
-from .tables import by_experiment, completed_fit_rows, fit_row_settings, fit_rows_frame, output_view, ranked_among
-from .worker import ChunkOptions, completed_rows, fit_chunk
+from .store import FitsInMemory, FitStore
+from .tables import ranked_among
 
 # one logger for the batch layer: its lines read "tromplab.workbench: ..." whichever module makes them
 logger = logging.getLogger(__package__)
+
+
+#: The settings a :class:`Workbench` offers as attributes (its fields of their own before they were one record).
+_SETTINGS_READ = ("rank_by", "alpha", "rank_extended", "water_recovery", "ci", "bootstrap", "bootstrap_method", "seed",
+                  "partition_to")  # fmt: skip
+
+
+def _from_settings(name: str) -> property:
+    """A read-only attribute of a :class:`Workbench`: the field ``name`` of its ``settings``."""
+    return property(
+        lambda bench: getattr(bench.settings, name), doc=f"``settings.{name}`` (:class:`~tromplab.validation.FitSettings`)."
+    )
 
 
 @dataclass(frozen=True)
@@ -53,10 +59,16 @@ class Workbench(ResultContract):
     :meth:`report` the text, :meth:`write_report` the HTML report, :meth:`save` the folder
     ``tromplab fit`` writes.
 
-    A batch streamed to disk (:func:`~tromplab.workbench.fit_to_folder`, from
-    :data:`~tromplab.workbench.STREAM_THRESHOLD` experiments) keeps no fit: its ``fits`` is a
+    The workbench reads its fits and their tables through its ``store``
+    (:class:`~tromplab.workbench.store.FitStore`): every fit in memory
+    (:class:`~tromplab.workbench.store.FitsInMemory`), or, for a batch streamed to disk
+    (:func:`~tromplab.workbench.fit_to_folder`, from :data:`~tromplab.workbench.STREAM_THRESHOLD`
+    experiments), none (:class:`~tromplab.workbench.store.FitsOnDisk`): its ``fits`` is a
     sequence that refits the experiments when read, its tables come from its results folder,
-    and :meth:`fit` refits one experiment (docs/performance.md, "Large batches").
+    and :meth:`fit` refits one experiment (docs/performance.md, "Large batches").  The batch
+    layer makes a workbench with ``made``, what the workers made beside the fits (the rows of
+    the fits table, the model averages at the batch's level, the CSV text of both tables),
+    which the store and the workbench keep instead of making them again.
 
     Attributes
     ----------
@@ -66,14 +78,17 @@ class Workbench(ResultContract):
         Experiment -> why it could not be fitted at all.
     formulas : tuple of Formula
         The formulas fitted.
+    notes : dict
+        Experiment -> notes on its data (classes left out, inferred columns).
+    settings : FitSettings
+        The settings the batch was fitted with (:class:`tromplab.validation.FitSettings`);
+        the attributes ``rank_by`` to ``partition_to`` below read them.
     rank_by : str
         The criterion of the ranking (``"F"``, ``"aicc"``, ...).
     alpha : float
         Significance level of the Fisher screen.
     rank_extended : bool
         Whether the extended curves are ranked with the paper's nine.
-    notes : dict
-        Experiment -> notes on its data (classes left out, inferred columns).
     water_recovery : float or None
         Water split to the underflow, compared with the fitted bypass (hydrocyclones).
     ci : float or None
@@ -87,17 +102,22 @@ class Workbench(ResultContract):
     partition_to : str
         ``"fine"`` or ``"coarse"``: the product the tables' partition refers to.
     size_unit : str
-        Unit of the sizes ("" when unknown).
+        Unit of the sizes ("" when unknown): the loader's when every experiment has the same
+        one, else ``settings.size_unit``.
     inputs : tuple of TrompPoints
         The points of every experiment, as fitted.
     balances : tuple of MassBalance
         The lab balances the points came from (empty for points input).
     intervals : pandas.DataFrame or None
         The interval columns of the fits table (None without ``ci`` or ``bootstrap``).
+    store : FitStore
+        Where the fits and their tables are read (default: :class:`FitsInMemory` of ``fits``).
     ranked_formulas : tuple of Formula
         The formulas the ranking covers.
     experiments : list of str
         The experiments, in batch order.
+    equations : dict
+        Formula id -> equation number, of the batch's formulas.
     n_successful : int
         The number of successful fits (of a streamed batch too, without refitting).
     """
@@ -105,20 +125,41 @@ class Workbench(ResultContract):
     fits: tuple[CurveFit, ...]
     failures: dict[str, str] = field(default_factory=dict)
     formulas: tuple[Formula, ...] = ()
-    rank_by: str = "F"
-    alpha: float = DEFAULT_ALPHA
-    rank_extended: bool = False
     notes: dict[str, tuple[str, ...]] = field(default_factory=dict)
-    water_recovery: float | None = None
-    ci: float | None = None
-    bootstrap: int = 0
-    bootstrap_method: str = "residuals"
-    seed: int = 0
-    partition_to: str = "fine"
+    settings: FitSettings = field(default_factory=FitSettings)
     size_unit: str = ""
     inputs: tuple[TrompPoints, ...] = field(default=(), repr=False)
     balances: tuple[MassBalance, ...] = field(default=(), repr=False)
     intervals: pd.DataFrame | None = field(default=None, repr=False, compare=False)
+    store: FitStore | None = field(default=None, repr=False, compare=False)
+    made: InitVar[ChunkResults | None] = None
+
+    def __post_init__(self, made: ChunkResults | None) -> None:
+        if self.store is None:
+            object.__setattr__(self, "store", FitsInMemory(self, None if made is None else made.rows))
+        if made is not None and made.averages is not None:
+            self._keep_averages(averages_level(self.ci), made.averages)
+        if made is not None and made.csv_parts:
+            self.__dict__["_csv_parts"] = made.csv_parts
+
+    # the settings the batch was fitted with, read from its record
+    rank_by = _from_settings("rank_by")
+    alpha = _from_settings("alpha")
+    rank_extended = _from_settings("rank_extended")
+    water_recovery = _from_settings("water_recovery")
+    ci = _from_settings("ci")
+    bootstrap = _from_settings("bootstrap")
+    bootstrap_method = _from_settings("bootstrap_method")
+    seed = _from_settings("seed")
+    partition_to = _from_settings("partition_to")
+
+    def __setstate__(self, state: dict) -> None:
+        state = dict(state)
+        if "settings" not in state:  # pickled when the settings were fields of their own
+            state["settings"] = FitSettings(**{name: state.pop(name) for name in _SETTINGS_READ if name in state})
+        super().__setstate__(state)
+        if self.__dict__.get("store") is None:  # pickled before the fits were read through a store
+            object.__setattr__(self, "store", FitsInMemory(self, state.get("_fit_rows")))
 
     def fits_table(self, experiments=None) -> pd.DataFrame:
         """The table ``fits.csv`` holds: one row per experiment and formula (columns
@@ -132,29 +173,7 @@ class Workbench(ResultContract):
         A streamed batch (:func:`~tromplab.workbench.fit_to_folder`) reads the table from
         its folder's ``fits.csv`` (the types a CSV reader gives), except the rows of the
         first experiments, which it keeps as they were made."""
-        run = self._spooled
-        wanted = None if experiments is None else list(experiments)
-        if run is None:
-            table = self._output_frame
-        elif wanted is not None and run.head is not None and set(wanted) <= set(run.head[1]["experiment"]):
-            table = run.head[1]
-        else:
-            return run.read_table("fits", wanted)
-        return (table if wanted is None else table[table["experiment"].isin(wanted)]).copy()
-
-    @cached_property
-    def _output_frame(self) -> pd.DataFrame:
-        return output_view(self._fits_frame, self.intervals, self.inputs, self.partition_to)
-
-    @cached_property
-    def _fits_frame(self) -> pd.DataFrame:
-        # built once: the ranking, the best fits, the CLI and the report all read it; the rows
-        # of the fits were made by the workers that fitted them (_keep_fit_rows) where there were
-        made = self.__dict__.pop("_fit_rows", None)
-        settings = fit_row_settings(self.formulas, self.rank_extended, self.rank_by, self.water_recovery)
-        return completed_fit_rows(
-            fit_rows_frame(self.fits) if made is None else made, self.fits, **settings, failures=self.failures
-        )
+        return self.store.fits_table(None if experiments is None else list(experiments))
 
     @property
     def ranked_formulas(self) -> tuple[Formula, ...]:
@@ -164,59 +183,44 @@ class Workbench(ResultContract):
     def best_fit(self, experiment: str) -> CurveFit | None:
         """The top-ranked successful fit of an experiment; among fits sharing the top rank
         (indistinguishable by the tie rule) the one with the lowest sum of squares."""
-        best = (self._best_formulas if self._spooled is None else _best_formulas_of(self._rows_of(experiment))).get(experiment)
+        best = self.store.best_formula(experiment)
         if best is None:
             return None
         return next(f for f in self.fits_of(experiment) if f.formula.id == best)
 
-    @cached_property
-    def _best_formulas(self) -> dict[str, str]:
-        # one pass over the table instead of a scan per experiment
-        return _best_formulas_of(self._fits_frame)
-
     def top_ranked(self, experiment: str) -> pd.DataFrame:
         """Rows of the fits table that share the top rank of ``experiment`` (several when tied)."""
-        table = self._fits_frame if self._spooled is None else self._rows_of(experiment)
-        top = (self._top_rows if self._spooled is None else _top_rows_of(table)).get(experiment)
-        return table.iloc[0:0] if top is None else top
-
-    @cached_property
-    def _top_rows(self) -> dict[str, pd.DataFrame]:
-        # grouped once: a scan of the whole table per experiment is quadratic in the batch
-        return _top_rows_of(self._fits_frame)
+        top = self.store.top_rows(experiment)
+        return self.store.experiment_rows(experiment).iloc[0:0] if top is None else top
 
     def ranking_table(self, *, per_experiment: bool = True) -> pd.DataFrame:
         """Ranks per experiment, points and place per formula (failed experiments left out);
         with ``per_experiment=False`` only the equation, formula, points and place, which a
         streamed batch makes from its chunks' points without the table of every rank."""
-        if per_experiment or self._spooled is None or self._spooled.ranks is None:
-            table = self._ranking_frame
-            return (table if per_experiment else table[["equation", "formula", "points", "place"]]).copy()
-        return self._spooled.ranks.standings(self._equations)
+        standings = None if per_experiment else self.store.standings(self.equations)
+        if standings is not None:
+            return standings
+        table = self._ranking_frame
+        return (table if per_experiment else table[["equation", "formula", "points", "place"]]).copy()
 
     @property
-    def _equations(self) -> dict:
+    def equations(self) -> dict[str, int]:
         """Formula id -> equation number, of the batch's formulas."""
         return {formula.id: formula.equation for formula in self.formulas}
 
     @cached_property
     def _ranking_frame(self) -> pd.DataFrame:
         # built once: the results folder, the console and the report all read it
-        if self._spooled is not None:
-            ranking = self._spooled.ranking
-        else:
-            table = self._fits_frame
-            table = table[~table["experiment"].isin(list(self.failures)) & table["rank"].notna()]
-            ranking = None if table.empty else rank_formulas(table, by=self.rank_by, key="formula")
+        ranking = self.store.ranking()
         if ranking is None:
             return pd.DataFrame(columns=["equation", "formula", "points", "place"])
         ranking = ranking.copy()
-        ranking.insert(0, "equation", ranking["formula"].map(self._equations))
+        ranking.insert(0, "equation", ranking["formula"].map(self.equations))
         return ranking.sort_values(["place", "equation"]).reset_index(drop=True)
 
     def verdicts(self, experiment: str) -> list[str]:
         """Plain-language statements on the fits of an experiment (:func:`tromplab.curves.ranking.fit_verdicts`)."""
-        table = self._fits_frame if self._spooled is None else self._rows_of(experiment)
+        table = self.store.experiment_rows(experiment)
         fits = self.fits_of(experiment)
         sizes = (float(fits[0].points.size.min()), float(fits[0].points.size.max())) if fits else None
         return fit_verdicts(table[table["experiment"] == experiment], by=self.rank_by, measured_sizes=sizes)
@@ -224,9 +228,7 @@ class Workbench(ResultContract):
     def fits_of(self, experiment: str) -> list[CurveFit]:
         """The fits of ``experiment`` in formula order (none for an experiment not fitted); a
         streamed batch refits the experiment (:meth:`fit`)."""
-        if self._spooled is not None:
-            return list(self._refitted(experiment))
-        return list(self.fits_by_experiment().get(experiment, []))
+        return self.store.fits_of(experiment)
 
     def fit(self, experiment: str, formula: str) -> CurveFit:
         """The fit of ``formula`` (its id) to ``experiment``.
@@ -246,51 +248,16 @@ class Workbench(ResultContract):
     @property
     def n_successful(self) -> int:
         """The number of successful fits."""
-        run = self._spooled
-        return run.successes if run is not None else sum(fit.success for fit in self.fits)
+        return self.store.n_successful()
 
     def fits_by_experiment(self) -> dict[str, list[CurveFit]]:
         """The fits grouped by experiment, in batch order."""
-        return self._by_experiment
-
-    @cached_property
-    def _by_experiment(self) -> dict[str, list[CurveFit]]:
-        return by_experiment(self.fits)
+        return self.store.fits_by_experiment()
 
     @property
     def experiments(self) -> list[str]:
         """The fitted experiments, in batch order."""
-        return list(self._spooled.fitted) if self._spooled is not None else list(self._by_experiment)
-
-    # --- a streamed batch (fit_to_folder): the tables on disk, fits refitted when asked for -------
-    @property
-    def _spooled(self) -> SpooledRun | None:
-        return self.__dict__.get("_spooled_run")
-
-    def _attach_spooled_run(self, run: SpooledRun) -> None:
-        self.__dict__["_spooled_run"] = run
-        object.__setattr__(self, "fits", RebuiltFits(self))
-
-    def _refitted(self, experiment: str) -> list[CurveFit]:
-        run = self._spooled
-        cache = self.__dict__.setdefault("_refits", {})
-        if experiment not in cache:
-            points = next((p for p in self.inputs if p.experiment == experiment), None) if experiment in run.fitted_set else None
-            if len(cache) >= 64:
-                cache.clear()
-            cache[experiment] = run.refit([points]) if points is not None else []
-        return cache[experiment]
-
-    def _rows_of(self, experiment: str) -> pd.DataFrame:
-        """The completed rows of one experiment (those of :meth:`fits_table` before its view):
-        kept for the console's experiments, else made again from the refitted experiment."""
-        run = self._spooled
-        if run.head is not None and experiment in set(run.head[0]["experiment"]):
-            rows = run.head[0]
-            return rows[rows["experiment"] == experiment]
-        fits = self.fits_of(experiment)
-        rows = completed_rows(run.options, fit_rows_frame(fits), fits)
-        return rows[rows["experiment"] == experiment]
+        return self.store.experiments()
 
     # --- readable views and saving (tromplab.output.results) ---------------------------------------
     def __repr__(self) -> str:
@@ -308,8 +275,8 @@ class Workbench(ResultContract):
         """
         level = averages_level(self.ci) if level is None else check_probability(level, "level")
         check_optional(check_count, jobs, "jobs", minimum=0, maximum=MAX_JOBS)
-        if level not in self._averages_by_level and self._spooled is not None and level == averages_level(self.ci):
-            return self._spooled.read_table("averages")
+        if level not in self._averages_by_level and (written := self.store.averages_read(level)) is not None:
+            return written
         if level not in self._averages_by_level:
             self._keep_averages(level, model_averages(self, level=level, jobs=jobs, client=client))
         return self._averages_by_level[level].copy()
@@ -317,16 +284,6 @@ class Workbench(ResultContract):
     @cached_property
     def _averages_by_level(self) -> dict[float, pd.DataFrame]:
         return {}  # a frozen dataclass keeps caches in __dict__
-
-    def _keep_from_workers(self, found: ChunkResults) -> None:
-        """What the workers made beside the fits: the rows of the fits (the table
-        :func:`fit_rows_frame` makes) and, where they made them, the model averages at the
-        batch's level and the CSV text of both tables (:meth:`formatted_parts`)."""
-        self.__dict__["_fit_rows"] = found.rows
-        if found.averages is not None:
-            self._keep_averages(averages_level(self.ci), found.averages)
-        if found.csv_parts:
-            self.__dict__["_csv_parts"] = found.csv_parts
 
     def formatted_parts(self, table: str) -> list[CsvPart] | None:
         """The rows of ``fits.csv`` (``table="fits"``) or ``averages.csv`` (``"averages"``, at the
@@ -336,9 +293,8 @@ class Workbench(ResultContract):
         return self.__dict__.get("_csv_parts", {}).get(table)
 
     def __getstate__(self) -> dict:
-        # the formatted text is for writing this run's folder; a saved batch formats again; a
-        # streamed batch's refitted experiments are a cache, made again when asked for
-        return {key: value for key, value in super().__getstate__().items() if key not in ("_csv_parts", "_refits")}
+        # the formatted text is for writing this run's folder; a saved batch formats again
+        return {key: value for key, value in super().__getstate__().items() if key != "_csv_parts"}
 
     def _keep_averages(self, level: float, table: pd.DataFrame) -> None:
         self._averages_by_level[level] = with_survey_columns(table, self.inputs)
@@ -348,7 +304,7 @@ class Workbench(ResultContract):
         rows = [{"experiment": e, "formula": "", "reason": reason} for e, reason in self.failures.items()]
         rows += [
             {"experiment": experiment, "formula": formula, "reason": message or "the fit failed"}
-            for experiment, formula, message in self._failed_fits()
+            for experiment, formula, message in self.store.failed_fits()
         ]
         return pd.DataFrame(rows, columns=["experiment", "formula", "reason"])
 
@@ -363,19 +319,13 @@ class Workbench(ResultContract):
         the codes: :data:`tromplab.notices.WARNING_KINDS`, docs/outputs.md)."""
         return notice_table(self.notices())
 
-    def _failed_fits(self) -> list[tuple[str, str, str | None]]:
-        """``(experiment, formula id, message)`` of each failed fit, in batch order."""
-        if self._spooled is not None:
-            return list(self._spooled.failed_fits)
-        return [(fit.experiment, fit.formula.id, fit.fit.message) for fit in self.fits if not fit.success]
-
     def check_fitted(self, source: str = "") -> None:
         """Raise :class:`~tromplab.errors.InputError` when no formula could be fitted to any
         experiment (the command line then writes nothing and exits 1)."""
         if self.n_successful:
             return
         reasons = dict(self.failures)
-        for experiment, formula, message in self._failed_fits():
+        for experiment, formula, message in self.store.failed_fits():
             reasons.setdefault(experiment, f"{formula}: {message}")
         listed = "; ".join(f"{experiment}: {reason}" for experiment, reason in reasons.items())
         raise InputError(f"no formula could be fitted to any experiment ({listed})", source=str(source) or None)
@@ -450,7 +400,7 @@ class Workbench(ResultContract):
             size_unit=self.size_unit if size_unit is None else size_unit,
             title=title,
             partition_to=self.partition_to,
-            map_work=functools.partial(_map_work, jobs=jobs or None, client=None),
+            map_work=functools.partial(map_on_workers, jobs=jobs or None, client=None),
         )
         return write_report(built, path)
 
@@ -473,132 +423,7 @@ class Workbench(ResultContract):
         :func:`tromplab.output.folder.write_results_folder`.  Returns ``{file name: path}``.
         """
         check_optional(check_count, jobs, "jobs", minimum=0, maximum=MAX_JOBS)
-        if self._spooled is not None:
-            return self._spooled.copy_folder(directory, figures=figures, format=format, excel=excel, reloadable=reloadable)
-        return write_results_folder(
-            self,
-            directory,
-            figures=figures,
-            format=format,
-            excel=excel,
-            reloadable=reloadable,
-            map_work=functools.partial(_map_work, jobs=jobs or None, client=None),
-        )
-
-
-def _best_formulas_of(table: pd.DataFrame) -> dict[str, str]:
-    """The formula of each experiment's best fit in ``table`` (completed rows, see :meth:`Workbench.best_fit`)."""
-    rows = table[table["success"] & table["rank"].notna()].sort_values(["rank", "ssr", "equation"], kind="stable")
-    return dict(rows.drop_duplicates("experiment")[["experiment", "formula"]].itertuples(index=False))
-
-
-def _top_rows_of(table: pd.DataFrame) -> dict[str, pd.DataFrame]:
-    """The rows sharing each experiment's top rank in ``table`` (completed rows)."""
-    rows = table[table["success"] & table["rank"].notna()]
-    rows = rows[rows["rank"] == rows.groupby("experiment", sort=False)["rank"].transform("min")]
-    return {experiment: group for experiment, group in rows.groupby("experiment", sort=False)}
-
-
-#: How read_csv reads back exactly the floats the folder's CSV files hold: pandas 3 does by
-#: default (and deprecates the argument), pandas 2 with its round-trip converter.
-_EXACT_FLOATS = {} if int(pd.__version__.split(".")[0]) >= 3 else {"float_precision": "round_trip"}
-
-
-@dataclass
-class SpooledRun:
-    """What a streamed batch (:func:`~tromplab.workbench.fit_to_folder`) keeps in memory instead
-    of its fits: the results folder holding its tables, the options its chunks were fitted with
-    (to refit an experiment), the fitted experiments, each failed fit's ``(experiment, formula,
-    message)``, the count of successful fits, the ranking (:func:`rank_formulas` of the batch,
-    None when nothing is ranked), the console's rows (completed rows and ``fits.csv`` rows of
-    the first experiments), the main process's seconds per step and the written file names.
-    The ranks are kept per chunk (:class:`~tromplab.workbench.spool.BatchRanks`, None when
-    nothing is ranked), a few bytes per experiment, and made into the ranking table when it is
-    first asked for (:attr:`ranking`)."""
-
-    folder: Path
-    options: ChunkOptions
-    fitted: tuple[str, ...]
-    failed_fits: tuple
-    successes: int
-    ranks: object | None
-    head: tuple | None
-    seconds: dict
-    written: tuple[str, ...] = ()
-
-    @cached_property
-    def fitted_set(self) -> frozenset:
-        return frozenset(self.fitted)
-
-    @property
-    def ranking(self) -> pd.DataFrame | None:
-        """:func:`rank_formulas` of the batch (None when no fit is ranked)."""
-        return None if self.ranks is None else self.ranks.frame()
-
-    def refit(self, experiments) -> list[CurveFit]:
-        """The fits of ``experiments`` (TrompPoints) as the batch's workers made them."""
-        options = self.options
-        return fit_chunk(experiments, formulas=options.formulas, alpha=options.alpha, delta_max=options.delta_max,
-                         engine=options.engine, size_unit=options.size_unit, width=options.width)  # fmt: skip
-
-    def read_table(self, table: str, experiments=None) -> pd.DataFrame:
-        """``table`` (``"fits"`` or ``"averages"``) read from the folder's CSV file (floats as
-        written, exactly), only the rows of ``experiments`` when given."""
-        path = Path(self.folder) / f"{table}.csv"
-        try:
-            if experiments is None:
-                return pd.read_csv(path, **_EXACT_FLOATS)
-            wanted = set(experiments)
-            pieces = pd.read_csv(path, chunksize=100_000, **_EXACT_FLOATS)
-            return pd.concat([piece[piece["experiment"].isin(wanted)] for piece in pieces], ignore_index=True)
-        except pd.errors.EmptyDataError:
-            return pd.DataFrame()
-
-    def copy_folder(self, directory, *, figures: str, format: str, excel: bool, reloadable: bool) -> dict[str, Path]:
-        """:meth:`Workbench.save` of a streamed batch: the files of its folder copied (figures
-        as the run drew them; none with ``figures="none"``).  What needs the fits in memory is
-        refused with an :class:`~tromplab.errors.OptionError`."""
-        for option, refused in (("format", format != "csv"), ("excel", excel), ("reloadable", reloadable),
-                                ("figures", figures in ("all", "best"))):  # fmt: skip
-            if refused or str(directory).lower().endswith(".xlsx"):
-                raise OptionError(
-                    option if refused else "directory",
-                    "needs the fits in memory, which a streamed batch does not keep: fit again with stream=False",
-                )
-        source = Path(self.folder)
-        names = [name for name in self.written if figures != "none" or not name.endswith(".png")]
-        return replace_folder({name: (lambda p, name=name: shutil.copyfile(source / name, p)) for name in names}, directory)
-
-
-class RebuiltFits(Sequence):
-    """The fits of a streamed batch in batch order, each experiment refitted when read
-    (:meth:`SpooledRun.refit`, a chunk of experiments at a time when iterated)."""
-
-    def __init__(self, bench: Workbench):
-        self._bench = bench
-
-    def __len__(self) -> int:
-        run = self._bench._spooled
-        return len(run.fitted) * len(run.options.formulas)
-
-    def __getitem__(self, index):
-        if isinstance(index, slice):
-            return [self[i] for i in range(*index.indices(len(self)))]
-        index = index + len(self) if index < 0 else index
-        if not 0 <= index < len(self):
-            raise IndexError("fit index out of range")
-        run = self._bench._spooled
-        per_experiment = len(run.options.formulas)
-        return self._bench.fits_of(run.fitted[index // per_experiment])[index % per_experiment]
-
-    def __iter__(self):
-        run = self._bench._spooled
-        points = {p.experiment: p for p in self._bench.inputs}
-        for start in range(0, len(run.fitted), MAX_CHUNK_SIZE):
-            yield from run.refit([points[name] for name in run.fitted[start : start + MAX_CHUNK_SIZE]])
-
-    def __repr__(self) -> str:
-        return f"<{len(self)} fits of a streamed batch, refitted when read>"
+        return self.store.save(self, directory, figures=figures, format=format, excel=excel, reloadable=reloadable, jobs=jobs)
 
 
 def load(directory) -> Workbench:
@@ -638,8 +463,8 @@ def model_averages(bench: Workbench, *, level: float = 0.95, jobs: int | None = 
     check_probability(level, "level")
     check_optional(check_count, jobs, "jobs", minimum=0, maximum=MAX_JOBS)
     groups = _averaged_groups(bench.fits_by_experiment().values(), [f.id for f in bench.ranked_formulas])
-    chunks = chunked(groups, workers=_worker_count(jobs, client))
+    chunks = chunked(groups, workers=worker_count(jobs, client))
     logger.info("model averages of %d experiment(s) at level %g", len(groups), level)
     return _averages_table(
-        [frame for chunk in _map_work(_averages_of_chunk, chunks, level, jobs=jobs, client=client) for frame in chunk]
+        [frame for chunk in map_on_workers(_averages_of_chunk, chunks, level, jobs=jobs, client=client) for frame in chunk]
     )

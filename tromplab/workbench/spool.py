@@ -187,7 +187,7 @@ def spool_chunk(options: SpoolOptions, work: ChunkWork) -> ChunkSummary:
     ranked = completed[completed["rank"].notna() & ~completed["experiment"].isin(list(work.failures or ()))]
     ranks = None
     if len(ranked):
-        ranking = rank_formulas(ranked, by=options.chunk.rank_by, key="formula")
+        ranking = rank_formulas(ranked, by=options.chunk.settings.rank_by, key="formula")
         ranks, files[chunk_file("ranking", work.number, "csv")] = chunk_ranks(ranking, [p.experiment for p in chunk], work.start)
     if options.scratch is not None:
         for name, content in files.items():

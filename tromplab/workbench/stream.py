@@ -14,20 +14,21 @@ refits an experiment when its fits are asked for (:meth:`Workbench.fit`).
 from __future__ import annotations
 
 import collections
-import inspect
 import logging
 import os
 import threading
 import time
-from dataclasses import replace
+from dataclasses import fields, replace
 
 from ..options import AUTO_FIGURE_LIMIT
 from ..output.folder import check_folder_options, write_streamed_folder
-from .batch import batch_workbench, fit_experiments, fit_prepared, prepared_batch
-from .fanout import _map_work, _worker_count, chunk_size, chunks_of, dask_client
+from ..validation import FitSettings
+from .batch import batch_inputs, batch_workbench, fit_prepared, prepared_batch
+from .fanout import chunk_size, chunks_of, dask_client, map_on_workers, worker_count
 from .inputs import FittableInPieces
-from .result import SpooledRun, Workbench
+from .result import Workbench
 from .spool import ChunkWork, Spool, SpoolOptions, spool_chunk
+from .store import FitsOnDisk
 
 # one logger for the batch layer: its lines read "tromplab.workbench: ..." whichever module makes them
 logger = logging.getLogger(__package__)
@@ -38,15 +39,16 @@ STREAM_THRESHOLD = 1000
 
 
 def fit_to_folder(experiments, outdir, *, figures: str = "auto", format: str = "csv", excel: bool = False,
-                  reloadable: bool = False, stream: bool | None = None, source=None, **keywords):  # fmt: skip
+                  reloadable: bool = False, stream: bool | None = None, source=None, settings: FitSettings | None = None,
+                  client=None, progress=None, **keywords):  # fmt: skip
     """Fit ``experiments`` as :func:`~tromplab.workbench.fit_experiments` does (its keywords) and
     write the results folder ``outdir`` as :meth:`Workbench.save` does (``figures``, ``format``,
     ``excel``, ``reloadable``): what ``tromplab fit INPUT -o OUTDIR`` does.
 
     Parameters
     ----------
-    experiments, keywords
-        As for :func:`~tromplab.workbench.fit_experiments`; also an
+    experiments, client, progress, keywords
+        As for :func:`~tromplab.workbench.fit_experiments`; ``experiments`` also an
         :class:`~tromplab.workbench.ExperimentsInPieces` (a points file read in pieces),
         read once for its checks and census before anything is fitted or written, then, when
         the run streams, again chunk by chunk as the workers take the chunks: the main
@@ -63,6 +65,9 @@ def fit_to_folder(experiments, outdir, *, figures: str = "auto", format: str = "
         :data:`~tromplab.options.AUTO_FIGURE_LIMIT` experiments, which draws one overview);
         otherwise the fits are kept in memory whatever ``stream`` says.  The files are the
         same either way.
+    settings : FitSettings, optional
+        The settings of the fit as one record (what the command line passes), instead of
+        the keywords of :func:`~tromplab.workbench.fit_experiments`.
     source : str or path-like, optional
         Named in the :class:`~tromplab.errors.InputError` raised, before anything is written,
         when no formula could be fitted to any experiment.
@@ -74,49 +79,51 @@ def fit_to_folder(experiments, outdir, *, figures: str = "auto", format: str = "
         ``{file name: path}`` of the written files.
     """
     check_folder_options(figures=figures, format=format)
-    given = _fit_keywords(experiments, keywords)
-    plan = prepared_batch(given, in_pieces=True)
+    settings = _settings_of(settings, keywords)
+    plan = prepared_batch(experiments, settings, in_pieces=True)
     streamable = format == "csv" and not excel and not reloadable and str(outdir).lower()[-5:] != ".xlsx"
     streamable &= figures == "none" or (figures == "auto" and len(plan.fittable) > AUTO_FIGURE_LIMIT)  # as _figures counts
     if not (streamable and plan.fittable and (stream or (stream is None and len(plan.fittable) >= STREAM_THRESHOLD))):
         if isinstance(plan.fittable, FittableInPieces):  # kept in memory: read whole after all
-            given["experiments"] = given["experiments"].read_whole()
-            plan = prepared_batch(given)
-        bench = fit_prepared(plan, given)
+            plan = prepared_batch(experiments.read_whole(), settings)
+        bench = fit_prepared(plan, client=client, progress=progress)
         bench.check_fitted(source or "")
-        jobs = given["jobs"]
-        return bench, bench.save(outdir, figures=figures, format=format, excel=excel, reloadable=reloadable, jobs=jobs)
-    with dask_client(scheduler=given["scheduler"], dask=given["dask"], client=given["client"]) as cluster, Spool(outdir) as spool:
-        warming = _figure_modules_loading() if figures == "auto" and (cluster is not None or given["jobs"] != 1) else None
-        bench = _spooled_batch(plan, given, spool, cluster, outdir)
+        saved = bench.save(outdir, figures=figures, format=format, excel=excel, reloadable=reloadable, jobs=settings.jobs)
+        return bench, saved
+    with dask_client(scheduler=settings.scheduler, dask=settings.dask, client=client) as cluster, Spool(outdir) as spool:
+        warming = _figure_modules_loading() if figures == "auto" and (cluster is not None or settings.jobs != 1) else None
+        bench, store = _streamed_batch(plan, spool, cluster, outdir, progress)
         if warming is not None:
             warming.join()
         bench.check_fitted(source or "")
         started = time.perf_counter()
         tables = {
             "fits.csv": spool.table_writer("fits"),
-            "ranking.csv": spool.ranking_writer(bench._spooled.ranks, bench._equations, bench.ranking_table),
+            "ranking.csv": spool.ranking_writer(store.ranks, bench.equations, bench.ranking_table),
             "averages.csv": spool.table_writer("averages"),
         }
         written = write_streamed_folder(bench, outdir, tables, overview=spool.best_rows() if figures == "auto" else None)
-        bench._spooled.seconds["write the folder"] = time.perf_counter() - started
-        bench._spooled.written = tuple(written)
+        store.seconds["write the folder"] = time.perf_counter() - started
+        store.written = tuple(written)
     return bench, written
 
 
-def _fit_keywords(experiments, keywords: dict) -> dict:
-    """The keywords of :func:`fit_experiments`, its defaults filled in; an unknown one is a TypeError."""
-    parameters = inspect.signature(fit_experiments).parameters
-    unknown = sorted(set(keywords) - set(parameters))
+def _settings_of(settings: FitSettings | None, keywords: dict) -> FitSettings:
+    """``settings``, or the :class:`FitSettings` of the keywords of :func:`fit_experiments`; an
+    unknown keyword, or keywords beside ``settings``, is a TypeError."""
+    unknown = sorted(set(keywords) - {field.name for field in fields(FitSettings)})
     if unknown:
         raise TypeError(f"fit_to_folder() got unexpected keyword argument(s): {', '.join(unknown)}")
-    given = {name: p.default for name, p in parameters.items() if p.default is not inspect.Parameter.empty}
-    return {**given, **keywords, "experiments": experiments}
+    if settings is None:
+        return FitSettings(**keywords)
+    if keywords:
+        raise TypeError(f"fit_to_folder() takes settings or their keywords, not both: {', '.join(sorted(keywords))}")
+    return settings
 
 
-def _spooled_batch(plan, given: dict, spool: Spool, cluster, outdir) -> Workbench:
+def _streamed_batch(plan, spool: Spool, cluster, outdir, progress) -> tuple[Workbench, FitsOnDisk]:
     """Fit the chunks of ``plan`` on the workers, which write their rows into ``spool``; the
-    streamed :class:`Workbench` of the batch."""
+    streamed :class:`Workbench` of the batch and the store it reads its fits through."""
     seconds = {}
     started = time.perf_counter()
     fittable, failures = plan.fittable, plan.failures
@@ -131,7 +138,7 @@ def _spooled_batch(plan, given: dict, spool: Spool, cluster, outdir) -> Workbenc
         survey_probe=fittable.census.survey_probe if in_pieces else _survey_probe(plan.experiments),
     )
     fitted = tuple(fittable.census.fitted if in_pieces else (points.experiment for points in fittable))
-    size = chunk_size(len(fittable), workers=_worker_count(given["jobs"], cluster))
+    size = chunk_size(len(fittable), workers=worker_count(plan.settings.jobs, cluster))
     n_chunks = -(-len(fittable) // size)
     logger.info(
         "fitting %d experiment(s) x %d formula(s) in %d chunk(s) of up to %d, streamed to %s (%s%s)",
@@ -145,8 +152,8 @@ def _spooled_batch(plan, given: dict, spool: Spool, cluster, outdir) -> Workbenc
     done, waited, kept = 0, 0.0, 0.0
     mark = time.perf_counter()
     work = _chunk_work(plan, size, n_chunks, shapes)
-    for summary in _map_work(
-        spool_chunk, work, SpoolOptions(options, scratch, head), jobs=given["jobs"], client=cluster, count=n_chunks
+    for summary in map_on_workers(
+        spool_chunk, work, SpoolOptions(options, scratch, head), jobs=plan.settings.jobs, client=cluster, count=n_chunks
     ):
         now = time.perf_counter()
         waited += now - mark
@@ -155,23 +162,22 @@ def _spooled_batch(plan, given: dict, spool: Spool, cluster, outdir) -> Workbenc
         done += length
         logger.debug("chunk %d/%d fitted: %d fits, %d failed", summary.number + 1, n_chunks, summary.fits,
                      summary.fits - summary.successes)  # fmt: skip
-        if given["progress"] is not None:
-            given["progress"](done, len(fittable), last_experiment)
-            if options.ci or options.bootstrap:
-                given["progress"](done, len(fittable), f"intervals: {last_experiment}")
+        if progress is not None:
+            progress(done, len(fittable), last_experiment)
+            if plan.settings.ci or plan.settings.bootstrap:
+                progress(done, len(fittable), f"intervals: {last_experiment}")
         mark = time.perf_counter()
         kept += mark - now
     seconds.update({"wait for the workers": waited, "keep the chunks' summaries": kept})
     started = time.perf_counter()
-    bench = batch_workbench(plan, given, (), spool.notes(), None)
-    run = SpooledRun(
-        folder=outdir, options=options, fitted=fitted,
-        failed_fits=tuple(spool.failed_fits()), successes=sum(s.successes for s in spool.summaries),
+    store = FitsOnDisk(
+        folder=outdir, options=options, inputs=batch_inputs(plan), fitted=fitted,
+        failed_fits_made=tuple(spool.failed_fits()), successes=sum(s.successes for s in spool.summaries),
         ranks=spool.ranks(fitted), head=spool.head(), seconds=seconds,
     )  # fmt: skip
-    bench._attach_spooled_run(run)
+    bench = batch_workbench(plan, store.fits, spool.notes(), None, store=store)
     seconds["join the summaries"] = time.perf_counter() - started
-    return bench
+    return bench, store
 
 
 def _chunk_work(plan, size: int, n_chunks: int, shapes: collections.deque):

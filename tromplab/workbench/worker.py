@@ -30,6 +30,7 @@ from ..loading.points import TrompPoints
 from ..loading.surveys import with_survey_columns
 from ..output.csv_parts import CsvPart, csv_part
 from ..statistics.uncertainty import interval_columns
+from ..validation import FitSettings
 from .averages import _averaged_groups, _averages_of_chunk, _averages_table, averages_level
 from .inputs import data_notes
 from .tables import by_experiment, completed_fit_rows, fit_rows_frame, output_view
@@ -40,38 +41,22 @@ logger = logging.getLogger(__package__)
 
 @dataclass(frozen=True)
 class ChunkOptions:
-    """The options of a batch that a worker needs for each chunk: made by
-    :func:`~tromplab.workbench.fit_experiments` from its keywords (checked there), completed by
-    the fan-out with ``width`` and ``tables_on_worker``, and read by :func:`work_on_chunk`.
+    """What a worker needs for each chunk of a batch: the batch's :class:`~tromplab.validation.FitSettings`
+    as they were checked, and what the batch adds to them.  Made by
+    :func:`~tromplab.workbench.batch.prepared_batch`, completed by the fan-out with ``width``
+    and ``tables_on_worker``, and read by :func:`work_on_chunk`.
 
     Attributes
     ----------
+    settings : FitSettings
+        The settings of the batch (``alpha``, ``ci``, the bootstrap's, ``partition_to``, ...).
     formulas : tuple of str
-        Ids of the formulas to fit, in the batch's order.
+        Ids of the formulas to fit, in the batch's order (``settings.formulas`` resolved).
     ranked : tuple of str
         Ids of the formulas the ranking and the model averages cover.
-    alpha : float
-        Significance level of the Fisher screen.
-    delta_max : float or None
-        Largest feed size for the misplacement index (None: per experiment).
-    engine : bool
-        Fit with the batched engine (else one lmfit fit per experiment and formula).
     size_unit : str
-        Unit of the sizes, for labels and records.
-    ci : float or None
-        Level of the profile-likelihood and delta-method intervals (None: none).
-    bootstrap : int
-        Bootstrap resamples per fit (0: none), drawn by ``bootstrap_method`` from ``seed``.
-    bootstrap_method : str
-        ``"residuals"`` or ``"cases"``.
-    seed : int
-        Seed of the bootstrap; a fit's resamples depend on it and on that fit only.
-    rank_by : str
-        ``"F"`` or ``"aicc"``: the order of the ranks in the fits table.
-    water_recovery : float or None
-        Share of the feed water to the underflow, for the fits table's check of the bypass.
-    partition_to : str
-        ``"fine"`` or ``"coarse"``: the product whose partition the tables show.
+        Unit of the sizes of the batch: the loader's when every experiment has the same one,
+        else ``settings.size_unit``.
     width : int
         Points every chunk is padded to (the largest experiment of the batch), so that the
         fits do not depend on how the batch is cut.
@@ -87,23 +72,20 @@ class ChunkOptions:
         every chunk's rows have the columns the whole table has.
     """
 
+    settings: FitSettings
     formulas: tuple[str, ...]
     ranked: tuple[str, ...]
-    alpha: float
-    delta_max: float | None
-    engine: bool
     size_unit: str
-    ci: float | None
-    bootstrap: int
-    bootstrap_method: str
-    seed: int
-    rank_by: str
-    water_recovery: float | None
-    partition_to: str
     width: int = 0
     tables_on_worker: bool = False
     failure_example: tuple[tuple[str, str], ...] = ()
     survey_probe: tuple[TrompPoints, ...] = ()
+
+    def refit(self, experiments: Sequence[TrompPoints]) -> list[CurveFit]:
+        """The fits of ``experiments`` as the batch's workers made them (same options, same padding)."""
+        settings = self.settings
+        return fit_chunk(experiments, formulas=self.formulas, alpha=settings.alpha, delta_max=settings.delta_max,
+                         engine=settings.engine, size_unit=self.size_unit, width=self.width)  # fmt: skip
 
 
 class FittedChunk(NamedTuple):
@@ -218,25 +200,18 @@ def fitted_chunk(options: ChunkOptions, chunk: Sequence[TrompPoints]) -> tuple:
     ``bootstrap``) and the rows of its fits (:func:`fit_rows_frame`)."""
     # the notes on the points are made in the worker too: in the parent they were a serial
     # Spearman test per experiment (seconds at 10,000 experiments)
-    intervals = bool(options.ci or options.bootstrap)
+    settings = options.settings
+    intervals = bool(settings.ci or settings.bootstrap)
     notes = {points.experiment: found for points in chunk if (found := data_notes(points, intervals=intervals))}
-    fits = fit_chunk(
-        chunk,
-        formulas=options.formulas,
-        alpha=options.alpha,
-        delta_max=options.delta_max,
-        engine=options.engine,
-        size_unit=options.size_unit,
-        width=options.width,
-    )
+    fits = options.refit(chunk)
     columns = None
-    if options.ci or options.bootstrap:
+    if settings.ci or settings.bootstrap:
         columns = interval_columns(
             fits,
-            level=options.ci,
-            n_bootstrap=options.bootstrap,
-            method=options.bootstrap_method,
-            seed=options.seed,
+            level=settings.ci,
+            n_bootstrap=settings.bootstrap,
+            method=settings.bootstrap_method,
+            seed=settings.seed,
             width=options.width,
         )
     rows = fit_rows_frame(fits)  # the rows of fits.csv too: a serial 40 us per fit in the main process
@@ -254,9 +229,10 @@ def chunk_tables(options: ChunkOptions, chunk, fits, columns, rows, failures=Non
     the last chunk of a batch is given all the batch's ``failures`` (``{experiment: reason}``)
     with their ``failed_points`` instead, and its rows end with theirs, as the whole table does.
     """
-    averaged = _averages_of_chunk(averages_level(options.ci), _averaged_groups(by_experiment(fits).values(), options.ranked))
+    level = averages_level(options.settings.ci)
+    averaged = _averages_of_chunk(level, _averaged_groups(by_experiment(fits).values(), options.ranked))
     completed = completed_rows(options, rows.copy(), fits, failures)
-    view = output_view(completed, columns, [*chunk, *options.survey_probe, *failed_points], options.partition_to)
+    view = output_view(completed, columns, [*chunk, *options.survey_probe, *failed_points], options.settings.partition_to)
     if failures is None and options.failure_example:
         left_out = [name for name, _ in options.failure_example]
         completed = completed[~completed["experiment"].isin(left_out)]
@@ -273,8 +249,8 @@ def completed_rows(options: ChunkOptions, rows: pd.DataFrame, fits, failures=Non
         failures=dict(options.failure_example) if failures is None else failures,
         formulas=options.formulas,
         ranked=options.ranked,
-        rank_by=options.rank_by,
-        water_recovery=options.water_recovery,
+        rank_by=options.settings.rank_by,
+        water_recovery=options.settings.water_recovery,
     )
 
 
