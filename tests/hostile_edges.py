@@ -1,4 +1,4 @@
-"""The last edges of the reliability campaign (issue 41, point 4) as cases of the hostile-input
+"""The last edges of the reliability campaign as cases of the hostile-input
 battery (tests/hostile_catalogue.py, run by tests/test_hostile_battery.py): each ends in exit 1,
 2 or 3 (or the API's exception) with its cause named, and no raw numpy warning (the suite's
 filter turns a RuntimeWarning of tromplab into an error, which would end in exit 70).

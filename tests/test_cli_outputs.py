@@ -160,7 +160,8 @@ def test_console_table_follows_rank_by_and_shows_intervals(tmp_path, capsys):
     lines = capsys.readouterr().out.splitlines()
     boot = pd.read_csv(tmp_path / "b" / "fits.csv").iloc[0]
     row = lines[lines.index("  bootstrap intervals:") + 2].split()
-    assert row[0] == "plitt" and row[2:4] == [f"{boot['d_cut_boot_low']:.4g}", f"{boot['d_cut_boot_high']:.4g}"]
+    # formula, par (the shape parameter's name), d50, then its interval
+    assert row[:2] == ["plitt", "ks"] and row[3:5] == [f"{boot['d_cut_boot_low']:.4g}", f"{boot['d_cut_boot_high']:.4g}"]
 
 
 def test_rerun_into_the_same_folder_leaves_exactly_the_current_figures(tmp_path):

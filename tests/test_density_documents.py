@@ -84,7 +84,7 @@ def test_the_report_shows_fits_partition_and_figures_with_every_name_escaped(tmp
     result.save(tmp_path / "out", report=True)
     html = (tmp_path / "out" / "report.html").read_text()
     assert "<script>" not in html and "DMC &lt;script&gt;" in html
-    for heading in ("Ranked fits per experiment", "Measured partition", "Indices by size fraction", "Figures"):
+    for heading in ("Ranked fits per test", "Measured partition", "Indices by size fraction", "Figures"):
         assert heading in html
     best = result.fits_table().iloc[0]
     assert f"{best['rho50_low']:.4g}"[:5] in html

@@ -1,4 +1,4 @@
-"""The newcomer frictions of issue 41 (point 3), each fixed and kept: a full disk or a folder
+"""The newcomer frictions of the first hour, each fixed and kept: a full disk or a folder
 that cannot be written, a broken installation, the console's words (units, what a column is,
 relative paths, wrapped lines), the fit report of an lmfit object, the overview of ties."""
 

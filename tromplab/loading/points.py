@@ -280,7 +280,7 @@ def read_points(
     >>> read_points(frame.rename(columns={"partition_fine_pct": "partition_fine"}))
     Traceback (most recent call last):
     ...
-    tromplab.errors.InputError: DataFrame, row 0, column 'partition_fine': partition 98 outside 0..1
+    tromplab.errors.InputError: DataFrame, row 0, column 'partition_fine': partition 98 outside 0..1: these look like percentages; name the column partition_fine_pct (0..100) or divide by 100
     """
     table = read_table(path, sheet=sheet, sep=sep, decimal=decimal)
     return points_from_table(table, size_unit=size_unit)
