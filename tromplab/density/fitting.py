@@ -4,9 +4,10 @@ Tracer counts
     ``k_i`` of the ``n_i`` tracers of density ``rho_i`` recovered in the sinks,
     :math:`k_i \sim \mathrm{Binomial}(n_i, P(\rho_i))`.  A plain curve is a binomial GLM
     in ``rho`` with the curve's link (probit: normal, logit: logistic, complementary
-    log-log: Gompertz), fitted by statsmodels; ``rho50 = (q50 - a)/b``, ``Ep = k/b``.  A
-    curve with limits is fitted by minimising the binomial deviance (scipy, SLSQP within the bounds, several
-    starts).  Goodness of fit: the deviance against :math:`\chi^2_{n - p}`.  Overdispersion:
+    log-log: Gompertz), fitted by iteratively reweighted least squares; ``rho50 = (q50 - a)/b``,
+    ``Ep = k/b``.  A curve with limits is fitted by minimising the binomial deviance within the
+    bounds from several starts (projected Fisher scoring).  The tests of a file are fitted
+    together, on stacked arrays (:mod:`tromplab.density.batch`).  Goodness of fit: the deviance against :math:`\chi^2_{n - p}`.  Overdispersion:
     the Pearson :math:`X^2 / (n - p)`; when the Pearson test rejects at 5 %
     (:math:`X^2 > \chi^2_{n-p, 0.95}`) that ratio is used as the quasi-binomial scale
     :math:`\phi` of the intervals (profile deviances divided by it); otherwise
@@ -60,8 +61,10 @@ import scipy.special
 import scipy.stats
 
 from ..results_contract import ResultContract
+from .batch import LIMIT_STARTS, BinomialFit, TracerStack, fit_glm, fit_limits_curve
 from .curves import DensityCurve, DensityIndices, get_density_curve
 from .joint import JOINT_METHOD, fit_joint, has_three_analyses, joint_intervals
+from .profiles import ProfileRequests, profile_limits
 from .readers import DensitySample
 
 #: Lowest and highest values the profile searches and the fits of a curve with limits may take.
@@ -122,7 +125,8 @@ class DensityCurveFit(ResultContract):
     notes : tuple of str
         What the reader must know about the fit, in words.
     raw : object
-        The statsmodels GLM results or the scipy optimisation result.
+        Binomial fits: the batch's record (:class:`tromplab.density.batch.BinomialFit`);
+        least squares: the scipy optimisation result; the joint fit: its result.
     """
 
     sample: DensitySample
@@ -269,20 +273,16 @@ def _natural(curve: DensityCurve, x: np.ndarray) -> dict[str, float]:
     return values
 
 
-def _fit_numerically(curve: DensityCurve, data: _Data, objective) -> tuple[dict, object]:
+def _fit_numerically(curve: DensityCurve, data: _Data) -> tuple[dict, object]:
+    """Least squares on the shares from several starts (binomial fits are made in batch, :mod:`.batch`)."""
     rho50, ep = _starts(data)
     bounds = [(p.lower, p.upper) for p in curve.parameters]
     ep_index = 1
     bounds[ep_index] = (math.log(bounds[ep_index][0]), math.log(bounds[ep_index][1]))
     if curve.has_limits:
-        starts = [
-            (rho50, math.log(ep), light, heavy) for light, heavy in ((0.001, 0.999), (0.03, 0.97), (0.0, 0.95), (0.05, 1.0))
-        ]
+        starts = [(rho50, math.log(ep), light, heavy) for light, heavy in LIMIT_STARTS]
     else:
         starts = [(rho50, math.log(ep)), (rho50, math.log(ep) + 1.0), (rho50, math.log(ep) - 1.0)]
-    if data.binomial:
-        result = _minimise(lambda x: objective(curve.partition(data.density, **_natural(curve, x))), starts, bounds)
-        return _natural(curve, result.x), result
     root_weight = np.sqrt(data.weight)
 
     def residuals(x):
@@ -295,22 +295,6 @@ def _fit_numerically(curve: DensityCurve, data: _Data, objective) -> tuple[dict,
         if best is None or result.cost < best.cost:
             best = result
     return _natural(curve, best.x), best
-
-
-def _fit_glm(curve: DensityCurve, data: _Data) -> tuple[dict, object]:
-    import statsmodels.api as sm
-
-    links = {"probit": sm.families.links.Probit, "logit": sm.families.links.Logit, "cloglog": sm.families.links.CLogLog}
-    endog = np.column_stack([data.sinks, data.trials - data.sinks])
-    exog = np.column_stack([np.ones_like(data.density), data.density])
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        result = sm.GLM(endog, exog, family=sm.families.Binomial(link=links[curve.link]())).fit()
-    intercept, slope = (float(v) for v in result.params)
-    if not slope > 0:
-        raise ValueError("the fitted partition does not rise with density")
-    form = curve.form
-    return {"rho50": (form.centre - intercept) / slope, "ep": form.scale / slope}, result
 
 
 def _separation(data: _Data) -> str:
@@ -393,6 +377,23 @@ def _index_vector(curve: DensityCurve, fit_params: dict, indices: DensityIndices
     return np.array(vector), bounds
 
 
+def profile_scale(fit: DensityCurveFit, *, binomial: bool) -> float:
+    """What the profile's rise of the deviance (binomial) or sum of squares is divided by: the
+    quasi-binomial scale when the counts are overdispersed, else 1; the residual variance for
+    least squares (NaN without degrees of freedom)."""
+    if binomial:
+        return fit.dispersion if fit.overdispersed else 1.0
+    return fit.objective / fit.df_resid if fit.df_resid > 0 else math.nan
+
+
+def profile_threshold(fit: DensityCurveFit, ci: float, *, binomial: bool) -> float:
+    """The scaled rise at which a profile-likelihood limit at level ``ci`` lies: the
+    chi-squared(1) quantile (binomial) or F(1, n - p)'s (least squares)."""
+    if binomial:
+        return float(scipy.stats.chi2.ppf(ci, 1))
+    return float(scipy.stats.f.ppf(ci, 1, fit.df_resid)) if fit.df_resid > 0 else math.nan
+
+
 def profile_interval(fit: DensityCurveFit, quantity: str, ci: float) -> tuple[float, float, str]:
     """Profile-likelihood interval of ``quantity`` (``rho50``, ``ep``, ``imperfection``) of ``fit``.
 
@@ -408,14 +409,11 @@ def profile_interval(fit: DensityCurveFit, quantity: str, ci: float) -> tuple[fl
     centre, bounds = _index_vector(fit.curve, fit.params, fit.indices, quantity)
     position = 0 if quantity == "rho50" else 1
     if data.binomial:
-        scale = fit.dispersion if fit.overdispersed else 1.0
-        threshold = scipy.stats.chi2.ppf(ci, 1)
-    else:
-        scale = fit.objective / fit.df_resid if fit.df_resid > 0 else math.nan
-        threshold = scipy.stats.f.ppf(ci, 1, fit.df_resid) if fit.df_resid > 0 else math.nan
+        return _binomial_profiles([(fit, quantity)], ci)[0]
+    scale, threshold = profile_scale(fit, binomial=False), profile_threshold(fit, ci, binomial=False)
     if not (np.isfinite(scale) and scale > 0):
-        return math.nan, math.nan, f"{quantity} has no interval: no degrees of freedom left for the error variance"
-    if not data.binomial and fit.objective <= 1e-20 * data.density.size:
+        return math.nan, math.nan, _NO_VARIANCE_LEFT.format(quantity=quantity)
+    if fit.objective <= 1e-20 * data.density.size:
         return math.nan, math.nan, f"{quantity} has no interval: the curve passes through every point (no residual variance)"
     free = [i for i in range(centre.size) if i != position]
 
@@ -434,8 +432,7 @@ def profile_interval(fit: DensityCurveFit, quantity: str, ci: float) -> tuple[fl
         warm["x"] = best.x
         return (best.fun - fit.objective) / scale - threshold
 
-    # a quarter of Ep (of I) is about the half-width of a 95 % interval from 30 tracers per density
-    step = 0.25 * (fit.indices.imperfection if quantity == "imperfection" else fit.indices.ep)
+    step = _first_step(fit, quantity)
     limits, notes = [], []
     for direction in (-1.0, 1.0):
         warm["x"] = centre[free]
@@ -443,6 +440,57 @@ def profile_interval(fit: DensityCurveFit, quantity: str, ci: float) -> tuple[fl
         limits.append(value)
         notes += [f"{quantity}: {note}"] if note else []
     return limits[0], limits[1], "; ".join(notes)
+
+
+_NO_VARIANCE_LEFT = "{quantity} has no interval: no degrees of freedom left for the error variance"
+
+
+def _first_step(fit: DensityCurveFit, quantity: str) -> float:
+    """How far from the estimate a profile looks first: a quarter of Ep (of I), about the
+    half-width of a 95 % interval from 30 tracers per density."""
+    return 0.25 * (fit.indices.imperfection if quantity == "imperfection" else fit.indices.ep)
+
+
+def _binomial_profiles(requests: list, ci: float) -> list[tuple[float, float, str]]:
+    """``(low, high, note)`` of every ``(fit, quantity)`` of binomial fits, traced together curve by curve."""
+    found: list = [None] * len(requests)
+    by_curve: dict[str, list[int]] = {}
+    for position, (fit, quantity) in enumerate(requests):
+        scale = profile_scale(fit, binomial=True)
+        if np.isfinite(scale) and scale > 0:
+            by_curve.setdefault(fit.curve.id, []).append(position)
+        else:
+            found[position] = (math.nan, math.nan, _NO_VARIANCE_LEFT.format(quantity=quantity))
+    for positions in by_curve.values():
+        chosen = [requests[position] for position in positions]
+        low, high, notes = profile_limits(chosen[0][0].curve, _profile_requests(chosen, ci))
+        for row, (position, (_, quantity)) in enumerate(zip(positions, chosen)):
+            found[position] = (float(low[row]), float(high[row]), "; ".join(f"{quantity}: {note}" for note in notes[row]))
+    return found
+
+
+def _profile_requests(chosen: list, ci: float) -> ProfileRequests:
+    """The profiles of ``(fit, quantity)`` pairs of one curve as stacked arrays."""
+    vectors = [_index_vector(fit.curve, fit.params, fit.indices, quantity) for fit, quantity in chosen]
+    bounds = np.array([limits for _, limits in vectors], dtype=float)
+    datas = [_data(fit.sample, fit.method) for fit, _ in chosen]
+    thresholds = {}  # one quantile per level and degrees of freedom, not one per request
+    for fit, _ in chosen:
+        key = (fit.df_resid, fit.overdispersed)
+        if key not in thresholds:
+            thresholds[key] = profile_threshold(fit, ci, binomial=True)
+    return ProfileRequests(
+        stack=TracerStack.of([(data.density, data.sinks, data.trials) for data in datas]),
+        imperfection=np.array([quantity == "imperfection" for _, quantity in chosen]),
+        position=np.array([0 if quantity == "rho50" else 1 for _, quantity in chosen]),
+        centre=np.array([vector for vector, _ in vectors], dtype=float),
+        lower=bounds[:, :, 0],
+        upper=bounds[:, :, 1],
+        best=np.array([fit.objective for fit, _ in chosen]),
+        scale=np.array([profile_scale(fit, binomial=True) for fit, _ in chosen]),
+        threshold=np.array([thresholds[fit.df_resid, fit.overdispersed] for fit, _ in chosen]),
+        step=np.array([_first_step(fit, quantity) for fit, quantity in chosen]),
+    )
 
 
 def _profile_limit(excess, centre: float, direction: float, bounds: tuple[float, float], step: float) -> tuple[float, str]:
@@ -466,7 +514,7 @@ def _profile_limit(excess, centre: float, direction: float, bounds: tuple[float,
         inner, step = outer, step * 2.0
 
 
-# --- one curve, one sample ------------------------------------------------------------------
+# --- curves and samples -------------------------------------------------------------------------
 def fit_density_curve(sample: DensitySample, curve, *, ci: float | None = None, method: str | None = None) -> DensityCurveFit:
     """Fit one density curve to one sample; the result says why when no curve could be fitted.
 
@@ -487,7 +535,56 @@ def fit_density_curve(sample: DensitySample, curve, *, ci: float | None = None, 
     -------
     DensityCurveFit
     """
-    curve = get_density_curve(curve)
+    return fit_density_curves([sample], [curve], ci=ci, method=method)[0]
+
+
+def fit_density_curves(samples, curves, *, ci: float | None = None, method: str | None = None) -> list[DensityCurveFit]:
+    """Fit every curve to every sample: the fits of :func:`fit_density_curve`, the binomial ones all at once.
+
+    The binomial fits of one curve to every tracer sample are made together on stacked
+    arrays (:mod:`tromplab.density.batch`), and so are the profile-likelihood intervals of
+    every binomial fit (:mod:`tromplab.density.profiles`); the fits on shares are made one
+    at a time.
+
+    Returns
+    -------
+    list of DensityCurveFit
+        Sample by sample, the curves of each in the order given.
+    """
+    curves = [get_density_curve(curve) for curve in curves]
+    fits, stacked = {}, {}
+    for position, sample in enumerate(samples):
+        for curve in curves:
+            opened = _open(sample, curve, method)
+            if isinstance(opened, DensityCurveFit):
+                fits[position, curve.id] = opened
+            elif opened.data.binomial:
+                stacked.setdefault(curve.id, []).append(((position, curve.id), sample, opened))
+            else:
+                fits[position, curve.id] = _fit_on_shares(sample, curve, opened, ci)
+    binomial = []
+    for curve_id, items in stacked.items():
+        curve = get_density_curve(curve_id)
+        for (key, sample, opened), (params, raw) in zip(items, _fit_binomial_stack(curve, [item[2].data for item in items])):
+            fits[key] = _finished(sample, curve, opened, params, raw)
+            binomial += [(key, opened.data)] if fits[key].success else []
+    profiles = _binomial_interval_plan(fits, binomial, ci)
+    for key, data in binomial:
+        fits[key] = _with_intervals_and_notes(fits[key], data, ci, joint_fell_back=False, profiles=profiles)
+    return [fits[position, curve.id] for position in range(len(samples)) for curve in curves]
+
+
+@dataclass(frozen=True)
+class _Opened:
+    """A fit about to be made: its method, data and whether the three float-sink analyses are fitted jointly."""
+
+    method: str
+    data: _Data
+    joint: bool
+
+
+def _open(sample: DensitySample, curve: DensityCurve, method: str | None) -> _Opened | DensityCurveFit:
+    """The fit's method and data, or the failed fit when the data cannot give the curve."""
     joint = method is None and has_three_analyses(sample)
     method = method or ("binomial" if sample.layout == "tracers" else "least_squares")
     data = _data(sample, method)
@@ -497,15 +594,31 @@ def fit_density_curve(sample: DensitySample, curve, *, ci: float | None = None, 
     separation = _separation(data)
     if separation:
         return DensityCurveFit(**failed, message=separation)
-    objective = _objective_of(data)
+    return _Opened(method, data, joint)
+
+
+def _fit_on_shares(sample: DensitySample, curve: DensityCurve, opened: _Opened, ci: float | None) -> DensityCurveFit:
+    """Least squares on the partitions (or the joint fit of the three analyses), with intervals."""
     try:
-        if data.binomial and not curve.has_limits:
-            params, raw = _fit_glm(curve, data)
-        else:
-            params, raw = _fit_numerically(curve, data, objective)
+        params, raw = _fit_numerically(curve, opened.data)
     except (ValueError, np.linalg.LinAlgError) as error:
-        return DensityCurveFit(**failed, message=str(error))
-    value = objective(curve.partition(data.density, **params))
+        return DensityCurveFit(sample, curve, opened.method, False, message=str(error))
+    fit = _finished(sample, curve, opened, params, raw)
+    if not fit.success:
+        return fit
+    joint_fit = _joint(fit, ci) if opened.joint else None
+    if joint_fit is not None:
+        return joint_fit
+    return _with_intervals_and_notes(fit, opened.data, ci, joint_fell_back=opened.joint)
+
+
+def _finished(sample: DensitySample, curve: DensityCurve, opened: _Opened, params, raw) -> DensityCurveFit:
+    """The fit at ``params`` (a message: why none) with its indices and statistics, before its intervals."""
+    failed = {"sample": sample, "curve": curve, "method": opened.method, "success": False}
+    if isinstance(params, str):
+        return DensityCurveFit(**failed, message=params)
+    data = opened.data
+    value = _objective_of(data)(curve.partition(data.density, **params))
     if not np.isfinite(value):
         return DensityCurveFit(**failed, message="the optimiser found no curve with a finite likelihood")
     indices = curve.indices(**params)
@@ -516,17 +629,35 @@ def fit_density_curve(sample: DensitySample, curve, *, ci: float | None = None, 
             **failed,
             message=f"the fitted cut density {indices.rho50:.4g} lies outside {low:g}..{high:g} g/cm3: the data do not locate the cut",
         )
-    fit = DensityCurveFit(
-        sample, curve, method, True, "", params, indices, value, **_statistics(curve, data, params, value), raw=raw
-    )
-    joint_fit = _joint(fit, ci) if joint else None
-    if joint_fit is not None:
-        return joint_fit
-    return _with_intervals_and_notes(fit, data, ci, joint_fell_back=joint)
+    statistics = _statistics(curve, data, params, value)
+    return DensityCurveFit(sample, curve, opened.method, True, "", params, indices, value, **statistics, raw=raw)
 
 
-def _with_intervals_and_notes(fit: DensityCurveFit, data, ci: float | None, *, joint_fell_back: bool) -> DensityCurveFit:
-    """The fit on the partitions with its intervals at ``ci`` and the notes on how it was made."""
+def _fit_binomial_stack(curve: DensityCurve, datas: list[_Data]) -> list[tuple[dict | str, BinomialFit]]:
+    """The parameters (or why there are none) and the fit's record of ``curve`` on each of ``datas``, fitted together."""
+    stack = TracerStack.of([(data.density, data.sinks, data.trials) for data in datas])
+    if curve.has_limits:
+        found = fit_limits_curve(stack, curve, np.array([_starts(data) for data in datas]))
+        return [
+            (_natural(curve, x), BinomialFit(x, None, float(value), True)) for x, value in zip(found.x, found.deviance)
+        ]
+    glm = fit_glm(stack, curve.form)
+    results = []
+    for params, covariance, value, converged in zip(glm.params, glm.covariance, glm.deviance, glm.converged):
+        intercept, slope = (float(v) for v in params)
+        record = BinomialFit(params, covariance, float(value), bool(converged))
+        if not slope > 0:
+            results.append(("the fitted partition does not rise with density", record))
+        else:
+            results.append(({"rho50": (curve.form.centre - intercept) / slope, "ep": curve.form.scale / slope}, record))
+    return results
+
+
+def _with_intervals_and_notes(
+    fit: DensityCurveFit, data, ci: float | None, *, joint_fell_back: bool, profiles: dict | None = None
+) -> DensityCurveFit:
+    """The fit on the partitions with its intervals at ``ci`` and the notes on how it was made
+    (``profiles``: the profile intervals already traced, by fit and quantity)."""
     notes = [fit.indices.note] if fit.indices.note else []
     if joint_fell_back:
         notes.append(JOINT_FALLBACK_NOTE)
@@ -534,11 +665,19 @@ def _with_intervals_and_notes(fit: DensityCurveFit, data, ci: float | None, *, j
         notes.append(f"overdispersed (Pearson chi2/df = {fit.dispersion:.2f}): intervals use the quasi-binomial scale")
     intervals = {}
     if ci is not None:
-        intervals, interval_notes = _intervals(fit, data, ci)
+        intervals, interval_notes = _intervals(fit, data, ci, profiles)
         notes += interval_notes
         if fit.sample.layout == "float-sink" and intervals:
             notes.append(FLOAT_SINK_INTERVAL_NOTE)
     return _replace(fit, intervals=intervals, notes=tuple(notes))
+
+
+def _binomial_interval_plan(fits: dict, binomial: list, ci: float | None) -> dict:
+    """The profile intervals of every binomial fit's quantities that have one, traced together, by fit and quantity."""
+    if ci is None:
+        return {}
+    requests = [(fits[key], quantity) for key, data in binomial for quantity in _interval_quantities(fits[key], data)[0]]
+    return {(id(fit), quantity): found for (fit, quantity), found in zip(requests, _binomial_profiles(requests, ci))}
 
 
 def _joint(fit: DensityCurveFit, ci: float | None) -> DensityCurveFit | None:
@@ -577,12 +716,26 @@ def _replace(fit: DensityCurveFit, **changes) -> DensityCurveFit:
     return replace(fit, **changes)
 
 
-def _intervals(fit: DensityCurveFit, data: _Data, ci: float) -> tuple[dict, list[str]]:
+def _intervals(fit: DensityCurveFit, data: _Data, ci: float, profiles: dict | None = None) -> tuple[dict, list[str]]:
+    quantities, notes = _interval_quantities(fit, data)
+    intervals = {}
+    for quantity in quantities:
+        if profiles is not None:
+            low, high, note = profiles[id(fit), quantity]
+        else:
+            low, high, note = profile_interval(fit, quantity, ci)
+        intervals[quantity] = (low, high)
+        notes += [note] if note else []
+    return intervals, notes
+
+
+def _interval_quantities(fit: DensityCurveFit, data: _Data) -> tuple[list[str], list[str]]:
+    """The quantities of ``fit`` that get a profile interval, and notes on those that do not."""
     index = fit.indices
     if math.isnan(index.rho50) or math.isnan(index.ep):
-        return {}, ["no intervals: the fitted curve has no rho50 or Ep"]
+        return [], ["no intervals: the fitted curve has no rho50 or Ep"]
     inside = (data.density > index.rho25) & (data.density < index.rho75)
-    notes, intervals = [], {}
+    notes = []
     quantities = ["rho50", "ep", "imperfection"]
     if not inside.any():
         notes.append(
@@ -599,11 +752,7 @@ def _intervals(fit: DensityCurveFit, data: _Data, ci: float) -> tuple[dict, list
                 f"{quantity} has no interval: its estimate {value:.4g} lies outside the range searched, {lowest:g} to {highest:g}"
             )
             quantities.remove(quantity)
-    for quantity in quantities:
-        low, high, note = profile_interval(fit, quantity, ci)
-        intervals[quantity] = (low, high)
-        notes += [note] if note else []
-    return intervals, notes
+    return quantities, notes
 
 
 # --- every curve on one sample: ranking and the test of the limits ------------------------------

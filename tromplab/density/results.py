@@ -27,7 +27,7 @@ from ..output.csv_parts import file_writers, write_csv
 from ..results_contract import ResultContract
 from ..validation import check_probability
 from .curves import select_density_curves
-from .fitting import METHODS, DensityCurveFit, fit_density_curve, limits_test_p
+from .fitting import METHODS, DensityCurveFit, fit_density_curves, limits_test_p
 from .ranking import quasi_aic, rank_fits, variance_inflation
 from .readers import DensitySample, read_density
 
@@ -368,5 +368,5 @@ def fit_density(
         samples = read_density(data, sheet=sheet, sep=sep, decimal=decimal, floats_yield=floats_yield)
     if method == "binomial" and any(sample.layout != "tracers" for sample in samples):
         raise OptionError("method", "binomial needs tracer counts (density, sinks, floats); the table gives shares")
-    fits = [fit_density_curve(sample, curve, ci=ci, method=method) for sample in samples for curve in chosen]
+    fits = fit_density_curves(samples, chosen, ci=ci, method=method)
     return DensityResult(samples, fits, ci, method)

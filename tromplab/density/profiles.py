@@ -1,0 +1,193 @@
+r"""Profile-likelihood limits of rho50, Ep and the imperfection of many binomial fits at once.
+
+Each request is one fitted curve and one quantity: the curve is written in its indices
+``(rho50, Ep[, l, h])`` (``(rho50, I[, l, h])`` for the imperfection, ``Ep = I (rho50 - 1)``,
+through :meth:`~tromplab.density.curves.DensityCurve.from_indices`), the quantity is held at
+a value and the other parameters re-optimised (:func:`~tromplab.density.batch.minimise_deviance`,
+from the optimum of the previous value and, for a curve with limits, also from the
+estimate).  A limit is where the excess :math:`(D(q) - \hat D)/\phi - c` crosses zero
+(``phi`` the scale and ``c`` the threshold the caller gives).  Both sides of every request
+go together: from the estimate a step of a quarter of Ep (of I) and then twice as far each
+time until the excess is positive (a bracket) or the search range ends (no limit); within
+each bracket Chandrupatla's root search (:func:`scipy.optimize.elementwise.find_root`)
+converges to the last digits.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize.elementwise import find_root
+
+from .batch import TracerStack, minimise_deviance
+from .curves import QUARTILES
+
+#: The excess where no curve with a finite likelihood exists at a value: beyond any limit.
+BEYOND = 1e300
+#: Relative and absolute (in units of the first step) tolerances of the limits.
+ROOT_RELATIVE_TOLERANCE = 1e-14
+ROOT_STEP_TOLERANCE = 1e-11
+
+
+@dataclass(frozen=True)
+class ProfileRequests:
+    """The profiles to trace, one row per fitted curve and quantity (all of one curve).
+
+    Attributes
+    ----------
+    stack : TracerStack
+        The tracer counts of each row.
+    imperfection : ndarray of bool
+        True where the quantity is the imperfection (the second index is ``I``, not ``Ep``).
+    position : ndarray of int
+        The index held: 0 (rho50) or 1 (Ep or I).
+    centre : ndarray
+        (rows, parameters): the estimate in the indices.
+    lower, upper : ndarray
+        (rows, parameters): the search range of each index.
+    best : ndarray
+        The fit's deviance.
+    scale, threshold : ndarray
+        The deviance's scale (1, or the quasi-binomial scale) and the excess's threshold.
+    step : ndarray
+        The first step out from the estimate.
+    """
+
+    stack: TracerStack
+    imperfection: np.ndarray
+    position: np.ndarray
+    centre: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    best: np.ndarray
+    scale: np.ndarray
+    threshold: np.ndarray
+    step: np.ndarray
+
+
+def curve_of_indices(curve, q: np.ndarray, imperfection: np.ndarray) -> dict[str, np.ndarray]:
+    """The curve's parameters (each (rows, 1)) from the indices ``q`` (rows, parameters), as ``from_indices`` makes them."""
+    rho50, second = q[:, 0:1], q[:, 1:2]
+    ep = np.where(imperfection[:, None], second * (rho50 - 1.0), second)
+    if not curve.has_limits:
+        return {"rho50": rho50, "ep": ep}
+    light, heavy = q[:, 2:3], q[:, 3:4]
+    span = heavy - light
+    form = curve.form
+    centre, scale_c = _centre_and_scale(form)
+    q25, q50, q75 = (form.quantile((p - light) / span) for p in QUARTILES)
+    ep_c = ep * 2.0 * scale_c / (q75 - q25)
+    rho_c = rho50 - ep_c * (q50 - centre) / scale_c
+    return {"rho_c": rho_c, "ep_c": ep_c, "light_limit": light, "heavy_limit": heavy}
+
+
+@functools.cache
+def _centre_and_scale(form) -> tuple[float, float]:
+    return form.centre, form.scale
+
+
+class _Profiles:
+    """Both sides of every request: row ``i`` of a side is request ``i % requests``."""
+
+    def __init__(self, curve, requests: ProfileRequests):
+        self.curve, self.requests = curve, requests
+        count = len(requests.best)
+        self.request = np.tile(np.arange(count), 2)
+        self.direction = np.repeat([-1.0, 1.0], count)
+        self.warm = requests.centre[self.request].copy()  # the optimum at the last value of each side
+
+    def excess(self, sides: np.ndarray, value: np.ndarray) -> np.ndarray:
+        """The excess of the re-optimised deviance at ``value`` on each of ``sides`` (warm starts updated)."""
+        r = self.requests
+        request = self.request[sides]
+        stack = r.stack.take(request)
+        position = r.position[request]
+        held = np.arange(r.centre.shape[1])[None, :] == position[:, None]
+        lower = np.where(held, value[:, None], r.lower[request])
+        upper = np.where(held, value[:, None], r.upper[request])
+        starts = [self.warm[sides]] + ([r.centre[request]] if self.curve.has_limits else [])
+        best_x, best_value = None, None
+        for start in starts:
+            start = np.where(held, value[:, None], start)
+            imperfection = r.imperfection[request]
+
+            def partition(x, rows, imperfection=imperfection):
+                return self.curve.partition(stack.density[rows], **curve_of_indices(self.curve, x, imperfection[rows]))
+
+            found = minimise_deviance(stack, partition, start, lower, upper)
+            value_found = np.where(np.isfinite(found.deviance), found.deviance, np.inf)
+            if best_x is None:
+                best_x, best_value = found.x, value_found
+            else:
+                better = value_found < best_value  # the warm start is kept among equals, as the single fit keeps it
+                best_x, best_value = np.where(better[:, None], found.x, best_x), np.where(better, value_found, best_value)
+        finite = np.isfinite(best_value)
+        self.warm[sides[finite]] = best_x[finite]
+        excess = (best_value - r.best[request]) / r.scale[request] - r.threshold[request]
+        return np.where(finite, excess, BEYOND)
+
+
+def profile_limits(curve, requests: ProfileRequests) -> tuple[np.ndarray, np.ndarray, list[list[str]]]:
+    """The lower and upper profile limits of every request, and the notes of each (none when both are found).
+
+    Returns
+    -------
+    tuple
+        ``(low, high, notes)``; a limit the profile does not reach within the search range is
+        NaN and a note of its request says so.
+    """
+    profiles = _Profiles(curve, requests)
+    sides = np.arange(len(profiles.request))
+    request = profiles.request
+    centre = requests.centre[request, requests.position[request]]
+    edge = np.where(
+        profiles.direction > 0, requests.upper[request, requests.position[request]], requests.lower[request, requests.position[request]]
+    )
+    inner, outer = _step_out(profiles, sides, centre, edge, requests.step[request])
+    limits = np.full(len(sides), np.nan)
+    bracketed = np.isfinite(outer)
+    if bracketed.any():
+        limits[bracketed] = _roots(profiles, sides[bracketed], inner[bracketed], outer[bracketed], requests.step[request][bracketed])
+    count = len(requests.best)
+    notes = [
+        [f"the profile does not reach the {side} limit within {edge[j]:g}" for side, j in (("lower", i), ("upper", i + count)) if not bracketed[j]]
+        for i in range(count)
+    ]
+    return limits[:count], limits[count:], notes
+
+
+def _step_out(profiles: _Profiles, sides, centre, edge, step):
+    """From the estimate outwards by ``step``, doubling, to the first value with a positive excess.
+
+    Returns ``(inner, outer)``: the bracket of each side (``outer`` NaN where the search range
+    ended first)."""
+    inner, outer = centre.copy(), np.full(len(sides), np.nan)
+    direction = profiles.direction[sides]
+    active = np.ones(len(sides), dtype=bool)
+    while active.any():
+        at = np.flatnonzero(active)
+        value = centre[at] + direction[at] * step[at]
+        reached = (value - edge[at]) * direction[at] >= 0
+        value = np.where(reached, edge[at], value)
+        crossed = profiles.excess(sides[at], value) > 0
+        outer[at[crossed]] = value[crossed]
+        inner[at[~crossed & ~reached]] = value[~crossed & ~reached]
+        step[at] *= 2.0
+        active[at[crossed | reached]] = False
+    return inner, outer
+
+
+def _roots(profiles: _Profiles, sides, inner, outer, step) -> np.ndarray:
+    """Chandrupatla's search for the zero of the excess between ``inner`` and ``outer`` of each side."""
+
+    def excess(value, side):
+        return profiles.excess(side.astype(int), value)
+
+    low, high = np.minimum(inner, outer), np.maximum(inner, outer)
+    tolerances = {"xrtol": ROOT_RELATIVE_TOLERANCE, "xatol": float(ROOT_STEP_TOLERANCE * step.min()), "fatol": 0.0, "frtol": 0.0}
+    with np.errstate(all="ignore"):
+        result = find_root(excess, (low, high), args=(sides.astype(float),), tolerances=tolerances)
+    return np.where(result.success, result.x, np.nan)
+
