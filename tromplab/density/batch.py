@@ -32,6 +32,7 @@ References
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -46,6 +47,8 @@ STEP_TOLERANCE = 1e-11
 MAX_ITERATIONS = 200
 #: Relative step of the central differences of ``P`` (about the cube root of the rounding unit).
 DIFFERENCE_STEP = 6e-6
+#: Relative length below which a Newton step is taken without asking the deviance to fall.
+POLISH_STEP = 1e-6
 #: Halvings of a step before a row is taken as converged (the deviance falls no more).
 MAX_HALVINGS = 40
 
@@ -160,7 +163,9 @@ def fit_glm(stack: TracerStack, form) -> GlmFits:
     counted = n > 0
     share = np.where(counted, k / np.where(counted, n, 1.0), 0.5)
     start = (share + 0.5) / 2.0  # statsmodels' start for the binomial family
-    beta = _weighted_line(rho, form.quantile(start), n * FORM_DENSITIES[form.link](form.quantile(start)) ** 2 / (start * (1 - start)))
+    beta = _weighted_line(
+        rho, form.quantile(start), n * FORM_DENSITIES[form.link](form.quantile(start)) ** 2 / (start * (1 - start))
+    )
     converged = np.zeros(len(rho), dtype=bool)
     for _ in range(MAX_ITERATIONS):
         eta = beta[:, :1] + beta[:, 1:] * rho
@@ -246,14 +251,15 @@ def minimise_deviance(stack: TracerStack, partition, start, lower, upper) -> Min
             def of_active(point, active=active):
                 return partition(point, active)
 
-            step = _scoring_step(rows, of_active, x[active], *bounds)
-            x[active], value[active], moved = _line_search(rows, of_active, x[active], value[active], step, *bounds)
+            step, newton = _scoring_step(rows, of_active, x[active], *bounds)
+            x[active], value[active], moved = _line_search(rows, of_active, x[active], value[active], step, newton, *bounds)
             active = active[moved]
     return Minimum(x, value)
 
 
-def _scoring_step(stack: TracerStack, partition, x, lower, upper) -> np.ndarray:
-    """The projected Newton step of every row (zero along parameters held on a bound).
+def _scoring_step(stack: TracerStack, partition, x, lower, upper) -> tuple[np.ndarray, np.ndarray]:
+    """The projected Newton step of every row (zero along parameters held on a bound), and
+    whether it is Newton's (True) or Fisher scoring's.
 
     Newton's step on the deviance's own Hessian where it is positive definite on the free
     parameters, else the Fisher-scoring step on the expected information (always positive
@@ -267,12 +273,14 @@ def _scoring_step(stack: TracerStack, partition, x, lower, upper) -> np.ndarray:
     counted = n > 0
     slope = np.where(counted, 2.0 * ((n - k) / (1.0 - p) - k / p), 0.0)
     bend = np.where(counted, 2.0 * (k / p**2 + (n - k) / (1.0 - p) ** 2), 0.0)
-    score = np.einsum("rw,rwj->rj", slope, jacobian)
-    hessian = np.einsum("rw,rwi,rwj->rij", bend, jacobian, jacobian) + np.einsum("rw,rwij->rij", slope, curvature)
-    fisher = np.einsum("rw,rwi,rwj->rij", np.where(counted, 2.0 * n / (p * (1.0 - p)), 0.0), jacobian, jacobian)
+    rows, size = x.shape
+    score = np.matmul(slope[:, None, :], jacobian)[:, 0, :]
+    transposed = jacobian.transpose(0, 2, 1)
+    bent = np.matmul(slope[:, None, :], curvature.reshape(rows, -1, size * size)).reshape(rows, size, size)
+    hessian = np.matmul(transposed * bend[:, None, :], jacobian) + bent
+    fisher = np.matmul(transposed * np.where(counted, 2.0 * n / (p * (1.0 - p)), 0.0)[:, None, :], jacobian)
     held = (lower == upper) | ((x <= lower) & (score > 0)) | ((x >= upper) & (score < 0))
     free = ~held
-    size = x.shape[1]
     keep = free[:, :, None] & free[:, None, :]
     identity = np.eye(size) * held[:, :, None]
     hessian, fisher = hessian * keep + identity, fisher * keep + identity
@@ -283,7 +291,7 @@ def _scoring_step(stack: TracerStack, partition, x, lower, upper) -> np.ndarray:
     ridge = 1e-12 * np.maximum(np.abs(np.diagonal(matrix, axis1=1, axis2=2)).max(axis=1), 1e-300)
     matrix = matrix + ridge[:, None, None] * np.eye(size)
     step = -np.linalg.solve(matrix, (score * free)[:, :, None])[:, :, 0]
-    return np.where(np.isfinite(step), step, 0.0)
+    return np.where(np.isfinite(step), step, 0.0), positive
 
 
 def _derivatives(partition, x, lower, upper, current) -> tuple[np.ndarray, np.ndarray]:
@@ -293,7 +301,11 @@ def _derivatives(partition, x, lower, upper, current) -> tuple[np.ndarray, np.nd
     jacobian = np.zeros((*current.shape, size))
     curvature = np.zeros((*current.shape, size, size))
     steps, sides = np.zeros((rows, size)), []
+    held_everywhere = (lower == upper).all(axis=0)
     for j in range(size):
+        if held_everywhere[j]:  # a profile's value: no derivative to take
+            sides.append(None)
+            continue
         h = DIFFERENCE_STEP * np.maximum(np.abs(x[:, j]), 1e-2)
         fixed = lower[:, j] == upper[:, j]
         forward = x[:, j] - h < lower[:, j]
@@ -311,6 +323,8 @@ def _derivatives(partition, x, lower, upper, current) -> tuple[np.ndarray, np.nd
         sides.append(near)
     for i in range(size):
         for j in range(i + 1, size):
+            if held_everywhere[i] or held_everywhere[j]:
+                continue
             both = partition(_moved(_moved(x, i, steps[:, i]), j, steps[:, j]))
             with np.errstate(divide="ignore", invalid="ignore"):
                 cross = (both - sides[i] - sides[j] + current) / (steps[:, i] * steps[:, j])[:, None]
@@ -324,11 +338,18 @@ def _moved(x: np.ndarray, column: int, by: np.ndarray) -> np.ndarray:
     return moved
 
 
-def _line_search(stack, partition, x, value, step, lower, upper):
+def _line_search(stack, partition, x, value, step, newton, lower, upper):
     """Halve each row's step until its deviance falls; a row whose (projected) step no longer
-    moves it, or whose deviance falls no more, is returned as not moved."""
+    moves it, or whose deviance falls no more, is returned as not moved.
+
+    A Newton step shorter than :data:`POLISH_STEP` (relative) is taken whole and ends the
+    row's iterations: so close to the minimum the fall of the deviance is below its rounding,
+    and Newton's convergence leaves an error of about the square of that step.
+    """
+    scale = np.maximum(np.abs(x), 1.0)
+    tolerance = STEP_TOLERANCE * scale
+    polish = newton & (np.abs(step) < POLISH_STEP * scale).all(axis=1)
     length = np.ones(len(x))
-    tolerance = STEP_TOLERANCE * np.maximum(np.abs(x), 1.0)
     pending = np.ones(len(x), dtype=bool)
     moved = np.zeros(len(x), dtype=bool)
     new_x, new_value = x.copy(), value.copy()
@@ -338,12 +359,28 @@ def _line_search(stack, partition, x, value, step, lower, upper):
         if not pending.any():
             break
         trial_value = deviance(stack, partition(trial))
-        better = pending & np.isfinite(trial_value) & (trial_value < value)
-        new_x[better], new_value[better] = trial[better], trial_value[better]
-        moved |= better
+        slack = np.where(polish, 1e-9 * np.abs(value) + 1e-12, 0.0)
+        better = pending & np.isfinite(trial_value) & ((trial_value < value) | (polish & (trial_value <= value + slack)))
+        new_x[better], new_value[better] = trial[better], np.minimum(trial_value[better], value[better])
+        moved |= better & ~polish
         pending &= ~better
         length = np.where(pending, length / 2.0, length)
     return new_x, new_value, moved
+
+
+@functools.cache
+def centre_and_scale(form) -> tuple[float, float]:
+    """``q50`` and ``k`` of a standard form, computed once."""
+    return form.centre, form.scale
+
+
+def partition_at(curve, rho: np.ndarray, params: dict[str, np.ndarray]) -> np.ndarray:
+    """``curve.partition(rho, **params)`` without its checks of the names (the batch's inner loop)."""
+    centre, scale = centre_and_scale(curve.form)
+    if curve.has_limits:
+        inside = curve.form.cdf(centre + scale * (rho - params["rho_c"]) / params["ep_c"])
+        return params["light_limit"] + (params["heavy_limit"] - params["light_limit"]) * inside
+    return curve.form.cdf(centre + scale * (rho - params["rho50"]) / params["ep"])
 
 
 # --- the curves' fits -----------------------------------------------------------------------
@@ -370,9 +407,11 @@ def fit_limits_curve(stack: TracerStack, curve, starts: np.ndarray) -> Minimum:
     repeated = stack.take(np.tile(np.arange(rows), width))
 
     def partition(x, rows):
-        return curve.partition(repeated.density[rows], **natural_limits(x))
+        return partition_at(curve, repeated.density[rows], natural_limits(x))
 
-    found = minimise_deviance(repeated, partition, begin, np.broadcast_to(lower, begin.shape), np.broadcast_to(upper, begin.shape))
+    found = minimise_deviance(
+        repeated, partition, begin, np.broadcast_to(lower, begin.shape), np.broadcast_to(upper, begin.shape)
+    )
     value = np.where(np.isfinite(found.deviance), found.deviance, np.inf).reshape(width, rows)
     best = np.argmin(value, axis=0)  # the first start among equals, as the single fit keeps it
     pick = best * rows + np.arange(rows)

@@ -15,13 +15,12 @@ converges to the last digits.
 
 from __future__ import annotations
 
-import functools
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize.elementwise import find_root
 
-from .batch import TracerStack, minimise_deviance
+from .batch import TracerStack, centre_and_scale, minimise_deviance, partition_at
 from .curves import QUARTILES
 
 #: The excess where no curve with a finite likelihood exists at a value: beyond any limit.
@@ -76,16 +75,15 @@ def curve_of_indices(curve, q: np.ndarray, imperfection: np.ndarray) -> dict[str
     light, heavy = q[:, 2:3], q[:, 3:4]
     span = heavy - light
     form = curve.form
-    centre, scale_c = _centre_and_scale(form)
+    centre, scale_c = centre_and_scale(form)
     q25, q50, q75 = (form.quantile((p - light) / span) for p in QUARTILES)
     ep_c = ep * 2.0 * scale_c / (q75 - q25)
     rho_c = rho50 - ep_c * (q50 - centre) / scale_c
     return {"rho_c": rho_c, "ep_c": ep_c, "light_limit": light, "heavy_limit": heavy}
 
 
-@functools.cache
-def _centre_and_scale(form) -> tuple[float, float]:
-    return form.centre, form.scale
+def _ordered(values: np.ndarray, order: np.ndarray) -> np.ndarray:
+    return np.take_along_axis(values, order, axis=1)
 
 
 class _Profiles:
@@ -103,20 +101,26 @@ class _Profiles:
         r = self.requests
         request = self.request[sides]
         stack = r.stack.take(request)
-        position = r.position[request]
-        held = np.arange(r.centre.shape[1])[None, :] == position[:, None]
-        lower = np.where(held, value[:, None], r.lower[request])
-        upper = np.where(held, value[:, None], r.upper[request])
+        # the held index is put first (rho50 and Ep or I swap places), so that the minimiser
+        # sees one column held in every row and takes no derivative along it
+        order = np.tile(np.arange(r.centre.shape[1]), (len(request), 1))
+        order[:, [0, 1]] = np.where(r.position[request][:, None] == 1, [1, 0], [0, 1])
+        lower = _ordered(r.lower[request], order)
+        upper = _ordered(r.upper[request], order)
+        lower[:, 0] = upper[:, 0] = value
         starts = [self.warm[sides]] + ([r.centre[request]] if self.curve.has_limits else [])
+        imperfection = r.imperfection[request]
         best_x, best_value = None, None
         for start in starts:
-            start = np.where(held, value[:, None], start)
-            imperfection = r.imperfection[request]
+            start = _ordered(start, order)
+            start[:, 0] = value
 
-            def partition(x, rows, imperfection=imperfection):
-                return self.curve.partition(stack.density[rows], **curve_of_indices(self.curve, x, imperfection[rows]))
+            def partition(x, rows):
+                indices = _ordered(x, order[rows])  # the swap is its own inverse
+                return partition_at(self.curve, stack.density[rows], curve_of_indices(self.curve, indices, imperfection[rows]))
 
             found = minimise_deviance(stack, partition, start, lower, upper)
+            found = type(found)(_ordered(found.x, order), found.deviance)
             value_found = np.where(np.isfinite(found.deviance), found.deviance, np.inf)
             if best_x is None:
                 best_x, best_value = found.x, value_found
@@ -143,16 +147,24 @@ def profile_limits(curve, requests: ProfileRequests) -> tuple[np.ndarray, np.nda
     request = profiles.request
     centre = requests.centre[request, requests.position[request]]
     edge = np.where(
-        profiles.direction > 0, requests.upper[request, requests.position[request]], requests.lower[request, requests.position[request]]
+        profiles.direction > 0,
+        requests.upper[request, requests.position[request]],
+        requests.lower[request, requests.position[request]],
     )
     inner, outer = _step_out(profiles, sides, centre, edge, requests.step[request])
     limits = np.full(len(sides), np.nan)
     bracketed = np.isfinite(outer)
     if bracketed.any():
-        limits[bracketed] = _roots(profiles, sides[bracketed], inner[bracketed], outer[bracketed], requests.step[request][bracketed])
+        limits[bracketed] = _roots(
+            profiles, sides[bracketed], inner[bracketed], outer[bracketed], requests.step[request][bracketed]
+        )
     count = len(requests.best)
     notes = [
-        [f"the profile does not reach the {side} limit within {edge[j]:g}" for side, j in (("lower", i), ("upper", i + count)) if not bracketed[j]]
+        [
+            f"the profile does not reach the {side} limit within {edge[j]:g}"
+            for side, j in (("lower", i), ("upper", i + count))
+            if not bracketed[j]
+        ]
         for i in range(count)
     ]
     return limits[:count], limits[count:], notes
@@ -190,4 +202,3 @@ def _roots(profiles: _Profiles, sides, inner, outer, step) -> np.ndarray:
     with np.errstate(all="ignore"):
         result = find_root(excess, (low, high), args=(sides.astype(float),), tolerances=tolerances)
     return np.where(result.success, result.x, np.nan)
-
