@@ -18,7 +18,7 @@ deviance).  Every row is then fitted in the same numpy operations:
 * the limits of the profile-likelihood intervals are found for every test, quantity and
   side together (:func:`profile_limits`): stepping out from the estimate as
   :func:`tromplab.density.fitting.profile_interval` describes, then Chandrupatla's
-  bracketing root search (:func:`scipy.optimize.elementwise.find_root`) on the
+  bracketing root search on the
   re-optimised profile.
 
 References

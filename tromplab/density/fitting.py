@@ -56,13 +56,12 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.optimize
 import scipy.special
-import scipy.stats
 
 from ..results_contract import ResultContract
 from .batch import LIMIT_STARTS, BinomialFit, TracerStack, fit_glm, fit_limits_curve
 from .curves import DensityCurve, DensityIndices, get_density_curve
+from .distributions import binom_logpmf, chi2_ppf, chi2_sf, f_ppf, norm_isf, norm_ppf
 from .joint import JOINT_METHOD, fit_joint, has_three_analyses, joint_intervals
 from .profiles import ProfileRequests, profile_limits
 from .readers import DensitySample
@@ -229,7 +228,9 @@ def _starts(data: _Data) -> tuple[float, float]:
     return rho50, float(np.clip(ep, 1e-3, 1.0))
 
 
-def _minimise(value: Callable[[np.ndarray], float], starts, bounds) -> scipy.optimize.OptimizeResult:
+def _minimise(value: Callable[[np.ndarray], float], starts, bounds):
+    import scipy.optimize  # the fits on shares only: the binomial fits do not need it
+
     if len(bounds) == 1:  # the profiles of a plain curve: Brent's bounded search is many times quicker than L-BFGS-B
         return _minimise_scalar(value, starts, bounds[0])
     best = None
@@ -244,12 +245,16 @@ def _minimise(value: Callable[[np.ndarray], float], starts, bounds) -> scipy.opt
     return best if best is not None else _nowhere(starts)
 
 
-def _nowhere(starts) -> scipy.optimize.OptimizeResult:
+def _nowhere(starts):
     """The result of a search that found no finite value (the objective is infinite wherever it looked)."""
+    import scipy.optimize
+
     return scipy.optimize.OptimizeResult(x=np.asarray(starts[0], float), fun=np.inf, success=False)
 
 
-def _minimise_scalar(value, starts, bounds) -> scipy.optimize.OptimizeResult:
+def _minimise_scalar(value, starts, bounds):
+    import scipy.optimize
+
     best = None
     for start in starts:
         centre = float(np.clip(np.asarray(start, float).ravel()[0], *bounds))
@@ -275,6 +280,8 @@ def _natural(curve: DensityCurve, x: np.ndarray) -> dict[str, float]:
 
 def _fit_numerically(curve: DensityCurve, data: _Data) -> tuple[dict, object]:
     """Least squares on the shares from several starts (binomial fits are made in batch, :mod:`.batch`)."""
+    import scipy.optimize
+
     rho50, ep = _starts(data)
     bounds = [(p.lower, p.upper) for p in curve.parameters]
     ep_index = 1
@@ -332,9 +339,9 @@ def _statistics(curve: DensityCurve, data: _Data, params: dict, objective: float
         k, n = data.sinks, data.trials
         pearson = float(np.sum((k - n * p_fit) ** 2 / (n * p_fit * (1 - p_fit))))
         dispersion = pearson / df if df > 0 else math.nan
-        overdispersed = df > 0 and pearson > scipy.stats.chi2.ppf(1 - OVERDISPERSION_LEVEL, df)
-        loglik = float(scipy.stats.binom.logpmf(k, n, p_fit).sum())
-        gof_p = float(scipy.stats.chi2.sf(objective, df)) if df > 0 else math.nan
+        overdispersed = df > 0 and pearson > chi2_ppf(1 - OVERDISPERSION_LEVEL, df)
+        loglik = float(binom_logpmf(k, n, p_fit).sum())
+        gof_p = float(chi2_sf(objective, df)) if df > 0 else math.nan
         return {
             "df_resid": df,
             "gof_p": gof_p,
@@ -390,8 +397,8 @@ def profile_threshold(fit: DensityCurveFit, ci: float, *, binomial: bool) -> flo
     """The scaled rise at which a profile-likelihood limit at level ``ci`` lies: the
     chi-squared(1) quantile (binomial) or F(1, n - p)'s (least squares)."""
     if binomial:
-        return float(scipy.stats.chi2.ppf(ci, 1))
-    return float(scipy.stats.f.ppf(ci, 1, fit.df_resid)) if fit.df_resid > 0 else math.nan
+        return float(chi2_ppf(ci, 1))
+    return float(f_ppf(ci, 1, fit.df_resid)) if fit.df_resid > 0 else math.nan
 
 
 def profile_interval(fit: DensityCurveFit, quantity: str, ci: float) -> tuple[float, float, str]:
@@ -494,6 +501,8 @@ def _profile_requests(chosen: list, ci: float) -> ProfileRequests:
 
 def _profile_limit(excess, centre: float, direction: float, bounds: tuple[float, float], step: float) -> tuple[float, str]:
     """Where ``excess`` crosses 0 going from ``centre`` in ``direction``, stepping out geometrically from ``step``."""
+    import scipy.optimize
+
     edge = bounds[1] if direction > 0 else bounds[0]
     tolerance = 1e-4 * step
     inner = centre
@@ -777,7 +786,7 @@ def limits_test_p(plain: DensityCurveFit, limited: DensityCurveFit) -> float:
         ratio = count * math.log(plain.objective / limited.objective) if limited.objective > 0 else math.inf
     if not ratio > 1e-9:  # the limits fitted on their bounds: the plain curve again, up to the optimiser's tolerance
         return 1.0
-    return float(0.5 * scipy.stats.chi2.sf(ratio, 1) + 0.25 * scipy.stats.chi2.sf(ratio, 2))
+    return float(0.5 * chi2_sf(ratio, 1) + 0.25 * chi2_sf(ratio, 2))
 
 
 def wilson_interval(count, trials, *, level: float) -> tuple[np.ndarray, np.ndarray]:
@@ -801,7 +810,7 @@ def wilson_interval(count, trials, *, level: float) -> tuple[np.ndarray, np.ndar
     """
     count, trials = np.asarray(count), np.asarray(trials)
     share = count / trials
-    crit = scipy.stats.norm.isf((1 - level) / 2.0)
+    crit = norm_isf((1 - level) / 2.0)
     crit2 = crit**2
     denominator = 1 + crit2 / trials
     centre = (share + crit2 / (2 * trials)) / denominator
@@ -859,7 +868,7 @@ def _band(fit: DensityCurveFit, rho, centre, names: list, covariance: np.ndarray
         axis=-1,
     )
     variance = np.einsum("...i,ij,...j->...", gradient, covariance, gradient)
-    half = scipy.stats.norm.ppf(0.5 + level / 2) * np.sqrt(np.clip(variance, 0, None))
+    half = norm_ppf(0.5 + level / 2) * np.sqrt(np.clip(variance, 0, None))
     return np.clip(centre - half, 0, 1), np.clip(centre + half, 0, 1)
 
 

@@ -9,8 +9,14 @@ estimate).  A limit is where the excess :math:`(D(q) - \hat D)/\phi - c` crosses
 (``phi`` the scale and ``c`` the threshold the caller gives).  Both sides of every request
 go together: from the estimate a step of a quarter of Ep (of I) and then twice as far each
 time until the excess is positive (a bracket) or the search range ends (no limit); within
-each bracket Chandrupatla's root search (:func:`scipy.optimize.elementwise.find_root`)
-converges to the last digits.
+each bracket Chandrupatla's (1997) root search, every side at once, converges to the last
+digits.
+
+References
+----------
+.. [Chandrupatla1997] Chandrupatla T.R. (1997). A new hybrid quadratic/bisection algorithm for
+   finding the zero of a nonlinear function without using derivatives. *Advances in
+   Engineering Software* 28(3), 145-149.
 """
 
 from __future__ import annotations
@@ -18,7 +24,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize.elementwise import find_root
 
 from .batch import TracerStack, centre_and_scale, minimise_deviance, partition_at
 from .curves import QUARTILES
@@ -28,6 +33,8 @@ BEYOND = 1e300
 #: Relative and absolute (in units of the first step) tolerances of the limits.
 ROOT_RELATIVE_TOLERANCE = 1e-14
 ROOT_STEP_TOLERANCE = 1e-11
+#: Iterations of the root search (it converges in about ten).
+MAX_ROOT_ITERATIONS = 100
 
 
 @dataclass(frozen=True)
@@ -151,13 +158,13 @@ def profile_limits(curve, requests: ProfileRequests) -> tuple[np.ndarray, np.nda
         requests.upper[request, requests.position[request]],
         requests.lower[request, requests.position[request]],
     )
-    inner, outer = _step_out(profiles, sides, centre, edge, requests.step[request])
+    bracket = _step_out(profiles, sides, centre, edge, requests.step[request], -requests.threshold[request])
     limits = np.full(len(sides), np.nan)
-    bracketed = np.isfinite(outer)
+    bracketed = np.isfinite(bracket[1])
     if bracketed.any():
-        limits[bracketed] = _roots(
-            profiles, sides[bracketed], inner[bracketed], outer[bracketed], requests.step[request][bracketed]
-        )
+        inside = [part[bracketed] for part in bracket]
+        tolerance = ROOT_STEP_TOLERANCE * requests.step[request][bracketed]
+        limits[bracketed] = _chandrupatla(profiles, sides[bracketed], *inside, tolerance)
     count = len(requests.best)
     notes = [
         [
@@ -170,12 +177,13 @@ def profile_limits(curve, requests: ProfileRequests) -> tuple[np.ndarray, np.nda
     return limits[:count], limits[count:], notes
 
 
-def _step_out(profiles: _Profiles, sides, centre, edge, step):
+def _step_out(profiles: _Profiles, sides, centre, edge, step, at_centre):
     """From the estimate outwards by ``step``, doubling, to the first value with a positive excess.
 
-    Returns ``(inner, outer)``: the bracket of each side (``outer`` NaN where the search range
-    ended first)."""
+    Returns ``(inner, outer, excess at inner, excess at outer)`` of each side (``outer`` NaN
+    where the search range ended first); ``at_centre`` is the excess at the estimate."""
     inner, outer = centre.copy(), np.full(len(sides), np.nan)
+    inner_excess, outer_excess = at_centre.copy(), np.full(len(sides), np.nan)
     direction = profiles.direction[sides]
     active = np.ones(len(sides), dtype=bool)
     while active.any():
@@ -183,22 +191,43 @@ def _step_out(profiles: _Profiles, sides, centre, edge, step):
         value = centre[at] + direction[at] * step[at]
         reached = (value - edge[at]) * direction[at] >= 0
         value = np.where(reached, edge[at], value)
-        crossed = profiles.excess(sides[at], value) > 0
-        outer[at[crossed]] = value[crossed]
-        inner[at[~crossed & ~reached]] = value[~crossed & ~reached]
+        excess = profiles.excess(sides[at], value)
+        crossed = excess > 0
+        outer[at[crossed]], outer_excess[at[crossed]] = value[crossed], excess[crossed]
+        moving = ~crossed & ~reached
+        inner[at[moving]], inner_excess[at[moving]] = value[moving], excess[moving]
         step[at] *= 2.0
         active[at[crossed | reached]] = False
-    return inner, outer
+    return inner, outer, inner_excess, outer_excess
 
 
-def _roots(profiles: _Profiles, sides, inner, outer, step) -> np.ndarray:
-    """Chandrupatla's search for the zero of the excess between ``inner`` and ``outer`` of each side."""
-
-    def excess(value, side):
-        return profiles.excess(side.astype(int), value)
-
-    low, high = np.minimum(inner, outer), np.maximum(inner, outer)
-    tolerances = {"xrtol": ROOT_RELATIVE_TOLERANCE, "xatol": float(ROOT_STEP_TOLERANCE * step.min()), "fatol": 0.0, "frtol": 0.0}
-    with np.errstate(all="ignore"):
-        result = find_root(excess, (low, high), args=(sides.astype(float),), tolerances=tolerances)
-    return np.where(result.success, result.x, np.nan)
+def _chandrupatla(profiles: _Profiles, sides, a, b, fa, fb, tolerance) -> np.ndarray:
+    """The zero of the excess between ``a`` and ``b`` (excesses ``fa <= 0 < fb``) of each side:
+    Chandrupatla's inverse quadratic interpolation, bisection where it is not safe, every side at once."""
+    c, fc = a.copy(), fa.copy()
+    t = np.full(len(sides), 0.5)
+    found = np.full(len(sides), np.nan)
+    active = np.arange(len(sides))
+    for _ in range(MAX_ROOT_ITERATIONS):
+        xt = a + t * (b - a)
+        ft = profiles.excess(sides[active], xt)
+        same = np.sign(ft) == np.sign(fa)
+        c, fc = np.where(same, a, b), np.where(same, fa, fb)
+        b, fb = np.where(same, b, a), np.where(same, fb, fa)
+        a, fa = xt, ft
+        closer = np.abs(fa) < np.abs(fb)
+        xm, fm = np.where(closer, a, b), np.where(closer, fa, fb)
+        with np.errstate(divide="ignore"):  # b == c: the bracket has closed
+            limit = (2 * ROOT_RELATIVE_TOLERANCE * np.abs(xm) + tolerance[active]) / np.abs(b - c)
+        done = (fm == 0) | (limit > 0.5)
+        found[active[done]] = xm[done]
+        keep = ~done
+        if not keep.any():
+            break
+        with np.errstate(all="ignore"):
+            xi, phi = (a - b) / (c - b), (fa - fb) / (fc - fb)
+            quadratic = (phi**2 < xi) & ((1 - phi) ** 2 < 1 - xi)
+            interpolated = fa / (fb - fa) * fc / (fb - fc) + (c - a) / (b - a) * fa / (fc - fa) * fb / (fc - fb)
+        t = np.clip(np.where(quadratic, interpolated, 0.5), limit, 1 - limit)
+        a, b, c, fa, fb, fc, t, active = (part[keep] for part in (a, b, c, fa, fb, fc, t, active))
+    return found
