@@ -19,9 +19,10 @@ from ..validation import check_probability, cli_type
 from .option_groups import add_jobs_option
 from .startup import EXIT_OK, EXIT_PARTIAL, progress_bars  # done, and some tests without any fitted curve
 
-#: What ``density fit`` imports when it runs (imported before it starts, under the CLI's signal handling);
-#: statsmodels is imported only where a table needs it (the Wilson intervals, the Ep trend by size).
-FIT_IMPORTS = ("tromplab.density", "tromplab.loading.tables", "scipy.stats", "scipy.optimize")
+#: What ``density fit`` imports when it runs (imported before it starts, under the CLI's signal handling).
+#: The fits of tracer counts need neither scipy.stats nor scipy.optimize nor statsmodels: those are
+#: imported where a float-sink fit or a table by size needs them (a large share of the start-up).
+FIT_IMPORTS = ("tromplab.density", "tromplab.loading.tables")
 
 
 def add_density_command(commands) -> argparse.ArgumentParser:

@@ -104,38 +104,37 @@ class _Profiles:
         self.warm = requests.centre[self.request].copy()  # the optimum at the last value of each side
 
     def excess(self, sides: np.ndarray, value: np.ndarray) -> np.ndarray:
-        """The excess of the re-optimised deviance at ``value`` on each of ``sides`` (warm starts updated)."""
+        """The excess of the re-optimised deviance at ``value`` on each of ``sides`` (warm starts updated).
+
+        A curve with limits is re-optimised from two starts, the last optimum of the side and
+        the estimate, both in one minimisation (rows stacked), the lower deviance kept (the
+        last optimum among equals)."""
         r = self.requests
-        request = self.request[sides]
+        count = len(sides)
+        starts = [self.warm[sides]] + ([r.centre[self.request[sides]]] if self.curve.has_limits else [])
+        request = np.tile(self.request[sides], len(starts))
         stack = r.stack.take(request)
         # the held index is put first (rho50 and Ep or I swap places), so that the minimiser
         # sees one column held in every row and takes no derivative along it
         order = np.tile(np.arange(r.centre.shape[1]), (len(request), 1))
         order[:, [0, 1]] = np.where(r.position[request][:, None] == 1, [1, 0], [0, 1])
-        lower = _ordered(r.lower[request], order)
-        upper = _ordered(r.upper[request], order)
-        lower[:, 0] = upper[:, 0] = value
-        starts = [self.warm[sides]] + ([r.centre[request]] if self.curve.has_limits else [])
+        held = np.tile(value, len(starts))
+        lower, upper, start = (_ordered(part, order) for part in (r.lower[request], r.upper[request], np.concatenate(starts)))
+        lower[:, 0] = upper[:, 0] = start[:, 0] = held
         imperfection = r.imperfection[request]
-        best_x, best_value = None, None
-        for start in starts:
-            start = _ordered(start, order)
-            start[:, 0] = value
 
-            def partition(x, rows):
-                indices = _ordered(x, order[rows])  # the swap is its own inverse
-                return partition_at(self.curve, stack.density[rows], curve_of_indices(self.curve, indices, imperfection[rows]))
+        def partition(x, rows):
+            indices = _ordered(x, order[rows])  # the swap is its own inverse
+            return partition_at(self.curve, stack.density[rows], curve_of_indices(self.curve, indices, imperfection[rows]))
 
-            found = minimise_deviance(stack, partition, start, lower, upper)
-            found = type(found)(_ordered(found.x, order), found.deviance)
-            value_found = np.where(np.isfinite(found.deviance), found.deviance, np.inf)
-            if best_x is None:
-                best_x, best_value = found.x, value_found
-            else:
-                better = value_found < best_value  # the warm start is kept among equals, as the single fit keeps it
-                best_x, best_value = np.where(better[:, None], found.x, best_x), np.where(better, value_found, best_value)
+        found = minimise_deviance(stack, partition, start, lower, upper)
+        x = _ordered(found.x, order).reshape(len(starts), count, -1)
+        deviance = np.where(np.isfinite(found.deviance), found.deviance, np.inf).reshape(len(starts), count)
+        pick = np.argmin(deviance, axis=0)  # the first start among equals
+        best_x, best_value = x[pick, np.arange(count)], deviance[pick, np.arange(count)]
         finite = np.isfinite(best_value)
         self.warm[sides[finite]] = best_x[finite]
+        request = request[:count]
         excess = (best_value - r.best[request]) / r.scale[request] - r.threshold[request]
         return np.where(finite, excess, BEYOND)
 

@@ -302,6 +302,8 @@ class DensityResult(ResultContract):
 
     def _figures(self, mode: str, progress=None) -> tuple[dict[str, bytes], pd.DataFrame | None]:
         """PNG bytes by file name, and the table of per-test figures (None when there are none)."""
+        if mode == "none":
+            return {}, None
         from ..output.outputs import figure_file_names
         from ..output.plotting import figure_png
 
@@ -315,8 +317,6 @@ class DensityResult(ResultContract):
                 return {}, None
             axes = _offscreen(2, figsize=(9.0, 6.5))
             return {"overview.png": figure_png(plot_density_overview(summary, axes=axes)[0])}, None
-        if mode == "none":
-            return {}, None
         names = figure_file_names([sample.label for sample in self.samples], prefix="density_")
         pictures, rows = {}, []
         for sample in self.samples:
@@ -343,6 +343,8 @@ class DensityResult(ResultContract):
         return rows
 
     def _documents(self, tables: dict, figures: dict, *, excel: bool, report: bool) -> dict:
+        if not (excel or report):
+            return {}
         from .documents import REPORT_HTML, REPORT_MARKDOWN, WORKBOOK_NAME, density_report, write_density_workbook
 
         outputs = {}
