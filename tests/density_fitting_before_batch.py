@@ -33,6 +33,8 @@ PROFILE_XTOL = 1e-4
 #: SLSQP's ``ftol`` (then 1e-12) and the bounded scalar search's ``xatol`` (then 1e-9).
 SLSQP_FTOL = 1e-12
 SCALAR_XATOL = 1e-9
+#: Options of statsmodels' ``GLM.fit`` (then none: its default tolerance on the deviance, 1e-8).
+GLM_FIT_OPTIONS = {}
 
 #: Lowest and highest values the profile searches and the fits of a curve with limits may take.
 INDEX_BOUNDS = {"rho50": (1.0 + 1e-6, 8.0), "ep": (1e-4, 2.0), "imperfection": (1e-5, 20.0)}
@@ -275,7 +277,7 @@ def _fit_glm(curve: DensityCurve, data: _Data) -> tuple[dict, object]:
     exog = np.column_stack([np.ones_like(data.density), data.density])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        result = sm.GLM(endog, exog, family=sm.families.Binomial(link=links[curve.link]())).fit()
+        result = sm.GLM(endog, exog, family=sm.families.Binomial(link=links[curve.link]())).fit(**GLM_FIT_OPTIONS)
     intercept, slope = (float(v) for v in result.params)
     if not slope > 0:
         raise ValueError("the fitted partition does not rise with density")

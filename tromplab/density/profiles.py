@@ -164,16 +164,29 @@ def profile_limits(curve, requests: ProfileRequests) -> tuple[np.ndarray, np.nda
         inside = [part[bracketed] for part in bracket]
         tolerance = ROOT_STEP_TOLERANCE * requests.step[request][bracketed]
         limits[bracketed] = _chandrupatla(profiles, sides[bracketed], *inside, tolerance)
+        _recheck_edges(profiles, sides, limits, edge, requests.step[request])
     count = len(requests.best)
     notes = [
         [
             f"the profile does not reach the {side} limit within {edge[j]:g}"
             for side, j in (("lower", i), ("upper", i + count))
-            if not bracketed[j]
+            if not np.isfinite(limits[j])
         ]
         for i in range(count)
     ]
     return limits[:count], limits[count:], notes
+
+
+def _recheck_edges(profiles: _Profiles, sides, limits, edge, step) -> None:
+    """A limit found at the edge of the search range is checked once more, from the optimum
+    next to it: the step out reaches the edge in one jump, from which the re-optimisation of a
+    curve grown nearly into a step (Ep near 0 with limits that take the misplaced tracers) can
+    stall above the profile's minimum.  Where the profile at the edge is below the threshold
+    after all, the limit is not reached (NaN, said so)."""
+    at_edge = np.flatnonzero(np.abs(limits - edge) <= 1e-6 * step)
+    if at_edge.size:
+        below = profiles.excess(sides[at_edge], edge[at_edge]) <= 0
+        limits[at_edge[below]] = np.nan
 
 
 def _step_out(profiles: _Profiles, sides, centre, edge, step, at_centre):
