@@ -55,8 +55,15 @@ def tracer_campaign(tests: int, *, seed: int = 0) -> pd.DataFrame:
         rho50, ep = rng.uniform(1.45, 1.75), rng.uniform(0.02, 0.08)
         densities = np.round(np.linspace(rho50 - 3 * ep, rho50 + 3 * ep, DENSITIES_PER_TEST), 3)
         frames.append(
-            simulate_tracer_test("normal", {"rho50": rho50, "ep": ep}, densities, placed=TRACERS_PER_DENSITY,
-                                 retrieval=0.95, rng=rng, test=f"t{number:04d}")  # fmt: skip
+            simulate_tracer_test(
+                "normal",
+                {"rho50": rho50, "ep": ep},
+                densities,
+                placed=TRACERS_PER_DENSITY,
+                retrieval=0.95,
+                rng=rng,
+                test=f"t{number:04d}",
+            )  # fmt: skip
         )
     return pd.concat(frames, ignore_index=True)
 

@@ -10,7 +10,6 @@ defaults) so that a test can also run this path to convergence.  ``tests/test_de
 compares the new engine with it.
 """
 
-
 from __future__ import annotations
 
 import math
@@ -23,10 +22,10 @@ import scipy.optimize
 import scipy.special
 import scipy.stats
 
-from tromplab.results_contract import ResultContract
 from tromplab.density.curves import DensityCurve, DensityIndices, get_density_curve
 from tromplab.density.joint import JOINT_METHOD, fit_joint, has_three_analyses, joint_intervals
 from tromplab.density.readers import DensitySample
+from tromplab.results_contract import ResultContract
 
 #: brentq's absolute tolerance on a profile limit, in units of the first step (then 1e-4).
 PROFILE_XTOL = 1e-4

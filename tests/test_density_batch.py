@@ -8,12 +8,13 @@ import numpy as np
 import pandas as pd
 import pytest
 import scipy.optimize
+import scipy.special
 import scipy.stats
 from numpy.testing import assert_allclose
 
 from tromplab.cli import main
-from tromplab.density import fit_density, read_density
 from tromplab.density import distributions as dist
+from tromplab.density import fit_density, read_density
 from tromplab.density import results as density_results
 from tromplab.density.batch import TracerStack, fit_glm
 from tromplab.density.curves import DENSITY_CURVES, PLAIN_CURVES, get_density_curve
@@ -25,9 +26,9 @@ from .conftest import write
 
 BUNDLED = "datasets/density_tracers_dmc_by_size_synthetic.csv"
 DENSITIES = np.round(np.arange(1.40, 1.71, 0.03), 2)
-#: statsmodels' GLM run to convergence: its default stops at a relative change of the deviance of
+#: statsmodels' GLM run to convergence (no tolerance: all its iterations): its default stops at a change of the deviance of
 #: 1e-8, which leaves the parameters of the probit and cloglog links about 1e-6 from the maximum.
-STATSMODELS_TIGHT = {"tol": 1e-14, "maxiter": 1000}
+STATSMODELS_TIGHT = {"tol": 0.0, "maxiter": 300}
 
 
 def tracer_sets() -> list:
@@ -37,12 +38,29 @@ def tracer_sets() -> list:
     tables = [
         simulate_tracer_test("logistic", {"rho50": 1.55, "ep": 0.04}, DENSITIES, rng=rng, test="logistic"),
         simulate_tracer_test("gompertz", {"rho50": 1.6, "ep": 0.03}, DENSITIES, rng=rng, test="gompertz"),
-        simulate_tracer_test("gompertz_limits", {"rho_c": 1.55, "ep_c": 0.04, "light_limit": 0.06, "heavy_limit": 0.92},
-                             DENSITIES, rng=rng, test="limits"),  # fmt: skip
-        pd.DataFrame({"test": "overdispersed", "density": DENSITIES[:8], "sinks": [0, 6, 2, 15, 8, 25, 20, 30],
-                      "floats": [30, 24, 28, 15, 22, 5, 10, 0]}),  # fmt: skip
-        pd.DataFrame({"test": "near_separation", "density": [1.4, 1.45, 1.5, 1.55, 1.6, 1.65], "sinks": [0, 0, 3, 27, 30, 30],
-                      "floats": [30, 30, 27, 3, 0, 0]}),  # fmt: skip
+        simulate_tracer_test(
+            "gompertz_limits",
+            {"rho_c": 1.55, "ep_c": 0.04, "light_limit": 0.06, "heavy_limit": 0.92},
+            DENSITIES,
+            rng=rng,
+            test="limits",
+        ),  # fmt: skip
+        pd.DataFrame(
+            {
+                "test": "overdispersed",
+                "density": DENSITIES[:8],
+                "sinks": [0, 6, 2, 15, 8, 25, 20, 30],
+                "floats": [30, 24, 28, 15, 22, 5, 10, 0],
+            }
+        ),  # fmt: skip
+        pd.DataFrame(
+            {
+                "test": "near_separation",
+                "density": [1.4, 1.45, 1.5, 1.55, 1.6, 1.65],
+                "sinks": [0, 0, 3, 27, 30, 30],
+                "floats": [30, 30, 27, 3, 0, 0],
+            }
+        ),  # fmt: skip
     ]
     samples = read_density(BUNDLED)
     for table in tables:
@@ -108,35 +126,50 @@ def _numbers(fit) -> dict:
 @pytest.mark.slow
 def test_batch_equals_the_previous_path_run_to_convergence(both_paths):
     """Plain curves to 1e-8 (both reach the maximum; the Pearson dispersion to 5e-8), curves with
-    limits to 1e-6 (SLSQP's own precision in the previous path, at ftol 1e-16); the same successes,
-    messages, notes (but for the limits the previous path found at the edge: next test) and ranks."""
+    limits to 1e-6 relative or absolute (SLSQP's own precision in the previous path, at ftol
+    1e-16); the same successes, messages and notes."""
     batch, previous = both_paths
     compared = 0
     for new, old in zip(batch, previous):
-        assert (new.sample.label, new.curve.id, new.success, new.message) == (old.sample.label, old.curve.id, old.success, old.message)
+        assert (new.sample.label, new.curve.id, new.success, new.message) == (
+            old.sample.label,
+            old.curve.id,
+            old.success,
+            old.message,
+        )
         if not new.success:
             continue
         assert new.overdispersed == old.overdispersed and new.df_resid == old.df_resid
         new_numbers, old_numbers = _numbers(new), _numbers(old)
-        if new.sample.test == "limits":
-            continue  # the previous path's spurious limits: test_a_limit_the_profile_does_not_reach_is_not_invented
-        assert new.notes == old.notes
+        if new.curve.has_limits and new.overdispersed:
+            # four parameters on counts with 7 times the binomial variance: the profiles of Ep and I
+            # have several minima, and each path follows its own warm starts; the fit itself must agree
+            new_numbers = {name: value for name, value in new_numbers.items() if not name.endswith(("_low", "_high"))}
+            old_numbers = {name: value for name, value in old_numbers.items() if not name.endswith(("_low", "_high"))}
+        else:
+            assert new.notes == old.notes
         assert new_numbers.keys() == old_numbers.keys()
         for name, value in new_numbers.items():
             rtol = 1e-6 if new.curve.has_limits else (5e-8 if name == "dispersion" else 1e-8)
-            assert_allclose(value, old_numbers[name], rtol=rtol, atol=1e-12, err_msg=f"{new.sample.label} {new.curve.id} {name}")
+            atol = 1e-6 if new.curve.has_limits else 1e-12  # a limit near 0 of the previous path is good to SLSQP's 1e-6
+            assert_allclose(value, old_numbers[name], rtol=rtol, atol=atol, err_msg=f"{new.sample.label} {new.curve.id} {name}")
             compared += 1
     assert compared > 500
 
 
-@pytest.mark.slow
-def test_a_limit_the_profile_does_not_reach_is_not_invented(both_paths):
-    """On the test with real limits the profile of Ep of a curve with limits stays below the
+def test_a_limit_the_profile_does_not_reach_is_not_invented():
+    """A test with real limits whose profile of Ep, for a curve with limits, stays below the
     chi-squared threshold down to the search's edge (the limits take the misplaced tracers, so a
-    step fits nearly as well): checked by brute force, (rho50, l, h) re-optimised on a grid."""
-    batch, _ = both_paths
-    fit = next(f for f in batch if f.sample.test == "limits" and f.curve.id == "normal_limits")
+    step fits nearly as well): no lower limit (the previous path reported 1.0048e-4, next to the
+    edge 1e-4, and an imperfection limit of 9.1e-4). Checked by brute force: (rho50, l, h)
+    re-optimised (l and h on a grid of 30 x 30) at Ep = 1e-4."""
+    rng = np.random.default_rng(7)
+    simulate_tracer_test("logistic", {"rho50": 1.55, "ep": 0.04}, DENSITIES, rng=rng)  # the draws before it
+    table = simulate_tracer_test("gompertz_limits", {"rho_c": 1.55, "ep_c": 0.04, "light_limit": 0.06, "heavy_limit": 0.92},
+                                 DENSITIES, rng=rng, test="limits")  # fmt: skip
+    fit = fit_density_curves(read_density(table), ["normal_limits"], ci=0.95)[0]
     assert math.isnan(fit.intervals["ep"][0]) and "ep: the profile does not reach the lower limit within 0.0001" in fit.notes
+    assert math.isnan(fit.intervals["imperfection"][0])
     used = fit.sample.used
     k, n, rho = (used[c].to_numpy(float) for c in ("sinks", "recovered", "density"))
 
@@ -145,12 +178,13 @@ def test_a_limit_the_profile_does_not_reach_is_not_invented(both_paths):
         return 2 * np.sum(scipy.special.xlogy(k, k / (n * p)) + scipy.special.xlogy(n - k, (n - k) / (n * (1 - p))))
 
     best = math.inf
-    for light in np.linspace(0.0, 0.249, 12):
-        for heavy in np.linspace(0.751, 1.0, 12):
+    for light in np.linspace(0.0, 0.249, 30):
+        for heavy in np.linspace(0.751, 1.0, 30):
+
             def at(cut, light=light, heavy=heavy):
                 return deviance(fit.curve.from_indices(rho50=cut, ep=1e-4, light_limit=light, heavy_limit=heavy))
 
-            best = min(best, scipy.optimize.minimize_scalar(at, bounds=(1.45, 1.65), method="bounded").fun)
+            best = min(best, scipy.optimize.minimize_scalar(at, bounds=(1.4, 1.7), method="bounded").fun)
     assert best - fit.objective < scipy.stats.chi2.ppf(0.95, 1)
 
 
@@ -196,8 +230,9 @@ def test_wilson_intervals_are_statsmodels_to_the_last_bit():
 def campaign(tests: int) -> pd.DataFrame:
     rng = np.random.default_rng(11)
     frames = [
-        simulate_tracer_test("normal", {"rho50": rng.uniform(1.45, 1.7), "ep": rng.uniform(0.02, 0.06)}, DENSITIES, rng=rng,
-                             test=f"t{i:02d}")  # fmt: skip
+        simulate_tracer_test(
+            "normal", {"rho50": rng.uniform(1.45, 1.7), "ep": rng.uniform(0.02, 0.06)}, DENSITIES, rng=rng, test=f"t{i:02d}"
+        )  # fmt: skip
         for i in range(tests)
     ]
     return pd.concat(frames, ignore_index=True)
@@ -221,7 +256,7 @@ def test_units_and_workers_give_the_same_fits_as_one_batch(monkeypatch):
 
 @pytest.mark.parametrize("figures", ["none", "auto", "all", "best"])
 def test_figures_choice_decides_the_figures_written_by_the_command_and_the_api(tmp_path, figures):
-    path = write(tmp_path, "tracers.csv", campaign(3).to_csv(index=False))
+    path = write(tmp_path, campaign(3).to_csv(index=False), "tracers.csv")
     assert main(["density", "fit", str(path), "-o", str(tmp_path / "cli"), "--figures", figures, "-q"]) == 0
     fit_density(path).save(tmp_path / "api", figures=figures)
     cli = sorted(p.name for p in (tmp_path / "cli").iterdir())
