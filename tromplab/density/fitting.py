@@ -480,11 +480,6 @@ def _profile_requests(chosen: list, ci: float) -> ProfileRequests:
     """The profiles of ``(fit, quantity, data)`` of one curve as stacked arrays."""
     vectors = [_index_vector(fit.curve, fit.params, fit.indices, quantity) for fit, quantity, _ in chosen]
     bounds = np.array([limits for _, limits in vectors], dtype=float)
-    thresholds = {}  # one quantile per level and degrees of freedom, not one per request
-    for fit, _, _ in chosen:
-        key = (fit.df_resid, fit.overdispersed)
-        if key not in thresholds:
-            thresholds[key] = profile_threshold(fit, ci, binomial=True)
     return ProfileRequests(
         stack=TracerStack.of([(data.density, data.sinks, data.trials) for _, _, data in chosen]),
         imperfection=np.array([quantity == "imperfection" for _, quantity, _ in chosen]),
@@ -494,7 +489,7 @@ def _profile_requests(chosen: list, ci: float) -> ProfileRequests:
         upper=bounds[:, :, 1],
         best=np.array([fit.objective for fit, _, _ in chosen]),
         scale=np.array([profile_scale(fit, binomial=True) for fit, _, _ in chosen]),
-        threshold=np.array([thresholds[fit.df_resid, fit.overdispersed] for fit, _, _ in chosen]),
+        threshold=np.array([profile_threshold(fit, ci, binomial=True) for fit, _, _ in chosen]),
         step=np.array([_first_step(fit, quantity) for fit, quantity, _ in chosen]),
     )
 
@@ -780,7 +775,7 @@ def limits_test_p(plain: DensityCurveFit, limited: DensityCurveFit) -> float:
     """
     if plain.method == "binomial":
         # the scale of the larger model: a plain curve that misses real limits looks overdispersed itself
-        ratio = (plain.objective - limited.objective) / (limited.dispersion if limited.overdispersed else 1.0)
+        ratio = (plain.objective - limited.objective) / profile_scale(limited, binomial=True)
     else:
         count = int(plain.sample.used.shape[0])
         ratio = count * math.log(plain.objective / limited.objective) if limited.objective > 0 else math.inf
@@ -844,7 +839,7 @@ def partition_band(fit: DensityCurveFit, rho, *, level: float = 0.95) -> tuple[n
         return fit.curve.partition(where, **{**fit.params, **dict(zip(names, vector))})
 
     hessian = _hessian(lambda vector: objective(at(vector, data.density)), values, steps)
-    scale = (fit.dispersion if fit.overdispersed else 1.0) if data.binomial else fit.dispersion
+    scale = profile_scale(fit, binomial=data.binomial)
     try:
         covariance = 2.0 * scale * np.linalg.inv(hessian)
     except np.linalg.LinAlgError:
