@@ -557,8 +557,9 @@ def fit_density_curves(samples, curves, *, ci: float | None = None, method: str 
     curves = [get_density_curve(curve) for curve in curves]
     fits, stacked = {}, {}
     for position, sample in enumerate(samples):
+        read = {}  # the sample's arrays, read from its table once for all curves
         for curve in curves:
-            opened = _open(sample, curve, method)
+            opened = _open(sample, curve, method, read)
             if isinstance(opened, DensityCurveFit):
                 fits[position, curve.id] = opened
             elif opened.data.binomial:
@@ -586,11 +587,14 @@ class _Opened:
     joint: bool
 
 
-def _open(sample: DensitySample, curve: DensityCurve, method: str | None) -> _Opened | DensityCurveFit:
-    """The fit's method and data, or the failed fit when the data cannot give the curve."""
+def _open(sample: DensitySample, curve: DensityCurve, method: str | None, read: dict) -> _Opened | DensityCurveFit:
+    """The fit's method and data (``read``: the sample's data by method, filled here), or the
+    failed fit when the data cannot give the curve."""
     joint = method is None and has_three_analyses(sample)
     method = method or ("binomial" if sample.layout == "tracers" else "least_squares")
-    data = _data(sample, method)
+    if method not in read:
+        read[method] = _data(sample, method)
+    data = read[method]
     failed = {"sample": sample, "curve": curve, "method": method, "success": False}
     if data.density.size <= curve.n_params - (0 if data.binomial else 1):
         return DensityCurveFit(**failed, message=f"{data.density.size} densities are too few for {curve.n_params} parameters")
