@@ -280,3 +280,13 @@ def test_unknown_figures_choice_is_an_option_error(tmp_path):
 
     with pytest.raises(OptionError, match="figures"):
         fit_density(campaign(1)).save(tmp_path / "out", figures="some")
+
+
+def test_a_result_pickled_after_its_tables_were_made_gives_the_same_tables():
+    import pickle
+
+    result = fit_density(campaign(2), curves="normal,normal_limits")
+    table, report = result.fits_table(), result.report()  # fills the caches keyed by the objects' ids
+    loaded = pickle.loads(pickle.dumps(result))
+    assert loaded.fits_table().equals(table) and loaded.report() == report
+    assert loaded.best(loaded.samples[1]) is not None

@@ -73,6 +73,12 @@ class DensityResult(ResultContract):
         done = sum(fit.success for fit in self.fits)
         return f"<DensityResult: {len(self.samples)} test(s), {len(self.fits)} fits ({done} succeeded), ci={self.ci}>"
 
+    #: Caches keyed by the ids of samples and fits, which a pickle does not keep: made again after loading.
+    _ID_CACHES = ("_by_sample", "_best", "_ranking_notes")
+
+    def __getstate__(self):
+        return {name: value for name, value in super().__getstate__().items() if name not in self._ID_CACHES}
+
     @cached_property
     def _by_sample(self) -> dict[int, list[DensityCurveFit]]:
         by_sample = {id(sample): [] for sample in self.samples}
