@@ -1,6 +1,6 @@
 """``tromplab density fit`` at batch speed, each run against its floor measured in the same run.
 
-* acceptance (issue 40): the whole command ``tromplab density fit FILE --ci 0.95 --figures none``
+* acceptance: the whole command ``tromplab density fit FILE --ci 0.95 --figures none``
   on 40 simulated tracer tests (12 densities, 30 tracers each), as a ratio to the yardstick:
   bare single-start lmfit fits of 100 synthetic experiments x 10 curves (the nine formulas,
   the first again; ``fit_robustness.bare_lmfit``).  The two are timed in turn ``--repeats``
