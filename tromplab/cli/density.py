@@ -13,13 +13,17 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from ..options import AUTO_FIGURE_LIMIT, FIGURE_CHOICES
 from ..output.outputs import check_output_folder
 from ..validation import check_probability, check_yield, cli_type
+from .option_groups import add_jobs_option
 from .printing import print_notices
-from .startup import EXIT_OK, EXIT_PARTIAL, print_result  # done, and some tests without any fitted curve
+from .startup import EXIT_OK, EXIT_PARTIAL, print_result, progress_bars  # done, and some tests without any fitted curve
 
 #: What ``density fit`` imports when it runs (imported before it starts, under the CLI's signal handling).
-FIT_IMPORTS = ("tromplab.density", "tromplab.loading.tables", "statsmodels.api", "scipy.stats", "scipy.optimize")
+#: The fits of tracer counts need neither scipy.stats nor scipy.optimize nor statsmodels: those are
+#: imported where a float-sink fit or a table by size needs them (a large share of the start-up).
+FIT_IMPORTS = ("tromplab.density", "tromplab.loading.tables")
 
 
 def add_density_command(commands) -> argparse.ArgumentParser:
@@ -67,6 +71,11 @@ def _add_fit(sub) -> None:
                      help="also write the tables and figures as one workbook, results.xlsx, in the folder")  # fmt: skip
     fit.add_argument("--report", action="store_true",
                      help="also write report.html (figures embedded) and its Markdown twin report.md in the folder")  # fmt: skip
+    fit.add_argument("--figures", choices=FIGURE_CHOICES, default="auto",
+                     help="per-test figures with every fitted curve (all) or the best one (best); auto: all up to "
+                     f"{AUTO_FIGURE_LIMIT} tests and size fractions, then one overview figure (default auto)")  # fmt: skip
+    fit.add_argument("--no-figures", dest="figures", action="store_const", const="none", help="same as --figures none")
+    add_jobs_option(fit)
     fit.add_argument("--sheet", default=None, help="Excel sheet (default: the first)")
     fit.add_argument("--sep", default=None, help="CSV field separator (detected when not given)")
     fit.add_argument("--decimal", default=None, help="CSV decimal mark (detected when not given)")
@@ -78,9 +87,10 @@ def run_density_fit(args) -> int:
     from ..density import fit_density
 
     check_output_folder(args.outdir, inputs=[args.file])
-    result = fit_density(args.file, ci=args.ci, curves=args.curves, method=args.method, floats_yield=args.floats_yield,
-                         sheet=args.sheet, sep=args.sep, decimal=args.decimal)  # fmt: skip
-    written = result.save(args.outdir, excel=args.excel, report=args.report)
+    with progress_bars(quiet=args.quiet, unit="test", stages=("figures",)) as progress:
+        result = fit_density(args.file, ci=args.ci, curves=args.curves, method=args.method, floats_yield=args.floats_yield,
+                             sheet=args.sheet, sep=args.sep, decimal=args.decimal, jobs=args.jobs, progress=progress)  # fmt: skip
+        written = result.save(args.outdir, excel=args.excel, report=args.report, figures=args.figures, progress=progress)
     print(result.report())
     print("\nWrote:")
     for path in written.values():

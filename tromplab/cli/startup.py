@@ -323,12 +323,15 @@ def require(module: str, option: str, install: str) -> None:
 
 class progress_bars:
     """tqdm bars on standard error with rate and ETA, as one ``progress(done, total, label)``
-    callback: a bar for the fits, then one for the intervals (labels ``"intervals: ..."``);
-    silent when standard error is not a terminal, with --quiet, or without tqdm."""
+    callback: a bar for the fits, then one for each later stage (labels ``"<stage>: ..."``,
+    ``stages`` naming them: by default the intervals, counted in fits); ``unit`` is what the
+    fitting stage counts.  Silent when standard error is not a terminal, with --quiet, or
+    without tqdm."""
 
-    def __init__(self, *, quiet: bool = False):
+    def __init__(self, *, quiet: bool = False, unit: str = "exp", stages: tuple[str, ...] = ("intervals",)):
         self.enabled = not quiet and sys.stderr.isatty()
         self.bar, self.stage = None, None
+        self.unit, self.stages = unit, stages
 
     def __enter__(self):
         if not self.enabled:
@@ -341,14 +344,13 @@ class progress_bars:
             return print_progress
 
         def update(done, total, label):
-            stage = "intervals" if label.startswith("intervals: ") else "fitting"
+            stage = next((stage for stage in self.stages if label.startswith(f"{stage}: ")), "fitting")
             if total <= 1:
                 return
             if stage != self.stage:
                 self._close()
-                self.bar = tqdm(
-                    total=total, desc=stage, unit="fit" if stage == "intervals" else "exp", file=sys.stderr, dynamic_ncols=True
-                )
+                unit = "fit" if stage == "intervals" else self.unit
+                self.bar = tqdm(total=total, desc=stage, unit=unit, file=sys.stderr, dynamic_ncols=True)
                 self.stage = stage
             self.bar.update(done - self.bar.n)
 

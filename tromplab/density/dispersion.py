@@ -38,7 +38,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.stats
+
+from .distributions import chi2_ppf, f_ppf
 
 #: Level of the Pearson test of overdispersion (the ``overdispersed`` column, the QAIC ranking).
 OVERDISPERSION_LEVEL = 0.05
@@ -74,7 +75,7 @@ def pearson_rejects(dispersion, df_resid, *, level: float = OVERDISPERSION_LEVEL
     """
     dispersion, df_resid = np.asarray(dispersion, float), np.asarray(df_resid, float)
     with np.errstate(invalid="ignore"):
-        rejects = (df_resid > 0) & (dispersion * df_resid > scipy.stats.chi2.ppf(1 - level, np.maximum(df_resid, 1)))
+        rejects = (df_resid > 0) & (dispersion * df_resid > chi2_ppf(1 - level, np.maximum(df_resid, 1)))
     return rejects if rejects.ndim else bool(rejects)
 
 
@@ -130,8 +131,8 @@ def profile_threshold(ci, df_resid, estimated):
     (3.841, 6.608)
     """
     df_resid, estimated = np.asarray(df_resid, float), np.asarray(estimated, bool)
-    known = scipy.stats.chi2.ppf(ci, 1)
+    known = chi2_ppf(ci, 1)
     with np.errstate(invalid="ignore"):
-        quasi = scipy.stats.f.ppf(ci, 1, np.where(estimated & (df_resid > 0), df_resid, 1.0))
+        quasi = f_ppf(ci, 1, np.where(estimated & (df_resid > 0), df_resid, 1.0))
     threshold = np.where(estimated, np.where(df_resid > 0, quasi, np.nan), known)
     return float(threshold) if threshold.ndim == 0 else threshold

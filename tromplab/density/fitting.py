@@ -4,9 +4,10 @@ Tracer counts
     ``k_i`` of the ``n_i`` tracers of density ``rho_i`` recovered in the sinks,
     :math:`k_i \sim \mathrm{Binomial}(n_i, P(\rho_i))`.  A plain curve is a binomial GLM
     in ``rho`` with the curve's link (probit: normal, logit: logistic, complementary
-    log-log: Gompertz), fitted by statsmodels; ``rho50 = (q50 - a)/b``, ``Ep = k/b``.  A
-    curve with limits is fitted by minimising the binomial deviance (scipy, SLSQP within the bounds, several
-    starts).  Goodness of fit: the deviance against :math:`\chi^2_{n - p}`.  Overdispersion:
+    log-log: Gompertz), fitted by iteratively reweighted least squares; ``rho50 = (q50 - a)/b``,
+    ``Ep = k/b``.  A curve with limits is fitted by minimising the binomial deviance within the
+    bounds from several starts (projected Fisher scoring).  The tests of a file are fitted
+    together, on stacked arrays (:mod:`tromplab.density.batch`).  Goodness of fit: the deviance against :math:`\chi^2_{n - p}`.  Overdispersion:
     the Pearson :math:`X^2 / (n - p)`, flagged when the Pearson test rejects at 5 %
     (:math:`X^2 > \chi^2_{n-p, 0.95}`); the intervals use :math:`\phi = \max(1, X^2/(n - p))`
     as the quasi-binomial scale (profile deviances divided by it), with the
@@ -50,20 +51,23 @@ References
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.optimize
 import scipy.special
-import scipy.stats
 
 from ..results_contract import ResultContract
+from .batch import LIMIT_STARTS, BinomialFit, TracerStack, fit_glm, fit_limits_curve
 from .curves import DensityCurve, DensityIndices, get_density_curve
-from .dispersion import pearson_rejects, profile_threshold, quasi_binomial_scale
+from .dispersion import pearson_rejects, quasi_binomial_scale
+from .dispersion import profile_threshold as quasi_profile_threshold
+from .distributions import binom_logpmf, chi2_sf, f_ppf, norm_isf, norm_ppf
 from .joint import JOINT_METHOD, fit_joint, has_three_analyses, joint_intervals
+from .profiles import ProfileRequests, profile_limits
 from .readers import DensitySample
 
 #: Lowest and highest values the profile searches and the fits of a curve with limits may take.
@@ -123,7 +127,8 @@ class DensityCurveFit(ResultContract):
     notes : tuple of str
         What the reader must know about the fit, in words.
     raw : object
-        The statsmodels GLM results or the scipy optimisation result.
+        Binomial fits: the batch's record (:class:`tromplab.density.batch.BinomialFit`);
+        least squares: the scipy optimisation result; the joint fit: its result.
     """
 
     sample: DensitySample
@@ -226,7 +231,9 @@ def _starts(data: _Data) -> tuple[float, float]:
     return rho50, float(np.clip(ep, 1e-3, 1.0))
 
 
-def _minimise(value: Callable[[np.ndarray], float], starts, bounds) -> scipy.optimize.OptimizeResult:
+def _minimise(value: Callable[[np.ndarray], float], starts, bounds):
+    import scipy.optimize  # the fits on shares only: the binomial fits do not need it
+
     if len(bounds) == 1:  # the profiles of a plain curve: Brent's bounded search is many times quicker than L-BFGS-B
         return _minimise_scalar(value, starts, bounds[0])
     best = None
@@ -241,12 +248,16 @@ def _minimise(value: Callable[[np.ndarray], float], starts, bounds) -> scipy.opt
     return best if best is not None else _nowhere(starts)
 
 
-def _nowhere(starts) -> scipy.optimize.OptimizeResult:
+def _nowhere(starts):
     """The result of a search that found no finite value (the objective is infinite wherever it looked)."""
+    import scipy.optimize
+
     return scipy.optimize.OptimizeResult(x=np.asarray(starts[0], float), fun=np.inf, success=False)
 
 
-def _minimise_scalar(value, starts, bounds) -> scipy.optimize.OptimizeResult:
+def _minimise_scalar(value, starts, bounds):
+    import scipy.optimize
+
     best = None
     for start in starts:
         centre = float(np.clip(np.asarray(start, float).ravel()[0], *bounds))
@@ -270,20 +281,18 @@ def _natural(curve: DensityCurve, x: np.ndarray) -> dict[str, float]:
     return values
 
 
-def _fit_numerically(curve: DensityCurve, data: _Data, objective) -> tuple[dict, object]:
+def _fit_numerically(curve: DensityCurve, data: _Data) -> tuple[dict, object]:
+    """Least squares on the shares from several starts (binomial fits are made in batch, :mod:`.batch`)."""
+    import scipy.optimize
+
     rho50, ep = _starts(data)
     bounds = [(p.lower, p.upper) for p in curve.parameters]
     ep_index = 1
     bounds[ep_index] = (math.log(bounds[ep_index][0]), math.log(bounds[ep_index][1]))
     if curve.has_limits:
-        starts = [
-            (rho50, math.log(ep), light, heavy) for light, heavy in ((0.001, 0.999), (0.03, 0.97), (0.0, 0.95), (0.05, 1.0))
-        ]
+        starts = [(rho50, math.log(ep), light, heavy) for light, heavy in LIMIT_STARTS]
     else:
         starts = [(rho50, math.log(ep)), (rho50, math.log(ep) + 1.0), (rho50, math.log(ep) - 1.0)]
-    if data.binomial:
-        result = _minimise(lambda x: objective(curve.partition(data.density, **_natural(curve, x))), starts, bounds)
-        return _natural(curve, result.x), result
     root_weight = np.sqrt(data.weight)
 
     def residuals(x):
@@ -296,22 +305,6 @@ def _fit_numerically(curve: DensityCurve, data: _Data, objective) -> tuple[dict,
         if best is None or result.cost < best.cost:
             best = result
     return _natural(curve, best.x), best
-
-
-def _fit_glm(curve: DensityCurve, data: _Data) -> tuple[dict, object]:
-    import statsmodels.api as sm
-
-    links = {"probit": sm.families.links.Probit, "logit": sm.families.links.Logit, "cloglog": sm.families.links.CLogLog}
-    endog = np.column_stack([data.sinks, data.trials - data.sinks])
-    exog = np.column_stack([np.ones_like(data.density), data.density])
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        result = sm.GLM(endog, exog, family=sm.families.Binomial(link=links[curve.link]())).fit()
-    intercept, slope = (float(v) for v in result.params)
-    if not slope > 0:
-        raise ValueError("the fitted partition does not rise with density")
-    form = curve.form
-    return {"rho50": (form.centre - intercept) / slope, "ep": form.scale / slope}, result
 
 
 def _separation(data: _Data) -> str:
@@ -350,8 +343,8 @@ def _statistics(curve: DensityCurve, data: _Data, params: dict, objective: float
         pearson = float(np.sum((k - n * p_fit) ** 2 / (n * p_fit * (1 - p_fit))))
         dispersion = pearson / df if df > 0 else math.nan
         overdispersed = df > 0 and pearson_rejects(dispersion, df)
-        loglik = float(scipy.stats.binom.logpmf(k, n, p_fit).sum())
-        gof_p = float(scipy.stats.chi2.sf(objective, df)) if df > 0 else math.nan
+        loglik = float(binom_logpmf(k, n, p_fit).sum())
+        gof_p = float(chi2_sf(objective, df)) if df > 0 else math.nan
         return {
             "df_resid": df,
             "gof_p": gof_p,
@@ -394,6 +387,26 @@ def _index_vector(curve: DensityCurve, fit_params: dict, indices: DensityIndices
     return np.array(vector), bounds
 
 
+def profile_scale(fit: DensityCurveFit, *, binomial: bool) -> float:
+    """What the profile's rise of the deviance (binomial) or sum of squares is divided by: the
+    quasi-binomial scale of :func:`tromplab.density.dispersion.quasi_binomial_scale` (binomial);
+    the residual variance for least squares (NaN without degrees of freedom)."""
+    if binomial:
+        return quasi_binomial_scale(fit.dispersion, fit.df_resid).scale
+    return fit.objective / fit.df_resid if fit.df_resid > 0 else math.nan
+
+
+def profile_threshold(fit: DensityCurveFit, ci: float, *, binomial: bool) -> float:
+    """The scaled rise at which a profile-likelihood limit at level ``ci`` lies: the
+    chi-squared(1) quantile (binomial on the binomial scale), F(1, n - p)'s where a scale was
+    estimated (a quasi-binomial scale above 1, :mod:`tromplab.density.dispersion`, or the
+    residual variance of least squares)."""
+    if binomial:
+        estimated = quasi_binomial_scale(fit.dispersion, fit.df_resid).estimated
+        return quasi_profile_threshold(ci, fit.df_resid, estimated)
+    return float(f_ppf(ci, 1, fit.df_resid)) if fit.df_resid > 0 else math.nan
+
+
 def profile_interval(fit: DensityCurveFit, quantity: str, ci: float) -> tuple[float, float, str]:
     """Profile-likelihood interval of ``quantity`` (``rho50``, ``ep``, ``imperfection``) of ``fit``.
 
@@ -404,37 +417,17 @@ def profile_interval(fit: DensityCurveFit, quantity: str, ci: float) -> tuple[fl
         NaN and ``note`` says so.
     """
     data = _data(fit.sample, fit.method)
-    if data.binomial:
-        quasi = quasi_binomial_scale(fit.dispersion, fit.df_resid)
-        scale, threshold = quasi.scale, profile_threshold(ci, fit.df_resid, quasi.estimated)
-    else:  # the residual variance S/(n - p), estimated: F(1, n - p)
-        scale = fit.objective / fit.df_resid if fit.df_resid > 0 else math.nan
-        threshold = profile_threshold(ci, fit.df_resid, True)
-    if not (np.isfinite(scale) and scale > 0):
-        return math.nan, math.nan, f"{quantity} has no interval: no degrees of freedom left for the error variance"
-    if not data.binomial and fit.objective <= 1e-20 * data.density.size:
-        return math.nan, math.nan, f"{quantity} has no interval: the curve passes through every point (no residual variance)"
-    return profile_limits(fit, quantity, scale, threshold)
-
-
-def profile_limits(fit: DensityCurveFit, quantity: str, scale: float, threshold: float) -> tuple[float, float, str]:
-    """Where the profile of ``quantity``'s objective (deviance or sum of squares), its rise over the minimum divided by
-    ``scale``, reaches ``threshold``.
-
-    :func:`profile_interval` takes ``scale`` and ``threshold`` from the rules of
-    :mod:`tromplab.density.dispersion` (binomial) or from the residual variance (least squares);
-    the simulation studies compare rules with it.
-
-    Returns
-    -------
-    tuple
-        ``(low, high, note)`` as :func:`profile_interval`.
-    """
-    data = _data(fit.sample, fit.method)
     objective = _objective_of(data)
     model = _index_model(fit.curve, quantity)
     centre, bounds = _index_vector(fit.curve, fit.params, fit.indices, quantity)
     position = 0 if quantity == "rho50" else 1
+    if data.binomial:
+        return _binomial_profiles([(fit, quantity, data)], ci)[0]
+    scale, threshold = profile_scale(fit, binomial=False), profile_threshold(fit, ci, binomial=False)
+    if not (np.isfinite(scale) and scale > 0):
+        return math.nan, math.nan, _NO_VARIANCE_LEFT.format(quantity=quantity)
+    if fit.objective <= 1e-20 * data.density.size:
+        return math.nan, math.nan, f"{quantity} has no interval: the curve passes through every point (no residual variance)"
     free = [i for i in range(centre.size) if i != position]
 
     warm = {"x": centre[free]}  # the optimum of the last profile point: the next one starts there
@@ -452,8 +445,7 @@ def profile_limits(fit: DensityCurveFit, quantity: str, scale: float, threshold:
         warm["x"] = best.x
         return (best.fun - fit.objective) / scale - threshold
 
-    # a quarter of Ep (of I) is about the half-width of a 95 % interval from 30 tracers per density
-    step = 0.25 * (fit.indices.imperfection if quantity == "imperfection" else fit.indices.ep)
+    step = _first_step(fit, quantity)
     limits, notes = [], []
     for direction in (-1.0, 1.0):
         warm["x"] = centre[free]
@@ -463,8 +455,66 @@ def profile_limits(fit: DensityCurveFit, quantity: str, scale: float, threshold:
     return limits[0], limits[1], "; ".join(notes)
 
 
+_NO_VARIANCE_LEFT = "{quantity} has no interval: no degrees of freedom left for the error variance"
+
+
+def _first_step(fit: DensityCurveFit, quantity: str) -> float:
+    """How far from the estimate a profile looks first: a quarter of Ep (of I), about the
+    half-width of a 95 % interval from 30 tracers per density."""
+    return 0.25 * (fit.indices.imperfection if quantity == "imperfection" else fit.indices.ep)
+
+
+def _binomial_profiles(requests: list, ci: float) -> list[tuple[float, float, str]]:
+    """``(low, high, note)`` of every ``(fit, quantity, data)`` of binomial fits, traced together curve by curve."""
+    found: list = [None] * len(requests)
+    by_curve: dict[str, list[int]] = {}
+    for position, (fit, quantity, _) in enumerate(requests):
+        scale = profile_scale(fit, binomial=True)
+        if np.isfinite(scale) and scale > 0:
+            by_curve.setdefault(fit.curve.id, []).append(position)
+        else:
+            found[position] = (math.nan, math.nan, _NO_VARIANCE_LEFT.format(quantity=quantity))
+    for positions in by_curve.values():
+        chosen = [requests[position] for position in positions]
+        low, high, notes = profile_limits(chosen[0][0].curve, _profile_requests(chosen, ci))
+        for row, (position, (_, quantity, _)) in enumerate(zip(positions, chosen)):
+            found[position] = (float(low[row]), float(high[row]), "; ".join(f"{quantity}: {note}" for note in notes[row]))
+    return found
+
+
+def binomial_profile_limits(fit: DensityCurveFit, quantity: str, scale: float, threshold: float) -> tuple[float, float]:
+    """``(low, high)`` where the rise of ``quantity``'s profile deviance over the minimum, divided by
+    ``scale``, reaches ``threshold``: the profile interval of a binomial fit under another rule
+    than :mod:`tromplab.density.dispersion`'s (the simulation studies compare rules with it)."""
+    data = _data(fit.sample, fit.method)
+    requests = dataclasses.replace(_profile_requests([(fit, quantity, data)], 0.95), scale=np.array([scale], dtype=float),
+                                   threshold=np.array([threshold], dtype=float))  # fmt: skip
+    low, high, _ = profile_limits(fit.curve, requests)
+    return float(low[0]), float(high[0])
+
+
+def _profile_requests(chosen: list, ci: float) -> ProfileRequests:
+    """The profiles of ``(fit, quantity, data)`` of one curve as stacked arrays."""
+    vectors = [_index_vector(fit.curve, fit.params, fit.indices, quantity) for fit, quantity, _ in chosen]
+    bounds = np.array([limits for _, limits in vectors], dtype=float)
+    return ProfileRequests(
+        stack=TracerStack.of([(data.density, data.sinks, data.trials) for _, _, data in chosen]),
+        imperfection=np.array([quantity == "imperfection" for _, quantity, _ in chosen]),
+        position=np.array([0 if quantity == "rho50" else 1 for _, quantity, _ in chosen]),
+        centre=np.array([vector for vector, _ in vectors], dtype=float),
+        lower=bounds[:, :, 0],
+        upper=bounds[:, :, 1],
+        best=np.array([fit.objective for fit, _, _ in chosen]),
+        scale=np.array([profile_scale(fit, binomial=True) for fit, _, _ in chosen]),
+        threshold=np.array([profile_threshold(fit, ci, binomial=True) for fit, _, _ in chosen]),
+        step=np.array([_first_step(fit, quantity) for fit, quantity, _ in chosen]),
+    )
+
+
 def _profile_limit(excess, centre: float, direction: float, bounds: tuple[float, float], step: float) -> tuple[float, str]:
     """Where ``excess`` crosses 0 going from ``centre`` in ``direction``, stepping out geometrically from ``step``."""
+    import scipy.optimize
+
     edge = bounds[1] if direction > 0 else bounds[0]
     tolerance = 1e-4 * step
     inner = centre
@@ -484,7 +534,7 @@ def _profile_limit(excess, centre: float, direction: float, bounds: tuple[float,
         inner, step = outer, step * 2.0
 
 
-# --- one curve, one sample ------------------------------------------------------------------
+# --- curves and samples -------------------------------------------------------------------------
 def fit_density_curve(sample: DensitySample, curve, *, ci: float | None = None, method: str | None = None) -> DensityCurveFit:
     """Fit one density curve to one sample; the result says why when no curve could be fitted.
 
@@ -505,25 +555,94 @@ def fit_density_curve(sample: DensitySample, curve, *, ci: float | None = None, 
     -------
     DensityCurveFit
     """
-    curve = get_density_curve(curve)
+    return fit_density_curves([sample], [curve], ci=ci, method=method)[0]
+
+
+def fit_density_curves(samples, curves, *, ci: float | None = None, method: str | None = None) -> list[DensityCurveFit]:
+    """Fit every curve to every sample: the fits of :func:`fit_density_curve`, the binomial ones all at once.
+
+    The binomial fits of one curve to every tracer sample are made together on stacked
+    arrays (:mod:`tromplab.density.batch`), and so are the profile-likelihood intervals of
+    every binomial fit (:mod:`tromplab.density.profiles`); the fits on shares are made one
+    at a time.
+
+    Returns
+    -------
+    list of DensityCurveFit
+        Sample by sample, the curves of each in the order given.
+    """
+    curves = [get_density_curve(curve) for curve in curves]
+    fits, stacked = {}, {}
+    for position, sample in enumerate(samples):
+        read = {}  # the sample's arrays, read from its table once for all curves
+        for curve in curves:
+            opened = _open(sample, curve, method, read)
+            if isinstance(opened, DensityCurveFit):
+                fits[position, curve.id] = opened
+            elif opened.data.binomial:
+                stacked.setdefault(curve.id, []).append(((position, curve.id), sample, opened))
+            else:
+                fits[position, curve.id] = _fit_on_shares(sample, curve, opened, ci)
+    binomial = []
+    for curve_id, items in stacked.items():
+        curve = get_density_curve(curve_id)
+        for (key, sample, opened), (params, raw) in zip(items, _fit_binomial_stack(curve, [item[2].data for item in items])):
+            fits[key] = _finished(sample, curve, opened, params, raw)
+            binomial += [(key, opened.data)] if fits[key].success else []
+    profiles = _binomial_interval_plan(fits, binomial, ci)
+    for key, data in binomial:
+        fits[key] = _with_intervals_and_notes(fits[key], data, ci, joint_fell_back=False, profiles=profiles)
+    return [fits[position, curve.id] for position in range(len(samples)) for curve in curves]
+
+
+@dataclass(frozen=True)
+class _Opened:
+    """A fit about to be made: its method, data and whether the three float-sink analyses are fitted jointly."""
+
+    method: str
+    data: _Data
+    joint: bool
+
+
+def _open(sample: DensitySample, curve: DensityCurve, method: str | None, read: dict) -> _Opened | DensityCurveFit:
+    """The fit's method and data (``read``: the sample's data by method, filled here), or the
+    failed fit when the data cannot give the curve."""
     joint = method is None and has_three_analyses(sample)
     method = method or ("binomial" if sample.layout == "tracers" else "least_squares")
-    data = _data(sample, method)
+    if method not in read:
+        read[method] = _data(sample, method)
+    data = read[method]
     failed = {"sample": sample, "curve": curve, "method": method, "success": False}
     if data.density.size <= curve.n_params - (0 if data.binomial else 1):
         return DensityCurveFit(**failed, message=f"{data.density.size} densities are too few for {curve.n_params} parameters")
     separation = _separation(data)
     if separation:
         return DensityCurveFit(**failed, message=separation)
-    objective = _objective_of(data)
+    return _Opened(method, data, joint)
+
+
+def _fit_on_shares(sample: DensitySample, curve: DensityCurve, opened: _Opened, ci: float | None) -> DensityCurveFit:
+    """Least squares on the partitions (or the joint fit of the three analyses), with intervals."""
     try:
-        if data.binomial and not curve.has_limits:
-            params, raw = _fit_glm(curve, data)
-        else:
-            params, raw = _fit_numerically(curve, data, objective)
+        params, raw = _fit_numerically(curve, opened.data)
     except (ValueError, np.linalg.LinAlgError) as error:
-        return DensityCurveFit(**failed, message=str(error))
-    value = objective(curve.partition(data.density, **params))
+        return DensityCurveFit(sample, curve, opened.method, False, message=str(error))
+    fit = _finished(sample, curve, opened, params, raw)
+    if not fit.success:
+        return fit
+    joint_fit = _joint(fit, ci) if opened.joint else None
+    if joint_fit is not None:
+        return joint_fit
+    return _with_intervals_and_notes(fit, opened.data, ci, joint_fell_back=opened.joint)
+
+
+def _finished(sample: DensitySample, curve: DensityCurve, opened: _Opened, params, raw) -> DensityCurveFit:
+    """The fit at ``params`` (a message: why none) with its indices and statistics, before its intervals."""
+    failed = {"sample": sample, "curve": curve, "method": opened.method, "success": False}
+    if isinstance(params, str):
+        return DensityCurveFit(**failed, message=params)
+    data = opened.data
+    value = _objective_of(data)(curve.partition(data.density, **params))
     if not np.isfinite(value):
         return DensityCurveFit(**failed, message="the optimiser found no curve with a finite likelihood")
     indices = curve.indices(**params)
@@ -534,17 +653,33 @@ def fit_density_curve(sample: DensitySample, curve, *, ci: float | None = None, 
             **failed,
             message=f"the fitted cut density {indices.rho50:.4g} lies outside {low:g}..{high:g} g/cm3: the data do not locate the cut",
         )
-    fit = DensityCurveFit(
-        sample, curve, method, True, "", params, indices, value, **_statistics(curve, data, params, value), raw=raw
-    )
-    joint_fit = _joint(fit, ci) if joint else None
-    if joint_fit is not None:
-        return joint_fit
-    return _with_intervals_and_notes(fit, data, ci, joint_fell_back=joint)
+    statistics = _statistics(curve, data, params, value)
+    return DensityCurveFit(sample, curve, opened.method, True, "", params, indices, value, **statistics, raw=raw)
 
 
-def _with_intervals_and_notes(fit: DensityCurveFit, data, ci: float | None, *, joint_fell_back: bool) -> DensityCurveFit:
-    """The fit on the partitions with its intervals at ``ci`` and the notes on how it was made."""
+def _fit_binomial_stack(curve: DensityCurve, datas: list[_Data]) -> list[tuple[dict | str, BinomialFit]]:
+    """The parameters (or why there are none) and the fit's record of ``curve`` on each of ``datas``, fitted together."""
+    stack = TracerStack.of([(data.density, data.sinks, data.trials) for data in datas])
+    if curve.has_limits:
+        found = fit_limits_curve(stack, curve, np.array([_starts(data) for data in datas]))
+        return [(_natural(curve, x), BinomialFit(x, None, float(value), True)) for x, value in zip(found.x, found.deviance)]
+    glm = fit_glm(stack, curve.form)
+    results = []
+    for params, covariance, value, converged in zip(glm.params, glm.covariance, glm.deviance, glm.converged):
+        intercept, slope = (float(v) for v in params)
+        record = BinomialFit(params, covariance, float(value), bool(converged))
+        if not slope > 0:
+            results.append(("the fitted partition does not rise with density", record))
+        else:
+            results.append(({"rho50": (curve.form.centre - intercept) / slope, "ep": curve.form.scale / slope}, record))
+    return results
+
+
+def _with_intervals_and_notes(
+    fit: DensityCurveFit, data, ci: float | None, *, joint_fell_back: bool, profiles: dict | None = None
+) -> DensityCurveFit:
+    """The fit on the partitions with its intervals at ``ci`` and the notes on how it was made
+    (``profiles``: the profile intervals already traced, by fit and quantity)."""
     notes = [fit.indices.note] if fit.indices.note else []
     if joint_fell_back:
         notes.append(JOINT_FALLBACK_NOTE)
@@ -552,7 +687,7 @@ def _with_intervals_and_notes(fit: DensityCurveFit, data, ci: float | None, *, j
         notes.append(f"overdispersed (Pearson chi2/df = {fit.dispersion:.2f}: the Pearson test rejects binomial counts at 5 %)")
     intervals = {}
     if ci is not None:
-        intervals, interval_notes = _intervals(fit, data, ci)
+        intervals, interval_notes = _intervals(fit, data, ci, profiles)
         notes += interval_notes
         notes += [note for note in [_scale_note(fit)] if note and data.binomial and intervals]
         if fit.sample.layout == "float-sink" and intervals:
@@ -569,6 +704,14 @@ def _scale_note(fit: DensityCurveFit) -> str:
         f"intervals on the quasi-binomial scale {quasi.scale:.3g} (Pearson chi2/df, above 1): deviance rises over it "
         f"against F(1, {fit.df_resid})"
     )
+
+
+def _binomial_interval_plan(fits: dict, binomial: list, ci: float | None) -> dict:
+    """The profile intervals of every binomial fit's quantities that have one, traced together, by fit and quantity."""
+    if ci is None:
+        return {}
+    requests = [(fits[key], quantity, data) for key, data in binomial for quantity in _interval_quantities(fits[key], data)[0]]
+    return {(id(fit), quantity): found for (fit, quantity, _), found in zip(requests, _binomial_profiles(requests, ci))}
 
 
 def _joint(fit: DensityCurveFit, ci: float | None) -> DensityCurveFit | None:
@@ -607,12 +750,26 @@ def _replace(fit: DensityCurveFit, **changes) -> DensityCurveFit:
     return replace(fit, **changes)
 
 
-def _intervals(fit: DensityCurveFit, data: _Data, ci: float) -> tuple[dict, list[str]]:
+def _intervals(fit: DensityCurveFit, data: _Data, ci: float, profiles: dict | None = None) -> tuple[dict, list[str]]:
+    quantities, notes = _interval_quantities(fit, data)
+    intervals = {}
+    for quantity in quantities:
+        if profiles is not None:
+            low, high, note = profiles[id(fit), quantity]
+        else:
+            low, high, note = profile_interval(fit, quantity, ci)
+        intervals[quantity] = (low, high)
+        notes += [note] if note else []
+    return intervals, notes
+
+
+def _interval_quantities(fit: DensityCurveFit, data: _Data) -> tuple[list[str], list[str]]:
+    """The quantities of ``fit`` that get a profile interval, and notes on those that do not."""
     index = fit.indices
     if math.isnan(index.rho50) or math.isnan(index.ep):
-        return {}, ["no intervals: the fitted curve has no rho50 or Ep"]
+        return [], ["no intervals: the fitted curve has no rho50 or Ep"]
     inside = (data.density > index.rho25) & (data.density < index.rho75)
-    notes, intervals = [], {}
+    notes = []
     quantities = ["rho50", "ep", "imperfection"]
     if not inside.any():
         notes.append(
@@ -629,11 +786,7 @@ def _intervals(fit: DensityCurveFit, data: _Data, ci: float) -> tuple[dict, list
                 f"{quantity} has no interval: its estimate {value:.4g} lies outside the range searched, {lowest:g} to {highest:g}"
             )
             quantities.remove(quantity)
-    for quantity in quantities:
-        low, high, note = profile_interval(fit, quantity, ci)
-        intervals[quantity] = (low, high)
-        notes += [note] if note else []
-    return intervals, notes
+    return quantities, notes
 
 
 # --- every curve on one sample: ranking and the test of the limits ------------------------------
@@ -661,7 +814,37 @@ def limits_test_p(plain: DensityCurveFit, limited: DensityCurveFit) -> float:
         ratio = count * math.log(plain.objective / limited.objective) if limited.objective > 0 else math.inf
     if not ratio > 1e-9:  # the limits fitted on their bounds: the plain curve again, up to the optimiser's tolerance
         return 1.0
-    return float(0.5 * scipy.stats.chi2.sf(ratio, 1) + 0.25 * scipy.stats.chi2.sf(ratio, 2))
+    return float(0.5 * chi2_sf(ratio, 1) + 0.25 * chi2_sf(ratio, 2))
+
+
+def wilson_interval(count, trials, *, level: float) -> tuple[np.ndarray, np.ndarray]:
+    r"""Wilson's score interval of binomial proportions ``count / trials`` at ``level``, within 0..1.
+
+    .. math:: \frac{\hat p + z^2/2n \pm z\sqrt{\hat p(1 - \hat p)/n + z^2/4n^2}}{1 + z^2/n}
+
+    The arithmetic of statsmodels' ``proportion_confint(method="wilson")`` step for step (so the
+    tables are the same to the last bit), without importing statsmodels (seconds on a loaded machine).
+
+    References
+    ----------
+    Wilson E.B. (1927). Probable inference, the law of succession, and statistical inference.
+    *J. Am. Stat. Assoc.* 22, 209-212.
+
+    Examples
+    --------
+    >>> low, high = wilson_interval(np.array([3]), np.array([10]), level=0.95)
+    >>> round(float(low[0]), 4), round(float(high[0]), 4)
+    (0.1078, 0.6032)
+    """
+    count, trials = np.asarray(count), np.asarray(trials)
+    share = count / trials
+    crit = norm_isf((1 - level) / 2.0)
+    crit2 = crit**2
+    denominator = 1 + crit2 / trials
+    centre = (share + crit2 / (2 * trials)) / denominator
+    half = crit * np.sqrt(share * (1.0 - share) / trials + crit2 / (4.0 * trials**2))
+    half /= denominator
+    return np.clip(centre - half, 0, 1), np.clip(centre + half, 0, 1)
 
 
 # --- the band of a fitted curve ---------------------------------------------------------------
@@ -691,12 +874,8 @@ def partition_band(fit: DensityCurveFit, rho, *, level: float = 0.95) -> tuple[n
         return fit.curve.partition(where, **{**fit.params, **dict(zip(names, vector))})
 
     hessian = _hessian(lambda vector: objective(at(vector, data.density)), values, steps)
-    quantile = None  # the normal's
-    if data.binomial:
-        quasi = quasi_binomial_scale(fit.dispersion, fit.df_resid)
-        scale, quantile = quasi.scale, math.sqrt(profile_threshold(level, fit.df_resid, quasi.estimated))
-    else:
-        scale = fit.dispersion
+    scale = profile_scale(fit, binomial=data.binomial)
+    quantile = math.sqrt(profile_threshold(fit, level, binomial=True)) if data.binomial else None  # None: the normal's
     try:
         covariance = 2.0 * scale * np.linalg.inv(hessian)
     except np.linalg.LinAlgError:
@@ -720,7 +899,7 @@ def _band(fit: DensityCurveFit, rho, centre, names: list, covariance: np.ndarray
         axis=-1,
     )
     variance = np.einsum("...i,ij,...j->...", gradient, covariance, gradient)
-    quantile = scipy.stats.norm.ppf(0.5 + level / 2) if quantile is None else quantile
+    quantile = norm_ppf(0.5 + level / 2) if quantile is None else quantile
     half = quantile * np.sqrt(np.clip(variance, 0, None))
     return np.clip(centre - half, 0, 1), np.clip(centre + half, 0, 1)
 

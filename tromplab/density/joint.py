@@ -53,11 +53,10 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg
-import scipy.optimize
 import scipy.special
-import scipy.stats
 
 from .curves import DensityCurve
+from .distributions import t_ppf
 
 #: ``DensitySample.yield_source`` of a yield estimated from the three analyses (none stated).
 ESTIMATED_YIELD_SOURCE = "least-squares estimate"
@@ -140,6 +139,8 @@ def fit_joint(sample, curve: DensityCurve, start: dict) -> JointFit | None:
             value = np.sqrt(weight) * (observed - model(x))
             return np.where(np.isfinite(value), value, 1e6)
 
+        import scipy.optimize  # imported where the float-sink fits need it: the tracer fits do not
+
         return scipy.optimize.least_squares(
             residuals, np.clip(x_start, lower, upper), bounds=(lower, upper), method="trf", x_scale="jac"
         )
@@ -195,6 +196,8 @@ def _variance_function(residual, mu, previous, inflation) -> np.ndarray:
     """``alpha mu^2 + beta`` fitted to the squared residuals (weighted by the previous variance squared, as a gamma GLM would)."""
     weight = 1.0 / previous
     design = np.column_stack([mu**2, np.ones_like(mu)]) * weight[:, None]
+    import scipy.optimize
+
     coefficients, _ = scipy.optimize.nnls(design, residual**2 * inflation * weight)
     return coefficients[0] * mu**2 + max(coefficients[1], VARIANCE_FLOOR)
 
@@ -219,7 +222,7 @@ def _on_bound(curve: DensityCurve, name: str, value: float) -> bool:
 
 def joint_intervals(curve: DensityCurve, joint: JointFit, ci: float) -> dict:
     """Wald intervals (Student t, ``joint.df_resid`` degrees of freedom) of rho50, Ep and I from the joint fit."""
-    quantile = scipy.stats.t.ppf(0.5 + ci / 2, joint.df_resid)
+    quantile = t_ppf(0.5 + ci / 2, joint.df_resid)
     values = np.array([joint.params[name] for name in joint.free])
     steps = 1e-6 * np.maximum(np.abs(values), 1e-3)
 

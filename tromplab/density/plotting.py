@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..output.plotting import curve_styles, plain_text
-from .fitting import DensityCurveFit, partition_band
+from .fitting import DensityCurveFit, partition_band, wilson_interval
 from .readers import DensitySample
 
 
@@ -82,12 +82,10 @@ def _draw_measured_points(ax, sample, density, share, used, level: float) -> Non
     if sample.layout != "tracers":
         ax.plot(density[used], share[used], "o", color="k", ms=4, zorder=4, label="measured partition")
         return
-    from statsmodels.stats.proportion import proportion_confint
-
     points = sample.points
     recovered = points["recovered"].to_numpy()
     with np.errstate(all="ignore"):
-        lo, hi = proportion_confint(points["sinks"].to_numpy(), np.maximum(recovered, 1), alpha=1 - level, method="wilson")
+        lo, hi = wilson_interval(points["sinks"].to_numpy(), np.maximum(recovered, 1), level=level)
     errors = np.clip(np.array([share - 100 * lo, 100 * hi - share]), 0, None)  # 0 where rounding puts a limit past the share
     ax.errorbar(density[used], share[used], yerr=errors[:, used], fmt="o", color="k", ms=4, capsize=2, zorder=4,
                 label=f"tracers in the sinks (Wilson {100 * level:g} %)")  # fmt: skip
@@ -125,3 +123,37 @@ def plot_density_curve_family(curve, *, ax=None, rho50: float = 1.5):
     ax.legend(fontsize=8, loc="upper left")
     ax.grid(True, alpha=0.3)
     return ax
+
+
+def plot_density_overview(rows: list[dict], *, axes=None):
+    """rho50 and Ep of the best curve of every test and size fraction, with their intervals (the overview of a campaign).
+
+    Parameters
+    ----------
+    rows : list of dict
+        One per test and size fraction: ``label``, ``rho50``, ``rho50_low``, ``rho50_high``,
+        ``ep``, ``ep_low``, ``ep_high`` (the interval limits NaN when there are none).
+    axes : two matplotlib Axes, optional
+        Where rho50 (first) and Ep (second) are drawn; a new figure when None.
+
+    Returns
+    -------
+    array of two matplotlib Axes
+    """
+    if axes is None:
+        import matplotlib.pyplot as plt
+
+        _, axes = plt.subplots(2, 1, figsize=(9.0, 6.5), sharex=True)
+    position = np.arange(len(rows))
+    for ax, name, label in zip(axes, ("rho50", "ep"), ("rho50 (g/cm3)", "Ep (g/cm3)")):
+        value = np.array([row[name] for row in rows], dtype=float)
+        low = np.array([row[f"{name}_low"] for row in rows], dtype=float)
+        high = np.array([row[f"{name}_high"] for row in rows], dtype=float)
+        errors = np.array([value - low, high - value])
+        ax.errorbar(position, value, yerr=np.where(np.isfinite(errors), np.clip(errors, 0, None), 0.0), fmt="o", color="k",
+                    ms=3, lw=0.8, capsize=1.5)  # fmt: skip
+        ax.set_ylabel(label)
+        ax.grid(True, alpha=0.3)
+    axes[0].set_title(plain_text(f"best curve of each of {len(rows)} tests and size fractions (with intervals where made)"))
+    axes[-1].set_xlabel("test and size fraction (in the order of fits.csv)")
+    return axes

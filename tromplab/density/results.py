@@ -16,8 +16,12 @@ whole (:func:`tromplab.output.outputs.replace_folder`).
 
 from __future__ import annotations
 
+import concurrent.futures
+import contextlib
+import functools
 import math
-from dataclasses import dataclass
+import os
+from dataclasses import dataclass, replace
 from functools import cached_property
 
 import numpy as np
@@ -25,11 +29,12 @@ import pandas as pd
 
 from ..errors import OptionError
 from ..notices import Notice, notice_table
+from ..options import AUTO_FIGURE_LIMIT, FIGURE_CHOICES
 from ..output.csv_parts import file_writers, write_csv
 from ..results_contract import ResultContract
-from ..validation import check_probability
+from ..validation import MAX_JOBS, check_count, check_probability
 from .curves import select_density_curves
-from .fitting import METHODS, DensityCurveFit, fit_density_curve, limits_test_p
+from .fitting import METHODS, DensityCurveFit, fit_density_curves, limits_test_p, wilson_interval
 from .ranking import quasi_aic, rank_fits, variance_inflation
 from .readers import DensitySample, read_density
 
@@ -70,11 +75,24 @@ class DensityResult(ResultContract):
         done = sum(fit.success for fit in self.fits)
         return f"<DensityResult: {len(self.samples)} test(s), {len(self.fits)} fits ({done} succeeded), ci={self.ci}>"
 
+    #: Caches keyed by the ids of samples and fits, which a pickle does not keep: made again after loading.
+    _ID_CACHES = ("_by_sample", "_best", "_ranking_notes")
+
+    def __getstate__(self):
+        return {name: value for name, value in super().__getstate__().items() if name not in self._ID_CACHES}
+
+    @cached_property
+    def _by_sample(self) -> dict[int, list[DensityCurveFit]]:
+        by_sample = {id(sample): [] for sample in self.samples}
+        for fit in self.fits:
+            by_sample.setdefault(id(fit.sample), []).append(fit)
+        return by_sample
+
     @cached_property
     def _ranked(self) -> list[tuple[DensityCurveFit, int, str]]:
         ranked = []
         for sample in self.samples:
-            ranked += rank_fits([fit for fit in self.fits if fit.sample is sample])
+            ranked += rank_fits(self.fits_of(sample))
         return ranked
 
     def notices(self) -> list[Notice]:
@@ -90,14 +108,25 @@ class DensityResult(ResultContract):
         """``test, curve, code, message`` of every note (``warnings.csv``)."""
         return notice_table(self.notices(), subject="test", curve="curve")
 
+    @cached_property
+    def _best(self) -> dict[int, DensityCurveFit]:
+        best = {}
+        for fit, rank, _ in self._ranked:
+            if rank == 1:
+                best.setdefault(id(fit.sample), fit)
+        return best
+
+    @cached_property
+    def _ranking_notes(self) -> dict[int, str]:
+        return {id(fit): note for fit, _, note in self._ranked if note}
+
     def fits_of(self, sample: DensitySample) -> list[DensityCurveFit]:
         """The fits of one sample."""
-        return [fit for fit in self.fits if fit.sample is sample]
+        return list(self._by_sample.get(id(sample), []))
 
     def best(self, sample: DensitySample) -> DensityCurveFit | None:
         """The curve ranked first on ``sample`` (None when every fit failed)."""
-        ranked = [(rank, fit) for fit, rank, _ in self._ranked if fit.sample is sample and rank == 1]
-        return ranked[0][1] if ranked else None
+        return self._best.get(id(sample))
 
     def fits_table(self) -> pd.DataFrame:
         """One row per test, size fraction and curve (columns defined in ``docs/columns.md``)."""
@@ -153,8 +182,6 @@ class DensityResult(ResultContract):
 
     def partition_table(self) -> pd.DataFrame:
         """The measured partition per density with its binomial interval (tracers), one row per point."""
-        from statsmodels.stats.proportion import proportion_confint
-
         level = self.ci if self.ci is not None else PARTITION_INTERVAL_LEVEL
         parts = []
         for sample in self.samples:
@@ -163,9 +190,7 @@ class DensityResult(ResultContract):
             if sample.layout == "tracers":
                 recovered = points["recovered"].to_numpy()
                 with np.errstate(all="ignore"):
-                    low, high = proportion_confint(
-                        points["sinks"].to_numpy(), np.maximum(recovered, 1), alpha=1 - level, method="wilson"
-                    )
+                    low, high = wilson_interval(points["sinks"].to_numpy(), np.maximum(recovered, 1), level=level)
                 share = points["partition_sinks"].to_numpy(float)
                 # Wilson's limits at k = 0 and k = n are the share itself; rounding can put them a hair past it
                 low = np.where(recovered > 0, np.minimum(low, share), np.nan)
@@ -232,21 +257,22 @@ class DensityResult(ResultContract):
                 lines.append(f"  no curve fitted: {reasons}")
                 continue
             lines.append(f"  best curve: {best.curve.id} ({best.method}) {_indices_text(best)}")
-            tie = next((note for fit, _, note in self._ranked if fit is best and note), "")
+            tie = self._ranking_notes.get(id(best), "")
             if tie:
                 lines.append(f"    {tie}")
         return "\n".join(lines)
 
     def plot(self, sample: DensitySample | int = 0, *, ax=None):
         """Figure of one sample (or its position): the points, every fitted curve and the band of the best."""
+        sample = self.samples[sample] if isinstance(sample, int) else sample
+        return self._plot(sample, self.fits_of(sample), self.best(sample), ax=ax)
+
+    def _plot(self, sample: DensitySample, shown: list, best, *, ax=None):
         from .plotting import plot_density_fits
 
-        sample = self.samples[sample] if isinstance(sample, int) else sample
-        return plot_density_fits(
-            sample, self.fits_of(sample), self.best(sample), ax=ax, level=self.ci or PARTITION_INTERVAL_LEVEL
-        )
+        return plot_density_fits(sample, shown, best, ax=ax, level=self.ci or PARTITION_INTERVAL_LEVEL)
 
-    def save(self, outdir, *, excel: bool = False, report: bool = False) -> dict:
+    def save(self, outdir, *, excel: bool = False, report: bool = False, figures: str = "auto", progress=None) -> dict:
         """Write ``fits.csv``, ``partition.csv``, ``summary.txt``, ``figures.csv``, ``covariance.csv``,
         the figures and (when a test or curve has a note) ``warnings.csv`` into ``outdir``.
 
@@ -257,6 +283,14 @@ class DensityResult(ResultContract):
         ----------
         outdir : path
             The output folder.
+        figures : {"auto", "all", "best", "none"}
+            One figure per test and size fraction with every fitted curve (``all``) or its
+            best one (``best``); ``auto``: ``all`` up to
+            :data:`~tromplab.options.AUTO_FIGURE_LIMIT` tests and size fractions, then one
+            overview figure (``overview.png``: rho50 and Ep of each one's best curve); ``none``:
+            no figure (nor ``figures.csv``, nor the figures by size).
+        progress : callable, optional
+            Called as ``progress(done, total, "figures: <test>")`` as the figures are drawn.
         excel : bool
             Also write ``results.xlsx``: the sheets ``fits``, ``partition`` (``by_size`` and
             ``ep_trend`` for tests with size fractions) and ``figures``
@@ -270,32 +304,74 @@ class DensityResult(ResultContract):
         dict
             File name -> written path.
         """
-        from ..output.outputs import figure_file_names, replace_folder
-        from ..output.plotting import figure_png
+        from ..output.outputs import replace_folder
         from .by_size import by_size_artifacts
         from .covariance import covariance_table
 
+        check_figures(figures)
         tables = {"fits": self.fits_table(), "partition": self.partition_table()}
-        names = figure_file_names([sample.label for sample in self.samples], prefix="density_")
-        figures, figure_rows = {}, []
-        for position, sample in enumerate(self.samples):
-            figures[names[sample.label]] = figure_png(self.plot(position, ax=_offscreen()))
-            figure_rows.append({"test": sample.test, "size_fraction": sample.size_fraction, "file": names[sample.label]})
+        pictures, figure_table = self._figures(figures, progress)
         # tests with size fractions: indices by size, the Ep trend and its figure (none without)
-        size_tables, size_figures = by_size_artifacts(self.fits, ci=self.ci or PARTITION_INTERVAL_LEVEL)
+        size_tables, size_figures = by_size_artifacts(
+            self.fits, ci=self.ci or PARTITION_INTERVAL_LEVEL, figures=figures != "none"
+        )
         tables.update(size_tables)
-        figures.update(size_figures)
-        outputs = file_writers(tables, texts={"summary.txt": self.report() + "\n"}, pictures=figures)
-        figure_table = pd.DataFrame(figure_rows)
-        outputs["figures.csv"] = lambda path: write_csv(figure_table, path)
+        pictures.update(size_figures)
+        outputs = file_writers(tables, texts={"summary.txt": self.report() + "\n"}, pictures=pictures)
+        if figure_table is not None:
+            outputs["figures.csv"] = lambda path: write_csv(figure_table, path)
         covariance = covariance_table(self.fits, sizes=any(sample.has_size for sample in self.samples))
         outputs["covariance.csv"] = lambda path: write_csv(covariance, path)  # for `plant predict --curves-from`
         if not (said := self.warnings_table()).empty:
             outputs["warnings.csv"] = lambda path: write_csv(said, path)
-        outputs.update(self._documents(tables, figures, excel=excel, report=report))
+        outputs.update(self._documents(tables, pictures, excel=excel, report=report))
         return replace_folder(outputs, outdir)
 
+    def _figures(self, mode: str, progress=None) -> tuple[dict[str, bytes], pd.DataFrame | None]:
+        """PNG bytes by file name, and the table of per-test figures (None when there are none)."""
+        if mode == "none":
+            return {}, None
+        from ..output.outputs import figure_file_names
+        from ..output.plotting import figure_png
+
+        if mode == "auto":
+            mode = "all" if len(self.samples) <= AUTO_FIGURE_LIMIT else "overview"
+        if mode == "overview":
+            from .plotting import plot_density_overview
+
+            summary = self._overview_rows()
+            if not summary:
+                return {}, None
+            axes = _offscreen(2, figsize=(9.0, 6.5))
+            return {"overview.png": figure_png(plot_density_overview(summary, axes=axes)[0])}, None
+        names = figure_file_names([sample.label for sample in self.samples], prefix="density_")
+        pictures, rows = {}, []
+        for sample in self.samples:
+            best = self.best(sample)
+            shown = self.fits_of(sample) if mode == "all" or best is None else [best]
+            pictures[names[sample.label]] = figure_png(self._plot(sample, shown, best, ax=_offscreen()))
+            rows.append({"test": sample.test, "size_fraction": sample.size_fraction, "file": names[sample.label]})
+            if progress is not None:
+                progress(len(rows), len(self.samples), f"figures: {sample.label}")
+        return pictures, pd.DataFrame(rows)
+
+    def _overview_rows(self) -> list[dict]:
+        """rho50 and Ep of each sample's best curve, with their intervals, for the overview figure."""
+        rows = []
+        for sample in self.samples:
+            best = self.best(sample)
+            if best is None:
+                continue
+            row = {"label": sample.label, "curve": best.curve.id}
+            for name in ("rho50", "ep"):
+                low, high = best.intervals.get(name, (math.nan, math.nan))
+                row.update({name: getattr(best.indices, name), f"{name}_low": low, f"{name}_high": high})
+            rows.append(row)
+        return rows
+
     def _documents(self, tables: dict, figures: dict, *, excel: bool, report: bool) -> dict:
+        if not (excel or report):
+            return {}
         from .documents import REPORT_HTML, REPORT_MARKDOWN, WORKBOOK_NAME, density_report, write_density_workbook
 
         outputs = {}
@@ -324,10 +400,17 @@ def _indices_text(fit: DensityCurveFit) -> str:
     return ", ".join(parts) + notes
 
 
-def _offscreen():
+def _offscreen(nrows: int = 1, *, figsize=(7.5, 5.0)):
     from ..output.plotting import offscreen_axes
 
-    return offscreen_axes()
+    return offscreen_axes(nrows, 1, figsize=figsize)
+
+
+def check_figures(figures) -> str:
+    """``figures`` if it is one of :data:`~tromplab.options.FIGURE_CHOICES`, else an :class:`~tromplab.errors.OptionError`."""
+    if figures not in FIGURE_CHOICES:
+        raise OptionError("figures", f"must be one of {', '.join(FIGURE_CHOICES)}, got {figures!r}")
+    return figures
 
 
 def fit_density(
@@ -340,6 +423,8 @@ def fit_density(
     sheet=None,
     sep: str | None = None,
     decimal: str | None = None,
+    jobs: int | None = 1,
+    progress=None,
 ) -> DensityResult:
     """Fit density partition curves to every test of a tracer, float-sink or partition table.
 
@@ -361,6 +446,12 @@ def fit_density(
         Mass share of the feed to the floats (float-sink tables).
     sheet, sep, decimal : optional
         How to read the file.
+    jobs : int, optional
+        Worker processes (0 or None: all cores).  The tests are fitted in units of
+        :data:`TESTS_PER_UNIT`, so a file of fewer tests than that runs in this process
+        whatever ``jobs`` says (starting a worker costs more than it saves).
+    progress : callable, optional
+        Called as ``progress(done, total, label)`` as the tests (and size fractions) are fitted.
 
     Returns
     -------
@@ -389,5 +480,42 @@ def fit_density(
         samples = read_density(data, sheet=sheet, sep=sep, decimal=decimal, floats_yield=floats_yield)
     if method == "binomial" and any(sample.layout != "tracers" for sample in samples):
         raise OptionError("method", "binomial needs tracer counts (density, sinks, floats); the table gives shares")
-    fits = [fit_density_curve(sample, curve, ci=ci, method=method) for sample in samples for curve in chosen]
+    jobs = check_count(0 if jobs is None else jobs, "jobs", minimum=0, maximum=MAX_JOBS)
+    fits = _fit_in_units(samples, chosen, ci=ci, method=method, jobs=jobs, progress=progress)
     return DensityResult(samples, fits, ci, method)
+
+
+#: Tests (and size fractions) fitted together in one unit of work: the batch's arrays are
+#: efficient from a few dozen rows on, and the progress moves on after each unit.
+TESTS_PER_UNIT = 128
+
+
+def _fit_in_units(samples: list, curves, *, ci, method, jobs: int, progress) -> list[DensityCurveFit]:
+    """The fits of every sample, :data:`TESTS_PER_UNIT` samples at a time, in this process or on
+    ``jobs`` worker processes (0: all cores); the same fits either way, in the samples' order."""
+    units = [samples[i : i + TESTS_PER_UNIT] for i in range(0, len(samples), TESTS_PER_UNIT)]
+    work = functools.partial(_fit_unit, curves=tuple(curve.id for curve in curves), ci=ci, method=method)
+    workers = min(jobs or os.cpu_count() or 1, len(units))
+    fits, done = [], 0
+    with contextlib.ExitStack() as stack:
+        if workers > 1:
+            pool = stack.enter_context(concurrent.futures.ProcessPoolExecutor(max_workers=workers))
+            results = pool.map(work, units)
+        else:
+            results = map(work, units)
+        for unit, unit_fits in zip(units, results):
+            # a worker's fits hold copies of the samples: give them back the caller's (fits_of finds them by identity)
+            per_sample = len(unit_fits) // len(unit)
+            fits += [
+                fit if fit.sample is sample else replace(fit, sample=sample)
+                for position, sample in enumerate(unit)
+                for fit in unit_fits[position * per_sample : (position + 1) * per_sample]
+            ]
+            done += len(unit)
+            if progress is not None:
+                progress(done, len(samples), unit[-1].label)
+    return fits
+
+
+def _fit_unit(unit: list, *, curves: tuple, ci, method) -> list[DensityCurveFit]:
+    return fit_density_curves(unit, curves, ci=ci, method=method)

@@ -420,7 +420,7 @@ def overdispersion_coverage_study(
 
 def _rule_intervals(fit, rule: str, ci: float, *, library_rule: bool) -> dict:
     """The intervals of rho50 and Ep of ``fit`` by ``rule`` (where the fit has one), and whether its scale was estimated."""
-    from .fitting import INDEX_BOUNDS, profile_limits
+    from .fitting import INDEX_BOUNDS, binomial_profile_limits
 
     if not fit.success:
         return {"fitted": False}
@@ -430,7 +430,7 @@ def _rule_intervals(fit, rule: str, ci: float, *, library_rule: bool) -> dict:
         if quantity not in fit.intervals:  # no interval by the fit's own rules (the notes say why)
             outcome[quantity] = (math.nan, math.nan)
             continue
-        low, high = fit.intervals[quantity] if library_rule else profile_limits(fit, quantity, scale, threshold)[:2]
+        low, high = fit.intervals[quantity] if library_rule else binomial_profile_limits(fit, quantity, scale, threshold)
         lowest, highest = INDEX_BOUNDS[quantity]
         outcome[quantity] = (lowest if math.isnan(low) else low, highest if math.isnan(high) else high)
     return outcome

@@ -113,6 +113,10 @@ def save_figure(ax, path, *, dpi: int = 120) -> None:
     """Lay out the Axes' figure, save it (format from the file name or a file object) and close it."""
     figure = ax.figure
     figure.tight_layout()
+    # tight_layout leaves a placeholder layout engine, for which savefig renders the figure
+    # twice more before the real rendering (one of them to a PNG it throws away): without an
+    # engine the same bytes come out in about 2/3 of the time
+    figure.set_layout_engine(None)
     to_file = isinstance(path, (str, os.PathLike))
     figure.savefig(path, dpi=dpi, format=None if to_file else "png")
     if figure.canvas.manager is not None:  # made by pyplot: release it from pyplot's list of open figures

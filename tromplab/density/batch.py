@@ -1,0 +1,428 @@
+r"""Binomial fits of density curves to many tracer tests at once: stacked arrays, one Newton loop.
+
+The tests (and size fractions) fitted with one curve are stacked into arrays of one row
+each, padded to the widest test with densities of no tracer (they add nothing to the
+deviance).  Every row is then fitted in the same numpy operations:
+
+* a plain curve is the binomial GLM :math:`F^{-1}(P) = a + b\rho` with the curve's link,
+  fitted by iteratively reweighted least squares (Fisher scoring; Newton's method for the
+  canonical logit link) until the parameters stop changing in their last digits
+  (McCullagh & Nelder 1989, sect. 2.5), with the covariance :math:`(X^\top W X)^{-1}` of
+  the GLM (statsmodels' ``GLM.fit`` is the tests' oracle);
+* a curve with limits, and every profile of an interval, minimises the binomial deviance
+  over a box by projected Fisher scoring (:func:`minimise_deviance`): the score and the
+  expected information from the derivatives of ``P`` in the parameters (central
+  differences of the curve, one-sided of second order at a bound), a parameter on a bound
+  held there while the score pushes it outwards, and each step halved until the deviance
+  falls;
+* the limits of the profile-likelihood intervals are found for every test, quantity and
+  side together (:func:`profile_limits`): stepping out from the estimate as
+  :func:`tromplab.density.fitting.profile_interval` describes, then Chandrupatla's
+  bracketing root search on the
+  re-optimised profile.
+
+References
+----------
+.. [McCullagh1989] McCullagh P., Nelder J.A. (1989). *Generalized Linear Models*, 2nd ed.
+   Chapman & Hall, London (sect. 2.5: the iteratively reweighted least-squares fit).
+.. [Chandrupatla1997] Chandrupatla T.R. (1997). A new hybrid quadratic/bisection algorithm for
+   finding the zero of a nonlinear function without using derivatives. *Advances in
+   Engineering Software* 28(3), 145-149.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.special
+
+#: Relative change of the GLM parameters (and of a Newton step) at which an iteration stops.
+PARAMETER_TOLERANCE = 1e-13
+#: Relative step of a minimisation below which a row has converged (the differences of ``P`` are good to about 1e-10).
+STEP_TOLERANCE = 1e-11
+MAX_ITERATIONS = 200
+#: Relative step of the central differences of ``P`` (about the cube root of the rounding unit).
+DIFFERENCE_STEP = 6e-6
+#: Relative length below which a Newton step is taken without asking the deviance to fall.
+POLISH_STEP = 1e-6
+#: Halvings of a step before a row is taken as converged (the deviance falls no more).
+MAX_HALVINGS = 40
+
+
+def _pdf_normal(t):
+    return np.exp(-0.5 * t * t) / math.sqrt(2.0 * math.pi)
+
+
+def _pdf_logistic(t):
+    p = scipy.special.expit(t)
+    return p * (1.0 - p)
+
+
+def _pdf_gompertz(t):
+    t = np.minimum(t, 700.0)
+    return np.exp(t - np.exp(t))
+
+
+#: ``dF/dt`` of each standard form, by its link.
+FORM_DENSITIES: dict[str, Callable[[np.ndarray], np.ndarray]] = {
+    "probit": _pdf_normal,
+    "logit": _pdf_logistic,
+    "cloglog": _pdf_gompertz,
+}
+
+
+@dataclass(frozen=True)
+class TracerStack:
+    """Tracer tests as rows of equal width: densities (g/cm3), tracers in the sinks, tracers recovered.
+
+    A row shorter than the widest is padded with its last density and no tracer.
+    """
+
+    density: np.ndarray
+    sinks: np.ndarray
+    trials: np.ndarray
+
+    @classmethod
+    def of(cls, tests) -> TracerStack:
+        """Stack tests given as ``(density, sinks, trials)`` triples of 1-d arrays."""
+        width = max(len(density) for density, _, _ in tests)
+        density, sinks, trials = np.empty((len(tests), width)), np.zeros((len(tests), width)), np.zeros((len(tests), width))
+        for row, (rho, k, n) in enumerate(tests):
+            size = len(rho)
+            density[row, :size], density[row, size:] = rho, rho[-1]
+            sinks[row, :size], trials[row, :size] = k, n
+        return cls(density, sinks, trials)
+
+    def take(self, rows) -> TracerStack:
+        """The rows ``rows`` (repeated as often as listed)."""
+        return TracerStack(self.density[rows], self.sinks[rows], self.trials[rows])
+
+
+def deviance(stack: TracerStack, partition: np.ndarray) -> np.ndarray:
+    """Binomial deviance of each row at the fitted partitions ``partition`` (the single fit's formula)."""
+    k, n = stack.sinks, stack.trials
+    p = np.clip(partition, 1e-300, 1.0 - 1e-16)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        terms = scipy.special.xlogy(k, k / (n * p)) + scipy.special.xlogy(n - k, (n - k) / (n * (1.0 - p)))
+    return 2.0 * np.where(n > 0, terms, 0.0).sum(axis=1)
+
+
+@dataclass(frozen=True)
+class BinomialFit:
+    """The record of one binomial fit of the batch (a fit's ``raw``).
+
+    Attributes
+    ----------
+    params : ndarray
+        Plain curve: the GLM's intercept and slope of :math:`F^{-1}(P) = a + b\\rho`; curve
+        with limits: ``rho_c, ln ep_c, light_limit, heavy_limit``.
+    covariance : ndarray or None
+        The GLM's covariance of ``params`` (:math:`(X^\\top W X)^{-1}`); None for a curve with limits.
+    deviance : float
+        The binomial deviance at ``params``.
+    converged : bool
+        False when the GLM's iterations stopped before the parameters settled.
+    """
+
+    params: np.ndarray
+    covariance: np.ndarray | None
+    deviance: float
+    converged: bool
+
+
+# --- plain curves: the binomial GLM ------------------------------------------------------------
+@dataclass(frozen=True)
+class GlmFits:
+    """The binomial GLMs of a stack: ``params`` (rows, 2) intercept and slope, their
+    ``covariance`` (rows, 2, 2), the ``deviance`` and whether each ``converged``."""
+
+    params: np.ndarray
+    covariance: np.ndarray
+    deviance: np.ndarray
+    converged: np.ndarray
+
+
+def fit_glm(stack: TracerStack, form) -> GlmFits:
+    r"""Binomial GLMs :math:`F^{-1}(P) = a + b\rho` of every row by iteratively reweighted least squares.
+
+    Parameters
+    ----------
+    stack : TracerStack
+    form : StandardForm
+        The curve's standard form (its ``cdf``, ``quantile`` and ``link``).
+
+    Returns
+    -------
+    GlmFits
+    """
+    k, n, rho = stack.sinks, stack.trials, stack.density
+    counted = n > 0
+    share = np.where(counted, k / np.where(counted, n, 1.0), 0.5)
+    start = (share + 0.5) / 2.0  # statsmodels' start for the binomial family
+    beta = _weighted_line(
+        rho, form.quantile(start), n * FORM_DENSITIES[form.link](form.quantile(start)) ** 2 / (start * (1 - start))
+    )
+    converged = np.zeros(len(rho), dtype=bool)
+    for _ in range(MAX_ITERATIONS):
+        eta = beta[:, :1] + beta[:, 1:] * rho
+        mu, slope = _mean_and_slope(form, eta)
+        working = eta + (share - mu) / slope
+        new = _weighted_line(rho, working, n * slope**2 / (mu * (1.0 - mu)))
+        change = np.abs(new - beta).max(axis=1) / np.maximum(np.abs(beta).max(axis=1), 1.0)
+        beta = np.where(converged[:, None], beta, new)
+        converged |= change <= PARAMETER_TOLERANCE
+        if converged.all():
+            break
+    eta = beta[:, :1] + beta[:, 1:] * rho
+    mu, slope = _mean_and_slope(form, eta)
+    information = _information(rho, n * slope**2 / (mu * (1.0 - mu)))
+    with np.errstate(all="ignore"):
+        covariance = np.linalg.inv(information)
+    return GlmFits(beta, covariance, deviance(stack, form.cdf(eta)), converged)
+
+
+def _mean_and_slope(form, eta):
+    # the binomial family's clip of the mean (statsmodels: FLOAT_EPS), so that its variance stays positive
+    eps = np.finfo(float).eps
+    mu = np.clip(form.cdf(eta), eps, 1.0 - eps)
+    return mu, np.maximum(FORM_DENSITIES[form.link](eta), 1e-300)
+
+
+def _information(rho, weight):
+    s0, s1, s2 = weight.sum(axis=1), (weight * rho).sum(axis=1), (weight * rho * rho).sum(axis=1)
+    return np.stack([np.stack([s0, s1], axis=-1), np.stack([s1, s2], axis=-1)], axis=-2)
+
+
+def _weighted_line(rho, response, weight) -> np.ndarray:
+    """Intercept and slope of the weighted least-squares line of ``response`` on ``rho``, row by row."""
+    weight = np.where(np.isfinite(weight), weight, 0.0)
+    response = np.where(weight > 0, response, 0.0)
+    total = weight.sum(axis=1)
+    mean_rho = (weight * rho).sum(axis=1) / total
+    mean_response = (weight * response).sum(axis=1) / total
+    centred = rho - mean_rho[:, None]
+    slope = (weight * centred * (response - mean_response[:, None])).sum(axis=1) / (weight * centred * centred).sum(axis=1)
+    return np.stack([mean_response - slope * mean_rho, slope], axis=1)
+
+
+# --- a box-bounded minimum of the deviance -------------------------------------------------------
+@dataclass(frozen=True)
+class Minimum:
+    """Where :func:`minimise_deviance` ended: ``x`` (rows, parameters) and the ``deviance`` there."""
+
+    x: np.ndarray
+    deviance: np.ndarray
+
+
+def minimise_deviance(stack: TracerStack, partition, start, lower, upper) -> Minimum:
+    """The deviance of each row minimised over the box ``lower <= x <= upper`` from ``start``.
+
+    Parameters
+    ----------
+    stack : TracerStack
+        One row per minimisation.
+    partition : callable
+        ``partition(x, rows)`` -> the curve's partitions (len(rows), width) at the parameters
+        ``x`` (len(rows), parameters) of the rows ``rows`` (indices into ``stack``): the rows
+        that have converged are left out of the next steps.
+    start, lower, upper : ndarray
+        (rows, parameters); a parameter with ``lower == upper`` is held fixed.
+
+    Returns
+    -------
+    Minimum
+        A row whose deviance is infinite everywhere it looked keeps its start, with an
+        infinite deviance.
+    """
+    lower, upper = np.asarray(lower, float), np.asarray(upper, float)
+    x = np.clip(np.asarray(start, float), lower, upper)
+    with np.errstate(all="ignore"):
+        value = deviance(stack, partition(x, np.arange(len(x))))
+        active = np.flatnonzero(np.isfinite(value))
+        for _ in range(MAX_ITERATIONS):
+            if not active.size:
+                break
+            rows, bounds = stack.take(active), (lower[active], upper[active])
+
+            def of_active(point, active=active):
+                return partition(point, active)
+
+            step, newton = _scoring_step(rows, of_active, x[active], *bounds)
+            x[active], value[active], moved = _line_search(rows, of_active, x[active], value[active], step, newton, *bounds)
+            active = active[moved]
+    return Minimum(x, value)
+
+
+def _scoring_step(stack: TracerStack, partition, x, lower, upper) -> tuple[np.ndarray, np.ndarray]:
+    """The projected Newton step of every row (zero along parameters held on a bound), and
+    whether it is Newton's (True) or Fisher scoring's.
+
+    Newton's step on the deviance's own Hessian where it is positive definite on the free
+    parameters, else the Fisher-scoring step on the expected information (always positive
+    definite): near the light-end limit's bound the deviance is far from quadratic and the
+    expected information, alone, converges only linearly (hundreds of steps).
+    """
+    current = partition(x)
+    jacobian, curvature = _derivatives(partition, x, lower, upper, current)  # (rows, width, m), (rows, width, m, m)
+    p = np.clip(current, 1e-300, 1.0 - 1e-16)
+    k, n = stack.sinks, stack.trials
+    counted = n > 0
+    slope = np.where(counted, 2.0 * ((n - k) / (1.0 - p) - k / p), 0.0)
+    bend = np.where(counted, 2.0 * (k / p**2 + (n - k) / (1.0 - p) ** 2), 0.0)
+    rows, size = x.shape
+    score = np.matmul(slope[:, None, :], jacobian)[:, 0, :]
+    transposed = jacobian.transpose(0, 2, 1)
+    bent = np.matmul(slope[:, None, :], curvature.reshape(rows, -1, size * size)).reshape(rows, size, size)
+    hessian = np.matmul(transposed * bend[:, None, :], jacobian) + bent
+    fisher = np.matmul(transposed * np.where(counted, 2.0 * n / (p * (1.0 - p)), 0.0)[:, None, :], jacobian)
+    held = (lower == upper) | ((x <= lower) & (score > 0)) | ((x >= upper) & (score < 0))
+    free = ~held
+    keep = free[:, :, None] & free[:, None, :]
+    identity = np.eye(size) * held[:, :, None]
+    hessian, fisher = hessian * keep + identity, fisher * keep + identity
+    hessian = np.where(np.isfinite(hessian), hessian, 0.0)
+    positive = np.linalg.eigvalsh(hessian).min(axis=1) > 0
+    matrix = np.where(positive[:, None, None], hessian, fisher)
+    # a tiny ridge keeps a flat direction (a limit the data do not inform) from a singular solve
+    ridge = 1e-12 * np.maximum(np.abs(np.diagonal(matrix, axis1=1, axis2=2)).max(axis=1), 1e-300)
+    matrix = matrix + ridge[:, None, None] * np.eye(size)
+    step = -np.linalg.solve(matrix, (score * free)[:, :, None])[:, :, 0]
+    return np.where(np.isfinite(step), step, 0.0), positive
+
+
+def _derivatives(partition, x, lower, upper, current) -> tuple[np.ndarray, np.ndarray]:
+    """``dP/dx`` and ``d2P/dx2`` by differences: central, or one-sided of second order where a
+    bound is within the step (the second derivatives, which only speed the convergence, of first order)."""
+    rows, size = x.shape
+    jacobian = np.zeros((*current.shape, size))
+    curvature = np.zeros((*current.shape, size, size))
+    steps, sides = np.zeros((rows, size)), []
+    held_everywhere = (lower == upper).all(axis=0)
+    for j in range(size):
+        if held_everywhere[j]:  # a profile's value: no derivative to take
+            sides.append(None)
+            continue
+        h = DIFFERENCE_STEP * np.maximum(np.abs(x[:, j]), 1e-2)
+        fixed = lower[:, j] == upper[:, j]
+        forward = x[:, j] - h < lower[:, j]
+        backward = ~forward & (x[:, j] + h > upper[:, j])
+        sign = np.where(backward, -1.0, 1.0)
+        one_sided = (forward | backward)[:, None]
+        near = partition(_moved(x, j, sign * h))
+        far = partition(_moved(x, j, np.where(forward | backward, 2 * sign * h, -h)))
+        hh = h[:, None]
+        first = np.where(one_sided, sign[:, None] * (-3.0 * current + 4.0 * near - far) / (2 * hh), (near - far) / (2 * hh))
+        second = np.where(one_sided, (current - 2.0 * near + far) / hh**2, (near - 2.0 * current + far) / hh**2)
+        jacobian[..., j] = np.where(fixed[:, None], 0.0, first)
+        curvature[..., j, j] = np.where(fixed[:, None], 0.0, second)
+        steps[:, j] = np.where(fixed, 0.0, sign * h)
+        sides.append(near)
+    for i in range(size):
+        for j in range(i + 1, size):
+            if held_everywhere[i] or held_everywhere[j]:
+                continue
+            both = partition(_moved(_moved(x, i, steps[:, i]), j, steps[:, j]))
+            with np.errstate(divide="ignore", invalid="ignore"):
+                cross = (both - sides[i] - sides[j] + current) / (steps[:, i] * steps[:, j])[:, None]
+            curvature[..., i, j] = curvature[..., j, i] = np.where(np.isfinite(cross), cross, 0.0)
+    return jacobian, curvature
+
+
+def _moved(x: np.ndarray, column: int, by: np.ndarray) -> np.ndarray:
+    moved = x.copy()
+    moved[:, column] += by
+    return moved
+
+
+def _line_search(stack, partition, x, value, step, newton, lower, upper):
+    """Halve each row's step until its deviance falls; a row whose (projected) step no longer
+    moves it, or whose deviance falls no more, is returned as not moved.
+
+    A Newton step shorter than :data:`POLISH_STEP` (relative) is taken whole and ends the
+    row's iterations: so close to the minimum the fall of the deviance is below its rounding,
+    and Newton's convergence leaves an error of about the square of that step.
+    """
+    scale = np.maximum(np.abs(x), 1.0)
+    tolerance = STEP_TOLERANCE * scale
+    polish = newton & (np.abs(step) < POLISH_STEP * scale).all(axis=1)
+    length = np.ones(len(x))
+    pending = np.ones(len(x), dtype=bool)
+    moved = np.zeros(len(x), dtype=bool)
+    new_x, new_value = x.copy(), value.copy()
+    for _ in range(MAX_HALVINGS):
+        trial = np.clip(x + length[:, None] * step, lower, upper)
+        pending &= (np.abs(trial - x) > tolerance).any(axis=1)
+        if not pending.any():
+            break
+        trial_value = deviance(stack, partition(trial))
+        slack = np.where(polish, 1e-9 * np.abs(value) + 1e-12, 0.0)
+        better = pending & np.isfinite(trial_value) & ((trial_value < value) | (polish & (trial_value <= value + slack)))
+        new_x[better], new_value[better] = trial[better], np.minimum(trial_value[better], value[better])
+        moved |= better & ~polish
+        pending &= ~better
+        length = np.where(pending, length / 2.0, length)
+    return new_x, new_value, moved
+
+
+@functools.cache
+def centre_and_scale(form) -> tuple[float, float]:
+    """``q50`` and ``k`` of a standard form, computed once."""
+    return form.centre, form.scale
+
+
+def partition_at(curve, rho: np.ndarray, params: dict[str, np.ndarray]) -> np.ndarray:
+    """``curve.partition(rho, **params)`` without its checks of the names (the batch's inner loop)."""
+    centre, scale = centre_and_scale(curve.form)
+    if curve.has_limits:
+        inside = curve.form.cdf(centre + scale * (rho - params["rho_c"]) / params["ep_c"])
+        return params["light_limit"] + (params["heavy_limit"] - params["light_limit"]) * inside
+    return curve.form.cdf(centre + scale * (rho - params["rho50"]) / params["ep"])
+
+
+# --- the curves' fits -----------------------------------------------------------------------
+#: The limits the fits of a curve with limits start from (light, heavy): the best start is kept.
+LIMIT_STARTS = ((0.001, 0.999), (0.03, 0.97), (0.0, 0.95), (0.05, 1.0))
+
+
+def fit_limits_curve(stack: TracerStack, curve, starts: np.ndarray) -> Minimum:
+    """A curve with limits fitted to every row: the parameters ``rho_c, ln ep_c, light_limit,
+    heavy_limit`` within the curve's bounds, from each of :data:`LIMIT_STARTS` (``starts``:
+    the rows' ``rho50, Ep`` from their data), the lowest deviance kept.
+
+    Returns
+    -------
+    Minimum
+        ``x`` in the optimiser's terms (``ep_c`` on a log scale), one row per row of ``stack``.
+    """
+    rows, width = len(starts), len(LIMIT_STARTS)
+    lower = np.array([p.lower for p in curve.parameters], dtype=float)
+    upper = np.array([p.upper for p in curve.parameters], dtype=float)
+    lower[1], upper[1] = math.log(lower[1]), math.log(upper[1])
+    first = np.column_stack([starts[:, 0], np.log(starts[:, 1])])
+    begin = np.concatenate([np.column_stack([first, np.full((rows, 2), pair)]) for pair in LIMIT_STARTS])
+    repeated = stack.take(np.tile(np.arange(rows), width))
+
+    def partition(x, rows):
+        return partition_at(curve, repeated.density[rows], natural_limits(x))
+
+    found = minimise_deviance(
+        repeated, partition, begin, np.broadcast_to(lower, begin.shape), np.broadcast_to(upper, begin.shape)
+    )
+    value = np.where(np.isfinite(found.deviance), found.deviance, np.inf).reshape(width, rows)
+    best = np.argmin(value, axis=0)  # the first start among equals, as the single fit keeps it
+    pick = best * rows + np.arange(rows)
+    return Minimum(found.x[pick], found.deviance[pick])
+
+
+def natural_limits(x: np.ndarray) -> dict[str, np.ndarray]:
+    """The parameters of a curve with limits from the optimiser's columns (``ep_c`` on a log scale), as (rows, 1)."""
+    return {
+        "rho_c": x[:, 0:1],
+        "ep_c": np.exp(x[:, 1:2]),
+        "light_limit": x[:, 2:3],
+        "heavy_limit": x[:, 3:4],
+    }

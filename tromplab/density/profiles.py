@@ -1,0 +1,245 @@
+r"""Profile-likelihood limits of rho50, Ep and the imperfection of many binomial fits at once.
+
+Each request is one fitted curve and one quantity: the curve is written in its indices
+``(rho50, Ep[, l, h])`` (``(rho50, I[, l, h])`` for the imperfection, ``Ep = I (rho50 - 1)``,
+through :meth:`~tromplab.density.curves.DensityCurve.from_indices`), the quantity is held at
+a value and the other parameters re-optimised (:func:`~tromplab.density.batch.minimise_deviance`,
+from the optimum of the previous value and, for a curve with limits, also from the
+estimate).  A limit is where the excess :math:`(D(q) - \hat D)/\phi - c` crosses zero
+(``phi`` the scale and ``c`` the threshold the caller gives).  Both sides of every request
+go together: from the estimate a step of a quarter of Ep (of I) and then twice as far each
+time until the excess is positive (a bracket) or the search range ends (no limit); within
+each bracket Chandrupatla's (1997) root search, every side at once, converges to the last
+digits.
+
+References
+----------
+.. [Chandrupatla1997] Chandrupatla T.R. (1997). A new hybrid quadratic/bisection algorithm for
+   finding the zero of a nonlinear function without using derivatives. *Advances in
+   Engineering Software* 28(3), 145-149.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .batch import TracerStack, centre_and_scale, minimise_deviance, partition_at
+from .curves import QUARTILES
+
+#: The excess where no curve with a finite likelihood exists at a value: beyond any limit.
+BEYOND = 1e300
+#: Relative and absolute (in units of the first step) tolerances of the limits.
+ROOT_RELATIVE_TOLERANCE = 1e-14
+ROOT_STEP_TOLERANCE = 1e-11
+#: Iterations of the root search (it converges in about ten).
+MAX_ROOT_ITERATIONS = 100
+
+
+@dataclass(frozen=True)
+class ProfileRequests:
+    """The profiles to trace, one row per fitted curve and quantity (all of one curve).
+
+    Attributes
+    ----------
+    stack : TracerStack
+        The tracer counts of each row.
+    imperfection : ndarray of bool
+        True where the quantity is the imperfection (the second index is ``I``, not ``Ep``).
+    position : ndarray of int
+        The index held: 0 (rho50) or 1 (Ep or I).
+    centre : ndarray
+        (rows, parameters): the estimate in the indices.
+    lower, upper : ndarray
+        (rows, parameters): the search range of each index.
+    best : ndarray
+        The fit's deviance.
+    scale, threshold : ndarray
+        The deviance's scale (1, or the quasi-binomial scale) and the excess's threshold.
+    step : ndarray
+        The first step out from the estimate.
+    """
+
+    stack: TracerStack
+    imperfection: np.ndarray
+    position: np.ndarray
+    centre: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    best: np.ndarray
+    scale: np.ndarray
+    threshold: np.ndarray
+    step: np.ndarray
+
+
+def curve_of_indices(curve, q: np.ndarray, imperfection: np.ndarray) -> dict[str, np.ndarray]:
+    """The curve's parameters (each (rows, 1)) from the indices ``q`` (rows, parameters), as ``from_indices`` makes them."""
+    rho50, second = q[:, 0:1], q[:, 1:2]
+    ep = np.where(imperfection[:, None], second * (rho50 - 1.0), second)
+    if not curve.has_limits:
+        return {"rho50": rho50, "ep": ep}
+    light, heavy = q[:, 2:3], q[:, 3:4]
+    span = heavy - light
+    form = curve.form
+    centre, scale_c = centre_and_scale(form)
+    q25, q50, q75 = (form.quantile((p - light) / span) for p in QUARTILES)
+    ep_c = ep * 2.0 * scale_c / (q75 - q25)
+    rho_c = rho50 - ep_c * (q50 - centre) / scale_c
+    return {"rho_c": rho_c, "ep_c": ep_c, "light_limit": light, "heavy_limit": heavy}
+
+
+def _ordered(values: np.ndarray, order: np.ndarray) -> np.ndarray:
+    return np.take_along_axis(values, order, axis=1)
+
+
+class _Profiles:
+    """Both sides of every request: row ``i`` of a side is request ``i % requests``."""
+
+    def __init__(self, curve, requests: ProfileRequests):
+        self.curve, self.requests = curve, requests
+        count = len(requests.best)
+        self.request = np.tile(np.arange(count), 2)
+        self.direction = np.repeat([-1.0, 1.0], count)
+        self.warm = requests.centre[self.request].copy()  # the optimum at the last value of each side
+
+    def excess(self, sides: np.ndarray, value: np.ndarray) -> np.ndarray:
+        """The excess of the re-optimised deviance at ``value`` on each of ``sides`` (warm starts updated).
+
+        A curve with limits is re-optimised from two starts, the last optimum of the side and
+        the estimate, both in one minimisation (rows stacked), the lower deviance kept (the
+        last optimum among equals)."""
+        r = self.requests
+        count = len(sides)
+        starts = [self.warm[sides]] + ([r.centre[self.request[sides]]] if self.curve.has_limits else [])
+        request = np.tile(self.request[sides], len(starts))
+        stack = r.stack.take(request)
+        # the held index is put first (rho50 and Ep or I swap places), so that the minimiser
+        # sees one column held in every row and takes no derivative along it
+        order = np.tile(np.arange(r.centre.shape[1]), (len(request), 1))
+        order[:, [0, 1]] = np.where(r.position[request][:, None] == 1, [1, 0], [0, 1])
+        held = np.tile(value, len(starts))
+        lower, upper, start = (_ordered(part, order) for part in (r.lower[request], r.upper[request], np.concatenate(starts)))
+        lower[:, 0] = upper[:, 0] = start[:, 0] = held
+        imperfection = r.imperfection[request]
+
+        def partition(x, rows):
+            indices = _ordered(x, order[rows])  # the swap is its own inverse
+            return partition_at(self.curve, stack.density[rows], curve_of_indices(self.curve, indices, imperfection[rows]))
+
+        found = minimise_deviance(stack, partition, start, lower, upper)
+        x = _ordered(found.x, order).reshape(len(starts), count, -1)
+        deviance = np.where(np.isfinite(found.deviance), found.deviance, np.inf).reshape(len(starts), count)
+        pick = np.argmin(deviance, axis=0)  # the first start among equals
+        best_x, best_value = x[pick, np.arange(count)], deviance[pick, np.arange(count)]
+        finite = np.isfinite(best_value)
+        self.warm[sides[finite]] = best_x[finite]
+        request = request[:count]
+        excess = (best_value - r.best[request]) / r.scale[request] - r.threshold[request]
+        return np.where(finite, excess, BEYOND)
+
+
+def profile_limits(curve, requests: ProfileRequests) -> tuple[np.ndarray, np.ndarray, list[list[str]]]:
+    """The lower and upper profile limits of every request, and the notes of each (none when both are found).
+
+    Returns
+    -------
+    tuple
+        ``(low, high, notes)``; a limit the profile does not reach within the search range is
+        NaN and a note of its request says so.
+    """
+    profiles = _Profiles(curve, requests)
+    sides = np.arange(len(profiles.request))
+    request = profiles.request
+    centre = requests.centre[request, requests.position[request]]
+    edge = np.where(
+        profiles.direction > 0,
+        requests.upper[request, requests.position[request]],
+        requests.lower[request, requests.position[request]],
+    )
+    bracket = _step_out(profiles, sides, centre, edge, requests.step[request], -requests.threshold[request])
+    limits = np.full(len(sides), np.nan)
+    bracketed = np.isfinite(bracket[1])
+    if bracketed.any():
+        inside = [part[bracketed] for part in bracket]
+        tolerance = ROOT_STEP_TOLERANCE * requests.step[request][bracketed]
+        limits[bracketed] = _chandrupatla(profiles, sides[bracketed], *inside, tolerance)
+        _recheck_edges(profiles, sides, limits, edge, requests.step[request])
+    count = len(requests.best)
+    notes = [
+        [
+            f"the profile does not reach the {side} limit within {edge[j]:g}"
+            for side, j in (("lower", i), ("upper", i + count))
+            if not np.isfinite(limits[j])
+        ]
+        for i in range(count)
+    ]
+    return limits[:count], limits[count:], notes
+
+
+def _recheck_edges(profiles: _Profiles, sides, limits, edge, step) -> None:
+    """A limit found at the edge of the search range is checked once more, from the optimum
+    next to it: the step out reaches the edge in one jump, from which the re-optimisation of a
+    curve grown nearly into a step (Ep near 0 with limits that take the misplaced tracers) can
+    stall above the profile's minimum.  Where the profile at the edge is below the threshold
+    after all, the limit is not reached (NaN, said so)."""
+    at_edge = np.flatnonzero(np.abs(limits - edge) <= 1e-6 * step)
+    if at_edge.size:
+        below = profiles.excess(sides[at_edge], edge[at_edge]) <= 0
+        limits[at_edge[below]] = np.nan
+
+
+def _step_out(profiles: _Profiles, sides, centre, edge, step, at_centre):
+    """From the estimate outwards by ``step``, doubling, to the first value with a positive excess.
+
+    Returns ``(inner, outer, excess at inner, excess at outer)`` of each side (``outer`` NaN
+    where the search range ended first); ``at_centre`` is the excess at the estimate."""
+    inner, outer = centre.copy(), np.full(len(sides), np.nan)
+    inner_excess, outer_excess = at_centre.copy(), np.full(len(sides), np.nan)
+    direction = profiles.direction[sides]
+    active = np.ones(len(sides), dtype=bool)
+    while active.any():
+        at = np.flatnonzero(active)
+        value = centre[at] + direction[at] * step[at]
+        reached = (value - edge[at]) * direction[at] >= 0
+        value = np.where(reached, edge[at], value)
+        excess = profiles.excess(sides[at], value)
+        crossed = excess > 0
+        outer[at[crossed]], outer_excess[at[crossed]] = value[crossed], excess[crossed]
+        moving = ~crossed & ~reached
+        inner[at[moving]], inner_excess[at[moving]] = value[moving], excess[moving]
+        step[at] *= 2.0
+        active[at[crossed | reached]] = False
+    return inner, outer, inner_excess, outer_excess
+
+
+def _chandrupatla(profiles: _Profiles, sides, a, b, fa, fb, tolerance) -> np.ndarray:
+    """The zero of the excess between ``a`` and ``b`` (excesses ``fa <= 0 < fb``) of each side:
+    Chandrupatla's inverse quadratic interpolation, bisection where it is not safe, every side at once."""
+    c, fc = a.copy(), fa.copy()
+    t = np.full(len(sides), 0.5)
+    found = np.full(len(sides), np.nan)
+    active = np.arange(len(sides))
+    for _ in range(MAX_ROOT_ITERATIONS):
+        xt = a + t * (b - a)
+        ft = profiles.excess(sides[active], xt)
+        same = np.sign(ft) == np.sign(fa)
+        c, fc = np.where(same, a, b), np.where(same, fa, fb)
+        b, fb = np.where(same, b, a), np.where(same, fb, fa)
+        a, fa = xt, ft
+        closer = np.abs(fa) < np.abs(fb)
+        xm, fm = np.where(closer, a, b), np.where(closer, fa, fb)
+        with np.errstate(divide="ignore"):  # b == c: the bracket has closed
+            limit = (2 * ROOT_RELATIVE_TOLERANCE * np.abs(xm) + tolerance[active]) / np.abs(b - c)
+        done = (fm == 0) | (limit > 0.5)
+        found[active[done]] = xm[done]
+        keep = ~done
+        if not keep.any():
+            break
+        with np.errstate(all="ignore"):
+            xi, phi = (a - b) / (c - b), (fa - fb) / (fc - fb)
+            quadratic = (phi**2 < xi) & ((1 - phi) ** 2 < 1 - xi)
+            interpolated = fa / (fb - fa) * fc / (fb - fc) + (c - a) / (b - a) * fa / (fc - fa) * fb / (fc - fb)
+        t = np.clip(np.where(quadratic, interpolated, 0.5), limit, 1 - limit)
+        a, b, c, fa, fb, fc, t, active = (part[keep] for part in (a, b, c, fa, fb, fc, t, active))
+    return found
