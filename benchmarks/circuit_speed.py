@@ -1,4 +1,4 @@
-"""``tromplab circuit`` and ``tromplab circuit design`` against their floors and the issue-40 yardstick.
+"""``tromplab circuit`` and ``tromplab circuit design`` against their floors and the acceptance yardstick.
 
 One run measures, side by side:
 
@@ -18,7 +18,7 @@ One run measures, side by side:
   against its floor.
 
 It prints each wall time and CPU time (user and system: on a loaded machine the steadier
-measure), their ratios to the yardstick's (the targets of issue 40: ``circuit`` at most
+measure), their ratios to the yardstick's (the acceptance targets: ``circuit`` at most
 0.3 each, ``circuit design`` at most 0.2) and to its floor, and the load average before and
 after.
 

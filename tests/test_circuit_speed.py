@@ -1,4 +1,4 @@
-"""The factor-once rewrite of ``tromplab circuit`` and ``circuit design`` (issue 40) against the
+"""The factor-once rewrite of ``tromplab circuit`` and ``circuit design`` (batch speed for every face) against the
 implementation before it: every file of eight surveys equal to the stored outputs of commit
 ed84263 (tests/data/circuit_reference, written by its make_reference.py), byte for byte where
 the arithmetic is the same and otherwise to 1e-9 relative.

@@ -2,7 +2,7 @@
 tests/test_circuit_speed.py compares the current implementation with.
 
 Provenance: the outputs in this folder were written by this script at commit ed84263 of
-tromplab (the implementation before the factor-once / low-rank-update rewrite of issue 40),
+tromplab (the implementation before the factor-once / low-rank-update rewrite),
 with OPENBLAS_NUM_THREADS=1 (``worth.csv`` gzip-compressed).  The inputs (``inputs/``) are derived from the bundled example
 (datasets/circuit_example_*.csv) as the functions below say.  Run from the repository root:
 
