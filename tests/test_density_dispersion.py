@@ -62,7 +62,7 @@ def test_beta_binomial_counts_are_whole_and_more_variable_than_binomial():
 
 @pytest.mark.slow
 def test_overdispersed_tracer_intervals_cover_at_the_acceptance_setting():
-    """Issue 41: 7 densities, 30 tracers, beta precision 10, 150 tests: rho50 and Ep covered in at least 90 %.
+    """7 densities, 30 tracers, beta precision 10, 150 tests: rho50 and Ep covered in at least 90 % (the acceptance).
 
     The rule before (scale only where the Pearson test rejects, chi2(1) threshold) fails the
     same draws, so the test tells the rules apart.  The draws are the first 150 tests of the

@@ -457,6 +457,11 @@ def _averaged_quantity(quantity: str, values, errors, weights, *, ids, z: float,
             found["note"] = "no interval: an estimate lies on the edge of the quantity's range"
         else:
             found.update(intervals[row])
+            if not (np.isfinite(found["low"]) and np.isfinite(found["high"])):
+                found["note"] = (
+                    f"the interval reaches the end of the quantity's range: the standard error {stderr[row]:.3g} "
+                    "does not bound it"
+                )
         if share[row] < 1.0 - 1e-9:
             found["note"] = found["note"] or (
                 f"averaged over the {int(n_formulas[row])} formulas where it is defined ({share[row]:.2%} of the weight)"
@@ -485,7 +490,9 @@ def _averaged_intervals(quantity: str, used, w, theta, se, mean, *, z: float, x_
             ends = np.sort(np.stack([domain.backward(g_mean - z * se_g), domain.backward(g_mean + z * se_g)], axis=1), axis=1)
         method = interval_method("akaike", domain)
         for row, (low, high) in zip(rows.tolist(), ends.tolist()):
-            found[row] = {"low": low, "high": high, "method": method}
+            # the round trip through the domain's scale can move an end an ulp past the average
+            # when the interval is narrower than that (noise-free points): it holds it by construction
+            found[row] = {"low": min(low, float(mean[row])), "high": max(high, float(mean[row])), "method": method}
     return found
 
 
