@@ -47,10 +47,11 @@ def _experiment(bench, name: str, fits, partition_to: str) -> dict:
     points = curve_fits[0].points if curve_fits else None
     return {
         "name": name,
-        "table": _records(own[[*shown, *intervals, *(["interval_flags"] if "interval_flags" in own else [])]]),
+        "table": _records(own[shown]),
+        "intervals": _records(own[["formula", *intervals]]) if intervals else None,
         "best": _best(bench, name, best),
         "verdicts": list(bench.verdicts(name)),
-        "cannot_tell": _cannot_tell(curve_fits),
+        "cannot_tell": _cannot_tell(curve_fits, own),
         "points": None if points is None else _points(points, partition_to),
         "curves": _curves(curve_fits, best, partition_to),
     }
@@ -75,12 +76,16 @@ def _interval_columns(columns) -> list[str]:
     return found
 
 
-def _cannot_tell(curve_fits) -> list[dict]:
-    """What the data cannot tell (the cut not bracketed, extra terms undetermined), each
-    statement once with the formulas it holds for."""
+def _cannot_tell(curve_fits, rows) -> list[dict]:
+    """What the data cannot tell, each statement once with the formulas it holds for: the
+    intervals withheld (the fits table's ``interval_flags`` when the run made intervals, else
+    the cut not bracketed) and the extra terms the data cannot determine."""
     said = defaultdict(list)
+    flags = dict(zip(rows["formula"], rows["interval_flags"].fillna(""))) if "interval_flags" in rows else None
     for fit in curve_fits:
-        if fit.success and fit.unbracketed:
+        if flags is not None and flags.get(fit.formula.id):
+            said[flags[fit.formula.id]].append(fit.formula.id)
+        elif flags is None and fit.success and fit.unbracketed:
             said[f"no interval for the cut, d25, d75 and Ep: {fit.unbracketed}"].append(fit.formula.id)
         for extra, reason in (fit.undetermined_extras if fit.success else {}).items():
             said[f"{extra}: {reason}"].append(fit.formula.id)

@@ -262,6 +262,9 @@ function showExperiment() {
   const experiment = page.experiments[state.experiment];
   if (!experiment) return;
   fillTable($("fits-table"), experiment.table, experiment.best && experiment.best.formula);
+  if (experiment.intervals) fillTable($("intervals-table"), experiment.intervals, experiment.best && experiment.best.formula);
+  else $("intervals-table").replaceChildren();
+  show("intervals-hint", !experiment.intervals);
   $("verdicts").replaceChildren(...experiment.verdicts.map((verdict) => element("li", verdict)));
   const cannot = experiment.cannot_tell.map((item) => element("li", `${item.formulas.join(", ")}: ${item.text}`));
   $("cannot-tell").replaceChildren(...(cannot.length ? cannot : [element("li", "Nothing: every fitted quantity has its interval where intervals were asked for (--ci).")]));
@@ -298,7 +301,7 @@ function fillTable(tableElement, table, best) {
     if (adequateAt >= 0 && row[adequateAt] === false) line.classList.add("inadequate");
     row.forEach((value, index) => {
       const cell = element("td", formatNumber(value));
-      if (typeof value === "string" && value.length > 12) cell.className = "text";
+      if (typeof value === "string") cell.className = "text";
       if (index === rankAt && value !== null && ties.get(value) > 1) cell.appendChild(element("span", " tied", "tie"));
       line.appendChild(cell);
     });
