@@ -122,23 +122,26 @@ def _curves(curve_fits, best, partition_to: str) -> list[dict]:
 
 
 def grouped_warnings(bench, experiments) -> list[dict]:
-    """Every warning of the run once, with where it was said (experiment, formula) and how often."""
+    """Every warning of the run once: failures and notes on the data with how often and where
+    they were said, then the fits' warnings grouped as the HTML report groups them
+    (:func:`tromplab.output.display.grouped_warnings`: warnings that differ only in their
+    numbers are one line, with every fit and its numbers)."""
+    from ..output.display import grouped_warnings as report_lines
+
     where = defaultdict(list)
+    for experiment, reason in bench.failures.items():
+        where[("failure", str(reason))].append(experiment)
     for balance in experiments.balances:
         for note in getattr(balance, "notes", ()):
             where[("data", note)].append(balance.experiment)
     for experiment, notes in bench.notes.items():
         for note in notes:
             where[("data", note)].append(experiment)
-    for experiment in bench.experiments:
-        for fit in bench.fits_of(experiment):
-            for warning in fit.warnings if fit.success else ():
-                where[("fit", warning)].append(f"{experiment}: {fit.formula.id}")
-    for experiment, reason in bench.failures.items():
-        where[("failure", str(reason))].append(experiment)
     groups = [{"kind": kind, "text": text, "count": len(places), "where": list(dict.fromkeys(places))}
               for (kind, text), places in where.items()]  # fmt: skip
-    return sorted(groups, key=lambda group: ({"failure": 0, "data": 1, "fit": 2}[group["kind"]], -group["count"]))
+    fit_warnings = [(experiment, fit.formula.id, warning) for experiment in bench.experiments
+                    for fit in bench.fits_of(experiment) if fit.success for warning in fit.warnings]  # fmt: skip
+    return groups + [{"kind": "fit", "text": line, "count": None, "where": []} for line in report_lines(fit_warnings)]
 
 
 def _number(value):

@@ -335,9 +335,10 @@ function showWarnings(groups) {
   for (const group of groups) {
     const details = element("details");
     const summary = element("summary");
-    summary.append(element("span", `${group.count}× `, "warning-count"), element("span", `[${group.kind}] ${group.text}`));
+    if (group.count !== null) summary.appendChild(element("span", `${group.count}× `, "warning-count"));
+    summary.appendChild(element("span", `[${group.kind}] ${group.text}`));
     details.appendChild(summary);
-    details.appendChild(element("p", `where: ${group.where.join("; ")}`));
+    if (group.where.length) details.appendChild(element("p", `where: ${group.where.join("; ")}`));
     box.appendChild(details);
   }
 }
