@@ -90,9 +90,16 @@ def test_a_file_the_reader_refuses_is_refused_with_the_reader_s_words(client):
 def test_other_kinds_are_told_and_sent_to_their_command(client):
     flowsheet = (DATASETS / "circuit_example_flowsheet.csv").read_bytes()
     assert upload(client, "flowsheet.csv", flowsheet).json()["kind"]["command"] == "tromplab circuit"
+    survey = (DATASETS / "circuit_example_survey.csv").read_bytes()
+    assert upload(client, "survey.csv", survey).json()["kind"] == {
+        "kind": "survey", "label": "a plant survey of a circuit", "command": "tromplab circuit", "runs_here": False
+    }  # fmt: skip
     tracers = (DATASETS / "density_tracers_dmc_by_size_synthetic.csv").read_bytes()
-    kind = upload(client, "tracers.csv", tracers).json()["kind"]
-    assert kind["command"] == "tromplab density fit" and kind["runs_here"] is False
+    described = upload(client, "tracers.csv", tracers).json()
+    assert described["kind"]["command"] == "tromplab density fit" and described["kind"]["runs_here"] is True
+    parser = command_parser("density", "fit")
+    offered = {option["dest"] for option in described["options"]}
+    assert offered == {action.dest for action in parser._actions if action.option_strings} - SERVER_CHOSEN
     lab = (DATASETS / "double_deck_screen_decks_lab.csv").read_bytes()
     assert upload(client, "lab.csv", lab).json()["kind"]["kind"] == "lab"
 
@@ -126,6 +133,29 @@ def test_the_downloads_are_the_files_the_commands_write(client, tmp_path):
         row = fits[(fits["experiment"] == experiment["name"]) & (fits["formula"] == best["formula"])]
         assert best["d50"] == pytest.approx(row["d50"].iloc[0], rel=1e-12)
         assert row["rank"].iloc[0] == fits[fits["experiment"] == experiment["name"]]["rank"].min()
+
+
+@pytest.mark.slow
+def test_density_tracers_are_fitted_and_downloaded_as_tromplab_density_fit_writes_them(client, tmp_path):
+    tracers = DATASETS / "density_tracers_dmc_by_size_synthetic.csv"
+    upload(client, tracers.name, tracers.read_bytes())
+    state = run(client, {"ci": "0.9", "curves": "plain"})
+    assert state["state"] == "done", state
+    shutil.copyfile(tracers, tmp_path / tracers.name)
+    arguments = ["density", "fit", tracers.name, "-o", "results", "--excel", "--report", "--ci=0.9", "--curves=plain"]
+    assert run_cli(tmp_path, arguments)[0] == 0
+    members = zip_members(client.get("/api/download/results.zip").content)
+    assert sorted(members) == sorted(p.relative_to(tmp_path).as_posix() for p in (tmp_path / "results").rglob("*") if p.is_file())
+    for name, data in members.items():
+        assert_same_file(data, tmp_path / name)
+    assert_same_file(client.get("/api/download/report.html").content, tmp_path / "results" / "report.html")
+    assert_same_file(client.get("/api/download/results.xlsx").content, tmp_path / "results" / "results.xlsx")
+    import pandas as pd
+
+    fits = pd.read_csv(tmp_path / "results" / "fits.csv")
+    for experiment in state["page"]["experiments"]:
+        best = experiment["best"]
+        assert best["d50"] in set(fits.loc[(fits["rank"] == 1) & (fits["curve"] == best["formula"]), "rho50"])
 
 
 def test_an_excel_sheet_is_chosen_and_read_as_the_command_reads_it(client, tmp_path):

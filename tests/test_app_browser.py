@@ -171,6 +171,24 @@ def test_change_an_option_fit_again_and_download_what_the_command_writes(page, t
         assert_same_file(Path(download.value.path()).read_bytes(), expected / name)
 
 
+def test_density_tracers_fitted_on_the_page_as_tromplab_density_fit_fits_them(page, tmp_path):
+    name = "density_tracers_dmc_by_size_synthetic.csv"
+    tracers = (Path(__file__).resolve().parent.parent / "datasets" / name).read_text()
+    drop(page, name, tracers)
+    assert page.locator("#options-command").inner_text() == "tromplab density fit"
+    fit(page)
+    (tmp_path / name).write_text(tracers)
+    assert run_cli(tmp_path, ["density", "fit", name, "-o", "results", "--excel", "--report"])[0] == 0
+    fits = pd.read_csv(tmp_path / "results" / "fits.csv")
+    best = fits[fits["rank"] == 1]
+    expected = [f"best curve {row.curve}, rho50 = {float(f'{row.rho50:.3g}'):g} g/cm3" for row in best.itertuples()]
+    shown = page.locator("#best-list li").all_inner_texts()
+    assert len(shown) == len(expected) == 4 and all(want in line for want, line in zip(expected, shown))
+    with page.expect_download() as download:
+        page.click("#download-report")
+    assert_same_file(Path(download.value.path()).read_bytes(), tmp_path / "results" / "report.html")
+
+
 def test_a_bad_option_and_a_bad_file_show_the_command_line_s_message(page, tmp_path):
     drop(page, "points.csv", points_csv(("A",)))
     page.fill("#option-alpha", "2")

@@ -15,12 +15,12 @@ import contextlib
 import io
 from dataclasses import dataclass
 
-#: Options of ``tromplab fit`` the page does not offer, and why: the server chooses where the
-#: results go and writes the workbook beside the CSV tables (both are downloads); the number of
+#: Options of the commands the page does not offer, and why: the server chooses where the
+#: results go and writes the workbook and the report beside the tables (all are downloads); the number of
 #: worker processes and the scheduler belong to the machine, not to the data; ``--sheet`` is
 #: offered as a choice of the uploaded workbook's sheets, not as free text; the global options
 #: (``-q``, ``-v``, ``--debug``) are about the console.
-SERVER_CHOSEN = frozenset({"help", "input", "outdir", "excel", "format", "jobs", "scheduler", "dask", "sheet",
+SERVER_CHOSEN = frozenset({"help", "input", "file", "outdir", "excel", "report", "format", "jobs", "scheduler", "dask", "sheet",
                            "quiet", "verbose", "debug", "version"})  # fmt: skip
 
 

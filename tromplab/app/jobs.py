@@ -24,23 +24,40 @@ PROGRESS_FILE, PAGE_FILE, ERROR_FILE = "progress.json", "page.json", "error.json
 RESULTS_FOLDER, REPORT_FILE = "results", "report.html"
 
 
+#: The commands the page runs: for each, the arguments the server adds (where the files go,
+#: the workbook and the report written too) and where its downloads are in the job folder.
+COMMANDS = {
+    ("fit",): {"adds": ("-o", RESULTS_FOLDER, "--excel"), "report": REPORT_FILE, "workbook": f"{RESULTS_FOLDER}/results.xlsx"},
+    ("density", "fit"): {"adds": ("-o", RESULTS_FOLDER, "--excel", "--report"), "report": f"{RESULTS_FOLDER}/report.html",
+                         "workbook": f"{RESULTS_FOLDER}/results.xlsx"},
+}  # fmt: skip
+
+
 @dataclass(frozen=True)
 class FitRun:
-    """What a run of ``fit`` (and ``report``) needs: the job folder, the input's name in it,
-    and the arguments typed after the input on each command line."""
+    """What a run needs: the job folder, the input's name in it, the command (``("fit",)`` or
+    ``("density", "fit")``) and the arguments typed after the input; ``tromplab fit`` is
+    followed by ``tromplab report`` with ``report_arguments``."""
 
     folder: Path
     input_name: str
     fit_arguments: tuple[str, ...]
-    report_arguments: tuple[str, ...]
+    report_arguments: tuple[str, ...] = ()
+    command: tuple[str, ...] = ("fit",)
 
     def fit_command(self) -> list[str]:
-        """The ``tromplab fit`` command line this run stands for (run in its folder)."""
-        return ["fit", self.input_name, "-o", RESULTS_FOLDER, "--excel", *self.fit_arguments]
+        """The command line this run stands for (run in its folder), without ``tromplab``."""
+        return [*self.command, self.input_name, *COMMANDS[self.command]["adds"], *self.fit_arguments]
 
-    def report_command(self) -> list[str]:
-        """The ``tromplab report`` command line this run stands for (run in its folder)."""
+    def report_command(self) -> list[str] | None:
+        """The ``tromplab report`` command line of a ``fit`` run (None for another command)."""
+        if self.command != ("fit",):
+            return None
         return ["report", self.input_name, "-o", REPORT_FILE, *self.report_arguments]
+
+    def download(self, name: str) -> Path:
+        """Where the download ``report.html`` or ``results.xlsx`` is."""
+        return self.folder / COMMANDS[self.command]["report" if name == "report.html" else "workbook"]
 
 
 def write_json(path: Path, data) -> None:
@@ -62,21 +79,42 @@ def run_fit(run: FitRun) -> None:
 
     os.chdir(run.folder)
     parser = build_parser()
+    command = " ".join(("tromplab", *run.command))
     try:
-        _fit_and_report(run, parser)
+        if run.command == ("density", "fit"):
+            _density_fit(run, parser)
+        else:
+            _fit_and_report(run, parser)
     except InputError as error:
-        command = "tromplab fit"
-        write_json(Path(ERROR_FILE), {"message": f"{command}: error: {cli_message(error, _subparser(parser, 'fit'))}"})
+        write_json(Path(ERROR_FILE), {"message": f"{command}: error: {cli_message(error, _subparser(parser, *run.command))}"})
     except Exception as error:  # a bug in tromplab: said as the command line says it
-        write_json(Path(ERROR_FILE), {"message": f"tromplab fit: internal error (a bug in tromplab, please report it): "
+        write_json(Path(ERROR_FILE), {"message": f"{command}: internal error (a bug in tromplab, please report it): "
                                                  f"{type(error).__name__}: {error}"})  # fmt: skip
 
 
-def _subparser(parser, name):
+def _subparser(parser, *path):
     import argparse
 
-    actions = [action for action in parser._actions if isinstance(action, argparse._SubParsersAction)]
-    return actions[0].choices[name]
+    for name in path:
+        actions = [action for action in parser._actions if isinstance(action, argparse._SubParsersAction)]
+        parser = actions[0].choices[name]
+    return parser
+
+
+def _density_fit(run: FitRun, parser) -> None:
+    """What ``tromplab density fit FILE -o results --excel --report OPTIONS`` does, then the page's data."""
+    from ..density import fit_density
+    from ..output.outputs import check_output_folder
+    from .payload import density_payload
+
+    args = parser.parse_args(run.fit_command())
+    check_output_folder(args.outdir, inputs=[args.file])
+    _progress("fitting", 0, 0, str(args.file))
+    result = fit_density(args.file, ci=args.ci, curves=args.curves, method=args.method, floats_yield=args.floats_yield,
+                         sheet=args.sheet, sep=args.sep, decimal=args.decimal)  # fmt: skip
+    _progress("writing", 0, 0, "")
+    result.save(args.outdir, excel=args.excel, report=args.report)
+    write_json(Path(PAGE_FILE), density_payload(result))
 
 
 def _fit_and_report(run: FitRun, parser) -> None:
@@ -84,12 +122,14 @@ def _fit_and_report(run: FitRun, parser) -> None:
     from ..cli.option_groups import lab_options
     from ..loading.lab import read_experiments
     from ..loading.tables import check_input_file
+    from ..output.outputs import check_output_folder
     from ..workbench import check_formula_selection, fit_experiments, fit_to_folder
     from .payload import page_payload
 
     args = parser.parse_args(run.fit_command())
     formulas = check_formula_selection(args.formulas, args.extended)
     check_input_file(args.input)
+    check_output_folder(args.outdir, inputs=[args.input])
     _progress("reading", 0, 0, str(args.input))
     experiments = read_experiments(args.input, lab_options(args))
     bench, _ = fit_to_folder(experiments, args.outdir, figures=args.figures, format=args.format, excel=args.excel,

@@ -75,7 +75,7 @@ def kind_of_columns(columns) -> TableKind:
     if "stream" in names:
         return TableKind("survey", "a plant survey of a circuit", ("circuit",), False)
     if "density" in names or "density_lower" in names or "density_upper" in names:
-        return TableKind("density", "density tracers or a float-sink table", ("density", "fit"), False)
+        return TableKind("density", "density tracers, a float-sink table or a density partition", ("density", "fit"), True)
     has_partition = any(name.startswith("partition") for name in names)
     if has_partition and ("survey" in names or "date" in names):
         return TableKind("trend", "Tromp points of dated surveys (fitted per survey; tromplab trend charts them)", ("fit",), True)

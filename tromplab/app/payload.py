@@ -27,14 +27,74 @@ CURVE_POINTS = 120
 def page_payload(bench, experiments, args) -> dict:
     """The page's data of a fit run: ``bench`` fitted from ``experiments`` with the options ``args``."""
     fits = bench.fits_table()
+    unit = args.size_unit or "size unit"
     return {
-        "size_unit": args.size_unit,
-        "partition_to": args.partition_to,
-        "rank_by": args.rank_by,
+        "axes": {
+            "x": f"size ({unit})",
+            "y": f"partition to the {args.partition_to} product",
+            "log_x": True,
+            "best": "best formula",
+            "cut": "cut size d50",
+            "unit": args.size_unit,
+        },  # fmt: skip
         "experiments": [_experiment(bench, name, fits, args.partition_to) for name in bench.experiments],
         "ranking": _records(bench.ranking_table()),
         "failures": _records(bench.failure_table()),
         "warnings": grouped_warnings(bench, experiments),
+    }
+
+
+def density_payload(result) -> dict:
+    """The page's data of a ``density fit`` run: a :class:`~tromplab.density.results.DensityResult`,
+    each test (and size fraction) as an experiment, the curves over the measured partition to sinks."""
+    from ..density.fitting import partition_band
+
+    table, start, experiments = result.fits_table(), 0, []
+    shown = [c for c in ("rank", "curve", "method", "rho50", "ep", "imperfection", "rho50_low", "rho50_high", "ep_low",
+                         "ep_high", "gof_p", "dispersion", "overdispersed", "aic", "qaic") if c in table.columns]  # fmt: skip
+    warnings = defaultdict(list)
+    for sample in result.samples:
+        fits = result.fits_of(sample)
+        rows, start = table.iloc[start : start + len(fits)], start + len(fits)
+        for curve, notes in zip(rows["curve"], rows["notes"].fillna("")):
+            if notes:
+                warnings[notes].append(f"{sample.label}: {curve}")
+        best = result.best(sample)
+        points = sample.points
+        density = points["density"].to_numpy(float)
+        grid = np.linspace(density.min() - 0.05, density.max() + 0.05, CURVE_POINTS)
+        curves = []
+        for fit in (fit for fit in fits if fit.success):
+            curve = {"formula": fit.curve.id, "size": _numbers(grid), "partition": _numbers(fit.partition(grid)),
+                     "best": fit is best, "adequate": None}  # fmt: skip
+            if fit is best:
+                low, high = partition_band(fit, grid)
+                if np.isfinite(low).all() and np.isfinite(high).all():
+                    curve["band"] = {"low": _numbers(low), "high": _numbers(high), "level": 0.95}
+            curves.append(curve)
+        experiments.append({
+            "name": sample.label,
+            "table": _records(rows[shown]),
+            "intervals": None,  # in the ranked table: rho50_low, ..., ep_high
+            "best": None if best is None else {"formula": best.curve.id, "d50": _number(best.indices.rho50), "rank": 1, "tied": []},
+            "verdicts": [],
+            "cannot_tell": None,
+            "points": {"size": _numbers(density), "partition": _numbers(points["partition_sinks"])},
+            "curves": curves,
+        })  # fmt: skip
+    return {
+        "axes": {
+            "x": "relative density (g/cm3)",
+            "y": "partition to sinks",
+            "log_x": False,
+            "best": "best curve",
+            "cut": "rho50",
+            "unit": "g/cm3",
+        },  # fmt: skip
+        "experiments": experiments,
+        "ranking": None,
+        "failures": None,
+        "warnings": [{"kind": "fit", "text": text, "count": len(where), "where": where} for text, where in warnings.items()],
     }
 
 

@@ -29,7 +29,8 @@ from starlette.responses import FileResponse, JSONResponse, Response
 from starlette.routing import Route
 
 from .forms import OptionsRefused, arguments_from_form, command_parser, form_options, parse_arguments
-from .jobs import REPORT_FILE, RESULTS_FOLDER, FitRun, Job
+from .jobs import COMMANDS as RUN_COMMANDS
+from .jobs import RESULTS_FOLDER, FitRun, Job
 from .kinds import ACCEPTED_SUFFIXES, sheet_names, table_kind
 from .sessions import Session, Sessions, Upload, safe_file_name
 
@@ -50,7 +51,8 @@ SECURITY_HEADERS = {
 }
 STATIC_FILES = {"index.html": "text/html", "app.js": "text/javascript", "app.css": "text/css"}
 EXAMPLES = {"double_deck_screen_decks_lab.csv": "lab table: the two decks of a double-deck screen (sizes in mm)",
-            "classifier_trend_surveys.csv": "Tromp points: 24 weekly surveys of one classifier (sizes in um)"}  # fmt: skip
+            "classifier_trend_surveys.csv": "Tromp points: 24 weekly surveys of one classifier (sizes in um)",
+            "density_tracers_dmc_by_size_synthetic.csv": "density tracers: a dense-medium cyclone, four size fractions"}  # fmt: skip
 DOWNLOADS = {"results.zip": "application/zip", "report.html": "text/html",
              "results.xlsx": "application/vnd.openxmlformats-officedocument.spreadsheetml.sheet"}  # fmt: skip
 
@@ -129,9 +131,11 @@ class _Api:
     def __init__(self, sessions: Sessions, max_upload: int):
         self.sessions = sessions
         self.max_upload = max_upload
-        self.fit_parser = command_parser("fit")
+        #: the commands the page runs, with their parsers and forms (``report`` follows ``fit``)
+        self.parsers = {command: command_parser(*command) for command in RUN_COMMANDS}
+        self.forms = {command: form_options(parser) for command, parser in self.parsers.items()}
+        self.fit_parser = self.parsers[("fit",)]
         self.report_parser = command_parser("report")
-        self.fit_options = form_options(self.fit_parser)
         self.report_options = form_options(self.report_parser)
 
     # -- the page -------------------------------------------------------------------------
@@ -239,7 +243,9 @@ class _Api:
             kind = await run_in_threadpool(table_kind, upload.path, sheet)
         except InputError as error:
             return _json({**view, "kind": None, "error": f"tromplab fit: error: {cli_message(error, self.fit_parser)}"})
-        return _json({**view, "sheet": sheet, "kind": kind.as_dict(), "options": [o.as_dict() for o in self.fit_options]})
+        upload.command = kind.command if kind.command in self.parsers else ("fit",)
+        options = [o.as_dict() for o in self.forms[upload.command]] if kind.runs_here else []
+        return _json({**view, "sheet": sheet, "kind": kind.as_dict(), "options": options})
 
     # -- runs -------------------------------------------------------------------------------
     async def run(self, request: Request) -> Response:
@@ -252,23 +258,27 @@ class _Api:
         values, sheet = dict(wanted.get("options") or {}), wanted.get("sheet")
         if sheet is not None and sheet not in session.upload.sheets:
             return _refused("no such sheet in the workbook")
+        command, name = session.upload.command, session.upload.path.name
         try:
-            fit_arguments = arguments_from_form(self.fit_options, values)
-            report_arguments = self._report_arguments(values)
+            fit_arguments = arguments_from_form(self.forms[command], values)
+            report_arguments = self._report_arguments(values) if command == ("fit",) else []
             if sheet is not None:
-                fit_arguments, report_arguments = [*fit_arguments, f"--sheet={sheet}"], [*report_arguments, f"--sheet={sheet}"]
-            parse_arguments(self.fit_parser, [session.upload.path.name, *fit_arguments])
-            parse_arguments(self.report_parser, [session.upload.path.name, *report_arguments])
+                fit_arguments = [*fit_arguments, f"--sheet={sheet}"]
+                report_arguments = [*report_arguments, f"--sheet={sheet}"] if command == ("fit",) else []
+            parse_arguments(self.parsers[command], [name, *fit_arguments])
+            if command == ("fit",):
+                parse_arguments(self.report_parser, [name, *report_arguments])
         except OptionsRefused as refusal:
             return _refused(str(refusal))
         if session.job is not None:
             await run_in_threadpool(session.job.cancel)
         folder = session.job_folder()
-        shutil.copyfile(session.upload.path, folder / session.upload.path.name)
-        run = FitRun(folder, session.upload.path.name, tuple(fit_arguments), tuple(report_arguments))
+        shutil.copyfile(session.upload.path, folder / name)
+        run = FitRun(folder, name, tuple(fit_arguments), tuple(report_arguments), command)
         session.job = Job(run)
         await run_in_threadpool(session.job.start)
-        return _json({"command": ["tromplab", *run.fit_command()], "report_command": ["tromplab", *run.report_command()]})
+        report = run.report_command()
+        return _json({"command": ["tromplab", *run.fit_command()], "report_command": report and ["tromplab", *report]})
 
     def _report_arguments(self, values: dict) -> list[str]:
         """The report's options from the fit's: those ``tromplab report`` has, its ``--ci`` the fit's level if given."""
@@ -308,8 +318,7 @@ class _Api:
         if name == "results.zip":
             data = await run_in_threadpool(_zipped, folder / RESULTS_FOLDER)
             return Response(data, media_type=DOWNLOADS[name], headers=headers)
-        path = folder / (REPORT_FILE if name == "report.html" else f"{RESULTS_FOLDER}/results.xlsx")
-        return FileResponse(path, media_type=DOWNLOADS[name], headers=headers)
+        return FileResponse(session.job.run.download(name), media_type=DOWNLOADS[name], headers=headers)
 
 
 def _upload_view(upload: Upload) -> dict:

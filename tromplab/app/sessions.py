@@ -34,11 +34,13 @@ def safe_file_name(name: str) -> str:
 
 @dataclass
 class Upload:
-    """The table a session works on: its stored path, the name as the browser sent it, its sheets."""
+    """The table a session works on: its stored path, the name as the browser sent it, its
+    sheets, and the command that reads it (told from its columns)."""
 
     path: Path
     shown_name: str
     sheets: list[str]
+    command: tuple[str, ...] = ("fit",)
 
 
 @dataclass

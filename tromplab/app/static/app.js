@@ -112,6 +112,7 @@ function showTable(described) {
     return;
   }
   $("options-command").textContent = kind.command;
+  $("options-help").textContent = `${kind.command} -h`;
   buildForm(described.options);
   show("options-section", true);
 }
@@ -193,7 +194,8 @@ async function run() {
     say("run-error", started.error);
     return;
   }
-  $("command-line").textContent = `Same as: ${started.command.join(" ")}  and  ${started.report_command.join(" ")}`;
+  const commands = [started.command, started.report_command].filter(Boolean).map((command) => command.join(" "));
+  $("command-line").textContent = `Same as: ${commands.join("  and  ")}`;
   show("command-line", true);
   setRunning(true);
   poll();
@@ -235,12 +237,13 @@ function showResults(page) {
   state.page = page;
   state.experiment = 0;
   state.sort = { column: null, down: false };
-  const unit = page.size_unit ? ` ${page.size_unit}` : "";
+  const axes = page.axes;
+  const unit = axes.unit ? ` ${axes.unit}` : "";
   $("best-list").replaceChildren(...page.experiments.slice(0, 20).map((experiment) => {
     const best = experiment.best;
     let text = `${experiment.name}: no formula could be fitted`;
     if (best) {
-      text = `${experiment.name}: best formula ${best.formula}, cut size d50 = ${formatNumber(best.d50, 3)}${unit}`;
+      text = `${experiment.name}: ${axes.best} ${best.formula}, ${axes.cut} = ${formatNumber(best.d50, 3)}${unit}`;
       if (best.tied.length) text += ` (rank ${formatNumber(best.rank)} tied with ${best.tied.join(", ")}; the library takes the lowest sum of squares among them)`;
     }
     return element("li", text);
@@ -251,7 +254,8 @@ function showResults(page) {
     option.value = String(index);
     return option;
   }));
-  fillTable($("ranking-table"), page.ranking, null);
+  if (page.ranking) fillTable($("ranking-table"), page.ranking, null);
+  show("ranking-part", Boolean(page.ranking));
   showWarnings(page.warnings);
   show("results-section", true);
   showExperiment();
@@ -266,6 +270,8 @@ function showExperiment() {
   else $("intervals-table").replaceChildren();
   show("intervals-hint", !experiment.intervals);
   $("verdicts").replaceChildren(...experiment.verdicts.map((verdict) => element("li", verdict)));
+  show("intervals-part", experiment.cannot_tell !== null);  // tromplab density fit: its intervals are columns of the ranked table
+  if (experiment.cannot_tell === null) { drawFigure(experiment, page); return; }
   const cannot = experiment.cannot_tell.map((item) => element("li", `${item.formulas.join(", ")}: ${item.text}`));
   $("cannot-tell").replaceChildren(...(cannot.length ? cannot : [element("li", "Nothing: every fitted quantity has its interval where intervals were asked for (--ci).")]));
   drawFigure(experiment, page);
@@ -346,7 +352,6 @@ function showWarnings(groups) {
 function drawFigure(experiment, page) {
   if (typeof Plotly === "undefined") return;
   const traces = [];
-  const unit = page.size_unit || "size unit";
   for (const curve of experiment.curves) {
     if (curve.band) {
       traces.push({ x: curve.size, y: curve.band.low, mode: "lines", line: { width: 0 }, hoverinfo: "skip", showlegend: false });
@@ -364,8 +369,8 @@ function drawFigure(experiment, page) {
   }
   const layout = {
     title: { text: plotlyText(experiment.name) },
-    xaxis: { title: { text: `size (${plotlyText(unit)})` }, type: "log" },
-    yaxis: { title: { text: `partition to the ${page.partition_to} product` }, range: [-0.03, 1.03] },
+    xaxis: { title: { text: plotlyText(page.axes.x) }, type: page.axes.log_x ? "log" : "linear" },
+    yaxis: { title: { text: plotlyText(page.axes.y) }, range: [-0.03, 1.03] },
     margin: { t: 40 }, hovermode: "closest",
   };
   Plotly.react($("figure"), traces, layout, { displaylogo: false, responsive: true });
