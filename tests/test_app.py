@@ -223,8 +223,10 @@ def test_uploads_over_the_limit_are_refused():
     app = create_app(max_upload=1000)
     with TestClient(app, base_url="http://127.0.0.1", headers=PAGE) as client:
         client.get("/api/session")
-        refused = upload(client, "big.csv", b"x" * 2000)
+        refused = upload(client, "big.csv", b"x" * 2000)  # declared too large
         assert refused.status_code == 413 and "upload limit" in refused.json()["error"]
+        streamed = upload(client, "big.csv", iter([b"x" * 600, b"x" * 600]))  # no length declared: counted
+        assert streamed.status_code == 413 and "upload limit" in streamed.json()["error"]
         assert upload(client, "small.csv", points_csv(("A",)).encode()[:900]).status_code == 200
 
 

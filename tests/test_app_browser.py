@@ -130,7 +130,8 @@ def test_the_server_listens_on_loopback_only(server):
 
 def test_upload_fit_and_see_the_ranking_with_the_command_s_cut_and_no_script_run(page, tmp_path):
     text = points_csv()
-    drop(page, "hostile points.csv", text)
+    drop(page, "<script>alert(1)</script>.csv", text)
+    assert page.locator("#file-name").inner_text() == "<script>alert(1)</script>.csv"  # shown as written
     assert page.locator("#file-kind").inner_text() == "(Tromp points)"
     fit(page)
     assert "plitt" in page.locator("#ranking-table").inner_text()

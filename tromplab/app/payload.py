@@ -20,7 +20,10 @@ FIT_COLUMNS = ("rank", "equation", "formula", "d50", "d50c", "shape_name", "shap
                "eta", "ep", "aicc", "delta_aicc", "residuals")  # fmt: skip
 #: Quantities whose interval the page shows when the run has interval columns (``--ci``, ``--bootstrap``).
 INTERVAL_QUANTITIES = ("d50", "d_cut", "shape", "ep", "eta")
-#: Points on each drawn curve, spaced evenly in log size.
+#: Columns of ``tromplab density fit``'s fits table the page shows (its notes are grouped as warnings).
+DENSITY_COLUMNS = ("rank", "curve", "method", "rho50", "ep", "imperfection", "rho50_low", "rho50_high", "ep_low", "ep_high",
+                   "imperfection_low", "imperfection_high", "gof_p", "dispersion", "overdispersed", "aic", "qaic")  # fmt: skip
+#: Points on each drawn curve, spaced evenly in log size (in density for density curves).
 CURVE_POINTS = 120
 
 
@@ -47,41 +50,15 @@ def page_payload(bench, experiments, args) -> dict:
 def density_payload(result) -> dict:
     """The page's data of a ``density fit`` run: a :class:`~tromplab.density.results.DensityResult`,
     each test (and size fraction) as an experiment, the curves over the measured partition to sinks."""
-    from ..density.fitting import partition_band
-
     table, start, experiments = result.fits_table(), 0, []
-    shown = [c for c in ("rank", "curve", "method", "rho50", "ep", "imperfection", "rho50_low", "rho50_high", "ep_low",
-                         "ep_high", "gof_p", "dispersion", "overdispersed", "aic", "qaic") if c in table.columns]  # fmt: skip
     warnings = defaultdict(list)
-    for sample in result.samples:
-        fits = result.fits_of(sample)
-        rows, start = table.iloc[start : start + len(fits)], start + len(fits)
+    for sample in result.samples:  # the table's rows are the samples' fits, sample by sample
+        count = len(result.fits_of(sample))
+        rows, start = table.iloc[start : start + count], start + count
         for curve, notes in zip(rows["curve"], rows["notes"].fillna("")):
             if notes:
                 warnings[notes].append(f"{sample.label}: {curve}")
-        best = result.best(sample)
-        points = sample.points
-        density = points["density"].to_numpy(float)
-        grid = np.linspace(density.min() - 0.05, density.max() + 0.05, CURVE_POINTS)
-        curves = []
-        for fit in (fit for fit in fits if fit.success):
-            curve = {"formula": fit.curve.id, "size": _numbers(grid), "partition": _numbers(fit.partition(grid)),
-                     "best": fit is best, "adequate": None}  # fmt: skip
-            if fit is best:
-                low, high = partition_band(fit, grid)
-                if np.isfinite(low).all() and np.isfinite(high).all():
-                    curve["band"] = {"low": _numbers(low), "high": _numbers(high), "level": 0.95}
-            curves.append(curve)
-        experiments.append({
-            "name": sample.label,
-            "table": _records(rows[shown]),
-            "intervals": None,  # in the ranked table: rho50_low, ..., ep_high
-            "best": None if best is None else {"formula": best.curve.id, "d50": _number(best.indices.rho50), "rank": 1, "tied": []},
-            "verdicts": [],
-            "cannot_tell": None,
-            "points": {"size": _numbers(density), "partition": _numbers(points["partition_sinks"])},
-            "curves": curves,
-        })  # fmt: skip
+        experiments.append(_density_sample(result, sample, rows))
     return {
         "axes": {
             "x": "relative density (g/cm3)",
@@ -95,6 +72,41 @@ def density_payload(result) -> dict:
         "ranking": None,
         "failures": None,
         "warnings": [{"kind": "fit", "text": text, "count": len(where), "where": where} for text, where in warnings.items()],
+    }
+
+
+def _density_sample(result, sample, rows) -> dict:
+    from ..density.fitting import partition_band
+
+    best = result.best(sample)
+    density = sample.points["density"].to_numpy(float)
+    grid = np.linspace(density.min() - 0.05, density.max() + 0.05, CURVE_POINTS)
+    curves = []
+    for fit in (fit for fit in result.fits_of(sample) if fit.success):
+        curve = {"formula": fit.curve.id, "size": _numbers(grid), "partition": _numbers(fit.partition(grid)),
+                 "best": fit is best, "adequate": None}  # fmt: skip
+        if fit is best:
+            low, high = partition_band(fit, grid)  # as the folder's figures draw it
+            if np.isfinite(low).all() and np.isfinite(high).all():
+                curve["band"] = {"low": _numbers(low), "high": _numbers(high), "level": 0.95}
+        curves.append(curve)
+    return {
+        "name": sample.label,
+        "table": _records(rows[[column for column in DENSITY_COLUMNS if column in rows.columns]]),
+        "intervals": None,  # in the ranked table: rho50_low, ..., ep_high
+        "best": None
+        if best is None
+        else {
+            "formula": best.curve.id,
+            "d50": _number(best.indices.rho50),
+            "ep": _number(best.indices.ep),
+            "rank": 1,
+            "tied": [],
+        },  # fmt: skip
+        "verdicts": [],
+        "cannot_tell": None,
+        "points": {"size": _numbers(density), "partition": _numbers(sample.points["partition_sinks"])},
+        "curves": curves,
     }
 
 
@@ -124,7 +136,9 @@ def _best(bench, name: str, best) -> dict | None:
     top = bench.top_ranked(name)
     tied = [formula for formula in top["formula"] if formula != best.formula.id]
     rank = _number(top["rank"].iloc[0]) if len(top) else None
-    return {"formula": best.formula.id, "d50": _number(best.indices.d50) if best.indices else None, "rank": rank, "tied": tied}
+    indices = best.indices
+    return {"formula": best.formula.id, "d50": _number(indices.d50) if indices else None,
+            "ep": _number(indices.ep) if indices else None, "rank": rank, "tied": tied}  # fmt: skip
 
 
 def _interval_columns(columns) -> list[str]:

@@ -188,12 +188,16 @@ class _Api:
         stored = safe_file_name(name)
         if Path(stored).suffix.lower() not in ACCEPTED_SUFFIXES:
             return _refused(f"the page reads CSV or Excel files ({', '.join(ACCEPTED_SUFFIXES)}); this file is not one")
+        too_large = _refused(f"the file is larger than the upload limit of {self.max_upload / 2**20:g} MiB "
+                             "(tromplab app --max-upload-mb; or run tromplab fit on it)", 413)  # fmt: skip
+        declared = request.headers.get("content-length", "")
+        if declared.isdigit() and int(declared) > self.max_upload:  # refused before a byte is read
+            return too_large
         body = bytearray()
-        async for chunk in request.stream():
+        async for chunk in request.stream():  # and counted as it comes: the header may be absent or wrong
             body += chunk
             if len(body) > self.max_upload:
-                return _refused(f"the file is larger than the upload limit of {self.max_upload / 2**20:g} MiB "
-                                "(tromplab app --max-upload-mb; or run tromplab fit on it)", 413)  # fmt: skip
+                return too_large
         return await self._new_table(session, stored, name, bytes(body))
 
     async def example(self, request: Request) -> Response:

@@ -258,6 +258,7 @@ function showResults(page) {
   show("ranking-part", Boolean(page.ranking));
   showWarnings(page.warnings);
   show("results-section", true);
+  drawOverview(page);
   showExperiment();
 }
 
@@ -374,6 +375,26 @@ function drawFigure(experiment, page) {
     margin: { t: 40 }, hovermode: "closest",
   };
   Plotly.react($("figure"), traces, layout, { displaylogo: false, responsive: true });
+}
+
+function drawOverview(page) {
+  const fitted = page.experiments.filter((experiment) => experiment.best);
+  show("overview-part", fitted.length > 1 && typeof Plotly !== "undefined");
+  if (fitted.length < 2 || typeof Plotly === "undefined") return;
+  const order = fitted.map((experiment, index) => index + 1);
+  const hover = fitted.map((experiment) => plotlyText(`${experiment.name}: ${experiment.best.formula}`));
+  const traces = [
+    { x: order, y: fitted.map((e) => e.best.d50), text: hover, mode: "lines+markers", name: plotlyText(page.axes.cut), hoverinfo: "text+y" },
+    { x: order, y: fitted.map((e) => e.best.ep), text: hover, mode: "lines+markers", name: "Ep", yaxis: "y2", hoverinfo: "text+y" },
+  ];
+  const unit = page.axes.unit ? ` (${plotlyText(page.axes.unit)})` : "";
+  const layout = {
+    xaxis: { title: { text: "experiment, in the file's order" } },
+    yaxis: { title: { text: plotlyText(page.axes.cut) + unit } },
+    yaxis2: { title: { text: `Ep${unit}` }, overlaying: "y", side: "right" },
+    margin: { t: 20 }, legend: { orientation: "h" },
+  };
+  Plotly.react($("overview"), traces, layout, { displaylogo: false, responsive: true });
 }
 
 // -- wiring ---------------------------------------------------------------------------------------
