@@ -384,12 +384,14 @@ function drawOverview(page) {
   const order = fitted.map((experiment, index) => index + 1);
   const hover = fitted.map((experiment) => plotlyText(`${experiment.name}: ${experiment.best.formula}`));
   const traces = [
-    { x: order, y: fitted.map((e) => e.best.d50), text: hover, mode: "lines+markers", name: plotlyText(page.axes.cut), hoverinfo: "text+y" },
-    { x: order, y: fitted.map((e) => e.best.ep), text: hover, mode: "lines+markers", name: "Ep", yaxis: "y2", hoverinfo: "text+y" },
+    { x: order, y: fitted.map((e) => e.best.d50), text: hover, mode: "lines+markers", name: plotlyText(page.axes.cut),
+      hoverinfo: "text+y", line: { width: 3 }, marker: { size: 10 } },
+    { x: order, y: fitted.map((e) => e.best.ep), text: hover, mode: "lines+markers", name: "Ep (right axis)", yaxis: "y2",
+      hoverinfo: "text+y", line: { dash: "dot" }, marker: { symbol: "square", size: 8 } },
   ];
   const unit = page.axes.unit ? ` (${plotlyText(page.axes.unit)})` : "";
   const layout = {
-    xaxis: { title: { text: "experiment, in the file's order" } },
+    xaxis: { title: { text: "experiment, in the file's order" }, dtick: Math.max(1, Math.ceil(fitted.length / 12)) },
     yaxis: { title: { text: plotlyText(page.axes.cut) + unit } },
     yaxis2: { title: { text: `Ep${unit}` }, overlaying: "y", side: "right" },
     margin: { t: 20 }, legend: { orientation: "h" },
