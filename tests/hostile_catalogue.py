@@ -356,6 +356,7 @@ TEMPLATES = {
     "export": ["export", "{points.csv}", "-o", "{tmp}/e.csv"],
     "density fit": ["density", "fit", "{points.csv}", "-o", "{tmp}/d"],
     "density predict": ["density", "predict", "{points.csv}", "--rho50", "1.5", "--ep", "0.05", "-o", "{tmp}/pred.csv"],
+    "app": ["app", "--no-browser"],  # every case refused by the parser: no server starts
 }
 
 

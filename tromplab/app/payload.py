@@ -134,7 +134,11 @@ def _best(bench, name: str, best) -> dict | None:
     if best is None:
         return None
     top = bench.top_ranked(name)
-    tied = [formula for formula in top["formula"] if formula != best.formula.id]
+    tied = [
+        {"formula": formula, "d50": _number(d50)}
+        for formula, d50 in zip(top["formula"], top["d50"])
+        if formula != best.formula.id
+    ]
     rank = _number(top["rank"].iloc[0]) if len(top) else None
     indices = best.indices
     return {"formula": best.formula.id, "d50": _number(indices.d50) if indices else None,

@@ -244,7 +244,8 @@ function showResults(page) {
     let text = `${experiment.name}: no formula could be fitted`;
     if (best) {
       text = `${experiment.name}: ${axes.best} ${best.formula}, ${axes.cut} = ${formatNumber(best.d50, 3)}${unit}`;
-      if (best.tied.length) text += ` (rank ${formatNumber(best.rank)} tied with ${best.tied.join(", ")}; the library takes the lowest sum of squares among them)`;
+      const tied = best.tied.map((other) => `${other.formula} (${axes.cut} = ${formatNumber(other.d50, 3)})`);
+      if (tied.length) text += ` (rank ${formatNumber(best.rank)} tied with ${tied.join(", ")}; the library takes the lowest sum of squares among them)`;
     }
     return element("li", text);
   }));
