@@ -235,7 +235,7 @@ def test_screenshots_of_the_page_for_the_docs(page, tmp_path):
     """Not a check: the pictures of docs/app.md, taken when TROMPLAB_APP_SCREENSHOTS names a folder."""
     folder = os.environ.get("TROMPLAB_APP_SCREENSHOTS")
     if not folder:
-        pytest.skip("set TROMPLAB_APP_SCREENSHOTS=docs/_static to take the docs' screenshots")
+        pytest.skip("set TROMPLAB_APP_SCREENSHOTS=docs to take the docs' screenshots")
     lab = (Path(__file__).resolve().parent.parent / "datasets" / "double_deck_screen_decks_lab.csv").read_text()
     drop(page, "double_deck_screen_decks_lab.csv", lab)
     page.fill("#option-size_unit", "mm")
