@@ -98,6 +98,7 @@ def expect(locator):
 
 def drop(page, name: str, text: str) -> None:
     page.set_input_files("#file-input", files=[{"name": name, "mimeType": "text/csv", "buffer": text.encode()}])
+    expect(page.locator("#file-name")).to_have_text(name)  # this file's answer is in: its form is built
     page.get_by_role("button", name="Fit").wait_for(state="visible")
 
 
