@@ -360,6 +360,7 @@ TEMPLATES = {
     "plant predict": ["plant", "predict", "{points.csv}", "{lab.csv}", "-o", "{tmp}/plant"],
     "plant optimize": ["plant", "optimize", "{points.csv}", "{lab.csv}", "--target-ash", "10", "-o", "{tmp}/cuts"],
     "plant evaluate": ["plant", "evaluate", "{points.csv}", "-o", "{tmp}/evaluation"],
+    "app": ["app", "--no-browser"],  # every case refused by the parser: no server starts
 }
 
 

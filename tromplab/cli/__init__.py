@@ -20,6 +20,7 @@ from :func:`build_parser`), each in its own module of this package:
   :mod:`~tromplab.cli.density` and :mod:`~tromplab.cli.density_predict`;
 - ``plant predict`` (a coal-washing plant's products from washability and partition curves):
   :mod:`~tromplab.cli.plant`.
+- ``app`` (the local web workbench, :mod:`tromplab.app`): :mod:`~tromplab.cli.app`.
 
 Shared by the commands: :mod:`~tromplab.cli.startup` (exit codes, signals, verbosity, progress
 bars, the parser classes, errors in the command line's words), :mod:`~tromplab.cli.option_groups`
@@ -40,7 +41,7 @@ from .._version import __version__
 from ..errors import InputError, OptionError, ResultError, YieldWarning
 from ..output.outputs import forget_written
 from ..validation import state_ranges
-from . import circuit, fit, formulas, points, rank, report, sieve, trend
+from . import app, circuit, fit, formulas, points, rank, report, sieve, trend
 from .density import add_density_command
 from .density_predict import add_predict_parser
 from .models import add_model_commands
@@ -191,5 +192,6 @@ def build_parser() -> argparse.ArgumentParser:
     density = add_density_command(commands)  # density fit (the sub-commands and their work are in cli.density)
     add_predict_parser(density.density_commands)  # density predict (cli.density_predict)
     add_plant_command(commands)  # plant predict (cli.plant)
+    app.add_app(commands)  # the local web workbench (tromplab.app)
     state_ranges(parser)
     return parser

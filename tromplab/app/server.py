@@ -1,0 +1,365 @@
+"""The local server of ``tromplab app``: a Starlette application serving one static page and
+a small JSON interface over the library, run by uvicorn.
+
+Safety of a local server: it listens on the loopback interface unless told otherwise; it
+answers only requests addressed to a loopback name (no DNS rebinding); the session cookie is
+HttpOnly and SameSite=Strict, and every request that changes something must carry the page's
+own header (no cross-site request can); uploads have a size limit; the page is served with a
+Content-Security-Policy that allows scripts from the server alone, and the page puts every
+text that comes from a file into the document as text, never as HTML.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import io
+import ipaddress
+import shutil
+import zipfile
+from importlib import resources
+from pathlib import Path
+
+from starlette.applications import Starlette
+from starlette.concurrency import run_in_threadpool
+from starlette.middleware import Middleware
+from starlette.middleware.trustedhost import TrustedHostMiddleware
+from starlette.requests import Request
+from starlette.responses import FileResponse, JSONResponse, Response
+from starlette.routing import Route
+
+from .forms import OptionsRefused, arguments_from_form, command_parser, form_options, parse_arguments
+from .jobs import COMMANDS as RUN_COMMANDS
+from .jobs import RESULTS_FOLDER, FitRun, Job
+from .kinds import ACCEPTED_SUFFIXES, sheet_names, table_kind
+from .sessions import Session, Sessions, Upload, safe_file_name
+
+COOKIE = "tromplab_session"
+#: Largest upload, bytes (``tromplab app --max-upload-mb``): a lab table is kilobytes, a batch
+#: of thousands of experiments a few megabytes.
+DEFAULT_MAX_UPLOAD = 20 * 1024 * 1024
+#: The header every request that changes something carries (set by the page's script; a form
+#: or request of another site cannot set it without the server's consent, which it never gives).
+PAGE_HEADER = "x-tromplab-page"
+LOOPBACK_NAMES = ("127.0.0.1", "localhost", "::1", "[::1]")
+SECURITY_HEADERS = {
+    "content-security-policy": "default-src 'self'; script-src 'self'; style-src 'self' 'unsafe-inline'; "
+    "img-src 'self' data: blob:; connect-src 'self'; object-src 'none'; base-uri 'none'; frame-ancestors 'none'",
+    "x-content-type-options": "nosniff",
+    "referrer-policy": "no-referrer",
+    "cache-control": "no-store",
+}
+STATIC_FILES = {"index.html": "text/html", "app.js": "text/javascript", "app.css": "text/css"}
+EXAMPLES = {"double_deck_screen_decks_lab.csv": "lab table: the two decks of a double-deck screen (sizes in mm)",
+            "classifier_trend_surveys.csv": "Tromp points: 24 weekly surveys of one classifier (sizes in um)",
+            "density_tracers_dmc_by_size_synthetic.csv": "density tracers: a dense-medium cyclone, four size fractions"}  # fmt: skip
+DOWNLOADS = {"results.zip": "application/zip", "report.html": "text/html",
+             "results.xlsx": "application/vnd.openxmlformats-officedocument.spreadsheetml.sheet"}  # fmt: skip
+
+
+def is_loopback(host: str) -> bool:
+    """Whether ``host`` names the loopback interface only."""
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host.strip("[]")).is_loopback
+    except ValueError:
+        return False
+
+
+def create_app(*, max_upload: int = DEFAULT_MAX_UPLOAD, allowed_hosts=LOOPBACK_NAMES, sessions: Sessions | None = None):
+    """The Starlette application of ``tromplab app``.
+
+    Parameters
+    ----------
+    max_upload : int
+        Largest accepted upload in bytes.
+    allowed_hosts : sequence of str
+        Host names the server answers to (``["*"]`` for any, when it listens beyond loopback).
+    sessions : Sessions, optional
+        Where the sessions live (a new temporary root by default); closed when the application stops.
+    """
+    sessions = Sessions() if sessions is None else sessions
+    api = _Api(sessions, max_upload)
+
+    @contextlib.asynccontextmanager
+    async def lifespan(app):
+        sweeper = asyncio.create_task(_sweep_idle(sessions))
+        try:
+            yield
+        finally:
+            sweeper.cancel()
+            sessions.close()
+
+    routes = [
+        Route("/", api.page),
+        Route("/static/{name}", api.static),
+        Route("/api/session", api.session, methods=["GET"]),
+        Route("/api/upload", api.upload, methods=["POST"]),
+        Route("/api/example", api.example, methods=["POST"]),
+        Route("/api/sheet", api.sheet, methods=["POST"]),
+        Route("/api/run", api.run, methods=["POST"]),
+        Route("/api/job", api.job, methods=["GET"]),
+        Route("/api/cancel", api.cancel, methods=["POST"]),
+        Route("/api/download/{name}", api.download, methods=["GET"]),
+        Route("/api/end", api.end, methods=["POST"]),
+    ]
+    app = Starlette(
+        routes=routes, lifespan=lifespan, middleware=[Middleware(TrustedHostMiddleware, allowed_hosts=list(allowed_hosts))]
+    )
+    app.state.sessions = sessions
+    return app
+
+
+async def _sweep_idle(sessions: Sessions) -> None:
+    while True:
+        await asyncio.sleep(60)
+        await run_in_threadpool(sessions.sweep)
+
+
+def _json(data, status: int = 200, **kwargs) -> JSONResponse:
+    return JSONResponse(data, status_code=status, headers=SECURITY_HEADERS, **kwargs)
+
+
+def _refused(message: str, status: int = 400) -> JSONResponse:
+    return _json({"error": message}, status)
+
+
+class _Api:
+    """The page and its JSON interface, over the sessions."""
+
+    def __init__(self, sessions: Sessions, max_upload: int):
+        self.sessions = sessions
+        self.max_upload = max_upload
+        #: the commands the page runs, with their parsers and forms (``report`` follows ``fit``)
+        self.parsers = {command: command_parser(*command) for command in RUN_COMMANDS}
+        self.forms = {command: form_options(parser) for command, parser in self.parsers.items()}
+        self.fit_parser = self.parsers[("fit",)]
+        self.report_parser = command_parser("report")
+        self.report_options = form_options(self.report_parser)
+
+    # -- the page -------------------------------------------------------------------------
+    async def page(self, request: Request) -> Response:
+        return _static_response("index.html")
+
+    async def static(self, request: Request) -> Response:
+        name = request.path_params["name"]
+        if name == "plotly.min.js":  # plotly's own bundle, shipped with its Python package: nothing remote
+            path = resources.files("plotly") / "package_data" / "plotly.min.js"
+            return FileResponse(str(path), media_type="text/javascript", headers=SECURITY_HEADERS)
+        if name not in STATIC_FILES:
+            return Response("not found", status_code=404)
+        return _static_response(name)
+
+    # -- sessions ---------------------------------------------------------------------------
+    async def session(self, request: Request) -> Response:
+        session = self.sessions.get(request.cookies.get(COOKIE))
+        fresh = session is None
+        if fresh:
+            session = self.sessions.new()
+        response = _json({"examples": EXAMPLES, "max_upload": self.max_upload, "accepted": list(ACCEPTED_SUFFIXES),
+                          "upload": _upload_view(session.upload) if session.upload else None})  # fmt: skip
+        if fresh:
+            response.set_cookie(COOKIE, session.token, httponly=True, samesite="strict", path="/")
+        return response
+
+    def _session_of(self, request: Request, *, changes: bool = True) -> Session | Response:
+        if changes and request.headers.get(PAGE_HEADER) != "1":
+            return _refused("this request must come from the tromplab page", 403)
+        session = self.sessions.get(request.cookies.get(COOKIE))
+        if session is None:
+            return _refused("no session: reload the page", 401)
+        return session
+
+    async def end(self, request: Request) -> Response:
+        # sent by the page as it closes (navigator.sendBeacon cannot set headers); the
+        # SameSite=Strict cookie is all it needs: another site's request does not carry it
+        self.sessions.end(request.cookies.get(COOKIE))
+        response = _json({"ended": True})
+        response.delete_cookie(COOKIE, path="/")
+        return response
+
+    # -- the table --------------------------------------------------------------------------
+    async def upload(self, request: Request) -> Response:
+        session = self._session_of(request)
+        if isinstance(session, Response):
+            return session
+        name = request.query_params.get("name", "")
+        stored = safe_file_name(name)
+        if Path(stored).suffix.lower() not in ACCEPTED_SUFFIXES:
+            return _refused(f"the page reads CSV or Excel files ({', '.join(ACCEPTED_SUFFIXES)}); this file is not one")
+        too_large = _refused(f"the file is larger than the upload limit of {self.max_upload / 2**20:g} MiB "
+                             "(tromplab app --max-upload-mb; or run tromplab fit on it)", 413)  # fmt: skip
+        declared = request.headers.get("content-length", "")
+        if declared.isdigit() and int(declared) > self.max_upload:  # refused before a byte is read
+            return too_large
+        body = bytearray()
+        async for chunk in request.stream():  # and counted as it comes: the header may be absent or wrong
+            body += chunk
+            if len(body) > self.max_upload:
+                return too_large
+        return await self._new_table(session, stored, name, bytes(body))
+
+    async def example(self, request: Request) -> Response:
+        session = self._session_of(request)
+        if isinstance(session, Response):
+            return session
+        name = request.query_params.get("name", "")
+        if name not in EXAMPLES:
+            return _refused("no such example")
+        data = (resources.files("tromplab.app") / "examples" / name).read_bytes()
+        return await self._new_table(session, name, name, data)
+
+    async def _new_table(self, session: Session, stored: str, shown: str, data: bytes) -> Response:
+        if session.job is not None:
+            await run_in_threadpool(session.job.cancel)
+            session.job = None
+        uploads = session.folder / "upload"
+        shutil.rmtree(uploads, ignore_errors=True)
+        uploads.mkdir()
+        path = uploads / stored
+        path.write_bytes(data)
+        try:
+            sheets = await run_in_threadpool(sheet_names, path)
+        except Exception:  # not a workbook after all: the command's reader will say why
+            sheets = []
+        session.upload = Upload(path, shown, sheets)
+        return await self._described(session, sheets[0] if sheets else None)
+
+    async def sheet(self, request: Request) -> Response:
+        session = self._session_of(request)
+        if isinstance(session, Response):
+            return session
+        if session.upload is None:
+            return _refused("no file yet: drop one on the page or pick an example")
+        wanted = (await request.json()).get("sheet")
+        if wanted not in session.upload.sheets:
+            return _refused("no such sheet in the workbook")
+        return await self._described(session, wanted)
+
+    async def _described(self, session: Session, sheet: str | None) -> Response:
+        from ..cli.startup import cli_message
+        from ..errors import InputError
+
+        upload = session.upload
+        view = _upload_view(upload)
+        try:
+            kind = await run_in_threadpool(table_kind, upload.path, sheet)
+        except InputError as error:
+            return _json({**view, "kind": None, "error": f"tromplab fit: error: {cli_message(error, self.fit_parser)}"})
+        upload.command = kind.command if kind.command in self.parsers else ("fit",)
+        options = [o.as_dict() for o in self.forms[upload.command]] if kind.runs_here else []
+        return _json({**view, "sheet": sheet, "kind": kind.as_dict(), "options": options})
+
+    # -- runs -------------------------------------------------------------------------------
+    async def run(self, request: Request) -> Response:
+        session = self._session_of(request)
+        if isinstance(session, Response):
+            return session
+        if session.upload is None:
+            return _refused("no file yet: drop one on the page or pick an example")
+        wanted = await request.json()
+        values, sheet = dict(wanted.get("options") or {}), wanted.get("sheet")
+        if sheet is not None and sheet not in session.upload.sheets:
+            return _refused("no such sheet in the workbook")
+        command, name = session.upload.command, session.upload.path.name
+        try:
+            fit_arguments = arguments_from_form(self.forms[command], values)
+            report_arguments = self._report_arguments(values) if command == ("fit",) else []
+            if sheet is not None:
+                fit_arguments = [*fit_arguments, f"--sheet={sheet}"]
+                report_arguments = [*report_arguments, f"--sheet={sheet}"] if command == ("fit",) else []
+            parse_arguments(self.parsers[command], [name, *fit_arguments])
+            if command == ("fit",):
+                parse_arguments(self.report_parser, [name, *report_arguments])
+        except OptionsRefused as refusal:
+            return _refused(str(refusal))
+        if session.job is not None:
+            await run_in_threadpool(session.job.cancel)
+        folder = session.job_folder()
+        shutil.copyfile(session.upload.path, folder / name)
+        run = FitRun(folder, name, tuple(fit_arguments), tuple(report_arguments), command)
+        session.job = Job(run)
+        await run_in_threadpool(session.job.start)
+        report = run.report_command()
+        return _json({"command": ["tromplab", *run.fit_command()], "report_command": report and ["tromplab", *report]})
+
+    def _report_arguments(self, values: dict) -> list[str]:
+        """The report's options from the fit's: those ``tromplab report`` has, its ``--ci`` the fit's level if given."""
+        known = {option.dest for option in self.report_options}
+        shared = {dest: value for dest, value in values.items() if dest in known and dest != "ci"}
+        if values.get("ci") not in (None, ""):
+            shared["ci"] = values["ci"]
+        return arguments_from_form(self.report_options, shared)
+
+    async def job(self, request: Request) -> Response:
+        session = self._session_of(request, changes=False)
+        if isinstance(session, Response):
+            return session
+        if session.job is None:
+            return _json({"state": "idle"})
+        return _json(await run_in_threadpool(session.job.state))
+
+    async def cancel(self, request: Request) -> Response:
+        session = self._session_of(request)
+        if isinstance(session, Response):
+            return session
+        if session.job is not None:
+            await run_in_threadpool(session.job.cancel)
+        return _json({"state": "cancelled"})
+
+    async def download(self, request: Request) -> Response:
+        session = self._session_of(request, changes=False)
+        if isinstance(session, Response):
+            return session
+        name = request.path_params["name"]
+        if name not in DOWNLOADS:
+            return Response("not found", status_code=404)
+        if session.job is None or session.job.state()["state"] != "done":
+            return _refused("no finished run to download", 404)
+        folder = session.job.run.folder
+        headers = {**SECURITY_HEADERS, "content-disposition": f'attachment; filename="{name}"'}
+        if name == "results.zip":
+            data = await run_in_threadpool(_zipped, folder / RESULTS_FOLDER)
+            return Response(data, media_type=DOWNLOADS[name], headers=headers)
+        return FileResponse(session.job.run.download(name), media_type=DOWNLOADS[name], headers=headers)
+
+
+def _upload_view(upload: Upload) -> dict:
+    return {"name": upload.shown_name, "stored_as": upload.path.name, "sheets": upload.sheets}
+
+
+def _static_response(name: str) -> Response:
+    text = (resources.files("tromplab.app") / "static" / name).read_bytes()
+    return Response(text, media_type=STATIC_FILES[name], headers=SECURITY_HEADERS)
+
+
+def _zipped(folder: Path) -> bytes:
+    """The results folder as a zip archive, its files under ``results/`` in name order."""
+    buffer = io.BytesIO()
+    with zipfile.ZipFile(buffer, "w", zipfile.ZIP_DEFLATED) as archive:
+        for path in sorted(folder.rglob("*")):
+            if path.is_file():
+                archive.write(path, f"{RESULTS_FOLDER}/{path.relative_to(folder).as_posix()}")
+    return buffer.getvalue()
+
+
+def serve(*, host: str = "127.0.0.1", port: int = 8765, open_browser: bool = True, max_upload: int = DEFAULT_MAX_UPLOAD) -> None:
+    """Run the server until interrupted (what ``tromplab app`` does); every session's folder is
+    removed when it stops."""
+    import threading
+    import webbrowser
+
+    import uvicorn
+
+    allowed = LOOPBACK_NAMES if is_loopback(host) else ["*"]
+    app = create_app(max_upload=max_upload, allowed_hosts=allowed)
+    shown_host = f"[{host}]" if ":" in host else host
+    address = f"http://{'127.0.0.1' if host in ('localhost',) else shown_host}:{port}/"
+    print(f"tromplab app: serving {address} (Ctrl+C stops it; every session's files are removed then)", flush=True)
+    if open_browser:
+        threading.Timer(1.0, webbrowser.open, args=(address,)).start()
+    try:
+        uvicorn.run(app, host=host, port=port, log_level="warning", access_log=False)
+    finally:
+        app.state.sessions.close()
