@@ -329,13 +329,19 @@ def test_the_fit_covariance_is_the_glm_covariance_by_the_delta_method():
     """For the normal curve fitted as a probit GLM, P = Phi(a + b rho): rho50 = -a/b and Ep = z75/b, so the
     covariance of (rho50, Ep) is J C J' with C the inverse of the GLM's observed information (statsmodels'
     analytic Hessian of the log-likelihood) and J = [[-1/b, a/b^2], [0, -z75/b^2]]."""
+    import statsmodels.api as sm
+
     from tromplab.density.covariance import index_covariance
 
     result = fit_density(TRACERS, curves="normal")
     for fit in result.fits:
+        used = fit.sample.used
+        counts = np.column_stack([used["sinks"], used["recovered"] - used["sinks"]]).astype(float)
+        probit = sm.families.Binomial(link=sm.families.links.Probit())
+        model = sm.GLM(counts, sm.add_constant(used["density"].to_numpy(float)), family=probit)
         a, b = fit.raw.params
         jacobian = np.array([[-1 / b, a / b**2], [0.0, -Z75 / b**2]])
-        observed = -np.linalg.inv(fit.raw.model.hessian(np.asarray(fit.raw.params), observed=True))
+        observed = -np.linalg.inv(model.hessian(np.asarray(fit.raw.params), observed=True))
         expected = jacobian @ observed @ jacobian.T
         scale = np.sqrt(np.outer(np.diag(expected), np.diag(expected)))  # the covariance relative to its variances
         assert_allclose(index_covariance(fit) / scale, expected / scale, atol=1e-4)

@@ -118,27 +118,27 @@ def _density_fit(run: FitRun, parser) -> None:
 
 
 def _fit_and_report(run: FitRun, parser) -> None:
-    from ..cli.fit import fit_keywords
     from ..cli.option_groups import lab_options
     from ..loading.lab import read_experiments
     from ..loading.tables import check_input_file
     from ..output.outputs import check_output_folder
-    from ..workbench import check_formula_selection, fit_experiments, fit_to_folder
+    from ..validation import FitSettings
+    from ..workbench import check_formula_selection, fit_to_folder, fit_with_settings
     from .payload import page_payload
 
     args = parser.parse_args(run.fit_command())
-    formulas = check_formula_selection(args.formulas, args.extended)
+    check_formula_selection(args.formulas, args.extended)  # refused before the input is read, as the command does
     check_input_file(args.input)
     check_output_folder(args.outdir, inputs=[args.input])
     _progress("reading", 0, 0, str(args.input))
     experiments = read_experiments(args.input, lab_options(args))
     bench, _ = fit_to_folder(experiments, args.outdir, figures=args.figures, format=args.format, excel=args.excel,
-                             source=args.input, **fit_keywords(args, formulas), progress=_reporter("fitting"))  # fmt: skip
+                             source=args.input, settings=FitSettings.from_options(args), progress=_reporter("fitting"))  # fmt: skip
     report = parser.parse_args(run.report_command())
-    report_formulas = check_formula_selection(report.formulas, report.extended)
-    keywords = {**fit_keywords(report, report_formulas), "ci": None}  # as tromplab report: --ci is its tables' level
-    report_bench = fit_experiments(read_experiments(report.input, lab_options(report)), **keywords,
-                                   progress=_reporter("fitting for the report"))  # fmt: skip
+    check_formula_selection(report.formulas, report.extended)
+    settings = FitSettings.from_options(report, ci=None)  # as tromplab report: --ci is its tables' level
+    report_bench = fit_with_settings(read_experiments(report.input, lab_options(report)), settings,
+                                     progress=_reporter("fitting for the report"))  # fmt: skip
     report_bench.check_fitted(report.input)
     report_bench.write_report(report.output, level=report.ci, title=report.title, jobs=report.jobs)
     _progress("drawing", 0, 0, "")
