@@ -148,7 +148,7 @@ def test_the_updates_equal_fresh_pseudo_inverses(case, monkeypatch):
 def test_the_distribution_functions_are_scipy_stats_bit_for_bit():
     from scipy import stats
 
-    from tromplab.circuit.distributions import chi2_ppf, chi2_sf, norm_isf, norm_sf
+    from tromplab.statistics.distributions import chi2_ppf, chi2_sf, norm_isf, norm_sf
 
     statistics = np.array([0.0, 1e-3, 0.5, 13.7, 21.71797430220539, 400.0])
     for dof in (1, 2, 17, 21, 300):

@@ -22,7 +22,7 @@ from typing import NamedTuple
 import numpy as np
 import pandas as pd
 
-from .distributions import norm_sf
+from ..statistics.distributions import norm_sf
 from .measurements import class_name
 from .problem import decompose
 

@@ -38,7 +38,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import OptionError
-from .distributions import chi2_sf, norm_isf, norm_sf
+from ..statistics.distributions import chi2_sf, norm_isf, norm_sf
 from .measurements import Survey, class_name
 
 #: Columns of the elimination table (``DIR/elimination.csv``).

@@ -71,12 +71,12 @@ from ..loading.points import TrompPoints
 from ..loading.weights import partition_weights, stream_error
 from ..options import DEFAULT_ALPHA
 from ..results_contract import ResultContract
+from ..statistics.distributions import chi2_ppf, chi2_sf, norm_isf
 from ..validation import check_probability
 from . import plotting
 from .adjustments import ADJUSTMENT_COLUMNS, EQUIVALENT_CORRELATION, MeasurementTests, adjustments_frame, measurement_tests
 from .assays import MIN_ASSAYED_SHARE
 from .design import design_table, water_determined_by
-from .distributions import chi2_ppf, chi2_sf, norm_isf
 from .elimination import nodal_tests, proposal, serial_elimination, without
 from .flowsheet import Flowsheet, read_flowsheet
 from .measurements import ErrorModel, Survey, class_name, read_survey

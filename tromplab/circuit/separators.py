@@ -24,8 +24,8 @@ import pandas as pd
 from scipy import special
 
 from ..options import DEFAULT_MIN_FEED_SHARE
+from ..statistics.distributions import norm_isf
 from .assays import SOLIDS
-from .distributions import norm_isf
 
 #: Separator classes whose feed share (of the separator's feed) is below this are written to
 #: points.csv as not used (partition not meaningful), as lab tables flag them.

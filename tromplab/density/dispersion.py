@@ -39,7 +39,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .distributions import chi2_ppf, f_ppf
+from ..statistics.distributions import chi2_ppf, f_ppf
 
 #: Level of the Pearson test of overdispersion (the ``overdispersed`` column, the QAIC ranking).
 OVERDISPERSION_LEVEL = 0.05

@@ -61,11 +61,11 @@ import numpy as np
 import scipy.special
 
 from ..results_contract import ResultContract
+from ..statistics.distributions import binom_logpmf, chi2_sf, f_ppf, norm_isf, norm_ppf
 from .batch import LIMIT_STARTS, BinomialFit, TracerStack, fit_glm, fit_limits_curve
 from .curves import DensityCurve, DensityIndices, get_density_curve
 from .dispersion import pearson_rejects, quasi_binomial_scale
 from .dispersion import profile_threshold as quasi_profile_threshold
-from .distributions import binom_logpmf, chi2_sf, f_ppf, norm_isf, norm_ppf
 from .joint import JOINT_METHOD, fit_joint, has_three_analyses, joint_intervals
 from .profiles import ProfileRequests, profile_limits
 from .readers import DensitySample

@@ -55,8 +55,8 @@ import numpy as np
 import scipy.linalg
 import scipy.special
 
+from ..statistics.distributions import t_ppf
 from .curves import DensityCurve
-from .distributions import t_ppf
 
 #: ``DensitySample.yield_source`` of a yield estimated from the three analyses (none stated).
 ESTIMATED_YIELD_SOURCE = "least-squares estimate"

@@ -1,10 +1,12 @@
-"""The few distribution functions the density fits need, from :mod:`scipy.special`.
+"""The few distribution functions the density fits and the circuit's tests read, from :mod:`scipy.special`.
 
 Each is the formula :mod:`scipy.stats` evaluates for that distribution (its ``_ppf``,
 ``_sf``, ``_logpmf``), so the numbers are the same to the last bit
-(``tests/test_density_batch.py`` checks them against :mod:`scipy.stats`), without importing
-:mod:`scipy.stats`: that import is a large share of the start of ``tromplab density fit``
-(0.3 s on a quiet machine, seconds on a loaded one).
+(``tests/test_density_batch.py`` and ``tests/test_circuit_speed.py`` check them against
+:mod:`scipy.stats`), without importing :mod:`scipy.stats`: its hundred distributions, their
+docstrings and the resampling and spatial modules take about a third of a second to import
+on a quiet machine (seconds on a loaded one), a large share of the start of ``tromplab density
+fit`` and ``tromplab circuit``.  A number in gives a number out, an array an array.
 """
 
 from __future__ import annotations
@@ -15,12 +17,12 @@ import scipy.special
 
 def chi2_ppf(q, df):
     """Quantile of the chi-squared distribution with ``df`` degrees of freedom (``scipy.stats.chi2.ppf``)."""
-    return 2 * scipy.special.gammaincinv(np.asarray(df) / 2, q)
+    return (2 * scipy.special.gammaincinv(np.asarray(df, dtype=float) / 2, q))[()]
 
 
 def chi2_sf(x, df):
     """Upper tail of the chi-squared distribution (``scipy.stats.chi2.sf``)."""
-    return scipy.special.chdtrc(df, x)
+    return scipy.special.chdtrc(df, np.asarray(x, dtype=float))[()]
 
 
 def f_ppf(q, dfn, dfd):
@@ -38,9 +40,14 @@ def norm_ppf(q):
     return scipy.special.ndtri(q)
 
 
+def norm_sf(x):
+    """Upper tail of the standard normal distribution (``scipy.stats.norm.sf``)."""
+    return scipy.special.ndtr(-np.asarray(x, dtype=float))[()]
+
+
 def norm_isf(q):
     """Upper quantile of the standard normal distribution (``scipy.stats.norm.isf``)."""
-    return -scipy.special.ndtri(q)
+    return (-scipy.special.ndtri(np.asarray(q, dtype=float)))[()]
 
 
 def binom_logpmf(k, n, p):
