@@ -70,3 +70,9 @@ CIRCUIT_FIT_FORMULAS = "paper,extended"
 #: Where the error model of a survey is evaluated: at the reconciled values (iterated to
 #: convergence, the default) or at the measured values.
 ERROR_MODEL_POINTS = ("reconciled", "measured")
+
+# --- density partition (tromplab.density) -------------------------------------------------
+#: The plain density curves of the registry (``tromplab.density.curves.PLAIN_CURVES``), written
+#: out so that the command line builds its parser without the numerical libraries; each has a
+#: variant with limits, ``<id>_limits`` (a test checks both against the registry).
+PLAIN_DENSITY_CURVES = ("normal", "logistic", "gompertz")

@@ -60,6 +60,7 @@ from .startup import (
     collector_paused,
     global_options,
     interrupted,
+    print_usage,
     python_warnings,
     raise_terminated,
     sigterm_as_interrupt,
@@ -92,8 +93,7 @@ def main(argv=None, *, on_start=None) -> int:
     except KeyboardInterrupt:
         return interrupted()
     if not hasattr(args, "run"):
-        parser.print_help()
-        return EXIT_USAGE
+        return print_usage(parser)
     path = [
         name
         for name in (

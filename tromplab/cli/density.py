@@ -18,7 +18,13 @@ from ..output.outputs import check_output_folder
 from ..validation import check_probability, check_yield, cli_type
 from .option_groups import add_jobs_option
 from .printing import print_notices
-from .startup import EXIT_OK, EXIT_PARTIAL, print_result, progress_bars  # done, and some tests without any fitted curve
+from .startup import (  # done, and some tests without any fitted curve
+    EXIT_OK,
+    EXIT_PARTIAL,
+    print_result,
+    print_usage,
+    progress_bars,
+)
 
 #: What ``density fit`` imports when it runs (imported before it starts, under the CLI's signal handling).
 #: The fits of tracer counts need neither scipy.stats nor scipy.optimize nor statsmodels: those are
@@ -38,13 +44,8 @@ def add_density_command(commands) -> argparse.ArgumentParser:
     sub = density.add_subparsers(dest="density_command", metavar="SUBCOMMAND", parser_class=type(density))
     density.density_commands = sub
     _add_fit(sub)
-    density.set_defaults(run=lambda args: _usage(density))
+    density.set_defaults(run=lambda args: print_usage(density))
     return density
-
-
-def _usage(parser: argparse.ArgumentParser) -> int:
-    parser.print_help()
-    return 2
 
 
 def _add_fit(sub) -> None:

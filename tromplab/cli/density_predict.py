@@ -15,13 +15,12 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import OptionError
-from ..options import DEFAULT_SUM_TOLERANCE_PCT
+from ..options import DEFAULT_SUM_TOLERANCE_PCT, PLAIN_DENSITY_CURVES
 from ..output.outputs import check_output_file, write_files
 from ..validation import check_cut_density, check_non_negative, check_percent, check_positive, check_share, cli_type
 
-#: The curves ``--curve`` offers: the registry's ids, written out so that building the parser imports no
-#: numerical library (a test checks them against the registry).
-PREDICT_CURVES = ("normal", "logistic", "gompertz", "normal_limits", "logistic_limits", "gompertz_limits")
+#: The curves ``--curve`` offers: the registry's ids, the plain curves then their variants with limits.
+PREDICT_CURVES = PLAIN_DENSITY_CURVES + tuple(f"{curve}_limits" for curve in PLAIN_DENSITY_CURVES)
 
 
 @dataclass(frozen=True)

@@ -14,10 +14,10 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from ..options import DEFAULT_SUM_TOLERANCE_PCT
+from ..options import DEFAULT_SUM_TOLERANCE_PCT, PLAIN_DENSITY_CURVES
 from ..output.outputs import check_output_folder
 from ..validation import check_count, check_non_negative, check_percent, check_positive, check_probability, check_seed, cli_type
-from .startup import EXIT_OK, progress_bars
+from .startup import EXIT_OK, print_usage, progress_bars
 
 #: What ``plant predict`` imports when it runs (imported before it starts, under the CLI's signal handling).
 PREDICT_IMPORTS = ("tromplab.plant", "tromplab.plant.plotting", "tromplab.output.plotting", "scipy.special")
@@ -33,13 +33,8 @@ def add_plant_command(commands) -> argparse.ArgumentParser:
     _add_predict(sub)
     _add_optimize(sub)
     _add_evaluate(sub)
-    plant.set_defaults(run=lambda args: _usage(plant))
+    plant.set_defaults(run=lambda args: print_usage(plant))
     return plant
-
-
-def _usage(parser: argparse.ArgumentParser) -> int:
-    parser.print_help()
-    return 2
 
 
 def _add_predict(sub) -> None:
@@ -84,7 +79,7 @@ def _add_evaluate(sub) -> None:
                           "floats_pct, sinks_pct with feed_ash_pct or floats_ash_pct and sinks_ash_pct")  # fmt: skip
     evaluate.add_argument("-o", "--outdir", type=Path, default=Path("results/evaluation"),
                           help="output folder, replaced as a whole when the run succeeds (default: results/evaluation)")  # fmt: skip
-    evaluate.add_argument("--curve", choices=("normal", "logistic", "gompertz"), default="normal",
+    evaluate.add_argument("--curve", choices=PLAIN_DENSITY_CURVES, default="normal",
                           help="the partition curve fitted for rho50, Ep and the imperfection (default normal)")  # fmt: skip
     evaluate.add_argument("--floats-yield", type=cli_type(check_probability, "--floats-yield"), default=None, metavar="Y",
                           help="mass share of the feed to the floats (estimated from three analyses when not given)")  # fmt: skip

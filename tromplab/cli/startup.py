@@ -119,6 +119,12 @@ def verbosity(args):
 _RESULT_OUTPUT: contextvars.ContextVar = contextvars.ContextVar("result_output", default=None)
 
 
+def print_usage(parser: argparse.ArgumentParser) -> int:
+    """Print ``parser``'s help and return the usage exit code: a command group given no sub-command."""
+    parser.print_help()
+    return EXIT_USAGE
+
+
 def print_result(line: str) -> None:
     """Print the one-line result of a command run with ``--quiet`` on standard output (which
     :func:`verbosity` otherwise silences)."""

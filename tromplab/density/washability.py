@@ -450,7 +450,7 @@ def read_washability(
     tests = []
     for name in dict.fromkeys(names):
         rows = np.flatnonzero(names == name)
-        tests.append(_one_test(table.subset(rows), name, sum_tolerance_pct, float_lower_density, sink_upper_density))
+        tests.append(washability_of_rows(table.subset(rows), name, sum_tolerance_pct, float_lower_density, sink_upper_density))
     return tests
 
 
@@ -485,14 +485,14 @@ def _test_names(table: Table) -> np.ndarray:
     return text.to_numpy(dtype=object)
 
 
-def _one_test(table: Table, name: str, tolerance: float, float_lower, sink_upper) -> Washability:
+def washability_of_rows(table: Table, name: str, tolerance: float, float_lower, sink_upper) -> Washability:
+    """The :class:`Washability` of the rows of ``table`` (one test, or one size fraction of a plant
+    feed), checked as :func:`read_washability` checks a file: errors name its rows and columns."""
     fractions = density_fractions(table, float_lower=float_lower, sink_upper=sink_upper)
     mass = table.numeric("mass_pct")
     ash = table.numeric("ash_pct")
-    for values, column, low, high in ((mass, "mass_pct", 0.0, np.inf), (ash, "ash_pct", 0.0, 100.0)):
-        bad = np.flatnonzero((values < low) | (values > high))
-        if bad.size:
-            raise table.error(f"{values[bad[0]]:g} is outside [{low:g}, {high:g}]", index=int(bad[0]), column=column)
+    table.refuse_outside(mass, "mass_pct", 0.0, np.inf)
+    table.refuse_outside(ash, "ash_pct", 0.0, 100.0)
     total = float(mass.sum())
     if abs(total - 100.0) > tolerance:
         raise InputError(

@@ -98,6 +98,13 @@ class Table:
         row = int(row) if isinstance(row, (int, np.integer)) else row  # a DataFrame's index label may be text
         return InputError(message, source=self.source, row=row, column=column)
 
+    def refuse_outside(self, values: np.ndarray, column: str, low: float, high: float) -> None:
+        """Raise an :class:`InputError` naming the first record of ``values`` (the numbers of
+        ``column``) outside ``[low, high]``."""
+        bad = np.flatnonzero((values < low) | (values > high))
+        if bad.size:
+            raise self.error(f"{values[bad[0]]:g} is outside [{low:g}, {high:g}]", index=int(bad[0]), column=column)
+
     def require(self, *columns: str) -> None:
         missing = [c for c in columns if c not in self.frame.columns]
         if missing:

@@ -55,8 +55,7 @@ import numpy as np
 import pandas as pd
 
 from ..density.curves import PLAIN_CURVES, DensityCurve, get_density_curve
-from ..density.washability import WASHABILITY_COLUMNS, Washability
-from ..density.washability import _one_test as _washability_of
+from ..density.washability import WASHABILITY_COLUMNS, Washability, washability_of_rows
 from ..errors import InputError
 from ..loading.tables import Table, read_table
 from ..options import DEFAULT_SUM_TOLERANCE_PCT
@@ -208,10 +207,10 @@ def read_plant_washability(
     table.require("size_fraction", "fraction_pct", "density_lower", "density_upper", "mass_pct", "ash_pct")
     names = table.names("size_fraction", what="size fraction")
     shares = table.numeric("fraction_pct")
-    _check_range(table, shares, "fraction_pct", 0.0, 100.0)
+    table.refuse_outside(shares, "fraction_pct", 0.0, 100.0)
     quality_values = {column: table.numeric(column) for column in qualities}
     for column, values in quality_values.items():
-        _check_range(table, values, column, 0.0, 100.0)
+        table.refuse_outside(values, column, 0.0, 100.0)
     fractions = []
     for name in dict.fromkeys(names):
         rows = np.flatnonzero(names == name)
@@ -220,7 +219,7 @@ def read_plant_washability(
             raise table.error(f"fraction_pct differs between rows of the size fraction '{name}' ({shares[rows[0]]:g} "
                               f"and {shares[different[0]]:g}); give its share of the plant feed on each of its rows",
                               index=int(different[0]), column="fraction_pct")  # fmt: skip
-        washability = _washability_of(table.subset(rows), name, sum_tolerance_pct, float_lower_density, sink_upper_density)
+        washability = washability_of_rows(table.subset(rows), name, sum_tolerance_pct, float_lower_density, sink_upper_density)
         quality = {column.removesuffix("_pct"): values[rows] for column, values in quality_values.items()}
         fractions.append(SizeFraction(name, float(shares[rows[0]]), washability, quality))
     total = sum(fraction.feed_pct for fraction in fractions)
@@ -228,12 +227,6 @@ def read_plant_washability(
         raise InputError(f"the size fractions' fraction_pct add up to {total:.6g}, not 100 (tolerance {sum_tolerance_pct:g} "
                          "percentage points)", source=table.source, column="fraction_pct")  # fmt: skip
     return [SizeFraction(f.name, f.feed_pct * 100.0 / total, f.washability, f.qualities) for f in fractions]
-
-
-def _check_range(table: Table, values: np.ndarray, column: str, low: float, high: float) -> None:
-    bad = np.flatnonzero((values < low) | (values > high))
-    if bad.size:
-        raise table.error(f"{values[bad[0]]:g} is outside [{low:g}, {high:g}]", index=int(bad[0]), column=column)
 
 
 # --- the plant table ------------------------------------------------------------------------------
