@@ -86,7 +86,7 @@ def test_intervals_are_made_on_the_workers_and_do_not_depend_on_them(monkeypatch
     from tromplab._synthetic import synthetic
     from tromplab.statistics.uncertainty import interval_columns
 
-    monkeypatch.setattr(tromplab.workbench.fanout, "CHUNK_SIZE", 3)  # four chunks of experiments from ten
+    monkeypatch.setattr(tromplab.parallel.fanout, "CHUNK_SIZE", 3)  # four chunks of experiments from ten
     experiments = [synthetic(seed) for seed in range(10)]
     options = {"formulas": ["plitt", "lognormal"], "ci": 0.9, "bootstrap": 8, "seed": 3}
     serial, parallel = (tromplab.fit_experiments(experiments, jobs=jobs, **options) for jobs in (1, 2))

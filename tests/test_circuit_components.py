@@ -10,9 +10,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from tromplab.circuit import ErrorModel, read_survey, reconcile
+from tromplab.circuit import ErrorModel, read_survey, reconcile, reconcile_circuit
 from tromplab.circuit.simulation import component_study, lab_survey, mineral_circuit, simulate_survey, survey_table
-from tromplab.circuit_command import run_circuit
 from tromplab.cli import build_parser, main
 from tromplab.errors import InputError, OptionError
 from tromplab.loading.points import read_points
@@ -192,7 +191,8 @@ def test_the_command_writes_the_components_and_fits_a_curve_per_separator_and_mi
     truth.flowsheet.to_frame().to_csv(sheet, index=False)
     table = tmp_path / "survey.csv"
     survey_table(simulate_survey(truth, np.random.default_rng(11), flows={"fresh_feed": 0.02})).to_csv(table, index=False)
-    run = run_circuit(sheet, table, tmp_path / "out", fit=True, figures=False)
+    run = reconcile_circuit(sheet, table, fit=True)
+    run.save(tmp_path / "out", figures=False)
     written = pd.read_csv(tmp_path / "out" / "components.csv")
     assert list(written["component"]) == list(MINERALS)
     points = read_points(tmp_path / "out" / "points.csv")

@@ -7,7 +7,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from tromplab.circuit import ErrorModel, read_flowsheet, read_survey, reconcile
+from tromplab.circuit import ErrorModel, design_circuit, read_flowsheet, read_survey, reconcile
 from tromplab.circuit.design import (
     DESIGN_COLUMNS,
     OBSERVABILITY_COLUMNS,
@@ -18,7 +18,6 @@ from tromplab.circuit.design import (
 from tromplab.circuit.outputs import next_steps
 from tromplab.circuit.planning import design_advice, simulated_survey
 from tromplab.circuit.simulation import example_plant, grinding_circuit, lab_survey, simulate_survey, survey_table
-from tromplab.circuit_command import run_design
 from tromplab.cli import main
 from tromplab.errors import OptionError
 
@@ -125,7 +124,7 @@ def test_the_command_line_and_python_write_the_same_files(tmp_path):
     sheet, survey = _files(tmp_path, truth)
     assert main(["circuit", "design", str(sheet), str(survey), "-o", str(tmp_path / "cli"), "--quantity", "fine yield",
                  "--relative-error", "0.08"]) == 0  # fmt: skip
-    run_design(sheet, survey, tmp_path / "api", quantity=["fine yield"], errors=ErrorModel(relative_error=0.08))
+    design_circuit(sheet, survey, quantity=["fine yield"], errors=ErrorModel(relative_error=0.08)).save(tmp_path / "api")
     for name in ("design.csv", "observability.csv", "summary.txt"):
         assert (tmp_path / "cli" / name).read_bytes() == (tmp_path / "api" / name).read_bytes(), name
     table = pd.read_csv(tmp_path / "api" / "design.csv")
@@ -143,9 +142,9 @@ def test_a_result_or_stream_the_survey_lacks_is_refused_in_the_words_of_each_fac
     assert "--sampled names 'nowhere', not a stream of the flowsheet" in capsys.readouterr().err
     assert not out.exists()  # nothing written
     with pytest.raises(OptionError, match="^quantity names 'recovery cyclone'"):
-        run_design(sheet, survey, out, quantity="recovery cyclone")
+        design_circuit(sheet, survey, quantity="recovery cyclone")
     with pytest.raises(OptionError, match="^sampled describes a survey to simulate"):
-        run_design(sheet, survey, out, sampled=["oversize"])
+        design_circuit(sheet, survey, sampled=["oversize"])
 
 
 def test_a_candidate_makes_testable_what_the_reconciliation_then_tests():

@@ -7,9 +7,8 @@ import pandas as pd
 import pytest
 
 from tromplab import options
-from tromplab.circuit import ErrorModel, read_flowsheet, read_survey, reconcile
+from tromplab.circuit import ErrorModel, read_flowsheet, read_survey, reconcile, reconcile_circuit
 from tromplab.circuit.simulation import plitt_partition_to_fines
-from tromplab.circuit_command import run_circuit
 from tromplab.cli import build_parser
 from tromplab.curves.formulas import get_formula
 from tromplab.errors import InputError
@@ -80,7 +79,8 @@ def test_the_figures_are_drawn_without_pyplot_state(tmp_path):
          for name, key in (("feed", "feed"), ("overflow", "fine"), ("underflow", "coarse"))], ignore_index=True,
     )  # fmt: skip
     table.to_csv(tmp_path / "survey.csv", index=False)
-    run = run_circuit(write(tmp_path, CYCLONE, "sheet.csv"), tmp_path / "survey.csv", tmp_path / "out")
+    run = reconcile_circuit(write(tmp_path, CYCLONE, "sheet.csv"), tmp_path / "survey.csv")
+    run.save(tmp_path / "out")
     assert plt.get_fignums() == before
     assert {"flowsheet.png", "adjustments.png", "distributions.png"} <= {p.name for p in (tmp_path / "out").iterdir()}
     assert run.balance.dof == 1

@@ -180,11 +180,11 @@ def test_a_circuit_run_without_figures_and_fits_imports_neither_matplotlib_lmfit
 
 
 def test_progress_reports_each_stage_to_the_python_api(tmp_path, monkeypatch):
-    from tromplab.circuit_command import run_circuit, run_design
+    from tromplab.circuit import design_circuit, reconcile_circuit
 
     monkeypatch.chdir(REFERENCE)
     heard = []
-    run_circuit(MAKE.FLOWSHEET, "inputs/assay_stream.csv", tmp_path / "c", figures=False, progress=lambda *a: heard.append(a))
+    reconcile_circuit(MAKE.FLOWSHEET, "inputs/assay_stream.csv", progress=lambda *a: heard.append(a))
     stages = [label.split(": ")[0] for _, _, label in heard]
     assert stages[0] == "reconciliation" and {"elimination", "design"} <= set(stages)
     assert "reconciliation: round 2" in [label for _, _, label in heard]  # the error model's rounds
@@ -192,7 +192,7 @@ def test_progress_reports_each_stage_to_the_python_api(tmp_path, monkeypatch):
     assert design[-1][0] == design[-1][1] == len(design)  # candidate i of n, each once
     assert all(label.startswith("elimination: step ") for _, _, label in heard if label.startswith("elimination"))
     heard.clear()
-    run_design(MAKE.FLOWSHEET, outdir=tmp_path / "d", progress=lambda *a: heard.append(a))
+    design_circuit(MAKE.FLOWSHEET, progress=lambda *a: heard.append(a))
     assert heard[0][2] == "reconciliation: round 1" and heard[-1][2].startswith("design: candidate")
 
 

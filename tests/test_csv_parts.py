@@ -9,7 +9,8 @@ import pytest
 from tromplab._synthetic import synthetic
 from tromplab.loading.points import TrompPoints
 from tromplab.output.csv_parts import csv_from_parts, csv_part
-from tromplab.workbench import fanout, fit_experiments
+from tromplab.parallel import fanout
+from tromplab.workbench import fit_experiments
 
 
 def _awkward_table() -> pd.DataFrame:

@@ -8,7 +8,7 @@ import pytest
 from scipy import optimize, stats
 
 from tromplab.cli import main
-from tromplab.cli.density_predict import run_predict
+from tromplab.density import predict_density
 from tromplab.density.washability import (
     PREDICTION_COLUMNS,
     partition_curve,
@@ -183,7 +183,9 @@ def test_the_python_api_writes_the_command_s_file_byte_for_byte(tmp_path, capsys
     cli_out, api_out = tmp_path / "cli.csv", tmp_path / "api.csv"
     options = ["--curve", "gompertz", "--rho50", "1.5", "1.6", "--ep", "0.04", "--light-limit", "0.02", "--heavy-limit", "0.97"]
     assert main(["density", "predict", str(WASHABILITY), *options, "-o", str(cli_out), "--table", str(tmp_path / "w.csv")]) == 0
-    run_predict(WASHABILITY, api_out, curve="gompertz", rho50=[1.5, 1.6], ep=0.04, light_limit=0.02, heavy_limit=0.97)
+    predicted = predict_density(WASHABILITY, curve="gompertz", rho50=[1.5, 1.6], ep=0.04, light_limit=0.02, heavy_limit=0.97)
+    predicted.save(api_out, table=tmp_path / "w_api.csv")
+    assert (tmp_path / "w.csv").read_bytes() == (tmp_path / "w_api.csv").read_bytes()
     assert cli_out.read_bytes() == api_out.read_bytes()
     table = predict(WASHABILITY, curve="gompertz", rho50=[1.5, 1.6], ep=0.04, light_limit=0.02, heavy_limit=0.97)
     assert table.to_csv(index=False).encode() == cli_out.read_bytes()

@@ -13,7 +13,8 @@ from tromplab.curves.curve_fit import fit_formula
 from tromplab.curves.engine import check_bootstrap_request, fit_formula_batch, refit_resamples
 from tromplab.curves.formulas import ALL_FORMULAS, FORMULAS, get_formula, is_batchable, shuvalov_break, shuvalov_breaks
 from tromplab.loading.points import TrompPoints
-from tromplab.workbench import fanout, fit_experiments, worker
+from tromplab.parallel import fanout
+from tromplab.workbench import fit_experiments, worker
 
 BATCHABLE = [f for f in ALL_FORMULAS if is_batchable(f)]
 
@@ -86,12 +87,12 @@ def test_vectorised_break_points_match_the_scalar_solver(kr):
 def test_vectorised_break_points_solve_their_equation_to_rounding():
     """x_a phi_5(x_a) + int_{x_a}^1 phi_5 = eta_exp within a few units of rounding over the whole
     shape range, also where the left side is flat (x_a near 0), where steps in x_a stalled."""
-    from tromplab.curves.formulas import _rosin_rammler_area, rosin_rammler
+    from tromplab.curves.formulas import rosin_rammler, rosin_rammler_area
 
     kr, efficiency = (grid.ravel() for grid in np.meshgrid(np.geomspace(0.05, 40.0, 60), np.linspace(0.5, 0.999, 60)))
     x_a = shuvalov_breaks(kr, efficiency)
-    solvable = efficiency < _rosin_rammler_area(0.0, 1.0, kr)
-    left = x_a * rosin_rammler(x_a, kr) + _rosin_rammler_area(x_a, 1.0, kr)
+    solvable = efficiency < rosin_rammler_area(0.0, 1.0, kr)
+    left = x_a * rosin_rammler(x_a, kr) + rosin_rammler_area(x_a, 1.0, kr)
     assert solvable.sum() > 1000
     assert np.all((x_a >= 0.0) & (x_a <= 1.0))
     assert np.abs(left - efficiency)[solvable].max() < 5e-15

@@ -175,12 +175,12 @@ def test_every_start_shape_exists_for_any_measured_slope(formula):
 
 
 def test_lynch_on_one_float_equals_lynch_on_arrays():
-    """Whiten's beta* root evaluates Lynch's curve on floats with the math module (formulas._lynch_at)."""
-    from tromplab.curves.formulas import _lynch_at, lynch
+    """Whiten's beta* root evaluates Lynch's curve on floats with the math module (formulas.lynch_at)."""
+    from tromplab.curves.formulas import lynch, lynch_at
 
     rng = np.random.default_rng(0)
     shapes = np.exp(rng.uniform(np.log(1e-6), np.log(120.0), 2000))
     sizes = np.exp(rng.uniform(-5.0, 3.0, 2000))
-    on_floats = np.array([_lynch_at(float(x), float(k)) for x, k in zip(sizes, shapes)])
+    on_floats = np.array([lynch_at(float(x), float(k)) for x, k in zip(sizes, shapes)])
     assert_allclose(on_floats, [float(lynch(x, k)) for x, k in zip(sizes, shapes)], rtol=1e-15, atol=0)
-    assert _lynch_at(50.0, 120.0) == 0.0 == float(lynch(50.0, 120.0))  # beyond the floats: 0, as on arrays
+    assert lynch_at(50.0, 120.0) == 0.0 == float(lynch(50.0, 120.0))  # beyond the floats: 0, as on arrays

@@ -251,14 +251,15 @@ def test_the_circuit_points_take_the_other_weightings_and_refuse_an_unknown_one(
 
 @pytest.mark.parametrize("weighting", ["none", "feed-share", "error-model"])
 def test_the_circuit_command_takes_the_weighting_of_the_lab_path(tmp_path, capsys, weighting):
-    from tromplab.circuit_command import run_circuit
+    from tromplab.circuit import reconcile_circuit
 
     from .conftest import DATASETS
 
     sheet, survey = DATASETS / "circuit_example_flowsheet.csv", DATASETS / "circuit_example_survey.csv"
     assert main(["circuit", str(sheet), str(survey), "-o", str(tmp_path / "cli"), "--no-figures", "--weighting", weighting]) == 0
     capsys.readouterr()
-    run = run_circuit(sheet, survey, tmp_path / "api", figures=False, weighting=weighting)
+    run = reconcile_circuit(sheet, survey, weighting=weighting)
+    run.save(tmp_path / "api", figures=False)
     cli_points = (tmp_path / "cli" / "points.csv").read_bytes()
     assert cli_points == (tmp_path / "api" / "points.csv").read_bytes()
     points = pd.read_csv(tmp_path / "cli" / "points.csv")
@@ -272,13 +273,13 @@ def test_the_circuit_command_takes_the_weighting_of_the_lab_path(tmp_path, capsy
 
 
 def test_the_circuit_refuses_an_unknown_weighting_in_the_words_of_each_face(tmp_path, capsys):
-    from tromplab.circuit_command import run_circuit
+    from tromplab.circuit import reconcile_circuit
 
     from .conftest import DATASETS
 
     sheet, survey = DATASETS / "circuit_example_flowsheet.csv", DATASETS / "circuit_example_survey.csv"
     with pytest.raises(OptionError, match="weighting"):
-        run_circuit(sheet, survey, tmp_path / "api", figures=False, weighting="inverse")
+        reconcile_circuit(sheet, survey, weighting="inverse")
     assert main(["circuit", str(sheet), str(survey), "-o", str(tmp_path / "cli"), "--weighting", "inverse"]) == 2
     assert "--weighting" in capsys.readouterr().err
     assert not (tmp_path / "cli").exists() and not (tmp_path / "api").exists()

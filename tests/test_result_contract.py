@@ -29,13 +29,13 @@ import pytest
 import tromplab
 from tromplab import results_contract
 from tromplab._version import __version__
-from tromplab.circuit import CircuitBalance, read_flowsheet, read_survey, reconcile
+from tromplab.circuit import CircuitBalance, CircuitResult, read_flowsheet, read_survey, reconcile, reconcile_circuit
 from tromplab.circuit.planning import DesignAdvice, design_advice
 from tromplab.classifiers import choice, layer, pulp, sieve
 from tromplab.cli import main
 from tromplab.curves.curve_fit import CurveFit
 from tromplab.curves.indices import CurveIndices
-from tromplab.density import DensityCurveFit, DensityResult, fit_density
+from tromplab.density import DensityCurveFit, DensityPrediction, DensityResult, fit_density, predict_density
 from tromplab.density.washability import Prediction, Washability, partition_curve, read_washability
 from tromplab.errors import InconsistentVersionWarning
 from tromplab.loading.lab import MassBalance
@@ -125,6 +125,11 @@ def _circuit_balance():
     return reconcile(sheet, read_survey(DATASETS / "circuit_example_survey.csv", sheet))
 
 
+@registered(CircuitResult, "circuit_example_survey", "streams")
+def _circuit_result():
+    return reconcile_circuit(DATASETS / "circuit_example_flowsheet.csv", DATASETS / "circuit_example_survey.csv", fit=True)
+
+
 @registered(DesignAdvice, "circuit_example_survey", "size analysis")
 def _design_advice():
     return design_advice(DATASETS / "circuit_example_flowsheet.csv", DATASETS / "circuit_example_survey.csv")
@@ -153,6 +158,11 @@ def _washability():
 @registered(Prediction, "floats", "sinks")
 def _prediction():
     return _washability().predict(partition_curve("normal", rho50=1.55, ep=0.05)[1])
+
+
+@registered(DensityPrediction, "density_washability_synthetic", "floats_yield_pct")
+def _density_prediction():
+    return predict_density(DATASETS / "density_washability_synthetic.csv", rho50=[1.5, 1.6], ep=0.05)
 
 
 PLANT_WASH = DATASETS / "plant_washability_synthetic.csv"
@@ -434,6 +444,25 @@ def _circuit_api(folder):
     return _circuit_balance(), _circuit_balance().save(folder)
 
 
+def _circuit_fit_command(folder):
+    sheet, survey = DATASETS / "circuit_example_flowsheet.csv", DATASETS / "circuit_example_survey.csv"
+    assert main(["circuit", str(sheet), str(survey), "--fit", "-o", str(folder)]) == 0
+
+
+def _circuit_fit_api(folder):
+    return _circuit_result(), _circuit_result().save(folder)
+
+
+def _prediction_command(folder):
+    command = ["density", "predict", str(DATASETS / "density_washability_synthetic.csv"), "--rho50", "1.5", "1.6", "--ep",
+               "0.05", "-o", str(folder / "prediction.csv"), "--table", str(folder / "washability.csv")]  # fmt: skip
+    assert main(command) == 0
+
+
+def _prediction_api(folder):
+    return _density_prediction(), _density_prediction().save(folder / "prediction.csv", table=folder / "washability.csv")
+
+
 def _design_command(folder):
     sheet, survey = DATASETS / "circuit_example_flowsheet.csv", DATASETS / "circuit_example_survey.csv"
     assert main(["circuit", "design", str(sheet), str(survey), "-o", str(folder)]) == 0
@@ -447,6 +476,8 @@ def _design_api(folder):
 SAVES = {
     DesignAdvice: (_design_command, _design_api),
     CircuitBalance: (_circuit_command, _circuit_api),
+    CircuitResult: (_circuit_fit_command, _circuit_fit_api),
+    DensityPrediction: (_prediction_command, _prediction_api),
     Workbench: (_fit_command, _fit_api),
     DensityResult: (_density_command, _density_api),
     TrendResult: (_trend_command, _trend_api),
@@ -460,6 +491,8 @@ SAVES = {
 MAIN_FILES = {
     DesignAdvice: "design.csv",
     CircuitBalance: "flows.csv",
+    CircuitResult: "flows.csv",
+    DensityPrediction: "prediction.csv",
     Workbench: "fits.csv",
     DensityResult: "fits.csv",
     TrendResult: "trend.csv",
@@ -493,7 +526,11 @@ FAILING_WRITER = {DesignAdvice: ("tromplab.output.csv_parts", "write_csv"),
                   SeparationEvaluation: ("tromplab.output.csv_parts", "write_csv")}  # fmt: skip
 
 
-@pytest.mark.parametrize("cls", list(SAVES), ids=lambda cls: cls.__name__)
+#: Results whose command writes files, not a folder: each file is replaced in one step, on its own.
+FILES_NOT_FOLDER = {DensityPrediction}
+
+
+@pytest.mark.parametrize("cls", sorted(set(SAVES) - FILES_NOT_FOLDER, key=lambda cls: cls.__name__), ids=lambda cls: cls.__name__)
 def test_save_writes_nothing_half(cls, tmp_path, monkeypatch):
     from matplotlib.figure import Figure
 

@@ -16,8 +16,8 @@ from tromplab.cli import fit as fit_command
 from tromplab.cli import main
 from tromplab.loading.lab import LabOptions, read_experiments
 from tromplab.loading.tables import read_table
+from tromplab.parallel import fanout as fanout_module
 from tromplab.workbench import ExperimentsInPieces, FitsInMemory, FitsOnDisk, fit_to_folder
-from tromplab.workbench import fanout as fanout_module
 from tromplab.workbench import stream as stream_module
 
 from .conftest import DATASETS

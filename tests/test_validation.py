@@ -12,7 +12,7 @@ from scipy import integrate
 from tromplab import TrompPoints, fit_experiments
 from tromplab.cli import build_parser, main
 from tromplab.curves.curve_fit import as_failure_if_implausible, fit_formula, implausible_result
-from tromplab.curves.formulas import _plitt_efficiency
+from tromplab.curves.formulas import plitt_efficiency
 from tromplab.errors import InputError, OptionError
 from tromplab.statistics.compare import shared_fit
 from tromplab.validation import check_count, check_probability, check_range, check_size, cli_type, range_text
@@ -93,7 +93,7 @@ def test_cli_types_parse_text_the_checks_refuse_text():
 @pytest.mark.parametrize("x_max", [10.0, 1e6, 1e11, 1e100])
 def test_plitt_misplacement_stays_right_where_x_to_the_ks_overflows(ks, x_max):
     """eps of (7) against quadrature in ln x (a power x^ks above 1e308 gave eps = -eta)."""
-    _, eps = _plitt_efficiency(np.array([ks]), np.array([x_max]))
+    _, eps = plitt_efficiency(np.array([ks]), np.array([x_max]))
 
     def integrand(t):
         return np.exp(t) / (1 + np.exp(min(ks * t, 700.0)))

@@ -13,17 +13,20 @@ from typing import TYPE_CHECKING
 from ._version import __version__
 
 if TYPE_CHECKING:  # the names as static tools see them; at run time __getattr__ imports them
+    from .circuit import design_circuit, reconcile_circuit
     from .curves.curve_fit import CurveFit, fit_formula
     from .curves.formulas import ALL_FORMULAS, FORMULAS, Formula, get_formula, registry_table, select_formulas
     from .curves.indices import curve_indices
     from .curves.parameters import Parameter
     from .curves.ranking import rank_formulas
+    from .density import fit_density, predict_density
     from .errors import InputError
     from .loading.lab import LabOptions, MassBalance, read_experiments, read_lab
     from .loading.points import TrompPoints, read_points
     from .output.report import build_report, write_report
     from .statistics.compare import nested_f_test, shared_fit
     from .statistics.uncertainty import akaike_weights, bootstrap, interval_table, model_average
+    from .trend import monitor_surveys
     from .workbench import Workbench, fit_experiments, load, model_averages
 
 __all__ = [
@@ -63,6 +66,12 @@ __all__ = [
     "build_report",
     "write_report",
     "load",
+    # the commands as functions (docs/architecture.md): fit_experiments above, then
+    "fit_density",
+    "predict_density",
+    "reconcile_circuit",
+    "design_circuit",
+    "monitor_surveys",
 ]
 
 # Each public name: the module that defines it and the first paragraph of its docstring (for a
@@ -124,12 +133,46 @@ _PUBLIC: dict[str, tuple[str, str]] = {
         "Write ``REPORT.html`` and ``REPORT.md`` (figures for the Markdown in ``REPORT_figures/``).",
     ),
     "load": (".workbench", "A batch saved by :meth:`Workbench.save` (refused when saved by another major version)."),
+    "fit_density": (".density", "Fit density partition curves to every test of a tracer, float-sink or partition table."),
+    "predict_density": (
+        ".density",
+        "Predict the products of every feed in ``washability``: what ``tromplab density predict`` does, its options "
+        "as keywords of the same names.",
+    ),
+    "reconcile_circuit": (
+        ".circuit",
+        "Reconcile the survey ``measurements`` over ``flowsheet`` (and fit its separators): what ``tromplab circuit "
+        "FLOWSHEET MEASUREMENTS`` does, its options as keywords of the same names.",
+    ),
+    "design_circuit": (
+        ".circuit",
+        "Rank the measurements one could add to a survey: what ``tromplab circuit design FLOWSHEET [MEASUREMENTS]`` "
+        "does, its options as keywords of the same names.",
+    ),
+    "monitor_surveys": (
+        ".trend",
+        "Fit each survey, chart d_cut, Ep, eta (and bypass), flag the surveys where the classifier changed.",
+    ),
 }
 
 # Subpackages that ``import tromplab`` used to import along with the public names: still
 # reachable as attributes (``tromplab.curves.formulas``), imported on first access.
 _SUBMODULES = frozenset(
-    {"classifiers", "curves", "density", "errors", "loading", "output", "statistics", "validation", "workbench"}
+    {
+        "circuit",
+        "classifiers",
+        "curves",
+        "density",
+        "errors",
+        "loading",
+        "output",
+        "parallel",
+        "plant",
+        "statistics",
+        "trend",
+        "validation",
+        "workbench",
+    }
 )
 
 

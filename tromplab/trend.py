@@ -39,6 +39,7 @@ in ``docs/trend.md``.
 
 from __future__ import annotations
 
+import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -387,7 +388,7 @@ def flag_changes(
 
 
 def monitor_surveys(
-    surveys: Sequence[Survey],
+    surveys: Sequence[Survey] | str | os.PathLike,
     *,
     formula=None,
     baseline=None,
@@ -401,8 +402,10 @@ def monitor_surveys(
 
     Parameters
     ----------
-    surveys : sequence of Survey
-        In date order (:func:`read_surveys` sorts them); four or more.
+    surveys : sequence of Survey, or path
+        In date order (:func:`read_surveys` sorts them); four or more.  A path is read by
+        :func:`read_surveys` with the default :class:`~tromplab.loading.lab.LabOptions` (what
+        ``tromplab trend INPUT`` does without lab options).
     formula : str, optional
         Formula id; default the best-ranked of the nine over all surveys.
     baseline : int or str, optional
@@ -416,7 +419,14 @@ def monitor_surveys(
     consecutive : bool
         Also test each survey against the previous one (``p_previous``; not used by the
         flag, so the benchmark turns it off).
+
+    Returns
+    -------
+    TrendResult
+        Its ``save(outdir, size_unit=..., figures=...)`` writes what ``tromplab trend`` writes.
     """
+    if isinstance(surveys, (str, os.PathLike)):
+        surveys = read_surveys(surveys)
     surveys = _checked_surveys(surveys, alpha)
     base = baseline_indices(surveys, baseline)
     formula, fits = _trend_fits(surveys, formula)

@@ -1,37 +1,38 @@
-"""``tromplab circuit FLOWSHEET MEASUREMENTS -o DIR [--fit]``: reconcile a plant survey, write
-its tables, figures and the separators' Tromp points, and (``--fit``) fit them;
-``tromplab circuit design FLOWSHEET [SURVEY] -o DIR``: rank the measurements one could add.
+"""The two commands of the circuit as Python functions: :func:`reconcile_circuit` (``tromplab
+circuit FLOWSHEET MEASUREMENTS [--fit]``) returns a :class:`CircuitResult` whose ``save(DIR)``
+writes the command's folder, :func:`design_circuit` (``tromplab circuit design FLOWSHEET
+[SURVEY]``) returns a :class:`~tromplab.circuit.planning.DesignAdvice` whose ``save(DIR)`` writes
+that command's folder, byte for byte what the command line writes (it calls them).
 
-The library is :mod:`tromplab.circuit`; this module (under the command line's
-:mod:`tromplab.cli.circuit`, which parses the options) reads the files, calls the library, fits the points through
-:func:`tromplab.workbench.fit_experiments` and writes the output folder all-or-nothing
-(:func:`tromplab.output.outputs.replace_folder`): bad input ends in an
-:class:`~tromplab.errors.InputError` before anything is written.  :func:`run_circuit` and
-:func:`run_design` are the Python faces of the commands, with the same option names.  The
-library is imported when a command runs.
+The inputs are read and checked as the functions start: bad input ends in an
+:class:`~tromplab.errors.InputError` and nothing is written.  The fits of ``--fit`` go through
+:func:`tromplab.workbench.fit_experiments` (:func:`fit_separators`).
 """
 
 from __future__ import annotations
 
 import re
 import textwrap
-from dataclasses import dataclass
-from pathlib import Path
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
-from .errors import OptionError
-from .options import (
+import pandas as pd
+
+from ..errors import OptionError
+from ..options import (
     CIRCUIT_FIT_FORMULAS,
     DEFAULT_ALPHA,
     WEIGHTINGS,
 )
-from .output.outputs import check_output_folder, replace_folder
-from .validation import check_choice
+from ..output.outputs import replace_folder
+from ..results_contract import ResultContract
+from ..validation import check_choice
 
 if TYPE_CHECKING:
-    from .circuit import CircuitBalance, ErrorModel
-    from .circuit.planning import DesignAdvice
-    from .workbench import Workbench
+    from ..workbench import Workbench
+    from .measurements import ErrorModel
+    from .planning import DesignAdvice
+    from .reconciliation import CircuitBalance
 
 #: The formulas fitted by ``--fit``: the nine of the paper (ranked) and the extended curves
 #: with bypass and fish-hook (reported beside them, as ``tromplab fit --extended`` does).
@@ -39,15 +40,64 @@ FIT_FORMULAS = CIRCUIT_FIT_FORMULAS
 
 
 @dataclass(frozen=True)
-class CircuitRun:
-    """What ``tromplab circuit`` did: the reconciled survey, the fits (with ``--fit``) and the files written."""
+class CircuitResult(ResultContract):
+    """What ``tromplab circuit`` makes of a survey: the reconciled balance, its tables, the fits
+    of the separators (with ``fit``) and the next steps; :meth:`save` writes the command's folder.
+
+    Attributes
+    ----------
+    balance : CircuitBalance
+        The reconciled survey (tests, elimination, worth, design: its own methods).
+    tables : dict
+        Name (without ``.csv``) -> every table of the folder
+        (:func:`~tromplab.circuit.outputs.balance_tables`, and ``fits`` and ``ranking`` with ``fit``).
+    bench : Workbench or None
+        The fits of the separators' partition curves (``fit``), else None.
+    next_steps : tuple of str
+        The one or two things to do next, as ``summary.txt`` ends.
+    weight_notes : tuple of str
+        The notes on the weights of ``points.csv`` (:func:`tromplab.loading.weights.weight_notes`).
+    """
 
     balance: CircuitBalance
-    bench: Workbench | None
-    written: dict
+    tables: dict[str, pd.DataFrame] = field(repr=False)
+    bench: Workbench | None = None
     next_steps: tuple[str, ...] = ()
-    #: The notes on the weights of ``points.csv`` (:func:`tromplab.loading.weights.weight_notes`).
     weight_notes: tuple[str, ...] = ()
+
+    def summary(self) -> pd.DataFrame:
+        """One row per stream: measured and reconciled solids flow and its sd."""
+        return self.balance.summary()
+
+    def to_frame(self) -> pd.DataFrame:
+        """The main table, ``flows.csv``."""
+        return self.balance.to_frame()
+
+    def _result_context(self) -> str:
+        return self.balance._result_context()
+
+    def save(self, outdir, *, figures: bool = True) -> dict:
+        """Write what ``tromplab circuit FLOWSHEET MEASUREMENTS -o OUTDIR`` writes (``figures``:
+        not ``--no-figures``), all or nothing.  Returns ``{file name: path}``.
+
+        Files: ``flows.csv``, ``distributions.csv``, ``adjustments.csv``, ``gross_errors.csv``,
+        ``elimination.csv`` (serial elimination with compensation: a proposal), ``nodal_tests.csv``,
+        ``worth.csv`` (each measurement's solvability, redundancy and influence on the results),
+        ``observability.csv`` (every unmeasured quantity: observable or not, and what would make
+        it so), ``design.csv`` (the measurements one could add, ranked by the predicted reduction
+        of sds: what ``tromplab circuit design`` writes for the same survey), ``chi_square.csv``,
+        ``degrees_of_freedom.csv``, ``partition.csv`` (with standard deviations), ``points.csv``
+        (Tromp-points schema with weights, what ``tromplab fit`` reads), the flowsheet as read
+        (``flowsheet.csv``), ``summary.txt`` (ending with the next steps); figures
+        ``flowsheet.png``, ``adjustments.png``, ``distributions.png``; with the fits ``fits.csv``
+        and ``ranking.csv``; with per cent solids measured, ``water.csv``; with per-class assays,
+        ``components.csv`` and ``partition.png`` (and a curve per separator and component in
+        ``partition.csv``, ``points.csv`` and the fits).
+        """
+        from .outputs import balance_outputs
+
+        outputs = balance_outputs(self.balance, figures=figures, tables=self.tables, steps=self.next_steps)
+        return replace_folder(outputs, outdir)
 
 
 def fit_separators(
@@ -73,7 +123,7 @@ def fit_separators(
     -------
     Workbench
     """
-    from .workbench import fit_experiments
+    from ..workbench import fit_experiments
 
     options = {} if alpha is None else {"alpha": alpha}
     return fit_experiments(
@@ -81,74 +131,55 @@ def fit_separators(
     )
 
 
-def run_circuit(
+def reconcile_circuit(
     flowsheet,
     measurements,
-    outdir,
     *,
     fit: bool = False,
     errors: ErrorModel | None = None,
     alpha: float = DEFAULT_ALPHA,
     size_unit: str | None = None,
-    figures: bool = True,
     exclude=(),
     weighting: str = "error-model",
     progress=None,
-) -> CircuitRun:
-    """Reconcile the survey and write ``outdir`` as a whole (nothing written on bad input).
+) -> CircuitResult:
+    """Reconcile the survey ``measurements`` over ``flowsheet`` (and fit its separators): what
+    ``tromplab circuit FLOWSHEET MEASUREMENTS`` does, its options as keywords of the same names.
 
     Parameters
     ----------
     flowsheet, measurements : path
         The flowsheet and the measurement table (CSV or .xlsx).
-    outdir : path
-        Output folder, replaced as a whole when everything is written.
     fit : bool
-        Also fit the separators' partition curves (:func:`fit_separators`).
+        Also fit the separators' partition curves (:func:`fit_separators`; ``--fit``).
     errors : ErrorModel, optional
         Standard deviations where the table gives none (also those of the candidates of
-        ``design.csv``).
+        ``design.csv``): the command's error-model options (``--relative-error``, ...) as one record.
     alpha : float
         Level of the chi-square and measurement tests.
     size_unit : str, optional
         Unit of the sizes when the size columns carry none.
-    figures : bool
-        Draw the three figures.
     exclude : iterable of str or str, optional
         Measurements left out (``STREAM``, ``STREAM:flow``, ``STREAM:pct_solids``,
         ``STREAM:CLASS``), as :func:`~tromplab.circuit.reconciliation.reconcile` takes them.
     weighting : {"error-model", "feed-share", "none"}
-        The weights of ``points.csv`` and of the fits (``--weighting``; default the error model).
+        The weights of ``points.csv`` and of the fits (default the error model).
     progress : callable, optional
         ``progress(done, total, label)`` at each stage (``"reconciliation: round k"``,
         ``"elimination: step k"``, ``"design: candidate i of n"``; :func:`~tromplab.circuit.reconciliation.reconcile`).
 
     Returns
     -------
-    CircuitRun
-
-    Notes
-    -----
-    Files: ``flows.csv``, ``distributions.csv``, ``adjustments.csv``, ``gross_errors.csv``,
-    ``elimination.csv`` (serial elimination with compensation: a proposal), ``nodal_tests.csv``,
-    ``worth.csv`` (each measurement's solvability, redundancy and influence on the results),
-    ``observability.csv`` (every unmeasured quantity: observable or not, and what would make
-    it so), ``design.csv`` (the measurements one could add, ranked by the predicted reduction
-    of sds: what ``tromplab circuit design`` writes for the same survey), ``chi_square.csv``,
-    ``degrees_of_freedom.csv``, ``partition.csv`` (with standard deviations), ``points.csv``
-    (Tromp-points schema with weights, what ``tromplab fit`` reads), the flowsheet as read
-    (``flowsheet.csv``), ``summary.txt`` (ending with the next steps); figures
-    ``flowsheet.png``, ``adjustments.png``, ``distributions.png``; with ``fit`` ``fits.csv``
-    and ``ranking.csv``; with per cent solids measured, ``water.csv``; with per-class assays,
-    ``components.csv`` and ``partition.png`` (and a curve per separator and component in
-    ``partition.csv``, ``points.csv`` and the fits).
+    CircuitResult
+        Its ``save(outdir, figures=...)`` writes the command's folder.
     """
-    from .circuit import read_flowsheet, read_survey, reconcile
-    from .circuit.outputs import balance_next_steps, balance_outputs, balance_tables
-    from .loading.weights import weight_notes
+    from ..loading.weights import weight_notes
+    from .flowsheet import read_flowsheet
+    from .measurements import read_survey
+    from .outputs import balance_next_steps, balance_tables
+    from .reconciliation import reconcile
 
     weighting = check_choice(weighting, "weighting", choices=WEIGHTINGS)
-    check_output_folder(outdir, inputs=[flowsheet, measurements])  # the inputs are checked as they are read
     sheet = read_flowsheet(flowsheet)
     survey = read_survey(measurements, sheet, errors=errors, size_unit=size_unit)
     if fit and not survey.n_classes:
@@ -162,22 +193,12 @@ def run_circuit(
         bench = fit_separators(balance, weighting=weighting)
         tables["fits"], tables["ranking"] = bench.fits_table(), bench.ranking_table()
     steps = balance_next_steps(balance, tables)
-    written = replace_folder(balance_outputs(balance, figures=figures, tables=tables, steps=steps), outdir)
-    return CircuitRun(balance, bench, written, steps, tuple(weight_notes(tables["points"])))
+    return CircuitResult(balance, tables, bench, steps, tuple(weight_notes(tables["points"])))
 
 
-@dataclass(frozen=True)
-class DesignRun:
-    """What ``tromplab circuit design`` did: the advice and the files written."""
-
-    advice: DesignAdvice
-    written: dict
-
-
-def run_design(
+def design_circuit(
     flowsheet,
     measurements=None,
-    outdir=Path("results/circuit-design"),
     *,
     quantity=None,
     sampled=None,
@@ -187,8 +208,9 @@ def run_design(
     size_unit: str | None = None,
     exclude=(),
     progress=None,
-) -> DesignRun:
-    """Rank the measurements one could add to a survey and write ``outdir`` as a whole.
+) -> DesignAdvice:
+    """Rank the measurements one could add to a survey: what ``tromplab circuit design
+    FLOWSHEET [MEASUREMENTS]`` does, its options as keywords of the same names.
 
     Parameters
     ----------
@@ -198,8 +220,6 @@ def run_design(
         The survey taken; without it, a survey simulated from the flowsheet
         (:func:`~tromplab.circuit.planning.simulated_survey`, its assumptions written in
         ``summary.txt``).
-    outdir : path
-        Output folder, replaced as a whole when everything is written.
     quantity, sampled, flows, errors, alpha, size_unit, exclude
         As for :func:`~tromplab.circuit.planning.design_advice` (``--quantity``,
         ``--sampled``, ``--flows``, the error model options, ``--alpha``, ``--size-unit``,
@@ -210,31 +230,27 @@ def run_design(
 
     Returns
     -------
-    DesignRun
-
-    Notes
-    -----
-    Files: ``design.csv`` (:data:`~tromplab.circuit.design.DESIGN_COLUMNS`),
+    DesignAdvice
+        Its ``save(outdir)`` writes the command's folder: ``design.csv`` (:data:`~tromplab.circuit.design.DESIGN_COLUMNS`),
     ``observability.csv``, ``summary.txt`` and, for a simulated survey,
     ``simulated_survey.csv`` (the survey as a measurement table, rounded as a lab prints it).
     """
-    from .circuit import read_flowsheet, read_survey
-    from .circuit.planning import design_advice
+    from .flowsheet import read_flowsheet
+    from .measurements import read_survey
+    from .planning import design_advice
 
-    check_output_folder(outdir, inputs=[flowsheet] + ([measurements] if measurements is not None else []))
     sheet = read_flowsheet(flowsheet)
     survey = None if measurements is None else read_survey(measurements, sheet, errors=errors, size_unit=size_unit)
-    advice = design_advice(sheet, survey, quantity=quantity, sampled=sampled, flows=flows, errors=errors, alpha=alpha,
-                           exclude=exclude, progress=progress)  # fmt: skip
-    return DesignRun(advice, advice.save(outdir))
+    return design_advice(sheet, survey, quantity=quantity, sampled=sampled, flows=flows, errors=errors, alpha=alpha,
+                         exclude=exclude, progress=progress)  # fmt: skip
 
 
-def console_report(run: CircuitRun, *, format_fits=None) -> str:
+def console_report(result: CircuitResult, written: dict, *, format_fits=None) -> str:
     """What ``tromplab circuit`` prints: the summary, the flows, the largest adjustments, the
     fits (with ``format_fits``, the fit command's table, else the best curve per separator),
     the next steps and the files."""
-    balance = run.balance
-    lines = [*map(_wrapped, balance.report().splitlines()), *map(_wrapped, run.weight_notes), "", "Reconciled solids flows:"]
+    balance = result.balance
+    lines = [*map(_wrapped, balance.report().splitlines()), *map(_wrapped, result.weight_notes), "", "Reconciled solids flows:"]
     flows = balance.flows_table()[["stream", "measured", "reconciled", "reconciled_sd"]]
     lines.append(flows.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
     largest = balance.largest_adjustments(5)
@@ -242,11 +258,11 @@ def console_report(run: CircuitRun, *, format_fits=None) -> str:
         lines += ["", "Largest measurement tests (gross error: measured - true, as the balances estimate it):"]
         lines.append(largest[["measurement", "row", "measured", "reconciled", "gross_error", "measurement_test", "suspect"]].to_string(
             index=False, float_format=lambda v: f"{v:.4g}"))  # fmt: skip
-    if run.bench is not None:
-        lines += ["", _fits_text(run.bench, format_fits, balance.survey.size_unit)]
-    if run.next_steps:
-        lines += ["", "Next:", *(_wrapped(f"  {k}. {step}", indent="     ") for k, step in enumerate(run.next_steps, start=1))]
-    lines += ["", "Wrote:", *(f"  {path}" for path in run.written.values())]
+    if result.bench is not None:
+        lines += ["", _fits_text(result.bench, format_fits, balance.survey.size_unit)]
+    if result.next_steps:
+        lines += ["", "Next:", *(_wrapped(f"  {k}. {step}", indent="     ") for k, step in enumerate(result.next_steps, start=1))]
+    lines += ["", "Wrote:", *(f"  {path}" for path in written.values())]
     return "\n".join(lines)
 
 

@@ -14,7 +14,7 @@ from :func:`build_parser`), each in its own module of this package:
 - ``rank`` (F table to ranks): :mod:`~tromplab.cli.rank`;
 - ``layer simulate | fit``, ``pulp optimum | fit`` and ``optimize`` (the process models):
   :mod:`~tromplab.cli.models`;
-- ``circuit`` (plant survey reconciled; its work is in :mod:`tromplab.circuit_command`):
+- ``circuit`` and ``circuit design`` (plant survey reconciled, what to measure next):
   :mod:`~tromplab.cli.circuit`;
 - ``density fit | predict`` (density partition of gravity separators):
   :mod:`~tromplab.cli.density` and :mod:`~tromplab.cli.density_predict`;

@@ -1,7 +1,7 @@
 """``tromplab circuit FLOWSHEET MEASUREMENTS -o DIR [--fit]`` and ``tromplab circuit design
-FLOWSHEET [SURVEY] -o DIR``: the parsers and the runs of the two commands (the work is in
-:mod:`tromplab.circuit_command`, their Python faces :func:`~tromplab.circuit_command.run_circuit`
-and :func:`~tromplab.circuit_command.run_design`)."""
+FLOWSHEET [SURVEY] -o DIR``: the parsers and the runs of the two commands, a thin layer over
+their Python functions :func:`tromplab.circuit.reconcile_circuit` and
+:func:`tromplab.circuit.design_circuit` (parse, call, save, print)."""
 
 from __future__ import annotations
 
@@ -20,6 +20,7 @@ from ..options import (
     ERROR_MODEL_POINTS,
     WEIGHTINGS,
 )
+from ..output.outputs import check_output_folder
 from ..validation import (
     check_assay_sd,
     check_pct_solids_sd,
@@ -36,7 +37,6 @@ from .startup import EXIT_OK, stage_bars
 #: handling); the fits (``--fit``) and the figures add theirs (:func:`_imports`): lmfit and
 #: matplotlib are a third of a second of start-up a run without them does not pay.
 IMPORTS = (
-    "tromplab.circuit_command",
     "tromplab.circuit",
     "tromplab.circuit.planning",
     "tromplab.output.csv_parts",
@@ -182,26 +182,30 @@ def _error_model(args):
 
 
 def _run_circuit(args) -> int:
-    from ..circuit_command import console_report, run_circuit
+    from ..circuit import reconcile_circuit
+    from ..circuit.commands import console_report
 
+    check_output_folder(args.outdir, inputs=[args.flowsheet, args.measurements])  # the inputs are checked as they are read
     with stage_bars(quiet=args.quiet) as progress:
-        run = run_circuit(args.flowsheet, args.measurements, args.outdir, fit=args.fit, errors=_error_model(args),
-                          alpha=args.alpha, size_unit=args.size_unit, figures=not args.no_figures, exclude=args.exclude,
-                          weighting=args.weighting, progress=progress)  # fmt: skip
-    print(console_report(run, format_fits=format_fits))
-    if run.bench is not None:  # the notes on each separator's points (a cut they do not bracket), once per kind
-        notices = run.bench.notices()
-        print_notices(notices, total=len(run.bench.experiments) + len(run.bench.failures), quiet=args.quiet,
+        result = reconcile_circuit(args.flowsheet, args.measurements, fit=args.fit, errors=_error_model(args), alpha=args.alpha,
+                                   size_unit=args.size_unit, exclude=args.exclude, weighting=args.weighting, progress=progress)  # fmt: skip
+        written = result.save(args.outdir, figures=not args.no_figures)
+    print(console_report(result, written, format_fits=format_fits))
+    if result.bench is not None:  # the notes on each separator's points (a cut they do not bracket), once per kind
+        notices = result.bench.notices()
+        print_notices(notices, total=len(result.bench.experiments) + len(result.bench.failures), quiet=args.quiet,
                       verbose=args.verbose, noun="separators", listed_in="")  # fmt: skip
     return EXIT_OK
 
 
 def _run_design(args) -> int:
-    from ..circuit_command import run_design
+    from ..circuit import design_circuit
 
+    check_output_folder(args.outdir, inputs=[args.flowsheet] + ([args.measurements] if args.measurements is not None else []))
     with stage_bars(quiet=args.quiet) as progress:
-        run = run_design(args.flowsheet, args.measurements, args.outdir, quantity=args.quantity, sampled=args.sampled,
-                         flows=args.flows, errors=_error_model(args), alpha=args.alpha, size_unit=args.size_unit,
-                         exclude=args.exclude, progress=progress)  # fmt: skip
-    print(run.advice.report() + "\n\nWrote:\n" + "\n".join(f"  {path}" for path in run.written.values()))
+        advice = design_circuit(args.flowsheet, args.measurements, quantity=args.quantity, sampled=args.sampled,
+                                flows=args.flows, errors=_error_model(args), alpha=args.alpha, size_unit=args.size_unit,
+                                exclude=args.exclude, progress=progress)  # fmt: skip
+        written = advice.save(args.outdir)
+    print(advice.report() + "\n\nWrote:\n" + "\n".join(f"  {path}" for path in written.values()))
     return EXIT_OK

@@ -4,104 +4,20 @@ The products a density separator with a given partition curve makes of a feed of
 washability: yield and ash of floats and sinks, the theoretical yield at the same ash and
 the organic efficiency (:mod:`tromplab.density.washability`), one row per feed and cut
 density; with ``--target-ash`` the cut density giving floats of that ash.  The Python face
-is :func:`run_predict` (the same file, byte for byte) or
-:func:`tromplab.density.washability.predict` (the same rows as a table).
+is :func:`tromplab.density.predict_density`, whose result's ``save(output, table=...)`` writes
+the same files, byte for byte (this module parses, calls it, saves and prints).
 """
 
 from __future__ import annotations
 
 import textwrap
-from dataclasses import dataclass
 from pathlib import Path
 
-from ..errors import OptionError
 from ..options import DEFAULT_SUM_TOLERANCE_PCT, PLAIN_DENSITY_CURVES
-from ..output.outputs import check_output_file, write_files
 from ..validation import check_cut_density, check_non_negative, check_percent, check_positive, check_share, cli_type
 
 #: The curves ``--curve`` offers: the registry's ids, the plain curves then their variants with limits.
 PREDICT_CURVES = PLAIN_DENSITY_CURVES + tuple(f"{curve}_limits" for curve in PLAIN_DENSITY_CURVES)
-
-
-@dataclass(frozen=True)
-class PredictRun:
-    """What ``tromplab density predict`` did: the prediction rows, the washability tables and the files written."""
-
-    predictions: object
-    washability: object
-    written: dict
-
-
-def run_predict(
-    washability,
-    output,
-    *,
-    curve: str = "normal",
-    rho50=None,
-    ep: float | None = None,
-    light_limit: float | None = None,
-    heavy_limit: float | None = None,
-    target_ash_pct=None,
-    table_output=None,
-    sum_tolerance_pct: float = DEFAULT_SUM_TOLERANCE_PCT,
-    float_lower_density: float | None = None,
-    sink_upper_density: float | None = None,
-) -> PredictRun:
-    """Predict the products of every feed in ``washability`` and write them to ``output`` (CSV).
-
-    Parameters
-    ----------
-    washability : path
-        The washability table(s) (:func:`tromplab.density.washability.read_washability`).
-    output : path
-        The prediction CSV (columns :data:`~tromplab.density.washability.PREDICTION_COLUMNS`).
-    curve, rho50, ep, light_limit, heavy_limit, target_ash_pct
-        As for :func:`tromplab.density.washability.predict`.
-    table_output : path, optional
-        Also write the washability tables (cumulative floats and sinks, near-gravity
-        material; :meth:`Washability.cumulative_table`) to this CSV.
-    sum_tolerance_pct, float_lower_density, sink_upper_density
-        As for :func:`~tromplab.density.washability.read_washability`.
-
-    Returns
-    -------
-    PredictRun
-
-    Notes
-    -----
-    Bad input ends in an :class:`~tromplab.errors.InputError` before anything is written;
-    the files are replaced each in one step.
-    """
-    import pandas as pd
-
-    from ..density.washability import predict, read_washability
-    from ..loading.tables import check_input_file
-
-    check_input_file(washability)
-    output = check_output_file(output, inputs=[washability], option="output")
-    if table_output is not None:
-        table_output = check_output_file(table_output, inputs=[washability], option="table_output")
-        if Path(table_output).resolve() == Path(output).resolve():
-            raise OptionError("table_output", "names the same file as output")
-    tables = read_washability(
-        washability, sum_tolerance_pct=sum_tolerance_pct, float_lower_density=float_lower_density,
-        sink_upper_density=sink_upper_density,
-    )  # fmt: skip
-    predictions = predict(tables, curve=curve, rho50=rho50, ep=ep, light_limit=light_limit, heavy_limit=heavy_limit,
-                          target_ash_pct=target_ash_pct)  # fmt: skip
-    written = _write_csv(predictions, Path(output))
-    cumulative = pd.concat([table.cumulative_table() for table in tables], ignore_index=True)
-    if table_output is not None:
-        written.update(_write_csv(cumulative, Path(table_output)))
-    return PredictRun(predictions, cumulative, written)
-
-
-def _write_csv(table, path: Path) -> dict:
-    from ..output.csv_parts import write_csv  # pandas: imported when the command runs, not when the parser is built
-
-    path.absolute().parent.mkdir(parents=True, exist_ok=True)
-    written = write_files({path.name: lambda target: write_csv(table, target)}, path.absolute().parent)
-    return {name: path.parent / name for name in written}  # as given (relative), as the other commands print it
 
 
 # --- command line ----------------------------------------------------------------------------
@@ -122,7 +38,7 @@ def add_predict_parser(density_commands) -> None:
     cut = predict.add_mutually_exclusive_group(required=True)
     cut.add_argument("--rho50", type=cli_type(check_cut_density, "--rho50"), nargs="+", metavar="RHO50",
                      help="cut density (relative density, above 1); several give one row each")  # fmt: skip
-    cut.add_argument("--target-ash", type=cli_type(check_percent, "--target-ash"), nargs="+", metavar="ASH_PCT",
+    cut.add_argument("--target-ash", dest="target_ash_pct", type=cli_type(check_percent, "--target-ash"), nargs="+", metavar="ASH_PCT",
                      help="floats ash per cent sought: the cut density giving it is found (Brent's method)")  # fmt: skip
     predict.add_argument("--ep", type=cli_type(check_positive, "--ep"), required=True,
                          help="probable error Ep = (rho75 - rho25)/2, relative density units")  # fmt: skip
@@ -133,7 +49,7 @@ def add_predict_parser(density_commands) -> None:
     predict.add_argument("--table", type=Path, default=None,
                          help="also write the washability table (cumulative floats and sinks, near-gravity material) "
                          "to this CSV")  # fmt: skip
-    predict.add_argument("--sum-tolerance", type=cli_type(check_non_negative, "--sum-tolerance"),
+    predict.add_argument("--sum-tolerance", dest="sum_tolerance_pct", type=cli_type(check_non_negative, "--sum-tolerance"),
                          default=DEFAULT_SUM_TOLERANCE_PCT,
                          help=f"allowed deviation of mass_pct totals from 100 (default {DEFAULT_SUM_TOLERANCE_PCT:g})")  # fmt: skip
     predict.add_argument("--float-lower-density", type=cli_type(check_positive, "--float-lower-density"), default=None,
@@ -142,44 +58,46 @@ def add_predict_parser(density_commands) -> None:
                          help="upper bound of the open sink fraction (default: the width of its neighbour)")  # fmt: skip
     predict.set_defaults(
         run=_run_predict,
-        imports=("tromplab.density.washability", "tromplab.density.curves", "tromplab.output.csv_parts", "scipy.optimize"),
+        imports=(
+            "tromplab.density.prediction",
+            "tromplab.density.washability",
+            "tromplab.density.curves",
+            "tromplab.output.csv_parts",
+            "scipy.optimize",
+        ),
     )
 
 
 def _run_predict(args) -> int:
-    try:
-        run = run_predict(
-            args.washability, args.output, curve=args.curve, rho50=args.rho50, ep=args.ep, light_limit=args.light_limit,
-            heavy_limit=args.heavy_limit, target_ash_pct=args.target_ash, table_output=args.table,
-            sum_tolerance_pct=args.sum_tolerance, float_lower_density=args.float_lower_density,
-            sink_upper_density=args.sink_upper_density,
-        )  # fmt: skip
-    except OptionError as error:
-        raise OptionError(_cli_name(error.option), error.reason) from None
-    print(console_report(run))
-    return 3 if run.predictions["floats_yield_pct"].isna().any() else 0  # 3: some predictions failed (notes say why)
+    from ..density.prediction import check_prediction_files, predict_density
+
+    check_prediction_files(args.output, args.table, source=args.washability)  # before the input is read
+    result = predict_density(
+        args.washability, curve=args.curve, rho50=args.rho50, ep=args.ep, light_limit=args.light_limit,
+        heavy_limit=args.heavy_limit, target_ash_pct=args.target_ash_pct, sum_tolerance_pct=args.sum_tolerance_pct,
+        float_lower_density=args.float_lower_density, sink_upper_density=args.sink_upper_density,
+    )  # fmt: skip
+    written = result.save(args.output, table=args.table)
+    print(console_report(result, written))
+    return 3 if result.predictions["floats_yield_pct"].isna().any() else 0  # 3: some predictions failed (notes say why)
 
 
-def _cli_name(option: str) -> str:
-    names = {"target_ash_pct": "--target-ash", "table_output": "--table", "output": "--output"}
-    return names.get(option, "--" + option.replace("_", "-"))
-
-
-def console_report(run: PredictRun) -> str:
-    """What the command prints: the predictions and the files written."""
+def console_report(result, written: dict) -> str:
+    """What the command prints: the predictions (of a :class:`~tromplab.density.prediction.DensityPrediction`)
+    and the files ``written``."""
     shown = ["test", "curve", "rho50", "ep", "floats_yield_pct", "floats_ash_pct", "sinks_ash_pct", "organic_efficiency_pct"]
-    table = run.predictions[shown].to_string(index=False, float_format=lambda v: f"{v:.4g}", na_rep="-")
-    notes = _grouped_notes(run)
-    return "\n".join([table, *notes, "", "Wrote:", *(f"  {path}" for path in run.written.values())])
+    table = result.predictions[shown].to_string(index=False, float_format=lambda v: f"{v:.4g}", na_rep="-")
+    notes = _grouped_notes(result.predictions, written)
+    return "\n".join([table, *notes, "", "Wrote:", *(f"  {path}" for path in written.values())])
 
 
-def _grouped_notes(run: PredictRun) -> list[str]:
+def _grouped_notes(predictions, written: dict) -> list[str]:
     """The notes of the predictions, a note that repeats over rows once with its count and first
     tests (:func:`tromplab.notices.grouped_lines`); every one is in the predictions file."""
     from ..notices import Notice, grouped_lines
 
-    said = [Notice(str(row.test), row.note) for row in run.predictions.itertuples() if isinstance(row.note, str) and row.note]
-    listed_in = next(iter(run.written), "the predictions file")  # the predictions CSV is written first
-    tests = len(set(run.predictions["test"]))
+    said = [Notice(str(row.test), row.note) for row in predictions.itertuples() if isinstance(row.note, str) and row.note]
+    listed_in = next(iter(written), "the predictions file")  # the predictions CSV is written first
+    tests = len(set(predictions["test"]))
     lines = grouped_lines(said, total=tests, noun="tests", listed_in=listed_in)
     return [textwrap.fill(f"note {line}" if line.startswith("(") else f"note: {line}", width=98) for line in lines]

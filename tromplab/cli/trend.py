@@ -36,13 +36,13 @@ def add_trend(commands, groups) -> None:
 
 def _run_trend(args) -> int:
     from ..loading.tables import check_input_file
-    from ..trend import monitor_surveys, read_surveys, write_trend
+    from ..trend import monitor_surveys, read_surveys
 
     check_input_file(args.input)
     check_output_folder(args.outdir, inputs=[args.input])
     surveys = read_surveys(args.input, lab_options(args))
     result = monitor_surveys(surveys, formula=args.formula, baseline=args.baseline, alpha=args.alpha)
-    written = write_trend(result, args.outdir, size_unit=args.size_unit, figures=not args.no_figures)
+    written = result.save(args.outdir, size_unit=args.size_unit, figures=not args.no_figures)
     print(result.report())
     print("\nWrote:")
     for path in written.values():

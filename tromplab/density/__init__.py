@@ -6,7 +6,9 @@ declared in :mod:`tromplab.density.curves`; tracer counts, float-sink analyses a
 partitions are read by :mod:`tromplab.density.readers`, fitted by
 :mod:`tromplab.density.fitting` (binomial maximum likelihood, least squares) and
 :func:`fit_density` returns a :class:`~tromplab.density.results.DensityResult` whose
-``save(DIR)`` writes what ``tromplab density fit FILE -o DIR`` writes.
+``save(DIR)`` writes what ``tromplab density fit FILE -o DIR`` writes; :func:`predict_density`
+returns a :class:`~tromplab.density.prediction.DensityPrediction` whose ``save(FILE)`` writes
+what ``tromplab density predict WASHABILITY -o FILE`` writes.
 """
 
 from .curves import (
@@ -20,6 +22,7 @@ from .curves import (
     select_density_curves,
 )
 from .fitting import DensityCurveFit, fit_density_curve
+from .prediction import DensityPrediction, predict_density
 from .readers import DensitySample, read_density
 from .results import DensityResult, fit_density
 
@@ -30,10 +33,12 @@ __all__ = [
     "DensityCurve",
     "DensityIndices",
     "DensityCurveFit",
+    "DensityPrediction",
     "DensityResult",
     "DensitySample",
     "fit_density",
     "fit_density_curve",
+    "predict_density",
     "read_density",
     "density_registry_table",
     "get_density_curve",

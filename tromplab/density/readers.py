@@ -50,9 +50,9 @@ from ..errors import InputError
 from ..loading.lab import (
     LabOptions,
     YieldEstimate,
-    _per_class_shares,
     estimate_fine_yield,
     partition_to_fines,
+    per_class_shares,
     yield_contradiction,
 )
 from ..loading.points import experiment_rows, size_column_unit
@@ -414,7 +414,7 @@ def _float_sink_sample(table: Table, context: dict, options: LabOptions, floats_
     shares = {}
     for stream, column in (("feed", "feed_pct"), ("sinks", "sinks_pct"), ("floats", "floats_pct")):
         if column in table.frame.columns:
-            shares[stream], _, note = _per_class_shares(table, column, "pct", options)
+            shares[stream], _, note = per_class_shares(table, column, "pct", options)
             notes += [note] if note else []
     sinks_yield, yield_source, estimate = _sinks_yield(table, shares, floats_yield, notes)
     s, f = shares["sinks"], shares["floats"]

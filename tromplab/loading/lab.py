@@ -63,26 +63,26 @@ from ..notices import regroup_warnings
 from ..results_contract import ResultContract
 from .kelsall import kelsall_corrected
 from .lab_classes import (
-    _class_shares,
-    _per_class_shares,  # noqa: F401 (tromplab.density.readers reads its analyses with it)
-    _representative_sizes,
-    _size_layout,
-    _SizeLayout,
+    SizeLayout,
+    class_shares,
+    per_class_shares,  # noqa: F401 (tromplab.density.readers reads its analyses with it)
+    read_size_layout,
+    representative_class_sizes,
 )
 from .lab_options import LabOptions
-from .lab_streams import STREAMS, _known_lab_columns, _stream_columns, is_lab_table
+from .lab_streams import STREAMS, is_lab_table, known_lab_columns, stream_columns
 from .names import renamed_to_names
 from .node_balance import (
     YieldEstimate,
-    _check_empty_feed,
-    _complete_streams,
-    _fine_yield,
-    _mass_implied_yield,
-    _partition,
-    _reconciled,
+    check_empty_feed,
+    complete_streams,
     estimate_fine_yield,
+    mass_implied_yield,
+    node_fine_yield,
+    node_partition,
     partition_to_fines,
     reconcile,
+    reconciled_shares,
     yield_contradiction,
 )
 from .points import TrompPoints, experiment_rows, iter_experiments, points_from_table
@@ -344,9 +344,9 @@ def _options(options: LabOptions | None, values: dict) -> LabOptions:
 
 
 def balances_from_table(table: Table, options: LabOptions) -> list[MassBalance]:
-    streams = _stream_columns(table, options)
-    size_layout = _size_layout(table, options)
-    table.refuse_unknown(_known_lab_columns(table, streams, size_layout), what="lab table")
+    streams = stream_columns(table, options)
+    size_layout = read_size_layout(table, options)
+    table.refuse_unknown(known_lab_columns(table, streams, size_layout), what="lab table")
     labels = table.experiment_labels()
     balances = []
     # a stated yield contradicted in 93 experiments is warned of once, with the count
@@ -380,28 +380,28 @@ def _renamed(table: Table, rename: dict) -> Table:
 
 
 # --- one experiment ---------------------------------------------------------------------
-def _balance_one(table: Table, name: str, streams, layout: _SizeLayout, options: LabOptions) -> MassBalance:
-    lower, upper, shares, totals, notes, class_rows = _class_shares(table, streams, layout, options)
+def _balance_one(table: Table, name: str, streams, layout: SizeLayout, options: LabOptions) -> MassBalance:
+    lower, upper, shares, totals, notes, class_rows = class_shares(table, streams, layout, options)
     if lower.size < 3:
         raise InputError(f"experiment '{name}' has {lower.size} size class(es); at least 3 are needed", source=table.source)
-    top_size, size = _representative_sizes(table, lower, upper, options, layout.representative)
-    mass_yield = _mass_implied_yield(streams, totals)
-    fine_yield, source_of_yield, estimate, yield_notes = _fine_yield(table, shares, options, mass_yield)
+    top_size, size = representative_class_sizes(table, lower, upper, options, layout.representative)
+    mass_yield = mass_implied_yield(streams, totals)
+    fine_yield, source_of_yield, estimate, yield_notes = node_fine_yield(table, shares, options, mass_yield)
     notes += yield_notes
-    a, b, c = _complete_streams(table, shares, fine_yield)
-    _check_empty_feed(table, a, b, c, None if class_rows[0] is None else table.rows)
+    a, b, c = complete_streams(table, shares, fine_yield)
+    check_empty_feed(table, a, b, c, None if class_rows[0] is None else table.rows)
     classes = pd.DataFrame(
         {"experiment": name, "size_lower": lower, "size_upper": upper, "size": size, "feed": a, "fine": b, "coarse": c}
     )
     classes["balance_residual"] = a - fine_yield * b - (1 - fine_yield) * c
     method = options.partition_from
     if options.reconcile and len(shares) == 3:
-        adjusted = _reconciled(a, b, c, fine_yield)
+        adjusted = reconciled_shares(a, b, c, fine_yield)
         for stream, values in zip(STREAMS, adjusted):
             classes[f"{stream}_adjusted"] = values
         a, b, c = adjusted
         method = "reconciled"
-    phi = _partition(a, b, c, fine_yield, method)
+    phi = node_partition(a, b, c, fine_yield, method)
     empty_products = (a > 0) & (b <= 0) & (c <= 0) & ("fine" in shares) & ("coarse" in shares)
     used, flags = _flag_classes(a, phi, options.min_feed_share, empty_products)
     classes["partition_fine"] = np.where(np.isfinite(phi), np.clip(phi, 0.0, 1.0), np.nan)

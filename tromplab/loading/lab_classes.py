@@ -26,7 +26,7 @@ MAX_AMOUNT = 1e250
 
 
 @dataclass(frozen=True)
-class _SizeLayout:
+class SizeLayout:
     """Where the sizes are: sieve apertures in one column, class bounds in two, or
     class-range strings ("+1168", "-1168+589", "-74") in one; optionally a column of
     representative sizes; and their unit ("" when not known)."""
@@ -39,7 +39,7 @@ class _SizeLayout:
     unit_suffix: str = ""
 
 
-def _size_layout(table: Table, options: LabOptions | None = None) -> _SizeLayout:
+def read_size_layout(table: Table, options: LabOptions | None = None) -> SizeLayout:
     found, unit, suffix = size_columns(table, SIZE_STEMS, options.size_unit if options else None)
     layouts = [
         name
@@ -61,11 +61,11 @@ def _size_layout(table: Table, options: LabOptions | None = None) -> _SizeLayout
         if not ("size_lower" in found and "size_upper" in found):
             missing = "size_upper" if "size_lower" in found else "size_lower"
             raise InputError(f"class bounds need both size_lower and size_upper; {missing} is missing", source=table.source)
-        return _SizeLayout(
+        return SizeLayout(
             False, (found["size_lower"], found["size_upper"]), representative=representative, unit=unit, unit_suffix=suffix
         )
     if "size_class" in found:
-        return _SizeLayout(
+        return SizeLayout(
             False, (found["size_class"],), class_strings=True, representative=representative, unit=unit, unit_suffix=suffix
         )
     if "size" in found:
@@ -75,7 +75,7 @@ def _size_layout(table: Table, options: LabOptions | None = None) -> _SizeLayout
                 source=table.source,
                 column=representative,
             )
-        return _SizeLayout(True, (found["size"],), unit=unit, unit_suffix=suffix)
+        return SizeLayout(True, (found["size"],), unit=unit, unit_suffix=suffix)
     raise InputError(
         "give class bounds 'size_lower' and 'size_upper', size classes 'size_class' (\"+1168\", \"-1168+589\", \"-74\"), "
         "or sieve sizes 'size'",
@@ -94,7 +94,7 @@ class _ClassShares(NamedTuple):
     rows: list  # the file row of each class (None: a class spans two sieve rows)
 
 
-def _class_shares(table: Table, streams, layout: _SizeLayout, options: LabOptions) -> _ClassShares:
+def class_shares(table: Table, streams, layout: SizeLayout, options: LabOptions) -> _ClassShares:
     """The class bounds of the table's size layout and the shares of every stream column."""
     if any(kind in CUMULATIVE_KINDS for _, kind in streams.values()):
         if not layout.sieve_sizes:
@@ -113,7 +113,7 @@ def _class_shares(table: Table, streams, layout: _SizeLayout, options: LabOption
         lower, upper = _class_bounds(table, *layout.columns)
     shares, totals, notes = {}, {}, []
     for stream, (column, kind) in streams.items():
-        shares[stream], totals[stream], note = _per_class_shares(table, column, kind, options)
+        shares[stream], totals[stream], note = per_class_shares(table, column, kind, options)
         notes += [note] if note else []
     return _ClassShares(lower, upper, shares, totals, notes, list(table.rows))
 
@@ -214,7 +214,7 @@ def _sorted_sieves(table: Table, size_column: str) -> np.ndarray:
     return size
 
 
-def _per_class_shares(table: Table, column: str, kind: str, options: LabOptions):
+def per_class_shares(table: Table, column: str, kind: str, options: LabOptions):
     """Shares of one stream per class (summing to 1), the column's total, and a note on blank cells."""
     values = table.numeric(column, allow_blank=True)
     blank = np.flatnonzero(np.isnan(values))
@@ -319,7 +319,7 @@ def _cumulative_retained(table: Table, column: str, kind: str, order: np.ndarray
     return np.clip(retained, 0.0, 1.0), note
 
 
-def _representative_sizes(table: Table, lower, upper, options: LabOptions, representative_column: str | None = None):
+def representative_class_sizes(table: Table, lower, upper, options: LabOptions, representative_column: str | None = None):
     lower, upper = lower.astype(float).copy(), upper.astype(float).copy()
     order = np.argsort(np.where(np.isfinite(lower), lower, 0.0))[::-1]
     top, pan = order[0], order[-1]

@@ -37,7 +37,7 @@ def _stream_of(column: str):
     return STREAM_ALIASES.get(match.group(1), match.group(1)), match.group(2)
 
 
-def _known_lab_columns(table: Table, streams, layout) -> list[str]:
+def known_lab_columns(table: Table, streams, layout) -> list[str]:
     """Every column a lab table may hold given its streams and sizes (for the unknown-column check)."""
     known = ["experiment", "size_unit", *YIELD_COLUMNS, *layout.columns, *(column for column, _ in streams.values())]
     suffix = f"_{layout.unit_suffix}" if layout.unit_suffix else ""
@@ -46,7 +46,7 @@ def _known_lab_columns(table: Table, streams, layout) -> list[str]:
     return known
 
 
-def _stream_columns(table: Table, options: LabOptions) -> dict[str, tuple[str, str]]:
+def stream_columns(table: Table, options: LabOptions) -> dict[str, tuple[str, str]]:
     """``{stream: (column, kind)}`` for the streams present."""
     found = {}
     for column in table.frame.columns:

@@ -121,7 +121,7 @@ def _yield_column(table: Table, column: str) -> float | None:
     return float(given[0])
 
 
-def _fine_yield(table: Table, shares: dict, options: LabOptions, mass_yield: float | None = None):
+def node_fine_yield(table: Table, shares: dict, options: LabOptions, mass_yield: float | None = None):
     given, source = _given_yield(table, options)
     notes = []
     estimate = None
@@ -167,7 +167,7 @@ def _fine_yield(table: Table, shares: dict, options: LabOptions, mass_yield: flo
     return estimate.value, "least-squares estimate", estimate, notes
 
 
-def _mass_implied_yield(streams, totals) -> float | None:
+def mass_implied_yield(streams, totals) -> float | None:
     """Fine yield implied by the masses of both products (fine / (fine + coarse)), when the two
     products (and no feed) are given as masses: the products are then taken as weighed whole."""
     if "feed" in streams or not all(stream in totals and streams[stream][1] == "mass" for stream in ("fine", "coarse")):
@@ -175,7 +175,7 @@ def _mass_implied_yield(streams, totals) -> float | None:
     return totals["fine"] / (totals["fine"] + totals["coarse"])
 
 
-def _complete_streams(table: Table, shares: dict, y: float):
+def complete_streams(table: Table, shares: dict, y: float):
     """All three shares, deriving a missing stream from the balance a = y b + (1-y) c."""
     a, b, c = (shares.get(s) for s in STREAMS)
     if a is None:
@@ -187,7 +187,7 @@ def _complete_streams(table: Table, shares: dict, y: float):
     return a, b, c
 
 
-def _check_empty_feed(table: Table, a, b, c, class_rows) -> None:
+def check_empty_feed(table: Table, a, b, c, class_rows) -> None:
     empty = np.flatnonzero((a <= 0) & ((b > 0) | (c > 0)))
     if empty.size:
         i = int(empty[0])
@@ -222,10 +222,10 @@ def partition_to_fines(feed, fine, coarse, fine_yield, *, method: str = "product
     [0.4]
     """
     a, b, c = _checked_shares(feed, fine, coarse)
-    return _partition(a, b, c, check_probability(fine_yield, "fine_yield"), method)
+    return node_partition(a, b, c, check_probability(fine_yield, "fine_yield"), method)
 
 
-def _partition(a, b, c, y: float, method: str) -> np.ndarray:
+def node_partition(a, b, c, y: float, method: str) -> np.ndarray:
     """:func:`partition_to_fines` of shares the reader has checked (a stream it computed may dip below 0)."""
     denominator = a if method == "feed" else y * b + (1 - y) * c
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -253,10 +253,10 @@ def reconcile(feed, fine, coarse, fine_yield, *, relative_error=0.05, absolute_e
     y = check_probability(fine_yield, "fine_yield")
     check_non_negative(relative_error, "relative_error")
     check_non_negative(absolute_error, "absolute_error")
-    return _reconciled(a, b, c, y, relative_error=relative_error, absolute_error=absolute_error)
+    return reconciled_shares(a, b, c, y, relative_error=relative_error, absolute_error=absolute_error)
 
 
-def _reconciled(a, b, c, y: float, *, relative_error=0.05, absolute_error=0.001):
+def reconciled_shares(a, b, c, y: float, *, relative_error=0.05, absolute_error=0.001):
     """:func:`reconcile` of shares and a yield the reader has checked."""
     values = np.stack([a, b, c])
     variances = (relative_error * values) ** 2 + absolute_error**2

@@ -1,6 +1,7 @@
-"""The fan-out of a batch: experiments cut into chunks (:func:`chunked`), the chunks run in
-process, on a process pool or on a Dask cluster (:func:`dask_client`), and their results
-gathered in order (:class:`ChunkResults`).
+"""The fan-out of a batch: items (experiments, tests) cut into chunks (:func:`chunked`), the
+chunks run in process, on a process pool or on a Dask cluster (:func:`dask_client`,
+:func:`map_on_workers`), and their results gathered in order.  It knows nothing of what a chunk
+holds: the batch of fits (:mod:`tromplab.workbench.chunks`) and of density tests use it alike.
 """
 
 from __future__ import annotations
@@ -10,28 +11,14 @@ import contextlib
 import functools
 import importlib.util
 import itertools
-import logging
 import math
 import os
 import pickle
 from collections.abc import Iterable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import replace
-from typing import NamedTuple
 
-import pandas as pd
-
-from ..curves.curve_fit import CurveFit
 from ..errors import OptionError
-from ..loading.points import TrompPoints
-from ..output.csv_parts import CsvPart
-from .averages import _averages_table
-from .gc_control import _results_kept_out_of_collections, _with_older_objects_frozen
-from .tables import fit_rows_frame
-from .worker import ChunkOptions, FittedChunk, work_on_chunk
-
-# one logger for the batch layer: its lines read "tromplab.workbench: ..." whichever module makes them
-logger = logging.getLogger(__package__)
+from .gc_control import results_kept_out_of_collections, with_older_objects_frozen
 
 #: Experiments per unit of work: at least ``CHUNK_SIZE`` (progress, and balance over the
 #: workers), at most ``MAX_CHUNK_SIZE`` (memory), in between two units per worker (one
@@ -77,73 +64,6 @@ def worker_count(jobs, client) -> int:
     if client is not None:
         return max(1, sum(client.nthreads().values()))
     return jobs or os.cpu_count() or 1
-
-
-class ChunkResults(NamedTuple):
-    """What :func:`_fit_in_chunks` gathers: the fits, the data notes, the interval columns and
-    the model averages (None when not asked for), the rows of the fits, and the workers' CSV
-    text of the tables (``{"fits": [CsvPart, ...], "averages": [...]}``, None in one process)."""
-
-    fits: list[CurveFit]
-    notes: dict
-    intervals: pd.DataFrame | None
-    averages: pd.DataFrame | None
-    rows: pd.DataFrame
-    csv_parts: dict[str, list[CsvPart]] | None = None
-
-
-def _fit_in_chunks(fittable: Sequence[TrompPoints], options: ChunkOptions, *, jobs, client, progress) -> ChunkResults:
-    """The fits, data notes, interval columns (with ``options.settings.ci`` or ``options.settings.bootstrap``) and
-    model averages of ``fittable``, chunk by chunk in order, wherever the chunks run (the
-    averages only where there are workers: in one process they are made when first asked
-    for).  Where there are workers, each also formats its rows of ``fits.csv`` and
-    ``averages.csv``, which the main process only joins.
-
-    A chunk's intervals are made by the worker that fitted it, right after the fits: the fits
-    do not travel to the main process and back again, and each fit's intervals (its bootstrap
-    seed included) depend on that fit only, so the table is the same for any number of workers.
-    ``progress`` hears of each chunk twice: its fits, then (labels ``"intervals: ..."``) its intervals.
-    """
-    chunks = chunked(fittable, workers=worker_count(jobs, client))
-    options = replace(
-        options,
-        width=max((points.n for points in fittable), default=0),  # one padding for every chunk
-        tables_on_worker=not (jobs == 1 and client is None),  # in one process they wait until asked for
-    )
-    n_formulas = len(options.formulas)
-    logger.info(
-        "fitting %d experiment(s) x %d formula(s) in %d chunk(s) of up to %d (%s)",
-        len(fittable),
-        n_formulas,
-        len(chunks),
-        len(chunks[0]) if chunks else 0,
-        "on a Dask cluster" if client is not None else f"jobs={jobs or 'all cores'}",
-    )
-    fits, notes, frames, averaged, rows, parts = [], {}, [], [], [], {}
-    for number, (chunk, done) in enumerate(zip(chunks, _map_chunks(chunks, options, jobs=jobs, client=client)), 1):
-        fits += done.fits
-        rows.append(done.rows)
-        for name, part in (done.csv_parts or {}).items():
-            parts.setdefault(name, []).append(part)
-        notes.update(done.notes)
-        averaged += done.averages or []
-        logger.debug(
-            "chunk %d/%d fitted: %d fits, %d failed", number, len(chunks), len(done.fits), sum(not f.success for f in done.fits)
-        )
-        if progress is not None:
-            progress(len(fits) // max(n_formulas, 1), len(fittable), chunk[-1].experiment)
-        if done.intervals is not None:
-            frames.append(done.intervals)
-            if progress is not None:
-                progress(len(fits) // max(n_formulas, 1), len(fittable), f"intervals: {chunk[-1].experiment}")
-    return ChunkResults(
-        fits,
-        notes,
-        pd.concat(frames, ignore_index=True) if frames else None,
-        _averages_table(averaged) if options.tables_on_worker else None,
-        pd.concat(rows, ignore_index=True) if rows else fit_rows_frame([]),
-        parts if options.tables_on_worker else None,
-    )
 
 
 #: Dask settings of the local cluster (``dask="local"``), and the ones docs/performance.md
@@ -193,19 +113,14 @@ def dask_client(*, scheduler: str | None = None, dask: str | None = None, client
         yield made
 
 
-def _map_chunks(chunks, options: ChunkOptions, *, jobs, client) -> Iterator[FittedChunk]:
-    """Yield what :func:`work_on_chunk` makes of each chunk, in order: in process, in a process pool, or on Dask."""
-    yield from map_on_workers(work_on_chunk, chunks, options, jobs=jobs, client=client)
-
-
 def map_on_workers(function, chunks, argument, *, jobs, client, count: int | None = None):
     """Yield ``function(argument, chunk)`` for each chunk, in order: in process, in a
     process pool of ``jobs`` workers (None: all cores), or on a Dask client.  ``chunks`` may
     be an iterator (``count``: how many it yields): a chunk is taken from it when a worker
     can soon start on it, at most :data:`CHUNKS_IN_FLIGHT` per worker ahead of the results."""
-    work = functools.partial(_with_older_objects_frozen, function, argument)
+    work = functools.partial(with_older_objects_frozen, function, argument)
     count = len(chunks) if count is None else count
-    with _results_kept_out_of_collections() as keep:
+    with results_kept_out_of_collections() as keep:
         if client is not None:
             pickled_work = pickle.dumps(work, protocol=pickle.HIGHEST_PROTOCOL)
 

@@ -8,7 +8,7 @@ import contextlib
 import gc
 
 
-def _with_older_objects_frozen(function, argument, chunk):
+def with_older_objects_frozen(function, argument, chunk):
     """``function(argument, chunk)`` with the objects alive before it (the imported modules, in
     process the earlier chunks' results) left out of the cyclic garbage collections it
     triggers; the chunk's own garbage is collected as usual.  Where objects are frozen
@@ -23,7 +23,7 @@ def _with_older_objects_frozen(function, argument, chunk):
 
 
 @contextlib.contextmanager
-def _results_kept_out_of_collections():
+def results_kept_out_of_collections():
     """The chunks' results left out of Python's cyclic garbage collections while more arrive:
     yields the function to call after each chunk.
 

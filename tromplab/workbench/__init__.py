@@ -12,9 +12,10 @@ with one chunk), then ``gc_control``, ``averages``, ``tables`` (the fits table) 
 ``tromplab.workbench`` (or :mod:`tromplab`): the modules may change.
 """
 
+from ..parallel import CHUNK_SIZE, DASK_WORKER_CONFIG, MAX_CHUNK_SIZE, chunked, dask_client
 from .averages import averages_level
 from .batch import check_formula_selection, fit_experiments, fit_with_settings, formula_keys, print_progress
-from .fanout import CHUNK_SIZE, DASK_WORKER_CONFIG, MAX_CHUNK_SIZE, ChunkResults, chunked, dask_client
+from .chunks import ChunkResults
 from .inputs import ACCEPTED_EXPERIMENTS, ExperimentsInPieces, data_notes
 from .result import Workbench, load, model_averages
 from .store import FitsInMemory, FitsOnDisk, FitStore

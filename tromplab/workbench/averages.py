@@ -15,21 +15,23 @@ def averages_level(ci: float | None) -> float:
     return ci or 0.95
 
 
-def _averaged_groups(fits_by_experiment, ranked) -> list[list[CurveFit]]:
+def averaged_groups(fits_by_experiment, ranked) -> list[list[CurveFit]]:
     """The successful fits of the ``ranked`` formula ids, per experiment (experiments without any left out)."""
     ranked = set(ranked)
     groups = ([f for f in fits if f.success and f.formula.id in ranked] for fits in fits_by_experiment)
     return [chosen for chosen in groups if chosen]
 
 
-def _averages_table(frames: list[pd.DataFrame]) -> pd.DataFrame:
+def averages_table(frames: list[pd.DataFrame]) -> pd.DataFrame:
+    """The chunks' tables of averages as one, the experiment first (empty without any)."""
     if not frames:
         return pd.DataFrame()
     table = pd.concat(frames, ignore_index=True)
     return table[["experiment", *[c for c in table.columns if c != "experiment"]]]
 
 
-def _averages_of_chunk(level, groups) -> list[pd.DataFrame]:
+def averages_of_chunk(level, groups) -> list[pd.DataFrame]:
+    """The averages of a chunk's ``groups`` of fits at confidence ``level``, as one table in a list."""
     # the whole chunk at once: the delta method in one call per formula, each quantity on arrays
     rows = [
         {**row, "experiment": fits[0].experiment}

@@ -17,9 +17,10 @@ from ..curves.engine import check_bootstrap_request
 from ..curves.formulas import select_formulas
 from ..curves.screening import DEFAULT_ALPHA
 from ..errors import OptionError
+from ..parallel import dask_client
 from ..validation import FitSettings
-from .fanout import _fit_in_chunks, dask_client
-from .inputs import ExperimentsInPieces, FittableInPieces, _data_size_unit, _points_and_balances, _screenable
+from .chunks import fit_in_chunks
+from .inputs import ExperimentsInPieces, FittableInPieces, data_size_unit, points_and_balances, screenable
 from .result import Workbench
 from .tables import ranked_among
 from .worker import ChunkOptions
@@ -147,7 +148,7 @@ def fit_prepared(plan: PreparedBatch, *, client=None, progress=None) -> Workbenc
     """:func:`fit_experiments` of a :func:`prepared_batch`, the fits kept in memory."""
     settings = plan.settings
     with dask_client(scheduler=settings.scheduler, dask=settings.dask, client=client) as cluster:
-        found = _fit_in_chunks(plan.fittable, plan.options, jobs=settings.jobs, client=cluster, progress=progress)
+        found = fit_in_chunks(plan.fittable, plan.options, jobs=settings.jobs, client=cluster, progress=progress)
         return batch_workbench(plan, tuple(found.fits), found.notes, found.intervals, made=found)
 
 
@@ -180,10 +181,10 @@ def prepared_batch(experiments, settings: FitSettings, *, in_pieces: bool = Fals
         size_unit = next(iter(found.units)) if len(found.units) == 1 else settings.size_unit
         failures, fittable = found.failures, FittableInPieces(experiments, found)
     else:
-        experiments, balances = _points_and_balances(experiments)
+        experiments, balances = points_and_balances(experiments)
         checked, n_experiments = experiments, len(experiments)
-        size_unit = _data_size_unit(experiments, settings.size_unit)
-        failures, fittable = _screenable(experiments)
+        size_unit = data_size_unit(experiments, settings.size_unit)
+        failures, fittable = screenable(experiments)
     chosen = select_formulas(check_formula_selection(settings.formulas, settings.extended))
     _check_against_data(settings, checked, n_fits=n_experiments * len(chosen))
     options = ChunkOptions(
@@ -197,7 +198,7 @@ def prepared_batch(experiments, settings: FitSettings, *, in_pieces: bool = Fals
 
 def batch_workbench(plan: PreparedBatch, fits, notes, intervals, *, store=None, made=None) -> Workbench:
     """The :class:`Workbench` of a fitted batch: its fits in memory with what the workers
-    ``made`` beside them (:class:`~tromplab.workbench.fanout.ChunkResults`), or read through ``store``."""
+    ``made`` beside them (:class:`~tromplab.workbench.chunks.ChunkResults`), or read through ``store``."""
     return Workbench(
         fits, plan.failures, plan.chosen, notes, plan.settings, plan.options.size_unit, batch_inputs(plan), plan.balances,
         intervals, store, made,

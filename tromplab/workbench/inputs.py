@@ -21,13 +21,13 @@ from ..loading.tables import DEFAULT_PIECE_ROWS
 from ..notices import Notice
 
 
-def _data_size_unit(experiments: Sequence[TrompPoints], fallback: str) -> str:
+def data_size_unit(experiments: Sequence[TrompPoints], fallback: str) -> str:
     """The unit the loader found (column suffix) when all experiments share one, else ``fallback``."""
     units = {p.size_unit for p in experiments if p.size_unit}
     return units.pop() if len(units) == 1 else fallback
 
 
-def _screenable(experiments: Sequence[TrompPoints]) -> tuple[dict[str, str], list[TrompPoints]]:
+def screenable(experiments: Sequence[TrompPoints]) -> tuple[dict[str, str], list[TrompPoints]]:
     """The experiments the Fisher screen cannot judge (with the reason), and the others."""
     failures, fittable = {}, []
     for points in experiments:
@@ -142,7 +142,7 @@ def census(source: ExperimentsInPieces) -> Census:
     width, smallest, total = 0, None, 0
     for points in source:
         total += 1
-        failure, _ = _screenable([points])
+        failure, _ = screenable([points])
         if failure:
             failures.update(failure)
             failed.append(points)
@@ -185,7 +185,7 @@ ACCEPTED_EXPERIMENTS = (
 )
 
 
-def _points_and_balances(experiments) -> tuple[list[TrompPoints], tuple[MassBalance, ...]]:
+def points_and_balances(experiments) -> tuple[list[TrompPoints], tuple[MassBalance, ...]]:
     """Points (and the mass balances of lab input) from any of :data:`ACCEPTED_EXPERIMENTS`;
     an empty input, or two experiments of one name, is an :class:`InputError`."""
     balances = ()

@@ -26,10 +26,11 @@ from ..output.csv_parts import CsvPart
 from ..output.plotting import plot_tromp_fits
 from ..output.report import build_report, write_report
 from ..output.results import experiment_summary, load_workbench, summary_text, workbench_html, workbench_repr
+from ..parallel import chunked, map_on_workers, worker_count
 from ..results_contract import ResultContract
 from ..validation import MAX_JOBS, FitSettings, check_count, check_optional, check_probability
-from .averages import _averaged_groups, _averages_of_chunk, _averages_table, averages_level
-from .fanout import ChunkResults, chunked, map_on_workers, worker_count
+from .averages import averaged_groups, averages_level, averages_of_chunk, averages_table
+from .chunks import ChunkResults
 from .inputs import batch_notices
 from .store import FitsInMemory, FitStore
 from .tables import ranked_among
@@ -462,9 +463,9 @@ def model_averages(bench: Workbench, *, level: float = 0.95, jobs: int | None = 
     expect_kind(bench, Workbench, "bench", "a Workbench (tromplab.fit_experiments)")
     check_probability(level, "level")
     check_optional(check_count, jobs, "jobs", minimum=0, maximum=MAX_JOBS)
-    groups = _averaged_groups(bench.fits_by_experiment().values(), [f.id for f in bench.ranked_formulas])
+    groups = averaged_groups(bench.fits_by_experiment().values(), [f.id for f in bench.ranked_formulas])
     chunks = chunked(groups, workers=worker_count(jobs, client))
     logger.info("model averages of %d experiment(s) at level %g", len(groups), level)
-    return _averages_table(
-        [frame for chunk in map_on_workers(_averages_of_chunk, chunks, level, jobs=jobs, client=client) for frame in chunk]
+    return averages_table(
+        [frame for chunk in map_on_workers(averages_of_chunk, chunks, level, jobs=jobs, client=client) for frame in chunk]
     )

@@ -36,7 +36,7 @@ from ..loading.points import TrompPoints
 from ..loading.surveys import with_survey_columns
 from ..output.csv_parts import csv_part, defended_frame, holds_carriage_return, write_csv
 from ..output.outputs import check_output_folder
-from .averages import _averages_table
+from .averages import averages_table
 from .worker import ChunkOptions, chunk_tables, fitted_chunk
 
 # one logger for the batch layer: its lines read "tromplab.workbench: ..." whichever module makes them
@@ -175,7 +175,7 @@ def spool_chunk(options: SpoolOptions, work: ChunkWork) -> ChunkSummary:
     averaged, completed, view = chunk_tables(options.chunk, chunk, fits, columns, rows, work.failures, work.failed_points)
     tables = {"fits": view}
     if averaged:
-        tables["averages"] = _averages_table(averaged)
+        tables["averages"] = averages_table(averaged)
     files, layouts = {}, {}
     for name, table in tables.items():
         if name == "averages":
@@ -248,7 +248,7 @@ class Spool:
 
         def write(path):
             if not numbers:
-                write_csv(_averages_table([]) if table == "averages" else pd.DataFrame(), path)
+                write_csv(averages_table([]) if table == "averages" else pd.DataFrame(), path)
             elif len(layouts) == 1 and not quoted:
                 columns = next(iter(layouts))[0]
                 with open(path, "wb") as file:

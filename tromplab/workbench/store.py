@@ -25,8 +25,8 @@ from ..curves.ranking import rank_formulas
 from ..errors import OptionError
 from ..output.folder import write_results_folder
 from ..output.outputs import replace_folder
+from ..parallel import MAX_CHUNK_SIZE, map_on_workers
 from .averages import averages_level
-from .fanout import MAX_CHUNK_SIZE, map_on_workers
 from .tables import by_experiment, completed_fit_rows, fit_row_settings, fit_rows_frame, output_view
 from .worker import ChunkOptions, completed_rows
 

@@ -22,9 +22,9 @@ from dataclasses import fields, replace
 
 from ..options import AUTO_FIGURE_LIMIT
 from ..output.folder import check_folder_options, write_streamed_folder
+from ..parallel import chunk_size, chunks_of, dask_client, map_on_workers, worker_count
 from ..validation import FitSettings
 from .batch import batch_inputs, batch_workbench, fit_prepared, prepared_batch
-from .fanout import chunk_size, chunks_of, dask_client, map_on_workers, worker_count
 from .inputs import FittableInPieces
 from .result import Workbench
 from .spool import ChunkWork, Spool, SpoolOptions, spool_chunk

@@ -31,7 +31,7 @@ from ..loading.surveys import with_survey_columns
 from ..output.csv_parts import CsvPart, csv_part
 from ..statistics.uncertainty import interval_columns
 from ..validation import FitSettings
-from .averages import _averaged_groups, _averages_of_chunk, _averages_table, averages_level
+from .averages import averaged_groups, averages_level, averages_of_chunk, averages_table
 from .inputs import data_notes
 from .tables import by_experiment, completed_fit_rows, fit_rows_frame, output_view
 
@@ -191,7 +191,7 @@ def work_on_chunk(options: ChunkOptions, chunk: Sequence[TrompPoints]) -> Fitted
     # the text of the chunk's rows: 2.2 s of serial formatting at 10,000 experiments
     parts = {"fits": csv_part(view)}
     if averaged:
-        parts["averages"] = csv_part(with_survey_columns(_averages_table(averaged), [*chunk, *options.survey_probe]))
+        parts["averages"] = csv_part(with_survey_columns(averages_table(averaged), [*chunk, *options.survey_probe]))
     return FittedChunk(fits, notes, columns, rows, averaged, parts)
 
 
@@ -230,7 +230,7 @@ def chunk_tables(options: ChunkOptions, chunk, fits, columns, rows, failures=Non
     with their ``failed_points`` instead, and its rows end with theirs, as the whole table does.
     """
     level = averages_level(options.settings.ci)
-    averaged = _averages_of_chunk(level, _averaged_groups(by_experiment(fits).values(), options.ranked))
+    averaged = averages_of_chunk(level, averaged_groups(by_experiment(fits).values(), options.ranked))
     completed = completed_rows(options, rows.copy(), fits, failures)
     view = output_view(completed, columns, [*chunk, *options.survey_probe, *failed_points], options.settings.partition_to)
     if failures is None and options.failure_example:

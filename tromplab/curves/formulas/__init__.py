@@ -66,17 +66,17 @@ from .paper import (  # noqa: F401 (checked against by tests)
     SHUVALOV_1992,
     SHUVALOV_BREAK,
     NoBreakPointError,
-    _lynch_at,
-    _plitt_efficiency,
-    _rosin_rammler_area,
     lognormal,
     luckie_austin,
     lynch,
+    lynch_at,
     molerus,
     molerus_hoffmann,
     ogawa_allen,
     plitt,
+    plitt_efficiency,
     rosin_rammler,
+    rosin_rammler_area,
     rosin_rammler_plateau,
     shuvalov,
     shuvalov_break,
@@ -84,7 +84,7 @@ from .paper import (  # noqa: F401 (checked against by tests)
     shuvalov_kink,
     with_plateau,
 )
-from .records import _BY_ID, LN2, SHUVALOV_2018, Formula, MovingBreak
+from .records import FORMULAS_BY_ID, LN2, SHUVALOV_2018, Formula, MovingBreak
 
 #: Names that mean different curves in different tools (printed by ``tromplab formulas``).
 NAME_CLASHES = (
@@ -101,7 +101,7 @@ NAME_CLASHES = (
 )
 ALL_FORMULAS = FORMULAS + EXTENDED_FORMULAS + OTHER_FORMULAS
 
-_BY_ID.update((formula.id, formula) for formula in ALL_FORMULAS)
+FORMULAS_BY_ID.update((formula.id, formula) for formula in ALL_FORMULAS)
 _BY_EQUATION = {formula.equation: formula for formula in FORMULAS}
 
 
@@ -169,8 +169,8 @@ def get_formula(key: str | int) -> Formula:
     if key is None or isinstance(key, (bool, np.bool_, bytes, list, tuple, dict, set, np.ndarray)):
         raise TypeError(f"a formula is named by its id (str) or its equation number (int), got {type(key).__name__}")
     text = str(key).strip()
-    if text in _BY_ID:
-        return _BY_ID[text]
+    if text in FORMULAS_BY_ID:
+        return FORMULAS_BY_ID[text]
     number = text.strip("()")
     if number.isdigit() and int(number) in _BY_EQUATION:
         return _BY_EQUATION[int(number)]
@@ -192,7 +192,7 @@ def unknown_formula_message(key) -> str:
     """
     import difflib
 
-    names = [*_BY_ID, *FORMULA_GROUPS]
+    names = [*FORMULAS_BY_ID, *FORMULA_GROUPS]
     close = difflib.get_close_matches(str(key).strip().lower(), names, n=3, cutoff=0.6)
     hint = f" (did you mean {', '.join(close)}?)" if close else ""
     groups = "; ".join(

@@ -7,8 +7,8 @@ from functools import lru_cache
 import scipy
 
 from ..parameters import Parameter
-from .paper import FORMULAS, _lynch_at, _lynch_shape_for_slope, _lynch_slope, lynch
-from .records import SHUVALOV_2018, Formula, _as_array
+from .paper import FORMULAS, lynch, lynch_at, lynch_shape_for_slope, lynch_slope
+from .records import SHUVALOV_2018, Formula, as_array
 
 NAPIER_MUNN_1996 = (
     "Napier-Munn T.J., Morrell S., Morrison R.D., Kojovic T. (1996). Mineral Comminution Circuits: "
@@ -118,7 +118,7 @@ def _beta_star_of(alpha: float, fishhook: float) -> float:
     def gap(star):
         # on floats: numpy's scalar overhead made this root (one per evaluation of the curve)
         # most of the time of Whiten's fits
-        return (1.0 + fishhook * star) * _lynch_at(star, alpha) - 0.5
+        return (1.0 + fishhook * star) * lynch_at(star, alpha) - 0.5
 
     high = 1.0
     while gap(high) > 0.0:
@@ -171,15 +171,15 @@ def whiten(x, alpha, *, bypass=0.0, fishhook=0.0):
     >>> round(float(whiten(0.3, 3.0, bypass=0.1, fishhook=0.4)), 10)
     0.9340089396
     """
-    x = _as_array(x)
+    x = as_array(x)
     star = whiten_beta_star(alpha, fishhook)
     return (1.0 - bypass) * (1.0 + fishhook * star * x) * lynch(star * x, alpha)
 
 
-_BASE = {formula.id: formula for formula in FORMULAS}
+PAPER_BY_ID = {formula.id: formula for formula in FORMULAS}
 EXTENDED_FORMULAS: tuple[Formula, ...] = (
-    with_bypass(_BASE["plitt"], equation=107, citation=PLITT_1976 + "; " + KELSALL_1953),
-    with_bypass(_BASE["lognormal"], equation=109, citation=KELSALL_1953),
+    with_bypass(PAPER_BY_ID["plitt"], equation=107, citation=PLITT_1976 + "; " + KELSALL_1953),
+    with_bypass(PAPER_BY_ID["lognormal"], equation=109, citation=KELSALL_1953),
     Formula(
         id="whiten",
         equation=106,
@@ -188,9 +188,9 @@ EXTENDED_FORMULAS: tuple[Formula, ...] = (
         shape_name="alpha",
         shape_bounds=(1e-3, 60.0),
         phi=whiten,
-        slope_at_cut=_lynch_slope,
+        slope_at_cut=lynch_slope,
         slope_expression="(1 - bypass)*(-alpha*exp(alpha)/(4*(exp(alpha) - 1)))",
-        shape_for_slope=_lynch_shape_for_slope,
+        shape_for_slope=lynch_shape_for_slope,
         citation=NAPIER_MUNN_1996 + " (Whiten's efficiency curve with the fish-hook term)",
         notes="Reduces to Lynch (6) with kl = alpha without bypass and fish-hook; may exceed 1 for a large "
         "fish-hook with little bypass. b_star keeps phi(1) = (1 - bypass)/2 (whiten_beta_star); the slope "

@@ -6,8 +6,8 @@ import numpy as np
 import scipy
 
 from ..parameters import Parameter
-from .extended import _BASE, BYPASS, NAPIER_MUNN_1996, PLITT_1976, with_bypass
-from .records import Formula, _as_array
+from .extended import BYPASS, NAPIER_MUNN_1996, PAPER_BY_ID, PLITT_1976, with_bypass
+from .records import Formula, as_array
 
 LN3 = np.log(3.0)
 DYSSOL_2020 = (
@@ -67,7 +67,7 @@ def normal_linear(x, sigma_rel):
     >>> round(float(normal_linear(1.2, 0.2)), 6)  # one sigma above the cut: 1 - Phi(1)
     0.158655
     """
-    x = _as_array(x)
+    x = as_array(x)
     return 0.5 * scipy.special.erfc((x - 1.0) / (np.sqrt(2.0) * sigma_rel))
 
 
@@ -111,7 +111,7 @@ def logistic_linear(x, imperfection):
     >>> round(float(logistic_linear(1.1, 0.1)), 6)  # d75: a quarter to the fines
     0.25
     """
-    x = _as_array(x)
+    x = as_array(x)
     return scipy.special.expit(-LN3 * (x - 1.0) / imperfection)
 
 
@@ -160,7 +160,7 @@ def teipel_hennig(x, k, *, th_alpha=1.0, bypass=0.0):
     >>> round(float(teipel_hennig(2.0, 4.0, th_alpha=2.0)), 6)
     0.090553
     """
-    x = _as_array(x)
+    x = as_array(x)
     exponent = k * (x + th_alpha) / (1.0 + th_alpha)
     with np.errstate(over="ignore", divide="ignore"):
         return (1.0 - bypass) / np.sqrt(1.0 + 3.0 * np.power(x, exponent))
@@ -222,6 +222,6 @@ OTHER_FORMULAS: tuple[Formula, ...] = (
     ),
     # Plitt's (1976) hydrocyclone curve: the Rosin-Rammler form with bypass, as simulators write "Plitt".
     with_bypass(
-        _BASE["rosin_rammler"], equation=105, citation=PLITT_1976 + " (corrected efficiency with bypass Rf)", family="other"
+        PAPER_BY_ID["rosin_rammler"], equation=105, citation=PLITT_1976 + " (corrected efficiency with bypass Rf)", family="other"
     ),
 )

@@ -16,7 +16,7 @@ from functools import lru_cache
 import numpy as np
 import scipy  # scipy.special and scipy.optimize load when first used: tromplab export needs neither
 
-from .records import LN2, SHUVALOV_2018, Formula, MovingBreak, _as_array, _log
+from .records import LN2, SHUVALOV_2018, Formula, MovingBreak, as_array, safe_log
 
 
 # --- (3) Molerus -----------------------------------------------------------------------
@@ -57,7 +57,7 @@ def molerus(x, km1):
     >>> round(float(molerus(1.5, 4.0)), 10)
     0.0066928509
     """
-    x = _as_array(x)
+    x = as_array(x)
     return scipy.special.expit(km1 * (1.0 - x * x))
 
 
@@ -100,8 +100,8 @@ def molerus_hoffmann(x, km2):
     >>> round(float(molerus_hoffmann(1.5, 2.0)), 10)
     0.0351981161
     """
-    x = _as_array(x)
-    return scipy.special.expit(km2 * (1.0 - x * x) - 2.0 * _log(x))
+    x = as_array(x)
+    return scipy.special.expit(km2 * (1.0 - x * x) - 2.0 * safe_log(x))
 
 
 # --- (5) Rosin-Rammler form ------------------------------------------------------------
@@ -141,11 +141,11 @@ def rosin_rammler(x, kr):
     >>> round(float(rosin_rammler(1.5, 3.0)), 10)
     0.0963881766
     """
-    x = _as_array(x)
+    x = as_array(x)
     return np.exp(-LN2 * np.power(x, kr))
 
 
-def _rosin_rammler_area(lower, upper, kr):
+def rosin_rammler_area(lower, upper, kr):
     """Integral of the Rosin-Rammler form from ``lower`` to ``upper`` (closed form)."""
     a = 1.0 / kr
     scale = scipy.special.gamma(a) * LN2 ** (-a) / kr
@@ -153,7 +153,7 @@ def _rosin_rammler_area(lower, upper, kr):
 
 
 def _rosin_rammler_efficiency(kr, x_max):
-    return _rosin_rammler_area(0.0, 1.0, kr), _rosin_rammler_area(1.0, np.maximum(x_max, 1.0), kr)
+    return rosin_rammler_area(0.0, 1.0, kr), rosin_rammler_area(1.0, np.maximum(x_max, 1.0), kr)
 
 
 # --- (6) Lynch -------------------------------------------------------------------------
@@ -199,14 +199,14 @@ def lynch(x, kl):
     >>> round(float(lynch(1.5, 3.0)), 10)
     0.1765501004
     """
-    x = _as_array(x)
+    x = as_array(x)
     with np.errstate(over="ignore"):
         grow = np.expm1(kl * (x - 1.0))
     passed = -np.expm1(-kl)  # 1 - e^-kl
     return passed / (grow + 2.0 * passed)
 
 
-def _lynch_at(x: float, kl: float) -> float:
+def lynch_at(x: float, kl: float) -> float:
     """:func:`lynch` at one relative size, with the math module: the same expression, a tenth
     of numpy's cost on a scalar (Whiten's ``beta*`` root evaluates it once per step)."""
     passed = -math.expm1(-kl)
@@ -216,7 +216,7 @@ def _lynch_at(x: float, kl: float) -> float:
         return 0.0
 
 
-def _lynch_slope(kl):
+def lynch_slope(kl):
     return -kl / (4.0 * -np.expm1(-kl))
 
 
@@ -257,8 +257,8 @@ def plitt(x, ks):
     >>> round(float(plitt(1.5, 3.0)), 10)
     0.2285714286
     """
-    x = _as_array(x)
-    return scipy.special.expit(-ks * _log(x))
+    x = as_array(x)
+    return scipy.special.expit(-ks * safe_log(x))
 
 
 #: Above this ``ks ln x`` the power ``x^ks`` of Plitt's area nears the floating-point limit
@@ -266,7 +266,7 @@ def plitt(x, ks):
 _PLITT_FAR = 600.0
 
 
-def _plitt_efficiency(ks, x_max):
+def plitt_efficiency(ks, x_max):
     a = 1.0 / ks
 
     def area_to(upper):
@@ -327,8 +327,8 @@ def ogawa_allen(x, kp):
     >>> round(float(ogawa_allen(1.5, 2.0)), 10)
     0.1969503133
     """
-    x = _as_array(x)
-    return scipy.special.expit(kp * (1.0 - x) - _log(x))
+    x = as_array(x)
+    return scipy.special.expit(kp * (1.0 - x) - safe_log(x))
 
 
 # --- (9) log-normal --------------------------------------------------------------------
@@ -369,8 +369,8 @@ def lognormal(x, kf):
     >>> round(float(lognormal(1.5, 0.8)), 10)
     0.2367586858
     """
-    x = _as_array(x)
-    return 0.5 * scipy.special.erfc(_log(x) / kf)
+    x = as_array(x)
+    return 0.5 * scipy.special.erfc(safe_log(x) / kf)
 
 
 def _lognormal_efficiency(kf, x_max):
@@ -423,18 +423,18 @@ def _lognormal_efficiency(kf, x_max):
 # --- (10), (11) Rosin-Rammler with a flat fines plateau ---------------------------------
 def rosin_rammler_plateau(x, kr, x_break):
     r"""Rosin-Rammler form above ``x_break``, constant :math:`\varphi(x_b)` below it."""
-    x = _as_array(x)
+    x = as_array(x)
     return rosin_rammler(np.maximum(x, x_break), kr)
 
 
 def _plateau_efficiency(kr, x_max, x_break):
-    return _plateau_eta(kr, x_break), _rosin_rammler_area(1.0, np.maximum(x_max, 1.0), kr)
+    return _plateau_eta(kr, x_break), rosin_rammler_area(1.0, np.maximum(x_max, 1.0), kr)
 
 
 def _plateau_eta(kr, x_break):
     """eta of the plateau form: the plateau's rectangle and the Rosin-Rammler area from the break to 1."""
     plateau = x_break * rosin_rammler(x_break, kr)
-    return (plateau + _rosin_rammler_area(x_break, 1.0, kr))[()]
+    return (plateau + rosin_rammler_area(x_break, 1.0, kr))[()]
 
 
 LUCKIE_AUSTIN_BREAK = 0.5
@@ -494,7 +494,7 @@ def shuvalov_break(kr: float, measured_efficiency: float) -> float:
     NoBreakPointError
         When ``measured_efficiency`` is outside ``[0.5, eta_5(kr)]``.
     """
-    eta_plain = _rosin_rammler_area(0.0, 1.0, kr)  # eta of the plain form (5)
+    eta_plain = rosin_rammler_area(0.0, 1.0, kr)  # eta of the plain form (5)
     if not 0.5 <= measured_efficiency <= eta_plain:
         raise NoBreakPointError(kr, measured_efficiency, eta_plain)
     if measured_efficiency == eta_plain:
@@ -606,8 +606,8 @@ def shuvalov_breaks(kr, efficiency) -> np.ndarray:
     True
     """
     kr, efficiency = np.broadcast_arrays(np.asarray(kr, dtype=float), np.asarray(efficiency, dtype=float))
-    # _rosin_rammler_area(x, 1, k) = scale * (whole - gammainc(1/k, ln2 x^k)): the parts without x
-    # once, and eta_5 = _rosin_rammler_area(0, 1, k) = scale * whole (gammainc(a, 0) = 0)
+    # rosin_rammler_area(x, 1, k) = scale * (whole - gammainc(1/k, ln2 x^k)): the parts without x
+    # once, and eta_5 = rosin_rammler_area(0, 1, k) = scale * whole (gammainc(a, 0) = 0)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         a = 1.0 / kr
         scale = scipy.special.gamma(a) * LN2 ** (-a) / kr
@@ -653,7 +653,7 @@ def shuvalov_kink(efficiency, bounds) -> np.ndarray:
     low, high = np.full(efficiency.shape, np.log(bounds[0])), np.full(efficiency.shape, np.log(bounds[1]))
     for _ in range(60):  # eta_5 rises with kr from 1/2 towards 1
         middle = 0.5 * (low + high)
-        above = _rosin_rammler_area(0.0, 1.0, np.exp(middle)) > efficiency
+        above = rosin_rammler_area(0.0, 1.0, np.exp(middle)) > efficiency
         low, high = np.where(above, low, middle), np.where(above, middle, high)
     return np.exp(0.5 * (low + high))
 
@@ -672,17 +672,17 @@ SHUVALOV_BREAK = MovingBreak(
 _LYNCH_START_SHAPES = (1e-9, 800.0)
 
 
-def _lynch_shape_for_slope(s):
+def lynch_shape_for_slope(s):
     low, high = _LYNCH_START_SHAPES
     target = -s
     # compared with the slopes at the ends themselves, not with their limits: a measured slope
     # of -0.25000000000000006 (a size-unit rounding) lay beyond the slope at 1e-9, so the root
     # was not bracketed and the whole fit failed in one unit only
-    if target <= -_lynch_slope(low):
+    if target <= -lynch_slope(low):
         return 1e-6
-    if target >= -_lynch_slope(high):
+    if target >= -lynch_slope(high):
         return high
-    return scipy.optimize.brentq(lambda kl: -_lynch_slope(kl) - target, low, high, xtol=1e-14)
+    return scipy.optimize.brentq(lambda kl: -lynch_slope(kl) - target, low, high, xtol=1e-14)
 
 
 def _rosin_rammler_shape_for_slope(s):
@@ -815,9 +815,9 @@ _PAPER_BASES: tuple[Formula, ...] = (
         shape_name="kl",
         shape_bounds=(1e-6, 120.0),
         phi=lynch,
-        slope_at_cut=_lynch_slope,
+        slope_at_cut=lynch_slope,
         slope_expression="-kl*exp(kl)/(4*(exp(kl) - 1))",
-        shape_for_slope=_lynch_shape_for_slope,
+        shape_for_slope=lynch_shape_for_slope,
         citation=_in(LYNCH_RAO_1975, 6),
         notes="The slope at the cut is never shallower than -1/4 (kl -> 0 is Plitt with ks = 1).",
         shape_meaning="sharpness of the cut (alpha of Whiten's curve); kl -> 0 gives Plitt's ks = 1",
@@ -834,7 +834,7 @@ _PAPER_BASES: tuple[Formula, ...] = (
         slope_expression="-ks/4",
         shape_for_slope=lambda s: -4.0 * s,
         citation=_in(PLITT_1971, 7),
-        efficiency=_plitt_efficiency,
+        efficiency=plitt_efficiency,
         shape_meaning="sharpness of the cut: the log-logistic slope, larger ks steeper",
     ),
     Formula(

@@ -187,19 +187,19 @@ class Formula:
         return (d_cut_parameter(sizes), self.shape_parameter, *self.extras)
 
 
-def _as_array(x) -> np.ndarray:
+def as_array(x) -> np.ndarray:
     return np.asarray(x, dtype=float)
 
 
-def _log(x: np.ndarray) -> np.ndarray:
+def safe_log(x: np.ndarray) -> np.ndarray:
     with np.errstate(divide="ignore"):
         return np.log(x)
 
 
 #: The registry by id, filled by :mod:`tromplab.curves.formulas` once every formula is declared.
-_BY_ID: dict[str, Formula] = {}
+FORMULAS_BY_ID: dict[str, Formula] = {}
 
 
 def _registered(formula_id: str) -> Formula:
-    # what a pickled record turns back into: importing this module runs the package first, which fills _BY_ID
-    return _BY_ID[formula_id]
+    # what a pickled record turns back into: importing this module runs the package first, which fills FORMULAS_BY_ID
+    return FORMULAS_BY_ID[formula_id]
