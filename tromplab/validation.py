@@ -273,7 +273,7 @@ def range_text(check: Callable, **kwargs) -> str:
     return fixed[check]
 
 
-def _parsed_text(text: str) -> int | float:
+def _parsed_text(text: str) -> int | float | str:
     """The number a command-line text spells (an integer where it is one), else the text."""
     for convert in (int, float):
         try:
@@ -297,7 +297,7 @@ def cli_type(check: Callable, option: str, **kwargs) -> Callable[[str], object]:
             raise argparse.ArgumentTypeError(error.reason) from None
 
     parse.__name__ = check.__name__.removeprefix("check_")  # argparse names the type in some messages
-    parse.range = range_text(check, **kwargs)
+    parse.range = range_text(check, **kwargs)  # type: ignore[attr-defined]  # read by state_ranges
     return parse
 
 
@@ -308,8 +308,8 @@ def state_ranges(parser: argparse.ArgumentParser) -> None:
         if isinstance(action, argparse._SubParsersAction):
             for sub in action.choices.values():
                 state_ranges(sub)
-        elif action.help and getattr(action.type, "range", None) and action.type.range not in action.help:
-            action.help = f"{action.help} (range {action.type.range.replace('%', '%%')})"  # argparse formats help with %
+        elif action.help and (stated := getattr(action.type, "range", None)) and stated not in action.help:
+            action.help = f"{action.help} (range {stated.replace('%', '%%')})"  # argparse formats help with %
 
 
 # --- circuit surveys: ranges of the error model of tromplab.circuit ----------------------

@@ -125,10 +125,10 @@ def fit_separators(
     """
     from ..workbench import fit_experiments
 
-    options = {} if alpha is None else {"alpha": alpha}
-    return fit_experiments(
-        balance.to_points(weighting=weighting), formulas=formulas, size_unit=balance.survey.size_unit, **options
-    )
+    points, unit = balance.to_points(weighting=weighting), balance.survey.size_unit
+    if alpha is None:  # fit_experiments' default
+        return fit_experiments(points, formulas=formulas, size_unit=unit)
+    return fit_experiments(points, formulas=formulas, size_unit=unit, alpha=alpha)
 
 
 def reconcile_circuit(

@@ -35,7 +35,7 @@ def figure_size(balance, kind: str) -> tuple[float, float]:
     return (8.0, 5.0)
 
 
-def _axes(ax, size):
+def prepared_axes(ax, size):
     """``ax``, or the axes of a new pyplot figure (interactive use, as the library's other figures)."""
     if ax is not None:
         return ax
@@ -123,7 +123,7 @@ def plot_flowsheet(balance, ax=None, *, flow_unit: str = ""):
     ``stream`` (arrows) or ``label``.
     """
     flowsheet = balance if isinstance(balance, Flowsheet) else balance.flowsheet
-    ax = _axes(ax, figure_size(balance, "flowsheet"))
+    ax = prepared_axes(ax, figure_size(balance, "flowsheet"))
     positions = _layout(flowsheet)
     boxes = {}
     for node in flowsheet.nodes:
@@ -270,7 +270,7 @@ def plot_adjustments(balance, ax=None):
     adjustments, in its standard deviations, with the sign of reconciled - measured), with its
     critical value; suspects in red."""
     table = balance.adjustments_table()
-    ax = _axes(ax, figure_size(balance, "adjustments"))
+    ax = prepared_axes(ax, figure_size(balance, "adjustments"))
     position = np.arange(len(table))[::-1]
     values = table["measurement_test"].to_numpy(dtype=float)
     colours = np.where(table["suspect"].to_numpy(dtype=bool), "#c0392b", "#336699")
@@ -291,7 +291,7 @@ def plot_adjustments(balance, ax=None):
 def plot_distributions(balance, ax=None):
     """Measured (points with +/- 2 sd bars) and reconciled (lines) size distributions of every
     stream: share of the stream per class against the representative size."""
-    ax = _axes(ax, figure_size(balance, "distributions"))
+    ax = prepared_axes(ax, figure_size(balance, "distributions"))
     table = balance.distributions_table()
     unit = balance.survey.size_unit
     for k, (stream, part) in enumerate(table.groupby("stream", sort=False)):

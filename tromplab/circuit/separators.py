@@ -204,9 +204,9 @@ def components_table(balance) -> pd.DataFrame:
 def plot_partitions(balance, ax=None):
     """The reconciled partition curves (to the fine product, +/- 2 sd) of every separator: one
     curve for the whole solids and one per assayed component, the used classes only."""
-    from .plotting import _axes, figure_size
+    from .plotting import figure_size, prepared_axes
 
-    ax = _axes(ax, figure_size(balance, "partition"))
+    ax = prepared_axes(ax, figure_size(balance, "partition"))
     table = balance.partition_table()
     table["curve"] = curve_names(table)
     table = table[table["used"].astype(bool)]

@@ -28,7 +28,7 @@ import math
 import numpy as np
 import pandas as pd
 
-from .fitting import DensityCurveFit, _data, _hessian, _index_model, _index_vector, _objective_of, _on_bound
+from .fitting import DensityCurveFit, fit_data, index_model, index_vector, numerical_hessian, objective_of, on_bound
 from .joint import JOINT_METHOD
 
 #: The parameters whose covariance ``covariance.csv`` gives, in order.
@@ -49,12 +49,12 @@ def index_covariance(fit: DensityCurveFit) -> np.ndarray | None:
 
 
 def _profile_covariance(fit: DensityCurveFit) -> np.ndarray | None:
-    vector, _ = _index_vector(fit.curve, fit.params, fit.indices, "ep")
-    model = _index_model(fit.curve, "ep")
+    vector, _ = index_vector(fit.curve, fit.params, fit.indices, "ep")
+    model = index_model(fit.curve, "ep")
     names = ["rho50", "ep", "light_limit", "heavy_limit"][: vector.size]
-    free = [i for i, name in enumerate(names) if i < 2 or not _on_bound(fit.curve, name, vector[i])]
-    data = _data(fit.sample, fit.method)
-    objective = _objective_of(data)
+    free = [i for i, name in enumerate(names) if i < 2 or not on_bound(fit.curve, name, vector[i])]
+    data = fit_data(fit.sample, fit.method)
+    objective = objective_of(data)
 
     def value(moved):
         q = vector.copy()
@@ -62,7 +62,7 @@ def _profile_covariance(fit: DensityCurveFit) -> np.ndarray | None:
         return objective(fit.curve.partition(data.density, **model(q)))
 
     start = vector[free]
-    hessian = _hessian(value, start, 1e-4 * np.maximum(np.abs(start), 1e-2))
+    hessian = numerical_hessian(value, start, 1e-4 * np.maximum(np.abs(start), 1e-2))
     scale = (fit.dispersion if fit.overdispersed else 1.0) if data.binomial else fit.dispersion
     try:
         covariance = 2.0 * scale * np.linalg.inv(hessian)

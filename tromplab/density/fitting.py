@@ -184,7 +184,7 @@ class _Data:
         return self.trials is not None
 
 
-def _data(sample: DensitySample, method: str) -> _Data:
+def fit_data(sample: DensitySample, method: str) -> _Data:
     used = sample.used
     density, share = used["density"].to_numpy(float), used["partition_sinks"].to_numpy(float)
     if sample.layout == "tracers":
@@ -195,7 +195,7 @@ def _data(sample: DensitySample, method: str) -> _Data:
     return _Data(density, share, None, None, weight / weight.mean())
 
 
-def _objective_of(data: _Data) -> Callable[[np.ndarray], float]:
+def objective_of(data: _Data) -> Callable[[np.ndarray], float]:
     """Deviance (binomial) or weighted sum of squares of a vector of fitted partitions."""
     if data.binomial:
         k, n = data.sinks, data.trials
@@ -364,7 +364,7 @@ def _statistics(curve: DensityCurve, data: _Data, params: dict, objective: float
 
 
 # --- profile-likelihood intervals -----------------------------------------------------------
-def _index_model(curve: DensityCurve, quantity: str) -> Callable[[np.ndarray], dict]:
+def index_model(curve: DensityCurve, quantity: str) -> Callable[[np.ndarray], dict]:
     """Parameters of the curve from the vector ``(rho50, ep or imperfection[, light, heavy])``."""
 
     def params(q):
@@ -376,7 +376,7 @@ def _index_model(curve: DensityCurve, quantity: str) -> Callable[[np.ndarray], d
     return params
 
 
-def _index_vector(curve: DensityCurve, fit_params: dict, indices: DensityIndices, quantity: str) -> tuple[np.ndarray, list]:
+def index_vector(curve: DensityCurve, fit_params: dict, indices: DensityIndices, quantity: str) -> tuple[np.ndarray, list]:
     second = indices.imperfection if quantity == "imperfection" else indices.ep
     name = "imperfection" if quantity == "imperfection" else "ep"
     vector = [indices.rho50, second]
@@ -416,10 +416,10 @@ def profile_interval(fit: DensityCurveFit, quantity: str, ci: float) -> tuple[fl
         ``(low, high, note)``; a limit the profile does not reach within the search range is
         NaN and ``note`` says so.
     """
-    data = _data(fit.sample, fit.method)
-    objective = _objective_of(data)
-    model = _index_model(fit.curve, quantity)
-    centre, bounds = _index_vector(fit.curve, fit.params, fit.indices, quantity)
+    data = fit_data(fit.sample, fit.method)
+    objective = objective_of(data)
+    model = index_model(fit.curve, quantity)
+    centre, bounds = index_vector(fit.curve, fit.params, fit.indices, quantity)
     position = 0 if quantity == "rho50" else 1
     if data.binomial:
         return _binomial_profiles([(fit, quantity, data)], ci)[0]
@@ -486,7 +486,7 @@ def binomial_profile_limits(fit: DensityCurveFit, quantity: str, scale: float, t
     """``(low, high)`` where the rise of ``quantity``'s profile deviance over the minimum, divided by
     ``scale``, reaches ``threshold``: the profile interval of a binomial fit under another rule
     than :mod:`tromplab.density.dispersion`'s (the simulation studies compare rules with it)."""
-    data = _data(fit.sample, fit.method)
+    data = fit_data(fit.sample, fit.method)
     requests = dataclasses.replace(_profile_requests([(fit, quantity, data)], 0.95), scale=np.array([scale], dtype=float),
                                    threshold=np.array([threshold], dtype=float))  # fmt: skip
     low, high, _ = profile_limits(fit.curve, requests)
@@ -495,7 +495,7 @@ def binomial_profile_limits(fit: DensityCurveFit, quantity: str, scale: float, t
 
 def _profile_requests(chosen: list, ci: float) -> ProfileRequests:
     """The profiles of ``(fit, quantity, data)`` of one curve as stacked arrays."""
-    vectors = [_index_vector(fit.curve, fit.params, fit.indices, quantity) for fit, quantity, _ in chosen]
+    vectors = [index_vector(fit.curve, fit.params, fit.indices, quantity) for fit, quantity, _ in chosen]
     bounds = np.array([limits for _, limits in vectors], dtype=float)
     return ProfileRequests(
         stack=TracerStack.of([(data.density, data.sinks, data.trials) for _, _, data in chosen]),
@@ -610,7 +610,7 @@ def _open(sample: DensitySample, curve: DensityCurve, method: str | None, read: 
     joint = method is None and has_three_analyses(sample)
     method = method or ("binomial" if sample.layout == "tracers" else "least_squares")
     if method not in read:
-        read[method] = _data(sample, method)
+        read[method] = fit_data(sample, method)
     data = read[method]
     failed = {"sample": sample, "curve": curve, "method": method, "success": False}
     if data.density.size <= curve.n_params - (0 if data.binomial else 1):
@@ -642,7 +642,7 @@ def _finished(sample: DensitySample, curve: DensityCurve, opened: _Opened, param
     if isinstance(params, str):
         return DensityCurveFit(**failed, message=params)
     data = opened.data
-    value = _objective_of(data)(curve.partition(data.density, **params))
+    value = objective_of(data)(curve.partition(data.density, **params))
     if not np.isfinite(value):
         return DensityCurveFit(**failed, message="the optimiser found no curve with a finite likelihood")
     indices = curve.indices(**params)
@@ -864,16 +864,16 @@ def partition_band(fit: DensityCurveFit, rho, *, level: float = 0.95) -> tuple[n
     centre = fit.partition(rho)
     if fit.method == JOINT_METHOD:
         return _band(fit, rho, centre, list(fit.raw.free), fit.raw.covariance, level)
-    names = [name for name in fit.curve.parameter_names if not _on_bound(fit.curve, name, fit.params[name])]
-    data = _data(fit.sample, fit.method)
-    objective = _objective_of(data)
+    names = [name for name in fit.curve.parameter_names if not on_bound(fit.curve, name, fit.params[name])]
+    data = fit_data(fit.sample, fit.method)
+    objective = objective_of(data)
     values = np.array([fit.params[name] for name in names])
     steps = 1e-4 * np.maximum(np.abs(values), 1e-2)
 
     def at(vector, where):
         return fit.curve.partition(where, **{**fit.params, **dict(zip(names, vector))})
 
-    hessian = _hessian(lambda vector: objective(at(vector, data.density)), values, steps)
+    hessian = numerical_hessian(lambda vector: objective(at(vector, data.density)), values, steps)
     scale = profile_scale(fit, binomial=data.binomial)
     quantile = math.sqrt(profile_threshold(fit, level, binomial=True)) if data.binomial else None  # None: the normal's
     try:
@@ -904,12 +904,12 @@ def _band(fit: DensityCurveFit, rho, centre, names: list, covariance: np.ndarray
     return np.clip(centre - half, 0, 1), np.clip(centre + half, 0, 1)
 
 
-def _on_bound(curve: DensityCurve, name: str, value: float) -> bool:
+def on_bound(curve: DensityCurve, name: str, value: float) -> bool:
     parameter = next(p for p in curve.parameters if p.name == name)
     return name in ("light_limit", "heavy_limit") and min(abs(value - parameter.lower), abs(value - parameter.upper)) < 1e-6
 
 
-def _hessian(function, x: np.ndarray, steps: np.ndarray) -> np.ndarray:
+def numerical_hessian(function, x: np.ndarray, steps: np.ndarray) -> np.ndarray:
     size = x.size
     hessian = np.empty((size, size))
     unit = np.eye(size)

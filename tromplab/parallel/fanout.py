@@ -160,7 +160,7 @@ def _in_order(submit, chunks, ahead: int):
     """The results of ``submit(chunk)`` for each chunk in order, with at most ``ahead``
     chunks submitted and not yet returned; each future is released once its result is
     taken (a Dask worker forgets it then, not at the end)."""
-    pending = collections.deque()
+    pending: collections.deque = collections.deque()
     for chunk in chunks:
         pending.append(submit(chunk))
         if len(pending) >= ahead:

@@ -22,7 +22,7 @@ from ..validation import check_count, check_optional, check_percent, check_proba
 from .draws import DEFAULT_DRAWS, MAX_DRAWS, parameter_draws
 from .inputs import read_plant
 from .optimization import CHANCE_STEPS, Blend, CutResponse, chance_constrained_cuts, cut_bounds, optimal_cuts
-from .prediction import DEFAULT_CI, TOTAL, PlantPrediction, _devices_from, _fractions, predict
+from .prediction import DEFAULT_CI, TOTAL, PlantPrediction, devices_from, predict, read_fractions
 
 #: The columns of ``cuts.csv``.
 CUT_COLUMNS = ("size_fraction", "device", "feed_pct", "rho50", "ep", "bound", "clean_yield_pct", "clean_ash_pct",
@@ -139,8 +139,8 @@ def optimize(
     seed = check_seed(seed, "seed")
     if (plant is None) == (curves_from is None):
         raise OptionError("plant", "or curves_from: give exactly one of them")
-    fractions = _fractions(washability, sum_tolerance_pct, float_lower_density, sink_upper_density)
-    devices = read_plant(plant, fractions) if plant is not None else _devices_from(curves_from, fractions)
+    fractions = read_fractions(washability, sum_tolerance_pct, float_lower_density, sink_upper_density)
+    devices = read_plant(plant, fractions) if plant is not None else devices_from(curves_from, fractions)
     if confidence is not None and not (draws and any(device.uncertain for device in devices)):
         raise OptionError("confidence", "needs curves with standard deviations or a covariance, and draws > 0")
     blend = Blend(_responses(fractions, devices, draws if confidence is not None else 0, seed), _shares(fractions))

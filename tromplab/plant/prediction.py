@@ -197,8 +197,8 @@ def predict(
     seed = check_seed(seed, "seed")
     if (plant is None) == (curves_from is None):
         raise OptionError("plant", "or curves_from: give exactly one of them")
-    fractions = _fractions(washability, sum_tolerance_pct, float_lower_density, sink_upper_density)
-    devices = read_plant(plant, fractions) if plant is not None else _devices_from(curves_from, fractions)
+    fractions = read_fractions(washability, sum_tolerance_pct, float_lower_density, sink_upper_density)
+    devices = read_plant(plant, fractions) if plant is not None else devices_from(curves_from, fractions)
     uncertain = any(device.uncertain for device in devices)
     used = draws if uncertain else 0
     parameters = parameter_draws(devices, used, seed)
@@ -219,14 +219,14 @@ def predict(
     return PlantPrediction(fractions, devices, pd.DataFrame(rows), ci, used, seed, tuple(notes), qualities)
 
 
-def _fractions(washability, tolerance, float_lower, sink_upper) -> list[SizeFraction]:
+def read_fractions(washability, tolerance, float_lower, sink_upper) -> list[SizeFraction]:
     if isinstance(washability, list | tuple) and all(isinstance(item, SizeFraction) for item in washability):
         return list(washability)
     return read_plant_washability(washability, sum_tolerance_pct=tolerance, float_lower_density=float_lower,
                                   sink_upper_density=sink_upper)  # fmt: skip
 
 
-def _devices_from(curves_from, fractions: list[SizeFraction]) -> list[Device]:
+def devices_from(curves_from, fractions: list[SizeFraction]) -> list[Device]:
     if isinstance(curves_from, list | tuple) and all(isinstance(item, Device) for item in curves_from):
         names = [device.size_fraction for device in curves_from]
         if names != [fraction.name for fraction in fractions]:
