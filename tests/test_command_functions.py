@@ -100,3 +100,17 @@ def test_a_function_s_keywords_are_its_command_s_options(command):
     function, beside = FUNCTIONS[command]
     keywords = set(inspect.signature(function).parameters) - beside
     assert keywords and keywords <= dests, f"keywords that are not options of tromplab {' '.join(command)}: {keywords - dests}"
+
+
+@pytest.mark.slow
+def test_density_fit_on_a_local_dask_cluster_makes_the_fits_of_one_process(tmp_path, monkeypatch):
+    pytest.importorskip("distributed", reason="the dask extra (pip install 'tromplab[dask]') is not installed")
+    from tromplab.density import results
+
+    monkeypatch.setattr(results, "TESTS_PER_UNIT", 2)  # the four size fractions in two units
+    alone = tromplab.fit_density(TRACERS, ci=0.9, curves="plain")
+    on_dask = tromplab.fit_density(TRACERS, ci=0.9, curves="plain", dask="local")
+    assert alone.fits_table().to_csv() == on_dask.fits_table().to_csv()
+    alone.save(tmp_path / "alone", figures="none")
+    on_dask.save(tmp_path / "dask", figures="none")
+    assert digests(tmp_path / "alone", text_only=True) == digests(tmp_path / "dask", text_only=True)

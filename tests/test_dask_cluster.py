@@ -60,13 +60,13 @@ def test_fit_on_a_cluster_of_separate_processes_writes_what_one_process_writes(t
     frames = [synthetic(seed, weighted=False).to_frame() for seed in range(70)]  # two chunks of 64 experiments
     import pandas as pd
 
-    from tromplab.workbench import stream
+    from tromplab.parallel import streaming
 
     pd.concat(frames, ignore_index=True).to_csv(points, index=False)
     options = ["--figures", "none", "--ci", "0.9", "--formulas", "plitt,lognormal,shuvalov", "-q"]
     assert main(["fit", str(points), "-o", str(tmp_path / "local"), "--jobs", "1", *options]) == 0
     assert main(["fit", str(points), "-o", str(tmp_path / "cluster"), "--scheduler", cluster, *options]) == 0
-    monkeypatch.setattr(stream, "STREAM_THRESHOLD", 10)  # the results stream to disk from 10 experiments
+    monkeypatch.setattr(streaming, "STREAM_THRESHOLD", 10)  # the results stream to disk from 10 experiments
     with caplog.at_level("INFO", logger="tromplab.workbench"):
         assert main(["fit", str(points), "-o", str(tmp_path / "streamed"), "--scheduler", cluster, *options]) == 0
     assert "streamed to" in caplog.text and "workers write the files" in caplog.text

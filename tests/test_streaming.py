@@ -17,6 +17,7 @@ from tromplab.cli import main
 from tromplab.loading.lab import LabOptions, read_experiments
 from tromplab.loading.tables import read_table
 from tromplab.parallel import fanout as fanout_module
+from tromplab.parallel import streaming as streaming_module
 from tromplab.workbench import ExperimentsInPieces, FitsInMemory, FitsOnDisk, fit_to_folder
 from tromplab.workbench import stream as stream_module
 
@@ -145,7 +146,7 @@ def test_the_command_line_streams_a_large_batch_with_the_same_files_and_console(
     options = ["--formulas", FORMULAS, "--jobs", "2", "--ci", "0.9"]
     assert main(["fit", str(points), "-o", str(tmp_path / "memory"), *options]) == 0
     kept = capsys.readouterr()
-    monkeypatch.setattr(stream_module, "STREAM_THRESHOLD", 10)
+    monkeypatch.setattr(streaming_module, "STREAM_THRESHOLD", 10)
     assert main(["fit", str(points), "-o", str(tmp_path / "streamed"), *options]) == 0
     streamed = capsys.readouterr()
     assert _same_folders(tmp_path / "memory", tmp_path / "streamed") == []
@@ -308,8 +309,8 @@ def test_the_command_line_reads_a_large_csv_in_pieces_with_the_same_files_and_co
     options += ["--formulas", FORMULAS, "--jobs", "2", "--no-figures"]
     assert main(["fit", str(path), "-o", str(tmp_path / "memory"), *options]) in (0, 3)
     kept = capsys.readouterr()
-    monkeypatch.setattr(fit_command, "IN_PIECES_FROM_BYTES", 0)
-    monkeypatch.setattr(stream_module, "STREAM_THRESHOLD", 10)
+    monkeypatch.setattr(streaming_module, "IN_PIECES_FROM_BYTES", 0)
+    monkeypatch.setattr(streaming_module, "STREAM_THRESHOLD", 10)
     read = []
     monkeypatch.setattr(ExperimentsInPieces, "census", _recording(ExperimentsInPieces.census, read))
     assert main(["fit", str(path), "-o", str(tmp_path / "streamed"), *options]) in (0, 3)
@@ -347,8 +348,8 @@ def test_a_bad_row_deep_in_a_file_read_in_pieces_is_exit_1_with_nothing_written_
     args = ["fit", str(path), "--formulas", FORMULAS, "--jobs", "2", "--no-figures", *options]
     assert main([*args, "-o", str(tmp_path / "whole")]) == 1
     whole = capsys.readouterr()
-    monkeypatch.setattr(fit_command, "IN_PIECES_FROM_BYTES", 0)
-    monkeypatch.setattr(stream_module, "STREAM_THRESHOLD", 10)
+    monkeypatch.setattr(streaming_module, "IN_PIECES_FROM_BYTES", 0)
+    monkeypatch.setattr(streaming_module, "STREAM_THRESHOLD", 10)
     fitted = []
     monkeypatch.setattr(stream_module, "_streamed_batch", lambda *a: fitted.append(a))
     assert main([*args, "-o", str(tmp_path / "pieces")]) == 1
@@ -437,9 +438,9 @@ def test_the_command_line_reads_in_pieces_only_a_large_csv_whose_results_can_str
     path = tmp_path / f"input{suffix}"
     path.write_bytes(b"x" * 64)
     args = build_parser().parse_args(["fit", str(path), "-o", str(tmp_path / "out"), *options])
-    monkeypatch.setattr(fit_command, "IN_PIECES_FROM_BYTES", 64)
+    monkeypatch.setattr(streaming_module, "IN_PIECES_FROM_BYTES", 64)
     assert fit_command.reads_in_pieces(args) is expected
-    monkeypatch.setattr(fit_command, "IN_PIECES_FROM_BYTES", 65)  # below the size: read whole
+    monkeypatch.setattr(streaming_module, "IN_PIECES_FROM_BYTES", 65)  # below the size: read whole
     assert fit_command.reads_in_pieces(args) is False
 
 

@@ -16,7 +16,7 @@ from pathlib import Path
 from ..options import AUTO_FIGURE_LIMIT, FIGURE_CHOICES
 from ..output.outputs import check_output_folder
 from ..validation import check_probability, check_yield, cli_type
-from .option_groups import add_jobs_option
+from .option_groups import add_dask_options, add_jobs_option
 from .printing import print_notices
 from .startup import (  # done, and some tests without any fitted curve
     EXIT_OK,
@@ -77,6 +77,7 @@ def _add_fit(sub) -> None:
                      f"{AUTO_FIGURE_LIMIT} tests and size fractions, then one overview figure (default auto)")  # fmt: skip
     fit.add_argument("--no-figures", dest="figures", action="store_const", const="none", help="same as --figures none")
     add_jobs_option(fit)
+    add_dask_options(fit)
     fit.add_argument("--sheet", default=None, help="Excel sheet (default: the first)")
     fit.add_argument("--sep", default=None, help="CSV field separator (detected when not given)")
     fit.add_argument("--decimal", default=None, help="CSV decimal mark (detected when not given)")
@@ -90,7 +91,8 @@ def run_density_fit(args) -> int:
     check_output_folder(args.outdir, inputs=[args.file])
     with progress_bars(quiet=args.quiet, unit="test", stages=("figures",)) as progress:
         result = fit_density(args.file, ci=args.ci, curves=args.curves, method=args.method, floats_yield=args.floats_yield,
-                             sheet=args.sheet, sep=args.sep, decimal=args.decimal, jobs=args.jobs, progress=progress)  # fmt: skip
+                             sheet=args.sheet, sep=args.sep, decimal=args.decimal, jobs=args.jobs, scheduler=args.scheduler,
+                             dask=args.dask, progress=progress)  # fmt: skip
         written = result.save(args.outdir, excel=args.excel, report=args.report, figures=args.figures, progress=progress)
     print(result.report())
     print("\nWrote:")

@@ -97,27 +97,19 @@ def result_line(command: str, bench, notices, outdir) -> str:
     return f"{command}: {counted}; results in {outdir}"
 
 
-#: Size of a CSV input from which ``tromplab fit`` reads it in pieces when its results can
-#: stream (CSV tables, no workbook, figures ``auto`` or ``none``): a points file of 1 MiB holds
-#: about 2,000 experiments of 20 sizes, beyond :data:`~tromplab.workbench.STREAM_THRESHOLD`.
-#: Below it, and for a workbook, the file is read whole (reading it in pieces costs a second
-#: reading; the files and the console are the same either way).
-IN_PIECES_FROM_BYTES = 1 << 20
-
-
 def reads_in_pieces(args) -> bool:
-    """Whether ``tromplab fit`` reads its input in pieces (:data:`IN_PIECES_FROM_BYTES`)."""
+    """Whether ``tromplab fit`` reads its input in pieces: a CSV file (not a workbook's sheet)
+    whose batch will stream by the one rule of :func:`tromplab.parallel.streams`, judged from
+    the file's size before its experiments are counted (the files and the console are the same
+    either way)."""
     from ..loading.tables import EXCEL_SUFFIXES
+    from ..parallel import streams
 
     path = Path(args.input)
-    streamable = args.format == "csv" and not args.excel and args.outdir.suffix.lower() != ".xlsx"
-    streamable &= args.figures in ("auto", "none") and getattr(args, "sheet", None) is None
-    return (
-        streamable
-        and path.suffix.lower() not in EXCEL_SUFFIXES
-        and path.is_file()
-        and path.stat().st_size >= IN_PIECES_FROM_BYTES
-    )
+    if path.suffix.lower() in EXCEL_SUFFIXES or getattr(args, "sheet", None) is not None or not path.is_file():
+        return False
+    tables_only = args.format == "csv" and not args.excel and args.outdir.suffix.lower() != ".xlsx"
+    return streams(None, tables_only=tables_only, figures=args.figures, input_bytes=path.stat().st_size)
 
 
 def _print_fits(bench, args) -> None:

@@ -116,10 +116,15 @@ def add_jobs_option(group) -> None:
     )
 
 
+def add_dask_options(group) -> None:
+    """``--scheduler`` and ``--dask``: the batch on a Dask cluster (:func:`tromplab.parallel.dask_client`)."""
+    group.add_argument("--scheduler", default=None, metavar="ADDRESS", help="run on this Dask scheduler (tcp://host:8786)")
+    group.add_argument("--dask", choices=("local",), default=None, help="run on a local Dask cluster")
+
+
 def add_scale_options(scale) -> None:
     add_jobs_option(scale)
-    scale.add_argument("--scheduler", default=None, metavar="ADDRESS", help="run on this Dask scheduler (tcp://host:8786)")
-    scale.add_argument("--dask", choices=("local",), default=None, help="run on a local Dask cluster")
+    add_dask_options(scale)
     scale.add_argument(
         "--single-fits",
         action="store_true",

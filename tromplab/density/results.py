@@ -16,11 +16,7 @@ whole (:func:`tromplab.output.outputs.replace_folder`).
 
 from __future__ import annotations
 
-import concurrent.futures
-import contextlib
-import functools
 import math
-import os
 from dataclasses import dataclass, replace
 from functools import cached_property
 
@@ -31,6 +27,7 @@ from ..errors import OptionError
 from ..notices import Notice, notice_table
 from ..options import AUTO_FIGURE_LIMIT, FIGURE_CHOICES
 from ..output.csv_parts import file_writers, write_csv
+from ..parallel import dask_client, map_on_workers
 from ..results_contract import ResultContract
 from ..validation import MAX_JOBS, check_count, check_probability
 from .curves import select_density_curves
@@ -424,6 +421,9 @@ def fit_density(
     sep: str | None = None,
     decimal: str | None = None,
     jobs: int | None = 1,
+    scheduler: str | None = None,
+    dask: str | None = None,
+    client=None,
     progress=None,
 ) -> DensityResult:
     """Fit density partition curves to every test of a tracer, float-sink or partition table.
@@ -450,6 +450,11 @@ def fit_density(
         Worker processes (0 or None: all cores).  The tests are fitted in units of
         :data:`TESTS_PER_UNIT`, so a file of fewer tests than that runs in this process
         whatever ``jobs`` says (starting a worker costs more than it saves).
+    scheduler, dask, client : optional
+        Run the units on a Dask cluster: the scheduler at this address (``--scheduler``), a
+        local cluster of two workers (``dask="local"``, ``--dask local``), or this
+        ``distributed.Client``; as ``tromplab fit`` does (:func:`tromplab.parallel.dask_client`).
+        The fits are the same wherever they run.
     progress : callable, optional
         Called as ``progress(done, total, label)`` as the tests (and size fractions) are fitted.
 
@@ -481,7 +486,8 @@ def fit_density(
     if method == "binomial" and any(sample.layout != "tracers" for sample in samples):
         raise OptionError("method", "binomial needs tracer counts (density, sinks, floats); the table gives shares")
     jobs = check_count(0 if jobs is None else jobs, "jobs", minimum=0, maximum=MAX_JOBS)
-    fits = _fit_in_units(samples, chosen, ci=ci, method=method, jobs=jobs, progress=progress)
+    with dask_client(scheduler=scheduler, dask=dask, client=client) as cluster:
+        fits = _fit_in_units(samples, chosen, ci=ci, method=method, jobs=jobs, client=cluster, progress=progress)
     return DensityResult(samples, fits, ci, method)
 
 
@@ -490,32 +496,36 @@ def fit_density(
 TESTS_PER_UNIT = 128
 
 
-def _fit_in_units(samples: list, curves, *, ci, method, jobs: int, progress) -> list[DensityCurveFit]:
-    """The fits of every sample, :data:`TESTS_PER_UNIT` samples at a time, in this process or on
-    ``jobs`` worker processes (0: all cores); the same fits either way, in the samples' order."""
+@dataclass(frozen=True)
+class UnitOptions:
+    """What a worker needs besides its unit of samples: the curves' ids, ``ci`` and ``method``."""
+
+    curves: tuple[str, ...]
+    ci: float | None
+    method: str | None
+
+
+def _fit_in_units(samples: list, curves, *, ci, method, jobs: int, client, progress) -> list[DensityCurveFit]:
+    """The fits of every sample, :data:`TESTS_PER_UNIT` samples at a time, in this process, on
+    ``jobs`` worker processes (0: all cores) or on the Dask ``client``, through the fan-out of
+    :mod:`tromplab.parallel`; the same fits wherever they run, in the samples' order."""
     units = [samples[i : i + TESTS_PER_UNIT] for i in range(0, len(samples), TESTS_PER_UNIT)]
-    work = functools.partial(_fit_unit, curves=tuple(curve.id for curve in curves), ci=ci, method=method)
-    workers = min(jobs or os.cpu_count() or 1, len(units))
+    options = UnitOptions(tuple(curve.id for curve in curves), ci, method)
     fits, done = [], 0
-    with contextlib.ExitStack() as stack:
-        if workers > 1:
-            pool = stack.enter_context(concurrent.futures.ProcessPoolExecutor(max_workers=workers))
-            results = pool.map(work, units)
-        else:
-            results = map(work, units)
-        for unit, unit_fits in zip(units, results):
-            # a worker's fits hold copies of the samples: give them back the caller's (fits_of finds them by identity)
-            per_sample = len(unit_fits) // len(unit)
-            fits += [
-                fit if fit.sample is sample else replace(fit, sample=sample)
-                for position, sample in enumerate(unit)
-                for fit in unit_fits[position * per_sample : (position + 1) * per_sample]
-            ]
-            done += len(unit)
-            if progress is not None:
-                progress(done, len(samples), unit[-1].label)
+    for unit, unit_fits in zip(units, map_on_workers(fit_unit, units, options, jobs=jobs or None, client=client)):
+        # a worker's fits hold copies of the samples: give them back the caller's (fits_of finds them by identity)
+        per_sample = len(unit_fits) // len(unit)
+        fits += [
+            fit if fit.sample is sample else replace(fit, sample=sample)
+            for position, sample in enumerate(unit)
+            for fit in unit_fits[position * per_sample : (position + 1) * per_sample]
+        ]
+        done += len(unit)
+        if progress is not None:
+            progress(done, len(samples), unit[-1].label)
     return fits
 
 
-def _fit_unit(unit: list, *, curves: tuple, ci, method) -> list[DensityCurveFit]:
-    return fit_density_curves(unit, curves, ci=ci, method=method)
+def fit_unit(options: UnitOptions, unit: list) -> list[DensityCurveFit]:
+    """The fits of one unit of samples (what a worker does)."""
+    return fit_density_curves(unit, options.curves, ci=options.ci, method=options.method)

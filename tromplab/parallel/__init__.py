@@ -17,16 +17,20 @@ from .fanout import (
     map_on_workers,
     worker_count,
 )
+from .streaming import IN_PIECES_FROM_BYTES, STREAM_THRESHOLD, streams
 
 __all__ = [
     "CHUNKS_IN_FLIGHT",
     "CHUNK_SIZE",
     "DASK_WORKER_CONFIG",
+    "IN_PIECES_FROM_BYTES",
     "MAX_CHUNK_SIZE",
+    "STREAM_THRESHOLD",
     "chunk_size",
     "chunked",
     "chunks_of",
     "dask_client",
     "map_on_workers",
+    "streams",
     "worker_count",
 ]

@@ -12,14 +12,14 @@ with one chunk), then ``gc_control``, ``averages``, ``tables`` (the fits table) 
 ``tromplab.workbench`` (or :mod:`tromplab`): the modules may change.
 """
 
-from ..parallel import CHUNK_SIZE, DASK_WORKER_CONFIG, MAX_CHUNK_SIZE, chunked, dask_client
+from ..parallel import CHUNK_SIZE, DASK_WORKER_CONFIG, MAX_CHUNK_SIZE, STREAM_THRESHOLD, chunked, dask_client
 from .averages import averages_level
 from .batch import check_formula_selection, fit_experiments, fit_with_settings, formula_keys, print_progress
 from .chunks import ChunkResults
 from .inputs import ACCEPTED_EXPERIMENTS, ExperimentsInPieces, data_notes
 from .result import Workbench, load, model_averages
 from .store import FitsInMemory, FitsOnDisk, FitStore
-from .stream import STREAM_THRESHOLD, fit_to_folder
+from .stream import fit_to_folder
 from .tables import by_experiment, completed_fit_rows, fit_row_settings, fit_rows_frame, output_view, ranked_among
 from .worker import ChunkOptions, FittedChunk, derive, fit_chunk, work_on_chunk
 

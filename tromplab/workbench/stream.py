@@ -22,7 +22,7 @@ from dataclasses import fields, replace
 
 from ..options import AUTO_FIGURE_LIMIT
 from ..output.folder import check_folder_options, write_streamed_folder
-from ..parallel import chunk_size, chunks_of, dask_client, map_on_workers, worker_count
+from ..parallel import chunk_size, chunks_of, dask_client, map_on_workers, streams, worker_count
 from ..validation import FitSettings
 from .batch import batch_inputs, batch_workbench, fit_prepared, prepared_batch
 from .inputs import FittableInPieces
@@ -32,10 +32,6 @@ from .store import FitsOnDisk
 
 # one logger for the batch layer: its lines read "tromplab.workbench: ..." whichever module makes them
 logger = logging.getLogger(__package__)
-
-#: Fitted experiments from which :func:`fit_to_folder` streams when ``stream`` is None: below it
-#: the fits stay in memory, where every :class:`Workbench` method is at hand without refitting.
-STREAM_THRESHOLD = 1000
 
 
 def fit_to_folder(experiments, outdir, *, figures: str = "auto", format: str = "csv", excel: bool = False,
@@ -59,12 +55,11 @@ def fit_to_folder(experiments, outdir, *, figures: str = "auto", format: str = "
         As for :meth:`Workbench.save`.
     stream : bool, optional
         Stream the results to disk chunk by chunk (True), or keep every fit in memory and
-        save them afterwards (False).  Default: stream from :data:`STREAM_THRESHOLD` fitted
-        experiments.  Streaming needs CSV tables, no workbook, no reloadable batch and no
-        per-experiment figures (``figures`` ``"none"``, or ``"auto"`` above
-        :data:`~tromplab.options.AUTO_FIGURE_LIMIT` experiments, which draws one overview);
-        otherwise the fits are kept in memory whatever ``stream`` says.  The files are the
-        same either way.
+        save them afterwards (False).  Default: stream from
+        :data:`~tromplab.parallel.STREAM_THRESHOLD` fitted experiments.  Streaming needs CSV
+        tables, no workbook, no reloadable batch and no per-experiment figures; otherwise the
+        fits are kept in memory whatever ``stream`` says (the rule:
+        :func:`tromplab.parallel.streams`).  The files are the same either way.
     settings : FitSettings, optional
         The settings of the fit as one record (what the command line passes), instead of
         the keywords of :func:`~tromplab.workbench.fit_experiments`.
@@ -81,9 +76,8 @@ def fit_to_folder(experiments, outdir, *, figures: str = "auto", format: str = "
     check_folder_options(figures=figures, format=format)
     settings = _settings_of(settings, keywords)
     plan = prepared_batch(experiments, settings, in_pieces=True)
-    streamable = format == "csv" and not excel and not reloadable and str(outdir).lower()[-5:] != ".xlsx"
-    streamable &= figures == "none" or (figures == "auto" and len(plan.fittable) > AUTO_FIGURE_LIMIT)  # as _figures counts
-    if not (streamable and plan.fittable and (stream or (stream is None and len(plan.fittable) >= STREAM_THRESHOLD))):
+    tables_only = format == "csv" and not excel and not reloadable and str(outdir).lower()[-5:] != ".xlsx"
+    if not streams(len(plan.fittable), tables_only=tables_only, figures=figures, stream=stream):
         if isinstance(plan.fittable, FittableInPieces):  # kept in memory: read whole after all
             plan = prepared_batch(experiments.read_whole(), settings)
         bench = fit_prepared(plan, client=client, progress=progress)
