@@ -15,6 +15,7 @@ from tromplab.errors import InputError
 from .hostile_names import SIZES, partitions, points_rows
 
 NAMES = ["002", "2", "NA"]
+FLOWSHEET = Path(__file__).resolve().parent.parent / "datasets" / "circuit_example_flowsheet.csv"
 FORMULAS = ["plitt", "lognormal"]
 
 
@@ -154,6 +155,12 @@ ENTRY_POINTS = {
     "build_report": lambda bad: tromplab.build_report(bad, [], source="x"),
     "write_report": lambda bad: tromplab.write_report(bad, "report.html"),
     "load": lambda bad: tromplab.load(bad),
+    "fit_density": lambda bad: tromplab.fit_density(bad),
+    "predict_density": lambda bad: tromplab.predict_density(bad, rho50=1.5, ep=0.05),
+    "reconcile_circuit(flowsheet)": lambda bad: tromplab.reconcile_circuit(bad, "survey.csv"),
+    "reconcile_circuit(measurements)": lambda bad: tromplab.reconcile_circuit(FLOWSHEET, bad),
+    "design_circuit": lambda bad: tromplab.design_circuit(bad),
+    "monitor_surveys": lambda bad: tromplab.monitor_surveys(bad),
 }
 #: Arguments an entry point takes as they are: an empty list of criteria has no weights, no
 #: weights is a weight of None, 3 is equation (3) and a size.

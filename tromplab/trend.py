@@ -427,6 +427,8 @@ def monitor_surveys(
     """
     if isinstance(surveys, (str, os.PathLike)):
         surveys = read_surveys(surveys)
+    elif not isinstance(surveys, Sequence) or not all(isinstance(survey, Survey) for survey in surveys):
+        raise TypeError(f"surveys must be a path or a sequence of Survey (read_surveys reads them), got {surveys!r:.80}")
     surveys = _checked_surveys(surveys, alpha)
     base = baseline_indices(surveys, baseline)
     formula, fits = _trend_fits(surveys, formula)

@@ -23,7 +23,7 @@ from functools import cached_property
 import numpy as np
 import pandas as pd
 
-from ..errors import OptionError
+from ..errors import InputError, OptionError
 from ..notices import Notice, notice_table
 from ..options import AUTO_FIGURE_LIMIT, FIGURE_CHOICES
 from ..output.csv_parts import file_writers, write_csv
@@ -483,6 +483,8 @@ def fit_density(
         samples = data
     else:
         samples = read_density(data, sheet=sheet, sep=sep, decimal=decimal, floats_yield=floats_yield)
+    if not samples:
+        raise InputError("no test to fit: data is an empty list of samples")
     if method == "binomial" and any(sample.layout != "tracers" for sample in samples):
         raise OptionError("method", "binomial needs tracer counts (density, sinks, floats); the table gives shares")
     jobs = check_count(0 if jobs is None else jobs, "jobs", minimum=0, maximum=MAX_JOBS)
