@@ -5,10 +5,10 @@ Modules, top first (each imports only from those below it): ``stream``
 (:func:`fit_to_folder`: fit and write the results folder, a large batch streamed to disk),
 ``batch`` (:func:`fit_experiments`), ``result`` (:class:`Workbench`, :func:`load`,
 :func:`model_averages`), ``store`` (where a workbench reads its fits: :class:`FitStore`, in
-memory or read back from a streamed folder), ``fanout`` (chunks on a process pool or a Dask cluster) and
-``spool`` (the chunks' rows written to disk by the workers), ``worker`` (what a worker does
-with one chunk), then ``gc_control``, ``averages``, ``tables`` (the fits table) and
-``inputs`` (the experiments a batch accepts).  Import the names below from
+memory or read back from a streamed folder), ``chunks`` (the fits chunk by chunk on the fan-out
+of :mod:`tromplab.parallel`: a process pool or a Dask cluster) and ``spool`` (the chunks' rows
+written to disk by the workers), ``worker`` (what a worker does with one chunk), then
+``averages``, ``tables`` (the fits table) and ``inputs`` (the experiments a batch accepts).  Import the names below from
 ``tromplab.workbench`` (or :mod:`tromplab`): the modules may change.
 """
 

@@ -64,7 +64,12 @@ def fit_in_chunks(fittable: Sequence[TrompPoints], options: ChunkOptions, *, job
         len(chunks[0]) if chunks else 0,
         "on a Dask cluster" if client is not None else f"jobs={jobs or 'all cores'}",
     )
-    fits, notes, frames, averaged, rows, parts = [], {}, [], [], [], {}
+    fits: list[CurveFit] = []
+    notes: dict = {}
+    frames: list[pd.DataFrame] = []
+    averaged: list[pd.DataFrame] = []
+    rows: list[pd.DataFrame] = []
+    parts: dict[str, list[CsvPart]] = {}
     for number, (chunk, done) in enumerate(zip(chunks, map_chunks(chunks, options, jobs=jobs, client=client)), 1):
         fits += done.fits
         rows.append(done.rows)

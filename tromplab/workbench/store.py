@@ -32,6 +32,7 @@ from .worker import ChunkOptions, completed_rows
 
 if TYPE_CHECKING:
     from .result import Workbench
+    from .spool import BatchRanks
 
 
 class FitStore(Protocol):
@@ -219,7 +220,7 @@ class FitsOnDisk:
     fitted: tuple[str, ...]
     failed_fits_made: tuple
     successes: int
-    ranks: object | None
+    ranks: BatchRanks | None
     head: tuple | None
     seconds: dict
     written: tuple[str, ...] = ()
@@ -321,7 +322,7 @@ class FitsOnDisk:
                 )
         source = Path(self.folder)
         names = [name for name in self.written if figures != "none" or not name.endswith(".png")]
-        return replace_folder({name: (lambda p, name=name: shutil.copyfile(source / name, p)) for name in names}, directory)
+        return replace_folder({name: functools.partial(_copy_into, source / name) for name in names}, directory)
 
     def __getstate__(self) -> dict:
         # the refitted experiments are a cache, made again when asked for
@@ -355,3 +356,8 @@ class RebuiltFits(Sequence):
 
     def __repr__(self) -> str:
         return f"<{len(self)} fits of a streamed batch, refitted when read>"
+
+
+def _copy_into(source: Path, target: Path) -> None:
+    """Copy the file ``source`` to ``target`` (a writer of :func:`replace_folder`)."""
+    shutil.copyfile(source, target)

@@ -142,7 +142,7 @@ def _streamed_batch(plan, spool: Spool, cluster, outdir, progress) -> tuple[Work
     )  # fmt: skip
     head = (fitted + tuple(failures))[:AUTO_FIGURE_LIMIT]
     seconds["prepare"] = time.perf_counter() - started
-    shapes = collections.deque()  # (experiments, last experiment) of each chunk handed out and not yet back
+    shapes: collections.deque = collections.deque()  # (experiments, last experiment) of each chunk handed out and not yet back
     done, waited, kept = 0, 0.0, 0.0
     mark = time.perf_counter()
     work = _chunk_work(plan, size, n_chunks, shapes)
