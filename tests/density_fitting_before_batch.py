@@ -22,7 +22,7 @@ import scipy.optimize
 import scipy.special
 import scipy.stats
 
-from tromplab.density.curves import DensityCurve, DensityIndices, get_density_curve
+from tromplab.density.registry import DensityCurve, DensityIndices, get_density_curve
 from tromplab.density.dispersion import profile_threshold as quasi_profile_threshold
 from tromplab.density.dispersion import quasi_binomial_scale
 from tromplab.density.joint import JOINT_METHOD, fit_joint, has_three_analyses, joint_intervals
@@ -448,7 +448,7 @@ def fit_density_curve(sample: DensitySample, curve, *, ci: float | None = None, 
     sample : DensitySample
         One test and size fraction (:func:`tromplab.density.readers.read_density`).
     curve : DensityCurve or str
-        The curve (:data:`tromplab.density.curves.DENSITY_CURVES`).
+        The curve (:data:`tromplab.density.registry.DENSITY_CURVES`).
     ci : float, optional
         Level of the profile-likelihood intervals of rho50, Ep and I (none when None).
     method : {"binomial", "least_squares"}, optional

@@ -8,7 +8,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 from tromplab.curves.formulas import evaluate_expression
-from tromplab.density.curves import (
+from tromplab.density.registry import (
     DENSITY_CURVES,
     LIMIT_CURVES,
     PLAIN_CURVES,

@@ -142,7 +142,7 @@ def add_predict_parser(density_commands) -> None:
                          help="upper bound of the open sink fraction (default: the width of its neighbour)")  # fmt: skip
     predict.set_defaults(
         run=_run_predict,
-        imports=("tromplab.density.washability", "tromplab.density.curves", "tromplab.output.csv_parts", "scipy.optimize"),
+        imports=("tromplab.density.washability", "tromplab.density.registry", "tromplab.output.csv_parts", "scipy.optimize"),
     )
 
 

@@ -2,14 +2,14 @@
 
 The curves (partition to the sinks against relative density, with the cut density
 ``rho50``, the probable error ``Ep`` and the imperfection ``I = Ep / (rho50 - 1)``) are
-declared in :mod:`tromplab.density.curves`; tracer counts, float-sink analyses and
+declared in :mod:`tromplab.density.registry`; tracer counts, float-sink analyses and
 partitions are read by :mod:`tromplab.density.readers`, fitted by
 :mod:`tromplab.density.fitting` (binomial maximum likelihood, least squares) and
 :func:`fit_density` returns a :class:`~tromplab.density.results.DensityResult` whose
 ``save(DIR)`` writes what ``tromplab density fit FILE -o DIR`` writes.
 """
 
-from .curves import (
+from .registry import (
     DENSITY_CURVES,
     LIMIT_CURVES,
     PLAIN_CURVES,

@@ -63,7 +63,7 @@ import scipy.special
 from ..results_contract import ResultContract
 from ..statistics.distributions import binom_logpmf, chi2_sf, f_ppf, norm_isf, norm_ppf
 from .batch import LIMIT_STARTS, BinomialFit, TracerStack, fit_glm, fit_limits_curve
-from .curves import DensityCurve, DensityIndices, get_density_curve
+from .registry import DensityCurve, DensityIndices, get_density_curve
 from .dispersion import pearson_rejects, quasi_binomial_scale
 from .dispersion import profile_threshold as quasi_profile_threshold
 from .joint import JOINT_METHOD, fit_joint, has_three_analyses, joint_intervals
@@ -543,7 +543,7 @@ def fit_density_curve(sample: DensitySample, curve, *, ci: float | None = None, 
     sample : DensitySample
         One test and size fraction (:func:`tromplab.density.readers.read_density`).
     curve : DensityCurve or str
-        The curve (:data:`tromplab.density.curves.DENSITY_CURVES`).
+        The curve (:data:`tromplab.density.registry.DENSITY_CURVES`).
     ci : float, optional
         Level of the profile-likelihood intervals of rho50, Ep and I (none when None).
     method : {"binomial", "least_squares"}, optional

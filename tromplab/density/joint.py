@@ -56,7 +56,7 @@ import scipy.linalg
 import scipy.special
 
 from ..statistics.distributions import t_ppf
-from .curves import DensityCurve
+from .registry import DensityCurve
 
 #: ``DensitySample.yield_source`` of a yield estimated from the three analyses (none stated).
 ESTIMATED_YIELD_SOURCE = "least-squares estimate"

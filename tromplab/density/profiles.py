@@ -2,7 +2,7 @@ r"""Profile-likelihood limits of rho50, Ep and the imperfection of many binomial
 
 Each request is one fitted curve and one quantity: the curve is written in its indices
 ``(rho50, Ep[, l, h])`` (``(rho50, I[, l, h])`` for the imperfection, ``Ep = I (rho50 - 1)``,
-through :meth:`~tromplab.density.curves.DensityCurve.from_indices`), the quantity is held at
+through :meth:`~tromplab.density.registry.DensityCurve.from_indices`), the quantity is held at
 a value and the other parameters re-optimised (:func:`~tromplab.density.batch.minimise_deviance`,
 from the optimum of the previous value and, for a curve with limits, also from the
 estimate).  A limit is where the excess :math:`(D(q) - \hat D)/\phi - c` crosses zero
@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .batch import TracerStack, centre_and_scale, minimise_deviance, partition_at
-from .curves import QUARTILES
+from .registry import QUARTILES
 
 #: The excess where no curve with a finite likelihood exists at a value: beyond any limit.
 BEYOND = 1e300

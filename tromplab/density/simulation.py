@@ -20,7 +20,7 @@ import math
 import numpy as np
 import pandas as pd
 
-from .curves import get_density_curve
+from .registry import get_density_curve
 from .fitting import fit_density_curve, profile_interval
 from .joint import JOINT_METHOD, has_three_analyses
 from .readers import read_density

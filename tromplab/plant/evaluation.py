@@ -34,7 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from ..density.curves import get_density_curve
+from ..density.registry import get_density_curve
 from ..density.fitting import fit_density_curve
 from ..density.readers import DensitySample, read_density
 from ..density.washability import Washability, washability_from_arrays
