@@ -22,11 +22,11 @@ import scipy.optimize
 import scipy.special
 import scipy.stats
 
-from tromplab.density.registry import DensityCurve, DensityIndices, get_density_curve
 from tromplab.density.dispersion import profile_threshold as quasi_profile_threshold
 from tromplab.density.dispersion import quasi_binomial_scale
 from tromplab.density.joint import JOINT_METHOD, fit_joint, has_three_analyses, joint_intervals
 from tromplab.density.readers import DensitySample
+from tromplab.density.registry import DensityCurve, DensityIndices, get_density_curve
 from tromplab.results_contract import ResultContract
 
 #: brentq's absolute tolerance on a profile limit, in units of the first step (then 1e-4).

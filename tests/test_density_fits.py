@@ -16,8 +16,8 @@ from numpy.testing import assert_allclose
 
 from tromplab.cli import main
 from tromplab.density import fit_density, fit_density_curve, get_density_curve, read_density
-from tromplab.density.registry import DENSITY_CURVES, PLAIN_CURVES
 from tromplab.density.fitting import limits_test_p, partition_band, profile_interval
+from tromplab.density.registry import DENSITY_CURVES, PLAIN_CURVES
 from tromplab.density.simulation import float_sink_table, simulate_tracer_test, tracer_study
 from tromplab.errors import OptionError
 

@@ -9,6 +9,8 @@ partitions are read by :mod:`tromplab.density.readers`, fitted by
 ``save(DIR)`` writes what ``tromplab density fit FILE -o DIR`` writes.
 """
 
+from .fitting import DensityCurveFit, fit_density_curve
+from .readers import DensitySample, read_density
 from .registry import (
     DENSITY_CURVES,
     LIMIT_CURVES,
@@ -19,8 +21,6 @@ from .registry import (
     get_density_curve,
     select_density_curves,
 )
-from .fitting import DensityCurveFit, fit_density_curve
-from .readers import DensitySample, read_density
 from .results import DensityResult, fit_density
 
 __all__ = [
