@@ -28,7 +28,8 @@ import math
 import numpy as np
 import pandas as pd
 
-from .fitting import DensityCurveFit, _data, _hessian, _index_model, _index_vector, _objective_of, _on_bound
+from ..curves.likelihood import central_hessian
+from .fitting import DensityCurveFit, _data, _index_model, _index_vector, _objective_of
 from .joint import JOINT_METHOD
 
 #: The parameters whose covariance ``covariance.csv`` gives, in order.
@@ -52,7 +53,7 @@ def _profile_covariance(fit: DensityCurveFit) -> np.ndarray | None:
     vector, _ = _index_vector(fit.curve, fit.params, fit.indices, "ep")
     model = _index_model(fit.curve, "ep")
     names = ["rho50", "ep", "light_limit", "heavy_limit"][: vector.size]
-    free = [i for i, name in enumerate(names) if i < 2 or not _on_bound(fit.curve, name, vector[i])]
+    free = [i for i, name in enumerate(names) if i < 2 or not fit.curve.limit_on_bound(name, vector[i])]
     data = _data(fit.sample, fit.method)
     objective = _objective_of(data)
 
@@ -62,7 +63,7 @@ def _profile_covariance(fit: DensityCurveFit) -> np.ndarray | None:
         return objective(fit.curve.partition(data.density, **model(q)))
 
     start = vector[free]
-    hessian = _hessian(value, start, 1e-4 * np.maximum(np.abs(start), 1e-2))
+    hessian = central_hessian(value, start, 1e-4 * np.maximum(np.abs(start), 1e-2))
     scale = (fit.dispersion if fit.overdispersed else 1.0) if data.binomial else fit.dispersion
     try:
         covariance = 2.0 * scale * np.linalg.inv(hessian)

@@ -10,13 +10,9 @@ estimate).  A limit is where the excess :math:`(D(q) - \hat D)/\phi - c` crosses
 go together: from the estimate a step of a quarter of Ep (of I) and then twice as far each
 time until the excess is positive (a bracket) or the search range ends (no limit); within
 each bracket Chandrupatla's (1997) root search, every side at once, converges to the last
-digits.
-
-References
-----------
-.. [Chandrupatla1997] Chandrupatla T.R. (1997). A new hybrid quadratic/bisection algorithm for
-   finding the zero of a nonlinear function without using derivatives. *Advances in
-   Engineering Software* 28(3), 145-149.
+digits.  The search is the one every curve's profile uses
+(:func:`tromplab.curves.likelihood.step_out` and :func:`~tromplab.curves.likelihood.chandrupatla`);
+this module gives it the excess of the re-optimised deviance.
 """
 
 from __future__ import annotations
@@ -25,16 +21,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..curves.likelihood import chandrupatla, step_out
 from .batch import TracerStack, centre_and_scale, minimise_deviance, partition_at
 from .registry import QUARTILES
 
 #: The excess where no curve with a finite likelihood exists at a value: beyond any limit.
 BEYOND = 1e300
-#: Relative and absolute (in units of the first step) tolerances of the limits.
-ROOT_RELATIVE_TOLERANCE = 1e-14
+#: Absolute tolerance of the limits, in units of the first step (the relative one is the search's,
+#: :data:`tromplab.curves.likelihood.ROOT_RELATIVE_TOLERANCE`).
 ROOT_STEP_TOLERANCE = 1e-11
-#: Iterations of the root search (it converges in about ten).
-MAX_ROOT_ITERATIONS = 100
 
 
 @dataclass(frozen=True)
@@ -157,13 +152,17 @@ def profile_limits(curve, requests: ProfileRequests) -> tuple[np.ndarray, np.nda
         requests.upper[request, requests.position[request]],
         requests.lower[request, requests.position[request]],
     )
-    bracket = _step_out(profiles, sides, centre, edge, requests.step[request], -requests.threshold[request])
+    bracket = step_out(profiles.excess, centre, edge, profiles.direction, requests.step[request], -requests.threshold[request])
     limits = np.full(len(sides), np.nan)
-    bracketed = np.isfinite(bracket[1])
-    if bracketed.any():
-        inside = [part[bracketed] for part in bracket]
+    bracketed = np.flatnonzero(bracket.closed)
+    if bracketed.size:
+        inside = (bracket.inner, bracket.outer, bracket.inner_excess, bracket.outer_excess)
         tolerance = ROOT_STEP_TOLERANCE * requests.step[request][bracketed]
-        limits[bracketed] = _chandrupatla(profiles, sides[bracketed], *inside, tolerance)
+
+        def excess(rows, values):
+            return profiles.excess(bracketed[rows], values)
+
+        limits[bracketed] = chandrupatla(excess, *(part[bracketed] for part in inside), tolerance)
         _recheck_edges(profiles, sides, limits, edge, requests.step[request])
     count = len(requests.best)
     notes = [
@@ -187,59 +186,3 @@ def _recheck_edges(profiles: _Profiles, sides, limits, edge, step) -> None:
     if at_edge.size:
         below = profiles.excess(sides[at_edge], edge[at_edge]) <= 0
         limits[at_edge[below]] = np.nan
-
-
-def _step_out(profiles: _Profiles, sides, centre, edge, step, at_centre):
-    """From the estimate outwards by ``step``, doubling, to the first value with a positive excess.
-
-    Returns ``(inner, outer, excess at inner, excess at outer)`` of each side (``outer`` NaN
-    where the search range ended first); ``at_centre`` is the excess at the estimate."""
-    inner, outer = centre.copy(), np.full(len(sides), np.nan)
-    inner_excess, outer_excess = at_centre.copy(), np.full(len(sides), np.nan)
-    direction = profiles.direction[sides]
-    active = np.ones(len(sides), dtype=bool)
-    while active.any():
-        at = np.flatnonzero(active)
-        value = centre[at] + direction[at] * step[at]
-        reached = (value - edge[at]) * direction[at] >= 0
-        value = np.where(reached, edge[at], value)
-        excess = profiles.excess(sides[at], value)
-        crossed = excess > 0
-        outer[at[crossed]], outer_excess[at[crossed]] = value[crossed], excess[crossed]
-        moving = ~crossed & ~reached
-        inner[at[moving]], inner_excess[at[moving]] = value[moving], excess[moving]
-        step[at] *= 2.0
-        active[at[crossed | reached]] = False
-    return inner, outer, inner_excess, outer_excess
-
-
-def _chandrupatla(profiles: _Profiles, sides, a, b, fa, fb, tolerance) -> np.ndarray:
-    """The zero of the excess between ``a`` and ``b`` (excesses ``fa <= 0 < fb``) of each side:
-    Chandrupatla's inverse quadratic interpolation, bisection where it is not safe, every side at once."""
-    c, fc = a.copy(), fa.copy()
-    t = np.full(len(sides), 0.5)
-    found = np.full(len(sides), np.nan)
-    active = np.arange(len(sides))
-    for _ in range(MAX_ROOT_ITERATIONS):
-        xt = a + t * (b - a)
-        ft = profiles.excess(sides[active], xt)
-        same = np.sign(ft) == np.sign(fa)
-        c, fc = np.where(same, a, b), np.where(same, fa, fb)
-        b, fb = np.where(same, b, a), np.where(same, fb, fa)
-        a, fa = xt, ft
-        closer = np.abs(fa) < np.abs(fb)
-        xm, fm = np.where(closer, a, b), np.where(closer, fa, fb)
-        with np.errstate(divide="ignore"):  # b == c: the bracket has closed
-            limit = (2 * ROOT_RELATIVE_TOLERANCE * np.abs(xm) + tolerance[active]) / np.abs(b - c)
-        done = (fm == 0) | (limit > 0.5)
-        found[active[done]] = xm[done]
-        keep = ~done
-        if not keep.any():
-            break
-        with np.errstate(all="ignore"):
-            xi, phi = (a - b) / (c - b), (fa - fb) / (fc - fb)
-            quadratic = (phi**2 < xi) & ((1 - phi) ** 2 < 1 - xi)
-            interpolated = fa / (fb - fa) * fc / (fb - fc) + (c - a) / (b - a) * fa / (fc - fa) * fb / (fc - fb)
-        t = np.clip(np.where(quadratic, interpolated, 0.5), limit, 1 - limit)
-        a, b, c, fa, fb, fc, t, active = (part[keep] for part in (a, b, c, fa, fb, fc, t, active))
-    return found
