@@ -3,24 +3,27 @@ search, the Hessian by central differences and the check of a value on its bound
 
 A profile-likelihood limit is where an *excess* crosses zero: the profile's rise over its
 minimum (re-optimised over the other parameters with one held), scaled, less the level's
-threshold.  It is found in two stages, every row (a fit, a quantity and a side) at once:
+threshold.  It is found in two stages, every row (a fit, a quantity and a side) at once, in
+distances ``t >= 0`` from the estimate along the row's side:
 
 1. :func:`step_out` - from the estimate outwards by a first step, doubling, to the first
    value with a positive excess (a bracket), or to the edge of the search range (no limit);
-2. :func:`chandrupatla` - Chandrupatla's (1997) root search within each bracket: inverse
-   quadratic interpolation where it is safe, bisection otherwise.
+2. :func:`regula_falsi` - the Illinois variant of the false position within each bracket
+   (Dowell & Jarratt 1971): the secant through the bracket's ends, the weight of an end that
+   stays twice in a row halved, bisection where the secant leaves the bracket.
 
-The size curves (:func:`tromplab.curves.batched.profile_limits`, the sum of squares'
-F test) and the density curves (:mod:`tromplab.density.profiles`, the binomial deviance;
-:func:`tromplab.density.fitting.profile_interval`, least squares on shares) give the
-excess as a function of the values of the rows it is asked about, and keep their own warm
-starts; the search itself is this one.  This module imports numpy only.
+The size curves (:func:`tromplab.curves.batched.profile_limits`, the sum of squares' F test,
+on :math:`\sqrt{S - S_{min}}`, linear in the parameter for a quadratic profile) and the
+density curves (:mod:`tromplab.density.profiles`, the binomial deviance;
+:func:`tromplab.density.fitting.profile_interval`, least squares on shares, which closes its
+bracket with Brent's method) give the excess as a function of the values of the rows it is
+asked about, and keep their own warm starts; the search itself is this one.  This module
+imports numpy only.
 
 References
 ----------
-.. [Chandrupatla1997] Chandrupatla T.R. (1997). A new hybrid quadratic/bisection algorithm for
-   finding the zero of a nonlinear function without using derivatives. *Advances in
-   Engineering Software* 28(3), 145-149.
+.. [Dowell1971] Dowell M., Jarratt P. (1971). A modified regula falsi method for computing
+   the root of an equation. *BIT Numerical Mathematics* 11, 168-174.
 """
 
 from __future__ import annotations
@@ -32,25 +35,24 @@ import numpy as np
 
 #: Doublings of the first step before a side is given up (any finite range is crossed in far fewer).
 MAX_DOUBLINGS = 60
-#: Relative tolerance of a root (the absolute one, in units of the value, is the caller's).
-ROOT_RELATIVE_TOLERANCE = 1e-14
-#: Iterations of the root search (it converges in about ten).
-MAX_ROOT_ITERATIONS = 100
+#: Iterations of the root search within a bracket.
+MAX_ROOT_ITERATIONS = 60
 
 #: ``excess(rows, values)``: the excess at ``values`` of the rows ``rows`` (indices into the
-#: arrays the search was given); NaN where no profile exists at all (the side ends there).
+#: arrays the search was given); NaN, while stepping out, where no profile exists at all (the
+#: side ends there without a limit).
 Excess = Callable[[np.ndarray, np.ndarray], np.ndarray]
 
 
 @dataclass(frozen=True)
 class Bracket:
-    """Where :func:`step_out` stopped on each row.
+    """Where :func:`step_out` stopped on each row, in distances from the estimate.
 
     Attributes
     ----------
     inner, outer : ndarray
-        The last value with an excess at or below zero (the estimate at first) and the first
-        with a positive one; ``outer`` NaN where the range ended (or the excess was NaN) first.
+        The last distance with an excess at or below zero (0, the estimate, at first) and the
+        first with a positive one; ``outer`` NaN where the range ended (or the excess was NaN) first.
     inner_excess, outer_excess : ndarray
         The excess at ``inner`` and at ``outer``.
     """
@@ -65,121 +67,133 @@ class Bracket:
         """True where a positive excess was found: the rows with a root between inner and outer."""
         return np.isfinite(self.outer)
 
+    def take(self, rows: np.ndarray) -> Bracket:
+        """The brackets of these rows."""
+        return Bracket(self.inner[rows], self.outer[rows], self.inner_excess[rows], self.outer_excess[rows])
 
-def step_out(excess: Excess, centre, edge, direction, step, at_centre, *, max_doublings: int = MAX_DOUBLINGS) -> Bracket:
-    """From ``centre`` towards ``edge`` by ``step``, doubling, to the first value with a positive excess.
+
+def step_out(excess: Excess, centre, direction, room, step, at_centre, *, max_doublings: int = MAX_DOUBLINGS) -> Bracket:
+    """From ``centre`` outwards by ``step``, doubling, to the first value with a positive excess.
 
     Parameters
     ----------
     excess : callable
-        ``excess(rows, values)`` (:data:`Excess`).
-    centre, edge : ndarray
-        The estimate and the end of the search range of each row.
+        ``excess(rows, values)`` (:data:`Excess`), asked at ``centre + direction t``.
+    centre : ndarray
+        The estimate of each row.
     direction : ndarray
         +1 or -1: the side of the estimate each row searches.
+    room : ndarray
+        The distance from the estimate to the end of the search range (may be infinite).
     step : ndarray
         The first step (positive), in the units of the value.
     at_centre : ndarray
-        The excess at the estimate (at or below zero).
+        The excess at the estimate (below zero).
     max_doublings : int
         Values tried on a row before it is given up (without a bracket).
 
     Returns
     -------
     Bracket
-        A row that reaches ``edge`` is tried there (exactly) and stops.
+        Distances from ``centre``; a row that reaches ``room`` is tried there and stops.
 
     Examples
     --------
-    >>> bracket = step_out(lambda rows, x: x**2 - 2.0, np.array([0.0]), np.array([10.0]), np.array([1.0]),
+    >>> bracket = step_out(lambda rows, x: x**2 - 2.0, np.array([0.0]), np.array([1.0]), np.array([10.0]),
     ...                    np.array([0.5]), np.array([-2.0]))
     >>> float(bracket.inner[0]), float(bracket.outer[0])
     (1.0, 2.0)
     """
-    centre, edge, direction = (np.asarray(part, dtype=float) for part in (centre, edge, direction))
-    step = np.array(step, dtype=float)
+    centre, direction, room = (np.asarray(part, dtype=float) for part in (centre, direction, room))
     count = centre.size
-    inner, outer = centre.copy(), np.full(count, np.nan)
+    t = np.minimum(np.asarray(step, dtype=float), room)
+    inner, outer = np.zeros(count), np.full(count, np.nan)
     inner_excess, outer_excess = np.array(at_centre, dtype=float), np.full(count, np.nan)
     active = np.ones(count, dtype=bool)
     for _ in range(max_doublings):
-        if not active.any():
+        work = np.flatnonzero(active)
+        if not work.size:
             break
-        at = np.flatnonzero(active)
-        value = centre[at] + direction[at] * step[at]
-        reached = (value - edge[at]) * direction[at] >= 0
-        value = np.where(reached, edge[at], value)
-        found = excess(at, value)
-        crossed = found > 0
-        outer[at[crossed]], outer_excess[at[crossed]] = value[crossed], found[crossed]
-        moving = ~crossed & ~reached & ~np.isnan(found)
-        inner[at[moving]], inner_excess[at[moving]] = value[moving], found[moving]
-        step[at] *= 2.0
-        active[at[~moving]] = False
+        found = excess(work, centre[work] + direction[work] * t[work])
+        crossed = found >= 0
+        short = found < 0
+        outer[work[crossed]], outer_excess[work[crossed]] = t[work[crossed]], found[crossed]
+        inner[work[short]], inner_excess[work[short]] = t[work[short]], found[short]
+        at_edge = t[work] >= room[work]
+        active[work[~short | at_edge]] = False
+        grow = work[short & ~at_edge]
+        t[grow] = np.minimum(2.0 * t[grow], room[grow])
     return Bracket(inner, outer, inner_excess, outer_excess)
 
 
-def chandrupatla(
-    excess: Excess, a, b, fa, fb, tolerance, *, excess_tolerance=0.0, max_iterations: int = MAX_ROOT_ITERATIONS
+def regula_falsi(
+    excess: Excess,
+    centre,
+    direction,
+    bracket: Bracket,
+    width,
+    *,
+    excess_tolerance=0.0,
+    max_iterations: int = MAX_ROOT_ITERATIONS,
 ) -> np.ndarray:
-    """The zero of the excess between ``a`` and ``b`` (excesses ``fa <= 0 < fb``) of every row at once.
+    """The distance from ``centre`` at which the excess crosses zero within each (closed) bracket, every row at once.
 
-    Chandrupatla's inverse quadratic interpolation, bisection where it is not safe.  A row
-    ends when its bracket is narrower than about ``2 tolerance`` plus
-    :data:`ROOT_RELATIVE_TOLERANCE` relative, or when the better end's excess is within
-    ``excess_tolerance`` of zero; the better end (the smaller excess) is returned.
+    The Illinois variant of the false position: the secant through the bracket's ends, the
+    end that stays twice in a row weighted by half, bisection where the secant falls outside
+    the bracket.  A row ends when its bracket is narrower than ``width`` or the last excess is
+    within ``excess_tolerance`` of zero; the end with the smaller excess is returned (also
+    for a row not closed within ``max_iterations``).
 
     Parameters
     ----------
     excess : callable
-        ``excess(rows, values)`` (:data:`Excess`), ``rows`` indexing ``a``.
-    a, b, fa, fb : ndarray
-        The brackets (:attr:`Bracket.inner`, :attr:`Bracket.outer` and their excesses).
-    tolerance : ndarray
-        Absolute tolerance of each row's root, in the units of the value.
+        ``excess(rows, values)`` (:data:`Excess`), ``rows`` indexing the bracket, asked at
+        ``centre + direction t``; an infinite excess counts as beyond the root.
+    centre, direction : ndarray
+        As :func:`step_out` was given them, for the rows of ``bracket``.
+    bracket : Bracket
+        Closed brackets (:attr:`Bracket.closed`).
+    width : ndarray
+        The bracket's width at which a row has converged, in the units of the value.
     excess_tolerance : float or ndarray
-        An excess this close to zero is a root (0: only an exact zero).
+        An excess this close to zero ends a row (0: only an exact zero).
     max_iterations : int
-        Evaluations per row at most; a row not converged by then is NaN.
+        Evaluations per row at most.
 
     Examples
     --------
-    >>> root = chandrupatla(lambda rows, x: x**2 - 2.0, np.array([1.0]), np.array([2.0]), np.array([-1.0]),
-    ...                     np.array([2.0]), np.array([1e-12]))
-    >>> round(float(root[0]), 12)
+    >>> bracket = Bracket(np.array([1.0]), np.array([2.0]), np.array([-1.0]), np.array([2.0]))
+    >>> t = regula_falsi(lambda rows, x: x**2 - 2.0, np.array([0.0]), np.array([1.0]), bracket, np.array([1e-14]))
+    >>> round(float(t[0]), 12)
     1.414213562373
     """
-    a, b, fa, fb = (np.array(part, dtype=float) for part in (a, b, fa, fb))
-    count = a.size
-    tolerance = np.broadcast_to(np.asarray(tolerance, dtype=float), (count,))
+    centre, direction = np.asarray(centre, dtype=float), np.asarray(direction, dtype=float)
+    t_low, t_high = bracket.inner.copy(), bracket.outer.copy()
+    h_low, h_high = bracket.inner_excess.copy(), bracket.outer_excess.copy()
+    count = t_low.size
+    width = np.broadcast_to(np.asarray(width, dtype=float), (count,))
     excess_tolerance = np.broadcast_to(np.asarray(excess_tolerance, dtype=float), (count,))
-    c, fc = a.copy(), fa.copy()
-    t = np.full(count, 0.5)
-    found = np.full(count, np.nan)
-    active = np.arange(count)
+    solving = np.isfinite(t_high)
+    last_side = np.zeros(count)
     for _ in range(max_iterations):
-        xt = a + t * (b - a)
-        ft = excess(active, xt)
-        same = np.sign(ft) == np.sign(fa)
-        c, fc = np.where(same, a, b), np.where(same, fa, fb)
-        b, fb = np.where(same, b, a), np.where(same, fb, fa)
-        a, fa = xt, ft
-        closer = np.abs(fa) < np.abs(fb)
-        xm, fm = np.where(closer, a, b), np.where(closer, fa, fb)
-        with np.errstate(divide="ignore"):  # b == c: the bracket has closed
-            limit = (2 * ROOT_RELATIVE_TOLERANCE * np.abs(xm) + tolerance[active]) / np.abs(b - c)
-        done = (np.abs(fm) <= excess_tolerance[active]) | (limit > 0.5)
-        found[active[done]] = xm[done]
-        keep = ~done
-        if not keep.any():
+        work = np.flatnonzero(solving)
+        if not work.size:
             break
         with np.errstate(all="ignore"):
-            xi, phi = (a - b) / (c - b), (fa - fb) / (fc - fb)
-            quadratic = (phi**2 < xi) & ((1 - phi) ** 2 < 1 - xi)
-            interpolated = fa / (fb - fa) * fc / (fb - fc) + (c - a) / (b - a) * fa / (fc - fa) * fb / (fc - fb)
-        t = np.clip(np.where(quadratic, interpolated, 0.5), limit, 1 - limit)
-        a, b, c, fa, fb, fc, t, active = (part[keep] for part in (a, b, c, fa, fb, fc, t, active))
-    return found
+            trial = t_low[work] - h_low[work] * (t_high[work] - t_low[work]) / (h_high[work] - h_low[work])
+        inside = np.isfinite(trial) & (trial > t_low[work]) & (trial < t_high[work])
+        trial = np.where(inside, trial, 0.5 * (t_low[work] + t_high[work]))
+        h = excess(work, centre[work] + direction[work] * trial)
+        below = h < 0
+        low_rows, high_rows = work[below], work[~below]
+        t_low[low_rows], h_low[low_rows] = trial[below], h[below]
+        t_high[high_rows], h_high[high_rows] = trial[~below], h[~below]
+        h_high[low_rows[last_side[low_rows] < 0]] *= 0.5  # the same end moved twice: halve the other's weight
+        h_low[high_rows[last_side[high_rows] > 0]] *= 0.5
+        last_side[low_rows], last_side[high_rows] = -1.0, 1.0
+        closed = (t_high[work] - t_low[work] <= width[work]) | (np.abs(h) <= excess_tolerance[work])
+        solving[work[closed]] = False
+    return np.where(np.isfinite(t_high), np.where(np.abs(h_high) <= np.abs(h_low), t_high, t_low), np.nan)
 
 
 def central_hessian(function: Callable[[np.ndarray], float], x: np.ndarray, steps: np.ndarray) -> np.ndarray:

@@ -16,18 +16,14 @@ deviance).  Every row is then fitted in the same numpy operations:
   held there while the score pushes it outwards, and each step halved until the deviance
   falls;
 * the limits of the profile-likelihood intervals are found for every test, quantity and
-  side together (:func:`profile_limits`): stepping out from the estimate as
-  :func:`tromplab.density.fitting.profile_interval` describes, then Chandrupatla's
-  bracketing root search on the
-  re-optimised profile.
+  side together (:func:`tromplab.density.profiles.profile_limits`): stepping out from the
+  estimate, then regula falsi on the re-optimised profile, by the search every curve's
+  profile uses (:mod:`tromplab.curves.likelihood`).
 
 References
 ----------
 .. [McCullagh1989] McCullagh P., Nelder J.A. (1989). *Generalized Linear Models*, 2nd ed.
    Chapman & Hall, London (sect. 2.5: the iteratively reweighted least-squares fit).
-.. [Chandrupatla1997] Chandrupatla T.R. (1997). A new hybrid quadratic/bisection algorithm for
-   finding the zero of a nonlinear function without using derivatives. *Advances in
-   Engineering Software* 28(3), 145-149.
 """
 
 from __future__ import annotations

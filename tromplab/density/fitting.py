@@ -520,10 +520,11 @@ def _profile_limit(excess, centre: float, direction: float, bounds: tuple[float,
     edge = bounds[1] if direction > 0 else bounds[0]
     side = "upper" if direction > 0 else "lower"
     # one side at a time: the re-optimisations of a side start where the last one ended
-    bracket = step_out(lambda rows, values: np.array([excess(values[0])]), [centre], [edge], [direction], [step], [math.nan])
+    bracket = step_out(lambda rows, values: np.array([excess(values[0])]), [centre], [direction], [abs(edge - centre)],
+                       [step], [math.nan])  # fmt: skip
     if not bracket.closed[0]:
         return math.nan, f"the profile does not reach the {side} limit within {edge:g}"
-    inner, outer = bracket.inner[0], bracket.outer[0]
+    inner, outer = (centre + direction * t for t in (bracket.inner[0], bracket.outer[0]))
     try:
         return float(scipy.optimize.brentq(excess, min(inner, outer), max(inner, outer), xtol=1e-4 * step)), ""
     except ValueError:  # the re-optimised profile is not monotone between the two points

@@ -9,9 +9,9 @@ estimate).  A limit is where the excess :math:`(D(q) - \hat D)/\phi - c` crosses
 (``phi`` the scale and ``c`` the threshold the caller gives).  Both sides of every request
 go together: from the estimate a step of a quarter of Ep (of I) and then twice as far each
 time until the excess is positive (a bracket) or the search range ends (no limit); within
-each bracket Chandrupatla's (1997) root search, every side at once, converges to the last
-digits.  The search is the one every curve's profile uses
-(:func:`tromplab.curves.likelihood.step_out` and :func:`~tromplab.curves.likelihood.chandrupatla`);
+each bracket regula falsi (Illinois), every side at once, converges to the last digits.  The
+search is the one every curve's profile uses, size or density
+(:func:`tromplab.curves.likelihood.step_out` and :func:`~tromplab.curves.likelihood.regula_falsi`);
 this module gives it the excess of the re-optimised deviance.
 """
 
@@ -21,15 +21,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..curves.likelihood import chandrupatla, step_out
+from ..curves.likelihood import regula_falsi, step_out
 from .batch import TracerStack, centre_and_scale, minimise_deviance, partition_at
 from .registry import QUARTILES
 
 #: The excess where no curve with a finite likelihood exists at a value: beyond any limit.
 BEYOND = 1e300
-#: Absolute tolerance of the limits, in units of the first step (the relative one is the search's,
-#: :data:`tromplab.curves.likelihood.ROOT_RELATIVE_TOLERANCE`).
+#: Relative and absolute (in units of the first step) tolerances of the limits.
+ROOT_RELATIVE_TOLERANCE = 1e-14
 ROOT_STEP_TOLERANCE = 1e-11
+#: Iterations of the root search (it converges in about fifteen).
+MAX_ROOT_ITERATIONS = 100
 
 
 @dataclass(frozen=True)
@@ -152,18 +154,21 @@ def profile_limits(curve, requests: ProfileRequests) -> tuple[np.ndarray, np.nda
         requests.upper[request, requests.position[request]],
         requests.lower[request, requests.position[request]],
     )
-    bracket = step_out(profiles.excess, centre, edge, profiles.direction, requests.step[request], -requests.threshold[request])
+    step = requests.step[request]
+    bracket = step_out(profiles.excess, centre, profiles.direction, np.abs(edge - centre), step, -requests.threshold[request])
     limits = np.full(len(sides), np.nan)
     bracketed = np.flatnonzero(bracket.closed)
     if bracketed.size:
-        inside = (bracket.inner, bracket.outer, bracket.inner_excess, bracket.outer_excess)
-        tolerance = ROOT_STEP_TOLERANCE * requests.step[request][bracketed]
+        width = 2.0 * (ROOT_STEP_TOLERANCE * step[bracketed] + 2.0 * ROOT_RELATIVE_TOLERANCE * np.abs(centre[bracketed]))
 
         def excess(rows, values):
             return profiles.excess(bracketed[rows], values)
 
-        limits[bracketed] = chandrupatla(excess, *(part[bracketed] for part in inside), tolerance)
-        _recheck_edges(profiles, sides, limits, edge, requests.step[request])
+        direction = profiles.direction[bracketed]
+        distance = regula_falsi(excess, centre[bracketed], direction, bracket.take(bracketed), width,
+                                max_iterations=MAX_ROOT_ITERATIONS)  # fmt: skip
+        limits[bracketed] = centre[bracketed] + direction * distance
+        _recheck_edges(profiles, sides, limits, edge, step)
     count = len(requests.best)
     notes = [
         [
