@@ -39,7 +39,8 @@ COVARIANCE_PARAMETERS = ("rho50", "ep")
 def index_covariance(fit: DensityCurveFit) -> np.ndarray | None:
     """The 2 x 2 covariance of ``(rho50, ep)`` of a fit (g/cm3 squared); None when it cannot be made.
 
-    None for a failed fit, a curve without rho50 or Ep, or a singular or indefinite curvature.
+    None for a failed fit, a curve without rho50 or Ep, a singular or indefinite curvature, or a
+    limit (of a curve with limits) closer to its bound than the difference step of the curvature.
     """
     if not fit.success or fit.indices is None or math.isnan(fit.indices.rho50) or math.isnan(fit.indices.ep):
         return None
@@ -63,7 +64,10 @@ def _profile_covariance(fit: DensityCurveFit) -> np.ndarray | None:
         return objective(fit.curve.partition(data.density, **model(q)))
 
     start = vector[free]
-    hessian = central_hessian(value, start, 1e-4 * np.maximum(np.abs(start), 1e-2))
+    try:
+        hessian = central_hessian(value, start, 1e-4 * np.maximum(np.abs(start), 1e-2))
+    except ValueError:  # a limit within a difference step of its bound: the steps leave the curve's range
+        return None
     scale = (fit.dispersion if fit.overdispersed else 1.0) if data.binomial else fit.dispersion
     try:
         covariance = 2.0 * scale * np.linalg.inv(hessian)

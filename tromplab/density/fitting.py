@@ -433,10 +433,13 @@ def profile_interval(fit: DensityCurveFit, quantity: str, ci: float) -> tuple[fl
 
     warm = {"x": centre[free]}  # the optimum of the last profile point: the next one starts there
 
+    # the limits (positions 2 and 3) held within their bounds: a limit past them has no rho50 (ValueError)
+    lowest, highest = np.array([bounds[i] if i >= 2 else (-np.inf, np.inf) for i in free]).T
+
     def excess(value):
         def at(x):
             q = centre.copy()
-            q[position], q[free] = value, x
+            q[position], q[free] = value, np.clip(x, lowest, highest)  # SLSQP may step past a bound by a hair
             return objective(fit.curve.partition(data.density, **model(q)))
 
         starts = [warm["x"]] if len(free) == 1 else [warm["x"], centre[free]]
