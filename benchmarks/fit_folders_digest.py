@@ -17,6 +17,7 @@ code, so a refusal that changes is caught too.  The runs take a few minutes on t
 from __future__ import annotations
 
 import argparse
+import contextlib
 import hashlib
 import json
 import re
@@ -71,10 +72,11 @@ def digest_folder(folder: Path) -> dict[str, str]:
     return {str(path.relative_to(folder)): digest_file(path) for path in sorted(folder.rglob("*")) if path.is_file()}
 
 
-def run(input_path: Path, options: list[str], scratch: Path) -> dict:
-    """One ``tromplab fit`` run: its exit code, its standard output's digest and its files' digests."""
+def run(input_path: Path, options: list[str], scratch: Path, command: tuple[str, ...] = ("fit",)) -> dict:
+    """One ``tromplab fit`` run (or of another ``command``): its exit code, its standard output's
+    digest and its files' digests."""
     outdir = scratch / "out"
-    command = [sys.executable, "-m", "tromplab", "fit", str(input_path), "-o", str(outdir), *options]
+    command = [sys.executable, "-m", "tromplab", *command, str(input_path), "-o", str(outdir), *options]
     done = subprocess.run(command, capture_output=True, text=True, cwd=scratch)  # no terminal: no progress bars
     stdout = done.stdout.replace(str(scratch), "SCRATCH")
     return {
@@ -85,10 +87,13 @@ def run(input_path: Path, options: list[str], scratch: Path) -> dict:
     }
 
 
-def all_runs(large: int, only: re.Pattern) -> dict:
+def all_runs(large: int, only: re.Pattern, keep: Path | None = None) -> dict:
     datasets = sorted(p for p in (ROOT / "datasets").glob("*.csv"))
     runs = {}
-    with tempfile.TemporaryDirectory() as folder:
+    # the folders written are kept under ``keep`` when it is given (to compare their numbers), else removed
+    if keep:
+        keep.mkdir(parents=True, exist_ok=True)
+    with contextlib.nullcontext(keep) if keep else tempfile.TemporaryDirectory() as folder:
         folder = Path(folder)
         for dataset in datasets:
             configurations = {**CONFIGURATIONS, **(ONCE if dataset.name == ONCE_ON else {})}
@@ -132,9 +137,10 @@ def main(argv=None) -> int:
     parser.add_argument("--out", type=Path, required=True, help="JSON file of the digests")
     parser.add_argument("--compare", type=Path, default=None, help="digests of the old code, compared with these")
     parser.add_argument("--large", type=int, default=1200, help="experiments of the streamed batch (default 1200)")
+    parser.add_argument("--keep", type=Path, default=None, help="folder in which to keep the results folders written")
     parser.add_argument("--only", type=re.compile, default=re.compile(""), help="runs whose name matches this regex")
     args = parser.parse_args(argv)
-    runs = all_runs(args.large, args.only)
+    runs = all_runs(args.large, args.only, args.keep)
     args.out.write_text(json.dumps(runs, indent=1, sort_keys=True))
     files = sum(len(r["files"]) for r in runs.values())
     print(f"{len(runs)} runs, {files} files digested into {args.out}")

@@ -6,7 +6,13 @@ curve, SLSQP from four starts for a curve with limits, and ``brentq`` on the pro
 re-optimised by ``minimize_scalar``/SLSQP for the intervals.  Changed only: the package's
 relative imports made absolute, and the optimisers' tolerances made module constants
 (:data:`PROFILE_XTOL`, :data:`SLSQP_FTOL`, :data:`SCALAR_XATOL`, their values then as
-defaults) so that a test can also run this path to convergence.  ``tests/test_density_batch.py``
+defaults) so that a test can also run this path to convergence.  What the batch engine
+left unchanged (the result class, the data of a fit and its objective, the starts, the
+test of separation, the profile's parametrisation, which quantities get an interval, the
+joint fit of three analyses) is imported from ``tromplab.density.fitting``; what it
+replaced (the fits, the statistics, the profile search and its tolerance) is the copy
+below, and so is the oracle; the functions the oracle's fits do not reach (the band, the
+test of the limits) are left out.  ``tests/test_density_batch.py``
 compares the new engine with it.
 """
 
@@ -15,19 +21,34 @@ from __future__ import annotations
 import math
 import warnings
 from collections.abc import Callable
-from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.optimize
-import scipy.special
 import scipy.stats
 
-from tromplab.density.curves import DensityCurve, DensityIndices, get_density_curve
 from tromplab.density.dispersion import profile_threshold as quasi_profile_threshold
 from tromplab.density.dispersion import quasi_binomial_scale
-from tromplab.density.joint import JOINT_METHOD, fit_joint, has_three_analyses, joint_intervals
+
+# the helpers that the batch engine left as they were, imported rather than copied
+from tromplab.density.fitting import (
+    FLOAT_SINK_INTERVAL_NOTE,
+    JOINT_FALLBACK_NOTE,
+    DensityCurveFit,
+    _Data,
+    _interval_quantities,
+    _joint,
+    _natural,
+    _replace,
+    _separation,
+    _starts,
+    fit_data,
+    index_model,
+    index_vector,
+    objective_of,
+)
+from tromplab.density.joint import has_three_analyses
 from tromplab.density.readers import DensitySample
-from tromplab.results_contract import ResultContract
+from tromplab.density.registry import DensityCurve, get_density_curve
 
 #: brentq's absolute tolerance on a profile limit, in units of the first step (then 1e-4).
 PROFILE_XTOL = 1e-4
@@ -37,165 +58,10 @@ SCALAR_XATOL = 1e-9
 #: Options of statsmodels' ``GLM.fit`` (then none: its default tolerance on the deviance, 1e-8).
 GLM_FIT_OPTIONS = {}
 
-#: Lowest and highest values the profile searches and the fits of a curve with limits may take.
-INDEX_BOUNDS = {"rho50": (1.0 + 1e-6, 8.0), "ep": (1e-4, 2.0), "imperfection": (1e-5, 20.0)}
-LIMIT_MARGIN = 1e-6  # the profiles keep l below 1/4 and h above 3/4 by this much
 OVERDISPERSION_LEVEL = 0.05
-METHODS = ("binomial", "least_squares")
-JOINT_FALLBACK_NOTE = (
-    "the three analyses could not be fitted jointly (too few fractions for the parameters and the variance function, "
-    "or a singular covariance): least squares on the partitions instead"
-)
-EXACT_SHARES = 1e-9  # share units: analyses this close to the fitted curve carry no error to make intervals from
-#: What the intervals of a float-sink fit leave out (measured by benchmarks/density_validation.py).
-FLOAT_SINK_INTERVAL_NOTE = (
-    "the intervals treat the fractions' partitions as independent and leave out the uncertainty of the floats yield "
-    "and the closure of the analyses: on simulated analyses they covered rho50 only 52-58 % of the time "
-    "(Ep 90-93 %); read them as lower bounds (with a feed analysis, no stated yield and no method asked, the three "
-    "analyses are fitted jointly, with intervals that covered 93 %)"
-)
-
-
-@dataclass(frozen=True)
-class DensityCurveFit(ResultContract):
-    r"""One density curve fitted to one sample (a test and size fraction).
-
-    Attributes
-    ----------
-    sample : DensitySample
-        The data.
-    curve : DensityCurve
-        The curve fitted.
-    method : str
-        ``"binomial"`` (maximum likelihood on tracer counts) or ``"least_squares"``.
-    success : bool
-        False when no curve could be fitted; ``message`` says why.
-    message : str
-        Why the fit failed ("" on success).
-    params : dict
-        The curve's parameters by name.
-    indices : DensityIndices or None
-        ``rho25, rho50, rho75, ep, imperfection`` read from the fitted ``P``.
-    objective : float
-        Binomial deviance, or the (weighted) sum of squares.
-    df_resid : int
-        Points used minus parameters fitted.
-    gof_p : float
-        p-value of the deviance goodness-of-fit test (NaN for least squares: the error
-        variance is not known).
-    dispersion : float
-        Pearson :math:`X^2 / df` (binomial) or the residual variance (least squares).
-    overdispersed : bool
-        True when the Pearson test rejects at 5 %: the intervals then use the scale.
-    aic : float
-        Akaike's criterion (binomial: :math:`-2\log L + 2p`; least squares:
-        :math:`n \ln(S/n) + 2(p + 1)`).
-    intervals : dict
-        ``{"rho50": (low, high), "ep": ..., "imperfection": ...}``, empty without ``ci``.
-    notes : tuple of str
-        What the reader must know about the fit, in words.
-    raw : object
-        The statsmodels GLM results or the scipy optimisation result.
-    """
-
-    sample: DensitySample
-    curve: DensityCurve
-    method: str
-    success: bool
-    message: str = ""
-    params: dict = field(default_factory=dict)
-    indices: DensityIndices | None = None
-    objective: float = math.nan
-    df_resid: int = 0
-    gof_p: float = math.nan
-    dispersion: float = math.nan
-    overdispersed: bool = False
-    aic: float = math.nan
-    intervals: dict = field(default_factory=dict)
-    notes: tuple[str, ...] = ()
-    raw: object = field(default=None, repr=False, compare=False)
-
-    def partition(self, rho) -> np.ndarray:
-        """The fitted partition to sinks at ``rho``."""
-        return self.curve.partition(rho, **self.params)
-
-    def summary(self):
-        """One row: the sample, the curve, the method, the indices with their intervals, the fit's criteria and notes."""
-        import pandas as pd
-
-        index = self.indices.as_dict() if self.indices else {}
-        row = {"test": self.sample.test, "size_fraction": self.sample.size_fraction, "curve": self.curve.id,
-               "method": self.method, "success": self.success}  # fmt: skip
-        for name in ("rho50", "ep", "imperfection"):
-            low, high = self.intervals.get(name, (math.nan, math.nan))
-            row.update({name: index.get(name, math.nan), f"{name}_low": low, f"{name}_high": high})
-        row.update({"aic": self.aic, "gof_p": self.gof_p, "notes": "; ".join((self.message, *self.notes)).strip("; ")})
-        return pd.DataFrame([row])
-
-    def _result_context(self) -> str:
-        state = "fitted" if self.success else f"not fitted ({self.message})"
-        return f"Density curve {self.curve.id} {state} to {self.sample.label} by {self.method}"
-
-
-# --- the data of one fit ------------------------------------------------------------------
-@dataclass(frozen=True)
-class _Data:
-    density: np.ndarray
-    share: np.ndarray
-    sinks: np.ndarray | None
-    trials: np.ndarray | None
-    weight: np.ndarray
-
-    @property
-    def binomial(self) -> bool:
-        return self.trials is not None
-
-
-def _data(sample: DensitySample, method: str) -> _Data:
-    used = sample.used
-    density, share = used["density"].to_numpy(float), used["partition_sinks"].to_numpy(float)
-    if sample.layout == "tracers":
-        sinks, trials = used["sinks"].to_numpy(float), used["recovered"].to_numpy(float)
-        weight = np.ones_like(density)
-        return _Data(density, share, sinks if method == "binomial" else None, trials if method == "binomial" else None, weight)
-    weight = used["weight"].to_numpy(float) if "weight" in used else np.ones_like(density)
-    return _Data(density, share, None, None, weight / weight.mean())
-
-
-def _objective_of(data: _Data) -> Callable[[np.ndarray], float]:
-    """Deviance (binomial) or weighted sum of squares of a vector of fitted partitions."""
-    if data.binomial:
-        k, n = data.sinks, data.trials
-
-        def deviance(p):
-            p = np.clip(p, 1e-300, 1.0 - 1e-16)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                terms = scipy.special.xlogy(k, k / (n * p)) + scipy.special.xlogy(n - k, (n - k) / (n * (1.0 - p)))
-            return float(2.0 * terms.sum())
-
-        return deviance
-    return lambda p: float(np.sum(data.weight * (data.share - p) ** 2))
 
 
 # --- starts and numerical fits -------------------------------------------------------------
-def _starts(data: _Data) -> tuple[float, float]:
-    """rho50 and Ep from the measured partitions, interpolated linearly in density."""
-    share = np.maximum.accumulate(np.clip(data.share, 0, 1))
-    rho = data.density
-
-    def at(p):
-        if share[0] >= p:
-            return rho[0]
-        if share[-1] <= p:
-            return rho[-1]
-        i = int(np.argmax(share >= p))
-        left, right = share[i - 1], share[i]
-        return rho[i - 1] + (p - left) / (right - left) * (rho[i] - rho[i - 1]) if right > left else rho[i]
-
-    rho50 = float(np.clip(at(0.5), *INDEX_BOUNDS["rho50"]))
-    span = (at(0.75) - at(0.25)) / 2.0
-    ep = span if span > 0 else (rho[-1] - rho[0]) / 8.0
-    return rho50, float(np.clip(ep, 1e-3, 1.0))
 
 
 def _minimise(value: Callable[[np.ndarray], float], starts, bounds) -> scipy.optimize.OptimizeResult:
@@ -232,14 +98,6 @@ def _minimise_scalar(value, starts, bounds) -> scipy.optimize.OptimizeResult:
         if np.isfinite(result.fun) and (best is None or result.fun < best.fun):
             best = result
     return best if best is not None else _nowhere(starts)
-
-
-def _natural(curve: DensityCurve, x: np.ndarray) -> dict[str, float]:
-    """The curve's parameters from the optimiser's vector (the probable error on a log scale)."""
-    values = dict(zip(curve.parameter_names, (float(v) for v in x)))
-    ep_name = "ep_c" if curve.has_limits else "ep"
-    values[ep_name] = math.exp(values[ep_name])
-    return values
 
 
 def _fit_numerically(curve: DensityCurve, data: _Data, objective) -> tuple[dict, object]:
@@ -286,33 +144,6 @@ def _fit_glm(curve: DensityCurve, data: _Data) -> tuple[dict, object]:
     return {"rho50": (form.centre - intercept) / slope, "ep": form.scale / slope}, result
 
 
-def _separation(data: _Data) -> str:
-    """Words for tracer counts that separate (no maximum-likelihood curve exists), else "".
-
-    They separate when, but for at most one density, every tracer lighter than some
-    density floats and every heavier one sinks: the likelihood then grows without bound as
-    the curve steepens into a step.
-    """
-    if not data.binomial:
-        return ""
-    k, n, rho = data.sinks, data.trials, data.density
-    floats, sinks = k == 0, k == n
-    if floats.all() or sinks.all():
-        side = "floats: rho50 lies above the heaviest" if floats.all() else "sinks: rho50 lies below the lightest"
-        return f"every tracer {side} tracer density, so the test does not bound the curve"
-    last_float = int(np.argmin(floats)) - 1  # the last density up to which every tracer floats (-1: none)
-    first_sink = k.size - int(np.argmin(sinks[::-1]))  # the first density from which every tracer sinks (size: none)
-    if first_sink - last_float > 2:  # two or more densities with tracers in both products: a likelihood maximum exists
-        return ""
-    low = f"{rho[last_float]:g}" if last_float >= 0 else "below the lightest density"
-    high = f"{rho[first_sink]:g}" if first_sink < k.size else "above the heaviest density"
-    return (
-        f"the tracers separate completely between {low} and {high} (all lighter ones float, all heavier ones sink, "
-        "but for at most one density between): the maximum-likelihood curve is a step there, rho50 lies between those "
-        "densities and Ep is below what the test resolves"
-    )
-
-
 # --- goodness of fit, dispersion, AIC -------------------------------------------------------
 def _statistics(curve: DensityCurve, data: _Data, params: dict, objective: float) -> dict:
     p_fit = np.clip(curve.partition(data.density, **params), 1e-12, 1 - 1e-12)
@@ -343,27 +174,6 @@ def _statistics(curve: DensityCurve, data: _Data, params: dict, objective: float
 
 
 # --- profile-likelihood intervals -----------------------------------------------------------
-def _index_model(curve: DensityCurve, quantity: str) -> Callable[[np.ndarray], dict]:
-    """Parameters of the curve from the vector ``(rho50, ep or imperfection[, light, heavy])``."""
-
-    def params(q):
-        rho50, second = float(q[0]), float(q[1])
-        ep = second * (rho50 - 1.0) if quantity == "imperfection" else second
-        limits = {"light_limit": float(q[2]), "heavy_limit": float(q[3])} if curve.has_limits else {}
-        return curve.from_indices(rho50=rho50, ep=ep, **limits)
-
-    return params
-
-
-def _index_vector(curve: DensityCurve, fit_params: dict, indices: DensityIndices, quantity: str) -> tuple[np.ndarray, list]:
-    second = indices.imperfection if quantity == "imperfection" else indices.ep
-    name = "imperfection" if quantity == "imperfection" else "ep"
-    vector = [indices.rho50, second]
-    bounds = [INDEX_BOUNDS["rho50"], INDEX_BOUNDS[name]]
-    if curve.has_limits:
-        vector += [fit_params["light_limit"], fit_params["heavy_limit"]]
-        bounds += [(0.0, 0.25 - LIMIT_MARGIN), (0.75 + LIMIT_MARGIN, 1.0)]
-    return np.array(vector), bounds
 
 
 def profile_interval(fit: DensityCurveFit, quantity: str, ci: float) -> tuple[float, float, str]:
@@ -375,10 +185,10 @@ def profile_interval(fit: DensityCurveFit, quantity: str, ci: float) -> tuple[fl
         ``(low, high, note)``; a limit the profile does not reach within the search range is
         NaN and ``note`` says so.
     """
-    data = _data(fit.sample, fit.method)
-    objective = _objective_of(data)
-    model = _index_model(fit.curve, quantity)
-    centre, bounds = _index_vector(fit.curve, fit.params, fit.indices, quantity)
+    data = fit_data(fit.sample, fit.method)
+    objective = objective_of(data)
+    model = index_model(fit.curve, quantity)
+    centre, bounds = index_vector(fit.curve, fit.params, fit.indices, quantity)
     position = 0 if quantity == "rho50" else 1
     if data.binomial:
         quasi = quasi_binomial_scale(fit.dispersion, fit.df_resid)  # the rule of tromplab.density.dispersion
@@ -448,7 +258,7 @@ def fit_density_curve(sample: DensitySample, curve, *, ci: float | None = None, 
     sample : DensitySample
         One test and size fraction (:func:`tromplab.density.readers.read_density`).
     curve : DensityCurve or str
-        The curve (:data:`tromplab.density.curves.DENSITY_CURVES`).
+        The curve (:data:`tromplab.density.registry.DENSITY_CURVES`).
     ci : float, optional
         Level of the profile-likelihood intervals of rho50, Ep and I (none when None).
     method : {"binomial", "least_squares"}, optional
@@ -463,14 +273,14 @@ def fit_density_curve(sample: DensitySample, curve, *, ci: float | None = None, 
     curve = get_density_curve(curve)
     joint = method is None and has_three_analyses(sample)
     method = method or ("binomial" if sample.layout == "tracers" else "least_squares")
-    data = _data(sample, method)
+    data = fit_data(sample, method)
     failed = {"sample": sample, "curve": curve, "method": method, "success": False}
     if data.density.size <= curve.n_params - (0 if data.binomial else 1):
         return DensityCurveFit(**failed, message=f"{data.density.size} densities are too few for {curve.n_params} parameters")
     separation = _separation(data)
     if separation:
         return DensityCurveFit(**failed, message=separation)
-    objective = _objective_of(data)
+    objective = objective_of(data)
     try:
         if data.binomial and not curve.has_limits:
             params, raw = _fit_glm(curve, data)
@@ -520,172 +330,11 @@ def _with_intervals_and_notes(fit: DensityCurveFit, data, ci: float | None, *, j
     return _replace(fit, intervals=intervals, notes=tuple(notes))
 
 
-def _joint(fit: DensityCurveFit, ci: float | None) -> DensityCurveFit | None:
-    """The fit of the three float-sink analyses together (:mod:`tromplab.density.joint`), started at ``fit``;
-    None when it cannot be made (the caller keeps the fit of the partitions)."""
-    result = fit_joint(fit.sample, fit.curve, fit.params)
-    if result is None:
-        return None
-    indices = fit.curve.indices(**result.params)
-    notes = [indices.note] if indices.note else []
-    intervals = {}
-    if ci is not None and result.largest_residual < EXACT_SHARES:
-        notes.append("no intervals: the curve passes through every analysed share (no residual variance)")
-    elif ci is not None:
-        intervals = joint_intervals(fit.curve, result, ci)
-        if not intervals:
-            notes.append("no intervals: the fitted curve has no rho50, Ep or imperfection")
-    return _replace(
-        fit,
-        method=JOINT_METHOD,
-        params=result.params,
-        indices=indices,
-        objective=result.ssr,
-        df_resid=result.df_resid,
-        dispersion=result.sigma2,
-        aic=result.neg2_loglik + 2 * result.n_params,
-        intervals=intervals,
-        notes=tuple(notes),
-        raw=result,
-    )
-
-
-def _replace(fit: DensityCurveFit, **changes) -> DensityCurveFit:
-    from dataclasses import replace
-
-    return replace(fit, **changes)
-
-
 def _intervals(fit: DensityCurveFit, data: _Data, ci: float) -> tuple[dict, list[str]]:
-    index = fit.indices
-    if math.isnan(index.rho50) or math.isnan(index.ep):
-        return {}, ["no intervals: the fitted curve has no rho50 or Ep"]
-    inside = (data.density > index.rho25) & (data.density < index.rho75)
-    notes, intervals = [], {}
-    quantities = ["rho50", "ep", "imperfection"]
-    if not inside.any():
-        notes.append(
-            f"Ep and the imperfection have no interval: no density lies between rho25 = {index.rho25:.4g} and "
-            f"rho75 = {index.rho75:.4g} (the partitions 25 % and 75 %), so the data do not bound the slope"
-        )
-        quantities = ["rho50"]
-    for quantity in list(quantities):
-        value, (lowest, highest) = getattr(index, quantity), INDEX_BOUNDS[quantity]
-        if math.isnan(value):  # does not exist: the notes already say why
-            quantities.remove(quantity)
-        elif not lowest < value < highest:  # a GLM estimate is not held to the bounds the profiles search within
-            notes.append(
-                f"{quantity} has no interval: its estimate {value:.4g} lies outside the range searched, {lowest:g} to {highest:g}"
-            )
-            quantities.remove(quantity)
+    quantities, notes = _interval_quantities(fit, data)
+    intervals = {}
     for quantity in quantities:
         low, high, note = profile_interval(fit, quantity, ci)
         intervals[quantity] = (low, high)
         notes += [note] if note else []
     return intervals, notes
-
-
-# --- every curve on one sample: ranking and the test of the limits ------------------------------
-def limits_test_p(plain: DensityCurveFit, limited: DensityCurveFit) -> float:
-    r"""p-value of the two limits against the plain curve (chi-bar-squared, both limits on their bounds).
-
-    The likelihood ratio :math:`\Lambda` (the deviance difference, over the quasi-binomial
-    scale of the curve with limits when it is overdispersed; :math:`n\ln(S_0/S_1)` for least squares) is referred to
-    :math:`\tfrac14\chi^2_0 + \tfrac12\chi^2_1 + \tfrac14\chi^2_2` (Self & Liang 1987):
-    :math:`p = \tfrac12 P(\chi^2_1 > \Lambda) + \tfrac14 P(\chi^2_2 > \Lambda)` for
-    :math:`\Lambda > 0`, and 1 otherwise.
-
-    Examples
-    --------
-    >>> from types import SimpleNamespace as Fit
-    >>> plain = Fit(method="binomial", objective=12.0, sample=None)
-    >>> round(limits_test_p(plain, Fit(objective=8.16, overdispersed=False, dispersion=1.0)), 4)  # Lambda = 3.84: half the chi2(1) tail, plus a quarter of chi2(2)'s
-    0.0617
-    """
-    if plain.method == "binomial":
-        # the scale of the larger model: a plain curve that misses real limits looks overdispersed itself
-        ratio = (plain.objective - limited.objective) / (limited.dispersion if limited.overdispersed else 1.0)
-    else:
-        count = int(plain.sample.used.shape[0])
-        ratio = count * math.log(plain.objective / limited.objective) if limited.objective > 0 else math.inf
-    if not ratio > 1e-9:  # the limits fitted on their bounds: the plain curve again, up to the optimiser's tolerance
-        return 1.0
-    return float(0.5 * scipy.stats.chi2.sf(ratio, 1) + 0.25 * scipy.stats.chi2.sf(ratio, 2))
-
-
-# --- the band of a fitted curve ---------------------------------------------------------------
-def partition_band(fit: DensityCurveFit, rho, *, level: float = 0.95) -> tuple[np.ndarray, np.ndarray]:
-    r"""Pointwise delta-method band of the fitted partition at ``rho``: ``(low, high)``, within 0..1.
-
-    The covariance of the parameters is :math:`2 s H^{-1}`, with ``H`` the Hessian of the
-    objective (deviance or weighted sum of squares, by central differences) and ``s`` the
-    scale (the quasi-binomial scale when overdispersed, else 1; the residual variance for
-    least squares); a limit on its bound is held there.  The band is
-    :math:`\hat P \pm z\,\sqrt{g^\top C g}` with ``g`` the gradient of ``P`` in the
-    parameters, clipped to 0..1.
-    """
-    rho = np.asarray(rho, dtype=float)
-    centre = fit.partition(rho)
-    if fit.method == JOINT_METHOD:
-        return _band(fit, rho, centre, list(fit.raw.free), fit.raw.covariance, level)
-    names = [name for name in fit.curve.parameter_names if not _on_bound(fit.curve, name, fit.params[name])]
-    data = _data(fit.sample, fit.method)
-    objective = _objective_of(data)
-    values = np.array([fit.params[name] for name in names])
-    steps = 1e-4 * np.maximum(np.abs(values), 1e-2)
-
-    def at(vector, where):
-        return fit.curve.partition(where, **{**fit.params, **dict(zip(names, vector))})
-
-    hessian = _hessian(lambda vector: objective(at(vector, data.density)), values, steps)
-    quantile = None  # the normal's
-    if data.binomial:
-        quasi = quasi_binomial_scale(fit.dispersion, fit.df_resid)
-        scale, quantile = quasi.scale, math.sqrt(quasi_profile_threshold(level, fit.df_resid, quasi.estimated))
-    else:
-        scale = fit.dispersion
-    try:
-        covariance = 2.0 * scale * np.linalg.inv(hessian)
-    except np.linalg.LinAlgError:
-        return np.full_like(centre, np.nan), np.full_like(centre, np.nan)
-    return _band(fit, rho, centre, names, covariance, level, quantile=quantile)
-
-
-def _band(fit: DensityCurveFit, rho, centre, names: list, covariance: np.ndarray, level: float, *, quantile=None):
-    values = np.array([fit.params[name] for name in names])
-    steps = 1e-4 * np.maximum(np.abs(values), 1e-2)
-
-    def at(vector, where):
-        return fit.curve.partition(where, **{**fit.params, **dict(zip(names, vector))})
-
-    gradient = np.stack(
-        [
-            (at(values + np.eye(len(names))[i] * steps[i], rho) - at(values - np.eye(len(names))[i] * steps[i], rho))
-            / (2 * steps[i])
-            for i in range(len(names))
-        ],
-        axis=-1,
-    )
-    variance = np.einsum("...i,ij,...j->...", gradient, covariance, gradient)
-    quantile = scipy.stats.norm.ppf(0.5 + level / 2) if quantile is None else quantile
-    half = quantile * np.sqrt(np.clip(variance, 0, None))
-    return np.clip(centre - half, 0, 1), np.clip(centre + half, 0, 1)
-
-
-def _on_bound(curve: DensityCurve, name: str, value: float) -> bool:
-    parameter = next(p for p in curve.parameters if p.name == name)
-    return name in ("light_limit", "heavy_limit") and min(abs(value - parameter.lower), abs(value - parameter.upper)) < 1e-6
-
-
-def _hessian(function, x: np.ndarray, steps: np.ndarray) -> np.ndarray:
-    size = x.size
-    hessian = np.empty((size, size))
-    unit = np.eye(size)
-    for i in range(size):
-        for j in range(i, size):
-            di, dj = unit[i] * steps[i], unit[j] * steps[j]
-            value = (function(x + di + dj) - function(x + di - dj) - function(x - di + dj) + function(x - di - dj)) / (
-                4 * steps[i] * steps[j]
-            )
-            hessian[i, j] = hessian[j, i] = value
-    return hessian

@@ -2,10 +2,12 @@
 
 The layer contracts themselves are checked by ``lint-imports`` (pyproject.toml,
 ``[tool.importlinter]``, run by .ci/run); this test adds what a layers contract cannot say:
-that no module reaches back to itself through any chain of imports.
+that no module reaches back to itself through any chain of imports, and that every module of
+`tromplab.density` and `tromplab.circuit` has its place in its package's contract.
 """
 
 import grimp
+import pytest
 
 
 def _cycles(graph) -> list[list[str]]:
@@ -46,3 +48,26 @@ def test_function_level_imports_are_in_the_graph():
     graph = grimp.build_graph("tromplab", exclude_type_checking_imports=True)
     assert graph.direct_import_exists(importer="tromplab.curves.curve_fit", imported="tromplab.curves.views")
     assert not graph.direct_import_exists(importer="tromplab.curves.curve_fit", imported="tromplab.output.results")
+
+
+def _contract_layers(container: str) -> list[str]:
+    """The layers of the contract of ``container`` in pyproject.toml, top first."""
+    import tomllib
+    from pathlib import Path
+
+    config = tomllib.loads((Path(__file__).resolve().parents[1] / "pyproject.toml").read_text())
+    contracts = [c for c in config["tool"]["importlinter"]["contracts"] if c.get("containers") == [container]]
+    assert len(contracts) == 1, f"{container} has {len(contracts)} layers contracts, one expected"
+    return contracts[0]["layers"]
+
+
+@pytest.mark.parametrize("container", ["tromplab.density", "tromplab.circuit"])
+def test_every_module_of_density_and_circuit_has_its_place_in_the_package_contract(container):
+    # a module left out of a layers contract may import anything in its package: the contract would
+    # hold while saying nothing about it
+    import importlib
+    import pkgutil
+
+    named = {name.strip() for layer in _contract_layers(container) for name in layer.split("|")}
+    modules = {info.name for info in pkgutil.iter_modules(importlib.import_module(container).__path__)}
+    assert modules == named, f"not in the contract: {sorted(modules - named)}; no such module: {sorted(named - modules)}"

@@ -208,7 +208,7 @@ def test_an_ambiguous_measured_cut_is_said_in_words():
 
 
 def test_a_bound_is_reached_relative_to_its_size():
-    from tromplab.curves.fitting import on_bound
+    from tromplab.curves.likelihood import on_bound
 
     assert not on_bound(7.3e-10, 7.07e-12)  # a cut in metres, 100 times above its lower bound
     assert on_bound(7.07e-12 * (1 + 1e-7), 7.07e-12)

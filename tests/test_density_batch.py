@@ -16,8 +16,8 @@ from tromplab.cli import main
 from tromplab.density import fit_density, read_density
 from tromplab.density import results as density_results
 from tromplab.density.batch import TracerStack, fit_glm
-from tromplab.density.curves import DENSITY_CURVES, PLAIN_CURVES, get_density_curve
 from tromplab.density.fitting import fit_density_curves
+from tromplab.density.registry import DENSITY_CURVES, PLAIN_CURVES, get_density_curve
 from tromplab.density.simulation import simulate_tracer_test
 from tromplab.statistics import distributions as dist
 

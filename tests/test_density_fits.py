@@ -16,8 +16,9 @@ from numpy.testing import assert_allclose
 
 from tromplab.cli import main
 from tromplab.density import fit_density, fit_density_curve, get_density_curve, read_density
-from tromplab.density.curves import DENSITY_CURVES, PLAIN_CURVES
+from tromplab.density.covariance import index_covariance
 from tromplab.density.fitting import limits_test_p, partition_band, profile_interval
+from tromplab.density.registry import DENSITY_CURVES, PLAIN_CURVES
 from tromplab.density.simulation import float_sink_table, simulate_tracer_test, tracer_study
 from tromplab.errors import OptionError
 
@@ -368,3 +369,18 @@ def test_tests_that_are_not_overdispersed_keep_the_binomial_aic():
     assert not table["overdispersed"].any() and table["qaic"].isna().all()
     assert table.sort_values("aic")["curve"].tolist() == table.sort_values("rank")["curve"].tolist()
     assert not table["notes"].str.contains("QAIC").any()
+
+
+def test_a_heavy_limit_a_hair_below_its_bound_gets_intervals_and_no_covariance_instead_of_an_error(tmp_path):
+    # float-sink partitions of an exact Gompertz curve: the curve with limits fits its heavy-end limit about 1e-6 below 1;
+    # SLSQP's profile steps, and the covariance's differences, then went past 1 and `density fit` stopped with exit 70
+    table = float_sink_table("gompertz", {"rho50": 1.52, "ep": 0.06}, [1.3, 1.4, 1.5, 1.6, 1.7, 1.8], [30, 20, 12, 8, 6, 9, 15],
+                             test="fs", with_feed=False)  # fmt: skip
+    path = tmp_path / "float_sink.csv"
+    table.to_csv(path, index=False)
+    fit = fit_density_curve(read_density(path)[0], "gompertz_limits", ci=0.95)
+    assert fit.success and 1.0 - 1e-4 < fit.params["heavy_limit"] < 1.0
+    for quantity, truth in (("rho50", 1.52), ("ep", 0.06), ("imperfection", 0.06 / 0.52)):
+        low, high = fit.intervals[quantity]
+        assert low < truth < high, quantity
+    assert index_covariance(fit) is None  # said in its docstring: no curvature across the bound

@@ -10,8 +10,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
-from tromplab.density.curves import DENSITY_CURVES, get_density_curve
 from tromplab.density.readers import density_layout, read_density
+from tromplab.density.registry import DENSITY_CURVES, get_density_curve
 from tromplab.density.simulation import float_sink_table
 from tromplab.errors import InputError
 from tromplab.loading.lab import estimate_fine_yield

@@ -299,7 +299,7 @@ def test_fractions_of_exactly_the_target_ash_are_taken_whole():
 
 def test_the_command_offers_every_registry_curve():
     from tromplab.cli.density_predict import PREDICT_CURVES
-    from tromplab.density.curves import DENSITY_CURVES, PLAIN_CURVES
+    from tromplab.density.registry import DENSITY_CURVES, PLAIN_CURVES
     from tromplab.options import PLAIN_DENSITY_CURVES
 
     # declared in tromplab.options so that building the parser imports no numerical library

@@ -166,7 +166,7 @@ def test_a_dash_in_a_generated_table_is_a_dash_not_a_bullet(docs_ext):
 
 
 def test_catalogue_has_a_section_for_every_density_curve(docs_ext, tmp_path):
-    from tromplab.density.curves import DENSITY_CURVES
+    from tromplab.density.registry import DENSITY_CURVES
 
     page = docs_ext.density_catalogue(figure_dir=tmp_path)
     for curve in DENSITY_CURVES:

@@ -175,7 +175,7 @@ def test_exact_curves_give_no_interval_columns():
 def test_draws_follow_the_stated_covariance():
     """Drawn through the linear predictor's coefficients, the draws of (rho50, Ep) have the stated covariance to
     first order: with small standard deviations the sample sds and correlation match it."""
-    from tromplab.density.curves import get_density_curve
+    from tromplab.density.registry import get_density_curve
 
     covariance = np.array([[0.002**2, 0.6 * 0.002 * 0.0005], [0.6 * 0.002 * 0.0005, 0.0005**2]])
     for curve in ("normal", "logistic", "gompertz"):

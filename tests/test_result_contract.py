@@ -563,7 +563,7 @@ NOT_RESULTS = {
     "tromplab.loading.lab_options.LabOptions": "options of read_lab",
     "tromplab.curves.formulas.Formula": "a registry record",
     "tromplab.curves.parameters.Parameter": "a registry record",
-    "tromplab.density.curves.DensityCurve": "a registry record",
+    "tromplab.density.registry.DensityCurve": "a registry record",
     "tromplab.plant.inputs.SizeFraction": "input (read_plant_washability): one size fraction's washability",
     "tromplab.plant.inputs.Device": "input (read_plant): one device's curve",
     "tromplab.plant.optimization.CutResponse": "a working record of the optimiser (one fraction's response to its cut)",

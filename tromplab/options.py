@@ -72,7 +72,7 @@ CIRCUIT_FIT_FORMULAS = "paper,extended"
 ERROR_MODEL_POINTS = ("reconciled", "measured")
 
 # --- density partition (tromplab.density) -------------------------------------------------
-#: The plain density curves of the registry (``tromplab.density.curves.PLAIN_CURVES``), written
+#: The plain density curves of the registry (``tromplab.density.registry.PLAIN_CURVES``), written
 #: out so that the command line builds its parser without the numerical libraries; each has a
 #: variant with limits, ``<id>_limits`` (a test checks both against the registry).
 PLAIN_DENSITY_CURVES = ("normal", "logistic", "gompertz")

@@ -6,7 +6,7 @@
   (expression, parameters with bounds, slope at the cut, a figure of the curve family,
   citation, simulator conventions of ``tromplab export``);
 - :func:`density_catalogue` writes one section per density partition curve of
-  ``tromplab.density.curves.DENSITY_CURVES`` (expression, parameters, indices of an example,
+  ``tromplab.density.registry.DENSITY_CURVES`` (expression, parameters, indices of an example,
   a figure, citation), appended to the formula catalogue;
 - :func:`api_reference` lists every name of ``tromplab.__all__`` and the public functions and
   classes of each module of the package for autosummary.
@@ -474,13 +474,13 @@ def density_curve_section(curve, figure: str | None) -> str:
 
 def density_catalogue(curves=None, *, figure_dir: Path | None = None, figure_prefix: str = "formulas") -> str:
     """The density section of the catalogue over ``curves`` (default every registry density curve)."""
-    from tromplab.density.curves import DENSITY_CURVES
+    from tromplab.density.registry import DENSITY_CURVES
 
     curves = tuple(DENSITY_CURVES if curves is None else curves)
     parts = [
         _title("Density partition curves (gravity separators)", "="),
         f"The partition to the sinks P(rho) of relative density rho of dense-medium and gravity separators "
-        f"({len(curves)} curves, generated from ``tromplab.density.curves.DENSITY_CURVES``): each plain curve is "
+        f"({len(curves)} curves, generated from ``tromplab.density.registry.DENSITY_CURVES``): each plain curve is "
         "written with the cut density rho50 (P = 1/2) and the probable error Ep = (rho75 - rho25)/2 in density units; "
         "each has a variant with a light-end limit l and a heavy-end limit h, whose rho50 and Ep are read from P "
         "itself. Fitting, washability predictions and the size trend are in :doc:`../density`.\n",

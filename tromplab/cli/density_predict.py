@@ -61,7 +61,7 @@ def add_predict_parser(density_commands) -> None:
         imports=(
             "tromplab.density.prediction",
             "tromplab.density.washability",
-            "tromplab.density.curves",
+            "tromplab.density.registry",
             "tromplab.output.csv_parts",
             "scipy.optimize",
         ),

@@ -21,6 +21,7 @@ from scipy import stats
 
 from ..loading.points import TrompPoints
 from .formulas import Formula
+from .likelihood import regula_falsi, step_out
 
 MAX_ITERATIONS = 400
 #: Relative decrease of the sum of squares below which an accepted step ends a row.
@@ -340,12 +341,10 @@ class _MarquardtRows:
 
 
 # --- the profile likelihood on arrays ----------------------------------------------------------
-#: Doublings of the first step in search of a parameter value beyond the level (lmfit's
-#: conf_interval walks up to 400 steps; doubling covers any range of the bounds in far fewer).
-PROFILE_EXPANSIONS = 60
-PROFILE_ITERATIONS = 60
 #: Width of the final bracket of a limit, relative to 1 + |value| in internal parameters.
 PROFILE_TOLERANCE = 1e-9
+#: Iterations of the root search within a bracket (:func:`~tromplab.curves.likelihood.regula_falsi`).
+PROFILE_ITERATIONS = 60
 #: Starts across the bounds of another parameter from which every limit is re-optimised once
 #: more: a limit below which that search finds a lower sum of squares is not reported.
 PROFILE_CHECK_STARTS = 16
@@ -360,14 +359,17 @@ def profile_limits(
     re-optimised over the other parameters with :math:`\theta_j` held, reaches
     :math:`S_{min} (1 + F_{1,\nu}^{-1}(\text{level}) / \nu)`, :math:`\nu` = points minus
     parameters: the F test of lmfit's ``conf_interval`` with one parameter fixed.  Every
-    (experiment, parameter, side) is one row of one batched Levenberg-Marquardt per step: the
-    first step (``steps``, e.g. the Wald half-width) doubles until the level is passed, then
-    regula falsi (Illinois) on :math:`\sqrt{S - S_{min}}`, which is linear in :math:`\theta_j`
-    for a quadratic profile, closes the bracket.  Each point of the profile is re-optimised
-    from the previous one (continuation), and every limit found is
-    re-optimised once more from :data:`PROFILE_CHECK_STARTS` starts across the bounds of
-    another parameter: where that finds a sum of squares below the level, the limit is not
-    reported (the descent missed a lower branch of the profile).
+    (experiment, parameter, side) is one row of one batched Levenberg-Marquardt per step,
+    and the search is the one every curve's profile uses (:mod:`tromplab.curves.likelihood`):
+    the first step (``steps``, e.g. the Wald half-width) doubles until the level is passed
+    (:func:`~tromplab.curves.likelihood.step_out`), then regula falsi (Illinois,
+    :func:`~tromplab.curves.likelihood.regula_falsi`) on :math:`\sqrt{S - S_{min}}` less its
+    value at the level, which is linear in :math:`\theta_j` for a quadratic profile, closes
+    the bracket.  Each point of the profile is re-optimised from the last one short of the
+    level (continuation), and every limit found is re-optimised once more from
+    :data:`PROFILE_CHECK_STARTS` starts across the bounds of another parameter: where that
+    finds a sum of squares below the level, the limit is not reported (the descent missed a
+    lower branch of the profile).
 
     Parameters
     ----------
@@ -396,53 +398,82 @@ def profile_limits(
     experiment = np.repeat(np.arange(count), 2 * n_params)
     column = np.tile(np.repeat(np.arange(n_params), 2), count)
     search = _ProfileSearch(problem.take(experiment), column, np.tile([-1.0, 1.0], count * n_params),
-                            best[experiment, column], best_ssr[experiment], target[experiment])  # fmt: skip
-    start = best[experiment].copy()
+                            best[experiment, column], best_ssr[experiment], target[experiment], best[experiment])  # fmt: skip
     step = steps[experiment, column]
     step = np.where(np.isfinite(step) & (step > 0), step, 0.1)
-    searching = np.isfinite(search.goal) & (free[experiment] > 0) & (search.room > 0)
-    t_low, h_low, t_high, h_high = _bracket(search, start, np.minimum(step, search.room), searching)
-    _regula_falsi(search, start, t_low, h_low, t_high, h_high)
-    limit = _confirmed_limits(search, best[experiment], t_low, h_low, t_high, h_high).reshape(count, n_params, 2)
+    searching = np.flatnonzero(np.isfinite(search.goal) & (free[experiment] > 0) & (search.room > 0))
+    distance = np.full(column.size, np.nan)
+    if searching.size:
+        distance[searching] = _search_limits(search, searching, np.minimum(step, search.room)[searching])
+    limit = _confirmed_limits(search, best[experiment], distance).reshape(count, n_params, 2)
     return limit[..., 0], limit[..., 1]
 
 
-def _confirmed_limits(search: _ProfileSearch, best: np.ndarray, t_low, h_low, t_high, h_high) -> np.ndarray:
-    """The limit of each closed bracket, nan where the level was not passed, where it was
-    passed on the bound itself (the bound reached below the level: lmfit warns there) or where
-    the profile re-optimised from a grid of starts (:func:`_grid_profile_ssr`) lies below the
-    level at the limit (a lower branch the descent missed)."""
-    limit = search.centre + search.side * np.where(np.abs(h_high) <= np.abs(h_low), t_high, t_low)
+def _search_limits(search: _ProfileSearch, rows: np.ndarray, step: np.ndarray) -> np.ndarray:
+    """The distance from the optimum to the limit of each of ``rows`` (nan where the level was not passed)."""
+    centre, side = search.centre[rows], search.side[rows]
+
+    def stepping(at, values):  # no finite sum of squares ends the side without a limit
+        distance = search.excess(rows[at], values)
+        return np.where(np.isfinite(distance), distance, np.nan)
+
+    bracket = step_out(stepping, centre, side, search.room[rows], step, -search.scale[rows])
+    found = np.full(rows.size, np.nan)
+    closed = np.flatnonzero(bracket.closed)
+    if closed.size:
+        inside = rows[closed]
+
+        def closing(at, values):  # no finite sum of squares counts as beyond the level
+            return search.excess(inside[at], values)
+
+        width = PROFILE_TOLERANCE * (1.0 + np.abs(search.centre[inside]))
+        found[closed] = regula_falsi(closing, centre[closed], side[closed], bracket.take(closed), width,
+                                     excess_tolerance=1e-12 * search.scale[inside], max_iterations=PROFILE_ITERATIONS)  # fmt: skip
+    return found
+
+
+def _confirmed_limits(search: _ProfileSearch, best: np.ndarray, distance: np.ndarray) -> np.ndarray:
+    """The limit at each ``distance`` from the optimum, nan where the level was not passed, where
+    it was passed on the bound itself (the bound reached below the level: lmfit warns there) or
+    where the profile re-optimised from a grid of starts (:func:`_grid_profile_ssr`) lies below
+    the level at the limit (a lower branch the descent missed)."""
+    limit = search.centre + search.side * distance
     on_bound = np.abs(search.bound - limit) <= PROFILE_TOLERANCE * (1.0 + np.abs(search.centre))
-    found = np.flatnonzero(np.isfinite(t_high) & ~on_bound)
+    found = np.flatnonzero(np.isfinite(distance) & ~on_bound)
     lowest = _grid_profile_ssr(search.rows, found, search.column[found], limit[found], best[found])
     gap = search.goal[found] - search.floor[found]
     missed = found[lowest < search.goal[found] - 1e-3 * gap]
-    limit = np.where(np.isfinite(t_high) & ~on_bound, limit, np.nan)
+    limit = np.where(np.isfinite(distance) & ~on_bound, limit, np.nan)
     limit[missed] = np.nan
     return limit
 
 
 class _ProfileSearch:
     """The rows of :func:`profile_limits`: one per (experiment, parameter, side), the parameter
-    held at ``centre + side t`` while the others are re-optimised."""
+    held at a value while the others are re-optimised from ``start`` (the last point of the
+    row's profile short of the level)."""
 
-    def __init__(self, rows: BatchProblem, column, side, centre, floor, goal):
+    def __init__(self, rows: BatchProblem, column, side, centre, floor, goal, start):
         self.rows, self.column, self.side, self.centre, self.floor, self.goal = rows, column, side, centre, floor, goal
+        self.start = start.copy()
         index = np.arange(column.size)
         self.bound = np.where(side > 0, rows.upper[index, column], rows.lower[index, column])
         self.room = np.abs(self.bound - centre)
         self.scale = np.sqrt(np.maximum(goal - floor, 0.0))
 
-    def distance(self, work, ssr):
-        """sqrt(S - S_min) less its value at the level: linear in theta for a quadratic profile."""
+    def excess(self, work, value):
+        """sqrt(S - S_min) less its value at the level (linear in theta for a quadratic profile) at
+        theta_j = ``value`` of the rows ``work``; inf where no finite sum of squares was found."""
+        params, ssr = self.profile(work, value, self.start[work])
         with np.errstate(invalid="ignore"):
-            return np.where(np.isfinite(ssr), np.sqrt(np.maximum(ssr - self.floor[work], 0.0)) - self.scale[work], np.inf)
+            distance = np.where(np.isfinite(ssr), np.sqrt(np.maximum(ssr - self.floor[work], 0.0)) - self.scale[work], np.inf)
+        short = distance < 0
+        self.start[work[short]] = params[short]
+        return distance
 
-    def profile(self, work, t, start):
-        """Re-optimised at theta_j = centre + side t, from ``start`` (the last point short of the level)."""
+    def profile(self, work, value, start):
+        """Re-optimised at theta_j = ``value``, from ``start``."""
         rows, column = self.rows, self.column[work]
-        value = self.centre[work] + self.side[work] * t
         held = rows.lower.copy(), rows.upper.copy()
         rows.lower[work, column] = rows.upper[work, column] = value
         params = start.copy()
@@ -450,57 +481,6 @@ class _ProfileSearch:
         params, ssr, _ = levenberg_marquardt(rows, params, work)
         rows.lower, rows.upper = held
         return params, ssr
-
-
-def _bracket(search: _ProfileSearch, start, t, searching):
-    """Outwards from the optimum, doubling ``t``, until the level is passed or the bound is
-    reached: ``(t_low, h_low, t_high, h_high)``, t_high nan where the level was not passed;
-    ``start`` is updated in place to the last point short of the level."""
-    size = t.size
-    t_low, t_high = np.zeros(size), np.full(size, np.nan)
-    h_low, h_high = -search.scale.copy(), np.full(size, np.nan)
-    t, searching = t.copy(), searching.copy()
-    for _ in range(PROFILE_EXPANSIONS):
-        work = np.flatnonzero(searching)
-        if not work.size:
-            break
-        params, ssr = search.profile(work, t[work], start[work])
-        h = search.distance(work, ssr)
-        passed = np.isfinite(ssr) & (h >= 0)
-        short = np.isfinite(ssr) & ~passed
-        t_high[work[passed]], h_high[work[passed]] = t[work[passed]], h[passed]
-        t_low[work[short]], h_low[work[short]], start[work[short]] = t[work[short]], h[short], params[short]
-        at_bound = t[work] >= search.room[work]
-        searching[work[passed | ~np.isfinite(ssr) | at_bound]] = False
-        grow = work[short & ~at_bound]
-        t[grow] = np.minimum(2.0 * t[grow], search.room[grow])
-    return t_low, h_low, t_high, h_high
-
-
-def _regula_falsi(search: _ProfileSearch, start, t_low, h_low, t_high, h_high) -> None:
-    """Close every bracket ``[t_low, t_high]`` on the level (Illinois variant), in place."""
-    solving = np.isfinite(t_high)
-    last_side = np.zeros(t_low.size)
-    for _ in range(PROFILE_ITERATIONS):
-        work = np.flatnonzero(solving)
-        if not work.size:
-            break
-        with np.errstate(all="ignore"):
-            trial = t_low[work] - h_low[work] * (t_high[work] - t_low[work]) / (h_high[work] - h_low[work])
-        inside = np.isfinite(trial) & (trial > t_low[work]) & (trial < t_high[work])
-        trial = np.where(inside, trial, 0.5 * (t_low[work] + t_high[work]))
-        params, ssr = search.profile(work, trial, start[work])
-        h = search.distance(work, ssr)
-        below = h < 0
-        low_rows, high_rows = work[below], work[~below]
-        t_low[low_rows], h_low[low_rows], start[low_rows] = trial[below], h[below], params[below]
-        t_high[high_rows], h_high[high_rows] = trial[~below], h[~below]
-        h_high[low_rows[last_side[low_rows] < 0]] *= 0.5  # the same end moved twice: halve the other's weight
-        h_low[high_rows[last_side[high_rows] > 0]] *= 0.5
-        last_side[low_rows], last_side[high_rows] = -1.0, 1.0
-        width = PROFILE_TOLERANCE * (1.0 + np.abs(search.centre[work]))
-        closed = (t_high[work] - t_low[work] <= width) | (np.abs(h) <= 1e-12 * search.scale[work])
-        solving[work[closed]] = False
 
 
 def _grid_profile_ssr(problem: BatchProblem, work: np.ndarray, column: np.ndarray, value: np.ndarray, best: np.ndarray):

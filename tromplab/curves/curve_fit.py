@@ -30,9 +30,10 @@ from ..loading.points import MAX_SIZE_SPAN, TrompPoints
 from ..results_contract import ResultContract
 from ..validation import check_probability, check_size
 from .diagnostics import RESIDUAL_WARNING, ResidualDiagnostics, batch_residual_diagnostics, residual_diagnostics
-from .fitting import ParameterFit, least_squares, on_bound
+from .fitting import ParameterFit, least_squares
 from .formulas import Formula, NoBreakPointError, get_formula, shuvalov_break
 from .indices import CurveIndices, batch_curve_indices, batchable_indices, curve_indices
+from .likelihood import on_bound
 from .measured import (
     CUT_WARNING,
     GRID_SLOPES,

@@ -18,6 +18,7 @@ import lmfit
 import numpy as np
 
 from ..errors import InputError
+from .likelihood import on_bound
 from .parameters import Parameter
 
 
@@ -155,15 +156,6 @@ class ParameterFit:
         names = tuple(s.name for s in specs)
         nan = {name: np.nan for name in names}
         return cls(names, dict(nan), dict(nan), np.nan, n_points, False, message, n_starts=n_starts)
-
-
-def on_bound(value: float, bound: float, *, rtol: float = 1e-5, atol_at_zero: float = 1e-8) -> bool:
-    """Whether a fitted value sits on a bound: within ``rtol`` of it relative to the bound (an
-    absolute ``atol_at_zero`` when the bound is 0, as for a bypass).  Relative, so a cut size is
-    judged the same in metres as in micrometres (numpy.isclose's absolute 1e-8 put every cut
-    below 1e-8 on its bound)."""
-    tolerance = rtol * abs(bound) if bound != 0 else atol_at_zero
-    return abs(value - bound) <= tolerance
 
 
 def parameters_at_bounds(specs, values: dict) -> tuple[str, ...]:

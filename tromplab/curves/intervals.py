@@ -22,9 +22,9 @@ from scipy import stats
 from ..errors import expect_like
 from ..validation import check_optional, check_probability, check_size
 from .batched import BatchProblem, PaddedPoints, profile_limits, sum_of_squares
-from .fitting import on_bound
 from .formulas import is_batchable
 from .indices import batch_index_columns, batchable_indices, curve_indices
+from .likelihood import on_bound
 from .measured import CUT_QUANTITIES, formula_contexts, parameter_specs
 from .parameters import D_CUT_RANGE_FACTOR
 

@@ -2,7 +2,7 @@
 
 The curves (partition to the sinks against relative density, with the cut density
 ``rho50``, the probable error ``Ep`` and the imperfection ``I = Ep / (rho50 - 1)``) are
-declared in :mod:`tromplab.density.curves`; tracer counts, float-sink analyses and
+declared in :mod:`tromplab.density.registry`; tracer counts, float-sink analyses and
 partitions are read by :mod:`tromplab.density.readers`, fitted by
 :mod:`tromplab.density.fitting` (binomial maximum likelihood, least squares) and
 :func:`fit_density` returns a :class:`~tromplab.density.results.DensityResult` whose
@@ -11,7 +11,9 @@ returns a :class:`~tromplab.density.prediction.DensityPrediction` whose ``save(F
 what ``tromplab density predict WASHABILITY -o FILE`` writes.
 """
 
-from .curves import (
+from .fitting import DensityCurveFit, fit_density_curve
+from .readers import DensitySample, read_density
+from .registry import (
     DENSITY_CURVES,
     LIMIT_CURVES,
     PLAIN_CURVES,
@@ -21,9 +23,7 @@ from .curves import (
     get_density_curve,
     select_density_curves,
 )
-from .fitting import DensityCurveFit, fit_density_curve
 from .prediction import DensityPrediction, predict_density
-from .readers import DensitySample, read_density
 from .results import DensityResult, fit_density
 
 __all__ = [

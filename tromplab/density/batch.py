@@ -16,25 +16,20 @@ deviance).  Every row is then fitted in the same numpy operations:
   held there while the score pushes it outwards, and each step halved until the deviance
   falls;
 * the limits of the profile-likelihood intervals are found for every test, quantity and
-  side together (:func:`profile_limits`): stepping out from the estimate as
-  :func:`tromplab.density.fitting.profile_interval` describes, then Chandrupatla's
-  bracketing root search on the
-  re-optimised profile.
+  side together (:func:`tromplab.density.profiles.profile_limits`): stepping out from the
+  estimate, then regula falsi on the re-optimised profile, by the search every curve's
+  profile uses (:mod:`tromplab.curves.likelihood`).
 
 References
 ----------
 .. [McCullagh1989] McCullagh P., Nelder J.A. (1989). *Generalized Linear Models*, 2nd ed.
    Chapman & Hall, London (sect. 2.5: the iteratively reweighted least-squares fit).
-.. [Chandrupatla1997] Chandrupatla T.R. (1997). A new hybrid quadratic/bisection algorithm for
-   finding the zero of a nonlinear function without using derivatives. *Advances in
-   Engineering Software* 28(3), 145-149.
 """
 
 from __future__ import annotations
 
 import functools
 import math
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -51,28 +46,6 @@ DIFFERENCE_STEP = 6e-6
 POLISH_STEP = 1e-6
 #: Halvings of a step before a row is taken as converged (the deviance falls no more).
 MAX_HALVINGS = 40
-
-
-def _pdf_normal(t):
-    return np.exp(-0.5 * t * t) / math.sqrt(2.0 * math.pi)
-
-
-def _pdf_logistic(t):
-    p = scipy.special.expit(t)
-    return p * (1.0 - p)
-
-
-def _pdf_gompertz(t):
-    t = np.minimum(t, 700.0)
-    return np.exp(t - np.exp(t))
-
-
-#: ``dF/dt`` of each standard form, by its link.
-FORM_DENSITIES: dict[str, Callable[[np.ndarray], np.ndarray]] = {
-    "probit": _pdf_normal,
-    "logit": _pdf_logistic,
-    "cloglog": _pdf_gompertz,
-}
 
 
 @dataclass(frozen=True)
@@ -153,7 +126,7 @@ def fit_glm(stack: TracerStack, form) -> GlmFits:
     ----------
     stack : TracerStack
     form : StandardForm
-        The curve's standard form (its ``cdf``, ``quantile`` and ``link``).
+        The curve's standard form (its ``cdf``, ``quantile`` and ``pdf``).
 
     Returns
     -------
@@ -163,9 +136,7 @@ def fit_glm(stack: TracerStack, form) -> GlmFits:
     counted = n > 0
     share = np.where(counted, k / np.where(counted, n, 1.0), 0.5)
     start = (share + 0.5) / 2.0  # statsmodels' start for the binomial family
-    beta = _weighted_line(
-        rho, form.quantile(start), n * FORM_DENSITIES[form.link](form.quantile(start)) ** 2 / (start * (1 - start))
-    )
+    beta = _weighted_line(rho, form.quantile(start), n * form.pdf(form.quantile(start)) ** 2 / (start * (1 - start)))
     converged = np.zeros(len(rho), dtype=bool)
     for _ in range(MAX_ITERATIONS):
         eta = beta[:, :1] + beta[:, 1:] * rho
@@ -189,7 +160,7 @@ def _mean_and_slope(form, eta):
     # the binomial family's clip of the mean (statsmodels: FLOAT_EPS), so that its variance stays positive
     eps = np.finfo(float).eps
     mu = np.clip(form.cdf(eta), eps, 1.0 - eps)
-    return mu, np.maximum(FORM_DENSITIES[form.link](eta), 1e-300)
+    return mu, np.maximum(form.pdf(eta), 1e-300)
 
 
 def _information(rho, weight):

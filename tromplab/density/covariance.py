@@ -28,7 +28,8 @@ import math
 import numpy as np
 import pandas as pd
 
-from .fitting import DensityCurveFit, fit_data, index_model, index_vector, numerical_hessian, objective_of, on_bound
+from ..curves.likelihood import central_hessian
+from .fitting import DensityCurveFit, fit_data, index_model, index_vector, objective_of
 from .joint import JOINT_METHOD
 
 #: The parameters whose covariance ``covariance.csv`` gives, in order.
@@ -38,7 +39,8 @@ COVARIANCE_PARAMETERS = ("rho50", "ep")
 def index_covariance(fit: DensityCurveFit) -> np.ndarray | None:
     """The 2 x 2 covariance of ``(rho50, ep)`` of a fit (g/cm3 squared); None when it cannot be made.
 
-    None for a failed fit, a curve without rho50 or Ep, or a singular or indefinite curvature.
+    None for a failed fit, a curve without rho50 or Ep, a singular or indefinite curvature, or a
+    limit (of a curve with limits) closer to its bound than the difference step of the curvature.
     """
     if not fit.success or fit.indices is None or math.isnan(fit.indices.rho50) or math.isnan(fit.indices.ep):
         return None
@@ -52,7 +54,7 @@ def _profile_covariance(fit: DensityCurveFit) -> np.ndarray | None:
     vector, _ = index_vector(fit.curve, fit.params, fit.indices, "ep")
     model = index_model(fit.curve, "ep")
     names = ["rho50", "ep", "light_limit", "heavy_limit"][: vector.size]
-    free = [i for i, name in enumerate(names) if i < 2 or not on_bound(fit.curve, name, vector[i])]
+    free = [i for i, name in enumerate(names) if i < 2 or not fit.curve.limit_on_bound(name, vector[i])]
     data = fit_data(fit.sample, fit.method)
     objective = objective_of(data)
 
@@ -62,7 +64,10 @@ def _profile_covariance(fit: DensityCurveFit) -> np.ndarray | None:
         return objective(fit.curve.partition(data.density, **model(q)))
 
     start = vector[free]
-    hessian = numerical_hessian(value, start, 1e-4 * np.maximum(np.abs(start), 1e-2))
+    try:
+        hessian = central_hessian(value, start, 1e-4 * np.maximum(np.abs(start), 1e-2))
+    except ValueError:  # a limit within a difference step of its bound: the steps leave the curve's range
+        return None
     scale = (fit.dispersion if fit.overdispersed else 1.0) if data.binomial else fit.dispersion
     try:
         covariance = 2.0 * scale * np.linalg.inv(hessian)

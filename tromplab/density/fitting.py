@@ -60,15 +60,16 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.special
 
+from ..curves.likelihood import central_hessian, step_out
 from ..results_contract import ResultContract
 from ..statistics.distributions import binom_logpmf, chi2_sf, f_ppf, norm_isf, norm_ppf
 from .batch import LIMIT_STARTS, BinomialFit, TracerStack, fit_glm, fit_limits_curve
-from .curves import DensityCurve, DensityIndices, get_density_curve
 from .dispersion import pearson_rejects, quasi_binomial_scale
 from .dispersion import profile_threshold as quasi_profile_threshold
 from .joint import JOINT_METHOD, fit_joint, has_three_analyses, joint_intervals
 from .profiles import ProfileRequests, profile_limits
 from .readers import DensitySample
+from .registry import DensityCurve, DensityIndices, get_density_curve
 
 #: Lowest and highest values the profile searches and the fits of a curve with limits may take.
 INDEX_BOUNDS = {"rho50": (1.0 + 1e-6, 8.0), "ep": (1e-4, 2.0), "imperfection": (1e-5, 20.0)}
@@ -432,10 +433,13 @@ def profile_interval(fit: DensityCurveFit, quantity: str, ci: float) -> tuple[fl
 
     warm = {"x": centre[free]}  # the optimum of the last profile point: the next one starts there
 
+    # the limits (positions 2 and 3) held within their bounds: a limit past them has no rho50 (ValueError)
+    lowest, highest = np.array([bounds[i] if i >= 2 else (-np.inf, np.inf) for i in free]).T
+
     def excess(value):
         def at(x):
             q = centre.copy()
-            q[position], q[free] = value, x
+            q[position], q[free] = value, np.clip(x, lowest, highest)  # SLSQP may step past a bound by a hair
             return objective(fit.curve.partition(data.density, **model(q)))
 
         starts = [warm["x"]] if len(free) == 1 else [warm["x"], centre[free]]
@@ -512,26 +516,22 @@ def _profile_requests(chosen: list, ci: float) -> ProfileRequests:
 
 
 def _profile_limit(excess, centre: float, direction: float, bounds: tuple[float, float], step: float) -> tuple[float, str]:
-    """Where ``excess`` crosses 0 going from ``centre`` in ``direction``, stepping out geometrically from ``step``."""
+    """Where ``excess`` crosses 0 going from ``centre`` in ``direction``: the bracket of every profile's
+    search (:func:`tromplab.curves.likelihood.step_out`), closed by Brent's method to ``1e-4 step``."""
     import scipy.optimize
 
     edge = bounds[1] if direction > 0 else bounds[0]
-    tolerance = 1e-4 * step
-    inner = centre
-    while True:
-        outer = centre + direction * step
-        if (outer - edge) * direction >= 0:
-            outer = edge
-        if excess(outer) > 0:
-            try:
-                return float(scipy.optimize.brentq(excess, min(inner, outer), max(inner, outer), xtol=tolerance)), ""
-            except ValueError:  # the re-optimised profile is not monotone between the two points
-                side = "upper" if direction > 0 else "lower"
-                return math.nan, f"the {side} limit could not be found (the profile is not monotone near {outer:.4g})"
-        if outer == edge:
-            side = "upper" if direction > 0 else "lower"
-            return math.nan, f"the profile does not reach the {side} limit within {edge:g}"
-        inner, step = outer, step * 2.0
+    side = "upper" if direction > 0 else "lower"
+    # one side at a time: the re-optimisations of a side start where the last one ended
+    bracket = step_out(lambda rows, values: np.array([excess(values[0])]), [centre], [direction], [abs(edge - centre)],
+                       [step], [math.nan])  # fmt: skip
+    if not bracket.closed[0]:
+        return math.nan, f"the profile does not reach the {side} limit within {edge:g}"
+    inner, outer = (centre + direction * t for t in (bracket.inner[0], bracket.outer[0]))
+    try:
+        return float(scipy.optimize.brentq(excess, min(inner, outer), max(inner, outer), xtol=1e-4 * step)), ""
+    except ValueError:  # the re-optimised profile is not monotone between the two points
+        return math.nan, f"the {side} limit could not be found (the profile is not monotone near {outer:.4g})"
 
 
 # --- curves and samples -------------------------------------------------------------------------
@@ -543,7 +543,7 @@ def fit_density_curve(sample: DensitySample, curve, *, ci: float | None = None, 
     sample : DensitySample
         One test and size fraction (:func:`tromplab.density.readers.read_density`).
     curve : DensityCurve or str
-        The curve (:data:`tromplab.density.curves.DENSITY_CURVES`).
+        The curve (:data:`tromplab.density.registry.DENSITY_CURVES`).
     ci : float, optional
         Level of the profile-likelihood intervals of rho50, Ep and I (none when None).
     method : {"binomial", "least_squares"}, optional
@@ -864,7 +864,7 @@ def partition_band(fit: DensityCurveFit, rho, *, level: float = 0.95) -> tuple[n
     centre = fit.partition(rho)
     if fit.method == JOINT_METHOD:
         return _band(fit, rho, centre, list(fit.raw.free), fit.raw.covariance, level)
-    names = [name for name in fit.curve.parameter_names if not on_bound(fit.curve, name, fit.params[name])]
+    names = [name for name in fit.curve.parameter_names if not fit.curve.limit_on_bound(name, fit.params[name])]
     data = fit_data(fit.sample, fit.method)
     objective = objective_of(data)
     values = np.array([fit.params[name] for name in names])
@@ -873,7 +873,7 @@ def partition_band(fit: DensityCurveFit, rho, *, level: float = 0.95) -> tuple[n
     def at(vector, where):
         return fit.curve.partition(where, **{**fit.params, **dict(zip(names, vector))})
 
-    hessian = numerical_hessian(lambda vector: objective(at(vector, data.density)), values, steps)
+    hessian = central_hessian(lambda vector: objective(at(vector, data.density)), values, steps)
     scale = profile_scale(fit, binomial=data.binomial)
     quantile = math.sqrt(profile_threshold(fit, level, binomial=True)) if data.binomial else None  # None: the normal's
     try:
@@ -902,22 +902,3 @@ def _band(fit: DensityCurveFit, rho, centre, names: list, covariance: np.ndarray
     quantile = norm_ppf(0.5 + level / 2) if quantile is None else quantile
     half = quantile * np.sqrt(np.clip(variance, 0, None))
     return np.clip(centre - half, 0, 1), np.clip(centre + half, 0, 1)
-
-
-def on_bound(curve: DensityCurve, name: str, value: float) -> bool:
-    parameter = next(p for p in curve.parameters if p.name == name)
-    return name in ("light_limit", "heavy_limit") and min(abs(value - parameter.lower), abs(value - parameter.upper)) < 1e-6
-
-
-def numerical_hessian(function, x: np.ndarray, steps: np.ndarray) -> np.ndarray:
-    size = x.size
-    hessian = np.empty((size, size))
-    unit = np.eye(size)
-    for i in range(size):
-        for j in range(i, size):
-            di, dj = unit[i] * steps[i], unit[j] * steps[j]
-            value = (function(x + di + dj) - function(x + di - dj) - function(x - di + dj) + function(x - di - dj)) / (
-                4 * steps[i] * steps[j]
-            )
-            hessian[i, j] = hessian[j, i] = value
-    return hessian

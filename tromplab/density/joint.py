@@ -56,7 +56,7 @@ import scipy.linalg
 import scipy.special
 
 from ..statistics.distributions import t_ppf
-from .curves import DensityCurve
+from .registry import DensityCurve
 
 #: ``DensitySample.yield_source`` of a yield estimated from the three analyses (none stated).
 ESTIMATED_YIELD_SOURCE = "least-squares estimate"
@@ -163,7 +163,7 @@ def _summarise(curve, names, result, mu, variance, df, density, largest_residual
     n = density.size
     k = len(names)
     params = dict(zip(names, (float(v) for v in result.x[:k])))
-    held = [i for i, name in enumerate(names) if name in ("light_limit", "heavy_limit") and _on_bound(curve, name, params[name])]
+    held = [i for i, name in enumerate(names) if curve.limit_on_bound(name, params[name])]
     keep = [i for i in range(result.x.size) if i not in held]
     jacobian = result.jac[:, keep]
     ssr = float(2 * result.cost)
@@ -213,11 +213,6 @@ def _closed_covariance(mu, variance, n) -> np.ndarray:
         scale = 1 / np.sqrt(variance[part])
         blocks.append(raw * np.outer(scale, scale))
     return scipy.linalg.block_diag(*blocks)
-
-
-def _on_bound(curve: DensityCurve, name: str, value: float) -> bool:
-    parameter = next(p for p in curve.parameters if p.name == name)
-    return min(abs(value - parameter.lower), abs(value - parameter.upper)) < 1e-6
 
 
 def joint_intervals(curve: DensityCurve, joint: JointFit, ci: float) -> dict:

@@ -100,13 +100,13 @@ def plot_density_curve_family(curve, *, ax=None, rho50: float = 1.5):
     """One density curve at the cut ``rho50`` and the probable errors :data:`FAMILY_EPS` (the catalogue's figure).
 
     A curve with limits is drawn with the limits :data:`FAMILY_LIMITS` and the same rho50
-    and Ep of ``P`` itself (:meth:`~tromplab.density.curves.DensityCurve.from_indices`).
+    and Ep of ``P`` itself (:meth:`~tromplab.density.registry.DensityCurve.from_indices`).
 
     Returns
     -------
     matplotlib Axes
     """
-    from .curves import get_density_curve
+    from .registry import get_density_curve
 
     curve = get_density_curve(curve)
     ax = _axes(ax)

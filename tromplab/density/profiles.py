@@ -2,21 +2,17 @@ r"""Profile-likelihood limits of rho50, Ep and the imperfection of many binomial
 
 Each request is one fitted curve and one quantity: the curve is written in its indices
 ``(rho50, Ep[, l, h])`` (``(rho50, I[, l, h])`` for the imperfection, ``Ep = I (rho50 - 1)``,
-through :meth:`~tromplab.density.curves.DensityCurve.from_indices`), the quantity is held at
+through :meth:`~tromplab.density.registry.DensityCurve.from_indices`), the quantity is held at
 a value and the other parameters re-optimised (:func:`~tromplab.density.batch.minimise_deviance`,
 from the optimum of the previous value and, for a curve with limits, also from the
 estimate).  A limit is where the excess :math:`(D(q) - \hat D)/\phi - c` crosses zero
 (``phi`` the scale and ``c`` the threshold the caller gives).  Both sides of every request
 go together: from the estimate a step of a quarter of Ep (of I) and then twice as far each
 time until the excess is positive (a bracket) or the search range ends (no limit); within
-each bracket Chandrupatla's (1997) root search, every side at once, converges to the last
-digits.
-
-References
-----------
-.. [Chandrupatla1997] Chandrupatla T.R. (1997). A new hybrid quadratic/bisection algorithm for
-   finding the zero of a nonlinear function without using derivatives. *Advances in
-   Engineering Software* 28(3), 145-149.
+each bracket regula falsi (Illinois), every side at once, converges to the last digits.  The
+search is the one every curve's profile uses, size or density
+(:func:`tromplab.curves.likelihood.step_out` and :func:`~tromplab.curves.likelihood.regula_falsi`);
+this module gives it the excess of the re-optimised deviance.
 """
 
 from __future__ import annotations
@@ -25,15 +21,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..curves.likelihood import regula_falsi, step_out
 from .batch import TracerStack, centre_and_scale, minimise_deviance, partition_at
-from .curves import QUARTILES
+from .registry import QUARTILES
 
 #: The excess where no curve with a finite likelihood exists at a value: beyond any limit.
 BEYOND = 1e300
 #: Relative and absolute (in units of the first step) tolerances of the limits.
 ROOT_RELATIVE_TOLERANCE = 1e-14
 ROOT_STEP_TOLERANCE = 1e-11
-#: Iterations of the root search (it converges in about ten).
+#: Iterations of the root search (it converges in about fifteen).
 MAX_ROOT_ITERATIONS = 100
 
 
@@ -157,14 +154,21 @@ def profile_limits(curve, requests: ProfileRequests) -> tuple[np.ndarray, np.nda
         requests.upper[request, requests.position[request]],
         requests.lower[request, requests.position[request]],
     )
-    bracket = _step_out(profiles, sides, centre, edge, requests.step[request], -requests.threshold[request])
+    step = requests.step[request]
+    bracket = step_out(profiles.excess, centre, profiles.direction, np.abs(edge - centre), step, -requests.threshold[request])
     limits = np.full(len(sides), np.nan)
-    bracketed = np.isfinite(bracket[1])
-    if bracketed.any():
-        inside = [part[bracketed] for part in bracket]
-        tolerance = ROOT_STEP_TOLERANCE * requests.step[request][bracketed]
-        limits[bracketed] = _chandrupatla(profiles, sides[bracketed], *inside, tolerance)
-        _recheck_edges(profiles, sides, limits, edge, requests.step[request])
+    bracketed = np.flatnonzero(bracket.closed)
+    if bracketed.size:
+        width = 2.0 * (ROOT_STEP_TOLERANCE * step[bracketed] + 2.0 * ROOT_RELATIVE_TOLERANCE * np.abs(centre[bracketed]))
+
+        def excess(rows, values):
+            return profiles.excess(bracketed[rows], values)
+
+        direction = profiles.direction[bracketed]
+        distance = regula_falsi(excess, centre[bracketed], direction, bracket.take(bracketed), width,
+                                max_iterations=MAX_ROOT_ITERATIONS)  # fmt: skip
+        limits[bracketed] = centre[bracketed] + direction * distance
+        _recheck_edges(profiles, sides, limits, edge, step)
     count = len(requests.best)
     notes = [
         [
@@ -187,59 +191,3 @@ def _recheck_edges(profiles: _Profiles, sides, limits, edge, step) -> None:
     if at_edge.size:
         below = profiles.excess(sides[at_edge], edge[at_edge]) <= 0
         limits[at_edge[below]] = np.nan
-
-
-def _step_out(profiles: _Profiles, sides, centre, edge, step, at_centre):
-    """From the estimate outwards by ``step``, doubling, to the first value with a positive excess.
-
-    Returns ``(inner, outer, excess at inner, excess at outer)`` of each side (``outer`` NaN
-    where the search range ended first); ``at_centre`` is the excess at the estimate."""
-    inner, outer = centre.copy(), np.full(len(sides), np.nan)
-    inner_excess, outer_excess = at_centre.copy(), np.full(len(sides), np.nan)
-    direction = profiles.direction[sides]
-    active = np.ones(len(sides), dtype=bool)
-    while active.any():
-        at = np.flatnonzero(active)
-        value = centre[at] + direction[at] * step[at]
-        reached = (value - edge[at]) * direction[at] >= 0
-        value = np.where(reached, edge[at], value)
-        excess = profiles.excess(sides[at], value)
-        crossed = excess > 0
-        outer[at[crossed]], outer_excess[at[crossed]] = value[crossed], excess[crossed]
-        moving = ~crossed & ~reached
-        inner[at[moving]], inner_excess[at[moving]] = value[moving], excess[moving]
-        step[at] *= 2.0
-        active[at[crossed | reached]] = False
-    return inner, outer, inner_excess, outer_excess
-
-
-def _chandrupatla(profiles: _Profiles, sides, a, b, fa, fb, tolerance) -> np.ndarray:
-    """The zero of the excess between ``a`` and ``b`` (excesses ``fa <= 0 < fb``) of each side:
-    Chandrupatla's inverse quadratic interpolation, bisection where it is not safe, every side at once."""
-    c, fc = a.copy(), fa.copy()
-    t = np.full(len(sides), 0.5)
-    found = np.full(len(sides), np.nan)
-    active = np.arange(len(sides))
-    for _ in range(MAX_ROOT_ITERATIONS):
-        xt = a + t * (b - a)
-        ft = profiles.excess(sides[active], xt)
-        same = np.sign(ft) == np.sign(fa)
-        c, fc = np.where(same, a, b), np.where(same, fa, fb)
-        b, fb = np.where(same, b, a), np.where(same, fb, fa)
-        a, fa = xt, ft
-        closer = np.abs(fa) < np.abs(fb)
-        xm, fm = np.where(closer, a, b), np.where(closer, fa, fb)
-        with np.errstate(divide="ignore"):  # b == c: the bracket has closed
-            limit = (2 * ROOT_RELATIVE_TOLERANCE * np.abs(xm) + tolerance[active]) / np.abs(b - c)
-        done = (fm == 0) | (limit > 0.5)
-        found[active[done]] = xm[done]
-        keep = ~done
-        if not keep.any():
-            break
-        with np.errstate(all="ignore"):
-            xi, phi = (a - b) / (c - b), (fa - fb) / (fc - fb)
-            quadratic = (phi**2 < xi) & ((1 - phi) ** 2 < 1 - xi)
-            interpolated = fa / (fb - fa) * fc / (fb - fc) + (c - a) / (b - a) * fa / (fc - fa) * fb / (fc - fb)
-        t = np.clip(np.where(quadratic, interpolated, 0.5), limit, 1 - limit)
-        a, b, c, fa, fb, fc, t, active = (part[keep] for part in (a, b, c, fa, fb, fc, t, active))
-    return found

@@ -30,10 +30,10 @@ from ..output.csv_parts import file_writers, write_csv
 from ..parallel import dask_client, map_on_workers
 from ..results_contract import ResultContract
 from ..validation import MAX_JOBS, check_count, check_probability
-from .curves import select_density_curves
 from .fitting import METHODS, DensityCurveFit, fit_density_curves, limits_test_p, wilson_interval
 from .ranking import quasi_aic, rank_fits, variance_inflation
 from .readers import DensitySample, read_density
+from .registry import select_density_curves
 
 #: The curves fitted when none are named: the three plain curves and their variants with limits.
 DEFAULT_DENSITY_CURVES = "all"

@@ -20,10 +20,10 @@ import math
 import numpy as np
 import pandas as pd
 
-from .curves import get_density_curve
 from .fitting import fit_density_curve, profile_interval
 from .joint import JOINT_METHOD, has_three_analyses
 from .readers import read_density
+from .registry import get_density_curve
 
 
 def simulate_tracer_test(

@@ -551,7 +551,7 @@ def partition_curve(curve="normal", *, rho50: float, ep: float, light_limit=None
     Parameters
     ----------
     curve : str or DensityCurve
-        A curve of :data:`tromplab.density.curves.DENSITY_CURVES` (``"normal"``,
+        A curve of :data:`tromplab.density.registry.DENSITY_CURVES` (``"normal"``,
         ``"logistic"``, ``"gompertz"`` or a ``*_limits`` variant).  A plain curve given
         ``light_limit`` or ``heavy_limit`` becomes its variant with limits.
     rho50, ep : float
@@ -572,7 +572,7 @@ def partition_curve(curve="normal", *, rho50: float, ep: float, light_limit=None
     >>> record.id, round(float(p(1.54)), 12)
     ('normal', 0.75)
     """
-    from .curves import get_density_curve
+    from .registry import get_density_curve
 
     try:
         record = get_density_curve(curve)

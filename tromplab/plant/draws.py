@@ -3,7 +3,7 @@ r"""Parametric bootstrap of the devices' partition curves: draws of each curve's
 The parameters of device :math:`j`, :math:`\theta_j = (\rho_{50}, s)` with :math:`s` the
 probable error or the imperfection, are drawn through the coefficients of the curve's linear
 predictor, :math:`P(\rho) = F(\alpha + \beta\rho)` with :math:`\beta = k/E_p` and
-:math:`\alpha = q_{50} - \beta\rho_{50}` (:mod:`tromplab.density.curves`; for a probit,
+:math:`\alpha = q_{50} - \beta\rho_{50}` (:mod:`tromplab.density.registry`; for a probit,
 logit or cloglog fit of tracer counts the GLM's own coefficients, whose sampling distribution
 is close to normal where the ratio :math:`\rho_{50} = (q_{50} - \alpha)/\beta` is not):
 
@@ -45,7 +45,7 @@ def parameter_draws(devices: list[Device], draws: int, seed: int) -> list[tuple[
 
     Examples
     --------
-    >>> from tromplab.density.curves import get_density_curve
+    >>> from tromplab.density.registry import get_density_curve
     >>> device = Device("c", "dmc", get_density_curve("normal"), 1.5, "ep", 0.03, np.diag([0.005**2, 0.002**2]))
     >>> [(rho50, scale)] = parameter_draws([device], 20000, seed=1)
     >>> round(float(rho50[0]), 6), round(float(np.std(rho50[1:])), 3), round(float(np.std(scale[1:])), 3)

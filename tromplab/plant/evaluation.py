@@ -34,9 +34,9 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from ..density.curves import get_density_curve
 from ..density.fitting import fit_density_curve
 from ..density.readers import DensitySample, read_density
+from ..density.registry import get_density_curve
 from ..density.washability import Washability, washability_from_arrays
 from ..errors import InputError, OptionError
 from ..options import DEFAULT_SUM_TOLERANCE_PCT

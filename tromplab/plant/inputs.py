@@ -19,7 +19,7 @@ The plant table, one row per size fraction:
 
 ``size_fraction``, ``device``, ``curve``
     the size fraction (as in the washability), the device's name (text) and its partition curve
-    (a plain curve of :data:`tromplab.density.curves.DENSITY_CURVES`: ``normal``, ``logistic``,
+    (a plain curve of :data:`tromplab.density.registry.DENSITY_CURVES`: ``normal``, ``logistic``,
     ``gompertz``; with ``light_limit`` / ``heavy_limit`` its variant with limits).
 ``rho50``
     cut density of the partition to sinks (relative density, above 1, at most 3.5).
@@ -54,7 +54,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..density.curves import PLAIN_CURVES, DensityCurve, get_density_curve
+from ..density.registry import PLAIN_CURVES, DensityCurve, get_density_curve
 from ..density.washability import WASHABILITY_COLUMNS, Washability, washability_of_rows
 from ..errors import InputError
 from ..loading.tables import Table, read_table

@@ -126,7 +126,7 @@ class CutResponse:
         form = device.curve.form
         t = form.centre + form.scale * (washability.density - rho50) / ep
         with np.errstate(divide="ignore"):
-            log_weight = _LOG_DENSITY[form.link](t) + np.log(washability.mass_pct) - np.log(ep)
+            log_weight = form.log_pdf(t) + np.log(washability.mass_pct) - np.log(ep)
             if device.scale_name == "imperfection":
                 log_weight = log_weight + np.log(np.maximum(washability.density - 1.0, 1e-300)) - np.log(rho50 - 1.0)
         flat = log_weight.reshape(len(cuts), -1)
@@ -143,19 +143,6 @@ class CutResponse:
         clean, ash = self.expected(np.array([low, high]))
         gained = clean[1] - clean[0]
         return float((ash[1] - ash[0]) / gained) if gained > 1e-12 else np.nan
-
-
-def _log_logistic_density(t):
-    magnitude = np.abs(t)
-    return -magnitude - 2.0 * np.log1p(np.exp(-magnitude))
-
-
-#: The logarithm of each standard form's density f = F', by its binomial link.
-_LOG_DENSITY = {
-    "probit": lambda t: -0.5 * t**2 - 0.5 * np.log(2 * np.pi),
-    "logit": _log_logistic_density,
-    "cloglog": lambda t: t - np.exp(np.minimum(t, 700.0)),
-}
 
 
 def _stationary_cut(response: CutResponse, grid, gain, increments, multiplier: float, best: int) -> float:

@@ -27,7 +27,6 @@ import pandas as pd
 
 from ..curves.curve_fit import CurveFit, attach_indices
 from ..curves.engine import refit_partitions, refit_resamples
-from ..curves.fitting import on_bound
 from ..curves.formulas import is_batchable
 from ..curves.indices import batch_index_columns, batchable_indices
 from ..curves.intervals import (
@@ -44,6 +43,7 @@ from ..curves.intervals import (
     relative_size_limit,
     withheld_interval,
 )
+from ..curves.likelihood import on_bound
 from ..curves.measured import parameter_specs
 from ..errors import InputError, expect_kind
 from ..loading.points import TrompPoints

@@ -42,10 +42,13 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.special
 
+from ..curves.likelihood import on_bound
 from ..curves.parameters import Parameter
 
 #: Probabilities of the quartiles and the cut that the indices are read at.
 QUARTILES = (0.25, 0.5, 0.75)
+#: How close to a bound (in partition units) a fitted limit is taken to be on it.
+LIMIT_ON_BOUND = 1e-6
 
 TROMP_1937 = "Tromp K.F. (1937). Neue Wege für die Beurteilung der Aufbereitung von Steinkohlen. Glückauf 73, 125-131 and 151-156"
 WILLS_2016 = (
@@ -121,6 +124,10 @@ class StandardForm:
         ``F(t)``, vectorised, increasing from 0 to 1.
     quantile : callable
         ``F^-1(p)`` on ``0 < p < 1``, vectorised.
+    pdf : callable
+        ``f(t) = F'(t)``, vectorised: the GLM's derivative of the mean in the linear predictor.
+    log_pdf : callable
+        ``ln f(t)``, vectorised, finite far into the tails (the plant's weights of a sharp curve).
     link : str
         The binomial GLM link whose inverse is ``F`` (``"probit"``, ``"logit"``,
         ``"cloglog"``): a plain curve is fitted to tracer counts as that GLM.
@@ -130,6 +137,8 @@ class StandardForm:
 
     cdf: Callable[[np.ndarray], np.ndarray]
     quantile: Callable[[np.ndarray], np.ndarray]
+    pdf: Callable[[np.ndarray], np.ndarray]
+    log_pdf: Callable[[np.ndarray], np.ndarray]
     link: str
     text: str
 
@@ -153,9 +162,38 @@ def _gompertz_quantile(p):
     return np.log(-np.log1p(-np.asarray(p, dtype=float)))
 
 
-NORMAL_FORM = StandardForm(scipy.special.ndtr, scipy.special.ndtri, "probit", "erfc(-t/sqrt(2))/2")
-LOGISTIC_FORM = StandardForm(scipy.special.expit, scipy.special.logit, "logit", "1/(1 + exp(-t))")
-GOMPERTZ_FORM = StandardForm(_gompertz_cdf, _gompertz_quantile, "cloglog", "1 - exp(-exp(t))")
+def _gompertz_pdf(t):
+    t = np.minimum(t, 700.0)
+    return np.exp(t - np.exp(t))
+
+
+def _gompertz_log_pdf(t):
+    return t - np.exp(np.minimum(t, 700.0))
+
+
+def _normal_pdf(t):
+    return np.exp(-0.5 * t * t) / math.sqrt(2.0 * math.pi)
+
+
+def _normal_log_pdf(t):
+    return -0.5 * t**2 - 0.5 * np.log(2 * np.pi)
+
+
+def _logistic_pdf(t):
+    p = scipy.special.expit(t)
+    return p * (1.0 - p)
+
+
+def _logistic_log_pdf(t):
+    magnitude = np.abs(t)
+    return -magnitude - 2.0 * np.log1p(np.exp(-magnitude))
+
+
+NORMAL_FORM = StandardForm(scipy.special.ndtr, scipy.special.ndtri, _normal_pdf, _normal_log_pdf, "probit", "erfc(-t/sqrt(2))/2")
+LOGISTIC_FORM = StandardForm(
+    scipy.special.expit, scipy.special.logit, _logistic_pdf, _logistic_log_pdf, "logit", "1/(1 + exp(-t))"
+)
+GOMPERTZ_FORM = StandardForm(_gompertz_cdf, _gompertz_quantile, _gompertz_pdf, _gompertz_log_pdf, "cloglog", "1 - exp(-exp(t))")
 
 #: Names the expression texts use besides ``rho`` and the parameters.
 EXPRESSION_FUNCTIONS = ("exp", "ln", "erfc", "sqrt")
@@ -263,6 +301,22 @@ class DensityCurve:
         form = self.form
         centre = "" if form.centre == 0.0 else f"{form.centre:.15g} + "
         return f"{centre}{form.scale:.15g}*(rho - {cut})/{ep}"
+
+    def limit_on_bound(self, name: str, value: float) -> bool:
+        """True for a limit (``light_limit``, ``heavy_limit``) within :data:`LIMIT_ON_BOUND` of
+        one of its bounds: the fits hold it there (its curvature is one-sided), as the size
+        curves hold a parameter :func:`~tromplab.curves.likelihood.on_bound` finds on its bound.
+
+        Examples
+        --------
+        >>> curve = get_density_curve("normal_limits")
+        >>> curve.limit_on_bound("light_limit", 5e-7), curve.limit_on_bound("light_limit", 0.01), curve.limit_on_bound("rho_c", 1.0)
+        (True, False, False)
+        """
+        if name not in ("light_limit", "heavy_limit"):
+            return False
+        parameter = next(p for p in self.parameters if p.name == name)
+        return any(on_bound(value, bound, atol=LIMIT_ON_BOUND) for bound in parameter.bounds)
 
     def _check_parameters(self, params: Mapping[str, object]) -> None:
         names = set(self.parameter_names)

@@ -8,7 +8,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 from tromplab.curves.formulas import evaluate_expression
-from tromplab.density.curves import (
+from tromplab.density.registry import (
     DENSITY_CURVES,
     LIMIT_CURVES,
     PLAIN_CURVES,
@@ -64,6 +64,35 @@ def mp_density_at(curve_id, p, cut, ep, light=0, heavy=1):
 
 def params_of(curve, case):
     return dict(zip(curve.parameter_names, case))
+
+
+#: The standard forms' densities f = F' at 40 digits (McCullagh & Nelder 1989, sect. 4.3), by link.
+MP_PDF = {
+    "probit": lambda t: mp.exp(-t * t / 2) / mp.sqrt(2 * mp.pi),
+    "logit": lambda t: mp.exp(-t) / (1 + mp.exp(-t)) ** 2,
+    "cloglog": lambda t: mp.exp(t - mp.exp(t)),
+}
+
+
+@plain_curves
+def test_every_standard_form_declares_its_density_and_its_log(curve):
+    """``pdf`` and ``log_pdf`` of the record, which the GLM's iterations and the plant's cut search read,
+    against mpmath (rtol 1e-12; the log far into the tails, where the density itself underflows)."""
+    form = curve.form
+    t = np.linspace(-8.0, 6.0, 57)
+    expected = np.array([float(MP_PDF[form.link](mp.mpf(v))) for v in t])
+    assert_allclose(form.pdf(t), expected, rtol=1e-12, atol=1e-300)
+    assert_allclose(form.log_pdf(t), np.log(expected), rtol=1e-12)
+    far = np.array([-30.0, -12.0, 3.0])
+    assert_allclose(form.log_pdf(far), [float(mp.log(MP_PDF[form.link](mp.mpf(v)))) for v in far], rtol=1e-12)
+
+
+def test_a_limit_is_on_its_bound_within_a_millionth():
+    curve = get_density_curve("logistic_limits")
+    assert curve.limit_on_bound("light_limit", 0.0) and curve.limit_on_bound("heavy_limit", 1.0 - 9e-7)
+    assert curve.limit_on_bound("heavy_limit", 0.5 + 5e-7)  # the heavy limit's lower bound is 1/2
+    assert not curve.limit_on_bound("light_limit", 2e-6) and not curve.limit_on_bound("heavy_limit", 0.99)
+    assert not curve.limit_on_bound("rho_c", curve.parameters[0].lower)  # only the limits are held on a bound
 
 
 @all_curves

@@ -1,0 +1,239 @@
+r"""What the inference of every curve shares, size or density: the profile-likelihood root
+search, the Hessian by central differences and the check of a value on its bound.
+
+A profile-likelihood limit is where an *excess* crosses zero: the profile's rise over its
+minimum (re-optimised over the other parameters with one held), scaled, less the level's
+threshold.  It is found in two stages, every row (a fit, a quantity and a side) at once, in
+distances ``t >= 0`` from the estimate along the row's side:
+
+1. :func:`step_out` - from the estimate outwards by a first step, doubling, to the first
+   value with a positive excess (a bracket), or to the edge of the search range (no limit);
+2. :func:`regula_falsi` - the Illinois variant of the false position within each bracket
+   (Dowell & Jarratt 1971): the secant through the bracket's ends, the weight of an end that
+   stays twice in a row halved, bisection where the secant leaves the bracket.
+
+The size curves (:func:`tromplab.curves.batched.profile_limits`, the sum of squares' F test,
+on :math:`\sqrt{S - S_{min}}`, linear in the parameter for a quadratic profile) and the
+density curves (:mod:`tromplab.density.profiles`, the binomial deviance;
+:func:`tromplab.density.fitting.profile_interval`, least squares on shares, which closes its
+bracket with Brent's method) give the excess as a function of the values of the rows it is
+asked about, and keep their own warm starts; the search itself is this one.  This module
+imports numpy only.
+
+References
+----------
+.. [Dowell1971] Dowell M., Jarratt P. (1971). A modified regula falsi method for computing
+   the root of an equation. *BIT Numerical Mathematics* 11, 168-174.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+#: Doublings of the first step before a side is given up (any finite range is crossed in far fewer).
+MAX_DOUBLINGS = 60
+#: Iterations of the root search within a bracket.
+MAX_ROOT_ITERATIONS = 60
+
+#: ``excess(rows, values)``: the excess at ``values`` of the rows ``rows`` (indices into the
+#: arrays the search was given); NaN, while stepping out, where no profile exists at all (the
+#: side ends there without a limit).
+Excess = Callable[[np.ndarray, np.ndarray], np.ndarray]
+
+
+@dataclass(frozen=True)
+class Bracket:
+    """Where :func:`step_out` stopped on each row, in distances from the estimate.
+
+    Attributes
+    ----------
+    inner, outer : ndarray
+        The last distance with an excess at or below zero (0, the estimate, at first) and the
+        first with a positive one; ``outer`` NaN where the range ended (or the excess was NaN) first.
+    inner_excess, outer_excess : ndarray
+        The excess at ``inner`` and at ``outer``.
+    """
+
+    inner: np.ndarray
+    outer: np.ndarray
+    inner_excess: np.ndarray
+    outer_excess: np.ndarray
+
+    @property
+    def closed(self) -> np.ndarray:
+        """True where a positive excess was found: the rows with a root between inner and outer."""
+        return np.isfinite(self.outer)
+
+    def take(self, rows: np.ndarray) -> Bracket:
+        """The brackets of these rows."""
+        return Bracket(self.inner[rows], self.outer[rows], self.inner_excess[rows], self.outer_excess[rows])
+
+
+def step_out(excess: Excess, centre, direction, room, step, at_centre, *, max_doublings: int = MAX_DOUBLINGS) -> Bracket:
+    """From ``centre`` outwards by ``step``, doubling, to the first value with a positive excess.
+
+    Parameters
+    ----------
+    excess : callable
+        ``excess(rows, values)`` (:data:`Excess`), asked at ``centre + direction t``.
+    centre : ndarray
+        The estimate of each row.
+    direction : ndarray
+        +1 or -1: the side of the estimate each row searches.
+    room : ndarray
+        The distance from the estimate to the end of the search range (may be infinite).
+    step : ndarray
+        The first step (positive), in the units of the value.
+    at_centre : ndarray
+        The excess at the estimate (below zero).
+    max_doublings : int
+        Values tried on a row before it is given up (without a bracket).
+
+    Returns
+    -------
+    Bracket
+        Distances from ``centre``; a row that reaches ``room`` is tried there and stops.
+
+    Examples
+    --------
+    >>> bracket = step_out(lambda rows, x: x**2 - 2.0, np.array([0.0]), np.array([1.0]), np.array([10.0]),
+    ...                    np.array([0.5]), np.array([-2.0]))
+    >>> float(bracket.inner[0]), float(bracket.outer[0])
+    (1.0, 2.0)
+    """
+    centre, direction, room = (np.asarray(part, dtype=float) for part in (centre, direction, room))
+    count = centre.size
+    t = np.minimum(np.asarray(step, dtype=float), room)
+    inner, outer = np.zeros(count), np.full(count, np.nan)
+    inner_excess, outer_excess = np.array(at_centre, dtype=float), np.full(count, np.nan)
+    active = np.ones(count, dtype=bool)
+    for _ in range(max_doublings):
+        work = np.flatnonzero(active)
+        if not work.size:
+            break
+        found = excess(work, centre[work] + direction[work] * t[work])
+        crossed = found >= 0
+        short = found < 0
+        outer[work[crossed]], outer_excess[work[crossed]] = t[work[crossed]], found[crossed]
+        inner[work[short]], inner_excess[work[short]] = t[work[short]], found[short]
+        at_edge = t[work] >= room[work]
+        active[work[~short | at_edge]] = False
+        grow = work[short & ~at_edge]
+        t[grow] = np.minimum(2.0 * t[grow], room[grow])
+    return Bracket(inner, outer, inner_excess, outer_excess)
+
+
+def regula_falsi(
+    excess: Excess,
+    centre,
+    direction,
+    bracket: Bracket,
+    width,
+    *,
+    excess_tolerance=0.0,
+    max_iterations: int = MAX_ROOT_ITERATIONS,
+) -> np.ndarray:
+    """The distance from ``centre`` at which the excess crosses zero within each (closed) bracket, every row at once.
+
+    The Illinois variant of the false position: the secant through the bracket's ends, the
+    end that stays twice in a row weighted by half, bisection where the secant falls outside
+    the bracket.  A row ends when its bracket is narrower than ``width`` or the last excess is
+    within ``excess_tolerance`` of zero; the end with the smaller excess is returned (also
+    for a row not closed within ``max_iterations``).
+
+    Parameters
+    ----------
+    excess : callable
+        ``excess(rows, values)`` (:data:`Excess`), ``rows`` indexing the bracket, asked at
+        ``centre + direction t``; an infinite excess counts as beyond the root.
+    centre, direction : ndarray
+        As :func:`step_out` was given them, for the rows of ``bracket``.
+    bracket : Bracket
+        Closed brackets (:attr:`Bracket.closed`).
+    width : ndarray
+        The bracket's width at which a row has converged, in the units of the value.
+    excess_tolerance : float or ndarray
+        An excess this close to zero ends a row (0: only an exact zero).
+    max_iterations : int
+        Evaluations per row at most.
+
+    Examples
+    --------
+    >>> bracket = Bracket(np.array([1.0]), np.array([2.0]), np.array([-1.0]), np.array([2.0]))
+    >>> t = regula_falsi(lambda rows, x: x**2 - 2.0, np.array([0.0]), np.array([1.0]), bracket, np.array([1e-14]))
+    >>> round(float(t[0]), 12)
+    1.414213562373
+    """
+    centre, direction = np.asarray(centre, dtype=float), np.asarray(direction, dtype=float)
+    t_low, t_high = bracket.inner.copy(), bracket.outer.copy()
+    h_low, h_high = bracket.inner_excess.copy(), bracket.outer_excess.copy()
+    count = t_low.size
+    width = np.broadcast_to(np.asarray(width, dtype=float), (count,))
+    excess_tolerance = np.broadcast_to(np.asarray(excess_tolerance, dtype=float), (count,))
+    solving = np.isfinite(t_high)
+    last_side = np.zeros(count)
+    for _ in range(max_iterations):
+        work = np.flatnonzero(solving)
+        if not work.size:
+            break
+        with np.errstate(all="ignore"):
+            trial = t_low[work] - h_low[work] * (t_high[work] - t_low[work]) / (h_high[work] - h_low[work])
+        inside = np.isfinite(trial) & (trial > t_low[work]) & (trial < t_high[work])
+        trial = np.where(inside, trial, 0.5 * (t_low[work] + t_high[work]))
+        h = excess(work, centre[work] + direction[work] * trial)
+        below = h < 0
+        low_rows, high_rows = work[below], work[~below]
+        t_low[low_rows], h_low[low_rows] = trial[below], h[below]
+        t_high[high_rows], h_high[high_rows] = trial[~below], h[~below]
+        h_high[low_rows[last_side[low_rows] < 0]] *= 0.5  # the same end moved twice: halve the other's weight
+        h_low[high_rows[last_side[high_rows] > 0]] *= 0.5
+        last_side[low_rows], last_side[high_rows] = -1.0, 1.0
+        closed = (t_high[work] - t_low[work] <= width[work]) | (np.abs(h) <= excess_tolerance[work])
+        solving[work[closed]] = False
+    return np.where(np.isfinite(t_high), np.where(np.abs(h_high) <= np.abs(h_low), t_high, t_low), np.nan)
+
+
+def central_hessian(function: Callable[[np.ndarray], float], x: np.ndarray, steps: np.ndarray) -> np.ndarray:
+    r"""The Hessian of ``function`` at ``x`` by central differences with the steps ``steps``.
+
+    .. math:: H_{ij} = \frac{f(x + h_i + h_j) - f(x + h_i - h_j) - f(x - h_i + h_j) + f(x - h_i - h_j)}{4 h_i h_j}
+
+    Examples
+    --------
+    >>> hessian = central_hessian(lambda v: v[0] ** 2 + 3 * v[0] * v[1], np.array([1.0, 2.0]), np.array([1e-3, 1e-3]))
+    >>> np.round(hessian, 9).tolist()
+    [[2.0, 3.0], [3.0, 0.0]]
+    """
+    size = x.size
+    hessian = np.empty((size, size))
+    unit = np.eye(size)
+    for i in range(size):
+        for j in range(i, size):
+            di, dj = unit[i] * steps[i], unit[j] * steps[j]
+            value = (function(x + di + dj) - function(x + di - dj) - function(x - di + dj) + function(x - di - dj)) / (
+                4 * steps[i] * steps[j]
+            )
+            hessian[i, j] = hessian[j, i] = value
+    return hessian
+
+
+def on_bound(value: float, bound: float, *, rtol: float = 1e-5, atol_at_zero: float = 1e-8, atol: float | None = None) -> bool:
+    """Whether a fitted value sits on a bound: within ``rtol`` of it relative to the bound (an
+    absolute ``atol_at_zero`` when the bound is 0, as for a bypass), or within ``atol`` of it
+    where that is given (a share, as a density curve's limit, whose bounds are 0..1).
+    Relative by default, so a cut size is judged the same in metres as in micrometres
+    (numpy.isclose's absolute 1e-8 put every cut below 1e-8 on its bound).
+
+    Examples
+    --------
+    >>> on_bound(7.3e-10, 7.07e-12), on_bound(1e-9, 0.0), on_bound(0.9999995, 1.0, atol=1e-6)
+    (False, True, True)
+    """
+    if atol is not None:
+        tolerance = atol
+    else:
+        tolerance = rtol * abs(bound) if bound != 0 else atol_at_zero
+    return abs(value - bound) <= tolerance
