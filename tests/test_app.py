@@ -87,21 +87,35 @@ def test_a_file_the_reader_refuses_is_refused_with_the_reader_s_words(client):
     assert "empty.csv" in described["error"]
 
 
-def test_other_kinds_are_told_and_sent_to_their_command(client):
+def test_each_kind_is_told_and_offered_the_options_of_its_command(client):
     flowsheet = (DATASETS / "circuit_example_flowsheet.csv").read_bytes()
-    assert upload(client, "flowsheet.csv", flowsheet).json()["kind"]["command"] == "tromplab circuit"
+    described = upload(client, "flowsheet.csv", flowsheet).json()
+    assert described["kind"]["kind"] == "flowsheet" and described["kind"]["command"] == "tromplab circuit"
+    assert described["circuit"] == {"flowsheet": "flowsheet.csv", "survey": None}
     survey = (DATASETS / "circuit_example_survey.csv").read_bytes()
-    assert upload(client, "survey.csv", survey).json()["kind"] == {
-        "kind": "survey", "label": "a plant survey of a circuit", "command": "tromplab circuit", "runs_here": False
-    }  # fmt: skip
+    described = upload(client, "survey.csv", survey).json()
+    assert described["kind"] == {"kind": "survey", "label": "a plant survey of a circuit", "command": "tromplab circuit",
+                                 "runs_here": True, "commands": ["tromplab circuit"]}  # fmt: skip
+    assert described["circuit"] == {"flowsheet": "flowsheet.csv", "survey": "survey.csv"}  # paired
+    assert {option["dest"] for option in described["options"]} == _declared(command_parser("circuit"))
     tracers = (DATASETS / "density_tracers_dmc_by_size_synthetic.csv").read_bytes()
     described = upload(client, "tracers.csv", tracers).json()
     assert described["kind"]["command"] == "tromplab density fit" and described["kind"]["runs_here"] is True
-    parser = command_parser("density", "fit")
-    offered = {option["dest"] for option in described["options"]}
-    assert offered == {action.dest for action in parser._actions if action.option_strings} - SERVER_CHOSEN
+    assert {option["dest"] for option in described["options"]} == _declared(command_parser("density", "fit"))
+    assert described["circuit"] == {"flowsheet": None, "survey": None}  # another kind ends the pairing
+    trend = (DATASETS / "classifier_trend_surveys.csv").read_bytes()
+    described = upload(client, "trend.csv", trend).json()
+    assert described["kind"]["kind"] == "trend" and described["kind"]["commands"] == ["tromplab fit", "tromplab trend"]
+    assert {option["dest"] for option in described["forms"]["tromplab trend"]} == _declared(command_parser("trend"))
     lab = (DATASETS / "double_deck_screen_decks_lab.csv").read_bytes()
     assert upload(client, "lab.csv", lab).json()["kind"]["kind"] == "lab"
+    assert client.post("/api/run", json={"options": {}, "command": "tromplab trend"}).json() == {
+        "error": "this file is read by tromplab fit"
+    }
+
+
+def _declared(parser) -> set[str]:
+    return {action.dest for action in parser._actions if action.option_strings} - SERVER_CHOSEN
 
 
 # -- the same library: the downloads are the command's files ----------------------------------------
@@ -203,7 +217,9 @@ def test_a_session_s_folder_is_removed_when_it_ends_and_every_folder_when_the_se
         client.get("/api/session")
         upload(client, "a.csv", points_csv(("A",)).encode())
         (folder,) = [session.folder for session in sessions._sessions.values()]
-        assert (folder / "upload" / "a.csv").is_file()
+        assert [path.name for path in (folder / "upload").rglob("*.csv")] == ["a.csv"]
+        upload(client, "b.csv", points_csv(("B",)).encode())  # the table dropped before is no longer kept
+        assert [path.name for path in (folder / "upload").rglob("*.csv")] == ["b.csv"]
         client.post("/api/end")
         assert not folder.exists() and len(sessions) == 0
         client.get("/api/session")
