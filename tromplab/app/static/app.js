@@ -505,8 +505,12 @@ function drawFlowsheet(sheet) {
     text: sheet.nodes.map((node) => plotlyText(node.name)), textposition: "bottom center",
     hovertext: sheet.nodes.map((node) => `${plotlyText(node.name)} (${plotlyText(node.kind)})`), hoverinfo: "text",
     marker: { symbol: "square", size: 30, color: "#dfe9f7", line: { color: "#2a6edb", width: 2 } }, name: "units", showlegend: false });
+  const xs = [...sheet.nodes.map((node) => node.x), ...sheet.streams.flatMap((stream) => stream.path.x)];
+  const ys = [...sheet.nodes.map((node) => node.y), ...sheet.streams.flatMap((stream) => stream.path.y)];
   const hidden = { showgrid: false, zeroline: false, showticklabels: false };
-  const layout = { xaxis: hidden, yaxis: hidden, annotations, margin: { t: 20, l: 20, r: 20, b: 20 }, hovermode: "closest",
+  const xaxis = Object.assign({ range: [Math.min(...xs) - 0.8, Math.max(...xs) + 0.8] }, hidden);
+  const yaxis = Object.assign({ range: [Math.min(...ys) - 0.8, Math.max(...ys) + 1.2] }, hidden);  // room for the labels above
+  const layout = { xaxis, yaxis, annotations, margin: { t: 20, l: 20, r: 20, b: 20 }, hovermode: "closest",
     title: { text: sheet.basis ? plotlyText(`flows relative to ${sheet.basis}`) : "" } };
   Plotly.react($("flowsheet"), traces, layout, { displaylogo: false, responsive: true });
 }
@@ -553,7 +557,7 @@ function drawControlChart(page, chart) {
   }
   const unit = chart.unit ? ` (${plotlyText(chart.unit)})` : "";
   const layout = { title: { text: plotlyText(chart.title) + unit }, margin: { t: 40 }, hovermode: "closest",
-    xaxis: { title: { text: "survey date" } }, yaxis: { title: { text: plotlyText(chart.quantity) + unit } }, legend: { orientation: "h" } };
+    xaxis: { title: { text: "survey date" } }, yaxis: { title: { text: plotlyText(chart.quantity) + unit } } };
   Plotly.react($(`trend-chart-${chart.quantity}`), traces, layout, { displaylogo: false, responsive: true });
 }
 
