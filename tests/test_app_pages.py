@@ -93,8 +93,8 @@ def test_a_circuit_is_reconciled_and_downloaded_as_tromplab_circuit_writes_it(cl
     assert (underflow["path"]["x"][-1], underflow["path"]["y"][-1]) == nodes["mill"]
     assert len(underflow["path"]["x"]) == 4  # a recycle, drawn back below the units
     shown = {table["name"]: table for table in page["tables"]}
-    assert list(shown) == ["flows.csv", "chi_square.csv", "gross_errors.csv", "adjustments.csv", "design.csv", "worth.csv",
-                           "fits.csv", "ranking.csv"]  # fmt: skip
+    assert list(shown) == ["flows.csv", "chi_square.csv", "gross_errors.csv", "adjustments.csv", "elimination.csv",
+                           "partition.csv", "design.csv", "worth.csv", "fits.csv", "ranking.csv"]  # fmt: skip
     design = pd.read_csv(tmp_path / "results" / "design.csv")
     assert shown["design.csv"]["rows_in_file"] == len(design)
     assert shown["design.csv"]["table"]["columns"] == list(design.columns)

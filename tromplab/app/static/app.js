@@ -509,7 +509,7 @@ function drawFlowsheet(sheet) {
   const ys = [...sheet.nodes.map((node) => node.y), ...sheet.streams.flatMap((stream) => stream.path.y)];
   const hidden = { showgrid: false, zeroline: false, showticklabels: false };
   const xaxis = Object.assign({ range: [Math.min(...xs) - 0.8, Math.max(...xs) + 0.8] }, hidden);
-  const yaxis = Object.assign({ range: [Math.min(...ys) - 0.8, Math.max(...ys) + 1.2] }, hidden);  // room for the labels above
+  const yaxis = Object.assign({ range: [Math.min(...ys) - 0.5, Math.max(...ys) + 0.8] }, hidden);  // room for the labels above
   const layout = { xaxis, yaxis, annotations, margin: { t: 20, l: 20, r: 20, b: 20 }, hovermode: "closest",
     title: { text: sheet.basis ? plotlyText(`flows relative to ${sheet.basis}`) : "" } };
   Plotly.react($("flowsheet"), traces, layout, { displaylogo: false, responsive: true });
