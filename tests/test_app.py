@@ -5,7 +5,11 @@ a failing or cancelled run leaving it serving. The page in a real browser: test_
 
 from __future__ import annotations
 
+import multiprocessing
+import os
 import shutil
+import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -20,6 +24,7 @@ from tests.app_support import HOSTILE_NAMES, assert_same_file, points_csv, run_c
 from tests.conftest import DATASETS  # noqa: E402
 from tests.test_formula_injection import assert_no_formula_cell_in_csv, assert_no_formula_cell_in_workbook  # noqa: E402
 from tromplab.app.forms import SERVER_CHOSEN, command_parser, form_options  # noqa: E402
+from tromplab.app.jobs import Job  # noqa: E402
 from tromplab.app.server import create_app, is_loopback  # noqa: E402
 from tromplab.app.sessions import Sessions, safe_file_name  # noqa: E402
 
@@ -304,8 +309,46 @@ def test_a_cancelled_run_stops_and_leaves_nothing(client):
     assert client.post("/api/cancel").json() == {"state": "cancelled"}
     assert client.get("/api/job").json() == {"state": "cancelled"}
     assert not job.process.is_alive() and not job.run.folder.exists()
+    assert _living_in_group(job.process.pid) == []  # the run's worker processes ended with it
     upload(client, "next.csv", points_csv(("A",)).encode())
     assert run(client)["state"] == "done"  # and the next run goes on as usual
+
+
+def _leader_with_a_worker() -> None:
+    """A run's process as :func:`tromplab.app.jobs._child` makes it (a process group of its own)
+    with a worker process of its own, as a batch spread over workers has."""
+    os.setsid()
+    subprocess.Popen([sys.executable, "-c", "import time; time.sleep(120)"])
+    time.sleep(120)
+
+
+@pytest.mark.skipif(not hasattr(os, "setsid"), reason="process groups are POSIX's")
+def test_stopping_a_run_ends_the_worker_processes_it_started():
+    process = multiprocessing.get_context("spawn").Process(target=_leader_with_a_worker)
+    process.start()
+    ends = time.monotonic() + 60
+    while len(_living_in_group(process.pid, wait=0)) < 2:  # the leader and its worker
+        assert time.monotonic() < ends, "the worker did not start"
+        time.sleep(0.2)
+    Job(run=None, process=process).stop()
+    assert not process.is_alive() and _living_in_group(process.pid) == []
+
+
+def _living_in_group(group: int, *, wait: float = 5.0) -> list[int]:
+    """The processes of process group ``group`` that are neither ended nor zombies, after at most ``wait`` s."""
+    psutil = pytest.importorskip("psutil")
+    ends = time.monotonic() + wait
+    while True:
+        living = []
+        for process in psutil.process_iter(["status"]):
+            try:
+                if os.getpgid(process.pid) == group and process.info["status"] != psutil.STATUS_ZOMBIE:
+                    living.append(process.pid)
+            except (ProcessLookupError, psutil.Error):
+                continue
+        if not living or time.monotonic() > ends:
+            return living
+        time.sleep(0.2)
 
 
 def test_a_run_that_breaks_says_so_and_the_server_stays_up(client, monkeypatch):

@@ -288,10 +288,10 @@ def _signal_run(process, number: int) -> None:
     try:
         if hasattr(os, "killpg") and os.getpgid(process.pid) == process.pid:
             os.killpg(process.pid, number)
-            return
+        else:
+            os.kill(process.pid, number)
     except ProcessLookupError:
-        return  # ended already
-    os.kill(process.pid, number)
+        pass  # ended already
 
 
 def _read(path: Path) -> dict:
