@@ -5,7 +5,11 @@ a failing or cancelled run leaving it serving. The page in a real browser: test_
 
 from __future__ import annotations
 
+import multiprocessing
+import os
 import shutil
+import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -20,6 +24,7 @@ from tests.app_support import HOSTILE_NAMES, assert_same_file, points_csv, run_c
 from tests.conftest import DATASETS  # noqa: E402
 from tests.test_formula_injection import assert_no_formula_cell_in_csv, assert_no_formula_cell_in_workbook  # noqa: E402
 from tromplab.app.forms import SERVER_CHOSEN, command_parser, form_options  # noqa: E402
+from tromplab.app.jobs import Job  # noqa: E402
 from tromplab.app.server import create_app, is_loopback  # noqa: E402
 from tromplab.app.sessions import Sessions, safe_file_name  # noqa: E402
 
@@ -87,21 +92,35 @@ def test_a_file_the_reader_refuses_is_refused_with_the_reader_s_words(client):
     assert "empty.csv" in described["error"]
 
 
-def test_other_kinds_are_told_and_sent_to_their_command(client):
+def test_each_kind_is_told_and_offered_the_options_of_its_command(client):
     flowsheet = (DATASETS / "circuit_example_flowsheet.csv").read_bytes()
-    assert upload(client, "flowsheet.csv", flowsheet).json()["kind"]["command"] == "tromplab circuit"
+    described = upload(client, "flowsheet.csv", flowsheet).json()
+    assert described["kind"]["kind"] == "flowsheet" and described["kind"]["command"] == "tromplab circuit"
+    assert described["circuit"] == {"flowsheet": "flowsheet.csv", "survey": None}
     survey = (DATASETS / "circuit_example_survey.csv").read_bytes()
-    assert upload(client, "survey.csv", survey).json()["kind"] == {
-        "kind": "survey", "label": "a plant survey of a circuit", "command": "tromplab circuit", "runs_here": False
-    }  # fmt: skip
+    described = upload(client, "survey.csv", survey).json()
+    assert described["kind"] == {"kind": "survey", "label": "a plant survey of a circuit", "command": "tromplab circuit",
+                                 "runs_here": True, "commands": ["tromplab circuit"]}  # fmt: skip
+    assert described["circuit"] == {"flowsheet": "flowsheet.csv", "survey": "survey.csv"}  # paired
+    assert {option["dest"] for option in described["options"]} == _declared(command_parser("circuit"))
     tracers = (DATASETS / "density_tracers_dmc_by_size_synthetic.csv").read_bytes()
     described = upload(client, "tracers.csv", tracers).json()
     assert described["kind"]["command"] == "tromplab density fit" and described["kind"]["runs_here"] is True
-    parser = command_parser("density", "fit")
-    offered = {option["dest"] for option in described["options"]}
-    assert offered == {action.dest for action in parser._actions if action.option_strings} - SERVER_CHOSEN
+    assert {option["dest"] for option in described["options"]} == _declared(command_parser("density", "fit"))
+    assert described["circuit"] == {"flowsheet": None, "survey": None}  # another kind ends the pairing
+    trend = (DATASETS / "classifier_trend_surveys.csv").read_bytes()
+    described = upload(client, "trend.csv", trend).json()
+    assert described["kind"]["kind"] == "trend" and described["kind"]["commands"] == ["tromplab fit", "tromplab trend"]
+    assert {option["dest"] for option in described["forms"]["tromplab trend"]} == _declared(command_parser("trend"))
     lab = (DATASETS / "double_deck_screen_decks_lab.csv").read_bytes()
     assert upload(client, "lab.csv", lab).json()["kind"]["kind"] == "lab"
+    assert client.post("/api/run", json={"options": {}, "command": "tromplab trend"}).json() == {
+        "error": "this file is read by tromplab fit"
+    }
+
+
+def _declared(parser) -> set[str]:
+    return {action.dest for action in parser._actions if action.option_strings} - SERVER_CHOSEN
 
 
 # -- the same library: the downloads are the command's files ----------------------------------------
@@ -203,7 +222,9 @@ def test_a_session_s_folder_is_removed_when_it_ends_and_every_folder_when_the_se
         client.get("/api/session")
         upload(client, "a.csv", points_csv(("A",)).encode())
         (folder,) = [session.folder for session in sessions._sessions.values()]
-        assert (folder / "upload" / "a.csv").is_file()
+        assert [path.name for path in (folder / "upload").rglob("*.csv")] == ["a.csv"]
+        upload(client, "b.csv", points_csv(("B",)).encode())  # the table dropped before is no longer kept
+        assert [path.name for path in (folder / "upload").rglob("*.csv")] == ["b.csv"]
         client.post("/api/end")
         assert not folder.exists() and len(sessions) == 0
         client.get("/api/session")
@@ -288,8 +309,46 @@ def test_a_cancelled_run_stops_and_leaves_nothing(client):
     assert client.post("/api/cancel").json() == {"state": "cancelled"}
     assert client.get("/api/job").json() == {"state": "cancelled"}
     assert not job.process.is_alive() and not job.run.folder.exists()
+    assert _living_in_group(job.process.pid) == []  # the run's worker processes ended with it
     upload(client, "next.csv", points_csv(("A",)).encode())
     assert run(client)["state"] == "done"  # and the next run goes on as usual
+
+
+def _leader_with_a_worker() -> None:
+    """A run's process as :func:`tromplab.app.jobs._child` makes it (a process group of its own)
+    with a worker process of its own, as a batch spread over workers has."""
+    os.setsid()
+    subprocess.Popen([sys.executable, "-c", "import time; time.sleep(120)"])
+    time.sleep(120)
+
+
+@pytest.mark.skipif(not hasattr(os, "setsid"), reason="process groups are POSIX's")
+def test_stopping_a_run_ends_the_worker_processes_it_started():
+    process = multiprocessing.get_context("spawn").Process(target=_leader_with_a_worker)
+    process.start()
+    ends = time.monotonic() + 60
+    while len(_living_in_group(process.pid, wait=0)) < 2:  # the leader and its worker
+        assert time.monotonic() < ends, "the worker did not start"
+        time.sleep(0.2)
+    Job(run=None, process=process).stop()
+    assert not process.is_alive() and _living_in_group(process.pid) == []
+
+
+def _living_in_group(group: int, *, wait: float = 5.0) -> list[int]:
+    """The processes of process group ``group`` that are neither ended nor zombies, after at most ``wait`` s."""
+    psutil = pytest.importorskip("psutil")
+    ends = time.monotonic() + wait
+    while True:
+        living = []
+        for process in psutil.process_iter(["status"]):
+            try:
+                if os.getpgid(process.pid) == group and process.info["status"] != psutil.STATUS_ZOMBIE:
+                    living.append(process.pid)
+            except (ProcessLookupError, psutil.Error):
+                continue
+        if not living or time.monotonic() > ends:
+            return living
+        time.sleep(0.2)
 
 
 def test_a_run_that_breaks_says_so_and_the_server_stays_up(client, monkeypatch):

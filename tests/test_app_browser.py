@@ -22,6 +22,9 @@ import pytest
 from tests.app_support import HOSTILE_NAMES, assert_same_file, points_csv, run_cli, zip_members
 
 CHROMIUM = Path(os.environ.get("TROMPLAB_CHROMIUM", "/usr/bin/chromium"))
+DATASETS = Path(__file__).resolve().parent.parent / "datasets"
+#: A stream named as markup that would run a script if the page or plotly read it as HTML.
+HOSTILE_STREAM = "<img src=x onerror=window.__xss='stream'>"
 REQUIRED = os.environ.get("TROMPLAB_BROWSER_TESTS") == "required"
 #: Chromium's flags on a machine without a screen or a network beyond loopback: no sandbox as
 #: root, no background connections (refused here, and each would be retried).
@@ -100,6 +103,15 @@ def drop(page, name: str, text: str) -> None:
     page.set_input_files("#file-input", files=[{"name": name, "mimeType": "text/csv", "buffer": text.encode()}])
     expect(page.locator("#file-name")).to_have_text(name)  # this file's answer is in: its form is built
     page.get_by_role("button", name="Fit").wait_for(state="visible")
+
+
+def drop_files(page, files: dict[str, str]) -> None:
+    """Drop several files at once (a circuit's flowsheet and survey) through the page's file input."""
+    page.set_input_files(
+        "#file-input", files=[{"name": name, "mimeType": "text/csv", "buffer": text.encode()} for name, text in files.items()]
+    )
+    expect(page.locator("#file-name")).to_have_text(list(files)[-1])
+    page.locator("#run-button").wait_for(state="visible")
 
 
 def fit(page) -> None:
@@ -245,3 +257,87 @@ def test_screenshots_of_the_page_for_the_docs(page, tmp_path):
     fit(page)
     page.wait_for_timeout(500)
     page.locator("#results-section").screenshot(path=str(Path(folder) / "app_results.png"))
+
+
+def test_a_circuit_from_its_two_files_shows_the_flowsheet_and_its_balance_and_no_script_runs(page, tmp_path):
+    flowsheet = (DATASETS / "circuit_example_flowsheet.csv").read_text().replace("cyclone_overflow", HOSTILE_STREAM)
+    survey = (DATASETS / "circuit_example_survey.csv").read_text().replace("cyclone_overflow", HOSTILE_STREAM)
+    drop_files(page, {"flowsheet.csv": flowsheet, "survey.csv": survey})
+    expect(page.locator("#circuit-pair")).to_have_text("Circuit: flowsheet flowsheet.csv, survey survey.csv")
+    assert page.locator("#options-command").inner_text() == "tromplab circuit"
+    page.get_by_role("button", name="Run").click()
+    page.locator("#circuit-results").wait_for(state="visible", timeout=120_000)
+    (tmp_path / "flowsheet.csv").write_text(flowsheet)
+    (tmp_path / "survey.csv").write_text(survey)
+    assert run_cli(tmp_path, ["circuit", "flowsheet.csv", "survey.csv", "-o", "results"])[0] == 0
+    flows = pd.read_csv(tmp_path / "results" / "flows.csv")
+    # the figure: a label per stream with its reconciled flow, the units, the hostile name as written
+    labels = page.locator("#flowsheet .textpoint").all_text_contents()
+    for row in flows.itertuples():
+        assert any(label.startswith(row.stream) and f"{float(f'{row.reconciled:.4g}'):g}" in label for label in labels), (
+            row.stream
+        )
+    assert {"top_deck", "bottom_deck", "mill", "cyclone"} <= set(labels)
+    # the balance table, flows.csv, sortable like every table of the page
+    table = page.locator("#circuit-table")
+    assert page.locator("#circuit-table-select").input_value() == "0" and HOSTILE_STREAM in table.inner_text()
+    assert table.locator("tbody tr").count() == len(flows)
+    page.locator("#circuit-table th", has_text="reconciled_sd").click()
+    shown = [float(text) for text in page.locator("#circuit-table tbody tr td:nth-child(8)").all_inner_texts()]
+    assert shown == sorted(shown)
+    page.select_option("#circuit-table-select", label="design.csv")
+    assert "solids flow" in page.locator("#circuit-table").inner_text()
+    assert page.evaluate("window.__xss") is None and page.dialogs == []
+    assert page.locator("img[src='x']").count() == 0
+    with page.expect_download() as download:
+        page.click("#download-zip")
+    members = zip_members(Path(download.value.path()).read_bytes())
+    assert_same_file(members["results/flows.csv"], tmp_path / "results" / "flows.csv")
+    assert page.locator("#download-report").is_hidden() and page.locator("#download-xlsx").is_hidden()
+
+
+def test_dated_surveys_charted_by_tromplab_trend_on_the_page(page, tmp_path):
+    trend = (DATASETS / "classifier_trend_surveys.csv").read_text()
+    drop(page, "surveys.csv", trend)
+    assert page.locator("#command-select option").all_inner_texts() == ["tromplab fit", "tromplab trend"]
+    page.select_option("#command-select", "tromplab trend")
+    expect(page.locator("#run-button")).to_have_text("Run")
+    page.fill("#option-size_unit", "um")
+    page.get_by_role("button", name="Run").click()
+    page.locator("#trend-results").wait_for(state="visible", timeout=180_000)
+    (tmp_path / "surveys.csv").write_text(trend)
+    assert run_cli(tmp_path, ["trend", "surveys.csv", "-o", "results", "--size-unit=um"])[0] == 0
+    charted = pd.read_csv(tmp_path / "results" / "trend.csv")
+    quantities = list(dict.fromkeys(charted["quantity"]))
+    for quantity in quantities:  # one interactive chart per quantity, drawn by plotly
+        page.locator(f"#trend-chart-{quantity} .main-svg").first.wait_for()
+    assert page.locator("#trend-charts > div").count() == len(quantities)
+    flags = pd.read_csv(tmp_path / "results" / "trend_surveys.csv")
+    points = ", ".join(flags.loc[flags["change_point"], "survey"]) or "none"
+    assert f"Change points: {points}." in page.locator("#trend-summary").inner_text()
+    assert page.locator("#trend-flags tbody tr").count() == len(flags)
+    with page.expect_download() as download:
+        page.click("#download-trend-report")
+    assert_same_file(Path(download.value.path()).read_bytes(), tmp_path / "results" / "trend_report.html")
+
+
+def test_screenshots_of_the_circuit_and_trend_views_for_the_docs(page):
+    """Not a check: the pictures of the circuit and trend views in docs/app.md (TROMPLAB_APP_SCREENSHOTS)."""
+    folder = os.environ.get("TROMPLAB_APP_SCREENSHOTS")
+    if not folder:
+        pytest.skip("set TROMPLAB_APP_SCREENSHOTS=docs to take the docs' screenshots")
+    page.select_option("#example-select", "circuit_example")
+    page.click("#example-button")
+    expect(page.locator("#pair-survey")).to_have_text("circuit_example_survey.csv")
+    page.get_by_role("button", name="Run").click()
+    page.locator("#circuit-results").wait_for(state="visible", timeout=120_000)
+    page.wait_for_timeout(500)
+    page.locator("#results-section").screenshot(path=str(Path(folder) / "app_circuit.png"))
+    page.select_option("#example-select", "classifier_trend_surveys.csv")
+    page.click("#example-button")
+    page.select_option("#command-select", "tromplab trend")
+    page.fill("#option-size_unit", "um")
+    page.get_by_role("button", name="Run").click()
+    page.locator("#trend-results").wait_for(state="visible", timeout=180_000)
+    page.wait_for_timeout(500)
+    page.locator("#trend-charts").screenshot(path=str(Path(folder) / "app_trend.png"))

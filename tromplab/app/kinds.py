@@ -29,16 +29,34 @@ class TableKind:
         The ``tromplab`` command that reads it (``("fit",)``), empty when none does.
     runs_here : bool
         Whether the page runs that command (else it says which command to run).
+    alternatives : tuple of tuple of str
+        Other commands that read it too, which the page offers beside ``command`` (dated
+        surveys: ``tromplab trend`` beside ``tromplab fit``).
     """
 
     kind: str
     label: str
     command: tuple[str, ...]
     runs_here: bool
+    alternatives: tuple[tuple[str, ...], ...] = ()
+
+    @property
+    def commands(self) -> tuple[tuple[str, ...], ...]:
+        """The command and its alternatives, the default first."""
+        return (self.command, *self.alternatives)
 
     def as_dict(self) -> dict:
-        return {"kind": self.kind, "label": self.label, "command": " ".join(("tromplab", *self.command)),
-                "runs_here": self.runs_here}  # fmt: skip
+        return {"kind": self.kind, "label": self.label, "command": command_name(self.command),
+                "runs_here": self.runs_here, "commands": [command_name(c) for c in self.commands]}  # fmt: skip
+
+
+def command_name(command: tuple[str, ...]) -> str:
+    """``"tromplab density fit"`` of ``("density", "fit")``."""
+    return " ".join(("tromplab", *command))
+
+
+#: The two files of ``tromplab circuit``, in the order the command takes them.
+CIRCUIT_ROLES = ("flowsheet", "survey")
 
 
 def sheet_names(path: Path) -> list[str]:
@@ -71,16 +89,20 @@ def kind_of_columns(columns) -> TableKind:
 
     names = {str(column).strip().lower() for column in columns}
     if {"from", "to", "stream"} <= names:
-        return TableKind("flowsheet", "a circuit flowsheet", ("circuit",), False)
+        return TableKind("flowsheet", "a circuit flowsheet", ("circuit",), True)
     if "stream" in names:
-        return TableKind("survey", "a plant survey of a circuit", ("circuit",), False)
+        return TableKind("survey", "a plant survey of a circuit", ("circuit",), True)
     if "density" in names or "density_lower" in names or "density_upper" in names:
         return TableKind("density", "density tracers, a float-sink table or a density partition", ("density", "fit"), True)
     has_partition = any(name.startswith("partition") for name in names)
     if has_partition and ("survey" in names or "date" in names):
-        return TableKind("trend", "Tromp points of dated surveys (fitted per survey; tromplab trend charts them)", ("fit",), True)
+        return TableKind("trend", "Tromp points of dated surveys (tromplab fit ranks the formulas per survey; tromplab trend charts them)",
+                         ("fit",), True, (("trend",),))  # fmt: skip
     if has_partition:
         return TableKind("points", "Tromp points", ("fit",), True)
+    if is_lab_table(list(columns)) and ("survey" in names or "date" in names):
+        return TableKind("trend", "a lab table of dated surveys (tromplab fit ranks the formulas per survey; tromplab trend charts them)",
+                         ("fit",), True, (("trend",),))  # fmt: skip
     if is_lab_table(list(columns)):
         return TableKind("lab", "a lab table (feed and product size analyses)", ("fit",), True)
     return TableKind("unknown", "no table a command reads", ("fit",), True)  # fit's reader says what is missing

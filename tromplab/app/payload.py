@@ -27,11 +27,45 @@ DENSITY_COLUMNS = ("rank", "curve", "method", "rho50", "ep", "imperfection", "rh
 CURVE_POINTS = 120
 
 
+#: Settings of a batch fit that decide its intervals and where the work runs, not its fits: two
+#: batches fitted with settings that differ only in these have the same fits.
+INTERVAL_AND_MACHINE_SETTINGS = frozenset({"ci", "bootstrap", "bootstrap_method", "seed", "jobs", "scheduler", "dask"})
+
+
+def report_bench(bench, settings):
+    """The batch ``tromplab report`` fits with ``settings``, made from ``bench``'s fits (the
+    page's ``tromplab fit``), or None when ``settings`` change the fits themselves.
+
+    ``tromplab report`` fits without interval columns (its ``--ci`` is the level of its own
+    tables) and without a bootstrap. Where the two sets of settings differ only in
+    :data:`INTERVAL_AND_MACHINE_SETTINGS`, the fits are the same, so the report's batch is the
+    fit's with the report's settings, no interval columns and the notes on the data as a
+    batch without intervals words them (its tables and averages made afresh from those
+    settings): ``write_report`` then writes the file the command writes
+    (tests/test_app.py compares them byte for byte). Another difference (an option of ``fit``
+    the report does not take, such as ``--single-fits``) changes the fits: None, and the caller
+    fits again as the command does.
+    """
+    import dataclasses
+
+    same_fits = all(getattr(bench.settings, setting.name) == getattr(settings, setting.name)
+                    for setting in dataclasses.fields(settings) if setting.name not in INTERVAL_AND_MACHINE_SETTINGS)  # fmt: skip
+    if not same_fits:
+        return None
+    from ..workbench import data_notes
+
+    intervals = bool(settings.ci or settings.bootstrap)  # the note on a cut not bracketed says whether intervals are withheld
+    notes = {points.experiment: found for points in bench.inputs
+             if points.experiment not in bench.failures and (found := data_notes(points, intervals=intervals))}  # fmt: skip
+    return dataclasses.replace(bench, settings=settings, notes=notes, intervals=None, store=None)
+
+
 def page_payload(bench, experiments, args) -> dict:
     """The page's data of a fit run: ``bench`` fitted from ``experiments`` with the options ``args``."""
     fits = bench.fits_table()
     unit = args.size_unit or "size unit"
     return {
+        "view": "fit",
         "axes": {
             "x": f"size ({unit})",
             "y": f"partition to the {args.partition_to} product",
@@ -41,8 +75,8 @@ def page_payload(bench, experiments, args) -> dict:
             "unit": args.size_unit,
         },  # fmt: skip
         "experiments": [_experiment(bench, name, fits, args.partition_to) for name in bench.experiments],
-        "ranking": _records(bench.ranking_table()),
-        "failures": _records(bench.failure_table()),
+        "ranking": records(bench.ranking_table()),
+        "failures": records(bench.failure_table()),
         "warnings": grouped_warnings(bench, experiments),
     }
 
@@ -60,6 +94,7 @@ def density_payload(result) -> dict:
                 warnings[notes].append(f"{sample.label}: {curve}")
         experiments.append(_density_sample(result, sample, rows))
     return {
+        "view": "fit",
         "axes": {
             "x": "relative density (g/cm3)",
             "y": "partition to sinks",
@@ -83,29 +118,29 @@ def _density_sample(result, sample, rows) -> dict:
     grid = np.linspace(density.min() - 0.05, density.max() + 0.05, CURVE_POINTS)
     curves = []
     for fit in (fit for fit in result.fits_of(sample) if fit.success):
-        curve = {"formula": fit.curve.id, "size": _numbers(grid), "partition": _numbers(fit.partition(grid)),
+        curve = {"formula": fit.curve.id, "size": numbers(grid), "partition": numbers(fit.partition(grid)),
                  "best": fit is best, "adequate": None}  # fmt: skip
         if fit is best:
             low, high = partition_band(fit, grid)  # as the folder's figures draw it
             if np.isfinite(low).all() and np.isfinite(high).all():
-                curve["band"] = {"low": _numbers(low), "high": _numbers(high), "level": 0.95}
+                curve["band"] = {"low": numbers(low), "high": numbers(high), "level": 0.95}
         curves.append(curve)
     return {
         "name": sample.label,
-        "table": _records(rows[[column for column in DENSITY_COLUMNS if column in rows.columns]]),
+        "table": records(rows[[column for column in DENSITY_COLUMNS if column in rows.columns]]),
         "intervals": None,  # in the ranked table: rho50_low, ..., ep_high
         "best": None
         if best is None
         else {
             "formula": best.curve.id,
-            "d50": _number(best.indices.rho50),
-            "ep": _number(best.indices.ep),
+            "d50": number(best.indices.rho50),
+            "ep": number(best.indices.ep),
             "rank": 1,
             "tied": [],
         },  # fmt: skip
         "verdicts": [],
         "cannot_tell": None,
-        "points": {"size": _numbers(density), "partition": _numbers(sample.points["partition_sinks"])},
+        "points": {"size": numbers(density), "partition": numbers(sample.points["partition_sinks"])},
         "curves": curves,
     }
 
@@ -119,8 +154,8 @@ def _experiment(bench, name: str, fits, partition_to: str) -> dict:
     points = curve_fits[0].points if curve_fits else None
     return {
         "name": name,
-        "table": _records(own[shown]),
-        "intervals": _records(own[["formula", *intervals]]) if intervals else None,
+        "table": records(own[shown]),
+        "intervals": records(own[["formula", *intervals]]) if intervals else None,
         "best": _best(bench, name, best),
         "verdicts": list(bench.verdicts(name)),
         "cannot_tell": _cannot_tell(curve_fits, own),
@@ -135,14 +170,12 @@ def _best(bench, name: str, best) -> dict | None:
         return None
     top = bench.top_ranked(name)
     tied = [
-        {"formula": formula, "d50": _number(d50)}
-        for formula, d50 in zip(top["formula"], top["d50"])
-        if formula != best.formula.id
+        {"formula": formula, "d50": number(d50)} for formula, d50 in zip(top["formula"], top["d50"]) if formula != best.formula.id
     ]
-    rank = _number(top["rank"].iloc[0]) if len(top) else None
+    rank = number(top["rank"].iloc[0]) if len(top) else None
     indices = best.indices
-    return {"formula": best.formula.id, "d50": _number(indices.d50) if indices else None,
-            "ep": _number(indices.ep) if indices else None, "rank": rank, "tied": tied}  # fmt: skip
+    return {"formula": best.formula.id, "d50": number(indices.d50) if indices else None,
+            "ep": number(indices.ep) if indices else None, "rank": rank, "tied": tied}  # fmt: skip
 
 
 def _interval_columns(columns) -> list[str]:
@@ -172,7 +205,7 @@ def _cannot_tell(curve_fits, rows) -> list[dict]:
 
 def _points(points, partition_to: str) -> dict:
     partition = np.asarray(points.partition_fine, dtype=float)
-    return {"size": _numbers(points.size), "partition": _numbers(1.0 - partition if partition_to == "coarse" else partition)}
+    return {"size": numbers(points.size), "partition": numbers(1.0 - partition if partition_to == "coarse" else partition)}
 
 
 def _curves(curve_fits, best, partition_to: str) -> list[dict]:
@@ -188,13 +221,13 @@ def _curves(curve_fits, best, partition_to: str) -> list[dict]:
 
     curves = []
     for fit in successful:
-        curve = {"formula": fit.formula.id, "size": _numbers(grid), "partition": _numbers(read(fit.predict(grid))),
+        curve = {"formula": fit.formula.id, "size": numbers(grid), "partition": numbers(read(fit.predict(grid))),
                  "best": best is not None and fit is best, "adequate": bool(fit.screen.adequate) if fit.screen else None}  # fmt: skip
         if curve["best"] and not fit.unbracketed:
             from ..output.plotting import curve_band
 
             low, high = sorted((read(bound) for bound in curve_band(fit, grid)), key=np.sum)
-            curve["band"] = {"low": _numbers(low), "high": _numbers(high), "level": 0.95}
+            curve["band"] = {"low": numbers(low), "high": numbers(high), "level": 0.95}
         curves.append(curve)
     return curves
 
@@ -222,16 +255,34 @@ def grouped_warnings(bench, experiments) -> list[dict]:
     return groups + [{"kind": "fit", "text": line, "count": None, "where": []} for line in report_lines(fit_warnings)]
 
 
-def _number(value):
+def notice_groups(notices) -> list[dict]:
+    """Notices (:class:`~tromplab.notices.Notice`) each kind once: the notes on the data with how
+    often and where they were said, then the fits' warnings grouped as the HTML report groups
+    them (:func:`tromplab.output.display.grouped_warnings`)."""
+    from ..notices import level_of
+    from ..output.display import grouped_warnings as report_lines
+
+    where, fit_warnings = defaultdict(list), []
+    for notice in notices:
+        if notice.curve:
+            fit_warnings.append((notice.subject, notice.curve, notice.message))
+        else:
+            where[(level_of(notice.code), notice.message)].append(notice.subject)
+    groups = [{"kind": kind, "text": text, "count": len(places), "where": list(dict.fromkeys(places))}
+              for (kind, text), places in where.items()]  # fmt: skip
+    return groups + [{"kind": "fit", "text": line, "count": None, "where": []} for line in report_lines(fit_warnings)]
+
+
+def number(value):
     value = float(value)
     return value if math.isfinite(value) else None
 
 
-def _numbers(values) -> list:
-    return [_number(value) for value in np.asarray(values, dtype=float)]
+def numbers(values) -> list:
+    return [number(value) for value in np.asarray(values, dtype=float)]
 
 
-def _records(table) -> dict:
+def records(table) -> dict:
     """``{"columns": [...], "rows": [[...], ...]}``, NaN as null, numpy scalars as Python ones."""
     rows = []
     for row in table.itertuples(index=False):
@@ -245,7 +296,7 @@ def _plain(value):
     if isinstance(value, int | np.integer):
         return int(value)
     if isinstance(value, float | np.floating):
-        return _number(value)
+        return number(value)
     if value is None or (isinstance(value, float) and math.isnan(value)):
         return None
     try:

@@ -30,8 +30,8 @@ from starlette.routing import Route
 
 from .forms import OptionsRefused, arguments_from_form, command_parser, form_options, parse_arguments
 from .jobs import COMMANDS as RUN_COMMANDS
-from .jobs import RESULTS_FOLDER, FitRun, Job
-from .kinds import ACCEPTED_SUFFIXES, sheet_names, table_kind
+from .jobs import RESULTS_FOLDER, Job, PageRun
+from .kinds import ACCEPTED_SUFFIXES, CIRCUIT_ROLES, command_name, sheet_names, table_kind
 from .sessions import Session, Sessions, Upload, safe_file_name
 
 COOKIE = "tromplab_session"
@@ -51,10 +51,14 @@ SECURITY_HEADERS = {
 }
 STATIC_FILES = {"index.html": "text/html", "app.js": "text/javascript", "app.css": "text/css"}
 EXAMPLES = {"double_deck_screen_decks_lab.csv": "lab table: the two decks of a double-deck screen (sizes in mm)",
-            "classifier_trend_surveys.csv": "Tromp points: 24 weekly surveys of one classifier (sizes in um)",
-            "density_tracers_dmc_by_size_synthetic.csv": "density tracers: a dense-medium cyclone, four size fractions"}  # fmt: skip
-DOWNLOADS = {"results.zip": "application/zip", "report.html": "text/html",
-             "results.xlsx": "application/vnd.openxmlformats-officedocument.spreadsheetml.sheet"}  # fmt: skip
+            "classifier_trend_surveys.csv": "Tromp points: 24 weekly surveys of one classifier (sizes in um; fit or trend)",
+            "density_tracers_dmc_by_size_synthetic.csv": "density tracers: a dense-medium cyclone, four size fractions",
+            "circuit_example": "circuit: flowsheet and survey of a two-deck screen feeding a closed mill and "
+                               "hydrocyclone circuit (synthetic)"}  # fmt: skip
+#: The files of each example, dropped in this order (an example of two files is a circuit: flowsheet, then survey).
+EXAMPLE_FILES = {"circuit_example": ("circuit_example_flowsheet.csv", "circuit_example_survey.csv")}
+MEDIA_TYPES = {".zip": "application/zip", ".html": "text/html",
+               ".xlsx": "application/vnd.openxmlformats-officedocument.spreadsheetml.sheet"}  # fmt: skip
 
 
 def is_loopback(host: str) -> bool:
@@ -158,7 +162,7 @@ class _Api:
         if fresh:
             session = self.sessions.new()
         response = _json({"examples": EXAMPLES, "max_upload": self.max_upload, "accepted": list(ACCEPTED_SUFFIXES),
-                          "upload": _upload_view(session.upload) if session.upload else None})  # fmt: skip
+                          "upload": _upload_view(session.upload, session) if session.upload else None})  # fmt: skip
         if fresh:
             response.set_cookie(COOKIE, session.token, httponly=True, samesite="strict", path="/")
         return response
@@ -207,17 +211,16 @@ class _Api:
         name = request.query_params.get("name", "")
         if name not in EXAMPLES:
             return _refused("no such example")
-        data = (resources.files("tromplab.app") / "examples" / name).read_bytes()
-        return await self._new_table(session, name, name, data)
+        for file in EXAMPLE_FILES.get(name, (name,)):
+            data = (resources.files("tromplab.app") / "examples" / file).read_bytes()
+            described = await self._new_table(session, file, file, data)
+        return described
 
     async def _new_table(self, session: Session, stored: str, shown: str, data: bytes) -> Response:
         if session.job is not None:
             await run_in_threadpool(session.job.cancel)
             session.job = None
-        uploads = session.folder / "upload"
-        shutil.rmtree(uploads, ignore_errors=True)
-        uploads.mkdir()
-        path = uploads / stored
+        path = session.upload_folder() / stored
         path.write_bytes(data)
         try:
             sheets = await run_in_threadpool(sheet_names, path)
@@ -242,14 +245,26 @@ class _Api:
         from ..errors import InputError
 
         upload = session.upload
-        view = _upload_view(upload)
         try:
             kind = await run_in_threadpool(table_kind, upload.path, sheet)
         except InputError as error:
-            return _json({**view, "kind": None, "error": f"tromplab fit: error: {cli_message(error, self.fit_parser)}"})
-        upload.command = kind.command if kind.command in self.parsers else ("fit",)
-        options = [o.as_dict() for o in self.forms[upload.command]] if kind.runs_here else []
-        return _json({**view, "sheet": sheet, "kind": kind.as_dict(), "options": options})
+            session.forget_unused_uploads()
+            message = f"tromplab fit: error: {cli_message(error, self.fit_parser)}"
+            return _json({**_upload_view(upload, session), "kind": None, "error": message})
+        upload.kind = kind.kind
+        upload.commands = tuple(command for command in kind.commands if command in self.parsers) or (("fit",),)
+        if kind.kind in CIRCUIT_ROLES:
+            session.circuit[kind.kind] = upload
+        else:  # a table of another kind ends the pairing of a flowsheet with a survey
+            session.circuit.clear()
+        session.forget_unused_uploads()
+        view = _upload_view(upload, session)
+        if kind.kind in CIRCUIT_ROLES and sheet is not None and sheet != upload.sheets[0]:
+            return _json({**view, "kind": None, "error": "tromplab circuit reads the first sheet of a workbook: "
+                          "put the table there, or save the sheet as CSV"})  # fmt: skip
+        forms = {command_name(command): [o.as_dict() for o in self.forms[command]] for command in upload.commands}
+        return _json({**view, "sheet": sheet, "kind": kind.as_dict(), "forms": forms,
+                      "options": forms[command_name(upload.commands[0])]})  # fmt: skip
 
     # -- runs -------------------------------------------------------------------------------
     async def run(self, request: Request) -> Response:
@@ -262,27 +277,53 @@ class _Api:
         values, sheet = dict(wanted.get("options") or {}), wanted.get("sheet")
         if sheet is not None and sheet not in session.upload.sheets:
             return _refused("no such sheet in the workbook")
-        command, name = session.upload.command, session.upload.path.name
+        commands = {command_name(command): command for command in session.upload.commands}
+        command = commands.get(wanted.get("command") or command_name(session.upload.commands[0]))
+        if command is None:
+            return _refused(f"this file is read by {' or '.join(commands)}")
+        sources = self._inputs(session, command)
+        if isinstance(sources, Response):
+            return sources
+        inputs = tuple(source.name for source in sources)
         try:
-            fit_arguments = arguments_from_form(self.forms[command], values)
-            report_arguments = self._report_arguments(values) if command == ("fit",) else []
-            if sheet is not None:
-                fit_arguments = [*fit_arguments, f"--sheet={sheet}"]
-                report_arguments = [*report_arguments, f"--sheet={sheet}"] if command == ("fit",) else []
-            parse_arguments(self.parsers[command], [name, *fit_arguments])
-            if command == ("fit",):
-                parse_arguments(self.report_parser, [name, *report_arguments])
+            arguments, report_arguments = self._arguments(command, inputs, values, sheet)
         except OptionsRefused as refusal:
             return _refused(str(refusal))
         if session.job is not None:
             await run_in_threadpool(session.job.cancel)
         folder = session.job_folder()
-        shutil.copyfile(session.upload.path, folder / name)
-        run = FitRun(folder, name, tuple(fit_arguments), tuple(report_arguments), command)
+        for source in sources:
+            shutil.copyfile(source, folder / source.name)
+        run = PageRun(folder, inputs, tuple(arguments), tuple(report_arguments), command)
         session.job = Job(run)
         await run_in_threadpool(session.job.start)
         report = run.report_command()
-        return _json({"command": ["tromplab", *run.fit_command()], "report_command": report and ["tromplab", *report]})
+        return _json({"command": ["tromplab", *run.command_line()], "report_command": report and ["tromplab", *report]})
+
+    def _inputs(self, session: Session, command: tuple[str, ...]) -> list[Path] | Response:
+        """The files the command reads: the flowsheet and the survey of ``circuit``, else the table."""
+        if command != ("circuit",):
+            return [session.upload.path]
+        missing = [role for role in CIRCUIT_ROLES if role not in session.circuit]
+        if missing:
+            return _refused(f"tromplab circuit reads a flowsheet and a survey: drop the {' and the '.join(missing)} too")
+        paths = [session.circuit[role].path for role in CIRCUIT_ROLES]
+        if paths[0].name == paths[1].name:
+            return _refused(f"the flowsheet and the survey are both named {paths[0].name}: rename one of them")
+        return paths
+
+    def _arguments(self, command, inputs, values: dict, sheet) -> tuple[list[str], list[str]]:
+        """The arguments of the command (and of ``tromplab report`` after ``fit``) the form's
+        ``values`` stand for, checked by the commands' parsers (:class:`OptionsRefused` if not)."""
+        arguments = arguments_from_form(self.forms[command], values)
+        report_arguments = self._report_arguments(values) if command == ("fit",) else []
+        if sheet is not None and command != ("circuit",):
+            arguments = [*arguments, f"--sheet={sheet}"]
+            report_arguments = [*report_arguments, f"--sheet={sheet}"] if command == ("fit",) else []
+        parse_arguments(self.parsers[command], [*inputs, *arguments])
+        if command == ("fit",):
+            parse_arguments(self.report_parser, [*inputs, *report_arguments])
+        return arguments, report_arguments
 
     def _report_arguments(self, values: dict) -> list[str]:
         """The report's options from the fit's: those ``tromplab report`` has, its ``--ci`` the fit's level if given."""
@@ -313,20 +354,22 @@ class _Api:
         if isinstance(session, Response):
             return session
         name = request.path_params["name"]
-        if name not in DOWNLOADS:
-            return Response("not found", status_code=404)
         if session.job is None or session.job.state()["state"] != "done":
             return _refused("no finished run to download", 404)
-        folder = session.job.run.folder
+        run = session.job.run
+        if name not in run.downloads():
+            return Response("not found", status_code=404)
+        media_type = MEDIA_TYPES[Path(name).suffix]
         headers = {**SECURITY_HEADERS, "content-disposition": f'attachment; filename="{name}"'}
         if name == "results.zip":
-            data = await run_in_threadpool(_zipped, folder / RESULTS_FOLDER)
-            return Response(data, media_type=DOWNLOADS[name], headers=headers)
-        return FileResponse(session.job.run.download(name), media_type=DOWNLOADS[name], headers=headers)
+            data = await run_in_threadpool(_zipped, run.download(name))
+            return Response(data, media_type=media_type, headers=headers)
+        return FileResponse(run.download(name), media_type=media_type, headers=headers)
 
 
-def _upload_view(upload: Upload) -> dict:
-    return {"name": upload.shown_name, "stored_as": upload.path.name, "sheets": upload.sheets}
+def _upload_view(upload: Upload, session: Session) -> dict:
+    pair = {role: session.circuit[role].shown_name if role in session.circuit else None for role in CIRCUIT_ROLES}
+    return {"name": upload.shown_name, "stored_as": upload.path.name, "sheets": upload.sheets, "circuit": pair}
 
 
 def _static_response(name: str) -> Response:

@@ -34,25 +34,44 @@ def safe_file_name(name: str) -> str:
 
 @dataclass
 class Upload:
-    """The table a session works on: its stored path, the name as the browser sent it, its
-    sheets, and the command that reads it (told from its columns)."""
+    """A table a session dropped: its stored path, the name as the browser sent it, its sheets,
+    its kind and the commands that read it (told from its columns, the default first)."""
 
     path: Path
     shown_name: str
     sheets: list[str]
-    command: tuple[str, ...] = ("fit",)
+    kind: str = "unknown"
+    commands: tuple[tuple[str, ...], ...] = (("fit",),)
 
 
 @dataclass
 class Session:
-    """One browser's work: its folder, its table, its current run."""
+    """One browser's work: its folder, its table (the last one dropped), the flowsheet and the
+    survey of a circuit (the last of each, kept until a table of another kind is dropped), its
+    current run."""
 
     token: str
     folder: Path
     upload: Upload | None = None
+    circuit: dict[str, Upload] = field(default_factory=dict)
     job: Job | None = None
     runs: int = 0
+    uploads: int = 0
     last_seen: float = field(default_factory=time.monotonic)
+
+    def upload_folder(self) -> Path:
+        """A new, empty folder for the next file dropped (two files may share a name)."""
+        self.uploads += 1
+        folder = self.folder / "upload" / str(self.uploads)
+        folder.mkdir(parents=True)
+        return folder
+
+    def forget_unused_uploads(self) -> None:
+        """Remove the files dropped before that the session no longer works on."""
+        kept = {upload.path.parent for upload in (self.upload, *self.circuit.values()) if upload is not None}
+        for folder in (self.folder / "upload").iterdir():
+            if folder not in kept:
+                shutil.rmtree(folder, ignore_errors=True)
 
     def job_folder(self) -> Path:
         """A new, empty folder for the next run."""

@@ -172,7 +172,8 @@ def _route_design(circuit: argparse.ArgumentParser, design: argparse.ArgumentPar
     circuit.parse_known_args = parse_known_args
 
 
-def _error_model(args):
+def error_model_of(args):
+    """The error-model options of ``tromplab circuit`` and ``circuit design`` as one :class:`~tromplab.circuit.ErrorModel` (the page builds it too)."""
     from ..circuit import ErrorModel
 
     return ErrorModel(relative_error=args.relative_error, absolute_error=args.absolute_error,
@@ -187,7 +188,7 @@ def _run_circuit(args) -> int:
 
     check_output_folder(args.outdir, inputs=[args.flowsheet, args.measurements])  # the inputs are checked as they are read
     with stage_bars(quiet=args.quiet) as progress:
-        result = reconcile_circuit(args.flowsheet, args.measurements, fit=args.fit, errors=_error_model(args), alpha=args.alpha,
+        result = reconcile_circuit(args.flowsheet, args.measurements, fit=args.fit, errors=error_model_of(args), alpha=args.alpha,
                                    size_unit=args.size_unit, exclude=args.exclude, weighting=args.weighting, progress=progress)  # fmt: skip
         written = result.save(args.outdir, figures=not args.no_figures)
     print(console_report(result, written, format_fits=format_fits))
@@ -204,7 +205,7 @@ def _run_design(args) -> int:
     check_output_folder(args.outdir, inputs=[args.flowsheet] + ([args.measurements] if args.measurements is not None else []))
     with stage_bars(quiet=args.quiet) as progress:
         advice = design_circuit(args.flowsheet, args.measurements, quantity=args.quantity, sampled=args.sampled,
-                                flows=args.flows, errors=_error_model(args), alpha=args.alpha, size_unit=args.size_unit,
+                                flows=args.flows, errors=error_model_of(args), alpha=args.alpha, size_unit=args.size_unit,
                                 exclude=args.exclude, progress=progress)  # fmt: skip
         written = advice.save(args.outdir)
     print(advice.report() + "\n\nWrote:\n" + "\n".join(f"  {path}" for path in written.values()))

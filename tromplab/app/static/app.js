@@ -4,6 +4,10 @@
 
 const PAGE_HEADERS = { "x-tromplab-page": "1" };
 const state = { upload: null, options: [], page: null, experiment: 0, polling: null, sort: { column: null, down: false } };
+//: The button's word for each command's run.
+const RUN_WORDS = { "tromplab fit": "Fit", "tromplab density fit": "Fit", "tromplab circuit": "Run", "tromplab trend": "Run" };
+const DOWNLOAD_LINKS = { "results.zip": "download-zip", "report.html": "download-report", "results.xlsx": "download-xlsx",
+  "trend_report.html": "download-trend-report" };
 
 function $(id) { return document.getElementById(id); }
 
@@ -61,15 +65,18 @@ async function startSession() {
   state.maxUpload = session.max_upload;
 }
 
-async function sendFile(file) {
+async function sendFiles(files) {
   say("table-error", "");
-  if (state.maxUpload && file.size > state.maxUpload) {
-    say("table-error", `${file.name}: larger than the upload limit of ${state.maxUpload / 1048576} MiB`);
-    return;
+  for (const file of files) {  // one after the other: a circuit's flowsheet and survey pair up on the server
+    if (state.maxUpload && file.size > state.maxUpload) {
+      say("table-error", `${file.name}: larger than the upload limit of ${state.maxUpload / 1048576} MiB`);
+      return;
+    }
+    const described = await post(`/api/upload?name=${encodeURIComponent(file.name)}`, null,
+      { body: file, headers: { "content-type": "application/octet-stream" } });
+    showTable(described);
+    if (described.error) return;
   }
-  const described = await post(`/api/upload?name=${encodeURIComponent(file.name)}`, null,
-    { body: file, headers: { "content-type": "application/octet-stream" } });
-  showTable(described);
 }
 
 async function useExample() {
@@ -97,6 +104,11 @@ function showTable(described) {
     return option;
   }));
   show("sheet-row", sheets.length > 0);
+  const pair = described.circuit || {};
+  const circuit = described.kind && (described.kind.kind === "flowsheet" || described.kind.kind === "survey");
+  $("pair-flowsheet").textContent = pair.flowsheet || "(drop it too)";
+  $("pair-survey").textContent = pair.survey || "(drop it too)";
+  show("circuit-pair", Boolean(circuit));
   if (described.error) {
     $("file-kind").textContent = "";
     say("table-error", described.error);
@@ -111,10 +123,25 @@ function showTable(described) {
     show("options-section", false);
     return;
   }
-  $("options-command").textContent = kind.command;
-  $("options-help").textContent = `${kind.command} -h`;
-  buildForm(described.options);
+  state.forms = described.forms || { [kind.command]: described.options };
+  const commandSelect = $("command-select");
+  commandSelect.replaceChildren(...Object.keys(state.forms).map((command) => {
+    const option = element("option", command);
+    option.value = command;
+    return option;
+  }));
+  show("command-row", Object.keys(state.forms).length > 1);
+  chooseCommand(kind.command);
   show("options-section", true);
+}
+
+function chooseCommand(command) {
+  state.command = command;
+  $("command-select").value = command;
+  $("options-command").textContent = command;
+  $("options-help").textContent = `${command} -h`;
+  $("run-button").textContent = RUN_WORDS[command] || "Run";
+  buildForm(state.forms[command]);
 }
 
 async function chooseSheet() {
@@ -189,7 +216,8 @@ async function run() {
   say("run-error", "");
   show("results-section", false);
   const sheets = (state.upload && state.upload.sheets) || [];
-  const started = await post("/api/run", { options: formValues(), sheet: sheets.length ? $("sheet-select").value : null });
+  const started = await post("/api/run", { options: formValues(), sheet: sheets.length ? $("sheet-select").value : null,
+    command: state.command });
   if (started.error) {
     say("run-error", started.error);
     return;
@@ -221,7 +249,7 @@ async function poll() {
   setRunning(false);
   if (job.state === "failed") say("run-error", job.message);
   else if (job.state === "cancelled") say("run-error", "Cancelled: nothing was kept.");
-  else if (job.state === "done") showResults(job.page);
+  else if (job.state === "done") showResults(job.page, job.downloads || []);
   else if (job.error) say("run-error", job.error);
 }
 
@@ -233,10 +261,17 @@ async function cancel() {
 }
 
 // -- results ------------------------------------------------------------------------------------
-function showResults(page) {
+function showResults(page, downloads) {
   state.page = page;
   state.experiment = 0;
   state.sort = { column: null, down: false };
+  for (const [name, id] of Object.entries(DOWNLOAD_LINKS)) show(id, downloads.includes(name));
+  show("fit-results", page.view === "fit");
+  show("circuit-results", page.view === "circuit");
+  show("trend-results", page.view === "trend");
+  showWarnings(page.warnings);
+  if (page.view === "circuit") { show("results-section", true); showCircuit(page); return; }
+  if (page.view === "trend") { show("results-section", true); showTrend(page); return; }
   const axes = page.axes;
   const unit = axes.unit ? ` ${axes.unit}` : "";
   $("best-list").replaceChildren(...page.experiments.slice(0, 20).map((experiment) => {
@@ -257,7 +292,6 @@ function showResults(page) {
   }));
   if (page.ranking) fillTable($("ranking-table"), page.ranking, null);
   show("ranking-part", Boolean(page.ranking));
-  showWarnings(page.warnings);
   show("results-section", true);
   drawOverview(page);
   showExperiment();
@@ -400,6 +434,133 @@ function drawOverview(page) {
   Plotly.react($("overview"), traces, layout, { displaylogo: false, responsive: true });
 }
 
+// -- a circuit: the flowsheet with its flows, the summary, the folder's tables ------------------------
+function showCircuit(page) {
+  $("circuit-summary").textContent = page.summary.join("\n");
+  const select = $("circuit-table-select");
+  select.replaceChildren(...page.tables.map((table, index) => {
+    const option = element("option", table.name);
+    option.value = String(index);
+    return option;
+  }));
+  showCircuitTable();
+  drawFlowsheet(page.flowsheet);
+}
+
+function showCircuitTable() {
+  const table = state.page.tables[Number($("circuit-table-select").value || 0)];
+  if (!table) return;
+  const more = table.rows_in_file > table.table.rows.length ? ` (the first ${table.table.rows.length} of ${table.rows_in_file} rows; the file has all)` : "";
+  $("circuit-table-what").textContent = `${table.what}${more}`;
+  state.sort = { column: null, down: false };
+  fillTable($("circuit-table"), table.table, null);
+}
+
+function flowText(value, sd) {
+  if (value === null || value === undefined) return "not measured";
+  return sd === null || sd === undefined ? formatNumber(value, 4) : `${formatNumber(value, 4)} ± ${formatNumber(sd, 2)}`;
+}
+
+function streamHover(stream) {
+  const lines = [`<b>${plotlyText(stream.name)}</b>`, `reconciled ${flowText(stream.reconciled, stream.reconciled_sd)}`,
+    `measured ${flowText(stream.measured, stream.measured_sd)}`];
+  for (const suspect of stream.suspects) {
+    lines.push(`suspect: ${plotlyText(suspect.measurement)} (test ${formatNumber(suspect.test, 3)}, gross error ${formatNumber(suspect.gross_error, 3)})`);
+  }
+  if (stream.largest_test && !stream.suspects.length) {
+    lines.push(`largest test: ${plotlyText(stream.largest_test.measurement)} (${formatNumber(stream.largest_test.test, 3)})`);
+  }
+  return lines.join("<br>");
+}
+
+function drawFlowsheet(sheet) {
+  if (typeof Plotly === "undefined") return;
+  const traces = [];
+  const annotations = [];
+  const labels = { x: [], y: [], text: [], hovertext: [], color: [] };
+  for (const stream of sheet.streams) {
+    const suspect = stream.suspects.length > 0;
+    const color = suspect ? "#c62828" : (stream.path.x.length > 2 ? "#b35900" : "#555555");
+    const xs = [...stream.path.x];
+    const ys = [...stream.path.y];
+    const n = xs.length;
+    if (stream.to) {  // the arrow stops short of the unit's box
+      const dx = xs[n - 1] - xs[n - 2], dy = ys[n - 1] - ys[n - 2], length = Math.hypot(dx, dy) || 1;
+      xs[n - 1] -= 0.35 * dx / length;
+      ys[n - 1] -= 0.35 * dy / length;
+    }
+    traces.push({ x: xs, y: ys, mode: "lines", line: { color, width: suspect ? 4 : 2 }, hoverinfo: "skip", showlegend: false });
+    annotations.push({ x: xs[n - 1], y: ys[n - 1], ax: xs[n - 2], ay: ys[n - 2], xref: "x", yref: "y", axref: "x", ayref: "y",
+      showarrow: true, arrowhead: 2, arrowsize: 1.3, arrowwidth: suspect ? 3 : 1.5, arrowcolor: color, text: "" });
+    const middle = Math.floor((n - 1) / 2);  // the label on the middle segment
+    labels.x.push((xs[middle] + xs[middle + 1]) / 2);
+    labels.y.push((ys[middle] + ys[middle + 1]) / 2);
+    labels.text.push(`${plotlyText(stream.name)}<br>${flowText(stream.reconciled, stream.reconciled_sd)}`);
+    labels.hovertext.push(streamHover(stream));
+    labels.color.push(color);
+  }
+  traces.push({ x: labels.x, y: labels.y, text: labels.text, hovertext: labels.hovertext, hoverinfo: "text", mode: "markers+text",
+    textposition: "top center", textfont: { size: 11 }, marker: { size: 9, color: labels.color }, name: "streams", showlegend: false });
+  traces.push({ x: sheet.nodes.map((node) => node.x), y: sheet.nodes.map((node) => node.y), mode: "markers+text",
+    text: sheet.nodes.map((node) => plotlyText(node.name)), textposition: "bottom center",
+    hovertext: sheet.nodes.map((node) => `${plotlyText(node.name)} (${plotlyText(node.kind)})`), hoverinfo: "text",
+    marker: { symbol: "square", size: 30, color: "#dfe9f7", line: { color: "#2a6edb", width: 2 } }, name: "units", showlegend: false });
+  const xs = [...sheet.nodes.map((node) => node.x), ...sheet.streams.flatMap((stream) => stream.path.x)];
+  const ys = [...sheet.nodes.map((node) => node.y), ...sheet.streams.flatMap((stream) => stream.path.y)];
+  const hidden = { showgrid: false, zeroline: false, showticklabels: false };
+  const xaxis = Object.assign({ range: [Math.min(...xs) - 0.8, Math.max(...xs) + 0.8] }, hidden);
+  const yaxis = Object.assign({ range: [Math.min(...ys) - 0.5, Math.max(...ys) + 0.8] }, hidden);  // room for the labels above
+  const layout = { xaxis, yaxis, annotations, margin: { t: 20, l: 20, r: 20, b: 20 }, hovermode: "closest",
+    title: { text: sheet.basis ? plotlyText(`flows relative to ${sheet.basis}`) : "" } };
+  Plotly.react($("flowsheet"), traces, layout, { displaylogo: false, responsive: true });
+}
+
+// -- a trend: the control charts and the tables ------------------------------------------------------
+function showTrend(page) {
+  const base = page.surveys.filter((name, index) => page.baseline[index]);
+  $("trend-summary").textContent = `Formula ${page.formula} fitted to each of ${page.surveys.length} surveys; baseline ${base[0]} to ${base[base.length - 1]} (${base.length} surveys); intervals at ${formatNumber(100 * page.level, 3)} %; change flags at alpha ${formatNumber(page.alpha)}. Change points: ${page.change_points.length ? page.change_points.join(", ") : "none"}.`;
+  state.sort = { column: null, down: false };
+  fillTable($("trend-flags"), page.flags, null);
+  fillTable($("trend-table"), page.table, null);
+  const box = $("trend-charts");
+  box.replaceChildren(...page.charts.map((chart) => {
+    const holder = element("div", null, "figure chart");
+    holder.id = `trend-chart-${chart.quantity}`;
+    holder.setAttribute("aria-label", `control chart of ${chart.quantity}`);
+    return holder;
+  }));
+  if (typeof Plotly === "undefined") return;
+  page.charts.forEach((chart) => drawControlChart(page, chart));
+}
+
+function drawControlChart(page, chart) {
+  const names = page.surveys.map((name) => plotlyText(name));
+  const colors = chart.value.map((value, index) => (page.baseline[index] ? "#8a8a8a" : chart.alarm[index] ? "#c62828" : "#2a6edb"));
+  const above = chart.value.map((value, index) => (value === null || chart.high[index] === null ? null : chart.high[index] - value));
+  const below = chart.value.map((value, index) => (value === null || chart.low[index] === null ? null : value - chart.low[index]));
+  const traces = [
+    { x: page.dates, y: chart.value, text: names, mode: "markers", name: `${chart.quantity} with its interval`, hoverinfo: "text+x+y",
+      marker: { size: 9, color: colors }, error_y: { type: "data", symmetric: false, array: above, arrayminus: below, color: "#999" } },
+    { x: page.dates, y: chart.ewma, mode: "lines", name: "EWMA", line: { color: "#1d1d1f", width: 2 }, hoverinfo: "x+y" },
+    { x: page.dates, y: chart.ewma_low, mode: "lines", name: "EWMA limits", line: { color: "#c62828", dash: "dash" }, hoverinfo: "x+y" },
+    { x: page.dates, y: chart.ewma_high, mode: "lines", showlegend: false, line: { color: "#c62828", dash: "dash" }, hoverinfo: "x+y" },
+  ];
+  const changed = page.changed.map((flag, index) => (flag ? index : -1)).filter((index) => index >= 0);
+  if (changed.length) {
+    traces.push({ x: changed.map((i) => page.dates[i]), y: changed.map((i) => chart.value[i]), text: changed.map((i) => names[i]),
+      mode: "markers", name: "changed", hoverinfo: "text+x", marker: { size: 18, symbol: "circle-open", color: "#c62828", line: { width: 2 } } });
+  }
+  const points = page.surveys.map((name, index) => (page.change_points.includes(name) ? index : -1)).filter((index) => index >= 0);
+  if (points.length) {
+    traces.push({ x: points.map((i) => page.dates[i]), y: points.map((i) => chart.value[i]), text: points.map((i) => names[i]),
+      mode: "markers", name: "change point", hoverinfo: "text+x", marker: { size: 14, symbol: "x", color: "#1d1d1f" } });
+  }
+  const unit = chart.unit ? ` (${plotlyText(chart.unit)})` : "";
+  const layout = { title: { text: plotlyText(chart.title) + unit }, margin: { t: 40 }, hovermode: "closest",
+    xaxis: { title: { text: "survey date" } }, yaxis: { title: { text: plotlyText(chart.quantity) + unit } } };
+  Plotly.react($(`trend-chart-${chart.quantity}`), traces, layout, { displaylogo: false, responsive: true });
+}
+
 // -- wiring ---------------------------------------------------------------------------------------
 function wire() {
   const zone = $("drop-zone");
@@ -408,11 +569,13 @@ function wire() {
   zone.addEventListener("drop", (event) => {
     event.preventDefault();
     zone.classList.remove("over");
-    if (event.dataTransfer.files.length) sendFile(event.dataTransfer.files[0]);
+    if (event.dataTransfer.files.length) sendFiles([...event.dataTransfer.files]);
   });
-  $("file-input").addEventListener("change", (event) => { if (event.target.files.length) sendFile(event.target.files[0]); });
+  $("file-input").addEventListener("change", (event) => { if (event.target.files.length) sendFiles([...event.target.files]); });
   $("example-button").addEventListener("click", useExample);
   $("sheet-select").addEventListener("change", chooseSheet);
+  $("command-select").addEventListener("change", (event) => chooseCommand(event.target.value));
+  $("circuit-table-select").addEventListener("change", showCircuitTable);
   $("run-button").addEventListener("click", run);
   $("cancel-button").addEventListener("click", cancel);
   $("experiment-select").addEventListener("change", (event) => { state.experiment = Number(event.target.value); showExperiment(); });
