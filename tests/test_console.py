@@ -245,3 +245,17 @@ def test_circuit_prints_the_notes_of_its_separators_once_per_kind(tmp_path, caps
     err = " ".join(capsys.readouterr().err.split())
     assert re.search(r"warning: (\d+) of \1 separators: the cut is not bracketed by the data", err), err
     assert "-v prints every one" in err
+
+
+def test_grouped_warnings_keep_the_digits_of_names_and_group_by_the_numbers():
+    from tromplab.output.display import grouped_warnings
+
+    said = [
+        ("deck_2", "plitt2", "x50 of run-3 not bracketed: cut at 0.4mm (p = 0.003)"),
+        ("deck_7", "plitt2", "x50 of run-3 not bracketed: cut at 0.55mm (p = 2e-05)"),
+        ("deck_7", "lynch", "x50 of run-4 not bracketed: cut at 0.6mm (p = 0.1)"),  # another name: another kind
+    ]
+    assert grouped_warnings(said) == [
+        "x50 of run-3 not bracketed: cut at ...mm (p = ...) (2 fits): deck_2: plitt2 (0.4, 0.003); deck_7: plitt2 (0.55, 2e-05)",
+        "deck_7, lynch: x50 of run-4 not bracketed: cut at 0.6mm (p = 0.1)",
+    ]
