@@ -34,7 +34,7 @@ from ..output.csv_parts import file_writers, write_csv
 from ..results_contract import ResultContract
 from ..validation import MAX_JOBS, check_count, check_probability
 from .curves import select_density_curves
-from .fitting import METHODS, DensityCurveFit, fit_density_curves, limits_test_p, wilson_interval
+from .fitting import METHODS, DensityCurveFit, fit_density_curves, limits_test_p, pooled_dispersions, wilson_interval
 from .ranking import quasi_aic, rank_fits, variance_inflation
 from .readers import DensitySample, read_density
 
@@ -494,7 +494,10 @@ def _fit_in_units(samples: list, curves, *, ci, method, jobs: int, progress) -> 
     """The fits of every sample, :data:`TESTS_PER_UNIT` samples at a time, in this process or on
     ``jobs`` worker processes (0: all cores); the same fits either way, in the samples' order."""
     units = [samples[i : i + TESTS_PER_UNIT] for i in range(0, len(samples), TESTS_PER_UNIT)]
-    work = functools.partial(_fit_unit, curves=tuple(curve.id for curve in curves), ci=ci, method=method)
+    pooled = None
+    if ci is not None and len(units) > 1:  # the intervals' scale is floored by the whole file's dispersion: fit first
+        pooled = pooled_dispersions(_fit_in_units(samples, curves, ci=None, method=method, jobs=jobs, progress=None))
+    work = functools.partial(_fit_unit, curves=tuple(curve.id for curve in curves), ci=ci, method=method, pooled=pooled)
     workers = min(jobs or os.cpu_count() or 1, len(units))
     fits, done = [], 0
     with contextlib.ExitStack() as stack:
@@ -517,5 +520,5 @@ def _fit_in_units(samples: list, curves, *, ci, method, jobs: int, progress) -> 
     return fits
 
 
-def _fit_unit(unit: list, *, curves: tuple, ci, method) -> list[DensityCurveFit]:
-    return fit_density_curves(unit, curves, ci=ci, method=method)
+def _fit_unit(unit: list, *, curves: tuple, ci, method, pooled=None) -> list[DensityCurveFit]:
+    return fit_density_curves(unit, curves, ci=ci, method=method, pooled=pooled)
