@@ -20,6 +20,8 @@ import textwrap
 import tokenize
 from pathlib import Path
 
+import pytest
+
 PACKAGE = Path(__file__).resolve().parents[1] / "tromplab"
 MODULE_LIMIT = 700
 FUNCTION_LIMIT = 60
@@ -107,6 +109,7 @@ def oversized(sizes: dict[str, int], limit: int, debt: dict[str, int]) -> list[s
     ]
 
 
+@pytest.mark.slow
 def test_no_module_above_700_lines_of_code():
     modules, _, _ = _package_sizes()
     offenders = oversized(modules, MODULE_LIMIT, MODULE_DEBT)

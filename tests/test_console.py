@@ -62,6 +62,7 @@ def test_the_batch_has_a_third_of_unbracketed_cuts(batch):
     assert all(int(name[3:]) % GAPPED_EVERY == 0 for name in unbracketed)
 
 
+@pytest.mark.slow
 def test_240_experiments_print_at_most_20_lines_and_every_occurrence_is_in_warnings_csv(batch, capsys):
     folder, unbracketed = batch
     out = folder / "default"
@@ -82,6 +83,7 @@ def test_240_experiments_print_at_most_20_lines_and_every_occurrence_is_in_warni
     assert "warnings.csv" in printed  # among the files written
 
 
+@pytest.mark.slow
 def test_quiet_prints_only_the_one_line_result_and_verbose_every_occurrence(batch, capsys):
     folder, unbracketed = batch
     quiet = _run(capsys, "fit", str(folder / "batch.csv"), "-o", str(folder / "q"), "--no-figures", "--quiet", *TWO_FORMULAS)
@@ -96,6 +98,7 @@ def test_quiet_prints_only_the_one_line_result_and_verbose_every_occurrence(batc
     assert {line.split(")")[0].removeprefix("warning (") for line in shown} == unbracketed
 
 
+@pytest.mark.slow
 def test_intervals_are_spoken_of_only_when_asked_for(batch, capsys):
     folder, unbracketed = batch
     code, _, err = _run(capsys, "fit", str(folder / "batch.csv"), "-o", str(folder / "ci"), "--no-figures", "--ci", "0.9",
@@ -194,6 +197,7 @@ def test_trend_writes_its_warnings_and_prints_each_kind_once(tmp_path, capsys):
     assert quiet.err == "" and quiet.out.startswith(f"tromplab trend: 24 survey(s) charted, {len(said)} warning(s)")
 
 
+@pytest.mark.slow
 def test_density_fit_groups_the_notes_of_its_tests(tmp_path, capsys):
     from .conftest import ROOT
 
@@ -219,6 +223,7 @@ def test_density_predict_says_a_repeated_note_once(tmp_path, capsys):
     assert printed.count("no cut density") == 1 and f"({notes.size} times)" in printed and "every one in pred.csv" in printed
 
 
+@pytest.mark.slow
 def test_report_prints_each_kind_once(tmp_path, capsys):
     sizes = [10.0, 20.0, 40.0, 80.0, 160.0, 320.0]
     gapped = [0.99, 0.98, 0.96, 0.04, 0.02, 0.01]  # falls across the band between two sizes

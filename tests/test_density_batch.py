@@ -240,6 +240,7 @@ def campaign(tests: int) -> pd.DataFrame:
     return pd.concat(frames, ignore_index=True)
 
 
+@pytest.mark.slow
 def test_units_and_workers_give_the_same_fits_as_one_batch(monkeypatch):
     table = campaign(5)
     whole = fit_density(table, ci=0.95, curves="normal,logistic_limits").fits_table()
@@ -257,6 +258,7 @@ def test_units_and_workers_give_the_same_fits_as_one_batch(monkeypatch):
 
 
 @pytest.mark.parametrize("figures", ["none", "auto", "all", "best"])
+@pytest.mark.slow
 def test_figures_choice_decides_the_figures_written_by_the_command_and_the_api(tmp_path, figures):
     path = write(tmp_path, campaign(3).to_csv(index=False), "tracers.csv")
     assert main(["density", "fit", str(path), "-o", str(tmp_path / "cli"), "--figures", figures, "-q"]) == 0

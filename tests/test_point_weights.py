@@ -189,6 +189,7 @@ def test_on_simulated_surveys_the_default_weights_no_longer_let_two_classes_move
     assert np.median(shares["former"]) > WEIGHT_CONCENTRATION_SHARE > np.median(shares["default"])
 
 
+@pytest.mark.slow
 def test_tromplab_circuit_says_when_two_classes_carry_most_of_the_weight(tmp_path, capsys):
     feed = np.array([0.40, 0.38, 0.05, 0.05, 0.04, 0.04, 0.02, 0.02])  # two classes hold most of the feed
     y = float(np.sum(feed * PARTITION))

@@ -263,12 +263,14 @@ def test_follows_the_contract(cls):
 
 
 @pytest.mark.parametrize("cls", CLASSES, ids=lambda cls: cls.__name__)
+@pytest.mark.slow
 def test_summary_is_a_non_empty_table(cls):
     summary = instance(cls).summary()
     assert isinstance(summary, pd.DataFrame) and len(summary) > 0 and len(summary.columns) > 0
 
 
 @pytest.mark.parametrize("cls", CLASSES, ids=lambda cls: cls.__name__)
+@pytest.mark.slow
 def test_to_frame_is_a_table(cls):
     table = instance(cls).to_frame()
     assert isinstance(table, pd.DataFrame) and len(table.columns) > 0
@@ -494,6 +496,7 @@ FAILING_WRITER = {DesignAdvice: ("tromplab.output.csv_parts", "write_csv"),
 
 
 @pytest.mark.parametrize("cls", list(SAVES), ids=lambda cls: cls.__name__)
+@pytest.mark.slow
 def test_save_writes_nothing_half(cls, tmp_path, monkeypatch):
     from matplotlib.figure import Figure
 
@@ -594,6 +597,7 @@ def test_summary_means_a_table_everywhere():
             assert issubclass(cls, ResultContract), name
 
 
+@pytest.mark.slow
 def test_workbench_report_with_a_path_is_deprecated(tmp_path):
     with pytest.warns(FutureWarning, match="write_report"):
         written = _workbench().report(tmp_path / "report.html")

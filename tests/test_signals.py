@@ -278,6 +278,7 @@ def _lock_files(folder):
     ],
     ids=["fit", "fit-default", "points", "points-sub", "report", "circuit"],
 )
+@pytest.mark.slow
 def test_successful_runs_leave_no_lock_file_in_the_users_folders(tmp_path, monkeypatch, argv):
     from .conftest import DATASETS, LAB_CLASS_HEADER, LAB_CLASS_ROWS
 
