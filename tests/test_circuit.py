@@ -207,6 +207,7 @@ def test_exact_data_give_the_two_product_circulating_load_of_every_class():
     np.testing.assert_allclose((o - f) / (f - u), circulating, rtol=1e-6)  # the textbook two-product formula, per class
 
 
+@pytest.mark.slow
 def test_a_one_node_survey_of_the_textbook_table_equals_the_lab_yield_and_partition():
     """Issue item 6(a) on the textbook hydrocyclone table (tests/data, which balances exactly)."""
     balance = reconcile(pd.read_csv(pd.io.common.StringIO(CYCLONE_SHEET)), _textbook_survey())

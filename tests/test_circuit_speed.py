@@ -114,6 +114,7 @@ def test_every_file_agrees_with_the_implementation_before_the_rewrite(case, tmp_
 
 
 @pytest.mark.parametrize("case", ["example", "water", "assay_class", "assay_stream", "design_simulated"])
+@pytest.mark.slow
 def test_the_updates_equal_fresh_pseudo_inverses(case, monkeypatch):
     """The reference path kept in the tests: every candidate of ``design.csv`` by a fresh
     pseudo-inverse of the stacked Jacobian (the implementation before the rewrite) against the

@@ -116,6 +116,7 @@ def test_no_module_above_700_lines_of_code():
     assert not offenders, "modules too long (split them by job):\n  " + "\n  ".join(offenders)
 
 
+@pytest.mark.slow
 def test_no_function_above_60_lines_of_code():
     _, functions, _ = _package_sizes()
     offenders = oversized(functions, FUNCTION_LIMIT, FUNCTION_DEBT)

@@ -109,6 +109,7 @@ def test_intervals_are_spoken_of_only_when_asked_for(batch, capsys):
     assert table["message"].str.contains("no interval is given for d_cut").sum() == len(unbracketed)
 
 
+@pytest.mark.slow  # compares with the folder test_quiet_prints_only_the_one_line_result_and_verbose_every_occurrence writes
 def test_the_api_writes_the_same_warnings_csv(batch, tmp_path):
     import tromplab
 
@@ -180,6 +181,7 @@ def test_the_docs_list_every_code_with_its_level():
         assert f"| `{code}` | {level_of(code)} |" in page, code
 
 
+@pytest.mark.slow
 def test_trend_writes_its_warnings_and_prints_each_kind_once(tmp_path, capsys):
     from .conftest import ROOT
 
@@ -211,6 +213,7 @@ def test_density_fit_groups_the_notes_of_its_tests(tmp_path, capsys):
     assert "note: 4 of 4 tests: some tracers were lost and are not counted (dmc_tracers (2-4 mm)," in err
 
 
+@pytest.mark.slow
 def test_density_predict_says_a_repeated_note_once(tmp_path, capsys):
     from .conftest import ROOT
 
@@ -236,6 +239,7 @@ def test_report_prints_each_kind_once(tmp_path, capsys):
     assert "warning: 2 of 4 experiments: the cut is not bracketed by the data" in err and "(e1, e3; -v prints every one)" in err
 
 
+@pytest.mark.slow
 def test_circuit_prints_the_notes_of_its_separators_once_per_kind(tmp_path, capsys, monkeypatch):
     from tromplab.workbench.result import Workbench
 

@@ -81,6 +81,7 @@ def statsmodels_glm(curve, sample, **options):
 
 
 @pytest.mark.parametrize("curve", PLAIN_CURVES, ids=[curve.id for curve in PLAIN_CURVES])
+@pytest.mark.slow
 def test_batch_glm_is_statsmodels_glm_to_1e8(curve):
     samples = tracer_sets()
     stack = TracerStack.of([(s.used["density"].to_numpy(float), s.used["sinks"].to_numpy(float),

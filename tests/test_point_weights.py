@@ -251,6 +251,7 @@ def test_the_circuit_points_take_the_other_weightings_and_refuse_an_unknown_one(
 
 
 @pytest.mark.parametrize("weighting", ["none", "feed-share", "error-model"])
+@pytest.mark.slow
 def test_the_circuit_command_takes_the_weighting_of_the_lab_path(tmp_path, capsys, weighting):
     from tromplab.circuit_command import run_circuit
 

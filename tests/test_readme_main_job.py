@@ -63,6 +63,7 @@ def test_the_main_job_prints_and_writes_a_finite_cut_interval_for_every_best_fit
     assert not (results / "warnings.csv").exists()
 
 
+@pytest.mark.slow
 def test_every_share_the_main_job_writes_lies_in_0_1(main_job):
     results, arguments = main_job
     if not (results / "fits.csv").exists():

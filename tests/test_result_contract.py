@@ -277,6 +277,7 @@ def test_to_frame_is_a_table(cls):
 
 
 @pytest.mark.parametrize("cls", CLASSES, ids=lambda cls: cls.__name__)
+@pytest.mark.slow
 def test_report_is_text_naming_what_was_fitted(cls):
     text = instance(cls).report()
     assert isinstance(text, str) and text.strip()
