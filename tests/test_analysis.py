@@ -26,6 +26,7 @@ SCRIPTS = {
 
 
 @pytest.mark.parametrize("script", sorted(SCRIPTS))
+@pytest.mark.slow
 def test_script_runs_and_writes_its_tables(tmp_path, script):
     done = subprocess.run(
         [sys.executable, str(ROOT / "analysis" / script), "--outdir", str(tmp_path)], capture_output=True, text=True, check=True
@@ -35,6 +36,7 @@ def test_script_runs_and_writes_its_tables(tmp_path, script):
         assert str(tmp_path / name) in done.stdout
 
 
+@pytest.mark.slow
 def test_table3_script_marks_exactly_the_known_differences(tmp_path):
     subprocess.run(
         [sys.executable, str(ROOT / "analysis" / "shuvalov2018_table3.py"), "--outdir", str(tmp_path)],

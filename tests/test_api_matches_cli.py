@@ -94,6 +94,7 @@ def test_intervals_are_made_on_the_workers_and_do_not_depend_on_them(monkeypatch
     assert serial.intervals.to_csv(index=False) == parallel.intervals.to_csv(index=False) == whole.to_csv(index=False)
 
 
+@pytest.mark.slow
 def test_the_figures_of_the_results_folder_are_the_same_drawn_by_two_workers(tmp_path, monkeypatch):
     """Workbench.save(jobs=) and tromplab fit --jobs draw the per-experiment figures on the
     workers, FIGURE_CHUNK experiments at a time: every file is the same for 1 and 2 workers."""

@@ -74,6 +74,7 @@ def test_a_bad_option_gets_the_command_lines_own_message(client, tmp_path):
     assert code == 2 and refused.json()["error"] == said.strip()
 
 
+@pytest.mark.slow
 def test_a_bad_file_gets_the_command_lines_own_message_naming_row_and_column(client, tmp_path):
     bad = points_csv(("A",)).replace("156.0,0.442", "156.0,oops").encode()
     described = upload(client, "bad points.csv", bad).json()
@@ -177,6 +178,7 @@ def test_density_tracers_are_fitted_and_downloaded_as_tromplab_density_fit_write
         assert best["d50"] in set(fits.loc[(fits["rank"] == 1) & (fits["curve"] == best["formula"]), "rho50"])
 
 
+@pytest.mark.slow
 def test_an_excel_sheet_is_chosen_and_read_as_the_command_reads_it(client, tmp_path):
     import pandas as pd
 
@@ -194,6 +196,7 @@ def test_an_excel_sheet_is_chosen_and_read_as_the_command_reads_it(client, tmp_p
 
 
 # -- a safe local server ----------------------------------------------------------------------------
+@pytest.mark.slow
 def test_two_sessions_never_see_each_others_data(app):
     with (
         TestClient(app, base_url="http://127.0.0.1", headers=PAGE) as first,
@@ -278,6 +281,7 @@ def test_uploaded_names_are_stored_under_a_safe_name():
     assert safe_file_name(".hidden.csv") == "hidden.csv"
 
 
+@pytest.mark.slow
 def test_the_downloads_carry_no_formula_cells(client, tmp_path):
     names = ("=1+1", "@SUM(A1)", "-150+75")
     upload(client, "names.csv", points_csv(names).encode())
@@ -291,6 +295,7 @@ def test_the_downloads_carry_no_formula_cells(client, tmp_path):
     assert_no_formula_cell_in_workbook(tmp_path / "from_app.xlsx")
 
 
+@pytest.mark.slow
 def test_names_reach_the_page_as_data_never_as_markup(client):
     upload(client, "hostile.csv", points_csv().encode())
     page = run(client)["page"]
@@ -299,6 +304,7 @@ def test_names_reach_the_page_as_data_never_as_markup(client):
     assert "innerHTML" not in script and "insertAdjacentHTML" not in script and "outerHTML" not in script
 
 
+@pytest.mark.slow
 def test_a_cancelled_run_stops_and_leaves_nothing(client):
     upload(client, "slow.csv", (DATASETS / "classifier_trend_surveys.csv").read_bytes())
     assert client.post("/api/run", json={"options": {"bootstrap": "3000"}}).status_code == 200
@@ -351,6 +357,7 @@ def _living_in_group(group: int, *, wait: float = 5.0) -> list[int]:
         time.sleep(0.2)
 
 
+@pytest.mark.slow
 def test_a_run_that_breaks_says_so_and_the_server_stays_up(client, monkeypatch):
     upload(client, "a.csv", points_csv(("A",)).encode())
     session = next(iter(client.app.state.sessions._sessions.values()))

@@ -34,6 +34,7 @@ def test_constrained_single_criterion_optima():
     assert_allclose(result.best_second.point["x"], 0.3, atol=1e-6)  # f >= 0.5 * 0.6
 
 
+@pytest.mark.slow
 def test_sieve_example_reproduces_the_corrected_compromise_check():
     result = choose(sieve_speed_problem(), floor_second=80.0, share_of_first=0.8)
     best = result.best_first.point

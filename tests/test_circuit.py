@@ -60,6 +60,7 @@ def _one_node_survey(feed, fine, coarse, **columns) -> pd.DataFrame:
 
 
 # --- 1. flowsheet ---------------------------------------------------------------------------
+@pytest.mark.slow
 def test_the_example_flowsheet_is_a_graph_with_its_node_kinds_and_flow_degrees_of_freedom():
     sheet = read_flowsheet(FLOWSHEET)
     kinds = {node.name: node.kind for node in sheet.nodes}
@@ -206,6 +207,7 @@ def test_exact_data_give_the_two_product_circulating_load_of_every_class():
     np.testing.assert_allclose((o - f) / (f - u), circulating, rtol=1e-6)  # the textbook two-product formula, per class
 
 
+@pytest.mark.slow
 def test_a_one_node_survey_of_the_textbook_table_equals_the_lab_yield_and_partition():
     """Issue item 6(a) on the textbook hydrocyclone table (tests/data, which balances exactly)."""
     balance = reconcile(pd.read_csv(pd.io.common.StringIO(CYCLONE_SHEET)), _textbook_survey())
@@ -443,6 +445,7 @@ def _binomial_sd(rate: float, n: int) -> float:
     return float(np.sqrt(rate * (1.0 - rate) / n))
 
 
+@pytest.mark.slow
 def test_noisy_per_cent_solids_give_water_flows_covered_at_the_nominal_rate():
     """A small version of the 1,000-survey study of docs/circuit.md (coverage 94.7 %, rejections
     4.6 %): 40 surveys, the 90-99 % band and the nominal 5 % widened by 3 binomial sd (counted
@@ -465,6 +468,7 @@ def test_noisy_per_cent_solids_give_water_flows_covered_at_the_nominal_rate():
     assert rejected / n_surveys <= 0.05 + 3 * _binomial_sd(0.05, n_surveys)
 
 
+@pytest.mark.slow
 def test_the_command_writes_the_water_table_when_per_cent_solids_are_measured(tmp_path, capsys):
     truth, sheet, water = _grinding_circuit_with_water()
     table = _with_pct_solids(survey_table(simulate_survey(truth, np.random.default_rng(2))), _true_pct(truth, water))
@@ -578,6 +582,7 @@ def test_a_large_gross_error_is_flagged_first_with_its_row():
 
 
 # --- 5. command -----------------------------------------------------------------------------
+@pytest.mark.slow
 def test_the_command_writes_every_table_figure_and_fits_on_the_bundled_example(tmp_path, capsys):
     out = tmp_path / "circuit"
     assert main(["circuit", str(FLOWSHEET), str(SURVEY), "-o", str(out), "--fit"]) == 0
@@ -609,6 +614,7 @@ def test_bad_input_ends_in_a_clear_error_and_nothing_is_written(tmp_path, capsys
     assert not out.exists()
 
 
+@pytest.mark.slow
 def test_the_figures_return_their_axes():
     import matplotlib.pyplot as plt
 

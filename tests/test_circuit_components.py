@@ -170,6 +170,7 @@ def test_without_assays_the_outputs_gain_only_the_component_column(truth):
     assert "component" not in balance.adjustments_table().columns
 
 
+@pytest.mark.slow
 def test_an_assay_can_be_left_out_and_the_elimination_names_it(truth):
     rng = np.random.default_rng(5)
     survey = lab_survey(truth, rng, flows={"fresh_feed": 0.02})
@@ -185,6 +186,7 @@ def test_an_assay_can_be_left_out_and_the_elimination_names_it(truth):
     assert again.dof == balance.dof - 1 and again.chi_square < balance.chi_square
 
 
+@pytest.mark.slow
 def test_the_command_writes_the_components_and_fits_a_curve_per_separator_and_mineral(surveyed, truth, tmp_path):
     survey, _ = surveyed
     sheet = tmp_path / "flowsheet.csv"

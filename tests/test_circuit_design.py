@@ -42,6 +42,7 @@ def _observed_sd(flowsheet, survey, quantity: str) -> float:
     return float(np.sqrt(gradient @ again.covariance @ gradient))
 
 
+@pytest.mark.slow
 def test_the_design_command_ranks_candidates_and_its_top_one_delivers_the_predicted_sd(tmp_path, capsys):
     """design.csv has the named columns, ranked; the top candidate, added to the survey at its
     reconciled value with its stated error and reconciled again, gives the predicted sd within
@@ -206,6 +207,7 @@ def test_an_unsampled_stream_is_observable_with_its_sd():
     assert flow["reconciled"] == pytest.approx(balance.flows[5]) and flow["reconciled_sd"] == pytest.approx(balance.flow_sd[5])
 
 
+@pytest.mark.slow
 def test_the_console_names_the_next_steps_and_prints_the_fits_as_tromplab_fit_does(tmp_path, capsys):
     truth = example_plant()
     drawn = simulate_survey(truth, np.random.default_rng(3), flows={"screen_feed": 0.01, "oversize": 0.05, "middlings": 0.05,
@@ -271,6 +273,7 @@ def _polyline_points(annotation, step: float = 1.0) -> np.ndarray:
 
 
 @pytest.mark.parametrize("which", ["example", "grinding", "water", "crowded"])
+@pytest.mark.slow
 def test_no_label_of_the_flowsheet_lies_over_a_box_an_arrow_or_another_label(which):
     """From the drawn bounding boxes (get_window_extent after the canvas is drawn): each label's
     extent meets no node box, no other label and no point of any arrow's line."""

@@ -46,6 +46,7 @@ def test_a_flowmeter_8_sd_off_is_named_at_step_1_and_the_last_step_passes(tmp_pa
     assert flows.loc["middlings", "measured"] < flows.loc["middlings", "reconciled"]  # nothing applied silently
 
 
+@pytest.mark.slow
 def test_excluding_the_proposal_reconciles_as_the_compensation_step_said(tmp_path, capsys):
     sheet, survey = _flowmeter_off(tmp_path)
     balance = reconcile(sheet, survey)

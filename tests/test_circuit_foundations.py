@@ -70,6 +70,7 @@ def test_out_of_range_error_model_options_are_usage_errors(flag, value, capsys):
     assert stop.value.code == 2 and flag in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_the_figures_are_drawn_without_pyplot_state(tmp_path):
     import matplotlib.pyplot as plt
 

@@ -91,6 +91,7 @@ def _untied(summary: str) -> str:
 
 
 @pytest.mark.parametrize("case", CASES)
+@pytest.mark.slow
 def test_every_file_agrees_with_the_implementation_before_the_rewrite(case, tmp_path, monkeypatch):
     monkeypatch.chdir(REFERENCE)  # the inputs as the reference run named them (the summaries show them)
     assert MAKE.run(case, tmp_path / case) == 0
@@ -113,6 +114,7 @@ def test_every_file_agrees_with_the_implementation_before_the_rewrite(case, tmp_
 
 
 @pytest.mark.parametrize("case", ["example", "water", "assay_class", "assay_stream", "design_simulated"])
+@pytest.mark.slow
 def test_the_updates_equal_fresh_pseudo_inverses(case, monkeypatch):
     """The reference path kept in the tests: every candidate of ``design.csv`` by a fresh
     pseudo-inverse of the stacked Jacobian (the implementation before the rewrite) against the
@@ -163,6 +165,7 @@ def test_the_distribution_functions_are_scipy_stats_bit_for_bit():
     assert norm_isf(0.025) == stats.norm.isf(0.025)
 
 
+@pytest.mark.slow
 def test_a_circuit_run_without_figures_and_fits_imports_neither_matplotlib_lmfit_nor_scipy_stats():
     import subprocess
     import sys
@@ -179,6 +182,7 @@ def test_a_circuit_run_without_figures_and_fits_imports_neither_matplotlib_lmfit
     assert done.stdout.split() == ["0"]
 
 
+@pytest.mark.slow
 def test_progress_reports_each_stage_to_the_python_api(tmp_path, monkeypatch):
     from tromplab.circuit import design_circuit, reconcile_circuit
 
@@ -196,6 +200,7 @@ def test_progress_reports_each_stage_to_the_python_api(tmp_path, monkeypatch):
     assert heard[0][2] == "reconciliation: round 1" and heard[-1][2].startswith("design: candidate")
 
 
+@pytest.mark.slow
 def test_the_command_line_is_silent_on_stderr_without_a_terminal(tmp_path, monkeypatch, capsys):
     from tromplab.cli import main
 
@@ -227,6 +232,7 @@ def test_the_stage_bars_draw_each_stage_on_a_terminal_and_nothing_with_quiet(mon
         assert progress is None
 
 
+@pytest.mark.slow
 def test_a_large_flowsheet_reconciled_by_gauss_newton_and_sparse_products_equals_the_dense_path(monkeypatch):
     """From SPARSE_UNKNOWNS on, Gauss-Newton steps, sparse products, the bounds' affine forms by
     projection and thin SVDs; below it, MINPACK's Levenberg-Marquardt and dense products (the

@@ -11,6 +11,7 @@ from .conftest import DATASETS, TWO_EXPERIMENT_POINTS, write
 GOOD = TWO_EXPERIMENT_POINTS
 
 
+@pytest.mark.slow
 def test_fit_writes_tables_and_figures(tmp_path, capsys):
     out = tmp_path / "out"
     assert main(["fit", str(write(tmp_path, GOOD)), "-o", str(out)]) == 0

@@ -3,6 +3,7 @@ following --rank-by and --ci, and a re-run that leaves exactly the current figur
 
 import openpyxl
 import pandas as pd
+import pytest
 from numpy.testing import assert_allclose
 
 from tromplab.cli import main
@@ -180,6 +181,7 @@ def test_rerun_into_the_same_folder_leaves_exactly_the_current_figures(tmp_path)
     assert list(out.glob("*.png")) == []
 
 
+@pytest.mark.slow
 def test_report_reads_the_partition_to_the_coarse_product(tmp_path):
     output = tmp_path / "report.html"
     assert main(["report", str(LAB), "-o", str(output), "--formulas", "plitt", "--partition-to", "coarse"]) == 0

@@ -20,6 +20,8 @@ import textwrap
 import tokenize
 from pathlib import Path
 
+import pytest
+
 PACKAGE = Path(__file__).resolve().parents[1] / "tromplab"
 MODULE_LIMIT = 700
 FUNCTION_LIMIT = 60
@@ -107,12 +109,14 @@ def oversized(sizes: dict[str, int], limit: int, debt: dict[str, int]) -> list[s
     ]
 
 
+@pytest.mark.slow
 def test_no_module_above_700_lines_of_code():
     modules, _, _ = _package_sizes()
     offenders = oversized(modules, MODULE_LIMIT, MODULE_DEBT)
     assert not offenders, "modules too long (split them by job):\n  " + "\n  ".join(offenders)
 
 
+@pytest.mark.slow
 def test_no_function_above_60_lines_of_code():
     _, functions, _ = _package_sizes()
     offenders = oversized(functions, FUNCTION_LIMIT, FUNCTION_DEBT)

@@ -62,6 +62,7 @@ def test_the_batch_has_a_third_of_unbracketed_cuts(batch):
     assert all(int(name[3:]) % GAPPED_EVERY == 0 for name in unbracketed)
 
 
+@pytest.mark.slow
 def test_240_experiments_print_at_most_20_lines_and_every_occurrence_is_in_warnings_csv(batch, capsys):
     folder, unbracketed = batch
     out = folder / "default"
@@ -82,6 +83,7 @@ def test_240_experiments_print_at_most_20_lines_and_every_occurrence_is_in_warni
     assert "warnings.csv" in printed  # among the files written
 
 
+@pytest.mark.slow
 def test_quiet_prints_only_the_one_line_result_and_verbose_every_occurrence(batch, capsys):
     folder, unbracketed = batch
     quiet = _run(capsys, "fit", str(folder / "batch.csv"), "-o", str(folder / "q"), "--no-figures", "--quiet", *TWO_FORMULAS)
@@ -96,6 +98,7 @@ def test_quiet_prints_only_the_one_line_result_and_verbose_every_occurrence(batc
     assert {line.split(")")[0].removeprefix("warning (") for line in shown} == unbracketed
 
 
+@pytest.mark.slow
 def test_intervals_are_spoken_of_only_when_asked_for(batch, capsys):
     folder, unbracketed = batch
     code, _, err = _run(capsys, "fit", str(folder / "batch.csv"), "-o", str(folder / "ci"), "--no-figures", "--ci", "0.9",
@@ -106,6 +109,7 @@ def test_intervals_are_spoken_of_only_when_asked_for(batch, capsys):
     assert table["message"].str.contains("no interval is given for d_cut").sum() == len(unbracketed)
 
 
+@pytest.mark.slow  # compares with the folder test_quiet_prints_only_the_one_line_result_and_verbose_every_occurrence writes
 def test_the_api_writes_the_same_warnings_csv(batch, tmp_path):
     import tromplab
 
@@ -177,6 +181,7 @@ def test_the_docs_list_every_code_with_its_level():
         assert f"| `{code}` | {level_of(code)} |" in page, code
 
 
+@pytest.mark.slow
 def test_trend_writes_its_warnings_and_prints_each_kind_once(tmp_path, capsys):
     from .conftest import ROOT
 
@@ -194,6 +199,7 @@ def test_trend_writes_its_warnings_and_prints_each_kind_once(tmp_path, capsys):
     assert quiet.err == "" and quiet.out.startswith(f"tromplab trend: 24 survey(s) charted, {len(said)} warning(s)")
 
 
+@pytest.mark.slow
 def test_density_fit_groups_the_notes_of_its_tests(tmp_path, capsys):
     from .conftest import ROOT
 
@@ -207,6 +213,7 @@ def test_density_fit_groups_the_notes_of_its_tests(tmp_path, capsys):
     assert "note: 4 of 4 tests: some tracers were lost and are not counted (dmc_tracers (2-4 mm)," in err
 
 
+@pytest.mark.slow
 def test_density_predict_says_a_repeated_note_once(tmp_path, capsys):
     from .conftest import ROOT
 
@@ -219,6 +226,7 @@ def test_density_predict_says_a_repeated_note_once(tmp_path, capsys):
     assert printed.count("no cut density") == 1 and f"({notes.size} times)" in printed and "every one in pred.csv" in printed
 
 
+@pytest.mark.slow
 def test_report_prints_each_kind_once(tmp_path, capsys):
     sizes = [10.0, 20.0, 40.0, 80.0, 160.0, 320.0]
     gapped = [0.99, 0.98, 0.96, 0.04, 0.02, 0.01]  # falls across the band between two sizes
@@ -231,6 +239,7 @@ def test_report_prints_each_kind_once(tmp_path, capsys):
     assert "warning: 2 of 4 experiments: the cut is not bracketed by the data" in err and "(e1, e3; -v prints every one)" in err
 
 
+@pytest.mark.slow
 def test_circuit_prints_the_notes_of_its_separators_once_per_kind(tmp_path, capsys, monkeypatch):
     from tromplab.workbench.result import Workbench
 
@@ -245,3 +254,17 @@ def test_circuit_prints_the_notes_of_its_separators_once_per_kind(tmp_path, caps
     err = " ".join(capsys.readouterr().err.split())
     assert re.search(r"warning: (\d+) of \1 separators: the cut is not bracketed by the data", err), err
     assert "-v prints every one" in err
+
+
+def test_grouped_warnings_keep_the_digits_of_names_and_group_by_the_numbers():
+    from tromplab.output.display import grouped_warnings
+
+    said = [
+        ("deck_2", "plitt2", "x50 of run-3 not bracketed: cut at 0.4mm (p = 0.003)"),
+        ("deck_7", "plitt2", "x50 of run-3 not bracketed: cut at 0.55mm (p = 2e-05)"),
+        ("deck_7", "lynch", "x50 of run-4 not bracketed: cut at 0.6mm (p = 0.1)"),  # another name: another kind
+    ]
+    assert grouped_warnings(said) == [
+        "x50 of run-3 not bracketed: cut at ...mm (p = ...) (2 fits): deck_2: plitt2 (0.4, 0.003); deck_7: plitt2 (0.55, 2e-05)",
+        "deck_7, lynch: x50 of run-4 not bracketed: cut at 0.6mm (p = 0.1)",
+    ]

@@ -129,6 +129,7 @@ def test_shuvalov_reports_its_break_point():
 
 @settings(max_examples=15, deadline=None)
 @given(scale=st.floats(1e-3, 1e3), seed=st.integers(0, 10_000))
+@pytest.mark.slow
 def test_scaling_the_sizes_scales_the_cut_only(scale, seed):
     points, _ = synthetic(get_formula("lognormal"), noise=0.02, seed=seed)
     scaled = TrompPoints("s", points.size * scale, points.partition_fine)
@@ -140,6 +141,7 @@ def test_scaling_the_sizes_scales_the_cut_only(scale, seed):
 
 @settings(max_examples=10, deadline=None)
 @given(order=st.permutations(list(range(12))))
+@pytest.mark.slow
 def test_row_order_does_not_matter(order):
     points, _ = synthetic(get_formula("rosin_rammler"), noise=0.02, seed=4)
     shuffled = TrompPoints("p", points.size[order], points.partition_fine[order])
@@ -216,6 +218,7 @@ def test_a_bound_is_reached_relative_to_its_size():
     assert on_bound(40.0 - 1e-5, 40.0) and not on_bound(39.9, 40.0)
 
 
+@pytest.mark.slow
 def test_a_parameter_the_data_do_not_determine_is_said_in_words():
     # three classes, all below 1/2: formula (11) with its measured efficiency at 1/2 has a flat
     # valley, and copies of the table differing by 1e-9 gave cuts 3.6 % apart at the same sum of squares

@@ -144,6 +144,7 @@ def test_the_outputs_are_the_tables_and_one_figure_per_test(tmp_path):
     assert by_size_outputs([fit_density_curve(no_sizes[0], "normal")]) == {}
 
 
+@pytest.mark.slow
 def test_density_fit_writes_the_size_tables_the_python_api_writes(tmp_path, capsys):
     from tromplab.cli import main
     from tromplab.density import fit_density

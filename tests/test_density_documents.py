@@ -57,6 +57,7 @@ def test_command_and_api_write_the_same_workbook_report_and_csvs(tmp_path, make)
         assert (tmp_path / "plain" / name).read_bytes() == (tmp_path / "cli" / name).read_bytes(), name
 
 
+@pytest.mark.slow
 def test_the_workbook_holds_the_csv_values_with_units_and_names_as_text(tmp_path):
     path = _by_size_tracers(tmp_path)
     fit_density(path, ci=0.95, curves="normal").save(tmp_path / "out", excel=True)
@@ -78,6 +79,7 @@ def test_the_workbook_holds_the_csv_values_with_units_and_names_as_text(tmp_path
     assert len(book["figures"]._images) == len(pngs) == 2 * 4 + 2  # a figure per test and size fraction, one by size per test
 
 
+@pytest.mark.slow
 def test_the_report_shows_fits_partition_and_figures_with_every_name_escaped(tmp_path):
     path = _by_size_tracers(tmp_path)
     result = fit_density(path, ci=0.95, curves="normal")

@@ -160,6 +160,7 @@ def test_float_sink_tables_of_known_curves_are_recovered_exactly(curve, method):
         assert fit.objective < 1e-16
 
 
+@pytest.mark.slow
 def test_every_fits_row_has_imperfection_equal_to_ep_over_rho50_minus_one(tmp_path):
     frames = [tracers(seed=s).assign(test=f"T{s}") for s in range(3)]
     table = fit_density(pd.concat(frames, ignore_index=True), ci=0.9).fits_table()
@@ -188,6 +189,7 @@ def test_band_covers_the_fit_and_stays_in_0_1():
     assert (high - low)[25] > 0.01
 
 
+@pytest.mark.slow
 def test_command_and_api_write_the_same_files_byte_for_byte(tmp_path):
     path = tmp_path / "tracers.csv"
     pd.concat([tracers(seed=1).assign(test="DMC 1"), tracers(seed=2).assign(test="DMC 2")]).to_csv(path, index=False)
@@ -232,6 +234,7 @@ def test_options_are_checked_in_the_words_of_each_face(tmp_path, capsys):
     assert main(["density"]) == 2
 
 
+@pytest.mark.slow
 def test_tracer_study_small_binomial_coverage_near_nominal():
     table = tracer_study(steps=(0.02,), retrievals=(0.8,), tests=60, seed=5)
     binomial = table.set_index("method").loc["binomial"]
@@ -310,6 +313,7 @@ def test_any_counts_give_fits_or_reasons_never_an_exception(counts, step):
         assert ((rows[f"{name}_low"] <= rows[name] * (1 + 1e-9)) & (rows[name] <= rows[f"{name}_high"] * (1 + 1e-9))).all(), name
 
 
+@pytest.mark.slow
 def test_joint_float_sink_fits_are_unbiased_and_their_intervals_cover_far_better_than_least_squares():
     from tromplab.density.fitting import FLOAT_SINK_INTERVAL_NOTE
     from tromplab.density.simulation import float_sink_study

@@ -1,6 +1,7 @@
 """Test names of density inputs are text as written, and the density files carry no formula."""
 
 import pandas as pd
+import pytest
 
 from tromplab.cli import main
 
@@ -18,6 +19,7 @@ def _tests_named(tmp_path, names):
     return path
 
 
+@pytest.mark.slow
 def test_tests_001_1_and_na_are_three_tests_and_a_formula_name_is_written_as_text(tmp_path):
     names = ["001", "1", "NA", "=1+1"]
     assert main(["density", "fit", str(_tests_named(tmp_path, names)), "-o", str(tmp_path / "out"), "--curves", "normal"]) == 0

@@ -179,6 +179,7 @@ def test_open_size_fraction_label():
     st.lists(st.tuples(st.integers(0, 40), st.integers(0, 40), st.integers(0, 5)), min_size=2, max_size=12),
     st.floats(1.2, 1.9),
 )
+@pytest.mark.slow
 def test_tracer_counts_read_as_written(counts, start):
     density = np.round(start + 0.01 * np.arange(len(counts)), 2)
     sinks, floats, lost = (np.array(column) for column in zip(*counts))

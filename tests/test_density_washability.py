@@ -219,6 +219,7 @@ def test_organic_efficiency_is_at_most_100_when_ash_rises_with_density():
     assert step.organic_efficiency_pct == pytest.approx(100.0, abs=1e-9)
 
 
+@pytest.mark.slow
 def test_the_target_ash_sweep_finds_the_cut_density_of_that_floats_ash(tmp_path, capsys):
     out = tmp_path / "pred.csv"
     assert main(["density", "predict", str(WASHABILITY), "--target-ash", "7", "9", "--ep", "0.05", "-o", str(out)]) == 0
@@ -230,6 +231,7 @@ def test_the_target_ash_sweep_finds_the_cut_density_of_that_floats_ash(tmp_path,
     assert (table.groupby("test").rho50.diff().dropna() > 0).all()  # a dirtier product needs a heavier cut
 
 
+@pytest.mark.slow
 def test_an_unreachable_target_ash_is_said_in_words_and_exits_3(tmp_path, capsys):
     out = tmp_path / "pred.csv"
     assert main(["density", "predict", str(WASHABILITY), "--target-ash", "1", "--ep", "0.05", "-o", str(out)]) == 3

@@ -165,6 +165,7 @@ def test_a_dash_in_a_generated_table_is_a_dash_not_a_bullet(docs_ext):
     assert "<td>-</td>" in body and "<li>" not in body
 
 
+@pytest.mark.slow
 def test_catalogue_has_a_section_for_every_density_curve(docs_ext, tmp_path):
     from tromplab.density.registry import DENSITY_CURVES
 

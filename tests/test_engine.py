@@ -217,6 +217,7 @@ def test_dask_cluster_gives_the_serial_results(monkeypatch):
     pd.testing.assert_frame_equal(from_dask_frame.drop(columns="message"), serial.drop(columns="message"))
 
 
+@pytest.mark.slow
 def test_large_batches_get_one_overview_figure_and_parquet_tables(tmp_path):
     pytest.importorskip("pyarrow")
     experiments = [synthetic(seed) for seed in range(23)]  # more than the per-experiment figure limit
@@ -241,6 +242,7 @@ def test_cli_refuses_an_absurd_bootstrap_before_fitting(tmp_path, capsys):
     assert not (tmp_path / "o").exists()
 
 
+@pytest.mark.slow
 def test_11_finds_its_optimum_where_a_point_crosses_the_break():
     # a three-class step table (found by the lab-table scaling invariant): the optimum of (11)
     # sits where the finest point crosses the break, a ridge of kinks; before the search along
@@ -280,6 +282,7 @@ def test_11_finds_its_optimum_where_a_point_crosses_the_break():
         assert_allclose((d_cut, ssr), found[0], rtol=1e-6)
 
 
+@pytest.mark.slow
 def test_the_numbers_do_not_depend_on_how_the_batch_is_cut(monkeypatch):
     """Chunks of experiments with different numbers of points are padded to one width, so
     the fits and the profile intervals are the same bit for bit however the batch is cut
@@ -336,6 +339,7 @@ def test_a_batch_where_every_experiment_fails_keeps_the_column_types():
     assert str(tables[0]["equation"].dtype) == "int64" and not tables[0]["success"].any() and len(tables[0]) == 4
 
 
+@pytest.mark.slow
 def test_a_batch_leaves_no_object_frozen_out_of_garbage_collection(monkeypatch):
     """Results are kept out of the cyclic collector while a batch runs (gc.freeze); after the
     batch, whether it ends normally or with an error, every object is collectable again."""

@@ -88,6 +88,7 @@ CASES = {
 
 
 @pytest.mark.parametrize("convention", list(CASES))
+@pytest.mark.slow
 def test_exported_curve_re_evaluated_in_the_target_convention_reproduces_the_fit(fits_dir, convention):
     evaluate, expected = CASES[convention]
     args = ["export", str(fits_dir), "--to", convention] + (["--size-unit", "um"] if convention == "dyssol" else [])
@@ -188,6 +189,7 @@ def test_dyssol_default_screen_parameters_survive_a_fit_and_an_export(model, par
         assert_allclose(exported[name], value, rtol=1e-6, atol=1e-9)
 
 
+@pytest.mark.slow
 def test_a_large_export_prints_its_first_rows_and_writes_them_all(fits_dir, tmp_path, capsys):
     """90,000 fits on the console took 5 s of pandas formatting: the console shows the first
     40 rows (and 40 experiments per left-out formula), the file every row."""

@@ -96,6 +96,7 @@ def test_no_band_is_drawn_when_the_points_do_not_bracket_the_cut():
 
 
 # --- the report's figures ------------------------------------------------------------------------
+@pytest.mark.slow
 def test_write_report_puts_the_markdown_figures_in_their_folder(tmp_path):
     bench = tromplab.fit_experiments(tromplab.read_experiments(HYDROCYCLONE), formulas=["plitt", "lognormal"])
     (tmp_path / "mine.png").write_bytes(b"not tromplab's")

@@ -188,6 +188,7 @@ def test_density_predict_prints_the_paths_as_given(tmp_path, monkeypatch, capsys
     assert wrote == [os.path.join("sub", "pred.csv"), os.path.join("sub", "t.csv")]
 
 
+@pytest.mark.slow
 def test_the_density_report_heads_its_fits_per_test(tmp_path):
     from tromplab.density import fit_density
 

@@ -75,6 +75,7 @@ def fitted(tmp_path_factory):
     return source, out
 
 
+@pytest.mark.slow
 def test_the_acceptance_workbook_of_a_formula_name_holds_no_formula_cell(tmp_path):
     source = tmp_path / "points.csv"
     pd.DataFrame(points_rows(["=1+1", "plain"])).to_csv(source, index=False)
@@ -85,6 +86,7 @@ def test_the_acceptance_workbook_of_a_formula_name_holds_no_formula_cell(tmp_pat
     assert [row[0] for row in fits.iter_rows(min_row=2, values_only=True)] == ["=1+1", "plain"]
 
 
+@pytest.mark.slow
 def test_every_table_of_the_workbook_holds_the_names_as_text(fitted):
     _, out = fitted
     texts = assert_no_formula_cell_in_workbook(out / "results.xlsx")
@@ -121,6 +123,7 @@ def test_export_reads_the_names_back_as_written(fitted, tmp_path):
     assert "'=1+1" in set(plain["experiment"])  # the file itself carries the mark
 
 
+@pytest.mark.slow
 def test_a_reloadable_folder_refits_and_reports_the_same_names(tmp_path):
     names = [name for name in FILE_NAMES if name in ("007", "=1+1", "-150+75", "NA", "01", "1")]
     bench = fit_experiments(read_experiments(pd.DataFrame(points_rows(names))), formulas=["plitt"])
@@ -138,6 +141,7 @@ def test_a_reloadable_folder_refits_and_reports_the_same_names(tmp_path):
     assert "### Experiment 007" in markdown and "### Experiment =1+1" in markdown
 
 
+@pytest.mark.slow
 def test_api_names_survive_csv_parquet_and_excel_whole(tmp_path):
     """Names given to the API (not trimmed) come back whole from every format."""
     names = [name for name in NAMES if name.strip() == name or name in FORMULA_LIKE]
@@ -215,6 +219,7 @@ def test_markdown_table_keeps_names_as_written_and_rows_whole():
     assert "1.235" in lines[2] and "-0.5" in lines[3]  # numbers as before: 4 significant digits
 
 
+@pytest.mark.slow
 def test_the_html_and_markdown_reports_escape_the_same_names(tmp_path):
     names = ["<script>alert(1)</script>", "a|b`c`", "=1+1", "-150+75"]
     points = [TrompPoints(name, [10, 20, 40, 80, 160], partitions(i)) for i, name in enumerate(names)]
@@ -259,6 +264,7 @@ def _all_csv_marked_and_named(folder: Path, column: str, expected: set) -> None:
     assert found and found <= expected, (found, expected)
 
 
+@pytest.mark.slow
 def test_trend_files_mark_and_keep_formula_like_survey_names(tmp_path):
     source = _renamed_dataset("classifier_trend_surveys.csv", "survey", lambda s: "=" + s, tmp_path)
     out = tmp_path / "trend"
@@ -269,6 +275,7 @@ def test_trend_files_mark_and_keep_formula_like_survey_names(tmp_path):
     assert "| =S01" not in markdown
 
 
+@pytest.mark.slow
 def test_circuit_files_mark_and_keep_formula_like_stream_and_node_names(tmp_path):
     def rename(name):
         return "-" + name

@@ -185,6 +185,7 @@ def check_results(folder) -> None:
 
 
 @pytest.mark.parametrize("case", [_marks(c) for c in CLI_CASES], ids=_ids(CLI_CASES))
+@pytest.mark.slow
 def test_every_hostile_command_line_ends_in_its_documented_outcome(case, tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(tmp_path)
     paths = _write_inputs(case, tmp_path)

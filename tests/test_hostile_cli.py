@@ -77,6 +77,7 @@ def test_a_failed_run_leaves_the_previous_outputs_whole(tmp_path, monkeypatch):
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".") and p.is_dir() and "out" in p.name]
 
 
+@pytest.mark.slow
 def test_a_rerun_replaces_the_figures_of_the_previous_run(tmp_path):
     out = tmp_path / "out"
     assert main(["fit", str(points_file(tmp_path, {"A": CURVE, "B": CURVE})), "-o", str(out), "--formulas", "plitt"]) == 0
@@ -85,6 +86,7 @@ def test_a_rerun_replaces_the_figures_of_the_previous_run(tmp_path):
     assert sorted(p.name for p in out.glob("curves_*.png")) == ["curves_A.png"]
 
 
+@pytest.mark.slow
 def test_distinct_experiments_never_share_a_figure(tmp_path):
     out = tmp_path / "out"
     names = {"Проба 1": CURVE, "Образец 1": CURVE, "../evil": CURVE, "$x_{50}^2$": CURVE}
@@ -232,6 +234,7 @@ def test_absurd_bootstrap_or_jobs_requests_are_refused_before_any_work(tmp_path,
     assert not out.exists()
 
 
+@pytest.mark.slow
 def test_verbose_adds_log_lines_of_each_step_and_quiet_removes_the_tables(tmp_path, capsys):
     path = points_file(tmp_path, {"A": CURVE, "B": CURVE[::-1]})
     printed = {}
@@ -254,6 +257,7 @@ def test_verbose_adds_log_lines_of_each_step_and_quiet_removes_the_tables(tmp_pa
     assert not logging.getLogger("tromplab").handlers  # removed after the command
 
 
+@pytest.mark.slow
 def test_a_short_seeded_cli_fuzz_run_finds_nothing(monkeypatch):
     """benchmarks/fuzz_cli.py for 30 runs: mutated bundled tables and options through main()."""
     import importlib.util

@@ -324,6 +324,7 @@ def _load_lab(path):
 
 @PROPERTY_SETTINGS
 @given(case=lab_tables(), scale=st.sampled_from([1e-300, 1e-9, 1e-3, 25.4, 1e6, 1e300]))
+@pytest.mark.slow
 def test_lab_tables_row_order_unit_scale_and_stream_swap(tmp_path_factory, case, scale):
     """Reversed rows change nothing, scaled sizes scale the sizes, swapped fine/coarse give 1 - partition."""
     directory = tmp_path_factory.mktemp("lab")

@@ -69,6 +69,7 @@ def test_lab_points_carry_the_corrected_partition_in_both_views(tmp_path):
     assert "partition_fine_corrected" not in read_lab(lab)[0].points_table().columns
 
 
+@pytest.mark.slow
 def test_cli_fit_and_points_report_the_water_recovery(tmp_path, capsys):
     points = tmp_path / "cyclone.csv"
     pd.concat(

@@ -3,6 +3,7 @@ data cannot tell from the cut, get words and no confident interval."""
 
 import numpy as np
 import pandas as pd
+import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
@@ -81,6 +82,7 @@ def test_well_posed_data_keep_their_intervals():
     span=st.floats(1.5, 40.0),
     n=st.integers(5, 10),
 )
+@pytest.mark.slow
 def test_property_no_point_in_the_cut_region_means_a_flag_and_no_narrow_cut_interval(d_cut, ks, low, span, n):
     sizes = np.geomspace(low, low * span, n)
     phi = tromplab.get_formula("plitt")(sizes, d_cut, ks)

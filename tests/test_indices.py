@@ -382,6 +382,7 @@ def _assert_bypass_indices_equal(formula, d_cut, shape, delta_max, bypass, measu
 
 
 @pytest.mark.parametrize("formula", BYPASS_CURVES, ids=lambda f: f.id)
+@pytest.mark.slow
 def test_batched_bypass_indices_equal_the_single_curve_indices(formula):
     shapes, d_cut, delta_max, measured, _ = _curves_across(formula)
     count = shapes.size

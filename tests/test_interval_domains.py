@@ -22,6 +22,7 @@ def _inside(domain, values) -> np.ndarray:
     return (values >= domain.lower) & (values <= domain.upper)
 
 
+@pytest.mark.slow
 def test_bundled_deck_intervals_stay_in_range_and_name_their_method(tmp_path):
     out = tmp_path / "out"
     assert main(["fit", str(DATASETS / "double_deck_screen_decks_lab.csv"), "-o", str(out), "--size-unit", "mm",
@@ -99,6 +100,7 @@ CURVES = {"plitt": (0.5, 30.0), "rosin_rammler": (0.5, 20.0), "lognormal": (0.03
     seed=st.integers(0, 2**16),
     delta_max_factor=st.sampled_from([1.0, 4.0, 1000.0]),
 )
+@pytest.mark.slow
 def test_property_every_interval_contains_its_estimate_and_stays_in_range(
     formula, shape_position, n, bypass, noise, seed, delta_max_factor
 ):

@@ -201,6 +201,7 @@ def test_small_feed_shares_are_flagged_and_left_out(tmp_path):
     assert balance.to_points().n == 5
 
 
+@pytest.mark.slow
 def test_points_file_round_trips_through_fit(tmp_path, capsys):
     output = tmp_path / "points.csv"
     assert (
@@ -298,6 +299,7 @@ def test_mixing_streams_expresses_a_deck():
     assert total == pytest.approx(0.4)
 
 
+@pytest.mark.slow
 def test_the_decks_lab_table_regenerates_identically(tmp_path):
     target = tmp_path / "decks.csv"
     subprocess.run(
@@ -418,6 +420,7 @@ from hypothesis import strategies as st  # noqa: E402
 
 @settings(max_examples=25, deadline=None)
 @given(order=st.permutations(list(range(6))), scale=st.sampled_from([1e-3, 1.0, 25.4, 1e3]))
+@pytest.mark.slow
 def test_partitions_do_not_depend_on_row_order_or_size_unit(tmp_path_factory, order, scale):
     """Reversing the class order or scaling the sizes changes nothing; unsorted classes are refused."""
     feed, fine, coarse = consistent_streams()
@@ -440,6 +443,7 @@ def test_partitions_do_not_depend_on_row_order_or_size_unit(tmp_path_factory, or
 
 @settings(max_examples=25, deadline=None)
 @given(masses=st.lists(st.floats(0.1, 50.0), min_size=5, max_size=5), cut=st.floats(50.0, 800.0))
+@pytest.mark.slow
 def test_forward_then_load_recovers_yield_and_partition(tmp_path_factory, masses, cut):
     """Any feed and any separation curve: predicted products loaded back give the same partition and yield."""
     size = np.sqrt(LOWER[:5].astype(float) * np.where(np.isnan(UPPER[:5]), 1600.0, UPPER[:5]))

@@ -136,6 +136,7 @@ def test_bad_initial_state():
         PUBLISHED.simulate([0.5, 1.5], 10)
 
 
+@pytest.mark.slow
 def test_identification_round_trip_with_noise():
     steps = np.arange(10, 301, 10)
     truth = PUBLISHED.simulate(START, 300).extraction[steps - 1]

@@ -44,6 +44,7 @@ def test_importing_the_package_or_its_entry_points_loads_no_numerical_library(co
     assert [name for name in HEAVY if name in loaded] == []
 
 
+@pytest.mark.slow
 def test_the_first_use_of_a_name_imports_its_module():
     loaded = _loaded_after("import tromplab; tromplab.read_points")
     assert "numpy" in loaded and "pandas" in loaded  # the loaders' own imports, not the plots'
@@ -122,6 +123,7 @@ finally:
     ],
     ids=["script", "python-m"],
 )
+@pytest.mark.slow
 def test_both_entry_points_handle_signals_before_numpy_is_imported(launch):
     # SIGINT at its default, as in a terminal: a test run started with ``&`` passes it on ignored,
     # and tromplab keeps an ignored signal so
@@ -180,12 +182,14 @@ def _loaded_by_command(*argv: str) -> set[str]:
 
 
 @pytest.mark.parametrize("argv", [["--version"], ["-h"], ["export", "-h"], ["fit", "-h"], ["pulp", "fit", "-h"]])
+@pytest.mark.slow
 def test_version_and_help_load_no_numerical_stack_beyond_numpy(argv):
     loaded = _loaded_by_command(*argv)
     assert "tromplab.cli" in loaded
     assert sorted(name for name in loaded if name.split(".")[0] in ("scipy", "pandas") or name in NOT_AT_START_UP) == []
 
 
+@pytest.mark.slow
 def test_an_export_loads_neither_scipys_submodules_nor_the_fitting_stack(tmp_path):
     fits = tmp_path / "fits.csv"
     fits.write_text(
@@ -242,6 +246,7 @@ DATASETS = REPOSITORY / "datasets"
     ],
     ids=lambda argv: " ".join(argv[:2]),
 )
+@pytest.mark.slow
 def test_a_command_imports_its_modules_before_it_starts(tmp_path, argv):
     (tmp_path / "fits.csv").write_text(
         "experiment,formula,d_cut,shape_name,shape,bypass,fishhook,success,extras\na,lynch,100.0,kl,3.0,,,True,\n",

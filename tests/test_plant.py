@@ -285,6 +285,7 @@ def test_the_command_names_file_row_and_column_and_writes_nothing(tmp_path, caps
 
 
 # --- the two faces --------------------------------------------------------------------------------------
+@pytest.mark.slow
 def test_the_command_writes_what_the_api_saves(tmp_path, capsys):
     assert main(["plant", "predict", str(WASH), str(DEVICES), "--draws", "300", "--seed", "5", "-o", str(tmp_path / "cli")]) == 0
     capsys.readouterr()
@@ -304,6 +305,7 @@ def _tracer_fractions() -> list:
     return read_plant_washability(pd.DataFrame(rows))
 
 
+@pytest.mark.slow
 def test_curves_from_a_density_fit_folder_carry_its_covariance(tmp_path, capsys):
     folder = tmp_path / "fit"
     assert main(["density", "fit", str(TRACERS), "--curves", "normal,logistic", "-o", str(folder)]) == 0

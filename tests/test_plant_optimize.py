@@ -95,6 +95,7 @@ def test_a_target_above_the_highest_cuts_leaves_them_at_their_bounds():
     assert (cuts["bound"].iloc[:-1] == "max").all() and np.isnan(cuts["incremental_ash_pct"].iloc[-1])
 
 
+@pytest.mark.slow
 def test_the_confidence_keeps_the_ash_within_the_target_with_that_probability():
     plain = optimize(WASH, DEVICES, target_ash_pct=10, draws=400, seed=1).cuts.iloc[-1]
     sure = optimize(WASH, DEVICES, target_ash_pct=10, confidence=0.9, draws=400, seed=1)
@@ -105,6 +106,7 @@ def test_the_confidence_keeps_the_ash_within_the_target_with_that_probability():
         optimize(WASH, DEVICES, target_ash_pct=10, confidence=0.9, draws=0)
 
 
+@pytest.mark.slow
 def test_the_command_writes_what_the_api_saves(tmp_path, capsys):
     command = ["plant", "optimize", str(WASH), str(DEVICES), "--target-ash", "10", "--draws", "200", "-o", str(tmp_path / "cli")]
     assert main(command) == 0
@@ -118,6 +120,7 @@ def test_the_command_writes_what_the_api_saves(tmp_path, capsys):
     assert "--target-ash 3 % is below the lowest" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_progress_is_one_bar_that_ends_full():
     for confidence in (None, 0.9):
         calls: list = []

@@ -40,11 +40,13 @@ def bench():
     return fit_experiments(runs)
 
 
+@pytest.mark.slow
 def test_importing_tromplab_styles_and_plots_nothing():
     code = "import sys, tromplab, tromplab.output.plotting, tromplab.output.report, tromplab.cli; print('matplotlib.pyplot' in sys.modules)"
     assert subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip() == "False"
 
 
+@pytest.mark.slow
 def test_no_library_module_chooses_a_backend_or_a_style():
     # matplotlib.use, pyplot.switch_backend, style.use: the caller's choice (scripts, notebooks, tests)
     package = Path(plotting.__file__).resolve().parents[1]
@@ -57,6 +59,7 @@ def test_no_library_module_chooses_a_backend_or_a_style():
     assert calls == []
 
 
+@pytest.mark.slow
 def test_the_command_draws_with_agg_whatever_backend_is_configured(tmp_path):
     """The command's figures are pyplot-free Figures saved by Agg's PNG printer: no backend is
     loaded, so one that cannot load (a GUI backend on a server) does not matter."""
@@ -136,6 +139,7 @@ def _tick_label_boxes(ax):
 @pytest.mark.parametrize(
     "low, high", [(0.05, 5.0), (10.0, 320.0), (0.074, 4.7), (30.0, 45.0), (1.0, 1e5), (0.9, 1.3), (2e-3, 40.0)]
 )
+@pytest.mark.slow
 def test_log_size_tick_labels_do_not_collide(low, high):
     sizes = np.geomspace(low, high, 8)
     points = TrompPoints("ticks", sizes, np.linspace(0.95, 0.05, 8))

@@ -189,6 +189,7 @@ def test_on_simulated_surveys_the_default_weights_no_longer_let_two_classes_move
     assert np.median(shares["former"]) > WEIGHT_CONCENTRATION_SHARE > np.median(shares["default"])
 
 
+@pytest.mark.slow
 def test_tromplab_circuit_says_when_two_classes_carry_most_of_the_weight(tmp_path, capsys):
     feed = np.array([0.40, 0.38, 0.05, 0.05, 0.04, 0.04, 0.02, 0.02])  # two classes hold most of the feed
     y = float(np.sum(feed * PARTITION))
@@ -250,6 +251,7 @@ def test_the_circuit_points_take_the_other_weightings_and_refuse_an_unknown_one(
 
 
 @pytest.mark.parametrize("weighting", ["none", "feed-share", "error-model"])
+@pytest.mark.slow
 def test_the_circuit_command_takes_the_weighting_of_the_lab_path(tmp_path, capsys, weighting):
     from tromplab.circuit import reconcile_circuit
 

@@ -82,6 +82,7 @@ def test_files_that_are_not_csv_text_are_refused_in_pieces_as_whole(tmp_path, na
     assert assert_same_in_pieces(path)[0] == "error"  # the words checked by the command line's test
 
 
+@pytest.mark.slow
 def test_names_stay_text_in_pieces(tmp_path):
     path = tmp_path / "names.csv"
     pd.DataFrame(points_rows(distinct_as_read(NAMES))).to_csv(path, index=False)
@@ -127,6 +128,7 @@ def test_the_first_fault_named_is_the_whole_readers_first_though_a_later_piece_h
     assert whole == ("error", f"{path}, row 40, column 'size': 'abc' is not a number")
 
 
+@pytest.mark.slow
 def test_a_byte_that_is_not_utf8_deep_in_the_file_is_named_by_its_line(tmp_path):
     path = tmp_path / "latin.csv"
     lines = ["experiment,size,partition_fine"] + [f"A{i // 5},{10 * (1 + i % 5)},0.5" for i in range(3000)]
@@ -134,6 +136,7 @@ def test_a_byte_that_is_not_utf8_deep_in_the_file_is_named_by_its_line(tmp_path)
     assert assert_same_in_pieces(path)[1].endswith("row 3002: the text is not UTF-8 (byte 0xe9 cannot be decoded): save the file as UTF-8 (in Excel: CSV UTF-8)")  # fmt: skip
 
 
+@pytest.mark.slow
 def test_experiments_in_any_order_come_in_order_of_first_appearance(tmp_path):
     rng = np.random.default_rng(3)
     frame = pd.DataFrame(points_rows([f"run {i}" for i in range(40)]))
@@ -162,6 +165,7 @@ def test_the_pieces_hold_the_rows_of_the_whole_table(tmp_path):
 
 @settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(case=points_tables(), mutation=mutated(), piece_rows=st.integers(1, 7), seed=st.integers(0, 2**32 - 1))
+@pytest.mark.slow
 def test_mutated_points_tables_give_the_same_outcome_in_pieces(tmp_path_factory, case, mutation, piece_rows, seed):
     frame = mutation(case.frame, case)
     frame = frame.iloc[np.random.default_rng(seed).permutation(len(frame))]  # experiments interleaved
@@ -178,6 +182,7 @@ def _peak_bytes(read) -> int:
         tracemalloc.stop()
 
 
+@pytest.mark.slow
 def test_the_memory_of_reading_in_pieces_is_bounded_by_the_piece(tmp_path):
     """40,000 rows (4,000 experiments) in pieces of 500 rows: the peak of the reading stays
     under a third of the whole-file reader's, which holds every row and experiment; what
@@ -201,6 +206,7 @@ def test_the_memory_of_reading_in_pieces_is_bounded_by_the_piece(tmp_path):
 
 
 @pytest.mark.parametrize("shuffled", [False, True])
+@pytest.mark.slow
 def test_a_lab_table_balances_the_same_experiment_by_experiment_in_pieces(tmp_path, shuffled):
     """What a lab reader in pieces would do: the mass balance of each experiment's table from
     ``iter_experiment_tables`` gives the points of the whole-table reader, rows in any order."""

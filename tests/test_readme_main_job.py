@@ -46,6 +46,7 @@ def main_job(tmp_path_factory):
     return folder / "results", arguments
 
 
+@pytest.mark.slow
 def test_the_main_job_prints_and_writes_a_finite_cut_interval_for_every_best_fit(main_job, capsys):
     results, arguments = main_job
     assert main(arguments) == 0
@@ -62,6 +63,7 @@ def test_the_main_job_prints_and_writes_a_finite_cut_interval_for_every_best_fit
     assert not (results / "warnings.csv").exists()
 
 
+@pytest.mark.slow
 def test_every_share_the_main_job_writes_lies_in_0_1(main_job):
     results, arguments = main_job
     if not (results / "fits.csv").exists():
@@ -127,6 +129,7 @@ def test_the_console_says_when_the_yield_was_estimated_with_its_value_and_standa
                            f"{estimate.value:.4f} +/- {estimate.stderr:.4f} (standard error, ")  # fmt: skip
 
 
+@pytest.mark.slow
 def test_the_double_deck_data_say_what_they_cannot_tell(tmp_path, capsys):
     lab = ROOT / "datasets" / "double_deck_screen_decks_lab.csv"
     assert main(["fit", str(lab), "-o", str(tmp_path / "decks"), "--size-unit", "mm", "--ci", "0.95", "--no-figures"]) == 0

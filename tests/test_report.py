@@ -38,6 +38,7 @@ class TagChecker(HTMLParser):
             self.stack.pop()
 
 
+@pytest.mark.slow
 def test_report_from_lab_data(tmp_path, capsys):
     output = tmp_path / "out" / "report.html"
     assert main(["report", str(DATASETS / "double_deck_screen_decks_lab.csv"), "-o", str(output), "--size-unit", "mm"]) == 0
@@ -67,6 +68,7 @@ def test_report_of_points_says_when_a_section_does_not_apply(tmp_path):
     assert "Not applicable to this input." in balance
 
 
+@pytest.mark.slow
 def test_a_large_batch_gets_a_condensed_report_with_its_full_tables_beside_it(tmp_path, monkeypatch):
     """Beyond REPORT_DETAIL_LIMIT experiments the sections show the first ones and the
     flagged ones, the figures an overview, and every row goes to CSV files beside the report."""
@@ -85,6 +87,7 @@ def test_a_large_batch_gets_a_condensed_report_with_its_full_tables_beside_it(tm
     assert "Top-ranked fits of all experiments" in html and "across experiments and formulas" not in html
 
 
+@pytest.mark.slow
 def test_the_figures_drawn_by_two_workers_give_the_same_report(tmp_path):
     """tromplab report --jobs draws the per-experiment figures on the workers (in chunks of
     FIGURE_CHUNK experiments): the HTML, with its embedded figures, is the same for 1 and 2."""

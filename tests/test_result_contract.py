@@ -273,18 +273,21 @@ def test_follows_the_contract(cls):
 
 
 @pytest.mark.parametrize("cls", CLASSES, ids=lambda cls: cls.__name__)
+@pytest.mark.slow
 def test_summary_is_a_non_empty_table(cls):
     summary = instance(cls).summary()
     assert isinstance(summary, pd.DataFrame) and len(summary) > 0 and len(summary.columns) > 0
 
 
 @pytest.mark.parametrize("cls", CLASSES, ids=lambda cls: cls.__name__)
+@pytest.mark.slow
 def test_to_frame_is_a_table(cls):
     table = instance(cls).to_frame()
     assert isinstance(table, pd.DataFrame) and len(table.columns) > 0
 
 
 @pytest.mark.parametrize("cls", CLASSES, ids=lambda cls: cls.__name__)
+@pytest.mark.slow
 def test_report_is_text_naming_what_was_fitted(cls):
     text = instance(cls).report()
     assert isinstance(text, str) and text.strip()
@@ -531,6 +534,7 @@ FILES_NOT_FOLDER = {DensityPrediction}
 
 
 @pytest.mark.parametrize("cls", sorted(set(SAVES) - FILES_NOT_FOLDER, key=lambda cls: cls.__name__), ids=lambda cls: cls.__name__)
+@pytest.mark.slow
 def test_save_writes_nothing_half(cls, tmp_path, monkeypatch):
     from matplotlib.figure import Figure
 
@@ -631,6 +635,7 @@ def test_summary_means_a_table_everywhere():
             assert issubclass(cls, ResultContract), name
 
 
+@pytest.mark.slow
 def test_workbench_report_with_a_path_is_deprecated(tmp_path):
     with pytest.warns(FutureWarning, match="write_report"):
         written = _workbench().report(tmp_path / "report.html")

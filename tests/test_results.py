@@ -76,6 +76,7 @@ def test_failed_fit_still_reads():
     assert fit.summary().loc[0, "success"] == False  # noqa: E712
 
 
+@pytest.mark.slow
 def test_workbench_views(bench, tmp_path):
     text = repr(bench)
     assert len(text) < 400 and "2 experiments x 3 formulas, 6 fits" in text
@@ -138,6 +139,7 @@ def test_the_python_page_lists_the_public_api_and_help_does_too():
         assert len(line.split(": ", 1)[1]) > 10, f"{name} has no one-line summary"
 
 
+@pytest.mark.slow
 def test_readme_five_lines_run(tmp_path, monkeypatch):
     from .conftest import ROOT
 

@@ -233,6 +233,7 @@ def _interrupting(function, signum):
 @pytest.mark.parametrize(
     "signum, code, what", [(signal.SIGINT, 130, "interrupted"), (signal.SIGTERM, 143, "terminated (SIGTERM)")]
 )
+@pytest.mark.slow
 def test_a_signal_during_the_swap_waits_for_it_and_says_the_new_results_were_written(
     tmp_path, runs, monkeypatch, capsys, signum, code, what
 ):
@@ -278,6 +279,7 @@ def _lock_files(folder):
     ],
     ids=["fit", "fit-default", "points", "points-sub", "report", "circuit"],
 )
+@pytest.mark.slow
 def test_successful_runs_leave_no_lock_file_in_the_users_folders(tmp_path, monkeypatch, argv):
     from .conftest import DATASETS, LAB_CLASS_HEADER, LAB_CLASS_ROWS
 

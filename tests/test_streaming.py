@@ -62,6 +62,7 @@ CONFIGURATIONS = {
 
 @pytest.mark.parametrize("jobs", [1, 2])
 @pytest.mark.parametrize("configuration", list(CONFIGURATIONS))
+@pytest.mark.slow
 def test_a_streamed_batch_writes_the_folder_of_the_in_memory_path_byte_for_byte(tmp_path, configuration, jobs):
     options = {"formulas": FORMULAS, **CONFIGURATIONS[configuration], "jobs": jobs}
     data = _batch()
@@ -76,6 +77,7 @@ def test_a_streamed_batch_writes_the_folder_of_the_in_memory_path_byte_for_byte(
     assert streamed.experiments == kept.experiments and streamed.notes == kept.notes
 
 
+@pytest.mark.slow
 def test_a_streamed_workbench_refits_an_experiment_into_the_fits_the_workers_made(tmp_path):
     data = _batch()
     kept, _ = fit_to_folder(data, tmp_path / "memory", stream=False, formulas=FORMULAS, jobs=1, ci=0.9)
@@ -110,6 +112,7 @@ def _equal_rows(left, right) -> bool:
     return a.keys() == b.keys() and all(x == y or (x != x and y != y) for x, y in zip(a.values(), b.values()))
 
 
+@pytest.mark.slow
 def test_a_streamed_batch_writes_the_same_folder_on_one_worker_and_on_two(tmp_path):
     data = _batch()
     fit_to_folder(data, tmp_path / "one", stream=True, formulas=FORMULAS, jobs=1, bootstrap=10)
@@ -117,6 +120,7 @@ def test_a_streamed_batch_writes_the_same_folder_on_one_worker_and_on_two(tmp_pa
     assert _same_folders(tmp_path / "one", tmp_path / "two") == []
 
 
+@pytest.mark.slow
 def test_workers_that_cannot_see_the_folder_send_their_files_back_with_the_same_result(tmp_path, monkeypatch):
     """Gather mode: a Dask cluster's workers on machines without the output folder."""
     data = _batch()
@@ -126,6 +130,7 @@ def test_workers_that_cannot_see_the_folder_send_their_files_back_with_the_same_
     assert _same_folders(tmp_path / "memory", tmp_path / "gathered") == []
 
 
+@pytest.mark.slow
 def test_a_failing_streamed_run_leaves_no_folder_and_no_scratch(tmp_path, monkeypatch):
     real = stream_module.spool_chunk
 
@@ -140,6 +145,7 @@ def test_a_failing_streamed_run_leaves_no_folder_and_no_scratch(tmp_path, monkey
     assert os.listdir(tmp_path) == []
 
 
+@pytest.mark.slow
 def test_the_command_line_streams_a_large_batch_with_the_same_files_and_console(tmp_path, monkeypatch, capsys):
     points = tmp_path / "points.csv"
     pd.concat([p.to_frame() for p in _batch(failures=False)], ignore_index=True).to_csv(points, index=False)
@@ -154,6 +160,7 @@ def test_the_command_line_streams_a_large_batch_with_the_same_files_and_console(
     assert streamed.err == kept.err
 
 
+@pytest.mark.slow
 def test_save_of_a_streamed_batch_copies_its_files_and_refuses_what_needs_the_fits(tmp_path):
     streamed, _ = fit_to_folder(_batch(failures=False), tmp_path / "streamed", stream=True, formulas=FORMULAS, jobs=1)
     written = streamed.save(tmp_path / "copy", figures="none")
@@ -193,6 +200,7 @@ def test_chunks_typed_differently_are_joined_from_their_rows_into_the_whole_tabl
     assert not any(p.name.startswith(".out.tmp") for p in tmp_path.iterdir())  # the scratch folder is gone
 
 
+@pytest.mark.slow
 def test_per_experiment_figures_keep_the_fits_in_memory(tmp_path):
     """``figures="auto"`` draws every fitted experiment up to 20 of them (failed ones not
     counted): those figures need the fits, so the batch is not streamed whatever ``stream`` says."""
@@ -201,6 +209,7 @@ def test_per_experiment_figures_keep_the_fits_in_memory(tmp_path):
     assert isinstance(bench.store, FitsInMemory) and "figures.csv" in written and "overview.png" not in written
 
 
+@pytest.mark.slow
 def test_a_killed_streamed_run_leaves_only_a_scratch_folder_that_the_next_run_removes(tmp_path):
     import signal
     import subprocess
@@ -228,6 +237,7 @@ def test_a_killed_streamed_run_leaves_only_a_scratch_folder_that_the_next_run_re
     assert sorted(p.name for p in tmp_path.iterdir()) == ["points.csv"]
 
 
+@pytest.mark.slow
 def test_a_streamed_workbench_pickles_without_its_fits_and_still_refits(tmp_path):
     import pickle
 
@@ -260,6 +270,7 @@ def _lab_file(path, *, copies=30, interleaved=False):
 
 @pytest.mark.parametrize("jobs", [1, 2])
 @pytest.mark.parametrize("interleaved", [False, True])
+@pytest.mark.slow
 def test_a_points_file_read_in_pieces_streams_the_folder_of_the_whole_file(tmp_path, jobs, interleaved):
     path = _points_file(tmp_path / "points.csv", _batch(), interleaved=interleaved)
     options = {"formulas": FORMULAS, "jobs": jobs, "ci": 0.9}
@@ -274,6 +285,7 @@ def test_a_points_file_read_in_pieces_streams_the_folder_of_the_whole_file(tmp_p
 
 @pytest.mark.parametrize("jobs", [1, 2])
 @pytest.mark.parametrize("interleaved", [False, True])
+@pytest.mark.slow
 def test_a_lab_table_read_in_pieces_streams_the_folder_of_the_whole_table(tmp_path, jobs, interleaved):
     path = _lab_file(tmp_path / "lab.csv", interleaved=interleaved)
     options = {"formulas": FORMULAS, "jobs": jobs, "figures": "none"}
@@ -290,6 +302,7 @@ def test_a_lab_table_read_in_pieces_streams_the_folder_of_the_whole_table(tmp_pa
     assert whole and len(source.balances) > 0
 
 
+@pytest.mark.slow
 def test_a_source_read_in_pieces_is_read_whole_when_the_run_keeps_its_fits(tmp_path):
     path = _lab_file(tmp_path / "lab.csv", copies=2)
     lab = LabOptions(size_unit="mm", min_feed_share=0.05)
@@ -301,6 +314,7 @@ def test_a_source_read_in_pieces_is_read_whole_when_the_run_keeps_its_fits(tmp_p
 
 
 @pytest.mark.parametrize("kind", ["points", "lab"])
+@pytest.mark.slow
 def test_the_command_line_reads_a_large_csv_in_pieces_with_the_same_files_and_console(tmp_path, monkeypatch, capsys, kind):
     if kind == "points":
         path, options = _points_file(tmp_path / "points.csv", _batch(), interleaved=True), []
@@ -331,6 +345,7 @@ def _recording(method, calls):
 
 
 @pytest.mark.parametrize("kind", ["points", "lab"])
+@pytest.mark.slow
 def test_a_bad_row_deep_in_a_file_read_in_pieces_is_exit_1_with_nothing_written_before_any_fit(
     tmp_path, monkeypatch, capsys, kind
 ):
@@ -524,6 +539,7 @@ def test_ranking_csv_with_a_carriage_return_in_a_name_is_formatted_in_memory_wit
 
 
 @pytest.mark.parametrize("gather", [False, True])
+@pytest.mark.slow
 def test_a_streamed_batch_of_odd_names_in_many_chunks_writes_the_in_memory_folder(tmp_path, monkeypatch, caplog, gather):
     """Chunks of 8 experiments on two workers (and the gather mode of a Dask cluster whose
     workers cannot see the folder), experiments named with commas, quotes, formula marks and a
@@ -548,6 +564,7 @@ def test_a_streamed_batch_of_odd_names_in_many_chunks_writes_the_in_memory_folde
     pd.testing.assert_frame_equal(streamed.ranking_table(), kept.ranking_table())
 
 
+@pytest.mark.slow
 def test_a_streamed_run_writes_its_folder_without_making_the_ranking_table(tmp_path, monkeypatch):
     """The table with a column per experiment is what grew with the batch in the main process:
     a streamed run writes ``ranking.csv`` without it (made only when ``ranking_table`` is asked
@@ -576,6 +593,7 @@ def test_a_streamed_run_writes_its_folder_without_making_the_ranking_table(tmp_p
     assert streamed.ranking_table(per_experiment=False).equals(standings)
 
 
+@pytest.mark.slow
 def test_the_console_ranks_a_large_batch_by_points_and_leaves_each_experiment_s_ranks_to_the_file(tmp_path, capsys):
     """Beyond the console's experiments, a column per experiment would neither be read nor fit a
     line: the console shows each formula's points and place and names the file with the ranks."""

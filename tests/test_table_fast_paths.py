@@ -32,6 +32,7 @@ def _skips_a_line(text: str) -> bool:
 
 @settings(max_examples=3000, deadline=None)
 @given(text=LINE_TEXT, data=st.data())
+@pytest.mark.slow
 def test_lines_to_skip_are_found_as_the_plain_definition_finds_them(text, data):
     end = data.draw(st.integers(0, len(text)))
     assert _lines_to_skip(text, end) == _skips_a_line(text[:end])
@@ -81,6 +82,7 @@ def _has_long_record(text: str, sep: str, expected: int) -> bool:
     expected=st.integers(1, 5),
     sep=st.sampled_from([",", ";"]),
 )
+@pytest.mark.slow
 def test_long_records_are_found_across_blocks_as_the_plain_count_finds_them(text, block, expected, sep):
     data = text.encode()
     blocks = [data[i : i + block] for i in range(0, len(data), block)]
@@ -125,5 +127,6 @@ def test_marks_that_are_not_yes_or_no_are_refused_at_their_row(tmp_path):
 
 @settings(max_examples=2000, deadline=None)
 @given(text=st.text(alphabet="ab\n\r", max_size=40), count=st.integers(1, 12))
+@pytest.mark.slow
 def test_the_first_lines_are_those_of_a_split(text, count):
     assert _first_lines(text, count) == text.split("\n", count)[:count]

@@ -112,6 +112,7 @@ def test_equality_test_accepts_one_curve_and_rejects_a_changed_one():
 
 
 @pytest.mark.parametrize("formula", ["plitt_bypass", "shuvalov"])
+@pytest.mark.slow
 def test_the_batched_trend_gives_the_one_by_one_fits_and_tests(formula):
     """monitor_surveys fits the surveys and the pooled equality tests with the batched engine
     ((11), whose measured efficiency differs per survey, pools one by one): the charted values
@@ -146,6 +147,7 @@ def test_read_surveys_names_bad_input(tmp_path):
         read_surveys(tmp_path / "two.csv")
 
 
+@pytest.mark.slow
 def test_trend_command_writes_table_charts_and_report(tmp_path, capsys):
     frame = pd.read_csv(BUNDLED, comment="#")
     frame = frame[frame["survey"] <= "S14"].drop(columns=["survey"])  # surveys keyed by date alone

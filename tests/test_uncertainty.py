@@ -28,6 +28,7 @@ def _binomial_sd(rate: float, n: int) -> float:
     return float(np.sqrt(rate * (1.0 - rate) / n))
 
 
+@pytest.mark.slow
 def test_reported_intervals_cover_the_truth():
     """Seeded replicates of a known curve: the reported 95 % intervals (log/logit/neglog
     transformed Wald and delta intervals) cover the true d_cut, shape, slope, eta, epsilon,
@@ -43,6 +44,7 @@ def test_reported_intervals_cover_the_truth():
     assert table.loc["d_cut", "method"] == "wald-log" and table.loc["eta", "method"] == "delta-logit"
 
 
+@pytest.mark.slow
 def test_clipped_partitions_lower_the_coverage():
     """The limitation documented in docs/uncertainty.md (400 replicates: 95 % unclipped, 82-85 %
     clipped, ``benchmarks/coverage.py --formula lognormal --shape 0.3 [--clip]``), kept at 60
@@ -196,6 +198,7 @@ def test_model_average_weights_the_formulas():
         model_average([fits[0], fit_formula(experiment(8, name="other"), PLITT)])
 
 
+@pytest.mark.slow
 def test_the_averages_of_many_experiments_are_each_experiments_own():
     """``averaged_rows`` lays the experiments side by side, padded to the widest; an
     experiment with fewer formulas (one failed, one missing) gets the rows it gets alone."""

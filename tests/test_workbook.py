@@ -65,3 +65,29 @@ def test_workbook_keeps_full_precision_and_leaves_missing_values_empty(tmp_path)
     assert sheet["B2"].number_format == "0" and sheet["C2"].number_format == "0.0000"
     assert sheet["D2"].value is True and sheet.freeze_panes == "A2"
     assert book["balance"]["A1"].value == "nothing here"
+
+
+def test_the_same_tables_give_the_same_workbook_bytes_whatever_the_clock(tmp_path, monkeypatch):
+    import datetime
+    import zipfile
+
+    import openpyxl.writer.excel
+
+    from tromplab.output.workbook import WORKBOOK_DATE
+
+    tables = {"fits": pd.DataFrame({"experiment": ["a", "b"], "d_cut": [0.31, 0.42]})}
+    write_workbook(tmp_path / "first.xlsx", tables)
+
+    class LaterClock(datetime.datetime):  # openpyxl stamps the modification date with the clock at saving
+        @classmethod
+        def now(cls, tz=None):
+            return datetime.datetime(2031, 7, 9, 13, 5, 7, tzinfo=tz)
+
+    monkeypatch.setattr(openpyxl.writer.excel.datetime, "datetime", LaterClock)
+    monkeypatch.setattr("time.time", lambda: 1_950_000_000.0)  # the zip parts' time stamps come from time.time
+    write_workbook(tmp_path / "second.xlsx", tables)
+    assert (tmp_path / "first.xlsx").read_bytes() == (tmp_path / "second.xlsx").read_bytes()
+    with zipfile.ZipFile(tmp_path / "second.xlsx") as archive:
+        assert {part.date_time for part in archive.infolist()} == {WORKBOOK_DATE.timetuple()[:6]}
+    properties = openpyxl.load_workbook(tmp_path / "second.xlsx").properties
+    assert properties.created == properties.modified == WORKBOOK_DATE

@@ -12,6 +12,7 @@ what ``tromplab density predict WASHABILITY -o FILE`` writes.
 """
 
 from .fitting import DensityCurveFit, fit_density_curve
+from .prediction import DensityPrediction, predict_density
 from .readers import DensitySample, read_density
 from .registry import (
     DENSITY_CURVES,
@@ -23,7 +24,6 @@ from .registry import (
     get_density_curve,
     select_density_curves,
 )
-from .prediction import DensityPrediction, predict_density
 from .results import DensityResult, fit_density
 
 __all__ = [

@@ -11,8 +11,8 @@ Tracer counts
     the Pearson :math:`X^2 / (n - p)`, flagged when the Pearson test rejects at 5 %
     (:math:`X^2 > \chi^2_{n-p, 0.95}`); the intervals use :math:`\phi = \max(1, X^2/(n - p))`
     as the quasi-binomial scale (profile deviances divided by it), with the
-    :math:`F_{1, n-p}` threshold where it is estimated above 1
-    (:mod:`tromplab.density.dispersion`).
+    :math:`F_{1, n-p}` threshold where it is estimated above 1, floored by the scale pooled over
+    the file's tests (:mod:`tromplab.density.dispersion`).
 Shares (float-sink partitions, a partition given directly, or tracers fitted the
 spreadsheet way)
     Least squares :math:`\sum w_i (P_i - P(\rho_i))^2`, with ``w_i`` the fraction's feed
@@ -64,8 +64,7 @@ from ..curves.likelihood import central_hessian, step_out
 from ..results_contract import ResultContract
 from ..statistics.distributions import binom_logpmf, chi2_sf, f_ppf, norm_isf, norm_ppf
 from .batch import LIMIT_STARTS, BinomialFit, TracerStack, fit_glm, fit_limits_curve
-from .dispersion import pearson_rejects, quasi_binomial_scale
-from .dispersion import profile_threshold as quasi_profile_threshold
+from .dispersion import PooledDispersion, interval_rule, pearson_rejects, pool_dispersion
 from .joint import JOINT_METHOD, fit_joint, has_three_analyses, joint_intervals
 from .profiles import ProfileRequests, profile_limits
 from .readers import DensitySample
@@ -127,6 +126,10 @@ class DensityCurveFit(ResultContract):
         ``{"rho50": (low, high), "ep": ..., "imperfection": ...}``, empty without ``ci``.
     notes : tuple of str
         What the reader must know about the fit, in words.
+    pooled : PooledDispersion or None
+        Binomial fits: the Pearson dispersion of the curve's fits to every tracer sample fitted
+        with this one (one file), which floors the intervals' scale
+        (:func:`tromplab.density.dispersion.interval_rule`).
     raw : object
         Binomial fits: the batch's record (:class:`tromplab.density.batch.BinomialFit`);
         least squares: the scipy optimisation result; the joint fit: its result.
@@ -147,6 +150,7 @@ class DensityCurveFit(ResultContract):
     aic: float = math.nan
     intervals: dict = field(default_factory=dict)
     notes: tuple[str, ...] = ()
+    pooled: PooledDispersion | None = field(default=None, repr=False)
     raw: object = field(default=None, repr=False, compare=False)
 
     def partition(self, rho) -> np.ndarray:
@@ -388,23 +392,22 @@ def index_vector(curve: DensityCurve, fit_params: dict, indices: DensityIndices,
     return np.array(vector), bounds
 
 
-def profile_scale(fit: DensityCurveFit, *, binomial: bool) -> float:
+def profile_scale(fit: DensityCurveFit, *, binomial: bool, ci: float = 0.95) -> float:
     """What the profile's rise of the deviance (binomial) or sum of squares is divided by: the
-    quasi-binomial scale of :func:`tromplab.density.dispersion.quasi_binomial_scale` (binomial);
+    quasi-binomial scale of :func:`tromplab.density.dispersion.interval_rule` at level ``ci`` (binomial);
     the residual variance for least squares (NaN without degrees of freedom)."""
     if binomial:
-        return quasi_binomial_scale(fit.dispersion, fit.df_resid).scale
+        return interval_rule(fit.dispersion, fit.df_resid, ci, fit.pooled).scale
     return fit.objective / fit.df_resid if fit.df_resid > 0 else math.nan
 
 
 def profile_threshold(fit: DensityCurveFit, ci: float, *, binomial: bool) -> float:
     """The scaled rise at which a profile-likelihood limit at level ``ci`` lies: the
     chi-squared(1) quantile (binomial on the binomial scale), F(1, n - p)'s where a scale was
-    estimated (a quasi-binomial scale above 1, :mod:`tromplab.density.dispersion`, or the
-    residual variance of least squares)."""
+    estimated (a quasi-binomial scale above 1, :func:`tromplab.density.dispersion.interval_rule`, on the
+    test's or the file's degrees of freedom; or the residual variance of least squares)."""
     if binomial:
-        estimated = quasi_binomial_scale(fit.dispersion, fit.df_resid).estimated
-        return quasi_profile_threshold(ci, fit.df_resid, estimated)
+        return interval_rule(fit.dispersion, fit.df_resid, ci, fit.pooled).threshold
     return float(f_ppf(ci, 1, fit.df_resid)) if fit.df_resid > 0 else math.nan
 
 
@@ -509,7 +512,7 @@ def _profile_requests(chosen: list, ci: float) -> ProfileRequests:
         lower=bounds[:, :, 0],
         upper=bounds[:, :, 1],
         best=np.array([fit.objective for fit, _, _ in chosen]),
-        scale=np.array([profile_scale(fit, binomial=True) for fit, _, _ in chosen]),
+        scale=np.array([profile_scale(fit, binomial=True, ci=ci) for fit, _, _ in chosen]),
         threshold=np.array([profile_threshold(fit, ci, binomial=True) for fit, _, _ in chosen]),
         step=np.array([_first_step(fit, quantity) for fit, quantity, _ in chosen]),
     )
@@ -558,13 +561,18 @@ def fit_density_curve(sample: DensitySample, curve, *, ci: float | None = None, 
     return fit_density_curves([sample], [curve], ci=ci, method=method)[0]
 
 
-def fit_density_curves(samples, curves, *, ci: float | None = None, method: str | None = None) -> list[DensityCurveFit]:
+def fit_density_curves(
+    samples, curves, *, ci: float | None = None, method: str | None = None, pooled: dict | None = None
+) -> list[DensityCurveFit]:
     """Fit every curve to every sample: the fits of :func:`fit_density_curve`, the binomial ones all at once.
 
     The binomial fits of one curve to every tracer sample are made together on stacked
     arrays (:mod:`tromplab.density.batch`), and so are the profile-likelihood intervals of
     every binomial fit (:mod:`tromplab.density.profiles`); the fits on shares are made one
-    at a time.
+    at a time.  The intervals' scale of the binomial fits is floored by the Pearson dispersion
+    of each curve pooled over the tracer samples fitted together (:func:`pooled_dispersions`),
+    or by ``pooled`` (by curve id; None for a curve: each test on its own scale) when the
+    samples are part of a larger file.
 
     Returns
     -------
@@ -589,6 +597,9 @@ def fit_density_curves(samples, curves, *, ci: float | None = None, method: str 
         for (key, sample, opened), (params, raw) in zip(items, _fit_binomial_stack(curve, [item[2].data for item in items])):
             fits[key] = _finished(sample, curve, opened, params, raw)
             binomial += [(key, opened.data)] if fits[key].success else []
+    pooled = pooled or pooled_dispersions([fits[key] for key, _ in binomial])  # floors each fit's interval scale
+    for key, _ in binomial:
+        fits[key] = _replace(fits[key], pooled=pooled.get(key[1]))
     profiles = _binomial_interval_plan(fits, binomial, ci)
     for key, data in binomial:
         fits[key] = _with_intervals_and_notes(fits[key], data, ci, joint_fell_back=False, profiles=profiles)
@@ -689,21 +700,38 @@ def _with_intervals_and_notes(
     if ci is not None:
         intervals, interval_notes = _intervals(fit, data, ci, profiles)
         notes += interval_notes
-        notes += [note for note in [_scale_note(fit)] if note and data.binomial and intervals]
+        notes += [note for note in [_scale_note(fit, ci)] if note and data.binomial and intervals]
         if fit.sample.layout == "float-sink" and intervals:
             notes.append(FLOAT_SINK_INTERVAL_NOTE)
     return _replace(fit, intervals=intervals, notes=tuple(notes))
 
 
-def _scale_note(fit: DensityCurveFit) -> str:
+def _scale_note(fit: DensityCurveFit, ci: float) -> str:
     """How the intervals of a binomial fit were scaled (:mod:`tromplab.density.dispersion`); "" on the binomial scale."""
-    quasi = quasi_binomial_scale(fit.dispersion, fit.df_resid)
-    if not quasi.estimated:
+    rule = interval_rule(fit.dispersion, fit.df_resid, ci, fit.pooled)
+    if rule.source == "binomial":
         return ""
+    if rule.source == "file":
+        return (
+            f"intervals on the quasi-binomial scale {rule.scale:.3g} of the file (Pearson chi2/df pooled over its "
+            f"{fit.pooled.fits} samples, above this test's own): deviance rises over it against F(1, {rule.df_resid})"
+        )
     return (
-        f"intervals on the quasi-binomial scale {quasi.scale:.3g} (Pearson chi2/df, above 1): deviance rises over it "
+        f"intervals on the quasi-binomial scale {rule.scale:.3g} (Pearson chi2/df, above 1): deviance rises over it "
         f"against F(1, {fit.df_resid})"
     )
+
+
+def pooled_dispersions(fits) -> dict[str, PooledDispersion]:
+    """The Pearson dispersion of each curve's successful binomial fits, pooled (by curve id)."""
+    by_curve: dict[str, list] = {}
+    for fit in fits:
+        if fit.success and fit.method == "binomial":
+            by_curve.setdefault(fit.curve.id, []).append(fit)
+    return {
+        curve_id: pool_dispersion([f.dispersion for f in chosen], [f.df_resid for f in chosen])
+        for curve_id, chosen in by_curve.items()
+    }
 
 
 def _binomial_interval_plan(fits: dict, binomial: list, ci: float | None) -> dict:
@@ -853,7 +881,7 @@ def partition_band(fit: DensityCurveFit, rho, *, level: float = 0.95) -> tuple[n
 
     The covariance of the parameters is :math:`2 s H^{-1}`, with ``H`` the Hessian of the
     objective (deviance or weighted sum of squares, by central differences) and ``s`` the
-    scale (binomial: :func:`~tromplab.density.dispersion.quasi_binomial_scale`; the residual variance for
+    scale (binomial: :func:`~tromplab.density.dispersion.interval_rule`; the residual variance for
     least squares); a limit on its bound is held there.  The band is
     :math:`\hat P \pm z\,\sqrt{g^\top C g}` with ``g`` the gradient of ``P`` in the
     parameters, clipped to 0..1; ``z`` is the normal quantile, or Student's t on ``n - p`` degrees of
@@ -874,7 +902,7 @@ def partition_band(fit: DensityCurveFit, rho, *, level: float = 0.95) -> tuple[n
         return fit.curve.partition(where, **{**fit.params, **dict(zip(names, vector))})
 
     hessian = central_hessian(lambda vector: objective(at(vector, data.density)), values, steps)
-    scale = profile_scale(fit, binomial=data.binomial)
+    scale = profile_scale(fit, binomial=data.binomial, ci=level)
     quantile = math.sqrt(profile_threshold(fit, level, binomial=True)) if data.binomial else None  # None: the normal's
     try:
         covariance = 2.0 * scale * np.linalg.inv(hessian)

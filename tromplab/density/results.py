@@ -30,7 +30,7 @@ from ..output.csv_parts import file_writers, write_csv
 from ..parallel import dask_client, map_on_workers
 from ..results_contract import ResultContract
 from ..validation import MAX_JOBS, check_count, check_probability
-from .fitting import METHODS, DensityCurveFit, fit_density_curves, limits_test_p, wilson_interval
+from .fitting import METHODS, DensityCurveFit, fit_density_curves, limits_test_p, pooled_dispersions, wilson_interval
 from .ranking import quasi_aic, rank_fits, variance_inflation
 from .readers import DensitySample, read_density
 from .registry import select_density_curves
@@ -500,11 +500,13 @@ TESTS_PER_UNIT = 128
 
 @dataclass(frozen=True)
 class UnitOptions:
-    """What a worker needs besides its unit of samples: the curves' ids, ``ci`` and ``method``."""
+    """What a worker needs besides its unit of samples: the curves' ids, ``ci``, ``method`` and the
+    whole file's pooled dispersions (``pooled``, when the file is fitted in several units)."""
 
     curves: tuple[str, ...]
     ci: float | None
     method: str | None
+    pooled: dict | None = None
 
 
 def _fit_in_units(samples: list, curves, *, ci, method, jobs: int, client, progress) -> list[DensityCurveFit]:
@@ -512,7 +514,12 @@ def _fit_in_units(samples: list, curves, *, ci, method, jobs: int, client, progr
     ``jobs`` worker processes (0: all cores) or on the Dask ``client``, through the fan-out of
     :mod:`tromplab.parallel`; the same fits wherever they run, in the samples' order."""
     units = [samples[i : i + TESTS_PER_UNIT] for i in range(0, len(samples), TESTS_PER_UNIT)]
-    options = UnitOptions(tuple(curve.id for curve in curves), ci, method)
+    pooled = None
+    if ci is not None and len(units) > 1:  # the intervals' scale is floored by the whole file's dispersion: fit first
+        pooled = pooled_dispersions(
+            _fit_in_units(samples, curves, ci=None, method=method, jobs=jobs, client=client, progress=None)
+        )
+    options = UnitOptions(tuple(curve.id for curve in curves), ci, method, pooled)
     fits, done = [], 0
     for unit, unit_fits in zip(units, map_on_workers(fit_unit, units, options, jobs=jobs or None, client=client)):
         # a worker's fits hold copies of the samples: give them back the caller's (fits_of finds them by identity)
@@ -530,4 +537,4 @@ def _fit_in_units(samples: list, curves, *, ci, method, jobs: int, client, progr
 
 def fit_unit(options: UnitOptions, unit: list) -> list[DensityCurveFit]:
     """The fits of one unit of samples (what a worker does)."""
-    return fit_density_curves(unit, options.curves, ci=options.ci, method=options.method)
+    return fit_density_curves(unit, options.curves, ci=options.ci, method=options.method, pooled=options.pooled)

@@ -20,7 +20,7 @@ import math
 import numpy as np
 import pandas as pd
 
-from .fitting import fit_density_curve, profile_interval
+from .fitting import fit_density_curve, fit_density_curves, profile_interval
 from .joint import JOINT_METHOD, has_three_analyses
 from .readers import read_density
 from .registry import get_density_curve
@@ -361,10 +361,12 @@ def beta_binomial_tracer_test(
     return pd.DataFrame({"test": test, "density": densities, "placed": placed, "sinks": sinks, "floats": placed - sinks})
 
 
-#: The rules of the intervals' scale and threshold the overdispersion study compares: the policies of
-#: :func:`~tromplab.density.dispersion.quasi_binomial_scale` with their threshold, and the rule before them
-#: (the scale only where the Pearson test rejects, and the chi-square(1) threshold even then).
-INTERVAL_RULES = ("pearson_test_chi2", "pearson_test", "at_least_one")
+#: The rules of the intervals' scale and threshold the overdispersion study compares: the rule
+#: before them (the scale only where the Pearson test rejects, and the chi-square(1) threshold even
+#: then), the policies of :func:`~tromplab.density.dispersion.quasi_binomial_scale` with their
+#: threshold (a test's own dispersion), and the library's policy (``"file_floor"``: floored by the
+#: file's pooled dispersion, :func:`~tromplab.density.dispersion.interval_rule`).
+INTERVAL_RULES = ("pearson_test_chi2", "pearson_test", "at_least_one", "file_floor")
 
 
 def _rule_scale_and_threshold(rule: str, dispersion: float, df_resid: int, ci: float) -> tuple[float, float]:
@@ -378,25 +380,28 @@ def _rule_scale_and_threshold(rule: str, dispersion: float, df_resid: int, ci: f
 
 def overdispersion_coverage_study(
     *, rho50: float = 1.55, ep: float = 0.04, densities: int = 7, placed: int = 30, precision: float = 10.0,
-    tests: int = 150, ci: float = 0.95, rules=INTERVAL_RULES, seed: int = 0,
+    tests: int = 150, tests_per_file: int = 10, ci: float = 0.95, rules=INTERVAL_RULES, seed: int = 0,
 ) -> pd.DataFrame:  # fmt: skip
     """Coverage of the profile intervals of rho50 and Ep on beta-binomial tracer tests, rule by rule.
 
     Each test (:func:`beta_binomial_tracer_test` of the normal curve at ``densities`` densities
-    evenly from ``rho50 - 3 Ep`` to ``rho50 + 3 Ep``) is written as a CSV file of whole counts,
-    read back through :func:`~tromplab.density.readers.read_density` as a lab's file is, and
-    fitted with the normal curve and its intervals at ``ci``
-    (:func:`~tromplab.density.fitting.fit_density_curve`); the intervals of the other ``rules``
-    (:data:`INTERVAL_RULES`) are profiled on the same fit.  A test counts as covered when its
-    interval holds the truth; a limit the profile does not reach within the search range is the
-    range's end; a failed fit or a missing interval counts as not covered.
+    evenly from ``rho50 - 3 Ep`` to ``rho50 + 3 Ep``) is written, ``tests_per_file`` tests to a
+    file (one device, one way of counting: the same precision), as a CSV file of whole counts,
+    read back through :func:`~tromplab.density.readers.read_density` as a lab's file is, and the
+    file's tests are fitted together with the normal curve and its intervals at ``ci``
+    (:func:`~tromplab.density.fitting.fit_density_curves`: the library's rule, whose scale the
+    file's pooled dispersion floors); the intervals of the other ``rules``
+    (:data:`INTERVAL_RULES`, a test's own dispersion) are profiled on the same fits.  A test
+    counts as covered when its interval holds the truth; a limit the profile does not reach
+    within the search range is the range's end; a failed fit or a missing interval counts as
+    not covered.  The last file holds what is left when ``tests_per_file`` does not divide ``tests``.
 
     Returns
     -------
     pandas.DataFrame
-        One row per rule: ``densities, precision, rule, tests, fitted, scaled, rho50_coverage,
-        ep_coverage, rho50_no_interval, ep_no_interval, rho50_median_width, ep_median_width``
-        (``scaled``: the tests whose intervals used an estimated scale).
+        One row per rule: ``densities, precision, tests_per_file, rule, tests, fitted, scaled,
+        rho50_coverage, ep_coverage, rho50_no_interval, ep_no_interval, rho50_median_width,
+        ep_median_width`` (``scaled``: the tests whose intervals used an estimated scale).
     """
     import tempfile
     from pathlib import Path
@@ -409,22 +414,30 @@ def overdispersion_coverage_study(
     outcomes = {rule: [] for rule in rules}
     with tempfile.TemporaryDirectory() as folder:
         path = Path(folder) / "tracers.csv"
-        for _ in range(tests):
-            table = beta_binomial_tracer_test("normal", truth, grid, placed=placed, precision=precision, rng=rng)
-            table.to_csv(path, index=False)
-            fit = fit_density_curve(read_density(path)[0], "normal", ci=ci)
-            for rule in rules:
-                outcomes[rule].append(_rule_intervals(fit, rule, ci, library_rule=rule == SCALE_POLICY))
-    return pd.DataFrame([_coverage_row(outcomes[rule], truth, densities, precision, rule) for rule in rules])
+        for first in range(0, tests, tests_per_file):
+            draws = [
+                beta_binomial_tracer_test("normal", truth, grid, placed=placed, precision=precision, rng=rng, test=f"t{number}")
+                for number in range(first, min(first + tests_per_file, tests))
+            ]
+            pd.concat(draws, ignore_index=True).to_csv(path, index=False)
+            for fit in fit_density_curves(read_density(path), ["normal"], ci=ci):
+                for rule in rules:
+                    outcomes[rule].append(_rule_intervals(fit, rule, ci, library_rule=rule == SCALE_POLICY))
+    return pd.DataFrame([_coverage_row(outcomes[rule], truth, densities, precision, rule) | {"tests_per_file": tests_per_file}
+                         for rule in rules])  # fmt: skip
 
 
 def _rule_intervals(fit, rule: str, ci: float, *, library_rule: bool) -> dict:
     """The intervals of rho50 and Ep of ``fit`` by ``rule`` (where the fit has one), and whether its scale was estimated."""
+    from .dispersion import interval_rule
     from .fitting import INDEX_BOUNDS, binomial_profile_limits
 
     if not fit.success:
         return {"fitted": False}
-    scale, threshold = _rule_scale_and_threshold(rule, fit.dispersion, fit.df_resid, ci)
+    if library_rule:
+        scale = interval_rule(fit.dispersion, fit.df_resid, ci, fit.pooled).scale
+    else:
+        scale, threshold = _rule_scale_and_threshold(rule, fit.dispersion, fit.df_resid, ci)
     outcome = {"fitted": True, "scaled": scale != 1.0}
     for quantity in ("rho50", "ep"):
         if quantity not in fit.intervals:  # no interval by the fit's own rules (the notes say why)

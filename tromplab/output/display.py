@@ -63,7 +63,9 @@ def display_table(table: pd.DataFrame) -> tuple[pd.DataFrame, list[str]]:
     return shown, [f"note {k}: {note}" for k, note in enumerate(notes, 1)]
 
 
-_NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
+#: A number in a warning's words: not one that is part of a name (``x50``, ``plitt2``, ``deck_2``,
+#: ``run-3``), which keeps the warning's kind; a unit may follow it (``0.4mm``).
+_NUMBER = re.compile(r"(?<![\w.\-])[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?(?![\d.])")
 
 
 def grouped_warnings(items: Iterable[tuple[str, str, str]]) -> list[str]:
@@ -71,7 +73,8 @@ def grouped_warnings(items: Iterable[tuple[str, str, str]]) -> list[str]:
 
     Warnings that differ only in their numbers are of one kind: the line gives the warning
     once, with its numbers written as ``...``, then every fit it concerns with its numbers.
-    A kind met once keeps its own words.
+    Digits that are part of a name (``x50``, ``deck_2``) are not numbers: they stay in the
+    line.  A kind met once keeps its own words.
 
     Examples
     --------

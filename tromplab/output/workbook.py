@@ -13,11 +13,17 @@ tab, a carriage return) is also given the spreadsheet's text mark (``quotePrefix
 editing the cell keeps it text.  The cell holds the name exactly; control characters that a
 workbook cannot hold, and a carriage return, are written in the workbook's own escape
 (``_x0001_``, ``_x000D_``), which Excel shows as the character.
+
+The same tables give the same file, byte for byte: the workbook's creation and modification
+dates and the time stamps of the parts of its zip archive are :data:`WORKBOOK_DATE`, not the
+time of writing (openpyxl would write the clock's).
 """
 
 from __future__ import annotations
 
+import datetime
 import io
+import zipfile
 from collections.abc import Callable, Mapping
 from pathlib import Path
 
@@ -25,6 +31,13 @@ import numpy as np
 import pandas as pd
 
 from ..loading.names import FORMULA_STARTS
+
+#: The date the workbook says it was created and modified (and its zip parts' time): fixed, so that
+#: the same results give the same bytes (the zip format's earliest date).
+WORKBOOK_DATE = datetime.datetime(1980, 1, 1)
+
+#: The part of an xlsx archive that holds its creation and modification dates.
+_CORE_PROPERTIES = "docProps/core.xml"
 
 #: Sheets of the workbook, in order (``figures`` last, when there are figures).
 SHEETS = ("fits", "ranking", "averages", "balance", "points")
@@ -167,8 +180,23 @@ def write_workbook(
     if figures:
         _write_figures(book.create_sheet("figures"), figures)
     path = Path(path)
-    book.save(path)
+    _save_reproducibly(book, path)
     return path
+
+
+def _save_reproducibly(book, path: Path) -> None:
+    """Save ``book`` at ``path`` with :data:`WORKBOOK_DATE` in place of every clock time openpyxl writes."""
+    from openpyxl.xml.functions import tostring
+
+    written = io.BytesIO()
+    book.save(written)  # sets the modification date to now: the document properties are written again below
+    book.properties.created = book.properties.modified = WORKBOOK_DATE
+    with zipfile.ZipFile(written) as source, zipfile.ZipFile(path, "w") as target:
+        for part in source.infolist():
+            stamped = zipfile.ZipInfo(part.filename, date_time=WORKBOOK_DATE.timetuple()[:6])
+            stamped.compress_type, stamped.external_attr = part.compress_type, part.external_attr
+            content = tostring(book.properties.to_tree()) if part.filename == _CORE_PROPERTIES else source.read(part)
+            target.writestr(stamped, content)
 
 
 def _write_table(sheet, table: pd.DataFrame, size_unit: str, column_units=None) -> None:
