@@ -72,11 +72,17 @@ def _add_evaluate(sub) -> None:
         "evaluate",
         help="a tested separation in the standard form: partition coefficients, cut density, Ep, imperfection, "
         "yield and ash errors, organic efficiency, misplaced and near-gravity material (ISO 923)",
-        description="Evaluate every two-product float-sink test of FILE (analyses of the products by density fraction "
-        "with ash) and write evaluation.csv, fractions.csv and summary.txt into the output folder.",
+        description="Evaluate every test of FILE - two-product float-sink analyses with ash, tracer counts with the "
+        "feed's --washability, or three-product analyses (clean, middlings, reject) with ash, each cut on its own feed - and "
+        "write evaluation.csv, fractions.csv, tracers.csv (tracer tests) and summary.txt into the output folder.",
     )
     evaluate.add_argument("file", type=Path, help="float-sink table: test, density_lower, density_upper, [feed_pct,] "
-                          "floats_pct, sinks_pct with feed_ash_pct or floats_ash_pct and sinks_ash_pct")  # fmt: skip
+                          "floats_pct, sinks_pct with feed_ash_pct or floats_ash_pct and sinks_ash_pct; or tracer counts: "
+                          "test, density, placed, sinks, floats; or a three-product table: ..., clean_pct, middlings_pct, "
+                          "reject_pct [, clean_yield, middlings_yield] with ash (docs/plant.md)")  # fmt: skip
+    evaluate.add_argument("--washability", type=Path, default=None, metavar="WASH",
+                          help="washability of the feed of the tracer tests (density_lower, density_upper, mass_pct, "
+                          "ash_pct; one table, or one per test named after the test or its size fraction)")  # fmt: skip
     evaluate.add_argument("-o", "--outdir", type=Path, default=Path("results/evaluation"),
                           help="output folder, replaced as a whole when the run succeeds (default: results/evaluation)")  # fmt: skip
     evaluate.add_argument("--curve", choices=PLAIN_DENSITY_CURVES, default="normal",
@@ -151,9 +157,11 @@ def run_plant_optimize(args) -> int:
 
 
 def run_plant_evaluate(args) -> int:
-    """Run ``tromplab plant evaluate``: read the tests, evaluate them, write the folder, print the report."""
+    """Run ``tromplab plant evaluate``: read the tests (and the tracer tests' washability), evaluate them, write the
+    folder, print the report."""
     from ..plant import evaluate
 
-    check_output_folder(args.outdir, inputs=[args.file])
-    result = evaluate(args.file, curve=args.curve, floats_yield=args.floats_yield, sum_tolerance_pct=args.sum_tolerance)
+    check_output_folder(args.outdir, inputs=[p for p in (args.file, args.washability) if p is not None])
+    result = evaluate(args.file, curve=args.curve, floats_yield=args.floats_yield, washability=args.washability,
+                      sum_tolerance_pct=args.sum_tolerance)  # fmt: skip
     return _finish(result, args.outdir)
