@@ -275,6 +275,30 @@ def test_options_are_checked_by_the_library():
         predict(WASH, DEVICES, ci=1.5)
 
 
+@pytest.mark.parametrize(
+    "option, value, flag",
+    [("sum_tolerance_pct", -1, "--sum-tolerance"), ("float_lower_density", 0, "--float-lower-density"),
+     ("sink_upper_density", -2.5, "--sink-upper-density")],
+)  # fmt: skip
+def test_the_washability_options_are_checked_as_read_washability_and_the_command_check_them(
+    option, value, flag, tmp_path, capsys
+):
+    from tromplab.density.washability import read_washability
+
+    with pytest.raises(OptionError) as plant_error:
+        read_plant_washability(WASH, **{option: value})
+    with pytest.raises(OptionError) as density_error:
+        read_washability(DATASETS / "density_washability_synthetic.csv", **{option: value})
+    assert str(plant_error.value) == str(density_error.value)
+    assert plant_error.value.option == option and plant_error.value.reason in str(plant_error.value)
+    with pytest.raises(OptionError) as predict_error:
+        predict(WASH, DEVICES, **{option: value})
+    assert str(predict_error.value) == str(plant_error.value)
+    assert main(["plant", "predict", str(WASH), str(DEVICES), flag, str(value), "-o", str(tmp_path / "out")]) == 2
+    assert f"argument {flag}: {plant_error.value.reason}" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
+
+
 def test_the_command_names_file_row_and_column_and_writes_nothing(tmp_path, capsys):
     plant = tmp_path / "plant.csv"
     _plant([1.5, 1.6, 1.7], 0.03).assign(curve=["normal", "erf", "normal"]).to_csv(plant, index=False)
