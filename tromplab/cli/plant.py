@@ -22,7 +22,7 @@ from .startup import EXIT_OK, print_usage, progress_bars
 #: What ``plant predict`` imports when it runs (imported before it starts, under the CLI's signal handling).
 PREDICT_IMPORTS = ("tromplab.plant", "tromplab.plant.plotting", "tromplab.output.plotting", "scipy.special")
 #: Defaults of the options, written out so that building the parser imports no numerical library (a test checks them).
-DEFAULT_CI, DEFAULT_DRAWS, MAX_DRAWS = 0.95, 2000, 200_000
+DEFAULT_CI, DEFAULT_DRAWS, MAX_DRAWS, MAX_PARTICLES = 0.95, 2000, 200_000, 10**12
 
 
 def add_plant_command(commands) -> argparse.ArgumentParser:
@@ -46,6 +46,10 @@ def _add_predict(sub) -> None:
         "products.csv, devices.csv, summary.txt, yield_ash.png and partition.png into the output folder.",
     )
     _add_inputs(predict)
+    predict.add_argument("--washability-particles", type=cli_type(check_count, "--washability-particles", maximum=MAX_PARTICLES),
+                         default=None, metavar="N", help="add the sampling error of the washability analyses to the "
+                         "intervals: each size fraction's analysis made on a sample of N particles (Dirichlet draws of the "
+                         "density fractions' masses; default: the washability taken as exact)")  # fmt: skip
     predict.set_defaults(run=run_plant_predict, imports=PREDICT_IMPORTS)
 
 
@@ -141,7 +145,8 @@ def run_plant_predict(args) -> int:
 
     options = _input_options(args)
     with progress_bars(quiet=args.quiet) as progress:
-        result = predict(args.washability, args.plant, progress=progress, **options)
+        result = predict(args.washability, args.plant, washability_particles=args.washability_particles, progress=progress,
+                         **options)  # fmt: skip
     return _finish(result, args.outdir)
 
 
