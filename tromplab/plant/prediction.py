@@ -18,7 +18,7 @@ from ..errors import OptionError
 from ..options import DEFAULT_SUM_TOLERANCE_PCT
 from ..results_contract import ResultContract
 from ..validation import check_count, check_optional, check_probability, check_seed
-from .draws import DEFAULT_DRAWS, MAX_DRAWS, bias_corrected_interval, parameter_draws
+from .draws import DEFAULT_DRAWS, MAX_DRAWS, parameter_draws, percentile_interval
 from .inputs import Device, SizeFraction, devices_from_fits, read_plant, read_plant_washability
 from .products import QUANTITIES, composite_washability, fraction_products, plant_products
 from .sampling import MAX_PARTICLES, washability_mass_draws
@@ -170,7 +170,7 @@ def predict(
         curve with its covariance (:func:`tromplab.plant.inputs.devices_from_fits`); or the
         devices themselves.
     ci : float
-        Level of the bias-corrected percentile intervals, in (0, 1).
+        Level of the percentile intervals, in (0, 1).
     draws : int
         Parameter draws of the parametric bootstrap (:mod:`tromplab.plant.draws`); used when a
         device's curve carries a covariance, 0 for none.
@@ -260,7 +260,7 @@ def _row(name: str, device: str, feed_pct: float, values: dict, qualities, draws
     for column in product_columns(qualities, intervals=False)[3:]:
         row[column] = float(values[column][0])
         if draws:
-            row[f"{column}_low"], row[f"{column}_high"] = bias_corrected_interval(values[column][1:], row[column], ci)
+            row[f"{column}_low"], row[f"{column}_high"] = percentile_interval(values[column][1:], ci)
     return row
 
 
@@ -270,10 +270,11 @@ def _notes(devices: list[Device], uncertain: bool, draws: int, ci: float, partic
                    f"with the sampling error of the washability analyses, each taken as made on {particles:,} particles "
                    "(Dirichlet draws of the density fractions' masses)")  # fmt: skip
     if uncertain and draws:
-        notes.append(f"intervals: {ci:g} bias-corrected percentile intervals of {draws} parametric-bootstrap draws of the "
+        notes.append(f"intervals: {ci:g} percentile intervals of {draws} parametric-bootstrap draws of the "
                      f"curves' linear-predictor coefficients, independent between devices; {washability}")  # fmt: skip
     elif uncertain:
-        notes.append("the curves carry standard deviations (or the washability a sampling error) but draws = 0: no intervals")
+        notes.append(f"the curves carry standard deviations{'' if particles is None else ' (or the washability a sampling error)'} "
+                     "but draws = 0: no intervals")  # fmt: skip
     else:
         notes.append("no curve carries a standard deviation or covariance: the curves are taken as exact, no intervals")
     limited = [d.size_fraction for d in devices if d.light_limit > 0 or d.heavy_limit < 1]
