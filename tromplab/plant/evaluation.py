@@ -227,16 +227,18 @@ def _evaluate_one(sample: DensitySample, curve: str, *, cut: str = "single", cut
     fit = fit_density_curve(sample, curve)
     ashes = (float(np.sum(floats * floats_ash)), float(np.sum(sinks * sinks_ash)))
     row = {"test": sample.test, "size_fraction": sample.size_fraction, "cut": cut, "cut_feed_pct": cut_feed_pct,
-           **_standard_form(washability, fit, clean, reject, *ashes),
+           **_standard_form(washability, fit, clean, reject, *ashes, yield_pct=100 * floats_yield),
            "note": "; ".join((*notes, *sample.notes, *([fit.message] if not fit.success else fit.notes)))}  # fmt: skip
     part = _fractions_table(sample, cut, washability, points["density"], clean, reject, points["partition_sinks"], fit)
     return row, part, sample, None
 
 
-def _standard_form(washability: Washability, fit: DensityCurveFit, clean, reject, clean_ash: float, reject_ash: float) -> dict:
-    """The cut's indices and performance from its products by density fraction (per cent of its feed) and their ash."""
+def _standard_form(
+    washability: Washability, fit: DensityCurveFit, clean, reject, clean_ash: float, reject_ash: float, yield_pct: float
+) -> dict:
+    """The cut's indices and performance from its products by density fraction (per cent of its feed), their ash and
+    the clean coal's yield (per cent of the cut's feed)."""
     rho50 = fit.indices.rho50 if fit.success else np.nan
-    yield_pct = float(np.sum(clean))
     theoretical_yield = washability.theoretical_yield_pct(clean_ash)
     theoretical_ash = theoretical_ash_pct(washability, yield_pct)
     misplaced_floats, misplaced_sinks = _misplaced(washability, clean, reject, rho50)
@@ -305,7 +307,7 @@ def _evaluate_tracers(sample: DensitySample, washability: Washability, curve: st
     ashes = (_ratio(clean @ washability.ash_pct, clean.sum()), _ratio(reject @ washability.ash_pct, reject.sum()))
     how = f"products predicted by the fitted curve on the washability '{washability.test}' ({washability.source})"
     row = {"test": sample.test, "size_fraction": sample.size_fraction, "cut": "single", "cut_feed_pct": 100.0,
-           **_standard_form(washability, fit, clean, reject, *ashes),
+           **_standard_form(washability, fit, clean, reject, *ashes, yield_pct=float(np.sum(clean))),
            "note": "; ".join((how, *sample.notes, *([fit.message] if not fit.success else fit.notes)))}  # fmt: skip
     part = _fractions_table(sample, "single", washability, washability.density, clean, reject, np.full(feed.size, np.nan), fit)
     points = sample.points
