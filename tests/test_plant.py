@@ -190,6 +190,68 @@ def test_draws_follow_the_stated_covariance():
     assert_allclose([np.std(rho50[1:]), np.std(imperfection[1:])], [0.003, 0.004], rtol=0.03)
 
 
+def test_the_washability_draws_have_the_multinomial_variance():
+    """Dirichlet(N m) draws of the density fractions' shares: mean m, variance m (1 - m) / (N + 1), adding up to 100,
+    an empty fraction staying empty (the model of tromplab.plant.sampling)."""
+    from tromplab.density.washability import washability_from_arrays
+    from tromplab.plant.inputs import SizeFraction
+    from tromplab.plant.sampling import washability_mass_draws
+
+    mass = np.array([55.0, 25.0, 0.0, 20.0])
+    fraction = SizeFraction(
+        "f", 100.0, washability_from_arrays([1.3, 1.4, 1.5, 1.6], [1.4, 1.5, 1.6, 2.0], mass, [4, 15, 30, 70])
+    )
+    (drawn,) = washability_mass_draws([fraction], 300, 40000, seed=5)
+    share = mass / 100
+    assert_allclose(drawn[0], mass)
+    assert_allclose(drawn[1:].mean(axis=0), mass, atol=0.05)
+    assert_allclose(drawn[1:].var(axis=0)[[0, 1, 3]], (1e4 * share * (1 - share) / 301)[[0, 1, 3]], rtol=0.03)
+    assert (drawn[:, 2] == 0).all()
+    assert_allclose(drawn.sum(axis=1), 100.0, rtol=1e-12)
+
+
+def test_the_washability_error_gives_the_interval_a_direct_computation_gives():
+    """With exact curves, a size fraction's clean yield Y = sum m_i (1 - P_i) is linear in the masses, so under the
+    Dirichlet(N m) model its standard deviation is sqrt(c' S c), S = (diag(m) - m m') / (N + 1) x 100^2 with
+    c_i = 1 - P_i: the 95 % interval is Y -/+ 1.96 sd wide to within the draws' error (N = 3000, 20,000 draws)."""
+    exact = _plant([1.5, 1.6, 1.8], 0.03)
+    plain = predict(WASH, exact).products
+    result = predict(WASH, exact, washability_particles=3000, draws=20000, seed=4)
+    products = result.products.set_index("size_fraction")
+    wash = _table(WASH)
+    for name, rows in wash.groupby("size_fraction", sort=False):
+        density = (rows["density_lower"] + rows["density_upper"]).to_numpy() / 2
+        cut = {"50x12mm": 1.5, "12x1mm": 1.6, "1x0.15mm": 1.8}[name]
+        floats = 1 - norm.cdf(Z75 * (density - cut) / 0.03)
+        share = rows["mass_pct"].to_numpy() / rows["mass_pct"].sum()
+        covariance = (np.diag(share) - np.outer(share, share)) / 3001 * 1e4
+        sd = np.sqrt(floats @ covariance @ floats)
+        row = products.loc[name]
+        half_width = (row["clean_yield_pct_high"] - row["clean_yield_pct_low"]) / 2
+        assert_allclose(half_width, 1.959964 * sd, rtol=0.03)  # 20,000 draws: the quantiles' own error is about 1 %
+        assert row["clean_yield_pct_low"] < row["clean_yield_pct"] < row["clean_yield_pct_high"]
+    # the estimates are those without the option; the note says what the intervals carry
+    assert_allclose(result.products["clean_yield_pct"], plain["clean_yield_pct"], rtol=0, atol=0)
+    assert "3,000 particles" in result.notes[0]
+
+
+def test_the_washability_error_widens_the_curves_intervals_and_the_command_takes_it(tmp_path, capsys):
+    curves_only = predict(WASH, DEVICES, draws=500, seed=1).products
+    both = predict(WASH, DEVICES, draws=500, seed=1, washability_particles=400).products
+    width = lambda p: p["clean_yield_pct_high"] - p["clean_yield_pct_low"]  # noqa: E731
+    assert (width(both) > width(curves_only)).all()
+    assert main(["plant", "predict", str(WASH), str(DEVICES), "--draws", "500", "--seed", "1", "--washability-particles",
+                 "400", "-o", str(tmp_path / "cli")]) == 0  # fmt: skip
+    capsys.readouterr()
+    pd.testing.assert_frame_equal(pd.read_csv(tmp_path / "cli" / "products.csv"), pd.read_csv(tmp_path / "cli" / "products.csv"))
+    predict(WASH, DEVICES, draws=500, seed=1, washability_particles=400).save(tmp_path / "api")
+    assert filecmp.cmp(tmp_path / "cli" / "products.csv", tmp_path / "api" / "products.csv", shallow=False)
+    with pytest.raises(OptionError, match="washability_particles must be a whole number >= 1"):
+        predict(WASH, DEVICES, washability_particles=0)
+    assert main(["plant", "predict", str(WASH), str(DEVICES), "--washability-particles", "0", "-o", str(tmp_path / "x")]) == 2
+    assert "--washability-particles: must be a whole number >= 1" in capsys.readouterr().err
+
+
 @pytest.mark.slow
 def test_intervals_cover_the_true_plant_yield_and_ash():
     """Simulated tracer tests of the bundled devices (30 tracers per density, 90 % recovered, as a lab gives them),
@@ -273,6 +335,30 @@ def test_options_are_checked_by_the_library():
         predict(WASH, DEVICES, draws=-1)
     with pytest.raises(OptionError, match="ci"):
         predict(WASH, DEVICES, ci=1.5)
+
+
+@pytest.mark.parametrize(
+    "option, value, flag",
+    [("sum_tolerance_pct", -1, "--sum-tolerance"), ("float_lower_density", 0, "--float-lower-density"),
+     ("sink_upper_density", -2.5, "--sink-upper-density")],
+)  # fmt: skip
+def test_the_washability_options_are_checked_as_read_washability_and_the_command_check_them(
+    option, value, flag, tmp_path, capsys
+):
+    from tromplab.density.washability import read_washability
+
+    with pytest.raises(OptionError) as plant_error:
+        read_plant_washability(WASH, **{option: value})
+    with pytest.raises(OptionError) as density_error:
+        read_washability(DATASETS / "density_washability_synthetic.csv", **{option: value})
+    assert str(plant_error.value) == str(density_error.value)
+    assert plant_error.value.option == option and plant_error.value.reason in str(plant_error.value)
+    with pytest.raises(OptionError) as predict_error:
+        predict(WASH, DEVICES, **{option: value})
+    assert str(predict_error.value) == str(plant_error.value)
+    assert main(["plant", "predict", str(WASH), str(DEVICES), flag, str(value), "-o", str(tmp_path / "out")]) == 2
+    assert f"argument {flag}: {plant_error.value.reason}" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
 
 
 def test_the_command_names_file_row_and_column_and_writes_nothing(tmp_path, capsys):

@@ -22,7 +22,7 @@ from .startup import EXIT_OK, print_usage, progress_bars
 #: What ``plant predict`` imports when it runs (imported before it starts, under the CLI's signal handling).
 PREDICT_IMPORTS = ("tromplab.plant", "tromplab.plant.plotting", "tromplab.output.plotting", "scipy.special")
 #: Defaults of the options, written out so that building the parser imports no numerical library (a test checks them).
-DEFAULT_CI, DEFAULT_DRAWS, MAX_DRAWS = 0.95, 2000, 200_000
+DEFAULT_CI, DEFAULT_DRAWS, MAX_DRAWS, MAX_PARTICLES = 0.95, 2000, 200_000, 10**12
 
 
 def add_plant_command(commands) -> argparse.ArgumentParser:
@@ -46,6 +46,10 @@ def _add_predict(sub) -> None:
         "products.csv, devices.csv, summary.txt, yield_ash.png and partition.png into the output folder.",
     )
     _add_inputs(predict)
+    predict.add_argument("--washability-particles", type=cli_type(check_count, "--washability-particles", maximum=MAX_PARTICLES),
+                         default=None, metavar="N", help="add the sampling error of the washability analyses to the "
+                         "intervals: each size fraction's analysis made on a sample of N particles (Dirichlet draws of the "
+                         "density fractions' masses; default: the washability taken as exact)")  # fmt: skip
     predict.set_defaults(run=run_plant_predict, imports=PREDICT_IMPORTS)
 
 
@@ -72,11 +76,17 @@ def _add_evaluate(sub) -> None:
         "evaluate",
         help="a tested separation in the standard form: partition coefficients, cut density, Ep, imperfection, "
         "yield and ash errors, organic efficiency, misplaced and near-gravity material (ISO 923)",
-        description="Evaluate every two-product float-sink test of FILE (analyses of the products by density fraction "
-        "with ash) and write evaluation.csv, fractions.csv and summary.txt into the output folder.",
+        description="Evaluate every test of FILE - two-product float-sink analyses with ash, tracer counts with the "
+        "feed's --washability, or three-product analyses (clean, middlings, reject) with ash, each cut on its own feed - and "
+        "write evaluation.csv, fractions.csv, tracers.csv (tracer tests) and summary.txt into the output folder.",
     )
     evaluate.add_argument("file", type=Path, help="float-sink table: test, density_lower, density_upper, [feed_pct,] "
-                          "floats_pct, sinks_pct with feed_ash_pct or floats_ash_pct and sinks_ash_pct")  # fmt: skip
+                          "floats_pct, sinks_pct with feed_ash_pct or floats_ash_pct and sinks_ash_pct; or tracer counts: "
+                          "test, density, placed, sinks, floats; or a three-product table: ..., clean_pct, middlings_pct, "
+                          "reject_pct [, clean_yield, middlings_yield] with ash (docs/plant.md)")  # fmt: skip
+    evaluate.add_argument("--washability", type=Path, default=None, metavar="WASH",
+                          help="washability of the feed of the tracer tests (density_lower, density_upper, mass_pct, "
+                          "ash_pct; one table, or one per test named after the test or its size fraction)")  # fmt: skip
     evaluate.add_argument("-o", "--outdir", type=Path, default=Path("results/evaluation"),
                           help="output folder, replaced as a whole when the run succeeds (default: results/evaluation)")  # fmt: skip
     evaluate.add_argument("--curve", choices=PLAIN_DENSITY_CURVES, default="normal",
@@ -135,7 +145,8 @@ def run_plant_predict(args) -> int:
 
     options = _input_options(args)
     with progress_bars(quiet=args.quiet) as progress:
-        result = predict(args.washability, args.plant, progress=progress, **options)
+        result = predict(args.washability, args.plant, washability_particles=args.washability_particles, progress=progress,
+                         **options)  # fmt: skip
     return _finish(result, args.outdir)
 
 
@@ -151,9 +162,11 @@ def run_plant_optimize(args) -> int:
 
 
 def run_plant_evaluate(args) -> int:
-    """Run ``tromplab plant evaluate``: read the tests, evaluate them, write the folder, print the report."""
+    """Run ``tromplab plant evaluate``: read the tests (and the tracer tests' washability), evaluate them, write the
+    folder, print the report."""
     from ..plant import evaluate
 
-    check_output_folder(args.outdir, inputs=[args.file])
-    result = evaluate(args.file, curve=args.curve, floats_yield=args.floats_yield, sum_tolerance_pct=args.sum_tolerance)
+    check_output_folder(args.outdir, inputs=[p for p in (args.file, args.washability) if p is not None])
+    result = evaluate(args.file, curve=args.curve, floats_yield=args.floats_yield, washability=args.washability,
+                      sum_tolerance_pct=args.sum_tolerance)  # fmt: skip
     return _finish(result, args.outdir)

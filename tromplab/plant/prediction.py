@@ -17,10 +17,11 @@ import pandas as pd
 from ..errors import OptionError
 from ..options import DEFAULT_SUM_TOLERANCE_PCT
 from ..results_contract import ResultContract
-from ..validation import check_count, check_probability, check_seed
+from ..validation import check_count, check_optional, check_probability, check_seed
 from .draws import DEFAULT_DRAWS, MAX_DRAWS, parameter_draws, percentile_interval
 from .inputs import Device, SizeFraction, devices_from_fits, read_plant, read_plant_washability
 from .products import QUANTITIES, composite_washability, fraction_products, plant_products
+from .sampling import MAX_PARTICLES, washability_mass_draws
 
 #: The interval level when none is asked for.
 DEFAULT_CI = 0.95
@@ -151,6 +152,7 @@ def predict(
     sum_tolerance_pct: float = DEFAULT_SUM_TOLERANCE_PCT,
     float_lower_density: float | None = None,
     sink_upper_density: float | None = None,
+    washability_particles: int | None = None,
     progress=None,
 ) -> PlantPrediction:
     """Predict the clean coal and reject of every size fraction and of the plant, with intervals.
@@ -176,6 +178,11 @@ def predict(
         Seed of the draws (the same seed, the same intervals).
     sum_tolerance_pct, float_lower_density, sink_upper_density
         As for :func:`tromplab.plant.inputs.read_plant_washability`.
+    washability_particles : int, optional
+        Adds the sampling error of the washability analyses to the intervals: each size fraction's
+        analysis is taken as made on a sample of this many particles, its density fractions' mass
+        shares drawn from a Dirichlet distribution (:mod:`tromplab.plant.sampling`) with each draw
+        of the curves.  Default None: the washability is taken as exact.
     progress : callable, optional
         ``progress(done, total, label)`` after each size fraction.
 
@@ -195,19 +202,22 @@ def predict(
     ci = check_probability(ci, "ci")
     draws = check_count(draws, "draws", minimum=0, maximum=MAX_DRAWS)
     seed = check_seed(seed, "seed")
+    particles = check_optional(check_count, washability_particles, "washability_particles", maximum=MAX_PARTICLES)
     if (plant is None) == (curves_from is None):
         raise OptionError("plant", "or curves_from: give exactly one of them")
     fractions = read_fractions(washability, sum_tolerance_pct, float_lower_density, sink_upper_density)
     devices = read_plant(plant, fractions) if plant is not None else devices_from(curves_from, fractions)
-    uncertain = any(device.uncertain for device in devices)
+    uncertain = any(device.uncertain for device in devices) or particles is not None
     used = draws if uncertain else 0
     parameters = parameter_draws(devices, used, seed)
+    masses = None if particles is None else washability_mass_draws(fractions, particles, used, seed)
     per_fraction = []
     for done, (fraction, device, (rho50, scale)) in enumerate(zip(fractions, devices, parameters), start=1):
-        per_fraction.append(fraction_products(fraction, device, rho50, scale))
+        mass = None if masses is None else masses[done - 1]
+        per_fraction.append(fraction_products(fraction, device, rho50, scale, mass))
         if progress is not None:
             progress(done, len(fractions) + 1, "size fractions")
-    total = plant_products(fractions, per_fraction, composite_washability(fractions))
+    total = plant_products(fractions, per_fraction, composite_washability(fractions), masses)
     if progress is not None:
         progress(len(fractions) + 1, len(fractions) + 1, "size fractions")
     qualities = tuple(fractions[0].qualities)
@@ -215,7 +225,7 @@ def predict(
         _row(f.name, d.device, f.feed_pct, values, qualities, used, ci) for f, d, values in zip(fractions, devices, per_fraction)
     ]
     rows.append(_row(TOTAL, "", 100.0, total, qualities, used, ci))
-    notes = _notes(devices, uncertain, draws, ci)
+    notes = _notes(devices, uncertain, draws, ci, particles)
     return PlantPrediction(fractions, devices, pd.DataFrame(rows), ci, used, seed, tuple(notes), qualities)
 
 
@@ -254,13 +264,17 @@ def _row(name: str, device: str, feed_pct: float, values: dict, qualities, draws
     return row
 
 
-def _notes(devices: list[Device], uncertain: bool, draws: int, ci: float) -> list[str]:
+def _notes(devices: list[Device], uncertain: bool, draws: int, ci: float, particles: int | None) -> list[str]:
     notes = []
+    washability = ("the washability is taken as exact" if particles is None else
+                   f"with the sampling error of the washability analyses, each taken as made on {particles:,} particles "
+                   "(Dirichlet draws of the density fractions' masses)")  # fmt: skip
     if uncertain and draws:
-        notes.append(f"intervals: {ci:g} percentile intervals of {draws} parametric-bootstrap draws of the curves' "
-                     "linear-predictor coefficients, independent between devices; the washability is taken as exact")  # fmt: skip
+        notes.append(f"intervals: {ci:g} percentile intervals of {draws} parametric-bootstrap draws of the "
+                     f"curves' linear-predictor coefficients, independent between devices; {washability}")  # fmt: skip
     elif uncertain:
-        notes.append("the curves carry standard deviations but draws = 0: no intervals")
+        notes.append(f"the curves carry standard deviations{'' if particles is None else ' (or the washability a sampling error)'} "
+                     "but draws = 0: no intervals")  # fmt: skip
     else:
         notes.append("no curve carries a standard deviation or covariance: the curves are taken as exact, no intervals")
     limited = [d.size_fraction for d in devices if d.light_limit > 0 or d.heavy_limit < 1]

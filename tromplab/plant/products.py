@@ -29,6 +29,8 @@ Definitions after ISO 923 (expression of the results of coal cleaning tests):
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from ..density.washability import NEAR_GRAVITY_BAND, Washability, washability_from_arrays
@@ -39,15 +41,19 @@ QUANTITIES = ("clean_yield_pct", "clean_ash_pct", "reject_ash_pct", "theoretical
               "misplaced_floats_pct", "misplaced_sinks_pct", "near_gravity_pct")  # fmt: skip
 
 
-def fraction_products(fraction: SizeFraction, device: Device, rho50, scale) -> dict[str, np.ndarray]:
+def fraction_products(fraction: SizeFraction, device: Device, rho50, scale, mass=None) -> dict[str, np.ndarray]:
     """Per draw (``rho50``, ``scale`` arrays of one length): the quantities of :data:`QUANTITIES` and the qualities,
-    with the masses ``clean_mass`` and ``clean_ash_mass`` (per cent of the size fraction) the plant blends."""
+    with the masses ``clean_mass`` and ``clean_ash_mass`` (per cent of the size fraction) the plant blends.
+
+    ``mass``, optional, ``(draws, k)``: the density fractions' mass per cents of each draw (the washability's
+    sampling error, :mod:`tromplab.plant.sampling`); default the washability's own for every draw."""
     washability = fraction.washability
     rho50 = np.atleast_1d(np.asarray(rho50, dtype=float))
     scale = np.broadcast_to(np.asarray(scale, dtype=float), rho50.shape)
     sinks = device.partition(washability.density[None, :], rho50[:, None], scale[:, None])
-    clean = washability.mass_pct[None, :] * (1.0 - sinks)
-    reject = washability.mass_pct[None, :] * sinks
+    masses = washability.mass_pct[None, :] if mass is None else np.asarray(mass, dtype=float)
+    clean = masses * (1.0 - sinks)
+    reject = masses * sinks
     clean_mass, reject_mass = clean.sum(axis=1), reject.sum(axis=1)
     values = {"clean_mass": clean_mass, "reject_mass": reject_mass}
     for name, per_fraction in {"ash": washability.ash_pct, **fraction.qualities}.items():
@@ -56,20 +62,29 @@ def fraction_products(fraction: SizeFraction, device: Device, rho50, scale) -> d
         values[f"clean_{name}_pct"] = _ratio(values[f"clean_{name}_mass"], clean_mass)
         values[f"reject_{name}_pct"] = _ratio(values[f"reject_{name}_mass"], reject_mass)
     values["clean_yield_pct"] = clean_mass
-    values["theoretical_yield_pct"] = theoretical_yields(washability, values["clean_ash_pct"])
+    values["theoretical_yield_pct"] = theoretical_yields(washability, values["clean_ash_pct"], mass)
     values["organic_efficiency_pct"] = _ratio(100.0 * clean_mass, values["theoretical_yield_pct"])
-    below = np.clip((rho50[:, None] - washability.closed_lower) / (washability.closed_upper - washability.closed_lower), 0, 1)
+    width = washability.closed_upper - washability.closed_lower
+    below = np.clip((rho50[:, None] - washability.closed_lower) / width, 0, 1)
     values["misplaced_floats_pct"] = (reject * below).sum(axis=1)
     values["misplaced_sinks_pct"] = (clean * (1.0 - below)).sum(axis=1)
-    values["near_gravity_pct"] = washability.floats_mass_below(rho50 + NEAR_GRAVITY_BAND) - washability.floats_mass_below(
-        rho50 - NEAR_GRAVITY_BAND
-    )
+    if mass is None:
+        values["near_gravity_pct"] = washability.floats_mass_below(rho50 + NEAR_GRAVITY_BAND) - washability.floats_mass_below(
+            rho50 - NEAR_GRAVITY_BAND
+        )
+    else:  # the cumulative floats of each draw's masses, linear within a fraction, between the two ends of the band
+        low, high = rho50[:, None] - NEAR_GRAVITY_BAND, rho50[:, None] + NEAR_GRAVITY_BAND
+        inside = np.clip(np.minimum(high, washability.closed_upper) - np.maximum(low, washability.closed_lower), 0, None)
+        values["near_gravity_pct"] = (masses * inside / width).sum(axis=1)
     return values
 
 
-def plant_products(fractions: list[SizeFraction], per_fraction: list[dict], composite: Washability) -> dict[str, np.ndarray]:
+def plant_products(
+    fractions: list[SizeFraction], per_fraction: list[dict], composite: Washability, masses=None
+) -> dict[str, np.ndarray]:
     """The blended clean coal and reject of the plant from each size fraction's :func:`fraction_products` (per draw);
-    masses and per cents of the plant feed, misplaced and near-gravity material each at its own device's cut."""
+    masses and per cents of the plant feed, misplaced and near-gravity material each at its own device's cut.
+    ``masses``: each size fraction's ``(draws, k)`` mass per cents when they vary by draw (else None)."""
     shares = [fraction.feed_pct / 100.0 for fraction in fractions]
     mass_names = [name for name in per_fraction[0] if name.endswith("_mass")]
     total = {name: sum(share * values[name] for share, values in zip(shares, per_fraction)) for name in mass_names}
@@ -79,16 +94,44 @@ def plant_products(fractions: list[SizeFraction], per_fraction: list[dict], comp
         total[f"clean_{name}_pct"] = _ratio(total[f"clean_{name}_mass"], total["clean_mass"])
         total[f"reject_{name}_pct"] = _ratio(total[f"reject_{name}_mass"], total["reject_mass"])
     total["clean_yield_pct"] = total["clean_mass"]
-    total["theoretical_yield_pct"] = theoretical_yields(composite, total["clean_ash_pct"])
+    if masses is None:
+        total["theoretical_yield_pct"] = theoretical_yields(composite, total["clean_ash_pct"])
+    else:
+        composite_mass, composite_ash = composite_draws(fractions, composite, masses)
+        total["theoretical_yield_pct"] = np.array(
+            [replace(composite, mass_pct=m, ash_pct=a).theoretical_yield_pct(ash)
+             for m, a, ash in zip(composite_mass, composite_ash, total["clean_ash_pct"])]
+        )  # fmt: skip
     total["organic_efficiency_pct"] = _ratio(100.0 * total["clean_mass"], total["theoretical_yield_pct"])
     for name in ("misplaced_floats_pct", "misplaced_sinks_pct", "near_gravity_pct"):
         total[name] = sum(share * values[name] for share, values in zip(shares, per_fraction))
     return total
 
 
-def theoretical_yields(washability: Washability, ash_pct: np.ndarray) -> np.ndarray:
-    """:meth:`Washability.theoretical_yield_pct` at each ash of ``ash_pct`` (NaN where none exists)."""
-    return np.array([washability.theoretical_yield_pct(ash) for ash in np.atleast_1d(ash_pct)], dtype=float)
+def theoretical_yields(washability: Washability, ash_pct: np.ndarray, mass=None) -> np.ndarray:
+    """:meth:`Washability.theoretical_yield_pct` at each ash of ``ash_pct`` (NaN where none exists); with ``mass``
+    (``(draws, k)``), each draw's on the washability of that draw's masses."""
+    if mass is None:
+        return np.array([washability.theoretical_yield_pct(ash) for ash in np.atleast_1d(ash_pct)], dtype=float)
+    return np.array([replace(washability, mass_pct=m).theoretical_yield_pct(ash) for m, ash in zip(mass, ash_pct)], dtype=float)
+
+
+def composite_draws(fractions: list[SizeFraction], composite: Washability, masses) -> tuple[np.ndarray, np.ndarray]:
+    """The whole feed's mass and ash per cents by density interval of :func:`composite_washability`, for each draw
+    of the size fractions' masses (``masses``: one ``(draws, k)`` array per size fraction)."""
+    mass = np.zeros((len(masses[0]), composite.mass_pct.size))
+    ash_mass = np.zeros_like(mass)
+    for fraction, drawn in zip(fractions, masses):
+        share = _interval_shares(composite.closed_lower, composite.closed_upper, fraction.washability)
+        mass += fraction.feed_pct / 100.0 * (drawn @ share.T)
+        ash_mass += fraction.feed_pct / 100.0 * ((drawn * fraction.washability.ash_pct) @ share.T)
+    return mass, np.divide(ash_mass, mass, out=np.zeros_like(mass), where=mass > 0)
+
+
+def _interval_shares(lower: np.ndarray, upper: np.ndarray, w: Washability) -> np.ndarray:
+    """The share of each density fraction of ``w`` (columns) in each interval (rows): mass spread evenly over its range."""
+    overlap = np.clip(np.minimum(upper[:, None], w.closed_upper) - np.maximum(lower[:, None], w.closed_lower), 0, None)
+    return overlap / (w.closed_upper - w.closed_lower)
 
 
 def composite_washability(fractions: list[SizeFraction]) -> Washability:
@@ -114,8 +157,7 @@ def composite_washability(fractions: list[SizeFraction]) -> Washability:
     mass, ash_mass = np.zeros(lower.size), np.zeros(lower.size)
     for fraction in fractions:
         w = fraction.washability
-        overlap = np.clip(np.minimum(upper[:, None], w.closed_upper) - np.maximum(lower[:, None], w.closed_lower), 0, None)
-        share = overlap / (w.closed_upper - w.closed_lower)  # of each density fraction, in each interval
+        share = _interval_shares(lower, upper, w)  # of each density fraction, in each interval
         mass += fraction.feed_pct / 100.0 * (share @ w.mass_pct)
         ash_mass += fraction.feed_pct / 100.0 * (share @ (w.mass_pct * w.ash_pct))
     ash = np.divide(ash_mass, mass, out=np.zeros_like(mass), where=mass > 0)  # an empty interval's ash is never used
