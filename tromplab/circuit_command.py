@@ -48,6 +48,8 @@ class CircuitRun:
     next_steps: tuple[str, ...] = ()
     #: The notes on the weights of ``points.csv`` (:func:`tromplab.loading.weights.weight_notes`).
     weight_notes: tuple[str, ...] = ()
+    #: Every warning of the separators, as ``warnings.csv`` holds them (:func:`tromplab.circuit.outputs.balance_notices`).
+    notices: tuple = ()
 
 
 def fit_separators(
@@ -144,7 +146,7 @@ def run_circuit(
     ``partition.csv``, ``points.csv`` and the fits).
     """
     from .circuit import read_flowsheet, read_survey, reconcile
-    from .circuit.outputs import balance_next_steps, balance_outputs, balance_tables
+    from .circuit.outputs import balance_next_steps, balance_notices, balance_outputs, balance_tables
     from .loading.weights import weight_notes
 
     weighting = check_choice(weighting, "weighting", choices=WEIGHTINGS)
@@ -162,8 +164,9 @@ def run_circuit(
         bench = fit_separators(balance, weighting=weighting)
         tables["fits"], tables["ranking"] = bench.fits_table(), bench.ranking_table()
     steps = balance_next_steps(balance, tables)
-    written = replace_folder(balance_outputs(balance, figures=figures, tables=tables, steps=steps), outdir)
-    return CircuitRun(balance, bench, written, steps, tuple(weight_notes(tables["points"])))
+    notices = balance_notices(tables, bench)  # warnings.csv, and the console's lines once per kind
+    written = replace_folder(balance_outputs(balance, figures=figures, tables=tables, steps=steps, notices=notices), outdir)
+    return CircuitRun(balance, bench, written, steps, tuple(weight_notes(tables["points"])), tuple(notices))
 
 
 @dataclass(frozen=True)
@@ -232,9 +235,10 @@ def run_design(
 def console_report(run: CircuitRun, *, format_fits=None) -> str:
     """What ``tromplab circuit`` prints: the summary, the flows, the largest adjustments, the
     fits (with ``format_fits``, the fit command's table, else the best curve per separator),
-    the next steps and the files."""
+    the next steps and the files (the warnings go to standard error, once per kind:
+    :attr:`CircuitRun.notices`)."""
     balance = run.balance
-    lines = [*map(_wrapped, balance.report().splitlines()), *map(_wrapped, run.weight_notes), "", "Reconciled solids flows:"]
+    lines = [*map(_wrapped, balance.report().splitlines()), "", "Reconciled solids flows:"]
     flows = balance.flows_table()[["stream", "measured", "reconciled", "reconciled_sd"]]
     lines.append(flows.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
     largest = balance.largest_adjustments(5)
