@@ -253,7 +253,12 @@ def test_circuit_prints_the_notes_of_its_separators_once_per_kind(tmp_path, caps
     assert main(["circuit", str(sheet), str(survey), "-o", str(tmp_path / "circuit"), "--fit", "--no-figures"]) == 0
     err = " ".join(capsys.readouterr().err.split())
     assert re.search(r"warning: (\d+) of \1 separators: the cut is not bracketed by the data", err), err
-    assert "-v prints every one" in err
+    assert "every one in warnings.csv" in err
+    listed = pd.read_csv(tmp_path / "circuit" / "warnings.csv")
+    assert list(listed.columns) == ["separator", "formula", "code", "message"]
+    # every separator's note, plus the weights of the cyclone's points (the bundled example's one)
+    unbracketed = listed[listed["code"] == "cut-not-bracketed"]
+    assert sorted(unbracketed["separator"]) == ["bottom_deck", "cyclone", "top_deck"]
 
 
 def test_grouped_warnings_keep_the_digits_of_names_and_group_by_the_numbers():

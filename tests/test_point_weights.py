@@ -197,11 +197,16 @@ def test_tromplab_circuit_says_when_two_classes_carry_most_of_the_weight(tmp_pat
     _survey(feed, feed * PARTITION / y, feed * (1 - PARTITION) / (1 - y)).to_csv(tmp_path / "survey.csv", index=False)
     out = tmp_path / "out"
     assert main(["circuit", str(tmp_path / "sheet.csv"), str(tmp_path / "survey.csv"), "-o", str(out)]) == 0
-    printed = capsys.readouterr().out
+    printed = capsys.readouterr().err
     (note,) = weight_notes(pd.read_csv(out / "points.csv"))
     assert note.startswith("note (cyclone): 2 of 8 classes (300-top um, 212-300 um) carry")
-    assert " ".join(note.split()) in " ".join(printed.split())  # the console wraps it at 98 columns
+    said = note.replace("note (cyclone): ", "warning (cyclone): ", 1)  # on standard error, as the fit says it
+    assert " ".join(said.split()) in " ".join(printed.split())  # the console wraps it at 98 columns
     assert note in (out / "summary.txt").read_text(encoding="utf-8")
+    listed = pd.read_csv(out / "warnings.csv", keep_default_na=False)  # every occurrence, in the results folder
+    assert listed.to_dict("records") == [
+        {"separator": "cyclone", "formula": "", "code": "weight-concentrated", "message": note.split(": ", 1)[1]}
+    ]
 
 
 def test_the_textbook_table_gives_the_same_weights_by_both_paths_to_its_rounding():

@@ -60,7 +60,7 @@ from .loading.surveys import has_survey_columns, split_survey_columns
 from .notices import Notice, notice_table
 from .output.csv_parts import write_csv
 from .output.outputs import write_files
-from .output.plotting import offscreen_axes, plot_control_chart, save_figure
+from .output.plotting import figure_pngs, offscreen_axes, plot_control_chart
 from .output.report import Report, figure_png
 from .results_contract import ResultContract
 from .statistics.compare import ExtraSumOfSquares
@@ -70,6 +70,8 @@ from .workbench import fit_chunk, fit_experiments
 EWMA_LAMBDA = 0.2
 EWMA_L = 3.5
 DEFAULT_ALPHA = 0.01
+#: Resolution of the chart files ``trend_<quantity>.png`` and of the charts the report embeds (dpi).
+CHART_DPI, REPORT_DPI = 120, 100
 QUANTITY_UNITS = {"d_cut": "size", "ep": "size", "eta": "fraction", "bypass": "fraction"}
 TREND_COLUMNS = (
     "survey",
@@ -178,12 +180,12 @@ class TrendResult(ResultContract):
     def _result_context(self) -> str:
         return f"Trend of {len(self.surveys)} surveys fitted with {self.formula_id}"
 
-    def save(self, directory, *, size_unit: str = "", figures: bool = True) -> dict[str, Path]:
+    def save(self, directory, *, size_unit: str = "", figures: bool = True, progress=None) -> dict[str, Path]:
         """Write what ``tromplab trend ... -o DIRECTORY`` writes (:func:`write_trend`), all or nothing.
 
         Returns ``{file name: path}``.
         """
-        return write_trend(self, directory, size_unit=size_unit, figures=figures)
+        return write_trend(self, directory, size_unit=size_unit, figures=figures, progress=progress)
 
     def notices(self) -> list[Notice]:
         """The warnings of each survey's fit, survey by survey (:class:`~tromplab.notices.Notice`)."""
@@ -397,6 +399,7 @@ def monitor_surveys(
     lam: float = EWMA_LAMBDA,
     width: float = EWMA_L,
     consecutive: bool = True,
+    progress=None,
 ) -> TrendResult:
     """Fit each survey, chart d_cut, Ep, eta (and bypass), flag the surveys where the classifier changed.
 
@@ -419,6 +422,9 @@ def monitor_surveys(
     consecutive : bool
         Also test each survey against the previous one (``p_previous``; not used by the
         flag, so the benchmark turns it off).
+    progress : callable, optional
+        ``progress(done, total, label)`` as the surveys are fitted (``label`` a survey's name)
+        and as the equality tests' joint fits are made (``"tests: ..."``).
 
     Returns
     -------
@@ -431,11 +437,11 @@ def monitor_surveys(
         raise TypeError(f"surveys must be a path or a sequence of Survey (read_surveys reads them), got {surveys!r:.80}")
     surveys = _checked_surveys(surveys, alpha)
     base = baseline_indices(surveys, baseline)
-    formula, fits = _trend_fits(surveys, formula)
+    formula, fits = _trend_fits(surveys, formula, progress)
     failures = {s.name: f.message for s, f in zip(surveys, fits) if not f.success}
     quantities = ["d_cut", "ep", "eta"] + (["bypass"] if any(e.name == "bypass" for e in formula.extras) else [])
     values, lows, highs = _charted_values(fits, quantities, level)
-    p_previous, p_baseline = _equality_p_values(surveys, fits, formula, base, consecutive=consecutive)
+    p_previous, p_baseline = _equality_p_values(surveys, fits, formula, base, consecutive=consecutive, progress=progress)
     charts, alarms, changed, change_point = flag_changes(values, p_baseline, base, alpha=alpha, lam=lam, width=width)
     rows = []
     for i, survey in enumerate(surveys):
@@ -466,13 +472,18 @@ def monitor_surveys(
     return TrendResult(formula.id, tuple(surveys), fits, base, table, alpha, level, failures)
 
 
-def _trend_fits(surveys: Sequence[Survey], formula) -> tuple:
+def _trend_fits(surveys: Sequence[Survey], formula, progress=None) -> tuple:
     """The formula of the trend and its fit of every survey: by default the ranking's best
     formula over all surveys, whose fits are the ranking's."""
     if formula is None:
-        return _best_formula(surveys)
+        return _best_formula(surveys, progress)
     formula = get_formula(formula)
-    return formula, tuple(fit_chunk([s.points for s in surveys], formulas=[formula.id], alpha=None, delta_max=None))
+    if progress is not None:  # one batched call fits them all
+        progress(0, len(surveys), surveys[0].name)
+    fits = tuple(fit_chunk([s.points for s in surveys], formulas=[formula.id], alpha=None, delta_max=None))
+    if progress is not None:
+        progress(len(surveys), len(surveys), surveys[-1].name)
+    return formula, fits
 
 
 def _checked_surveys(surveys: Sequence[Survey], alpha: float) -> list[Survey]:
@@ -505,10 +516,11 @@ def _charted_values(fits, quantities: list[str], level: float) -> tuple[dict, di
     return values, lows, highs
 
 
-def _equality_p_values(surveys, fits, formula, base, *, consecutive: bool) -> tuple[np.ndarray, np.ndarray]:
+def _equality_p_values(surveys, fits, formula, base, *, consecutive: bool, progress=None) -> tuple[np.ndarray, np.ndarray]:
     """``p_previous, p_baseline``: p-values of the equality test of each survey's curve against the
     previous survey's (with ``consecutive``) and against the joint fit of the baseline (nan where not tested);
-    the joint fits of all tests in one batched call where the formula allows (:func:`_joint_fits`)."""
+    the joint fits of all tests in one batched call where the formula allows (:func:`_joint_fits`);
+    ``progress`` as for :func:`monitor_surveys`, counting the joint fits made."""
     baseline_points = [surveys[i].points for i in base]
     baseline_fit = joint_fit(baseline_points, formula, [dict(fits[i].fit.values) for i in base if fits[i].success])
     tests = []  # (column, survey, groups, the groups' own fits)
@@ -522,9 +534,15 @@ def _equality_p_values(surveys, fits, formula, base, *, consecutive: bool) -> tu
     # against the baseline, the pooled optimum lies next to the baseline's own (most of the points are
     # the baseline's): started there without the grid; consecutive pairs get the global search
     joint = [None] * len(tests)
+    counted = _JointFitCount(len(tests) + 1, progress)
+    counted.made(1, "the baseline")
     for column, start in ((0, None), (1, dict(baseline_fit.values) if baseline_fit.success else None)):
         chosen = [k for k, test in enumerate(tests) if test[0] == column]
-        found = _joint_fits([tests[k][2] for k in chosen], formula, [tests[k][3] for k in chosen], start=start)
+        against = "the previous survey" if column == 0 else "the baseline"
+        found = _joint_fits(
+            [tests[k][2] for k in chosen], formula, [tests[k][3] for k in chosen], start=start,
+            made=lambda count, against=against: counted.made(count, against),
+        )  # fmt: skip
         for k, fit in zip(chosen, found):
             joint[k] = fit
     p_values = np.full((2, len(surveys)), np.nan)
@@ -537,18 +555,43 @@ def _equality_p_values(surveys, fits, formula, base, *, consecutive: bool) -> tu
 
 
 def _joint_fits(
-    groups: Sequence[Sequence[TrompPoints]], formula, own: Sequence[Sequence[ParameterFit]], *, start: dict | None = None
+    groups: Sequence[Sequence[TrompPoints]],
+    formula,
+    own: Sequence[Sequence[ParameterFit]],
+    *,
+    start: dict | None = None,
+    made=None,
 ) -> list[ParameterFit]:
     """One :func:`joint_fit` per set of ``groups``: for a batchable formula without data-derived
     inputs, the pooled points of each set (each group keeping its normalised weights) fitted
     by the batched engine at once (from the data-driven start and ``start`` alone, without the
-    grid, when ``start`` is given); otherwise one by one, started from the groups' ``own`` fits."""
+    grid, when ``start`` is given); otherwise one by one, started from the groups' ``own`` fits.
+    ``made(count)`` is called as joint fits are done."""
+    made = made or (lambda count: None)
     if not groups:
         return []
     if is_batchable(formula) and not formula.context_from_efficiency:
         pooled = [_pooled(points) for points in groups]
-        return [fit.fit for fit in fit_formula_batch(pooled, formula, global_search=start is None, start=start)]
-    return [joint_fit(points, formula, [dict(f.values) for f in fits if f.success]) for points, fits in zip(groups, own)]
+        found = [fit.fit for fit in fit_formula_batch(pooled, formula, global_search=start is None, start=start)]
+        made(len(found))
+        return found
+    found = []
+    for points, fits in zip(groups, own):
+        found.append(joint_fit(points, formula, [dict(f.values) for f in fits if f.success]))
+        made(1)
+    return found
+
+
+class _JointFitCount:
+    """The joint fits of the equality tests made so far, told to ``progress`` as ``"tests: ..."``."""
+
+    def __init__(self, total: int, progress=None):
+        self.total, self.done, self.progress = total, 0, progress
+
+    def made(self, count: int, against: str) -> None:
+        self.done += count
+        if self.progress is not None:
+            self.progress(self.done, self.total, f"tests: against {against}")
 
 
 def _pooled(groups: Sequence[TrompPoints]) -> TrompPoints:
@@ -563,9 +606,9 @@ def _pooled(groups: Sequence[TrompPoints]) -> TrompPoints:
     )
 
 
-def _best_formula(surveys) -> tuple:
+def _best_formula(surveys, progress=None) -> tuple:
     """The best-ranked of the nine formulas over all surveys and its fit of each survey."""
-    bench = fit_experiments([s.points for s in surveys])
+    bench = fit_experiments([s.points for s in surveys], progress=progress)
     ranking = bench.ranking_table()
     if ranking.empty:
         raise InputError("no formula could be fitted to the surveys; give one with --formula")
@@ -578,12 +621,13 @@ def _best_formula(surveys) -> tuple:
     return formula, tuple(fits)
 
 
-def write_trend(result: TrendResult, outdir, *, size_unit: str = "", figures: bool = True) -> dict[str, Path]:
+def write_trend(result: TrendResult, outdir, *, size_unit: str = "", figures: bool = True, progress=None) -> dict[str, Path]:
     """Write ``trend.csv`` (tidy), ``trend_surveys.csv`` (one row per survey), ``warnings.csv``
     (when a survey's fit has a warning), the charts ``trend_<quantity>.png`` and
     ``trend_report.html`` (+ ``.md``), all or nothing.
 
-    ``size_unit`` labels the figures and replaces the unit ``size`` in ``trend.csv``.
+    ``size_unit`` labels the figures and replaces the unit ``size`` in ``trend.csv``;
+    ``progress(done, total, label)`` is called as each chart is drawn (``"charts: <quantity>"``).
     """
     table = result.table.replace({"unit": {"size": size_unit}}) if size_unit else result.table
     outputs = {
@@ -592,13 +636,11 @@ def write_trend(result: TrendResult, outdir, *, size_unit: str = "", figures: bo
     }
     if not (said := result.warnings_table()).empty:
         outputs["warnings.csv"] = lambda p: write_csv(said, p)
-    if figures:
-        for quantity in result.quantities:
-            outputs[f"trend_{quantity}.png"] = lambda p, q=quantity: save_figure(
-                plot_control_chart(result, q, size_unit=size_unit, ax=offscreen_axes()), p
-            )
+    charts = control_chart_pngs(result, size_unit=size_unit, progress=progress) if figures else {}
+    for quantity, (picture, _) in charts.items():
+        outputs[f"trend_{quantity}.png"] = lambda p, picture=picture: p.write_bytes(picture)
     report = Report("tromplab trend report", ", ".join(dict.fromkeys(s.points.source for s in result.surveys)), order=("trend",))
-    add_trend_section(report, result, size_unit=size_unit, figures=figures)
+    add_trend_section(report, result, size_unit=size_unit, figures=figures, charts={q: c[1] for q, c in charts.items()})
     names = {
         f"Control chart of {q}": f"trend_{q}.png" for q in result.quantities
     }  # the Markdown links the PNGs written beside it
@@ -684,11 +726,30 @@ def surveys_from_frame(frame: pd.DataFrame) -> list[Survey]:
     return sorted(surveys, key=lambda s: s.date)
 
 
-def add_trend_section(report: Report, result, *, size_unit: str = "", figures: bool = True) -> None:
+def control_chart_pngs(result, *, size_unit: str = "", progress=None) -> dict[str, tuple[bytes, bytes]]:
+    """Quantity -> its control chart as PNG bytes at the file's resolution (``trend_<quantity>.png``,
+    :data:`CHART_DPI`) and at the report's (:data:`REPORT_DPI`): each chart drawn and laid out
+    once, then saved at both (the same bytes as drawing it anew for each)."""
+    charts = {}
+    for done, quantity in enumerate(result.quantities):
+        if progress is not None:
+            progress(done, len(result.quantities), f"charts: {quantity}")
+        ax = plot_control_chart(result, quantity, size_unit=size_unit, ax=offscreen_axes())
+        charts[quantity] = tuple(figure_pngs(ax, (CHART_DPI, REPORT_DPI)))
+    if progress is not None and charts:
+        progress(len(charts), len(charts), "charts: done")
+    return charts
+
+
+def add_trend_section(
+    report: Report, result, *, size_unit: str = "", figures: bool = True, charts: dict[str, bytes] | None = None
+) -> None:
     """Add the monitoring section of a :class:`~tromplab.trend.TrendResult` to ``report``.
 
     The survey flags, the rule, the tidy table of the charted quantities and (with
-    ``figures``) one control chart per quantity captioned ``Control chart of <quantity>``.
+    ``figures``) one control chart per quantity captioned ``Control chart of <quantity>``
+    (``charts``: quantity -> the chart as PNG bytes at the report's resolution, drawn
+    beforehand by :func:`control_chart_pngs`; drawn here otherwise).
     """
     if "trend" not in report.order:
         report.order = (*report.order, "trend")
@@ -713,7 +774,9 @@ def add_trend_section(report: Report, result, *, size_unit: str = "", figures: b
             report.add(
                 "trend",
                 "figure",
-                figure_png(plot_control_chart(result, quantity, size_unit=size_unit, ax=offscreen_axes())),
+                charts[quantity]
+                if charts and quantity in charts
+                else figure_png(plot_control_chart(result, quantity, size_unit=size_unit, ax=offscreen_axes())),
                 caption=f"Control chart of {quantity}",
             )
     table = result.table.drop(columns=["formula"])

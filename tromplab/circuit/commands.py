@@ -64,6 +64,8 @@ class CircuitResult(ResultContract):
     bench: Workbench | None = None
     next_steps: tuple[str, ...] = ()
     weight_notes: tuple[str, ...] = ()
+    #: Every warning of the separators, as ``warnings.csv`` holds them (:func:`tromplab.circuit.outputs.balance_notices`).
+    notices: tuple = ()
 
     def summary(self) -> pd.DataFrame:
         """One row per stream: measured and reconciled solids flow and its sd."""
@@ -96,7 +98,9 @@ class CircuitResult(ResultContract):
         """
         from .outputs import balance_outputs
 
-        outputs = balance_outputs(self.balance, figures=figures, tables=self.tables, steps=self.next_steps)
+        outputs = balance_outputs(
+            self.balance, figures=figures, tables=self.tables, steps=self.next_steps, notices=list(self.notices)
+        )
         return replace_folder(outputs, outdir)
 
 
@@ -176,7 +180,7 @@ def reconcile_circuit(
     from ..loading.weights import weight_notes
     from .flowsheet import read_flowsheet
     from .measurements import read_survey
-    from .outputs import balance_next_steps, balance_tables
+    from .outputs import balance_next_steps, balance_notices, balance_tables
     from .reconciliation import reconcile
 
     weighting = check_choice(weighting, "weighting", choices=WEIGHTINGS)
@@ -193,7 +197,8 @@ def reconcile_circuit(
         bench = fit_separators(balance, weighting=weighting)
         tables["fits"], tables["ranking"] = bench.fits_table(), bench.ranking_table()
     steps = balance_next_steps(balance, tables)
-    return CircuitResult(balance, tables, bench, steps, tuple(weight_notes(tables["points"])))
+    notices = balance_notices(tables, bench)  # warnings.csv, and the console's lines once per kind
+    return CircuitResult(balance, tables, bench, steps, tuple(weight_notes(tables["points"])), tuple(notices))
 
 
 def design_circuit(
@@ -248,9 +253,10 @@ def design_circuit(
 def console_report(result: CircuitResult, written: dict, *, format_fits=None) -> str:
     """What ``tromplab circuit`` prints: the summary, the flows, the largest adjustments, the
     fits (with ``format_fits``, the fit command's table, else the best curve per separator),
-    the next steps and the files."""
+    the next steps and the files (the warnings go to standard error, once per kind:
+    :attr:`CircuitResult.notices`)."""
     balance = result.balance
-    lines = [*map(_wrapped, balance.report().splitlines()), *map(_wrapped, result.weight_notes), "", "Reconciled solids flows:"]
+    lines = [*map(_wrapped, balance.report().splitlines()), "", "Reconciled solids flows:"]
     flows = balance.flows_table()[["stream", "measured", "reconciled", "reconciled_sd"]]
     lines.append(flows.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
     largest = balance.largest_adjustments(5)

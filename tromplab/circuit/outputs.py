@@ -4,7 +4,8 @@
 Tables ``flows.csv``, ``distributions.csv``, ``adjustments.csv``, ``gross_errors.csv``,
 ``elimination.csv``, ``nodal_tests.csv``, ``worth.csv``, ``observability.csv``, ``design.csv``, ``chi_square.csv``,
 ``degrees_of_freedom.csv``, ``partition.csv``, ``points.csv``, ``flowsheet.csv`` (and
-``water.csv`` with per cent solids measured, ``components.csv`` with per-class assays), ``summary.txt`` (:meth:`CircuitBalance.report`)
+``water.csv`` with per cent solids measured, ``components.csv`` with per-class assays, ``warnings.csv``
+when a separator's points or fits have a warning), ``summary.txt`` (:meth:`CircuitBalance.report`)
 and the figures ``flowsheet.png``, ``adjustments.png``, ``distributions.png`` (and
 ``partition.png`` with per-class assays).
 """
@@ -17,7 +18,8 @@ from pathlib import Path
 
 import pandas as pd
 
-from ..loading.weights import weight_notes
+from ..loading.weights import weight_notes, weight_notices
+from ..notices import Notice, notice_table
 from ..output.csv_parts import file_writers
 from .elimination import exclusion_name
 from .plotting import figure_size
@@ -69,14 +71,27 @@ def balance_summary(balance, tables: dict, steps=()) -> str:
     return "\n".join(lines) + "\n"
 
 
+def balance_notices(tables: dict, bench=None) -> list[Notice]:
+    """Every warning of a reconciled survey's separators, one :class:`~tromplab.notices.Notice`
+    per separator (and assayed component) and kind: the weights of its points concentrated on a
+    few classes (``points.csv``, :func:`~tromplab.loading.weights.weight_notices`), then, with
+    the fits of ``--fit`` (``bench``), the notes on its points (:meth:`Workbench.notices`)."""
+    notices = [Notice(name, note) for name, note in weight_notices(tables["points"])]
+    return notices + (list(bench.notices()) if bench is not None else [])
+
+
 def balance_outputs(
-    balance, *, figures: bool = True, tables: dict | None = None, steps=None
+    balance, *, figures: bool = True, tables: dict | None = None, steps=None, notices=None
 ) -> dict[str, Callable[[Path], None]]:
     """File name -> writer of every file of ``balance`` (``tables``: :func:`balance_tables` and any
-    further tables, such as the fits of ``--fit``; ``steps``: :func:`balance_next_steps`), for
+    further tables, such as the fits of ``--fit``; ``steps``: :func:`balance_next_steps`;
+    ``notices``: :func:`balance_notices`, written as ``warnings.csv`` when there is one), for
     :func:`tromplab.output.outputs.replace_folder`."""
     tables = balance_tables(balance) if tables is None else tables
     steps = balance_next_steps(balance, tables) if steps is None else steps
+    notices = balance_notices(tables) if notices is None else notices
+    if notices:  # every occurrence, as fit, trend and density fit write them
+        tables = {**tables, "warnings": notice_table(notices, subject="separator")}
     pictures = {}
     if figures:
         kinds = ("flowsheet", "adjustments", "distributions") if balance.has_size_classes else ("flowsheet", "adjustments")

@@ -31,7 +31,7 @@ from ..validation import (
     cli_type,
 )
 from .printing import format_fits, print_notices
-from .startup import EXIT_OK, stage_bars
+from .startup import EXIT_OK, print_result, stage_bars
 
 #: What the circuit commands import when they run (before they start, under the CLI's signal
 #: handling); the fits (``--fit``) and the figures add theirs (:func:`_imports`): lmfit and
@@ -192,11 +192,23 @@ def _run_circuit(args) -> int:
                                    size_unit=args.size_unit, exclude=args.exclude, weighting=args.weighting, progress=progress)  # fmt: skip
         written = result.save(args.outdir, figures=not args.no_figures)
     print(console_report(result, written, format_fits=format_fits))
-    if result.bench is not None:  # the notes on each separator's points (a cut they do not bracket), once per kind
-        notices = result.bench.notices()
-        print_notices(notices, total=len(result.bench.experiments) + len(result.bench.failures), quiet=args.quiet,
-                      verbose=args.verbose, noun="separators", listed_in="")  # fmt: skip
+    _print_circuit_notices(result, args)
     return EXIT_OK
+
+
+def _print_circuit_notices(run, args) -> None:
+    """The warnings of the separators (weights concentrated on a few classes, with ``--fit`` a cut
+    their points do not bracket) on standard error once per kind, every one with ``-v``, and
+    with ``--quiet`` only the one-line result; every one is in ``warnings.csv``."""
+    balance = run.balance
+    # a curve per separator, and one per separator and assayed component
+    total = len(balance.flowsheet.separators) * (1 + len(balance.survey.components))
+    notices = list(run.notices)
+    print_notices(notices, total=total, quiet=args.quiet, verbose=args.verbose, noun="separators")
+    if args.quiet:
+        verdict = balance.chi_square_table().iloc[0].verdict if balance.dof > 0 else "no redundancy to test"
+        said = f", {len(notices)} warning(s) (warnings.csv)" if notices else ""
+        print_result(f"tromplab circuit: survey reconciled ({verdict}){said}; results in {args.outdir}")
 
 
 def _run_design(args) -> int:

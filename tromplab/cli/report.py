@@ -50,11 +50,11 @@ def _run_report(args) -> int:
     check_output_file(args.output, inputs=[args.input])
     experiments = read_experiments(args.input, lab_options(args))
     settings = FitSettings.from_options(args, ci=None)  # the report's --ci is the level of its tables, not interval columns
-    with progress_bars(quiet=args.quiet) as progress:
+    with progress_bars(quiet=args.quiet, stages=("intervals", "figures")) as progress:
         bench = fit_with_settings(experiments, settings, progress=progress)
-    bench.check_fitted(args.input)
-    args.output.parent.mkdir(parents=True, exist_ok=True)
-    written = bench.write_report(args.output, level=args.ci, title=args.title, jobs=args.jobs)
+        bench.check_fitted(args.input)
+        args.output.parent.mkdir(parents=True, exist_ok=True)
+        written = bench.write_report(args.output, level=args.ci, title=args.title, jobs=args.jobs, progress=progress)
     print("Wrote:")
     for path in written.values():
         print(f"  {path}")

@@ -331,13 +331,15 @@ class progress_bars:
     """tqdm bars on standard error with rate and ETA, as one ``progress(done, total, label)``
     callback: a bar for the fits, then one for each later stage (labels ``"<stage>: ..."``,
     ``stages`` naming them: by default the intervals, counted in fits); ``unit`` is what the
-    fitting stage counts.  Silent when standard error is not a terminal, with --quiet, or
+    fitting stage counts, ``units`` what a later stage counts where it is not ``unit`` (the
+    intervals: fits).  Silent when standard error is not a terminal, with --quiet, or
     without tqdm."""
 
-    def __init__(self, *, quiet: bool = False, unit: str = "exp", stages: tuple[str, ...] = ("intervals",)):
+    def __init__(self, *, quiet: bool = False, unit: str = "exp", stages: tuple[str, ...] = ("intervals",), units=None):
         self.enabled = not quiet and sys.stderr.isatty()
         self.bar, self.stage = None, None
         self.unit, self.stages = unit, stages
+        self.units = {"intervals": "fit", **(units or {})}
 
     def __enter__(self):
         if not self.enabled:
@@ -355,7 +357,7 @@ class progress_bars:
                 return
             if stage != self.stage:
                 self._close()
-                unit = "fit" if stage == "intervals" else self.unit
+                unit = self.units.get(stage, self.unit)
                 self.bar = tqdm(total=total, desc=stage, unit=unit, file=sys.stderr, dynamic_ncols=True)
                 self.stage = stage
             self.bar.update(done - self.bar.n)

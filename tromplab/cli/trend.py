@@ -8,7 +8,7 @@ from ..output.outputs import check_output_folder
 from ..validation import check_probability, cli_type
 from .option_groups import READERS, lab_options
 from .printing import print_notices
-from .startup import print_result
+from .startup import print_result, progress_bars
 
 
 def add_trend(commands, groups) -> None:
@@ -41,8 +41,11 @@ def _run_trend(args) -> int:
     check_input_file(args.input)
     check_output_folder(args.outdir, inputs=[args.input])
     surveys = read_surveys(args.input, lab_options(args))
-    result = monitor_surveys(surveys, formula=args.formula, baseline=args.baseline, alpha=args.alpha)
-    written = result.save(args.outdir, size_unit=args.size_unit, figures=not args.no_figures)
+    with progress_bars(
+        quiet=args.quiet, unit="survey", stages=("tests", "charts"), units={"tests": "fit", "charts": "chart"}
+    ) as progress:
+        result = monitor_surveys(surveys, formula=args.formula, baseline=args.baseline, alpha=args.alpha, progress=progress)
+        written = result.save(args.outdir, size_unit=args.size_unit, figures=not args.no_figures, progress=progress)
     print(result.report())
     print("\nWrote:")
     for path in written.values():

@@ -277,6 +277,12 @@ def weight_notes(points) -> list[str]:
     ``size_upper`` (with or without a unit suffix, as written); rows without a weight are
     classes not fitted.
     """
+    return [f"note ({name}): {note}" for name, note in weight_notices(points)]
+
+
+def weight_notices(points) -> list[tuple[str, str]]:
+    """``(experiment, note)`` of each experiment of a Tromp-points table whose weights are
+    concentrated (:func:`concentration_note`; ``points`` as for :func:`weight_notes`)."""
     if "weight" not in points.columns or points.empty:
         return []
     lower = next(c for c in points.columns if c.startswith("size_lower"))
@@ -286,5 +292,5 @@ def weight_notes(points) -> list[str]:
     for name, part in points.groupby("experiment", sort=False):
         labels = [class_label(lo, hi, unit) for lo, hi in zip(part[lower], part[upper])]
         note = concentration_note(part["weight"].to_numpy(dtype=float), labels)
-        notes += [f"note ({name}): {note}"] if note else []
+        notes += [(str(name), note)] if note else []
     return notes

@@ -132,6 +132,20 @@ def figure_png(ax, *, dpi: int = 120) -> bytes:
     return buffer.getvalue()
 
 
+def figure_pngs(ax, dpis: Sequence[int]) -> list[bytes]:
+    """The Axes' figure laid out once and saved as PNG bytes at each of ``dpis``: the same bytes
+    as :func:`figure_png` at each, without drawing and laying out the figure again for each."""
+    figure = ax.figure
+    figure.tight_layout()
+    figure.set_layout_engine(None)  # as save_figure does: the layout stays as tight_layout left it
+    pictures = []
+    for dpi in dpis:
+        buffer = io.BytesIO()
+        figure.savefig(buffer, dpi=dpi, format="png")
+        pictures.append(buffer.getvalue())
+    return pictures
+
+
 def curve_band(fit: CurveFit, size, *, level: float = 0.95):
     """Pointwise delta-method band of a fitted curve: ``(low, high)`` at ``size``.
 

@@ -21,7 +21,7 @@ from pathlib import Path
 import pandas as pd
 
 from .._version import __version__
-from ..curves.intervals import interval_table
+from ..curves.intervals import batched_profile_intervals, interval_table
 from ..curves.measured import CUT_WARNING
 from ..errors import expect_kind, expect_like
 from ..loading.lab import PARTITION_METHOD_TEXT, MassBalance
@@ -68,6 +68,8 @@ class Report:
     order: tuple[str, ...] = SECTIONS  # the sections rendered, in order (a trend report has its own)
     tables: dict[str, pd.DataFrame] = field(default_factory=dict)  # full tables written beside the report as CSV
     headings: dict[str, str] = field(default_factory=dict)  # a section's own heading (a density report's tests)
+    # each table's display form (display_table), made once for html() and markdown(): id -> (table, shown, notes)
+    _displayed: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def heading(self, section: str) -> str:
         """The heading of ``section``: this report's own, else the shared one."""
@@ -75,6 +77,14 @@ class Report:
 
     def add(self, section: str, kind: str, content, caption: str = "") -> None:
         self.sections.setdefault(section, []).append((kind, content, caption))
+
+    def _display(self, table: pd.DataFrame) -> tuple[pd.DataFrame, list[str]]:
+        """:func:`display_table` of ``table``, made once for both renderings (the table is kept
+        beside its display form, so its id cannot be taken by another table meanwhile)."""
+        found = self._displayed.get(id(table))
+        if found is None or found[0] is not table:
+            found = self._displayed[id(table)] = (table, *display_table(table))
+        return found[1], found[2]
 
     def html(self) -> str:
         parts = [
@@ -88,7 +98,7 @@ class Report:
                 if caption and kind != "figure":
                     parts.append(f"<h3>{html.escape(caption)}</h3>")
                 if kind == "table":
-                    shown, notes = display_table(content)
+                    shown, notes = self._display(content)
                     parts.append(f'<div class="table-wrap">{_breakable_headers(shown.to_html(index=False, border=0))}</div>')
                     parts += [f'<p class="note">{html.escape(note)}</p>' for note in notes]
                 elif kind == "warning":
@@ -116,7 +126,7 @@ class Report:
                 if caption and kind != "figure":
                     lines += [f"### {md(caption)}", ""]
                 if kind == "table":
-                    shown, notes = display_table(content)
+                    shown, notes = self._display(content)
                     text_columns = [c for c in content.columns if _is_text(content[c])]
                     lines += [markdown_table(shown, text_columns=text_columns), "", *[f"{md(note)}  " for note in notes], ""]
                 elif kind == "warning":
@@ -238,6 +248,7 @@ def build_report(
     title: str = "tromplab report",
     partition_to: str = "fine",
     map_work=None,
+    progress=None,
 ) -> Report:
     """Assemble the report of a fitted batch (and the balances of lab input).
 
@@ -259,6 +270,8 @@ def build_report(
         ``map_work(function, chunks, argument)`` yields ``function(argument, chunk)`` for each
         chunk in order (the batch's workers: the per-experiment figures are drawn there);
         default in this process.
+    progress : callable, optional
+        ``progress(done, total, label)`` as the experiments' figures are drawn (``"figures: ..."``).
     """
     expect_like(bench, ("fits_table", "ranking_table", "fits_of"), "bench", "a Workbench (tromplab.fit_experiments)")
     check_partition_to(partition_to)
@@ -278,7 +291,8 @@ def build_report(
     if not averages.empty:
         averages_shown = averages[averages["experiment"].isin(shown)]
         report.add("averages", "table", averages_shown[["experiment", "quantity", "value", "stderr", "low", "high"]])
-    _add_figures(report, bench, fits, ranking, size_unit=size_unit, partition_to=partition_to, shown=shown, map_work=map_work)
+    _add_figures(report, bench, fits, ranking, size_unit=size_unit, partition_to=partition_to, shown=shown,
+                 map_work=map_work, progress=progress)  # fmt: skip
     return report
 
 
@@ -382,17 +396,36 @@ def _add_fits(report: Report, bench, fits: pd.DataFrame) -> None:
 
 
 def _add_parameters(report: Report, bench, *, level: float, shown: list[str]) -> None:
-    """Parameters and indices of each experiment's top-ranked formula, with their intervals."""
-    for experiment in [e for e in bench.experiments if e in shown]:
-        best = bench.best_fit(experiment)
+    """Parameters and indices of each experiment's top-ranked formula, with their intervals
+    (the profile intervals of all of them searched at once, :func:`_profiled_bests`)."""
+    bests = {experiment: bench.best_fit(experiment) for experiment in bench.experiments if experiment in shown}
+    profiled = _profiled_bests([best for best in bests.values() if best is not None], level)
+    for experiment, best in bests.items():
         if best is not None:
-            table = interval_table(best, level=level)
+            table = interval_table(best, level=level, profiled=profiled.get(id(best)))
             report.add(
                 "parameters",
                 "table",
                 table,
                 caption=f"Experiment {experiment}: top-ranked formula {best.formula.id} ({level:.0%} intervals)",
             )
+
+
+def _profiled_bests(fits: list, level: float) -> dict[int, dict]:
+    """id of each fit -> its profile intervals (:func:`batched_profile_intervals`), searched in
+    one batch per formula and number of points: a batch pads its rows to its longest, and the
+    sums over a row move in their last bits with the padding, so fits of one length together
+    give the intervals each would get alone.  A fit the batch does not take is left out (its
+    intervals are then made by :func:`interval_table` itself, through lmfit)."""
+    by_length: dict[int, list] = {}
+    for fit in fits:
+        by_length.setdefault(fit.points.n, []).append(fit)
+    profiled = {}
+    for members in by_length.values():
+        for fit, found in zip(members, batched_profile_intervals(members, level)):
+            if found is not None:
+                profiled[id(fit)] = found
+    return profiled
 
 
 #: Experiments whose figures one worker draws at a time.
@@ -409,10 +442,11 @@ def _add_figures(
     partition_to: str,
     shown: list[str],
     map_work=None,
+    progress=None,
 ) -> None:
     """Tromp curves and residuals per experiment shown (drawn by ``map_work``'s workers), then F
     across experiments (an overview of the top-ranked fits for a large batch) and the ranking
-    (when there are several)."""
+    (when there are several); ``progress`` told of each chunk of experiments drawn."""
     drawn = [
         (experiment, bench.fits_of(experiment), bench.best_fit(experiment))
         for experiment in bench.experiments
@@ -422,10 +456,16 @@ def _add_figures(
     options = {"size_unit": size_unit, "partition_to": partition_to}
     if map_work is None:
         map_work = _map_here
+    if progress is not None and drawn:
+        progress(0, len(drawn), f"figures: experiment {drawn[0][0]}")
+    done = 0
     for chunk, pictures in zip(chunks, map_work(experiment_figures, chunks, options)):
         for (experiment, _, _), (curves, residuals) in zip(chunk, pictures):
             report.add("figures", "figure", curves, caption=f"Tromp curve, experiment {experiment}")
             report.add("figures", "figure", residuals, caption=f"Residuals, experiment {experiment}")
+        done += len(chunk)
+        if progress is not None:
+            progress(done, len(drawn), f"figures: experiment {chunk[-1][0]}")
     if fits["success"].any() and len(shown) < len(bench.experiments):
         overview = plot_batch_overview(fits, axes=offscreen_axes(2, 2, figsize=(9, 6.5)))[0]
         report.add("figures", "figure", figure_png(overview), caption="Top-ranked fits of all experiments")

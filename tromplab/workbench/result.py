@@ -381,14 +381,16 @@ class Workbench(ResultContract):
         size_unit: str | None = None,
         title: str = "tromplab report",
         jobs: int | None = 1,
+        progress=None,
     ):
         """Write the HTML report (and its Markdown twin) to ``path``, as ``tromplab report`` does.
 
         ``balances`` (default: those the batch was read with, :func:`tromplab.read_experiments`),
         ``level`` (default: the batch's ``ci``, else 0.95) and ``size_unit`` (default: the
         batch's) as for the command; ``jobs`` worker processes draw the per-experiment
-        figures (None or 0: all cores; the report is the same for any number).  Returns
-        ``{file name: path}`` of the written files.
+        figures (None or 0: all cores; the report is the same for any number); ``progress(done,
+        total, label)`` is told as they are drawn (``"figures: ..."``).  Returns ``{file name:
+        path}`` of the written files.
         """
         check_optional(check_probability, level, "level")
         check_optional(check_count, jobs, "jobs", minimum=0, maximum=MAX_JOBS)
@@ -402,6 +404,7 @@ class Workbench(ResultContract):
             title=title,
             partition_to=self.partition_to,
             map_work=functools.partial(map_on_workers, jobs=jobs or None, client=None),
+            progress=progress,
         )
         return write_report(built, path)
 

@@ -499,7 +499,18 @@ def shuvalov_break(kr: float, measured_efficiency: float) -> float:
         raise NoBreakPointError(kr, measured_efficiency, eta_plain)
     if measured_efficiency == eta_plain:
         return 0.0
-    return scipy.optimize.brentq(lambda xa: _plateau_eta(kr, xa) - measured_efficiency, 0.0, 1.0, xtol=1e-14)
+    # _plateau_eta(kr, xa) with the parts that do not depend on xa (the gamma function and the
+    # upper end of the area) computed once, not at each of the root finder's steps: the same
+    # operations on the same numbers, so the same root to the last bit
+    a = 1.0 / kr
+    scale = scipy.special.gamma(a) * LN2 ** (-a) / kr
+    upper = scipy.special.gammainc(a, LN2 * 1.0**kr)
+
+    def plateau_eta_less_target(xa):
+        plateau = xa * rosin_rammler(xa, kr)
+        return (plateau + scale * (upper - scipy.special.gammainc(a, LN2 * xa**kr)))[()] - measured_efficiency
+
+    return scipy.optimize.brentq(plateau_eta_less_target, 0.0, 1.0, xtol=1e-14)
 
 
 class NoBreakPointError(ValueError):

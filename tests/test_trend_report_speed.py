@@ -1,0 +1,233 @@
+"""`trend` and `report` without repeated work, with progress; `circuit` writes warnings.csv.
+
+The outputs are those of the code before the speed-up (tests/data/trend_reference, written by
+it); each shortcut is checked against the long way it replaces, to the last bit where the
+arithmetic is the same.
+"""
+
+import io
+import re
+import sys
+
+import numpy as np
+import pandas as pd
+import pytest
+import scipy.optimize
+
+from tromplab.cli import main
+from tromplab.cli.startup import progress_bars
+from tromplab.curves.formulas.paper import _plateau_eta, shuvalov_break
+from tromplab.curves.intervals import interval_table
+from tromplab.trend import control_chart_pngs, monitor_surveys, read_surveys, write_trend
+
+from .conftest import DATASETS, ROOT
+
+SERIES = DATASETS / "classifier_trend_surveys.csv"
+REFERENCE = ROOT / "tests" / "data" / "trend_reference"
+CIRCUIT = (DATASETS / "circuit_example_flowsheet.csv", DATASETS / "circuit_example_survey.csv")
+
+
+@pytest.fixture(scope="module")
+def documented():
+    """The trend of docs/trend.md (formula plitt_bypass), fitted once for the module."""
+    return monitor_surveys(read_surveys(SERIES), formula="plitt_bypass")
+
+
+def assert_same_table(found: pd.DataFrame, expected: pd.DataFrame) -> None:
+    """Text and flags exactly, numbers to 1e-9 relative (the last bit of another CPU's arithmetic aside)."""
+    assert list(found.columns) == list(expected.columns)
+    for column in expected.columns:
+        if pd.api.types.is_float_dtype(expected[column]):
+            np.testing.assert_allclose(found[column], expected[column], rtol=1e-9, atol=0, err_msg=column)
+        else:
+            assert found[column].tolist() == expected[column].tolist(), column
+
+
+@pytest.mark.parametrize(
+    ("reference", "options"),
+    [("plitt_bypass", ["--formula", "plitt_bypass", "--size-unit", "um"]), ("best", [])],
+)
+def test_trend_writes_the_tables_of_the_code_before_the_speed_up(tmp_path, capsys, reference, options):
+    assert main(["trend", str(SERIES), "-o", str(tmp_path / "out"), *options]) == 0
+    capsys.readouterr()
+    for name in ("trend.csv", "trend_surveys.csv", "warnings.csv"):
+        assert_same_table(pd.read_csv(tmp_path / "out" / name), pd.read_csv(REFERENCE / reference / name))
+
+
+def test_each_chart_drawn_once_gives_the_bytes_of_drawing_it_for_each_resolution(documented):
+    """control_chart_pngs lays a chart out once and saves it at 120 and 100 dpi: the bytes of a
+    chart drawn afresh and saved by figure_png at each resolution (what the files and the
+    report held before)."""
+    from tromplab.output.plotting import figure_png, offscreen_axes, plot_control_chart
+
+    charts = control_chart_pngs(documented, size_unit="um")
+    assert list(charts) == ["d_cut", "ep", "eta", "bypass"]
+    for quantity, (file_png, report_png) in charts.items():
+        for dpi, found in ((120, file_png), (100, report_png)):
+            fresh = figure_png(plot_control_chart(documented, quantity, size_unit="um", ax=offscreen_axes()), dpi=dpi)
+            assert found == fresh, (quantity, dpi)
+
+
+def test_the_trend_folder_holds_the_charts_drawn_once(tmp_path, documented, monkeypatch):
+    """write_trend draws each chart once (four charts, not eight) and the report embeds the
+    100-dpi picture of each."""
+    import tromplab.trend as trend
+
+    drawn = []
+    real = trend.plot_control_chart
+
+    def counted(result, quantity, **options):
+        drawn.append(quantity)
+        return real(result, quantity, **options)
+
+    monkeypatch.setattr(trend, "plot_control_chart", counted)
+    write_trend(documented, tmp_path, size_unit="um")
+    assert drawn == ["d_cut", "ep", "eta", "bypass"]
+    html = (tmp_path / "trend_report.html").read_text(encoding="utf-8")
+    assert html.count("data:image/png;base64,") == 4
+
+
+def test_the_break_point_of_formula_11_is_the_root_of_the_equation_as_written_before():
+    """shuvalov_break solves the same equation with its constant parts computed once: the root
+    the old form (_plateau_eta at each step) gives, to the last bit."""
+    for kr in np.geomspace(0.3, 12.0, 23):
+        for efficiency in np.linspace(0.505, 0.97, 19):
+            try:
+                found = shuvalov_break(float(kr), float(efficiency))
+            except ValueError:
+                continue
+            if found == 0.0:
+                continue
+            before = scipy.optimize.brentq(
+                lambda xa, kr=kr, efficiency=efficiency: _plateau_eta(kr, xa) - efficiency, 0.0, 1.0, xtol=1e-14
+            )
+            assert found == before, (kr, efficiency)
+
+
+def test_the_report_searches_the_intervals_of_every_best_fit_at_once_with_the_same_result():
+    from tromplab import fit_experiments, read_experiments
+    from tromplab.output.report import _profiled_bests
+
+    experiments, _ = read_experiments(SERIES)
+    bench = fit_experiments(experiments[:8])
+    bests = [bench.best_fit(name) for name in bench.experiments]
+    profiled = _profiled_bests(bests, 0.9)
+    assert len(profiled) == len(bests)
+    for best in bests:
+        alone = interval_table(best, level=0.9)
+        pd.testing.assert_frame_equal(interval_table(best, level=0.9, profiled=profiled[id(best)]), alone, check_exact=True)
+
+
+def test_the_report_formats_each_table_once_for_both_renderings(tmp_path, monkeypatch):
+    import tromplab.output.report as report_module
+    from tromplab import fit_experiments, read_experiments
+
+    calls = []
+    real = report_module.display_table
+    monkeypatch.setattr(report_module, "display_table", lambda table: calls.append(id(table)) or real(table))
+    experiments, balances = read_experiments(DATASETS / "air_classifier_lab_synthetic.csv")
+    bench = fit_experiments(experiments)
+    bench.write_report(tmp_path / "report.html", balances=balances)
+    assert calls and len(calls) == len(set(calls))
+    assert "| formula" in (tmp_path / "report.md").read_text(encoding="utf-8")
+
+
+def test_trend_and_report_tell_their_progress_through_the_api(tmp_path, documented):
+    from tromplab import fit_experiments, read_experiments
+
+    told = []
+    surveys = read_surveys(SERIES)
+    monitor_surveys(surveys, formula="shuvalov", progress=lambda done, total, label: told.append((done, total, label)))
+    tests = [t for t in told if t[2].startswith("tests: ")]
+    assert tests[-1][0] == tests[-1][1] == 40  # 23 surveys against the previous one, 16 against the baseline, the baseline
+    assert [d for d, _, _ in tests] == sorted(d for d, _, _ in tests)
+    told.clear()
+    documented.save(tmp_path / "trend", figures=True, progress=lambda done, total, label: told.append((done, total, label)))
+    assert told[-1][:2] == (4, 4) and all(label.startswith("charts: ") for _, _, label in told)
+    experiments, _ = read_experiments(SERIES)
+    told.clear()
+    fit_experiments(experiments[:7]).write_report(
+        tmp_path / "r.html", progress=lambda done, total, label: told.append((done, total, label))
+    )
+    assert told[-1][:2] == (7, 7) and all(label.startswith("figures: ") for _, _, label in told)
+
+
+class _Terminal(io.StringIO):
+    def isatty(self):
+        return True
+
+
+@pytest.mark.parametrize(
+    "arguments",
+    [
+        ["trend", str(SERIES), "--formula", "plitt", "-o"],
+        ["report", str(DATASETS / "air_classifier_lab_synthetic.csv"), "--jobs", "1", "-o"],
+    ],
+)
+def test_progress_is_silent_when_standard_error_is_not_a_terminal(tmp_path, capsys, arguments):
+    assert main([*arguments, str(tmp_path / ("r.html" if arguments[0] == "report" else "out"))]) == 0
+    err = capsys.readouterr().err
+    assert "%|" not in err and "it/s" not in err and "\r" not in err
+
+
+def test_the_bars_of_trend_count_surveys_joint_fits_and_charts_on_a_terminal(tmp_path, monkeypatch):
+    terminal = _Terminal()
+    monkeypatch.setattr(sys, "stderr", terminal)
+    with progress_bars(unit="survey", stages=("tests", "charts"), units={"tests": "fit", "charts": "chart"}) as progress:
+        result = monitor_surveys(read_surveys(SERIES), formula="plitt", progress=progress)
+        write_trend(result, tmp_path, progress=progress)
+    shown = terminal.getvalue()
+    assert re.search(r"fitting: 100%.*24/24.*survey", shown)
+    assert re.search(r"tests: 100%.*40/40.*fit", shown)
+    assert re.search(r"charts: 100%.*3/3.*chart", shown)
+    with progress_bars(quiet=True) as progress:
+        assert progress is None
+
+
+# --- circuit: warnings.csv, the console once per kind, --quiet and -v ----------------------------
+def test_circuit_writes_every_warning_to_warnings_csv_and_groups_them_on_the_console(tmp_path, capsys, monkeypatch):
+    """The bundled example's cyclone has its weights on two classes (one warning, said in its
+    own words); with --fit and a cut unbracketed at every separator, the kind is said once with
+    its count; every occurrence is in warnings.csv, and -v prints each one."""
+    from tromplab.notices import Notice
+    from tromplab.workbench.result import Workbench
+
+    monkeypatch.setattr(
+        Workbench, "notices", lambda bench: [Notice(n, "the cut is not bracketed by the data (gap)") for n in bench.experiments]
+    )
+    folder = tmp_path / "circuit"
+    assert main(["circuit", *map(str, CIRCUIT), "-o", str(folder), "--fit", "--no-figures"]) == 0
+    captured = capsys.readouterr()
+    err = " ".join(captured.err.split())
+    assert "warning: 3 of 3 separators: the cut is not bracketed by the data" in err
+    assert "warning (cyclone): 2 of 7 classes (150-300 um, 300-600 um) carry 52 % of the weight" in err
+    assert "every one in warnings.csv" in err and "2 of 7 classes" not in captured.out
+    listed = pd.read_csv(folder / "warnings.csv")
+    assert listed["code"].tolist() == ["weight-concentrated", "cut-not-bracketed", "cut-not-bracketed", "cut-not-bracketed"]
+    assert listed["separator"].tolist() == ["cyclone", "top_deck", "bottom_deck", "cyclone"]
+    assert str(folder / "warnings.csv") in captured.out  # among the files written
+    assert main(["circuit", *map(str, CIRCUIT), "-o", str(folder), "--fit", "--no-figures", "-v"]) == 0
+    verbose = capsys.readouterr().err
+    assert len(re.findall(r"^warning \((top_deck|bottom_deck|cyclone)\): the cut is not bracketed", verbose, re.M)) == 3
+
+
+def test_circuit_quiet_prints_one_result_line_and_no_warning(tmp_path, capsys):
+    folder = tmp_path / "circuit"
+    assert main(["-q", "circuit", *map(str, CIRCUIT), "-o", str(folder), "--no-figures"]) == 0
+    captured = capsys.readouterr()
+    assert captured.err == ""
+    (line,) = captured.out.splitlines()
+    assert line.startswith("tromplab circuit: survey reconciled (") and "1 warning(s) (warnings.csv)" in line
+    assert str(folder) in line
+    assert len(pd.read_csv(folder / "warnings.csv")) == 1
+
+
+def test_a_balance_saved_from_python_writes_the_same_warnings_csv(tmp_path, capsys):
+    from tromplab.circuit import read_flowsheet, read_survey, reconcile
+
+    sheet = read_flowsheet(CIRCUIT[0])
+    balance = reconcile(sheet, read_survey(CIRCUIT[1], sheet))
+    balance.save(tmp_path / "api", figures=False)
+    assert main(["circuit", *map(str, CIRCUIT), "-o", str(tmp_path / "cli"), "--no-figures"]) == 0
+    capsys.readouterr()
+    assert (tmp_path / "api" / "warnings.csv").read_bytes() == (tmp_path / "cli" / "warnings.csv").read_bytes()
