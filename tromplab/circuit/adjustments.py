@@ -64,6 +64,28 @@ class MeasurementTests(NamedTuple):
     correlation: np.ndarray  # of the statistics: beyond EQUIVALENT_CORRELATION no test tells them apart
 
 
+#: Measurement tests whose sizes agree to this share of the largest are a tie, ranked by the
+#: measurement's row in the file: the assays of a stream reported as one value tie to 8 digits,
+#: which the last bits of the solution (another BLAS, another machine) would otherwise order.
+TEST_TIE = 1e-6
+
+
+def ranked_by_test(table: pd.DataFrame) -> pd.DataFrame:
+    """``table`` (rows of :meth:`CircuitBalance.adjustments_table` with a finite test), largest
+    absolute measurement test first; tests within :data:`TEST_TIE` of each other by file row."""
+    size = table["measurement_test"].abs().to_numpy(float)
+    rows = pd.to_numeric(table["row"], errors="coerce").to_numpy(float)
+    position = np.arange(len(table))
+    by_size = np.lexsort((position, rows, -size))
+    tie_group = np.empty(len(table), dtype=int)
+    group, leader = -1, np.inf
+    for k in by_size:  # a test joins the group of the largest test it is within TEST_TIE of
+        if size[k] < leader * (1.0 - TEST_TIE):
+            group, leader = group + 1, size[k]
+        tie_group[k] = group
+    return table.iloc[np.lexsort((position, rows, tie_group))]
+
+
 def adjustments_frame(balance) -> pd.DataFrame:
     """The table of :meth:`CircuitBalance.adjustments_table` (computed once per balance)."""
     problem = balance.problem

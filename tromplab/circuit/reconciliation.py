@@ -17,8 +17,8 @@ and fractions (Smith & Ichiyen 1973; Hodouin & Everell 1980).  It is solved exac
 by alternating flows and fractions, in the class flows :math:`m_{s,i} = F_s x_{s,i}`:
 there the balances are linear, :math:`F_s = \sum_i m_{s,i}` and :math:`x_{s,i} =
 m_{s,i}/F_s`, so the feasible set is :math:`m = m_0 + N z` (:math:`N` an orthonormal basis
-of the null space of the constraints) and :math:`z` is found without constraints by the Levenberg-Marquardt
-least squares of :func:`scipy.optimize.least_squares`.  Flows
+of the null space of the constraints) and :math:`z` is found without constraints by
+Gauss-Newton steps (:func:`~tromplab.circuit.problem.gauss_newton`; the same bits in every run).  Flows
 given with a standard deviation of 0 (and the basis of 100 on the first feed when no flow
 is measured) join the linear constraints.
 
@@ -74,7 +74,14 @@ from ..results_contract import ResultContract
 from ..statistics.distributions import chi2_ppf, chi2_sf, norm_isf
 from ..validation import check_probability
 from . import plotting
-from .adjustments import ADJUSTMENT_COLUMNS, EQUIVALENT_CORRELATION, MeasurementTests, adjustments_frame, measurement_tests
+from .adjustments import (
+    ADJUSTMENT_COLUMNS,
+    EQUIVALENT_CORRELATION,
+    MeasurementTests,
+    adjustments_frame,
+    measurement_tests,
+    ranked_by_test,
+)
 from .assays import MIN_ASSAYED_SHARE
 from .design import design_table, water_determined_by
 from .elimination import nodal_tests, proposal, serial_elimination, without
@@ -99,8 +106,10 @@ from .worth import results, worth_table
 
 __all__ = ["ADJUSTMENT_COLUMNS", "EQUIVALENT_CORRELATION", "MIN_FEED_SHARE", "PARTITION_COLUMNS", "CircuitBalance", "reconcile"]
 
-#: The error model at the reconciled values has settled when no sd moves by more than this share of itself.
-ERROR_MODEL_TOLERANCE = 1e-6
+#: The error model at the reconciled values has settled when no sd moves by more than this share of
+#: itself: tight enough that the reported values are those of the fixed point to about 1e-13, not of
+#: the path the rounds took to it (at 1e-6 the last round's stop moved them by 1e-9).
+ERROR_MODEL_TOLERANCE = 1e-10
 MAX_ERROR_MODEL_ITERATIONS = 50
 DISTRIBUTION_COLUMNS = ["stream", "size_lower", "size_upper", "size", "measured", "measured_sd", "reconciled",
                         "reconciled_sd"]  # fmt: skip
@@ -461,11 +470,12 @@ class CircuitBalance(ResultContract):
         return self._adjustments.copy()
 
     def gross_errors_table(self) -> pd.DataFrame:
-        """The measurements suspected of gross error, largest absolute measurement test first;
-        ``rank`` 1 is the first candidate."""
+        """The measurements suspected of gross error, largest absolute measurement test first
+        (tests equal to :data:`~tromplab.circuit.adjustments.TEST_TIE` by file row); ``rank`` 1
+        is the first candidate."""
         table = self._adjustments
         suspects = table.loc[table["suspect"].astype(bool)].copy()  # an empty object column would select columns
-        suspects = suspects.reindex(suspects["measurement_test"].abs().sort_values(ascending=False).index)
+        suspects = ranked_by_test(suspects)
         suspects.insert(0, "rank", np.arange(1, len(suspects) + 1))
         return suspects.reset_index(drop=True)
 
@@ -502,7 +512,7 @@ class CircuitBalance(ResultContract):
     def largest_adjustments(self, n: int = 5) -> pd.DataFrame:
         """The ``n`` measurements with the largest absolute measurement tests (suspect or not)."""
         table = self._adjustments.dropna(subset=["measurement_test"])
-        return table.reindex(table["measurement_test"].abs().sort_values(ascending=False).index).head(n).reset_index(drop=True)
+        return ranked_by_test(table).head(n).reset_index(drop=True)
 
     # --- separators -----------------------------------------------------------------------
     @cached_property
