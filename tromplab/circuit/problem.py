@@ -175,7 +175,7 @@ class Problem:
         return H
 
 
-def solve(problem: Problem, start: np.ndarray) -> tuple[np.ndarray, bool, str]:
+def solve(problem: Problem, start: np.ndarray, xtol: float | None = None) -> tuple[np.ndarray, bool, str]:
     """The weighted least squares in the free unknowns ``z``, started from ``start`` projected onto the constraints.
 
     Directions that no measurement sees (water flows the survey leaves undetermined) keep
@@ -186,7 +186,7 @@ def solve(problem: Problem, start: np.ndarray) -> tuple[np.ndarray, bool, str]:
         return z0, True, "nothing to adjust"
     if not np.all(np.isfinite(problem.whitened_residual(z0))):
         return z0, False, "the measurements' predictions are not finite at the starting point (an empty class or stream)"
-    z, success, message = gauss_newton(problem, z0)
+    z, success, message = gauss_newton(problem, z0, GAUSS_NEWTON_XTOL if xtol is None else xtol)
     unseen = decompose(problem, z).unseen
     return z - unseen @ (unseen.T @ (z - z0)), success, message
 
@@ -199,7 +199,7 @@ GAUSS_NEWTON_ROUNDING = 1e-12
 GAUSS_NEWTON_ITERATIONS = 200
 
 
-def gauss_newton(problem: Problem, z0: np.ndarray) -> tuple[np.ndarray, bool, str]:
+def gauss_newton(problem: Problem, z0: np.ndarray, xtol: float = GAUSS_NEWTON_XTOL) -> tuple[np.ndarray, bool, str]:
     """The weighted least squares by Gauss-Newton steps, each the minimum-norm least-squares
     solution of the linearised residuals (LAPACK's ``gelsd``; its pivoted-QR sibling ``gelsy``
     stopped 1e-5 short on a plant with assays, whose weights span many orders), shortened by
@@ -219,7 +219,7 @@ def gauss_newton(problem: Problem, z0: np.ndarray) -> tuple[np.ndarray, bool, st
     for _ in range(GAUSS_NEWTON_ITERATIONS):
         step = np.linalg.lstsq(problem.whitened_jacobian(z), -residual, rcond=None)[0]
         size = float(np.linalg.norm(step))
-        if size <= GAUSS_NEWTON_XTOL * (float(np.linalg.norm(z)) + GAUSS_NEWTON_XTOL):
+        if size <= xtol * (float(np.linalg.norm(z)) + xtol):
             return z, True, "Gauss-Newton converged"
         length = 1.0
         while True:
@@ -600,7 +600,7 @@ def solids_first_start(flowsheet: Flowsheet, survey: Survey, problem: Problem) -
     solids_problem, _ = build_problem(flowsheet, solids_survey)
     start = starting_point(flowsheet, solids_survey, solids_problem)
     check_observable(flowsheet, solids_survey, solids_problem, start)
-    z, _, _ = solve(solids_problem, start)
+    z, _, _ = solve(solids_problem, start, xtol=1e-6)  # a start: the assayed survey's solve refines it
     solids = solids_problem.m0 + solids_problem.N @ z
     S, n = problem.n_streams, problem.n_classes
     v = np.concatenate([solids, _start_components(survey, flowsheet.stream_index, solids[: S * n].reshape(S, n))])
