@@ -24,7 +24,7 @@ import pandas as pd
 
 from ..statistics.distributions import norm_sf
 from .measurements import class_name
-from .problem import decompose
+from .problem import TESTABLE_SHARE, decompose
 
 #: Adjustments correlated beyond this are reported as indistinguishable: a gross error in one
 #: of them moves the others' standardised adjustments alike, so no test can tell which it is.
@@ -97,7 +97,7 @@ def adjustments_frame(balance) -> pd.DataFrame:
     cov_pred = H @ balance.covariance @ H.T
     adjustment = balance.measured_y - problem.predict(m)  # measured minus reconciled, without the bounds
     adjustment_var = problem.variance - np.diag(cov_pred)
-    testable = adjustment_var > 1e-8 * problem.sd**2
+    testable = adjustment_var > TESTABLE_SHARE * problem.sd**2
     adjustment_sd = np.where(testable, np.sqrt(np.clip(adjustment_var, 0.0, None)), np.nan)
     with np.errstate(invalid="ignore", divide="ignore"):
         standardised = np.where(testable, adjustment / adjustment_sd, np.nan)
@@ -187,7 +187,7 @@ def measurement_tests(balance) -> MeasurementTests:
     G = problem.W @ problem.effects
     QG = G - basis @ (basis.T @ G)
     information = np.einsum("ij,ij->j", G, QG)
-    testable = information > 1e-8 * np.einsum("ij,ij->j", G, G)
+    testable = information > TESTABLE_SHARE * np.einsum("ij,ij->j", G, G)
     with np.errstate(invalid="ignore", divide="ignore"):
         estimate = np.where(testable, (G.T @ residual) / information, np.nan)
         estimate_sd = np.where(testable, 1.0 / np.sqrt(np.abs(information)), np.nan)
