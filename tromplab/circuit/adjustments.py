@@ -24,7 +24,7 @@ import pandas as pd
 
 from ..statistics.distributions import norm_sf
 from .measurements import class_name
-from .problem import decompose
+from .problem import TESTABLE_SHARE, decompose
 
 #: Adjustments correlated beyond this are reported as indistinguishable: a gross error in one
 #: of them moves the others' standardised adjustments alike, so no test can tell which it is.
@@ -64,6 +64,28 @@ class MeasurementTests(NamedTuple):
     correlation: np.ndarray  # of the statistics: beyond EQUIVALENT_CORRELATION no test tells them apart
 
 
+#: Measurement tests whose sizes agree to this share of the largest are a tie, ranked by the
+#: measurement's row in the file: the assays of a stream reported as one value tie to 8 digits,
+#: which the last bits of the solution (another BLAS, another machine) would otherwise order.
+TEST_TIE = 1e-6
+
+
+def ranked_by_test(table: pd.DataFrame) -> pd.DataFrame:
+    """``table`` (rows of :meth:`CircuitBalance.adjustments_table` with a finite test), largest
+    absolute measurement test first; tests within :data:`TEST_TIE` of each other by file row."""
+    size = table["measurement_test"].abs().to_numpy(float)
+    rows = pd.to_numeric(table["row"], errors="coerce").to_numpy(float)
+    position = np.arange(len(table))
+    by_size = np.lexsort((position, rows, -size))
+    tie_group = np.empty(len(table), dtype=int)
+    group, leader = -1, np.inf
+    for k in by_size:  # a test joins the group of the largest test it is within TEST_TIE of
+        if size[k] < leader * (1.0 - TEST_TIE):
+            group, leader = group + 1, size[k]
+        tie_group[k] = group
+    return table.iloc[np.lexsort((position, rows, tie_group))]
+
+
 def adjustments_frame(balance) -> pd.DataFrame:
     """The table of :meth:`CircuitBalance.adjustments_table` (computed once per balance)."""
     problem = balance.problem
@@ -75,7 +97,7 @@ def adjustments_frame(balance) -> pd.DataFrame:
     cov_pred = H @ balance.covariance @ H.T
     adjustment = balance.measured_y - problem.predict(m)  # measured minus reconciled, without the bounds
     adjustment_var = problem.variance - np.diag(cov_pred)
-    testable = adjustment_var > 1e-8 * problem.sd**2
+    testable = adjustment_var > TESTABLE_SHARE * problem.sd**2
     adjustment_sd = np.where(testable, np.sqrt(np.clip(adjustment_var, 0.0, None)), np.nan)
     with np.errstate(invalid="ignore", divide="ignore"):
         standardised = np.where(testable, adjustment / adjustment_sd, np.nan)
@@ -165,7 +187,7 @@ def measurement_tests(balance) -> MeasurementTests:
     G = problem.W @ problem.effects
     QG = G - basis @ (basis.T @ G)
     information = np.einsum("ij,ij->j", G, QG)
-    testable = information > 1e-8 * np.einsum("ij,ij->j", G, G)
+    testable = information > TESTABLE_SHARE * np.einsum("ij,ij->j", G, G)
     with np.errstate(invalid="ignore", divide="ignore"):
         estimate = np.where(testable, (G.T @ residual) / information, np.nan)
         estimate_sd = np.where(testable, 1.0 / np.sqrt(np.abs(information)), np.nan)

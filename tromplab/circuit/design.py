@@ -23,7 +23,7 @@ from scipy import linalg
 from ..errors import OptionError
 from ..options import DEFAULT_PCT_SOLIDS_SD
 from .measurements import SHARE_COLUMNS, STREAM_VALUE_COLUMNS, ErrorModel, Survey
-from .problem import RANK_TOL
+from .problem import RANK_TOL, TESTABLE_SHARE
 
 #: Columns of :func:`design_table` (``DIR/design.csv``).
 DESIGN_COLUMNS = ["rank", "stream", "measurement", "quantity", "sd_before", "sd_after", "reduction", "makes_testable",
@@ -251,9 +251,9 @@ class CandidateUpdates:
             return self._refactored(E)
         ECJG = E @ self.CJG
         information = self.information + np.einsum("ij,ij->j", ECJG, linalg.cho_solve(factor, ECJG))
-        survey_testable = information > 1e-8 * np.einsum("ij,ij->j", self.G, self.G)
+        survey_testable = information > TESTABLE_SHARE * np.einsum("ij,ij->j", self.G, self.G)
         own = np.diag(linalg.cho_solve(factor, np.eye(E.shape[0])))
-        return np.sqrt(np.clip(variance, 0.0, None)), np.concatenate([survey_testable, own > 1e-8])
+        return np.sqrt(np.clip(variance, 0.0, None)), np.concatenate([survey_testable, own > TESTABLE_SHARE])
 
     def _within_seen(self, E: np.ndarray) -> bool:
         """Whether the candidate's rows lie in the directions the survey sees (the rank stays)."""
@@ -279,13 +279,13 @@ UPDATE_CANCELLATION = 1e-4
 
 def _information(J: np.ndarray, G: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The information of each raw error (columns of the whitened effects ``G``) off the range of
-    ``J`` (the rank decision of :data:`RANK_TOL`), and whether it is testable (more than 1e-8 of
+    ``J`` (the rank decision of :data:`RANK_TOL`), and whether it is testable (more than :data:`~tromplab.circuit.problem.TESTABLE_SHARE` of
     it, as in the measurement test)."""
     U, singular, _ = np.linalg.svd(J, full_matrices=False)
     rank = int(np.sum(singular > RANK_TOL * singular.max(initial=0.0)))
     basis = U[:, :rank]
     information = np.einsum("ij,ij->j", G, G - basis @ (basis.T @ G))
-    return information, information > 1e-8 * np.einsum("ij,ij->j", G, G)
+    return information, information > TESTABLE_SHARE * np.einsum("ij,ij->j", G, G)
 
 
 def _design_point(balance) -> np.ndarray:
@@ -297,7 +297,7 @@ def _design_point(balance) -> np.ndarray:
 def _testable(J: np.ndarray, G: np.ndarray) -> np.ndarray:
     """Which raw errors (columns of the whitened effects ``G``) a reconciliation with the whitened
     Jacobian ``J`` can test: their part off the range of ``J`` (the rank decision of
-    :data:`RANK_TOL`) carries more than 1e-8 of them, as in the measurement test."""
+    :data:`RANK_TOL`) carries more than TESTABLE_SHARE of them, as in the measurement test."""
     return _information(J, G)[1]
 
 

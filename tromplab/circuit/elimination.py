@@ -39,6 +39,7 @@ import pandas as pd
 
 from ..errors import OptionError
 from ..statistics.distributions import chi2_sf, norm_isf, norm_sf
+from .adjustments import ranked_by_test
 from .measurements import Survey, class_name
 
 #: Columns of the elimination table (``DIR/elimination.csv``).
@@ -82,7 +83,7 @@ def serial_elimination(balance, reconcile, *, max_steps: int | None = None, prog
         table = current.adjustments_table().dropna(subset=["measurement_test"])
         if table.empty:
             break
-        j = int(table["measurement_test"].abs().idxmax())
+        j = ranked_by_test(table).index[0]  # the largest test; of tied ones, the first in the file
         suspect = table.loc[j]
         survey = _compensated(current, j, float(suspect["gross_error"]))
         if progress is not None:

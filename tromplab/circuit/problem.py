@@ -6,7 +6,7 @@ are measured, the water flows; then, when the survey holds per-class assays, the
 the node balances, the fixed flows and the exact
 measurements are linear constraints :math:`A m = b`, so the feasible set is
 :math:`m = m_0 + N z` with :math:`N` an orthonormal basis of the null space of :math:`A`.
-:func:`solve` minimises the whitened residuals in :math:`z` by Levenberg-Marquardt,
+:func:`solve` minimises the whitened residuals in :math:`z` by Gauss-Newton,
 :func:`bounded_solution` adds the bounds :math:`m \ge 0` by an active set, and
 :func:`decompose` makes the one rank decision of a reconciliation (redundancy, covariance,
 observability and the projections of the tests all read it).  The method is in
@@ -43,6 +43,11 @@ BOUND_TOL = 1e-12
 #: (:meth:`Problem.whitened_jacobian`); below it (the bundled example has 176) the dense product
 #: is as fast and its arithmetic that of the earlier versions.
 SPARSE_UNKNOWNS = 500
+#: A measurement is testable (redundant) when the balances carry more than this share of its
+#: information (its adjustment's variance over its own): below it, the share is rounding of the
+#: covariance (an assayed survey's just-determined assays came out at 1e-8 to 2.5e-8, either side
+#: of the former 1e-8, from one start to another).
+TESTABLE_SHARE = 1e-6
 
 
 @dataclass(frozen=True)
@@ -175,7 +180,7 @@ class Problem:
         return H
 
 
-def solve(problem: Problem, start: np.ndarray) -> tuple[np.ndarray, bool, str]:
+def solve(problem: Problem, start: np.ndarray, xtol: float | None = None) -> tuple[np.ndarray, bool, str]:
     """The weighted least squares in the free unknowns ``z``, started from ``start`` projected onto the constraints.
 
     Directions that no measurement sees (water flows the survey leaves undetermined) keep
@@ -184,67 +189,59 @@ def solve(problem: Problem, start: np.ndarray) -> tuple[np.ndarray, bool, str]:
     z0 = problem.N.T @ (_assayed_classes_filled(problem, start) - problem.m0)
     if not (problem.N.shape[1] and problem.y.size):
         return z0, True, "nothing to adjust"
-    if problem.m0.size >= SPARSE_UNKNOWNS:
-        z, success, message = gauss_newton(problem, z0)
-        unseen = decompose(problem, z).unseen
-        return z - unseen @ (unseen.T @ (z - z0)), success, message
-    missing = max(problem.N.shape[1] - problem.W.shape[0], 0)  # Levenberg-Marquardt wants as many residuals as unknowns
-
-    def residual(z):
-        return np.concatenate([problem.whitened_residual(z), np.zeros(missing)])
-
-    if not np.all(np.isfinite(residual(z0))):  # scipy would raise "Residuals are not finite in the initial point"
+    if not np.all(np.isfinite(problem.whitened_residual(z0))):
         return z0, False, "the measurements' predictions are not finite at the starting point (an empty class or stream)"
-
-    def jacobian(z):
-        return np.vstack([problem.whitened_jacobian(z), np.zeros((missing, z.size))])
-
-    solution = optimize.least_squares(residual, z0, jac=jacobian, method="lm", x_scale="jac", xtol=1e-14, ftol=1e-14,
-                                      gtol=1e-12, max_nfev=2000)  # fmt: skip
-    unseen = decompose(problem, solution.x).unseen
-    return solution.x - unseen @ (unseen.T @ (solution.x - z0)), bool(solution.success), str(solution.message)
+    z, success, message = gauss_newton(problem, z0, GAUSS_NEWTON_XTOL if xtol is None else xtol)
+    unseen = decompose(problem, z).unseen
+    return z - unseen @ (unseen.T @ (z - z0)), success, message
 
 
-#: Gauss-Newton (:func:`gauss_newton`) stops when a step moves ``z`` by less than this share of
-#: it, or lowers the sum of squares by less than :data:`GAUSS_NEWTON_FTOL` of it.
-GAUSS_NEWTON_XTOL = 1e-12
-GAUSS_NEWTON_FTOL = 1e-14
+#: Gauss-Newton (:func:`gauss_newton`) stops when its step would move ``z`` by less than this share of it.
+GAUSS_NEWTON_XTOL = 1e-13
+#: A sum of squares within this share of the last one is the same to rounding: near the minimum
+#: the steps keep shrinking (linearly, the residuals not being 0) below what the sum resolves.
+GAUSS_NEWTON_ROUNDING = 1e-12
 GAUSS_NEWTON_ITERATIONS = 200
 
 
-def gauss_newton(problem: Problem, z0: np.ndarray) -> tuple[np.ndarray, bool, str]:
-    """The weighted least squares of a large flowsheet by Gauss-Newton steps, each the
-    minimum-norm least-squares solution of the linearised residuals (LAPACK's ``gelsd``; its
-    pivoted-QR sibling ``gelsy`` stopped 1e-5 short on a plant with assays, whose weights span
-    many orders), shortened by halves until the sum of squares falls.
+def gauss_newton(problem: Problem, z0: np.ndarray, xtol: float = GAUSS_NEWTON_XTOL) -> tuple[np.ndarray, bool, str]:
+    """The weighted least squares by Gauss-Newton steps, each the minimum-norm least-squares
+    solution of the linearised residuals with the Jacobian's columns scaled to unit norm
+    (LAPACK's ``gelsd``; its pivoted-QR sibling ``gelsy`` stopped 1e-5 short on a plant with
+    assays, whose weights span many orders), shortened by halves until the sum of squares falls.
+    Unscaled, the steps of an assayed survey stalled at 1e-10 of ``z`` (rounding of the
+    ill-conditioned solve) for a dozen iterations; scaled, they keep shrinking.
 
-    MINPACK's Levenberg-Marquardt (:func:`solve` below :data:`SPARSE_UNKNOWNS`) factors its
-    Jacobian with unblocked Householder steps: on the 30-node plant (821 residuals, 410 free
-    unknowns) four fifths of a reconciliation.  The minimum is the same (the problem is a mildly
-    nonlinear one, the shares being class flows over stream flows, started near its solution).
+    Every operation is numpy's and LAPACK's on the arrays given, so the same survey gives the
+    same bits in every run.  MINPACK's Levenberg-Marquardt (``scipy.optimize.least_squares(
+    method="lm")``, used before) does not: its result depends on memory left by earlier
+    allocations (measured: the same inputs in one process, the heap filled with other bytes,
+    moved the water survey's flows by 2e-10 and, through the bounds' active set, an assayed
+    survey's by 1e-4).  The minimum is the same (the problem is a mildly nonlinear one, the
+    shares being class flows over stream flows, started near its solution).
     """
     z = z0.copy()
     residual = problem.whitened_residual(z)
-    cost = float(residual @ residual)
+    cost, moved = float(residual @ residual), np.inf
     for _ in range(GAUSS_NEWTON_ITERATIONS):
-        step = np.linalg.lstsq(problem.whitened_jacobian(z), -residual, rcond=None)[0]
+        jacobian = problem.whitened_jacobian(z)
+        scale = np.linalg.norm(jacobian, axis=0)
+        scale = np.where(scale > 0, scale, 1.0)
+        step = np.linalg.lstsq(jacobian / scale, -residual, rcond=None)[0] / scale
+        size = float(np.linalg.norm(step))
+        if size <= xtol * (float(np.linalg.norm(z)) + xtol):
+            return z, True, "Gauss-Newton converged"
         length = 1.0
         while True:
             trial = z + length * step
             trial_residual = problem.whitened_residual(trial)
             trial_cost = float(trial_residual @ trial_residual)
-            if np.isfinite(trial_cost) and trial_cost <= cost:
+            if trial_cost <= cost or (trial_cost <= cost * (1.0 + GAUSS_NEWTON_ROUNDING) and length * size < moved):
                 break
             length /= 2.0
             if length < 1e-12:  # at the minimum to rounding: no step lowers the sum of squares
                 return z, True, "Gauss-Newton converged (no step lowers the sum of squares)"
-        moved = length * float(np.linalg.norm(step))
-        z, residual, previous, cost = trial, trial_residual, cost, trial_cost
-        if (
-            moved <= GAUSS_NEWTON_XTOL * (float(np.linalg.norm(z)) + GAUSS_NEWTON_XTOL)
-            or previous - cost <= GAUSS_NEWTON_FTOL * previous
-        ):
-            return z, True, "Gauss-Newton converged"
+        z, residual, cost, moved = trial, trial_residual, trial_cost, length * size
     return z, False, f"Gauss-Newton did not converge in {GAUSS_NEWTON_ITERATIONS} steps"
 
 
@@ -613,7 +610,7 @@ def solids_first_start(flowsheet: Flowsheet, survey: Survey, problem: Problem) -
     solids_problem, _ = build_problem(flowsheet, solids_survey)
     start = starting_point(flowsheet, solids_survey, solids_problem)
     check_observable(flowsheet, solids_survey, solids_problem, start)
-    z, _, _ = solve(solids_problem, start)
+    z, _, _ = solve(solids_problem, start, xtol=1e-6)  # a start: the assayed survey's solve refines it
     solids = solids_problem.m0 + solids_problem.N @ z
     S, n = problem.n_streams, problem.n_classes
     v = np.concatenate([solids, _start_components(survey, flowsheet.stream_index, solids[: S * n].reshape(S, n))])

@@ -23,6 +23,8 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from .problem import TESTABLE_SHARE
+
 #: Columns of :func:`worth_table` (``DIR/worth.csv``).
 WORTH_COLUMNS = ["measurement", "stream", "kind", "solvability", "redundancy", "result", "result_value", "result_sd",
                  "shift_per_sd", "variance_share"]  # fmt: skip
@@ -79,7 +81,7 @@ def worth_table(balance) -> pd.DataFrame:
     raw = sensitivity @ problem.effects * problem.sd  # columns: what one sd of each raw error moves
     adjustments = balance.adjustments_table()
     redundancy = np.clip((adjustments["adjustment_sd"].to_numpy(float) / adjustments["sd"].to_numpy(float)) ** 2, 0.0, 1.0)
-    redundant = np.isfinite(redundancy) & (redundancy > 1e-8)
+    redundant = np.isfinite(redundancy) & (redundancy > TESTABLE_SHARE)
     kinds = np.where(adjustments["class_index"] >= 0, "share", np.where(adjustments["class_index"] == -1, "flow", "pct_solids"))
     if "component" in adjustments.columns:  # a per-class assay
         kinds = np.where(adjustments["component"].astype(bool), "assay", kinds)

@@ -1,9 +1,17 @@
 """Write the reference outputs of ``tromplab circuit`` and ``tromplab circuit design`` that
 tests/test_circuit_speed.py compares the current implementation with.
 
-Provenance: the outputs in this folder were written by this script at commit ed84263 of
-tromplab (the implementation before the factor-once / low-rank-update rewrite),
-with OPENBLAS_NUM_THREADS=1 (``worth.csv`` gzip-compressed).  The inputs (``inputs/``) are derived from the bundled example
+Provenance: the outputs in this folder were first written by this script at commit ed84263 of
+tromplab (the implementation before the factor-once / low-rank-update rewrite), with
+OPENBLAS_NUM_THREADS=1 (``worth.csv`` gzip-compressed).  They were written again on branch
+circuit-kkt when the least squares became deterministic (Gauss-Newton in numpy instead of
+MINPACK, whose result depended on memory left by earlier allocations; the error model's rounds
+to 1e-10 instead of 1e-6; near-tied measurement tests ranked by file row).  Against ed84263's
+files: example, example_options, water and design_simulated agree to 1e-8 relative,
+design_survey to 1e-9, design_simulated_flows to 1e-12; the assayed surveys, which ed84263 did
+not reproduce between runs (flows moved by 1e-4), moved by 1e-7 in their flows and their three
+tied magnetite suspects are now listed by row (the serial elimination names cyclone_feed's, not
+cyclone_underflow's; their tests agree to 2e-8).  The inputs (``inputs/``) are derived from the bundled example
 (datasets/circuit_example_*.csv) as the functions below say.  Run from the repository root:
 
     OPENBLAS_NUM_THREADS=1 python tests/data/circuit_reference/make_reference.py
