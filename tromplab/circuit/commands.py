@@ -57,6 +57,9 @@ class CircuitResult(ResultContract):
         The one or two things to do next, as ``summary.txt`` ends.
     weight_notes : tuple of str
         The notes on the weights of ``points.csv`` (:func:`tromplab.loading.weights.weight_notes`).
+    notices : tuple of Notice
+        Every warning of the separators, as ``warnings.csv`` holds them
+        (:func:`tromplab.circuit.outputs.balance_notices`).
     """
 
     balance: CircuitBalance
@@ -64,7 +67,6 @@ class CircuitResult(ResultContract):
     bench: Workbench | None = None
     next_steps: tuple[str, ...] = ()
     weight_notes: tuple[str, ...] = ()
-    #: Every warning of the separators, as ``warnings.csv`` holds them (:func:`tromplab.circuit.outputs.balance_notices`).
     notices: tuple = ()
 
     def summary(self) -> pd.DataFrame:
