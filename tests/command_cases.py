@@ -4,8 +4,12 @@ one shape (``tests/test_command_functions.py``).
 
 ``OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 MKL_NUM_THREADS=1 python tests/command_cases.py
 --record tests/data/command_digests.json --scratch DIR`` runs every case through the command
-line and records the SHA-256 of each text file it writes; it was run on the code before the
-change (main at 52a2c1d), so the stored digests are the outputs before it.
+line and records the SHA-256 of each text file it writes.  It was first run on the code before
+the commands took one shape (main at 52a2c1d), and run again when later work changed outputs on
+purpose (CHANGELOG: the circuit's deterministic Gauss-Newton solve and its ``warnings.csv``, the
+plant's evaluation columns, the density intervals' shared profile search, whose numbers agree
+with the earlier ones to 1e-9 relative); from the repository's root, with relative data set
+names, so that the digests do not depend on where the checkout lives.
 Figures (PNG) are left out of the stored digests, as they depend on matplotlib's version; the
 test compares them between the command line and the API, which run in the same environment.
 """
@@ -21,7 +25,11 @@ import os
 import sys
 from pathlib import Path
 
-DATASETS = Path(__file__).resolve().parent.parent / "datasets"
+ROOT = Path(__file__).resolve().parent.parent
+#: The bundled data sets as the cases name them: relative to the repository's root, where every
+#: case runs (:func:`run_command`), so that no file records where the checkout lives (the
+#: plant's devices name their source file and row).
+DATASETS = Path("datasets")
 
 #: A two-product float-sink test with the feed's ash by density fraction (the hand case of
 #: tests/test_plant_evaluate.py): -1.4, 1.4-1.6 and +1.6 at 50, 25 and 25 % of the feed, 10, 30
@@ -90,7 +98,7 @@ def run_command(name: str, out: Path, inputs: Path) -> int:
     """Run case ``name`` through the command line (its console swallowed); its exit code."""
     from tromplab.cli import main
 
-    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+    with contextlib.chdir(ROOT), contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
         return main(command_line(name, out, inputs))
 
 

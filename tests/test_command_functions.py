@@ -16,7 +16,7 @@ import pytest
 import tromplab
 from tromplab import plant
 
-from .command_cases import CASES, DATASETS, digests, fresh_digests, run_command, write_inputs
+from .command_cases import CASES, DATASETS, ROOT, digests, fresh_digests, run_command, write_inputs
 
 RECORDED = json.loads((Path(__file__).parent / "data" / "command_digests.json").read_text(encoding="utf-8"))
 SHEET, SURVEY = DATASETS / "circuit_example_flowsheet.csv", DATASETS / "circuit_example_survey.csv"
@@ -58,7 +58,7 @@ THROUGH_THE_API = {
 
 def test_every_case_has_its_python_function_and_its_recorded_digests():
     assert set(THROUGH_THE_API) == set(CASES) == set(RECORDED)
-    commands = {" ".join(arg for arg in CASES[name][:2] if not arg.startswith(("/", "{"))) for name in CASES}
+    commands = {" ".join(arg for arg in CASES[name][:2] if not arg.startswith(("datasets/", "{"))) for name in CASES}
     assert commands >= {"fit", "density fit", "density predict", "circuit design", "trend", "plant predict",
                         "plant optimize", "plant evaluate"}  # fmt: skip
     assert any(CASES[name][0] == "circuit" and CASES[name][1] != "design" for name in CASES)
@@ -66,8 +66,9 @@ def test_every_case_has_its_python_function_and_its_recorded_digests():
 
 @pytest.mark.slow
 @pytest.mark.parametrize("name", list(CASES))
-def test_the_command_writes_what_its_function_saves_and_what_it_wrote_before(name, tmp_path):
+def test_the_command_writes_what_its_function_saves_and_what_it_wrote_before(name, tmp_path, monkeypatch):
     assert fresh_digests(name, tmp_path / "fresh") == RECORDED[name]
+    monkeypatch.chdir(ROOT)  # the API reads the data sets by the relative names the command line is given
     inputs = write_inputs(tmp_path / "inputs")
     assert run_command(name, tmp_path / "cli", inputs) == RECORDED[name]["exit"]
     cli = digests(tmp_path / "cli", text_only=False)
@@ -78,14 +79,16 @@ def test_the_command_writes_what_its_function_saves_and_what_it_wrote_before(nam
 
 
 #: The command functions and the keywords each takes beside the command's option names: the
-#: error model's options of ``circuit`` travel as one ``ErrorModel`` (``errors``), and the trend's
-#: evaluation settings (``level``, ``lam``, ``width``, ``consecutive``) are the benchmark's.
+#: error model's options of ``circuit`` travel as one ``ErrorModel`` (``errors``), the trend's
+#: evaluation settings (``level``, ``lam``, ``width``, ``consecutive``) are the benchmark's, a
+#: running Dask client (``client``) is the API's form of ``--scheduler``, and ``progress`` is the
+#: API's form of the bars the command line draws.
 FUNCTIONS = {
-    ("density", "fit"): (tromplab.fit_density, {"data", "sheet", "sep", "decimal", "progress"}),
+    ("density", "fit"): (tromplab.fit_density, {"data", "sheet", "sep", "decimal", "client", "progress"}),
     ("density", "predict"): (tromplab.predict_density, {"washability"}),
     ("circuit",): (tromplab.reconcile_circuit, {"flowsheet", "measurements", "errors", "progress"}),
     ("circuit", "design"): (tromplab.design_circuit, {"flowsheet", "measurements", "errors", "progress"}),
-    ("trend",): (tromplab.monitor_surveys, {"surveys", "level", "lam", "width", "consecutive"}),
+    ("trend",): (tromplab.monitor_surveys, {"surveys", "level", "lam", "width", "consecutive", "progress"}),
 }
 
 

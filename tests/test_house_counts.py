@@ -1,4 +1,4 @@
-"""The house's counts (issue 44) stay true: measured by ``.ci/house_counts.py``."""
+"""The house's counts stay true: measured by ``.ci/house_counts.py``."""
 
 from __future__ import annotations
 
