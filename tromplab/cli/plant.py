@@ -93,7 +93,7 @@ def _add_evaluate(sub) -> None:
                           help="the partition curve fitted for rho50, Ep and the imperfection (default normal)")  # fmt: skip
     evaluate.add_argument("--floats-yield", type=cli_type(check_probability, "--floats-yield"), default=None, metavar="Y",
                           help="mass share of the feed to the floats (estimated from three analyses when not given)")  # fmt: skip
-    evaluate.add_argument("--sum-tolerance", type=cli_type(check_non_negative, "--sum-tolerance"), default=DEFAULT_SUM_TOLERANCE_PCT,
+    evaluate.add_argument("--sum-tolerance", dest="sum_tolerance_pct", type=cli_type(check_non_negative, "--sum-tolerance"), default=DEFAULT_SUM_TOLERANCE_PCT,
                           help=f"allowed deviation of each analysis from 100 (default {DEFAULT_SUM_TOLERANCE_PCT:g})")  # fmt: skip
     evaluate.set_defaults(run=run_plant_evaluate, imports=("tromplab.plant.evaluation", "statsmodels.api", "scipy.optimize"))
 
@@ -114,7 +114,7 @@ def _add_inputs(command) -> None:
     command.add_argument("--draws", type=cli_type(check_count, "--draws", minimum=0, maximum=MAX_DRAWS), default=DEFAULT_DRAWS,
                          help=f"parameter draws of the parametric bootstrap of the curves (default {DEFAULT_DRAWS})")  # fmt: skip
     command.add_argument("--seed", type=cli_type(check_seed, "--seed"), default=0, help="seed of the draws (default 0)")
-    command.add_argument("--sum-tolerance", type=cli_type(check_non_negative, "--sum-tolerance"), default=DEFAULT_SUM_TOLERANCE_PCT,
+    command.add_argument("--sum-tolerance", dest="sum_tolerance_pct", type=cli_type(check_non_negative, "--sum-tolerance"), default=DEFAULT_SUM_TOLERANCE_PCT,
                          help=f"allowed deviation of fraction_pct and mass_pct totals from 100 (default {DEFAULT_SUM_TOLERANCE_PCT:g})")  # fmt: skip
     command.add_argument("--float-lower-density", type=cli_type(check_positive, "--float-lower-density"), default=None,
                          help="lower bound of the open float fractions (default: symmetric about a mean density, else the "
@@ -126,7 +126,7 @@ def _add_inputs(command) -> None:
 def _input_options(args) -> dict:
     check_output_folder(args.outdir, inputs=[p for p in (args.washability, args.plant, args.curves_from) if p is not None])
     return {"curves_from": args.curves_from, "ci": args.ci, "draws": args.draws, "seed": args.seed,
-            "sum_tolerance_pct": args.sum_tolerance, "float_lower_density": args.float_lower_density,
+            "sum_tolerance_pct": args.sum_tolerance_pct, "float_lower_density": args.float_lower_density,
             "sink_upper_density": args.sink_upper_density}  # fmt: skip
 
 
@@ -168,5 +168,5 @@ def run_plant_evaluate(args) -> int:
 
     check_output_folder(args.outdir, inputs=[p for p in (args.file, args.washability) if p is not None])
     result = evaluate(args.file, curve=args.curve, floats_yield=args.floats_yield, washability=args.washability,
-                      sum_tolerance_pct=args.sum_tolerance)  # fmt: skip
+                      sum_tolerance_pct=args.sum_tolerance_pct)  # fmt: skip
     return _finish(result, args.outdir)
