@@ -2,7 +2,6 @@
 one-fit-at-a-time path (tests/density_fitting_before_batch.py), scipy.stats, a brute-force profile."""
 
 import math
-import warnings
 
 import numpy as np
 import pandas as pd
@@ -23,6 +22,7 @@ from tromplab.statistics import distributions as dist
 
 from . import density_fitting_before_batch as before
 from .conftest import write
+from .glm_oracle import statsmodels_glm
 
 BUNDLED = "datasets/density_tracers_dmc_by_size_synthetic.csv"
 DENSITIES = np.round(np.arange(1.40, 1.71, 0.03), 2)
@@ -66,18 +66,6 @@ def tracer_sets() -> list:
     for table in tables:
         samples += read_density(table)
     return samples
-
-
-def statsmodels_glm(curve, sample, **options):
-    import statsmodels.api as sm
-
-    links = {"probit": sm.families.links.Probit, "logit": sm.families.links.Logit, "cloglog": sm.families.links.CLogLog}
-    used = sample.used
-    k, n = used["sinks"].to_numpy(float), used["recovered"].to_numpy(float)
-    exog = np.column_stack([np.ones(len(k)), used["density"].to_numpy(float)])
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        return sm.GLM(np.column_stack([k, n - k]), exog, family=sm.families.Binomial(link=links[curve.link]())).fit(**options)
 
 
 @pytest.mark.parametrize("curve", PLAIN_CURVES, ids=[curve.id for curve in PLAIN_CURVES])

@@ -23,6 +23,7 @@ from tromplab.density.simulation import float_sink_table, simulate_tracer_test, 
 from tromplab.errors import OptionError
 
 from .conftest import write
+from .glm_oracle import statsmodels_glm
 
 DENSITIES = np.round(np.arange(1.40, 1.71, 0.03), 2)
 
@@ -37,19 +38,6 @@ def deviance(curve, sample, params):
     k, n = points["sinks"].to_numpy(float), points["recovered"].to_numpy(float)
     p = curve.partition(points["density"].to_numpy(float), **params)
     return 2 * np.sum(scipy.special.xlogy(k, k / (n * p)) + scipy.special.xlogy(n - k, (n - k) / (n * (1 - p))))
-
-
-def statsmodels_glm(curve, sample):
-    """statsmodels' binomial GLM of a plain curve on a tracer sample (the oracle of the batch GLM)."""
-    import statsmodels.api as sm
-
-    links = {"probit": sm.families.links.Probit, "logit": sm.families.links.Logit, "cloglog": sm.families.links.CLogLog}
-    points = sample.used
-    k, n = points["sinks"].to_numpy(float), points["recovered"].to_numpy(float)
-    exog = np.column_stack([np.ones(len(k)), points["density"].to_numpy(float)])
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        return sm.GLM(np.column_stack([k, n - k]), exog, family=sm.families.Binomial(link=links[curve.link]())).fit()
 
 
 @pytest.mark.parametrize("curve", PLAIN_CURVES, ids=[c.id for c in PLAIN_CURVES])
