@@ -406,6 +406,18 @@ def rho50_for_floats_ash(washability: Washability, target_ash_pct: float, curve_
 
 
 # --- reading ------------------------------------------------------------------------------
+def check_reading_options(
+    sum_tolerance_pct: float, float_lower_density: float | None, sink_upper_density: float | None
+) -> tuple[float, float | None, float | None]:
+    """The options of every washability reader, checked as the command line checks them: a
+    tolerance of at least 0 and open-end densities above 0 (or None).  Raises OptionError."""
+    return (
+        check_non_negative(sum_tolerance_pct, "sum_tolerance_pct"),
+        check_optional(check_positive, float_lower_density, "float_lower_density"),
+        check_optional(check_positive, sink_upper_density, "sink_upper_density"),
+    )
+
+
 def read_washability(
     path,
     *,
@@ -440,9 +452,9 @@ def read_washability(
     InputError
         Naming the file, row and column of the first bad value.
     """
-    sum_tolerance_pct = check_non_negative(sum_tolerance_pct, "sum_tolerance_pct")
-    float_lower_density = check_optional(check_positive, float_lower_density, "float_lower_density")
-    sink_upper_density = check_optional(check_positive, sink_upper_density, "sink_upper_density")
+    sum_tolerance_pct, float_lower_density, sink_upper_density = check_reading_options(
+        sum_tolerance_pct, float_lower_density, sink_upper_density
+    )
     table = read_table(path, sheet=sheet, sep=sep, decimal=decimal, text_columns=("test",))
     table.refuse_unknown(WASHABILITY_COLUMNS, what="washability table")
     table.require("density_lower", "density_upper", "mass_pct", "ash_pct")

@@ -55,11 +55,11 @@ import numpy as np
 import pandas as pd
 
 from ..density.registry import PLAIN_CURVES, DensityCurve, get_density_curve
-from ..density.washability import WASHABILITY_COLUMNS, Washability, washability_of_rows
+from ..density.washability import WASHABILITY_COLUMNS, Washability, check_reading_options, washability_of_rows
 from ..errors import InputError
 from ..loading.tables import Table, read_table
 from ..options import DEFAULT_SUM_TOLERANCE_PCT
-from ..validation import MAX_CUT_DENSITY, check_non_negative, check_optional, check_positive
+from ..validation import MAX_CUT_DENSITY
 
 #: Columns of the washability-by-size table besides the qualities ``<name>_pct``.
 WASHABILITY_BY_SIZE_COLUMNS = ("size_fraction", "fraction_pct") + tuple(c for c in WASHABILITY_COLUMNS if c != "test")
@@ -204,9 +204,9 @@ def read_plant_washability(
         A negative ``sum_tolerance_pct`` or a bound that is not above 0, as
         :func:`tromplab.density.read_washability` and the command line refuse them.
     """
-    sum_tolerance_pct = check_non_negative(sum_tolerance_pct, "sum_tolerance_pct")
-    float_lower_density = check_optional(check_positive, float_lower_density, "float_lower_density")
-    sink_upper_density = check_optional(check_positive, sink_upper_density, "sink_upper_density")
+    sum_tolerance_pct, float_lower_density, sink_upper_density = check_reading_options(
+        sum_tolerance_pct, float_lower_density, sink_upper_density
+    )
     table = read_table(path, sheet=sheet, sep=sep, decimal=decimal, text_columns=("size_fraction",))
     qualities = [c for c in table.frame.columns if str(c).endswith("_pct") and c not in _NOT_QUALITIES]
     table.refuse_unknown([*WASHABILITY_BY_SIZE_COLUMNS, *qualities], what="washability-by-size table")
