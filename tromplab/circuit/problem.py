@@ -391,9 +391,83 @@ def build_problem(flowsheet: Flowsheet, survey: Survey) -> tuple[Problem, str]:
         )
     shares = survey.shares[survey.shares["sd"] > 0]
     measured = _measurement_arrays(survey, flowsheet.stream_index)
-    cov, W, effects = _measurement_covariance(shares, measured["sd"], survey.closed_streams)
+    cov, W, effects = _measurement_covariance(shares["stream"].to_numpy(), _closure_point(shares), measured["sd"],
+                                              survey.closed_streams)  # fmt: skip
     problem = replace(layout, A=A, b=b, m0=m0, N=N, cov=cov, W=W, effects=effects, **measured)
     return problem, basis
+
+
+def _closure_point(shares: pd.DataFrame) -> np.ndarray:
+    """The shares at which each closed analysis is linearised: where the error model was
+    evaluated (column ``at``), else the measured values."""
+    values = shares["value"].to_numpy(float)
+    if "at" in shares.columns:
+        at = shares["at"].to_numpy(float)
+        values = np.where(np.isfinite(at), at, values)
+    return values
+
+
+class SurveyErrors:
+    """The error model of a survey's measurements as arrays: the standard deviations of
+    :meth:`Survey.with_errors_at <tromplab.circuit.measurements.Survey.with_errors_at>` at a
+    point, by the same arithmetic, without building its tables (the error model's rounds at the
+    reconciled values evaluate it a dozen times per reconciliation).
+
+    Rows: the shares, the flows, the per cent solids and the assays, in the order of the
+    survey's tables (those of sd 0 included); :attr:`sd` holds the survey's own.
+    """
+
+    def __init__(self, survey: Survey, stream_index: dict):
+        shares, flows, assays, pct = survey.shares, survey.flows, survey.assays, survey.pct_solids
+        self.closed = survey.closed_streams
+        self.share_streams = shares["stream"].to_numpy()
+        self.share_values = shares["value"].to_numpy(float)
+        self.share_rows = (shares["stream"].map(stream_index).to_numpy(int), shares["class_index"].to_numpy(int))
+        self.share_model = _modelled_sd(shares)
+        self.flow_rows = flows["stream"].map(stream_index).to_numpy(int)
+        self.flow_model = _modelled_sd(flows)
+        order = {name: k for k, name in enumerate(survey.components)}
+        self.assay_rows = (assays["component"].map(order).to_numpy(int), assays["stream"].map(stream_index).to_numpy(int),
+                           assays["class_index"].to_numpy(int))  # fmt: skip
+        self.assay_model = _modelled_sd(assays)
+        self.pct_sd = pct["sd"].to_numpy(float)
+        self.sd = np.concatenate([self.share_model[3], self.flow_model[3], self.pct_sd, self.assay_model[3]])
+        #: the rows whose sd the error model can move (not the per cent solids')
+        self.movable = np.ones(self.sd.size, dtype=bool)
+        self.movable[len(shares) + len(flows) : len(shares) + len(flows) + len(pct)] = False
+
+    def at(self, shares: np.ndarray, flows: np.ndarray, grades: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+        """``(sd of every row, the shares' point of closure)`` with the error model at ``shares``
+        (streams x classes), ``flows`` (clipped at 0) and ``grades`` (components x streams x classes, or None)."""
+        share_at = np.clip(shares[self.share_rows], 0.0, 1.0)
+        modelled, relative, absolute, given = self.share_model
+        share_sd = np.where(modelled, np.sqrt((relative * share_at) ** 2 + absolute**2), given)
+        modelled, relative, _, given = self.flow_model
+        flow_sd = np.where(modelled, relative * flows[self.flow_rows], given)
+        modelled, relative, absolute, given = self.assay_model
+        assay_sd = given
+        if grades is not None and given.size:  # an assay lies in 0..1, as tromplab.circuit.assays.assays_at clips it
+            grade_at = np.clip(np.nan_to_num(grades[self.assay_rows], nan=0.0), 0.0, 1.0)
+            assay_sd = np.where(modelled, np.sqrt((relative * grade_at) ** 2 + absolute**2), given)
+        return np.concatenate([share_sd, flow_sd, self.pct_sd, assay_sd]), share_at
+
+
+def _modelled_sd(table: pd.DataFrame) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``(modelled, relative, absolute, given sd)`` of a table's rows (modelled: the error model gives its sd)."""
+    relative = table["relative"].to_numpy(float) if "relative" in table else np.full(len(table), np.nan)
+    absolute = table["absolute"].to_numpy(float) if "absolute" in table else np.zeros(len(table))
+    return ~np.isnan(relative), relative, absolute, table["sd"].to_numpy(float)
+
+
+def with_errors(problem: Problem, errors: SurveyErrors, sd: np.ndarray, share_at: np.ndarray) -> Problem:
+    """``problem`` with the standard deviations ``sd`` of every row (:meth:`SurveyErrors.at`) and
+    the closed analyses linearised at ``share_at``: what :func:`build_problem` makes of the
+    survey with those sds, the constraints unchanged (the rows of sd 0 must be those of ``problem``)."""
+    used = sd > 0
+    shares = used[: errors.share_streams.size]
+    values = np.where(np.isfinite(share_at), share_at, errors.share_values)[shares]  # as _closure_point reads the table
+    cov, W, effects = _measurement_covariance(errors.share_streams[shares], values, sd[used], errors.closed)
+    return replace(problem, sd=sd[used], cov=cov, W=W, effects=effects)
 
 
 def _measurement_arrays(survey: Survey, index: dict) -> dict:
@@ -506,22 +580,21 @@ def _held_affine_form(m0: np.ndarray, N: np.ndarray, held: list[int]) -> tuple[n
     return m0 - N @ shift, N @ Q[:, rank:]
 
 
-def _measurement_covariance(shares: pd.DataFrame, sd: np.ndarray, closed) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _measurement_covariance(
+    streams: np.ndarray, values: np.ndarray, sd: np.ndarray, closed
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Covariance of the measurements, its whitening and the effects of the raw errors.
 
     The errors are independent, except in a closed (normalised) analysis: an error in one raw
     class moves every reported share of the stream, by :math:`P = I - x 1^T`, so the block is
-    :math:`P D P^T`.  The third matrix holds :math:`P` (identity elsewhere).
+    :math:`P D P^T`.  The third matrix holds :math:`P` (identity elsewhere).  ``streams`` and
+    ``values``: the stream of each share measured (the first measurements) and the share at
+    which its analysis's closure is linearised (:func:`_closure_point`).
     """
     cov = np.diag(sd**2)
     effects = np.eye(sd.size)
     pieces = []
     done = np.zeros(sd.size, dtype=bool)
-    streams = shares["stream"].to_numpy()
-    values = shares["value"].to_numpy(float)
-    if "at" in shares.columns:  # where the error model was evaluated: the closure is linearised there too
-        at = shares["at"].to_numpy(float)
-        values = np.where(np.isfinite(at), at, values)
     for stream in closed:
         where = np.flatnonzero(streams == stream)
         if where.size == 0:

@@ -739,37 +739,52 @@ def _errors_at_reconciled(flowsheet: Flowsheet, survey: Survey, problem: Problem
     """Evaluate the error model at the reconciled shares and flows and reconcile again, until
     no standard deviation moves by more than :data:`ERROR_MODEL_TOLERANCE` of itself.
 
-    Returns ``(survey, problem, z, success, message)`` of the last reconciliation; the survey
-    holds the standard deviations it used.
+    The rounds evaluate the error model on arrays (:class:`~tromplab.circuit.problem.SurveyErrors`)
+    and change only the measurements' covariance of the problem; the survey's tables are made
+    once, at the last point.  Returns ``(survey, problem, z, success, message)`` of the last
+    reconciliation; the survey holds the standard deviations it used.
     """
-    S, n = problem.n_streams, problem.n_classes
+    from .problem import SurveyErrors, with_errors
+
+    errors = SurveyErrors(survey, flowsheet.stream_index)
+    before = errors.sd
     success, message = True, ""
     for round_number in range(2, MAX_ERROR_MODEL_ITERATIONS + 2):
         if progress is not None:
             progress(0, 1, f"reconciliation: round {round_number}")
         v = problem.m0 + problem.N @ z
-        class_flows = v[: S * n].reshape(S, n)
-        flows = class_flows.sum(axis=1)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            shares = np.where(flows[:, None] > 0, class_flows / flows[:, None], 0.0)
-        evaluated = survey.with_errors_at(shares, np.clip(flows, 0.0, None), flowsheet.stream_index, _grades(problem, v))
-        before, after = (np.concatenate([s.shares["sd"].to_numpy(float), s.flows["sd"].to_numpy(float),
-                                         s.assays["sd"].to_numpy(float)]) for s in (survey, evaluated))  # fmt: skip
-        survey = evaluated
-        problem, _ = build_problem(flowsheet, survey)
-        moved = float(np.max(np.abs(after - before) / np.maximum(before, 1e-300), initial=0.0))
+        point = _error_model_point(problem, v)
+        after, share_at = errors.at(*point)
+        if np.array_equal(after > 0, before > 0):
+            problem = with_errors(problem, errors, after, share_at)
+        else:  # an sd reached 0 (or left it): the measurement joins (or leaves) the constraints
+            problem, _ = build_problem(flowsheet, survey.with_errors_at(*point[:2], flowsheet.stream_index, point[2]))
+        moving = errors.movable
+        moved = float(np.max(np.abs(after - before)[moving] / np.maximum(before[moving], 1e-300), initial=0.0))
+        before = after
         # while the sds still move, a solution to a thousandth of their move is enough (the next
         # round moves it again); the round that settles them solves to the solver's full tolerance
         z, success, message = solve(problem, v, xtol=min(EARLY_ROUND_XTOL, max(GAUSS_NEWTON_XTOL, 1e-3 * moved)))
         if moved <= ERROR_MODEL_TOLERANCE:
-            return survey, problem, z, success, message
-    return (
-        survey,
-        problem,
-        z,
-        False,
-        f"the error model at the reconciled values did not settle in {MAX_ERROR_MODEL_ITERATIONS} rounds",
-    )
+            break
+    else:
+        success, message = (
+            False,
+            f"the error model at the reconciled values did not settle in {MAX_ERROR_MODEL_ITERATIONS} rounds",
+        )
+    survey = survey.with_errors_at(*point[:2], flowsheet.stream_index, point[2])
+    return survey, problem, z, success, message
+
+
+def _error_model_point(problem: Problem, v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """``(shares, flows, grades)`` at the unknowns ``v``, where the error model is evaluated:
+    shares 0 in an empty stream, flows clipped at 0, grades None without assays."""
+    S, n = problem.n_streams, problem.n_classes
+    class_flows = v[: S * n].reshape(S, n)
+    flows = class_flows.sum(axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        shares = np.where(flows[:, None] > 0, class_flows / flows[:, None], 0.0)
+    return shares, np.clip(flows, 0.0, None), _grades(problem, v)
 
 
 def _assay_notes(survey: Survey) -> list[str]:
