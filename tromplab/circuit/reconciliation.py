@@ -484,7 +484,7 @@ class CircuitBalance(ResultContract):
 
     @cached_property
     def _elimination(self) -> pd.DataFrame:
-        return serial_elimination(self, reconcile, progress=self.progress)
+        return serial_elimination(self, _reconciled_for_elimination, progress=self.progress)
 
     def elimination_table(self) -> pd.DataFrame:
         """Serial elimination with compensation (:func:`~tromplab.circuit.elimination.serial_elimination`):
@@ -556,9 +556,13 @@ class CircuitBalance(ResultContract):
         suffix = f"_{unit}" if unit and unit_in_names else ""
         rows = []
         products = {node.name: (node.fine, node.coarse) for node in self.flowsheet.separators}
+        errors = {}  # the error model of each product's analysis, shared by the curves of its separator
         for _curve, part in table.groupby("experiment", sort=False):
             used = part["used"].to_numpy()
-            fine, coarse = (stream_error(self.survey.shares, stream) for stream in products[part["node"].iloc[0]])
+            for stream in products[part["node"].iloc[0]]:
+                if stream not in errors:
+                    errors[stream] = stream_error(self.survey.shares, stream)
+            fine, coarse = (errors[stream] for stream in products[part["node"].iloc[0]])
             weight = partition_weights(weighting, part["partition_fine"], part["feed_share"], part["fine_yield"].iloc[0],
                                        used, fine_error=fine, coarse_error=coarse)  # fmt: skip
             weight = np.where(used, 1.0, np.nan) if weight is None else weight
@@ -901,8 +905,18 @@ def _without_excluded(survey: Survey, flowsheet: Flowsheet, exclude) -> tuple[Su
     return survey, excluded
 
 
-def _balance(flowsheet: Flowsheet, survey: Survey, alpha: float, excluded: tuple[str, ...], progress=None) -> CircuitBalance:
-    """Reconcile ``survey``: solve, evaluate the error model at the reconciled values, linearise, bound at 0."""
+def _reconciled_for_elimination(flowsheet: Flowsheet, survey: Survey, *, alpha: float) -> CircuitBalance:
+    """A compensated survey of the serial elimination reconciled as far as its steps read it:
+    the global test and the measurement tests, which hold at the least squares without the
+    bounds at 0 (its flows are those, clipped at 0: the active set of the bounds is not run)."""
+    return _balance(flowsheet, survey, alpha, (), bounds=False)
+
+
+def _balance(
+    flowsheet: Flowsheet, survey: Survey, alpha: float, excluded: tuple[str, ...], progress=None, *, bounds: bool = True
+) -> CircuitBalance:
+    """Reconcile ``survey``: solve, evaluate the error model at the reconciled values, linearise,
+    bound at 0 (``bounds``; else the unbounded solution clipped at 0)."""
     if progress is not None:
         progress(0, 1, "reconciliation: round 1")
     problem, basis = build_problem(flowsheet, survey)
@@ -914,7 +928,7 @@ def _balance(flowsheet: Flowsheet, survey: Survey, alpha: float, excluded: tuple
         survey, problem, z, success, message = _errors_at_reconciled(flowsheet, survey, problem, z, progress)
     fitted = problem.m0 + problem.N @ z
     chi, decomposition, covariance = linearised(problem, z)
-    held, v = bounded_solution(problem, fitted)
+    held, v = bounded_solution(problem, fitted) if bounds else ((), np.clip(fitted, 0.0, None))
     if held and not np.all(np.isfinite(v)):
         success, message = False, "the bounds on the flows did not settle (active-set iterations exhausted)"
     S, n = problem.n_streams, problem.n_classes

@@ -85,15 +85,19 @@ def worth_table(balance) -> pd.DataFrame:
     kinds = np.where(adjustments["class_index"] >= 0, "share", np.where(adjustments["class_index"] == -1, "flow", "pct_solids"))
     if "component" in adjustments.columns:  # a per-class assay
         kinds = np.where(adjustments["component"].astype(bool), "assay", kinds)
-    frames = []
-    for name, value, gradient in balance._results:
-        shift = gradient @ raw
-        variance = float(shift @ shift)
-        frames.append(pd.DataFrame({
-            "measurement": adjustments["measurement"], "stream": adjustments["stream"], "kind": kinds,
-            "solvability": np.where(redundant, "redundant", "just determined"),
-            "redundancy": np.where(redundant, redundancy, 0.0), "result": name, "result_value": value,
-            "result_sd": np.sqrt(variance), "shift_per_sd": shift,
-            "variance_share": shift**2 / variance if variance > 0 else np.nan,
-        }))  # fmt: skip
-    return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=WORTH_COLUMNS)
+    found = balance._results
+    if not found:
+        return pd.DataFrame(columns=WORTH_COLUMNS)
+    # one product per result (a matrix product would round otherwise), the table built at once
+    shift = np.array([gradient @ raw for _, _, gradient in found])
+    variance = np.array([float(row @ row) for row in shift])
+    k, p = shift.shape
+    with np.errstate(invalid="ignore", divide="ignore"):
+        share = np.where(variance[:, None] > 0, shift**2 / variance[:, None], np.nan)
+    return pd.DataFrame({
+        "measurement": np.tile(adjustments["measurement"].to_numpy(), k), "stream": np.tile(adjustments["stream"].to_numpy(), k),
+        "kind": np.tile(kinds, k), "solvability": np.tile(np.where(redundant, "redundant", "just determined"), k),
+        "redundancy": np.tile(np.where(redundant, redundancy, 0.0), k), "result": np.repeat([name for name, _, _ in found], p),
+        "result_value": np.repeat([value for _, value, _ in found], p), "result_sd": np.repeat(np.sqrt(variance), p),
+        "shift_per_sd": shift.ravel(), "variance_share": share.ravel(),
+    }, columns=WORTH_COLUMNS)  # fmt: skip
