@@ -259,7 +259,8 @@ def console_report(result: CircuitResult, written: dict, *, format_fits=None) ->
     :attr:`CircuitResult.notices`)."""
     balance = result.balance
     lines = [*map(_wrapped, balance.report().splitlines()), "", "Reconciled solids flows:"]
-    flows = balance.flows_table()[["stream", "measured", "reconciled", "reconciled_sd"]]
+    flows = result.tables.get("flows", None)  # the table of flows.csv, made once
+    flows = (balance.flows_table() if flows is None else flows)[["stream", "measured", "reconciled", "reconciled_sd"]]
     lines.append(flows.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
     largest = balance.largest_adjustments(5)
     if len(largest):

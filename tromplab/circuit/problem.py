@@ -142,12 +142,25 @@ class Problem:
         return self.W @ (self.predict(self.m0 + self.N @ z) - self.y)
 
     def whitened_jacobian(self, z: np.ndarray) -> np.ndarray:
-        H = self.jacobian(self.m0 + self.N @ z)
-        if self.m0.size < SPARSE_UNKNOWNS:
-            return self.W @ H @ self.N
-        # a large flowsheet: W (block diagonal) and H (a few entries a row) as sparse matrices,
-        # the dense product W H N of a 30-node plant with assays took 7 s, this 0.2 s
-        return np.asarray((self._sparse_whitening @ sparse.csr_matrix(H)) @ self.N)
+        """The whitened Jacobian ``W H N`` at ``m0 + N z`` (read-only: the last one is kept, as
+        :func:`solve` decomposes it at the point where Gauss-Newton's last step formed it)."""
+        key = z.tobytes()
+        if self._last_jacobian[0] != key:
+            H = self.jacobian(self.m0 + self.N @ z)
+            if self.m0.size < SPARSE_UNKNOWNS:
+                J = self.W @ H @ self.N
+            else:
+                # a large flowsheet: W (block diagonal) and H (a few entries a row) as sparse matrices,
+                # the dense product W H N of a 30-node plant with assays took 7 s, this 0.2 s
+                J = np.asarray((self._sparse_whitening @ sparse.csr_matrix(H)) @ self.N)
+            J.flags.writeable = False
+            self._last_jacobian[:] = key, J
+        return self._last_jacobian[1]
+
+    @cached_property
+    def _last_jacobian(self) -> list:
+        """``[bytes of z, whitened Jacobian at z]`` of the last :meth:`whitened_jacobian` (per problem)."""
+        return [None, None]
 
     @cached_property
     def _sparse_whitening(self):
@@ -521,27 +534,36 @@ def _exact_measurements(constraints: _Constraints, flowsheet: Flowsheet, survey:
     def solids_of(stream: str, row: np.ndarray) -> np.ndarray:
         return row[index[stream] * n : (index[stream] + 1) * n]
 
-    for record in survey.flows[survey.flows["sd"] == 0].itertuples():
-        solids_of(record.stream, constraints.add(record.value))[:] = 1.0
+    for stream, value in _exact(survey.flows, "stream", "value"):
+        solids_of(stream, constraints.add(value))[:] = 1.0
     basis = ""
     if survey.flows.empty:
         feed = flowsheet.feeds[0]
         solids_of(feed, constraints.add(BASIS))[:] = 1.0
         basis = f"{BASIS:g} for stream '{feed}' (no solids flow measured)"
-    for record in survey.shares[survey.shares["sd"] == 0].itertuples():  # m_si - x sum_j m_sj = 0: linear
-        row = solids_of(record.stream, constraints.add())
-        row[:] = -record.value
-        row[record.class_index] += 1.0
-    for record in survey.pct_solids[survey.pct_solids["sd"] == 0].itertuples():  # (100 - p) F - p w = 0: linear too
+    for stream, i, value in _exact(survey.shares, "stream", "class_index", "value"):  # m_si - x sum_j m_sj = 0: linear
+        row = solids_of(stream, constraints.add())
+        row[:] = -value
+        row[i] += 1.0
+    for stream, value in _exact(survey.pct_solids, "stream", "value"):  # (100 - p) F - p w = 0: linear too
         row = constraints.add()
-        solids_of(record.stream, row)[:] = 100.0 - record.value
-        row[S * n + index[record.stream]] = -record.value
+        solids_of(stream, row)[:] = 100.0 - value
+        row[S * n + index[stream]] = -value
     order = {name: k for k, name in enumerate(survey.components)}
-    for record in survey.assays[survey.assays["sd"] == 0].itertuples():  # c_ksi - a m_si = 0
-        row, s = constraints.add(), index[record.stream]
-        row[layout.component_index(order[record.component], s, record.class_index)] = 1.0
-        row[s * n + record.class_index] = -record.value
+    for stream, i, component, value in _exact(survey.assays, "stream", "class_index", "component", "value"):  # c_ksi - a m_si = 0
+        row, s = constraints.add(), index[stream]
+        row[layout.component_index(order[component], s, i)] = 1.0
+        row[s * n + i] = -value
     return basis
+
+
+def _exact(table: pd.DataFrame, *columns: str):
+    """The ``columns`` of the rows of ``table`` given with an sd of 0, row by row (none: nothing
+    built, the usual case)."""
+    exact = table["sd"].to_numpy(float) == 0
+    if not exact.any():
+        return []
+    return zip(*(table[column].to_numpy()[exact].tolist() for column in columns))
 
 
 #: The last affine forms computed, by the bytes of ``(A, b)``: the rounds of the error model

@@ -656,6 +656,11 @@ class CircuitBalance(ResultContract):
 
     def report(self) -> str:
         """A few lines: what was balanced, the chi-square test and the gross-error candidates."""
+        return self._report
+
+    @cached_property
+    def _report(self) -> str:
+        """The text of :meth:`report`, made once (``summary.txt`` and the console print it)."""
         lines = [
             self._result_context(),
             f"{self.problem.y.size if self.problem else 0} measurements, redundancy {self.dof}"
