@@ -103,13 +103,15 @@ def adjustments_frame(balance) -> pd.DataFrame:
         standardised = np.where(testable, adjustment / adjustment_sd, np.nan)
     classes = balance.survey.classes
     rows_of = _measurement_rows(balance)
+    lower, upper = (np.append(classes[column].to_numpy(float), np.nan) for column in ("size_lower", "size_upper"))
+    sized = np.where(problem.klass >= 0, problem.klass, lower.size - 1)  # a flow or per cent solids: NaN
     table = pd.DataFrame(
         {
             "measurement": _measurement_names(balance),
             "stream": [balance.streams[s] for s in problem.stream],
             "class_index": problem.klass,
-            "size_lower": [classes["size_lower"].iloc[i] if i >= 0 else np.nan for i in problem.klass],
-            "size_upper": [classes["size_upper"].iloc[i] if i >= 0 else np.nan for i in problem.klass],
+            "size_lower": lower[sized],
+            "size_upper": upper[sized],
             "row": rows_of,
             "measured": balance.measured_y,
             "sd": np.sqrt(problem.variance),
@@ -142,23 +144,26 @@ def adjustments_frame(balance) -> pd.DataFrame:
 def _measurement_names(balance) -> list[str]:
     """``STREAM class CLASS``, ``STREAM COMPONENT assay class CLASS``, ``STREAM flow``, ``STREAM per cent solids``."""
     problem, classes = balance.problem, balance.survey.classes
+    class_names = [class_name(classes, i) for i in range(len(classes))]
     names = []
     for s, i, kind, k in zip(problem.stream, problem.klass, problem.kinds, problem.component):
         if kind == "share":
-            names.append(f"{balance.streams[s]} class {class_name(classes, i)}")
+            names.append(f"{balance.streams[s]} class {class_names[i]}")
         elif kind == "assay":
-            names.append(f"{balance.streams[s]} {balance.survey.components[k]} assay class {class_name(classes, i)}")
+            names.append(f"{balance.streams[s]} {balance.survey.components[k]} assay class {class_names[i]}")
         else:
             names.append(f"{balance.streams[s]} {_MEASURED_QUANTITY[kind]}")
     return names
 
 
 def _measurement_rows(balance) -> list:
-    rows = {(r.stream, r.class_index, -1): r.row for r in balance.survey.shares.itertuples()}
-    rows |= {(r.stream, -1, -1): r.row for r in balance.survey.flows.itertuples()}
-    rows |= {(r.stream, -2, -1): r.row for r in balance.survey.pct_solids.itertuples()}
-    order = {name: k for k, name in enumerate(balance.survey.components)}
-    rows |= {(r.stream, r.class_index, order[r.component]): r.row for r in balance.survey.assays.itertuples()}
+    survey = balance.survey
+    shares, flows, pct, assays = survey.shares, survey.flows, survey.pct_solids, survey.assays
+    order = {name: k for k, name in enumerate(survey.components)}
+    rows = dict(zip(zip(shares["stream"], shares["class_index"], [-1] * len(shares)), shares["row"]))
+    rows |= dict(zip(zip(flows["stream"], [-1] * len(flows), [-1] * len(flows)), flows["row"]))
+    rows |= dict(zip(zip(pct["stream"], [-2] * len(pct), [-1] * len(pct)), pct["row"]))
+    rows |= dict(zip(zip(assays["stream"], assays["class_index"], assays["component"].map(order)), assays["row"]))
     problem = balance.problem
     return [rows.get((balance.streams[s], i, k)) for s, i, k in zip(problem.stream, problem.klass, problem.component)]
 

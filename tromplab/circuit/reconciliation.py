@@ -414,25 +414,18 @@ class CircuitBalance(ResultContract):
     def distributions_table(self) -> pd.DataFrame:
         """``stream, size_lower, size_upper, size, measured, measured_sd, reconciled, reconciled_sd``
         (shares as fractions; measured NaN where the class was not measured in that stream)."""
-        classes = self.survey.classes
-        measured = {(r.stream, r.class_index): (r.value, r.sd) for r in self.survey.shares.itertuples()}
-        rows = []
-        for s, name in enumerate(self.streams):
-            for i in range(len(classes)):
-                value, sd = measured.get((name, i), (np.nan, np.nan))
-                rows.append(
-                    {
-                        "stream": name,
-                        "size_lower": classes["size_lower"].iloc[i],
-                        "size_upper": classes["size_upper"].iloc[i],
-                        "size": classes["size"].iloc[i],
-                        "measured": value,
-                        "measured_sd": sd,
-                        "reconciled": self.shares[s, i],
-                        "reconciled_sd": self.share_sd[s, i],
-                    }
-                )
-        return pd.DataFrame(rows, columns=DISTRIBUTION_COLUMNS)
+        classes, shares = self.survey.classes, self.survey.shares
+        S, n = len(self.streams), len(classes)
+        value, sd = np.full((S, n), np.nan), np.full((S, n), np.nan)
+        index = self.flowsheet.stream_index
+        where = (shares["stream"].map(index).to_numpy(int), shares["class_index"].to_numpy(int))
+        value[where], sd[where] = shares["value"].to_numpy(float), shares["sd"].to_numpy(float)
+        return pd.DataFrame({
+            "stream": np.repeat(np.array(self.streams, dtype=object), n),
+            **{column: np.tile(classes[column].to_numpy(), S) for column in ("size_lower", "size_upper", "size")},
+            "measured": value.ravel(), "measured_sd": sd.ravel(), "reconciled": self.shares[:, :n].ravel(),
+            "reconciled_sd": self.share_sd[:, :n].ravel(),  # a survey without size classes: no row
+        }, columns=DISTRIBUTION_COLUMNS)  # fmt: skip
 
     @cached_property
     def _adjustments(self) -> pd.DataFrame:

@@ -50,17 +50,17 @@ def results(balance) -> list[tuple[str, float, np.ndarray]]:
             gradient = np.zeros(size)
             gradient[c * n : (c + 1) * n], gradient[f * n : (f + 1) * n] = 1.0 / Ff, -Fc / Ff**2
             found.append((f"circulating load {node.name}", Fc / Ff, gradient))
-        classes = partition[partition["experiment"] == node.name].reset_index(drop=True)
+        classes = partition[partition["experiment"] == node.name]
+        lower, upper = classes["size_lower"].to_numpy(float), classes["size_upper"].to_numpy(float)
         for i in np.flatnonzero(classes["used"].astype(bool).to_numpy()):
             total = m[f, i] + m[c, i]
             gradient = np.zeros(size)
             gradient[f * n + i], gradient[c * n + i] = m[c, i] / total**2, -m[f, i] / total**2
-            found.append((f"partition {node.name} {_label(classes.iloc[i])}", m[f, i] / total, gradient))
+            found.append((f"partition {node.name} {_label(lower[i], upper[i])}", m[f, i] / total, gradient))
     return found
 
 
-def _label(row) -> str:
-    lower, upper = row["size_lower"], row["size_upper"]
+def _label(lower: float, upper: float) -> str:
     if not np.isfinite(upper):
         return f"+{lower:g}"
     return f"-{upper:g}" if not np.isfinite(lower) else f"-{upper:g}+{lower:g}"
