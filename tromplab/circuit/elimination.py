@@ -63,7 +63,9 @@ def serial_elimination(balance, reconcile, *, max_steps: int | None = None, prog
     ----------
     balance : CircuitBalance
     reconcile : callable
-        :func:`~tromplab.circuit.reconciliation.reconcile`, which reconciles each compensated survey.
+        ``reconcile(previous, survey)``: the compensated ``survey`` reconciled, ``previous`` the
+        balance of the step before (its start; :class:`~tromplab.circuit.reconciliation.CircuitBalance`
+        passes a warm-started reconciliation that computes what the steps read).
     max_steps : int, optional
         At most this many steps (default: as many as the redundancy allows).
     progress : callable, optional
@@ -88,7 +90,7 @@ def serial_elimination(balance, reconcile, *, max_steps: int | None = None, prog
         survey = _compensated(current, j, float(suspect["gross_error"]))
         if progress is not None:
             progress(step - 1, limit, f"elimination: step {step}")
-        current = reconcile(current.flowsheet, survey, alpha=current.alpha)
+        current = reconcile(current, survey)
         dof -= 1
         rows.append(_row(step, suspect, current.chi_square, dof))
     return pd.DataFrame(rows, columns=ELIMINATION_COLUMNS)

@@ -237,25 +237,48 @@ def gauss_newton(problem: Problem, z0: np.ndarray, xtol: float = GAUSS_NEWTON_XT
     residual = problem.whitened_residual(z)
     cost, moved = float(residual @ residual), np.inf
     for _ in range(GAUSS_NEWTON_ITERATIONS):
-        jacobian = problem.whitened_jacobian(z)
-        scale = np.linalg.norm(jacobian, axis=0)
-        scale = np.where(scale > 0, scale, 1.0)
-        step = np.linalg.lstsq(jacobian / scale, -residual, rcond=None)[0] / scale
+        step = _scaled_step(problem, z, residual)
         size = float(np.linalg.norm(step))
         if size <= xtol * (float(np.linalg.norm(z)) + xtol):
             return z, True, "Gauss-Newton converged"
-        length = 1.0
-        while True:
-            trial = z + length * step
-            trial_residual = problem.whitened_residual(trial)
-            trial_cost = float(trial_residual @ trial_residual)
-            if trial_cost <= cost or (trial_cost <= cost * (1.0 + GAUSS_NEWTON_ROUNDING) and length * size < moved):
-                break
-            length /= 2.0
-            if length < 1e-12:  # at the minimum to rounding: no step lowers the sum of squares
-                return z, True, "Gauss-Newton converged (no step lowers the sum of squares)"
-        z, residual, cost, moved = trial, trial_residual, trial_cost, length * size
+        shortened = _shortened(problem, z, step, cost, size, moved)
+        if shortened is None:  # at the minimum to rounding: no step lowers the sum of squares
+            return z, True, "Gauss-Newton converged (no step lowers the sum of squares)"
+        z, residual, cost, moved = shortened
     return z, False, f"Gauss-Newton did not converge in {GAUSS_NEWTON_ITERATIONS} steps"
+
+
+def gauss_newton_step(problem: Problem, z: np.ndarray) -> np.ndarray:
+    """One step of :func:`gauss_newton` from ``z`` (``z`` itself when no step lowers the sum of squares)."""
+    residual = problem.whitened_residual(z)
+    step = _scaled_step(problem, z, residual)
+    shortened = _shortened(problem, z, step, float(residual @ residual), float(np.linalg.norm(step)), np.inf)
+    return z if shortened is None else shortened[0]
+
+
+def _scaled_step(problem: Problem, z: np.ndarray, residual: np.ndarray) -> np.ndarray:
+    """The Gauss-Newton step at ``z``: the minimum-norm least-squares solution of the linearised
+    residuals, the Jacobian's columns scaled to unit norm."""
+    jacobian = problem.whitened_jacobian(z)
+    scale = np.linalg.norm(jacobian, axis=0)
+    scale = np.where(scale > 0, scale, 1.0)
+    return np.linalg.lstsq(jacobian / scale, -residual, rcond=None)[0] / scale
+
+
+def _shortened(problem: Problem, z: np.ndarray, step: np.ndarray, cost: float, size: float, moved: float):
+    """``(z, residual, cost, length moved)`` after ``step`` shortened by halves until the sum of
+    squares ``cost`` falls (or stays within rounding of it, the step shorter than the last one,
+    ``moved``); None when no step lowers it."""
+    length = 1.0
+    while True:
+        trial = z + length * step
+        trial_residual = problem.whitened_residual(trial)
+        trial_cost = float(trial_residual @ trial_residual)
+        if trial_cost <= cost or (trial_cost <= cost * (1.0 + GAUSS_NEWTON_ROUNDING) and length * size < moved):
+            return trial, trial_residual, trial_cost, length * size
+        length /= 2.0
+        if length < 1e-12:
+            return None
 
 
 def _assayed_classes_filled(problem: Problem, start: np.ndarray) -> np.ndarray:

@@ -737,16 +737,23 @@ class CircuitBalance(ResultContract):
         return figures[kind](self, ax=ax)
 
 
-def _errors_at_reconciled(flowsheet: Flowsheet, survey: Survey, problem: Problem, z: np.ndarray, progress=None):
+def _errors_at_reconciled(
+    flowsheet: Flowsheet, survey: Survey, problem: Problem, z: np.ndarray, progress=None, *, single_steps: bool = False
+):
     """Evaluate the error model at the reconciled shares and flows and reconcile again, until
     no standard deviation moves by more than :data:`ERROR_MODEL_TOLERANCE` of itself.
 
     The rounds evaluate the error model on arrays (:class:`~tromplab.circuit.problem.SurveyErrors`)
     and change only the measurements' covariance of the problem; the survey's tables are made
-    once, at the last point.  Returns ``(survey, problem, z, success, message)`` of the last
+    once, at the last point.  With ``single_steps``, each round before the one that settles the
+    sds takes one Gauss-Newton step instead of a solution to a thousandth of their move (the
+    solution and the error model then converge together; the same fixed point, reached by
+    another path).  Returns ``(survey, problem, z, success, message)`` of the last
     reconciliation; the survey holds the standard deviations it used.
     """
-    from .problem import SurveyErrors, with_errors
+    from .problem import SurveyErrors, gauss_newton_step, with_errors
+
+    single_steps = single_steps and problem.m0.size < SPARSE_UNKNOWNS and bool(problem.N.shape[1] and problem.y.size)
 
     errors = SurveyErrors(survey, flowsheet.stream_index)
     before = errors.sd
@@ -764,6 +771,9 @@ def _errors_at_reconciled(flowsheet: Flowsheet, survey: Survey, problem: Problem
         moving = errors.movable
         moved = float(np.max(np.abs(after - before)[moving] / np.maximum(before[moving], 1e-300), initial=0.0))
         before = after
+        if single_steps and moved > ERROR_MODEL_TOLERANCE:
+            z = gauss_newton_step(problem, z)
+            continue
         # while the sds still move, a solution to a thousandth of their move is enough (the next
         # round moves it again); the round that settles them solves to the solver's full tolerance
         z, success, message = solve(problem, v, xtol=min(EARLY_ROUND_XTOL, max(GAUSS_NEWTON_XTOL, 1e-3 * moved)))
@@ -903,27 +913,44 @@ def _without_excluded(survey: Survey, flowsheet: Flowsheet, exclude) -> tuple[Su
     return survey, excluded
 
 
-def _reconciled_for_elimination(flowsheet: Flowsheet, survey: Survey, *, alpha: float) -> CircuitBalance:
-    """A compensated survey of the serial elimination reconciled as far as its steps read it:
-    the global test and the measurement tests, which hold at the least squares without the
-    bounds at 0 (its flows are those, clipped at 0: the active set of the bounds is not run)."""
-    return _balance(flowsheet, survey, alpha, (), bounds=False)
+def _reconciled_for_elimination(previous: CircuitBalance, survey: Survey) -> CircuitBalance:
+    """The compensated ``survey`` of a step of the serial elimination, reconciled as far as the
+    steps read it: the global test and the measurement tests.  Started from the solution of the
+    step before (``previous``: the same constraints, one measurement moved), the error model's
+    rounds by single Gauss-Newton steps, without the active set of the bounds at 0 (the tests
+    hold at the unbounded least squares; its flows are those, clipped at 0)."""
+    return _balance(previous.flowsheet, survey, previous.alpha, (), bounds=False, warm=previous._test_point)
 
 
 def _balance(
-    flowsheet: Flowsheet, survey: Survey, alpha: float, excluded: tuple[str, ...], progress=None, *, bounds: bool = True
+    flowsheet: Flowsheet,
+    survey: Survey,
+    alpha: float,
+    excluded: tuple[str, ...],
+    progress=None,
+    *,
+    bounds: bool = True,
+    warm: np.ndarray | None = None,
 ) -> CircuitBalance:
     """Reconcile ``survey``: solve, evaluate the error model at the reconciled values, linearise,
-    bound at 0 (``bounds``; else the unbounded solution clipped at 0)."""
+    bound at 0 (``bounds``; else the unbounded solution clipped at 0).  ``warm``: the unknowns
+    of a reconciliation of a survey like it (observable, the same constraints), to start from."""
     if progress is not None:
         progress(0, 1, "reconciliation: round 1")
     problem, basis = build_problem(flowsheet, survey)
-    start = solids_first_start(flowsheet, survey, problem) if problem.n_components else starting_point(flowsheet, survey, problem)
-    check_observable(flowsheet, survey, problem, start)
+    if warm is not None:
+        start = warm
+    else:
+        start = (
+            solids_first_start(flowsheet, survey, problem) if problem.n_components else starting_point(flowsheet, survey, problem)
+        )
+        check_observable(flowsheet, survey, problem, start)
     rounds_follow = survey.evaluated_at == "reconciled"
     z, success, message = solve(problem, start, xtol=EARLY_ROUND_XTOL if rounds_follow else None)
     if rounds_follow:
-        survey, problem, z, success, message = _errors_at_reconciled(flowsheet, survey, problem, z, progress)
+        survey, problem, z, success, message = _errors_at_reconciled(
+            flowsheet, survey, problem, z, progress, single_steps=warm is not None
+        )
     fitted = problem.m0 + problem.N @ z
     chi, decomposition, covariance = linearised(problem, z)
     held, v = bounded_solution(problem, fitted) if bounds else ((), np.clip(fitted, 0.0, None))
