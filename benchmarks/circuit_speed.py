@@ -22,8 +22,15 @@ measure), their ratios to the yardstick's (the acceptance targets: ``circuit`` a
 0.3 each, ``circuit design`` at most 0.2) and to its floor, and the load average before and
 after.
 
+``--stages`` prints instead, for the two assayed example surveys, the CPU milliseconds of each
+stage of ``tromplab circuit`` in this process (imports done; the fastest of ``--repeats`` runs):
+reading the files, the reconciliation with its error model's rounds, the serial elimination, the
+adjustments and their tests, the design table, the worth table, the other tables and the files.
+With ``PYTHONPATH`` naming another checkout it measures that one, for a before and after.
+
     python benchmarks/circuit_speed.py
     python benchmarks/circuit_speed.py --repeats 3 --minerals
+    python benchmarks/circuit_speed.py --stages --repeats 5
 """
 
 import argparse
@@ -115,6 +122,47 @@ def example_rows(folder: Path, yardstick: tuple[float, float], repeats: int) -> 
     return rows
 
 
+def stage_rows(repeats: int) -> pd.DataFrame:
+    """CPU milliseconds of each stage of ``tromplab circuit`` on the assayed example surveys, in
+    this process (the fastest of ``repeats`` runs, every cache of an earlier run emptied)."""
+    from tromplab.circuit import CircuitResult, problem, read_flowsheet, read_survey, reconcile
+    from tromplab.circuit.outputs import balance_next_steps, balance_tables
+
+    def stages(path: Path, folder: Path) -> dict[str, float]:
+        getattr(problem, "_AFFINE_FORMS", {}).clear()  # the null spaces of the constraints, kept per process
+        seconds, clock = {}, time.process_time()
+
+        def lap(name: str) -> None:
+            nonlocal clock
+            seconds[name], clock = time.process_time() - clock, time.process_time()
+
+        sheet = read_flowsheet(FLOWSHEET)
+        survey = read_survey(path, sheet)
+        lap("read")
+        balance = reconcile(sheet, survey)
+        lap("reconciliation")
+        balance.elimination_table()
+        lap("serial elimination")
+        balance.adjustments_table()
+        lap("adjustments and tests")
+        balance.design_table()
+        lap("design")
+        balance.worth_table()
+        lap("worth")
+        tables = balance_tables(balance)
+        lap("other tables")
+        CircuitResult(balance, tables, next_steps=balance_next_steps(balance, tables)).save(folder, figures=False)
+        lap("files")
+        return {name: 1000.0 * value for name, value in seconds.items()}
+
+    rows = []
+    with tempfile.TemporaryDirectory() as folder:
+        for name, path in SURVEYS.items():
+            runs = pd.DataFrame([stages(path, Path(folder) / f"run{k}") for k in range(repeats)])
+            rows.append({"survey": name, **runs.min().to_dict(), "total": runs.sum(axis=1).min()})
+    return pd.DataFrame(rows)
+
+
 def plant_rows(yardstick: tuple[float, float], minerals: bool) -> list[dict]:
     """The 30-node plant reconciled with every table (as ``circuit`` writes them), in this process."""
     from tromplab.circuit import reconcile
@@ -151,7 +199,13 @@ def main(argv=None) -> pd.DataFrame:
     parser.add_argument("--minerals", action="store_true", help="also the 30-node plant with four minerals assayed")
     parser.add_argument("--no-plant", action="store_true", help="leave the 30-node plant out")
     parser.add_argument("--output", type=Path, default=HERE / "output" / "circuit_speed.csv")
+    parser.add_argument("--stages", action="store_true", help="CPU ms of each stage on the assayed example surveys, in process")
     args = parser.parse_args(argv)
+    if args.stages:
+        table = stage_rows(args.repeats)
+        with pd.option_context("display.width", 200, "display.max_columns", 20):
+            print(table.to_string(index=False, float_format=lambda v: f"{v:.1f}"))
+        return table
     load_before = os.getloadavg()[0]
     yardstick = yardstick_seconds()
     with tempfile.TemporaryDirectory() as folder:

@@ -256,3 +256,54 @@ def test_a_large_flowsheet_reconciled_by_gauss_newton_and_sparse_products_equals
     np.testing.assert_allclose(large.flows, dense.flows, rtol=1e-8)
     np.testing.assert_allclose(large.flow_sd, dense.flow_sd, rtol=1e-7)
     np.testing.assert_allclose(large.share_sd, dense.share_sd, rtol=1e-7, atol=1e-12)
+
+
+@pytest.mark.parametrize("case", ["assay_class", "water"])
+def test_the_error_model_on_arrays_is_the_survey_tables_bit_for_bit(case, monkeypatch):
+    """The error model's rounds evaluate the sds on arrays (problem.SurveyErrors) and change the
+    problem's covariance only (problem.with_errors): the same bits as the survey's own
+    ``with_errors_at`` and a problem built anew from it."""
+    from tromplab.circuit import read_flowsheet, read_survey, reconcile
+    from tromplab.circuit.problem import SurveyErrors, build_problem, with_errors
+    from tromplab.circuit.reconciliation import _error_model_point
+
+    monkeypatch.chdir(REFERENCE)
+    sheet = read_flowsheet(MAKE.FLOWSHEET)
+    survey = read_survey(MAKE.CIRCUIT_CASES[case][0], sheet)
+    balance = reconcile(sheet, survey)
+    problem, _ = build_problem(sheet, survey)
+    shares, flows, grades = _error_model_point(problem, balance.fitted * 1.01)  # a point of no round
+    sd, share_at = SurveyErrors(survey, sheet.stream_index).at(shares, flows, grades)
+    evaluated = survey.with_errors_at(shares, flows, sheet.stream_index, grades)
+    tables = (evaluated.shares, evaluated.flows, evaluated.pct_solids, evaluated.assays)
+    np.testing.assert_array_equal(sd, np.concatenate([table["sd"].to_numpy(float) for table in tables]))
+    np.testing.assert_array_equal(share_at, evaluated.shares["at"].to_numpy(float))
+    quick, anew = with_errors(problem, SurveyErrors(survey, sheet.stream_index), sd, share_at), build_problem(sheet, evaluated)[0]
+    for name in ("sd", "cov", "W", "effects", "y", "A", "b", "m0", "N"):
+        np.testing.assert_array_equal(getattr(quick, name), getattr(anew, name), err_msg=name)
+
+
+def test_the_elimination_steps_reconciled_from_the_step_before_equal_a_reconciliation_anew(monkeypatch):
+    """A compensated survey of the serial elimination is reconciled from the solution of the step
+    before, the error model's rounds by single Gauss-Newton steps, without the bounds: its global
+    test and measurement tests are those of reconciling the survey anew, to 1e-9 relative (the
+    tests of a measurement the balances barely check, to 1e-9 of the largest test)."""
+    from tromplab.circuit import read_flowsheet, reconcile
+    from tromplab.circuit.elimination import _compensated
+    from tromplab.circuit.reconciliation import _reconciled_for_elimination
+
+    monkeypatch.chdir(REFERENCE)
+    sheet = read_flowsheet(MAKE.FLOWSHEET)
+    balance = reconcile(sheet, "inputs/assay_stream.csv")
+    assert balance.rejected
+    table = balance.adjustments_table().dropna(subset=["measurement_test"])
+    j = table["measurement_test"].abs().idxmax()
+    survey = _compensated(balance, j, float(table.loc[j, "gross_error"]))
+    warm, anew = _reconciled_for_elimination(balance, survey), reconcile(sheet, survey)
+    assert warm.dof == anew.dof and warm.chi_square == pytest.approx(anew.chi_square, rel=1e-9)
+    tests = {name: b._measurement_tests for name, b in (("warm", warm), ("anew", anew))}
+    np.testing.assert_array_equal(tests["warm"].testable, tests["anew"].testable)
+    scale = np.nanmax(np.abs(tests["anew"].statistic))
+    np.testing.assert_allclose(tests["warm"].statistic, tests["anew"].statistic, rtol=1e-9, atol=1e-9 * scale)
+    np.testing.assert_allclose(tests["warm"].estimate, tests["anew"].estimate, rtol=1e-9,
+                               atol=1e-9 * np.nanmax(np.abs(tests["anew"].estimate)))  # fmt: skip

@@ -493,6 +493,10 @@ class CircuitBalance(ResultContract):
         """What each measurement is worth (:func:`~tromplab.circuit.worth.worth_table`): its
         solvability class and redundancy, and its influence on every separator's fine yield,
         partition per class and circulating load."""
+        return self._worth.copy()
+
+    @cached_property
+    def _worth(self) -> pd.DataFrame:
         return worth_table(self)
 
     @cached_property
