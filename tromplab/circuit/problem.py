@@ -647,8 +647,10 @@ def _measurement_covariance(
         x = values[where] / values[where].sum()  # the point of the closure: it sums to 1, as a closed analysis
         P = np.eye(where.size) - np.outer(x, np.ones(where.size))
         block = P @ np.diag(sd[where] ** 2) @ P.T
-        cov[np.ix_(where, where)] = block
-        effects[np.ix_(where, where)] = P
+        # a stream's shares are consecutive measurements: slices, not numpy.ix_ (10 us a call, every round)
+        square = (slice(where[0], where[-1] + 1),) * 2 if where[-1] - where[0] + 1 == where.size else np.ix_(where, where)
+        cov[square] = block
+        effects[square] = P
         eigenvalues, vectors = np.linalg.eigh(block)
         keep = eigenvalues > 1e-12 * eigenvalues.max()
         rows = np.zeros((int(keep.sum()), sd.size))
