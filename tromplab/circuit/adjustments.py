@@ -105,7 +105,7 @@ def adjustments_frame(balance) -> pd.DataFrame:
     rows_of = _measurement_rows(balance)
     table = pd.DataFrame(
         {
-            "measurement": _measurement_names(balance),
+            "measurement": measurement_names(balance),
             "stream": [balance.streams[s] for s in problem.stream],
             "class_index": problem.klass,
             "size_lower": [classes["size_lower"].iloc[i] if i >= 0 else np.nan for i in problem.klass],
@@ -139,7 +139,7 @@ def adjustments_frame(balance) -> pd.DataFrame:
     return table
 
 
-def _measurement_names(balance) -> list[str]:
+def measurement_names(balance) -> list[str]:
     """``STREAM class CLASS``, ``STREAM COMPONENT assay class CLASS``, ``STREAM flow``, ``STREAM per cent solids``."""
     problem, classes = balance.problem, balance.survey.classes
     names = []
