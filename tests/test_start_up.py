@@ -24,6 +24,7 @@ import scipy.optimize
 from tromplab.circuit import linear_algebra
 from tromplab.circuit.problem import _bounded_least_squares
 from tromplab.classifiers.pulp import COEFFICIENT_RANGES, PulpScreen
+from tromplab.loading.node_balance import estimate_fine_yield
 from tromplab.options import PULP_COEFFICIENT_RANGES, PULP_SCREEN_DEFAULTS
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -162,3 +163,32 @@ def test_every_other_name_is_scipys_function():
 def test_the_starts_bounded_least_squares_is_lsq_linear_to_the_bit(A, b, lower):
     # the start's bits reach the outputs (what no measurement sees keeps its starting value)
     np.testing.assert_array_equal(_bounded_least_squares(A, b, lower), scipy.optimize.lsq_linear(A, b, bounds=(lower, np.inf)).x)
+
+
+@pytest.mark.parametrize("classes", [1, 2, 3, 8, 40])
+def test_the_fine_yield_is_statsmodels_ols_to_the_bit(classes):
+    sm = pytest.importorskip("statsmodels.api")
+    rng = np.random.default_rng(classes)
+    for _ in range(20):
+        fine, coarse = rng.dirichlet(np.ones(classes)), rng.dirichlet(np.ones(classes))
+        if classes == 1:  # one class: shares that are not closed (else fine equals coarse)
+            fine, coarse = rng.uniform(size=1), rng.uniform(size=1)
+        feed = 0.37 * fine + 0.63 * coarse + rng.normal(scale=0.01, size=classes)  # a balance with sampling error
+        estimate = estimate_fine_yield(feed, fine, coarse)
+        model = sm.OLS(feed - coarse, fine - coarse).fit()
+        assert estimate.value == float(model.params[0])
+        np.testing.assert_array_equal(estimate.residuals, model.resid)
+        if classes > 1:
+            assert estimate.stderr == float(model.bse[0])
+        else:
+            assert np.isnan(estimate.stderr)
+
+
+@pytest.mark.slow
+def test_a_lab_table_is_read_without_statsmodels(tmp_path):
+    # the three streams of each experiment give its fine yield by least squares (before: statsmodels' OLS)
+    table = DATASETS / "air_classifier_lab_synthetic.csv"
+    loaded = _loaded_by(tmp_path, "points", str(table), "-o", str(tmp_path / "points.csv"))
+    assert (tmp_path / "points.csv").is_file()
+    assert "tromplab.loading.node_balance" in loaded
+    assert _heavy(loaded, ("statsmodels", "statsmodels.api", "lmfit", "matplotlib")) == []
