@@ -7,8 +7,9 @@ one shape (``tests/test_command_functions.py``).
 line and records the SHA-256 of each text file it writes.  It was first run on the code before
 the commands took one shape (main at 52a2c1d), and run again when later work changed outputs on
 purpose (CHANGELOG: the circuit's deterministic Gauss-Newton solve and its ``warnings.csv``, the
-plant's evaluation columns, the density intervals' shared profile search, whose numbers agree
-with the earlier ones to 1e-9 relative); from the repository's root, with relative data set
+plant's evaluation columns, the density intervals' shared profile search, the design
+candidates' Cholesky solves in numpy instead of scipy.linalg (``design.csv`` of three circuit
+cases, by 2e-13 relative at most), whose numbers agree with the earlier ones to 1e-9 relative); from the repository's root, with relative data set
 names, so that the digests do not depend on where the checkout lives.
 Figures (PNG) are left out of the stored digests, as they depend on matplotlib's version; the
 test compares them between the command line and the API, which run in the same environment.

@@ -50,6 +50,36 @@ FIGURE_CHOICES = ("auto", "all", "best", "none")
 #: Formats of the tables (parquet needs pyarrow).
 TABLE_FORMATS = ("csv", "parquet")
 
+# --- pulp pressure screens (tromplab.classifiers.pulp) -------------------------------------
+#: The coefficients of :class:`~tromplab.classifiers.pulp.PulpScreen` and their defaults (the
+#: spec's illustrative values), in the order of its fields: written out so that the command line
+#: builds the options of ``tromplab pulp`` without importing the model and numpy (a test checks
+#: them against the dataclass).
+PULP_SCREEN_DEFAULTS = {"area": 1.0, "open_area": 0.2, "consistency": 10.0, "delay": 0.01, "beta": 2.0, "r": 2.0,
+                        "lam": 3.0, "s": 0.5, "phi": 0.0, "tau": 2.0}  # fmt: skip
+#: Range of each coefficient, ``(low, high, low_open)``: wide around the spec's illustrative
+#: values, and small enough that ``H^r``, ``H^s`` and ``N^tau`` stay finite for the pressure
+#: drops and frequencies below (the fit's bounds lie inside them).
+PULP_COEFFICIENT_RANGES = {
+    "area": (0.0, 1e3, True),
+    "open_area": (0.0, 1.0, True),
+    "consistency": (0.0, 1e3, True),
+    "delay": (0.0, 1e3, False),
+    "beta": (0.0, 1e4, True),
+    "r": (0.0, 10.0, True),
+    "lam": (0.0, 1e4, True),
+    "s": (0.0, 10.0, True),
+    "phi": (0.0, 1e4, False),
+    "tau": (0.0, 5.0, True),
+}
+#: Pulsation frequencies N (1/s) and applied pressure drops H' the commands take: the
+#: search of the best frequency spans 1e-3..1e4 1/s.
+PULP_FREQUENCY_RANGE = (1e-3, 1e4)
+PULP_PRESSURE_RANGE = (0.0, 1e4)
+#: Largest measured productivity a fit takes (units of the inputs, kg/s in the examples): a
+#: thousand times the model's rate at the largest coefficients is beyond any screen.
+PULP_MAX_PRODUCTIVITY = 1e9
+
 # --- circuit surveys (tromplab.circuit) --------------------------------------------------
 #: Relative error of a measured share where the survey gives none (0.05 = 5 %).
 DEFAULT_RELATIVE_ERROR = 0.05

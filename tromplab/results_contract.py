@@ -31,7 +31,6 @@ imports neither numpy nor pandas at module level.
 
 from __future__ import annotations
 
-import html
 import warnings
 
 from ._version import __version__
@@ -58,6 +57,8 @@ def summary_html(table, context: str) -> str:
     -------
     str
     """
+    import html  # a notebook's display only
+
     shown = table.to_html(index=False, escape=True, na_rep="", max_rows=HTML_MAX_ROWS, border=0)
     return f'<div class="tromplab-result">\n<p><b>{html.escape(context)}</b></p>\n{shown}\n</div>'
 

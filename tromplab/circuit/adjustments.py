@@ -107,7 +107,7 @@ def adjustments_frame(balance) -> pd.DataFrame:
     sized = np.where(problem.klass >= 0, problem.klass, lower.size - 1)  # a flow or per cent solids: NaN
     table = pd.DataFrame(
         {
-            "measurement": _measurement_names(balance),
+            "measurement": measurement_names(balance),
             "stream": [balance.streams[s] for s in problem.stream],
             "class_index": problem.klass,
             "size_lower": lower[sized],
@@ -141,7 +141,7 @@ def adjustments_frame(balance) -> pd.DataFrame:
     return table
 
 
-def _measurement_names(balance) -> list[str]:
+def measurement_names(balance) -> list[str]:
     """``STREAM class CLASS``, ``STREAM COMPONENT assay class CLASS``, ``STREAM flow``, ``STREAM per cent solids``."""
     problem, classes = balance.problem, balance.survey.classes
     class_names = [class_name(classes, i) for i in range(len(classes))]

@@ -18,10 +18,10 @@ import dataclasses
 
 import numpy as np
 import pandas as pd
-from scipy import linalg
 
 from ..errors import OptionError
 from ..options import DEFAULT_PCT_SOLIDS_SD
+from . import linear_algebra as linalg  # numpy's LAPACK: a design does not import scipy.linalg
 from .measurements import SHARE_COLUMNS, STREAM_VALUE_COLUMNS, ErrorModel, Survey
 from .problem import RANK_TOL, TESTABLE_SHARE
 
@@ -172,7 +172,7 @@ def design_table(balance, quantities=None, *, errors: ErrorModel | None = None, 
         return pd.DataFrame(columns=DESIGN_COLUMNS)
     quantities = default_quantities(balance) if quantities is None else quantities
     v = _design_point(balance)
-    names = balance.adjustments_table()["measurement"].to_numpy()
+    names = balance._measurement_names  # the adjustments table's, without its tests
     updates = CandidateUpdates(balance, np.array([g for _, g in quantities]).reshape(len(quantities), -1), v)
     before = dict(zip((name for name, _ in quantities), updates.sd_before))
     rows = []

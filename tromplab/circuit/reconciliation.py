@@ -65,7 +65,6 @@ from functools import cached_property
 
 import numpy as np
 import pandas as pd
-from scipy import sparse
 
 from ..loading.points import TrompPoints
 from ..loading.weights import partition_weights, stream_error
@@ -79,6 +78,7 @@ from .adjustments import (
     EQUIVALENT_CORRELATION,
     MeasurementTests,
     adjustments_frame,
+    measurement_names,
     measurement_tests,
     ranked_by_test,
 )
@@ -313,6 +313,8 @@ class CircuitBalance(ResultContract):
         if k < SPARSE_UNKNOWNS:
             variance = np.einsum("ij,jk,ik->i", gradients, self.covariance[:k, :k], gradients)
         else:  # a large flowsheet: each gradient touches one or two streams (the three-operand einsum runs no BLAS)
+            from scipy import sparse  # imported by a large flowsheet only
+
             variance = np.einsum("ij,ij->i", sparse.csr_matrix(gradients) @ self.covariance[:k, :k], gradients)
         return np.sqrt(np.clip(variance, 0.0, None))
 
@@ -430,6 +432,12 @@ class CircuitBalance(ResultContract):
     @cached_property
     def _adjustments(self) -> pd.DataFrame:
         return adjustments_frame(self)
+
+    @cached_property
+    def _measurement_names(self) -> np.ndarray:
+        # the adjustments table's first column without its tests: a design of a flowsheet
+        # without a survey computes no test, and imports no scipy.special for one
+        return np.array(measurement_names(self), dtype=object)
 
     @cached_property
     def _measurement_tests(self) -> MeasurementTests:

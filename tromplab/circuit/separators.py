@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import numpy as np
 import pandas as pd
-from scipy import special
 
 from ..options import DEFAULT_MIN_FEED_SHARE
 from ..statistics.distributions import norm_isf
@@ -157,6 +156,8 @@ def _ratio(v: np.ndarray, numerator, denominator) -> tuple[float, np.ndarray]:
 def _logit_interval(value: float, sd: float, level: float = INTERVAL_LEVEL) -> tuple[float, float]:
     if not (np.isfinite(value) and np.isfinite(sd)) or not 0.0 < value < 1.0:
         return (value, value) if np.isfinite(value) and sd == 0 else (np.nan, np.nan)
+    from scipy import special  # imported when an interval is computed, not at start-up
+
     half = norm_isf((1.0 - level) / 2.0) * sd / (value * (1.0 - value))
     return float(special.expit(special.logit(value) - half)), float(special.expit(special.logit(value) + half))
 

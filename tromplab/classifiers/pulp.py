@@ -24,34 +24,12 @@ import numpy as np
 
 from ..curves.parameters import Parameter
 from ..errors import OptionError
+from ..options import PULP_COEFFICIENT_RANGES as COEFFICIENT_RANGES
 from ..results_contract import ResultContract, parameters_frame
 from ..validation import check_range
 
-#: Range of each coefficient, ``(low, high, low_open)``: wide around the spec's illustrative
-#: values, and small enough that ``H^r``, ``H^s`` and ``N^tau`` stay finite for the pressure
-#: drops and frequencies below (the fit's bounds lie inside them).
-COEFFICIENT_RANGES = {
-    "area": (0.0, 1e3, True),
-    "open_area": (0.0, 1.0, True),
-    "consistency": (0.0, 1e3, True),
-    "delay": (0.0, 1e3, False),
-    "beta": (0.0, 1e4, True),
-    "r": (0.0, 10.0, True),
-    "lam": (0.0, 1e4, True),
-    "s": (0.0, 10.0, True),
-    "phi": (0.0, 1e4, False),
-    "tau": (0.0, 5.0, True),
-}
-#: Pulsation frequencies N (1/s) and applied pressure drops H' the commands take: the
-#: search of the best frequency spans 1e-3..1e4 1/s.
-FREQUENCY_RANGE = (1e-3, 1e4)
-PRESSURE_RANGE = (0.0, 1e4)
-#: Largest measured productivity a fit takes (units of the inputs, kg/s in the examples): a
-#: thousand times the model's rate at the largest coefficients is beyond any screen.
-MAX_PRODUCTIVITY = 1e9
-
-# scipy and lmfit are imported where a screen is optimised or fitted: the command line builds
-# its pulp options from PulpScreen's fields at start-up, which then costs numpy alone
+# scipy and lmfit are imported where a screen is optimised or fitted; the ranges and defaults
+# are declared in tromplab.options (the command line builds its options from them, without this module)
 if TYPE_CHECKING:
     from ..curves.fitting import ParameterFit
 

@@ -35,23 +35,27 @@ from .startup import EXIT_OK, print_result, stage_bars
 
 #: What the circuit commands import when they run (before they start, under the CLI's signal
 #: handling); the fits (``--fit``) and the figures add theirs (:func:`_imports`): lmfit and
-#: matplotlib are a third of a second of start-up a run without them does not pay.
+#: matplotlib are a third of a second of start-up a run without them does not pay.  Neither
+#: imports scipy's linear algebra, optimisation or sparse matrices unless a large flowsheet or
+#: a bounded start needs them (:mod:`tromplab.circuit.linear_algebra`).
 IMPORTS = (
     "tromplab.circuit",
     "tromplab.circuit.planning",
     "tromplab.output.csv_parts",
 )
+#: The distributions of the tests ``circuit`` computes (``design`` computes none).
+TEST_IMPORTS = ("scipy.special",)
 FIT_IMPORTS = ("tromplab.workbench",)
 FIGURE_IMPORTS = ("tromplab.output.plotting",)
 
 
 def _imports(namespace) -> tuple[str, ...]:
-    """The modules of this run of ``circuit`` (``design`` draws no figure and fits nothing)."""
+    """The modules of this run of ``circuit`` (``design`` tests nothing, draws no figure and fits nothing)."""
     if getattr(namespace, "circuit_command", None) == "design":
         return IMPORTS
     fit = FIT_IMPORTS if getattr(namespace, "fit", False) else ()
     figures = () if getattr(namespace, "no_figures", False) else FIGURE_IMPORTS
-    return IMPORTS + fit + figures
+    return IMPORTS + TEST_IMPORTS + fit + figures
 
 
 _USAGE = (

@@ -12,20 +12,23 @@ models name the option to change.
 from __future__ import annotations
 
 import argparse
-from dataclasses import fields
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-import numpy as np
-
-from ..classifiers.pulp import COEFFICIENT_RANGES, FREQUENCY_RANGE, MAX_PRODUCTIVITY, PRESSURE_RANGE, PulpScreen
 from ..errors import InputError, OptionError, ResultError
+from ..options import (
+    PULP_COEFFICIENT_RANGES,
+    PULP_FREQUENCY_RANGE,
+    PULP_MAX_PRODUCTIVITY,
+    PULP_PRESSURE_RANGE,
+    PULP_SCREEN_DEFAULTS,
+)
 from ..output.outputs import check_output_file, write_files
 from ..validation import check_count, check_probability, check_range, check_share, cli_type
 
-# The parser takes only PulpScreen's fields (its module imports numpy alone until a screen is
-# fitted or optimised); each command imports the models and readers it needs when it runs, so
-# the other commands do not pay for them at start-up.
+# The parser takes the pulp screen's coefficients from tromplab.options; each command imports
+# the models, readers and numpy when it runs, so the other commands (and -h, --version) do not
+# pay for them at start-up.
 if TYPE_CHECKING:
     import pandas as pd
 
@@ -73,6 +76,7 @@ def _write_csv(table: pd.DataFrame, output: Path | None) -> None:
 
 def _parameter_table(fit, level: float = 0.95) -> pd.DataFrame:
     """One row per fitted parameter: value, standard error, confidence interval."""
+    import numpy as np
     import pandas as pd
 
     intervals = fit.confidence_intervals(level) if fit.success else {}
@@ -92,6 +96,8 @@ def _parameter_table(fit, level: float = 0.95) -> pd.DataFrame:
 
 
 def _print_fit(fit, table: pd.DataFrame, level: float) -> None:
+    import numpy as np
+
     if not fit.success:
         raise InputError(f"the fit failed: {fit.message}")
     if not np.isfinite(table["value"]).all():
@@ -257,6 +263,8 @@ def _initial(args) -> list[float]:
 
 
 def run_layer_simulate(args) -> int:
+    import numpy as np
+
     from ..classifiers.layer import LayerModel
 
     _check_paths(args)
@@ -294,6 +302,8 @@ def run_layer_simulate(args) -> int:
 
 
 def run_layer_fit(args) -> int:
+    import numpy as np
+
     from ..classifiers.layer import fit_layer_model
     from ..loading.tables import read_table
 
@@ -372,14 +382,14 @@ def _add_pulp(commands) -> None:
     pulp_commands = pulp.add_subparsers(dest="pulp_command", metavar="PULP_COMMAND", required=True)
     model = argparse.ArgumentParser(add_help=False)
     group = model.add_argument_group("model (defaults: the spec's illustrative values)")
-    for item in fields(PulpScreen):
-        option = "--" + item.name.replace("_", "-")
-        low, high, low_open = COEFFICIENT_RANGES[item.name]  # as PulpScreen requires
+    for name, default in PULP_SCREEN_DEFAULTS.items():
+        option = "--" + name.replace("_", "-")
+        low, high, low_open = PULP_COEFFICIENT_RANGES[name]  # as PulpScreen requires
         group.add_argument(
             option,
             type=cli_type(check_range, option, low=low, high=high, low_open=low_open),
-            default=item.default,
-            help=f"{_PULP_HELP[item.name]} (default %(default)s)",
+            default=default,
+            help=f"{_PULP_HELP[name]} (default %(default)s)",
         )
 
     optimum = pulp_commands.add_parser(
@@ -387,17 +397,17 @@ def _add_pulp(commands) -> None:
     )
     optimum.add_argument(
         "--frequency",
-        type=cli_type(check_range, "--frequency", low=FREQUENCY_RANGE[0], high=FREQUENCY_RANGE[1], unit="1/s"),
+        type=cli_type(check_range, "--frequency", low=PULP_FREQUENCY_RANGE[0], high=PULP_FREQUENCY_RANGE[1], unit="1/s"),
         default=None,
         help="pulsation frequency N (1/s): find the best applied pressure drop",
     )
     optimum.add_argument(
         "--applied",
-        type=cli_type(check_range, "--applied", low=PRESSURE_RANGE[0], high=PRESSURE_RANGE[1]),
+        type=cli_type(check_range, "--applied", low=PULP_PRESSURE_RANGE[0], high=PULP_PRESSURE_RANGE[1]),
         default=None,
         help="applied pressure drop H': find the best pulsation frequency",
     )
-    optimum.set_defaults(run=run_pulp_optimum, imports=("scipy.optimize",))
+    optimum.set_defaults(run=run_pulp_optimum, imports=("tromplab.classifiers.pulp", "scipy.optimize"))
 
     fit = pulp_commands.add_parser("fit", parents=[model], help="fit model coefficients to measured productivity")
     fit.add_argument("data", type=Path, help="CSV or .xlsx with applied_pressure, frequency, productivity")
@@ -411,12 +421,16 @@ def _add_pulp(commands) -> None:
     _level_option(fit)
     fit.add_argument("-o", "--output", type=Path, default=None, help="CSV of the fitted coefficients")
     fit.set_defaults(
-        run=run_pulp_fit, imports=("tromplab.curves.fitting", "tromplab.loading.tables", "tromplab.output.csv_parts", "pandas")
-    )
+        run=run_pulp_fit,
+        imports=("tromplab.classifiers.pulp", "tromplab.curves.fitting", "tromplab.loading.tables",
+                 "tromplab.output.csv_parts", "pandas"),
+    )  # fmt: skip
 
 
 def _pulp_screen(args):
-    values = {item.name: getattr(args, item.name) for item in fields(PulpScreen)}
+    from ..classifiers.pulp import PulpScreen
+
+    values = {name: getattr(args, name) for name in PULP_SCREEN_DEFAULTS}
     try:
         return PulpScreen(**values)
     except ValueError as error:  # name the option, not the field
@@ -449,11 +463,15 @@ def run_pulp_optimum(args) -> int:
 
 
 def _check_rate(rate: float, where: str) -> None:
+    import numpy as np
+
     if not (np.isfinite(rate) and rate >= 0):
         raise ResultError(f"the productivity at {where} came out as {rate!r}: the model's arithmetic overflowed there")
 
 
 def run_pulp_fit(args) -> int:
+    import numpy as np
+
     from ..classifiers.pulp import fit_pulp_screen
     from ..loading.tables import read_table
 
@@ -461,7 +479,8 @@ def run_pulp_fit(args) -> int:
     table = read_table(args.data)
     table.require("applied_pressure", "frequency", "productivity")
     applied, frequency, productivity = (table.numeric(c) for c in ("applied_pressure", "frequency", "productivity"))
-    ranges = {"applied_pressure": PRESSURE_RANGE, "frequency": FREQUENCY_RANGE, "productivity": (0.0, MAX_PRODUCTIVITY)}
+    ranges = {"applied_pressure": PULP_PRESSURE_RANGE, "frequency": PULP_FREQUENCY_RANGE,
+              "productivity": (0.0, PULP_MAX_PRODUCTIVITY)}  # fmt: skip
     for column, values in (("applied_pressure", applied), ("frequency", frequency), ("productivity", productivity)):
         low, high = ranges[column]
         inside = (values > low if column == "productivity" else values >= low) & (values <= high)
@@ -583,6 +602,8 @@ def _add_choice_options(choice) -> None:
 
 
 def run_optimize(args) -> int:
+    import numpy as np
+
     from ..classifiers.choice import choose, sieve_speed_problem
 
     _check_paths(args)

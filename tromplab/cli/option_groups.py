@@ -39,9 +39,9 @@ if TYPE_CHECKING:
     from ..loading.lab import LabOptions
 
 #: The modules each command imports when it runs (its functions' own imports), imported by
-#: main() before the command starts; the readers of lab tables import statsmodels, and with it
-#: scipy, when they estimate a yield.
-READERS = ("tromplab.loading.lab", "tromplab.loading.tables", "scipy.stats")
+#: main() before the command starts; the readers of lab tables estimate a yield with numpy
+#: alone (they imported statsmodels, and with it scipy.stats, before).
+READERS = ("tromplab.loading.lab", "tromplab.loading.tables")
 
 
 def shared_groups() -> dict[str, argparse.ArgumentParser]:

@@ -52,7 +52,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg
 import scipy.special
 
 from ..statistics.distributions import t_ppf
@@ -204,6 +203,8 @@ def _variance_function(residual, mu, previous, inflation) -> np.ndarray:
 
 def _closed_covariance(mu, variance, n) -> np.ndarray:
     """Correlation of the weighted residuals of three analyses each brought back to 1 (block per analysis)."""
+    import scipy.linalg  # a joint fit of float-sink analyses only: density fit of tracers does not import it
+
     blocks = []
     for a in range(3):
         part = slice(a * n, (a + 1) * n)

@@ -1,0 +1,194 @@
+"""The start-up of the commands: what each imports, and the pieces that let ``circuit design``
+run on numpy and pandas alone (docs/performance.md, "Start-up").
+
+The times are measured by ``benchmarks/import_time.py`` and ``benchmarks/circuit_speed.py``;
+these tests check what the times rest on, in fresh interpreters: the modules a command has
+loaded when it has finished, and that the numpy replacements of the scipy functions give
+scipy's numbers.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from dataclasses import fields
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.linalg
+import scipy.optimize
+
+from tromplab.circuit import linear_algebra
+from tromplab.circuit.problem import _bounded_least_squares
+from tromplab.classifiers.pulp import COEFFICIENT_RANGES, PulpScreen
+from tromplab.loading.node_balance import estimate_fine_yield
+from tromplab.options import PULP_COEFFICIENT_RANGES, PULP_SCREEN_DEFAULTS
+
+ROOT = Path(__file__).resolve().parents[1]
+DATASETS = ROOT / "datasets"
+ASSAYED = Path(__file__).parent / "data" / "circuit_reference" / "inputs" / "assay_class.csv"
+
+#: A command run through the console script's entry point in this interpreter, then the
+#: modules it loaded (every module stays in sys.modules once imported).
+_COMMAND = """
+import json, sys
+from tromplab._launch import main
+sys.argv = ["tromplab", *{argv!r}]
+try:
+    code = main()
+except SystemExit as stop:  # --version and -h leave through argparse
+    code = stop.code
+print(json.dumps({{"code": code, "modules": sorted(sys.modules)}}))
+"""
+#: What ``circuit design`` used to import and no longer needs (0.1 to 0.25 s of its 0.6 s).
+NOT_FOR_A_DESIGN = ("scipy.linalg", "scipy.optimize", "scipy.sparse", "scipy.special", "scipy.stats", "lmfit",
+                    "matplotlib", "statsmodels", "networkx", "tromplab.workbench", "tromplab.classifiers.pulp")  # fmt: skip
+
+
+def _loaded_by(tmp_path: Path, *argv: str) -> set[str]:
+    done = subprocess.run(
+        [sys.executable, "-c", _COMMAND.format(argv=list(argv))],
+        capture_output=True, text=True, timeout=300, cwd=tmp_path, env={**os.environ, "PYTHONPATH": str(ROOT)},
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    result = json.loads(done.stdout.splitlines()[-1])
+    assert result["code"] == 0, done.stderr
+    return set(result["modules"])
+
+
+def _heavy(loaded: set[str], names) -> list[str]:
+    return sorted(name for name in loaded if name in names)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("survey", [[], [str(DATASETS / "circuit_example_survey.csv")]], ids=["simulated survey", "given survey"])
+def test_a_design_runs_on_numpy_and_pandas_without_scipys_numerical_modules(tmp_path, survey):
+    argv = ["circuit", "design", str(DATASETS / "circuit_example_flowsheet.csv"), *survey, "-o", str(tmp_path / "d"), "-q"]
+    loaded = _loaded_by(tmp_path, *argv)
+    assert (tmp_path / "d" / "design.csv").is_file()
+    assert {"numpy", "pandas", "tromplab.circuit.design", "tromplab.circuit.linear_algebra"} <= loaded
+    assert _heavy(loaded, NOT_FOR_A_DESIGN) == []
+
+
+@pytest.mark.slow
+def test_a_survey_with_assays_imports_the_tests_distributions_but_not_scipys_solvers(tmp_path):
+    argv = ["circuit", str(DATASETS / "circuit_example_flowsheet.csv"), str(ASSAYED), "-o", str(tmp_path / "c"),
+            "--no-figures", "-q"]  # fmt: skip
+    loaded = _loaded_by(tmp_path, *argv)
+    assert (tmp_path / "c" / "adjustments.csv").is_file()
+    assert "scipy.special" in loaded  # the measurement tests' normal and chi-square tails
+    assert _heavy(loaded, ("scipy.linalg", "scipy.optimize", "scipy.sparse", "scipy.stats", "lmfit", "matplotlib")) == []
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("argv", [["--version"], ["-h"], ["circuit", "design", "-h"], ["pulp", "optimum", "-h"]])
+def test_the_parser_is_built_without_numpy_or_any_commands_implementation(tmp_path, argv):
+    loaded = _loaded_by(tmp_path, *argv)
+    assert "tromplab.cli.models" in loaded
+    implementations = ("tromplab.circuit", "tromplab.classifiers", "tromplab.curves", "tromplab.density", "tromplab.plant",
+                       "tromplab.loading.tables", "tromplab.workbench")  # fmt: skip
+    assert sorted(name for name in loaded if name.split(".")[0] in ("numpy", "pandas", "scipy")) == []
+    assert sorted(name for name in loaded if name.startswith(implementations)) == []
+
+
+def test_the_pulp_options_are_the_screens_fields_and_ranges():
+    assert PULP_SCREEN_DEFAULTS == {item.name: item.default for item in fields(PulpScreen)}
+    assert list(PULP_SCREEN_DEFAULTS) == [item.name for item in fields(PulpScreen)]  # the options' order in -h
+    assert COEFFICIENT_RANGES is PULP_COEFFICIENT_RANGES
+
+
+def _constraint_matrices():
+    """Balances-like matrices: a random incidence pattern with repeated rows (rank deficient)."""
+    rng = np.random.default_rng(40)
+    for rows, columns in ((34, 88), (12, 30), (5, 5), (1, 7)):
+        A = np.zeros((rows, columns))
+        for row in A:
+            picked = rng.choice(columns, size=min(3, columns), replace=False)
+            row[picked] = rng.choice([-1.0, 1.0, 0.3], size=picked.size)
+        if rows > 2:
+            A[-1] = A[0] + A[1]  # a dependent row: the null space is wider than columns - rows
+        yield A
+
+
+@pytest.mark.parametrize("A", list(_constraint_matrices()), ids=lambda A: f"{A.shape[0]}x{A.shape[1]}")
+def test_the_null_space_is_scipys_to_the_bit_and_in_its_memory_order(A):
+    expected = scipy.linalg.null_space(A, rcond=1e-10)
+    basis = linear_algebra.null_space(A, rcond=1e-10)
+    np.testing.assert_array_equal(basis, expected)
+    # rows in memory order as scipy's (a view of LAPACK's Fortran array): the layout decides the
+    # BLAS path of the products with the basis, and a column-major one moved an assayed survey's
+    # adjustments by 2e-5 relative
+    assert basis.shape[1] == 1 or basis.strides[1] == expected.strides[1] == basis.itemsize
+    np.testing.assert_array_equal(linear_algebra.null_space(A), scipy.linalg.null_space(A))
+
+
+@pytest.mark.parametrize("size", [1, 3, 10])
+def test_the_cholesky_solves_equal_scipys_to_rounding(size):
+    rng = np.random.default_rng(size)
+    E = rng.normal(size=(size, 40)) * 10.0 ** rng.uniform(-3, 3, size=(size, 1))  # rows of very different weights
+    inner = np.eye(size) + E @ E.T  # a design candidate's I + E C E^T: eigenvalues 1 or more
+    right = rng.normal(size=(size, 25))
+    expected = scipy.linalg.cho_solve(scipy.linalg.cho_factor(inner), right)
+    solved = linear_algebra.cho_solve(linear_algebra.cho_factor(inner), right)
+    np.testing.assert_allclose(solved, expected, rtol=1e-12, atol=1e-12 * np.abs(expected).max())
+    np.testing.assert_allclose(inner @ solved, right, rtol=0, atol=1e-9 * np.abs(right).max())
+    vector = linear_algebra.cho_solve(linear_algebra.cho_factor(inner), right[:, 0])
+    np.testing.assert_allclose(vector, expected[:, 0], rtol=1e-12, atol=1e-12 * np.abs(expected).max())
+
+
+def test_a_matrix_that_is_not_positive_definite_is_refused_as_scipy_refuses_it():
+    with pytest.raises(np.linalg.LinAlgError):
+        linear_algebra.cho_factor(np.array([[1.0, 2.0], [2.0, 1.0]]))
+    assert np.linalg.LinAlgError is scipy.linalg.LinAlgError
+
+
+def test_every_other_name_is_scipys_function():
+    assert linear_algebra.qr is scipy.linalg.qr
+    with pytest.raises(AttributeError):
+        linear_algebra.no_such_function  # noqa: B018
+
+
+@pytest.mark.parametrize(
+    "A, b, lower",
+    [
+        (np.array([[10.0, -10.0, 0.0], [0.0, 10.0, -10.0], [10.0, 0.0, 0.0]]), np.array([0.0, 0.0, 1000.0]), 0.1),
+        (np.array([[1.0, 1.0], [1.0, -1.0], [0.0, 1.0]]), np.array([1.0, 3.0, -2.0]), 0.0),  # the bound binds
+        (np.array([[1.0, 1.0, 0.0], [0.0, 1.0, 1.0]]), np.array([2.0, 2.0]), 0.0),  # underdetermined: minimum norm
+    ],
+    ids=["within the bounds", "at a bound", "underdetermined"],
+)
+def test_the_starts_bounded_least_squares_is_lsq_linear_to_the_bit(A, b, lower):
+    # the start's bits reach the outputs (what no measurement sees keeps its starting value)
+    np.testing.assert_array_equal(_bounded_least_squares(A, b, lower), scipy.optimize.lsq_linear(A, b, bounds=(lower, np.inf)).x)
+
+
+@pytest.mark.parametrize("classes", [1, 2, 3, 8, 40])
+def test_the_fine_yield_is_statsmodels_ols_to_the_bit(classes):
+    sm = pytest.importorskip("statsmodels.api")
+    rng = np.random.default_rng(classes)
+    for _ in range(20):
+        fine, coarse = rng.dirichlet(np.ones(classes)), rng.dirichlet(np.ones(classes))
+        if classes == 1:  # one class: shares that are not closed (else fine equals coarse)
+            fine, coarse = rng.uniform(size=1), rng.uniform(size=1)
+        feed = 0.37 * fine + 0.63 * coarse + rng.normal(scale=0.01, size=classes)  # a balance with sampling error
+        estimate = estimate_fine_yield(feed, fine, coarse)
+        model = sm.OLS(feed - coarse, fine - coarse).fit()
+        assert estimate.value == float(model.params[0])
+        np.testing.assert_array_equal(estimate.residuals, model.resid)
+        if classes > 1:
+            assert estimate.stderr == float(model.bse[0])
+        else:
+            assert np.isnan(estimate.stderr)
+
+
+@pytest.mark.slow
+def test_a_lab_table_is_read_without_statsmodels(tmp_path):
+    # the three streams of each experiment give its fine yield by least squares (before: statsmodels' OLS)
+    table = DATASETS / "air_classifier_lab_synthetic.csv"
+    loaded = _loaded_by(tmp_path, "points", str(table), "-o", str(tmp_path / "points.csv"))
+    assert (tmp_path / "points.csv").is_file()
+    assert "tromplab.loading.node_balance" in loaded
+    assert _heavy(loaded, ("statsmodels", "statsmodels.api", "lmfit", "matplotlib")) == []
