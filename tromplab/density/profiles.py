@@ -56,6 +56,8 @@ class ProfileRequests:
         The deviance's scale (1, or the quasi-binomial scale) and the excess's threshold.
     step : ndarray
         The first step out from the estimate.
+    curve : ndarray of int or None
+        Which of the curves :func:`profile_limits` is given each row is (None: the one curve).
     """
 
     stack: TracerStack
@@ -68,6 +70,7 @@ class ProfileRequests:
     scale: np.ndarray
     threshold: np.ndarray
     step: np.ndarray
+    curve: np.ndarray | None = None
 
 
 def curve_of_indices(curve, q: np.ndarray, imperfection: np.ndarray) -> dict[str, np.ndarray]:
@@ -93,9 +96,13 @@ def _ordered(values: np.ndarray, order: np.ndarray) -> np.ndarray:
 class _Profiles:
     """Both sides of every request: row ``i`` of a side is request ``i % requests``."""
 
-    def __init__(self, curve, requests: ProfileRequests):
-        self.curve, self.requests = curve, requests
+    def __init__(self, curves, requests: ProfileRequests):
+        self.curves, self.requests = curves, requests
+        self.has_limits = curves[0].has_limits
+        if any(curve.has_limits != self.has_limits for curve in curves):
+            raise ValueError("the profiles searched together are all of curves with limits or all of plain curves")
         count = len(requests.best)
+        self.curve = np.zeros(count, dtype=int) if requests.curve is None else np.asarray(requests.curve)
         self.request = np.tile(np.arange(count), 2)
         self.direction = np.repeat([-1.0, 1.0], count)
         self.warm = requests.centre[self.request].copy()  # the optimum at the last value of each side
@@ -108,7 +115,7 @@ class _Profiles:
         last optimum among equals)."""
         r = self.requests
         count = len(sides)
-        starts = [self.warm[sides]] + ([r.centre[self.request[sides]]] if self.curve.has_limits else [])
+        starts = [self.warm[sides]] + ([r.centre[self.request[sides]]] if self.has_limits else [])
         request = np.tile(self.request[sides], len(starts))
         stack = r.stack.take(request)
         # the held index is put first (rho50 and Ep or I swap places), so that the minimiser
@@ -118,11 +125,11 @@ class _Profiles:
         held = np.tile(value, len(starts))
         lower, upper, start = (_ordered(part, order) for part in (r.lower[request], r.upper[request], np.concatenate(starts)))
         lower[:, 0] = upper[:, 0] = start[:, 0] = held
-        imperfection = r.imperfection[request]
+        imperfection, curve = r.imperfection[request], self.curve[request]
 
         def partition(x, rows):
             indices = _ordered(x, order[rows])  # the swap is its own inverse
-            return partition_at(self.curve, stack.density[rows], curve_of_indices(self.curve, indices, imperfection[rows]))
+            return self._partition(stack.density[rows], indices, imperfection[rows], curve[rows])
 
         found = minimise_deviance(stack, partition, start, lower, upper)
         x = _ordered(found.x, order).reshape(len(starts), count, -1)
@@ -135,9 +142,28 @@ class _Profiles:
         excess = (best_value - r.best[request]) / r.scale[request] - r.threshold[request]
         return np.where(finite, excess, BEYOND)
 
+    def _partition(self, density, indices, imperfection, curve) -> np.ndarray:
+        """The partitions of rows of several curves at their indices, each curve on its own rows."""
+        if len(self.curves) == 1:
+            return partition_at(self.curves[0], density, curve_of_indices(self.curves[0], indices, imperfection))
+        found = np.empty(density.shape)
+        for number, one in enumerate(self.curves):
+            rows = curve == number
+            if rows.any():
+                found[rows] = partition_at(one, density[rows], curve_of_indices(one, indices[rows], imperfection[rows]))
+        return found
 
-def profile_limits(curve, requests: ProfileRequests) -> tuple[np.ndarray, np.ndarray, list[list[str]]]:
+
+def profile_limits(curves, requests: ProfileRequests) -> tuple[np.ndarray, np.ndarray, list[list[str]]]:
     """The lower and upper profile limits of every request, and the notes of each (none when both are found).
+
+    Parameters
+    ----------
+    curves : DensityCurve or sequence of DensityCurve
+        The curve of the requests, or the curves (all with limits or all without) that
+        ``requests.curve`` indexes: the profiles of several curves searched together, each
+        row's arithmetic its own.
+    requests : ProfileRequests
 
     Returns
     -------
@@ -145,7 +171,7 @@ def profile_limits(curve, requests: ProfileRequests) -> tuple[np.ndarray, np.nda
         ``(low, high, notes)``; a limit the profile does not reach within the search range is
         NaN and a note of its request says so.
     """
-    profiles = _Profiles(curve, requests)
+    profiles = _Profiles(list(curves) if isinstance(curves, (list, tuple)) else [curves], requests)
     sides = np.arange(len(profiles.request))
     request = profiles.request
     centre = requests.centre[request, requests.position[request]]
