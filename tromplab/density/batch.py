@@ -48,8 +48,10 @@ POLISH_STEP = 1e-6
 MAX_HALVINGS = 40
 #: Rows of one evaluation of the partitions at displaced points (their arrays stay in the cache).
 ROWS_PER_CALL = 4096
-#: Rows whose scoring steps are computed together (:func:`_chunked_steps`).
+#: Rows whose scoring steps are computed together (:func:`_chunked_steps`), with derivatives by
+#: differences (arrays of every displaced point) and analytic.
 SCORING_CHUNK = 256
+EXACT_SCORING_CHUNK = 512
 
 
 @dataclass(frozen=True)
@@ -193,7 +195,7 @@ class Minimum:
     deviance: np.ndarray
 
 
-def minimise_deviance(stack: TracerStack, partition, start, lower, upper) -> Minimum:
+def minimise_deviance(stack: TracerStack, partition, start, lower, upper, *, derivatives=None) -> Minimum:
     """The deviance of each row minimised over the box ``lower <= x <= upper`` from ``start``.
 
     Parameters
@@ -206,6 +208,10 @@ def minimise_deviance(stack: TracerStack, partition, start, lower, upper) -> Min
         that have converged are left out of the next steps.
     start, lower, upper : ndarray
         (rows, parameters); a parameter with ``lower == upper`` is held fixed.
+    derivatives : callable, optional
+        ``derivatives(x, rows)`` -> the nonzero first and second derivatives of ``P`` in ``x``,
+        analytic, as dicts ``{i: dP/dx_i}`` and ``{(i, j): d2P/dx_i dx_j}`` (``i <= j``) of
+        (len(rows), width) arrays; None: by differences of ``partition``.
 
     Returns
     -------
@@ -216,14 +222,21 @@ def minimise_deviance(stack: TracerStack, partition, start, lower, upper) -> Min
     lower, upper = np.asarray(lower, float), np.asarray(upper, float)
     x = np.clip(np.asarray(start, float), lower, upper)
     with np.errstate(all="ignore"):
-        value = deviance(stack, partition(x, np.arange(len(x))))
+        current = partition(x, np.arange(len(x)))  # the partitions at x, kept from the line search's trials
+        value = deviance(stack, current)
         active = np.flatnonzero(np.isfinite(value))
         for _ in range(MAX_ITERATIONS):
             if not active.size:
                 break
             rows, bounds = stack.take(active), (lower[active], upper[active])
-            step, newton = _chunked_steps(stack, partition, x, lower, upper, active)
-            x[active], value[active], moved = _line_search(rows, _of(partition, active), x[active], value[active], step, newton, *bounds)
+            step, newton = _chunked_steps(stack, partition, x, current, lower, upper, active, derivatives)
+
+            def of_active(point, subset, active=active):
+                return partition(point, active[subset])
+
+            x[active], value[active], current[active], moved = _line_search(
+                rows, of_active, x[active], value[active], current[active], step, newton, *bounds
+            )
             active = active[moved]
     return Minimum(x, value)
 
@@ -237,40 +250,48 @@ def _of(partition, rows: np.ndarray):
     return of_rows
 
 
-def _chunked_steps(stack: TracerStack, partition, x, lower, upper, active) -> tuple[np.ndarray, np.ndarray]:
+def _chunked_steps(stack: TracerStack, partition, x, current, lower, upper, active, derivatives) -> tuple[np.ndarray, np.ndarray]:
     """The scoring steps of the rows ``active``, :data:`SCORING_CHUNK` rows at a time: each row's
     arithmetic is its own, and the arrays of a chunk (the differences of ``P`` at every displaced
     point, the curvatures) stay in the processor's cache where those of a thousand rows do not."""
     steps, newton = np.empty((len(active), x.shape[1])), np.empty(len(active), dtype=bool)
-    for first in range(0, len(active), SCORING_CHUNK):
-        chunk = active[first : first + SCORING_CHUNK]
-        found = _scoring_step(stack.take(chunk), _of(partition, chunk), x[chunk], lower[chunk], upper[chunk])
+    size = SCORING_CHUNK if derivatives is None else EXACT_SCORING_CHUNK
+    for first in range(0, len(active), size):
+        chunk = active[first : first + size]
+        exact = None if derivatives is None else (lambda point, chunk=chunk: derivatives(point, chunk))
+        found = _scoring_step(
+            stack.take(chunk), _of(partition, chunk), x[chunk], current[chunk], lower[chunk], upper[chunk], exact
+        )
         steps[first : first + len(chunk)], newton[first : first + len(chunk)] = found
     return steps, newton
 
 
-def _scoring_step(stack: TracerStack, partition, x, lower, upper) -> tuple[np.ndarray, np.ndarray]:
+def _scoring_step(stack: TracerStack, partition, x, current, lower, upper, derivatives=None) -> tuple[np.ndarray, np.ndarray]:
     """The projected Newton step of every row (zero along parameters held on a bound), and
     whether it is Newton's (True) or Fisher scoring's.
 
     Newton's step on the deviance's own Hessian where it is positive definite on the free
     parameters, else the Fisher-scoring step on the expected information (always positive
     definite): near the light-end limit's bound the deviance is far from quadratic and the
-    expected information, alone, converges only linearly (hundreds of steps).
+    expected information, alone, converges only linearly (hundreds of steps).  ``current``: the
+    partitions at ``x``.
     """
-    current = partition(x)
-    jacobian, curvature = _derivatives(partition, x, lower, upper, current)  # (rows, width, m), (rows, width, m, m)
     p = np.clip(current, 1e-300, 1.0 - 1e-16)
     k, n = stack.sinks, stack.trials
     counted = n > 0
     slope = np.where(counted, 2.0 * ((n - k) / (1.0 - p) - k / p), 0.0)
     bend = np.where(counted, 2.0 * (k / p**2 + (n - k) / (1.0 - p) ** 2), 0.0)
+    information = np.where(counted, 2.0 * n / (p * (1.0 - p)), 0.0)
     rows, size = x.shape
-    score = np.matmul(slope[:, None, :], jacobian)[:, 0, :]
-    transposed = jacobian.transpose(0, 2, 1)
-    bent = np.matmul(slope[:, None, :], curvature.reshape(rows, -1, size * size)).reshape(rows, size, size)
-    hessian = np.matmul(transposed * bend[:, None, :], jacobian) + bent
-    fisher = np.matmul(transposed * np.where(counted, 2.0 * n / (p * (1.0 - p)), 0.0)[:, None, :], jacobian)
+    if derivatives is None:
+        jacobian, curvature = _derivatives(partition, x, lower, upper, current)  # (rows, width, m), (rows, width, m, m)
+        score = np.matmul(slope[:, None, :], jacobian)[:, 0, :]
+        transposed = jacobian.transpose(0, 2, 1)
+        bent = np.matmul(slope[:, None, :], curvature.reshape(rows, -1, size * size)).reshape(rows, size, size)
+        hessian = np.matmul(transposed * bend[:, None, :], jacobian) + bent
+        fisher = np.matmul(transposed * information[:, None, :], jacobian)
+    else:
+        score, hessian, fisher = _contracted(*derivatives(x), slope, bend, information, size)
     held = (lower == upper) | ((x <= lower) & (score > 0)) | ((x >= upper) & (score < 0))
     free = ~held
     keep = free[:, :, None] & free[:, None, :]
@@ -284,6 +305,26 @@ def _scoring_step(stack: TracerStack, partition, x, lower, upper) -> tuple[np.nd
     matrix = matrix + ridge[:, None, None] * np.eye(size)
     step = -np.linalg.solve(matrix, (score * free)[:, :, None])[:, :, 0]
     return np.where(np.isfinite(step), step, 0.0), positive
+
+
+def _contracted(first: dict, second: dict, slope, bend, information, size: int):
+    """The score, Hessian and expected information of the deviance from the derivatives of ``P``
+    given column by column (``first[i]``, ``second[i, j]`` for ``i <= j``, each (rows, width); a
+    column left out is zero): sums over the densities, no (rows, width, m, m) array made."""
+    rows = len(slope)
+    score, hessian, fisher = np.zeros((rows, size)), np.zeros((rows, size, size)), np.zeros((rows, size, size))
+    for i, column in first.items():
+        score[:, i] = (slope * column).sum(axis=1)
+        weighted, informed = bend * column, information * column
+        for j, other in first.items():
+            if j >= i:
+                hessian[:, i, j] = hessian[:, j, i] = (weighted * other).sum(axis=1)
+                fisher[:, i, j] = fisher[:, j, i] = (informed * other).sum(axis=1)
+    for (i, j), column in second.items():
+        hessian[:, i, j] += (slope * column).sum(axis=1)
+        if i != j:
+            hessian[:, j, i] = hessian[:, i, j]
+    return score, hessian, fisher
 
 
 def _derivatives(partition, x, lower, upper, current) -> tuple[np.ndarray, np.ndarray]:
@@ -343,9 +384,11 @@ def _moved(x: np.ndarray, column: int, by: np.ndarray) -> np.ndarray:
     return moved
 
 
-def _line_search(stack, partition, x, value, step, newton, lower, upper):
+def _line_search(stack, partition, x, value, current, step, newton, lower, upper):
     """Halve each row's step until its deviance falls; a row whose (projected) step no longer
-    moves it, or whose deviance falls no more, is returned as not moved.
+    moves it, or whose deviance falls no more, is returned as not moved.  ``partition(points,
+    rows)``: the partitions of the rows ``rows`` (of ``x``) at ``points``; each halving evaluates
+    the rows still pending only.  Returns the new ``x``, deviance and partitions, and which rows moved.
 
     A Newton step shorter than :data:`POLISH_STEP` (relative) is taken whole and ends the
     row's iterations: so close to the minimum the fall of the deviance is below its rounding,
@@ -357,20 +400,25 @@ def _line_search(stack, partition, x, value, step, newton, lower, upper):
     length = np.ones(len(x))
     pending = np.ones(len(x), dtype=bool)
     moved = np.zeros(len(x), dtype=bool)
-    new_x, new_value = x.copy(), value.copy()
+    new_x, new_value, new_current = x.copy(), value.copy(), current.copy()
     for _ in range(MAX_HALVINGS):
         trial = np.clip(x + length[:, None] * step, lower, upper)
         pending &= (np.abs(trial - x) > tolerance).any(axis=1)
         if not pending.any():
             break
-        trial_value = deviance(stack, partition(trial))
-        slack = np.where(polish, 1e-9 * np.abs(value) + 1e-12, 0.0)
-        better = pending & np.isfinite(trial_value) & ((trial_value < value) | (polish & (trial_value <= value + slack)))
-        new_x[better], new_value[better] = trial[better], np.minimum(trial_value[better], value[better])
-        moved |= better & ~polish
-        pending &= ~better
+        rows = np.flatnonzero(pending)
+        partitions = partition(trial[rows], rows)
+        trial_value = deviance(stack.take(rows), partitions)
+        slack = np.where(polish[rows], 1e-9 * np.abs(value[rows]) + 1e-12, 0.0)
+        falls = (trial_value < value[rows]) | (polish[rows] & (trial_value <= value[rows] + slack))
+        better = np.isfinite(trial_value) & falls
+        taken = rows[better]
+        new_x[taken], new_value[taken] = trial[taken], np.minimum(trial_value[better], value[taken])
+        new_current[taken] = partitions[better]
+        moved[taken] = ~polish[taken]
+        pending[taken] = False
         length = np.where(pending, length / 2.0, length)
-    return new_x, new_value, moved
+    return new_x, new_value, new_current, moved
 
 
 @functools.cache

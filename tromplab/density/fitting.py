@@ -486,7 +486,9 @@ def _binomial_profiles(requests: list, ci: float) -> list[tuple[float, float, st
         chosen = [requests[position] for position in positions]
         curves = list({fit.curve.id: fit.curve for fit, _, _ in chosen}.values())
         number = {curve.id: i for i, curve in enumerate(curves)}
-        profile = dataclasses.replace(_profile_requests(chosen, ci), curve=np.array([number[fit.curve.id] for fit, _, _ in chosen]))
+        profile = dataclasses.replace(
+            _profile_requests(chosen, ci), curve=np.array([number[fit.curve.id] for fit, _, _ in chosen])
+        )
         low, high, notes = profile_limits(curves, profile)
         for row, (position, (_, quantity, _)) in enumerate(zip(positions, chosen)):
             found[position] = (float(low[row]), float(high[row]), "; ".join(f"{quantity}: {note}" for note in notes[row]))

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..curves.likelihood import regula_falsi, step_out
-from .batch import TracerStack, centre_and_scale, minimise_deviance, partition_at
+from .batch import TracerStack, centre_and_scale, minimise_deviance
 from .registry import QUARTILES
 
 #: The excess where no curve with a finite likelihood exists at a value: beyond any limit.
@@ -89,6 +89,159 @@ def curve_of_indices(curve, q: np.ndarray, imperfection: np.ndarray) -> dict[str
     return {"rho_c": rho_c, "ep_c": ep_c, "light_limit": light, "heavy_limit": heavy}
 
 
+class _RowForms:
+    """The standard forms of the rows of several curves (all with limits or all plain): each form's
+    functions applied to its own rows, the constants ``centre`` (q50) and ``scale`` (k) as (rows, 1)."""
+
+    def __init__(self, curves, curve: np.ndarray):
+        self.curves, self.curve, self.has_limits = curves, curve, curves[0].has_limits
+        self.groups = [(one.form, curve == number) for number, one in enumerate(curves)]
+        self.groups = [(form, rows) for form, rows in self.groups if rows.any()]
+        constants = np.array([centre_and_scale(one.form) for one in curves])
+        self.centre, self.scale = constants[curve, 0:1], constants[curve, 1:2]
+
+    def take(self, rows: np.ndarray) -> _RowForms:
+        """The forms of the rows ``rows``."""
+        return _RowForms(self.curves, self.curve[rows])
+
+    def _each(self, function, first: np.ndarray, *more: np.ndarray) -> np.ndarray:
+        if len(self.groups) == 1:
+            return function(self.groups[0][0], first, *more)
+        found = np.empty(np.broadcast_shapes(first.shape, *(part.shape for part in more)))
+        for form, rows in self.groups:
+            found[rows] = function(form, first[rows], *(part[rows] for part in more))
+        return found
+
+    def cdf(self, t):
+        return self._each(lambda form, t: form.cdf(t), t)
+
+    def pdf(self, t):
+        return self._each(lambda form, t: form.pdf(t), t)
+
+    def quantile(self, p):
+        return self._each(lambda form, p: form.quantile(p), p)
+
+    def pdf_slope(self, t, cdf, pdf):
+        """``f'(t)`` from ``t``, ``F(t)`` and ``f(t)`` (:func:`_pdf_slope`)."""
+        return self._each(lambda form, *values: _pdf_slope(form.link, *values), t, cdf, pdf)
+
+
+def _partitions(forms: _RowForms, density: np.ndarray, q: np.ndarray, imperfection: np.ndarray) -> np.ndarray:
+    """The partitions at ``density`` of the curves whose indices are ``q``, row by row: the
+    arithmetic of :func:`curve_of_indices` and :func:`~tromplab.density.batch.partition_at`,
+    element by element, with each row's form."""
+    rho50, second = q[:, 0:1], q[:, 1:2]
+    ep = np.where(imperfection[:, None], second * (rho50 - 1.0), second)
+    if not forms.has_limits:
+        return forms.cdf(forms.centre + forms.scale * (density - rho50) / ep)
+    light, heavy = q[:, 2:3], q[:, 3:4]
+    quartiles = forms.quantile((np.array(QUARTILES) - light) / (heavy - light))
+    q25, q50, q75 = quartiles[:, 0:1], quartiles[:, 1:2], quartiles[:, 2:3]
+    ep_c = ep * 2.0 * forms.scale / (q75 - q25)
+    rho_c = rho50 - ep_c * (q50 - forms.centre) / forms.scale
+    inside = forms.cdf(forms.centre + forms.scale * (density - rho_c) / ep_c)
+    return light + (heavy - light) * inside
+
+
+def _pdf_slope(link: str, t: np.ndarray, cdf: np.ndarray, pdf: np.ndarray) -> np.ndarray:
+    """``f'(t)`` of a standard form from ``t``, ``F(t)`` and ``f(t)``, by the GLM link the form is the inverse of."""
+    if link == "probit":
+        return -t * pdf
+    if link == "logit":
+        return pdf * (1.0 - 2.0 * cdf)
+    if link == "cloglog":
+        return pdf * (1.0 - np.exp(np.minimum(t, 700.0)))
+    raise ValueError(f"no derivative of the density of the {link!r} form")
+
+
+def _quartile_terms(forms: _RowForms, light, heavy) -> tuple[dict, dict]:
+    """``D = Q(a75) - Q(a25)`` and ``M = Q(a50)`` (``a_p = (p - l)/(h - l)``, ``Q`` the form's
+    quantile) with their first and second derivatives in ``l`` (2) and ``h`` (3), keyed by the
+    index positions: ``{(): value, (2,): d/dl, (2, 3): d2/dl dh, ...}``."""
+    span = heavy - light
+    p = np.array(QUARTILES)  # the three quartiles as columns, (rows, 3)
+    a = (p - light) / span
+    q = forms.quantile(a)
+    density = forms.pdf(q)
+    first, second = 1.0 / density, -forms.pdf_slope(q, a, density) / density**3
+    a_l, a_h = (p - heavy) / span**2, -(p - light) / span**2
+    a_ll, a_lh, a_hh = 2.0 * (p - heavy) / span**3, -1.0 / span**2 - 2.0 * (p - heavy) / span**3, 2.0 * (p - light) / span**3
+    found = {(): q, (2,): first * a_l, (3,): first * a_h, (2, 2): second * a_l * a_l + first * a_ll,
+             (2, 3): second * a_l * a_h + first * a_lh, (3, 3): second * a_h * a_h + first * a_hh}  # fmt: skip
+    return {key: value[:, 2:3] - value[:, 0:1] for key, value in found.items()}, {
+        key: value[:, 1:2] for key, value in found.items()
+    }
+
+
+def index_derivatives(forms: _RowForms, density: np.ndarray, q: np.ndarray, imperfection: np.ndarray, held: np.ndarray):
+    r"""The first and second derivatives of the partitions at ``density`` (rows, width) in the
+    parameters of a profile's minimisation, analytically: the indices ``q`` (rows, parameters) of
+    :func:`curve_of_indices` with the one ``held`` (0: rho50, 1: Ep or I) put first.
+
+    In the indices the standardised variable is :math:`t = M + (\rho - \rho_{50})\,g`,
+    :math:`g = D / (2 E_p)` (``M``, ``D``: the quartile terms of :func:`_quartile_terms`;
+    ``M = q50`` and ``D = 2k`` for a plain curve), and :math:`P = l + (h - l) F(t)`, so that
+    :math:`\partial_i P = [i = l](1 - F) + [i = h] F + (h - l) f\, t_i` and
+    :math:`\partial_{ij} P = f\,(c_i t_j + c_j t_i) + (h - l)(f' t_i t_j + f\, t_{ij})`, with
+    :math:`c_l = -1`, :math:`c_h = 1` and 0 otherwise.
+
+    Returns
+    -------
+    tuple
+        ``{i: dP/dx_i}`` and ``{(i, j): d2P/dx_i dx_j}`` (``i <= j``), each (rows, width), ``x``
+        the held index (0: its derivatives, zero, left out), the other of rho50 and Ep (or I),
+        then the limits.
+    """
+    size = q.shape[1]
+    rho50, second = q[:, 0:1], q[:, 1:2]
+    imperfect, rho50_free = imperfection[:, None], (held == 1)[:, None]
+    ep = np.where(imperfect, second * (rho50 - 1.0), second)
+    # the derivatives of Ep in the index left free, o: rho50 (Ep = I (rho50 - 1)) or the second index
+    e_o = np.where(rho50_free, np.where(imperfect, second, 0.0), np.where(imperfect, rho50 - 1.0, 1.0))
+    if forms.has_limits:
+        span = q[:, 3:4] - q[:, 2:3]
+        width, middle = _quartile_terms(forms, q[:, 2:3], q[:, 3:4])
+    else:
+        span, width, middle = 1.0, {(): 2.0 * forms.scale}, {(): forms.centre}
+    g = _slope_terms(width, ep, e_o)
+    u = density - rho50
+    shift = {key: np.where(rho50_free, g[key], 0.0) for key in ((), (1,))}  # rho50 enters through u too
+    t = middle[()] + u * g[()]
+    t1 = {1: u * g[(1,)] - shift[()]}
+    t2 = {(1, 1): u * g[1, 1] - 2.0 * shift[(1,)]}
+    for i in range(2, size):
+        t1[i] = middle[(i,)] + u * g[(i,)]
+        t2[1, i] = u * g[1, i] - np.where(rho50_free, g[(i,)], 0.0)
+        for j in range(i, size):
+            t2[i, j] = middle[i, j] + u * g[i, j]
+    cdf, pdf = forms.cdf(t), forms.pdf(t)
+    slope = forms.pdf_slope(t, cdf, pdf)
+    edge = {2: (-1.0, 1.0 - cdf), 3: (1.0, cdf)}  # c_i and the derivative of l + (h - l) F in the limit itself
+    first = {i: span * pdf * t1[i] + (edge[i][1] if i in edge else 0.0) for i in range(1, size)}
+    second = {}
+    for i, j in t2:
+        value = span * (slope * t1[i] * t1[j] + pdf * t2[i, j])
+        if i in edge or j in edge:
+            value = value + pdf * ((edge[i][0] if i in edge else 0.0) * t1[j] + (edge[j][0] if j in edge else 0.0) * t1[i])
+        second[i, j] = value
+    return first, second
+
+
+def _slope_terms(width: dict, ep: np.ndarray, e_o: np.ndarray) -> dict:
+    """``g = D / (2 Ep)`` and its derivatives in the free index ``o`` (1) and the limits (2, 3):
+    ``D`` depends on the limits, ``Ep`` on ``o`` (``e_o``: its derivative; the second is zero,
+    as ``Ep = I (rho50 - 1)`` is linear in each of rho50 and I)."""
+    half = 0.5 / ep
+    d = width[()]
+    g = {(): d * half, (1,): -d * e_o * half / ep, (1, 1): d * e_o**2 / ep**3}
+    for i in (2, 3):
+        g[(i,)] = width.get((i,), 0.0) * half
+        g[1, i] = -width.get((i,), 0.0) * e_o * half / ep
+        for j in range(i, 4):
+            g[i, j] = width.get((i, j), 0.0) * half
+    return g
+
+
 def _ordered(values: np.ndarray, order: np.ndarray) -> np.ndarray:
     return np.take_along_axis(values, order, axis=1)
 
@@ -125,13 +278,19 @@ class _Profiles:
         held = np.tile(value, len(starts))
         lower, upper, start = (_ordered(part, order) for part in (r.lower[request], r.upper[request], np.concatenate(starts)))
         lower[:, 0] = upper[:, 0] = start[:, 0] = held
-        imperfection, curve = r.imperfection[request], self.curve[request]
+        imperfection, curve, position = r.imperfection[request], self.curve[request], r.position[request]
+
+        forms = _RowForms(self.curves, curve)
 
         def partition(x, rows):
             indices = _ordered(x, order[rows])  # the swap is its own inverse
-            return self._partition(stack.density[rows], indices, imperfection[rows], curve[rows])
+            return _partitions(forms.take(rows), stack.density[rows], indices, imperfection[rows])
 
-        found = minimise_deviance(stack, partition, start, lower, upper)
+        def derivatives(x, rows):
+            indices = _ordered(x, order[rows])
+            return index_derivatives(forms.take(rows), stack.density[rows], indices, imperfection[rows], position[rows])
+
+        found = minimise_deviance(stack, partition, start, lower, upper, derivatives=derivatives)
         x = _ordered(found.x, order).reshape(len(starts), count, -1)
         deviance = np.where(np.isfinite(found.deviance), found.deviance, np.inf).reshape(len(starts), count)
         pick = np.argmin(deviance, axis=0)  # the first start among equals
@@ -141,17 +300,6 @@ class _Profiles:
         request = request[:count]
         excess = (best_value - r.best[request]) / r.scale[request] - r.threshold[request]
         return np.where(finite, excess, BEYOND)
-
-    def _partition(self, density, indices, imperfection, curve) -> np.ndarray:
-        """The partitions of rows of several curves at their indices, each curve on its own rows."""
-        if len(self.curves) == 1:
-            return partition_at(self.curves[0], density, curve_of_indices(self.curves[0], indices, imperfection))
-        found = np.empty(density.shape)
-        for number, one in enumerate(self.curves):
-            rows = curve == number
-            if rows.any():
-                found[rows] = partition_at(one, density[rows], curve_of_indices(one, indices[rows], imperfection[rows]))
-        return found
 
 
 def profile_limits(curves, requests: ProfileRequests) -> tuple[np.ndarray, np.ndarray, list[list[str]]]:
