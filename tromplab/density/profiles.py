@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..curves.likelihood import regula_falsi, step_out
+from ..curves.likelihood import newton_in_bracket, step_out
 from .batch import TracerStack, centre_and_scale, minimise_deviance
 from .registry import QUARTILES
 
@@ -227,6 +227,28 @@ def index_derivatives(forms: _RowForms, density: np.ndarray, q: np.ndarray, impe
     return first, second
 
 
+def held_derivative(
+    forms: _RowForms, density: np.ndarray, q: np.ndarray, imperfection: np.ndarray, held: np.ndarray
+) -> np.ndarray:
+    """``dP/dq_held`` (rows, width): the derivative of the partitions in the index each row's
+    profile holds (0: rho50, 1: Ep or I), the terms of :func:`index_derivatives` for that index."""
+    rho50, second = q[:, 0:1], q[:, 1:2]
+    imperfect, rho50_held = imperfection[:, None], (held == 0)[:, None]
+    ep = np.where(imperfect, second * (rho50 - 1.0), second)
+    e_held = np.where(rho50_held, np.where(imperfect, second, 0.0), np.where(imperfect, rho50 - 1.0, 1.0))
+    if forms.has_limits:
+        span = q[:, 3:4] - q[:, 2:3]
+        quartiles = forms.quantile((np.array(QUARTILES) - q[:, 2:3]) / span)
+        width, middle = quartiles[:, 2:3] - quartiles[:, 0:1], quartiles[:, 1:2]
+    else:
+        span, width, middle = 1.0, 2.0 * forms.scale, forms.centre
+    g = width * 0.5 / ep
+    u = density - rho50
+    t = middle + u * g
+    t_held = -u * width * e_held * (0.5 / ep) / ep - np.where(rho50_held, g, 0.0)
+    return span * forms.pdf(t) * t_held
+
+
 def _slope_terms(width: dict, ep: np.ndarray, e_o: np.ndarray) -> dict:
     """``g = D / (2 Ep)`` and its derivatives in the free index ``o`` (1) and the limits (2, 3):
     ``D`` depends on the limits, ``Ep`` on ``o`` (``e_o``: its derivative; the second is zero,
@@ -261,7 +283,13 @@ class _Profiles:
         self.warm = requests.centre[self.request].copy()  # the optimum at the last value of each side
 
     def excess(self, sides: np.ndarray, value: np.ndarray) -> np.ndarray:
-        """The excess of the re-optimised deviance at ``value`` on each of ``sides`` (warm starts updated).
+        """The excess of the re-optimised deviance at ``value`` on each of ``sides`` (warm starts updated)."""
+        return self.excess_and_slope(sides, value)[0]
+
+    def excess_and_slope(self, sides: np.ndarray, value: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The excess of the re-optimised deviance at ``value`` on each of ``sides`` (warm starts
+        updated), and its derivative in the value: the deviance's partial derivative in the held
+        index at the re-optimised point (envelope theorem; NaN where no finite deviance was found).
 
         A curve with limits is re-optimised from two starts, the last optimum of the side and
         the estimate, both in one minimisation (rows stacked), the lower deviance kept (the
@@ -299,7 +327,18 @@ class _Profiles:
         self.warm[sides[finite]] = best_x[finite]
         request = request[:count]
         excess = (best_value - r.best[request]) / r.scale[request] - r.threshold[request]
-        return np.where(finite, excess, BEYOND)
+        slope = self._slope(stack.take(np.arange(count)), forms.take(np.arange(count)), best_x, imperfection[:count],
+                            position[:count]) / r.scale[request]  # fmt: skip
+        return np.where(finite, excess, BEYOND), np.where(finite, slope, np.nan)
+
+    @staticmethod
+    def _slope(stack: TracerStack, forms: _RowForms, q: np.ndarray, imperfection, held) -> np.ndarray:
+        """The derivative of the binomial deviance in the held index at the indices ``q``, row by row."""
+        p = np.clip(_partitions(forms, stack.density, q, imperfection), 1e-300, 1.0 - 1e-16)
+        k, n = stack.sinks, stack.trials
+        with np.errstate(all="ignore"):
+            slope = np.where(n > 0, 2.0 * ((n - k) / (1.0 - p) - k / p), 0.0)
+            return (slope * held_derivative(forms, stack.density, q, imperfection, held)).sum(axis=1)
 
 
 def profile_limits(curves, requests: ProfileRequests) -> tuple[np.ndarray, np.ndarray, list[list[str]]]:
@@ -335,12 +374,12 @@ def profile_limits(curves, requests: ProfileRequests) -> tuple[np.ndarray, np.nd
     if bracketed.size:
         width = 2.0 * (ROOT_STEP_TOLERANCE * step[bracketed] + 2.0 * ROOT_RELATIVE_TOLERANCE * np.abs(centre[bracketed]))
 
-        def excess(rows, values):
-            return profiles.excess(bracketed[rows], values)
+        def excess_and_slope(rows, values):
+            return profiles.excess_and_slope(bracketed[rows], values)
 
         direction = profiles.direction[bracketed]
-        distance = regula_falsi(excess, centre[bracketed], direction, bracket.take(bracketed), width,
-                                max_iterations=MAX_ROOT_ITERATIONS)  # fmt: skip
+        distance = newton_in_bracket(excess_and_slope, centre[bracketed], direction, bracket.take(bracketed), width,
+                                     max_iterations=MAX_ROOT_ITERATIONS)  # fmt: skip
         limits[bracketed] = centre[bracketed] + direction * distance
         _recheck_edges(profiles, sides, limits, edge, step)
     count = len(requests.best)
