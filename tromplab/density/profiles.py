@@ -12,7 +12,8 @@ time until the excess is positive (a bracket) or the search range ends (no limit
 each bracket regula falsi (Illinois), every side at once, converges to the last digits.  The
 search is the one every curve's profile uses, size or density
 (:func:`tromplab.curves.likelihood.step_out` and :func:`~tromplab.curves.likelihood.regula_falsi`);
-this module gives it the excess of the re-optimised deviance.
+this module gives it the excess of the re-optimised deviance, and for the plain curves its
+slope too (:func:`~tromplab.curves.likelihood.newton_in_bracket`, :func:`profile_limits`).
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..curves.likelihood import newton_in_bracket, step_out
+from ..curves.likelihood import newton_in_bracket, regula_falsi, step_out
 from .batch import TracerStack, centre_and_scale, minimise_deviance
 from .registry import QUARTILES
 
@@ -284,9 +285,11 @@ class _Profiles:
 
     def excess(self, sides: np.ndarray, value: np.ndarray) -> np.ndarray:
         """The excess of the re-optimised deviance at ``value`` on each of ``sides`` (warm starts updated)."""
-        return self.excess_and_slope(sides, value)[0]
+        return self.excess_and_slope(sides, value, slope=False)[0]
 
-    def excess_and_slope(self, sides: np.ndarray, value: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def excess_and_slope(
+        self, sides: np.ndarray, value: np.ndarray, *, slope: bool = True
+    ) -> tuple[np.ndarray, np.ndarray | None]:
         """The excess of the re-optimised deviance at ``value`` on each of ``sides`` (warm starts
         updated), and its derivative in the value: the deviance's partial derivative in the held
         index at the re-optimised point (envelope theorem; NaN where no finite deviance was found).
@@ -318,7 +321,8 @@ class _Profiles:
             indices = _ordered(x, order[rows])
             return index_derivatives(forms.take(rows), stack.density[rows], indices, imperfection[rows], position[rows])
 
-        found = minimise_deviance(stack, partition, start, lower, upper, derivatives=derivatives)
+        exact = None if self.has_limits else derivatives  # see profile_limits: why not with limits
+        found = minimise_deviance(stack, partition, start, lower, upper, derivatives=exact)
         x = _ordered(found.x, order).reshape(len(starts), count, -1)
         deviance = np.where(np.isfinite(found.deviance), found.deviance, np.inf).reshape(len(starts), count)
         pick = np.argmin(deviance, axis=0)  # the first start among equals
@@ -327,9 +331,12 @@ class _Profiles:
         self.warm[sides[finite]] = best_x[finite]
         request = request[:count]
         excess = (best_value - r.best[request]) / r.scale[request] - r.threshold[request]
-        slope = self._slope(stack.take(np.arange(count)), forms.take(np.arange(count)), best_x, imperfection[:count],
-                            position[:count]) / r.scale[request]  # fmt: skip
-        return np.where(finite, excess, BEYOND), np.where(finite, slope, np.nan)
+        excess = np.where(finite, excess, BEYOND)
+        if not slope:
+            return excess, None
+        first = np.arange(count)  # the rows of the first start: the same requests
+        rise = self._slope(stack.take(first), forms.take(first), best_x, imperfection[first], position[first])
+        return excess, np.where(finite, rise / r.scale[request], np.nan)
 
     @staticmethod
     def _slope(stack: TracerStack, forms: _RowForms, q: np.ndarray, imperfection, held) -> np.ndarray:
@@ -357,6 +364,18 @@ def profile_limits(curves, requests: ProfileRequests) -> tuple[np.ndarray, np.nd
     tuple
         ``(low, high, notes)``; a limit the profile does not reach within the search range is
         NaN and a note of its request says so.
+
+    Notes
+    -----
+    A plain curve's profile re-optimises one index, whose optimum is unique: its minimisations
+    take the analytic derivatives of :func:`index_derivatives` and its limits are closed by
+    Newton's method in the bracket (:func:`~tromplab.curves.likelihood.newton_in_bracket`, the
+    excess's slope from :meth:`_Profiles.excess_and_slope`), the limits the same as by regula
+    falsi to their tolerance (1e-12 relative).  A curve with limits re-optimises three indices,
+    and far from the estimate (Ep of 1 g/cm3 and more, where the curve is nearly flat) the box
+    holds several local minima in its corners: which one a minimisation reaches depends on its
+    path, so those profiles keep the differences and regula falsi, whose path they were
+    validated on (the analytic derivatives moved two such limits of overdispersed tests).
     """
     profiles = _Profiles(list(curves) if isinstance(curves, (list, tuple)) else [curves], requests)
     sides = np.arange(len(profiles.request))
@@ -378,8 +397,12 @@ def profile_limits(curves, requests: ProfileRequests) -> tuple[np.ndarray, np.nd
             return profiles.excess_and_slope(bracketed[rows], values)
 
         direction = profiles.direction[bracketed]
-        distance = newton_in_bracket(excess_and_slope, centre[bracketed], direction, bracket.take(bracketed), width,
-                                     max_iterations=MAX_ROOT_ITERATIONS)  # fmt: skip
+        if profiles.has_limits:
+            distance = regula_falsi(lambda rows, values: profiles.excess(bracketed[rows], values), centre[bracketed],
+                                    direction, bracket.take(bracketed), width, max_iterations=MAX_ROOT_ITERATIONS)  # fmt: skip
+        else:
+            distance = newton_in_bracket(excess_and_slope, centre[bracketed], direction, bracket.take(bracketed), width,
+                                         max_iterations=MAX_ROOT_ITERATIONS)  # fmt: skip
         limits[bracketed] = centre[bracketed] + direction * distance
         _recheck_edges(profiles, sides, limits, edge, step)
     count = len(requests.best)
