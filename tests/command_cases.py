@@ -8,7 +8,8 @@ line and records the SHA-256 of each text file it writes.  It was first run on t
 the commands took one shape (main at 52a2c1d), and run again when later work changed outputs on
 purpose (CHANGELOG: the circuit's deterministic Gauss-Newton solve and its ``warnings.csv``, the
 plant's evaluation columns, the density intervals' shared profile search, whose numbers agree
-with the earlier ones to 1e-9 relative); from the repository's root, with relative data set
+with the earlier ones to 1e-9 relative; the plain density curves' profile limits closed by Newton's
+method, ``density fit with intervals`` only, within 3.2e-14 relative of before); from the repository's root, with relative data set
 names, so that the digests do not depend on where the checkout lives.
 Figures (PNG) are left out of the stored digests, as they depend on matplotlib's version; the
 test compares them between the command line and the API, which run in the same environment.

@@ -261,7 +261,7 @@ def newton_in_bracket(
         with np.errstate(all="ignore"):
             newton = at - h / (direction[work] * slope)
         inside = np.isfinite(newton) & (newton > t_low[work]) & (newton < t_high[work])
-        settled = inside & (np.abs(newton - at) <= 0.5 * width[work])
+        settled = np.isfinite(newton) & (np.abs(newton - at) <= 0.5 * width[work])  # also on an end of the bracket
         narrow = ~settled & ((t_high[work] - t_low[work] <= width[work]) | (h == 0))
         root[work[settled]] = newton[settled]
         root[work[narrow]] = np.where(
