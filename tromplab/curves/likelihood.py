@@ -10,7 +10,9 @@ distances ``t >= 0`` from the estimate along the row's side:
    value with a positive excess (a bracket), or to the edge of the search range (no limit);
 2. :func:`regula_falsi` - the Illinois variant of the false position within each bracket
    (Dowell & Jarratt 1971): the secant through the bracket's ends, the weight of an end that
-   stays twice in a row halved, bisection where the secant leaves the bracket.
+   stays twice in a row halved, bisection where the secant leaves the bracket; or, where the
+   excess's slope comes with it, :func:`newton_in_bracket` - Newton's method kept within the
+   bracket (the density curves' binomial profiles, whose slope is known at no cost).
 
 The size curves (:func:`tromplab.curves.batched.profile_limits`, the sum of squares' F test,
 on :math:`\sqrt{S - S_{min}}`, linear in the parameter for a quadratic profile) and the
@@ -194,6 +196,89 @@ def regula_falsi(
         closed = (t_high[work] - t_low[work] <= width[work]) | (np.abs(h) <= excess_tolerance[work])
         solving[work[closed]] = False
     return np.where(np.isfinite(t_high), np.where(np.abs(h_high) <= np.abs(h_low), t_high, t_low), np.nan)
+
+
+def newton_in_bracket(
+    excess_and_slope,
+    centre,
+    direction,
+    bracket: Bracket,
+    width,
+    *,
+    max_iterations: int = MAX_ROOT_ITERATIONS,
+) -> np.ndarray:
+    """The distance from ``centre`` at which the excess crosses zero within each (closed) bracket,
+    every row at once, by Newton's method kept within the bracket: for an excess whose slope
+    comes with its value (a profile's, whose slope in the held value is the deviance's partial
+    derivative at the re-optimised point: the envelope theorem).
+
+    The first trial is the secant of the bracket's ends; each next one Newton's step from the
+    last trial, or, where that step leaves the bracket (from the side of a convex excess that
+    it overshoots), the Illinois step of :func:`regula_falsi`, which soon brings a trial to the
+    other side, from which Newton's steps stay within.  The bracket
+    shrinks to every trial as in :func:`regula_falsi`.  A row ends when Newton's step is
+    shorter than half ``width`` (its end point is returned: Newton's error is about the square
+    of that step) or the bracket is narrower than ``width`` (the end with the smaller excess).
+
+    Parameters
+    ----------
+    excess_and_slope : callable
+        ``excess_and_slope(rows, values)`` -> the excess at ``values`` (as :data:`Excess`) and
+        its derivative in the value (NaN where unknown).
+    centre, direction, bracket, width
+        As for :func:`regula_falsi`.
+    max_iterations : int
+        Evaluations per row at most.
+
+    Examples
+    --------
+    >>> bracket = Bracket(np.array([1.0]), np.array([2.0]), np.array([-1.0]), np.array([2.0]))
+    >>> t = newton_in_bracket(lambda rows, x: (x**2 - 2.0, 2.0 * x), np.array([0.0]), np.array([1.0]), bracket, np.array([1e-14]))
+    >>> round(float(t[0]), 12)
+    1.414213562373
+    """
+    centre, direction = np.asarray(centre, dtype=float), np.asarray(direction, dtype=float)
+    t_low, t_high = bracket.inner.copy(), bracket.outer.copy()
+    h_low, h_high = bracket.inner_excess.copy(), bracket.outer_excess.copy()
+    count = t_low.size
+    width = np.broadcast_to(np.asarray(width, dtype=float), (count,))
+    solving = np.isfinite(t_high)
+    root, last_side = np.full(count, np.nan), np.zeros(count)
+    trial = _false_position(t_low, t_high, h_low, h_high)
+    for _ in range(max_iterations):
+        work = np.flatnonzero(solving)
+        if not work.size:
+            break
+        at = trial[work]
+        h, slope = excess_and_slope(work, centre[work] + direction[work] * at)
+        below = h < 0
+        t_low[work[below]], h_low[work[below]] = at[below], h[below]
+        t_high[work[~below]], h_high[work[~below]] = at[~below], h[~below]
+        low_rows, high_rows = work[below], work[~below]
+        h_high[low_rows[last_side[low_rows] < 0]] *= 0.5  # the same end moved twice: halve the other's weight
+        h_low[high_rows[last_side[high_rows] > 0]] *= 0.5
+        last_side[low_rows], last_side[high_rows] = -1.0, 1.0
+        with np.errstate(all="ignore"):
+            newton = at - h / (direction[work] * slope)
+        inside = np.isfinite(newton) & (newton > t_low[work]) & (newton < t_high[work])
+        settled = np.isfinite(newton) & (np.abs(newton - at) <= 0.5 * width[work])  # also on an end of the bracket
+        narrow = ~settled & ((t_high[work] - t_low[work] <= width[work]) | (h == 0))
+        root[work[settled]] = newton[settled]
+        root[work[narrow]] = np.where(
+            np.abs(h_high[work[narrow]]) <= np.abs(h_low[work[narrow]]), t_high[work[narrow]], t_low[work[narrow]]
+        )
+        trial[work] = np.where(inside, newton, _false_position(t_low[work], t_high[work], h_low[work], h_high[work]))
+        solving[work[settled | narrow]] = False
+    left = np.flatnonzero(solving)  # not closed within max_iterations: the end with the smaller excess
+    root[left] = np.where(np.abs(h_high[left]) <= np.abs(h_low[left]), t_high[left], t_low[left])
+    return root
+
+
+def _false_position(t_low, t_high, h_low, h_high) -> np.ndarray:
+    """The secant's zero within each bracket, or its midpoint where the secant leaves it."""
+    with np.errstate(all="ignore"):
+        trial = t_low - h_low * (t_high - t_low) / (h_high - h_low)
+    return np.where(np.isfinite(trial) & (trial > t_low) & (trial < t_high), trial, 0.5 * (t_low + t_high))
 
 
 def central_hessian(function: Callable[[np.ndarray], float], x: np.ndarray, steps: np.ndarray) -> np.ndarray:

@@ -46,6 +46,12 @@ DIFFERENCE_STEP = 6e-6
 POLISH_STEP = 1e-6
 #: Halvings of a step before a row is taken as converged (the deviance falls no more).
 MAX_HALVINGS = 40
+#: Rows of one evaluation of the partitions at displaced points (their arrays stay in the cache).
+ROWS_PER_CALL = 4096
+#: Rows whose scoring steps are computed together (:func:`_chunked_steps`), with derivatives by
+#: differences (arrays of every displaced point) and analytic.
+SCORING_CHUNK = 256
+EXACT_SCORING_CHUNK = 512
 
 
 @dataclass(frozen=True)
@@ -189,7 +195,7 @@ class Minimum:
     deviance: np.ndarray
 
 
-def minimise_deviance(stack: TracerStack, partition, start, lower, upper) -> Minimum:
+def minimise_deviance(stack: TracerStack, partition, start, lower, upper, *, derivatives=None) -> Minimum:
     """The deviance of each row minimised over the box ``lower <= x <= upper`` from ``start``.
 
     Parameters
@@ -202,6 +208,10 @@ def minimise_deviance(stack: TracerStack, partition, start, lower, upper) -> Min
         that have converged are left out of the next steps.
     start, lower, upper : ndarray
         (rows, parameters); a parameter with ``lower == upper`` is held fixed.
+    derivatives : callable, optional
+        ``derivatives(x, rows)`` -> the nonzero first and second derivatives of ``P`` in ``x``,
+        analytic, as dicts ``{i: dP/dx_i}`` and ``{(i, j): d2P/dx_i dx_j}`` (``i <= j``) of
+        (len(rows), width) arrays; None: by differences of ``partition``.
 
     Returns
     -------
@@ -212,44 +222,76 @@ def minimise_deviance(stack: TracerStack, partition, start, lower, upper) -> Min
     lower, upper = np.asarray(lower, float), np.asarray(upper, float)
     x = np.clip(np.asarray(start, float), lower, upper)
     with np.errstate(all="ignore"):
-        value = deviance(stack, partition(x, np.arange(len(x))))
+        current = partition(x, np.arange(len(x)))  # the partitions at x, kept from the line search's trials
+        value = deviance(stack, current)
         active = np.flatnonzero(np.isfinite(value))
         for _ in range(MAX_ITERATIONS):
             if not active.size:
                 break
             rows, bounds = stack.take(active), (lower[active], upper[active])
+            step, newton = _chunked_steps(stack, partition, x, current, lower, upper, active, derivatives)
 
-            def of_active(point, active=active):
-                return partition(point, active)
+            def of_active(point, subset, active=active):
+                return partition(point, active[subset])
 
-            step, newton = _scoring_step(rows, of_active, x[active], *bounds)
-            x[active], value[active], moved = _line_search(rows, of_active, x[active], value[active], step, newton, *bounds)
+            x[active], value[active], current[active], moved = _line_search(
+                rows, of_active, x[active], value[active], current[active], step, newton, *bounds
+            )
             active = active[moved]
     return Minimum(x, value)
 
 
-def _scoring_step(stack: TracerStack, partition, x, lower, upper) -> tuple[np.ndarray, np.ndarray]:
+def _of(partition, rows: np.ndarray):
+    """``partition`` of the rows ``rows``; a point may hold several points of every row, stacked (the differences)."""
+
+    def of_rows(point):
+        return partition(point, np.tile(rows, len(point) // len(rows)))
+
+    return of_rows
+
+
+def _chunked_steps(stack: TracerStack, partition, x, current, lower, upper, active, derivatives) -> tuple[np.ndarray, np.ndarray]:
+    """The scoring steps of the rows ``active``, :data:`SCORING_CHUNK` rows at a time: each row's
+    arithmetic is its own, and the arrays of a chunk (the differences of ``P`` at every displaced
+    point, the curvatures) stay in the processor's cache where those of a thousand rows do not."""
+    steps, newton = np.empty((len(active), x.shape[1])), np.empty(len(active), dtype=bool)
+    size = SCORING_CHUNK if derivatives is None else EXACT_SCORING_CHUNK
+    for first in range(0, len(active), size):
+        chunk = active[first : first + size]
+        exact = None if derivatives is None else (lambda point, chunk=chunk: derivatives(point, chunk))
+        found = _scoring_step(
+            stack.take(chunk), _of(partition, chunk), x[chunk], current[chunk], lower[chunk], upper[chunk], exact
+        )
+        steps[first : first + len(chunk)], newton[first : first + len(chunk)] = found
+    return steps, newton
+
+
+def _scoring_step(stack: TracerStack, partition, x, current, lower, upper, derivatives=None) -> tuple[np.ndarray, np.ndarray]:
     """The projected Newton step of every row (zero along parameters held on a bound), and
     whether it is Newton's (True) or Fisher scoring's.
 
     Newton's step on the deviance's own Hessian where it is positive definite on the free
     parameters, else the Fisher-scoring step on the expected information (always positive
     definite): near the light-end limit's bound the deviance is far from quadratic and the
-    expected information, alone, converges only linearly (hundreds of steps).
+    expected information, alone, converges only linearly (hundreds of steps).  ``current``: the
+    partitions at ``x``.
     """
-    current = partition(x)
-    jacobian, curvature = _derivatives(partition, x, lower, upper, current)  # (rows, width, m), (rows, width, m, m)
     p = np.clip(current, 1e-300, 1.0 - 1e-16)
     k, n = stack.sinks, stack.trials
     counted = n > 0
     slope = np.where(counted, 2.0 * ((n - k) / (1.0 - p) - k / p), 0.0)
     bend = np.where(counted, 2.0 * (k / p**2 + (n - k) / (1.0 - p) ** 2), 0.0)
+    information = np.where(counted, 2.0 * n / (p * (1.0 - p)), 0.0)
     rows, size = x.shape
-    score = np.matmul(slope[:, None, :], jacobian)[:, 0, :]
-    transposed = jacobian.transpose(0, 2, 1)
-    bent = np.matmul(slope[:, None, :], curvature.reshape(rows, -1, size * size)).reshape(rows, size, size)
-    hessian = np.matmul(transposed * bend[:, None, :], jacobian) + bent
-    fisher = np.matmul(transposed * np.where(counted, 2.0 * n / (p * (1.0 - p)), 0.0)[:, None, :], jacobian)
+    if derivatives is None:
+        jacobian, curvature = _derivatives(partition, x, lower, upper, current)  # (rows, width, m), (rows, width, m, m)
+        score = np.matmul(slope[:, None, :], jacobian)[:, 0, :]
+        transposed = jacobian.transpose(0, 2, 1)
+        bent = np.matmul(slope[:, None, :], curvature.reshape(rows, -1, size * size)).reshape(rows, size, size)
+        hessian = np.matmul(transposed * bend[:, None, :], jacobian) + bent
+        fisher = np.matmul(transposed * information[:, None, :], jacobian)
+    else:
+        score, hessian, fisher = _contracted(*derivatives(x), slope, bend, information, size)
     held = (lower == upper) | ((x <= lower) & (score > 0)) | ((x >= upper) & (score < 0))
     free = ~held
     keep = free[:, :, None] & free[:, None, :]
@@ -265,42 +307,75 @@ def _scoring_step(stack: TracerStack, partition, x, lower, upper) -> tuple[np.nd
     return np.where(np.isfinite(step), step, 0.0), positive
 
 
+def _contracted(first: dict, second: dict, slope, bend, information, size: int):
+    """The score, Hessian and expected information of the deviance from the derivatives of ``P``
+    given column by column (``first[i]``, ``second[i, j]`` for ``i <= j``, each (rows, width); a
+    column left out is zero): sums over the densities, no (rows, width, m, m) array made."""
+    rows = len(slope)
+    score, hessian, fisher = np.zeros((rows, size)), np.zeros((rows, size, size)), np.zeros((rows, size, size))
+    for i, column in first.items():
+        score[:, i] = (slope * column).sum(axis=1)
+        weighted, informed = bend * column, information * column
+        for j, other in first.items():
+            if j >= i:
+                hessian[:, i, j] = hessian[:, j, i] = (weighted * other).sum(axis=1)
+                fisher[:, i, j] = fisher[:, j, i] = (informed * other).sum(axis=1)
+    for (i, j), column in second.items():
+        hessian[:, i, j] += (slope * column).sum(axis=1)
+        if i != j:
+            hessian[:, j, i] = hessian[:, i, j]
+    return score, hessian, fisher
+
+
 def _derivatives(partition, x, lower, upper, current) -> tuple[np.ndarray, np.ndarray]:
     """``dP/dx`` and ``d2P/dx2`` by differences: central, or one-sided of second order where a
-    bound is within the step (the second derivatives, which only speed the convergence, of first order)."""
+    bound is within the step (the second derivatives, which only speed the convergence, of first order).
+
+    The displaced points (two per free parameter and one per pair of them) are evaluated stacked
+    as rows, a few thousand rows to a call of ``partition`` (:func:`_stacked_partition`)."""
     rows, size = x.shape
-    jacobian = np.zeros((*current.shape, size))
-    curvature = np.zeros((*current.shape, size, size))
-    steps, sides = np.zeros((rows, size)), []
-    held_everywhere = (lower == upper).all(axis=0)
-    for j in range(size):
-        if held_everywhere[j]:  # a profile's value: no derivative to take
-            sides.append(None)
-            continue
-        h = DIFFERENCE_STEP * np.maximum(np.abs(x[:, j]), 1e-2)
-        fixed = lower[:, j] == upper[:, j]
-        forward = x[:, j] - h < lower[:, j]
-        backward = ~forward & (x[:, j] + h > upper[:, j])
-        sign = np.where(backward, -1.0, 1.0)
-        one_sided = (forward | backward)[:, None]
-        near = partition(_moved(x, j, sign * h))
-        far = partition(_moved(x, j, np.where(forward | backward, 2 * sign * h, -h)))
-        hh = h[:, None]
-        first = np.where(one_sided, sign[:, None] * (-3.0 * current + 4.0 * near - far) / (2 * hh), (near - far) / (2 * hh))
-        second = np.where(one_sided, (current - 2.0 * near + far) / hh**2, (near - 2.0 * current + far) / hh**2)
-        jacobian[..., j] = np.where(fixed[:, None], 0.0, first)
-        curvature[..., j, j] = np.where(fixed[:, None], 0.0, second)
-        steps[:, j] = np.where(fixed, 0.0, sign * h)
-        sides.append(near)
-    for i in range(size):
-        for j in range(i + 1, size):
-            if held_everywhere[i] or held_everywhere[j]:
-                continue
-            both = partition(_moved(_moved(x, i, steps[:, i]), j, steps[:, j]))
-            with np.errstate(divide="ignore", invalid="ignore"):
-                cross = (both - sides[i] - sides[j] + current) / (steps[:, i] * steps[:, j])[:, None]
-            curvature[..., i, j] = curvature[..., j, i] = np.where(np.isfinite(cross), cross, 0.0)
+    held_everywhere = (lower == upper).all(axis=0)  # a profile's value: no derivative to take
+    free = [j for j in range(size) if not held_everywhere[j]]
+    h, sign, one_sided, fixed, steps = {}, {}, {}, {}, np.zeros((rows, size))
+    points = []
+    for j in free:
+        h[j] = DIFFERENCE_STEP * np.maximum(np.abs(x[:, j]), 1e-2)
+        fixed[j] = lower[:, j] == upper[:, j]
+        forward = x[:, j] - h[j] < lower[:, j]
+        backward = ~forward & (x[:, j] + h[j] > upper[:, j])
+        sign[j], one_sided[j] = np.where(backward, -1.0, 1.0), (forward | backward)[:, None]
+        steps[:, j] = np.where(fixed[j], 0.0, sign[j] * h[j])
+        points += [_moved(x, j, sign[j] * h[j]), _moved(x, j, np.where(forward | backward, 2 * sign[j] * h[j], -h[j]))]
+    pairs = [(i, j) for i in free for j in free if i < j]
+    points += [_moved(_moved(x, i, steps[:, i]), j, steps[:, j]) for i, j in pairs]
+    zero = np.zeros_like(current)
+    first, second = dict.fromkeys(range(size), zero), dict.fromkeys(((i, j) for i in range(size) for j in range(size)), zero)
+    values = _stacked_partition(partition, points) if points else []
+    near = {}
+    for number, j in enumerate(free):
+        near[j], far = values[2 * number], values[2 * number + 1]
+        hh, side = h[j][:, None], sign[j][:, None]
+        slope = np.where(one_sided[j], side * (-3.0 * current + 4.0 * near[j] - far) / (2 * hh), (near[j] - far) / (2 * hh))
+        bend = np.where(one_sided[j], (current - 2.0 * near[j] + far) / hh**2, (near[j] - 2.0 * current + far) / hh**2)
+        first[j] = np.where(fixed[j][:, None], 0.0, slope)
+        second[j, j] = np.where(fixed[j][:, None], 0.0, bend)
+    for both, (i, j) in zip(values[2 * len(free) :], pairs):
+        with np.errstate(divide="ignore", invalid="ignore"):
+            cross = (both - near[i] - near[j] + current) / (steps[:, i] * steps[:, j])[:, None]
+        second[i, j] = second[j, i] = np.where(np.isfinite(cross), cross, 0.0)
+    # assembled once (writing columns into a zeroed (rows, width, m, m) array one by one is slow)
+    jacobian = np.stack([first[j] for j in range(size)], axis=-1)
+    curvature = np.stack([np.stack([second[i, j] for j in range(size)], axis=-1) for i in range(size)], axis=-2)
     return jacobian, curvature
+
+
+def _stacked_partition(partition, points: list[np.ndarray]) -> np.ndarray:
+    """``partition`` at each of ``points`` (arrays of the same rows), as (points, rows, width):
+    several points to a call, while the call stays within :data:`ROWS_PER_CALL` rows (a call of
+    few rows costs mostly its overhead; one of very many, arrays beyond the processor's cache)."""
+    per_call = max(1, ROWS_PER_CALL // len(points[0]))
+    found = [partition(np.concatenate(points[first : first + per_call])) for first in range(0, len(points), per_call)]
+    return np.concatenate(found).reshape(len(points), len(points[0]), -1)
 
 
 def _moved(x: np.ndarray, column: int, by: np.ndarray) -> np.ndarray:
@@ -309,9 +384,11 @@ def _moved(x: np.ndarray, column: int, by: np.ndarray) -> np.ndarray:
     return moved
 
 
-def _line_search(stack, partition, x, value, step, newton, lower, upper):
+def _line_search(stack, partition, x, value, current, step, newton, lower, upper):
     """Halve each row's step until its deviance falls; a row whose (projected) step no longer
-    moves it, or whose deviance falls no more, is returned as not moved.
+    moves it, or whose deviance falls no more, is returned as not moved.  ``partition(points,
+    rows)``: the partitions of the rows ``rows`` (of ``x``) at ``points``; each halving evaluates
+    the rows still pending only.  Returns the new ``x``, deviance and partitions, and which rows moved.
 
     A Newton step shorter than :data:`POLISH_STEP` (relative) is taken whole and ends the
     row's iterations: so close to the minimum the fall of the deviance is below its rounding,
@@ -323,20 +400,25 @@ def _line_search(stack, partition, x, value, step, newton, lower, upper):
     length = np.ones(len(x))
     pending = np.ones(len(x), dtype=bool)
     moved = np.zeros(len(x), dtype=bool)
-    new_x, new_value = x.copy(), value.copy()
+    new_x, new_value, new_current = x.copy(), value.copy(), current.copy()
     for _ in range(MAX_HALVINGS):
         trial = np.clip(x + length[:, None] * step, lower, upper)
         pending &= (np.abs(trial - x) > tolerance).any(axis=1)
         if not pending.any():
             break
-        trial_value = deviance(stack, partition(trial))
-        slack = np.where(polish, 1e-9 * np.abs(value) + 1e-12, 0.0)
-        better = pending & np.isfinite(trial_value) & ((trial_value < value) | (polish & (trial_value <= value + slack)))
-        new_x[better], new_value[better] = trial[better], np.minimum(trial_value[better], value[better])
-        moved |= better & ~polish
-        pending &= ~better
+        rows = np.flatnonzero(pending)
+        partitions = partition(trial[rows], rows)
+        trial_value = deviance(stack.take(rows), partitions)
+        slack = np.where(polish[rows], 1e-9 * np.abs(value[rows]) + 1e-12, 0.0)
+        falls = (trial_value < value[rows]) | (polish[rows] & (trial_value <= value[rows] + slack))
+        better = np.isfinite(trial_value) & falls
+        taken = rows[better]
+        new_x[taken], new_value[taken] = trial[taken], np.minimum(trial_value[better], value[taken])
+        new_current[taken] = partitions[better]
+        moved[taken] = ~polish[taken]
+        pending[taken] = False
         length = np.where(pending, length / 2.0, length)
-    return new_x, new_value, moved
+    return new_x, new_value, new_current, moved
 
 
 @functools.cache

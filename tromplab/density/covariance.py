@@ -16,6 +16,11 @@ analyses it is the joint fit's sandwich covariance carried to :math:`(\rho_{50},
 Jacobian of the indices (delta method).  The table keeps the :math:`(\rho_{50}, E_p)` block
 (the limits' uncertainty is in it, as their marginal).
 
+:func:`covariance_table` evaluates the deviance of every binomial fit at all the points of its
+central differences in one array operation per curve and number of densities
+(:func:`_binomial_covariances`): the same arithmetic, element by element, as
+:func:`index_covariance` of each fit alone, so the same numbers to the last bit.
+
 References
 ----------
 Collett, D. (2003). *Modelling Binary Data*, 2nd ed. Chapman & Hall/CRC (the observed information).
@@ -27,10 +32,12 @@ import math
 
 import numpy as np
 import pandas as pd
+import scipy.special
 
 from ..curves.likelihood import central_hessian
 from .fitting import DensityCurveFit, fit_data, index_model, index_vector, objective_of
 from .joint import JOINT_METHOD
+from .registry import QUARTILES
 
 #: The parameters whose covariance ``covariance.csv`` gives, in order.
 COVARIANCE_PARAMETERS = ("rho50", "ep")
@@ -44,18 +51,30 @@ def index_covariance(fit: DensityCurveFit) -> np.ndarray | None:
     """
     if not fit.success or fit.indices is None or math.isnan(fit.indices.rho50) or math.isnan(fit.indices.ep):
         return None
-    covariance = _joint_covariance(fit) if fit.method == JOINT_METHOD else _profile_covariance(fit)
-    if covariance is None or not np.all(np.isfinite(covariance)) or np.any(np.diag(covariance) <= 0):
-        return None
-    return covariance
+    return _checked(_joint_covariance(fit) if fit.method == JOINT_METHOD else _profile_covariance(fit))
 
 
-def _profile_covariance(fit: DensityCurveFit) -> np.ndarray | None:
+def _binomial_profile(fit: DensityCurveFit) -> bool:
+    """Whether :func:`index_covariance` of ``fit`` is the curvature of a binomial deviance."""
+    usable = fit.success and fit.indices is not None and not math.isnan(fit.indices.rho50) and not math.isnan(fit.indices.ep)
+    return usable and fit.method == "binomial"
+
+
+def _free_indices(fit: DensityCurveFit) -> tuple[np.ndarray, list[int]]:
+    """The index vector ``(rho50, ep[, l, h])`` of a fit and the positions free in its curvature (a limit on its bound is held)."""
     vector, _ = index_vector(fit.curve, fit.params, fit.indices, "ep")
-    model = index_model(fit.curve, "ep")
     names = ["rho50", "ep", "light_limit", "heavy_limit"][: vector.size]
-    free = [i for i, name in enumerate(names) if i < 2 or not fit.curve.limit_on_bound(name, vector[i])]
-    data = fit_data(fit.sample, fit.method)
+    return vector, [i for i, name in enumerate(names) if i < 2 or not fit.curve.limit_on_bound(name, vector[i])]
+
+
+def _curvature_steps(start: np.ndarray) -> np.ndarray:
+    return 1e-4 * np.maximum(np.abs(start), 1e-2)
+
+
+def _profile_covariance(fit: DensityCurveFit, data=None) -> np.ndarray | None:
+    vector, free = _free_indices(fit)
+    model = index_model(fit.curve, "ep")
+    data = fit_data(fit.sample, fit.method) if data is None else data
     objective = objective_of(data)
 
     def value(moved):
@@ -65,15 +84,84 @@ def _profile_covariance(fit: DensityCurveFit) -> np.ndarray | None:
 
     start = vector[free]
     try:
-        hessian = central_hessian(value, start, 1e-4 * np.maximum(np.abs(start), 1e-2))
+        hessian = central_hessian(value, start, _curvature_steps(start))
     except ValueError:  # a limit within a difference step of its bound: the steps leave the curve's range
         return None
-    scale = (fit.dispersion if fit.overdispersed else 1.0) if data.binomial else fit.dispersion
+    return _from_curvature(fit, hessian, binomial=data.binomial)
+
+
+def _from_curvature(fit: DensityCurveFit, hessian: np.ndarray, *, binomial: bool) -> np.ndarray | None:
+    scale = (fit.dispersion if fit.overdispersed else 1.0) if binomial else fit.dispersion
     try:
         covariance = 2.0 * scale * np.linalg.inv(hessian)
     except np.linalg.LinAlgError:
         return None
     return covariance[:2, :2]
+
+
+def _checked(covariance: np.ndarray | None) -> np.ndarray | None:
+    if covariance is None or not np.all(np.isfinite(covariance)) or np.any(np.diag(covariance) <= 0):
+        return None
+    return covariance
+
+
+# --- the binomial fits of a file at once -------------------------------------------------------
+def _difference_points(start: np.ndarray, steps: np.ndarray) -> tuple[np.ndarray, list[tuple[int, int]]]:
+    """The points :func:`~tromplab.curves.likelihood.central_hessian` evaluates, four per pair
+    ``i <= j`` (``x + di + dj, x + di - dj, x - di + dj, x - di - dj``), as rows, and the pairs."""
+    unit = np.eye(start.size)
+    pairs = [(i, j) for i in range(start.size) for j in range(i, start.size)]
+    points = []
+    for i, j in pairs:
+        di, dj = unit[i] * steps[i], unit[j] * steps[j]
+        points += [start + di + dj, start + di - dj, start - di + dj, start - di - dj]
+    return np.array(points), pairs
+
+
+def _index_parameters(curve, q: np.ndarray) -> dict[str, np.ndarray] | None:
+    """The curve's parameters (each (points, 1)) at the index vectors ``q`` (points, 2 or 4), by the
+    arithmetic of :meth:`~tromplab.density.registry.DensityCurve.from_indices`; None when a limit
+    leaves the range in which the indices exist (``from_indices`` raises there)."""
+    rho50, ep = q[:, 0:1], q[:, 1:2]
+    if not curve.has_limits:
+        return {"rho50": rho50, "ep": ep}
+    light, heavy = q[:, 2:3], q[:, 3:4]
+    if not np.all((light >= 0.0) & (light < 0.25) & (heavy > 0.75) & (heavy <= 1.0)):
+        return None
+    span = heavy - light
+    q25, q50, q75 = (curve.form.quantile((p - light) / span) for p in QUARTILES)
+    scale_c = curve.form.scale
+    ep_c = ep * 2.0 * scale_c / (q75 - q25)
+    rho_c = rho50 - ep_c * (q50 - curve.form.centre) / scale_c
+    return {"rho_c": rho_c, "ep_c": ep_c, "light_limit": light, "heavy_limit": heavy}
+
+
+def _deviances(curve, data, params: dict[str, np.ndarray]) -> np.ndarray:
+    """The binomial deviance of the fit's data at each row of parameters (``objective_of``'s, row by row)."""
+    p = np.clip(curve.partition(data.density[None, :], **params), 1e-300, 1.0 - 1e-16)
+    k, n = data.sinks, data.trials
+    with np.errstate(divide="ignore", invalid="ignore"):
+        terms = scipy.special.xlogy(k, k / (n * p)) + scipy.special.xlogy(n - k, (n - k) / (n * (1.0 - p)))
+    return 2.0 * terms.sum(axis=1)
+
+
+def _binomial_curvature(fit: DensityCurveFit, data) -> np.ndarray | None:
+    """The central-difference Hessian of the deviance of a binomial fit in its free indices,
+    every point of the differences in one evaluation (``central_hessian``'s arithmetic)."""
+    vector, free = _free_indices(fit)
+    start = vector[free]
+    steps = _curvature_steps(start)
+    moved, pairs = _difference_points(start, steps)
+    q = np.tile(vector, (len(moved), 1))
+    q[:, free] = moved
+    params = _index_parameters(fit.curve, q)
+    if params is None:  # a limit within a difference step of its bound
+        return None
+    value = _deviances(fit.curve, data, params).reshape(len(pairs), 4)
+    hessian = np.empty((start.size, start.size))
+    for (i, j), (a, b, c, d) in zip(pairs, value):
+        hessian[i, j] = hessian[j, i] = (a - b - c + d) / (4 * steps[i] * steps[j])
+    return hessian
 
 
 def _joint_covariance(fit: DensityCurveFit) -> np.ndarray | None:
@@ -98,8 +186,16 @@ def covariance_table(fits: list[DensityCurveFit], *, sizes: bool) -> pd.DataFram
     ``parameter``, ``rho50``, ``ep``: the row of the covariance matrix of ``(rho50, ep)``, g/cm3 squared.
     """
     rows = []
+    read: dict[int, object] = {}  # each sample's arrays, read once for all its curves
     for fit in fits:
-        covariance = index_covariance(fit)
+        if _binomial_profile(fit) and id(fit.sample) not in read:
+            read[id(fit.sample)] = fit_data(fit.sample, fit.method)
+        data = read.get(id(fit.sample)) if _binomial_profile(fit) else None
+        if data is not None and data.binomial:
+            hessian = _binomial_curvature(fit, data)
+            covariance = _checked(None if hessian is None else _from_curvature(fit, hessian, binomial=True))
+        else:
+            covariance = index_covariance(fit)
         if covariance is None:
             continue
         sample = fit.sample

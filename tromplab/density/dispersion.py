@@ -51,6 +51,7 @@ References
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -235,6 +236,13 @@ def interval_rule(dispersion: float, df_resid: int, ci: float, pooled: PooledDis
     >>> interval_rule(5.0, 5, 0.95, PooledDispersion(3.0, 50, 10)).source  # 5 x 6.61 > 3 x 4.03
     'test'
     """
+    try:  # a file's fits ask for the rule of each fit again and again (per quantity, profile and note)
+        return _remembered_rule(dispersion, df_resid, ci, pooled)
+    except TypeError:  # arguments that cannot be remembered (arrays): the rule itself
+        return _interval_rule(dispersion, df_resid, ci, pooled)
+
+
+def _interval_rule(dispersion, df_resid, ci, pooled) -> IntervalRule:
     own = quasi_binomial_scale(dispersion, df_resid)
     rule = IntervalRule(
         own.scale,
@@ -249,3 +257,6 @@ def interval_rule(dispersion: float, df_resid: int, ci: float, pooled: PooledDis
         return rule
     on_file = IntervalRule(shared.scale, profile_threshold(ci, pooled.df_resid, True), pooled.df_resid, "file")
     return on_file if on_file.scale * on_file.threshold > rule.scale * rule.threshold else rule
+
+
+_remembered_rule = functools.lru_cache(maxsize=4096, typed=True)(_interval_rule)

@@ -472,18 +472,24 @@ def _first_step(fit: DensityCurveFit, quantity: str) -> float:
 
 
 def _binomial_profiles(requests: list, ci: float) -> list[tuple[float, float, str]]:
-    """``(low, high, note)`` of every ``(fit, quantity, data)`` of binomial fits, traced together curve by curve."""
+    """``(low, high, note)`` of every ``(fit, quantity, data)`` of binomial fits, traced together: the
+    plain curves in one search, the curves with limits in another (each row's arithmetic is its own)."""
     found: list = [None] * len(requests)
-    by_curve: dict[str, list[int]] = {}
+    by_kind: dict[bool, list[int]] = {}
     for position, (fit, quantity, _) in enumerate(requests):
         scale = profile_scale(fit, binomial=True)
         if np.isfinite(scale) and scale > 0:
-            by_curve.setdefault(fit.curve.id, []).append(position)
+            by_kind.setdefault(fit.curve.has_limits, []).append(position)
         else:
             found[position] = (math.nan, math.nan, _NO_VARIANCE_LEFT.format(quantity=quantity))
-    for positions in by_curve.values():
+    for positions in by_kind.values():
         chosen = [requests[position] for position in positions]
-        low, high, notes = profile_limits(chosen[0][0].curve, _profile_requests(chosen, ci))
+        curves = list({fit.curve.id: fit.curve for fit, _, _ in chosen}.values())
+        number = {curve.id: i for i, curve in enumerate(curves)}
+        profile = dataclasses.replace(
+            _profile_requests(chosen, ci), curve=np.array([number[fit.curve.id] for fit, _, _ in chosen])
+        )
+        low, high, notes = profile_limits(curves, profile)
         for row, (position, (_, quantity, _)) in enumerate(zip(positions, chosen)):
             found[position] = (float(low[row]), float(high[row]), "; ".join(f"{quantity}: {note}" for note in notes[row]))
     return found

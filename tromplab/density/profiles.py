@@ -12,7 +12,8 @@ time until the excess is positive (a bracket) or the search range ends (no limit
 each bracket regula falsi (Illinois), every side at once, converges to the last digits.  The
 search is the one every curve's profile uses, size or density
 (:func:`tromplab.curves.likelihood.step_out` and :func:`~tromplab.curves.likelihood.regula_falsi`);
-this module gives it the excess of the re-optimised deviance.
+this module gives it the excess of the re-optimised deviance, and for the plain curves its
+slope too (:func:`~tromplab.curves.likelihood.newton_in_bracket`, :func:`profile_limits`).
 """
 
 from __future__ import annotations
@@ -21,8 +22,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..curves.likelihood import regula_falsi, step_out
-from .batch import TracerStack, centre_and_scale, minimise_deviance, partition_at
+from ..curves.likelihood import newton_in_bracket, regula_falsi, step_out
+from .batch import TracerStack, centre_and_scale, minimise_deviance
 from .registry import QUARTILES
 
 #: The excess where no curve with a finite likelihood exists at a value: beyond any limit.
@@ -56,6 +57,8 @@ class ProfileRequests:
         The deviance's scale (1, or the quasi-binomial scale) and the excess's threshold.
     step : ndarray
         The first step out from the estimate.
+    curve : ndarray of int or None
+        Which of the curves :func:`profile_limits` is given each row is (None: the one curve).
     """
 
     stack: TracerStack
@@ -68,6 +71,7 @@ class ProfileRequests:
     scale: np.ndarray
     threshold: np.ndarray
     step: np.ndarray
+    curve: np.ndarray | None = None
 
 
 def curve_of_indices(curve, q: np.ndarray, imperfection: np.ndarray) -> dict[str, np.ndarray]:
@@ -86,6 +90,181 @@ def curve_of_indices(curve, q: np.ndarray, imperfection: np.ndarray) -> dict[str
     return {"rho_c": rho_c, "ep_c": ep_c, "light_limit": light, "heavy_limit": heavy}
 
 
+class _RowForms:
+    """The standard forms of the rows of several curves (all with limits or all plain): each form's
+    functions applied to its own rows, the constants ``centre`` (q50) and ``scale`` (k) as (rows, 1)."""
+
+    def __init__(self, curves, curve: np.ndarray):
+        self.curves, self.curve, self.has_limits = curves, curve, curves[0].has_limits
+        self.groups = [(one.form, curve == number) for number, one in enumerate(curves)]
+        self.groups = [(form, rows) for form, rows in self.groups if rows.any()]
+        constants = np.array([centre_and_scale(one.form) for one in curves])
+        self.centre, self.scale = constants[curve, 0:1], constants[curve, 1:2]
+
+    def take(self, rows: np.ndarray) -> _RowForms:
+        """The forms of the rows ``rows``."""
+        return _RowForms(self.curves, self.curve[rows])
+
+    def _each(self, function, first: np.ndarray, *more: np.ndarray) -> np.ndarray:
+        if len(self.groups) == 1:
+            return function(self.groups[0][0], first, *more)
+        found = np.empty(np.broadcast_shapes(first.shape, *(part.shape for part in more)))
+        for form, rows in self.groups:
+            found[rows] = function(form, first[rows], *(part[rows] for part in more))
+        return found
+
+    def cdf(self, t):
+        return self._each(lambda form, t: form.cdf(t), t)
+
+    def pdf(self, t):
+        return self._each(lambda form, t: form.pdf(t), t)
+
+    def quantile(self, p):
+        return self._each(lambda form, p: form.quantile(p), p)
+
+    def pdf_slope(self, t, cdf, pdf):
+        """``f'(t)`` from ``t``, ``F(t)`` and ``f(t)`` (:func:`_pdf_slope`)."""
+        return self._each(lambda form, *values: _pdf_slope(form.link, *values), t, cdf, pdf)
+
+
+def _partitions(forms: _RowForms, density: np.ndarray, q: np.ndarray, imperfection: np.ndarray) -> np.ndarray:
+    """The partitions at ``density`` of the curves whose indices are ``q``, row by row: the
+    arithmetic of :func:`curve_of_indices` and :func:`~tromplab.density.batch.partition_at`,
+    element by element, with each row's form."""
+    rho50, second = q[:, 0:1], q[:, 1:2]
+    ep = np.where(imperfection[:, None], second * (rho50 - 1.0), second)
+    if not forms.has_limits:
+        return forms.cdf(forms.centre + forms.scale * (density - rho50) / ep)
+    light, heavy = q[:, 2:3], q[:, 3:4]
+    quartiles = forms.quantile((np.array(QUARTILES) - light) / (heavy - light))
+    q25, q50, q75 = quartiles[:, 0:1], quartiles[:, 1:2], quartiles[:, 2:3]
+    ep_c = ep * 2.0 * forms.scale / (q75 - q25)
+    rho_c = rho50 - ep_c * (q50 - forms.centre) / forms.scale
+    inside = forms.cdf(forms.centre + forms.scale * (density - rho_c) / ep_c)
+    return light + (heavy - light) * inside
+
+
+def _pdf_slope(link: str, t: np.ndarray, cdf: np.ndarray, pdf: np.ndarray) -> np.ndarray:
+    """``f'(t)`` of a standard form from ``t``, ``F(t)`` and ``f(t)``, by the GLM link the form is the inverse of."""
+    if link == "probit":
+        return -t * pdf
+    if link == "logit":
+        return pdf * (1.0 - 2.0 * cdf)
+    if link == "cloglog":
+        return pdf * (1.0 - np.exp(np.minimum(t, 700.0)))
+    raise ValueError(f"no derivative of the density of the {link!r} form")
+
+
+def _quartile_terms(forms: _RowForms, light, heavy) -> tuple[dict, dict]:
+    """``D = Q(a75) - Q(a25)`` and ``M = Q(a50)`` (``a_p = (p - l)/(h - l)``, ``Q`` the form's
+    quantile) with their first and second derivatives in ``l`` (2) and ``h`` (3), keyed by the
+    index positions: ``{(): value, (2,): d/dl, (2, 3): d2/dl dh, ...}``."""
+    span = heavy - light
+    p = np.array(QUARTILES)  # the three quartiles as columns, (rows, 3)
+    a = (p - light) / span
+    q = forms.quantile(a)
+    density = forms.pdf(q)
+    first, second = 1.0 / density, -forms.pdf_slope(q, a, density) / density**3
+    a_l, a_h = (p - heavy) / span**2, -(p - light) / span**2
+    a_ll, a_lh, a_hh = 2.0 * (p - heavy) / span**3, -1.0 / span**2 - 2.0 * (p - heavy) / span**3, 2.0 * (p - light) / span**3
+    found = {(): q, (2,): first * a_l, (3,): first * a_h, (2, 2): second * a_l * a_l + first * a_ll,
+             (2, 3): second * a_l * a_h + first * a_lh, (3, 3): second * a_h * a_h + first * a_hh}  # fmt: skip
+    return {key: value[:, 2:3] - value[:, 0:1] for key, value in found.items()}, {
+        key: value[:, 1:2] for key, value in found.items()
+    }
+
+
+def index_derivatives(forms: _RowForms, density: np.ndarray, q: np.ndarray, imperfection: np.ndarray, held: np.ndarray):
+    r"""The first and second derivatives of the partitions at ``density`` (rows, width) in the
+    parameters of a profile's minimisation, analytically: the indices ``q`` (rows, parameters) of
+    :func:`curve_of_indices` with the one ``held`` (0: rho50, 1: Ep or I) put first.
+
+    In the indices the standardised variable is :math:`t = M + (\rho - \rho_{50})\,g`,
+    :math:`g = D / (2 E_p)` (``M``, ``D``: the quartile terms of :func:`_quartile_terms`;
+    ``M = q50`` and ``D = 2k`` for a plain curve), and :math:`P = l + (h - l) F(t)`, so that
+    :math:`\partial_i P = [i = l](1 - F) + [i = h] F + (h - l) f\, t_i` and
+    :math:`\partial_{ij} P = f\,(c_i t_j + c_j t_i) + (h - l)(f' t_i t_j + f\, t_{ij})`, with
+    :math:`c_l = -1`, :math:`c_h = 1` and 0 otherwise.
+
+    Returns
+    -------
+    tuple
+        ``{i: dP/dx_i}`` and ``{(i, j): d2P/dx_i dx_j}`` (``i <= j``), each (rows, width), ``x``
+        the held index (0: its derivatives, zero, left out), the other of rho50 and Ep (or I),
+        then the limits.
+    """
+    size = q.shape[1]
+    rho50, second = q[:, 0:1], q[:, 1:2]
+    imperfect, rho50_free = imperfection[:, None], (held == 1)[:, None]
+    ep = np.where(imperfect, second * (rho50 - 1.0), second)
+    # the derivatives of Ep in the index left free, o: rho50 (Ep = I (rho50 - 1)) or the second index
+    e_o = np.where(rho50_free, np.where(imperfect, second, 0.0), np.where(imperfect, rho50 - 1.0, 1.0))
+    if forms.has_limits:
+        span = q[:, 3:4] - q[:, 2:3]
+        width, middle = _quartile_terms(forms, q[:, 2:3], q[:, 3:4])
+    else:
+        span, width, middle = 1.0, {(): 2.0 * forms.scale}, {(): forms.centre}
+    g = _slope_terms(width, ep, e_o)
+    u = density - rho50
+    shift = {key: np.where(rho50_free, g[key], 0.0) for key in ((), (1,))}  # rho50 enters through u too
+    t = middle[()] + u * g[()]
+    t1 = {1: u * g[(1,)] - shift[()]}
+    t2 = {(1, 1): u * g[1, 1] - 2.0 * shift[(1,)]}
+    for i in range(2, size):
+        t1[i] = middle[(i,)] + u * g[(i,)]
+        t2[1, i] = u * g[1, i] - np.where(rho50_free, g[(i,)], 0.0)
+        for j in range(i, size):
+            t2[i, j] = middle[i, j] + u * g[i, j]
+    cdf, pdf = forms.cdf(t), forms.pdf(t)
+    slope = forms.pdf_slope(t, cdf, pdf)
+    edge = {2: (-1.0, 1.0 - cdf), 3: (1.0, cdf)}  # c_i and the derivative of l + (h - l) F in the limit itself
+    first = {i: span * pdf * t1[i] + (edge[i][1] if i in edge else 0.0) for i in range(1, size)}
+    second = {}
+    for i, j in t2:
+        value = span * (slope * t1[i] * t1[j] + pdf * t2[i, j])
+        if i in edge or j in edge:
+            value = value + pdf * ((edge[i][0] if i in edge else 0.0) * t1[j] + (edge[j][0] if j in edge else 0.0) * t1[i])
+        second[i, j] = value
+    return first, second
+
+
+def held_derivative(
+    forms: _RowForms, density: np.ndarray, q: np.ndarray, imperfection: np.ndarray, held: np.ndarray
+) -> np.ndarray:
+    """``dP/dq_held`` (rows, width): the derivative of the partitions in the index each row's
+    profile holds (0: rho50, 1: Ep or I), the terms of :func:`index_derivatives` for that index."""
+    rho50, second = q[:, 0:1], q[:, 1:2]
+    imperfect, rho50_held = imperfection[:, None], (held == 0)[:, None]
+    ep = np.where(imperfect, second * (rho50 - 1.0), second)
+    e_held = np.where(rho50_held, np.where(imperfect, second, 0.0), np.where(imperfect, rho50 - 1.0, 1.0))
+    if forms.has_limits:
+        span = q[:, 3:4] - q[:, 2:3]
+        quartiles = forms.quantile((np.array(QUARTILES) - q[:, 2:3]) / span)
+        width, middle = quartiles[:, 2:3] - quartiles[:, 0:1], quartiles[:, 1:2]
+    else:
+        span, width, middle = 1.0, 2.0 * forms.scale, forms.centre
+    g = width * 0.5 / ep
+    u = density - rho50
+    t = middle + u * g
+    t_held = -u * width * e_held * (0.5 / ep) / ep - np.where(rho50_held, g, 0.0)
+    return span * forms.pdf(t) * t_held
+
+
+def _slope_terms(width: dict, ep: np.ndarray, e_o: np.ndarray) -> dict:
+    """``g = D / (2 Ep)`` and its derivatives in the free index ``o`` (1) and the limits (2, 3):
+    ``D`` depends on the limits, ``Ep`` on ``o`` (``e_o``: its derivative; the second is zero,
+    as ``Ep = I (rho50 - 1)`` is linear in each of rho50 and I)."""
+    half = 0.5 / ep
+    d = width[()]
+    g = {(): d * half, (1,): -d * e_o * half / ep, (1, 1): d * e_o**2 / ep**3}
+    for i in (2, 3):
+        g[(i,)] = width.get((i,), 0.0) * half
+        g[1, i] = -width.get((i,), 0.0) * e_o * half / ep
+        for j in range(i, 4):
+            g[i, j] = width.get((i, j), 0.0) * half
+    return g
+
+
 def _ordered(values: np.ndarray, order: np.ndarray) -> np.ndarray:
     return np.take_along_axis(values, order, axis=1)
 
@@ -93,22 +272,34 @@ def _ordered(values: np.ndarray, order: np.ndarray) -> np.ndarray:
 class _Profiles:
     """Both sides of every request: row ``i`` of a side is request ``i % requests``."""
 
-    def __init__(self, curve, requests: ProfileRequests):
-        self.curve, self.requests = curve, requests
+    def __init__(self, curves, requests: ProfileRequests):
+        self.curves, self.requests = curves, requests
+        self.has_limits = curves[0].has_limits
+        if any(curve.has_limits != self.has_limits for curve in curves):
+            raise ValueError("the profiles searched together are all of curves with limits or all of plain curves")
         count = len(requests.best)
+        self.curve = np.zeros(count, dtype=int) if requests.curve is None else np.asarray(requests.curve)
         self.request = np.tile(np.arange(count), 2)
         self.direction = np.repeat([-1.0, 1.0], count)
         self.warm = requests.centre[self.request].copy()  # the optimum at the last value of each side
 
     def excess(self, sides: np.ndarray, value: np.ndarray) -> np.ndarray:
-        """The excess of the re-optimised deviance at ``value`` on each of ``sides`` (warm starts updated).
+        """The excess of the re-optimised deviance at ``value`` on each of ``sides`` (warm starts updated)."""
+        return self.excess_and_slope(sides, value, slope=False)[0]
+
+    def excess_and_slope(
+        self, sides: np.ndarray, value: np.ndarray, *, slope: bool = True
+    ) -> tuple[np.ndarray, np.ndarray | None]:
+        """The excess of the re-optimised deviance at ``value`` on each of ``sides`` (warm starts
+        updated), and its derivative in the value: the deviance's partial derivative in the held
+        index at the re-optimised point (envelope theorem; NaN where no finite deviance was found).
 
         A curve with limits is re-optimised from two starts, the last optimum of the side and
         the estimate, both in one minimisation (rows stacked), the lower deviance kept (the
         last optimum among equals)."""
         r = self.requests
         count = len(sides)
-        starts = [self.warm[sides]] + ([r.centre[self.request[sides]]] if self.curve.has_limits else [])
+        starts = [self.warm[sides]] + ([r.centre[self.request[sides]]] if self.has_limits else [])
         request = np.tile(self.request[sides], len(starts))
         stack = r.stack.take(request)
         # the held index is put first (rho50 and Ep or I swap places), so that the minimiser
@@ -118,13 +309,20 @@ class _Profiles:
         held = np.tile(value, len(starts))
         lower, upper, start = (_ordered(part, order) for part in (r.lower[request], r.upper[request], np.concatenate(starts)))
         lower[:, 0] = upper[:, 0] = start[:, 0] = held
-        imperfection = r.imperfection[request]
+        imperfection, curve, position = r.imperfection[request], self.curve[request], r.position[request]
+
+        forms = _RowForms(self.curves, curve)
 
         def partition(x, rows):
             indices = _ordered(x, order[rows])  # the swap is its own inverse
-            return partition_at(self.curve, stack.density[rows], curve_of_indices(self.curve, indices, imperfection[rows]))
+            return _partitions(forms.take(rows), stack.density[rows], indices, imperfection[rows])
 
-        found = minimise_deviance(stack, partition, start, lower, upper)
+        def derivatives(x, rows):
+            indices = _ordered(x, order[rows])
+            return index_derivatives(forms.take(rows), stack.density[rows], indices, imperfection[rows], position[rows])
+
+        exact = None if self.has_limits else derivatives  # see profile_limits: why not with limits
+        found = minimise_deviance(stack, partition, start, lower, upper, derivatives=exact)
         x = _ordered(found.x, order).reshape(len(starts), count, -1)
         deviance = np.where(np.isfinite(found.deviance), found.deviance, np.inf).reshape(len(starts), count)
         pick = np.argmin(deviance, axis=0)  # the first start among equals
@@ -133,19 +331,53 @@ class _Profiles:
         self.warm[sides[finite]] = best_x[finite]
         request = request[:count]
         excess = (best_value - r.best[request]) / r.scale[request] - r.threshold[request]
-        return np.where(finite, excess, BEYOND)
+        excess = np.where(finite, excess, BEYOND)
+        if not slope:
+            return excess, None
+        first = np.arange(count)  # the rows of the first start: the same requests
+        rise = self._slope(stack.take(first), forms.take(first), best_x, imperfection[first], position[first])
+        return excess, np.where(finite, rise / r.scale[request], np.nan)
+
+    @staticmethod
+    def _slope(stack: TracerStack, forms: _RowForms, q: np.ndarray, imperfection, held) -> np.ndarray:
+        """The derivative of the binomial deviance in the held index at the indices ``q``, row by row."""
+        p = np.clip(_partitions(forms, stack.density, q, imperfection), 1e-300, 1.0 - 1e-16)
+        k, n = stack.sinks, stack.trials
+        with np.errstate(all="ignore"):
+            slope = np.where(n > 0, 2.0 * ((n - k) / (1.0 - p) - k / p), 0.0)
+            return (slope * held_derivative(forms, stack.density, q, imperfection, held)).sum(axis=1)
 
 
-def profile_limits(curve, requests: ProfileRequests) -> tuple[np.ndarray, np.ndarray, list[list[str]]]:
+def profile_limits(curves, requests: ProfileRequests) -> tuple[np.ndarray, np.ndarray, list[list[str]]]:
     """The lower and upper profile limits of every request, and the notes of each (none when both are found).
+
+    Parameters
+    ----------
+    curves : DensityCurve or sequence of DensityCurve
+        The curve of the requests, or the curves (all with limits or all without) that
+        ``requests.curve`` indexes: the profiles of several curves searched together, each
+        row's arithmetic its own.
+    requests : ProfileRequests
 
     Returns
     -------
     tuple
         ``(low, high, notes)``; a limit the profile does not reach within the search range is
         NaN and a note of its request says so.
+
+    Notes
+    -----
+    A plain curve's profile re-optimises one index, whose optimum is unique: its minimisations
+    take the analytic derivatives of :func:`index_derivatives` and its limits are closed by
+    Newton's method in the bracket (:func:`~tromplab.curves.likelihood.newton_in_bracket`, the
+    excess's slope from :meth:`_Profiles.excess_and_slope`), the limits the same as by regula
+    falsi to their tolerance (1e-12 relative).  A curve with limits re-optimises three indices,
+    and far from the estimate (Ep of 1 g/cm3 and more, where the curve is nearly flat) the box
+    holds several local minima in its corners: which one a minimisation reaches depends on its
+    path, so those profiles keep the differences and regula falsi, whose path they were
+    validated on (the analytic derivatives moved two such limits of overdispersed tests).
     """
-    profiles = _Profiles(curve, requests)
+    profiles = _Profiles(list(curves) if isinstance(curves, (list, tuple)) else [curves], requests)
     sides = np.arange(len(profiles.request))
     request = profiles.request
     centre = requests.centre[request, requests.position[request]]
@@ -161,12 +393,16 @@ def profile_limits(curve, requests: ProfileRequests) -> tuple[np.ndarray, np.nda
     if bracketed.size:
         width = 2.0 * (ROOT_STEP_TOLERANCE * step[bracketed] + 2.0 * ROOT_RELATIVE_TOLERANCE * np.abs(centre[bracketed]))
 
-        def excess(rows, values):
-            return profiles.excess(bracketed[rows], values)
+        def excess_and_slope(rows, values):
+            return profiles.excess_and_slope(bracketed[rows], values)
 
         direction = profiles.direction[bracketed]
-        distance = regula_falsi(excess, centre[bracketed], direction, bracket.take(bracketed), width,
-                                max_iterations=MAX_ROOT_ITERATIONS)  # fmt: skip
+        if profiles.has_limits:
+            distance = regula_falsi(lambda rows, values: profiles.excess(bracketed[rows], values), centre[bracketed],
+                                    direction, bracket.take(bracketed), width, max_iterations=MAX_ROOT_ITERATIONS)  # fmt: skip
+        else:
+            distance = newton_in_bracket(excess_and_slope, centre[bracketed], direction, bracket.take(bracketed), width,
+                                         max_iterations=MAX_ROOT_ITERATIONS)  # fmt: skip
         limits[bracketed] = centre[bracketed] + direction * distance
         _recheck_edges(profiles, sides, limits, edge, step)
     count = len(requests.best)
