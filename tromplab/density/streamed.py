@@ -40,10 +40,10 @@ from ..notices import Notice
 from ..options import AUTO_FIGURE_LIMIT
 from ..output.spooled import SpooledTables, unit_table
 from ..parallel import chunks_of, dask_client, map_on_workers, streams
+from . import results
 from .readers import DensityTable, density_table
 from .results import (
     DEFAULT_DENSITY_CURVES,
-    TESTS_PER_UNIT,
     DensityResult,
     UnitOptions,
     check_figures,
@@ -226,16 +226,17 @@ def _streamed(source, outdir, *, figures: str, ci, curves, method, jobs: int, cl
     from ..output.outputs import replace_folder
 
     count = len(source)
-    n_units = math.ceil(count / TESTS_PER_UNIT)
+    size = results.TESTS_PER_UNIT  # the units of fit_density: the same fits
+    n_units = math.ceil(count / size)
     options = UnitOptions(tuple(curve.id for curve in curves), ci, method)
     if ci is not None and n_units > 1:  # the intervals' scale is floored by the whole file's dispersion: fit first
-        units = chunks_of(_samples_of(source), TESTS_PER_UNIT)
+        units = chunks_of(_samples_of(source), size)
         pooled = file_dispersions(units, options, jobs=jobs, client=client, count=n_units)
         options = UnitOptions(options.curves, ci, method, pooled)
     overview = figures == "auto" and count > AUTO_FIGURE_LIMIT
     with SpooledTables(outdir) as spool:
         reports, unfitted, values, done = [], [], [], 0
-        units = chunks_of(_samples_of(source), TESTS_PER_UNIT)
+        units = chunks_of(_samples_of(source), size)
         outputs = map_on_workers(
             stream_unit, units, StreamOptions(options, overview), jobs=jobs or None, client=client, count=n_units
         )
