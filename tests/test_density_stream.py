@@ -187,3 +187,29 @@ def test_the_function_s_keywords_are_the_command_s_options():
     beside = {"data", "sheet", "sep", "decimal", "client", "progress", "stream"}  # stream: as fit_to_folder's
     keywords = set(inspect.signature(fit_density_to_folder).parameters) - beside
     assert keywords <= dests and keywords >= set(inspect.signature(fit_density).parameters) - beside
+
+
+@pytest.mark.slow
+def test_a_campaign_streamed_from_a_local_dask_cluster_writes_the_files_of_one_process(small_units, tmp_path):
+    pytest.importorskip("distributed", reason="the dask extra (pip install 'tromplab[dask]') is not installed")
+    table = _campaign()
+    fit_density(table, ci=0.9, curves="plain").save(tmp_path / "memory", figures="none")
+    result, _ = fit_density_to_folder(table, tmp_path / "dask", figures="none", ci=0.9, curves="plain", dask="local",
+                                      stream=True)  # fmt: skip
+    assert isinstance(result, streamed.DensityFolder)
+    _same_folders(tmp_path / "memory", tmp_path / "dask")
+
+
+def test_bad_input_in_a_late_test_ends_a_streamed_run_as_it_ends_one_in_memory(small_units, tmp_path, monkeypatch, capsys):
+    table = _campaign()
+    table.loc[table.index[table["test"] == "t021"][2], "sinks"] = -1  # found when that test's unit is made
+    path = tmp_path / "bad.csv"
+    table.to_csv(path, index=False)
+    said = {}
+    for name, threshold in (("memory", 10**9), ("streamed", 10)):
+        monkeypatch.setattr(streaming, "STREAM_THRESHOLD", threshold)
+        code = main(["density", "fit", str(path), "-o", str(tmp_path / name), "--figures", "none"])
+        said[name] = (code, capsys.readouterr().err)
+    assert said["memory"] == said["streamed"] and said["memory"][0] != 0
+    assert "negative count" in said["memory"][1]
+    assert sorted(os.listdir(tmp_path)) == ["bad.csv"]  # nothing written, no scratch left

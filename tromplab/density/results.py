@@ -341,7 +341,7 @@ class DensityResult(ResultContract):
         if mode == "overview":
             from .plotting import plot_density_overview
 
-            summary = self._overview_rows()
+            summary = self.overview_rows()
             if not summary:
                 return {}, None
             axes = _offscreen(2, figsize=(9.0, 6.5))
@@ -357,7 +357,7 @@ class DensityResult(ResultContract):
                 progress(len(rows), len(self.samples), f"figures: {sample.label}")
         return pictures, pd.DataFrame(rows)
 
-    def _overview_rows(self) -> list[dict]:
+    def overview_rows(self) -> list[dict]:
         """rho50 and Ep of each sample's best curve, with their intervals, for the overview figure."""
         rows = []
         for sample in self.samples:

@@ -165,7 +165,7 @@ def stream_unit(options: StreamOptions, unit: list) -> UnitOutput:
     }
     overview = None
     if options.overview:
-        rows = result._overview_rows()
+        rows = result.overview_rows()
         overview = np.array([[row[name] for name in OVERVIEW_VALUES] for row in rows], dtype=float).reshape(-1, 6)
     tables = {name: unit_table(frame) for name, frame in frames.items()}
     return UnitOutput(tables, result.report(), tuple(result.unfitted()), overview, len(unit), unit[-1].label)
@@ -275,12 +275,11 @@ def _overview_png(values: np.ndarray) -> bytes | None:
     """The overview figure of every test's best curve (None when no test has one)."""
     if not len(values):
         return None
-    from ..output.plotting import figure_png
+    from ..output.plotting import figure_png, offscreen_axes
     from .plotting import plot_density_overview
-    from .results import _offscreen
 
-    rows = _OverviewRows(values)
-    return figure_png(plot_density_overview(rows, axes=_offscreen(2, figsize=(9.0, 6.5)))[0])
+    axes = offscreen_axes(2, 1, figsize=(9.0, 6.5))  # as DensityResult.save draws it
+    return figure_png(plot_density_overview(_OverviewRows(values), axes=axes)[0])
 
 
 class _OverviewRows:
