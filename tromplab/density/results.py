@@ -438,7 +438,8 @@ def fit_density(
     Parameters
     ----------
     data : str, path-like, pandas.DataFrame or list of DensitySample
-        The table (:func:`tromplab.density.readers.read_density` reads it) or samples already read.
+        The table (:func:`tromplab.density.readers.read_density` reads it), samples already read, or a
+        :class:`~tromplab.density.readers.DensityTable` (:func:`~tromplab.density.readers.density_table`).
     ci : float, optional
         Level of the profile-likelihood intervals of rho50, Ep and the imperfection, in (0, 1).
     curves : str or iterable

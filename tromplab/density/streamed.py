@@ -138,12 +138,12 @@ class StreamOptions:
 
 class UnitOutput(NamedTuple):
     """What a worker sends back of a unit: its ``tables`` (:data:`STREAMED_TABLES` ->
-    :class:`~tromplab.output.spooled.UnitTable`), its lines of ``summary.txt`` (``report``),
+    :class:`~tromplab.output.spooled.UnitTable`), its lines of ``summary.txt`` (``lines``),
     the ``unfitted`` labels, the ``overview`` values (tests x :data:`OVERVIEW_VALUES`, of those
     with a best curve; None when not asked), its size and the label of its last test."""
 
     tables: dict
-    report: str
+    lines: str
     unfitted: tuple
     overview: np.ndarray | None
     size: int
@@ -244,7 +244,7 @@ def _streamed(source, outdir, *, figures: str, ci, curves, method, jobs: int, cl
             for name in STREAMED_TABLES:
                 spool.keep(name, number, output.tables[name])
             reports.append(spool.scratch / f"summary-{number:07d}.txt")
-            reports[-1].write_text(output.report, encoding="utf-8")
+            reports[-1].write_text(output.lines, encoding="utf-8")
             unfitted += output.unfitted
             if output.overview is not None:
                 values.append(output.overview)
