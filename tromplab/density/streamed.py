@@ -22,12 +22,14 @@ the counts, then joins the files and swaps the folder into place as a whole
 interrupt leaves the output folder as it was and removes the scratch folder.  With ``ci`` and
 more than one unit the file is fitted twice, as in memory: first without intervals, the workers
 sending back each fit's Pearson dispersion (:func:`~tromplab.density.results.file_dispersions`),
-then with intervals floored by the file's pooled dispersion, streamed.
+then with intervals floored by the file's pooled dispersion, streamed; the samples of the
+first pass are pickled into the scratch folder and read back for the second.
 """
 
 from __future__ import annotations
 
 import math
+import pickle
 import shutil
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -229,14 +231,14 @@ def _streamed(source, outdir, *, figures: str, ci, curves, method, jobs: int, cl
     size = results.TESTS_PER_UNIT  # the units of fit_density: the same fits
     n_units = math.ceil(count / size)
     options = UnitOptions(tuple(curve.id for curve in curves), ci, method)
-    if ci is not None and n_units > 1:  # the intervals' scale is floored by the whole file's dispersion: fit first
-        units = chunks_of(_samples_of(source), size)
-        pooled = file_dispersions(units, options, jobs=jobs, client=client, count=n_units)
-        options = UnitOptions(options.curves, ci, method, pooled)
     overview = figures == "auto" and count > AUTO_FIGURE_LIMIT
     with SpooledTables(outdir) as spool:
-        reports, unfitted, values, done = [], [], [], 0
         units = chunks_of(_samples_of(source), size)
+        if ci is not None and n_units > 1:  # the intervals' scale is floored by the whole file's dispersion: fit first
+            pooled = file_dispersions(_units_kept(units, spool.scratch), options, jobs=jobs, client=client, count=n_units)
+            options = UnitOptions(options.curves, ci, method, pooled)
+            units = _units_read(spool.scratch, n_units)
+        reports, unfitted, values, done = [], [], [], 0
         outputs = map_on_workers(
             stream_unit, units, StreamOptions(options, overview), jobs=jobs or None, client=client, count=n_units
         )
@@ -261,6 +263,23 @@ def _streamed(source, outdir, *, figures: str, ci, curves, method, jobs: int, cl
             files["warnings.csv"] = spool.writer("warnings")
         written = replace_folder(files, outdir)
     return DensityFolder(Path(outdir), written, count, tuple(unfitted), notes, ci, method), written
+
+
+def _units_kept(units, scratch: Path):
+    """``units`` as they pass, each also pickled into ``scratch`` for the second pass: reading
+    a unit's samples back costs less than half of making them again from the table."""
+    for number, unit in enumerate(units):
+        (scratch / f"samples-{number:07d}.pkl").write_bytes(pickle.dumps(unit, protocol=pickle.HIGHEST_PROTOCOL))
+        yield unit
+
+
+def _units_read(scratch: Path, count: int):
+    """The ``count`` units :func:`_units_kept` kept, read back one at a time (each file removed once read)."""
+    for number in range(count):
+        path = scratch / f"samples-{number:07d}.pkl"
+        unit = pickle.loads(path.read_bytes())
+        path.unlink()
+        yield unit
 
 
 def _join_reports(reports: list[Path], path: Path) -> None:
