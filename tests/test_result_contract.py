@@ -564,6 +564,8 @@ NOT_RESULTS = {
     "tromplab.circuit.flowsheet.Flowsheet": "input (read_flowsheet): the circuit's description",
     "tromplab.circuit.measurements.Survey": "input (read_survey): the measurements",
     "tromplab.density.readers.DensitySample": "input (read_density): one test's data",
+    "tromplab.density.streamed.DensityFolder": "what a streamed density fit wrote (fit_density_to_folder): its tables "
+    "are the folder's files, its fits are not kept",
     "tromplab.loading.lab_options.LabOptions": "options of read_lab",
     "tromplab.curves.formulas.Formula": "a registry record",
     "tromplab.curves.parameters.Parameter": "a registry record",

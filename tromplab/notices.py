@@ -25,6 +25,8 @@ from dataclasses import dataclass, field
 
 #: Names of a kind's occurrences the console shows before "and N more".
 NAMES_SHOWN = 3
+#: Notices of one kind :func:`grouped_lines` looks through for the names it shows.
+_NOTICES_NAMED = 4 * (NAMES_SHOWN + 1)
 #: The code of a message no kind of :data:`WARNING_KINDS` covers.
 OTHER = "other"
 
@@ -258,25 +260,30 @@ def grouped_lines(
       rest on it, are read off the formula's shape, not off measurements (e0, e1, e2 and 2 more; every one in
       warnings.csv)"]
     """
-    kinds: dict[str, list[Notice]] = {}
+    # per kind: its first notices (those the line can name), how many in all, and its subjects:
+    # a stream of notices (a streamed batch's warnings.csv read back) is never held whole
+    kinds: dict[str, tuple[list[Notice], list[int], set]] = {}
     for notice in notices:
-        kinds.setdefault(_kind_key(notice), []).append(notice)
+        head, count, subjects = kinds.setdefault(_kind_key(notice), ([], [0], set()))
+        if len(head) < _NOTICES_NAMED:
+            head.append(notice)
+        count[0] += 1
+        subjects.add(notice.subject)
     lines = []
-    for members in kinds.values():
-        first = members[0]
-        if len(members) == 1:
+    for head, (count,), subjects in kinds.values():
+        first = head[0]
+        if count == 1:
             line = occurrence_line(first)
             lines.append(line if labelled else line.split(" ", 1)[1])
             continue
         kind = _KINDS.get(first.code)
-        subjects = list(dict.fromkeys(notice.subject for notice in members))
         limit = NAMES_SHOWN + (len(subjects) == NAMES_SHOWN + 1)  # "and 1 more" would take the place of its name
-        shown = list(dict.fromkeys(kind.named(n) if kind else n.subject for n in members[: 4 * limit]))[:limit]
+        shown = list(dict.fromkeys(kind.named(n) if kind else n.subject for n in head[: 4 * limit]))[:limit]
         named = ", ".join(shown) + (f" and {len(subjects) - len(shown)} more" if len(subjects) > len(shown) else "")
         words = _NUMBER.sub("...", first.message) if kind is None else kind.summary
         if kind is not None and intervals and kind.intervals:
             words += f"; {kind.intervals}"
-        counted = f"{len(subjects)} of {total} {noun}" + (f" ({len(members)} times)" if len(members) > len(subjects) else "")
+        counted = f"{len(subjects)} of {total} {noun}" + (f" ({count} times)" if count > len(subjects) else "")
         label = f"{level_of(first.code)}: " if labelled else ""
         where = f"every one in {listed_in}" if listed_in else "-v prints every one"
         lines.append(f"{label}{counted}: {words} ({named}; {where})")

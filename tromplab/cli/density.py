@@ -85,26 +85,39 @@ def _add_fit(sub) -> None:
 
 
 def run_density_fit(args) -> int:
-    """Run ``tromplab density fit``: read, fit, write the folder, print the summary and the files written."""
-    from ..density import fit_density
+    """Run ``tromplab density fit``: read, fit, write the folder, print the summary and the files written.
+
+    A large campaign streams its results to the folder (:func:`tromplab.density.streamed.fit_density_to_folder`);
+    the console then copies ``summary.txt`` and reads the notes back from ``warnings.csv``: the same words."""
+    import sys
+
+    from ..density.streamed import DensityFolder, fit_density_to_folder
 
     check_output_folder(args.outdir, inputs=[args.file])
     with progress_bars(quiet=args.quiet, unit="test", stages=("figures",)) as progress:
-        result = fit_density(args.file, ci=args.ci, curves=args.curves, method=args.method, floats_yield=args.floats_yield,
-                             sheet=args.sheet, sep=args.sep, decimal=args.decimal, jobs=args.jobs, scheduler=args.scheduler,
-                             dask=args.dask, progress=progress)  # fmt: skip
-        written = result.save(args.outdir, excel=args.excel, report=args.report, figures=args.figures, progress=progress)
-    print(result.report())
+        result, written = fit_density_to_folder(
+            args.file, args.outdir, figures=args.figures, excel=args.excel, report=args.report, ci=args.ci,
+            curves=args.curves, method=args.method, floats_yield=args.floats_yield, sheet=args.sheet, sep=args.sep,
+            decimal=args.decimal, jobs=args.jobs, scheduler=args.scheduler, dask=args.dask, progress=progress,
+        )  # fmt: skip
+    streamed = isinstance(result, DensityFolder)
+    if streamed:
+        sys.stdout.flush()
+        result.write_report(sys.stdout)
+    else:
+        print(result.report())
     print("\nWrote:")
     for path in written.values():
         print(f"  {path}")
+    tests = result.tests if streamed else len(result.samples)
     notices = result.notices()
-    print_notices(notices, total=len(result.samples), quiet=args.quiet, verbose=args.verbose, noun="tests",
+    print_notices(notices, total=tests, quiet=args.quiet, verbose=args.verbose, noun="tests",
                   intervals=args.ci is not None)  # fmt: skip
     if args.quiet:
-        said = f", {len(notices)} note(s) (warnings.csv)" if notices else ""
-        print_result(f"tromplab density fit: {len(result.samples)} test(s) fitted{said}; results in {args.outdir}")
-    unfitted = [sample.label for sample in result.samples if result.best(sample) is None]
+        count = result.notes if streamed else len(notices)
+        said = f", {count} note(s) (warnings.csv)" if count else ""
+        print_result(f"tromplab density fit: {tests} test(s) fitted{said}; results in {args.outdir}")
+    unfitted = result.unfitted()
     if unfitted:
         print(f"\nno curve could be fitted to: {', '.join(unfitted)} (the reasons are in fits.csv)")
         return EXIT_PARTIAL

@@ -6,7 +6,8 @@ declared in :mod:`tromplab.density.registry`; tracer counts, float-sink analyses
 partitions are read by :mod:`tromplab.density.readers`, fitted by
 :mod:`tromplab.density.fitting` (binomial maximum likelihood, least squares) and
 :func:`fit_density` returns a :class:`~tromplab.density.results.DensityResult` whose
-``save(DIR)`` writes what ``tromplab density fit FILE -o DIR`` writes; :func:`predict_density`
+``save(DIR)`` writes what ``tromplab density fit FILE -o DIR`` writes (:func:`fit_density_to_folder`
+does both in one go, and streams a large campaign to disk unit by unit, as the command does); :func:`predict_density`
 returns a :class:`~tromplab.density.prediction.DensityPrediction` whose ``save(FILE)`` writes
 what ``tromplab density predict WASHABILITY -o FILE`` writes.
 """
@@ -25,6 +26,7 @@ from .registry import (
     select_density_curves,
 )
 from .results import DensityResult, fit_density
+from .streamed import DensityFolder, fit_density_to_folder
 
 __all__ = [
     "DENSITY_CURVES",
@@ -34,9 +36,11 @@ __all__ = [
     "DensityIndices",
     "DensityCurveFit",
     "DensityPrediction",
+    "DensityFolder",
     "DensityResult",
     "DensitySample",
     "fit_density",
+    "fit_density_to_folder",
     "fit_density_curve",
     "predict_density",
     "read_density",

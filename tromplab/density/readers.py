@@ -210,6 +210,29 @@ def read_density(
     >>> sample.points["lost"].tolist(), sample.points["partition_sinks"].round(3).tolist()
     ([1, 1, 0], [0.034, 0.483, 0.967])
     """
+    table = density_table(path, sheet=sheet, sep=sep, decimal=decimal, floats_yield=floats_yield,
+                          sum_tolerance_pct=sum_tolerance_pct)  # fmt: skip
+    return list(table.samples())
+
+
+def density_table(
+    path,
+    *,
+    sheet=None,
+    sep: str | None = None,
+    decimal: str | None = None,
+    floats_yield: float | None = None,
+    sum_tolerance_pct: float = DEFAULT_SUM_TOLERANCE_PCT,
+) -> DensityTable:
+    """Read a density table and check it as a whole (:func:`read_density`'s checks of the file and
+    its columns); its samples are made when :meth:`DensityTable.samples` is iterated.
+
+    Parameters are those of :func:`read_density`.
+
+    Returns
+    -------
+    DensityTable
+    """
     floats_yield = check_optional(check_yield, floats_yield, "floats_yield")
     table = read_table(path, sheet=sheet, sep=sep, decimal=decimal)
     layout = density_layout(table.frame.columns)
@@ -228,20 +251,70 @@ def read_density(
     table.refuse_unknown(["test", *known, *size_columns], what=f"{layout} table")
     labels = _test_labels(table)
     sizes = _size_bounds(table, size_columns)
-    samples = []
     group_keys = [f"{label}\x00{lower!r}\x00{upper!r}" for label, lower, upper in zip(labels, *sizes)]
-    for rows in experiment_rows(group_keys).values():
-        part = table.subset(rows)
-        lower, upper = float(sizes[0][rows[0]]), float(sizes[1][rows[0]])
-        context = {"test": str(labels[rows[0]]), "size_lower": lower, "size_upper": upper, "size_unit": size_unit}
-        if layout == "tracers":
-            samples.append(_tracer_sample(part, context))
-        elif layout == "partition":
-            samples.append(_partition_sample(part, context))
-        else:
-            options = LabOptions(sum_tolerance_pct=sum_tolerance_pct)
-            samples.append(_float_sink_sample(part, context, options, floats_yield))
-    return samples
+    groups = tuple(experiment_rows(group_keys).values())
+    return DensityTable(table, layout, groups, labels, sizes, size_unit, floats_yield, sum_tolerance_pct)
+
+
+@dataclass(frozen=True)
+class DensityTable:
+    """A density table read and checked as a whole, its rows grouped by test and size fraction:
+    the samples are made from it one at a time (:meth:`samples`), so that a large campaign need
+    not hold every sample at once (``tromplab density fit`` streaming its results).
+
+    Attributes
+    ----------
+    table : Table
+        The rows as read.
+    layout : str
+        ``"tracers"``, ``"float-sink"`` or ``"partition"``.
+    groups : tuple of numpy.ndarray
+        The row positions of each test and size fraction, in the order they first appear.
+    labels : numpy.ndarray
+        The test of each row.
+    sizes : tuple of numpy.ndarray
+        The lower and upper size bound of each row (NaN when not given).
+    size_unit : str
+        Unit of the size bounds ("" when none).
+    floats_yield : float or None
+        The floats yield asked for (float-sink tables).
+    sum_tolerance_pct : float
+        Allowed deviation of each analysis from 100 %.
+    """
+
+    table: Table
+    layout: str
+    groups: tuple
+    labels: np.ndarray = field(repr=False)
+    sizes: tuple = field(repr=False)
+    size_unit: str = ""
+    floats_yield: float | None = None
+    sum_tolerance_pct: float = DEFAULT_SUM_TOLERANCE_PCT
+
+    def __len__(self) -> int:
+        return len(self.groups)
+
+    @property
+    def has_size(self) -> bool:
+        """True when a test gives a particle size fraction."""
+        return bool(np.isfinite(self.sizes[0]).any() or np.isfinite(self.sizes[1]).any())
+
+    def samples(self):
+        """The :class:`DensitySample` of each test and size fraction, in order, made as they are
+        taken (an :class:`~tromplab.errors.InputError` when one cannot be made)."""
+        for rows in self.groups:
+            yield self._sample(rows)
+
+    def _sample(self, rows) -> DensitySample:
+        part = self.table.subset(rows)
+        lower, upper = float(self.sizes[0][rows[0]]), float(self.sizes[1][rows[0]])
+        context = {"test": str(self.labels[rows[0]]), "size_lower": lower, "size_upper": upper, "size_unit": self.size_unit}
+        if self.layout == "tracers":
+            return _tracer_sample(part, context)
+        if self.layout == "partition":
+            return _partition_sample(part, context)
+        options = LabOptions(sum_tolerance_pct=self.sum_tolerance_pct)
+        return _float_sink_sample(part, context, options, self.floats_yield)
 
 
 def _test_labels(table: Table) -> np.ndarray:

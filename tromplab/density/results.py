@@ -30,9 +30,10 @@ from ..output.csv_parts import file_writers, write_csv
 from ..parallel import dask_client, map_on_workers
 from ..results_contract import ResultContract
 from ..validation import MAX_JOBS, check_count, check_probability
-from .fitting import METHODS, DensityCurveFit, fit_density_curves, limits_test_p, pooled_dispersions, wilson_interval
+from .dispersion import PooledDispersion, pool_dispersion
+from .fitting import METHODS, DensityCurveFit, fit_density_curves, limits_test_p, wilson_interval
 from .ranking import quasi_aic, rank_fits, variance_inflation
-from .readers import DensitySample, read_density
+from .readers import DensitySample, DensityTable, read_density
 from .registry import select_density_curves
 
 #: The curves fitted when none are named: the three plain curves and their variants with limits.
@@ -116,6 +117,10 @@ class DensityResult(ResultContract):
     @cached_property
     def _ranking_notes(self) -> dict[int, str]:
         return {id(fit): note for fit, _, note in self._ranked if note}
+
+    def unfitted(self) -> list[str]:
+        """The labels of the tests (and size fractions) no curve could be fitted to."""
+        return [sample.label for sample in self.samples if self.best(sample) is None]
 
     def fits_of(self, sample: DensitySample) -> list[DensityCurveFit]:
         """The fits of one sample."""
@@ -336,7 +341,7 @@ class DensityResult(ResultContract):
         if mode == "overview":
             from .plotting import plot_density_overview
 
-            summary = self._overview_rows()
+            summary = self.overview_rows()
             if not summary:
                 return {}, None
             axes = _offscreen(2, figsize=(9.0, 6.5))
@@ -352,7 +357,7 @@ class DensityResult(ResultContract):
                 progress(len(rows), len(self.samples), f"figures: {sample.label}")
         return pictures, pd.DataFrame(rows)
 
-    def _overview_rows(self) -> list[dict]:
+    def overview_rows(self) -> list[dict]:
         """rho50 and Ep of each sample's best curve, with their intervals, for the overview figure."""
         rows = []
         for sample in self.samples:
@@ -433,7 +438,8 @@ def fit_density(
     Parameters
     ----------
     data : str, path-like, pandas.DataFrame or list of DensitySample
-        The table (:func:`tromplab.density.readers.read_density` reads it) or samples already read.
+        The table (:func:`tromplab.density.readers.read_density` reads it), samples already read, or a
+        :class:`~tromplab.density.readers.DensityTable` (:func:`~tromplab.density.readers.density_table`).
     ci : float, optional
         Level of the profile-likelihood intervals of rho50, Ep and the imperfection, in (0, 1).
     curves : str or iterable
@@ -471,6 +477,22 @@ def fit_density(
     >>> row["curve"], round(float(row["rho50"]), 3), round(float(row["ep"]), 4)
     ('normal', 1.55, 0.038)
     """
+    ci, chosen, jobs = check_fit_options(ci=ci, method=method, curves=curves, jobs=jobs)
+    if isinstance(data, list) and all(isinstance(item, DensitySample) for item in data):
+        samples = data
+    elif isinstance(data, DensityTable):
+        samples = list(data.samples())
+    else:
+        samples = read_density(data, sheet=sheet, sep=sep, decimal=decimal, floats_yield=floats_yield)
+    check_samples(samples, method=method)
+    with dask_client(scheduler=scheduler, dask=dask, client=client) as cluster:
+        fits = _fit_in_units(samples, chosen, ci=ci, method=method, jobs=jobs, client=cluster, progress=progress)
+    return DensityResult(samples, fits, ci, method)
+
+
+def check_fit_options(*, ci, method, curves, jobs) -> tuple:
+    """``ci``, the curves and ``jobs`` of :func:`fit_density` checked (an
+    :class:`~tromplab.errors.OptionError` naming the option): ``(ci, curves, jobs)``."""
     if ci is not None:
         ci = check_probability(ci, "ci")
     if method is not None and method not in METHODS:
@@ -479,18 +501,16 @@ def fit_density(
         chosen = select_density_curves(curves)
     except KeyError as error:
         raise OptionError("curves", error.args[0]) from None
-    if isinstance(data, list) and all(isinstance(item, DensitySample) for item in data):
-        samples = data
-    else:
-        samples = read_density(data, sheet=sheet, sep=sep, decimal=decimal, floats_yield=floats_yield)
-    if not samples:
+    return ci, chosen, check_count(0 if jobs is None else jobs, "jobs", minimum=0, maximum=MAX_JOBS)
+
+
+def check_samples(samples, *, method) -> None:
+    """Refuse an empty list of samples, and ``method="binomial"`` for a table of shares."""
+    if not len(samples):
         raise InputError("no test to fit: data is an empty list of samples")
-    if method == "binomial" and any(sample.layout != "tracers" for sample in samples):
+    layouts = {samples.layout} if isinstance(samples, DensityTable) else {sample.layout for sample in samples}
+    if method == "binomial" and layouts - {"tracers"}:
         raise OptionError("method", "binomial needs tracer counts (density, sinks, floats); the table gives shares")
-    jobs = check_count(0 if jobs is None else jobs, "jobs", minimum=0, maximum=MAX_JOBS)
-    with dask_client(scheduler=scheduler, dask=dask, client=client) as cluster:
-        fits = _fit_in_units(samples, chosen, ci=ci, method=method, jobs=jobs, client=cluster, progress=progress)
-    return DensityResult(samples, fits, ci, method)
 
 
 #: Tests (and size fractions) fitted together in one unit of work: the batch's arrays are
@@ -514,12 +534,9 @@ def _fit_in_units(samples: list, curves, *, ci, method, jobs: int, client, progr
     ``jobs`` worker processes (0: all cores) or on the Dask ``client``, through the fan-out of
     :mod:`tromplab.parallel`; the same fits wherever they run, in the samples' order."""
     units = [samples[i : i + TESTS_PER_UNIT] for i in range(0, len(samples), TESTS_PER_UNIT)]
-    pooled = None
+    options = UnitOptions(tuple(curve.id for curve in curves), ci, method)
     if ci is not None and len(units) > 1:  # the intervals' scale is floored by the whole file's dispersion: fit first
-        pooled = pooled_dispersions(
-            _fit_in_units(samples, curves, ci=None, method=method, jobs=jobs, client=client, progress=None)
-        )
-    options = UnitOptions(tuple(curve.id for curve in curves), ci, method, pooled)
+        options = replace(options, pooled=file_dispersions(units, options, jobs=jobs, client=client, count=len(units)))
     fits, done = [], 0
     for unit, unit_fits in zip(units, map_on_workers(fit_unit, units, options, jobs=jobs or None, client=client)):
         # a worker's fits hold copies of the samples: give them back the caller's (fits_of finds them by identity)
@@ -538,3 +555,30 @@ def _fit_in_units(samples: list, curves, *, ci, method, jobs: int, client, progr
 def fit_unit(options: UnitOptions, unit: list) -> list[DensityCurveFit]:
     """The fits of one unit of samples (what a worker does)."""
     return fit_density_curves(unit, options.curves, ci=options.ci, method=options.method, pooled=options.pooled)
+
+
+def unit_dispersions(options: UnitOptions, unit: list) -> dict[str, tuple[list, list]]:
+    """The Pearson dispersions and residual degrees of freedom of the binomial fits of one unit
+    of samples, by curve id, fitted without intervals (what a worker does for
+    :func:`file_dispersions`): those :func:`~tromplab.density.fitting.pooled_dispersions` pools."""
+    found: dict[str, tuple[list, list]] = {}
+    for fit in fit_density_curves(unit, options.curves, ci=None, method=options.method):
+        if fit.success and fit.method == "binomial":
+            dispersions, dfs_resid = found.setdefault(fit.curve.id, ([], []))
+            dispersions.append(fit.dispersion)
+            dfs_resid.append(fit.df_resid)
+    return found
+
+
+def file_dispersions(units, options: UnitOptions, *, jobs: int, client, count: int) -> dict[str, PooledDispersion]:
+    """The Pearson dispersion of each curve pooled over a whole file, its ``count`` ``units``
+    fitted without intervals (an iterable: taken as the workers can start on them), as
+    :func:`~tromplab.density.fitting.pooled_dispersions` pools the fits of the whole file: the
+    workers send back two numbers per fit, not the fits."""
+    by_curve: dict[str, tuple[list, list]] = {}
+    for found in map_on_workers(unit_dispersions, units, options, jobs=jobs or None, client=client, count=count):
+        for curve_id, (dispersions, dfs_resid) in found.items():
+            kept = by_curve.setdefault(curve_id, ([], []))
+            kept[0].extend(dispersions)
+            kept[1].extend(dfs_resid)
+    return {curve_id: pool_dispersion(*kept) for curve_id, kept in by_curve.items()}

@@ -4,14 +4,16 @@ A streamed batch writes its tables chunk by chunk as the workers finish them, so
 process holds no fit and its memory does not grow with the batch; the files are the same as
 those of a batch held in memory.  :func:`streams` is the only place that decides it:
 ``tromplab fit`` asks it twice, once before reading its input (whether to read a large CSV
-file in pieces, from its size) and once with the experiments counted (whether to stream).
+file in pieces, from its size) and once with the experiments counted (whether to stream);
+``tromplab density fit`` once, with the tests (and size fractions) counted
+(:func:`tromplab.density.streamed.fit_density_to_folder`).
 """
 
 from __future__ import annotations
 
 from ..options import AUTO_FIGURE_LIMIT
 
-#: Items (experiments) from which a batch streams when the caller does not say: below it the
+#: Items (experiments, density tests) from which a batch streams when the caller does not say: below it the
 #: results stay in memory, where every method of the result is at hand without refitting.
 STREAM_THRESHOLD = 1000
 
