@@ -184,6 +184,97 @@ def test_the_bars_of_trend_count_surveys_joint_fits_and_charts_on_a_terminal(tmp
         assert progress is None
 
 
+# --- figures on a shared renderer, the report's figures across experiments first, collections -----
+def _own_canvas_axes():
+    """Axes of a figure on matplotlib's own canvas, laid out and saved on renderers of its own
+    (what offscreen_axes gave before its renderer was shared)."""
+    from matplotlib.figure import Figure
+
+    return Figure(figsize=(7.5, 5.0)).subplots()
+
+
+def test_figures_on_the_shared_renderer_have_the_bytes_of_figures_drawn_on_their_own(documented):
+    """Tromp curves, residuals and control charts drawn by offscreen_axes (one renderer shared,
+    the texts measured once) give the bytes of each figure on a canvas of its own, at the
+    report's 100 and the files' 120 dpi, also when all are made before any is drawn and drawn
+    in the reverse order."""
+    from tromplab import fit_experiments, read_experiments
+    from tromplab.output.plotting import figure_png, offscreen_axes, plot_control_chart, plot_residuals, plot_tromp_fits
+
+    experiments, _ = read_experiments(SERIES)
+    bench = fit_experiments(experiments[:3])
+    drawings = [
+        *(
+            lambda ax, e=e: plot_tromp_fits(bench.fits_of(e), best=bench.best_fit(e), ax=ax, size_unit="um")
+            for e in bench.experiments
+        ),
+        *(lambda ax, e=e: plot_residuals(bench.fits_of(e), ax=ax, partition_to="coarse") for e in bench.experiments),
+        *(lambda ax, q=q: plot_control_chart(documented, q, ax=ax, size_unit="um") for q in ("d_cut", "bypass")),
+    ]
+    for dpi in (100, 120):
+        made = [draw(offscreen_axes()) for draw in drawings]
+        shared = [figure_png(ax, dpi=dpi) for ax in reversed(made)][::-1]
+        own = [figure_png(draw(_own_canvas_axes()), dpi=dpi) for draw in drawings]
+        assert len(set(own)) == len(own) and shared == own, dpi
+
+
+def test_offscreen_figures_share_a_renderer_per_size_and_thread():
+    import threading
+
+    from tromplab.output.plotting import offscreen_axes
+
+    first, second = offscreen_axes().figure.canvas, offscreen_axes().figure.canvas
+    assert first.get_renderer() is second.get_renderer()
+    assert offscreen_axes(2, 2, figsize=(9, 6.5))[0, 0].figure.canvas.get_renderer() is not first.get_renderer()
+    in_thread = []
+    thread = threading.Thread(target=lambda: in_thread.append(offscreen_axes().figure.canvas.get_renderer()))
+    thread.start()
+    thread.join()
+    assert in_thread[0] is not first.get_renderer()
+
+
+def test_the_report_draws_its_figures_across_experiments_before_those_of_each_and_shows_them_after(monkeypatch):
+    """The F heatmap and the ranking are drawn before the workers start on the experiments (they
+    then find matplotlib imported), and placed after the experiments' figures as before."""
+    import tromplab.output.report as report_module
+    from tromplab import fit_experiments, read_experiments
+
+    drawn = []
+    for name in ("plot_f_heatmap", "plot_ranking", "experiment_figures"):
+        real = getattr(report_module, name)
+        monkeypatch.setattr(report_module, name, lambda *a, real=real, name=name, **k: drawn.append(name) or real(*a, **k))
+    experiments, _ = read_experiments(SERIES)
+    bench = fit_experiments(experiments[:5])
+    report = report_module.build_report(bench, [], source="series")
+    assert drawn == ["plot_f_heatmap", "plot_ranking"] + ["experiment_figures"] * 3  # 5 experiments, 2 at a time
+    captions = [caption for _, _, caption in report.sections["figures"]]
+    assert captions[:2] == [f"Tromp curve, experiment {bench.experiments[0]}", f"Residuals, experiment {bench.experiments[0]}"]
+    assert captions[-2:] == ["Fisher's F across experiments and formulas", "Points and places across experiments"]
+    assert len(captions) == 2 * 5 + 2
+
+
+def test_trend_keeps_older_objects_out_of_collections_and_gives_them_back(monkeypatch):
+    import gc
+
+    import tromplab.trend as trend
+
+    during = []
+    real = trend._trend_fits
+    monkeypatch.setattr(trend, "_trend_fits", lambda *a: during.append(gc.get_freeze_count()) or real(*a))
+    before = gc.get_freeze_count()
+    first = monitor_surveys(read_surveys(SERIES), formula="plitt")
+    assert during[0] > before and gc.get_freeze_count() == before
+    gc.freeze()  # frozen by the caller: left as it is
+    try:
+        frozen = gc.get_freeze_count()
+        again = monitor_surveys(read_surveys(SERIES), formula="plitt")
+        # not frozen again nor given back (the frozen objects that died meanwhile are freed)
+        assert during[1] <= frozen and gc.get_freeze_count() > 0.9 * frozen
+    finally:
+        gc.unfreeze()
+    pd.testing.assert_frame_equal(again.table, first.table, check_exact=True)
+
+
 # --- circuit: warnings.csv, the console once per kind, --quiet and -v ----------------------------
 def test_circuit_writes_every_warning_to_warnings_csv_and_groups_them_on_the_console(tmp_path, capsys, monkeypatch):
     """The bundled example's cyclone has its weights on two classes (one warning, said in its

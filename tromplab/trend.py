@@ -39,6 +39,8 @@ in ``docs/trend.md``.
 
 from __future__ import annotations
 
+import functools
+import gc
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -389,6 +391,28 @@ def flag_changes(
     return charts, alarms, changed, change_point
 
 
+def _older_objects_frozen(function):
+    """``function`` run with the objects alive before it (the imported libraries, the surveys)
+    left out of Python's cyclic garbage collections (``gc.freeze``), then returned to them;
+    reference counting frees what the function drops as before.  The fits of the nine formulas
+    and the joint fits allocate enough for a full collection, which traversed every object of
+    numpy, scipy, pandas and matplotlib: 0.13 s of a 2.6 s ``tromplab trend``.  Where objects
+    are frozen already (by the caller, or a server before forking) nothing is changed."""
+
+    @functools.wraps(function)
+    def run(*args, **kwargs):
+        if gc.get_freeze_count():
+            return function(*args, **kwargs)
+        gc.freeze()
+        try:
+            return function(*args, **kwargs)
+        finally:
+            gc.unfreeze()
+
+    return run
+
+
+@_older_objects_frozen
 def monitor_surveys(
     surveys: Sequence[Survey] | str | os.PathLike,
     *,
@@ -621,6 +645,7 @@ def _best_formula(surveys, progress=None) -> tuple:
     return formula, tuple(fits)
 
 
+@_older_objects_frozen
 def write_trend(result: TrendResult, outdir, *, size_unit: str = "", figures: bool = True, progress=None) -> dict[str, Path]:
     """Write ``trend.csv`` (tidy), ``trend_surveys.csv`` (one row per survey), ``warnings.csv``
     (when a survey's fit has a warning), the charts ``trend_<quantity>.png`` and

@@ -428,8 +428,9 @@ def _profiled_bests(fits: list, level: float) -> dict[int, dict]:
     return profiled
 
 
-#: Experiments whose figures one worker draws at a time.
-FIGURE_CHUNK = 6
+#: Experiments whose figures one worker draws at a time: small units, so that two workers get
+#: as many (20 experiments in units of 6 left one worker 12 and the other 8).
+FIGURE_CHUNK = 2
 
 
 def _add_figures(
@@ -446,12 +447,16 @@ def _add_figures(
 ) -> None:
     """Tromp curves and residuals per experiment shown (drawn by ``map_work``'s workers), then F
     across experiments (an overview of the top-ranked fits for a large batch) and the ranking
-    (when there are several); ``progress`` told of each chunk of experiments drawn."""
+    (when there are several); ``progress`` told of each chunk of experiments drawn.
+
+    The figures of the whole batch are drawn first, here: worker processes started afterwards
+    find matplotlib imported, its fonts loaded and the sizes of its texts measured."""
     drawn = [
         (experiment, bench.fits_of(experiment), bench.best_fit(experiment))
         for experiment in bench.experiments
         if experiment in shown and any(f.success for f in bench.fits_of(experiment))
     ]
+    batch_figures = _batch_figures(bench, fits, ranking, shown=shown)
     chunks = [drawn[i : i + FIGURE_CHUNK] for i in range(0, len(drawn), FIGURE_CHUNK)]
     options = {"size_unit": size_unit, "partition_to": partition_to}
     if map_work is None:
@@ -466,15 +471,25 @@ def _add_figures(
         done += len(chunk)
         if progress is not None:
             progress(done, len(drawn), f"figures: experiment {chunk[-1][0]}")
+    for picture, caption in batch_figures:
+        report.add("figures", "figure", picture, caption=caption)
+
+
+def _batch_figures(bench, fits: pd.DataFrame, ranking: pd.DataFrame, *, shown: list[str]) -> list[tuple[bytes, str]]:
+    """``(PNG, caption)`` of the figures across experiments: F across experiments and formulas
+    (an overview of the top-ranked fits when the report shows some experiments only) and the
+    ranking's points and places (when there are several experiments)."""
+    pictures = []
     if fits["success"].any() and len(shown) < len(bench.experiments):
         overview = plot_batch_overview(fits, axes=offscreen_axes(2, 2, figsize=(9, 6.5)))[0]
-        report.add("figures", "figure", figure_png(overview), caption="Top-ranked fits of all experiments")
+        pictures.append((figure_png(overview), "Top-ranked fits of all experiments"))
     elif fits["success"].any():
         heatmap = plot_f_heatmap(fits, ax=offscreen_axes())
-        report.add("figures", "figure", figure_png(heatmap), caption="Fisher's F across experiments and formulas")
+        pictures.append((figure_png(heatmap), "Fisher's F across experiments and formulas"))
     if len(ranking) and len(bench.experiments) > 1:
         places = plot_ranking(ranking, ax=offscreen_axes())
-        report.add("figures", "figure", figure_png(places), caption="Points and places across experiments")
+        pictures.append((figure_png(places), "Points and places across experiments"))
+    return pictures
 
 
 def _map_here(function, chunks, argument):
