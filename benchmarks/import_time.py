@@ -8,7 +8,11 @@ runs, and the difference to a bare ``python -c pass``:
   (numpy, pandas, scipy, lmfit), as ``import tromplab`` did up to 0.1;
 - ``import tromplab._launch``: what the ``tromplab`` command imports before its signal handling
   is installed;
-- ``import tromplab.cli``: the command line itself.
+- ``import tromplab.cli``: the command line itself (no numpy: the parser is built from light
+  modules and each command imports its implementation when it runs);
+- ``import tromplab.circuit.planning``: what ``tromplab circuit design`` imports (numpy, pandas
+  and the circuit's own modules; none of scipy's numerical modules);
+- ``import numpy, pandas``: the floor of every command that reads a table.
 
 Then ``python -X importtime -c "import tromplab"`` lists the modules with the largest
 cumulative import time (``--top``; add ``--statement`` to profile another statement).
@@ -28,6 +32,8 @@ STATEMENTS = (
     "import tromplab; tromplab.fit_experiments",
     "import tromplab._launch",
     "import tromplab.cli",
+    "import tromplab.circuit.planning",
+    "import numpy, pandas",
 )
 
 

@@ -192,3 +192,18 @@ def test_a_lab_table_is_read_without_statsmodels(tmp_path):
     assert (tmp_path / "points.csv").is_file()
     assert "tromplab.loading.node_balance" in loaded
     assert _heavy(loaded, ("statsmodels", "statsmodels.api", "lmfit", "matplotlib")) == []
+
+
+def test_scipy_sparse_is_imported_on_the_first_use_of_one_of_its_names():
+    import scipy.sparse
+
+    assert linear_algebra.sparse.csr_matrix is scipy.sparse.csr_matrix
+
+
+def test_the_module_answers_pythons_own_questions_without_importing_scipy():
+    done = subprocess.run(
+        [sys.executable, "-c", "import sys, tromplab.circuit.linear_algebra as m; "
+         "print(hasattr(m, '__path__'), hasattr(m.sparse, '__deepcopy__'), 'scipy.linalg' in sys.modules, 'scipy.sparse' in sys.modules)"],
+        capture_output=True, text=True, check=True, env={**os.environ, "PYTHONPATH": str(ROOT)},
+    )  # fmt: skip
+    assert done.stdout.split() == ["False", "False", "False", "False"]

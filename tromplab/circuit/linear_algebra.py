@@ -7,7 +7,8 @@ machine, for a null space and a few Cholesky solves of at most a few dozen rows.
 of the circuit import this one under the name ``linalg``: :func:`null_space`, :func:`cho_factor`
 and :func:`cho_solve` are here, with scipy's signatures and algorithms; any other attribute
 (the pivoted QR of a large flowsheet's bounds) imports :mod:`scipy.linalg` on first use and is
-its function.
+its function.  :data:`sparse` is :mod:`scipy.sparse`, imported when a large flowsheet first
+reads one of its names (70 ms of start-up a small one does not pay).
 
 :func:`null_space` is scipy's algorithm on the same LAPACK routine (``gesdd``), and gives the
 same bits on the surveys of ``tests/data/circuit_reference``; the Cholesky solves differ from
@@ -22,7 +23,7 @@ import importlib
 
 import numpy as np
 
-__all__ = ["cho_factor", "cho_solve", "null_space"]
+__all__ = ["cho_factor", "cho_solve", "null_space", "sparse"]
 
 
 def null_space(A: np.ndarray, rcond: float | None = None) -> np.ndarray:
@@ -62,7 +63,29 @@ def cho_solve(factor: tuple[np.ndarray, bool], b: np.ndarray) -> np.ndarray:
     return x
 
 
+class _ImportedOnFirstUse:
+    """Stands for a module until one of its names is read, then imports it and reads the name there."""
+
+    def __init__(self, module: str):
+        self._module = module
+
+    def __getattr__(self, name: str):
+        if name.startswith("__"):  # Python's own questions (copy, pickle, inspect) import nothing
+            raise AttributeError(name)
+        return getattr(importlib.import_module(self._module), name)
+
+
+#: :mod:`scipy.sparse` for the modules of the circuit (``from .linear_algebra import sparse``):
+#: imported when a flowsheet of :data:`~tromplab.circuit.problem.SPARSE_UNKNOWNS` unknowns or
+#: more forms its first sparse matrix.
+sparse = _ImportedOnFirstUse("scipy.sparse")
+
+
 def __getattr__(name: str):
     # every other name is scipy.linalg's, imported when first asked for (a large flowsheet's
-    # pivoted QR): a design or a small survey does not pay for the import
+    # pivoted QR): a design or a small survey does not pay for the import.  Not the dunder
+    # names the import system and doctest ask every module for: scipy.linalg's __path__ would
+    # make this module look like a package
+    if name.startswith("__"):
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
     return getattr(importlib.import_module("scipy.linalg"), name)

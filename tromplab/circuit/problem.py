@@ -30,6 +30,7 @@ from ..errors import InputError
 from ..options import CIRCUIT_BASIS
 from . import linear_algebra as linalg  # numpy's LAPACK: a small flowsheet does not import scipy.linalg
 from .flowsheet import Flowsheet
+from .linear_algebra import sparse  # scipy.sparse, imported when a large flowsheet first uses it
 from .measurements import Survey
 
 #: Flow of the first feed when no solids flow is measured: flows are then per 100 of that feed.
@@ -152,8 +153,6 @@ class Problem:
             else:
                 # a large flowsheet: W (block diagonal) and H (a few entries a row) as sparse matrices,
                 # the dense product W H N of a 30-node plant with assays took 7 s, this 0.2 s
-                from scipy import sparse  # a large flowsheet only: the start-up of the others does not pay for it
-
                 J = np.asarray((self._sparse_whitening @ sparse.csr_matrix(H)) @ self.N)
             J.flags.writeable = False
             self._last_jacobian[:] = key, J
@@ -166,8 +165,6 @@ class Problem:
 
     @cached_property
     def _sparse_whitening(self):
-        from scipy import sparse
-
         return sparse.csr_matrix(self.W)
 
     def jacobian(self, v: np.ndarray) -> np.ndarray:
@@ -784,8 +781,8 @@ def _bounded_least_squares(A: np.ndarray, b: np.ndarray, lower: float) -> np.nda
     start, but not to the bit: the start's components that no measurement sees (undetermined
     water flows, the assayed survey's unassayed directions) are kept by :func:`solve`, and the
     solids pass of an assayed survey stops at 1e-6 (:func:`solids_first_start`), so a start
-    that moves by rounding moves the outputs (by 1e-6 relative, measured on the assayed
-    surveys of ``tests/data/circuit_reference``).
+    that moves by rounding moves the outputs (an own NNLS, tried before, moved the assayed
+    surveys' outputs by 1e-6 relative).
     """
     unbounded = np.linalg.lstsq(A, b, rcond=-1)[0]
     if np.all(unbounded >= lower):  # False with a NaN, as scipy's check

@@ -86,6 +86,7 @@ from .assays import MIN_ASSAYED_SHARE
 from .design import design_table, water_determined_by
 from .elimination import nodal_tests, proposal, serial_elimination, without
 from .flowsheet import Flowsheet, read_flowsheet
+from .linear_algebra import sparse  # scipy.sparse, imported when a large flowsheet first uses it
 from .measurements import ErrorModel, Survey, class_name, read_survey
 from .problem import (
     GAUSS_NEWTON_XTOL,
@@ -313,8 +314,6 @@ class CircuitBalance(ResultContract):
         if k < SPARSE_UNKNOWNS:
             variance = np.einsum("ij,jk,ik->i", gradients, self.covariance[:k, :k], gradients)
         else:  # a large flowsheet: each gradient touches one or two streams (the three-operand einsum runs no BLAS)
-            from scipy import sparse  # imported by a large flowsheet only
-
             variance = np.einsum("ij,ij->i", sparse.csr_matrix(gradients) @ self.covariance[:k, :k], gradients)
         return np.sqrt(np.clip(variance, 0.0, None))
 
