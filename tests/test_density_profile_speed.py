@@ -1,4 +1,4 @@
-"""The shortcuts of the density profiles and covariances (issue 40) against the arithmetic they replace:
+"""The shortcuts of the density profiles and covariances against the arithmetic they replace:
 analytic derivatives against central differences, Newton's roots against regula falsi's, the
 profiles of several curves searched together against each curve alone, the covariance of every
 fit at once against index_covariance fit by fit, the remembered interval rule against the rule."""
