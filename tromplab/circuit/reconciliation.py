@@ -607,7 +607,7 @@ class CircuitBalance(ResultContract):
         """``quantity, count`` of the unknowns, the constraints and the measurements."""
         problem = self.problem
         S, n = self.class_flows.shape
-        free = problem.N.shape[1] if problem is not None else 0
+        free = (problem.free if getattr(problem, "is_sparse", False) else problem.N.shape[1]) if problem is not None else 0
         measurements = int(problem.y.size) if problem is not None else 0
         rows = [
             ("streams", S),
@@ -890,6 +890,13 @@ def _balance(flowsheet: Flowsheet, survey: Survey, alpha: float, excluded: tuple
     """Reconcile ``survey``: solve, evaluate the error model at the reconciled values, linearise, bound at 0."""
     if progress is not None:
         progress(0, 1, "reconciliation: round 1")
+    from .sparse_solve import DensePathNeeded, takes_sparse_path
+
+    if takes_sparse_path(flowsheet, survey):
+        try:
+            return _sparse_balance(flowsheet, survey, alpha, excluded, progress)
+        except DensePathNeeded:
+            pass  # a direction no measurement sees or dependent constraints: the dense path decides
     problem, basis = build_problem(flowsheet, survey)
     start = solids_first_start(flowsheet, survey, problem) if problem.n_components else starting_point(flowsheet, survey, problem)
     check_observable(flowsheet, survey, problem, start)
@@ -910,5 +917,24 @@ def _balance(flowsheet: Flowsheet, survey: Survey, alpha: float, excluded: tuple
                           message=message, basis=basis, problem=problem, measured_y=problem.y.copy(),
                           water_flows=water if problem.n_water else None, fitted=fitted, at_bound=held,
                           decomposition=decomposition, excluded=excluded,
+                          component_flows=v[problem.component_offset :].reshape(-1, S, n) if problem.n_components else None,
+                          progress=progress)  # fmt: skip
+
+
+def _sparse_balance(flowsheet: Flowsheet, survey: Survey, alpha: float, excluded: tuple[str, ...], progress=None):
+    """:func:`_balance` of a large flowsheet, through sparse matrices (:mod:`tromplab.circuit.sparse_solve`)."""
+    from .sparse_solve import reconcile_sparse
+
+    result = reconcile_sparse(flowsheet, survey, early_xtol=EARLY_ROUND_XTOL, tolerance=ERROR_MODEL_TOLERANCE,
+                              max_rounds=MAX_ERROR_MODEL_ITERATIONS, progress=progress)  # fmt: skip
+    problem, v = result.problem, result.v
+    S, n = problem.n_streams, problem.n_classes
+    check_positive_flows(flowsheet, result.survey, v[: S * n].reshape(S, n).sum(axis=1))
+    return CircuitBalance(flowsheet=flowsheet, survey=result.survey, class_flows=v[: S * n].reshape(S, n),
+                          covariance=result.linearisation.C, chi_square=result.chi_square,
+                          dof=int(problem.W.shape[0] - result.linearisation.rank), alpha=alpha, success=result.success,
+                          message=result.message, basis=result.basis, problem=problem, measured_y=problem.y.copy(),
+                          water_flows=v[S * n : problem.component_offset] if problem.n_water else None, fitted=result.fitted,
+                          at_bound=result.held, decomposition=result.linearisation, excluded=excluded,
                           component_flows=v[problem.component_offset :].reshape(-1, S, n) if problem.n_components else None,
                           progress=progress)  # fmt: skip
