@@ -2,7 +2,7 @@
 
 Both paths solve the same weighted least squares; forced through each (the size threshold
 monkeypatched), a survey gives the same balance and the same tables: flows, assays, sds and
-tests to 1e-9 relative (a value at rounding of 0, below 1e-12 of its column's largest, to that),
+tests to 1e-9 relative (of the value, or of its column's largest for a value at rounding of 0),
 except where the problem's conditioning leaves the dense path's pseudo-inverse fewer digits (the
 four-mineral plant's smallest variances: there the sparse covariance is shown to solve its
 defining equations to rounding and the dense one not).
@@ -39,8 +39,8 @@ def _both_paths(monkeypatch, flowsheet, survey, tables: bool = True) -> dict:
 
 
 def _assert_tables_agree(sparse_tables: dict, dense_tables: dict, rtol: float = 1e-9) -> None:
-    """Every table equal: text exactly, numbers to ``rtol`` (atol 1e-12 of the column's largest, of
-    the reconciled values' for an adjustment).
+    """Every table equal: text exactly, numbers to ``rtol`` of themselves or of the column's largest
+    (of the reconciled values' for an adjustment).
     The design table's order among candidates of equal reduction (to rounding) is free: compared by key."""
     assert sparse_tables.keys() == dense_tables.keys()
     for name, dense in dense_tables.items():
@@ -55,7 +55,7 @@ def _assert_tables_agree(sparse_tables: dict, dense_tables: dict, rtol: float = 
                 a, b = a.to_numpy(float), b.to_numpy(float)
                 # an adjustment (reconciled - measured) is at rounding of the values it is the difference of
                 scale = dense["reconciled"] if column == "adjustment" else dense[column]
-                atol = 1e-12 * np.nanmax(np.abs(scale.to_numpy(float)), initial=0.0) + _cancellation(name, column, dense, b, rtol)
+                atol = rtol * np.nanmax(np.abs(scale.to_numpy(float)), initial=0.0) + _cancellation(name, column, dense, b, rtol)
                 assert np.array_equal(np.isnan(a), np.isnan(b)), f"{name}.{column}: other NaN"
                 off = np.abs(a - b) > atol + rtol * np.abs(b)
                 assert not off.any(), f"{name}.{column}: {a[off][:3]} against {b[off][:3]}"
@@ -160,26 +160,31 @@ def test_the_6_node_plant_with_four_minerals_gives_the_dense_balance(monkeypatch
     well = dense_tables["worth"].drop_duplicates("measurement")["redundancy"].to_numpy() > 1e-2
     a, b = (t["measurement_test"].to_numpy(float)[well] for t in (sparse_tables["adjustments"], dense_tables["adjustments"]))
     np.testing.assert_allclose(a, b, rtol=1e-6)
-    _assert_covariance_solves_its_equations(sparse)
+    sparse_residual, dense_residual = (_covariance_residual(sparse, balance.covariance) for balance in (sparse, dense))
+    assert sparse_residual < 1e-9 and sparse_residual < 1e-3 * dense_residual
 
 
-def _assert_covariance_solves_its_equations(balance) -> None:
-    r"""Each column :math:`c` of the sparse covariance solves :math:`J^T J c + A^T \lambda = e`,
-    :math:`A c = 0`, :math:`Z^T c = 0` (Z: the directions no measurement sees) to rounding."""
+def _covariance_residual(balance, covariance: np.ndarray) -> float:
+    r"""The largest relative residual of the equations the columns :math:`c` of ``covariance``
+    solve, :math:`J^T J c + A^T \lambda = e_k`, :math:`A c = 0`, :math:`Z^T c = 0` (``balance``:
+    the sparse path's, whose :math:`J` and :math:`Z`, the directions no measurement sees, it holds),
+    over a few columns."""
     from scipy import sparse
     from scipy.sparse import linalg as sparse_linalg
 
     problem, linearisation = balance.problem, balance.decomposition
     J, Z = linearisation.J, linearisation.unseen_unknowns
     constraints = sparse.vstack([problem.A, Z.T]).tocsr()
-    for k in np.linspace(0, balance.covariance.shape[0] - 1, 7).astype(int):
-        e = np.zeros(balance.covariance.shape[0])
+    worst = 0.0
+    for k in np.linspace(0, covariance.shape[0] - 1, 9).astype(int):
+        e = np.zeros(covariance.shape[0])
         e[k] = 1.0
-        column = balance.covariance[:, k]
-        rest = e - J.T @ (J @ column)
-        multipliers = sparse_linalg.lsqr(constraints.T, rest, atol=1e-15, btol=1e-15, iter_lim=20000)[0]
-        assert np.linalg.norm(rest - constraints.T @ multipliers) < 1e-12
-        assert np.linalg.norm(constraints @ column) < 1e-12 * np.abs(balance.covariance).max()
+        column = covariance[:, k]
+        information = J.T @ (J @ column)
+        multipliers = sparse_linalg.lsqr(constraints.T, e - information, atol=1e-15, btol=1e-15, iter_lim=20000)[0]
+        residual = np.linalg.norm(e - information - constraints.T @ multipliers) / max(1.0, np.linalg.norm(information))
+        worst = max(worst, residual, np.linalg.norm(constraints @ column) / np.abs(covariance).max())
+    return worst
 
 
 @pytest.mark.slow

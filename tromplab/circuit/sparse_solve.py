@@ -190,15 +190,18 @@ def _sparse_measurement_covariance(shares: pd.DataFrame, sd: np.ndarray, closed)
     matrices: the blocks of the closed analyses, the diagonal elsewhere."""
     from scipy import sparse
 
-    cov = sparse.lil_matrix((sd.size, sd.size))
-    effects = sparse.lil_matrix((sd.size, sd.size))
-    cov.setdiag(sd**2)
-    effects.setdiag(1.0)
     streams, values = shares["stream"].to_numpy(), shares["value"].to_numpy(float)
     if "at" in shares.columns:
         at = shares["at"].to_numpy(float)
         values = np.where(np.isfinite(at), at, values)
-    pieces, done = [], np.zeros(sd.size, dtype=bool)
+    cov, effects, whitening = ([], [], []), ([], [], []), ([], [], [])  # (values, rows, columns) each
+    done, pieces = np.zeros(sd.size, dtype=bool), 0
+
+    def put(target, block, rows, columns):
+        target[0].append(block.ravel())
+        target[1].append(np.repeat(rows, columns.size))
+        target[2].append(np.tile(columns, rows.size))
+
     for stream in closed:
         where = np.flatnonzero(streams == stream)
         if where.size == 0:
@@ -206,17 +209,29 @@ def _sparse_measurement_covariance(shares: pd.DataFrame, sd: np.ndarray, closed)
         x = values[where] / values[where].sum()
         P = np.eye(where.size) - np.outer(x, np.ones(where.size))
         block = P @ np.diag(sd[where] ** 2) @ P.T
-        cov[np.ix_(where, where)] = block
-        effects[np.ix_(where, where)] = P
+        put(cov, block, where, where)
+        put(effects, P, where, where)
         eigenvalues, vectors = np.linalg.eigh(block)
         keep = eigenvalues > 1e-12 * eigenvalues.max()
         rows = vectors[:, keep].T / np.sqrt(eigenvalues[keep])[:, None]
-        pieces.append(sparse.coo_matrix((rows.ravel(), (np.repeat(np.arange(rows.shape[0]), where.size),
-                                                         np.tile(where, rows.shape[0]))), shape=(rows.shape[0], sd.size)))  # fmt: skip
+        put(whitening, rows, pieces + np.arange(rows.shape[0]), where)
+        pieces += rows.shape[0]
         done[where] = True
     single = np.flatnonzero(~done)
-    pieces.append(sparse.coo_matrix((1.0 / sd[single], (np.arange(single.size), single)), shape=(single.size, sd.size)))
-    return cov.tocsr(), sparse.vstack(pieces).tocsr(), effects.tocsr()
+    for target, diagonal in ((cov, sd[single] ** 2), (effects, np.ones(single.size))):
+        target[0].append(diagonal)
+        target[1].append(single)
+        target[2].append(single)
+    whitening[0].append(1.0 / sd[single])
+    whitening[1].append(pieces + np.arange(single.size))
+    whitening[2].append(single)
+    pieces += single.size
+
+    def matrix(parts, rows):
+        return sparse.csr_matrix((np.concatenate(parts[0]), (np.concatenate(parts[1]), np.concatenate(parts[2]))),
+                                 shape=(rows, sd.size))  # fmt: skip
+
+    return matrix(cov, sd.size), matrix(whitening, pieces), matrix(effects, sd.size)
 
 
 # --- the augmented system ---------------------------------------------------------------------
@@ -455,12 +470,25 @@ def free_constraints(problem: SparseProblem, free: np.ndarray) -> tuple:
     if key not in _FREE_CONSTRAINTS:
         A = problem.A[:, free].tocsr()
         rows = np.flatnonzero(np.diff(A.indptr) > 0)
-        touched = np.asarray(abs(problem.A).sum(axis=1)).ravel() > np.asarray(abs(A).sum(axis=1)).ravel()
-        rows = _independent_rows(A, rows, touched)
+        if not _full_row_rank(A[rows]):
+            touched = np.asarray(abs(problem.A).sum(axis=1)).ravel() > np.asarray(abs(A).sum(axis=1)).ravel()
+            rows = _independent_rows(A, rows, touched)
         if len(_FREE_CONSTRAINTS) >= 16:
             _FREE_CONSTRAINTS.pop(next(iter(_FREE_CONSTRAINTS)))
         _FREE_CONSTRAINTS[key] = A[rows], problem.b[rows], rows
     return _FREE_CONSTRAINTS[key]
+
+
+def _full_row_rank(A) -> bool:
+    """Whether the rows of ``A`` are independent: the sparse LU of :math:`A A^T` has no pivot at
+    rounding (a dependence of balances with unit entries cancels exactly)."""
+    from scipy.sparse import linalg as sparse_linalg
+
+    try:
+        pivots = np.abs(sparse_linalg.splu((A @ A.T).tocsc()).U.diagonal())
+    except RuntimeError:  # exactly singular
+        return False
+    return bool(pivots.min(initial=np.inf) > 1e-12 * pivots.max(initial=0.0))
 
 
 def _independent_rows(A, rows: np.ndarray, touched: np.ndarray) -> np.ndarray:
@@ -478,7 +506,7 @@ def _independent_rows(A, rows: np.ndarray, touched: np.ndarray) -> np.ndarray:
         block_rows = np.flatnonzero(labels == label)
         block = sub[block_rows]
         block = block[:, np.flatnonzero(np.diff(block.tocsc().indptr) > 0)].toarray()
-        _, R, pivots = linalg.qr(block.T, mode="economic", pivoting=True)
+        R, pivots = linalg.qr(block.T, mode="r", pivoting=True)
         diagonal = np.abs(np.diag(R))
         rank = int(np.sum(diagonal > 1e-10 * diagonal.max(initial=0.0)))
         dropped.extend(block_rows[pivots[rank:]])
@@ -765,7 +793,7 @@ class SparseCandidateUpdates:
 
     def with_candidate(self, candidate) -> tuple[np.ndarray, np.ndarray]:
         """``(sd after of each result, testable)`` as :meth:`CandidateUpdates.with_candidate`."""
-        from scipy import linalg
+        from scipy import linalg, sparse
 
         E = candidate.rows
         if self.balance.basis and candidate.measurement == "solids flow":
@@ -773,14 +801,15 @@ class SparseCandidateUpdates:
         Z = self.linearisation.unseen_unknowns
         if Z.shape[1] and np.linalg.norm(np.asarray(Z.T @ E.T)) > RANK_TOL * 1e-3 * max(self.largest, np.linalg.norm(E)):
             return self._refactored(E)
-        EC = E @ self.C
+        rows = sparse.csr_matrix(E)  # a candidate reads one stream: a few unknowns
+        EC = np.asarray(rows @ self.C)
         inner = np.eye(E.shape[0]) + EC @ E.T
         factor = linalg.cho_factor(inner)
         ECQ = np.asarray((self.Q @ EC.T).T)
         variance = self.variance_before - np.einsum("ij,ij->j", ECQ, linalg.cho_solve(factor, ECQ))
         if np.any(variance < UPDATE_CANCELLATION * self.variance_before):
             return self._refactored(E)
-        ECJG = E @ self.CJG
+        ECJG = np.asarray(rows @ self.CJG)
         information = self.information + np.einsum("ij,ij->j", ECJG, linalg.cho_solve(factor, ECJG))
         survey_testable = information > TESTABLE_SHARE * self.own
         own = np.diag(linalg.cho_solve(factor, np.eye(E.shape[0])))
