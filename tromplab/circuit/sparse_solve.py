@@ -53,10 +53,8 @@ from .problem import (
     RANK_TOL,
     TESTABLE_SHARE,
     Problem,
-    _Constraints,
-    _exact_measurements,
-    _measurement_arrays,
-    _node_balances,
+    linear_constraints,
+    measurement_arrays,
     starting_point,
 )
 
@@ -165,7 +163,7 @@ def build_sparse_problem(flowsheet, survey, constraints=None) -> tuple[SparsePro
                            y=None, sd=None, cov=None, W=None, effects=None, n_water=n_water,
                            n_components=len(survey.components))  # fmt: skip
     A, b, basis, free = constraints if constraints is not None else _constraints(flowsheet, survey, layout)
-    measured = _measurement_arrays(survey, flowsheet.stream_index)
+    measured = measurement_arrays(survey, flowsheet.stream_index)
     shares = survey.shares[survey.shares["sd"] > 0]
     cov, W, effects = _sparse_measurement_covariance(shares, measured["sd"], survey.closed_streams)
     return replace(layout, A=A, b=b, m0=None, free=free, cov=cov, W=W, effects=effects, **measured), basis
@@ -175,12 +173,7 @@ def _constraints(flowsheet, survey, layout) -> tuple:
     """``(A, b, basis, free)``: the node balances and the exact measurements as a sparse matrix."""
     from scipy import sparse
 
-    rows = _Constraints(
-        layout.n_streams * layout.n_classes + layout.n_water + layout.n_components * layout.n_streams * layout.n_classes
-    )
-    _node_balances(rows, flowsheet, layout)
-    basis = _exact_measurements(rows, flowsheet, survey, layout)
-    dense, b = rows.arrays()
+    dense, b, basis = linear_constraints(flowsheet, survey, layout)
     A = sparse.csr_matrix(dense)
     return A, b, basis, dense.shape[1] - dense.shape[0]
 
@@ -440,11 +433,11 @@ def solve_sparse(problem: SparseProblem, start: np.ndarray, xtol: float | None =
 
 
 def projected_start(problem: SparseProblem, start: np.ndarray, free=None) -> np.ndarray:
-    """``start`` with its assayed classes filled (:func:`~tromplab.circuit.problem._assayed_classes_filled`),
+    """``start`` with its assayed classes filled (:func:`~tromplab.circuit.problem.assayed_classes_filled`),
     the unknowns not in ``free`` at 0, projected onto the constraints."""
-    from .problem import _assayed_classes_filled
+    from .problem import assayed_classes_filled
 
-    v = _assayed_classes_filled(replace(problem, at_bound=tuple(problem.held)), start).copy()
+    v = assayed_classes_filled(replace(problem, at_bound=tuple(problem.held)), start).copy()
     if free is None:
         return projected(problem.A, problem.b, v)
     held = np.setdiff1d(np.arange(v.size), free)
@@ -603,7 +596,11 @@ def reconcile_sparse(flowsheet, survey, *, early_xtol: float, tolerance: float, 
         When the survey needs the dense path (a singular system).
     """
     problem, basis = build_sparse_problem(flowsheet, survey)
-    start = _solids_first_start(flowsheet, survey, problem) if problem.n_components else _start(flowsheet, survey, problem)
+    start = (
+        sparse_solids_first_start(flowsheet, survey, problem)
+        if problem.n_components
+        else sparse_starting_point(flowsheet, survey, problem)
+    )
     rounds_follow = survey.evaluated_at == "reconciled"
     v, success, message, factor = solve_sparse(problem, start, xtol=early_xtol if rounds_follow else None)
     if rounds_follow:
@@ -620,21 +617,21 @@ def reconcile_sparse(flowsheet, survey, *, early_xtol: float, tolerance: float, 
                                 message)  # fmt: skip
 
 
-def _start(flowsheet, survey, problem: SparseProblem) -> np.ndarray:
+def sparse_starting_point(flowsheet, survey, problem: SparseProblem) -> np.ndarray:
     """:func:`~tromplab.circuit.problem.starting_point` before its projection (done sparse here)."""
     unconstrained = replace(problem, A=np.zeros((0, problem.A.shape[1])))
     return projected(problem.A, problem.b, starting_point(flowsheet, survey, unconstrained))
 
 
-def _solids_first_start(flowsheet, survey, problem: SparseProblem) -> np.ndarray:
+def sparse_solids_first_start(flowsheet, survey, problem: SparseProblem) -> np.ndarray:
     """:func:`~tromplab.circuit.problem.solids_first_start` of the sparse path."""
-    from .problem import _start_components
+    from .problem import start_components
 
     solids_survey = replace(survey, assays=survey.assays.iloc[:0], components=())
     solids_problem, _ = build_sparse_problem(flowsheet, solids_survey)
-    solids, _, _, _ = solve_sparse(solids_problem, _start(flowsheet, solids_survey, solids_problem), xtol=1e-6)
+    solids, _, _, _ = solve_sparse(solids_problem, sparse_starting_point(flowsheet, solids_survey, solids_problem), xtol=1e-6)
     S, n = problem.n_streams, problem.n_classes
-    v = np.concatenate([solids, _start_components(survey, flowsheet.stream_index, solids[: S * n].reshape(S, n))])
+    v = np.concatenate([solids, start_components(survey, flowsheet.stream_index, solids[: S * n].reshape(S, n))])
     return projected(problem.A, problem.b, v)
 
 
