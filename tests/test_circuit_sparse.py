@@ -201,3 +201,23 @@ def test_a_large_survey_the_balances_cannot_determine_is_refused_as_on_the_dense
 
     with pytest.raises(InputError, match="cannot determine"):
         reconcile(flowsheet, replace(survey, shares=shares, closed_streams=closed))
+
+
+@pytest.mark.slow
+def test_serial_elimination_on_a_large_flowsheet_stops_after_a_few_steps_and_says_so():
+    """Each step of the serial elimination reconciles the survey again: on the sparse path it
+    stops after LARGE_ELIMINATION_STEPS and the summary says why, rather than running for minutes."""
+    from dataclasses import replace
+
+    from tromplab.circuit import reconciliation
+
+    flowsheet, survey = _survey(10, 20, minerals=False)
+    shares = survey.shares.copy()
+    for stream in ("cyclone_feed_2", "overflow_4", "underflow_6", "discharge_8", "cyclone_feed_9"):
+        at = shares.index[(shares["stream"] == stream) & (shares["class_index"] == 10)][0]
+        shares.loc[at, "value"] += 12 * shares.loc[at, "sd"]  # five gross errors of 12 sd
+    balance = reconcile(flowsheet, replace(survey, shares=shares))
+    assert sparse_solve.is_sparse(balance.problem) and balance.rejected
+    table = balance.elimination_table()
+    assert len(table) - 1 == reconciliation.LARGE_ELIMINATION_STEPS and table["p_value"].iloc[-1] <= balance.alpha
+    assert f"serial elimination stopped after {reconciliation.LARGE_ELIMINATION_STEPS} steps" in balance.report()

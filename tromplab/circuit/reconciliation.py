@@ -112,6 +112,9 @@ __all__ = ["ADJUSTMENT_COLUMNS", "EQUIVALENT_CORRELATION", "MIN_FEED_SHARE", "PA
 #: the path the rounds took to it (at 1e-6 the last round's stop moved them by 1e-9).
 ERROR_MODEL_TOLERANCE = 1e-10
 MAX_ERROR_MODEL_ITERATIONS = 50
+#: Serial elimination on a large flowsheet (the sparse path) stops after this many steps, said in
+#: the summary: each step is a whole reconciliation again (seconds to minutes at that size).
+LARGE_ELIMINATION_STEPS = 3
 #: The solutions of the rounds before the error model settles stop at this share of ``z`` at most.
 EARLY_ROUND_XTOL = 1e-6
 DISTRIBUTION_COLUMNS = ["stream", "size_lower", "size_upper", "size", "measured", "measured_sd", "reconciled",
@@ -484,7 +487,18 @@ class CircuitBalance(ResultContract):
 
     @cached_property
     def _elimination(self) -> pd.DataFrame:
-        return serial_elimination(self, reconcile, progress=self.progress)
+        # on a large flowsheet each step is a whole reconciliation again: a few steps at most
+        large = getattr(self.problem, "is_sparse", False)
+        return serial_elimination(self, reconcile, progress=self.progress, max_steps=LARGE_ELIMINATION_STEPS if large else None)
+
+    @property
+    def _elimination_cut_short(self) -> bool:
+        """True when the serial elimination of a large flowsheet stopped at :data:`LARGE_ELIMINATION_STEPS`
+        with redundancy left and the global test still rejecting."""
+        table = self._elimination
+        steps = len(table) - 1
+        return bool(getattr(self.problem, "is_sparse", False) and steps == LARGE_ELIMINATION_STEPS < self.dof
+                    and table["p_value"].iloc[-1] <= self.alpha)  # fmt: skip
 
     def elimination_table(self) -> pd.DataFrame:
         """Serial elimination with compensation (:func:`~tromplab.circuit.elimination.serial_elimination`):
@@ -690,6 +704,9 @@ class CircuitBalance(ResultContract):
         if self.rejected:
             words = proposal(self._elimination, self.alpha)
             lines.append(words or "serial elimination finds no testable measurement to compensate")
+            if self._elimination_cut_short:
+                lines.append(f"serial elimination stopped after {LARGE_ELIMINATION_STEPS} steps: on a flowsheet this large "
+                             "each step reconciles the survey again; exclude the measurements named and run again to go on")  # fmt: skip
         return "\n".join(lines)
 
     def __str__(self) -> str:
