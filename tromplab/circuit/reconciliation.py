@@ -171,8 +171,10 @@ class CircuitBalance(ResultContract):
         The unknowns of the least squares without the bounds at 0.
     at_bound : tuple of int
         Unknowns the bounds hold at 0.
-    decomposition : Decomposition or None
-        The whitened Jacobian split by the reconciliation's rank decision.
+    decomposition : Decomposition, SparseLinearisation or None
+        The whitened Jacobian split by the reconciliation's rank decision (on a large flowsheet
+        the sparse path's :class:`~tromplab.circuit.sparse_solve.SparseLinearisation`, and
+        ``problem`` a :class:`~tromplab.circuit.sparse_solve.SparseProblem`).
     excluded : tuple of str
         The measurements left out on request.
     component_flows : numpy.ndarray or None
