@@ -213,9 +213,9 @@ def test_serial_elimination_on_a_large_flowsheet_stops_after_a_few_steps_and_say
 
     flowsheet, survey = _survey(10, 20, minerals=False)
     shares = survey.shares.copy()
-    for stream in ("cyclone_feed_2", "overflow_4", "underflow_6", "discharge_8", "cyclone_feed_9"):
-        at = shares.index[(shares["stream"] == stream) & (shares["class_index"] == 10)][0]
-        shares.loc[at, "value"] += 12 * shares.loc[at, "sd"]  # five gross errors of 12 sd
+    for block in range(1, 11):  # ten gross errors of 15 sd, one per stage
+        at = shares.index[(shares["stream"] == f"cyclone_feed_{block}") & (shares["class_index"] == 10)][0]
+        shares.loc[at, "value"] += 15 * shares.loc[at, "sd"]
     balance = reconcile(flowsheet, replace(survey, shares=shares))
     assert sparse_solve.is_sparse(balance.problem) and balance.rejected
     table = balance.elimination_table()
