@@ -302,13 +302,15 @@ _ORDER_CHOSEN: dict[tuple, int] = {}
 
 
 def _factored(system):
-    """The sparse LU of ``system``; the first system of a shape and pattern size tries both of
-    :data:`_ORDERS` and keeps the one with the fewer nonzeros in its factors for the next ones."""
+    """The sparse LU of ``system``; the first system of its size (within a tenth in order and in
+    nonzeros: the steps, rounds and held sets of one survey) tries both of :data:`_ORDERS` and
+    keeps the one with the fewer nonzeros in its factors for the next ones."""
     from scipy.sparse import linalg as sparse_linalg
 
     key = (system.shape[0], system.nnz)
-    if key in _ORDER_CHOSEN:
-        return sparse_linalg.splu(system, **_ORDERS[_ORDER_CHOSEN[key]])
+    for (order, nonzeros), chosen in _ORDER_CHOSEN.items():
+        if abs(order - key[0]) <= 0.1 * order and abs(nonzeros - key[1]) <= 0.1 * nonzeros:
+            return sparse_linalg.splu(system, **_ORDERS[chosen])
     factors = [sparse_linalg.splu(system, **order) for order in _ORDERS]
     sizes = [lu.L.nnz + lu.U.nnz for lu in factors]
     _ORDER_CHOSEN[key] = int(np.argmin(sizes))
