@@ -528,7 +528,7 @@ def bounded_sparse(problem: SparseProblem, fitted: np.ndarray) -> tuple[tuple[in
         if negative.any():
             active |= negative
         else:
-            released = _wrong_sign_multiplier(current, v, free, released_before)
+            released = _wrong_sign_multiplier(current, v, free, released_before, factor)
             if released is None:
                 return current.held, np.clip(v, 0.0, None)
             active[released] = False
@@ -548,15 +548,14 @@ def _held(problem: SparseProblem, active: np.ndarray) -> SparseProblem:
     return current._measurements(~((problem.kinds == "assay") & empty_class))
 
 
-def _wrong_sign_multiplier(problem: SparseProblem, v: np.ndarray, free: np.ndarray, released_before: np.ndarray):
-    """The held unknown whose multiplier is most negative, or None (the rule of the dense path)."""
+def _wrong_sign_multiplier(problem: SparseProblem, v: np.ndarray, free: np.ndarray, released_before: np.ndarray, factor):
+    """The held unknown whose multiplier is most negative, or None (the rule of the dense path);
+    ``factor``: the Gauss-Newton factor at ``v`` (the solution), which gives the multipliers."""
     held = np.array(problem.held, dtype=int)
     if held.size == 0 or not problem.y.size:
         return None
-    J = problem.W @ problem.jacobian(v)
-    gradient = J.T @ _whitened(problem, v)
-    A, _, rows = free_constraints(problem, free)
-    factor = AugmentedFactor(J[:, free], A)
+    gradient = (problem.W @ problem.jacobian(v)).T @ _whitened(problem, v)
+    _, _, rows = free_constraints(problem, free)
     mu = factor.multipliers(gradient[free])
     multipliers = gradient[held] - problem.A[rows][:, held].T @ mu
     active = np.zeros(v.size, dtype=bool)
