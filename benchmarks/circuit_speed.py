@@ -15,7 +15,8 @@ One run measures, side by side:
 * the synthetic 30-node plant (``tromplab.circuit.simulation.large_plant``: ten grinding stages
   of sump, cyclone and mill; 20 classes), reconciled with its tables in this process, the
   solids alone and (``--minerals``) with the four minerals assayed on every stream, each
-  against its floor.
+  against its floor: one weighted least-squares solve of the sparse path it takes (the LU of the
+  augmented system and one step, ``tromplab.circuit.sparse_solve``).
 
 It prints each wall time and CPU time (user and system: on a loaded machine the steadier
 measure), their ratios to the yardstick's (the acceptance targets: ``circuit`` at most
@@ -180,8 +181,28 @@ def plant_rows(yardstick: tuple[float, float], minerals: bool) -> list[dict]:
         balance_tables(reconcile(truth.flowsheet, survey))
         seconds = time.perf_counter() - start, time.process_time() - cpu
         what = "30-node plant, 20 classes" + (", 4 minerals assayed on every stream" if assayed else ", solids only")
-        rows.append(_row("circuit (in process)", what, seconds, yardstick, floor_seconds(truth.flowsheet, survey)))
+        rows.append(_row("circuit (in process)", what, seconds, yardstick, sparse_floor_seconds(truth.flowsheet, survey)))
     return rows
+
+
+def sparse_floor_seconds(flowsheet, survey, repeats: int = 5) -> float:
+    """The floor of a large flowsheet, which takes the sparse path: one weighted least-squares
+    solve through the sparse augmented system (``tromplab.circuit.sparse_solve.AugmentedFactor``:
+    its LU and one step) at the starting point, median of ``repeats`` (the order of the LU and the
+    directions no measurement sees found once, before)."""
+    from tromplab.circuit import sparse_solve
+
+    problem, _ = sparse_solve.build_sparse_problem(flowsheet, survey)
+    start = sparse_solve.sparse_solids_first_start if problem.n_components else sparse_solve.sparse_starting_point
+    v = sparse_solve.projected_start(problem, start(flowsheet, survey, problem))
+    J, residual = problem.W @ problem.jacobian(v), problem.W @ (problem.predict(v) - problem.y)
+    sparse_solve.AugmentedFactor(J, problem.A)
+    times = []
+    for _ in range(repeats):
+        begin = time.perf_counter()
+        sparse_solve.AugmentedFactor(J, problem.A).step(residual)
+        times.append(time.perf_counter() - begin)
+    return float(np.median(times))
 
 
 def _row(command: str, what: str, seconds: tuple[float, float], yardstick: tuple[float, float], floor: float) -> dict:

@@ -94,9 +94,14 @@ def adjustments_frame(balance) -> pd.DataFrame:
     m = balance._test_point
     H = problem.jacobian(m)
     predicted = problem.predict(balance._unknowns)  # the reported values (bounded at 0)
-    cov_pred = H @ balance.covariance @ H.T
+    if getattr(problem, "is_sparse", False):  # a large flowsheet: the diagonal only, from sparse rows
+        from .sparse_solve import prediction_variances
+
+        predicted_var = prediction_variances(balance.covariance, H)
+    else:
+        predicted_var = np.diag(H @ balance.covariance @ H.T)
     adjustment = balance.measured_y - problem.predict(m)  # measured minus reconciled, without the bounds
-    adjustment_var = problem.variance - np.diag(cov_pred)
+    adjustment_var = problem.variance - predicted_var
     testable = adjustment_var > TESTABLE_SHARE * problem.sd**2
     adjustment_sd = np.where(testable, np.sqrt(np.clip(adjustment_var, 0.0, None)), np.nan)
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -116,7 +121,7 @@ def adjustments_frame(balance) -> pd.DataFrame:
             "measured": balance.measured_y,
             "sd": np.sqrt(problem.variance),
             "reconciled": predicted,
-            "reconciled_sd": np.sqrt(np.clip(np.diag(cov_pred), 0.0, None)),
+            "reconciled_sd": np.sqrt(np.clip(predicted_var, 0.0, None)),
             "adjustment": predicted - balance.measured_y,  # what was added to the measurement
             "adjustment_sd": adjustment_sd,
             "standardised": -standardised,
@@ -185,6 +190,11 @@ def measurement_tests(balance) -> MeasurementTests:
     if problem is None or problem.y.size == 0:
         empty = np.zeros(0)
         return MeasurementTests(empty, empty, empty, empty.astype(bool), np.zeros((0, 0)))
+    if getattr(problem, "is_sparse", False):  # a large flowsheet: from the covariance, by sparse products
+        from .sparse_solve import tests_information
+
+        G, own, information, residual, correlation = tests_information(balance)
+        return _tests(G, own, information, residual, correlation)
     m = balance._test_point
     residual = problem.W @ (balance.measured_y - problem.predict(m))
     decomposition = balance.decomposition or decompose(problem, problem.N.T @ (m - problem.m0))
@@ -192,10 +202,17 @@ def measurement_tests(balance) -> MeasurementTests:
     G = problem.W @ problem.effects
     QG = G - basis @ (basis.T @ G)
     information = np.einsum("ij,ij->j", G, QG)
-    testable = information > TESTABLE_SHARE * np.einsum("ij,ij->j", G, G)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        scale = np.sqrt(np.clip(information, 1e-300, None))
+        correlation = (QG.T @ QG) / np.outer(scale, scale)
+    return _tests(G, np.einsum("ij,ij->j", G, G), information, residual, correlation)
+
+
+def _tests(G, own: np.ndarray, information: np.ndarray, residual: np.ndarray, correlation: np.ndarray) -> MeasurementTests:
+    """The tests from the whitened effects ``G``, their squared norms ``own``, their information
+    off the range of the whitened Jacobian and the whitened residuals."""
+    testable = information > TESTABLE_SHARE * own
     with np.errstate(invalid="ignore", divide="ignore"):
         estimate = np.where(testable, (G.T @ residual) / information, np.nan)
         estimate_sd = np.where(testable, 1.0 / np.sqrt(np.abs(information)), np.nan)
-        scale = np.sqrt(np.clip(information, 1e-300, None))
-        correlation = (QG.T @ QG) / np.outer(scale, scale)
     return MeasurementTests(-estimate / estimate_sd, estimate, estimate_sd, testable, correlation)

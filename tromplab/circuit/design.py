@@ -173,7 +173,11 @@ def design_table(balance, quantities=None, *, errors: ErrorModel | None = None, 
     quantities = default_quantities(balance) if quantities is None else quantities
     v = _design_point(balance)
     names = balance._measurement_names  # the adjustments table's, without its tests
-    updates = CandidateUpdates(balance, np.array([g for _, g in quantities]).reshape(len(quantities), -1), v)
+    if getattr(problem, "is_sparse", False):  # a large flowsheet: the same updates in the unknowns, sparse products
+        from .sparse_solve import SparseCandidateUpdates as Updates
+    else:
+        Updates = CandidateUpdates
+    updates = Updates(balance, np.array([g for _, g in quantities]).reshape(len(quantities), -1), v)
     before = dict(zip((name for name, _ in quantities), updates.sd_before))
     rows = []
     found = candidates(balance, errors, v)
@@ -396,24 +400,32 @@ def observability_table(balance, errors: ErrorModel | None = None) -> pd.DataFra
     refused by the reconciliation, so ``no`` appears for water flows and per cent solids.
     """
     problem = balance.problem
-    if problem is None or not problem.N.shape[1]:
+    large = getattr(problem, "is_sparse", False)  # a large flowsheet: the sparse path's unseen directions
+    if problem is None or not (problem.free if large else problem.N.shape[1]):
         return pd.DataFrame(columns=OBSERVABILITY_COLUMNS)
     v = _design_point(balance)
-    J = problem.W @ problem.jacobian(v) @ problem.N if problem.y.size else np.zeros((0, problem.N.shape[1]))
-    unseen = problem.N @ _unseen(J)
+    if large:
+        from .sparse_solve import prediction_variances
+
+        J, unseen = None, balance.decomposition.unseen_unknowns
+    else:
+        J = problem.W @ problem.jacobian(v) @ problem.N if problem.y.size else np.zeros((0, problem.N.shape[1]))
+        unseen = problem.N @ _unseen(J)
     tolerance = 1e-7 * max(1.0, float(np.abs(v).max()))
     reported = balance._unknowns  # the reported values (bounded at 0), as in flows.csv and water.csv
     options = None
     rows = []
     for stream, quantity, gradients in _unmeasured_quantities(balance, reported):
         observable = bool(np.abs(gradients @ unseen).max(initial=0.0) < tolerance)
-        sd = np.sqrt(np.clip(np.einsum("ij,jk,ik->i", gradients, balance.covariance, gradients), 0.0, None))
+        variance = (prediction_variances(balance.covariance, gradients) if large
+                    else np.einsum("ij,jk,ik->i", gradients, balance.covariance, gradients))  # fmt: skip
+        sd = np.sqrt(np.clip(variance, 0.0, None))
         value = float(gradients[0] @ reported) if quantity in ("solids flow", "water flow") else np.nan
         if quantity == "per cent solids":
             s = balance.flowsheet.stream_index[stream]
             value = 100.0 * balance.flows[s] / (balance.flows[s] + balance.water_flows[s])
         helpers = ""
-        if not observable:
+        if not observable and not large:  # on the sparse path only component flows go unseen, none listed here
             options = options if options is not None else candidates(balance, errors, v)
             helpers = "; ".join(f"{c.measurement} of {c.stream}" for c in options
                                 if np.abs(gradients @ problem.N @ _unseen(np.vstack([J, c.rows @ problem.N]))).max(initial=0.0) < tolerance)  # fmt: skip

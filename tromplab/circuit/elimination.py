@@ -118,7 +118,8 @@ def _compensated(balance, j: int, bias: float) -> Survey:
     """The survey of ``balance`` with raw measurement ``j`` corrected by ``bias``: every reported
     value it moves (its whole analysis when closed) moves back by ``bias`` times its effect."""
     problem = balance.problem
-    values = problem.y - bias * problem.effects[:, j]
+    effect = problem.effects[:, [j]].toarray().ravel() if getattr(problem, "is_sparse", False) else problem.effects[:, j]
+    values = problem.y - bias * effect
     survey = balance.survey
     shares, flows, pct, assays = survey.shares.copy(), survey.flows.copy(), survey.pct_solids.copy(), survey.assays.copy()
     parts = [(shares, shares["sd"] > 0), (flows, flows["sd"] > 0), (pct, pct["sd"] > 0), (assays, assays["sd"] > 0)]

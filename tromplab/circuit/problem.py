@@ -200,7 +200,7 @@ def solve(problem: Problem, start: np.ndarray, xtol: float | None = None) -> tup
     Directions that no measurement sees (water flows the survey leaves undetermined) keep
     their starting values: the solver's rounding would otherwise let them wander without bound.
     """
-    z0 = problem.N.T @ (_assayed_classes_filled(problem, start) - problem.m0)
+    z0 = problem.N.T @ (assayed_classes_filled(problem, start) - problem.m0)
     if not (problem.N.shape[1] and problem.y.size):
         return z0, True, "nothing to adjust"
     if not np.all(np.isfinite(problem.whitened_residual(z0))):
@@ -282,7 +282,7 @@ def _shortened(problem: Problem, z: np.ndarray, step: np.ndarray, cost: float, s
             return None
 
 
-def _assayed_classes_filled(problem: Problem, start: np.ndarray) -> np.ndarray:
+def assayed_classes_filled(problem: Problem, start: np.ndarray) -> np.ndarray:
     """``start`` with every assayed class flow not held at 0 raised to a millionth of the largest
     class flow at least: the assay of an empty class, 0/0, has no value to start from."""
     if not problem.n_components:
@@ -415,10 +415,7 @@ def build_problem(flowsheet: Flowsheet, survey: Survey) -> tuple[Problem, str]:
     n_water = S + len(flowsheet.water_streams) if len(survey.pct_solids) else 0
     layout = Problem(n_streams=S, n_classes=n, A=None, b=None, m0=None, N=None, kinds=None, stream=None, klass=None, y=None,
                      sd=None, cov=None, W=None, effects=None, n_water=n_water, n_components=len(survey.components))  # fmt: skip
-    constraints = _Constraints(S * n + n_water + layout.n_components * S * n)
-    _node_balances(constraints, flowsheet, layout)
-    basis = _exact_measurements(constraints, flowsheet, survey, layout)
-    A, b = constraints.arrays()
+    A, b, basis = linear_constraints(flowsheet, survey, layout)
     m0, N = _affine_form(A, b)
     if np.linalg.norm(A @ m0 - b) > 1e-8 * max(1.0, np.linalg.norm(b)):
         raise InputError(
@@ -427,14 +424,14 @@ def build_problem(flowsheet: Flowsheet, survey: Survey) -> tuple[Problem, str]:
             source=survey.source,
         )
     shares = survey.shares[survey.shares["sd"] > 0]
-    measured = _measurement_arrays(survey, flowsheet.stream_index)
-    cov, W, effects = _measurement_covariance(shares["stream"].to_numpy(), _closure_point(shares), measured["sd"],
+    measured = measurement_arrays(survey, flowsheet.stream_index)
+    cov, W, effects = _measurement_covariance(shares["stream"].to_numpy(), closure_point(shares), measured["sd"],
                                               survey.closed_streams)  # fmt: skip
     problem = replace(layout, A=A, b=b, m0=m0, N=N, cov=cov, W=W, effects=effects, **measured)
     return problem, basis
 
 
-def _closure_point(shares: pd.DataFrame) -> np.ndarray:
+def closure_point(shares: pd.DataFrame) -> np.ndarray:
     """The shares at which each closed analysis is linearised: where the error model was
     evaluated (column ``at``), else the measured values."""
     values = shares["value"].to_numpy(float)
@@ -502,12 +499,23 @@ def with_errors(problem: Problem, errors: SurveyErrors, sd: np.ndarray, share_at
     survey with those sds, the constraints unchanged (the rows of sd 0 must be those of ``problem``)."""
     used = sd > 0
     shares = used[: errors.share_streams.size]
-    values = np.where(np.isfinite(share_at), share_at, errors.share_values)[shares]  # as _closure_point reads the table
+    values = np.where(np.isfinite(share_at), share_at, errors.share_values)[shares]  # as closure_point reads the table
     cov, W, effects = _measurement_covariance(errors.share_streams[shares], values, sd[used], errors.closed)
     return replace(problem, sd=sd[used], cov=cov, W=W, effects=effects)
 
 
-def _measurement_arrays(survey: Survey, index: dict) -> dict:
+def linear_constraints(flowsheet: Flowsheet, survey: Survey, layout: Problem) -> tuple[np.ndarray, np.ndarray, str]:
+    """``(A, b, basis)``: the node balances and the exact measurements as the rows of ``A v = b``
+    (dense) in the unknowns laid out as ``layout`` says, and the basis in words ("" without)."""
+    S, n = layout.n_streams, layout.n_classes
+    constraints = _Constraints(S * n + layout.n_water + layout.n_components * S * n)
+    _node_balances(constraints, flowsheet, layout)
+    basis = _exact_measurements(constraints, flowsheet, survey, layout)
+    A, b = constraints.arrays()
+    return A, b, basis
+
+
+def measurement_arrays(survey: Survey, index: dict) -> dict:
     """The measurements with an sd (shares, flows, per cent solids, assays, in this order) as
     the arrays of :class:`Problem`: ``kinds, stream, klass, component, y, sd``."""
     parts = {"share": survey.shares, "flow": survey.flows, "pct": survey.pct_solids, "assay": survey.assays}
@@ -635,7 +643,7 @@ def _measurement_covariance(
     class moves every reported share of the stream, by :math:`P = I - x 1^T`, so the block is
     :math:`P D P^T`.  The third matrix holds :math:`P` (identity elsewhere).  ``streams`` and
     ``values``: the stream of each share measured (the first measurements) and the share at
-    which its analysis's closure is linearised (:func:`_closure_point`).
+    which its analysis's closure is linearised (:func:`closure_point`).
     """
     cov = np.diag(sd**2)
     effects = np.eye(sd.size)
@@ -712,7 +720,7 @@ def starting_point(flowsheet: Flowsheet, survey: Survey, problem: Problem) -> np
     if problem.n_water:
         m = np.concatenate([m, _start_water(flowsheet, survey, flows)])
     if problem.n_components:
-        m = np.concatenate([m, _start_components(survey, index, m[: S * n].reshape(S, n))])
+        m = np.concatenate([m, start_components(survey, index, m[: S * n].reshape(S, n))])
     if problem.A.shape[0]:
         m = m - np.linalg.lstsq(problem.A, problem.A @ m - problem.b, rcond=None)[0]
     return m
@@ -734,11 +742,11 @@ def solids_first_start(flowsheet: Flowsheet, survey: Survey, problem: Problem) -
     z, _, _ = solve(solids_problem, start, xtol=1e-6)  # a start: the assayed survey's solve refines it
     solids = solids_problem.m0 + solids_problem.N @ z
     S, n = problem.n_streams, problem.n_classes
-    v = np.concatenate([solids, _start_components(survey, flowsheet.stream_index, solids[: S * n].reshape(S, n))])
+    v = np.concatenate([solids, start_components(survey, flowsheet.stream_index, solids[: S * n].reshape(S, n))])
     return v - np.linalg.lstsq(problem.A, problem.A @ v - problem.b, rcond=None)[0]
 
 
-def _start_components(survey: Survey, index: dict, class_flows: np.ndarray) -> np.ndarray:
+def start_components(survey: Survey, index: dict, class_flows: np.ndarray) -> np.ndarray:
     """Component class flows: the measured assays times the starting class flows; a class not
     assayed takes the component's mean assay of that class over the streams assayed there (else
     over all classes)."""

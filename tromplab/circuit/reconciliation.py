@@ -113,6 +113,9 @@ __all__ = ["ADJUSTMENT_COLUMNS", "EQUIVALENT_CORRELATION", "MIN_FEED_SHARE", "PA
 #: the path the rounds took to it (at 1e-6 the last round's stop moved them by 1e-9).
 ERROR_MODEL_TOLERANCE = 1e-10
 MAX_ERROR_MODEL_ITERATIONS = 50
+#: Serial elimination on a large flowsheet (the sparse path) stops after this many steps, said in
+#: the summary: each step is a whole reconciliation again (seconds to minutes at that size).
+LARGE_ELIMINATION_STEPS = 3
 #: The solutions of the rounds before the error model settles stop at this share of ``z`` at most.
 EARLY_ROUND_XTOL = 1e-6
 DISTRIBUTION_COLUMNS = ["stream", "size_lower", "size_upper", "size", "measured", "measured_sd", "reconciled",
@@ -169,8 +172,10 @@ class CircuitBalance(ResultContract):
         The unknowns of the least squares without the bounds at 0.
     at_bound : tuple of int
         Unknowns the bounds hold at 0.
-    decomposition : Decomposition or None
-        The whitened Jacobian split by the reconciliation's rank decision.
+    decomposition : Decomposition, SparseLinearisation or None
+        The whitened Jacobian split by the reconciliation's rank decision (on a large flowsheet
+        the sparse path's :class:`~tromplab.circuit.sparse_solve.SparseLinearisation`, and
+        ``problem`` a :class:`~tromplab.circuit.sparse_solve.SparseProblem`).
     excluded : tuple of str
         The measurements left out on request.
     component_flows : numpy.ndarray or None
@@ -484,7 +489,20 @@ class CircuitBalance(ResultContract):
 
     @cached_property
     def _elimination(self) -> pd.DataFrame:
-        return serial_elimination(self, _reconciled_for_elimination, progress=self.progress)
+        # on a large flowsheet each step is a whole reconciliation again: a few steps at most
+        large = getattr(self.problem, "is_sparse", False)
+        return serial_elimination(
+            self, _reconciled_for_elimination, progress=self.progress, max_steps=LARGE_ELIMINATION_STEPS if large else None
+        )
+
+    @property
+    def _elimination_cut_short(self) -> bool:
+        """True when the serial elimination of a large flowsheet stopped at :data:`LARGE_ELIMINATION_STEPS`
+        with redundancy left and the global test still rejecting."""
+        table = self._elimination
+        steps = len(table) - 1
+        return bool(getattr(self.problem, "is_sparse", False) and steps == LARGE_ELIMINATION_STEPS < self.dof
+                    and table["p_value"].iloc[-1] <= self.alpha)  # fmt: skip
 
     def elimination_table(self) -> pd.DataFrame:
         """Serial elimination with compensation (:func:`~tromplab.circuit.elimination.serial_elimination`):
@@ -615,7 +633,7 @@ class CircuitBalance(ResultContract):
         """``quantity, count`` of the unknowns, the constraints and the measurements."""
         problem = self.problem
         S, n = self.class_flows.shape
-        free = problem.N.shape[1] if problem is not None else 0
+        free = (problem.free if getattr(problem, "is_sparse", False) else problem.N.shape[1]) if problem is not None else 0
         measurements = int(problem.y.size) if problem is not None else 0
         rows = [
             ("streams", S),
@@ -703,6 +721,9 @@ class CircuitBalance(ResultContract):
         if self.rejected:
             words = proposal(self._elimination, self.alpha)
             lines.append(words or "serial elimination finds no testable measurement to compensate")
+            if self._elimination_cut_short:
+                lines.append(f"serial elimination stopped after {LARGE_ELIMINATION_STEPS} steps: on a flowsheet this large "
+                             "each step reconciles the survey again; exclude the measurements named and run again to go on")  # fmt: skip
         return "\n".join(lines)
 
     def __str__(self) -> str:
@@ -948,6 +969,13 @@ def _balance(
     of a reconciliation of a survey like it (observable, the same constraints), to start from."""
     if progress is not None:
         progress(0, 1, "reconciliation: round 1")
+    from .sparse_solve import DensePathNeeded, takes_sparse_path
+
+    if takes_sparse_path(flowsheet, survey):
+        try:
+            return _sparse_balance(flowsheet, survey, alpha, excluded, progress)
+        except DensePathNeeded:
+            pass  # a direction no measurement sees or dependent constraints: the dense path decides
     problem, basis = build_problem(flowsheet, survey)
     if warm is not None:
         start = warm
@@ -975,5 +1003,24 @@ def _balance(
                           message=message, basis=basis, problem=problem, measured_y=problem.y.copy(),
                           water_flows=water if problem.n_water else None, fitted=fitted, at_bound=held,
                           decomposition=decomposition, excluded=excluded,
+                          component_flows=v[problem.component_offset :].reshape(-1, S, n) if problem.n_components else None,
+                          progress=progress)  # fmt: skip
+
+
+def _sparse_balance(flowsheet: Flowsheet, survey: Survey, alpha: float, excluded: tuple[str, ...], progress=None):
+    """:func:`_balance` of a large flowsheet, through sparse matrices (:mod:`tromplab.circuit.sparse_solve`)."""
+    from .sparse_solve import reconcile_sparse
+
+    result = reconcile_sparse(flowsheet, survey, early_xtol=EARLY_ROUND_XTOL, tolerance=ERROR_MODEL_TOLERANCE,
+                              max_rounds=MAX_ERROR_MODEL_ITERATIONS, progress=progress)  # fmt: skip
+    problem, v = result.problem, result.v
+    S, n = problem.n_streams, problem.n_classes
+    check_positive_flows(flowsheet, result.survey, v[: S * n].reshape(S, n).sum(axis=1))
+    return CircuitBalance(flowsheet=flowsheet, survey=result.survey, class_flows=v[: S * n].reshape(S, n),
+                          covariance=result.linearisation.C, chi_square=result.chi_square,
+                          dof=int(problem.W.shape[0] - result.linearisation.rank), alpha=alpha, success=result.success,
+                          message=result.message, basis=result.basis, problem=problem, measured_y=problem.y.copy(),
+                          water_flows=v[S * n : problem.component_offset] if problem.n_water else None, fitted=result.fitted,
+                          at_bound=result.held, decomposition=result.linearisation, excluded=excluded,
                           component_flows=v[problem.component_offset :].reshape(-1, S, n) if problem.n_components else None,
                           progress=progress)  # fmt: skip

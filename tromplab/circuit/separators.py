@@ -104,7 +104,7 @@ def _determined(balance, gradients: np.ndarray) -> np.ndarray:
     problem, decomposition = balance.problem, balance.decomposition
     if problem is None or decomposition is None:
         return np.ones(gradients.shape[0], dtype=bool)
-    unseen = problem.N @ decomposition.unseen
+    unseen = decomposition.unseen_unknowns if getattr(problem, "is_sparse", False) else problem.N @ decomposition.unseen
     full = np.zeros((gradients.shape[0], unseen.shape[0]))
     full[:, : gradients.shape[1]] = np.nan_to_num(gradients)
     moved = np.abs(full @ unseen).max(axis=1, initial=0.0)

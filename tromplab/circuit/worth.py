@@ -74,11 +74,17 @@ def worth_table(balance) -> pd.DataFrame:
     problem, decomposition = balance.problem, balance.decomposition
     if problem is None or decomposition is None or not problem.y.size:
         return pd.DataFrame(columns=WORTH_COLUMNS)
-    v = balance.fitted if balance.fitted is not None else problem.m0
-    W = problem.W
-    J = W @ problem.jacobian(v) @ problem.N
-    sensitivity = problem.N @ decomposition.covariance() @ J.T @ W  # d(unknowns)/d(measurements)
-    raw = sensitivity @ problem.effects * problem.sd  # columns: what one sd of each raw error moves
+    if getattr(problem, "is_sparse", False):  # a large flowsheet: the shifts of every result by sparse products
+        from .sparse_solve import raw_error_sensitivities
+
+        gradients = np.array([gradient for _, _, gradient in balance._results]).reshape(len(balance._results), -1)
+        shifts = raw_error_sensitivities(balance, gradients)
+    else:
+        v = balance.fitted if balance.fitted is not None else problem.m0
+        W = problem.W
+        J = W @ problem.jacobian(v) @ problem.N
+        sensitivity = problem.N @ decomposition.covariance() @ J.T @ W  # d(unknowns)/d(measurements)
+        raw = sensitivity @ problem.effects * problem.sd  # columns: what one sd of each raw error moves
     adjustments = balance.adjustments_table()
     redundancy = np.clip((adjustments["adjustment_sd"].to_numpy(float) / adjustments["sd"].to_numpy(float)) ** 2, 0.0, 1.0)
     redundant = np.isfinite(redundancy) & (redundancy > TESTABLE_SHARE)
@@ -89,7 +95,10 @@ def worth_table(balance) -> pd.DataFrame:
     if not found:
         return pd.DataFrame(columns=WORTH_COLUMNS)
     # one product per result (a matrix product would round otherwise), the table built at once
-    shift = np.array([gradient @ raw for _, _, gradient in found])
+    if getattr(problem, "is_sparse", False):
+        shift = shifts
+    else:
+        shift = np.array([gradient @ raw for _, _, gradient in found])
     variance = np.array([float(row @ row) for row in shift])
     k, p = shift.shape
     with np.errstate(invalid="ignore", divide="ignore"):

@@ -1,0 +1,223 @@
+"""The sparse path of large flowsheets (tromplab.circuit.sparse_solve) against the dense path.
+
+Both paths solve the same weighted least squares; forced through each (the size threshold
+monkeypatched), a survey gives the same balance and the same tables: flows, assays, sds and
+tests to 1e-9 relative (of the value, or of its column's largest for a value at rounding of 0),
+except where the problem's conditioning leaves the dense path's pseudo-inverse fewer digits (the
+four-mineral plant's smallest variances: there the sparse covariance is shown to solve its
+defining equations to rounding and the dense one not).
+"""
+
+import warnings
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from tromplab.circuit import reconcile, sparse_solve
+from tromplab.circuit.outputs import balance_tables
+from tromplab.circuit.simulation import lab_survey, large_plant
+
+
+def _survey(blocks: int, classes: int, minerals: bool):
+    truth = large_plant(blocks, classes)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the truth's grade of an empty class is 0/0 (no assay drawn)
+        survey = lab_survey(truth, np.random.default_rng(40), flows={"fresh_feed": 0.02}, **({} if minerals else {"assayed": ()}))
+    return truth.flowsheet, survey
+
+
+def _both_paths(monkeypatch, flowsheet, survey, tables: bool = True) -> dict:
+    """``{"sparse": (balance, tables), "dense": (balance, tables)}``, each path forced."""
+    out = {}
+    for path, threshold in (("sparse", 1), ("dense", 10**9)):
+        monkeypatch.setattr(sparse_solve, "SPARSE_FLOWSHEET_UNKNOWNS", threshold)
+        balance = reconcile(flowsheet, survey)
+        out[path] = balance, balance_tables(balance) if tables else None
+    assert sparse_solve.is_sparse(out["sparse"][0].problem) and not sparse_solve.is_sparse(out["dense"][0].problem)
+    return out
+
+
+def _assert_tables_agree(sparse_tables: dict, dense_tables: dict, rtol: float = 1e-9) -> None:
+    """Every table equal: text exactly, numbers to ``rtol`` of themselves or of the column's largest
+    (of the reconciled values' for an adjustment).
+    The design table's order among candidates of equal reduction (to rounding) is free: compared by key."""
+    assert sparse_tables.keys() == dense_tables.keys()
+    for name, dense in dense_tables.items():
+        sparse = sparse_tables[name]
+        if name == "design":
+            keys = ["stream", "measurement", "quantity"]
+            sparse, dense = (t.drop(columns="rank").sort_values(keys).reset_index(drop=True) for t in (sparse, dense))
+        assert list(sparse.columns) == list(dense.columns) and len(sparse) == len(dense), name
+        for column in dense.columns:
+            a, b = sparse[column], dense[column]
+            if pd.api.types.is_numeric_dtype(b) and not pd.api.types.is_bool_dtype(b):
+                a, b = a.to_numpy(float), b.to_numpy(float)
+                # an adjustment (reconciled - measured) is at rounding of the values it is the difference of
+                scale = dense["reconciled"] if column == "adjustment" else dense[column]
+                atol = rtol * np.nanmax(np.abs(scale.to_numpy(float)), initial=0.0) + _cancellation(name, column, dense, b, rtol)
+                assert np.array_equal(np.isnan(a), np.isnan(b)), f"{name}.{column}: other NaN"
+                off = np.abs(a - b) > atol + rtol * np.abs(b)
+                assert not off.any(), f"{name}.{column}: {a[off][:3]} against {b[off][:3]}"
+            else:
+                assert (a.astype(str).to_numpy() == b.astype(str).to_numpy()).all(), f"{name}.{column}"
+
+
+#: Differences of variances agree to this share of the larger: the dense path's pseudo-inverse
+#: keeps 2e-9 of a measurement's variance on the assayed plants (its predicted variances moved by
+#: that much from one process to another, the sparse path's not).
+VARIANCE_DIGITS = 1e-8
+
+
+def _cancellation(name: str, column: str, table: pd.DataFrame, values: np.ndarray, rtol: float):
+    """The tolerance of a quantity that is a difference of variances, to :data:`VARIANCE_DIGITS`
+    of the larger: an adjustment's variance is the measurement's less the reconciled value's (its
+    sd and the tests read it: relative to the measurement's variance, ``1 / redundancy`` of their
+    own), a result's shift per sd is a share of the result's sd.  0 for every other column."""
+    rtol = VARIANCE_DIGITS
+    if name == "adjustments" and column in ("adjustment_sd", "standardised", "gross_error", "gross_error_sd",
+                                            "measurement_test", "p_value"):  # fmt: skip
+        redundancy = (table["adjustment_sd"].to_numpy(float) / table["sd"].to_numpy(float)) ** 2
+        return rtol * np.abs(values) / np.where(redundancy > 0, redundancy, np.inf)
+    if name == "worth" and column in ("redundancy", "variance_share"):
+        return rtol
+    if name == "worth" and column == "shift_per_sd":
+        return rtol * table["result_sd"].to_numpy(float)
+    return 0.0
+
+
+def test_ordinary_surveys_keep_the_dense_path():
+    """The bundled example and the reference surveys stay below the threshold: their path and bytes are the former ones."""
+    from pathlib import Path
+
+    from tromplab.circuit import read_flowsheet, read_survey
+
+    root = Path(__file__).resolve().parents[1]
+    sheet = read_flowsheet(root / "datasets" / "circuit_example_flowsheet.csv")
+    surveys = [
+        root / "datasets" / "circuit_example_survey.csv",
+        *sorted((root / "tests/data/circuit_reference/inputs").glob("*.csv")),
+    ]
+    for path in surveys:
+        survey = read_survey(path, sheet)
+        assert sparse_solve.unknown_count(sheet, survey) < sparse_solve.SPARSE_FLOWSHEET_UNKNOWNS / 2, path.name
+        assert not sparse_solve.takes_sparse_path(sheet, survey)
+    assert not sparse_solve.is_sparse(reconcile(sheet, read_survey(surveys[0], sheet)).problem)
+
+
+def test_the_30_node_plant_takes_the_sparse_path_with_its_stages_reported():
+    flowsheet, survey = _survey(10, 20, minerals=False)
+    assert sparse_solve.takes_sparse_path(flowsheet, survey)
+    stages = []
+    balance = reconcile(flowsheet, survey, progress=lambda done, total, label: stages.append(label))
+    assert sparse_solve.is_sparse(balance.problem) and balance.success
+    assert stages[:3] == ["reconciliation: round 1", "reconciliation: round 2", "reconciliation: round 3"]
+    assert balance.dof == balance.problem.W.shape[0] - balance.decomposition.rank > 0
+
+
+def test_a_small_plant_with_minerals_forced_sparse_gives_the_dense_balance_and_tables(monkeypatch):
+    """A 6-node plant of 8 classes with four minerals (360 unknowns), both paths: every table."""
+    flowsheet, survey = _survey(2, 8, minerals=True)
+    paths = _both_paths(monkeypatch, flowsheet, survey)
+    (sparse, sparse_tables), (dense, dense_tables) = paths["sparse"], paths["dense"]
+    assert sparse.at_bound == dense.at_bound and sparse.dof == dense.dof and sparse.success and dense.success
+    np.testing.assert_allclose(sparse._unknowns, dense._unknowns, rtol=1e-9, atol=1e-12 * np.abs(dense._unknowns).max())
+    _assert_tables_agree(sparse_tables, dense_tables)
+
+
+@pytest.mark.slow
+def test_the_30_node_plant_solids_only_gives_the_dense_balance_and_tables(monkeypatch):
+    flowsheet, survey = _survey(10, 20, minerals=False)
+    paths = _both_paths(monkeypatch, flowsheet, survey)
+    (sparse, sparse_tables), (dense, dense_tables) = paths["sparse"], paths["dense"]
+    assert sparse.at_bound == dense.at_bound and len(sparse.at_bound) > 0  # the bounds' active set at work
+    assert sparse.chi_square == pytest.approx(dense.chi_square, rel=1e-12)
+    np.testing.assert_allclose(sparse.covariance, dense.covariance, rtol=0, atol=1e-12 * np.abs(dense.covariance).max())
+    _assert_tables_agree(sparse_tables, dense_tables)
+
+
+@pytest.mark.slow
+def test_the_6_node_plant_with_four_minerals_gives_the_dense_balance(monkeypatch):
+    """20 classes, four minerals on every stream (900 unknowns, 20 directions no measurement
+    sees): flows, assays, chi-square, the bounds, the sds and the well-conditioned tests to 1e-9;
+    the smallest variances to the digits the dense path's pseudo-inverse keeps (the sparse
+    covariance solves its equations to rounding, the dense one to 1e-6 of them)."""
+    flowsheet, survey = _survey(2, 20, minerals=True)
+    paths = _both_paths(monkeypatch, flowsheet, survey)
+    (sparse, sparse_tables), (dense, dense_tables) = paths["sparse"], paths["dense"]
+    assert sparse.at_bound == dense.at_bound and sparse.dof == dense.dof
+    assert sparse.chi_square == pytest.approx(dense.chi_square, rel=1e-9)
+    scale = np.abs(dense._unknowns).max()
+    np.testing.assert_allclose(sparse._unknowns, dense._unknowns, rtol=1e-9, atol=1e-12 * scale)
+    for name in ("flow_sd", "share_sd"):
+        np.testing.assert_allclose(getattr(sparse, name), getattr(dense, name), rtol=1e-9, atol=1e-12)
+    for table, columns in (("partition", ["partition_fine", "partition_sd", "fine_yield_sd"]),
+                           ("components", ["feed_grade", "feed_grade_sd", "recovery_fine", "recovery_fine_sd"]),
+                           ("adjustments", ["reconciled", "reconciled_sd"])):  # fmt: skip
+        for column in columns:
+            a, b = sparse_tables[table][column].to_numpy(float), dense_tables[table][column].to_numpy(float)
+            np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-9 * np.nanmax(np.abs(b)), err_msg=f"{table}.{column}")
+    well = dense_tables["worth"].drop_duplicates("measurement")["redundancy"].to_numpy() > 1e-2
+    a, b = (t["measurement_test"].to_numpy(float)[well] for t in (sparse_tables["adjustments"], dense_tables["adjustments"]))
+    np.testing.assert_allclose(a, b, rtol=1e-6)
+    sparse_residual, dense_residual = (_covariance_residual(sparse, balance.covariance) for balance in (sparse, dense))
+    assert sparse_residual < 1e-9 and sparse_residual < 1e-3 * dense_residual
+
+
+def _covariance_residual(balance, covariance: np.ndarray) -> float:
+    r"""The largest relative residual of the equations the columns :math:`c` of ``covariance``
+    solve, :math:`J^T J c + A^T \lambda = e_k`, :math:`A c = 0`, :math:`Z^T c = 0` (``balance``:
+    the sparse path's, whose :math:`J` and :math:`Z`, the directions no measurement sees, it holds),
+    over a few columns."""
+    from scipy import sparse
+    from scipy.sparse import linalg as sparse_linalg
+
+    problem, linearisation = balance.problem, balance.decomposition
+    J, Z = linearisation.J, linearisation.unseen_unknowns
+    constraints = sparse.vstack([problem.A, Z.T]).tocsr()
+    worst = 0.0
+    for k in np.linspace(0, covariance.shape[0] - 1, 9).astype(int):
+        e = np.zeros(covariance.shape[0])
+        e[k] = 1.0
+        column = covariance[:, k]
+        information = J.T @ (J @ column)
+        multipliers = sparse_linalg.lsqr(constraints.T, e - information, atol=1e-15, btol=1e-15, iter_lim=20000)[0]
+        residual = np.linalg.norm(e - information - constraints.T @ multipliers) / max(1.0, np.linalg.norm(information))
+        worst = max(worst, residual, np.linalg.norm(constraints @ column) / np.abs(covariance).max())
+    return worst
+
+
+@pytest.mark.slow
+def test_a_large_survey_the_balances_cannot_determine_is_refused_as_on_the_dense_path():
+    """Two streams of a cyclone without a size analysis: the sparse path sees the solids flows no
+    measurement determines and hands over to the dense path, which names the streams."""
+    from tromplab.errors import InputError
+
+    flowsheet, survey = _survey(10, 20, minerals=False)
+    blind = ("overflow_4", "underflow_4", "discharge_4")
+    shares = survey.shares[~survey.shares["stream"].isin(blind)]
+    closed = tuple(s for s in survey.closed_streams if s not in blind)
+    from dataclasses import replace
+
+    with pytest.raises(InputError, match="cannot determine"):
+        reconcile(flowsheet, replace(survey, shares=shares, closed_streams=closed))
+
+
+@pytest.mark.slow
+def test_serial_elimination_on_a_large_flowsheet_stops_after_a_few_steps_and_says_so():
+    """Each step of the serial elimination reconciles the survey again: on the sparse path it
+    stops after LARGE_ELIMINATION_STEPS and the summary says why, rather than running for minutes."""
+    from dataclasses import replace
+
+    from tromplab.circuit import reconciliation
+
+    flowsheet, survey = _survey(10, 20, minerals=False)
+    shares = survey.shares.copy()
+    for block in range(1, 11):  # ten gross errors of 15 sd, one per stage
+        at = shares.index[(shares["stream"] == f"cyclone_feed_{block}") & (shares["class_index"] == 10)][0]
+        shares.loc[at, "value"] += 15 * shares.loc[at, "sd"]
+    balance = reconcile(flowsheet, replace(survey, shares=shares))
+    assert sparse_solve.is_sparse(balance.problem) and balance.rejected
+    table = balance.elimination_table()
+    assert len(table) - 1 == reconciliation.LARGE_ELIMINATION_STEPS and table["p_value"].iloc[-1] <= balance.alpha
+    assert f"serial elimination stopped after {reconciliation.LARGE_ELIMINATION_STEPS} steps" in balance.report()
