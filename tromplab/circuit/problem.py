@@ -249,6 +249,17 @@ def gauss_newton(problem: Problem, z0: np.ndarray, xtol: float = GAUSS_NEWTON_XT
     return z, False, f"Gauss-Newton did not converge in {GAUSS_NEWTON_ITERATIONS} steps"
 
 
+def grades_at(problem: Problem, v: np.ndarray) -> np.ndarray | None:
+    """The assays at the unknowns ``v`` (components x streams x classes; 0 in an empty class), None without components."""
+    if not problem.n_components:
+        return None
+    S, n = problem.n_streams, problem.n_classes
+    components = v[problem.component_offset :].reshape(problem.n_components, S, n)
+    class_flows = v[: S * n].reshape(S, n)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(class_flows > 0, components / class_flows, 0.0)
+
+
 def gauss_newton_step(problem: Problem, z: np.ndarray) -> np.ndarray:
     """One step of :func:`gauss_newton` from ``z`` (``z`` itself when no step lowers the sum of squares)."""
     residual = problem.whitened_residual(z)

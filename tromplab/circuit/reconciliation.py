@@ -98,6 +98,7 @@ from .problem import (
     check_observable,
     check_positive_flows,
     decompose,
+    grades_at,
     linearised,
     solids_first_start,
     solve,
@@ -828,7 +829,7 @@ def _error_model_point(problem: Problem, v: np.ndarray) -> tuple[np.ndarray, np.
     flows = class_flows.sum(axis=1)
     with np.errstate(invalid="ignore", divide="ignore"):
         shares = np.where(flows[:, None] > 0, class_flows / flows[:, None], 0.0)
-    return shares, np.clip(flows, 0.0, None), _grades(problem, v)
+    return shares, np.clip(flows, 0.0, None), grades_at(problem, v)
 
 
 def _assay_notes(survey: Survey) -> list[str]:
@@ -845,17 +846,6 @@ def _assay_notes(survey: Survey) -> list[str]:
         lines.append(f"assays set aside (the class holds less than {100 * MIN_ASSAYED_SHARE:g} % of its stream, too little "
                      f"material to assay): {listed}{more}")  # fmt: skip
     return lines
-
-
-def _grades(problem: Problem, v: np.ndarray) -> np.ndarray | None:
-    """The assays at the unknowns ``v`` (components x streams x classes; 0 in an empty class), None without components."""
-    if not problem.n_components:
-        return None
-    S, n = problem.n_streams, problem.n_classes
-    components = v[problem.component_offset :].reshape(problem.n_components, S, n)
-    class_flows = v[: S * n].reshape(S, n)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(class_flows > 0, components / class_flows, 0.0)
 
 
 def _undetermined_water_note(streams: list[str]) -> str:

@@ -54,6 +54,7 @@ from .problem import (
     TESTABLE_SHARE,
     Problem,
     closure_point,
+    grades_at,
     linear_constraints,
     measurement_arrays,
     starting_point,
@@ -647,7 +648,7 @@ def _rounds(flowsheet, survey, problem, v, early_xtol, tolerance, max_rounds, pr
         flows = class_flows.sum(axis=1)
         with np.errstate(invalid="ignore", divide="ignore"):
             shares = np.where(flows[:, None] > 0, class_flows / flows[:, None], 0.0)
-        evaluated = survey.with_errors_at(shares, np.clip(flows, 0.0, None), flowsheet.stream_index, _grades(problem, v))
+        evaluated = survey.with_errors_at(shares, np.clip(flows, 0.0, None), flowsheet.stream_index, grades_at(problem, v))
         before, after = (np.concatenate([s.shares["sd"].to_numpy(float), s.flows["sd"].to_numpy(float),
                                          s.assays["sd"].to_numpy(float)]) for s in (survey, evaluated))  # fmt: skip
         if not np.array_equal(before == 0, after == 0):
@@ -659,17 +660,6 @@ def _rounds(flowsheet, survey, problem, v, early_xtol, tolerance, max_rounds, pr
         if moved <= tolerance:
             return survey, problem, v, success, message, factor
     return survey, problem, v, False, f"the error model at the reconciled values did not settle in {max_rounds} rounds", factor
-
-
-def _grades(problem, v: np.ndarray):
-    """The assays at ``v`` (components x streams x classes; 0 in an empty class), None without components."""
-    if not problem.n_components:
-        return None
-    S, n = problem.n_streams, problem.n_classes
-    components = v[problem.component_offset :].reshape(problem.n_components, S, n)
-    class_flows = v[: S * n].reshape(S, n)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(class_flows > 0, components / class_flows, 0.0)
 
 
 # --- the linearisation and the tables' linear algebra ---------------------------------------------

@@ -102,6 +102,16 @@ def _check_writable_parent(path: Path, option: str) -> None:
 
 
 # --- writing ----------------------------------------------------------------------------
+def staging_folder_beside(outdir) -> Path:
+    """A new empty folder beside ``outdir`` (its parent made when missing), named as a staging
+    folder, ``.OUT.tmp-<pid>-<random>``, so that :func:`clean_stale` removes it when this process
+    has died; ``outdir`` is checked first (:func:`check_output_folder`)."""
+    outdir = check_output_folder(outdir)
+    parent = outdir.absolute().parent
+    parent.mkdir(parents=True, exist_ok=True)
+    return Path(tempfile.mkdtemp(dir=parent, prefix=f".{outdir.name}.tmp-{os.getpid()}-"))
+
+
 def replace_folder(outputs: dict[str, Callable[[Path], None]], outdir) -> dict[str, Path]:
     """Write ``outputs`` (file name -> writer taking a path) as the new content of ``outdir``.
 
@@ -115,17 +125,14 @@ def replace_folder(outputs: dict[str, Callable[[Path], None]], outdir) -> dict[s
         File name -> path in ``outdir``.
     """
     outdir = Path(outdir)
-    check_output_folder(outdir)
-    parent = outdir.absolute().parent
-    parent.mkdir(parents=True, exist_ok=True)
-    staging = Path(tempfile.mkdtemp(dir=parent, prefix=f".{outdir.name}.tmp-{os.getpid()}-"))
+    staging = staging_folder_beside(outdir)
     try:
         for name, writer in outputs.items():
             _check_name(name)
             writer(staging / name)
         (staging / MANIFEST).write_text("".join(f"{name}\n" for name in sorted(outputs)), encoding="utf-8")
         logger.info("wrote %d file(s) into the staging folder %s", len(outputs), staging)
-        with _folder_lock(parent, outdir.name):
+        with _folder_lock(staging.parent, outdir.name):
             clean_stale(outdir)
             if outdir.is_dir():
                 _carry_over(outdir, staging, set(outputs))

@@ -24,17 +24,15 @@ folder and the next run into the same place removes it
 from __future__ import annotations
 
 import csv
-import os
 import pickle
 import shutil
-import tempfile
 from pathlib import Path
 from typing import NamedTuple
 
 import pandas as pd
 
 from .csv_parts import csv_part, defended_frame, holds_carriage_return
-from .outputs import check_output_folder
+from .outputs import staging_folder_beside
 
 
 class UnitTable(NamedTuple):
@@ -81,11 +79,7 @@ class SpooledTables:
     """
 
     def __init__(self, outdir):
-        outdir = check_output_folder(outdir)
-        parent = outdir.absolute().parent
-        parent.mkdir(parents=True, exist_ok=True)
-        # named as a staging folder: clean_stale removes it when this process has died
-        self.scratch = Path(tempfile.mkdtemp(dir=parent, prefix=f".{outdir.name}.tmp-{os.getpid()}-"))
+        self.scratch = staging_folder_beside(outdir)
         self._kept: dict[str, list[_Kept]] = {}
         self._headers: dict[str, bytes] = {}
         self._empty_headers: dict[str, bytes] = {}

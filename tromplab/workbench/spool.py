@@ -21,7 +21,6 @@ import logging
 import os
 import pickle
 import shutil
-import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -35,7 +34,7 @@ from ..curves.ranking import rank_formulas, top_ranked
 from ..loading.points import TrompPoints
 from ..loading.surveys import with_survey_columns
 from ..output.csv_parts import csv_part, defended_frame, holds_carriage_return, write_csv
-from ..output.outputs import check_output_folder
+from ..output.outputs import staging_folder_beside
 from .averages import averages_table
 from .worker import ChunkOptions, chunk_tables, fitted_chunk
 
@@ -217,11 +216,7 @@ class Spool:
     """
 
     def __init__(self, outdir):
-        outdir = check_output_folder(outdir)
-        parent = outdir.absolute().parent
-        parent.mkdir(parents=True, exist_ok=True)
-        # named as a staging folder: clean_stale removes it when this process has died
-        self.scratch = Path(tempfile.mkdtemp(dir=parent, prefix=f".{outdir.name}.tmp-{os.getpid()}-"))
+        self.scratch = staging_folder_beside(outdir)
         self.summaries: list[ChunkSummary] = []
 
     def __enter__(self):
