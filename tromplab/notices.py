@@ -264,14 +264,14 @@ def grouped_lines(
     # a stream of notices (a streamed batch's warnings.csv read back) is never held whole
     kinds: dict[str, tuple[list[Notice], list[int], set]] = {}
     for notice in notices:
-        head, count, subjects = kinds.setdefault(_kind_key(notice), ([], [0], set()))
+        head, counter, subjects = kinds.setdefault(_kind_key(notice), ([], [0], set()))
         if len(head) < _NOTICES_NAMED:
             head.append(notice)
-        count[0] += 1
+        counter[0] += 1
         subjects.add(notice.subject)
     lines = []
-    for head, (count,), subjects in kinds.values():
-        first = head[0]
+    for head, counter, subjects in kinds.values():
+        first, count = head[0], counter[0]
         if count == 1:
             line = occurrence_line(first)
             lines.append(line if labelled else line.split(" ", 1)[1])
