@@ -264,15 +264,14 @@ def test_the_error_model_on_arrays_is_the_survey_tables_bit_for_bit(case, monkey
     problem's covariance only (problem.with_errors): the same bits as the survey's own
     ``with_errors_at`` and a problem built anew from it."""
     from tromplab.circuit import read_flowsheet, read_survey, reconcile
-    from tromplab.circuit.problem import SurveyErrors, build_problem, with_errors
-    from tromplab.circuit.reconciliation import _error_model_point
+    from tromplab.circuit.problem import SurveyErrors, build_problem, error_model_point, with_errors
 
     monkeypatch.chdir(REFERENCE)
     sheet = read_flowsheet(MAKE.FLOWSHEET)
     survey = read_survey(MAKE.CIRCUIT_CASES[case][0], sheet)
     balance = reconcile(sheet, survey)
     problem, _ = build_problem(sheet, survey)
-    shares, flows, grades = _error_model_point(problem, balance.fitted * 1.01)  # a point of no round
+    shares, flows, grades = error_model_point(problem, balance.fitted * 1.01)  # a point of no round
     sd, share_at = SurveyErrors(survey, sheet.stream_index).at(shares, flows, grades)
     evaluated = survey.with_errors_at(shares, flows, sheet.stream_index, grades)
     tables = (evaluated.shares, evaluated.flows, evaluated.pct_solids, evaluated.assays)

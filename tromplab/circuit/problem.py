@@ -249,6 +249,17 @@ def gauss_newton(problem: Problem, z0: np.ndarray, xtol: float = GAUSS_NEWTON_XT
     return z, False, f"Gauss-Newton did not converge in {GAUSS_NEWTON_ITERATIONS} steps"
 
 
+def error_model_point(problem: Problem, v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """``(shares, flows, grades)`` at the unknowns ``v``, where the error model is evaluated:
+    shares 0 in an empty stream, flows clipped at 0, grades None without assays."""
+    S, n = problem.n_streams, problem.n_classes
+    class_flows = v[: S * n].reshape(S, n)
+    flows = class_flows.sum(axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        shares = np.where(flows[:, None] > 0, class_flows / flows[:, None], 0.0)
+    return shares, np.clip(flows, 0.0, None), grades_at(problem, v)
+
+
 def grades_at(problem: Problem, v: np.ndarray) -> np.ndarray | None:
     """The assays at the unknowns ``v`` (components x streams x classes; 0 in an empty class), None without components."""
     if not problem.n_components:

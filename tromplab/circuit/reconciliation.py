@@ -93,16 +93,19 @@ from .problem import (
     SPARSE_UNKNOWNS,
     Decomposition,
     Problem,
+    SurveyErrors,
     bounded_solution,
     build_problem,
     check_observable,
     check_positive_flows,
     decompose,
-    grades_at,
+    error_model_point,
+    gauss_newton_step,
     linearised,
     solids_first_start,
     solve,
     starting_point,
+    with_errors,
 )
 from .separators import MIN_FEED_SHARE, PARTITION_COLUMNS, components_table, curve_names, partition_table, plot_partitions
 from .worth import results, worth_table
@@ -784,8 +787,6 @@ def _errors_at_reconciled(
     another path).  Returns ``(survey, problem, z, success, message)`` of the last
     reconciliation; the survey holds the standard deviations it used.
     """
-    from .problem import SurveyErrors, gauss_newton_step, with_errors
-
     single_steps = single_steps and problem.m0.size < SPARSE_UNKNOWNS and bool(problem.N.shape[1] and problem.y.size)
 
     errors = SurveyErrors(survey, flowsheet.stream_index)
@@ -795,7 +796,7 @@ def _errors_at_reconciled(
         if progress is not None:
             progress(0, 1, f"reconciliation: round {round_number}")
         v = problem.m0 + problem.N @ z
-        point = _error_model_point(problem, v)
+        point = error_model_point(problem, v)
         after, share_at = errors.at(*point)
         if np.array_equal(after > 0, before > 0):
             problem = with_errors(problem, errors, after, share_at)
@@ -819,17 +820,6 @@ def _errors_at_reconciled(
         )
     survey = survey.with_errors_at(*point[:2], flowsheet.stream_index, point[2])
     return survey, problem, z, success, message
-
-
-def _error_model_point(problem: Problem, v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
-    """``(shares, flows, grades)`` at the unknowns ``v``, where the error model is evaluated:
-    shares 0 in an empty stream, flows clipped at 0, grades None without assays."""
-    S, n = problem.n_streams, problem.n_classes
-    class_flows = v[: S * n].reshape(S, n)
-    flows = class_flows.sum(axis=1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        shares = np.where(flows[:, None] > 0, class_flows / flows[:, None], 0.0)
-    return shares, np.clip(flows, 0.0, None), grades_at(problem, v)
 
 
 def _assay_notes(survey: Survey) -> list[str]:

@@ -54,9 +54,10 @@ from .problem import (
     TESTABLE_SHARE,
     Problem,
     closure_point,
-    grades_at,
+    error_model_point,
     linear_constraints,
     measurement_arrays,
+    start_components,
     starting_point,
 )
 
@@ -625,8 +626,6 @@ def sparse_starting_point(flowsheet, survey, problem: SparseProblem) -> np.ndarr
 
 def sparse_solids_first_start(flowsheet, survey, problem: SparseProblem) -> np.ndarray:
     """:func:`~tromplab.circuit.problem.solids_first_start` of the sparse path."""
-    from .problem import start_components
-
     solids_survey = replace(survey, assays=survey.assays.iloc[:0], components=())
     solids_problem, _ = build_sparse_problem(flowsheet, solids_survey)
     solids, _, _, _ = solve_sparse(solids_problem, sparse_starting_point(flowsheet, solids_survey, solids_problem), xtol=1e-6)
@@ -638,17 +637,13 @@ def sparse_solids_first_start(flowsheet, survey, problem: SparseProblem) -> np.n
 def _rounds(flowsheet, survey, problem, v, early_xtol, tolerance, max_rounds, progress):
     """The rounds of :func:`~tromplab.circuit.reconciliation._errors_at_reconciled`, the
     constraints built once (the rounds change the sds only)."""
-    S, n = problem.n_streams, problem.n_classes
     success, message, factor = True, "", None
     constraints = (problem.A, problem.b, "", problem.free)
     for round_number in range(2, max_rounds + 2):
         if progress is not None:
             progress(0, 1, f"reconciliation: round {round_number}")
-        class_flows = v[: S * n].reshape(S, n)
-        flows = class_flows.sum(axis=1)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            shares = np.where(flows[:, None] > 0, class_flows / flows[:, None], 0.0)
-        evaluated = survey.with_errors_at(shares, np.clip(flows, 0.0, None), flowsheet.stream_index, grades_at(problem, v))
+        shares, flows, grades = error_model_point(problem, v)
+        evaluated = survey.with_errors_at(shares, flows, flowsheet.stream_index, grades)
         before, after = (np.concatenate([s.shares["sd"].to_numpy(float), s.flows["sd"].to_numpy(float),
                                          s.assays["sd"].to_numpy(float)]) for s in (survey, evaluated))  # fmt: skip
         if not np.array_equal(before == 0, after == 0):
