@@ -81,13 +81,19 @@ class TracerStack:
         return TracerStack(self.density[rows], self.sinks[rows], self.trials[rows])
 
 
+def deviance_terms(k: np.ndarray, n: np.ndarray, partition: np.ndarray) -> np.ndarray:
+    """The binomial deviance's terms, ``k ln(k / (n p)) + (n - k) ln((n - k) / (n (1 - p)))`` of
+    each point, at the partitions clipped inside (0, 1) (a count against a partition of 0 or 1
+    stays finite); twice their sum is the deviance."""
+    p = np.clip(partition, 1e-300, 1.0 - 1e-16)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return scipy.special.xlogy(k, k / (n * p)) + scipy.special.xlogy(n - k, (n - k) / (n * (1.0 - p)))
+
+
 def deviance(stack: TracerStack, partition: np.ndarray) -> np.ndarray:
     """Binomial deviance of each row at the fitted partitions ``partition`` (the single fit's formula)."""
     k, n = stack.sinks, stack.trials
-    p = np.clip(partition, 1e-300, 1.0 - 1e-16)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        terms = scipy.special.xlogy(k, k / (n * p)) + scipy.special.xlogy(n - k, (n - k) / (n * (1.0 - p)))
-    return 2.0 * np.where(n > 0, terms, 0.0).sum(axis=1)
+    return 2.0 * np.where(n > 0, deviance_terms(k, n, partition), 0.0).sum(axis=1)
 
 
 @dataclass(frozen=True)

@@ -32,9 +32,9 @@ import math
 
 import numpy as np
 import pandas as pd
-import scipy.special
 
 from ..curves.likelihood import central_hessian
+from .batch import deviance_terms
 from .fitting import DensityCurveFit, fit_data, index_model, index_vector, objective_of
 from .joint import JOINT_METHOD
 from .registry import QUARTILES
@@ -138,11 +138,7 @@ def _index_parameters(curve, q: np.ndarray) -> dict[str, np.ndarray] | None:
 
 def _deviances(curve, data, params: dict[str, np.ndarray]) -> np.ndarray:
     """The binomial deviance of the fit's data at each row of parameters (``objective_of``'s, row by row)."""
-    p = np.clip(curve.partition(data.density[None, :], **params), 1e-300, 1.0 - 1e-16)
-    k, n = data.sinks, data.trials
-    with np.errstate(divide="ignore", invalid="ignore"):
-        terms = scipy.special.xlogy(k, k / (n * p)) + scipy.special.xlogy(n - k, (n - k) / (n * (1.0 - p)))
-    return 2.0 * terms.sum(axis=1)
+    return 2.0 * deviance_terms(data.sinks, data.trials, curve.partition(data.density[None, :], **params)).sum(axis=1)
 
 
 def _binomial_curvature(fit: DensityCurveFit, data) -> np.ndarray | None:

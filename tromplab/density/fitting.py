@@ -58,12 +58,11 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.special
 
 from ..curves.likelihood import central_hessian, step_out
 from ..results_contract import ResultContract
 from ..statistics.distributions import binom_logpmf, chi2_sf, f_ppf, norm_isf, norm_ppf
-from .batch import LIMIT_STARTS, BinomialFit, TracerStack, fit_glm, fit_limits_curve
+from .batch import LIMIT_STARTS, BinomialFit, TracerStack, deviance_terms, fit_glm, fit_limits_curve
 from .dispersion import PooledDispersion, interval_rule, pearson_rejects, pool_dispersion
 from .joint import JOINT_METHOD, fit_joint, has_three_analyses, joint_intervals
 from .profiles import ProfileRequests, profile_limits
@@ -206,10 +205,7 @@ def objective_of(data: _Data) -> Callable[[np.ndarray], float]:
         k, n = data.sinks, data.trials
 
         def deviance(p):
-            p = np.clip(p, 1e-300, 1.0 - 1e-16)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                terms = scipy.special.xlogy(k, k / (n * p)) + scipy.special.xlogy(n - k, (n - k) / (n * (1.0 - p)))
-            return float(2.0 * terms.sum())
+            return float(2.0 * deviance_terms(k, n, p).sum())
 
         return deviance
     return lambda p: float(np.sum(data.weight * (data.share - p) ** 2))
