@@ -37,7 +37,7 @@ from ..curves.likelihood import central_hessian
 from .batch import deviance_terms
 from .fitting import DensityCurveFit, fit_data, index_model, index_vector, objective_of
 from .joint import JOINT_METHOD
-from .registry import QUARTILES
+from .profiles import curve_of_indices
 
 #: The parameters whose covariance ``covariance.csv`` gives, in order.
 COVARIANCE_PARAMETERS = ("rho50", "ep")
@@ -119,21 +119,14 @@ def _difference_points(start: np.ndarray, steps: np.ndarray) -> tuple[np.ndarray
 
 
 def _index_parameters(curve, q: np.ndarray) -> dict[str, np.ndarray] | None:
-    """The curve's parameters (each (points, 1)) at the index vectors ``q`` (points, 2 or 4), by the
-    arithmetic of :meth:`~tromplab.density.registry.DensityCurve.from_indices`; None when a limit
-    leaves the range in which the indices exist (``from_indices`` raises there)."""
-    rho50, ep = q[:, 0:1], q[:, 1:2]
-    if not curve.has_limits:
-        return {"rho50": rho50, "ep": ep}
-    light, heavy = q[:, 2:3], q[:, 3:4]
-    if not np.all((light >= 0.0) & (light < 0.25) & (heavy > 0.75) & (heavy <= 1.0)):
-        return None
-    span = heavy - light
-    q25, q50, q75 = (curve.form.quantile((p - light) / span) for p in QUARTILES)
-    scale_c = curve.form.scale
-    ep_c = ep * 2.0 * scale_c / (q75 - q25)
-    rho_c = rho50 - ep_c * (q50 - curve.form.centre) / scale_c
-    return {"rho_c": rho_c, "ep_c": ep_c, "light_limit": light, "heavy_limit": heavy}
+    """The curve's parameters (each (points, 1)) at the index vectors ``q`` (points, 2 or 4)
+    (:func:`~tromplab.density.profiles.curve_of_indices`); None when a limit leaves the range in
+    which the indices exist (:meth:`~tromplab.density.registry.DensityCurve.from_indices` raises there)."""
+    if curve.has_limits:
+        light, heavy = q[:, 2], q[:, 3]
+        if not np.all((light >= 0.0) & (light < 0.25) & (heavy > 0.75) & (heavy <= 1.0)):
+            return None
+    return curve_of_indices(curve, q, np.zeros(len(q), dtype=bool))
 
 
 def _deviances(curve, data, params: dict[str, np.ndarray]) -> np.ndarray:
