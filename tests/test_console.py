@@ -3,6 +3,7 @@ once per kind with its count and first names, every occurrence is in ``warnings.
 ``--quiet`` prints errors and a one-line result, ``-v`` every occurrence."""
 
 import re
+import types
 import warnings
 
 import numpy as np
@@ -139,6 +140,24 @@ def test_a_kind_met_once_keeps_its_words_and_unknown_kinds_group_by_their_words(
                      "(z): another thing"]  # fmt: skip
     four = grouped_lines(other[:4], total=4, listed_in="")  # "and 1 more" would take its name's place
     assert four == ["4 of 4 experiments: odd value ... seen (e0, e1, e2, e3; -v prints every one)"]
+
+
+def test_the_scale_notes_of_density_intervals_have_their_kinds_and_chi2_stays_a_word():
+    from tromplab.density.dispersion import PooledDispersion
+    from tromplab.density.fitting import _scale_note
+
+    def fit(dispersion, pooled):
+        return types.SimpleNamespace(dispersion=dispersion, df_resid=10, pooled=pooled)
+
+    own = _scale_note(fit(1.3, None), 0.95)
+    pooled = _scale_note(fit(1.05, PooledDispersion(1.4, 400, 40)), 0.95)
+    assert [code_of(own), code_of(pooled)] == ["quasi-binomial-intervals", "quasi-binomial-intervals-pooled"]
+    notices = [Notice(f"t{i}", own if i % 2 else pooled, "normal") for i in range(6)]
+    lines = grouped_lines(notices, total=6, noun="tests", labelled=True)
+    assert len(lines) == 2 and all(line.startswith("note: 3 of 6 tests: the intervals use the") for line in lines)
+    assert all("chi2/df" in line and "..." not in line for line in lines)
+    unknown = grouped_lines([Notice(f"t{i}", f"Pearson chi2/df = {i}.5 seen") for i in range(3)], total=3)
+    assert unknown == ["3 of 3 experiments: Pearson chi2/df = ... seen (t0, t1, t2; every one in warnings.csv)"]
 
 
 def test_warnings_csv_names_are_defended_against_formula_injection(tmp_path):

@@ -144,6 +144,21 @@ WARNING_KINDS = (
         "the counts are overdispersed (Pearson chi2/df > 1): intervals use the quasi-binomial scale",
     ),
     WarningKind(
+        "quasi-binomial-intervals",
+        r"intervals on the quasi-binomial scale \S+ \(Pearson",
+        "the intervals use the fit's own quasi-binomial scale (Pearson chi2/df, above 1): the profile deviance is "
+        "divided by it and compared with F(1, residual df)",
+        level="note",
+    ),
+    WarningKind(
+        "quasi-binomial-intervals-pooled",
+        r"intervals on the quasi-binomial scale \S+ of the file",
+        "the intervals use the quasi-binomial scale of the file (Pearson chi2/df of the curve pooled over the "
+        "file's tests, above the fit's own): the profile deviance is divided by it and compared with F(1, pooled "
+        "residual df)",
+        level="note",
+    ),
+    WarningKind(
         "floats-yield-estimated",
         r"floats yield .*estimated by least squares",
         "the floats yield was estimated by least squares from the three analyses (value +/- standard error)",
@@ -184,7 +199,9 @@ def _compiled(pattern: str) -> re.Pattern:
     return re.compile(pattern)
 
 
-_NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
+#: A number in a warning's words: not one that is part of a name (``x50``, ``plitt2``, ``deck_2``,
+#: ``run-3``, ``chi2``), which keeps the warning's kind; a unit may follow it (``0.4mm``).
+NUMBER_IN_WORDS = re.compile(r"(?<![\w.\-])[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?(?![\d.])")
 
 
 def code_of(message: str) -> str:
@@ -219,7 +236,7 @@ class Notice:
 def _kind_key(notice: Notice) -> str:
     """What makes two notices one kind: the code, or for a message of no known kind its words
     with the numbers left out."""
-    return notice.code if notice.code != OTHER else f"{OTHER}:{_NUMBER.sub('...', notice.message)}"
+    return notice.code if notice.code != OTHER else f"{OTHER}:{NUMBER_IN_WORDS.sub('...', notice.message)}"
 
 
 def level_of(code: str) -> str:
@@ -280,7 +297,7 @@ def grouped_lines(
         limit = NAMES_SHOWN + (len(subjects) == NAMES_SHOWN + 1)  # "and 1 more" would take the place of its name
         shown = list(dict.fromkeys(kind.named(n) if kind else n.subject for n in head[: 4 * limit]))[:limit]
         named = ", ".join(shown) + (f" and {len(subjects) - len(shown)} more" if len(subjects) > len(shown) else "")
-        words = _NUMBER.sub("...", first.message) if kind is None else kind.summary
+        words = NUMBER_IN_WORDS.sub("...", first.message) if kind is None else kind.summary
         if kind is not None and intervals and kind.intervals:
             words += f"; {kind.intervals}"
         counted = f"{len(subjects)} of {total} {noun}" + (f" ({count} times)" if count > len(subjects) else "")

@@ -23,6 +23,7 @@ import warnings
 from pathlib import Path
 
 from ..errors import InputError, InputNote, OptionError
+from ..notices import NUMBER_IN_WORDS
 from ..output.outputs import written_outputs
 
 #: Exit codes (documented in the README and docs/reliability.md).
@@ -149,7 +150,7 @@ def python_warnings(*, quiet: bool, verbose: int):
         elif verbose:
             show(message, category, filename, lineno, file, line)
         else:
-            key = (category.__name__, _NUMBER.sub("...", str(message)))
+            key = (category.__name__, NUMBER_IN_WORDS.sub("...", str(message)))
             held.setdefault(key, [0, str(message)])[0] += 1
 
     warnings.showwarning = showwarning
@@ -159,9 +160,6 @@ def python_warnings(*, quiet: bool, verbose: int):
         for (category, _), (count, first) in held.items():
             more = f" (and {count - 1} more like it)" if count > 1 else ""
             print(textwrap.fill(f"warning ({category}): {first}{more}", width=98, break_on_hyphens=False), file=sys.stderr)
-
-
-_NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
 
 
 def global_options(*, in_subcommand: bool) -> argparse.ArgumentParser:

@@ -14,6 +14,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from ..notices import NUMBER_IN_WORDS
+
 #: Columns holding shares, partitions, efficiencies or weights (0..1): four decimals.
 SHARE_COLUMNS = re.compile(
     r"^(feed|fine|coarse|partition_\w+|eta|epsilon|imperfection\w*|\w*_yield|akaike_\w+|weight|share|bypass|used_share)$"
@@ -63,11 +65,6 @@ def display_table(table: pd.DataFrame) -> tuple[pd.DataFrame, list[str]]:
     return shown, [f"note {k}: {note}" for k, note in enumerate(notes, 1)]
 
 
-#: A number in a warning's words: not one that is part of a name (``x50``, ``plitt2``, ``deck_2``,
-#: ``run-3``), which keeps the warning's kind; a unit may follow it (``0.4mm``).
-_NUMBER = re.compile(r"(?<![\w.\-])[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?(?![\d.])")
-
-
 def grouped_warnings(items: Iterable[tuple[str, str, str]]) -> list[str]:
     """Warnings of fits, ``(experiment, formula, warning)``, one line per kind of warning.
 
@@ -85,7 +82,7 @@ def grouped_warnings(items: Iterable[tuple[str, str, str]]) -> list[str]:
     """
     kinds: dict[str, list[tuple[str, str, str]]] = {}
     for experiment, formula, warning in items:
-        kinds.setdefault(_NUMBER.sub("...", warning), []).append((experiment, formula, warning))
+        kinds.setdefault(NUMBER_IN_WORDS.sub("...", warning), []).append((experiment, formula, warning))
     lines = []
     for kind, members in kinds.items():
         if len(members) == 1:
@@ -94,7 +91,7 @@ def grouped_warnings(items: Iterable[tuple[str, str, str]]) -> list[str]:
             continue
         by_experiment: dict[str, list[str]] = {}
         for experiment, formula, warning in members:
-            numbers = ", ".join(_NUMBER.findall(warning))
+            numbers = ", ".join(NUMBER_IN_WORDS.findall(warning))
             by_experiment.setdefault(experiment, []).append(f"{formula} ({numbers})" if numbers else formula)
         fits = "; ".join(f"{experiment}: {', '.join(named)}" for experiment, named in by_experiment.items())
         lines.append(f"{kind} ({len(members)} fits): {fits}")
