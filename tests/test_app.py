@@ -13,6 +13,7 @@ import sys
 import time
 from pathlib import Path
 
+import pandas as pd
 import pytest
 
 pytest.importorskip("starlette", reason="the app extra is not installed: pip install -e '.[test]'")
@@ -101,7 +102,7 @@ def test_each_kind_is_told_and_offered_the_options_of_its_command(client):
     survey = (DATASETS / "circuit_example_survey.csv").read_bytes()
     described = upload(client, "survey.csv", survey).json()
     assert described["kind"] == {"kind": "survey", "label": "a plant survey of a circuit", "command": "tromplab circuit",
-                                 "runs_here": True, "commands": ["tromplab circuit"]}  # fmt: skip
+                                 "runs_here": True, "commands": ["tromplab circuit", "tromplab circuit design"]}  # fmt: skip
     assert described["circuit"] == {"flowsheet": "flowsheet.csv", "survey": "survey.csv"}  # paired
     assert {option["dest"] for option in described["options"]} == _declared(command_parser("circuit"))
     tracers = (DATASETS / "density_tracers_dmc_by_size_synthetic.csv").read_bytes()
@@ -145,14 +146,40 @@ def test_the_downloads_are_the_files_the_commands_write(client, tmp_path):
     assert_same_file(client.get("/api/download/report.html").content, tmp_path / "report.html")
     assert_same_file(client.get("/api/download/results.xlsx").content, tmp_path / "results" / "results.xlsx")
     # the page's numbers are the library's: the best fit's d50 is the one in fits.csv
-    import pandas as pd
-
     fits = pd.read_csv(tmp_path / "results" / "fits.csv")
     for experiment in state["page"]["experiments"]:
         best = experiment["best"]
         row = fits[(fits["experiment"] == experiment["name"]) & (fits["formula"] == best["formula"])]
         assert best["d50"] == pytest.approx(row["d50"].iloc[0], rel=1e-12)
         assert row["rank"].iloc[0] == fits[fits["experiment"] == experiment["name"]]["rank"].min()
+
+
+@pytest.mark.slow
+def test_circuit_design_of_a_dropped_flowsheet_writes_what_the_command_writes(client, tmp_path):
+    flowsheet = (DATASETS / "circuit_example_flowsheet.csv").read_bytes()
+    described = upload(client, "flowsheet.csv", flowsheet).json()
+    assert described["kind"]["commands"] == ["tromplab circuit", "tromplab circuit design"]
+    assert {option["dest"] for option in described["forms"]["tromplab circuit design"]} == _declared(
+        command_parser("circuit", "design")
+    )
+    refused = client.post("/api/run", json={"options": {}, "command": "tromplab circuit"})
+    assert refused.status_code == 400 and "drop the survey too" in refused.json()["error"]
+    started = client.post("/api/run", json={"options": {"alpha": "0.1"}, "command": "tromplab circuit design"})
+    assert started.json()["command"] == ["tromplab", "circuit", "design", "flowsheet.csv", "-o", "results", "--alpha=0.1"]
+    state = wait_for_run(client)
+    assert state["state"] == "done", state
+    (tmp_path / "flowsheet.csv").write_bytes(flowsheet)
+    assert run_cli(tmp_path, ["circuit", "design", "flowsheet.csv", "-o", "results", "--alpha=0.1"])[0] == 0
+    page = state["page"]
+    assert page["view"] == "circuit" and [table["name"] for table in page["tables"]] == [
+        "design.csv", "observability.csv", "simulated_survey.csv"
+    ]  # fmt: skip
+    assert page["summary"] == (tmp_path / "results" / "summary.txt").read_text(encoding="utf-8").splitlines()
+    drawn = {stream["name"] for stream in page["flowsheet"]["streams"]}
+    assert drawn == set(pd.read_csv(tmp_path / "flowsheet.csv", comment="#")["stream"])
+    members = zip_members(client.get("/api/download/results.zip").content)
+    for name in ("design.csv", "observability.csv", "simulated_survey.csv", "summary.txt"):
+        assert_same_file(members[f"results/{name}"], tmp_path / "results" / name)
 
 
 @pytest.mark.slow
@@ -170,8 +197,6 @@ def test_density_tracers_are_fitted_and_downloaded_as_tromplab_density_fit_write
         assert_same_file(data, tmp_path / name)
     assert_same_file(client.get("/api/download/report.html").content, tmp_path / "results" / "report.html")
     assert_same_file(client.get("/api/download/results.xlsx").content, tmp_path / "results" / "results.xlsx")
-    import pandas as pd
-
     fits = pd.read_csv(tmp_path / "results" / "fits.csv")
     for experiment in state["page"]["experiments"]:
         best = experiment["best"]
@@ -180,8 +205,6 @@ def test_density_tracers_are_fitted_and_downloaded_as_tromplab_density_fit_write
 
 @pytest.mark.slow
 def test_an_excel_sheet_is_chosen_and_read_as_the_command_reads_it(client, tmp_path):
-    import pandas as pd
-
     table = pd.read_csv(DATASETS / "double_deck_screen_decks_lab.csv", comment="#")
     with pd.ExcelWriter(tmp_path / "lab.xlsx") as writer:
         pd.DataFrame({"note": ["not this one"]}).to_excel(writer, sheet_name="cover", index=False)

@@ -296,6 +296,36 @@ def test_a_circuit_from_its_two_files_shows_the_flowsheet_and_its_balance_and_no
     assert page.locator("#download-report").is_hidden() and page.locator("#download-xlsx").is_hidden()
 
 
+def test_circuit_design_of_a_flowsheet_alone_shows_the_ranked_candidates_on_the_page(page, tmp_path):
+    flowsheet = (DATASETS / "circuit_example_flowsheet.csv").read_text().replace("cyclone_overflow", HOSTILE_STREAM)
+    drop_files(page, {"flowsheet.csv": flowsheet})
+    expect(page.locator("#circuit-pair")).to_have_text("Circuit: flowsheet flowsheet.csv, survey (drop it too)")
+    assert page.locator("#command-select option").all_inner_texts() == ["tromplab circuit", "tromplab circuit design"]
+    page.select_option("#command-select", "tromplab circuit design")
+    expect(page.locator("#options-command")).to_have_text("tromplab circuit design")
+    page.get_by_role("button", name="Run").click()
+    page.locator("#circuit-results").wait_for(state="visible", timeout=120_000)
+    (tmp_path / "flowsheet.csv").write_text(flowsheet)
+    assert run_cli(tmp_path, ["circuit", "design", "flowsheet.csv", "-o", "results"])[0] == 0
+    design = pd.read_csv(tmp_path / "results" / "design.csv", keep_default_na=False)
+    assert page.locator("#circuit-table-select option").all_inner_texts() == [
+        "design.csv", "observability.csv", "simulated_survey.csv"
+    ]  # fmt: skip
+    table = page.locator("#circuit-table")
+    assert table.locator("tbody tr").count() == min(len(design), 500)
+    first = table.locator("tbody tr").first.locator("td").all_inner_texts()
+    assert first[:2] == [str(value) for value in design.iloc[0, :2]]  # the best candidate first, as the file ranks it
+    summary = (tmp_path / "results" / "summary.txt").read_text(encoding="utf-8")
+    assert page.locator("#circuit-summary").inner_text().split() == summary.split()
+    labels = page.locator("#flowsheet .textpoint").all_text_contents()
+    assert {"top_deck", "bottom_deck", "mill", "cyclone"} <= set(labels)
+    assert page.evaluate("window.__xss") is None and page.dialogs == [] and page.locator("img[src='x']").count() == 0
+    with page.expect_download() as download:
+        page.click("#download-zip")
+    members = zip_members(Path(download.value.path()).read_bytes())
+    assert_same_file(members["results/design.csv"], tmp_path / "results" / "design.csv")
+
+
 def test_dated_surveys_charted_by_tromplab_trend_on_the_page(page, tmp_path):
     trend = (DATASETS / "classifier_trend_surveys.csv").read_text()
     drop(page, "surveys.csv", trend)

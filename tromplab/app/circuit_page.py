@@ -31,6 +31,12 @@ CIRCUIT_TABLES = {
     "fits.csv": "partition curves of the separators (--fit)",
     "ranking.csv": "ranking of the formulas across the separators (--fit)",
 }
+#: Tables of the folder of ``tromplab circuit design``, in the page's order.
+DESIGN_TABLES = {
+    "design.csv": "the measurements one could add, ranked by the sd they would remove",
+    "observability.csv": "which results the survey determines, and which measurements determine them",
+    "simulated_survey.csv": "the survey the advice is predicted at, simulated from the flowsheet (no survey given)",
+}
 #: Rows of a table sent to the page (the file has every row; the page says how many are left out).
 TABLE_ROWS = 500
 #: Spacing of the drawn flowsheet: node columns, rows, the reach of feeds and products.
@@ -48,6 +54,20 @@ def circuit_payload(run, outdir) -> dict:
         "summary": (folder / "summary.txt").read_text(encoding="utf-8").splitlines(),
         "tables": [_file_table(folder / name, what) for name, what in CIRCUIT_TABLES.items() if (folder / name).is_file()],
         "warnings": circuit_warnings(run),
+    }
+
+
+def design_payload(advice, outdir) -> dict:
+    """The page's data of a ``circuit design`` run: ``advice`` the
+    :class:`~tromplab.circuit.planning.DesignAdvice` whose folder is ``outdir``; drawn as a circuit
+    run is, the flows those of the survey the advice is predicted at (simulated when none was given)."""
+    folder = Path(outdir)
+    return {
+        "view": "circuit",
+        "flowsheet": flowsheet_figure(advice.balance),
+        "summary": (folder / "summary.txt").read_text(encoding="utf-8").splitlines(),
+        "tables": [_file_table(folder / name, what) for name, what in DESIGN_TABLES.items() if (folder / name).is_file()],
+        "warnings": [],
     }
 
 

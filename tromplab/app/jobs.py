@@ -2,7 +2,8 @@
 
 A run does what the command does (``tromplab fit INPUT -o results --excel OPTIONS`` with
 ``tromplab report INPUT -o report.html OPTIONS``, ``tromplab density fit``, ``tromplab circuit
-FLOWSHEET SURVEY -o results``, ``tromplab trend INPUT -o results``), through the same library
+FLOWSHEET SURVEY -o results``, ``tromplab circuit design FLOWSHEET [SURVEY] -o results``, ``tromplab
+trend INPUT -o results``), through the same library
 calls with the arguments parsed by the same parsers, in a job folder of the session: the inputs
 under their own names beside the ``results`` folder, so the files are those the commands write
 in a folder holding the same files. A process of its own, so that a run can be cancelled at any
@@ -45,6 +46,7 @@ COMMANDS = {
                                     {"results.zip": RESULTS_FOLDER, "report.html": f"{RESULTS_FOLDER}/report.html",
                                      "results.xlsx": f"{RESULTS_FOLDER}/results.xlsx"}),
     ("circuit",): PageCommand(("-o", RESULTS_FOLDER), {"results.zip": RESULTS_FOLDER}),
+    ("circuit", "design"): PageCommand(("-o", RESULTS_FOLDER), {"results.zip": RESULTS_FOLDER}),
     ("trend",): PageCommand(("-o", RESULTS_FOLDER),
                             {"results.zip": RESULTS_FOLDER, "trend_report.html": f"{RESULTS_FOLDER}/trend_report.html"}),
 }  # fmt: skip
@@ -190,6 +192,24 @@ def _circuit(run: PageRun, parser) -> None:
     write_json(Path(PAGE_FILE), circuit_payload(result, args.outdir))
 
 
+def _circuit_design(run: PageRun, parser) -> None:
+    """What ``tromplab circuit design FLOWSHEET [SURVEY] -o results OPTIONS`` does, then the page's data."""
+    from ..circuit import design_circuit
+    from ..cli.circuit import error_model_of
+    from ..output.outputs import check_output_folder
+    from .circuit_page import design_payload
+
+    args = parser.parse_args(run.command_line())
+    check_output_folder(args.outdir, inputs=[args.flowsheet] + ([args.measurements] if args.measurements is not None else []))
+    _progress("designing", 0, 0, str(args.flowsheet))
+    advice = design_circuit(args.flowsheet, args.measurements, quantity=args.quantity, sampled=args.sampled, flows=args.flows,
+                            errors=error_model_of(args), alpha=args.alpha, size_unit=args.size_unit, exclude=args.exclude,
+                            progress=_reporter("designing"))  # fmt: skip
+    advice.save(args.outdir)
+    _progress("drawing", 0, 0, "")
+    write_json(Path(PAGE_FILE), design_payload(advice, args.outdir))
+
+
 def _trend(run: PageRun, parser) -> None:
     """What ``tromplab trend INPUT -o results OPTIONS`` does, then the page's data."""
     from ..cli.option_groups import lab_options
@@ -210,7 +230,8 @@ def _trend(run: PageRun, parser) -> None:
     write_json(Path(PAGE_FILE), trend_payload(result, size_unit=args.size_unit))
 
 
-RUNNERS = {("fit",): _fit_and_report, ("density", "fit"): _density_fit, ("circuit",): _circuit, ("trend",): _trend}
+RUNNERS = {("fit",): _fit_and_report, ("density", "fit"): _density_fit, ("circuit",): _circuit,
+           ("circuit", "design"): _circuit_design, ("trend",): _trend}  # fmt: skip
 
 
 def _reporter(phase: str):

@@ -57,6 +57,8 @@ def command_name(command: tuple[str, ...]) -> str:
 
 #: The two files of ``tromplab circuit``, in the order the command takes them.
 CIRCUIT_ROLES = ("flowsheet", "survey")
+#: ``tromplab circuit design``: the flowsheet, and the survey when one was dropped too.
+CIRCUIT_DESIGN = ("circuit", "design")
 
 
 def sheet_names(path: Path) -> list[str]:
@@ -89,9 +91,9 @@ def kind_of_columns(columns) -> TableKind:
 
     names = {str(column).strip().lower() for column in columns}
     if {"from", "to", "stream"} <= names:
-        return TableKind("flowsheet", "a circuit flowsheet", ("circuit",), True)
+        return TableKind("flowsheet", "a circuit flowsheet", ("circuit",), True, (CIRCUIT_DESIGN,))
     if "stream" in names:
-        return TableKind("survey", "a plant survey of a circuit", ("circuit",), True)
+        return TableKind("survey", "a plant survey of a circuit", ("circuit",), True, (CIRCUIT_DESIGN,))
     if "density" in names or "density_lower" in names or "density_upper" in names:
         return TableKind("density", "density tracers, a float-sink table or a density partition", ("density", "fit"), True)
     has_partition = any(name.startswith("partition") for name in names)

@@ -31,7 +31,7 @@ from starlette.routing import Route
 from .forms import OptionsRefused, arguments_from_form, command_parser, form_options, parse_arguments
 from .jobs import COMMANDS as RUN_COMMANDS
 from .jobs import RESULTS_FOLDER, Job, PageRun
-from .kinds import ACCEPTED_SUFFIXES, CIRCUIT_ROLES, command_name, sheet_names, table_kind
+from .kinds import ACCEPTED_SUFFIXES, CIRCUIT_DESIGN, CIRCUIT_ROLES, command_name, sheet_names, table_kind
 from .sessions import Session, Sessions, Upload, safe_file_name
 
 COOKIE = "tromplab_session"
@@ -301,14 +301,18 @@ class _Api:
         return _json({"command": ["tromplab", *run.command_line()], "report_command": report and ["tromplab", *report]})
 
     def _inputs(self, session: Session, command: tuple[str, ...]) -> list[Path] | Response:
-        """The files the command reads: the flowsheet and the survey of ``circuit``, else the table."""
-        if command != ("circuit",):
+        """The files the command reads: the flowsheet and the survey of ``circuit``, the flowsheet
+        (and the survey when one was dropped) of ``circuit design``, else the table."""
+        if command not in (("circuit",), CIRCUIT_DESIGN):
             return [session.upload.path]
-        missing = [role for role in CIRCUIT_ROLES if role not in session.circuit]
+        if command == CIRCUIT_DESIGN and "flowsheet" not in session.circuit:
+            return _refused("tromplab circuit design reads a flowsheet (and the survey taken, if any): drop the flowsheet too")
+        roles = [role for role in CIRCUIT_ROLES if command == ("circuit",) or role in session.circuit]
+        missing = [role for role in roles if role not in session.circuit]
         if missing:
             return _refused(f"tromplab circuit reads a flowsheet and a survey: drop the {' and the '.join(missing)} too")
-        paths = [session.circuit[role].path for role in CIRCUIT_ROLES]
-        if paths[0].name == paths[1].name:
+        paths = [session.circuit[role].path for role in roles]
+        if len(paths) == 2 and paths[0].name == paths[1].name:
             return _refused(f"the flowsheet and the survey are both named {paths[0].name}: rename one of them")
         return paths
 
@@ -317,7 +321,7 @@ class _Api:
         ``values`` stand for, checked by the commands' parsers (:class:`OptionsRefused` if not)."""
         arguments = arguments_from_form(self.forms[command], values)
         report_arguments = self._report_arguments(values) if command == ("fit",) else []
-        if sheet is not None and command != ("circuit",):
+        if sheet is not None and command not in (("circuit",), CIRCUIT_DESIGN):
             arguments = [*arguments, f"--sheet={sheet}"]
             report_arguments = [*report_arguments, f"--sheet={sheet}"] if command == ("fit",) else []
         parse_arguments(self.parsers[command], [*inputs, *arguments])

@@ -5,7 +5,7 @@
 const PAGE_HEADERS = { "x-tromplab-page": "1" };
 const state = { upload: null, options: [], page: null, experiment: 0, polling: null, sort: { column: null, down: false } };
 //: The button's word for each command's run.
-const RUN_WORDS = { "tromplab fit": "Fit", "tromplab density fit": "Fit", "tromplab circuit": "Run", "tromplab trend": "Run" };
+const RUN_WORDS = { "tromplab fit": "Fit", "tromplab density fit": "Fit", "tromplab circuit": "Run", "tromplab circuit design": "Run", "tromplab trend": "Run" };
 const DOWNLOAD_LINKS = { "results.zip": "download-zip", "report.html": "download-report", "results.xlsx": "download-xlsx",
   "trend_report.html": "download-trend-report" };
 
