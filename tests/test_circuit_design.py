@@ -171,7 +171,11 @@ def test_the_first_flow_on_a_survey_scaled_by_a_basis_changes_no_relative_sd():
     assert balance.basis
     design = balance.design_table()
     flows = design[design["measurement"] == "solids flow"]
-    assert len(flows) and (flows["reduction"].abs() < 1e-12).all() and not flows["testable"].any()
+    assert len(flows) and (flows["reduction"] == 0).all() and (flows["sd_after"] == flows["sd_before"]).all()
+    assert not flows["testable"].any()
+    # the rounding of the updates is no reduction: none below 1e-12, none negative, none above 1
+    reduction = design["reduction"]
+    assert ((reduction == 0) | (reduction >= 1e-12)).all() and (reduction <= 1).all()
     row = flows.iloc[0]
     observed = _observed_sd(truth.flowsheet, survey_with(balance, row["stream"], "solids flow"), row["quantity"])
     assert observed == pytest.approx(row["sd_before"], rel=0.01)

@@ -26,6 +26,9 @@ from .measurements import SHARE_COLUMNS, STREAM_VALUE_COLUMNS, ErrorModel, Surve
 from .problem import RANK_TOL, TESTABLE_SHARE
 
 #: Columns of :func:`design_table` (``DIR/design.csv``).
+#: A relative change of a result's sd smaller than this is the rounding of the low-rank updates
+#: (the bundled surveys show up to 3e-14 either way), not an effect of the candidate.
+REDUCTION_ROUNDING = 1e-12
 DESIGN_COLUMNS = ["rank", "stream", "measurement", "quantity", "sd_before", "sd_after", "reduction", "makes_testable",
                   "n_made_testable", "testable", "stated_error"]  # fmt: skip
 #: The measurements one could add, as :func:`candidates` and :func:`survey_with` name them.
@@ -143,6 +146,16 @@ def select_quantities(balance, names, option: str = "quantity") -> list[tuple[st
     return list(chosen.items())
 
 
+def _rounding_cleared(before: float, after: float) -> tuple[float, float]:
+    """The predicted sd and its relative reduction, a change within the arithmetic's rounding
+    (:data:`REDUCTION_ROUNDING`) written as none: an added measurement cannot raise an sd, and a
+    reduction of 1e-16 would rank a candidate that changes nothing above others that do neither."""
+    reduction = 1.0 - after / before if before > 0 else 0.0
+    if abs(reduction) < REDUCTION_ROUNDING:
+        return before, 0.0
+    return after, reduction
+
+
 def design_table(balance, quantities=None, *, errors: ErrorModel | None = None, progress=None) -> pd.DataFrame:
     """One row per candidate measurement and result (:data:`DESIGN_COLUMNS`), ranked by the
     relative reduction of the result's sd, then by the number of measurements it makes testable.
@@ -185,9 +198,9 @@ def design_table(balance, quantities=None, *, errors: ErrorModel | None = None, 
         sd_after, testable_after = updates.with_candidate(candidate)
         newly = names[testable_after[: names.size] & ~updates.testable_now]
         for (name, _), after in zip(quantities, sd_after):
+            after, reduction = _rounding_cleared(before[name], after)
             rows.append({"stream": candidate.stream, "measurement": candidate.measurement, "quantity": name,
-                         "sd_before": before[name], "sd_after": after,
-                         "reduction": 1.0 - after / before[name] if before[name] > 0 else 0.0,
+                         "sd_before": before[name], "sd_after": after, "reduction": reduction,
                          "makes_testable": "; ".join(newly), "n_made_testable": int(newly.size),
                          "testable": bool(testable_after[names.size :].any()), "stated_error": candidate.stated_error})  # fmt: skip
         if progress is not None:
