@@ -74,8 +74,8 @@ from .startup import (
 # the thirty-odd parsers of the others were about 20 ms of every command's start-up.
 
 #: The commands in the order ``tromplab -h`` lists them: the names each entry registers, the
-#: module of this package that registers them, its function that does, and whether that
-#: function takes the option groups shared by the commands on tables
+#: module of this package that registers them (None: this one), its function that does, and
+#: whether that function takes the option groups shared by the commands on tables
 #: (:func:`~tromplab.cli.option_groups.shared_groups`).
 COMMANDS = (
     (("formulas",), "formulas", "add_formulas", True),
@@ -90,7 +90,7 @@ COMMANDS = (
     (("rank",), "rank", "add_rank", False),
     (("layer", "pulp", "optimize"), "models", "add_model_commands", False),
     (("circuit",), "circuit", "add_circuit_command", False),
-    (("density",), "density", "add_density_commands", False),  # fit here, predict in cli.density_predict
+    (("density",), None, "_add_density", False),  # fit in cli.density, predict in cli.density_predict
     (("plant",), "plant", "add_plant_command", False),
     (("app",), "app", "add_app", False),  # the local web workbench (tromplab.app)
 )
@@ -200,6 +200,15 @@ def _command_named(argv) -> str | None:
     return None
 
 
+def _add_density(commands) -> None:
+    """``tromplab density`` with ``fit`` (:mod:`~tromplab.cli.density`, which holds the sub-commands)
+    and ``predict`` (:mod:`~tromplab.cli.density_predict`)."""
+    from .density import add_density_command
+    from .density_predict import add_predict_parser
+
+    add_predict_parser(add_density_command(commands).density_commands)
+
+
 def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     """The ``tromplab`` parser: one builder per command, from the option groups declared once.
 
@@ -219,7 +228,7 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     groups = functools.cache(shared_groups)  # made for the first command on tables built, then shared
     for names, module, function, shared in COMMANDS:
         if command is None or command in names:
-            add_command = getattr(importlib.import_module(f"{__name__}.{module}"), function)
+            add_command = getattr(importlib.import_module(f"{__name__}.{module}" if module else __name__), function)
             add_command(commands, groups()) if shared else add_command(commands)
     state_ranges(parser)
     return parser

@@ -32,13 +32,6 @@ from .startup import (  # done, and some tests without any fitted curve
 FIT_IMPORTS = ("tromplab.density", "tromplab.loading.tables")
 
 
-def add_density_commands(commands) -> None:
-    """Register ``tromplab density`` with ``fit`` (here) and ``predict`` (:mod:`tromplab.cli.density_predict`)."""
-    from .density_predict import add_predict_parser
-
-    add_predict_parser(add_density_command(commands).density_commands)
-
-
 def add_density_command(commands) -> argparse.ArgumentParser:
     """Register ``tromplab density`` with its sub-commands; returns the sub-command parsers' holder.
 

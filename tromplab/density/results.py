@@ -297,22 +297,24 @@ class DensityResult(ResultContract):
             File name -> written path.
         """
         from ..output.outputs import replace_folder
-        from .by_size import by_size_artifacts
         from .covariance import covariance_table
 
         check_figures(figures)
         tables = {"fits": self.fits_table(), "partition": self.partition_table()}
         pictures, figure_table = self._figures(figures, progress)
-        # tests with size fractions: indices by size, the Ep trend and its figure (none without)
-        size_tables, size_figures = by_size_artifacts(
-            self.fits, ci=self.ci or PARTITION_INTERVAL_LEVEL, figures=figures != "none"
-        )
-        tables.update(size_tables)
-        pictures.update(size_figures)
+        sized = any(sample.has_size for sample in self.samples)
+        if sized:  # indices by size, the Ep trend and its figure (their module imported only for them)
+            from .by_size import by_size_artifacts
+
+            size_tables, size_figures = by_size_artifacts(
+                self.fits, ci=self.ci or PARTITION_INTERVAL_LEVEL, figures=figures != "none"
+            )
+            tables.update(size_tables)
+            pictures.update(size_figures)
         outputs = file_writers(tables, texts={"summary.txt": self.report() + "\n"}, pictures=pictures)
         if figure_table is not None:
             outputs["figures.csv"] = lambda path: write_csv(figure_table, path)
-        covariance = covariance_table(self.fits, sizes=any(sample.has_size for sample in self.samples))
+        covariance = covariance_table(self.fits, sizes=sized)
         outputs["covariance.csv"] = lambda path: write_csv(covariance, path)  # for `plant predict --curves-from`
         if not (said := self.warnings_table()).empty:
             outputs["warnings.csv"] = lambda path: write_csv(said, path)
