@@ -38,6 +38,10 @@ def test_tracers_without_placed_and_a_density_with_none_recovered(tmp_path):
     assert sample.points["placed"].isna().all() and sample.points["lost"].isna().all()
     assert sample.points["used"].tolist() == [True, False, True, True]
     assert any("no tracer recovered at density 1.5: left out" in note for note in sample.notes)
+    # the points the fits use: made once (the tables and the fits ask for them a dozen times), in order, renumbered
+    assert sample.used is sample.used
+    assert sample.used["density"].tolist() == [1.4, 1.6, 1.7] and sample.used.index.tolist() == [0, 1, 2]
+    pd.testing.assert_frame_equal(sample.used, sample.points[sample.points["used"]].reset_index(drop=True))
 
 
 def test_tracers_of_several_sizes_are_separate_samples(tmp_path):

@@ -9,6 +9,7 @@ scipy's numbers.
 
 from __future__ import annotations
 
+import argparse
 import json
 import os
 import subprocess
@@ -21,9 +22,11 @@ import pytest
 import scipy.linalg
 import scipy.optimize
 
+from tromplab import cli
 from tromplab.circuit import linear_algebra
 from tromplab.circuit.problem import _bounded_least_squares
 from tromplab.classifiers.pulp import COEFFICIENT_RANGES, PulpScreen
+from tromplab.cli.startup import cli_words, words_of
 from tromplab.loading.node_balance import estimate_fine_yield
 from tromplab.options import PULP_COEFFICIENT_RANGES, PULP_SCREEN_DEFAULTS
 
@@ -83,15 +86,122 @@ def test_a_survey_with_assays_imports_the_tests_distributions_but_not_scipys_sol
     assert _heavy(loaded, ("scipy.linalg", "scipy.optimize", "scipy.sparse", "scipy.stats", "lmfit", "matplotlib")) == []
 
 
+#: The modules of the CLI that register commands (tromplab.cli.COMMANDS).
+COMMAND_MODULES = ("app", "circuit", "density", "density_predict", "fit", "formulas", "models", "plant", "points", "rank",
+                   "report", "sieve", "trend")  # fmt: skip
+
+
 @pytest.mark.slow
-@pytest.mark.parametrize("argv", [["--version"], ["-h"], ["circuit", "design", "-h"], ["pulp", "optimum", "-h"]])
-def test_the_parser_is_built_without_numpy_or_any_commands_implementation(tmp_path, argv):
+@pytest.mark.parametrize(
+    "argv, built",
+    [
+        (["--version"], COMMAND_MODULES),
+        (["-h"], COMMAND_MODULES),
+        (["-q", "-h", "fit"], COMMAND_MODULES),  # tromplab's help, which lists every command
+        (["circuit", "design", "-h"], ("circuit",)),
+        (["pulp", "optimum", "-h"], ("models",)),
+        (["-qv", "density", "fit", "-h"], ("density", "density_predict")),
+    ],
+)
+def test_the_parser_is_built_without_numpy_or_any_commands_implementation(tmp_path, argv, built):
     loaded = _loaded_by(tmp_path, *argv)
-    assert "tromplab.cli.models" in loaded
+    # a command named on the command line builds its own parser and imports no other command's module
+    assert sorted(name for name in COMMAND_MODULES if f"tromplab.cli.{name}" in loaded) == sorted(built)
     implementations = ("tromplab.circuit", "tromplab.classifiers", "tromplab.curves", "tromplab.density", "tromplab.plant",
                        "tromplab.loading.tables", "tromplab.workbench")  # fmt: skip
     assert sorted(name for name in loaded if name.split(".")[0] in ("numpy", "pandas", "scipy")) == []
     assert sorted(name for name in loaded if name.startswith(implementations)) == []
+
+
+@pytest.mark.slow
+def test_a_tracer_file_is_read_without_the_size_lab_tables_balance(tmp_path):
+    # tromplab.loading.lab and the ten modules under it are the float-sink tables' mass balance
+    table = tmp_path / "tracers.csv"
+    table.write_text("test,density,placed,sinks,floats\n" + "".join(
+        f"{test},{density:.2f},30,{sinks},{30 - sinks}\n"
+        for test, shift in (("A", 0), ("B", 1)) for density, sinks in zip((1.3, 1.4, 1.5, 1.6, 1.7, 1.8), (0, 2, 9 + shift, 22, 29, 30))
+    ), encoding="utf-8")  # fmt: skip
+    loaded = _loaded_by(
+        tmp_path, "density", "fit", str(table), "--ci", "0.95", "--figures", "none", "-o", str(tmp_path / "d"), "-q"
+    )
+    assert (tmp_path / "d" / "fits.csv").is_file()
+    lab = ("tromplab.loading.lab", "tromplab.loading.lab_classes", "tromplab.loading.node_balance", "tromplab.loading.kelsall")
+    assert _heavy(loaded, (*lab, "statsmodels", "scipy.optimize", "scipy.stats", "lmfit", "matplotlib")) == []
+    assert sorted(name for name in COMMAND_MODULES if f"tromplab.cli.{name}" in loaded) == ["density", "density_predict"]
+
+
+def _command_paths(parser, path=()):
+    yield path, parser
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for name, sub in action.choices.items():
+                yield from _command_paths(sub, (*path, name))
+
+
+@pytest.mark.parametrize("names", [names for names, *_ in cli.COMMANDS], ids=lambda names: names[0])
+def test_a_commands_own_parser_is_the_whole_parsers_to_the_word(names):
+    whole = dict(_command_paths(cli.build_parser()))
+    for name in names:
+        own = dict(_command_paths(cli.build_parser(name)))
+        assert {path for path in own if path} == {path for path in whole if path and path[0] in names}
+        for path, parser in own.items():
+            if path:  # each sub-command's help (usage, options, ranges), its options and defaults as in the whole parser
+                assert parser.format_help() == whole[path].format_help(), path
+                assert _options(parser) == _options(whole[path]), path
+                assert _values(parser._defaults) == _values(whole[path]._defaults), path
+
+
+def _options(parser) -> list:
+    fields = ("option_strings", "dest", "nargs", "const", "default", "required", "help", "metavar")
+    return [
+        [*(getattr(action, name) for name in fields), getattr(action.type, "range", None), getattr(action.type, "__name__", None),
+         sorted(action.choices) if action.choices is not None else None]
+        for action in parser._actions
+    ]  # fmt: skip
+
+
+def _values(defaults: dict) -> dict:
+    # a command group's run is a function made for its parser (print its usage): compared by name
+    return {key: getattr(value, "__qualname__", value) for key, value in defaults.items()}
+
+
+@pytest.mark.parametrize(
+    "argv, named",
+    [
+        (["density", "fit", "x.csv"], "density"),
+        (["-q", "--debug", "-vv", "circuit", "design", "x.csv"], "circuit"),
+        (["--quiet", "--verbose", "pulp", "optimum"], "pulp"),
+        (["-h", "fit"], None),  # tromplab -h: every command listed
+        (["--he", "fit"], None),  # an abbreviation of --help
+        (["-qh", "fit"], None),
+        (["--version", "fit"], None),
+        (["-5", "fit"], None),  # argparse reads -5 as the command (and refuses it among every choice)
+        (["--", "fit"], None),
+        (["fi", "x.csv"], None),  # not a command: the choices are listed
+        ([], None),
+    ],
+)
+def test_only_a_command_named_before_any_other_option_is_built_alone(argv, named):
+    assert cli._command_named(argv) == named
+
+
+def test_the_option_words_of_the_whole_parser_are_built_only_for_a_message_that_may_name_one():
+    built = []
+
+    def whole():
+        built.append(1)
+        return cli.build_parser()
+
+    with words_of(whole):
+        assert cli_words("7 of 40 tests: the counts are overdispersed (Pearson chi2/df > 1)") == (
+            "7 of 40 tests: the counts are overdispersed (Pearson chi2/df > 1)"
+        )
+        assert built == []
+        worded = cli_words("the fine_yield of the sum_tolerance_pct and kind='pct'")
+    assert len(built) == 1
+    with words_of(cli.build_parser()):
+        assert worded == cli_words("the fine_yield of the sum_tolerance_pct and kind='pct'")
+    assert worded == "the --fine-yield of the --sum-tolerance and --kind pct"
 
 
 def test_the_pulp_options_are_the_screens_fields_and_ranges():

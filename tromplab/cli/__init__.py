@@ -31,8 +31,10 @@ enters through :mod:`tromplab._launch`, which handles SIGINT and SIGTERM before 
 from __future__ import annotations
 
 import argparse
+import functools
 import importlib
 import os
+import re
 import sys
 import traceback
 import warnings
@@ -41,12 +43,7 @@ from .._version import __version__
 from ..errors import InputError, OptionError, ResultError, YieldWarning
 from ..output.outputs import forget_written
 from ..validation import state_ranges
-from . import app, circuit, fit, formulas, points, rank, report, sieve, trend
-from .density import add_density_command
-from .density_predict import add_predict_parser
-from .models import add_model_commands
 from .option_groups import shared_groups
-from .plant import add_plant_command
 from .startup import (
     EXIT_INPUT,
     EXIT_OK,
@@ -72,7 +69,34 @@ from .startup import (
 # Each command module imports the library modules it needs when the command runs: building the
 # parser takes only the light modules, so --version, -h and a command that needs little (export)
 # do not pay for scipy.stats, lmfit, matplotlib and statsmodels at start-up (nothing below
-# imports the CLI, so the imports inside the functions hide no cycle).
+# imports the CLI, so the imports inside the functions hide no cycle).  A command run by its
+# name builds only its own parser and imports only its own module (COMMANDS): the modules and
+# the thirty-odd parsers of the others were about 20 ms of every command's start-up.
+
+#: The commands in the order ``tromplab -h`` lists them: the names each entry registers, the
+#: module of this package that registers them (None: this one), its function that does, and
+#: whether that function takes the option groups shared by the commands on tables
+#: (:func:`~tromplab.cli.option_groups.shared_groups`).
+COMMANDS = (
+    (("formulas",), "formulas", "add_formulas", True),
+    (("fit",), "fit", "add_fit", True),
+    (("report",), "report", "add_report", True),
+    (("compare",), "report", "add_compare", True),
+    (("export",), "report", "add_export", True),
+    (("trend",), "trend", "add_trend", True),
+    (("points",), "points", "add_points", True),
+    (("balance",), "points", "add_balance", True),
+    (("sieve",), "sieve", "add_sieve", False),
+    (("rank",), "rank", "add_rank", False),
+    (("layer", "pulp", "optimize"), "models", "add_model_commands", False),
+    (("circuit",), "circuit", "add_circuit_command", False),
+    (("density",), None, "_add_density", False),  # fit in cli.density, predict in cli.density_predict
+    (("plant",), "plant", "add_plant_command", False),
+    (("app",), "app", "add_app", False),  # the local web workbench (tromplab.app)
+)
+#: Words before the command that leave the parser of every other command unread: -q, -v (and
+#: -qv, -vv ...), --quiet, --verbose, --debug.  Anything else (-h lists every command) builds them all.
+_QUIET_WORDS = re.compile(r"-[qv]+|--quiet|--verbose|--debug")
 
 __all__ = ["Terminated", "build_parser", "interrupted", "main", "raise_terminated"]
 
@@ -84,7 +108,11 @@ def main(argv=None, *, on_start=None) -> int:
     ``on_start`` (from :mod:`tromplab._launch`) is called when the command has imported its
     modules and starts its work: until then an interrupt ends the start-up at once.
     """
-    parser = build_parser()
+    command_named = _command_named(sys.argv[1:] if argv is None else argv)
+    parser = build_parser(command_named)
+    # the whole parser's option words for messages worded without a command's parser (the
+    # notes printed as the command ends), built only if such a message names a Python word
+    whole = parser if command_named is None else functools.cache(build_parser)
     forget_written()
     try:
         args = parser.parse_args(argv)
@@ -92,7 +120,7 @@ def main(argv=None, *, on_start=None) -> int:
         return stop.code if isinstance(stop.code, int) else EXIT_USAGE
     except KeyboardInterrupt:
         return interrupted()
-    if not hasattr(args, "run"):
+    if not hasattr(args, "run"):  # no command: the whole parser was built
         return print_usage(parser)
     path = [
         name
@@ -113,7 +141,7 @@ def main(argv=None, *, on_start=None) -> int:
                 importlib.import_module(module)
         if on_start is not None:
             on_start()
-        with sigterm_as_interrupt(), warnings.catch_warnings(), verbosity(args), words_of(parser):
+        with sigterm_as_interrupt(), warnings.catch_warnings(), verbosity(args), words_of(whole):
             warnings.simplefilter("ignore", YieldWarning)  # printed from the balance notes instead
             with python_warnings(quiet=args.quiet, verbose=args.verbose):
                 return args.run(args)
@@ -162,8 +190,32 @@ def _command_parser(parser: argparse.ArgumentParser, path) -> argparse.ArgumentP
     return parser
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The ``tromplab`` parser: one builder per command, from the option groups declared once."""
+def _command_named(argv) -> str | None:
+    """The command ``argv`` runs, when no other command's parser can be needed to answer it: its
+    first word, after only -q, -v and --debug, if it names a command; None otherwise (the whole
+    parser: ``-h`` before the command lists every command, and an unknown one is told the choices)."""
+    for word in argv:
+        if not _QUIET_WORDS.fullmatch(word):
+            return word if any(word in names for names, *_ in COMMANDS) else None
+    return None
+
+
+def _add_density(commands) -> None:
+    """``tromplab density`` with ``fit`` (:mod:`~tromplab.cli.density`, which holds the sub-commands)
+    and ``predict`` (:mod:`~tromplab.cli.density_predict`)."""
+    from .density import add_density_command
+    from .density_predict import add_predict_parser
+
+    add_predict_parser(add_density_command(commands).density_commands)
+
+
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The ``tromplab`` parser: one builder per command, from the option groups declared once.
+
+    With ``command`` (a name of :data:`COMMANDS`), only that command and its sub-commands are
+    registered, and only its module is imported (what :func:`main` parses a command line with);
+    their help and messages are those of the whole parser.
+    """
     parser = CommandParser(
         prog="tromplab",
         description="Fit, screen and rank separation (Tromp) curves.",
@@ -173,25 +225,10 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"tromplab {__version__}")
     commands = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=SubcommandParser)
-    groups = shared_groups()
-    for add_command in (
-        formulas.add_formulas,
-        fit.add_fit,
-        report.add_report,
-        report.add_compare,
-        report.add_export,
-        trend.add_trend,
-        points.add_points,
-        points.add_balance,
-    ):
-        add_command(commands, groups)
-    sieve.add_sieve(commands)
-    rank.add_rank(commands)
-    add_model_commands(commands)  # layer, pulp, optimize
-    circuit.add_circuit_command(commands)
-    density = add_density_command(commands)  # density fit (the sub-commands and their work are in cli.density)
-    add_predict_parser(density.density_commands)  # density predict (cli.density_predict)
-    add_plant_command(commands)  # plant predict (cli.plant)
-    app.add_app(commands)  # the local web workbench (tromplab.app)
+    groups = functools.cache(shared_groups)  # made for the first command on tables built, then shared
+    for names, module, function, shared in COMMANDS:
+        if command is None or command in names:
+            add_command = getattr(importlib.import_module(f"{__name__}.{module}" if module else __name__), function)
+            add_command(commands, groups()) if shared else add_command(commands)
     state_ranges(parser)
     return parser

@@ -20,6 +20,7 @@ import signal
 import sys
 import textwrap
 import warnings
+from collections.abc import Callable
 from pathlib import Path
 
 from ..errors import InputError, InputNote, OptionError
@@ -208,15 +209,18 @@ def cli_message(error: InputError, parser: argparse.ArgumentParser) -> str:
     return cli_words(str(error), parser)
 
 
-#: The whole ``tromplab`` parser while a command runs (see :func:`words_of`).
-_RUNNING_PARSER: contextvars.ContextVar[argparse.ArgumentParser | None] = contextvars.ContextVar("parser", default=None)
+#: The whole ``tromplab`` parser (or the function that builds it) while a command runs (see :func:`words_of`).
+_RUNNING_PARSER: contextvars.ContextVar[argparse.ArgumentParser | Callable[[], argparse.ArgumentParser] | None] = (
+    contextvars.ContextVar("parser", default=None)
+)
 
 
 @contextlib.contextmanager
-def words_of(parser: argparse.ArgumentParser):
+def words_of(parser):
     """While the command runs, messages worded without a command's parser (the balance notes of
     lab tables) take the options of ``parser``, the whole command line's.  A context variable, not
-    an argument: the command modules sit below the module that builds the parser."""
+    an argument: the command modules sit below the module that builds the parser.  ``parser`` may
+    be a function that returns it, called when a message first needs its words."""
     token = _RUNNING_PARSER.set(parser)
     try:
         yield
@@ -230,6 +234,10 @@ def cli_words(message: str, parser: argparse.ArgumentParser | None = None) -> st
     parser = parser or _RUNNING_PARSER.get()
     if parser is None:
         raise RuntimeError("cli_words needs a parser outside a running command (tromplab.cli.main)")
+    if not ("_" in message or "=" in message):  # every Python name replaced has a "_", every keyword a "="
+        return message
+    if callable(parser):  # the whole parser, built on first need (tromplab.cli.main)
+        parser = parser()
     for name, flag in _python_names_of_options(parser).items():
         if name in message:  # not inside quoted column names
             message = re.sub(rf"(?<![-\w'\"]){name}(?![\w'\"])", flag, message)

@@ -41,25 +41,24 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
 
 from ..errors import InputError
-from ..loading.lab import (
-    LabOptions,
-    YieldEstimate,
-    estimate_fine_yield,
-    partition_to_fines,
-    per_class_shares,
-    yield_contradiction,
-)
 from ..loading.points import experiment_rows, size_column_unit
 from ..loading.tables import Table, read_table
 from ..options import DEFAULT_SUM_TOLERANCE_PCT
 from ..validation import YIELD_MARGIN, check_optional, check_yield
 from .fractions import densities, density_fractions
+
+# The size lab tables' mass balance (tromplab.loading.lab and the ten modules under it) is imported
+# where a float-sink table needs it: a file of tracer counts or of partitions does not.
+if TYPE_CHECKING:
+    from ..loading.lab import LabOptions, YieldEstimate
 
 LAYOUTS = ("tracers", "float-sink", "partition")
 TRACER_COLUMNS = ("density", "sinks", "floats")
@@ -142,9 +141,12 @@ class DensitySample:
         """The test and its size fraction, for messages and figure titles."""
         return f"{self.test} ({self.size_fraction})" if self.has_size else self.test
 
-    @property
+    @cached_property
     def used(self) -> pd.DataFrame:
-        """The points the fits use."""
+        """The points the fits use (made once, on first use: read it as :attr:`points` is read, not
+        to be changed in place)."""
+        # the fits, the tables and the summary ask for it a dozen times per test: a boolean row
+        # selection of pandas each time was a fifth of the writing of fits.csv
         return self.points[self.points["used"]].reset_index(drop=True)
 
 
@@ -313,6 +315,8 @@ class DensityTable:
             return _tracer_sample(part, context)
         if self.layout == "partition":
             return _partition_sample(part, context)
+        from ..loading.lab import LabOptions
+
         options = LabOptions(sum_tolerance_pct=self.sum_tolerance_pct)
         return _float_sink_sample(part, context, options, self.floats_yield)
 
@@ -482,6 +486,8 @@ def _partition_sample(table: Table, context: dict) -> DensitySample:
 
 
 def _float_sink_sample(table: Table, context: dict, options: LabOptions, floats_yield: float | None) -> DensitySample:
+    from ..loading.lab import partition_to_fines, per_class_shares
+
     fractions = density_fractions(table, minimum=3)
     lower, upper, density, notes = fractions.lower, fractions.upper, fractions.density, list(fractions.notes)
     shares = {}
@@ -559,6 +565,8 @@ def _stated_floats_yield(table: Table, option: float | None) -> tuple[float | No
 
 def _sinks_yield(table: Table, shares: dict, floats_yield: float | None, notes: list[str]):
     """The sinks yield (the size tables' "fine yield" with the sinks as that product), its source and the estimate."""
+    from ..loading.lab import estimate_fine_yield, yield_contradiction
+
     given, source = _stated_floats_yield(table, floats_yield)
     estimate = None
     if "feed" in shares:
