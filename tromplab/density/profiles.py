@@ -9,11 +9,12 @@ estimate).  A limit is where the excess :math:`(D(q) - \hat D)/\phi - c` crosses
 (``phi`` the scale and ``c`` the threshold the caller gives).  Both sides of every request
 go together: from the estimate a step of a quarter of Ep (of I) and then twice as far each
 time until the excess is positive (a bracket) or the search range ends (no limit); within
-each bracket regula falsi (Illinois), every side at once, converges to the last digits.  The
-search is the one every curve's profile uses, size or density
-(:func:`tromplab.curves.likelihood.step_out` and :func:`~tromplab.curves.likelihood.regula_falsi`);
-this module gives it the excess of the re-optimised deviance, and for the plain curves its
-slope too (:func:`~tromplab.curves.likelihood.newton_in_bracket`, :func:`profile_limits`).
+each bracket Newton's method kept within the bracket, every side at once, converges to the
+last digits (regula falsi, Illinois, where a profile of a curve with limits does not cross its
+bracket smoothly).  The search is the one every curve's profile uses, size or density
+(:func:`tromplab.curves.likelihood.step_out` and
+:func:`~tromplab.curves.likelihood.newton_in_bracket`); this module gives it the excess of the
+re-optimised deviance and its slope (:func:`profile_limits`).
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..curves.likelihood import newton_in_bracket, regula_falsi, step_out
+from ..curves.likelihood import Bracket, newton_in_bracket, step_out
 from .batch import TracerStack, centre_and_scale, minimise_deviance
 from .registry import QUARTILES
 
@@ -33,6 +34,9 @@ ROOT_RELATIVE_TOLERANCE = 1e-14
 ROOT_STEP_TOLERANCE = 1e-11
 #: Iterations of the root search (it converges in about fifteen).
 MAX_ROOT_ITERATIONS = 100
+#: How far (a factor) the chord of a bracket may be from the excess's slopes at its ends for the
+#: profile of a curve with limits to be closed by Newton's steps (:func:`_smooth_brackets`).
+SMOOTH_CHORD_RATIO = 5.0
 
 
 @dataclass(frozen=True)
@@ -282,6 +286,16 @@ class _Profiles:
         self.request = np.tile(np.arange(count), 2)
         self.direction = np.repeat([-1.0, 1.0], count)
         self.warm = requests.centre[self.request].copy()  # the optimum at the last value of each side
+        # the excess's slope (in the value) at the last value below and above the threshold of each side
+        self.inner_slope, self.outer_slope = np.zeros(len(self.request)), np.full(len(self.request), np.nan)
+
+    def stepping_excess(self, sides: np.ndarray, value: np.ndarray) -> np.ndarray:
+        """The excess at ``value`` on each of ``sides`` (:meth:`excess`), its slope kept as the
+        slope at the bracket's inner (excess below zero) or outer end for :func:`_smooth_brackets`."""
+        excess, slope = self.excess_and_slope(sides, value)
+        below = excess < 0
+        self.inner_slope[sides[below]], self.outer_slope[sides[~below]] = slope[below], slope[~below]
+        return excess
 
     def excess(self, sides: np.ndarray, value: np.ndarray) -> np.ndarray:
         """The excess of the re-optimised deviance at ``value`` on each of ``sides`` (warm starts updated)."""
@@ -374,8 +388,14 @@ def profile_limits(curves, requests: ProfileRequests) -> tuple[np.ndarray, np.nd
     falsi to their tolerance (1e-12 relative).  A curve with limits re-optimises three indices,
     and far from the estimate (Ep of 1 g/cm3 and more, where the curve is nearly flat) the box
     holds several local minima in its corners: which one a minimisation reaches depends on its
-    path, so those profiles keep the differences and regula falsi, whose path they were
-    validated on (the analytic derivatives moved two such limits of overdispersed tests).
+    path, so those profiles keep the differences and both starts (the analytic derivatives
+    moved two such limits of overdispersed tests, and so did dropping the start at the
+    estimate within the bracket).  Their brackets are closed by Newton's method too where the
+    profile crosses the bracket smoothly (:func:`_smooth_brackets`: rising at both ends, the
+    chord close to the ends' slopes), about 5 re-optimisations where regula falsi took 13;
+    elsewhere (a profile that jumps between local minima within the bracket, flat or falling at
+    an end) by regula falsi, whose steps are those :func:`newton_in_bracket` takes without a
+    slope: the limit of such a profile is the one it always was, to the last bit.
     """
     profiles = _Profiles(list(curves) if isinstance(curves, (list, tuple)) else [curves], requests)
     sides = np.arange(len(profiles.request))
@@ -387,22 +407,23 @@ def profile_limits(curves, requests: ProfileRequests) -> tuple[np.ndarray, np.nd
         requests.lower[request, requests.position[request]],
     )
     step = requests.step[request]
-    bracket = step_out(profiles.excess, centre, profiles.direction, np.abs(edge - centre), step, -requests.threshold[request])
+    stepping = profiles.stepping_excess if profiles.has_limits else profiles.excess
+    bracket = step_out(stepping, centre, profiles.direction, np.abs(edge - centre), step, -requests.threshold[request])
     limits = np.full(len(sides), np.nan)
     bracketed = np.flatnonzero(bracket.closed)
     if bracketed.size:
         width = 2.0 * (ROOT_STEP_TOLERANCE * step[bracketed] + 2.0 * ROOT_RELATIVE_TOLERANCE * np.abs(centre[bracketed]))
 
-        def excess_and_slope(rows, values):
-            return profiles.excess_and_slope(bracketed[rows], values)
-
         direction = profiles.direction[bracketed]
-        if profiles.has_limits:
-            distance = regula_falsi(lambda rows, values: profiles.excess(bracketed[rows], values), centre[bracketed],
-                                    direction, bracket.take(bracketed), width, max_iterations=MAX_ROOT_ITERATIONS)  # fmt: skip
-        else:
-            distance = newton_in_bracket(excess_and_slope, centre[bracketed], direction, bracket.take(bracketed), width,
-                                         max_iterations=MAX_ROOT_ITERATIONS)  # fmt: skip
+        # a curve with limits closes by Newton's steps only the brackets its profile crosses smoothly
+        smooth = _smooth_brackets(profiles, bracket, bracketed) if profiles.has_limits else np.ones(len(bracketed), bool)
+
+        def excess_and_slope(rows, values):
+            excess, slope = profiles.excess_and_slope(bracketed[rows], values)
+            return excess, np.where(smooth[rows], slope, np.nan)  # no slope: the Illinois step (regula falsi's)
+
+        distance = newton_in_bracket(excess_and_slope, centre[bracketed], direction, bracket.take(bracketed), width,
+                                     max_iterations=MAX_ROOT_ITERATIONS)  # fmt: skip
         limits[bracketed] = centre[bracketed] + direction * distance
         _recheck_edges(profiles, sides, limits, edge, step)
     count = len(requests.best)
@@ -415,6 +436,24 @@ def profile_limits(curves, requests: ProfileRequests) -> tuple[np.ndarray, np.nd
         for i in range(count)
     ]
     return limits[:count], limits[count:], notes
+
+
+def _smooth_brackets(profiles: _Profiles, bracket: Bracket, bracketed: np.ndarray) -> np.ndarray:
+    """Which of the brackets ``bracketed`` (sides) a profile of a curve with limits crosses
+    smoothly: its excess rising at both ends (in the distance from the estimate; the slopes kept
+    by :meth:`_Profiles.stepping_excess`) and the chord between the ends within
+    :data:`SMOOTH_CHORD_RATIO` of their slopes.  A profile that jumps from one local minimum to
+    another within the bracket, or that is flat or falling at an end, fails the test: its
+    bracket is closed by regula falsi, on the path the limit was validated on."""
+    direction = profiles.direction[bracketed]
+    inner, outer = direction * profiles.inner_slope[bracketed], direction * profiles.outer_slope[bracketed]
+    closed = bracket.take(bracketed)
+    with np.errstate(all="ignore"):
+        chord = (closed.outer_excess - closed.inner_excess) / (closed.outer - closed.inner)
+    return (
+        np.isfinite(inner) & np.isfinite(outer) & np.isfinite(chord) & (inner >= 0) & (outer > 0)
+        & (chord * SMOOTH_CHORD_RATIO >= np.minimum(inner, outer)) & (chord <= SMOOTH_CHORD_RATIO * np.maximum(inner, outer))
+    )  # fmt: skip
 
 
 def _recheck_edges(profiles: _Profiles, sides, limits, edge, step) -> None:
