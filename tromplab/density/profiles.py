@@ -37,6 +37,9 @@ MAX_ROOT_ITERATIONS = 100
 #: How far (a factor) the chord of a bracket may be from the excess's slopes at its ends for the
 #: profile of a curve with limits to be closed by Newton's steps (:func:`_smooth_brackets`).
 SMOOTH_CHORD_RATIO = 5.0
+#: How near (in first steps) a value of a smooth bracket must be to the last one for the start
+#: at the estimate to be replaced by the optimum it reached there (:meth:`_Profiles._estimate_start`).
+BRANCH_DISTANCE = 1e-2
 
 
 @dataclass(frozen=True)
@@ -286,6 +289,10 @@ class _Profiles:
         self.request = np.tile(np.arange(count), 2)
         self.direction = np.repeat([-1.0, 1.0], count)
         self.warm = requests.centre[self.request].copy()  # the optimum at the last value of each side
+        # the optimum the start at the estimate reached last on each side, and the value it was at;
+        # which sides may start there instead (their brackets closed by Newton's steps)
+        self.from_estimate, self.estimate_value = self.warm.copy(), np.full(len(self.request), np.nan)
+        self.trackable = np.zeros(len(self.request), dtype=bool)
         # the excess's slope (in the value) at the last value below and above the threshold of each side
         self.inner_slope, self.outer_slope = np.zeros(len(self.request)), np.full(len(self.request), np.nan)
 
@@ -296,6 +303,16 @@ class _Profiles:
         below = excess < 0
         self.inner_slope[sides[below]], self.outer_slope[sides[~below]] = slope[below], slope[~below]
         return excess
+
+    def _estimate_start(self, sides: np.ndarray, value: np.ndarray) -> np.ndarray:
+        """The second start of a curve with limits: the estimate, or, on a side whose bracket is
+        closed by Newton's steps (``trackable``) and within :data:`BRANCH_DISTANCE` first steps of
+        the value it was last asked at, the optimum the estimate's start reached there (the same
+        local minimum, a few steps nearer)."""
+        r = self.requests
+        request = self.request[sides]
+        near = self.trackable[sides] & (np.abs(value - self.estimate_value[sides]) <= BRANCH_DISTANCE * r.step[request])
+        return np.where(near[:, None], self.from_estimate[sides], r.centre[request])
 
     def excess(self, sides: np.ndarray, value: np.ndarray) -> np.ndarray:
         """The excess of the re-optimised deviance at ``value`` on each of ``sides`` (warm starts updated)."""
@@ -309,23 +326,56 @@ class _Profiles:
         index at the re-optimised point (envelope theorem; NaN where no finite deviance was found).
 
         A curve with limits is re-optimised from two starts, the last optimum of the side and
-        the estimate, both in one minimisation (rows stacked), the lower deviance kept (the
-        last optimum among equals)."""
+        the estimate (:meth:`_estimate_start`), both in one minimisation (rows stacked), the
+        lower deviance kept (the last optimum among equals); where the two starts are the same
+        point, bit for bit (the first value of a side, or a side whose optimum came from the
+        estimate's start), it is minimised once."""
         r = self.requests
         count = len(sides)
-        starts = [self.warm[sides]] + ([r.centre[self.request[sides]]] if self.has_limits else [])
-        request = np.tile(self.request[sides], len(starts))
+        if self.has_limits:
+            # a start from the estimate's branch that is the side's warm start itself, bit for bit,
+            # would repeat its minimisation: it is made once
+            second = self._estimate_start(sides, value)
+            apart = np.flatnonzero((second != self.warm[sides]).any(axis=1))
+            found_x, found_deviance = self._minimised(
+                np.concatenate([sides, sides[apart]]), np.concatenate([value, value[apart]]),
+                np.concatenate([self.warm[sides], second[apart]]),
+            )  # fmt: skip
+            x, deviance = np.stack([found_x[:count]] * 2), np.stack([found_deviance[:count]] * 2)
+            x[1, apart], deviance[1, apart] = found_x[count:], found_deviance[count:]
+        else:
+            found_x, found_deviance = self._minimised(sides, value, self.warm[sides])
+            x, deviance = found_x[None], found_deviance[None]
+        pick = np.argmin(deviance, axis=0)  # the first start among equals
+        best_x, best_value = x[pick, np.arange(count)], deviance[pick, np.arange(count)]
+        finite = np.isfinite(best_value)
+        self.warm[sides[finite]] = best_x[finite]
+        if self.has_limits:
+            reached = np.isfinite(deviance[1])
+            self.from_estimate[sides[reached]], self.estimate_value[sides[reached]] = x[1][reached], value[reached]
+        request = self.request[sides]
+        stack, forms = r.stack.take(request), _RowForms(self.curves, self.curve[request])
+        excess = (best_value - r.best[request]) / r.scale[request] - r.threshold[request]
+        excess = np.where(finite, excess, BEYOND)
+        if not slope:
+            return excess, None
+        rise = self._slope(stack, forms, best_x, r.imperfection[request], r.position[request])
+        return excess, np.where(finite, rise / r.scale[request], np.nan)
+
+    def _minimised(self, sides: np.ndarray, value: np.ndarray, start: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The minimum of the deviance of each row (of ``sides``) with its held index at ``value``, from
+        ``start`` (in the indices), and the deviance there (inf where none finite was found)."""
+        r = self.requests
+        request = self.request[sides]
         stack = r.stack.take(request)
         # the held index is put first (rho50 and Ep or I swap places), so that the minimiser
         # sees one column held in every row and takes no derivative along it
         order = np.tile(np.arange(r.centre.shape[1]), (len(request), 1))
         order[:, [0, 1]] = np.where(r.position[request][:, None] == 1, [1, 0], [0, 1])
-        held = np.tile(value, len(starts))
-        lower, upper, start = (_ordered(part, order) for part in (r.lower[request], r.upper[request], np.concatenate(starts)))
-        lower[:, 0] = upper[:, 0] = start[:, 0] = held
-        imperfection, curve, position = r.imperfection[request], self.curve[request], r.position[request]
-
-        forms = _RowForms(self.curves, curve)
+        lower, upper, start = (_ordered(part, order) for part in (r.lower[request], r.upper[request], start))
+        lower[:, 0] = upper[:, 0] = start[:, 0] = value
+        imperfection, position = r.imperfection[request], r.position[request]
+        forms = _RowForms(self.curves, self.curve[request])
 
         def partition(x, rows):
             indices = _ordered(x, order[rows])  # the swap is its own inverse
@@ -337,20 +387,7 @@ class _Profiles:
 
         exact = None if self.has_limits else derivatives  # see profile_limits: why not with limits
         found = minimise_deviance(stack, partition, start, lower, upper, derivatives=exact)
-        x = _ordered(found.x, order).reshape(len(starts), count, -1)
-        deviance = np.where(np.isfinite(found.deviance), found.deviance, np.inf).reshape(len(starts), count)
-        pick = np.argmin(deviance, axis=0)  # the first start among equals
-        best_x, best_value = x[pick, np.arange(count)], deviance[pick, np.arange(count)]
-        finite = np.isfinite(best_value)
-        self.warm[sides[finite]] = best_x[finite]
-        request = request[:count]
-        excess = (best_value - r.best[request]) / r.scale[request] - r.threshold[request]
-        excess = np.where(finite, excess, BEYOND)
-        if not slope:
-            return excess, None
-        first = np.arange(count)  # the rows of the first start: the same requests
-        rise = self._slope(stack.take(first), forms.take(first), best_x, imperfection[first], position[first])
-        return excess, np.where(finite, rise / r.scale[request], np.nan)
+        return _ordered(found.x, order), np.where(np.isfinite(found.deviance), found.deviance, np.inf)
 
     @staticmethod
     def _slope(stack: TracerStack, forms: _RowForms, q: np.ndarray, imperfection, held) -> np.ndarray:
@@ -418,6 +455,8 @@ def profile_limits(curves, requests: ProfileRequests) -> tuple[np.ndarray, np.nd
         # a curve with limits closes by Newton's steps only the brackets its profile crosses smoothly
         smooth = _smooth_brackets(profiles, bracket, bracketed) if profiles.has_limits else np.ones(len(bracketed), bool)
 
+        profiles.trackable[bracketed[smooth]] = True
+
         def excess_and_slope(rows, values):
             excess, slope = profiles.excess_and_slope(bracketed[rows], values)
             return excess, np.where(smooth[rows], slope, np.nan)  # no slope: the Illinois step (regula falsi's)
@@ -425,6 +464,7 @@ def profile_limits(curves, requests: ProfileRequests) -> tuple[np.ndarray, np.nd
         distance = newton_in_bracket(excess_and_slope, centre[bracketed], direction, bracket.take(bracketed), width,
                                      max_iterations=MAX_ROOT_ITERATIONS)  # fmt: skip
         limits[bracketed] = centre[bracketed] + direction * distance
+        profiles.trackable[:] = False
         _recheck_edges(profiles, sides, limits, edge, step)
     count = len(requests.best)
     notes = [
