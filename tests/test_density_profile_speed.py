@@ -10,22 +10,26 @@ import pandas as pd
 import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
-from tromplab.curves.likelihood import Bracket, newton_in_bracket, regula_falsi
+from tromplab.curves.likelihood import Bracket, newton_in_bracket, regula_falsi, step_out
 from tromplab.density import read_density
 from tromplab.density.batch import partition_at
 from tromplab.density.covariance import covariance_table, index_covariance
 from tromplab.density.dispersion import PooledDispersion, _interval_rule, interval_rule
 from tromplab.density.fitting import _profile_requests, fit_data, fit_density_curves
 from tromplab.density.profiles import (
+    MAX_ROOT_ITERATIONS,
+    ROOT_RELATIVE_TOLERANCE,
+    ROOT_STEP_TOLERANCE,
     _Profiles,
     _RowForms,
+    _smooth_brackets,
     curve_of_indices,
     held_derivative,
     index_derivatives,
     profile_limits,
 )
 from tromplab.density.registry import DENSITY_CURVES, LIMIT_CURVES, PLAIN_CURVES
-from tromplab.density.simulation import simulate_tracer_test
+from tromplab.density.simulation import beta_binomial_tracer_test, simulate_tracer_test
 
 ROWS = 8
 DENSITY = np.tile(np.linspace(1.3, 1.9, 12), (ROWS, 1))
@@ -183,3 +187,89 @@ def test_the_remembered_interval_rule_is_the_rule(dispersion, df_resid, pooled):
         assert interval_rule(dispersion, df_resid, 0.95, pooled) == _interval_rule(dispersion, df_resid, 0.95, pooled)
     rule = interval_rule(np.array(2.5), 9, 0.95)  # an array argument is not remembered: the rule itself
     assert rule.scale == _interval_rule(2.5, 9, 0.95, None).scale
+
+
+def falsi_limits(curves, requests):
+    """The limits as the profiles of the curves with limits were searched before their smooth
+    brackets were closed by Newton's steps (main at e005dd4): the step out, then regula falsi in
+    every bracket, each value re-optimised from the side's last optimum and from the estimate."""
+    profiles = _Profiles(list(curves), requests)
+    request, position = profiles.request, requests.position[profiles.request]
+    centre = requests.centre[request, position]
+    edge = np.where(profiles.direction > 0, requests.upper[request, position], requests.lower[request, position])
+    step = requests.step[request]
+    bracket = step_out(profiles.excess, centre, profiles.direction, np.abs(edge - centre), step, -requests.threshold[request])
+    limits = np.full(len(request), np.nan)
+    closed = np.flatnonzero(bracket.closed)
+    width = 2.0 * (ROOT_STEP_TOLERANCE * step[closed] + 2.0 * ROOT_RELATIVE_TOLERANCE * np.abs(centre[closed]))
+    distance = regula_falsi(lambda rows, values: profiles.excess(closed[rows], values), centre[closed],
+                            profiles.direction[closed], bracket.take(closed), width, max_iterations=MAX_ROOT_ITERATIONS)  # fmt: skip
+    limits[closed] = centre[closed] + profiles.direction[closed] * distance
+    at_edge = np.flatnonzero(np.abs(limits - edge) <= 1e-6 * step)
+    if at_edge.size:
+        limits[at_edge[profiles.excess(at_edge, edge[at_edge]) <= 0]] = np.nan
+    count = len(requests.best)
+    return limits[:count], limits[count:]
+
+
+def limits_requests(fits):
+    """The profiles of rho50, Ep and I of every fit of a curve with limits, searched together."""
+    chosen = [(fit, quantity, fit_data(fit.sample, fit.method)) for fit in fits if fit.curve in LIMIT_CURVES
+              and fit.success for quantity in ("rho50", "ep", "imperfection")]  # fmt: skip
+    number = {curve.id: i for i, curve in enumerate(LIMIT_CURVES)}
+    which = np.array([number[fit.curve.id] for fit, _, _ in chosen])
+    return dataclasses.replace(_profile_requests(chosen, 0.95), curve=which)
+
+
+@pytest.fixture(scope="module")
+def overdispersed(tmp_path_factory):
+    """Six beta-binomial tracer tests (precision 4; density_folders_digest.py's overdispersed
+    input), whose profiles of the curves with limits hold several local minima, every curve fitted."""
+    rng = np.random.default_rng(44)
+    densities = np.round(np.linspace(1.35, 1.75, 9), 3)
+    frames = [beta_binomial_tracer_test("normal", {"rho50": 1.55, "ep": 0.05}, densities, precision=4.0, rng=rng,
+                                        test=f"od{i}") for i in range(6)]  # fmt: skip
+    path = tmp_path_factory.mktemp("overdispersed") / "tracers.csv"
+    pd.concat(frames, ignore_index=True).to_csv(path, index=False)
+    return fit_density_curves(read_density(path), DENSITY_CURVES)
+
+
+@pytest.mark.parametrize("data", ["campaign", "overdispersed"])
+def test_the_limits_curves_profiles_are_regula_falsis_limits(data, request):
+    # Newton's steps in the smooth brackets, the starts made once and the estimate's start followed
+    # near the root: every limit as regula falsi found it, to its tolerance (measured: 3e-13)
+    found = request.getfixturevalue(data)
+    requests = limits_requests(found[1] if data == "campaign" else found)
+    low, high, _ = profile_limits(list(LIMIT_CURVES), requests)
+    old_low, old_high = falsi_limits(LIMIT_CURVES, requests)
+    assert np.isfinite(np.concatenate([low, high])).mean() > 0.6
+    assert_allclose(low, old_low, rtol=1e-11, equal_nan=True)
+    assert_allclose(high, old_high, rtol=1e-11, equal_nan=True)
+
+
+def test_a_profile_that_is_not_smooth_in_its_bracket_keeps_regula_falsis_limit_bit_for_bit(overdispersed):
+    requests = limits_requests(overdispersed)
+    profiles = _Profiles(list(LIMIT_CURVES), requests)
+    request, position = profiles.request, requests.position[profiles.request]
+    centre = requests.centre[request, position]
+    edge = np.where(profiles.direction > 0, requests.upper[request, position], requests.lower[request, position])
+    bracket = step_out(profiles.stepping_excess, centre, profiles.direction, np.abs(edge - centre),
+                       requests.step[request], -requests.threshold[request])  # fmt: skip
+    closed = np.flatnonzero(bracket.closed)
+    rough = closed[~_smooth_brackets(profiles, bracket, closed)]
+    assert rough.size  # the local minima of these profiles make some brackets rough
+    low, high, _ = profile_limits(list(LIMIT_CURVES), requests)
+    old = np.concatenate(falsi_limits(LIMIT_CURVES, requests))
+    assert_array_equal(np.concatenate([low, high])[rough], old[rough])
+
+
+def test_a_bracket_is_smooth_where_the_profile_rises_through_it_evenly():
+    # rows: an even rise; a chord far steeper than both ends (a jump to another local minimum);
+    # falling at the outer end; flat at the outer end
+    class Slopes:
+        direction = np.array([1.0, 1.0, -1.0, 1.0])
+        inner_slope = np.array([2.0, 2.0, -2.0, 2.0])  # in the value: the lower side's profile falls with it
+        outer_slope = np.array([3.0, 3.0, 1.0, 0.0])
+
+    bracket = Bracket(np.zeros(4), np.ones(4), np.full(4, -1.0), np.array([1.5, 40.0, 1.5, 1.5]))
+    assert _smooth_brackets(Slopes(), bracket, np.arange(4)).tolist() == [True, False, False, False]

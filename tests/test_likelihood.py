@@ -8,7 +8,15 @@ import pytest
 import scipy.optimize
 from numpy.testing import assert_allclose
 
-from tromplab.curves.likelihood import MAX_DOUBLINGS, Bracket, central_hessian, on_bound, regula_falsi, step_out
+from tromplab.curves.likelihood import (
+    MAX_DOUBLINGS,
+    Bracket,
+    central_hessian,
+    newton_in_bracket,
+    on_bound,
+    regula_falsi,
+    step_out,
+)
 
 #: Monotone excesses with a known root in [0.1, 5] (the shape of a profile's rise less its threshold).
 EXCESSES = [
@@ -120,7 +128,7 @@ def test_size_and_density_curves_search_their_profiles_with_it():
     from tromplab.density import fitting, profiles
 
     assert batched.step_out is step_out and batched.regula_falsi is regula_falsi
-    assert profiles.step_out is step_out and profiles.regula_falsi is regula_falsi
+    assert profiles.step_out is step_out and profiles.newton_in_bracket is newton_in_bracket
     assert fitting.step_out is step_out and fitting.central_hessian is central_hessian
     for module in (batched, profiles, fitting):
         assert not any(name in vars(module) for name in ("_chandrupatla", "_step_out", "_regula_falsi", "_bracket", "_hessian"))

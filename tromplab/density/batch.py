@@ -360,11 +360,7 @@ def _derivatives(partition, x, lower, upper, current) -> tuple[np.ndarray, np.nd
     near = {}
     for number, j in enumerate(free):
         near[j], far = values[2 * number], values[2 * number + 1]
-        hh, side = h[j][:, None], sign[j][:, None]
-        slope = np.where(one_sided[j], side * (-3.0 * current + 4.0 * near[j] - far) / (2 * hh), (near[j] - far) / (2 * hh))
-        bend = np.where(one_sided[j], (current - 2.0 * near[j] + far) / hh**2, (near[j] - 2.0 * current + far) / hh**2)
-        first[j] = np.where(fixed[j][:, None], 0.0, slope)
-        second[j, j] = np.where(fixed[j][:, None], 0.0, bend)
+        first[j], second[j, j] = _differences(current, near[j], far, h[j], sign[j], one_sided[j][:, 0], fixed[j])
     for both, (i, j) in zip(values[2 * len(free) :], pairs):
         with np.errstate(divide="ignore", invalid="ignore"):
             cross = (both - near[i] - near[j] + current) / (steps[:, i] * steps[:, j])[:, None]
@@ -373,6 +369,23 @@ def _derivatives(partition, x, lower, upper, current) -> tuple[np.ndarray, np.nd
     jacobian = np.stack([first[j] for j in range(size)], axis=-1)
     curvature = np.stack([np.stack([second[i, j] for j in range(size)], axis=-1) for i in range(size)], axis=-2)
     return jacobian, curvature
+
+
+def _differences(current, near, far, h, sign, one_sided, fixed) -> tuple[np.ndarray, np.ndarray]:
+    """The first and second differences of ``P`` along one parameter: central (``near`` at
+    ``x + h``, ``far`` at ``x - h``), or one-sided of second order on the rows ``one_sided``
+    (``near`` at ``x + sign h``, ``far`` at ``x + 2 sign h``); zero on the rows ``fixed``.  The
+    one-sided formulas are computed on their rows only (few: those with a bound within the step)."""
+    hh = h[:, None]
+    slope, bend = (near - far) / (2 * hh), (near - 2.0 * current + far) / hh**2
+    if one_sided.any():
+        rows, side = np.flatnonzero(one_sided), sign[one_sided][:, None]
+        at, step = current[rows], hh[rows]
+        slope[rows] = side * (-3.0 * at + 4.0 * near[rows] - far[rows]) / (2 * step)
+        bend[rows] = (at - 2.0 * near[rows] + far[rows]) / step**2
+    if fixed.any():
+        slope[fixed], bend[fixed] = 0.0, 0.0
+    return slope, bend
 
 
 def _stacked_partition(partition, points: list[np.ndarray]) -> np.ndarray:

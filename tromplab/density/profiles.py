@@ -9,11 +9,12 @@ estimate).  A limit is where the excess :math:`(D(q) - \hat D)/\phi - c` crosses
 (``phi`` the scale and ``c`` the threshold the caller gives).  Both sides of every request
 go together: from the estimate a step of a quarter of Ep (of I) and then twice as far each
 time until the excess is positive (a bracket) or the search range ends (no limit); within
-each bracket regula falsi (Illinois), every side at once, converges to the last digits.  The
-search is the one every curve's profile uses, size or density
-(:func:`tromplab.curves.likelihood.step_out` and :func:`~tromplab.curves.likelihood.regula_falsi`);
-this module gives it the excess of the re-optimised deviance, and for the plain curves its
-slope too (:func:`~tromplab.curves.likelihood.newton_in_bracket`, :func:`profile_limits`).
+each bracket Newton's method kept within the bracket, every side at once, converges to the
+last digits (regula falsi, Illinois, where a profile of a curve with limits does not cross its
+bracket smoothly).  The search is the one every curve's profile uses, size or density
+(:func:`tromplab.curves.likelihood.step_out` and
+:func:`~tromplab.curves.likelihood.newton_in_bracket`); this module gives it the excess of the
+re-optimised deviance and its slope (:func:`profile_limits`).
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..curves.likelihood import newton_in_bracket, regula_falsi, step_out
+from ..curves.likelihood import Bracket, newton_in_bracket, step_out
 from .batch import TracerStack, centre_and_scale, minimise_deviance
 from .registry import QUARTILES
 
@@ -33,6 +34,12 @@ ROOT_RELATIVE_TOLERANCE = 1e-14
 ROOT_STEP_TOLERANCE = 1e-11
 #: Iterations of the root search (it converges in about fifteen).
 MAX_ROOT_ITERATIONS = 100
+#: How far (a factor) the chord of a bracket may be from the excess's slopes at its ends for the
+#: profile of a curve with limits to be closed by Newton's steps (:func:`_smooth_brackets`).
+SMOOTH_CHORD_RATIO = 5.0
+#: How near (in first steps) a value of a smooth bracket must be to the last one for the start
+#: at the estimate to be replaced by the optimum it reached there (:meth:`_Profiles._estimate_start`).
+BRANCH_DISTANCE = 1e-2
 
 
 @dataclass(frozen=True)
@@ -282,6 +289,30 @@ class _Profiles:
         self.request = np.tile(np.arange(count), 2)
         self.direction = np.repeat([-1.0, 1.0], count)
         self.warm = requests.centre[self.request].copy()  # the optimum at the last value of each side
+        # the optimum the start at the estimate reached last on each side, and the value it was at;
+        # which sides may start there instead (their brackets closed by Newton's steps)
+        self.from_estimate, self.estimate_value = self.warm.copy(), np.full(len(self.request), np.nan)
+        self.trackable = np.zeros(len(self.request), dtype=bool)
+        # the excess's slope (in the value) at the last value below and above the threshold of each side
+        self.inner_slope, self.outer_slope = np.zeros(len(self.request)), np.full(len(self.request), np.nan)
+
+    def stepping_excess(self, sides: np.ndarray, value: np.ndarray) -> np.ndarray:
+        """The excess at ``value`` on each of ``sides`` (:meth:`excess`), its slope kept as the
+        slope at the bracket's inner (excess below zero) or outer end for :func:`_smooth_brackets`."""
+        excess, slope = self.excess_and_slope(sides, value)
+        below = excess < 0
+        self.inner_slope[sides[below]], self.outer_slope[sides[~below]] = slope[below], slope[~below]
+        return excess
+
+    def _estimate_start(self, sides: np.ndarray, value: np.ndarray) -> np.ndarray:
+        """The second start of a curve with limits: the estimate, or, on a side whose bracket is
+        closed by Newton's steps (``trackable``) and within :data:`BRANCH_DISTANCE` first steps of
+        the value it was last asked at, the optimum the estimate's start reached there (the same
+        local minimum, a few steps nearer)."""
+        r = self.requests
+        request = self.request[sides]
+        near = self.trackable[sides] & (np.abs(value - self.estimate_value[sides]) <= BRANCH_DISTANCE * r.step[request])
+        return np.where(near[:, None], self.from_estimate[sides], r.centre[request])
 
     def excess(self, sides: np.ndarray, value: np.ndarray) -> np.ndarray:
         """The excess of the re-optimised deviance at ``value`` on each of ``sides`` (warm starts updated)."""
@@ -295,23 +326,56 @@ class _Profiles:
         index at the re-optimised point (envelope theorem; NaN where no finite deviance was found).
 
         A curve with limits is re-optimised from two starts, the last optimum of the side and
-        the estimate, both in one minimisation (rows stacked), the lower deviance kept (the
-        last optimum among equals)."""
+        the estimate (:meth:`_estimate_start`), both in one minimisation (rows stacked), the
+        lower deviance kept (the last optimum among equals); where the two starts are the same
+        point, bit for bit (the first value of a side, or a side whose optimum came from the
+        estimate's start), it is minimised once."""
         r = self.requests
         count = len(sides)
-        starts = [self.warm[sides]] + ([r.centre[self.request[sides]]] if self.has_limits else [])
-        request = np.tile(self.request[sides], len(starts))
+        if self.has_limits:
+            # a start from the estimate's branch that is the side's warm start itself, bit for bit,
+            # would repeat its minimisation: it is made once
+            second = self._estimate_start(sides, value)
+            apart = np.flatnonzero((second != self.warm[sides]).any(axis=1))
+            found_x, found_deviance = self._minimised(
+                np.concatenate([sides, sides[apart]]), np.concatenate([value, value[apart]]),
+                np.concatenate([self.warm[sides], second[apart]]),
+            )  # fmt: skip
+            x, deviance = np.stack([found_x[:count]] * 2), np.stack([found_deviance[:count]] * 2)
+            x[1, apart], deviance[1, apart] = found_x[count:], found_deviance[count:]
+        else:
+            found_x, found_deviance = self._minimised(sides, value, self.warm[sides])
+            x, deviance = found_x[None], found_deviance[None]
+        pick = np.argmin(deviance, axis=0)  # the first start among equals
+        best_x, best_value = x[pick, np.arange(count)], deviance[pick, np.arange(count)]
+        finite = np.isfinite(best_value)
+        self.warm[sides[finite]] = best_x[finite]
+        if self.has_limits:
+            reached = np.isfinite(deviance[1])
+            self.from_estimate[sides[reached]], self.estimate_value[sides[reached]] = x[1][reached], value[reached]
+        request = self.request[sides]
+        stack, forms = r.stack.take(request), _RowForms(self.curves, self.curve[request])
+        excess = (best_value - r.best[request]) / r.scale[request] - r.threshold[request]
+        excess = np.where(finite, excess, BEYOND)
+        if not slope:
+            return excess, None
+        rise = self._slope(stack, forms, best_x, r.imperfection[request], r.position[request])
+        return excess, np.where(finite, rise / r.scale[request], np.nan)
+
+    def _minimised(self, sides: np.ndarray, value: np.ndarray, start: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The minimum of the deviance of each row (of ``sides``) with its held index at ``value``, from
+        ``start`` (in the indices), and the deviance there (inf where none finite was found)."""
+        r = self.requests
+        request = self.request[sides]
         stack = r.stack.take(request)
         # the held index is put first (rho50 and Ep or I swap places), so that the minimiser
         # sees one column held in every row and takes no derivative along it
         order = np.tile(np.arange(r.centre.shape[1]), (len(request), 1))
         order[:, [0, 1]] = np.where(r.position[request][:, None] == 1, [1, 0], [0, 1])
-        held = np.tile(value, len(starts))
-        lower, upper, start = (_ordered(part, order) for part in (r.lower[request], r.upper[request], np.concatenate(starts)))
-        lower[:, 0] = upper[:, 0] = start[:, 0] = held
-        imperfection, curve, position = r.imperfection[request], self.curve[request], r.position[request]
-
-        forms = _RowForms(self.curves, curve)
+        lower, upper, start = (_ordered(part, order) for part in (r.lower[request], r.upper[request], start))
+        lower[:, 0] = upper[:, 0] = start[:, 0] = value
+        imperfection, position = r.imperfection[request], r.position[request]
+        forms = _RowForms(self.curves, self.curve[request])
 
         def partition(x, rows):
             indices = _ordered(x, order[rows])  # the swap is its own inverse
@@ -323,20 +387,7 @@ class _Profiles:
 
         exact = None if self.has_limits else derivatives  # see profile_limits: why not with limits
         found = minimise_deviance(stack, partition, start, lower, upper, derivatives=exact)
-        x = _ordered(found.x, order).reshape(len(starts), count, -1)
-        deviance = np.where(np.isfinite(found.deviance), found.deviance, np.inf).reshape(len(starts), count)
-        pick = np.argmin(deviance, axis=0)  # the first start among equals
-        best_x, best_value = x[pick, np.arange(count)], deviance[pick, np.arange(count)]
-        finite = np.isfinite(best_value)
-        self.warm[sides[finite]] = best_x[finite]
-        request = request[:count]
-        excess = (best_value - r.best[request]) / r.scale[request] - r.threshold[request]
-        excess = np.where(finite, excess, BEYOND)
-        if not slope:
-            return excess, None
-        first = np.arange(count)  # the rows of the first start: the same requests
-        rise = self._slope(stack.take(first), forms.take(first), best_x, imperfection[first], position[first])
-        return excess, np.where(finite, rise / r.scale[request], np.nan)
+        return _ordered(found.x, order), np.where(np.isfinite(found.deviance), found.deviance, np.inf)
 
     @staticmethod
     def _slope(stack: TracerStack, forms: _RowForms, q: np.ndarray, imperfection, held) -> np.ndarray:
@@ -374,8 +425,14 @@ def profile_limits(curves, requests: ProfileRequests) -> tuple[np.ndarray, np.nd
     falsi to their tolerance (1e-12 relative).  A curve with limits re-optimises three indices,
     and far from the estimate (Ep of 1 g/cm3 and more, where the curve is nearly flat) the box
     holds several local minima in its corners: which one a minimisation reaches depends on its
-    path, so those profiles keep the differences and regula falsi, whose path they were
-    validated on (the analytic derivatives moved two such limits of overdispersed tests).
+    path, so those profiles keep the differences and both starts (the analytic derivatives
+    moved two such limits of overdispersed tests, and so did dropping the start at the
+    estimate within the bracket).  Their brackets are closed by Newton's method too where the
+    profile crosses the bracket smoothly (:func:`_smooth_brackets`: rising at both ends, the
+    chord close to the ends' slopes), about 5 re-optimisations where regula falsi took 13;
+    elsewhere (a profile that jumps between local minima within the bracket, flat or falling at
+    an end) by regula falsi, whose steps are those :func:`newton_in_bracket` takes without a
+    slope: the limit of such a profile is the one it always was, to the last bit.
     """
     profiles = _Profiles(list(curves) if isinstance(curves, (list, tuple)) else [curves], requests)
     sides = np.arange(len(profiles.request))
@@ -387,23 +444,27 @@ def profile_limits(curves, requests: ProfileRequests) -> tuple[np.ndarray, np.nd
         requests.lower[request, requests.position[request]],
     )
     step = requests.step[request]
-    bracket = step_out(profiles.excess, centre, profiles.direction, np.abs(edge - centre), step, -requests.threshold[request])
+    stepping = profiles.stepping_excess if profiles.has_limits else profiles.excess
+    bracket = step_out(stepping, centre, profiles.direction, np.abs(edge - centre), step, -requests.threshold[request])
     limits = np.full(len(sides), np.nan)
     bracketed = np.flatnonzero(bracket.closed)
     if bracketed.size:
         width = 2.0 * (ROOT_STEP_TOLERANCE * step[bracketed] + 2.0 * ROOT_RELATIVE_TOLERANCE * np.abs(centre[bracketed]))
 
-        def excess_and_slope(rows, values):
-            return profiles.excess_and_slope(bracketed[rows], values)
-
         direction = profiles.direction[bracketed]
-        if profiles.has_limits:
-            distance = regula_falsi(lambda rows, values: profiles.excess(bracketed[rows], values), centre[bracketed],
-                                    direction, bracket.take(bracketed), width, max_iterations=MAX_ROOT_ITERATIONS)  # fmt: skip
-        else:
-            distance = newton_in_bracket(excess_and_slope, centre[bracketed], direction, bracket.take(bracketed), width,
-                                         max_iterations=MAX_ROOT_ITERATIONS)  # fmt: skip
+        # a curve with limits closes by Newton's steps only the brackets its profile crosses smoothly
+        smooth = _smooth_brackets(profiles, bracket, bracketed) if profiles.has_limits else np.ones(len(bracketed), bool)
+
+        profiles.trackable[bracketed[smooth]] = True
+
+        def excess_and_slope(rows, values):
+            excess, slope = profiles.excess_and_slope(bracketed[rows], values)
+            return excess, np.where(smooth[rows], slope, np.nan)  # no slope: the Illinois step (regula falsi's)
+
+        distance = newton_in_bracket(excess_and_slope, centre[bracketed], direction, bracket.take(bracketed), width,
+                                     max_iterations=MAX_ROOT_ITERATIONS)  # fmt: skip
         limits[bracketed] = centre[bracketed] + direction * distance
+        profiles.trackable[:] = False
         _recheck_edges(profiles, sides, limits, edge, step)
     count = len(requests.best)
     notes = [
@@ -415,6 +476,24 @@ def profile_limits(curves, requests: ProfileRequests) -> tuple[np.ndarray, np.nd
         for i in range(count)
     ]
     return limits[:count], limits[count:], notes
+
+
+def _smooth_brackets(profiles: _Profiles, bracket: Bracket, bracketed: np.ndarray) -> np.ndarray:
+    """Which of the brackets ``bracketed`` (sides) a profile of a curve with limits crosses
+    smoothly: its excess rising at both ends (in the distance from the estimate; the slopes kept
+    by :meth:`_Profiles.stepping_excess`) and the chord between the ends within
+    :data:`SMOOTH_CHORD_RATIO` of their slopes.  A profile that jumps from one local minimum to
+    another within the bracket, or that is flat or falling at an end, fails the test: its
+    bracket is closed by regula falsi, on the path the limit was validated on."""
+    direction = profiles.direction[bracketed]
+    inner, outer = direction * profiles.inner_slope[bracketed], direction * profiles.outer_slope[bracketed]
+    closed = bracket.take(bracketed)
+    with np.errstate(all="ignore"):
+        chord = (closed.outer_excess - closed.inner_excess) / (closed.outer - closed.inner)
+    return (
+        np.isfinite(inner) & np.isfinite(outer) & np.isfinite(chord) & (inner >= 0) & (outer > 0)
+        & (chord * SMOOTH_CHORD_RATIO >= np.minimum(inner, outer)) & (chord <= SMOOTH_CHORD_RATIO * np.maximum(inner, outer))
+    )  # fmt: skip
 
 
 def _recheck_edges(profiles: _Profiles, sides, limits, edge, step) -> None:
