@@ -69,71 +69,87 @@ def brent_roots(
     rows = np.arange(low.size)
     f_low, f_high = function(low, rows).tolist(), function(high, rows).tolist()
     roots, found = np.full(low.size, np.nan), np.zeros(low.size, dtype=bool)
-    # brentq's own checks before the first step: a change of sign strictly inside the bracket
-    searches = {
-        row: _BrentSearch(a, b, fa, fb, xtol, rtol)
+    # brentq's own checks before the first step: numbers, of opposite signs (neither zero); of
+    # two non-zero numbers the sign bits differ where one is negative and the other not
+    searches = [
+        _BrentSearch(row, a, b, fa, fb, xtol, rtol)
         for row, a, b, fa, fb in zip(rows.tolist(), low.tolist(), high.tolist(), f_low, f_high)
-        if fa != 0 and fb != 0 and math.copysign(1.0, fa) != math.copysign(1.0, fb)
-    }
+        if fa != 0 and fb != 0 and (fa < 0) != (fb < 0) and not (math.isnan(fa) or math.isnan(fb))
+    ]
     for _ in range(maxiter):
-        trials = {}
-        for row, search in searches.items():
+        trials, open_ = [], []
+        for search in searches:
             trial = search.next_point()
             if trial is None:
-                roots[row], found[row] = search.x_current, True
+                roots[search.row], found[search.row] = search.x_current, True
             else:
-                trials[row] = trial
-        if not trials:
+                trials.append(trial)
+                open_.append(search)
+        if not open_:
             break
-        values = function(np.array(list(trials.values())), np.array(list(trials))).tolist()
-        searches = {row: searches[row] for row, value in zip(trials, values) if not math.isnan(value)}  # brentq raises at a nan
-        for row, value in zip(trials, values):
-            if row in searches:
-                searches[row].evaluated(trials[row], value)
+        values = function(np.array(trials), np.array([search.row for search in open_])).tolist()
+        searches = []
+        for search, trial, value in zip(open_, trials, values):
+            if not math.isnan(value):  # brentq raises at a nan: left to the caller
+                search.x_current, search.f_current = trial, value
+                searches.append(search)
     return roots, found
 
 
 class _BrentSearch:
     """One bracket's iterates, brentq's ``xpre, xcur, fpre, fcur, xblk, fblk, spre, scur``, in
-    Python floats (the same double-precision operations as brentq's C loop)."""
+    Python floats (the same double-precision operations as brentq's C loop); ``row`` is the
+    bracket's place in :func:`brent_roots`."""
 
-    def __init__(self, low: float, high: float, f_low: float, f_high: float, xtol: float, rtol: float):
+    __slots__ = (
+        "row",
+        "x_previous",
+        "x_current",
+        "f_previous",
+        "f_current",
+        "x_block",
+        "f_block",
+        "s_previous",
+        "s_current",
+        "xtol",
+        "rtol",
+    )
+
+    def __init__(self, row: int, low: float, high: float, f_low: float, f_high: float, xtol: float, rtol: float):
+        self.row, self.xtol, self.rtol = row, xtol, rtol
         self.x_previous, self.x_current, self.f_previous, self.f_current = low, high, f_low, f_high
         self.x_block = self.f_block = self.s_previous = self.s_current = 0.0
-        self.xtol, self.rtol = xtol, rtol
 
     def next_point(self) -> float | None:
-        """One pass of brentq's loop body up to its next evaluation: the point to evaluate
-        next, or None when the search has converged (its root is then ``x_current``)."""
+        """One pass of brentq's loop body up to its next evaluation: the point to evaluate next
+        (its value then goes to ``x_current, f_current``), or None when the search has converged
+        (its root is then ``x_current``).  The values are never nan, so brentq's sign bits of two
+        non-zero values differ where one is negative and the other not."""
         xp, xc, fp, fc = self.x_previous, self.x_current, self.f_previous, self.f_current
-        xb, fb = self.x_block, self.f_block
-        if fp != 0 and fc != 0 and math.copysign(1.0, fp) != math.copysign(1.0, fc):  # the root lies between xp and xc
+        xb, fb, s_previous, s_current = self.x_block, self.f_block, self.s_previous, self.s_current
+        if fp != 0 and fc != 0 and (fp < 0) != (fc < 0):  # the root lies between xp and xc
             xb, fb = xp, fp
-            self.s_previous = self.s_current = xc - xp
+            s_previous = s_current = xc - xp
         if abs(fb) < abs(fc):  # keep the better end as the current point
             xp, xc, xb = xc, xb, xc
             fp, fc, fb = fc, fb, fc
-        self.x_current, self.f_current, self.x_block, self.f_block = xc, fc, xb, fb
         delta = (self.xtol + self.rtol * abs(xc)) / 2
         bisection = (xb - xc) / 2
         if fc == 0 or abs(bisection) < delta:
+            self.x_current = xc
             return None
         step = bisection
-        if abs(self.s_previous) > delta and abs(fc) < abs(fp):
+        if abs(s_previous) > delta and abs(fc) < abs(fp):
             trial = _interpolated_step(xp, xc, xb, fp, fc, fb)
-            if 2 * abs(trial) < min(abs(self.s_previous), 3 * abs(bisection) - delta):  # a short step: taken
-                self.s_previous, step = self.s_current, trial
+            if 2 * abs(trial) < min(abs(s_previous), 3 * abs(bisection) - delta):  # a short step: taken
+                s_previous, step = s_current, trial
             else:
-                self.s_previous = bisection
+                s_previous = bisection
         else:
-            self.s_previous = bisection
-        self.s_current = step
+            s_previous = bisection
+        self.x_block, self.f_block, self.s_previous, self.s_current = xb, fb, s_previous, step
         self.x_previous, self.f_previous = xc, fc
         return xc + step if abs(step) > delta else xc + (delta if bisection > 0 else -delta)
-
-    def evaluated(self, x: float, value: float) -> None:
-        """The function's value at the point :meth:`next_point` gave."""
-        self.x_current, self.f_current = x, value
 
 
 def _interpolated_step(xp: float, xc: float, xb: float, fp: float, fc: float, fb: float) -> float:
