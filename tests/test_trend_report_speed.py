@@ -132,6 +132,62 @@ def test_the_report_formats_each_table_once_for_both_renderings(tmp_path, monkey
     assert "| formula" in (tmp_path / "report.md").read_text(encoding="utf-8")
 
 
+def _display_table_column_by_column(table: pd.DataFrame):
+    """display_table as it was written before: each column inserted into the frame in turn,
+    every column's texts counted."""
+    from tromplab.output.display import NOTE_LENGTH, column_format
+
+    shown = pd.DataFrame(index=table.index)
+    notes = []
+    for column in table.columns:
+        values = table[column]
+        if pd.api.types.is_float_dtype(values):
+            formatter = column_format(column)
+            shown[column] = [formatter(v) if np.isfinite(v) else "-" for v in values]
+            continue
+        text = values.map(lambda v: "-" if v is None or (isinstance(v, float) and np.isnan(v)) else str(v))
+        counts = text.value_counts()
+        for repeated in [t for t, count in counts.items() if count > 1 and len(t) > NOTE_LENGTH]:
+            notes.append(repeated)
+            text = text.where(text != repeated, f"see note {len(notes)}")
+        shown[column] = text
+    return shown, [f"note {k}: {note}" for k, note in enumerate(notes, 1)]
+
+
+def test_a_table_made_at_once_renders_as_the_table_made_column_by_column():
+    """display_table builds its text table in one go, of Python strings: the HTML and Markdown
+    of each of the report's kinds of table (numbers, p-values, shares, texts, long repeated notes,
+    missing values, flags) are those of the table built column by column."""
+    from tromplab.output.display import display_table
+    from tromplab.output.report import _is_text, markdown_table
+
+    long_note = "the fitted bypass differs from the water recovery by more than its interval"
+    tables = [
+        pd.DataFrame(
+            {
+                "experiment": ["a", "b", "c", "d"],
+                "d_cut": [101.23456, np.nan, 3e-5, 12345678.0],
+                "normality_p": [0.0123, 0.5, np.nan, 1.0],
+                "eta": [0.81234, 0.7, 0.6, np.inf],
+                "F": [1234.5678, 2.0, 0.0, -1.0],
+                "note": [long_note, long_note, None, "short"],
+                "other": [long_note + " too", "x", long_note + " too", long_note],
+                "adequate": [True, False, True, True],
+                "n": [12, 11, 10, 9],
+            }
+        ),
+        pd.DataFrame({"d_cut": [1.0, 2.0], "text": ["a" * 40, "a" * 40]}),
+        pd.DataFrame({"empty": pd.Series([], dtype=float)}),
+    ]
+    for table in tables:
+        found, found_notes = display_table(table)
+        before, before_notes = _display_table_column_by_column(table)
+        assert found_notes == before_notes
+        assert found.to_html(index=False, border=0) == before.to_html(index=False, border=0)
+        text_columns = [c for c in table.columns if _is_text(table[c])]
+        assert markdown_table(found, text_columns=text_columns) == markdown_table(before, text_columns=text_columns)
+
+
 def test_trend_and_report_tell_their_progress_through_the_api(tmp_path, documented):
     from tromplab import fit_experiments, read_experiments
 

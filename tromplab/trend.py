@@ -255,15 +255,10 @@ def joint_fit(groups: Sequence[TrompPoints], formula, starts: Sequence[dict]) ->
     specs = list(formula.parameters(np.concatenate([g.size for g in groups])))
     contexts = [{"measured_efficiency": measured_efficiency(g)} if formula.context_from_efficiency else {} for g in groups]
     roots = [np.sqrt(normalised_weights(g)) for g in groups]
+    curves = _joint_curves(formula, groups, contexts)
 
     def residual(values):
-        extras = {extra.name: values[extra.name] for extra in formula.extras}
-        return np.concatenate(
-            [
-                root * (formula(g.size, values["d_cut"], values[formula.shape_name], **context, **extras) - g.partition_fine)
-                for g, context, root in zip(groups, contexts, roots)
-            ]
-        )
+        return np.concatenate([root * (curve - g.partition_fine) for g, root, curve in zip(groups, roots, curves(values))])
 
     if not starts:
         cut = measured_cut_size(groups[0])
@@ -275,6 +270,33 @@ def joint_fit(groups: Sequence[TrompPoints], formula, starts: Sequence[dict]) ->
             }
         ]
     return least_squares(residual, specs, starts)
+
+
+def _joint_curves(formula, groups: Sequence[TrompPoints], contexts: list[dict]):
+    """``curves(values)``: the curve of ``formula`` at each group's sizes, each group with its own
+    context.  A moving break that depends on each group's measured efficiency (formula (11)) is
+    solved for all groups at once (``MovingBreak.at_shape``: the same break points as one by one,
+    with one root search per group at every step of the optimiser otherwise)."""
+    moving = formula.moving_break
+    if moving is None or moving.at_shape is None or not formula.context_from_efficiency or formula.extras:
+
+        def one_by_one(values):
+            extras = {extra.name: values[extra.name] for extra in formula.extras}
+            shape = values[formula.shape_name]
+            return [formula(g.size, values["d_cut"], shape, **context, **extras) for g, context in zip(groups, contexts)]
+
+        return one_by_one
+    efficiencies = [context["measured_efficiency"] for context in contexts]
+
+    def side_by_side(values):
+        shape = values[formula.shape_name]
+        breaks = moving.at_shape(shape, efficiencies)
+        # formula(size, d_cut, shape, ...) is phi(size / d_cut, ...): the same arithmetic
+        return [
+            moving.phi(np.asarray(g.size, dtype=float) / values["d_cut"], shape, x_break) for g, x_break in zip(groups, breaks)
+        ]
+
+    return side_by_side
 
 
 def equality_test(first: Sequence[TrompPoints], second: Sequence[TrompPoints], formula, fits=None) -> ExtraSumOfSquares:

@@ -653,6 +653,48 @@ def shuvalov_breaks(kr, efficiency) -> np.ndarray:
     return result
 
 
+def shuvalov_breaks_of_shape(kr, efficiencies) -> tuple[float, ...]:
+    """Break points of formula (11) for one shape ``kr`` and several measured efficiencies, each
+    the same number as :func:`shuvalov` places it (``_shuvalov_break_or_edge``, one ``brentq``
+    per efficiency): the searches run side by side in one :func:`~tromplab.curves.roots.brent_roots`,
+    step for step as ``brentq``, on the same values of the function.  A joint fit of several
+    surveys (:func:`tromplab.trend.joint_fit`) needs them at every step of its optimiser.
+
+    Examples
+    --------
+    >>> shuvalov_breaks_of_shape(2.0, [0.8, 0.7, 0.4]) == tuple(_shuvalov_break_or_edge(2.0, e) for e in (0.8, 0.7, 0.4))
+    True
+    """
+    return _breaks_of_shape(float(kr), tuple(float(e) for e in efficiencies))
+
+
+@lru_cache(maxsize=256)
+def _breaks_of_shape(kr: float, efficiencies: tuple[float, ...]) -> tuple[float, ...]:
+    # remembered as _break_or_edge_of is: the optimiser's steps in d_cut keep the shape
+    from ..roots import brent_roots
+
+    target = np.array(efficiencies)
+    breaks = [None] * target.size
+    if np.isfinite(kr) and kr > 0:
+        a = 1.0 / kr  # the parts of plateau_eta_less_target without x_a, as shuvalov_break takes them
+        scale = scipy.special.gamma(a) * LN2 ** (-a) / kr
+        upper = scipy.special.gammainc(a, LN2 * 1.0**kr)
+
+        def gap(xa, rows):
+            # x_a**kr by Python's power, as brentq's float argument gets it (numpy's power of an
+            # array differs from it in the last bit); the rest elementwise as on one number
+            powers = np.array([x**kr for x in xa.tolist()])
+            return xa * rosin_rammler(xa, kr) + scale * (upper - scipy.special.gammainc(a, LN2 * powers)) - target[rows]
+
+        eta_plain = rosin_rammler_area(0.0, 1.0, kr)
+        inside = (target >= 0.5) & (target < eta_plain)
+        roots, found = brent_roots(gap, np.zeros(target.size), np.ones(target.size), xtol=1e-14)
+        for i in np.flatnonzero(inside & found).tolist():
+            breaks[i] = float(roots[i])
+    # the edges, and whatever the side-by-side search left (a same sign at both ends, a nan): one by one
+    return tuple(_break_or_edge_uncached(kr, e) if known is None else known for e, known in zip(efficiencies, breaks))
+
+
 def shuvalov_kink(efficiency, bounds) -> np.ndarray:
     r"""Shape :math:`k_r^*` of formula (11) where the break point appears: :math:`\eta_5(k_r^*) = \eta_{exp}`.
 
@@ -672,6 +714,7 @@ def shuvalov_kink(efficiency, bounds) -> np.ndarray:
 #: The moving break of (11): x_a from kr and the measured efficiency.
 SHUVALOV_BREAK = MovingBreak(
     at=_shuvalov_break_or_edge,
+    at_shape=shuvalov_breaks_of_shape,
     on_arrays=shuvalov_breaks,
     phi=rosin_rammler_plateau,
     kink=shuvalov_kink,

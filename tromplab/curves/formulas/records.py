@@ -50,6 +50,10 @@ class MovingBreak:
     efficiency : callable or None
         ``efficiency(shape, x_max, x_break) -> (eta, eps)`` on arrays, the closed forms with
         the break already solved (the batched indices); None: per curve by ``Formula.efficiency``.
+    at_shape : callable or None
+        ``at_shape(shape, efficiencies) -> tuple``: the breaks of one shape for several measured
+        efficiencies, each the number ``at`` gives, found side by side (a joint fit through
+        several surveys, :func:`tromplab.trend.joint_fit`); None: ``at`` one by one.
     """
 
     at: Callable[[float, float], float]
@@ -57,6 +61,7 @@ class MovingBreak:
     phi: Callable[..., np.ndarray]
     kink: Callable[..., np.ndarray] | None = None
     efficiency: Callable[..., tuple] | None = None
+    at_shape: Callable[..., tuple] | None = None
 
 
 @dataclass(frozen=True)
