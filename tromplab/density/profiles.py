@@ -101,16 +101,20 @@ class _RowForms:
     """The standard forms of the rows of several curves (all with limits or all plain): each form's
     functions applied to its own rows, the constants ``centre`` (q50) and ``scale`` (k) as (rows, 1)."""
 
-    def __init__(self, curves, curve: np.ndarray):
+    def __init__(self, curves, curve: np.ndarray, constants: np.ndarray | None = None):
         self.curves, self.curve, self.has_limits = curves, curve, curves[0].has_limits
-        self.groups = [(one.form, curve == number) for number, one in enumerate(curves)]
-        self.groups = [(form, rows) for form, rows in self.groups if rows.any()]
-        constants = np.array([centre_and_scale(one.form) for one in curves])
-        self.centre, self.scale = constants[curve, 0:1], constants[curve, 1:2]
+        if len(curves) == 1:
+            self.groups = [(curves[0].form, None)]
+        else:
+            self.groups = [(one.form, curve == number) for number, one in enumerate(curves)]
+            self.groups = [(form, rows) for form, rows in self.groups if rows.any()]
+        # (q50, k) of each curve's form, made once and handed to the forms of subsets of the rows
+        self.constants = np.array([centre_and_scale(one.form) for one in curves]) if constants is None else constants
+        self.centre, self.scale = self.constants[curve, 0:1], self.constants[curve, 1:2]
 
     def take(self, rows: np.ndarray) -> _RowForms:
         """The forms of the rows ``rows``."""
-        return _RowForms(self.curves, self.curve[rows])
+        return _RowForms(self.curves, self.curve[rows], self.constants)
 
     def _each(self, function, first: np.ndarray, *more: np.ndarray) -> np.ndarray:
         if len(self.groups) == 1:
@@ -354,11 +358,11 @@ class _Profiles:
             reached = np.isfinite(deviance[1])
             self.from_estimate[sides[reached]], self.estimate_value[sides[reached]] = x[1][reached], value[reached]
         request = self.request[sides]
-        stack, forms = r.stack.take(request), _RowForms(self.curves, self.curve[request])
         excess = (best_value - r.best[request]) / r.scale[request] - r.threshold[request]
         excess = np.where(finite, excess, BEYOND)
         if not slope:
             return excess, None
+        stack, forms = r.stack.take(request), _RowForms(self.curves, self.curve[request])
         rise = self._slope(stack, forms, best_x, r.imperfection[request], r.position[request])
         return excess, np.where(finite, rise / r.scale[request], np.nan)
 
@@ -454,7 +458,6 @@ def profile_limits(curves, requests: ProfileRequests) -> tuple[np.ndarray, np.nd
         direction = profiles.direction[bracketed]
         # a curve with limits closes by Newton's steps only the brackets its profile crosses smoothly
         smooth = _smooth_brackets(profiles, bracket, bracketed) if profiles.has_limits else np.ones(len(bracketed), bool)
-
         profiles.trackable[bracketed[smooth]] = True
 
         def excess_and_slope(rows, values):
