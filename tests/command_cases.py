@@ -12,7 +12,9 @@ candidates' Cholesky solves in numpy instead of scipy.linalg (``design.csv`` of 
 cases, by 2e-13 relative at most), the plain density curves' profile limits closed by Newton's
 method (``density fit with intervals`` only, within 3.2e-14 relative of before), and those of the
 curves with limits in their smooth brackets (the same case, within 4.8e-13), whose numbers
-agree with the earlier ones to 1e-9 relative); from the repository's root, with relative data set
+agree with the earlier ones to 1e-9 relative; the codes of the quasi-binomial scale's notes in
+that case's ``warnings.csv``, and the design reductions within the updates' rounding written
+as none in ``design.csv`` of four circuit cases); from the repository's root, with relative data set
 names, so that the digests do not depend on where the checkout lives.
 Figures (PNG) are left out of the stored digests, as they depend on matplotlib's version; the
 test compares them between the command line and the API, which run in the same environment.
