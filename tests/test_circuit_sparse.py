@@ -112,6 +112,8 @@ def test_the_30_node_plant_takes_the_sparse_path_with_its_stages_reported():
     balance = reconcile(flowsheet, survey, progress=lambda done, total, label: stages.append(label))
     assert sparse_solve.is_sparse(balance.problem) and balance.success
     assert stages[:3] == ["reconciliation: round 1", "reconciliation: round 2", "reconciliation: round 3"]
+    held_stages = [label for label in stages if label.startswith("reconciliation: bounds, ")]
+    assert balance.at_bound and held_stages and held_stages[0].endswith(" flows held")  # the bounds' sets reported
     assert balance.dof == balance.problem.W.shape[0] - balance.decomposition.rank > 0
 
 
