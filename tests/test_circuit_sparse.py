@@ -112,6 +112,8 @@ def test_the_30_node_plant_takes_the_sparse_path_with_its_stages_reported():
     balance = reconcile(flowsheet, survey, progress=lambda done, total, label: stages.append(label))
     assert sparse_solve.is_sparse(balance.problem) and balance.success
     assert stages[:3] == ["reconciliation: round 1", "reconciliation: round 2", "reconciliation: round 3"]
+    held_stages = [label for label in stages if label.startswith("reconciliation: bounds, ")]
+    assert balance.at_bound and held_stages and held_stages[0].endswith(" flows held")  # the bounds' sets reported
     assert balance.dof == balance.problem.W.shape[0] - balance.decomposition.rank > 0
 
 
@@ -221,3 +223,53 @@ def test_serial_elimination_on_a_large_flowsheet_stops_after_a_few_steps_and_say
     table = balance.elimination_table()
     assert len(table) - 1 == reconciliation.LARGE_ELIMINATION_STEPS and table["p_value"].iloc[-1] <= balance.alpha
     assert f"serial elimination stopped after {reconciliation.LARGE_ELIMINATION_STEPS} steps" in balance.report()
+
+
+def _factor_at(problem, v, near=None):
+    return sparse_solve.AugmentedFactor(problem.W @ problem.jacobian(v), problem.A, near=near)
+
+
+def test_a_step_through_the_last_factor_refined_equals_a_step_through_a_fresh_one():
+    """Gauss-Newton steps and rounds reuse the last LU by iterative refinement: at a nearby point
+    (the reuse taken) and at a far one (refinement stalls: a fresh LU), the step and the
+    multipliers are the fresh factor's to rounding."""
+    flowsheet, survey = _survey(2, 20, minerals=True)  # 900 unknowns, 20 unseen directions
+    problem, _ = sparse_solve.build_sparse_problem(flowsheet, survey)
+    v = sparse_solve.projected_start(problem, sparse_solve.sparse_solids_first_start(flowsheet, survey, problem))
+    first = _factor_at(problem, v)
+    assert first.unseen.shape[1] > 0  # directions no measurement sees: the pinned unknowns at work
+    residual = problem.W @ (problem.predict(v) - problem.y)
+    gradient = (problem.W @ problem.jacobian(v)).T @ residual
+    for moved, reused in ((1e-4, True), (0.5, False)):
+        w = v * (1.0 + moved * np.cos(np.arange(v.size)))
+        near, fresh = _factor_at(problem, w, near=first), _factor_at(problem, w)
+        assert near.lu is first.lu and near.refined
+        step_near, step_fresh = near.step(residual), fresh.step(residual)
+        assert near.refined == reused  # a far point: the refinement stalled and the system was factored
+        np.testing.assert_allclose(step_near, step_fresh, rtol=0, atol=1e-10 * np.abs(step_fresh).max())
+        mu_near, mu_fresh = near.multipliers(gradient), fresh.multipliers(gradient)
+        np.testing.assert_allclose(mu_near, mu_fresh, rtol=0, atol=1e-9 * np.abs(mu_fresh).max())
+
+
+def test_pinned_unknowns_give_the_covariance_of_the_unseen_directions_as_constraints():
+    r"""The covariance with the unseen unknowns pinned and projected, :math:`\Pi C_p \Pi`, against
+    the one with their directions :math:`Z^T` as constraint rows, computed densely:
+    :math:`N (N^T J^T J N)^{-1} N^T` with :math:`N` an orthonormal null space of
+    :math:`[A; Z^T]` (by the SVD of :math:`J N`, the dense path's way); and the step, the least squares under the same constraints."""
+    from scipy import linalg
+
+    flowsheet, survey = _survey(2, 20, minerals=True)  # 900 unknowns, 20 unseen directions
+    problem, _ = sparse_solve.build_sparse_problem(flowsheet, survey)
+    v = sparse_solve.projected_start(problem, sparse_solve.sparse_solids_first_start(flowsheet, survey, problem))
+    factor = _factor_at(problem, v)
+    Z = factor.unseen.toarray()
+    assert Z.shape[1] > 0
+    J = (problem.W @ problem.jacobian(v)).toarray()
+    N = linalg.null_space(np.vstack([problem.A.toarray(), Z.T]))
+    _, singular, right = np.linalg.svd(J @ N, full_matrices=False)  # J N of full column rank: no direction unseen is left
+    half = N @ right.T / singular
+    expected = half @ half.T
+    np.testing.assert_allclose(factor.covariance(), expected, rtol=0, atol=1e-9 * np.abs(expected).max())
+    residual = problem.W @ (problem.predict(v) - problem.y)
+    expected_step = -N @ np.linalg.lstsq(J @ N, residual, rcond=None)[0]
+    np.testing.assert_allclose(factor.step(residual), expected_step, rtol=0, atol=1e-9 * np.abs(expected_step).max())

@@ -171,8 +171,9 @@ def reconcile_circuit(
     weighting : {"error-model", "feed-share", "none"}
         The weights of ``points.csv`` and of the fits (default the error model).
     progress : callable, optional
-        ``progress(done, total, label)`` at each stage (``"reconciliation: round k"``,
-        ``"elimination: step k"``, ``"design: candidate i of n"``; :func:`~tromplab.circuit.reconciliation.reconcile`).
+        ``progress(done, total, label)`` at each stage (``"reconciliation: round k"``, on a large
+        flowsheet ``"reconciliation: bounds, N flows held"``, ``"elimination: step k"``,
+        ``"design: candidate i of n"``; :func:`~tromplab.circuit.reconciliation.reconcile`).
 
     Returns
     -------
