@@ -187,20 +187,20 @@ def plant_rows(yardstick: tuple[float, float], minerals: bool) -> list[dict]:
 
 def sparse_floor_seconds(flowsheet, survey, repeats: int = 5) -> float:
     """The floor of a large flowsheet, which takes the sparse path: one weighted least-squares
-    solve through the sparse augmented system (``tromplab.circuit.sparse_solve.AugmentedFactor``:
+    solve through the sparse augmented system (``tromplab.circuit.sparse_factor.AugmentedFactor``:
     its LU and one step) at the starting point, median of ``repeats`` (the order of the LU and the
     directions no measurement sees found once, before)."""
-    from tromplab.circuit import sparse_solve
+    from tromplab.circuit import sparse_factor, sparse_solve
 
     problem, _ = sparse_solve.build_sparse_problem(flowsheet, survey)
     start = sparse_solve.sparse_solids_first_start if problem.n_components else sparse_solve.sparse_starting_point
     v = sparse_solve.projected_start(problem, start(flowsheet, survey, problem))
     J, residual = problem.W @ problem.jacobian(v), problem.W @ (problem.predict(v) - problem.y)
-    sparse_solve.AugmentedFactor(J, problem.A)
+    sparse_factor.AugmentedFactor(J, problem.A)
     times = []
     for _ in range(repeats):
         begin = time.perf_counter()
-        sparse_solve.AugmentedFactor(J, problem.A).step(residual)
+        sparse_factor.AugmentedFactor(J, problem.A).step(residual)
         times.append(time.perf_counter() - begin)
     return float(np.median(times))
 

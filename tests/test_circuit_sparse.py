@@ -14,7 +14,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from tromplab.circuit import reconcile, sparse_solve
+from tromplab.circuit import reconcile, sparse_factor, sparse_solve
 from tromplab.circuit.outputs import balance_tables
 from tromplab.circuit.simulation import lab_survey, large_plant
 
@@ -226,7 +226,7 @@ def test_serial_elimination_on_a_large_flowsheet_stops_after_a_few_steps_and_say
 
 
 def _factor_at(problem, v, near=None):
-    return sparse_solve.AugmentedFactor(problem.W @ problem.jacobian(v), problem.A, near=near)
+    return sparse_factor.AugmentedFactor(problem.W @ problem.jacobian(v), problem.A, near=near)
 
 
 def test_a_step_through_the_last_factor_refined_equals_a_step_through_a_fresh_one():

@@ -95,7 +95,7 @@ def adjustments_frame(balance) -> pd.DataFrame:
     H = problem.jacobian(m)
     predicted = problem.predict(balance._unknowns)  # the reported values (bounded at 0)
     if getattr(problem, "is_sparse", False):  # a large flowsheet: the diagonal only, from sparse rows
-        from .sparse_solve import prediction_variances
+        from .sparse_tables import prediction_variances
 
         predicted_var = prediction_variances(balance.covariance, H)
     else:
@@ -191,7 +191,7 @@ def measurement_tests(balance) -> MeasurementTests:
         empty = np.zeros(0)
         return MeasurementTests(empty, empty, empty, empty.astype(bool), np.zeros((0, 0)))
     if getattr(problem, "is_sparse", False):  # a large flowsheet: from the covariance, by sparse products
-        from .sparse_solve import tests_information
+        from .sparse_tables import tests_information
 
         G, own, information, residual, correlation = tests_information(balance)
         return _tests(G, own, information, residual, correlation)

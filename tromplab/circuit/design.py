@@ -187,7 +187,7 @@ def design_table(balance, quantities=None, *, errors: ErrorModel | None = None, 
     v = _design_point(balance)
     names = balance._measurement_names  # the adjustments table's, without its tests
     if getattr(problem, "is_sparse", False):  # a large flowsheet: the same updates in the unknowns, sparse products
-        from .sparse_solve import SparseCandidateUpdates as Updates
+        from .sparse_tables import SparseCandidateUpdates as Updates
     else:
         Updates = CandidateUpdates
     updates = Updates(balance, np.array([g for _, g in quantities]).reshape(len(quantities), -1), v)
@@ -418,7 +418,7 @@ def observability_table(balance, errors: ErrorModel | None = None) -> pd.DataFra
         return pd.DataFrame(columns=OBSERVABILITY_COLUMNS)
     v = _design_point(balance)
     if large:
-        from .sparse_solve import prediction_variances
+        from .sparse_tables import prediction_variances
 
         J, unseen = None, balance.decomposition.unseen_unknowns
     else:

@@ -178,7 +178,7 @@ class CircuitBalance(ResultContract):
         Unknowns the bounds hold at 0.
     decomposition : Decomposition, SparseLinearisation or None
         The whitened Jacobian split by the reconciliation's rank decision (on a large flowsheet
-        the sparse path's :class:`~tromplab.circuit.sparse_solve.SparseLinearisation`, and
+        the sparse path's :class:`~tromplab.circuit.sparse_tables.SparseLinearisation`, and
         ``problem`` a :class:`~tromplab.circuit.sparse_solve.SparseProblem`).
     excluded : tuple of str
         The measurements left out on request.

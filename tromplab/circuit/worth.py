@@ -75,7 +75,7 @@ def worth_table(balance) -> pd.DataFrame:
     if problem is None or decomposition is None or not problem.y.size:
         return pd.DataFrame(columns=WORTH_COLUMNS)
     if getattr(problem, "is_sparse", False):  # a large flowsheet: the shifts of every result by sparse products
-        from .sparse_solve import raw_error_sensitivities
+        from .sparse_tables import raw_error_sensitivities
 
         gradients = np.array([gradient for _, _, gradient in balance._results]).reshape(len(balance._results), -1)
         shifts = raw_error_sensitivities(balance, gradients)
