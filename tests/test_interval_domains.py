@@ -131,6 +131,20 @@ def test_property_every_interval_contains_its_estimate_and_stays_in_range(
             assert row.flag, row  # an interval that could not be made says so
 
 
+def test_a_parameter_the_fit_does_not_determine_raises_no_numpy_warning(recwarn):
+    """Hypothesis's example: a sharp lognormal of four points, whose covariance has a negative
+    diagonal; lmfit's sqrt of it gave ``RuntimeWarning: invalid value encountered in sqrt``,
+    which reached the console. The stderr is NaN and the interval says so instead."""
+    size = np.geomspace(5.0, 500.0, 4)
+    phi = np.clip(tromplab.get_formula("lognormal")(size, 60.0, 0.03) + np.random.default_rng(1).normal(0.0, 0.005, 4), 0, 1)
+    fit = tromplab.fit_formula(TrompPoints("generated", size, phi), "lognormal", delta_max=500.0)
+    assert not [w for w in recwarn if issubclass(w.category, RuntimeWarning)], [str(w.message) for w in recwarn]
+    if fit.success:
+        table = interval_table(fit, level=0.95, profile=False)
+        missing = ~(np.isfinite(table["low"]) & np.isfinite(table["high"]))
+        assert table.loc[missing, "flag"].astype(bool).all()
+
+
 def test_epsilon_interval_stays_below_x_max_minus_one():
     """A flat curve with delta_max just above the cut: epsilon is close to its upper end
     x_max - 1 and a log-scale interval would pass it."""

@@ -240,7 +240,10 @@ def _best_of_starts(residual, specs: Sequence[Parameter], starts, max_nfev: int)
             params.add(spec.name, value=spec.clip(start[spec.name]), min=spec.lower, max=spec.upper)
         minimizer = lmfit.Minimizer(objective, params)
         try:
-            result = minimizer.minimize(method="least_squares", max_nfev=max_nfev)
+            # lmfit takes the sqrt of the covariance's diagonal, negative where the fit does not
+            # determine a parameter: its stderr is then NaN, which the fit's notes say in words
+            with np.errstate(invalid="ignore"):
+                result = minimizer.minimize(method="least_squares", max_nfev=max_nfev)
         except (ValueError, FloatingPointError, ArithmeticError) as error:
             failures.append(str(error))
             continue
