@@ -319,6 +319,7 @@ def test_circuit_design_of_a_flowsheet_alone_shows_the_ranked_candidates_on_the_
     assert page.locator("#circuit-summary").inner_text().split() == summary.split()
     labels = page.locator("#flowsheet .textpoint").all_text_contents()
     assert {"top_deck", "bottom_deck", "mill", "cyclone"} <= set(labels)
+    expect(page.locator("#flowsheet-heading")).to_contain_text("a survey simulated from the flowsheet")
     assert page.evaluate("window.__xss") is None and page.dialogs == [] and page.locator("img[src='x']").count() == 0
     with page.expect_download() as download:
         page.click("#download-zip")

@@ -62,8 +62,10 @@ def design_payload(advice, outdir) -> dict:
     :class:`~tromplab.circuit.planning.DesignAdvice` whose folder is ``outdir``; drawn as a circuit
     run is, the flows those of the survey the advice is predicted at (simulated when none was given)."""
     folder = Path(outdir)
+    where = "a survey simulated from the flowsheet (summary)" if advice.simulated else "the survey dropped"
     return {
         "view": "circuit",
+        "flowsheet_title": f"The flowsheet at the flows the advice is predicted at: {where}",
         "flowsheet": flowsheet_figure(advice.balance),
         "summary": (folder / "summary.txt").read_text(encoding="utf-8").splitlines(),
         "tables": [_file_table(folder / name, what) for name, what in DESIGN_TABLES.items() if (folder / name).is_file()],

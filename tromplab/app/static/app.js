@@ -436,6 +436,7 @@ function drawOverview(page) {
 
 // -- a circuit: the flowsheet with its flows, the summary, the folder's tables ------------------------
 function showCircuit(page) {
+  $("flowsheet-heading").textContent = page.flowsheet_title || "The flowsheet with its reconciled flows";
   $("circuit-summary").textContent = page.summary.join("\n");
   const select = $("circuit-table-select");
   select.replaceChildren(...page.tables.map((table, index) => {
