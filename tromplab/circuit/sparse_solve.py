@@ -284,7 +284,11 @@ def solve_sparse(problem: SparseProblem, start: np.ndarray, xtol: float | None =
     """:func:`~tromplab.circuit.problem.solve` of the sparse path: ``start`` projected onto the
     constraints (the held unknowns at 0), then :func:`gauss_newton_sparse` (``near``: the factor
     of an earlier solve, reused where it fits).  Returns ``(v, success, message, factor)``."""
-    v0 = projected_start(problem, start, free)
+    return _solve_from_projected(problem, projected_start(problem, start, free), xtol, free, near)
+
+
+def _solve_from_projected(problem: SparseProblem, v0: np.ndarray, xtol: float | None = None, free=None, near=None):
+    """:func:`solve_sparse` from ``v0``, the start already projected (:func:`projected_start`)."""
     if not problem.y.size:
         return v0, True, "nothing to adjust", None
     if not np.all(np.isfinite(_whitened(problem, v0))):
@@ -430,11 +434,12 @@ def bounded_sparse(problem: SparseProblem, fitted: np.ndarray, progress=None) ->
             progress(0, 1, f"reconciliation: bounds, {int(active.sum())} flows held")
         current = _held(problem, active)
         free = np.setdiff1d(np.arange(fitted.size), current.held)
-        emptied = _emptied_by_balances(current, start, free)
+        v0 = projected_start(current, start, free)
+        emptied = _emptied_by_balances(current, v0)
         if emptied.any():
             active |= emptied
             continue
-        v, _, _, factor = solve_sparse(current, start, free=free)
+        v, _, _, factor = _solve_from_projected(current, v0, free=free)
         negative = (v < -BOUND_TOL * max(np.abs(v).max(), 1e-300)) & ~active
         if negative.any():
             active |= negative
@@ -459,20 +464,20 @@ def _held(problem: SparseProblem, active: np.ndarray) -> SparseProblem:
     return current._measurements(~((problem.kinds == "assay") & empty_class))
 
 
-def _emptied_by_balances(problem: SparseProblem, start: np.ndarray, free: np.ndarray) -> np.ndarray:
+def _emptied_by_balances(problem: SparseProblem, v0: np.ndarray) -> np.ndarray:
     """The assayed class flows that the balances put at 0 once the held flows are (a sump whose
-    other streams of the class are held, say): 0 at the projected start, where their assay is
-    0/0.  They are at the bound already; held, their class's assays leave the least squares as
+    other streams of the class are held, say): 0 to rounding at the projected start ``v0``, where
+    their assay is 0/0 or a ratio of rounding errors.  They are at the bound already; held, their class's assays leave the least squares as
     those of every class held at 0, where the solve could not start (the dense path's fallback
     took minutes on the 30-node four-mineral plant)."""
-    emptied = np.zeros(start.size, dtype=bool)
+    emptied = np.zeros(v0.size, dtype=bool)
     if not problem.n_components or not problem.y.size:
         return emptied
-    with np.errstate(invalid="ignore", divide="ignore"):
-        predicted = problem.predict(projected_start(problem, start, free))
-    undefined = (problem.kinds == "assay") & ~np.isfinite(predicted)
-    emptied[problem.stream[undefined] * problem.n_classes + problem.klass[undefined]] = True
-    return emptied
+    assay = problem.kinds == "assay"
+    emptied[problem.stream[assay] * problem.n_classes + problem.klass[assay]] = True
+    solids = problem.n_streams * problem.n_classes
+    at_zero = np.abs(v0) <= BOUND_TOL * max(float(np.abs(v0[:solids]).max(initial=0.0)), 1e-300)
+    return emptied & at_zero  # at 0 to rounding (the projection leaves 1e-15 where a balance says 0)
 
 
 def _wrong_sign_multiplier(problem: SparseProblem, v: np.ndarray, free: np.ndarray, released_before: np.ndarray, factor):
