@@ -170,32 +170,20 @@ def regula_falsi(
     1.414213562373
     """
     centre, direction = np.asarray(centre, dtype=float), np.asarray(direction, dtype=float)
-    t_low, t_high = bracket.inner.copy(), bracket.outer.copy()
-    h_low, h_high = bracket.inner_excess.copy(), bracket.outer_excess.copy()
-    count = t_low.size
-    width = np.broadcast_to(np.asarray(width, dtype=float), (count,))
-    excess_tolerance = np.broadcast_to(np.asarray(excess_tolerance, dtype=float), (count,))
-    solving = np.isfinite(t_high)
-    last_side = np.zeros(count)
+    ends = _Shrinking(bracket)
+    width = np.broadcast_to(np.asarray(width, dtype=float), (ends.count,))
+    excess_tolerance = np.broadcast_to(np.asarray(excess_tolerance, dtype=float), (ends.count,))
+    solving = np.isfinite(ends.t_high)
     for _ in range(max_iterations):
         work = np.flatnonzero(solving)
         if not work.size:
             break
-        with np.errstate(all="ignore"):
-            trial = t_low[work] - h_low[work] * (t_high[work] - t_low[work]) / (h_high[work] - h_low[work])
-        inside = np.isfinite(trial) & (trial > t_low[work]) & (trial < t_high[work])
-        trial = np.where(inside, trial, 0.5 * (t_low[work] + t_high[work]))
+        trial = ends.false_position(work)
         h = excess(work, centre[work] + direction[work] * trial)
-        below = h < 0
-        low_rows, high_rows = work[below], work[~below]
-        t_low[low_rows], h_low[low_rows] = trial[below], h[below]
-        t_high[high_rows], h_high[high_rows] = trial[~below], h[~below]
-        h_high[low_rows[last_side[low_rows] < 0]] *= 0.5  # the same end moved twice: halve the other's weight
-        h_low[high_rows[last_side[high_rows] > 0]] *= 0.5
-        last_side[low_rows], last_side[high_rows] = -1.0, 1.0
-        closed = (t_high[work] - t_low[work] <= width[work]) | (np.abs(h) <= excess_tolerance[work])
+        ends.shrink(work, trial, h)
+        closed = (ends.t_high[work] - ends.t_low[work] <= width[work]) | (np.abs(h) <= excess_tolerance[work])
         solving[work[closed]] = False
-    return np.where(np.isfinite(t_high), np.where(np.abs(h_high) <= np.abs(h_low), t_high, t_low), np.nan)
+    return np.where(np.isfinite(ends.t_high), ends.nearer_end(slice(None)), np.nan)
 
 
 def newton_in_bracket(
@@ -238,47 +226,64 @@ def newton_in_bracket(
     1.414213562373
     """
     centre, direction = np.asarray(centre, dtype=float), np.asarray(direction, dtype=float)
-    t_low, t_high = bracket.inner.copy(), bracket.outer.copy()
-    h_low, h_high = bracket.inner_excess.copy(), bracket.outer_excess.copy()
-    count = t_low.size
-    width = np.broadcast_to(np.asarray(width, dtype=float), (count,))
-    solving = np.isfinite(t_high)
-    root, last_side = np.full(count, np.nan), np.zeros(count)
-    trial = _false_position(t_low, t_high, h_low, h_high)
+    ends = _Shrinking(bracket)
+    width = np.broadcast_to(np.asarray(width, dtype=float), (ends.count,))
+    solving = np.isfinite(ends.t_high)
+    root = np.full(ends.count, np.nan)
+    trial = ends.false_position(slice(None))
     for _ in range(max_iterations):
         work = np.flatnonzero(solving)
         if not work.size:
             break
         at = trial[work]
         h, slope = excess_and_slope(work, centre[work] + direction[work] * at)
-        below = h < 0
-        t_low[work[below]], h_low[work[below]] = at[below], h[below]
-        t_high[work[~below]], h_high[work[~below]] = at[~below], h[~below]
-        low_rows, high_rows = work[below], work[~below]
-        h_high[low_rows[last_side[low_rows] < 0]] *= 0.5  # the same end moved twice: halve the other's weight
-        h_low[high_rows[last_side[high_rows] > 0]] *= 0.5
-        last_side[low_rows], last_side[high_rows] = -1.0, 1.0
+        ends.shrink(work, at, h)
         with np.errstate(all="ignore"):
             newton = at - h / (direction[work] * slope)
-        inside = np.isfinite(newton) & (newton > t_low[work]) & (newton < t_high[work])
+        inside = np.isfinite(newton) & (newton > ends.t_low[work]) & (newton < ends.t_high[work])
         settled = np.isfinite(newton) & (np.abs(newton - at) <= 0.5 * width[work])  # also on an end of the bracket
-        narrow = ~settled & ((t_high[work] - t_low[work] <= width[work]) | (h == 0))
+        narrow = ~settled & ((ends.t_high[work] - ends.t_low[work] <= width[work]) | (h == 0))
         root[work[settled]] = newton[settled]
-        root[work[narrow]] = np.where(
-            np.abs(h_high[work[narrow]]) <= np.abs(h_low[work[narrow]]), t_high[work[narrow]], t_low[work[narrow]]
-        )
-        trial[work] = np.where(inside, newton, _false_position(t_low[work], t_high[work], h_low[work], h_high[work]))
+        root[work[narrow]] = ends.nearer_end(work[narrow])
+        trial[work] = np.where(inside, newton, ends.false_position(work))
         solving[work[settled | narrow]] = False
     left = np.flatnonzero(solving)  # not closed within max_iterations: the end with the smaller excess
-    root[left] = np.where(np.abs(h_high[left]) <= np.abs(h_low[left]), t_high[left], t_low[left])
+    root[left] = ends.nearer_end(left)
     return root
 
 
-def _false_position(t_low, t_high, h_low, h_high) -> np.ndarray:
-    """The secant's zero within each bracket, or its midpoint where the secant leaves it."""
-    with np.errstate(all="ignore"):
-        trial = t_low - h_low * (t_high - t_low) / (h_high - h_low)
-    return np.where(np.isfinite(trial) & (trial > t_low) & (trial < t_high), trial, 0.5 * (t_low + t_high))
+class _Shrinking:
+    """The brackets of :func:`regula_falsi` and :func:`newton_in_bracket` as they shrink: each
+    row's ends (distances ``t_low`` below the root, ``t_high`` beyond it), their excesses and
+    which end moved last (-1 the low one, +1 the high one), for the Illinois weighting."""
+
+    def __init__(self, bracket: Bracket):
+        self.t_low, self.t_high = bracket.inner.copy(), bracket.outer.copy()
+        self.h_low, self.h_high = bracket.inner_excess.copy(), bracket.outer_excess.copy()
+        self.count = self.t_low.size
+        self.last_side = np.zeros(self.count)
+
+    def false_position(self, rows) -> np.ndarray:
+        """The secant's zero within each bracket of ``rows``, or its midpoint where the secant leaves it."""
+        t_low, t_high, h_low, h_high = self.t_low[rows], self.t_high[rows], self.h_low[rows], self.h_high[rows]
+        with np.errstate(all="ignore"):
+            trial = t_low - h_low * (t_high - t_low) / (h_high - h_low)
+        return np.where(np.isfinite(trial) & (trial > t_low) & (trial < t_high), trial, 0.5 * (t_low + t_high))
+
+    def shrink(self, rows: np.ndarray, trial: np.ndarray, h: np.ndarray) -> None:
+        """Each bracket of ``rows`` shrunk to its ``trial`` (excess ``h``): the end on its side
+        moves there; where the same end moved twice in a row the other's excess is halved."""
+        below = h < 0
+        low_rows, high_rows = rows[below], rows[~below]
+        self.t_low[low_rows], self.h_low[low_rows] = trial[below], h[below]
+        self.t_high[high_rows], self.h_high[high_rows] = trial[~below], h[~below]
+        self.h_high[low_rows[self.last_side[low_rows] < 0]] *= 0.5
+        self.h_low[high_rows[self.last_side[high_rows] > 0]] *= 0.5
+        self.last_side[low_rows], self.last_side[high_rows] = -1.0, 1.0
+
+    def nearer_end(self, rows) -> np.ndarray:
+        """The end of each bracket of ``rows`` with the smaller excess."""
+        return np.where(np.abs(self.h_high[rows]) <= np.abs(self.h_low[rows]), self.t_high[rows], self.t_low[rows])
 
 
 def central_hessian(function: Callable[[np.ndarray], float], x: np.ndarray, steps: np.ndarray) -> np.ndarray:

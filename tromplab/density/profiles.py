@@ -205,11 +205,8 @@ def index_derivatives(forms: _RowForms, density: np.ndarray, q: np.ndarray, impe
         then the limits.
     """
     size = q.shape[1]
-    rho50, second = q[:, 0:1], q[:, 1:2]
-    imperfect, rho50_free = imperfection[:, None], (held == 1)[:, None]
-    ep = np.where(imperfect, second * (rho50 - 1.0), second)
-    # the derivatives of Ep in the index left free, o: rho50 (Ep = I (rho50 - 1)) or the second index
-    e_o = np.where(rho50_free, np.where(imperfect, second, 0.0), np.where(imperfect, rho50 - 1.0, 1.0))
+    rho50_free = (held == 1)[:, None]
+    rho50, ep, e_o = _ep_and_its_derivative(q, imperfection, rho50_free)  # e_o: in the index left free
     if forms.has_limits:
         span = q[:, 3:4] - q[:, 2:3]
         width, middle = _quartile_terms(forms, q[:, 2:3], q[:, 3:4])
@@ -239,15 +236,24 @@ def index_derivatives(forms: _RowForms, density: np.ndarray, q: np.ndarray, impe
     return first, second
 
 
+def _ep_and_its_derivative(q: np.ndarray, imperfection: np.ndarray, in_rho50: np.ndarray):
+    """rho50, Ep and Ep's derivative in one index (rows, 1 each), of the indices ``q`` (rho50 then
+    Ep, or the imperfection I where ``imperfection``: Ep = I (rho50 - 1)); the derivative is in
+    rho50 where ``in_rho50`` (rows, 1), else in the second index."""
+    rho50, second = q[:, 0:1], q[:, 1:2]
+    imperfect = imperfection[:, None]
+    ep = np.where(imperfect, second * (rho50 - 1.0), second)
+    derivative = np.where(in_rho50, np.where(imperfect, second, 0.0), np.where(imperfect, rho50 - 1.0, 1.0))
+    return rho50, ep, derivative
+
+
 def held_derivative(
     forms: _RowForms, density: np.ndarray, q: np.ndarray, imperfection: np.ndarray, held: np.ndarray
 ) -> np.ndarray:
     """``dP/dq_held`` (rows, width): the derivative of the partitions in the index each row's
     profile holds (0: rho50, 1: Ep or I), the terms of :func:`index_derivatives` for that index."""
-    rho50, second = q[:, 0:1], q[:, 1:2]
-    imperfect, rho50_held = imperfection[:, None], (held == 0)[:, None]
-    ep = np.where(imperfect, second * (rho50 - 1.0), second)
-    e_held = np.where(rho50_held, np.where(imperfect, second, 0.0), np.where(imperfect, rho50 - 1.0, 1.0))
+    rho50_held = (held == 0)[:, None]
+    rho50, ep, e_held = _ep_and_its_derivative(q, imperfection, rho50_held)
     if forms.has_limits:
         span = q[:, 3:4] - q[:, 2:3]
         quartiles = forms.quantile((np.array(QUARTILES) - q[:, 2:3]) / span)
