@@ -33,7 +33,7 @@ CIRCUIT_TABLES = {
 }
 #: Tables of the folder of ``tromplab circuit design``, in the page's order.
 DESIGN_TABLES = {
-    "design.csv": "the measurements one could add, ranked by the sd they would remove",
+    "design.csv": CIRCUIT_TABLES["design.csv"],
     "observability.csv": "which results the survey determines, and which measurements determine them",
     "simulated_survey.csv": "the survey the advice is predicted at, simulated from the flowsheet (no survey given)",
 }

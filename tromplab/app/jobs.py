@@ -194,17 +194,12 @@ def _circuit(run: PageRun, parser) -> None:
 
 def _circuit_design(run: PageRun, parser) -> None:
     """What ``tromplab circuit design FLOWSHEET [SURVEY] -o results OPTIONS`` does, then the page's data."""
-    from ..circuit import design_circuit
-    from ..cli.circuit import error_model_of
-    from ..output.outputs import check_output_folder
+    from ..cli.circuit import design_of_options
     from .circuit_page import design_payload
 
     args = parser.parse_args(run.command_line())
-    check_output_folder(args.outdir, inputs=[args.flowsheet] + ([args.measurements] if args.measurements is not None else []))
     _progress("designing", 0, 0, str(args.flowsheet))
-    advice = design_circuit(args.flowsheet, args.measurements, quantity=args.quantity, sampled=args.sampled, flows=args.flows,
-                            errors=error_model_of(args), alpha=args.alpha, size_unit=args.size_unit, exclude=args.exclude,
-                            progress=_reporter("designing"))  # fmt: skip
+    advice = design_of_options(args, _reporter("designing"))
     advice.save(args.outdir)
     _progress("drawing", 0, 0, "")
     write_json(Path(PAGE_FILE), design_payload(advice, args.outdir))

@@ -215,14 +215,20 @@ def _print_circuit_notices(run, args) -> None:
         print_result(f"tromplab circuit: survey reconciled ({verdict}){said}; results in {args.outdir}")
 
 
-def _run_design(args) -> int:
+def design_of_options(args, progress=None):
+    """:func:`~tromplab.circuit.design_circuit` of the parsed options of ``tromplab circuit design``,
+    its output folder checked first (the page runs it too)."""
     from ..circuit import design_circuit
 
     check_output_folder(args.outdir, inputs=[args.flowsheet] + ([args.measurements] if args.measurements is not None else []))
+    return design_circuit(args.flowsheet, args.measurements, quantity=args.quantity, sampled=args.sampled, flows=args.flows,
+                          errors=error_model_of(args), alpha=args.alpha, size_unit=args.size_unit, exclude=args.exclude,
+                          progress=progress)  # fmt: skip
+
+
+def _run_design(args) -> int:
     with stage_bars(quiet=args.quiet) as progress:
-        advice = design_circuit(args.flowsheet, args.measurements, quantity=args.quantity, sampled=args.sampled,
-                                flows=args.flows, errors=error_model_of(args), alpha=args.alpha, size_unit=args.size_unit,
-                                exclude=args.exclude, progress=progress)  # fmt: skip
+        advice = design_of_options(args, progress)
         written = advice.save(args.outdir)
     print(advice.report() + "\n\nWrote:\n" + "\n".join(f"  {path}" for path in written.values()))
     return EXIT_OK
