@@ -16,7 +16,9 @@ One run measures, side by side:
   of sump, cyclone and mill; 20 classes), reconciled with its tables in this process, the
   solids alone and (``--minerals``) with the four minerals assayed on every stream, each
   against its floor: one weighted least-squares solve of the sparse path it takes (the LU of the
-  augmented system and one step, ``tromplab.circuit.sparse_solve``).
+  augmented system and one step, ``tromplab.circuit.sparse_solve``), and the wall seconds of its
+  stages: the rounds of the error model with the linearisation, the bounds' active set (with the
+  number of sets of held flows solved), the tables.
 
 It prints each wall time and CPU time (user and system: on a loaded machine the steadier
 measure), their ratios to the yardstick's (the acceptance targets: ``circuit`` at most
@@ -177,12 +179,31 @@ def plant_rows(yardstick: tuple[float, float], minerals: bool) -> list[dict]:
             warnings.simplefilter("ignore")  # the truth's grade of an empty class is 0/0: not drawn
             survey = lab_survey(truth, np.random.default_rng(40), flows={"fresh_feed": 0.02},
                                 **({} if assayed else {"assayed": ()}))  # fmt: skip
+        stamps: list[tuple[float, str]] = []
         start, cpu = time.perf_counter(), time.process_time()
-        balance_tables(reconcile(truth.flowsheet, survey))
+        balance = reconcile(truth.flowsheet, survey, progress=_stamped(stamps))
+        reconciled = time.perf_counter()
+        balance_tables(balance)
         seconds = time.perf_counter() - start, time.process_time() - cpu
         what = "30-node plant, 20 classes" + (", 4 minerals assayed on every stream" if assayed else ", solids only")
-        rows.append(_row("circuit (in process)", what, seconds, yardstick, sparse_floor_seconds(truth.flowsheet, survey)))
+        row = _row("circuit (in process)", what, seconds, yardstick, sparse_floor_seconds(truth.flowsheet, survey))
+        rows.append({**row, **_plant_stages(start, stamps, reconciled, seconds[0])})
     return rows
+
+
+def _stamped(stamps: list[tuple[float, str]]):
+    """A progress callback that keeps each stage's label with the moment it was reported."""
+    return lambda done, total, label: stamps.append((time.perf_counter(), label))
+
+
+def _plant_stages(start: float, stamps: list[tuple[float, str]], reconciled: float, total: float) -> dict:
+    """Wall seconds of the plant's stages from the reconciliation's progress stamps: the rounds of
+    the error model with the linearisation after them (to the first set of held flows), the
+    bounds' active set (``sets`` of held flows solved), and the tables."""
+    bounds = [moment for moment, label in stamps if label.startswith("reconciliation: bounds")]
+    first_bound = bounds[0] if bounds else reconciled
+    return {"rounds_s": first_bound - start, "bounds_s": reconciled - first_bound, "sets": len(bounds),
+            "tables_s": start + total - reconciled}  # fmt: skip
 
 
 def sparse_floor_seconds(flowsheet, survey, repeats: int = 5) -> float:
