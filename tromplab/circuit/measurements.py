@@ -67,6 +67,7 @@ balancing of mineral processes data. *International Journal of Mineral Processin
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -431,33 +432,39 @@ def _stream_names(table: Table, flowsheet: Flowsheet) -> np.ndarray:
 
 def _check_stream_values(table: Table, flows: pd.DataFrame, pct: pd.DataFrame) -> None:
     """Refuse implausible flow and per cent solids sds and per cent solids outside (0, 100], naming the row."""
-    implausible = flows[(flows["value"] > 0) & (flows["sd"] > MAX_RELATIVE_ERROR * flows["value"])]
-    if len(implausible):
-        row = implausible.iloc[0]
-        raise InputError(
-            f"solids flow sd {row.sd:g} is implausible for a flow of {row.value:g}: more than {MAX_RELATIVE_ERROR:.0%} of "
-            "the flow",
-            source=table.source,
-            row=row.row,
-            column="solids_flow_sd",
-        )
+    _refuse_first(
+        table,
+        flows[(flows["value"] > 0) & (flows["sd"] > MAX_RELATIVE_ERROR * flows["value"])],
+        "solids_flow_sd",
+        lambda row: (
+            f"solids flow sd {row.sd:g} is implausible for a flow of {row.value:g}: more than "
+            f"{MAX_RELATIVE_ERROR:.0%} of the flow"
+        ),
+    )
     if len(pct):
-        implausible = pct[pct["sd"] > MAX_PCT_SOLIDS_SD]
-        if len(implausible):
-            row = implausible.iloc[0]
-            raise InputError(
-                f"per cent solids sd {row.sd:g} is implausible: at most {MAX_PCT_SOLIDS_SD:g} percentage points (a per cent "
-                "solids lies in 0..100)",
-                source=table.source,
-                row=row.row,
-                column="pct_solids_sd",
-            )
-        bad = pct[(pct["value"] <= 0) | (pct["value"] > 100)]
-        if len(bad):
-            row = bad.iloc[0]
-            raise InputError(
-                f"per cent solids {row.value:g} outside (0, 100]", source=table.source, row=row.row, column="pct_solids"
-            )
+        _refuse_first(
+            table,
+            pct[pct["sd"] > MAX_PCT_SOLIDS_SD],
+            "pct_solids_sd",
+            lambda row: (
+                f"per cent solids sd {row.sd:g} is implausible: at most {MAX_PCT_SOLIDS_SD:g} percentage points "
+                "(a per cent solids lies in 0..100)"
+            ),
+        )
+        _refuse_first(
+            table,
+            pct[(pct["value"] <= 0) | (pct["value"] > 100)],
+            "pct_solids",
+            lambda row: f"per cent solids {row.value:g} outside (0, 100]",
+        )
+
+
+def _refuse_first(table: Table, offending: pd.DataFrame, column: str, message: Callable[[pd.Series], str]) -> None:
+    """Raise an :class:`InputError` naming the file row (``row``) and ``column`` of the first of the
+    ``offending`` values, if any; ``message(value)`` says what is wrong with it."""
+    if len(offending):
+        first = offending.iloc[0]
+        raise InputError(message(first), source=table.source, row=first.row, column=column)
 
 
 def _cell_text(table: Table, i: int, column: str) -> str:
