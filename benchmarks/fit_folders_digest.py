@@ -132,6 +132,19 @@ def compare(old: dict, new: dict) -> list[str]:
     return lines
 
 
+def save_and_compare(runs: dict, out: Path, before: Path | None, only: re.Pattern) -> int:
+    """Write the digests ``runs`` to ``out`` and, given the file ``before`` of the old code's, print
+    every difference in the runs ``only`` matches; the exit code, 1 where anything differs."""
+    out.write_text(json.dumps(runs, indent=1, sort_keys=True))
+    print(f"{len(runs)} runs, {sum(len(r['files']) for r in runs.values())} files digested into {out}")
+    if before is None:
+        return 0
+    old = {key: found for key, found in json.loads(before.read_text()).items() if only.search(key)}
+    differences = compare(old, runs)
+    print("\n".join(differences) or "byte-identical: every file and every console output")
+    return 1 if differences else 0
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, required=True, help="JSON file of the digests")
@@ -140,16 +153,7 @@ def main(argv=None) -> int:
     parser.add_argument("--keep", type=Path, default=None, help="folder in which to keep the results folders written")
     parser.add_argument("--only", type=re.compile, default=re.compile(""), help="runs whose name matches this regex")
     args = parser.parse_args(argv)
-    runs = all_runs(args.large, args.only, args.keep)
-    args.out.write_text(json.dumps(runs, indent=1, sort_keys=True))
-    files = sum(len(r["files"]) for r in runs.values())
-    print(f"{len(runs)} runs, {files} files digested into {args.out}")
-    if args.compare is None:
-        return 0
-    old = {key: run for key, run in json.loads(args.compare.read_text()).items() if args.only.search(key)}
-    differences = compare(old, runs)
-    print("\n".join(differences) or "byte-identical: every file and every console output")
-    return 1 if differences else 0
+    return save_and_compare(all_runs(args.large, args.only, args.keep), args.out, args.compare, args.only)
 
 
 if __name__ == "__main__":

@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import argparse
 import hashlib
-import json
 import re
 import subprocess
 import sys
@@ -28,7 +27,7 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 sys.path.insert(0, str(HERE))
-from fit_folders_digest import compare, digest_folder  # noqa: E402
+from fit_folders_digest import digest_folder, save_and_compare  # noqa: E402
 
 SERIES = ROOT / "datasets" / "classifier_trend_surveys.csv"
 #: ``tromplab trend`` configurations on :data:`SERIES`: name -> options.
@@ -87,15 +86,7 @@ def main(argv=None) -> int:
     parser.add_argument("--compare", type=Path, default=None, help="digests of the old code, compared with these")
     parser.add_argument("--only", type=re.compile, default=re.compile(""), help="runs whose name matches this regex")
     args = parser.parse_args(argv)
-    runs = all_runs(args.only)
-    args.out.write_text(json.dumps(runs, indent=1, sort_keys=True))
-    print(f"{len(runs)} runs, {sum(len(r['files']) for r in runs.values())} files digested into {args.out}")
-    if args.compare is None:
-        return 0
-    old = {key: found for key, found in json.loads(args.compare.read_text()).items() if args.only.search(key)}
-    differences = compare(old, runs)
-    print("\n".join(differences) or "byte-identical: every file and every console output")
-    return 1 if differences else 0
+    return save_and_compare(all_runs(args.only), args.out, args.compare, args.only)
 
 
 if __name__ == "__main__":

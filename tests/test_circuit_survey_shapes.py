@@ -2,13 +2,15 @@
 analysis (per cent solids and flows only), blank values, error models out of range, and
 reconciled values held at their bound 0."""
 
+import re
+
 import numpy as np
 import pandas as pd
 import pytest
 
 from tromplab.circuit import ErrorModel, reconcile
 from tromplab.cli import main
-from tromplab.errors import OptionError
+from tromplab.errors import InputError, OptionError
 
 from .conftest import write
 
@@ -135,6 +137,28 @@ def test_implausible_errors_on_the_command_line_and_in_the_table_are_named(tmp_p
     assert _run(sheet, write(tmp_path, rows + "overflow,100,,0.05,\noverflow,0,100,0.95,\n", "rows.csv"), "-o", out) == 1
     assert "row 2, column 'relative_error': relative error 1e+06 is implausible" in capsys.readouterr().err
     assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    "cyclone_feed, underflow, where",
+    [
+        (
+            "70,80,,",
+            ",,75,0",
+            "row 3, column 'solids_flow_sd': solids flow sd 80 is implausible for a flow of 70: more than 100%",
+        ),
+        (",,50,60", ",,75,0", "row 3, column 'pct_solids_sd': per cent solids sd 60 is implausible: at most 50 percentage"),
+        (",,50,0", ",,0,0", "row 5, column 'pct_solids': per cent solids 0 outside (0, 100]"),
+        (",,50,0", ",,100.5,1", "row 5, column 'pct_solids': per cent solids 100.5 outside (0, 100]"),
+    ],
+)
+def test_an_implausible_flow_or_per_cent_solids_names_its_row_and_column(tmp_path, cyclone_feed, underflow, where):
+    survey = (
+        "stream,solids_flow,solids_flow_sd,pct_solids,pct_solids_sd\n"
+        f"fresh_feed,120,0,,\ncyclone_feed,{cyclone_feed}\ncyclone_overflow,,,30,0\ncyclone_underflow,{underflow}\n"
+    )
+    with pytest.raises(InputError, match=re.escape(where)):
+        reconcile(write(tmp_path, MILL_AND_CYCLONE, "sheet.csv"), write(tmp_path, survey, "survey.csv"))
 
 
 def _one_node(feed, fine, coarse) -> pd.DataFrame:

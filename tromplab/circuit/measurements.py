@@ -67,6 +67,7 @@ balancing of mineral processes data. *International Journal of Mineral Processin
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -431,33 +432,39 @@ def _stream_names(table: Table, flowsheet: Flowsheet) -> np.ndarray:
 
 def _check_stream_values(table: Table, flows: pd.DataFrame, pct: pd.DataFrame) -> None:
     """Refuse implausible flow and per cent solids sds and per cent solids outside (0, 100], naming the row."""
-    implausible = flows[(flows["value"] > 0) & (flows["sd"] > MAX_RELATIVE_ERROR * flows["value"])]
-    if len(implausible):
-        row = implausible.iloc[0]
-        raise InputError(
-            f"solids flow sd {row.sd:g} is implausible for a flow of {row.value:g}: more than {MAX_RELATIVE_ERROR:.0%} of "
-            "the flow",
-            source=table.source,
-            row=row.row,
-            column="solids_flow_sd",
-        )
+    _refuse_first(
+        table,
+        flows[(flows["value"] > 0) & (flows["sd"] > MAX_RELATIVE_ERROR * flows["value"])],
+        "solids_flow_sd",
+        lambda row: (
+            f"solids flow sd {row.sd:g} is implausible for a flow of {row.value:g}: more than "
+            f"{MAX_RELATIVE_ERROR:.0%} of the flow"
+        ),
+    )
     if len(pct):
-        implausible = pct[pct["sd"] > MAX_PCT_SOLIDS_SD]
-        if len(implausible):
-            row = implausible.iloc[0]
-            raise InputError(
-                f"per cent solids sd {row.sd:g} is implausible: at most {MAX_PCT_SOLIDS_SD:g} percentage points (a per cent "
-                "solids lies in 0..100)",
-                source=table.source,
-                row=row.row,
-                column="pct_solids_sd",
-            )
-        bad = pct[(pct["value"] <= 0) | (pct["value"] > 100)]
-        if len(bad):
-            row = bad.iloc[0]
-            raise InputError(
-                f"per cent solids {row.value:g} outside (0, 100]", source=table.source, row=row.row, column="pct_solids"
-            )
+        _refuse_first(
+            table,
+            pct[pct["sd"] > MAX_PCT_SOLIDS_SD],
+            "pct_solids_sd",
+            lambda row: (
+                f"per cent solids sd {row.sd:g} is implausible: at most {MAX_PCT_SOLIDS_SD:g} percentage points "
+                "(a per cent solids lies in 0..100)"
+            ),
+        )
+        _refuse_first(
+            table,
+            pct[(pct["value"] <= 0) | (pct["value"] > 100)],
+            "pct_solids",
+            lambda row: f"per cent solids {row.value:g} outside (0, 100]",
+        )
+
+
+def _refuse_first(table: Table, offending: pd.DataFrame, column: str, message: Callable[[pd.Series], str]) -> None:
+    """Raise an :class:`InputError` naming the file row (``row``) and ``column`` of the first of the
+    ``offending`` values, if any; ``message(value)`` says what is wrong with it."""
+    if len(offending):
+        first = offending.iloc[0]
+        raise InputError(message(first), source=table.source, row=first.row, column=column)
 
 
 def _cell_text(table: Table, i: int, column: str) -> str:
@@ -476,17 +483,13 @@ def _size_bounds(table: Table, size_unit):
         column = found["size_class"]
         lower, upper = class_string_bounds(table, column, blank_allowed=True)  # blank: a row of stream values only
         written = table.frame[column].notna().to_numpy() & (table.frame[column].astype(str).str.strip() != "").to_numpy()
-        bad = np.flatnonzero(written & ~(lower > 0) & np.isnan(upper))
-        if bad.size:
-            raise table.error("the class has neither a lower nor an upper bound", index=int(bad[0]), column=column)
+        table.refuse_where(written & ~(lower > 0) & np.isnan(upper), column, "the class has neither a lower nor an upper bound")
         lower = np.where(lower == 0, np.nan, lower)  # "+0": the pan
-        bad = np.flatnonzero(np.isfinite(lower) & np.isfinite(upper) & (lower >= upper))
-        if bad.size:
-            raise table.error(
-                f"class '{table.frame[column].iloc[bad[0]]}': the lower bound is not below the upper bound",
-                index=int(bad[0]),
-                column=column,
-            )
+        table.refuse_where(
+            np.isfinite(lower) & np.isfinite(upper) & (lower >= upper),
+            column,
+            lambda i: f"class '{table.frame[column].iloc[i]}': the lower bound is not below the upper bound",
+        )
         return lower, upper, unit, [column]
     if not ("size_lower" in found and "size_upper" in found):
         raise InputError(
@@ -497,21 +500,14 @@ def _size_bounds(table: Table, size_unit):
     lower = table.numeric(found["size_lower"], allow_blank=True)
     upper = table.numeric(found["size_upper"], allow_blank=True)
     for values, column in ((lower, found["size_lower"]), (upper, found["size_upper"])):
-        bad = np.flatnonzero(values < 0)
-        if bad.size:
-            raise table.error(
-                "class bounds must be positive (a pan's lower bound may be 0 or blank)", index=int(bad[0]), column=column
-            )
-    bad = np.flatnonzero(upper == 0)
-    if bad.size:
-        raise table.error("an upper bound must be positive", index=int(bad[0]), column=found["size_upper"])
+        table.refuse_where(values < 0, column, "class bounds must be positive (a pan's lower bound may be 0 or blank)")
+    table.refuse_where(upper == 0, found["size_upper"], "an upper bound must be positive")
     lower = np.where(lower == 0, np.nan, lower)
-    bad = np.flatnonzero(np.isfinite(lower) & np.isfinite(upper) & (lower >= upper))
-    if bad.size:
-        i = int(bad[0])
-        raise table.error(
-            f"lower bound {lower[i]:g} is not below the upper bound {upper[i]:g}", index=i, column=found["size_lower"]
-        )
+    table.refuse_where(
+        np.isfinite(lower) & np.isfinite(upper) & (lower >= upper),
+        found["size_lower"],
+        lambda i: f"lower bound {lower[i]:g} is not below the upper bound {upper[i]:g}",
+    )
     return lower, upper, unit, [found["size_lower"], found["size_upper"]]
 
 
@@ -630,9 +626,7 @@ def _retained_values(table: Table, column: str, full, has_class) -> np.ndarray:
     if bad.size:
         limit = f"{full:g} (the whole stream)" if full is not None else f"{MAX_RETAINED_MASS:g} (beyond any weighing)"
         raise table.error(f"retained value {values[bad[0]]:g} above {limit}", index=int(bad[0]), column=column)
-    bad = np.flatnonzero(np.isfinite(values) & ~has_class)
-    if bad.size:
-        raise table.error("a retained value without a size class", index=int(bad[0]), column=column)
+    table.refuse_where(np.isfinite(values) & ~has_class, column, "a retained value without a size class")
     return values
 
 
@@ -737,9 +731,7 @@ def _error_columns(table: Table, n: int, full) -> tuple[np.ndarray, np.ndarray, 
     relative = _optional(table, "relative_error", n)
     absolute = _optional(table, "absolute_error", n)
     for array, name in ((row_sd, "retained_sd"), (relative, "relative_error"), (absolute, "absolute_error")):
-        bad = np.flatnonzero(array < 0)
-        if bad.size:
-            raise table.error(f"{name} must not be negative", index=int(bad[0]), column=name)
+        table.refuse_where(array < 0, name, f"{name} must not be negative")
     unit_of_value = full or 1.0  # masses: checked per stream below, once divided by the stream's total
     limits = (
         (relative, "relative_error", MAX_RELATIVE_ERROR, "a relative error of 100 % of the share"),
@@ -771,12 +763,8 @@ def _stream_values(table: Table, names, column: str, sd_column: str, default_sd,
         return pd.DataFrame(columns=columns)
     values = table.numeric(column, allow_blank=True)
     sds = _optional(table, sd_column, len(values))
-    bad = np.flatnonzero(values < 0)
-    if bad.size:
-        raise table.error(f"negative {column.replace('_', ' ')} {values[bad[0]]:g}", index=int(bad[0]), column=column)
-    bad = np.flatnonzero(sds < 0)
-    if bad.size:
-        raise table.error("a standard deviation must not be negative", index=int(bad[0]), column=sd_column)
+    table.refuse_where(values < 0, column, lambda i: f"negative {column.replace('_', ' ')} {values[i]:g}")
+    table.refuse_where(sds < 0, sd_column, "a standard deviation must not be negative")
     records = []
     for stream in dict.fromkeys(names):
         rows = np.flatnonzero((names == stream) & np.isfinite(values))

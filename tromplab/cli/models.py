@@ -323,15 +323,10 @@ def run_layer_fit(args) -> int:
             steps = np.rint(table.numeric("time") / args.step_seconds)
     else:
         raise InputError("give a 'step' column or a 'time' column (seconds; one step = --step-seconds)", source=table.source)
-    bad = np.flatnonzero(steps < 1)
-    if bad.size:
-        raise table.error("must be at least one step", index=int(bad[0]), column=column)
-    bad = np.flatnonzero(steps > MAX_STEPS)  # also keeps the steps within machine integers
-    if bad.size:
-        raise table.error(f"{steps[bad[0]]:g} steps: at most {MAX_STEPS:,} are simulated", index=int(bad[0]), column=column)
-    bad = np.flatnonzero((extraction < 0) | (extraction > 1))
-    if bad.size:
-        raise table.error(f"extraction {extraction[bad[0]]:g} outside 0..1", index=int(bad[0]), column="extraction")
+    table.refuse_where(steps < 1, column, "must be at least one step")
+    # also keeps the steps within machine integers
+    table.refuse_where(steps > MAX_STEPS, column, lambda i: f"{steps[i]:g} steps: at most {MAX_STEPS:,} are simulated")
+    table.refuse_where((extraction < 0) | (extraction > 1), "extraction", lambda i: f"extraction {extraction[i]:g} outside 0..1")
     if extraction.size < 4:  # three parameters and a residual variance
         raise InputError(
             f"{extraction.size} point(s): the layer fit needs at least four (step, extraction) pairs", source=table.source

@@ -194,10 +194,7 @@ def read_f_table(path, *, alpha: float = DEFAULT_ALPHA, use_given_marks: bool = 
     else:
         frame["adequate"] = frame["F"] > frame["F_crit"]
     duplicated = frame.duplicated(["experiment", "equation"]).to_numpy()
-    if duplicated.any():
-        raise table.error(
-            "the same experiment and equation appear twice", index=int(np.flatnonzero(duplicated)[0]), column="equation"
-        )
+    table.refuse_where(duplicated, "equation", "the same experiment and equation appear twice")
     present = set(zip(frame["experiment"], frame["equation"]))
     for experiment in dict.fromkeys(frame["experiment"]):
         missing = [e for e in dict.fromkeys(frame["equation"]) if (experiment, e) not in present]
@@ -332,15 +329,12 @@ def _labels(table, column: str) -> np.ndarray:
     labels = table.frame[column]
     text = labels.astype(str).str.strip()
     blank = (labels.isna() | (text == "")).to_numpy()
-    if blank.any():
-        raise table.error(f"{column} is blank", index=int(np.flatnonzero(blank)[0]), column=column)
+    table.refuse_where(blank, column, f"{column} is blank")
     return text.to_numpy(dtype=object)
 
 
 def _non_negative(table, column: str) -> np.ndarray:
     """A column of F values: numbers >= 0 (F = inf, a perfect fit, is allowed)."""
     values = table.numeric(column)
-    bad = np.flatnonzero(~(values >= 0))
-    if bad.size:
-        raise table.error(f"{column} must be a number >= 0, got {values[bad[0]]:g}", index=int(bad[0]), column=column)
+    table.refuse_where(~(values >= 0), column, lambda i: f"{column} must be a number >= 0, got {values[i]:g}")
     return values

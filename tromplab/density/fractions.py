@@ -139,11 +139,11 @@ def densities(table: Table, column: str, *, allow_blank: bool = False, zero_is_b
     values = table.numeric(column, allow_blank=allow_blank)
     low, high = DENSITY_RANGE
     zero_allowed = (values == 0) & allow_blank & zero_is_blank
-    bad = np.flatnonzero(np.isfinite(values) & ((values < low) | (values > high)) & ~zero_allowed)
-    if bad.size:
-        raise table.error(
-            f"relative density {values[bad[0]]:g} outside {low:g}..{high:g} (g/cm3, water = 1)", index=int(bad[0]), column=column
-        )
+    table.refuse_where(
+        np.isfinite(values) & ((values < low) | (values > high)) & ~zero_allowed,
+        column,
+        lambda i: f"relative density {values[i]:g} outside {low:g}..{high:g} (g/cm3, water = 1)",
+    )
     return values
 
 
@@ -157,13 +157,10 @@ def fraction_label(lower: float, upper: float) -> str:
 
 
 def _check_each_fraction(table: Table, lower: np.ndarray, upper: np.ndarray) -> None:
-    bad = np.flatnonzero(lower >= upper)
-    if bad.size:
-        i = int(bad[0])
-        raise table.error(f"lower bound {lower[i]:g} is not below the upper bound {upper[i]:g}", index=i, column="density_lower")
-    bad = np.flatnonzero(np.isnan(lower) & np.isnan(upper))
-    if bad.size:
-        raise table.error("the fraction has neither a lower nor an upper bound", index=int(bad[0]), column="density_lower")
+    table.refuse_where(
+        lower >= upper, "density_lower", lambda i: f"lower bound {lower[i]:g} is not below the upper bound {upper[i]:g}"
+    )
+    table.refuse_where(np.isnan(lower) & np.isnan(upper), "density_lower", "the fraction has neither a lower nor an upper bound")
 
 
 def _check_tiling(table: Table, lower: np.ndarray, upper: np.ndarray) -> None:

@@ -326,8 +326,7 @@ def _test_labels(table: Table) -> np.ndarray:
         return np.full(len(table.frame), Path(table.source).stem, dtype=object)
     labels = table.frame["test"]
     blank = labels.isna().to_numpy() | (labels.astype(str).str.strip() == "").to_numpy()
-    if blank.any():
-        raise table.error("test name is blank", index=int(np.flatnonzero(blank)[0]), column="test")
+    table.refuse_where(blank, "test", "test name is blank")
     return labels.astype(str).str.strip().to_numpy(dtype=object)
 
 
@@ -356,17 +355,14 @@ def _size_bounds(table: Table, columns: tuple[str, ...]) -> tuple[np.ndarray, np
     upper = table.numeric(columns[1], allow_blank=True)
     lower = np.where(lower == 0, np.nan, lower)
     for values, column in ((lower, columns[0]), (upper, columns[1])):
-        bad = np.flatnonzero(values < 0)
-        if bad.size:
-            raise table.error(
-                "a size bound must be positive (a finest fraction's lower bound may be 0 or blank)",
-                index=int(bad[0]),
-                column=column,
-            )
-    bad = np.flatnonzero(np.isfinite(lower) & np.isfinite(upper) & (lower >= upper))
-    if bad.size:
-        i = int(bad[0])
-        raise table.error(f"size_lower {lower[i]:g} is not below size_upper {upper[i]:g}", index=i, column=columns[0])
+        table.refuse_where(
+            values < 0, column, "a size bound must be positive (a finest fraction's lower bound may be 0 or blank)"
+        )
+    table.refuse_where(
+        np.isfinite(lower) & np.isfinite(upper) & (lower >= upper),
+        columns[0],
+        lambda i: f"size_lower {lower[i]:g} is not below size_upper {upper[i]:g}",
+    )
     return lower, upper
 
 
@@ -385,19 +381,11 @@ def _check_increasing(table: Table, values: np.ndarray, column: str) -> None:
 
 def _counts(table: Table, column: str) -> np.ndarray:
     values = table.numeric(column)
-    bad = np.flatnonzero(values < 0)
-    if bad.size:
-        raise table.error(f"negative count {values[bad[0]]:g}", index=int(bad[0]), column=column)
-    bad = np.flatnonzero(values > MAX_TRACERS)
-    if bad.size:
-        raise table.error(
-            f"count {values[bad[0]]:.6g} is more than {MAX_TRACERS:,} tracers: a mistyped value?",
-            index=int(bad[0]),
-            column=column,
-        )
-    bad = np.flatnonzero(values != np.round(values))
-    if bad.size:
-        raise table.error(f"count {values[bad[0]]:g} is not a whole number of tracers", index=int(bad[0]), column=column)
+    table.refuse_where(values < 0, column, lambda i: f"negative count {values[i]:g}")
+    table.refuse_where(
+        values > MAX_TRACERS, column, lambda i: f"count {values[i]:.6g} is more than {MAX_TRACERS:,} tracers: a mistyped value?"
+    )
+    table.refuse_where(values != np.round(values), column, lambda i: f"count {values[i]:g} is not a whole number of tracers")
     return values.astype(np.int64)
 
 
@@ -437,12 +425,9 @@ def _tracer_sample(table: Table, context: dict) -> DensitySample:
     notes = []
     if "placed" in table.frame.columns:
         placed = _counts(table, "placed")
-        bad = np.flatnonzero(recovered > placed)
-        if bad.size:
-            i = int(bad[0])
-            raise table.error(
-                f"sinks + floats = {recovered[i]} is more than the {placed[i]} tracers placed", index=i, column="placed"
-            )
+        table.refuse_where(
+            recovered > placed, "placed", lambda i: f"sinks + floats = {recovered[i]} is more than the {placed[i]} tracers placed"
+        )
         lost = placed - recovered
         if lost.sum():
             notes.append(
@@ -547,13 +532,11 @@ def _stated_floats_yield(table: Table, option: float | None) -> tuple[float | No
     if "floats_yield" not in table.frame.columns:
         return None, ""
     values = table.numeric("floats_yield", allow_blank=True)
-    bad = np.flatnonzero(np.isfinite(values) & ((values <= 0) | (values >= 1)))
-    if bad.size:
-        raise table.error(
-            f"floats yield {values[bad[0]]:g} outside (0, 1) (a share of the feed, not per cent)",
-            index=int(bad[0]),
-            column="floats_yield",
-        )
+    table.refuse_where(
+        np.isfinite(values) & ((values <= 0) | (values >= 1)),
+        "floats_yield",
+        lambda i: f"floats yield {values[i]:g} outside (0, 1) (a share of the feed, not per cent)",
+    )
     given = values[np.isfinite(values)]
     if given.size == 0:
         return None, ""

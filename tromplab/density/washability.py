@@ -492,8 +492,7 @@ def _test_names(table: Table) -> np.ndarray:
     names = table.frame["test"]
     text = names.astype(str).str.strip()
     blank = names.isna().to_numpy() | (text == "").to_numpy()
-    if blank.any():
-        raise table.error("test name is blank", index=int(np.flatnonzero(blank)[0]), column="test")
+    table.refuse_where(blank, "test", "test name is blank")
     return text.to_numpy(dtype=object)
 
 

@@ -129,22 +129,12 @@ def _checked_bounds(table: Table, lower, upper, lower_column: str, upper_column:
     zero_lower = lower == 0
     lower = np.where(zero_lower, np.nan, lower)  # the pan written with a lower bound of 0
     for values, column in ((lower, lower_column), (upper, upper_column)):
-        bad = np.flatnonzero(values <= 0)
-        if bad.size:
-            raise table.error(
-                "class bounds must be positive (a pan's lower bound may be 0 or blank)", index=int(bad[0]), column=column
-            )
+        table.refuse_where(values <= 0, column, "class bounds must be positive (a pan's lower bound may be 0 or blank)")
     both = np.isfinite(lower) & np.isfinite(upper)
-    bad = np.flatnonzero(both & (lower >= upper))
-    if bad.size:
-        raise table.error(
-            f"lower bound {lower[bad[0]]:g} is not below the upper bound {upper[bad[0]]:g}",
-            index=int(bad[0]),
-            column=lower_column,
-        )
-    bad = np.flatnonzero(np.isnan(lower) & np.isnan(upper))
-    if bad.size:
-        raise table.error("the class has neither a lower nor an upper bound", index=int(bad[0]), column=lower_column)
+    table.refuse_where(
+        both & (lower >= upper), lower_column, lambda i: f"lower bound {lower[i]:g} is not below the upper bound {upper[i]:g}"
+    )
+    table.refuse_where(np.isnan(lower) & np.isnan(upper), lower_column, "the class has neither a lower nor an upper bound")
     open_top = np.flatnonzero(np.isnan(upper))
     pan = np.flatnonzero(np.isnan(lower))
     for rows, column, what in ((open_top, upper_column, "open top class"), (pan, lower_column, "pan")):
@@ -203,9 +193,7 @@ def _retained_on_sieves(table: Table, size_column: str):
 
 def _sorted_sieves(table: Table, size_column: str) -> np.ndarray:
     size = table.numeric(size_column)
-    bad = np.flatnonzero(size <= 0)
-    if bad.size:
-        raise table.error("sieve size must be positive", index=int(bad[0]), column=size_column)
+    table.refuse_where(size <= 0, size_column, "sieve size must be positive")
     step = np.diff(size)
     if not (np.all(step < 0) or np.all(step > 0)):
         direction = np.sign(step[0]) if step[0] != 0 else 1.0
@@ -220,15 +208,12 @@ def per_class_shares(table: Table, column: str, kind: str, options: LabOptions):
     blank = np.flatnonzero(np.isnan(values))
     note = f"column '{column}': blank cell(s) at {_rows_text(table.rows[blank])} read as no material" if blank.size else ""
     values = np.where(np.isnan(values), 0.0, values)
-    bad = np.flatnonzero(values < 0)
-    if bad.size:
-        raise table.error(f"negative amount {values[bad[0]]:g}", index=int(bad[0]), column=column)
+    table.refuse_where(values < 0, column, lambda i: f"negative amount {values[i]:g}")
     largest = {"pct": 100.0 + options.sum_tolerance_pct, "frac": 1.0 + options.sum_tolerance_pct / 100.0}.get(kind, MAX_AMOUNT)
-    bad = np.flatnonzero(values > largest)
-    if bad.size:  # a share above the whole, or a mass whose sum would overflow
-        raise table.error(
-            f"amount {values[bad[0]]:g} is above {largest:g}, more than the whole stream", index=int(bad[0]), column=column
-        )
+    # a share above the whole, or a mass whose sum would overflow
+    table.refuse_where(
+        values > largest, column, lambda i: f"amount {values[i]:g} is above {largest:g}, more than the whole stream"
+    )
     total = values.sum()
     if total <= 0:
         raise InputError(f"column '{column}' holds no material", source=table.source, column=column)
@@ -343,14 +328,11 @@ def representative_class_sizes(table: Table, lower, upper, options: LabOptions, 
     size = np.sqrt(lower) * np.sqrt(upper)  # not sqrt(lower * upper): the product under- or overflows at extreme sizes
     if representative_column:  # measured or stated sizes replace the geometric-mean rule where given
         given = table.numeric(representative_column, allow_blank=True)
-        bad = np.flatnonzero(np.isfinite(given) & ((given <= lower * (1 - 1e-9)) | (given >= upper * (1 + 1e-9))))
-        if bad.size:
-            i = int(bad[0])
-            raise table.error(
-                f"representative size {given[i]:g} outside its class {lower[i]:g}-{upper[i]:g}",
-                index=i,
-                column=representative_column,
-            )
+        table.refuse_where(
+            np.isfinite(given) & ((given <= lower * (1 - 1e-9)) | (given >= upper * (1 + 1e-9))),
+            representative_column,
+            lambda i: f"representative size {given[i]:g} outside its class {lower[i]:g}-{upper[i]:g}",
+        )
         size = np.where(np.isfinite(given), given, size)
     bad = np.flatnonzero(~(np.isfinite(size) & (size > 0)) | ~(upper[top] < np.inf))
     if bad.size:  # e.g. a pan below 5e-324 or a top class above 1e308 once extended by the class ratio

@@ -128,9 +128,9 @@ def _yield_column(table: Table, column: str) -> float | None:
     given = values[np.isfinite(values)]
     if given.size == 0:
         return None
-    bad = np.flatnonzero(np.isfinite(values) & ((values <= 0) | (values >= 1)))
-    if bad.size:
-        raise table.error(f"yield {values[bad[0]]:g} outside (0, 1)", index=int(bad[0]), column=column)
+    table.refuse_where(
+        np.isfinite(values) & ((values <= 0) | (values >= 1)), column, lambda i: f"yield {values[i]:g} outside (0, 1)"
+    )
     if np.ptp(given) > 1e-12:
         i = int(np.flatnonzero(np.isfinite(values) & (values != given[0]))[0])
         raise table.error("the yield differs between rows of the same experiment", index=i, column=column)

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-import numpy as np
 import pandas as pd
 
 from .points import TrompPoints
@@ -105,9 +104,7 @@ def with_survey_columns(table: pd.DataFrame, experiments: list[TrompPoints]) -> 
 
 def _dates(table: Table) -> pd.Series:
     dates = pd.to_datetime(table.frame["date"].astype(str).str.strip(), errors="coerce", format="mixed")
-    bad = np.flatnonzero(dates.isna().to_numpy())
-    if bad.size:
-        raise table.error(
-            f"'{table.frame['date'].iloc[bad[0]]}' is not a date (use YYYY-MM-DD)", index=int(bad[0]), column="date"
-        )
+    table.refuse_where(
+        dates.isna().to_numpy(), "date", lambda i: f"'{table.frame['date'].iloc[i]}' is not a date (use YYYY-MM-DD)"
+    )
     return dates.reset_index(drop=True)

@@ -45,7 +45,7 @@ import pickle
 import re
 import tempfile
 import warnings
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -98,12 +98,19 @@ class Table:
         row = int(row) if isinstance(row, (int, np.integer)) else row  # a DataFrame's index label may be text
         return InputError(message, source=self.source, row=row, column=column)
 
+    def refuse_where(self, bad: np.ndarray, column: str | None, message: str | Callable[[int], str]) -> None:
+        """Raise an :class:`InputError` naming the first record where ``bad`` (one boolean per
+        record) is true and ``column``; ``message`` says what is wrong: the text, or a function of
+        the record's index (0-based) that makes it, called only for the record refused."""
+        refused = np.flatnonzero(bad)
+        if refused.size:
+            index = int(refused[0])
+            raise self.error(message(index) if callable(message) else message, index=index, column=column)
+
     def refuse_outside(self, values: np.ndarray, column: str, low: float, high: float) -> None:
         """Raise an :class:`InputError` naming the first record of ``values`` (the numbers of
         ``column``) outside ``[low, high]``."""
-        bad = np.flatnonzero((values < low) | (values > high))
-        if bad.size:
-            raise self.error(f"{values[bad[0]]:g} is outside [{low:g}, {high:g}]", index=int(bad[0]), column=column)
+        self.refuse_where((values < low) | (values > high), column, lambda i: f"{values[i]:g} is outside [{low:g}, {high:g}]")
 
     def require(self, *columns: str) -> None:
         missing = [c for c in columns if c not in self.frame.columns]
@@ -193,8 +200,8 @@ class Table:
         is refused ("{what} name is blank"), else it is ""."""
         names = [value if isinstance(value, str) else cell_name(value) for value in self.frame[column].tolist()]
         blank = np.fromiter((not name for name in names), dtype=bool, count=len(names))
-        if what is not None and blank.any():
-            raise self.error(f"{what} name is blank", index=int(np.flatnonzero(blank)[0]), column=column)
+        if what is not None:
+            self.refuse_where(blank, column, f"{what} name is blank")
         return np.asarray([name or "" for name in names], dtype=object)
 
     def experiment_labels(self) -> np.ndarray:
