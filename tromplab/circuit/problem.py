@@ -353,17 +353,46 @@ def bounded_solution(problem: Problem, fitted: np.ndarray) -> tuple[tuple[int, .
 def _wrong_sign_multiplier(problem: Problem, v: np.ndarray, released_before: np.ndarray) -> int | None:
     """The unknown held at 0 whose multiplier is most negative (raising it lowers the sum of squares), or
     None; an unknown released before (then negative again) stays held."""
+    held, multipliers, threshold = held_multipliers(problem, v)
+    if held.size == 0:
+        return None
+    multipliers = np.where(released_before[held], np.inf, multipliers)
+    worst = int(np.argmin(multipliers))
+    return int(held[worst]) if multipliers[worst] < threshold else None
+
+
+def held_multipliers(problem: Problem, v: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """``(held, multipliers, threshold)`` at the solution ``v`` of ``problem`` (whose bounds are
+    its constraints' last rows, :meth:`Problem.fixed_at_zero`): the unknowns held at 0, their
+    Lagrange multipliers (inf for a component's flow held with its class, not on its own) and
+    the level below which a multiplier says that raising the unknown lowers the sum of squares
+    (:data:`WRONG_SIGN` of the gradient's largest entry).  Empty without held unknowns or measurements."""
     held = np.array(problem.at_bound, dtype=int)
     if held.size == 0 or not problem.y.size:
-        return None
+        return held[:0], np.zeros(0), 0.0
     gradient = (problem.W @ problem.jacobian(v)).T @ (problem.W @ (problem.predict(v) - problem.y))
     multipliers = np.linalg.lstsq(problem.A.T, gradient, rcond=None)[0][-held.size :]  # the bounds are A's last rows
     active = np.zeros(v.size, dtype=bool)
     active[held] = True
     multipliers = np.where(problem.emptied(active)[held], np.inf, multipliers)  # held with their class, not on their own
-    multipliers = np.where(released_before[held], np.inf, multipliers)
-    worst = int(np.argmin(multipliers))
-    return int(held[worst]) if multipliers[worst] < -1e-8 * max(np.abs(gradient).max(), 1e-300) else None
+    return held, multipliers, -WRONG_SIGN * max(np.abs(gradient).max(), 1e-300)
+
+
+#: A held unknown's multiplier below minus this share of the gradient's largest entry has the
+#: wrong sign (raising the unknown would lower the sum of squares); above it, rounding.
+WRONG_SIGN = 1e-8
+
+
+def held_against_multipliers(problem: Problem, v: np.ndarray, held: tuple[int, ...]) -> int:
+    """How many of the unknowns ``held`` at 0 (the bounded solution ``v`` of the unbounded
+    ``problem``) have a multiplier of the wrong sign: flows the active set holds for good after
+    their release made them negative again, which a lower sum of squares would have free."""
+    if not held:
+        return 0
+    active = np.zeros(v.size, dtype=bool)
+    active[list(held)] = True
+    _, multipliers, threshold = held_multipliers(problem.fixed_at_zero(active), v)
+    return int(np.sum(multipliers < threshold))
 
 
 def check_positive_flows(flowsheet: Flowsheet, survey: Survey, flows: np.ndarray) -> None:

@@ -101,6 +101,7 @@ from .problem import (
     decompose,
     error_model_point,
     gauss_newton_step,
+    held_against_multipliers,
     linearised,
     solids_first_start,
     solve,
@@ -249,6 +250,18 @@ class CircuitBalance(ResultContract):
         names = self.flowsheet.stream_names + tuple(w.name for w in self.flowsheet.water_streams)
         solids_and_water = S * n + len(names) if self.balances_water else S * n  # a component's flow is flagged per curve
         return [(names[k // n], k % n) if k < S * n else (names[k - S * n], -1) for k in self.at_bound if k < solids_and_water]
+
+    @cached_property
+    def held_against_multipliers(self) -> int:
+        """How many of the flows held at 0 have a Lagrange multiplier of the wrong sign: raising
+        them would lower the sum of squares, but the active set holds them for good (each was
+        released once and came back negative).  0 when the bounds' end is a minimum."""
+        if not self.at_bound or self.problem is None:
+            return 0
+        from .sparse_solve import held_against_multipliers_sparse, is_sparse
+
+        count = held_against_multipliers_sparse if is_sparse(self.problem) else held_against_multipliers
+        return count(self.problem, self._unknowns, self.at_bound)
 
     @property
     def _unknowns(self) -> np.ndarray:
@@ -755,6 +768,14 @@ class CircuitBalance(ResultContract):
             lines.append(
                 f"held at 0 (the least squares would make them negative; the tests and sds are those without the bound): {listed}"
             )
+        if self.held_against_multipliers:
+            lines.append(
+                f"{self.held_against_multipliers} of the flows held at 0 would lower the sum of squares if raised (their "
+                "multipliers have the wrong sign; each was released once and came back negative, and the bounds' active set "
+                "then holds it): the balance is not shown to be the least-squares minimum under the bounds"
+            )
+        if not self.success:
+            lines.append(f"not converged: {self.message}")
         return lines
 
     # --- figures --------------------------------------------------------------------------

@@ -50,6 +50,7 @@ from .problem import (
     GAUSS_NEWTON_ITERATIONS,
     GAUSS_NEWTON_ROUNDING,
     GAUSS_NEWTON_XTOL,
+    WRONG_SIGN,
     Problem,
     closure_point,
     error_model_point,
@@ -483,9 +484,20 @@ def _emptied_by_balances(problem: SparseProblem, v0: np.ndarray) -> np.ndarray:
 def _wrong_sign_multiplier(problem: SparseProblem, v: np.ndarray, free: np.ndarray, released_before: np.ndarray, factor):
     """The held unknown whose multiplier is most negative, or None (the rule of the dense path);
     ``factor``: the Gauss-Newton factor at ``v`` (the solution), which gives the multipliers."""
+    held, multipliers, threshold = _held_multipliers(problem, v, free, factor)
+    if held.size == 0:
+        return None
+    multipliers = np.where(released_before[held], np.inf, multipliers)
+    worst = int(np.argmin(multipliers))
+    return int(held[worst]) if multipliers[worst] < threshold else None
+
+
+def _held_multipliers(problem: SparseProblem, v: np.ndarray, free: np.ndarray, factor) -> tuple:
+    """:func:`~tromplab.circuit.problem.held_multipliers` of the sparse path, from the factor at
+    the solution ``v`` of the unknowns ``free``."""
     held = np.array(problem.held, dtype=int)
     if held.size == 0 or not problem.y.size:
-        return None
+        return held[:0], np.zeros(0), 0.0
     gradient = (problem.W @ problem.jacobian(v)).T @ _whitened(problem, v)
     _, _, rows = free_constraints(problem, free)
     mu = factor.multipliers(gradient[free])
@@ -493,9 +505,21 @@ def _wrong_sign_multiplier(problem: SparseProblem, v: np.ndarray, free: np.ndarr
     active = np.zeros(v.size, dtype=bool)
     active[held] = True
     multipliers = np.where(problem.emptied(active)[held], np.inf, multipliers)
-    multipliers = np.where(released_before[held], np.inf, multipliers)
-    worst = int(np.argmin(multipliers))
-    return int(held[worst]) if multipliers[worst] < -1e-8 * max(np.abs(gradient).max(), 1e-300) else None
+    return held, multipliers, -WRONG_SIGN * max(np.abs(gradient).max(), 1e-300)
+
+
+def held_against_multipliers_sparse(problem: SparseProblem, v: np.ndarray, held: tuple[int, ...]) -> int:
+    """:func:`~tromplab.circuit.problem.held_against_multipliers` of the sparse path (one factor
+    of the held problem at ``v``)."""
+    if not held:
+        return 0
+    active = np.zeros(v.size, dtype=bool)
+    active[list(held)] = True
+    current = _held(problem, active)
+    free = np.setdiff1d(np.arange(v.size), current.held)
+    factor = AugmentedFactor(current.W @ current.jacobian(v)[:, free], free_constraints(current, free)[0])
+    _, multipliers, threshold = _held_multipliers(current, v, free, factor)
+    return int(np.sum(multipliers < threshold))
 
 
 # --- the reconciliation -----------------------------------------------------------------------
