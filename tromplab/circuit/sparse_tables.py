@@ -48,7 +48,9 @@ class SparseLinearisation:
         if "CX" not in self._products:
             G = (problem.W @ problem.effects).tocsc()
             X = (self.J.T @ G).tocsc()
-            self._products.update(G=G, X=X, CX=np.asarray((X.T @ self.C).T))
+            # C-ordered: a sparse product with a transposed array copies it whole first (a design
+            # candidate's rows times CX took 17 ms of copying for 0.1 ms of products)
+            self._products.update(G=G, X=X, CX=np.ascontiguousarray((X.T @ self.C).T))
         return self._products["G"], self._products["X"], self._products["CX"]
 
 
