@@ -162,10 +162,11 @@ class AugmentedFactor:
             unit[columns, np.arange(columns.size)] = 1.0 / self.scale[columns]
             _, x, _ = self._solve(np.zeros((self.rows, columns.size)), unit)
             C[np.ix_(self.kept, self.kept[columns])] = -x / self.scale[:, None]
-        Z = self.unseen
-        if Z.shape[1]:
-            C -= Z @ (Z.T @ C)
-            C -= (Z @ (Z.T @ C.T)).T
+        blocks = _direction_blocks(self.unseen)
+        for rows, basis in blocks:  # Z Z^T C: the rows of each block of directions, by dense products
+            C[rows] -= basis @ (basis.T @ C[rows])
+        for rows, basis in blocks:  # then C Z Z^T
+            C[:, rows] -= (C[:, rows] @ basis) @ basis.T
         return C
 
     def covariance_times(self, G: np.ndarray) -> np.ndarray:
@@ -179,6 +180,30 @@ class AugmentedFactor:
             block = G[self.kept, start : start + SOLVE_BLOCK] / self.scale[:, None]
             x[:, start : start + block.shape[1]] = self._solve(np.zeros((self.rows, block.shape[1])), block)[1]
         return -self._unseen_removed(x / self.scale[:, None])
+
+
+def _direction_blocks(Z) -> list[tuple[np.ndarray, np.ndarray]]:
+    r"""``(rows, basis)`` of each group of the columns of ``Z`` that reach the same unknowns:
+    the unknowns ``rows`` and the dense block ``Z[rows]`` of the group's columns.  The groups
+    reach disjoint unknowns, so :math:`Z Z^T C` is, in the rows of each, its block times its
+    block's transpose times those rows of :math:`C`: dense products of a few hundred rows, where
+    the sparse products with the whole of ``Z`` (blocks of 272 unknowns x 110 directions, each
+    dense, on the 30-node plant with four minerals) took a quarter of the covariance's time."""
+    from scipy import sparse
+    from scipy.sparse import csgraph
+
+    if not Z.shape[1]:
+        return []
+    Z = sparse.csc_matrix(Z)
+    pattern = sparse.csc_matrix((np.ones(Z.nnz), Z.indices, Z.indptr), shape=Z.shape)
+    _, labels = csgraph.connected_components(sparse.bmat([[None, pattern], [pattern.T, None]]), directed=False)
+    row_labels, column_labels = labels[: Z.shape[0]], labels[Z.shape[0] :]
+    reached = np.diff(pattern.tocsr().indptr) > 0
+    blocks = []
+    for label in np.unique(column_labels):
+        rows, columns = np.flatnonzero(reached & (row_labels == label)), np.flatnonzero(column_labels == label)
+        blocks.append((rows, Z[rows][:, columns].toarray()))
+    return blocks
 
 
 #: Right-hand sides per call of the LU's solve in :meth:`AugmentedFactor.covariance` and

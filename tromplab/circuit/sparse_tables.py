@@ -40,8 +40,8 @@ class SparseLinearisation:
         if Z.shape[1] and abs(Z[: problem.component_offset]).max() > 0:
             # a solids or water flow no measurement determines: the dense path names the streams
             raise DensePathNeeded("a solids or water flow is not observable")
-        C = factor.covariance()
-        return cls(rank=factor.rank, J=problem.W @ problem.jacobian(v), C=(C + C.T) / 2.0, unseen_unknowns=Z, _products={})
+        return cls(rank=factor.rank, J=problem.W @ problem.jacobian(v), C=_symmetrised(factor.covariance()), unseen_unknowns=Z,
+                   _products={})  # fmt: skip
 
     def whitened_effects(self, problem: Problem):
         """``(G, X, CX)``: the whitened raw-error effects :math:`G = W P`, :math:`X = J^T G` (sparse) and :math:`C X` (dense)."""
@@ -52,6 +52,18 @@ class SparseLinearisation:
             # candidate's rows times CX took 17 ms of copying for 0.1 ms of products)
             self._products.update(G=G, X=X, CX=np.ascontiguousarray((X.T @ self.C).T))
         return self._products["G"], self._products["X"], self._products["CX"]
+
+
+def _symmetrised(C: np.ndarray, strip: int = 256) -> np.ndarray:
+    """``C`` made exactly symmetric in place, :math:`(C + C^T) / 2` (the same numbers), a strip of
+    rows and its strip of columns at a time: a whole new 134 MB array took 0.3 s on the 30-node
+    plant with four minerals, most of it in the first touch of its pages."""
+    for start in range(0, C.shape[0], strip):
+        stop = start + strip
+        mean = (C[start:stop, start:] + C[start:, start:stop].T) / 2.0
+        C[start:stop, start:] = mean
+        C[start:, start:stop] = mean.T
+    return C
 
 
 def prediction_variances(C: np.ndarray, H) -> np.ndarray:

@@ -1,0 +1,90 @@
+"""The linear algebra of the sparse path's tables (tromplab.circuit.sparse_factor's covariance,
+tromplab.circuit.sparse_tables) against the arithmetic it replaced: the covariance solved in
+blocks of right-hand sides with the unseen directions projected out block by block, its products,
+the exact symmetrisation, computed here the plain way (one solve of every unit vector, the
+projections by sparse products with the whole of Z, (C + C^T) / 2).
+
+The plant: the 4-node plant of large_plant(2, 20) with four minerals assayed on every stream
+(900 unknowns, 20 directions no measurement sees), at its starting point.
+"""
+
+import warnings
+
+import numpy as np
+import pytest
+
+from tromplab.circuit import sparse_factor, sparse_solve, sparse_tables
+from tromplab.circuit.simulation import lab_survey, large_plant
+
+
+@pytest.fixture(scope="module")
+def factor_and_problem():
+    truth = large_plant(2, 20)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the truth's grade of an empty class is 0/0 (no assay drawn)
+        survey = lab_survey(truth, np.random.default_rng(40), flows={"fresh_feed": 0.02})
+    problem, _ = sparse_solve.build_sparse_problem(truth.flowsheet, survey)
+    start = sparse_solve.sparse_solids_first_start(truth.flowsheet, survey, problem)
+    v = sparse_solve.projected_start(problem, start)
+    factor = sparse_factor.AugmentedFactor(problem.W @ problem.jacobian(v), problem.A)
+    return factor, problem, v
+
+
+def _plain_covariance(factor) -> np.ndarray:
+    """The covariance as it was computed before: every unit vector in one solve, then
+    Z Z^T C and C Z Z^T by sparse products with the whole of Z."""
+    _, x, _ = factor._solve(np.zeros((factor.rows, factor.unknowns)), np.diag(1.0 / factor.scale))
+    C = np.zeros((factor.size, factor.size))
+    C[np.ix_(factor.kept, factor.kept)] = -x / factor.scale[:, None]
+    Z = factor.unseen
+    C -= Z @ (Z.T @ C)
+    C -= (Z @ (Z.T @ C.T)).T
+    return C
+
+
+def test_the_blocked_covariance_is_the_one_of_a_single_solve(factor_and_problem):
+    factor, _, _ = factor_and_problem
+    assert factor.unknowns > 3 * sparse_factor.SOLVE_BLOCK and factor.unseen.shape[1] > 0  # blocks and projections at work
+    expected = _plain_covariance(factor)
+    covariance = factor.covariance()
+    # the solves give the same columns bit for bit; the dense projections differ at rounding
+    np.testing.assert_allclose(covariance, expected, rtol=0, atol=1e-13 * np.abs(expected).max())
+    unseen = factor.unseen.toarray()
+    assert np.abs(covariance @ unseen).max() <= 1e-12 * np.abs(expected).max()  # nothing left in the unseen directions
+
+
+def test_the_covariance_times_a_matrix_is_the_covariance_times_it(factor_and_problem):
+    """covariance_times(G) in blocks of columns against the dense covariance times G, for more
+    columns than a block holds (and a last block short)."""
+    factor, _, _ = factor_and_problem
+    G = np.random.default_rng(1).standard_normal((factor.size, 2 * sparse_factor.SOLVE_BLOCK + 5))
+    expected = _plain_covariance(factor) @ G
+    np.testing.assert_allclose(factor.covariance_times(G), expected, rtol=0, atol=1e-11 * np.abs(expected).max())
+
+
+def test_the_unseen_directions_split_into_blocks_of_disjoint_unknowns(factor_and_problem):
+    factor, _, _ = factor_and_problem
+    Z = factor.unseen.toarray()
+    blocks = sparse_factor._direction_blocks(factor.unseen)
+    rows = np.concatenate([block_rows for block_rows, _ in blocks])
+    assert rows.size == np.unique(rows).size  # disjoint
+    assert sum(basis.shape[1] for _, basis in blocks) == Z.shape[1]
+    projector = np.zeros_like(Z @ Z.T)
+    for block_rows, basis in blocks:
+        projector[np.ix_(block_rows, block_rows)] += basis @ basis.T
+    np.testing.assert_allclose(projector, Z @ Z.T, rtol=0, atol=1e-15)
+    assert sparse_factor._direction_blocks(factor.unseen[:, :0]) == []
+
+
+@pytest.mark.parametrize("size", [1, 255, 256, 257, 700])
+def test_the_symmetrised_covariance_is_the_mean_with_its_transpose_bit_for_bit(size):
+    C = np.random.default_rng(size).standard_normal((size, size))
+    expected = (C + C.T) / 2.0
+    assert np.array_equal(sparse_tables._symmetrised(C.copy()), expected)
+
+
+def test_the_linearisation_holds_the_symmetrised_covariance(factor_and_problem):
+    factor, problem, v = factor_and_problem
+    linearisation = sparse_tables.SparseLinearisation.at(problem, v, factor)
+    C = factor.covariance()
+    assert np.array_equal(linearisation.C, (C + C.T) / 2.0)
