@@ -88,3 +88,37 @@ def test_the_linearisation_holds_the_symmetrised_covariance(factor_and_problem):
     linearisation = sparse_tables.SparseLinearisation.at(problem, v, factor)
     C = factor.covariance()
     assert np.array_equal(linearisation.C, (C + C.T) / 2.0)
+
+
+def _random_sparse(rows: int, columns: int, seed: int):
+    from scipy import sparse
+
+    return sparse.random(rows, columns, density=0.05, random_state=seed, format="csc")
+
+
+@pytest.mark.parametrize("rows", [1, 63, 64, 65, 200])
+def test_a_dense_matrix_times_a_sparse_one_by_blocks_of_rows_is_scipy_s_product_bit_for_bit(rows):
+    D = np.random.default_rng(rows).standard_normal((rows, 90))
+    S = _random_sparse(90, 70, rows)
+    product = sparse_tables.dense_times_sparse(D, S)
+    assert product.flags["C_CONTIGUOUS"]
+    assert np.array_equal(product, np.asarray(D @ S))
+
+
+def test_the_scaled_projected_products_are_the_plain_expression_bit_for_bit():
+    G, X = _random_sparse(120, 80, 1), _random_sparse(150, 80, 2)
+    CX = np.random.default_rng(3).standard_normal((150, 80))
+    scale = np.random.default_rng(4).uniform(0.5, 2.0, 80)
+    expected = ((G.T @ G).toarray() - np.asarray(X.T @ CX)) / np.outer(scale, scale)
+    assert np.array_equal(sparse_tables._scaled_projected_products(G, X, CX, scale, rows=32), expected)
+
+
+def test_the_worth_table_s_label_columns_are_the_columns_pandas_makes_of_the_repeated_labels():
+    import pandas as pd
+
+    from tromplab.circuit.worth import _taken
+
+    labels = np.array(["share a 1", "flow b", "assay c 2"], dtype=object)
+    positions = np.tile(np.arange(labels.size), 4)
+    for column in (labels, labels.astype(str)):  # object and fixed-width strings, as the table has both
+        pd.testing.assert_frame_equal(pd.DataFrame({"x": _taken(column, positions)}), pd.DataFrame({"x": column[positions]}))
