@@ -1,6 +1,7 @@
 """The linear algebra of the sparse path's tables (tromplab.circuit.sparse_factor's covariance,
 tromplab.circuit.sparse_tables) against the arithmetic it replaced: the covariance solved in
-blocks of right-hand sides with the unseen directions projected out block by block, its products,
+blocks of right-hand sides for the unknowns off a regular block of the constraints (the others'
+block from the constraints), the unseen directions projected out block by block, its products,
 the exact symmetrisation, computed here the plain way (one solve of every unit vector, the
 projections by sparse products with the whole of Z, (C + C^T) / 2).
 
@@ -12,6 +13,7 @@ import warnings
 
 import numpy as np
 import pytest
+from scipy import sparse
 
 from tromplab.circuit import sparse_factor, sparse_solve, sparse_tables
 from tromplab.circuit.simulation import lab_survey, large_plant
@@ -42,15 +44,36 @@ def _plain_covariance(factor) -> np.ndarray:
     return C
 
 
-def test_the_blocked_covariance_is_the_one_of_a_single_solve(factor_and_problem):
-    factor, _, _ = factor_and_problem
+@pytest.mark.parametrize("derived", [True, False])
+def test_the_covariance_is_the_one_of_a_single_solve_of_every_unit_vector(factor_and_problem, monkeypatch, derived):
+    """The basic unknowns' block from the constraints (derived) or every column solved (the
+    fallback for large blocks): the plain covariance to 1e-13 of its largest entry, each variance
+    to 1e-9 of itself, and nothing left in the unseen directions or off the constraints."""
+    factor, problem, _ = factor_and_problem
+    if not derived:
+        monkeypatch.setattr(sparse_factor, "BASIC_BLOCK_ROWS", 0)
+    basic = sparse_factor.basic_unknowns(factor.A[:, factor.kept].tocsr())
+    assert basic.size == (factor.constraints if derived else 0)
     assert factor.unknowns > 3 * sparse_factor.SOLVE_BLOCK and factor.unseen.shape[1] > 0  # blocks and projections at work
     expected = _plain_covariance(factor)
     covariance = factor.covariance()
-    # the solves give the same columns bit for bit; the dense projections differ at rounding
-    np.testing.assert_allclose(covariance, expected, rtol=0, atol=1e-13 * np.abs(expected).max())
-    unseen = factor.unseen.toarray()
-    assert np.abs(covariance @ unseen).max() <= 1e-12 * np.abs(expected).max()  # nothing left in the unseen directions
+    largest = np.abs(expected).max()
+    np.testing.assert_allclose(covariance, expected, rtol=0, atol=1e-13 * largest)
+    variances = np.diag(expected)
+    np.testing.assert_allclose(np.diag(covariance), variances, rtol=1e-9, atol=1e-15 * largest)
+    assert np.abs(covariance @ factor.unseen.toarray()).max() <= 1e-12 * largest  # nothing left in the unseen directions
+    assert np.abs(problem.A @ covariance).max() <= 1e-12 * largest  # every column a feasible direction
+
+
+def test_the_basic_unknowns_make_a_square_regular_block_of_the_constraints(factor_and_problem):
+    factor, problem, _ = factor_and_problem
+    A = factor.A[:, factor.kept].tocsr()
+    basic = sparse_factor.basic_unknowns(A)
+    assert basic.size == A.shape[0] == np.unique(basic).size
+    singular = np.linalg.svd(A[:, basic].toarray(), compute_uv=False)
+    assert singular.min() > 1e-6 * singular.max()
+    dependent = sparse.vstack([A, A[:1]]).tocsr()  # a repeated balance: no square regular block
+    assert sparse_factor.basic_unknowns(dependent).size == 0
 
 
 def test_the_covariance_times_a_matrix_is_the_covariance_times_it(factor_and_problem):

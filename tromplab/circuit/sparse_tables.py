@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .problem import RANK_TOL, TESTABLE_SHARE, Problem
-from .sparse_factor import AugmentedFactor, DensePathNeeded
+from .sparse_factor import AugmentedFactor, DensePathNeeded, dense_times_sparse
 
 # --- the linearisation and the tables' linear algebra ---------------------------------------------
 
@@ -52,20 +52,6 @@ class SparseLinearisation:
             # candidate's rows times CX took 17 ms of copying for 0.1 ms of products)
             self._products.update(G=G, X=X, CX=dense_times_sparse(self.C, X))
         return self._products["G"], self._products["X"], self._products["CX"]
-
-
-def dense_times_sparse(D: np.ndarray, S, rows: int = 64) -> np.ndarray:
-    """``D @ S`` (``D`` dense, ``S`` sparse) as a C-ordered array, ``rows`` rows of ``D`` at a time.
-
-    scipy computes it as ``(S.T @ D.T).T``: a copy of the whole of ``D`` transposed, and a
-    result in Fortran order, which the next sparse product copies whole again (94 MB each on the
-    30-node plant with four minerals, where the first touch of fresh pages costs 2 ms a MB).  By
-    blocks of rows the copies stay small; every entry is the same sum in the same order."""
-    out = np.empty((D.shape[0], S.shape[1]))
-    ST = S.T.tocsr()
-    for start in range(0, D.shape[0], rows):
-        out[start : start + rows] = (ST @ np.ascontiguousarray(D[start : start + rows].T)).T
-    return out
 
 
 def _symmetrised(C: np.ndarray, strip: int = 256) -> np.ndarray:
