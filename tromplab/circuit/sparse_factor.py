@@ -173,9 +173,7 @@ class AugmentedFactor:
             _, x, _ = self._solve(np.zeros((self.rows, columns.size)), unit)
             C[np.ix_(kept, kept[columns])] = -x / self.scale[:, None]
         if basic.size:
-            basic_free = C[np.ix_(kept[basic], kept[free])]
-            C[np.ix_(kept[free], kept[basic])] = basic_free.T
-            C[np.ix_(kept[basic], kept[basic])] = _constrained_rows(A, basic, free, basic_free)
+            _fill_basic_block(C, A, kept, basic, free)
         blocks = _direction_blocks(self.unseen)
         for rows, basis in blocks:  # Z Z^T C: the rows of each block of directions, by dense products
             C[rows] -= basis @ (basis.T @ C[rows])
@@ -241,18 +239,21 @@ def basic_unknowns(A) -> np.ndarray:
     return np.sort(np.concatenate(basic))
 
 
-def _constrained_rows(A, basic: np.ndarray, free: np.ndarray, basic_free: np.ndarray, columns: int = 64) -> np.ndarray:
-    r""":math:`C_{BB} = -A_B^{-1} A_F C_{FB}` (``basic_free``: :math:`C_{BF} = C_{FB}^T`), the
-    sparse LU of :math:`A_B` solving ``columns`` right-hand sides at a time (the right-hand
-    sides made as :math:`(C_{BF} A_F^T)^T`, in Fortran order: each block of columns contiguous)."""
+def _fill_basic_block(C: np.ndarray, A, kept: np.ndarray, basic: np.ndarray, free: np.ndarray, columns: int = 64) -> None:
+    r"""Fill :math:`C_{FB} = C_{BF}^T` and :math:`C_{BB} = -A_B^{-1} A_F C_{FB}` into ``C``, whose
+    columns of the free unknowns are solved (``kept``: the kept unknowns' places in ``C``;
+    ``basic``, ``free``: positions among them), ``columns`` basic unknowns at a time by a sparse
+    LU of :math:`A_B` (no whole :math:`C_{BF}` or right-hand side: each new array of tens of MB
+    costs about 2 ms a MB of first touches of its pages)."""
     from scipy.sparse import linalg as sparse_linalg
 
     lu = sparse_linalg.splu(A[:, basic].tocsc())
-    rhs = dense_times_sparse(basic_free, A[:, free].T).T
-    out = np.empty((basic.size, basic.size))
+    free_constraints = A[:, free].tocsr()
     for start in range(0, basic.size, columns):
-        out[:, start : start + columns] = -lu.solve(rhs[:, start : start + columns])
-    return out
+        these = kept[basic[start : start + columns]]
+        free_these = C[np.ix_(these, kept[free])].T  # C_FB's columns of these unknowns, from the solves
+        C[np.ix_(kept[free], these)] = free_these
+        C[np.ix_(kept[basic], these)] = -lu.solve(np.asarray(free_constraints @ np.ascontiguousarray(free_these)))
 
 
 def _direction_blocks(Z) -> list[tuple[np.ndarray, np.ndarray]]:
