@@ -79,6 +79,8 @@ def test_the_basic_unknowns_make_a_square_regular_block_of_the_constraints(facto
     assert singular.min() > 1e-6 * singular.max()
     dependent = sparse.vstack([A, A[:1]]).tocsr()  # a repeated balance: no square regular block
     assert sparse_factor.basic_unknowns(dependent).size == 0
+    nearly = sparse.vstack([A, A[:1] + 1e-6 * A[1:2]]).tocsr()  # regular, but A_B ill-conditioned: every unknown solved
+    assert sparse_factor.basic_unknowns(nearly).size == 0
 
 
 @pytest.mark.slow

@@ -109,7 +109,8 @@ def _scaled_projected_products(G, X, CX: np.ndarray, scale: np.ndarray, rows: in
     out = np.asarray(X.T @ CX)
     np.subtract(0.0, out, out=out)
     own = (G.T @ G).tocoo()
-    out[own.row, own.col] += own.data  # one entry per position: the product's format is canonical
+    own.sum_duplicates()  # one entry per position (as toarray sums them), for the += below
+    out[own.row, own.col] += own.data
     for start in range(0, out.shape[0], rows):
         out[start : start + rows] /= np.outer(scale[start : start + rows], scale)
     return out
