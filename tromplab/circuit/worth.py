@@ -103,10 +103,20 @@ def worth_table(balance) -> pd.DataFrame:
     k, p = shift.shape
     with np.errstate(invalid="ignore", divide="ignore"):
         share = np.where(variance[:, None] > 0, shift**2 / variance[:, None], np.nan)
+    each_measurement, each_result = np.tile(np.arange(p), k), np.repeat(np.arange(k), p)
     return pd.DataFrame({
-        "measurement": np.tile(adjustments["measurement"].to_numpy(), k), "stream": np.tile(adjustments["stream"].to_numpy(), k),
-        "kind": np.tile(kinds, k), "solvability": np.tile(np.where(redundant, "redundant", "just determined"), k),
-        "redundancy": np.tile(np.where(redundant, redundancy, 0.0), k), "result": np.repeat([name for name, _, _ in found], p),
+        "measurement": _taken(adjustments["measurement"].to_numpy(), each_measurement),
+        "stream": _taken(adjustments["stream"].to_numpy(), each_measurement), "kind": _taken(kinds, each_measurement),
+        "solvability": _taken(np.where(redundant, "redundant", "just determined"), each_measurement),
+        "redundancy": np.tile(np.where(redundant, redundancy, 0.0), k),
+        "result": _taken(np.array([name for name, _, _ in found]), each_result),
         "result_value": np.repeat([value for _, value, _ in found], p), "result_sd": np.repeat(np.sqrt(variance), p),
         "shift_per_sd": shift.ravel(), "variance_share": share.ravel(),
     }, columns=WORTH_COLUMNS)  # fmt: skip
+
+
+def _taken(labels: np.ndarray, positions: np.ndarray):
+    """The column of ``labels[positions]`` as pandas makes it of the array (its string dtype
+    inferred from ``labels``), each label converted once: the 30-node plant's table has 416,585
+    rows, whose strings one by one took 0.3 s."""
+    return pd.Series(labels).array.take(positions)
