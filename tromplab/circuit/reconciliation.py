@@ -192,6 +192,9 @@ class CircuitBalance(ResultContract):
         False for a survey of flows and per cent solids only.
     held_at_zero : list of tuple
         ``(stream, class index)`` of the class flows held at 0.
+    held_against_multipliers : int
+        How many of the unknowns held at 0 have a multiplier of the wrong sign (raising them would
+        lower the sum of squares; the active set holds them for good): 0 when the bounds' end is a minimum.
     p_value, chi_square_critical : float
         The chi-square test's p-value and critical value at ``alpha``.
     rejected : bool
