@@ -116,6 +116,19 @@ def test_messy_layouts_give_the_same_outcome_in_pieces(tmp_path, text):
     assert_same_in_pieces(path)
 
 
+def test_the_per_cent_hint_is_decided_on_the_rows_up_to_the_fault_in_pieces_as_whole(tmp_path):
+    """Shares in per cent (the first out of range 50) with a larger value further down (400, in a
+    later piece): both readers see the rows up to the fault alike and give the hint (a property
+    test found the whole reader, which had looked at the whole column, without it)."""
+    path = tmp_path / "per cent.csv"
+    path.write_text("experiment,size,partition_fine\nA,10,0.5\nA,20,50\nA,40,400\n")
+    kind, message = assert_same_in_pieces(path)
+    assert kind == "error" and message.endswith(
+        "row 3, column 'partition_fine': partition 50 outside 0..1: these look like percentages; name the column "
+        "partition_fine_pct (0..100) or divide by 100"
+    )
+
+
 def test_the_first_fault_named_is_the_whole_readers_first_though_a_later_piece_holds_it(tmp_path):
     """The whole-file reader checks column by column (sizes before partitions): a bad size in
     row 40 is named before a bad partition in row 3, also when they are in different pieces."""

@@ -396,7 +396,7 @@ def checked_values(
             table,
             (partition < 0) | (partition > scale),
             column,
-            lambda i: f"partition {partition[i]:.15g} outside 0..{scale:g}{_percent_hint(partition, column, scale)}",
+            lambda i: f"partition {partition[i]:.15g} outside 0..{scale:g}{_percent_hint(partition[: i + 1], column, scale)}",
         )
     with check(POSITIVE_SIZES):
         _refuse_first(table, size <= 0, columns.size, lambda i: f"size must be positive, got {size[i]:g}")
@@ -413,7 +413,10 @@ def checked_values(
 
 
 def _percent_hint(partition: np.ndarray, column: str, scale: float) -> str:
-    """The hint for shares given in per cent in a column of shares: name the per cent column."""
+    """The hint for shares given in per cent in a column of shares: name the per cent column.
+    ``partition``: the values up to the first out of range, which a reader of the file in pieces
+    has seen too (the rows before it in earlier pieces lie in 0..1: they cannot change the
+    decision), so both readers give one message."""
     if scale == 1.0 and 1.5 < partition.max() <= 100.0 + PARTITION_SLACK and partition.min() >= 0:
         return f": these look like percentages; name the column {column}_pct (0..100) or divide by 100"
     return ""
