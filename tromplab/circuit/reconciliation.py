@@ -261,10 +261,11 @@ class CircuitBalance(ResultContract):
         released once and came back negative).  0 when the bounds' end is a minimum."""
         if not self.at_bound or self.problem is None:
             return 0
-        from .sparse_solve import held_against_multipliers_sparse, is_sparse
+        if getattr(self.problem, "is_sparse", False):  # a large flowsheet: one factor of the held problem
+            from .sparse_solve import held_against_multipliers_sparse
 
-        count = held_against_multipliers_sparse if is_sparse(self.problem) else held_against_multipliers
-        return count(self.problem, self._unknowns, self.at_bound)
+            return held_against_multipliers_sparse(self.problem, self._unknowns, self.at_bound)
+        return held_against_multipliers(self.problem, self._unknowns, self.at_bound)
 
     @property
     def _unknowns(self) -> np.ndarray:
