@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tromplab.circuit import read_flowsheet, read_survey, reconcile, sparse_solve
+from tromplab.circuit import path_choice, read_flowsheet, read_survey, reconcile, sparse_solve
 from tromplab.circuit.problem import build_problem, held_against_multipliers, held_multipliers, solve
 from tromplab.circuit.simulation import lab_survey, large_plant
 
@@ -65,7 +65,7 @@ def test_both_paths_count_the_same_flows(monkeypatch):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the truth's grade of an empty class is 0/0 (no assay drawn)
         survey = lab_survey(truth, np.random.default_rng(40), flows={"fresh_feed": 0.02})
-    monkeypatch.setattr(sparse_solve, "SPARSE_FLOWSHEET_UNKNOWNS", 1)
+    monkeypatch.setattr(path_choice, "SPARSE_FLOWSHEET_UNKNOWNS", 1)
     balance = reconcile(truth.flowsheet, survey)
     assert sparse_solve.is_sparse(balance.problem) and balance.held_against_multipliers == 0
     largest, active = _held_on_purpose(balance.problem, balance)

@@ -14,7 +14,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from tromplab.circuit import reconcile, sparse_factor, sparse_solve
+from tromplab.circuit import path_choice, reconcile, sparse_factor, sparse_solve
 from tromplab.circuit.outputs import balance_tables
 from tromplab.circuit.simulation import lab_survey, large_plant
 
@@ -31,7 +31,7 @@ def _both_paths(monkeypatch, flowsheet, survey, tables: bool = True) -> dict:
     """``{"sparse": (balance, tables), "dense": (balance, tables)}``, each path forced."""
     out = {}
     for path, threshold in (("sparse", 1), ("dense", 10**9)):
-        monkeypatch.setattr(sparse_solve, "SPARSE_FLOWSHEET_UNKNOWNS", threshold)
+        monkeypatch.setattr(path_choice, "SPARSE_FLOWSHEET_UNKNOWNS", threshold)
         balance = reconcile(flowsheet, survey)
         out[path] = balance, balance_tables(balance) if tables else None
     assert sparse_solve.is_sparse(out["sparse"][0].problem) and not sparse_solve.is_sparse(out["dense"][0].problem)
@@ -100,14 +100,14 @@ def test_ordinary_surveys_keep_the_dense_path():
     ]
     for path in surveys:
         survey = read_survey(path, sheet)
-        assert sparse_solve.unknown_count(sheet, survey) < sparse_solve.SPARSE_FLOWSHEET_UNKNOWNS / 2, path.name
-        assert not sparse_solve.takes_sparse_path(sheet, survey)
+        assert path_choice.unknown_count(sheet, survey) < path_choice.SPARSE_FLOWSHEET_UNKNOWNS / 2, path.name
+        assert not path_choice.takes_sparse_path(sheet, survey)
     assert not sparse_solve.is_sparse(reconcile(sheet, read_survey(surveys[0], sheet)).problem)
 
 
 def test_the_30_node_plant_takes_the_sparse_path_with_its_stages_reported():
     flowsheet, survey = _survey(10, 20, minerals=False)
-    assert sparse_solve.takes_sparse_path(flowsheet, survey)
+    assert path_choice.takes_sparse_path(flowsheet, survey)
     stages = []
     balance = reconcile(flowsheet, survey, progress=lambda done, total, label: stages.append(label))
     assert sparse_solve.is_sparse(balance.problem) and balance.success

@@ -88,6 +88,7 @@ from .elimination import nodal_tests, proposal, serial_elimination, without
 from .flowsheet import Flowsheet, read_flowsheet
 from .linear_algebra import sparse  # scipy.sparse, imported when a large flowsheet first uses it
 from .measurements import ErrorModel, Survey, class_name, read_survey
+from .path_choice import takes_sparse_path
 from .problem import (
     GAUSS_NEWTON_XTOL,
     SPARSE_UNKNOWNS,
@@ -974,9 +975,9 @@ def _balance(
     of a reconciliation of a survey like it (observable, the same constraints), to start from."""
     if progress is not None:
         progress(0, 1, "reconciliation: round 1")
-    from .sparse_solve import DensePathNeeded, takes_sparse_path
-
     if takes_sparse_path(flowsheet, survey):
+        from .sparse_solve import DensePathNeeded
+
         try:
             return _sparse_balance(flowsheet, survey, alpha, excluded, progress)
         except DensePathNeeded:

@@ -62,22 +62,6 @@ from .problem import (
 from .sparse_factor import AugmentedFactor, DensePathNeeded
 from .sparse_tables import SparseLinearisation
 
-#: From this many unknowns on (class flows, water flows and component class flows) a survey is
-#: reconciled here: the 30-node plant has 820 solids class flows, the bundled example 176.
-SPARSE_FLOWSHEET_UNKNOWNS = 800
-
-
-def unknown_count(flowsheet, survey) -> int:
-    """The number of unknowns of the survey's reconciliation (as :func:`~tromplab.circuit.problem.build_problem` lays them out)."""
-    S, n = len(flowsheet.streams), max(survey.n_classes, 1)
-    n_water = S + len(flowsheet.water_streams) if len(survey.pct_solids) else 0
-    return S * n + n_water + len(survey.components) * S * n
-
-
-def takes_sparse_path(flowsheet, survey) -> bool:
-    """Whether ``survey`` is large enough for this path (and has no water balance, see the module notes)."""
-    return unknown_count(flowsheet, survey) >= SPARSE_FLOWSHEET_UNKNOWNS and not len(survey.pct_solids)
-
 
 def is_sparse(problem) -> bool:
     """Whether ``problem`` is a :class:`SparseProblem` (its tables take this module's linear algebra)."""
