@@ -392,20 +392,19 @@ def checked_values(
     with check(PARTITIONS):
         partition = table.numeric(column)
     with check(PARTITION_RANGE):
-        _refuse_first(
-            table,
+        table.refuse_where(
             (partition < 0) | (partition > scale),
             column,
             lambda i: f"partition {partition[i]:.15g} outside 0..{scale:g}{_percent_hint(partition[: i + 1], column, scale)}",
         )
     with check(POSITIVE_SIZES):
-        _refuse_first(table, size <= 0, columns.size, lambda i: f"size must be positive, got {size[i]:g}")
+        table.refuse_where(size <= 0, columns.size, lambda i: f"size must be positive, got {size[i]:g}")
     weight = None
     if "weight" in table.frame.columns:
         with check(WEIGHTS):
             weight = table.numeric("weight")
         with check(POSITIVE_WEIGHTS):
-            _refuse_first(table, weight <= 0, "weight", lambda i: "weight must be positive")
+            table.refuse_where(weight <= 0, "weight", "weight must be positive")
     phi = partition / scale
     with check(NAMES):
         labels = table.experiment_labels()
@@ -440,13 +439,6 @@ def _partition_column(table: Table, columns: PointsColumns) -> str:
         )
     table.refuse_unknown(columns.known, what="Tromp-points file")
     return given[0]
-
-
-def _refuse_first(table: Table, bad: np.ndarray, column: str, message) -> None:
-    """Refuse the first row marked ``bad`` with ``message(index)``."""
-    found = np.flatnonzero(bad)
-    if found.size:
-        raise table.error(message(int(found[0])), index=int(found[0]), column=column)
 
 
 def experiment_points(name: str, rows: np.ndarray, values: PointsValues, *, source: str, columns: PointsColumns) -> TrompPoints:
