@@ -353,7 +353,13 @@ def bounded_solution(problem: Problem, fitted: np.ndarray) -> tuple[tuple[int, .
 def _wrong_sign_multiplier(problem: Problem, v: np.ndarray, released_before: np.ndarray) -> int | None:
     """The unknown held at 0 whose multiplier is most negative (raising it lowers the sum of squares), or
     None; an unknown released before (then negative again) stays held."""
-    held, multipliers, threshold = held_multipliers(problem, v)
+    return most_wrong_held(*held_multipliers(problem, v), released_before)
+
+
+def most_wrong_held(held: np.ndarray, multipliers: np.ndarray, threshold: float, released_before: np.ndarray) -> int | None:
+    """Of :func:`held_multipliers`' ``(held, multipliers, threshold)``, the held unknown whose
+    multiplier is most negative below ``threshold``, or None; one ``released_before`` stays held
+    (the rule of the active set on both paths)."""
     if held.size == 0:
         return None
     multipliers = np.where(released_before[held], np.inf, multipliers)
@@ -372,9 +378,16 @@ def held_multipliers(problem: Problem, v: np.ndarray) -> tuple[np.ndarray, np.nd
         return held[:0], np.zeros(0), 0.0
     gradient = (problem.W @ problem.jacobian(v)).T @ (problem.W @ (problem.predict(v) - problem.y))
     multipliers = np.linalg.lstsq(problem.A.T, gradient, rcond=None)[0][-held.size :]  # the bounds are A's last rows
-    active = np.zeros(v.size, dtype=bool)
+    return held_outcome(problem, held, multipliers, gradient)
+
+
+def held_outcome(problem: Problem, held: np.ndarray, multipliers: np.ndarray, gradient: np.ndarray) -> tuple:
+    """``(held, multipliers, threshold)`` of :func:`held_multipliers` from the multipliers of the
+    ``held`` unknowns and the gradient (either path's): a component's flow held with its class,
+    not on its own, gets inf."""
+    active = np.zeros(gradient.size, dtype=bool)
     active[held] = True
-    multipliers = np.where(problem.emptied(active)[held], np.inf, multipliers)  # held with their class, not on their own
+    multipliers = np.where(problem.emptied(active)[held], np.inf, multipliers)
     return held, multipliers, -WRONG_SIGN * max(np.abs(gradient).max(), 1e-300)
 
 

@@ -50,12 +50,13 @@ from .problem import (
     GAUSS_NEWTON_ITERATIONS,
     GAUSS_NEWTON_ROUNDING,
     GAUSS_NEWTON_XTOL,
-    WRONG_SIGN,
     Problem,
     closure_point,
     error_model_point,
+    held_outcome,
     linear_constraints,
     measurement_arrays,
+    most_wrong_held,
     start_components,
     starting_point,
 )
@@ -468,12 +469,7 @@ def _emptied_by_balances(problem: SparseProblem, v0: np.ndarray) -> np.ndarray:
 def _wrong_sign_multiplier(problem: SparseProblem, v: np.ndarray, free: np.ndarray, released_before: np.ndarray, factor):
     """The held unknown whose multiplier is most negative, or None (the rule of the dense path);
     ``factor``: the Gauss-Newton factor at ``v`` (the solution), which gives the multipliers."""
-    held, multipliers, threshold = _held_multipliers(problem, v, free, factor)
-    if held.size == 0:
-        return None
-    multipliers = np.where(released_before[held], np.inf, multipliers)
-    worst = int(np.argmin(multipliers))
-    return int(held[worst]) if multipliers[worst] < threshold else None
+    return most_wrong_held(*_held_multipliers(problem, v, free, factor), released_before)
 
 
 def _held_multipliers(problem: SparseProblem, v: np.ndarray, free: np.ndarray, factor) -> tuple:
@@ -485,11 +481,7 @@ def _held_multipliers(problem: SparseProblem, v: np.ndarray, free: np.ndarray, f
     gradient = (problem.W @ problem.jacobian(v)).T @ _whitened(problem, v)
     _, _, rows = free_constraints(problem, free)
     mu = factor.multipliers(gradient[free])
-    multipliers = gradient[held] - problem.A[rows][:, held].T @ mu
-    active = np.zeros(v.size, dtype=bool)
-    active[held] = True
-    multipliers = np.where(problem.emptied(active)[held], np.inf, multipliers)
-    return held, multipliers, -WRONG_SIGN * max(np.abs(gradient).max(), 1e-300)
+    return held_outcome(problem, held, gradient[held] - problem.A[rows][:, held].T @ mu, gradient)
 
 
 def held_against_multipliers_sparse(problem: SparseProblem, v: np.ndarray, held: tuple[int, ...]) -> int:
