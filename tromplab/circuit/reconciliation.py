@@ -186,6 +186,9 @@ class CircuitBalance(ResultContract):
         The measurements left out on request.
     component_flows : numpy.ndarray or None
         Class flows of every assayed component (components x streams x classes; None: no assay).
+    raisable_held : int or None
+        A large flowsheet's count of ``held_against_multipliers``, made by its bounds; None on
+        the dense path (counted from the multipliers when asked).
     progress : callable or None
         ``progress(done, total, label)`` of the run that made the balance: the serial
         elimination and the design advice report their steps to it when first computed.
@@ -194,8 +197,9 @@ class CircuitBalance(ResultContract):
     held_at_zero : list of tuple
         ``(stream, class index)`` of the class flows held at 0.
     held_against_multipliers : int
-        How many of the unknowns held at 0 have a multiplier of the wrong sign (raising them would
-        lower the sum of squares; the active set holds them for good): 0 when the bounds' end is a minimum.
+        How many of the unknowns held at 0 would lower the sum of squares if raised: on the dense
+        path those of a wrong-sign multiplier (the active set holds them for good), on a large
+        flowsheet the class flows held with their class and its assays: 0 when the bounds' end is a minimum.
     p_value, chi_square_critical : float
         The chi-square test's p-value and critical value at ``alpha``.
     rejected : bool
@@ -237,6 +241,9 @@ class CircuitBalance(ResultContract):
     excluded: tuple[str, ...] = field(default=(), compare=False)
     #: Class flows of every assayed component (components x streams x classes; None: no assay).
     component_flows: np.ndarray | None = field(default=None, repr=False, compare=False)
+    #: The large flowsheet's count of :attr:`held_against_multipliers`, made by its bounds
+    #: (:func:`tromplab.circuit.sparse_solve.bounded_sparse`); None on the dense path.
+    raisable_held: int | None = field(default=None, repr=False, compare=False)
     #: ``progress(done, total, label)`` of the run that made the balance (``reconcile(progress=)``):
     #: the serial elimination and the design advice, computed when first asked for, report to it.
     progress: Callable[[int, int, str], None] | None = field(default=None, repr=False, compare=False)
@@ -257,15 +264,16 @@ class CircuitBalance(ResultContract):
 
     @cached_property
     def held_against_multipliers(self) -> int:
-        """How many of the flows held at 0 have a Lagrange multiplier of the wrong sign: raising
-        them would lower the sum of squares, but the active set holds them for good (each was
-        released once and came back negative).  0 when the bounds' end is a minimum."""
+        """How many of the flows held at 0 would lower the sum of squares if raised.  On the dense
+        path, those whose Lagrange multiplier has the wrong sign: the active set holds them for
+        good (each was released once and came back negative).  On a large flowsheet the bounds
+        counted them (:attr:`raisable_held`): the class flows that reached 0, emptied their class
+        and took its assays out, and that the linearised problem would raise.  0 when the
+        bounds' end is a minimum."""
         if not self.at_bound or self.problem is None:
             return 0
-        if getattr(self.problem, "is_sparse", False):  # a large flowsheet: one factor of the held problem
-            from .sparse_solve import held_against_multipliers_sparse
-
-            return held_against_multipliers_sparse(self.problem, self._unknowns, self.at_bound)
+        if self.raisable_held is not None:  # a large flowsheet: its bounds counted them
+            return self.raisable_held
         return held_against_multipliers(self.problem, self._unknowns, self.at_bound)
 
     @property
@@ -774,10 +782,15 @@ class CircuitBalance(ResultContract):
                 f"held at 0 (the least squares would make them negative; the tests and sds are those without the bound): {listed}"
             )
         if self.held_against_multipliers:
+            why = (
+                "each reached 0, emptied its class and took the class's assays out of the least squares"
+                if self.raisable_held is not None
+                else "their multipliers have the wrong sign; each was released once and came back negative, and the "
+                "bounds' active set then holds it"
+            )
             lines.append(
-                f"{self.held_against_multipliers} of the flows held at 0 would lower the sum of squares if raised (their "
-                "multipliers have the wrong sign; each was released once and came back negative, and the bounds' active set "
-                "then holds it): the balance is not shown to be the least-squares minimum under the bounds"
+                f"{self.held_against_multipliers} of the flows held at 0 would lower the sum of squares if raised ({why}): "
+                "the balance is not shown to be the least-squares minimum under the bounds"
             )
         if not self.success:
             lines.append(f"not converged: {self.message}")
@@ -1019,7 +1032,7 @@ def _sparse_balance(flowsheet: Flowsheet, survey: Survey, alpha: float, excluded
 
     result = reconcile_sparse(flowsheet, survey, early_xtol=EARLY_ROUND_XTOL, tolerance=ERROR_MODEL_TOLERANCE,
                               max_rounds=MAX_ERROR_MODEL_ITERATIONS, progress=progress)  # fmt: skip
-    problem, v = result.problem, result.v
+    problem, v = result.problem, result.bounded.v
     S, n = problem.n_streams, problem.n_classes
     check_positive_flows(flowsheet, result.survey, v[: S * n].reshape(S, n).sum(axis=1))
     return CircuitBalance(flowsheet=flowsheet, survey=result.survey, class_flows=v[: S * n].reshape(S, n),
@@ -1027,6 +1040,7 @@ def _sparse_balance(flowsheet: Flowsheet, survey: Survey, alpha: float, excluded
                           dof=int(problem.W.shape[0] - result.linearisation.rank), alpha=alpha, success=result.success,
                           message=result.message, basis=result.basis, problem=problem, measured_y=problem.y.copy(),
                           water_flows=v[S * n : problem.component_offset] if problem.n_water else None, fitted=result.fitted,
-                          at_bound=result.held, decomposition=result.linearisation, excluded=excluded,
+                          at_bound=result.bounded.held, decomposition=result.linearisation, excluded=excluded,
+                          raisable_held=result.bounded.raisable,
                           component_flows=v[problem.component_offset :].reshape(-1, S, n) if problem.n_components else None,
                           progress=progress)  # fmt: skip

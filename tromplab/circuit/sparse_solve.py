@@ -50,13 +50,13 @@ from .problem import (
     GAUSS_NEWTON_ITERATIONS,
     GAUSS_NEWTON_ROUNDING,
     GAUSS_NEWTON_XTOL,
+    WRONG_SIGN,
     Problem,
     closure_point,
     error_model_point,
     held_outcome,
     linear_constraints,
     measurement_arrays,
-    most_wrong_held,
     start_components,
     starting_point,
 )
@@ -302,6 +302,10 @@ def projected_start(problem: SparseProblem, start: np.ndarray, free=None) -> np.
 _FREE_CONSTRAINTS: dict[bytes, tuple] = {}
 
 
+def _constraints_key(problem: SparseProblem, free: np.ndarray) -> bytes:
+    return problem.A.indptr.tobytes() + problem.A.indices.tobytes() + problem.A.data.tobytes() + free.tobytes()
+
+
 def free_constraints(problem: SparseProblem, free: np.ndarray) -> tuple:
     """``(A, b, rows)``: the constraints on the unknowns ``free`` (the others held at 0), their
     independent rows only.  A balance whose unknowns are all held says 0 = 0 and goes; holding
@@ -309,7 +313,7 @@ def free_constraints(problem: SparseProblem, free: np.ndarray) -> tuple:
     a pivoted QR of each connected block of rows that lost an unknown."""
     if free.size == problem.A.shape[1]:
         return problem.A, problem.b, np.arange(problem.A.shape[0])
-    key = problem.A.indptr.tobytes() + problem.A.indices.tobytes() + problem.A.data.tobytes() + free.tobytes()
+    key = _constraints_key(problem, free)
     if key not in _FREE_CONSTRAINTS:
         A = problem.A[:, free].tocsr()
         rows = np.flatnonzero(np.diff(A.indptr) > 0)
@@ -323,6 +327,26 @@ def free_constraints(problem: SparseProblem, free: np.ndarray) -> tuple:
             _FREE_CONSTRAINTS.pop(next(iter(_FREE_CONSTRAINTS)))
         _FREE_CONSTRAINTS[key] = A[rows], problem.b[rows], rows
     return _FREE_CONSTRAINTS[key]
+
+
+def _with_rows_of(problem: SparseProblem, free: np.ndarray, balanced: SparseProblem, rows) -> None:
+    """Remember :func:`free_constraints` of ``problem``, whose constraints are those of
+    ``balanced`` and then ``rows`` (a grade at 1 each), as the independent rows of ``balanced``
+    and all of ``rows`` when these are independent of them (one sparse LU says so), else leave it
+    to :func:`free_constraints` (a pivoted QR of each block of balances they touch, a second each
+    on the 30-node plant)."""
+    A, b, kept = free_constraints(balanced, free)
+    stacked = _stack_rows(A, rows[:, free])
+    if _full_row_rank(stacked):
+        key = _constraints_key(problem, free)
+        everything = np.concatenate([kept, problem.A.shape[0] - rows.shape[0] + np.arange(rows.shape[0])])
+        _FREE_CONSTRAINTS[key] = stacked, np.concatenate([b, np.zeros(rows.shape[0])]), everything
+
+
+def _stack_rows(A, rows):
+    from scipy import sparse
+
+    return sparse.vstack([A, rows]).tocsr()
 
 
 def _dependent_balances(A) -> np.ndarray | None:
@@ -367,7 +391,7 @@ def _full_row_rank(A) -> bool:
 def _independent_rows(A, rows: np.ndarray, touched: np.ndarray) -> np.ndarray:
     """``rows`` of ``A`` without those dependent on the others: the rows of the original constraints
     were independent, so a dependence runs through a row that lost an unknown (``touched``)."""
-    from scipy import linalg, sparse
+    from scipy import sparse
     from scipy.sparse import csgraph
 
     sub = A[rows]
@@ -381,14 +405,56 @@ def _independent_rows(A, rows: np.ndarray, touched: np.ndarray) -> np.ndarray:
         block = block[:, np.flatnonzero(np.diff(block.tocsc().indptr) > 0)].tocsr()
         key = block.indptr.tobytes() + block.indices.tobytes() + block.data.tobytes() + bytes(str(block.shape), "ascii")
         if key not in _DEPENDENT_ROWS:
-            R, pivots = linalg.qr(block.toarray().T, mode="r", pivoting=True)
-            diagonal = np.abs(np.diag(R))
-            rank = int(np.sum(diagonal > 1e-10 * diagonal.max(initial=0.0)))
             if len(_DEPENDENT_ROWS) >= 256:
                 _DEPENDENT_ROWS.pop(next(iter(_DEPENDENT_ROWS)))
-            _DEPENDENT_ROWS[key] = pivots[rank:]
+            _DEPENDENT_ROWS[key] = _dependent_rows_of_block(block)
         dropped.extend(block_rows[_DEPENDENT_ROWS[key]])
     return np.delete(rows, dropped)
+
+
+def _dependent_rows_of_block(block) -> np.ndarray:
+    r"""The rows of ``block`` to drop for independent rows: none when one sparse LU of
+    :math:`B B^T` says they are independent (most blocks a held set touches); else the rows of
+    the pivots at the regularisation in a symmetric sparse LU of :math:`B B^T + \epsilon I`,
+    once the rows kept are shown independent and every row dropped in their span (2 ms where a
+    pivoted QR of the dense block of the 30-node plant's minerals took 0.7 s); failing that, those
+    a pivoted QR leaves after its rank."""
+    from scipy import linalg
+
+    if _full_row_rank(block):
+        return np.zeros(0, dtype=int)
+    dropped = _dependent_by_regularised_lu(block)
+    if dropped is not None:
+        return dropped
+    R, pivots = linalg.qr(block.toarray().T, mode="r", pivoting=True)
+    diagonal = np.abs(np.diag(R))
+    return pivots[int(np.sum(diagonal > 1e-10 * diagonal.max(initial=0.0))) :]
+
+
+def _dependent_by_regularised_lu(block) -> np.ndarray | None:
+    r"""The rows of ``block`` (entries of order 1) whose pivots in
+    the symmetric LU of :math:`B B^T + \epsilon I` are at the size of :math:`\epsilon`, or None
+    when the rows kept are not independent or a row dropped is not in their span."""
+    from scipy import sparse
+    from scipy.sparse import linalg as sparse_linalg
+
+    gram = (block @ block.T).tocsc()
+    largest = float(gram.diagonal().max(initial=0.0))
+    try:
+        lu = sparse_linalg.splu(gram + 1e-10 * largest * sparse.identity(gram.shape[0], format="csc"),
+                                permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})  # fmt: skip
+    except RuntimeError:
+        return None
+    small = np.abs(lu.U.diagonal()) < 1e-6 * largest
+    if not np.array_equal(lu.perm_r, lu.perm_c):
+        return None
+    dropped = np.argsort(lu.perm_c)[small]
+    kept = block[np.setdiff1d(np.arange(block.shape[0]), dropped)]
+    if not _full_row_rank(kept):
+        return None
+    rows = block[dropped].toarray().T
+    within = kept.T @ sparse_linalg.splu((kept @ kept.T).tocsc()).solve(kept @ rows)
+    return dropped if np.all(np.abs(rows - within) <= 1e-9 * max(1.0, np.abs(rows).max(initial=0.0))) else None
 
 
 #: The dependent rows of the blocks of constraints seen (by their matrix): a set of held flows
@@ -401,21 +467,82 @@ _DEPENDENT_ROWS: dict[bytes, np.ndarray] = {}
 # --- the bounds -------------------------------------------------------------------------------
 
 
-def bounded_sparse(problem: SparseProblem, fitted: np.ndarray, progress=None) -> tuple[tuple[int, ...], np.ndarray]:
-    """:func:`~tromplab.circuit.problem.bounded_solution` of the sparse path: the same active set
-    (a negative flow held at 0, a held flow released once when its multiplier says the sum of
-    squares would fall), the held unknowns taken out of the least squares.  ``progress``: called
-    with the stage at each set of held flows ("reconciliation: bounds, N flows held").
+#: At most this many steps of the bounded Gauss-Newton iteration (the plants of the tests take 3-6).
+BOUNDED_STEPS = 40
 
-    (Releasing every flow of a wrong-sign multiplier at once took fewer solves but ended on
-    another set than the dense path's on the 6-node plant with four minerals: the flows released
-    once stay held.)"""
+
+@dataclass(frozen=True)
+class BoundedFlows:
+    """The reconciled unknowns under the bounds: ``v``, the unknowns ``held`` at 0 (each flow at
+    its bound and the component flows of a class held with it), whether the iteration settled
+    (``settled``, else ``message`` says why) and ``raisable``: how many of the class flows held
+    with their class (its assays out) would lower the sum of squares if raised
+    (:func:`_raisable`; every other bound is shown binding by the last step's multipliers)."""
+
+    v: np.ndarray
+    held: tuple[int, ...]
+    settled: bool = True
+    message: str = ""
+    raisable: int = 0
+
+
+def bounded_sparse(problem: SparseProblem, fitted: np.ndarray, progress=None) -> BoundedFlows:
+    r"""The least squares with every flow at least 0 and every component's grade of a class at
+    most 1 (:math:`c_{k,s,i} \le m_{s,i}`), from the unbounded solution ``fitted``.
+
+    From a start inside the bounds (:func:`_inside_the_bounds`), Gauss-Newton steps each of which
+    solves the linearised problem under the bounds (:func:`~tromplab.circuit.bounded_qp.
+    bounded_least_squares`), shortened by halves until the sum of squares falls: every iterate
+    satisfies the balances and the bounds.  A class flow that reaches 0 empties its class (its
+    component flows held at 0 with it, its assays out of the least squares, as on the dense
+    path).  When two steps in a row leave the same bounds binding, one equality-constrained solve
+    with those bounds held and those grades at 1 (:func:`_polished`) converges the last digits;
+    if it stays inside the bounds, that is the solution.  ``progress``: called at each step
+    ("reconciliation: bounds, N flows held")."""
+    from .bounded_qp import bounded_least_squares
+
+    scale = max(np.abs(fitted).max(initial=0.0), 1e-300)
+    grades, _ = _grade_rows(problem, np.arange(fitted.size))
+    if not np.any(fitted < -BOUND_TOL * scale) and not np.any(grades @ fitted < -BOUND_TOL * scale):
+        return BoundedFlows(np.clip(fitted, 0.0, None), ())
+    solids = problem.n_streams * problem.n_classes
+    held, v = _inside_the_bounds(problem, fitted, progress)
+    emptied = np.zeros(fitted.size, dtype=bool)  # class flows held with their class (and its assays out)
+    emptied[:solids] = held[:solids] & _assayed_classes(problem)
+    cost, binding = np.inf, None
+    for _ in range(BOUNDED_STEPS):
+        current = _held(problem, emptied)
+        free = np.setdiff1d(np.arange(v.size), current.held)
+        if progress is not None:
+            progress(0, 1, f"reconciliation: bounds, {len(current.held) + int(np.sum(v[free] == 0.0))} flows held")
+        J = (current.W @ current.jacobian(v)).tocsc()[:, free].tocsr()
+        residual = _whitened(current, v)
+        A, b, _ = free_constraints(current, free)
+        grades, pairs = _grade_rows(current, free)
+        qp = bounded_least_squares(J, J @ v[free] - residual, A, b, grades, v[free])
+        target = v.copy()
+        target[free] = np.where(qp.at_zero, 0.0, np.clip(qp.x, 0.0, None))
+        now = np.zeros(v.size + problem.n_components * solids, dtype=bool)  # the bounds, then the grades, binding
+        now[free[qp.at_zero]] = True
+        now[v.size + pairs[qp.grade_at_one]] = True
+        v, cost, newly_emptied = _shortened_bounded(problem, emptied, v, target, cost, solids)
+        emptied |= newly_emptied
+        if binding is not None and np.array_equal(now, binding) and not newly_emptied.any():
+            polished = _polished(problem, v, emptied | now[: v.size], np.flatnonzero(now[v.size :]))
+            if polished is not None:
+                return replace(polished, raisable=_raisable(problem, polished.v, emptied))
+        binding = now
+    return BoundedFlows(v, tuple(np.flatnonzero(emptied | (v == 0.0))), False,
+                        f"the bounds on the flows did not settle in {BOUNDED_STEPS} steps")  # fmt: skip
+
+
+def _inside_the_bounds(problem: SparseProblem, fitted: np.ndarray, progress=None) -> tuple[np.ndarray, np.ndarray]:
+    """``(held, v)``: the least squares with the negative flows of ``fitted`` held at 0, then those
+    of that solution, until none is negative (the first half of the active set of the dense
+    path): a start inside the bounds, near the bounded solution, where the linearisation holds."""
     active = fitted < -BOUND_TOL * max(np.abs(fitted).max(initial=0.0), 1e-300)
-    if not active.any():
-        return (), np.clip(fitted, 0.0, None)
     start = np.clip(fitted, 0.0, None)
-    released_before = np.zeros(fitted.size, dtype=bool)
-    for _ in range(2 * fitted.size + 1):
+    for _ in range(fitted.size + 1):
         if progress is not None:
             progress(0, 1, f"reconciliation: bounds, {int(active.sum())} flows held")
         current = _held(problem, active)
@@ -425,18 +552,107 @@ def bounded_sparse(problem: SparseProblem, fitted: np.ndarray, progress=None) ->
         if emptied.any():
             active |= emptied
             continue
-        v, _, _, factor = _solve_from_projected(current, v0, free=free)
+        v, _, _, _ = _solve_from_projected(current, v0, free=free)
         negative = (v < -BOUND_TOL * max(np.abs(v).max(), 1e-300)) & ~active
-        if negative.any():
-            active |= negative
-        else:
-            released = _wrong_sign_multiplier(current, v, free, released_before, factor)
-            if released is None:
-                return current.held, np.clip(v, 0.0, None)
-            active[released] = False
-            released_before[released] = True
+        if not negative.any():
+            break
+        active |= negative
         start = np.clip(v, 0.0, None)
-    return tuple(np.flatnonzero(active)), np.full(fitted.size, np.nan)
+    active |= problem.emptied(active)
+    return active, np.where(active, 0.0, np.clip(v, 0.0, None))
+
+
+def _assayed_classes(problem: SparseProblem) -> np.ndarray:
+    """Whether each class flow (stream by class) has an assay among the measurements."""
+    assayed = np.zeros(problem.n_streams * problem.n_classes, dtype=bool)
+    assay = problem.kinds == "assay"
+    assayed[problem.stream[assay] * problem.n_classes + problem.klass[assay]] = True
+    return assayed
+
+
+def _shortened_bounded(problem: SparseProblem, emptied: np.ndarray, v: np.ndarray, target: np.ndarray, cost: float, solids: int):
+    """``(trial, its sum of squares, the class flows it empties)``: ``target`` if its sum of
+    squares is below ``cost`` (or ``cost`` is inf: the first step, from outside the bounds),
+    else the point halfway there, and so on; a class flow at 0 empties its class (its assays
+    leave the sum of squares)."""
+    length = 1.0
+    while True:
+        trial = target if length == 1.0 else np.clip(v + length * (target - v), 0.0, None)
+        at_zero = np.zeros(v.size, dtype=bool)
+        at_zero[:solids] = (trial[:solids] <= 0.0) & ~emptied[:solids]
+        trial_cost = _cost(_held(problem, emptied | at_zero), trial)
+        if (np.isfinite(trial_cost) and trial_cost <= cost) or not np.isfinite(cost):
+            return trial, trial_cost, at_zero
+        length /= 2.0
+        if length < 1e-12:
+            return v, cost, np.zeros(v.size, dtype=bool)
+
+
+def _cost(problem: SparseProblem, v: np.ndarray) -> float:
+    residual = _whitened(problem, v)
+    return float(residual @ residual)
+
+
+def _raisable(problem: SparseProblem, v: np.ndarray, emptied: np.ndarray) -> int:
+    """How many class flows of the ``emptied`` classes (held at 0 with their components, their
+    assays out of the least squares) the linearised problem at ``v`` would raise, every unknown
+    free under the bounds, when that lowers the sum of squares by more than rounding: the held
+    flows of the dense path's wrong-sign multipliers.  (Multipliers of the held flows from one
+    factor are not unique where held flows and balances are dependent, as around a class the lab
+    reports empty in several streams: a quadratic programme decides.)"""
+    from .bounded_qp import bounded_least_squares
+
+    solids = problem.n_streams * problem.n_classes
+    if not emptied[:solids].any() or not problem.y.size:
+        return 0
+    current = replace(_held(problem, emptied), held=())
+    everything = np.arange(v.size)
+    J = (current.W @ current.jacobian(v)).tocsr()
+    residual = _whitened(current, v)
+    qp = bounded_least_squares(J, J @ v - residual, problem.A, problem.b, _grade_rows(current, everything)[0], v)
+    model = J @ (qp.x - v) + residual
+    if float(residual @ residual) - float(model @ model) <= WRONG_SIGN * float(residual @ residual):
+        return 0
+    return int(np.sum(emptied[:solids] & ~qp.at_zero[:solids]))
+
+
+def _grade_rows(problem: SparseProblem, free: np.ndarray) -> tuple:
+    """``(G, pairs)``: the rows :math:`m_{s,i} - c_{k,s,i}` (at least 0: a grade at most 1) over
+    the unknowns ``free`` (columns), one for each class and component whose two flows are free,
+    and which those are (``component * classes + class``, classes numbered stream by class)."""
+    from scipy import sparse
+
+    solids = problem.n_streams * problem.n_classes
+    column = np.full(problem.component_offset + problem.n_components * solids, -1)
+    column[free] = np.arange(free.size)
+    component = column[problem.component_offset :].reshape(problem.n_components, solids)
+    solid = np.broadcast_to(column[:solids][None, :], component.shape)
+    keep = (component >= 0) & (solid >= 0)
+    rows = np.arange(int(keep.sum()))
+    G = sparse.csr_matrix((np.concatenate([np.ones(rows.size), -np.ones(rows.size)]),
+                           (np.concatenate([rows, rows]), np.concatenate([solid[keep], component[keep]]))),
+                          shape=(rows.size, free.size))  # fmt: skip
+    return G, np.flatnonzero(keep.ravel())
+
+
+def _polished(problem: SparseProblem, v: np.ndarray, held: np.ndarray, at_one: np.ndarray) -> BoundedFlows | None:
+    """The bounded iteration's end ``v`` solved once more with the unknowns ``held`` at 0 and the
+    grades ``at_one`` (:func:`_grade_rows`' pairs) at 1 as balances, or None when that solve
+    leaves the bounds (beyond rounding: the bounds binding are not yet those of the solution)."""
+    from scipy import sparse
+
+    scale = max(np.abs(v).max(initial=0.0), 1e-300)
+    balanced = _held(problem, held)
+    free = np.setdiff1d(np.arange(v.size), balanced.held)
+    everything = np.arange(v.size)
+    grades, pairs = _grade_rows(problem, everything)
+    rows = grades[np.searchsorted(pairs, at_one)]
+    current = replace(balanced, A=sparse.vstack([problem.A, rows]).tocsr(), b=np.concatenate([problem.b, np.zeros(at_one.size)]))
+    _with_rows_of(current, free, balanced, rows)
+    polished, success, message, _ = _solve_from_projected(current, projected_start(current, v, free), free=free)
+    if np.any(polished < -BOUND_TOL * scale) or np.any(grades @ polished < -BOUND_TOL * scale):
+        return None
+    return BoundedFlows(np.clip(polished, 0.0, None), current.held, success, "" if success else message)
 
 
 def _held(problem: SparseProblem, active: np.ndarray) -> SparseProblem:
@@ -464,12 +680,6 @@ def _emptied_by_balances(problem: SparseProblem, v0: np.ndarray) -> np.ndarray:
     solids = problem.n_streams * problem.n_classes
     at_zero = np.abs(v0) <= BOUND_TOL * max(float(np.abs(v0[:solids]).max(initial=0.0)), 1e-300)
     return emptied & at_zero  # at 0 to rounding (the projection leaves 1e-15 where a balance says 0)
-
-
-def _wrong_sign_multiplier(problem: SparseProblem, v: np.ndarray, free: np.ndarray, released_before: np.ndarray, factor):
-    """The held unknown whose multiplier is most negative, or None (the rule of the dense path);
-    ``factor``: the Gauss-Newton factor at ``v`` (the solution), which gives the multipliers."""
-    return most_wrong_held(*_held_multipliers(problem, v, free, factor), released_before)
 
 
 def _held_multipliers(problem: SparseProblem, v: np.ndarray, free: np.ndarray, factor) -> tuple:
@@ -504,7 +714,7 @@ def held_against_multipliers_sparse(problem: SparseProblem, v: np.ndarray, held:
 @dataclass(frozen=True)
 class SparseReconciliation:
     """What :func:`reconcile_sparse` hands to the balance: the last round's survey and problem,
-    the unbounded solution ``fitted`` and its linearisation, the bounded ``v`` and ``held``."""
+    the unbounded solution ``fitted`` and its linearisation, the ``bounded`` flows."""
 
     survey: object
     problem: SparseProblem
@@ -512,8 +722,7 @@ class SparseReconciliation:
     fitted: np.ndarray
     chi_square: float
     linearisation: SparseLinearisation
-    held: tuple[int, ...]
-    v: np.ndarray
+    bounded: BoundedFlows
     success: bool
     message: str
 
@@ -543,10 +752,10 @@ def reconcile_sparse(flowsheet, survey, *, early_xtol: float, tolerance: float, 
         raise DensePathNeeded("nothing to adjust")
     residual = _whitened(problem, v)
     linearisation = SparseLinearisation.at(problem, v, factor.fresh())
-    held, bounded = bounded_sparse(problem, v, progress)
-    if held and not np.all(np.isfinite(bounded)):
-        success, message = False, "the bounds on the flows did not settle (active-set iterations exhausted)"
-    return SparseReconciliation(survey, problem, basis, v, float(residual @ residual), linearisation, held, bounded, success,
+    bounded = bounded_sparse(problem, v, progress)
+    if not bounded.settled:
+        success, message = False, bounded.message
+    return SparseReconciliation(survey, problem, basis, v, float(residual @ residual), linearisation, bounded, success,
                                 message)  # fmt: skip
 
 
