@@ -3,10 +3,12 @@ wrong sign (raising them would lower the sum of squares), counted on both paths
 (``CircuitBalance.held_against_multipliers``) and named in the summary, with a reconciliation
 that did not converge.
 
-The rule holds such a flow for good once its release has made it negative again, so its end need
-not be a minimum: on the 30-node plant with four minerals (``large_plant(10, 20)``) it ends with
-12 of them (docs/performance.md, "where the bounds' rule ends"; a 45-second run, measured, not
-repeated here).  Here a flow is held on purpose where the least squares wants it well above 0.
+The dense path's rule holds such a flow for good once its release has made it negative again, so
+its end need not be a minimum: on the 30-node plant with four minerals (``large_plant(10, 20)``)
+it ended with 12 of them (docs/performance.md, "where the bounds' rule ends"), before large
+flowsheets took bounds of their own (``sparse_solve.bounded_sparse``), which count the class
+flows that emptied their class instead.  Here a flow is held on purpose where the least squares
+wants it well above 0.
 """
 
 import dataclasses
@@ -86,3 +88,12 @@ def test_the_summary_says_so_in_words(example):
             and "not shown to be the least-squares minimum under the bounds" in fresh.report())  # fmt: skip
     stopped = dataclasses.replace(balance, success=False, message="Gauss-Newton did not converge in 200 steps")
     assert "not converged: Gauss-Newton did not converge in 200 steps" in stopped.report()
+
+
+def test_a_large_flowsheet_says_why_in_its_own_words(example):
+    _, _, balance = example
+    counted = dataclasses.replace(balance, raisable_held=2)  # as the bounds of a large flowsheet count them
+    assert counted.held_against_multipliers == 2
+    assert ("2 of the flows held at 0 would lower the sum of squares if raised (each reached 0, emptied its class and "
+            "took the class's assays out of the least squares)" in counted.report())  # fmt: skip
+    assert dataclasses.replace(balance, raisable_held=0).held_against_multipliers == 0

@@ -187,6 +187,25 @@ def _covariance_residual(balance, covariance: np.ndarray) -> float:
 
 
 @pytest.mark.slow
+def test_the_30_node_plant_with_four_minerals_ends_inside_the_bounds_and_the_grades():
+    """4,100 unknowns: the bounds settle (three quadratic programmes) at a chi-square of the held
+    problem of 1,197.65 (the active-set rule of the dense path ended at 1,478.6 with 12 wrong-sign
+    held flows and grades up to 80, docs/circuit.md), every grade at most 1, and the summary
+    counts the class flows that emptied their class and would lower it if raised."""
+    flowsheet, survey = _survey(10, 20, minerals=True)
+    balance = reconcile(flowsheet, survey)
+    assert sparse_solve.is_sparse(balance.problem) and balance.success
+    assert np.all(balance.component_flows <= balance.class_flows[None] * (1 + 1e-12)) and balance.class_flows.min() >= 0
+    v = balance._unknowns
+    active = np.zeros(v.size, dtype=bool)
+    active[list(balance.at_bound)] = True
+    residual = sparse_solve._whitened(sparse_solve._held(balance.problem, active), v)
+    assert float(residual @ residual) == pytest.approx(1197.65, rel=1e-5)
+    assert balance.held_against_multipliers == balance.raisable_held == 4
+    assert "4 of the flows held at 0 would lower the sum of squares if raised (each reached 0" in balance.report()
+
+
+@pytest.mark.slow
 def test_a_large_survey_the_balances_cannot_determine_is_refused_as_on_the_dense_path():
     """Two streams of a cyclone without a size analysis: the sparse path sees the solids flows no
     measurement determines and hands over to the dense path, which names the streams."""
