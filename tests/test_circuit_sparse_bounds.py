@@ -152,3 +152,24 @@ def test_the_bounded_end_is_below_the_dense_active_set_s(bounded):
     solids = problem.n_streams * problem.n_classes
     assert (v[solids:].reshape(problem.n_components, solids) / np.where(v[:solids] > 0, v[:solids], np.inf)).max() > 10
     assert _sum_of_squares(problem, result.v, result.held) < _sum_of_squares(problem, v, held) - 2.0
+
+
+def test_polishes_that_leave_the_bounds_leave_the_iterate_inside_them(plant, bounded, monkeypatch):
+    """Every polish refused (as where degenerate bounds make the held solve leave them): after
+    two, the interior point's iterate stands, inside the bounds and on the balances."""
+    problem, fitted, result = bounded
+    monkeypatch.setattr(sparse_solve, "_polished", lambda *args: None)
+    stood = sparse_solve.bounded_sparse(problem, fitted)
+    assert stood.settled and np.all(stood.v >= 0.0) and np.all(stood.v[list(stood.held)] == 0.0)
+    assert np.abs(problem.A @ stood.v - problem.b).max() <= 1e-8 * np.abs(stood.v).max()
+    assert _sum_of_squares(problem, stood.v, stood.held) == pytest.approx(_sum_of_squares(problem, result.v, result.held), rel=1e-6)
+
+
+def test_an_interior_point_that_does_not_converge_is_said(bounded, monkeypatch):
+    from tromplab.circuit import bounded_qp
+
+    problem, fitted, _ = bounded
+    monkeypatch.setattr(bounded_qp, "ITERATIONS", 2)
+    stopped = sparse_solve.bounded_sparse(problem, fitted)
+    assert not stopped.settled and stopped.message == "the bounds' quadratic programme did not converge"
+    assert np.all(stopped.v >= 0.0)  # the last iterate inside the bounds (the start)

@@ -469,6 +469,8 @@ _DEPENDENT_ROWS: dict[bytes, np.ndarray] = {}
 
 #: At most this many steps of the bounded Gauss-Newton iteration (the plants of the tests take 3-6).
 BOUNDED_STEPS = 40
+#: After this many polishes that leave the bounds with the same bounds binding, the iterate stands.
+UNPOLISHED = 2
 
 
 @dataclass(frozen=True)
@@ -509,7 +511,7 @@ def bounded_sparse(problem: SparseProblem, fitted: np.ndarray, progress=None) ->
     held, v = _inside_the_bounds(problem, fitted, progress)
     emptied = np.zeros(fitted.size, dtype=bool)  # class flows held with their class (and its assays out)
     emptied[:solids] = held[:solids] & _assayed_classes(problem)
-    cost, binding = np.inf, None
+    cost, binding, unpolished = np.inf, None, 0
     for _ in range(BOUNDED_STEPS):
         current = _held(problem, emptied)
         free = np.setdiff1d(np.arange(v.size), current.held)
@@ -519,7 +521,13 @@ def bounded_sparse(problem: SparseProblem, fitted: np.ndarray, progress=None) ->
         residual = _whitened(current, v)
         A, b, _ = free_constraints(current, free)
         grades, pairs = _grade_rows(current, free)
-        qp = bounded_least_squares(J, J @ v[free] - residual, A, b, grades, v[free])
+        try:
+            qp = bounded_least_squares(J, J @ v[free] - residual, A, b, grades, v[free])
+        except RuntimeError as error:  # SuperLU: "Factor is exactly singular"
+            raise DensePathNeeded(f"the bounds' quadratic programme: {error}") from None
+        if not qp.converged:
+            return BoundedFlows(v, tuple(np.flatnonzero(emptied | (v == 0.0))), False,
+                                "the bounds' quadratic programme did not converge")  # fmt: skip
         target = v.copy()
         target[free] = np.where(qp.at_zero, 0.0, np.clip(qp.x, 0.0, None))
         now = np.zeros(v.size + problem.n_components * solids, dtype=bool)  # the bounds, then the grades, binding
@@ -529,6 +537,12 @@ def bounded_sparse(problem: SparseProblem, fitted: np.ndarray, progress=None) ->
         emptied |= newly_emptied
         if binding is not None and np.array_equal(now, binding) and not newly_emptied.any():
             polished = _polished(problem, v, emptied | now[: v.size], np.flatnonzero(now[v.size :]))
+            unpolished += polished is None
+            if polished is None and unpolished == UNPOLISHED:
+                # the binding bounds stay, the solve with them held leaves the bounds: degenerate
+                # bounds (at 0 with a multiplier at 0); the iterate is the solution to the
+                # interior point's accuracy, inside the bounds and on the balances
+                polished = BoundedFlows(v, tuple(np.flatnonzero(emptied | now[: v.size] | problem.emptied(emptied))))
             if polished is not None:
                 return replace(polished, raisable=_raisable(problem, polished.v, emptied))
         binding = now
@@ -609,7 +623,10 @@ def _raisable(problem: SparseProblem, v: np.ndarray, emptied: np.ndarray) -> int
     everything = np.arange(v.size)
     J = (current.W @ current.jacobian(v)).tocsr()
     residual = _whitened(current, v)
-    qp = bounded_least_squares(J, J @ v - residual, problem.A, problem.b, _grade_rows(current, everything)[0], v)
+    try:
+        qp = bounded_least_squares(J, J @ v - residual, problem.A, problem.b, _grade_rows(current, everything)[0], v)
+    except RuntimeError:  # a singular system: the multipliers of one factor count them instead
+        return held_against_multipliers_sparse(problem, v, tuple(np.flatnonzero(emptied | problem.emptied(emptied))))
     model = J @ (qp.x - v) + residual
     if float(residual @ residual) - float(model @ model) <= WRONG_SIGN * float(residual @ residual):
         return 0
