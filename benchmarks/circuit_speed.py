@@ -17,8 +17,8 @@ One run measures, side by side:
   solids alone and (``--minerals``) with the four minerals assayed on every stream, each
   against its floor: one weighted least-squares solve of the sparse path it takes (the LU of the
   augmented system and one step, ``tromplab.circuit.sparse_solve``), and the wall seconds of its
-  stages: the rounds of the error model with the linearisation, the bounds' active set (with the
-  number of sets of held flows solved), the tables.
+  stages: the rounds of the error model with the linearisation, the bounds (with the number of
+  solves and steps they report), the tables.
 
 It prints each wall time and CPU time (user and system: on a loaded machine the steadier
 measure), their ratios to the yardstick's (the acceptance targets: ``circuit`` at most
@@ -198,11 +198,12 @@ def _stamped(stamps: list[tuple[float, str]]):
 
 def _plant_stages(start: float, stamps: list[tuple[float, str]], reconciled: float, total: float) -> dict:
     """Wall seconds of the plant's stages from the reconciliation's progress stamps: the rounds of
-    the error model with the linearisation after them (to the first set of held flows), the
-    bounds' active set (``sets`` of held flows solved), and the tables."""
+    the error model with the linearisation after them (to the first report of the bounds), the
+    bounds (``bounds_steps``: the solves that hold the negative flows, then the steps under the
+    bounds), and the tables."""
     bounds = [moment for moment, label in stamps if label.startswith("reconciliation: bounds")]
     first_bound = bounds[0] if bounds else reconciled
-    return {"rounds_s": first_bound - start, "bounds_s": reconciled - first_bound, "sets": len(bounds),
+    return {"rounds_s": first_bound - start, "bounds_s": reconciled - first_bound, "bounds_steps": len(bounds),
             "tables_s": start + total - reconciled}  # fmt: skip
 
 
