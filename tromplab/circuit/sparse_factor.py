@@ -294,9 +294,11 @@ SOLVE_BLOCK = 32
 
 #: The iterative refinement of a solve through the factor of a nearby system (the last step's or
 #: round's) stops at a residual of this share of the system's size times the solution's (the
-#: backward error of a direct solve, a few units of rounding), after at most this many steps.
+#: backward error of a direct solve, a few units of rounding), after at most this many steps
+#: (each a pair of triangular solves, about 1 ms on the 30-node plant with four minerals against
+#: 40 ms for an LU: 30 steps left 37 of the 50 LUs of its error model's rounds, 12 steps 50).
 REFINED = 1e-14
-REFINEMENT_STEPS = 12
+REFINEMENT_STEPS = 30
 
 #: SuperLU's options for a system of a given size and pattern, the better of two orders
 #: (:func:`_factored`): COLAMD's column order with partial pivoting, or the minimum degree of the
