@@ -190,7 +190,7 @@ def _covariance_residual(balance, covariance: np.ndarray) -> float:
 def test_the_30_node_plant_with_four_minerals_ends_inside_the_bounds_and_the_grades():
     """4,100 unknowns: the bounds settle (three quadratic programmes) at a chi-square of the held
     problem of 1,197.65 (the active-set rule of the dense path ended at 1,478.6 with 12 wrong-sign
-    held flows and grades up to 80, docs/circuit.md), every grade at most 1, and the summary
+    held flows and grades up to 25, docs/circuit.md), every grade at most 1, and the summary
     counts the class flows that emptied their class and would lower it if raised."""
     flowsheet, survey = _survey(10, 20, minerals=True)
     balance = reconcile(flowsheet, survey)
