@@ -22,8 +22,11 @@ normal equations :math:`J^T J` would square it.  The covariance of the unknowns,
 :math:`\begin{pmatrix} J^T J & A^T \\ A & 0 \end{pmatrix}` (Bjorck 1996, ch. 5): solves of that
 one factor give it, and the delta-method sds, the measurement tests, the worth of each
 measurement and the design candidates (Sherman-Morrison-Woodbury) follow from it by sparse
-products (:class:`SparseLinearisation`).  The bounds at 0 use the dense path's active set
-(Lawson & Hanson 1974) with the held unknowns taken out of the problem.
+products (:class:`SparseLinearisation`).  The bounds (every flow at 0 or above, every
+component's grade of a class at 1 or below) are met by Gauss-Newton steps under all of them at
+once, each a convex quadratic programme (:mod:`tromplab.circuit.bounded_qp`), from a start where
+the negative flows are held (the first half of the dense path's active set, Lawson & Hanson
+1974): :func:`bounded_sparse`.
 
 The path requires every free direction to be seen by a measurement (no water flow left
 undetermined: surveys with per cent solids take the dense path) and the constraints to be
