@@ -162,7 +162,9 @@ def test_polishes_that_leave_the_bounds_leave_the_iterate_inside_them(plant, bou
     stood = sparse_solve.bounded_sparse(problem, fitted)
     assert stood.settled and np.all(stood.v >= 0.0) and np.all(stood.v[list(stood.held)] == 0.0)
     assert np.abs(problem.A @ stood.v - problem.b).max() <= 1e-8 * np.abs(stood.v).max()
-    assert _sum_of_squares(problem, stood.v, stood.held) == pytest.approx(_sum_of_squares(problem, result.v, result.held), rel=1e-6)
+    assert _sum_of_squares(problem, stood.v, stood.held) == pytest.approx(
+        _sum_of_squares(problem, result.v, result.held), rel=1e-6
+    )
 
 
 def test_an_interior_point_that_does_not_converge_is_said(bounded, monkeypatch):
