@@ -502,8 +502,9 @@ def bounded_sparse(problem: SparseProblem, fitted: np.ndarray, progress=None) ->
     component flows held at 0 with it, its assays out of the least squares, as on the dense
     path).  When two steps in a row leave the same bounds binding, one equality-constrained solve
     with those bounds held and those grades at 1 (:func:`_polished`) converges the last digits;
-    if it stays inside the bounds, that is the solution.  ``progress``: called at each step
-    ("reconciliation: bounds, N flows held")."""
+    if it stays inside the bounds, that is the solution.  ``progress``: called at each solve that
+    holds negative flows ("reconciliation: bounds, N flows held") and at each step
+    ("reconciliation: bounds, step K, N flows at 0")."""
     from .bounded_qp import bounded_least_squares
 
     scale = max(np.abs(fitted).max(initial=0.0), 1e-300)
@@ -515,11 +516,11 @@ def bounded_sparse(problem: SparseProblem, fitted: np.ndarray, progress=None) ->
     emptied = np.zeros(fitted.size, dtype=bool)  # class flows held with their class (and its assays out)
     emptied[:solids] = held[:solids] & _assayed_classes(problem)
     cost, binding, unpolished = np.inf, None, 0
-    for _ in range(BOUNDED_STEPS):
+    for step in range(1, BOUNDED_STEPS + 1):
         current = _held(problem, emptied)
         free = np.setdiff1d(np.arange(v.size), current.held)
         if progress is not None:
-            progress(0, 1, f"reconciliation: bounds, {len(current.held) + int(np.sum(v[free] == 0.0))} flows held")
+            progress(0, 1, f"reconciliation: bounds, step {step}, {int(np.sum(v == 0.0))} flows at 0")
         J = (current.W @ current.jacobian(v)).tocsc()[:, free].tocsr()
         residual = _whitened(current, v)
         A, b, _ = free_constraints(current, free)
