@@ -172,7 +172,8 @@ def reconcile_circuit(
         The weights of ``points.csv`` and of the fits (default the error model).
     progress : callable, optional
         ``progress(done, total, label)`` at each stage (``"reconciliation: round k"``, on a large
-        flowsheet ``"reconciliation: bounds, N flows held"``, ``"elimination: step k"``,
+        flowsheet ``"reconciliation: bounds, N flows held"`` and ``"reconciliation: bounds, step K,
+        N flows at 0"``, ``"elimination: step k"``,
         ``"design: candidate i of n"``; :func:`~tromplab.circuit.reconciliation.reconcile`).
 
     Returns
