@@ -508,9 +508,13 @@ def bounded_sparse(problem: SparseProblem, fitted: np.ndarray, progress=None) ->
     bounded_least_squares`), shortened by halves until the sum of squares falls: every iterate
     satisfies the balances and the bounds.  A class flow that reaches 0 empties its class (its
     component flows held at 0 with it, its assays out of the least squares, as on the dense
-    path).  When two steps in a row leave the same bounds binding, one equality-constrained solve
-    with those bounds held and those grades at 1 (:func:`_polished`) converges the last digits;
-    if it stays inside the bounds, that is the solution.  ``progress``: called at each solve that
+    path), and so does an assayed one a step would shrink below :data:`EMPTYING` of itself.  Each
+    programme begins from the last one's multipliers (:func:`_warm`).  When two steps in a row
+    leave the same bounds binding (or a step gains less than :data:`SETTLING`), one
+    equality-constrained solve with those bounds held and those grades at 1 (:func:`_polished`)
+    converges the last digits; if it stays inside the bounds, that is the solution, and
+    :func:`_raisable` counts the emptied classes that would lower the sum of squares if raised.
+    ``progress``: called at each solve that
     holds negative flows ("reconciliation: bounds, N flows held") and at each step
     ("reconciliation: bounds, step K, N flows at 0")."""
     from .bounded_qp import bounded_least_squares
