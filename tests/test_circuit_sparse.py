@@ -346,3 +346,30 @@ def test_pinned_unknowns_give_the_covariance_of_the_unseen_directions_as_constra
     residual = problem.W @ (problem.predict(v) - problem.y)
     expected_step = -N @ np.linalg.lstsq(J @ N, residual, rcond=None)[0]
     np.testing.assert_allclose(factor.step(residual), expected_step, rtol=0, atol=1e-9 * np.abs(expected_step).max())
+
+
+def test_the_adjustments_figure_of_a_large_survey_shows_its_largest_tests():
+    """The 30-node plant (solids only: 600-odd measurements): the figure shows the 150 largest
+    measurement tests, in the table's order, says so in its title and stays 25 inches tall; a
+    survey of the usual size shows every measurement (the bundled example's 78)."""
+    from pathlib import Path
+
+    from tromplab.circuit import plotting, read_flowsheet, read_survey
+    from tromplab.output.plotting import offscreen_axes
+
+    flowsheet, survey = _survey(10, 20, minerals=False)
+    balance = reconcile(flowsheet, survey)
+    table = balance.adjustments_table()
+    shown = plotting._adjustments_shown(balance)
+    assert len(table) > plotting.ADJUSTMENTS_SHOWN == len(shown)
+    tests = np.abs(table["measurement_test"].to_numpy(float))
+    assert np.nanmin(np.abs(shown["measurement_test"].to_numpy(float))) >= np.sort(tests[np.isfinite(tests)])[-150]
+    assert list(shown.index) == sorted(shown.index)
+    ax = offscreen_axes(figsize=plotting.figure_size(balance, "adjustments"))
+    plotting.plot_adjustments(balance, ax=ax)
+    assert f"the 150 largest measurement tests of {len(table)}" in ax.get_title()
+    assert plotting.figure_size(balance, "adjustments") == (8.0, 0.16 * 150 + 1.0)
+    root = Path(__file__).resolve().parents[1]
+    sheet = read_flowsheet(root / "datasets" / "circuit_example_flowsheet.csv")
+    example = reconcile(sheet, read_survey(root / "datasets" / "circuit_example_survey.csv", sheet))
+    assert len(plotting._adjustments_shown(example)) == len(example.adjustments_table()) == 78
