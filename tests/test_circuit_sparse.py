@@ -348,6 +348,7 @@ def test_pinned_unknowns_give_the_covariance_of_the_unseen_directions_as_constra
     np.testing.assert_allclose(factor.step(residual), expected_step, rtol=0, atol=1e-9 * np.abs(expected_step).max())
 
 
+@pytest.mark.slow
 def test_the_adjustments_figure_of_a_large_survey_shows_its_largest_tests():
     """The 30-node plant (solids only: 600-odd measurements): the figure shows the 150 largest
     measurement tests, in the table's order, says so in its title and stays 25 inches tall; a
