@@ -361,7 +361,7 @@ def test_the_adjustments_figure_of_a_large_survey_shows_its_largest_tests():
     flowsheet, survey = _survey(10, 20, minerals=False)
     balance = reconcile(flowsheet, survey)
     table = balance.adjustments_table()
-    shown = plotting._adjustments_shown(balance)
+    shown = plotting._adjustments_shown(table)
     assert len(table) > plotting.ADJUSTMENTS_SHOWN == len(shown)
     tests = np.abs(table["measurement_test"].to_numpy(float))
     assert np.nanmin(np.abs(shown["measurement_test"].to_numpy(float))) >= np.sort(tests[np.isfinite(tests)])[-150]
@@ -373,4 +373,4 @@ def test_the_adjustments_figure_of_a_large_survey_shows_its_largest_tests():
     root = Path(__file__).resolve().parents[1]
     sheet = read_flowsheet(root / "datasets" / "circuit_example_flowsheet.csv")
     example = reconcile(sheet, read_survey(root / "datasets" / "circuit_example_survey.csv", sheet))
-    assert len(plotting._adjustments_shown(example)) == len(example.adjustments_table()) == 78
+    assert len(plotting._adjustments_shown(example.adjustments_table())) == len(example.adjustments_table()) == 78

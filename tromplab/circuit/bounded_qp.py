@@ -193,7 +193,7 @@ class _ReducedSystem:
     def __init__(self, J, A, G):
         from scipy import sparse
 
-        self.J, self.A, self.G = J, A, G
+        self.A, self.G = A, G
         self.normal = (J.T @ J).tocsr()
         self.n, self.m = J.shape[1], A.shape[0]
         self.order = None
@@ -209,7 +209,6 @@ class _ReducedSystem:
         if self.order is None:
             self.order = csgraph.reverse_cuthill_mckee(self.matrix, symmetric_mode=True)
             self.inverse = np.argsort(self.order)
-        self.exact = self.matrix + _corner(self.n, self.m, CONSTRAINT_REGULARISATION)
         permuted = self.matrix[self.order][:, self.order].tocsc()
         self.lu = sparse_linalg.splu(permuted, permc_spec="NATURAL", diag_pivot_thresh=0.01,
                                      options={"SymmetricMode": True})  # fmt: skip
@@ -220,15 +219,10 @@ class _ReducedSystem:
         rhs = np.concatenate([top, bottom])
         solution = self._solve(rhs)
         for _ in range(2):
-            solution = solution + self._solve(rhs - self.exact @ solution)
+            residual = rhs - self.matrix @ solution
+            residual[self.n :] -= CONSTRAINT_REGULARISATION * solution[self.n :]  # the -delta I block taken out
+            solution = solution + self._solve(residual)
         return solution[: self.n], -solution[self.n :]
 
     def _solve(self, rhs: np.ndarray) -> np.ndarray:
         return self.lu.solve(rhs[self.order])[self.inverse]
-
-
-def _corner(n: int, m: int, value: float):
-    """``value`` on the diagonal of the last ``m`` of ``n + m`` rows (undoes the regularisation)."""
-    from scipy import sparse
-
-    return sparse.diags(np.concatenate([np.zeros(n), np.full(m, value)]), format="csc")

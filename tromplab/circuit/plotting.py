@@ -31,7 +31,7 @@ def figure_size(balance, kind: str) -> tuple[float, float]:
         xs, ys = zip(*_layout(flowsheet).values())
         return (max(8.0, 0.75 * (max(xs) - min(xs)) + 4.0), max(4.5, 0.75 * (max(ys) - min(ys)) + 3.0))
     if kind == "adjustments":
-        return (8.0, max(3.0, 0.16 * len(_adjustments_shown(balance)) + 1.0))
+        return (8.0, max(3.0, 0.16 * min(len(balance.adjustments_table()), ADJUSTMENTS_SHOWN) + 1.0))
     return (8.0, 5.0)
 
 
@@ -41,11 +41,10 @@ def figure_size(balance, kind: str) -> tuple[float, float]:
 ADJUSTMENTS_SHOWN = 150
 
 
-def _adjustments_shown(balance):
-    """The rows of the adjustments table the figure shows: all of them, or the
+def _adjustments_shown(table):
+    """The rows of the adjustments ``table`` the figure shows: all of them, or the
     :data:`ADJUSTMENTS_SHOWN` of the largest measurement tests (in absolute value, a test not
     made last), in the table's order."""
-    table = balance.adjustments_table()
     if len(table) <= ADJUSTMENTS_SHOWN:
         return table
     size = np.nan_to_num(np.abs(table["measurement_test"].to_numpy(dtype=float)), nan=-1.0)
@@ -288,7 +287,8 @@ def plot_adjustments(balance, ax=None):
     adjustments, in its standard deviations, with the sign of reconciled - measured), with its
     critical value; suspects in red.  Of a survey of more than :data:`ADJUSTMENTS_SHOWN`
     measurements, those of the largest tests, the title says so."""
-    table = _adjustments_shown(balance)
+    everything = balance.adjustments_table()
+    table = _adjustments_shown(everything)
     ax = prepared_axes(ax, figure_size(balance, "adjustments"))
     position = np.arange(len(table))[::-1]
     values = table["measurement_test"].to_numpy(dtype=float)
@@ -301,10 +301,13 @@ def plot_adjustments(balance, ax=None):
     ax.axvline(0.0, color="black", linewidth=0.6)
     ax.set_yticks(position, table["measurement"], fontsize=6)
     ax.set_xlabel("measurement test: estimated gross error / its sd (sign of reconciled - measured)")
-    shown = len(balance.adjustments_table())
     ax.set_title(
         f"Adjustments: chi-square {balance.chi_square:.3g} on {balance.dof} dof (p = {balance.p_value:.3g})"
-        + ("" if len(table) == shown else f"\nthe {len(table)} largest measurement tests of {shown} (all in adjustments.csv)"),
+        + (
+            ""
+            if len(table) == len(everything)
+            else f"\nthe {len(table)} largest measurement tests of {len(everything)} (all in adjustments.csv)"
+        ),
         fontsize=10,
     )
     return ax

@@ -338,18 +338,14 @@ def _with_rows_of(problem: SparseProblem, free: np.ndarray, balanced: SparseProb
     and all of ``rows`` when these are independent of them (one sparse LU says so), else leave it
     to :func:`free_constraints` (a pivoted QR of each block of balances they touch, a second each
     on the 30-node plant)."""
+    from scipy import sparse
+
     A, b, kept = free_constraints(balanced, free)
-    stacked = _stack_rows(A, rows[:, free])
+    stacked = sparse.vstack([A, rows[:, free]]).tocsr()
     if _full_row_rank(stacked):
         key = _constraints_key(problem, free)
         everything = np.concatenate([kept, problem.A.shape[0] - rows.shape[0] + np.arange(rows.shape[0])])
         _FREE_CONSTRAINTS[key] = stacked, np.concatenate([b, np.zeros(rows.shape[0])]), everything
-
-
-def _stack_rows(A, rows):
-    from scipy import sparse
-
-    return sparse.vstack([A, rows]).tocsr()
 
 
 def _dependent_balances(A) -> np.ndarray | None:
@@ -509,7 +505,7 @@ def bounded_sparse(problem: SparseProblem, fitted: np.ndarray, progress=None) ->
     satisfies the balances and the bounds.  A class flow that reaches 0 empties its class (its
     component flows held at 0 with it, its assays out of the least squares, as on the dense
     path), and so does an assayed one a step would shrink below :data:`EMPTYING` of itself.  Each
-    programme begins from the last one's multipliers (:func:`_warm`).  When two steps in a row
+    programme begins from the last one's multipliers.  When two steps in a row
     leave the same bounds binding (or a step gains less than :data:`SETTLING`), one
     equality-constrained solve with those bounds held and those grades at 1 (:func:`_polished`)
     converges the last digits; if it stays inside the bounds, that is the solution, and
@@ -527,7 +523,9 @@ def bounded_sparse(problem: SparseProblem, fitted: np.ndarray, progress=None) ->
     held, v = _inside_the_bounds(problem, fitted, progress)
     emptied = np.zeros(fitted.size, dtype=bool)  # class flows held with their class (and its assays out)
     emptied[:solids] = held[:solids] & _assayed_classes(problem)
-    cost, binding, unpolished, last = np.inf, None, 0, None
+    cost, binding, unpolished = np.inf, None, 0
+    # the last programme's multipliers on every unknown and every grade (NaN: none), to begin the next from
+    bound_multipliers, grade_multipliers = np.full(v.size, np.nan), np.full(problem.n_components * solids, np.nan)
     for step in range(1, BOUNDED_STEPS + 1):
         current = _held(problem, emptied)
         free = np.setdiff1d(np.arange(v.size), current.held)
@@ -538,13 +536,15 @@ def bounded_sparse(problem: SparseProblem, fitted: np.ndarray, progress=None) ->
         A, b, _ = free_constraints(current, free)
         grades, pairs = _grade_rows(current, free)
         try:
-            qp = bounded_least_squares(J, J @ v[free] - residual, A, b, grades, v[free], _warm(last, free, pairs))
+            warm = None if step == 1 else (bound_multipliers[free], grade_multipliers[pairs])
+            qp = bounded_least_squares(J, J @ v[free] - residual, A, b, grades, v[free], warm)
         except RuntimeError as error:  # SuperLU: "Factor is exactly singular"
             raise DensePathNeeded(f"the bounds' quadratic programme: {error}") from None
         if not qp.converged:
             return BoundedFlows(v, tuple(np.flatnonzero(emptied | (v == 0.0))), False,
                                 "the bounds' quadratic programme did not converge")  # fmt: skip
-        last = free, pairs, qp
+        bound_multipliers[:], grade_multipliers[:] = np.nan, np.nan
+        bound_multipliers[free], grade_multipliers[pairs] = qp.z, qp.w
         target = v.copy()
         target[free] = np.where(qp.at_zero, 0.0, np.clip(qp.x, 0.0, None))
         collapsing = np.zeros(v.size, dtype=bool)
@@ -570,20 +570,6 @@ def bounded_sparse(problem: SparseProblem, fitted: np.ndarray, progress=None) ->
         binding = now
     return BoundedFlows(v, tuple(np.flatnonzero(emptied | (v == 0.0))), False,
                         f"the bounds on the flows did not settle in {BOUNDED_STEPS} steps")  # fmt: skip
-
-
-def _warm(last, free: np.ndarray, pairs: np.ndarray):
-    """The multipliers ``(z, w)`` of the last step's programme (``last``: its free unknowns, its
-    grades' pairs and its :class:`~tromplab.circuit.bounded_qp.BoundedStep`) on ``free`` and
-    ``pairs``, NaN where it had none; None without a last step."""
-    if last is None:
-        return None
-    last_free, last_pairs, qp = last
-    z = np.full(max(int(free.max(initial=0)), int(last_free.max(initial=0))) + 1, np.nan)
-    z[last_free] = qp.z
-    w = np.full(max(int(pairs.max(initial=0)), int(last_pairs.max(initial=0))) + 1, np.nan)
-    w[last_pairs] = qp.w
-    return z[free], w[pairs]
 
 
 def _inside_the_bounds(problem: SparseProblem, fitted: np.ndarray, progress=None) -> tuple[np.ndarray, np.ndarray]:
@@ -728,9 +714,8 @@ def _emptied_by_balances(problem: SparseProblem, v0: np.ndarray) -> np.ndarray:
     emptied = np.zeros(v0.size, dtype=bool)
     if not problem.n_components or not problem.y.size:
         return emptied
-    assay = problem.kinds == "assay"
-    emptied[problem.stream[assay] * problem.n_classes + problem.klass[assay]] = True
     solids = problem.n_streams * problem.n_classes
+    emptied[:solids] = _assayed_classes(problem)
     at_zero = np.abs(v0) <= BOUND_TOL * max(float(np.abs(v0[:solids]).max(initial=0.0)), 1e-300)
     return emptied & at_zero  # at 0 to rounding (the projection leaves 1e-15 where a balance says 0)
 
